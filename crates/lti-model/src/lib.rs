@@ -1,0 +1,30 @@
+//! # lti-model
+//!
+//! Constrained linear time-invariant plants for sub-optimal moving horizon estimation
+//! (Yang, Manzie, Pu, arXiv 2304.06216, Section II):
+//!
+//! - [`LtiSystem`]: eq. (1), x⁺ = Ax + Bu + w¹, y = Cx + w², validated at construction;
+//!   observability and detectability checks.
+//! - [`sets`]: 𝒳, 𝒰, 𝒴, 𝒲 as convex sets with exact in-place projections.
+//! - [`disturbance`]: seeded disturbance models (uniform on a box, Gaussian).
+//! - [`riccati`]: zero-order-hold discretisation, DARE (MPC terminal cost) and discrete
+//!   Lyapunov equations, each verified by its residual.
+//! - [`ioss`]: the δ-IOSS certificate of Assumption 2: find or verify P ≻ 0 satisfying
+//!   LMI (2) for given (A, C, η, Q, R), and the smallest feasible η.
+//! - [`scenario`]: TOML scenario files, validated into these types.
+//!
+//! Every fallible constructor returns [`ModelError`], whose variants name the offending
+//! matrix or scenario key.
+
+pub mod disturbance;
+pub mod error;
+pub mod ioss;
+pub mod matrix;
+pub mod riccati;
+pub mod scenario;
+pub mod sets;
+pub mod system;
+
+pub use error::{ModelError, Result};
+pub use sets::{BoxSet, ConvexSet, Polytope, Projection, Set};
+pub use system::LtiSystem;

@@ -1,0 +1,183 @@
+//! Small dense-matrix helpers shared by the crates: validation (shape, finiteness,
+//! symmetry, definiteness) and symmetric eigenvalues.
+//!
+//! These run at setup time on small matrices, so they use faer's high-level API.
+
+use faer::{Mat, MatRef, Side};
+
+use crate::error::{ModelError, Result};
+
+/// Builds a matrix from row-major nested rows, checking that all rows have one length.
+///
+/// ```
+/// let a = lti_model::matrix::from_rows("A", &[vec![1.0, 2.0], vec![3.0, 4.0]]).unwrap();
+/// assert_eq!(a[(1, 0)], 3.0);
+/// ```
+pub fn from_rows(name: &str, rows: &[Vec<f64>]) -> Result<Mat<f64>> {
+    let nrows = rows.len();
+    let ncols = rows.first().map_or(0, Vec::len);
+    for r in rows {
+        if r.len() != ncols {
+            return Err(ModelError::Shape {
+                name: name.to_string(),
+                expected_rows: nrows,
+                expected_cols: ncols,
+                actual_rows: nrows,
+                actual_cols: r.len(),
+            });
+        }
+    }
+    let m = Mat::from_fn(nrows, ncols, |i, j| rows[i][j]);
+    check_finite(name, m.as_ref())?;
+    Ok(m)
+}
+
+/// Builds a column vector (n × 1 matrix) from a slice.
+pub fn col(v: &[f64]) -> Mat<f64> {
+    Mat::from_fn(v.len(), 1, |i, _| v[i])
+}
+
+/// Checks that `m` has shape `rows × cols`.
+pub fn check_shape(name: &str, m: MatRef<'_, f64>, rows: usize, cols: usize) -> Result<()> {
+    if m.nrows() != rows || m.ncols() != cols {
+        return Err(ModelError::Shape {
+            name: name.to_string(),
+            expected_rows: rows,
+            expected_cols: cols,
+            actual_rows: m.nrows(),
+            actual_cols: m.ncols(),
+        });
+    }
+    Ok(())
+}
+
+/// Checks that a vector has length `n`.
+pub fn check_len(name: &str, v: &[f64], n: usize) -> Result<()> {
+    if v.len() != n {
+        return Err(ModelError::Shape {
+            name: name.to_string(),
+            expected_rows: n,
+            expected_cols: 1,
+            actual_rows: v.len(),
+            actual_cols: 1,
+        });
+    }
+    Ok(())
+}
+
+/// Checks that every entry of `m` is finite.
+pub fn check_finite(name: &str, m: MatRef<'_, f64>) -> Result<()> {
+    for j in 0..m.ncols() {
+        for i in 0..m.nrows() {
+            let value = m[(i, j)];
+            if !value.is_finite() {
+                return Err(ModelError::NonFinite { name: name.to_string(), row: i, col: j, value });
+            }
+        }
+    }
+    Ok(())
+}
+
+/// Checks that every entry of a vector is finite.
+pub fn check_finite_slice(name: &str, v: &[f64]) -> Result<()> {
+    match v.iter().position(|x| !x.is_finite()) {
+        Some(i) => Err(ModelError::NonFinite { name: name.to_string(), row: i, col: 0, value: v[i] }),
+        None => Ok(()),
+    }
+}
+
+/// Largest |m_ij − m_ji|.
+pub fn asymmetry(m: MatRef<'_, f64>) -> f64 {
+    let mut worst = 0.0_f64;
+    for i in 0..m.nrows() {
+        for j in 0..i {
+            worst = worst.max((m[(i, j)] - m[(j, i)]).abs());
+        }
+    }
+    worst
+}
+
+/// Returns (M + Mᵀ)/2.
+pub fn symmetrize(m: MatRef<'_, f64>) -> Mat<f64> {
+    Mat::from_fn(m.nrows(), m.ncols(), |i, j| 0.5 * (m[(i, j)] + m[(j, i)]))
+}
+
+/// Eigenvalues of a symmetric matrix in nondecreasing order (the lower triangle is read).
+///
+/// Returns `ModelError::Numerical` if the eigensolver does not converge (it does not for
+/// finite input in practice, but no panic is reachable).
+pub fn sym_eigenvalues(name: &str, m: MatRef<'_, f64>) -> Result<Vec<f64>> {
+    if m.nrows() == 0 {
+        return Ok(Vec::new());
+    }
+    let s = symmetrize(m);
+    s.self_adjoint_eigenvalues(Side::Lower).map_err(|e| ModelError::Numerical {
+        routine: format!("symmetric eigenvalues of `{name}`"),
+        reason: format!("{e:?}"),
+    })
+}
+
+/// Extreme eigenvalues (λ_min, λ_max) of a symmetric matrix.
+pub fn sym_extreme_eigenvalues(name: &str, m: MatRef<'_, f64>) -> Result<(f64, f64)> {
+    let ev = sym_eigenvalues(name, m)?;
+    match (ev.first(), ev.last()) {
+        (Some(&lo), Some(&hi)) => Ok((lo, hi)),
+        _ => Ok((0.0, 0.0)),
+    }
+}
+
+/// Relative tolerance on asymmetry used when validating weights: |M − Mᵀ| ≤ tol·max(1, |M|_max).
+pub const SYMMETRY_TOL: f64 = 1e-10;
+
+/// Validates a weight matrix: `n × n`, finite, symmetric (to [`SYMMETRY_TOL`] relative)
+/// and positive definite. Returns (λ_min, λ_max).
+///
+/// ```
+/// use faer::Mat;
+/// let q = Mat::<f64>::identity(3, 3);
+/// let (lo, hi) = lti_model::matrix::check_positive_definite("Q", q.as_ref(), 3).unwrap();
+/// assert!((lo - 1.0).abs() < 1e-12 && (hi - 1.0).abs() < 1e-12);
+/// ```
+pub fn check_positive_definite(name: &str, m: MatRef<'_, f64>, n: usize) -> Result<(f64, f64)> {
+    check_shape(name, m, n, n)?;
+    check_finite(name, m)?;
+    let scale = m.norm_max().max(1.0);
+    let asym = asymmetry(m);
+    if asym > SYMMETRY_TOL * scale {
+        return Err(ModelError::NotSymmetric { name: name.to_string(), asymmetry: asym });
+    }
+    let (lo, hi) = sym_extreme_eigenvalues(name, m)?;
+    if !(lo > 0.0) {
+        return Err(ModelError::NotPositiveDefinite { name: name.to_string(), min_eigenvalue: lo });
+    }
+    Ok((lo, hi))
+}
+
+/// Spectral norm ‖M‖₂ (largest singular value).
+pub fn spectral_norm(m: MatRef<'_, f64>) -> f64 {
+    if m.nrows() == 0 || m.ncols() == 0 {
+        return 0.0;
+    }
+    // ‖M‖₂² = λ_max(MᵀM); avoids a failure mode of the SVD path on tiny inputs.
+    let mtm = m.transpose() * m;
+    sym_extreme_eigenvalues("MᵀM", mtm.as_ref()).map_or(f64::NAN, |(_, hi)| hi.max(0.0).sqrt())
+}
+
+/// Block-diagonal matrix of the given blocks.
+pub fn block_diag(blocks: &[MatRef<'_, f64>]) -> Mat<f64> {
+    let n: usize = blocks.iter().map(|b| b.nrows()).sum();
+    let m: usize = blocks.iter().map(|b| b.ncols()).sum();
+    let mut out = Mat::zeros(n, m);
+    let (mut r, mut c) = (0, 0);
+    for b in blocks {
+        out.as_mut().submatrix_mut(r, c, b.nrows(), b.ncols()).copy_from(b);
+        r += b.nrows();
+        c += b.ncols();
+    }
+    out
+}
+
+/// Converts a matrix to row-major nested vectors (for JSON output).
+pub fn to_rows(m: MatRef<'_, f64>) -> Vec<Vec<f64>> {
+    (0..m.nrows()).map(|i| (0..m.ncols()).map(|j| m[(i, j)]).collect()).collect()
+}

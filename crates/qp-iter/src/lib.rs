@@ -1,1 +1,82 @@
-//! placeholder
+//! # qp-iter
+//!
+//! Iteration maps Φ for parametric QPs (Assumption 5 of Yang–Manzie–Pu, eq. (11)):
+//!
+//! minimise ½ zᵀHz + (q₀ + Fθ)ᵀz subject to z ∈ Z (a box with ±∞ bounds).
+//!
+//! - [`ParametricQp`]: validated problem data (H ≻ 0 symmetric, shapes, finite entries).
+//! - [`IterationMap`]: the algorithm object Φ (setup data only, `Send + Sync`) with a
+//!   separate [`IterationMap::State`] holding iterates, momentum, duals and the loaded
+//!   linear term. Loading θ, warm/cold starting and stepping allocate nothing.
+//! - [`Certificate`]: rate, prefactor, bounded quantity and norm, so that
+//!   φ(K) = prefactor · rateᴷ and the smallest K for a given accuracy are exact functions.
+//! - Drivers [`run_fixed`] (exactly K steps) and [`run_until`] (to a tolerance, with an
+//!   observer) live outside the trait.
+//!
+//! This crate knows parametric QPs only: never A, B or C.
+
+pub mod certificate;
+pub mod driver;
+pub mod error;
+pub mod kernel;
+pub mod pg;
+pub mod problem;
+
+pub use certificate::{BoundedQuantity, Certificate, CertNorm};
+pub use driver::{RunResult, RunStatus, run_fixed, run_until};
+pub use error::{QpError, Result};
+pub use problem::ParametricQp;
+
+/// The iteration map Φ of Assumption 5: z^{k+1} = Φ(z^k, θ).
+///
+/// The implementor holds setup data only (H, step sizes, factorisations, the certificate)
+/// and is shared by reference across threads. Everything that changes during a solve
+/// lives in [`IterationMap::State`], created once by [`IterationMap::new_state`].
+///
+/// None of `load`, `warm_start`, `cold_start`, `step` and `iterate` allocates.
+pub trait IterationMap: Send + Sync + std::fmt::Debug {
+    /// Per-solve state: iterate, auxiliary sequences, loaded linear term.
+    type State: Send + std::fmt::Debug;
+
+    /// Short method name (`"pg"`, `"fista"`, `"admm"`).
+    fn name(&self) -> &'static str;
+
+    /// The problem this map was set up for.
+    fn problem(&self) -> &ParametricQp;
+
+    /// A fresh state (allocates; call once at setup). Its linear term is q₀ (θ = 0) and
+    /// its iterate is the cold start.
+    fn new_state(&self) -> Self::State;
+
+    /// Loads parameters: linear term q = q₀ + Fθ. Keeps the current iterate.
+    ///
+    /// `theta.len()` must equal [`ParametricQp::n_theta`] (debug-asserted; hot path).
+    fn load(&self, state: &mut Self::State, theta: &[f64]);
+
+    /// Warm start from a primal point `z0` (and a dual, for methods that carry one).
+    /// Resets auxiliary sequences (e.g. FISTA momentum).
+    fn warm_start(&self, state: &mut Self::State, z0: &[f64], dual: Option<&[f64]>);
+
+    /// Cold start: the projection of 0 onto Z, duals zero, momentum reset.
+    fn cold_start(&self, state: &mut Self::State);
+
+    /// One application of Φ.
+    fn step(&self, state: &mut Self::State);
+
+    /// The current iterate z^k (the point the certificate speaks about, and the one a
+    /// caller should use: feasible for PG and FISTA; see each method for ADMM).
+    fn iterate<'s>(&self, state: &'s Self::State) -> &'s [f64];
+
+    /// The dual iterate, for methods that carry one.
+    fn dual<'s>(&self, _state: &'s Self::State) -> Option<&'s [f64]> {
+        None
+    }
+
+    /// The certified contraction φ(K) of eq. (11) for this map.
+    fn certificate(&self) -> &Certificate;
+
+    /// Number of matrix–vector products (or triangular-solve pairs) one step performs.
+    fn matvecs_per_step(&self) -> usize {
+        1
+    }
+}

@@ -1,0 +1,71 @@
+//! Drivers outside the trait: exactly K steps, or until a tolerance.
+
+use serde::Serialize;
+
+use crate::IterationMap;
+
+/// Outcome of a driver run.
+#[derive(Debug, Clone, Copy, PartialEq, Eq, Serialize)]
+#[serde(rename_all = "snake_case")]
+pub enum RunStatus {
+    /// Ran the requested K steps (fixed-K driver).
+    Completed,
+    /// Reached the tolerance (tolerance driver).
+    Converged,
+    /// Hit the iteration cap without reaching the tolerance.
+    MaxIterations,
+    /// A NaN or ∞ appeared in the iterate (e.g. NaN in θ); the run stopped there.
+    NonFinite,
+    /// The observer asked to stop.
+    Stopped,
+}
+
+/// Result of a driver run.
+#[derive(Debug, Clone, Copy, PartialEq, Serialize)]
+pub struct RunResult {
+    /// Steps actually taken.
+    pub iterations: usize,
+    /// Why the run ended.
+    pub status: RunStatus,
+}
+
+fn all_finite(z: &[f64]) -> bool {
+    z.iter().all(|v| v.is_finite())
+}
+
+/// Applies Φ exactly `k` times (the paper's fixed iteration budget K).
+///
+/// Checks finiteness once at the end (O(n), allocation-free): a non-finite iterate is
+/// reported as [`RunStatus::NonFinite`], never a panic.
+pub fn run_fixed<M: IterationMap>(map: &M, state: &mut M::State, k: usize) -> RunResult {
+    for _ in 0..k {
+        map.step(state);
+    }
+    let status = if all_finite(map.iterate(state)) { RunStatus::Completed } else { RunStatus::NonFinite };
+    RunResult { iterations: k, status }
+}
+
+/// Steps until `observer(k, z^k)` returns `true` (converged), at most `max_iter` steps.
+///
+/// The observer sees the iterate after every step; it returns `Some(true)` to declare
+/// convergence, `Some(false)` to stop early, `None` to continue. Typical use: stop when
+/// ‖z^k − z*‖ ≤ tol·‖z⁰ − z*‖ against a reference solution.
+pub fn run_until<M, O>(map: &M, state: &mut M::State, max_iter: usize, mut observer: O) -> RunResult
+where
+    M: IterationMap,
+    O: FnMut(usize, &[f64]) -> Option<bool>,
+{
+    for k in 1..=max_iter {
+        map.step(state);
+        let z = map.iterate(state);
+        if !all_finite(z) {
+            return RunResult { iterations: k, status: RunStatus::NonFinite };
+        }
+        match observer(k, z) {
+            Some(true) => return RunResult { iterations: k, status: RunStatus::Converged },
+            Some(false) => return RunResult { iterations: k, status: RunStatus::Stopped },
+            None => {}
+        }
+    }
+    RunResult { iterations: max_iter, status: RunStatus::MaxIterations }
+}

@@ -1,0 +1,28 @@
+//! Setup-time errors of `qp-iter`. Numerical outcomes of a run are a [`crate::RunStatus`].
+
+/// Errors raised when building a problem or an iteration map.
+#[derive(Debug, Clone, PartialEq, thiserror::Error)]
+pub enum QpError {
+    /// Invalid matrix / vector / set data (shape, NaN, not symmetric, not PD, empty box).
+    #[error(transparent)]
+    Model(#[from] lti_model::ModelError),
+    /// A method parameter is invalid (step size, penalty, tolerance).
+    #[error("parameter `{name}` = {value} is invalid: {reason}")]
+    Parameter {
+        /// Parameter name.
+        name: String,
+        /// Value given.
+        value: f64,
+        /// What is required.
+        reason: String,
+    },
+    /// The exact reference solver (Clarabel) did not solve the problem.
+    #[error("reference solver: {status}")]
+    Reference {
+        /// Clarabel's status.
+        status: String,
+    },
+}
+
+/// Result alias for `qp-iter`.
+pub type Result<T> = std::result::Result<T, QpError>;

@@ -1,0 +1,142 @@
+//! Parametric QP data: min ½zᵀHz + (q₀ + Fθ)ᵀz s.t. z ∈ Z.
+
+use faer::{Mat, MatRef};
+use lti_model::matrix::{check_finite, check_finite_slice, check_len, check_positive_definite, check_shape};
+use lti_model::{BoxSet, ConvexSet};
+
+use crate::error::Result;
+
+/// A strongly convex parametric QP over a box: min ½zᵀHz + (q₀ + Fθ)ᵀz s.t. z ∈ Z.
+///
+/// Validated at construction: H symmetric positive definite and finite, q₀ of length n,
+/// F of shape n × n_θ, Z of dimension n. Caches μ = λ_min(H), L = λ_max(H) and a
+/// row-major copy of H for the hot loop.
+///
+/// ```
+/// use faer::{mat, Mat};
+/// use lti_model::BoxSet;
+/// use qp_iter::ParametricQp;
+/// let qp = ParametricQp::new(
+///     mat![[2.0, 0.0], [0.0, 1.0]], vec![0.0, 0.0], Mat::identity(2, 2),
+///     BoxSet::symmetric(&[1.0, 1.0]).unwrap(),
+/// ).unwrap();
+/// assert_eq!((qp.n(), qp.n_theta()), (2, 2));
+/// assert!((qp.mu() - 1.0).abs() < 1e-12 && (qp.l() - 2.0).abs() < 1e-12);
+/// ```
+#[derive(Debug, Clone)]
+pub struct ParametricQp {
+    h: Mat<f64>,
+    h_rows: Vec<f64>,
+    q0: Vec<f64>,
+    f: Mat<f64>,
+    f_rows: Vec<f64>,
+    zset: BoxSet,
+    mu: f64,
+    l: f64,
+}
+
+impl ParametricQp {
+    /// Validates and builds the problem.
+    pub fn new(h: Mat<f64>, q0: Vec<f64>, f: Mat<f64>, zset: BoxSet) -> Result<Self> {
+        let n = h.nrows();
+        let (mu, l) = check_positive_definite("H", h.as_ref(), n)?;
+        check_len("q0", &q0, n)?;
+        check_finite_slice("q0", &q0)?;
+        check_shape("F", f.as_ref(), n, f.ncols())?;
+        check_finite("F", f.as_ref())?;
+        if zset.dim() != n {
+            return Err(lti_model::ModelError::Shape {
+                name: "Z".into(),
+                expected_rows: n,
+                expected_cols: 1,
+                actual_rows: zset.dim(),
+                actual_cols: 1,
+            }
+            .into());
+        }
+        // Symmetrise exactly so that the hot loop sees a symmetric H.
+        let h = lti_model::matrix::symmetrize(h.as_ref());
+        let h_rows = (0..n * n).map(|k| h[(k / n, k % n)]).collect();
+        let nt = f.ncols();
+        let f_rows = (0..n * nt).map(|k| f[(k / nt, k % nt)]).collect();
+        Ok(Self { h, h_rows, q0, f, f_rows, zset, mu, l })
+    }
+
+    /// Number of decision variables n.
+    pub fn n(&self) -> usize {
+        self.h.nrows()
+    }
+    /// Number of parameters n_θ.
+    pub fn n_theta(&self) -> usize {
+        self.f.ncols()
+    }
+    /// H.
+    pub fn h(&self) -> MatRef<'_, f64> {
+        self.h.as_ref()
+    }
+    /// H row-major (length n²), for kernels.
+    pub fn h_row_major(&self) -> &[f64] {
+        &self.h_rows
+    }
+    /// q₀.
+    pub fn q0(&self) -> &[f64] {
+        &self.q0
+    }
+    /// F.
+    pub fn f(&self) -> MatRef<'_, f64> {
+        self.f.as_ref()
+    }
+    /// The feasible box Z.
+    pub fn zset(&self) -> &BoxSet {
+        &self.zset
+    }
+    /// μ = λ_min(H): strong-convexity modulus.
+    pub fn mu(&self) -> f64 {
+        self.mu
+    }
+    /// L = λ_max(H): gradient Lipschitz constant.
+    pub fn l(&self) -> f64 {
+        self.l
+    }
+    /// Condition number κ = L/μ.
+    pub fn kappa(&self) -> f64 {
+        self.l / self.mu
+    }
+
+    /// Writes q = q₀ + Fθ into `q` (allocation-free). Lengths are debug-asserted.
+    #[inline]
+    pub fn linear_term(&self, theta: &[f64], q: &mut [f64]) {
+        let (n, nt) = (self.n(), self.n_theta());
+        debug_assert_eq!(theta.len(), nt);
+        debug_assert_eq!(q.len(), n);
+        for i in 0..n {
+            let row = &self.f_rows[i * nt..(i + 1) * nt];
+            let mut acc = self.q0[i];
+            for (a, b) in row.iter().zip(theta) {
+                acc += a * b;
+            }
+            q[i] = acc;
+        }
+    }
+
+    /// Objective ½zᵀHz + qᵀz for a given linear term q.
+    pub fn objective(&self, q: &[f64], z: &[f64]) -> f64 {
+        let n = self.n();
+        let mut val = 0.0;
+        for i in 0..n {
+            let mut hz = 0.0;
+            for j in 0..n {
+                hz += self.h_rows[i * n + j] * z[j];
+            }
+            val += z[i] * (0.5 * hz + q[i]);
+        }
+        val
+    }
+
+    /// Validated θ: length n_θ and finite (for callers outside the hot loop).
+    pub fn check_theta(&self, theta: &[f64]) -> Result<()> {
+        check_len("theta", theta, self.n_theta())?;
+        check_finite_slice("theta", theta)?;
+        Ok(())
+    }
+}

@@ -18,6 +18,7 @@
 pub mod certificate;
 pub mod driver;
 pub mod error;
+pub mod fista;
 pub mod kernel;
 pub mod pg;
 pub mod problem;

@@ -1,19 +1,620 @@
-//! Dense kernels for the hot loop: y = H x for a small square H stored row-major.
+//! Dense kernels for the hot loop: y = H x for a small square H stored row-major, and the
+//! fused projected-gradient step z⁺ = Π_[l,u](z − α(Hz + q)).
 //!
-//! This is the single place to optimise per-iteration cost (SIMD with run-time CPU
-//! detection); every method's step calls it.
+//! One iteration of every method is one such product plus O(n) work, so this module is
+//! the single place where per-iteration cost is decided.
+//!
+//! ## Dispatch
+//! The committed build targets baseline x86-64 (SSE2 only; no `-C target-cpu=native`).
+//! On x86-64 CPUs with AVX2 and FMA the kernels run a hand-vectorised path compiled with
+//! `#[target_feature(enable = "avx2,fma")]`; everywhere else a portable path with four
+//! independent accumulators per row. The choice is made once: [`Kernel::detect`] caches it
+//! in a `OnceLock`, and a [`Kernel`] value stored in a method's setup data carries it, so a
+//! call costs one predictable branch, not a CPU query.
+//!
+//! ## AVX2 path
+//! Eight rows at a time, one 4-wide accumulator per row (eight independent FMA chains:
+//! enough to cover the FMA latency on two pipes), the column remainder through a masked
+//! load, the row remainder by repeating the last row and storing only the valid sums.
+//! The eight accumulators are reduced to two vectors of row sums with `hadd`, one blend and
+//! one lane permute per four rows. The result differs from a sequential dot product only
+//! by rounding (fused multiply–add, different summation order).
 
-/// y = H x, H n × n row-major in `h` (length n²). Allocation-free.
+use std::sync::OnceLock;
+
+/// Which implementation a [`Kernel`] runs.
+#[derive(Debug, Clone, Copy, PartialEq, Eq)]
+pub enum KernelPath {
+    /// Plain Rust, four accumulators per row; what the baseline target vectorises itself.
+    Portable,
+    /// x86-64 AVX2 + FMA intrinsics (selected only when the CPU reports both).
+    Avx2Fma,
+}
+
+impl KernelPath {
+    /// Short name for reports (`"portable"`, `"avx2+fma"`).
+    pub fn name(self) -> &'static str {
+        match self {
+            KernelPath::Portable => "portable",
+            KernelPath::Avx2Fma => "avx2+fma",
+        }
+    }
+
+    /// Whether the running CPU can execute this path.
+    pub fn is_available(self) -> bool {
+        match self {
+            KernelPath::Portable => true,
+            KernelPath::Avx2Fma => avx2_fma_detected(),
+        }
+    }
+}
+
+#[cfg(target_arch = "x86_64")]
+fn avx2_fma_detected() -> bool {
+    std::arch::is_x86_feature_detected!("avx2") && std::arch::is_x86_feature_detected!("fma")
+}
+
+#[cfg(not(target_arch = "x86_64"))]
+fn avx2_fma_detected() -> bool {
+    false
+}
+
+/// A dense-kernel implementation chosen once (a validated [`KernelPath`]).
+///
+/// Invariant: `path` is [`KernelPath::Avx2Fma`] only if the running CPU supports AVX2 and
+/// FMA (the constructors check it; the field is private).
+///
+/// ```
+/// use qp_iter::kernel::{Kernel, KernelPath};
+/// let k = Kernel::detect();
+/// let h = [2.0, 1.0, 1.0, 3.0]; // [[2, 1], [1, 3]] row-major
+/// let mut y = [0.0; 2];
+/// k.matvec(&h, 2, &[1.0, -1.0], &mut y);
+/// assert_eq!(y, [1.0, -2.0]);
+/// assert!(Kernel::with_path(KernelPath::Portable).is_some());
+/// ```
+#[derive(Debug, Clone, Copy, PartialEq, Eq)]
+pub struct Kernel {
+    path: KernelPath,
+}
+
+static DETECTED: OnceLock<Kernel> = OnceLock::new();
+
+impl Kernel {
+    /// The fastest path the running CPU supports (detected on first use, then cached).
+    #[inline]
+    pub fn detect() -> Self {
+        *DETECTED.get_or_init(|| {
+            if avx2_fma_detected() {
+                Kernel {
+                    path: KernelPath::Avx2Fma,
+                }
+            } else {
+                Kernel {
+                    path: KernelPath::Portable,
+                }
+            }
+        })
+    }
+
+    /// The portable path (for comparisons and tests).
+    pub fn portable() -> Self {
+        Kernel {
+            path: KernelPath::Portable,
+        }
+    }
+
+    /// The given path, or `None` if the running CPU cannot execute it.
+    pub fn with_path(path: KernelPath) -> Option<Self> {
+        path.is_available().then_some(Kernel { path })
+    }
+
+    /// The path this kernel runs.
+    pub fn path(self) -> KernelPath {
+        self.path
+    }
+
+    /// y = H x for H n × n row-major in `h`; writes `y[..n]` only. Allocation-free.
+    ///
+    /// # Panics
+    /// If `h.len() != n²`, `x.len() < n` or `y.len() < n` (a caller bug: dimensions are
+    /// validated when a problem is built).
+    #[inline]
+    pub fn matvec(self, h: &[f64], n: usize, x: &[f64], y: &mut [f64]) {
+        check_dims(h, n, x.len(), y.len());
+        if n == 0 {
+            return;
+        }
+        match self.path {
+            KernelPath::Portable => portable::matvec(h, n, x, y),
+            #[cfg(target_arch = "x86_64")]
+            // SAFETY: `Kernel` is `Avx2Fma` only if the CPU supports AVX2 and FMA (type
+            // invariant); lengths were checked above and n ≥ 1.
+            KernelPath::Avx2Fma => unsafe { avx2::matvec(h, n, x, y) },
+            #[cfg(not(target_arch = "x86_64"))]
+            KernelPath::Avx2Fma => portable::matvec(h, n, x, y),
+        }
+    }
+
+    /// The projected-gradient step z⁺ = Π_[l,u](z − α(Hz + q)) written to `out`, in one
+    /// pass over H (the step of [`crate::pg`], fused: no separate Hz buffer, axpy and
+    /// projection loops).
+    ///
+    /// Clamping is `min(u, max(l, v))` in that operand order, so a NaN in `v` stays NaN
+    /// (the drivers then report it) instead of being clamped to a bound. Allocation-free.
+    ///
+    /// ```
+    /// use qp_iter::kernel::Kernel;
+    /// let h = [2.0, 0.0, 0.0, 1.0];
+    /// let (z, q) = ([0.0, 0.0], [-2.0, -4.0]);
+    /// let mut out = [0.0; 2];
+    /// Kernel::detect().projected_gradient_step(&h, 2, &z, &q, 0.5, &[-3.0, -1.0], &[3.0, 1.0], &mut out);
+    /// assert_eq!(out, [1.0, 1.0]); // (1, 2) before clamping z₂ to 1
+    /// ```
+    ///
+    /// # Panics
+    /// If `h.len() != n²` or any of `z`, `q`, `lower`, `upper`, `out` is shorter than n.
+    #[inline]
+    pub fn projected_gradient_step(
+        self,
+        h: &[f64],
+        n: usize,
+        z: &[f64],
+        q: &[f64],
+        alpha: f64,
+        lower: &[f64],
+        upper: &[f64],
+        out: &mut [f64],
+    ) {
+        check_dims(h, n, z.len(), out.len());
+        assert!(
+            q.len() >= n && lower.len() >= n && upper.len() >= n,
+            "projected_gradient_step: q, lower and upper need length ≥ n = {n}"
+        );
+        if n == 0 {
+            return;
+        }
+        match self.path {
+            KernelPath::Portable => portable::pg_step(h, n, z, q, alpha, lower, upper, out),
+            #[cfg(target_arch = "x86_64")]
+            // SAFETY: as in `matvec`; all vector lengths were checked above.
+            KernelPath::Avx2Fma => unsafe { avx2::pg_step(h, n, z, q, alpha, lower, upper, out) },
+            #[cfg(not(target_arch = "x86_64"))]
+            KernelPath::Avx2Fma => portable::pg_step(h, n, z, q, alpha, lower, upper, out),
+        }
+    }
+}
+
+#[inline]
+fn check_dims(h: &[f64], n: usize, x_len: usize, y_len: usize) {
+    assert!(
+        n.checked_mul(n) == Some(h.len()) && x_len >= n && y_len >= n,
+        "dense kernel: need h.len() = n² and x, y of length ≥ n (n = {n}, h.len() = {}, x.len() = {x_len}, y.len() = {y_len})",
+        h.len()
+    );
+}
+
+/// y = H x, H n × n row-major in `h` (length n²); writes `y[..n]`. Allocation-free.
+///
+/// Runs the fastest path for this CPU ([`Kernel::detect`], cached after the first call).
+///
+/// # Panics
+/// If `h.len() != n²`, `x.len() < n` or `y.len() < n`.
 #[inline]
 pub fn matvec(h: &[f64], n: usize, x: &[f64], y: &mut [f64]) {
-    debug_assert_eq!(h.len(), n * n);
-    debug_assert!(x.len() >= n && y.len() >= n);
-    for (i, yi) in y.iter_mut().enumerate().take(n) {
-        let row = &h[i * n..(i + 1) * n];
-        let mut acc = 0.0;
-        for (a, b) in row.iter().zip(x) {
-            acc += a * b;
+    Kernel::detect().matvec(h, n, x, y);
+}
+
+/// Clamp with NaN propagation: `min(u, max(l, v))` with the same operand order as the
+/// `vmaxpd`/`vminpd` of the AVX2 path, so both paths agree bit for bit on the clamp.
+#[inline(always)]
+fn clamp_nan_propagating(v: f64, l: f64, u: f64) -> f64 {
+    let w = if l > v { l } else { v };
+    if u < w { u } else { w }
+}
+
+mod portable {
+    use super::clamp_nan_propagating;
+
+    /// Dot product with four independent partial sums (lets the baseline target use
+    /// two SSE2 registers and hides the add latency).
+    #[inline(always)]
+    fn dot(a: &[f64], b: &[f64]) -> f64 {
+        let mut acc = [0.0f64; 4];
+        let (ac, ar) = (a.chunks_exact(4), a.chunks_exact(4).remainder());
+        let (bc, br) = (b.chunks_exact(4), b.chunks_exact(4).remainder());
+        for (ca, cb) in ac.zip(bc) {
+            for k in 0..4 {
+                acc[k] += ca[k] * cb[k];
+            }
         }
-        *yi = acc;
+        let mut tail = 0.0;
+        for (x, y) in ar.iter().zip(br) {
+            tail += x * y;
+        }
+        (acc[0] + acc[1]) + (acc[2] + acc[3]) + tail
+    }
+
+    pub(super) fn matvec(h: &[f64], n: usize, x: &[f64], y: &mut [f64]) {
+        let x = &x[..n];
+        for (row, yi) in h.chunks_exact(n).zip(&mut y[..n]) {
+            *yi = dot(row, x);
+        }
+    }
+
+    pub(super) fn pg_step(
+        h: &[f64],
+        n: usize,
+        z: &[f64],
+        q: &[f64],
+        alpha: f64,
+        lower: &[f64],
+        upper: &[f64],
+        out: &mut [f64],
+    ) {
+        let z = &z[..n];
+        for (i, (row, oi)) in h.chunks_exact(n).zip(&mut out[..n]).enumerate() {
+            let v = z[i] - alpha * (dot(row, z) + q[i]);
+            *oi = clamp_nan_propagating(v, lower[i], upper[i]);
+        }
+    }
+}
+
+#[cfg(target_arch = "x86_64")]
+mod avx2 {
+    use std::arch::x86_64::*;
+
+    /// Lane mask with the first `r` of four lanes set (r ∈ 0..=4).
+    #[inline]
+    #[target_feature(enable = "avx2,fma")]
+    fn first_lanes(r: usize) -> __m256i {
+        _mm256_cmpgt_epi64(_mm256_set1_epi64x(r as i64), _mm256_setr_epi64x(0, 1, 2, 3))
+    }
+
+    /// [Σa₀, Σa₁, Σa₂, Σa₃]: horizontal sums of four accumulators.
+    #[inline]
+    #[target_feature(enable = "avx2,fma")]
+    fn reduce4(a0: __m256d, a1: __m256d, a2: __m256d, a3: __m256d) -> __m256d {
+        // t0 = [a0₀+a0₁, a1₀+a1₁, a0₂+a0₃, a1₂+a1₃], t1 likewise for a2, a3.
+        let t0 = _mm256_hadd_pd(a0, a1);
+        let t1 = _mm256_hadd_pd(a2, a3);
+        // [t0₂, t0₃, t1₀, t1₁] + [t0₀, t0₁, t1₂, t1₃]
+        let swapped = _mm256_permute2f128_pd::<0x21>(t0, t1);
+        let blended = _mm256_blend_pd::<0b1100>(t0, t1);
+        _mm256_add_pd(swapped, blended)
+    }
+
+    /// Row sums H[r, :]·x for the eight rows r = i, …, i+7, each index clamped to n − 1
+    /// (the caller stores only the valid ones).
+    ///
+    /// # Safety
+    /// AVX2 and FMA available; n ≥ 1; `h` valid for n² reads; `x` valid for n reads;
+    /// i < n.
+    #[inline]
+    #[target_feature(enable = "avx2,fma")]
+    unsafe fn rows8(h: *const f64, n: usize, x: *const f64, i: usize) -> (__m256d, __m256d) {
+        let last = n - 1;
+        // SAFETY (all `add`s in this block): every row index is ≤ n − 1, so each row
+        // pointer starts inside the n² allocation and the row's n entries lie in it.
+        let p: [*const f64; 8] = unsafe {
+            [
+                h.add(i.min(last) * n),
+                h.add((i + 1).min(last) * n),
+                h.add((i + 2).min(last) * n),
+                h.add((i + 3).min(last) * n),
+                h.add((i + 4).min(last) * n),
+                h.add((i + 5).min(last) * n),
+                h.add((i + 6).min(last) * n),
+                h.add((i + 7).min(last) * n),
+            ]
+        };
+        let mut a = [_mm256_setzero_pd(); 8];
+        let full = n & !3;
+        let mut j = 0;
+        while j < full {
+            // SAFETY: j + 4 ≤ full ≤ n, so the four entries from j are inside x and
+            // inside each row.
+            unsafe {
+                let xv = _mm256_loadu_pd(x.add(j));
+                for r in 0..8 {
+                    a[r] = _mm256_fmadd_pd(_mm256_loadu_pd(p[r].add(j)), xv, a[r]);
+                }
+            }
+            j += 4;
+        }
+        if full < n {
+            let m = first_lanes(n - full);
+            // SAFETY: masked loads touch only the n − full < 4 lanes that lie inside x and
+            // inside each row (masked-off lanes are not accessed and cannot fault).
+            unsafe {
+                let xv = _mm256_maskload_pd(x.add(full), m);
+                for r in 0..8 {
+                    a[r] = _mm256_fmadd_pd(_mm256_maskload_pd(p[r].add(full), m), xv, a[r]);
+                }
+            }
+        }
+        (
+            reduce4(a[0], a[1], a[2], a[3]),
+            reduce4(a[4], a[5], a[6], a[7]),
+        )
+    }
+
+    /// # Safety
+    /// AVX2 and FMA available; n ≥ 1; h.len() = n²; x.len() ≥ n; y.len() ≥ n.
+    #[target_feature(enable = "avx2,fma")]
+    pub(super) unsafe fn matvec(h: &[f64], n: usize, x: &[f64], y: &mut [f64]) {
+        let (hp, xp, yp) = (h.as_ptr(), x.as_ptr(), y.as_mut_ptr());
+        let mut i = 0;
+        while i + 8 <= n {
+            // SAFETY: caller's contract; i < n; rows i..i+8 and y[i..i+8] are in bounds.
+            unsafe {
+                let (s0, s1) = rows8(hp, n, xp, i);
+                _mm256_storeu_pd(yp.add(i), s0);
+                _mm256_storeu_pd(yp.add(i + 4), s1);
+            }
+            i += 8;
+        }
+        if i < n {
+            // SAFETY: caller's contract; i < n.
+            let (s0, s1) = unsafe { rows8(hp, n, xp, i) };
+            let mut tmp = [0.0f64; 8];
+            // SAFETY: `tmp` holds eight f64.
+            unsafe {
+                _mm256_storeu_pd(tmp.as_mut_ptr(), s0);
+                _mm256_storeu_pd(tmp.as_mut_ptr().add(4), s1);
+            }
+            y[i..n].copy_from_slice(&tmp[..n - i]);
+        }
+    }
+
+    /// Four lanes from `p + i`, or the lanes selected by `m`.
+    ///
+    /// # Safety
+    /// AVX2 available; the selected lanes from `p + i` are valid reads.
+    #[inline]
+    #[target_feature(enable = "avx2,fma")]
+    unsafe fn load_lanes(p: *const f64, i: usize, m: Option<__m256i>) -> __m256d {
+        // SAFETY: the caller guarantees the selected lanes are in bounds.
+        unsafe {
+            match m {
+                None => _mm256_loadu_pd(p.add(i)),
+                Some(m) => _mm256_maskload_pd(p.add(i), m),
+            }
+        }
+    }
+
+    /// out[r] = clamp(z[r] − α(s[r] + q[r])) for four rows r = i.. with lane mask `m`
+    /// (all lanes when `m` is `None`).
+    ///
+    /// # Safety
+    /// AVX2 and FMA available; the pointers are valid for the lanes selected by `m`
+    /// (four lanes when `None`) from offset `i`.
+    #[inline]
+    #[target_feature(enable = "avx2,fma")]
+    unsafe fn finish4(
+        s: __m256d,
+        alpha: __m256d,
+        ptrs: (*const f64, *const f64, *const f64, *const f64, *mut f64),
+        i: usize,
+        m: Option<__m256i>,
+    ) {
+        let (z, q, lo, hi, out) = ptrs;
+        // SAFETY: the caller guarantees the selected lanes are in bounds.
+        unsafe {
+            let g = _mm256_add_pd(s, load_lanes(q, i, m));
+            let v = _mm256_fnmadd_pd(alpha, g, load_lanes(z, i, m));
+            let w = _mm256_min_pd(load_lanes(hi, i, m), _mm256_max_pd(load_lanes(lo, i, m), v));
+            match m {
+                None => _mm256_storeu_pd(out.add(i), w),
+                Some(m) => _mm256_maskstore_pd(out.add(i), m, w),
+            }
+        }
+    }
+
+    /// # Safety
+    /// AVX2 and FMA available; n ≥ 1; h.len() = n²; every other slice has length ≥ n.
+    #[target_feature(enable = "avx2,fma")]
+    pub(super) unsafe fn pg_step(
+        h: &[f64],
+        n: usize,
+        z: &[f64],
+        q: &[f64],
+        alpha: f64,
+        lower: &[f64],
+        upper: &[f64],
+        out: &mut [f64],
+    ) {
+        let hp = h.as_ptr();
+        let zp = z.as_ptr();
+        let ptrs = (
+            zp,
+            q.as_ptr(),
+            lower.as_ptr(),
+            upper.as_ptr(),
+            out.as_mut_ptr(),
+        );
+        let av = _mm256_set1_pd(alpha);
+        let mut i = 0;
+        while i < n {
+            // SAFETY: caller's contract; i < n.
+            let (s0, s1) = unsafe { rows8(hp, n, zp, i) };
+            let valid = n - i;
+            // SAFETY: lanes are restricted to rows < n by the masks, so every access is
+            // inside slices of length ≥ n.
+            unsafe {
+                if valid >= 8 {
+                    finish4(s0, av, ptrs, i, None);
+                    finish4(s1, av, ptrs, i + 4, None);
+                } else {
+                    finish4(s0, av, ptrs, i, Some(first_lanes(valid.min(4))));
+                    if valid > 4 {
+                        finish4(s1, av, ptrs, i + 4, Some(first_lanes(valid - 4)));
+                    }
+                }
+            }
+            i += 8;
+        }
+    }
+}
+
+#[cfg(test)]
+mod tests {
+    #![allow(clippy::unwrap_used)]
+    use super::*;
+    use rand::{Rng, SeedableRng};
+    use rand_chacha::ChaCha8Rng;
+
+    fn naive(h: &[f64], n: usize, x: &[f64]) -> Vec<f64> {
+        (0..n)
+            .map(|i| (0..n).map(|j| h[i * n + j] * x[j]).sum())
+            .collect()
+    }
+
+    fn paths() -> Vec<Kernel> {
+        let mut v = vec![Kernel::portable()];
+        if let Some(k) = Kernel::with_path(KernelPath::Avx2Fma) {
+            v.push(k);
+        }
+        v
+    }
+
+    fn random_vec(rng: &mut ChaCha8Rng, len: usize) -> Vec<f64> {
+        (0..len).map(|_| rng.random_range(-1.0..1.0)).collect()
+    }
+
+    /// Rounding tolerance for a length-n dot product of entries bounded by 1 in magnitude.
+    fn tol(n: usize) -> f64 {
+        4.0 * n as f64 * f64::EPSILON
+    }
+
+    #[test]
+    fn matvec_matches_naive_on_every_path_and_size() {
+        let mut rng = ChaCha8Rng::seed_from_u64(3);
+        for k in paths() {
+            for n in 1..=70 {
+                let h = random_vec(&mut rng, n * n);
+                let x = random_vec(&mut rng, n);
+                let want = naive(&h, n, &x);
+                // y longer than n: the extra entries must be left alone.
+                let mut y = vec![7.0; n + 3];
+                k.matvec(&h, n, &x, &mut y);
+                for i in 0..n {
+                    assert!(
+                        (y[i] - want[i]).abs() <= tol(n),
+                        "{:?} n = {n} row {i}: {} vs {}",
+                        k.path(),
+                        y[i],
+                        want[i]
+                    );
+                }
+                assert!(
+                    y[n..].iter().all(|&v| v == 7.0),
+                    "{:?} wrote past n = {n}",
+                    k.path()
+                );
+            }
+        }
+    }
+
+    #[test]
+    fn pg_step_matches_three_pass_step_on_every_path_and_size() {
+        let mut rng = ChaCha8Rng::seed_from_u64(4);
+        for k in paths() {
+            for n in 1..=70 {
+                let h = random_vec(&mut rng, n * n);
+                let z = random_vec(&mut rng, n);
+                let q = random_vec(&mut rng, n);
+                // Bounds that clip about half of the entries; some infinite.
+                let lower: Vec<f64> = (0..n)
+                    .map(|i| {
+                        if i % 5 == 0 {
+                            f64::NEG_INFINITY
+                        } else {
+                            rng.random_range(-0.6..0.0)
+                        }
+                    })
+                    .collect();
+                let upper: Vec<f64> = (0..n)
+                    .map(|i| {
+                        if i % 7 == 0 {
+                            f64::INFINITY
+                        } else {
+                            rng.random_range(0.0..0.6)
+                        }
+                    })
+                    .collect();
+                let alpha = rng.random_range(0.1..1.0);
+                let hz = naive(&h, n, &z);
+                let mut out = vec![7.0; n + 2];
+                k.projected_gradient_step(&h, n, &z, &q, alpha, &lower, &upper, &mut out);
+                for i in 0..n {
+                    let want = (z[i] - alpha * (hz[i] + q[i])).max(lower[i]).min(upper[i]);
+                    assert!(
+                        (out[i] - want).abs() <= tol(n),
+                        "{:?} n = {n} row {i}: {} vs {want}",
+                        k.path(),
+                        out[i]
+                    );
+                }
+                assert!(
+                    out[n..].iter().all(|&v| v == 7.0),
+                    "{:?} wrote past n = {n}",
+                    k.path()
+                );
+            }
+        }
+    }
+
+    #[test]
+    fn pg_step_propagates_nan_instead_of_clamping_it() {
+        for k in paths() {
+            for n in [1, 5, 9] {
+                let h = vec![1.0; n * n];
+                let mut z = vec![0.0; n];
+                z[n - 1] = f64::NAN;
+                let mut out = vec![0.0; n];
+                k.projected_gradient_step(
+                    &h,
+                    n,
+                    &z,
+                    &vec![0.0; n],
+                    0.5,
+                    &vec![-1.0; n],
+                    &vec![1.0; n],
+                    &mut out,
+                );
+                assert!(
+                    out.iter().all(|v| v.is_nan()),
+                    "{:?} n = {n}: {out:?}",
+                    k.path()
+                );
+            }
+        }
+    }
+
+    #[test]
+    fn detect_picks_avx2_when_the_cpu_has_it() {
+        let want = if KernelPath::Avx2Fma.is_available() {
+            KernelPath::Avx2Fma
+        } else {
+            KernelPath::Portable
+        };
+        assert_eq!(Kernel::detect().path(), want);
+        assert_eq!(Kernel::detect(), Kernel::detect());
+    }
+
+    #[test]
+    fn zero_size_is_a_no_op() {
+        for k in paths() {
+            let mut y: [f64; 0] = [];
+            k.matvec(&[], 0, &[], &mut y);
+        }
+    }
+
+    #[test]
+    #[should_panic(expected = "dense kernel")]
+    fn wrong_length_panics_with_a_message() {
+        let mut y = [0.0; 2];
+        matvec(&[1.0, 2.0, 3.0], 2, &[1.0, 1.0], &mut y);
     }
 }

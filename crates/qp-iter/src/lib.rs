@@ -15,6 +15,7 @@
 //!
 //! This crate knows parametric QPs only: never A, B or C.
 
+pub mod admm;
 pub mod certificate;
 pub mod driver;
 pub mod error;

@@ -1,0 +1,9 @@
+//! The one integration-test binary of `lti-model` (one binary per crate keeps link time down).
+#![allow(clippy::unwrap_used)]
+
+mod disturbance;
+mod numerics;
+mod scenario;
+mod sets;
+mod system;
+mod ioss;

@@ -1,0 +1,392 @@
+//! The ISS certificate of Theorem 1: constants C₁…C₆(K) of the appendix, the gains of
+//! Props. 1 and 3, the small-gain slopes (sg1)–(sg3) and the smallest certified K.
+//!
+//! Everything here is scalar arithmetic on constants computed elsewhere (the δ-IOSS P, H̄,
+//! L_Φ, L_π, φ(K), γ₁,₃), kept separate so it can be checked by hand (see the tests).
+//! All gains of the paper are linear (γ(s) = g·s), so each small-gain condition
+//! γ_a ∘ γ_b ∘ …(s) < s for all s > 0 is "product of slopes < 1".
+//!
+//! ## Premises (checked, never assumed)
+//! - ρ < 1 with ρ^M = 6η^M (Prop. 3 sums geometric series in √ρ); the paper's own case study
+//!   (M = 5, η = 0.8) violates it: 6·0.8⁵ ≈ 1.97.
+//! - φ(K) < 1 (Assumption 5; Prop. 1 divides by 1 − φ(K)).
+//! - L_Φ > 1 (Lemma 1 states L_Φ > 1; a certified bound below 1 is raised to 1, which keeps
+//!   it a valid Lipschitz bound).
+//! - LMI (2) feasible (P ≻ 0), controller ISS with a finite linear gain γ₁,₃ (Assumption 4),
+//!   φ(K) certified in the coordinates ε_t is measured in (eq. 11).
+//!
+//! A violated premise makes the certificate void: [`IssAnalysis::k_min`] is `None`, and each
+//! [`Premise`] says by how much it fails and what would fix it.
+
+use serde::Serialize;
+
+/// Scalar inputs of Theorem 1.
+#[derive(Debug, Clone, PartialEq, Serialize)]
+pub struct IssInputs {
+    /// MHE horizon M ≥ 1.
+    pub horizon: usize,
+    /// η ∈ [0, 1) of Assumption 2.
+    pub eta: f64,
+    /// λ_min(P), λ_max(P) of the δ-IOSS certificate.
+    pub p_min: f64,
+    /// λ_max(P).
+    pub p_max: f64,
+    /// λ_max(Q).
+    pub q_max: f64,
+    /// H̄ = sup_t λ_max(H_t) in the coordinates ε_t is measured in (Prop. 2).
+    pub h_bar: f64,
+    /// L_Φ of Lemma 1 (before raising to 1).
+    pub l_phi: f64,
+    /// L_π of Assumption 3.
+    pub l_pi: f64,
+    /// ‖C‖₂.
+    pub c_norm: f64,
+    /// γ₁,₃ slope of Assumption 4 (gain from estimation error to state).
+    pub gamma13: f64,
+    /// φ(K) = prefactor · rateᴷ.
+    pub phi_rate: f64,
+    /// Prefactor of φ(K).
+    pub phi_prefactor: f64,
+    /// Whether the solver's certificate bounds ‖zᴷ − z*‖ in the coordinates of ε_t with a
+    /// feasible iterate (eq. 11 as is).
+    pub phi_fits_eq11: bool,
+    /// Whether LMI (2) was certified for (η, P, Q, R).
+    pub lmi_certified: bool,
+}
+
+/// One premise of Theorem 1, evaluated.
+#[derive(Debug, Clone, PartialEq, Serialize)]
+pub struct Premise {
+    /// Short name, e.g. `"rho < 1"`.
+    pub name: String,
+    /// Where the paper needs it.
+    pub needed_by: String,
+    /// Whether it holds.
+    pub holds: bool,
+    /// The value tested.
+    pub value: f64,
+    /// Signed margin (positive when it holds), e.g. 1 − ρ.
+    pub margin: f64,
+    /// What to change when it fails (empty when it holds).
+    pub fix: String,
+}
+
+/// Constants and gains of Props. 1 and 3 at one K.
+#[derive(Debug, Clone, PartialEq, Serialize)]
+pub struct GainsAtK {
+    /// Iteration budget K.
+    pub k: usize,
+    /// φ(K).
+    pub phi: f64,
+    /// C₁(K) = 2φL_Φ(1 + M(‖C‖ + L_π)), eq. (c1).
+    pub c1: f64,
+    /// C₂(K) = 2φL_Φ(1 + M L_π), eq. (c2).
+    pub c2: f64,
+    /// C₃(K) = 2φL_Φ M, eq. (c3).
+    pub c3: f64,
+    /// C_e(K), eq. (c4).
+    pub c_e: f64,
+    /// C_w(K), eq. (c5).
+    pub c_w: f64,
+    /// C_ε(K), eq. (c6).
+    pub c_eps: f64,
+    /// γ₂,₁ = C₁/(1 − φ) (Prop. 1).
+    pub gamma21: f64,
+    /// γ₂,₃ = C₂/(1 − φ) (Prop. 1).
+    pub gamma23: f64,
+    /// γ₂ʷ = C₃/(1 − φ) (Prop. 1).
+    pub gamma2w: f64,
+    /// γ₂^σ = φL_Φ/(1 − φ) (Prop. 1).
+    pub gamma2sigma: f64,
+    /// γ₃,₁ = √(2Λ^H̄_P) C₁ (Prop. 3).
+    pub gamma31: f64,
+    /// γ₃,₂ = C_ε (Prop. 3).
+    pub gamma32: f64,
+    /// γ₃ʷ = C_w (Prop. 3).
+    pub gamma3w: f64,
+    /// γ₃^σ = √(2Λ^H̄_P) φ L_Φ (Prop. 3).
+    pub gamma3sigma: f64,
+    /// Slope of γ₁,₃ ∘ γ₃,₁ (sg1).
+    pub sg1: f64,
+    /// Slope of γ₂,₃ ∘ γ₃,₂ (sg2).
+    pub sg2: f64,
+    /// Slope of γ₁,₃ ∘ γ₃,₂ ∘ γ₂,₁ (sg3).
+    pub sg3: f64,
+    /// 1 − max(sg1, sg2, sg3): the certified ISS margin (> 0 iff certified at this K).
+    pub margin: f64,
+    /// All premises hold and every slope is < 1.
+    pub certified: bool,
+}
+
+/// Theorem 1 evaluated for one set of inputs.
+#[derive(Debug, Clone, PartialEq, Serialize)]
+pub struct IssAnalysis {
+    /// The inputs.
+    pub inputs: IssInputs,
+    /// ρ = 6^{1/M} η (ρ^M = 6η^M, Prop. 3).
+    pub rho: f64,
+    /// Λ^P_P = λ_max(P)/λ_min(P).
+    pub lambda_pp: f64,
+    /// Λ^Q_P = λ_max(Q)/λ_min(P).
+    pub lambda_qp: f64,
+    /// Λ^H̄_P = H̄/λ_min(P).
+    pub lambda_hp: f64,
+    /// L_Φ used in the constants: max(L_Φ, 1) (Lemma 1 requires L_Φ > 1).
+    pub l_phi_used: f64,
+    /// Premises with pass/fail and margins.
+    pub premises: Vec<Premise>,
+}
+
+/// Largest η with 6η^M < 1 for horizon M: η < 6^{−1/M}.
+pub fn eta_sup_for_horizon(m: usize) -> f64 {
+    6f64.powf(-1.0 / m as f64)
+}
+
+/// Smallest horizon M with 6η^M < 1, i.e. M > ln 6 / ln(1/η) (None for η ≥ 1; 1 for η = 0).
+pub fn min_horizon_for_eta(eta: f64) -> Option<usize> {
+    if !(0.0..1.0).contains(&eta) {
+        return None;
+    }
+    (1..100_000).find(|&m| 6.0 * eta.powi(m as i32) < 1.0)
+}
+
+impl IssAnalysis {
+    /// Evaluates the constants that do not depend on K and checks the premises.
+    pub fn new(inputs: IssInputs) -> Self {
+        let m = inputs.horizon.max(1);
+        let rho = 6f64.powf(1.0 / m as f64) * inputs.eta;
+        let lambda_pp = inputs.p_max / inputs.p_min;
+        let lambda_qp = inputs.q_max / inputs.p_min;
+        let lambda_hp = inputs.h_bar / inputs.p_min;
+        let l_phi_used = inputs.l_phi.max(1.0);
+        let mut premises = Vec::new();
+        let rho_fix = if rho < 1.0 {
+            String::new()
+        } else {
+            let m_min =
+                min_horizon_for_eta(inputs.eta).map_or("none".to_string(), |m| m.to_string());
+            format!(
+                "6η^M = {:.4} ≥ 1. Increase the horizon to M ≥ {m_min} at η = {}, or lower η below \
+                 6^(-1/M) = {:.4} at M = {} (η must stay feasible for LMI (2))",
+                6.0 * inputs.eta.powi(m as i32),
+                inputs.eta,
+                eta_sup_for_horizon(m),
+                m
+            )
+        };
+        premises.push(Premise {
+            name: "rho < 1".into(),
+            needed_by: "Prop. 3 (ρ^M = 6η^M; geometric series in √ρ)".into(),
+            holds: rho < 1.0,
+            value: rho,
+            margin: 1.0 - rho,
+            fix: rho_fix,
+        });
+        premises.push(Premise {
+            name: "LMI (2) feasible".into(),
+            needed_by: "Assumption 2".into(),
+            holds: inputs.lmi_certified && inputs.p_min > 0.0,
+            value: inputs.p_min,
+            margin: inputs.p_min,
+            fix: if inputs.lmi_certified {
+                String::new()
+            } else {
+                "no P ≻ 0 satisfies LMI (2): see the δ-IOSS error".into()
+            },
+        });
+        premises.push(Premise {
+            name: "phi fits eq. (11)".into(),
+            needed_by: "Assumption 5 (‖zᴷ − z*‖ ≤ φ(K)‖z⁰ − z*‖, feasible zᴷ)".into(),
+            holds: inputs.phi_fits_eq11,
+            value: if inputs.phi_fits_eq11 { 1.0 } else { 0.0 },
+            margin: if inputs.phi_fits_eq11 { 1.0 } else { -1.0 },
+            fix: if inputs.phi_fits_eq11 {
+                String::new()
+            } else {
+                "the solver's certificate bounds another quantity or its iterate may be infeasible: use PG or FISTA".into()
+            },
+        });
+        premises.push(Premise {
+            name: "phi rate < 1".into(),
+            needed_by: "Assumption 5 (φ ∈ 𝓛)".into(),
+            holds: inputs.phi_rate < 1.0
+                && inputs.phi_rate >= 0.0
+                && inputs.phi_prefactor.is_finite(),
+            value: inputs.phi_rate,
+            margin: 1.0 - inputs.phi_rate,
+            fix: if inputs.phi_rate < 1.0 {
+                String::new()
+            } else {
+                "the solver does not contract: reduce the step size".into()
+            },
+        });
+        premises.push(Premise {
+            name: "gamma13 finite".into(),
+            needed_by: "Assumption 4 (ISS of the controlled system w.r.t. e)".into(),
+            holds: inputs.gamma13.is_finite() && inputs.gamma13 >= 0.0,
+            value: inputs.gamma13,
+            margin: if inputs.gamma13.is_finite() {
+                1.0
+            } else {
+                -1.0
+            },
+            fix: if inputs.gamma13.is_finite() {
+                String::new()
+            } else {
+                "no ISS gain from e to x could be established: supply γ₁,₃ or change the controller"
+                    .into()
+            },
+        });
+        for (name, v) in [
+            ("L_Phi", inputs.l_phi),
+            ("L_pi", inputs.l_pi),
+            ("H_bar", inputs.h_bar),
+            ("norm C", inputs.c_norm),
+        ] {
+            let ok = v.is_finite() && v >= 0.0;
+            premises.push(Premise {
+                name: format!("{name} finite"),
+                needed_by: "Lemma 1 / Assumption 3 / Prop. 2".into(),
+                holds: ok,
+                value: v,
+                margin: if ok { 1.0 } else { -1.0 },
+                fix: if ok {
+                    String::new()
+                } else {
+                    format!("{name} is not a finite non-negative number")
+                },
+            });
+        }
+        Self {
+            inputs,
+            rho,
+            lambda_pp,
+            lambda_qp,
+            lambda_hp,
+            l_phi_used,
+            premises,
+        }
+    }
+
+    /// Whether every K-independent premise holds.
+    pub fn premises_hold(&self) -> bool {
+        self.premises.iter().all(|p| p.holds)
+    }
+
+    /// The premises that fail.
+    pub fn violated(&self) -> Vec<&Premise> {
+        self.premises.iter().filter(|p| !p.holds).collect()
+    }
+
+    /// φ(K) = prefactor · rateᴷ.
+    pub fn phi(&self, k: usize) -> f64 {
+        self.inputs.phi_prefactor
+            * self
+                .inputs
+                .phi_rate
+                .powi(i32::try_from(k).unwrap_or(i32::MAX))
+    }
+
+    /// All constants, gains and slopes at K (computed even when premises fail, for
+    /// display; `certified` is false then).
+    pub fn at(&self, k: usize) -> GainsAtK {
+        let i = &self.inputs;
+        let m = i.horizon as f64;
+        let phi = self.phi(k);
+        let lp = self.l_phi_used;
+        let lpi = i.l_pi;
+        let sr = self.rho.sqrt();
+        let c1 = 2.0 * phi * lp * (1.0 + m * (i.c_norm + lpi));
+        let c2 = 2.0 * phi * lp * (1.0 + m * lpi);
+        let c3 = 2.0 * phi * lp * m;
+        let a = (3.0 * self.lambda_pp * self.lambda_hp).sqrt();
+        let sum: f64 = (1..i.horizon).map(|j| sr.powi(-(1 + j as i32))).sum();
+        let c_e = 2.0 * a * phi * lp * (sr.powi(-(i.horizon as i32)) + lpi / sr)
+            + 4.0 * a * phi * lp * lpi * sum
+            + (6.0 * self.lambda_pp).sqrt()
+            + 2.0 * a * phi * lp * (lpi + 1.0) * sr.powi(-(i.horizon as i32) - 1);
+        let inv1 = 1.0 / (1.0 - sr);
+        let c_w = (2.0 * self.lambda_hp).sqrt() * c3
+            + (6.0 * self.lambda_qp).sqrt() * inv1
+            + 4.0
+                * (3.0 * self.lambda_hp * self.lambda_qp).sqrt()
+                * phi
+                * lp
+                * (lpi * m + 1.0)
+                * inv1;
+        let inv_m = 1.0 / (1.0 - self.rho.powi(i.horizon as i32).sqrt());
+        let c_eps = (2.0 * self.lambda_hp).sqrt() * phi
+            + (2.0 * self.lambda_hp).sqrt() * inv_m
+            + 4.0 * self.lambda_hp * phi * lp * (lpi * m + 1.0) * inv_m;
+        let one_minus_phi = 1.0 - phi;
+        let gamma21 = c1 / one_minus_phi;
+        let gamma23 = c2 / one_minus_phi;
+        let gamma2w = c3 / one_minus_phi;
+        let gamma2sigma = phi * lp / one_minus_phi;
+        let gamma31 = (2.0 * self.lambda_hp).sqrt() * c1;
+        let gamma32 = c_eps;
+        let gamma3w = c_w;
+        let gamma3sigma = (2.0 * self.lambda_hp).sqrt() * phi * lp;
+        let sg1 = i.gamma13 * gamma31;
+        let sg2 = gamma23 * gamma32;
+        let sg3 = i.gamma13 * gamma32 * gamma21;
+        let worst = sg1.max(sg2).max(sg3);
+        let margin = 1.0 - worst;
+        let certified =
+            self.premises_hold() && phi < 1.0 && phi >= 0.0 && worst < 1.0 && worst.is_finite();
+        GainsAtK {
+            k,
+            phi,
+            c1,
+            c2,
+            c3,
+            c_e,
+            c_w,
+            c_eps,
+            gamma21,
+            gamma23,
+            gamma2w,
+            gamma2sigma,
+            gamma31,
+            gamma32,
+            gamma3w,
+            gamma3sigma,
+            sg1,
+            sg2,
+            sg3,
+            margin,
+            certified,
+        }
+    }
+
+    /// Smallest K at which (sg1)–(sg3) hold and φ(K) < 1, or `None` when a premise fails
+    /// (a void certificate never yields a K) or no K up to `k_max` works.
+    ///
+    /// Every slope is increasing in φ(K) and φ is decreasing in K, so "certified at K" is
+    /// monotone in K and a doubling + bisection search is exact.
+    pub fn k_min(&self, k_max: usize) -> Option<usize> {
+        if !self.premises_hold() {
+            return None;
+        }
+        if self.at(0).certified {
+            return Some(0);
+        }
+        let mut hi = 1usize;
+        while !self.at(hi).certified {
+            if hi >= k_max {
+                return None;
+            }
+            hi = (hi * 2).min(k_max);
+        }
+        let mut lo = hi / 2; // not certified (or 0, checked above)
+        while hi - lo > 1 {
+            let mid = lo + (hi - lo) / 2;
+            if self.at(mid).certified {
+                hi = mid;
+            } else {
+                lo = mid;
+            }
+        }
+        Some(hi)
+    }
+}

@@ -1,0 +1,4 @@
+//! closed-loop integration tests (one binary).
+#![allow(clippy::unwrap_used)]
+
+mod analysis;

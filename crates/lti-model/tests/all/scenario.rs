@@ -1,0 +1,793 @@
+//! Scenario files: the shipped case study against design.md §4, every accepted form, and
+//! one test per kind of bad input, each checking the `key` the error names.
+
+use faer::Mat;
+use lti_model::scenario::{MheSolver, NoiseKind, Scenario, TerminalCost, WarmStart};
+use lti_model::{ConvexSet, ModelError, ioss};
+use proptest::prelude::*;
+
+const CASE_STUDY: &str = concat!(
+    env!("CARGO_MANIFEST_DIR"),
+    "/../../scenarios/case-study.toml"
+);
+
+/// A small valid scenario; tests splice their faulty line into it.
+const BASE: &str = r#"
+name = "base"
+[plant]
+a = [[0.9, 0.1], [0.0, 0.8]]
+b = [[0.0], [1.0]]
+c = [[1.0, 0.0]]
+[sets]
+input = { lower = [-1.0], upper = [1.0] }
+disturbance = { lower = -0.1, upper = 0.1 }
+[simulation]
+x0 = [1.0, -1.0]
+steps = 10
+[mhe]
+horizon = 3
+eta = 0.8
+iterations = 20
+[mpc]
+horizon = 5
+"#;
+
+/// `BASE` with `line` inserted right after the header `[section]` (or at the top for "").
+fn with(section: &str, line: &str) -> String {
+    if section.is_empty() {
+        return format!("{line}\n{BASE}");
+    }
+    let header = format!("[{section}]\n");
+    if BASE.contains(&header) {
+        BASE.replacen(&header, &format!("{header}{line}\n"), 1)
+    } else {
+        format!("{BASE}\n{header}{line}\n")
+    }
+}
+
+/// `BASE` with the line starting with `prefix` inside `[section]` replaced by `line`.
+fn replacing(prefix: &str, line: &str) -> String {
+    let out: Vec<String> = BASE
+        .lines()
+        .map(|l| {
+            if l.starts_with(prefix) {
+                line.to_string()
+            } else {
+                l.to_string()
+            }
+        })
+        .collect();
+    assert_ne!(
+        out.join("\n"),
+        BASE.trim_end(),
+        "prefix {prefix:?} matched nothing"
+    );
+    out.join("\n")
+}
+
+/// Parses `text`, expects a scenario error, and returns (key, problem).
+fn scenario_error(text: &str) -> (String, String) {
+    match Scenario::from_toml_str(text) {
+        Ok(_) => panic!("expected an error for:\n{text}"),
+        Err(ModelError::Scenario { key, problem }) => {
+            // Display names the key too.
+            let shown = ModelError::Scenario {
+                key: key.clone(),
+                problem: problem.clone(),
+            }
+            .to_string();
+            assert!(shown.contains(&key), "{shown}");
+            (key, problem)
+        }
+        Err(other) => panic!("expected ModelError::Scenario, got {other:?}"),
+    }
+}
+
+fn assert_key(text: &str, expected_key: &str, problem_contains: &str) {
+    let (key, problem) = scenario_error(text);
+    assert_eq!(key, expected_key, "problem: {problem}");
+    assert!(
+        problem
+            .to_lowercase()
+            .contains(&problem_contains.to_lowercase()),
+        "problem for `{key}` should mention {problem_contains:?}: {problem}"
+    );
+}
+
+fn assert_mat(m: &Mat<f64>, rows: &[&[f64]]) {
+    assert_eq!((m.nrows(), m.ncols()), (rows.len(), rows[0].len()));
+    for (i, r) in rows.iter().enumerate() {
+        for (j, v) in r.iter().enumerate() {
+            assert_eq!(m[(i, j)], *v, "entry ({i}, {j})");
+        }
+    }
+}
+
+fn identity(n: usize) -> Vec<Vec<f64>> {
+    (0..n)
+        .map(|i| (0..n).map(|j| if i == j { 1.0 } else { 0.0 }).collect())
+        .collect()
+}
+
+fn assert_mat_vec(m: &Mat<f64>, rows: &[Vec<f64>]) {
+    let refs: Vec<&[f64]> = rows.iter().map(Vec::as_slice).collect();
+    assert_mat(m, &refs);
+}
+
+// ---------------------------------------------------------------------------------------
+// The shipped case study
+// ---------------------------------------------------------------------------------------
+
+#[test]
+fn case_study_matches_design_section_4() {
+    let s = Scenario::from_file(CASE_STUDY).unwrap();
+    assert_eq!(s.name, "case-study");
+    let p = &s.plant;
+    assert_eq!((p.nx(), p.nu(), p.ny(), p.nw1(), p.nw2()), (4, 2, 1, 4, 1));
+    assert_mat(
+        &p.a().to_owned(),
+        &[
+            &[0.7, -0.1, 0.0, 0.0],
+            &[0.2, -0.5, 0.1, 0.0],
+            &[0.0, 0.1, 0.1, 0.0],
+            &[0.5, 0.0, 0.5, 0.5],
+        ],
+    );
+    assert_mat(
+        &p.b().to_owned(),
+        &[&[0.0, 0.1], &[0.1, 1.0], &[0.1, 0.0], &[0.0, 0.0]],
+    );
+    assert_mat(&p.c().to_owned(), &[&[0.1, 0.3, 0.8, 0.5]]);
+    assert_mat_vec(&p.e().to_owned(), &identity(4));
+    assert_mat_vec(&p.f().to_owned(), &identity(1));
+
+    assert!(s.sets.state.is_whole() && s.sets.state.lower().len() == 4);
+    assert!(s.sets.output.is_whole() && s.sets.output.lower().len() == 1);
+    assert_eq!(
+        (s.sets.input.lower(), s.sets.input.upper()),
+        (&[-1.0, -1.0][..], &[1.0, 1.0][..])
+    );
+    assert_eq!(s.sets.disturbance.lower(), &[-0.1; 5]);
+    assert_eq!(s.sets.disturbance.upper(), &[0.1; 5]);
+
+    assert_eq!(s.noise.kind, NoiseKind::Uniform);
+    assert_eq!(s.noise.scale, 1.0);
+    assert!(s.noise.covariance.is_none());
+    assert_eq!(s.simulation.x0, vec![12.0, -10.0, 10.0, -10.0]);
+    assert_eq!(s.simulation.prior, vec![7.0, -7.0, 3.0, -5.0]);
+    assert_eq!(s.simulation.steps, 40);
+
+    let mhe = s.mhe.as_ref().unwrap();
+    assert_eq!((mhe.horizon, mhe.eta, mhe.iterations), (5, 0.8, 652));
+    assert_mat_vec(&mhe.q, &identity(5));
+    assert_mat(&mhe.r, &[&[1.0]]);
+    assert!(mhe.p.is_none());
+    assert_eq!(
+        (mhe.solver, mhe.warm_start),
+        (MheSolver::ProjectedGradient, WarmStart::Paper)
+    );
+
+    let mpc = s.mpc.as_ref().unwrap();
+    assert_eq!((mpc.horizon, mpc.terminal), (10, TerminalCost::Dare));
+    assert_mat_vec(&mpc.q, &identity(4));
+    assert_mat(&mpc.r, &[&[0.1, 0.0], &[0.0, 0.1]]);
+
+    // The file says it is a stand-in, and the run can record the verbatim text.
+    let src = s.source.as_deref().unwrap();
+    assert!(src.contains("STAND-IN"));
+    assert!(s.description.as_deref().unwrap().starts_with("Stand-in"));
+}
+
+/// LMI (2) assembled here from its blocks (not through `ioss::lmi_matrix`).
+fn lmi_by_blocks(s: &Scenario, p: &Mat<f64>) -> Mat<f64> {
+    let sys = &s.plant;
+    let mhe = s.mhe.as_ref().unwrap();
+    let (a, c) = (sys.a().to_owned(), sys.c().to_owned());
+    let (bb, db) = (sys.b_bar(), sys.d_bar());
+    let (q, r, eta) = (&mhe.q, &mhe.r, mhe.eta);
+    let m11 = a.transpose() * p * &a - p * eta - c.transpose() * r * &c;
+    let m12 = a.transpose() * p * &bb - c.transpose() * r * &db;
+    let m22 = bb.transpose() * p * &bb - q - db.transpose() * r * &db;
+    let (nx, nw) = (sys.nx(), sys.nw());
+    Mat::from_fn(nx + nw, nx + nw, |i, j| match (i < nx, j < nx) {
+        (true, true) => m11[(i, j)],
+        (true, false) => m12[(i, j - nx)],
+        (false, true) => m12[(j, i - nx)],
+        (false, false) => m22[(i - nx, j - nx)],
+    })
+}
+
+#[test]
+fn case_study_certificate_satisfies_lmi_2() {
+    let s = Scenario::from_file(CASE_STUDY).unwrap();
+    let mhe = s.mhe.as_ref().unwrap();
+    let cert = ioss::certify(&s.plant, mhe.eta, mhe.q.as_ref(), mhe.r.as_ref()).unwrap();
+    assert!(cert.p_min_eigenvalue > 0.0);
+    assert!(
+        cert.lmi_max_eigenvalue <= 1e-9,
+        "{}",
+        cert.lmi_max_eigenvalue
+    );
+    let m = lmi_by_blocks(&s, &cert.p);
+    let (_, hi) = lti_model::matrix::sym_extreme_eigenvalues("LMI", m.as_ref()).unwrap();
+    assert!(hi <= 1e-9, "independently assembled LMI has λmax = {hi:e}");
+    assert!((hi - cert.lmi_max_eigenvalue).abs() <= 1e-9 * (1.0 + hi.abs()));
+}
+
+#[test]
+fn canonical_toml_round_trips() {
+    for text in [
+        std::fs::read_to_string(CASE_STUDY).unwrap(),
+        BASE.to_string(),
+    ] {
+        let s = Scenario::from_toml_str(&text).unwrap();
+        let canon = s.to_toml_string().unwrap();
+        let t = Scenario::from_toml_str(&canon).unwrap_or_else(|e| panic!("{e}\n{canon}"));
+        assert_eq!(t.name, s.name);
+        assert_eq!(t.description, s.description);
+        assert_eq!(t.plant.a(), s.plant.a());
+        assert_eq!(t.plant.b(), s.plant.b());
+        assert_eq!(t.plant.c(), s.plant.c());
+        assert_eq!(t.plant.e(), s.plant.e());
+        assert_eq!(t.plant.f(), s.plant.f());
+        assert_eq!(t.sets, s.sets);
+        assert_eq!(
+            (t.noise.kind, t.noise.scale, t.noise.seed),
+            (s.noise.kind, s.noise.scale, s.noise.seed)
+        );
+        assert_eq!(t.simulation, s.simulation);
+        let (a, b) = (t.mhe.unwrap(), s.mhe.unwrap());
+        assert_eq!(
+            (a.horizon, a.eta, a.iterations, a.solver, a.warm_start),
+            (b.horizon, b.eta, b.iterations, b.solver, b.warm_start)
+        );
+        assert_eq!((a.q, a.r), (b.q, b.r));
+        let (a, b) = (t.mpc.unwrap(), s.mpc.unwrap());
+        assert_eq!(
+            (a.horizon, a.q, a.r, a.terminal),
+            (b.horizon, b.q, b.r, b.terminal)
+        );
+        // Canonical text is a fixed point.
+        assert_eq!(
+            Scenario::from_toml_str(&canon)
+                .unwrap()
+                .to_toml_string()
+                .unwrap(),
+            canon
+        );
+    }
+}
+
+// ---------------------------------------------------------------------------------------
+// Accepted forms and defaults
+// ---------------------------------------------------------------------------------------
+
+#[test]
+fn matrix_forms_agree() {
+    let rows = with(
+        "mhe",
+        "q = [[2.0, 0.0, 0.0], [0.0, 2.0, 0.0], [0.0, 0.0, 2.0]]",
+    );
+    let scalar = with("mhe", "q = 2");
+    let diag = with("mhe", "q = { diagonal = [2, 2.0, 2] }");
+    let qs: Vec<Mat<f64>> = [rows, scalar, diag]
+        .iter()
+        .map(|t| Scenario::from_toml_str(t).unwrap().mhe.unwrap().q)
+        .collect();
+    assert_eq!(qs[0], qs[1]);
+    assert_eq!(qs[0], qs[2]);
+    assert_eq!(qs[0][(1, 1)], 2.0);
+}
+
+#[test]
+fn defaults_are_documented_values() {
+    let s = Scenario::from_toml_str(BASE).unwrap();
+    assert_eq!(s.plant.nw(), 3); // E = I₂, F = I₁
+    let mhe = s.mhe.unwrap();
+    assert_mat_vec(&mhe.q, &identity(3));
+    assert_mat(&mhe.r, &[&[1.0]]);
+    assert_eq!(
+        (mhe.solver, mhe.warm_start),
+        (MheSolver::ProjectedGradient, WarmStart::Paper)
+    );
+    let mpc = s.mpc.unwrap();
+    assert_mat_vec(&mpc.q, &identity(2));
+    assert_mat(&mpc.r, &[&[1.0]]);
+    assert_eq!(mpc.terminal, TerminalCost::Dare);
+    // No [noise] but a disturbance box: uniform on it, seed 0.
+    assert_eq!(
+        (s.noise.kind, s.noise.scale, s.noise.seed),
+        (NoiseKind::Uniform, 1.0, 0)
+    );
+    assert_eq!(s.simulation.prior, vec![0.0, 0.0]);
+
+    // Minimal file: no sets, no noise, no simulation, no mhe/mpc.
+    let s = Scenario::from_toml_str("name = \"m\"\n[plant]\na = [[0.5]]\nb = [[1.0]]\nc = [[1.0]]")
+        .unwrap();
+    assert!(s.sets.state.is_whole() && s.sets.input.is_whole() && s.sets.disturbance.is_whole());
+    assert_eq!(s.noise.kind, NoiseKind::Zero);
+    assert_eq!(s.simulation.x0, vec![0.0]);
+    assert_eq!(s.simulation.steps, lti_model::scenario::DEFAULT_STEPS);
+    assert!(s.mhe.is_none() && s.mpc.is_none());
+}
+
+#[test]
+fn infinite_bounds_and_broadcast() {
+    let text = with(
+        "sets",
+        "state = { lower = [\"-inf\", -inf], upper = [\"inf\", 5] }\noutput = { upper = 3 }",
+    );
+    let s = Scenario::from_toml_str(&text).unwrap();
+    assert_eq!(s.sets.state.lower(), &[f64::NEG_INFINITY; 2]);
+    assert_eq!(s.sets.state.upper(), &[f64::INFINITY, 5.0]);
+    assert_eq!(
+        (s.sets.output.lower(), s.sets.output.upper()),
+        (&[f64::NEG_INFINITY][..], &[3.0][..])
+    );
+    assert_eq!(s.sets.disturbance.upper(), &[0.1; 3]);
+    assert!(s.sets.state.contains(&[-1e300, 4.0], 0.0));
+}
+
+#[test]
+fn custom_disturbance_matrices_change_nw() {
+    // E is 2×1 (one process disturbance), F = 0.5·I₁: n_w = 2, so Q must be 2×2.
+    let text = with("plant", "e = [[0.0], [1.0]]\nf = 0.5").replace(
+        "disturbance = { lower = -0.1, upper = 0.1 }",
+        "disturbance = { lower = [-0.2, -0.1], upper = [0.2, 0.1] }",
+    );
+    let s = Scenario::from_toml_str(&text).unwrap();
+    assert_eq!((s.plant.nw1(), s.plant.nw2()), (1, 1));
+    assert_eq!(s.plant.f()[(0, 0)], 0.5);
+    assert_eq!(s.mhe.unwrap().q.nrows(), 2);
+    assert_key(
+        &format!("{text}\n").replace(
+            "eta = 0.8",
+            "eta = 0.8\nq = 1.0\nr = [[1.0, 0.0], [0.0, 1.0]]",
+        ),
+        "mhe.r",
+        "expected 1×1",
+    );
+}
+
+#[test]
+fn gaussian_noise() {
+    let text = with(
+        "noise",
+        "kind = \"gaussian\"\nscale = 0.5\ncovariance = { diagonal = [1, 2, 3] }\nseed = 7",
+    );
+    let s = Scenario::from_toml_str(&text).unwrap();
+    assert_eq!((s.noise.kind, s.noise.seed), (NoiseKind::Gaussian, 7));
+    let cov = s.noise.scaled_covariance().unwrap();
+    assert_mat(
+        &cov,
+        &[&[0.25, 0.0, 0.0], &[0.0, 0.5, 0.0], &[0.0, 0.0, 0.75]],
+    );
+    assert!(s.noise.uniform_box(&s.sets.disturbance).is_none());
+    let u = Scenario::from_toml_str(&with("noise", "scale = 2.0")).unwrap();
+    let (lo, hi) = u.noise.uniform_box(&u.sets.disturbance).unwrap();
+    assert_eq!((lo, hi), (vec![-0.2; 3], vec![0.2; 3]));
+}
+
+// ---------------------------------------------------------------------------------------
+// Bad input: each names its key
+// ---------------------------------------------------------------------------------------
+
+#[test]
+fn malformed_toml() {
+    assert_key("name = \"x\"\n[plant\na = 1", "<toml>", "line 2");
+    assert_key("name = \"x\"\nname = \"y\"", "<toml>", "line 2");
+    assert_key("", "name", "missing");
+}
+
+#[test]
+fn unknown_keys() {
+    assert_key(&with("", "colour = \"red\""), "colour", "unknown field");
+    assert_key(&with("plant", "d = [[0.0]]"), "plant.d", "remove the key");
+    assert_key(&with("mhe", "horizn = 4"), "mhe.horizn", "unknown field");
+    assert_key(
+        &with("mpc", "terminal_set = true"),
+        "mpc.terminal_set",
+        "unknown field",
+    );
+    assert_key(
+        &with("simulation", "t0 = 0"),
+        "simulation.t0",
+        "unknown field",
+    );
+    assert_key(&with("noise", "sed = 1"), "noise.sed", "unknown field");
+    assert_key(
+        &with("sets", "inptu = { lower = [0], upper = [0] }"),
+        "sets.inptu",
+        "unknown field",
+    );
+    assert_key(
+        &with("sets", "state = { lower = [0, 0], uper = [1, 1] }"),
+        "sets.state.uper",
+        "unknown field",
+    );
+    assert_key(
+        &with("mhe", "q = { diag = [1, 1, 1] }"),
+        "mhe.q.diag",
+        "unknown field",
+    );
+    assert_key(&with("extra", "x = 1"), "extra", "unknown field");
+}
+
+#[test]
+fn missing_sections_and_keys() {
+    assert_key("name = \"x\"\n[mhe]\nhorizon = 1", "plant", "[plant]");
+    assert_key(&BASE.replace("name = \"base\"", ""), "name", "required");
+    assert_key(&replacing("c = ", ""), "plant.c", "required");
+    assert_key(&replacing("a = ", ""), "plant.a", "required");
+    assert_key(&replacing("b = ", ""), "plant.b", "required");
+    assert_key(&replacing("horizon = 3", ""), "mhe.horizon", "required");
+    assert_key(&replacing("eta = ", ""), "mhe.eta", "required");
+    assert_key(
+        &replacing("iterations = ", ""),
+        "mhe.iterations",
+        "required",
+    );
+    assert_key(&replacing("horizon = 5", ""), "mpc.horizon", "required");
+    assert_key(&with("mhe", "q = {}"), "mhe.q.diagonal", "missing");
+}
+
+#[test]
+fn wrong_matrix_shapes() {
+    assert_key(
+        &replacing("a = ", "a = [[0.9, 0.1, 0.0], [0.0, 0.8, 0.0]]"),
+        "plant.a",
+        "square",
+    );
+    assert_key(
+        &replacing("a = ", "a = [[0.9, 0.1], [0.0]]"),
+        "plant.a",
+        "row 1 has 1 entries",
+    );
+    assert_key(&replacing("a = ", "a = []"), "plant.a", "non-empty");
+    assert_key(
+        &replacing("a = ", "a = 0.5"),
+        "plant.a",
+        "size of this matrix is not known",
+    );
+    assert_key(
+        &replacing("b = ", "b = [[0.0], [1.0], [2.0]]"),
+        "plant.b",
+        "expected n_x = 2",
+    );
+    assert_key(
+        &replacing("c = ", "c = [[1.0, 0.0, 0.0]]"),
+        "plant.c",
+        "expected n_y × 2",
+    );
+    assert_key(
+        &replacing("c = ", "c = [1.0, 0.0]"),
+        "plant.c",
+        "element [0]",
+    );
+    assert_key(&with("plant", "e = [[1.0, 0.0]]"), "plant.e", "expected 2");
+    assert_key(
+        &with("plant", "f = { diagonal = [1, 1] }"),
+        "plant.f",
+        "1×1",
+    );
+    assert_key(
+        &with("mhe", "q = [[1.0, 0.0], [0.0, 1.0]]"),
+        "mhe.q",
+        "expected 3×3",
+    );
+    assert_key(&with("mhe", "q = { diagonal = [1, 1] }"), "mhe.q", "3×3");
+    assert_key(
+        &with("mhe", "r = [[1.0, 0.0], [0.0, 1.0]]"),
+        "mhe.r",
+        "expected 1×1",
+    );
+    assert_key(&with("mhe", "p = [[1.0]]"), "mhe.p", "expected 2×2");
+    assert_key(&with("mpc", "q = [[1.0]]"), "mpc.q", "expected 2×2");
+    assert_key(&with("mpc", "r = { diagonal = [1, 1] }"), "mpc.r", "1×1");
+    assert_key(
+        &with("noise", "kind = \"gaussian\"\ncovariance = [[1.0]]"),
+        "noise.covariance",
+        "expected 3×3",
+    );
+    assert_key(&with("mhe", "q = \"identity\""), "mhe.q", "array of rows");
+}
+
+#[test]
+fn non_finite_entries() {
+    assert_key(
+        &replacing("a = ", "a = [[nan, 0.1], [0.0, 0.8]]"),
+        "plant.a",
+        "entry (0, 0) is NaN",
+    );
+    assert_key(
+        &replacing("b = ", "b = [[0.0], [inf]]"),
+        "plant.b",
+        "entry (1, 0) is inf",
+    );
+    assert_key(&replacing("c = ", "c = [[1.0, -inf]]"), "plant.c", "finite");
+    assert_key(&with("mhe", "q = inf"), "mhe.q", "finite");
+    assert_key(
+        &with("mhe", "q = { diagonal = [1, nan, 1] }"),
+        "mhe.q",
+        "diagonal entry 1",
+    );
+    assert_key(
+        &with("mpc", "q = [[1.0, 0.0], [0.0, nan]]"),
+        "mpc.q",
+        "finite",
+    );
+    assert_key(
+        &replacing("x0 = ", "x0 = [1.0, nan]"),
+        "simulation.x0",
+        "finite",
+    );
+    assert_key(
+        &with("simulation", "prior = [inf, 0]"),
+        "simulation.prior",
+        "finite",
+    );
+    assert_key(
+        &with("mhe", "eta = nan").replace("eta = 0.8\n", ""),
+        "mhe.eta",
+        "[0, 1)",
+    );
+    assert_key(&with("noise", "scale = inf"), "noise.scale", "finite");
+    assert_key(
+        &with("sets", "state = { lower = [nan, 0], upper = [1, 1] }"),
+        "sets.state",
+        "nan",
+    );
+}
+
+#[test]
+fn weights_must_be_symmetric_positive_definite() {
+    let nonsym = "q = [[1.0, 0.5, 0.0], [0.0, 1.0, 0.0], [0.0, 0.0, 1.0]]";
+    assert_key(&with("mhe", nonsym), "mhe.q", "not symmetric");
+    assert_key(&with("mhe", "r = -1.0"), "mhe.r", "not positive definite");
+    assert_key(&with("mhe", "r = 0"), "mhe.r", "positive definite");
+    assert_key(
+        &with("mhe", "q = { diagonal = [1, -1, 1] }"),
+        "mhe.q",
+        "positive definite",
+    );
+    assert_key(
+        &with("mhe", "p = [[1.0, 2.0], [2.0, 1.0]]"),
+        "mhe.p",
+        "positive definite",
+    );
+    assert_key(
+        &with("mpc", "q = [[1.0, 2.0], [2.0, 1.0]]"),
+        "mpc.q",
+        "positive definite",
+    );
+    assert_key(&with("mpc", "r = -0.1"), "mpc.r", "positive definite");
+    assert_key(
+        &with(
+            "noise",
+            "kind = \"gaussian\"\ncovariance = [[1, 0, 0], [0, 1, 0], [0, 1, 1]]",
+        ),
+        "noise.covariance",
+        "symmetric",
+    );
+}
+
+#[test]
+fn scalar_ranges() {
+    assert_key(&BASE.replace("eta = 0.8", "eta = 1.0"), "mhe.eta", "[0, 1)");
+    assert_key(
+        &BASE.replace("eta = 0.8", "eta = -0.1"),
+        "mhe.eta",
+        "[0, 1)",
+    );
+    assert_key(&BASE.replace("eta = 0.8", "eta = 1"), "mhe.eta", "[0, 1)");
+    assert!(Scenario::from_toml_str(&BASE.replace("eta = 0.8", "eta = 0")).is_ok());
+    assert_key(
+        &BASE.replace("horizon = 3", "horizon = 0"),
+        "mhe.horizon",
+        "at least 1",
+    );
+    assert_key(
+        &BASE.replace("horizon = 3", "horizon = -2"),
+        "mhe.horizon",
+        "invalid value",
+    );
+    assert_key(
+        &BASE.replace("iterations = 20", "iterations = 0"),
+        "mhe.iterations",
+        "at least 1",
+    );
+    assert_key(
+        &BASE.replace("horizon = 5", "horizon = 0"),
+        "mpc.horizon",
+        "at least 1",
+    );
+    assert_key(
+        &BASE.replace("steps = 10", "steps = 0"),
+        "simulation.steps",
+        "at least 1",
+    );
+    assert_key(
+        &BASE.replace("eta = 0.8", "eta = \"0.8\""),
+        "mhe.eta",
+        "invalid type",
+    );
+    assert_key(&with("noise", "scale = -1"), "noise.scale", "≥ 0");
+    assert_key(&with("noise", "seed = -1"), "noise.seed", "invalid value");
+}
+
+#[test]
+fn bad_boxes() {
+    let inverted = "input = { lower = [1.0], upper = [-1.0] }";
+    assert_key(
+        &BASE.replace("input = { lower = [-1.0], upper = [1.0] }", inverted),
+        "sets.input",
+        "lower[0] = 1 > upper[0] = -1",
+    );
+    assert_key(
+        &with("sets", "state = { lower = [-1, -1, -1], upper = 1 }"),
+        "sets.state.lower",
+        "expected 2",
+    );
+    assert_key(
+        &with("sets", "state = { lower = [1, -1], upper = 2 }"),
+        "sets.state",
+        "origin",
+    );
+    assert_key(
+        &with("sets", "state = { lower = [\"-infinite\", 0], upper = 1 }"),
+        "sets.state.lower",
+        "\"-inf\"",
+    );
+    assert_key(
+        &with("sets", "output = { upper = -inf }"),
+        "sets.output",
+        "empty",
+    );
+    assert_key(
+        &with("sets", "state = [0, 1]"),
+        "sets.state",
+        "invalid type",
+    );
+}
+
+#[test]
+fn bad_simulation_vectors() {
+    assert_key(
+        &BASE.replace("x0 = [1.0, -1.0]", "x0 = [1.0, -1.0, 0.0]"),
+        "simulation.x0",
+        "expected 2",
+    );
+    assert_key(
+        &with("simulation", "prior = [1.0]"),
+        "simulation.prior",
+        "expected 2",
+    );
+    assert_key(
+        &with("sets", "state = { lower = -0.5, upper = 0.5 }"),
+        "simulation.x0",
+        "outside sets.state",
+    );
+}
+
+#[test]
+fn bad_enumerations() {
+    assert_key(
+        &with("mhe", "solver = \"newton\""),
+        "mhe.solver",
+        "`pg`, `fista`, `admm`",
+    );
+    assert_key(
+        &with("mhe", "solver = \"PG\""),
+        "mhe.solver",
+        "unknown variant",
+    );
+    assert_key(
+        &with("mhe", "warm_start = \"cold\""),
+        "mhe.warm_start",
+        "expected `paper` or `shifted`",
+    );
+    assert_key(
+        &with("mpc", "terminal = \"none\""),
+        "mpc.terminal",
+        "`dare`",
+    );
+    assert_key(
+        &with("noise", "kind = \"laplace\""),
+        "noise.kind",
+        "`uniform`, `gaussian`, `zero`",
+    );
+}
+
+#[test]
+fn inconsistent_noise() {
+    assert_key(
+        &with("noise", "kind = \"gaussian\""),
+        "noise.covariance",
+        "needs a covariance",
+    );
+    assert_key(
+        &with("noise", "kind = \"uniform\"\ncovariance = 1.0"),
+        "noise.covariance",
+        "only used",
+    );
+    let unbounded = BASE.replace(
+        "disturbance = { lower = -0.1, upper = 0.1 }",
+        "disturbance = { upper = 0.1 }",
+    );
+    assert_key(&unbounded, "sets.disturbance", "finite bounds");
+    assert_key(
+        &format!("{unbounded}\n[noise]\nkind = \"uniform\""),
+        "noise.kind",
+        "finite bounds",
+    );
+    assert!(Scenario::from_toml_str(&format!("{unbounded}\n[noise]\nkind = \"zero\"")).is_ok());
+}
+
+#[test]
+fn missing_file_names_the_file() {
+    let err = Scenario::from_file("/nonexistent/scenario.toml").unwrap_err();
+    match err {
+        ModelError::Scenario { key, problem } => {
+            assert_eq!(key, "<file>");
+            assert!(problem.contains("/nonexistent/scenario.toml"), "{problem}");
+        }
+        other => panic!("{other:?}"),
+    }
+}
+
+// ---------------------------------------------------------------------------------------
+// No panic on arbitrary edits of a valid file
+// ---------------------------------------------------------------------------------------
+
+const TOKENS: &[&str] = &[
+    "",
+    "0",
+    "-1",
+    "1e400",
+    "nan",
+    "inf",
+    "-inf",
+    "\"inf\"",
+    "[[1]]",
+    "[]",
+    "[[]]",
+    "{}",
+    "{ diagonal = [] }",
+    "\"x\"",
+    "[",
+    "]",
+    "=",
+    "\n[plant]\n",
+    "9223372036854775807",
+    "-9223372036854775808",
+    "true",
+];
+
+proptest! {
+    #![proptest_config(ProptestConfig { cases: 256, ..ProptestConfig::default() })]
+
+    /// Replacing any span of the case study by a token, or cutting it short, gives Ok or a
+    /// scenario error, never a panic; a valid result stays internally consistent.
+    #[test]
+    fn edits_never_panic(start in 0usize..4000, len in 0usize..12, tok in 0usize..TOKENS.len(), cut in any::<bool>()) {
+        let text = std::fs::read_to_string(CASE_STUDY).unwrap();
+        let clamp = |i: usize| {
+            let mut i = i.min(text.len());
+            while !text.is_char_boundary(i) { i -= 1; }
+            i
+        };
+        let (a, b) = (clamp(start), clamp(start + len));
+        let edited = if cut { text[..a].to_string() } else { format!("{}{}{}", &text[..a], TOKENS[tok], &text[b..]) };
+        match Scenario::from_toml_str(&edited) {
+            Ok(s) => {
+                prop_assert_eq!(s.simulation.x0.len(), s.plant.nx());
+                prop_assert_eq!(s.sets.disturbance.lower().len(), s.plant.nw());
+                if let Some(m) = &s.mhe { prop_assert_eq!(m.q.nrows(), s.plant.nw()); }
+            }
+            Err(ModelError::Scenario { key, problem }) => {
+                prop_assert!(!key.is_empty() && !problem.is_empty());
+            }
+            Err(other) => prop_assert!(false, "non-scenario error {:?}", other),
+        }
+    }
+}

@@ -50,12 +50,11 @@
 //! §3.4.3 for over-relaxation.
 
 use faer::{Mat, Side};
-use lti_model::Projection;
 
 use crate::IterationMap;
 use crate::certificate::{BoundedQuantity, CertNorm, Certificate};
 use crate::error::{QpError, Result};
-use crate::kernel::matvec;
+use crate::kernel::Kernel;
 use crate::problem::ParametricQp;
 
 /// Penalty rule of [`Admm`].
@@ -94,6 +93,7 @@ pub struct Admm {
     m_inv: Vec<f64>,
     cert: Certificate,
     split_cert: Certificate,
+    kernel: Kernel,
 }
 
 /// State of [`Admm`]: z, split variable v, unscaled dual y, loaded q and (H + ρI)⁻¹q, scratch.
@@ -198,7 +198,7 @@ impl Admm {
             premise: format!("{common}; any start, any dual"),
             source: "Giselsson & Boyd, IEEE TAC 62(2) 2017, relaxed DR contraction in the Euclidean metric".into(),
         };
-        Ok(Self { qp, rho, alpha, m_rho, m_inv, cert, split_cert })
+        Ok(Self { qp, rho, alpha, m_rho, m_inv, cert, split_cert, kernel: Kernel::detect() })
     }
 
     /// The penalty ρ.
@@ -252,7 +252,7 @@ impl Admm {
             *t = z + ir * y;
         }
         s.v.copy_from_slice(&s.t);
-        self.qp.zset().project(&mut s.v);
+        self.qp.project(&mut s.v);
         for ((y, t), v) in s.y.iter_mut().zip(&s.t).zip(&s.v) {
             *y = self.rho * (t - v);
         }
@@ -260,7 +260,7 @@ impl Admm {
 
     /// y = −(Hz + q) for the current z (the gradient dual).
     fn gradient_dual(&self, s: &mut AdmmState) {
-        matvec(self.qp.h_row_major(), self.qp.n(), &s.z, &mut s.y);
+        self.kernel.matvec(self.qp.h_row_major(), self.qp.n(), &s.z, &mut s.y);
         for (y, q) in s.y.iter_mut().zip(&s.q) {
             *y = -(*y + q);
         }
@@ -286,13 +286,13 @@ impl IterationMap for Admm {
             mq: vec![0.0; n],
             t: vec![0.0; n],
         };
-        matvec(&self.m_inv, n, &s.q, &mut s.mq);
+        self.kernel.matvec(&self.m_inv, n, &s.q, &mut s.mq);
         self.cold_start(&mut s);
         s
     }
     fn load(&self, state: &mut AdmmState, theta: &[f64]) {
         self.qp.linear_term(theta, &mut state.q);
-        matvec(&self.m_inv, self.qp.n(), &state.q, &mut state.mq);
+        self.kernel.matvec(&self.m_inv, self.qp.n(), &state.q, &mut state.mq);
     }
     /// Warm start from z⁰ and, optionally, the unscaled multiplier y⁰ of z = v.
     /// Without y⁰ the dual is set to −(Hz⁰ + q) for the *loaded* q (load θ first), which
@@ -308,7 +308,7 @@ impl IterationMap for Admm {
     /// Warm start from Π_Z(0) without a dual (gradient dual, see the module docs).
     fn cold_start(&self, state: &mut AdmmState) {
         state.z.fill(0.0);
-        self.qp.zset().project(&mut state.z);
+        self.qp.project(&mut state.z);
         self.gradient_dual(state);
         self.set_from_dr(state);
     }
@@ -319,7 +319,7 @@ impl IterationMap for Admm {
         for ((t, v), y) in s.t.iter_mut().zip(&s.v).zip(&s.y) {
             *t = v - ir * y;
         }
-        matvec(&self.m_rho, n, &s.t, &mut s.z);
+        self.kernel.matvec(&self.m_rho, n, &s.t, &mut s.z);
         for (z, mq) in s.z.iter_mut().zip(&s.mq) {
             *z -= mq;
         }
@@ -327,7 +327,7 @@ impl IterationMap for Admm {
             *t = a * z + (1.0 - a) * v + ir * y;
         }
         s.v.copy_from_slice(&s.t);
-        self.qp.zset().project(&mut s.v);
+        self.qp.project(&mut s.v);
         for ((y, t), v) in s.y.iter_mut().zip(&s.t).zip(&s.v) {
             *y = rho * (t - v);
         }

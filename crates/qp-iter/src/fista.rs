@@ -42,9 +42,8 @@
 
 use crate::IterationMap;
 use crate::certificate::{BoundedQuantity, CertNorm, Certificate};
-use crate::kernel::matvec;
+use crate::kernel::Kernel;
 use crate::problem::ParametricQp;
-use lti_model::Projection;
 
 /// Fast projected gradient with constant momentum β = (√κ − 1)/(√κ + 1) and step 1/L.
 #[derive(Debug, Clone)]
@@ -53,16 +52,16 @@ pub struct Fista {
     inv_l: f64,
     beta: f64,
     cert: Certificate,
+    kernel: Kernel,
 }
 
-/// State of [`Fista`]: iterate x_k, previous iterate, extrapolated point y_k, loaded q, scratch.
+/// State of [`Fista`]: iterate x_k, previous iterate, extrapolated point y_k, loaded q.
 #[derive(Debug, Clone)]
 pub struct FistaState {
     z: Vec<f64>,
     z_prev: Vec<f64>,
     y: Vec<f64>,
     q: Vec<f64>,
-    hy: Vec<f64>,
     /// True right after a warm/cold start: the next step is the plain PG step x₀ = T(z⁰).
     restart: bool,
 }
@@ -107,7 +106,7 @@ impl Fista {
                      ‖z^K − z*‖ ≤ √(κ−1)(1 − 1/√κ)^((K−1)/2)‖z⁰ − z*‖"
                 .into(),
         };
-        Self { qp, inv_l: 1.0 / l, beta, cert }
+        Self { qp, inv_l: 1.0 / l, beta, cert, kernel: Kernel::detect() }
     }
 
     /// The momentum β = (√κ − 1)/(√κ + 1).
@@ -143,7 +142,6 @@ impl IterationMap for Fista {
             z_prev: vec![0.0; n],
             y: vec![0.0; n],
             q: self.qp.q0().to_vec(),
-            hy: vec![0.0; n],
             restart: true,
         };
         self.cold_start(&mut s);
@@ -158,19 +156,25 @@ impl IterationMap for Fista {
     }
     fn cold_start(&self, state: &mut FistaState) {
         state.z.fill(0.0);
-        self.qp.zset().project(&mut state.z);
+        self.qp.project(&mut state.z);
         self.reset(state);
     }
     #[inline]
     fn step(&self, s: &mut FistaState) {
         let n = self.qp.n();
-        matvec(self.qp.h_row_major(), n, &s.y, &mut s.hy);
-        let a = self.inv_l;
-        for i in 0..n {
-            s.z_prev[i] = s.z[i];
-            s.z[i] = s.y[i] - a * (s.hy[i] + s.q[i]);
-        }
-        self.qp.zset().project(&mut s.z);
+        let zset = self.qp.zset();
+        // x_{k+1} = T(y_k) written into the old x_{k−1} buffer; x_k becomes z_prev.
+        std::mem::swap(&mut s.z, &mut s.z_prev);
+        self.kernel.projected_gradient_step(
+            self.qp.h_row_major(),
+            n,
+            &s.y,
+            &s.q,
+            self.inv_l,
+            zset.lower(),
+            zset.upper(),
+            &mut s.z,
+        );
         // y₀ = x₀ after the restart step (momentum reset), extrapolate afterwards.
         let b = if s.restart { 0.0 } else { self.beta };
         s.restart = false;

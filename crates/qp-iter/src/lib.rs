@@ -23,6 +23,7 @@ pub mod fista;
 pub mod kernel;
 pub mod pg;
 pub mod problem;
+pub mod reference;
 
 pub use certificate::{BoundedQuantity, Certificate, CertNorm};
 pub use driver::{RunResult, RunStatus, run_fixed, run_until};

@@ -119,6 +119,28 @@ impl ParametricQp {
         }
     }
 
+    /// Π_Z(x) in place, keeping NaN as NaN (`min(u, max(l, x))`, the operand order of
+    /// [`crate::kernel`]'s clamp), so a NaN produced during iteration reaches the drivers'
+    /// finiteness check instead of being clamped onto a bound. Allocation-free.
+    ///
+    /// ```
+    /// use faer::Mat;
+    /// use lti_model::BoxSet;
+    /// use qp_iter::ParametricQp;
+    /// let qp = ParametricQp::new(Mat::identity(2, 2), vec![0.0; 2], Mat::zeros(2, 0),
+    ///     BoxSet::symmetric(&[1.0, 1.0]).unwrap()).unwrap();
+    /// let mut x = [3.0, f64::NAN];
+    /// qp.project(&mut x);
+    /// assert!(x[0] == 1.0 && x[1].is_nan());
+    /// ```
+    #[inline]
+    pub fn project(&self, x: &mut [f64]) {
+        for ((xi, &l), &u) in x.iter_mut().zip(self.zset.lower()).zip(self.zset.upper()) {
+            let w = if l > *xi { l } else { *xi };
+            *xi = if u < w { u } else { w };
+        }
+    }
+
     /// Objective ½zᵀHz + qᵀz for a given linear term q.
     pub fn objective(&self, q: &[f64], z: &[f64]) -> f64 {
         let n = self.n();

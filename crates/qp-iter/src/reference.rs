@@ -1,0 +1,333 @@
+//! Exact reference solution z* through Clarabel (interior point), for ε_t, tests and
+//! baselines. Never used in a hot loop.
+//!
+//! The QP min ½zᵀHz + qᵀz s.t. l ≤ z ≤ u is passed to Clarabel as P = triu(H) (CSC),
+//! one row of `A z + s = b, s ≥ 0` per *finite* bound (z_i ≤ u_i: row e_iᵀ, b = u_i;
+//! z_i ≥ l_i: row −e_iᵀ, b = −l_i). The solver is built once per [`ParametricQp`] with
+//! `presolve_enable(false)` and `verbose(false)`, so a new θ only overwrites q
+//! (`update_q`) before the next solve.
+//!
+//! **Polishing** (on by default): Clarabel's answer at tight tolerance is accurate to about
+//! 1e-9 relative, which is not enough to test φ(K) bounds down to 1e-9. The reference then
+//! guesses the active set from Clarabel's slacks and multipliers, solves the reduced
+//! equality system H_FF z_F = −(q_F + H_FA z_A) with a Cholesky factorisation, and keeps
+//! the polished point only if it satisfies the KKT conditions (primal feasibility,
+//! multiplier signs) to `polish_tol`; otherwise Clarabel's point is returned as is.
+//! Either way [`ReferenceSolution::kkt_residual`] reports the natural residual
+//! ‖z − Π_Z(z − (Hz + q))‖_∞, an independent check of optimality.
+
+use clarabel::algebra::CscMatrix;
+use clarabel::solver::{DefaultSettingsBuilder, DefaultSolver, IPSolver, SolverStatus, SupportedConeT};
+use faer::{Mat, Side};
+use lti_model::Projection;
+
+use crate::error::{QpError, Result};
+use crate::problem::ParametricQp;
+
+/// Settings of [`ReferenceSolver`].
+#[derive(Debug, Clone, Copy, PartialEq)]
+pub struct ReferenceSettings {
+    /// Clarabel's `tol_gap_abs`, `tol_gap_rel` and `tol_feas`.
+    pub tol: f64,
+    /// Clarabel's `max_iter`.
+    pub max_iter: u32,
+    /// Refine Clarabel's point by an active-set solve (kept only if it passes the KKT check).
+    pub polish: bool,
+    /// Relative tolerance of the KKT check that accepts a polished point.
+    pub polish_tol: f64,
+}
+
+impl Default for ReferenceSettings {
+    fn default() -> Self {
+        Self { tol: 1e-11, max_iter: 200, polish: true, polish_tol: 1e-9 }
+    }
+}
+
+/// z* and the box multipliers: Hz* + q + λ_u − λ_l = 0, λ_l, λ_u ≥ 0 (zero for infinite bounds).
+#[derive(Debug, Clone, PartialEq)]
+pub struct ReferenceSolution {
+    /// The minimiser z*.
+    pub z: Vec<f64>,
+    /// Multipliers λ_l ≥ 0 of z ≥ l.
+    pub lower_multipliers: Vec<f64>,
+    /// Multipliers λ_u ≥ 0 of z ≤ u.
+    pub upper_multipliers: Vec<f64>,
+    /// Objective ½z*ᵀHz* + qᵀz*.
+    pub objective: f64,
+    /// Interior-point iterations Clarabel used.
+    pub iterations: u32,
+    /// True if the active-set polish was accepted.
+    pub polished: bool,
+    /// Natural residual ‖z − Π_Z(z − (Hz + q))‖_∞ of the returned z (0 at the exact optimum).
+    pub kkt_residual: f64,
+}
+
+impl ReferenceSolution {
+    /// The multiplier y* = λ_u − λ_l = −(Hz* + q) of the splitting z = v (ADMM's dual).
+    pub fn dual(&self) -> Vec<f64> {
+        self.upper_multipliers.iter().zip(&self.lower_multipliers).map(|(u, l)| u - l).collect()
+    }
+}
+
+/// Clarabel set up once for a [`ParametricQp`]; re-solves for new θ by updating q.
+///
+/// ```
+/// use faer::{mat, Mat};
+/// use lti_model::BoxSet;
+/// use qp_iter::ParametricQp;
+/// use qp_iter::reference::{ReferenceSolver, ReferenceSettings};
+/// let qp = ParametricQp::new(mat![[4.0, 1.0], [1.0, 1.0]], vec![-2.0, -4.0],
+///     Mat::identity(2, 2), BoxSet::symmetric(&[2.0, 2.0]).unwrap()).unwrap();
+/// let mut r = ReferenceSolver::new(&qp, ReferenceSettings::default()).unwrap();
+/// let s = r.solve(&[0.0, 0.0]).unwrap();
+/// assert!(s.z[0].abs() < 1e-12 && (s.z[1] - 2.0).abs() < 1e-12);
+/// assert!((s.upper_multipliers[1] - 2.0).abs() < 1e-9 && s.kkt_residual < 1e-12);
+/// // New θ (q = q₀ + θ = (−3, −3)): z₁ still clipped at 2, then 4z₀ + 2 − 3 = 0.
+/// let s = r.solve(&[-1.0, 1.0]).unwrap();
+/// assert!((s.z[0] - 0.25).abs() < 1e-12 && (s.z[1] - 2.0).abs() < 1e-12);
+/// assert!((s.upper_multipliers[1] - 0.75).abs() < 1e-9);
+/// ```
+pub struct ReferenceSolver {
+    qp: ParametricQp,
+    solver: DefaultSolver<f64>,
+    /// For each constraint row: (variable index, is upper bound).
+    rows: Vec<(usize, bool)>,
+    settings: ReferenceSettings,
+    q: Vec<f64>,
+}
+
+impl std::fmt::Debug for ReferenceSolver {
+    fn fmt(&self, f: &mut std::fmt::Formatter<'_>) -> std::fmt::Result {
+        f.debug_struct("ReferenceSolver")
+            .field("n", &self.qp.n())
+            .field("constraint_rows", &self.rows.len())
+            .field("settings", &self.settings)
+            .finish_non_exhaustive()
+    }
+}
+
+fn clarabel_error(what: &str, e: impl std::fmt::Display) -> QpError {
+    QpError::Reference { status: format!("{what}: {e}") }
+}
+
+impl ReferenceSolver {
+    /// Builds Clarabel's data for `qp` (q = q₀) and validates `settings`.
+    pub fn new(qp: &ParametricQp, settings: ReferenceSettings) -> Result<Self> {
+        if !(settings.tol > 0.0 && settings.tol < 1.0) {
+            return Err(QpError::Parameter {
+                name: "tol".into(),
+                value: settings.tol,
+                reason: "the reference tolerance must lie in (0, 1)".into(),
+            });
+        }
+        if !(settings.polish_tol > 0.0 && settings.polish_tol.is_finite()) {
+            return Err(QpError::Parameter {
+                name: "polish_tol".into(),
+                value: settings.polish_tol,
+                reason: "the polish tolerance must be positive and finite".into(),
+            });
+        }
+        let n = qp.n();
+        let h = qp.h();
+        // P = triu(H), every entry kept (structural zeros too) so the pattern is fixed.
+        let mut colptr = Vec::with_capacity(n + 1);
+        let (mut rowval, mut nzval) = (Vec::new(), Vec::new());
+        colptr.push(0);
+        for j in 0..n {
+            for i in 0..=j {
+                rowval.push(i);
+                nzval.push(h[(i, j)]);
+            }
+            colptr.push(rowval.len());
+        }
+        let p = CscMatrix::new(n, n, colptr, rowval, nzval);
+        // A: one row per finite bound, grouped by column.
+        let (lo, up) = (qp.zset().lower(), qp.zset().upper());
+        let mut rows = Vec::new();
+        let mut b = Vec::new();
+        let mut a_colptr = vec![0];
+        let (mut a_rowval, mut a_nzval) = (Vec::new(), Vec::new());
+        for j in 0..n {
+            if up[j].is_finite() {
+                a_rowval.push(rows.len());
+                a_nzval.push(1.0);
+                rows.push((j, true));
+                b.push(up[j]);
+            }
+            if lo[j].is_finite() {
+                a_rowval.push(rows.len());
+                a_nzval.push(-1.0);
+                rows.push((j, false));
+                b.push(-lo[j]);
+            }
+            a_colptr.push(a_rowval.len());
+        }
+        let m = rows.len();
+        let a = CscMatrix::new(m, n, a_colptr, a_rowval, a_nzval);
+        let cones = if m > 0 { vec![SupportedConeT::NonnegativeConeT(m)] } else { Vec::new() };
+        let clarabel_settings = DefaultSettingsBuilder::default()
+            .verbose(false)
+            .presolve_enable(false)
+            .input_sparse_dropzeros(false)
+            .tol_gap_abs(settings.tol)
+            .tol_gap_rel(settings.tol)
+            .tol_feas(settings.tol)
+            .max_iter(settings.max_iter)
+            .max_threads(1)
+            .build()
+            .map_err(|e| clarabel_error("settings", e))?;
+        let q = qp.q0().to_vec();
+        let solver =
+            DefaultSolver::new(&p, &q, &a, &b, &cones, clarabel_settings).map_err(|e| clarabel_error("setup", e))?;
+        Ok(Self { qp: qp.clone(), solver, rows, settings, q })
+    }
+
+    /// Solves for parameters θ (q = q₀ + Fθ). θ must have length n_θ and be finite.
+    pub fn solve(&mut self, theta: &[f64]) -> Result<ReferenceSolution> {
+        self.qp.check_theta(theta)?;
+        self.qp.linear_term(theta, &mut self.q);
+        self.solve_loaded()
+    }
+
+    /// Solves for a given linear term q (length n, finite).
+    pub fn solve_q(&mut self, q: &[f64]) -> Result<ReferenceSolution> {
+        lti_model::matrix::check_len("q", q, self.qp.n())?;
+        lti_model::matrix::check_finite_slice("q", q)?;
+        self.q.copy_from_slice(q);
+        self.solve_loaded()
+    }
+
+    fn solve_loaded(&mut self) -> Result<ReferenceSolution> {
+        self.solver.update_q(&self.q).map_err(|e| clarabel_error("update_q", e))?;
+        self.solver.solve();
+        let sol = &self.solver.solution;
+        if sol.status != SolverStatus::Solved {
+            return Err(QpError::Reference {
+                status: format!("Clarabel returned {:?} after {} iterations", sol.status, sol.iterations),
+            });
+        }
+        let n = self.qp.n();
+        let mut lam_l = vec![0.0; n];
+        let mut lam_u = vec![0.0; n];
+        for (r, &(j, upper)) in self.rows.iter().enumerate() {
+            if upper {
+                lam_u[j] = sol.z[r];
+            } else {
+                lam_l[j] = sol.z[r];
+            }
+        }
+        let mut z = sol.x.clone();
+        let iterations = sol.iterations;
+        let mut polished = false;
+        if self.settings.polish {
+            if let Some((zp, lp, up)) = self.polish(&self.q, &z, &lam_l, &lam_u) {
+                z = zp;
+                lam_l = lp;
+                lam_u = up;
+                polished = true;
+            }
+        }
+        let objective = self.qp.objective(&self.q, &z);
+        let kkt_residual = self.natural_residual(&self.q, &z);
+        Ok(ReferenceSolution {
+            z,
+            lower_multipliers: lam_l,
+            upper_multipliers: lam_u,
+            objective,
+            iterations,
+            polished,
+            kkt_residual,
+        })
+    }
+
+    /// ‖z − Π_Z(z − (Hz + q))‖_∞.
+    pub fn natural_residual(&self, q: &[f64], z: &[f64]) -> f64 {
+        let g = self.gradient(q, z);
+        let mut t: Vec<f64> = z.iter().zip(&g).map(|(z, g)| z - g).collect();
+        self.qp.zset().project(&mut t);
+        z.iter().zip(&t).map(|(a, b)| (a - b).abs()).fold(0.0, f64::max)
+    }
+
+    fn gradient(&self, q: &[f64], z: &[f64]) -> Vec<f64> {
+        let n = self.qp.n();
+        let h = self.qp.h_row_major();
+        (0..n).map(|i| h[i * n..(i + 1) * n].iter().zip(z).map(|(a, b)| a * b).sum::<f64>() + q[i]).collect()
+    }
+
+    /// Active-set refinement; `None` if the guessed active set fails the KKT check.
+    fn polish(&self, q: &[f64], z: &[f64], lam_l: &[f64], lam_u: &[f64]) -> Option<(Vec<f64>, Vec<f64>, Vec<f64>)> {
+        let n = self.qp.n();
+        let (lo, up) = (self.qp.zset().lower(), self.qp.zset().upper());
+        // Active where the multiplier exceeds the slack (OSQP's rule).
+        let mut fixed: Vec<Option<f64>> = vec![None; n];
+        for i in 0..n {
+            if lo[i] == up[i] {
+                fixed[i] = Some(lo[i]);
+            } else if up[i].is_finite() && lam_u[i] > up[i] - z[i] {
+                fixed[i] = Some(up[i]);
+            } else if lo[i].is_finite() && lam_l[i] > z[i] - lo[i] {
+                fixed[i] = Some(lo[i]);
+            }
+        }
+        let free: Vec<usize> = (0..n).filter(|&i| fixed[i].is_none()).collect();
+        let mut zp: Vec<f64> = (0..n).map(|i| fixed[i].unwrap_or(0.0)).collect();
+        if !free.is_empty() {
+            let h = self.qp.h();
+            let nf = free.len();
+            let hff = Mat::from_fn(nf, nf, |a, b| h[(free[a], free[b])]);
+            let rhs = Mat::from_fn(nf, 1, |a, _| {
+                let i = free[a];
+                -(q[i] + (0..n).filter_map(|j| fixed[j].map(|v| h[(i, j)] * v)).sum::<f64>())
+            });
+            let llt = hff.llt(Side::Lower).ok()?;
+            let sol = faer::linalg::solvers::Solve::solve(&llt, rhs);
+            for (a, &i) in free.iter().enumerate() {
+                zp[i] = sol[(a, 0)];
+            }
+        }
+        // KKT check, scaled by the data.
+        let g = self.gradient(q, &zp);
+        let scale = 1.0
+            + zp.iter().map(|v| v.abs()).fold(0.0, f64::max)
+            + g.iter().map(|v| v.abs()).fold(0.0, f64::max)
+            + q.iter().map(|v| v.abs()).fold(0.0, f64::max);
+        let tol = self.settings.polish_tol * scale;
+        let mut lp = vec![0.0; n];
+        let mut upm = vec![0.0; n];
+        for i in 0..n {
+            if !zp[i].is_finite() || zp[i] < lo[i] - tol || zp[i] > up[i] + tol {
+                return None;
+            }
+            match fixed[i] {
+                None => {
+                    if g[i].abs() > tol {
+                        return None;
+                    }
+                }
+                Some(v) if v == up[i] && lo[i] != up[i] => {
+                    // Hz + q + λ_u = 0 ⇒ λ_u = −g ≥ 0.
+                    if -g[i] < -tol {
+                        return None;
+                    }
+                    upm[i] = (-g[i]).max(0.0);
+                }
+                Some(_) if lo[i] == up[i] => {
+                    if g[i] > 0.0 {
+                        lp[i] = g[i];
+                    } else {
+                        upm[i] = -g[i];
+                    }
+                }
+                Some(_) => {
+                    if g[i] < -tol {
+                        return None;
+                    }
+                    lp[i] = g[i].max(0.0);
+                }
+            }
+        }
+        // Clip tiny infeasibilities of the linear solve.
+        self.qp.zset().project(&mut zp);
+        Some((zp, lp, upm))
+    }
+}

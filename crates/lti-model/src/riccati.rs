@@ -174,15 +174,21 @@ pub fn expm(a: MatRef<'_, f64>) -> Result<Mat<f64>> {
         return Ok(Mat::zeros(0, 0));
     }
     let norm = norm_one(a);
-    // s = max(0, ⌈log₂(‖A‖₁/θ₁₃)⌉); ‖A‖₁ ≤ n·f64::MAX keeps s ≤ ~1030, 2^{-s} then
-    // handled by two multiplications to avoid an underflowing power of two.
+    if !norm.is_finite() {
+        return Err(numerical(
+            "expm",
+            "‖A‖₁ overflows f64; scale A (e.g. the sampling time) down",
+        ));
+    }
+    // s = max(0, ⌈log₂(‖A‖₁/θ₁₃)⌉) ≤ 1022 because ‖A‖₁ ≤ f64::MAX, so 2^{−s} is a normal
+    // number and the squaring loop below is short.
     let s = if norm > THETA13 {
-        (norm / THETA13).log2().ceil().max(0.0) as i32
+        (norm / THETA13).log2().ceil().clamp(0.0, 1022.0) as i32
     } else {
         0
     };
-    let (s1, s2) = (s.min(1000), s - s.min(1000));
-    let a = Mat::from_fn(n, n, |i, j| a[(i, j)] * 2f64.powi(-s1) * 2f64.powi(-s2));
+    let scale = 2f64.powi(-s);
+    let a = Mat::from_fn(n, n, |i, j| a[(i, j)] * scale);
 
     let b = &PADE13;
     let id = Mat::<f64>::identity(n, n);

@@ -177,7 +177,12 @@ fn expm_rejects_bad_input() {
     assert_nonfinite_err(expm(mat![[f64::INFINITY]].as_ref()).unwrap_err(), "A");
     // e^{1000} overflows f64: an error, not inf entries.
     assert_numerical_err(expm(mat![[1000.0]].as_ref()).unwrap_err(), "expm");
-    // ... while e^{-1000} underflows harmlessly to 0.
+    // ‖A‖₁ itself overflows, or e^A does after the maximal 1022 squarings: errors, no hang.
+    let huge = mat![[f64::MAX, f64::MAX], [0.0, 0.0]];
+    assert_numerical_err(expm(huge.as_ref()).unwrap_err(), "expm");
+    assert_numerical_err(expm(mat![[f64::MAX]].as_ref()).unwrap_err(), "expm");
+    // ... while e^{-1000} and e^{-1e300} underflow harmlessly to 0.
+    assert_eq!(expm(mat![[-1e300]].as_ref()).unwrap()[(0, 0)], 0.0);
     assert_eq!(expm(mat![[-1000.0]].as_ref()).unwrap()[(0, 0)], 0.0);
 }
 

@@ -116,7 +116,7 @@ fn points(n: usize, count: usize) -> impl Strategy<Value = Vec<Vec<f64>>> {
 }
 
 proptest! {
-    #![proptest_config(ProptestConfig { cases: 256, failure_persistence: None, .. ProptestConfig::default() })]
+    #![proptest_config(ProptestConfig::with_cases(256))]
 
     #[test]
     fn box_projection_is_feasible_idempotent_and_optimal(

@@ -1,0 +1,7 @@
+//! Integration tests of `qp-iter` (one binary): certificates, method behaviour, the
+//! Clarabel reference and input validation. The allocation test is `tests/alloc.rs`
+//! (its global allocator must not count this binary's work).
+#![allow(clippy::unwrap_used)]
+
+mod certificates;
+mod common;

@@ -3,5 +3,7 @@
 //! (its global allocator must not count this binary's work).
 #![allow(clippy::unwrap_used)]
 
+mod behaviour;
 mod certificates;
 mod common;
+mod premise;

@@ -1,0 +1,10 @@
+//! The one integration-test binary of `mhe-core` (the allocation test is separate:
+//! it installs a counting global allocator).
+#![allow(clippy::unwrap_used)]
+
+mod common;
+
+mod bookkeeping;
+mod errors;
+mod exact;
+mod problem;

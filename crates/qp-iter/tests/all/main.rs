@@ -6,4 +6,6 @@
 mod behaviour;
 mod certificates;
 mod common;
+mod errors;
 mod premise;
+mod reference;

@@ -1,0 +1,130 @@
+//! Zero heap allocations per step, load and restart, proved with a counting global
+//! allocator. A separate test binary, because the allocator is process-global; counting
+//! is per thread so the test harness's own threads do not interfere.
+#![allow(clippy::unwrap_used)]
+
+use std::alloc::{GlobalAlloc, Layout, System};
+use std::cell::Cell;
+
+use faer::Mat;
+use lti_model::BoxSet;
+use qp_iter::admm::{Admm, AdmmParams, Penalty};
+use qp_iter::fista::Fista;
+use qp_iter::pg::{ProjectedGradient, StepRule};
+use qp_iter::{IterationMap, ParametricQp, run_fixed, run_until};
+
+struct Counting;
+
+thread_local! {
+    static ALLOCATIONS: Cell<usize> = const { Cell::new(0) };
+}
+
+fn bump() {
+    // `try_with`: never panic inside the allocator, even during thread teardown.
+    let _ = ALLOCATIONS.try_with(|c| c.set(c.get() + 1));
+}
+
+// SAFETY: every call forwards to `System` with the caller's arguments unchanged.
+unsafe impl GlobalAlloc for Counting {
+    unsafe fn alloc(&self, layout: Layout) -> *mut u8 {
+        bump();
+        // SAFETY: forwarded contract.
+        unsafe { System.alloc(layout) }
+    }
+    unsafe fn alloc_zeroed(&self, layout: Layout) -> *mut u8 {
+        bump();
+        // SAFETY: forwarded contract.
+        unsafe { System.alloc_zeroed(layout) }
+    }
+    unsafe fn realloc(&self, ptr: *mut u8, layout: Layout, new_size: usize) -> *mut u8 {
+        bump();
+        // SAFETY: forwarded contract.
+        unsafe { System.realloc(ptr, layout, new_size) }
+    }
+    unsafe fn dealloc(&self, ptr: *mut u8, layout: Layout) {
+        // SAFETY: forwarded contract.
+        unsafe { System.dealloc(ptr, layout) }
+    }
+}
+
+#[global_allocator]
+static GLOBAL: Counting = Counting;
+
+fn allocations_in(f: impl FnOnce()) -> usize {
+    let before = ALLOCATIONS.with(Cell::get);
+    f();
+    ALLOCATIONS.with(Cell::get) - before
+}
+
+/// n = 30 (the case-study size), three parameters, a box with some infinite bounds.
+fn problem() -> ParametricQp {
+    let n = 30;
+    let h = Mat::from_fn(n, n, |i, j| 1.0 / (1.0 + i.abs_diff(j) as f64) + if i == j { 0.1 * i as f64 } else { 0.0 });
+    let f = Mat::from_fn(n, 3, |i, k| ((i + 2 * k) % 5) as f64 - 2.0);
+    let lo = (0..n).map(|i| if i % 4 == 0 { f64::NEG_INFINITY } else { -0.5 }).collect();
+    let up = (0..n).map(|i| if i % 5 == 0 { f64::INFINITY } else { 0.7 }).collect();
+    let q0 = (0..n).map(|i| (i as f64).sin()).collect();
+    ParametricQp::new(h, q0, f, BoxSet::new(lo, up).unwrap()).unwrap()
+}
+
+/// load + warm start (and cold start) + K steps through both drivers.
+fn exercise<M: IterationMap>(m: &M, s: &mut M::State, z0: &[f64], dual: Option<&[f64]>) {
+    for theta in [[0.3, -1.0, 2.0], [1.0, 0.0, -0.5]] {
+        m.load(s, &theta);
+        m.warm_start(s, z0, dual);
+        for _ in 0..20 {
+            m.step(s);
+        }
+        run_fixed(m, s, 20);
+        let mut k = 0;
+        run_until(m, s, 20, |_, z| {
+            k += 1;
+            (z[0] > 1e9).then_some(true)
+        });
+        m.cold_start(s);
+        run_fixed(m, s, 5);
+        std::hint::black_box(m.iterate(s));
+        std::hint::black_box(m.dual(s));
+    }
+}
+
+fn assert_no_allocations<M: IterationMap>(m: &M, dual: Option<&[f64]>) {
+    let mut s = m.new_state(); // setup may allocate
+    let z0 = vec![0.25; m.problem().n()];
+    exercise(m, &mut s, &z0, dual); // warm-up: lazy one-time initialisation, if any
+    let count = allocations_in(|| exercise(m, &mut s, &z0, dual));
+    assert_eq!(count, 0, "{}: {count} allocations in load / warm start / steps", m.name());
+}
+
+#[test]
+fn the_allocator_counts() {
+    // The test would be void if the counter missed allocations.
+    let n = allocations_in(|| {
+        std::hint::black_box(vec![1u8; 16]);
+    });
+    assert_eq!(n, 1);
+}
+
+#[test]
+fn no_method_allocates_after_setup() {
+    let qp = problem();
+    assert_no_allocations(&ProjectedGradient::new(qp.clone(), StepRule::InverseL).unwrap(), None);
+    assert_no_allocations(&ProjectedGradient::new(qp.clone(), StepRule::Optimal).unwrap(), None);
+    assert_no_allocations(&Fista::new(qp.clone()), None);
+    let admm = Admm::new(qp.clone(), AdmmParams::default()).unwrap();
+    assert_no_allocations(&admm, None);
+    let y0 = vec![0.1; qp.n()];
+    assert_no_allocations(&admm, Some(&y0));
+    let admm2 = Admm::new(qp.clone(), AdmmParams { penalty: Penalty::Fixed(2.0), relaxation: 1.7 }).unwrap();
+    assert_no_allocations(&admm2, Some(&y0));
+    // ADMM's diagnostics too.
+    let mut s = admm.new_state();
+    let mut out = vec![0.0; qp.n()];
+    let count = allocations_in(|| {
+        std::hint::black_box(admm.constraint_violation(&s));
+        std::hint::black_box(admm.primal_residual(&s));
+        admm.splitting_variable(&s, &mut out);
+        admm.step(&mut s);
+    });
+    assert_eq!(count, 0);
+}

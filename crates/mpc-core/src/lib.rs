@@ -1,1 +1,69 @@
-//! placeholder
+//! # mpc-core
+//!
+//! The controller π of Yang–Manzie–Pu (arXiv 2304.06216), Assumptions 3–4: an
+//! input-constrained condensed linear MPC, exact or with K warm-started iterations of any
+//! iteration map Φ, a saturated LQR, and the Lipschitz constant L_π of Assumption 3
+//! (a certified upper bound and a sampled estimate).
+//!
+//! - [`CondensedMpc`] / [`MpcConfig`]: the MPC as a [`qp_iter::ParametricQp`] with θ = x̂.
+//! - [`Controller`]: x̂ ↦ u, shared with `closed-loop`; implemented by [`ExactMpc`]
+//!   (Clarabel each call, the paper's setting), [`SuboptimalMpc`] (K iterations of Φ)
+//!   and [`SaturatedLqr`].
+//! - [`lipschitz`]: L_π certified (from H and F) and sampled (seeded pairs).
+//!
+//! The MPC uses the nominal model (w = 0) and input constraints only; see
+//! [`MpcConfig::state_set`] for state constraints.
+
+pub mod condensed;
+pub mod error;
+pub mod exact;
+pub mod lipschitz;
+pub mod lqr;
+pub mod suboptimal;
+
+pub use condensed::{CondensedMpc, MpcConfig, Terminal};
+pub use error::{MpcError, Result};
+pub use exact::ExactMpc;
+pub use lipschitz::{
+    LipschitzCertificate, LipschitzReport, SampledLipschitz, lipschitz_report,
+    lipschitz_report_for, lipschitz_sampled,
+};
+pub use lqr::SaturatedLqr;
+pub use suboptimal::{SuboptimalMpc, WarmStart};
+
+/// A state-feedback law u = π(x̂) (the controller of Assumption 3).
+///
+/// Implementations validate `x_hat` (length n_x, finite) and `u` (length n_u) on every
+/// call and return [`MpcError::Dimension`] / [`MpcError::NonFinite`] naming the argument;
+/// `u` is left unchanged on error. [`SuboptimalMpc`] and [`SaturatedLqr`] allocate
+/// nothing per call after construction (errors included); [`ExactMpc`] does (Clarabel).
+pub trait Controller: std::fmt::Debug {
+    /// Writes π(x̂) into `u`.
+    fn control(&mut self, x_hat: &[f64], u: &mut [f64]) -> Result<()>;
+    /// Input dimension n_u.
+    fn nu(&self) -> usize;
+    /// State dimension n_x.
+    fn nx(&self) -> usize;
+}
+
+/// Validates the arguments of [`Controller::control`] without allocating.
+pub(crate) fn check_io(x_hat: &[f64], u: &[f64], nx: usize, nu: usize) -> Result<()> {
+    error::check_len("x_hat", x_hat, nx)?;
+    error::check_len("u", u, nu)?;
+    error::check_finite("x_hat", x_hat)
+}
+
+#[cfg(test)]
+mod send_sync {
+    fn is_send<T: Send>() {}
+    fn is_sync<T: Sync>() {}
+    #[test]
+    fn controllers_are_send() {
+        is_send::<crate::SaturatedLqr>();
+        is_sync::<crate::SaturatedLqr>();
+        is_send::<crate::SuboptimalMpc<qp_iter::pg::ProjectedGradient>>();
+        is_send::<crate::SuboptimalMpc<qp_iter::fista::Fista>>();
+        is_send::<crate::ExactMpc>();
+        is_sync::<crate::CondensedMpc>();
+    }
+}

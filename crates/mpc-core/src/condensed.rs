@@ -1,0 +1,355 @@
+//! The condensed input-constrained linear MPC π(x̂) as a parametric QP.
+//!
+//! Decision U = (u₀, …, u_{N−1}) ∈ 𝒰^N, nominal prediction (w = 0)
+//! x_k = Aᵏx̂ + Σ_{j<k} A^{k−1−j}B u_j, i.e. X = (x₁, …, x_N) = Φx̂ + ΓU, and cost
+//!
+//! J(x̂, U) = Σ_{k<N} (‖x_k‖²_{Q_c} + ‖u_k‖²_{R_c}) + ‖x_N‖²_{P_f}
+//!         = ½UᵀHU + (Fx̂)ᵀU + x̂ᵀ(Q_c + ΦᵀQ̄Φ)x̂,
+//!
+//! with Q̄ = diag(Q_c, …, Q_c, P_f), R̄ = diag(R_c, …, R_c), H = 2(ΓᵀQ̄Γ + R̄) ≻ 0 (R_c ≻ 0)
+//! and F = 2ΓᵀQ̄Φ. The constant does not affect the minimiser, so π(x̂) = u*₀(x̂) where
+//! U*(x̂) solves the [`ParametricQp`] min ½UᵀHU + (Fx̂)ᵀU s.t. U ∈ 𝒰^N, θ = x̂, q₀ = 0.
+
+use faer::Mat;
+use lti_model::matrix::{
+    SYMMETRY_TOL, asymmetry, check_finite, check_positive_definite, check_shape,
+    sym_extreme_eigenvalues,
+};
+use lti_model::riccati::dare;
+use lti_model::scenario::{Scenario, TerminalCost};
+use lti_model::{BoxSet, ConvexSet, LtiSystem, ModelError};
+use qp_iter::ParametricQp;
+
+use crate::error::{MpcError, Result};
+
+/// Terminal cost P_f of the MPC.
+#[derive(Debug, Clone, PartialEq)]
+pub enum Terminal {
+    /// The stabilising solution of the DARE for (A, B, Q_c, R_c): the infinite-horizon
+    /// LQR cost-to-go, so that the unconstrained MPC equals the LQR law u = −Kx̂.
+    Dare,
+    /// A user-given symmetric P_f ⪰ 0 (n_x × n_x).
+    Given(Mat<f64>),
+}
+
+/// Settings of the condensed MPC; validated by [`CondensedMpc::new`].
+///
+/// ```
+/// use faer::Mat;
+/// use lti_model::BoxSet;
+/// let cfg = mpc_core::MpcConfig::new(10, Mat::identity(4, 4), Mat::<f64>::identity(2, 2) * 0.1,
+///     BoxSet::symmetric(&[1.0, 1.0]).unwrap());
+/// assert_eq!(cfg.terminal, mpc_core::Terminal::Dare);
+/// ```
+#[derive(Debug, Clone, PartialEq)]
+pub struct MpcConfig {
+    /// Prediction horizon N ≥ 1.
+    pub horizon: usize,
+    /// Stage state weight Q_c ⪰ 0 (n_x × n_x, symmetric).
+    pub q_c: Mat<f64>,
+    /// Stage input weight R_c ≻ 0 (n_u × n_u, symmetric).
+    pub r_c: Mat<f64>,
+    /// Terminal weight P_f (DARE by default).
+    pub terminal: Terminal,
+    /// Input set 𝒰 (a box, possibly with infinite bounds).
+    pub input_set: BoxSet,
+    /// State set 𝒳 imposed on the predicted x₁…x_N. Only `None` or the whole space are
+    /// accepted: `qp-iter` handles box constraints on the decision only, so finite state
+    /// bounds give [`MpcError::Unsupported`].
+    pub state_set: Option<BoxSet>,
+}
+
+impl MpcConfig {
+    /// Config with the DARE terminal cost and no state constraints.
+    pub fn new(horizon: usize, q_c: Mat<f64>, r_c: Mat<f64>, input_set: BoxSet) -> Self {
+        Self {
+            horizon,
+            q_c,
+            r_c,
+            terminal: Terminal::Dare,
+            input_set,
+            state_set: None,
+        }
+    }
+
+    /// The `[mpc]` section of a scenario with its input set `sets.input` and state set
+    /// `sets.state` (the latter must be the whole space, see [`MpcConfig::state_set`]).
+    pub fn from_scenario(scenario: &Scenario) -> Result<Self> {
+        let spec = scenario
+            .mpc
+            .as_ref()
+            .ok_or(MpcError::MissingSection { section: "mpc" })?;
+        let terminal = match spec.terminal {
+            TerminalCost::Dare => Terminal::Dare,
+        };
+        Ok(Self {
+            horizon: spec.horizon,
+            q_c: spec.q.clone(),
+            r_c: spec.r.clone(),
+            terminal,
+            input_set: scenario.sets.input.clone(),
+            state_set: Some(scenario.sets.state.clone()),
+        })
+    }
+}
+
+/// The condensed MPC: validated weights, prediction matrices and the parametric QP.
+///
+/// ```
+/// use faer::{mat, Mat};
+/// use lti_model::{BoxSet, LtiSystem};
+/// use mpc_core::{CondensedMpc, MpcConfig};
+/// let sys = LtiSystem::new(mat![[1.0, 0.1], [0.0, 1.0]], mat![[0.005], [0.1]], mat![[1.0, 0.0]]).unwrap();
+/// let mpc = CondensedMpc::new(&sys, MpcConfig::new(5, Mat::identity(2, 2), mat![[0.1]],
+///     BoxSet::symmetric(&[1.0]).unwrap())).unwrap();
+/// assert_eq!((mpc.qp().n(), mpc.qp().n_theta()), (5, 2));
+/// ```
+#[derive(Debug, Clone)]
+pub struct CondensedMpc {
+    system: LtiSystem,
+    horizon: usize,
+    q_c: Mat<f64>,
+    r_c: Mat<f64>,
+    p_f: Mat<f64>,
+    input_set: BoxSet,
+    phi: Mat<f64>,
+    gamma: Mat<f64>,
+    q_bar: Mat<f64>,
+    qp: ParametricQp,
+}
+
+/// Validates a weight that must be symmetric positive semidefinite (Q_c, P_f).
+pub(crate) fn check_psd(name: &'static str, m: &Mat<f64>, n: usize) -> Result<()> {
+    check_shape(name, m.as_ref(), n, n)?;
+    check_finite(name, m.as_ref())?;
+    let scale = m.norm_max().max(1.0);
+    let asym = asymmetry(m.as_ref());
+    if asym > SYMMETRY_TOL * scale {
+        return Err(ModelError::NotSymmetric {
+            name: name.to_string(),
+            asymmetry: asym,
+        }
+        .into());
+    }
+    let (lo, hi) = sym_extreme_eigenvalues(name, m.as_ref())?;
+    // Round-off of the eigensolver: accept −1e-12·max(1, λ_max).
+    if !(lo >= -1e-12 * hi.abs().max(1.0)) {
+        return Err(MpcError::NotPositiveSemidefinite {
+            name,
+            min_eigenvalue: lo,
+        });
+    }
+    Ok(())
+}
+
+impl CondensedMpc {
+    /// Validates `config` against `system` and builds H, F and the QP.
+    ///
+    /// Errors: [`MpcError::Horizon`] (N = 0); `Model(Shape | NonFinite | NotSymmetric |
+    /// NotPositiveDefinite)` naming `"Q_c"`, `"R_c"`, `"P_f"` or `"input_set"`;
+    /// [`MpcError::NotPositiveSemidefinite`] for Q_c or P_f; `Model(Numerical)` if the DARE
+    /// has no stabilising solution ((A, B) not stabilisable or (A, Q_c) not detectable);
+    /// [`MpcError::Unsupported`] for finite state bounds.
+    pub fn new(system: &LtiSystem, config: MpcConfig) -> Result<Self> {
+        let (nx, nu) = (system.nx(), system.nu());
+        let n = config.horizon;
+        if n == 0 {
+            return Err(MpcError::Horizon { value: 0 });
+        }
+        if nu == 0 {
+            return Err(ModelError::Shape {
+                name: "B".into(),
+                expected_rows: nx,
+                expected_cols: 1,
+                actual_rows: nx,
+                actual_cols: 0,
+            }
+            .into());
+        }
+        check_psd("Q_c", &config.q_c, nx)?;
+        check_positive_definite("R_c", config.r_c.as_ref(), nu)?;
+        if config.input_set.dim() != nu {
+            return Err(ModelError::Shape {
+                name: "input_set".into(),
+                expected_rows: nu,
+                expected_cols: 1,
+                actual_rows: config.input_set.dim(),
+                actual_cols: 1,
+            }
+            .into());
+        }
+        if let Some(xs) = &config.state_set {
+            if xs.dim() != nx {
+                return Err(ModelError::Shape {
+                    name: "state_set".into(),
+                    expected_rows: nx,
+                    expected_cols: 1,
+                    actual_rows: xs.dim(),
+                    actual_cols: 1,
+                }
+                .into());
+            }
+            if !xs.is_whole() {
+                return Err(MpcError::Unsupported {
+                    feature: "state constraints x_k ∈ 𝒳 in the MPC",
+                    reason: "qp-iter solves QPs over a box in the decision variables only (no general constraints Gz ∈ 𝒞 yet); \
+                             omit the state set or give it infinite bounds",
+                });
+            }
+        }
+        let q_c = lti_model::matrix::symmetrize(config.q_c.as_ref());
+        let r_c = lti_model::matrix::symmetrize(config.r_c.as_ref());
+        let p_f = match config.terminal {
+            Terminal::Dare => dare(system.a(), system.b(), q_c.as_ref(), r_c.as_ref())?,
+            Terminal::Given(p) => {
+                check_psd("P_f", &p, nx)?;
+                lti_model::matrix::symmetrize(p.as_ref())
+            }
+        };
+
+        let a = system.a();
+        let b = system.b();
+        // Powers A⁰ … A^N.
+        let mut pows: Vec<Mat<f64>> = Vec::with_capacity(n + 1);
+        pows.push(Mat::identity(nx, nx));
+        for k in 1..=n {
+            let next = &pows[k - 1] * a;
+            pows.push(next);
+        }
+        let mut phi = Mat::<f64>::zeros(n * nx, nx);
+        let mut gamma = Mat::<f64>::zeros(n * nx, n * nu);
+        for k in 1..=n {
+            phi.as_mut()
+                .submatrix_mut((k - 1) * nx, 0, nx, nx)
+                .copy_from(&pows[k]);
+            for j in 0..k {
+                let blk = &pows[k - 1 - j] * b;
+                gamma
+                    .as_mut()
+                    .submatrix_mut((k - 1) * nx, j * nu, nx, nu)
+                    .copy_from(&blk);
+            }
+        }
+        let mut q_blocks: Vec<faer::MatRef<'_, f64>> = vec![q_c.as_ref(); n - 1];
+        q_blocks.push(p_f.as_ref());
+        let q_bar = lti_model::matrix::block_diag(&q_blocks);
+        let r_bar = lti_model::matrix::block_diag(&vec![r_c.as_ref(); n]);
+        let gt_q = gamma.transpose() * &q_bar;
+        let h = (&gt_q * &gamma + &r_bar) * 2.0;
+        let f = (&gt_q * &phi) * 2.0;
+
+        let lower: Vec<f64> = (0..n)
+            .flat_map(|_| config.input_set.lower().iter().copied())
+            .collect();
+        let upper: Vec<f64> = (0..n)
+            .flat_map(|_| config.input_set.upper().iter().copied())
+            .collect();
+        let zset = BoxSet::named("input_set^N", lower, upper)?;
+        let qp = ParametricQp::new(h, vec![0.0; n * nu], f, zset)?;
+        Ok(Self {
+            system: system.clone(),
+            horizon: n,
+            q_c,
+            r_c,
+            p_f,
+            input_set: config.input_set,
+            phi,
+            gamma,
+            q_bar,
+            qp,
+        })
+    }
+
+    /// Shortcut: [`MpcConfig::from_scenario`] then [`CondensedMpc::new`] on the scenario's plant.
+    pub fn from_scenario(scenario: &Scenario) -> Result<Self> {
+        Self::new(&scenario.plant, MpcConfig::from_scenario(scenario)?)
+    }
+
+    /// The parametric QP (θ = x̂, Z = 𝒰^N); clone it to build an iteration map.
+    pub fn qp(&self) -> &ParametricQp {
+        &self.qp
+    }
+    /// The plant the predictions use.
+    pub fn system(&self) -> &LtiSystem {
+        &self.system
+    }
+    /// Horizon N.
+    pub fn horizon(&self) -> usize {
+        self.horizon
+    }
+    /// State dimension n_x (= n_θ).
+    pub fn nx(&self) -> usize {
+        self.system.nx()
+    }
+    /// Input dimension n_u.
+    pub fn nu(&self) -> usize {
+        self.system.nu()
+    }
+    /// Stage state weight Q_c (symmetrised).
+    pub fn q_c(&self) -> &Mat<f64> {
+        &self.q_c
+    }
+    /// Stage input weight R_c (symmetrised).
+    pub fn r_c(&self) -> &Mat<f64> {
+        &self.r_c
+    }
+    /// Terminal weight P_f (DARE solution or the user's, symmetrised).
+    pub fn terminal_weight(&self) -> &Mat<f64> {
+        &self.p_f
+    }
+    /// Input set 𝒰.
+    pub fn input_set(&self) -> &BoxSet {
+        &self.input_set
+    }
+    /// Φ = [A; A²; …; A^N]: X = Φx̂ + ΓU.
+    pub fn phi(&self) -> &Mat<f64> {
+        &self.phi
+    }
+    /// Γ, block (k−1, j) = A^{k−1−j}B for j < k: X = Φx̂ + ΓU.
+    pub fn gamma(&self) -> &Mat<f64> {
+        &self.gamma
+    }
+
+    /// The MPC cost J(x̂, U) computed by simulating the nominal model step by step
+    /// (independent of H and F; used to check the condensation).
+    pub fn cost(&self, x_hat: &[f64], u_seq: &[f64]) -> Result<f64> {
+        let (nx, nu, n) = (self.nx(), self.nu(), self.horizon);
+        crate::error::check_len("x_hat", x_hat, nx)?;
+        crate::error::check_len("u_seq", u_seq, n * nu)?;
+        let quad = |m: &Mat<f64>, v: &[f64]| -> f64 {
+            let mut s = 0.0;
+            for i in 0..v.len() {
+                for j in 0..v.len() {
+                    s += v[i] * m[(i, j)] * v[j];
+                }
+            }
+            s
+        };
+        let a = self.system.a();
+        let b = self.system.b();
+        let mut x = x_hat.to_vec();
+        let mut total = 0.0;
+        for k in 0..n {
+            let u = &u_seq[k * nu..(k + 1) * nu];
+            total += quad(&self.q_c, &x) + quad(&self.r_c, u);
+            let next: Vec<f64> = (0..nx)
+                .map(|i| {
+                    (0..nx).map(|j| a[(i, j)] * x[j]).sum::<f64>()
+                        + (0..nu).map(|j| b[(i, j)] * u[j]).sum::<f64>()
+                })
+                .collect();
+            x = next;
+        }
+        Ok(total + quad(&self.p_f, &x))
+    }
+
+    /// The U-independent part of the cost, x̂ᵀ(Q_c + ΦᵀQ̄Φ)x̂, so that
+    /// J(x̂, U) = ½UᵀHU + (Fx̂)ᵀU + `cost_constant(x̂)`.
+    pub fn cost_constant(&self, x_hat: &[f64]) -> Result<f64> {
+        crate::error::check_len("x_hat", x_hat, self.nx())?;
+        let x = lti_model::matrix::col(x_hat);
+        let m = &self.q_c + self.phi.transpose() * &self.q_bar * &self.phi;
+        let v = x.transpose() * &m * &x;
+        Ok(v[(0, 0)])
+    }
+}

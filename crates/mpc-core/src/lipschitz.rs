@@ -1,0 +1,498 @@
+//! L_π of Assumption 3, ‖π(x) − π(x')‖ ≤ L_π‖x − x'‖: a certified upper bound for the
+//! box-constrained condensed MPC and a sampled estimate for any memoryless controller.
+//!
+//! ## Certified bound (derivation; design.md trap 9)
+//!
+//! Premise: H ≻ 0 and Z = 𝒰^N closed and convex (a box), no state constraints; this is
+//! what [`CondensedMpc`] builds. Completing the square,
+//! ½UᵀHU + (Fx)ᵀU = ½‖U − v(x)‖²_H + const(x) with v(x) = −H⁻¹Fx, so
+//!
+//! U*(x) = Π^H_{𝒰^N}(v(x)),
+//!
+//! the projection in the inner product ⟨a, b⟩_H = aᵀHb. A projection onto a closed convex
+//! set in a Hilbert space is non-expansive in that space's norm, so for all x, x' ∈ ℝ^{n_x}
+//!
+//! ‖U*(x) − U*(x')‖_H ≤ ‖v(x) − v(x')‖_H = ‖H^{−1/2}F(x − x')‖₂ ≤ c‖x − x'‖,
+//! c = ‖H^{−1/2}F‖₂ = √λ_max(FᵀH⁻¹F).
+//!
+//! (a) *Sequence bound*: ‖·‖₂ ≤ λ_min(H)^{−1/2}‖·‖_H and u₀ is a sub-vector of U, so
+//!     ‖π(x) − π(x')‖ ≤ ‖U*(x) − U*(x')‖₂ ≤ c/√λ_min(H) · ‖x − x'‖.
+//! (b) *First-block bound* (tighter, proven the same way): with E₀ = [I_{n_u} 0 … 0],
+//!     Δu₀ = E₀ΔU = (E₀H^{−1/2})(H^{1/2}ΔU), so
+//!     ‖π(x) − π(x')‖ ≤ ‖E₀H^{−1/2}‖₂ ‖ΔU‖_H ≤ √λ_max([H⁻¹]₀₀) · c · ‖x − x'‖,
+//!     where [H⁻¹]₀₀ = E₀H⁻¹E₀ᵀ is the leading n_u × n_u block of H⁻¹. Since
+//!     λ_max([H⁻¹]₀₀) ≤ λ_max(H⁻¹) = 1/λ_min(H), (b) ≤ (a). (b) is the certified L_π.
+//!
+//! Both hold on all of ℝ^{n_x}, hence on 𝒳. A lower reference: if 0 ∈ int 𝒰, then
+//! v(x) ∈ 𝒰^N for x near 0, π(x) = −E₀H⁻¹Fx there, and L_π ≥ ‖E₀H⁻¹F‖₂ (with the DARE
+//! terminal cost E₀H⁻¹F is the LQR gain K).
+//!
+//! ## Sampled estimate
+//!
+//! [`lipschitz_sampled`] returns the largest ratio ‖π(x) − π(x')‖/‖x − x'‖ over seeded
+//! pairs drawn in the ball of radius r (projected onto an optional state box). The pairs
+//! cycle through four kinds: independent pairs; close pairs x' = x + δd (δ = 10⁻³r, d a
+//! random unit vector); pairs straddling a switch of the active set, located by bisection
+//! on a random segment (π is piecewise affine, so a segment whose midpoint value is not
+//! the average of its end values contains a switch); and close pairs along the top right
+//! singular vector of a central finite-difference Jacobian of π at a random point. Every
+//! ratio is an actual evaluation of π, so the estimate is a lower bound on the true L_π.
+
+use faer::{Mat, Side};
+use lti_model::{BoxSet, ConvexSet, Projection};
+use rand::{Rng, SeedableRng};
+use rand_chacha::ChaCha8Rng;
+use rand_distr::StandardNormal;
+use serde::Serialize;
+
+use crate::Controller;
+use crate::condensed::CondensedMpc;
+use crate::error::{MpcError, Result};
+use crate::exact::ExactMpc;
+
+/// The certified L_π of the box-constrained condensed MPC and its ingredients.
+#[derive(Debug, Clone, PartialEq, Serialize)]
+pub struct LipschitzCertificate {
+    /// (b) ‖E₀H^{−1/2}‖₂·‖H^{−1/2}F‖₂: the certified L_π (the tighter bound).
+    pub first_block: f64,
+    /// (a) ‖H^{−1/2}F‖₂/√λ_min(H): also bounds ‖U*(x) − U*(x')‖₂ / ‖x − x'‖.
+    pub sequence: f64,
+    /// c = ‖H^{−1/2}F‖₂.
+    pub h_inv_sqrt_f: f64,
+    /// ‖E₀H^{−1/2}‖₂ = √λ_max([H⁻¹]₀₀).
+    pub e0_h_inv_sqrt: f64,
+    /// λ_min(H).
+    pub h_min_eigenvalue: f64,
+    /// ‖E₀H⁻¹F‖₂, the gain of the unconstrained law; a lower bound on L_π when
+    /// `origin_interior` holds.
+    pub unconstrained_gain: f64,
+    /// 0 lies in the interior of 𝒰 (every lower bound < 0 < every upper bound).
+    pub origin_interior: bool,
+}
+
+impl LipschitzCertificate {
+    /// The certified L_π (the first-block bound (b)).
+    pub fn l_pi(&self) -> f64 {
+        self.first_block
+    }
+}
+
+impl CondensedMpc {
+    /// Certified upper bound on L_π (Assumption 3) from H and F; see the module docs.
+    ///
+    /// ```
+    /// use faer::{mat, Mat};
+    /// use lti_model::{BoxSet, LtiSystem};
+    /// use mpc_core::{CondensedMpc, MpcConfig};
+    /// let sys = LtiSystem::new(mat![[1.0, 0.1], [0.0, 1.0]], mat![[0.005], [0.1]], mat![[1.0, 0.0]]).unwrap();
+    /// let mpc = CondensedMpc::new(&sys, MpcConfig::new(5, Mat::identity(2, 2), mat![[0.1]],
+    ///     BoxSet::symmetric(&[1.0]).unwrap())).unwrap();
+    /// let c = mpc.lipschitz_certified().unwrap();
+    /// assert!(c.unconstrained_gain <= c.first_block * (1.0 + 1e-12) && c.first_block <= c.sequence * (1.0 + 1e-12));
+    /// ```
+    pub fn lipschitz_certified(&self) -> Result<LipschitzCertificate> {
+        let qp = self.qp();
+        let n = qp.n();
+        let nu = self.nu();
+        let llt = qp.h().to_owned().llt(Side::Lower).map_err(|e| {
+            MpcError::Model(lti_model::ModelError::Numerical {
+                routine: "Cholesky of H (L_π certificate)".into(),
+                reason: format!("{e:?}"),
+            })
+        })?;
+        let h_inv_f = faer::linalg::solvers::Solve::solve(&llt, qp.f());
+        let h_inv = faer::linalg::solvers::Solve::solve(&llt, Mat::<f64>::identity(n, n));
+        let ftf = qp.f().transpose() * &h_inv_f;
+        let (_, c2) = lti_model::matrix::sym_extreme_eigenvalues("FᵀH⁻¹F", ftf.as_ref())?;
+        let block = h_inv.as_ref().submatrix(0, 0, nu, nu).to_owned();
+        let (_, b2) = lti_model::matrix::sym_extreme_eigenvalues("[H⁻¹]₀₀", block.as_ref())?;
+        let c = c2.max(0.0).sqrt();
+        let e0 = b2.max(0.0).sqrt();
+        let mu = qp.mu();
+        let gain =
+            lti_model::matrix::spectral_norm(h_inv_f.as_ref().submatrix(0, 0, nu, self.nx()));
+        let us = self.input_set();
+        let origin_interior =
+            us.lower().iter().all(|l| *l < 0.0) && us.upper().iter().all(|u| *u > 0.0);
+        Ok(LipschitzCertificate {
+            first_block: e0 * c,
+            sequence: c / mu.sqrt(),
+            h_inv_sqrt_f: c,
+            e0_h_inv_sqrt: e0,
+            h_min_eigenvalue: mu,
+            unconstrained_gain: gain,
+            origin_interior,
+        })
+    }
+
+    /// Sampled L_π of the exact MPC ([`ExactMpc`]) over `n_pairs` seeded pairs in the ball
+    /// of radius `radius` (see [`lipschitz_sampled`]).
+    pub fn lipschitz_sampled(
+        &self,
+        n_pairs: usize,
+        seed: u64,
+        radius: f64,
+    ) -> Result<SampledLipschitz> {
+        let mut exact = ExactMpc::new(self)?;
+        lipschitz_sampled(&mut exact, n_pairs, seed, radius, None)
+    }
+}
+
+/// Result of [`lipschitz_sampled`].
+#[derive(Debug, Clone, PartialEq, Serialize)]
+pub struct SampledLipschitz {
+    /// max ‖π(x) − π(x')‖/‖x − x'‖ over the pairs (a lower bound on L_π).
+    pub estimate: f64,
+    /// The pair attaining the maximum.
+    pub worst_x: Vec<f64>,
+    /// Its partner.
+    pub worst_x_prime: Vec<f64>,
+    /// Number of pairs (ratios) evaluated.
+    pub pairs: usize,
+    /// Number of evaluations of π.
+    pub evaluations: usize,
+    /// Segments on which a switch of π was located by bisection.
+    pub switches_located: usize,
+    /// Seed of the ChaCha8 generator.
+    pub seed: u64,
+    /// Sampling radius r.
+    pub radius: f64,
+    /// Close-pair distance δ = 10⁻³r.
+    pub delta: f64,
+}
+
+struct Sampler<'a, C: Controller + ?Sized> {
+    ctrl: &'a mut C,
+    domain: Option<&'a BoxSet>,
+    rng: ChaCha8Rng,
+    nx: usize,
+    radius: f64,
+    evaluations: usize,
+}
+
+impl<C: Controller + ?Sized> Sampler<'_, C> {
+    fn eval(&mut self, x: &[f64]) -> Result<Vec<f64>> {
+        let mut u = vec![0.0; self.ctrl.nu()];
+        self.ctrl.control(x, &mut u)?;
+        self.evaluations += 1;
+        Ok(u)
+    }
+
+    fn unit(&mut self) -> Vec<f64> {
+        loop {
+            let g: Vec<f64> = (0..self.nx)
+                .map(|_| self.rng.sample(StandardNormal))
+                .collect();
+            let norm = norm(&g);
+            if norm > 1e-12 {
+                return g.iter().map(|v| v / norm).collect();
+            }
+        }
+    }
+
+    fn clamp(&self, x: &mut [f64]) {
+        if let Some(d) = self.domain {
+            d.project(x);
+        }
+    }
+
+    /// Uniform in the ball of radius r, projected onto the domain.
+    fn point(&mut self) -> Vec<f64> {
+        let d = self.unit();
+        let s: f64 = self.rng.random::<f64>();
+        let rho = self.radius * s.powf(1.0 / self.nx as f64);
+        let mut x: Vec<f64> = d.iter().map(|v| rho * v).collect();
+        self.clamp(&mut x);
+        x
+    }
+}
+
+fn norm(v: &[f64]) -> f64 {
+    v.iter().map(|a| a * a).sum::<f64>().sqrt()
+}
+
+fn dist(a: &[f64], b: &[f64]) -> f64 {
+    a.iter()
+        .zip(b)
+        .map(|(x, y)| (x - y) * (x - y))
+        .sum::<f64>()
+        .sqrt()
+}
+
+fn lerp(a: &[f64], b: &[f64], t: f64) -> Vec<f64> {
+    a.iter().zip(b).map(|(x, y)| x + t * (y - x)).collect()
+}
+
+/// ‖u_m − (u_a + u_b)/2‖_∞ > tol: π is not affine on the segment.
+fn bends(ua: &[f64], ub: &[f64], um: &[f64], tol: f64) -> bool {
+    ua.iter()
+        .zip(ub)
+        .zip(um)
+        .any(|((a, b), m)| (m - 0.5 * (a + b)).abs() > tol)
+}
+
+/// Sampled L_π of a memoryless controller (for [`ExactMpc`] and [`crate::SaturatedLqr`];
+/// a [`crate::SuboptimalMpc`] depends on its warm start, so its ratios mean nothing).
+///
+/// `n_pairs` ≥ 1 ratios are evaluated in the ball of radius `radius` > 0 around 0; if
+/// `domain` (the state set 𝒳, n_x-dimensional) is given, every point is projected onto it.
+///
+/// ```
+/// use faer::mat;
+/// use lti_model::BoxSet;
+/// use mpc_core::{SaturatedLqr, lipschitz_sampled};
+/// let mut lqr = SaturatedLqr::from_gain(mat![[3.0, 4.0]], BoxSet::symmetric(&[1.0]).unwrap()).unwrap();
+/// let s = lipschitz_sampled(&mut lqr, 200, 7, 1.0, None).unwrap();
+/// assert!(s.estimate <= 5.0 + 1e-9 && s.estimate > 4.9); // ‖K‖₂ = 5
+/// ```
+pub fn lipschitz_sampled<C: Controller + ?Sized>(
+    ctrl: &mut C,
+    n_pairs: usize,
+    seed: u64,
+    radius: f64,
+    domain: Option<&BoxSet>,
+) -> Result<SampledLipschitz> {
+    if n_pairs == 0 {
+        return Err(MpcError::Parameter {
+            name: "n_pairs",
+            value: 0.0,
+            reason: "at least one pair is needed",
+        });
+    }
+    if !(radius > 0.0 && radius.is_finite()) {
+        return Err(MpcError::Parameter {
+            name: "radius",
+            value: radius,
+            reason: "must be positive and finite",
+        });
+    }
+    let nx = ctrl.nx();
+    if let Some(d) = domain {
+        if d.dim() != nx {
+            return Err(MpcError::Dimension {
+                name: "domain",
+                expected: nx,
+                actual: d.dim(),
+            });
+        }
+    }
+    let delta = 1e-3 * radius;
+    let mut s = Sampler {
+        ctrl,
+        domain,
+        rng: ChaCha8Rng::seed_from_u64(seed),
+        nx,
+        radius,
+        evaluations: 0,
+    };
+    let mut best = SampledLipschitz {
+        estimate: 0.0,
+        worst_x: vec![0.0; nx],
+        worst_x_prime: vec![0.0; nx],
+        pairs: 0,
+        evaluations: 0,
+        switches_located: 0,
+        seed,
+        radius,
+        delta,
+    };
+    let record = |best: &mut SampledLipschitz, x: &[f64], ux: &[f64], y: &[f64], uy: &[f64]| {
+        let d = dist(x, y);
+        if d > 1e-12 * radius {
+            best.pairs += 1;
+            let r = dist(ux, uy) / d;
+            if r > best.estimate {
+                best.estimate = r;
+                best.worst_x = x.to_vec();
+                best.worst_x_prime = y.to_vec();
+            }
+        }
+    };
+    for i in 0..n_pairs {
+        match i % 4 {
+            0 => {
+                let (x, y) = (s.point(), s.point());
+                let (ux, uy) = (s.eval(&x)?, s.eval(&y)?);
+                record(&mut best, &x, &ux, &y, &uy);
+            }
+            1 => {
+                let x = s.point();
+                let d = s.unit();
+                let mut y: Vec<f64> = x.iter().zip(&d).map(|(a, b)| a + delta * b).collect();
+                s.clamp(&mut y);
+                let (ux, uy) = (s.eval(&x)?, s.eval(&y)?);
+                record(&mut best, &x, &ux, &y, &uy);
+            }
+            2 => {
+                let (mut a, mut b) = (s.point(), s.point());
+                let (mut ua, mut ub) = (s.eval(&a)?, s.eval(&b)?);
+                let scale = |u: &[f64], v: &[f64]| {
+                    1.0 + u.iter().chain(v).map(|t| t.abs()).fold(0.0, f64::max)
+                };
+                let tol = 1e-8 * scale(&ua, &ub);
+                let mut m = lerp(&a, &b, 0.5);
+                let mut um = s.eval(&m)?;
+                if !bends(&ua, &ub, &um, tol) {
+                    record(&mut best, &a, &ua, &b, &ub);
+                    continue;
+                }
+                // Invariant: π bends on [a, b] and m is its midpoint.
+                while dist(&a, &b) > delta {
+                    let (m1, m2) = (lerp(&a, &m, 0.5), lerp(&m, &b, 0.5));
+                    let u1 = s.eval(&m1)?;
+                    if bends(&ua, &um, &u1, tol) {
+                        (b, ub, m, um) = (m, um, m1, u1);
+                        continue;
+                    }
+                    let u2 = s.eval(&m2)?;
+                    if bends(&um, &ub, &u2, tol) {
+                        (a, ua, m, um) = (m, um, m2, u2);
+                        continue;
+                    }
+                    break; // affine on both halves: the switch is at m
+                }
+                best.switches_located += 1;
+                let dir: Vec<f64> = {
+                    let l = dist(&a, &b);
+                    a.iter().zip(&b).map(|(p, q)| (q - p) / l).collect()
+                };
+                let mut x: Vec<f64> = m
+                    .iter()
+                    .zip(&dir)
+                    .map(|(p, q)| p - 0.5 * delta * q)
+                    .collect();
+                let mut y: Vec<f64> = m
+                    .iter()
+                    .zip(&dir)
+                    .map(|(p, q)| p + 0.5 * delta * q)
+                    .collect();
+                s.clamp(&mut x);
+                s.clamp(&mut y);
+                let (ux, uy) = (s.eval(&x)?, s.eval(&y)?);
+                record(&mut best, &x, &ux, &y, &uy);
+            }
+            _ => {
+                let x = s.point();
+                let nu = s.ctrl.nu();
+                let mut jac = Mat::<f64>::zeros(nu, nx);
+                for j in 0..nx {
+                    let mut p = x.clone();
+                    let mut q = x.clone();
+                    p[j] += 0.5 * delta;
+                    q[j] -= 0.5 * delta;
+                    let (up, uq) = (s.eval(&p)?, s.eval(&q)?);
+                    for r in 0..nu {
+                        jac[(r, j)] = (up[r] - uq[r]) / delta;
+                    }
+                }
+                let jtj = jac.transpose() * &jac;
+                let dir: Vec<f64> = match jtj.self_adjoint_eigen(Side::Lower) {
+                    Ok(e) => (0..nx).map(|r| e.U()[(r, nx - 1)]).collect(),
+                    Err(_) => s.unit(),
+                };
+                let mut y: Vec<f64> = x.iter().zip(&dir).map(|(p, q)| p + delta * q).collect();
+                s.clamp(&mut y);
+                let (ux, uy) = (s.eval(&x)?, s.eval(&y)?);
+                record(&mut best, &x, &ux, &y, &uy);
+            }
+        }
+    }
+    best.evaluations = s.evaluations;
+    Ok(best)
+}
+
+/// Both L_π figures for one MPC (what `cargo xtask certify` prints).
+#[derive(Debug, Clone, PartialEq, Serialize)]
+pub struct LipschitzReport {
+    /// The certified bound and its ingredients.
+    pub certified: LipschitzCertificate,
+    /// The sampled estimate with the exact MPC.
+    pub sampled: SampledLipschitz,
+    /// ‖K‖₂ of the saturated LQR for the same (A, B, Q_c, R_c, 𝒰), for comparison.
+    pub saturated_lqr: f64,
+}
+
+impl LipschitzReport {
+    /// certified ≥ sampled (up to a relative 1e-9 for the solver's accuracy).
+    pub fn consistent(&self) -> bool {
+        self.sampled.estimate <= self.certified.l_pi() * (1.0 + 1e-9)
+    }
+}
+
+impl std::fmt::Display for LipschitzReport {
+    fn fmt(&self, f: &mut std::fmt::Formatter<'_>) -> std::fmt::Result {
+        let c = &self.certified;
+        let s = &self.sampled;
+        writeln!(f, "L_π (Assumption 3), condensed box-constrained MPC:")?;
+        writeln!(
+            f,
+            "  certified  {:.6}  = ‖E₀H^(-1/2)‖·‖H^(-1/2)F‖ = {:.6}·{:.6}",
+            c.l_pi(),
+            c.e0_h_inv_sqrt,
+            c.h_inv_sqrt_f
+        )?;
+        writeln!(
+            f,
+            "  (coarser   {:.6}  = ‖H^(-1/2)F‖/√λ_min(H), λ_min(H) = {:.6e})",
+            c.sequence, c.h_min_eigenvalue
+        )?;
+        writeln!(
+            f,
+            "  sampled    {:.6}  over {} pairs ({} evaluations, {} switches located), seed {}, radius {}",
+            s.estimate, s.pairs, s.evaluations, s.switches_located, s.seed, s.radius
+        )?;
+        if c.origin_interior {
+            writeln!(
+                f,
+                "  lower ref. {:.6}  = ‖E₀H⁻¹F‖ (unconstrained gain; 0 ∈ int 𝒰)",
+                c.unconstrained_gain
+            )?;
+        }
+        writeln!(f, "  saturated LQR: L_π = ‖K‖₂ = {:.6}", self.saturated_lqr)?;
+        if self.consistent() {
+            write!(f, "  certified ≥ sampled: yes")
+        } else {
+            write!(f, "  certified ≥ sampled: NO — report this as a bug")
+        }
+    }
+}
+
+/// Both L_π figures for `mpc`: the certificate, the sampled estimate with the exact MPC
+/// (`n_pairs`, `seed`, `radius`), and ‖K‖₂ of the saturated LQR for comparison.
+pub fn lipschitz_report_for(
+    mpc: &CondensedMpc,
+    n_pairs: usize,
+    seed: u64,
+    radius: f64,
+) -> Result<LipschitzReport> {
+    let certified = mpc.lipschitz_certified()?;
+    let sampled = mpc.lipschitz_sampled(n_pairs, seed, radius)?;
+    let lqr = crate::SaturatedLqr::new(
+        mpc.system(),
+        mpc.q_c().as_ref(),
+        mpc.r_c().as_ref(),
+        mpc.input_set().clone(),
+    )?;
+    Ok(LipschitzReport {
+        certified,
+        sampled,
+        saturated_lqr: lqr.lipschitz_certified(),
+    })
+}
+
+/// [`lipschitz_report_for`] for a scenario's `[mpc]` section. `radius` defaults to
+/// 2·max(‖x₀‖, ‖prior‖, 1), so the sampled ball covers where the closed loop starts.
+pub fn lipschitz_report(
+    scenario: &lti_model::scenario::Scenario,
+    n_pairs: usize,
+    seed: u64,
+    radius: Option<f64>,
+) -> Result<LipschitzReport> {
+    let mpc = CondensedMpc::from_scenario(scenario)?;
+    let r = radius.unwrap_or_else(|| {
+        2.0 * norm(&scenario.simulation.x0)
+            .max(norm(&scenario.simulation.prior))
+            .max(1.0)
+    });
+    lipschitz_report_for(&mpc, n_pairs, seed, r)
+}

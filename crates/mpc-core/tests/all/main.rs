@@ -1,0 +1,9 @@
+//! The integration-test binary of `mpc-core` (allocation counting lives in `tests/alloc.rs`).
+#![allow(clippy::unwrap_used)]
+
+mod common;
+mod errors;
+mod exact;
+mod lipschitz;
+mod lqr;
+mod suboptimal;

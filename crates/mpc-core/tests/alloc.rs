@@ -1,0 +1,124 @@
+//! Zero heap allocations per control call of `SuboptimalMpc` (PG, FISTA, ADMM) and
+//! `SaturatedLqr` after construction, error paths included. A separate binary because
+//! it installs a counting global allocator.
+#![allow(clippy::unwrap_used)]
+
+use std::alloc::{GlobalAlloc, Layout, System};
+use std::cell::Cell;
+
+use faer::{Mat, mat};
+use lti_model::{BoxSet, LtiSystem};
+use mpc_core::{CondensedMpc, Controller, MpcConfig, SaturatedLqr, SuboptimalMpc, WarmStart};
+use qp_iter::admm::{Admm, AdmmParams};
+use qp_iter::fista::Fista;
+use qp_iter::pg::{ProjectedGradient, StepRule};
+
+struct Counting;
+
+thread_local! {
+    static ALLOCS: Cell<usize> = const { Cell::new(0) };
+}
+
+// SAFETY: forwards to the system allocator; only counts (thread-local, no allocation).
+unsafe impl GlobalAlloc for Counting {
+    unsafe fn alloc(&self, layout: Layout) -> *mut u8 {
+        ALLOCS.with(|c| c.set(c.get() + 1));
+        // SAFETY: same contract as the caller's.
+        unsafe { System.alloc(layout) }
+    }
+    unsafe fn dealloc(&self, ptr: *mut u8, layout: Layout) {
+        // SAFETY: same contract as the caller's.
+        unsafe { System.dealloc(ptr, layout) }
+    }
+    unsafe fn realloc(&self, ptr: *mut u8, layout: Layout, new_size: usize) -> *mut u8 {
+        ALLOCS.with(|c| c.set(c.get() + 1));
+        // SAFETY: same contract as the caller's.
+        unsafe { System.realloc(ptr, layout, new_size) }
+    }
+}
+
+#[global_allocator]
+static GLOBAL: Counting = Counting;
+
+fn allocations<F: FnMut()>(mut f: F) -> usize {
+    let before = ALLOCS.with(Cell::get);
+    f();
+    ALLOCS.with(Cell::get) - before
+}
+
+/// A nominal closed loop of `steps` calls plus error calls; returns the allocation count.
+fn count_loop(c: &mut dyn Controller, sys: &LtiSystem, steps: usize) -> usize {
+    let (nx, nu) = (sys.nx(), sys.nu());
+    let mut x = [12.0, -10.0, 10.0, -10.0];
+    let mut xn = [0.0; 4];
+    let mut u = [0.0; 2];
+    let mut y = [0.0; 1];
+    let w = [0.0; 5];
+    let bad_x = [f64::NAN, 0.0, 0.0, 0.0];
+    assert_eq!((nx, nu), (4, 2));
+    // Warm-up call outside the count (runtime kernel dispatch may initialise once).
+    c.control(&x, &mut u).unwrap();
+    allocations(|| {
+        for _ in 0..steps {
+            c.control(&x, &mut u).unwrap();
+            sys.step(&x, &u, &w, &mut xn, &mut y);
+            x = xn;
+            assert!(c.control(&bad_x, &mut u).is_err());
+            assert!(c.control(&x[..3], &mut u).is_err());
+        }
+    })
+}
+
+#[test]
+fn control_calls_do_not_allocate() {
+    let sys = LtiSystem::new(
+        mat![
+            [0.7, -0.1, 0.0, 0.0],
+            [0.2, -0.5, 0.1, 0.0],
+            [0.0, 0.1, 0.1, 0.0],
+            [0.5, 0.0, 0.5, 0.5]
+        ],
+        mat![[0.0, 0.1], [0.1, 1.0], [0.1, 0.0], [0.0, 0.0]],
+        mat![[0.1, 0.3, 0.8, 0.5]],
+    )
+    .unwrap();
+    let ubox = BoxSet::symmetric(&[1.0, 1.0]).unwrap();
+    let cfg = MpcConfig::new(
+        10,
+        Mat::identity(4, 4),
+        Mat::<f64>::identity(2, 2) * 0.1,
+        ubox.clone(),
+    );
+    let mpc = CondensedMpc::new(&sys, cfg).unwrap();
+
+    for rule in [
+        WarmStart::ShiftRepeatLast,
+        WarmStart::ShiftZero,
+        WarmStart::Previous,
+        WarmStart::Cold,
+    ] {
+        let pg = ProjectedGradient::new(mpc.qp().clone(), StepRule::Optimal).unwrap();
+        let mut c = SuboptimalMpc::new(&mpc, pg, 30, rule).unwrap();
+        assert_eq!(count_loop(&mut c, &sys, 20), 0, "PG, {rule:?}");
+    }
+    let mut c =
+        SuboptimalMpc::new(&mpc, Fista::new(mpc.qp().clone()), 30, WarmStart::default()).unwrap();
+    assert_eq!(count_loop(&mut c, &sys, 20), 0, "FISTA");
+    let admm = Admm::new(mpc.qp().clone(), AdmmParams::default()).unwrap();
+    let mut c = SuboptimalMpc::new(&mpc, admm, 30, WarmStart::default()).unwrap();
+    assert_eq!(count_loop(&mut c, &sys, 20), 0, "ADMM");
+
+    let mut lqr = SaturatedLqr::new(
+        &sys,
+        Mat::<f64>::identity(4, 4).as_ref(),
+        (Mat::<f64>::identity(2, 2) * 0.1).as_ref(),
+        ubox,
+    )
+    .unwrap();
+    assert_eq!(count_loop(&mut lqr, &sys, 20), 0, "saturated LQR");
+
+    // The counter works: the exact MPC allocates (Clarabel), as documented.
+    let mut exact = mpc_core::ExactMpc::new(&mpc).unwrap();
+    let mut u = [0.0; 2];
+    assert!(allocations(|| exact.control(&[1.0, 0.0, 0.0, 0.0], &mut u).unwrap()) > 0);
+}

@@ -53,7 +53,10 @@ impl BoxSet {
 
     /// As [`BoxSet::new`], with the set's name used in errors (e.g. `"sets.input"`).
     pub fn named(name: &str, lower: Vec<f64>, upper: Vec<f64>) -> Result<Self> {
-        let invalid = |reason: String| ModelError::InvalidSet { name: name.to_string(), reason };
+        let invalid = |reason: String| ModelError::InvalidSet {
+            name: name.to_string(),
+            reason,
+        };
         if lower.len() != upper.len() {
             return Err(invalid(format!(
                 "lower has {} entries but upper has {}",
@@ -66,10 +69,14 @@ impl BoxSet {
                 return Err(invalid(format!("bound {i} is NaN")));
             }
             if l == f64::INFINITY || u == f64::NEG_INFINITY {
-                return Err(invalid(format!("bound {i} makes the set empty (lower {l}, upper {u})")));
+                return Err(invalid(format!(
+                    "bound {i} makes the set empty (lower {l}, upper {u})"
+                )));
             }
             if l > u {
-                return Err(invalid(format!("lower[{i}] = {l} > upper[{i}] = {u}: the box is empty")));
+                return Err(invalid(format!(
+                    "lower[{i}] = {l} > upper[{i}] = {u}: the box is empty"
+                )));
             }
         }
         Ok(Self { lower, upper })
@@ -82,7 +89,10 @@ impl BoxSet {
 
     /// The whole space ℝⁿ as a box with infinite bounds.
     pub fn whole(n: usize) -> Self {
-        Self { lower: vec![f64::NEG_INFINITY; n], upper: vec![f64::INFINITY; n] }
+        Self {
+            lower: vec![f64::NEG_INFINITY; n],
+            upper: vec![f64::INFINITY; n],
+        }
     }
 
     /// Lower bounds l.
@@ -95,11 +105,17 @@ impl BoxSet {
     }
     /// True if every bound is infinite (the box is ℝⁿ).
     pub fn is_whole(&self) -> bool {
-        self.lower.iter().all(|l| *l == f64::NEG_INFINITY) && self.upper.iter().all(|u| *u == f64::INFINITY)
+        self.lower.iter().all(|l| *l == f64::NEG_INFINITY)
+            && self.upper.iter().all(|u| *u == f64::INFINITY)
     }
     /// Largest |bound| over finite bounds (0 if none): the radius used for 𝒲-type bounds.
     pub fn max_abs_finite_bound(&self) -> f64 {
-        self.lower.iter().chain(&self.upper).filter(|b| b.is_finite()).map(|b| b.abs()).fold(0.0, f64::max)
+        self.lower
+            .iter()
+            .chain(&self.upper)
+            .filter(|b| b.is_finite())
+            .map(|b| b.abs())
+            .fold(0.0, f64::max)
     }
     /// Writes the box as a polytope {x : Gx ≤ h}, one row per finite bound.
     pub fn to_polytope(&self) -> Polytope {
@@ -113,7 +129,11 @@ impl BoxSet {
                 rows.push((i, -1.0, -self.lower[i]));
             }
         }
-        let g = Mat::from_fn(rows.len(), n, |r, j| if rows[r].0 == j { rows[r].1 } else { 0.0 });
+        let g = Mat::from_fn(
+            rows.len(),
+            n,
+            |r, j| if rows[r].0 == j { rows[r].1 } else { 0.0 },
+        );
         let h = rows.iter().map(|r| r.2).collect();
         Polytope { g, h }
     }
@@ -138,8 +158,10 @@ impl ConvexSet for BoxSet {
 impl Projection for BoxSet {
     #[inline]
     fn project(&self, x: &mut [f64]) {
+        // `clamp` keeps NaN as NaN (max/min would silently turn it into a bound and hide a
+        // numerical failure); bounds are validated l ≤ u, non-NaN, so it cannot panic.
         for ((xi, l), u) in x.iter_mut().zip(&self.lower).zip(&self.upper) {
-            *xi = xi.max(*l).min(*u);
+            *xi = xi.clamp(*l, *u);
         }
     }
 }

@@ -16,11 +16,11 @@
 //! "Computational complexity certification for real-time MPC with input constraints
 //! based on the fast gradient method", IEEE TAC 57(6), 2012.
 
+use crate::IterationMap;
 use crate::certificate::{BoundedQuantity, CertNorm, Certificate};
 use crate::error::{QpError, Result};
-use crate::kernel::matvec;
+use crate::kernel::Kernel;
 use crate::problem::ParametricQp;
-use crate::IterationMap;
 use lti_model::Projection;
 
 /// Step-size rule of [`ProjectedGradient`].
@@ -41,14 +41,15 @@ pub struct ProjectedGradient {
     qp: ParametricQp,
     alpha: f64,
     cert: Certificate,
+    kernel: Kernel,
 }
 
-/// State of [`ProjectedGradient`]: iterate, loaded linear term, scratch.
+/// State of [`ProjectedGradient`]: iterate, loaded linear term, the next iterate's buffer.
 #[derive(Debug, Clone)]
 pub struct PgState {
     z: Vec<f64>,
     q: Vec<f64>,
-    hz: Vec<f64>,
+    next: Vec<f64>,
 }
 
 impl ProjectedGradient {
@@ -94,9 +95,15 @@ impl ProjectedGradient {
             premise: format!(
                 "H ≻ 0 (μ = {mu:.6e}, L = {l:.6e}), constant step α = {alpha:.6e} < 2/L; exact projection onto a box"
             ),
-            source: "Nesterov (2018) Thm 2.1.15; contraction of z ↦ Π(z − α∇f(z)) for quadratics".into(),
+            source: "Nesterov (2018) Thm 2.1.15; contraction of z ↦ Π(z − α∇f(z)) for quadratics"
+                .into(),
         };
-        Ok(Self { qp, alpha, cert })
+        Ok(Self {
+            qp,
+            alpha,
+            cert,
+            kernel: Kernel::detect(),
+        })
     }
 
     /// The step α.
@@ -116,7 +123,11 @@ impl IterationMap for ProjectedGradient {
     }
     fn new_state(&self) -> PgState {
         let n = self.qp.n();
-        let mut s = PgState { z: vec![0.0; n], q: self.qp.q0().to_vec(), hz: vec![0.0; n] };
+        let mut s = PgState {
+            z: vec![0.0; n],
+            q: self.qp.q0().to_vec(),
+            next: vec![0.0; n],
+        };
         self.cold_start(&mut s);
         s
     }
@@ -132,18 +143,51 @@ impl IterationMap for ProjectedGradient {
     }
     #[inline]
     fn step(&self, s: &mut PgState) {
-        let n = self.qp.n();
-        matvec(self.qp.h_row_major(), n, &s.z, &mut s.hz);
-        let a = self.alpha;
-        for ((z, hz), q) in s.z.iter_mut().zip(&s.hz).zip(&s.q) {
-            *z -= a * (hz + q);
-        }
-        self.qp.zset().project(&mut s.z);
+        // Fused z⁺ = Π_Z(z − α(Hz + q)) in one pass over H (NaN-preserving clamp), then a
+        // pointer swap: no copy, no allocation.
+        let (n, z) = (self.qp.n(), self.qp.zset());
+        self.kernel.projected_gradient_step(
+            self.qp.h_row_major(),
+            n,
+            &s.z,
+            &s.q,
+            self.alpha,
+            z.lower(),
+            z.upper(),
+            &mut s.next,
+        );
+        std::mem::swap(&mut s.z, &mut s.next);
     }
     fn iterate<'s>(&self, state: &'s PgState) -> &'s [f64] {
         &state.z
     }
     fn certificate(&self) -> &Certificate {
         &self.cert
+    }
+}
+
+#[cfg(test)]
+mod tests {
+    #![allow(clippy::unwrap_used)]
+    use super::*;
+    use crate::{RunStatus, run_fixed};
+    use faer::mat;
+    use lti_model::BoxSet;
+
+    /// A NaN in θ must surface as `NonFinite` even on a bounded box, where a max/min clamp
+    /// would silently turn it into a bound.
+    #[test]
+    fn nan_theta_on_a_bounded_box_is_reported() {
+        let qp = ParametricQp::new(
+            mat![[2.0, 0.5], [0.5, 1.0]],
+            vec![0.0, 0.0],
+            faer::Mat::identity(2, 2),
+            BoxSet::symmetric(&[1.0, 1.0]).unwrap(),
+        )
+        .unwrap();
+        let pg = ProjectedGradient::new(qp, StepRule::InverseL).unwrap();
+        let mut s = pg.new_state();
+        pg.load(&mut s, &[f64::NAN, 0.0]);
+        assert_eq!(run_fixed(&pg, &mut s, 5).status, RunStatus::NonFinite);
     }
 }

@@ -73,6 +73,7 @@ pub struct KalmanFilter {
     s: Vec<f64>,
     g: Vec<f64>,
     k: Vec<f64>,
+    kw: Vec<f64>,
     ap: Vec<f64>,
     pi_next: Vec<f64>,
     x_next: Vec<f64>,
@@ -213,6 +214,7 @@ impl KalmanFilter {
             s: vec![0.0; ny * ny],
             g: vec![0.0; nx * ny],
             k: vec![0.0; nx * ny],
+            kw: vec![0.0; nx * ny],
             ap: vec![0.0; nx * nx],
             pi_next: vec![0.0; nx * nx],
             x_next: vec![0.0; nx],
@@ -259,6 +261,7 @@ impl KalmanFilter {
         self.x0.copy_from_slice(prior);
         self.x.copy_from_slice(prior);
         self.pi.copy_from_slice(&self.pi0);
+        self.k.fill(0.0);
         self.t = 0;
         Ok(())
     }
@@ -274,6 +277,11 @@ impl KalmanFilter {
     /// The scaled covariance Π_t = λ^{−t} cov(x_t | y_0..y_{t−1}), row-major n_x × n_x.
     pub fn covariance(&self) -> &[f64] {
         &self.pi
+    }
+    /// The gain K of the last update, row-major n_x × n_y (zero before the first push):
+    /// x̂_{t+1} = A x̂_t + B u_t + K (y_t − C x̂_t).
+    pub fn gain(&self) -> &[f64] {
+        &self.k
     }
     /// The current estimate x̂_t (same as [`Estimator::estimate`], without `&mut`).
     pub fn state(&self) -> &[f64] {
@@ -335,7 +343,7 @@ impl Estimator for KalmanFilter {
         for i in 0..nx {
             self.col.copy_from_slice(&self.g[i * ny..(i + 1) * ny]);
             chol_solve(&self.s, ny, &mut self.col);
-            self.k[i * ny..(i + 1) * ny].copy_from_slice(&self.col);
+            self.kw[i * ny..(i + 1) * ny].copy_from_slice(&self.col);
         }
         // Innovation and x̂⁺ = A x̂ + B u + K(y − C x̂).
         for i in 0..ny {
@@ -354,7 +362,7 @@ impl Estimator for KalmanFilter {
                 v += self.b[i * nu + k] * u[k];
             }
             for k in 0..ny {
-                v += self.k[i * ny + k] * self.innov[k];
+                v += self.kw[i * ny + k] * self.innov[k];
             }
             self.x_next[i] = v;
         }
@@ -366,7 +374,7 @@ impl Estimator for KalmanFilter {
                     v += self.ap[i * nx + k] * self.a[j * nx + k];
                 }
                 for k in 0..ny {
-                    v -= self.k[i * ny + k] * self.g[j * ny + k];
+                    v -= self.kw[i * ny + k] * self.g[j * ny + k];
                 }
                 self.pi_next[i * nx + j] = v / lam + self.qbar[i * nx + j];
             }
@@ -388,6 +396,7 @@ impl Estimator for KalmanFilter {
             }
         }
         self.x.copy_from_slice(&self.x_next);
+        self.k.copy_from_slice(&self.kw);
         self.t += 1;
         Ok(())
     }

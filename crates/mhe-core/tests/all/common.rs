@@ -118,13 +118,12 @@ pub fn random_fixture(seed: u64, horizon: usize, iterations: usize, exact_solve:
     }
 }
 
+/// A time series of vectors.
+pub type Series = Vec<Vec<f64>>;
+
 /// Simulated open-loop data: u_t uniform in [−1, 1], w_t uniform in [−noise, noise].
 /// Returns (us, ys, xs) with xs[t] the true state at t.
-pub fn simulate(
-    f: &Fixture,
-    steps: usize,
-    seed: u64,
-) -> (Vec<Vec<f64>>, Vec<Vec<f64>>, Vec<Vec<f64>>) {
+pub fn simulate(f: &Fixture, steps: usize, seed: u64) -> (Series, Series, Series) {
     let mut rng = ChaCha8Rng::seed_from_u64(seed);
     let (nx, nu, ny, nw) = (f.sys.nx(), f.sys.nu(), f.sys.ny(), f.sys.nw());
     let mut x = f.x0.clone();

@@ -5,6 +5,8 @@
 mod common;
 
 mod bookkeeping;
+mod convergence;
 mod errors;
 mod exact;
+mod kalman;
 mod problem;

@@ -1,0 +1,130 @@
+//! (f) Zero heap allocations per estimate + push after construction (exact solve off),
+//! counted by a global allocator. A separate test binary: the allocator is process-wide.
+#![allow(clippy::unwrap_used)]
+
+use std::alloc::{GlobalAlloc, Layout, System};
+use std::sync::atomic::{AtomicUsize, Ordering};
+
+use faer::{Mat, mat};
+use lti_model::{BoxSet, LtiSystem};
+use mhe_core::{Estimator, KalmanFilter, MheConfig, MheEstimator, MheSets, WarmStart};
+use qp_iter::admm::{Admm, AdmmParams};
+use qp_iter::fista::Fista;
+use qp_iter::pg::{ProjectedGradient, StepRule};
+use qp_iter::{IterationMap, ParametricQp};
+
+struct Counting;
+static ALLOCS: AtomicUsize = AtomicUsize::new(0);
+
+unsafe impl GlobalAlloc for Counting {
+    unsafe fn alloc(&self, l: Layout) -> *mut u8 {
+        ALLOCS.fetch_add(1, Ordering::SeqCst);
+        unsafe { System.alloc(l) }
+    }
+    unsafe fn dealloc(&self, p: *mut u8, l: Layout) {
+        unsafe { System.dealloc(p, l) }
+    }
+    unsafe fn realloc(&self, p: *mut u8, l: Layout, n: usize) -> *mut u8 {
+        ALLOCS.fetch_add(1, Ordering::SeqCst);
+        unsafe { System.realloc(p, l, n) }
+    }
+}
+
+#[global_allocator]
+static GLOBAL: Counting = Counting;
+
+fn case_study(warm: WarmStart) -> (LtiSystem, MheSets, MheConfig) {
+    let sys = LtiSystem::new(
+        mat![
+            [0.7, -0.1, 0.0, 0.0],
+            [0.2, -0.5, 0.1, 0.0],
+            [0.0, 0.1, 0.1, 0.0],
+            [0.5, 0.0, 0.5, 0.5]
+        ],
+        mat![[0.0, 0.1], [0.1, 1.0], [0.1, 0.0], [0.0, 0.0]],
+        mat![[0.1, 0.3, 0.8, 0.5]],
+    )
+    .unwrap();
+    let q = Mat::<f64>::identity(5, 5);
+    let r = mat![[1.0]];
+    let p = lti_model::ioss::certify(&sys, 0.8, q.as_ref(), r.as_ref())
+        .unwrap()
+        .p;
+    let sets = MheSets::with_disturbance(&sys, BoxSet::symmetric(&[0.1; 5]).unwrap());
+    let cfg = MheConfig {
+        horizon: 5,
+        eta: 0.8,
+        p,
+        q,
+        r,
+        iterations: 20,
+        warm_start: warm,
+        exact_solve: false,
+    };
+    (sys, sets, cfg)
+}
+
+/// Deterministic data without allocating: u and y from a simple recurrence.
+fn data(t: usize, u: &mut [f64; 2], y: &mut [f64; 1]) {
+    let s = t as f64;
+    u[0] = (0.3 * s).sin();
+    u[1] = (0.7 * s).cos();
+    y[0] = 5.0 * (0.2 * s).sin() + 0.1 * (1.3 * s).cos();
+}
+
+fn allocations_per_run<E: Estimator>(est: &mut E, from: usize, to: usize) -> usize {
+    let (mut u, mut y) = ([0.0; 2], [0.0; 1]);
+    let before = ALLOCS.load(Ordering::SeqCst);
+    for t in from..to {
+        data(t, &mut u, &mut y);
+        let x = est.estimate().unwrap();
+        assert!(x[0].is_finite());
+        est.push(&u, &y).unwrap();
+    }
+    ALLOCS.load(Ordering::SeqCst) - before
+}
+
+fn check_mhe<M, F>(warm: WarmStart, factory: F)
+where
+    M: IterationMap,
+    F: Fn(ParametricQp) -> qp_iter::Result<M>,
+{
+    let (sys, sets, cfg) = case_study(warm);
+    let mut mhe = MheEstimator::new(&sys, &sets, &cfg, &[7.0, -7.0, 3.0, -5.0], factory).unwrap();
+    let mut copy = mhe.last_record().clone();
+    // Steps 0..M grow the window (first use of every window length), then steady state.
+    let n = allocations_per_run(&mut mhe, 0, 40);
+    assert_eq!(
+        n,
+        0,
+        "{} {warm:?}: {n} allocations in 40 steps",
+        mhe.map(0).unwrap().name()
+    );
+    // Copying the record out into a record that has seen a full window does not allocate.
+    mhe.last_record().copy_into(&mut copy);
+    let before = ALLOCS.load(Ordering::SeqCst);
+    mhe.last_record().copy_into(&mut copy);
+    mhe.reset(&[0.0; 4]).unwrap();
+    let n = ALLOCS.load(Ordering::SeqCst) - before;
+    assert_eq!(n, 0, "copy_into / reset allocated");
+    assert_eq!(allocations_per_run(&mut mhe, 0, 12), 0, "after reset");
+}
+
+#[test]
+fn estimate_and_push_do_not_allocate() {
+    // One test function: the counter is global, parallel tests would pollute it.
+    for warm in [WarmStart::Paper, WarmStart::Shifted] {
+        check_mhe(warm, |qp| ProjectedGradient::new(qp, StepRule::Optimal));
+        check_mhe(warm, |qp| Ok(Fista::new(qp)));
+        check_mhe(warm, |qp| Admm::new(qp, AdmmParams::default()));
+    }
+    let (sys, _, cfg) = case_study(WarmStart::Paper);
+    let mut kf =
+        KalmanFilter::matching_mhe(&sys, &[7.0, -7.0, 3.0, -5.0], 0.8, &cfg.p, &cfg.q, &cfg.r)
+            .unwrap();
+    assert_eq!(allocations_per_run(&mut kf, 0, 40), 0, "Kalman filter");
+    // The counter works.
+    let before = ALLOCS.load(Ordering::SeqCst);
+    let v = std::hint::black_box(vec![1.0_f64; 3]);
+    assert!(ALLOCS.load(Ordering::SeqCst) > before && v.len() == 3);
+}

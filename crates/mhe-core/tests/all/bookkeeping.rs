@@ -198,3 +198,77 @@ fn horizon_one_and_maps_per_window() {
         assert_eq!(map.problem().n(), f.sys.nx() + m * f.sys.nw());
     }
 }
+
+#[test]
+fn record_serialises_nested_stages() {
+    let f = case_study(2, 3, true);
+    let (us, ys, _) = simulate(&f, 4, 2);
+    let mut mhe = MheEstimator::new(&f.sys, &f.sets, &f.config, &f.prior, |qp| {
+        Ok(Fista::new(qp))
+    })
+    .unwrap();
+    for t in 0..3 {
+        mhe.estimate().unwrap();
+        mhe.push(&us[t], &ys[t]).unwrap();
+    }
+    mhe.estimate().unwrap();
+    let rec = mhe.last_record();
+    let v = serde_json::to_value(rec).unwrap();
+    assert_eq!(v["t"], 3);
+    assert_eq!(v["window"], 2);
+    assert_eq!(v["u"].as_array().unwrap().len(), 2);
+    assert_eq!(v["u"][1].as_array().unwrap().len(), 2);
+    assert_eq!(v["y"][0][0].as_f64().unwrap(), ys[1][0]);
+    assert_eq!(v["w_k"].as_array().unwrap().len(), 2);
+    assert_eq!(v["w_k"][0].as_array().unwrap().len(), 5);
+    assert_eq!(
+        v["w_exact"][1][4].as_f64().unwrap(),
+        rec.w_exact(1).unwrap()[4]
+    );
+    assert_eq!(v["status"], "completed");
+    assert!(v["epsilon"].as_f64().unwrap() >= 0.0);
+    // ŵ² at stage j (the Fig. 2(c) quantity).
+    assert_eq!(rec.w2_k(1).unwrap(), &rec.w_k(1).unwrap()[4..]);
+
+    // Without the exact solve the exact fields are null.
+    let mut cfg = f.config.clone();
+    cfg.exact_solve = false;
+    let mut fast =
+        MheEstimator::new(&f.sys, &f.sets, &cfg, &f.prior, |qp| Ok(Fista::new(qp))).unwrap();
+    fast.estimate().unwrap();
+    let v = serde_json::to_value(fast.last_record()).unwrap();
+    assert!(v["w_exact"].is_null() && v["epsilon"].is_null() && v["x_hat_exact"].is_null());
+    assert_eq!(v["u"].as_array().unwrap().len(), 0);
+}
+
+#[test]
+fn config_from_scenario_computes_p_from_the_lmi() {
+    let text = "name = \"cs\"\n\
+        [plant]\n\
+        a = [[0.7, -0.1, 0.0, 0.0], [0.2, -0.5, 0.1, 0.0], [0.0, 0.1, 0.1, 0.0], [0.5, 0.0, 0.5, 0.5]]\n\
+        b = [[0.0, 0.1], [0.1, 1.0], [0.1, 0.0], [0.0, 0.0]]\n\
+        c = [[0.1, 0.3, 0.8, 0.5]]\n\
+        [sets]\n\
+        disturbance = { lower = [-0.1, -0.1, -0.1, -0.1, -0.1], upper = [0.1, 0.1, 0.1, 0.1, 0.1] }\n\
+        [mhe]\n\
+        horizon = 5\n\
+        eta = 0.8\n\
+        iterations = 7\n";
+    let sc = lti_model::scenario::Scenario::from_toml_str(text).unwrap();
+    let spec = sc.mhe.as_ref().unwrap();
+    let cfg = mhe_core::MheConfig::from_spec(spec, &sc.plant, false).unwrap();
+    let f = case_study(5, 7, false);
+    assert_eq!((cfg.horizon, cfg.iterations, cfg.eta), (5, 7, 0.8));
+    for i in 0..4 {
+        for j in 0..4 {
+            assert!((cfg.p[(i, j)] - f.config.p[(i, j)]).abs() < 1e-12 * f.config.p.norm_max());
+        }
+    }
+    let sets = mhe_core::MheSets::from_scenario(&sc.sets);
+    assert_eq!(sets, f.sets);
+    let mut mhe = MheEstimator::new(&sc.plant, &sets, &cfg, &sc.simulation.prior, |qp| {
+        Ok(Fista::new(qp))
+    })
+    .unwrap();
+    assert_eq!(mhe.estimate().unwrap(), &sc.simulation.prior[..]);
+}

@@ -1,0 +1,601 @@
+//! `cargo xtask certify`: the δ-IOSS certificate (Assumption 2, LMI (2)) of a scenario,
+//! as a short text summary and a self-contained JSON document (docs/certificate-json.md).
+//!
+//! The JSON carries A, C, B̄, D̄, η, Q, R and P, so any tool can rebuild the LMI matrix and
+//! check its eigenvalues without this code.
+
+use std::fmt::Write as _;
+use std::path::{Path, PathBuf};
+
+use anyhow::{Context, Result, anyhow, bail};
+use faer::Mat;
+use lti_model::ioss::{self, IossReport, LMI_TOL};
+use lti_model::scenario::Scenario;
+use lti_model::{LtiSystem, ModelError, matrix};
+use serde::Serialize;
+
+use crate::provenance::Provenance;
+
+/// Value of the `format` field.
+pub const FORMAT: &str = "suboptimal-mhe/ioss-certificate";
+/// Value of the `format_version` field; bumped on any incompatible change.
+pub const FORMAT_VERSION: u32 = 1;
+/// How `certificate.lmi_tolerance` is derived (recorded in the JSON).
+pub const TOLERANCE_RULE: &str = "lmi_tolerance = 1e-9 * max(1, max|P_ij|, max|Q_ij|, max|R_ij|)";
+/// Resolution of the η bisection run to suggest a feasible η after a failure.
+const ETA_HINT_RESOLUTION: f64 = 1e-4;
+
+/// What to certify.
+#[derive(Debug, Clone)]
+pub struct CertifyRequest {
+    /// Scenario file.
+    pub scenario: PathBuf,
+    /// Overrides `mhe.eta`.
+    pub eta: Option<f64>,
+    /// A user-supplied P to verify instead of computing one (overrides `mhe.p`).
+    pub p_file: Option<PathBuf>,
+}
+
+/// The scenario the certificate is for.
+#[derive(Debug, Clone, Serialize)]
+pub struct ScenarioInfo {
+    /// `name` of the scenario.
+    pub name: String,
+    /// Path the scenario was read from, as given.
+    pub path: String,
+}
+
+/// The plant data that enters LMI (2).
+#[derive(Debug, Clone, Serialize)]
+pub struct SystemInfo {
+    /// n_x.
+    pub nx: usize,
+    /// n_u.
+    pub nu: usize,
+    /// n_y.
+    pub ny: usize,
+    /// n_w1 (entries of w¹).
+    pub nw1: usize,
+    /// n_w2 (entries of w²).
+    pub nw2: usize,
+    /// A (n_x × n_x).
+    pub a: Vec<Vec<f64>>,
+    /// C (n_y × n_x).
+    pub c: Vec<Vec<f64>>,
+    /// B̄ = [E, 0] (n_x × n_w).
+    pub b_bar: Vec<Vec<f64>>,
+    /// D̄ = [0, F] (n_y × n_w).
+    pub d_bar: Vec<Vec<f64>>,
+}
+
+/// The parameters of LMI (2) and where each came from.
+#[derive(Debug, Clone, Serialize)]
+pub struct Inputs {
+    /// η.
+    pub eta: f64,
+    /// `"scenario mhe.eta"` or `"--eta"`.
+    pub eta_source: String,
+    /// Q (n_w × n_w).
+    pub q: Vec<Vec<f64>>,
+    /// R (n_y × n_y).
+    pub r: Vec<Vec<f64>>,
+    /// `"scenario mhe.q, mhe.r"` or `"identity (no [mhe] section)"`.
+    pub weights_source: String,
+    /// `"computed"`, `"scenario mhe.p"` or `"--p-file <path>"`.
+    pub p_source: String,
+}
+
+/// The JSON document `certify` writes (docs/certificate-json.md).
+#[derive(Debug, Clone, Serialize)]
+pub struct CertificateDocument {
+    /// Always [`FORMAT`].
+    pub format: String,
+    /// Always [`FORMAT_VERSION`].
+    pub format_version: u32,
+    /// True iff P ≻ 0 and λ_max(LMI matrix) ≤ tolerance.
+    pub passed: bool,
+    /// Why the check failed (`null` when passed).
+    pub failure: Option<String>,
+    /// A suggestion after a failure (e.g. the smallest feasible η), else `null`.
+    pub hint: Option<String>,
+    /// Scenario name and path.
+    pub scenario: ScenarioInfo,
+    /// Git revision, tool version, compiler, time.
+    pub provenance: Provenance,
+    /// A, C, B̄, D̄ and the dimensions.
+    pub system: SystemInfo,
+    /// η, Q, R and their sources.
+    pub inputs: Inputs,
+    /// P and the LMI check; `null` if no P exists (LMI infeasible).
+    pub certificate: Option<IossReport>,
+    /// Always [`TOLERANCE_RULE`].
+    pub tolerance_rule: String,
+}
+
+/// Result of [`certify`]: the document and its text summary.
+#[derive(Debug, Clone)]
+pub struct Outcome {
+    /// JSON document.
+    pub document: CertificateDocument,
+    /// Human-readable summary, several lines, ending in PASS or FAIL.
+    pub summary: String,
+}
+
+/// Reads a P matrix from JSON: a bare array of rows, an object with a `p` field, or a
+/// certificate written by this tool (`certificate.p`).
+pub fn read_p_file(path: &Path) -> Result<Mat<f64>> {
+    let text = std::fs::read_to_string(path)
+        .with_context(|| format!("cannot read --p-file `{}`", path.display()))?;
+    let value: serde_json::Value = serde_json::from_str(&text)
+        .with_context(|| format!("--p-file `{}` is not valid JSON", path.display()))?;
+    parse_p(&value).with_context(|| format!("--p-file `{}`", path.display()))
+}
+
+/// See [`read_p_file`].
+pub fn parse_p(value: &serde_json::Value) -> Result<Mat<f64>> {
+    use serde_json::Value;
+    let rows_value = match value {
+        Value::Array(_) => value,
+        Value::Object(o) => o
+            .get("p")
+            .or_else(|| o.get("certificate").and_then(|c| c.get("p")))
+            .filter(|v| !v.is_null())
+            .ok_or_else(|| {
+                anyhow!(
+                    "no P found: expected an array of rows, an object with a `p` field, or a \
+                     certificate JSON with `certificate.p` (a failed run has `certificate: null`)"
+                )
+            })?,
+        _ => bail!("expected an array of rows or an object with a `p` field"),
+    };
+    let rows: Vec<Vec<f64>> = serde_json::from_value(rows_value.clone())
+        .context("P must be an array of rows of numbers, e.g. [[2.0, 0.1], [0.1, 1.0]]")?;
+    matrix::from_rows("P", &rows).map_err(|e| anyhow!("{e}"))
+}
+
+/// The LMI check of a P that [`ioss::verify`] rejected, so a failure can still be reported
+/// with its eigenvalues. P must be n_x × n_x and finite.
+fn failed_report(
+    sys: &LtiSystem,
+    eta: f64,
+    q: &Mat<f64>,
+    r: &Mat<f64>,
+    p: &Mat<f64>,
+) -> Result<IossReport> {
+    let p = matrix::symmetrize(p.as_ref());
+    let (p_min, p_max) = matrix::sym_extreme_eigenvalues("P", p.as_ref())?;
+    let lmi = ioss::lmi_matrix(sys, eta, q.as_ref(), r.as_ref(), p.as_ref());
+    let eig = matrix::sym_eigenvalues("LMI matrix", lmi.as_ref())?;
+    let scale = p.norm_max().max(q.norm_max()).max(r.norm_max()).max(1.0);
+    Ok(IossReport {
+        p: matrix::to_rows(p.as_ref()),
+        eta,
+        q: matrix::to_rows(q.as_ref()),
+        r: matrix::to_rows(r.as_ref()),
+        p_min_eigenvalue: p_min,
+        p_max_eigenvalue: p_max,
+        lmi_max_eigenvalue: eig.last().copied().unwrap_or(0.0),
+        lmi_tolerance: LMI_TOL * scale,
+        lmi_eigenvalues: eig,
+        method: "user".to_string(),
+        iterations: 0,
+    })
+}
+
+/// Runs the certificate for a scenario. Input problems (unreadable or invalid scenario,
+/// bad η, malformed P) are errors; an LMI that fails is an [`Outcome`] with
+/// `passed = false`.
+pub fn certify(req: &CertifyRequest) -> Result<Outcome> {
+    let scenario = Scenario::from_file(&req.scenario)
+        .map_err(|e| anyhow!("{e}"))
+        .with_context(|| format!("invalid scenario `{}`", req.scenario.display()))?;
+    let sys = &scenario.plant;
+    let mhe = scenario.mhe.as_ref();
+
+    let (eta, eta_source) = match (req.eta, mhe) {
+        (Some(eta), _) => (eta, "--eta".to_string()),
+        (None, Some(m)) => (m.eta, "scenario mhe.eta".to_string()),
+        (None, None) => bail!(
+            "scenario `{}` has no [mhe] section, so η is unknown: add [mhe] with eta (and q, r), \
+             or pass --eta (Q and R are then identity)",
+            req.scenario.display()
+        ),
+    };
+    if !(eta.is_finite() && (0.0..1.0).contains(&eta)) {
+        bail!("η = {eta} ({eta_source}) is out of range: LMI (2) needs η ∈ [0, 1)");
+    }
+    let (q, r, weights_source) = match mhe {
+        Some(m) => (m.q.clone(), m.r.clone(), "scenario mhe.q, mhe.r"),
+        None => (
+            Mat::identity(sys.nw(), sys.nw()),
+            Mat::identity(sys.ny(), sys.ny()),
+            "identity (no [mhe] section)",
+        ),
+    };
+    let user_p = match (&req.p_file, mhe.and_then(|m| m.p.as_ref())) {
+        (Some(path), _) => Some((read_p_file(path)?, format!("--p-file {}", path.display()))),
+        (None, Some(p)) => Some((p.clone(), "scenario mhe.p".to_string())),
+        (None, None) => None,
+    };
+    if let Some((p, source)) = &user_p {
+        if p.nrows() != sys.nx() || p.ncols() != sys.nx() {
+            bail!(
+                "P from {source} is {}×{}, but the plant has n_x = {} (P must be {}×{})",
+                p.nrows(),
+                p.ncols(),
+                sys.nx(),
+                sys.nx(),
+                sys.nx()
+            );
+        }
+        let asym = matrix::asymmetry(p.as_ref());
+        if asym > matrix::SYMMETRY_TOL * p.norm_max().max(1.0) {
+            bail!(
+                "P from {source} is not symmetric (max |P - Pᵀ| = {asym:e}); supply a symmetric P"
+            );
+        }
+    }
+
+    let result = match &user_p {
+        Some((p, _)) => ioss::verify(sys, eta, q.as_ref(), r.as_ref(), p.as_ref()),
+        None => ioss::certify(sys, eta, q.as_ref(), r.as_ref()),
+    };
+    let (passed, failure, certificate) = match result {
+        Ok(cert) => (true, None, Some(cert.report())),
+        Err(ModelError::LmiInfeasible { reason }) => {
+            let report = match &user_p {
+                Some((p, _)) => Some(failed_report(sys, eta, &q, &r, p)?),
+                None => None,
+            };
+            (false, Some(format!("LMI (2) infeasible: {reason}")), report)
+        }
+        Err(ModelError::NotPositiveDefinite {
+            name,
+            min_eigenvalue,
+        }) if user_p.is_some() && name == "P" => {
+            let report = user_p
+                .as_ref()
+                .map(|(p, _)| failed_report(sys, eta, &q, &r, p))
+                .transpose()?;
+            (
+                false,
+                Some(format!(
+                    "P is not positive definite (λ_min(P) = {min_eigenvalue:e})"
+                )),
+                report,
+            )
+        }
+        Err(other) => return Err(anyhow!("{other}")).context("cannot check LMI (2)"),
+    };
+    let hint = if passed {
+        None
+    } else if user_p.is_some() {
+        Some(
+            "omit --p-file (and mhe.p) to let certify compute the maximal P for this η".to_string(),
+        )
+    } else {
+        Some(
+            match ioss::min_feasible_eta(sys, q.as_ref(), r.as_ref(), ETA_HINT_RESOLUTION) {
+                Ok(b) => format!(
+                    "the smallest feasible η for these Q, R is ≈ {:.4} (bisection to {ETA_HINT_RESOLUTION:e}); \
+                 pass --eta or set mhe.eta at or above it",
+                    b.certificate.eta
+                ),
+                Err(e) => format!("no η ∈ [0, 1) is feasible for these Q, R: {e}"),
+            },
+        )
+    };
+
+    let document = CertificateDocument {
+        format: FORMAT.to_string(),
+        format_version: FORMAT_VERSION,
+        passed,
+        failure,
+        hint,
+        scenario: ScenarioInfo {
+            name: scenario.name.clone(),
+            path: req.scenario.display().to_string(),
+        },
+        provenance: Provenance::collect(),
+        system: SystemInfo {
+            nx: sys.nx(),
+            nu: sys.nu(),
+            ny: sys.ny(),
+            nw1: sys.nw1(),
+            nw2: sys.nw2(),
+            a: matrix::to_rows(sys.a()),
+            c: matrix::to_rows(sys.c()),
+            b_bar: matrix::to_rows(sys.b_bar().as_ref()),
+            d_bar: matrix::to_rows(sys.d_bar().as_ref()),
+        },
+        inputs: Inputs {
+            eta,
+            eta_source,
+            q: matrix::to_rows(q.as_ref()),
+            r: matrix::to_rows(r.as_ref()),
+            weights_source: weights_source.to_string(),
+            p_source: user_p.map_or_else(|| "computed".to_string(), |(_, s)| s),
+        },
+        certificate,
+        tolerance_rule: TOLERANCE_RULE.to_string(),
+    };
+    let summary = summarize(&document);
+    Ok(Outcome { document, summary })
+}
+
+fn summarize(d: &CertificateDocument) -> String {
+    let mut s = String::new();
+    let _ = writeln!(
+        s,
+        "δ-IOSS certificate (Assumption 2, LMI (2)) for scenario `{}` ({})",
+        d.scenario.name, d.scenario.path
+    );
+    let sys = &d.system;
+    let _ = writeln!(
+        s,
+        "  plant        n_x = {}, n_u = {}, n_y = {}, n_w = {} + {}",
+        sys.nx, sys.nu, sys.ny, sys.nw1, sys.nw2
+    );
+    let i = &d.inputs;
+    let _ = writeln!(s, "  η            {} ({})", i.eta, i.eta_source);
+    let _ = writeln!(
+        s,
+        "  Q, R         {}×{}, {}×{} ({})",
+        i.q.len(),
+        i.q.len(),
+        i.r.len(),
+        i.r.len(),
+        i.weights_source
+    );
+    let _ = writeln!(s, "  P            {}", i.p_source);
+    if let Some(c) = &d.certificate {
+        if c.method != "user" {
+            let _ = writeln!(
+                s,
+                "  method       {} ({} iterations)",
+                c.method, c.iterations
+            );
+        }
+        let _ = writeln!(s, "  λmin(P)      {:.6e}", c.p_min_eigenvalue);
+        let _ = writeln!(s, "  λmax(P)      {:.6e}", c.p_max_eigenvalue);
+        let _ = writeln!(
+            s,
+            "  λmax(LMI)    {:.6e}   (must be ≤ tolerance)",
+            c.lmi_max_eigenvalue
+        );
+        let _ = writeln!(
+            s,
+            "  tolerance    {:.3e}   ({})",
+            c.lmi_tolerance, d.tolerance_rule
+        );
+    }
+    if let Some(f) = &d.failure {
+        let _ = writeln!(s, "  failure      {f}");
+    }
+    if let Some(h) = &d.hint {
+        let _ = writeln!(s, "  hint         {h}");
+    }
+    let _ = write!(s, "{}", if d.passed { "PASS" } else { "FAIL" });
+    s
+}
+
+/// Writes the document as pretty JSON, creating parent directories.
+pub fn write_json(doc: &CertificateDocument, path: &Path) -> Result<()> {
+    if let Some(dir) = path.parent().filter(|d| !d.as_os_str().is_empty()) {
+        std::fs::create_dir_all(dir)
+            .with_context(|| format!("cannot create directory `{}`", dir.display()))?;
+    }
+    let text = serde_json::to_string_pretty(doc).context("cannot serialise the certificate")?;
+    std::fs::write(path, text + "\n").with_context(|| format!("cannot write `{}`", path.display()))
+}
+
+#[cfg(test)]
+mod tests {
+    #![allow(clippy::unwrap_used)]
+
+    use super::*;
+    use crate::provenance::workspace_root;
+
+    fn case_study() -> PathBuf {
+        workspace_root().join("scenarios/case-study.toml")
+    }
+
+    fn request(eta: Option<f64>, p_file: Option<PathBuf>) -> CertifyRequest {
+        CertifyRequest {
+            scenario: case_study(),
+            eta,
+            p_file,
+        }
+    }
+
+    fn temp_path(name: &str) -> PathBuf {
+        let dir = std::env::temp_dir().join(format!("xtask-certify-test-{}", std::process::id()));
+        std::fs::create_dir_all(&dir).unwrap();
+        dir.join(name)
+    }
+
+    fn mat(rows: &serde_json::Value) -> Mat<f64> {
+        parse_p(rows).unwrap()
+    }
+
+    /// Rebuilds LMI (2) from the JSON alone (A, C, B̄, D̄, η, Q, R, P), as an outside tool
+    /// would, and returns its largest eigenvalue.
+    fn lmi_max_from_json(doc: &serde_json::Value) -> f64 {
+        let sys = &doc["system"];
+        let cert = &doc["certificate"];
+        let (a, c, bb, db) = (
+            mat(&sys["a"]),
+            mat(&sys["c"]),
+            mat(&sys["b_bar"]),
+            mat(&sys["d_bar"]),
+        );
+        let (p, q, r) = (mat(&cert["p"]), mat(&cert["q"]), mat(&cert["r"]));
+        let eta = cert["eta"].as_f64().unwrap();
+        // Stack [A B̄] and [C D̄]: LMI = [A B̄]ᵀP[A B̄] − diag(ηP, Q) − [C D̄]ᵀR[C D̄].
+        let (nx, nw) = (a.nrows(), bb.ncols());
+        let ab = Mat::from_fn(nx, nx + nw, |i, j| {
+            if j < nx { a[(i, j)] } else { bb[(i, j - nx)] }
+        });
+        let cd = Mat::from_fn(c.nrows(), nx + nw, |i, j| {
+            if j < nx { c[(i, j)] } else { db[(i, j - nx)] }
+        });
+        let mut m = ab.transpose() * &p * &ab - cd.transpose() * &r * &cd;
+        for i in 0..nx {
+            for j in 0..nx {
+                m[(i, j)] -= eta * p[(i, j)];
+            }
+        }
+        for i in 0..nw {
+            for j in 0..nw {
+                m[(nx + i, nx + j)] -= q[(i, j)];
+            }
+        }
+        let ev = m.self_adjoint_eigenvalues(faer::Side::Lower).unwrap();
+        ev.iter().copied().fold(f64::NEG_INFINITY, f64::max)
+    }
+
+    #[test]
+    fn case_study_passes_and_json_verifies_independently() {
+        let out = certify(&request(None, None)).unwrap();
+        assert!(out.document.passed, "{}", out.summary);
+        assert!(out.summary.ends_with("PASS"));
+        let path = temp_path("cert.json");
+        write_json(&out.document, &path).unwrap();
+        let doc: serde_json::Value =
+            serde_json::from_str(&std::fs::read_to_string(&path).unwrap()).unwrap();
+        assert_eq!(doc["format"], FORMAT);
+        assert_eq!(doc["scenario"]["name"], "case-study");
+        assert_eq!(doc["inputs"]["eta"], 0.8);
+        assert_eq!(doc["certificate"]["eta"], 0.8);
+        assert_eq!(doc["system"]["nw1"], 4);
+        assert!(doc["provenance"]["git_revision"].is_string());
+        let tol = doc["certificate"]["lmi_tolerance"].as_f64().unwrap();
+        let hi = lmi_max_from_json(&doc);
+        assert!(
+            hi <= tol,
+            "LMI rebuilt from JSON has λmax = {hi:e} > {tol:e}"
+        );
+        let reported = doc["certificate"]["lmi_max_eigenvalue"].as_f64().unwrap();
+        assert!((hi - reported).abs() <= 1e-9, "{hi:e} vs {reported:e}");
+        let p = mat(&doc["certificate"]["p"]);
+        let (lo, _) = matrix::sym_extreme_eigenvalues("P", p.as_ref()).unwrap();
+        assert!(lo > 0.0);
+
+        // Feeding the certificate back as --p-file verifies the same P.
+        let again = certify(&request(None, Some(path.clone()))).unwrap();
+        assert!(again.document.passed, "{}", again.summary);
+        assert!(again.document.inputs.p_source.starts_with("--p-file"));
+        assert_eq!(again.document.certificate.as_ref().unwrap().method, "user");
+    }
+
+    #[test]
+    fn too_large_p_fails_with_eigenvalues() {
+        let out = certify(&request(None, None)).unwrap();
+        let p = &out.document.certificate.as_ref().unwrap().p;
+        // The computed P is the maximal solution (ioss docs), so 2P violates LMI (2).
+        let doubled: Vec<Vec<f64>> = p
+            .iter()
+            .map(|r| r.iter().map(|v| 2.0 * v).collect())
+            .collect();
+        let path = temp_path("p2.json");
+        std::fs::write(
+            &path,
+            serde_json::to_string(&serde_json::json!({ "p": doubled })).unwrap(),
+        )
+        .unwrap();
+        let out = certify(&request(None, Some(path))).unwrap();
+        assert!(!out.document.passed);
+        assert!(out.summary.ends_with("FAIL"), "{}", out.summary);
+        let cert = out.document.certificate.as_ref().unwrap();
+        assert!(cert.lmi_max_eigenvalue > cert.lmi_tolerance);
+        assert!(
+            out.document
+                .failure
+                .as_ref()
+                .unwrap()
+                .contains("infeasible")
+        );
+    }
+
+    #[test]
+    fn infeasible_eta_fails_with_hint() {
+        // η = 0 is infeasible for the case study: for x ∈ ker C (3-dimensional) and w = 0,
+        // LMI (2) would need ‖Ax‖²_P ≤ 0, i.e. A x = 0 on ker C, which A does not satisfy.
+        let out = certify(&request(Some(0.0), None)).unwrap();
+        assert!(!out.document.passed, "{}", out.summary);
+        assert!(out.document.certificate.is_none());
+        assert!(
+            out.document
+                .failure
+                .as_ref()
+                .unwrap()
+                .contains("infeasible")
+        );
+        let hint = out.document.hint.as_ref().unwrap();
+        assert!(hint.contains("smallest feasible η"), "{hint}");
+        assert_eq!(out.document.inputs.eta_source, "--eta");
+    }
+
+    #[test]
+    fn input_errors_are_errors() {
+        let bad_eta = certify(&request(Some(1.0), None)).unwrap_err();
+        assert!(format!("{bad_eta:#}").contains("[0, 1)"), "{bad_eta:#}");
+        let missing = CertifyRequest {
+            scenario: "/nonexistent.toml".into(),
+            eta: None,
+            p_file: None,
+        };
+        let e = certify(&missing).unwrap_err();
+        assert!(format!("{e:#}").contains("<file>"), "{e:#}");
+        let path = temp_path("p_wrong_shape.json");
+        std::fs::write(&path, "[[1.0, 0.0], [0.0, 1.0]]").unwrap();
+        let e = certify(&request(None, Some(path))).unwrap_err();
+        assert!(format!("{e:#}").contains("n_x = 4"), "{e:#}");
+        let path = temp_path("p_nonsym.json");
+        std::fs::write(&path, "[[1,2,0,0],[0,1,0,0],[0,0,1,0],[0,0,0,1]]").unwrap();
+        let e = certify(&request(None, Some(path))).unwrap_err();
+        assert!(format!("{e:#}").contains("not symmetric"), "{e:#}");
+    }
+
+    #[test]
+    fn no_mhe_section_needs_eta() {
+        let path = temp_path("no-mhe.toml");
+        std::fs::write(
+            &path,
+            "name = \"s\"\n[plant]\na = [[0.5]]\nb = [[1.0]]\nc = [[1.0]]\n",
+        )
+        .unwrap();
+        let req = CertifyRequest {
+            scenario: path.clone(),
+            eta: None,
+            p_file: None,
+        };
+        let e = certify(&req).unwrap_err();
+        assert!(format!("{e:#}").contains("--eta"), "{e:#}");
+        let out = certify(&CertifyRequest {
+            eta: Some(0.5),
+            ..req
+        })
+        .unwrap();
+        assert!(out.document.passed, "{}", out.summary);
+        assert_eq!(
+            out.document.inputs.weights_source,
+            "identity (no [mhe] section)"
+        );
+    }
+
+    #[test]
+    fn p_file_forms() {
+        let rows = serde_json::json!([[2.0, 0.0], [0.0, 3.0]]);
+        let a = parse_p(&rows).unwrap();
+        let b = parse_p(&serde_json::json!({ "p": rows })).unwrap();
+        let c = parse_p(&serde_json::json!({ "certificate": { "p": rows } })).unwrap();
+        assert_eq!(a, b);
+        assert_eq!(a, c);
+        assert_eq!(a[(1, 1)], 3.0);
+        assert!(parse_p(&serde_json::json!({ "certificate": null })).is_err());
+        assert!(parse_p(&serde_json::json!([[1.0, 2.0], [3.0]])).is_err());
+        assert!(parse_p(&serde_json::json!([["a"]])).is_err());
+        assert!(parse_p(&serde_json::json!(1.0)).is_err());
+    }
+}

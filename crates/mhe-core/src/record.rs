@@ -131,6 +131,10 @@ impl MheRecord {
             None
         }
     }
+    /// ŵ²*_{t−M_t+j|t}: the exact optimum's estimated measurement noise.
+    pub fn w2_exact(&self, j: usize) -> Option<&[f64]> {
+        self.w_exact(j).map(|w| &w[self.dims.nw1..])
+    }
     /// The exact ŵ sequence, flat, oldest first.
     pub fn w_exact_flat(&self) -> Option<&[f64]> {
         self.has_exact.then_some(&self.w_exact[..])

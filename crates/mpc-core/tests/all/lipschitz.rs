@@ -99,6 +99,12 @@ fn random_systems_certified_enumerated_sampled_sandwich() {
             s.estimate
         );
         assert!(s.estimate <= c.l_pi() * (1.0 + 1e-9));
+        // The library's allocation-free enumeration agrees with this faer-based one.
+        let fast = mpc.lipschitz_enumerated(8).unwrap().unwrap();
+        assert!(
+            (fast - enumerated).abs() <= 1e-10 * enumerated.max(1e-300),
+            "seed {seed}: {fast} vs {enumerated}"
+        );
         checked += 1;
     }
     assert!(checked >= 15, "only {checked} small random problems");
@@ -176,14 +182,25 @@ fn report_for_the_case_study_scenario() {
     let scenario = lti_model::scenario::Scenario::from_file(path).unwrap();
     let report = lipschitz_report(&scenario, 100, 1, None).unwrap();
     assert!(report.consistent());
+    // Case study: N·n_u = 20, so the enumerated bound is computed and sandwiched.
+    let e = report.enumerated.unwrap();
+    assert!(
+        report.sampled.estimate <= e * (1.0 + 1e-9)
+            && e <= report.certified.first_block * (1.0 + 1e-12)
+    );
+    assert!(e >= report.certified.unconstrained_gain * (1.0 - 1e-12));
     // The scenario's MPC is the case-study one.
     let c = case_study_mpc().lipschitz_certified().unwrap();
     assert!((report.certified.l_pi() - c.l_pi()).abs() <= 1e-12 * c.l_pi());
     // radius = 2·max(‖x₀‖, ‖prior‖) = 2·‖(12, −10, 10, −10)‖.
     assert!((report.sampled.radius - 2.0 * 444f64.sqrt()).abs() < 1e-12);
     let text = report.to_string();
+    println!("{text}");
     assert!(
-        text.contains("certified") && text.contains("sampled") && text.contains("yes"),
+        text.contains("certified L_π")
+            && text.contains("sampled")
+            && text.contains("L_enum")
+            && text.contains(": yes"),
         "{text}"
     );
     let _ = MpcConfig::from_scenario(&scenario).unwrap();

@@ -9,7 +9,9 @@
 //! - [`Controller`]: x̂ ↦ u, shared with `closed-loop`; implemented by [`ExactMpc`]
 //!   (Clarabel each call, the paper's setting), [`SuboptimalMpc`] (K iterations of Φ)
 //!   and [`SaturatedLqr`].
-//! - [`lipschitz`]: L_π certified (from H and F) and sampled (seeded pairs).
+//! - [`lipschitz`]: L_π certified (bound (b) from H and F for any size; the tighter
+//!   enumerated bound L_enum when N·n_u ≤ 30) and sampled (seeded pairs, exact MPC);
+//!   [`lipschitz_report`] gathers both for a scenario (what `cargo xtask certify` prints).
 //!
 //! The MPC uses the nominal model (w = 0) and input constraints only; see
 //! [`MpcConfig::state_set`] for state constraints.
@@ -25,8 +27,8 @@ pub use condensed::{CondensedMpc, MpcConfig, Terminal};
 pub use error::{MpcError, Result};
 pub use exact::ExactMpc;
 pub use lipschitz::{
-    LipschitzCertificate, LipschitzReport, SampledLipschitz, lipschitz_report,
-    lipschitz_report_for, lipschitz_sampled,
+    ENUMERATION_MAX_VARS, LipschitzCertificate, LipschitzReport, SampledLipschitz,
+    lipschitz_report, lipschitz_report_for, lipschitz_sampled,
 };
 pub use lqr::SaturatedLqr;
 pub use suboptimal::{SuboptimalMpc, WarmStart};

@@ -46,7 +46,7 @@
 //!
 //! The maximum runs over all 2^{N·n_u} subsets (not only those some x realises), so it
 //! is an upper bound, computed by [`CondensedMpc::lipschitz_enumerated`] when 2^{N·n_u}
-//! is affordable (≈ 1 s for the case study's 2²⁰ sets in an optimised build).
+//! is affordable (the case study's 2²⁰ sets take ≈ 2 s in the opt-level-1 test build).
 //!
 //! ## Sampled estimate
 //!

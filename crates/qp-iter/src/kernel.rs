@@ -114,7 +114,8 @@ impl Kernel {
         self.path
     }
 
-    /// y = H x for H n × n row-major in `h`; writes `y[..n]` only. Allocation-free.
+    /// y = H x for a general H, n × n row-major in `h`; writes `y[..n]` only.
+    /// Allocation-free.
     ///
     /// # Panics
     /// If `h.len() != n²`, `x.len() < n` or `y.len() < n` (a caller bug: dimensions are
@@ -136,9 +137,53 @@ impl Kernel {
         }
     }
 
-    /// The projected-gradient step z⁺ = Π_[l,u](z − α(Hz + q)) written to `out`, in one
-    /// pass over H (the step of [`crate::pg`], fused: no separate Hz buffer, axpy and
-    /// projection loops).
+    /// y = H x for a *symmetric* H (n × n in `h`; row i is column i). Faster than
+    /// [`Kernel::matvec`]: it sums scaled columns, so it needs no horizontal sums and keeps
+    /// y in registers. Every Hessian of this crate is symmetric (exactly, by
+    /// [`crate::ParametricQp`]). For a non-symmetric `h` the result is Hᵀx.
+    ///
+    /// ```
+    /// use qp_iter::kernel::Kernel;
+    /// let h = [2.0, 1.0, 1.0, 3.0];
+    /// let mut y = [0.0; 2];
+    /// Kernel::detect().matvec_symmetric(&h, 2, &[1.0, -1.0], &mut y);
+    /// assert_eq!(y, [1.0, -2.0]);
+    /// ```
+    ///
+    /// # Panics
+    /// As [`Kernel::matvec`].
+    #[inline]
+    pub fn matvec_symmetric(self, h: &[f64], n: usize, x: &[f64], y: &mut [f64]) {
+        check_dims(h, n, x.len(), y.len());
+        if n == 0 {
+            return;
+        }
+        match self.path {
+            KernelPath::Portable => portable::matvec_columns(h, n, x, y),
+            #[cfg(target_arch = "x86_64")]
+            // SAFETY: AVX2 + FMA by the type invariant; n ≥ 1; h has n² entries, x and y
+            // at least n (checked above); x and y do not overlap (& and &mut).
+            KernelPath::Avx2Fma => unsafe {
+                avx2_sym::run::<false>(avx2_sym::Ctx {
+                    h: h.as_ptr(),
+                    n,
+                    x: x.as_ptr(),
+                    out: y.as_mut_ptr(),
+                    q: std::ptr::null(),
+                    lo: std::ptr::null(),
+                    hi: std::ptr::null(),
+                    alpha: 0.0,
+                })
+            },
+            #[cfg(not(target_arch = "x86_64"))]
+            KernelPath::Avx2Fma => portable::matvec_columns(h, n, x, y),
+        }
+    }
+
+    /// The projected-gradient step z⁺ = Π_[l,u](z − α(Hz + q)) for a symmetric H,
+    /// written to `out` in one pass over H (the step of [`crate::pg`], fused: no separate
+    /// Hz buffer, axpy and projection loops). As in [`Kernel::matvec_symmetric`], a
+    /// non-symmetric `h` acts as Hᵀ.
     ///
     /// Clamping is `min(u, max(l, v))` in that operand order, so a NaN in `v` stays NaN
     /// (the drivers then report it) instead of being clamped to a bound. Allocation-free.
@@ -177,8 +222,20 @@ impl Kernel {
         match self.path {
             KernelPath::Portable => portable::pg_step(h, n, z, q, alpha, lower, upper, out),
             #[cfg(target_arch = "x86_64")]
-            // SAFETY: as in `matvec`; all vector lengths were checked above.
-            KernelPath::Avx2Fma => unsafe { avx2::pg_step(h, n, z, q, alpha, lower, upper, out) },
+            // SAFETY: AVX2 + FMA by the type invariant; n ≥ 1; all lengths checked above;
+            // `out` is a distinct &mut, so it overlaps none of the inputs.
+            KernelPath::Avx2Fma => unsafe {
+                avx2_sym::run::<true>(avx2_sym::Ctx {
+                    h: h.as_ptr(),
+                    n,
+                    x: z.as_ptr(),
+                    out: out.as_mut_ptr(),
+                    q: q.as_ptr(),
+                    lo: lower.as_ptr(),
+                    hi: upper.as_ptr(),
+                    alpha,
+                })
+            },
             #[cfg(not(target_arch = "x86_64"))]
             KernelPath::Avx2Fma => portable::pg_step(h, n, z, q, alpha, lower, upper, out),
         }
@@ -197,12 +254,22 @@ fn check_dims(h: &[f64], n: usize, x_len: usize, y_len: usize) {
 /// y = H x, H n × n row-major in `h` (length n²); writes `y[..n]`. Allocation-free.
 ///
 /// Runs the fastest path for this CPU ([`Kernel::detect`], cached after the first call).
+/// For a symmetric H, [`matvec_symmetric`] is faster.
 ///
 /// # Panics
 /// If `h.len() != n²`, `x.len() < n` or `y.len() < n`.
 #[inline]
 pub fn matvec(h: &[f64], n: usize, x: &[f64], y: &mut [f64]) {
     Kernel::detect().matvec(h, n, x, y);
+}
+
+/// y = H x for a symmetric H ([`Kernel::matvec_symmetric`] on the detected path).
+///
+/// # Panics
+/// If `h.len() != n²`, `x.len() < n` or `y.len() < n`.
+#[inline]
+pub fn matvec_symmetric(h: &[f64], n: usize, x: &[f64], y: &mut [f64]) {
+    Kernel::detect().matvec_symmetric(h, n, x, y);
 }
 
 /// Clamp with NaN propagation: `min(u, max(l, v))` with the same operand order as the
@@ -242,6 +309,18 @@ mod portable {
         }
     }
 
+    /// y = Σⱼ xⱼ h[j n .. (j+1) n] (= Hx for symmetric H): element-wise, so the baseline
+    /// target vectorises it without reassociating sums.
+    pub(super) fn matvec_columns(h: &[f64], n: usize, x: &[f64], y: &mut [f64]) {
+        let y = &mut y[..n];
+        y.fill(0.0);
+        for (col, &xj) in h.chunks_exact(n).zip(&x[..n]) {
+            for (yi, &c) in y.iter_mut().zip(col) {
+                *yi += c * xj;
+            }
+        }
+    }
+
     pub(super) fn pg_step(
         h: &[f64],
         n: usize,
@@ -252,10 +331,10 @@ mod portable {
         upper: &[f64],
         out: &mut [f64],
     ) {
-        let z = &z[..n];
-        for (i, (row, oi)) in h.chunks_exact(n).zip(&mut out[..n]).enumerate() {
-            let v = z[i] - alpha * (dot(row, z) + q[i]);
-            *oi = clamp_nan_propagating(v, lower[i], upper[i]);
+        matvec_columns(h, n, z, out);
+        for i in 0..n {
+            let v = z[i] - alpha * (out[i] + q[i]);
+            out[i] = clamp_nan_propagating(v, lower[i], upper[i]);
         }
     }
 }
@@ -366,93 +445,147 @@ mod avx2 {
             y[i..n].copy_from_slice(&tmp[..n - i]);
         }
     }
+}
 
-    /// Four lanes from `p + i`, or the lanes selected by `m`.
-    ///
-    /// # Safety
-    /// AVX2 available; the selected lanes from `p + i` are valid reads.
-    #[inline]
-    #[target_feature(enable = "avx2,fma")]
-    unsafe fn load_lanes(p: *const f64, i: usize, m: Option<__m256i>) -> __m256d {
-        // SAFETY: the caller guarantees the selected lanes are in bounds.
-        unsafe {
-            match m {
-                None => _mm256_loadu_pd(p.add(i)),
-                Some(m) => _mm256_maskload_pd(p.add(i), m),
-            }
-        }
+/// Column-oriented kernels for symmetric H: the rows of a symmetric row-major H are its
+/// columns, so y = Σⱼ xⱼ H[:, j] reads contiguous memory, keeps up to 32 entries of y in
+/// eight registers and needs no horizontal sums.
+#[cfg(target_arch = "x86_64")]
+mod avx2_sym {
+    use std::arch::x86_64::*;
+
+    /// Pointers for one call. `x` is the point H is applied to (z for the fused step);
+    /// `out` receives Hx, or Π(x − α(Hx + q)) when the fused step is requested.
+    #[derive(Clone, Copy)]
+    pub(super) struct Ctx {
+        pub h: *const f64,
+        pub n: usize,
+        pub x: *const f64,
+        pub out: *mut f64,
+        pub q: *const f64,
+        pub lo: *const f64,
+        pub hi: *const f64,
+        pub alpha: f64,
     }
 
-    /// out[r] = clamp(z[r] − α(s[r] + q[r])) for four rows r = i.. with lane mask `m`
-    /// (all lanes when `m` is `None`).
+    /// Rows r0 .. r0 + 4V + R: V full vectors and an R-row tail (R < 4), all columns.
     ///
     /// # Safety
-    /// AVX2 and FMA available; the pointers are valid for the lanes selected by `m`
-    /// (four lanes when `None`) from offset `i`.
+    /// AVX2 and FMA available; r0 + 4V + R ≤ n; `h` valid for n² reads, `x` for n
+    /// reads, `out` for n writes and, when `FUSED`, `q`, `lo`, `hi` for n reads.
     #[inline]
     #[target_feature(enable = "avx2,fma")]
-    unsafe fn finish4(
-        s: __m256d,
-        alpha: __m256d,
-        ptrs: (*const f64, *const f64, *const f64, *const f64, *mut f64),
-        i: usize,
-        m: Option<__m256i>,
-    ) {
-        let (z, q, lo, hi, out) = ptrs;
-        // SAFETY: the caller guarantees the selected lanes are in bounds.
-        unsafe {
-            let g = _mm256_add_pd(s, load_lanes(q, i, m));
-            let v = _mm256_fnmadd_pd(alpha, g, load_lanes(z, i, m));
-            let w = _mm256_min_pd(load_lanes(hi, i, m), _mm256_max_pd(load_lanes(lo, i, m), v));
-            match m {
-                None => _mm256_storeu_pd(out.add(i), w),
-                Some(m) => _mm256_maskstore_pd(out.add(i), m, w),
-            }
-        }
-    }
-
-    /// # Safety
-    /// AVX2 and FMA available; n ≥ 1; h.len() = n²; every other slice has length ≥ n.
-    #[target_feature(enable = "avx2,fma")]
-    pub(super) unsafe fn pg_step(
-        h: &[f64],
-        n: usize,
-        z: &[f64],
-        q: &[f64],
-        alpha: f64,
-        lower: &[f64],
-        upper: &[f64],
-        out: &mut [f64],
-    ) {
-        let hp = h.as_ptr();
-        let zp = z.as_ptr();
-        let ptrs = (
-            zp,
-            q.as_ptr(),
-            lower.as_ptr(),
-            upper.as_ptr(),
-            out.as_mut_ptr(),
-        );
-        let av = _mm256_set1_pd(alpha);
-        let mut i = 0;
-        while i < n {
-            // SAFETY: caller's contract; i < n.
-            let (s0, s1) = unsafe { rows8(hp, n, zp, i) };
-            let valid = n - i;
-            // SAFETY: lanes are restricted to rows < n by the masks, so every access is
-            // inside slices of length ≥ n.
+    unsafe fn panel<const V: usize, const R: usize, const FUSED: bool>(c: Ctx, r0: usize) {
+        let mut acc = [_mm256_setzero_pd(); V];
+        let mut t2 = _mm_setzero_pd();
+        let mut t1 = _mm_setzero_pd();
+        for j in 0..c.n {
+            // SAFETY: column j of the panel is h[j n + r0 .. j n + r0 + 4V + R], inside
+            // the n² entries because r0 + 4V + R ≤ n; x[j] with j < n.
             unsafe {
-                if valid >= 8 {
-                    finish4(s0, av, ptrs, i, None);
-                    finish4(s1, av, ptrs, i + 4, None);
+                let col = c.h.add(j * c.n + r0);
+                let xj = _mm256_broadcast_sd(&*c.x.add(j));
+                for v in 0..V {
+                    acc[v] = _mm256_fmadd_pd(_mm256_loadu_pd(col.add(4 * v)), xj, acc[v]);
+                }
+                let xj2 = _mm256_castpd256_pd128(xj);
+                if R >= 2 {
+                    t2 = _mm_fmadd_pd(_mm_loadu_pd(col.add(4 * V)), xj2, t2);
+                }
+                if R % 2 == 1 {
+                    t1 = _mm_fmadd_sd(_mm_load_sd(col.add(4 * V + (R & 2))), xj2, t1);
+                }
+            }
+        }
+        let alpha = _mm256_set1_pd(c.alpha);
+        for v in 0..V {
+            let r = r0 + 4 * v;
+            // SAFETY: rows r .. r + 4 < n.
+            unsafe {
+                if FUSED {
+                    let g = _mm256_add_pd(acc[v], _mm256_loadu_pd(c.q.add(r)));
+                    let z = _mm256_fnmadd_pd(alpha, g, _mm256_loadu_pd(c.x.add(r)));
+                    let w = _mm256_min_pd(
+                        _mm256_loadu_pd(c.hi.add(r)),
+                        _mm256_max_pd(_mm256_loadu_pd(c.lo.add(r)), z),
+                    );
+                    _mm256_storeu_pd(c.out.add(r), w);
                 } else {
-                    finish4(s0, av, ptrs, i, Some(first_lanes(valid.min(4))));
-                    if valid > 4 {
-                        finish4(s1, av, ptrs, i + 4, Some(first_lanes(valid - 4)));
+                    _mm256_storeu_pd(c.out.add(r), acc[v]);
+                }
+            }
+        }
+        if R > 0 {
+            let mut t = [0.0f64; 4];
+            // SAFETY: `t` holds four f64.
+            unsafe { _mm_storeu_pd(t.as_mut_ptr(), t2) };
+            if R % 2 == 1 {
+                t[R & 2] = _mm_cvtsd_f64(t1);
+            }
+            for (k, &s) in t.iter().enumerate().take(R) {
+                let r = r0 + 4 * V + k;
+                // SAFETY: r < n.
+                unsafe {
+                    if FUSED {
+                        let g = s + *c.q.add(r);
+                        let z = (-c.alpha).mul_add(g, *c.x.add(r));
+                        *c.out.add(r) = super::clamp_nan_propagating(z, *c.lo.add(r), *c.hi.add(r));
+                    } else {
+                        *c.out.add(r) = s;
                     }
                 }
             }
-            i += 8;
+        }
+    }
+
+    /// The last panel: V full vectors plus an r-row tail (r < 4).
+    ///
+    /// # Safety
+    /// As [`panel`] with R = r.
+    #[inline]
+    #[target_feature(enable = "avx2,fma")]
+    unsafe fn last<const V: usize, const FUSED: bool>(c: Ctx, r0: usize, r: usize) {
+        // SAFETY: forwarded contract.
+        unsafe {
+            match r {
+                0 => panel::<V, 0, FUSED>(c, r0),
+                1 => panel::<V, 1, FUSED>(c, r0),
+                2 => panel::<V, 2, FUSED>(c, r0),
+                _ => panel::<V, 3, FUSED>(c, r0),
+            }
+        }
+    }
+
+    /// All rows: panels of 32, then one panel for the remaining < 32.
+    ///
+    /// # Safety
+    /// AVX2 and FMA available; n ≥ 1; `h` valid for n² reads, `x` for n reads, `out` for
+    /// n writes, not overlapping `x`; when `FUSED`, `q`, `lo`, `hi` valid for n reads.
+    #[target_feature(enable = "avx2,fma")]
+    pub(super) unsafe fn run<const FUSED: bool>(c: Ctx) {
+        let mut r0 = 0;
+        // SAFETY (whole body): every panel ends at row ≤ n, the caller's contract covers
+        // the pointers.
+        unsafe {
+            while c.n - r0 >= 32 {
+                panel::<8, 0, FUSED>(c, r0);
+                r0 += 32;
+            }
+            let left = c.n - r0;
+            if left == 0 {
+                return;
+            }
+            let r = left % 4;
+            match left / 4 {
+                0 => last::<0, FUSED>(c, r0, r),
+                1 => last::<1, FUSED>(c, r0, r),
+                2 => last::<2, FUSED>(c, r0, r),
+                3 => last::<3, FUSED>(c, r0, r),
+                4 => last::<4, FUSED>(c, r0, r),
+                5 => last::<5, FUSED>(c, r0, r),
+                6 => last::<6, FUSED>(c, r0, r),
+                _ => last::<7, FUSED>(c, r0, r),
+            }
         }
     }
 }
@@ -482,6 +615,56 @@ mod tests {
         (0..len).map(|_| rng.random_range(-1.0..1.0)).collect()
     }
 
+    fn random_symmetric(rng: &mut ChaCha8Rng, n: usize) -> Vec<f64> {
+        let mut h = random_vec(rng, n * n);
+        for i in 0..n {
+            for j in 0..i {
+                h[i * n + j] = h[j * n + i];
+            }
+        }
+        h
+    }
+
+    fn transpose(h: &[f64], n: usize) -> Vec<f64> {
+        (0..n * n).map(|k| h[(k % n) * n + k / n]).collect()
+    }
+
+    #[test]
+    fn matvec_symmetric_matches_naive_on_every_path_and_size() {
+        let mut rng = ChaCha8Rng::seed_from_u64(5);
+        for k in paths() {
+            for n in (1..=70).chain([95, 128, 131]) {
+                let x = random_vec(&mut rng, n);
+                // Symmetric H: Hx. General H: the documented Hᵀx (checks the layout logic
+                // on data where rows and columns differ).
+                for sym in [true, false] {
+                    let h = if sym {
+                        random_symmetric(&mut rng, n)
+                    } else {
+                        random_vec(&mut rng, n * n)
+                    };
+                    let want = naive(&transpose(&h, n), n, &x);
+                    let mut y = vec![7.0; n + 3];
+                    k.matvec_symmetric(&h, n, &x, &mut y);
+                    for i in 0..n {
+                        assert!(
+                            (y[i] - want[i]).abs() <= tol(n),
+                            "{:?} n = {n} sym = {sym} row {i}: {} vs {}",
+                            k.path(),
+                            y[i],
+                            want[i]
+                        );
+                    }
+                    assert!(
+                        y[n..].iter().all(|&v| v == 7.0),
+                        "{:?} wrote past n = {n}",
+                        k.path()
+                    );
+                }
+            }
+        }
+    }
+
     /// Rounding tolerance for a length-n dot product of entries bounded by 1 in magnitude.
     fn tol(n: usize) -> f64 {
         4.0 * n as f64 * f64::EPSILON
@@ -491,7 +674,7 @@ mod tests {
     fn matvec_matches_naive_on_every_path_and_size() {
         let mut rng = ChaCha8Rng::seed_from_u64(3);
         for k in paths() {
-            for n in 1..=70 {
+            for n in (1..=70).chain([95, 128, 131]) {
                 let h = random_vec(&mut rng, n * n);
                 let x = random_vec(&mut rng, n);
                 let want = naive(&h, n, &x);
@@ -520,8 +703,8 @@ mod tests {
     fn pg_step_matches_three_pass_step_on_every_path_and_size() {
         let mut rng = ChaCha8Rng::seed_from_u64(4);
         for k in paths() {
-            for n in 1..=70 {
-                let h = random_vec(&mut rng, n * n);
+            for n in (1..=70).chain([95, 128, 131]) {
+                let h = random_symmetric(&mut rng, n);
                 let z = random_vec(&mut rng, n);
                 let q = random_vec(&mut rng, n);
                 // Bounds that clip about half of the entries; some infinite.
@@ -568,7 +751,7 @@ mod tests {
     #[test]
     fn pg_step_propagates_nan_instead_of_clamping_it() {
         for k in paths() {
-            for n in [1, 5, 9] {
+            for n in [1, 5, 9, 33] {
                 let h = vec![1.0; n * n];
                 let mut z = vec![0.0; n];
                 z[n - 1] = f64::NAN;
@@ -608,6 +791,8 @@ mod tests {
         for k in paths() {
             let mut y: [f64; 0] = [];
             k.matvec(&[], 0, &[], &mut y);
+            k.matvec_symmetric(&[], 0, &[], &mut y);
+            k.projected_gradient_step(&[], 0, &[], &[], 1.0, &[], &[], &mut y);
         }
     }
 

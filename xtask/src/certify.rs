@@ -294,7 +294,13 @@ pub fn certify(req: &CertifyRequest) -> Result<Outcome> {
         hint,
         scenario: ScenarioInfo {
             name: scenario.name.clone(),
-            path: req.scenario.display().to_string(),
+            // Relative to the workspace when inside it, so files do not record machine paths.
+            path: req
+                .scenario
+                .strip_prefix(crate::provenance::workspace_root())
+                .unwrap_or(&req.scenario)
+                .display()
+                .to_string(),
         },
         provenance: Provenance::collect(),
         system: SystemInfo {
@@ -465,6 +471,7 @@ mod tests {
             serde_json::from_str(&std::fs::read_to_string(&path).unwrap()).unwrap();
         assert_eq!(doc["format"], FORMAT);
         assert_eq!(doc["scenario"]["name"], "case-study");
+        assert_eq!(doc["scenario"]["path"], "scenarios/case-study.toml");
         assert_eq!(doc["inputs"]["eta"], 0.8);
         assert_eq!(doc["certificate"]["eta"], 0.8);
         assert_eq!(doc["system"]["nw1"], 4);

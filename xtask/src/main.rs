@@ -54,9 +54,9 @@ enum Command {
     /// Run the main job: today the case-study certificate (the closed-loop case study
     /// arrives with the `closed-loop` crate).
     Reproduce {
-        /// Output directory.
-        #[arg(long, default_value = "out/case-study")]
-        out: PathBuf,
+        /// Output directory [default: out/case-study in the workspace].
+        #[arg(long)]
+        out: Option<PathBuf>,
     },
 }
 
@@ -90,6 +90,7 @@ fn run(cli: Cli) -> Result<ExitCode> {
             })
         }
         Command::Reproduce { out } => {
+            let out = out.unwrap_or_else(|| workspace_root().join("out/case-study"));
             let scenario = workspace_root().join("scenarios/case-study.toml");
             println!(
                 "== reproduce: case study (stand-in plant, see scenarios/case-study.toml) ==\n"
@@ -106,11 +107,18 @@ fn run(cli: Cli) -> Result<ExitCode> {
             std::fs::copy(&scenario, &copy)
                 .with_context(|| format!("cannot copy the scenario to `{}`", copy.display()))?;
             println!("wrote {}", copy.display());
+            println!();
             println!(
-                "\nNot run yet: the closed-loop case study itself (Alg. 1 with a K-iteration MHE \
-                 feeding the MPC, the Fig. 2 analogues, the K sweeps and the Theorem 1 certificate) \
-                 comes with the `closed-loop` crate, which does not provide it yet. This command \
-                 only computed and checked the δ-IOSS certificate above; it prints no other numbers."
+                "Not run yet: the closed-loop case study itself (Alg. 1 with a K-iteration MHE"
+            );
+            println!(
+                "feeding the MPC, the Fig. 2 analogues, the K sweeps and the Theorem 1 certificate)"
+            );
+            println!(
+                "comes with the `closed-loop` crate, which does not provide it yet. This command"
+            );
+            println!(
+                "only computed and checked the δ-IOSS certificate above; it prints no other numbers."
             );
             Ok(if outcome.document.passed {
                 ExitCode::SUCCESS

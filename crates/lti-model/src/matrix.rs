@@ -71,7 +71,12 @@ pub fn check_finite(name: &str, m: MatRef<'_, f64>) -> Result<()> {
         for i in 0..m.nrows() {
             let value = m[(i, j)];
             if !value.is_finite() {
-                return Err(ModelError::NonFinite { name: name.to_string(), row: i, col: j, value });
+                return Err(ModelError::NonFinite {
+                    name: name.to_string(),
+                    row: i,
+                    col: j,
+                    value,
+                });
             }
         }
     }
@@ -81,7 +86,12 @@ pub fn check_finite(name: &str, m: MatRef<'_, f64>) -> Result<()> {
 /// Checks that every entry of a vector is finite.
 pub fn check_finite_slice(name: &str, v: &[f64]) -> Result<()> {
     match v.iter().position(|x| !x.is_finite()) {
-        Some(i) => Err(ModelError::NonFinite { name: name.to_string(), row: i, col: 0, value: v[i] }),
+        Some(i) => Err(ModelError::NonFinite {
+            name: name.to_string(),
+            row: i,
+            col: 0,
+            value: v[i],
+        }),
         None => Ok(()),
     }
 }
@@ -111,10 +121,11 @@ pub fn sym_eigenvalues(name: &str, m: MatRef<'_, f64>) -> Result<Vec<f64>> {
         return Ok(Vec::new());
     }
     let s = symmetrize(m);
-    s.self_adjoint_eigenvalues(Side::Lower).map_err(|e| ModelError::Numerical {
-        routine: format!("symmetric eigenvalues of `{name}`"),
-        reason: format!("{e:?}"),
-    })
+    s.self_adjoint_eigenvalues(Side::Lower)
+        .map_err(|e| ModelError::Numerical {
+            routine: format!("symmetric eigenvalues of `{name}`"),
+            reason: format!("{e:?}"),
+        })
 }
 
 /// Extreme eigenvalues (λ_min, λ_max) of a symmetric matrix.
@@ -144,11 +155,17 @@ pub fn check_positive_definite(name: &str, m: MatRef<'_, f64>, n: usize) -> Resu
     let scale = m.norm_max().max(1.0);
     let asym = asymmetry(m);
     if asym > SYMMETRY_TOL * scale {
-        return Err(ModelError::NotSymmetric { name: name.to_string(), asymmetry: asym });
+        return Err(ModelError::NotSymmetric {
+            name: name.to_string(),
+            asymmetry: asym,
+        });
     }
     let (lo, hi) = sym_extreme_eigenvalues(name, m)?;
     if !(lo > 0.0) {
-        return Err(ModelError::NotPositiveDefinite { name: name.to_string(), min_eigenvalue: lo });
+        return Err(ModelError::NotPositiveDefinite {
+            name: name.to_string(),
+            min_eigenvalue: lo,
+        });
     }
     Ok((lo, hi))
 }
@@ -170,7 +187,9 @@ pub fn block_diag(blocks: &[MatRef<'_, f64>]) -> Mat<f64> {
     let mut out = Mat::zeros(n, m);
     let (mut r, mut c) = (0, 0);
     for b in blocks {
-        out.as_mut().submatrix_mut(r, c, b.nrows(), b.ncols()).copy_from(b);
+        out.as_mut()
+            .submatrix_mut(r, c, b.nrows(), b.ncols())
+            .copy_from(b);
         r += b.nrows();
         c += b.ncols();
     }
@@ -179,5 +198,57 @@ pub fn block_diag(blocks: &[MatRef<'_, f64>]) -> Mat<f64> {
 
 /// Converts a matrix to row-major nested vectors (for JSON output).
 pub fn to_rows(m: MatRef<'_, f64>) -> Vec<Vec<f64>> {
-    (0..m.nrows()).map(|i| (0..m.ncols()).map(|j| m[(i, j)]).collect()).collect()
+    (0..m.nrows())
+        .map(|i| (0..m.ncols()).map(|j| m[(i, j)]).collect())
+        .collect()
+}
+
+/// Largest eigenvalue of a symmetric k × k matrix stored row-major in `g` (overwritten),
+/// by cyclic Jacobi rotations: accurate to machine precision and allocation-free, for the
+/// many tiny eigenproblems of active-set enumerations. Returns −∞ for k = 0.
+///
+/// ```
+/// let mut g = [2.0, 1.0, 1.0, 2.0];
+/// assert!((lti_model::matrix::sym_lambda_max_in_place(&mut g, 2) - 3.0).abs() < 1e-14);
+/// ```
+pub fn sym_lambda_max_in_place(g: &mut [f64], k: usize) -> f64 {
+    for _sweep in 0..100 {
+        let mut off = 0.0;
+        for p in 0..k {
+            for q in p + 1..k {
+                off += g[p * k + q] * g[p * k + q];
+            }
+        }
+        let diag: f64 = (0..k).map(|i| g[i * k + i] * g[i * k + i]).sum();
+        if off <= 1e-30 * diag.max(f64::MIN_POSITIVE) {
+            break;
+        }
+        for p in 0..k {
+            for q in p + 1..k {
+                let apq = g[p * k + q];
+                if apq == 0.0 {
+                    continue;
+                }
+                let (app, aqq) = (g[p * k + p], g[q * k + q]);
+                let theta = (aqq - app) / (2.0 * apq);
+                let t = theta.signum() / (theta.abs() + (theta * theta + 1.0).sqrt());
+                let t = if theta == 0.0 { 1.0 } else { t };
+                let c = 1.0 / (t * t + 1.0).sqrt();
+                let sn = t * c;
+                for r in 0..k {
+                    let (grp, grq) = (g[r * k + p], g[r * k + q]);
+                    g[r * k + p] = c * grp - sn * grq;
+                    g[r * k + q] = sn * grp + c * grq;
+                }
+                for r in 0..k {
+                    let (gpr, gqr) = (g[p * k + r], g[q * k + r]);
+                    g[p * k + r] = c * gpr - sn * gqr;
+                    g[q * k + r] = sn * gpr + c * gqr;
+                }
+            }
+        }
+    }
+    (0..k)
+        .map(|i| g[i * k + i])
+        .fold(f64::NEG_INFINITY, f64::max)
 }

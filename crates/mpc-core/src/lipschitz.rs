@@ -159,50 +159,6 @@ impl CondensedMpc {
     }
 }
 
-/// Largest eigenvalue of a symmetric k × k matrix (row-major, overwritten) by cyclic
-/// Jacobi rotations; k is at most n_u here.
-fn sym_lambda_max(g: &mut [f64], k: usize) -> f64 {
-    for _sweep in 0..100 {
-        let mut off = 0.0;
-        for p in 0..k {
-            for q in p + 1..k {
-                off += g[p * k + q] * g[p * k + q];
-            }
-        }
-        let diag: f64 = (0..k).map(|i| g[i * k + i] * g[i * k + i]).sum();
-        if off <= 1e-30 * diag.max(f64::MIN_POSITIVE) {
-            break;
-        }
-        for p in 0..k {
-            for q in p + 1..k {
-                let apq = g[p * k + q];
-                if apq == 0.0 {
-                    continue;
-                }
-                let (app, aqq) = (g[p * k + p], g[q * k + q]);
-                let theta = (aqq - app) / (2.0 * apq);
-                let t = theta.signum() / (theta.abs() + (theta * theta + 1.0).sqrt());
-                let t = if theta == 0.0 { 1.0 } else { t };
-                let c = 1.0 / (t * t + 1.0).sqrt();
-                let sn = t * c;
-                for r in 0..k {
-                    let (grp, grq) = (g[r * k + p], g[r * k + q]);
-                    g[r * k + p] = c * grp - sn * grq;
-                    g[r * k + q] = sn * grp + c * grq;
-                }
-                for r in 0..k {
-                    let (gpr, gqr) = (g[p * k + r], g[q * k + r]);
-                    g[p * k + r] = c * gpr - sn * gqr;
-                    g[q * k + r] = sn * gpr + c * gqr;
-                }
-            }
-        }
-    }
-    (0..k)
-        .map(|i| g[i * k + i])
-        .fold(f64::NEG_INFINITY, f64::max)
-}
-
 impl CondensedMpc {
     /// L_enum = max over all free sets f of ‖E₀J_f‖₂ (module docs, "Enumerated bound"): a
     /// certified upper bound on L_π, never above [`LipschitzCertificate::first_block`].
@@ -223,24 +179,52 @@ impl CondensedMpc {
     /// assert!(mpc.lipschitz_enumerated(4).unwrap().is_none()); // N·n_u = 5 > 4
     /// ```
     pub fn lipschitz_enumerated(&self, max_vars: usize) -> Result<Option<f64>> {
+        let nu = self.nu();
+        let mut g = vec![0.0; nu * nu];
+        let mut best = 0.0_f64;
+        let visited = self.for_each_free_set(max_vars, |_, k, nx| {
+            // ‖K_f‖₂² = λ_max(K_f K_fᵀ) (n_u × n_u).
+            for p in 0..nu {
+                for q in 0..nu {
+                    g[p * nu + q] = (0..nx).map(|j| k[p * nx + j] * k[q * nx + j]).sum();
+                }
+            }
+            best = best.max(
+                lti_model::matrix::sym_lambda_max_in_place(&mut g, nu)
+                    .max(0.0)
+                    .sqrt(),
+            );
+        })?;
+        Ok(visited.then_some(best))
+    }
+
+    /// Visits every free set 𝔽 ⊂ {0, …, N·n_u − 1} of the box-constrained QP with the local
+    /// gain of the first input block, K_𝔽 = −E₀ E_𝔽(E_𝔽ᵀHE_𝔽)⁻¹E_𝔽ᵀF (n_u × n_x, row-major;
+    /// rows of saturated first-block inputs are zero). On the region where exactly 𝔽 is free,
+    /// π(x) is affine with Jacobian K_𝔽, so along any segment the difference π(x) − π(x') is
+    /// a convex combination of K_𝔽(x − x') (the law is continuous and piecewise affine).
+    ///
+    /// `visit(free_mask, k_f, n_x)`. Returns `Ok(false)` without visiting when
+    /// N·n_u > `max_vars` (at most 30): the enumeration costs 2^{N·n_u} small Cholesky solves.
+    /// Buffers are allocated once, before the loop.
+    pub fn for_each_free_set<V>(&self, max_vars: usize, mut visit: V) -> Result<bool>
+    where
+        V: FnMut(u64, &[f64], usize),
+    {
         let qp = self.qp();
         let (n, nx, nu) = (qp.n(), self.nx(), self.nu());
         if n > max_vars.min(30) {
-            return Ok(None);
+            return Ok(false);
         }
         let h = qp.h_row_major();
         let f: Vec<f64> = (0..n * nx).map(|k| qp.f()[(k / nx, k % nx)]).collect();
         let mut free = vec![0usize; n];
         let mut l = vec![0.0; n * n];
         let mut y = vec![0.0; n * nx];
-        let mut m = vec![0.0; nu * nx];
-        let mut g = vec![0.0; nu * nu];
-        let mut best = 0.0_f64;
+        let mut kf = vec![0.0; nu * nx];
+        // The empty free set: every input saturated, K = 0.
+        visit(0, &kf, nx);
         for mask in 1u64..(1u64 << n) {
-            // First-block variables are bits 0..n_u; a set without any has E₀J_f = 0.
-            if mask & ((1u64 << nu) - 1) == 0 {
-                continue;
-            }
             let mut nf = 0;
             for i in 0..n {
                 if mask & (1 << i) != 0 {
@@ -258,8 +242,9 @@ impl CondensedMpc {
                     if a == b {
                         if !(acc > 0.0) {
                             return Err(MpcError::Model(lti_model::ModelError::Numerical {
-                                routine: "Cholesky of a principal submatrix of H (L_π enumeration)"
-                                    .into(),
+                                routine:
+                                    "Cholesky of a principal submatrix of H (free-set enumeration)"
+                                        .into(),
                                 reason: format!("pivot {acc:e} ≤ 0; H is numerically singular"),
                             }));
                         }
@@ -286,17 +271,16 @@ impl CondensedMpc {
                     y[a * nx + j] = acc / l[a * nf + a];
                 }
             }
-            // E₀J_f: the rows of Y for free first-block variables (free is sorted).
-            let k = free[..nf].iter().take_while(|&&i| i < nu).count();
-            m[..k * nx].copy_from_slice(&y[..k * nx]);
-            for p in 0..k {
-                for q in 0..k {
-                    g[p * k + q] = (0..nx).map(|j| m[p * nx + j] * m[q * nx + j]).sum();
+            // K_𝔽 = −(rows of Y of free first-block inputs), placed at their input index.
+            kf.fill(0.0);
+            for (a, &i) in free[..nf].iter().enumerate().take_while(|(_, i)| **i < nu) {
+                for j in 0..nx {
+                    kf[i * nx + j] = -y[a * nx + j];
                 }
             }
-            best = best.max(sym_lambda_max(&mut g[..k * k], k).max(0.0).sqrt());
+            visit(mask, &kf, nx);
         }
-        Ok(Some(best))
+        Ok(true)
     }
 }
 

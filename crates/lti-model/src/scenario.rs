@@ -49,6 +49,24 @@ use crate::system::LtiSystem;
 /// Number of simulation steps when `[simulation].steps` is omitted (the case study's 40).
 pub const DEFAULT_STEPS: usize = 40;
 
+/// Largest n_x, n_u, n_y, n_w1, n_w2 a scenario may have. Dense n × n weights are built
+/// from a few bytes of text (`q = 1.0`, `{ diagonal = [...] }`), so without a cap a short
+/// file could request terabytes; dense MHE/MPC at this size is already impractical.
+pub const MAX_DIMENSION: usize = 4096;
+
+fn check_dimension(key: &str, what: &str, n: usize) -> Result<()> {
+    if n > MAX_DIMENSION {
+        return Err(scenario_err(
+            key,
+            format!(
+                "gives {what} = {n}, above the supported maximum {MAX_DIMENSION}; dense MHE/MPC at \
+                 this size is impractical, reduce the model"
+            ),
+        ));
+    }
+    Ok(())
+}
+
 // ---------------------------------------------------------------------------------------
 // Typed, validated scenario
 // ---------------------------------------------------------------------------------------
@@ -815,6 +833,7 @@ fn scalar_identity(key: &str, s: f64, n: usize) -> Result<Mat<f64>> {
 }
 
 fn diagonal(key: &str, d: &[f64]) -> Result<Mat<f64>> {
+    check_dimension(key, "the matrix size", d.len())?;
     if let Some((i, v)) = d.iter().enumerate().find(|(_, v)| !v.is_finite()) {
         return Err(scenario_err(
             key,
@@ -1012,6 +1031,7 @@ fn validate_plant(raw: Option<&RawPlant>) -> Result<LtiSystem> {
             .ok_or_else(|| missing("a", "the n_x × n_x matrix A"))?,
     )?;
     let nx = a.nrows();
+    check_dimension("plant.a", "n_x", nx)?;
     if nx == 0 || a.ncols() != nx {
         return Err(scenario_err(
             "plant.a",
@@ -1052,6 +1072,8 @@ fn validate_plant(raw: Option<&RawPlant>) -> Result<LtiSystem> {
         ));
     }
     let ny = c.nrows();
+    check_dimension("plant.c", "n_y", ny)?;
+    check_dimension("plant.b", "n_u", b.ncols())?;
     let disturbance_matrix = |key: &str,
                               spec: Option<&MatrixSpec>,
                               n: usize,
@@ -1080,6 +1102,8 @@ fn validate_plant(raw: Option<&RawPlant>) -> Result<LtiSystem> {
     };
     let e = disturbance_matrix("plant.e", p.e.as_ref(), nx, "state")?;
     let f = disturbance_matrix("plant.f", p.f.as_ref(), ny, "output")?;
+    check_dimension("plant.e", "n_w1", e.ncols())?;
+    check_dimension("plant.f", "n_w2", f.ncols())?;
     LtiSystem::with_disturbance(a, b, c, e, f).map_err(|e| wrap("plant", e.in_context("plant")))
 }
 

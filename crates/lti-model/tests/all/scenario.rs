@@ -724,6 +724,24 @@ fn inconsistent_noise() {
 }
 
 #[test]
+fn oversized_dimensions_are_refused_before_allocating() {
+    let n = lti_model::scenario::MAX_DIMENSION + 1;
+    let ones = vec!["0.5"; n].join(", ");
+    assert_key(
+        &replacing("a = ", &format!("a = {{ diagonal = [{ones}] }}")),
+        "plant.a",
+        "maximum",
+    );
+    // n_y rows of C would make the default R = I an n_y × n_y matrix.
+    let rows = vec!["[1.0, 0.0]"; n].join(", ");
+    assert_key(
+        &replacing("c = ", &format!("c = [{rows}]")),
+        "plant.c",
+        "n_y",
+    );
+}
+
+#[test]
 fn missing_file_names_the_file() {
     let err = Scenario::from_file("/nonexistent/scenario.toml").unwrap_err();
     match err {

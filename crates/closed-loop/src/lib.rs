@@ -5,5 +5,17 @@
 //! small-gain conditions (sg1)–(sg3), and the smallest certified iteration budget K.
 //!
 //! - [`analysis`]: Theorem 1's arithmetic (C₁…C₆, gains, slopes, premises, K_min).
+//! - [`sim`]: Alg. 1 as a simulation ([`ClosedLoop`]) and the case-study builder
+//!   ([`build_case_study`]).
+//! - [`record`]: the per-step [`Trace`] of a run (with the MHE records), JSON output.
 
 pub mod analysis;
+pub mod gamma13;
+pub mod record;
+pub mod sim;
+
+pub use record::{MheStep, MheTrace, Trace};
+pub use sim::{
+    CaseStudyLoop, CaseStudyOptions, ClosedLoop, ClosedLoopError, ControllerChoice, Solver,
+    build_case_study,
+};

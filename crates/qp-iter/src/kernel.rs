@@ -164,16 +164,7 @@ impl Kernel {
             // SAFETY: AVX2 + FMA by the type invariant; n ≥ 1; h has n² entries, x and y
             // at least n (checked above); x and y do not overlap (& and &mut).
             KernelPath::Avx2Fma => unsafe {
-                avx2_sym::run::<false>(avx2_sym::Ctx {
-                    h: h.as_ptr(),
-                    n,
-                    x: x.as_ptr(),
-                    out: y.as_mut_ptr(),
-                    q: std::ptr::null(),
-                    lo: std::ptr::null(),
-                    hi: std::ptr::null(),
-                    alpha: 0.0,
-                })
+                avx2_sym::run::<{ avx2_sym::STORE }>(avx2_sym::Ctx::product(h, n, x, y))
             },
             #[cfg(not(target_arch = "x86_64"))]
             KernelPath::Avx2Fma => portable::matvec_columns(h, n, x, y),
@@ -212,9 +203,10 @@ impl Kernel {
         out: &mut [f64],
     ) {
         check_dims(h, n, z.len(), out.len());
-        assert!(
-            q.len() >= n && lower.len() >= n && upper.len() >= n,
-            "projected_gradient_step: q, lower and upper need length ≥ n = {n}"
+        check_lens(
+            "projected_gradient_step",
+            n,
+            &[q.len(), lower.len(), upper.len()],
         );
         if n == 0 {
             return;
@@ -225,21 +217,168 @@ impl Kernel {
             // SAFETY: AVX2 + FMA by the type invariant; n ≥ 1; all lengths checked above;
             // `out` is a distinct &mut, so it overlaps none of the inputs.
             KernelPath::Avx2Fma => unsafe {
-                avx2_sym::run::<true>(avx2_sym::Ctx {
-                    h: h.as_ptr(),
-                    n,
-                    x: z.as_ptr(),
-                    out: out.as_mut_ptr(),
-                    q: q.as_ptr(),
-                    lo: lower.as_ptr(),
-                    hi: upper.as_ptr(),
-                    alpha,
-                })
+                let mut c = avx2_sym::Ctx::product(h, n, z, out);
+                (c.q, c.lo, c.hi, c.a) = (q.as_ptr(), lower.as_ptr(), upper.as_ptr(), alpha);
+                avx2_sym::run::<{ avx2_sym::PG }>(c)
             },
             #[cfg(not(target_arch = "x86_64"))]
             KernelPath::Avx2Fma => portable::pg_step(h, n, z, q, alpha, lower, upper, out),
         }
     }
+
+    /// One fused step of constant-momentum FISTA ([`crate::fista`]) for a symmetric H:
+    ///
+    /// x⁺ = Π_[l,u](y − α(Hy + q)),  y⁺ = x⁺ + β(x⁺ − x),
+    ///
+    /// with x = `z` on entry. Writes x⁺ into `z` and y⁺ into `y_next` (swap `y` and
+    /// `y_next` afterwards); one pass over H, no other loops. β = 0 gives the plain
+    /// projected-gradient step (FISTA's restart step). NaN-propagating clamp as in
+    /// [`Kernel::projected_gradient_step`]. Allocation-free.
+    ///
+    /// ```
+    /// use qp_iter::kernel::Kernel;
+    /// let h = [2.0, 0.0, 0.0, 1.0];
+    /// let (y, q) = ([0.0, 0.0], [-2.0, -4.0]);
+    /// let mut z = [0.5, 0.0]; // x_k
+    /// let mut y_next = [0.0; 2];
+    /// Kernel::detect().fista_step(&h, 2, &y, &q, 0.5, &[-3.0, -1.0], &[3.0, 1.0], 0.5, &mut z, &mut y_next);
+    /// assert_eq!(z, [1.0, 1.0]);
+    /// assert_eq!(y_next, [1.25, 1.5]); // x⁺ + ½(x⁺ − x)
+    /// ```
+    ///
+    /// # Panics
+    /// If `h.len() != n²` or any vector is shorter than n.
+    #[inline]
+    pub fn fista_step(
+        self,
+        h: &[f64],
+        n: usize,
+        y: &[f64],
+        q: &[f64],
+        alpha: f64,
+        lower: &[f64],
+        upper: &[f64],
+        beta: f64,
+        z: &mut [f64],
+        y_next: &mut [f64],
+    ) {
+        check_dims(h, n, y.len(), z.len());
+        check_lens(
+            "fista_step",
+            n,
+            &[q.len(), lower.len(), upper.len(), y_next.len()],
+        );
+        if n == 0 {
+            return;
+        }
+        match self.path {
+            KernelPath::Portable => {
+                portable::fista_step(h, n, y, q, alpha, lower, upper, beta, z, y_next)
+            }
+            #[cfg(target_arch = "x86_64")]
+            // SAFETY: AVX2 + FMA by the type invariant; n ≥ 1; all lengths checked above;
+            // `z` and `y_next` are distinct &mut, overlapping no input.
+            KernelPath::Avx2Fma => unsafe {
+                let mut c = avx2_sym::Ctx::product(h, n, y, z);
+                (c.q, c.lo, c.hi, c.a, c.b) =
+                    (q.as_ptr(), lower.as_ptr(), upper.as_ptr(), alpha, beta);
+                c.next = y_next.as_mut_ptr();
+                avx2_sym::run::<{ avx2_sym::FISTA }>(c)
+            },
+            #[cfg(not(target_arch = "x86_64"))]
+            KernelPath::Avx2Fma => {
+                portable::fista_step(h, n, y, q, alpha, lower, upper, beta, z, y_next)
+            }
+        }
+    }
+
+    /// One fused step of relaxed ADMM ([`crate::admm`]) on min ½zᵀHz + qᵀz, z = v ∈ [l, u],
+    /// with the dense map M = ρ(H + ρI)⁻¹ (symmetric) and m_q = (H + ρI)⁻¹q:
+    ///
+    /// z = M t − m_q,  w = a z + (1 − a)v + y/ρ,  v⁺ = Π_[l,u](w),  y⁺ = ρ(w − v⁺),
+    /// t⁺ = v⁺ − y⁺/ρ = 2v⁺ − w,
+    ///
+    /// where t = v − y/ρ is carried between steps (`t` in, `t_next` out: swap them
+    /// afterwards). Writes z, v⁺ (over `v`), y⁺ (over `dual`) and t⁺; one pass over M, no
+    /// other loops. `relaxation` is a ∈ (0, 2], `rho` is ρ > 0 (not checked here).
+    /// NaN-propagating clamp as in [`Kernel::projected_gradient_step`]. Allocation-free.
+    ///
+    /// ```
+    /// use qp_iter::kernel::Kernel;
+    /// // M = I (ρ(H+ρI)⁻¹ for H → 0), m_q = 0, a = 1, ρ = 1: z = t, w = z + y.
+    /// let m = [1.0, 0.0, 0.0, 1.0];
+    /// let (mut z, mut v, mut y, mut t_next) = ([0.0; 2], [0.0, 0.0], [0.5, 0.0], [0.0; 2]);
+    /// let t = [2.0, 0.25];
+    /// Kernel::detect().admm_step(&m, 2, &t, &[0.0, 0.0], 1.0, 1.0, &[-1.0, -1.0], &[1.0, 1.0],
+    ///     &mut z, &mut v, &mut y, &mut t_next);
+    /// assert_eq!(z, [2.0, 0.25]);
+    /// assert_eq!(v, [1.0, 0.25]); // w = (2.5, 0.25) clamped
+    /// assert_eq!(y, [1.5, 0.0]);  // ρ(w − v⁺)
+    /// assert_eq!(t_next, [-0.5, 0.25]);
+    /// ```
+    ///
+    /// # Panics
+    /// If `m.len() != n²` or any vector is shorter than n.
+    #[inline]
+    pub fn admm_step(
+        self,
+        m: &[f64],
+        n: usize,
+        t: &[f64],
+        mq: &[f64],
+        relaxation: f64,
+        rho: f64,
+        lower: &[f64],
+        upper: &[f64],
+        z: &mut [f64],
+        v: &mut [f64],
+        dual: &mut [f64],
+        t_next: &mut [f64],
+    ) {
+        check_dims(m, n, t.len(), z.len());
+        check_lens(
+            "admm_step",
+            n,
+            &[
+                mq.len(),
+                lower.len(),
+                upper.len(),
+                v.len(),
+                dual.len(),
+                t_next.len(),
+            ],
+        );
+        if n == 0 {
+            return;
+        }
+        match self.path {
+            KernelPath::Portable => portable::admm_step(
+                m, n, t, mq, relaxation, rho, lower, upper, z, v, dual, t_next,
+            ),
+            #[cfg(target_arch = "x86_64")]
+            // SAFETY: AVX2 + FMA by the type invariant; n ≥ 1; all lengths checked above;
+            // the four outputs are distinct &mut, overlapping no input.
+            KernelPath::Avx2Fma => unsafe {
+                let mut c = avx2_sym::Ctx::product(m, n, t, z);
+                (c.q, c.lo, c.hi, c.a, c.b) =
+                    (mq.as_ptr(), lower.as_ptr(), upper.as_ptr(), relaxation, rho);
+                (c.next, c.v, c.dual) = (t_next.as_mut_ptr(), v.as_mut_ptr(), dual.as_mut_ptr());
+                avx2_sym::run::<{ avx2_sym::ADMM }>(c)
+            },
+            #[cfg(not(target_arch = "x86_64"))]
+            KernelPath::Avx2Fma => portable::admm_step(
+                m, n, t, mq, relaxation, rho, lower, upper, z, v, dual, t_next,
+            ),
+        }
+    }
+}
+
+#[inline]
+fn check_lens(what: &str, n: usize, lens: &[usize]) {
+    assert!(
+        lens.iter().all(|&l| l >= n),
+        "{what}: every vector needs length ≥ n = {n} (lengths {lens:?})"
+    );
 }
 
 #[inline]
@@ -331,10 +470,59 @@ mod portable {
         upper: &[f64],
         out: &mut [f64],
     ) {
+        // `out` holds Hz first, then z⁺ row by row.
         matvec_columns(h, n, z, out);
         for i in 0..n {
             let v = z[i] - alpha * (out[i] + q[i]);
             out[i] = clamp_nan_propagating(v, lower[i], upper[i]);
+        }
+    }
+
+    pub(super) fn fista_step(
+        h: &[f64],
+        n: usize,
+        y: &[f64],
+        q: &[f64],
+        alpha: f64,
+        lower: &[f64],
+        upper: &[f64],
+        beta: f64,
+        z: &mut [f64],
+        y_next: &mut [f64],
+    ) {
+        // `y_next` holds Hy first, then y⁺ row by row.
+        matvec_columns(h, n, y, y_next);
+        for i in 0..n {
+            let x = clamp_nan_propagating(y[i] - alpha * (y_next[i] + q[i]), lower[i], upper[i]);
+            y_next[i] = x + beta * (x - z[i]);
+            z[i] = x;
+        }
+    }
+
+    pub(super) fn admm_step(
+        m: &[f64],
+        n: usize,
+        t: &[f64],
+        mq: &[f64],
+        a: f64,
+        rho: f64,
+        lower: &[f64],
+        upper: &[f64],
+        z: &mut [f64],
+        v: &mut [f64],
+        dual: &mut [f64],
+        t_next: &mut [f64],
+    ) {
+        let ir = 1.0 / rho;
+        // `z` holds Mt first, then Mt − m_q.
+        matvec_columns(m, n, t, z);
+        for i in 0..n {
+            z[i] -= mq[i];
+            let w = a * z[i] + (1.0 - a) * v[i] + ir * dual[i];
+            let vp = clamp_nan_propagating(w, lower[i], upper[i]);
+            dual[i] = rho * (w - vp);
+            t_next[i] = 2.0 * vp - w;
+            v[i] = vp;
         }
     }
 }
@@ -449,33 +637,157 @@ mod avx2 {
 
 /// Column-oriented kernels for symmetric H: the rows of a symmetric row-major H are its
 /// columns, so y = Σⱼ xⱼ H[:, j] reads contiguous memory, keeps up to 32 entries of y in
-/// eight registers and needs no horizontal sums.
+/// eight registers and needs no horizontal sums. A row-local epilogue (store, PG, FISTA or
+/// ADMM update) runs on each finished vector of four rows, so a method's whole step is one
+/// pass over H.
 #[cfg(target_arch = "x86_64")]
 mod avx2_sym {
     use std::arch::x86_64::*;
 
-    /// Pointers for one call. `x` is the point H is applied to (z for the fused step);
-    /// `out` receives Hx, or Π(x − α(Hx + q)) when the fused step is requested.
+    /// Epilogue: store Hx.
+    pub(super) const STORE: u8 = 0;
+    /// Epilogue: projected-gradient step.
+    pub(super) const PG: u8 = 1;
+    /// Epilogue: FISTA step with momentum.
+    pub(super) const FISTA: u8 = 2;
+    /// Epilogue: relaxed ADMM step.
+    pub(super) const ADMM: u8 = 3;
+
+    /// Pointers and scalars of one call (null / 0 where an epilogue does not use them).
     #[derive(Clone, Copy)]
     pub(super) struct Ctx {
         pub h: *const f64,
         pub n: usize,
+        /// The point H is applied to: x, z (PG), y (FISTA), t (ADMM).
         pub x: *const f64,
+        /// Hx, z⁺ (PG), z in/out (FISTA), z out (ADMM).
         pub out: *mut f64,
+        /// q (PG, FISTA) or m_q (ADMM).
         pub q: *const f64,
         pub lo: *const f64,
         pub hi: *const f64,
-        pub alpha: f64,
+        /// α (PG, FISTA) or the relaxation a (ADMM).
+        pub a: f64,
+        /// β (FISTA) or ρ (ADMM).
+        pub b: f64,
+        /// y_next (FISTA) or t_next (ADMM).
+        pub next: *mut f64,
+        /// v in/out (ADMM).
+        pub v: *mut f64,
+        /// y in/out (ADMM).
+        pub dual: *mut f64,
     }
 
-    /// Rows r0 .. r0 + 4V + R: V full vectors and an R-row tail (R < 4), all columns.
+    impl Ctx {
+        /// y = Hx with every other field empty.
+        pub(super) fn product(h: &[f64], n: usize, x: &[f64], out: &mut [f64]) -> Self {
+            Ctx {
+                h: h.as_ptr(),
+                n,
+                x: x.as_ptr(),
+                out: out.as_mut_ptr(),
+                q: std::ptr::null(),
+                lo: std::ptr::null(),
+                hi: std::ptr::null(),
+                a: 0.0,
+                b: 0.0,
+                next: std::ptr::null_mut(),
+                v: std::ptr::null_mut(),
+                dual: std::ptr::null_mut(),
+            }
+        }
+    }
+
+    /// Four lanes at `p + r`, or the lanes of `m`.
     ///
     /// # Safety
-    /// AVX2 and FMA available; r0 + 4V + R ≤ n; `h` valid for n² reads, `x` for n
-    /// reads, `out` for n writes and, when `FUSED`, `q`, `lo`, `hi` for n reads.
+    /// AVX available; the selected lanes are valid reads.
     #[inline]
     #[target_feature(enable = "avx2,fma")]
-    unsafe fn panel<const V: usize, const R: usize, const FUSED: bool>(c: Ctx, r0: usize) {
+    unsafe fn ld(p: *const f64, r: usize, m: Option<__m256i>) -> __m256d {
+        // SAFETY: forwarded contract.
+        unsafe {
+            match m {
+                None => _mm256_loadu_pd(p.add(r)),
+                Some(m) => _mm256_maskload_pd(p.add(r), m),
+            }
+        }
+    }
+
+    /// Stores four lanes at `p + r`, or the lanes of `m`.
+    ///
+    /// # Safety
+    /// AVX available; the selected lanes are valid writes.
+    #[inline]
+    #[target_feature(enable = "avx2,fma")]
+    unsafe fn st(p: *mut f64, r: usize, m: Option<__m256i>, v: __m256d) {
+        // SAFETY: forwarded contract.
+        unsafe {
+            match m {
+                None => _mm256_storeu_pd(p.add(r), v),
+                Some(m) => _mm256_maskstore_pd(p.add(r), m, v),
+            }
+        }
+    }
+
+    /// `min(hi, max(lo, v))`: a NaN in v stays NaN (vmaxpd/vminpd return the second
+    /// operand when either is NaN).
+    #[inline]
+    #[target_feature(enable = "avx2,fma")]
+    fn clamp(v: __m256d, lo: __m256d, hi: __m256d) -> __m256d {
+        _mm256_min_pd(hi, _mm256_max_pd(lo, v))
+    }
+
+    /// The epilogue `E` on rows r .. r+4 (or the lanes of `m`) with s = (Hx)[rows].
+    ///
+    /// # Safety
+    /// AVX2 + FMA available; the selected rows are < n; the pointers `E` uses are valid
+    /// for n elements (see [`run`]).
+    #[inline]
+    #[target_feature(enable = "avx2,fma")]
+    unsafe fn epilogue<const E: u8>(c: &Ctx, r: usize, m: Option<__m256i>, s: __m256d) {
+        // SAFETY: forwarded contract: rows in bounds, pointers valid for E.
+        unsafe {
+            match E {
+                PG => {
+                    let g = _mm256_add_pd(s, ld(c.q, r, m));
+                    let z = _mm256_fnmadd_pd(_mm256_set1_pd(c.a), g, ld(c.x, r, m));
+                    st(c.out, r, m, clamp(z, ld(c.lo, r, m), ld(c.hi, r, m)));
+                }
+                FISTA => {
+                    let g = _mm256_add_pd(s, ld(c.q, r, m));
+                    let x = _mm256_fnmadd_pd(_mm256_set1_pd(c.a), g, ld(c.x, r, m));
+                    let x = clamp(x, ld(c.lo, r, m), ld(c.hi, r, m));
+                    let d = _mm256_sub_pd(x, ld(c.out, r, m));
+                    st(c.next, r, m, _mm256_fmadd_pd(_mm256_set1_pd(c.b), d, x));
+                    st(c.out, r, m, x);
+                }
+                ADMM => {
+                    let z = _mm256_sub_pd(s, ld(c.q, r, m));
+                    st(c.out, r, m, z);
+                    let (a, rho) = (_mm256_set1_pd(c.a), _mm256_set1_pd(c.b));
+                    let y_rho = _mm256_mul_pd(ld(c.dual, r, m), _mm256_set1_pd(1.0 / c.b));
+                    let one_minus_a = _mm256_set1_pd(1.0 - c.a);
+                    let w =
+                        _mm256_fmadd_pd(a, z, _mm256_fmadd_pd(one_minus_a, ld(c.v, r, m), y_rho));
+                    let vp = clamp(w, ld(c.lo, r, m), ld(c.hi, r, m));
+                    st(c.dual, r, m, _mm256_mul_pd(rho, _mm256_sub_pd(w, vp)));
+                    st(c.next, r, m, _mm256_sub_pd(_mm256_add_pd(vp, vp), w));
+                    st(c.v, r, m, vp);
+                }
+                _ => st(c.out, r, m, s),
+            }
+        }
+    }
+
+    /// Rows r0 .. r0 + 4V + R: V full vectors and an R-row tail (R < 4), all columns,
+    /// then the epilogue.
+    ///
+    /// # Safety
+    /// AVX2 and FMA available; r0 + 4V + R ≤ n; the pointers as in [`run`].
+    #[inline]
+    #[target_feature(enable = "avx2,fma")]
+    unsafe fn panel<const V: usize, const R: usize, const E: u8>(c: &Ctx, r0: usize) {
         let mut acc = [_mm256_setzero_pd(); V];
         let mut t2 = _mm_setzero_pd();
         let mut t1 = _mm_setzero_pd();
@@ -493,48 +805,27 @@ mod avx2_sym {
                     t2 = _mm_fmadd_pd(_mm_loadu_pd(col.add(4 * V)), xj2, t2);
                 }
                 if R % 2 == 1 {
+                    // Upper lane stays 0 (copied from the loaded operand).
                     t1 = _mm_fmadd_sd(_mm_load_sd(col.add(4 * V + (R & 2))), xj2, t1);
                 }
             }
         }
-        let alpha = _mm256_set1_pd(c.alpha);
         for v in 0..V {
-            let r = r0 + 4 * v;
-            // SAFETY: rows r .. r + 4 < n.
-            unsafe {
-                if FUSED {
-                    let g = _mm256_add_pd(acc[v], _mm256_loadu_pd(c.q.add(r)));
-                    let z = _mm256_fnmadd_pd(alpha, g, _mm256_loadu_pd(c.x.add(r)));
-                    let w = _mm256_min_pd(
-                        _mm256_loadu_pd(c.hi.add(r)),
-                        _mm256_max_pd(_mm256_loadu_pd(c.lo.add(r)), z),
-                    );
-                    _mm256_storeu_pd(c.out.add(r), w);
-                } else {
-                    _mm256_storeu_pd(c.out.add(r), acc[v]);
-                }
-            }
+            // SAFETY: rows r0 + 4v .. + 4 lie below n.
+            unsafe { epilogue::<E>(c, r0 + 4 * v, None, acc[v]) };
         }
         if R > 0 {
-            let mut t = [0.0f64; 4];
-            // SAFETY: `t` holds four f64.
-            unsafe { _mm_storeu_pd(t.as_mut_ptr(), t2) };
-            if R % 2 == 1 {
-                t[R & 2] = _mm_cvtsd_f64(t1);
-            }
-            for (k, &s) in t.iter().enumerate().take(R) {
-                let r = r0 + 4 * V + k;
-                // SAFETY: r < n.
-                unsafe {
-                    if FUSED {
-                        let g = s + *c.q.add(r);
-                        let z = (-c.alpha).mul_add(g, *c.x.add(r));
-                        *c.out.add(r) = super::clamp_nan_propagating(z, *c.lo.add(r), *c.hi.add(r));
-                    } else {
-                        *c.out.add(r) = s;
-                    }
-                }
-            }
+            // Tail sums as one vector [t2₀, t2₁, t1₀, 0] (R = 3), [t2₀, t2₁, 0, 0] (R = 2)
+            // or [t1₀, 0, 0, 0] (R = 1); lanes ≥ R are masked off.
+            let s = match R {
+                1 => _mm256_set_m128d(_mm_setzero_pd(), t1),
+                2 => _mm256_set_m128d(_mm_setzero_pd(), t2),
+                _ => _mm256_set_m128d(t1, t2),
+            };
+            let m =
+                _mm256_cmpgt_epi64(_mm256_set1_epi64x(R as i64), _mm256_setr_epi64x(0, 1, 2, 3));
+            // SAFETY: the mask selects rows r0 + 4V .. r0 + 4V + R < n only.
+            unsafe { epilogue::<E>(c, r0 + 4 * V, Some(m), s) };
         }
     }
 
@@ -544,14 +835,14 @@ mod avx2_sym {
     /// As [`panel`] with R = r.
     #[inline]
     #[target_feature(enable = "avx2,fma")]
-    unsafe fn last<const V: usize, const FUSED: bool>(c: Ctx, r0: usize, r: usize) {
+    unsafe fn last<const V: usize, const E: u8>(c: &Ctx, r0: usize, r: usize) {
         // SAFETY: forwarded contract.
         unsafe {
             match r {
-                0 => panel::<V, 0, FUSED>(c, r0),
-                1 => panel::<V, 1, FUSED>(c, r0),
-                2 => panel::<V, 2, FUSED>(c, r0),
-                _ => panel::<V, 3, FUSED>(c, r0),
+                0 => panel::<V, 0, E>(c, r0),
+                1 => panel::<V, 1, E>(c, r0),
+                2 => panel::<V, 2, E>(c, r0),
+                _ => panel::<V, 3, E>(c, r0),
             }
         }
     }
@@ -559,16 +850,18 @@ mod avx2_sym {
     /// All rows: panels of 32, then one panel for the remaining < 32.
     ///
     /// # Safety
-    /// AVX2 and FMA available; n ≥ 1; `h` valid for n² reads, `x` for n reads, `out` for
-    /// n writes, not overlapping `x`; when `FUSED`, `q`, `lo`, `hi` valid for n reads.
+    /// AVX2 and FMA available; n ≥ 1; `h` valid for n² reads and `x` for n reads; the
+    /// pointers epilogue `E` uses valid for n elements (reads: `q`, `lo`, `hi`; writes:
+    /// `out`, and `next`, `v`, `dual` where used; `out` also read by FISTA, `v` and `dual`
+    /// by ADMM); no written range overlaps `x`, `h` or another written range.
     #[target_feature(enable = "avx2,fma")]
-    pub(super) unsafe fn run<const FUSED: bool>(c: Ctx) {
+    pub(super) unsafe fn run<const E: u8>(c: Ctx) {
         let mut r0 = 0;
-        // SAFETY (whole body): every panel ends at row ≤ n, the caller's contract covers
+        // SAFETY (whole body): every panel ends at row ≤ n; the caller's contract covers
         // the pointers.
         unsafe {
             while c.n - r0 >= 32 {
-                panel::<8, 0, FUSED>(c, r0);
+                panel::<8, 0, E>(&c, r0);
                 r0 += 32;
             }
             let left = c.n - r0;
@@ -577,14 +870,14 @@ mod avx2_sym {
             }
             let r = left % 4;
             match left / 4 {
-                0 => last::<0, FUSED>(c, r0, r),
-                1 => last::<1, FUSED>(c, r0, r),
-                2 => last::<2, FUSED>(c, r0, r),
-                3 => last::<3, FUSED>(c, r0, r),
-                4 => last::<4, FUSED>(c, r0, r),
-                5 => last::<5, FUSED>(c, r0, r),
-                6 => last::<6, FUSED>(c, r0, r),
-                _ => last::<7, FUSED>(c, r0, r),
+                0 => last::<0, E>(&c, r0, r),
+                1 => last::<1, E>(&c, r0, r),
+                2 => last::<2, E>(&c, r0, r),
+                3 => last::<3, E>(&c, r0, r),
+                4 => last::<4, E>(&c, r0, r),
+                5 => last::<5, E>(&c, r0, r),
+                6 => last::<6, E>(&c, r0, r),
+                _ => last::<7, E>(&c, r0, r),
             }
         }
     }
@@ -748,27 +1041,170 @@ mod tests {
         }
     }
 
+    /// Bounds that clip about half of the entries of a vector in [−1, 1]; some infinite.
+    fn random_box(rng: &mut ChaCha8Rng, n: usize) -> (Vec<f64>, Vec<f64>) {
+        let lower = (0..n)
+            .map(|i| {
+                if i % 5 == 0 {
+                    f64::NEG_INFINITY
+                } else {
+                    rng.random_range(-0.6..0.0)
+                }
+            })
+            .collect();
+        let upper = (0..n)
+            .map(|i| {
+                if i % 7 == 0 {
+                    f64::INFINITY
+                } else {
+                    rng.random_range(0.0..0.6)
+                }
+            })
+            .collect();
+        (lower, upper)
+    }
+
     #[test]
-    fn pg_step_propagates_nan_instead_of_clamping_it() {
+    fn fista_step_matches_unfused_formula_on_every_path_and_size() {
+        let mut rng = ChaCha8Rng::seed_from_u64(6);
+        for k in paths() {
+            for n in (1..=70).chain([95, 128, 131]) {
+                let h = random_symmetric(&mut rng, n);
+                let (y, q, x) = (
+                    random_vec(&mut rng, n),
+                    random_vec(&mut rng, n),
+                    random_vec(&mut rng, n),
+                );
+                let (lower, upper) = random_box(&mut rng, n);
+                let (alpha, beta) = (rng.random_range(0.1..1.0), rng.random_range(0.0..1.0));
+                let hy = naive(&h, n, &y);
+                let mut z = x.clone();
+                z.push(7.0);
+                let mut y_next = vec![7.0; n + 1];
+                k.fista_step(
+                    &h,
+                    n,
+                    &y,
+                    &q,
+                    alpha,
+                    &lower,
+                    &upper,
+                    beta,
+                    &mut z,
+                    &mut y_next,
+                );
+                for i in 0..n {
+                    let xp = (y[i] - alpha * (hy[i] + q[i])).max(lower[i]).min(upper[i]);
+                    let yp = xp + beta * (xp - x[i]);
+                    assert!(
+                        (z[i] - xp).abs() <= tol(n),
+                        "{:?} n = {n} row {i}: x⁺ {} vs {xp}",
+                        k.path(),
+                        z[i]
+                    );
+                    assert!(
+                        (y_next[i] - yp).abs() <= 4.0 * tol(n),
+                        "{:?} n = {n} row {i}: y⁺",
+                        k.path()
+                    );
+                }
+                assert!(
+                    z[n] == 7.0 && y_next[n] == 7.0,
+                    "{:?} wrote past n = {n}",
+                    k.path()
+                );
+            }
+        }
+    }
+
+    #[test]
+    fn admm_step_matches_unfused_formula_on_every_path_and_size() {
+        let mut rng = ChaCha8Rng::seed_from_u64(7);
+        for k in paths() {
+            for n in (1..=70).chain([95, 128, 131]) {
+                let m = random_symmetric(&mut rng, n);
+                let (t, mq) = (random_vec(&mut rng, n), random_vec(&mut rng, n));
+                let (v0, y0) = (random_vec(&mut rng, n), random_vec(&mut rng, n));
+                let (lower, upper) = random_box(&mut rng, n);
+                let (a, rho) = (rng.random_range(0.5..2.0), rng.random_range(0.5..4.0));
+                let mt = naive(&m, n, &t);
+                let (mut z, mut v, mut y, mut t_next) =
+                    (vec![7.0; n + 1], v0.clone(), y0.clone(), vec![7.0; n + 1]);
+                v.push(7.0);
+                y.push(7.0);
+                k.admm_step(
+                    &m,
+                    n,
+                    &t,
+                    &mq,
+                    a,
+                    rho,
+                    &lower,
+                    &upper,
+                    &mut z,
+                    &mut v,
+                    &mut y,
+                    &mut t_next,
+                );
+                for i in 0..n {
+                    let zi = mt[i] - mq[i];
+                    let w = a * zi + (1.0 - a) * v0[i] + y0[i] / rho;
+                    let vp = w.max(lower[i]).min(upper[i]);
+                    let yp = rho * (w - vp);
+                    let tp = vp - yp / rho;
+                    let e = 16.0 * tol(n);
+                    assert!((z[i] - zi).abs() <= e, "{:?} n = {n} row {i}: z", k.path());
+                    assert!((v[i] - vp).abs() <= e, "{:?} n = {n} row {i}: v", k.path());
+                    assert!(
+                        (y[i] - yp).abs() <= rho * e,
+                        "{:?} n = {n} row {i}: y",
+                        k.path()
+                    );
+                    assert!(
+                        (t_next[i] - tp).abs() <= e,
+                        "{:?} n = {n} row {i}: t",
+                        k.path()
+                    );
+                }
+                assert!(
+                    z[n] == 7.0 && v[n] == 7.0 && y[n] == 7.0 && t_next[n] == 7.0,
+                    "{:?} wrote past n = {n}",
+                    k.path()
+                );
+            }
+        }
+    }
+
+    #[test]
+    fn fused_steps_propagate_nan_instead_of_clamping_it() {
         for k in paths() {
             for n in [1, 5, 9, 33] {
                 let h = vec![1.0; n * n];
-                let mut z = vec![0.0; n];
-                z[n - 1] = f64::NAN;
+                let (lo, hi, zero) = (vec![-1.0; n], vec![1.0; n], vec![0.0; n]);
+                let mut x = vec![0.0; n];
+                x[n - 1] = f64::NAN;
                 let mut out = vec![0.0; n];
-                k.projected_gradient_step(
-                    &h,
-                    n,
-                    &z,
-                    &vec![0.0; n],
-                    0.5,
-                    &vec![-1.0; n],
-                    &vec![1.0; n],
-                    &mut out,
-                );
+                k.projected_gradient_step(&h, n, &x, &zero, 0.5, &lo, &hi, &mut out);
                 assert!(
                     out.iter().all(|v| v.is_nan()),
-                    "{:?} n = {n}: {out:?}",
+                    "pg {:?} n = {n}: {out:?}",
+                    k.path()
+                );
+                let (mut z, mut y_next) = (vec![0.0; n], vec![0.0; n]);
+                k.fista_step(&h, n, &x, &zero, 0.5, &lo, &hi, 0.5, &mut z, &mut y_next);
+                assert!(
+                    z.iter().chain(&y_next).all(|v| v.is_nan()),
+                    "fista {:?} n = {n}",
+                    k.path()
+                );
+                let (mut z, mut v, mut y, mut t) =
+                    (vec![0.0; n], vec![0.0; n], vec![0.0; n], vec![0.0; n]);
+                k.admm_step(
+                    &h, n, &x, &zero, 1.0, 1.0, &lo, &hi, &mut z, &mut v, &mut y, &mut t,
+                );
+                assert!(
+                    v.iter().chain(&y).chain(&t).all(|v| v.is_nan()),
+                    "admm {:?} n = {n}",
                     k.path()
                 );
             }
@@ -793,6 +1229,21 @@ mod tests {
             k.matvec(&[], 0, &[], &mut y);
             k.matvec_symmetric(&[], 0, &[], &mut y);
             k.projected_gradient_step(&[], 0, &[], &[], 1.0, &[], &[], &mut y);
+            k.fista_step(&[], 0, &[], &[], 1.0, &[], &[], 0.5, &mut [], &mut y);
+            k.admm_step(
+                &[],
+                0,
+                &[],
+                &[],
+                1.0,
+                1.0,
+                &[],
+                &[],
+                &mut [],
+                &mut [],
+                &mut [],
+                &mut y,
+            );
         }
     }
 

@@ -20,6 +20,8 @@ use crate::provenance::Provenance;
 pub const FORMAT: &str = "suboptimal-mhe/ioss-certificate";
 /// Value of the `format_version` field; bumped on any incompatible change.
 pub const FORMAT_VERSION: u32 = 1;
+/// Seeded random pairs for the sampled L_π estimate.
+pub const LPI_SAMPLE_PAIRS: usize = 200;
 /// How `certificate.lmi_tolerance` is derived (recorded in the JSON).
 pub const TOLERANCE_RULE: &str = "lmi_tolerance = 1e-9 * max(1, max|P_ij|, max|Q_ij|, max|R_ij|)";
 /// Resolution of the η bisection run to suggest a feasible η after a failure.
@@ -110,6 +112,9 @@ pub struct CertificateDocument {
     pub certificate: Option<IossReport>,
     /// Always [`TOLERANCE_RULE`].
     pub tolerance_rule: String,
+    /// L_π of the scenario's MPC (Assumption 3): certified bounds and a sampled estimate;
+    /// `null` when the scenario has no [mpc] section. Not part of the LMI pass/fail.
+    pub controller_lipschitz: Option<mpc_core::LipschitzReport>,
 }
 
 /// Result of [`certify`]: the document and its text summary.
@@ -324,6 +329,14 @@ pub fn certify(req: &CertifyRequest) -> Result<Outcome> {
         },
         certificate,
         tolerance_rule: TOLERANCE_RULE.to_string(),
+        controller_lipschitz: match &scenario.mpc {
+            Some(_) => Some(
+                mpc_core::lipschitz_report(&scenario, LPI_SAMPLE_PAIRS, scenario.noise.seed, None)
+                    .map_err(|e| anyhow!("{e}"))
+                    .context("cannot compute L_π for the scenario's [mpc] section")?,
+            ),
+            None => None,
+        },
     };
     let summary = summarize(&document);
     Ok(Outcome { document, summary })
@@ -380,6 +393,9 @@ fn summarize(d: &CertificateDocument) -> String {
     }
     if let Some(h) = &d.hint {
         let _ = writeln!(s, "  hint         {h}");
+    }
+    if let Some(l) = &d.controller_lipschitz {
+        let _ = writeln!(s, "{l}");
     }
     let _ = write!(s, "{}", if d.passed { "PASS" } else { "FAIL" });
     s
@@ -482,6 +498,17 @@ mod tests {
             hi <= tol,
             "LMI rebuilt from JSON has λmax = {hi:e} > {tol:e}"
         );
+        // Issue 4: L_π certified ≥ L_π sampled, both in the JSON and the summary.
+        let lpi = &doc["controller_lipschitz"];
+        let enumerated = lpi["enumerated"].as_f64().unwrap();
+        let sampled = lpi["sampled"]["estimate"].as_f64().unwrap();
+        let bound_b = lpi["certified"]["first_block"].as_f64().unwrap();
+        assert!(
+            sampled > 0.0
+                && sampled <= enumerated * (1.0 + 1e-9)
+                && enumerated <= bound_b * (1.0 + 1e-12)
+        );
+        assert!(out.summary.contains("certified L_π") && out.summary.contains("sampled"));
         let reported = doc["certificate"]["lmi_max_eigenvalue"].as_f64().unwrap();
         assert!((hi - reported).abs() <= 1e-9, "{hi:e} vs {reported:e}");
         let p = mat(&doc["certificate"]["p"]);

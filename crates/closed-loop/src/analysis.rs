@@ -333,7 +333,7 @@ impl IssAnalysis {
         let worst = sg1.max(sg2).max(sg3);
         let margin = 1.0 - worst;
         let certified =
-            self.premises_hold() && phi < 1.0 && phi >= 0.0 && worst < 1.0 && worst.is_finite();
+            self.premises_hold() && (0.0..1.0).contains(&phi) && worst < 1.0 && worst.is_finite();
         GainsAtK {
             k,
             phi,

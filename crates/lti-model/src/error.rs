@@ -9,7 +9,9 @@
 #[derive(Debug, Clone, PartialEq, thiserror::Error)]
 pub enum ModelError {
     /// A matrix or vector has the wrong shape.
-    #[error("`{name}` has shape {actual_rows}x{actual_cols}, expected {expected_rows}x{expected_cols}")]
+    #[error(
+        "`{name}` has shape {actual_rows}x{actual_cols}, expected {expected_rows}x{expected_cols}"
+    )]
     Shape {
         /// Name of the matrix or vector (paper symbol or scenario key).
         name: String,
@@ -23,7 +25,9 @@ pub enum ModelError {
         actual_cols: usize,
     },
     /// A matrix or vector contains NaN or ±∞.
-    #[error("`{name}` has a non-finite entry {value} at ({row}, {col}); all entries must be finite")]
+    #[error(
+        "`{name}` has a non-finite entry {value} at ({row}, {col}); all entries must be finite"
+    )]
     NonFinite {
         /// Name of the matrix or vector.
         name: String,
@@ -43,7 +47,9 @@ pub enum ModelError {
         asymmetry: f64,
     },
     /// A weight that must be positive definite is not.
-    #[error("`{name}` is not positive definite (smallest eigenvalue {min_eigenvalue:e}); use a symmetric matrix with positive eigenvalues")]
+    #[error(
+        "`{name}` is not positive definite (smallest eigenvalue {min_eigenvalue:e}); use a symmetric matrix with positive eigenvalues"
+    )]
     NotPositiveDefinite {
         /// Name of the matrix.
         name: String,
@@ -105,16 +111,50 @@ impl ModelError {
             }
         };
         match self {
-            Self::Shape { name, expected_rows, expected_cols, actual_rows, actual_cols } => {
-                Self::Shape { name: join(name), expected_rows, expected_cols, actual_rows, actual_cols }
-            }
-            Self::NonFinite { name, row, col, value } => Self::NonFinite { name: join(name), row, col, value },
-            Self::NotSymmetric { name, asymmetry } => Self::NotSymmetric { name: join(name), asymmetry },
-            Self::NotPositiveDefinite { name, min_eigenvalue } => {
-                Self::NotPositiveDefinite { name: join(name), min_eigenvalue }
-            }
-            Self::OutOfRange { name, value, range } => Self::OutOfRange { name: join(name), value, range },
-            Self::InvalidSet { name, reason } => Self::InvalidSet { name: join(name), reason },
+            Self::Shape {
+                name,
+                expected_rows,
+                expected_cols,
+                actual_rows,
+                actual_cols,
+            } => Self::Shape {
+                name: join(name),
+                expected_rows,
+                expected_cols,
+                actual_rows,
+                actual_cols,
+            },
+            Self::NonFinite {
+                name,
+                row,
+                col,
+                value,
+            } => Self::NonFinite {
+                name: join(name),
+                row,
+                col,
+                value,
+            },
+            Self::NotSymmetric { name, asymmetry } => Self::NotSymmetric {
+                name: join(name),
+                asymmetry,
+            },
+            Self::NotPositiveDefinite {
+                name,
+                min_eigenvalue,
+            } => Self::NotPositiveDefinite {
+                name: join(name),
+                min_eigenvalue,
+            },
+            Self::OutOfRange { name, value, range } => Self::OutOfRange {
+                name: join(name),
+                value,
+                range,
+            },
+            Self::InvalidSet { name, reason } => Self::InvalidSet {
+                name: join(name),
+                reason,
+            },
             other => other,
         }
     }

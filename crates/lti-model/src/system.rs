@@ -3,7 +3,7 @@
 use faer::{Mat, MatRef};
 
 use crate::error::{ModelError, Result};
-use crate::matrix::{check_finite, check_len, check_finite_slice, check_shape};
+use crate::matrix::{check_finite, check_finite_slice, check_len, check_shape};
 
 /// A discrete-time LTI system, eq. (1) of the paper, validated at construction.
 ///
@@ -128,13 +128,19 @@ impl LtiSystem {
     /// B̄ = [E, 0] of LMI (2): maps w to the state update.
     pub fn b_bar(&self) -> Mat<f64> {
         let (nx, nw1) = (self.nx(), self.nw1());
-        Mat::from_fn(nx, self.nw(), |i, j| if j < nw1 { self.e[(i, j)] } else { 0.0 })
+        Mat::from_fn(
+            nx,
+            self.nw(),
+            |i, j| if j < nw1 { self.e[(i, j)] } else { 0.0 },
+        )
     }
 
     /// D̄ = [0, F] of LMI (2): maps w to the output.
     pub fn d_bar(&self) -> Mat<f64> {
         let nw1 = self.nw1();
-        Mat::from_fn(self.ny(), self.nw(), |i, j| if j < nw1 { 0.0 } else { self.f[(i, j - nw1)] })
+        Mat::from_fn(self.ny(), self.nw(), |i, j| {
+            if j < nw1 { 0.0 } else { self.f[(i, j - nw1)] }
+        })
     }
 
     /// One step of eq. (1), in place and allocation-free:

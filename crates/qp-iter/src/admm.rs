@@ -77,7 +77,10 @@ pub struct AdmmParams {
 
 impl Default for AdmmParams {
     fn default() -> Self {
-        Self { penalty: Penalty::Optimal, relaxation: 1.0 }
+        Self {
+            penalty: Penalty::Optimal,
+            relaxation: 1.0,
+        }
     }
 }
 
@@ -152,17 +155,22 @@ impl Admm {
         let n = qp.n();
         let h = qp.h();
         let shifted = Mat::from_fn(n, n, |i, j| h[(i, j)] + if i == j { rho } else { 0.0 });
-        let llt = shifted.llt(Side::Lower).map_err(|e| lti_model::ModelError::Numerical {
-            routine: "Cholesky factorisation of H + ρI (ADMM setup)".into(),
-            reason: format!("{e:?}; H must be positive definite and ρ positive"),
-        })?;
+        let llt = shifted
+            .llt(Side::Lower)
+            .map_err(|e| lti_model::ModelError::Numerical {
+                routine: "Cholesky factorisation of H + ρI (ADMM setup)".into(),
+                reason: format!("{e:?}; H must be positive definite and ρ positive"),
+            })?;
         let inv = faer::linalg::solvers::Solve::solve(&llt, Mat::<f64>::identity(n, n));
         // Symmetrise so the stored map is exactly symmetric, as the analysis assumes.
-        let m_inv: Vec<f64> = (0..n * n).map(|k| 0.5 * (inv[(k / n, k % n)] + inv[(k % n, k / n)])).collect();
+        let m_inv: Vec<f64> = (0..n * n)
+            .map(|k| 0.5 * (inv[(k / n, k % n)] + inv[(k % n, k / n)]))
+            .collect();
         if m_inv.iter().any(|x| !x.is_finite()) {
             return Err(lti_model::ModelError::Numerical {
                 routine: "inverse of H + ρI (ADMM setup)".into(),
-                reason: "non-finite entries; H + ρI is numerically singular — scale H or change ρ".into(),
+                reason: "non-finite entries; H + ρI is numerically singular — scale H or change ρ"
+                    .into(),
             }
             .into());
         }
@@ -198,7 +206,16 @@ impl Admm {
             premise: format!("{common}; any start, any dual"),
             source: "Giselsson & Boyd, IEEE TAC 62(2) 2017, relaxed DR contraction in the Euclidean metric".into(),
         };
-        Ok(Self { qp, rho, alpha, m_rho, m_inv, cert, split_cert, kernel: Kernel::detect() })
+        Ok(Self {
+            qp,
+            rho,
+            alpha,
+            m_rho,
+            m_inv,
+            cert,
+            split_cert,
+            kernel: Kernel::detect(),
+        })
     }
 
     /// The penalty ρ.
@@ -242,7 +259,13 @@ impl Admm {
 
     /// Primal residual ‖z − v‖₂ (≥ [`Admm::constraint_violation`], since v ∈ Z).
     pub fn primal_residual(&self, state: &AdmmState) -> f64 {
-        state.z.iter().zip(&state.v).map(|(z, v)| (z - v) * (z - v)).sum::<f64>().sqrt()
+        state
+            .z
+            .iter()
+            .zip(&state.v)
+            .map(|(z, v)| (z - v) * (z - v))
+            .sum::<f64>()
+            .sqrt()
     }
 
     /// Sets s = z⁰ + y⁰/ρ, v = Π_Z(s), y = ρ(s − v), keeping z = z⁰ (y⁰ already in `state.y`).
@@ -260,7 +283,8 @@ impl Admm {
 
     /// y = −(Hz + q) for the current z (the gradient dual).
     fn gradient_dual(&self, s: &mut AdmmState) {
-        self.kernel.matvec(self.qp.h_row_major(), self.qp.n(), &s.z, &mut s.y);
+        self.kernel
+            .matvec(self.qp.h_row_major(), self.qp.n(), &s.z, &mut s.y);
         for (y, q) in s.y.iter_mut().zip(&s.q) {
             *y = -(*y + q);
         }
@@ -292,7 +316,8 @@ impl IterationMap for Admm {
     }
     fn load(&self, state: &mut AdmmState, theta: &[f64]) {
         self.qp.linear_term(theta, &mut state.q);
-        self.kernel.matvec(&self.m_inv, self.qp.n(), &state.q, &mut state.mq);
+        self.kernel
+            .matvec(&self.m_inv, self.qp.n(), &state.q, &mut state.mq);
     }
     /// Warm start from z⁰ and, optionally, the unscaled multiplier y⁰ of z = v.
     /// Without y⁰ the dual is set to −(Hz⁰ + q) for the *loaded* q (load θ first), which

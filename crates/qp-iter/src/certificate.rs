@@ -79,7 +79,11 @@ impl Certificate {
         }
         // c rᴷ ≤ ε  ⇔  K ≥ ln(ε/c)/ln r.
         let k = ((accuracy / self.prefactor).ln() / self.rate.ln()).ceil();
-        let mut k = if k.is_finite() && k >= 0.0 { k as usize } else { return None };
+        let mut k = if k.is_finite() && k >= 0.0 {
+            k as usize
+        } else {
+            return None;
+        };
         // Guard the floating-point boundary in both directions.
         while k > 0 && self.phi(k - 1) <= accuracy {
             k -= 1;

@@ -41,8 +41,15 @@ pub fn run_fixed<M: IterationMap>(map: &M, state: &mut M::State, k: usize) -> Ru
     for _ in 0..k {
         map.step(state);
     }
-    let status = if all_finite(map.iterate(state)) { RunStatus::Completed } else { RunStatus::NonFinite };
-    RunResult { iterations: k, status }
+    let status = if all_finite(map.iterate(state)) {
+        RunStatus::Completed
+    } else {
+        RunStatus::NonFinite
+    };
+    RunResult {
+        iterations: k,
+        status,
+    }
 }
 
 /// Steps until `observer(k, z^k)` returns `true` (converged), at most `max_iter` steps.
@@ -59,13 +66,29 @@ where
         map.step(state);
         let z = map.iterate(state);
         if !all_finite(z) {
-            return RunResult { iterations: k, status: RunStatus::NonFinite };
+            return RunResult {
+                iterations: k,
+                status: RunStatus::NonFinite,
+            };
         }
         match observer(k, z) {
-            Some(true) => return RunResult { iterations: k, status: RunStatus::Converged },
-            Some(false) => return RunResult { iterations: k, status: RunStatus::Stopped },
+            Some(true) => {
+                return RunResult {
+                    iterations: k,
+                    status: RunStatus::Converged,
+                };
+            }
+            Some(false) => {
+                return RunResult {
+                    iterations: k,
+                    status: RunStatus::Stopped,
+                };
+            }
             None => {}
         }
     }
-    RunResult { iterations: max_iter, status: RunStatus::MaxIterations }
+    RunResult {
+        iterations: max_iter,
+        status: RunStatus::MaxIterations,
+    }
 }

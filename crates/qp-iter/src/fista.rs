@@ -106,7 +106,13 @@ impl Fista {
                      ‖z^K − z*‖ ≤ √(κ−1)(1 − 1/√κ)^((K−1)/2)‖z⁰ − z*‖"
                 .into(),
         };
-        Self { qp, inv_l: 1.0 / l, beta, cert, kernel: Kernel::detect() }
+        Self {
+            qp,
+            inv_l: 1.0 / l,
+            beta,
+            cert,
+            kernel: Kernel::detect(),
+        }
     }
 
     /// The momentum β = (√κ − 1)/(√κ + 1).

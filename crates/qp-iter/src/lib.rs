@@ -25,7 +25,7 @@ pub mod pg;
 pub mod problem;
 pub mod reference;
 
-pub use certificate::{BoundedQuantity, Certificate, CertNorm};
+pub use certificate::{BoundedQuantity, CertNorm, Certificate};
 pub use driver::{RunResult, RunStatus, run_fixed, run_until};
 pub use error::{QpError, Result};
 pub use problem::ParametricQp;

@@ -1,7 +1,9 @@
 //! Parametric QP data: min ½zᵀHz + (q₀ + Fθ)ᵀz s.t. z ∈ Z.
 
 use faer::{Mat, MatRef};
-use lti_model::matrix::{check_finite, check_finite_slice, check_len, check_positive_definite, check_shape};
+use lti_model::matrix::{
+    check_finite, check_finite_slice, check_len, check_positive_definite, check_shape,
+};
 use lti_model::{BoxSet, ConvexSet};
 
 use crate::error::Result;
@@ -59,7 +61,16 @@ impl ParametricQp {
         let h_rows = (0..n * n).map(|k| h[(k / n, k % n)]).collect();
         let nt = f.ncols();
         let f_rows = (0..n * nt).map(|k| f[(k / nt, k % nt)]).collect();
-        Ok(Self { h, h_rows, q0, f, f_rows, zset, mu, l })
+        Ok(Self {
+            h,
+            h_rows,
+            q0,
+            f,
+            f_rows,
+            zset,
+            mu,
+            l,
+        })
     }
 
     /// Number of decision variables n.

@@ -17,7 +17,9 @@
 //! ‖z − Π_Z(z − (Hz + q))‖_∞, an independent check of optimality.
 
 use clarabel::algebra::CscMatrix;
-use clarabel::solver::{DefaultSettingsBuilder, DefaultSolver, IPSolver, SolverStatus, SupportedConeT};
+use clarabel::solver::{
+    DefaultSettingsBuilder, DefaultSolver, IPSolver, SolverStatus, SupportedConeT,
+};
 use faer::{Mat, Side};
 use lti_model::Projection;
 
@@ -39,7 +41,12 @@ pub struct ReferenceSettings {
 
 impl Default for ReferenceSettings {
     fn default() -> Self {
-        Self { tol: 1e-11, max_iter: 200, polish: true, polish_tol: 1e-9 }
+        Self {
+            tol: 1e-11,
+            max_iter: 200,
+            polish: true,
+            polish_tol: 1e-9,
+        }
     }
 }
 
@@ -65,7 +72,11 @@ pub struct ReferenceSolution {
 impl ReferenceSolution {
     /// The multiplier y* = λ_u − λ_l = −(Hz* + q) of the splitting z = v (ADMM's dual).
     pub fn dual(&self) -> Vec<f64> {
-        self.upper_multipliers.iter().zip(&self.lower_multipliers).map(|(u, l)| u - l).collect()
+        self.upper_multipliers
+            .iter()
+            .zip(&self.lower_multipliers)
+            .map(|(u, l)| u - l)
+            .collect()
     }
 }
 
@@ -107,7 +118,9 @@ impl std::fmt::Debug for ReferenceSolver {
 }
 
 fn clarabel_error(what: &str, e: impl std::fmt::Display) -> QpError {
-    QpError::Reference { status: format!("{what}: {e}") }
+    QpError::Reference {
+        status: format!("{what}: {e}"),
+    }
 }
 
 impl ReferenceSolver {
@@ -164,7 +177,11 @@ impl ReferenceSolver {
         }
         let m = rows.len();
         let a = CscMatrix::new(m, n, a_colptr, a_rowval, a_nzval);
-        let cones = if m > 0 { vec![SupportedConeT::NonnegativeConeT(m)] } else { Vec::new() };
+        let cones = if m > 0 {
+            vec![SupportedConeT::NonnegativeConeT(m)]
+        } else {
+            Vec::new()
+        };
         let clarabel_settings = DefaultSettingsBuilder::default()
             .verbose(false)
             .presolve_enable(false)
@@ -177,9 +194,15 @@ impl ReferenceSolver {
             .build()
             .map_err(|e| clarabel_error("settings", e))?;
         let q = qp.q0().to_vec();
-        let solver =
-            DefaultSolver::new(&p, &q, &a, &b, &cones, clarabel_settings).map_err(|e| clarabel_error("setup", e))?;
-        Ok(Self { qp: qp.clone(), solver, rows, settings, q })
+        let solver = DefaultSolver::new(&p, &q, &a, &b, &cones, clarabel_settings)
+            .map_err(|e| clarabel_error("setup", e))?;
+        Ok(Self {
+            qp: qp.clone(),
+            solver,
+            rows,
+            settings,
+            q,
+        })
     }
 
     /// Solves for parameters θ (q = q₀ + Fθ). θ must have length n_θ and be finite.
@@ -198,12 +221,17 @@ impl ReferenceSolver {
     }
 
     fn solve_loaded(&mut self) -> Result<ReferenceSolution> {
-        self.solver.update_q(&self.q).map_err(|e| clarabel_error("update_q", e))?;
+        self.solver
+            .update_q(&self.q)
+            .map_err(|e| clarabel_error("update_q", e))?;
         self.solver.solve();
         let sol = &self.solver.solution;
         if sol.status != SolverStatus::Solved {
             return Err(QpError::Reference {
-                status: format!("Clarabel returned {:?} after {} iterations", sol.status, sol.iterations),
+                status: format!(
+                    "Clarabel returned {:?} after {} iterations",
+                    sol.status, sol.iterations
+                ),
             });
         }
         let n = self.qp.n();
@@ -245,17 +273,35 @@ impl ReferenceSolver {
         let g = self.gradient(q, z);
         let mut t: Vec<f64> = z.iter().zip(&g).map(|(z, g)| z - g).collect();
         self.qp.zset().project(&mut t);
-        z.iter().zip(&t).map(|(a, b)| (a - b).abs()).fold(0.0, f64::max)
+        z.iter()
+            .zip(&t)
+            .map(|(a, b)| (a - b).abs())
+            .fold(0.0, f64::max)
     }
 
     fn gradient(&self, q: &[f64], z: &[f64]) -> Vec<f64> {
         let n = self.qp.n();
         let h = self.qp.h_row_major();
-        (0..n).map(|i| h[i * n..(i + 1) * n].iter().zip(z).map(|(a, b)| a * b).sum::<f64>() + q[i]).collect()
+        (0..n)
+            .map(|i| {
+                h[i * n..(i + 1) * n]
+                    .iter()
+                    .zip(z)
+                    .map(|(a, b)| a * b)
+                    .sum::<f64>()
+                    + q[i]
+            })
+            .collect()
     }
 
     /// Active-set refinement; `None` if the guessed active set fails the KKT check.
-    fn polish(&self, q: &[f64], z: &[f64], lam_l: &[f64], lam_u: &[f64]) -> Option<(Vec<f64>, Vec<f64>, Vec<f64>)> {
+    fn polish(
+        &self,
+        q: &[f64],
+        z: &[f64],
+        lam_l: &[f64],
+        lam_u: &[f64],
+    ) -> Option<(Vec<f64>, Vec<f64>, Vec<f64>)> {
         let n = self.qp.n();
         let (lo, up) = (self.qp.zset().lower(), self.qp.zset().upper());
         // Active where the multiplier exceeds the slack (OSQP's rule).
@@ -277,7 +323,10 @@ impl ReferenceSolver {
             let hff = Mat::from_fn(nf, nf, |a, b| h[(free[a], free[b])]);
             let rhs = Mat::from_fn(nf, 1, |a, _| {
                 let i = free[a];
-                -(q[i] + (0..n).filter_map(|j| fixed[j].map(|v| h[(i, j)] * v)).sum::<f64>())
+                -(q[i]
+                    + (0..n)
+                        .filter_map(|j| fixed[j].map(|v| h[(i, j)] * v))
+                        .sum::<f64>())
             });
             let llt = hff.llt(Side::Lower).ok()?;
             let sol = faer::linalg::solvers::Solve::solve(&llt, rhs);

@@ -59,10 +59,16 @@ fn allocations_in(f: impl FnOnce()) -> usize {
 /// n = 30 (the case-study size), three parameters, a box with some infinite bounds.
 fn problem() -> ParametricQp {
     let n = 30;
-    let h = Mat::from_fn(n, n, |i, j| 1.0 / (1.0 + i.abs_diff(j) as f64) + if i == j { 0.1 * i as f64 } else { 0.0 });
+    let h = Mat::from_fn(n, n, |i, j| {
+        1.0 / (1.0 + i.abs_diff(j) as f64) + if i == j { 0.1 * i as f64 } else { 0.0 }
+    });
     let f = Mat::from_fn(n, 3, |i, k| ((i + 2 * k) % 5) as f64 - 2.0);
-    let lo = (0..n).map(|i| if i % 4 == 0 { f64::NEG_INFINITY } else { -0.5 }).collect();
-    let up = (0..n).map(|i| if i % 5 == 0 { f64::INFINITY } else { 0.7 }).collect();
+    let lo = (0..n)
+        .map(|i| if i % 4 == 0 { f64::NEG_INFINITY } else { -0.5 })
+        .collect();
+    let up = (0..n)
+        .map(|i| if i % 5 == 0 { f64::INFINITY } else { 0.7 })
+        .collect();
     let q0 = (0..n).map(|i| (i as f64).sin()).collect();
     ParametricQp::new(h, q0, f, BoxSet::new(lo, up).unwrap()).unwrap()
 }
@@ -93,7 +99,12 @@ fn assert_no_allocations<M: IterationMap>(m: &M, dual: Option<&[f64]>) {
     let z0 = vec![0.25; m.problem().n()];
     exercise(m, &mut s, &z0, dual); // warm-up: lazy one-time initialisation, if any
     let count = allocations_in(|| exercise(m, &mut s, &z0, dual));
-    assert_eq!(count, 0, "{}: {count} allocations in load / warm start / steps", m.name());
+    assert_eq!(
+        count,
+        0,
+        "{}: {count} allocations in load / warm start / steps",
+        m.name()
+    );
 }
 
 #[test]
@@ -108,14 +119,27 @@ fn the_allocator_counts() {
 #[test]
 fn no_method_allocates_after_setup() {
     let qp = problem();
-    assert_no_allocations(&ProjectedGradient::new(qp.clone(), StepRule::InverseL).unwrap(), None);
-    assert_no_allocations(&ProjectedGradient::new(qp.clone(), StepRule::Optimal).unwrap(), None);
+    assert_no_allocations(
+        &ProjectedGradient::new(qp.clone(), StepRule::InverseL).unwrap(),
+        None,
+    );
+    assert_no_allocations(
+        &ProjectedGradient::new(qp.clone(), StepRule::Optimal).unwrap(),
+        None,
+    );
     assert_no_allocations(&Fista::new(qp.clone()), None);
     let admm = Admm::new(qp.clone(), AdmmParams::default()).unwrap();
     assert_no_allocations(&admm, None);
     let y0 = vec![0.1; qp.n()];
     assert_no_allocations(&admm, Some(&y0));
-    let admm2 = Admm::new(qp.clone(), AdmmParams { penalty: Penalty::Fixed(2.0), relaxation: 1.7 }).unwrap();
+    let admm2 = Admm::new(
+        qp.clone(),
+        AdmmParams {
+            penalty: Penalty::Fixed(2.0),
+            relaxation: 1.7,
+        },
+    )
+    .unwrap();
     assert_no_allocations(&admm2, Some(&y0));
     // ADMM's diagnostics too.
     let mut s = admm.new_state();

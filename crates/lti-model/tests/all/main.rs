@@ -2,8 +2,8 @@
 #![allow(clippy::unwrap_used)]
 
 mod disturbance;
+mod ioss;
 mod numerics;
 mod scenario;
 mod sets;
 mod system;
-mod ioss;

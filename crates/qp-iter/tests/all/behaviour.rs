@@ -15,8 +15,20 @@ trait DynMap {
     fn label(&self) -> String;
     fn cert(&self) -> &Certificate;
     fn converge(&self, theta: &[f64], z0: &[f64], zstar: &[f64], tol: f64) -> (RunStatus, usize);
-    fn one_step_from(&self, theta: &[f64], z: &[f64], dual: Option<&[f64]>) -> (Vec<f64>, Option<Vec<f64>>);
-    fn trajectory(&self, dirty: bool, theta_old: &[f64], theta: &[f64], z0: Option<&[f64]>, k: usize) -> Vec<Vec<f64>>;
+    fn one_step_from(
+        &self,
+        theta: &[f64],
+        z: &[f64],
+        dual: Option<&[f64]>,
+    ) -> (Vec<f64>, Option<Vec<f64>>);
+    fn trajectory(
+        &self,
+        dirty: bool,
+        theta_old: &[f64],
+        theta: &[f64],
+        z0: Option<&[f64]>,
+        k: usize,
+    ) -> Vec<Vec<f64>>;
     fn feasible_every_step(&self, theta: &[f64], z0: &[f64], k: usize) -> bool;
 }
 
@@ -33,18 +45,39 @@ impl<M: IterationMap> DynMap for M {
         self.warm_start(&mut s, z0, None);
         // The certified budget for accuracy tol/10 (capped): the certificate must deliver it.
         let e0 = dist(z0, zstar).max(1e-300);
-        let kmax = self.certificate().min_iterations(0.1 * tol / e0).unwrap_or(200_000).clamp(1, 200_000);
-        let res = run_until(self, &mut s, kmax, |_, z| (dist(z, zstar) <= tol).then_some(true));
+        let kmax = self
+            .certificate()
+            .min_iterations(0.1 * tol / e0)
+            .unwrap_or(200_000)
+            .clamp(1, 200_000);
+        let res = run_until(self, &mut s, kmax, |_, z| {
+            (dist(z, zstar) <= tol).then_some(true)
+        });
         (res.status, res.iterations)
     }
-    fn one_step_from(&self, theta: &[f64], z: &[f64], dual: Option<&[f64]>) -> (Vec<f64>, Option<Vec<f64>>) {
+    fn one_step_from(
+        &self,
+        theta: &[f64],
+        z: &[f64],
+        dual: Option<&[f64]>,
+    ) -> (Vec<f64>, Option<Vec<f64>>) {
         let mut s = self.new_state();
         self.load(&mut s, theta);
         self.warm_start(&mut s, z, dual);
         self.step(&mut s);
-        (self.iterate(&s).to_vec(), self.dual(&s).map(<[f64]>::to_vec))
+        (
+            self.iterate(&s).to_vec(),
+            self.dual(&s).map(<[f64]>::to_vec),
+        )
     }
-    fn trajectory(&self, dirty: bool, theta_old: &[f64], theta: &[f64], z0: Option<&[f64]>, k: usize) -> Vec<Vec<f64>> {
+    fn trajectory(
+        &self,
+        dirty: bool,
+        theta_old: &[f64],
+        theta: &[f64],
+        z0: Option<&[f64]>,
+        k: usize,
+    ) -> Vec<Vec<f64>> {
         let mut s = self.new_state();
         if dirty {
             // Another θ and a few steps first.
@@ -81,20 +114,49 @@ fn methods(qp: &ParametricQp) -> Vec<Box<dyn DynMap>> {
         Box::new(ProjectedGradient::new(qp.clone(), StepRule::Optimal).unwrap()),
         Box::new(Fista::new(qp.clone())),
         Box::new(Admm::new(qp.clone(), AdmmParams::default()).unwrap()),
-        Box::new(Admm::new(qp.clone(), AdmmParams { penalty: Penalty::Optimal, relaxation: 2.0 }).unwrap()),
-        Box::new(Admm::new(qp.clone(), AdmmParams { penalty: Penalty::Fixed(3.0 * qp.l()), relaxation: 1.6 }).unwrap()),
+        Box::new(
+            Admm::new(
+                qp.clone(),
+                AdmmParams {
+                    penalty: Penalty::Optimal,
+                    relaxation: 2.0,
+                },
+            )
+            .unwrap(),
+        ),
+        Box::new(
+            Admm::new(
+                qp.clone(),
+                AdmmParams {
+                    penalty: Penalty::Fixed(3.0 * qp.l()),
+                    relaxation: 1.6,
+                },
+            )
+            .unwrap(),
+        ),
     ]
 }
 
 #[test]
 fn every_method_reaches_the_reference_optimum_within_its_certified_budget() {
     for seed in 50_000..50_060 {
-        let inst = random_instance(seed, Gen { log10_kappa_max: 3.0, ..Gen::default() });
+        let inst = random_instance(
+            seed,
+            Gen {
+                log10_kappa_max: 3.0,
+                ..Gen::default()
+            },
+        );
         let r = reference(&inst);
         let tol = 1e-8 * (1.0 + norm(&r.sol.z));
         for m in methods(&inst.qp) {
             let (status, k) = m.converge(&inst.theta, &inst.z0, &r.sol.z, tol);
-            assert_eq!(status, RunStatus::Converged, "seed {seed}: {} stopped after {k} steps", m.label());
+            assert_eq!(
+                status,
+                RunStatus::Converged,
+                "seed {seed}: {} stopped after {k} steps",
+                m.label()
+            );
         }
     }
 }
@@ -102,7 +164,13 @@ fn every_method_reaches_the_reference_optimum_within_its_certified_budget() {
 #[test]
 fn admm_dual_and_residuals_converge_to_the_reference() {
     for seed in 51_000..51_040 {
-        let inst = random_instance(seed, Gen { log10_kappa_max: 2.0, ..Gen::default() });
+        let inst = random_instance(
+            seed,
+            Gen {
+                log10_kappa_max: 2.0,
+                ..Gen::default()
+            },
+        );
         let r = reference(&inst);
         let admm = Admm::new(inst.qp.clone(), AdmmParams::default()).unwrap();
         let mut s = admm.new_state();
@@ -113,10 +181,17 @@ fn admm_dual_and_residuals_converge_to_the_reference() {
         let y = admm.dual(&s).unwrap();
         let ystar = r.sol.dual();
         let scale = 1.0 + norm(&ystar) + norm(&r.sol.z) * inst.qp.l();
-        assert!(dist(y, &ystar) <= 1e-8 * scale, "seed {seed}: dual error {:e}", dist(y, &ystar));
+        assert!(
+            dist(y, &ystar) <= 1e-8 * scale,
+            "seed {seed}: dual error {:e}",
+            dist(y, &ystar)
+        );
         assert!(dist(admm.iterate(&s), &r.sol.z) <= 1e-9 * (1.0 + norm(&r.sol.z)));
         assert!(admm.constraint_violation(&s) <= admm.primal_residual(&s) + 1e-15);
-        assert!(admm.primal_residual(&s) <= 1e-9 * (1.0 + norm(&r.sol.z)), "seed {seed}");
+        assert!(
+            admm.primal_residual(&s) <= 1e-9 * (1.0 + norm(&r.sol.z)),
+            "seed {seed}"
+        );
         // constraint_violation is the Euclidean distance of z to Z.
         let mut p = admm.primal_z(&s).to_vec();
         inst.qp.project(&mut p);
@@ -134,13 +209,26 @@ fn one_step_from_the_optimum_stays_there() {
         let ystar: Vec<f64> = gradient(&inst.qp, &r.q, zstar).iter().map(|g| -g).collect();
         for m in methods(&inst.qp) {
             let (z1, y1) = m.one_step_from(&inst.theta, zstar, Some(&ystar));
-            assert!(dist(&z1, zstar) <= tol, "seed {seed}: {} moved by {:e}", m.label(), dist(&z1, zstar));
+            assert!(
+                dist(&z1, zstar) <= tol,
+                "seed {seed}: {} moved by {:e}",
+                m.label(),
+                dist(&z1, zstar)
+            );
             if let Some(y1) = y1 {
                 let ytol = 1e-9 * (1.0 + norm(&ystar)) + inst.qp.l() * r.err;
-                assert!(dist(&y1, &ystar) <= ytol, "seed {seed}: {} dual moved by {:e}", m.label(), dist(&y1, &ystar));
+                assert!(
+                    dist(&y1, &ystar) <= ytol,
+                    "seed {seed}: {} dual moved by {:e}",
+                    m.label(),
+                    dist(&y1, &ystar)
+                );
                 // Without a dual, ADMM derives y* = −(Hz* + q) itself.
                 let (z1, y1) = m.one_step_from(&inst.theta, zstar, None);
-                assert!(dist(&z1, zstar) <= tol && dist(&y1.unwrap(), &ystar) <= ytol, "seed {seed}");
+                assert!(
+                    dist(&z1, zstar) <= tol && dist(&y1.unwrap(), &ystar) <= ytol,
+                    "seed {seed}"
+                );
             }
         }
     }
@@ -155,7 +243,13 @@ fn load_then_restart_equals_a_fresh_state() {
             for z0 in [None, Some(inst.z0.as_slice())] {
                 let fresh = m.trajectory(false, &theta_old, &inst.theta, z0, 25);
                 let reused = m.trajectory(true, &theta_old, &inst.theta, z0, 25);
-                assert_eq!(fresh, reused, "seed {seed}: {} (warm start: {})", m.label(), z0.is_some());
+                assert_eq!(
+                    fresh,
+                    reused,
+                    "seed {seed}: {} (warm start: {})",
+                    m.label(),
+                    z0.is_some()
+                );
             }
         }
     }
@@ -187,7 +281,11 @@ fn returned_iterates_are_feasible_after_every_step() {
         // A start far outside the box.
         inst.z0.iter_mut().for_each(|z| *z *= 10.0);
         for m in methods(&inst.qp) {
-            assert!(m.feasible_every_step(&inst.theta, &inst.z0, 100), "seed {seed}: {}", m.label());
+            assert!(
+                m.feasible_every_step(&inst.theta, &inst.z0, 100),
+                "seed {seed}: {}",
+                m.label()
+            );
         }
     }
 }
@@ -195,8 +293,18 @@ fn returned_iterates_are_feasible_after_every_step() {
 #[test]
 fn certificate_formulas_match_closed_forms() {
     // Diagonal H with κ = 100: μ = 1, L = 100.
-    let h = Mat::from_fn(3, 3, |i, j| if i == j { [1.0, 10.0, 100.0][i] } else { 0.0 });
-    let qp = ParametricQp::new(h, vec![1.0; 3], Mat::zeros(3, 1), BoxSet::symmetric(&[1.0; 3]).unwrap()).unwrap();
+    let h = Mat::from_fn(
+        3,
+        3,
+        |i, j| if i == j { [1.0, 10.0, 100.0][i] } else { 0.0 },
+    );
+    let qp = ParametricQp::new(
+        h,
+        vec![1.0; 3],
+        Mat::zeros(3, 1),
+        BoxSet::symmetric(&[1.0; 3]).unwrap(),
+    )
+    .unwrap();
     let sk: f64 = 10.0;
     let f = Fista::new(qp.clone());
     let c = f.certificate();
@@ -209,14 +317,25 @@ fn certificate_formulas_match_closed_forms() {
     assert!((a1.rho() - 10.0).abs() < 1e-9);
     assert!((a1.certificate().rate - 10.0 / 11.0).abs() < 1e-12); // (1 + δ)/2, δ = 9/11
     assert!((a1.certificate().prefactor - 9.0).abs() < 1e-9); // max(1 − μ/ρ, L/ρ − 1)
-    let a2 = Admm::new(qp.clone(), AdmmParams { penalty: Penalty::Optimal, relaxation: 2.0 }).unwrap();
+    let a2 = Admm::new(
+        qp.clone(),
+        AdmmParams {
+            penalty: Penalty::Optimal,
+            relaxation: 2.0,
+        },
+    )
+    .unwrap();
     assert!((a2.certificate().rate - 9.0 / 11.0).abs() < 1e-12); // Giselsson–Boyd optimum
     assert_eq!(a2.splitting_certificate().prefactor, 1.0);
     for m in methods(&qp) {
         let c = m.cert();
         for eps in [1e-2, 1e-6, 1e-10] {
             let k = c.min_iterations(eps).unwrap();
-            assert!(c.phi(k) <= eps && (k == 0 || c.phi(k - 1) > eps), "{}", m.label());
+            assert!(
+                c.phi(k) <= eps && (k == 0 || c.phi(k - 1) > eps),
+                "{}",
+                m.label()
+            );
         }
     }
 }
@@ -225,7 +344,12 @@ fn certificate_formulas_match_closed_forms() {
 fn each_step_is_one_matrix_vector_product() {
     let inst = random_instance(3, Gen::default());
     assert_eq!(Fista::new(inst.qp.clone()).matvecs_per_step(), 1);
-    assert_eq!(Admm::new(inst.qp.clone(), AdmmParams::default()).unwrap().matvecs_per_step(), 1);
+    assert_eq!(
+        Admm::new(inst.qp.clone(), AdmmParams::default())
+            .unwrap()
+            .matvecs_per_step(),
+        1
+    );
 }
 
 #[test]

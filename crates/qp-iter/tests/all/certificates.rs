@@ -8,13 +8,21 @@ use qp_iter::pg::{ProjectedGradient, StepRule};
 use qp_iter::{BoundedQuantity, CertNorm, IterationMap};
 use rand::Rng;
 
-use crate::common::{Gen, Instance, Reference, Tally, check_sequence, dist, gradient, random_instance, reference, rng};
+use crate::common::{
+    Gen, Instance, Reference, Tally, check_sequence, dist, gradient, random_instance, reference,
+    rng,
+};
 
 pub const K_MAX: usize = 60;
 const INSTANCES: u64 = 700;
 
 /// ‖iterate_k − z*‖ for k = 0…K_MAX after load(θ) and warm_start(z⁰, dual).
-pub fn iterate_errors<M: IterationMap>(map: &M, inst: &Instance, zstar: &[f64], dual: Option<&[f64]>) -> Vec<f64> {
+pub fn iterate_errors<M: IterationMap>(
+    map: &M,
+    inst: &Instance,
+    zstar: &[f64],
+    dual: Option<&[f64]>,
+) -> Vec<f64> {
     let mut s = map.new_state();
     map.load(&mut s, &inst.theta);
     map.warm_start(&mut s, &inst.z0, dual);
@@ -29,8 +37,16 @@ pub fn iterate_errors<M: IterationMap>(map: &M, inst: &Instance, zstar: &[f64], 
 /// Checks `map.certificate()` (an eq. (11) bound on the returned iterate) on one instance.
 fn check_eq11<M: IterationMap>(map: &M, inst: &Instance, r: &Reference, tally: &mut Tally) {
     let c = map.certificate();
-    assert_eq!((c.quantity, &c.norm), (BoundedQuantity::IterateDistance, &CertNorm::Euclidean));
-    assert!(c.fits_eq11 && c.rate < 1.0, "{}: rate {}", map.name(), c.rate);
+    assert_eq!(
+        (c.quantity, &c.norm),
+        (BoundedQuantity::IterateDistance, &CertNorm::Euclidean)
+    );
+    assert!(
+        c.fits_eq11 && c.rate < 1.0,
+        "{}: rate {}",
+        map.name(),
+        c.rate
+    );
     let errs = iterate_errors(map, inst, &r.sol.z, None);
     let e0 = dist(&inst.z0, &r.sol.z);
     let bad = check_sequence(e0, &errs, |k| c.phi(k), r.err, tally);
@@ -61,7 +77,10 @@ fn projected_gradient_bound_holds_on_random_qps() {
     println!("pg 1/L: {inv_l:?}\npg 2/(L+μ): {opt:?}");
     // The bound is attained up to the start's component on the extreme eigenvectors:
     // a checker that never gets close to it would be suspicious.
-    assert!(inv_l.worst_ratio > 0.5 && opt.worst_ratio > 0.5, "{inv_l:?} {opt:?}");
+    assert!(
+        inv_l.worst_ratio > 0.5 && opt.worst_ratio > 0.5,
+        "{inv_l:?} {opt:?}"
+    );
     assert!(inv_l.checks >= INSTANCES as usize * (K_MAX + 1));
 }
 
@@ -89,19 +108,44 @@ fn admm_bounds_hold_on_random_qps() {
         let alpha = 0.2 + 1.8 * g.random::<f64>();
         let maps = [
             Admm::new(inst.qp.clone(), AdmmParams::default()).unwrap(),
-            Admm::new(inst.qp.clone(), AdmmParams { penalty: Penalty::Optimal, relaxation: 2.0 }).unwrap(),
-            Admm::new(inst.qp.clone(), AdmmParams { penalty: Penalty::Fixed(rho), relaxation: alpha }).unwrap(),
+            Admm::new(
+                inst.qp.clone(),
+                AdmmParams {
+                    penalty: Penalty::Optimal,
+                    relaxation: 2.0,
+                },
+            )
+            .unwrap(),
+            Admm::new(
+                inst.qp.clone(),
+                AdmmParams {
+                    penalty: Penalty::Fixed(rho),
+                    relaxation: alpha,
+                },
+            )
+            .unwrap(),
         ];
         // y* = −(Hz* + q) and s* = z* + y*/ρ.
-        let ystar: Vec<f64> = gradient(&inst.qp, &r.q, &r.sol.z).iter().map(|g| -g).collect();
-        let y0: Vec<f64> = (0..inst.qp.n()).map(|i| ystar[i] + 2.0 * crate::common::normal(&mut g)).collect();
+        let ystar: Vec<f64> = gradient(&inst.qp, &r.q, &r.sol.z)
+            .iter()
+            .map(|g| -g)
+            .collect();
+        let y0: Vec<f64> = (0..inst.qp.n())
+            .map(|i| ystar[i] + 2.0 * crate::common::normal(&mut g))
+            .collect();
         for admm in &maps {
             check_eq11(admm, &inst, &r, &mut eq11);
             // DR variable: any dual.
             let c = admm.splitting_certificate();
             assert_eq!(c.quantity, BoundedQuantity::SplittingVariable);
             assert!(!c.fits_eq11);
-            let sstar: Vec<f64> = r.sol.z.iter().zip(&ystar).map(|(z, y)| z + y / admm.rho()).collect();
+            let sstar: Vec<f64> = r
+                .sol
+                .z
+                .iter()
+                .zip(&ystar)
+                .map(|(z, y)| z + y / admm.rho())
+                .collect();
             let mut s = admm.new_state();
             admm.load(&mut s, &inst.theta);
             admm.warm_start(&mut s, &inst.z0, Some(&y0));

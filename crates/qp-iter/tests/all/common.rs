@@ -33,7 +33,9 @@ pub fn random_spd(rng: &mut ChaCha8Rng, n: usize, kappa: f64, mu: f64) -> Mat<f6
             _ => mu * kappa.powf(rng.random::<f64>()),
         })
         .collect();
-    let h = Mat::from_fn(n, n, |i, j| (0..n).map(|k| q[(i, k)] * lam[k] * q[(j, k)]).sum::<f64>());
+    let h = Mat::from_fn(n, n, |i, j| {
+        (0..n).map(|k| q[(i, k)] * lam[k] * q[(j, k)]).sum::<f64>()
+    });
     Mat::from_fn(n, n, |i, j| 0.5 * (h[(i, j)] + h[(j, i)]))
 }
 
@@ -58,7 +60,12 @@ pub struct Gen {
 
 impl Default for Gen {
     fn default() -> Self {
-        Self { n_min: 2, n_max: 30, log10_kappa_max: 4.0, p_finite: 0.75 }
+        Self {
+            n_min: 2,
+            n_max: 30,
+            log10_kappa_max: 4.0,
+            p_finite: 0.75,
+        }
     }
 }
 
@@ -75,9 +82,13 @@ pub fn random_instance(seed: u64, opts: Gen) -> Instance {
     let mu = 10f64.powf(2.0 * r.random::<f64>() - 1.0);
     let h = random_spd(&mut r, n, kappa, mu);
     let zc: Vec<f64> = (0..n).map(|_| 2.0 * normal(&mut r)).collect();
-    let q0: Vec<f64> = (0..n).map(|i| -(0..n).map(|j| h[(i, j)] * zc[j]).sum::<f64>()).collect();
+    let q0: Vec<f64> = (0..n)
+        .map(|i| -(0..n).map(|j| h[(i, j)] * zc[j]).sum::<f64>())
+        .collect();
     let g = Mat::from_fn(n, n_theta, |_, _| normal(&mut r));
-    let f = Mat::from_fn(n, n_theta, |i, k| -(0..n).map(|j| h[(i, j)] * g[(j, k)]).sum::<f64>());
+    let f = Mat::from_fn(n, n_theta, |i, k| {
+        -(0..n).map(|j| h[(i, j)] * g[(j, k)]).sum::<f64>()
+    });
     let unconstrained = r.random::<f64>() < 0.1;
     let (mut lo, mut up) = (vec![f64::NEG_INFINITY; n], vec![f64::INFINITY; n]);
     if !unconstrained {
@@ -99,7 +110,12 @@ pub fn random_instance(seed: u64, opts: Gen) -> Instance {
     if r.random::<bool>() {
         qp.project(&mut z0);
     }
-    Instance { qp, theta, z0, seed }
+    Instance {
+        qp,
+        theta,
+        z0,
+        seed,
+    }
 }
 
 /// The loaded linear term q = q₀ + Fθ.
@@ -112,11 +128,17 @@ pub fn linear_term(qp: &ParametricQp, theta: &[f64]) -> Vec<f64> {
 /// Hz + q, computed here (not by the crate).
 pub fn gradient(qp: &ParametricQp, q: &[f64], z: &[f64]) -> Vec<f64> {
     let h = qp.h();
-    (0..qp.n()).map(|i| (0..qp.n()).map(|j| h[(i, j)] * z[j]).sum::<f64>() + q[i]).collect()
+    (0..qp.n())
+        .map(|i| (0..qp.n()).map(|j| h[(i, j)] * z[j]).sum::<f64>() + q[i])
+        .collect()
 }
 
 pub fn dist(a: &[f64], b: &[f64]) -> f64 {
-    a.iter().zip(b).map(|(x, y)| (x - y) * (x - y)).sum::<f64>().sqrt()
+    a.iter()
+        .zip(b)
+        .map(|(x, y)| (x - y) * (x - y))
+        .sum::<f64>()
+        .sqrt()
 }
 
 pub fn norm(a: &[f64]) -> f64 {
@@ -136,7 +158,9 @@ pub struct Reference {
 pub fn reference(inst: &Instance) -> Reference {
     let qp = &inst.qp;
     let mut solver = ReferenceSolver::new(qp, ReferenceSettings::default()).unwrap();
-    let sol = solver.solve(&inst.theta).unwrap_or_else(|e| panic!("seed {}: reference failed: {e}", inst.seed));
+    let sol = solver
+        .solve(&inst.theta)
+        .unwrap_or_else(|e| panic!("seed {}: reference failed: {e}", inst.seed));
     let q = linear_term(qp, &inst.theta);
     let g = gradient(qp, &q, &sol.z);
     let mut p: Vec<f64> = sol.z.iter().zip(&g).map(|(z, g)| z - g).collect();
@@ -161,7 +185,13 @@ pub struct Tally {
 /// Checks err_K ≤ φ(K)·(err_0 + slack)·(1 + 1e-9) + slack + 1e-9 for the errors
 /// `errs[K]` of the iterate after K steps (K = 0, 1, …) against the initial error `e0`;
 /// `slack` is the uncertainty of the reference. Returns the number of violated K.
-pub fn check_sequence(e0: f64, errs: &[f64], phi: impl Fn(usize) -> f64, slack: f64, tally: &mut Tally) -> usize {
+pub fn check_sequence(
+    e0: f64,
+    errs: &[f64],
+    phi: impl Fn(usize) -> f64,
+    slack: f64,
+    tally: &mut Tally,
+) -> usize {
     let mut bad = 0;
     for (k, &ek) in errs.iter().enumerate() {
         let p = phi(k);

@@ -27,15 +27,43 @@ fn model_err(e: QpError) -> ModelError {
 
 #[test]
 fn invalid_hessians_are_rejected() {
-    let e = ParametricQp::new(mat![[2.0, 1.0], [0.0, 1.0]], vec![0.0; 2], Mat::zeros(2, 0), box2()).unwrap_err();
+    let e = ParametricQp::new(
+        mat![[2.0, 1.0], [0.0, 1.0]],
+        vec![0.0; 2],
+        Mat::zeros(2, 0),
+        box2(),
+    )
+    .unwrap_err();
     assert!(matches!(model_err(e), ModelError::NotSymmetric { name, .. } if name == "H"));
-    let e = ParametricQp::new(mat![[1.0, 2.0], [2.0, 1.0]], vec![0.0; 2], Mat::zeros(2, 0), box2()).unwrap_err();
+    let e = ParametricQp::new(
+        mat![[1.0, 2.0], [2.0, 1.0]],
+        vec![0.0; 2],
+        Mat::zeros(2, 0),
+        box2(),
+    )
+    .unwrap_err();
     assert!(matches!(model_err(e), ModelError::NotPositiveDefinite { name, .. } if name == "H"));
-    let e = ParametricQp::new(mat![[1.0, 0.0], [0.0, 0.0]], vec![0.0; 2], Mat::zeros(2, 0), box2()).unwrap_err();
-    assert!(matches!(model_err(e), ModelError::NotPositiveDefinite { .. }));
-    let e = ParametricQp::new(mat![[f64::NAN, 0.0], [0.0, 1.0]], vec![0.0; 2], Mat::zeros(2, 0), box2()).unwrap_err();
+    let e = ParametricQp::new(
+        mat![[1.0, 0.0], [0.0, 0.0]],
+        vec![0.0; 2],
+        Mat::zeros(2, 0),
+        box2(),
+    )
+    .unwrap_err();
+    assert!(matches!(
+        model_err(e),
+        ModelError::NotPositiveDefinite { .. }
+    ));
+    let e = ParametricQp::new(
+        mat![[f64::NAN, 0.0], [0.0, 1.0]],
+        vec![0.0; 2],
+        Mat::zeros(2, 0),
+        box2(),
+    )
+    .unwrap_err();
     assert!(matches!(model_err(e), ModelError::NonFinite { name, .. } if name == "H"));
-    let e = ParametricQp::new(Mat::zeros(2, 3), vec![0.0; 2], Mat::zeros(2, 0), box2()).unwrap_err();
+    let e =
+        ParametricQp::new(Mat::zeros(2, 3), vec![0.0; 2], Mat::zeros(2, 0), box2()).unwrap_err();
     assert!(matches!(model_err(e), ModelError::Shape { name, .. } if name == "H"));
 }
 
@@ -47,14 +75,21 @@ fn shape_and_nan_errors_name_the_field() {
     assert!(matches!(model_err(e), ModelError::NonFinite { name, .. } if name == "q0"));
     let e = ParametricQp::new(h2(), vec![0.0; 2], Mat::zeros(3, 1), box2()).unwrap_err();
     assert!(matches!(model_err(e), ModelError::Shape { name, .. } if name == "F"));
-    let e = ParametricQp::new(h2(), vec![0.0; 2], mat![[1.0], [f64::INFINITY]], box2()).unwrap_err();
+    let e =
+        ParametricQp::new(h2(), vec![0.0; 2], mat![[1.0], [f64::INFINITY]], box2()).unwrap_err();
     assert!(matches!(model_err(e), ModelError::NonFinite { name, .. } if name == "F"));
     let e = ParametricQp::new(h2(), vec![0.0; 2], Mat::zeros(2, 0), BoxSet::whole(3)).unwrap_err();
     assert!(matches!(model_err(e), ModelError::Shape { name, .. } if name == "Z"));
     // θ: length and finiteness, checked outside the hot loop.
     let qp = qp2();
-    assert!(matches!(model_err(qp.check_theta(&[0.0]).unwrap_err()), ModelError::Shape { .. }));
-    assert!(matches!(model_err(qp.check_theta(&[0.0, f64::NAN]).unwrap_err()), ModelError::NonFinite { .. }));
+    assert!(matches!(
+        model_err(qp.check_theta(&[0.0]).unwrap_err()),
+        ModelError::Shape { .. }
+    ));
+    assert!(matches!(
+        model_err(qp.check_theta(&[0.0, f64::NAN]).unwrap_err()),
+        ModelError::NonFinite { .. }
+    ));
 }
 
 #[test]
@@ -76,30 +111,78 @@ fn empty_or_inverted_boxes_are_rejected() {
 fn bad_method_parameters_are_rejected() {
     for a in [0.0, -1.0, f64::NAN, f64::INFINITY] {
         let e = ProjectedGradient::new(qp2(), StepRule::Fixed(a)).unwrap_err();
-        assert!(matches!(e, QpError::Parameter { ref name, .. } if name == "alpha"), "{e}");
+        assert!(
+            matches!(e, QpError::Parameter { ref name, .. } if name == "alpha"),
+            "{e}"
+        );
     }
     for rho in [0.0, -1.0, f64::NAN, f64::INFINITY] {
-        let e = Admm::new(qp2(), AdmmParams { penalty: Penalty::Fixed(rho), relaxation: 1.0 }).unwrap_err();
-        assert!(matches!(e, QpError::Parameter { ref name, .. } if name == "rho"), "{e}");
+        let e = Admm::new(
+            qp2(),
+            AdmmParams {
+                penalty: Penalty::Fixed(rho),
+                relaxation: 1.0,
+            },
+        )
+        .unwrap_err();
+        assert!(
+            matches!(e, QpError::Parameter { ref name, .. } if name == "rho"),
+            "{e}"
+        );
     }
     for alpha in [0.0, -0.5, 2.5, f64::NAN] {
-        let e = Admm::new(qp2(), AdmmParams { penalty: Penalty::Optimal, relaxation: alpha }).unwrap_err();
-        assert!(matches!(e, QpError::Parameter { ref name, .. } if name == "alpha"), "{e}");
+        let e = Admm::new(
+            qp2(),
+            AdmmParams {
+                penalty: Penalty::Optimal,
+                relaxation: alpha,
+            },
+        )
+        .unwrap_err();
+        assert!(
+            matches!(e, QpError::Parameter { ref name, .. } if name == "alpha"),
+            "{e}"
+        );
     }
     for tol in [0.0, -1.0, 1.5, f64::NAN] {
-        let e = ReferenceSolver::new(&qp2(), ReferenceSettings { tol, ..ReferenceSettings::default() }).unwrap_err();
-        assert!(matches!(e, QpError::Parameter { ref name, .. } if name == "tol"), "{e}");
+        let e = ReferenceSolver::new(
+            &qp2(),
+            ReferenceSettings {
+                tol,
+                ..ReferenceSettings::default()
+            },
+        )
+        .unwrap_err();
+        assert!(
+            matches!(e, QpError::Parameter { ref name, .. } if name == "tol"),
+            "{e}"
+        );
     }
-    let s = ReferenceSettings { polish_tol: 0.0, ..ReferenceSettings::default() };
-    assert!(matches!(ReferenceSolver::new(&qp2(), s), Err(QpError::Parameter { .. })));
+    let s = ReferenceSettings {
+        polish_tol: 0.0,
+        ..ReferenceSettings::default()
+    };
+    assert!(matches!(
+        ReferenceSolver::new(&qp2(), s),
+        Err(QpError::Parameter { .. })
+    ));
 }
 
 #[test]
 fn reference_rejects_bad_parameters() {
     let mut r = ReferenceSolver::new(&qp2(), ReferenceSettings::default()).unwrap();
-    assert!(matches!(model_err(r.solve(&[0.0, f64::NAN]).unwrap_err()), ModelError::NonFinite { .. }));
-    assert!(matches!(model_err(r.solve(&[0.0]).unwrap_err()), ModelError::Shape { .. }));
-    assert!(matches!(model_err(r.solve_q(&[0.0; 3]).unwrap_err()), ModelError::Shape { .. }));
+    assert!(matches!(
+        model_err(r.solve(&[0.0, f64::NAN]).unwrap_err()),
+        ModelError::NonFinite { .. }
+    ));
+    assert!(matches!(
+        model_err(r.solve(&[0.0]).unwrap_err()),
+        ModelError::Shape { .. }
+    ));
+    assert!(matches!(
+        model_err(r.solve_q(&[0.0; 3]).unwrap_err()),
+        ModelError::Shape { .. }
+    ));
     // Still usable afterwards.
     assert!(r.solve(&[0.0, 0.0]).unwrap().kkt_residual < 1e-12);
 }
@@ -115,7 +198,12 @@ fn nan_is_a_status<M: IterationMap>(m: &M) {
     m.load(&mut s, &[0.0, f64::NAN]);
     m.warm_start(&mut s, &[0.0, 0.0], None);
     let r = run_until(m, &mut s, 100, |_, _| None);
-    assert_eq!((r.status, r.iterations), (RunStatus::NonFinite, 1), "{}", m.name());
+    assert_eq!(
+        (r.status, r.iterations),
+        (RunStatus::NonFinite, 1),
+        "{}",
+        m.name()
+    );
 }
 
 #[test]
@@ -129,6 +217,7 @@ fn nan_in_theta_is_reported_not_panicked() {
     admm.warm_start(&mut s, &[0.0, 0.0], Some(&[f64::NAN, 0.0]));
     assert_eq!(run_fixed(&admm, &mut s, 3).status, RunStatus::NonFinite);
     // Projected gradient on an unbounded Z (its box clamp is lti-model's; see the crate report).
-    let qp = ParametricQp::new(h2(), vec![1.0, -1.0], Mat::identity(2, 2), BoxSet::whole(2)).unwrap();
+    let qp =
+        ParametricQp::new(h2(), vec![1.0, -1.0], Mat::identity(2, 2), BoxSet::whole(2)).unwrap();
     nan_is_a_status(&ProjectedGradient::new(qp, StepRule::InverseL).unwrap());
 }

@@ -10,7 +10,16 @@ use crate::common::{Gen, Tally, check_sequence, dist, random_instance, reference
 
 fn instances() -> impl Iterator<Item = crate::common::Instance> {
     (40_000..40_400u64)
-        .map(|seed| random_instance(seed, Gen { log10_kappa_max: 2.0, p_finite: 0.3, ..Gen::default() }))
+        .map(|seed| {
+            random_instance(
+                seed,
+                Gen {
+                    log10_kappa_max: 2.0,
+                    p_finite: 0.3,
+                    ..Gen::default()
+                },
+            )
+        })
         .filter(|i| i.qp.kappa() >= 10.0)
 }
 
@@ -38,9 +47,14 @@ fn claimed_rate_fails_for_step_beyond_two_over_l() {
             }
         }
     }
-    println!("step 2.5/L, claimed 1 − αμ: {t:?} over {count} instances; {diverged}/{whole} unconstrained diverged");
+    println!(
+        "step 2.5/L, claimed 1 − αμ: {t:?} over {count} instances; {diverged}/{whole} unconstrained diverged"
+    );
     assert!(count >= 150, "{count}");
-    assert!(t.instances_violated as f64 >= 0.8 * count as f64, "{t:?} of {count}");
+    assert!(
+        t.instances_violated as f64 >= 0.8 * count as f64,
+        "{t:?} of {count}"
+    );
     assert!(whole > 0 && diverged == whole, "{diverged}/{whole}");
 }
 
@@ -49,7 +63,8 @@ fn same_checker_passes_when_the_premise_holds() {
     let mut t = Tally::default();
     for inst in instances() {
         let r = reference(&inst);
-        let pg = ProjectedGradient::new(inst.qp.clone(), StepRule::Fixed(1.9 / inst.qp.l())).unwrap();
+        let pg =
+            ProjectedGradient::new(inst.qp.clone(), StepRule::Fixed(1.9 / inst.qp.l())).unwrap();
         let c = pg.certificate();
         assert!(c.fits_eq11 && c.rate < 1.0);
         let errs = iterate_errors(&pg, &inst, &r.sol.z, None);

@@ -912,14 +912,18 @@ pub fn build_case_study(scenario: &Scenario, options: &CaseStudyOptions) -> Resu
 impl ClosedLoop<CaseStudyEstimator, CaseStudyController, Box<dyn Disturbance>> {
     /// Restarts the case study at t = 0 with a new disturbance seed (for Monte-Carlo runs):
     /// the MHE restarts from its initial prior, the sub-optimal MPC cold-starts, and every
-    /// buffer is kept.
+    /// buffer is kept (allocation-free).
     pub fn reseed(&mut self, seed: u64) -> Result<()> {
-        self.restart(|est, ctrl, dist| {
-            let prior = est.initial_prior().to_vec();
+        // x_next is n_x scratch between steps: it holds the prior while the MHE resets.
+        let mut prior = std::mem::take(&mut self.x_next);
+        prior.copy_from_slice(self.estimator.initial_prior());
+        let res = self.restart(|est, ctrl, dist| {
             est.reset(&prior)?;
             ctrl.reset();
             dist.reseed(seed);
             Ok(())
-        })
+        });
+        self.x_next = prior;
+        res
     }
 }

@@ -1,0 +1,124 @@
+//! Zero heap allocations per closed-loop step after construction (PG MHE with the exact
+//! solve off and its record captured, saturated LQR or sub-optimal MPC, uniform
+//! disturbance), counted by a global allocator. A separate test binary: the allocator is
+//! process-wide.
+#![allow(clippy::unwrap_used)]
+
+use std::alloc::{GlobalAlloc, Layout, System};
+use std::sync::atomic::{AtomicUsize, Ordering};
+
+use closed_loop::sim::{
+    CaseStudyOptions, ClosedLoop, ControllerChoice, Solver, build_case_study, scenario_disturbance,
+};
+use lti_model::disturbance::Disturbance;
+use lti_model::scenario::Scenario;
+use mhe_core::{Estimator, MheConfig, MheEstimator, MheSets};
+use mpc_core::{CondensedMpc, Controller, SaturatedLqr, SuboptimalMpc, WarmStart};
+use qp_iter::pg::{ProjectedGradient, StepRule};
+
+struct Counting;
+static ALLOCS: AtomicUsize = AtomicUsize::new(0);
+
+unsafe impl GlobalAlloc for Counting {
+    unsafe fn alloc(&self, l: Layout) -> *mut u8 {
+        ALLOCS.fetch_add(1, Ordering::SeqCst);
+        unsafe { System.alloc(l) }
+    }
+    unsafe fn dealloc(&self, p: *mut u8, l: Layout) {
+        unsafe { System.dealloc(p, l) }
+    }
+    unsafe fn realloc(&self, p: *mut u8, l: Layout, n: usize) -> *mut u8 {
+        ALLOCS.fetch_add(1, Ordering::SeqCst);
+        unsafe { System.realloc(p, l, n) }
+    }
+}
+
+#[global_allocator]
+static GLOBAL: Counting = Counting;
+
+const CASE_STUDY: &str = concat!(
+    env!("CARGO_MANIFEST_DIR"),
+    "/../../scenarios/case-study.toml"
+);
+
+/// Allocations made by stepping `cl` to the end.
+fn allocations_of_run<E: Estimator, C: Controller, D: Disturbance>(
+    cl: &mut ClosedLoop<E, C, D>,
+) -> usize {
+    let before = ALLOCS.load(Ordering::SeqCst);
+    while !cl.is_finished() {
+        cl.step().unwrap();
+    }
+    ALLOCS.load(Ordering::SeqCst) - before
+}
+
+fn pg_mhe(s: &Scenario) -> MheEstimator<ProjectedGradient> {
+    let cfg = MheConfig::from_spec(s.mhe.as_ref().unwrap(), &s.plant, false).unwrap();
+    MheEstimator::new(
+        &s.plant,
+        &MheSets::from_scenario(&s.sets),
+        &cfg,
+        &s.simulation.prior,
+        |qp| ProjectedGradient::new(qp, StepRule::Optimal),
+    )
+    .unwrap()
+}
+
+#[test]
+fn closed_loop_steps_do_not_allocate() {
+    // One test function: the counter is global, parallel tests would pollute it.
+    let s = Scenario::from_file(CASE_STUDY).unwrap();
+    let spec = s.mpc.as_ref().unwrap();
+    let steps = s.simulation.steps;
+
+    // Generic loop: PG MHE (record captured) + saturated LQR.
+    let lqr = SaturatedLqr::new(
+        &s.plant,
+        spec.q.as_ref(),
+        spec.r.as_ref(),
+        s.sets.input.clone(),
+    )
+    .unwrap();
+    let w = scenario_disturbance(&s, 1).unwrap();
+    let mut cl =
+        ClosedLoop::new_mhe(s.plant.clone(), pg_mhe(&s), lqr, w, &s.simulation.x0, steps).unwrap();
+    assert_eq!(allocations_of_run(&mut cl), 0, "PG MHE + saturated LQR");
+    assert_eq!(cl.trace().len(), steps);
+    assert_eq!(cl.trace().mhe().unwrap().len(), steps);
+    assert!(cl.trace().sup_norm_x().is_finite());
+
+    // Generic loop: PG MHE + sub-optimal MPC (PG, K_c = 30).
+    let mpc = CondensedMpc::from_scenario(&s).unwrap();
+    let map = ProjectedGradient::new(mpc.qp().clone(), StepRule::Optimal).unwrap();
+    let sub = SuboptimalMpc::new(&mpc, map, 30, WarmStart::default()).unwrap();
+    let w = scenario_disturbance(&s, 2).unwrap();
+    let mut cl =
+        ClosedLoop::new_mhe(s.plant.clone(), pg_mhe(&s), sub, w, &s.simulation.x0, steps).unwrap();
+    assert_eq!(allocations_of_run(&mut cl), 0, "PG MHE + sub-optimal MPC");
+
+    // The case-study builder (enum dispatch, boxed disturbance), and a Monte-Carlo reseed.
+    for controller in [
+        ControllerChoice::SaturatedLqr,
+        ControllerChoice::SuboptimalMpc {
+            iterations: 20,
+            solver: Solver::Fista,
+        },
+    ] {
+        let mut o = CaseStudyOptions::from_scenario(&s).unwrap();
+        o.iterations = 25;
+        o.controller = controller;
+        let mut cl = build_case_study(&s, &o).unwrap();
+        assert_eq!(allocations_of_run(&mut cl), 0, "case study {controller:?}");
+        let first = cl.trace().clone();
+        let before = ALLOCS.load(Ordering::SeqCst);
+        cl.reseed(o.seed).unwrap();
+        assert_eq!(ALLOCS.load(Ordering::SeqCst) - before, 0, "reseed");
+        assert_eq!(allocations_of_run(&mut cl), 0, "after reseed");
+        assert_eq!(cl.trace(), &first);
+    }
+
+    // The counter works.
+    let before = ALLOCS.load(Ordering::SeqCst);
+    let v = std::hint::black_box(vec![1.0_f64; 3]);
+    assert!(ALLOCS.load(Ordering::SeqCst) > before && v.len() == 3);
+}

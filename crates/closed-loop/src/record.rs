@@ -242,6 +242,9 @@ impl Trace {
     }
     /// The MHE record of step t (None if not captured or t ≥ len).
     pub fn mhe_step(&self, t: usize) -> Option<MheStep<'_>> {
+        if t >= self.len {
+            return None;
+        }
         self.mhe.as_ref().and_then(|m| m.step(t))
     }
     /// ε_t = ‖zᴷ_t − z*_t‖₂ per step (None where not recorded: no MHE record captured or the
@@ -333,6 +336,11 @@ struct MheScalars {
 /// The MHE records of a run: for every step a copy of the estimator's [`MheRecord`], in
 /// fixed-stride preallocated storage (windows up to `max_window` stages), so capturing
 /// allocates nothing.
+///
+/// The record is captured right after the estimate, so when a step fails later (or on a
+/// non-finite estimate) this holds one more record than the [`Trace`] has steps: the
+/// failing step's, for diagnosis ([`MheTrace::step`] returns it; [`Trace::mhe_step`]
+/// and the JSON output stop at the trace's steps).
 #[derive(Debug, Clone, PartialEq)]
 pub struct MheTrace {
     dims: Dims,

@@ -129,7 +129,7 @@ pub enum ClosedLoopError {
     },
     /// The MHE record returned by the hook does not fit the storage.
     #[error(
-        "step t = {t}: the MHE record has window length {window} (or other dimensions) beyond the storage for \
+        "step t = {t}: the MHE record has window length {window}, beyond the storage for \
          windows up to {capacity}; pass the estimator's horizon M as `max_window`"
     )]
     RecordCapacity {
@@ -139,6 +139,15 @@ pub enum ClosedLoopError {
         window: usize,
         /// Longest window the storage holds.
         capacity: usize,
+    },
+    /// The hook returned a record for other plant dimensions than at construction.
+    #[error(
+        "step t = {t}: the MHE record's plant dimensions differ from the plant's; the record hook must return \
+         the record of this loop's estimator"
+    )]
+    RecordDims {
+        /// Step.
+        t: usize,
     },
     /// All T steps have run.
     #[error("the run already completed all T = {steps} steps")]
@@ -384,22 +393,20 @@ impl<E: Estimator, C: Controller, D: Disturbance> ClosedLoop<E, C, D> {
             });
         }
         self.x_hat.copy_from_slice(x_hat);
-        check_finite(t, "x_hat", &self.x_hat)?;
+        // Captured before the finiteness check, so a failing step leaves its record.
         if let (Some(hook), Some(store)) = (self.hook, self.trace.mhe_mut()) {
             if let Some(rec) = hook(&self.estimator) {
-                store.capture(t, rec).map_err(|e| {
-                    let window = match e {
-                        CaptureError::Window(w) => w,
-                        CaptureError::Dims(_) => rec.window,
-                    };
-                    ClosedLoopError::RecordCapacity {
+                store.capture(t, rec).map_err(|e| match e {
+                    CaptureError::Window(window) => ClosedLoopError::RecordCapacity {
                         t,
                         window,
                         capacity: store.max_window(),
-                    }
+                    },
+                    CaptureError::Dims(_) => ClosedLoopError::RecordDims { t },
                 })?;
             }
         }
+        check_finite(t, "x_hat", &self.x_hat)?;
         // 2. u_t = π(x̂_t).
         self.controller
             .control(&self.x_hat, &mut self.u)
@@ -771,9 +778,13 @@ pub fn scenario_disturbance(scenario: &Scenario, seed: u64) -> Result<Box<dyn Di
     Ok(match noise.kind {
         NoiseKind::Zero => Box::new(Zero(nw)),
         NoiseKind::Uniform => {
-            let (lower, upper) = noise
-                .uniform_box(&scenario.sets.disturbance)
-                .unwrap_or_else(|| (vec![0.0; nw], vec![0.0; nw]));
+            let (lower, upper) =
+                noise
+                    .uniform_box(&scenario.sets.disturbance)
+                    .ok_or_else(|| ModelError::Scenario {
+                        key: "noise.kind".into(),
+                        problem: "uniform noise needs the box 𝒲 of `sets.disturbance`".into(),
+                    })?;
             Box::new(UniformBox::new(lower, upper, seed)?)
         }
         NoiseKind::Gaussian => {

@@ -771,3 +771,60 @@ fn step_errors_name_the_step_and_stop_the_loop() {
     assert_eq!(cl.step(), Err(ClosedLoopError::Finished { steps: 2 }));
     assert_eq!(cl.run().unwrap().len(), 2);
 }
+
+/// A controller that fails at a given call.
+#[derive(Debug)]
+struct FailingController {
+    calls: usize,
+    at: usize,
+}
+
+impl Controller for FailingController {
+    fn control(&mut self, _x_hat: &[f64], u: &mut [f64]) -> mpc_core::Result<()> {
+        self.calls += 1;
+        if self.calls > self.at {
+            return Err(mpc_core::MpcError::NonFiniteIterate);
+        }
+        u.fill(0.0);
+        Ok(())
+    }
+    fn nu(&self) -> usize {
+        2
+    }
+    fn nx(&self) -> usize {
+        4
+    }
+}
+
+/// A controller error names the step; the failing step's MHE record is kept for diagnosis
+/// but is not part of the trace's steps.
+#[test]
+fn controller_error_keeps_the_failing_steps_mhe_record() {
+    let s = case_study();
+    let ctrl = FailingController { calls: 0, at: 2 };
+    let mut cl = ClosedLoop::new_mhe(
+        s.plant.clone(),
+        mhe_for(&s.plant, &s),
+        ctrl,
+        Zero(5),
+        &s.simulation.x0,
+        6,
+    )
+    .unwrap();
+    let err = cl.run().unwrap_err();
+    assert_eq!(
+        err,
+        ClosedLoopError::Controller {
+            t: 2,
+            source: mpc_core::MpcError::NonFiniteIterate
+        }
+    );
+    let tr = cl.trace();
+    assert_eq!(tr.len(), 2);
+    assert!(tr.mhe_step(2).is_none());
+    let mhe = tr.mhe().unwrap();
+    assert_eq!(mhe.len(), 3);
+    assert_eq!(mhe.step(2).unwrap().window(), 2);
+    let v: serde_json::Value = serde_json::from_str(&tr.to_json().unwrap()).unwrap();
+    assert_eq!(v["records"].as_array().unwrap().len(), 2);
+}

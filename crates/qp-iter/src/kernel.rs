@@ -363,7 +363,11 @@ impl Kernel {
                 (c.q, c.lo, c.hi, c.a, c.b) =
                     (mq.as_ptr(), lower.as_ptr(), upper.as_ptr(), relaxation, rho);
                 (c.next, c.v, c.dual) = (t_next.as_mut_ptr(), v.as_mut_ptr(), dual.as_mut_ptr());
-                avx2_sym::run::<{ avx2_sym::ADMM }>(c)
+                if relaxation == 1.0 {
+                    avx2_sym::run::<{ avx2_sym::ADMM1 }>(c)
+                } else {
+                    avx2_sym::run::<{ avx2_sym::ADMM }>(c)
+                }
             },
             #[cfg(not(target_arch = "x86_64"))]
             KernelPath::Avx2Fma => portable::admm_step(
@@ -652,6 +656,8 @@ mod avx2_sym {
     pub(super) const FISTA: u8 = 2;
     /// Epilogue: relaxed ADMM step.
     pub(super) const ADMM: u8 = 3;
+    /// Epilogue: ADMM step without relaxation (a = 1: w = z + y/ρ, the old v is not read).
+    pub(super) const ADMM1: u8 = 4;
 
     /// Pointers and scalars of one call (null / 0 where an epilogue does not use them).
     #[derive(Clone, Copy)]
@@ -698,34 +704,46 @@ mod avx2_sym {
         }
     }
 
-    /// Four lanes at `p + r`, or the lanes of `m`.
+    /// Lanes at `p + r`: all four when `T` = 0, else the first `T` (the others zero).
+    /// Plain 128/64-bit moves, no masked loads.
     ///
     /// # Safety
     /// AVX available; the selected lanes are valid reads.
     #[inline]
     #[target_feature(enable = "avx2,fma")]
-    unsafe fn ld(p: *const f64, r: usize, m: Option<__m256i>) -> __m256d {
+    unsafe fn ld<const T: usize>(p: *const f64, r: usize) -> __m256d {
         // SAFETY: forwarded contract.
         unsafe {
-            match m {
-                None => _mm256_loadu_pd(p.add(r)),
-                Some(m) => _mm256_maskload_pd(p.add(r), m),
+            let p = p.add(r);
+            match T {
+                0 => _mm256_loadu_pd(p),
+                1 => _mm256_zextpd128_pd256(_mm_load_sd(p)),
+                2 => _mm256_zextpd128_pd256(_mm_loadu_pd(p)),
+                _ => _mm256_set_m128d(_mm_load_sd(p.add(2)), _mm_loadu_pd(p)),
             }
         }
     }
 
-    /// Stores four lanes at `p + r`, or the lanes of `m`.
+    /// Stores lanes at `p + r`: all four when `T` = 0, else the first `T`. Plain
+    /// 128/64-bit moves (masked stores are slow on some AMD cores).
     ///
     /// # Safety
     /// AVX available; the selected lanes are valid writes.
     #[inline]
     #[target_feature(enable = "avx2,fma")]
-    unsafe fn st(p: *mut f64, r: usize, m: Option<__m256i>, v: __m256d) {
+    unsafe fn st<const T: usize>(p: *mut f64, r: usize, v: __m256d) {
         // SAFETY: forwarded contract.
         unsafe {
-            match m {
-                None => _mm256_storeu_pd(p.add(r), v),
-                Some(m) => _mm256_maskstore_pd(p.add(r), m, v),
+            let p = p.add(r);
+            let lo = _mm256_castpd256_pd128(v);
+            match T {
+                0 => _mm256_storeu_pd(p, v),
+                1 => _mm_store_sd(p, lo),
+                2 => _mm_storeu_pd(p, lo),
+                _ => {
+                    _mm_storeu_pd(p, lo);
+                    _mm_store_sd(p.add(2), _mm256_extractf128_pd::<1>(v));
+                }
             }
         }
     }
@@ -738,44 +756,66 @@ mod avx2_sym {
         _mm256_min_pd(hi, _mm256_max_pd(lo, v))
     }
 
-    /// The epilogue `E` on rows r .. r+4 (or the lanes of `m`) with s = (Hx)[rows].
+    /// The epilogue `E` on rows r .. r+4 (the first `T` of them when `T` > 0) with
+    /// s = (Hx)[rows].
     ///
     /// # Safety
     /// AVX2 + FMA available; the selected rows are < n; the pointers `E` uses are valid
     /// for n elements (see [`run`]).
     #[inline]
     #[target_feature(enable = "avx2,fma")]
-    unsafe fn epilogue<const E: u8>(c: &Ctx, r: usize, m: Option<__m256i>, s: __m256d) {
+    unsafe fn epilogue<const E: u8, const T: usize>(c: &Ctx, r: usize, s: __m256d) {
         // SAFETY: forwarded contract: rows in bounds, pointers valid for E.
         unsafe {
+            // Everything that does not depend on s is formed first, so the chain from the
+            // last FMA of the product to the stored iterate is as short as possible.
             match E {
                 PG => {
-                    let g = _mm256_add_pd(s, ld(c.q, r, m));
-                    let z = _mm256_fnmadd_pd(_mm256_set1_pd(c.a), g, ld(c.x, r, m));
-                    st(c.out, r, m, clamp(z, ld(c.lo, r, m), ld(c.hi, r, m)));
+                    // z − α(s + q) = (z − αq) − αs
+                    let alpha = _mm256_set1_pd(c.a);
+                    let base = _mm256_fnmadd_pd(alpha, ld::<T>(c.q, r), ld::<T>(c.x, r));
+                    let z = _mm256_fnmadd_pd(alpha, s, base);
+                    st::<T>(c.out, r, clamp(z, ld::<T>(c.lo, r), ld::<T>(c.hi, r)));
                 }
                 FISTA => {
-                    let g = _mm256_add_pd(s, ld(c.q, r, m));
-                    let x = _mm256_fnmadd_pd(_mm256_set1_pd(c.a), g, ld(c.x, r, m));
-                    let x = clamp(x, ld(c.lo, r, m), ld(c.hi, r, m));
-                    let d = _mm256_sub_pd(x, ld(c.out, r, m));
-                    st(c.next, r, m, _mm256_fmadd_pd(_mm256_set1_pd(c.b), d, x));
-                    st(c.out, r, m, x);
+                    let alpha = _mm256_set1_pd(c.a);
+                    let base = _mm256_fnmadd_pd(alpha, ld::<T>(c.q, r), ld::<T>(c.x, r));
+                    let x = clamp(
+                        _mm256_fnmadd_pd(alpha, s, base),
+                        ld::<T>(c.lo, r),
+                        ld::<T>(c.hi, r),
+                    );
+                    let d = _mm256_sub_pd(x, ld::<T>(c.out, r));
+                    st::<T>(c.next, r, _mm256_fmadd_pd(_mm256_set1_pd(c.b), d, x));
+                    st::<T>(c.out, r, x);
+                }
+                ADMM1 => {
+                    let z = _mm256_sub_pd(s, ld::<T>(c.q, r));
+                    st::<T>(c.out, r, z);
+                    let w = _mm256_fmadd_pd(ld::<T>(c.dual, r), _mm256_set1_pd(1.0 / c.b), z);
+                    let vp = clamp(w, ld::<T>(c.lo, r), ld::<T>(c.hi, r));
+                    st::<T>(
+                        c.dual,
+                        r,
+                        _mm256_mul_pd(_mm256_set1_pd(c.b), _mm256_sub_pd(w, vp)),
+                    );
+                    st::<T>(c.next, r, _mm256_sub_pd(_mm256_add_pd(vp, vp), w));
+                    st::<T>(c.v, r, vp);
                 }
                 ADMM => {
-                    let z = _mm256_sub_pd(s, ld(c.q, r, m));
-                    st(c.out, r, m, z);
+                    let z = _mm256_sub_pd(s, ld::<T>(c.q, r));
+                    st::<T>(c.out, r, z);
                     let (a, rho) = (_mm256_set1_pd(c.a), _mm256_set1_pd(c.b));
-                    let y_rho = _mm256_mul_pd(ld(c.dual, r, m), _mm256_set1_pd(1.0 / c.b));
-                    let one_minus_a = _mm256_set1_pd(1.0 - c.a);
-                    let w =
-                        _mm256_fmadd_pd(a, z, _mm256_fmadd_pd(one_minus_a, ld(c.v, r, m), y_rho));
-                    let vp = clamp(w, ld(c.lo, r, m), ld(c.hi, r, m));
-                    st(c.dual, r, m, _mm256_mul_pd(rho, _mm256_sub_pd(w, vp)));
-                    st(c.next, r, m, _mm256_sub_pd(_mm256_add_pd(vp, vp), w));
-                    st(c.v, r, m, vp);
+                    let y_rho = _mm256_mul_pd(ld::<T>(c.dual, r), _mm256_set1_pd(1.0 / c.b));
+                    let rest = _mm256_fmadd_pd(_mm256_set1_pd(1.0 - c.a), ld::<T>(c.v, r), y_rho);
+                    // w = a z + (1 − a)v + y/ρ
+                    let w = _mm256_fmadd_pd(a, z, rest);
+                    let vp = clamp(w, ld::<T>(c.lo, r), ld::<T>(c.hi, r));
+                    st::<T>(c.dual, r, _mm256_mul_pd(rho, _mm256_sub_pd(w, vp)));
+                    st::<T>(c.next, r, _mm256_sub_pd(_mm256_add_pd(vp, vp), w));
+                    st::<T>(c.v, r, vp);
                 }
-                _ => st(c.out, r, m, s),
+                _ => st::<T>(c.out, r, s),
             }
         }
     }
@@ -812,20 +852,18 @@ mod avx2_sym {
         }
         for v in 0..V {
             // SAFETY: rows r0 + 4v .. + 4 lie below n.
-            unsafe { epilogue::<E>(c, r0 + 4 * v, None, acc[v]) };
+            unsafe { epilogue::<E, 0>(c, r0 + 4 * v, acc[v]) };
         }
         if R > 0 {
             // Tail sums as one vector [t2₀, t2₁, t1₀, 0] (R = 3), [t2₀, t2₁, 0, 0] (R = 2)
-            // or [t1₀, 0, 0, 0] (R = 1); lanes ≥ R are masked off.
+            // or [t1₀, 0, 0, 0] (R = 1); only the first R lanes are stored.
             let s = match R {
-                1 => _mm256_set_m128d(_mm_setzero_pd(), t1),
-                2 => _mm256_set_m128d(_mm_setzero_pd(), t2),
+                1 => _mm256_zextpd128_pd256(t1),
+                2 => _mm256_zextpd128_pd256(t2),
                 _ => _mm256_set_m128d(t1, t2),
             };
-            let m =
-                _mm256_cmpgt_epi64(_mm256_set1_epi64x(R as i64), _mm256_setr_epi64x(0, 1, 2, 3));
-            // SAFETY: the mask selects rows r0 + 4V .. r0 + 4V + R < n only.
-            unsafe { epilogue::<E>(c, r0 + 4 * V, Some(m), s) };
+            // SAFETY: rows r0 + 4V .. r0 + 4V + R lie below n.
+            unsafe { epilogue::<E, R>(c, r0 + 4 * V, s) };
         }
     }
 
@@ -1126,7 +1164,13 @@ mod tests {
                 let (t, mq) = (random_vec(&mut rng, n), random_vec(&mut rng, n));
                 let (v0, y0) = (random_vec(&mut rng, n), random_vec(&mut rng, n));
                 let (lower, upper) = random_box(&mut rng, n);
-                let (a, rho) = (rng.random_range(0.5..2.0), rng.random_range(0.5..4.0));
+                // Plain ADMM (a = 1, its own code path) on even n, relaxed otherwise.
+                let a = if n % 2 == 0 {
+                    1.0
+                } else {
+                    rng.random_range(0.5..2.0)
+                };
+                let rho = rng.random_range(0.5..4.0);
                 let mt = naive(&m, n, &t);
                 let (mut z, mut v, mut y, mut t_next) =
                     (vec![7.0; n + 1], v0.clone(), y0.clone(), vec![7.0; n + 1]);

@@ -1,0 +1,396 @@
+//! Per-iteration cost of the iteration maps Φ, their time to a fixed accuracy, Clarabel's
+//! full solve, and the fixed-size reference kernel — all in one run, so ratios between
+//! them are meaningful on a shared machine.
+//!
+//! Groups (criterion ids `group/function[/parameter]`):
+//! - `n30`: one step of PG, FISTA, ADMM at n = 30; the reference kernels `ref_*`
+//!   (compile-time 30 × 30, AVX2 + FMA by run-time detection); our `matvec` (general H),
+//!   `matvec_symmetric` and their portable paths; faer `matmul` (Par::Seq, preallocated).
+//! - `grid`: one step of each method and one `matvec_symmetric` for n = 10 … 400.
+//! - `accuracy`: load θ + cold start + K steps, K the smallest count with
+//!   ‖z − z*‖ ≤ 1e-6‖z⁰ − z*‖ (z* from the polished Clarabel reference), and Clarabel's
+//!   full interior-point solve for the same θ, for n = 10 … 400 and 30.
+//!
+//! The iteration counts K and the kernel paths are written to
+//! `target/criterion/iteration-meta.json` for `bench-table` (docs/benchmarks.md).
+//!
+//! Run: `cargo bench -p benches --bench iteration`.
+
+use std::collections::BTreeMap;
+use std::hint::black_box;
+use std::time::Duration;
+
+use benches::{FixedLayout, FixedMatVec, Instance, dist, random_instance};
+use criterion::measurement::WallTime;
+use criterion::{BenchmarkGroup, BenchmarkId, Criterion, criterion_group, criterion_main};
+use faer::linalg::matmul::matmul;
+use faer::{Accum, Col, Mat, Par};
+use qp_iter::admm::{Admm, AdmmParams};
+use qp_iter::fista::Fista;
+use qp_iter::kernel::{Kernel, matvec, matvec_symmetric};
+use qp_iter::pg::{ProjectedGradient, StepRule};
+use qp_iter::reference::{ReferenceSettings, ReferenceSolver};
+use qp_iter::{IterationMap, RunStatus, run_fixed, run_until};
+
+const SEED: u64 = 2024;
+const GRID: [usize; 6] = [10, 20, 50, 100, 200, 400];
+/// Relative accuracy of the time-to-accuracy benchmark: ‖z − z*‖ ≤ ε‖z⁰ − z*‖.
+const EPS: f64 = 1e-6;
+
+fn instance(n: usize) -> Instance {
+    random_instance(n, SEED + n as u64)
+}
+
+fn methods(inst: &Instance) -> (ProjectedGradient, Fista, Admm) {
+    let pg = ProjectedGradient::new(inst.qp.clone(), StepRule::Optimal)
+        .unwrap_or_else(|e| panic!("pg: {e}"));
+    let fista = Fista::new(inst.qp.clone());
+    let admm =
+        Admm::new(inst.qp.clone(), AdmmParams::default()).unwrap_or_else(|e| panic!("admm: {e}"));
+    (pg, fista, admm)
+}
+
+/// One step of `map`, with θ loaded and a cold start once; later steps continue from
+/// wherever the iteration is (a step's cost does not depend on the iterate).
+fn bench_step<M: IterationMap>(
+    g: &mut BenchmarkGroup<'_, WallTime>,
+    id: BenchmarkId,
+    map: &M,
+    theta: &[f64],
+) {
+    let mut s = map.new_state();
+    map.load(&mut s, theta);
+    map.cold_start(&mut s);
+    g.bench_function(id, |b| b.iter(|| map.step(black_box(&mut s))));
+}
+
+fn x_vec(n: usize) -> Vec<f64> {
+    (0..n)
+        .map(|i| ((i * 7919) % 13) as f64 / 13.0 - 0.5)
+        .collect()
+}
+
+/// Unix time when the first benchmark group of this run started (stale results from
+/// earlier runs are older and `bench_table` leaves them out).
+fn run_started() -> u64 {
+    static START: std::sync::OnceLock<u64> = std::sync::OnceLock::new();
+    *START.get_or_init(|| {
+        std::time::SystemTime::now()
+            .duration_since(std::time::UNIX_EPOCH)
+            .map_or(0, |d| d.as_secs())
+    })
+}
+
+fn per_iteration_n30(c: &mut Criterion) {
+    run_started();
+    const N: usize = 30;
+    let inst = instance(N);
+    let h = inst.qp.h_row_major();
+    let mut g = c.benchmark_group("n30");
+
+    // Reference kernels: compile-time N, AVX2+FMA through run-time detection.
+    let xs = x_vec(N);
+    let x: [f64; N] = std::array::from_fn(|i| xs[i]);
+    for (name, layout) in [
+        ("ref_column_axpy", FixedLayout::ColumnAxpy),
+        ("ref_row_dot", FixedLayout::RowDot),
+    ] {
+        let Some(k) = FixedMatVec::<N>::new(h, layout) else {
+            panic!("30×30 H")
+        };
+        let mut y = [0.0; N];
+        g.bench_function(name, |b| {
+            b.iter(|| {
+                k.apply(black_box(&x), &mut y);
+                black_box(&mut y);
+            })
+        });
+    }
+
+    // The same product chained, x ← (H/L)x: each call needs the previous result, as in an
+    // iteration, so call latency instead of throughput (H/L keeps ‖x‖ bounded away from 0
+    // and ∞: power iteration with λ_max = 1).
+    let h_scaled: Vec<f64> = h.iter().map(|v| v / inst.qp.l()).collect();
+    {
+        let Some(k) = FixedMatVec::<N>::new(&h_scaled, FixedLayout::ColumnAxpy) else {
+            panic!("30×30 H")
+        };
+        let (mut xa, mut xb) = (x, [0.0; N]);
+        g.bench_function("ref_column_axpy_chained", |b| {
+            b.iter(|| {
+                k.apply(&xa, &mut xb);
+                std::mem::swap(&mut xa, &mut xb);
+            })
+        });
+        let (mut xa, mut xb) = (xs.clone(), vec![0.0; N]);
+        g.bench_function("matvec_symmetric_chained", |b| {
+            b.iter(|| {
+                matvec_symmetric(&h_scaled, N, &xa, &mut xb);
+                std::mem::swap(&mut xa, &mut xb);
+            })
+        });
+    }
+
+    // Our kernels (run-time dispatch) and their portable paths, same call pattern.
+    let mut ys = vec![0.0; N];
+    g.bench_function("matvec_symmetric", |b| {
+        b.iter(|| {
+            matvec_symmetric(h, N, black_box(&xs), &mut ys);
+            black_box(&mut ys);
+        })
+    });
+    g.bench_function("matvec", |b| {
+        b.iter(|| {
+            matvec(h, N, black_box(&xs), &mut ys);
+            black_box(&mut ys);
+        })
+    });
+    let portable = Kernel::portable();
+    g.bench_function("matvec_symmetric_portable", |b| {
+        b.iter(|| {
+            portable.matvec_symmetric(h, N, black_box(&xs), &mut ys);
+            black_box(&mut ys);
+        })
+    });
+    g.bench_function("matvec_portable", |b| {
+        b.iter(|| {
+            portable.matvec(h, N, black_box(&xs), &mut ys);
+            black_box(&mut ys);
+        })
+    });
+
+    // faer matmul into a preallocated column, sequential.
+    let hm = Mat::from_fn(N, N, |i, j| h[i * N + j]);
+    let xc = Col::from_fn(N, |i| xs[i]);
+    let mut yc = Col::<f64>::zeros(N);
+    g.bench_function("faer_matmul_seq", |b| {
+        b.iter(|| {
+            matmul(
+                yc.as_mat_mut(),
+                Accum::Replace,
+                hm.as_ref(),
+                black_box(&xc).as_mat(),
+                1.0,
+                Par::Seq,
+            );
+            black_box(&mut yc);
+        })
+    });
+
+    // The methods' steps.
+    let (pg, fista, admm) = methods(&inst);
+    bench_step(&mut g, BenchmarkId::new("step", "pg"), &pg, &inst.theta);
+    bench_step(
+        &mut g,
+        BenchmarkId::new("step", "fista"),
+        &fista,
+        &inst.theta,
+    );
+    bench_step(&mut g, BenchmarkId::new("step", "admm"), &admm, &inst.theta);
+
+    // The fused kernels on the same data: one step of FISTA and ADMM as one pass over
+    // the matrix (what `fista.rs` / `admm.rs` cost once their steps call these).
+    let k = Kernel::detect();
+    let (lo, hi) = (inst.qp.zset().lower(), inst.qp.zset().upper());
+    let mut q = vec![0.0; N];
+    inst.qp.linear_term(&inst.theta, &mut q);
+    let (alpha, beta) = (fista.step_size(), fista.momentum());
+    let (mut y, mut y_next, mut z) = (vec![0.0; N], vec![0.0; N], vec![0.0; N]);
+    g.bench_function(BenchmarkId::new("fused_kernel", "fista"), |b| {
+        b.iter(|| {
+            k.fista_step(h, N, &y, &q, alpha, lo, hi, beta, &mut z, &mut y_next);
+            std::mem::swap(&mut y, &mut y_next);
+        })
+    });
+    let (rho, relax) = (admm.rho(), admm.relaxation());
+    let m_rho = admm_map(&inst, rho);
+    let mq: Vec<f64> = {
+        let mut mq = vec![0.0; N];
+        matvec_symmetric(&m_rho, N, &q, &mut mq);
+        mq.iter().map(|v| v / rho).collect()
+    };
+    let (mut t, mut t_next) = (vec![0.0; N], vec![0.0; N]);
+    let (mut z, mut v, mut dual) = (vec![0.0; N], vec![0.0; N], vec![0.0; N]);
+    g.bench_function(BenchmarkId::new("fused_kernel", "admm"), |b| {
+        b.iter(|| {
+            k.admm_step(
+                &m_rho,
+                N,
+                &t,
+                &mq,
+                relax,
+                rho,
+                lo,
+                hi,
+                &mut z,
+                &mut v,
+                &mut dual,
+                &mut t_next,
+            );
+            std::mem::swap(&mut t, &mut t_next);
+        })
+    });
+    g.finish();
+}
+
+/// ρ(H + ρI)⁻¹ row-major (symmetrised), ADMM's step matrix.
+fn admm_map(inst: &Instance, rho: f64) -> Vec<f64> {
+    let n = inst.qp.n();
+    let h = inst.qp.h();
+    let shifted = Mat::from_fn(n, n, |i, j| h[(i, j)] + if i == j { rho } else { 0.0 });
+    let Ok(llt) = shifted.llt(faer::Side::Lower) else {
+        panic!("H + ρI is SPD")
+    };
+    let inv = faer::linalg::solvers::Solve::solve(&llt, Mat::<f64>::identity(n, n));
+    (0..n * n)
+        .map(|k| 0.5 * rho * (inv[(k / n, k % n)] + inv[(k % n, k / n)]))
+        .collect()
+}
+
+fn per_iteration_grid(c: &mut Criterion) {
+    run_started();
+    let mut g = c.benchmark_group("grid");
+    for n in GRID {
+        let inst = instance(n);
+        let h = inst.qp.h_row_major();
+        let xs = x_vec(n);
+        let mut ys = vec![0.0; n];
+        g.bench_function(BenchmarkId::new("matvec_symmetric", n), |b| {
+            b.iter(|| {
+                matvec_symmetric(h, n, black_box(&xs), &mut ys);
+                black_box(&mut ys);
+            })
+        });
+        let (pg, fista, admm) = methods(&inst);
+        bench_step(&mut g, BenchmarkId::new("pg", n), &pg, &inst.theta);
+        bench_step(&mut g, BenchmarkId::new("fista", n), &fista, &inst.theta);
+        bench_step(&mut g, BenchmarkId::new("admm", n), &admm, &inst.theta);
+    }
+    g.finish();
+}
+
+/// Smallest K with ‖z^K − z*‖ ≤ EPS‖z⁰ − z*‖ from θ loaded and a cold start.
+fn iterations_to_accuracy<M: IterationMap>(map: &M, theta: &[f64], z_star: &[f64]) -> usize {
+    let mut s = map.new_state();
+    map.load(&mut s, theta);
+    map.cold_start(&mut s);
+    let e0 = dist(map.iterate(&s), z_star);
+    let r = run_until(map, &mut s, 1_000_000, |_, z| {
+        (dist(z, z_star) <= EPS * e0).then_some(true)
+    });
+    assert_eq!(
+        r.status,
+        RunStatus::Converged,
+        "{} did not reach {EPS:e}",
+        map.name()
+    );
+    r.iterations
+}
+
+/// Load θ, cold start, K steps: the whole first-order solve.
+fn bench_solve<M: IterationMap>(
+    g: &mut BenchmarkGroup<'_, WallTime>,
+    n: usize,
+    map: &M,
+    theta: &[f64],
+    k: usize,
+) {
+    let mut s = map.new_state();
+    g.bench_function(BenchmarkId::new(map.name(), n), |b| {
+        b.iter(|| {
+            map.load(&mut s, black_box(theta));
+            map.cold_start(&mut s);
+            run_fixed(map, &mut s, k)
+        })
+    });
+}
+
+fn to_accuracy(c: &mut Criterion) {
+    run_started();
+    let mut g = c.benchmark_group("accuracy");
+    g.sample_size(10)
+        .warm_up_time(Duration::from_millis(200))
+        .measurement_time(Duration::from_millis(1500));
+    let mut counts: BTreeMap<usize, BTreeMap<&'static str, usize>> = BTreeMap::new();
+    for n in [10, 20, 30, 50, 100, 200, 400] {
+        let inst = instance(n);
+        let mut exact = ReferenceSolver::new(&inst.qp, ReferenceSettings::default())
+            .unwrap_or_else(|e| panic!("{e}"));
+        let z_star = exact
+            .solve(&inst.theta)
+            .unwrap_or_else(|e| panic!("reference n = {n}: {e}"))
+            .z;
+        let (pg, fista, admm) = methods(&inst);
+        let k_pg = iterations_to_accuracy(&pg, &inst.theta, &z_star);
+        let k_fista = iterations_to_accuracy(&fista, &inst.theta, &z_star);
+        let k_admm = iterations_to_accuracy(&admm, &inst.theta, &z_star);
+        bench_solve(&mut g, n, &pg, &inst.theta, k_pg);
+        bench_solve(&mut g, n, &fista, &inst.theta, k_fista);
+        bench_solve(&mut g, n, &admm, &inst.theta, k_admm);
+
+        // Clarabel's interior-point solve at its usual accuracy (no polish), set up once;
+        // a solve overwrites q (update_q) and runs the whole IPM.
+        let settings = ReferenceSettings {
+            tol: 1e-8,
+            polish: false,
+            ..ReferenceSettings::default()
+        };
+        let mut ipm = ReferenceSolver::new(&inst.qp, settings).unwrap_or_else(|e| panic!("{e}"));
+        let sol = ipm
+            .solve(&inst.theta)
+            .unwrap_or_else(|e| panic!("clarabel n = {n}: {e}"));
+        let e0 = dist(&vec![0.0; n], &z_star);
+        let clarabel_rel = dist(&sol.z, &z_star) / e0;
+        g.bench_function(BenchmarkId::new("clarabel", n), |b| {
+            b.iter(|| ipm.solve(black_box(&inst.theta)))
+        });
+
+        let entry = counts.entry(n).or_default();
+        entry.insert("pg", k_pg);
+        entry.insert("fista", k_fista);
+        entry.insert("admm", k_admm);
+        entry.insert("clarabel_ipm_iterations", sol.iterations as usize);
+        eprintln!(
+            "accuracy n = {n}: K_pg = {k_pg}, K_fista = {k_fista}, K_admm = {k_admm}, clarabel {} IPM iterations, \
+             ‖z_clarabel − z*‖/‖z⁰ − z*‖ = {clarabel_rel:.1e}",
+            sol.iterations
+        );
+    }
+    g.finish();
+    write_meta(&counts);
+}
+
+/// Records iteration counts and kernel paths next to criterion's results.
+fn write_meta(iterations: &BTreeMap<usize, BTreeMap<&'static str, usize>>) {
+    let dir = std::path::Path::new(env!("CARGO_MANIFEST_DIR")).join("../target/criterion");
+    let reference_simd =
+        FixedMatVec::<30>::new(&[0.0; 900], FixedLayout::ColumnAxpy).is_some_and(|k| k.is_simd());
+    let meta = serde_json::json!({
+        "kernel_path": Kernel::detect().path().name(),
+        "reference_simd": reference_simd,
+        "eps": EPS,
+        "run_started_unix": run_started(),
+        "iterations": iterations,
+    });
+    let text = serde_json::to_string_pretty(&meta).unwrap_or_default();
+    if let Err(e) = std::fs::create_dir_all(&dir)
+        .and_then(|_| std::fs::write(dir.join("iteration-meta.json"), text))
+    {
+        eprintln!("could not write iteration-meta.json: {e}");
+    }
+}
+
+fn config() -> Criterion {
+    Criterion::default()
+        .warm_up_time(Duration::from_millis(300))
+        .measurement_time(Duration::from_millis(1000))
+        .sample_size(30)
+        .without_plots()
+}
+
+criterion_group! {
+    name = iteration;
+    config = config();
+    targets = per_iteration_n30, per_iteration_grid, to_accuracy
+}
+criterion_main!(iteration);

@@ -1,0 +1,186 @@
+//! Prints the markdown tables of docs/benchmarks.md from one `cargo bench -p benches` run.
+//!
+//! Reads criterion's `target/criterion/<group>/<id>/new/estimates.json` (median of the
+//! per-iteration times) and `target/criterion/iteration-meta.json` (iteration counts,
+//! kernel paths, run start). Results older than the run start are reported as missing,
+//! so stale numbers from an earlier run never enter a table.
+//!
+//! Run: `cargo run -p benches --bin bench_table` after `cargo bench -p benches`.
+
+use std::path::{Path, PathBuf};
+use std::time::SystemTime;
+
+use serde_json::Value;
+
+struct Results {
+    dir: PathBuf,
+    started: Option<SystemTime>,
+}
+
+impl Results {
+    /// Median time in ns of benchmark `id` (`group/function[/parameter]`), if it ran in
+    /// this run.
+    fn ns(&self, id: &str) -> Option<f64> {
+        let path = self.dir.join(id).join("new/estimates.json");
+        let modified = std::fs::metadata(&path).and_then(|m| m.modified()).ok()?;
+        if self.started.is_some_and(|s| modified < s) {
+            return None;
+        }
+        let v: Value = serde_json::from_str(&std::fs::read_to_string(&path).ok()?).ok()?;
+        v["median"]["point_estimate"].as_f64()
+    }
+}
+
+fn fmt_time(ns: Option<f64>) -> String {
+    match ns {
+        None => "—".into(),
+        Some(t) if t < 1e3 => format!("{t:.1} ns"),
+        Some(t) if t < 1e6 => format!("{:.2} µs", t / 1e3),
+        Some(t) => format!("{:.2} ms", t / 1e6),
+    }
+}
+
+fn ratio(a: Option<f64>, b: Option<f64>) -> String {
+    match (a, b) {
+        (Some(a), Some(b)) => format!("{:.2}×", a / b),
+        _ => "—".into(),
+    }
+}
+
+fn main() {
+    let dir = Path::new(env!("CARGO_MANIFEST_DIR")).join("../target/criterion");
+    let meta: Value = std::fs::read_to_string(dir.join("iteration-meta.json"))
+        .ok()
+        .and_then(|s| serde_json::from_str(&s).ok())
+        .unwrap_or(Value::Null);
+    let started = meta["run_started_unix"]
+        .as_u64()
+        .map(|s| SystemTime::UNIX_EPOCH + std::time::Duration::from_secs(s));
+    let r = Results { dir, started };
+
+    println!(
+        "Kernel path: `{}`; reference kernel SIMD: {}; time = criterion median.\n",
+        meta["kernel_path"].as_str().unwrap_or("?"),
+        meta["reference_simd"]
+    );
+
+    // n = 30.
+    let reference = r.ns("n30/ref_column_axpy");
+    println!("### One iteration at n = 30\n");
+    println!("| benchmark | what | time | ratio to reference | target |");
+    println!("| --- | --- | ---: | ---: | ---: |");
+    let rows: &[(&str, &str, &str)] = &[
+        (
+            "n30/ref_column_axpy",
+            "**reference**: const 30×30 y = Hx, column form, AVX2+FMA (runtime detection)",
+            "",
+        ),
+        (
+            "n30/ref_row_dot",
+            "const 30×30, row dot products, AVX2+FMA",
+            "",
+        ),
+        (
+            "n30/ref_column_axpy_chained",
+            "reference, x ← (H/L)x chained (latency)",
+            "",
+        ),
+        (
+            "n30/matvec_symmetric",
+            "`kernel::matvec_symmetric` (dispatched)",
+            "",
+        ),
+        ("n30/matvec_symmetric_chained", "same, chained", ""),
+        ("n30/matvec", "`kernel::matvec`, general row-major H", ""),
+        (
+            "n30/matvec_symmetric_portable",
+            "`matvec_symmetric`, portable path (SSE2)",
+            "",
+        ),
+        ("n30/matvec_portable", "`matvec`, portable path (SSE2)", ""),
+        (
+            "n30/faer_matmul_seq",
+            "faer `matmul`, Par::Seq, preallocated",
+            "",
+        ),
+        ("n30/step/pg", "PG step (`pg.rs`)", "≤ 1.3×"),
+        ("n30/step/fista", "FISTA step (`fista.rs`)", "≤ 1.3×"),
+        (
+            "n30/step/admm",
+            "ADMM step (`admm.rs`, 1 matvec/step)",
+            "≤ 1.3×",
+        ),
+        (
+            "n30/fused_kernel/fista",
+            "`Kernel::fista_step` (one pass)",
+            "≤ 1.3×",
+        ),
+        (
+            "n30/fused_kernel/admm",
+            "`Kernel::admm_step` (one pass)",
+            "≤ 1.3×",
+        ),
+    ];
+    for (id, what, target) in rows {
+        let t = r.ns(id);
+        println!(
+            "| `{id}` | {what} | {} | {} | {target} |",
+            fmt_time(t),
+            ratio(t, reference)
+        );
+    }
+
+    // Size grid.
+    println!("\n### One iteration, size grid\n");
+    println!(
+        "| n | `matvec_symmetric` | PG step | FISTA step | ADMM step | PG / matvec | FISTA / matvec | ADMM / matvec |"
+    );
+    println!("| ---: | ---: | ---: | ---: | ---: | ---: | ---: | ---: |");
+    for n in [10, 20, 50, 100, 200, 400] {
+        let mv = r.ns(&format!("grid/matvec_symmetric/{n}"));
+        let [pg, fista, admm] = ["pg", "fista", "admm"].map(|m| r.ns(&format!("grid/{m}/{n}")));
+        println!(
+            "| {n} | {} | {} | {} | {} | {} | {} | {} |",
+            fmt_time(mv),
+            fmt_time(pg),
+            fmt_time(fista),
+            fmt_time(admm),
+            ratio(pg, mv),
+            ratio(fista, mv),
+            ratio(admm, mv)
+        );
+    }
+
+    // Time to accuracy.
+    let eps = meta["eps"].as_f64().unwrap_or(f64::NAN);
+    println!(
+        "\n### Time to ‖z − z*‖ ≤ {eps:e}·‖z⁰ − z*‖ (load θ + cold start + K steps) and Clarabel's solve\n"
+    );
+    println!(
+        "| n | PG: K, time | FISTA: K, time | ADMM: K, time | Clarabel: IPM iterations, time | Clarabel / fastest |"
+    );
+    println!("| ---: | ---: | ---: | ---: | ---: | ---: |");
+    for n in [10, 20, 30, 50, 100, 200, 400] {
+        let it = &meta["iterations"][n.to_string()];
+        let cell = |m: &str, key: &str| {
+            let t = r.ns(&format!("accuracy/{m}/{n}"));
+            (
+                t,
+                format!(
+                    "{}, {}",
+                    it[key].as_u64().map_or("?".into(), |k| k.to_string()),
+                    fmt_time(t)
+                ),
+            )
+        };
+        let (pg, pg_s) = cell("pg", "pg");
+        let (fi, fi_s) = cell("fista", "fista");
+        let (ad, ad_s) = cell("admm", "admm");
+        let (cl, cl_s) = cell("clarabel", "clarabel_ipm_iterations");
+        let fastest = [pg, fi, ad].into_iter().flatten().reduce(f64::min);
+        println!(
+            "| {n} | {pg_s} | {fi_s} | {ad_s} | {cl_s} | {} |",
+            ratio(cl, fastest)
+        );
+    }
+}

@@ -563,7 +563,12 @@ mod avx2 {
     /// i < n.
     #[inline]
     #[target_feature(enable = "avx2,fma")]
-    unsafe fn rows8(h: *const f64, n: usize, x: *const f64, i: usize) -> (__m256d, __m256d) {
+    unsafe fn rows8<const R: usize>(
+        h: *const f64,
+        n: usize,
+        x: *const f64,
+        i: usize,
+    ) -> (__m256d, __m256d) {
         let last = n - 1;
         // SAFETY (all `add`s in this block): every row index is ≤ n − 1, so each row
         // pointer starts inside the n² allocation and the row's n entries lie in it.
@@ -593,14 +598,19 @@ mod avx2 {
             }
             j += 4;
         }
-        if full < n {
-            let m = first_lanes(n - full);
-            // SAFETY: masked loads touch only the n − full < 4 lanes that lie inside x and
-            // inside each row (masked-off lanes are not accessed and cannot fault).
+        if R > 0 {
+            // SAFETY: only the R = n − full < 4 entries from `full` are read, inside x and
+            // inside each row: 64/128-bit moves (zero-extended) for R = 1, 2, a masked
+            // load (masked-off lanes are not accessed) for R = 3.
             unsafe {
-                let xv = _mm256_maskload_pd(x.add(full), m);
+                let tail = |p: *const f64| match R {
+                    1 => _mm256_zextpd128_pd256(_mm_load_sd(p)),
+                    2 => _mm256_zextpd128_pd256(_mm_loadu_pd(p)),
+                    _ => _mm256_maskload_pd(p, first_lanes(3)),
+                };
+                let xv = tail(x.add(full));
                 for r in 0..8 {
-                    a[r] = _mm256_fmadd_pd(_mm256_maskload_pd(p[r].add(full), m), xv, a[r]);
+                    a[r] = _mm256_fmadd_pd(tail(p[r].add(full)), xv, a[r]);
                 }
             }
         }
@@ -614,12 +624,28 @@ mod avx2 {
     /// AVX2 and FMA available; n ≥ 1; h.len() = n²; x.len() ≥ n; y.len() ≥ n.
     #[target_feature(enable = "avx2,fma")]
     pub(super) unsafe fn matvec(h: &[f64], n: usize, x: &[f64], y: &mut [f64]) {
+        // SAFETY: forwarded contract; R = n mod 4.
+        unsafe {
+            match n % 4 {
+                0 => matvec_r::<0>(h, n, x, y),
+                1 => matvec_r::<1>(h, n, x, y),
+                2 => matvec_r::<2>(h, n, x, y),
+                _ => matvec_r::<3>(h, n, x, y),
+            }
+        }
+    }
+
+    /// # Safety
+    /// As [`matvec`], and R = n mod 4.
+    #[inline]
+    #[target_feature(enable = "avx2,fma")]
+    unsafe fn matvec_r<const R: usize>(h: &[f64], n: usize, x: &[f64], y: &mut [f64]) {
         let (hp, xp, yp) = (h.as_ptr(), x.as_ptr(), y.as_mut_ptr());
         let mut i = 0;
         while i + 8 <= n {
             // SAFETY: caller's contract; i < n; rows i..i+8 and y[i..i+8] are in bounds.
             unsafe {
-                let (s0, s1) = rows8(hp, n, xp, i);
+                let (s0, s1) = rows8::<R>(hp, n, xp, i);
                 _mm256_storeu_pd(yp.add(i), s0);
                 _mm256_storeu_pd(yp.add(i + 4), s1);
             }
@@ -627,7 +653,7 @@ mod avx2 {
         }
         if i < n {
             // SAFETY: caller's contract; i < n.
-            let (s0, s1) = unsafe { rows8(hp, n, xp, i) };
+            let (s0, s1) = unsafe { rows8::<R>(hp, n, xp, i) };
             let mut tmp = [0.0f64; 8];
             // SAFETY: `tmp` holds eight f64.
             unsafe {

@@ -87,6 +87,9 @@ fn per_iteration_n30(c: &mut Criterion) {
     let inst = instance(N);
     let h = inst.qp.h_row_major();
     let mut g = c.benchmark_group("n30");
+    // Many short samples: on a shared machine most of them fall inside one time slice.
+    g.sample_size(200)
+        .measurement_time(Duration::from_millis(2000));
 
     // Reference kernels: compile-time N, AVX2+FMA through run-time detection.
     let xs = x_vec(N);
@@ -250,6 +253,7 @@ fn admm_map(inst: &Instance, rho: f64) -> Vec<f64> {
 fn per_iteration_grid(c: &mut Criterion) {
     run_started();
     let mut g = c.benchmark_group("grid");
+    g.sample_size(100);
     for n in GRID {
         let inst = instance(n);
         let h = inst.qp.h_row_major();

@@ -81,6 +81,169 @@ fn run_started() -> u64 {
     })
 }
 
+/// Interleaved timing at n = 30, outside criterion: every round times one batch of each
+/// variant in turn, and a variant's figure is its fastest batch. Criterion measures one
+/// benchmark after the other for seconds each, so on a shared VM a drift of the host's
+/// speed between two benchmarks enters their ratio; here every variant sees the same
+/// conditions within each round, so the *ratios* are the robust figures.
+fn interleaved_n30(_c: &mut Criterion) {
+    run_started();
+    const N: usize = 30;
+    const ROUNDS: usize = 300;
+    const BATCH: usize = 2000;
+    let inst = instance(N);
+    let h = inst.qp.h_row_major().to_vec();
+    let xs = x_vec(N);
+    let x: [f64; N] = std::array::from_fn(|i| xs[i]);
+    let Some(fixed) = FixedMatVec::<N>::new(&h, FixedLayout::ColumnAxpy) else {
+        panic!("30×30 H")
+    };
+    let (pg, fista, admm) = methods(&inst);
+    let k = Kernel::detect();
+    let (lo, hi) = (
+        inst.qp.zset().lower().to_vec(),
+        inst.qp.zset().upper().to_vec(),
+    );
+    let mut q = vec![0.0; N];
+    inst.qp.linear_term(&inst.theta, &mut q);
+    let (rho, relax) = (admm.rho(), admm.relaxation());
+    let m_rho = admm_map(&inst, rho);
+    let mut mq = vec![0.0; N];
+    matvec_symmetric(&m_rho, N, &q, &mut mq);
+    mq.iter_mut().for_each(|v| *v /= rho);
+    let (alpha, beta) = (fista.step_size(), fista.momentum());
+
+    let mut variants: Vec<(&'static str, Batch)> = Vec::new();
+    {
+        let mut y = [0.0; N];
+        variants.push((
+            "ref_column_axpy",
+            Box::new(move || {
+                for _ in 0..BATCH {
+                    fixed.apply(black_box(&x), &mut y);
+                    black_box(&mut y);
+                }
+            }),
+        ));
+    }
+    {
+        let (h, xs, mut y) = (h.clone(), xs.clone(), vec![0.0; N]);
+        variants.push((
+            "matvec_symmetric",
+            Box::new(move || {
+                for _ in 0..BATCH {
+                    matvec_symmetric(&h, N, black_box(&xs), &mut y);
+                    black_box(&mut y);
+                }
+            }),
+        ));
+    }
+    {
+        let (h, xs, mut y) = (h.clone(), xs.clone(), vec![0.0; N]);
+        variants.push((
+            "matvec",
+            Box::new(move || {
+                for _ in 0..BATCH {
+                    matvec(&h, N, black_box(&xs), &mut y);
+                    black_box(&mut y);
+                }
+            }),
+        ));
+    }
+    fn stepper<M: IterationMap + 'static>(map: M, theta: &[f64]) -> Batch {
+        let mut s = map.new_state();
+        map.load(&mut s, theta);
+        map.cold_start(&mut s);
+        Box::new(move || {
+            for _ in 0..BATCH {
+                map.step(black_box(&mut s));
+            }
+        })
+    }
+    variants.push(("step/pg", stepper(pg, &inst.theta)));
+    variants.push(("step/fista", stepper(fista, &inst.theta)));
+    variants.push(("step/admm", stepper(admm, &inst.theta)));
+    {
+        let (h, q, lo, hi) = (h.clone(), q.clone(), lo.clone(), hi.clone());
+        let alpha = 2.0 / (inst.qp.l() + inst.qp.mu());
+        let (mut z, mut next) = (vec![0.0; N], vec![0.0; N]);
+        variants.push((
+            "fused_kernel/pg",
+            Box::new(move || {
+                for _ in 0..BATCH {
+                    k.projected_gradient_step(&h, N, &z, &q, alpha, &lo, &hi, &mut next);
+                    std::mem::swap(&mut z, &mut next);
+                }
+            }),
+        ));
+    }
+    {
+        let (h, q, lo, hi) = (h.clone(), q.clone(), lo.clone(), hi.clone());
+        let (mut y, mut y_next, mut z) = (vec![0.0; N], vec![0.0; N], vec![0.0; N]);
+        variants.push((
+            "fused_kernel/fista",
+            Box::new(move || {
+                for _ in 0..BATCH {
+                    k.fista_step(&h, N, &y, &q, alpha, &lo, &hi, beta, &mut z, &mut y_next);
+                    std::mem::swap(&mut y, &mut y_next);
+                }
+            }),
+        ));
+    }
+    {
+        let (mut t, mut t_next) = (vec![0.0; N], vec![0.0; N]);
+        let (mut z, mut v, mut dual) = (vec![0.0; N], vec![0.0; N], vec![0.0; N]);
+        variants.push((
+            "fused_kernel/admm",
+            Box::new(move || {
+                for _ in 0..BATCH {
+                    k.admm_step(
+                        &m_rho,
+                        N,
+                        &t,
+                        &mq,
+                        relax,
+                        rho,
+                        &lo,
+                        &hi,
+                        &mut z,
+                        &mut v,
+                        &mut dual,
+                        &mut t_next,
+                    );
+                    std::mem::swap(&mut t, &mut t_next);
+                }
+            }),
+        ));
+    }
+
+    let mut times = vec![Vec::with_capacity(ROUNDS); variants.len()];
+    for _ in 0..ROUNDS {
+        for ((_, f), t) in variants.iter_mut().zip(&mut times) {
+            let start = std::time::Instant::now();
+            f();
+            t.push(start.elapsed().as_nanos() as f64 / BATCH as f64);
+        }
+    }
+    let mut out = serde_json::Map::new();
+    for ((name, _), t) in variants.iter().zip(&mut times) {
+        t.sort_by(f64::total_cmp);
+        let (min, median) = (t[0], t[t.len() / 2]);
+        eprintln!("interleaved n30 {name}: min {min:.1} ns, median {median:.1} ns");
+        out.insert(
+            (*name).into(),
+            serde_json::json!({ "min_ns": min, "median_ns": median }),
+        );
+    }
+    let _ = INTERLEAVED.set(serde_json::Value::Object(out));
+}
+
+/// One timed batch of a variant in [`interleaved_n30`].
+type Batch = Box<dyn FnMut()>;
+
+/// Results of [`interleaved_n30`], written into the meta file at the end of the run.
+static INTERLEAVED: std::sync::OnceLock<serde_json::Value> = std::sync::OnceLock::new();
+
 fn per_iteration_n30(c: &mut Criterion) {
     run_started();
     const N: usize = 30;
@@ -375,6 +538,7 @@ fn write_meta(iterations: &BTreeMap<usize, BTreeMap<&'static str, usize>>) {
         "eps": EPS,
         "run_started_unix": run_started(),
         "iterations": iterations,
+        "interleaved_n30": INTERLEAVED.get(),
     });
     let text = serde_json::to_string_pretty(&meta).unwrap_or_default();
     if let Err(e) = std::fs::create_dir_all(&dir)
@@ -395,6 +559,6 @@ fn config() -> Criterion {
 criterion_group! {
     name = iteration;
     config = config();
-    targets = per_iteration_n30, per_iteration_grid, to_accuracy
+    targets = interleaved_n30, per_iteration_n30, per_iteration_grid, to_accuracy
 }
 criterion_main!(iteration);

@@ -99,7 +99,8 @@ pub struct Admm {
     kernel: Kernel,
 }
 
-/// State of [`Admm`]: z, split variable v, unscaled dual y, loaded q and (H + ρI)⁻¹q, scratch.
+/// State of [`Admm`]: z, split variable v, unscaled dual y, loaded q and (H + ρI)⁻¹q, the
+/// next product's input t = v − y/ρ and the buffer the fused step writes t⁺ into.
 #[derive(Debug, Clone)]
 pub struct AdmmState {
     z: Vec<f64>,
@@ -107,7 +108,9 @@ pub struct AdmmState {
     y: Vec<f64>,
     q: Vec<f64>,
     mq: Vec<f64>,
+    /// t = v − y/ρ (= 2v − s for the DR variable s), kept in step with v and y.
     t: Vec<f64>,
+    t_next: Vec<f64>,
 }
 
 impl Admm {
@@ -268,23 +271,27 @@ impl Admm {
             .sqrt()
     }
 
-    /// Sets s = z⁰ + y⁰/ρ, v = Π_Z(s), y = ρ(s − v), keeping z = z⁰ (y⁰ already in `state.y`).
+    /// Sets s = z⁰ + y⁰/ρ, v = Π_Z(s), y = ρ(s − v) and the step's input t = v − y/ρ =
+    /// 2v − s (the formula the fused step uses for t⁺), keeping z = z⁰ (y⁰ already in
+    /// `state.y`).
     fn set_from_dr(&self, s: &mut AdmmState) {
         let ir = 1.0 / self.rho;
-        for ((t, z), y) in s.t.iter_mut().zip(&s.z).zip(&s.y) {
-            *t = z + ir * y;
+        // `t_next` holds s here (scratch: the next step overwrites it).
+        for ((dr, z), y) in s.t_next.iter_mut().zip(&s.z).zip(&s.y) {
+            *dr = z + ir * y;
         }
-        s.v.copy_from_slice(&s.t);
+        s.v.copy_from_slice(&s.t_next);
         self.qp.project(&mut s.v);
-        for ((y, t), v) in s.y.iter_mut().zip(&s.t).zip(&s.v) {
-            *y = self.rho * (t - v);
+        for (((y, t), dr), v) in s.y.iter_mut().zip(&mut s.t).zip(&s.t_next).zip(&s.v) {
+            *y = self.rho * (dr - v);
+            *t = 2.0 * v - dr;
         }
     }
 
     /// y = −(Hz + q) for the current z (the gradient dual).
     fn gradient_dual(&self, s: &mut AdmmState) {
         self.kernel
-            .matvec(self.qp.h_row_major(), self.qp.n(), &s.z, &mut s.y);
+            .matvec_symmetric(self.qp.h_row_major(), self.qp.n(), &s.z, &mut s.y);
         for (y, q) in s.y.iter_mut().zip(&s.q) {
             *y = -(*y + q);
         }
@@ -309,15 +316,17 @@ impl IterationMap for Admm {
             q: self.qp.q0().to_vec(),
             mq: vec![0.0; n],
             t: vec![0.0; n],
+            t_next: vec![0.0; n],
         };
-        self.kernel.matvec(&self.m_inv, n, &s.q, &mut s.mq);
+        self.kernel
+            .matvec_symmetric(&self.m_inv, n, &s.q, &mut s.mq);
         self.cold_start(&mut s);
         s
     }
     fn load(&self, state: &mut AdmmState, theta: &[f64]) {
         self.qp.linear_term(theta, &mut state.q);
         self.kernel
-            .matvec(&self.m_inv, self.qp.n(), &state.q, &mut state.mq);
+            .matvec_symmetric(&self.m_inv, self.qp.n(), &state.q, &mut state.mq);
     }
     /// Warm start from z⁰ and, optionally, the unscaled multiplier y⁰ of z = v.
     /// Without y⁰ the dual is set to −(Hz⁰ + q) for the *loaded* q (load θ first), which
@@ -339,23 +348,24 @@ impl IterationMap for Admm {
     }
     #[inline]
     fn step(&self, s: &mut AdmmState) {
-        let n = self.qp.n();
-        let (rho, ir, a) = (self.rho, 1.0 / self.rho, self.alpha);
-        for ((t, v), y) in s.t.iter_mut().zip(&s.v).zip(&s.y) {
-            *t = v - ir * y;
-        }
-        self.kernel.matvec(&self.m_rho, n, &s.t, &mut s.z);
-        for (z, mq) in s.z.iter_mut().zip(&s.mq) {
-            *z -= mq;
-        }
-        for (((t, z), v), y) in s.t.iter_mut().zip(&s.z).zip(&s.v).zip(&s.y) {
-            *t = a * z + (1.0 - a) * v + ir * y;
-        }
-        s.v.copy_from_slice(&s.t);
-        self.qp.project(&mut s.v);
-        for ((y, t), v) in s.y.iter_mut().zip(&s.t).zip(&s.v) {
-            *y = rho * (t - v);
-        }
+        let zset = self.qp.zset();
+        // One pass over ρ(H + ρI)⁻¹ (exactly symmetric, see `new`): z⁺ = ρ(H + ρI)⁻¹t −
+        // (H + ρI)⁻¹q with t = v − y/ρ, then w, v⁺, y⁺ and t⁺ = 2v⁺ − w row by row.
+        self.kernel.admm_step(
+            &self.m_rho,
+            self.qp.n(),
+            &s.t,
+            &s.mq,
+            self.alpha,
+            self.rho,
+            zset.lower(),
+            zset.upper(),
+            &mut s.z,
+            &mut s.v,
+            &mut s.y,
+            &mut s.t_next,
+        );
+        std::mem::swap(&mut s.t, &mut s.t_next);
     }
     fn iterate<'s>(&self, state: &'s AdmmState) -> &'s [f64] {
         &state.v

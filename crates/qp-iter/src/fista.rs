@@ -55,12 +55,13 @@ pub struct Fista {
     kernel: Kernel,
 }
 
-/// State of [`Fista`]: iterate x_k, previous iterate, extrapolated point y_k, loaded q.
+/// State of [`Fista`]: iterate x_k, extrapolated point y_k, the buffer the fused step
+/// writes y_{k+1} into (swapped with y afterwards), loaded q.
 #[derive(Debug, Clone)]
 pub struct FistaState {
     z: Vec<f64>,
-    z_prev: Vec<f64>,
     y: Vec<f64>,
+    y_next: Vec<f64>,
     q: Vec<f64>,
     /// True right after a warm/cold start: the next step is the plain PG step x₀ = T(z⁰).
     restart: bool,
@@ -125,9 +126,9 @@ impl Fista {
         self.inv_l
     }
 
+    /// y = z⁰ and the restart flag: the next step is T(z⁰) with zero momentum.
     fn reset(&self, s: &mut FistaState) {
         s.y.copy_from_slice(&s.z);
-        s.z_prev.copy_from_slice(&s.z);
         s.restart = true;
     }
 }
@@ -145,8 +146,8 @@ impl IterationMap for Fista {
         let n = self.qp.n();
         let mut s = FistaState {
             z: vec![0.0; n],
-            z_prev: vec![0.0; n],
             y: vec![0.0; n],
+            y_next: vec![0.0; n],
             q: self.qp.q0().to_vec(),
             restart: true,
         };
@@ -167,26 +168,25 @@ impl IterationMap for Fista {
     }
     #[inline]
     fn step(&self, s: &mut FistaState) {
-        let n = self.qp.n();
         let zset = self.qp.zset();
-        // x_{k+1} = T(y_k) written into the old x_{k−1} buffer; x_k becomes z_prev.
-        std::mem::swap(&mut s.z, &mut s.z_prev);
-        self.kernel.projected_gradient_step(
+        // One pass over H: x_{k+1} = T(y_k) over x_k in `z`, y_{k+1} = x_{k+1} +
+        // b(x_{k+1} − x_k) into `y_next`. On the restart step y = z⁰ and b = 0, so the step
+        // is exactly the PG step x₀ = T(z⁰) and y₀ = x₀ (the momentum is reset).
+        let b = if s.restart { 0.0 } else { self.beta };
+        s.restart = false;
+        self.kernel.fista_step(
             self.qp.h_row_major(),
-            n,
+            self.qp.n(),
             &s.y,
             &s.q,
             self.inv_l,
             zset.lower(),
             zset.upper(),
+            b,
             &mut s.z,
+            &mut s.y_next,
         );
-        // y₀ = x₀ after the restart step (momentum reset), extrapolate afterwards.
-        let b = if s.restart { 0.0 } else { self.beta };
-        s.restart = false;
-        for ((y, z), zp) in s.y.iter_mut().zip(&s.z).zip(&s.z_prev) {
-            *y = z + b * (z - zp);
-        }
+        std::mem::swap(&mut s.y, &mut s.y_next);
     }
     fn iterate<'s>(&self, state: &'s FistaState) -> &'s [f64] {
         &state.z

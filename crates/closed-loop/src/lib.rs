@@ -13,6 +13,7 @@ pub mod analysis;
 pub mod gamma13;
 pub mod record;
 pub mod sim;
+pub mod sweep;
 
 pub use record::{MheStep, MheTrace, Trace};
 pub use sim::{

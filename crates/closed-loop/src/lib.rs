@@ -10,6 +10,7 @@
 //! - [`record`]: the per-step [`Trace`] of a run (with the MHE records), JSON output.
 
 pub mod analysis;
+pub mod certificate;
 pub mod gamma13;
 pub mod record;
 pub mod sim;

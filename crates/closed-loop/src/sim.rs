@@ -552,6 +552,23 @@ impl Solver {
     }
 }
 
+impl Solver {
+    /// The certificate φ(K) of this solver on `qp`, built exactly as the case-study
+    /// estimator builds its maps (PG with step 2/(L+μ), V-FISTA, ADMM with default penalty).
+    pub fn certificate_for(
+        self,
+        qp: qp_iter::ParametricQp,
+    ) -> qp_iter::Result<qp_iter::Certificate> {
+        Ok(match self {
+            Solver::Pg => ProjectedGradient::new(qp, StepRule::Optimal)?
+                .certificate()
+                .clone(),
+            Solver::Fista => Fista::new(qp).certificate().clone(),
+            Solver::Admm => Admm::new(qp, AdmmParams::default())?.certificate().clone(),
+        })
+    }
+}
+
 impl fmt::Display for Solver {
     fn fmt(&self, f: &mut fmt::Formatter<'_>) -> fmt::Result {
         f.write_str(self.name())
@@ -711,6 +728,9 @@ fn case_study_record_hook(e: &CaseStudyEstimator) -> Option<&MheRecord> {
 
 /// The case study's controller.
 #[derive(Debug)]
+// Built once per run and stepped in place (never moved in the loop), so variant sizes
+// do not matter for speed; boxing them would add an indirection per step instead.
+#[allow(clippy::large_enum_variant)]
 pub enum CaseStudyController {
     /// Exact MPC (Clarabel; boxed, it is large).
     Exact(Box<ExactMpc>),

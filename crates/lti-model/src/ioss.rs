@@ -103,7 +103,7 @@ pub struct IossCertificate {
 }
 
 /// JSON form of [`IossCertificate`] (matrices as row-major nested arrays).
-#[derive(Debug, Clone, Serialize)]
+#[derive(Debug, Clone, PartialEq, Serialize)]
 pub struct IossReport {
     /// P.
     pub p: Vec<Vec<f64>>,

@@ -3,3 +3,4 @@
 
 mod analysis;
 mod sim;
+mod sweep;

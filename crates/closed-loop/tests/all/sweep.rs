@@ -1,0 +1,355 @@
+//! Sweeps: determinism across thread counts, shard + merge = unsharded, resume after lost
+//! points, per-run metrics against a fresh loop, point quantiles against runs.csv, bad
+//! input.
+
+use std::fs;
+use std::path::{Path, PathBuf};
+
+use closed_loop::sim::{CaseStudyOptions, Solver, build_case_study};
+use closed_loop::sweep::{
+    Metric, NoProgress, RunOptions, Shard, Sweep, SweepConfig, SweepError, Table, merge_point_dirs,
+    point_file_name, quantile_sorted, run_seed,
+};
+use lti_model::scenario::Scenario;
+
+const SCENARIO: &str = concat!(
+    env!("CARGO_MANIFEST_DIR"),
+    "/../../scenarios/case-study.toml"
+);
+
+/// A fresh, empty directory under the test target's temp dir.
+fn scratch(name: &str) -> PathBuf {
+    let d = Path::new(env!("CARGO_TARGET_TMPDIR"))
+        .join("sweep-tests")
+        .join(name);
+    let _ = fs::remove_dir_all(&d);
+    fs::create_dir_all(&d).unwrap();
+    d
+}
+
+/// Small but not trivial: 2 solvers × 3 K × 2 scales, 5 seeds, T = 12.
+fn small_config(extra: &str) -> SweepConfig {
+    let text = format!(
+        "name = \"small\"\nscenario = \"{SCENARIO}\"\nk = [1, 4, 25]\nsolvers = [\"pg\", \"admm\"]\n\
+         seeds = 5\nscales = [0.5, 1.0]\nsteps = 12\nbase_seed = 99\n{extra}"
+    );
+    SweepConfig::from_toml_str(&text, Path::new(".")).unwrap()
+}
+
+fn run(
+    sweep: &Sweep,
+    out: &Path,
+    threads: usize,
+    shard: Option<Shard>,
+) -> closed_loop::sweep::SweepReport {
+    sweep
+        .run(
+            &RunOptions {
+                out_dir: out.to_path_buf(),
+                threads,
+                shard,
+            },
+            &NoProgress,
+        )
+        .unwrap()
+}
+
+fn read_table(path: &Path) -> Table {
+    Table::parse(&fs::read_to_string(path).unwrap()).unwrap()
+}
+
+fn outputs(dir: &Path) -> (String, String) {
+    (
+        read_table(&dir.join("runs.csv")).without_timing(),
+        read_table(&dir.join("points.csv")).without_timing(),
+    )
+}
+
+#[test]
+fn one_and_two_threads_give_identical_outputs() {
+    let sweep = Sweep::new(small_config("")).unwrap();
+    let (a, b) = (scratch("threads-1"), scratch("threads-2"));
+    let ra = run(&sweep, &a, 1, None);
+    let rb = run(&sweep, &b, 2, None);
+    assert_eq!((ra.computed, rb.computed), (12, 12));
+    assert_eq!(ra.steps_simulated, 12 * 5 * 12);
+    let (oa, ob) = (outputs(&a), outputs(&b));
+    assert_eq!(oa, ob);
+    // The timing columns exist (and are excluded above), everything else is there.
+    let runs = read_table(&a.join("runs.csv"));
+    assert_eq!(runs.rows.len(), 12 * 5);
+    assert!(runs.column("wall_ms").is_some());
+    assert!(
+        runs.rows
+            .iter()
+            .all(|r| r[runs.column("wall_ms").unwrap()].parse::<f64>().unwrap() > 0.0)
+    );
+    // Different seeds along a point's runs, the same seed for run r across points
+    // (common random numbers).
+    let seed_col = runs.column("seed").unwrap();
+    let seeds: Vec<&str> = (0..5).map(|r| runs.rows[r][seed_col].as_str()).collect();
+    for (i, row) in runs.rows.iter().enumerate() {
+        assert_eq!(row[seed_col], seeds[i % 5]);
+    }
+}
+
+#[test]
+fn sharded_and_merged_equals_unsharded() {
+    let sweep = Sweep::new(small_config("")).unwrap();
+    let whole = scratch("unsharded");
+    run(&sweep, &whole, 2, None);
+    let shards: Vec<PathBuf> = (1..=3).map(|i| scratch(&format!("shard-{i}"))).collect();
+    for (i, d) in shards.iter().enumerate() {
+        let r = run(
+            &sweep,
+            d,
+            1,
+            Some(Shard {
+                index: i + 1,
+                count: 3,
+            }),
+        );
+        assert_eq!(r.computed, 4);
+        assert!(!r.assembled);
+        assert!(!d.join("runs.csv").exists());
+    }
+    // One shard alone cannot be assembled.
+    let lone = scratch("merged-lone");
+    let e = merge_point_dirs(&sweep, &[shards[0].as_path()], &lone).unwrap_err();
+    assert!(
+        matches!(
+            e,
+            SweepError::Incomplete {
+                missing: 8,
+                total: 12,
+                first: 1
+            }
+        ),
+        "{e}"
+    );
+    let merged = scratch("merged");
+    let dirs: Vec<&Path> = shards.iter().map(PathBuf::as_path).collect();
+    assert_eq!(merge_point_dirs(&sweep, &dirs, &merged).unwrap(), 12);
+    assert_eq!(outputs(&merged), outputs(&whole));
+    // The merged directory is a finished sweep: a rerun computes nothing.
+    let r = run(&sweep, &merged, 2, None);
+    assert_eq!((r.computed, r.skipped), (0, 12));
+}
+
+#[test]
+fn rerun_resumes_and_skips_finished_points() {
+    let sweep = Sweep::new(small_config("")).unwrap();
+    let reference = scratch("resume-reference");
+    run(&sweep, &reference, 2, None);
+    let d = scratch("resume");
+    run(&sweep, &d, 2, None);
+    // Simulate a kill: two finished points lost, a torn temporary file left behind.
+    let pdir = d.join("points");
+    fs::remove_file(pdir.join(point_file_name(3))).unwrap();
+    fs::remove_file(pdir.join(point_file_name(10))).unwrap();
+    fs::write(
+        pdir.join(format!("{}.tmp", point_file_name(3))),
+        "# suboptimal-mhe sweep point v1 ab\n0,1",
+    )
+    .unwrap();
+    fs::remove_file(d.join("runs.csv")).unwrap();
+    let r = run(&sweep, &d, 1, None);
+    assert_eq!((r.computed, r.skipped), (2, 10));
+    assert_eq!(r.steps_simulated, 2 * 5 * 12);
+    assert_eq!(outputs(&d), outputs(&reference));
+    // A point file of another configuration is refused, not mixed in.
+    let other = Sweep::new(small_config("bounded_factor = 10.0")).unwrap();
+    assert_ne!(other.fingerprint(), sweep.fingerprint());
+    let e = other
+        .run(
+            &RunOptions {
+                out_dir: d.clone(),
+                threads: 1,
+                shard: None,
+            },
+            &NoProgress,
+        )
+        .unwrap_err();
+    assert!(matches!(e, SweepError::Fingerprint { .. }), "{e}");
+    // A truncated point file is reported (never taken as finished).
+    let path = pdir.join(point_file_name(4));
+    let text = fs::read_to_string(&path).unwrap();
+    fs::write(&path, &text[..text.len() - 3]).unwrap();
+    let e = sweep.finished_points(&d).unwrap_err();
+    assert!(matches!(e, SweepError::PointFile { .. }), "{e}");
+}
+
+/// ‖v‖₂, written out.
+fn norm(v: &[f64]) -> f64 {
+    v.iter().map(|a| a * a).sum::<f64>().sqrt()
+}
+
+#[test]
+fn run_rows_match_a_fresh_loop_per_seed() {
+    let cfg = small_config("");
+    let sweep = Sweep::new(cfg.clone()).unwrap();
+    let d = scratch("fresh");
+    run(&sweep, &d, 2, None);
+    let runs = read_table(&d.join("runs.csv"));
+    let scenario = Scenario::from_file(SCENARIO).unwrap();
+    // Check a few rows of different points against a loop built from scratch.
+    for row in [0, 7, 23, 38, 59] {
+        let idx: usize = runs.text(row, "point").unwrap().parse().unwrap();
+        let p = sweep.points()[idx];
+        let r: usize = runs.text(row, "run").unwrap().parse().unwrap();
+        let seed = run_seed(99, &p, r, true);
+        assert_eq!(runs.text(row, "seed").unwrap(), seed.to_string());
+        let mut s = scenario.clone();
+        s.noise.scale = p.scale;
+        let mut opts = CaseStudyOptions::from_scenario(&s).unwrap();
+        opts.solver = p.solver;
+        opts.iterations = p.k;
+        opts.seed = seed;
+        opts.steps = 12;
+        let mut lp = build_case_study(&s, &opts).unwrap();
+        let tr = lp.run().unwrap();
+        // Brute-force norms from the trace's vectors, not its summary methods.
+        let sup_e = (0..12).map(|t| norm(tr.e(t).unwrap())).fold(0.0, f64::max);
+        let sup_x = (0..=12).map(|t| norm(tr.x(t).unwrap())).fold(0.0, f64::max);
+        let sup_w = (0..12).map(|t| norm(tr.w(t).unwrap())).fold(0.0, f64::max);
+        let tail_e = (9..12).map(|t| norm(tr.e(t).unwrap())).sum::<f64>() / 3.0;
+        let tail_x = (9..12).map(|t| norm(tr.x(t).unwrap())).sum::<f64>() / 3.0;
+        let num = |c: &str| runs.number(row, c).unwrap();
+        assert_eq!(num("sup_e"), sup_e, "row {row}");
+        assert_eq!(num("sup_x"), sup_x);
+        assert_eq!(num("sup_w"), sup_w);
+        assert!((num("tail_mean_e") - tail_e).abs() <= 1e-12 * tail_e.max(1.0));
+        assert!((num("tail_mean_x") - tail_x).abs() <= 1e-12 * tail_x.max(1.0));
+        assert_eq!(num("final_e"), norm(tr.e(11).unwrap()));
+        assert_eq!(num("final_x"), norm(tr.x(12).unwrap()));
+        assert_eq!(num("gain_e"), sup_e / sup_w);
+        assert_eq!(num("gain_x"), sup_x / sup_w);
+        // ‖w‖ ≤ scale·0.1·√5 for the uniform box.
+        assert!(sup_w <= p.scale * 0.1 * 5f64.sqrt());
+        // The exact MPC stays in 𝒰 (up to the interior-point tolerance); PG's iterate is
+        // feasible by projection.
+        assert!(num("input_violation") <= 1e-7, "{}", num("input_violation"));
+        if p.solver == Solver::Pg {
+            assert_eq!(num("mhe_violation"), 0.0);
+        }
+        assert_eq!(runs.text(row, "bounded"), Some("1"));
+        assert_eq!(runs.text(row, "steps"), Some("12"));
+        assert_eq!(runs.text(row, "error"), Some(""));
+    }
+}
+
+#[test]
+fn point_quantiles_match_the_runs() {
+    let sweep = Sweep::new(small_config("")).unwrap();
+    let d = scratch("quantiles");
+    run(&sweep, &d, 2, None);
+    let runs = read_table(&d.join("runs.csv"));
+    let points = read_table(&d.join("points.csv"));
+    assert_eq!(points.rows.len(), 12);
+    for (row, p) in sweep.points().iter().enumerate() {
+        assert_eq!(points.number(row, "k"), Some(p.k as f64));
+        assert_eq!(points.number(row, "runs"), Some(5.0));
+        assert_eq!(points.number(row, "bounded_fraction"), Some(1.0));
+        for m in [Metric::SupE, Metric::TailMeanX, Metric::GainX] {
+            let mut v: Vec<f64> = (0..runs.rows.len())
+                .filter(|&r| runs.text(r, "point") == Some(&p.index.to_string()))
+                .map(|r| runs.number(r, m.name()).unwrap())
+                .collect();
+            assert_eq!(v.len(), 5);
+            v.sort_by(f64::total_cmp);
+            // With 5 values, q50 is the middle one and q05 = v0 + 0.2 (v1 − v0).
+            assert_eq!(points.number(row, &format!("{}_q50", m.name())), Some(v[2]));
+            assert_eq!(points.number(row, &format!("{}_max", m.name())), Some(v[4]));
+            let q05 = v[0] + 0.2 * (v[1] - v[0]);
+            let got = points.number(row, &format!("{}_q05", m.name())).unwrap();
+            assert!((got - q05).abs() <= 1e-12 * q05.abs().max(1.0));
+            assert_eq!(
+                quantile_sorted(&v, 0.95),
+                points.number(row, &format!("{}_q95", m.name()))
+            );
+        }
+        // The theoretical side is present for every point (a value or "void" + reason).
+        let cert = points.text(row, "certified").unwrap();
+        assert!(["yes", "no", "void"].contains(&cert), "{cert}");
+        if cert == "void" {
+            assert!(!points.text(row, "void_reason").unwrap().is_empty());
+        }
+    }
+}
+
+#[test]
+fn bounded_flag_follows_the_documented_threshold() {
+    // sup‖x‖ ≥ ‖x₀‖ ≈ 21 > 0.5·(1 + ‖x₀‖)? No: 0.5(1 + 21) = 11 < 21, so every run is
+    // unbounded with factor 0.5, and bounded with the default 1000.
+    let sweep = Sweep::new(small_config("bounded_factor = 0.5\nmetrics = [\"sup_x\"]")).unwrap();
+    let d = scratch("bounded");
+    run(&sweep, &d, 2, None);
+    let points = read_table(&d.join("points.csv"));
+    assert!((0..12).all(|r| points.number(r, "bounded_fraction") == Some(0.0)));
+    // Only the kept metric is written.
+    let runs = read_table(&d.join("runs.csv"));
+    assert!(runs.column("sup_x").is_some() && runs.column("sup_e").is_none());
+    assert!(points.column("sup_x_q95").is_some() && points.column("sup_e_q95").is_none());
+}
+
+#[test]
+fn exact_solve_records_epsilon() {
+    let cfg = small_config("exact_mhe_solve = true\nmetrics = [\"sup_eps\", \"sup_e\"]");
+    let mut cfg = cfg;
+    cfg.k_grid = vec![1, 200];
+    cfg.solvers = vec![Solver::Pg];
+    cfg.scales = Some(vec![1.0]);
+    cfg.seeds = 2;
+    let sweep = Sweep::new(cfg).unwrap();
+    let d = scratch("epsilon");
+    run(&sweep, &d, 2, None);
+    let points = read_table(&d.join("points.csv"));
+    let eps1 = points.number(0, "sup_eps_max").unwrap();
+    let eps200 = points.number(1, "sup_eps_max").unwrap();
+    // More iterations from the same warm start: a smaller sup ε.
+    assert!(eps1 > 0.0 && eps200 < eps1, "{eps1} {eps200}");
+}
+
+#[test]
+fn bad_input_gives_typed_errors() {
+    let sweep = Sweep::new(small_config("")).unwrap();
+    // An output directory below a regular file cannot be created.
+    let d = scratch("bad");
+    let file = d.join("a-file");
+    fs::write(&file, "x").unwrap();
+    let opts = RunOptions {
+        out_dir: file.join("out"),
+        threads: 1,
+        shard: None,
+    };
+    assert!(matches!(
+        sweep.run(&opts, &NoProgress),
+        Err(SweepError::Io { .. })
+    ));
+    let opts = RunOptions {
+        out_dir: d.join("ok"),
+        threads: 0,
+        shard: None,
+    };
+    assert!(matches!(
+        sweep.run(&opts, &NoProgress),
+        Err(SweepError::Threads(_))
+    ));
+    // A missing scenario is an I/O error naming the file.
+    let mut cfg = small_config("");
+    cfg.scenario = d.join("missing.toml");
+    let e = Sweep::new(cfg).unwrap_err();
+    assert!(e.to_string().contains("missing.toml"), "{e}");
+    // Config errors (the unit tests cover every key; here the file path).
+    let cfg_path = d.join("c.toml");
+    fs::write(
+        &cfg_path,
+        "name = \"c\"\nscenario = \"x\"\nk = [0]\nsolvers = [\"pg\"]\nseeds = 1\n",
+    )
+    .unwrap();
+    let e = SweepConfig::from_file(&cfg_path).unwrap_err();
+    assert!(
+        matches!(&e, SweepError::Config { key, .. } if key == "k[0]"),
+        "{e}"
+    );
+}

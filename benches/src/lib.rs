@@ -7,6 +7,11 @@
 //!   N × N matrix–vector product with compile-time dimensions, compiled for AVX2 + FMA via
 //!   `#[target_feature]` and selected by run-time detection, so the portable build has it.
 //!   Per-iteration times are reported as ratios to it.
+//! - [`case_study`]: the real case-study MHE QPs from `mhe-core` along a simulated
+//!   closed-loop trajectory (paper preset M = 5, certified preset M = 9).
+//! - [`interleave`]: round-robin timing of several variants (fastest and median batch).
+
+pub mod case_study;
 
 use faer::Mat;
 use lti_model::BoxSet;
@@ -83,6 +88,73 @@ pub fn dist(a: &[f64], b: &[f64]) -> f64 {
         .map(|(x, y)| (x - y) * (x - y))
         .sum::<f64>()
         .sqrt()
+}
+
+/// One timed variant of [`interleave`]: `run` does `per_call` operations per call.
+pub struct Variant<'a> {
+    /// Name in reports.
+    pub name: String,
+    /// Operations one call of `run` performs (the reported time is per operation).
+    pub per_call: f64,
+    /// One batch.
+    pub run: Box<dyn FnMut() + 'a>,
+}
+
+impl std::fmt::Debug for Variant<'_> {
+    fn fmt(&self, f: &mut std::fmt::Formatter<'_>) -> std::fmt::Result {
+        f.debug_struct("Variant")
+            .field("name", &self.name)
+            .field("per_call", &self.per_call)
+            .finish_non_exhaustive()
+    }
+}
+
+/// Fastest and median time per operation of a variant over the rounds of [`interleave`].
+#[derive(Debug, Clone, Copy, PartialEq)]
+pub struct Timing {
+    /// Fastest batch, ns per operation.
+    pub min_ns: f64,
+    /// Median batch, ns per operation.
+    pub median_ns: f64,
+}
+
+/// Times every variant once per round, in turn, for `rounds` rounds (after one untimed
+/// warm-up round). On a shared machine the host's speed drifts over seconds; within a round
+/// every variant sees about the same conditions, so ratios of the per-variant fastest
+/// batches are robust where back-to-back measurements are not.
+///
+/// ```
+/// let mut x = 0u64;
+/// let mut v = vec![benches::Variant {
+///     name: "add".into(),
+///     per_call: 100.0,
+///     run: Box::new(|| for i in 0..100 { x = std::hint::black_box(x + i) }),
+/// }];
+/// let t = benches::interleave(&mut v, 5);
+/// assert!(t[0].min_ns <= t[0].median_ns);
+/// ```
+pub fn interleave(variants: &mut [Variant<'_>], rounds: usize) -> Vec<Timing> {
+    for v in variants.iter_mut() {
+        (v.run)();
+    }
+    let mut times = vec![Vec::with_capacity(rounds); variants.len()];
+    for _ in 0..rounds.max(1) {
+        for (v, t) in variants.iter_mut().zip(&mut times) {
+            let start = std::time::Instant::now();
+            (v.run)();
+            t.push(start.elapsed().as_nanos() as f64 / v.per_call);
+        }
+    }
+    times
+        .into_iter()
+        .map(|mut t| {
+            t.sort_by(f64::total_cmp);
+            Timing {
+                min_ns: t[0],
+                median_ns: t[t.len() / 2],
+            }
+        })
+        .collect()
 }
 
 /// Storage order of a [`FixedMatVec`] and the loop it runs.

@@ -1,0 +1,274 @@
+//! The real case-study MHE QPs (from `mhe-core`), for the MHE benchmarks and the peer
+//! export: window-M problems ℙ_t along a simulated closed-loop trajectory.
+//!
+//! A [`Preset`] names a scenario file (`scenarios/case-study.toml`, the paper's M = 5, or
+//! `scenarios/case-study-certified.toml`, M = 9). [`CaseStudyQps::load`]
+//!
+//! 1. runs the scenario's closed loop ([`closed_loop::build_case_study`] with the file's
+//!    solver, K, noise seed and T, exact MPC) and keeps its trace (u_t, y_t);
+//! 2. replays (u_t, y_t) into an [`MheEstimator`] with V-FISTA at the K its certificate
+//!    needs for relative accuracy [`EPS`] (P from LMI (2) via [`MheConfig::from_spec`]),
+//!    and at every t with a full window (t ≥ M) records θ_t, the linear term q_t, the
+//!    warm start z⁰_t the estimator starts from, and z*_t from the polished Clarabel
+//!    reference ([`ReferenceSolver`]).
+//!
+//! For t ≥ M the window length is M, so every instance shares the QP data H, Z of
+//! [`CaseStudyQps::qp`] and differs only in θ_t (hence q_t) and z⁰_t.
+
+use std::path::PathBuf;
+
+use closed_loop::sim::{CaseStudyOptions, build_case_study};
+use closed_loop::{ClosedLoopError, Trace};
+use lti_model::ModelError;
+use lti_model::scenario::Scenario;
+use mhe_core::{MheConfig, MheError, MheEstimator, MheProblem, MheSets};
+use qp_iter::fista::Fista;
+use qp_iter::reference::{ReferenceSettings, ReferenceSolver};
+use qp_iter::{IterationMap, ParametricQp, QpError};
+
+/// Relative accuracy of the MHE benchmarks: ‖z − z*‖ ≤ EPS‖z⁰ − z*‖.
+pub const EPS: f64 = 1e-6;
+
+/// A case-study scenario file and its short name.
+#[derive(Debug, Clone, Copy, PartialEq, Eq)]
+pub struct Preset {
+    /// Short name used in tables and file names (`"paper"`, `"certified"`).
+    pub name: &'static str,
+    /// File name under `scenarios/`.
+    pub file: &'static str,
+}
+
+/// The paper's settings (M = 5) and the certified preset (M = 9, η = 0.8).
+pub const PRESETS: [Preset; 2] = [
+    Preset {
+        name: "paper",
+        file: "case-study.toml",
+    },
+    Preset {
+        name: "certified",
+        file: "case-study-certified.toml",
+    },
+];
+
+/// Why the case-study fixtures could not be built.
+#[derive(Debug, thiserror::Error)]
+pub enum FixtureError {
+    /// The scenario file could not be read or is invalid.
+    #[error("scenario `{path}`: {source}")]
+    Scenario {
+        /// The file.
+        path: String,
+        /// The parser's error.
+        source: ModelError,
+    },
+    /// The scenario has no `[mhe]` section.
+    #[error("scenario `{path}` has no [mhe] section; the MHE benchmarks need one")]
+    NoMhe {
+        /// The file.
+        path: String,
+    },
+    /// The closed-loop run failed.
+    #[error("case-study closed loop: {0}")]
+    ClosedLoop(#[from] ClosedLoopError),
+    /// Building or stepping the MHE failed.
+    #[error("MHE: {0}")]
+    Mhe(#[from] MheError),
+    /// The QP layer (certificate, reference solve) failed.
+    #[error("QP: {0}")]
+    Qp(#[from] QpError),
+    /// A certificate gives no finite K (rate ≥ 1).
+    #[error("the {method} certificate gives no K for accuracy {eps:e} (rate ≥ 1)")]
+    NoCertifiedK {
+        /// Method name.
+        method: &'static str,
+        /// The accuracy asked for.
+        eps: f64,
+    },
+    /// The trace is shorter than the window, so no instance has a full window.
+    #[error("the run has {steps} steps, fewer than the window M = {m}; raise simulation.steps")]
+    ShortRun {
+        /// T.
+        steps: usize,
+        /// M.
+        m: usize,
+    },
+}
+
+/// One MHE problem ℙ_t with a full window.
+#[derive(Debug, Clone)]
+pub struct MheInstance {
+    /// Time t (≥ M).
+    pub t: usize,
+    /// θ_t = (prior, u_{t−M..t−1}, y_{t−M..t−1}).
+    pub theta: Vec<f64>,
+    /// q_t = q₀ + F_cθ_t.
+    pub q: Vec<f64>,
+    /// The estimator's warm start z⁰_t.
+    pub z0: Vec<f64>,
+    /// z*_t from the polished Clarabel reference.
+    pub z_star: Vec<f64>,
+}
+
+/// The case-study MHE QPs of one preset along one simulated trajectory.
+#[derive(Debug)]
+pub struct CaseStudyQps {
+    /// The preset.
+    pub preset: Preset,
+    /// The parsed scenario.
+    pub scenario: Scenario,
+    /// MHE settings (P from LMI (2)); `iterations` is the scenario's K.
+    pub config: MheConfig,
+    /// The MHE constraint sets.
+    pub sets: MheSets,
+    /// ℙ_t for every window length.
+    pub problem: MheProblem,
+    /// The window-M QP, shared by every instance (n = n_x + M·n_w variables).
+    pub qp: ParametricQp,
+    /// The closed-loop trace whose (u_t, y_t) feed the estimators.
+    pub trace: Trace,
+    /// The instances t = M, …, T.
+    pub instances: Vec<MheInstance>,
+}
+
+/// `scenarios/<file>` of this workspace.
+pub fn scenario_path(file: &str) -> PathBuf {
+    PathBuf::from(env!("CARGO_MANIFEST_DIR"))
+        .join("..")
+        .join("scenarios")
+        .join(file)
+}
+
+impl CaseStudyQps {
+    /// Runs the preset's closed loop and records its window-M instances (module docs).
+    pub fn load(preset: Preset) -> Result<Self, FixtureError> {
+        let path = scenario_path(preset.file);
+        let shown = path.display().to_string();
+        let scenario = Scenario::from_file(&path).map_err(|source| FixtureError::Scenario {
+            path: shown.clone(),
+            source,
+        })?;
+        let spec = scenario
+            .mhe
+            .as_ref()
+            .ok_or(FixtureError::NoMhe { path: shown })?;
+        let options = CaseStudyOptions::from_scenario(&scenario)?;
+        let trace = build_case_study(&scenario, &options)?.run()?.clone();
+        let config = MheConfig::from_spec(spec, &scenario.plant, false)?;
+        let sets = MheSets::from_scenario(&scenario.sets);
+        let problem = MheProblem::new(&scenario.plant, config.horizon, &config.weights(), &sets)?;
+        let m = config.horizon;
+        let qp = match problem.window(m) {
+            Some(w) => w.qp().clone(),
+            None => return Err(FixtureError::ShortRun { steps: 0, m }),
+        };
+        let mut qps = Self {
+            preset,
+            scenario,
+            config,
+            sets,
+            problem,
+            qp: qp.clone(),
+            trace,
+            instances: Vec::new(),
+        };
+        if qps.trace.len() < m {
+            return Err(FixtureError::ShortRun {
+                steps: qps.trace.len(),
+                m,
+            });
+        }
+        let fista = Fista::new(qp.clone());
+        let k = certified_k(&fista)?;
+        let mut est = qps.estimator(k, |qp| Ok(Fista::new(qp)))?;
+        let mut reference = ReferenceSolver::new(&qp, ReferenceSettings::default())?;
+        for t in 0..=qps.trace.len() {
+            est.estimate()?;
+            if t >= m {
+                let theta = est.theta().to_vec();
+                let mut q = vec![0.0; qp.n()];
+                qp.linear_term(&theta, &mut q);
+                let z_star = reference.solve(&theta)?.z;
+                qps.instances.push(MheInstance {
+                    t,
+                    theta,
+                    q,
+                    z0: est.warm_start_point().to_vec(),
+                    z_star,
+                });
+            }
+            if t < qps.trace.len() {
+                qps.push(&mut est, t)?;
+            }
+        }
+        Ok(qps)
+    }
+
+    /// Window length M.
+    pub fn horizon(&self) -> usize {
+        self.config.horizon
+    }
+
+    /// An MHE estimator for this preset with map `factory` and K = `iterations`, at t = 0.
+    pub fn estimator<M, F>(
+        &self,
+        iterations: usize,
+        factory: F,
+    ) -> Result<MheEstimator<M>, FixtureError>
+    where
+        M: IterationMap,
+        F: Fn(ParametricQp) -> qp_iter::Result<M>,
+    {
+        let mut cfg = self.config.clone();
+        cfg.iterations = iterations;
+        Ok(MheEstimator::new(
+            &self.scenario.plant,
+            &self.sets,
+            &cfg,
+            &self.scenario.simulation.prior,
+            factory,
+        )?)
+    }
+
+    /// Feeds (u_t, y_t) of the trace into `est` (estimate first if needed, then push).
+    pub fn push<M: IterationMap>(
+        &self,
+        est: &mut MheEstimator<M>,
+        t: usize,
+    ) -> Result<(), FixtureError> {
+        match (self.trace.u(t), self.trace.y(t)) {
+            (Some(u), Some(y)) => Ok(est.push(u, y)?),
+            _ => Err(FixtureError::ShortRun {
+                steps: self.trace.len(),
+                m: t + 1,
+            }),
+        }
+    }
+
+    /// An estimator with K = `iterations` replayed to t = T (the last step, full window):
+    /// `estimate()` then solves the last instance and is idempotent, so it can be timed.
+    pub fn estimator_at_end<M, F>(
+        &self,
+        iterations: usize,
+        factory: F,
+    ) -> Result<MheEstimator<M>, FixtureError>
+    where
+        M: IterationMap,
+        F: Fn(ParametricQp) -> qp_iter::Result<M>,
+    {
+        let mut est = self.estimator(iterations, factory)?;
+        for t in 0..self.trace.len() {
+            self.push(&mut est, t)?;
+        }
+        Ok(est)
+    }
+}
+
+/// The K a map's certificate needs for φ(K) ≤ [`EPS`].
+pub fn certified_k<M: IterationMap>(map: &M) -> Result<usize, FixtureError> {
+    map.certificate()
+        .min_iterations(EPS)
+        .ok_or(FixtureError::NoCertifiedK {
+            method: map.name(),
+            eps: EPS,
+        })
+}

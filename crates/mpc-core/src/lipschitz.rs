@@ -207,7 +207,28 @@ impl CondensedMpc {
     /// `visit(free_mask, k_f, n_x)`. Returns `Ok(false)` without visiting when
     /// N·n_u > `max_vars` (at most 30): the enumeration costs 2^{N·n_u} small Cholesky solves.
     /// Buffers are allocated once, before the loop.
-    pub fn for_each_free_set<V>(&self, max_vars: usize, mut visit: V) -> Result<bool>
+    pub fn for_each_free_set<V>(&self, max_vars: usize, visit: V) -> Result<bool>
+    where
+        V: FnMut(u64, &[f64], usize),
+    {
+        self.for_each_free_set_in(max_vars, 0..self.free_set_count(), visit)
+    }
+
+    /// Number of free sets, 2^{N·n_u} (saturating at u64::MAX for N·n_u ≥ 64).
+    pub fn free_set_count(&self) -> u64 {
+        1u64.checked_shl(u32::try_from(self.qp().n()).unwrap_or(u32::MAX))
+            .unwrap_or(u64::MAX)
+    }
+
+    /// [`CondensedMpc::for_each_free_set`] restricted to the masks in `masks` (bit i set =
+    /// variable i free), so callers can split the enumeration into ranges and run them in
+    /// parallel; the union of the ranges 0..2^{N·n_u} visits every free set once.
+    pub fn for_each_free_set_in<V>(
+        &self,
+        max_vars: usize,
+        masks: std::ops::Range<u64>,
+        mut visit: V,
+    ) -> Result<bool>
     where
         V: FnMut(u64, &[f64], usize),
     {
@@ -216,6 +237,7 @@ impl CondensedMpc {
         if n > max_vars.min(30) {
             return Ok(false);
         }
+        let end = masks.end.min(1u64 << n);
         let h = qp.h_row_major();
         let f: Vec<f64> = (0..n * nx).map(|k| qp.f()[(k / nx, k % nx)]).collect();
         let mut free = vec![0usize; n];
@@ -223,8 +245,10 @@ impl CondensedMpc {
         let mut y = vec![0.0; n * nx];
         let mut kf = vec![0.0; nu * nx];
         // The empty free set: every input saturated, K = 0.
-        visit(0, &kf, nx);
-        for mask in 1u64..(1u64 << n) {
+        if masks.start == 0 && end > 0 {
+            visit(0, &kf, nx);
+        }
+        for mask in masks.start.max(1)..end {
             let mut nf = 0;
             for i in 0..n {
                 if mask & (1 << i) != 0 {

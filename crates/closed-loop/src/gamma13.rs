@@ -110,6 +110,9 @@ fn metric(name: &'static str, s: MatRef<'_, f64>) -> Option<Metric> {
     })
 }
 
+/// Per mask chunk: (enumerated, masks visited, max λ per metric, max g per metric).
+type ChunkMax = (bool, u64, Vec<f64>, Vec<f64>);
+
 /// Frobenius norm: an upper bound on the spectral norm. The exact norm can only raise a
 /// running maximum when the Frobenius norm exceeds it, so most masks skip the eigenproblem
 /// and the enumerated maxima are unchanged.
@@ -172,7 +175,7 @@ pub fn gamma13_certified(
         .filter(|r| !r.is_empty())
         .collect();
     let n_metrics = metrics.len();
-    let per_chunk: Vec<Result<(bool, u64, Vec<f64>, Vec<f64>), MpcError>> = ranges
+    let per_chunk: Vec<Result<ChunkMax, MpcError>> = ranges
         .into_par_iter()
         .map(|range| {
             let mut lam = vec![0.0_f64; n_metrics];

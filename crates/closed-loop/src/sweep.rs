@@ -37,6 +37,7 @@ use std::fs;
 use std::io::Write as _;
 use std::path::{Path, PathBuf};
 use std::str::FromStr;
+use std::sync::OnceLock;
 use std::sync::atomic::{AtomicU64, Ordering};
 use std::time::Instant;
 
@@ -44,6 +45,7 @@ use lti_model::scenario::Scenario;
 use rayon::prelude::*;
 
 use crate::analysis::IssAnalysis;
+use crate::certificate::{CertificateOptions, certify_closed_loop};
 use crate::record::{Trace, norm2};
 use crate::sim::{
     CaseStudyLoop, CaseStudyOptions, ClosedLoopError, ControllerChoice, Solver, build_case_study,
@@ -313,10 +315,14 @@ pub struct SweepConfig {
     /// A run is bounded when it completes with finite values and sup‖x‖ ≤
     /// `bounded_factor`·(1 + ‖x₀‖) (`bounded_factor`, default 1000).
     pub bounded_factor: f64,
+    /// Compute the theoretical columns from the closed-loop certificate (`certificate`,
+    /// default true; false writes them as void, e.g. for quick tests: the certificate
+    /// takes seconds).
+    pub certificate: bool,
 }
 
 /// Keys a config may contain.
-const CONFIG_KEYS: [&str; 13] = [
+const CONFIG_KEYS: [&str; 14] = [
     "name",
     "scenario",
     "k",
@@ -330,6 +336,7 @@ const CONFIG_KEYS: [&str; 13] = [
     "metrics",
     "common_random_numbers",
     "bounded_factor",
+    "certificate",
 ];
 
 fn type_name(v: &toml::Value) -> &'static str {
@@ -713,6 +720,7 @@ impl SweepConfig {
                 format!("must be finite and > 0, got {bounded_factor}"),
             ));
         }
+        let certificate = get_bool(&table, "certificate")?.unwrap_or(true);
         Ok(Self {
             name: name.to_string(),
             scenario,
@@ -727,6 +735,7 @@ impl SweepConfig {
             metrics,
             common_random_numbers,
             bounded_factor,
+            certificate,
         })
     }
 
@@ -771,7 +780,7 @@ impl SweepConfig {
         let mut s = String::new();
         let _ = write!(
             s,
-            "k={:?};solvers={:?};seeds={};scales={:?};steps={};base_seed={};exact={};controller={:?};metrics={:?};crn={};bounded_factor={:e}",
+            "k={:?};solvers={:?};seeds={};scales={:?};steps={};base_seed={};exact={};controller={:?};metrics={:?};crn={};bounded_factor={:e};certificate={}",
             self.k_grid,
             self.solvers,
             self.seeds,
@@ -783,6 +792,7 @@ impl SweepConfig {
             self.metrics,
             self.common_random_numbers,
             self.bounded_factor,
+            self.certificate,
         );
         s
     }
@@ -1074,33 +1084,43 @@ pub fn quantile_sorted(sorted: &[f64], q: f64) -> Option<f64> {
 /// The certificate's side of a point: Theorem 1 for one solver.
 #[derive(Debug, Clone)]
 pub enum SolverTheory {
-    /// An analysis (possibly with violated premises: then the certificate is void).
+    /// An analysis (void when a premise fails: then `void_reasons` says which).
     Analysis {
         /// Theorem 1's constants for this solver.
         analysis: Box<IssAnalysis>,
         /// Smallest certified K (None when void or beyond the search range).
         k_min: Option<usize>,
+        /// Why the certificate is void, whatever K (empty when the premises hold).
+        void_reasons: Vec<String>,
     },
     /// No analysis available (the reason is written in the `void_reason` column).
     Unavailable(String),
 }
 
 impl SolverTheory {
-    /// `(sg1, sg2, sg3, margin, certified, void reason)` at K. `certified` is `"yes"`,
-    /// `"no"` or `"void"` (a premise of Theorem 1 fails, whatever K).
+    /// The theoretical columns at K: slopes of (sg1)–(sg3), the margin 1 − max slope,
+    /// `certified` = `"yes"`, `"no"` or `"void"` (a premise of Theorem 1 fails, whatever
+    /// K), K_min and the reason of a void certificate.
     pub fn at(&self, k: usize) -> TheoryAtK {
         match self {
-            SolverTheory::Analysis { analysis, k_min } => {
+            SolverTheory::Analysis {
+                analysis,
+                k_min,
+                void_reasons,
+            } => {
                 let g = analysis.at(k);
-                let violated: Vec<String> = analysis
-                    .violated()
-                    .iter()
-                    .map(|p| format!("{} fails (value {:.4})", p.name, p.value))
-                    .collect();
+                let mut reasons = void_reasons.clone();
+                if reasons.is_empty() {
+                    reasons = analysis
+                        .violated()
+                        .iter()
+                        .map(|p| format!("{} fails (value {:.4})", p.name, p.value))
+                        .collect();
+                }
                 TheoryAtK {
                     slopes: Some([g.sg1, g.sg2, g.sg3]),
                     margin: Some(g.margin),
-                    certified: if !violated.is_empty() {
+                    certified: if !reasons.is_empty() {
                         "void"
                     } else if g.certified {
                         "yes"
@@ -1108,7 +1128,7 @@ impl SolverTheory {
                         "no"
                     },
                     k_min: *k_min,
-                    void_reason: csv_text(&violated.join("; ")),
+                    void_reason: csv_text(&reasons.join("; ")),
                 }
             }
             SolverTheory::Unavailable(reason) => TheoryAtK {
@@ -1137,26 +1157,53 @@ pub struct TheoryAtK {
     pub void_reason: String,
 }
 
-/// Upper end of the K_min search.
-pub const K_MIN_SEARCH: usize = 100_000_000;
-
-/// Theorem 1 for each solver of the sweep, from the certificate of the scenario.
+/// Theorem 1 for each solver of the sweep, from the closed-loop certificate of the
+/// scenario ([`certify_closed_loop`]; its sampled γ₁,₃ estimate is skipped, the
+/// certified value is what enters the slopes).
 ///
-/// This is the one place that connects the sweep to the certificate; everything else
-/// consumes [`SolverTheory`].
-pub fn solver_theory(scenario: &Scenario, solvers: &[Solver]) -> Vec<(Solver, SolverTheory)> {
-    let _ = scenario;
-    solvers
-        .iter()
-        .map(|&s| {
-            (
-                s,
-                SolverTheory::Unavailable(
-                    "closed-loop certificate not wired in yet (closed_loop::certificate)".into(),
-                ),
-            )
-        })
-        .collect()
+/// The certificate covers the exact MPC (its L_π and γ₁,₃); for any other controller the
+/// columns are void with that reason. A certificate that cannot be computed makes the
+/// columns void with the error as the reason (the empirical side is still useful).
+pub fn solver_theory(
+    scenario: &Scenario,
+    solvers: &[Solver],
+    controller: ControllerChoice,
+) -> Vec<(Solver, SolverTheory)> {
+    let unavailable = |reason: String| {
+        solvers
+            .iter()
+            .map(|&s| (s, SolverTheory::Unavailable(reason.clone())))
+            .collect()
+    };
+    if controller != ControllerChoice::ExactMpc {
+        return unavailable(format!(
+            "the certificate is for the exact MPC (its L_π and γ₁,₃); this sweep runs {controller:?}"
+        ));
+    }
+    let opts = CertificateOptions {
+        solvers: solvers.to_vec(),
+        gamma13_sequences: 0,
+        ..CertificateOptions::default()
+    };
+    match certify_closed_loop(scenario, &opts) {
+        Err(e) => unavailable(format!("no certificate: {e}")),
+        Ok(cert) => solvers
+            .iter()
+            .map(|&s| {
+                let theory = match cert.solver(s) {
+                    Some(sc) => SolverTheory::Analysis {
+                        analysis: Box::new(sc.analysis.clone()),
+                        k_min: sc.k_min,
+                        void_reasons: sc.void_reasons.clone(),
+                    },
+                    None => {
+                        SolverTheory::Unavailable(format!("the certificate has no entry for {s}"))
+                    }
+                };
+                (s, theory)
+            })
+            .collect(),
+    }
 }
 
 /// One row of `points.csv` (besides the identity columns).
@@ -1464,7 +1511,9 @@ pub struct Sweep {
     base_seed: u64,
     points: Vec<Point>,
     fingerprint: String,
-    theory: Vec<(Solver, SolverTheory)>,
+    /// The scenario as read (P as given): what the certificate is computed for.
+    original: Scenario,
+    theory: OnceLock<Vec<(Solver, SolverTheory)>>,
 }
 
 impl Sweep {
@@ -1473,11 +1522,11 @@ impl Sweep {
     pub fn new(config: SweepConfig) -> Result<Self> {
         let path = config.scenario.clone();
         let text = fs::read_to_string(&path).map_err(io_err("read the scenario", &path))?;
-        let mut scenario =
-            Scenario::from_toml_str(&text).map_err(|source| SweepError::Scenario {
-                path: path.clone(),
-                source,
-            })?;
+        let original = Scenario::from_toml_str(&text).map_err(|source| SweepError::Scenario {
+            path: path.clone(),
+            source,
+        })?;
+        let mut scenario = original.clone();
         let spec = scenario.mhe.as_mut().ok_or_else(|| {
             config_err(
                 "scenario",
@@ -1511,7 +1560,6 @@ impl Sweep {
         fp_text.push('\n');
         fp_text.push_str(&text);
         let fingerprint = format!("{:016x}", fnv1a(fp_text.as_bytes()));
-        let theory = solver_theory(&scenario, &config.solvers);
         let sweep = Self {
             config,
             scenario,
@@ -1519,7 +1567,8 @@ impl Sweep {
             base_seed,
             points,
             fingerprint,
-            theory,
+            original,
+            theory: OnceLock::new(),
         };
         // Fail early (before any output) if a point cannot be set up.
         for &solver in &sweep.config.solvers {
@@ -1555,13 +1604,25 @@ impl Sweep {
     pub fn fingerprint(&self) -> &str {
         &self.fingerprint
     }
-    /// The theoretical side per solver.
+    /// The theoretical side per solver (computed on first use: the certificate takes a
+    /// moment and a resumed or merged sweep may not need it).
     pub fn theory(&self) -> &[(Solver, SolverTheory)] {
-        &self.theory
+        self.theory.get_or_init(|| {
+            if self.config.certificate {
+                solver_theory(&self.original, &self.config.solvers, self.config.controller)
+            } else {
+                let reason = "not computed (certificate = false in the sweep config)";
+                self.config
+                    .solvers
+                    .iter()
+                    .map(|&s| (s, SolverTheory::Unavailable(reason.into())))
+                    .collect()
+            }
+        })
     }
     /// The certificate's columns for a point.
     pub fn theory_at(&self, p: &Point) -> TheoryAtK {
-        self.theory
+        self.theory()
             .iter()
             .find(|(s, _)| *s == p.solver)
             .map(|(_, t)| t.at(p.k))
@@ -2041,14 +2102,14 @@ mod tests {
     #[test]
     fn quantiles_match_numpy_linear() {
         // numpy.quantile([3, 1, 4, 1, 5, 9, 2, 6], [0.05, 0.5, 0.95]) = [1.0, 3.5, 7.95]
-        let mut v = vec![3.0, 1.0, 4.0, 1.0, 5.0, 9.0, 2.0, 6.0];
+        let mut v = [3.0, 1.0, 4.0, 1.0, 5.0, 9.0, 2.0, 6.0];
         v.sort_by(f64::total_cmp);
         assert_eq!(quantile_sorted(&v, 0.05), Some(1.0));
         assert_eq!(quantile_sorted(&v, 0.5), Some(3.5));
         let q95 = quantile_sorted(&v, 0.95).unwrap();
         assert!((q95 - 7.95).abs() < 1e-12, "{q95}");
         // +∞ (a diverged run) sorts last and is the maximum.
-        let mut w = vec![f64::INFINITY, 1.0, 2.0];
+        let mut w = [f64::INFINITY, 1.0, 2.0];
         w.sort_by(f64::total_cmp);
         assert_eq!(w.last(), Some(&f64::INFINITY));
     }

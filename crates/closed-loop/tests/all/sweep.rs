@@ -7,8 +7,8 @@ use std::path::{Path, PathBuf};
 
 use closed_loop::sim::{CaseStudyOptions, Solver, build_case_study};
 use closed_loop::sweep::{
-    Metric, NoProgress, RunOptions, Shard, Sweep, SweepConfig, SweepError, Table, merge_point_dirs,
-    point_file_name, quantile_sorted, run_seed,
+    Metric, NoProgress, RunOptions, Shard, SolverTheory, Sweep, SweepConfig, SweepError, Table,
+    merge_point_dirs, point_file_name, quantile_sorted, run_seed,
 };
 use lti_model::scenario::Scenario;
 
@@ -31,7 +31,7 @@ fn scratch(name: &str) -> PathBuf {
 fn small_config(extra: &str) -> SweepConfig {
     let text = format!(
         "name = \"small\"\nscenario = \"{SCENARIO}\"\nk = [1, 4, 25]\nsolvers = [\"pg\", \"admm\"]\n\
-         seeds = 5\nscales = [0.5, 1.0]\nsteps = 12\nbase_seed = 99\n{extra}"
+         seeds = 5\nscales = [0.5, 1.0]\nsteps = 12\nbase_seed = 99\ncertificate = false\n{extra}"
     );
     SweepConfig::from_toml_str(&text, Path::new(".")).unwrap()
 }
@@ -352,4 +352,60 @@ fn bad_input_gives_typed_errors() {
         matches!(&e, SweepError::Config { key, .. } if key == "k[0]"),
         "{e}"
     );
+}
+
+#[test]
+fn theoretical_columns_follow_the_certificate() {
+    let certified = concat!(
+        env!("CARGO_MANIFEST_DIR"),
+        "/../../scenarios/case-study-certified.toml"
+    );
+    let text = format!(
+        "name = \"cert\"\nscenario = \"{certified}\"\nk = {{ from = 1, to = 2000, points = 8 }}\n\
+         solvers = [\"pg\", \"admm\"]\nseeds = 1\nsteps = 3\n"
+    );
+    let sweep = Sweep::new(SweepConfig::from_toml_str(&text, Path::new(".")).unwrap()).unwrap();
+    let d = scratch("theory");
+    run(&sweep, &d, 2, None);
+    let points = read_table(&d.join("points.csv"));
+    let mut seen = (false, false);
+    for (row, p) in sweep.points().iter().enumerate() {
+        let (analysis, km) = match &sweep
+            .theory()
+            .iter()
+            .find(|(x, _)| *x == p.solver)
+            .unwrap()
+            .1
+        {
+            SolverTheory::Analysis {
+                analysis,
+                k_min,
+                void_reasons,
+            } => {
+                assert!(void_reasons.is_empty(), "{void_reasons:?}");
+                (analysis, k_min.unwrap())
+            }
+            other => panic!("{other:?}"),
+        };
+        // K_min is the boundary of the certified set.
+        assert!(analysis.at(km).certified && !analysis.at(km - 1).certified);
+        assert_eq!(points.number(row, "k_min_cert"), Some(km as f64));
+        let cert = points.text(row, "certified").unwrap();
+        assert_eq!(cert == "yes", p.k >= km, "{p}: {cert}");
+        assert!(cert == "yes" || cert == "no");
+        seen = (seen.0 || cert == "yes", seen.1 || cert == "no");
+        let sg = ["sg1", "sg2", "sg3"].map(|c| points.number(row, c).unwrap());
+        let margin = points.number(row, "margin_cert").unwrap();
+        assert_eq!(margin, 1.0 - sg[0].max(sg[1]).max(sg[2]));
+        assert_eq!(margin > 0.0, p.k >= km);
+    }
+    assert_eq!(seen, (true, true), "the grid straddles K_min");
+    // The paper's preset (M = 5, η = 0.8) is void whatever K, and says why.
+    let mut cfg = small_config("");
+    cfg.certificate = true;
+    let sweep = Sweep::new(cfg).unwrap();
+    let t = sweep.theory_at(&sweep.points()[0]);
+    assert_eq!(t.certified, "void");
+    assert!(t.void_reason.contains("rho"), "{}", t.void_reason);
+    assert!(t.k_min.is_none());
 }

@@ -441,7 +441,7 @@ pub fn certify_closed_loop(
 pub struct InequalityCheck {
     /// The inequality held at every t.
     pub holds: bool,
-    /// max_t lhs/rhs (≤ 1 when it holds).
+    /// max over t ≥ 1 of lhs/rhs (≤ 1 when it holds; t = 0 is trivially tight for Prop. 1).
     pub worst_ratio: f64,
     /// Time of the worst ratio.
     pub worst_t: usize,
@@ -492,7 +492,8 @@ pub fn check_trajectory(
         } else {
             0.0
         };
-        if ratio > c.worst_ratio {
+        // t = 0 is an identity (rhs = ε₀ resp. ≥ ‖e₀‖): checked, but not a "worst ratio".
+        if t > 0 && ratio > c.worst_ratio {
             c.worst_ratio = ratio;
             c.worst_t = t;
         }

@@ -2,5 +2,6 @@
 #![allow(clippy::unwrap_used)]
 
 mod analysis;
+mod certificate;
 mod sim;
 mod sweep;

@@ -116,6 +116,30 @@ fn main() {
         );
     }
     println!();
+    // The same steps at four memory placements (maps and states allocated elsewhere).
+    println!(
+        "Step at four memory placements of H and the state (fastest batch each):
+"
+    );
+    println!("| method | placements (ns) | ratio to reference: best – worst |");
+    println!("| --- | --- | ---: |");
+    for m in ["pg", "fista", "admm"] {
+        let all: Vec<f64> = std::iter::once(format!("step/{m}"))
+            .chain((1..=3).map(|p| format!("step/{m}@{p}")))
+            .filter_map(|k| iv(&k, "min_ns"))
+            .collect();
+        let (lo, hi) = all
+            .iter()
+            .fold((f64::INFINITY, 0.0f64), |(a, b), &x| (a.min(x), b.max(x)));
+        let list: Vec<String> = all.iter().map(|x| format!("{x:.1}")).collect();
+        println!(
+            "| {m} | {} | {} – {} |",
+            list.join(", "),
+            ratio(Some(lo), ref_min),
+            ratio(Some(hi), ref_min)
+        );
+    }
+    println!();
 
     // n = 30, criterion.
     let reference = r.ns("n30/ref_column_axpy");

@@ -1,20 +1,11 @@
 //! δ-IOSS certificate (Assumption 2) of the shipped case-study stand-in, and the smallest
 //! feasible η. Run: `cargo run -p lti-model --example ioss_case_study`.
 
-use faer::{Mat, mat};
-use lti_model::{LtiSystem, ioss};
+use faer::Mat;
+use lti_model::ioss;
 
 fn main() -> Result<(), lti_model::ModelError> {
-    let sys = LtiSystem::new(
-        mat![
-            [0.7, -0.1, 0.0, 0.0],
-            [0.2, -0.5, 0.1, 0.0],
-            [0.0, 0.1, 0.1, 0.0],
-            [0.5, 0.0, 0.5, 0.5]
-        ],
-        mat![[0.0, 0.1], [0.1, 1.0], [0.1, 0.0], [0.0, 0.0]],
-        mat![[0.1, 0.3, 0.8, 0.5]],
-    )?;
+    let sys = lti_model::presets::case_study_plant();
     let (q, r) = (Mat::<f64>::identity(5, 5), Mat::<f64>::identity(1, 1));
     for eta in [0.8, 0.7, 0.6, 0.5] {
         match ioss::certify(&sys, eta, q.as_ref(), r.as_ref()) {

@@ -20,6 +20,7 @@ pub mod disturbance;
 pub mod error;
 pub mod ioss;
 pub mod matrix;
+pub mod presets;
 pub mod riccati;
 pub mod scenario;
 pub mod sets;

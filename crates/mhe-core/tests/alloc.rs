@@ -34,17 +34,7 @@ unsafe impl GlobalAlloc for Counting {
 static GLOBAL: Counting = Counting;
 
 fn case_study(warm: WarmStart) -> (LtiSystem, MheSets, MheConfig) {
-    let sys = LtiSystem::new(
-        mat![
-            [0.7, -0.1, 0.0, 0.0],
-            [0.2, -0.5, 0.1, 0.0],
-            [0.0, 0.1, 0.1, 0.0],
-            [0.5, 0.0, 0.5, 0.5]
-        ],
-        mat![[0.0, 0.1], [0.1, 1.0], [0.1, 0.0], [0.0, 0.0]],
-        mat![[0.1, 0.3, 0.8, 0.5]],
-    )
-    .unwrap();
+    let sys = lti_model::presets::case_study_plant();
     let q = Mat::<f64>::identity(5, 5);
     let r = mat![[1.0]];
     let p = lti_model::ioss::certify(&sys, 0.8, q.as_ref(), r.as_ref())

@@ -6,7 +6,7 @@
 use std::alloc::{GlobalAlloc, Layout, System};
 use std::cell::Cell;
 
-use faer::{Mat, mat};
+use faer::Mat;
 use lti_model::{BoxSet, LtiSystem};
 use mpc_core::{CondensedMpc, Controller, MpcConfig, SaturatedLqr, SuboptimalMpc, WarmStart};
 use qp_iter::admm::{Admm, AdmmParams};
@@ -71,17 +71,7 @@ fn count_loop(c: &mut dyn Controller, sys: &LtiSystem, steps: usize) -> usize {
 
 #[test]
 fn control_calls_do_not_allocate() {
-    let sys = LtiSystem::new(
-        mat![
-            [0.7, -0.1, 0.0, 0.0],
-            [0.2, -0.5, 0.1, 0.0],
-            [0.0, 0.1, 0.1, 0.0],
-            [0.5, 0.0, 0.5, 0.5]
-        ],
-        mat![[0.0, 0.1], [0.1, 1.0], [0.1, 0.0], [0.0, 0.0]],
-        mat![[0.1, 0.3, 0.8, 0.5]],
-    )
-    .unwrap();
+    let sys = lti_model::presets::case_study_plant();
     let ubox = BoxSet::symmetric(&[1.0, 1.0]).unwrap();
     let cfg = MpcConfig::new(
         10,

@@ -8,17 +8,7 @@ use rand::{Rng, SeedableRng};
 use rand_chacha::ChaCha8Rng;
 
 fn case_study() -> LtiSystem {
-    LtiSystem::new(
-        mat![
-            [0.7, -0.1, 0.0, 0.0],
-            [0.2, -0.5, 0.1, 0.0],
-            [0.0, 0.1, 0.1, 0.0],
-            [0.5, 0.0, 0.5, 0.5]
-        ],
-        mat![[0.0, 0.1], [0.1, 1.0], [0.1, 0.0], [0.0, 0.0]],
-        mat![[0.1, 0.3, 0.8, 0.5]],
-    )
-    .unwrap()
+    lti_model::presets::case_study_plant()
 }
 
 /// max over sampled (x, w) of ‖Ax + B̄w‖²_P − η‖x‖²_P − ‖w‖²_Q − ‖Cx + D̄w‖²_R, relative to
@@ -286,4 +276,20 @@ fn bad_inputs_are_typed_errors() {
     assert!(
         matches!(ioss::verify(&sys, 0.8, q.as_ref(), r.as_ref(), p_shape.as_ref()), Err(ModelError::Shape { ref name, .. }) if name == "P")
     );
+}
+
+#[test]
+fn preset_plant_matches_the_shipped_scenarios() {
+    let preset = lti_model::presets::case_study_plant();
+    for file in ["case-study.toml", "case-study-certified.toml"] {
+        let path = format!("{}/../../scenarios/{file}", env!("CARGO_MANIFEST_DIR"));
+        let s = lti_model::scenario::Scenario::from_file(&path).unwrap();
+        for (a, b) in [
+            (preset.a(), s.plant.a()),
+            (preset.b(), s.plant.b()),
+            (preset.c(), s.plant.c()),
+        ] {
+            assert_eq!(a.to_owned(), b.to_owned(), "{file}");
+        }
+    }
 }

@@ -20,17 +20,7 @@ pub struct Fixture {
 /// The stand-in case study: A, B of design.md §4, the paper's C, P from LMI (2) with
 /// η = 0.8, Q = I₅, R = 1, 𝒲 = [−0.1, 0.1]⁵, x₀ and x̄₀ of the paper.
 pub fn case_study(horizon: usize, iterations: usize, exact_solve: bool) -> Fixture {
-    let sys = LtiSystem::new(
-        mat![
-            [0.7, -0.1, 0.0, 0.0],
-            [0.2, -0.5, 0.1, 0.0],
-            [0.0, 0.1, 0.1, 0.0],
-            [0.5, 0.0, 0.5, 0.5]
-        ],
-        mat![[0.0, 0.1], [0.1, 1.0], [0.1, 0.0], [0.0, 0.0]],
-        mat![[0.1, 0.3, 0.8, 0.5]],
-    )
-    .unwrap();
+    let sys = lti_model::presets::case_study_plant();
     let q = Mat::<f64>::identity(5, 5);
     let r = mat![[1.0]];
     let cert = lti_model::ioss::certify(&sys, 0.8, q.as_ref(), r.as_ref()).unwrap();

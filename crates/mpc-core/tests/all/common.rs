@@ -5,7 +5,7 @@ use clarabel::algebra::CscMatrix;
 use clarabel::solver::{
     DefaultSettingsBuilder, DefaultSolver, IPSolver, SolverStatus, SupportedConeT,
 };
-use faer::{Mat, mat};
+use faer::Mat;
 use lti_model::{BoxSet, LtiSystem};
 use mpc_core::{CondensedMpc, MpcConfig};
 use rand::{Rng, SeedableRng};
@@ -14,17 +14,7 @@ use rand_distr::StandardNormal;
 
 /// The stand-in case-study plant of design.md §4.
 pub fn case_study_system() -> LtiSystem {
-    LtiSystem::new(
-        mat![
-            [0.7, -0.1, 0.0, 0.0],
-            [0.2, -0.5, 0.1, 0.0],
-            [0.0, 0.1, 0.1, 0.0],
-            [0.5, 0.0, 0.5, 0.5]
-        ],
-        mat![[0.0, 0.1], [0.1, 1.0], [0.1, 0.0], [0.0, 0.0]],
-        mat![[0.1, 0.3, 0.8, 0.5]],
-    )
-    .unwrap()
+    lti_model::presets::case_study_plant()
 }
 
 /// Case-study MPC config: N = 10, Q_c = I₄, R_c = 0.1·I₂, DARE terminal, u ∈ [−1, 1]².

@@ -2,6 +2,10 @@
 //! (paper M = 5, certified M = 9), all timed interleaved in one run
 //! ([`benches::interleave`]): ratios between rows are the robust figures.
 //!
+//! Methods: PG (step 2/(L + μ)), V-FISTA, ADMM (ρ = √(μL), α = 1: the crate default and
+//! the case study's `admm`) and `admm_pr`, the same ADMM with relaxation α = 2
+//! (Peaceman–Rachford; certified rate δ instead of (1 + δ)/2).
+//!
 //! Rows per preset (instances: [`benches::case_study`], t = M … T of one closed-loop run):
 //! - `ref`: the fixed-size reference kernel y = Hx (compile-time n, AVX2 + FMA by run-time
 //!   detection) on the window-M Hessian; `matvec_symmetric`: our product on it.
@@ -37,6 +41,14 @@ use qp_iter::{IterationMap, ParametricQp, RunStatus, run_fixed, run_until};
 use serde_json::{Value, json};
 
 const ROUNDS: usize = 200;
+/// Row names of the methods: PG (step 2/(L + μ)), V-FISTA, ADMM (ρ = √(μL), α = 1, the
+/// crate default and the case study's), ADMM with α = 2 (Peaceman–Rachford).
+const METHODS: [&str; 4] = ["pg", "fista", "admm", "admm_pr"];
+/// Relaxed ADMM at α = 2 (Peaceman–Rachford splitting), ρ = √(μL).
+const PEACEMAN_RACHFORD: AdmmParams = AdmmParams {
+    penalty: qp_iter::admm::Penalty::Optimal,
+    relaxation: 2.0,
+};
 /// Calls per batch of the per-iteration rows.
 const STEP_BATCH: usize = 2000;
 /// Calls per batch of the MHE-step rows.
@@ -106,6 +118,8 @@ struct Methods {
     pg: ProjectedGradient,
     fista: Fista,
     admm: Admm,
+    /// ADMM with relaxation α = 2 (Peaceman–Rachford): certified rate δ instead of (1 + δ)/2.
+    admm_pr: Admm,
 }
 
 fn methods(qp: &ParametricQp) -> Result<Methods, qp_iter::QpError> {
@@ -113,6 +127,7 @@ fn methods(qp: &ParametricQp) -> Result<Methods, qp_iter::QpError> {
         pg: ProjectedGradient::new(qp.clone(), StepRule::Optimal)?,
         fista: Fista::new(qp.clone()),
         admm: Admm::new(qp.clone(), AdmmParams::default())?,
+        admm_pr: Admm::new(qp.clone(), PEACEMAN_RACHFORD)?,
     })
 }
 
@@ -237,17 +252,20 @@ fn run_preset(qps: &CaseStudyQps) -> Result<Value, String> {
         certified_k(&m.pg).map_err(err)?,
         certified_k(&m.fista).map_err(err)?,
         certified_k(&m.admm).map_err(err)?,
+        certified_k(&m.admm_pr).map_err(err)?,
     ];
-    let mut ks: [Vec<usize>; 3] = Default::default();
+    let mut ks: [Vec<usize>; 4] = Default::default();
     for i in inst {
         ks[0].push(iterations_to_eps(&m.pg, i)?);
         ks[1].push(iterations_to_eps(&m.fista, i)?);
         ks[2].push(iterations_to_eps(&m.admm, i)?);
+        ks[3].push(iterations_to_eps(&m.admm_pr, i)?);
     }
     let worst_at_cert = [
         worst_error_at(&m.pg, inst, k_cert[0]),
         worst_error_at(&m.fista, inst, k_cert[1]),
         worst_error_at(&m.admm, inst, k_cert[2]),
+        worst_error_at(&m.admm_pr, inst, k_cert[3]),
     ];
     // Clarabel as a user would run it: tol 1e-8, no polish, set up once, q updated.
     let settings = ReferenceSettings {
@@ -273,6 +291,9 @@ fn run_preset(qps: &CaseStudyQps) -> Result<Value, String> {
     let est_admm = qps
         .estimator_at_end(k_cert[2], |q| Admm::new(q, AdmmParams::default()))
         .map_err(fixture)?;
+    let est_admm_pr = qps
+        .estimator_at_end(k_cert[3], |q| Admm::new(q, PEACEMAN_RACHFORD))
+        .map_err(fixture)?;
 
     let h = qp.h_row_major().to_vec();
     let mut variants = Vec::new();
@@ -295,6 +316,7 @@ fn run_preset(qps: &CaseStudyQps) -> Result<Value, String> {
     variants.push(step_variant("step/pg", &m.pg, &inst[0]));
     variants.push(step_variant("step/fista", &m.fista, &inst[0]));
     variants.push(step_variant("step/admm", &m.admm, &inst[0]));
+    variants.push(step_variant("step/admm_pr", &m.admm_pr, &inst[0]));
     variants.push(solve_variant(
         "to_eps/pg".into(),
         &m.pg,
@@ -312,6 +334,12 @@ fn run_preset(qps: &CaseStudyQps) -> Result<Value, String> {
         &m.admm,
         inst,
         ks[2].clone(),
+    ));
+    variants.push(solve_variant(
+        "to_eps/admm_pr".into(),
+        &m.admm_pr,
+        inst,
+        ks[3].clone(),
     ));
     let cert = |k: usize| vec![k; inst.len()];
     variants.push(solve_variant(
@@ -332,9 +360,16 @@ fn run_preset(qps: &CaseStudyQps) -> Result<Value, String> {
         inst,
         cert(k_cert[2]),
     ));
+    variants.push(solve_variant(
+        "cert/admm_pr".into(),
+        &m.admm_pr,
+        inst,
+        cert(k_cert[3]),
+    ));
     variants.push(mhe_variant("mhe/pg", est_pg));
     variants.push(mhe_variant("mhe/fista", est_fista));
     variants.push(mhe_variant("mhe/admm", est_admm));
+    variants.push(mhe_variant("mhe/admm_pr", est_admm_pr));
     {
         let inst = inst.as_slice();
         variants.push(Variant {
@@ -374,9 +409,11 @@ fn run_preset(qps: &CaseStudyQps) -> Result<Value, String> {
         "instances": inst.len(),
         "t_range": [inst[0].t, inst[inst.len() - 1].t],
         "fingerprint": fingerprint(inst),
-        "k_cert": { "pg": k_cert[0], "fista": k_cert[1], "admm": k_cert[2] },
-        "worst_rel_error_at_k_cert": { "pg": worst_at_cert[0], "fista": worst_at_cert[1], "admm": worst_at_cert[2] },
-        "k_to_eps": { "pg": stats(&ks[0]), "fista": stats(&ks[1]), "admm": stats(&ks[2]) },
+        "k_cert": { "pg": k_cert[0], "fista": k_cert[1], "admm": k_cert[2], "admm_pr": k_cert[3] },
+        "worst_rel_error_at_k_cert": { "pg": worst_at_cert[0], "fista": worst_at_cert[1],
+                                       "admm": worst_at_cert[2], "admm_pr": worst_at_cert[3] },
+        "k_to_eps": { "pg": stats(&ks[0]), "fista": stats(&ks[1]), "admm": stats(&ks[2]),
+                      "admm_pr": stats(&ks[3]) },
         "clarabel": { "ipm_iterations": stats(&ipm_iters), "worst_rel_error": ipm_err },
         "timing": timing,
     }))
@@ -419,6 +456,7 @@ fn print_table(qps: &CaseStudyQps, v: &Value) {
         "step/pg",
         "step/fista",
         "step/admm",
+        "step/admm_pr",
     ] {
         if let Some(x) = t(row) {
             println!("| `{row}` | {} | {} |", fmt_ns(x), r(Some(x), t("ref")));
@@ -436,7 +474,7 @@ fn print_table(qps: &CaseStudyQps, v: &Value) {
         "| method | K to 1e-6 (median / max) | time to 1e-6 | certificate K | QP at certificate K | MHE step at certificate K | MHE step / {base_name} |"
     );
     println!("| --- | ---: | ---: | ---: | ---: | ---: | ---: |");
-    for m in ["pg", "fista", "admm"] {
+    for m in METHODS {
         let k = &v["k_to_eps"][m];
         println!(
             "| {m} | {} / {} | {} | {} | {} | {} | {} |",
@@ -475,7 +513,7 @@ fn print_table(qps: &CaseStudyQps, v: &Value) {
         }
     }
     if let Some(d) = daqp {
-        let best = ["pg", "fista", "admm"]
+        let best = METHODS
             .into_iter()
             .filter_map(|m| Some((m, t(&format!("mhe/{m}"))?)))
             .min_by(|a, b| a.1.total_cmp(&b.1));
@@ -490,7 +528,7 @@ fn print_table(qps: &CaseStudyQps, v: &Value) {
         }
     }
     println!(
-        "\nWorst ‖zᴷ − z*‖/‖z⁰ − z*‖ over the instances at the certificate K: PG {:.1e}, FISTA {:.1e}, ADMM {:.1e}; Clarabel {:.1e}.\n",
+        "\nWorst ‖zᴷ − z*‖/‖z⁰ − z*‖ over the instances at the certificate K: PG {:.1e}, FISTA {:.1e}, ADMM {:.1e}, ADMM α = 2 {:.1e}; Clarabel {:.1e}.\n",
         v["worst_rel_error_at_k_cert"]["pg"]
             .as_f64()
             .unwrap_or(f64::NAN),
@@ -498,6 +536,9 @@ fn print_table(qps: &CaseStudyQps, v: &Value) {
             .as_f64()
             .unwrap_or(f64::NAN),
         v["worst_rel_error_at_k_cert"]["admm"]
+            .as_f64()
+            .unwrap_or(f64::NAN),
+        v["worst_rel_error_at_k_cert"]["admm_pr"]
             .as_f64()
             .unwrap_or(f64::NAN),
         c["worst_rel_error"].as_f64().unwrap_or(f64::NAN),

@@ -2,6 +2,8 @@
 //! numerics live in the library crates).
 //!
 //! - `cargo xtask certify --scenario FILE [--json OUT] [--eta X] [--p-file P.json]`
+//! - `cargo xtask sweep --config FILE.toml [--out DIR] [--threads N] [--shard I/N]`,
+//!   `cargo xtask sweep-merge --config FILE.toml --out DIR [SHARD_DIR...]` (docs/sweeps.md)
 //! - `cargo xtask reproduce [--out DIR]`
 //!
 //! Exit codes: 0 success, 1 error (bad input, I/O), 2 usage error, 3 the certificate
@@ -9,6 +11,7 @@
 
 mod certify;
 mod provenance;
+mod sweep;
 
 use std::path::{Path, PathBuf};
 use std::process::ExitCode;
@@ -35,6 +38,10 @@ struct Cli {
 
 #[derive(Debug, Subcommand)]
 enum Command {
+    /// Monte-Carlo sweep over the iteration budget K (docs/sweeps.md).
+    Sweep(sweep::SweepArgs),
+    /// Assemble the point files of sharded sweep runs into runs.csv, points.csv and plots.
+    SweepMerge(sweep::MergeArgs),
     /// Compute (or verify) the δ-IOSS certificate P of LMI (2) for a scenario.
     Certify {
         /// Scenario file (TOML, docs/scenario-format.md).
@@ -71,6 +78,8 @@ fn report(outcome: &Outcome, json: Option<&Path>) -> Result<()> {
 
 fn run(cli: Cli) -> Result<ExitCode> {
     match cli.command {
+        Command::Sweep(args) => sweep::sweep(&args).map(|()| ExitCode::SUCCESS),
+        Command::SweepMerge(args) => sweep::merge(&args).map(|()| ExitCode::SUCCESS),
         Command::Certify {
             scenario,
             json,

@@ -38,7 +38,6 @@ use std::io::Write as _;
 use std::path::{Path, PathBuf};
 use std::str::FromStr;
 use std::sync::OnceLock;
-use std::sync::atomic::{AtomicU64, Ordering};
 use std::time::Instant;
 
 use lti_model::scenario::Scenario;
@@ -1484,6 +1483,8 @@ pub struct SweepReport {
     pub steps_simulated: u64,
     /// Wall time of this call in seconds.
     pub wall_s: f64,
+    /// Wall time of the runs alone (without the certificate and the file assembly).
+    pub runs_wall_s: f64,
     /// Threads used.
     pub threads: usize,
     /// Whether `runs.csv` and `points.csv` were assembled (false for a shard).
@@ -1491,10 +1492,10 @@ pub struct SweepReport {
 }
 
 impl SweepReport {
-    /// Closed-loop steps per second per thread of this call.
+    /// Closed-loop steps per second per thread of this call's runs.
     pub fn steps_per_second_per_thread(&self) -> f64 {
-        if self.wall_s > 0.0 {
-            self.steps_simulated as f64 / self.wall_s / self.threads as f64
+        if self.runs_wall_s > 0.0 {
+            self.steps_simulated as f64 / self.runs_wall_s / self.threads as f64
         } else {
             0.0
         }
@@ -1776,16 +1777,22 @@ impl Sweep {
             .thread_name(|i| format!("sweep-{i}"))
             .build()
             .map_err(|e| SweepError::Threads(e.to_string()))?;
-        let steps_done = AtomicU64::new(0);
+        if !todo.is_empty() {
+            // The certificate (seconds) before the clock of the runs starts.
+            let _ = self.theory();
+        }
+        let runs_clock = Instant::now();
+        let mut steps_done = 0u64;
         let mut computed = 0;
         for p in todo {
             let runs = pool.install(|| self.run_point(p, progress))?;
-            steps_done.fetch_add(runs.iter().map(|r| r.steps as u64).sum(), Ordering::Relaxed);
+            steps_done += runs.iter().map(|r| r.steps as u64).sum::<u64>();
             let file = self.point_file(p, &runs);
             file.write_atomic(&pdir.join(point_file_name(p.index)))?;
             progress.point_done(p);
             computed += 1;
         }
+        let runs_wall_s = runs_clock.elapsed().as_secs_f64();
         let assembled = opts.shard.is_none();
         if assembled {
             assemble(self, &[opts.out_dir.as_path()], &opts.out_dir)?;
@@ -1793,8 +1800,9 @@ impl Sweep {
         Ok(SweepReport {
             computed,
             skipped,
-            steps_simulated: steps_done.load(Ordering::Relaxed),
+            steps_simulated: steps_done,
             wall_s: started.elapsed().as_secs_f64(),
+            runs_wall_s,
             threads: opts.threads,
             assembled,
         })

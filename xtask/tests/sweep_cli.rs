@@ -1,0 +1,292 @@
+//! `cargo xtask sweep` / `sweep-merge` as a user runs them: a sweep killed mid-run loses no
+//! finished point and resumes to the same output as an uninterrupted run; shards merged
+//! with `sweep-merge` give the same files; bad input exits with an error, never a panic.
+#![allow(clippy::unwrap_used)]
+
+use std::fs;
+use std::path::{Path, PathBuf};
+use std::process::{Command, Output, Stdio};
+use std::time::{Duration, Instant};
+
+use closed_loop::sweep::{Sweep, SweepConfig, Table};
+
+const XTASK: &str = env!("CARGO_BIN_EXE_xtask");
+const SCENARIO: &str = concat!(
+    env!("CARGO_MANIFEST_DIR"),
+    "/../scenarios/case-study-certified.toml"
+);
+
+fn scratch(name: &str) -> PathBuf {
+    let d = Path::new(env!("CARGO_TARGET_TMPDIR"))
+        .join("xtask-sweep")
+        .join(name);
+    let _ = fs::remove_dir_all(&d);
+    fs::create_dir_all(&d).unwrap();
+    d
+}
+
+/// 2 solvers × 6 K, 10 seeds, T = 40; the certificate off (seconds) to keep it short.
+fn config(dir: &Path, file: &str, body: &str) -> PathBuf {
+    let path = dir.join(file);
+    fs::write(&path, format!("scenario = \"{SCENARIO}\"\n{body}")).unwrap();
+    path
+}
+
+const SMALL: &str = "name = \"kill\"\nk = [1, 3, 10, 30, 100, 300]\nsolvers = [\"pg\", \"fista\"]\n\
+                     seeds = 10\nsteps = 40\nbase_seed = 5\ncertificate = false\n";
+
+fn xtask(args: &[&str]) -> Output {
+    Command::new(XTASK).args(args).output().unwrap()
+}
+
+fn text(p: &Path) -> String {
+    Table::parse(&fs::read_to_string(p).unwrap())
+        .unwrap()
+        .without_timing()
+}
+
+fn point_files(dir: &Path) -> Vec<PathBuf> {
+    let Ok(rd) = fs::read_dir(dir.join("points")) else {
+        return Vec::new();
+    };
+    rd.map(|e| e.unwrap().path())
+        .filter(|p| p.extension().is_some_and(|e| e == "csv"))
+        .collect()
+}
+
+fn ok(out: &Output) -> String {
+    let stdout = String::from_utf8_lossy(&out.stdout).to_string();
+    assert!(
+        out.status.success(),
+        "{stdout}\n{}",
+        String::from_utf8_lossy(&out.stderr)
+    );
+    stdout
+}
+
+#[test]
+fn killed_sweep_resumes_to_the_uninterrupted_result() {
+    let d = scratch("kill");
+    let cfg = config(&d, "sweep.toml", SMALL);
+    let killed = d.join("killed");
+    let mut child = Command::new(XTASK)
+        .args(["sweep", "--config"])
+        .arg(&cfg)
+        .arg("--out")
+        .arg(&killed)
+        .args(["--threads", "1"])
+        .stdout(Stdio::null())
+        .stderr(Stdio::null())
+        .spawn()
+        .unwrap();
+    // Kill it as soon as two points are finished.
+    let start = Instant::now();
+    while point_files(&killed).len() < 2 {
+        assert!(
+            child.try_wait().unwrap().is_none(),
+            "finished before the kill"
+        );
+        assert!(start.elapsed() < Duration::from_secs(300), "no point file");
+        std::thread::sleep(Duration::from_millis(5));
+    }
+    child.kill().unwrap();
+    child.wait().unwrap();
+    let present = point_files(&killed).len();
+    assert!((2..12).contains(&present), "{present} point files");
+    assert!(
+        !killed.join("runs.csv").exists(),
+        "assembled before the kill?"
+    );
+    // Every point file present is complete and belongs to this sweep.
+    let sweep = Sweep::new(SweepConfig::from_file(&cfg).unwrap()).unwrap();
+    let finished = sweep.finished_points(&killed).unwrap();
+    assert_eq!(finished.len(), present);
+    assert!(finished.values().all(|f| f.run_rows.len() == 10));
+
+    // Resume (another thread count) and compare with an uninterrupted run.
+    let out = ok(&xtask(&[
+        "sweep",
+        "--config",
+        cfg.to_str().unwrap(),
+        "--out",
+        killed.to_str().unwrap(),
+        "--threads",
+        "2",
+    ]));
+    assert!(
+        out.contains(&format!(
+            "points: {} computed, {present} skipped",
+            12 - present
+        )),
+        "{out}"
+    );
+    assert!(out.contains("total wall time:") && out.contains("steps/s per thread"));
+    let whole = d.join("whole");
+    ok(&xtask(&[
+        "sweep",
+        "--config",
+        cfg.to_str().unwrap(),
+        "--out",
+        whole.to_str().unwrap(),
+        "--threads",
+        "1",
+    ]));
+    for f in ["runs.csv", "points.csv"] {
+        assert_eq!(text(&killed.join(f)), text(&whole.join(f)), "{f}");
+    }
+    // The outputs: CSVs, plots, meta.json with the provenance.
+    for f in ["error.svg", "state.svg", "bounded.svg", "meta.json"] {
+        assert!(whole.join(f).is_file(), "{f}");
+    }
+    let meta: serde_json::Value =
+        serde_json::from_str(&fs::read_to_string(whole.join("meta.json")).unwrap()).unwrap();
+    assert_eq!(meta["base_seed"], 5);
+    assert_eq!(meta["run"]["threads"], 1);
+    for key in [
+        "git_revision",
+        "rustc",
+        "host",
+        "start_utc",
+        "end_utc",
+        "config_toml",
+    ] {
+        assert!(!meta[key].is_null(), "{key}");
+    }
+
+    // Two shards into their own directories, merged: the same files again.
+    let shards: Vec<PathBuf> = (1..=2).map(|i| d.join(format!("shard{i}"))).collect();
+    for (i, s) in shards.iter().enumerate() {
+        let out = ok(&xtask(&[
+            "sweep",
+            "--config",
+            cfg.to_str().unwrap(),
+            "--out",
+            s.to_str().unwrap(),
+            "--threads",
+            "1",
+            "--shard",
+            &format!("{}/2", i + 1),
+        ]));
+        assert!(out.contains("points: 6 computed"), "{out}");
+        assert!(s.join(format!("meta.shard-{}-of-2.json", i + 1)).is_file());
+    }
+    let merged = d.join("merged");
+    ok(&xtask(&[
+        "sweep-merge",
+        "--config",
+        cfg.to_str().unwrap(),
+        "--out",
+        merged.to_str().unwrap(),
+        shards[0].to_str().unwrap(),
+        shards[1].to_str().unwrap(),
+    ]));
+    for f in ["runs.csv", "points.csv"] {
+        assert_eq!(text(&merged.join(f)), text(&whole.join(f)), "{f}");
+    }
+    assert!(merged.join("error.svg").is_file() && merged.join("meta.json").is_file());
+}
+
+/// Runs `xtask sweep` and expects a clean error (exit 1, message, no panic).
+fn expect_error(args: &[&str], needle: &str) {
+    let out = xtask(args);
+    let stderr = String::from_utf8_lossy(&out.stderr);
+    assert_eq!(out.status.code(), Some(1), "{args:?}: {stderr}");
+    assert!(stderr.contains("error:"), "{stderr}");
+    assert!(
+        stderr.contains(needle),
+        "{args:?}: `{needle}` not in {stderr}"
+    );
+    assert!(!stderr.contains("panicked"), "{stderr}");
+}
+
+#[test]
+fn bad_input_exits_with_an_error_not_a_panic() {
+    let d = scratch("bad");
+    let body = |k: &str, solvers: &str, seeds: &str| {
+        format!(
+            "name = \"bad\"\nk = {k}\nsolvers = {solvers}\nseeds = {seeds}\ncertificate = false\nsteps = 2\n"
+        )
+    };
+    let cases = [
+        (body("[1]", "[\"pg\", \"newton\"]", "2"), "solvers[1]"),
+        (body("[]", "[\"pg\"]", "2"), "`k`"),
+        (body("[1, 0]", "[\"pg\"]", "2"), "k[1]"),
+        (body("[1]", "[\"pg\"]", "-3"), "`seeds`"),
+        (
+            format!("{}\nspeed = 3\n", body("[1]", "[\"pg\"]", "2")),
+            "`speed`",
+        ),
+    ];
+    for (i, (b, needle)) in cases.iter().enumerate() {
+        let sub = d.join(format!("case{i}"));
+        fs::create_dir_all(&sub).unwrap();
+        let cfg = config(&sub, "sweep.toml", b);
+        expect_error(
+            &[
+                "sweep",
+                "--config",
+                cfg.to_str().unwrap(),
+                "--out",
+                sub.to_str().unwrap(),
+            ],
+            needle,
+        );
+    }
+    let good = config(&d, "good.toml", &body("[1]", "[\"pg\"]", "1"));
+    let good = good.to_str().unwrap();
+    // A shard spec with I > N.
+    expect_error(
+        &["sweep", "--config", good, "--shard", "3/2"],
+        "shard `3/2`",
+    );
+    expect_error(&["sweep", "--config", good, "--threads", "0"], "--threads");
+    // An output directory that cannot be created (below a regular file).
+    let file = d.join("plain-file");
+    fs::write(&file, "x").unwrap();
+    let out = file.join("out");
+    expect_error(
+        &["sweep", "--config", good, "--out", out.to_str().unwrap()],
+        "cannot create the output directory",
+    );
+    // A missing config file.
+    expect_error(
+        &["sweep", "--config", "/nonexistent/sweep.toml"],
+        "sweep.toml",
+    );
+    // Merging an incomplete set of shards.
+    let half = d.join("half");
+    ok(&xtask(&[
+        "sweep",
+        "--config",
+        good,
+        "--out",
+        half.to_str().unwrap(),
+        "--shard",
+        "1/1",
+    ]));
+    let two = config(&d, "two.toml", &body("[1, 2]", "[\"pg\"]", "1"));
+    let two_dir = d.join("two");
+    ok(&xtask(&[
+        "sweep",
+        "--config",
+        two.to_str().unwrap(),
+        "--out",
+        two_dir.to_str().unwrap(),
+        "--shard",
+        "2/2",
+    ]));
+    let out = xtask(&[
+        "sweep-merge",
+        "--config",
+        two.to_str().unwrap(),
+        "--out",
+        d.join("m").to_str().unwrap(),
+        two_dir.to_str().unwrap(),
+    ]);
+    let stderr = String::from_utf8_lossy(&out.stderr);
+    assert_eq!(out.status.code(), Some(1), "{stderr}");
+    assert!(
+        stderr.contains("1 of 2 points have no point file"),
+        "{stderr}"
+    );
+}

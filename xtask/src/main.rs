@@ -4,23 +4,25 @@
 //! - `cargo xtask certify --scenario FILE [--json OUT] [--eta X] [--p-file P.json]`
 //! - `cargo xtask sweep --config FILE.toml [--out DIR] [--threads N] [--shard I/N]`,
 //!   `cargo xtask sweep-merge --config FILE.toml --out DIR [SHARD_DIR...]` (docs/sweeps.md)
-//! - `cargo xtask reproduce [--out DIR]`
+//! - `cargo xtask reproduce [--preset paper|certified] [--scenario FILE] [--out DIR]`
 //!
-//! Exit codes: 0 success, 1 error (bad input, I/O), 2 usage error, 3 the certificate
-//! check failed (LMI (2) infeasible or a supplied P rejected).
+//! Exit codes: 0 success, 1 error (bad input, I/O), 2 usage error, 3 a certificate check
+//! failed (certify: LMI (2) infeasible or a supplied P rejected; reproduce: a simulation at
+//! the certified K violates Prop. 1 or 3 with the certificate's constants).
 
 mod certify;
+mod figures;
 mod provenance;
+mod reproduce;
 mod sweep;
 
 use std::path::{Path, PathBuf};
 use std::process::ExitCode;
 
-use anyhow::{Context, Result};
+use anyhow::Result;
 use clap::{Parser, Subcommand};
 
 use crate::certify::{CertifyRequest, Outcome, certify, write_json};
-use crate::provenance::workspace_root;
 
 /// Exit code when the certificate check fails.
 const EXIT_FAIL: u8 = 3;
@@ -58,11 +60,19 @@ enum Command {
         #[arg(long, value_name = "P.json")]
         p_file: Option<PathBuf>,
     },
-    /// Run the main job: today the case-study certificate (the closed-loop case study
-    /// arrives with the `closed-loop` crate).
+    /// The case study: Theorem 1's certificate per solver, the closed loop of Alg. 1, the
+    /// Prop. 1/3 trajectory check, certificate.json, trace.json and SVG figures
+    /// (docs/reproduce-output.md). Without --preset/--scenario: both presets.
     Reproduce {
-        /// Output directory [default: out/case-study in the workspace].
-        #[arg(long)]
+        /// Run one preset only (`paper`: M = 5, η = 0.8, K = 652, certificate void;
+        /// `certified`: M = 9, simulated at the computed K_min).
+        #[arg(long, value_enum, conflicts_with = "scenario")]
+        preset: Option<reproduce::Preset>,
+        /// Run your own scenario (needs [mhe] and [mpc]) into DIR/<file stem>.
+        #[arg(long, value_name = "FILE")]
+        scenario: Option<PathBuf>,
+        /// Output directory [default: target/reproduce in the workspace].
+        #[arg(long, value_name = "DIR")]
         out: Option<PathBuf>,
     },
 }
@@ -98,43 +108,11 @@ fn run(cli: Cli) -> Result<ExitCode> {
                 ExitCode::from(EXIT_FAIL)
             })
         }
-        Command::Reproduce { out } => {
-            let out = out.unwrap_or_else(|| workspace_root().join("out/case-study"));
-            let scenario = workspace_root().join("scenarios/case-study.toml");
-            println!(
-                "== reproduce: case study (stand-in plant, see scenarios/case-study.toml) ==\n"
-            );
-            let outcome = certify(&CertifyRequest {
-                scenario: scenario.clone(),
-                eta: None,
-                p_file: None,
-            })?;
-            std::fs::create_dir_all(&out)
-                .with_context(|| format!("cannot create output directory `{}`", out.display()))?;
-            report(&outcome, Some(&out.join("certificate.json")))?;
-            let copy = out.join("scenario.toml");
-            std::fs::copy(&scenario, &copy)
-                .with_context(|| format!("cannot copy the scenario to `{}`", copy.display()))?;
-            println!("wrote {}", copy.display());
-            println!();
-            println!(
-                "Not run yet: the closed-loop case study itself (Alg. 1 with a K-iteration MHE"
-            );
-            println!(
-                "feeding the MPC, the Fig. 2 analogues, the K sweeps and the Theorem 1 certificate)"
-            );
-            println!(
-                "comes with the `closed-loop` crate, which does not provide it yet. This command"
-            );
-            println!(
-                "only computed and checked the δ-IOSS certificate above; it prints no other numbers."
-            );
-            Ok(if outcome.document.passed {
-                ExitCode::SUCCESS
-            } else {
-                ExitCode::from(EXIT_FAIL)
-            })
-        }
+        Command::Reproduce {
+            preset,
+            scenario,
+            out,
+        } => reproduce::main(preset, scenario, out),
     }
 }
 

@@ -1,0 +1,1392 @@
+//! `cargo xtask reproduce`: the case study of Section IV of Yang–Manzie–Pu on the stand-in
+//! plant, end to end, for one scenario (a preset or a user's file):
+//!
+//! 1. the closed-loop certificate of Theorem 1 for every solver
+//!    ([`closed_loop::certificate::certify_closed_loop`]): premises with margins, K_min or
+//!    the reasons it is void;
+//! 2. Alg. 1 simulated with the scenario's solver, the exact MPC and the exact MHE solve on
+//!    (for ε_t), at the computed K_min when the certificate holds, at the scenario's K, and
+//!    at a small K for comparison when it is void;
+//! 3. the trajectory inequalities of Props. 1 and 3 on the K_min run, with the certified
+//!    L_Φ and with the sampled L_Φ;
+//! 4. `certificate.json`, `trace.json` and the SVG figures (Fig. 2 analogues, norms);
+//! 5. a text summary with the constants next to the paper's published values.
+//!
+//! Output layout and JSON schemas: docs/reproduce-output.md.
+
+use std::fmt::Write as _;
+use std::path::{Path, PathBuf};
+
+use anyhow::{Context, Result};
+use closed_loop::analysis::Premise;
+use closed_loop::certificate::{
+    CertificateOptions, ClosedLoopCertificate, Gamma13Source, SolverCertificate, TrajectoryCheck,
+    analysis_with_sampled_l_phi, certify_closed_loop, check_trajectory,
+};
+use closed_loop::sim::{CaseStudyOptions, ControllerChoice, Solver, build_case_study};
+use closed_loop::{ClosedLoopError, Trace};
+use lti_model::BoxSet;
+use lti_model::matrix::to_rows;
+use lti_model::scenario::Scenario;
+use mpc_core::CondensedMpc;
+use serde::Serialize;
+
+use crate::figures::{self, Chart, HLine, Legend, Pattern, Series};
+use crate::provenance::{Provenance, workspace_root};
+
+/// `format` of certificate.json.
+pub const CERTIFICATE_FORMAT: &str = "suboptimal-mhe/closed-loop-certificate";
+/// `format` of trace.json.
+pub const TRACE_FORMAT: &str = "suboptimal-mhe/closed-loop-trace";
+/// `format_version` of both files; bumped on any incompatible change.
+pub const FORMAT_VERSION: u32 = 1;
+/// Time step of the ŵ² panel (the paper's Fig. 2(c) shows t = 6).
+pub const FIG2C_T: usize = 6;
+
+/// The shipped case-study scenarios.
+#[derive(Debug, Clone, Copy, PartialEq, Eq, clap::ValueEnum, Serialize)]
+#[serde(rename_all = "lowercase")]
+pub enum Preset {
+    /// The paper's M = 5, η = 0.8, K = 652 (certificate void: 6·0.8⁵ ≥ 1).
+    Paper,
+    /// The nearest parameters satisfying every premise (M = 9), simulated at K_min.
+    Certified,
+}
+
+impl Preset {
+    /// Both presets, in the order `reproduce` runs them.
+    pub const ALL: [Preset; 2] = [Preset::Paper, Preset::Certified];
+
+    /// `"paper"` or `"certified"` (also the output subdirectory).
+    pub fn name(self) -> &'static str {
+        match self {
+            Preset::Paper => "paper",
+            Preset::Certified => "certified",
+        }
+    }
+
+    /// The scenario file, relative to the workspace root.
+    pub fn scenario_file(self) -> &'static str {
+        match self {
+            Preset::Paper => "scenarios/case-study.toml",
+            Preset::Certified => "scenarios/case-study-certified.toml",
+        }
+    }
+
+    /// A job for this preset writing into `out_root/<name>`.
+    pub fn job(self, out_root: &Path) -> Job {
+        Job {
+            label: self.name().to_string(),
+            preset: Some(self),
+            scenario: workspace_root().join(self.scenario_file()),
+            out: out_root.join(self.name()),
+        }
+    }
+}
+
+/// One scenario to reproduce and where its files go.
+#[derive(Debug, Clone, PartialEq)]
+pub struct Job {
+    /// Name used in the outputs (`"paper"`, `"certified"`, or the file stem).
+    pub label: String,
+    /// The preset, if the scenario is one.
+    pub preset: Option<Preset>,
+    /// Scenario file.
+    pub scenario: PathBuf,
+    /// Output directory (created).
+    pub out: PathBuf,
+}
+
+/// Sampling and search settings (defaults: those of the shipped results).
+#[derive(Debug, Clone, PartialEq)]
+pub struct Settings {
+    /// Random pairs of the sampled L_Φ and L_π.
+    pub lipschitz_pairs: usize,
+    /// Injected error sequences per magnitude for the sampled γ₁,₃ (0 skips it).
+    pub gamma13_sequences: usize,
+    /// Cap on N·n_u for the free-set enumerations (γ₁,₃, L_π).
+    pub enumeration_max_vars: usize,
+    /// γ₁,₃ from the certified enumeration or supplied.
+    pub gamma13: Gamma13Source,
+    /// Largest K searched for K_min.
+    pub k_max: usize,
+    /// The small K simulated next to the scenario's K when the certificate is void.
+    pub small_k: usize,
+    /// Write the SVG figures.
+    pub figures: bool,
+}
+
+impl Default for Settings {
+    fn default() -> Self {
+        Self {
+            lipschitz_pairs: 200,
+            gamma13_sequences: 30,
+            enumeration_max_vars: 20,
+            gamma13: Gamma13Source::Certified,
+            k_max: 1 << 24,
+            small_k: 5,
+            figures: true,
+        }
+    }
+}
+
+/// The scenario as read.
+#[derive(Debug, Clone, Serialize)]
+pub struct ScenarioRecord {
+    /// `name`.
+    pub name: String,
+    /// `description`.
+    pub description: Option<String>,
+    /// Path, relative to the workspace when inside it.
+    pub path: String,
+    /// The file's text, verbatim (comments included).
+    pub text: Option<String>,
+}
+
+/// The machine a result was produced on.
+#[derive(Debug, Clone, Serialize)]
+pub struct HostInfo {
+    /// Host name, if it could be read.
+    pub hostname: Option<String>,
+    /// `std::env::consts::OS`.
+    pub os: String,
+    /// `std::env::consts::ARCH`.
+    pub arch: String,
+    /// Available parallelism (logical CPUs usable by this process).
+    pub cpus: Option<usize>,
+}
+
+impl HostInfo {
+    fn collect() -> Self {
+        let hostname = std::fs::read_to_string("/proc/sys/kernel/hostname")
+            .or_else(|_| std::fs::read_to_string("/etc/hostname"))
+            .ok()
+            .map(|s| s.trim().to_string())
+            .or_else(|| std::env::var("HOSTNAME").ok())
+            .filter(|s| !s.is_empty());
+        Self {
+            hostname,
+            os: std::env::consts::OS.to_string(),
+            arch: std::env::consts::ARCH.to_string(),
+            cpus: std::thread::available_parallelism().ok().map(|n| n.get()),
+        }
+    }
+}
+
+/// The settings as recorded.
+#[derive(Debug, Clone, Serialize)]
+pub struct SettingsRecord {
+    /// Seed of every sampled estimate (the scenario's `noise.seed`).
+    pub sampling_seed: u64,
+    /// See [`Settings`].
+    pub lipschitz_pairs: usize,
+    /// See [`Settings`].
+    pub gamma13_sequences: usize,
+    /// See [`Settings`].
+    pub enumeration_max_vars: usize,
+    /// See [`Settings`].
+    pub k_max: usize,
+    /// See [`Settings`].
+    pub small_k: usize,
+}
+
+/// One solver's verdict, flattened for readers of the JSON.
+#[derive(Debug, Clone, Serialize)]
+pub struct SolverSummary {
+    /// `"pg"`, `"fista"`, `"admm"`.
+    pub solver: String,
+    /// Whether this is the scenario's `[mhe] solver` (the one simulated).
+    pub simulated: bool,
+    /// Theorem 1 certifies ISS for some K (K_min exists).
+    pub certified: bool,
+    /// Smallest certified K; null when void.
+    pub k_min: Option<usize>,
+    /// Why there is no K_min (empty when there is one).
+    pub void_reasons: Vec<String>,
+    /// Every premise with pass/fail, value, margin and fix.
+    pub premises: Vec<Premise>,
+    /// φ(K) = prefactor · rateᴷ.
+    pub phi_rate: f64,
+    /// Prefactor of φ(K).
+    pub phi_prefactor: f64,
+    /// 1 − max(sg1, sg2, sg3) at K_min (null when void).
+    pub margin_at_k_min: Option<f64>,
+    /// K_min with the sampled L_Φ instead of the certified bound (not a certificate).
+    pub k_min_with_sampled_l_phi: Option<usize>,
+}
+
+impl SolverSummary {
+    fn new(sc: &SolverCertificate, simulated: Solver) -> Self {
+        Self {
+            solver: sc.solver.name().to_string(),
+            simulated: sc.solver == simulated,
+            certified: sc.k_min.is_some(),
+            k_min: sc.k_min,
+            void_reasons: sc.void_reasons.clone(),
+            premises: sc.analysis.premises.clone(),
+            phi_rate: sc.phi_rate,
+            phi_prefactor: sc.phi_prefactor,
+            margin_at_k_min: sc.at_k_min.as_ref().map(|g| g.margin),
+            k_min_with_sampled_l_phi: sc.k_min_with_sampled_l_phi,
+        }
+    }
+}
+
+/// Why a run was made at its K.
+#[derive(Debug, Clone, Copy, PartialEq, Eq, Serialize)]
+#[serde(rename_all = "snake_case")]
+pub enum KSource {
+    /// The computed K_min of Theorem 1.
+    ComputedKMin,
+    /// The scenario's `mhe.iterations`.
+    Scenario,
+    /// A small K for comparison ([`Settings::small_k`]).
+    Small,
+}
+
+/// What one simulation did.
+#[derive(Debug, Clone, Serialize)]
+pub struct RunSummary {
+    /// Short name (`"K=652"`).
+    pub label: String,
+    /// Iterations K of Φ per step.
+    pub k: usize,
+    /// Why this K.
+    pub k_source: KSource,
+    /// Φ of the MHE.
+    pub solver: String,
+    /// Always `"exact MPC"`.
+    pub controller: String,
+    /// ε_t recorded (exact MHE solve on).
+    pub exact_mhe_solve: bool,
+    /// Disturbance seed.
+    pub seed: u64,
+    /// T requested.
+    pub steps: usize,
+    /// Steps completed (< T only after an error).
+    pub completed: usize,
+    /// The step error, if the run stopped early (e.g. a diverged loop).
+    pub error: Option<String>,
+    /// sup_t ‖e_t‖.
+    pub sup_norm_e: f64,
+    /// sup_t ‖x_t‖.
+    pub sup_norm_x: f64,
+    /// ‖x_T‖.
+    pub final_norm_x: f64,
+    /// Mean ‖e_t‖ over the last quarter.
+    pub tail_mean_e: Option<f64>,
+    /// Mean ‖x_t‖ over the last quarter.
+    pub tail_mean_x: Option<f64>,
+    /// Mean ε_t over the last quarter.
+    pub tail_mean_epsilon: Option<f64>,
+}
+
+/// Props. 1 and 3 evaluated on the K_min run.
+#[derive(Debug, Clone, Serialize)]
+pub struct TrajectoryReport {
+    /// The check ran (a K_min exists and ε_t was recorded).
+    pub ran: bool,
+    /// Why it did not run.
+    pub reason: Option<String>,
+    /// Solver of the run.
+    pub solver: String,
+    /// K of the run (K_min) and of the constants.
+    pub k: Option<usize>,
+    /// Seed of the run.
+    pub seed: u64,
+    /// Steps evaluated.
+    pub steps: usize,
+    /// With the certificate's constants (certified L_Φ).
+    pub certified_l_phi: Option<TrajectoryCheck>,
+    /// The same constants with the sampled L_Φ (informative, not a certificate).
+    pub sampled_l_phi: Option<TrajectoryCheck>,
+    /// Both inequalities hold at every t with the certified constants.
+    pub passed: Option<bool>,
+}
+
+/// One row of the constants table (ours vs the paper's published values).
+#[derive(Debug, Clone, Serialize)]
+pub struct ComparisonRow {
+    /// Quantity.
+    pub quantity: String,
+    /// Ours, for the stand-in plant.
+    pub ours: String,
+    /// The paper's, for its own plant (not printed in the paper).
+    pub paper: String,
+}
+
+/// certificate.json (docs/reproduce-output.md).
+#[derive(Debug, Clone, Serialize)]
+pub struct CertificateDocument {
+    /// [`CERTIFICATE_FORMAT`].
+    pub format: String,
+    /// [`FORMAT_VERSION`].
+    pub format_version: u32,
+    /// The preset, if any.
+    pub preset: Option<Preset>,
+    /// The job label.
+    pub label: String,
+    /// The scenario.
+    pub scenario: ScenarioRecord,
+    /// Git revision, tool, compiler, time.
+    pub provenance: Provenance,
+    /// The machine.
+    pub host: HostInfo,
+    /// Sampling settings and seed.
+    pub settings: SettingsRecord,
+    /// The scenario's solver (the one simulated).
+    pub solver: String,
+    /// `mhe.iterations` of the scenario.
+    pub scenario_iterations: usize,
+    /// The scenario's solver has a K_min.
+    pub certified: bool,
+    /// `scenario_iterations == k_min` of the scenario's solver (null when void).
+    pub scenario_iterations_match_k_min: Option<bool>,
+    /// Per solver: premises, K_min or reasons.
+    pub solvers: Vec<SolverSummary>,
+    /// Everything `certify_closed_loop` computed.
+    pub certificate: ClosedLoopCertificate,
+    /// The simulations.
+    pub runs: Vec<RunSummary>,
+    /// Props. 1/3 on the K_min run.
+    pub trajectory_check: TrajectoryReport,
+    /// Constants next to the paper's published values.
+    pub paper_comparison: Vec<ComparisonRow>,
+    /// Files written, relative to the output directory.
+    pub files: Vec<String>,
+}
+
+/// A box with ±∞ bounds written as null.
+#[derive(Debug, Clone, Serialize)]
+pub struct BoxRecord {
+    /// Lower bounds (null = −∞).
+    pub lower: Vec<Option<f64>>,
+    /// Upper bounds (null = +∞).
+    pub upper: Vec<Option<f64>>,
+}
+
+impl BoxRecord {
+    fn new(b: &BoxSet) -> Self {
+        let f = |v: &[f64]| v.iter().map(|a| a.is_finite().then_some(*a)).collect();
+        Self {
+            lower: f(b.lower()),
+            upper: f(b.upper()),
+        }
+    }
+}
+
+/// Plant of eq. (1).
+#[derive(Debug, Clone, Serialize)]
+pub struct ModelRecord {
+    /// n_x.
+    pub nx: usize,
+    /// n_u.
+    pub nu: usize,
+    /// n_y.
+    pub ny: usize,
+    /// dim w¹.
+    pub nw1: usize,
+    /// dim w².
+    pub nw2: usize,
+    /// A.
+    pub a: Vec<Vec<f64>>,
+    /// B.
+    pub b: Vec<Vec<f64>>,
+    /// C.
+    pub c: Vec<Vec<f64>>,
+    /// E (w¹ → x⁺).
+    pub e: Vec<Vec<f64>>,
+    /// F (w² → y).
+    pub f: Vec<Vec<f64>>,
+}
+
+/// 𝒳, 𝒰, 𝒴, 𝒲.
+#[derive(Debug, Clone, Serialize)]
+pub struct SetsRecord {
+    /// 𝒳.
+    pub state: BoxRecord,
+    /// 𝒰.
+    pub input: BoxRecord,
+    /// 𝒴.
+    pub output: BoxRecord,
+    /// 𝒲 (w = (w¹, w²)).
+    pub disturbance: BoxRecord,
+}
+
+/// The MHE problem's data (cost (9)).
+#[derive(Debug, Clone, Serialize)]
+pub struct MheInfo {
+    /// M.
+    pub horizon: usize,
+    /// η.
+    pub eta: f64,
+    /// P (computed from LMI (2) unless the scenario gives it).
+    pub p: Vec<Vec<f64>>,
+    /// Q.
+    pub q: Vec<Vec<f64>>,
+    /// R.
+    pub r: Vec<Vec<f64>>,
+    /// `"computed from LMI (2)"` or `"scenario mhe.p"`.
+    pub p_source: String,
+    /// Warm start rule.
+    pub warm_start: String,
+    /// The cost, written out.
+    pub cost: String,
+}
+
+/// The MPC's data.
+#[derive(Debug, Clone, Serialize)]
+pub struct MpcInfo {
+    /// N.
+    pub horizon: usize,
+    /// Q_c.
+    pub q_c: Vec<Vec<f64>>,
+    /// R_c.
+    pub r_c: Vec<Vec<f64>>,
+    /// P_f (DARE).
+    pub terminal_weight: Vec<Vec<f64>>,
+}
+
+/// One simulation in trace.json.
+#[derive(Debug, Serialize)]
+pub struct TraceRun<'a> {
+    /// Summary (same as in certificate.json).
+    #[serde(flatten)]
+    pub summary: &'a RunSummary,
+    /// Per step records.
+    pub trace: &'a Trace,
+}
+
+/// trace.json (docs/reproduce-output.md).
+#[derive(Debug, Serialize)]
+pub struct TraceDocument<'a> {
+    /// [`TRACE_FORMAT`].
+    pub format: &'static str,
+    /// [`FORMAT_VERSION`].
+    pub format_version: u32,
+    /// The preset, if any.
+    pub preset: Option<Preset>,
+    /// The job label.
+    pub label: &'a str,
+    /// The scenario.
+    pub scenario: &'a ScenarioRecord,
+    /// Provenance.
+    pub provenance: &'a Provenance,
+    /// Plant.
+    pub model: ModelRecord,
+    /// Sets.
+    pub sets: SetsRecord,
+    /// MHE data.
+    pub mhe: MheInfo,
+    /// MPC data.
+    pub mpc: MpcInfo,
+    /// x₀.
+    pub x0: &'a [f64],
+    /// x̄₀.
+    pub prior: &'a [f64],
+    /// The runs.
+    pub runs: Vec<TraceRun<'a>>,
+}
+
+/// Result of one job.
+#[derive(Debug)]
+pub struct Outcome {
+    /// certificate.json's content.
+    pub document: CertificateDocument,
+    /// The text summary.
+    pub summary: String,
+}
+
+impl Outcome {
+    /// The certified trajectory check ran and failed: the simulation contradicts the
+    /// certificate.
+    pub fn contradicted(&self) -> bool {
+        self.document.trajectory_check.passed == Some(false)
+    }
+}
+
+/// The cost (9) as the MHE minimises it (docs/reproduce-output.md repeats it).
+pub const MHE_COST: &str = "V = 2·η^{M_t}·‖x̂_{t−M_t} − prior‖²_P + Σ_{i=1}^{M_t} η^{i−1}·(2‖ŵ_{t−i}‖²_Q + \
+     ‖C x̂_{t−i} + F ŵ²_{t−i} − y_{t−i}‖²_R), x̂_{j+1} = A x̂_j + B u_j + E ŵ¹_j, ŵ_j ∈ 𝒲, \
+     M_t = min(M, t); variables z = (x̂_{t−M_t}, ŵ_{t−M_t}, …, ŵ_{t−1})";
+
+fn relative(path: &Path) -> String {
+    path.strip_prefix(workspace_root())
+        .unwrap_or(path)
+        .display()
+        .to_string()
+}
+
+/// The runs to simulate for a certificate (module docs, step 2).
+fn plan_runs(scenario_k: usize, k_min: Option<usize>, small_k: usize) -> Vec<(usize, KSource)> {
+    let mut plan = Vec::new();
+    match k_min {
+        Some(k_min) => {
+            plan.push((k_min.max(1), KSource::ComputedKMin));
+            if scenario_k != k_min.max(1) {
+                plan.push((scenario_k, KSource::Scenario));
+            }
+        }
+        None => {
+            plan.push((scenario_k, KSource::Scenario));
+            if small_k >= 1 && small_k < scenario_k {
+                plan.push((small_k, KSource::Small));
+            }
+        }
+    }
+    plan
+}
+
+struct Run {
+    summary: RunSummary,
+    trace: Trace,
+}
+
+fn simulate(scenario: &Scenario, solver: Solver, k: usize, source: KSource) -> Result<Run> {
+    let opts = CaseStudyOptions {
+        solver,
+        iterations: k,
+        exact_mhe_solve: true,
+        controller: ControllerChoice::ExactMpc,
+        seed: scenario.noise.seed,
+        steps: scenario.simulation.steps,
+    };
+    let mut cl = build_case_study(scenario, &opts)
+        .with_context(|| format!("cannot set up the closed loop at K = {k}"))?;
+    let error = cl.run().err().map(|e| e.to_string());
+    let trace = cl.into_trace();
+    let len = trace.len();
+    let summary = RunSummary {
+        label: format!("K={k}"),
+        k,
+        k_source: source,
+        solver: solver.name().to_string(),
+        controller: "exact MPC".into(),
+        exact_mhe_solve: true,
+        seed: opts.seed,
+        steps: opts.steps,
+        completed: len,
+        error,
+        sup_norm_e: trace.sup_norm_e(),
+        sup_norm_x: trace.sup_norm_x(),
+        final_norm_x: trace.x_norms().last().copied().unwrap_or(f64::NAN),
+        tail_mean_e: trace.tail_mean_e(),
+        tail_mean_x: trace.tail_mean_x(),
+        tail_mean_epsilon: trace.tail_mean_epsilon(),
+    };
+    Ok(Run { summary, trace })
+}
+
+fn fmt_opt(v: Option<usize>) -> String {
+    v.map_or_else(|| "none".to_string(), |k| k.to_string())
+}
+
+fn comparison(cert: &ClosedLoopCertificate, solver: Solver) -> Vec<ComparisonRow> {
+    let sc = cert.solver(solver);
+    let phi = sc.map_or_else(
+        || "not computed".to_string(),
+        |s| {
+            format!(
+                "{:.3}·{:.4}^K ({})",
+                s.phi_prefactor,
+                s.phi_rate,
+                s.solver.name()
+            )
+        },
+    );
+    let g = &cert.gamma13;
+    let gamma_sampled = g.sampled.as_ref().map_or(String::new(), |s| {
+        format!("; sampled ≥ {:.3}", s.gamma13_lower)
+    });
+    let k = match sc {
+        Some(s) => match s.k_min {
+            Some(k) => format!("K_min = {k} ({})", s.solver.name()),
+            None => format!("none: void ({})", short_reason(s)),
+        },
+        None => "not computed".into(),
+    };
+    vec![
+        ComparisonRow {
+            quantity: "ρ = 6^(1/M)·η".into(),
+            ours: format!("{:.4} (M = {}, η = {})", cert.rho, cert.horizon, cert.eta),
+            paper: format!(
+                "{:.4} (not printed; from M = 5, η = 0.8)",
+                6f64.powf(0.2) * 0.8
+            ),
+        },
+        ComparisonRow {
+            quantity: "φ(K)".into(),
+            ours: phi,
+            paper: "0.98^K (partial gradient)".into(),
+        },
+        ComparisonRow {
+            quantity: "L_Φ".into(),
+            ours: format!(
+                "{:.3} certified; sampled {:.3}",
+                cert.l_phi.certified, cert.l_phi.sampled
+            ),
+            paper: "5.32 (sample-based)".into(),
+        },
+        ComparisonRow {
+            quantity: "γ₁,₃".into(),
+            ours: format!("{:.3} {}{gamma_sampled}", g.used, g.source),
+            paper: "28.8 (method of their journal paper)".into(),
+        },
+        ComparisonRow {
+            quantity: "L_π".into(),
+            ours: format!(
+                "{:.3} certified; sampled {:.3}",
+                cert.l_pi_used, cert.l_pi.sampled.estimate
+            ),
+            paper: "2.65 (sample-based)".into(),
+        },
+        ComparisonRow {
+            quantity: "K".into(),
+            ours: k,
+            paper: "652 (from (sg1)–(sg3))".into(),
+        },
+    ]
+}
+
+fn short_reason(s: &SolverCertificate) -> String {
+    let names: Vec<&str> = s
+        .analysis
+        .violated()
+        .iter()
+        .map(|p| p.name.as_str())
+        .collect();
+    if names.is_empty() {
+        "no K satisfies (sg1)–(sg3)".into()
+    } else {
+        format!("{} fails", names.join(", "))
+    }
+}
+
+/// Runs one job: certificate, simulations, trajectory check, files, summary.
+///
+/// Errors: unreadable or invalid scenario (the error is a [`lti_model::ModelError`] naming
+/// the key), a scenario without `[mhe]`/`[mpc]` (a [`ClosedLoopError`]), I/O. A void
+/// certificate is not an error.
+pub fn run_job(job: &Job, settings: &Settings) -> Result<Outcome> {
+    let scenario = Scenario::from_file(&job.scenario)
+        .with_context(|| format!("invalid scenario `{}`", job.scenario.display()))?;
+    let spec = scenario
+        .mhe
+        .as_ref()
+        .ok_or(ClosedLoopError::MissingSection { section: "mhe" })
+        .with_context(|| format!("scenario `{}`", job.scenario.display()))?;
+    if scenario.mpc.is_none() {
+        return Err(ClosedLoopError::MissingSection { section: "mpc" })
+            .with_context(|| format!("scenario `{}`", job.scenario.display()));
+    }
+    let solver: Solver = spec.solver.into();
+    let seed = scenario.noise.seed;
+    let opts = CertificateOptions {
+        solvers: vec![Solver::Pg, Solver::Fista, Solver::Admm],
+        gamma13: settings.gamma13,
+        seed,
+        lipschitz_pairs: settings.lipschitz_pairs,
+        gamma13_sequences: settings.gamma13_sequences,
+        enumeration_max_vars: settings.enumeration_max_vars,
+        k_max: settings.k_max,
+    };
+    let cert = certify_closed_loop(&scenario, &opts).with_context(|| {
+        format!(
+            "cannot compute the certificate of `{}`",
+            job.scenario.display()
+        )
+    })?;
+    let own = cert.solver(solver);
+
+    // Simulations (skipped when LMI (2) is infeasible: the MHE needs a P).
+    let mut runs: Vec<Run> = Vec::new();
+    if cert.ioss.is_some() || spec.p.is_some() {
+        for (k, source) in plan_runs(spec.iterations, own.and_then(|s| s.k_min), settings.small_k) {
+            runs.push(simulate(&scenario, solver, k, source)?);
+        }
+    }
+
+    // Props. 1 and 3 on the K_min run.
+    let kmin_run = runs
+        .iter()
+        .find(|r| r.summary.k_source == KSource::ComputedKMin);
+    let trajectory_check = match (own, kmin_run) {
+        (Some(sc), Some(run)) => {
+            let k = run.summary.k;
+            let certified = check_trajectory(&cert, &sc.analysis, k, &run.trace);
+            let sampled = check_trajectory(
+                &cert,
+                &analysis_with_sampled_l_phi(&cert, sc),
+                k,
+                &run.trace,
+            );
+            let passed = certified
+                .as_ref()
+                .map(|c| c.prop1.holds && c.prop3.holds && run.summary.error.is_none());
+            TrajectoryReport {
+                ran: certified.is_some(),
+                reason: certified
+                    .is_none()
+                    .then(|| "ε_t was not recorded (exact MHE solve off)".to_string()),
+                solver: solver.name().into(),
+                k: Some(k),
+                seed: run.summary.seed,
+                steps: run.trace.len(),
+                certified_l_phi: certified,
+                sampled_l_phi: sampled,
+                passed,
+            }
+        }
+        _ => TrajectoryReport {
+            ran: false,
+            reason: Some(match own {
+                Some(sc) => format!(
+                    "the certificate of {} is void ({}): there is no certified K to check",
+                    solver.name(),
+                    short_reason(sc)
+                ),
+                None => "the scenario's solver was not certified".into(),
+            }),
+            solver: solver.name().into(),
+            k: None,
+            seed,
+            steps: 0,
+            certified_l_phi: None,
+            sampled_l_phi: None,
+            passed: None,
+        },
+    };
+
+    std::fs::create_dir_all(&job.out)
+        .with_context(|| format!("cannot create output directory `{}`", job.out.display()))?;
+    let provenance = Provenance::collect();
+    let scenario_record = ScenarioRecord {
+        name: scenario.name.clone(),
+        description: scenario.description.clone(),
+        path: relative(&job.scenario),
+        text: scenario.source.clone(),
+    };
+    let mut files: Vec<PathBuf> = Vec::new();
+
+    // trace.json
+    if !runs.is_empty() {
+        let doc = trace_document(job, &scenario, &scenario_record, &provenance, &runs)?;
+        let path = job.out.join("trace.json");
+        write_text(
+            &path,
+            &serde_json::to_string(&doc).context("cannot serialise the trace")?,
+        )?;
+        files.push(path);
+    }
+    // Figures.
+    let mut figure_notes = Vec::new();
+    if settings.figures && !runs.is_empty() {
+        for (name, chart) in charts(&scenario, &runs) {
+            let rendered = figures::render_svg(&chart)?;
+            let path = job.out.join(name);
+            write_text(&path, &rendered.svg)?;
+            if rendered.dropped > 0 {
+                figure_notes.push(format!(
+                    "{name}: {} point(s) ≤ 0 not drawn on the log axis",
+                    rendered.dropped
+                ));
+            }
+            files.push(path);
+        }
+    }
+    let cert_path = job.out.join("certificate.json");
+    files.push(cert_path.clone());
+
+    let document = CertificateDocument {
+        format: CERTIFICATE_FORMAT.into(),
+        format_version: FORMAT_VERSION,
+        preset: job.preset,
+        label: job.label.clone(),
+        scenario: scenario_record,
+        provenance,
+        host: HostInfo::collect(),
+        settings: SettingsRecord {
+            sampling_seed: seed,
+            lipschitz_pairs: settings.lipschitz_pairs,
+            gamma13_sequences: settings.gamma13_sequences,
+            enumeration_max_vars: settings.enumeration_max_vars,
+            k_max: settings.k_max,
+            small_k: settings.small_k,
+        },
+        solver: solver.name().into(),
+        scenario_iterations: spec.iterations,
+        certified: own.is_some_and(|s| s.k_min.is_some()),
+        scenario_iterations_match_k_min: own.and_then(|s| s.k_min).map(|k| k == spec.iterations),
+        solvers: cert
+            .solvers
+            .iter()
+            .map(|s| SolverSummary::new(s, solver))
+            .collect(),
+        paper_comparison: comparison(&cert, solver),
+        runs: runs.iter().map(|r| r.summary.clone()).collect(),
+        trajectory_check,
+        files: files
+            .iter()
+            .map(|p| p.strip_prefix(&job.out).unwrap_or(p).display().to_string())
+            .collect(),
+        certificate: cert,
+    };
+    write_text(
+        &cert_path,
+        &(serde_json::to_string_pretty(&document).context("cannot serialise the certificate")?
+            + "\n"),
+    )?;
+    let summary = summarize(&document, &files, &figure_notes);
+    Ok(Outcome { document, summary })
+}
+
+/// Exit code when a simulation contradicts the certificate (Prop. 1/3 check failed).
+pub const EXIT_CONTRADICTED: u8 = 3;
+
+/// The jobs of a command line: one preset, a user scenario, or both presets (default).
+pub fn jobs(preset: Option<Preset>, scenario: Option<PathBuf>, out: Option<PathBuf>) -> Vec<Job> {
+    let out = out.unwrap_or_else(|| workspace_root().join("target/reproduce"));
+    match (preset, scenario) {
+        (_, Some(path)) => {
+            let label = path.file_stem().map_or_else(
+                || "scenario".to_string(),
+                |s| s.to_string_lossy().into_owned(),
+            );
+            vec![Job {
+                out: out.join(&label),
+                label,
+                preset: None,
+                scenario: path,
+            }]
+        }
+        (Some(p), None) => vec![p.job(&out)],
+        (None, None) => Preset::ALL.iter().map(|p| p.job(&out)).collect(),
+    }
+}
+
+/// `cargo xtask reproduce`: runs the jobs, prints each summary. Exit code 0, or
+/// [`EXIT_CONTRADICTED`] when a certified trajectory check fails; errors for bad input.
+pub fn main(
+    preset: Option<Preset>,
+    scenario: Option<PathBuf>,
+    out: Option<PathBuf>,
+) -> Result<std::process::ExitCode> {
+    let settings = Settings::default();
+    let mut contradicted = false;
+    for job in jobs(preset, scenario, out) {
+        let t0 = std::time::Instant::now();
+        let outcome = run_job(&job, &settings)?;
+        println!("{}", outcome.summary);
+        println!(
+            "({} done in {:.1} s)\n",
+            job.label,
+            t0.elapsed().as_secs_f64()
+        );
+        contradicted |= outcome.contradicted();
+    }
+    Ok(if contradicted {
+        eprintln!(
+            "error: a simulation at the certified K violates Prop. 1 or 3 with the certificate's constants"
+        );
+        std::process::ExitCode::from(EXIT_CONTRADICTED)
+    } else {
+        std::process::ExitCode::SUCCESS
+    })
+}
+
+fn write_text(path: &Path, text: &str) -> Result<()> {
+    std::fs::write(path, text).with_context(|| format!("cannot write `{}`", path.display()))
+}
+
+fn trace_document<'a>(
+    job: &'a Job,
+    scenario: &'a Scenario,
+    record: &'a ScenarioRecord,
+    provenance: &'a Provenance,
+    runs: &'a [Run],
+) -> Result<TraceDocument<'a>> {
+    let sys = &scenario.plant;
+    let spec = scenario
+        .mhe
+        .as_ref()
+        .ok_or(ClosedLoopError::MissingSection { section: "mhe" })?;
+    let mpc = CondensedMpc::from_scenario(scenario)?;
+    // The P the estimator used: the scenario's, or the maximal solution of LMI (2).
+    let cfg = mhe_core::MheConfig::from_spec(spec, sys, false)?;
+    let m = |x: faer::MatRef<'_, f64>| to_rows(x);
+    Ok(TraceDocument {
+        format: TRACE_FORMAT,
+        format_version: FORMAT_VERSION,
+        preset: job.preset,
+        label: &job.label,
+        scenario: record,
+        provenance,
+        model: ModelRecord {
+            nx: sys.nx(),
+            nu: sys.nu(),
+            ny: sys.ny(),
+            nw1: sys.nw1(),
+            nw2: sys.nw2(),
+            a: m(sys.a()),
+            b: m(sys.b()),
+            c: m(sys.c()),
+            e: m(sys.e()),
+            f: m(sys.f()),
+        },
+        sets: SetsRecord {
+            state: BoxRecord::new(&scenario.sets.state),
+            input: BoxRecord::new(&scenario.sets.input),
+            output: BoxRecord::new(&scenario.sets.output),
+            disturbance: BoxRecord::new(&scenario.sets.disturbance),
+        },
+        mhe: MheInfo {
+            horizon: cfg.horizon,
+            eta: cfg.eta,
+            p: m(cfg.p.as_ref()),
+            q: m(cfg.q.as_ref()),
+            r: m(cfg.r.as_ref()),
+            p_source: if spec.p.is_some() {
+                "scenario mhe.p".into()
+            } else {
+                "computed from LMI (2)".into()
+            },
+            warm_start: format!("{:?}", cfg.warm_start).to_lowercase(),
+            cost: MHE_COST.into(),
+        },
+        mpc: MpcInfo {
+            horizon: mpc.horizon(),
+            q_c: m(mpc.q_c().as_ref()),
+            r_c: m(mpc.r_c().as_ref()),
+            terminal_weight: m(mpc.terminal_weight().as_ref()),
+        },
+        x0: &scenario.simulation.x0,
+        prior: &scenario.simulation.prior,
+        runs: runs
+            .iter()
+            .map(|r| TraceRun {
+                summary: &r.summary,
+                trace: &r.trace,
+            })
+            .collect(),
+    })
+}
+
+/// The figures of one job: (file name, chart). Colour i+1 is run i; the true state is black.
+fn charts(scenario: &Scenario, runs: &[Run]) -> Vec<(&'static str, Chart)> {
+    let steps = |tr: &Trace| 0..tr.len();
+    let multi = runs.len() > 1;
+    let pattern = |i: usize| {
+        if i == 0 {
+            Pattern::Solid
+        } else {
+            Pattern::Dashed
+        }
+    };
+    let mut out = Vec::new();
+
+    // Fig. 2(a): x₁ and x̂₁.
+    let mut series = Vec::new();
+    for (i, r) in runs.iter().enumerate() {
+        let tr = &r.trace;
+        let suffix = if multi {
+            format!(" ({})", r.summary.label)
+        } else {
+            String::new()
+        };
+        series.push(Series {
+            label: format!("x₁{suffix}"),
+            points: steps(tr)
+                .filter_map(|t| tr.x(t).map(|x| (t as f64, x[0])))
+                .collect(),
+            color: 0,
+            pattern: pattern(i),
+            markers: false,
+        });
+        series.push(Series {
+            label: format!("x̂₁, K = {}", r.summary.k),
+            points: steps(tr)
+                .filter_map(|t| tr.x_hat(t).map(|x| (t as f64, x[0])))
+                .collect(),
+            color: i + 1,
+            pattern: pattern(i),
+            markers: false,
+        });
+    }
+    out.push((
+        "fig2a_x1.svg",
+        Chart {
+            title: "Fig. 2(a): true state x₁ and sub-optimal estimate x̂₁".into(),
+            x_label: "time step t".into(),
+            y_label: "x₁".into(),
+            log_y: false,
+            integer_x: true,
+            series,
+            hlines: vec![],
+            legend: Legend::UpperRight,
+        },
+    ));
+
+    // Fig. 2(b): ε_t (log).
+    let series = runs
+        .iter()
+        .enumerate()
+        .map(|(i, r)| Series {
+            label: format!("ε_t, K = {}", r.summary.k),
+            points: r
+                .trace
+                .epsilons()
+                .enumerate()
+                .filter_map(|(t, e)| e.map(|e| (t as f64, e)))
+                .collect(),
+            color: i + 1,
+            pattern: Pattern::Solid,
+            markers: true,
+        })
+        .collect();
+    out.push((
+        "fig2b_epsilon.svg",
+        Chart {
+            title: "Fig. 2(b): sub-optimality ε_t = ‖zᴷ_t − z*_t‖".into(),
+            x_label: "time step t".into(),
+            y_label: "ε_t".into(),
+            log_y: true,
+            integer_x: true,
+            series,
+            hlines: vec![],
+            legend: Legend::MiddleRight,
+        },
+    ));
+
+    // Fig. 2(c): ŵ² at t = 6, K-th iterate and exact optimum, with the bounds of 𝒲.
+    let nw1 = scenario.plant.nw1();
+    let nw2 = scenario.plant.nw2();
+    let mut series = Vec::new();
+    for (i, r) in runs.iter().enumerate() {
+        let Some(rec) = r.trace.mhe_step(FIG2C_T) else {
+            continue;
+        };
+        let start = FIG2C_T.saturating_sub(rec.window());
+        for c in 0..nw2 {
+            let comp = if nw2 > 1 {
+                format!("[{}]", c + 1)
+            } else {
+                String::new()
+            };
+            let k_pts: Vec<(f64, f64)> = (0..rec.window())
+                .filter_map(|j| rec.w2_k(j).map(|w| ((start + j) as f64, w[c])))
+                .collect();
+            series.push(Series {
+                label: format!("ŵ²{comp}, K = {} iterate", r.summary.k),
+                points: k_pts,
+                color: i + 1,
+                pattern: Pattern::Solid,
+                markers: true,
+            });
+            let exact: Vec<(f64, f64)> = (0..rec.window())
+                .filter_map(|j| rec.w_exact(j).map(|w| ((start + j) as f64, w[nw1 + c])))
+                .collect();
+            if !exact.is_empty() {
+                series.push(Series {
+                    label: format!("ŵ²{comp}, exact optimum (K = {} run)", r.summary.k),
+                    points: exact,
+                    color: i + 1,
+                    pattern: Pattern::Dashed,
+                    markers: true,
+                });
+            }
+        }
+    }
+    let d = &scenario.sets.disturbance;
+    let mut hlines = Vec::new();
+    for c in 0..nw2 {
+        for b in [d.lower()[nw1 + c], d.upper()[nw1 + c]] {
+            if b.is_finite() {
+                hlines.push(HLine {
+                    label: "bounds of 𝒲 (w²)".into(),
+                    y: b,
+                });
+            }
+        }
+    }
+    if !series.is_empty() {
+        out.push((
+            "fig2c_w2_t6.svg",
+            Chart {
+                title: format!("Fig. 2(c): estimated measurement noise ŵ² at t = {FIG2C_T}"),
+                x_label: "window stage (time index)".into(),
+                y_label: "ŵ²".into(),
+                log_y: false,
+                integer_x: true,
+                series,
+                hlines,
+                legend: Legend::LowerLeft,
+            },
+        ));
+    }
+
+    // ‖e_t‖ and ‖x_t‖ (log).
+    let mut series = Vec::new();
+    for (i, r) in runs.iter().enumerate() {
+        let tr = &r.trace;
+        series.push(Series {
+            label: format!("‖x_t‖, K = {}", r.summary.k),
+            points: tr
+                .x_norms()
+                .iter()
+                .enumerate()
+                .map(|(t, v)| (t as f64, *v))
+                .collect(),
+            color: i + 1,
+            pattern: Pattern::Solid,
+            markers: false,
+        });
+        series.push(Series {
+            label: format!("‖e_t‖, K = {}", r.summary.k),
+            points: tr
+                .e_norms()
+                .iter()
+                .enumerate()
+                .map(|(t, v)| (t as f64, *v))
+                .collect(),
+            color: i + 1,
+            pattern: Pattern::Dashed,
+            markers: false,
+        });
+    }
+    out.push((
+        "norms.svg",
+        Chart {
+            title: "State norm ‖x_t‖ and estimation error ‖e_t‖".into(),
+            x_label: "time step t".into(),
+            y_label: "norm".into(),
+            log_y: true,
+            integer_x: true,
+            series,
+            hlines: vec![],
+            legend: Legend::UpperRight,
+        },
+    ));
+    out
+}
+
+fn status(holds: bool) -> &'static str {
+    if holds { "pass" } else { "FAIL" }
+}
+
+/// The text summary of one job.
+fn summarize(d: &CertificateDocument, files: &[PathBuf], notes: &[String]) -> String {
+    let c = &d.certificate;
+    let mut s = String::new();
+    let _ = writeln!(
+        s,
+        "== reproduce `{}`: scenario `{}` ({}) ==",
+        d.label, d.scenario.name, d.scenario.path
+    );
+    if d.preset.is_some() {
+        let _ = writeln!(
+            s,
+            "Stand-in plant: A, B are a common 4-state benchmark (the paper does not print its A, B);\n\
+             C, the sets, the noise, the MHE/MPC settings, x₀ and the prior are the paper's."
+        );
+    }
+    let _ = writeln!(
+        s,
+        "M = {}, η = {}: 6·η^M = {:.4}, ρ = 6^(1/M)·η = {:.4}",
+        c.horizon,
+        c.eta,
+        6.0 * c.eta.powi(i32::try_from(c.horizon).unwrap_or(i32::MAX)),
+        c.rho
+    );
+    if let Some(f) = &c.ioss_failure {
+        let _ = writeln!(s, "δ-IOSS (LMI (2)) FAILS: {f}");
+    }
+
+    // Premises: scenario-wide ones once, solver-specific ones per solver.
+    let _ = writeln!(s, "\nPremises of Theorem 1");
+    let _ = writeln!(
+        s,
+        "  {:<20} {:<7} {:>12} {:>12}  status",
+        "premise", "solver", "value", "margin"
+    );
+    if let Some(first) = d.solvers.first() {
+        for (i, p) in first.premises.iter().enumerate() {
+            let same = d.solvers.iter().all(|o| {
+                o.premises
+                    .get(i)
+                    .is_some_and(|q| q.holds == p.holds && q.value.to_bits() == p.value.to_bits())
+            });
+            let rows: Vec<(&str, &Premise)> = if same {
+                vec![("all", p)]
+            } else {
+                d.solvers
+                    .iter()
+                    .filter_map(|o| o.premises.get(i).map(|q| (o.solver.as_str(), q)))
+                    .collect()
+            };
+            for (who, q) in rows {
+                let _ = writeln!(
+                    s,
+                    "  {:<20} {:<7} {:>12.6} {:>12.6}  {}",
+                    q.name,
+                    who,
+                    q.value,
+                    q.margin,
+                    status(q.holds)
+                );
+                if !q.holds {
+                    let _ = writeln!(s, "      fix: {}", q.fix);
+                }
+            }
+        }
+    }
+
+    let _ = writeln!(s, "\nSmallest certified K (Theorem 1, (sg1)–(sg3))");
+    for sv in &d.solvers {
+        let mark = if sv.simulated { " (simulated)" } else { "" };
+        match sv.k_min {
+            Some(k) => {
+                let _ = writeln!(
+                    s,
+                    "  {:<6} K_min = {k:<6} φ(K) = {:.3}·{:.6}^K, margin 1 − max(sg) = {:.3e}; with sampled L_Φ: {}{mark}",
+                    sv.solver,
+                    sv.phi_prefactor,
+                    sv.phi_rate,
+                    sv.margin_at_k_min.unwrap_or(f64::NAN),
+                    fmt_opt(sv.k_min_with_sampled_l_phi)
+                );
+            }
+            None => {
+                // The fixes are printed with the premises above; here the names only.
+                let failed: Vec<&str> = sv
+                    .premises
+                    .iter()
+                    .filter(|p| !p.holds)
+                    .map(|p| p.name.as_str())
+                    .collect();
+                let why = if failed.is_empty() {
+                    sv.void_reasons.join("; ")
+                } else {
+                    format!("{} fails (see the fix above)", failed.join(", "))
+                };
+                let _ = writeln!(s, "  {:<6} void: {why}{mark}", sv.solver);
+            }
+        }
+    }
+    if let Some(false) = d.scenario_iterations_match_k_min {
+        let _ = writeln!(
+            s,
+            "  note: the scenario's mhe.iterations = {} differs from the computed K_min; the runs use K_min",
+            d.scenario_iterations
+        );
+    }
+
+    let _ = writeln!(
+        s,
+        "\nConstants: ours are for the STAND-IN plant; the paper's are for ITS OWN plant (not printed),\n\
+         so the two columns are not expected to agree."
+    );
+    let _ = writeln!(
+        s,
+        "  {:<16} {:<48} paper (published)",
+        "quantity", "ours (stand-in)"
+    );
+    for row in &d.paper_comparison {
+        let _ = writeln!(s, "  {:<16} {:<48} {}", row.quantity, row.ours, row.paper);
+    }
+
+    let _ = writeln!(
+        s,
+        "\nClosed loop (Alg. 1, {} MHE, exact MPC, seed {}, T = {})",
+        d.solver,
+        d.runs.first().map_or(0, |r| r.seed),
+        d.runs.first().map_or(0, |r| r.steps)
+    );
+    let _ = writeln!(
+        s,
+        "  {:<8} {:<10} {:>10} {:>10} {:>12} {:>12} {:>12}",
+        "K", "why", "sup‖e‖", "sup‖x‖", "tail ‖e‖", "tail ‖x‖", "tail ε_t"
+    );
+    for r in &d.runs {
+        let why = match r.k_source {
+            KSource::ComputedKMin => "K_min",
+            KSource::Scenario => "scenario",
+            KSource::Small => "small K",
+        };
+        let f = |v: Option<f64>| v.map_or("-".to_string(), |v| format!("{v:.3e}"));
+        let _ = writeln!(
+            s,
+            "  {:<8} {:<10} {:>10.4} {:>10.4} {:>12} {:>12} {:>12}",
+            r.k,
+            why,
+            r.sup_norm_e,
+            r.sup_norm_x,
+            f(r.tail_mean_e),
+            f(r.tail_mean_x),
+            f(r.tail_mean_epsilon)
+        );
+        if let Some(e) = &r.error {
+            let _ = writeln!(s, "      stopped after {} steps: {e}", r.completed);
+        }
+    }
+    if d.runs.is_empty() {
+        let _ = writeln!(s, "  not simulated: the MHE needs a P and LMI (2) has none");
+    }
+
+    let tc = &d.trajectory_check;
+    let _ = writeln!(
+        s,
+        "\nTrajectory check of Props. 1 (ε_t) and 3 (e_t), both sides from the trace"
+    );
+    if tc.ran {
+        let line = |name: &str, c: &Option<TrajectoryCheck>| -> String {
+            match c {
+                Some(c) => format!(
+                    "  {name:<16} Prop. 1: {} (max lhs/rhs {:.3e} at t = {}), Prop. 3: {} (max lhs/rhs {:.3e} at t = {})",
+                    if c.prop1.holds {
+                        "holds at every t"
+                    } else {
+                        "VIOLATED"
+                    },
+                    c.prop1.worst_ratio,
+                    c.prop1.worst_t,
+                    if c.prop3.holds {
+                        "holds at every t"
+                    } else {
+                        "VIOLATED"
+                    },
+                    c.prop3.worst_ratio,
+                    c.prop3.worst_t
+                ),
+                None => format!("  {name:<16} not evaluated"),
+            }
+        };
+        let _ = writeln!(
+            s,
+            "  {} at K = {}, seed {}, {} steps",
+            tc.solver,
+            tc.k.unwrap_or(0),
+            tc.seed,
+            tc.steps
+        );
+        let _ = writeln!(s, "{}", line("certified L_Φ", &tc.certified_l_phi));
+        let _ = writeln!(s, "{}", line("sampled L_Φ", &tc.sampled_l_phi));
+    } else {
+        let _ = writeln!(
+            s,
+            "  not run: {}",
+            tc.reason.as_deref().unwrap_or("no reason recorded")
+        );
+    }
+
+    let _ = writeln!(s, "\nFiles");
+    for f in files {
+        let _ = writeln!(s, "  {}", f.display());
+    }
+    for n in notes {
+        let _ = writeln!(s, "  note: {n}");
+    }
+    s
+}
+
+#[cfg(test)]
+mod tests;

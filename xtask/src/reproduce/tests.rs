@@ -1,0 +1,747 @@
+#![allow(clippy::unwrap_used)]
+//! Tests of `cargo xtask reproduce`: both presets end to end (run once, shared), the JSON
+//! files checked against the scenario files and recomputed independently, the void paths
+//! (ρ ≥ 1, infeasible LMI) and bad input.
+
+use std::sync::OnceLock;
+
+use serde_json::Value;
+
+use super::*;
+use lti_model::ModelError;
+
+/// Fewer samples than the shipped defaults: K_min depends only on certified constants
+/// (L_Φ bound, enumerated L_π, γ₁,₃ by enumeration, φ), never on the sampled estimates.
+fn test_settings() -> Settings {
+    Settings {
+        lipschitz_pairs: 30,
+        gamma13_sequences: 2,
+        ..Settings::default()
+    }
+}
+
+fn temp_dir(name: &str) -> PathBuf {
+    let dir = std::env::temp_dir().join(format!(
+        "xtask-reproduce-test-{}-{name}",
+        std::process::id()
+    ));
+    std::fs::create_dir_all(&dir).unwrap();
+    dir
+}
+
+struct Fixture {
+    out: PathBuf,
+    paper: Outcome,
+    certified: Outcome,
+}
+
+/// Both presets, run once for all tests (the certificate enumerates 2²⁰ free sets).
+fn fixture() -> &'static Fixture {
+    static F: OnceLock<Fixture> = OnceLock::new();
+    F.get_or_init(|| {
+        let out = temp_dir("presets");
+        let settings = test_settings();
+        let paper = run_job(&Preset::Paper.job(&out), &settings).unwrap();
+        let certified = run_job(&Preset::Certified.job(&out), &settings).unwrap();
+        Fixture {
+            out,
+            paper,
+            certified,
+        }
+    })
+}
+
+fn read_json(path: &Path) -> Value {
+    serde_json::from_str(&std::fs::read_to_string(path).unwrap()).unwrap()
+}
+
+const FILES: [&str; 6] = [
+    "certificate.json",
+    "trace.json",
+    "fig2a_x1.svg",
+    "fig2b_epsilon.svg",
+    "fig2c_w2_t6.svg",
+    "norms.svg",
+];
+
+#[test]
+fn both_presets_write_every_file() {
+    let f = fixture();
+    for preset in Preset::ALL {
+        let dir = f.out.join(preset.name());
+        for name in FILES {
+            let path = dir.join(name);
+            let len = std::fs::metadata(&path)
+                .unwrap_or_else(|e| panic!("{}: {e}", path.display()))
+                .len();
+            assert!(len > 500, "{} has {len} bytes", path.display());
+            if name.ends_with(".svg") {
+                let text = std::fs::read_to_string(&path).unwrap();
+                assert!(
+                    text.starts_with("<svg") && text.contains("polyline"),
+                    "{name}"
+                );
+            }
+        }
+        let doc = read_json(&dir.join("certificate.json"));
+        assert_eq!(doc["format"], CERTIFICATE_FORMAT);
+        assert_eq!(doc["format_version"], FORMAT_VERSION);
+        assert_eq!(doc["preset"], preset.name());
+        let listed: Vec<&str> = doc["files"]
+            .as_array()
+            .unwrap()
+            .iter()
+            .map(|v| v.as_str().unwrap())
+            .collect();
+        for name in FILES {
+            assert!(listed.contains(&name), "{name} not in {listed:?}");
+        }
+        // Provenance: revision, compiler, host, seed and the scenario text.
+        assert!(doc["provenance"]["git_revision"].is_string());
+        assert!(doc["host"]["os"].is_string());
+        assert_eq!(doc["settings"]["sampling_seed"], 2304062);
+        let text = doc["scenario"]["text"].as_str().unwrap();
+        let file = std::fs::read_to_string(workspace_root().join(preset.scenario_file())).unwrap();
+        assert_eq!(text, file);
+        let trace = read_json(&dir.join("trace.json"));
+        assert_eq!(trace["format"], TRACE_FORMAT);
+    }
+}
+
+#[test]
+fn paper_preset_is_void_for_every_solver_and_prints_no_k() {
+    let f = fixture();
+    let d = &f.paper.document;
+    assert!(!d.certified);
+    assert_eq!(d.scenario_iterations_match_k_min, None);
+    let doc = read_json(&f.out.join("paper/certificate.json"));
+    let solvers = doc["solvers"].as_array().unwrap();
+    assert_eq!(solvers.len(), 3);
+    for s in solvers {
+        assert_eq!(s["certified"], false, "{s}");
+        assert!(s["k_min"].is_null(), "{s}");
+        let reasons = s["void_reasons"].as_array().unwrap();
+        assert!(
+            reasons
+                .iter()
+                .any(|r| r.as_str().unwrap().starts_with("rho < 1 fails")),
+            "{reasons:?}"
+        );
+        let rho = s["premises"]
+            .as_array()
+            .unwrap()
+            .iter()
+            .find(|p| p["name"] == "rho < 1")
+            .unwrap();
+        assert_eq!(rho["holds"], false);
+        // 6·0.8⁵ = 1.96608 → ρ = 1.96608^(1/5) · ... = 6^(1/5)·0.8.
+        let value = rho["value"].as_f64().unwrap();
+        assert!((value - 6f64.powf(0.2) * 0.8).abs() < 1e-12, "{value}");
+        assert!(rho["fix"].as_str().unwrap().contains("M ≥ 9"));
+    }
+    for s in doc["certificate"]["solvers"].as_array().unwrap() {
+        assert!(s["k_min"].is_null() && s["at_k_min"].is_null(), "{s}");
+    }
+    // Simulated anyway, at the paper's K and at a small K; no trajectory check.
+    let ks: Vec<(usize, KSource)> = d.runs.iter().map(|r| (r.k, r.k_source)).collect();
+    assert_eq!(ks, vec![(652, KSource::Scenario), (5, KSource::Small)]);
+    assert!(
+        d.runs
+            .iter()
+            .all(|r| r.error.is_none() && r.completed == 40)
+    );
+    assert!(!d.trajectory_check.ran);
+    assert!(d.trajectory_check.reason.as_ref().unwrap().contains("void"));
+    let k_row = d
+        .paper_comparison
+        .iter()
+        .find(|r| r.quantity == "K")
+        .unwrap();
+    assert!(k_row.ours.starts_with("none: void"), "{}", k_row.ours);
+    assert!(f.paper.summary.contains("void: rho < 1 fails"));
+    assert!(!f.paper.summary.contains("K_min ="));
+    assert!(!f.paper.contradicted());
+}
+
+#[test]
+fn certified_preset_uses_the_computed_k_min_which_the_file_records() {
+    let f = fixture();
+    let d = &f.certified.document;
+    let pg = d.solvers.iter().find(|s| s.solver == "pg").unwrap();
+    let k_min = pg.k_min.unwrap();
+    // The scenario file states K = K_min of PG; it must be kept in sync with the code.
+    let file =
+        Scenario::from_file(workspace_root().join(Preset::Certified.scenario_file())).unwrap();
+    assert_eq!(
+        file.mhe.as_ref().unwrap().iterations,
+        k_min,
+        "scenarios/case-study-certified.toml: mhe.iterations must equal the computed PG K_min"
+    );
+    assert_eq!(d.scenario_iterations_match_k_min, Some(true));
+    assert!(d.certified && pg.simulated);
+    assert!(pg.margin_at_k_min.unwrap() > 0.0);
+    assert!(pg.premises.iter().all(|p| p.holds));
+    // K_min is the smallest certified K: K_min − 1 is not certified.
+    let sc = d.certificate.solver(Solver::Pg).unwrap();
+    assert!(sc.analysis.at(k_min).certified);
+    assert!(k_min == 0 || !sc.analysis.at(k_min - 1).certified);
+    // One run, at K_min, and the trajectory inequalities hold with the certified constants.
+    assert_eq!(d.runs.len(), 1);
+    assert_eq!(
+        (d.runs[0].k, d.runs[0].k_source),
+        (k_min, KSource::ComputedKMin)
+    );
+    let tc = &d.trajectory_check;
+    assert!(tc.ran && tc.passed == Some(true), "{tc:?}");
+    assert_eq!(tc.k, Some(k_min));
+    assert_eq!(tc.steps, 40);
+    let c = tc.certified_l_phi.as_ref().unwrap();
+    assert!(c.prop1.holds && c.prop3.holds && c.prop1.worst_ratio <= 1.0);
+    assert!(tc.sampled_l_phi.is_some());
+    assert!(!f.certified.contradicted());
+    assert!(f.certified.summary.contains(&format!("K_min = {k_min}")));
+    // Every solver has a K_min here.
+    assert!(d.solvers.iter().all(|s| s.k_min.is_some()));
+}
+
+#[test]
+fn summary_has_both_columns_and_says_whose_they_are() {
+    let f = fixture();
+    for o in [&f.paper, &f.certified] {
+        let s = &o.summary;
+        for needle in [
+            "STAND-IN",
+            "0.98^K",
+            "5.32",
+            "28.8",
+            "2.65",
+            "652",
+            "Premises of Theorem 1",
+            "certificate.json",
+            "fig2a_x1.svg",
+        ] {
+            assert!(s.contains(needle), "summary lacks `{needle}`:\n{s}");
+        }
+        let rows: Vec<&str> = o
+            .document
+            .paper_comparison
+            .iter()
+            .map(|r| r.quantity.as_str())
+            .collect();
+        assert_eq!(rows, ["ρ = 6^(1/M)·η", "φ(K)", "L_Φ", "γ₁,₃", "L_π", "K"]);
+    }
+}
+
+// ---------------------------------------------------------------------------------------
+// trace.json, checked from the JSON alone
+// ---------------------------------------------------------------------------------------
+
+fn mat(v: &Value) -> Vec<Vec<f64>> {
+    serde_json::from_value(v.clone()).unwrap()
+}
+fn vecf(v: &Value) -> Vec<f64> {
+    serde_json::from_value(v.clone()).unwrap()
+}
+fn mul(m: &[Vec<f64>], x: &[f64]) -> Vec<f64> {
+    m.iter()
+        .map(|r| r.iter().zip(x).map(|(a, b)| a * b).sum())
+        .collect()
+}
+fn add(a: &[f64], b: &[f64]) -> Vec<f64> {
+    a.iter().zip(b).map(|(x, y)| x + y).collect()
+}
+fn sub(a: &[f64], b: &[f64]) -> Vec<f64> {
+    a.iter().zip(b).map(|(x, y)| x - y).collect()
+}
+fn quad(m: &[Vec<f64>], x: &[f64]) -> f64 {
+    x.iter().zip(mul(m, x)).map(|(a, b)| a * b).sum()
+}
+fn norm(x: &[f64]) -> f64 {
+    x.iter().map(|a| a * a).sum::<f64>().sqrt()
+}
+
+/// The MHE problem of one record, rebuilt from trace.json (docs/reproduce-output.md).
+struct Window {
+    a: Vec<Vec<f64>>,
+    b: Vec<Vec<f64>>,
+    c: Vec<Vec<f64>>,
+    e: Vec<Vec<f64>>,
+    f: Vec<Vec<f64>>,
+    p: Vec<Vec<f64>>,
+    q: Vec<Vec<f64>>,
+    r: Vec<Vec<f64>>,
+    eta: f64,
+    prior: Vec<f64>,
+    u: Vec<Vec<f64>>,
+    y: Vec<Vec<f64>>,
+    nx: usize,
+    nw1: usize,
+}
+
+impl Window {
+    fn new(doc: &Value, rec: &Value) -> Self {
+        let m = &doc["model"];
+        Self {
+            a: mat(&m["a"]),
+            b: mat(&m["b"]),
+            c: mat(&m["c"]),
+            e: mat(&m["e"]),
+            f: mat(&m["f"]),
+            p: mat(&doc["mhe"]["p"]),
+            q: mat(&doc["mhe"]["q"]),
+            r: mat(&doc["mhe"]["r"]),
+            eta: doc["mhe"]["eta"].as_f64().unwrap(),
+            prior: vecf(&rec["prior"]),
+            u: mat(&rec["u"]),
+            y: mat(&rec["y"]),
+            nx: m["nx"].as_u64().unwrap() as usize,
+            nw1: m["nw1"].as_u64().unwrap() as usize,
+        }
+    }
+    /// z = (x̂_{t−M_t}, ŵ_{t−M_t}, …, ŵ_{t−1}) flattened.
+    fn z(x_start: &Value, w: &Value) -> Vec<f64> {
+        let mut z = vecf(x_start);
+        for stage in mat(w) {
+            z.extend(stage);
+        }
+        z
+    }
+    fn stages(&self, z: &[f64]) -> (Vec<f64>, Vec<Vec<f64>>) {
+        let nw = self.q.len();
+        let x = z[..self.nx].to_vec();
+        let w = z[self.nx..].chunks(nw).map(<[f64]>::to_vec).collect();
+        (x, w)
+    }
+    /// x̂_{t|t}: the window's last state.
+    fn end_state(&self, z: &[f64]) -> Vec<f64> {
+        let (mut x, w) = self.stages(z);
+        for (j, wj) in w.iter().enumerate() {
+            x = add(
+                &add(&mul(&self.a, &x), &mul(&self.b, &self.u[j])),
+                &mul(&self.e, &wj[..self.nw1]),
+            );
+        }
+        x
+    }
+    /// V_MHE of eq. (9).
+    fn cost(&self, z: &[f64]) -> f64 {
+        let (mut x, w) = self.stages(z);
+        let m = w.len();
+        let mut v = 2.0 * self.eta.powi(m as i32) * quad(&self.p, &sub(&x, &self.prior));
+        for (j, wj) in w.iter().enumerate() {
+            let weight = self.eta.powi((m - j - 1) as i32);
+            let y_hat = add(&mul(&self.c, &x), &mul(&self.f, &wj[self.nw1..]));
+            v += weight * (2.0 * quad(&self.q, wj) + quad(&self.r, &sub(&y_hat, &self.y[j])));
+            x = add(
+                &add(&mul(&self.a, &x), &mul(&self.b, &self.u[j])),
+                &mul(&self.e, &wj[..self.nw1]),
+            );
+        }
+        v
+    }
+    /// ∇V by central differences (exact for a quadratic up to rounding).
+    fn gradient(&self, z: &[f64]) -> Vec<f64> {
+        let h = 1e-4;
+        (0..z.len())
+            .map(|i| {
+                let (mut zp, mut zm) = (z.to_vec(), z.to_vec());
+                zp[i] += h;
+                zm[i] -= h;
+                (self.cost(&zp) - self.cost(&zm)) / (2.0 * h)
+            })
+            .collect()
+    }
+}
+
+/// From trace.json alone: the loop obeys eq. (1), the window data are the loop's, the
+/// estimates are the windows' end states, the costs are eq. (9), ε_t = ‖zᴷ − z*‖, and z*
+/// satisfies the optimality conditions of the box-constrained problem.
+#[test]
+fn trace_json_lets_anyone_recompute_the_mhe_optimum() {
+    let f = fixture();
+    let doc = read_json(&f.out.join("paper/trace.json"));
+    let model = &doc["model"];
+    let (a, b, c) = (mat(&model["a"]), mat(&model["b"]), mat(&model["c"]));
+    let (e, ff) = (mat(&model["e"]), mat(&model["f"]));
+    let nw1 = model["nw1"].as_u64().unwrap() as usize;
+    let lower = vecf(&doc["sets"]["disturbance"]["lower"]);
+    let upper = vecf(&doc["sets"]["disturbance"]["upper"]);
+    let horizon = doc["mhe"]["horizon"].as_u64().unwrap() as usize;
+    let runs = doc["runs"].as_array().unwrap();
+    assert_eq!(runs.len(), 2);
+    let mut kkt_worst = 0.0_f64;
+    for run in runs {
+        let records = run["trace"]["records"].as_array().unwrap();
+        assert_eq!(records.len(), 40);
+        let k = run["k"].as_u64().unwrap();
+        for (t, step) in records.iter().enumerate() {
+            let (x, u, w) = (vecf(&step["x"]), vecf(&step["u"]), vecf(&step["w"]));
+            let y = vecf(&step["y"]);
+            // y_t = C x_t + F w²_t; x_{t+1} = A x_t + B u_t + E w¹_t; e_t = x̂_t − x_t.
+            let y_model = add(&mul(&c, &x), &mul(&ff, &w[nw1..]));
+            assert!(norm(&sub(&y, &y_model)) < 1e-12);
+            let x_next = match records.get(t + 1) {
+                Some(n) => vecf(&n["x"]),
+                None => vecf(&run["trace"]["x_final"]),
+            };
+            let x_model = add(&add(&mul(&a, &x), &mul(&b, &u)), &mul(&e, &w[..nw1]));
+            assert!(norm(&sub(&x_next, &x_model)) < 1e-12);
+            let x_hat = vecf(&step["x_hat"]);
+            assert!(norm(&sub(&vecf(&step["e"]), &sub(&x_hat, &x))) < 1e-12);
+            for (i, wi) in w.iter().enumerate() {
+                assert!(lower[i] <= *wi && *wi <= upper[i]);
+            }
+
+            let rec = &step["mhe"];
+            assert_eq!(rec["iterations"].as_u64().unwrap(), k);
+            let m = rec["window"].as_u64().unwrap() as usize;
+            assert_eq!(m, t.min(horizon));
+            // The window holds the loop's own u, y; the prior is x̄₀ or x̂_{t−M}.
+            for j in 0..m {
+                let s = &records[t - m + j];
+                assert_eq!(vecf(&rec["u"][j]), vecf(&s["u"]));
+                assert_eq!(vecf(&rec["y"][j]), vecf(&s["y"]));
+            }
+            let prior_expected = if t <= horizon {
+                vecf(&doc["prior"])
+            } else {
+                vecf(&records[t - horizon]["x_hat"])
+            };
+            assert_eq!(vecf(&rec["prior"]), prior_expected, "t = {t}");
+
+            let win = Window::new(&doc, rec);
+            let zk = Window::z(&rec["x_start_k"], &rec["w_k"]);
+            let zs = Window::z(&rec["x_start_exact"], &rec["w_exact"]);
+            assert_eq!(zk.len(), 4 + 5 * m);
+            // Estimates are the end states of their windows.
+            assert!(norm(&sub(&win.end_state(&zk), &x_hat)) < 1e-9 * (1.0 + norm(&x_hat)));
+            let xs_hat = vecf(&rec["x_hat_exact"]);
+            assert!(norm(&sub(&win.end_state(&zs), &xs_hat)) < 1e-9 * (1.0 + norm(&xs_hat)));
+            // Costs of eq. (9) and ε_t.
+            let (vk, vs) = (win.cost(&zk), win.cost(&zs));
+            let tol = |v: f64| 1e-9 * (1.0 + v.abs());
+            assert!(
+                (vk - rec["cost_k"].as_f64().unwrap()).abs() < tol(vk),
+                "t = {t}"
+            );
+            assert!(
+                (vs - rec["cost_exact"].as_f64().unwrap()).abs() < tol(vs),
+                "t = {t}"
+            );
+            assert!(
+                vs <= vk + tol(vk),
+                "the optimum costs more than the iterate at t = {t}"
+            );
+            let eps = rec["epsilon"].as_f64().unwrap();
+            assert!((norm(&sub(&zk, &zs)) - eps).abs() < 1e-12 + 1e-9 * eps);
+            // First-order optimality of z* for min V s.t. ŵ ∈ 𝒲 (x̂_{t−M_t} free):
+            // ∂V/∂z_i = 0 inside, ≥ 0 at a lower bound, ≤ 0 at an upper bound.
+            let g = win.gradient(&zs);
+            let scale = 1.0 + vs.abs();
+            for (i, gi) in g.iter().enumerate() {
+                let (lo, hi) = if i < 4 {
+                    (f64::NEG_INFINITY, f64::INFINITY)
+                } else {
+                    let c = (i - 4) % 5;
+                    (lower[c], upper[c])
+                };
+                let zi = zs[i];
+                assert!(
+                    zi >= lo - 1e-9 && zi <= hi + 1e-9,
+                    "z*[{i}] outside 𝒲 at t = {t}"
+                );
+                let viol = if zi - lo < 1e-7 {
+                    (-gi).max(0.0)
+                } else if hi - zi < 1e-7 {
+                    gi.max(0.0)
+                } else {
+                    gi.abs()
+                };
+                kkt_worst = kkt_worst.max(viol / scale);
+            }
+        }
+    }
+    assert!(kkt_worst < 1e-5, "KKT residual of z* {kkt_worst:e}");
+}
+
+// ---------------------------------------------------------------------------------------
+// Void certificate: infeasible LMI; bad input
+// ---------------------------------------------------------------------------------------
+
+/// A plant with an unobservable unstable mode (x₁, |λ| = 1.2, not seen by y = x₂): no P
+/// satisfies LMI (2) for any η < 1, so every certificate is void with the LMI as the reason.
+const UNDETECTABLE: &str = r#"
+name = "undetectable"
+[plant]
+a = [[1.2, 0.0], [0.0, 0.5]]
+b = [[1.0], [0.0]]
+c = [[0.0, 1.0]]
+[sets]
+input = { lower = [-1.0], upper = [1.0] }
+disturbance = { lower = [-0.1, -0.1, -0.1], upper = [0.1, 0.1, 0.1] }
+[noise]
+seed = 7
+[simulation]
+x0 = [0.5, 1.0]
+steps = 10
+[mhe]
+horizon = 9
+eta = 0.8
+iterations = 10
+[mpc]
+horizon = 3
+"#;
+
+fn write_scenario(name: &str, text: &str) -> PathBuf {
+    let path = temp_dir("scenarios").join(format!("{name}.toml"));
+    std::fs::write(&path, text).unwrap();
+    path
+}
+
+fn custom_job(name: &str, text: &str) -> Job {
+    let out = temp_dir("custom");
+    jobs(None, Some(write_scenario(name, text)), Some(out))
+        .pop()
+        .unwrap()
+}
+
+#[test]
+fn infeasible_lmi_gives_a_void_certificate_that_names_the_lmi() {
+    let job = custom_job("undetectable", UNDETECTABLE);
+    assert_eq!(job.label, "undetectable");
+    let o = run_job(&job, &test_settings()).unwrap();
+    let d = &o.document;
+    assert!(!d.certified);
+    let failure = d.certificate.ioss_failure.as_ref().unwrap();
+    assert!(failure.contains("LMI"), "{failure}");
+    for s in &d.solvers {
+        assert_eq!(s.k_min, None);
+        let lmi = s
+            .premises
+            .iter()
+            .find(|p| p.name == "LMI (2) feasible")
+            .unwrap();
+        assert!(!lmi.holds);
+        assert!(
+            s.void_reasons
+                .iter()
+                .any(|r| r.starts_with("LMI (2) feasible fails")),
+            "{:?}",
+            s.void_reasons
+        );
+    }
+    // Nothing to simulate without a P; the certificate is still written and says why.
+    assert!(d.runs.is_empty());
+    assert!(!d.trajectory_check.ran);
+    let doc = read_json(&job.out.join("certificate.json"));
+    assert!(doc["certificate"]["ioss"].is_null());
+    assert!(
+        doc["certificate"]["ioss_failure"]
+            .as_str()
+            .unwrap()
+            .contains("LMI")
+    );
+    assert!(!job.out.join("trace.json").exists());
+    assert!(o.summary.contains("LMI (2) FAILS") || o.summary.contains("δ-IOSS"));
+    assert!(o.summary.contains("LMI (2) feasible"));
+}
+
+fn paper_text() -> String {
+    std::fs::read_to_string(workspace_root().join(Preset::Paper.scenario_file())).unwrap()
+}
+
+/// Replaces the first line starting with `key =` after the section header `section`.
+fn set_key(text: &str, section: &str, key: &str, value: &str) -> String {
+    let start = text.find(&format!("[{section}]")).unwrap();
+    let rel = text[start..]
+        .find(&format!("\n{key} ="))
+        .unwrap_or_else(|| panic!("no `{key}` in [{section}]"));
+    let line_start = start + rel + 1;
+    let line_end = text[line_start..]
+        .find('\n')
+        .map_or(text.len(), |i| line_start + i);
+    format!(
+        "{}{key} = {value}{}",
+        &text[..line_start],
+        &text[line_end..]
+    )
+}
+
+/// Removes the first line starting with `key =` after the section header `section`.
+fn drop_key(text: &str, section: &str, key: &str) -> String {
+    let marked = set_key(text, section, key, "@@");
+    marked.replace(&format!("{key} = @@\n"), "")
+}
+
+fn drop_section(text: &str, section: &str) -> String {
+    let start = text.find(&format!("\n[{section}]")).unwrap();
+    let end = text[start + 1..]
+        .find("\n[")
+        .map_or(text.len(), |i| start + 1 + i);
+    format!("{}{}", &text[..start], &text[end..])
+}
+
+fn model_key(e: &anyhow::Error) -> Option<String> {
+    e.chain()
+        .find_map(|c| match c.downcast_ref::<ModelError>() {
+            Some(ModelError::Scenario { key, .. }) => Some(key.clone()),
+            _ => None,
+        })
+}
+
+fn run_text(name: &str, text: &str) -> anyhow::Error {
+    run_job(&custom_job(name, text), &test_settings()).unwrap_err()
+}
+
+#[test]
+fn bad_input_gives_typed_errors_naming_the_key() {
+    let base = paper_text();
+    let cases = [
+        // Inconsistent dimensions between plant, MHE and MPC.
+        (
+            "mhe-q",
+            set_key(&base, "mhe", "q", "[1.0, 1.0, 1.0]"),
+            "mhe.q",
+        ),
+        (
+            "mhe-r",
+            set_key(&base, "mhe", "r", "[[1.0, 0.0], [0.0, 1.0]]"),
+            "mhe.r",
+        ),
+        ("mpc-q", set_key(&base, "mpc", "q", "[1.0, 1.0]"), "mpc.q"),
+        (
+            "mpc-r",
+            set_key(&base, "mpc", "r", "[0.1, 0.1, 0.1]"),
+            "mpc.r",
+        ),
+        (
+            "input",
+            set_key(&base, "sets", "input", "{ lower = [-1.0], upper = [1.0] }"),
+            "sets.input.lower",
+        ),
+        (
+            "x0",
+            set_key(&base, "simulation", "x0", "[1.0, 2.0]"),
+            "simulation.x0",
+        ),
+        // T = 0 and K = 0.
+        (
+            "steps",
+            set_key(&base, "simulation", "steps", "0"),
+            "simulation.steps",
+        ),
+        (
+            "iters",
+            set_key(&base, "mhe", "iterations", "0"),
+            "mhe.iterations",
+        ),
+        // A missing section and a missing key.
+        ("no-plant", drop_section(&base, "plant"), "plant"),
+        (
+            "no-horizon",
+            drop_key(&base, "mhe", "horizon"),
+            "mhe.horizon",
+        ),
+    ];
+    for (name, text, key) in cases {
+        let e = run_text(name, &text);
+        assert_eq!(model_key(&e).as_deref(), Some(key), "{name}: {e:#}");
+        assert!(format!("{e:#}").contains(key), "{name}: {e:#}");
+    }
+    // Missing [mhe] or [mpc]: the closed loop's typed error names the section.
+    for section in ["mhe", "mpc"] {
+        let e = run_text(&format!("no-{section}"), &drop_section(&base, section));
+        let found = e.chain().any(|c| {
+            matches!(
+                c.downcast_ref::<ClosedLoopError>(),
+                Some(ClosedLoopError::MissingSection { section: s }) if *s == section
+            )
+        });
+        assert!(found, "{e:#}");
+        assert!(format!("{e:#}").contains(&format!("[{section}]")), "{e:#}");
+    }
+    // A file that does not exist.
+    let missing = Job {
+        scenario: temp_dir("none").join("nope.toml"),
+        ..custom_job("x", &base)
+    };
+    let e = run_job(&missing, &test_settings()).unwrap_err();
+    assert_eq!(model_key(&e).as_deref(), Some("<file>"), "{e:#}");
+}
+
+#[test]
+fn jobs_default_to_both_presets_under_target() {
+    let j = jobs(None, None, None);
+    assert_eq!(j.len(), 2);
+    assert_eq!(
+        (j[0].preset, j[1].preset),
+        (Some(Preset::Paper), Some(Preset::Certified))
+    );
+    assert_eq!(j[0].out, workspace_root().join("target/reproduce/paper"));
+    assert_eq!(
+        j[1].out,
+        workspace_root().join("target/reproduce/certified")
+    );
+    assert!(j.iter().all(|j| j.scenario.is_file()));
+    let j = jobs(Some(Preset::Certified), None, Some("/tmp/x".into()));
+    assert_eq!(j.len(), 1);
+    assert_eq!(j[0].out, PathBuf::from("/tmp/x/certified"));
+    let j = jobs(None, Some("dir/my-plant.toml".into()), Some("o".into()));
+    assert_eq!(j[0].label, "my-plant");
+    assert_eq!(j[0].out, PathBuf::from("o/my-plant"));
+    assert_eq!(j[0].preset, None);
+}
+
+#[test]
+fn command_line_parses() {
+    use clap::Parser;
+    let parse = |args: &[&str]| crate::Cli::try_parse_from(args);
+    let cli = parse(&["xtask", "reproduce", "--preset", "paper", "--out", "d"]).unwrap();
+    match cli.command {
+        crate::Command::Reproduce {
+            preset,
+            scenario,
+            out,
+        } => {
+            assert_eq!(preset, Some(Preset::Paper));
+            assert_eq!(scenario, None);
+            assert_eq!(out, Some(PathBuf::from("d")));
+        }
+        other => panic!("{other:?}"),
+    }
+    assert!(parse(&["xtask", "reproduce"]).is_ok());
+    assert!(parse(&["xtask", "reproduce", "--preset", "fast"]).is_err());
+    assert!(
+        parse(&[
+            "xtask",
+            "reproduce",
+            "--preset",
+            "paper",
+            "--scenario",
+            "s.toml"
+        ])
+        .is_err()
+    );
+}
+
+#[test]
+fn run_plan_follows_the_certificate() {
+    // Void: the scenario's K, then the small K below it.
+    assert_eq!(
+        plan_runs(652, None, 5),
+        vec![(652, KSource::Scenario), (5, KSource::Small)]
+    );
+    assert_eq!(plan_runs(3, None, 5), vec![(3, KSource::Scenario)]);
+    assert_eq!(plan_runs(5, None, 5), vec![(5, KSource::Scenario)]);
+    // Certified: K_min first; the scenario's K too when it differs.
+    assert_eq!(
+        plan_runs(239, Some(239), 5),
+        vec![(239, KSource::ComputedKMin)]
+    );
+    assert_eq!(
+        plan_runs(100, Some(239), 5),
+        vec![(239, KSource::ComputedKMin), (100, KSource::Scenario)]
+    );
+    // K_min = 0 (certified without iterating) still simulates one iteration.
+    assert_eq!(plan_runs(1, Some(0), 5), vec![(1, KSource::ComputedKMin)]);
+}

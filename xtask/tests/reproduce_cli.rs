@@ -1,0 +1,57 @@
+#![allow(clippy::unwrap_used)]
+//! `cargo xtask reproduce` as a process: bad input exits non-zero with the key in the
+//! message (the full runs are tested in src/reproduce/tests.rs).
+
+use std::path::PathBuf;
+use std::process::Command;
+
+fn xtask() -> Command {
+    Command::new(env!("CARGO_BIN_EXE_xtask"))
+}
+
+fn temp(name: &str) -> PathBuf {
+    let dir = std::env::temp_dir().join(format!("xtask-reproduce-cli-{}", std::process::id()));
+    std::fs::create_dir_all(&dir).unwrap();
+    dir.join(name)
+}
+
+fn case_study_with(find: &str, replace: &str) -> PathBuf {
+    let root = PathBuf::from(env!("CARGO_MANIFEST_DIR")).join("..");
+    let text = std::fs::read_to_string(root.join("scenarios/case-study.toml")).unwrap();
+    assert!(text.contains(find), "{find}");
+    let path = temp(&format!("{}.toml", find.len()));
+    std::fs::write(&path, text.replacen(find, replace, 1)).unwrap();
+    path
+}
+
+#[test]
+fn bad_scenarios_exit_with_code_1_naming_the_key() {
+    for (find, replace, key) in [
+        ("steps = 40", "steps = 0", "simulation.steps"),
+        ("iterations = 652", "iterations = 0", "mhe.iterations"),
+        ("[mpc]", "[mpc_typo]", "mpc_typo"),
+    ] {
+        let scenario = case_study_with(find, replace);
+        let out = xtask()
+            .args(["reproduce", "--scenario"])
+            .arg(&scenario)
+            .arg("--out")
+            .arg(temp("out"))
+            .output()
+            .unwrap();
+        let stderr = String::from_utf8_lossy(&out.stderr);
+        assert_eq!(out.status.code(), Some(1), "{key}: {stderr}");
+        assert!(stderr.contains(key), "{key}: {stderr}");
+    }
+}
+
+#[test]
+fn usage_errors_exit_with_code_2() {
+    for args in [
+        &["reproduce", "--preset", "fast"][..],
+        &["reproduce", "--preset", "paper", "--scenario", "x.toml"][..],
+    ] {
+        let out = xtask().args(args).output().unwrap();
+        assert_eq!(out.status.code(), Some(2), "{args:?}");
+    }
+}

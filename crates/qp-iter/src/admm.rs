@@ -380,3 +380,116 @@ impl IterationMap for Admm {
         1
     }
 }
+
+#[cfg(test)]
+mod tests {
+    #![allow(clippy::unwrap_used)]
+    use super::*;
+    use lti_model::BoxSet;
+
+    fn qp() -> ParametricQp {
+        let n = 9;
+        let h = Mat::from_fn(n, n, |i, j| {
+            if i == j {
+                3.0 + 0.5 * i as f64
+            } else {
+                0.6 / (1.0 + i.abs_diff(j) as f64)
+            }
+        });
+        let f = Mat::from_fn(n, 2, |i, k| ((2 * i + k) % 5) as f64 - 2.0);
+        let q0 = (0..n).map(|i| (i as f64).cos() * 4.0).collect();
+        let lo = (0..n)
+            .map(|i| if i % 3 == 0 { f64::NEG_INFINITY } else { -0.3 })
+            .collect();
+        ParametricQp::new(h, q0, f, BoxSet::new(lo, vec![0.5; n]).unwrap()).unwrap()
+    }
+
+    /// The unfused map of the module docs, on dense (H + ρI)⁻¹ from faer, step by step:
+    /// z⁺ = (H + ρI)⁻¹(ρv − y − q), w = αz⁺ + (1 − α)v + y/ρ, v⁺ = Π_Z(w), y⁺ = ρ(w − v⁺).
+    fn reference_run(
+        qp: &ParametricQp,
+        rho: f64,
+        alpha: f64,
+        q: &[f64],
+        mut v: Vec<f64>,
+        mut y: Vec<f64>,
+        k: usize,
+    ) -> (Vec<f64>, Vec<f64>) {
+        let n = qp.n();
+        let h = qp.h();
+        let shifted = Mat::from_fn(n, n, |i, j| h[(i, j)] + if i == j { rho } else { 0.0 });
+        let inv = faer::linalg::solvers::Solve::solve(
+            &shifted.partial_piv_lu(),
+            Mat::<f64>::identity(n, n),
+        );
+        for _ in 0..k {
+            let rhs: Vec<f64> = (0..n).map(|i| rho * v[i] - y[i] - q[i]).collect();
+            let z: Vec<f64> = (0..n)
+                .map(|i| (0..n).map(|j| inv[(i, j)] * rhs[j]).sum())
+                .collect();
+            let w: Vec<f64> = (0..n)
+                .map(|i| alpha * z[i] + (1.0 - alpha) * v[i] + y[i] / rho)
+                .collect();
+            v = w.clone();
+            qp.project(&mut v);
+            y = (0..n).map(|i| rho * (w[i] - v[i])).collect();
+        }
+        (v, y)
+    }
+
+    #[test]
+    fn fused_steps_follow_the_unfused_map_after_every_start() {
+        let qp = qp();
+        let theta = [0.7, -0.4];
+        let mut q = vec![0.0; qp.n()];
+        qp.linear_term(&theta, &mut q);
+        let z0: Vec<f64> = (0..qp.n()).map(|i| 0.8 - 0.2 * i as f64).collect();
+        let y0: Vec<f64> = (0..qp.n()).map(|i| 0.1 * i as f64 - 0.4).collect();
+        for relaxation in [1.0, 1.6, 2.0] {
+            let admm = Admm::new(
+                qp.clone(),
+                AdmmParams {
+                    penalty: Penalty::Fixed(2.5),
+                    relaxation,
+                },
+            )
+            .unwrap();
+            let mut s = admm.new_state();
+            admm.load(&mut s, &theta);
+            for dual in [Some(y0.as_slice()), None] {
+                // A few steps first, so the start must reset the carried t.
+                for _ in 0..4 {
+                    admm.step(&mut s);
+                }
+                admm.warm_start(&mut s, &z0, dual);
+                let (v_start, y_start) = (s.v.clone(), s.y.clone());
+                for k in [1, 2, 7] {
+                    let mut t = s.clone();
+                    for _ in 0..k {
+                        admm.step(&mut t);
+                    }
+                    let (v, y) = reference_run(
+                        &qp,
+                        2.5,
+                        relaxation,
+                        &q,
+                        v_start.clone(),
+                        y_start.clone(),
+                        k,
+                    );
+                    for i in 0..qp.n() {
+                        assert!(
+                            (t.v[i] - v[i]).abs() <= 1e-12 && (t.y[i] - y[i]).abs() <= 1e-11,
+                            "α = {relaxation}, dual {}, k = {k}, i = {i}: v {} vs {}, y {} vs {}",
+                            dual.is_some(),
+                            t.v[i],
+                            v[i],
+                            t.y[i],
+                            y[i]
+                        );
+                    }
+                }
+            }
+        }
+    }
+}

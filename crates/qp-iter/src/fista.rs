@@ -195,3 +195,94 @@ impl IterationMap for Fista {
         &self.cert
     }
 }
+
+#[cfg(test)]
+mod tests {
+    #![allow(clippy::unwrap_used)]
+    use super::*;
+    use faer::Mat;
+    use lti_model::BoxSet;
+
+    /// n = 7 SPD H (diagonally dominant), two parameters, a box active at the solution.
+    fn qp() -> ParametricQp {
+        let n = 7;
+        let h = Mat::from_fn(n, n, |i, j| {
+            if i == j {
+                4.0 + i as f64
+            } else {
+                1.0 / (1.0 + i.abs_diff(j) as f64)
+            }
+        });
+        let f = Mat::from_fn(n, 2, |i, k| ((i + 3 * k) % 4) as f64 - 1.5);
+        let q0 = (0..n).map(|i| (i as f64 * 0.7).sin() * 6.0).collect();
+        ParametricQp::new(h, q0, f, BoxSet::symmetric(&[0.4; 7]).unwrap()).unwrap()
+    }
+
+    /// T(y) = Π_Z(y − (Hy + q)/L) with the crate's kernel (the certificate's PG step).
+    fn pg_step(f: &Fista, y: &[f64], q: &[f64]) -> Vec<f64> {
+        let qp = f.problem();
+        let mut out = vec![0.0; qp.n()];
+        f.kernel.projected_gradient_step(
+            qp.h_row_major(),
+            qp.n(),
+            y,
+            q,
+            f.step_size(),
+            qp.zset().lower(),
+            qp.zset().upper(),
+            &mut out,
+        );
+        out
+    }
+
+    #[test]
+    fn the_step_after_every_start_is_exactly_the_pg_step() {
+        let f = Fista::new(qp());
+        let mut s = f.new_state();
+        let theta = [0.3, -1.1];
+        f.load(&mut s, &theta);
+        let q = s.q.clone();
+        let z0: Vec<f64> = (0..7).map(|i| 0.9 - 0.3 * i as f64).collect(); // outside Z
+        for start in 0..3 {
+            match start {
+                0 => f.warm_start(&mut s, &z0, None),
+                1 => f.cold_start(&mut s),
+                // A warm start in the middle of a run, with momentum built up.
+                _ => {
+                    run_steps(&f, &mut s, 9);
+                    f.warm_start(&mut s, &z0, None);
+                }
+            }
+            let start_point = s.z.clone();
+            // x₀ = T(z⁰) and, with y₀ = x₀ (momentum reset), x₁ = T(x₀): bit for bit.
+            let x0 = pg_step(&f, &start_point, &q);
+            f.step(&mut s);
+            assert_eq!(f.iterate(&s), x0.as_slice(), "start {start}: x₀");
+            let x1 = pg_step(&f, &x0, &q);
+            f.step(&mut s);
+            assert_eq!(f.iterate(&s), x1.as_slice(), "start {start}: x₁");
+            // From then on momentum: x₂ = T(x₁ + β(x₁ − x₀)) (to rounding).
+            let y1: Vec<f64> = x1
+                .iter()
+                .zip(&x0)
+                .map(|(a, b)| a + f.momentum() * (a - b))
+                .collect();
+            let x2 = pg_step(&f, &y1, &q);
+            f.step(&mut s);
+            for (a, b) in f.iterate(&s).iter().zip(&x2) {
+                assert!((a - b).abs() <= 1e-14, "start {start}: x₂ {a} vs {b}");
+            }
+            // The momentum step differs from a PG step here (the test can fail).
+            assert!(
+                f.iterate(&s) != pg_step(&f, &x1, &q).as_slice(),
+                "start {start}"
+            );
+        }
+    }
+
+    fn run_steps(f: &Fista, s: &mut FistaState, k: usize) {
+        for _ in 0..k {
+            f.step(s);
+        }
+    }
+}

@@ -272,3 +272,47 @@ pub fn certified_k<M: IterationMap>(map: &M) -> Result<usize, FixtureError> {
             eps: EPS,
         })
 }
+
+#[cfg(test)]
+mod tests {
+    #![allow(clippy::unwrap_used)]
+    use super::*;
+
+    /// ‖z − Π_Z(z − (Hz + q))‖_∞, computed here from H row-major (independent of Clarabel).
+    fn natural_residual(qp: &ParametricQp, q: &[f64], z: &[f64]) -> f64 {
+        let n = qp.n();
+        let h = qp.h_row_major();
+        let (lo, up) = (qp.zset().lower(), qp.zset().upper());
+        (0..n)
+            .map(|i| {
+                let g = (0..n).map(|j| h[i * n + j] * z[j]).sum::<f64>() + q[i];
+                (z[i] - (z[i] - g).max(lo[i]).min(up[i])).abs()
+            })
+            .fold(0.0, f64::max)
+    }
+
+    #[test]
+    fn paper_preset_instances_are_the_replayed_window_qps() {
+        let qps = CaseStudyQps::load(PRESETS[0]).unwrap();
+        let m = qps.horizon();
+        let (nx, nu, ny, nw) = qps.trace.dims();
+        assert_eq!((m, qps.qp.n()), (5, nx + m * nw));
+        assert_eq!(qps.instances.len(), qps.trace.len() - m + 1);
+        for inst in &qps.instances {
+            // θ_t holds u_{t−M..t−1} and y_{t−M..t−1} of the closed-loop trace.
+            for j in 0..m {
+                let (uo, yo) = (nx + j * nu, nx + m * nu + j * ny);
+                let step = inst.t - m + j;
+                assert_eq!(&inst.theta[uo..uo + nu], qps.trace.u(step).unwrap());
+                assert_eq!(&inst.theta[yo..yo + ny], qps.trace.y(step).unwrap());
+            }
+            let mut q = vec![0.0; qps.qp.n()];
+            qps.qp.linear_term(&inst.theta, &mut q);
+            assert_eq!(q, inst.q);
+            // z* is optimal (KKT through the natural residual), z⁰ is not.
+            let scale = 1.0 + inst.q.iter().fold(0.0f64, |a, v| a.max(v.abs()));
+            assert!(natural_residual(&qps.qp, &inst.q, &inst.z_star) <= 1e-9 * scale);
+            assert!(natural_residual(&qps.qp, &inst.q, &inst.z0) > 1e-6);
+        }
+    }
+}

@@ -107,7 +107,7 @@ pub const PALETTE: [RGBColor; 6] = [
     RGBColor(86, 180, 233),
 ];
 /// Colour of reference lines (the constraint bounds are red in the paper's Fig. 2(c)).
-pub const BOUND_COLOR: RGBColor = RGBColor(213, 94, 0);
+pub const BOUND_COLOR: RGBColor = RGBColor(200, 30, 30);
 
 /// Chart size in pixels.
 pub const SIZE: (u32, u32) = (640, 400);
@@ -399,7 +399,7 @@ mod tests {
         assert_eq!(r.svg.matches("bound of 𝒲").count(), 1);
         // 10 markers.
         assert_eq!(r.svg.matches("<circle").count(), 10);
-        assert!(r.svg.contains("rgb(213,94,0)") || r.svg.contains("#D55E00"));
+        assert!(r.svg.contains("#C81E1E"));
     }
 
     #[test]

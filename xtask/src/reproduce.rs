@@ -354,6 +354,8 @@ pub struct CertificateDocument {
     pub paper_comparison: Vec<ComparisonRow>,
     /// Files written, relative to the output directory.
     pub files: Vec<String>,
+    /// Figures not written or with points left out, and why.
+    pub figure_notes: Vec<String>,
 }
 
 /// A box with ±∞ bounds written as null.
@@ -782,12 +784,20 @@ pub fn run_job(job: &Job, settings: &Settings) -> Result<Outcome> {
     let mut figure_notes = Vec::new();
     if settings.figures && !runs.is_empty() {
         for (name, chart) in charts(&scenario, &runs) {
-            let rendered = figures::render_svg(&chart)?;
+            // A figure without drawable data (e.g. ε_t ≡ 0 on a log axis) is reported,
+            // not fatal: the JSON files hold the numbers.
+            let rendered = match figures::render_svg(&chart) {
+                Ok(r) => r,
+                Err(e) => {
+                    figure_notes.push(format!("{name} not written: {e}"));
+                    continue;
+                }
+            };
             let path = job.out.join(name);
             write_text(&path, &rendered.svg)?;
             if rendered.dropped > 0 {
                 figure_notes.push(format!(
-                    "{name}: {} point(s) ≤ 0 not drawn on the log axis",
+                    "{name}: {} point(s) ≤ 0 or non-finite not drawn",
                     rendered.dropped
                 ));
             }
@@ -829,6 +839,7 @@ pub fn run_job(job: &Job, settings: &Settings) -> Result<Outcome> {
             .iter()
             .map(|p| p.strip_prefix(&job.out).unwrap_or(p).display().to_string())
             .collect(),
+        figure_notes: figure_notes.clone(),
         certificate: cert,
     };
     write_text(
@@ -1173,6 +1184,54 @@ fn status(holds: bool) -> &'static str {
     if holds { "pass" } else { "FAIL" }
 }
 
+/// One sentence: what the certificate says about the simulated solver and whether the
+/// simulation agrees.
+fn verdict(d: &CertificateDocument) -> String {
+    let own = d.solvers.iter().find(|s| s.simulated);
+    match own.and_then(|s| s.k_min) {
+        Some(k) => {
+            let check = match d.trajectory_check.passed {
+                Some(true) => "Props. 1 and 3 hold at every step of the simulation at K_min",
+                Some(false) => "the simulation at K_min VIOLATES Prop. 1 or 3 (see above)",
+                None => "the trajectory check did not run",
+            };
+            format!(
+                "Theorem 1 certifies ISS of the closed loop for {} with K ≥ {k}; {check}.",
+                d.solver
+            )
+        }
+        None => {
+            let failed: Vec<&str> = own
+                .map(|s| {
+                    s.premises
+                        .iter()
+                        .filter(|p| !p.holds)
+                        .map(|p| p.name.as_str())
+                        .collect()
+                })
+                .unwrap_or_default();
+            let why = if failed.is_empty() {
+                "no K satisfies (sg1)–(sg3)".to_string()
+            } else {
+                format!("premise {} fails", failed.join(", "))
+            };
+            let sims = if d.runs.is_empty() {
+                "nothing was simulated".to_string()
+            } else {
+                let ks: Vec<String> = d.runs.iter().map(|r| r.k.to_string()).collect();
+                format!(
+                    "the loop was simulated anyway (K = {}) but no K is certified",
+                    ks.join(", ")
+                )
+            };
+            format!(
+                "Theorem 1 certifies nothing for {} with these parameters ({why}); {sims}.",
+                d.solver
+            )
+        }
+    }
+}
+
 /// The text summary of one job.
 fn summarize(d: &CertificateDocument, files: &[PathBuf], notes: &[String]) -> String {
     let c = &d.certificate;
@@ -1378,6 +1437,7 @@ fn summarize(d: &CertificateDocument, files: &[PathBuf], notes: &[String]) -> St
         );
     }
 
+    let _ = writeln!(s, "\nVerdict: {}", verdict(d));
     let _ = writeln!(s, "\nFiles");
     for f in files {
         let _ = writeln!(s, "  {}", f.display());

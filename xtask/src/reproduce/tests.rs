@@ -159,6 +159,9 @@ fn paper_preset_is_void_for_every_solver_and_prints_no_k() {
         .unwrap();
     assert!(k_row.ours.starts_with("none: void"), "{}", k_row.ours);
     assert!(f.paper.summary.contains("void: rho < 1 fails"));
+    assert!(f.paper.summary.contains(
+        "Verdict: Theorem 1 certifies nothing for pg with these parameters (premise rho < 1 fails)"
+    ));
     assert!(!f.paper.summary.contains("K_min ="));
     assert!(!f.paper.contradicted());
 }
@@ -200,6 +203,9 @@ fn certified_preset_uses_the_computed_k_min_which_the_file_records() {
     assert!(tc.sampled_l_phi.is_some());
     assert!(!f.certified.contradicted());
     assert!(f.certified.summary.contains(&format!("K_min = {k_min}")));
+    assert!(f.certified.summary.contains(&format!(
+        "Verdict: Theorem 1 certifies ISS of the closed loop for pg with K ≥ {k_min}; Props. 1 and 3 hold"
+    )));
     // Every solver has a K_min here.
     assert!(d.solvers.iter().all(|s| s.k_min.is_some()));
 }
@@ -542,7 +548,12 @@ fn infeasible_lmi_gives_a_void_certificate_that_names_the_lmi() {
             .contains("LMI")
     );
     assert!(!job.out.join("trace.json").exists());
-    assert!(o.summary.contains("LMI (2) FAILS") || o.summary.contains("δ-IOSS"));
+    assert!(
+        o.summary.contains("δ-IOSS (LMI (2)) FAILS"),
+        "{}",
+        o.summary
+    );
+    assert!(o.summary.contains("nothing was simulated"), "{}", o.summary);
     assert!(o.summary.contains("LMI (2) feasible"));
 }
 

@@ -206,6 +206,14 @@ fn certified_preset_uses_the_computed_k_min_which_the_file_records() {
     assert!(f.certified.summary.contains(&format!(
         "Verdict: Theorem 1 certifies ISS of the closed loop for pg with K ≥ {k_min}; Props. 1 and 3 hold"
     )));
+    // The README and docs/case-study.md quote K_min: keep them in sync with the code.
+    for doc in ["README.md", "docs/case-study.md"] {
+        let text = std::fs::read_to_string(workspace_root().join(doc)).unwrap();
+        assert!(
+            text.contains(&format!("**{k_min}**")),
+            "{doc} does not quote the computed PG K_min = {k_min}"
+        );
+    }
     // Every solver has a K_min here.
     assert!(d.solvers.iter().all(|s| s.k_min.is_some()));
 }

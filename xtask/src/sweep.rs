@@ -656,7 +656,7 @@ impl BandChart<'_> {
 }
 
 /// The plotted metrics: (column, file stem, title, y label).
-const PLOTS: [(&str, &str, &str, &str); 7] = [
+const PLOTS: [(&str, &str, &str, &str); 9] = [
     (
         "tail_mean_e",
         "error",
@@ -682,6 +682,18 @@ const PLOTS: [(&str, &str, &str, &str); 7] = [
         "gain-x",
         "empirical gain sup‖x‖ / sup‖w‖",
         "sup‖x‖ / sup‖w‖",
+    ),
+    (
+        "tail_gain_e",
+        "tail-gain-e",
+        "empirical gain after the transient: last-quarter mean ‖e‖ / sup‖w‖",
+        "last-quarter ‖e‖ / sup‖w‖",
+    ),
+    (
+        "tail_gain_x",
+        "tail-gain-x",
+        "empirical gain after the transient: last-quarter mean ‖x‖ / sup‖w‖",
+        "last-quarter ‖x‖ / sup‖w‖",
     ),
     (
         "sup_eps",

@@ -208,6 +208,11 @@ pub enum Metric {
     GainE,
     /// sup‖x‖ / sup‖w‖ (`gain_x`; empty when w ≡ 0).
     GainX,
+    /// Last-quarter mean of ‖e_t‖ / sup‖w‖ (`tail_gain_e`): the gain once the initial
+    /// error has decayed (sup‖e‖ is usually ‖e₀‖, whatever K).
+    TailGainE,
+    /// Last-quarter mean of ‖x_t‖ / sup‖w‖ (`tail_gain_x`).
+    TailGainX,
     /// Largest violation of the input box 𝒰 by u_t (`input_violation`; 0 expected).
     InputViolation,
     /// Largest violation of Z by the MHE iterate zᴷ_t (`mhe_violation`; 0 for PG/FISTA).
@@ -216,7 +221,7 @@ pub enum Metric {
 
 impl Metric {
     /// Every metric, in column order.
-    pub const ALL: [Metric; 12] = [
+    pub const ALL: [Metric; 14] = [
         Metric::SupE,
         Metric::SupX,
         Metric::TailMeanE,
@@ -227,6 +232,8 @@ impl Metric {
         Metric::SupEps,
         Metric::GainE,
         Metric::GainX,
+        Metric::TailGainE,
+        Metric::TailGainX,
         Metric::InputViolation,
         Metric::MheViolation,
     ];
@@ -244,6 +251,8 @@ impl Metric {
             Metric::SupEps => "sup_eps",
             Metric::GainE => "gain_e",
             Metric::GainX => "gain_x",
+            Metric::TailGainE => "tail_gain_e",
+            Metric::TailGainX => "tail_gain_x",
             Metric::InputViolation => "input_violation",
             Metric::MheViolation => "mhe_violation",
         }
@@ -939,7 +948,7 @@ pub struct RunMetrics {
     /// Steps completed (T unless the run stopped).
     pub steps: usize,
     /// Values of [`Metric::ALL`], in that order (`None` = not available, an empty cell).
-    pub values: [Option<f64>; 12],
+    pub values: [Option<f64>; 14],
     /// Completed, finite, and sup‖x‖ ≤ bounded_factor·(1 + ‖x₀‖).
     pub bounded: bool,
     /// Why the run stopped early (empty if it did not).
@@ -978,13 +987,14 @@ pub fn run_metrics(
     input_box: (&[f64], &[f64]),
     bounded_factor: f64,
     stop: Option<&ClosedLoopError>,
-) -> ([Option<f64>; 12], bool) {
+) -> ([Option<f64>; 14], bool) {
     let diverged = stop.is_some();
     let inf_if = |v: f64| if diverged { f64::INFINITY } else { v };
     let sup_e = inf_if(trace.sup_norm_e());
     let sup_x = inf_if(trace.sup_norm_x());
     let sup_w = trace.sup_norm_w();
     let tail = |v: Option<f64>| v.map(inf_if);
+    let (tail_e, tail_x) = (tail(trace.tail_mean_e()), tail(trace.tail_mean_x()));
     let final_e = trace.e_norms().last().copied().map(inf_if);
     let final_x = (!trace.is_empty())
         .then(|| trace.x_norms().last().copied())
@@ -1006,14 +1016,16 @@ pub fn run_metrics(
     let values = [
         Some(sup_e),
         Some(sup_x),
-        tail(trace.tail_mean_e()),
+        tail_e,
         final_e,
-        tail(trace.tail_mean_x()),
+        tail_x,
         final_x,
         Some(sup_w),
         sup_eps,
         gain(sup_e),
         gain(sup_x),
+        tail_e.and_then(gain),
+        tail_x.and_then(gain),
         Some(input_violation(trace, input_box.0, input_box.1)),
         mhe_violation,
     ];
@@ -1116,9 +1128,13 @@ impl SolverTheory {
                         .map(|p| format!("{} fails (value {:.4})", p.name, p.value))
                         .collect();
                 }
+                // Props. 1 and 3 divide by 1 − φ(K): for φ(K) ≥ 1 the gains, slopes and
+                // margin are undefined (written empty), not large.
+                let defined = g.phi < 1.0 && g.phi.is_finite();
                 TheoryAtK {
-                    slopes: Some([g.sg1, g.sg2, g.sg3]),
-                    margin: Some(g.margin),
+                    phi: Some(g.phi),
+                    slopes: defined.then_some([g.sg1, g.sg2, g.sg3]),
+                    margin: defined.then_some(g.margin),
                     certified: if !reasons.is_empty() {
                         "void"
                     } else if g.certified {
@@ -1131,6 +1147,7 @@ impl SolverTheory {
                 }
             }
             SolverTheory::Unavailable(reason) => TheoryAtK {
+                phi: None,
                 slopes: None,
                 margin: None,
                 certified: "void",
@@ -1144,7 +1161,9 @@ impl SolverTheory {
 /// The theoretical columns of a point.
 #[derive(Debug, Clone, PartialEq)]
 pub struct TheoryAtK {
-    /// Slopes of (sg1), (sg2), (sg3) at K.
+    /// φ(K) of Assumption 5 (the solver's certified contraction after K iterations).
+    pub phi: Option<f64>,
+    /// Slopes of (sg1), (sg2), (sg3) at K (None where φ(K) ≥ 1: undefined).
     pub slopes: Option<[f64; 3]>,
     /// Certified ISS margin 1 − max slope.
     pub margin: Option<f64>,
@@ -1293,7 +1312,7 @@ pub fn points_header(metrics: &[Metric]) -> String {
         }
         let _ = write!(h, ",{}_max", m.name());
     }
-    h.push_str(",sg1,sg2,sg3,margin_cert,certified,k_min_cert,void_reason,wall_ms");
+    h.push_str(",phi,sg1,sg2,sg3,margin_cert,certified,k_min_cert,void_reason,wall_ms");
     h
 }
 
@@ -1325,7 +1344,8 @@ fn point_row(p: &Point, s: &PointSummary) -> String {
     let sl = th.slopes;
     let _ = write!(
         out,
-        ",{},{},{},{},{},{},{},{}",
+        ",{},{},{},{},{},{},{},{},{}",
+        cell(th.phi),
         cell(sl.map(|v| v[0])),
         cell(sl.map(|v| v[1])),
         cell(sl.map(|v| v[2])),
@@ -1502,6 +1522,19 @@ impl SweepReport {
     }
 }
 
+/// A worker thread's loop for the point it is running (built once per point and thread).
+struct WorkerLoop {
+    fingerprint: String,
+    point: usize,
+    lp: CaseStudyLoop,
+}
+
+thread_local! {
+    /// The loop of the current worker thread; the sweep's pool threads end with the sweep,
+    /// and their loops with them.
+    static WORKER_LOOP: std::cell::RefCell<Option<WorkerLoop>> = const { std::cell::RefCell::new(None) };
+}
+
 /// A sweep ready to run: the config, the scenario (with P of LMI (2) computed once), the
 /// points and the theoretical side.
 #[derive(Debug)]
@@ -1649,44 +1682,50 @@ impl Sweep {
         })
     }
 
-    /// Runs every run of one point on the current rayon pool, in chunks that each build
-    /// one loop and reseed it per run. The result is in run order.
+    /// Runs every run of one point on the current rayon pool, one task per run. Each
+    /// worker thread builds the point's loop once and restarts it per run with
+    /// [`CaseStudyLoop::reseed`] (equivalent to a fresh build, allocation-free), so the
+    /// runs balance across threads at the granularity of one run. The result is in run
+    /// order.
     pub fn run_point(&self, p: &Point, progress: &dyn Progress) -> Result<Vec<RunMetrics>> {
-        let seeds = self.config.seeds;
-        let chunks = (rayon::current_num_threads() * 4).clamp(1, seeds);
-        let per = seeds.div_ceil(chunks);
         let input = (
             self.scenario.sets.input.lower(),
             self.scenario.sets.input.upper(),
         );
         let cost = run_cost(p.k, self.steps);
-        let parts: Vec<Result<Vec<RunMetrics>>> = (0..chunks)
+        let setup = |source| SweepError::Setup {
+            point: p.to_string(),
+            source,
+        };
+        (0..self.config.seeds)
             .into_par_iter()
-            .map(|c| {
-                let runs = (c * per)..((c + 1) * per).min(seeds);
-                if runs.is_empty() {
-                    return Ok(Vec::new());
-                }
-                let mut lp = self.build(p)?;
-                runs.map(|r| {
-                    let seed = run_seed(self.base_seed, p, r, self.config.common_random_numbers);
-                    let m = simulate(&mut lp, r, seed, input, self.config.bounded_factor).map_err(
-                        |source| SweepError::Setup {
-                            point: p.to_string(),
-                            source,
-                        },
-                    );
-                    progress.run_done(cost);
-                    m
-                })
-                .collect()
+            .with_max_len(1)
+            .map(|r| {
+                let seed = run_seed(self.base_seed, p, r, self.config.common_random_numbers);
+                let m = WORKER_LOOP.with(|cell| {
+                    let mut slot = cell.borrow_mut();
+                    let mine =
+                        |w: &WorkerLoop| w.fingerprint == self.fingerprint && w.point == p.index;
+                    let mut w = match slot.take() {
+                        Some(w) if mine(&w) => w,
+                        stale => {
+                            drop(stale); // free the previous point's loop first
+                            WorkerLoop {
+                                fingerprint: self.fingerprint.clone(),
+                                point: p.index,
+                                lp: self.build(p)?,
+                            }
+                        }
+                    };
+                    let res = simulate(&mut w.lp, r, seed, input, self.config.bounded_factor)
+                        .map_err(setup);
+                    *slot = Some(w);
+                    res
+                });
+                progress.run_done(cost);
+                m
             })
-            .collect();
-        let mut out = Vec::with_capacity(seeds);
-        for part in parts {
-            out.extend(part?);
-        }
-        Ok(out)
+            .collect()
     }
 
     /// The point file of a computed point.

@@ -224,6 +224,8 @@ fn run_rows_match_a_fresh_loop_per_seed() {
         assert_eq!(num("final_x"), norm(tr.x(12).unwrap()));
         assert_eq!(num("gain_e"), sup_e / sup_w);
         assert_eq!(num("gain_x"), sup_x / sup_w);
+        assert!((num("tail_gain_e") - tail_e / sup_w).abs() <= 1e-12 * num("tail_gain_e"));
+        assert!((num("tail_gain_x") - tail_x / sup_w).abs() <= 1e-12 * num("tail_gain_x"));
         // ‖w‖ ≤ scale·0.1·√5 for the uniform box.
         assert!(sup_w <= p.scale * 0.1 * 5f64.sqrt());
         // The exact MPC stays in 𝒰 (up to the interior-point tolerance); PG's iterate is
@@ -394,6 +396,18 @@ fn theoretical_columns_follow_the_certificate() {
         assert_eq!(cert == "yes", p.k >= km, "{p}: {cert}");
         assert!(cert == "yes" || cert == "no");
         seen = (seen.0 || cert == "yes", seen.1 || cert == "no");
+        let phi = points.number(row, "phi").unwrap();
+        assert_eq!(phi, analysis.phi(p.k));
+        if phi >= 1.0 {
+            // Props. 1 and 3 divide by 1 − φ(K): undefined, written empty.
+            assert!(
+                ["sg1", "sg2", "sg3", "margin_cert"]
+                    .iter()
+                    .all(|c| points.text(row, c) == Some(""))
+            );
+            assert!(p.k < km);
+            continue;
+        }
         let sg = ["sg1", "sg2", "sg3"].map(|c| points.number(row, c).unwrap());
         let margin = points.number(row, "margin_cert").unwrap();
         assert_eq!(margin, 1.0 - sg[0].max(sg[1]).max(sg[2]));

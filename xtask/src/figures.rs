@@ -283,13 +283,8 @@ macro_rules! draw_body {
 
 /// Renders a chart as an SVG document.
 ///
-/// Errors: no drawable point at all, or a drawing failure.
-///
-/// ```ignore
-/// // (xtask is a binary crate; see the tests below for runnable checks)
-/// let r = render_svg(&chart)?;
-/// std::fs::write("fig.svg", r.svg)?;
-/// ```
+/// Errors: no drawable point at all, or a drawing failure. (xtask is a binary crate, so
+/// the examples are the unit tests below.)
 pub fn render_svg(chart: &Chart) -> Result<Rendered> {
     let (xr, yr) = ranges(chart)?;
     let dropped = chart

@@ -1000,7 +1000,7 @@ fn charts(scenario: &Scenario, runs: &[Run]) -> Vec<(&'static str, Chart)> {
     for (i, r) in runs.iter().enumerate() {
         let tr = &r.trace;
         let suffix = if multi {
-            format!(" ({})", r.summary.label)
+            format!(", K = {}", r.summary.k)
         } else {
             String::new()
         };

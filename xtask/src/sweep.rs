@@ -56,17 +56,22 @@ struct Bar(ProgressBar);
 
 impl Progress for Bar {
     fn start(&self, points: usize, runs: u64, cost: u64, skipped: usize) {
+        // Elapsed time and ETA from here (after the certificate), not from the bar's creation.
+        self.0.reset();
         self.0.set_length(cost.max(1));
-        self.0.set_message(format!(
-            "{points} points, {runs} runs ({skipped} points done before)"
-        ));
+        self.0.set_message(format!("{points} points, {runs} runs"));
+        if skipped > 0 {
+            self.0.println(format!(
+                "resuming: {skipped} points finished before are skipped"
+            ));
+        }
     }
     fn run_done(&self, cost: u64) {
         self.0.inc(cost);
     }
     fn point_done(&self, p: &Point) {
         self.0
-            .set_message(format!("last: K = {}, {}", p.k, p.solver));
+            .set_message(format!("done: K = {} {}", p.k, p.solver));
     }
 }
 
@@ -76,7 +81,7 @@ fn progress_bar() -> ProgressBar {
     }
     let bar = ProgressBar::new(1);
     if let Ok(style) = ProgressStyle::with_template(
-        "{elapsed_precise} [{wide_bar}] {percent:>3}% ETA {eta_precise} {msg}",
+        "{elapsed_precise} [{bar:40}] {percent:>3}% ETA {eta_precise}  {msg}",
     ) {
         bar.set_style(style);
     }

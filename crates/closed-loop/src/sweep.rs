@@ -1802,6 +1802,11 @@ impl Sweep {
             .filter(|p| opts.shard.is_none_or(|s| s.owns(p.index)))
             .count()
             - todo.len();
+        if !todo.is_empty() {
+            // The certificate (seconds) before the progress report and the clock of the
+            // runs start.
+            let _ = self.theory();
+        }
         let seeds = self.config.seeds as u64;
         progress.start(
             todo.len(),
@@ -1816,10 +1821,6 @@ impl Sweep {
             .thread_name(|i| format!("sweep-{i}"))
             .build()
             .map_err(|e| SweepError::Threads(e.to_string()))?;
-        if !todo.is_empty() {
-            // The certificate (seconds) before the clock of the runs starts.
-            let _ = self.theory();
-        }
         let runs_clock = Instant::now();
         let mut steps_done = 0u64;
         let mut computed = 0;

@@ -60,6 +60,9 @@ const POINT_FILE_MAGIC: &str = "# suboptimal-mhe sweep point v1";
 const POINT_FILE_SEPARATOR: &str = "=";
 /// Largest K accepted in a grid (a run costs T·K iterations).
 pub const MAX_K: usize = 10_000_000;
+/// Largest horizon T accepted (a run's trace, MHE records included, is preallocated:
+/// about 1 KiB per step for the case study, per worker thread).
+pub const MAX_STEPS: usize = 100_000;
 /// Largest number of seeds per point.
 pub const MAX_SEEDS: usize = 10_000_000;
 
@@ -685,7 +688,7 @@ impl SweepConfig {
                 ));
             }
         };
-        let steps = get_positive(&table, "steps", "steps", MAX_K)?;
+        let steps = get_positive(&table, "steps", "steps", MAX_STEPS)?;
         let base_seed = match get_int(&table, "base_seed", "base_seed")? {
             None => None,
             Some(s) if s < 0 => {
@@ -2074,6 +2077,17 @@ mod tests {
             key_of(cfg("k = [1]\nbounded_factor = 0").unwrap_err()),
             "bounded_factor"
         );
+        assert_eq!(key_of(cfg("k = [1]\nsteps = 100001").unwrap_err()), "steps");
+        assert_eq!(
+            key_of(cfg("k = [1]\ncertificate = 1").unwrap_err()),
+            "certificate"
+        );
+        assert_eq!(
+            key_of(cfg("k = [1]\nbase_seed = -1").unwrap_err()),
+            "base_seed"
+        );
+        assert_eq!(key_of(cfg("k = 5").unwrap_err()), "k");
+        assert_eq!(key_of(cfg("k = [1]\nscales = []").unwrap_err()), "scales");
         assert!(matches!(cfg("k = [1").unwrap_err(), SweepError::Toml(_)));
     }
 

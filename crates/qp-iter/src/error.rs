@@ -16,6 +16,17 @@ pub enum QpError {
         /// What is required.
         reason: String,
     },
+    /// An exact solver stopped without a verified optimum (iteration limit, a failed KKT
+    /// check or a numerically singular subproblem).
+    #[error("{solver} solver did not converge after {iterations} iterations: {reason}")]
+    NotConverged {
+        /// Which solver (`"active set"`).
+        solver: &'static str,
+        /// Iterations used.
+        iterations: usize,
+        /// What went wrong, and what to do.
+        reason: String,
+    },
     /// The exact reference solver (Clarabel) did not solve the problem.
     #[error("reference solver: {status}")]
     Reference {

@@ -15,6 +15,7 @@
 //!
 //! This crate knows parametric QPs only: never A, B or C.
 
+pub mod active_set;
 pub mod admm;
 pub mod certificate;
 pub mod driver;

@@ -3,6 +3,7 @@
 //! (its global allocator must not count this binary's work).
 #![allow(clippy::unwrap_used)]
 
+mod active_set;
 mod behaviour;
 mod certificates;
 mod common;

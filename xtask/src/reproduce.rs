@@ -193,7 +193,7 @@ pub struct SettingsRecord {
 /// One solver's verdict, flattened for readers of the JSON.
 #[derive(Debug, Clone, Serialize)]
 pub struct SolverSummary {
-    /// `"pg"`, `"fista"`, `"admm"`.
+    /// `"pg"`, `"fista"`, `"admm"`, `"admm-pr"`.
     pub solver: String,
     /// Whether this is the scenario's `[mhe] solver` (the one simulated).
     pub simulated: bool,
@@ -684,7 +684,7 @@ pub fn run_job(job: &Job, settings: &Settings) -> Result<Outcome> {
     let solver: Solver = spec.solver.into();
     let seed = scenario.noise.seed;
     let opts = CertificateOptions {
-        solvers: vec![Solver::Pg, Solver::Fista, Solver::Admm],
+        solvers: Solver::ALL.to_vec(),
         gamma13: settings.gamma13,
         seed,
         lipschitz_pairs: settings.lipschitz_pairs,

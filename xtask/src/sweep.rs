@@ -380,17 +380,19 @@ struct Curve {
     void_reason: Option<String>,
 }
 
-const COLORS: [RGBColor; 3] = [
+const COLORS: [RGBColor; 4] = [
     RGBColor(31, 119, 180),
     RGBColor(214, 39, 40),
     RGBColor(44, 160, 44),
+    RGBColor(148, 103, 189),
 ];
 
 fn color_of(solver: &str) -> RGBColor {
     match solver {
         "pg" => COLORS[0],
         "fista" => COLORS[1],
-        _ => COLORS[2],
+        "admm" => COLORS[2],
+        _ => COLORS[3],
     }
 }
 

@@ -72,7 +72,7 @@ pub struct CertificateOptions {
 impl Default for CertificateOptions {
     fn default() -> Self {
         Self {
-            solvers: vec![Solver::Pg, Solver::Fista, Solver::Admm],
+            solvers: Solver::ALL.to_vec(),
             gamma13: Gamma13Source::Certified,
             seed: 0,
             lipschitz_pairs: 200,

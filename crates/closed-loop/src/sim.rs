@@ -26,8 +26,8 @@
 //!
 //! **Allocation.** After construction a step allocates nothing provided the estimator and
 //! the controller do not (true for `MheEstimator` with the exact solve off,
-//! `SuboptimalMpc`, `SaturatedLqr`; not for `ExactMpc` or the MHE's exact solve, which
-//! call Clarabel). Errors are the exception: they are built once, when the run stops.
+//! `SuboptimalMpc`, `SaturatedLqr`, and `ExactMpc` with its default active-set backend;
+//! not for the MHE's exact solve or `ExactMpc`'s Clarabel backend, which call Clarabel). Errors are the exception: they are built once, when the run stops.
 //!
 //! **Case study.** [`build_case_study`] turns a [`Scenario`] (e.g. `scenarios/case-study.toml`)
 //! into a ready [`CaseStudyLoop`], dispatching over the solvers with enums.
@@ -176,8 +176,8 @@ pub enum ClosedLoopError {
         /// `"mhe"` or `"mpc"`.
         section: &'static str,
     },
-    /// A solver name other than `pg`, `fista`, `admm`.
-    #[error("unknown solver `{name}`; use \"pg\", \"fista\" or \"admm\"")]
+    /// A solver name other than `pg`, `fista`, `admm`, `admm-pr`.
+    #[error("unknown solver `{name}`; use \"pg\", \"fista\", \"admm\" or \"admm-pr\"")]
     UnknownSolver {
         /// The name given.
         name: String,
@@ -529,7 +529,7 @@ impl<M: IterationMap, C: Controller, D: Disturbance> ClosedLoop<MheEstimator<M>,
 // ---------------------------------------------------------------------------------------
 
 /// The iteration map Φ: projected gradient (step 2/(L + μ)), FISTA, or ADMM (default
-/// parameters).
+/// parameters, or over-relaxed to α = 2: Peaceman–Rachford).
 #[derive(Debug, Clone, Copy, PartialEq, Eq, serde::Serialize)]
 #[serde(rename_all = "lowercase")]
 pub enum Solver {
@@ -537,17 +537,37 @@ pub enum Solver {
     Pg,
     /// V-FISTA (`"fista"`).
     Fista,
-    /// ADMM with [`AdmmParams::default`] (`"admm"`).
+    /// ADMM with [`AdmmParams::default`] (`"admm"`: ρ = √(μL), α = 1).
     Admm,
+    /// ADMM with ρ = √(μL) and relaxation α = 2 (`"admm-pr"`, Peaceman–Rachford): the
+    /// certified rate δ = (√κ − 1)/(√κ + 1) instead of (1 + δ)/2, so about half the K.
+    #[serde(rename = "admm-pr")]
+    AdmmPr,
 }
 
 impl Solver {
-    /// `"pg"`, `"fista"` or `"admm"`.
+    /// `"pg"`, `"fista"`, `"admm"` or `"admm-pr"`.
     pub fn name(self) -> &'static str {
         match self {
             Solver::Pg => "pg",
             Solver::Fista => "fista",
             Solver::Admm => "admm",
+            Solver::AdmmPr => "admm-pr",
+        }
+    }
+
+    /// Every solver, in the order reports list them.
+    pub const ALL: [Solver; 4] = [Solver::Pg, Solver::Fista, Solver::Admm, Solver::AdmmPr];
+
+    /// ADMM's parameters for the two ADMM variants (`None` for PG and FISTA).
+    pub fn admm_params(self) -> Option<AdmmParams> {
+        match self {
+            Solver::Admm => Some(AdmmParams::default()),
+            Solver::AdmmPr => Some(AdmmParams {
+                relaxation: 2.0,
+                ..AdmmParams::default()
+            }),
+            Solver::Pg | Solver::Fista => None,
         }
     }
 }
@@ -564,8 +584,14 @@ impl Solver {
                 .certificate()
                 .clone(),
             Solver::Fista => Fista::new(qp).certificate().clone(),
-            Solver::Admm => Admm::new(qp, AdmmParams::default())?.certificate().clone(),
+            Solver::Admm | Solver::AdmmPr => Admm::new(qp, self.admm_params_or_default())?
+                .certificate()
+                .clone(),
         })
+    }
+
+    fn admm_params_or_default(self) -> AdmmParams {
+        self.admm_params().unwrap_or_default()
     }
 }
 
@@ -587,6 +613,7 @@ impl FromStr for Solver {
             "pg" => Ok(Solver::Pg),
             "fista" => Ok(Solver::Fista),
             "admm" => Ok(Solver::Admm),
+            "admm-pr" => Ok(Solver::AdmmPr),
             other => Err(ClosedLoopError::UnknownSolver { name: other.into() }),
         }
     }
@@ -598,6 +625,7 @@ impl From<MheSolver> for Solver {
             MheSolver::ProjectedGradient => Solver::Pg,
             MheSolver::Fista => Solver::Fista,
             MheSolver::Admm => Solver::Admm,
+            MheSolver::AdmmPr => Solver::AdmmPr,
         }
     }
 }
@@ -605,7 +633,8 @@ impl From<MheSolver> for Solver {
 /// The controller π of a case-study run.
 #[derive(Debug, Clone, Copy, PartialEq, Eq)]
 pub enum ControllerChoice {
-    /// The exact MPC (Clarabel each step; the paper's setting). Allocates per step.
+    /// The exact MPC (the paper's setting): a warm-started, KKT-verified active-set solve
+    /// each step ([`ExactMpc`]), allocation-free.
     ExactMpc,
     /// The MPC solved with `iterations` = K_c ≥ 1 warm-started iterations of `solver`.
     SuboptimalMpc {
@@ -661,8 +690,10 @@ pub enum CaseStudyEstimator {
     Pg(MheEstimator<ProjectedGradient>),
     /// Φ = FISTA.
     Fista(MheEstimator<Fista>),
-    /// Φ = ADMM.
+    /// Φ = ADMM (α = 1).
     Admm(MheEstimator<Admm>),
+    /// Φ = ADMM with α = 2 (Peaceman–Rachford).
+    AdmmPr(MheEstimator<Admm>),
 }
 
 macro_rules! each_mhe {
@@ -671,6 +702,7 @@ macro_rules! each_mhe {
             CaseStudyEstimator::Pg($e) => $body,
             CaseStudyEstimator::Fista($e) => $body,
             CaseStudyEstimator::Admm($e) => $body,
+            CaseStudyEstimator::AdmmPr($e) => $body,
         }
     };
 }
@@ -682,6 +714,7 @@ impl CaseStudyEstimator {
             CaseStudyEstimator::Pg(_) => Solver::Pg,
             CaseStudyEstimator::Fista(_) => Solver::Fista,
             CaseStudyEstimator::Admm(_) => Solver::Admm,
+            CaseStudyEstimator::AdmmPr(_) => Solver::AdmmPr,
         }
     }
     /// The record of the last estimate.
@@ -732,7 +765,7 @@ fn case_study_record_hook(e: &CaseStudyEstimator) -> Option<&MheRecord> {
 // do not matter for speed; boxing them would add an indirection per step instead.
 #[allow(clippy::large_enum_variant)]
 pub enum CaseStudyController {
-    /// Exact MPC (Clarabel; boxed, it is large).
+    /// Exact MPC (active set, Clarabel fallback; boxed, it is large).
     Exact(Box<ExactMpc>),
     /// Sub-optimal MPC with projected gradient.
     SuboptimalPg(SuboptimalMpc<ProjectedGradient>),
@@ -757,13 +790,15 @@ macro_rules! each_ctrl {
 }
 
 impl CaseStudyController {
-    /// Forgets the sub-optimal MPC's warm start (no-op for the others).
+    /// Forgets the MPC's warm start (the sub-optimal MPC's iterate, the exact MPC's working
+    /// set; no-op for the saturated LQR), so a reused controller behaves like a new one.
     pub fn reset(&mut self) {
         match self {
+            CaseStudyController::Exact(c) => c.reset(),
             CaseStudyController::SuboptimalPg(c) => c.reset(),
             CaseStudyController::SuboptimalFista(c) => c.reset(),
             CaseStudyController::SuboptimalAdmm(c) => c.reset(),
-            CaseStudyController::Exact(_) | CaseStudyController::SaturatedLqr(_) => {}
+            CaseStudyController::SaturatedLqr(_) => {}
         }
     }
 }
@@ -835,10 +870,14 @@ fn mhe_estimator(
                 Ok(Fista::new(qp))
             })?)
         }
-        Solver::Admm => {
-            CaseStudyEstimator::Admm(MheEstimator::new(plant, sets, cfg, prior, |qp| {
-                Admm::new(qp, AdmmParams::default())
-            })?)
+        Solver::Admm | Solver::AdmmPr => {
+            let params = solver.admm_params_or_default();
+            let e = MheEstimator::new(plant, sets, cfg, prior, |qp| Admm::new(qp, params))?;
+            if solver == Solver::Admm {
+                CaseStudyEstimator::Admm(e)
+            } else {
+                CaseStudyEstimator::AdmmPr(e)
+            }
         }
     })
 }
@@ -882,12 +921,14 @@ fn controller(scenario: &Scenario, choice: ControllerChoice) -> Result<CaseStudy
                     iterations,
                     warm,
                 )?),
-                Solver::Admm => CaseStudyController::SuboptimalAdmm(SuboptimalMpc::new(
-                    &mpc,
-                    Admm::new(qp, AdmmParams::default()).map_err(MpcError::Qp)?,
-                    iterations,
-                    warm,
-                )?),
+                Solver::Admm | Solver::AdmmPr => {
+                    CaseStudyController::SuboptimalAdmm(SuboptimalMpc::new(
+                        &mpc,
+                        Admm::new(qp, solver.admm_params_or_default()).map_err(MpcError::Qp)?,
+                        iterations,
+                        warm,
+                    )?)
+                }
             }
         }
     })

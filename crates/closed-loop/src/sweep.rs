@@ -301,7 +301,7 @@ pub struct SweepConfig {
     /// The iteration budgets K (`k`: a list, or `{ from, to, points }` log-spaced), sorted,
     /// without duplicates, each ≥ 1.
     pub k_grid: Vec<usize>,
-    /// The MHE's iteration maps Φ (`solvers`, any of `"pg"`, `"fista"`, `"admm"`).
+    /// The MHE's iteration maps Φ (`solvers`, any of `"pg"`, `"fista"`, `"admm"`, `"admm-pr"`).
     pub solvers: Vec<Solver>,
     /// Runs per point (`seeds` ≥ 1).
     pub seeds: usize,
@@ -623,12 +623,16 @@ impl SweepConfig {
             .ok_or_else(|| config_err("scenario", "missing (path of the scenario TOML)"))?;
         let scenario = base_dir.join(scenario);
         let k_grid = parse_k_grid(table.get("k"))?;
-        let solver_names = get_str_list(&table, "solvers")?
-            .ok_or_else(|| config_err("solvers", "missing (any of \"pg\", \"fista\", \"admm\")"))?;
+        let solver_names = get_str_list(&table, "solvers")?.ok_or_else(|| {
+            config_err(
+                "solvers",
+                "missing (any of \"pg\", \"fista\", \"admm\", \"admm-pr\")",
+            )
+        })?;
         if solver_names.is_empty() {
             return Err(config_err(
                 "solvers",
-                "empty; list at least one of \"pg\", \"fista\", \"admm\"",
+                "empty; list at least one of \"pg\", \"fista\", \"admm\", \"admm-pr\"",
             ));
         }
         let mut solvers = Vec::new();

@@ -98,6 +98,7 @@ fn closed_loop_steps_do_not_allocate() {
 
     // The case-study builder (enum dispatch, boxed disturbance), and a Monte-Carlo reseed.
     for controller in [
+        ControllerChoice::ExactMpc,
         ControllerChoice::SaturatedLqr,
         ControllerChoice::SuboptimalMpc {
             iterations: 20,

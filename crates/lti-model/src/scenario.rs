@@ -185,9 +185,12 @@ pub enum MheSolver {
     /// Accelerated projected gradient (`"fista"`).
     #[serde(rename = "fista")]
     Fista,
-    /// ADMM (`"admm"`).
+    /// ADMM (`"admm"`, relaxation α = 1).
     #[serde(rename = "admm")]
     Admm,
+    /// ADMM over-relaxed to α = 2 (`"admm-pr"`, Peaceman–Rachford).
+    #[serde(rename = "admm-pr")]
+    AdmmPr,
 }
 
 /// How z⁰_{t+1} is obtained from zᴷ_t (step 2 of Alg. 1).

@@ -1,21 +1,55 @@
-//! The exact MPC law π(x̂) = u*₀(x̂) (the paper's setting), solved by Clarabel each call.
+//! The exact MPC law π(x̂) = u*₀(x̂) (the paper's setting).
+//!
+//! By default the condensed box QP is solved by [`qp_iter::active_set`] (primal active set,
+//! warm-started from the previous call's working set, allocation-free, every answer
+//! KKT-verified); Clarabel ([`qp_iter::reference`]) is the fallback when the active-set
+//! method stops without a verified optimum, and an explicit alternative backend.
 
 use lti_model::{BoxSet, Projection};
 use qp_iter::QpError;
-use qp_iter::reference::{ReferenceSettings, ReferenceSolution, ReferenceSolver};
+use qp_iter::active_set::{ActiveSetInfo, ActiveSetSettings, ActiveSetSolver};
+use qp_iter::reference::{ReferenceSettings, ReferenceSolver};
 
 use crate::condensed::CondensedMpc;
 use crate::error::{MpcError, Result};
 use crate::{Controller, check_io};
 
-/// The exact condensed MPC: every call solves min ½UᵀHU + (Fx̂)ᵀU over 𝒰^N with
-/// [`qp_iter::reference::ReferenceSolver`] (Clarabel, then an active-set polish accepted
-/// only if it passes a KKT check) and returns u*₀, projected onto 𝒰 so that it lies in 𝒰
-/// exactly (the projection moves it by at most the solver's feasibility tolerance).
+/// How [`ExactMpc`] computes U*(x̂).
+#[derive(Debug, Clone, Copy, PartialEq)]
+pub enum ExactBackend {
+    /// Primal active set (the default): a few hundred nanoseconds per warm-started call
+    /// at the case study's size, no allocation; falls back to Clarabel with default
+    /// settings if it stops without a verified optimum (counted by
+    /// [`ExactMpc::fallbacks`]).
+    ActiveSet(ActiveSetSettings),
+    /// Clarabel's interior-point method and an active-set polish every call (≈ 100× slower,
+    /// allocates): the independent reference.
+    Clarabel(ReferenceSettings),
+}
+
+impl Default for ExactBackend {
+    fn default() -> Self {
+        Self::ActiveSet(ActiveSetSettings::default())
+    }
+}
+
+#[derive(Debug)]
+#[allow(clippy::large_enum_variant)] // one per controller, never moved in a hot loop
+enum Backend {
+    ActiveSet {
+        solver: ActiveSetSolver,
+        /// Built on the first fallback only.
+        fallback: Option<Box<ReferenceSolver>>,
+    },
+    Clarabel(Box<ReferenceSolver>),
+}
+
+/// The exact condensed MPC: every call solves min ½UᵀHU + (Fx̂)ᵀU over 𝒰^N and returns
+/// u*₀, projected onto 𝒰 so that it lies in 𝒰 exactly.
 ///
-/// **Allocates** on every call (Clarabel's solution vectors, the polish): meant for the
-/// paper's exact-MPC setting, tests and analysis, not for allocation-free hot loops — use
-/// [`crate::SuboptimalMpc`] there.
+/// With the default [`ExactBackend::ActiveSet`], [`Controller::control`] allocates nothing
+/// after construction (unless a Clarabel fallback is needed, which the tests never see on
+/// the case study).
 ///
 /// ```
 /// use faer::{mat, Mat};
@@ -28,51 +62,126 @@ use crate::{Controller, check_io};
 /// let mut u = [0.0];
 /// ctrl.control(&[50.0, 0.0], &mut u).unwrap();
 /// assert_eq!(u, [-1.0]); // far away: saturated
+/// assert_eq!(ctrl.fallbacks(), 0);
 /// ```
 #[derive(Debug)]
 pub struct ExactMpc {
-    solver: ReferenceSolver,
+    backend: Backend,
     input_set: BoxSet,
     nx: usize,
     nu: usize,
-    last: Option<ReferenceSolution>,
+    /// U*(x̂) of the last successful call.
+    u_seq: Vec<f64>,
+    solved: bool,
+    fallbacks: usize,
+    last_info: Option<ActiveSetInfo>,
 }
 
 impl ExactMpc {
-    /// Clarabel with [`ReferenceSettings::default`] (tolerance 1e-11, polish on).
+    /// The default backend: active set with Clarabel as the fallback.
     pub fn new(mpc: &CondensedMpc) -> Result<Self> {
-        Self::with_settings(mpc, ReferenceSettings::default())
+        Self::with_backend(mpc, ExactBackend::default())
     }
 
-    /// Clarabel with the given settings.
+    /// Clarabel with the given settings every call (the previous default; allocates).
     pub fn with_settings(mpc: &CondensedMpc, settings: ReferenceSettings) -> Result<Self> {
-        let solver = ReferenceSolver::new(mpc.qp(), settings)?;
+        Self::with_backend(mpc, ExactBackend::Clarabel(settings))
+    }
+
+    /// The given backend. Errors: invalid settings ([`MpcError::Qp`]).
+    pub fn with_backend(mpc: &CondensedMpc, backend: ExactBackend) -> Result<Self> {
+        let backend = match backend {
+            ExactBackend::ActiveSet(settings) => Backend::ActiveSet {
+                solver: ActiveSetSolver::new(mpc.qp(), settings)?,
+                fallback: None,
+            },
+            ExactBackend::Clarabel(settings) => {
+                Backend::Clarabel(Box::new(ReferenceSolver::new(mpc.qp(), settings)?))
+            }
+        };
         Ok(Self {
-            solver,
+            backend,
             input_set: mpc.input_set().clone(),
             nx: mpc.nx(),
             nu: mpc.nu(),
-            last: None,
+            u_seq: vec![0.0; mpc.qp().n()],
+            solved: false,
+            fallbacks: 0,
+            last_info: None,
         })
     }
 
-    /// Solves for x̂ and returns the whole optimal sequence U*(x̂) with multipliers.
+    /// Solves for x̂ and returns the whole optimal sequence U*(x̂) = (u*₀, …, u*_{N−1}).
     ///
     /// Errors: [`MpcError::Dimension`] / [`MpcError::NonFinite`] for `x_hat`,
-    /// [`MpcError::Solver`] if Clarabel does not report `Solved`.
-    pub fn solve(&mut self, x_hat: &[f64]) -> Result<&ReferenceSolution> {
+    /// [`MpcError::Solver`] if Clarabel (the backend or the fallback) does not solve it.
+    pub fn solve(&mut self, x_hat: &[f64]) -> Result<&[f64]> {
         crate::error::check_len("x_hat", x_hat, self.nx)?;
         crate::error::check_finite("x_hat", x_hat)?;
-        let sol = self.solver.solve(x_hat).map_err(|e| match e {
-            QpError::Reference { status } => MpcError::Solver { status },
-            other => MpcError::Qp(other),
-        })?;
-        Ok(self.last.insert(sol))
+        self.solved = false;
+        self.last_info = None;
+        match &mut self.backend {
+            Backend::ActiveSet { solver, fallback } => match solver.solve(x_hat) {
+                Ok(info) => {
+                    self.u_seq.copy_from_slice(solver.z());
+                    self.last_info = Some(info);
+                }
+                Err(QpError::NotConverged { .. }) => {
+                    self.fallbacks += 1;
+                    solver.reset();
+                    let reference = match fallback {
+                        Some(r) => r,
+                        None => fallback.insert(Box::new(ReferenceSolver::new(
+                            solver.problem(),
+                            ReferenceSettings::default(),
+                        )?)),
+                    };
+                    let sol = reference.solve(x_hat).map_err(solver_error)?;
+                    self.u_seq.copy_from_slice(&sol.z);
+                }
+                Err(e) => return Err(e.into()),
+            },
+            Backend::Clarabel(reference) => {
+                let sol = reference.solve(x_hat).map_err(solver_error)?;
+                self.u_seq.copy_from_slice(&sol.z);
+            }
+        }
+        self.solved = true;
+        Ok(&self.u_seq)
     }
 
-    /// The solution of the last successful call.
-    pub fn last_solution(&self) -> Option<&ReferenceSolution> {
-        self.last.as_ref()
+    /// Forgets the active-set warm start (working set and cached factor), so that the next
+    /// call gives bit for bit what a freshly built controller gives: what a Monte-Carlo
+    /// driver that reuses one controller across runs needs for determinism.
+    pub fn reset(&mut self) {
+        if let Backend::ActiveSet { solver, .. } = &mut self.backend {
+            solver.reset();
+        }
+        self.solved = false;
+        self.last_info = None;
+    }
+
+    /// U*(x̂) of the last successful call.
+    pub fn input_sequence(&self) -> Option<&[f64]> {
+        self.solved.then_some(&self.u_seq[..])
+    }
+
+    /// Calls the active-set backend could not finish and Clarabel solved instead.
+    pub fn fallbacks(&self) -> usize {
+        self.fallbacks
+    }
+
+    /// Iterations and factorisations of the last active-set solve (`None` with the
+    /// Clarabel backend or after a fallback).
+    pub fn last_info(&self) -> Option<ActiveSetInfo> {
+        self.last_info
+    }
+}
+
+fn solver_error(e: QpError) -> MpcError {
+    match e {
+        QpError::Reference { status } => MpcError::Solver { status },
+        other => MpcError::Qp(other),
     }
 }
 
@@ -80,8 +189,8 @@ impl Controller for ExactMpc {
     fn control(&mut self, x_hat: &[f64], u: &mut [f64]) -> Result<()> {
         check_io(x_hat, u, self.nx, self.nu)?;
         let nu = self.nu;
-        let sol = self.solve(x_hat)?;
-        u.copy_from_slice(&sol.z[..nu]);
+        let u_seq = self.solve(x_hat)?;
+        u.copy_from_slice(&u_seq[..nu]);
         self.input_set.project(u);
         Ok(())
     }

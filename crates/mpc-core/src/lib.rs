@@ -7,7 +7,8 @@
 //!
 //! - [`CondensedMpc`] / [`MpcConfig`]: the MPC as a [`qp_iter::ParametricQp`] with θ = x̂.
 //! - [`Controller`]: x̂ ↦ u, shared with `closed-loop`; implemented by [`ExactMpc`]
-//!   (Clarabel each call, the paper's setting), [`SuboptimalMpc`] (K iterations of Φ)
+//!   (the paper's setting: an exact active-set solve each call, Clarabel as fallback and
+//!   reference), [`SuboptimalMpc`] (K iterations of Φ)
 //!   and [`SaturatedLqr`].
 //! - [`lipschitz`]: L_π certified (bound (b) from H and F for any size; the tighter
 //!   enumerated bound L_enum when N·n_u ≤ 30) and sampled (seeded pairs, exact MPC);
@@ -25,7 +26,7 @@ pub mod suboptimal;
 
 pub use condensed::{CondensedMpc, MpcConfig, Terminal};
 pub use error::{MpcError, Result};
-pub use exact::ExactMpc;
+pub use exact::{ExactBackend, ExactMpc};
 pub use lipschitz::{
     ENUMERATION_MAX_VARS, LipschitzCertificate, LipschitzReport, SampledLipschitz,
     lipschitz_report, lipschitz_report_for, lipschitz_sampled,
@@ -37,8 +38,9 @@ pub use suboptimal::{SuboptimalMpc, WarmStart};
 ///
 /// Implementations validate `x_hat` (length n_x, finite) and `u` (length n_u) on every
 /// call and return [`MpcError::Dimension`] / [`MpcError::NonFinite`] naming the argument;
-/// `u` is left unchanged on error. [`SuboptimalMpc`] and [`SaturatedLqr`] allocate
-/// nothing per call after construction (errors included); [`ExactMpc`] does (Clarabel).
+/// `u` is left unchanged on error. [`SuboptimalMpc`], [`SaturatedLqr`] and [`ExactMpc`]
+/// with its default active-set backend allocate nothing per call after construction
+/// (errors included); [`ExactMpc`] with the Clarabel backend (or fallback) does.
 pub trait Controller: std::fmt::Debug {
     /// Writes π(x̂) into `u`.
     fn control(&mut self, x_hat: &[f64], u: &mut [f64]) -> Result<()>;

@@ -1,6 +1,6 @@
-//! Zero heap allocations per control call of `SuboptimalMpc` (PG, FISTA, ADMM) and
-//! `SaturatedLqr` after construction, error paths included. A separate binary because
-//! it installs a counting global allocator.
+//! Zero heap allocations per control call of `SuboptimalMpc` (PG, FISTA, ADMM),
+//! `SaturatedLqr` and `ExactMpc` (active-set backend) after construction, error paths
+//! included. A separate binary because it installs a counting global allocator.
 #![allow(clippy::unwrap_used)]
 
 use std::alloc::{GlobalAlloc, Layout, System};
@@ -107,8 +107,19 @@ fn control_calls_do_not_allocate() {
     .unwrap();
     assert_eq!(count_loop(&mut lqr, &sys, 20), 0, "saturated LQR");
 
-    // The counter works: the exact MPC allocates (Clarabel), as documented.
+    // The exact MPC with its default active-set backend: no allocation either.
     let mut exact = mpc_core::ExactMpc::new(&mpc).unwrap();
+    assert_eq!(
+        count_loop(&mut exact, &sys, 20),
+        0,
+        "exact MPC (active set)"
+    );
+    assert_eq!(exact.fallbacks(), 0);
+
+    // The counter works: the Clarabel backend allocates, as documented.
+    let mut exact =
+        mpc_core::ExactMpc::with_settings(&mpc, qp_iter::reference::ReferenceSettings::default())
+            .unwrap();
     let mut u = [0.0; 2];
     assert!(allocations(|| exact.control(&[1.0, 0.0, 0.0, 0.0], &mut u).unwrap()) > 0);
 }

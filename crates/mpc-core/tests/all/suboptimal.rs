@@ -89,7 +89,7 @@ fn error_shrinks_with_k() {
     let mpc = case_study_mpc();
     let x = [3.0, -2.0, 1.0, 4.0];
     let mut exact = ExactMpc::new(&mpc).unwrap();
-    let star = exact.solve(&x).unwrap().z.clone();
+    let star = exact.solve(&x).unwrap().to_vec();
     let mut prev = f64::INFINITY;
     for k in [0, 1, 2, 5, 10, 50, 200] {
         let pg = ProjectedGradient::new(mpc.qp().clone(), StepRule::InverseL).unwrap();

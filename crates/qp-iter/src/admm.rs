@@ -54,7 +54,7 @@ use faer::{Mat, Side};
 use crate::IterationMap;
 use crate::certificate::{BoundedQuantity, CertNorm, Certificate};
 use crate::error::{QpError, Result};
-use crate::kernel::Kernel;
+use crate::kernel::{AlignedVec, Kernel, PaddedSymmetric};
 use crate::problem::ParametricQp;
 
 /// Penalty rule of [`Admm`].
@@ -90,27 +90,31 @@ pub struct Admm {
     qp: ParametricQp,
     rho: f64,
     alpha: f64,
-    /// ρ(H + ρI)⁻¹, row-major.
-    m_rho: Vec<f64>,
+    /// ρ(H + ρI)⁻¹ in the kernels' padded layout.
+    m_rho: PaddedSymmetric,
     /// (H + ρI)⁻¹, row-major (for (H + ρI)⁻¹q at load time).
     m_inv: Vec<f64>,
+    /// The box, padded with zeros.
+    lower: AlignedVec,
+    upper: AlignedVec,
     cert: Certificate,
     split_cert: Certificate,
     kernel: Kernel,
 }
 
 /// State of [`Admm`]: z, split variable v, unscaled dual y, loaded q and (H + ρI)⁻¹q, the
-/// next product's input t = v − y/ρ and the buffer the fused step writes t⁺ into.
+/// next product's input t = v − y/ρ and the buffer the fused step writes t⁺ into (all
+/// padded to the kernels' length, see [`crate::kernel::padded_len`], padding zero).
 #[derive(Debug, Clone)]
 pub struct AdmmState {
-    z: Vec<f64>,
-    v: Vec<f64>,
-    y: Vec<f64>,
-    q: Vec<f64>,
-    mq: Vec<f64>,
+    z: AlignedVec,
+    v: AlignedVec,
+    y: AlignedVec,
+    q: AlignedVec,
+    mq: AlignedVec,
     /// t = v − y/ρ (= 2v − s for the DR variable s), kept in step with v and y.
-    t: Vec<f64>,
-    t_next: Vec<f64>,
+    t: AlignedVec,
+    t_next: AlignedVec,
 }
 
 impl Admm {
@@ -177,7 +181,7 @@ impl Admm {
             }
             .into());
         }
-        let m_rho = m_inv.iter().map(|x| rho * x).collect();
+        let m_rho = PaddedSymmetric::from_fn(n, |i, j| rho * m_inv[i * n + j]);
 
         let delta = ((rho - mu).abs() / (rho + mu)).max((rho - l).abs() / (rho + l));
         let rate = (1.0 - 0.5 * alpha).abs() + 0.5 * alpha * delta;
@@ -210,11 +214,13 @@ impl Admm {
             source: "Giselsson & Boyd, IEEE TAC 62(2) 2017, relaxed DR contraction in the Euclidean metric".into(),
         };
         Ok(Self {
-            qp,
             rho,
             alpha,
             m_rho,
             m_inv,
+            lower: AlignedVec::padded(qp.zset().lower()),
+            upper: AlignedVec::padded(qp.zset().upper()),
+            qp,
             cert,
             split_cert,
             kernel: Kernel::detect(),
@@ -239,21 +245,21 @@ impl Admm {
     /// Writes the DR variable s = v + y/ρ (the quantity of [`Admm::splitting_certificate`]).
     pub fn splitting_variable(&self, state: &AdmmState, out: &mut [f64]) {
         let ir = 1.0 / self.rho;
-        for ((o, v), y) in out.iter_mut().zip(&state.v).zip(&state.y) {
+        for ((o, v), y) in out.iter_mut().zip(&state.v[..]).zip(&state.y[..]) {
             *o = v + ir * y;
         }
     }
 
     /// The unprojected primal iterate z (in Z only in the limit).
     pub fn primal_z<'s>(&self, state: &'s AdmmState) -> &'s [f64] {
-        &state.z
+        &state.z[..self.qp.n()]
     }
 
     /// Euclidean distance of z to Z: how far the unprojected iterate is from feasible.
     pub fn constraint_violation(&self, state: &AdmmState) -> f64 {
         let (lo, up) = (self.qp.zset().lower(), self.qp.zset().upper());
         let mut acc = 0.0;
-        for ((z, l), u) in state.z.iter().zip(lo).zip(up) {
+        for ((z, l), u) in self.primal_z(state).iter().zip(lo).zip(up) {
             let d = z - z.max(*l).min(*u);
             acc += d * d;
         }
@@ -262,10 +268,9 @@ impl Admm {
 
     /// Primal residual ‖z − v‖₂ (≥ [`Admm::constraint_violation`], since v ∈ Z).
     pub fn primal_residual(&self, state: &AdmmState) -> f64 {
-        state
-            .z
+        self.primal_z(state)
             .iter()
-            .zip(&state.v)
+            .zip(&state.v[..])
             .map(|(z, v)| (z - v) * (z - v))
             .sum::<f64>()
             .sqrt()
@@ -276,23 +281,46 @@ impl Admm {
     /// `state.y`).
     fn set_from_dr(&self, s: &mut AdmmState) {
         let ir = 1.0 / self.rho;
-        // `t_next` holds s here (scratch: the next step overwrites it).
-        for ((dr, z), y) in s.t_next.iter_mut().zip(&s.z).zip(&s.y) {
+        // `t_next` holds s here (scratch: the next step overwrites it). Over the padded
+        // length: zero padding in z and y gives zero padding everywhere.
+        for ((dr, z), y) in s.t_next.iter_mut().zip(&s.z[..]).zip(&s.y[..]) {
             *dr = z + ir * y;
         }
         s.v.copy_from_slice(&s.t_next);
-        self.qp.project(&mut s.v);
-        for (((y, t), dr), v) in s.y.iter_mut().zip(&mut s.t).zip(&s.t_next).zip(&s.v) {
+        self.qp.project(&mut s.v[..self.qp.n()]);
+        for (((y, t), dr), v) in
+            s.y.iter_mut()
+                .zip(&mut s.t[..])
+                .zip(&s.t_next[..])
+                .zip(&s.v[..])
+        {
             *y = self.rho * (dr - v);
             *t = 2.0 * v - dr;
         }
     }
 
+    /// z = z⁰ (warm) or Π_Z(0) (cold), y = y⁰ or the gradient dual, padding zero.
+    fn start(&self, s: &mut AdmmState, z0: Option<&[f64]>, y0: Option<&[f64]>) {
+        let n = self.qp.n();
+        s.z.fill(0.0);
+        s.y.fill(0.0);
+        match z0 {
+            Some(z0) => s.z[..n].copy_from_slice(z0),
+            None => self.qp.project(&mut s.z[..n]),
+        }
+        match y0 {
+            Some(y0) => s.y[..n].copy_from_slice(y0),
+            None => self.gradient_dual(s),
+        }
+        self.set_from_dr(s);
+    }
+
     /// y = −(Hz + q) for the current z (the gradient dual).
     fn gradient_dual(&self, s: &mut AdmmState) {
+        let n = self.qp.n();
         self.kernel
-            .matvec_symmetric(self.qp.h_row_major(), self.qp.n(), &s.z, &mut s.y);
-        for (y, q) in s.y.iter_mut().zip(&s.q) {
+            .matvec_symmetric(self.qp.h_row_major(), n, &s.z[..n], &mut s.y[..n]);
+        for (y, q) in s.y[..n].iter_mut().zip(&s.q[..n]) {
             *y = -(*y + q);
         }
     }
@@ -309,57 +337,49 @@ impl IterationMap for Admm {
     }
     fn new_state(&self) -> AdmmState {
         let n = self.qp.n();
+        let zeros = || AlignedVec::zeros(self.m_rho.ld());
         let mut s = AdmmState {
-            z: vec![0.0; n],
-            v: vec![0.0; n],
-            y: vec![0.0; n],
-            q: self.qp.q0().to_vec(),
-            mq: vec![0.0; n],
-            t: vec![0.0; n],
-            t_next: vec![0.0; n],
+            z: zeros(),
+            v: zeros(),
+            y: zeros(),
+            q: AlignedVec::padded(self.qp.q0()),
+            mq: zeros(),
+            t: zeros(),
+            t_next: zeros(),
         };
         self.kernel
-            .matvec_symmetric(&self.m_inv, n, &s.q, &mut s.mq);
+            .matvec_symmetric(&self.m_inv, n, &s.q[..n], &mut s.mq[..n]);
         self.cold_start(&mut s);
         s
     }
     fn load(&self, state: &mut AdmmState, theta: &[f64]) {
-        self.qp.linear_term(theta, &mut state.q);
+        let n = self.qp.n();
+        self.qp.linear_term(theta, &mut state.q[..n]);
         self.kernel
-            .matvec_symmetric(&self.m_inv, self.qp.n(), &state.q, &mut state.mq);
+            .matvec_symmetric(&self.m_inv, n, &state.q[..n], &mut state.mq[..n]);
     }
     /// Warm start from z⁰ and, optionally, the unscaled multiplier y⁰ of z = v.
     /// Without y⁰ the dual is set to −(Hz⁰ + q) for the *loaded* q (load θ first), which
     /// is what [`IterationMap::certificate`] assumes.
     fn warm_start(&self, state: &mut AdmmState, z0: &[f64], dual: Option<&[f64]>) {
-        state.z.copy_from_slice(z0);
-        match dual {
-            Some(y0) => state.y.copy_from_slice(y0),
-            None => self.gradient_dual(state),
-        }
-        self.set_from_dr(state);
+        self.start(state, Some(z0), dual);
     }
     /// Warm start from Π_Z(0) without a dual (gradient dual, see the module docs).
     fn cold_start(&self, state: &mut AdmmState) {
-        state.z.fill(0.0);
-        self.qp.project(&mut state.z);
-        self.gradient_dual(state);
-        self.set_from_dr(state);
+        self.start(state, None, None);
     }
     #[inline]
     fn step(&self, s: &mut AdmmState) {
-        let zset = self.qp.zset();
         // One pass over ρ(H + ρI)⁻¹ (exactly symmetric, see `new`): z⁺ = ρ(H + ρI)⁻¹t −
         // (H + ρI)⁻¹q with t = v − y/ρ, then w, v⁺, y⁺ and t⁺ = 2v⁺ − w row by row.
-        self.kernel.admm_step(
+        self.kernel.admm_step_padded(
             &self.m_rho,
-            self.qp.n(),
             &s.t,
             &s.mq,
             self.alpha,
             self.rho,
-            zset.lower(),
-            zset.upper(),
+            &self.lower,
+            &self.upper,
             &mut s.z,
             &mut s.v,
             &mut s.y,
@@ -368,10 +388,10 @@ impl IterationMap for Admm {
         std::mem::swap(&mut s.t, &mut s.t_next);
     }
     fn iterate<'s>(&self, state: &'s AdmmState) -> &'s [f64] {
-        &state.v
+        &state.v[..self.qp.n()]
     }
     fn dual<'s>(&self, state: &'s AdmmState) -> Option<&'s [f64]> {
-        Some(&state.y)
+        Some(&state.y[..self.qp.n()])
     }
     fn certificate(&self) -> &Certificate {
         &self.cert
@@ -462,7 +482,7 @@ mod tests {
                     admm.step(&mut s);
                 }
                 admm.warm_start(&mut s, &z0, dual);
-                let (v_start, y_start) = (s.v.clone(), s.y.clone());
+                let (v_start, y_start) = (admm.iterate(&s).to_vec(), s.y[..qp.n()].to_vec());
                 for k in [1, 2, 7] {
                     let mut t = s.clone();
                     for _ in 0..k {

@@ -42,27 +42,28 @@
 
 use crate::IterationMap;
 use crate::certificate::{BoundedQuantity, CertNorm, Certificate};
-use crate::kernel::Kernel;
+use crate::kernel::AlignedVec;
+use crate::pg::GradientSetup;
 use crate::problem::ParametricQp;
 
 /// Fast projected gradient with constant momentum β = (√κ − 1)/(√κ + 1) and step 1/L.
 #[derive(Debug, Clone)]
 pub struct Fista {
-    qp: ParametricQp,
+    g: GradientSetup,
     inv_l: f64,
     beta: f64,
     cert: Certificate,
-    kernel: Kernel,
 }
 
 /// State of [`Fista`]: iterate x_k, extrapolated point y_k, the buffer the fused step
-/// writes y_{k+1} into (swapped with y afterwards), loaded q.
+/// writes y_{k+1} into (swapped with y afterwards), loaded q (all padded to the kernels'
+/// length, see [`crate::kernel::padded_len`]).
 #[derive(Debug, Clone)]
 pub struct FistaState {
-    z: Vec<f64>,
-    y: Vec<f64>,
-    y_next: Vec<f64>,
-    q: Vec<f64>,
+    z: AlignedVec,
+    y: AlignedVec,
+    y_next: AlignedVec,
+    q: AlignedVec,
     /// True right after a warm/cold start: the next step is the plain PG step x₀ = T(z⁰).
     restart: bool,
 }
@@ -108,11 +109,10 @@ impl Fista {
                 .into(),
         };
         Self {
-            qp,
+            g: GradientSetup::new(qp),
             inv_l: 1.0 / l,
             beta,
             cert,
-            kernel: Kernel::detect(),
         }
     }
 
@@ -140,48 +140,45 @@ impl IterationMap for Fista {
         "fista"
     }
     fn problem(&self) -> &ParametricQp {
-        &self.qp
+        &self.g.qp
     }
     fn new_state(&self) -> FistaState {
-        let n = self.qp.n();
         let mut s = FistaState {
-            z: vec![0.0; n],
-            y: vec![0.0; n],
-            y_next: vec![0.0; n],
-            q: self.qp.q0().to_vec(),
+            z: self.g.zeros(),
+            y: self.g.zeros(),
+            y_next: self.g.zeros(),
+            q: self.g.q0(),
             restart: true,
         };
         self.cold_start(&mut s);
         s
     }
     fn load(&self, state: &mut FistaState, theta: &[f64]) {
-        self.qp.linear_term(theta, &mut state.q);
+        self.g.load(&mut state.q, theta);
     }
     fn warm_start(&self, state: &mut FistaState, z0: &[f64], _dual: Option<&[f64]>) {
-        state.z.copy_from_slice(z0);
+        self.g.start(&mut state.z, Some(z0));
         self.reset(state);
     }
     fn cold_start(&self, state: &mut FistaState) {
-        state.z.fill(0.0);
-        self.qp.project(&mut state.z);
+        self.g.start(&mut state.z, None);
         self.reset(state);
     }
     #[inline]
     fn step(&self, s: &mut FistaState) {
-        let zset = self.qp.zset();
-        // One pass over H: x_{k+1} = T(y_k) over x_k in `z`, y_{k+1} = x_{k+1} +
-        // b(x_{k+1} − x_k) into `y_next`. On the restart step y = z⁰ and b = 0, so the step
-        // is exactly the PG step x₀ = T(z⁰) and y₀ = x₀ (the momentum is reset).
+        // One pass over the padded H: x_{k+1} = T(y_k) over x_k in `z`, y_{k+1} = x_{k+1}
+        // + b(x_{k+1} − x_k) into `y_next`. On the restart step y = z⁰ and b = 0, so the
+        // step is exactly the PG step x₀ = T(z⁰) and y₀ = x₀ (the momentum is reset).
         let b = if s.restart { 0.0 } else { self.beta };
         s.restart = false;
-        self.kernel.fista_step(
-            self.qp.h_row_major(),
-            self.qp.n(),
+        let g = &self.g;
+        g.kernel.fista_step_padded(
+            &g.h,
             &s.y,
             &s.q,
             self.inv_l,
-            zset.lower(),
-            zset.upper(),
+            &g.lower,
+            &g.upper,
             b,
             &mut s.z,
             &mut s.y_next,
@@ -189,7 +186,7 @@ impl IterationMap for Fista {
         std::mem::swap(&mut s.y, &mut s.y_next);
     }
     fn iterate<'s>(&self, state: &'s FistaState) -> &'s [f64] {
-        &state.z
+        self.g.head(&state.z)
     }
     fn certificate(&self) -> &Certificate {
         &self.cert
@@ -222,7 +219,7 @@ mod tests {
     fn pg_step(f: &Fista, y: &[f64], q: &[f64]) -> Vec<f64> {
         let qp = f.problem();
         let mut out = vec![0.0; qp.n()];
-        f.kernel.projected_gradient_step(
+        f.g.kernel.projected_gradient_step(
             qp.h_row_major(),
             qp.n(),
             y,
@@ -241,7 +238,7 @@ mod tests {
         let mut s = f.new_state();
         let theta = [0.3, -1.1];
         f.load(&mut s, &theta);
-        let q = s.q.clone();
+        let q = s.q[..7].to_vec();
         let z0: Vec<f64> = (0..7).map(|i| 0.9 - 0.3 * i as f64).collect(); // outside Z
         for start in 0..3 {
             match start {

@@ -159,7 +159,7 @@ impl Kernel {
             return;
         }
         match self.path {
-            KernelPath::Portable => portable::matvec_columns(h, n, x, y),
+            KernelPath::Portable => portable::matvec_columns(h, n, n, x, y),
             #[cfg(target_arch = "x86_64")]
             // SAFETY: AVX2 + FMA by the type invariant; n ≥ 1; h has n² entries, x and y
             // at least n (checked above); x and y do not overlap (& and &mut).
@@ -167,7 +167,7 @@ impl Kernel {
                 avx2_sym::run::<{ avx2_sym::STORE }>(avx2_sym::Ctx::product(h, n, x, y))
             },
             #[cfg(not(target_arch = "x86_64"))]
-            KernelPath::Avx2Fma => portable::matvec_columns(h, n, x, y),
+            KernelPath::Avx2Fma => portable::matvec_columns(h, n, n, x, y),
         }
     }
 
@@ -212,7 +212,7 @@ impl Kernel {
             return;
         }
         match self.path {
-            KernelPath::Portable => portable::pg_step(h, n, z, q, alpha, lower, upper, out),
+            KernelPath::Portable => portable::pg_step(h, n, n, z, q, alpha, lower, upper, out),
             #[cfg(target_arch = "x86_64")]
             // SAFETY: AVX2 + FMA by the type invariant; n ≥ 1; all lengths checked above;
             // `out` is a distinct &mut, so it overlaps none of the inputs.
@@ -222,7 +222,7 @@ impl Kernel {
                 avx2_sym::run::<{ avx2_sym::PG }>(c)
             },
             #[cfg(not(target_arch = "x86_64"))]
-            KernelPath::Avx2Fma => portable::pg_step(h, n, z, q, alpha, lower, upper, out),
+            KernelPath::Avx2Fma => portable::pg_step(h, n, n, z, q, alpha, lower, upper, out),
         }
     }
 
@@ -273,7 +273,7 @@ impl Kernel {
         }
         match self.path {
             KernelPath::Portable => {
-                portable::fista_step(h, n, y, q, alpha, lower, upper, beta, z, y_next)
+                portable::fista_step(h, n, n, y, q, alpha, lower, upper, beta, z, y_next)
             }
             #[cfg(target_arch = "x86_64")]
             // SAFETY: AVX2 + FMA by the type invariant; n ≥ 1; all lengths checked above;
@@ -287,7 +287,7 @@ impl Kernel {
             },
             #[cfg(not(target_arch = "x86_64"))]
             KernelPath::Avx2Fma => {
-                portable::fista_step(h, n, y, q, alpha, lower, upper, beta, z, y_next)
+                portable::fista_step(h, n, n, y, q, alpha, lower, upper, beta, z, y_next)
             }
         }
     }
@@ -353,7 +353,7 @@ impl Kernel {
         }
         match self.path {
             KernelPath::Portable => portable::admm_step(
-                m, n, t, mq, relaxation, rho, lower, upper, z, v, dual, t_next,
+                m, n, n, t, mq, relaxation, rho, lower, upper, z, v, dual, t_next,
             ),
             #[cfg(target_arch = "x86_64")]
             // SAFETY: AVX2 + FMA by the type invariant; n ≥ 1; all lengths checked above;
@@ -371,7 +371,385 @@ impl Kernel {
             },
             #[cfg(not(target_arch = "x86_64"))]
             KernelPath::Avx2Fma => portable::admm_step(
-                m, n, t, mq, relaxation, rho, lower, upper, z, v, dual, t_next,
+                m, n, n, t, mq, relaxation, rho, lower, upper, z, v, dual, t_next,
+            ),
+        }
+    }
+}
+
+/// Rows of every padded vector and matrix column: n rounded up to a multiple of 4, so each
+/// column of a [`PaddedSymmetric`] and each padded vector is a whole number of 4-wide
+/// SIMD vectors (no masked or partial loads, no tail code).
+///
+/// ```
+/// assert_eq!(qp_iter::kernel::padded_len(30), 32);
+/// assert_eq!(qp_iter::kernel::padded_len(32), 32);
+/// ```
+#[inline]
+pub fn padded_len(n: usize) -> usize {
+    n.div_ceil(4) * 4
+}
+
+/// One cache line of f64: the allocation unit of [`AlignedVec`].
+#[derive(Debug, Clone, Copy, PartialEq)]
+#[repr(C, align(64))]
+struct Line([f64; 8]);
+
+/// A zero-initialised `f64` buffer whose first entry starts a cache line (64-byte
+/// aligned): a padded vector or matrix column in it is read with whole 32-byte loads that
+/// never straddle two cache lines. Dereferences to `[f64]` of its length.
+///
+/// ```
+/// use qp_iter::kernel::AlignedVec;
+/// let v = AlignedVec::padded(&[1.0, 2.0, 3.0]);
+/// assert_eq!(&v[..], &[1.0, 2.0, 3.0, 0.0]); // padded to 4 entries with zeros
+/// assert_eq!(v.as_ptr() as usize % 64, 0);
+/// ```
+#[derive(Clone, PartialEq)]
+pub struct AlignedVec {
+    lines: Vec<Line>,
+    len: usize,
+}
+
+impl AlignedVec {
+    /// `len` zeros.
+    pub fn zeros(len: usize) -> Self {
+        Self {
+            lines: vec![Line([0.0; 8]); len.div_ceil(8)],
+            len,
+        }
+    }
+
+    /// `x` followed by zeros up to [`padded_len`]`(x.len())` entries.
+    pub fn padded(x: &[f64]) -> Self {
+        let mut v = Self::zeros(padded_len(x.len()));
+        v[..x.len()].copy_from_slice(x);
+        v
+    }
+}
+
+impl std::ops::Deref for AlignedVec {
+    type Target = [f64];
+    #[inline]
+    fn deref(&self) -> &[f64] {
+        // SAFETY: `Line` is `repr(C)` around `[f64; 8]` (size 64, no padding), so `lines`
+        // is 8·lines.len() ≥ len initialised, contiguous f64; an empty Vec's pointer is
+        // non-null and aligned, valid for a zero-length slice.
+        unsafe { std::slice::from_raw_parts(self.lines.as_ptr().cast::<f64>(), self.len) }
+    }
+}
+
+impl std::ops::DerefMut for AlignedVec {
+    #[inline]
+    fn deref_mut(&mut self) -> &mut [f64] {
+        // SAFETY: as in `deref`; `&mut self` makes the borrow unique.
+        unsafe { std::slice::from_raw_parts_mut(self.lines.as_mut_ptr().cast::<f64>(), self.len) }
+    }
+}
+
+impl std::fmt::Debug for AlignedVec {
+    fn fmt(&self, f: &mut std::fmt::Formatter<'_>) -> std::fmt::Result {
+        f.debug_list().entries(self.iter()).finish()
+    }
+}
+
+/// A symmetric n × n matrix laid out for the padded kernels ([`Kernel::pg_step_padded`]
+/// and its siblings): column j at offset j·ld with ld = [`padded_len`]`(n)`, rows n .. ld
+/// zero, the first column 64-byte aligned. Every column is ld/4 whole SIMD vectors, so the
+/// kernels run without masks or tails and their loads never split a cache line.
+///
+/// ```
+/// use qp_iter::kernel::PaddedSymmetric;
+/// let h = PaddedSymmetric::from_row_major(&[2.0, 1.0, 1.0, 3.0], 2).unwrap();
+/// assert_eq!((h.n(), h.ld()), (2, 4));
+/// assert_eq!(h.as_slice(), &[2.0, 1.0, 0.0, 0.0, 1.0, 3.0, 0.0, 0.0]);
+/// assert!(PaddedSymmetric::from_row_major(&[1.0; 3], 2).is_none());
+/// ```
+#[derive(Debug, Clone, PartialEq)]
+pub struct PaddedSymmetric {
+    data: AlignedVec,
+    n: usize,
+    ld: usize,
+}
+
+impl PaddedSymmetric {
+    /// From H row-major (length n²); `None` on a length mismatch. Column j is stored from
+    /// row j of `h`, so for a non-symmetric `h` the kernels apply Hᵀ (as
+    /// [`Kernel::matvec_symmetric`] does).
+    pub fn from_row_major(h: &[f64], n: usize) -> Option<Self> {
+        if n.checked_mul(n) != Some(h.len()) {
+            return None;
+        }
+        Some(Self::from_fn(n, |i, j| h[j * n + i]))
+    }
+
+    /// The dimension n.
+    pub fn n(&self) -> usize {
+        self.n
+    }
+
+    /// The leading dimension ld = [`padded_len`]`(n)`: the length every vector passed to
+    /// the padded kernels must have at least.
+    pub fn ld(&self) -> usize {
+        self.ld
+    }
+
+    /// Entry (i, j) = `f(i, j)` for i, j < n; as [`PaddedSymmetric::from_row_major`], the
+    /// kernels read column j, so a non-symmetric `f` acts as its transpose.
+    pub fn from_fn(n: usize, f: impl Fn(usize, usize) -> f64) -> Self {
+        let ld = padded_len(n);
+        let mut data = AlignedVec::zeros(n * ld);
+        // `max(1)`: no chunks for n = 0 (chunk size 0 is not allowed).
+        for (j, col) in data.chunks_exact_mut(ld.max(1)).enumerate() {
+            for (i, c) in col[..n].iter_mut().enumerate() {
+                *c = f(i, j);
+            }
+        }
+        Self { data, n, ld }
+    }
+
+    /// The n columns of ld entries each, column after column.
+    pub fn as_slice(&self) -> &[f64] {
+        &self.data
+    }
+}
+
+/// The padded kernels: the same steps as [`Kernel::projected_gradient_step`],
+/// [`Kernel::fista_step`] and [`Kernel::admm_step`], on a [`PaddedSymmetric`] matrix and
+/// vectors of (at least) ld = [`padded_len`]`(n)` entries. They compute all ld rows; the
+/// padding rows of the matrix are zero, so with zero padding in q, the bounds and the
+/// starting vectors the padding of every output stays zero (it is never an input to the
+/// product: only the first n entries of the multiplied vector are read). Vectors from
+/// [`AlignedVec`] make every load an aligned 32-byte load; other slices work, slower.
+/// This is what the methods' `step` runs.
+impl Kernel {
+    /// y = Hx on the padded layout: reads `x[..n]`, writes `y[..ld]` (rows n .. ld: 0).
+    ///
+    /// ```
+    /// use qp_iter::kernel::{Kernel, PaddedSymmetric};
+    /// let h = PaddedSymmetric::from_row_major(&[2.0, 1.0, 1.0, 3.0], 2).unwrap();
+    /// let mut y = [7.0; 4];
+    /// Kernel::detect().matvec_padded(&h, &[1.0, -1.0], &mut y);
+    /// assert_eq!(y, [1.0, -2.0, 0.0, 0.0]);
+    /// ```
+    ///
+    /// # Panics
+    /// If `x.len() < n` or `y.len() < ld`.
+    #[inline]
+    pub fn matvec_padded(self, h: &PaddedSymmetric, x: &[f64], y: &mut [f64]) {
+        check_lens("matvec_padded (x)", h.n, &[x.len()]);
+        check_lens("matvec_padded (y)", h.ld, &[y.len()]);
+        if h.n == 0 {
+            return;
+        }
+        match self.path {
+            KernelPath::Portable => {
+                portable::matvec_columns(h.as_slice(), h.n, h.ld, x, y);
+            }
+            #[cfg(target_arch = "x86_64")]
+            // SAFETY: AVX2 + FMA by the type invariant; n ≥ 1; the matrix holds n columns
+            // of ld entries (type invariant), x ≥ n and y ≥ ld entries (checked above).
+            KernelPath::Avx2Fma => unsafe {
+                avx2_pad::run::<{ avx2_pad::STORE }>(avx2_pad::Ctx::product(h, x, y))
+            },
+            #[cfg(not(target_arch = "x86_64"))]
+            KernelPath::Avx2Fma => portable::matvec_columns(h.as_slice(), h.n, h.ld, x, y),
+        }
+    }
+
+    /// The projected-gradient step z⁺ = Π_[l,u](z − α(Hz + q)) of
+    /// [`Kernel::projected_gradient_step`] on the padded layout (every vector ≥ ld
+    /// entries; writes `out[..ld]`).
+    ///
+    /// ```
+    /// use qp_iter::kernel::{AlignedVec, Kernel, PaddedSymmetric};
+    /// let h = PaddedSymmetric::from_row_major(&[2.0, 0.0, 0.0, 1.0], 2).unwrap();
+    /// let (z, q) = (AlignedVec::padded(&[0.0, 0.0]), AlignedVec::padded(&[-2.0, -4.0]));
+    /// let (lo, hi) = (AlignedVec::padded(&[-3.0, -1.0]), AlignedVec::padded(&[3.0, 1.0]));
+    /// let mut out = AlignedVec::zeros(h.ld());
+    /// Kernel::detect().pg_step_padded(&h, &z, &q, 0.5, &lo, &hi, &mut out);
+    /// assert_eq!(&out[..], &[1.0, 1.0, 0.0, 0.0]);
+    /// ```
+    ///
+    /// # Panics
+    /// If any vector is shorter than ld.
+    #[inline]
+    pub fn pg_step_padded(
+        self,
+        h: &PaddedSymmetric,
+        z: &[f64],
+        q: &[f64],
+        alpha: f64,
+        lower: &[f64],
+        upper: &[f64],
+        out: &mut [f64],
+    ) {
+        check_lens(
+            "pg_step_padded",
+            h.ld,
+            &[z.len(), q.len(), lower.len(), upper.len(), out.len()],
+        );
+        if h.n == 0 {
+            return;
+        }
+        let (hs, n, ld) = (h.as_slice(), h.n, h.ld);
+        match self.path {
+            KernelPath::Portable => portable::pg_step(hs, n, ld, z, q, alpha, lower, upper, out),
+            #[cfg(target_arch = "x86_64")]
+            // SAFETY: AVX2 + FMA by the type invariant; n ≥ 1; n columns of ld entries;
+            // every vector ≥ ld (checked above); `out` is a distinct &mut.
+            KernelPath::Avx2Fma => unsafe {
+                let mut c = avx2_pad::Ctx::product(h, z, out);
+                (c.q, c.lo, c.hi, c.a) = (q.as_ptr(), lower.as_ptr(), upper.as_ptr(), alpha);
+                avx2_pad::run::<{ avx2_pad::PG }>(c)
+            },
+            #[cfg(not(target_arch = "x86_64"))]
+            KernelPath::Avx2Fma => portable::pg_step(hs, n, ld, z, q, alpha, lower, upper, out),
+        }
+    }
+
+    /// The FISTA step of [`Kernel::fista_step`] on the padded layout: x⁺ = Π_[l,u](y −
+    /// α(Hy + q)) over `z` (x on entry), y⁺ = x⁺ + β(x⁺ − x) into `y_next`, computed as
+    /// (1 + β)x⁺ − βx (so β = 0 gives y⁺ = x⁺ exactly). Every vector ≥ ld entries.
+    ///
+    /// ```
+    /// use qp_iter::kernel::{AlignedVec, Kernel, PaddedSymmetric};
+    /// let h = PaddedSymmetric::from_row_major(&[2.0, 0.0, 0.0, 1.0], 2).unwrap();
+    /// let (y, q) = (AlignedVec::padded(&[0.0, 0.0]), AlignedVec::padded(&[-2.0, -4.0]));
+    /// let (lo, hi) = (AlignedVec::padded(&[-3.0, -1.0]), AlignedVec::padded(&[3.0, 1.0]));
+    /// let (mut z, mut y_next) = (AlignedVec::padded(&[0.5, 0.0]), AlignedVec::zeros(4));
+    /// Kernel::detect().fista_step_padded(&h, &y, &q, 0.5, &lo, &hi, 0.5, &mut z, &mut y_next);
+    /// assert_eq!(&z[..2], &[1.0, 1.0]);
+    /// assert_eq!(&y_next[..2], &[1.25, 1.5]);
+    /// ```
+    ///
+    /// # Panics
+    /// If any vector is shorter than ld.
+    #[inline]
+    pub fn fista_step_padded(
+        self,
+        h: &PaddedSymmetric,
+        y: &[f64],
+        q: &[f64],
+        alpha: f64,
+        lower: &[f64],
+        upper: &[f64],
+        beta: f64,
+        z: &mut [f64],
+        y_next: &mut [f64],
+    ) {
+        check_lens(
+            "fista_step_padded",
+            h.ld,
+            &[
+                y.len(),
+                q.len(),
+                lower.len(),
+                upper.len(),
+                z.len(),
+                y_next.len(),
+            ],
+        );
+        if h.n == 0 {
+            return;
+        }
+        let (hs, n, ld) = (h.as_slice(), h.n, h.ld);
+        match self.path {
+            KernelPath::Portable => {
+                portable::fista_step(hs, n, ld, y, q, alpha, lower, upper, beta, z, y_next)
+            }
+            #[cfg(target_arch = "x86_64")]
+            // SAFETY: AVX2 + FMA by the type invariant; n ≥ 1; n columns of ld entries;
+            // every vector ≥ ld (checked above); `z`, `y_next` distinct &mut.
+            KernelPath::Avx2Fma => unsafe {
+                let mut c = avx2_pad::Ctx::product(h, y, z);
+                (c.q, c.lo, c.hi, c.a, c.b) =
+                    (q.as_ptr(), lower.as_ptr(), upper.as_ptr(), alpha, beta);
+                c.next = y_next.as_mut_ptr();
+                avx2_pad::run::<{ avx2_pad::FISTA }>(c)
+            },
+            #[cfg(not(target_arch = "x86_64"))]
+            KernelPath::Avx2Fma => {
+                portable::fista_step(hs, n, ld, y, q, alpha, lower, upper, beta, z, y_next)
+            }
+        }
+    }
+
+    /// The relaxed ADMM step of [`Kernel::admm_step`] on the padded layout (M =
+    /// ρ(H + ρI)⁻¹ in `m`; every vector ≥ ld entries). Relaxations 1 and 2
+    /// (Peaceman–Rachford) run their own epilogues without the (1 − a)v term.
+    ///
+    /// ```
+    /// use qp_iter::kernel::{AlignedVec, Kernel, PaddedSymmetric};
+    /// let m = PaddedSymmetric::from_row_major(&[1.0, 0.0, 0.0, 1.0], 2).unwrap();
+    /// let (t, mq) = (AlignedVec::padded(&[2.0, 0.25]), AlignedVec::zeros(4));
+    /// let (lo, hi) = (AlignedVec::padded(&[-1.0, -1.0]), AlignedVec::padded(&[1.0, 1.0]));
+    /// let (mut z, mut v, mut t_next) = (AlignedVec::zeros(4), AlignedVec::zeros(4), AlignedVec::zeros(4));
+    /// let mut y = AlignedVec::padded(&[0.5, 0.0]);
+    /// Kernel::detect().admm_step_padded(&m, &t, &mq, 1.0, 1.0, &lo, &hi,
+    ///     &mut z, &mut v, &mut y, &mut t_next);
+    /// assert_eq!((&z[..2], &v[..2]), (&[2.0, 0.25][..], &[1.0, 0.25][..]));
+    /// assert_eq!((&y[..2], &t_next[..2]), (&[1.5, 0.0][..], &[-0.5, 0.25][..]));
+    /// ```
+    ///
+    /// # Panics
+    /// If any vector is shorter than ld.
+    #[inline]
+    pub fn admm_step_padded(
+        self,
+        m: &PaddedSymmetric,
+        t: &[f64],
+        mq: &[f64],
+        relaxation: f64,
+        rho: f64,
+        lower: &[f64],
+        upper: &[f64],
+        z: &mut [f64],
+        v: &mut [f64],
+        dual: &mut [f64],
+        t_next: &mut [f64],
+    ) {
+        check_lens(
+            "admm_step_padded",
+            m.ld,
+            &[
+                t.len(),
+                mq.len(),
+                lower.len(),
+                upper.len(),
+                z.len(),
+                v.len(),
+                dual.len(),
+                t_next.len(),
+            ],
+        );
+        if m.n == 0 {
+            return;
+        }
+        let (ms, n, ld) = (m.as_slice(), m.n, m.ld);
+        match self.path {
+            KernelPath::Portable => portable::admm_step(
+                ms, n, ld, t, mq, relaxation, rho, lower, upper, z, v, dual, t_next,
+            ),
+            #[cfg(target_arch = "x86_64")]
+            // SAFETY: AVX2 + FMA by the type invariant; n ≥ 1; n columns of ld entries;
+            // every vector ≥ ld (checked above); the four outputs are distinct &mut.
+            KernelPath::Avx2Fma => unsafe {
+                let mut c = avx2_pad::Ctx::product(m, t, z);
+                (c.q, c.lo, c.hi, c.a, c.b) =
+                    (mq.as_ptr(), lower.as_ptr(), upper.as_ptr(), relaxation, rho);
+                (c.next, c.v, c.dual) = (t_next.as_mut_ptr(), v.as_mut_ptr(), dual.as_mut_ptr());
+                if relaxation == 1.0 {
+                    avx2_pad::run::<{ avx2_pad::ADMM1 }>(c)
+                } else if relaxation == 2.0 {
+                    avx2_pad::run::<{ avx2_pad::ADMM2 }>(c)
+                } else {
+                    avx2_pad::run::<{ avx2_pad::ADMM }>(c)
+                }
+            },
+            #[cfg(not(target_arch = "x86_64"))]
+            KernelPath::Avx2Fma => portable::admm_step(
+                ms, n, ld, t, mq, relaxation, rho, lower, upper, z, v, dual, t_next,
             ),
         }
     }
@@ -452,21 +830,25 @@ mod portable {
         }
     }
 
-    /// y = Σⱼ xⱼ h[j n .. (j+1) n] (= Hx for symmetric H): element-wise, so the baseline
-    /// target vectorises it without reassociating sums.
-    pub(super) fn matvec_columns(h: &[f64], n: usize, x: &[f64], y: &mut [f64]) {
-        let y = &mut y[..n];
+    /// y[..ld] = Σⱼ xⱼ h[j ld .. (j+1) ld], j < n (= Hx for a symmetric H stored by
+    /// columns with leading dimension ld ≥ n: ld = n unpadded, [`super::padded_len`]
+    /// padded): element-wise, so the baseline target vectorises it without reassociating
+    /// sums.
+    pub(super) fn matvec_columns(h: &[f64], n: usize, ld: usize, x: &[f64], y: &mut [f64]) {
+        let y = &mut y[..ld];
         y.fill(0.0);
-        for (col, &xj) in h.chunks_exact(n).zip(&x[..n]) {
+        for (col, &xj) in h.chunks_exact(ld).zip(&x[..n]) {
             for (yi, &c) in y.iter_mut().zip(col) {
                 *yi += c * xj;
             }
         }
     }
 
+    /// Projected-gradient step on rows 0 .. ld (ld as in [`matvec_columns`]).
     pub(super) fn pg_step(
         h: &[f64],
         n: usize,
+        ld: usize,
         z: &[f64],
         q: &[f64],
         alpha: f64,
@@ -475,16 +857,18 @@ mod portable {
         out: &mut [f64],
     ) {
         // `out` holds Hz first, then z⁺ row by row.
-        matvec_columns(h, n, z, out);
-        for i in 0..n {
+        matvec_columns(h, n, ld, z, out);
+        for i in 0..ld {
             let v = z[i] - alpha * (out[i] + q[i]);
             out[i] = clamp_nan_propagating(v, lower[i], upper[i]);
         }
     }
 
+    /// FISTA step on rows 0 .. ld.
     pub(super) fn fista_step(
         h: &[f64],
         n: usize,
+        ld: usize,
         y: &[f64],
         q: &[f64],
         alpha: f64,
@@ -495,17 +879,19 @@ mod portable {
         y_next: &mut [f64],
     ) {
         // `y_next` holds Hy first, then y⁺ row by row.
-        matvec_columns(h, n, y, y_next);
-        for i in 0..n {
+        matvec_columns(h, n, ld, y, y_next);
+        for i in 0..ld {
             let x = clamp_nan_propagating(y[i] - alpha * (y_next[i] + q[i]), lower[i], upper[i]);
             y_next[i] = x + beta * (x - z[i]);
             z[i] = x;
         }
     }
 
+    /// Relaxed ADMM step on rows 0 .. ld.
     pub(super) fn admm_step(
         m: &[f64],
         n: usize,
+        ld: usize,
         t: &[f64],
         mq: &[f64],
         a: f64,
@@ -519,8 +905,8 @@ mod portable {
     ) {
         let ir = 1.0 / rho;
         // `z` holds Mt first, then Mt − m_q.
-        matvec_columns(m, n, t, z);
-        for i in 0..n {
+        matvec_columns(m, n, ld, t, z);
+        for i in 0..ld {
             z[i] -= mq[i];
             let w = a * z[i] + (1.0 - a) * v[i] + ir * dual[i];
             let vp = clamp_nan_propagating(w, lower[i], upper[i]);
@@ -947,6 +1333,226 @@ mod avx2_sym {
     }
 }
 
+/// Kernels on the padded layout ([`PaddedSymmetric`]): every column is ld/4 whole vectors,
+/// 32-byte aligned when the storage is an [`AlignedVec`], so there are no masks, tails or
+/// cache-line-splitting loads. Rows go in panels of up to eight vectors (32 rows), one
+/// accumulator per vector: eight independent FMA chains cover the FMA latency on two pipes
+/// (the chain of a panel is as long as its issue time), as in the reference kernel. The
+/// epilogue runs on each finished vector, its parts that do not depend on the product
+/// formed first, so a method's whole step is one pass over the matrix.
+#[cfg(target_arch = "x86_64")]
+mod avx2_pad {
+    use std::arch::x86_64::*;
+
+    use super::PaddedSymmetric;
+
+    /// Epilogue: store Hx.
+    pub(super) const STORE: u8 = 0;
+    /// Epilogue: projected-gradient step.
+    pub(super) const PG: u8 = 1;
+    /// Epilogue: FISTA step with momentum.
+    pub(super) const FISTA: u8 = 2;
+    /// Epilogue: relaxed ADMM step, any relaxation a.
+    pub(super) const ADMM: u8 = 3;
+    /// Epilogue: ADMM with a = 1 (w = z + y/ρ; the old v is not read).
+    pub(super) const ADMM1: u8 = 4;
+    /// Epilogue: ADMM with a = 2, Peaceman–Rachford (w = 2z − v + y/ρ).
+    pub(super) const ADMM2: u8 = 5;
+
+    /// Pointers and scalars of one call (null / 0 where an epilogue does not use them).
+    #[derive(Clone, Copy)]
+    pub(super) struct Ctx {
+        /// n columns of `ld` entries.
+        pub h: *const f64,
+        pub n: usize,
+        pub ld: usize,
+        /// The point H is applied to: x, z (PG), y (FISTA), t (ADMM).
+        pub x: *const f64,
+        /// Hx, z⁺ (PG), z in/out (FISTA), z out (ADMM).
+        pub out: *mut f64,
+        /// q (PG, FISTA) or m_q (ADMM).
+        pub q: *const f64,
+        pub lo: *const f64,
+        pub hi: *const f64,
+        /// α (PG, FISTA) or the relaxation a (ADMM).
+        pub a: f64,
+        /// β (FISTA) or ρ (ADMM).
+        pub b: f64,
+        /// y_next (FISTA) or t_next (ADMM).
+        pub next: *mut f64,
+        /// v in/out (ADMM).
+        pub v: *mut f64,
+        /// y in/out (ADMM).
+        pub dual: *mut f64,
+    }
+
+    impl Ctx {
+        /// y = Hx with every other field empty.
+        pub(super) fn product(h: &PaddedSymmetric, x: &[f64], out: &mut [f64]) -> Self {
+            Ctx {
+                h: h.as_slice().as_ptr(),
+                n: h.n(),
+                ld: h.ld(),
+                x: x.as_ptr(),
+                out: out.as_mut_ptr(),
+                q: std::ptr::null(),
+                lo: std::ptr::null(),
+                hi: std::ptr::null(),
+                a: 0.0,
+                b: 0.0,
+                next: std::ptr::null_mut(),
+                v: std::ptr::null_mut(),
+                dual: std::ptr::null_mut(),
+            }
+        }
+    }
+
+    /// Four entries from `p + r` (an aligned load whenever `p` is 32-byte aligned).
+    ///
+    /// # Safety
+    /// AVX available; `p + r .. p + r + 4` valid for reads.
+    #[inline]
+    #[target_feature(enable = "avx2,fma")]
+    unsafe fn ld(p: *const f64, r: usize) -> __m256d {
+        // SAFETY: forwarded contract.
+        unsafe { _mm256_loadu_pd(p.add(r)) }
+    }
+
+    /// Stores four entries at `p + r`.
+    ///
+    /// # Safety
+    /// AVX available; `p + r .. p + r + 4` valid for writes.
+    #[inline]
+    #[target_feature(enable = "avx2,fma")]
+    unsafe fn st(p: *mut f64, r: usize, v: __m256d) {
+        // SAFETY: forwarded contract.
+        unsafe { _mm256_storeu_pd(p.add(r), v) }
+    }
+
+    /// `min(hi, max(lo, v))`: a NaN in v stays NaN (vmaxpd/vminpd return the second
+    /// operand when either is NaN).
+    #[inline]
+    #[target_feature(enable = "avx2,fma")]
+    fn clamp(v: __m256d, lo: __m256d, hi: __m256d) -> __m256d {
+        _mm256_min_pd(hi, _mm256_max_pd(lo, v))
+    }
+
+    /// The epilogue `E` on rows r .. r + 4 with s = (Hx)[rows].
+    ///
+    /// # Safety
+    /// AVX2 + FMA available; r + 4 ≤ ld; the pointers `E` uses valid for ld elements.
+    #[inline]
+    #[target_feature(enable = "avx2,fma")]
+    unsafe fn epilogue<const E: u8>(c: &Ctx, r: usize, s: __m256d) {
+        // SAFETY: forwarded contract: rows in bounds, pointers valid for E.
+        unsafe {
+            match E {
+                PG => {
+                    // z − α(s + q) = (z − αq) − αs
+                    let alpha = _mm256_set1_pd(c.a);
+                    let base = _mm256_fnmadd_pd(alpha, ld(c.q, r), ld(c.x, r));
+                    let z = _mm256_fnmadd_pd(alpha, s, base);
+                    st(c.out, r, clamp(z, ld(c.lo, r), ld(c.hi, r)));
+                }
+                FISTA => {
+                    // x⁺ as PG; y⁺ = (1 + β)x⁺ − βx with βx formed before s is ready.
+                    let alpha = _mm256_set1_pd(c.a);
+                    let base = _mm256_fnmadd_pd(alpha, ld(c.q, r), ld(c.x, r));
+                    let bx = _mm256_mul_pd(_mm256_set1_pd(c.b), ld(c.out, r));
+                    let x = clamp(_mm256_fnmadd_pd(alpha, s, base), ld(c.lo, r), ld(c.hi, r));
+                    st(c.next, r, _mm256_fmsub_pd(_mm256_set1_pd(1.0 + c.b), x, bx));
+                    st(c.out, r, x);
+                }
+                ADMM1 | ADMM2 | ADMM => {
+                    // w = a z + (1 − a)v + y/ρ = a s + base, z = s − m_q, with
+                    // base = y/ρ − m_q (a = 1), y/ρ − v − 2m_q (a = 2),
+                    // y/ρ + (1 − a)v − a m_q (otherwise).
+                    let (mq, rho) = (ld(c.q, r), _mm256_set1_pd(c.b));
+                    let ir = _mm256_set1_pd(1.0 / c.b);
+                    let y = ld(c.dual, r);
+                    let w = match E {
+                        ADMM1 => _mm256_add_pd(s, _mm256_fmsub_pd(y, ir, mq)),
+                        ADMM2 => {
+                            let vq = _mm256_fmadd_pd(_mm256_set1_pd(2.0), mq, ld(c.v, r));
+                            let base = _mm256_fmsub_pd(y, ir, vq);
+                            _mm256_fmadd_pd(_mm256_set1_pd(2.0), s, base)
+                        }
+                        _ => {
+                            let a = _mm256_set1_pd(c.a);
+                            let av = _mm256_mul_pd(_mm256_set1_pd(1.0 - c.a), ld(c.v, r));
+                            let base = _mm256_fmadd_pd(y, ir, _mm256_fnmadd_pd(a, mq, av));
+                            _mm256_fmadd_pd(a, s, base)
+                        }
+                    };
+                    let vp = clamp(w, ld(c.lo, r), ld(c.hi, r));
+                    st(c.next, r, _mm256_sub_pd(_mm256_add_pd(vp, vp), w));
+                    st(c.dual, r, _mm256_mul_pd(rho, _mm256_sub_pd(w, vp)));
+                    st(c.v, r, vp);
+                    st(c.out, r, _mm256_sub_pd(s, mq));
+                }
+                _ => st(c.out, r, s),
+            }
+        }
+    }
+
+    /// Rows r0 .. r0 + 4V, all n columns, then the epilogue on each vector.
+    ///
+    /// # Safety
+    /// AVX2 and FMA available; r0 + 4V ≤ ld; the pointers as in [`run`].
+    #[inline]
+    #[target_feature(enable = "avx2,fma")]
+    unsafe fn panel<const V: usize, const E: u8>(c: &Ctx, r0: usize) {
+        let mut acc = [_mm256_setzero_pd(); V];
+        // SAFETY (whole body): column j of the panel is h[j ld + r0 .. j ld + r0 + 4V],
+        // inside the n·ld entries because j < n and r0 + 4V ≤ ld; x[j] with j < n; the
+        // epilogue's rows r0 + 4v + 4 ≤ ld.
+        unsafe {
+            let mut col = c.h.add(r0);
+            for j in 0..c.n {
+                let xj = _mm256_broadcast_sd(&*c.x.add(j));
+                for (v, a) in acc.iter_mut().enumerate() {
+                    *a = _mm256_fmadd_pd(ld(col, 4 * v), xj, *a);
+                }
+                col = col.add(c.ld);
+            }
+            for (v, a) in acc.iter().enumerate() {
+                epilogue::<E>(c, r0 + 4 * v, *a);
+            }
+        }
+    }
+
+    /// All ld rows: panels of 32, then one panel for the remaining < 32.
+    ///
+    /// # Safety
+    /// AVX2 and FMA available; n ≥ 1; ld a multiple of 4 with ld ≥ n; `h` valid for n·ld
+    /// reads and `x` for n reads; the pointers epilogue `E` uses valid for ld elements
+    /// (reads: `q`, `lo`, `hi`; writes: `out`, and `next`, `v`, `dual` where used; `out`
+    /// also read by FISTA, `v` and `dual` by ADMM); no written range overlaps `x`, `h` or
+    /// another written range.
+    #[target_feature(enable = "avx2,fma")]
+    pub(super) unsafe fn run<const E: u8>(c: Ctx) {
+        let mut r0 = 0;
+        // SAFETY (whole body): every panel ends at row ≤ ld; the caller's contract covers
+        // the pointers.
+        unsafe {
+            while c.ld - r0 >= 32 {
+                panel::<8, E>(&c, r0);
+                r0 += 32;
+            }
+            match (c.ld - r0) / 4 {
+                0 => {}
+                1 => panel::<1, E>(&c, r0),
+                2 => panel::<2, E>(&c, r0),
+                3 => panel::<3, E>(&c, r0),
+                4 => panel::<4, E>(&c, r0),
+                5 => panel::<5, E>(&c, r0),
+                6 => panel::<6, E>(&c, r0),
+                _ => panel::<7, E>(&c, r0),
+            }
+        }
+    }
+}
+
 #[cfg(test)]
 mod tests {
     #![allow(clippy::unwrap_used)]
@@ -1281,6 +1887,233 @@ mod tests {
         }
     }
 
+    /// Padded copies of `x` (length ld, zero padding) in 64-byte aligned buffers.
+    fn pad(x: &[f64]) -> AlignedVec {
+        AlignedVec::padded(x)
+    }
+
+    fn assert_close(what: &str, k: Kernel, n: usize, got: &[f64], want: &[f64], e: f64) {
+        for i in 0..n {
+            assert!(
+                (got[i] - want[i]).abs() <= e,
+                "{:?} n = {n} {what} row {i}: {} vs {}",
+                k.path(),
+                got[i],
+                want[i]
+            );
+        }
+    }
+
+    fn padding_is_zero(v: &[f64], n: usize) -> bool {
+        v[n..].iter().all(|&x| x == 0.0)
+    }
+
+    #[test]
+    fn padded_layout_is_aligned_and_zero_padded() {
+        let mut rng = ChaCha8Rng::seed_from_u64(8);
+        for n in [1, 2, 3, 4, 5, 29, 30, 31, 32, 33, 49] {
+            let h = random_vec(&mut rng, n * n);
+            let p = PaddedSymmetric::from_row_major(&h, n).unwrap();
+            assert_eq!(p.ld(), padded_len(n));
+            assert!(p.ld() % 4 == 0 && p.ld() >= n && p.ld() < n + 4);
+            assert_eq!(p.as_slice().as_ptr() as usize % 64, 0);
+            for j in 0..n {
+                let col = &p.as_slice()[j * p.ld()..(j + 1) * p.ld()];
+                assert_eq!(&col[..n], &h[j * n..(j + 1) * n], "n = {n} column {j}");
+                assert!(padding_is_zero(col, n));
+            }
+            assert!(PaddedSymmetric::from_row_major(&h, n + 1).is_none());
+            assert_eq!(PaddedSymmetric::from_fn(n, |i, j| h[j * n + i]), p);
+            let v = AlignedVec::zeros(n);
+            assert_eq!((v.len(), v.as_ptr() as usize % 64), (n, 0));
+        }
+        assert!(AlignedVec::zeros(0).is_empty());
+    }
+
+    /// Every padded kernel against the naive product and the unfused formulas, on every
+    /// path, at sizes with every remainder mod 4 (and n = 1), across panel boundaries.
+    #[test]
+    fn padded_kernels_match_naive_on_every_path_and_size() {
+        let mut rng = ChaCha8Rng::seed_from_u64(9);
+        for k in paths() {
+            for n in (1..=70).chain([95, 128, 131]) {
+                let ld = padded_len(n);
+                // A general H: the kernels apply Hᵀ (the stored columns are H's rows).
+                let h = random_vec(&mut rng, n * n);
+                let hp = PaddedSymmetric::from_row_major(&h, n).unwrap();
+                let ht = transpose(&h, n);
+                let (x, q, z0) = (
+                    random_vec(&mut rng, n),
+                    random_vec(&mut rng, n),
+                    random_vec(&mut rng, n),
+                );
+                let (lower, upper) = random_box(&mut rng, n);
+                let (lo, hi) = (pad(&lower), pad(&upper));
+                let hx = naive(&ht, n, &x);
+                let e = tol(n);
+
+                let mut y = AlignedVec::zeros(ld);
+                y.fill(7.0);
+                k.matvec_padded(&hp, &x, &mut y);
+                assert_close("Hx", k, n, &y, &hx, e);
+                assert!(padding_is_zero(&y, n), "{:?} n = {n}", k.path());
+
+                let alpha = rng.random_range(0.1..1.0);
+                let mut out = AlignedVec::zeros(ld);
+                k.pg_step_padded(&hp, &pad(&x), &pad(&q), alpha, &lo, &hi, &mut out);
+                let want: Vec<f64> = (0..n)
+                    .map(|i| (x[i] - alpha * (hx[i] + q[i])).max(lower[i]).min(upper[i]))
+                    .collect();
+                assert_close("pg", k, n, &out, &want, e);
+                assert!(padding_is_zero(&out, n), "{:?} n = {n} pg", k.path());
+
+                let beta = rng.random_range(0.0..1.0);
+                let (mut z, mut y_next) = (pad(&z0), AlignedVec::zeros(ld));
+                k.fista_step_padded(
+                    &hp,
+                    &pad(&x),
+                    &pad(&q),
+                    alpha,
+                    &lo,
+                    &hi,
+                    beta,
+                    &mut z,
+                    &mut y_next,
+                );
+                let want_y: Vec<f64> = (0..n).map(|i| want[i] + beta * (want[i] - z0[i])).collect();
+                assert_close("fista x⁺", k, n, &z, &want, e);
+                assert_close("fista y⁺", k, n, &y_next, &want_y, 4.0 * e);
+                assert!(padding_is_zero(&z, n) && padding_is_zero(&y_next, n));
+
+                // ADMM: plain, Peaceman–Rachford and a general relaxation (own paths).
+                for a in [1.0, 2.0, rng.random_range(0.5..1.9)] {
+                    let rho = rng.random_range(0.5..4.0);
+                    let (v0, y0) = (random_vec(&mut rng, n), random_vec(&mut rng, n));
+                    let (mut z, mut v, mut dual, mut t_next) = (
+                        AlignedVec::zeros(ld),
+                        pad(&v0),
+                        pad(&y0),
+                        AlignedVec::zeros(ld),
+                    );
+                    k.admm_step_padded(
+                        &hp,
+                        &pad(&x),
+                        &pad(&q),
+                        a,
+                        rho,
+                        &lo,
+                        &hi,
+                        &mut z,
+                        &mut v,
+                        &mut dual,
+                        &mut t_next,
+                    );
+                    let (mut wz, mut wv, mut wy, mut wt) = (vec![], vec![], vec![], vec![]);
+                    for i in 0..n {
+                        let zi = hx[i] - q[i];
+                        let w = a * zi + (1.0 - a) * v0[i] + y0[i] / rho;
+                        let vp = w.max(lower[i]).min(upper[i]);
+                        wz.push(zi);
+                        wv.push(vp);
+                        wy.push(rho * (w - vp));
+                        wt.push(vp - (w - vp));
+                    }
+                    let e = 16.0 * e;
+                    assert_close("admm z", k, n, &z, &wz, e);
+                    assert_close("admm v", k, n, &v, &wv, e);
+                    assert_close("admm y", k, n, &dual, &wy, rho * e);
+                    assert_close("admm t", k, n, &t_next, &wt, e);
+                    assert!(
+                        [&z, &v, &dual, &t_next]
+                            .iter()
+                            .all(|b| padding_is_zero(b, n)),
+                        "{:?} n = {n} a = {a}: padding",
+                        k.path()
+                    );
+                }
+            }
+        }
+    }
+
+    /// The padded and unpadded kernels sum each row in the same order (column by column,
+    /// one FMA per entry), so on the same path their steps agree bit for bit.
+    #[test]
+    fn padded_and_unpadded_steps_agree_bit_for_bit() {
+        let mut rng = ChaCha8Rng::seed_from_u64(10);
+        for k in paths() {
+            for n in [1, 3, 6, 29, 30, 37] {
+                let h = random_symmetric(&mut rng, n);
+                let hp = PaddedSymmetric::from_row_major(&h, n).unwrap();
+                let (z, q) = (random_vec(&mut rng, n), random_vec(&mut rng, n));
+                let (lo, hi) = random_box(&mut rng, n);
+                let mut out = vec![0.0; n];
+                k.projected_gradient_step(&h, n, &z, &q, 0.3, &lo, &hi, &mut out);
+                let mut outp = AlignedVec::zeros(hp.ld());
+                k.pg_step_padded(
+                    &hp,
+                    &pad(&z),
+                    &pad(&q),
+                    0.3,
+                    &pad(&lo),
+                    &pad(&hi),
+                    &mut outp,
+                );
+                assert_eq!(&outp[..n], &out[..], "{:?} n = {n}", k.path());
+            }
+        }
+    }
+
+    #[test]
+    fn padded_steps_propagate_nan_instead_of_clamping_it() {
+        for k in paths() {
+            for n in [1, 5, 9, 33] {
+                let h = PaddedSymmetric::from_row_major(&vec![1.0; n * n], n).unwrap();
+                let ld = h.ld();
+                let (lo, hi) = (pad(&vec![-1.0; n]), pad(&vec![1.0; n]));
+                let zero = AlignedVec::zeros(ld);
+                let mut x = AlignedVec::zeros(ld);
+                x[n - 1] = f64::NAN;
+                let mut out = AlignedVec::zeros(ld);
+                k.pg_step_padded(&h, &x, &zero, 0.5, &lo, &hi, &mut out);
+                assert!(
+                    out[..n].iter().all(|v| v.is_nan()),
+                    "pg {:?} n = {n}",
+                    k.path()
+                );
+                let (mut z, mut y_next) = (AlignedVec::zeros(ld), AlignedVec::zeros(ld));
+                k.fista_step_padded(&h, &x, &zero, 0.5, &lo, &hi, 0.5, &mut z, &mut y_next);
+                assert!(
+                    z[..n].iter().chain(&y_next[..n]).all(|v| v.is_nan()),
+                    "fista {:?} n = {n}",
+                    k.path()
+                );
+                for a in [1.0, 2.0, 1.5] {
+                    let mut b = [(); 4].map(|_| AlignedVec::zeros(ld));
+                    let [z, v, y, t] = &mut b;
+                    k.admm_step_padded(&h, &x, &zero, a, 1.0, &lo, &hi, z, v, y, t);
+                    assert!(
+                        v[..n]
+                            .iter()
+                            .chain(&y[..n])
+                            .chain(&t[..n])
+                            .all(|v| v.is_nan()),
+                        "admm a = {a} {:?} n = {n}",
+                        k.path()
+                    );
+                }
+            }
+        }
+    }
+
+    #[test]
+    #[should_panic(expected = "pg_step_padded")]
+    fn padded_kernel_rejects_unpadded_vectors() {
+        let h = PaddedSymmetric::from_row_major(&[1.0; 9], 3).unwrap();
+        let v = [0.0; 3];
+        let mut out = [0.0; 4];
+        Kernel::detect().pg_step_padded(&h, &v, &v, 1.0, &v, &v, &mut out);
+    }
+
     #[test]
     fn detect_picks_avx2_when_the_cpu_has_it() {
         let want = if KernelPath::Avx2Fma.is_available() {
@@ -1312,6 +2145,24 @@ mod tests {
                 &mut [],
                 &mut [],
                 &mut [],
+                &mut y,
+            );
+            let h = PaddedSymmetric::from_row_major(&[], 0).unwrap();
+            k.matvec_padded(&h, &[], &mut y);
+            k.pg_step_padded(&h, &[], &[], 1.0, &[], &[], &mut y);
+            k.fista_step_padded(&h, &[], &[], 1.0, &[], &[], 0.5, &mut [], &mut y);
+            let (mut a, mut b, mut c) = ([0.0; 0], [0.0; 0], [0.0; 0]);
+            k.admm_step_padded(
+                &h,
+                &[],
+                &[],
+                2.0,
+                1.0,
+                &[],
+                &[],
+                &mut a,
+                &mut b,
+                &mut c,
                 &mut y,
             );
         }

@@ -19,9 +19,8 @@
 use crate::IterationMap;
 use crate::certificate::{BoundedQuantity, CertNorm, Certificate};
 use crate::error::{QpError, Result};
-use crate::kernel::Kernel;
+use crate::kernel::{AlignedVec, Kernel, PaddedSymmetric};
 use crate::problem::ParametricQp;
-use lti_model::Projection;
 
 /// Step-size rule of [`ProjectedGradient`].
 #[derive(Debug, Clone, Copy, PartialEq)]
@@ -35,21 +34,80 @@ pub enum StepRule {
     Fixed(f64),
 }
 
+/// What projected gradient and FISTA share: the problem, H and the box in the padded
+/// layout of the kernels ([`crate::kernel::PaddedSymmetric`], zero padding), the kernel,
+/// and the handling of the padded state vectors (linear term, warm and cold start).
+#[derive(Debug, Clone)]
+pub(crate) struct GradientSetup {
+    pub(crate) qp: ParametricQp,
+    pub(crate) h: PaddedSymmetric,
+    pub(crate) lower: AlignedVec,
+    pub(crate) upper: AlignedVec,
+    pub(crate) kernel: Kernel,
+}
+
+impl GradientSetup {
+    pub(crate) fn new(qp: ParametricQp) -> Self {
+        let n = qp.n();
+        let h = qp.h();
+        Self {
+            h: PaddedSymmetric::from_fn(n, |i, j| h[(i, j)]),
+            lower: AlignedVec::padded(qp.zset().lower()),
+            upper: AlignedVec::padded(qp.zset().upper()),
+            kernel: Kernel::detect(),
+            qp,
+        }
+    }
+
+    /// A padded zero vector (ld entries).
+    pub(crate) fn zeros(&self) -> AlignedVec {
+        AlignedVec::zeros(self.h.ld())
+    }
+
+    /// The padded linear term of θ = 0, q₀.
+    pub(crate) fn q0(&self) -> AlignedVec {
+        AlignedVec::padded(self.qp.q0())
+    }
+
+    /// q = q₀ + Fθ into the first n entries (the padding stays zero).
+    #[inline]
+    pub(crate) fn load(&self, q: &mut [f64], theta: &[f64]) {
+        self.qp.linear_term(theta, &mut q[..self.qp.n()]);
+    }
+
+    /// z = z⁰ (warm start) or Π_Z(0) (cold start), padding reset to zero.
+    #[inline]
+    pub(crate) fn start(&self, z: &mut [f64], z0: Option<&[f64]>) {
+        z.fill(0.0);
+        let z = &mut z[..self.qp.n()];
+        match z0 {
+            Some(z0) => z.copy_from_slice(z0),
+            None => self.qp.project(z),
+        }
+    }
+
+    /// The first n entries of a padded vector: the iterate a caller sees.
+    #[inline]
+    pub(crate) fn head<'a>(&self, v: &'a [f64]) -> &'a [f64] {
+        &v[..self.qp.n()]
+    }
+}
+
 /// Projected gradient method with a constant step.
 #[derive(Debug, Clone)]
 pub struct ProjectedGradient {
-    qp: ParametricQp,
+    g: GradientSetup,
     alpha: f64,
     cert: Certificate,
-    kernel: Kernel,
 }
 
-/// State of [`ProjectedGradient`]: iterate, loaded linear term, the next iterate's buffer.
+/// State of [`ProjectedGradient`]: iterate, loaded linear term, the next iterate's buffer
+/// (all padded to the kernels' length, see [`crate::kernel::padded_len`]).
 #[derive(Debug, Clone)]
 pub struct PgState {
-    z: Vec<f64>,
-    q: Vec<f64>,
-    next: Vec<f64>,
+    z: AlignedVec,
+    q: AlignedVec,
+    next: AlignedVec,
 }
 
 impl ProjectedGradient {
@@ -99,10 +157,9 @@ impl ProjectedGradient {
                 .into(),
         };
         Ok(Self {
-            qp,
+            g: GradientSetup::new(qp),
             alpha,
             cert,
-            kernel: Kernel::detect(),
         })
     }
 
@@ -119,47 +176,44 @@ impl IterationMap for ProjectedGradient {
         "pg"
     }
     fn problem(&self) -> &ParametricQp {
-        &self.qp
+        &self.g.qp
     }
     fn new_state(&self) -> PgState {
-        let n = self.qp.n();
         let mut s = PgState {
-            z: vec![0.0; n],
-            q: self.qp.q0().to_vec(),
-            next: vec![0.0; n],
+            z: self.g.zeros(),
+            q: self.g.q0(),
+            next: self.g.zeros(),
         };
         self.cold_start(&mut s);
         s
     }
     fn load(&self, state: &mut PgState, theta: &[f64]) {
-        self.qp.linear_term(theta, &mut state.q);
+        self.g.load(&mut state.q, theta);
     }
     fn warm_start(&self, state: &mut PgState, z0: &[f64], _dual: Option<&[f64]>) {
-        state.z.copy_from_slice(z0);
+        self.g.start(&mut state.z, Some(z0));
     }
     fn cold_start(&self, state: &mut PgState) {
-        state.z.fill(0.0);
-        self.qp.zset().project(&mut state.z);
+        self.g.start(&mut state.z, None);
     }
     #[inline]
     fn step(&self, s: &mut PgState) {
-        // Fused z⁺ = Π_Z(z − α(Hz + q)) in one pass over H (NaN-preserving clamp), then a
-        // pointer swap: no copy, no allocation.
-        let (n, z) = (self.qp.n(), self.qp.zset());
-        self.kernel.projected_gradient_step(
-            self.qp.h_row_major(),
-            n,
+        // Fused z⁺ = Π_Z(z − α(Hz + q)) in one pass over the padded H (NaN-preserving
+        // clamp), then a pointer swap: no copy, no allocation.
+        let g = &self.g;
+        g.kernel.pg_step_padded(
+            &g.h,
             &s.z,
             &s.q,
             self.alpha,
-            z.lower(),
-            z.upper(),
+            &g.lower,
+            &g.upper,
             &mut s.next,
         );
         std::mem::swap(&mut s.z, &mut s.next);
     }
     fn iterate<'s>(&self, state: &'s PgState) -> &'s [f64] {
-        &state.z
+        self.g.head(&state.z)
     }
     fn certificate(&self) -> &Certificate {
         &self.cert

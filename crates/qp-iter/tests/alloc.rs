@@ -141,6 +141,16 @@ fn no_method_allocates_after_setup() {
     )
     .unwrap();
     assert_no_allocations(&admm2, Some(&y0));
+    // Peaceman–Rachford (relaxation 2) runs its own kernel epilogue.
+    let admm_pr = Admm::new(
+        qp.clone(),
+        AdmmParams {
+            penalty: Penalty::Optimal,
+            relaxation: 2.0,
+        },
+    )
+    .unwrap();
+    assert_no_allocations(&admm_pr, None);
     // ADMM's diagnostics too.
     let mut s = admm.new_state();
     let mut out = vec![0.0; qp.n()];

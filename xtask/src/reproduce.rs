@@ -1306,7 +1306,7 @@ fn summarize(d: &CertificateDocument, files: &[PathBuf], notes: &[String]) -> St
             Some(k) => {
                 let _ = writeln!(
                     s,
-                    "  {:<6} K_min = {k:<6} φ(K) = {:.3}·{:.6}^K, margin 1 − max(sg) = {:.3e}; with sampled L_Φ: {}{mark}",
+                    "  {:<7} K_min = {k:<6} φ(K) = {:.3}·{:.6}^K, margin 1 − max(sg) = {:.3e}; with sampled L_Φ: {}{mark}",
                     sv.solver,
                     sv.phi_prefactor,
                     sv.phi_rate,
@@ -1327,7 +1327,7 @@ fn summarize(d: &CertificateDocument, files: &[PathBuf], notes: &[String]) -> St
                 } else {
                     format!("{} fails (see the fix above)", failed.join(", "))
                 };
-                let _ = writeln!(s, "  {:<6} void: {why}{mark}", sv.solver);
+                let _ = writeln!(s, "  {:<7} void: {why}{mark}", sv.solver);
             }
         }
     }

@@ -1,11 +1,8 @@
 //! Zero heap allocations per closed-loop step after construction (PG MHE with the exact
-//! solve off and its record captured, saturated LQR or sub-optimal MPC, uniform
+//! solve off and its record captured, exact MPC, saturated LQR or sub-optimal MPC, uniform
 //! disturbance), counted by a global allocator. A separate test binary: the allocator is
 //! process-wide.
 #![allow(clippy::unwrap_used)]
-
-use std::alloc::{GlobalAlloc, Layout, System};
-use std::sync::atomic::{AtomicUsize, Ordering};
 
 use closed_loop::sim::{
     CaseStudyOptions, ClosedLoop, ControllerChoice, Solver, build_case_study, scenario_disturbance,
@@ -16,25 +13,8 @@ use mhe_core::{Estimator, MheConfig, MheEstimator, MheSets};
 use mpc_core::{CondensedMpc, Controller, SaturatedLqr, SuboptimalMpc, WarmStart};
 use qp_iter::pg::{ProjectedGradient, StepRule};
 
-struct Counting;
-static ALLOCS: AtomicUsize = AtomicUsize::new(0);
-
-unsafe impl GlobalAlloc for Counting {
-    unsafe fn alloc(&self, l: Layout) -> *mut u8 {
-        ALLOCS.fetch_add(1, Ordering::SeqCst);
-        unsafe { System.alloc(l) }
-    }
-    unsafe fn dealloc(&self, p: *mut u8, l: Layout) {
-        unsafe { System.dealloc(p, l) }
-    }
-    unsafe fn realloc(&self, p: *mut u8, l: Layout, n: usize) -> *mut u8 {
-        ALLOCS.fetch_add(1, Ordering::SeqCst);
-        unsafe { System.realloc(p, l, n) }
-    }
-}
-
 #[global_allocator]
-static GLOBAL: Counting = Counting;
+static GLOBAL: alloc_counter::CountingAllocator = alloc_counter::CountingAllocator;
 
 const CASE_STUDY: &str = concat!(
     env!("CARGO_MANIFEST_DIR"),
@@ -45,11 +25,11 @@ const CASE_STUDY: &str = concat!(
 fn allocations_of_run<E: Estimator, C: Controller, D: Disturbance>(
     cl: &mut ClosedLoop<E, C, D>,
 ) -> usize {
-    let before = ALLOCS.load(Ordering::SeqCst);
+    let before = alloc_counter::count();
     while !cl.is_finished() {
         cl.step().unwrap();
     }
-    ALLOCS.load(Ordering::SeqCst) - before
+    alloc_counter::count() - before
 }
 
 fn pg_mhe(s: &Scenario) -> MheEstimator<ProjectedGradient> {
@@ -111,15 +91,15 @@ fn closed_loop_steps_do_not_allocate() {
         let mut cl = build_case_study(&s, &o).unwrap();
         assert_eq!(allocations_of_run(&mut cl), 0, "case study {controller:?}");
         let first = cl.trace().clone();
-        let before = ALLOCS.load(Ordering::SeqCst);
+        let before = alloc_counter::count();
         cl.reseed(o.seed).unwrap();
-        assert_eq!(ALLOCS.load(Ordering::SeqCst) - before, 0, "reseed");
+        assert_eq!(alloc_counter::count() - before, 0, "reseed");
         assert_eq!(allocations_of_run(&mut cl), 0, "after reseed");
         assert_eq!(cl.trace(), &first);
     }
 
     // The counter works.
-    let before = ALLOCS.load(Ordering::SeqCst);
+    let before = alloc_counter::count();
     let v = std::hint::black_box(vec![1.0_f64; 3]);
-    assert!(ALLOCS.load(Ordering::SeqCst) > before && v.len() == 3);
+    assert!(alloc_counter::count() > before && v.len() == 3);
 }

@@ -2,9 +2,6 @@
 //! counted by a global allocator. A separate test binary: the allocator is process-wide.
 #![allow(clippy::unwrap_used)]
 
-use std::alloc::{GlobalAlloc, Layout, System};
-use std::sync::atomic::{AtomicUsize, Ordering};
-
 use faer::{Mat, mat};
 use lti_model::{BoxSet, LtiSystem};
 use mhe_core::{Estimator, KalmanFilter, MheConfig, MheEstimator, MheSets, WarmStart};
@@ -13,25 +10,8 @@ use qp_iter::fista::Fista;
 use qp_iter::pg::{ProjectedGradient, StepRule};
 use qp_iter::{IterationMap, ParametricQp};
 
-struct Counting;
-static ALLOCS: AtomicUsize = AtomicUsize::new(0);
-
-unsafe impl GlobalAlloc for Counting {
-    unsafe fn alloc(&self, l: Layout) -> *mut u8 {
-        ALLOCS.fetch_add(1, Ordering::SeqCst);
-        unsafe { System.alloc(l) }
-    }
-    unsafe fn dealloc(&self, p: *mut u8, l: Layout) {
-        unsafe { System.dealloc(p, l) }
-    }
-    unsafe fn realloc(&self, p: *mut u8, l: Layout, n: usize) -> *mut u8 {
-        ALLOCS.fetch_add(1, Ordering::SeqCst);
-        unsafe { System.realloc(p, l, n) }
-    }
-}
-
 #[global_allocator]
-static GLOBAL: Counting = Counting;
+static GLOBAL: alloc_counter::CountingAllocator = alloc_counter::CountingAllocator;
 
 fn case_study(warm: WarmStart) -> (LtiSystem, MheSets, MheConfig) {
     let sys = lti_model::presets::case_study_plant();
@@ -64,14 +44,14 @@ fn data(t: usize, u: &mut [f64; 2], y: &mut [f64; 1]) {
 
 fn allocations_per_run<E: Estimator>(est: &mut E, from: usize, to: usize) -> usize {
     let (mut u, mut y) = ([0.0; 2], [0.0; 1]);
-    let before = ALLOCS.load(Ordering::SeqCst);
+    let before = alloc_counter::count();
     for t in from..to {
         data(t, &mut u, &mut y);
         let x = est.estimate().unwrap();
         assert!(x[0].is_finite());
         est.push(&u, &y).unwrap();
     }
-    ALLOCS.load(Ordering::SeqCst) - before
+    alloc_counter::count() - before
 }
 
 fn check_mhe<M, F>(warm: WarmStart, factory: F)
@@ -92,10 +72,10 @@ where
     );
     // Copying the record out into a record that has seen a full window does not allocate.
     mhe.last_record().copy_into(&mut copy);
-    let before = ALLOCS.load(Ordering::SeqCst);
+    let before = alloc_counter::count();
     mhe.last_record().copy_into(&mut copy);
     mhe.reset(&[0.0; 4]).unwrap();
-    let n = ALLOCS.load(Ordering::SeqCst) - before;
+    let n = alloc_counter::count() - before;
     assert_eq!(n, 0, "copy_into / reset allocated");
     assert_eq!(allocations_per_run(&mut mhe, 0, 12), 0, "after reset");
 }
@@ -114,7 +94,7 @@ fn estimate_and_push_do_not_allocate() {
             .unwrap();
     assert_eq!(allocations_per_run(&mut kf, 0, 40), 0, "Kalman filter");
     // The counter works.
-    let before = ALLOCS.load(Ordering::SeqCst);
+    let before = alloc_counter::count();
     let v = std::hint::black_box(vec![1.0_f64; 3]);
-    assert!(ALLOCS.load(Ordering::SeqCst) > before && v.len() == 3);
+    assert!(alloc_counter::count() > before && v.len() == 3);
 }

@@ -3,9 +3,6 @@
 //! included. A separate binary because it installs a counting global allocator.
 #![allow(clippy::unwrap_used)]
 
-use std::alloc::{GlobalAlloc, Layout, System};
-use std::cell::Cell;
-
 use faer::Mat;
 use lti_model::{BoxSet, LtiSystem};
 use mpc_core::{CondensedMpc, Controller, MpcConfig, SaturatedLqr, SuboptimalMpc, WarmStart};
@@ -13,38 +10,10 @@ use qp_iter::admm::{Admm, AdmmParams};
 use qp_iter::fista::Fista;
 use qp_iter::pg::{ProjectedGradient, StepRule};
 
-struct Counting;
-
-thread_local! {
-    static ALLOCS: Cell<usize> = const { Cell::new(0) };
-}
-
-// SAFETY: forwards to the system allocator; only counts (thread-local, no allocation).
-unsafe impl GlobalAlloc for Counting {
-    unsafe fn alloc(&self, layout: Layout) -> *mut u8 {
-        ALLOCS.with(|c| c.set(c.get() + 1));
-        // SAFETY: same contract as the caller's.
-        unsafe { System.alloc(layout) }
-    }
-    unsafe fn dealloc(&self, ptr: *mut u8, layout: Layout) {
-        // SAFETY: same contract as the caller's.
-        unsafe { System.dealloc(ptr, layout) }
-    }
-    unsafe fn realloc(&self, ptr: *mut u8, layout: Layout, new_size: usize) -> *mut u8 {
-        ALLOCS.with(|c| c.set(c.get() + 1));
-        // SAFETY: same contract as the caller's.
-        unsafe { System.realloc(ptr, layout, new_size) }
-    }
-}
-
 #[global_allocator]
-static GLOBAL: Counting = Counting;
+static GLOBAL: alloc_counter::CountingAllocator = alloc_counter::CountingAllocator;
 
-fn allocations<F: FnMut()>(mut f: F) -> usize {
-    let before = ALLOCS.with(Cell::get);
-    f();
-    ALLOCS.with(Cell::get) - before
-}
+use alloc_counter::allocations;
 
 /// A nominal closed loop of `steps` calls plus error calls; returns the allocation count.
 fn count_loop(c: &mut dyn Controller, sys: &LtiSystem, steps: usize) -> usize {

@@ -47,9 +47,10 @@ pub struct ScenarioInfo {
     pub path: String,
 }
 
-/// The plant data that enters LMI (2).
-#[derive(Debug, Clone, Serialize)]
-pub struct SystemInfo {
+/// The plant's dimensions, written as flat fields `nx`, `nu`, `ny`, `nw1`, `nw2` into both
+/// JSON documents (certificate and reproduce).
+#[derive(Debug, Clone, Copy, Serialize)]
+pub struct PlantDims {
     /// n_x.
     pub nx: usize,
     /// n_u.
@@ -60,6 +61,27 @@ pub struct SystemInfo {
     pub nw1: usize,
     /// n_w2 (entries of w²).
     pub nw2: usize,
+}
+
+impl PlantDims {
+    /// The dimensions of `sys`.
+    pub fn of(sys: &lti_model::LtiSystem) -> Self {
+        Self {
+            nx: sys.nx(),
+            nu: sys.nu(),
+            ny: sys.ny(),
+            nw1: sys.nw1(),
+            nw2: sys.nw2(),
+        }
+    }
+}
+
+/// The plant data that enters LMI (2).
+#[derive(Debug, Clone, Serialize)]
+pub struct SystemInfo {
+    /// n_x, n_u, n_y, n_w1, n_w2.
+    #[serde(flatten)]
+    pub dims: PlantDims,
     /// A (n_x × n_x).
     pub a: Vec<Vec<f64>>,
     /// C (n_y × n_x).
@@ -309,11 +331,7 @@ pub fn certify(req: &CertifyRequest) -> Result<Outcome> {
         },
         provenance: Provenance::collect(),
         system: SystemInfo {
-            nx: sys.nx(),
-            nu: sys.nu(),
-            ny: sys.ny(),
-            nw1: sys.nw1(),
-            nw2: sys.nw2(),
+            dims: PlantDims::of(sys),
             a: matrix::to_rows(sys.a()),
             c: matrix::to_rows(sys.c()),
             b_bar: matrix::to_rows(sys.b_bar().as_ref()),
@@ -349,7 +367,7 @@ fn summarize(d: &CertificateDocument) -> String {
         "δ-IOSS certificate (Assumption 2, LMI (2)) for scenario `{}` ({})",
         d.scenario.name, d.scenario.path
     );
-    let sys = &d.system;
+    let sys = &d.system.dims;
     let _ = writeln!(
         s,
         "  plant        n_x = {}, n_u = {}, n_y = {}, n_w = {} + {}",

@@ -380,16 +380,9 @@ impl BoxRecord {
 /// Plant of eq. (1).
 #[derive(Debug, Clone, Serialize)]
 pub struct ModelRecord {
-    /// n_x.
-    pub nx: usize,
-    /// n_u.
-    pub nu: usize,
-    /// n_y.
-    pub ny: usize,
-    /// dim w¹.
-    pub nw1: usize,
-    /// dim w².
-    pub nw2: usize,
+    /// n_x, n_u, n_y, dim w¹, dim w².
+    #[serde(flatten)]
+    pub dims: crate::certify::PlantDims,
     /// A.
     pub a: Vec<Vec<f64>>,
     /// B.
@@ -933,11 +926,7 @@ fn trace_document<'a>(
         scenario: record,
         provenance,
         model: ModelRecord {
-            nx: sys.nx(),
-            nu: sys.nu(),
-            ny: sys.ny(),
-            nw1: sys.nw1(),
-            nw2: sys.nw2(),
+            dims: crate::certify::PlantDims::of(sys),
             a: m(sys.a()),
             b: m(sys.b()),
             c: m(sys.c()),

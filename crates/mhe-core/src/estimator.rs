@@ -2,7 +2,7 @@
 
 use faer::Mat;
 use lti_model::{ConvexSet, LtiSystem};
-use qp_iter::reference::{ReferenceSettings, ReferenceSolver};
+use qp_iter::active_set::ExactSolver;
 use qp_iter::{IterationMap, ParametricQp, run_fixed};
 
 pub use lti_model::scenario::WarmStart;
@@ -42,7 +42,8 @@ pub struct MheConfig {
     pub iterations: usize,
     /// Warm-start rule Σ_t (the paper's is the certified default).
     pub warm_start: WarmStart,
-    /// Also solve ℙ_t exactly (Clarabel) each step and record ε_t (analysis runs).
+    /// Also solve ℙ_t exactly each step and record ε_t (analysis runs): the warm-started
+    /// active-set solver of `qp_iter::active_set` (allocation-free), Clarabel as fallback.
     pub exact_solve: bool,
 }
 
@@ -322,7 +323,7 @@ pub struct MheEstimator<M: IterationMap> {
     res: Vec<f64>,
     x_hat_exact: Vec<f64>,
     record: MheRecord,
-    references: Vec<ReferenceSolver>,
+    references: Vec<ExactSolver>,
 }
 
 impl<M: IterationMap> MheEstimator<M> {
@@ -375,7 +376,7 @@ impl<M: IterationMap> MheEstimator<M> {
             problem
                 .windows()
                 .iter()
-                .map(|w| ReferenceSolver::new(w.qp(), ReferenceSettings::default()))
+                .map(|w| ExactSolver::new(w.qp()))
                 .collect::<qp_iter::Result<Vec<_>>>()?
         } else {
             Vec::new()
@@ -421,6 +422,9 @@ impl<M: IterationMap> MheEstimator<M> {
         self.estimates.clear();
         self.z0.fill(0.0);
         self.z0[..prior.len()].copy_from_slice(prior);
+        for r in &mut self.references {
+            r.reset();
+        }
         Ok(())
     }
 
@@ -483,7 +487,8 @@ impl<M: IterationMap> MheEstimator<M> {
 
     /// Step 1 of Alg. 1: K iterations of Φ on ℙ_t from z⁰_t; returns x̂ᴷ_{t|t}.
     ///
-    /// Allocation-free unless `exact_solve` is on. Idempotent at a given t (it always
+    /// Allocation-free (with `exact_solve` on too, unless the active set falls back to
+    /// Clarabel). Idempotent at a given t (it always
     /// starts from the same z⁰_t). Errors only if the exact solve fails, in which case
     /// the record and the estimator are unchanged.
     pub fn estimate(&mut self) -> Result<&[f64]> {
@@ -533,12 +538,12 @@ impl<M: IterationMap> MheEstimator<M> {
 
         let mut exact = None;
         if let Some(reference) = self.references.get_mut(m) {
-            let sol = reference.solve(theta).map_err(|e| MheError::Reference {
+            let z_star = reference.solve(theta).map_err(|e| MheError::Reference {
                 t,
                 reason: e.to_string(),
             })?;
             let zs = &mut self.zstar[..nz];
-            zs.copy_from_slice(&sol.z);
+            zs.copy_from_slice(z_star);
             let eps = dist(zk, zs);
             let eps0 = dist(&self.z0[..nz], zs);
             let cost = self.model.cost(

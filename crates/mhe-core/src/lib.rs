@@ -8,7 +8,7 @@
 //! - [`MheProblem`] / [`MheWindow`]: ℙ_t for every window length m = 0..M, with H_c, F_c,
 //!   the paper's H_t, T, z̃_t, the weight matrix W_m, H̄ and L_Φ (certified and sampled).
 //! - [`MheEstimator`]: Alg. 1 steps 1–3 (prior ring buffer, Σ_t warm start, Υ buffers),
-//!   allocation-free per step when the exact solve is off; fills an [`MheRecord`].
+//!   allocation-free per step (the exact solve for ε_t included); fills an [`MheRecord`].
 //! - [`KalmanFilter`]: predictor-form Kalman filter, with fading memory for the exact
 //!   comparison with the MHE.
 //! - [`Estimator`]: the trait closed-loop code composes (both estimators implement it).

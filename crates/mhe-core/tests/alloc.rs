@@ -1,4 +1,4 @@
-//! (f) Zero heap allocations per estimate + push after construction (exact solve off),
+//! (f) Zero heap allocations per estimate + push after construction (exact solve off and on),
 //! counted by a global allocator. A separate test binary: the allocator is process-wide.
 #![allow(clippy::unwrap_used)]
 
@@ -54,12 +54,13 @@ fn allocations_per_run<E: Estimator>(est: &mut E, from: usize, to: usize) -> usi
     alloc_counter::count() - before
 }
 
-fn check_mhe<M, F>(warm: WarmStart, factory: F)
+fn check_mhe<M, F>(warm: WarmStart, exact_solve: bool, factory: F)
 where
     M: IterationMap,
     F: Fn(ParametricQp) -> qp_iter::Result<M>,
 {
-    let (sys, sets, cfg) = case_study(warm);
+    let (sys, sets, mut cfg) = case_study(warm);
+    cfg.exact_solve = exact_solve;
     let mut mhe = MheEstimator::new(&sys, &sets, &cfg, &[7.0, -7.0, 3.0, -5.0], factory).unwrap();
     let mut copy = mhe.last_record().clone();
     // Steps 0..M grow the window (first use of every window length), then steady state.
@@ -67,9 +68,12 @@ where
     assert_eq!(
         n,
         0,
-        "{} {warm:?}: {n} allocations in 40 steps",
+        "{} {warm:?} (exact solve {exact_solve}): {n} allocations in 40 steps",
         mhe.map(0).unwrap().name()
     );
+    if exact_solve {
+        assert!(mhe.last_record().epsilon.is_some());
+    }
     // Copying the record out into a record that has seen a full window does not allocate.
     mhe.last_record().copy_into(&mut copy);
     let before = alloc_counter::count();
@@ -82,11 +86,14 @@ where
 
 #[test]
 fn estimate_and_push_do_not_allocate() {
-    // One test function: the counter is global, parallel tests would pollute it.
     for warm in [WarmStart::Paper, WarmStart::Shifted] {
-        check_mhe(warm, |qp| ProjectedGradient::new(qp, StepRule::Optimal));
-        check_mhe(warm, |qp| Ok(Fista::new(qp)));
-        check_mhe(warm, |qp| Admm::new(qp, AdmmParams::default()));
+        for exact in [false, true] {
+            check_mhe(warm, exact, |qp| {
+                ProjectedGradient::new(qp, StepRule::Optimal)
+            });
+            check_mhe(warm, exact, |qp| Ok(Fista::new(qp)));
+            check_mhe(warm, exact, |qp| Admm::new(qp, AdmmParams::default()));
+        }
     }
     let (sys, _, cfg) = case_study(WarmStart::Paper);
     let mut kf =

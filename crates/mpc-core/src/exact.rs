@@ -7,7 +7,7 @@
 
 use lti_model::{BoxSet, Projection};
 use qp_iter::QpError;
-use qp_iter::active_set::{ActiveSetInfo, ActiveSetSettings, ActiveSetSolver};
+use qp_iter::active_set::{ActiveSetInfo, ActiveSetSettings, ExactSolver};
 use qp_iter::reference::{ReferenceSettings, ReferenceSolver};
 
 use crate::condensed::CondensedMpc;
@@ -36,11 +36,8 @@ impl Default for ExactBackend {
 #[derive(Debug)]
 #[allow(clippy::large_enum_variant)] // one per controller, never moved in a hot loop
 enum Backend {
-    ActiveSet {
-        solver: ActiveSetSolver,
-        /// Built on the first fallback only.
-        fallback: Option<Box<ReferenceSolver>>,
-    },
+    /// Active set with the Clarabel fallback.
+    ActiveSet(ExactSolver),
     Clarabel(Box<ReferenceSolver>),
 }
 
@@ -73,7 +70,6 @@ pub struct ExactMpc {
     /// U*(x̂) of the last successful call.
     u_seq: Vec<f64>,
     solved: bool,
-    fallbacks: usize,
     last_info: Option<ActiveSetInfo>,
 }
 
@@ -91,10 +87,9 @@ impl ExactMpc {
     /// The given backend. Errors: invalid settings ([`MpcError::Qp`]).
     pub fn with_backend(mpc: &CondensedMpc, backend: ExactBackend) -> Result<Self> {
         let backend = match backend {
-            ExactBackend::ActiveSet(settings) => Backend::ActiveSet {
-                solver: ActiveSetSolver::new(mpc.qp(), settings)?,
-                fallback: None,
-            },
+            ExactBackend::ActiveSet(settings) => {
+                Backend::ActiveSet(ExactSolver::with_settings(mpc.qp(), settings)?)
+            }
             ExactBackend::Clarabel(settings) => {
                 Backend::Clarabel(Box::new(ReferenceSolver::new(mpc.qp(), settings)?))
             }
@@ -106,7 +101,6 @@ impl ExactMpc {
             nu: mpc.nu(),
             u_seq: vec![0.0; mpc.qp().n()],
             solved: false,
-            fallbacks: 0,
             last_info: None,
         })
     }
@@ -121,26 +115,11 @@ impl ExactMpc {
         self.solved = false;
         self.last_info = None;
         match &mut self.backend {
-            Backend::ActiveSet { solver, fallback } => match solver.solve(x_hat) {
-                Ok(info) => {
-                    self.u_seq.copy_from_slice(solver.z());
-                    self.last_info = Some(info);
-                }
-                Err(QpError::NotConverged { .. }) => {
-                    self.fallbacks += 1;
-                    solver.reset();
-                    let reference = match fallback {
-                        Some(r) => r,
-                        None => fallback.insert(Box::new(ReferenceSolver::new(
-                            solver.problem(),
-                            ReferenceSettings::default(),
-                        )?)),
-                    };
-                    let sol = reference.solve(x_hat).map_err(solver_error)?;
-                    self.u_seq.copy_from_slice(&sol.z);
-                }
-                Err(e) => return Err(e.into()),
-            },
+            Backend::ActiveSet(solver) => {
+                let z = solver.solve(x_hat).map_err(solver_error)?;
+                self.u_seq.copy_from_slice(z);
+                self.last_info = solver.last_info();
+            }
             Backend::Clarabel(reference) => {
                 let sol = reference.solve(x_hat).map_err(solver_error)?;
                 self.u_seq.copy_from_slice(&sol.z);
@@ -150,11 +129,12 @@ impl ExactMpc {
         Ok(&self.u_seq)
     }
 
-    /// Forgets the active-set warm start (working set and cached factor), so that the next
-    /// call gives bit for bit what a freshly built controller gives: what a Monte-Carlo
-    /// driver that reuses one controller across runs needs for determinism.
+    /// Forgets the active-set warm start (working set and cached factor), so that a
+    /// controller reused across Monte-Carlo runs starts each run as a fresh one does. (The
+    /// answer is the same optimum either way — the final subspace solve depends only on the
+    /// optimal working set — the warm start changes how fast it is found.)
     pub fn reset(&mut self) {
-        if let Backend::ActiveSet { solver, .. } = &mut self.backend {
+        if let Backend::ActiveSet(solver) = &mut self.backend {
             solver.reset();
         }
         self.solved = false;
@@ -168,7 +148,10 @@ impl ExactMpc {
 
     /// Calls the active-set backend could not finish and Clarabel solved instead.
     pub fn fallbacks(&self) -> usize {
-        self.fallbacks
+        match &self.backend {
+            Backend::ActiveSet(solver) => solver.fallbacks(),
+            Backend::Clarabel(_) => 0,
+        }
     }
 
     /// Iterations and factorisations of the last active-set solve (`None` with the

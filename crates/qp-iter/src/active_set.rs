@@ -26,6 +26,7 @@
 
 use crate::error::{QpError, Result};
 use crate::problem::ParametricQp;
+use crate::reference::{ReferenceSettings, ReferenceSolver};
 
 /// Settings of [`ActiveSetSolver`].
 #[derive(Debug, Clone, Copy, PartialEq)]
@@ -469,4 +470,104 @@ fn dot(a: &[f64], b: &[f64]) -> f64 {
         s += a[k] * b[k];
     }
     s
+}
+
+/// An exact solve that cannot stop without an answer: [`ActiveSetSolver`] first, Clarabel
+/// ([`ReferenceSolver`], default settings, built on first use) when the active-set method
+/// stops without a verified optimum. What `mpc-core`'s exact MPC and `mhe-core`'s ε_t use.
+///
+/// Allocation-free while the active set succeeds (every case-study test run); a fallback
+/// allocates (Clarabel) and is counted by [`ExactSolver::fallbacks`].
+///
+/// ```
+/// use faer::{mat, Mat};
+/// use lti_model::BoxSet;
+/// use qp_iter::ParametricQp;
+/// use qp_iter::active_set::ExactSolver;
+/// let qp = ParametricQp::new(mat![[4.0, 1.0], [1.0, 1.0]], vec![-2.0, -4.0],
+///     Mat::identity(2, 2), BoxSet::symmetric(&[2.0, 2.0]).unwrap()).unwrap();
+/// let mut s = ExactSolver::new(&qp).unwrap();
+/// let z = s.solve(&[-1.0, 1.0]).unwrap();
+/// assert!((z[0] - 0.25).abs() < 1e-15 && z[1] == 2.0);
+/// assert_eq!(s.fallbacks(), 0);
+/// ```
+#[derive(Debug)]
+pub struct ExactSolver {
+    active: ActiveSetSolver,
+    fallback: Option<Box<ReferenceSolver>>,
+    fallbacks: usize,
+    /// The last solution (the active set's, or Clarabel's after a fallback).
+    z: Vec<f64>,
+    last_info: Option<ActiveSetInfo>,
+}
+
+impl ExactSolver {
+    /// Active set with [`ActiveSetSettings::default`].
+    pub fn new(qp: &ParametricQp) -> Result<Self> {
+        Self::with_settings(qp, ActiveSetSettings::default())
+    }
+
+    /// Active set with the given settings.
+    pub fn with_settings(qp: &ParametricQp, settings: ActiveSetSettings) -> Result<Self> {
+        Ok(Self {
+            active: ActiveSetSolver::new(qp, settings)?,
+            fallback: None,
+            fallbacks: 0,
+            z: vec![0.0; qp.n()],
+            last_info: None,
+        })
+    }
+
+    /// z*(θ). Errors: θ of the wrong length or not finite ([`QpError::Model`]); Clarabel
+    /// failing after an active-set failure ([`QpError::Reference`]).
+    pub fn solve(&mut self, theta: &[f64]) -> Result<&[f64]> {
+        self.last_info = None;
+        match self.active.solve(theta) {
+            Ok(info) => {
+                self.z.copy_from_slice(self.active.z());
+                self.last_info = Some(info);
+            }
+            Err(QpError::NotConverged { .. }) => {
+                self.fallbacks += 1;
+                self.active.reset();
+                let reference = match &mut self.fallback {
+                    Some(r) => r,
+                    slot => slot.insert(Box::new(ReferenceSolver::new(
+                        self.active.problem(),
+                        ReferenceSettings::default(),
+                    )?)),
+                };
+                let sol = reference.solve(theta)?;
+                self.z.copy_from_slice(&sol.z);
+            }
+            Err(e) => return Err(e),
+        }
+        Ok(&self.z)
+    }
+
+    /// Forgets the warm start: the next call starts as a fresh solver's does.
+    pub fn reset(&mut self) {
+        self.active.reset();
+        self.last_info = None;
+    }
+
+    /// The last solution.
+    pub fn z(&self) -> &[f64] {
+        &self.z
+    }
+
+    /// Calls the active set could not finish (solved by Clarabel instead).
+    pub fn fallbacks(&self) -> usize {
+        self.fallbacks
+    }
+
+    /// Iterations of the last call (`None` after a fallback).
+    pub fn last_info(&self) -> Option<ActiveSetInfo> {
+        self.last_info
+    }
+
+    /// The problem.
+    pub fn problem(&self) -> &ParametricQp {
+        self.active.problem()
+    }
 }

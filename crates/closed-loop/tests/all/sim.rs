@@ -294,18 +294,22 @@ fn suboptimal_trajectory_approaches_exact_as_k_grows() {
 }
 
 /// Same seed → identical trace; another seed → other w; `reseed` = a fresh build, bit for
-/// bit, also for the exact MPC whose active-set warm start must be forgotten.
+/// bit, also with the exact MPC and the MHE's exact solve (warm-started active sets).
 #[test]
 fn same_seed_gives_identical_trace() {
     let s = case_study();
-    for controller in [
-        ControllerChoice::SuboptimalMpc {
-            iterations: 10,
-            solver: Solver::Fista,
-        },
-        ControllerChoice::ExactMpc,
+    for (controller, exact_mhe) in [
+        (
+            ControllerChoice::SuboptimalMpc {
+                iterations: 10,
+                solver: Solver::Fista,
+            },
+            false,
+        ),
+        (ControllerChoice::ExactMpc, false),
+        (ControllerChoice::ExactMpc, true),
     ] {
-        let mut o = options(&s, 5, false);
+        let mut o = options(&s, 5, exact_mhe);
         o.controller = controller;
         let run = |o: &CaseStudyOptions| {
             let mut cl = build_case_study(&s, o).unwrap();

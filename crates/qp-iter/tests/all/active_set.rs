@@ -5,7 +5,7 @@
 use faer::Mat;
 use faer::prelude::Solve;
 use lti_model::BoxSet;
-use qp_iter::active_set::{ActiveSetSettings, ActiveSetSolver};
+use qp_iter::active_set::{ActiveSetSettings, ActiveSetSolver, ExactSolver};
 use qp_iter::reference::{ReferenceSettings, ReferenceSolver};
 use qp_iter::{ParametricQp, QpError};
 use rand::Rng;
@@ -324,4 +324,41 @@ fn iteration_limit_is_a_typed_error_and_the_solver_recovers() {
     let mut full = ActiveSetSolver::new(&qp, ActiveSetSettings::default()).unwrap();
     full.solve(&theta).unwrap();
     assert!(full.z().iter().all(|v| *v == 1.0));
+}
+
+#[test]
+fn exact_solver_falls_back_to_clarabel_and_counts_it() {
+    let inst = random_instance(
+        4,
+        Gen {
+            n_min: 12,
+            n_max: 12,
+            ..Gen::default()
+        },
+    );
+    let q = linear_term(&inst.qp, &inst.theta);
+    // One subspace solve is not enough from a cold start here: the active set gives up
+    // and Clarabel answers.
+    let mut starved = ExactSolver::with_settings(
+        &inst.qp,
+        ActiveSetSettings {
+            max_iter: Some(1),
+            ..ActiveSetSettings::default()
+        },
+    )
+    .unwrap();
+    let mut full = ExactSolver::new(&inst.qp).unwrap();
+    let a = starved.solve(&inst.theta).unwrap().to_vec();
+    let b = full.solve(&inst.theta).unwrap().to_vec();
+    assert_eq!((starved.fallbacks(), full.fallbacks()), (1, 0));
+    assert!(starved.last_info().is_none() && full.last_info().is_some());
+    let scale = 1.0 + norm(&b) + norm(&q);
+    assert!(dist(&a, &b) <= 1e-8 * scale, "{a:?} vs {b:?}");
+    assert!(natural_residual(&inst.qp, &q, &b) <= 1e-10 * scale);
+    assert!(
+        matches!(
+            full.solve(&[f64::NAN; 4][..inst.qp.n_theta()]),
+            Err(QpError::Model(_))
+        ) || inst.qp.n_theta() == 0
+    );
 }

@@ -25,9 +25,10 @@
 //! needs no trait implementation from users.
 //!
 //! **Allocation.** After construction a step allocates nothing provided the estimator and
-//! the controller do not (true for `MheEstimator` with the exact solve off,
-//! `SuboptimalMpc`, `SaturatedLqr`, and `ExactMpc` with its default active-set backend;
-//! not for the MHE's exact solve or `ExactMpc`'s Clarabel backend, which call Clarabel). Errors are the exception: they are built once, when the run stops.
+//! the controller do not: true for `MheEstimator` (its exact solve for ε_t included),
+//! `SuboptimalMpc`, `SaturatedLqr` and `ExactMpc` with its default active-set backend; not
+//! for `ExactMpc`'s Clarabel backend or a Clarabel fallback. Errors are the exception:
+//! they are built once, when the run stops.
 //!
 //! **Case study.** [`build_case_study`] turns a [`Scenario`] (e.g. `scenarios/case-study.toml`)
 //! into a ready [`CaseStudyLoop`], dispatching over the solvers with enums.
@@ -654,7 +655,7 @@ pub struct CaseStudyOptions {
     pub solver: Solver,
     /// K ≥ 1 iterations of Φ per time step.
     pub iterations: usize,
-    /// Also solve every ℙ_t exactly (Clarabel) and record ε_t (allocates per step).
+    /// Also solve every ℙ_t exactly (warm-started active set) and record ε_t.
     pub exact_mhe_solve: bool,
     /// The controller.
     pub controller: ControllerChoice,

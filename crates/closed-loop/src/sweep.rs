@@ -312,8 +312,8 @@ pub struct SweepConfig {
     pub steps: Option<usize>,
     /// Base seed of the run seeds (`base_seed`; default: the scenario's `noise.seed`).
     pub base_seed: Option<u64>,
-    /// Also solve every ℙ_t exactly (Clarabel) to record ε_t (`exact_mhe_solve`, default
-    /// false: it costs one interior-point solve per step).
+    /// Also solve every ℙ_t exactly to record ε_t (`exact_mhe_solve`, default false: it
+    /// adds one active-set solve of the MHE QP per step).
     pub exact_mhe_solve: bool,
     /// The controller π (`controller`: `"exact-mpc"` (default), `"saturated-lqr"`, or
     /// `{ kind = "suboptimal-mpc", iterations = Kc, solver = "pg" }`).

@@ -3,7 +3,7 @@
 //! The moving horizon estimator of Yang, Manzie, Pu (arXiv 2304.06216), Section II-B
 //! (eqs. 8–10) and Alg. 1 steps 1–3: the MHE problem ℙ_t as a parametric QP, solved with
 //! exactly K warm-started iterations of any iteration map Φ ([`qp_iter::IterationMap`]),
-//! optionally also exactly (Clarabel) to record ε_t; and a Kalman filter baseline.
+//! optionally also exactly (`qp_iter::active_set`) to record ε_t; and a Kalman filter baseline.
 //!
 //! - [`MheProblem`] / [`MheWindow`]: ℙ_t for every window length m = 0..M, with H_c, F_c,
 //!   the paper's H_t, T, z̃_t, the weight matrix W_m, H̄ and L_Φ (certified and sampled).

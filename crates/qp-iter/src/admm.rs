@@ -54,7 +54,7 @@ use faer::{Mat, Side};
 use crate::IterationMap;
 use crate::certificate::{BoundedQuantity, CertNorm, Certificate};
 use crate::error::{QpError, Result};
-use crate::kernel::{AlignedVec, Kernel, PaddedSymmetric};
+use crate::kernel::{Kernel, PaddedSymmetric, Vectors};
 use crate::problem::ParametricQp;
 
 /// Penalty rule of [`Admm`].
@@ -94,27 +94,36 @@ pub struct Admm {
     m_rho: PaddedSymmetric,
     /// (H + ρI)⁻¹, row-major (for (H + ρI)⁻¹q at load time).
     m_inv: Vec<f64>,
-    /// The box, padded with zeros.
-    lower: AlignedVec,
-    upper: AlignedVec,
     cert: Certificate,
     split_cert: Certificate,
     kernel: Kernel,
 }
 
 /// State of [`Admm`]: z, split variable v, unscaled dual y, loaded q and (H + ρI)⁻¹q, the
-/// next product's input t = v − y/ρ and the buffer the fused step writes t⁺ into (all
-/// padded to the kernels' length, see [`crate::kernel::padded_len`], padding zero).
+/// next product's input t = v − y/ρ and the buffer the fused step writes t⁺ into (the two
+/// swap roles every step); padded to the kernels' length (see
+/// [`crate::kernel::padded_len`], padding zero), in one allocation.
 #[derive(Debug, Clone)]
 pub struct AdmmState {
-    z: AlignedVec,
-    v: AlignedVec,
-    y: AlignedVec,
-    q: AlignedVec,
-    mq: AlignedVec,
-    /// t = v − y/ρ (= 2v − s for the DR variable s), kept in step with v and y.
-    t: AlignedVec,
-    t_next: AlignedVec,
+    /// [z, v, y, q, m_q, l, u, t_a, t_b] (l, u: the box, copied so that everything the
+    /// step touches but the matrix is one block); t = v − y/ρ (= 2v − s for the DR
+    /// variable s), kept in step with v and y, is t_a when `cur` = 0, t_b when 1.
+    v: Vectors<9>,
+    cur: usize,
+}
+
+/// Indices of z, v, y and the box in [`AdmmState`]'s vectors.
+const Z: usize = 0;
+const V: usize = 1;
+const Y: usize = 2;
+const LO: usize = 5;
+const HI: usize = 6;
+
+impl AdmmState {
+    /// The first n entries of vector `i`.
+    fn head(&self, i: usize, n: usize) -> &[f64] {
+        &self.v.get(i)[..n]
+    }
 }
 
 impl Admm {
@@ -218,8 +227,6 @@ impl Admm {
             alpha,
             m_rho,
             m_inv,
-            lower: AlignedVec::padded(qp.zset().lower()),
-            upper: AlignedVec::padded(qp.zset().upper()),
             qp,
             cert,
             split_cert,
@@ -244,15 +251,15 @@ impl Admm {
 
     /// Writes the DR variable s = v + y/ρ (the quantity of [`Admm::splitting_certificate`]).
     pub fn splitting_variable(&self, state: &AdmmState, out: &mut [f64]) {
-        let ir = 1.0 / self.rho;
-        for ((o, v), y) in out.iter_mut().zip(&state.v[..]).zip(&state.y[..]) {
+        let (ir, n) = (1.0 / self.rho, self.qp.n());
+        for ((o, v), y) in out.iter_mut().zip(state.head(V, n)).zip(state.head(Y, n)) {
             *o = v + ir * y;
         }
     }
 
     /// The unprojected primal iterate z (in Z only in the limit).
     pub fn primal_z<'s>(&self, state: &'s AdmmState) -> &'s [f64] {
-        &state.z[..self.qp.n()]
+        state.head(Z, self.qp.n())
     }
 
     /// Euclidean distance of z to Z: how far the unprojected iterate is from feasible.
@@ -270,7 +277,7 @@ impl Admm {
     pub fn primal_residual(&self, state: &AdmmState) -> f64 {
         self.primal_z(state)
             .iter()
-            .zip(&state.v[..])
+            .zip(state.head(V, self.qp.n()))
             .map(|(z, v)| (z - v) * (z - v))
             .sum::<f64>()
             .sqrt()
@@ -278,51 +285,59 @@ impl Admm {
 
     /// Sets s = z⁰ + y⁰/ρ, v = Π_Z(s), y = ρ(s − v) and the step's input t = v − y/ρ =
     /// 2v − s (the formula the fused step uses for t⁺), keeping z = z⁰ (y⁰ already in
-    /// `state.y`).
-    fn set_from_dr(&self, s: &mut AdmmState) {
-        let ir = 1.0 / self.rho;
-        // `t_next` holds s here (scratch: the next step overwrites it). Over the padded
-        // length: zero padding in z and y gives zero padding everywhere.
-        for ((dr, z), y) in s.t_next.iter_mut().zip(&s.z[..]).zip(&s.y[..]) {
-            *dr = z + ir * y;
+    /// the state's y).
+    fn set_from_dr(&self, st: &mut AdmmState) {
+        let (ir, rho, n) = (1.0 / self.rho, self.rho, self.qp.n());
+        let [z, v, y, _, _, _, _, ta, tb] = st.v.all_mut();
+        // Over the padded length: zero padding in z and y gives zero padding everywhere.
+        // `dr` (the idle t buffer) holds s here; the next step overwrites it.
+        let (t, dr) = if st.cur == 0 { (ta, tb) } else { (tb, ta) };
+        for ((d, z), y) in dr.iter_mut().zip(&*z).zip(&*y) {
+            *d = z + ir * y;
         }
-        s.v.copy_from_slice(&s.t_next);
-        self.qp.project(&mut s.v[..self.qp.n()]);
-        for (((y, t), dr), v) in
-            s.y.iter_mut()
-                .zip(&mut s.t[..])
-                .zip(&s.t_next[..])
-                .zip(&s.v[..])
-        {
-            *y = self.rho * (dr - v);
-            *t = 2.0 * v - dr;
+        v.copy_from_slice(dr);
+        self.qp.project(&mut v[..n]);
+        for (((y, t), d), v) in y.iter_mut().zip(t).zip(&*dr).zip(&*v) {
+            *y = rho * (d - v);
+            *t = 2.0 * v - d;
         }
     }
 
     /// z = z⁰ (warm) or Π_Z(0) (cold), y = y⁰ or the gradient dual, padding zero.
-    fn start(&self, s: &mut AdmmState, z0: Option<&[f64]>, y0: Option<&[f64]>) {
+    fn start(&self, st: &mut AdmmState, z0: Option<&[f64]>, y0: Option<&[f64]>) {
         let n = self.qp.n();
-        s.z.fill(0.0);
-        s.y.fill(0.0);
+        let [z, _, y, q, ..] = st.v.all_mut();
+        z.fill(0.0);
+        y.fill(0.0);
+        let (z, y) = (&mut z[..n], &mut y[..n]);
         match z0 {
-            Some(z0) => s.z[..n].copy_from_slice(z0),
-            None => self.qp.project(&mut s.z[..n]),
+            Some(z0) => z.copy_from_slice(z0),
+            None => self.qp.project(z),
         }
         match y0 {
-            Some(y0) => s.y[..n].copy_from_slice(y0),
-            None => self.gradient_dual(s),
+            Some(y0) => y.copy_from_slice(y0),
+            None => {
+                // y = −(Hz + q): the gradient dual.
+                self.kernel.matvec_symmetric(self.qp.h_row_major(), n, z, y);
+                for (y, q) in y.iter_mut().zip(&q[..n]) {
+                    *y = -(*y + q);
+                }
+            }
         }
-        self.set_from_dr(s);
+        self.set_from_dr(st);
     }
 
-    /// y = −(Hz + q) for the current z (the gradient dual).
-    fn gradient_dual(&self, s: &mut AdmmState) {
+    /// Loads q = q₀ + Fθ (or q₀ when `theta` is `None`) and m_q = (H + ρI)⁻¹q.
+    fn load_q(&self, st: &mut AdmmState, theta: Option<&[f64]>) {
         let n = self.qp.n();
-        self.kernel
-            .matvec_symmetric(self.qp.h_row_major(), n, &s.z[..n], &mut s.y[..n]);
-        for (y, q) in s.y[..n].iter_mut().zip(&s.q[..n]) {
-            *y = -(*y + q);
+        let [_, _, _, q, mq, ..] = st.v.all_mut();
+        let q = &mut q[..n];
+        match theta {
+            Some(theta) => self.qp.linear_term(theta, q),
+            None => q.copy_from_slice(self.qp.q0()),
         }
+        self.kernel
+            .matvec_symmetric(&self.m_inv, n, q, &mut mq[..n]);
     }
 }
 
@@ -336,27 +351,19 @@ impl IterationMap for Admm {
         &self.qp
     }
     fn new_state(&self) -> AdmmState {
-        let n = self.qp.n();
-        let zeros = || AlignedVec::zeros(self.m_rho.ld());
         let mut s = AdmmState {
-            z: zeros(),
-            v: zeros(),
-            y: zeros(),
-            q: AlignedVec::padded(self.qp.q0()),
-            mq: zeros(),
-            t: zeros(),
-            t_next: zeros(),
+            v: Vectors::zeros(self.m_rho.ld()),
+            cur: 0,
         };
-        self.kernel
-            .matvec_symmetric(&self.m_inv, n, &s.q[..n], &mut s.mq[..n]);
+        let n = self.qp.n();
+        s.v.get_mut(LO)[..n].copy_from_slice(self.qp.zset().lower());
+        s.v.get_mut(HI)[..n].copy_from_slice(self.qp.zset().upper());
+        self.load_q(&mut s, None);
         self.cold_start(&mut s);
         s
     }
     fn load(&self, state: &mut AdmmState, theta: &[f64]) {
-        let n = self.qp.n();
-        self.qp.linear_term(theta, &mut state.q[..n]);
-        self.kernel
-            .matvec_symmetric(&self.m_inv, n, &state.q[..n], &mut state.mq[..n]);
+        self.load_q(state, Some(theta));
     }
     /// Warm start from z⁰ and, optionally, the unscaled multiplier y⁰ of z = v.
     /// Without y⁰ the dual is set to −(Hz⁰ + q) for the *loaded* q (load θ first), which
@@ -371,27 +378,30 @@ impl IterationMap for Admm {
     #[inline]
     fn step(&self, s: &mut AdmmState) {
         // One pass over ρ(H + ρI)⁻¹ (exactly symmetric, see `new`): z⁺ = ρ(H + ρI)⁻¹t −
-        // (H + ρI)⁻¹q with t = v − y/ρ, then w, v⁺, y⁺ and t⁺ = 2v⁺ − w row by row.
+        // (H + ρI)⁻¹q with t = v − y/ρ, then w, v⁺, y⁺ and t⁺ = 2v⁺ − w row by row, t⁺
+        // into the idle t buffer, which becomes t.
+        let [z, v, y, _, mq, lo, hi, ta, tb] = s.v.all_mut();
+        let (t, t_next) = if s.cur == 0 { (ta, tb) } else { (tb, ta) };
         self.kernel.admm_step_padded(
             &self.m_rho,
-            &s.t,
-            &s.mq,
+            t,
+            mq,
             self.alpha,
             self.rho,
-            &self.lower,
-            &self.upper,
-            &mut s.z,
-            &mut s.v,
-            &mut s.y,
-            &mut s.t_next,
+            lo,
+            hi,
+            z,
+            v,
+            y,
+            t_next,
         );
-        std::mem::swap(&mut s.t, &mut s.t_next);
+        s.cur ^= 1;
     }
     fn iterate<'s>(&self, state: &'s AdmmState) -> &'s [f64] {
-        &state.v[..self.qp.n()]
+        state.head(V, self.qp.n())
     }
     fn dual<'s>(&self, state: &'s AdmmState) -> Option<&'s [f64]> {
-        Some(&state.y[..self.qp.n()])
+        Some(state.head(Y, self.qp.n()))
     }
     fn certificate(&self) -> &Certificate {
         &self.cert
@@ -482,7 +492,7 @@ mod tests {
                     admm.step(&mut s);
                 }
                 admm.warm_start(&mut s, &z0, dual);
-                let (v_start, y_start) = (admm.iterate(&s).to_vec(), s.y[..qp.n()].to_vec());
+                let (v_start, y_start) = (admm.iterate(&s).to_vec(), s.head(Y, qp.n()).to_vec());
                 for k in [1, 2, 7] {
                     let mut t = s.clone();
                     for _ in 0..k {
@@ -497,14 +507,15 @@ mod tests {
                         y_start.clone(),
                         k,
                     );
+                    let (tv, ty) = (t.head(V, qp.n()), t.head(Y, qp.n()));
                     for i in 0..qp.n() {
                         assert!(
-                            (t.v[i] - v[i]).abs() <= 1e-12 && (t.y[i] - y[i]).abs() <= 1e-11,
+                            (tv[i] - v[i]).abs() <= 1e-12 && (ty[i] - y[i]).abs() <= 1e-11,
                             "α = {relaxation}, dual {}, k = {k}, i = {i}: v {} vs {}, y {} vs {}",
                             dual.is_some(),
-                            t.v[i],
+                            tv[i],
                             v[i],
-                            t.y[i],
+                            ty[i],
                             y[i]
                         );
                     }

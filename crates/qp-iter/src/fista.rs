@@ -42,9 +42,13 @@
 
 use crate::IterationMap;
 use crate::certificate::{BoundedQuantity, CertNorm, Certificate};
-use crate::kernel::AlignedVec;
+use crate::kernel::Vectors;
 use crate::pg::GradientSetup;
 use crate::problem::ParametricQp;
+
+/// Indices of z and q in [`FistaState`]'s vectors.
+const Z: usize = 0;
+const Q: usize = 3;
 
 /// Fast projected gradient with constant momentum β = (√κ − 1)/(√κ + 1) and step 1/L.
 #[derive(Debug, Clone)]
@@ -55,15 +59,14 @@ pub struct Fista {
     cert: Certificate,
 }
 
-/// State of [`Fista`]: iterate x_k, extrapolated point y_k, the buffer the fused step
-/// writes y_{k+1} into (swapped with y afterwards), loaded q (all padded to the kernels'
-/// length, see [`crate::kernel::padded_len`]).
+/// State of [`Fista`]: iterate x_k, extrapolated point y_k and the buffer the fused step
+/// writes y_{k+1} into (the two swap roles every step), loaded q (padded to the kernels'
+/// length, see [`crate::kernel::padded_len`], in one allocation).
 #[derive(Debug, Clone)]
 pub struct FistaState {
-    z: AlignedVec,
-    y: AlignedVec,
-    y_next: AlignedVec,
-    q: AlignedVec,
+    /// [z, y_a, y_b, q]; y_k is y_a when `cur` = 0, y_b when 1.
+    v: Vectors<4>,
+    cur: usize,
     /// True right after a warm/cold start: the next step is the plain PG step x₀ = T(z⁰).
     restart: bool,
 }
@@ -128,7 +131,8 @@ impl Fista {
 
     /// y = z⁰ and the restart flag: the next step is T(z⁰) with zero momentum.
     fn reset(&self, s: &mut FistaState) {
-        s.y.copy_from_slice(&s.z);
+        let [z, ya, yb, _] = s.v.all_mut();
+        if s.cur == 0 { ya } else { yb }.copy_from_slice(z);
         s.restart = true;
     }
 }
@@ -144,49 +148,40 @@ impl IterationMap for Fista {
     }
     fn new_state(&self) -> FistaState {
         let mut s = FistaState {
-            z: self.g.zeros(),
-            y: self.g.zeros(),
-            y_next: self.g.zeros(),
-            q: self.g.q0(),
+            v: self.g.vectors(Q),
+            cur: 0,
             restart: true,
         };
         self.cold_start(&mut s);
         s
     }
     fn load(&self, state: &mut FistaState, theta: &[f64]) {
-        self.g.load(&mut state.q, theta);
+        self.g.load(state.v.get_mut(Q), theta);
     }
     fn warm_start(&self, state: &mut FistaState, z0: &[f64], _dual: Option<&[f64]>) {
-        self.g.start(&mut state.z, Some(z0));
+        self.g.start(state.v.get_mut(Z), Some(z0));
         self.reset(state);
     }
     fn cold_start(&self, state: &mut FistaState) {
-        self.g.start(&mut state.z, None);
+        self.g.start(state.v.get_mut(Z), None);
         self.reset(state);
     }
     #[inline]
     fn step(&self, s: &mut FistaState) {
         // One pass over the padded H: x_{k+1} = T(y_k) over x_k in `z`, y_{k+1} = x_{k+1}
-        // + b(x_{k+1} − x_k) into `y_next`. On the restart step y = z⁰ and b = 0, so the
-        // step is exactly the PG step x₀ = T(z⁰) and y₀ = x₀ (the momentum is reset).
+        // + b(x_{k+1} − x_k) into the other y buffer. On the restart step y = z⁰ and b = 0,
+        // so the step is exactly the PG step x₀ = T(z⁰) and y₀ = x₀ (momentum reset).
         let b = if s.restart { 0.0 } else { self.beta };
         s.restart = false;
         let g = &self.g;
-        g.kernel.fista_step_padded(
-            &g.h,
-            &s.y,
-            &s.q,
-            self.inv_l,
-            &g.lower,
-            &g.upper,
-            b,
-            &mut s.z,
-            &mut s.y_next,
-        );
-        std::mem::swap(&mut s.y, &mut s.y_next);
+        let [z, ya, yb, q] = s.v.all_mut();
+        let (y, y_next) = if s.cur == 0 { (ya, yb) } else { (yb, ya) };
+        g.kernel
+            .fista_step_padded(&g.h, y, q, self.inv_l, &g.lower, &g.upper, b, z, y_next);
+        s.cur ^= 1;
     }
     fn iterate<'s>(&self, state: &'s FistaState) -> &'s [f64] {
-        self.g.head(&state.z)
+        self.g.head(state.v.get(Z))
     }
     fn certificate(&self) -> &Certificate {
         &self.cert
@@ -238,7 +233,7 @@ mod tests {
         let mut s = f.new_state();
         let theta = [0.3, -1.1];
         f.load(&mut s, &theta);
-        let q = s.q[..7].to_vec();
+        let q = s.v.get(Q)[..7].to_vec();
         let z0: Vec<f64> = (0..7).map(|i| 0.9 - 0.3 * i as f64).collect(); // outside Z
         for start in 0..3 {
             match start {
@@ -250,7 +245,7 @@ mod tests {
                     f.warm_start(&mut s, &z0, None);
                 }
             }
-            let start_point = s.z.clone();
+            let start_point = f.iterate(&s).to_vec();
             // x₀ = T(z⁰) and, with y₀ = x₀ (momentum reset), x₁ = T(x₀): bit for bit.
             let x0 = pg_step(&f, &start_point, &q);
             f.step(&mut s);

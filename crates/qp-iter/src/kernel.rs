@@ -453,6 +453,49 @@ impl std::fmt::Debug for AlignedVec {
     }
 }
 
+/// `K` vectors of `ld` entries each, back to back in one [`AlignedVec`]: a method's state.
+/// One allocation, so the vectors cannot alias one another modulo 4 KiB, and a step swaps
+/// roles by an index instead of moving buffer handles through memory (measured: swapping
+/// two `AlignedVec`s per step cost ≈ 3 ns at n = 30).
+#[derive(Debug, Clone)]
+pub(crate) struct Vectors<const K: usize> {
+    buf: AlignedVec,
+    ld: usize,
+}
+
+impl<const K: usize> Vectors<K> {
+    /// `K` zero vectors of `ld` entries.
+    pub(crate) fn zeros(ld: usize) -> Self {
+        Self {
+            buf: AlignedVec::zeros(K * ld),
+            ld,
+        }
+    }
+
+    /// Vector `i` (< K).
+    #[inline]
+    pub(crate) fn get(&self, i: usize) -> &[f64] {
+        &self.buf[i * self.ld..(i + 1) * self.ld]
+    }
+
+    /// Vector `i` (< K), mutable.
+    #[inline]
+    pub(crate) fn get_mut(&mut self, i: usize) -> &mut [f64] {
+        &mut self.buf[i * self.ld..(i + 1) * self.ld]
+    }
+
+    /// All `K` vectors, mutable (disjoint).
+    #[inline]
+    pub(crate) fn all_mut(&mut self) -> [&mut [f64]; K] {
+        let (ld, base) = (self.ld, self.buf.as_mut_ptr());
+        // SAFETY: the buffer holds exactly K·ld entries (set at construction, never
+        // resized), so vector i, entries i·ld .. (i+1)·ld, lies inside it; the K ranges
+        // are disjoint and all derive from the one `&mut self` borrow. (Pointer
+        // arithmetic instead of `chunks_exact_mut`: no per-step checks in the hot path.)
+        std::array::from_fn(|i| unsafe { std::slice::from_raw_parts_mut(base.add(i * ld), ld) })
+    }
+}
+
 /// A symmetric n × n matrix laid out for the padded kernels ([`Kernel::pg_step_padded`]
 /// and its siblings): column j at offset j·ld with ld = [`padded_len`]`(n)`, rows n .. ld
 /// zero, the first column 64-byte aligned. Every column is ld/4 whole SIMD vectors, so the
@@ -1335,9 +1378,10 @@ mod avx2_sym {
 
 /// Kernels on the padded layout ([`PaddedSymmetric`]): every column is ld/4 whole vectors,
 /// 32-byte aligned when the storage is an [`AlignedVec`], so there are no masks, tails or
-/// cache-line-splitting loads. Rows go in panels of up to eight vectors (32 rows), one
-/// accumulator per vector: eight independent FMA chains cover the FMA latency on two pipes
-/// (the chain of a panel is as long as its issue time), as in the reference kernel. The
+/// cache-line-splitting loads. Rows go in panels of 8 to 15 vectors (see [`run`]), one
+/// accumulator per vector: eight or more independent FMA chains cover the FMA latency on
+/// two pipes (the chain of a panel is no longer than its issue time), as in the
+/// reference kernel. The
 /// epilogue runs on each finished vector, its parts that do not depend on the product
 /// formed first, so a method's whole step is one pass over the matrix.
 #[cfg(target_arch = "x86_64")]
@@ -1470,22 +1514,28 @@ mod avx2_pad {
                     let (mq, rho) = (ld(c.q, r), _mm256_set1_pd(c.b));
                     let ir = _mm256_set1_pd(1.0 / c.b);
                     let y = ld(c.dual, r);
-                    let w = match E {
-                        ADMM1 => _mm256_add_pd(s, _mm256_fmsub_pd(y, ir, mq)),
+                    let (lo, hi) = (ld(c.lo, r), ld(c.hi, r));
+                    let base = match E {
+                        ADMM1 => _mm256_fmsub_pd(y, ir, mq),
                         ADMM2 => {
                             let vq = _mm256_fmadd_pd(_mm256_set1_pd(2.0), mq, ld(c.v, r));
-                            let base = _mm256_fmsub_pd(y, ir, vq);
-                            _mm256_fmadd_pd(_mm256_set1_pd(2.0), s, base)
+                            _mm256_fmsub_pd(y, ir, vq)
                         }
                         _ => {
-                            let a = _mm256_set1_pd(c.a);
                             let av = _mm256_mul_pd(_mm256_set1_pd(1.0 - c.a), ld(c.v, r));
-                            let base = _mm256_fmadd_pd(y, ir, _mm256_fnmadd_pd(a, mq, av));
-                            _mm256_fmadd_pd(a, s, base)
+                            let aq = _mm256_fnmadd_pd(_mm256_set1_pd(c.a), mq, av);
+                            _mm256_fmadd_pd(y, ir, aq)
                         }
                     };
-                    let vp = clamp(w, ld(c.lo, r), ld(c.hi, r));
-                    st(c.next, r, _mm256_sub_pd(_mm256_add_pd(vp, vp), w));
+                    let w = match E {
+                        ADMM1 => _mm256_add_pd(s, base),
+                        ADMM2 => _mm256_fmadd_pd(_mm256_set1_pd(2.0), s, base),
+                        _ => _mm256_fmadd_pd(_mm256_set1_pd(c.a), s, base),
+                    };
+                    // t⁺ = 2v⁺ − w, the next step's input (the only result on the path to
+                    // it), first and in one operation (2v⁺ is exact).
+                    let vp = clamp(w, lo, hi);
+                    st(c.next, r, _mm256_fmsub_pd(_mm256_set1_pd(2.0), vp, w));
                     st(c.dual, r, _mm256_mul_pd(rho, _mm256_sub_pd(w, vp)));
                     st(c.v, r, vp);
                     st(c.out, r, _mm256_sub_pd(s, mq));
@@ -1515,13 +1565,37 @@ mod avx2_pad {
                 }
                 col = col.add(c.ld);
             }
-            for (v, a) in acc.iter().enumerate() {
-                epilogue::<E>(c, r0 + 4 * v, *a);
+            // Written out per vector (not a loop LLVM may keep rolled for a large
+            // epilogue, which would move the accumulators through the stack): constant
+            // indices, the branches beyond V removed at compile time.
+            macro_rules! each_vector {
+                ($($v:literal)*) => {$(
+                    if let Some(&a) = acc.get($v) {
+                        epilogue::<E>(c, r0 + 4 * $v, a);
+                    }
+                )*};
             }
+            each_vector!(0 1 2 3 4 5 6 7 8 9 10 11 12 13 14);
         }
     }
 
-    /// All ld rows: panels of 32, then one panel for the remaining < 32.
+    /// [`panel`] compiled on its own: each panel size gets its own register allocation
+    /// (inlined into one dispatcher, the large epilogues made LLVM spill accumulators).
+    ///
+    /// # Safety
+    /// As [`panel`].
+    #[inline(never)]
+    #[target_feature(enable = "avx2,fma")]
+    unsafe fn own<const V: usize, const E: u8>(c: &Ctx, r0: usize) {
+        // SAFETY: forwarded contract.
+        unsafe { panel::<V, E>(c, r0) }
+    }
+
+    /// All ld rows: panels of eight vectors (32 rows) while more than 15 vectors are
+    /// left, then one panel for the remaining 1 ..= 15 vectors. Every panel but a lone
+    /// small one has ≥ 8 independent chains, so its chain latency never exceeds its issue
+    /// time; up to 15 accumulators plus the broadcast fit the 16 ymm registers (n = 49:
+    /// one 13-vector panel instead of 8 + 5, whose second panel would wait on latency).
     ///
     /// # Safety
     /// AVX2 and FMA available; n ≥ 1; ld a multiple of 4 with ld ≥ n; `h` valid for n·ld
@@ -1531,23 +1605,32 @@ mod avx2_pad {
     /// another written range.
     #[target_feature(enable = "avx2,fma")]
     pub(super) unsafe fn run<const E: u8>(c: Ctx) {
-        let mut r0 = 0;
-        // SAFETY (whole body): every panel ends at row ≤ ld; the caller's contract covers
-        // the pointers.
+        let (mut r0, mut left) = (0, c.ld / 4);
+        // SAFETY (whole body): every panel ends at row r0 + 4·V ≤ ld; the caller's
+        // contract covers the pointers.
         unsafe {
-            while c.ld - r0 >= 32 {
-                panel::<8, E>(&c, r0);
+            while left > 15 {
+                own::<8, E>(&c, r0);
                 r0 += 32;
+                left -= 8;
             }
-            match (c.ld - r0) / 4 {
+            match left {
                 0 => {}
-                1 => panel::<1, E>(&c, r0),
-                2 => panel::<2, E>(&c, r0),
-                3 => panel::<3, E>(&c, r0),
-                4 => panel::<4, E>(&c, r0),
-                5 => panel::<5, E>(&c, r0),
-                6 => panel::<6, E>(&c, r0),
-                _ => panel::<7, E>(&c, r0),
+                1 => own::<1, E>(&c, r0),
+                2 => own::<2, E>(&c, r0),
+                3 => own::<3, E>(&c, r0),
+                4 => own::<4, E>(&c, r0),
+                5 => own::<5, E>(&c, r0),
+                6 => own::<6, E>(&c, r0),
+                7 => own::<7, E>(&c, r0),
+                8 => own::<8, E>(&c, r0),
+                9 => own::<9, E>(&c, r0),
+                10 => own::<10, E>(&c, r0),
+                11 => own::<11, E>(&c, r0),
+                12 => own::<12, E>(&c, r0),
+                13 => own::<13, E>(&c, r0),
+                14 => own::<14, E>(&c, r0),
+                _ => own::<15, E>(&c, r0),
             }
         }
     }
@@ -1928,6 +2011,26 @@ mod tests {
             assert_eq!((v.len(), v.as_ptr() as usize % 64), (n, 0));
         }
         assert!(AlignedVec::zeros(0).is_empty());
+    }
+
+    #[test]
+    fn state_vectors_are_disjoint_consecutive_and_aligned() {
+        for ld in [0, 4, 32] {
+            let mut v = Vectors::<3>::zeros(ld);
+            for (i, x) in v.all_mut().into_iter().enumerate() {
+                assert_eq!(x.len(), ld);
+                x.fill(i as f64);
+            }
+            for i in 0..3 {
+                assert!(
+                    v.get(i).iter().all(|&x| x == i as f64),
+                    "ld = {ld}, vector {i}"
+                );
+                v.get_mut(i).fill(-1.0);
+            }
+            assert!(v.buf.iter().all(|&x| x == -1.0) && v.buf.len() == 3 * ld);
+            assert_eq!(v.buf.as_ptr() as usize % 64, 0);
+        }
     }
 
     /// Every padded kernel against the naive product and the unfused formulas, on every

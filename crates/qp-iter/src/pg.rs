@@ -19,7 +19,7 @@
 use crate::IterationMap;
 use crate::certificate::{BoundedQuantity, CertNorm, Certificate};
 use crate::error::{QpError, Result};
-use crate::kernel::{AlignedVec, Kernel, PaddedSymmetric};
+use crate::kernel::{AlignedVec, Kernel, PaddedSymmetric, Vectors};
 use crate::problem::ParametricQp;
 
 /// Step-size rule of [`ProjectedGradient`].
@@ -59,14 +59,11 @@ impl GradientSetup {
         }
     }
 
-    /// A padded zero vector (ld entries).
-    pub(crate) fn zeros(&self) -> AlignedVec {
-        AlignedVec::zeros(self.h.ld())
-    }
-
-    /// The padded linear term of θ = 0, q₀.
-    pub(crate) fn q0(&self) -> AlignedVec {
-        AlignedVec::padded(self.qp.q0())
+    /// `K` padded zero vectors; vector `q` holds the padded q₀ (the linear term of θ = 0).
+    pub(crate) fn vectors<const K: usize>(&self, q: usize) -> Vectors<K> {
+        let mut v = Vectors::zeros(self.h.ld());
+        v.get_mut(q)[..self.qp.n()].copy_from_slice(self.qp.q0());
+        v
     }
 
     /// q = q₀ + Fθ into the first n entries (the padding stays zero).
@@ -101,14 +98,18 @@ pub struct ProjectedGradient {
     cert: Certificate,
 }
 
-/// State of [`ProjectedGradient`]: iterate, loaded linear term, the next iterate's buffer
-/// (all padded to the kernels' length, see [`crate::kernel::padded_len`]).
+/// State of [`ProjectedGradient`]: the iterate and the next iterate's buffer, which swap
+/// roles every step, and the loaded linear term (padded to the kernels' length, see
+/// [`crate::kernel::padded_len`], in one allocation).
 #[derive(Debug, Clone)]
 pub struct PgState {
-    z: AlignedVec,
-    q: AlignedVec,
-    next: AlignedVec,
+    /// [z_a, z_b, q]; the iterate is z_a when `cur` = 0, z_b when 1.
+    v: Vectors<3>,
+    cur: usize,
 }
+
+/// Index of q in [`PgState`]'s vectors.
+const Q: usize = 2;
 
 impl ProjectedGradient {
     /// Sets the method up for `qp` with the given step rule.
@@ -180,40 +181,34 @@ impl IterationMap for ProjectedGradient {
     }
     fn new_state(&self) -> PgState {
         let mut s = PgState {
-            z: self.g.zeros(),
-            q: self.g.q0(),
-            next: self.g.zeros(),
+            v: self.g.vectors(Q),
+            cur: 0,
         };
         self.cold_start(&mut s);
         s
     }
     fn load(&self, state: &mut PgState, theta: &[f64]) {
-        self.g.load(&mut state.q, theta);
+        self.g.load(state.v.get_mut(Q), theta);
     }
     fn warm_start(&self, state: &mut PgState, z0: &[f64], _dual: Option<&[f64]>) {
-        self.g.start(&mut state.z, Some(z0));
+        self.g.start(state.v.get_mut(state.cur), Some(z0));
     }
     fn cold_start(&self, state: &mut PgState) {
-        self.g.start(&mut state.z, None);
+        self.g.start(state.v.get_mut(state.cur), None);
     }
     #[inline]
     fn step(&self, s: &mut PgState) {
         // Fused z⁺ = Π_Z(z − α(Hz + q)) in one pass over the padded H (NaN-preserving
-        // clamp), then a pointer swap: no copy, no allocation.
+        // clamp) into the other buffer, which becomes the iterate: no copy, no allocation.
         let g = &self.g;
-        g.kernel.pg_step_padded(
-            &g.h,
-            &s.z,
-            &s.q,
-            self.alpha,
-            &g.lower,
-            &g.upper,
-            &mut s.next,
-        );
-        std::mem::swap(&mut s.z, &mut s.next);
+        let [a, b, q] = s.v.all_mut();
+        let (z, next) = if s.cur == 0 { (a, b) } else { (b, a) };
+        g.kernel
+            .pg_step_padded(&g.h, z, q, self.alpha, &g.lower, &g.upper, next);
+        s.cur ^= 1;
     }
     fn iterate<'s>(&self, state: &'s PgState) -> &'s [f64] {
-        self.g.head(&state.z)
+        self.g.head(state.v.get(state.cur))
     }
     fn certificate(&self) -> &Certificate {
         &self.cert

@@ -99,30 +99,44 @@ pub struct Admm {
     kernel: Kernel,
 }
 
-/// State of [`Admm`]: z, split variable v, unscaled dual y, loaded q and (H + ρI)⁻¹q, the
+/// State of [`Admm`]: split variable v, unscaled dual y, loaded q and (H + ρI)⁻¹q, the
 /// next product's input t = v − y/ρ and the buffer the fused step writes t⁺ into (the two
-/// swap roles every step); padded to the kernels' length (see
-/// [`crate::kernel::padded_len`], padding zero), in one allocation.
+/// swap roles every step), the box (copied, so that everything the step touches but the
+/// matrix is one block), and what the unprojected z is made of; padded to the kernels'
+/// length (see [`crate::kernel::padded_len`], padding zero), in one allocation.
+///
+/// z is not stored by the step (one store stream less): after a step it is Mt − m_q for
+/// the step's input t, which stays in the idle t buffer until the next step, and the m_q
+/// the step used (copied aside if θ is loaded in between).
 #[derive(Debug, Clone)]
 pub struct AdmmState {
-    /// [z, v, y, q, m_q, l, u, t_a, t_b] (l, u: the box, copied so that everything the
-    /// step touches but the matrix is one block); t = v − y/ρ (= 2v − s for the DR
-    /// variable s), kept in step with v and y, is t_a when `cur` = 0, t_b when 1.
-    v: Vectors<9>,
+    /// [z⁰, v, y, q, m_q, l, u, m_q of the last step, t_a, t_b]; t = v − y/ρ (= 2v − s
+    /// for the DR variable s), kept in step with v and y, is t_a when `cur` = 0, t_b
+    /// when 1.
+    v: Vectors<10>,
     cur: usize,
+    /// `None`: z is the start point in vector `Z`; `Some(i)`: z = M t_idle − vector i.
+    z_from: Option<usize>,
 }
 
-/// Indices of z, v, y and the box in [`AdmmState`]'s vectors.
+/// Indices into [`AdmmState`]'s vectors.
 const Z: usize = 0;
 const V: usize = 1;
 const Y: usize = 2;
+const MQ: usize = 4;
 const LO: usize = 5;
 const HI: usize = 6;
+const MQ_Z: usize = 7;
 
 impl AdmmState {
     /// The first n entries of vector `i`.
     fn head(&self, i: usize, n: usize) -> &[f64] {
         &self.v.get(i)[..n]
+    }
+
+    /// The t buffer the next step writes: after a step, that step's input.
+    fn t_idle(&self) -> &[f64] {
+        self.v.get(8 + (self.cur ^ 1))
     }
 }
 
@@ -257,16 +271,38 @@ impl Admm {
         }
     }
 
-    /// The unprojected primal iterate z (in Z only in the limit).
-    pub fn primal_z<'s>(&self, state: &'s AdmmState) -> &'s [f64] {
-        state.head(Z, self.qp.n())
+    /// Entry i of the unprojected primal iterate z (see [`AdmmState`]).
+    fn z_entry(&self, st: &AdmmState, i: usize) -> f64 {
+        match st.z_from {
+            None => st.v.get(Z)[i],
+            Some(k) => {
+                let (m, ld) = (self.m_rho.as_slice(), self.m_rho.ld());
+                let t = st.t_idle();
+                let mut acc = 0.0;
+                for j in 0..self.qp.n() {
+                    acc += m[j * ld + i] * t[j];
+                }
+                acc - st.v.get(k)[i]
+            }
+        }
+    }
+
+    /// Writes the unprojected primal iterate z (in Z only in the limit) into the first n
+    /// entries of `out`: the start point z⁰ before the first step, then
+    /// z = ρ(H + ρI)⁻¹t − (H + ρI)⁻¹q of the last step, recomputed here in O(n²) (the
+    /// step does not store it). Allocation-free.
+    pub fn primal_z(&self, state: &AdmmState, out: &mut [f64]) {
+        for (i, o) in out.iter_mut().take(self.qp.n()).enumerate() {
+            *o = self.z_entry(state, i);
+        }
     }
 
     /// Euclidean distance of z to Z: how far the unprojected iterate is from feasible.
     pub fn constraint_violation(&self, state: &AdmmState) -> f64 {
         let (lo, up) = (self.qp.zset().lower(), self.qp.zset().upper());
         let mut acc = 0.0;
-        for ((z, l), u) in self.primal_z(state).iter().zip(lo).zip(up) {
+        for (i, (l, u)) in lo.iter().zip(up).enumerate() {
+            let z = self.z_entry(state, i);
             let d = z - z.max(*l).min(*u);
             acc += d * d;
         }
@@ -275,10 +311,11 @@ impl Admm {
 
     /// Primal residual ‖z − v‖₂ (≥ [`Admm::constraint_violation`], since v ∈ Z).
     pub fn primal_residual(&self, state: &AdmmState) -> f64 {
-        self.primal_z(state)
+        state
+            .head(V, self.qp.n())
             .iter()
-            .zip(state.head(V, self.qp.n()))
-            .map(|(z, v)| (z - v) * (z - v))
+            .enumerate()
+            .map(|(i, v)| (self.z_entry(state, i) - v).powi(2))
             .sum::<f64>()
             .sqrt()
     }
@@ -288,7 +325,7 @@ impl Admm {
     /// the state's y).
     fn set_from_dr(&self, st: &mut AdmmState) {
         let (ir, rho, n) = (1.0 / self.rho, self.rho, self.qp.n());
-        let [z, v, y, _, _, _, _, ta, tb] = st.v.all_mut();
+        let [z, v, y, _, _, _, _, _, ta, tb] = st.v.all_mut();
         // Over the padded length: zero padding in z and y gives zero padding everywhere.
         // `dr` (the idle t buffer) holds s here; the next step overwrites it.
         let (t, dr) = if st.cur == 0 { (ta, tb) } else { (tb, ta) };
@@ -306,6 +343,7 @@ impl Admm {
     /// z = z⁰ (warm) or Π_Z(0) (cold), y = y⁰ or the gradient dual, padding zero.
     fn start(&self, st: &mut AdmmState, z0: Option<&[f64]>, y0: Option<&[f64]>) {
         let n = self.qp.n();
+        st.z_from = None;
         let [z, _, y, q, ..] = st.v.all_mut();
         z.fill(0.0);
         y.fill(0.0);
@@ -330,7 +368,12 @@ impl Admm {
     /// Loads q = q₀ + Fθ (or q₀ when `theta` is `None`) and m_q = (H + ρI)⁻¹q.
     fn load_q(&self, st: &mut AdmmState, theta: Option<&[f64]>) {
         let n = self.qp.n();
-        let [_, _, _, q, mq, ..] = st.v.all_mut();
+        let [_, _, _, q, mq, _, _, mq_z, ..] = st.v.all_mut();
+        if st.z_from == Some(MQ) {
+            // The last step's z = M t_idle − m_q must survive the new m_q.
+            mq_z.copy_from_slice(mq);
+            st.z_from = Some(MQ_Z);
+        }
         let q = &mut q[..n];
         match theta {
             Some(theta) => self.qp.linear_term(theta, q),
@@ -354,6 +397,7 @@ impl IterationMap for Admm {
         let mut s = AdmmState {
             v: Vectors::zeros(self.m_rho.ld()),
             cur: 0,
+            z_from: None,
         };
         let n = self.qp.n();
         s.v.get_mut(LO)[..n].copy_from_slice(self.qp.zset().lower());
@@ -377,10 +421,10 @@ impl IterationMap for Admm {
     }
     #[inline]
     fn step(&self, s: &mut AdmmState) {
-        // One pass over ρ(H + ρI)⁻¹ (exactly symmetric, see `new`): z⁺ = ρ(H + ρI)⁻¹t −
-        // (H + ρI)⁻¹q with t = v − y/ρ, then w, v⁺, y⁺ and t⁺ = 2v⁺ − w row by row, t⁺
-        // into the idle t buffer, which becomes t.
-        let [z, v, y, _, mq, lo, hi, ta, tb] = s.v.all_mut();
+        // One pass over ρ(H + ρI)⁻¹ (exactly symmetric, see `new`): z = ρ(H + ρI)⁻¹t −
+        // (H + ρI)⁻¹q with t = v − y/ρ (not stored), then w, v⁺, y⁺ and t⁺ = 2v⁺ − w row
+        // by row, t⁺ into the idle t buffer, which becomes t.
+        let [_, v, y, _, mq, lo, hi, _, ta, tb] = s.v.all_mut();
         let (t, t_next) = if s.cur == 0 { (ta, tb) } else { (tb, ta) };
         self.kernel.admm_step_padded(
             &self.m_rho,
@@ -390,12 +434,12 @@ impl IterationMap for Admm {
             self.rho,
             lo,
             hi,
-            z,
             v,
             y,
             t_next,
         );
         s.cur ^= 1;
+        s.z_from = Some(MQ);
     }
     fn iterate<'s>(&self, state: &'s AdmmState) -> &'s [f64] {
         state.head(V, self.qp.n())
@@ -444,7 +488,7 @@ mod tests {
         mut v: Vec<f64>,
         mut y: Vec<f64>,
         k: usize,
-    ) -> (Vec<f64>, Vec<f64>) {
+    ) -> (Vec<f64>, Vec<f64>, Vec<f64>) {
         let n = qp.n();
         let h = qp.h();
         let shifted = Mat::from_fn(n, n, |i, j| h[(i, j)] + if i == j { rho } else { 0.0 });
@@ -452,9 +496,10 @@ mod tests {
             &shifted.partial_piv_lu(),
             Mat::<f64>::identity(n, n),
         );
+        let mut z = vec![];
         for _ in 0..k {
             let rhs: Vec<f64> = (0..n).map(|i| rho * v[i] - y[i] - q[i]).collect();
-            let z: Vec<f64> = (0..n)
+            z = (0..n)
                 .map(|i| (0..n).map(|j| inv[(i, j)] * rhs[j]).sum())
                 .collect();
             let w: Vec<f64> = (0..n)
@@ -464,7 +509,7 @@ mod tests {
             qp.project(&mut v);
             y = (0..n).map(|i| rho * (w[i] - v[i])).collect();
         }
-        (v, y)
+        (v, y, z)
     }
 
     #[test]
@@ -498,7 +543,7 @@ mod tests {
                     for _ in 0..k {
                         admm.step(&mut t);
                     }
-                    let (v, y) = reference_run(
+                    let (v, y, z) = reference_run(
                         &qp,
                         2.5,
                         relaxation,
@@ -519,7 +564,27 @@ mod tests {
                             y[i]
                         );
                     }
+                    // z, recomputed from the step's input t: the reference's last z⁺, also
+                    // after a new θ is loaded (m_q of the step kept aside).
+                    let mut tz = vec![0.0; qp.n()];
+                    admm.primal_z(&t, &mut tz);
+                    admm.load(&mut t, &[-0.2, 0.9]);
+                    let mut tz_after = vec![0.0; qp.n()];
+                    admm.primal_z(&t, &mut tz_after);
+                    assert_eq!(tz, tz_after, "α = {relaxation}, k = {k}: z after load");
+                    for i in 0..qp.n() {
+                        assert!(
+                            (tz[i] - z[i]).abs() <= 1e-12,
+                            "α = {relaxation}, k = {k}, i = {i}: z {} vs {}",
+                            tz[i],
+                            z[i]
+                        );
+                    }
                 }
+                // Before any step z is the start point.
+                let mut z_start = vec![0.0; qp.n()];
+                admm.primal_z(&s, &mut z_start);
+                assert_eq!(z_start, z0, "α = {relaxation}");
             }
         }
     }

@@ -719,19 +719,22 @@ impl Kernel {
     }
 
     /// The relaxed ADMM step of [`Kernel::admm_step`] on the padded layout (M =
-    /// ρ(H + ρI)⁻¹ in `m`; every vector ≥ ld entries). Relaxations 1 and 2
-    /// (Peaceman–Rachford) run their own epilogues without the (1 − a)v term.
+    /// ρ(H + ρI)⁻¹ in `m`; every vector ≥ ld entries), except that z = Mt − m_q is not
+    /// stored: only v⁺, y⁺ and t⁺ are (one store stream less per step; z is
+    /// [`Kernel::matvec_padded`] of the step's input t minus m_q, for diagnostics).
+    /// Relaxations 1 and 2 (Peaceman–Rachford) run their own epilogues without the
+    /// (1 − a)v term.
     ///
     /// ```
     /// use qp_iter::kernel::{AlignedVec, Kernel, PaddedSymmetric};
     /// let m = PaddedSymmetric::from_row_major(&[1.0, 0.0, 0.0, 1.0], 2).unwrap();
     /// let (t, mq) = (AlignedVec::padded(&[2.0, 0.25]), AlignedVec::zeros(4));
     /// let (lo, hi) = (AlignedVec::padded(&[-1.0, -1.0]), AlignedVec::padded(&[1.0, 1.0]));
-    /// let (mut z, mut v, mut t_next) = (AlignedVec::zeros(4), AlignedVec::zeros(4), AlignedVec::zeros(4));
+    /// let (mut v, mut t_next) = (AlignedVec::zeros(4), AlignedVec::zeros(4));
     /// let mut y = AlignedVec::padded(&[0.5, 0.0]);
     /// Kernel::detect().admm_step_padded(&m, &t, &mq, 1.0, 1.0, &lo, &hi,
-    ///     &mut z, &mut v, &mut y, &mut t_next);
-    /// assert_eq!((&z[..2], &v[..2]), (&[2.0, 0.25][..], &[1.0, 0.25][..]));
+    ///     &mut v, &mut y, &mut t_next);
+    /// assert_eq!(&v[..2], &[1.0, 0.25]); // w = z + y/ρ = (2.5, 0.25) clamped
     /// assert_eq!((&y[..2], &t_next[..2]), (&[1.5, 0.0][..], &[-0.5, 0.25][..]));
     /// ```
     ///
@@ -747,7 +750,6 @@ impl Kernel {
         rho: f64,
         lower: &[f64],
         upper: &[f64],
-        z: &mut [f64],
         v: &mut [f64],
         dual: &mut [f64],
         t_next: &mut [f64],
@@ -760,7 +762,6 @@ impl Kernel {
                 mq.len(),
                 lower.len(),
                 upper.len(),
-                z.len(),
                 v.len(),
                 dual.len(),
                 t_next.len(),
@@ -771,17 +772,17 @@ impl Kernel {
         }
         let (ms, n, ld) = (m.as_slice(), m.n, m.ld);
         match self.path {
-            KernelPath::Portable => portable::admm_step(
-                ms, n, ld, t, mq, relaxation, rho, lower, upper, z, v, dual, t_next,
+            KernelPath::Portable => portable::admm_step_no_z(
+                ms, n, ld, t, mq, relaxation, rho, lower, upper, v, dual, t_next,
             ),
             #[cfg(target_arch = "x86_64")]
             // SAFETY: AVX2 + FMA by the type invariant; n ≥ 1; n columns of ld entries;
-            // every vector ≥ ld (checked above); the four outputs are distinct &mut.
+            // every vector ≥ ld (checked above); the three outputs are distinct &mut.
             KernelPath::Avx2Fma => unsafe {
-                let mut c = avx2_pad::Ctx::product(m, t, z);
+                let mut c = avx2_pad::Ctx::product(m, t, t_next);
                 (c.q, c.lo, c.hi, c.a, c.b) =
                     (mq.as_ptr(), lower.as_ptr(), upper.as_ptr(), relaxation, rho);
-                (c.next, c.v, c.dual) = (t_next.as_mut_ptr(), v.as_mut_ptr(), dual.as_mut_ptr());
+                (c.v, c.dual) = (v.as_mut_ptr(), dual.as_mut_ptr());
                 if relaxation == 1.0 {
                     avx2_pad::run::<{ avx2_pad::ADMM1 }>(c)
                 } else if relaxation == 2.0 {
@@ -791,8 +792,8 @@ impl Kernel {
                 }
             },
             #[cfg(not(target_arch = "x86_64"))]
-            KernelPath::Avx2Fma => portable::admm_step(
-                ms, n, ld, t, mq, relaxation, rho, lower, upper, z, v, dual, t_next,
+            KernelPath::Avx2Fma => portable::admm_step_no_z(
+                ms, n, ld, t, mq, relaxation, rho, lower, upper, v, dual, t_next,
             ),
         }
     }
@@ -927,6 +928,32 @@ mod portable {
             let x = clamp_nan_propagating(y[i] - alpha * (y_next[i] + q[i]), lower[i], upper[i]);
             y_next[i] = x + beta * (x - z[i]);
             z[i] = x;
+        }
+    }
+
+    /// Relaxed ADMM step on rows 0 .. ld without storing z: `t_next` holds Mt first.
+    pub(super) fn admm_step_no_z(
+        m: &[f64],
+        n: usize,
+        ld: usize,
+        t: &[f64],
+        mq: &[f64],
+        a: f64,
+        rho: f64,
+        lower: &[f64],
+        upper: &[f64],
+        v: &mut [f64],
+        dual: &mut [f64],
+        t_next: &mut [f64],
+    ) {
+        let ir = 1.0 / rho;
+        matvec_columns(m, n, ld, t, t_next);
+        for i in 0..ld {
+            let w = a * (t_next[i] - mq[i]) + (1.0 - a) * v[i] + ir * dual[i];
+            let vp = clamp_nan_propagating(w, lower[i], upper[i]);
+            dual[i] = rho * (w - vp);
+            t_next[i] = 2.0 * vp - w;
+            v[i] = vp;
         }
     }
 
@@ -1412,7 +1439,7 @@ mod avx2_pad {
         pub ld: usize,
         /// The point H is applied to: x, z (PG), y (FISTA), t (ADMM).
         pub x: *const f64,
-        /// Hx, z⁺ (PG), z in/out (FISTA), z out (ADMM).
+        /// Hx, z⁺ (PG), z in/out (FISTA), t⁺ (ADMM).
         pub out: *mut f64,
         /// q (PG, FISTA) or m_q (ADMM).
         pub q: *const f64,
@@ -1422,7 +1449,7 @@ mod avx2_pad {
         pub a: f64,
         /// β (FISTA) or ρ (ADMM).
         pub b: f64,
-        /// y_next (FISTA) or t_next (ADMM).
+        /// y_next (FISTA).
         pub next: *mut f64,
         /// v in/out (ADMM).
         pub v: *mut f64,
@@ -1535,10 +1562,9 @@ mod avx2_pad {
                     // t⁺ = 2v⁺ − w, the next step's input (the only result on the path to
                     // it), first and in one operation (2v⁺ is exact).
                     let vp = clamp(w, lo, hi);
-                    st(c.next, r, _mm256_fmsub_pd(_mm256_set1_pd(2.0), vp, w));
+                    st(c.out, r, _mm256_fmsub_pd(_mm256_set1_pd(2.0), vp, w));
                     st(c.dual, r, _mm256_mul_pd(rho, _mm256_sub_pd(w, vp)));
                     st(c.v, r, vp);
-                    st(c.out, r, _mm256_sub_pd(s, mq));
                 }
                 _ => st(c.out, r, s),
             }
@@ -2092,12 +2118,7 @@ mod tests {
                 for a in [1.0, 2.0, rng.random_range(0.5..1.9)] {
                     let rho = rng.random_range(0.5..4.0);
                     let (v0, y0) = (random_vec(&mut rng, n), random_vec(&mut rng, n));
-                    let (mut z, mut v, mut dual, mut t_next) = (
-                        AlignedVec::zeros(ld),
-                        pad(&v0),
-                        pad(&y0),
-                        AlignedVec::zeros(ld),
-                    );
+                    let (mut v, mut dual, mut t_next) = (pad(&v0), pad(&y0), AlignedVec::zeros(ld));
                     k.admm_step_padded(
                         &hp,
                         &pad(&x),
@@ -2106,30 +2127,25 @@ mod tests {
                         rho,
                         &lo,
                         &hi,
-                        &mut z,
                         &mut v,
                         &mut dual,
                         &mut t_next,
                     );
-                    let (mut wz, mut wv, mut wy, mut wt) = (vec![], vec![], vec![], vec![]);
+                    let (mut wv, mut wy, mut wt) = (vec![], vec![], vec![]);
                     for i in 0..n {
                         let zi = hx[i] - q[i];
                         let w = a * zi + (1.0 - a) * v0[i] + y0[i] / rho;
                         let vp = w.max(lower[i]).min(upper[i]);
-                        wz.push(zi);
                         wv.push(vp);
                         wy.push(rho * (w - vp));
                         wt.push(vp - (w - vp));
                     }
                     let e = 16.0 * e;
-                    assert_close("admm z", k, n, &z, &wz, e);
                     assert_close("admm v", k, n, &v, &wv, e);
                     assert_close("admm y", k, n, &dual, &wy, rho * e);
                     assert_close("admm t", k, n, &t_next, &wt, e);
                     assert!(
-                        [&z, &v, &dual, &t_next]
-                            .iter()
-                            .all(|b| padding_is_zero(b, n)),
+                        [&v, &dual, &t_next].iter().all(|b| padding_is_zero(b, n)),
                         "{:?} n = {n} a = {a}: padding",
                         k.path()
                     );
@@ -2191,9 +2207,9 @@ mod tests {
                     k.path()
                 );
                 for a in [1.0, 2.0, 1.5] {
-                    let mut b = [(); 4].map(|_| AlignedVec::zeros(ld));
-                    let [z, v, y, t] = &mut b;
-                    k.admm_step_padded(&h, &x, &zero, a, 1.0, &lo, &hi, z, v, y, t);
+                    let mut b = [(); 3].map(|_| AlignedVec::zeros(ld));
+                    let [v, y, t] = &mut b;
+                    k.admm_step_padded(&h, &x, &zero, a, 1.0, &lo, &hi, v, y, t);
                     assert!(
                         v[..n]
                             .iter()
@@ -2254,20 +2270,8 @@ mod tests {
             k.matvec_padded(&h, &[], &mut y);
             k.pg_step_padded(&h, &[], &[], 1.0, &[], &[], &mut y);
             k.fista_step_padded(&h, &[], &[], 1.0, &[], &[], 0.5, &mut [], &mut y);
-            let (mut a, mut b, mut c) = ([0.0; 0], [0.0; 0], [0.0; 0]);
-            k.admm_step_padded(
-                &h,
-                &[],
-                &[],
-                2.0,
-                1.0,
-                &[],
-                &[],
-                &mut a,
-                &mut b,
-                &mut c,
-                &mut y,
-            );
+            let (mut a, mut b) = ([0.0; 0], [0.0; 0]);
+            k.admm_step_padded(&h, &[], &[], 2.0, 1.0, &[], &[], &mut a, &mut b, &mut y);
         }
     }
 

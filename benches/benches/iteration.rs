@@ -5,7 +5,10 @@
 //! Groups (criterion ids `group/function[/parameter]`):
 //! - `n30`: one step of PG, FISTA, ADMM at n = 30; the reference kernels `ref_*`
 //!   (compile-time 30 × 30, AVX2 + FMA by run-time detection); our `matvec` (general H),
-//!   `matvec_symmetric` and their portable paths; faer `matmul` (Par::Seq, preallocated).
+//!   `matvec_symmetric` and their portable paths; faer `matmul` (Par::Seq, preallocated);
+//!   the padded FISTA and ADMM kernels (`Kernel::*_padded`) the steps run. Before these,
+//!   [`interleaved_n30`] times the steps (also ADMM with α = 2), the padded kernels and
+//!   the unpadded ones (`Kernel::projected_gradient_step` etc.) round by round.
 //! - `grid`: one step of each method and one `matvec_symmetric` for n = 10 … 400.
 //! - `accuracy`: load θ + cold start + K steps, K the smallest count with
 //!   ‖z − z*‖ ≤ 1e-6‖z⁰ − z*‖ (z* from the polished Clarabel reference), and Clarabel's
@@ -27,7 +30,7 @@ use faer::linalg::matmul::matmul;
 use faer::{Accum, Col, Mat, Par};
 use qp_iter::admm::{Admm, AdmmParams};
 use qp_iter::fista::Fista;
-use qp_iter::kernel::{Kernel, matvec, matvec_symmetric};
+use qp_iter::kernel::{AlignedVec, Kernel, PaddedSymmetric, matvec, matvec_symmetric};
 use qp_iter::pg::{ProjectedGradient, StepRule};
 use qp_iter::reference::{ReferenceSettings, ReferenceSolver};
 use qp_iter::{IterationMap, RunStatus, run_fixed, run_until};
@@ -173,18 +176,85 @@ fn interleaved_n30(_c: &mut Criterion) {
         pads.push(vec![0u8; 1700 * (p + 1)]);
         variants.push((names[2], stepper(admm.clone(), &inst.theta)));
     }
+    let admm_pr = Admm::new(
+        inst.qp.clone(),
+        AdmmParams {
+            relaxation: 2.0,
+            ..AdmmParams::default()
+        },
+    )
+    .unwrap_or_else(|e| panic!("admm α = 2: {e}"));
     variants.push(("step/pg", stepper(pg, &inst.theta)));
     variants.push(("step/fista", stepper(fista, &inst.theta)));
     variants.push(("step/admm", stepper(admm, &inst.theta)));
+    variants.push(("step/admm_pr", stepper(admm_pr, &inst.theta)));
+
+    // The kernels the steps run (padded layout, 64-byte aligned, separately allocated
+    // vectors), and the unpadded kernels of the same steps on plain `Vec`s.
+    let alpha_pg = 2.0 / (inst.qp.l() + inst.qp.mu());
+    let (hp, mp) = (
+        PaddedSymmetric::from_row_major(&h, N).unwrap_or_else(|| panic!("30×30 H")),
+        PaddedSymmetric::from_row_major(&m_rho, N).unwrap_or_else(|| panic!("30×30 M")),
+    );
+    let ld = hp.ld();
+    let (qa, mqa, loa, hia) = (
+        AlignedVec::padded(&q),
+        AlignedVec::padded(&mq),
+        AlignedVec::padded(&lo),
+        AlignedVec::padded(&hi),
+    );
     {
-        let (h, q, lo, hi) = (h.clone(), q.clone(), lo.clone(), hi.clone());
-        let alpha = 2.0 / (inst.qp.l() + inst.qp.mu());
-        let (mut z, mut next) = (vec![0.0; N], vec![0.0; N]);
+        let (hp, q, lo, hi) = (hp.clone(), qa.clone(), loa.clone(), hia.clone());
+        let (mut z, mut next) = (AlignedVec::zeros(ld), AlignedVec::zeros(ld));
         variants.push((
             "fused_kernel/pg",
             Box::new(move || {
+                let (mut z, mut next): (&mut [f64], &mut [f64]) = (&mut z, &mut next);
                 for _ in 0..BATCH {
-                    k.projected_gradient_step(&h, N, &z, &q, alpha, &lo, &hi, &mut next);
+                    k.pg_step_padded(&hp, z, &q, alpha_pg, &lo, &hi, next);
+                    std::mem::swap(&mut z, &mut next);
+                }
+            }),
+        ));
+    }
+    {
+        let (hp, q, lo, hi) = (hp.clone(), qa.clone(), loa.clone(), hia.clone());
+        let [mut y, mut y_next, mut z] = [(); 3].map(|_| AlignedVec::zeros(ld));
+        variants.push((
+            "fused_kernel/fista",
+            Box::new(move || {
+                let (mut y, mut y_next): (&mut [f64], &mut [f64]) = (&mut y, &mut y_next);
+                for _ in 0..BATCH {
+                    k.fista_step_padded(&hp, y, &q, alpha, &lo, &hi, beta, &mut z, y_next);
+                    std::mem::swap(&mut y, &mut y_next);
+                }
+            }),
+        ));
+    }
+    {
+        let (mp, mq, lo, hi) = (mp.clone(), mqa.clone(), loa.clone(), hia.clone());
+        let [mut t, mut t_next, mut v, mut dual] = [(); 4].map(|_| AlignedVec::zeros(ld));
+        variants.push((
+            "fused_kernel/admm",
+            Box::new(move || {
+                let (mut t, mut t_next): (&mut [f64], &mut [f64]) = (&mut t, &mut t_next);
+                for _ in 0..BATCH {
+                    k.admm_step_padded(
+                        &mp, t, &mq, relax, rho, &lo, &hi, &mut v, &mut dual, t_next,
+                    );
+                    std::mem::swap(&mut t, &mut t_next);
+                }
+            }),
+        ));
+    }
+    {
+        let (h, q, lo, hi) = (h.clone(), q.clone(), lo.clone(), hi.clone());
+        let (mut z, mut next) = (vec![0.0; N], vec![0.0; N]);
+        variants.push((
+            "unpadded_kernel/pg",
+            Box::new(move || {
+                for _ in 0..BATCH {
+                    k.projected_gradient_step(&h, N, &z, &q, alpha_pg, &lo, &hi, &mut next);
                     std::mem::swap(&mut z, &mut next);
                 }
             }),
@@ -194,7 +264,7 @@ fn interleaved_n30(_c: &mut Criterion) {
         let (h, q, lo, hi) = (h.clone(), q.clone(), lo.clone(), hi.clone());
         let (mut y, mut y_next, mut z) = (vec![0.0; N], vec![0.0; N], vec![0.0; N]);
         variants.push((
-            "fused_kernel/fista",
+            "unpadded_kernel/fista",
             Box::new(move || {
                 for _ in 0..BATCH {
                     k.fista_step(&h, N, &y, &q, alpha, &lo, &hi, beta, &mut z, &mut y_next);
@@ -207,7 +277,7 @@ fn interleaved_n30(_c: &mut Criterion) {
         let (mut t, mut t_next) = (vec![0.0; N], vec![0.0; N]);
         let (mut z, mut v, mut dual) = (vec![0.0; N], vec![0.0; N], vec![0.0; N]);
         variants.push((
-            "fused_kernel/admm",
+            "unpadded_kernel/admm",
             Box::new(move || {
                 for _ in 0..BATCH {
                     k.admm_step(
@@ -375,17 +445,23 @@ fn per_iteration_n30(c: &mut Criterion) {
     );
     bench_step(&mut g, BenchmarkId::new("step", "admm"), &admm, &inst.theta);
 
-    // The fused kernels on the same data: one step of FISTA and ADMM as one pass over
-    // the matrix (what `fista.rs` / `admm.rs` cost once their steps call these).
+    // The padded kernels the steps run, on the same data and separately allocated
+    // aligned buffers: one step of FISTA and ADMM as one pass over the matrix.
     let k = Kernel::detect();
-    let (lo, hi) = (inst.qp.zset().lower(), inst.qp.zset().upper());
     let mut q = vec![0.0; N];
     inst.qp.linear_term(&inst.theta, &mut q);
     let (alpha, beta) = (fista.step_size(), fista.momentum());
-    let (mut y, mut y_next, mut z) = (vec![0.0; N], vec![0.0; N], vec![0.0; N]);
+    let hp = PaddedSymmetric::from_row_major(h, N).unwrap_or_else(|| panic!("30×30 H"));
+    let ld = hp.ld();
+    let (qa, lo, hi) = (
+        AlignedVec::padded(&q),
+        AlignedVec::padded(inst.qp.zset().lower()),
+        AlignedVec::padded(inst.qp.zset().upper()),
+    );
+    let [mut y, mut y_next, mut z] = [(); 3].map(|_| AlignedVec::zeros(ld));
     g.bench_function(BenchmarkId::new("fused_kernel", "fista"), |b| {
         b.iter(|| {
-            k.fista_step(h, N, &y, &q, alpha, lo, hi, beta, &mut z, &mut y_next);
+            k.fista_step_padded(&hp, &y, &qa, alpha, &lo, &hi, beta, &mut z, &mut y_next);
             std::mem::swap(&mut y, &mut y_next);
         })
     });
@@ -396,20 +472,21 @@ fn per_iteration_n30(c: &mut Criterion) {
         matvec_symmetric(&m_rho, N, &q, &mut mq);
         mq.iter().map(|v| v / rho).collect()
     };
-    let (mut t, mut t_next) = (vec![0.0; N], vec![0.0; N]);
-    let (mut z, mut v, mut dual) = (vec![0.0; N], vec![0.0; N], vec![0.0; N]);
+    let (mp, mqa) = (
+        PaddedSymmetric::from_row_major(&m_rho, N).unwrap_or_else(|| panic!("30×30 M")),
+        AlignedVec::padded(&mq),
+    );
+    let [mut t, mut t_next, mut v, mut dual] = [(); 4].map(|_| AlignedVec::zeros(ld));
     g.bench_function(BenchmarkId::new("fused_kernel", "admm"), |b| {
         b.iter(|| {
-            k.admm_step(
-                &m_rho,
-                N,
+            k.admm_step_padded(
+                &mp,
                 &t,
-                &mq,
+                &mqa,
                 relax,
                 rho,
-                lo,
-                hi,
-                &mut z,
+                &lo,
+                &hi,
                 &mut v,
                 &mut dual,
                 &mut t_next,

@@ -192,6 +192,7 @@ impl IterationMap for Fista {
 mod tests {
     #![allow(clippy::unwrap_used)]
     use super::*;
+    use crate::kernel::AlignedVec;
     use faer::Mat;
     use lti_model::BoxSet;
 
@@ -210,21 +211,15 @@ mod tests {
         ParametricQp::new(h, q0, f, BoxSet::symmetric(&[0.4; 7]).unwrap()).unwrap()
     }
 
-    /// T(y) = Π_Z(y − (Hy + q)/L) with the crate's kernel (the certificate's PG step).
+    /// T(y) = Π_Z(y − (Hy + q)/L) with the crate's padded PG kernel (the certificate's PG
+    /// step; same summation as the FISTA kernel, so comparisons are bit for bit).
     fn pg_step(f: &Fista, y: &[f64], q: &[f64]) -> Vec<f64> {
-        let qp = f.problem();
-        let mut out = vec![0.0; qp.n()];
-        f.g.kernel.projected_gradient_step(
-            qp.h_row_major(),
-            qp.n(),
-            y,
-            q,
-            f.step_size(),
-            qp.zset().lower(),
-            qp.zset().upper(),
-            &mut out,
-        );
-        out
+        let (g, n) = (&f.g, f.problem().n());
+        let (y, q) = (AlignedVec::padded(y), AlignedVec::padded(q));
+        let mut out = AlignedVec::zeros(g.h.ld());
+        g.kernel
+            .pg_step_padded(&g.h, &y, &q, f.step_size(), &g.lower, &g.upper, &mut out);
+        out[..n].to_vec()
     }
 
     #[test]

@@ -190,7 +190,7 @@ fn interleaved_n30(_c: &mut Criterion) {
     variants.push(("step/admm_pr", stepper(admm_pr, &inst.theta)));
 
     // The kernels the steps run (padded layout, 64-byte aligned, separately allocated
-    // vectors), and the unpadded kernels of the same steps on plain `Vec`s.
+    // vectors, updated in place), and the unpadded kernels of the same steps on `Vec`s.
     let alpha_pg = 2.0 / (inst.qp.l() + inst.qp.mu());
     let (hp, mp) = (
         PaddedSymmetric::from_row_major(&h, N).unwrap_or_else(|| panic!("30×30 H")),
@@ -205,44 +205,58 @@ fn interleaved_n30(_c: &mut Criterion) {
     );
     {
         let (hp, q, lo, hi) = (hp.clone(), qa.clone(), loa.clone(), hia.clone());
-        let (mut z, mut next) = (AlignedVec::zeros(ld), AlignedVec::zeros(ld));
+        let (mut z, mut scratch) = (AlignedVec::zeros(ld), AlignedVec::zeros(ld));
         variants.push((
             "fused_kernel/pg",
             Box::new(move || {
-                let (mut z, mut next): (&mut [f64], &mut [f64]) = (&mut z, &mut next);
                 for _ in 0..BATCH {
-                    k.pg_step_padded(&hp, z, &q, alpha_pg, &lo, &hi, next);
-                    std::mem::swap(&mut z, &mut next);
+                    k.pg_step_padded(&hp, &mut z, &q, alpha_pg, &lo, &hi, &mut scratch);
                 }
             }),
         ));
     }
     {
         let (hp, q, lo, hi) = (hp.clone(), qa.clone(), loa.clone(), hia.clone());
-        let [mut y, mut y_next, mut z] = [(); 3].map(|_| AlignedVec::zeros(ld));
+        let [mut y, mut z, mut scratch] = [(); 3].map(|_| AlignedVec::zeros(ld));
         variants.push((
             "fused_kernel/fista",
             Box::new(move || {
-                let (mut y, mut y_next): (&mut [f64], &mut [f64]) = (&mut y, &mut y_next);
                 for _ in 0..BATCH {
-                    k.fista_step_padded(&hp, y, &q, alpha, &lo, &hi, beta, &mut z, y_next);
-                    std::mem::swap(&mut y, &mut y_next);
+                    k.fista_step_padded(
+                        &hp,
+                        &mut y,
+                        &q,
+                        alpha,
+                        &lo,
+                        &hi,
+                        beta,
+                        &mut z,
+                        &mut scratch,
+                    );
                 }
             }),
         ));
     }
     {
         let (mp, mq, lo, hi) = (mp.clone(), mqa.clone(), loa.clone(), hia.clone());
-        let [mut t, mut t_next, mut v, mut dual] = [(); 4].map(|_| AlignedVec::zeros(ld));
+        let [mut t, mut z, mut v, mut dual, mut scratch] = [(); 5].map(|_| AlignedVec::zeros(ld));
         variants.push((
             "fused_kernel/admm",
             Box::new(move || {
-                let (mut t, mut t_next): (&mut [f64], &mut [f64]) = (&mut t, &mut t_next);
                 for _ in 0..BATCH {
                     k.admm_step_padded(
-                        &mp, t, &mq, relax, rho, &lo, &hi, &mut v, &mut dual, t_next,
+                        &mp,
+                        &mut t,
+                        &mq,
+                        relax,
+                        rho,
+                        &lo,
+                        &hi,
+                        &mut z,
+                        &mut v,
+                        &mut dual,
+                        &mut scratch,
                     );
-                    std::mem::swap(&mut t, &mut t_next);
                 }
             }),
         ));
@@ -458,11 +472,20 @@ fn per_iteration_n30(c: &mut Criterion) {
         AlignedVec::padded(inst.qp.zset().lower()),
         AlignedVec::padded(inst.qp.zset().upper()),
     );
-    let [mut y, mut y_next, mut z] = [(); 3].map(|_| AlignedVec::zeros(ld));
+    let [mut y, mut z, mut scratch] = [(); 3].map(|_| AlignedVec::zeros(ld));
     g.bench_function(BenchmarkId::new("fused_kernel", "fista"), |b| {
         b.iter(|| {
-            k.fista_step_padded(&hp, &y, &qa, alpha, &lo, &hi, beta, &mut z, &mut y_next);
-            std::mem::swap(&mut y, &mut y_next);
+            k.fista_step_padded(
+                &hp,
+                &mut y,
+                &qa,
+                alpha,
+                &lo,
+                &hi,
+                beta,
+                &mut z,
+                &mut scratch,
+            );
         })
     });
     let (rho, relax) = (admm.rho(), admm.relaxation());
@@ -476,22 +499,22 @@ fn per_iteration_n30(c: &mut Criterion) {
         PaddedSymmetric::from_row_major(&m_rho, N).unwrap_or_else(|| panic!("30×30 M")),
         AlignedVec::padded(&mq),
     );
-    let [mut t, mut t_next, mut v, mut dual] = [(); 4].map(|_| AlignedVec::zeros(ld));
+    let [mut t, mut z, mut v, mut dual] = [(); 4].map(|_| AlignedVec::zeros(ld));
     g.bench_function(BenchmarkId::new("fused_kernel", "admm"), |b| {
         b.iter(|| {
             k.admm_step_padded(
                 &mp,
-                &t,
+                &mut t,
                 &mqa,
                 relax,
                 rho,
                 &lo,
                 &hi,
+                &mut z,
                 &mut v,
                 &mut dual,
-                &mut t_next,
+                &mut scratch,
             );
-            std::mem::swap(&mut t, &mut t_next);
         })
     });
     g.finish();

@@ -99,44 +99,29 @@ pub struct Admm {
     kernel: Kernel,
 }
 
-/// State of [`Admm`]: split variable v, unscaled dual y, loaded q and (H + ρI)⁻¹q, the
-/// next product's input t = v − y/ρ and the buffer the fused step writes t⁺ into (the two
-/// swap roles every step), the box (copied, so that everything the step touches but the
-/// matrix is one block), and what the unprojected z is made of; padded to the kernels'
-/// length (see [`crate::kernel::padded_len`], padding zero), in one allocation.
-///
-/// z is not stored by the step (one store stream less): after a step it is Mt − m_q for
-/// the step's input t, which stays in the idle t buffer until the next step, and the m_q
-/// the step used (copied aside if θ is loaded in between).
+/// State of [`Admm`]: z, split variable v, unscaled dual y, loaded q and (H + ρI)⁻¹q, the
+/// next product's input t = v − y/ρ (updated in place by the fused step), the kernel's
+/// scratch buffer (used only for n > 60) and the box (copied, so that everything the step
+/// touches but the matrix is one block); padded to the kernels' length (see
+/// [`crate::kernel::padded_len`], padding zero), in one allocation.
 #[derive(Debug, Clone)]
 pub struct AdmmState {
-    /// [z⁰, v, y, q, m_q, l, u, m_q of the last step, t_a, t_b]; t = v − y/ρ (= 2v − s
-    /// for the DR variable s), kept in step with v and y, is t_a when `cur` = 0, t_b
-    /// when 1.
-    v: Vectors<10>,
-    cur: usize,
-    /// `None`: z is the start point in vector `Z`; `Some(i)`: z = M t_idle − vector i.
-    z_from: Option<usize>,
+    /// [z, v, y, q, m_q, l, u, t, scratch]; t = v − y/ρ (= 2v − s for the DR variable s)
+    /// is kept in step with v and y.
+    v: Vectors<9>,
 }
 
 /// Indices into [`AdmmState`]'s vectors.
 const Z: usize = 0;
 const V: usize = 1;
 const Y: usize = 2;
-const MQ: usize = 4;
 const LO: usize = 5;
 const HI: usize = 6;
-const MQ_Z: usize = 7;
 
 impl AdmmState {
     /// The first n entries of vector `i`.
     fn head(&self, i: usize, n: usize) -> &[f64] {
         &self.v.get(i)[..n]
-    }
-
-    /// The t buffer the next step writes: after a step, that step's input.
-    fn t_idle(&self) -> &[f64] {
-        self.v.get(8 + (self.cur ^ 1))
     }
 }
 
@@ -271,38 +256,16 @@ impl Admm {
         }
     }
 
-    /// Entry i of the unprojected primal iterate z (see [`AdmmState`]).
-    fn z_entry(&self, st: &AdmmState, i: usize) -> f64 {
-        match st.z_from {
-            None => st.v.get(Z)[i],
-            Some(k) => {
-                let (m, ld) = (self.m_rho.as_slice(), self.m_rho.ld());
-                let t = st.t_idle();
-                let mut acc = 0.0;
-                for j in 0..self.qp.n() {
-                    acc += m[j * ld + i] * t[j];
-                }
-                acc - st.v.get(k)[i]
-            }
-        }
-    }
-
-    /// Writes the unprojected primal iterate z (in Z only in the limit) into the first n
-    /// entries of `out`: the start point z⁰ before the first step, then
-    /// z = ρ(H + ρI)⁻¹t − (H + ρI)⁻¹q of the last step, recomputed here in O(n²) (the
-    /// step does not store it). Allocation-free.
-    pub fn primal_z(&self, state: &AdmmState, out: &mut [f64]) {
-        for (i, o) in out.iter_mut().take(self.qp.n()).enumerate() {
-            *o = self.z_entry(state, i);
-        }
+    /// The unprojected primal iterate z (in Z only in the limit).
+    pub fn primal_z<'s>(&self, state: &'s AdmmState) -> &'s [f64] {
+        state.head(Z, self.qp.n())
     }
 
     /// Euclidean distance of z to Z: how far the unprojected iterate is from feasible.
     pub fn constraint_violation(&self, state: &AdmmState) -> f64 {
         let (lo, up) = (self.qp.zset().lower(), self.qp.zset().upper());
         let mut acc = 0.0;
-        for (i, (l, u)) in lo.iter().zip(up).enumerate() {
-            let z = self.z_entry(state, i);
+        for ((z, l), u) in self.primal_z(state).iter().zip(lo).zip(up) {
             let d = z - z.max(*l).min(*u);
             acc += d * d;
         }
@@ -311,11 +274,10 @@ impl Admm {
 
     /// Primal residual ‖z − v‖₂ (≥ [`Admm::constraint_violation`], since v ∈ Z).
     pub fn primal_residual(&self, state: &AdmmState) -> f64 {
-        state
-            .head(V, self.qp.n())
+        self.primal_z(state)
             .iter()
-            .enumerate()
-            .map(|(i, v)| (self.z_entry(state, i) - v).powi(2))
+            .zip(state.head(V, self.qp.n()))
+            .map(|(z, v)| (z - v) * (z - v))
             .sum::<f64>()
             .sqrt()
     }
@@ -325,10 +287,9 @@ impl Admm {
     /// the state's y).
     fn set_from_dr(&self, st: &mut AdmmState) {
         let (ir, rho, n) = (1.0 / self.rho, self.rho, self.qp.n());
-        let [z, v, y, _, _, _, _, _, ta, tb] = st.v.all_mut();
+        let [z, v, y, _, _, _, _, t, dr] = st.v.all_mut();
         // Over the padded length: zero padding in z and y gives zero padding everywhere.
-        // `dr` (the idle t buffer) holds s here; the next step overwrites it.
-        let (t, dr) = if st.cur == 0 { (ta, tb) } else { (tb, ta) };
+        // `dr` (the step's scratch) holds s here.
         for ((d, z), y) in dr.iter_mut().zip(&*z).zip(&*y) {
             *d = z + ir * y;
         }
@@ -343,7 +304,6 @@ impl Admm {
     /// z = z⁰ (warm) or Π_Z(0) (cold), y = y⁰ or the gradient dual, padding zero.
     fn start(&self, st: &mut AdmmState, z0: Option<&[f64]>, y0: Option<&[f64]>) {
         let n = self.qp.n();
-        st.z_from = None;
         let [z, _, y, q, ..] = st.v.all_mut();
         z.fill(0.0);
         y.fill(0.0);
@@ -368,12 +328,7 @@ impl Admm {
     /// Loads q = q₀ + Fθ (or q₀ when `theta` is `None`) and m_q = (H + ρI)⁻¹q.
     fn load_q(&self, st: &mut AdmmState, theta: Option<&[f64]>) {
         let n = self.qp.n();
-        let [_, _, _, q, mq, _, _, mq_z, ..] = st.v.all_mut();
-        if st.z_from == Some(MQ) {
-            // The last step's z = M t_idle − m_q must survive the new m_q.
-            mq_z.copy_from_slice(mq);
-            st.z_from = Some(MQ_Z);
-        }
+        let [_, _, _, q, mq, ..] = st.v.all_mut();
         let q = &mut q[..n];
         match theta {
             Some(theta) => self.qp.linear_term(theta, q),
@@ -396,8 +351,6 @@ impl IterationMap for Admm {
     fn new_state(&self) -> AdmmState {
         let mut s = AdmmState {
             v: Vectors::zeros(self.m_rho.ld()),
-            cur: 0,
-            z_from: None,
         };
         let n = self.qp.n();
         s.v.get_mut(LO)[..n].copy_from_slice(self.qp.zset().lower());
@@ -421,11 +374,10 @@ impl IterationMap for Admm {
     }
     #[inline]
     fn step(&self, s: &mut AdmmState) {
-        // One pass over ρ(H + ρI)⁻¹ (exactly symmetric, see `new`): z = ρ(H + ρI)⁻¹t −
-        // (H + ρI)⁻¹q with t = v − y/ρ (not stored), then w, v⁺, y⁺ and t⁺ = 2v⁺ − w row
-        // by row, t⁺ into the idle t buffer, which becomes t.
-        let [_, v, y, _, mq, lo, hi, _, ta, tb] = s.v.all_mut();
-        let (t, t_next) = if s.cur == 0 { (ta, tb) } else { (tb, ta) };
+        // One pass over ρ(H + ρI)⁻¹ (exactly symmetric, see `new`): z⁺ = ρ(H + ρI)⁻¹t −
+        // (H + ρI)⁻¹q with t = v − y/ρ, then w, v⁺, y⁺ and t⁺ = 2v⁺ − w row by row, all
+        // in place.
+        let [z, v, y, _, mq, lo, hi, t, scratch] = s.v.all_mut();
         self.kernel.admm_step_padded(
             &self.m_rho,
             t,
@@ -434,12 +386,11 @@ impl IterationMap for Admm {
             self.rho,
             lo,
             hi,
+            z,
             v,
             y,
-            t_next,
+            scratch,
         );
-        s.cur ^= 1;
-        s.z_from = Some(MQ);
     }
     fn iterate<'s>(&self, state: &'s AdmmState) -> &'s [f64] {
         state.head(V, self.qp.n())
@@ -564,14 +515,8 @@ mod tests {
                             y[i]
                         );
                     }
-                    // z, recomputed from the step's input t: the reference's last z⁺, also
-                    // after a new θ is loaded (m_q of the step kept aside).
-                    let mut tz = vec![0.0; qp.n()];
-                    admm.primal_z(&t, &mut tz);
-                    admm.load(&mut t, &[-0.2, 0.9]);
-                    let mut tz_after = vec![0.0; qp.n()];
-                    admm.primal_z(&t, &mut tz_after);
-                    assert_eq!(tz, tz_after, "α = {relaxation}, k = {k}: z after load");
+                    // z: the reference's last z⁺.
+                    let tz = admm.primal_z(&t);
                     for i in 0..qp.n() {
                         assert!(
                             (tz[i] - z[i]).abs() <= 1e-12,
@@ -582,9 +527,7 @@ mod tests {
                     }
                 }
                 // Before any step z is the start point.
-                let mut z_start = vec![0.0; qp.n()];
-                admm.primal_z(&s, &mut z_start);
-                assert_eq!(z_start, z0, "α = {relaxation}");
+                assert_eq!(admm.primal_z(&s), z0, "α = {relaxation}");
             }
         }
     }

@@ -59,14 +59,13 @@ pub struct Fista {
     cert: Certificate,
 }
 
-/// State of [`Fista`]: iterate x_k, extrapolated point y_k and the buffer the fused step
-/// writes y_{k+1} into (the two swap roles every step), loaded q (padded to the kernels'
-/// length, see [`crate::kernel::padded_len`], in one allocation).
+/// State of [`Fista`]: iterate x_k and extrapolated point y_k (both updated in place by
+/// the fused step), the kernel's scratch buffer (used only for n > 60), loaded q; padded
+/// to the kernels' length (see [`crate::kernel::padded_len`]) in one allocation.
 #[derive(Debug, Clone)]
 pub struct FistaState {
-    /// [z, y_a, y_b, q]; y_k is y_a when `cur` = 0, y_b when 1.
+    /// [z, y, scratch, q].
     v: Vectors<4>,
-    cur: usize,
     /// True right after a warm/cold start: the next step is the plain PG step x₀ = T(z⁰).
     restart: bool,
 }
@@ -131,8 +130,8 @@ impl Fista {
 
     /// y = z⁰ and the restart flag: the next step is T(z⁰) with zero momentum.
     fn reset(&self, s: &mut FistaState) {
-        let [z, ya, yb, _] = s.v.all_mut();
-        if s.cur == 0 { ya } else { yb }.copy_from_slice(z);
+        let [z, y, ..] = s.v.all_mut();
+        y.copy_from_slice(z);
         s.restart = true;
     }
 }
@@ -149,7 +148,6 @@ impl IterationMap for Fista {
     fn new_state(&self) -> FistaState {
         let mut s = FistaState {
             v: self.g.vectors(Q),
-            cur: 0,
             restart: true,
         };
         self.cold_start(&mut s);
@@ -169,16 +167,14 @@ impl IterationMap for Fista {
     #[inline]
     fn step(&self, s: &mut FistaState) {
         // One pass over the padded H: x_{k+1} = T(y_k) over x_k in `z`, y_{k+1} = x_{k+1}
-        // + b(x_{k+1} − x_k) into the other y buffer. On the restart step y = z⁰ and b = 0,
-        // so the step is exactly the PG step x₀ = T(z⁰) and y₀ = x₀ (momentum reset).
+        // + b(x_{k+1} − x_k) over y_k. On the restart step y = z⁰ and b = 0, so the step
+        // is exactly the PG step x₀ = T(z⁰) and y₀ = x₀ (the momentum is reset).
         let b = if s.restart { 0.0 } else { self.beta };
         s.restart = false;
         let g = &self.g;
-        let [z, ya, yb, q] = s.v.all_mut();
-        let (y, y_next) = if s.cur == 0 { (ya, yb) } else { (yb, ya) };
+        let [z, y, scratch, q] = s.v.all_mut();
         g.kernel
-            .fista_step_padded(&g.h, y, q, self.inv_l, &g.lower, &g.upper, b, z, y_next);
-        s.cur ^= 1;
+            .fista_step_padded(&g.h, y, q, self.inv_l, &g.lower, &g.upper, b, z, scratch);
     }
     fn iterate<'s>(&self, state: &'s FistaState) -> &'s [f64] {
         self.g.head(state.v.get(Z))
@@ -215,11 +211,18 @@ mod tests {
     /// step; same summation as the FISTA kernel, so comparisons are bit for bit).
     fn pg_step(f: &Fista, y: &[f64], q: &[f64]) -> Vec<f64> {
         let (g, n) = (&f.g, f.problem().n());
-        let (y, q) = (AlignedVec::padded(y), AlignedVec::padded(q));
-        let mut out = AlignedVec::zeros(g.h.ld());
-        g.kernel
-            .pg_step_padded(&g.h, &y, &q, f.step_size(), &g.lower, &g.upper, &mut out);
-        out[..n].to_vec()
+        let (mut y, q) = (AlignedVec::padded(y), AlignedVec::padded(q));
+        let mut scratch = AlignedVec::zeros(g.h.ld());
+        g.kernel.pg_step_padded(
+            &g.h,
+            &mut y,
+            &q,
+            f.step_size(),
+            &g.lower,
+            &g.upper,
+            &mut scratch,
+        );
+        y[..n].to_vec()
     }
 
     #[test]

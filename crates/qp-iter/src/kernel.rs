@@ -454,9 +454,9 @@ impl std::fmt::Debug for AlignedVec {
 }
 
 /// `K` vectors of `ld` entries each, back to back in one [`AlignedVec`]: a method's state.
-/// One allocation, so the vectors cannot alias one another modulo 4 KiB, and a step swaps
-/// roles by an index instead of moving buffer handles through memory (measured: swapping
-/// two `AlignedVec`s per step cost ≈ 3 ns at n = 30).
+/// One allocation, so the vectors cannot alias one another modulo 4 KiB; with the in-place
+/// padded steps a step writes nothing but vector data (measured at n = 30: swapping two
+/// `AlignedVec` handles per step cost ≈ 3 ns, flipping an index ≈ 2 ns).
 #[derive(Debug, Clone)]
 pub(crate) struct Vectors<const K: usize> {
     buf: AlignedVec,
@@ -593,25 +593,34 @@ impl Kernel {
             // SAFETY: AVX2 + FMA by the type invariant; n ≥ 1; the matrix holds n columns
             // of ld entries (type invariant), x ≥ n and y ≥ ld entries (checked above).
             KernelPath::Avx2Fma => unsafe {
-                avx2_pad::run::<{ avx2_pad::STORE }>(avx2_pad::Ctx::product(h, x, y))
+                avx2_pad::run::<{ avx2_pad::STORE }>(avx2_pad::Ctx::product(
+                    h,
+                    x.as_ptr(),
+                    y.as_mut_ptr(),
+                ))
             },
             #[cfg(not(target_arch = "x86_64"))]
             KernelPath::Avx2Fma => portable::matvec_columns(h.as_slice(), h.n, h.ld, x, y),
         }
     }
 
-    /// The projected-gradient step z⁺ = Π_[l,u](z − α(Hz + q)) of
-    /// [`Kernel::projected_gradient_step`] on the padded layout (every vector ≥ ld
-    /// entries; writes `out[..ld]`).
+    /// The projected-gradient step z ← Π_[l,u](z − α(Hz + q)) of
+    /// [`Kernel::projected_gradient_step`] on the padded layout, **in place**: when the
+    /// whole product is one register panel (ld ≤ 60, see [`PADDED_IN_PLACE_MAX`]) every
+    /// entry of z is read before the first is written, so z is overwritten directly;
+    /// otherwise (and on the portable path) the step goes through `scratch` and is copied
+    /// back. In place, a method's state needs no second buffer to swap (a per-step store
+    /// of which buffer is current was measured to cost ≈ 2–3 ns at n = 30). Every vector
+    /// ≥ ld entries.
     ///
     /// ```
     /// use qp_iter::kernel::{AlignedVec, Kernel, PaddedSymmetric};
     /// let h = PaddedSymmetric::from_row_major(&[2.0, 0.0, 0.0, 1.0], 2).unwrap();
-    /// let (z, q) = (AlignedVec::padded(&[0.0, 0.0]), AlignedVec::padded(&[-2.0, -4.0]));
+    /// let (mut z, q) = (AlignedVec::padded(&[0.0, 0.0]), AlignedVec::padded(&[-2.0, -4.0]));
     /// let (lo, hi) = (AlignedVec::padded(&[-3.0, -1.0]), AlignedVec::padded(&[3.0, 1.0]));
-    /// let mut out = AlignedVec::zeros(h.ld());
-    /// Kernel::detect().pg_step_padded(&h, &z, &q, 0.5, &lo, &hi, &mut out);
-    /// assert_eq!(&out[..], &[1.0, 1.0, 0.0, 0.0]);
+    /// let mut scratch = AlignedVec::zeros(h.ld());
+    /// Kernel::detect().pg_step_padded(&h, &mut z, &q, 0.5, &lo, &hi, &mut scratch);
+    /// assert_eq!(&z[..], &[1.0, 1.0, 0.0, 0.0]); // (1, 2) before clamping z₂ to 1
     /// ```
     ///
     /// # Panics
@@ -620,50 +629,60 @@ impl Kernel {
     pub fn pg_step_padded(
         self,
         h: &PaddedSymmetric,
-        z: &[f64],
+        z: &mut [f64],
         q: &[f64],
         alpha: f64,
         lower: &[f64],
         upper: &[f64],
-        out: &mut [f64],
+        scratch: &mut [f64],
     ) {
         check_lens(
             "pg_step_padded",
             h.ld,
-            &[z.len(), q.len(), lower.len(), upper.len(), out.len()],
+            &[z.len(), q.len(), lower.len(), upper.len(), scratch.len()],
         );
         if h.n == 0 {
             return;
         }
         let (hs, n, ld) = (h.as_slice(), h.n, h.ld);
-        match self.path {
-            KernelPath::Portable => portable::pg_step(hs, n, ld, z, q, alpha, lower, upper, out),
-            #[cfg(target_arch = "x86_64")]
+        #[cfg(target_arch = "x86_64")]
+        if self.path == KernelPath::Avx2Fma {
+            let in_place = ld <= PADDED_IN_PLACE_MAX;
             // SAFETY: AVX2 + FMA by the type invariant; n ≥ 1; n columns of ld entries;
-            // every vector ≥ ld (checked above); `out` is a distinct &mut.
-            KernelPath::Avx2Fma => unsafe {
-                let mut c = avx2_pad::Ctx::product(h, z, out);
+            // every vector ≥ ld (checked above). In place (x = out = z, both pointers
+            // from the one `&mut z`): a single panel reads all of x in its product loop
+            // before the epilogue's first store, and the epilogue reads each row of x
+            // before writing it. Otherwise `out` is `scratch`, a distinct `&mut`.
+            unsafe {
+                let zp = z.as_mut_ptr();
+                let mut c =
+                    avx2_pad::Ctx::product(h, zp, if in_place { zp } else { scratch.as_mut_ptr() });
                 (c.q, c.lo, c.hi, c.a) = (q.as_ptr(), lower.as_ptr(), upper.as_ptr(), alpha);
-                avx2_pad::run::<{ avx2_pad::PG }>(c)
-            },
-            #[cfg(not(target_arch = "x86_64"))]
-            KernelPath::Avx2Fma => portable::pg_step(hs, n, ld, z, q, alpha, lower, upper, out),
+                avx2_pad::run::<{ avx2_pad::PG }>(c);
+            }
+            if !in_place {
+                z[..ld].copy_from_slice(&scratch[..ld]);
+            }
+            return;
         }
+        portable::pg_step(hs, n, ld, z, q, alpha, lower, upper, scratch);
+        z[..ld].copy_from_slice(&scratch[..ld]);
     }
 
-    /// The FISTA step of [`Kernel::fista_step`] on the padded layout: x⁺ = Π_[l,u](y −
-    /// α(Hy + q)) over `z` (x on entry), y⁺ = x⁺ + β(x⁺ − x) into `y_next`, computed as
-    /// (1 + β)x⁺ − βx (so β = 0 gives y⁺ = x⁺ exactly). Every vector ≥ ld entries.
+    /// The FISTA step of [`Kernel::fista_step`] on the padded layout, in place as
+    /// [`Kernel::pg_step_padded`]: x⁺ = Π_[l,u](y − α(Hy + q)) over `z` (x on entry),
+    /// y⁺ = x⁺ + β(x⁺ − x) over `y`, computed as (1 + β)x⁺ − βx (so β = 0 gives y⁺ = x⁺
+    /// exactly). Every vector ≥ ld entries.
     ///
     /// ```
     /// use qp_iter::kernel::{AlignedVec, Kernel, PaddedSymmetric};
     /// let h = PaddedSymmetric::from_row_major(&[2.0, 0.0, 0.0, 1.0], 2).unwrap();
-    /// let (y, q) = (AlignedVec::padded(&[0.0, 0.0]), AlignedVec::padded(&[-2.0, -4.0]));
+    /// let (mut y, q) = (AlignedVec::padded(&[0.0, 0.0]), AlignedVec::padded(&[-2.0, -4.0]));
     /// let (lo, hi) = (AlignedVec::padded(&[-3.0, -1.0]), AlignedVec::padded(&[3.0, 1.0]));
-    /// let (mut z, mut y_next) = (AlignedVec::padded(&[0.5, 0.0]), AlignedVec::zeros(4));
-    /// Kernel::detect().fista_step_padded(&h, &y, &q, 0.5, &lo, &hi, 0.5, &mut z, &mut y_next);
+    /// let (mut z, mut scratch) = (AlignedVec::padded(&[0.5, 0.0]), AlignedVec::zeros(4));
+    /// Kernel::detect().fista_step_padded(&h, &mut y, &q, 0.5, &lo, &hi, 0.5, &mut z, &mut scratch);
     /// assert_eq!(&z[..2], &[1.0, 1.0]);
-    /// assert_eq!(&y_next[..2], &[1.25, 1.5]);
+    /// assert_eq!(&y[..2], &[1.25, 1.5]); // x⁺ + ½(x⁺ − x)
     /// ```
     ///
     /// # Panics
@@ -672,14 +691,14 @@ impl Kernel {
     pub fn fista_step_padded(
         self,
         h: &PaddedSymmetric,
-        y: &[f64],
+        y: &mut [f64],
         q: &[f64],
         alpha: f64,
         lower: &[f64],
         upper: &[f64],
         beta: f64,
         z: &mut [f64],
-        y_next: &mut [f64],
+        scratch: &mut [f64],
     ) {
         check_lens(
             "fista_step_padded",
@@ -690,52 +709,52 @@ impl Kernel {
                 lower.len(),
                 upper.len(),
                 z.len(),
-                y_next.len(),
+                scratch.len(),
             ],
         );
         if h.n == 0 {
             return;
         }
         let (hs, n, ld) = (h.as_slice(), h.n, h.ld);
-        match self.path {
-            KernelPath::Portable => {
-                portable::fista_step(hs, n, ld, y, q, alpha, lower, upper, beta, z, y_next)
-            }
-            #[cfg(target_arch = "x86_64")]
-            // SAFETY: AVX2 + FMA by the type invariant; n ≥ 1; n columns of ld entries;
-            // every vector ≥ ld (checked above); `z`, `y_next` distinct &mut.
-            KernelPath::Avx2Fma => unsafe {
-                let mut c = avx2_pad::Ctx::product(h, y, z);
+        #[cfg(target_arch = "x86_64")]
+        if self.path == KernelPath::Avx2Fma {
+            let in_place = ld <= PADDED_IN_PLACE_MAX;
+            // SAFETY: as in `pg_step_padded`, with y in place of z (x = next = y); `z` is
+            // a distinct `&mut` the product never reads (only the epilogue, row by row,
+            // before writing the same row).
+            unsafe {
+                let yp = y.as_mut_ptr();
+                let mut c = avx2_pad::Ctx::product(h, yp, z.as_mut_ptr());
                 (c.q, c.lo, c.hi, c.a, c.b) =
                     (q.as_ptr(), lower.as_ptr(), upper.as_ptr(), alpha, beta);
-                c.next = y_next.as_mut_ptr();
-                avx2_pad::run::<{ avx2_pad::FISTA }>(c)
-            },
-            #[cfg(not(target_arch = "x86_64"))]
-            KernelPath::Avx2Fma => {
-                portable::fista_step(hs, n, ld, y, q, alpha, lower, upper, beta, z, y_next)
+                c.next = if in_place { yp } else { scratch.as_mut_ptr() };
+                avx2_pad::run::<{ avx2_pad::FISTA }>(c);
             }
+            if !in_place {
+                y[..ld].copy_from_slice(&scratch[..ld]);
+            }
+            return;
         }
+        portable::fista_step(hs, n, ld, y, q, alpha, lower, upper, beta, z, scratch);
+        y[..ld].copy_from_slice(&scratch[..ld]);
     }
 
     /// The relaxed ADMM step of [`Kernel::admm_step`] on the padded layout (M =
-    /// ρ(H + ρI)⁻¹ in `m`; every vector ≥ ld entries), except that z = Mt − m_q is not
-    /// stored: only v⁺, y⁺ and t⁺ are (one store stream less per step; z is
-    /// [`Kernel::matvec_padded`] of the step's input t minus m_q, for diagnostics).
-    /// Relaxations 1 and 2 (Peaceman–Rachford) run their own epilogues without the
-    /// (1 − a)v term.
+    /// ρ(H + ρI)⁻¹ in `m`), in place as [`Kernel::pg_step_padded`]: t⁺ over `t`, and z,
+    /// v⁺ (over `v`), y⁺ (over `dual`). Relaxations 1 and 2 (Peaceman–Rachford) run their
+    /// own epilogues without the (1 − a)v term. Every vector ≥ ld entries.
     ///
     /// ```
     /// use qp_iter::kernel::{AlignedVec, Kernel, PaddedSymmetric};
     /// let m = PaddedSymmetric::from_row_major(&[1.0, 0.0, 0.0, 1.0], 2).unwrap();
-    /// let (t, mq) = (AlignedVec::padded(&[2.0, 0.25]), AlignedVec::zeros(4));
+    /// let (mut t, mq) = (AlignedVec::padded(&[2.0, 0.25]), AlignedVec::zeros(4));
     /// let (lo, hi) = (AlignedVec::padded(&[-1.0, -1.0]), AlignedVec::padded(&[1.0, 1.0]));
-    /// let (mut v, mut t_next) = (AlignedVec::zeros(4), AlignedVec::zeros(4));
+    /// let [mut z, mut v, mut scratch] = [(); 3].map(|_| AlignedVec::zeros(4));
     /// let mut y = AlignedVec::padded(&[0.5, 0.0]);
-    /// Kernel::detect().admm_step_padded(&m, &t, &mq, 1.0, 1.0, &lo, &hi,
-    ///     &mut v, &mut y, &mut t_next);
-    /// assert_eq!(&v[..2], &[1.0, 0.25]); // w = z + y/ρ = (2.5, 0.25) clamped
-    /// assert_eq!((&y[..2], &t_next[..2]), (&[1.5, 0.0][..], &[-0.5, 0.25][..]));
+    /// Kernel::detect().admm_step_padded(&m, &mut t, &mq, 1.0, 1.0, &lo, &hi,
+    ///     &mut z, &mut v, &mut y, &mut scratch);
+    /// assert_eq!((&z[..2], &v[..2]), (&[2.0, 0.25][..], &[1.0, 0.25][..]));
+    /// assert_eq!((&y[..2], &t[..2]), (&[1.5, 0.0][..], &[-0.5, 0.25][..]));
     /// ```
     ///
     /// # Panics
@@ -744,15 +763,16 @@ impl Kernel {
     pub fn admm_step_padded(
         self,
         m: &PaddedSymmetric,
-        t: &[f64],
+        t: &mut [f64],
         mq: &[f64],
         relaxation: f64,
         rho: f64,
         lower: &[f64],
         upper: &[f64],
+        z: &mut [f64],
         v: &mut [f64],
         dual: &mut [f64],
-        t_next: &mut [f64],
+        scratch: &mut [f64],
     ) {
         check_lens(
             "admm_step_padded",
@@ -762,27 +782,29 @@ impl Kernel {
                 mq.len(),
                 lower.len(),
                 upper.len(),
+                z.len(),
                 v.len(),
                 dual.len(),
-                t_next.len(),
+                scratch.len(),
             ],
         );
         if m.n == 0 {
             return;
         }
         let (ms, n, ld) = (m.as_slice(), m.n, m.ld);
-        match self.path {
-            KernelPath::Portable => portable::admm_step_no_z(
-                ms, n, ld, t, mq, relaxation, rho, lower, upper, v, dual, t_next,
-            ),
-            #[cfg(target_arch = "x86_64")]
-            // SAFETY: AVX2 + FMA by the type invariant; n ≥ 1; n columns of ld entries;
-            // every vector ≥ ld (checked above); the three outputs are distinct &mut.
-            KernelPath::Avx2Fma => unsafe {
-                let mut c = avx2_pad::Ctx::product(m, t, t_next);
+        #[cfg(target_arch = "x86_64")]
+        if self.path == KernelPath::Avx2Fma {
+            let in_place = ld <= PADDED_IN_PLACE_MAX;
+            // SAFETY: as in `pg_step_padded`, with t in place of z (x = out = t); z, v
+            // and `dual` are distinct `&mut`s the product never reads (the epilogue reads
+            // v and y row by row before writing the same rows).
+            unsafe {
+                let tp = t.as_mut_ptr();
+                let mut c =
+                    avx2_pad::Ctx::product(m, tp, if in_place { tp } else { scratch.as_mut_ptr() });
                 (c.q, c.lo, c.hi, c.a, c.b) =
                     (mq.as_ptr(), lower.as_ptr(), upper.as_ptr(), relaxation, rho);
-                (c.v, c.dual) = (v.as_mut_ptr(), dual.as_mut_ptr());
+                (c.next, c.v, c.dual) = (z.as_mut_ptr(), v.as_mut_ptr(), dual.as_mut_ptr());
                 if relaxation == 1.0 {
                     avx2_pad::run::<{ avx2_pad::ADMM1 }>(c)
                 } else if relaxation == 2.0 {
@@ -790,14 +812,22 @@ impl Kernel {
                 } else {
                     avx2_pad::run::<{ avx2_pad::ADMM }>(c)
                 }
-            },
-            #[cfg(not(target_arch = "x86_64"))]
-            KernelPath::Avx2Fma => portable::admm_step_no_z(
-                ms, n, ld, t, mq, relaxation, rho, lower, upper, v, dual, t_next,
-            ),
+            }
+            if !in_place {
+                t[..ld].copy_from_slice(&scratch[..ld]);
+            }
+            return;
         }
+        portable::admm_step(
+            ms, n, ld, t, mq, relaxation, rho, lower, upper, z, v, dual, scratch,
+        );
+        t[..ld].copy_from_slice(&scratch[..ld]);
     }
 }
+
+/// Largest leading dimension for which the padded steps update their input in place
+/// (one register panel of ≤ 15 vectors, see `avx2_pad::run`): n ≤ 60.
+pub const PADDED_IN_PLACE_MAX: usize = 60;
 
 #[inline]
 fn check_lens(what: &str, n: usize, lens: &[usize]) {
@@ -928,32 +958,6 @@ mod portable {
             let x = clamp_nan_propagating(y[i] - alpha * (y_next[i] + q[i]), lower[i], upper[i]);
             y_next[i] = x + beta * (x - z[i]);
             z[i] = x;
-        }
-    }
-
-    /// Relaxed ADMM step on rows 0 .. ld without storing z: `t_next` holds Mt first.
-    pub(super) fn admm_step_no_z(
-        m: &[f64],
-        n: usize,
-        ld: usize,
-        t: &[f64],
-        mq: &[f64],
-        a: f64,
-        rho: f64,
-        lower: &[f64],
-        upper: &[f64],
-        v: &mut [f64],
-        dual: &mut [f64],
-        t_next: &mut [f64],
-    ) {
-        let ir = 1.0 / rho;
-        matvec_columns(m, n, ld, t, t_next);
-        for i in 0..ld {
-            let w = a * (t_next[i] - mq[i]) + (1.0 - a) * v[i] + ir * dual[i];
-            let vp = clamp_nan_propagating(w, lower[i], upper[i]);
-            dual[i] = rho * (w - vp);
-            t_next[i] = 2.0 * vp - w;
-            v[i] = vp;
         }
     }
 
@@ -1449,7 +1453,7 @@ mod avx2_pad {
         pub a: f64,
         /// β (FISTA) or ρ (ADMM).
         pub b: f64,
-        /// y_next (FISTA).
+        /// y_next (FISTA) or z (ADMM).
         pub next: *mut f64,
         /// v in/out (ADMM).
         pub v: *mut f64,
@@ -1459,13 +1463,13 @@ mod avx2_pad {
 
     impl Ctx {
         /// y = Hx with every other field empty.
-        pub(super) fn product(h: &PaddedSymmetric, x: &[f64], out: &mut [f64]) -> Self {
+        pub(super) fn product(h: &PaddedSymmetric, x: *const f64, out: *mut f64) -> Self {
             Ctx {
                 h: h.as_slice().as_ptr(),
                 n: h.n(),
                 ld: h.ld(),
-                x: x.as_ptr(),
-                out: out.as_mut_ptr(),
+                x,
+                out,
                 q: std::ptr::null(),
                 lo: std::ptr::null(),
                 hi: std::ptr::null(),
@@ -1535,7 +1539,7 @@ mod avx2_pad {
                     st(c.out, r, x);
                 }
                 ADMM1 | ADMM2 | ADMM => {
-                    // w = a z + (1 − a)v + y/ρ = a s + base, z = s − m_q, with
+                    // w = a z + (1 − a)v + y/ρ = a s + base, z = s − m_q (stored last), with
                     // base = y/ρ − m_q (a = 1), y/ρ − v − 2m_q (a = 2),
                     // y/ρ + (1 − a)v − a m_q (otherwise).
                     let (mq, rho) = (ld(c.q, r), _mm256_set1_pd(c.b));
@@ -1565,6 +1569,7 @@ mod avx2_pad {
                     st(c.out, r, _mm256_fmsub_pd(_mm256_set1_pd(2.0), vp, w));
                     st(c.dual, r, _mm256_mul_pd(rho, _mm256_sub_pd(w, vp)));
                     st(c.v, r, vp);
+                    st(c.next, r, _mm256_sub_pd(s, mq));
                 }
                 _ => st(c.out, r, s),
             }
@@ -1657,8 +1662,10 @@ mod avx2_pad {
     /// AVX2 and FMA available; n ≥ 1; ld a multiple of 4 with ld ≥ n; `h` valid for n·ld
     /// reads and `x` for n reads; the pointers epilogue `E` uses valid for ld elements
     /// (reads: `q`, `lo`, `hi`; writes: `out`, and `next`, `v`, `dual` where used; `out`
-    /// also read by FISTA, `v` and `dual` by ADMM); no written range overlaps `x`, `h` or
-    /// another written range.
+    /// also read by FISTA, `v` and `dual` by ADMM); no written range overlaps `h` or
+    /// another written range, nor `x` — except that `out` (PG, ADMM) or `next` (FISTA)
+    /// may be `x` itself when ld ≤ [`super::PADDED_IN_PLACE_MAX`] (one panel: all of x
+    /// is read before the first store, and each epilogue row reads x before writing it).
     #[target_feature(enable = "avx2,fma")]
     pub(super) unsafe fn run<const E: u8>(c: Ctx) {
         let (mut r0, mut left) = (0, c.ld / 4);
@@ -2090,7 +2097,8 @@ mod tests {
     }
 
     /// Every padded kernel against the naive product and the unfused formulas, on every
-    /// path, at sizes with every remainder mod 4 (and n = 1), across panel boundaries.
+    /// path, at sizes with every remainder mod 4 (and n = 1), across panel boundaries, in
+    /// place (ld ≤ 60) and through the scratch buffer (ld > 60).
     #[test]
     fn padded_kernels_match_naive_on_every_path_and_size() {
         let mut rng = ChaCha8Rng::seed_from_u64(9);
@@ -2110,6 +2118,7 @@ mod tests {
                 let (lo, hi) = (pad(&lower), pad(&upper));
                 let hx = naive(&ht, n, &x);
                 let e = tol(n);
+                let mut scratch = AlignedVec::zeros(ld);
 
                 let mut y = AlignedVec::zeros(ld);
                 y.fill(7.0);
@@ -2118,64 +2127,68 @@ mod tests {
                 assert!(padding_is_zero(&y, n), "{:?} n = {n}", k.path());
 
                 let alpha = rng.random_range(0.1..1.0);
-                let mut out = AlignedVec::zeros(ld);
-                k.pg_step_padded(&hp, &pad(&x), &pad(&q), alpha, &lo, &hi, &mut out);
+                let mut z = pad(&x);
+                k.pg_step_padded(&hp, &mut z, &pad(&q), alpha, &lo, &hi, &mut scratch);
                 let want: Vec<f64> = (0..n)
                     .map(|i| (x[i] - alpha * (hx[i] + q[i])).max(lower[i]).min(upper[i]))
                     .collect();
-                assert_close("pg", k, n, &out, &want, e);
-                assert!(padding_is_zero(&out, n), "{:?} n = {n} pg", k.path());
+                assert_close("pg", k, n, &z, &want, e);
+                assert!(padding_is_zero(&z, n), "{:?} n = {n} pg", k.path());
 
                 let beta = rng.random_range(0.0..1.0);
-                let (mut z, mut y_next) = (pad(&z0), AlignedVec::zeros(ld));
+                let (mut z, mut y) = (pad(&z0), pad(&x));
                 k.fista_step_padded(
                     &hp,
-                    &pad(&x),
+                    &mut y,
                     &pad(&q),
                     alpha,
                     &lo,
                     &hi,
                     beta,
                     &mut z,
-                    &mut y_next,
+                    &mut scratch,
                 );
                 let want_y: Vec<f64> = (0..n).map(|i| want[i] + beta * (want[i] - z0[i])).collect();
                 assert_close("fista x⁺", k, n, &z, &want, e);
-                assert_close("fista y⁺", k, n, &y_next, &want_y, 4.0 * e);
-                assert!(padding_is_zero(&z, n) && padding_is_zero(&y_next, n));
+                assert_close("fista y⁺", k, n, &y, &want_y, 4.0 * e);
+                assert!(padding_is_zero(&z, n) && padding_is_zero(&y, n));
 
                 // ADMM: plain, Peaceman–Rachford and a general relaxation (own paths).
                 for a in [1.0, 2.0, rng.random_range(0.5..1.9)] {
                     let rho = rng.random_range(0.5..4.0);
                     let (v0, y0) = (random_vec(&mut rng, n), random_vec(&mut rng, n));
-                    let (mut v, mut dual, mut t_next) = (pad(&v0), pad(&y0), AlignedVec::zeros(ld));
+                    let (mut t, mut z, mut v, mut dual) =
+                        (pad(&x), AlignedVec::zeros(ld), pad(&v0), pad(&y0));
                     k.admm_step_padded(
                         &hp,
-                        &pad(&x),
+                        &mut t,
                         &pad(&q),
                         a,
                         rho,
                         &lo,
                         &hi,
+                        &mut z,
                         &mut v,
                         &mut dual,
-                        &mut t_next,
+                        &mut scratch,
                     );
-                    let (mut wv, mut wy, mut wt) = (vec![], vec![], vec![]);
+                    let (mut wz, mut wv, mut wy, mut wt) = (vec![], vec![], vec![], vec![]);
                     for i in 0..n {
                         let zi = hx[i] - q[i];
                         let w = a * zi + (1.0 - a) * v0[i] + y0[i] / rho;
                         let vp = w.max(lower[i]).min(upper[i]);
+                        wz.push(zi);
                         wv.push(vp);
                         wy.push(rho * (w - vp));
                         wt.push(vp - (w - vp));
                     }
                     let e = 16.0 * e;
+                    assert_close("admm z", k, n, &z, &wz, e);
                     assert_close("admm v", k, n, &v, &wv, e);
                     assert_close("admm y", k, n, &dual, &wy, rho * e);
-                    assert_close("admm t", k, n, &t_next, &wt, e);
+                    assert_close("admm t", k, n, &t, &wt, e);
                     assert!(
-                        [&v, &dual, &t_next].iter().all(|b| padding_is_zero(b, n)),
+                        [&z, &v, &dual, &t].iter().all(|b| padding_is_zero(b, n)),
                         "{:?} n = {n} a = {a}: padding",
                         k.path()
                     );
@@ -2186,29 +2199,30 @@ mod tests {
 
     /// From six vectors (n > 20) up, the padded and unpadded kernels sum each row in the
     /// same order (column by column, one FMA per entry), so on the same path their steps
-    /// agree bit for bit (below, the padded AVX2 kernel splits even and odd columns).
+    /// agree bit for bit (below, the padded AVX2 kernel splits even and odd columns), in
+    /// place and through the scratch buffer alike.
     #[test]
     fn padded_and_unpadded_steps_agree_bit_for_bit() {
         let mut rng = ChaCha8Rng::seed_from_u64(10);
         for k in paths() {
-            for n in [21, 29, 30, 37, 49, 70] {
+            for n in [21, 29, 30, 37, 49, 60, 61, 70] {
                 let h = random_symmetric(&mut rng, n);
                 let hp = PaddedSymmetric::from_row_major(&h, n).unwrap();
                 let (z, q) = (random_vec(&mut rng, n), random_vec(&mut rng, n));
                 let (lo, hi) = random_box(&mut rng, n);
                 let mut out = vec![0.0; n];
                 k.projected_gradient_step(&h, n, &z, &q, 0.3, &lo, &hi, &mut out);
-                let mut outp = AlignedVec::zeros(hp.ld());
+                let (mut zp, mut scratch) = (pad(&z), AlignedVec::zeros(hp.ld()));
                 k.pg_step_padded(
                     &hp,
-                    &pad(&z),
+                    &mut zp,
                     &pad(&q),
                     0.3,
                     &pad(&lo),
                     &pad(&hi),
-                    &mut outp,
+                    &mut scratch,
                 );
-                assert_eq!(&outp[..n], &out[..], "{:?} n = {n}", k.path());
+                assert_eq!(&zp[..n], &out[..], "{:?} n = {n}", k.path());
             }
         }
     }
@@ -2216,31 +2230,33 @@ mod tests {
     #[test]
     fn padded_steps_propagate_nan_instead_of_clamping_it() {
         for k in paths() {
-            for n in [1, 5, 9, 33] {
+            for n in [1, 5, 9, 33, 61] {
                 let h = PaddedSymmetric::from_row_major(&vec![1.0; n * n], n).unwrap();
                 let ld = h.ld();
                 let (lo, hi) = (pad(&vec![-1.0; n]), pad(&vec![1.0; n]));
                 let zero = AlignedVec::zeros(ld);
                 let mut x = AlignedVec::zeros(ld);
                 x[n - 1] = f64::NAN;
-                let mut out = AlignedVec::zeros(ld);
-                k.pg_step_padded(&h, &x, &zero, 0.5, &lo, &hi, &mut out);
+                let mut scratch = AlignedVec::zeros(ld);
+                let mut z = x.clone();
+                k.pg_step_padded(&h, &mut z, &zero, 0.5, &lo, &hi, &mut scratch);
                 assert!(
-                    out[..n].iter().all(|v| v.is_nan()),
+                    z[..n].iter().all(|v| v.is_nan()),
                     "pg {:?} n = {n}",
                     k.path()
                 );
-                let (mut z, mut y_next) = (AlignedVec::zeros(ld), AlignedVec::zeros(ld));
-                k.fista_step_padded(&h, &x, &zero, 0.5, &lo, &hi, 0.5, &mut z, &mut y_next);
+                let (mut z, mut y) = (AlignedVec::zeros(ld), x.clone());
+                k.fista_step_padded(&h, &mut y, &zero, 0.5, &lo, &hi, 0.5, &mut z, &mut scratch);
                 assert!(
-                    z[..n].iter().chain(&y_next[..n]).all(|v| v.is_nan()),
+                    z[..n].iter().chain(&y[..n]).all(|v| v.is_nan()),
                     "fista {:?} n = {n}",
                     k.path()
                 );
                 for a in [1.0, 2.0, 1.5] {
+                    let mut t = x.clone();
                     let mut b = [(); 3].map(|_| AlignedVec::zeros(ld));
-                    let [v, y, t] = &mut b;
-                    k.admm_step_padded(&h, &x, &zero, a, 1.0, &lo, &hi, v, y, t);
+                    let [z, v, y] = &mut b;
+                    k.admm_step_padded(&h, &mut t, &zero, a, 1.0, &lo, &hi, z, v, y, &mut scratch);
                     assert!(
                         v[..n]
                             .iter()
@@ -2260,8 +2276,8 @@ mod tests {
     fn padded_kernel_rejects_unpadded_vectors() {
         let h = PaddedSymmetric::from_row_major(&[1.0; 9], 3).unwrap();
         let v = [0.0; 3];
-        let mut out = [0.0; 4];
-        Kernel::detect().pg_step_padded(&h, &v, &v, 1.0, &v, &v, &mut out);
+        let (mut z, mut scratch) = ([0.0; 4], [0.0; 4]);
+        Kernel::detect().pg_step_padded(&h, &mut z, &v, 1.0, &v, &v, &mut scratch);
     }
 
     #[test]
@@ -2298,11 +2314,23 @@ mod tests {
                 &mut y,
             );
             let h = PaddedSymmetric::from_row_major(&[], 0).unwrap();
+            let (mut a, mut b, mut c, mut d) = ([0.0; 0], [0.0; 0], [0.0; 0], [0.0; 0]);
             k.matvec_padded(&h, &[], &mut y);
-            k.pg_step_padded(&h, &[], &[], 1.0, &[], &[], &mut y);
-            k.fista_step_padded(&h, &[], &[], 1.0, &[], &[], 0.5, &mut [], &mut y);
-            let (mut a, mut b) = ([0.0; 0], [0.0; 0]);
-            k.admm_step_padded(&h, &[], &[], 2.0, 1.0, &[], &[], &mut a, &mut b, &mut y);
+            k.pg_step_padded(&h, &mut a, &[], 1.0, &[], &[], &mut y);
+            k.fista_step_padded(&h, &mut a, &[], 1.0, &[], &[], 0.5, &mut b, &mut y);
+            k.admm_step_padded(
+                &h,
+                &mut a,
+                &[],
+                2.0,
+                1.0,
+                &[],
+                &[],
+                &mut b,
+                &mut c,
+                &mut d,
+                &mut y,
+            );
         }
     }
 

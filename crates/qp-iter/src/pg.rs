@@ -98,17 +98,17 @@ pub struct ProjectedGradient {
     cert: Certificate,
 }
 
-/// State of [`ProjectedGradient`]: the iterate and the next iterate's buffer, which swap
-/// roles every step, and the loaded linear term (padded to the kernels' length, see
-/// [`crate::kernel::padded_len`], in one allocation).
+/// State of [`ProjectedGradient`]: the iterate (updated in place), the kernel's scratch
+/// buffer (used only for n > 60) and the loaded linear term, padded to the kernels' length
+/// (see [`crate::kernel::padded_len`]) in one allocation.
 #[derive(Debug, Clone)]
 pub struct PgState {
-    /// [z_a, z_b, q]; the iterate is z_a when `cur` = 0, z_b when 1.
+    /// [z, scratch, q].
     v: Vectors<3>,
-    cur: usize,
 }
 
-/// Index of q in [`PgState`]'s vectors.
+/// Indices into [`PgState`]'s vectors.
+const Z: usize = 0;
 const Q: usize = 2;
 
 impl ProjectedGradient {
@@ -182,7 +182,6 @@ impl IterationMap for ProjectedGradient {
     fn new_state(&self) -> PgState {
         let mut s = PgState {
             v: self.g.vectors(Q),
-            cur: 0,
         };
         self.cold_start(&mut s);
         s
@@ -191,24 +190,22 @@ impl IterationMap for ProjectedGradient {
         self.g.load(state.v.get_mut(Q), theta);
     }
     fn warm_start(&self, state: &mut PgState, z0: &[f64], _dual: Option<&[f64]>) {
-        self.g.start(state.v.get_mut(state.cur), Some(z0));
+        self.g.start(state.v.get_mut(Z), Some(z0));
     }
     fn cold_start(&self, state: &mut PgState) {
-        self.g.start(state.v.get_mut(state.cur), None);
+        self.g.start(state.v.get_mut(Z), None);
     }
     #[inline]
     fn step(&self, s: &mut PgState) {
         // Fused z⁺ = Π_Z(z − α(Hz + q)) in one pass over the padded H (NaN-preserving
-        // clamp) into the other buffer, which becomes the iterate: no copy, no allocation.
+        // clamp), in place: no copy, no allocation, nothing else in the state changes.
         let g = &self.g;
-        let [a, b, q] = s.v.all_mut();
-        let (z, next) = if s.cur == 0 { (a, b) } else { (b, a) };
+        let [z, scratch, q] = s.v.all_mut();
         g.kernel
-            .pg_step_padded(&g.h, z, q, self.alpha, &g.lower, &g.upper, next);
-        s.cur ^= 1;
+            .pg_step_padded(&g.h, z, q, self.alpha, &g.lower, &g.upper, scratch);
     }
     fn iterate<'s>(&self, state: &'s PgState) -> &'s [f64] {
-        self.g.head(state.v.get(state.cur))
+        self.g.head(state.v.get(Z))
     }
     fn certificate(&self) -> &Certificate {
         &self.cert

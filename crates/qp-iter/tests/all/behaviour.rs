@@ -193,12 +193,11 @@ fn admm_dual_and_residuals_converge_to_the_reference() {
             "seed {seed}"
         );
         // constraint_violation is the Euclidean distance of z to Z.
-        let mut z = vec![0.0; inst.qp.n()];
-        admm.primal_z(&s, &mut z);
-        let mut p = z.clone();
+        let z = admm.primal_z(&s);
+        let mut p = z.to_vec();
         inst.qp.project(&mut p);
-        assert!((admm.constraint_violation(&s) - dist(&p, &z)).abs() <= 1e-15);
-        assert!((admm.primal_residual(&s) - dist(&z, admm.iterate(&s))).abs() <= 1e-15);
+        assert!((admm.constraint_violation(&s) - dist(&p, z)).abs() <= 1e-15);
+        assert!((admm.primal_residual(&s) - dist(z, admm.iterate(&s))).abs() <= 1e-15);
     }
 }
 

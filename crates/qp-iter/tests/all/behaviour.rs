@@ -161,6 +161,36 @@ fn every_method_reaches_the_reference_optimum_within_its_certified_budget() {
     }
 }
 
+/// Beyond n = 60 the padded kernels step through a scratch buffer instead of in place
+/// (more than one register panel): the same end-to-end check there.
+#[test]
+fn every_method_reaches_the_reference_optimum_beyond_one_register_panel() {
+    for seed in 51_000..51_004 {
+        let inst = random_instance(
+            seed,
+            Gen {
+                n_min: 61,
+                n_max: 90,
+                log10_kappa_max: 2.0,
+                ..Gen::default()
+            },
+        );
+        assert!(inst.qp.n() > 60);
+        let r = reference(&inst);
+        let tol = 1e-8 * (1.0 + norm(&r.sol.z));
+        for m in methods(&inst.qp) {
+            let (status, k) = m.converge(&inst.theta, &inst.z0, &r.sol.z, tol);
+            assert_eq!(
+                status,
+                RunStatus::Converged,
+                "seed {seed}, n = {}: {} stopped after {k} steps",
+                inst.qp.n(),
+                m.label()
+            );
+        }
+    }
+}
+
 #[test]
 fn admm_dual_and_residuals_converge_to_the_reference() {
     for seed in 51_000..51_040 {

@@ -1,8 +1,20 @@
 //! Dense kernels for the hot loop: y = H x for a small square H stored row-major, and the
-//! fused projected-gradient step z⁺ = Π_[l,u](z − α(Hz + q)).
+//! fused steps of the methods (projected gradient z⁺ = Π_\[l,u\](z − α(Hz + q)), FISTA,
+//! ADMM), each one pass over the matrix.
 //!
 //! One iteration of every method is one such product plus O(n) work, so this module is
 //! the single place where per-iteration cost is decided.
+//!
+//! ## Padded layout (what the methods run)
+//! [`PaddedSymmetric`] stores the matrix by columns with leading dimension
+//! [`padded_len`]`(n)` (n rounded up to 4) in a 64-byte aligned buffer, and the methods
+//! keep every vector padded the same way with zeros ([`AlignedVec`]): each column is whole
+//! aligned 4-wide loads, so the AVX2 kernels ([`Kernel::pg_step_padded`],
+//! [`Kernel::fista_step_padded`], [`Kernel::admm_step_padded`]) need no masks or tails and
+//! no load crosses a cache line. Rows go in const-generic panels of 1 … 15 vectors chosen at
+//! run time; up to n = 60 the whole product is one panel and the steps update in place.
+//! The row-major kernels below ([`Kernel::matvec`], [`Kernel::matvec_symmetric`],
+//! [`Kernel::projected_gradient_step`], …) take any slice and serve everything else.
 //!
 //! ## Dispatch
 //! The committed build targets baseline x86-64 (SSE2 only; no `-C target-cpu=native`).
@@ -12,7 +24,7 @@
 //! in a `OnceLock`, and a [`Kernel`] value stored in a method's setup data carries it, so a
 //! call costs one predictable branch, not a CPU query.
 //!
-//! ## AVX2 path
+//! ## AVX2 path of the row-major `matvec`
 //! Eight rows at a time, one 4-wide accumulator per row (eight independent FMA chains:
 //! enough to cover the FMA latency on two pipes), the column remainder through a masked
 //! load, the row remainder by repeating the last row and storing only the valid sums.
@@ -171,7 +183,7 @@ impl Kernel {
         }
     }
 
-    /// The projected-gradient step z⁺ = Π_[l,u](z − α(Hz + q)) for a symmetric H,
+    /// The projected-gradient step z⁺ = Π_\[l,u\](z − α(Hz + q)) for a symmetric H,
     /// written to `out` in one pass over H (the step of [`crate::pg`], fused: no separate
     /// Hz buffer, axpy and projection loops). As in [`Kernel::matvec_symmetric`], a
     /// non-symmetric `h` acts as Hᵀ.
@@ -228,7 +240,7 @@ impl Kernel {
 
     /// One fused step of constant-momentum FISTA ([`crate::fista`]) for a symmetric H:
     ///
-    /// x⁺ = Π_[l,u](y − α(Hy + q)),  y⁺ = x⁺ + β(x⁺ − x),
+    /// x⁺ = Π_\[l,u\](y − α(Hy + q)),  y⁺ = x⁺ + β(x⁺ − x),
     ///
     /// with x = `z` on entry. Writes x⁺ into `z` and y⁺ into `y_next` (swap `y` and
     /// `y_next` afterwards); one pass over H, no other loops. β = 0 gives the plain
@@ -295,7 +307,7 @@ impl Kernel {
     /// One fused step of relaxed ADMM ([`crate::admm`]) on min ½zᵀHz + qᵀz, z = v ∈ [l, u],
     /// with the dense map M = ρ(H + ρI)⁻¹ (symmetric) and m_q = (H + ρI)⁻¹q:
     ///
-    /// z = M t − m_q,  w = a z + (1 − a)v + y/ρ,  v⁺ = Π_[l,u](w),  y⁺ = ρ(w − v⁺),
+    /// z = M t − m_q,  w = a z + (1 − a)v + y/ρ,  v⁺ = Π_\[l,u\](w),  y⁺ = ρ(w − v⁺),
     /// t⁺ = v⁺ − y⁺/ρ = 2v⁺ − w,
     ///
     /// where t = v − y/ρ is carried between steps (`t` in, `t_next` out: swap them
@@ -604,7 +616,7 @@ impl Kernel {
         }
     }
 
-    /// The projected-gradient step z ← Π_[l,u](z − α(Hz + q)) of
+    /// The projected-gradient step z ← Π_\[l,u\](z − α(Hz + q)) of
     /// [`Kernel::projected_gradient_step`] on the padded layout, **in place**: when the
     /// whole product is one register panel (ld ≤ 60, see [`PADDED_IN_PLACE_MAX`]) every
     /// entry of z is read before the first is written, so z is overwritten directly;
@@ -670,7 +682,7 @@ impl Kernel {
     }
 
     /// The FISTA step of [`Kernel::fista_step`] on the padded layout, in place as
-    /// [`Kernel::pg_step_padded`]: x⁺ = Π_[l,u](y − α(Hy + q)) over `z` (x on entry),
+    /// [`Kernel::pg_step_padded`]: x⁺ = Π_\[l,u\](y − α(Hy + q)) over `z` (x on entry),
     /// y⁺ = x⁺ + β(x⁺ − x) over `y`, computed as (1 + β)x⁺ − βx (so β = 0 gives y⁺ = x⁺
     /// exactly). Every vector ≥ ld entries.
     ///

@@ -657,28 +657,20 @@ impl Kernel {
             return;
         }
         let (hs, n, ld) = (h.as_slice(), h.n, h.ld);
-        #[cfg(target_arch = "x86_64")]
-        if self.path == KernelPath::Avx2Fma {
-            let in_place = ld <= PADDED_IN_PLACE_MAX;
+        self.in_place(
+            ld,
+            z,
+            scratch,
+            (),
             // SAFETY: AVX2 + FMA by the type invariant; n ≥ 1; n columns of ld entries;
-            // every vector ≥ ld (checked above). In place (x = out = z, both pointers
-            // from the one `&mut z`): a single panel reads all of x in its product loop
-            // before the epilogue's first store, and the epilogue reads each row of x
-            // before writing it. Otherwise `out` is `scratch`, a distinct `&mut`.
-            unsafe {
-                let zp = z.as_mut_ptr();
-                let mut c =
-                    avx2_pad::Ctx::product(h, zp, if in_place { zp } else { scratch.as_mut_ptr() });
+            // every vector ≥ ld (checked above); `x` and `dest` as `in_place` documents.
+            |x, dest, ()| unsafe {
+                let mut c = avx2_pad::Ctx::product(h, x, dest);
                 (c.q, c.lo, c.hi, c.a) = (q.as_ptr(), lower.as_ptr(), upper.as_ptr(), alpha);
                 avx2_pad::run::<{ avx2_pad::PG }>(c);
-            }
-            if !in_place {
-                z[..ld].copy_from_slice(&scratch[..ld]);
-            }
-            return;
-        }
-        portable::pg_step(hs, n, ld, z, q, alpha, lower, upper, scratch);
-        z[..ld].copy_from_slice(&scratch[..ld]);
+            },
+            |z, out, ()| portable::pg_step(hs, n, ld, z, q, alpha, lower, upper, out),
+        );
     }
 
     /// The FISTA step of [`Kernel::fista_step`] on the padded layout, in place as
@@ -728,27 +720,23 @@ impl Kernel {
             return;
         }
         let (hs, n, ld) = (h.as_slice(), h.n, h.ld);
-        #[cfg(target_arch = "x86_64")]
-        if self.path == KernelPath::Avx2Fma {
-            let in_place = ld <= PADDED_IN_PLACE_MAX;
-            // SAFETY: as in `pg_step_padded`, with y in place of z (x = next = y); `z` is
-            // a distinct `&mut` the product never reads (only the epilogue, row by row,
+        self.in_place(
+            ld,
+            y,
+            scratch,
+            z,
+            // SAFETY: as in `pg_step_padded`, with y⁺ (`next`) in place of y; `z` is a
+            // distinct `&mut` the product never reads (only the epilogue, row by row,
             // before writing the same row).
-            unsafe {
-                let yp = y.as_mut_ptr();
-                let mut c = avx2_pad::Ctx::product(h, yp, z.as_mut_ptr());
+            |x, dest, z| unsafe {
+                let mut c = avx2_pad::Ctx::product(h, x, z.as_mut_ptr());
                 (c.q, c.lo, c.hi, c.a, c.b) =
                     (q.as_ptr(), lower.as_ptr(), upper.as_ptr(), alpha, beta);
-                c.next = if in_place { yp } else { scratch.as_mut_ptr() };
+                c.next = dest;
                 avx2_pad::run::<{ avx2_pad::FISTA }>(c);
-            }
-            if !in_place {
-                y[..ld].copy_from_slice(&scratch[..ld]);
-            }
-            return;
-        }
-        portable::fista_step(hs, n, ld, y, q, alpha, lower, upper, beta, z, scratch);
-        y[..ld].copy_from_slice(&scratch[..ld]);
+            },
+            |y, next, z| portable::fista_step(hs, n, ld, y, q, alpha, lower, upper, beta, z, next),
+        );
     }
 
     /// The relaxed ADMM step of [`Kernel::admm_step`] on the padded layout (M =
@@ -804,16 +792,16 @@ impl Kernel {
             return;
         }
         let (ms, n, ld) = (m.as_slice(), m.n, m.ld);
-        #[cfg(target_arch = "x86_64")]
-        if self.path == KernelPath::Avx2Fma {
-            let in_place = ld <= PADDED_IN_PLACE_MAX;
-            // SAFETY: as in `pg_step_padded`, with t in place of z (x = out = t); z, v
-            // and `dual` are distinct `&mut`s the product never reads (the epilogue reads
-            // v and y row by row before writing the same rows).
-            unsafe {
-                let tp = t.as_mut_ptr();
-                let mut c =
-                    avx2_pad::Ctx::product(m, tp, if in_place { tp } else { scratch.as_mut_ptr() });
+        self.in_place(
+            ld,
+            t,
+            scratch,
+            (z, v, dual),
+            // SAFETY: as in `pg_step_padded`, with t⁺ in place of t; z, v and `dual` are
+            // distinct `&mut`s the product never reads (the epilogue reads v and y row by
+            // row before writing the same rows).
+            |x, dest, (z, v, dual)| unsafe {
+                let mut c = avx2_pad::Ctx::product(m, x, dest);
                 (c.q, c.lo, c.hi, c.a, c.b) =
                     (mq.as_ptr(), lower.as_ptr(), upper.as_ptr(), relaxation, rho);
                 (c.next, c.v, c.dual) = (z.as_mut_ptr(), v.as_mut_ptr(), dual.as_mut_ptr());
@@ -824,16 +812,44 @@ impl Kernel {
                 } else {
                     avx2_pad::run::<{ avx2_pad::ADMM }>(c)
                 }
-            }
+            },
+            |t, t_next, (z, v, dual)| {
+                portable::admm_step(
+                    ms, n, ld, t, mq, relaxation, rho, lower, upper, z, v, dual, t_next,
+                )
+            },
+        );
+    }
+
+    /// A padded step that overwrites `io`, the vector the matrix is applied to. AVX2:
+    /// `avx2(x, dest, aux)` with x = `io` and dest = `io` itself when the product is one
+    /// register panel (ld ≤ [`PADDED_IN_PLACE_MAX`]: all of x is read before the first
+    /// store, each epilogue row reads x before writing it), else `scratch`, copied back.
+    /// Portable: `portable(io, scratch, aux)` writes the new `io` into `scratch`, copied
+    /// back. `aux` carries the step's other outputs.
+    #[inline]
+    fn in_place<A>(
+        self,
+        ld: usize,
+        io: &mut [f64],
+        scratch: &mut [f64],
+        aux: A,
+        avx2: impl FnOnce(*mut f64, *mut f64, A),
+        portable: impl FnOnce(&[f64], &mut [f64], A),
+    ) {
+        #[cfg(target_arch = "x86_64")]
+        if self.path == KernelPath::Avx2Fma {
+            let in_place = ld <= PADDED_IN_PLACE_MAX;
+            let x = io.as_mut_ptr();
+            avx2(x, if in_place { x } else { scratch.as_mut_ptr() }, aux);
             if !in_place {
-                t[..ld].copy_from_slice(&scratch[..ld]);
+                io[..ld].copy_from_slice(&scratch[..ld]);
             }
             return;
         }
-        portable::admm_step(
-            ms, n, ld, t, mq, relaxation, rho, lower, upper, z, v, dual, scratch,
-        );
-        t[..ld].copy_from_slice(&scratch[..ld]);
+        let _ = avx2; // only the portable path on this target
+        portable(io, scratch, aux);
+        io[..ld].copy_from_slice(&scratch[..ld]);
     }
 }
 

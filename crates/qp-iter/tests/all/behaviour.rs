@@ -137,45 +137,11 @@ fn methods(qp: &ParametricQp) -> Vec<Box<dyn DynMap>> {
     ]
 }
 
-#[test]
-fn every_method_reaches_the_reference_optimum_within_its_certified_budget() {
-    for seed in 50_000..50_060 {
-        let inst = random_instance(
-            seed,
-            Gen {
-                log10_kappa_max: 3.0,
-                ..Gen::default()
-            },
-        );
-        let r = reference(&inst);
-        let tol = 1e-8 * (1.0 + norm(&r.sol.z));
-        for m in methods(&inst.qp) {
-            let (status, k) = m.converge(&inst.theta, &inst.z0, &r.sol.z, tol);
-            assert_eq!(
-                status,
-                RunStatus::Converged,
-                "seed {seed}: {} stopped after {k} steps",
-                m.label()
-            );
-        }
-    }
-}
-
-/// Beyond n = 60 the padded kernels step through a scratch buffer instead of in place
-/// (more than one register panel): the same end-to-end check there.
-#[test]
-fn every_method_reaches_the_reference_optimum_beyond_one_register_panel() {
-    for seed in 51_000..51_004 {
-        let inst = random_instance(
-            seed,
-            Gen {
-                n_min: 61,
-                n_max: 90,
-                log10_kappa_max: 2.0,
-                ..Gen::default()
-            },
-        );
-        assert!(inst.qp.n() > 60);
+/// Every method, from each instance's z⁰, converges to the reference optimum within the
+/// budget of its certificate.
+fn every_method_reaches_the_reference_optimum(seeds: std::ops::Range<u64>, opts: Gen) {
+    for seed in seeds {
+        let inst = random_instance(seed, opts);
         let r = reference(&inst);
         let tol = 1e-8 * (1.0 + norm(&r.sol.z));
         for m in methods(&inst.qp) {
@@ -189,6 +155,28 @@ fn every_method_reaches_the_reference_optimum_beyond_one_register_panel() {
             );
         }
     }
+}
+
+#[test]
+fn every_method_reaches_the_reference_optimum_within_its_certified_budget() {
+    let opts = Gen {
+        log10_kappa_max: 3.0,
+        ..Gen::default()
+    };
+    every_method_reaches_the_reference_optimum(50_000..50_060, opts);
+}
+
+/// Beyond n = 60 the padded kernels step through a scratch buffer instead of in place
+/// (more than one register panel): the same end-to-end check there.
+#[test]
+fn every_method_reaches_the_reference_optimum_beyond_one_register_panel() {
+    let opts = Gen {
+        n_min: 61,
+        n_max: 90,
+        log10_kappa_max: 2.0,
+        ..Gen::default()
+    };
+    every_method_reaches_the_reference_optimum(51_000..51_004, opts);
 }
 
 #[test]

@@ -1,10 +1,8 @@
-//! Zero heap allocations per step, load and restart, proved with a counting global
-//! allocator. A separate test binary, because the allocator is process-global; counting
-//! is per thread so the test harness's own threads do not interfere.
+//! Zero heap allocations per step, load and restart, proved with the workspace's counting
+//! global allocator (`alloc_counter`). A separate test binary, because the allocator is
+//! process-global; counting is per thread so the test harness's own threads do not
+//! interfere.
 #![allow(clippy::unwrap_used)]
-
-use std::alloc::{GlobalAlloc, Layout, System};
-use std::cell::Cell;
 
 use faer::Mat;
 use lti_model::BoxSet;
@@ -13,48 +11,10 @@ use qp_iter::fista::Fista;
 use qp_iter::pg::{ProjectedGradient, StepRule};
 use qp_iter::{IterationMap, ParametricQp, run_fixed, run_until};
 
-struct Counting;
-
-thread_local! {
-    static ALLOCATIONS: Cell<usize> = const { Cell::new(0) };
-}
-
-fn bump() {
-    // `try_with`: never panic inside the allocator, even during thread teardown.
-    let _ = ALLOCATIONS.try_with(|c| c.set(c.get() + 1));
-}
-
-// SAFETY: every call forwards to `System` with the caller's arguments unchanged.
-unsafe impl GlobalAlloc for Counting {
-    unsafe fn alloc(&self, layout: Layout) -> *mut u8 {
-        bump();
-        // SAFETY: forwarded contract.
-        unsafe { System.alloc(layout) }
-    }
-    unsafe fn alloc_zeroed(&self, layout: Layout) -> *mut u8 {
-        bump();
-        // SAFETY: forwarded contract.
-        unsafe { System.alloc_zeroed(layout) }
-    }
-    unsafe fn realloc(&self, ptr: *mut u8, layout: Layout, new_size: usize) -> *mut u8 {
-        bump();
-        // SAFETY: forwarded contract.
-        unsafe { System.realloc(ptr, layout, new_size) }
-    }
-    unsafe fn dealloc(&self, ptr: *mut u8, layout: Layout) {
-        // SAFETY: forwarded contract.
-        unsafe { System.dealloc(ptr, layout) }
-    }
-}
-
 #[global_allocator]
-static GLOBAL: Counting = Counting;
+static GLOBAL: alloc_counter::CountingAllocator = alloc_counter::CountingAllocator;
 
-fn allocations_in(f: impl FnOnce()) -> usize {
-    let before = ALLOCATIONS.with(Cell::get);
-    f();
-    ALLOCATIONS.with(Cell::get) - before
-}
+use alloc_counter::allocations;
 
 /// n = 30 (the case-study size), three parameters, a box with some infinite bounds.
 fn problem() -> ParametricQp {
@@ -98,7 +58,7 @@ fn assert_no_allocations<M: IterationMap>(m: &M, dual: Option<&[f64]>) {
     let mut s = m.new_state(); // setup may allocate
     let z0 = vec![0.25; m.problem().n()];
     exercise(m, &mut s, &z0, dual); // warm-up: lazy one-time initialisation, if any
-    let count = allocations_in(|| exercise(m, &mut s, &z0, dual));
+    let count = allocations(|| exercise(m, &mut s, &z0, dual));
     assert_eq!(
         count,
         0,
@@ -110,7 +70,7 @@ fn assert_no_allocations<M: IterationMap>(m: &M, dual: Option<&[f64]>) {
 #[test]
 fn the_allocator_counts() {
     // The test would be void if the counter missed allocations.
-    let n = allocations_in(|| {
+    let n = allocations(|| {
         std::hint::black_box(vec![1u8; 16]);
     });
     assert_eq!(n, 1);
@@ -154,7 +114,7 @@ fn no_method_allocates_after_setup() {
     // ADMM's diagnostics too.
     let mut s = admm.new_state();
     let mut out = vec![0.0; qp.n()];
-    let count = allocations_in(|| {
+    let count = allocations(|| {
         std::hint::black_box(admm.constraint_violation(&s));
         std::hint::black_box(admm.primal_residual(&s));
         admm.splitting_variable(&s, &mut out);

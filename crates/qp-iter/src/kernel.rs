@@ -218,7 +218,7 @@ impl Kernel {
         check_lens(
             "projected_gradient_step",
             n,
-            &[q.len(), lower.len(), upper.len()],
+            [q.len(), lower.len(), upper.len()],
         );
         if n == 0 {
             return;
@@ -278,7 +278,7 @@ impl Kernel {
         check_lens(
             "fista_step",
             n,
-            &[q.len(), lower.len(), upper.len(), y_next.len()],
+            [q.len(), lower.len(), upper.len(), y_next.len()],
         );
         if n == 0 {
             return;
@@ -351,7 +351,7 @@ impl Kernel {
         check_lens(
             "admm_step",
             n,
-            &[
+            [
                 mq.len(),
                 lower.len(),
                 upper.len(),
@@ -592,8 +592,8 @@ impl Kernel {
     /// If `x.len() < n` or `y.len() < ld`.
     #[inline]
     pub fn matvec_padded(self, h: &PaddedSymmetric, x: &[f64], y: &mut [f64]) {
-        check_lens("matvec_padded (x)", h.n, &[x.len()]);
-        check_lens("matvec_padded (y)", h.ld, &[y.len()]);
+        check_lens("matvec_padded (x)", h.n, [x.len()]);
+        check_lens("matvec_padded (y)", h.ld, [y.len()]);
         if h.n == 0 {
             return;
         }
@@ -651,7 +651,7 @@ impl Kernel {
         check_lens(
             "pg_step_padded",
             h.ld,
-            &[z.len(), q.len(), lower.len(), upper.len(), scratch.len()],
+            [z.len(), q.len(), lower.len(), upper.len(), scratch.len()],
         );
         if h.n == 0 {
             return;
@@ -707,7 +707,7 @@ impl Kernel {
         check_lens(
             "fista_step_padded",
             h.ld,
-            &[
+            [
                 y.len(),
                 q.len(),
                 lower.len(),
@@ -759,7 +759,7 @@ impl Kernel {
     ///
     /// # Panics
     /// If any vector is shorter than ld.
-    #[inline]
+    #[inline(always)]
     pub fn admm_step_padded(
         self,
         m: &PaddedSymmetric,
@@ -777,7 +777,7 @@ impl Kernel {
         check_lens(
             "admm_step_padded",
             m.ld,
-            &[
+            [
                 t.len(),
                 mq.len(),
                 lower.len(),
@@ -858,11 +858,19 @@ impl Kernel {
 pub const PADDED_IN_PLACE_MAX: usize = 60;
 
 #[inline]
-fn check_lens(what: &str, n: usize, lens: &[usize]) {
-    assert!(
-        lens.iter().all(|&l| l >= n),
-        "{what}: every vector needs length ≥ n = {n} (lengths {lens:?})"
-    );
+fn check_lens<const K: usize>(what: &str, n: usize, lens: [usize; K]) {
+    // Only the shortest length leaves the registers (on the cold panic path): a slice
+    // argument made every step store the whole array (8 stores per ADMM step).
+    let shortest = lens.into_iter().fold(usize::MAX, usize::min);
+    if shortest < n {
+        lens_too_short(what, n, shortest);
+    }
+}
+
+#[cold]
+#[inline(never)]
+fn lens_too_short(what: &str, n: usize, shortest: usize) -> ! {
+    panic!("{what}: every vector needs length ≥ n = {n} (the shortest has {shortest})")
 }
 
 #[inline]

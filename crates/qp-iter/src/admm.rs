@@ -49,12 +49,14 @@
 //! S. Boyd et al., "Distributed optimization and statistical learning via ADMM" (2011)
 //! §3.4.3 for over-relaxation.
 
+use std::cell::{Cell, UnsafeCell};
+
 use faer::{Mat, Side};
 
 use crate::IterationMap;
 use crate::certificate::{BoundedQuantity, CertNorm, Certificate};
 use crate::error::{QpError, Result};
-use crate::kernel::{Kernel, PaddedSymmetric, Vectors};
+use crate::kernel::{Kernel, PaddedSymmetric, Vectors, clamp_nan_propagating};
 use crate::problem::ParametricQp;
 
 /// Penalty rule of [`Admm`].
@@ -99,24 +101,49 @@ pub struct Admm {
     kernel: Kernel,
 }
 
-/// State of [`Admm`]: z, split variable v, unscaled dual y, loaded q and (H + ρI)⁻¹q, the
-/// next product's input t = v − y/ρ (updated in place by the fused step), the kernel's
-/// scratch buffer (used only for n > 60) and the box (copied, so that everything the step
-/// touches but the matrix is one block); padded to the kernels' length (see
-/// [`crate::kernel::padded_len`], padding zero), in one allocation.
-#[derive(Debug, Clone)]
+/// State of [`Admm`]: z, the Douglas–Rachford variable s = v + y/ρ, loaded q and
+/// (H + ρI)⁻¹q, the next product's input t = 2Π_Z(s) − s = v − y/ρ (updated in place by
+/// the fused step), the kernel's scratch buffer (used only for n > 60) and the box
+/// (copied, so that everything the step touches but the matrix is one block); padded to
+/// the kernels' length (see [`crate::kernel::padded_len`], padding zero), in one
+/// allocation. The step stores z, s and t only; v = Π_Z(s) and y = ρ(s − v) are formed
+/// from s on the first read after a change (`iterate`, `dual`), in a second block.
 pub struct AdmmState {
-    /// [z, v, y, q, m_q, l, u, t, scratch]; t = v − y/ρ (= 2v − s for the DR variable s)
-    /// is kept in step with v and y.
-    v: Vectors<9>,
+    /// [z, s, q, m_q, l, u, t, scratch].
+    v: Vectors<8>,
+    /// [v, y] of the current s once `fresh` is set.
+    vy: UnsafeCell<Vectors<2>>,
+    /// Whether `vy` holds Π_Z(s) and ρ(s − Π_Z(s)) of the current s. Cleared by every
+    /// method taking `&mut AdmmState` that changes s.
+    fresh: Cell<bool>,
+}
+
+impl Clone for AdmmState {
+    fn clone(&self) -> Self {
+        Self {
+            v: self.v.clone(),
+            // SAFETY: `vy` is only written through `Admm::vy` while `fresh` is false, on
+            // this thread (AdmmState is not Sync), never while this shared borrow exists.
+            vy: UnsafeCell::new(unsafe { &*self.vy.get() }.clone()),
+            fresh: self.fresh.clone(),
+        }
+    }
+}
+
+impl std::fmt::Debug for AdmmState {
+    fn fmt(&self, f: &mut std::fmt::Formatter<'_>) -> std::fmt::Result {
+        f.debug_struct("AdmmState")
+            .field("v", &self.v)
+            .field("fresh", &self.fresh)
+            .finish_non_exhaustive()
+    }
 }
 
 /// Indices into [`AdmmState`]'s vectors.
 const Z: usize = 0;
-const V: usize = 1;
-const Y: usize = 2;
-const LO: usize = 5;
-const HI: usize = 6;
+const S: usize = 1;
+const LO: usize = 4;
+const HI: usize = 5;
 
 impl AdmmState {
     /// The first n entries of vector `i`.
@@ -250,10 +277,34 @@ impl Admm {
 
     /// Writes the DR variable s = v + y/ρ (the quantity of [`Admm::splitting_certificate`]).
     pub fn splitting_variable(&self, state: &AdmmState, out: &mut [f64]) {
-        let (ir, n) = (1.0 / self.rho, self.qp.n());
-        for ((o, v), y) in out.iter_mut().zip(state.head(V, n)).zip(state.head(Y, n)) {
-            *o = v + ir * y;
+        let n = self.qp.n();
+        for (o, s) in out.iter_mut().zip(state.head(S, n)) {
+            *o = *s;
         }
+    }
+
+    /// v = Π_Z(s) and y = ρ(s − v) of the current s, formed on the first call after s
+    /// changed.
+    fn vy<'s>(&self, state: &'s AdmmState) -> (&'s [f64], &'s [f64]) {
+        let n = self.qp.n();
+        if !state.fresh.get() {
+            // SAFETY: `fresh` is false only between a `&mut AdmmState` method and the
+            // first call here; every shared borrow of `vy` is handed out below after
+            // `fresh` is set, so none exists now, and AdmmState is not Sync, so no other
+            // thread calls this on the same state.
+            let vy = unsafe { &mut *state.vy.get() };
+            let [v, y] = vy.all_mut();
+            let (lo, hi, s) = (state.v.get(LO), state.v.get(HI), state.v.get(S));
+            for i in 0..n {
+                v[i] = clamp_nan_propagating(s[i], lo[i], hi[i]);
+                y[i] = self.rho * (s[i] - v[i]);
+            }
+            state.fresh.set(true);
+        }
+        // SAFETY: `fresh` is set: nothing writes `vy` until a `&mut AdmmState` method
+        // clears it, which ends this borrow first.
+        let vy = unsafe { &*state.vy.get() };
+        (&vy.get(0)[..n], &vy.get(1)[..n])
     }
 
     /// The unprojected primal iterate z (in Z only in the limit).
@@ -276,35 +327,21 @@ impl Admm {
     pub fn primal_residual(&self, state: &AdmmState) -> f64 {
         self.primal_z(state)
             .iter()
-            .zip(state.head(V, self.qp.n()))
+            .zip(self.iterate(state))
             .map(|(z, v)| (z - v) * (z - v))
             .sum::<f64>()
             .sqrt()
     }
 
-    /// Sets s = z⁰ + y⁰/ρ, v = Π_Z(s), y = ρ(s − v) and the step's input t = v − y/ρ =
-    /// 2v − s (the formula the fused step uses for t⁺), keeping z = z⁰ (y⁰ already in
-    /// the state's y).
-    fn set_from_dr(&self, st: &mut AdmmState) {
-        let (ir, rho, n) = (1.0 / self.rho, self.rho, self.qp.n());
-        let [z, v, y, _, _, _, _, t, dr] = st.v.all_mut();
-        // Over the padded length: zero padding in z and y gives zero padding everywhere.
-        // `dr` (the step's scratch) holds s here.
-        for ((d, z), y) in dr.iter_mut().zip(&*z).zip(&*y) {
-            *d = z + ir * y;
-        }
-        v.copy_from_slice(dr);
-        self.qp.project(&mut v[..n]);
-        for (((y, t), d), v) in y.iter_mut().zip(t).zip(&*dr).zip(&*v) {
-            *y = rho * (d - v);
-            *t = 2.0 * v - d;
-        }
-    }
-
-    /// z = z⁰ (warm) or Π_Z(0) (cold), y = y⁰ or the gradient dual, padding zero.
+    /// z = z⁰ (warm) or Π_Z(0) (cold), y⁰ given or the gradient dual; then s = z⁰ + y⁰/ρ
+    /// and the step's input t = 2Π_Z(s) − s (the formula the fused step uses for t⁺),
+    /// padding zero. v = Π_Z(s) and y = ρ(s − v) follow on demand.
     fn start(&self, st: &mut AdmmState, z0: Option<&[f64]>, y0: Option<&[f64]>) {
-        let n = self.qp.n();
-        let [z, _, y, q, ..] = st.v.all_mut();
+        let (n, ir) = (self.qp.n(), 1.0 / self.rho);
+        let AdmmState { v, vy, fresh } = st;
+        let [z, s, q, _, lo, hi, t, _] = v.all_mut();
+        // y⁰ goes through y of the lazy block, which is rewritten on the next read.
+        let [_, y] = vy.get_mut().all_mut();
         z.fill(0.0);
         y.fill(0.0);
         let (z, y) = (&mut z[..n], &mut y[..n]);
@@ -322,13 +359,17 @@ impl Admm {
                 }
             }
         }
-        self.set_from_dr(st);
+        for i in 0..n {
+            s[i] = z[i] + ir * y[i];
+            t[i] = 2.0 * clamp_nan_propagating(s[i], lo[i], hi[i]) - s[i];
+        }
+        fresh.set(false);
     }
 
     /// Loads q = q₀ + Fθ (or q₀ when `theta` is `None`) and m_q = (H + ρI)⁻¹q.
     fn load_q(&self, st: &mut AdmmState, theta: Option<&[f64]>) {
         let n = self.qp.n();
-        let [_, _, _, q, mq, ..] = st.v.all_mut();
+        let [_, _, q, mq, ..] = st.v.all_mut();
         let q = &mut q[..n];
         match theta {
             Some(theta) => self.qp.linear_term(theta, q),
@@ -349,8 +390,11 @@ impl IterationMap for Admm {
         &self.qp
     }
     fn new_state(&self) -> AdmmState {
+        let ld = self.m_rho.ld();
         let mut s = AdmmState {
-            v: Vectors::zeros(self.m_rho.ld()),
+            v: Vectors::zeros(ld),
+            vy: UnsafeCell::new(Vectors::zeros(ld)),
+            fresh: Cell::new(false),
         };
         let n = self.qp.n();
         s.v.get_mut(LO)[..n].copy_from_slice(self.qp.zset().lower());
@@ -375,28 +419,18 @@ impl IterationMap for Admm {
     #[inline]
     fn step(&self, s: &mut AdmmState) {
         // One pass over ρ(H + ρI)⁻¹ (exactly symmetric, see `new`): z⁺ = ρ(H + ρI)⁻¹t −
-        // (H + ρI)⁻¹q with t = v − y/ρ, then w, v⁺, y⁺ and t⁺ = 2v⁺ − w row by row, all
-        // in place.
-        let [z, v, y, _, mq, lo, hi, t, scratch] = s.v.all_mut();
-        self.kernel.admm_step_padded(
-            &self.m_rho,
-            t,
-            mq,
-            self.alpha,
-            self.rho,
-            lo,
-            hi,
-            z,
-            v,
-            y,
-            scratch,
-        );
+        // (H + ρI)⁻¹q with t = v − y/ρ = 2Π_Z(s) − s, then s⁺ = αz⁺ + s − αΠ_Z(s) (= w of
+        // the module docs) and t⁺ row by row, all in place; v and y follow on demand.
+        s.fresh.set(false);
+        let [z, dr, _, mq, lo, hi, t, scratch] = s.v.all_mut();
+        self.kernel
+            .admm_dr_step_padded(&self.m_rho, t, mq, self.alpha, lo, hi, z, dr, scratch);
     }
     fn iterate<'s>(&self, state: &'s AdmmState) -> &'s [f64] {
-        state.head(V, self.qp.n())
+        self.vy(state).0
     }
     fn dual<'s>(&self, state: &'s AdmmState) -> Option<&'s [f64]> {
-        Some(state.head(Y, self.qp.n()))
+        Some(self.vy(state).1)
     }
     fn certificate(&self) -> &Certificate {
         &self.cert
@@ -488,7 +522,8 @@ mod tests {
                     admm.step(&mut s);
                 }
                 admm.warm_start(&mut s, &z0, dual);
-                let (v_start, y_start) = (admm.iterate(&s).to_vec(), s.head(Y, qp.n()).to_vec());
+                let (v_start, y_start) =
+                    (admm.iterate(&s).to_vec(), admm.dual(&s).unwrap().to_vec());
                 for k in [1, 2, 7] {
                     let mut t = s.clone();
                     for _ in 0..k {
@@ -503,7 +538,7 @@ mod tests {
                         y_start.clone(),
                         k,
                     );
-                    let (tv, ty) = (t.head(V, qp.n()), t.head(Y, qp.n()));
+                    let (tv, ty) = (admm.iterate(&t), admm.dual(&t).unwrap());
                     for i in 0..qp.n() {
                         assert!(
                             (tv[i] - v[i]).abs() <= 1e-12 && (ty[i] - y[i]).abs() <= 1e-11,

@@ -821,6 +821,83 @@ impl Kernel {
         );
     }
 
+    /// The relaxed ADMM step of [`Kernel::admm_step_padded`] carried on the
+    /// Douglas–Rachford variable s = v + y/ρ instead of (v, y): with v = Π_\[l,u\](s),
+    /// z⁺ = Mt − m_q, s⁺ = a z⁺ + s − a v (= w of [`Kernel::admm_step_padded`]) over `s`,
+    /// t⁺ = 2Π_\[l,u\](s⁺) − s⁺ over `t`, z⁺ over `z`; in place as
+    /// [`Kernel::pg_step_padded`]. v = Π(s) and y = ρ(s − v) are not stored (a caller
+    /// forms them when asked): three stores per four rows instead of four. Every vector
+    /// ≥ ld entries.
+    ///
+    /// ```
+    /// use qp_iter::kernel::{AlignedVec, Kernel, PaddedSymmetric};
+    /// let m = PaddedSymmetric::from_row_major(&[1.0, 0.0, 0.0, 1.0], 2).unwrap();
+    /// let (lo, hi) = (AlignedVec::padded(&[-1.0, -1.0]), AlignedVec::padded(&[1.0, 1.0]));
+    /// // s = (1.5, 0.25): v = (1, 0.25), t = 2v − s = (0.5, 0.25).
+    /// let (mut s, mut t) = (AlignedVec::padded(&[1.5, 0.25]), AlignedVec::padded(&[0.5, 0.25]));
+    /// let (mq, mut z, mut scratch) = (AlignedVec::zeros(4), AlignedVec::zeros(4), AlignedVec::zeros(4));
+    /// Kernel::detect().admm_dr_step_padded(&m, &mut t, &mq, 1.0, &lo, &hi, &mut z, &mut s, &mut scratch);
+    /// assert_eq!(&z[..2], &[0.5, 0.25]); // z⁺ = t
+    /// assert_eq!(&s[..2], &[1.0, 0.25]); // s⁺ = z⁺ + s − v
+    /// assert_eq!(&t[..2], &[1.0, 0.25]); // 2Π(s⁺) − s⁺
+    /// ```
+    ///
+    /// # Panics
+    /// If any vector is shorter than ld.
+    #[inline(always)]
+    pub fn admm_dr_step_padded(
+        self,
+        m: &PaddedSymmetric,
+        t: &mut [f64],
+        mq: &[f64],
+        relaxation: f64,
+        lower: &[f64],
+        upper: &[f64],
+        z: &mut [f64],
+        s: &mut [f64],
+        scratch: &mut [f64],
+    ) {
+        check_lens(
+            "admm_dr_step_padded",
+            m.ld,
+            [
+                t.len(),
+                mq.len(),
+                lower.len(),
+                upper.len(),
+                z.len(),
+                s.len(),
+                scratch.len(),
+            ],
+        );
+        if m.n == 0 {
+            return;
+        }
+        let (ms, n, ld) = (m.as_slice(), m.n, m.ld);
+        self.in_place(
+            ld,
+            t,
+            scratch,
+            (z, s),
+            // SAFETY: as in `pg_step_padded`, with t⁺ in place of t; z and s are distinct
+            // `&mut`s the product never reads (the epilogue reads s row by row before
+            // writing the same rows).
+            |x, dest, (z, s)| unsafe {
+                let mut c = avx2_pad::Ctx::product(m, x, dest);
+                (c.q, c.lo, c.hi, c.a) = (mq.as_ptr(), lower.as_ptr(), upper.as_ptr(), relaxation);
+                (c.next, c.v) = (z.as_mut_ptr(), s.as_mut_ptr());
+                if relaxation == 1.0 {
+                    avx2_pad::run::<{ avx2_pad::DR1 }>(c)
+                } else {
+                    avx2_pad::run::<{ avx2_pad::DR }>(c)
+                }
+            },
+            |t, t_next, (z, s)| {
+                portable::admm_dr_step(ms, n, ld, t, mq, relaxation, lower, upper, z, s, t_next)
+            },
+        );
+    }
+
     /// A padded step that overwrites `io`, the vector the matrix is applied to. AVX2:
     /// `avx2(x, dest, aux)` with x = `io` and dest = `io` itself when the product is one
     /// register panel (ld ≤ [`PADDED_IN_PLACE_MAX`]: all of x is read before the first
@@ -906,7 +983,7 @@ pub fn matvec_symmetric(h: &[f64], n: usize, x: &[f64], y: &mut [f64]) {
 /// Clamp with NaN propagation: `min(u, max(l, v))` with the same operand order as the
 /// `vmaxpd`/`vminpd` of the AVX2 path, so both paths agree bit for bit on the clamp.
 #[inline(always)]
-fn clamp_nan_propagating(v: f64, l: f64, u: f64) -> f64 {
+pub(crate) fn clamp_nan_propagating(v: f64, l: f64, u: f64) -> f64 {
     let w = if l > v { l } else { v };
     if u < w { u } else { w }
 }
@@ -994,6 +1071,31 @@ mod portable {
             let x = clamp_nan_propagating(y[i] - alpha * (y_next[i] + q[i]), lower[i], upper[i]);
             y_next[i] = x + beta * (x - z[i]);
             z[i] = x;
+        }
+    }
+
+    /// The ADMM step on the DR variable s (see `Kernel::admm_dr_step_padded`), rows 0 .. ld.
+    pub(super) fn admm_dr_step(
+        m: &[f64],
+        n: usize,
+        ld: usize,
+        t: &[f64],
+        mq: &[f64],
+        a: f64,
+        lower: &[f64],
+        upper: &[f64],
+        z: &mut [f64],
+        s: &mut [f64],
+        t_next: &mut [f64],
+    ) {
+        // `z` holds Mt first, then Mt − m_q.
+        matvec_columns(m, n, ld, t, z);
+        for i in 0..ld {
+            z[i] -= mq[i];
+            let v = clamp_nan_propagating(s[i], lower[i], upper[i]);
+            let w = a * z[i] + (s[i] - a * v);
+            t_next[i] = 2.0 * clamp_nan_propagating(w, lower[i], upper[i]) - w;
+            s[i] = w;
         }
     }
 
@@ -1469,6 +1571,10 @@ mod avx2_pad {
     pub(super) const ADMM1: u8 = 4;
     /// Epilogue: ADMM with a = 2, Peaceman–Rachford (w = 2z − v + y/ρ).
     pub(super) const ADMM2: u8 = 5;
+    /// Epilogue: ADMM on the DR variable s (`Kernel::admm_dr_step_padded`), a = 1.
+    pub(super) const DR1: u8 = 6;
+    /// Epilogue: ADMM on the DR variable s, any relaxation a.
+    pub(super) const DR: u8 = 7;
 
     /// Pointers and scalars of one call (null / 0 where an epilogue does not use them).
     #[derive(Clone, Copy)]
@@ -1606,6 +1712,25 @@ mod avx2_pad {
                     st(c.v, r, vp);
                     st(c.next, r, s);
                 }
+                DR1 | DR => {
+                    // s = Mt − m_q = z⁺ (sums started at −m_q); the DR variable d (in
+                    // `c.v`) gives v = Π(d) and s⁺ = a z⁺ + (d − a v), the bracket formed
+                    // before the product is done; t⁺ = 2Π(s⁺) − s⁺ first (the next step's
+                    // input).
+                    let (lo, hi) = (ld(c.lo, r), ld(c.hi, r));
+                    let d = ld(c.v, r);
+                    let v = clamp(d, lo, hi);
+                    let w = if E == DR1 {
+                        _mm256_add_pd(s, _mm256_sub_pd(d, v))
+                    } else {
+                        let a = _mm256_set1_pd(c.a);
+                        _mm256_fmadd_pd(a, s, _mm256_fnmadd_pd(a, v, d))
+                    };
+                    let vp = clamp(w, lo, hi);
+                    st(c.out, r, _mm256_fmsub_pd(_mm256_set1_pd(2.0), vp, w));
+                    st(c.v, r, w);
+                    st(c.next, r, s);
+                }
                 _ => st(c.out, r, s),
             }
         }
@@ -1625,7 +1750,7 @@ mod avx2_pad {
         // inside the n·ld entries because j < n and r0 + 4V ≤ ld; x[j] with j < n; the
         // epilogue's rows r0 + 4v + 4 ≤ ld (also those of m_q read here).
         unsafe {
-            if matches!(E, ADMM | ADMM1 | ADMM2) {
+            if matches!(E, ADMM | ADMM1 | ADMM2 | DR1 | DR) {
                 // ADMM: the sums start at −m_q, so they end at z⁺ = Mt − m_q. The m_q
                 // loads do not depend on the previous step, and the epilogue saves the
                 // subtraction and one load per vector (−2 ns per step at n = 30).

@@ -2360,6 +2360,38 @@ mod tests {
                         "{:?} n = {n} a = {a}: padding",
                         k.path()
                     );
+
+                    // The same step on the DR variable s (v = Π(s) not stored).
+                    let s0 = random_vec(&mut rng, n);
+                    let (mut t, mut z, mut s) = (pad(&x), AlignedVec::zeros(ld), pad(&s0));
+                    z.fill(7.0);
+                    k.admm_dr_step_padded(
+                        &hp,
+                        &mut t,
+                        &pad(&q),
+                        a,
+                        &lo,
+                        &hi,
+                        &mut z,
+                        &mut s,
+                        &mut scratch,
+                    );
+                    let (mut ws, mut wt) = (vec![], vec![]);
+                    for i in 0..n {
+                        let v = s0[i].max(lower[i]).min(upper[i]);
+                        let w = a * wz[i] + s0[i] - a * v;
+                        let vp = w.max(lower[i]).min(upper[i]);
+                        ws.push(w);
+                        wt.push(2.0 * vp - w);
+                    }
+                    assert_close("admm dr z", k, n, &z, &wz, e);
+                    assert_close("admm dr s", k, n, &s, &ws, e);
+                    assert_close("admm dr t", k, n, &t, &wt, 2.0 * e);
+                    assert!(
+                        [&z, &s, &t].iter().all(|b| padding_is_zero(b, n)),
+                        "{:?} n = {n} a = {a}: dr padding",
+                        k.path()
+                    );
                 }
             }
         }
@@ -2432,6 +2464,27 @@ mod tests {
                             .chain(&t[..n])
                             .all(|v| v.is_nan()),
                         "admm a = {a} {:?} n = {n}",
+                        k.path()
+                    );
+                    let (mut t, mut z, mut s) = (x.clone(), AlignedVec::zeros(ld), x.clone());
+                    k.admm_dr_step_padded(
+                        &h,
+                        &mut t,
+                        &zero,
+                        a,
+                        &lo,
+                        &hi,
+                        &mut z,
+                        &mut s,
+                        &mut scratch,
+                    );
+                    assert!(
+                        z[..n]
+                            .iter()
+                            .chain(&s[..n])
+                            .chain(&t[..n])
+                            .all(|v| v.is_nan()),
+                        "admm dr a = {a} {:?} n = {n}",
                         k.path()
                     );
                 }

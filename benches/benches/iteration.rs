@@ -239,22 +239,20 @@ fn interleaved_n30(_c: &mut Criterion) {
     }
     {
         let (mp, mq, lo, hi) = (mp.clone(), mqa.clone(), loa.clone(), hia.clone());
-        let [mut t, mut z, mut v, mut dual, mut scratch] = [(); 5].map(|_| AlignedVec::zeros(ld));
+        let [mut t, mut z, mut dr, mut scratch] = [(); 4].map(|_| AlignedVec::zeros(ld));
         variants.push((
             "fused_kernel/admm",
             Box::new(move || {
                 for _ in 0..BATCH {
-                    k.admm_step_padded(
+                    k.admm_dr_step_padded(
                         &mp,
                         &mut t,
                         &mq,
                         relax,
-                        rho,
                         &lo,
                         &hi,
                         &mut z,
-                        &mut v,
-                        &mut dual,
+                        &mut dr,
                         &mut scratch,
                     );
                 }
@@ -499,20 +497,18 @@ fn per_iteration_n30(c: &mut Criterion) {
         PaddedSymmetric::from_row_major(&m_rho, N).unwrap_or_else(|| panic!("30×30 M")),
         AlignedVec::padded(&mq),
     );
-    let [mut t, mut z, mut v, mut dual] = [(); 4].map(|_| AlignedVec::zeros(ld));
+    let [mut t, mut z, mut dr] = [(); 3].map(|_| AlignedVec::zeros(ld));
     g.bench_function(BenchmarkId::new("fused_kernel", "admm"), |b| {
         b.iter(|| {
-            k.admm_step_padded(
+            k.admm_dr_step_padded(
                 &mp,
                 &mut t,
                 &mqa,
                 relax,
-                rho,
                 &lo,
                 &hi,
                 &mut z,
-                &mut v,
-                &mut dual,
+                &mut dr,
                 &mut scratch,
             );
         })

@@ -199,7 +199,7 @@ fn main() {
         ),
         (
             "n30/fused_kernel/admm",
-            "`Kernel::admm_step_padded` (one pass)",
+            "`Kernel::admm_dr_step_padded` (one pass)",
             "",
         ),
     ];

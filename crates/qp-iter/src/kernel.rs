@@ -10,8 +10,9 @@
 //! [`padded_len`]`(n)` (n rounded up to 4) in a 64-byte aligned buffer, and the methods
 //! keep every vector padded the same way with zeros ([`AlignedVec`]): each column is whole
 //! aligned 4-wide loads, so the AVX2 kernels ([`Kernel::pg_step_padded`],
-//! [`Kernel::fista_step_padded`], [`Kernel::admm_step_padded`]) need no masks or tails and
-//! no load crosses a cache line. Rows go in const-generic panels of 1 … 15 vectors chosen at
+//! [`Kernel::fista_step_padded`], [`Kernel::admm_step_padded`] and
+//! [`Kernel::admm_dr_step_padded`], the one ADMM runs) need no masks or tails and no load
+//! crosses a cache line. Rows go in const-generic panels of 1 … 15 vectors chosen at
 //! run time; up to n = 60 the whole product is one panel and the steps update in place.
 //! The row-major kernels below ([`Kernel::matvec`], [`Kernel::matvec_symmetric`],
 //! [`Kernel::projected_gradient_step`], …) take any slice and serve everything else.

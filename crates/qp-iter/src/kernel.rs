@@ -10,8 +10,7 @@
 //! [`padded_len`]`(n)` (n rounded up to 4) in a 64-byte aligned buffer, and the methods
 //! keep every vector padded the same way with zeros ([`AlignedVec`]): each column is whole
 //! aligned 4-wide loads, so the AVX2 kernels ([`Kernel::pg_step_padded`],
-//! [`Kernel::fista_step_padded`], [`Kernel::admm_step_padded`] and
-//! [`Kernel::admm_dr_step_padded`], the one ADMM runs) need no masks or tails and no load
+//! [`Kernel::fista_step_padded`] and [`Kernel::admm_dr_step_padded`]) need no masks or tails and no load
 //! crosses a cache line. Rows go in const-generic panels of 1 … 15 vectors chosen at
 //! run time; up to n = 60 the whole product is one panel and the steps update in place.
 //! The row-major kernels below ([`Kernel::matvec`], [`Kernel::matvec_symmetric`],
@@ -741,90 +740,9 @@ impl Kernel {
     }
 
     /// The relaxed ADMM step of [`Kernel::admm_step`] on the padded layout (M =
-    /// ρ(H + ρI)⁻¹ in `m`), in place as [`Kernel::pg_step_padded`]: t⁺ over `t`, and z,
-    /// v⁺ (over `v`), y⁺ (over `dual`). Relaxations 1 and 2 (Peaceman–Rachford) run their
-    /// own epilogues without the (1 − a)v term. Every vector ≥ ld entries.
-    ///
-    /// ```
-    /// use qp_iter::kernel::{AlignedVec, Kernel, PaddedSymmetric};
-    /// let m = PaddedSymmetric::from_row_major(&[1.0, 0.0, 0.0, 1.0], 2).unwrap();
-    /// let (mut t, mq) = (AlignedVec::padded(&[2.0, 0.25]), AlignedVec::zeros(4));
-    /// let (lo, hi) = (AlignedVec::padded(&[-1.0, -1.0]), AlignedVec::padded(&[1.0, 1.0]));
-    /// let [mut z, mut v, mut scratch] = [(); 3].map(|_| AlignedVec::zeros(4));
-    /// let mut y = AlignedVec::padded(&[0.5, 0.0]);
-    /// Kernel::detect().admm_step_padded(&m, &mut t, &mq, 1.0, 1.0, &lo, &hi,
-    ///     &mut z, &mut v, &mut y, &mut scratch);
-    /// assert_eq!((&z[..2], &v[..2]), (&[2.0, 0.25][..], &[1.0, 0.25][..]));
-    /// assert_eq!((&y[..2], &t[..2]), (&[1.5, 0.0][..], &[-0.5, 0.25][..]));
-    /// ```
-    ///
-    /// # Panics
-    /// If any vector is shorter than ld.
-    #[inline(always)]
-    pub fn admm_step_padded(
-        self,
-        m: &PaddedSymmetric,
-        t: &mut [f64],
-        mq: &[f64],
-        relaxation: f64,
-        rho: f64,
-        lower: &[f64],
-        upper: &[f64],
-        z: &mut [f64],
-        v: &mut [f64],
-        dual: &mut [f64],
-        scratch: &mut [f64],
-    ) {
-        check_lens(
-            "admm_step_padded",
-            m.ld,
-            [
-                t.len(),
-                mq.len(),
-                lower.len(),
-                upper.len(),
-                z.len(),
-                v.len(),
-                dual.len(),
-                scratch.len(),
-            ],
-        );
-        if m.n == 0 {
-            return;
-        }
-        let (ms, n, ld) = (m.as_slice(), m.n, m.ld);
-        self.in_place(
-            ld,
-            t,
-            scratch,
-            (z, v, dual),
-            // SAFETY: as in `pg_step_padded`, with t⁺ in place of t; z, v and `dual` are
-            // distinct `&mut`s the product never reads (the epilogue reads v and y row by
-            // row before writing the same rows).
-            |x, dest, (z, v, dual)| unsafe {
-                let mut c = avx2_pad::Ctx::product(m, x, dest);
-                (c.q, c.lo, c.hi, c.a, c.b) =
-                    (mq.as_ptr(), lower.as_ptr(), upper.as_ptr(), relaxation, rho);
-                (c.next, c.v, c.dual) = (z.as_mut_ptr(), v.as_mut_ptr(), dual.as_mut_ptr());
-                if relaxation == 1.0 {
-                    avx2_pad::run::<{ avx2_pad::ADMM1 }>(c)
-                } else if relaxation == 2.0 {
-                    avx2_pad::run::<{ avx2_pad::ADMM2 }>(c)
-                } else {
-                    avx2_pad::run::<{ avx2_pad::ADMM }>(c)
-                }
-            },
-            |t, t_next, (z, v, dual)| {
-                portable::admm_step(
-                    ms, n, ld, t, mq, relaxation, rho, lower, upper, z, v, dual, t_next,
-                )
-            },
-        );
-    }
-
-    /// The relaxed ADMM step of [`Kernel::admm_step_padded`] carried on the
-    /// Douglas–Rachford variable s = v + y/ρ instead of (v, y): with v = Π_\[l,u\](s),
-    /// z⁺ = Mt − m_q, s⁺ = a z⁺ + s − a v (= w of [`Kernel::admm_step_padded`]) over `s`,
+    /// ρ(H + ρI)⁻¹ in `m`, m_q = (H + ρI)⁻¹q), carried on the Douglas–Rachford variable
+    /// s = v + y/ρ instead of (v, y): with v = Π_\[l,u\](s),
+    /// z⁺ = Mt − m_q, s⁺ = a z⁺ + s − a v (= w = a z⁺ + (1 − a)v + y/ρ of [`Kernel::admm_step`]) over `s`,
     /// t⁺ = 2Π_\[l,u\](s⁺) − s⁺ over `t`, z⁺ over `z`; in place as
     /// [`Kernel::pg_step_padded`]. v = Π(s) and y = ρ(s − v) are not stored (a caller
     /// forms them when asked): three stores per four rows instead of four. Every vector
@@ -1566,16 +1484,10 @@ mod avx2_pad {
     pub(super) const PG: u8 = 1;
     /// Epilogue: FISTA step with momentum.
     pub(super) const FISTA: u8 = 2;
-    /// Epilogue: relaxed ADMM step, any relaxation a.
-    pub(super) const ADMM: u8 = 3;
-    /// Epilogue: ADMM with a = 1 (w = z + y/ρ; the old v is not read).
-    pub(super) const ADMM1: u8 = 4;
-    /// Epilogue: ADMM with a = 2, Peaceman–Rachford (w = 2z − v + y/ρ).
-    pub(super) const ADMM2: u8 = 5;
     /// Epilogue: ADMM on the DR variable s (`Kernel::admm_dr_step_padded`), a = 1.
-    pub(super) const DR1: u8 = 6;
+    pub(super) const DR1: u8 = 3;
     /// Epilogue: ADMM on the DR variable s, any relaxation a.
-    pub(super) const DR: u8 = 7;
+    pub(super) const DR: u8 = 4;
 
     /// Pointers and scalars of one call (null / 0 where an epilogue does not use them).
     #[derive(Clone, Copy)]
@@ -1594,14 +1506,12 @@ mod avx2_pad {
         pub hi: *const f64,
         /// α (PG, FISTA) or the relaxation a (ADMM).
         pub a: f64,
-        /// β (FISTA) or ρ (ADMM).
+        /// β (FISTA).
         pub b: f64,
         /// y_next (FISTA) or z (ADMM).
         pub next: *mut f64,
-        /// v in/out (ADMM).
+        /// The DR variable s in/out (ADMM).
         pub v: *mut f64,
-        /// y in/out (ADMM).
-        pub dual: *mut f64,
     }
 
     impl Ctx {
@@ -1620,7 +1530,6 @@ mod avx2_pad {
                 b: 0.0,
                 next: std::ptr::null_mut(),
                 v: std::ptr::null_mut(),
-                dual: std::ptr::null_mut(),
             }
         }
     }
@@ -1681,38 +1590,6 @@ mod avx2_pad {
                     st(c.next, r, _mm256_fmsub_pd(_mm256_set1_pd(1.0 + c.b), x, bx));
                     st(c.out, r, x);
                 }
-                ADMM1 | ADMM2 | ADMM => {
-                    // s = Mt − m_q = z⁺ already (the accumulators start at −m_q, see
-                    // `panel`), so w = a z + (1 − a)v + y/ρ is one FMA after the product:
-                    // w = y/ρ + z (a = 1), 2z + (y/ρ − v) (a = 2), a z + (y/ρ + (1 − a)v)
-                    // (otherwise), the bracket formed before s is ready.
-                    let ir = _mm256_set1_pd(1.0 / c.b);
-                    let y = ld(c.dual, r);
-                    let (lo, hi) = (ld(c.lo, r), ld(c.hi, r));
-                    let w = match E {
-                        ADMM1 => _mm256_fmadd_pd(y, ir, s),
-                        ADMM2 => {
-                            let base = _mm256_fmsub_pd(y, ir, ld(c.v, r));
-                            _mm256_fmadd_pd(_mm256_set1_pd(2.0), s, base)
-                        }
-                        _ => {
-                            let av = _mm256_mul_pd(_mm256_set1_pd(1.0 - c.a), ld(c.v, r));
-                            let base = _mm256_fmadd_pd(y, ir, av);
-                            _mm256_fmadd_pd(_mm256_set1_pd(c.a), s, base)
-                        }
-                    };
-                    // t⁺ = 2v⁺ − w, the next step's input (the only result on the path to
-                    // it), first and in one operation (2v⁺ is exact).
-                    let vp = clamp(w, lo, hi);
-                    st(c.out, r, _mm256_fmsub_pd(_mm256_set1_pd(2.0), vp, w));
-                    st(
-                        c.dual,
-                        r,
-                        _mm256_mul_pd(_mm256_set1_pd(c.b), _mm256_sub_pd(w, vp)),
-                    );
-                    st(c.v, r, vp);
-                    st(c.next, r, s);
-                }
                 DR1 | DR => {
                     // s = Mt − m_q = z⁺ (sums started at −m_q); the DR variable d (in
                     // `c.v`) gives v = Π(d) and s⁺ = a z⁺ + (d − a v), the bracket formed
@@ -1751,7 +1628,7 @@ mod avx2_pad {
         // inside the n·ld entries because j < n and r0 + 4V ≤ ld; x[j] with j < n; the
         // epilogue's rows r0 + 4v + 4 ≤ ld (also those of m_q read here).
         unsafe {
-            if matches!(E, ADMM | ADMM1 | ADMM2 | DR1 | DR) {
+            if matches!(E, DR1 | DR) {
                 // ADMM: the sums start at −m_q, so they end at z⁺ = Mt − m_q. The m_q
                 // loads do not depend on the previous step, and the epilogue saves the
                 // subtraction and one load per vector (−2 ns per step at n = 30).
@@ -2322,47 +2199,11 @@ mod tests {
                 assert_close("fista y⁺", k, n, &y, &want_y, 4.0 * e);
                 assert!(padding_is_zero(&z, n) && padding_is_zero(&y, n));
 
-                // ADMM: plain, Peaceman–Rachford and a general relaxation (own paths).
+                // ADMM: plain, Peaceman–Rachford and a general relaxation.
                 for a in [1.0, 2.0, rng.random_range(0.5..1.9)] {
-                    let rho = rng.random_range(0.5..4.0);
-                    let (v0, y0) = (random_vec(&mut rng, n), random_vec(&mut rng, n));
-                    let (mut t, mut z, mut v, mut dual) =
-                        (pad(&x), AlignedVec::zeros(ld), pad(&v0), pad(&y0));
-                    k.admm_step_padded(
-                        &hp,
-                        &mut t,
-                        &pad(&q),
-                        a,
-                        rho,
-                        &lo,
-                        &hi,
-                        &mut z,
-                        &mut v,
-                        &mut dual,
-                        &mut scratch,
-                    );
-                    let (mut wz, mut wv, mut wy, mut wt) = (vec![], vec![], vec![], vec![]);
-                    for i in 0..n {
-                        let zi = hx[i] - q[i];
-                        let w = a * zi + (1.0 - a) * v0[i] + y0[i] / rho;
-                        let vp = w.max(lower[i]).min(upper[i]);
-                        wz.push(zi);
-                        wv.push(vp);
-                        wy.push(rho * (w - vp));
-                        wt.push(vp - (w - vp));
-                    }
+                    // ADMM on the DR variable s (v = Π(s) not stored): z⁺ = Mt − m_q.
+                    let wz: Vec<f64> = (0..n).map(|i| hx[i] - q[i]).collect();
                     let e = 16.0 * e;
-                    assert_close("admm z", k, n, &z, &wz, e);
-                    assert_close("admm v", k, n, &v, &wv, e);
-                    assert_close("admm y", k, n, &dual, &wy, rho * e);
-                    assert_close("admm t", k, n, &t, &wt, e);
-                    assert!(
-                        [&z, &v, &dual, &t].iter().all(|b| padding_is_zero(b, n)),
-                        "{:?} n = {n} a = {a}: padding",
-                        k.path()
-                    );
-
-                    // The same step on the DR variable s (v = Π(s) not stored).
                     let s0 = random_vec(&mut rng, n);
                     let (mut t, mut z, mut s) = (pad(&x), AlignedVec::zeros(ld), pad(&s0));
                     z.fill(7.0);
@@ -2454,19 +2295,6 @@ mod tests {
                     k.path()
                 );
                 for a in [1.0, 2.0, 1.5] {
-                    let mut t = x.clone();
-                    let mut b = [(); 3].map(|_| AlignedVec::zeros(ld));
-                    let [z, v, y] = &mut b;
-                    k.admm_step_padded(&h, &mut t, &zero, a, 1.0, &lo, &hi, z, v, y, &mut scratch);
-                    assert!(
-                        v[..n]
-                            .iter()
-                            .chain(&y[..n])
-                            .chain(&t[..n])
-                            .all(|v| v.is_nan()),
-                        "admm a = {a} {:?} n = {n}",
-                        k.path()
-                    );
                     let (mut t, mut z, mut s) = (x.clone(), AlignedVec::zeros(ld), x.clone());
                     k.admm_dr_step_padded(
                         &h,
@@ -2536,23 +2364,11 @@ mod tests {
                 &mut y,
             );
             let h = PaddedSymmetric::from_row_major(&[], 0).unwrap();
-            let (mut a, mut b, mut c, mut d) = ([0.0; 0], [0.0; 0], [0.0; 0], [0.0; 0]);
+            let (mut a, mut b, mut c) = ([0.0; 0], [0.0; 0], [0.0; 0]);
             k.matvec_padded(&h, &[], &mut y);
             k.pg_step_padded(&h, &mut a, &[], 1.0, &[], &[], &mut y);
             k.fista_step_padded(&h, &mut a, &[], 1.0, &[], &[], 0.5, &mut b, &mut y);
-            k.admm_step_padded(
-                &h,
-                &mut a,
-                &[],
-                2.0,
-                1.0,
-                &[],
-                &[],
-                &mut b,
-                &mut c,
-                &mut d,
-                &mut y,
-            );
+            k.admm_dr_step_padded(&h, &mut a, &[], 2.0, &[], &[], &mut b, &mut c, &mut y);
         }
     }
 

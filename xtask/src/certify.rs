@@ -10,7 +10,7 @@ use std::path::{Path, PathBuf};
 use anyhow::{Context, Result, anyhow, bail};
 use faer::Mat;
 use lti_model::ioss::{self, IossReport, LMI_TOL};
-use lti_model::scenario::Scenario;
+use closed_loop::scenario::Scenario;
 use lti_model::{LtiSystem, ModelError, matrix};
 use serde::Serialize;
 
@@ -348,8 +348,16 @@ pub fn certify(req: &CertifyRequest) -> Result<Outcome> {
         certificate,
         tolerance_rule: TOLERANCE_RULE.to_string(),
         controller_lipschitz: match &scenario.mpc {
-            Some(_) => Some(
-                mpc_core::lipschitz_report(&scenario, LPI_SAMPLE_PAIRS, scenario.noise.seed, None)
+            Some(m) => Some(
+                mpc_core::CondensedMpc::new(sys, m.config(&scenario.sets))
+                    .and_then(|mpc| {
+                        mpc_core::lipschitz_report_for(
+                            &mpc,
+                            LPI_SAMPLE_PAIRS,
+                            scenario.noise.seed,
+                            scenario.sampling_radius(),
+                        )
+                    })
                     .map_err(|e| anyhow!("{e}"))
                     .context("cannot compute L_π for the scenario's [mpc] section")?,
             ),

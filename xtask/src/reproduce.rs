@@ -23,12 +23,11 @@ use closed_loop::certificate::{
     CertificateOptions, ClosedLoopCertificate, Gamma13Source, SolverCertificate, TrajectoryCheck,
     analysis_with_sampled_l_phi, certify_closed_loop, check_trajectory,
 };
-use closed_loop::sim::{CaseStudyOptions, ControllerChoice, Solver, build_case_study};
+use closed_loop::scenario::{ControllerChoice, LoopOptions, ResolvedScenario, Scenario};
+use qp_iter::Method;
 use closed_loop::{ClosedLoopError, Trace};
 use lti_model::BoxSet;
 use lti_model::matrix::to_rows;
-use lti_model::scenario::Scenario;
-use mpc_core::CondensedMpc;
 use serde::Serialize;
 
 use crate::figures::{self, Chart, HLine, Legend, Pattern, Series};
@@ -216,7 +215,7 @@ pub struct SolverSummary {
 }
 
 impl SolverSummary {
-    fn new(sc: &SolverCertificate, simulated: Solver) -> Self {
+    fn new(sc: &SolverCertificate, simulated: Method) -> Self {
         Self {
             solver: sc.solver.name().to_string(),
             simulated: sc.solver == simulated,
@@ -288,7 +287,7 @@ pub struct TrajectoryReport {
     pub ran: bool,
     /// Why it did not run.
     pub reason: Option<String>,
-    /// Solver of the run.
+    /// Method of the run.
     pub solver: String,
     /// K of the run (K_min) and of the constants.
     pub k: Option<usize>,
@@ -537,16 +536,18 @@ struct Run {
     trace: Trace,
 }
 
-fn simulate(scenario: &Scenario, solver: Solver, k: usize, source: KSource) -> Result<Run> {
-    let opts = CaseStudyOptions {
-        solver,
+fn simulate(resolved: &ResolvedScenario, solver: Method, k: usize, source: KSource) -> Result<Run> {
+    let scenario = resolved.scenario();
+    let opts = LoopOptions {
+        method: solver,
         iterations: k,
         exact_mhe_solve: true,
         controller: ControllerChoice::ExactMpc,
         seed: scenario.noise.seed,
         steps: scenario.simulation.steps,
     };
-    let mut cl = build_case_study(scenario, &opts)
+    let mut cl = resolved
+        .build_loop(&opts)
         .with_context(|| format!("cannot set up the closed loop at K = {k}"))?;
     let error = cl.run().err().map(|e| e.to_string());
     let trace = cl.into_trace();
@@ -576,7 +577,7 @@ fn fmt_opt(v: Option<usize>) -> String {
     v.map_or_else(|| "none".to_string(), |k| k.to_string())
 }
 
-fn comparison(cert: &ClosedLoopCertificate, solver: Solver) -> Vec<ComparisonRow> {
+fn comparison(cert: &ClosedLoopCertificate, solver: Method) -> Vec<ComparisonRow> {
     let sc = cert.solver(solver);
     let phi = sc.map_or_else(
         || "not computed".to_string(),
@@ -674,10 +675,10 @@ pub fn run_job(job: &Job, settings: &Settings) -> Result<Outcome> {
         return Err(ClosedLoopError::MissingSection { section: "mpc" })
             .with_context(|| format!("scenario `{}`", job.scenario.display()));
     }
-    let solver: Solver = spec.solver.into();
+    let solver: Method = spec.method;
     let seed = scenario.noise.seed;
     let opts = CertificateOptions {
-        solvers: Solver::ALL.to_vec(),
+        solvers: Method::PRESETS.to_vec(),
         gamma13: settings.gamma13,
         seed,
         lipschitz_pairs: settings.lipschitz_pairs,
@@ -685,7 +686,13 @@ pub fn run_job(job: &Job, settings: &Settings) -> Result<Outcome> {
         enumeration_max_vars: settings.enumeration_max_vars,
         k_max: settings.k_max,
     };
-    let cert = certify_closed_loop(&scenario, &opts).with_context(|| {
+    let resolved = scenario.clone().resolve().with_context(|| {
+        format!(
+            "cannot set up the scenario `{}` for the certificate",
+            job.scenario.display()
+        )
+    })?;
+    let cert = certify_closed_loop(&resolved, &opts).with_context(|| {
         format!(
             "cannot compute the certificate of `{}`",
             job.scenario.display()
@@ -697,7 +704,7 @@ pub fn run_job(job: &Job, settings: &Settings) -> Result<Outcome> {
     let mut runs: Vec<Run> = Vec::new();
     if cert.ioss.is_some() || spec.p.is_some() {
         for (k, source) in plan_runs(spec.iterations, own.and_then(|s| s.k_min), settings.small_k) {
-            runs.push(simulate(&scenario, solver, k, source)?);
+            runs.push(simulate(&resolved, solver, k, source)?);
         }
     }
 
@@ -765,7 +772,7 @@ pub fn run_job(job: &Job, settings: &Settings) -> Result<Outcome> {
 
     // trace.json
     if !runs.is_empty() {
-        let doc = trace_document(job, &scenario, &scenario_record, &provenance, &runs)?;
+        let doc = trace_document(job, &resolved, &scenario_record, &provenance, &runs)?;
         let path = job.out.join("trace.json");
         write_text(
             &path,
@@ -904,19 +911,20 @@ fn write_text(path: &Path, text: &str) -> Result<()> {
 
 fn trace_document<'a>(
     job: &'a Job,
-    scenario: &'a Scenario,
+    resolved: &'a ResolvedScenario,
     record: &'a ScenarioRecord,
     provenance: &'a Provenance,
     runs: &'a [Run],
 ) -> Result<TraceDocument<'a>> {
+    let scenario = resolved.scenario();
     let sys = &scenario.plant;
     let spec = scenario
         .mhe
         .as_ref()
         .ok_or(ClosedLoopError::MissingSection { section: "mhe" })?;
-    let mpc = CondensedMpc::from_scenario(scenario)?;
+    let mpc = resolved.mpc()?;
     // The P the estimator used: the scenario's, or the maximal solution of LMI (2).
-    let cfg = mhe_core::MheConfig::from_spec(spec, sys, false)?;
+    let cfg = resolved.mhe_config()?;
     let m = |x: faer::MatRef<'_, f64>| to_rows(x);
     Ok(TraceDocument {
         format: TRACE_FORMAT,

@@ -28,17 +28,18 @@
 //! trajectory check reports it as part of the right-hand side, not as a verified bound.
 
 use lti_model::matrix::{spectral_norm, sym_extreme_eigenvalues};
-use lti_model::scenario::Scenario;
-use lti_model::{ModelError, ioss};
-use mhe_core::{LipschitzSampling, MheConfig, MheProblem, MheSets};
-use mpc_core::{CondensedMpc, ExactMpc};
+use lti_model::ioss;
+use mhe_core::{LipschitzSampling, MheProblem};
+use mpc_core::ExactMpc;
 use qp_iter::Certificate;
 use serde::Serialize;
 
 use crate::analysis::{GainsAtK, IssAnalysis, IssInputs, eta_sup_for_horizon, min_horizon_for_eta};
 use crate::gamma13::{Gamma13Certificate, Gamma13Sampled, gamma13_certified, gamma13_sampled};
 use crate::record::Trace;
-use crate::sim::{ClosedLoopError, Solver};
+use crate::scenario::ResolvedScenario;
+use crate::sim::ClosedLoopError;
+use qp_iter::Method;
 
 /// Where γ₁,₃ comes from.
 #[derive(Debug, Clone, Copy, PartialEq, Serialize)]
@@ -54,7 +55,7 @@ pub enum Gamma13Source {
 #[derive(Debug, Clone, PartialEq)]
 pub struct CertificateOptions {
     /// Solvers to certify.
-    pub solvers: Vec<Solver>,
+    pub solvers: Vec<Method>,
     /// γ₁,₃ source.
     pub gamma13: Gamma13Source,
     /// Seed of every sampled estimate.
@@ -72,7 +73,7 @@ pub struct CertificateOptions {
 impl Default for CertificateOptions {
     fn default() -> Self {
         Self {
-            solvers: Solver::ALL.to_vec(),
+            solvers: Method::PRESETS.to_vec(),
             gamma13: Gamma13Source::Certified,
             seed: 0,
             lipschitz_pairs: 200,
@@ -111,7 +112,7 @@ pub struct Gamma13Report {
 #[derive(Debug, Clone, PartialEq, Serialize)]
 pub struct SolverCertificate {
     /// The solver.
-    pub solver: Solver,
+    pub solver: Method,
     /// φ(K) = prefactor · rateᴷ, worst over window lengths.
     pub phi_rate: f64,
     /// Prefactor of φ(K).
@@ -187,7 +188,7 @@ pub struct ClosedLoopCertificate {
 
 impl ClosedLoopCertificate {
     /// The certificate of one solver.
-    pub fn solver(&self, solver: Solver) -> Option<&SolverCertificate> {
+    pub fn solver(&self, solver: Method) -> Option<&SolverCertificate> {
         self.solvers.iter().find(|s| s.solver == solver)
     }
 
@@ -206,7 +207,7 @@ impl ClosedLoopCertificate {
 }
 
 fn map_certificates(
-    solver: Solver,
+    solver: Method,
     problem: &MheProblem,
 ) -> Result<Vec<Certificate>, ClosedLoopError> {
     problem
@@ -225,42 +226,33 @@ fn map_certificates(
 /// Errors only for bad input (missing sections, invalid data); an infeasible LMI or a
 /// violated premise is *reported* in the result (void certificates), not an error.
 pub fn certify_closed_loop(
-    scenario: &Scenario,
+    resolved: &ResolvedScenario,
     opts: &CertificateOptions,
 ) -> Result<ClosedLoopCertificate, ClosedLoopError> {
+    let scenario = resolved.scenario();
     let spec = scenario
         .mhe
         .as_ref()
         .ok_or(ClosedLoopError::MissingSection { section: "mhe" })?;
-    let mpc = CondensedMpc::from_scenario(scenario)?;
+    let mpc = resolved.mpc()?.clone();
     let sys = &scenario.plant;
     let (m, eta) = (spec.horizon, spec.eta);
     let c_norm = spectral_norm(sys.c());
     let (_, q_max) = sym_extreme_eigenvalues("Q", spec.q.as_ref())?;
 
-    // Assumption 2.
-    let ioss_result = match &spec.p {
-        Some(p) => ioss::verify(sys, eta, spec.q.as_ref(), spec.r.as_ref(), p.as_ref()),
-        None => ioss::certify(sys, eta, spec.q.as_ref(), spec.r.as_ref()),
-    };
-    let (ioss_cert, ioss_failure) = match ioss_result {
-        Ok(c) => (Some(c), None),
-        Err(
-            e @ (ModelError::LmiInfeasible { .. }
-            | ModelError::Numerical { .. }
-            | ModelError::NotPositiveDefinite { .. }),
-        ) => (None, Some(e.to_string())),
-        Err(e) => return Err(e.into()),
+    // Assumption 2 (resolved once with the scenario).
+    let (ioss_cert, ioss_failure) = match resolved.ioss() {
+        Some(Ok(c)) => (Some(c.clone()), None),
+        Some(Err(e)) => (None, Some(e.to_string())),
+        None => return Err(ClosedLoopError::MissingSection { section: "mhe" }),
     };
 
     // MHE constants (need P).
-    let sets = MheSets::from_scenario(&scenario.sets);
     let problem = match &ioss_cert {
         Some(c) => {
-            let mut cfg_spec = spec.clone();
-            cfg_spec.p = Some(c.p.clone());
-            let cfg = MheConfig::from_spec(&cfg_spec, sys, false)?;
-            Some(MheProblem::new(sys, m, &cfg.weights(), &sets)?)
+            let mut cfg = resolved.mhe_config()?.clone();
+            cfg.p = c.p.clone();
+            Some(MheProblem::new(sys, m, &cfg.weights(), resolved.mhe_sets())?)
         }
         None => None,
     };
@@ -301,12 +293,7 @@ pub fn certify_closed_loop(
     };
 
     // Controller constants.
-    // Sampling radius as in `mpc_core::lipschitz_report`: 2·max(‖x₀‖, ‖prior‖, 1).
-    let norm = |v: &[f64]| v.iter().map(|a| a * a).sum::<f64>().sqrt();
-    let radius = 2.0
-        * norm(&scenario.simulation.x0)
-            .max(norm(&scenario.simulation.prior))
-            .max(1.0);
+    let radius = resolved.sampling_radius();
     let l_pi = mpc_core::lipschitz_report_for(&mpc, opts.lipschitz_pairs, opts.seed, radius)?;
     let l_pi_used = l_pi.l_pi();
     let gamma13 = match opts.gamma13 {

@@ -5,19 +5,23 @@
 //! small-gain conditions (sg1)–(sg3), and the smallest certified iteration budget K.
 //!
 //! - [`analysis`]: Theorem 1's arithmetic (C₁…C₆, gains, slopes, premises, K_min).
-//! - [`sim`]: Alg. 1 as a simulation ([`ClosedLoop`]) and the case-study builder
-//!   ([`build_case_study`]).
+//! - [`scenario`]: the scenario file (composing each layer's settings), resolved once
+//!   ([`ResolvedScenario`]) and turned into a ready loop ([`ResolvedScenario::build_loop`]).
+//! - [`sim`]: Alg. 1 as a simulation ([`ClosedLoop`]) of any estimator, controller and
+//!   disturbance.
 //! - [`record`]: the per-step [`Trace`] of a run (with the MHE records), JSON output.
 
 pub mod analysis;
 pub mod certificate;
 pub mod gamma13;
 pub mod record;
+pub mod scenario;
 pub mod sim;
 pub mod sweep;
 
 pub use record::{MheStep, MheTrace, Trace};
-pub use sim::{
-    CaseStudyLoop, CaseStudyOptions, ClosedLoop, ClosedLoopError, ControllerChoice, Solver,
-    build_case_study,
+pub use scenario::{
+    ControllerChoice, ResolvedScenario, LoopOptions, Scenario, ScenarioController,
+    ScenarioEstimator, ScenarioLoop,
 };
+pub use sim::{ClosedLoop, ClosedLoopError};

@@ -2,7 +2,7 @@
 //! stays stable, next to where Theorem 1 certifies it.
 //!
 //! A sweep is a grid of *points* (K, solver Φ, disturbance scale); at every point it runs
-//! `seeds` closed-loop simulations of the case study ([`build_case_study`]) with different
+//! `seeds` closed-loop simulations of the case study ([`ResolvedScenario::build_loop`]) with different
 //! disturbance realisations and records per run the norms of the estimation error and the
 //! state, ε_t (optional), the empirical gains, constraint violations and a bounded flag
 //! ([`RunMetrics`]). Per point it keeps quantiles of those over the runs and, from the
@@ -15,7 +15,7 @@
 //!   enter, so run r sees the same disturbance sequence at every K and solver (differences
 //!   along a curve come from K, not from the draw).
 //! - Runs are spread over a rayon pool of `threads` workers; each worker restarts a loop of
-//!   its own with [`CaseStudyLoop::reseed`], which is equivalent to a fresh build. faer's
+//!   its own with [`ScenarioLoop::reseed`], which is equivalent to a fresh build. faer's
 //!   global parallelism is set to sequential (no nested pools inside a run).
 //! - Every output value is a function of the configuration and the scenario only, except
 //!   the timing columns, all named `wall_*`.
@@ -40,15 +40,14 @@ use std::str::FromStr;
 use std::sync::OnceLock;
 use std::time::Instant;
 
-use lti_model::scenario::Scenario;
 use rayon::prelude::*;
 
 use crate::analysis::IssAnalysis;
 use crate::certificate::{CertificateOptions, certify_closed_loop};
 use crate::record::{Trace, norm2};
-use crate::sim::{
-    CaseStudyLoop, CaseStudyOptions, ClosedLoopError, ControllerChoice, Solver, build_case_study,
-};
+use crate::scenario::{ControllerChoice, LoopOptions, ResolvedScenario, Scenario, ScenarioLoop};
+use crate::sim::ClosedLoopError;
+use qp_iter::Method;
 
 /// Default bound factor: a run is *bounded* when sup‖x_t‖ ≤ 1000·(1 + ‖x₀‖).
 pub const DEFAULT_BOUNDED_FACTOR: f64 = 1e3;
@@ -302,7 +301,7 @@ pub struct SweepConfig {
     /// without duplicates, each ≥ 1.
     pub k_grid: Vec<usize>,
     /// The MHE's iteration maps Φ (`solvers`, any of `"pg"`, `"fista"`, `"admm"`, `"admm-pr"`).
-    pub solvers: Vec<Solver>,
+    pub solvers: Vec<Method>,
     /// Runs per point (`seeds` ≥ 1).
     pub seeds: usize,
     /// Disturbance scales (`scales`, each ≥ 0, finite): the scenario's `noise.scale` is set
@@ -578,12 +577,15 @@ fn parse_controller(value: Option<&toml::Value>) -> Result<ControllerChoice> {
             let iterations = get_positive(t, "iterations", "controller.iterations", MAX_K)?
                 .ok_or_else(|| config_err("controller.iterations", "missing (K_c ≥ 1)"))?;
             let solver = match get_str(t, "solver", "controller.solver")? {
-                None => Solver::Pg,
+                None => Method::PG,
                 Some(s) => s
-                    .parse::<Solver>()
+                    .parse::<Method>()
                     .map_err(|e| config_err("controller.solver", e.to_string()))?,
             };
-            Ok(ControllerChoice::SuboptimalMpc { iterations, solver })
+            Ok(ControllerChoice::SuboptimalMpc {
+                iterations,
+                method: solver,
+            })
         }
         Some(other) => Err(config_err(
             "controller",
@@ -638,7 +640,7 @@ impl SweepConfig {
         let mut solvers = Vec::new();
         for (i, s) in solver_names.iter().enumerate() {
             let solver = s
-                .parse::<Solver>()
+                .parse::<Method>()
                 .map_err(|e| config_err(format!("solvers[{i}]"), e.to_string()))?;
             if solvers.contains(&solver) {
                 return Err(config_err(
@@ -821,7 +823,7 @@ pub struct Point {
     /// Iteration budget K.
     pub k: usize,
     /// Φ of the MHE.
-    pub solver: Solver,
+    pub solver: Method,
     /// Disturbance scale (`noise.scale`).
     pub scale: f64,
     /// Index of the scale in the config's list.
@@ -1043,7 +1045,7 @@ pub fn run_metrics(
 
 /// Runs `lp` once with `seed` (restarting it first) and returns its metrics.
 fn simulate(
-    lp: &mut CaseStudyLoop,
+    lp: &mut ScenarioLoop,
     run: usize,
     seed: u64,
     input_box: (&[f64], &[f64]),
@@ -1190,10 +1192,10 @@ pub struct TheoryAtK {
 /// columns are void with that reason. A certificate that cannot be computed makes the
 /// columns void with the error as the reason (the empirical side is still useful).
 pub fn solver_theory(
-    scenario: &Scenario,
-    solvers: &[Solver],
+    resolved: &ResolvedScenario,
+    solvers: &[Method],
     controller: ControllerChoice,
-) -> Vec<(Solver, SolverTheory)> {
+) -> Vec<(Method, SolverTheory)> {
     let unavailable = |reason: String| {
         solvers
             .iter()
@@ -1210,7 +1212,7 @@ pub fn solver_theory(
         gamma13_sequences: 0,
         ..CertificateOptions::default()
     };
-    match certify_closed_loop(scenario, &opts) {
+    match certify_closed_loop(resolved, &opts) {
         Err(e) => unavailable(format!("no certificate: {e}")),
         Ok(cert) => solvers
             .iter()
@@ -1533,7 +1535,7 @@ impl SweepReport {
 struct WorkerLoop {
     fingerprint: String,
     point: usize,
-    lp: CaseStudyLoop,
+    lp: ScenarioLoop,
 }
 
 thread_local! {
@@ -1547,14 +1549,12 @@ thread_local! {
 #[derive(Debug)]
 pub struct Sweep {
     config: SweepConfig,
-    scenario: Scenario,
+    resolved: ResolvedScenario,
     steps: usize,
     base_seed: u64,
     points: Vec<Point>,
     fingerprint: String,
-    /// The scenario as read (P as given): what the certificate is computed for.
-    original: Scenario,
-    theory: OnceLock<Vec<(Solver, SolverTheory)>>,
+    theory: OnceLock<Vec<(Method, SolverTheory)>>,
 }
 
 impl Sweep {
@@ -1567,29 +1567,30 @@ impl Sweep {
             path: path.clone(),
             source,
         })?;
-        let mut scenario = original.clone();
-        let spec = scenario.mhe.as_mut().ok_or_else(|| {
-            config_err(
+        if original.mhe.is_none() {
+            return Err(config_err(
                 "scenario",
                 format!(
                     "`{}` has no [mhe] section; a sweep needs one",
                     path.display()
                 ),
-            )
-        })?;
-        if spec.p.is_none() {
-            let cert = lti_model::ioss::certify(
-                &scenario.plant,
-                spec.eta,
-                spec.q.as_ref(),
-                spec.r.as_ref(),
-            )
-            .map_err(|source| SweepError::Scenario {
-                path: path.clone(),
+            ));
+        }
+        let resolved = original
+            .resolve()
+            .map_err(|source| SweepError::Setup {
+                point: "(scenario)".into(),
                 source,
             })?;
-            spec.p = Some(cert.p);
+        if let Some(Err(source)) = resolved.ioss() {
+            if resolved.scenario().mhe.as_ref().is_some_and(|m| m.p.is_none()) {
+                return Err(SweepError::Scenario {
+                    path: path.clone(),
+                    source: source.clone(),
+                });
+            }
         }
+        let scenario = resolved.scenario();
         let steps = config.steps.unwrap_or(scenario.simulation.steps);
         let base_seed = config.base_seed.unwrap_or(scenario.noise.seed);
         let points = config.points_with(scenario.noise.scale);
@@ -1603,12 +1604,11 @@ impl Sweep {
         let fingerprint = format!("{:016x}", fnv1a(fp_text.as_bytes()));
         let sweep = Self {
             config,
-            scenario,
+            resolved,
             steps,
             base_seed,
             points,
             fingerprint,
-            original,
             theory: OnceLock::new(),
         };
         // Fail early (before any output) if a point cannot be set up.
@@ -1624,9 +1624,13 @@ impl Sweep {
     pub fn config(&self) -> &SweepConfig {
         &self.config
     }
-    /// The scenario (with P filled in).
+    /// The scenario as read.
     pub fn scenario(&self) -> &Scenario {
-        &self.scenario
+        self.resolved.scenario()
+    }
+    /// The scenario resolved once (P of LMI (2), the MHE configuration, the MPC).
+    pub fn resolved(&self) -> &ResolvedScenario {
+        &self.resolved
     }
     /// Every point of the sweep, in output order.
     pub fn points(&self) -> &[Point] {
@@ -1647,10 +1651,10 @@ impl Sweep {
     }
     /// The theoretical side per solver (computed on first use: the certificate takes a
     /// moment and a resumed or merged sweep may not need it).
-    pub fn theory(&self) -> &[(Solver, SolverTheory)] {
+    pub fn theory(&self) -> &[(Method, SolverTheory)] {
         self.theory.get_or_init(|| {
             if self.config.certificate {
-                solver_theory(&self.original, &self.config.solvers, self.config.controller)
+                solver_theory(&self.resolved, &self.config.solvers, self.config.controller)
             } else {
                 let reason = "not computed (certificate = false in the sweep config)";
                 self.config
@@ -1672,18 +1676,18 @@ impl Sweep {
             })
     }
 
-    fn build(&self, p: &Point) -> Result<CaseStudyLoop> {
-        let mut scenario = self.scenario.clone();
-        scenario.noise.scale = p.scale;
-        let opts = CaseStudyOptions {
-            solver: p.solver,
+    fn build(&self, p: &Point) -> Result<ScenarioLoop> {
+        let mut resolved = self.resolved.clone();
+        resolved.set_noise_scale(p.scale);
+        let opts = LoopOptions {
+            method: p.solver,
             iterations: p.k,
             exact_mhe_solve: self.config.exact_mhe_solve,
             controller: self.config.controller,
             seed: 0,
             steps: self.steps,
         };
-        build_case_study(&scenario, &opts).map_err(|source| SweepError::Setup {
+        resolved.build_loop(&opts).map_err(|source| SweepError::Setup {
             point: p.to_string(),
             source,
         })
@@ -1691,13 +1695,13 @@ impl Sweep {
 
     /// Runs every run of one point on the current rayon pool, one task per run. Each
     /// worker thread builds the point's loop once and restarts it per run with
-    /// [`CaseStudyLoop::reseed`] (equivalent to a fresh build, allocation-free), so the
+    /// [`ScenarioLoop::reseed`] (equivalent to a fresh build, allocation-free), so the
     /// runs balance across threads at the granularity of one run. The result is in run
     /// order.
     pub fn run_point(&self, p: &Point, progress: &dyn Progress) -> Result<Vec<RunMetrics>> {
         let input = (
-            self.scenario.sets.input.lower(),
-            self.scenario.sets.input.upper(),
+            self.scenario().sets.input.lower(),
+            self.scenario().sets.input.upper(),
         );
         let cost = run_cost(p.k, self.steps);
         let setup = |source| SweepError::Setup {
@@ -2109,7 +2113,7 @@ mod tests {
             c.controller,
             ControllerChoice::SuboptimalMpc {
                 iterations: 7,
-                solver: Solver::Fista
+                method: Method::FISTA
             }
         );
         let c = cfg("k = [1, 2]\nscales = [0.5, 1]").unwrap();

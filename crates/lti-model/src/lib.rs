@@ -22,7 +22,7 @@ pub mod ioss;
 pub mod matrix;
 pub mod presets;
 pub mod riccati;
-pub mod scenario;
+pub mod spec;
 pub mod sets;
 pub mod system;
 

@@ -5,7 +5,7 @@ use lti_model::{ConvexSet, LtiSystem};
 use qp_iter::active_set::ExactSolver;
 use qp_iter::{IterationMap, ParametricQp, run_fixed};
 
-pub use lti_model::scenario::WarmStart;
+pub use crate::settings::WarmStart;
 
 use crate::error::{MheError, Result};
 use crate::problem::{Dims, MheProblem, MheSets, MheWeights, WindowLayout, pow_i32};
@@ -56,29 +56,6 @@ impl MheConfig {
             q: self.q.clone(),
             r: self.r.clone(),
         }
-    }
-
-    /// The configuration of a scenario's `[mhe]` section; P is computed from LMI (2) with
-    /// [`lti_model::ioss::certify`] when the scenario does not give it.
-    pub fn from_spec(
-        spec: &lti_model::scenario::MheSpec,
-        sys: &LtiSystem,
-        exact_solve: bool,
-    ) -> Result<Self> {
-        let p = match &spec.p {
-            Some(p) => p.clone(),
-            None => lti_model::ioss::certify(sys, spec.eta, spec.q.as_ref(), spec.r.as_ref())?.p,
-        };
-        Ok(Self {
-            horizon: spec.horizon,
-            eta: spec.eta,
-            p,
-            q: spec.q.clone(),
-            r: spec.r.clone(),
-            iterations: spec.iterations,
-            warm_start: spec.warm_start,
-            exact_solve,
-        })
     }
 }
 

@@ -85,6 +85,7 @@ pub mod estimator;
 pub mod kalman;
 pub mod problem;
 pub mod record;
+pub mod settings;
 
 pub use error::{MheError, Result};
 pub use estimator::{Estimator, MheConfig, MheEstimator, WarmStart};
@@ -93,6 +94,7 @@ pub use problem::{
     LipschitzEstimate, LipschitzSampling, MheProblem, MheSets, MheWeights, MheWindow,
 };
 pub use record::MheRecord;
+pub use settings::{MheSettings, RawMhe};
 
 #[cfg(test)]
 mod send_sync {

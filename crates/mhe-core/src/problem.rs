@@ -64,7 +64,7 @@ impl MheSets {
     }
 
     /// The MHE's sets from a scenario's `[sets]` section (𝒰 is the controller's business).
-    pub fn from_scenario(sets: &lti_model::scenario::ScenarioSets) -> Self {
+    pub fn from_scenario(sets: &lti_model::spec::ScenarioSets) -> Self {
         Self {
             state: sets.state.clone(),
             output: sets.output.clone(),

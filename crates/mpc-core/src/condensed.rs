@@ -16,7 +16,6 @@ use lti_model::matrix::{
     sym_extreme_eigenvalues,
 };
 use lti_model::riccati::dare;
-use lti_model::scenario::{Scenario, TerminalCost};
 use lti_model::{BoxSet, ConvexSet, LtiSystem, ModelError};
 use qp_iter::ParametricQp;
 
@@ -70,26 +69,6 @@ impl MpcConfig {
             input_set,
             state_set: None,
         }
-    }
-
-    /// The `[mpc]` section of a scenario with its input set `sets.input` and state set
-    /// `sets.state` (the latter must be the whole space, see [`MpcConfig::state_set`]).
-    pub fn from_scenario(scenario: &Scenario) -> Result<Self> {
-        let spec = scenario
-            .mpc
-            .as_ref()
-            .ok_or(MpcError::MissingSection { section: "mpc" })?;
-        let terminal = match spec.terminal {
-            TerminalCost::Dare => Terminal::Dare,
-        };
-        Ok(Self {
-            horizon: spec.horizon,
-            q_c: spec.q.clone(),
-            r_c: spec.r.clone(),
-            terminal,
-            input_set: scenario.sets.input.clone(),
-            state_set: Some(scenario.sets.state.clone()),
-        })
     }
 }
 
@@ -258,11 +237,6 @@ impl CondensedMpc {
             q_bar,
             qp,
         })
-    }
-
-    /// Shortcut: [`MpcConfig::from_scenario`] then [`CondensedMpc::new`] on the scenario's plant.
-    pub fn from_scenario(scenario: &Scenario) -> Result<Self> {
-        Self::new(&scenario.plant, MpcConfig::from_scenario(scenario)?)
     }
 
     /// The parametric QP (θ = x̂, Z = 𝒰^N); clone it to build an iteration map.

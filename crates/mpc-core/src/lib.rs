@@ -12,7 +12,7 @@
 //!   and [`SaturatedLqr`].
 //! - [`lipschitz`]: L_π certified (bound (b) from H and F for any size; the tighter
 //!   enumerated bound L_enum when N·n_u ≤ 30) and sampled (seeded pairs, exact MPC);
-//!   [`lipschitz_report`] gathers both for a scenario (what `cargo xtask certify` prints).
+//!   [`lipschitz_report_for`] gathers both for an MPC (what `cargo xtask certify` prints).
 //!
 //! The MPC uses the nominal model (w = 0) and input constraints only; see
 //! [`MpcConfig::state_set`] for state constraints.
@@ -22,6 +22,7 @@ pub mod error;
 pub mod exact;
 pub mod lipschitz;
 pub mod lqr;
+pub mod settings;
 pub mod suboptimal;
 
 pub use condensed::{CondensedMpc, MpcConfig, Terminal};
@@ -29,9 +30,10 @@ pub use error::{MpcError, Result};
 pub use exact::{ExactBackend, ExactMpc};
 pub use lipschitz::{
     ENUMERATION_MAX_VARS, LipschitzCertificate, LipschitzReport, SampledLipschitz,
-    lipschitz_report, lipschitz_report_for, lipschitz_sampled,
+    lipschitz_report_for, lipschitz_sampled,
 };
 pub use lqr::SaturatedLqr;
+pub use settings::{MpcSettings, RawMpc};
 pub use suboptimal::{SuboptimalMpc, WarmStart};
 
 /// A state-feedback law u = π(x̂) (the controller of Assumption 3).

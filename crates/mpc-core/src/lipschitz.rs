@@ -686,19 +686,3 @@ pub fn lipschitz_report_for(
     })
 }
 
-/// [`lipschitz_report_for`] for a scenario's `[mpc]` section. `radius` defaults to
-/// 2·max(‖x₀‖, ‖prior‖, 1), so the sampled ball covers where the closed loop starts.
-pub fn lipschitz_report(
-    scenario: &lti_model::scenario::Scenario,
-    n_pairs: usize,
-    seed: u64,
-    radius: Option<f64>,
-) -> Result<LipschitzReport> {
-    let mpc = CondensedMpc::from_scenario(scenario)?;
-    let r = radius.unwrap_or_else(|| {
-        2.0 * norm(&scenario.simulation.x0)
-            .max(norm(&scenario.simulation.prior))
-            .max(1.0)
-    });
-    lipschitz_report_for(&mpc, n_pairs, seed, r)
-}

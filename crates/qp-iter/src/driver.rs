@@ -38,9 +38,7 @@ fn all_finite(z: &[f64]) -> bool {
 /// Checks finiteness once at the end (O(n), allocation-free): a non-finite iterate is
 /// reported as [`RunStatus::NonFinite`], never a panic.
 pub fn run_fixed<M: IterationMap>(map: &M, state: &mut M::State, k: usize) -> RunResult {
-    for _ in 0..k {
-        map.step(state);
-    }
+    map.run_steps(state, k);
     let status = if all_finite(map.iterate(state)) {
         RunStatus::Completed
     } else {

@@ -6,6 +6,12 @@ pub enum QpError {
     /// Invalid matrix / vector / set data (shape, NaN, not symmetric, not PD, empty box).
     #[error(transparent)]
     Model(#[from] lti_model::ModelError),
+    /// A method name other than the named methods of [`crate::method::Method`].
+    #[error("unknown method `{name}`; use \"pg\", \"fista\", \"admm\" or \"admm-pr\" (or a table with `method` and its parameters)")]
+    UnknownMethod {
+        /// The name given.
+        name: String,
+    },
     /// A method parameter is invalid (step size, penalty, tolerance).
     #[error("parameter `{name}` = {value} is invalid: {reason}")]
     Parameter {

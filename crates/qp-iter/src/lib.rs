@@ -22,6 +22,7 @@ pub mod driver;
 pub mod error;
 pub mod fista;
 pub mod kernel;
+pub mod method;
 pub mod pg;
 pub mod problem;
 pub mod reference;
@@ -29,6 +30,7 @@ pub mod reference;
 pub use certificate::{BoundedQuantity, CertNorm, Certificate};
 pub use driver::{RunResult, RunStatus, run_fixed, run_until};
 pub use error::{QpError, Result};
+pub use method::{Method, MethodMap, MethodState};
 pub use problem::ParametricQp;
 
 /// The iteration map Φ of Assumption 5: z^{k+1} = Φ(z^k, θ).
@@ -66,6 +68,13 @@ pub trait IterationMap: Send + Sync + std::fmt::Debug {
 
     /// One application of Φ.
     fn step(&self, state: &mut Self::State);
+    /// `k` applications of Φ. A dispatching map ([`MethodMap`]) overrides it to choose the
+    /// concrete method once for all `k` steps.
+    fn run_steps(&self, state: &mut Self::State, k: usize) {
+        for _ in 0..k {
+            self.step(state);
+        }
+    }
 
     /// The current iterate z^k (the point the certificate speaks about, and the one a
     /// caller should use: feasible for PG and FISTA; see each method for ADMM).

@@ -1,0 +1,287 @@
+//! A ready closed loop from a resolved scenario: the sub-optimal MHE with the scenario's
+//! (or the run's) method Φ and K, the controller of the run, the scenario's disturbance.
+//!
+//! The method list is `qp_iter::Method`; the estimator is one type for every method
+//! ([`ScenarioEstimator`] = `MheEstimator<MethodMap>`, dispatching once per K-iteration
+//! run), so adding a method touches nothing here.
+
+use lti_model::ModelError;
+use lti_model::disturbance::{Disturbance, Gaussian, UniformBox, Zero};
+use lti_model::spec::NoiseKind;
+use mhe_core::{MheEstimator, MheRecord};
+use mpc_core::{Controller, ExactMpc, MpcError, SaturatedLqr, SuboptimalMpc};
+use qp_iter::{Method, MethodMap};
+
+use super::{ResolvedScenario, Scenario};
+use crate::sim::{ClosedLoop, ClosedLoopError, Result};
+
+/// The controller π of a run built from a scenario.
+#[derive(Debug, Clone, Copy, PartialEq)]
+pub enum ControllerChoice {
+    /// The exact MPC (the paper's setting): a warm-started, KKT-verified active-set solve
+    /// each step ([`ExactMpc`]), allocation-free.
+    ExactMpc,
+    /// The MPC solved with `iterations` = K_c ≥ 1 warm-started iterations of `method`.
+    SuboptimalMpc {
+        /// K_c.
+        iterations: usize,
+        /// Φ of the MPC.
+        method: Method,
+    },
+    /// u = Π_𝒰(−K_lqr x̂) with the DARE gain of the scenario's MPC weights.
+    SaturatedLqr,
+}
+
+/// What a run changes of the scenario's settings.
+#[derive(Debug, Clone, Copy, PartialEq)]
+pub struct LoopOptions {
+    /// Φ of the MHE.
+    pub method: Method,
+    /// K ≥ 1 iterations of Φ per time step.
+    pub iterations: usize,
+    /// Also solve every ℙ_t exactly (warm-started active set) and record ε_t.
+    pub exact_mhe_solve: bool,
+    /// The controller.
+    pub controller: ControllerChoice,
+    /// Seed of the disturbance generator.
+    pub seed: u64,
+    /// Horizon T ≥ 1.
+    pub steps: usize,
+}
+
+impl LoopOptions {
+    /// The scenario's own settings: `[mhe]` method and K, `[noise]` seed, `[simulation]`
+    /// steps, the exact MPC, exact MHE solve off.
+    pub fn from_scenario(scenario: &Scenario) -> Result<Self> {
+        let mhe = scenario
+            .mhe
+            .as_ref()
+            .ok_or(ClosedLoopError::MissingSection { section: "mhe" })?;
+        Ok(Self {
+            method: mhe.method,
+            iterations: mhe.iterations,
+            exact_mhe_solve: false,
+            controller: ControllerChoice::ExactMpc,
+            seed: scenario.noise.seed,
+            steps: scenario.simulation.steps,
+        })
+    }
+}
+
+/// The MHE of a scenario run: one type for every method.
+pub type ScenarioEstimator = MheEstimator<MethodMap>;
+
+/// The controller of a scenario run.
+#[derive(Debug)]
+// Built once per run and stepped in place (never moved in the loop), so variant sizes
+// do not matter for speed; boxing them would add an indirection per step instead.
+#[allow(clippy::large_enum_variant)]
+pub enum ScenarioController {
+    /// Exact MPC (active set, Clarabel fallback; boxed, it is large).
+    Exact(Box<ExactMpc>),
+    /// Sub-optimal MPC with K_c iterations of a method.
+    Suboptimal(SuboptimalMpc<MethodMap>),
+    /// Saturated LQR.
+    SaturatedLqr(SaturatedLqr),
+}
+
+impl ScenarioController {
+    /// Forgets the MPC's warm start (the sub-optimal MPC's iterate, the exact MPC's working
+    /// set; no-op for the saturated LQR), so a reused controller behaves like a new one.
+    pub fn reset(&mut self) {
+        match self {
+            ScenarioController::Exact(c) => c.reset(),
+            ScenarioController::Suboptimal(c) => c.reset(),
+            ScenarioController::SaturatedLqr(_) => {}
+        }
+    }
+}
+
+impl Controller for ScenarioController {
+    fn control(&mut self, x_hat: &[f64], u: &mut [f64]) -> mpc_core::Result<()> {
+        match self {
+            ScenarioController::Exact(c) => c.control(x_hat, u),
+            ScenarioController::Suboptimal(c) => c.control(x_hat, u),
+            ScenarioController::SaturatedLqr(c) => c.control(x_hat, u),
+        }
+    }
+    fn nu(&self) -> usize {
+        match self {
+            ScenarioController::Exact(c) => c.nu(),
+            ScenarioController::Suboptimal(c) => c.nu(),
+            ScenarioController::SaturatedLqr(c) => c.nu(),
+        }
+    }
+    fn nx(&self) -> usize {
+        match self {
+            ScenarioController::Exact(c) => c.nx(),
+            ScenarioController::Suboptimal(c) => c.nx(),
+            ScenarioController::SaturatedLqr(c) => c.nx(),
+        }
+    }
+}
+
+/// A scenario's loop: the MHE with any method, the scenario controller, a boxed
+/// disturbance (one virtual call per step, no allocation).
+pub type ScenarioLoop = ClosedLoop<ScenarioEstimator, ScenarioController, Box<dyn Disturbance>>;
+
+/// The scenario's true disturbance w_t: uniform on `noise.scale`·𝒲, zero-mean Gaussian
+/// with covariance `scale²·covariance`, or zero, seeded with `seed`. A zero scale gives
+/// w ≡ 0.
+///
+/// Errors: uniform noise on an unbounded 𝒲 (`InvalidSet` naming `"W"`).
+pub fn scenario_disturbance(scenario: &Scenario, seed: u64) -> Result<Box<dyn Disturbance>> {
+    let nw = scenario.plant.nw();
+    let noise = &scenario.noise;
+    if noise.scale == 0.0 {
+        return Ok(Box::new(Zero(nw)));
+    }
+    Ok(match noise.kind {
+        NoiseKind::Zero => Box::new(Zero(nw)),
+        NoiseKind::Uniform => {
+            let (lower, upper) =
+                noise
+                    .uniform_box(&scenario.sets.disturbance)
+                    .ok_or_else(|| ModelError::Scenario {
+                        key: "noise.kind".into(),
+                        problem: "uniform noise needs the box 𝒲 of `sets.disturbance`".into(),
+                    })?;
+            Box::new(UniformBox::new(lower, upper, seed)?)
+        }
+        NoiseKind::Gaussian => {
+            let cov = noise
+                .scaled_covariance()
+                .ok_or_else(|| ModelError::Scenario {
+                    key: "noise.covariance".into(),
+                    problem: "Gaussian noise needs a covariance".into(),
+                })?;
+            Box::new(Gaussian::new(vec![0.0; nw], cov, seed)?)
+        }
+    })
+}
+
+fn record_hook(e: &ScenarioEstimator) -> Option<&MheRecord> {
+    Some(e.last_record())
+}
+
+impl ResolvedScenario {
+    /// The MHE of this scenario with `method` and K = `iterations` (P as resolved).
+    pub fn estimator(
+        &self,
+        method: Method,
+        iterations: usize,
+        exact_solve: bool,
+    ) -> Result<ScenarioEstimator> {
+        if iterations == 0 {
+            return Err(ClosedLoopError::OutOfRange {
+                name: "iterations",
+                value: 0.0,
+                range: "integers ≥ 1",
+            });
+        }
+        let mut cfg = self.mhe_config()?.clone();
+        cfg.iterations = iterations;
+        cfg.exact_solve = exact_solve;
+        let sc = self.scenario();
+        Ok(MheEstimator::new(
+            &sc.plant,
+            self.mhe_sets(),
+            &cfg,
+            &sc.simulation.prior,
+            |qp| method.build(qp),
+        )?)
+    }
+
+    /// The controller π of `choice` for this scenario.
+    pub fn controller(&self, choice: ControllerChoice) -> Result<ScenarioController> {
+        let sc = self.scenario();
+        let spec = sc
+            .mpc
+            .as_ref()
+            .ok_or(ClosedLoopError::MissingSection { section: "mpc" })?;
+        Ok(match choice {
+            ControllerChoice::SaturatedLqr => ScenarioController::SaturatedLqr(SaturatedLqr::new(
+                &sc.plant,
+                spec.q.as_ref(),
+                spec.r.as_ref(),
+                sc.sets.input.clone(),
+            )?),
+            ControllerChoice::ExactMpc => {
+                ScenarioController::Exact(Box::new(ExactMpc::new(self.mpc()?)?))
+            }
+            ControllerChoice::SuboptimalMpc { iterations, method } => {
+                if iterations == 0 {
+                    return Err(ClosedLoopError::OutOfRange {
+                        name: "controller iterations",
+                        value: 0.0,
+                        range: "integers ≥ 1",
+                    });
+                }
+                let mpc = self.mpc()?;
+                let map = method.build(mpc.qp().clone()).map_err(MpcError::Qp)?;
+                ScenarioController::Suboptimal(SuboptimalMpc::new(
+                    mpc,
+                    map,
+                    iterations,
+                    mpc_core::WarmStart::default(),
+                )?)
+            }
+        })
+    }
+
+    /// A ready closed loop (needs `[mhe]` and `[mpc]`): the scenario's plant, sets, x₀,
+    /// prior, MHE weights with the resolved P and warm-start rule, with the method, K,
+    /// exact-solve flag, controller, seed and T of `options`. MHE records are captured.
+    ///
+    /// Errors: a missing section, K = 0 or K_c = 0, no P (LMI (2) infeasible), a bad
+    /// disturbance set, and every construction error of the components.
+    ///
+    /// ```no_run
+    /// use closed_loop::scenario::{ControllerChoice, LoopOptions, Scenario};
+    /// let resolved = Scenario::from_file("scenarios/case-study.toml").unwrap().resolve().unwrap();
+    /// let mut opts = LoopOptions::from_scenario(resolved.scenario()).unwrap();
+    /// opts.method = qp_iter::Method::PG;
+    /// opts.iterations = 652;
+    /// opts.controller = ControllerChoice::ExactMpc;
+    /// let mut cl = resolved.build_loop(&opts).unwrap();
+    /// let trace = cl.run().unwrap();
+    /// println!("sup ‖e‖ = {}", trace.sup_norm_e());
+    /// ```
+    pub fn build_loop(&self, options: &LoopOptions) -> Result<ScenarioLoop> {
+        if options.steps == 0 {
+            return Err(ClosedLoopError::ZeroSteps);
+        }
+        let estimator = self.estimator(
+            options.method,
+            options.iterations,
+            options.exact_mhe_solve,
+        )?;
+        let ctrl = self.controller(options.controller)?;
+        let sc = self.scenario();
+        let disturbance = scenario_disturbance(sc, options.seed)?;
+        let m = self.mhe_config()?.horizon;
+        ClosedLoop::new(
+            sc.plant.clone(),
+            estimator,
+            ctrl,
+            disturbance,
+            &sc.simulation.x0,
+            options.steps,
+        )?
+        .with_mhe_records(record_hook, m)
+    }
+}
+
+impl ScenarioLoop {
+    /// Restarts the run at t = 0 with a new disturbance seed (for Monte-Carlo runs): the
+    /// MHE restarts from its initial prior, the sub-optimal MPC cold-starts, and every
+    /// buffer is kept (allocation-free).
+    pub fn reseed(&mut self, seed: u64) -> Result<()> {
+        self.restart_with_prior(|est, ctrl, dist, prior| {
+            est.reset(prior)?;
+            ctrl.reset();
+            dist.reseed(seed);
+            Ok(())
+        })
+    }
+}

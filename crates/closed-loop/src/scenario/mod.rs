@@ -1,0 +1,209 @@
+//! TOML scenario files: the composition of plant, sets, noise and simulation
+//! (`lti_model::spec`), the MHE settings (`mhe_core::settings`) and the MPC settings
+//! (`mpc_core::settings`); each layer parses and validates its own sections, this module
+//! composes them. [`Scenario::resolve`] turns a scenario into a [`ResolvedScenario`] once
+//! (P of LMI (2), the MHE configuration, the MPC), shared by the certificate, the
+//! simulation, `reproduce` and the sweep.
+//!
+//! Parsing runs in two stages. First the text is deserialised into `Raw*`
+//! mirror structs (every table `deny_unknown_fields`, every key optional) through
+//! `serde_path_to_error`, so a type error names the dotted key it happened at. Then
+//! [`Scenario`] is built from the raw structs, checking every shape against the plant and
+//! every weight for symmetry and positive definiteness. Every failure is a
+//! [`ModelError::Scenario`] whose `key` is the dotted TOML key (`"mhe.q"`), `"<toml>"`
+//! for a syntax error or `"<file>"` for an I/O error, and whose `problem` says what is
+//! wrong and how to fix it. The full format is documented in `docs/scenario-format.md`.
+//!
+//! ```
+//! use closed_loop::scenario::Scenario;
+//! let s = Scenario::from_toml_str(r#"
+//!     name = "double-integrator"
+//!     [plant]
+//!     a = [[1.0, 0.1], [0.0, 1.0]]
+//!     b = [[0.005], [0.1]]
+//!     c = [[1.0, 0.0]]
+//!     [sets]
+//!     input = { lower = [-1], upper = [1] }
+//! "#).unwrap();
+//! assert_eq!((s.plant.nx(), s.plant.nu(), s.plant.ny()), (2, 1, 1));
+//! assert!(s.sets.state.is_whole());
+//! assert_eq!(s.sets.input.upper(), &[1.0]);
+//!
+//! let err = Scenario::from_toml_str("name = \"x\"\n[plant]\na = [[1.0]]\nc = [[1.0]]\nd = 1")
+//!     .unwrap_err();
+//! match err {
+//!     lti_model::ModelError::Scenario { key, .. } => assert_eq!(key, "plant.d"),
+//!     other => panic!("{other}"),
+//! }
+//! ```
+
+mod build;
+mod resolve;
+
+use std::path::Path;
+
+use lti_model::spec::format::{self, Table, key_error};
+use lti_model::spec::plant::{
+    RawNoise, RawPlant, RawSets, RawSimulation, raw_sections, validate_noise, validate_plant,
+    validate_sets, validate_simulation,
+};
+use lti_model::spec::{NoiseSpec, ScenarioSets, SimulationSpec};
+use lti_model::{LtiSystem, Result};
+use mhe_core::settings::{MheSettings, RawMhe};
+use mpc_core::settings::{MpcSettings, RawMpc};
+use serde::{Deserialize, Serialize};
+
+pub use build::{
+    ControllerChoice, LoopOptions, ScenarioController, ScenarioEstimator, ScenarioLoop,
+    scenario_disturbance,
+};
+pub use resolve::ResolvedScenario;
+
+// ---------------------------------------------------------------------------------------
+// Typed, validated scenario
+// ---------------------------------------------------------------------------------------
+
+/// A validated scenario: everything needed to set up a run of Alg. 1.
+///
+/// Built by [`Scenario::from_toml_str`] / [`Scenario::from_file`]; all dimensions are
+/// consistent with [`Scenario::plant`].
+#[derive(Debug, Clone)]
+pub struct Scenario {
+    /// Scenario name (`name`), used to label outputs.
+    pub name: String,
+    /// Free-text description (`description`).
+    pub description: Option<String>,
+    /// The plant of eq. (1) (`[plant]`).
+    pub plant: LtiSystem,
+    /// The constraint sets 𝒳, 𝒰, 𝒴, 𝒲 (`[sets]`).
+    pub sets: ScenarioSets,
+    /// How the true disturbance w_t is drawn (`[noise]`).
+    pub noise: NoiseSpec,
+    /// Initial state, prior and length of a run (`[simulation]`).
+    pub simulation: SimulationSpec,
+    /// MHE settings (`[mhe]`), if the scenario has them.
+    pub mhe: Option<MheSettings>,
+    /// MPC settings (`[mpc]`), if the scenario has them.
+    pub mpc: Option<MpcSettings>,
+    /// The verbatim text this scenario was parsed from (`None` if it was built in code), so
+    /// that a run can record exactly what it used, comments included.
+    pub source: Option<String>,
+}
+
+impl Scenario {
+    /// Parses and validates a scenario from TOML text.
+    pub fn from_toml_str(text: &str) -> Result<Self> {
+        let raw: RawScenario = format::parse(text)?;
+        let mut scenario = validate(raw)?;
+        scenario.source = Some(text.to_string());
+        Ok(scenario)
+    }
+
+    /// Reads, parses and validates a scenario file. I/O errors have key `"<file>"`.
+    pub fn from_file(path: impl AsRef<Path>) -> Result<Self> {
+        let path = path.as_ref();
+        let text = std::fs::read_to_string(path).map_err(|e| {
+            key_error(
+                "<file>",
+                format!(
+                    "cannot read `{}`: {e}; check the path (relative paths are resolved from the \
+                     current directory)",
+                    path.display()
+                ),
+            )
+        })?;
+        Self::from_toml_str(&text)
+    }
+
+    /// Canonical TOML of the validated scenario: every default made explicit, matrices as
+    /// rows, comments dropped. Parsing it gives back an equal scenario.
+    pub fn to_toml_string(&self) -> Result<String> {
+        let raw = RawScenario::from_typed(self);
+        toml::to_string(&raw)
+            .map_err(|e| key_error("<toml>", format!("cannot serialise the scenario: {e}")))
+    }
+}
+
+// ---------------------------------------------------------------------------------------
+// Raw (serde) mirror of the file
+// ---------------------------------------------------------------------------------------
+
+#[derive(Debug, Deserialize, Serialize)]
+#[serde(deny_unknown_fields)]
+struct RawScenario {
+    #[serde(skip_serializing_if = "Option::is_none")]
+    name: Option<String>,
+    #[serde(skip_serializing_if = "Option::is_none")]
+    description: Option<String>,
+    #[serde(skip_serializing_if = "Option::is_none")]
+    plant: Option<Table<RawPlant>>,
+    #[serde(skip_serializing_if = "Option::is_none")]
+    sets: Option<Table<RawSets>>,
+    #[serde(skip_serializing_if = "Option::is_none")]
+    noise: Option<Table<RawNoise>>,
+    #[serde(skip_serializing_if = "Option::is_none")]
+    simulation: Option<Table<RawSimulation>>,
+    #[serde(skip_serializing_if = "Option::is_none")]
+    mhe: Option<Table<RawMhe>>,
+    #[serde(skip_serializing_if = "Option::is_none")]
+    mpc: Option<Table<RawMpc>>,
+}
+
+fn validate(raw: RawScenario) -> Result<Scenario> {
+    let name = raw.name.clone().ok_or_else(|| {
+        key_error(
+            "name",
+            "is required but missing; add a top-level `name = \"my-scenario\"`",
+        )
+    })?;
+    if name.trim().is_empty() {
+        return Err(key_error(
+            "name",
+            "is empty; give the scenario a name, e.g. `name = \"case-study\"`",
+        ));
+    }
+    let plant = validate_plant(raw.plant.as_deref())?;
+    let (sets, disturbance_given) = validate_sets(raw.sets.as_deref(), &plant)?;
+    let noise = validate_noise(raw.noise.as_deref(), &sets, disturbance_given, plant.nw())?;
+    let simulation = validate_simulation(raw.simulation.as_deref(), &plant, &sets)?;
+
+    let mhe = raw
+        .mhe
+        .as_ref()
+        .map(|m| MheSettings::from_raw(m, &plant))
+        .transpose()?;
+    let mpc = raw
+        .mpc
+        .as_ref()
+        .map(|m| MpcSettings::from_raw(m, &plant))
+        .transpose()?;
+
+    Ok(Scenario {
+        name,
+        description: raw.description,
+        plant,
+        sets,
+        noise,
+        simulation,
+        mhe,
+        mpc,
+        source: None,
+    })
+}
+
+impl RawScenario {
+    fn from_typed(s: &Scenario) -> Self {
+        let (plant, sets, noise, simulation) =
+            raw_sections(&s.plant, &s.sets, &s.noise, &s.simulation);
+        RawScenario {
+            name: Some(s.name.clone()),
+            description: s.description.clone(),
+            plant: Some(Table(plant)),
+            sets: Some(Table(sets)),
+            noise: Some(Table(noise)),
+            simulation: Some(Table(simulation)),
+            mhe: s.mhe.as_ref().map(|m| Table(m.to_raw())),
+            mpc: s.mpc.as_ref().map(|m| Table(m.to_raw())),
+        }
+    }
+}

@@ -18,8 +18,8 @@ use std::hint::black_box;
 
 use benches::case_study::{CaseStudyQps, PRESETS};
 use benches::{Variant, interleave};
-use closed_loop::sim::{CaseStudyOptions, ControllerChoice, build_case_study};
-use mpc_core::{CondensedMpc, Controller, ExactMpc};
+use closed_loop::scenario::{ControllerChoice, LoopOptions};
+use mpc_core::{Controller, ExactMpc};
 use qp_iter::IterationMap;
 use qp_iter::pg::{ProjectedGradient, StepRule};
 use qp_iter::reference::ReferenceSettings;
@@ -37,8 +37,8 @@ fn main() {
                 std::process::exit(1);
             }
         };
-        let s = &qps.scenario;
-        let base = match CaseStudyOptions::from_scenario(s) {
+        let r = &qps.resolved;
+        let base = match LoopOptions::from_scenario(r.scenario()) {
             Ok(o) => o,
             Err(e) => {
                 eprintln!("closed_loop bench: {e}");
@@ -49,7 +49,7 @@ fn main() {
         let build = |controller| {
             let mut o = base;
             o.controller = controller;
-            build_case_study(s, &o).unwrap_or_else(|e| {
+            r.build_loop(&o).unwrap_or_else(|e| {
                 eprintln!("closed_loop bench: {e}");
                 std::process::exit(1)
             })
@@ -62,7 +62,7 @@ fn main() {
                 .filter_map(|t| trace.x_hat(t).map(<[f64]>::to_vec))
                 .collect()
         };
-        let mpc = CondensedMpc::from_scenario(s).expect("the scenario's MPC");
+        let mpc = r.mpc().expect("the scenario's MPC").clone();
         let mut warm = ExactMpc::new(&mpc).expect("active-set MPC");
         let mut cold = ExactMpc::new(&mpc).expect("active-set MPC");
         let mut clarabel =

@@ -4,10 +4,10 @@
 //! A [`Preset`] names a scenario file (`scenarios/case-study.toml`, the paper's M = 5, or
 //! `scenarios/case-study-certified.toml`, M = 9). [`CaseStudyQps::load`]
 //!
-//! 1. runs the scenario's closed loop ([`closed_loop::build_case_study`] with the file's
+//! 1. runs the scenario's closed loop ([`closed_loop::ResolvedScenario::build_loop`] with the file's
 //!    solver, K, noise seed and T, exact MPC) and keeps its trace (u_t, y_t);
 //! 2. replays (u_t, y_t) into an [`MheEstimator`] with V-FISTA at the K its certificate
-//!    needs for relative accuracy [`EPS`] (P from LMI (2) via [`MheConfig::from_spec`]),
+//!    needs for relative accuracy [`EPS`] (P from LMI (2) via [`closed_loop::ResolvedScenario`]),
 //!    and at every t with a full window (t ≥ M) records θ_t, the linear term q_t, the
 //!    warm start z⁰_t the estimator starts from, and z*_t from the polished Clarabel
 //!    reference ([`ReferenceSolver`]).
@@ -17,10 +17,9 @@
 
 use std::path::PathBuf;
 
-use closed_loop::sim::{CaseStudyOptions, build_case_study};
+use closed_loop::scenario::{LoopOptions, ResolvedScenario, Scenario};
 use closed_loop::{ClosedLoopError, Trace};
 use lti_model::ModelError;
-use lti_model::scenario::Scenario;
 use mhe_core::{MheConfig, MheError, MheEstimator, MheProblem, MheSets};
 use qp_iter::fista::Fista;
 use qp_iter::reference::{ReferenceSettings, ReferenceSolver};
@@ -114,8 +113,8 @@ pub struct MheInstance {
 pub struct CaseStudyQps {
     /// The preset.
     pub preset: Preset,
-    /// The parsed scenario.
-    pub scenario: Scenario,
+    /// The parsed scenario, resolved (P from LMI (2), the MPC).
+    pub resolved: ResolvedScenario,
     /// MHE settings (P from LMI (2)); `iterations` is the scenario's K.
     pub config: MheConfig,
     /// The MHE constraint sets.
@@ -147,15 +146,16 @@ impl CaseStudyQps {
             path: shown.clone(),
             source,
         })?;
-        let spec = scenario
-            .mhe
-            .as_ref()
-            .ok_or(FixtureError::NoMhe { path: shown })?;
-        let options = CaseStudyOptions::from_scenario(&scenario)?;
-        let trace = build_case_study(&scenario, &options)?.run()?.clone();
-        let config = MheConfig::from_spec(spec, &scenario.plant, false)?;
-        let sets = MheSets::from_scenario(&scenario.sets);
-        let problem = MheProblem::new(&scenario.plant, config.horizon, &config.weights(), &sets)?;
+        if scenario.mhe.is_none() {
+            return Err(FixtureError::NoMhe { path: shown });
+        }
+        let resolved = scenario.resolve()?;
+        let options = LoopOptions::from_scenario(resolved.scenario())?;
+        let trace = resolved.build_loop(&options)?.run()?.clone();
+        let config = resolved.mhe_config()?.clone();
+        let sets = resolved.mhe_sets().clone();
+        let plant = &resolved.scenario().plant;
+        let problem = MheProblem::new(plant, config.horizon, &config.weights(), &sets)?;
         let m = config.horizon;
         let qp = match problem.window(m) {
             Some(w) => w.qp().clone(),
@@ -163,7 +163,7 @@ impl CaseStudyQps {
         };
         let mut qps = Self {
             preset,
-            scenario,
+            resolved,
             config,
             sets,
             problem,
@@ -221,10 +221,10 @@ impl CaseStudyQps {
         let mut cfg = self.config.clone();
         cfg.iterations = iterations;
         Ok(MheEstimator::new(
-            &self.scenario.plant,
+            &self.resolved.scenario().plant,
             &self.sets,
             &cfg,
-            &self.scenario.simulation.prior,
+            &self.resolved.scenario().simulation.prior,
             factory,
         )?)
     }

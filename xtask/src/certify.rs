@@ -8,9 +8,9 @@ use std::fmt::Write as _;
 use std::path::{Path, PathBuf};
 
 use anyhow::{Context, Result, anyhow, bail};
+use closed_loop::scenario::Scenario;
 use faer::Mat;
 use lti_model::ioss::{self, IossReport, LMI_TOL};
-use closed_loop::scenario::Scenario;
 use lti_model::{LtiSystem, ModelError, matrix};
 use serde::Serialize;
 

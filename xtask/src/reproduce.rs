@@ -24,10 +24,10 @@ use closed_loop::certificate::{
     analysis_with_sampled_l_phi, certify_closed_loop, check_trajectory,
 };
 use closed_loop::scenario::{ControllerChoice, LoopOptions, ResolvedScenario, Scenario};
-use qp_iter::Method;
 use closed_loop::{ClosedLoopError, Trace};
 use lti_model::BoxSet;
 use lti_model::matrix::to_rows;
+use qp_iter::Method;
 use serde::Serialize;
 
 use crate::figures::{self, Chart, HLine, Legend, Pattern, Series};

@@ -2,7 +2,7 @@
 //! Run: `cargo run --release -p closed-loop --example certificate -- scenarios/case-study.toml 5 9 12`.
 
 use closed_loop::certificate::{CertificateOptions, certify_closed_loop};
-use lti_model::scenario::Scenario;
+use closed_loop::scenario::Scenario;
 
 fn main() -> Result<(), Box<dyn std::error::Error>> {
     let mut args = std::env::args().skip(1);
@@ -27,7 +27,7 @@ fn main() -> Result<(), Box<dyn std::error::Error>> {
             }
         }
         let t0 = std::time::Instant::now();
-        let c = certify_closed_loop(&s, &opts)?;
+        let c = certify_closed_loop(&s.clone().resolve()?, &opts)?;
         println!(
             "M = {}, η = {}: ρ = {:.4}, λ(P) ∈ [{:.4}, {:.4}], H̄ = {:.4}, L_Φ = {:.4} (sampled {:.4}), L_π = {:.4}, γ₁,₃ = {:.4}  [{:.1?}]",
             c.horizon,

@@ -2,14 +2,15 @@
 //! and a sampled lower estimate. Run: `cargo run --release -p closed-loop --example gamma13_case_study`.
 
 use closed_loop::gamma13::{gamma13_certified, gamma13_sampled};
-use lti_model::scenario::Scenario;
-use mpc_core::{CondensedMpc, ExactMpc};
+use closed_loop::scenario::Scenario;
+use mpc_core::ExactMpc;
 
 fn main() -> Result<(), Box<dyn std::error::Error>> {
     let scenario = Scenario::from_file("scenarios/case-study.toml")?;
-    let mpc = CondensedMpc::from_scenario(&scenario)?;
+    let resolved = scenario.resolve()?;
+    let mpc = resolved.mpc()?;
     let t0 = std::time::Instant::now();
-    let cert = gamma13_certified(&mpc, 22)?;
+    let cert = gamma13_certified(mpc, 22)?;
     println!(
         "certified γ₁,₃ = {:.4} (metric {:?}), {} free sets in {:.2?}",
         cert.gamma13,

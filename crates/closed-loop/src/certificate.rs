@@ -27,8 +27,8 @@
 //! (it invokes Hager's Lipschitz theorem for a change of the constraint matrices); the
 //! trajectory check reports it as part of the right-hand side, not as a verified bound.
 
-use lti_model::matrix::{spectral_norm, sym_extreme_eigenvalues};
 use lti_model::ioss;
+use lti_model::matrix::{spectral_norm, sym_extreme_eigenvalues};
 use mhe_core::{LipschitzSampling, MheProblem};
 use mpc_core::ExactMpc;
 use qp_iter::Certificate;
@@ -252,7 +252,12 @@ pub fn certify_closed_loop(
         Some(c) => {
             let mut cfg = resolved.mhe_config()?.clone();
             cfg.p = c.p.clone();
-            Some(MheProblem::new(sys, m, &cfg.weights(), resolved.mhe_sets())?)
+            Some(MheProblem::new(
+                sys,
+                m,
+                &cfg.weights(),
+                resolved.mhe_sets(),
+            )?)
         }
         None => None,
     };

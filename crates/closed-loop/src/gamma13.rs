@@ -289,7 +289,7 @@ pub struct Gamma13Sampled {
 
 /// Sampled lower estimate of γ₁,₃: simulates x⁺ = Ax + Bπ(x + e_t) from x₀ = 0 with w = 0 and
 /// injected error sequences of magnitudes in `magnitudes` (module doc).
-pub fn gamma13_sampled<C: Controller + ?Sized>(
+pub fn gamma13_sampled<C: Controller<Error = MpcError> + ?Sized>(
     controller: &mut C,
     sys: &lti_model::LtiSystem,
     magnitudes: &[f64],

@@ -21,7 +21,7 @@ pub mod sweep;
 
 pub use record::{MheStep, MheTrace, Trace};
 pub use scenario::{
-    ControllerChoice, ResolvedScenario, LoopOptions, Scenario, ScenarioController,
+    ControllerChoice, LoopOptions, ResolvedScenario, Scenario, ScenarioController,
     ScenarioEstimator, ScenarioLoop,
 };
 pub use sim::{ClosedLoop, ClosedLoopError};

@@ -56,8 +56,9 @@ impl Rows {
 /// #[derive(Debug)]
 /// struct DeadReckoning([f64; 1]);
 /// impl Estimator for DeadReckoning {
-///     fn estimate(&mut self) -> mhe_core::Result<&[f64]> { Ok(&self.0) }
-///     fn push(&mut self, u: &[f64], _y: &[f64]) -> mhe_core::Result<()> {
+///     type Error = std::convert::Infallible;
+///     fn estimate(&mut self) -> Result<&[f64], Self::Error> { Ok(&self.0) }
+///     fn push(&mut self, u: &[f64], _y: &[f64]) -> Result<(), Self::Error> {
 ///         self.0[0] = 0.5 * self.0[0] + u[0];
 ///         Ok(())
 ///     }

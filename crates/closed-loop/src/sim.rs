@@ -86,16 +86,16 @@ pub enum ClosedLoopError {
     Estimator {
         /// Step.
         t: usize,
-        /// Cause.
-        source: MheError,
+        /// Cause: the estimator's own error ([`ComponentError::downcast_ref`] recovers it).
+        source: ComponentError,
     },
     /// The controller failed at step t.
     #[error("step t = {t}: the controller failed: {source}")]
     Controller {
         /// Step.
         t: usize,
-        /// Cause.
-        source: MpcError,
+        /// Cause: the controller's own error ([`ComponentError::downcast_ref`] recovers it).
+        source: ComponentError,
     },
     /// The estimator returned an estimate of the wrong length.
     #[error("step t = {t}: the estimator returned {actual} entries, expected n_x = {expected}")]
@@ -181,6 +181,46 @@ pub enum ClosedLoopError {
         /// Admissible range.
         range: &'static str,
     },
+}
+
+/// The error of a user-supplied (or built-in) estimator or controller, type-erased so the
+/// loop can carry any component's error type; equal when the messages are equal.
+///
+/// ```
+/// use closed_loop::sim::ComponentError;
+/// let e = ComponentError::new(mpc_core::MpcError::NonFiniteIterate);
+/// assert_eq!(e.downcast_ref::<mpc_core::MpcError>(), Some(&mpc_core::MpcError::NonFiniteIterate));
+/// ```
+#[derive(Debug, Clone)]
+pub struct ComponentError(std::sync::Arc<dyn std::error::Error + Send + Sync>);
+
+impl ComponentError {
+    /// Wraps a component's error.
+    pub fn new<E: std::error::Error + Send + Sync + 'static>(e: E) -> Self {
+        Self(std::sync::Arc::new(e))
+    }
+    /// The component's error as its concrete type, if it is one.
+    pub fn downcast_ref<E: std::error::Error + 'static>(&self) -> Option<&E> {
+        self.0.downcast_ref::<E>()
+    }
+}
+
+impl std::fmt::Display for ComponentError {
+    fn fmt(&self, f: &mut std::fmt::Formatter<'_>) -> std::fmt::Result {
+        self.0.fmt(f)
+    }
+}
+
+impl std::error::Error for ComponentError {
+    fn source(&self) -> Option<&(dyn std::error::Error + 'static)> {
+        self.0.source()
+    }
+}
+
+impl PartialEq for ComponentError {
+    fn eq(&self, other: &Self) -> bool {
+        self.to_string() == other.to_string()
+    }
 }
 
 /// Result alias for `closed-loop`.
@@ -373,7 +413,10 @@ impl<E: Estimator, C: Controller, D: Disturbance> ClosedLoop<E, C, D> {
         let x_hat = self
             .estimator
             .estimate()
-            .map_err(|source| ClosedLoopError::Estimator { t, source })?;
+            .map_err(|e| ClosedLoopError::Estimator {
+                t,
+                source: ComponentError::new(e),
+            })?;
         if x_hat.len() != nx {
             return Err(ClosedLoopError::EstimateLength {
                 t,
@@ -399,7 +442,10 @@ impl<E: Estimator, C: Controller, D: Disturbance> ClosedLoop<E, C, D> {
         // 2. u_t = π(x̂_t).
         self.controller
             .control(&self.x_hat, &mut self.u)
-            .map_err(|source| ClosedLoopError::Controller { t, source })?;
+            .map_err(|e| ClosedLoopError::Controller {
+                t,
+                source: ComponentError::new(e),
+            })?;
         check_finite(t, "u", &self.u)?;
         // 3. w_t.
         self.disturbance.sample(&mut self.w);
@@ -412,7 +458,10 @@ impl<E: Estimator, C: Controller, D: Disturbance> ClosedLoop<E, C, D> {
         // 5. Steps 2–3 of Alg. 1 inside the estimator.
         self.estimator
             .push(&self.u, &self.y)
-            .map_err(|source| ClosedLoopError::Estimator { t, source })?;
+            .map_err(|e| ClosedLoopError::Estimator {
+                t,
+                source: ComponentError::new(e),
+            })?;
         self.trace
             .push_step(&self.x_hat, &self.u, &self.y, &self.w, &self.x_next);
         std::mem::swap(&mut self.x, &mut self.x_next);

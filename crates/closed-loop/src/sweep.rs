@@ -1576,14 +1576,17 @@ impl Sweep {
                 ),
             ));
         }
-        let resolved = original
-            .resolve()
-            .map_err(|source| SweepError::Setup {
-                point: "(scenario)".into(),
-                source,
-            })?;
+        let resolved = original.resolve().map_err(|source| SweepError::Setup {
+            point: "(scenario)".into(),
+            source,
+        })?;
         if let Some(Err(source)) = resolved.ioss() {
-            if resolved.scenario().mhe.as_ref().is_some_and(|m| m.p.is_none()) {
+            if resolved
+                .scenario()
+                .mhe
+                .as_ref()
+                .is_some_and(|m| m.p.is_none())
+            {
                 return Err(SweepError::Scenario {
                     path: path.clone(),
                     source: source.clone(),
@@ -1687,10 +1690,12 @@ impl Sweep {
             seed: 0,
             steps: self.steps,
         };
-        resolved.build_loop(&opts).map_err(|source| SweepError::Setup {
-            point: p.to_string(),
-            source,
-        })
+        resolved
+            .build_loop(&opts)
+            .map_err(|source| SweepError::Setup {
+                point: p.to_string(),
+                source,
+            })
     }
 
     /// Runs every run of one point on the current rayon pool, one task per run. Each

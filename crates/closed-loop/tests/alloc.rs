@@ -4,13 +4,13 @@
 //! process-wide.
 #![allow(clippy::unwrap_used)]
 
-use closed_loop::sim::{
-    CaseStudyOptions, ClosedLoop, ControllerChoice, Solver, build_case_study, scenario_disturbance,
-};
+use closed_loop::scenario::Scenario;
+use closed_loop::scenario::{ControllerChoice, LoopOptions, scenario_disturbance};
+use closed_loop::sim::ClosedLoop;
 use lti_model::disturbance::Disturbance;
-use lti_model::scenario::Scenario;
-use mhe_core::{Estimator, MheConfig, MheEstimator, MheSets};
+use mhe_core::{Estimator, MheEstimator, MheSets};
 use mpc_core::{CondensedMpc, Controller, SaturatedLqr, SuboptimalMpc, WarmStart};
+use qp_iter::Method;
 use qp_iter::pg::{ProjectedGradient, StepRule};
 
 #[global_allocator]
@@ -33,7 +33,7 @@ fn allocations_of_run<E: Estimator, C: Controller, D: Disturbance>(
 }
 
 fn pg_mhe(s: &Scenario) -> MheEstimator<ProjectedGradient> {
-    let cfg = MheConfig::from_spec(s.mhe.as_ref().unwrap(), &s.plant, false).unwrap();
+    let cfg = s.mhe.as_ref().unwrap().config(&s.plant, false).unwrap();
     MheEstimator::new(
         &s.plant,
         &MheSets::from_scenario(&s.sets),
@@ -68,7 +68,7 @@ fn closed_loop_steps_do_not_allocate() {
     assert!(cl.trace().sup_norm_x().is_finite());
 
     // Generic loop: PG MHE + sub-optimal MPC (PG, K_c = 30).
-    let mpc = CondensedMpc::from_scenario(&s).unwrap();
+    let mpc = CondensedMpc::new(&s.plant, s.mpc.as_ref().unwrap().config(&s.sets)).unwrap();
     let map = ProjectedGradient::new(mpc.qp().clone(), StepRule::Optimal).unwrap();
     let sub = SuboptimalMpc::new(&mpc, map, 30, WarmStart::default()).unwrap();
     let w = scenario_disturbance(&s, 2).unwrap();
@@ -82,13 +82,13 @@ fn closed_loop_steps_do_not_allocate() {
         ControllerChoice::SaturatedLqr,
         ControllerChoice::SuboptimalMpc {
             iterations: 20,
-            solver: Solver::Fista,
+            method: Method::FISTA,
         },
     ] {
-        let mut o = CaseStudyOptions::from_scenario(&s).unwrap();
+        let mut o = LoopOptions::from_scenario(&s).unwrap();
         o.iterations = 25;
         o.controller = controller;
-        let mut cl = build_case_study(&s, &o).unwrap();
+        let mut cl = s.clone().resolve().unwrap().build_loop(&o).unwrap();
         assert_eq!(allocations_of_run(&mut cl), 0, "case study {controller:?}");
         let first = cl.trace().clone();
         let before = alloc_counter::count();

@@ -22,8 +22,8 @@ pub mod ioss;
 pub mod matrix;
 pub mod presets;
 pub mod riccati;
-pub mod spec;
 pub mod sets;
+pub mod spec;
 pub mod system;
 
 pub use error::{ModelError, Result};

@@ -15,12 +15,18 @@ use crate::record::MheRecord;
 ///
 /// Protocol per time step t: `estimate()` (uses data up to t − 1), then `push(u_t, y_t)`
 /// with the input applied and the measurement taken at t, which advances t.
+///
+/// A user's estimator (a Luenberger observer, a particle filter, …) implements this with
+/// its own error type; the closed loop, the sweep and the trajectory checks run it like the
+/// built-in [`MheEstimator`] and [`crate::KalmanFilter`].
 pub trait Estimator {
+    /// Why an estimate or a push failed (the estimator's own error type).
+    type Error: std::error::Error + Send + Sync + 'static;
     /// The estimate x̂_{t|t} at the current t (calling it twice at the same t gives the same
     /// result).
-    fn estimate(&mut self) -> Result<&[f64]>;
+    fn estimate(&mut self) -> std::result::Result<&[f64], Self::Error>;
     /// Appends (u_t, y_t) and advances t. On error nothing changes.
-    fn push(&mut self, u: &[f64], y: &[f64]) -> Result<()>;
+    fn push(&mut self, u: &[f64], y: &[f64]) -> std::result::Result<(), Self::Error>;
     /// State dimension n_x.
     fn nx(&self) -> usize;
 }
@@ -606,6 +612,7 @@ fn dist(a: &[f64], b: &[f64]) -> f64 {
 }
 
 impl<M: IterationMap> Estimator for MheEstimator<M> {
+    type Error = MheError;
     fn estimate(&mut self) -> Result<&[f64]> {
         MheEstimator::estimate(self)
     }

@@ -290,6 +290,7 @@ impl KalmanFilter {
 }
 
 impl Estimator for KalmanFilter {
+    type Error = MheError;
     fn estimate(&mut self) -> Result<&[f64]> {
         Ok(&self.x)
     }

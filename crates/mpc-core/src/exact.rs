@@ -169,6 +169,7 @@ fn solver_error(e: QpError) -> MpcError {
 }
 
 impl Controller for ExactMpc {
+    type Error = MpcError;
     fn control(&mut self, x_hat: &[f64], u: &mut [f64]) -> Result<()> {
         check_io(x_hat, u, self.nx, self.nu)?;
         let nu = self.nu;

@@ -43,9 +43,14 @@ pub use suboptimal::{SuboptimalMpc, WarmStart};
 /// `u` is left unchanged on error. [`SuboptimalMpc`], [`SaturatedLqr`] and [`ExactMpc`]
 /// with its default active-set backend allocate nothing per call after construction
 /// (errors included); [`ExactMpc`] with the Clarabel backend (or fallback) does.
+///
+/// A user's controller implements this with its own error type; the closed loop and the
+/// sweep run it like the built-in ones.
 pub trait Controller: std::fmt::Debug {
+    /// Why a control computation failed (the controller's own error type).
+    type Error: std::error::Error + Send + Sync + 'static;
     /// Writes π(x̂) into `u`.
-    fn control(&mut self, x_hat: &[f64], u: &mut [f64]) -> Result<()>;
+    fn control(&mut self, x_hat: &[f64], u: &mut [f64]) -> std::result::Result<(), Self::Error>;
     /// Input dimension n_u.
     fn nu(&self) -> usize;
     /// State dimension n_x.

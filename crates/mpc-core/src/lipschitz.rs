@@ -331,7 +331,7 @@ pub struct SampledLipschitz {
     pub delta: f64,
 }
 
-struct Sampler<'a, C: Controller + ?Sized> {
+struct Sampler<'a, C: Controller<Error = MpcError> + ?Sized> {
     ctrl: &'a mut C,
     domain: Option<&'a BoxSet>,
     rng: ChaCha8Rng,
@@ -340,7 +340,7 @@ struct Sampler<'a, C: Controller + ?Sized> {
     evaluations: usize,
 }
 
-impl<C: Controller + ?Sized> Sampler<'_, C> {
+impl<C: Controller<Error = MpcError> + ?Sized> Sampler<'_, C> {
     fn eval(&mut self, x: &[f64]) -> Result<Vec<f64>> {
         let mut u = vec![0.0; self.ctrl.nu()];
         self.ctrl.control(x, &mut u)?;
@@ -415,7 +415,7 @@ fn bends(ua: &[f64], ub: &[f64], um: &[f64], tol: f64) -> bool {
 /// let s = lipschitz_sampled(&mut lqr, 200, 7, 1.0, None).unwrap();
 /// assert!(s.estimate <= 5.0 + 1e-9 && s.estimate > 4.9); // ‖K‖₂ = 5
 /// ```
-pub fn lipschitz_sampled<C: Controller + ?Sized>(
+pub fn lipschitz_sampled<C: Controller<Error = MpcError> + ?Sized>(
     ctrl: &mut C,
     n_pairs: usize,
     seed: u64,
@@ -685,4 +685,3 @@ pub fn lipschitz_report_for(
         saturated_lqr: lqr.lipschitz_certified(),
     })
 }
-

@@ -102,6 +102,7 @@ impl SaturatedLqr {
 }
 
 impl Controller for SaturatedLqr {
+    type Error = MpcError;
     fn control(&mut self, x_hat: &[f64], u: &mut [f64]) -> Result<()> {
         check_io(x_hat, u, self.nx, self.nu)?;
         for (i, ui) in u.iter_mut().enumerate() {

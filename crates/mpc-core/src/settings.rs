@@ -11,9 +11,9 @@
 //! ```
 
 use faer::Mat;
+use lti_model::LtiSystem;
 use lti_model::spec::format::{at_least_one, required, rows_of, weight};
 use lti_model::spec::{MatrixSpec, ScenarioSets};
-use lti_model::LtiSystem;
 use serde::{Deserialize, Serialize};
 
 use crate::condensed::{MpcConfig, Terminal};

@@ -191,6 +191,7 @@ impl<M: IterationMap> SuboptimalMpc<M> {
 }
 
 impl<M: IterationMap> Controller for SuboptimalMpc<M> {
+    type Error = MpcError;
     fn control(&mut self, x_hat: &[f64], u: &mut [f64]) -> Result<()> {
         check_io(x_hat, u, self.nx, self.nu)?;
         self.map.load(&mut self.state, x_hat);

@@ -16,7 +16,11 @@ static GLOBAL: alloc_counter::CountingAllocator = alloc_counter::CountingAllocat
 use alloc_counter::allocations;
 
 /// A nominal closed loop of `steps` calls plus error calls; returns the allocation count.
-fn count_loop(c: &mut dyn Controller, sys: &LtiSystem, steps: usize) -> usize {
+fn count_loop(
+    c: &mut dyn Controller<Error = mpc_core::MpcError>,
+    sys: &LtiSystem,
+    steps: usize,
+) -> usize {
     let (nx, nu) = (sys.nx(), sys.nu());
     let mut x = [12.0, -10.0, 10.0, -10.0];
     let mut xn = [0.0; 4];

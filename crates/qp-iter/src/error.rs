@@ -7,7 +7,9 @@ pub enum QpError {
     #[error(transparent)]
     Model(#[from] lti_model::ModelError),
     /// A method name other than the named methods of [`crate::method::Method`].
-    #[error("unknown method `{name}`; use \"pg\", \"fista\", \"admm\" or \"admm-pr\" (or a table with `method` and its parameters)")]
+    #[error(
+        "unknown method `{name}`; use \"pg\", \"fista\", \"admm\" or \"admm-pr\" (or a table with `method` and its parameters)"
+    )]
     UnknownMethod {
         /// The name given.
         name: String,

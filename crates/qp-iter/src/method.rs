@@ -439,7 +439,9 @@ mod tests {
             (r#""newton""#, "newton"),
             (r#"{"method":"pg","typo":1.0}"#, "typo"),
         ] {
-            let e = serde_json::from_str::<Method>(text).unwrap_err().to_string();
+            let e = serde_json::from_str::<Method>(text)
+                .unwrap_err()
+                .to_string();
             assert!(e.contains(needle), "{text}: {e}");
         }
     }

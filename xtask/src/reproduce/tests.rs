@@ -185,7 +185,7 @@ fn certified_preset_uses_the_computed_k_min_which_the_file_records() {
     assert!(pg.margin_at_k_min.unwrap() > 0.0);
     assert!(pg.premises.iter().all(|p| p.holds));
     // K_min is the smallest certified K: K_min − 1 is not certified.
-    let sc = d.certificate.solver(Solver::Pg).unwrap();
+    let sc = d.certificate.solver(qp_iter::Method::PG).unwrap();
     assert!(sc.analysis.at(k_min).certified);
     assert!(k_min == 0 || !sc.analysis.at(k_min - 1).certified);
     // One run, at K_min, and the trajectory inequalities hold with the certified constants.

@@ -98,6 +98,7 @@ impl ScenarioController {
 }
 
 impl Controller for ScenarioController {
+    type Error = MpcError;
     fn control(&mut self, x_hat: &[f64], u: &mut [f64]) -> mpc_core::Result<()> {
         match self {
             ScenarioController::Exact(c) => c.control(x_hat, u),
@@ -251,11 +252,8 @@ impl ResolvedScenario {
         if options.steps == 0 {
             return Err(ClosedLoopError::ZeroSteps);
         }
-        let estimator = self.estimator(
-            options.method,
-            options.iterations,
-            options.exact_mhe_solve,
-        )?;
+        let estimator =
+            self.estimator(options.method, options.iterations, options.exact_mhe_solve)?;
         let ctrl = self.controller(options.controller)?;
         let sc = self.scenario();
         let disturbance = scenario_disturbance(sc, options.seed)?;

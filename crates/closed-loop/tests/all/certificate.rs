@@ -1,12 +1,13 @@
 //! The closed-loop certificate against reality: void paths, the certified preset, γ₁,₃ against
 //! its sampled lower bound, and the trajectory inequalities of Props. 1 and 3 on 200 seeds.
 
+use crate::build;
 use closed_loop::certificate::{
-    CertificateOptions, Gamma13Source, analysis_with_sampled_l_phi, certify_closed_loop,
-    check_trajectory,
+    CertificateOptions, Gamma13Source, analysis_with_sampled_l_phi, check_trajectory,
 };
-use closed_loop::sim::{CaseStudyOptions, ControllerChoice, Solver, build_case_study};
-use lti_model::scenario::Scenario;
+use closed_loop::scenario::Scenario;
+use closed_loop::scenario::{ControllerChoice, LoopOptions};
+use qp_iter::Method;
 
 fn scenario(file: &str) -> Scenario {
     let path = concat!(env!("CARGO_MANIFEST_DIR"), "/../../scenarios/");
@@ -26,7 +27,7 @@ fn fast() -> CertificateOptions {
 
 #[test]
 fn paper_preset_is_void_for_every_solver() {
-    let c = certify_closed_loop(&scenario("case-study.toml"), &fast()).unwrap();
+    let c = crate::certify(&scenario("case-study.toml"), &fast()).unwrap();
     assert!(c.rho > 1.0, "ρ = {}", c.rho);
     assert!(c.ioss.is_some(), "LMI (2) itself holds at η = 0.8");
     assert_eq!(c.nearest.min_horizon_at_eta, Some(9));
@@ -46,7 +47,7 @@ fn paper_preset_is_void_for_every_solver() {
 #[test]
 fn certified_preset_has_a_first_certified_k_matching_the_shipped_file() {
     let sc = scenario("case-study-certified.toml");
-    let c = certify_closed_loop(&sc, &fast()).unwrap();
+    let c = crate::certify(&sc, &fast()).unwrap();
     assert!(c.rho < 1.0);
     for s in &c.solvers {
         let k = s
@@ -57,7 +58,7 @@ fn certified_preset_has_a_first_certified_k_matching_the_shipped_file() {
         // The sampled L_Φ is ≤ the certified bound, so it can only lower K_min.
         assert!(s.k_min_with_sampled_l_phi.unwrap() <= k);
     }
-    let pg = c.solver(Solver::Pg).unwrap().k_min.unwrap();
+    let pg = c.solver(Method::PG).unwrap().k_min.unwrap();
     assert_eq!(
         sc.mhe.as_ref().unwrap().iterations,
         pg,
@@ -78,7 +79,7 @@ fn infeasible_lmi_voids_every_solver() {
         .replace("[0.5,  0.0, 0.5, 0.5],", "[0.0,  0.0, 0.0, 0.95],")
         .replace("c = [[0.1, 0.3, 0.8, 0.5]]", "c = [[0.1, 0.3, 0.8, 0.0]]");
     let sc = Scenario::from_toml_str(&text).unwrap();
-    let c = certify_closed_loop(&sc, &fast()).unwrap();
+    let c = crate::certify(&sc, &fast()).unwrap();
     assert!(c.ioss.is_none());
     assert!(
         c.ioss_failure.as_deref().unwrap().contains("LMI"),
@@ -104,7 +105,7 @@ fn gamma13_certified_dominates_its_sampled_lower_bound() {
         lipschitz_pairs: 50,
         ..CertificateOptions::default()
     };
-    let c = certify_closed_loop(&scenario("case-study-certified.toml"), &opts).unwrap();
+    let c = crate::certify(&scenario("case-study-certified.toml"), &opts).unwrap();
     let certified = c.gamma13.certified.as_ref().unwrap();
     let sampled = c.gamma13.sampled.as_ref().unwrap().gamma13_lower;
     assert!(certified.enumerated && certified.gamma13.is_finite());
@@ -131,19 +132,19 @@ fn gamma13_certified_dominates_its_sampled_lower_bound() {
 #[test]
 fn props_1_and_3_hold_on_200_seeds_at_k_min() {
     let sc = scenario("case-study-certified.toml");
-    let c = certify_closed_loop(&sc, &fast()).unwrap();
-    let pg = c.solver(Solver::Pg).unwrap();
+    let c = crate::certify(&sc, &fast()).unwrap();
+    let pg = c.solver(Method::PG).unwrap();
     let k = pg.k_min.unwrap();
     let sampled_analysis = analysis_with_sampled_l_phi(&c, pg);
-    let opts = CaseStudyOptions {
-        solver: Solver::Pg,
+    let opts = LoopOptions {
+        method: Method::PG,
         iterations: k,
         exact_mhe_solve: true,
         controller: ControllerChoice::ExactMpc,
         seed: 0,
         steps: sc.simulation.steps,
     };
-    let mut lp = build_case_study(&sc, &opts).unwrap();
+    let mut lp = build(&sc, &opts).unwrap();
     let (mut worst1, mut worst3, mut sampled_failures) = (0.0_f64, 0.0_f64, 0);
     for seed in 0..200u64 {
         lp.reseed(seed).unwrap();

@@ -3,5 +3,23 @@
 
 mod analysis;
 mod certificate;
+mod scenario;
 mod sim;
 mod sweep;
+
+use closed_loop::certificate::{CertificateOptions, ClosedLoopCertificate, certify_closed_loop};
+use closed_loop::scenario::{LoopOptions, Scenario, ScenarioLoop};
+use closed_loop::sim::ClosedLoopError;
+
+/// Resolves `s` and builds its loop (tests that vary the scenario between builds).
+pub fn build(s: &Scenario, o: &LoopOptions) -> Result<ScenarioLoop, ClosedLoopError> {
+    s.clone().resolve()?.build_loop(o)
+}
+
+/// Resolves `s` and certifies it.
+pub fn certify(
+    s: &Scenario,
+    o: &CertificateOptions,
+) -> Result<ClosedLoopCertificate, ClosedLoopError> {
+    certify_closed_loop(&s.clone().resolve()?, o)
+}

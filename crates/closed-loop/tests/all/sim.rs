@@ -1,14 +1,16 @@
 //! Alg. 1 as a simulation: wiring, nominal convergence, K → ∞, determinism, bad input.
 
-use closed_loop::sim::{
-    CaseStudyOptions, ClosedLoop, ClosedLoopError, ControllerChoice, Solver, build_case_study,
-};
+use crate::build;
+use closed_loop::scenario::Scenario;
+use closed_loop::scenario::{ControllerChoice, LoopOptions};
+use closed_loop::sim::{ClosedLoop, ClosedLoopError};
 use faer::{Mat, mat};
 use lti_model::disturbance::{Disturbance, UniformBox, Zero};
-use lti_model::scenario::{NoiseKind, Scenario};
+use lti_model::spec::NoiseKind;
 use lti_model::{BoxSet, LtiSystem};
-use mhe_core::{Estimator, MheConfig, MheEstimator, MheProblem, MheSets};
+use mhe_core::{Estimator, MheEstimator, MheProblem, MheSets};
 use mpc_core::{CondensedMpc, Controller, ExactMpc, SaturatedLqr};
+use qp_iter::Method;
 use qp_iter::pg::{ProjectedGradient, StepRule};
 use qp_iter::reference::{ReferenceSettings, ReferenceSolver};
 
@@ -21,9 +23,9 @@ fn case_study() -> Scenario {
     Scenario::from_file(CASE_STUDY).unwrap()
 }
 
-fn options(s: &Scenario, k: usize, exact: bool) -> CaseStudyOptions {
-    let mut o = CaseStudyOptions::from_scenario(s).unwrap();
-    o.solver = Solver::Pg;
+fn options(s: &Scenario, k: usize, exact: bool) -> LoopOptions {
+    let mut o = LoopOptions::from_scenario(s).unwrap();
+    o.method = Method::PG;
     o.iterations = k;
     o.exact_mhe_solve = exact;
     o.controller = ControllerChoice::ExactMpc;
@@ -67,7 +69,7 @@ struct ExactMhe {
 
 impl ExactMhe {
     fn new(s: &Scenario) -> Self {
-        let cfg = MheConfig::from_spec(s.mhe.as_ref().unwrap(), &s.plant, false).unwrap();
+        let cfg = s.mhe.as_ref().unwrap().config(&s.plant, false).unwrap();
         let problem = MheProblem::new(
             &s.plant,
             cfg.horizon,
@@ -112,6 +114,7 @@ impl ExactMhe {
 }
 
 impl Estimator for ExactMhe {
+    type Error = mhe_core::MheError;
     fn estimate(&mut self) -> mhe_core::Result<&[f64]> {
         let t = self.u.len();
         if self.estimates.len() == t {
@@ -145,12 +148,12 @@ impl Estimator for ExactMhe {
 }
 
 fn exact_loop(s: &Scenario) -> ClosedLoop<ExactMhe, ExactMpc, Box<dyn Disturbance>> {
-    let mpc = CondensedMpc::from_scenario(s).unwrap();
+    let mpc = CondensedMpc::new(&s.plant, s.mpc.as_ref().unwrap().config(&s.sets)).unwrap();
     ClosedLoop::new(
         s.plant.clone(),
         ExactMhe::new(s),
         ExactMpc::new(&mpc).unwrap(),
-        closed_loop::sim::scenario_disturbance(s, s.noise.seed).unwrap(),
+        closed_loop::scenario::scenario_disturbance(s, s.noise.seed).unwrap(),
         &s.simulation.x0,
         s.simulation.steps,
     )
@@ -229,7 +232,7 @@ fn nominal_exact_mhe_and_mpc_converge() {
 
     // The same with the sub-optimal MHE at the paper's K = 652 (φ(652) = r^652 with
     // r ≈ 0.896 for PG on this problem, ≈ 1e-31: an exact MHE to rounding): same trajectory.
-    let mut sub = build_case_study(&s, &options(&s, 652, false)).unwrap();
+    let mut sub = build(&s, &options(&s, 652, false)).unwrap();
     let ts = sub.run().unwrap();
     for t in 0..tr.len() {
         assert!(dist(ts.e(t).unwrap(), tr.e(t).unwrap()) <= 1e-9, "t = {t}");
@@ -270,7 +273,7 @@ fn suboptimal_trajectory_approaches_exact_as_k_grows() {
     let gaps: Vec<f64> = ks
         .iter()
         .map(|&k| {
-            let mut cl = build_case_study(&s, &options(&s, k, false)).unwrap();
+            let mut cl = build(&s, &options(&s, k, false)).unwrap();
             assert_eq!(cl.trace().steps(), s.simulation.steps);
             gap(cl.run().unwrap(), &exact)
         })
@@ -302,7 +305,7 @@ fn same_seed_gives_identical_trace() {
         (
             ControllerChoice::SuboptimalMpc {
                 iterations: 10,
-                solver: Solver::Fista,
+                method: Method::FISTA,
             },
             false,
         ),
@@ -311,8 +314,8 @@ fn same_seed_gives_identical_trace() {
     ] {
         let mut o = options(&s, 5, exact_mhe);
         o.controller = controller;
-        let run = |o: &CaseStudyOptions| {
-            let mut cl = build_case_study(&s, o).unwrap();
+        let run = |o: &LoopOptions| {
+            let mut cl = build(&s, o).unwrap();
             cl.run().unwrap().clone()
         };
         let a = run(&o);
@@ -324,7 +327,7 @@ fn same_seed_gives_identical_trace() {
         let c = run(&o2);
         assert_ne!(a.w(0), c.w(0));
 
-        let mut cl = build_case_study(&s, &o2).unwrap();
+        let mut cl = build(&s, &o2).unwrap();
         cl.run().unwrap();
         cl.reseed(o.seed).unwrap();
         assert_eq!(cl.t(), 0);
@@ -344,6 +347,7 @@ struct Spy {
 }
 
 impl Estimator for Spy {
+    type Error = mhe_core::MheError;
     fn estimate(&mut self) -> mhe_core::Result<&[f64]> {
         self.seen.push(self.pushes.len());
         let t = self.pushes.len() as f64;
@@ -426,7 +430,7 @@ fn trace_follows_alg1_and_eq1() {
 #[test]
 fn mhe_records_are_captured_with_alg1_window_and_prior() {
     let s = case_study();
-    let mut cl = build_case_study(&s, &options(&s, 5, true)).unwrap();
+    let mut cl = build(&s, &options(&s, 5, true)).unwrap();
     let tr = cl.run().unwrap();
     let big_m = 5;
     let mhe = tr.mhe().unwrap();
@@ -476,7 +480,7 @@ fn mhe_records_are_captured_with_alg1_window_and_prior() {
 #[test]
 fn trace_statistics_match_brute_force() {
     let s = case_study();
-    let mut cl = build_case_study(&s, &options(&s, 20, false)).unwrap();
+    let mut cl = build(&s, &options(&s, 20, false)).unwrap();
     let tr = cl.run().unwrap();
     let n = tr.len();
     let max = |f: &dyn Fn(usize) -> f64, r: std::ops::Range<usize>| r.map(f).fold(0.0, f64::max);
@@ -505,7 +509,7 @@ fn trace_statistics_match_brute_force() {
 }
 
 fn mhe_for(sys: &LtiSystem, s: &Scenario) -> MheEstimator<ProjectedGradient> {
-    let mut cfg = MheConfig::from_spec(s.mhe.as_ref().unwrap(), &s.plant, false).unwrap();
+    let mut cfg = s.mhe.as_ref().unwrap().config(&s.plant, false).unwrap();
     cfg.iterations = 3;
     if (sys.nx(), sys.ny()) != (s.plant.nx(), s.plant.ny()) {
         cfg.p = Mat::identity(sys.nx(), sys.nx());
@@ -600,7 +604,7 @@ fn bad_input_gives_typed_errors() {
     // Builder options.
     let mut o = options(&s, 0, false);
     assert!(matches!(
-        build_case_study(&s, &o),
+        build(&s, &o),
         Err(ClosedLoopError::OutOfRange {
             name: "iterations",
             ..
@@ -608,17 +612,14 @@ fn bad_input_gives_typed_errors() {
     ));
     o.iterations = 5;
     o.steps = 0;
-    assert!(matches!(
-        build_case_study(&s, &o),
-        Err(ClosedLoopError::ZeroSteps)
-    ));
+    assert!(matches!(build(&s, &o), Err(ClosedLoopError::ZeroSteps)));
     o.steps = 40;
     o.controller = ControllerChoice::SuboptimalMpc {
         iterations: 0,
-        solver: Solver::Pg,
+        method: Method::PG,
     };
     assert!(matches!(
-        build_case_study(&s, &o),
+        build(&s, &o),
         Err(ClosedLoopError::OutOfRange {
             name: "controller iterations",
             ..
@@ -628,31 +629,31 @@ fn bad_input_gives_typed_errors() {
     let mut no_mpc = s.clone();
     no_mpc.mpc = None;
     assert_eq!(
-        build_case_study(&no_mpc, &o).map(|_| ()),
+        build(&no_mpc, &o).map(|_| ()),
         Err(ClosedLoopError::MissingSection { section: "mpc" })
     );
     let mut no_mhe = s.clone();
     no_mhe.mhe = None;
     assert_eq!(
-        CaseStudyOptions::from_scenario(&no_mhe),
+        LoopOptions::from_scenario(&no_mhe),
         Err(ClosedLoopError::MissingSection { section: "mhe" })
     );
     assert_eq!(
-        build_case_study(&no_mhe, &o).map(|_| ()),
+        build(&no_mhe, &o).map(|_| ()),
         Err(ClosedLoopError::MissingSection { section: "mhe" })
     );
     let mut unbounded = s.clone();
     unbounded.sets.disturbance = BoxSet::whole(5);
-    let err = build_case_study(&unbounded, &o).map(|_| ()).unwrap_err();
+    let err = build(&unbounded, &o).map(|_| ()).unwrap_err();
     assert!(err.to_string().contains("`W`"), "{err}");
     assert_eq!(
-        "newton".parse::<Solver>(),
-        Err(ClosedLoopError::UnknownSolver {
+        "newton".parse::<Method>(),
+        Err(qp_iter::QpError::UnknownMethod {
             name: "newton".into()
         })
     );
     for name in ["pg", "fista", "admm", "admm-pr"] {
-        assert_eq!(name.parse::<Solver>().unwrap().name(), name);
+        assert_eq!(name.parse::<Method>().unwrap().name(), name);
     }
 
     // MHE records: only before the first step, and only windows that fit.
@@ -688,6 +689,7 @@ struct Faulty {
 }
 
 impl Estimator for Faulty {
+    type Error = mhe_core::MheError;
     fn estimate(&mut self) -> mhe_core::Result<&[f64]> {
         self.x = vec![0.0; if self.t == self.at { self.len } else { 4 }];
         if self.t == self.at && self.len == 4 {
@@ -790,6 +792,7 @@ struct FailingController {
 }
 
 impl Controller for FailingController {
+    type Error = mpc_core::MpcError;
     fn control(&mut self, _x_hat: &[f64], u: &mut [f64]) -> mpc_core::Result<()> {
         self.calls += 1;
         if self.calls > self.at {
@@ -826,7 +829,7 @@ fn controller_error_keeps_the_failing_steps_mhe_record() {
         err,
         ClosedLoopError::Controller {
             t: 2,
-            source: mpc_core::MpcError::NonFiniteIterate
+            source: closed_loop::sim::ComponentError::new(mpc_core::MpcError::NonFiniteIterate)
         }
     );
     let tr = cl.trace();

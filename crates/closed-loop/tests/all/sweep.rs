@@ -5,12 +5,14 @@
 use std::fs;
 use std::path::{Path, PathBuf};
 
-use closed_loop::sim::{CaseStudyOptions, Solver, build_case_study};
+use crate::build;
+use closed_loop::scenario::LoopOptions;
+use closed_loop::scenario::Scenario;
 use closed_loop::sweep::{
     Metric, NoProgress, RunOptions, Shard, SolverTheory, Sweep, SweepConfig, SweepError, Table,
     merge_point_dirs, point_file_name, quantile_sorted, run_seed,
 };
-use lti_model::scenario::Scenario;
+use qp_iter::Method;
 
 const SCENARIO: &str = concat!(
     env!("CARGO_MANIFEST_DIR"),
@@ -201,12 +203,12 @@ fn run_rows_match_a_fresh_loop_per_seed() {
         assert_eq!(runs.text(row, "seed").unwrap(), seed.to_string());
         let mut s = scenario.clone();
         s.noise.scale = p.scale;
-        let mut opts = CaseStudyOptions::from_scenario(&s).unwrap();
-        opts.solver = p.solver;
+        let mut opts = LoopOptions::from_scenario(&s).unwrap();
+        opts.method = p.solver;
         opts.iterations = p.k;
         opts.seed = seed;
         opts.steps = 12;
-        let mut lp = build_case_study(&s, &opts).unwrap();
+        let mut lp = build(&s, &opts).unwrap();
         let tr = lp.run().unwrap();
         // Brute-force norms from the trace's vectors, not its summary methods.
         let sup_e = (0..12).map(|t| norm(tr.e(t).unwrap())).fold(0.0, f64::max);
@@ -231,7 +233,7 @@ fn run_rows_match_a_fresh_loop_per_seed() {
         // The exact MPC stays in 𝒰 (up to the interior-point tolerance); PG's iterate is
         // feasible by projection.
         assert!(num("input_violation") <= 1e-7, "{}", num("input_violation"));
-        if p.solver == Solver::Pg {
+        if p.solver == Method::PG {
             assert_eq!(num("mhe_violation"), 0.0);
         }
         assert_eq!(runs.text(row, "bounded"), Some("1"));
@@ -299,7 +301,7 @@ fn exact_solve_records_epsilon() {
     let cfg = small_config("exact_mhe_solve = true\nmetrics = [\"sup_eps\", \"sup_e\"]");
     let mut cfg = cfg;
     cfg.k_grid = vec![1, 200];
-    cfg.solvers = vec![Solver::Pg];
+    cfg.solvers = vec![Method::PG];
     cfg.scales = Some(vec![1.0]);
     cfg.seeds = 2;
     let sweep = Sweep::new(cfg).unwrap();

@@ -34,7 +34,6 @@ pub fn check_dimension(key: &str, what: &str, n: usize) -> Result<()> {
     Ok(())
 }
 
-
 /// A section or set that must be a TOML table. Serde's derived structs also accept an
 /// array of positional values (`state = [0, 1]`), which would be silently misread; this
 /// wrapper refuses anything but a table.

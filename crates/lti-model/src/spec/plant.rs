@@ -14,7 +14,6 @@ use crate::system::LtiSystem;
 /// Number of simulation steps when `[simulation].steps` is omitted (the case study's 40).
 pub const DEFAULT_STEPS: usize = 40;
 
-
 /// The constraint sets of eq. (1); an omitted set is the whole space.
 #[derive(Debug, Clone, PartialEq)]
 pub struct ScenarioSets {
@@ -400,7 +399,12 @@ pub fn validate_simulation(
     sets: &ScenarioSets,
 ) -> Result<SimulationSpec> {
     let nx = plant.nx();
-    let x0 = vector("simulation.x0", raw.and_then(|s| s.x0.as_ref()), nx, "state")?;
+    let x0 = vector(
+        "simulation.x0",
+        raw.and_then(|s| s.x0.as_ref()),
+        nx,
+        "state",
+    )?;
     let prior = vector(
         "simulation.prior",
         raw.and_then(|s| s.prior.as_ref()),

@@ -4,6 +4,5 @@
 mod disturbance;
 mod ioss;
 mod numerics;
-mod scenario;
 mod sets;
 mod system;

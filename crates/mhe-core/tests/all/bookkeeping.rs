@@ -242,33 +242,27 @@ fn record_serialises_nested_stages() {
 }
 
 #[test]
-fn config_from_scenario_computes_p_from_the_lmi() {
-    let text = "name = \"cs\"\n\
-        [plant]\n\
-        a = [[0.7, -0.1, 0.0, 0.0], [0.2, -0.5, 0.1, 0.0], [0.0, 0.1, 0.1, 0.0], [0.5, 0.0, 0.5, 0.5]]\n\
-        b = [[0.0, 0.1], [0.1, 1.0], [0.1, 0.0], [0.0, 0.0]]\n\
-        c = [[0.1, 0.3, 0.8, 0.5]]\n\
-        [sets]\n\
-        disturbance = { lower = [-0.1, -0.1, -0.1, -0.1, -0.1], upper = [0.1, 0.1, 0.1, 0.1, 0.1] }\n\
-        [mhe]\n\
-        horizon = 5\n\
-        eta = 0.8\n\
-        iterations = 7\n";
-    let sc = lti_model::scenario::Scenario::from_toml_str(text).unwrap();
-    let spec = sc.mhe.as_ref().unwrap();
-    let cfg = mhe_core::MheConfig::from_spec(spec, &sc.plant, false).unwrap();
+fn settings_compute_p_from_the_lmi() {
+    let raw: mhe_core::RawMhe =
+        lti_model::spec::format::parse("horizon = 5\neta = 0.8\niterations = 7\n").unwrap();
     let f = case_study(5, 7, false);
+    let plant = lti_model::presets::case_study_plant();
+    let settings = mhe_core::MheSettings::from_raw(&raw, &plant).unwrap();
+    let cfg = settings.config(&plant, false).unwrap();
     assert_eq!((cfg.horizon, cfg.iterations, cfg.eta), (5, 7, 0.8));
     for i in 0..4 {
         for j in 0..4 {
             assert!((cfg.p[(i, j)] - f.config.p[(i, j)]).abs() < 1e-12 * f.config.p.norm_max());
         }
     }
-    let sets = mhe_core::MheSets::from_scenario(&sc.sets);
-    assert_eq!(sets, f.sets);
-    let mut mhe = MheEstimator::new(&sc.plant, &sets, &cfg, &sc.simulation.prior, |qp| {
-        Ok(Fista::new(qp))
-    })
-    .unwrap();
-    assert_eq!(mhe.estimate().unwrap(), &sc.simulation.prior[..]);
+    let prior = [0.0; 4];
+    let mut mhe =
+        MheEstimator::new(&plant, &f.sets, &cfg, &prior, |qp| Ok(Fista::new(qp))).unwrap();
+    assert_eq!(mhe.estimate().unwrap(), &prior[..]);
+    // Keys are named from the section: a missing K names `mhe.iterations`.
+    let raw: mhe_core::RawMhe = lti_model::spec::format::parse("horizon = 5\neta = 0.8\n").unwrap();
+    match mhe_core::MheSettings::from_raw(&raw, &plant) {
+        Err(lti_model::ModelError::Scenario { key, .. }) => assert_eq!(key, "mhe.iterations"),
+        other => panic!("{other:?}"),
+    }
 }

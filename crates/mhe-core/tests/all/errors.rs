@@ -137,7 +137,7 @@ fn configuration_errors_name_the_field() {
 
 /// Runs estimate/push over the data, injecting bad pushes at the given times; the
 /// estimates must equal a clean run's.
-fn run_with_bad_pushes<E: Estimator>(
+fn run_with_bad_pushes<E: Estimator<Error = MheError>>(
     mut est: E,
     us: &[Vec<f64>],
     ys: &[Vec<f64>],

@@ -157,7 +157,7 @@ fn setup_errors_name_the_field() {
 }
 
 /// Every controller: wrong x̂ length, wrong u length, NaN / ∞ in x̂ → typed error, u unchanged.
-fn check_call_errors(c: &mut dyn Controller) {
+fn check_call_errors(c: &mut dyn Controller<Error = MpcError>) {
     let (nx, nu) = (c.nx(), c.nu());
     let mut u = vec![7.0; nu];
     let e = c.control(&vec![0.0; nx + 1], &mut u).unwrap_err();
@@ -233,20 +233,18 @@ fn control_call_errors() {
 }
 
 #[test]
-fn scenario_without_mpc_section() {
-    let text = r#"
-name = "no-mpc"
-[plant]
-a = [[0.5]]
-b = [[1.0]]
-c = [[1.0]]
-"#;
-    let sc = lti_model::scenario::Scenario::from_toml_str(text).unwrap();
-    assert_eq!(
-        CondensedMpc::from_scenario(&sc).unwrap_err(),
-        MpcError::MissingSection { section: "mpc" }
-    );
-    assert!(mpc_core::lipschitz_report(&sc, 4, 0, None).is_err());
+fn settings_name_the_key() {
+    let sys = lti_model::LtiSystem::new(mat![[0.5]], mat![[1.0]], mat![[1.0]]).unwrap();
+    let raw: mpc_core::RawMpc = lti_model::spec::format::parse("r = 0.1").unwrap();
+    match mpc_core::MpcSettings::from_raw(&raw, &sys) {
+        Err(lti_model::ModelError::Scenario { key, .. }) => assert_eq!(key, "mpc.horizon"),
+        other => panic!("{other:?}"),
+    }
+    let raw: mpc_core::RawMpc = lti_model::spec::format::parse("horizon = 3\nr = -1.0").unwrap();
+    match mpc_core::MpcSettings::from_raw(&raw, &sys) {
+        Err(lti_model::ModelError::Scenario { key, .. }) => assert_eq!(key, "mpc.r"),
+        other => panic!("{other:?}"),
+    }
 }
 
 #[test]

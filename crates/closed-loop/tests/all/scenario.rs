@@ -1,10 +1,14 @@
 //! Scenario files: the shipped case study against design.md §4, every accepted form, and
 //! one test per kind of bad input, each checking the `key` the error names.
 
+use closed_loop::scenario::Scenario;
 use faer::Mat;
-use lti_model::scenario::{MheSolver, NoiseKind, Scenario, TerminalCost, WarmStart};
+use lti_model::spec::NoiseKind;
 use lti_model::{ConvexSet, ModelError, ioss};
+use mhe_core::WarmStart;
+use mpc_core::settings::TerminalCost;
 use proptest::prelude::*;
+use qp_iter::Method;
 
 const CASE_STUDY: &str = concat!(
     env!("CARGO_MANIFEST_DIR"),
@@ -162,10 +166,7 @@ fn case_study_matches_design_section_4() {
     assert_mat_vec(&mhe.q, &identity(5));
     assert_mat(&mhe.r, &[&[1.0]]);
     assert!(mhe.p.is_none());
-    assert_eq!(
-        (mhe.solver, mhe.warm_start),
-        (MheSolver::ProjectedGradient, WarmStart::Paper)
-    );
+    assert_eq!((mhe.method, mhe.warm_start), (Method::PG, WarmStart::Paper));
 
     let mpc = s.mpc.as_ref().unwrap();
     assert_eq!((mpc.horizon, mpc.terminal), (10, TerminalCost::Dare));
@@ -238,8 +239,8 @@ fn canonical_toml_round_trips() {
         assert_eq!(t.simulation, s.simulation);
         let (a, b) = (t.mhe.unwrap(), s.mhe.unwrap());
         assert_eq!(
-            (a.horizon, a.eta, a.iterations, a.solver, a.warm_start),
-            (b.horizon, b.eta, b.iterations, b.solver, b.warm_start)
+            (a.horizon, a.eta, a.iterations, a.method, a.warm_start),
+            (b.horizon, b.eta, b.iterations, b.method, b.warm_start)
         );
         assert_eq!((a.q, a.r), (b.q, b.r));
         let (a, b) = (t.mpc.unwrap(), s.mpc.unwrap());
@@ -286,10 +287,7 @@ fn defaults_are_documented_values() {
     let mhe = s.mhe.unwrap();
     assert_mat_vec(&mhe.q, &identity(3));
     assert_mat(&mhe.r, &[&[1.0]]);
-    assert_eq!(
-        (mhe.solver, mhe.warm_start),
-        (MheSolver::ProjectedGradient, WarmStart::Paper)
-    );
+    assert_eq!((mhe.method, mhe.warm_start), (Method::PG, WarmStart::Paper));
     let mpc = s.mpc.unwrap();
     assert_mat_vec(&mpc.q, &identity(2));
     assert_mat(&mpc.r, &[&[1.0]]);
@@ -307,7 +305,7 @@ fn defaults_are_documented_values() {
     assert!(s.sets.state.is_whole() && s.sets.input.is_whole() && s.sets.disturbance.is_whole());
     assert_eq!(s.noise.kind, NoiseKind::Zero);
     assert_eq!(s.simulation.x0, vec![0.0]);
-    assert_eq!(s.simulation.steps, lti_model::scenario::DEFAULT_STEPS);
+    assert_eq!(s.simulation.steps, lti_model::spec::DEFAULT_STEPS);
     assert!(s.mhe.is_none() && s.mpc.is_none());
 }
 
@@ -674,12 +672,12 @@ fn bad_enumerations() {
     assert_key(
         &with("mhe", "solver = \"newton\""),
         "mhe.solver",
-        "`pg`, `fista`, `admm`",
+        "\"pg\", \"fista\", \"admm\"",
     );
     assert_key(
-        &with("mhe", "solver = \"PG\""),
-        "mhe.solver",
-        "unknown variant",
+        &with("mhe", "method = \"PG\""),
+        "mhe.method",
+        "unknown method",
     );
     assert_key(
         &with("mhe", "warm_start = \"cold\""),
@@ -725,7 +723,7 @@ fn inconsistent_noise() {
 
 #[test]
 fn oversized_dimensions_are_refused_before_allocating() {
-    let n = lti_model::scenario::MAX_DIMENSION + 1;
+    let n = lti_model::spec::MAX_DIMENSION + 1;
     let ones = vec!["0.5"; n].join(", ");
     assert_key(
         &replacing("a = ", &format!("a = {{ diagonal = [{ones}] }}")),
@@ -808,4 +806,35 @@ proptest! {
             Err(other) => prop_assert!(false, "non-scenario error {:?}", other),
         }
     }
+}
+
+#[test]
+fn preset_plant_matches_the_shipped_scenarios() {
+    let preset = lti_model::presets::case_study_plant();
+    for file in ["case-study.toml", "case-study-certified.toml"] {
+        let path = format!("{}/../../scenarios/{file}", env!("CARGO_MANIFEST_DIR"));
+        let s = Scenario::from_file(&path).unwrap();
+        for (a, b) in [
+            (preset.a(), s.plant.a()),
+            (preset.b(), s.plant.b()),
+            (preset.c(), s.plant.c()),
+        ] {
+            assert_eq!(a.to_owned(), b.to_owned(), "{file}");
+        }
+    }
+}
+
+#[test]
+fn a_method_with_parameters_is_read_from_a_table() {
+    let s = Scenario::from_toml_str(&with(
+        "mhe",
+        "method = { method = \"admm\", rho = 2.0, alpha = 1.5 }",
+    ))
+    .unwrap();
+    assert_eq!(s.mhe.unwrap().method, Method::admm(Some(2.0), 1.5).unwrap());
+    assert_key(
+        &with("mhe", "method = { method = \"pg\", rho = 2.0 }"),
+        "mhe.method",
+        "`rho` is not a parameter of `pg`",
+    );
 }

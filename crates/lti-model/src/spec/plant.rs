@@ -57,11 +57,14 @@ impl NoiseSpec {
     /// The Gaussian covariance after scaling, `scale²·covariance` (`None` unless Gaussian).
     ///
     /// ```
-    /// let s = lti_model::scenario::Scenario::from_toml_str(
-    ///     "name = \"g\"\n[plant]\na = [[0.5]]\nb = [[1.0]]\nc = [[1.0]]\n\
-    ///      [noise]\nkind = \"gaussian\"\nscale = 2.0\ncovariance = 0.25\n",
-    /// ).unwrap();
-    /// let cov = s.noise.scaled_covariance().unwrap();
+    /// use lti_model::spec::{NoiseKind, NoiseSpec};
+    /// let noise = NoiseSpec {
+    ///     kind: NoiseKind::Gaussian,
+    ///     scale: 2.0,
+    ///     covariance: Some(faer::Mat::from_fn(2, 2, |i, j| if i == j { 0.25 } else { 0.0 })),
+    ///     seed: 0,
+    /// };
+    /// let cov = noise.scaled_covariance().unwrap();
     /// assert_eq!((cov[(0, 0)], cov[(1, 1)], cov[(0, 1)]), (1.0, 1.0, 0.0));
     /// ```
     pub fn scaled_covariance(&self) -> Option<Mat<f64>> {

@@ -7,11 +7,14 @@
 //! - [`analysis`]: Theorem 1's arithmetic (C₁…C₆, gains, slopes, premises, K_min).
 //! - [`sim`]: Alg. 1 as a simulation ([`ClosedLoop`]) and the case-study builder
 //!   ([`build_case_study`]).
+//! - [`linear`]: ρ_lin(K) and K_lin, the exact linear stability boundary where no constraint
+//!   is active (the lifted LTI system of Alg. 1).
 //! - [`record`]: the per-step [`Trace`] of a run (with the MHE records), JSON output.
 
 pub mod analysis;
 pub mod certificate;
 pub mod gamma13;
+pub mod linear;
 pub mod record;
 pub mod sim;
 pub mod sweep;

@@ -3,5 +3,6 @@
 
 mod analysis;
 mod certificate;
+mod linear;
 mod sim;
 mod sweep;

@@ -19,27 +19,7 @@ use rand::{Rng, SeedableRng};
 /// An open-loop unstable plant (eigenvalues 1.5 and 0.8), input and disturbance
 /// unconstrained, no noise: no constraint can become active, so the closed loop *is* the
 /// lifted LTI system for t ≥ M. (A, B) is controllable and (A, C) observable.
-const UNSTABLE: &str = r#"
-name = "unstable-2state"
-[plant]
-a = [[1.5, 0.2], [0.0, 0.8]]
-b = [[0.0], [1.0]]
-c = [[1.0, 0.0]]
-[noise]
-kind = "zero"
-[simulation]
-x0 = [0.001, -0.0005]
-prior = [0.0, 0.0]
-steps = 400
-[mhe]
-horizon = 5
-eta = 0.8
-iterations = 1
-[mpc]
-horizon = 10
-q = 1.0
-r = 0.1
-"#;
+const UNSTABLE: &str = include_str!("../data/unstable-2state.toml");
 
 const CERTIFIED: &str = concat!(
     env!("CARGO_MANIFEST_DIR"),
@@ -446,4 +426,36 @@ fn bad_input_gives_typed_errors() {
         ),
         "{err:?}"
     );
+}
+
+/// With constraints that do become active, ρ_lin still decides whether the loop can settle
+/// at the origin (where nothing is active): on the certified preset without noise, ADMM with
+/// α = 2 has ρ_lin ≥ 1 for small K and its estimation error does not converge (the 𝒲 box
+/// keeps it bounded), while beyond K_lin it decays to round-off.
+#[test]
+fn certified_preset_converges_only_where_rho_lin_is_below_one() {
+    let mut s = Scenario::from_file(CERTIFIED).unwrap();
+    s.noise.kind = lti_model::scenario::NoiseKind::Zero;
+    let o = options(&s, Solver::AdmmPr, 1, ControllerChoice::ExactMpc);
+    let report = linear_stability(&s, &o, &[1, 2, 3, 4, 5, 6, 7, 8, 20], Par::Seq).unwrap();
+    let k_lin = report.k_lin.unwrap();
+    assert!(
+        k_lin > 1,
+        "ADMM α = 2 on the certified preset: K_lin = {k_lin}"
+    );
+    for &(k, rho) in &report.rho_lin {
+        if (rho - 1.0).abs() < 0.05 {
+            continue;
+        }
+        let mut o = options(&s, Solver::AdmmPr, k, ControllerChoice::ExactMpc);
+        o.steps = 300;
+        let mut cl = build_case_study(&s, &o).unwrap();
+        let tr = cl.run().unwrap();
+        let tail = tr.e_norms()[250..].iter().fold(0.0_f64, |m, &e| m.max(e));
+        if rho > 1.0 {
+            assert!(tail > 1e-3, "K = {k}, ρ_lin = {rho}: ‖e‖ fell to {tail:e}");
+        } else {
+            assert!(tail < 1e-12, "K = {k}, ρ_lin = {rho}: ‖e‖ still {tail:e}");
+        }
+    }
 }

@@ -22,10 +22,10 @@
 //! perturbations h·e_i of (ξ, θ) around the origin, and divides the response by h. The
 //! response is exact (not a finite difference of a non-linear function): the map is affine
 //! wherever the projection is inactive, and every probe checks that the iterate lies
-//! strictly inside Z (otherwise [`LinearError::ProbeActive`]). Two recursions cannot be
-//! set through the trait and are read from the method's documented parameters: FISTA's
-//! momentum β ([`Fista::momentum`]; T itself is probed from the real restart step), and
-//! nothing else. The tests compare the resulting K-step map with brute force (K real
+//! strictly inside Z (otherwise [`LinearError::ProbeActive`]). One coefficient cannot be
+//! reached through the trait (FISTA's state (x, y) cannot be set with x ≠ y): FISTA's
+//! momentum β is read from [`Fista::momentum`], while its T is probed from the real restart
+//! step. The tests compare the resulting K-step map with brute force (K real
 //! steps of `run_fixed` per unit probe) and PG with the closed form z⁺ = z − α(Hz + Fθ).
 //!
 //! **K-step map.** With the augmented one-step matrix 𝕊 = [[S, S_θ], [0, I]] acting on

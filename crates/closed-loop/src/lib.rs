@@ -9,11 +9,14 @@
 //!   ([`ResolvedScenario`]) and turned into a ready loop ([`ResolvedScenario::build_loop`]).
 //! - [`sim`]: Alg. 1 as a simulation ([`ClosedLoop`]) of any estimator, controller and
 //!   disturbance.
+//! - [`linear`]: ρ_lin(K) and K_lin, the exact linear stability boundary where no constraint
+//!   is active (the lifted LTI system of Alg. 1).
 //! - [`record`]: the per-step [`Trace`] of a run (with the MHE records), JSON output.
 
 pub mod analysis;
 pub mod certificate;
 pub mod gamma13;
+pub mod linear;
 pub mod record;
 pub mod scenario;
 pub mod sim;

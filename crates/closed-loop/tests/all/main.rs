@@ -3,6 +3,7 @@
 
 mod analysis;
 mod certificate;
+mod linear;
 mod scenario;
 mod sim;
 mod sweep;

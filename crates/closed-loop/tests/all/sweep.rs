@@ -115,7 +115,7 @@ fn sharded_and_merged_equals_unsharded() {
     }
     // One shard alone cannot be assembled.
     let lone = scratch("merged-lone");
-    let e = merge_point_dirs(&sweep, &[shards[0].as_path()], &lone).unwrap_err();
+    let e = merge_point_dirs(&sweep, &[shards[0].as_path()], &lone, &NoProgress).unwrap_err();
     assert!(
         matches!(
             e,
@@ -129,7 +129,10 @@ fn sharded_and_merged_equals_unsharded() {
     );
     let merged = scratch("merged");
     let dirs: Vec<&Path> = shards.iter().map(PathBuf::as_path).collect();
-    assert_eq!(merge_point_dirs(&sweep, &dirs, &merged).unwrap(), 12);
+    assert_eq!(
+        merge_point_dirs(&sweep, &dirs, &merged, &NoProgress).unwrap(),
+        12
+    );
     assert_eq!(outputs(&merged), outputs(&whole));
     // The merged directory is a finished sweep: a rerun computes nothing.
     let r = run(&sweep, &merged, 2, None);

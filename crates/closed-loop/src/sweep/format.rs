@@ -305,8 +305,8 @@ fn check_row(row: &str, cells: &[(String, Cell)], what: &str) -> std::result::Re
                     .collect();
                 format!(
                     "{what} is a row of point `{identity}` (point,k,solver,scale), but this file is \
-                     point `{}` (column `{name}` should be `{want}`); was it copied from another \
-                     point's file?",
+                     point `{}` (column `{name}` should be `{want}`), as if copied from another \
+                     point's file",
                     expected.join(",")
                 )
             }

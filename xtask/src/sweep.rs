@@ -73,6 +73,18 @@ impl Progress for Bar {
         self.0
             .set_message(format!("done: K = {} {}", p.k, p.solver));
     }
+    fn notice(&self, message: &str) {
+        self.0.suspend(|| eprintln!("note: {message}"));
+    }
+}
+
+/// The [`Progress`] of `sweep-merge`: no bar, only the notices.
+struct Notices;
+
+impl Progress for Notices {
+    fn notice(&self, message: &str) {
+        eprintln!("note: {message}");
+    }
 }
 
 fn progress_bar() -> ProgressBar {
@@ -317,7 +329,7 @@ pub fn merge(args: &MergeArgs) -> Result<()> {
     } else {
         args.inputs.iter().map(PathBuf::as_path).collect()
     };
-    let n = merge_point_dirs(&sweep, &inputs, &args.out)?;
+    let n = merge_point_dirs(&sweep, &inputs, &args.out, &Notices)?;
     let plots = plot_all(&sweep, &args.out)?;
     // Keep the shards' own meta files for the record.
     let mut shards = Vec::new();

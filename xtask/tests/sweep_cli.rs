@@ -186,10 +186,11 @@ fn killed_sweep_resumes_to_the_uninterrupted_result() {
     assert!(merged.join("error.svg").is_file() && merged.join("meta.json").is_file());
 }
 
-/// Runs `xtask sweep` and expects a clean error (exit 1, message, no panic).
-fn expect_error(args: &[&str], needle: &str) {
+/// Runs `xtask sweep` and expects a clean error (exit 1, message, no panic, an OS error
+/// printed at most once); returns stderr.
+fn expect_error(args: &[&str], needle: &str) -> String {
     let out = xtask(args);
-    let stderr = String::from_utf8_lossy(&out.stderr);
+    let stderr = String::from_utf8_lossy(&out.stderr).to_string();
     assert_eq!(out.status.code(), Some(1), "{args:?}: {stderr}");
     assert!(stderr.contains("error:"), "{stderr}");
     assert!(
@@ -197,6 +198,11 @@ fn expect_error(args: &[&str], needle: &str) {
         "{args:?}: `{needle}` not in {stderr}"
     );
     assert!(!stderr.contains("panicked"), "{stderr}");
+    assert!(
+        stderr.matches("os error").count() <= 1,
+        "cause repeated: {stderr}"
+    );
+    stderr
 }
 
 #[test]
@@ -244,10 +250,11 @@ fn bad_input_exits_with_an_error_not_a_panic() {
     let file = d.join("plain-file");
     fs::write(&file, "x").unwrap();
     let out = file.join("out");
-    expect_error(
+    let stderr = expect_error(
         &["sweep", "--config", good, "--out", out.to_str().unwrap()],
         "cannot create the output directory",
     );
+    assert_eq!(stderr.matches("os error").count(), 1, "{stderr}");
     // A missing config file.
     expect_error(
         &["sweep", "--config", "/nonexistent/sweep.toml"],
@@ -289,4 +296,114 @@ fn bad_input_exits_with_an_error_not_a_panic() {
         stderr.contains("1 of 2 points have no point file"),
         "{stderr}"
     );
+}
+
+/// A sweep config whose single point takes long (it is killed, never finished).
+const LONG: &str = "name = \"long\"\nk = [5000]\nsolvers = [\"pg\"]\nseeds = 100000\nsteps = 40\n\
+                    certificate = false\n";
+
+#[test]
+fn a_second_writer_is_refused_and_a_stale_lock_taken_over() {
+    let d = scratch("lock");
+    let cfg = config(&d, "long.toml", LONG);
+    let cfg = cfg.to_str().unwrap();
+    let out = d.join("out");
+    let lock = out.join(".lock");
+    let mut first = Command::new(XTASK)
+        .args([
+            "sweep",
+            "--config",
+            cfg,
+            "--out",
+            out.to_str().unwrap(),
+            "--threads",
+            "1",
+        ])
+        .stdout(Stdio::null())
+        .stderr(Stdio::null())
+        .spawn()
+        .unwrap();
+    let pid = first.id();
+    let start = Instant::now();
+    while fs::read_to_string(&lock).map_or(true, |t| !t.starts_with(&format!("{pid}\n"))) {
+        assert!(first.try_wait().unwrap().is_none(), "the first sweep ended");
+        assert!(start.elapsed() < Duration::from_secs(300), "no lock file");
+        std::thread::sleep(Duration::from_millis(5));
+    }
+    // A second sweep into the same directory while the first runs.
+    let second = xtask(&["sweep", "--config", cfg, "--out", out.to_str().unwrap()]);
+    let stderr = String::from_utf8_lossy(&second.stderr);
+    assert_eq!(second.status.code(), Some(1), "{stderr}");
+    assert!(
+        stderr.contains(&format!("is being written by another sweep (pid {pid})")),
+        "{stderr}"
+    );
+    assert!(
+        first.try_wait().unwrap().is_none(),
+        "the first sweep was disturbed"
+    );
+    // Kill the first: its lock stays behind, stale. The next writer (a merge here, which
+    // then fails: no point is finished) takes it over, says so, and releases it.
+    first.kill().unwrap();
+    first.wait().unwrap();
+    assert!(lock.is_file());
+    let merge = xtask(&[
+        "sweep-merge",
+        "--config",
+        cfg,
+        "--out",
+        out.to_str().unwrap(),
+    ]);
+    let stderr = String::from_utf8_lossy(&merge.stderr);
+    assert_eq!(merge.status.code(), Some(1), "{stderr}");
+    assert!(
+        stderr.contains("took over the stale lock") && stderr.contains(&format!("pid {pid}")),
+        "{stderr}"
+    );
+    assert!(
+        stderr.contains("1 of 1 points have no point file"),
+        "{stderr}"
+    );
+    assert!(!lock.exists(), "lock not released after the error");
+}
+
+#[test]
+fn corrupt_point_files_and_missing_shard_dirs_are_named() {
+    let d = scratch("corrupt");
+    let cfg = config(
+        &d,
+        "two.toml",
+        "name = \"two\"\nk = [1, 2]\nsolvers = [\"pg\"]\nseeds = 2\nsteps = 3\ncertificate = false\n",
+    );
+    let cfg = cfg.to_str().unwrap();
+    let out = d.join("out");
+    let out_s = out.to_str().unwrap();
+    ok(&xtask(&["sweep", "--config", cfg, "--out", out_s]));
+    // Random bytes in a point file: named, with the fix, not an I/O message.
+    // Seeded bytes (SplitMix64 of 0, 1, 2, …).
+    let bytes: Vec<u8> = (0..125u64)
+        .flat_map(|i| closed_loop::sweep::splitmix64(i).to_le_bytes())
+        .collect();
+    assert!(String::from_utf8(bytes.clone()).is_err());
+    fs::write(out.join("points/p00001.csv"), &bytes).unwrap();
+    let stderr = expect_error(
+        &["sweep", "--config", cfg, "--out", out_s],
+        "points/p00001.csv",
+    );
+    assert!(stderr.contains("delete it and rerun"), "{stderr}");
+    assert!(!stderr.contains("stream did not contain"), "{stderr}");
+    // A shard directory that does not exist is named.
+    let missing = d.join("nonexistent");
+    let stderr = expect_error(
+        &[
+            "sweep-merge",
+            "--config",
+            cfg,
+            "--out",
+            d.join("m").to_str().unwrap(),
+            missing.to_str().unwrap(),
+        ],
+        "is not a sweep output directory",
+    );
+    assert!(stderr.contains(missing.to_str().unwrap()), "{stderr}");
 }

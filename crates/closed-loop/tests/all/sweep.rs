@@ -117,7 +117,7 @@ fn sharded_and_merged_equals_unsharded() {
     }
     // One shard alone cannot be assembled.
     let lone = scratch("merged-lone");
-    let e = merge_point_dirs(&sweep, &[shards[0].as_path()], &lone).unwrap_err();
+    let e = merge_point_dirs(&sweep, &[shards[0].as_path()], &lone, &NoProgress).unwrap_err();
     assert!(
         matches!(
             e,
@@ -131,7 +131,10 @@ fn sharded_and_merged_equals_unsharded() {
     );
     let merged = scratch("merged");
     let dirs: Vec<&Path> = shards.iter().map(PathBuf::as_path).collect();
-    assert_eq!(merge_point_dirs(&sweep, &dirs, &merged).unwrap(), 12);
+    assert_eq!(
+        merge_point_dirs(&sweep, &dirs, &merged, &NoProgress).unwrap(),
+        12
+    );
     assert_eq!(outputs(&merged), outputs(&whole));
     // The merged directory is a finished sweep: a rerun computes nothing.
     let r = run(&sweep, &merged, 2, None);
@@ -424,4 +427,312 @@ fn theoretical_columns_follow_the_certificate() {
     assert_eq!(t.certified, "void");
     assert!(t.void_reason.contains("rho"), "{}", t.void_reason);
     assert!(t.k_min.is_none());
+}
+
+// ---------------------------------------------------------------------------------------
+// Point files validated in full (issue 14, item 2)
+// ---------------------------------------------------------------------------------------
+
+/// A finished small sweep in a fresh directory.
+fn finished(name: &str) -> (Sweep, PathBuf) {
+    let sweep = Sweep::new(small_config("")).unwrap();
+    let d = scratch(name);
+    run(&sweep, &d, 2, None);
+    (sweep, d)
+}
+
+/// Rewrites line `line` (1-based) of a file with `f`.
+fn edit_line(path: &Path, line: usize, f: impl Fn(&str) -> String) {
+    let text = fs::read_to_string(path).unwrap();
+    let mut lines: Vec<String> = text.lines().map(str::to_string).collect();
+    lines[line - 1] = f(&lines[line - 1]);
+    fs::write(path, lines.join("\n") + "\n").unwrap();
+}
+
+/// Replaces cell `col` (0-based) of a CSV line.
+fn set_cell(row: &str, col: usize, value: &str) -> String {
+    let mut cells: Vec<&str> = row.split(',').collect();
+    cells[col] = value;
+    cells.join(",")
+}
+
+/// The outputs as bytes, to show they are untouched after a refused resume.
+fn output_bytes(d: &Path) -> (Vec<u8>, Vec<u8>) {
+    (
+        fs::read(d.join("runs.csv")).unwrap(),
+        fs::read(d.join("points.csv")).unwrap(),
+    )
+}
+
+/// Resumes into `d` and expects a malformed point file named `file`, with the fix, the
+/// outputs unchanged and the lock released.
+fn expect_refused(sweep: &Sweep, d: &Path, file: &str, problem: &str) {
+    let before = output_bytes(d);
+    let e = sweep
+        .run(
+            &RunOptions {
+                out_dir: d.to_path_buf(),
+                threads: 1,
+                shard: None,
+            },
+            &NoProgress,
+        )
+        .unwrap_err();
+    let text = e.to_string();
+    match &e {
+        SweepError::PointFile { path, problem: p } => {
+            assert!(path.ends_with(format!("points/{file}")), "{text}");
+            assert!(p.contains(problem), "`{problem}` not in {text}");
+        }
+        other => panic!("not a point-file error: {other}"),
+    }
+    assert!(text.contains("delete it and rerun"), "{text}");
+    assert_eq!(
+        output_bytes(d),
+        before,
+        "outputs changed by a refused resume"
+    );
+    assert!(
+        !d.join(".lock").exists(),
+        "lock not released after an error"
+    );
+}
+
+#[test]
+fn cut_run_row_is_refused_naming_the_point_file() {
+    let (sweep, d) = finished("cut-run-row");
+    let path = d.join("points").join(point_file_name(2));
+    edit_line(&path, 3, |l| l[..l.len() / 2].to_string());
+    expect_refused(&sweep, &d, "p00002.csv", "line 3 (run 1) has");
+}
+
+#[test]
+fn cell_that_is_not_a_number_is_refused() {
+    let (sweep, d) = finished("cell-4x");
+    let path = d.join("points").join(point_file_name(5));
+    // Column 7 of a run row is sup_e.
+    edit_line(&path, 4, |l| set_cell(l, 7, "4x"));
+    expect_refused(
+        &sweep,
+        &d,
+        "p00005.csv",
+        "column `sup_e`: `4x` is not a number",
+    );
+    // A non-numeric quantile in the summary row too.
+    let (sweep, d) = finished("cell-4x-summary");
+    let path = d.join("points").join(point_file_name(1));
+    let last = fs::read_to_string(&path).unwrap().lines().count();
+    edit_line(&path, last, |l| set_cell(l, 7, "4x"));
+    expect_refused(&sweep, &d, "p00001.csv", "summary row), column `sup_e_q50`");
+}
+
+#[test]
+fn cut_summary_row_is_refused_and_points_csv_kept() {
+    let (sweep, d) = finished("cut-summary");
+    let path = d.join("points").join(point_file_name(6));
+    let last = fs::read_to_string(&path).unwrap().lines().count();
+    edit_line(&path, last, |l| l[..l.len() / 3].to_string());
+    expect_refused(&sweep, &d, "p00006.csv", "(summary row) has");
+}
+
+#[test]
+fn point_file_copied_to_another_point_is_refused() {
+    let (sweep, d) = finished("copied");
+    let pdir = d.join("points");
+    fs::copy(pdir.join(point_file_name(3)), pdir.join(point_file_name(7))).unwrap();
+    expect_refused(&sweep, &d, "p00007.csv", "copied from another point");
+    // The same file is refused by a merge too.
+    let e = merge_point_dirs(
+        &sweep,
+        &[d.as_path()],
+        &scratch("copied-merged"),
+        &NoProgress,
+    )
+    .unwrap_err();
+    assert!(
+        matches!(&e, SweepError::PointFile { path, .. } if path.ends_with("p00007.csv")),
+        "{e}"
+    );
+}
+
+#[test]
+fn random_bytes_in_a_point_file_are_refused_with_the_fix() {
+    use rand::{RngCore, SeedableRng};
+    let (sweep, d) = finished("random-bytes");
+    let mut bytes = vec![0u8; 4096];
+    rand_chacha::ChaCha8Rng::seed_from_u64(14).fill_bytes(&mut bytes);
+    assert!(
+        String::from_utf8(bytes.clone()).is_err(),
+        "the bytes must not be text"
+    );
+    fs::write(d.join("points").join(point_file_name(4)), &bytes).unwrap();
+    expect_refused(&sweep, &d, "p00004.csv", "not a text file");
+}
+
+#[test]
+fn conflicting_shard_copies_name_both_files() {
+    let sweep = Sweep::new(small_config("")).unwrap();
+    let shards: Vec<PathBuf> = (1..=2).map(|i| scratch(&format!("conflict-{i}"))).collect();
+    for (i, d) in shards.iter().enumerate() {
+        run(
+            &sweep,
+            d,
+            1,
+            Some(Shard {
+                index: i + 1,
+                count: 2,
+            }),
+        );
+    }
+    let dirs: Vec<&Path> = shards.iter().map(PathBuf::as_path).collect();
+    // A copy of point 0 (shard 1's) in shard 2's directory, with other timing only: the
+    // same results, accepted (the first listed is used).
+    let (a, b) = (
+        shards[0].join("points").join(point_file_name(0)),
+        shards[1].join("points").join(point_file_name(0)),
+    );
+    fs::copy(&a, &b).unwrap();
+    edit_line(&b, 2, |l| {
+        let n = l.split(',').count();
+        set_cell(l, n - 1, "123.5")
+    });
+    let merged = scratch("conflict-merged-same");
+    assert_eq!(
+        merge_point_dirs(&sweep, &dirs, &merged, &NoProgress).unwrap(),
+        12
+    );
+    // Different results (sup_e of run 0 doubled): a conflict naming both files, and
+    // nothing written.
+    edit_line(&b, 2, |l| {
+        let v: f64 = l.split(',').nth(7).unwrap().parse().unwrap();
+        set_cell(l, 7, &(2.0 * v).to_string())
+    });
+    let out = scratch("conflict-merged");
+    let e = merge_point_dirs(&sweep, &dirs, &out, &NoProgress).unwrap_err();
+    match &e {
+        SweepError::Conflict {
+            point: 0,
+            first,
+            second,
+        } => {
+            assert_eq!((first, second), (&a, &b));
+        }
+        other => panic!("not a conflict: {other}"),
+    }
+    let text = e.to_string();
+    assert!(
+        text.contains("conflict-1/points/p00000.csv")
+            && text.contains("conflict-2/points/p00000.csv"),
+        "{text}"
+    );
+    assert!(!out.join("runs.csv").exists() && !out.join("points.csv").exists());
+    assert_eq!(fs::read_dir(out.join("points")).unwrap().count(), 0);
+}
+
+#[test]
+fn nonexistent_merge_directory_is_named() {
+    let (sweep, d) = finished("merge-missing");
+    let missing = d.join("nonexistent");
+    let out = scratch("merge-missing-out");
+    let e =
+        merge_point_dirs(&sweep, &[d.as_path(), missing.as_path()], &out, &NoProgress).unwrap_err();
+    assert!(
+        matches!(&e, SweepError::NotASweepDir { path } if *path == missing),
+        "{e}"
+    );
+    assert!(e.to_string().contains("merge-missing/nonexistent"), "{e}");
+}
+
+// ---------------------------------------------------------------------------------------
+// One writer per output directory (issue 14, item 3)
+// ---------------------------------------------------------------------------------------
+
+/// Records the notices of a sweep.
+#[derive(Debug, Default)]
+struct Notices(std::sync::Mutex<Vec<String>>);
+
+impl closed_loop::sweep::Progress for Notices {
+    fn notice(&self, message: &str) {
+        self.0.lock().unwrap().push(message.to_string());
+    }
+}
+
+fn opts(d: &Path, shard: Option<Shard>) -> RunOptions {
+    RunOptions {
+        out_dir: d.to_path_buf(),
+        threads: 1,
+        shard,
+    }
+}
+
+#[test]
+fn live_lock_refuses_a_second_writer() {
+    let sweep = Sweep::new(small_config("")).unwrap();
+    let d = scratch("live-lock");
+    // This test process is alive: a lock holding its pid is a live writer.
+    let pid = std::process::id();
+    fs::write(d.join(".lock"), format!("{pid}\n")).unwrap();
+    let e = sweep.run(&opts(&d, None), &NoProgress).unwrap_err();
+    assert!(
+        e.to_string()
+            .contains(&format!("is being written by another sweep (pid {pid})")),
+        "{e}"
+    );
+    assert!(matches!(e, SweepError::Locked { .. }));
+    // Nothing was computed, and the other writer's lock is left alone.
+    assert!(!d.join("points").join(point_file_name(0)).exists());
+    assert_eq!(
+        fs::read_to_string(d.join(".lock")).unwrap(),
+        format!("{pid}\n")
+    );
+    // A shard is refused while the whole directory is written, a merge too …
+    let e = sweep
+        .run(&opts(&d, Some(Shard { index: 1, count: 2 })), &NoProgress)
+        .unwrap_err();
+    assert!(matches!(e, SweepError::Locked { .. }), "{e}");
+    // … and the whole directory while a shard is written.
+    fs::remove_file(d.join(".lock")).unwrap();
+    fs::write(
+        d.join(".lock.shard-2-of-2"),
+        format!("{pid}\nhost \nscope shard 2/2\n"),
+    )
+    .unwrap();
+    let e = sweep.run(&opts(&d, None), &NoProgress).unwrap_err();
+    assert!(e.to_string().contains("shard 2/2"), "{e}");
+    // Another shard may share the directory (the cluster recipe); its lock is released.
+    let r = sweep
+        .run(&opts(&d, Some(Shard { index: 1, count: 2 })), &NoProgress)
+        .unwrap();
+    assert_eq!(r.computed, 6);
+    assert!(!d.join(".lock.shard-1-of-2").exists());
+}
+
+#[cfg(target_os = "linux")]
+#[test]
+fn stale_lock_is_taken_over_and_reported() {
+    let sweep = Sweep::new(small_config("")).unwrap();
+    let d = scratch("stale-lock");
+    // The pid of a process that has exited: the lock of a killed sweep.
+    let mut child = std::process::Command::new("true").spawn().unwrap();
+    let dead = child.id();
+    child.wait().unwrap();
+    fs::write(d.join(".lock"), format!("{dead}\n")).unwrap();
+    // And a temporary point file it left behind.
+    fs::create_dir_all(d.join("points")).unwrap();
+    let leftover = d.join("points").join(format!("p00001.csv.{dead}.0.tmp"));
+    fs::write(&leftover, "# suboptimal-mhe sweep point v1 ab\n0,1").unwrap();
+    let notices = Notices::default();
+    let r = sweep.run(&opts(&d, None), &notices).unwrap();
+    assert_eq!(r.computed, 12);
+    let notes = notices.0.lock().unwrap();
+    assert_eq!(notes.len(), 1, "{notes:?}");
+    assert!(
+        notes[0].contains("took over the stale lock") && notes[0].contains(&format!("pid {dead}")),
+        "{notes:?}"
+    );
+    assert!(!d.join(".lock").exists(), "lock not released");
+    assert!(!leftover.exists(), "dead writer's temporary file kept");
+    let reference = scratch("stale-lock-reference");
+    run(&sweep, &reference, 2, None);
+    assert_eq!(outputs(&d), outputs(&reference));
 }

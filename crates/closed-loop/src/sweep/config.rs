@@ -1,0 +1,810 @@
+//! The sweep configuration: [`SweepConfig`], read from TOML through serde (every table
+//! `deny_unknown_fields`) and `serde_path_to_error`, then validated, and the grid of
+//! [`Point`]s it spans.
+//!
+//! Like the scenario file, parsing runs in two stages: the text is deserialised into
+//! private `Raw*` mirror structs whose keys are all optional, so a type error names the
+//! full key path it happened at (`k.points`, `solvers[1]`, `controller.iterations`); then
+//! [`SweepConfig`] is built from them, checking every value and limit and naming the key
+//! of each failure.
+
+use std::fmt::{self, Write as _};
+use std::fs;
+use std::path::{Path, PathBuf};
+
+use serde::Deserialize;
+use serde::de::{self, MapAccess, SeqAccess, Visitor};
+
+use super::error::{Result, SweepError, config_err, io_err};
+use super::metrics::{DEFAULT_BOUNDED_FACTOR, Metric};
+use super::{ControllerChoice, Method};
+
+/// Largest K accepted in a grid (a run costs T·K iterations).
+pub const MAX_K: usize = 10_000_000;
+/// Largest horizon T accepted (a run's trace, MHE records included, is preallocated:
+/// about 1 KiB per step for the case study, per worker thread).
+pub const MAX_STEPS: usize = 100_000;
+/// Largest number of seeds per point.
+pub const MAX_SEEDS: usize = 10_000_000;
+
+/// ```
+#[derive(Debug, Clone, PartialEq)]
+pub struct SweepConfig {
+    /// Name of the sweep (`name`): labels the outputs, default output directory
+    /// `target/sweeps/<name>`.
+    pub name: String,
+    /// The scenario file (`scenario`), resolved against the config file's directory.
+    pub scenario: PathBuf,
+    /// The iteration budgets K (`k`: a list, or `{ from, to, points }` log-spaced), sorted,
+    /// without duplicates, each ≥ 1.
+    pub k_grid: Vec<usize>,
+    /// The MHE's iteration maps Φ (`solvers`, any of `"pg"`, `"fista"`, `"admm"`, `"admm-pr"`).
+    pub solvers: Vec<Method>,
+    /// Runs per point (`seeds` ≥ 1).
+    pub seeds: usize,
+    /// Disturbance scales (`scales`, each ≥ 0, finite): the scenario's `noise.scale` is set
+    /// to each in turn. `None` keeps the scenario's.
+    pub scales: Option<Vec<f64>>,
+    /// Horizon T (`steps`); `None` keeps the scenario's `simulation.steps`.
+    pub steps: Option<usize>,
+    /// Base seed of the run seeds (`base_seed`; default: the scenario's `noise.seed`).
+    pub base_seed: Option<u64>,
+    /// Also solve every ℙ_t exactly to record ε_t (`exact_mhe_solve`, default false: it
+    /// adds one active-set solve of the MHE QP per step).
+    pub exact_mhe_solve: bool,
+    /// The controller π (`controller`: `"exact-mpc"` (default), `"saturated-lqr"`, or
+    /// `{ kind = "suboptimal-mpc", iterations = Kc, solver = "pg" }`).
+    pub controller: ControllerChoice,
+    /// The metrics kept (`metrics`; default: all, `sup_eps` only with the exact solve).
+    pub metrics: Vec<Metric>,
+    /// Same disturbance draw for run r at every point (`common_random_numbers`, default
+    /// true); false mixes the point (K, solver, scale) into the seed.
+    pub common_random_numbers: bool,
+    /// A run is bounded when it completes with finite values and sup‖x‖ ≤
+    /// `bounded_factor`·(1 + ‖x₀‖) (`bounded_factor`, default 1000).
+    pub bounded_factor: f64,
+    /// Compute the theoretical columns from the closed-loop certificate (`certificate`,
+    /// default true; false writes them as void, e.g. for quick tests: the certificate
+    /// takes seconds).
+    pub certificate: bool,
+}
+
+/// Keys a config may contain.
+
+/// `n` log-spaced integers from `from` to `to` (rounded, duplicates removed).
+///
+/// ```
+/// use closed_loop::sweep::log_spaced;
+/// assert_eq!(log_spaced(1, 1000, 4), vec![1, 10, 100, 1000]);
+/// assert_eq!(log_spaced(1, 4, 10), vec![1, 2, 3, 4]); // rounding merges neighbours
+/// assert_eq!(log_spaced(5, 5, 3), vec![5]);
+/// ```
+pub fn log_spaced(from: usize, to: usize, n: usize) -> Vec<usize> {
+    if n <= 1 || from == to {
+        return vec![from];
+    }
+    let (a, b) = ((from as f64).ln(), (to as f64).ln());
+    let mut out: Vec<usize> = (0..n)
+        .map(|i| {
+            let v = (a + (b - a) * i as f64 / (n - 1) as f64).exp().round();
+            // Clamp against rounding past the ends.
+            (v as usize).clamp(from.min(to), from.max(to))
+        })
+        .collect();
+    out.sort_unstable();
+    out.dedup();
+    out
+}
+
+// ---------------------------------------------------------------------------------------
+// Raw mirror of the file (stage 1: types and key paths)
+// ---------------------------------------------------------------------------------------
+
+/// The keys of a sweep config, all optional (missing keys are reported in stage 2).
+#[derive(Debug, Deserialize)]
+#[serde(deny_unknown_fields)]
+struct RawConfig {
+    name: Option<String>,
+    scenario: Option<String>,
+    k: Option<RawK>,
+    solvers: Option<Vec<String>>,
+    seeds: Option<i64>,
+    scales: Option<Vec<f64>>,
+    steps: Option<i64>,
+    base_seed: Option<i64>,
+    exact_mhe_solve: Option<bool>,
+    controller: Option<RawController>,
+    metrics: Option<Vec<String>>,
+    common_random_numbers: Option<bool>,
+    bounded_factor: Option<f64>,
+    certificate: Option<bool>,
+}
+
+/// `k`: a list of K, or a log-spaced range.
+#[derive(Debug)]
+enum RawK {
+    List(Vec<i64>),
+    Range(RawRange),
+}
+
+#[derive(Debug, Deserialize)]
+#[serde(deny_unknown_fields)]
+struct RawRange {
+    from: Option<i64>,
+    to: Option<i64>,
+    points: Option<i64>,
+}
+
+/// `controller`: a name, or a table for the sub-optimal MPC.
+#[derive(Debug)]
+enum RawController {
+    Name(String),
+    Table(RawControllerTable),
+}
+
+#[derive(Debug, Deserialize)]
+#[serde(deny_unknown_fields)]
+struct RawControllerTable {
+    kind: Option<String>,
+    iterations: Option<i64>,
+    solver: Option<String>,
+}
+
+// A list or a table, told apart by the TOML value itself; the elements and keys are read
+// through the access objects serde_path_to_error hands in, so their paths are recorded.
+impl<'de> Deserialize<'de> for RawK {
+    fn deserialize<D: de::Deserializer<'de>>(d: D) -> std::result::Result<Self, D::Error> {
+        struct KVisitor;
+        impl<'de> Visitor<'de> for KVisitor {
+            type Value = RawK;
+            fn expecting(&self, f: &mut fmt::Formatter<'_>) -> fmt::Result {
+                f.write_str("a list of integers `[1, 10, 100]` or a table `{ from, to, points }`")
+            }
+            fn visit_seq<A: SeqAccess<'de>>(
+                self,
+                mut seq: A,
+            ) -> std::result::Result<RawK, A::Error> {
+                let mut list = Vec::new();
+                while let Some(k) = seq.next_element::<i64>()? {
+                    list.push(k);
+                }
+                Ok(RawK::List(list))
+            }
+            fn visit_map<A: MapAccess<'de>>(self, map: A) -> std::result::Result<RawK, A::Error> {
+                RawRange::deserialize(de::value::MapAccessDeserializer::new(map)).map(RawK::Range)
+            }
+        }
+        d.deserialize_any(KVisitor)
+    }
+}
+
+impl<'de> Deserialize<'de> for RawController {
+    fn deserialize<D: de::Deserializer<'de>>(d: D) -> std::result::Result<Self, D::Error> {
+        struct CVisitor;
+        impl<'de> Visitor<'de> for CVisitor {
+            type Value = RawController;
+            fn expecting(&self, f: &mut fmt::Formatter<'_>) -> fmt::Result {
+                f.write_str(
+                    "a string (\"exact-mpc\", \"saturated-lqr\") or a table \
+                     `{ kind = \"suboptimal-mpc\", iterations, solver }`",
+                )
+            }
+            fn visit_str<E: de::Error>(self, s: &str) -> std::result::Result<RawController, E> {
+                Ok(RawController::Name(s.to_string()))
+            }
+            fn visit_map<A: MapAccess<'de>>(
+                self,
+                map: A,
+            ) -> std::result::Result<RawController, A::Error> {
+                RawControllerTable::deserialize(de::value::MapAccessDeserializer::new(map))
+                    .map(RawController::Table)
+            }
+        }
+        d.deserialize_any(CVisitor)
+    }
+}
+
+/// (line, column), both 1-based, of a byte offset in `text`.
+fn line_col(text: &str, offset: usize) -> (usize, usize) {
+    let offset = offset.min(text.len());
+    let before = text.get(..offset).unwrap_or(text);
+    let line = before.matches('\n').count() + 1;
+    let col = before.rsplit('\n').next().map_or(0, |l| l.chars().count()) + 1;
+    (line, col)
+}
+
+fn at_line(text: &str, span: Option<std::ops::Range<usize>>) -> String {
+    span.map(|s| {
+        let (l, c) = line_col(text, s.start);
+        format!(" (line {l}, column {c})")
+    })
+    .unwrap_or_default()
+}
+
+fn syntax_error(text: &str, e: &toml::de::Error) -> SweepError {
+    SweepError::Toml(format!(
+        "{}{}; fix the syntax (https://toml.io/en/v1.0.0)",
+        e.message().trim_end(),
+        at_line(text, e.span())
+    ))
+}
+
+/// First name between backticks in a serde message (`unknown field `x`, ...`).
+fn backticked(msg: &str) -> Option<&str> {
+    let start = msg.find('`')? + 1;
+    let len = msg.get(start..)?.find('`')?;
+    msg.get(start..start + len)
+}
+
+/// A type error or unknown key, named by its full key path (`k[1]`, `controller.solver`).
+fn data_error(text: &str, e: &serde_path_to_error::Error<toml::de::Error>) -> SweepError {
+    use serde_path_to_error::Segment;
+    let mut key = String::new();
+    for seg in e.path() {
+        match seg {
+            Segment::Seq { index } => {
+                let _ = write!(key, "[{index}]");
+            }
+            Segment::Map { key: k } | Segment::Enum { variant: k } => {
+                if !key.is_empty() {
+                    key.push('.');
+                }
+                key.push_str(k);
+            }
+            Segment::Unknown => {}
+        }
+    }
+    let msg = e.inner().message().trim_end().to_string();
+    let hint = if msg.starts_with("unknown field") {
+        // The path may end at the table or at the key; the key itself is in the message.
+        if let Some(name) = backticked(&msg) {
+            if !(key == name || key.ends_with(&format!(".{name}"))) {
+                if !key.is_empty() {
+                    key.push('.');
+                }
+                key.push_str(name);
+            }
+        }
+        "; remove the key or correct its spelling (docs/sweeps.md lists every key)"
+    } else {
+        ""
+    };
+    if key.is_empty() {
+        key.push_str("<root>");
+    }
+    config_err(
+        key,
+        format!("{msg}{}{hint}", at_line(text, e.inner().span())),
+    )
+}
+
+// ---------------------------------------------------------------------------------------
+// Validation (stage 2: values, limits, defaults)
+// ---------------------------------------------------------------------------------------
+
+/// An integer key with 1 ≤ value ≤ `max`.
+fn positive(value: i64, key: &str, max: usize) -> Result<usize> {
+    if value < 1 {
+        return Err(config_err(key, format!("must be ≥ 1, got {value}")));
+    }
+    match usize::try_from(value) {
+        Ok(u) if u <= max => Ok(u),
+        _ => Err(config_err(key, format!("must be ≤ {max}, got {value}"))),
+    }
+}
+
+fn k_grid(raw: Option<RawK>) -> Result<Vec<usize>> {
+    let raw = raw.ok_or_else(|| {
+        config_err(
+            "k",
+            "missing: give a list `k = [1, 10, 100]` or a log-spaced range `k = { from = 1, to = 2000, points = 12 }`",
+        )
+    })?;
+    let mut grid = match raw {
+        RawK::List(list) => {
+            if list.is_empty() {
+                return Err(config_err(
+                    "k",
+                    "the K grid is empty; list at least one K ≥ 1",
+                ));
+            }
+            list.iter()
+                .enumerate()
+                .map(|(i, &k)| {
+                    usize::try_from(k)
+                        .ok()
+                        .filter(|&k| (1..=MAX_K).contains(&k))
+                        .ok_or_else(|| {
+                            config_err(
+                                format!("k[{i}]"),
+                                format!(
+                                    "K = {k} is out of range: the iteration budget must be 1 ≤ K ≤ {MAX_K}"
+                                ),
+                            )
+                        })
+                })
+                .collect::<Result<Vec<_>>>()?
+        }
+        RawK::Range(r) => {
+            let req = |v: Option<i64>, key: &str| -> Result<usize> {
+                let v = v.ok_or_else(|| {
+                    config_err(key, "missing (a K range needs from, to, points ≥ 1)")
+                })?;
+                positive(v, key, MAX_K)
+            };
+            let from = req(r.from, "k.from")?;
+            let to = req(r.to, "k.to")?;
+            let points = req(r.points, "k.points")?;
+            if to < from {
+                return Err(config_err(
+                    "k.to",
+                    format!("must be ≥ k.from = {from}, got {to}"),
+                ));
+            }
+            log_spaced(from, to, points)
+        }
+    };
+    grid.sort_unstable();
+    grid.dedup();
+    Ok(grid)
+}
+
+fn controller(raw: Option<RawController>) -> Result<ControllerChoice> {
+    let t = match raw {
+        None => return Ok(ControllerChoice::ExactMpc),
+        Some(RawController::Name(s)) => {
+            return match s.as_str() {
+                "exact-mpc" => Ok(ControllerChoice::ExactMpc),
+                "saturated-lqr" => Ok(ControllerChoice::SaturatedLqr),
+                "suboptimal-mpc" => Err(config_err(
+                    "controller",
+                    "the sub-optimal MPC needs its budget: `controller = { kind = \"suboptimal-mpc\", iterations = 20, solver = \"pg\" }`",
+                )),
+                other => Err(config_err(
+                    "controller",
+                    format!(
+                        "unknown controller `{other}`; use \"exact-mpc\", \"saturated-lqr\" or a table {{ kind = \"suboptimal-mpc\", iterations, solver }}"
+                    ),
+                )),
+            };
+        }
+        Some(RawController::Table(t)) => t,
+    };
+    match t.kind.as_deref() {
+        Some("suboptimal-mpc") => {}
+        Some(other) => {
+            return Err(config_err(
+                "controller.kind",
+                format!("a controller table must be kind = \"suboptimal-mpc\", got `{other}`"),
+            ));
+        }
+        None => {
+            return Err(config_err(
+                "controller.kind",
+                "missing (\"suboptimal-mpc\")",
+            ));
+        }
+    }
+    let iterations = t
+        .iterations
+        .ok_or_else(|| config_err("controller.iterations", "missing (K_c ≥ 1)"))?;
+    let iterations = positive(iterations, "controller.iterations", MAX_K)?;
+    let solver = match t.solver {
+        None => Method::PG,
+        Some(s) => s
+            .parse::<Method>()
+            .map_err(|e| config_err("controller.solver", e.to_string()))?,
+    };
+    Ok(ControllerChoice::SuboptimalMpc {
+        iterations,
+        method: solver,
+    })
+}
+
+fn solvers(raw: Option<Vec<String>>) -> Result<Vec<Method>> {
+    let names = raw.ok_or_else(|| {
+        config_err(
+            "solvers",
+            "missing (any of \"pg\", \"fista\", \"admm\", \"admm-pr\")",
+        )
+    })?;
+    if names.is_empty() {
+        return Err(config_err(
+            "solvers",
+            "empty; list at least one of \"pg\", \"fista\", \"admm\", \"admm-pr\"",
+        ));
+    }
+    let mut out = Vec::new();
+    for (i, s) in names.iter().enumerate() {
+        let solver = s
+            .parse::<Method>()
+            .map_err(|e| config_err(format!("solvers[{i}]"), e.to_string()))?;
+        if out.contains(&solver) {
+            return Err(config_err(
+                format!("solvers[{i}]"),
+                format!("`{s}` is listed twice"),
+            ));
+        }
+        out.push(solver);
+    }
+    Ok(out)
+}
+
+fn scales(raw: Option<Vec<f64>>) -> Result<Option<Vec<f64>>> {
+    let Some(list) = raw else {
+        return Ok(None);
+    };
+    if list.is_empty() {
+        return Err(config_err(
+            "scales",
+            "empty; omit it to keep the scenario's noise.scale",
+        ));
+    }
+    let mut out = Vec::new();
+    for (i, &s) in list.iter().enumerate() {
+        let key = format!("scales[{i}]");
+        if !(s.is_finite() && s >= 0.0) {
+            return Err(config_err(
+                key,
+                format!("a disturbance scale must be finite and ≥ 0, got {s}"),
+            ));
+        }
+        if out.contains(&s) {
+            return Err(config_err(key, format!("{s} is listed twice")));
+        }
+        out.push(s);
+    }
+    Ok(Some(out))
+}
+
+fn metrics(raw: Option<Vec<String>>, exact_mhe_solve: bool) -> Result<Vec<Metric>> {
+    let Some(names) = raw else {
+        return Ok(Metric::ALL
+            .into_iter()
+            .filter(|m| exact_mhe_solve || *m != Metric::SupEps)
+            .collect());
+    };
+    let mut out = Vec::new();
+    for (i, n) in names.iter().enumerate() {
+        let m = n
+            .parse::<Metric>()
+            .map_err(|e| config_err(format!("metrics[{i}]"), e))?;
+        if m == Metric::SupEps && !exact_mhe_solve {
+            return Err(config_err(
+                format!("metrics[{i}]"),
+                "sup_eps needs ε_t, which only the exact MHE solve gives: set exact_mhe_solve = true or drop it",
+            ));
+        }
+        if !out.contains(&m) {
+            out.push(m);
+        }
+    }
+    out.sort_unstable();
+    Ok(out)
+}
+
+fn name(raw: Option<String>) -> Result<String> {
+    let name = raw.ok_or_else(|| config_err("name", "missing (names the output directory)"))?;
+    if name.is_empty()
+        || !name
+            .chars()
+            .all(|c| c.is_ascii_alphanumeric() || c == '-' || c == '_' || c == '.')
+        || name.starts_with('.')
+    {
+        return Err(config_err(
+            "name",
+            format!(
+                "`{name}` must be non-empty ASCII letters, digits, `-`, `_`, `.` (it names a directory)"
+            ),
+        ));
+    }
+    Ok(name)
+}
+
+impl SweepConfig {
+    /// Parses and validates a config; relative `scenario` paths are resolved against
+    /// `base_dir` (the config file's directory). Unknown keys are errors; every error names
+    /// its full key path.
+    pub fn from_toml_str(text: &str, base_dir: &Path) -> Result<Self> {
+        let de = toml::Deserializer::parse(text).map_err(|e| syntax_error(text, &e))?;
+        let raw: RawConfig =
+            serde_path_to_error::deserialize(de).map_err(|e| data_error(text, &e))?;
+        let name = name(raw.name)?;
+        let scenario = raw
+            .scenario
+            .ok_or_else(|| config_err("scenario", "missing (path of the scenario TOML)"))?;
+        let scenario = base_dir.join(scenario);
+        let k_grid = k_grid(raw.k)?;
+        let solvers = solvers(raw.solvers)?;
+        let seeds = raw
+            .seeds
+            .ok_or_else(|| config_err("seeds", "missing (number of runs per point, ≥ 1)"))?;
+        let seeds = positive(seeds, "seeds", MAX_SEEDS)?;
+        let scales = scales(raw.scales)?;
+        let steps = raw
+            .steps
+            .map(|s| positive(s, "steps", MAX_STEPS))
+            .transpose()?;
+        let base_seed = match raw.base_seed {
+            None => None,
+            Some(s) => Some(
+                u64::try_from(s)
+                    .map_err(|_| config_err("base_seed", format!("must be ≥ 0, got {s}")))?,
+            ),
+        };
+        let exact_mhe_solve = raw.exact_mhe_solve.unwrap_or(false);
+        let controller = controller(raw.controller)?;
+        let metrics = metrics(raw.metrics, exact_mhe_solve)?;
+        let common_random_numbers = raw.common_random_numbers.unwrap_or(true);
+        let bounded_factor = raw.bounded_factor.unwrap_or(DEFAULT_BOUNDED_FACTOR);
+        if !(bounded_factor.is_finite() && bounded_factor > 0.0) {
+            return Err(config_err(
+                "bounded_factor",
+                format!("must be finite and > 0, got {bounded_factor}"),
+            ));
+        }
+        let certificate = raw.certificate.unwrap_or(true);
+        Ok(Self {
+            name,
+            scenario,
+            k_grid,
+            solvers,
+            seeds,
+            scales,
+            steps,
+            base_seed,
+            exact_mhe_solve,
+            controller,
+            metrics,
+            common_random_numbers,
+            bounded_factor,
+            certificate,
+        })
+    }
+
+    /// Reads and validates a config file.
+    pub fn from_file(path: impl AsRef<Path>) -> Result<Self> {
+        let path = path.as_ref();
+        let text = fs::read_to_string(path).map_err(io_err("read the sweep config", path))?;
+        let base = path.parent().unwrap_or(Path::new("."));
+        Self::from_toml_str(&text, base)
+    }
+
+    /// The points of the sweep, in output order (scale, then solver, then K), with the
+    /// given scales (the config's, or `[default_scale]`).
+    pub(super) fn points_with(&self, default_scale: f64) -> Vec<Point> {
+        let scales = self.scales.clone().unwrap_or_else(|| vec![default_scale]);
+        let mut out = Vec::new();
+        for (scale_index, &scale) in scales.iter().enumerate() {
+            for &solver in &self.solvers {
+                for &k in &self.k_grid {
+                    out.push(Point {
+                        index: out.len(),
+                        k,
+                        solver,
+                        scale,
+                        scale_index,
+                    });
+                }
+            }
+        }
+        out
+    }
+
+    /// The points of the sweep (scale 1 standing for the scenario's when `scales` is
+    /// omitted; [`Sweep::points`] has the resolved scale).
+    pub fn points(&self) -> Vec<Point> {
+        self.points_with(1.0)
+    }
+
+    /// A canonical text of every setting that changes results (not the name, not the
+    /// scenario path: the scenario's text enters the fingerprint instead).
+    pub(super) fn canonical(&self, steps: usize, base_seed: u64, scales: &[f64]) -> String {
+        let mut s = String::new();
+        let _ = write!(
+            s,
+            "k={:?};solvers={:?};seeds={};scales={:?};steps={};base_seed={};exact={};controller={:?};metrics={:?};crn={};bounded_factor={:e};certificate={}",
+            self.k_grid,
+            self.solvers,
+            self.seeds,
+            scales.iter().map(|x| x.to_bits()).collect::<Vec<_>>(),
+            steps,
+            base_seed,
+            self.exact_mhe_solve,
+            self.controller,
+            self.metrics,
+            self.common_random_numbers,
+            self.bounded_factor,
+            self.certificate,
+        );
+        s
+    }
+}
+
+/// One sweep point: K, the MHE's solver Φ and the disturbance scale.
+#[derive(Debug, Clone, Copy, PartialEq)]
+pub struct Point {
+    /// Index in the full grid (stable across shards; names the point file).
+    pub index: usize,
+    /// Iteration budget K.
+    pub k: usize,
+    /// Φ of the MHE.
+    pub solver: Method,
+    /// Disturbance scale (`noise.scale`).
+    pub scale: f64,
+    /// Index of the scale in the config's list.
+    pub scale_index: usize,
+}
+
+impl fmt::Display for Point {
+    fn fmt(&self, f: &mut fmt::Formatter<'_>) -> fmt::Result {
+        write!(
+            f,
+            "point {} (K = {}, solver = {}, scale = {})",
+            self.index, self.k, self.solver, self.scale
+        )
+    }
+}
+
+#[cfg(test)]
+mod tests {
+    #![allow(clippy::unwrap_used)]
+    use super::*;
+
+    fn cfg(extra: &str) -> Result<SweepConfig> {
+        SweepConfig::from_toml_str(
+            &format!("name = 'x'\nscenario = 's.toml'\nsolvers = ['pg']\nseeds = 2\n{extra}"),
+            Path::new("/base"),
+        )
+    }
+
+    fn key_of(e: SweepError) -> String {
+        match e {
+            SweepError::Config { key, .. } => key,
+            other => panic!("not a config error: {other}"),
+        }
+    }
+
+    #[test]
+    fn config_errors_name_the_key() {
+        assert_eq!(key_of(cfg("k = []").unwrap_err()), "k");
+        assert_eq!(key_of(cfg("k = [1, 0]").unwrap_err()), "k[1]");
+        assert_eq!(
+            key_of(cfg("k = { from = 0, to = 5, points = 3 }").unwrap_err()),
+            "k.from"
+        );
+        assert_eq!(
+            key_of(cfg("k = { from = 9, to = 5, points = 3 }").unwrap_err()),
+            "k.to"
+        );
+        assert_eq!(
+            key_of(cfg("k = { from = 1, to = 5 }").unwrap_err()),
+            "k.points"
+        );
+        assert_eq!(key_of(cfg("k = [1]\nseeds2 = 3").unwrap_err()), "seeds2");
+        let e = SweepConfig::from_toml_str(
+            "name='x'\nscenario='s'\nk=[1]\nsolvers=['pg','newton']\nseeds=1",
+            Path::new("."),
+        )
+        .unwrap_err();
+        assert_eq!(key_of(e), "solvers[1]");
+        let e = SweepConfig::from_toml_str(
+            "name='x'\nscenario='s'\nk=[1]\nsolvers=['pg']\nseeds=-4",
+            Path::new("."),
+        )
+        .unwrap_err();
+        assert!(
+            e.to_string().contains("`seeds`") && e.to_string().contains("-4"),
+            "{e}"
+        );
+        assert_eq!(
+            key_of(cfg("k = [1]\nscales = [-1.0]").unwrap_err()),
+            "scales[0]"
+        );
+        assert_eq!(
+            key_of(cfg("k = [1]\nmetrics = ['sup_eps']").unwrap_err()),
+            "metrics[0]"
+        );
+        assert_eq!(
+            key_of(cfg("k = [1]\ncontroller = 'pid'").unwrap_err()),
+            "controller"
+        );
+        assert_eq!(
+            key_of(
+                cfg("k = [1]\ncontroller = { kind = 'suboptimal-mpc', iterations = 0 }")
+                    .unwrap_err()
+            ),
+            "controller.iterations"
+        );
+        assert_eq!(
+            key_of(cfg("k = [1]\nbounded_factor = 0").unwrap_err()),
+            "bounded_factor"
+        );
+        assert_eq!(key_of(cfg("k = [1]\nsteps = 100001").unwrap_err()), "steps");
+        assert_eq!(
+            key_of(cfg("k = [1]\ncertificate = 1").unwrap_err()),
+            "certificate"
+        );
+        assert_eq!(
+            key_of(cfg("k = [1]\nbase_seed = -1").unwrap_err()),
+            "base_seed"
+        );
+        assert_eq!(key_of(cfg("k = 5").unwrap_err()), "k");
+        assert_eq!(key_of(cfg("k = [1]\nscales = []").unwrap_err()), "scales");
+        assert!(matches!(cfg("k = [1").unwrap_err(), SweepError::Toml(_)));
+    }
+
+    #[test]
+    fn config_defaults_and_resolution() {
+        let c = cfg("k = [20, 1, 5, 5]").unwrap();
+        assert_eq!(c.k_grid, vec![1, 5, 20]);
+        assert_eq!(c.scenario, Path::new("/base/s.toml"));
+        assert!(!c.exact_mhe_solve);
+        assert!(!c.metrics.contains(&Metric::SupEps));
+        assert_eq!(c.controller, ControllerChoice::ExactMpc);
+        let c = cfg("k = [1]\nexact_mhe_solve = true\ncontroller = { kind = 'suboptimal-mpc', iterations = 7, solver = 'fista' }").unwrap();
+        assert!(c.metrics.contains(&Metric::SupEps));
+        assert_eq!(
+            c.controller,
+            ControllerChoice::SuboptimalMpc {
+                iterations: 7,
+                method: Method::FISTA
+            }
+        );
+        let c = cfg("k = [1, 2]\nscales = [0.5, 1]").unwrap();
+        let pts = c.points();
+        assert_eq!(pts.len(), 4);
+        assert_eq!((pts[2].k, pts[2].scale, pts[2].scale_index), (1, 1.0, 1));
+        assert!(pts.iter().enumerate().all(|(i, p)| p.index == i));
+    }
+
+    #[test]
+    fn log_spacing_is_geometric() {
+        let g = log_spaced(1, 2000, 16);
+        assert_eq!(g.first(), Some(&1));
+        assert_eq!(g.last(), Some(&2000));
+        // Ratios of consecutive values stay near (2000)^(1/15) ≈ 1.66 once rounding stops mattering.
+        for w in g.windows(2).filter(|w| w[0] >= 20) {
+            let r = w[1] as f64 / w[0] as f64;
+            assert!((r - 2000f64.powf(1.0 / 15.0)).abs() < 0.1, "{w:?}");
+        }
+    }
+
+    #[test]
+    fn type_errors_and_unknown_keys_name_the_full_path() {
+        for (extra, key) in [
+            ("k = [1, 'a']", "k[1]"),
+            ("k = { from = 1, to = 5, points = 'x' }", "k.points"),
+            ("k = { from = 1, to = 5, points = 3, step = 2 }", "k.step"),
+            ("k = [1]\nscales = [1, 'a']", "scales[1]"),
+            ("k = [1]\nsteps = 'many'", "steps"),
+            ("k = [1]\nmetrics = ['sup_e', 4]", "metrics[1]"),
+            (
+                "k = [1]\ncontroller = { kind = 'suboptimal-mpc', iterations = 'x' }",
+                "controller.iterations",
+            ),
+            (
+                "k = [1]\ncontroller = { kind = 'suboptimal-mpc', iterations = 3, extra = 1 }",
+                "controller.extra",
+            ),
+            ("k = [1]\ncontroller = 7", "controller"),
+            ("k = [1]\nexact_mhe_solve = 'yes'", "exact_mhe_solve"),
+        ] {
+            let e = cfg(extra).unwrap_err();
+            let text = e.to_string();
+            assert_eq!(key_of(e), key, "{extra}: {text}");
+            assert!(text.contains("line "), "{extra}: no line in {text}");
+        }
+        // An unknown key says how to fix it; a syntax error gives the line.
+        let e = cfg("k = [1]\nseedz = 2").unwrap_err().to_string();
+        assert!(
+            e.contains("`seedz`") && e.contains("correct its spelling"),
+            "{e}"
+        );
+        let e = cfg("k = [1]\nsteps = = 3").unwrap_err();
+        assert!(
+            matches!(&e, SweepError::Toml(m) if m.contains("line 6")),
+            "{e}"
+        );
+    }
+}

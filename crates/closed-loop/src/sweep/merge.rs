@@ -1,0 +1,208 @@
+//! Reading finished point files back (resume) and assembling them into `runs.csv` and
+//! `points.csv`, from one output directory or from several shard directories (merge).
+//!
+//! Every point file is validated in full before anything is written ([`Sweep::finished_points`]);
+//! two directories that hold different results for one point are a conflict naming both
+//! files; `runs.csv` and `points.csv` are written to temporary names and renamed only when
+//! both are complete.
+
+use std::collections::BTreeMap;
+use std::collections::btree_map::Entry;
+use std::fs;
+use std::path::{Path, PathBuf};
+
+use super::error::{Result, SweepError, io_err};
+use super::format::{
+    PointFile, PointFileRules, commit, point_file_name, points_header, runs_header, write_temp,
+};
+use super::run::{Progress, Sweep, take_lock};
+use super::seeds::run_seed;
+
+impl Sweep {
+    /// Reads the finished point files in `dir/points` of this sweep: index → file. Each
+    /// file is checked in full ([`PointFile`] format, fingerprint, every row and cell
+    /// against its point); a file of another fingerprint or a malformed one is an error
+    /// naming it. `*.tmp` leftovers of a killed run are ignored; a directory without
+    /// `points/` has no finished points.
+    pub fn finished_points(&self, dir: &Path) -> Result<BTreeMap<usize, PointFile>> {
+        let pdir = dir.join("points");
+        let mut out = BTreeMap::new();
+        if !pdir.is_dir() {
+            return Ok(out);
+        }
+        let cfg = self.config();
+        let rules = PointFileRules {
+            metrics: &cfg.metrics,
+            seeds: cfg.seeds,
+            steps: self.steps(),
+        };
+        for p in self.points() {
+            let path = pdir.join(point_file_name(p.index));
+            if !path.is_file() {
+                continue;
+            }
+            let f = PointFile::read(&path)?;
+            if f.fingerprint != self.fingerprint() {
+                return Err(SweepError::Fingerprint {
+                    path,
+                    found: f.fingerprint,
+                    expected: self.fingerprint().to_string(),
+                });
+            }
+            let seed_of = |r| run_seed(self.base_seed(), p, r, cfg.common_random_numbers);
+            f.validate(&path, p, &rules, &seed_of)?;
+            out.insert(p.index, f);
+        }
+        Ok(out)
+    }
+}
+
+/// A validated point file and where it was found.
+#[derive(Debug)]
+struct Found {
+    path: PathBuf,
+    /// Index of its directory in the list read.
+    dir: usize,
+    file: PointFile,
+}
+
+/// The point files of `dirs`, in that order of precedence; the same point in two
+/// directories is accepted only with the same results (timing aside).
+fn collect(sweep: &Sweep, dirs: &[&Path]) -> Result<BTreeMap<usize, Found>> {
+    let mut files: BTreeMap<usize, Found> = BTreeMap::new();
+    for (di, d) in dirs.iter().enumerate() {
+        for (i, file) in sweep.finished_points(d)? {
+            let path = d.join("points").join(point_file_name(i));
+            match files.entry(i) {
+                Entry::Vacant(v) => {
+                    v.insert(Found {
+                        path,
+                        dir: di,
+                        file,
+                    });
+                }
+                Entry::Occupied(o) => {
+                    if !o.get().file.same_results(&file, &sweep.config().metrics) {
+                        return Err(SweepError::Conflict {
+                            point: i,
+                            first: o.get().path.clone(),
+                            second: path,
+                        });
+                    }
+                }
+            }
+        }
+    }
+    Ok(files)
+}
+
+fn check_complete(sweep: &Sweep, files: &BTreeMap<usize, Found>) -> Result<()> {
+    let total = sweep.points().len();
+    if files.len() < total {
+        let first = sweep
+            .points()
+            .iter()
+            .map(|p| p.index)
+            .find(|i| !files.contains_key(i))
+            .unwrap_or(0);
+        return Err(SweepError::Incomplete {
+            missing: total - files.len(),
+            total,
+            first,
+        });
+    }
+    Ok(())
+}
+
+/// Writes `runs.csv` and `points.csv` into `out` from validated files covering every
+/// point: both to temporary names first, renamed only when both are written.
+fn write_outputs(sweep: &Sweep, files: &BTreeMap<usize, Found>, out: &Path) -> Result<usize> {
+    check_complete(sweep, files)?;
+    let metrics = &sweep.config().metrics;
+    let mut runs = runs_header(metrics);
+    runs.push('\n');
+    let mut points = points_header(metrics);
+    points.push('\n');
+    for f in files.values() {
+        for r in &f.file.run_rows {
+            runs.push_str(r);
+            runs.push('\n');
+        }
+        points.push_str(&f.file.point_row);
+        points.push('\n');
+    }
+    let (runs_path, points_path) = (out.join("runs.csv"), out.join("points.csv"));
+    let runs_tmp = write_temp(&runs_path, &runs)?;
+    let points_tmp = write_temp(&points_path, &points).inspect_err(|_| {
+        let _ = fs::remove_file(&runs_tmp);
+    })?;
+    commit(&runs_tmp, &runs_path).inspect_err(|_| {
+        let _ = fs::remove_file(&points_tmp);
+    })?;
+    commit(&points_tmp, &points_path)?;
+    Ok(files.len())
+}
+
+/// [`assemble`] for a caller that holds the lock of `out`.
+pub(super) fn assemble_locked(sweep: &Sweep, dirs: &[&Path], out: &Path) -> Result<usize> {
+    let files = collect(sweep, dirs)?;
+    write_outputs(sweep, &files, out)
+}
+
+/// Writes `runs.csv` and `points.csv` into `out` from the point files found in `dirs`
+/// (each a sweep output directory with a `points/` folder), after validating every file:
+/// every point must be present, and a point found in two directories must have the same
+/// results there (the first listed is used). Takes the lock of `out`. Returns the number
+/// of points.
+pub fn assemble(
+    sweep: &Sweep,
+    dirs: &[&Path],
+    out: &Path,
+    progress: &dyn Progress,
+) -> Result<usize> {
+    fs::create_dir_all(out).map_err(io_err("create the output directory", out))?;
+    let _lock = take_lock(out, None, progress)?;
+    assemble_locked(sweep, dirs, out)
+}
+
+/// Whether two paths name the same directory.
+fn same_dir(a: &Path, b: &Path) -> bool {
+    match (fs::canonicalize(a), fs::canonicalize(b)) {
+        (Ok(x), Ok(y)) => x == y,
+        _ => a == b,
+    }
+}
+
+/// Assembles a sweep from the point files of several (shard) output directories into
+/// `out` (its own `points/` gets a copy of every point file, so `out` is a complete
+/// sweep directory that a rerun recognises as finished).
+///
+/// Every directory listed must be a sweep output directory (with `points/`); the files
+/// already in `out` count as one more directory, read first. Every file is validated,
+/// two different copies of one point are a conflict naming both, and nothing is written
+/// before all points are present and valid. Takes the lock of `out`.
+pub fn merge_point_dirs(
+    sweep: &Sweep,
+    dirs: &[&Path],
+    out: &Path,
+    progress: &dyn Progress,
+) -> Result<usize> {
+    if let Some(d) = dirs.iter().find(|d| !d.join("points").is_dir()) {
+        return Err(SweepError::NotASweepDir {
+            path: d.to_path_buf(),
+        });
+    }
+    let pdir = out.join("points");
+    fs::create_dir_all(&pdir).map_err(io_err("create the output directory", &pdir))?;
+    let _lock = take_lock(out, None, progress)?;
+    let mut all = vec![out];
+    all.extend(dirs.iter().copied().filter(|d| !same_dir(d, out)));
+    let files = collect(sweep, &all)?;
+    check_complete(sweep, &files)?;
+    for (&i, f) in &files {
+        if f.dir != 0 {
+            f.file.write_atomic(&pdir.join(point_file_name(i)))?;
+        }
+    }
+    write_outputs(sweep, &files, out)
+}

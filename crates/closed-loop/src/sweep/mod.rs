@@ -1,0 +1,75 @@
+//! Monte-Carlo sweeps over the iteration budget K: where the closed loop of Alg. 1 really
+//! stays stable, next to where Theorem 1 certifies it.
+//!
+//! A sweep is a grid of *points* (K, solver Φ, disturbance scale); at every point it runs
+//! `seeds` closed-loop simulations of the case study ([`ResolvedScenario::build_loop`](crate::scenario::ResolvedScenario::build_loop)) with different
+//! disturbance realisations and records per run the norms of the estimation error and the
+//! state, ε_t (optional), the empirical gains, constraint violations and a bounded flag
+//! ([`RunMetrics`]). Per point it keeps quantiles of those over the runs and, from the
+//! certificate, the small-gain slopes (sg1)–(sg3) of Theorem 1 at that K
+//! ([`PointSummary`]).
+//!
+//! ## Determinism
+//! - The seed of run r at a point is [`run_seed`]`(base_seed, point, r)`: a SplitMix64 hash
+//!   of those values only. By default (`common_random_numbers = true`) the point does not
+//!   enter, so run r sees the same disturbance sequence at every K and solver (differences
+//!   along a curve come from K, not from the draw).
+//! - Runs are spread over a rayon pool of `threads` workers; each worker restarts a loop of
+//!   its own with [`ScenarioLoop::reseed`](crate::scenario::ScenarioLoop::reseed), which is equivalent to a fresh build. faer's
+//!   global parallelism is set to sequential (no nested pools inside a run).
+//! - Every output value is a function of the configuration and the scenario only, except
+//!   the timing columns, all named `wall_*`.
+//!
+//! ## Files (in the output directory)
+//! - `points/pNNNNN.csv`: one file per finished point (its run rows and its summary row),
+//!   written to a unique temporary name and renamed, so a file that exists is complete. A
+//!   rerun checks every point file in full and skips the points whose file exists (resume);
+//!   a killed sweep loses only the points in flight. A file that is cut, edited, copied
+//!   from another point or of another configuration is refused, naming it.
+//! - `runs.csv`, `points.csv`: assembled from the point files in point order
+//!   ([`assemble`]), replaced atomically once every point file is validated; shards
+//!   (`--shard I/N`) only write point files, and [`merge_point_dirs`] assembles them.
+//! - `.lock` (`.lock.shard-I-of-N` for a shard): the pid of the sweep writing the
+//!   directory; a second writer is refused, a stale lock of a killed sweep taken over.
+//!
+//! ## Layout
+//! | file | job |
+//! | --- | --- |
+//! | `config.rs` | [`SweepConfig`] (serde + key paths), its validation, the [`Point`] grid |
+//! | `seeds.rs` | [`run_seed`], [`Shard`] |
+//! | `metrics.rs` | [`RunMetrics`], the bounded rule, quantiles, [`PointSummary`] |
+//! | `theory.rs` | the certificate's columns per point ([`SolverTheory`], [`TheoryAtK`]) |
+//! | `format.rs` | CSV rows and headers, fingerprint, point files (writing, reading, validation), [`Table`] |
+//! | `run.rs` | [`Sweep`], the run loop, [`Progress`]: the only contact with the simulation |
+//! | `merge.rs` | resume reading, [`assemble`], [`merge_point_dirs`] |
+//! | `lock.rs` | one writer per output directory |
+//! | `error.rs` | [`SweepError`] |
+//!
+//! Column reference: `docs/sweeps.md`.
+
+mod config;
+mod error;
+mod format;
+mod lock;
+mod merge;
+mod metrics;
+mod run;
+mod seeds;
+mod theory;
+
+// The two types of `crate::sim` a sweep's data carries (Φ of a point, the controller),
+// imported once here; `run.rs` holds the rest of the coupling to the simulation.
+use crate::scenario::ControllerChoice;
+use qp_iter::Method;
+
+pub use config::{MAX_K, MAX_SEEDS, MAX_STEPS, Point, SweepConfig, log_spaced};
+pub use error::{Result, SweepError};
+pub use format::{PointFile, Table, point_file_name, points_header, runs_header};
+pub use merge::{assemble, merge_point_dirs};
+pub use metrics::{
+    DEFAULT_BOUNDED_FACTOR, Metric, PointSummary, QUANTILES, RunMetrics, quantile_sorted,
+    run_metrics, summarise,
+};
+pub use run::{NoProgress, Progress, RunOptions, Sweep, SweepReport, run_cost};
+pub use seeds::{Shard, run_seed, splitmix64};
+pub use theory::{SolverTheory, TheoryAtK, solver_theory};

@@ -1,0 +1,455 @@
+//! The run loop: a [`Sweep`] (the config, the scenario resolved once, the points, the
+//! theory) runs every run of every point on a rayon pool, writes each finished point file
+//! at once and assembles the outputs.
+//!
+//! This file (with the config parser for `solvers` and `controller`) is where the sweep
+//! meets the simulation of `crate::sim`: building the case-study loop of a point and
+//! running it per seed.
+
+use std::fs;
+use std::path::{Path, PathBuf};
+use std::sync::OnceLock;
+use std::time::Instant;
+
+use crate::scenario::{ResolvedScenario, Scenario};
+use rayon::prelude::*;
+
+use super::Method;
+use super::config::{Point, SweepConfig};
+use super::error::{Result, SweepError, config_err, io_err};
+use super::format::{self, PointFile, csv_text, point_file_name, point_row, run_row, temp_path};
+use super::lock::OutputLock;
+use super::merge::assemble_locked;
+use super::metrics::{RunMetrics, run_metrics, summarise};
+use super::seeds::{Shard, run_seed};
+use super::theory::{SolverTheory, TheoryAtK, solver_theory};
+use crate::scenario::{LoopOptions, ScenarioLoop};
+use crate::sim::ClosedLoopError;
+
+/// How to run a sweep.
+#[derive(Debug, Clone, PartialEq)]
+pub struct RunOptions {
+    /// Output directory (created if needed).
+    pub out_dir: PathBuf,
+    /// Worker threads ≥ 1 of the rayon pool.
+    pub threads: usize,
+    /// Run only this shard's points (and do not assemble).
+    pub shard: Option<Shard>,
+}
+
+/// Progress reports of a running sweep (the xtask draws a bar from them). All methods
+/// default to doing nothing.
+pub trait Progress: Sync {
+    /// Called once before any run: `points` to run (after skipping finished ones), their
+    /// `runs`, their total `cost` (T·(K + 50) per run, see [`run_cost`]) and how many
+    /// points were skipped because their file exists.
+    fn start(&self, points: usize, runs: u64, cost: u64, skipped: usize) {
+        let _ = (points, runs, cost, skipped);
+    }
+    /// Called after each run with its cost.
+    fn run_done(&self, cost: u64) {
+        let _ = cost;
+    }
+    /// Called after a point file was written.
+    fn point_done(&self, point: &Point) {
+        let _ = point;
+    }
+    /// Called with a line the user should see that is not an error (a stale lock of a
+    /// killed sweep taken over).
+    fn notice(&self, message: &str) {
+        let _ = message;
+    }
+}
+
+/// A [`Progress`] that reports nothing.
+#[derive(Debug, Clone, Copy, Default)]
+pub struct NoProgress;
+impl Progress for NoProgress {}
+
+/// Relative cost of one run for progress and ETA: T·(K + 50) (the 50 stands for the
+/// per-step work outside the K iterations, mainly the controller).
+pub fn run_cost(k: usize, steps: usize) -> u64 {
+    (steps as u64).saturating_mul(k as u64 + 50)
+}
+
+/// What a finished [`Sweep::run`] did.
+#[derive(Debug, Clone, PartialEq)]
+pub struct SweepReport {
+    /// Points computed now.
+    pub computed: usize,
+    /// Points skipped because their file existed (resume).
+    pub skipped: usize,
+    /// Closed-loop steps simulated now.
+    pub steps_simulated: u64,
+    /// Wall time of this call in seconds.
+    pub wall_s: f64,
+    /// Wall time of the runs alone (without the certificate and the file assembly).
+    pub runs_wall_s: f64,
+    /// Threads used.
+    pub threads: usize,
+    /// Whether `runs.csv` and `points.csv` were assembled (false for a shard).
+    pub assembled: bool,
+}
+
+impl SweepReport {
+    /// Closed-loop steps per second per thread of this call's runs.
+    pub fn steps_per_second_per_thread(&self) -> f64 {
+        if self.runs_wall_s > 0.0 {
+            self.steps_simulated as f64 / self.runs_wall_s / self.threads as f64
+        } else {
+            0.0
+        }
+    }
+}
+
+/// A worker thread's loop for the point it is running (built once per point and thread).
+struct WorkerLoop {
+    fingerprint: String,
+    point: usize,
+    lp: ScenarioLoop,
+}
+
+thread_local! {
+    /// The loop of the current worker thread; the sweep's pool threads end with the sweep,
+    /// and their loops with them.
+    static WORKER_LOOP: std::cell::RefCell<Option<WorkerLoop>> = const { std::cell::RefCell::new(None) };
+}
+
+/// A sweep ready to run: the config, the scenario (with P of LMI (2) computed once), the
+/// points and the theoretical side.
+#[derive(Debug)]
+pub struct Sweep {
+    config: SweepConfig,
+    resolved: ResolvedScenario,
+    steps: usize,
+    base_seed: u64,
+    points: Vec<Point>,
+    fingerprint: String,
+    theory: OnceLock<Vec<(Method, SolverTheory)>>,
+}
+
+impl Sweep {
+    /// Loads the scenario, computes P of LMI (2) once (when the scenario does not give
+    /// it) and checks that a loop can be built for every solver.
+    pub fn new(config: SweepConfig) -> Result<Self> {
+        let path = config.scenario.clone();
+        let text = fs::read_to_string(&path).map_err(io_err("read the scenario", &path))?;
+        let original = Scenario::from_toml_str(&text).map_err(|source| SweepError::Scenario {
+            path: path.clone(),
+            source,
+        })?;
+        if original.mhe.is_none() {
+            return Err(config_err(
+                "scenario",
+                format!(
+                    "`{}` has no [mhe] section; a sweep needs one",
+                    path.display()
+                ),
+            ));
+        }
+        // P of LMI (2), the MHE configuration and the MPC: resolved once for every point.
+        let resolved = original.resolve().map_err(|source| SweepError::Setup {
+            point: "(scenario)".into(),
+            source,
+        })?;
+        if let Some(Err(source)) = resolved.ioss() {
+            if resolved
+                .scenario()
+                .mhe
+                .as_ref()
+                .is_some_and(|m| m.p.is_none())
+            {
+                return Err(SweepError::Scenario {
+                    path: path.clone(),
+                    source: source.clone(),
+                });
+            }
+        }
+        let scenario = resolved.scenario();
+        let steps = config.steps.unwrap_or(scenario.simulation.steps);
+        let base_seed = config.base_seed.unwrap_or(scenario.noise.seed);
+        let points = config.points_with(scenario.noise.scale);
+        let scales: Vec<f64> = config
+            .scales
+            .clone()
+            .unwrap_or_else(|| vec![scenario.noise.scale]);
+        let fingerprint = format::fingerprint(&config.canonical(steps, base_seed, &scales), &text);
+        let sweep = Self {
+            config,
+            resolved,
+            steps,
+            base_seed,
+            points,
+            fingerprint,
+            theory: OnceLock::new(),
+        };
+        // Fail early (before any output) if a point cannot be set up.
+        for &solver in &sweep.config.solvers {
+            if let Some(p) = sweep.points.iter().find(|p| p.solver == solver) {
+                sweep.build(p)?;
+            }
+        }
+        Ok(sweep)
+    }
+
+    /// The configuration.
+    pub fn config(&self) -> &SweepConfig {
+        &self.config
+    }
+    /// The scenario as read.
+    pub fn scenario(&self) -> &Scenario {
+        self.resolved.scenario()
+    }
+    /// The scenario resolved once (P of LMI (2), the MHE configuration, the MPC).
+    pub fn resolved(&self) -> &ResolvedScenario {
+        &self.resolved
+    }
+    /// Every point of the sweep, in output order.
+    pub fn points(&self) -> &[Point] {
+        &self.points
+    }
+    /// Horizon T of every run.
+    pub fn steps(&self) -> usize {
+        self.steps
+    }
+    /// Base seed of the run seeds.
+    pub fn base_seed(&self) -> u64 {
+        self.base_seed
+    }
+    /// Hash of the config's result-relevant settings and the scenario text; stored in
+    /// every point file.
+    pub fn fingerprint(&self) -> &str {
+        &self.fingerprint
+    }
+    /// The theoretical side per solver (computed on first use: the certificate takes a
+    /// moment and a resumed or merged sweep may not need it).
+    pub fn theory(&self) -> &[(Method, SolverTheory)] {
+        self.theory.get_or_init(|| {
+            if self.config.certificate {
+                solver_theory(&self.resolved, &self.config.solvers, self.config.controller)
+            } else {
+                let reason = "not computed (certificate = false in the sweep config)";
+                self.config
+                    .solvers
+                    .iter()
+                    .map(|&s| (s, SolverTheory::Unavailable(reason.into())))
+                    .collect()
+            }
+        })
+    }
+    /// The certificate's columns for a point.
+    pub fn theory_at(&self, p: &Point) -> TheoryAtK {
+        self.theory()
+            .iter()
+            .find(|(s, _)| *s == p.solver)
+            .map(|(_, t)| t.at(p.k))
+            .unwrap_or_else(|| {
+                SolverTheory::Unavailable("no analysis for this solver".into()).at(p.k)
+            })
+    }
+
+    fn build(&self, p: &Point) -> Result<ScenarioLoop> {
+        let mut resolved = self.resolved.clone();
+        resolved.set_noise_scale(p.scale);
+        let opts = LoopOptions {
+            method: p.solver,
+            iterations: p.k,
+            exact_mhe_solve: self.config.exact_mhe_solve,
+            controller: self.config.controller,
+            seed: 0,
+            steps: self.steps,
+        };
+        resolved
+            .build_loop(&opts)
+            .map_err(|source| SweepError::Setup {
+                point: p.to_string(),
+                source,
+            })
+    }
+
+    /// Runs every run of one point on the current rayon pool, one task per run. Each
+    /// worker thread builds the point's loop once and restarts it per run with
+    /// [`ScenarioLoop::reseed`] (equivalent to a fresh build, allocation-free), so the
+    /// runs balance across threads at the granularity of one run. The result is in run
+    /// order.
+    pub fn run_point(&self, p: &Point, progress: &dyn Progress) -> Result<Vec<RunMetrics>> {
+        let input = (
+            self.scenario().sets.input.lower(),
+            self.scenario().sets.input.upper(),
+        );
+        let cost = run_cost(p.k, self.steps);
+        let setup = |source| SweepError::Setup {
+            point: p.to_string(),
+            source,
+        };
+        (0..self.config.seeds)
+            .into_par_iter()
+            .with_max_len(1)
+            .map(|r| {
+                let seed = run_seed(self.base_seed, p, r, self.config.common_random_numbers);
+                let m = WORKER_LOOP.with(|cell| {
+                    let mut slot = cell.borrow_mut();
+                    let mine =
+                        |w: &WorkerLoop| w.fingerprint == self.fingerprint && w.point == p.index;
+                    let mut w = match slot.take() {
+                        Some(w) if mine(&w) => w,
+                        stale => {
+                            drop(stale); // free the previous point's loop first
+                            WorkerLoop {
+                                fingerprint: self.fingerprint.clone(),
+                                point: p.index,
+                                lp: self.build(p)?,
+                            }
+                        }
+                    };
+                    let res = simulate(&mut w.lp, r, seed, input, self.config.bounded_factor)
+                        .map_err(setup);
+                    *slot = Some(w);
+                    res
+                });
+                progress.run_done(cost);
+                m
+            })
+            .collect()
+    }
+
+    /// The point file of a computed point.
+    pub fn point_file(&self, p: &Point, runs: &[RunMetrics]) -> PointFile {
+        let metrics = &self.config.metrics;
+        let summary = summarise(runs, metrics, self.theory_at(p));
+        PointFile {
+            fingerprint: self.fingerprint.clone(),
+            run_rows: runs.iter().map(|r| run_row(p, r, metrics)).collect(),
+            point_row: point_row(p, &summary),
+        }
+    }
+
+    /// Runs the sweep (or a shard of it) into `opts.out_dir`: takes the directory's lock
+    /// (see `lock.rs`: one writer per directory, or per shard), checks every point file
+    /// already there in full, skips those points, writes each finished point file at once,
+    /// and (unsharded) assembles `runs.csv` and `points.csv`.
+    pub fn run(&self, opts: &RunOptions, progress: &dyn Progress) -> Result<SweepReport> {
+        let started = Instant::now();
+        if opts.threads == 0 {
+            return Err(SweepError::Threads("--threads must be ≥ 1".into()));
+        }
+        let pdir = opts.out_dir.join("points");
+        fs::create_dir_all(&pdir).map_err(io_err("create the output directory", &pdir))?;
+        let lock = take_lock(&opts.out_dir, opts.shard, progress)?;
+        if opts.shard.is_none() {
+            lock.remove_dead_temps(&[opts.out_dir.as_path(), pdir.as_path()]);
+        }
+        // Probe writability before spending any compute.
+        let probe = temp_path(&pdir.join(".write-probe"));
+        fs::write(&probe, b"probe").map_err(io_err("write into the output directory", &pdir))?;
+        let _ = fs::remove_file(&probe);
+        let done = self.finished_points(&opts.out_dir)?;
+        let todo: Vec<&Point> = self
+            .points
+            .iter()
+            .filter(|p| opts.shard.is_none_or(|s| s.owns(p.index)))
+            .filter(|p| !done.contains_key(&p.index))
+            .collect();
+        let skipped = self
+            .points
+            .iter()
+            .filter(|p| opts.shard.is_none_or(|s| s.owns(p.index)))
+            .count()
+            - todo.len();
+        drop(done);
+        if !todo.is_empty() {
+            // The certificate (seconds) before the progress report and the clock of the
+            // runs start.
+            let _ = self.theory();
+        }
+        let seeds = self.config.seeds as u64;
+        progress.start(
+            todo.len(),
+            todo.len() as u64 * seeds,
+            todo.iter().map(|p| run_cost(p.k, self.steps) * seeds).sum(),
+            skipped,
+        );
+        // No nested parallelism inside a run.
+        faer::set_global_parallelism(faer::Par::Seq);
+        let pool = rayon::ThreadPoolBuilder::new()
+            .num_threads(opts.threads)
+            .thread_name(|i| format!("sweep-{i}"))
+            .build()
+            .map_err(|e| SweepError::Threads(e.to_string()))?;
+        let runs_clock = Instant::now();
+        let mut steps_done = 0u64;
+        let mut computed = 0;
+        for p in todo {
+            let runs = pool.install(|| self.run_point(p, progress))?;
+            steps_done += runs.iter().map(|r| r.steps as u64).sum::<u64>();
+            let file = self.point_file(p, &runs);
+            file.write_atomic(&pdir.join(point_file_name(p.index)))?;
+            progress.point_done(p);
+            computed += 1;
+        }
+        let runs_wall_s = runs_clock.elapsed().as_secs_f64();
+        let assembled = opts.shard.is_none();
+        if assembled {
+            assemble_locked(self, &[opts.out_dir.as_path()], &opts.out_dir)?;
+        }
+        drop(lock);
+        Ok(SweepReport {
+            computed,
+            skipped,
+            steps_simulated: steps_done,
+            wall_s: started.elapsed().as_secs_f64(),
+            runs_wall_s,
+            threads: opts.threads,
+            assembled,
+        })
+    }
+}
+
+/// Takes the lock of `dir` (the whole directory, or one shard) and reports a stale lock
+/// of a killed sweep that was taken over.
+pub(super) fn take_lock(
+    dir: &Path,
+    shard: Option<Shard>,
+    progress: &dyn Progress,
+) -> Result<OutputLock> {
+    let (lock, stale) = OutputLock::acquire(dir, shard)?;
+    if let Some(h) = stale {
+        progress.notice(&format!(
+            "took over the stale lock of `{}` ({}, no longer running: a sweep there was killed)",
+            dir.display(),
+            h.describe()
+        ));
+    }
+    Ok(lock)
+}
+
+/// Runs `lp` once with `seed` (restarting it first) and returns its metrics.
+fn simulate(
+    lp: &mut ScenarioLoop,
+    run: usize,
+    seed: u64,
+    input_box: (&[f64], &[f64]),
+    bounded_factor: f64,
+) -> std::result::Result<RunMetrics, ClosedLoopError> {
+    let start = Instant::now();
+    lp.reseed(seed)?;
+    let stop = lp.run().err();
+    let wall_ms = start.elapsed().as_secs_f64() * 1e3;
+    let trace = lp.trace();
+    let (values, bounded) = run_metrics(
+        trace,
+        lp.initial_state(),
+        input_box,
+        bounded_factor,
+        stop.as_ref(),
+    );
+    Ok(RunMetrics {
+        run,
+        seed,
+        steps: trace.len(),
+        values,
+        bounded,
+        error: stop.map(|e| csv_text(&e.to_string())).unwrap_or_default(),
+        wall_ms,
+    })
+}

@@ -1,0 +1,142 @@
+//! The certificate's side of a sweep point: Theorem 1 per solver (from the closed-loop
+//! certificate of the scenario), evaluated at each K as the theoretical columns of
+//! `points.csv` (φ(K), the slopes of (sg1)–(sg3), the margin, certified, K_min).
+
+use crate::scenario::ResolvedScenario;
+
+use super::format::csv_text;
+use super::{ControllerChoice, Method};
+use crate::analysis::IssAnalysis;
+use crate::certificate::{CertificateOptions, certify_closed_loop};
+
+/// The certificate's side of a point: Theorem 1 for one solver.
+#[derive(Debug, Clone)]
+pub enum SolverTheory {
+    /// An analysis (void when a premise fails: then `void_reasons` says which).
+    Analysis {
+        /// Theorem 1's constants for this solver.
+        analysis: Box<IssAnalysis>,
+        /// Smallest certified K (None when void or beyond the search range).
+        k_min: Option<usize>,
+        /// Why the certificate is void, whatever K (empty when the premises hold).
+        void_reasons: Vec<String>,
+    },
+    /// No analysis available (the reason is written in the `void_reason` column).
+    Unavailable(String),
+}
+
+impl SolverTheory {
+    /// The theoretical columns at K: slopes of (sg1)–(sg3), the margin 1 − max slope,
+    /// `certified` = `"yes"`, `"no"` or `"void"` (a premise of Theorem 1 fails, whatever
+    /// K), K_min and the reason of a void certificate.
+    pub fn at(&self, k: usize) -> TheoryAtK {
+        match self {
+            SolverTheory::Analysis {
+                analysis,
+                k_min,
+                void_reasons,
+            } => {
+                let g = analysis.at(k);
+                let mut reasons = void_reasons.clone();
+                if reasons.is_empty() {
+                    reasons = analysis
+                        .violated()
+                        .iter()
+                        .map(|p| format!("{} fails (value {:.4})", p.name, p.value))
+                        .collect();
+                }
+                // Props. 1 and 3 divide by 1 − φ(K): for φ(K) ≥ 1 the gains, slopes and
+                // margin are undefined (written empty), not large.
+                let defined = g.phi < 1.0 && g.phi.is_finite();
+                TheoryAtK {
+                    phi: Some(g.phi),
+                    slopes: defined.then_some([g.sg1, g.sg2, g.sg3]),
+                    margin: defined.then_some(g.margin),
+                    certified: if !reasons.is_empty() {
+                        "void"
+                    } else if g.certified {
+                        "yes"
+                    } else {
+                        "no"
+                    },
+                    k_min: *k_min,
+                    void_reason: csv_text(&reasons.join("; ")),
+                }
+            }
+            SolverTheory::Unavailable(reason) => TheoryAtK {
+                phi: None,
+                slopes: None,
+                margin: None,
+                certified: "void",
+                k_min: None,
+                void_reason: csv_text(reason),
+            },
+        }
+    }
+}
+
+/// The theoretical columns of a point.
+#[derive(Debug, Clone, PartialEq)]
+pub struct TheoryAtK {
+    /// φ(K) of Assumption 5 (the solver's certified contraction after K iterations).
+    pub phi: Option<f64>,
+    /// Slopes of (sg1), (sg2), (sg3) at K (None where φ(K) ≥ 1: undefined).
+    pub slopes: Option<[f64; 3]>,
+    /// Certified ISS margin 1 − max slope.
+    pub margin: Option<f64>,
+    /// `"yes"`, `"no"` or `"void"`.
+    pub certified: &'static str,
+    /// Smallest certified K of this solver.
+    pub k_min: Option<usize>,
+    /// Why the certificate is void (empty otherwise).
+    pub void_reason: String,
+}
+
+/// Theorem 1 for each solver of the sweep, from the closed-loop certificate of the
+/// scenario ([`certify_closed_loop`]; its sampled γ₁,₃ estimate is skipped, the
+/// certified value is what enters the slopes).
+///
+/// The certificate covers the exact MPC (its L_π and γ₁,₃); for any other controller the
+/// columns are void with that reason. A certificate that cannot be computed makes the
+/// columns void with the error as the reason (the empirical side is still useful).
+pub fn solver_theory(
+    resolved: &ResolvedScenario,
+    solvers: &[Method],
+    controller: ControllerChoice,
+) -> Vec<(Method, SolverTheory)> {
+    let unavailable = |reason: String| {
+        solvers
+            .iter()
+            .map(|&s| (s, SolverTheory::Unavailable(reason.clone())))
+            .collect()
+    };
+    if controller != ControllerChoice::ExactMpc {
+        return unavailable(format!(
+            "the certificate is for the exact MPC (its L_π and γ₁,₃); this sweep runs {controller:?}"
+        ));
+    }
+    let opts = CertificateOptions {
+        solvers: solvers.to_vec(),
+        gamma13_sequences: 0,
+        ..CertificateOptions::default()
+    };
+    match certify_closed_loop(resolved, &opts) {
+        Err(e) => unavailable(format!("no certificate: {e}")),
+        Ok(cert) => solvers
+            .iter()
+            .map(|&s| {
+                let theory = match cert.solver(s) {
+                    Some(sc) => SolverTheory::Analysis {
+                        analysis: Box::new(sc.analysis.clone()),
+                        k_min: sc.k_min,
+                        void_reasons: sc.void_reasons.clone(),
+                    },
+                    None => {
+                        SolverTheory::Unavailable(format!("the certificate has no entry for {s}"))
+                    }
+                };
+                (s, theory)
+            })
+            .collect(),
+    }
+}

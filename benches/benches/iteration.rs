@@ -205,18 +205,6 @@ fn interleaved_n30(_c: &mut Criterion) {
     }
     {
         let (hp, q, lo, hi) = (hp.clone(), qa.clone(), loa.clone(), hia.clone());
-        let (mut z, mut scratch) = (AlignedVec::zeros(ld), AlignedVec::zeros(ld));
-        variants.push((
-            "fused_kernel/pg_pulp",
-            Box::new(move || {
-                for _ in 0..BATCH {
-                    k.pg_step_padded_pulp(&hp, &mut z, &q, alpha_pg, &lo, &hi, &mut scratch);
-                }
-            }),
-        ));
-    }
-    {
-        let (hp, q, lo, hi) = (hp.clone(), qa.clone(), loa.clone(), hia.clone());
         let [mut y, mut z, mut scratch] = [(); 3].map(|_| AlignedVec::zeros(ld));
         variants.push((
             "fused_kernel/fista",
@@ -258,42 +246,6 @@ fn interleaved_n30(_c: &mut Criterion) {
                 }
             }),
         ));
-    }
-    // TEMPORARY pulp experiment at other sizes.
-    for (nn, names) in [
-        (10usize, ["x/pg10", "x/pulp10"]),
-        (49, ["x/pg49", "x/pulp49"]),
-        (100, ["x/pg100", "x/pulp100"]),
-    ] {
-        let inst = instance(nn);
-        let hp = PaddedSymmetric::from_row_major(inst.qp.h_row_major(), nn)
-            .unwrap_or_else(|| panic!("H"));
-        let ld = hp.ld();
-        let mut q = vec![0.0; nn];
-        inst.qp.linear_term(&inst.theta, &mut q);
-        let (q, lo, hi) = (
-            AlignedVec::padded(&q),
-            AlignedVec::padded(inst.qp.zset().lower()),
-            AlignedVec::padded(inst.qp.zset().upper()),
-        );
-        let a = 2.0 / (inst.qp.l() + inst.qp.mu());
-        for (i, name) in names.into_iter().enumerate() {
-            let (hp, q, lo, hi) = (hp.clone(), q.clone(), lo.clone(), hi.clone());
-            let (mut z, mut scratch) = (AlignedVec::zeros(ld), AlignedVec::zeros(ld));
-            let reps = BATCH * 30 / nn;
-            variants.push((
-                name,
-                Box::new(move || {
-                    for _ in 0..reps {
-                        if i == 0 {
-                            k.pg_step_padded(&hp, &mut z, &q, a, &lo, &hi, &mut scratch);
-                        } else {
-                            k.pg_step_padded_pulp(&hp, &mut z, &q, a, &lo, &hi, &mut scratch);
-                        }
-                    }
-                }),
-            ));
-        }
     }
     let mut times = vec![Vec::with_capacity(ROUNDS); variants.len()];
     std::hint::black_box(&pads);

@@ -36,8 +36,6 @@ mod portable;
 
 #[cfg(target_arch = "x86_64")]
 mod avx2;
-#[cfg(target_arch = "x86_64")]
-mod pulp_pg;
 
 #[cfg(test)]
 mod tests;
@@ -104,9 +102,6 @@ pub struct Kernel {
 }
 
 static DETECTED: OnceLock<Kernel> = OnceLock::new();
-
-#[cfg(target_arch = "x86_64")]
-static V3_TOKEN: OnceLock<Option<pulp::x86::V3>> = OnceLock::new();
 
 impl Kernel {
     /// The fastest path the running CPU supports (detected on first use, then cached).
@@ -245,50 +240,6 @@ impl Kernel {
             },
             |z, out, ()| portable::pg_step(hs, n, ld, z, q, alpha, lower, upper, out),
         );
-    }
-
-    /// Experiment: [`Kernel::pg_step_padded`] written once over `pulp::Simd`, run with
-    /// pulp's x86-64-v3 token (AVX2 + FMA); falls back to `pg_step_padded`.
-    #[doc(hidden)]
-    #[inline]
-    pub fn pg_step_padded_pulp(
-        self,
-        h: &PaddedSymmetric,
-        z: &mut [f64],
-        q: &[f64],
-        alpha: f64,
-        lower: &[f64],
-        upper: &[f64],
-        scratch: &mut [f64],
-    ) {
-        #[cfg(target_arch = "x86_64")]
-        if let (KernelPath::Avx2Fma, Some(v3)) =
-            (self.path, *V3_TOKEN.get_or_init(pulp::x86::V3::try_new))
-        {
-            use pulp::Simd;
-            check_lens(
-                "pg_step_padded",
-                h.ld(),
-                [z.len(), q.len(), lower.len(), upper.len(), scratch.len()],
-            );
-            if h.n() == 0 {
-                return;
-            }
-            Simd::vectorize(
-                v3,
-                pulp_pg::PgStep {
-                    h,
-                    z,
-                    q,
-                    lo: lower,
-                    hi: upper,
-                    alpha,
-                    scratch,
-                },
-            );
-            return;
-        }
-        self.pg_step_padded(h, z, q, alpha, lower, upper, scratch)
     }
 
     /// One step of constant-momentum FISTA ([`crate::fista`]), fused and in place as

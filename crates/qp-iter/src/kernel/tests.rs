@@ -303,25 +303,3 @@ fn padded_product_rounds_like_a_column_order_sum() {
         }
     }
 }
-
-#[test]
-fn pulp_pg_matches_avx2_pg_bit_for_bit() {
-    let mut rng = ChaCha8Rng::seed_from_u64(12);
-    let k = Kernel::detect();
-    for n in (1..=70).chain([95, 128, 131]) {
-        let h = random_vec(&mut rng, n * n);
-        let hp = PaddedSymmetric::from_row_major(&h, n).unwrap();
-        let (x, q) = (random_vec(&mut rng, n), random_vec(&mut rng, n));
-        let (lower, upper) = random_box(&mut rng, n);
-        let (lo, hi, q) = (pad(&lower), pad(&upper), pad(&q));
-        let mut scratch = AlignedVec::zeros(hp.ld());
-        let (mut a, mut b) = (pad(&x), pad(&x));
-        k.pg_step_padded(&hp, &mut a, &q, 0.3, &lo, &hi, &mut scratch);
-        k.pg_step_padded_pulp(&hp, &mut b, &q, 0.3, &lo, &hi, &mut scratch);
-        assert_eq!(&a[..], &b[..], "n = {n}");
-        let mut c = AlignedVec::zeros(hp.ld());
-        c[n - 1] = f64::NAN;
-        k.pg_step_padded_pulp(&hp, &mut c, &q, 0.3, &lo, &hi, &mut scratch);
-        assert!(c[..n].iter().all(|v| v.is_nan()), "n = {n}");
-    }
-}

@@ -4,12 +4,12 @@
 //!
 //! Groups (criterion ids `group/function[/parameter]`):
 //! - `n30`: one step of PG, FISTA, ADMM at n = 30; the reference kernels `ref_*`
-//!   (compile-time 30 × 30, AVX2 + FMA by run-time detection); our `matvec` (general H),
-//!   `matvec_symmetric` and their portable paths; faer `matmul` (Par::Seq, preallocated);
-//!   the padded FISTA and ADMM kernels (`Kernel::*_padded`) the steps run. Before these,
-//!   [`interleaved_n30`] times the steps (also ADMM with α = 2), the padded kernels and
-//!   the unpadded ones (`Kernel::projected_gradient_step` etc.) round by round.
-//! - `grid`: one step of each method and one `matvec_symmetric` for n = 10 … 400.
+//!   (compile-time 30 × 30, AVX2 + FMA by run-time detection); our product
+//!   `Kernel::matvec_padded` and its portable path; faer `matmul` (Par::Seq,
+//!   preallocated); the padded FISTA and ADMM kernels (`Kernel::*_padded`) the steps run.
+//!   Before these, [`interleaved_n30`] times the steps (also ADMM with α = 2) and the
+//!   padded kernels round by round.
+//! - `grid`: one step of each method and one `matvec_padded` for n = 10 … 400.
 //! - `accuracy`: load θ + cold start + K steps, K the smallest count with
 //!   ‖z − z*‖ ≤ 1e-6‖z⁰ − z*‖ (z* from the polished Clarabel reference), and Clarabel's
 //!   full interior-point solve for the same θ, for n = 10 … 400 and 30.
@@ -30,7 +30,7 @@ use faer::linalg::matmul::matmul;
 use faer::{Accum, Col, Mat, Par};
 use qp_iter::admm::{Admm, AdmmParams};
 use qp_iter::fista::Fista;
-use qp_iter::kernel::{AlignedVec, Kernel, PaddedSymmetric, matvec, matvec_symmetric};
+use qp_iter::kernel::{AlignedVec, Kernel, PaddedSymmetric};
 use qp_iter::pg::{ProjectedGradient, StepRule};
 use qp_iter::reference::{ReferenceSettings, ReferenceSolver};
 use qp_iter::{IterationMap, RunStatus, run_fixed, run_until};
@@ -111,10 +111,16 @@ fn interleaved_n30(_c: &mut Criterion) {
     inst.qp.linear_term(&inst.theta, &mut q);
     let (rho, relax) = (admm.rho(), admm.relaxation());
     let m_rho = admm_map(&inst, rho);
-    let mut mq = vec![0.0; N];
-    matvec_symmetric(&m_rho, N, &q, &mut mq);
-    mq.iter_mut().for_each(|v| *v /= rho);
     let (alpha, beta) = (fista.step_size(), fista.momentum());
+    let (hp, mp) = (
+        PaddedSymmetric::from_row_major(&h, N).unwrap_or_else(|| panic!("30×30 H")),
+        PaddedSymmetric::from_row_major(&m_rho, N).unwrap_or_else(|| panic!("30×30 M")),
+    );
+    let ld = hp.ld();
+    // m_q = (H + ρI)⁻¹q = ρ(H + ρI)⁻¹q / ρ.
+    let mut mqa = AlignedVec::zeros(ld);
+    k.matvec_padded(&mp, &q, &mut mqa);
+    mqa.iter_mut().for_each(|v| *v /= rho);
 
     let mut variants: Vec<(&'static str, Batch)> = Vec::new();
     {
@@ -130,24 +136,12 @@ fn interleaved_n30(_c: &mut Criterion) {
         ));
     }
     {
-        let (h, xs, mut y) = (h.clone(), xs.clone(), vec![0.0; N]);
+        let (hp, xs, mut y) = (hp.clone(), AlignedVec::padded(&xs), AlignedVec::zeros(ld));
         variants.push((
-            "matvec_symmetric",
+            "matvec_padded",
             Box::new(move || {
                 for _ in 0..BATCH {
-                    matvec_symmetric(&h, N, black_box(&xs), &mut y);
-                    black_box(&mut y);
-                }
-            }),
-        ));
-    }
-    {
-        let (h, xs, mut y) = (h.clone(), xs.clone(), vec![0.0; N]);
-        variants.push((
-            "matvec",
-            Box::new(move || {
-                for _ in 0..BATCH {
-                    matvec(&h, N, black_box(&xs), &mut y);
+                    k.matvec_padded(&hp, black_box(&xs), &mut y);
                     black_box(&mut y);
                 }
             }),
@@ -190,16 +184,10 @@ fn interleaved_n30(_c: &mut Criterion) {
     variants.push(("step/admm_pr", stepper(admm_pr, &inst.theta)));
 
     // The kernels the steps run (padded layout, 64-byte aligned, separately allocated
-    // vectors, updated in place), and the unpadded kernels of the same steps on `Vec`s.
+    // vectors, updated in place).
     let alpha_pg = 2.0 / (inst.qp.l() + inst.qp.mu());
-    let (hp, mp) = (
-        PaddedSymmetric::from_row_major(&h, N).unwrap_or_else(|| panic!("30×30 H")),
-        PaddedSymmetric::from_row_major(&m_rho, N).unwrap_or_else(|| panic!("30×30 M")),
-    );
-    let ld = hp.ld();
-    let (qa, mqa, loa, hia) = (
+    let (qa, loa, hia) = (
         AlignedVec::padded(&q),
-        AlignedVec::padded(&mq),
         AlignedVec::padded(&lo),
         AlignedVec::padded(&hi),
     );
@@ -259,59 +247,6 @@ fn interleaved_n30(_c: &mut Criterion) {
             }),
         ));
     }
-    {
-        let (h, q, lo, hi) = (h.clone(), q.clone(), lo.clone(), hi.clone());
-        let (mut z, mut next) = (vec![0.0; N], vec![0.0; N]);
-        variants.push((
-            "unpadded_kernel/pg",
-            Box::new(move || {
-                for _ in 0..BATCH {
-                    k.projected_gradient_step(&h, N, &z, &q, alpha_pg, &lo, &hi, &mut next);
-                    std::mem::swap(&mut z, &mut next);
-                }
-            }),
-        ));
-    }
-    {
-        let (h, q, lo, hi) = (h.clone(), q.clone(), lo.clone(), hi.clone());
-        let (mut y, mut y_next, mut z) = (vec![0.0; N], vec![0.0; N], vec![0.0; N]);
-        variants.push((
-            "unpadded_kernel/fista",
-            Box::new(move || {
-                for _ in 0..BATCH {
-                    k.fista_step(&h, N, &y, &q, alpha, &lo, &hi, beta, &mut z, &mut y_next);
-                    std::mem::swap(&mut y, &mut y_next);
-                }
-            }),
-        ));
-    }
-    {
-        let (mut t, mut t_next) = (vec![0.0; N], vec![0.0; N]);
-        let (mut z, mut v, mut dual) = (vec![0.0; N], vec![0.0; N], vec![0.0; N]);
-        variants.push((
-            "unpadded_kernel/admm",
-            Box::new(move || {
-                for _ in 0..BATCH {
-                    k.admm_step(
-                        &m_rho,
-                        N,
-                        &t,
-                        &mq,
-                        relax,
-                        rho,
-                        &lo,
-                        &hi,
-                        &mut z,
-                        &mut v,
-                        &mut dual,
-                        &mut t_next,
-                    );
-                    std::mem::swap(&mut t, &mut t_next);
-                }
-            }),
-        ));
-    }
-
     let mut times = vec![Vec::with_capacity(ROUNDS); variants.len()];
     std::hint::black_box(&pads);
     for _ in 0..ROUNDS {
@@ -391,42 +326,32 @@ fn per_iteration_n30(c: &mut Criterion) {
                 std::mem::swap(&mut xa, &mut xb);
             })
         });
-        let (mut xa, mut xb) = (xs.clone(), vec![0.0; N]);
-        g.bench_function("matvec_symmetric_chained", |b| {
+        let hs = PaddedSymmetric::from_row_major(&h_scaled, N).unwrap_or_else(|| panic!("30×30 H"));
+        let (mut xa, mut xb) = (AlignedVec::padded(&xs), AlignedVec::zeros(hs.ld()));
+        let k = Kernel::detect();
+        g.bench_function("matvec_padded_chained", |b| {
             b.iter(|| {
-                matvec_symmetric(&h_scaled, N, &xa, &mut xb);
+                k.matvec_padded(&hs, &xa, &mut xb);
                 std::mem::swap(&mut xa, &mut xb);
             })
         });
     }
 
-    // Our kernels (run-time dispatch) and their portable paths, same call pattern.
-    let mut ys = vec![0.0; N];
-    g.bench_function("matvec_symmetric", |b| {
-        b.iter(|| {
-            matvec_symmetric(h, N, black_box(&xs), &mut ys);
-            black_box(&mut ys);
-        })
-    });
-    g.bench_function("matvec", |b| {
-        b.iter(|| {
-            matvec(h, N, black_box(&xs), &mut ys);
-            black_box(&mut ys);
-        })
-    });
-    let portable = Kernel::portable();
-    g.bench_function("matvec_symmetric_portable", |b| {
-        b.iter(|| {
-            portable.matvec_symmetric(h, N, black_box(&xs), &mut ys);
-            black_box(&mut ys);
-        })
-    });
-    g.bench_function("matvec_portable", |b| {
-        b.iter(|| {
-            portable.matvec(h, N, black_box(&xs), &mut ys);
-            black_box(&mut ys);
-        })
-    });
+    // Our product (run-time dispatch) and its portable path, same call pattern.
+    let hp = PaddedSymmetric::from_row_major(h, N).unwrap_or_else(|| panic!("30×30 H"));
+    let ld = hp.ld();
+    let (xp, mut ys) = (AlignedVec::padded(&xs), AlignedVec::zeros(ld));
+    for (name, k) in [
+        ("matvec_padded", Kernel::detect()),
+        ("matvec_padded_portable", Kernel::portable()),
+    ] {
+        g.bench_function(name, |b| {
+            b.iter(|| {
+                k.matvec_padded(&hp, black_box(&xp), &mut ys);
+                black_box(&mut ys);
+            })
+        });
+    }
 
     // faer matmul into a preallocated column, sequential.
     let hm = Mat::from_fn(N, N, |i, j| h[i * N + j]);
@@ -463,8 +388,6 @@ fn per_iteration_n30(c: &mut Criterion) {
     let mut q = vec![0.0; N];
     inst.qp.linear_term(&inst.theta, &mut q);
     let (alpha, beta) = (fista.step_size(), fista.momentum());
-    let hp = PaddedSymmetric::from_row_major(h, N).unwrap_or_else(|| panic!("30×30 H"));
-    let ld = hp.ld();
     let (qa, lo, hi) = (
         AlignedVec::padded(&q),
         AlignedVec::padded(inst.qp.zset().lower()),
@@ -488,15 +411,11 @@ fn per_iteration_n30(c: &mut Criterion) {
     });
     let (rho, relax) = (admm.rho(), admm.relaxation());
     let m_rho = admm_map(&inst, rho);
-    let mq: Vec<f64> = {
-        let mut mq = vec![0.0; N];
-        matvec_symmetric(&m_rho, N, &q, &mut mq);
-        mq.iter().map(|v| v / rho).collect()
-    };
-    let (mp, mqa) = (
-        PaddedSymmetric::from_row_major(&m_rho, N).unwrap_or_else(|| panic!("30×30 M")),
-        AlignedVec::padded(&mq),
-    );
+    let mp = PaddedSymmetric::from_row_major(&m_rho, N).unwrap_or_else(|| panic!("30×30 M"));
+    // m_q = (H + ρI)⁻¹q = ρ(H + ρI)⁻¹q / ρ.
+    let mut mqa = AlignedVec::zeros(ld);
+    k.matvec_padded(&mp, &qa, &mut mqa);
+    mqa.iter_mut().for_each(|v| *v /= rho);
     let [mut t, mut z, mut dr] = [(); 3].map(|_| AlignedVec::zeros(ld));
     g.bench_function(BenchmarkId::new("fused_kernel", "admm"), |b| {
         b.iter(|| {
@@ -536,12 +455,13 @@ fn per_iteration_grid(c: &mut Criterion) {
     g.sample_size(100);
     for n in GRID {
         let inst = instance(n);
-        let h = inst.qp.h_row_major();
-        let xs = x_vec(n);
-        let mut ys = vec![0.0; n];
-        g.bench_function(BenchmarkId::new("matvec_symmetric", n), |b| {
+        let hp = PaddedSymmetric::from_row_major(inst.qp.h_row_major(), n)
+            .unwrap_or_else(|| panic!("{n}×{n} H"));
+        let (xs, mut ys) = (AlignedVec::padded(&x_vec(n)), AlignedVec::zeros(hp.ld()));
+        let k = Kernel::detect();
+        g.bench_function(BenchmarkId::new("matvec_padded", n), |b| {
             b.iter(|| {
-                matvec_symmetric(h, n, black_box(&xs), &mut ys);
+                k.matvec_padded(&hp, black_box(&xs), &mut ys);
                 black_box(&mut ys);
             })
         });

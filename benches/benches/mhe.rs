@@ -8,7 +8,8 @@
 //!
 //! Rows per preset (instances: [`benches::case_study`], t = M … T of one closed-loop run):
 //! - `ref`: the fixed-size reference kernel y = Hx (compile-time n, AVX2 + FMA by run-time
-//!   detection) on the window-M Hessian; `matvec_symmetric`: our product on it.
+//!   detection) on the window-M Hessian; `matvec_padded`: our product on it
+//!   (`Kernel::matvec_padded`, the padded layout the methods use).
 //! - `step/<method>`: one iteration.
 //! - `to_eps/<method>`: load θ_t + warm start z⁰_t + K_t steps, K_t the smallest count with
 //!   ‖z − z*‖ ≤ 1e-6‖z⁰ − z*‖ on that instance; mean over the instances.
@@ -34,7 +35,7 @@ use benches::case_study::{CaseStudyQps, EPS, MheInstance, PRESETS, certified_k};
 use benches::{FixedLayout, FixedMatVec, Timing, Variant, dist, interleave};
 use qp_iter::admm::{Admm, AdmmParams};
 use qp_iter::fista::Fista;
-use qp_iter::kernel::matvec_symmetric;
+use qp_iter::kernel::{AlignedVec, Kernel, PaddedSymmetric};
 use qp_iter::pg::{ProjectedGradient, StepRule};
 use qp_iter::reference::{ReferenceSettings, ReferenceSolver};
 use qp_iter::{IterationMap, ParametricQp, RunStatus, run_fixed, run_until};
@@ -55,7 +56,7 @@ const STEP_BATCH: usize = 2000;
 const MHE_BATCH: usize = 20;
 
 fn main() {
-    let kernel = qp_iter::kernel::Kernel::detect().path().name();
+    let kernel = Kernel::detect().path().name();
     let peers = read_peers();
     let mut all = serde_json::Map::new();
     println!("kernel path: {kernel}; rounds: {ROUNDS}; accuracy: {EPS:e} relative\n");
@@ -301,13 +302,15 @@ fn run_preset(qps: &CaseStudyQps) -> Result<Value, String> {
         variants.push(v);
     }
     {
-        let (h, x, mut y) = (h.clone(), inst[0].z0.clone(), vec![0.0; n]);
+        let hp = PaddedSymmetric::from_row_major(&h, n).ok_or("H is n × n")?;
+        let (x, mut y) = (AlignedVec::padded(&inst[0].z0), AlignedVec::zeros(hp.ld()));
+        let k = Kernel::detect();
         variants.push(Variant {
-            name: "matvec_symmetric".into(),
+            name: "matvec_padded".into(),
             per_call: STEP_BATCH as f64,
             run: Box::new(move || {
                 for _ in 0..STEP_BATCH {
-                    matvec_symmetric(&h, n, black_box(&x), &mut y);
+                    k.matvec_padded(&hp, black_box(&x), &mut y);
                     black_box(&mut y);
                 }
             }),
@@ -452,7 +455,7 @@ fn print_table(qps: &CaseStudyQps, v: &Value) {
     println!("| --- | ---: | ---: |");
     for row in [
         "ref",
-        "matvec_symmetric",
+        "matvec_padded",
         "step/pg",
         "step/fista",
         "step/admm",

@@ -96,8 +96,7 @@ fn main() {
     println!("| --- | ---: | ---: | ---: | ---: |");
     let targets = [
         ("ref_column_axpy", "—"),
-        ("matvec_symmetric", ""),
-        ("matvec", ""),
+        ("matvec_padded", ""),
         ("step/pg", "≤ 1.3×"),
         ("step/fista", "≤ 1.3×"),
         ("step/admm", "≤ 1.3× (1 matvec/step)"),
@@ -105,9 +104,6 @@ fn main() {
         ("fused_kernel/pg", ""),
         ("fused_kernel/fista", ""),
         ("fused_kernel/admm", ""),
-        ("unpadded_kernel/pg", ""),
-        ("unpadded_kernel/fista", ""),
-        ("unpadded_kernel/admm", ""),
     ];
     let ref_min = iv("ref_column_axpy", "min_ns");
     for (k, target) in targets {
@@ -168,18 +164,16 @@ fn main() {
             "",
         ),
         (
-            "n30/matvec_symmetric",
-            "`kernel::matvec_symmetric` (dispatched)",
+            "n30/matvec_padded",
+            "`Kernel::matvec_padded` (dispatched)",
             "",
         ),
-        ("n30/matvec_symmetric_chained", "same, chained", ""),
-        ("n30/matvec", "`kernel::matvec`, general row-major H", ""),
+        ("n30/matvec_padded_chained", "same, chained", ""),
         (
-            "n30/matvec_symmetric_portable",
-            "`matvec_symmetric`, portable path (SSE2)",
+            "n30/matvec_padded_portable",
+            "`matvec_padded`, portable path (SSE2)",
             "",
         ),
-        ("n30/matvec_portable", "`matvec`, portable path (SSE2)", ""),
         (
             "n30/faer_matmul_seq",
             "faer `matmul`, Par::Seq, preallocated",
@@ -217,11 +211,11 @@ fn main() {
     // Size grid.
     println!("\n### One iteration, size grid\n");
     println!(
-        "| n | `matvec_symmetric` | PG step | FISTA step | ADMM step | PG / matvec | FISTA / matvec | ADMM / matvec |"
+        "| n | `matvec_padded` | PG step | FISTA step | ADMM step | PG / matvec | FISTA / matvec | ADMM / matvec |"
     );
     println!("| ---: | ---: | ---: | ---: | ---: | ---: | ---: | ---: |");
     for n in [10, 20, 50, 100, 200, 400] {
-        let mv = r.ns(&format!("grid/matvec_symmetric/{n}"));
+        let mv = r.ns(&format!("grid/matvec_padded/{n}"));
         let [pg, fista, admm] = ["pg", "fista", "admm"].map(|m| r.ns(&format!("grid/{m}/{n}")));
         println!(
             "| {n} | {} | {} | {} | {} | {} | {} | {} |",

@@ -4,9 +4,9 @@
 //!
 //! z⁺ = (H + ρI)⁻¹(ρv − y − q),  w = αz⁺ + (1 − α)v + y/ρ,  v⁺ = Π_Z(w),  y⁺ = ρ(w − v⁺).
 //!
-//! (H + ρI)⁻¹ is formed once at setup (Cholesky, then the dense inverse, row-major), so a
-//! step is one matrix–vector product with ρ(H + ρI)⁻¹ plus O(n) work; (H + ρI)⁻¹q is
-//! recomputed at [`IterationMap::load`].
+//! (H + ρI)⁻¹ is formed once at setup (Cholesky, then the dense inverse, stored in the
+//! kernels' padded layout), so a step is one matrix–vector product with ρ(H + ρI)⁻¹ plus
+//! O(n) work; (H + ρI)⁻¹q is recomputed at [`IterationMap::load`].
 //!
 //! **Returned iterate**: [`IterationMap::iterate`] is the projected split variable v
 //! (always in Z). The unprojected z satisfies Z only in the limit; its distance to Z is
@@ -94,8 +94,10 @@ pub struct Admm {
     alpha: f64,
     /// ρ(H + ρI)⁻¹ in the kernels' padded layout.
     m_rho: PaddedSymmetric,
-    /// (H + ρI)⁻¹, row-major (for (H + ρI)⁻¹q at load time).
-    m_inv: Vec<f64>,
+    /// (H + ρI)⁻¹ in the padded layout (for (H + ρI)⁻¹q at load time).
+    m_inv: PaddedSymmetric,
+    /// H in the padded layout (for the gradient dual −(Hz⁰ + q) of a start).
+    h: PaddedSymmetric,
     cert: Certificate,
     split_cert: Certificate,
     kernel: Kernel,
@@ -205,10 +207,9 @@ impl Admm {
             })?;
         let inv = faer::linalg::solvers::Solve::solve(&llt, Mat::<f64>::identity(n, n));
         // Symmetrise so the stored map is exactly symmetric, as the analysis assumes.
-        let m_inv: Vec<f64> = (0..n * n)
-            .map(|k| 0.5 * (inv[(k / n, k % n)] + inv[(k % n, k / n)]))
-            .collect();
-        if m_inv.iter().any(|x| !x.is_finite()) {
+        let sym = |i: usize, j: usize| 0.5 * (inv[(i, j)] + inv[(j, i)]);
+        let m_inv = PaddedSymmetric::from_fn(n, sym);
+        if m_inv.as_slice().iter().any(|x| !x.is_finite()) {
             return Err(lti_model::ModelError::Numerical {
                 routine: "inverse of H + ρI (ADMM setup)".into(),
                 reason: "non-finite entries; H + ρI is numerically singular — scale H or change ρ"
@@ -216,7 +217,8 @@ impl Admm {
             }
             .into());
         }
-        let m_rho = PaddedSymmetric::from_fn(n, |i, j| rho * m_inv[i * n + j]);
+        let m_rho = PaddedSymmetric::from_fn(n, |i, j| rho * sym(i, j));
+        let h = PaddedSymmetric::from_fn(n, |i, j| h[(i, j)]);
 
         let delta = ((rho - mu).abs() / (rho + mu)).max((rho - l).abs() / (rho + l));
         let rate = (1.0 - 0.5 * alpha).abs() + 0.5 * alpha * delta;
@@ -253,6 +255,7 @@ impl Admm {
             alpha,
             m_rho,
             m_inv,
+            h,
             qp,
             cert,
             split_cert,
@@ -344,16 +347,15 @@ impl Admm {
         let [_, y] = vy.get_mut().all_mut();
         z.fill(0.0);
         y.fill(0.0);
-        let (z, y) = (&mut z[..n], &mut y[..n]);
         match z0 {
-            Some(z0) => z.copy_from_slice(z0),
-            None => self.qp.project(z),
+            Some(z0) => z[..n].copy_from_slice(z0),
+            None => self.qp.project(&mut z[..n]),
         }
         match y0 {
-            Some(y0) => y.copy_from_slice(y0),
+            Some(y0) => y[..n].copy_from_slice(y0),
             None => {
-                // y = −(Hz + q): the gradient dual.
-                self.kernel.matvec_symmetric(self.qp.h_row_major(), n, z, y);
+                // y = −(Hz + q): the gradient dual (padding: Hz = 0, q = 0).
+                self.kernel.matvec_padded(&self.h, z, y);
                 for (y, q) in y.iter_mut().zip(&q[..n]) {
                     *y = -(*y + q);
                 }
@@ -375,8 +377,7 @@ impl Admm {
             Some(theta) => self.qp.linear_term(theta, q),
             None => q.copy_from_slice(self.qp.q0()),
         }
-        self.kernel
-            .matvec_symmetric(&self.m_inv, n, q, &mut mq[..n]);
+        self.kernel.matvec_padded(&self.m_inv, q, mq);
     }
 }
 

@@ -12,6 +12,8 @@
 //!   φ(K) = prefactor · rateᴷ and the smallest K for a given accuracy are exact functions.
 //! - Drivers [`run_fixed`] (exactly K steps) and [`run_until`] (to a tolerance, with an
 //!   observer) live outside the trait.
+//! - [`kernel`]: the dense kernels every step runs (padded column layout, one fused pass
+//!   over the matrix per step, AVX2 + FMA chosen at run time, else a portable path).
 //!
 //! This crate knows parametric QPs only: never A, B or C.
 

@@ -282,11 +282,9 @@ pub fn certify(req: &CertifyRequest) -> Result<Outcome> {
         },
         // The construction itself failed (no convergence, singular KKT system): a FAIL with
         // the way to supply P, not an input error.
-        Err(e @ ModelError::Numerical { .. }) if user_p.is_none() => (
-            false,
-            Some(format!("no P computed: {e}")),
-            None,
-        ),
+        Err(e @ ModelError::Numerical { .. }) if user_p.is_none() => {
+            (false, Some(format!("no P computed: {e}")), None)
+        }
         Err(ModelError::NotPositiveDefinite {
             name,
             min_eigenvalue,
@@ -535,8 +533,12 @@ mod tests {
         assert_eq!(doc["certificate"]["eta"], 0.8);
         assert_eq!(doc["system"]["nw1"], 4);
         assert!(doc["provenance"]["git_revision"].is_string());
-        let tol = doc["certificate"]["lmi_relative_tolerance"].as_f64().unwrap();
-        let mu = doc["certificate"]["lmi_relative_violation"].as_f64().unwrap();
+        let tol = doc["certificate"]["lmi_relative_tolerance"]
+            .as_f64()
+            .unwrap();
+        let mu = doc["certificate"]["lmi_relative_violation"]
+            .as_f64()
+            .unwrap();
         assert!(mu <= tol, "μ = {mu:e} > τ = {tol:e}");
         let hi = lmi_max_from_json(&doc);
         // The maximal P makes LMI (2) tight: λmax(J) is zero up to rounding of its terms (O(1)).

@@ -4,10 +4,12 @@
 use faer::{Mat, MatRef, Side};
 
 use crate::error::{LmiFailure, ModelError, Result};
-use crate::matrix::{asymmetry, check_finite, check_shape, sym_eigenvalues, symmetrize, SYMMETRY_TOL};
+use crate::matrix::{
+    SYMMETRY_TOL, asymmetry, check_finite, check_shape, sym_eigenvalues, symmetrize,
+};
 use crate::system::LtiSystem;
 
-use super::{check_inputs, IossOptions};
+use super::{IossOptions, check_inputs};
 
 /// G = [A B̄] (n_x × (n_x + n_w)) and H = [C D̄] (n_y × (n_x + n_w)): LMI (2) is
 /// J = GᵀPG − diag(ηP, Q) − HᵀRH.

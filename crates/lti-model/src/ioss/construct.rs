@@ -9,8 +9,8 @@ use crate::error::Result;
 use crate::matrix::{sym_extreme_eigenvalues, symmetrize};
 use crate::system::LtiSystem;
 
-use super::check::stacked;
 use super::IossOptions;
+use super::check::stacked;
 
 /// λ_min(X)/λ_max(X) at which the covariance phase stops early: X is then inverted into a
 /// well-conditioned start P₀ = X⁻¹ of the value iteration.
@@ -25,7 +25,10 @@ pub(super) enum Extremal {
     /// (E does not excite every mode of A), so no finite start P₀ ⪰ P* exists.
     Unreached,
     /// The iterates converge to (or reach) a numerically singular P.
-    Singular { min_eigenvalue: f64, max_eigenvalue: f64 },
+    Singular {
+        min_eigenvalue: f64,
+        max_eigenvalue: f64,
+    },
     /// No convergence within `max_iterations` (P still ≻ 0).
     NotConverged { iterations: usize },
     /// The KKT system of U was singular at this iteration.

@@ -97,14 +97,14 @@ mod construct;
 use faer::{Mat, MatRef};
 use serde::Serialize;
 
-pub use check::{assess, lmi_matrix, lmi_scale_matrix, LmiCheck};
+pub use check::{LmiCheck, assess, lmi_matrix, lmi_scale_matrix};
 
 use crate::error::{LmiFailure, ModelError, Result};
 use crate::matrix::{
     check_positive_definite, spectral_norm, sym_extreme_eigenvalues, symmetrize, to_rows,
 };
 use crate::system::LtiSystem;
-use construct::{extremal_solution, first_covariance, with_fictitious_disturbance, Extremal};
+use construct::{Extremal, extremal_solution, first_covariance, with_fictitious_disturbance};
 
 /// τ: P passes LMI (2) when μ(P) = max vᵀJv/vᵀSv ≤ τ (module doc, "Verification").
 pub const LMI_RELATIVE_TOL: f64 = 1e-9;
@@ -280,9 +280,17 @@ fn check_inputs(sys: &LtiSystem, eta: f64, q: MatRef<'_, f64>, r: MatRef<'_, f64
 fn check_options(opts: &IossOptions) -> Result<()> {
     let checks = [
         ("tolerance", opts.tolerance, "(0, 1)"),
-        ("lmi_relative_tolerance", opts.lmi_relative_tolerance, "(0, 1)"),
+        (
+            "lmi_relative_tolerance",
+            opts.lmi_relative_tolerance,
+            "(0, 1)",
+        ),
         ("min_condition", opts.min_condition, "(0, 1)"),
-        ("fictitious_disturbance", opts.fictitious_disturbance, "(0, 1)"),
+        (
+            "fictitious_disturbance",
+            opts.fictitious_disturbance,
+            "(0, 1)",
+        ),
     ];
     for (name, value, range) in checks {
         if !(value > 0.0 && value < 1.0) {

@@ -13,7 +13,7 @@ fn case_study() -> LtiSystem {
 
 /// max over sampled (x, w) of ‖Ax + B̄w‖²_P − η‖x‖²_P − ‖w‖²_Q − ‖Cx + D̄w‖²_R, relative to
 /// the size of the terms: (★) in the module doc, evaluated without the LMI matrix.
-fn sampled_violation(
+pub fn sampled_violation(
     sys: &LtiSystem,
     eta: f64,
     q: &Mat<f64>,

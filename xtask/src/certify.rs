@@ -275,7 +275,7 @@ pub fn certify(req: &CertifyRequest) -> Result<Outcome> {
         Err(ModelError::LmiInfeasible { cause }) => match &user_p {
             Some((p, source)) => (
                 false,
-                Some(format!("the P from {source} fails LMI (2): {cause}")),
+                Some(format!("{cause} (P from {source})")),
                 Some(failed_report(sys, eta, &q, &r, p)?),
             ),
             None => (false, Some(format!("LMI (2) infeasible: {cause}")), None),

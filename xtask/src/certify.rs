@@ -657,6 +657,29 @@ mod tests {
         assert!(format!("{e:#}").contains("not symmetric"), "{e:#}");
     }
 
+    /// Issue 11 finding: with noise entering some states only (E = diag(1, 1, 0, 1)) the
+    /// built-in P was refused; now it is computed (the maximal P) and passes.
+    #[test]
+    fn singular_e_gets_a_computed_p() {
+        let text = std::fs::read_to_string(case_study()).unwrap().replace(
+            "[sets]",
+            "e = [[1.0, 0.0, 0.0, 0.0], [0.0, 1.0, 0.0, 0.0], [0.0, 0.0, 0.0, 0.0], [0.0, 0.0, 0.0, 1.0]]\n\n[sets]",
+        );
+        let path = temp_path("e1101.toml");
+        std::fs::write(&path, text).unwrap();
+        let out = certify(&CertifyRequest {
+            scenario: path,
+            eta: None,
+            p_file: None,
+        })
+        .unwrap();
+        assert!(out.document.passed, "{}", out.summary);
+        let cert = out.document.certificate.as_ref().unwrap();
+        assert_eq!(cert.method, ioss::METHOD_MAXIMAL);
+        assert!(cert.lmi_relative_violation <= cert.lmi_relative_tolerance);
+        assert_eq!(out.document.system.b_bar[2], vec![0.0; 5]);
+    }
+
     #[test]
     fn no_mhe_section_needs_eta() {
         let path = temp_path("no-mhe.toml");

@@ -251,3 +251,30 @@ fn zero_eta_reason_on_the_case_study() {
         other => panic!("expected ZeroEtaNeedsDeadbeat, got {other:?}"),
     }
 }
+
+/// When the construction cannot produce P, the message says where to supply one.
+#[test]
+fn failed_construction_points_to_mhe_p_and_p_file() {
+    let sys = mass_chain(&[0, 2, 5]);
+    let (q, r) = (Mat::<f64>::identity(9, 9), Mat::<f64>::identity(3, 3));
+    let opts = ioss::IossOptions {
+        max_iterations: 3,
+        ..ioss::IossOptions::default()
+    };
+    let err = ioss::certify_with(&sys, 0.8, q.as_ref(), r.as_ref(), &opts).unwrap_err();
+    assert!(matches!(err, ModelError::Numerical { .. }), "{err:?}");
+    let text = err.to_string();
+    assert!(
+        text.contains("`mhe.p`") && text.contains("--p-file"),
+        "{text}"
+    );
+    // A refused P names both ways of supplying a better one.
+    let bad = Mat::<f64>::identity(12, 12);
+    let text = ioss::verify(&sys, 0.8, q.as_ref(), r.as_ref(), bad.as_ref())
+        .unwrap_err()
+        .to_string();
+    assert!(
+        text.contains("`mhe.p`") && text.contains("--p-file"),
+        "{text}"
+    );
+}

@@ -10,7 +10,7 @@ use std::path::{Path, PathBuf};
 use anyhow::{Context, Result, anyhow, bail};
 use closed_loop::scenario::Scenario;
 use faer::Mat;
-use lti_model::ioss::{self, IossReport, LMI_TOL};
+use lti_model::ioss::{self, IossOptions, IossReport};
 use lti_model::{LtiSystem, ModelError, matrix};
 use serde::Serialize;
 
@@ -19,11 +19,14 @@ use crate::provenance::Provenance;
 /// Value of the `format` field.
 pub const FORMAT: &str = "suboptimal-mhe/ioss-certificate";
 /// Value of the `format_version` field; bumped on any incompatible change.
-pub const FORMAT_VERSION: u32 = 1;
+pub const FORMAT_VERSION: u32 = 2;
 /// Seeded random pairs for the sampled L_π estimate.
 pub const LPI_SAMPLE_PAIRS: usize = 200;
-/// How `certificate.lmi_tolerance` is derived (recorded in the JSON).
-pub const TOLERANCE_RULE: &str = "lmi_tolerance = 1e-9 * max(1, max|P_ij|, max|Q_ij|, max|R_ij|)";
+/// The pass/fail rule of the LMI (2) check (recorded in the JSON; `lti_model::ioss` module doc).
+pub const TOLERANCE_RULE: &str = "pass iff lambda_min(P) > p_min_ratio * lambda_max(P) and \
+    lmi_relative_violation = max_v v'Jv / v'Sv <= lmi_relative_tolerance, with J the LMI (2) matrix \
+    G'PG - diag(eta P, Q) - H'RH and S = G'PG + diag(P, Q) + H'RH, G = [A Bbar], H = [C Dbar]; \
+    then P satisfies LMI (2) exactly for eta' = (eta + tol)/(1 - tol) and (Q, R)(1 + tol)/(1 - tol)";
 /// Resolution of the η bisection run to suggest a feasible η after a failure.
 const ETA_HINT_RESOLUTION: f64 = 1e-4;
 
@@ -181,7 +184,7 @@ pub fn parse_p(value: &serde_json::Value) -> Result<Mat<f64>> {
 }
 
 /// The LMI check of a P that [`ioss::verify`] rejected, so a failure can still be reported
-/// with its eigenvalues. P must be n_x × n_x and finite.
+/// with its eigenvalues and relative violation. P must be n_x × n_x, finite and symmetric.
 fn failed_report(
     sys: &LtiSystem,
     eta: f64,
@@ -190,23 +193,23 @@ fn failed_report(
     p: &Mat<f64>,
 ) -> Result<IossReport> {
     let p = matrix::symmetrize(p.as_ref());
-    let (p_min, p_max) = matrix::sym_extreme_eigenvalues("P", p.as_ref())?;
-    let lmi = ioss::lmi_matrix(sys, eta, q.as_ref(), r.as_ref(), p.as_ref());
-    let eig = matrix::sym_eigenvalues("LMI matrix", lmi.as_ref())?;
-    let scale = p.norm_max().max(q.norm_max()).max(r.norm_max()).max(1.0);
-    Ok(IossReport {
-        p: matrix::to_rows(p.as_ref()),
+    let check = ioss::assess(
+        sys,
         eta,
-        q: matrix::to_rows(q.as_ref()),
-        r: matrix::to_rows(r.as_ref()),
-        p_min_eigenvalue: p_min,
-        p_max_eigenvalue: p_max,
-        lmi_max_eigenvalue: eig.last().copied().unwrap_or(0.0),
-        lmi_tolerance: LMI_TOL * scale,
-        lmi_eigenvalues: eig,
-        method: "user".to_string(),
-        iterations: 0,
-    })
+        q.as_ref(),
+        r.as_ref(),
+        p.as_ref(),
+        &IossOptions::default(),
+    )?;
+    Ok(IossReport::from_check(
+        p.as_ref(),
+        eta,
+        q.as_ref(),
+        r.as_ref(),
+        &check,
+        ioss::METHOD_USER,
+        0,
+    ))
 }
 
 /// Runs the certificate for a scenario. Input problems (unreadable or invalid scenario,
@@ -269,12 +272,18 @@ pub fn certify(req: &CertifyRequest) -> Result<Outcome> {
     };
     let (passed, failure, certificate) = match result {
         Ok(cert) => (true, None, Some(cert.report())),
-        Err(ModelError::LmiInfeasible { reason }) => {
-            let report = match &user_p {
-                Some((p, _)) => Some(failed_report(sys, eta, &q, &r, p)?),
-                None => None,
-            };
-            (false, Some(format!("LMI (2) infeasible: {reason}")), report)
+        Err(ModelError::LmiInfeasible { cause }) => match &user_p {
+            Some((p, source)) => (
+                false,
+                Some(format!("{cause} (P from {source})")),
+                Some(failed_report(sys, eta, &q, &r, p)?),
+            ),
+            None => (false, Some(format!("LMI (2) infeasible: {cause}")), None),
+        },
+        // The construction itself failed (no convergence, singular KKT system): a FAIL with
+        // the way to supply P, not an input error.
+        Err(e @ ModelError::Numerical { .. }) if user_p.is_none() => {
+            (false, Some(format!("no P computed: {e}")), None)
         }
         Err(ModelError::NotPositiveDefinite {
             name,
@@ -287,7 +296,8 @@ pub fn certify(req: &CertifyRequest) -> Result<Outcome> {
             (
                 false,
                 Some(format!(
-                    "P is not positive definite (λ_min(P) = {min_eigenvalue:e})"
+                    "the P from {} is not positive definite (λ_min(P) = {min_eigenvalue:e})",
+                    user_p.as_ref().map_or("", |(_, s)| s.as_str())
                 )),
                 report,
             )
@@ -299,6 +309,12 @@ pub fn certify(req: &CertifyRequest) -> Result<Outcome> {
     } else if user_p.is_some() {
         Some(
             "omit --p-file (and mhe.p) to let certify compute the maximal P for this η".to_string(),
+        )
+    } else if certificate.is_none() && failure.as_deref().is_some_and(|f| f.starts_with("no P")) {
+        Some(
+            "compute P elsewhere (e.g. an SDP solver) and supply it as the scenario key `mhe.p` \
+             or with `--p-file P.json`; certify then verifies it against LMI (2)"
+                .to_string(),
         )
     } else {
         Some(
@@ -405,13 +421,20 @@ fn summarize(d: &CertificateDocument) -> String {
         let _ = writeln!(s, "  λmax(P)      {:.6e}", c.p_max_eigenvalue);
         let _ = writeln!(
             s,
-            "  λmax(LMI)    {:.6e}   (must be ≤ tolerance)",
+            "  λmin/λmax(P) {:.3e}   (must be > {:.0e})",
+            c.p_min_eigenvalue / c.p_max_eigenvalue,
+            c.p_min_ratio
+        );
+        let _ = writeln!(
+            s,
+            "  λmax(LMI)    {:.6e}   (J of LMI (2), unscaled)",
             c.lmi_max_eigenvalue
         );
         let _ = writeln!(
             s,
-            "  tolerance    {:.3e}   ({})",
-            c.lmi_tolerance, d.tolerance_rule
+            "  μ = max vᵀJv/vᵀSv {:.3e}   (must be ≤ {:.0e}; S = GᵀPG + diag(P, Q) + HᵀRH, the \
+             sum of the LMI's terms)",
+            c.lmi_relative_violation, c.lmi_relative_tolerance
         );
     }
     if let Some(f) = &d.failure {
@@ -518,12 +541,16 @@ mod tests {
         assert_eq!(doc["certificate"]["eta"], 0.8);
         assert_eq!(doc["system"]["nw1"], 4);
         assert!(doc["provenance"]["git_revision"].is_string());
-        let tol = doc["certificate"]["lmi_tolerance"].as_f64().unwrap();
+        let tol = doc["certificate"]["lmi_relative_tolerance"]
+            .as_f64()
+            .unwrap();
+        let mu = doc["certificate"]["lmi_relative_violation"]
+            .as_f64()
+            .unwrap();
+        assert!(mu <= tol, "μ = {mu:e} > τ = {tol:e}");
         let hi = lmi_max_from_json(&doc);
-        assert!(
-            hi <= tol,
-            "LMI rebuilt from JSON has λmax = {hi:e} > {tol:e}"
-        );
+        // The maximal P makes LMI (2) tight: λmax(J) is zero up to rounding of its terms (O(1)).
+        assert!(hi <= 1e-12, "LMI rebuilt from JSON has λmax = {hi:e}");
         // Issue 4: L_π certified ≥ L_π sampled, both in the JSON and the summary.
         let lpi = &doc["controller_lipschitz"];
         let enumerated = lpi["enumerated"].as_f64().unwrap();
@@ -567,14 +594,35 @@ mod tests {
         assert!(!out.document.passed);
         assert!(out.summary.ends_with("FAIL"), "{}", out.summary);
         let cert = out.document.certificate.as_ref().unwrap();
-        assert!(cert.lmi_max_eigenvalue > cert.lmi_tolerance);
-        assert!(
-            out.document
-                .failure
-                .as_ref()
-                .unwrap()
-                .contains("infeasible")
-        );
+        assert!(cert.lmi_relative_violation > cert.lmi_relative_tolerance);
+        assert!(cert.lmi_max_eigenvalue > 0.0);
+        let failure = out.document.failure.as_ref().unwrap();
+        assert!(failure.contains("violates LMI (2)"), "{failure}");
+        assert!(failure.contains("--p-file"), "{failure}");
+    }
+
+    /// Issue 11 finding: P = 1e-12·I and 1e-9·I passed the absolute tolerance 1e-9 although
+    /// LMI (2) fails in ker C by a few per cent of P's own scale.
+    #[test]
+    fn scaled_down_identity_p_fails() {
+        for scale in [1e-12, 1e-9] {
+            let rows: Vec<Vec<f64>> = (0..4)
+                .map(|i| (0..4).map(|j| if i == j { scale } else { 0.0 }).collect())
+                .collect();
+            let path = temp_path(&format!("p_scaled_{scale:e}.json"));
+            std::fs::write(&path, serde_json::to_string(&rows).unwrap()).unwrap();
+            let out = certify(&request(None, Some(path))).unwrap();
+            assert!(!out.document.passed, "{}", out.summary);
+            assert!(out.summary.ends_with("FAIL"));
+            let cert = out.document.certificate.as_ref().unwrap();
+            assert!(cert.lmi_max_eigenvalue > 0.0);
+            // A violation of per-cent size relative to the LMI's terms, not rounding.
+            assert!(
+                cert.lmi_relative_violation > 1e-3,
+                "μ = {:e}",
+                cert.lmi_relative_violation
+            );
+        }
     }
 
     #[test]
@@ -615,6 +663,29 @@ mod tests {
         std::fs::write(&path, "[[1,2,0,0],[0,1,0,0],[0,0,1,0],[0,0,0,1]]").unwrap();
         let e = certify(&request(None, Some(path))).unwrap_err();
         assert!(format!("{e:#}").contains("not symmetric"), "{e:#}");
+    }
+
+    /// Issue 11 finding: with noise entering some states only (E = diag(1, 1, 0, 1)) the
+    /// built-in P was refused; now it is computed (the maximal P) and passes.
+    #[test]
+    fn singular_e_gets_a_computed_p() {
+        let text = std::fs::read_to_string(case_study()).unwrap().replace(
+            "[sets]",
+            "e = [[1.0, 0.0, 0.0, 0.0], [0.0, 1.0, 0.0, 0.0], [0.0, 0.0, 0.0, 0.0], [0.0, 0.0, 0.0, 1.0]]\n\n[sets]",
+        );
+        let path = temp_path("e1101.toml");
+        std::fs::write(&path, text).unwrap();
+        let out = certify(&CertifyRequest {
+            scenario: path,
+            eta: None,
+            p_file: None,
+        })
+        .unwrap();
+        assert!(out.document.passed, "{}", out.summary);
+        let cert = out.document.certificate.as_ref().unwrap();
+        assert_eq!(cert.method, ioss::METHOD_MAXIMAL);
+        assert!(cert.lmi_relative_violation <= cert.lmi_relative_tolerance);
+        assert_eq!(out.document.system.b_bar[2], vec![0.0; 5]);
     }
 
     #[test]

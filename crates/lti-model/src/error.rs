@@ -74,11 +74,13 @@ pub enum ModelError {
         /// What is wrong with it.
         reason: String,
     },
-    /// The δ-IOSS LMI (Assumption 2) has no positive definite solution for the data.
-    #[error("the δ-IOSS LMI (Assumption 2) is infeasible: {reason}")]
+    /// The δ-IOSS certificate (Assumption 2, LMI (2)) fails: no P ≻ 0 exists for the data,
+    /// or the P at hand does not satisfy LMI (2). `cause` says which condition fails and by
+    /// how much.
+    #[error("the δ-IOSS certificate (Assumption 2, LMI (2)) fails: {cause}")]
     LmiInfeasible {
-        /// Why: undetectable pair, η too small, a supplied P that violates the LMI, ...
-        reason: String,
+        /// Which condition fails, with the measured numbers.
+        cause: LmiFailure,
     },
     /// An iterative matrix-equation solver (Riccati, Lyapunov, expm) failed.
     #[error("{routine} failed: {reason}")]
@@ -158,6 +160,134 @@ impl ModelError {
             other => other,
         }
     }
+}
+
+/// Why the δ-IOSS certificate of Assumption 2 fails (the payload of
+/// [`ModelError::LmiInfeasible`]). Every variant carries the measured quantities; the
+/// messages say how to fix the data or where to supply P (scenario key `mhe.p`,
+/// `cargo xtask certify --p-file`).
+#[derive(Debug, Clone, PartialEq)]
+pub enum LmiFailure {
+    /// (A, C) has an unobservable mode with |λ| ≥ √η. LMI (2) restricted to x in that mode
+    /// and w = 0 reads |λ|²‖x‖²_P ≤ η‖x‖²_P, so no P ≻ 0 exists, whatever E, Q, R.
+    UnobservableMode {
+        /// Spectral radius of A on the unobservable subspace of (A, C).
+        modulus: f64,
+        /// The η asked for.
+        eta: f64,
+    },
+    /// η = 0 needs A x = 0 for every x with C x = 0 ((★) at w = 0 reads ‖Ax‖²_P ≤ 0 there),
+    /// and A does not vanish on ker C.
+    ZeroEtaNeedsDeadbeat {
+        /// ‖A N‖₂ for an orthonormal basis N of ker C.
+        gain: f64,
+    },
+    /// The extremal (maximal) solution of the Riccati equation is numerically singular
+    /// although no unobservable mode is slower than √η: η is at the numerical feasibility
+    /// boundary.
+    SingularExtremalSolution {
+        /// λ_min of the extremal solution.
+        min_eigenvalue: f64,
+        /// λ_max of the extremal solution.
+        max_eigenvalue: f64,
+        /// The floor ρ on λ_min(P)/λ_max(P).
+        min_ratio: f64,
+        /// The η asked for.
+        eta: f64,
+    },
+    /// P is positive definite but numerically singular relative to its own size:
+    /// λ_min(P) ≤ ρ·λ_max(P).
+    PNumericallySingular {
+        /// λ_min(P).
+        min_eigenvalue: f64,
+        /// λ_max(P).
+        max_eigenvalue: f64,
+        /// The floor ρ on λ_min(P)/λ_max(P).
+        min_ratio: f64,
+    },
+    /// P violates LMI (2) beyond the relative tolerance: μ(P) > τ, with μ the largest
+    /// generalised eigenvalue of the LMI matrix J relative to the sum S of its terms
+    /// (`lti_model::ioss` module doc, "Verification").
+    Violated {
+        /// μ(P) = max vᵀJv / vᵀSv ∈ [−1, 1].
+        relative_violation: f64,
+        /// τ.
+        tolerance: f64,
+        /// λ_max(J), unscaled (for reference; the test is on μ).
+        lmi_max_eigenvalue: f64,
+    },
+}
+
+impl std::fmt::Display for LmiFailure {
+    fn fmt(&self, f: &mut std::fmt::Formatter<'_>) -> std::fmt::Result {
+        match *self {
+            Self::UnobservableMode { modulus, eta } => {
+                let sqrt_eta = eta.sqrt();
+                write!(
+                    f,
+                    "(A, C) has an unobservable mode with |λ| = {modulus:.6} ≥ √η = {sqrt_eta:.6}; LMI (2) needs \
+                     every unobservable mode to decay faster than √η. "
+                )?;
+                if modulus < 1.0 {
+                    write!(
+                        f,
+                        "The pair is detectable: any η > {:.6} (= |λ|²) may be feasible.",
+                        modulus * modulus
+                    )
+                } else {
+                    write!(
+                        f,
+                        "The pair is not detectable, so no η ∈ [0, 1) works: change C (add a sensor)."
+                    )
+                }
+            }
+            Self::ZeroEtaNeedsDeadbeat { gain } => write!(
+                f,
+                "η = 0 needs A x = 0 for every x with C x = 0 (the output must fix the next state), \
+                 but ‖A on ker C‖ = {gain:.6}: use η > 0"
+            ),
+            Self::SingularExtremalSolution {
+                min_eigenvalue,
+                max_eigenvalue,
+                min_ratio,
+                eta,
+            } => write!(
+                f,
+                "the extremal solution of the Riccati equation of LMI (2) is numerically singular \
+                 (λ_min(P)/λ_max(P) = {:.3e} ≤ {min_ratio:.0e}; λ_min = {min_eigenvalue:.3e}, \
+                 λ_max = {max_eigenvalue:.3e}) although no unobservable mode is slower than √η: \
+                 η = {eta} is at the numerical feasibility boundary; try a larger η \
+                 (`ioss::min_feasible_eta`), or supply P (scenario key `mhe.p`, \
+                 `cargo xtask certify --p-file`)",
+                ratio(min_eigenvalue, max_eigenvalue)
+            ),
+            Self::PNumericallySingular {
+                min_eigenvalue,
+                max_eigenvalue,
+                min_ratio,
+            } => write!(
+                f,
+                "P is numerically singular relative to its size: λ_min(P)/λ_max(P) = {:.3e} ≤ {min_ratio:.0e} \
+                 (λ_min = {min_eigenvalue:.3e}, λ_max = {max_eigenvalue:.3e}); supply a P ≻ 0 whose \
+                 smallest eigenvalue is resolvable in f64 (scenario key `mhe.p`, `--p-file`)",
+                ratio(min_eigenvalue, max_eigenvalue)
+            ),
+            Self::Violated {
+                relative_violation,
+                tolerance,
+                lmi_max_eigenvalue,
+            } => write!(
+                f,
+                "P violates LMI (2): relative violation μ = max vᵀJv/vᵀSv = {relative_violation:.3e} > τ = \
+                 {tolerance:.0e} (λ_max of the LMI matrix J = {lmi_max_eigenvalue:.3e}); fix P \
+                 (scenario key `mhe.p`, `--p-file`) or omit it to have the maximal P computed"
+            ),
+        }
+    }
+}
+
+fn ratio(lo: f64, hi: f64) -> f64 {
+    if hi > 0.0 { lo / hi } else { f64::NAN }
 }
 
 /// Result alias for `lti-model`.

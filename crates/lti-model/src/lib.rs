@@ -26,6 +26,6 @@ pub mod sets;
 pub mod spec;
 pub mod system;
 
-pub use error::{ModelError, Result};
+pub use error::{LmiFailure, ModelError, Result};
 pub use sets::{BoxSet, ConvexSet, Polytope, Projection, Set};
 pub use system::LtiSystem;

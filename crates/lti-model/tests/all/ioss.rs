@@ -3,7 +3,7 @@
 //! boundary η = |λ_unobservable|².
 
 use faer::{Mat, mat};
-use lti_model::{LtiSystem, ModelError, ioss};
+use lti_model::{LmiFailure, LtiSystem, ModelError, ioss};
 use rand::{Rng, SeedableRng};
 use rand_chacha::ChaCha8Rng;
 
@@ -13,7 +13,7 @@ fn case_study() -> LtiSystem {
 
 /// max over sampled (x, w) of ‖Ax + B̄w‖²_P − η‖x‖²_P − ‖w‖²_Q − ‖Cx + D̄w‖²_R, relative to
 /// the size of the terms: (★) in the module doc, evaluated without the LMI matrix.
-fn sampled_violation(
+pub fn sampled_violation(
     sys: &LtiSystem,
     eta: f64,
     q: &Mat<f64>,
@@ -147,8 +147,12 @@ fn undetectable_pair_is_a_typed_infeasibility() {
     assert!(!sys.is_detectable().unwrap());
     let (q, r) = (Mat::<f64>::identity(3, 3), Mat::<f64>::identity(1, 1));
     match ioss::certify(&sys, 0.8, q.as_ref(), r.as_ref()) {
-        Err(ModelError::LmiInfeasible { reason }) => {
-            assert!(reason.contains("not detectable"), "{reason}");
+        Err(ModelError::LmiInfeasible { cause }) => {
+            assert!(
+                matches!(cause, LmiFailure::UnobservableMode { modulus, .. } if (modulus - 1.1).abs() < 1e-9),
+                "{cause:?}"
+            );
+            assert!(cause.to_string().contains("not detectable"), "{cause}");
         }
         other => panic!("expected LmiInfeasible, got {other:?}"),
     }
@@ -165,11 +169,13 @@ fn hidden_mode_sets_the_smallest_eta() {
     .unwrap();
     let (q, r) = (Mat::<f64>::identity(3, 3), Mat::<f64>::identity(1, 1));
     match ioss::certify(&sys, 0.8, q.as_ref(), r.as_ref()) {
-        Err(ModelError::LmiInfeasible { reason }) => assert!(reason.contains("0.9025"), "{reason}"),
+        Err(ModelError::LmiInfeasible { cause }) => {
+            assert!(cause.to_string().contains("0.9025"), "{cause}");
+        }
         other => panic!("expected LmiInfeasible, got {other:?}"),
     }
     let ok = ioss::certify(&sys, 0.93, q.as_ref(), r.as_ref()).unwrap();
-    assert!(ok.lmi_max_eigenvalue <= ok.lmi_tolerance);
+    assert!(ok.lmi_relative_violation <= ok.lmi_relative_tolerance);
     let b = ioss::min_feasible_eta(&sys, q.as_ref(), r.as_ref(), 1e-4).unwrap();
     assert!(
         b.certificate.eta > 0.9025 && b.certificate.eta < 0.9025 + 5e-3,
@@ -216,7 +222,7 @@ fn random_detectable_systems_certify_and_sample_check() {
         match ioss::certify(&sys, eta, q.as_ref(), r.as_ref()) {
             Ok(cert) => {
                 certified += 1;
-                assert!(cert.lmi_max_eigenvalue <= cert.lmi_tolerance);
+                assert!(cert.lmi_relative_violation <= cert.lmi_relative_tolerance);
                 let v = sampled_violation(&sys, eta, &q, &r, &cert.p, 500, trial);
                 assert!(v <= 1e-9, "trial {trial}: sampled violation {v:e}");
             }

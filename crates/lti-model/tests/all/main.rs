@@ -3,6 +3,8 @@
 
 mod disturbance;
 mod ioss;
+mod ioss_any_e;
+mod ioss_relative;
 mod numerics;
 mod sets;
 mod system;

@@ -1,0 +1,226 @@
+//! The check of one P against LMI (2), relative to the scale of the LMI's own terms
+//! (module doc of [`crate::ioss`], "Verification").
+
+use faer::{Mat, MatRef, Side};
+
+use crate::error::{LmiFailure, ModelError, Result};
+use crate::matrix::{
+    SYMMETRY_TOL, asymmetry, check_finite, check_shape, sym_eigenvalues, symmetrize,
+};
+use crate::system::LtiSystem;
+
+use super::{IossOptions, check_inputs};
+
+/// G = [A B̄] (n_x × (n_x + n_w)) and H = [C D̄] (n_y × (n_x + n_w)): LMI (2) is
+/// J = GᵀPG − diag(ηP, Q) − HᵀRH.
+pub(super) fn stacked(sys: &LtiSystem) -> (Mat<f64>, Mat<f64>) {
+    let nx = sys.nx();
+    let nz = nx + sys.nw();
+    let (bbar, dbar) = (sys.b_bar(), sys.d_bar());
+    let g = Mat::from_fn(nx, nz, |i, j| {
+        if j < nx {
+            sys.a()[(i, j)]
+        } else {
+            bbar[(i, j - nx)]
+        }
+    });
+    let h = Mat::from_fn(sys.ny(), nz, |i, j| {
+        if j < nx {
+            sys.c()[(i, j)]
+        } else {
+            dbar[(i, j - nx)]
+        }
+    });
+    (g, h)
+}
+
+/// The LMI matrix J of (2) and its scale matrix S, both exactly symmetric:
+///
+/// J = GᵀPG − diag(ηP, Q) − HᵀRH,  S = GᵀPG + diag(P, Q) + HᵀRH.
+fn lmi_and_scale(
+    sys: &LtiSystem,
+    eta: f64,
+    q: MatRef<'_, f64>,
+    r: MatRef<'_, f64>,
+    p: MatRef<'_, f64>,
+) -> (Mat<f64>, Mat<f64>) {
+    let (nx, nw) = (sys.nx(), sys.nw());
+    let (g, h) = stacked(sys);
+    let gpg = g.transpose() * p * &g;
+    let hrh = h.transpose() * r * &h;
+    let mut j = &gpg - &hrh;
+    let mut s = &gpg + &hrh;
+    for a in 0..nx {
+        for b in 0..nx {
+            j[(a, b)] -= eta * p[(a, b)];
+            s[(a, b)] += p[(a, b)];
+        }
+    }
+    for a in 0..nw {
+        for b in 0..nw {
+            j[(nx + a, nx + b)] -= q[(a, b)];
+            s[(nx + a, nx + b)] += q[(a, b)];
+        }
+    }
+    (symmetrize(j.as_ref()), symmetrize(s.as_ref()))
+}
+
+/// The LMI matrix of (2) for a given P (⪯ 0 iff P certifies δ-IOSS with (η, Q, R)):
+///
+/// [[AᵀPA − ηP − CᵀRC, AᵀPB̄ − CᵀRD̄], [B̄ᵀPA − D̄ᵀRC, B̄ᵀPB̄ − Q − D̄ᵀRD̄]].
+///
+/// Shapes are the caller's contract (use [`super::verify`] or [`assess`] for untrusted
+/// input); the result is exactly symmetric.
+pub fn lmi_matrix(
+    sys: &LtiSystem,
+    eta: f64,
+    q: MatRef<'_, f64>,
+    r: MatRef<'_, f64>,
+    p: MatRef<'_, f64>,
+) -> Mat<f64> {
+    lmi_and_scale(sys, eta, q, r, p).0
+}
+
+/// The scale matrix S(P) = GᵀPG + diag(P, Q) + HᵀRH ≻ 0 of the relative check: the sum
+/// of the positive semidefinite terms LMI (2) is made of (with P in place of ηP, so that
+/// S ≻ 0 also for η = 0). Shapes are the caller's contract.
+pub fn lmi_scale_matrix(
+    sys: &LtiSystem,
+    eta: f64,
+    q: MatRef<'_, f64>,
+    r: MatRef<'_, f64>,
+    p: MatRef<'_, f64>,
+) -> Mat<f64> {
+    lmi_and_scale(sys, eta, q, r, p).1
+}
+
+/// What the check of one P measured ([`assess`]).
+#[derive(Debug, Clone, PartialEq)]
+pub struct LmiCheck {
+    /// λ_min(P).
+    pub p_min_eigenvalue: f64,
+    /// λ_max(P).
+    pub p_max_eigenvalue: f64,
+    /// The floor ρ: P must have λ_min(P) > ρ·λ_max(P).
+    pub p_min_ratio: f64,
+    /// All eigenvalues of the LMI matrix J, ascending.
+    pub lmi_eigenvalues: Vec<f64>,
+    /// λ_max(J), unscaled (reported; the test is on `relative_violation`).
+    pub lmi_max_eigenvalue: f64,
+    /// μ(P) = max_v vᵀJv / vᵀSv ∈ [−1, 1]; NaN when P is not positive definite.
+    pub relative_violation: f64,
+    /// τ: P passes when μ(P) ≤ τ.
+    pub relative_tolerance: f64,
+}
+
+impl LmiCheck {
+    /// λ_min(P)/λ_max(P) (NaN if λ_max(P) ≤ 0).
+    pub fn p_ratio(&self) -> f64 {
+        if self.p_max_eigenvalue > 0.0 {
+            self.p_min_eigenvalue / self.p_max_eigenvalue
+        } else {
+            f64::NAN
+        }
+    }
+
+    /// The first condition that fails, or `None` if P certifies LMI (2): λ_min(P) >
+    /// ρ·λ_max(P) (else [`LmiFailure::PNumericallySingular`]), then μ(P) ≤ τ (else
+    /// [`LmiFailure::Violated`]).
+    pub fn failure(&self) -> Option<LmiFailure> {
+        if !(self.p_ratio() > self.p_min_ratio) {
+            return Some(LmiFailure::PNumericallySingular {
+                min_eigenvalue: self.p_min_eigenvalue,
+                max_eigenvalue: self.p_max_eigenvalue,
+                min_ratio: self.p_min_ratio,
+            });
+        }
+        if !(self.relative_violation <= self.relative_tolerance) {
+            return Some(LmiFailure::Violated {
+                relative_violation: self.relative_violation,
+                tolerance: self.relative_tolerance,
+                lmi_max_eigenvalue: self.lmi_max_eigenvalue,
+            });
+        }
+        None
+    }
+
+    /// True iff [`LmiCheck::failure`] is `None`.
+    pub fn passed(&self) -> bool {
+        self.failure().is_none()
+    }
+}
+
+/// Measures P against LMI (2) with the tolerances of `opts`, without deciding: the result
+/// holds the eigenvalues of P and of J, μ(P) and the thresholds; [`LmiCheck::failure`]
+/// says whether and why P fails. Use it to report a P that fails; [`super::verify_with`]
+/// is the deciding form.
+///
+/// Errors only for bad input: η out of range, Q or R not symmetric positive definite, P
+/// of the wrong shape, non-finite or not symmetric (relative to its own largest entry).
+pub fn assess(
+    sys: &LtiSystem,
+    eta: f64,
+    q: MatRef<'_, f64>,
+    r: MatRef<'_, f64>,
+    p: MatRef<'_, f64>,
+    opts: &IossOptions,
+) -> Result<LmiCheck> {
+    check_inputs(sys, eta, q, r)?;
+    check_shape("P", p, sys.nx(), sys.nx())?;
+    check_finite("P", p)?;
+    let asym = asymmetry(p);
+    if asym > SYMMETRY_TOL * p.norm_max() {
+        return Err(ModelError::NotSymmetric {
+            name: "P".into(),
+            asymmetry: asym,
+        });
+    }
+    let p = symmetrize(p);
+    let p_eig = sym_eigenvalues("P", p.as_ref())?;
+    let (p_min, p_max) = (p_eig[0], p_eig[p_eig.len() - 1]);
+    let (j, s) = lmi_and_scale(sys, eta, q, r, p.as_ref());
+    let lmi_eigenvalues = sym_eigenvalues("LMI matrix", j.as_ref())?;
+    let lmi_max_eigenvalue = lmi_eigenvalues.last().copied().unwrap_or(0.0);
+    let relative_violation = if p_min > 0.0 {
+        relative_violation(j.as_ref(), s.as_ref())?
+    } else {
+        f64::NAN
+    };
+    Ok(LmiCheck {
+        p_min_eigenvalue: p_min,
+        p_max_eigenvalue: p_max,
+        p_min_ratio: opts.min_condition,
+        lmi_eigenvalues,
+        lmi_max_eigenvalue,
+        relative_violation,
+        relative_tolerance: opts.lmi_relative_tolerance,
+    })
+}
+
+/// μ = λ_max of the pencil (J, S) for S ≻ 0 (NaN if S is singular to working precision): with the Jacobi scaling D = diag(S)^{−½}
+/// and DSD = VΛVᵀ, μ = λ_max(Λ^{−½}VᵀDJDVΛ^{−½}). The scaling changes nothing
+/// mathematically (a congruence) and makes the rounding relative to each row's own scale.
+fn relative_violation(j: MatRef<'_, f64>, s: MatRef<'_, f64>) -> Result<f64> {
+    let n = s.nrows();
+    let d: Vec<f64> = (0..n).map(|i| 1.0 / s[(i, i)].sqrt()).collect();
+    let s_hat = Mat::from_fn(n, n, |a, b| d[a] * s[(a, b)] * d[b]);
+    let j_hat = Mat::from_fn(n, n, |a, b| d[a] * j[(a, b)] * d[b]);
+    let numerical = |what: &str| ModelError::Numerical {
+        routine: "relative LMI (2) check".into(),
+        reason: what.to_string(),
+    };
+    let evd = s_hat
+        .self_adjoint_eigen(Side::Lower)
+        .map_err(|e| numerical(&format!("eigen-decomposition of the scale matrix: {e:?}")))?;
+    let lam = evd.S().column_vector();
+    let v = evd.U();
+    let lam_min = (0..n).map(|i| lam[i]).fold(f64::INFINITY, f64::min);
+    if !(lam_min > 0.0) {
+        // Only for a P that is singular to working precision (refused by the ρ test anyway).
+        return Ok(f64::NAN);
+    }
+    let w = Mat::from_fn(n, n, |a, b| v[(a, b)] / lam[b].sqrt());
+    let k = w.transpose() * &j_hat * &w;
+    let eig = sym_eigenvalues("scaled LMI matrix", k.as_ref())?;
+    Ok(eig.last().copied().unwrap_or(f64::NEG_INFINITY))
+}

@@ -603,21 +603,44 @@ impl SweepConfig {
         let mut s = String::new();
         let _ = write!(
             s,
-            "k={:?};solvers={:?};seeds={};scales={:?};steps={};base_seed={};exact={};controller={:?};metrics={:?};crn={};bounded_factor={:e};certificate={}",
+            "k={:?};solvers=[{}];seeds={};scales={:?};steps={};base_seed={};exact={};controller={};metrics={:?};crn={};bounded_factor={:e};certificate={}",
             self.k_grid,
-            self.solvers,
+            self.solvers
+                .iter()
+                .map(fingerprint_name)
+                .collect::<Vec<_>>()
+                .join(", "),
             self.seeds,
             scales.iter().map(|x| x.to_bits()).collect::<Vec<_>>(),
             steps,
             base_seed,
             self.exact_mhe_solve,
-            self.controller,
+            match self.controller {
+                ControllerChoice::ExactMpc => "ExactMpc".to_string(),
+                ControllerChoice::SaturatedLqr => "SaturatedLqr".to_string(),
+                ControllerChoice::SuboptimalMpc { iterations, method } => format!(
+                    "SuboptimalMpc {{ iterations: {iterations}, solver: {} }}",
+                    fingerprint_name(&method)
+                ),
+            },
             self.metrics,
             self.common_random_numbers,
             self.bounded_factor,
             self.certificate,
         );
         s
+    }
+}
+
+/// A method's name in the fingerprint text: fixed words (the ones fingerprints were first
+/// written with), so output directories stay resumable across versions.
+fn fingerprint_name(m: &Method) -> String {
+    match *m {
+        Method::PG => "Pg".into(),
+        Method::FISTA => "Fista".into(),
+        Method::ADMM => "Admm".into(),
+        Method::ADMM_PR => "AdmmPr".into(),
+        other => other.name().into_owned(),
     }
 }
 

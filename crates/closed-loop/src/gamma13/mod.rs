@@ -109,8 +109,10 @@ pub enum Gamma13Void {
         best_contraction: f64,
         /// The metric that achieved it.
         metric: String,
-        /// Whether the 2^s free sets were enumerated (else the family bound only).
+        /// Whether the 2^s free sets were enumerated (else the family bounds only).
         enumerated: bool,
+        /// Leading input blocks enumerated exactly in the family bound.
+        pattern_blocks: usize,
     },
     /// A user value below the sampled lower estimate: provably not a valid γ₁,₃.
     UserValueRefuted {
@@ -160,16 +162,23 @@ impl std::fmt::Display for Gamma13Void {
                 best_contraction,
                 metric,
                 enumerated,
-            } => write!(
-                f,
-                "no metric found in which every local gain contracts (best λ_S = \
-                 {best_contraction:.4}, metric {metric}; {})",
+                pattern_blocks,
+            } => {
+                write!(
+                    f,
+                    "no metric found in which every local gain contracts (best λ_S = \
+                     {best_contraction:.4}, metric {metric}; "
+                )?;
                 if *enumerated {
-                    "all free sets enumerated"
+                    write!(f, "all free sets enumerated)")
                 } else {
-                    "S-procedure over 0 ⪯ Π ⪯ I"
+                    write!(
+                        f,
+                        "S-procedure over 0 ⪯ Π ⪯ I with the first {pattern_blocks} input \
+                         block(s) enumerated)"
+                    )
                 }
-            ),
+            }
             Self::UserValueRefuted {
                 user,
                 sampled_lower,
@@ -507,6 +516,7 @@ pub fn gamma13_certified_with(
             best_contraction: b.map_or(f64::INFINITY, worst),
             metric: b.map_or_else(|| "none".into(), |c| c.metric.clone()),
             enumerated,
+            pattern_blocks: depth,
         })
     };
     Ok(Gamma13Certificate {

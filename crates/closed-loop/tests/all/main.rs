@@ -3,5 +3,7 @@
 
 mod analysis;
 mod certificate;
+mod gamma13;
+mod plants;
 mod sim;
 mod sweep;

@@ -85,3 +85,56 @@ pub fn mass_chain_mpc(damping: f64, n: usize) -> CondensedMpc {
     )
     .unwrap()
 }
+
+fn toml_matrix(m: faer::MatRef<'_, f64>) -> String {
+    let rows: Vec<String> = (0..m.nrows())
+        .map(|i| {
+            let r: Vec<String> = (0..m.ncols()).map(|j| format!("{:?}", m[(i, j)])).collect();
+            format!("[{}]", r.join(", "))
+        })
+        .collect();
+    format!("[{}]", rows.join(", "))
+}
+
+fn toml_vector(v: &[f64]) -> String {
+    let r: Vec<String> = v.iter().map(|x| format!("{x:?}")).collect();
+    format!("[{}]", r.join(", "))
+}
+
+/// A scenario (TOML text, parsed) for `sys` with the MPC of horizon `n`, Q_c = I, R_c =
+/// `r_c`·I, the input box ±`input` (`None`: `sets.input` omitted, 𝒰 = ℝ^{n_u}), noise
+/// uniform in ±0.01, and the MHE of the certified preset (M = 9, η = 0.8, Q = I, R = I, PG).
+pub fn scenario(
+    name: &str,
+    sys: &LtiSystem,
+    input: Option<f64>,
+    n: usize,
+    r_c: f64,
+    x0: &[f64],
+) -> lti_model::scenario::Scenario {
+    let (nx, nu, ny) = (sys.nx(), sys.nu(), sys.ny());
+    let input = input.map_or(String::new(), |u| {
+        format!(
+            "input = {{ lower = {}, upper = {} }}\n",
+            toml_vector(&vec![-u; nu]),
+            toml_vector(&vec![u; nu])
+        )
+    });
+    let text = format!(
+        "name = \"{name}\"\n\
+         [plant]\na = {}\nb = {}\nc = {}\n\
+         [sets]\n{input}disturbance = {{ lower = {}, upper = {} }}\n\
+         [noise]\nkind = \"uniform\"\nscale = 1.0\nseed = 11\n\
+         [simulation]\nx0 = {}\nprior = {}\nsteps = 40\n\
+         [mhe]\nhorizon = 9\neta = 0.8\nq = 1.0\nr = 1.0\niterations = 10\nsolver = \"pg\"\nwarm_start = \"paper\"\n\
+         [mpc]\nhorizon = {n}\nq = 1.0\nr = {r_c:?}\nterminal = \"dare\"\n",
+        toml_matrix(sys.a()),
+        toml_matrix(sys.b()),
+        toml_matrix(sys.c()),
+        toml_vector(&vec![-0.01; nx + ny]),
+        toml_vector(&vec![0.01; nx + ny]),
+        toml_vector(x0),
+        toml_vector(&vec![0.0; nx]),
+    );
+    lti_model::scenario::Scenario::from_toml_str(&text).unwrap()
+}

@@ -8,6 +8,7 @@ mod plants;
 
 use std::time::Instant;
 
+use closed_loop::certificate::{CertificateOptions, certify_closed_loop};
 use closed_loop::gamma13::{gamma13_certified, gamma13_sampled};
 use lti_model::BoxSet;
 use mpc_core::{CondensedMpc, ExactMpc};
@@ -57,9 +58,21 @@ fn main() {
     show("cart-pendulum Ts=0.02, |u| ≤ 5", &plants::cart_pendulum_mpc(0.02, BoxSet::symmetric(&[5.0]).unwrap()), 40);
     let sc = lti_model::scenario::Scenario::from_file("scenarios/case-study.toml").unwrap();
     show("case study", &CondensedMpc::from_scenario(&sc).unwrap(), 40);
-    for d in [0.0, 0.5] {
+    for d in [0.0, 0.1, 0.5] {
         for n in [10, 30] {
             show(&format!("mass chain c={d}, N={n}"), &plants::mass_chain_mpc(d, n), 40);
         }
     }
+    // The whole certificate (default options) for n_x = 12, N·n_u = 90.
+    let sc = plants::scenario("chain", &plants::mass_chain(0.5), Some(0.5), 30, 1.0, &[1.0; 12]);
+    let t0 = Instant::now();
+    let c = certify_closed_loop(&sc, &CertificateOptions::default()).unwrap();
+    println!(
+        "certify_closed_loop, mass chain c=0.5, N=30 (default options): {:.2?}; γ₁,₃ {:.4}, L_π {:.4}, K_min {:?}",
+        t0.elapsed(),
+        c.gamma13.used,
+        c.l_pi_used,
+        c.solvers.iter().map(|s| (s.solver, s.k_min)).collect::<Vec<_>>()
+    );
+    println!("{}", c.gamma13);
 }

@@ -311,6 +311,16 @@ impl CondensedMpc {
     /// (module docs, "Partial enumeration"): one per saturation pattern of 𝒫_k, each relaxing
     /// the saturable variables of the later blocks. `k` is capped at N; at most 2³⁰ families.
     pub fn pattern_gains(&self, k: usize) -> Result<Vec<LocalGains>> {
+        self.pattern_gains_iter(k)?.collect()
+    }
+
+    /// [`CondensedMpc::pattern_gains`] one family at a time (pattern order: bit j of the
+    /// pattern index set = the j-th saturable variable of the first k blocks saturated), so
+    /// callers can stop early.
+    pub fn pattern_gains_iter(
+        &self,
+        k: usize,
+    ) -> Result<impl Iterator<Item = Result<LocalGains>> + '_> {
         let nu = self.nu();
         let k = k.min(self.horizon());
         let sat = self.saturable();
@@ -323,17 +333,15 @@ impl CondensedMpc {
                 reason: "more than 2^30 saturation patterns; use a smaller k",
             });
         }
-        (0..(1u64 << lead.len()))
-            .map(|mask| {
-                let saturated: Vec<usize> = lead
-                    .iter()
-                    .enumerate()
-                    .filter(|(j, _)| mask & (1 << j) != 0)
-                    .map(|(_, &i)| i)
-                    .collect();
-                self.local_gains_with(&saturated, &rest)
-            })
-            .collect()
+        Ok((0..(1u64 << lead.len())).map(move |mask| {
+            let saturated: Vec<usize> = lead
+                .iter()
+                .enumerate()
+                .filter(|(j, _)| mask & (1 << j) != 0)
+                .map(|(_, &i)| i)
+                .collect();
+            self.local_gains_with(&saturated, &rest)
+        }))
     }
 
     /// Visits every free set 𝔽 of the box-constrained QP (every always-free variable is in

@@ -162,9 +162,13 @@ impl CondensedMpc {
         let mut polynomial = gains.lipschitz_bound()?;
         let depth = self.pattern_depth(LIPSCHITZ_PATTERN_FAMILIES);
         if depth > 0 && gains.s() > 0 {
+            // Both bounds are sound; stop once the running maximum cannot win.
             let mut worst = 0.0_f64;
-            for g in self.pattern_gains(depth)? {
-                worst = worst.max(g.lipschitz_bound()?);
+            for g in self.pattern_gains_iter(depth)? {
+                worst = worst.max(g?.lipschitz_bound()?);
+                if worst >= polynomial {
+                    break;
+                }
             }
             polynomial = polynomial.min(worst);
         }

@@ -45,6 +45,7 @@ pub use sampled::{Gamma13Sampled, gamma13_sampled};
 
 use lti_model::system::spectral_radius;
 use mpc_core::{CondensedMpc, MpcError, worst_case_norm};
+use rayon::prelude::*;
 use serde::Serialize;
 
 use metrics::{Family, Metric};
@@ -56,7 +57,8 @@ pub struct MetricResult {
     pub metric: String,
     /// λ_S = sup over the family of ‖A + BK(M)‖_S (S-procedure).
     pub contraction: f64,
-    /// g_S = sup over the family of ‖S^{½}BK(M)‖₂ (S-procedure).
+    /// g_S = sup over the family of ‖S^{½}BK(M)‖₂ (S-procedure); ∞ (not computed) when
+    /// λ_S ≥ 1.
     pub input_gain: f64,
     /// max over the 2^s free sets of ‖A + BK_𝔽‖_S (when enumerated; a lower bound ≥ 1 once
     /// it reaches 1, because the enumeration drops the metric there).
@@ -268,20 +270,58 @@ fn void_certificate(
     }
 }
 
-/// (λ_S, g_S) over the family for metric `m` (S-procedure).
-fn family_figures(fam: &Family, m: &Metric) -> Result<(f64, f64), MpcError> {
+/// λ_S over the family for metric `m` (S-procedure).
+fn family_contraction(fam: &Family, m: &Metric) -> Result<f64, MpcError> {
     let (h, nh) = (&m.half, &m.neg_half);
-    let lam = worst_case_norm(
+    Ok(worst_case_norm(
         (h * &fam.a_mid * nh).as_ref(),
         (h * &fam.u).as_ref(),
         (&fam.v * nh).as_ref(),
-    )?;
-    let gin = worst_case_norm(
+    )?
+    .bound)
+}
+
+/// g_S over the family for metric `m` (S-procedure).
+fn family_input_gain(fam: &Family, m: &Metric) -> Result<f64, MpcError> {
+    let h = &m.half;
+    Ok(worst_case_norm(
         (h * &fam.bk_mid).as_ref(),
         (h * &fam.u).as_ref(),
         fam.v.as_ref(),
-    )?;
-    Ok((lam.bound, gin.bound))
+    )?
+    .bound)
+}
+
+/// (λ_S, g_S) for metric `m`: the smaller of the single-family bound and the maximum over
+/// the partial enumeration's families (both sound). A running maximum that reaches the
+/// single-family value can no longer win and stops; g_S is not computed (∞) when λ_S ≥ 1.
+fn metric_figures(fam: &Family, patterns: &[Family], m: &Metric) -> Result<(f64, f64), MpcError> {
+    let mut lam = family_contraction(fam, m)?;
+    if !patterns.is_empty() {
+        let mut worst = 0.0_f64;
+        for f in patterns {
+            worst = worst.max(family_contraction(f, m)?);
+            if worst >= lam {
+                break;
+            }
+        }
+        lam = lam.min(worst);
+    }
+    if lam >= 1.0 {
+        return Ok((lam, f64::INFINITY));
+    }
+    let mut gin = family_input_gain(fam, m)?;
+    if !patterns.is_empty() {
+        let mut worst = 0.0_f64;
+        for f in patterns {
+            worst = worst.max(family_input_gain(f, m)?);
+            if worst >= gin {
+                break;
+            }
+        }
+        gin = gin.min(worst);
+    }
+    Ok((lam, gin))
 }
 
 fn gammas(lam: f64, gin: f64, m: &Metric) -> (f64, f64) {
@@ -392,20 +432,14 @@ pub fn gamma13_certified_with(
         Vec::new()
     };
     let metrics = metrics::candidates(mpc, &fam);
+    // One metric per task (in order), so the result does not depend on the thread count.
+    let figures: Vec<Result<(f64, f64), MpcError>> = metrics
+        .par_iter()
+        .map(|m| metric_figures(&fam, &patterns, m))
+        .collect();
     let mut candidates = Vec::with_capacity(metrics.len());
-    for m in &metrics {
-        let (mut lam, mut gin) = family_figures(&fam, m)?;
-        if !patterns.is_empty() {
-            // Both bounds are sound: keep the smaller of each.
-            let (mut lp, mut gp) = (0.0_f64, 0.0_f64);
-            for f in &patterns {
-                let (l, g) = family_figures(f, m)?;
-                lp = lp.max(l);
-                gp = gp.max(g);
-            }
-            lam = lam.min(lp);
-            gin = gin.min(gp);
-        }
+    for (m, fig) in metrics.iter().zip(figures) {
+        let (lam, gin) = fig?;
         let (g13, g1w) = gammas(lam, gin, m);
         candidates.push(MetricResult {
             metric: m.name.clone(),

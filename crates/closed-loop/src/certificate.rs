@@ -9,7 +9,7 @@
 //! | H̄ | [`mhe_core::MheProblem::h_bar`] (ε in condensed coordinates) |
 //! | L_Φ | [`mhe_core::MheProblem::lipschitz_certified`], sampled estimate beside it |
 //! | L_π | tightest certified bound of [`mpc_core::lipschitz_report_for`], sampled beside it |
-//! | γ₁,₃ | [`crate::gamma13::gamma13_certified`] (or user-supplied), sampled lower estimate beside it |
+//! | γ₁,₃ | [`crate::gamma13::gamma13_report`]: certified, or user-supplied ("not verified", refuted by the sampled lower estimate if below it) |
 //! | φ(K) | each solver's certificate, worst rate and prefactor over the window lengths m = 0..M |
 //!
 //! The controller analysed is the exact MPC (the paper's setting). A violated premise makes

@@ -8,6 +8,8 @@
 //! - [`sim`]: Alg. 1 as a simulation ([`ClosedLoop`]) and the case-study builder
 //!   ([`build_case_study`]).
 //! - [`record`]: the per-step [`Trace`] of a run (with the MHE records), JSON output.
+//! - [`gamma13`]: γ₁,₃ of Assumption 4 for the MPC on any plant (family bound by the
+//!   S-procedure, partial and full free-set enumeration, typed void reasons, user values).
 
 pub mod analysis;
 pub mod certificate;

@@ -130,7 +130,10 @@ impl LocalGains {
     /// sup over 0 ⪯ M ⪯ I of ‖K(M)‖₂: a certified L_π valid for any s (docs/theory.md).
     pub fn lipschitz_bound(&self) -> Result<f64> {
         let (l, r) = self.spread()?;
-        Ok(crate::robust_norm::worst_case_norm(self.k_mid().as_ref(), l.as_ref(), r.as_ref())?.bound)
+        Ok(
+            crate::robust_norm::worst_case_norm(self.k_mid().as_ref(), l.as_ref(), r.as_ref())?
+                .bound,
+        )
     }
 }
 

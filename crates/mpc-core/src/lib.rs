@@ -34,8 +34,8 @@ pub use error::{MpcError, Result};
 pub use exact::{ExactBackend, ExactMpc};
 pub use free_sets::{FreeSetSummary, LocalGains};
 pub use lipschitz::{
-    ENUMERATION_MAX_VARS, LIPSCHITZ_PATTERN_FAMILIES, LipschitzCertificate, LipschitzReport, SampledLipschitz,
-    lipschitz_report, lipschitz_report_for, lipschitz_sampled,
+    ENUMERATION_MAX_VARS, LIPSCHITZ_PATTERN_FAMILIES, LipschitzCertificate, LipschitzReport,
+    SampledLipschitz, lipschitz_report, lipschitz_report_for, lipschitz_sampled,
 };
 pub use lqr::SaturatedLqr;
 pub use robust_norm::{WorstCaseNorm, worst_case_norm};

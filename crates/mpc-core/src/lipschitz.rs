@@ -238,7 +238,6 @@ impl CondensedMpc {
         })?;
         Ok(visited.then_some(best))
     }
-
 }
 
 /// Result of [`lipschitz_sampled`].
@@ -559,7 +558,9 @@ impl std::fmt::Display for LipschitzReport {
             None => writeln!(
                 f,
                 "  L_enum         skipped: {}",
-                self.enumeration_skipped.as_deref().unwrap_or("not computed")
+                self.enumeration_skipped
+                    .as_deref()
+                    .unwrap_or("not computed")
             )?,
         }
         writeln!(

@@ -51,9 +51,8 @@ pub(crate) fn vertex_max(
     let (nx, nu) = (mpc.nx(), mpc.nu());
     let a: Vec<f64> = (0..nx * nx).map(|k| sys.a()[(k / nx, k % nx)]).collect();
     let b: Vec<f64> = (0..nx * nu).map(|k| sys.b()[(k / nu, k % nu)]).collect();
-    let row_major = |m: &faer::Mat<f64>| -> Vec<f64> {
-        (0..nx * nx).map(|k| m[(k / nx, k % nx)]).collect()
-    };
+    let row_major =
+        |m: &faer::Mat<f64>| -> Vec<f64> { (0..nx * nx).map(|k| m[(k / nx, k % nx)]).collect() };
     let halves: Vec<(Vec<f64>, Vec<f64>)> = metrics
         .iter()
         .map(|m| (row_major(&m.half), row_major(&m.neg_half)))

@@ -79,7 +79,10 @@ pub(crate) struct Family {
 
 impl Family {
     /// The family of `gains` on the plant of `mpc`.
-    pub(crate) fn from_gains(mpc: &CondensedMpc, gains: &mpc_core::LocalGains) -> mpc_core::Result<Self> {
+    pub(crate) fn from_gains(
+        mpc: &CondensedMpc,
+        gains: &mpc_core::LocalGains,
+    ) -> mpc_core::Result<Self> {
         let (l_hat, r_hat) = gains.spread()?;
         let (a, b) = (mpc.system().a(), mpc.system().b());
         let bk_mid = b * gains.k_mid();
@@ -112,7 +115,8 @@ pub(crate) fn robust_riccati(fam: &Family, lambda: f64, eps: f64) -> Option<Mat<
     let n = fam.a_mid.nrows();
     let r = fam.u.ncols();
     let at = &fam.a_mid * (1.0 / lambda);
-    let q = fam.v.transpose() * &fam.v * (1.0 / (lambda * lambda)) + Mat::<f64>::identity(n, n) * eps;
+    let q =
+        fam.v.transpose() * &fam.v * (1.0 / (lambda * lambda)) + Mat::<f64>::identity(n, n) * eps;
     let q_scale = q.norm_max();
     let mut s = q.clone();
     for _ in 0..RICCATI_MAX_ITER {
@@ -121,7 +125,9 @@ pub(crate) fn robust_riccati(fam: &Family, lambda: f64, eps: f64) -> Option<Mat<
         if r > 0 {
             let su = &s * &fam.u;
             let m = Mat::<f64>::identity(r, r) - fam.u.transpose() * &su;
-            let llt = lti_model::matrix::symmetrize(m.as_ref()).llt(Side::Lower).ok()?;
+            let llt = lti_model::matrix::symmetrize(m.as_ref())
+                .llt(Side::Lower)
+                .ok()?;
             let utsa = su.transpose() * &at; // UᵀSÃ
             let x = faer::linalg::solvers::Solve::solve(&llt, &utsa);
             next += utsa.transpose() * &x;

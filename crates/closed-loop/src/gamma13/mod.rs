@@ -402,11 +402,7 @@ pub fn gamma13_certified_with(
     if s > 0 {
         let rho = spectral_radius(fam.a_sat.as_ref())?;
         if !(rho < 1.0 - 1e-10) {
-            let bounded = us
-                .lower()
-                .iter()
-                .chain(us.upper())
-                .all(|b| b.is_finite());
+            let bounded = us.lower().iter().chain(us.upper()).all(|b| b.is_finite());
             return Ok(void_certificate(
                 variables,
                 s,
@@ -516,7 +512,11 @@ pub fn gamma13_certified_with(
     // The linear law: impulse-response sum with the best contracting metric's tail bound.
     let mut gamma13_linear = None;
     if s == 0 {
-        if let Some(i) = order.first().copied().filter(|&i| candidates[i].gamma13.is_finite()) {
+        if let Some(i) = order
+            .first()
+            .copied()
+            .filter(|&i| candidates[i].gamma13.is_finite())
+        {
             gamma13_linear = impulse_response_gain(&fam, &metrics[i], candidates[i].contraction);
         }
     }
@@ -528,7 +528,9 @@ pub fn gamma13_certified_with(
     let mut gamma13 = best.map_or(f64::INFINITY, |c| c.gamma13);
     let mut metric = best.map(|c| c.metric.clone());
     let mut method = best.map(|c| {
-        if c.gamma13_enumerated.is_some_and(|e| e <= c.gamma13_polynomial) {
+        if c.gamma13_enumerated
+            .is_some_and(|e| e <= c.gamma13_polynomial)
+        {
             Gamma13Method::Enumerated
         } else {
             Gamma13Method::Polynomial

@@ -156,7 +156,11 @@ impl std::fmt::Display for Gamma13Report {
                 c.saturable, c.variables, c.gamma13_polynomial
             )?;
             if let Some(e) = c.gamma13_enumerated {
-                write!(f, "\n  enumerated over {} free sets     {e:.6}", c.free_sets)?;
+                write!(
+                    f,
+                    "\n  enumerated over {} free sets     {e:.6}",
+                    c.free_sets
+                )?;
             }
             if let Some(l) = c.gamma13_linear {
                 write!(f, "\n  linear law, impulse response     {l:.6}")?;

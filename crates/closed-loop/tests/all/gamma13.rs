@@ -66,13 +66,9 @@ fn unconstrained_unstable_pendulum_is_certified_with_the_linear_law() {
     assert_eq!(mpc.free_set_count(), 1);
 
     // The law is the LQR law (DARE terminal cost, nothing saturates): L_π = ‖K_lqr‖ exactly.
-    let (k, p) = lti_model::riccati::dlqr_gain(
-        sys.a(),
-        sys.b(),
-        mpc.q_c().as_ref(),
-        mpc.r_c().as_ref(),
-    )
-    .unwrap();
+    let (k, p) =
+        lti_model::riccati::dlqr_gain(sys.a(), sys.b(), mpc.q_c().as_ref(), mpc.r_c().as_ref())
+            .unwrap();
     let l = mpc.lipschitz_certified().unwrap();
     let l_enum = mpc.lipschitz_enumerated(14).unwrap().unwrap();
     let exact = spectral(&k);
@@ -110,10 +106,17 @@ fn unconstrained_unstable_pendulum_is_certified_with_the_linear_law() {
         term = &a_cl * &term;
     }
     let linear = c.gamma13_linear.unwrap();
-    assert!(linear >= sum && linear <= sum * (1.0 + 1e-6), "{linear} vs {sum}");
+    assert!(
+        linear >= sum && linear <= sum * (1.0 + 1e-6),
+        "{linear} vs {sum}"
+    );
     assert!(c.gamma13 == linear && linear < gamma_dare);
     let low = sampled(&mpc, 6, 400, 1);
-    assert!(low > 0.0 && low <= c.gamma13, "sampled {low} > {}", c.gamma13);
+    assert!(
+        low > 0.0 && low <= c.gamma13,
+        "sampled {low} > {}",
+        c.gamma13
+    );
 
     // The whole certificate: γ₁,₃ and L_π enter, no void reason from them.
     let sc = plants::scenario("pendulum", sys, None, 10, 0.1, &[0.1, 0.0, 0.05, 0.0]);
@@ -136,8 +139,10 @@ fn mass_chain_is_certified_at_realistic_horizons() {
         assert!(c.gamma13.is_finite() && c.pattern_blocks >= 1);
         assert!(!c.enumerated);
         assert!(
-            c.skipped.iter().any(|s| s.computation == "free-set enumeration"
-                && s.reason.contains(&format!("{} saturable", 3 * n))),
+            c.skipped
+                .iter()
+                .any(|s| s.computation == "free-set enumeration"
+                    && s.reason.contains(&format!("{} saturable", 3 * n))),
             "{:?}",
             c.skipped
         );
@@ -155,7 +160,9 @@ fn mass_chain_is_certified_at_realistic_horizons() {
         let mut rng = ChaCha8Rng::seed_from_u64(n as u64);
         for _ in 0..200 {
             let p_free: f64 = rng.random();
-            let free: Vec<usize> = (0..3 * n).filter(|_| rng.random::<f64>() < p_free).collect();
+            let free: Vec<usize> = (0..3 * n)
+                .filter(|_| rng.random::<f64>() < p_free)
+                .collect();
             let mut kf = Mat::<f64>::zeros(3, 12);
             if !free.is_empty() {
                 let hff = Mat::from_fn(free.len(), free.len(), |a, b| h[(free[a], free[b])]);
@@ -170,14 +177,25 @@ fn mass_chain_is_certified_at_realistic_horizons() {
             let bk = sys.b() * &kf;
             let lam = spectral(&(&sh * (sys.a() + &bk) * &snh));
             let g = spectral(&(&sh * &bk));
-            assert!(lam <= m.contraction * (1.0 + 1e-9), "{lam} > {}", m.contraction);
+            assert!(
+                lam <= m.contraction * (1.0 + 1e-9),
+                "{lam} > {}",
+                m.contraction
+            );
             assert!(g <= m.input_gain * (1.0 + 1e-9), "{g} > {}", m.input_gain);
         }
         let low = sampled(&mpc, 3, 40, 2);
         assert!(low > 0.0 && low <= c.gamma13);
     }
     // The whole certificate at N = 30: every solver gets a K_min.
-    let sc = plants::scenario("chain", &plants::mass_chain(0.5), Some(0.5), 30, 1.0, &[1.0; 12]);
+    let sc = plants::scenario(
+        "chain",
+        &plants::mass_chain(0.5),
+        Some(0.5),
+        30,
+        1.0,
+        &[1.0; 12],
+    );
     let cert = certify_closed_loop(&sc, &fast_options()).unwrap();
     assert!(cert.gamma13.used.is_finite());
     for s in &cert.solvers {
@@ -227,7 +245,14 @@ fn unstable_plant_with_bounded_input_is_void_with_its_eigenvalue() {
     assert!(x.iter().map(|v| v * v).sum::<f64>().sqrt() > 10.0 * start);
 
     // In the certificate: the exact sentence, not "gamma13 finite … inf".
-    let sc = plants::scenario("pendulum-5", sys, Some(5.0), 10, 0.1, &[0.1, 0.0, 0.05, 0.0]);
+    let sc = plants::scenario(
+        "pendulum-5",
+        sys,
+        Some(5.0),
+        10,
+        0.1,
+        &[0.1, 0.0, 0.05, 0.0],
+    );
     let cert = certify_closed_loop(&sc, &fast_options()).unwrap();
     assert_eq!(cert.gamma13.void, Some(void.clone()));
     for s in &cert.solvers {
@@ -272,12 +297,9 @@ fn undamped_chain_is_void_as_marginally_stable_and_weakly_damped_chain_names_the
         }
         other => panic!("{other:?}"),
     }
-    assert!(
-        c.void
-            .unwrap()
-            .to_string()
-            .starts_with(&format!("no metric found in which every local gain contracts (best λ_S = {best:.4}"))
-    );
+    assert!(c.void.unwrap().to_string().starts_with(&format!(
+        "no metric found in which every local gain contracts (best λ_S = {best:.4}"
+    )));
 }
 
 /// A random MPC with s ≤ 14 (some inputs one-sided or unbounded), A with ρ ≤ 1, uniform
@@ -290,7 +312,9 @@ fn random_mpc(seed: u64) -> CondensedMpc {
     let nx = r.random_range(1..=4);
     let nu = r.random_range(1..=2);
     let a = gauss(&mut r, nx, nx);
-    let rho = lti_model::system::spectral_radius(a.as_ref()).unwrap().max(1e-3);
+    let rho = lti_model::system::spectral_radius(a.as_ref())
+        .unwrap()
+        .max(1e-3);
     let a = a * ((0.2 + 0.8 * r.random::<f64>()) / rho);
     let b = gauss(&mut r, nx, nu);
     let c = gauss(&mut r, 1, nx);
@@ -301,7 +325,10 @@ fn random_mpc(seed: u64) -> CondensedMpc {
     let (mut lower, mut upper) = (Vec::new(), Vec::new());
     for _ in 0..nu {
         let kind: f64 = r.random();
-        let (lo, hi) = (-(0.2 + 2.0 * r.random::<f64>()), 0.2 + 2.0 * r.random::<f64>());
+        let (lo, hi) = (
+            -(0.2 + 2.0 * r.random::<f64>()),
+            0.2 + 2.0 * r.random::<f64>(),
+        );
         let (lo, hi) = match kind {
             k if k < 0.15 => (f64::NEG_INFINITY, f64::INFINITY),
             k if k < 0.3 => (lo, f64::INFINITY),
@@ -315,10 +342,14 @@ fn random_mpc(seed: u64) -> CondensedMpc {
         .zip(&upper)
         .filter(|(l, u)| l.is_finite() || u.is_finite())
         .count();
-    let max_n = if bounded == 0 { 6 } else { (14 / bounded).min(6) };
+    let max_n = 14usize.checked_div(bounded).unwrap_or(6).min(6);
     let n = r.random_range(1..=max_n);
     let sys = LtiSystem::new(a, b, c).unwrap();
-    CondensedMpc::new(&sys, MpcConfig::new(n, q, rc, BoxSet::new(lower, upper).unwrap())).unwrap()
+    CondensedMpc::new(
+        &sys,
+        MpcConfig::new(n, q, rc, BoxSet::new(lower, upper).unwrap()),
+    )
+    .unwrap()
 }
 
 #[test]
@@ -378,7 +409,10 @@ fn family_bound_dominates_enumerated_dominates_sampled_on_200_random_mpcs() {
         }
     }
     assert!(finite >= 100, "only {finite} certified instances");
-    assert!(strict > 0, "the family bound never differs from the enumeration");
+    assert!(
+        strict > 0,
+        "the family bound never differs from the enumeration"
+    );
 }
 
 #[test]

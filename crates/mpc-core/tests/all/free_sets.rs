@@ -28,7 +28,9 @@ fn random_mpc(seed: u64) -> CondensedMpc {
     let nx = r.random_range(1..=4);
     let nu = r.random_range(1..=2);
     let a = gauss(&mut r, nx, nx);
-    let rho = lti_model::system::spectral_radius(a.as_ref()).unwrap().max(1e-3);
+    let rho = lti_model::system::spectral_radius(a.as_ref())
+        .unwrap()
+        .max(1e-3);
     let a = a * ((0.3 + 0.9 * r.random::<f64>()) / rho);
     let b = gauss(&mut r, nx, nu);
     let c = gauss(&mut r, 1, nx);
@@ -40,7 +42,10 @@ fn random_mpc(seed: u64) -> CondensedMpc {
     let mut upper = Vec::new();
     for _ in 0..nu {
         let kind: f64 = r.random();
-        let (lo, hi) = (-(0.2 + 2.0 * r.random::<f64>()), 0.2 + 2.0 * r.random::<f64>());
+        let (lo, hi) = (
+            -(0.2 + 2.0 * r.random::<f64>()),
+            0.2 + 2.0 * r.random::<f64>(),
+        );
         match kind {
             k if k < 0.2 => (lower.push(f64::NEG_INFINITY), upper.push(f64::INFINITY)),
             k if k < 0.35 => (lower.push(f64::NEG_INFINITY), upper.push(hi)),
@@ -52,7 +57,7 @@ fn random_mpc(seed: u64) -> CondensedMpc {
         .zip(&upper)
         .filter(|(l, u)| l.is_finite() || u.is_finite())
         .count();
-    let max_n = if bounded == 0 { 6 } else { 14 / bounded };
+    let max_n = 14usize.checked_div(bounded).unwrap_or(6);
     let n = r.random_range(1..=max_n.clamp(1, 6));
     let sys = LtiSystem::new(a, b, c).unwrap();
     CondensedMpc::new(
@@ -85,7 +90,11 @@ fn worst_case_norm_matches_scalar_closed_form_and_degenerate_cases() {
         );
     }
     // M₀ = 0: sup‖UΔV‖ = ‖U‖‖V‖; U = 0: ‖M₀‖.
-    let (u, v, m0) = (gauss(&mut r, 3, 2), gauss(&mut r, 4, 5), gauss(&mut r, 3, 5));
+    let (u, v, m0) = (
+        gauss(&mut r, 3, 2),
+        gauss(&mut r, 4, 5),
+        gauss(&mut r, 3, 5),
+    );
     let b = worst_case_norm(Mat::<f64>::zeros(3, 5).as_ref(), u.as_ref(), v.as_ref()).unwrap();
     let exact = spectral(&u) * spectral(&v);
     assert!((b.bound - exact).abs() <= 1e-7 * exact && b.bound >= exact);
@@ -146,8 +155,14 @@ fn worst_case_norm_matches_brute_force_and_dominates_random_members() {
     let mut r = rng(12);
     for case in 0..12 {
         let (ru, rv) = (1 + case % 2, 1 + (case / 2) % 2);
-        let (m0, u, v) = (gauss(&mut r, 2, 2), gauss(&mut r, 2, ru), gauss(&mut r, rv, 2));
-        let b = worst_case_norm(m0.as_ref(), u.as_ref(), v.as_ref()).unwrap().bound;
+        let (m0, u, v) = (
+            gauss(&mut r, 2, 2),
+            gauss(&mut r, 2, ru),
+            gauss(&mut r, rv, 2),
+        );
+        let b = worst_case_norm(m0.as_ref(), u.as_ref(), v.as_ref())
+            .unwrap()
+            .bound;
         let brute = brute_force_2x2(&m0, &u, &v);
         assert!(
             b >= brute * (1.0 - 1e-12) && b <= brute * (1.0 + 1e-7),
@@ -156,8 +171,14 @@ fn worst_case_norm_matches_brute_force_and_dominates_random_members() {
     }
     // Larger shapes: every member with ‖Δ‖ ≤ 1 is below the bound.
     for _ in 0..20 {
-        let (m0, u, v) = (gauss(&mut r, 5, 4), gauss(&mut r, 5, 3), gauss(&mut r, 6, 4));
-        let b = worst_case_norm(m0.as_ref(), u.as_ref(), v.as_ref()).unwrap().bound;
+        let (m0, u, v) = (
+            gauss(&mut r, 5, 4),
+            gauss(&mut r, 5, 3),
+            gauss(&mut r, 6, 4),
+        );
+        let b = worst_case_norm(m0.as_ref(), u.as_ref(), v.as_ref())
+            .unwrap()
+            .bound;
         for _ in 0..50 {
             let d = gauss(&mut r, 3, 6);
             let d = &d * (1.0 / spectral(&d));
@@ -182,13 +203,7 @@ fn local_gains_reproduce_every_free_set_gain_with_a_projector() {
         assert_eq!(mpc.free_set_count(), 1u64 << s);
         // L from an independent Cholesky of Γ = (H⁻¹)_𝒮𝒮 (unique for Γ ≻ 0).
         let n = mpc.qp().n();
-        let h_inv = mpc
-            .qp()
-            .h()
-            .to_owned()
-            .llt(Side::Lower)
-            .unwrap()
-            .inverse();
+        let h_inv = mpc.qp().h().to_owned().llt(Side::Lower).unwrap().inverse();
         let gamma = Mat::from_fn(s, s, |a, b| h_inv[(sat[a], sat[b])]);
         let l = gamma.llt(Side::Lower).unwrap().L().to_owned();
         let (nx, nu) = (mpc.nx(), mpc.nu());
@@ -326,7 +341,10 @@ fn partial_enumeration_at_full_depth_is_the_free_set_enumeration() {
             "seed {seed}: {best} vs {e}"
         );
         assert_eq!(mpc.pattern_depth(1 << s), mpc.horizon());
-        assert_eq!(mpc.pattern_depth(1), usize::from(mpc.saturable()[0] >= mpc.nu()));
+        assert_eq!(
+            mpc.pattern_depth(1),
+            usize::from(mpc.saturable()[0] >= mpc.nu())
+        );
         checked += 1;
     }
     assert!(checked >= 10);

@@ -9,7 +9,7 @@
 //! | H̄ | [`mhe_core::MheProblem::h_bar`] (ε in condensed coordinates) |
 //! | L_Φ | [`mhe_core::MheProblem::lipschitz_certified`], sampled estimate beside it |
 //! | L_π | tightest certified bound of [`mpc_core::lipschitz_report_for`], sampled beside it |
-//! | γ₁,₃ | [`crate::gamma13::gamma13_certified`] (or user-supplied), sampled lower estimate beside it |
+//! | γ₁,₃ | [`crate::gamma13::gamma13_report`]: certified, or user-supplied ("not verified", refuted by the sampled lower estimate if below it) |
 //! | φ(K) | each solver's certificate, worst rate and prefactor over the window lengths m = 0..M |
 //!
 //! The controller analysed is the exact MPC (the paper's setting). A violated premise makes
@@ -30,26 +30,15 @@
 use lti_model::ioss;
 use lti_model::matrix::{spectral_norm, sym_extreme_eigenvalues};
 use mhe_core::{LipschitzSampling, MheProblem};
-use mpc_core::ExactMpc;
 use qp_iter::Certificate;
 use serde::Serialize;
 
 use crate::analysis::{GainsAtK, IssAnalysis, IssInputs, eta_sup_for_horizon, min_horizon_for_eta};
-use crate::gamma13::{Gamma13Certificate, Gamma13Sampled, gamma13_certified, gamma13_sampled};
+pub use crate::gamma13::{Gamma13Report, Gamma13Source};
 use crate::record::Trace;
 use crate::scenario::ResolvedScenario;
 use crate::sim::ClosedLoopError;
 use qp_iter::Method;
-
-/// Where γ₁,₃ comes from.
-#[derive(Debug, Clone, Copy, PartialEq, Serialize)]
-#[serde(rename_all = "snake_case")]
-pub enum Gamma13Source {
-    /// Certified by contraction over all MPC free sets ([`crate::gamma13`]).
-    Certified,
-    /// Supplied by the user (e.g. from another method); reported as such.
-    User(f64),
-}
 
 /// Settings of [`certify_closed_loop`].
 #[derive(Debug, Clone, PartialEq)]
@@ -64,7 +53,8 @@ pub struct CertificateOptions {
     pub lipschitz_pairs: usize,
     /// Injected error sequences per magnitude for the sampled γ₁,₃ (0 skips it).
     pub gamma13_sequences: usize,
-    /// Cap on N·n_u for the free-set enumerations (γ₁,₃, L_π).
+    /// Cap on the number of saturable input variables for the γ₁,₃ free-set enumeration
+    /// (above it the polynomial bound alone is used, and the skip is reported).
     pub enumeration_max_vars: usize,
     /// Largest K searched for K_min.
     pub k_max: usize,
@@ -93,19 +83,6 @@ pub struct LPhiReport {
     pub sampled: f64,
     /// Per window length m = 0..M: (certified, sampled).
     pub per_window: Vec<(f64, f64)>,
-}
-
-/// γ₁,₃ figures.
-#[derive(Debug, Clone, PartialEq, Serialize)]
-pub struct Gamma13Report {
-    /// The value used in the certificate.
-    pub used: f64,
-    /// `"certified"` or `"user"`.
-    pub source: String,
-    /// The contraction certificate (when computed).
-    pub certified: Option<Gamma13Certificate>,
-    /// Sampled lower estimate (when computed).
-    pub sampled: Option<Gamma13Sampled>,
 }
 
 /// Certificate of one solver Φ.
@@ -301,40 +278,13 @@ pub fn certify_closed_loop(
     let radius = resolved.sampling_radius();
     let l_pi = mpc_core::lipschitz_report_for(&mpc, opts.lipschitz_pairs, opts.seed, radius)?;
     let l_pi_used = l_pi.l_pi();
-    let gamma13 = match opts.gamma13 {
-        Gamma13Source::User(g) => Gamma13Report {
-            used: g,
-            source: "user".into(),
-            certified: None,
-            sampled: None,
-        },
-        Gamma13Source::Certified => {
-            let c = gamma13_certified(&mpc, opts.enumeration_max_vars)?;
-            Gamma13Report {
-                used: c.gamma13,
-                source: "certified".into(),
-                certified: Some(c),
-                sampled: None,
-            }
-        }
-    };
-    let gamma13 = if opts.gamma13_sequences > 0 {
-        let mut exact = ExactMpc::new(&mpc)?;
-        let s = gamma13_sampled(
-            &mut exact,
-            sys,
-            &[0.01, 0.1, 1.0, 10.0],
-            opts.gamma13_sequences,
-            40,
-            opts.seed,
-        )?;
-        Gamma13Report {
-            sampled: Some(s),
-            ..gamma13
-        }
-    } else {
-        gamma13
-    };
+    let gamma13 = crate::gamma13::gamma13_report(
+        &mpc,
+        opts.gamma13,
+        opts.gamma13_sequences,
+        opts.seed,
+        opts.enumeration_max_vars,
+    )?;
 
     let (p_min, p_max) = ioss_cert.as_ref().map_or((f64::NAN, f64::NAN), |c| {
         (c.p_min_eigenvalue, c.p_max_eigenvalue)
@@ -375,11 +325,13 @@ pub fn certify_closed_loop(
         let mut void_reasons: Vec<String> = analysis
             .violated()
             .iter()
-            .map(|p| {
-                format!(
+            .map(|p| match &gamma13.void {
+                // The exact reason (typed in `gamma13.void`) instead of the generic fix.
+                Some(v) if p.name == "gamma13 finite" => format!("{} fails: {v}", p.name),
+                _ => format!(
                     "{} fails ({} = {:.6}): {}",
                     p.name, p.needed_by, p.value, p.fix
-                )
+                ),
             })
             .collect();
         if k_min.is_none() && void_reasons.is_empty() {

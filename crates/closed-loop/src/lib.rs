@@ -12,6 +12,8 @@
 //! - [`linear`]: ρ_lin(K) and K_lin, the exact linear stability boundary where no constraint
 //!   is active (the lifted LTI system of Alg. 1).
 //! - [`record`]: the per-step [`Trace`] of a run (with the MHE records), JSON output.
+//! - [`gamma13`]: γ₁,₃ of Assumption 4 for the MPC on any plant (family bound by the
+//!   S-procedure, partial and full free-set enumeration, typed void reasons, user values).
 
 pub mod analysis;
 pub mod certificate;

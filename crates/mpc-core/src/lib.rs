@@ -10,8 +10,11 @@
 //!   (the paper's setting: an exact active-set solve each call, Clarabel as fallback and
 //!   reference), [`SuboptimalMpc`] (K iterations of Φ)
 //!   and [`SaturatedLqr`].
-//! - [`lipschitz`]: L_π certified (bound (b) from H and F for any size; the tighter
-//!   enumerated bound L_enum when N·n_u ≤ 30) and sampled (seeded pairs, exact MPC);
+//! - [`free_sets`]: what can saturate, the free-set enumeration and the family
+//!   K(M) = K_lin + G·M·R, 0 ⪯ M ⪯ I, that contains every local gain of the law;
+//!   [`robust_norm`]: worst-case norms over that family (S-procedure, no SDP solver).
+//! - [`lipschitz`]: L_π certified (L_poly over the family for any size, bound (b); the
+//!   enumerated L_enum over the 2^s free sets when s ≤ 30) and sampled (seeded pairs, exact MPC);
 //!   [`lipschitz_report_for`] gathers both for an MPC (what `cargo xtask certify` prints).
 //!
 //! The MPC uses the nominal model (w = 0) and input constraints only; see
@@ -20,19 +23,23 @@
 pub mod condensed;
 pub mod error;
 pub mod exact;
+pub mod free_sets;
 pub mod lipschitz;
 pub mod lqr;
+pub mod robust_norm;
 pub mod settings;
 pub mod suboptimal;
 
 pub use condensed::{CondensedMpc, MpcConfig, Terminal};
 pub use error::{MpcError, Result};
 pub use exact::{ExactBackend, ExactMpc};
+pub use free_sets::{FreeSetSummary, LocalGains};
 pub use lipschitz::{
-    ENUMERATION_MAX_VARS, LipschitzCertificate, LipschitzReport, SampledLipschitz,
-    lipschitz_report_for, lipschitz_sampled,
+    ENUMERATION_MAX_VARS, LIPSCHITZ_PATTERN_FAMILIES, LipschitzCertificate, LipschitzReport,
+    SampledLipschitz, lipschitz_report_for, lipschitz_sampled,
 };
 pub use lqr::SaturatedLqr;
+pub use robust_norm::{WorstCaseNorm, worst_case_norm};
 pub use settings::{MpcSettings, RawMpc};
 pub use suboptimal::{SuboptimalMpc, WarmStart};
 

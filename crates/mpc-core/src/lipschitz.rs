@@ -44,9 +44,22 @@
 //! ‖u₀(x') − u₀(x)‖ ≤ ∫‖E₀J_{f(t)}Δ‖dt ≤ L_enum‖Δ‖. And J_fΔ is the H-orthogonal projection
 //! of −H⁻¹FΔ onto {U : U_A = 0}, non-expansive in ‖·‖_H, so each ‖E₀J_f‖₂ ≤ (b). ∎
 //!
-//! The maximum runs over all 2^{N·n_u} subsets (not only those some x realises), so it
-//! is an upper bound, computed by [`CondensedMpc::lipschitz_enumerated`] when 2^{N·n_u}
-//! is affordable (the case study's 2²⁰ sets take ≈ 2 s in the opt-level-1 test build).
+//! A variable with two infinite bounds is never at a bound, so f always contains it: the
+//! maximum runs over the 2^s free sets of the s saturable variables (not only those some x
+//! realises), so it is an upper bound, computed by [`CondensedMpc::lipschitz_enumerated`]
+//! when 2^s is affordable (the case study's 2²⁰ sets take ≈ 2 s in the opt-level-1 test
+//! build). With 𝒰 = ℝ^{n_u} (s = 0) there is one free set and L_enum = ‖E₀H⁻¹F‖₂ exactly.
+//!
+//! ## Polynomial bound (any size)
+//!
+//! Every local gain is K(M) = K_lin + G·M·R at an orthogonal projector M of ℝ^s
+//! ([`crate::free_sets`]), so L_enum ≤ L_poly := sup_{0 ⪯ M ⪯ I} ‖K(M)‖₂, computed exactly (up
+//! to a scalar search) by the S-procedure of [`crate::robust_norm`] in O((N·n_u)³) time.
+//! Every 0 ⪯ M ⪯ I gives K(M) = −E₀H^{−½}ΠH^{−½}F with 0 ⪯ Π ⪯ I, so L_poly ≤ (b). L_poly is
+//! tightened by the partial enumeration of [`crate::free_sets`]: the maximum of the same bound
+//! over the 2^{|𝒫_k|} families that fix the saturation pattern of the first k input blocks
+//! (k as large as [`LIPSCHITZ_PATTERN_FAMILIES`] allows); the smaller of the two is reported.
+//! The certified L_π is min(L_enum, L_poly, (b)) = L_enum when enumerated, else L_poly.
 //!
 //! ## Sampled estimate
 //!
@@ -71,10 +84,14 @@ use crate::condensed::CondensedMpc;
 use crate::error::{MpcError, Result};
 use crate::exact::ExactMpc;
 
+/// Family budget of the partial enumeration in L_poly (module docs): the saturation patterns
+/// of the leading input blocks are enumerated while 2^{|𝒫_k|} ≤ this.
+pub const LIPSCHITZ_PATTERN_FAMILIES: u64 = 64;
+
 /// The certified L_π of the box-constrained condensed MPC and its ingredients.
 #[derive(Debug, Clone, PartialEq, Serialize)]
 pub struct LipschitzCertificate {
-    /// (b) ‖E₀H^{−1/2}‖₂·‖H^{−1/2}F‖₂: the certified L_π (the tighter bound).
+    /// (b) ‖E₀H^{−1/2}‖₂·‖H^{−1/2}F‖₂: a certified L_π from two norms (≥ `polynomial`).
     pub first_block: f64,
     /// (a) ‖H^{−1/2}F‖₂/√λ_min(H): also bounds ‖U*(x) − U*(x')‖₂ / ‖x − x'‖.
     pub sequence: f64,
@@ -89,12 +106,18 @@ pub struct LipschitzCertificate {
     pub unconstrained_gain: f64,
     /// 0 lies in the interior of 𝒰 (every lower bound < 0 < every upper bound).
     pub origin_interior: bool,
+    /// L_poly ≥ sup_{0 ⪯ M ⪯ I} ‖K_lin + G·M·R‖₂ over the family, or over the partial
+    /// enumeration's families (module docs, "Polynomial bound"); equals `unconstrained_gain`
+    /// when nothing can saturate.
+    pub polynomial: f64,
+    /// s, the number of saturable QP variables (finite bound on at least one side).
+    pub saturable: usize,
 }
 
 impl LipschitzCertificate {
-    /// The certified L_π (the first-block bound (b)).
+    /// The certified L_π without enumeration: min(L_poly, (b)).
     pub fn l_pi(&self) -> f64 {
-        self.first_block
+        self.polynomial.min(self.first_block)
     }
 }
 
@@ -135,7 +158,23 @@ impl CondensedMpc {
         let us = self.input_set();
         let origin_interior =
             us.lower().iter().all(|l| *l < 0.0) && us.upper().iter().all(|u| *u > 0.0);
+        let gains = self.local_gains()?;
+        let mut polynomial = gains.lipschitz_bound()?;
+        let depth = self.pattern_depth(LIPSCHITZ_PATTERN_FAMILIES);
+        if depth > 0 && gains.s() > 0 {
+            // Both bounds are sound; stop once the running maximum cannot win.
+            let mut worst = 0.0_f64;
+            for g in self.pattern_gains_iter(depth)? {
+                worst = worst.max(g?.lipschitz_bound()?);
+                if worst >= polynomial {
+                    break;
+                }
+            }
+            polynomial = polynomial.min(worst);
+        }
         Ok(LipschitzCertificate {
+            polynomial,
+            saturable: gains.s(),
             first_block: e0 * c,
             sequence: c / mu.sqrt(),
             h_inv_sqrt_f: c,
@@ -163,8 +202,9 @@ impl CondensedMpc {
     /// L_enum = max over all free sets f of ‖E₀J_f‖₂ (module docs, "Enumerated bound"): a
     /// certified upper bound on L_π, never above [`LipschitzCertificate::first_block`].
     ///
-    /// Costs 2^{N·n_u} small Cholesky solves; returns `Ok(None)` when N·n_u > `max_vars`
-    /// (at most 30). Allocation happens once, before the loop.
+    /// Costs 2^s small Cholesky solves (s saturable variables, [`CondensedMpc::saturable`]);
+    /// returns `Ok(None)` when s > `max_vars` (at most 30). Allocation happens once, before
+    /// the loop.
     ///
     /// ```
     /// use faer::{mat, Mat};
@@ -176,7 +216,8 @@ impl CondensedMpc {
     /// let l_enum = mpc.lipschitz_enumerated(20).unwrap().unwrap();
     /// let c = mpc.lipschitz_certified().unwrap();
     /// assert!(c.unconstrained_gain <= l_enum * (1.0 + 1e-12) && l_enum <= c.first_block * (1.0 + 1e-12));
-    /// assert!(mpc.lipschitz_enumerated(4).unwrap().is_none()); // N·n_u = 5 > 4
+    /// assert!(l_enum <= c.polynomial * (1.0 + 1e-9));
+    /// assert!(mpc.lipschitz_enumerated(4).unwrap().is_none()); // s = N·n_u = 5 > 4
     /// ```
     pub fn lipschitz_enumerated(&self, max_vars: usize) -> Result<Option<f64>> {
         let nu = self.nu();
@@ -196,115 +237,6 @@ impl CondensedMpc {
             );
         })?;
         Ok(visited.then_some(best))
-    }
-
-    /// Visits every free set 𝔽 ⊂ {0, …, N·n_u − 1} of the box-constrained QP with the local
-    /// gain of the first input block, K_𝔽 = −E₀ E_𝔽(E_𝔽ᵀHE_𝔽)⁻¹E_𝔽ᵀF (n_u × n_x, row-major;
-    /// rows of saturated first-block inputs are zero). On the region where exactly 𝔽 is free,
-    /// π(x) is affine with Jacobian K_𝔽, so along any segment the difference π(x) − π(x') is
-    /// a convex combination of K_𝔽(x − x') (the law is continuous and piecewise affine).
-    ///
-    /// `visit(free_mask, k_f, n_x)`. Returns `Ok(false)` without visiting when
-    /// N·n_u > `max_vars` (at most 30): the enumeration costs 2^{N·n_u} small Cholesky solves.
-    /// Buffers are allocated once, before the loop.
-    pub fn for_each_free_set<V>(&self, max_vars: usize, visit: V) -> Result<bool>
-    where
-        V: FnMut(u64, &[f64], usize),
-    {
-        self.for_each_free_set_in(max_vars, 0..self.free_set_count(), visit)
-    }
-
-    /// Number of free sets, 2^{N·n_u} (saturating at u64::MAX for N·n_u ≥ 64).
-    pub fn free_set_count(&self) -> u64 {
-        1u64.checked_shl(u32::try_from(self.qp().n()).unwrap_or(u32::MAX))
-            .unwrap_or(u64::MAX)
-    }
-
-    /// [`CondensedMpc::for_each_free_set`] restricted to the masks in `masks` (bit i set =
-    /// variable i free), so callers can split the enumeration into ranges and run them in
-    /// parallel; the union of the ranges 0..2^{N·n_u} visits every free set once.
-    pub fn for_each_free_set_in<V>(
-        &self,
-        max_vars: usize,
-        masks: std::ops::Range<u64>,
-        mut visit: V,
-    ) -> Result<bool>
-    where
-        V: FnMut(u64, &[f64], usize),
-    {
-        let qp = self.qp();
-        let (n, nx, nu) = (qp.n(), self.nx(), self.nu());
-        if n > max_vars.min(30) {
-            return Ok(false);
-        }
-        let end = masks.end.min(1u64 << n);
-        let h = qp.h_row_major();
-        let f: Vec<f64> = (0..n * nx).map(|k| qp.f()[(k / nx, k % nx)]).collect();
-        let mut free = vec![0usize; n];
-        let mut l = vec![0.0; n * n];
-        let mut y = vec![0.0; n * nx];
-        let mut kf = vec![0.0; nu * nx];
-        // The empty free set: every input saturated, K = 0.
-        if masks.start == 0 && end > 0 {
-            visit(0, &kf, nx);
-        }
-        for mask in masks.start.max(1)..end {
-            let mut nf = 0;
-            for i in 0..n {
-                if mask & (1 << i) != 0 {
-                    free[nf] = i;
-                    nf += 1;
-                }
-            }
-            // Cholesky H_ff = LLᵀ (lower, row-major nf × nf).
-            for a in 0..nf {
-                for b in 0..=a {
-                    let mut acc = h[free[a] * n + free[b]];
-                    for c in 0..b {
-                        acc -= l[a * nf + c] * l[b * nf + c];
-                    }
-                    if a == b {
-                        if !(acc > 0.0) {
-                            return Err(MpcError::Model(lti_model::ModelError::Numerical {
-                                routine:
-                                    "Cholesky of a principal submatrix of H (free-set enumeration)"
-                                        .into(),
-                                reason: format!("pivot {acc:e} ≤ 0; H is numerically singular"),
-                            }));
-                        }
-                        l[a * nf + a] = acc.sqrt();
-                    } else {
-                        l[a * nf + b] = acc / l[b * nf + b];
-                    }
-                }
-            }
-            // Y = H_ff⁻¹F_f (nf × nx, row-major): forward then backward substitution.
-            for j in 0..nx {
-                for a in 0..nf {
-                    let mut acc = f[free[a] * nx + j];
-                    for c in 0..a {
-                        acc -= l[a * nf + c] * y[c * nx + j];
-                    }
-                    y[a * nx + j] = acc / l[a * nf + a];
-                }
-                for a in (0..nf).rev() {
-                    let mut acc = y[a * nx + j];
-                    for c in a + 1..nf {
-                        acc -= l[c * nf + a] * y[c * nx + j];
-                    }
-                    y[a * nx + j] = acc / l[a * nf + a];
-                }
-            }
-            // K_𝔽 = −(rows of Y of free first-block inputs), placed at their input index.
-            kf.fill(0.0);
-            for (a, &i) in free[..nf].iter().enumerate().take_while(|(_, i)| **i < nu) {
-                for j in 0..nx {
-                    kf[i * nx + j] = -y[a * nx + j];
-                }
-            }
-            visit(mask, &kf, nx);
-        }
-        Ok(true)
     }
 }
 
@@ -578,30 +510,33 @@ pub struct LipschitzReport {
     pub certified: LipschitzCertificate,
     /// The sampled estimate with the exact MPC.
     pub sampled: SampledLipschitz,
-    /// L_enum (the enumerated bound, tighter than `certified.first_block`), if
-    /// N·n_u ≤ [`ENUMERATION_MAX_VARS`].
+    /// L_enum (the enumerated bound, ≤ `certified.polynomial`), if the number of saturable
+    /// variables s ≤ [`ENUMERATION_MAX_VARS`].
     pub enumerated: Option<f64>,
+    /// Why L_enum was not computed (None when it was): a named reason, never a silent cap.
+    pub enumeration_skipped: Option<String>,
     /// ‖K‖₂ of the saturated LQR for the same (A, B, Q_c, R_c, 𝒰), for comparison.
     pub saturated_lqr: f64,
 }
 
-/// Largest N·n_u for which [`lipschitz_report_for`] enumerates free sets (2²⁰ ≈ 10⁶ solves).
+/// Largest number of saturable variables s for which [`lipschitz_report_for`] enumerates
+/// free sets (2²⁰ ≈ 10⁶ solves); above it the polynomial bound L_poly is used.
 pub const ENUMERATION_MAX_VARS: usize = 20;
 
 impl LipschitzReport {
-    /// The tightest certified L_π available: L_enum if computed, else bound (b).
+    /// The tightest certified L_π available: L_enum if computed, else min(L_poly, (b)).
     pub fn l_pi(&self) -> f64 {
         self.enumerated
             .map_or(self.certified.l_pi(), |e| e.min(self.certified.l_pi()))
     }
 
-    /// sampled ≤ L_enum ≤ (b) (up to a relative 1e-9 for the solver's accuracy).
+    /// sampled ≤ L_enum ≤ L_poly ≤ (b) (up to a relative 1e-9 for the solvers' accuracy).
     pub fn consistent(&self) -> bool {
         let tol = 1.0 + 1e-9;
+        let c = &self.certified;
         self.sampled.estimate <= self.l_pi() * tol
-            && self
-                .enumerated
-                .is_none_or(|e| e <= self.certified.l_pi() * tol)
+            && c.polynomial <= c.first_block * tol
+            && self.enumerated.is_none_or(|e| e <= c.polynomial * tol)
     }
 }
 
@@ -622,9 +557,17 @@ impl std::fmt::Display for LipschitzReport {
             )?,
             None => writeln!(
                 f,
-                "  L_enum         skipped (N·n_u > {ENUMERATION_MAX_VARS})"
+                "  L_enum         skipped: {}",
+                self.enumeration_skipped
+                    .as_deref()
+                    .unwrap_or("not computed")
             )?,
         }
+        writeln!(
+            f,
+            "  L_poly         {:.6}  = sup over 0 ⪯ M ⪯ I of ‖K_lin + G·M·R‖₂ (S-procedure; {} saturable variables)",
+            c.polynomial, c.saturable
+        )?;
         writeln!(
             f,
             "  bound (b)      {:.6}  = ‖E₀H^(-1/2)‖₂·‖H^(-1/2)F‖₂ = {:.6}·{:.6}",
@@ -672,6 +615,12 @@ pub fn lipschitz_report_for(
     let certified = mpc.lipschitz_certified()?;
     let sampled = mpc.lipschitz_sampled(n_pairs, seed, radius)?;
     let enumerated = mpc.lipschitz_enumerated(ENUMERATION_MAX_VARS)?;
+    let enumeration_skipped = enumerated.is_none().then(|| {
+        format!(
+            "{} saturable input variables > cap {ENUMERATION_MAX_VARS} (2^{} free sets); L_poly is used",
+            certified.saturable, certified.saturable
+        )
+    });
     let lqr = crate::SaturatedLqr::new(
         mpc.system(),
         mpc.q_c().as_ref(),
@@ -682,6 +631,7 @@ pub fn lipschitz_report_for(
         certified,
         sampled,
         enumerated,
+        enumeration_skipped,
         saturated_lqr: lqr.lipschitz_certified(),
     })
 }

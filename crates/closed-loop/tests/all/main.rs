@@ -3,7 +3,9 @@
 
 mod analysis;
 mod certificate;
+mod gamma13;
 mod linear;
+mod plants;
 mod scenario;
 mod sim;
 mod sweep;

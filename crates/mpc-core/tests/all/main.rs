@@ -4,6 +4,7 @@
 mod common;
 mod errors;
 mod exact;
+mod free_sets;
 mod lipschitz;
 mod lqr;
 mod suboptimal;

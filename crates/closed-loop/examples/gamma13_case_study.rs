@@ -24,7 +24,7 @@ fn main() -> Result<(), Box<dyn std::error::Error>> {
             c.metric, c.contraction, c.input_gain, c.condition_sqrt, c.gamma13
         );
     }
-    let mut exact = ExactMpc::new(&mpc)?;
+    let mut exact = ExactMpc::new(mpc)?;
     let t0 = std::time::Instant::now();
     let s = gamma13_sampled(&mut exact, mpc.system(), &[0.01, 0.1, 1.0, 10.0], 30, 40, 1)?;
     println!(

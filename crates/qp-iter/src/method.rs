@@ -124,8 +124,8 @@ impl Method {
             Method::Pg(StepRule::Fixed(a)) => format!("pg(step={a})").into(),
             Method::Fista => "fista".into(),
             Method::Admm(p) => match (p.penalty, p.relaxation) {
-                (Penalty::Optimal, a) if a == 1.0 => "admm".into(),
-                (Penalty::Optimal, a) if a == 2.0 => "admm-pr".into(),
+                (Penalty::Optimal, 1.0) => "admm".into(),
+                (Penalty::Optimal, 2.0) => "admm-pr".into(),
                 (Penalty::Optimal, a) => format!("admm(alpha={a})").into(),
                 (Penalty::Fixed(r), a) => format!("admm(rho={r},alpha={a})").into(),
             },

@@ -69,8 +69,6 @@ pub struct SweepConfig {
     pub certificate: bool,
 }
 
-/// Keys a config may contain.
-
 /// `n` log-spaced integers from `from` to `to` (rounded, duplicates removed).
 ///
 /// ```

@@ -89,7 +89,7 @@ fn apply(a: &Mat<f64>, x: &[f64]) -> Vec<f64> {
 /// every block of X (plant, windows, prior ring, warm start, MPC iterate) for 30 steps.
 fn check_trajectory(s: &Scenario, o: &LoopOptions) {
     let mut cl = build(s, o).unwrap();
-    let lifted = LiftedLoop::from_loop(&cl, &resolve(&s), o.method, Par::Seq).unwrap();
+    let lifted = LiftedLoop::from_loop(&cl, &resolve(s), o.method, Par::Seq).unwrap();
     let l = lifted.layout();
     let a = lifted.matrix(o.iterations, Par::Seq).unwrap();
     assert_eq!(a.nrows(), l.dim());

@@ -33,6 +33,8 @@ struct Fixture {
     out: PathBuf,
     paper: Outcome,
     certified: Outcome,
+    /// LMI (2) solves per run (paper, certified).
+    lmi_solves: [usize; 2],
 }
 
 /// Both presets, run once for all tests (the certificate enumerates 2²⁰ free sets).
@@ -41,12 +43,17 @@ fn fixture() -> &'static Fixture {
     F.get_or_init(|| {
         let out = temp_dir("presets");
         let settings = test_settings();
+        let solves = lti_model::ioss::lmi_solves_on_this_thread;
+        let s0 = solves();
         let paper = run_job(&Preset::Paper.job(&out), &settings).unwrap();
+        let s1 = solves();
         let certified = run_job(&Preset::Certified.job(&out), &settings).unwrap();
+        let lmi_solves = [s1 - s0, solves() - s1];
         Fixture {
             out,
             paper,
             certified,
+            lmi_solves,
         }
     })
 }
@@ -63,6 +70,13 @@ const FILES: [&str; 6] = [
     "fig2c_w2_t6.svg",
     "norms.svg",
 ];
+
+/// K, M and P are read and computed once per scenario: one LMI (2) solve per preset,
+/// shared by the certificate, every simulated K and the trace document.
+#[test]
+fn reproduce_solves_lmi_2_once_per_scenario() {
+    assert_eq!(fixture().lmi_solves, [1, 1]);
+}
 
 #[test]
 fn both_presets_write_every_file() {

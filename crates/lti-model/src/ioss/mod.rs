@@ -324,6 +324,26 @@ pub fn certify(
     certify_with(sys, eta, q, r, &IossOptions::default())
 }
 
+thread_local! {
+    static SOLVES: std::cell::Cell<usize> = const { std::cell::Cell::new(0) };
+}
+
+/// How many times LMI (2) was solved for P ([`certify`] / [`certify_with`]) on the calling
+/// thread so far. A diagnostic: a scenario is resolved once, and tests check that a
+/// command solves the LMI once per scenario, not once per consumer.
+///
+/// ```
+/// use faer::{mat, Mat};
+/// use lti_model::{LtiSystem, ioss};
+/// let sys = LtiSystem::new(mat![[0.5]], mat![[1.0]], mat![[1.0]]).unwrap();
+/// let before = ioss::lmi_solves_on_this_thread();
+/// ioss::certify(&sys, 0.8, Mat::<f64>::identity(2, 2).as_ref(), mat![[1.0]].as_ref()).unwrap();
+/// assert_eq!(ioss::lmi_solves_on_this_thread() - before, 1);
+/// ```
+pub fn lmi_solves_on_this_thread() -> usize {
+    SOLVES.with(std::cell::Cell::get)
+}
+
 /// [`certify`] with explicit options.
 ///
 /// Errors: bad input (as [`verify`]); [`ModelError::LmiInfeasible`] with
@@ -338,6 +358,7 @@ pub fn certify_with(
     r: MatRef<'_, f64>,
     opts: &IossOptions,
 ) -> Result<IossCertificate> {
+    SOLVES.with(|c| c.set(c.get() + 1));
     check_inputs(sys, eta, q, r)?;
     check_options(opts)?;
     let first = extremal_solution(sys, eta, q, r, opts)?;

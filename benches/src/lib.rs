@@ -82,13 +82,7 @@ pub fn random_instance(n: usize, seed: u64) -> Instance {
 }
 
 /// Euclidean distance ‖a − b‖₂.
-pub fn dist(a: &[f64], b: &[f64]) -> f64 {
-    a.iter()
-        .zip(b)
-        .map(|(x, y)| (x - y) * (x - y))
-        .sum::<f64>()
-        .sqrt()
-}
+pub use lti_model::vecmath::dist2 as dist;
 
 /// One timed variant of [`interleave`]: `run` does `per_call` operations per call.
 pub struct Variant<'a> {

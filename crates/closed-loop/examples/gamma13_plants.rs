@@ -93,7 +93,11 @@ fn main() {
         40,
     );
     let sc = closed_loop::scenario::Scenario::from_file("scenarios/case-study.toml").unwrap();
-    show("case study", &CondensedMpc::new(&sc.plant, sc.mpc.as_ref().unwrap().config(&sc.sets)).unwrap(), 40);
+    show(
+        "case study",
+        &CondensedMpc::new(&sc.plant, sc.mpc.as_ref().unwrap().config(&sc.sets)).unwrap(),
+        40,
+    );
     for d in [0.0, 0.1, 0.5] {
         for n in [10, 30] {
             show(
@@ -113,7 +117,11 @@ fn main() {
         &[1.0; 12],
     );
     let t0 = Instant::now();
-    let c = certify_closed_loop(&sc.clone().resolve().unwrap(), &CertificateOptions::default()).unwrap();
+    let c = certify_closed_loop(
+        &sc.clone().resolve().unwrap(),
+        &CertificateOptions::default(),
+    )
+    .unwrap();
     println!(
         "certify_closed_loop, mass chain c=0.5, N=30 (default options): {:.2?}; γ₁,₃ {:.4}, L_π {:.4}, K_min {:?}",
         t0.elapsed(),

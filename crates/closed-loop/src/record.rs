@@ -15,10 +15,7 @@ use qp_iter::RunStatus;
 use serde::ser::{SerializeSeq, SerializeStruct};
 use serde::{Serialize, Serializer};
 
-/// Euclidean norm.
-pub(crate) fn norm2(v: &[f64]) -> f64 {
-    v.iter().map(|a| a * a).sum::<f64>().sqrt()
-}
+pub(crate) use lti_model::vecmath::norm2;
 
 /// Fixed-stride storage of `capacity` rows of `width` values (allocation-free writes).
 #[derive(Debug, Clone, PartialEq)]

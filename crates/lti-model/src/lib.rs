@@ -25,6 +25,7 @@ pub mod riccati;
 pub mod sets;
 pub mod spec;
 pub mod system;
+pub mod vecmath;
 
 pub use error::{LmiFailure, ModelError, Result};
 pub use sets::{BoxSet, ConvexSet, Polytope, Projection, Set};

@@ -197,6 +197,18 @@ pub fn block_diag(blocks: &[MatRef<'_, f64>]) -> Mat<f64> {
 }
 
 /// Converts a matrix to row-major nested vectors (for JSON output).
+/// The entries of `m` row by row in one vector (the layout of the hot loops' kernels).
+///
+/// ```
+/// let m = faer::mat![[1.0, 2.0], [3.0, 4.0]];
+/// assert_eq!(lti_model::matrix::row_major(m.as_ref()), vec![1.0, 2.0, 3.0, 4.0]);
+/// ```
+pub fn row_major(m: MatRef<'_, f64>) -> Vec<f64> {
+    let (r, c) = (m.nrows(), m.ncols());
+    (0..r * c).map(|k| m[(k / c, k % c)]).collect()
+}
+
+/// The rows of `m` as nested vectors (for JSON and TOML).
 pub fn to_rows(m: MatRef<'_, f64>) -> Vec<Vec<f64>> {
     (0..m.nrows())
         .map(|i| (0..m.ncols()).map(|j| m[(i, j)]).collect())

@@ -121,10 +121,7 @@ pub(crate) struct HotModel {
     eta: f64,
 }
 
-fn row_major(m: faer::MatRef<'_, f64>) -> Vec<f64> {
-    let (r, c) = (m.nrows(), m.ncols());
-    (0..r * c).map(|k| m[(k / c, k % c)]).collect()
-}
+use lti_model::matrix::row_major;
 
 /// y += M x for row-major M (rows × cols).
 #[inline]
@@ -603,13 +600,7 @@ impl<M: IterationMap> MheEstimator<M> {
     }
 }
 
-fn dist(a: &[f64], b: &[f64]) -> f64 {
-    a.iter()
-        .zip(b)
-        .map(|(x, y)| (x - y) * (x - y))
-        .sum::<f64>()
-        .sqrt()
-}
+use lti_model::vecmath::dist2 as dist;
 
 impl<M: IterationMap> Estimator for MheEstimator<M> {
     type Error = MheError;

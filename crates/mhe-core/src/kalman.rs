@@ -81,10 +81,7 @@ pub struct KalmanFilter {
     col: Vec<f64>,
 }
 
-fn row_major(m: faer::MatRef<'_, f64>) -> Vec<f64> {
-    let (r, c) = (m.nrows(), m.ncols());
-    (0..r * c).map(|k| m[(k / c, k % c)]).collect()
-}
+use lti_model::matrix::row_major;
 
 fn check_psd(name: &str, m: &Mat<f64>, n: usize) -> Result<()> {
     check_shape(name, m.as_ref(), n, n)?;

@@ -309,17 +309,7 @@ impl<C: Controller<Error = MpcError> + ?Sized> Sampler<'_, C> {
     }
 }
 
-fn norm(v: &[f64]) -> f64 {
-    v.iter().map(|a| a * a).sum::<f64>().sqrt()
-}
-
-fn dist(a: &[f64], b: &[f64]) -> f64 {
-    a.iter()
-        .zip(b)
-        .map(|(x, y)| (x - y) * (x - y))
-        .sum::<f64>()
-        .sqrt()
-}
+use lti_model::vecmath::{dist2 as dist, norm2 as norm};
 
 fn lerp(a: &[f64], b: &[f64], t: f64) -> Vec<f64> {
     a.iter().zip(b).map(|(x, y)| x + t * (y - x)).collect()

@@ -284,9 +284,7 @@ fn sub(a: &[f64], b: &[f64]) -> Vec<f64> {
 fn quad(m: &[Vec<f64>], x: &[f64]) -> f64 {
     x.iter().zip(mul(m, x)).map(|(a, b)| a * b).sum()
 }
-fn norm(x: &[f64]) -> f64 {
-    x.iter().map(|a| a * a).sum::<f64>().sqrt()
-}
+use lti_model::vecmath::norm2 as norm;
 
 /// The MHE problem of one record, rebuilt from trace.json (docs/reproduce-output.md).
 struct Window {

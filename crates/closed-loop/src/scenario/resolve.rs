@@ -138,7 +138,7 @@ impl super::Scenario {
     /// 2·max(‖x₀‖, ‖prior‖, 1): the ball the sampled Lipschitz estimates (L_Φ, L_π) cover,
     /// where the closed loop starts.
     pub fn sampling_radius(&self) -> f64 {
-        let norm = |v: &[f64]| v.iter().map(|a| a * a).sum::<f64>().sqrt();
+        let norm = lti_model::vecmath::norm2;
         let sim = &self.simulation;
         2.0 * norm(&sim.x0).max(norm(&sim.prior)).max(1.0)
     }

@@ -46,9 +46,7 @@ fn resolve(s: &Scenario) -> ResolvedScenario {
     s.clone().resolve().unwrap()
 }
 
-fn norm(v: &[f64]) -> f64 {
-    v.iter().map(|a| a * a).sum::<f64>().sqrt()
-}
+use lti_model::vecmath::norm2 as norm;
 
 /// z⁰ of the MHE at the loop's current t.
 fn warm_start_point(cl: &ScenarioLoop) -> Vec<f64> {

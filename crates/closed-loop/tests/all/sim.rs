@@ -32,17 +32,9 @@ fn options(s: &Scenario, k: usize, exact: bool) -> LoopOptions {
     o
 }
 
-fn dist(a: &[f64], b: &[f64]) -> f64 {
-    a.iter()
-        .zip(b)
-        .map(|(x, y)| (x - y) * (x - y))
-        .sum::<f64>()
-        .sqrt()
-}
+use lti_model::vecmath::dist2 as dist;
 
-fn norm(a: &[f64]) -> f64 {
-    a.iter().map(|x| x * x).sum::<f64>().sqrt()
-}
+use lti_model::vecmath::norm2 as norm;
 
 /// y = M x for a faer matrix.
 fn mul(m: faer::MatRef<'_, f64>, x: &[f64]) -> Vec<f64> {

@@ -184,10 +184,7 @@ fn rerun_resumes_and_skips_finished_points() {
     assert!(matches!(e, SweepError::PointFile { .. }), "{e}");
 }
 
-/// ‖v‖₂, written out.
-fn norm(v: &[f64]) -> f64 {
-    v.iter().map(|a| a * a).sum::<f64>().sqrt()
-}
+use lti_model::vecmath::norm2 as norm;
 
 #[test]
 fn run_rows_match_a_fresh_loop_per_seed() {

@@ -134,10 +134,4 @@ pub fn simulate(f: &Fixture, steps: usize, seed: u64) -> (Series, Series, Series
     (us, ys, xs)
 }
 
-pub fn dist(a: &[f64], b: &[f64]) -> f64 {
-    a.iter()
-        .zip(b)
-        .map(|(x, y)| (x - y) * (x - y))
-        .sum::<f64>()
-        .sqrt()
-}
+pub use lti_model::vecmath::dist2 as dist;

@@ -133,17 +133,9 @@ pub fn gradient(qp: &ParametricQp, q: &[f64], z: &[f64]) -> Vec<f64> {
         .collect()
 }
 
-pub fn dist(a: &[f64], b: &[f64]) -> f64 {
-    a.iter()
-        .zip(b)
-        .map(|(x, y)| (x - y) * (x - y))
-        .sum::<f64>()
-        .sqrt()
-}
+pub use lti_model::vecmath::dist2 as dist;
 
-pub fn norm(a: &[f64]) -> f64 {
-    a.iter().map(|x| x * x).sum::<f64>().sqrt()
-}
+pub use lti_model::vecmath::norm2 as norm;
 
 /// Reference optimum and a rigorous bound on its distance to the true z*:
 /// ‖ẑ − z*‖ ≤ (1 + L)/μ · ‖ẑ − Π_Z(ẑ − ∇f(ẑ))‖ (natural-residual error bound for a

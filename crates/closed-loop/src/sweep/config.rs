@@ -27,6 +27,21 @@ pub const MAX_STEPS: usize = 100_000;
 /// Largest number of seeds per point.
 pub const MAX_SEEDS: usize = 10_000_000;
 
+/// A validated sweep configuration (a TOML file; see `docs/sweeps.md`).
+///
+/// ```
+/// use closed_loop::sweep::SweepConfig;
+/// let cfg = SweepConfig::from_toml_str(r#"
+///     name = "demo"
+///     scenario = "../scenarios/case-study.toml"
+///     k = { from = 1, to = 1000, points = 4 }
+///     solvers = ["pg", "fista"]
+///     seeds = 8
+/// "#, std::path::Path::new("sweeps")).unwrap();
+/// assert_eq!(cfg.k_grid, vec![1, 10, 100, 1000]);
+/// assert_eq!(cfg.points().len(), 8);
+/// assert!(SweepConfig::from_toml_str("name = 'x'\nscenario = 's'\nk = []\nsolvers = ['pg']\nseeds = 1",
+///     std::path::Path::new(".")).is_err()); // empty K grid
 /// ```
 #[derive(Debug, Clone, PartialEq)]
 pub struct SweepConfig {
@@ -590,7 +605,7 @@ impl SweepConfig {
     }
 
     /// The points of the sweep (scale 1 standing for the scenario's when `scales` is
-    /// omitted; [`Sweep::points`] has the resolved scale).
+    /// omitted; [`Sweep::points`](super::Sweep::points) has the resolved scale).
     pub fn points(&self) -> Vec<Point> {
         self.points_with(1.0)
     }

@@ -354,7 +354,7 @@ impl PointFile {
     }
 
     /// Parses a point file's text (checks the magic line, the separator and the end; the
-    /// cells are checked by [`PointFile::validate`]).
+    /// cells are checked before a resume or a merge reuses the file).
     pub fn parse(text: &str, path: &Path) -> Result<Self> {
         let bad = |problem: &str| point_file_err(path, problem);
         let mut lines = text.lines();

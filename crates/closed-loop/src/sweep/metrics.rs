@@ -106,7 +106,7 @@ impl FromStr for Metric {
 pub struct RunMetrics {
     /// Run index r (0-based) at its point.
     pub run: usize,
-    /// The disturbance seed ([`run_seed`]).
+    /// The disturbance seed ([`run_seed`](super::run_seed)).
     pub seed: u64,
     /// Steps completed (T unless the run stopped).
     pub steps: usize,

@@ -11,7 +11,8 @@
 //!   Lyapunov equations, each verified by its residual.
 //! - [`ioss`]: the δ-IOSS certificate of Assumption 2: find or verify P ≻ 0 satisfying
 //!   LMI (2) for given (A, C, η, Q, R), and the smallest feasible η.
-//! - [`scenario`]: TOML scenario files, validated into these types.
+//! - [`spec`]: the scenario-file format every layer parses its settings with, and the
+//!   plant-level sections (`[plant]`, `[sets]`, `[noise]`, `[simulation]`).
 //!
 //! Every fallible constructor returns [`ModelError`], whose variants name the offending
 //! matrix or scenario key.

@@ -16,7 +16,7 @@
 //! - the warm start z⁰_t = zᴷ_{t−1} (Σ_t = I for t ≥ M, trap 3; or the time-shifted option);
 //! - the sub-optimal MPC's previous iterate U_{t−1}, which its warm start shifts.
 //!
-//! One step: zᴷ_t = G_K z⁰_t + J_K θ_t ([`iteration`]), x̂_t = X_z zᴷ_t + X_θ θ_t (the last
+//! One step: zᴷ_t = G_K z⁰_t + J_K θ_t (`iteration.rs`), x̂_t = X_z zᴷ_t + X_θ θ_t (the last
 //! state of the window propagated through the model, trap 2), u_t = L x̂_t (the unconstrained
 //! MPC gain L = −E₀H⁻¹F, or −K_lqr) or U_t = G^c_{K_c} W U_{t−1} + J^c_{K_c} x̂_t, y_t = C x_t,
 //! x_{t+1} = A x_t + B u_t, then every window shifts by one stage. Hence X_{t+1} = 𝔸(K) X_t

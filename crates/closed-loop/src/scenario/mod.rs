@@ -10,7 +10,7 @@
 //! `serde_path_to_error`, so a type error names the dotted key it happened at. Then
 //! [`Scenario`] is built from the raw structs, checking every shape against the plant and
 //! every weight for symmetry and positive definiteness. Every failure is a
-//! [`ModelError::Scenario`] whose `key` is the dotted TOML key (`"mhe.q"`), `"<toml>"`
+//! [`lti_model::ModelError::Scenario`] whose `key` is the dotted TOML key (`"mhe.q"`), `"<toml>"`
 //! for a syntax error or `"<file>"` for an I/O error, and whose `problem` says what is
 //! wrong and how to fix it. The full format is documented in `docs/scenario-format.md`.
 //!

@@ -1,5 +1,5 @@
 //! Scenario-file pieces owned by the ground floor: the format shared by every layer's
-//! settings ([`format`]) and the plant-level sections ([`plant`]). The scenario file that
+//! settings ([`mod@format`]) and the plant-level sections ([`plant`]). The scenario file that
 //! composes them with the MHE and MPC settings is `closed_loop::scenario::Scenario`
 //! (format: `docs/scenario-format.md`).
 

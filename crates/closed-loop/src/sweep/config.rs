@@ -217,22 +217,7 @@ impl<'de> Deserialize<'de> for RawController {
     }
 }
 
-/// (line, column), both 1-based, of a byte offset in `text`.
-fn line_col(text: &str, offset: usize) -> (usize, usize) {
-    let offset = offset.min(text.len());
-    let before = text.get(..offset).unwrap_or(text);
-    let line = before.matches('\n').count() + 1;
-    let col = before.rsplit('\n').next().map_or(0, |l| l.chars().count()) + 1;
-    (line, col)
-}
-
-fn at_line(text: &str, span: Option<std::ops::Range<usize>>) -> String {
-    span.map(|s| {
-        let (l, c) = line_col(text, s.start);
-        format!(" (line {l}, column {c})")
-    })
-    .unwrap_or_default()
-}
+use lti_model::spec::format::{at_line, backticked};
 
 fn syntax_error(text: &str, e: &toml::de::Error) -> SweepError {
     SweepError::Toml(format!(
@@ -240,13 +225,6 @@ fn syntax_error(text: &str, e: &toml::de::Error) -> SweepError {
         e.message().trim_end(),
         at_line(text, e.span())
     ))
-}
-
-/// First name between backticks in a serde message (`unknown field `x`, ...`).
-fn backticked(msg: &str) -> Option<&str> {
-    let start = msg.find('`')? + 1;
-    let len = msg.get(start..)?.find('`')?;
-    msg.get(start..start + len)
 }
 
 /// A type error or unknown key, named by its full key path (`k[1]`, `controller.solver`).

@@ -330,7 +330,7 @@ pub fn wrap(key: &str, e: ModelError) -> ModelError {
 }
 
 /// (line, column), both 1-based, of a byte offset in `text`.
-fn line_col(text: &str, offset: usize) -> (usize, usize) {
+pub fn line_col(text: &str, offset: usize) -> (usize, usize) {
     let offset = offset.min(text.len());
     let before = text.get(..offset).unwrap_or(text);
     let line = before.matches('\n').count() + 1;
@@ -338,7 +338,8 @@ fn line_col(text: &str, offset: usize) -> (usize, usize) {
     (line, col)
 }
 
-fn at_line(text: &str, span: Option<std::ops::Range<usize>>) -> String {
+/// " (line L, column C)" of a span's start in `text`, or "" without a span.
+pub fn at_line(text: &str, span: Option<std::ops::Range<usize>>) -> String {
     span.map(|s| {
         let (l, c) = line_col(text, s.start);
         format!(" (line {l}, column {c})")
@@ -358,7 +359,7 @@ pub fn syntax_error(text: &str, e: &toml::de::Error) -> ModelError {
 }
 
 /// First name between backticks in a serde message (`unknown field `x`, ...`).
-fn backticked(msg: &str) -> Option<&str> {
+pub fn backticked(msg: &str) -> Option<&str> {
     let start = msg.find('`')? + 1;
     let len = msg.get(start..)?.find('`')?;
     msg.get(start..start + len)

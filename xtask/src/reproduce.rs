@@ -1184,6 +1184,28 @@ fn status(holds: bool) -> &'static str {
 /// One sentence: what the certificate says about the simulated solver and whether the
 /// simulation agrees.
 fn verdict(d: &CertificateDocument) -> String {
+    // A run that stopped is a result: say where and when, next to the certificate's word.
+    let stopped: String = d
+        .runs
+        .iter()
+        .filter_map(|r| {
+            r.error.as_ref().map(|e| {
+                let what = if e.contains("diverged") {
+                    "diverged"
+                } else {
+                    "stopped"
+                };
+                format!(
+                    " The run at K = {} {what} at t = {}: {e}.",
+                    r.k, r.completed
+                )
+            })
+        })
+        .collect();
+    format!("{}{stopped}", certificate_verdict(d))
+}
+
+fn certificate_verdict(d: &CertificateDocument) -> String {
     let own = d.solvers.iter().find(|s| s.simulated);
     match own.and_then(|s| s.k_min) {
         Some(k) => {

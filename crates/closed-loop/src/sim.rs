@@ -107,9 +107,11 @@ pub enum ClosedLoopError {
         /// Length returned.
         actual: usize,
     },
-    /// A signal of the loop became NaN or infinite.
+    /// A signal of the loop became NaN, infinite, or so large (≥ [`DIVERGED_MAGNITUDE`])
+    /// that its norm overflows: the run diverged at t.
     #[error(
-        "step t = {t}: `{name}` has a non-finite entry {value} at index {index}; the closed loop diverged \
+        "step t = {t}: `{name}` has the entry {value:e} at index {index} (non-finite or beyond 1e154, \
+         where norms overflow); the closed loop diverged at t = {t} \
          (for the MHE: a larger K, a certified step size, or a smaller disturbance)"
     )]
     NonFinite {
@@ -235,8 +237,12 @@ pub fn mhe_record_hook<M: IterationMap>(est: &MheEstimator<M>) -> Option<&MheRec
     Some(est.last_record())
 }
 
+/// Entry magnitude beyond which a signal counts as diverged: its square overflows f64, so
+/// its norm (and every metric built on it) would be +∞ although the entry is finite.
+pub const DIVERGED_MAGNITUDE: f64 = 1e154;
+
 fn check_finite(t: usize, name: &'static str, v: &[f64]) -> Result<()> {
-    match v.iter().position(|a| !a.is_finite()) {
+    match v.iter().position(|a| !(a.abs() < DIVERGED_MAGNITUDE)) {
         None => Ok(()),
         Some(index) => Err(ClosedLoopError::NonFinite {
             t,

@@ -7,7 +7,8 @@ use super::theory::TheoryAtK;
 use crate::record::{Trace, norm2};
 use crate::sim::ClosedLoopError;
 
-/// Default bound factor: a run is *bounded* when sup‖x_t‖ ≤ 1000·(1 + ‖x₀‖).
+/// Default bound factor: a run is *bounded* when it completed with finite signals,
+/// sup‖x_t‖ ≤ 1000·(1 + ‖x₀‖) and sup‖e_t‖ ≤ 1000·(1 + ‖e₀‖), e₀ = x₀ − x̂₀.
 pub const DEFAULT_BOUNDED_FACTOR: f64 = 1e3;
 /// Quantile levels of `points.csv` (5 %, 50 %, 95 %), next to the maximum.
 pub const QUANTILES: [(f64, &str); 3] = [(0.05, "q05"), (0.5, "q50"), (0.95, "q95")];
@@ -112,7 +113,8 @@ pub struct RunMetrics {
     pub steps: usize,
     /// Values of [`Metric::ALL`], in that order (`None` = not available, an empty cell).
     pub values: [Option<f64>; 14],
-    /// Completed, finite, and sup‖x‖ ≤ bounded_factor·(1 + ‖x₀‖).
+    /// Completed, finite, sup‖x‖ ≤ bounded_factor·(1 + ‖x₀‖) and
+    /// sup‖e‖ ≤ bounded_factor·(1 + ‖e₀‖): the estimation error counts, not only the state.
     pub bounded: bool,
     /// Why the run stopped early (empty if it did not).
     pub error: String,
@@ -192,8 +194,15 @@ pub fn run_metrics(
         Some(input_violation(trace, input_box.0, input_box.1)),
         mhe_violation,
     ];
-    let limit = bounded_factor * (1.0 + norm2(x0));
-    let bounded = !diverged && sup_x.is_finite() && sup_e.is_finite() && sup_x <= limit;
+    // Both the state and the estimation error must stay within the bound (an estimator can
+    // diverge while saturated inputs keep x bounded). e₀ = x₀ − x̂₀ scales the error's bound.
+    let limit_x = bounded_factor * (1.0 + norm2(x0));
+    let e0 = trace
+        .x_hat(0)
+        .map_or(0.0, |xh| lti_model::vecmath::dist2(x0, xh));
+    let limit_e = bounded_factor * (1.0 + e0);
+    let bounded =
+        !diverged && sup_x.is_finite() && sup_e.is_finite() && sup_x <= limit_x && sup_e <= limit_e;
     (values, bounded)
 }
 

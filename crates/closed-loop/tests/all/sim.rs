@@ -833,3 +833,75 @@ fn controller_error_keeps_the_failing_steps_mhe_record() {
     let v: serde_json::Value = serde_json::from_str(&tr.to_json().unwrap()).unwrap();
     assert_eq!(v["records"].as_array().unwrap().len(), 2);
 }
+
+/// A run whose state grows geometrically (finite entries, but beyond 1e154 their squares
+/// overflow and every norm is +∞) stops with an error naming the signal and the step, and
+/// the trace before it keeps finite norms (issue: "sup_x = inf" with an empty error).
+#[test]
+fn a_run_whose_norms_would_overflow_stops_as_diverged_naming_t() {
+    let s = case_study();
+    let growing = LtiSystem::new(
+        Mat::from_fn(4, 4, |i, j| if i == j { 1e10 } else { 0.0 }),
+        Mat::zeros(4, 2),
+        s.plant.c().to_owned(),
+    )
+    .unwrap();
+    let est = Faulty {
+        t: 0,
+        at: 999,
+        len: 4,
+        x: Vec::new(),
+    };
+    let mut cl = ClosedLoop::new(growing, est, lqr(&s), Zero(5), &[1.0; 4], 40).unwrap();
+    let err = cl.run().unwrap_err();
+    // x_t = 1e10ᵗ: x_16 = 1e160 ≥ 1e154 is produced at step t = 15.
+    match &err {
+        &ClosedLoopError::NonFinite { t, name, value, .. } => {
+            assert_eq!((t, name), (15, "x_next"), "{err}");
+            assert!(value.is_finite() && value >= closed_loop::sim::DIVERGED_MAGNITUDE);
+        }
+        other => panic!("{other}"),
+    }
+    assert!(err.to_string().contains("diverged at t = 15"), "{err}");
+    let tr = cl.trace();
+    assert_eq!(tr.len(), 15);
+    assert!(tr.sup_norm_x().is_finite());
+}
+
+/// The sweep's bounded rule covers the estimation error: an estimator that diverges while
+/// the saturated input keeps x bounded is not "bounded".
+#[test]
+fn a_diverging_estimator_with_bounded_state_is_not_bounded() {
+    /// x̂ doubles every step, whatever the data.
+    #[derive(Debug)]
+    struct Doubling(Vec<f64>);
+    impl Estimator for Doubling {
+        type Error = std::convert::Infallible;
+        fn estimate(&mut self) -> Result<&[f64], Self::Error> {
+            Ok(&self.0)
+        }
+        fn push(&mut self, _u: &[f64], _y: &[f64]) -> Result<(), Self::Error> {
+            self.0.iter_mut().for_each(|v| *v *= 2.0);
+            Ok(())
+        }
+        fn nx(&self) -> usize {
+            self.0.len()
+        }
+    }
+    let s = case_study();
+    let x0 = &s.simulation.x0;
+    let run = |est: Doubling| {
+        let mut cl = ClosedLoop::new(s.plant.clone(), est, lqr(&s), Zero(5), x0, 40).unwrap();
+        cl.run().unwrap().clone()
+    };
+    let input = (s.sets.input.lower(), s.sets.input.upper());
+    // x̂ = 2ᵗ·1: ‖e‖ reaches ~1e12 while |u| ≤ 1 keeps the stable plant's x bounded.
+    let diverging = run(Doubling(vec![1.0; 4]));
+    assert!(diverging.sup_norm_x() < 1e3 * (1.0 + norm(x0)));
+    let (_, bounded) = closed_loop::sweep::run_metrics(&diverging, x0, input, 1e3, None);
+    assert!(!bounded, "sup ‖e‖ = {}", diverging.sup_norm_e());
+    // The same loop with a sane estimate is bounded.
+    let sane = run(Doubling(vec![0.0; 4]));
+    let (_, bounded) = closed_loop::sweep::run_metrics(&sane, x0, input, 1e3, None);
+    assert!(bounded);
+}

@@ -1,14 +1,16 @@
 //! A user's own estimator in the closed loop: a Luenberger observer (steady-state Kalman gain
 //! from the dual DARE) written here, with its own error type, run against the sub-optimal
-//! MHE at several K on the same disturbance draws (a small Monte-Carlo sweep).
+//! MHE at several K on the same disturbance draws, through the library's Monte-Carlo driver
+//! ([`closed_loop::sweep::monte_carlo`]: the sweep's seeds, metrics and bounded rule).
 //!
 //! ```text
-//! cargo run --release -p closed-loop --example luenberger [-- SCENARIO.toml SEEDS]
+//! cargo run --release -p closed-loop --example luenberger [-- SCENARIO.toml RUNS]
 //! ```
-//! (default `scenarios/case-study-certified.toml`, 20 seeds).
+//! (default `scenarios/case-study-certified.toml`, 20 runs).
 
 use closed_loop::scenario::{ControllerChoice, LoopOptions, Scenario, scenario_disturbance};
 use closed_loop::sim::ClosedLoop;
+use closed_loop::sweep::{DEFAULT_BOUNDED_FACTOR, Metric, MonteCarlo, RunMetrics, monte_carlo};
 use faer::Mat;
 use lti_model::LtiSystem;
 use mhe_core::Estimator;
@@ -105,50 +107,62 @@ fn main() -> Result<(), Box<dyn std::error::Error>> {
     let path = args
         .first()
         .map_or("scenarios/case-study-certified.toml", String::as_str);
-    let seeds: u64 = args.get(1).map(|s| s.parse()).transpose()?.unwrap_or(20);
+    let runs: usize = args.get(1).map(|s| s.parse()).transpose()?.unwrap_or(20);
     let resolved = Scenario::from_file(path)?.resolve()?;
     let sc = resolved.scenario();
     let base = LoopOptions::from_scenario(sc)?;
-    println!("# {path}: tail mean ‖e‖ over {seeds} seeds (exact MPC, same disturbance draws)");
-    println!("{:<22} {:>12} {:>12}", "estimator", "mean", "max");
-    let report = |name: &str, tails: &[f64]| {
+    // The library's Monte-Carlo driver: same seeds, metrics and bounded rule as `sweep`.
+    let settings = MonteCarlo {
+        runs,
+        base_seed: sc.noise.seed,
+        input_box: (sc.sets.input.lower(), sc.sets.input.upper()),
+        bounded_factor: DEFAULT_BOUNDED_FACTOR,
+    };
+    println!("# {path}: {runs} runs per row (exact MPC, the same disturbance draws in every row)");
+    println!(
+        "{:<22} {:>9} {:>14} {:>14}",
+        "estimator", "bounded", "tail ‖e‖ mean", "tail ‖e‖ max"
+    );
+    let report = |name: &str, metrics: &[RunMetrics]| {
+        let tails: Vec<f64> = metrics
+            .iter()
+            .map(|m| m.get(Metric::TailMeanE).unwrap_or(f64::NAN))
+            .collect();
+        let bounded = metrics.iter().filter(|m| m.bounded).count();
         let mean = tails.iter().sum::<f64>() / tails.len() as f64;
         let max = tails.iter().copied().fold(0.0, f64::max);
-        println!("{name:<22} {mean:>12.5} {max:>12.5}");
+        println!(
+            "{name:<22} {:>9} {mean:>14.5} {max:>14.5}",
+            format!("{bounded}/{}", metrics.len())
+        );
     };
-    // The user's observer, in the same loop type as the built-in estimators.
-    let mut tails = Vec::new();
-    for seed in 0..seeds {
-        let observer = Luenberger::new(&sc.plant, &sc.simulation.prior)?;
-        let ctrl = resolved.controller(ControllerChoice::ExactMpc)?;
-        let w = scenario_disturbance(sc, seed)?;
-        let mut cl = ClosedLoop::new(
+    // The user's observer, in the same loop type and driver as the built-in estimators.
+    let observer = monte_carlo(&settings, |seed| {
+        let est = Luenberger::new(&sc.plant, &sc.simulation.prior).map_err(|e| {
+            closed_loop::sim::ClosedLoopError::Model(lti_model::ModelError::Numerical {
+                routine: "observer gain (dual DARE)".into(),
+                reason: e.to_string(),
+            })
+        })?;
+        ClosedLoop::new(
             sc.plant.clone(),
-            observer,
-            ctrl,
-            w,
+            est,
+            resolved.controller(ControllerChoice::ExactMpc)?,
+            scenario_disturbance(sc, seed)?,
             &sc.simulation.x0,
             base.steps,
-        )?;
-        tails.push(cl.run()?.tail_mean_e().unwrap_or(f64::NAN));
-    }
-    report("luenberger", &tails);
+        )
+    })?;
+    report("luenberger", &observer);
     // The sub-optimal MHE at several K, same seeds.
     for k in [1, 5, 20, 100, base.iterations] {
-        let mut tails = Vec::new();
-        for seed in 0..seeds {
+        let mhe = monte_carlo(&settings, |seed| {
             let mut o = base;
             o.iterations = k;
             o.seed = seed;
-            tails.push(
-                resolved
-                    .build_loop(&o)?
-                    .run()?
-                    .tail_mean_e()
-                    .unwrap_or(f64::NAN),
-            );
-        }
-        report(&format!("mhe {} K={k}", base.method), &tails);
+            resolved.build_loop(&o)
+        })?;
+        report(&format!("mhe {} K={k}", base.method), &mhe);
     }
     Ok(())
 }

@@ -48,6 +48,7 @@
 //! Column reference: `docs/sweeps.md`.
 
 mod config;
+mod custom;
 mod error;
 mod format;
 mod lock;
@@ -63,6 +64,7 @@ use crate::scenario::ControllerChoice;
 use qp_iter::Method;
 
 pub use config::{MAX_K, MAX_SEEDS, MAX_STEPS, Point, SweepConfig, log_spaced};
+pub use custom::{MonteCarlo, monte_carlo, monte_carlo_seed};
 pub use error::{Result, SweepError};
 pub use format::{PointFile, Table, point_file_name, points_header, runs_header};
 pub use merge::{assemble, merge_point_dirs};

@@ -17,10 +17,10 @@ use rayon::prelude::*;
 use super::Method;
 use super::config::{Point, SweepConfig};
 use super::error::{Result, SweepError, config_err, io_err};
-use super::format::{self, PointFile, csv_text, point_file_name, point_row, run_row, temp_path};
+use super::format::{self, PointFile, point_file_name, point_row, run_row, temp_path};
 use super::lock::OutputLock;
 use super::merge::assemble_locked;
-use super::metrics::{RunMetrics, run_metrics, summarise};
+use super::metrics::{RunMetrics, summarise};
 use super::seeds::{Shard, run_seed};
 use super::theory::{SolverTheory, TheoryAtK, solver_theory};
 use crate::scenario::{LoopOptions, ScenarioLoop};
@@ -434,22 +434,13 @@ fn simulate(
     let start = Instant::now();
     lp.reseed(seed)?;
     let stop = lp.run().err();
-    let wall_ms = start.elapsed().as_secs_f64() * 1e3;
-    let trace = lp.trace();
-    let (values, bounded) = run_metrics(
-        trace,
-        lp.initial_state(),
-        input_box,
-        bounded_factor,
-        stop.as_ref(),
-    );
-    Ok(RunMetrics {
+    Ok(super::custom::finish_run(
+        lp,
         run,
         seed,
-        steps: trace.len(),
-        values,
-        bounded,
-        error: stop.map(|e| csv_text(&e.to_string())).unwrap_or_default(),
-        wall_ms,
-    })
+        stop,
+        start,
+        input_box,
+        bounded_factor,
+    ))
 }

@@ -733,3 +733,84 @@ fn stale_lock_is_taken_over_and_reported() {
     run(&sweep, &reference, 2, None);
     assert_eq!(outputs(&d), outputs(&reference));
 }
+
+/// The Monte-Carlo driver for any loop: the same numbers on 1 and 2 threads (seeds depend on
+/// the run index only), in run order, and a user estimator's failure is a stopped run with
+/// its own error text, not a setup error.
+#[test]
+fn monte_carlo_is_thread_count_independent_and_takes_user_components() {
+    use closed_loop::scenario::ControllerChoice;
+    use closed_loop::sweep::{MonteCarlo, monte_carlo};
+    let resolved = Scenario::from_file(concat!(
+        env!("CARGO_MANIFEST_DIR"),
+        "/../../scenarios/case-study-certified.toml"
+    ))
+    .unwrap()
+    .resolve()
+    .unwrap();
+    let sc = resolved.scenario();
+    let settings = MonteCarlo {
+        runs: 6,
+        base_seed: 11,
+        input_box: (sc.sets.input.lower(), sc.sets.input.upper()),
+        bounded_factor: 1e3,
+    };
+    let make = |seed| {
+        let mut o = LoopOptions::from_scenario(sc).unwrap();
+        o.iterations = 5;
+        o.seed = seed;
+        resolved.build_loop(&o)
+    };
+    let on = |threads| {
+        rayon::ThreadPoolBuilder::new()
+            .num_threads(threads)
+            .build()
+            .unwrap()
+            .install(|| monte_carlo(&settings, make).unwrap())
+    };
+    let (one, two) = (on(1), on(2));
+    assert_eq!(one.len(), 6);
+    for (a, b) in one.iter().zip(&two) {
+        assert_eq!(
+            (a.run, a.seed, a.steps, a.bounded),
+            (b.run, b.seed, b.steps, b.bounded)
+        );
+        assert_eq!(a.values, b.values);
+    }
+    assert!(one.iter().enumerate().all(|(r, m)| m.run == r));
+
+    /// An observer that fails at t = 3 with its own error type.
+    #[derive(Debug)]
+    struct Failing(Vec<f64>, usize);
+    #[derive(Debug, thiserror::Error)]
+    #[error("my observer lost track")]
+    struct Lost;
+    impl mhe_core::Estimator for Failing {
+        type Error = Lost;
+        fn estimate(&mut self) -> Result<&[f64], Lost> {
+            Ok(&self.0)
+        }
+        fn push(&mut self, _u: &[f64], _y: &[f64]) -> Result<(), Lost> {
+            self.1 += 1;
+            if self.1 > 3 { Err(Lost) } else { Ok(()) }
+        }
+        fn nx(&self) -> usize {
+            self.0.len()
+        }
+    }
+    let user = monte_carlo(&settings, |seed| {
+        closed_loop::sim::ClosedLoop::new(
+            sc.plant.clone(),
+            Failing(sc.simulation.prior.clone(), 0),
+            resolved.controller(ControllerChoice::ExactMpc)?,
+            closed_loop::scenario::scenario_disturbance(sc, seed)?,
+            &sc.simulation.x0,
+            20,
+        )
+    })
+    .unwrap();
+    assert!(
+        user.iter()
+            .all(|m| m.steps == 3 && !m.bounded && m.error.contains("my observer lost track"))
+    );
+}

@@ -23,6 +23,7 @@ use closed_loop::certificate::{
     CertificateOptions, ClosedLoopCertificate, Gamma13Source, SolverCertificate, TrajectoryCheck,
     analysis_with_sampled_l_phi, certify_closed_loop, check_trajectory,
 };
+use closed_loop::plan::{KSource, RunOutcome, plan_runs};
 use closed_loop::scenario::{ControllerChoice, LoopOptions, ResolvedScenario, Scenario};
 use closed_loop::{ClosedLoopError, Trace};
 use lti_model::BoxSet;
@@ -229,18 +230,6 @@ impl SolverSummary {
             k_min_with_sampled_l_phi: sc.k_min_with_sampled_l_phi,
         }
     }
-}
-
-/// Why a run was made at its K.
-#[derive(Debug, Clone, Copy, PartialEq, Eq, Serialize)]
-#[serde(rename_all = "snake_case")]
-pub enum KSource {
-    /// The computed K_min of Theorem 1.
-    ComputedKMin,
-    /// The scenario's `mhe.iterations`.
-    Scenario,
-    /// A small K for comparison ([`Settings::small_k`]).
-    Small,
 }
 
 /// What one simulation did.
@@ -509,26 +498,6 @@ fn relative(path: &Path) -> String {
         .unwrap_or(path)
         .display()
         .to_string()
-}
-
-/// The runs to simulate for a certificate (module docs, step 2).
-fn plan_runs(scenario_k: usize, k_min: Option<usize>, small_k: usize) -> Vec<(usize, KSource)> {
-    let mut plan = Vec::new();
-    match k_min {
-        Some(k_min) => {
-            plan.push((k_min.max(1), KSource::ComputedKMin));
-            if scenario_k != k_min.max(1) {
-                plan.push((scenario_k, KSource::Scenario));
-            }
-        }
-        None => {
-            plan.push((scenario_k, KSource::Scenario));
-            if small_k >= 1 && small_k < scenario_k {
-                plan.push((small_k, KSource::Small));
-            }
-        }
-    }
-    plan
 }
 
 struct Run {
@@ -1184,71 +1153,21 @@ fn status(holds: bool) -> &'static str {
 /// One sentence: what the certificate says about the simulated solver and whether the
 /// simulation agrees.
 fn verdict(d: &CertificateDocument) -> String {
-    // A run that stopped is a result: say where and when, next to the certificate's word.
-    let stopped: String = d
+    let runs: Vec<RunOutcome<'_>> = d
         .runs
         .iter()
-        .filter_map(|r| {
-            r.error.as_ref().map(|e| {
-                let what = if e.contains("diverged") {
-                    "diverged"
-                } else {
-                    "stopped"
-                };
-                format!(
-                    " The run at K = {} {what} at t = {}: {e}.",
-                    r.k, r.completed
-                )
-            })
+        .map(|r| RunOutcome {
+            k: r.k,
+            completed: r.completed,
+            error: r.error.as_deref(),
         })
         .collect();
-    format!("{}{stopped}", certificate_verdict(d))
-}
-
-fn certificate_verdict(d: &CertificateDocument) -> String {
-    let own = d.solvers.iter().find(|s| s.simulated);
-    match own.and_then(|s| s.k_min) {
-        Some(k) => {
-            let check = match d.trajectory_check.passed {
-                Some(true) => "Props. 1 and 3 hold at every step of the simulation at K_min",
-                Some(false) => "the simulation at K_min VIOLATES Prop. 1 or 3 (see above)",
-                None => "the trajectory check did not run",
-            };
-            format!(
-                "Theorem 1 certifies ISS of the closed loop for {} with K ≥ {k}; {check}.",
-                d.solver
-            )
-        }
-        None => {
-            let failed: Vec<&str> = own
-                .map(|s| {
-                    s.premises
-                        .iter()
-                        .filter(|p| !p.holds)
-                        .map(|p| p.name.as_str())
-                        .collect()
-                })
-                .unwrap_or_default();
-            let why = if failed.is_empty() {
-                "no K satisfies (sg1)–(sg3)".to_string()
-            } else {
-                format!("premise {} fails", failed.join(", "))
-            };
-            let sims = if d.runs.is_empty() {
-                "nothing was simulated".to_string()
-            } else {
-                let ks: Vec<String> = d.runs.iter().map(|r| r.k.to_string()).collect();
-                format!(
-                    "the loop was simulated anyway (K = {}) but no K is certified",
-                    ks.join(", ")
-                )
-            };
-            format!(
-                "Theorem 1 certifies nothing for {} with these parameters ({why}); {sims}.",
-                d.solver
-            )
-        }
-    }
+    let own = d
+        .certificate
+        .solvers
+        .iter()
+        .find(|s| s.solver.name() == d.solver);
+    closed_loop::plan::verdict(own, d.trajectory_check.passed, &runs)
 }
 
 /// The text summary of one job.

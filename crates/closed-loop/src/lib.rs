@@ -11,6 +11,7 @@
 //!   disturbance.
 //! - [`linear`]: ρ_lin(K) and K_lin, the exact linear stability boundary where no constraint
 //!   is active (the lifted LTI system of Alg. 1).
+//! - [`plan`]: which K to simulate for a certificate, and the verdict.
 //! - [`record`]: the per-step [`Trace`] of a run (with the MHE records), JSON output.
 //! - [`gamma13`]: γ₁,₃ of Assumption 4 for the MPC on any plant (family bound by the
 //!   S-procedure, partial and full free-set enumeration, typed void reasons, user values).
@@ -19,6 +20,7 @@ pub mod analysis;
 pub mod certificate;
 pub mod gamma13;
 pub mod linear;
+pub mod plan;
 pub mod record;
 pub mod scenario;
 pub mod sim;

@@ -154,7 +154,8 @@ pub struct Outcome {
 /// Reads a P matrix from JSON: a bare array of rows, an object with a `p` field, or a
 /// certificate written by this tool (`certificate.p`).
 pub fn read_p_file(path: &Path) -> Result<Mat<f64>> {
-    let text = std::fs::read_to_string(path)
+    let text = lti_model::spec::format::read_limited(path)
+        .map_err(|e| anyhow!("{e}"))
         .with_context(|| format!("cannot read --p-file `{}`", path.display()))?;
     let value: serde_json::Value = serde_json::from_str(&text)
         .with_context(|| format!("--p-file `{}` is not valid JSON", path.display()))?;

@@ -155,7 +155,8 @@ fn host() -> serde_json::Value {
 }
 
 fn load(config: &Path) -> Result<(String, Sweep)> {
-    let text = std::fs::read_to_string(config)
+    let text = lti_model::spec::format::read_limited(config)
+        .map_err(|e| anyhow::anyhow!("{e}"))
         .with_context(|| format!("cannot read the sweep config `{}`", config.display()))?;
     let cfg = SweepConfig::from_file(config)?;
     let sweep = Sweep::new(cfg)?;
@@ -217,15 +218,24 @@ fn write_json(path: &Path, v: &serde_json::Value) -> Result<()> {
 }
 
 /// `cargo xtask sweep`.
+/// `--threads` may be at most this many per logical CPU.
+const MAX_THREADS_PER_CORE: usize = 4;
+
 pub fn sweep(args: &SweepArgs) -> Result<()> {
     let start = unix_now();
     let clock = Instant::now();
     // Parse the shard before any work: a bad spec is a typed error, not a late surprise.
     let shard = args.shard.as_deref().map(str::parse::<Shard>).transpose()?;
+    let cores = std::thread::available_parallelism().map_or(1, |n| n.get());
+    let max_threads = MAX_THREADS_PER_CORE * cores;
     let threads = match args.threads {
         Some(0) => bail!("--threads must be ≥ 1"),
+        Some(n) if n > max_threads => bail!(
+            "--threads {n} is more than {MAX_THREADS_PER_CORE} per core ({cores} cores here: at most \
+             {max_threads}); runs are CPU-bound, so more threads only add memory and switching"
+        ),
         Some(n) => n,
-        None => std::thread::available_parallelism().map_or(1, |n| n.get()),
+        None => cores,
     };
     let (config_text, sweep) = load(&args.config)?;
     let out = args.out.clone().unwrap_or_else(|| {

@@ -407,3 +407,30 @@ fn corrupt_point_files_and_missing_shard_dirs_are_named() {
     );
     assert!(stderr.contains(missing.to_str().unwrap()), "{stderr}");
 }
+
+/// `--threads` is capped at a few per core (issue 14: 100 000 threads were spawned), and a
+/// config that is an endless stream is refused without reading it all.
+#[test]
+fn thread_count_and_input_size_are_bounded() {
+    let d = scratch("limits");
+    let cfg = config(
+        &d,
+        "t.toml",
+        "name = \"t\"\nk = [1]\nsolvers = [\"pg\"]\nseeds = 1\ncertificate = false\nsteps = 2\n",
+    );
+    let out = d.join("out");
+    let stderr = expect_error(
+        &[
+            "sweep",
+            "--config",
+            cfg.to_str().unwrap(),
+            "--threads",
+            "100000",
+            "--out",
+            out.to_str().unwrap(),
+        ],
+        "--threads 100000",
+    );
+    assert!(stderr.contains("per core"), "{stderr}");
+    expect_error(&["sweep", "--config", "/dev/zero"], "MiB");
+}

@@ -15,12 +15,17 @@
 use faer::Mat;
 use lti_model::LtiSystem;
 use lti_model::spec::MatrixSpec;
-use lti_model::spec::format::{at_least_one, key_error, required, rows_of, weight};
+use lti_model::spec::format::{
+    at_least_one, check_dense_bytes, key_error, required, rows_of, weight,
+};
 use qp_iter::Method;
 use serde::{Deserialize, Serialize};
 
 use crate::error::Result;
 use crate::estimator::MheConfig;
+
+/// Largest K accepted (`mhe.iterations`).
+pub const MAX_ITERATIONS: usize = 10_000_000;
 
 /// How z⁰_{t+1} is obtained from zᴷ_t (step 2 of Alg. 1).
 #[derive(Debug, Clone, Copy, PartialEq, Eq, Serialize, Deserialize)]
@@ -98,6 +103,32 @@ impl MheSettings {
         }
         let iterations = required("mhe.iterations", raw.iterations, "iterations = 50")?;
         let iterations = at_least_one("mhe.iterations", iterations, "the iteration count K")?;
+        if iterations > MAX_ITERATIONS {
+            return Err(key_error(
+                "mhe.iterations",
+                format!(
+                    "is {iterations}, above the limit {MAX_ITERATIONS} (each time step runs K \
+                     iterations); a certified K beyond it is not practical to run"
+                ),
+            ));
+        }
+        // One condensed QP per window length m = 0..M: n_m = n_x + m·n_w variables,
+        // θ_m = n_x + m(n_u + n_y) parameters; H is n_m², F is n_m × θ_m.
+        let (nx, nw) = (sys.nx() as f64, sys.nw() as f64);
+        let nuy = (sys.nu() + sys.ny()) as f64;
+        let mut bytes = 0.0;
+        for m in 0..=horizon.min(1 << 20) {
+            let (n, theta) = (nx + m as f64 * nw, nx + m as f64 * nuy);
+            bytes += 8.0 * (n * n + n * theta);
+            if bytes > lti_model::spec::format::MAX_DENSE_BYTES {
+                break;
+            }
+        }
+        check_dense_bytes(
+            "mhe.horizon",
+            &format!("condensed MHE QPs for windows up to M = {horizon}"),
+            bytes,
+        )?;
         let nw = sys.nw();
         let q = weight(
             "mhe.q",

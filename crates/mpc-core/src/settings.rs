@@ -12,7 +12,7 @@
 
 use faer::Mat;
 use lti_model::LtiSystem;
-use lti_model::spec::format::{at_least_one, required, rows_of, weight};
+use lti_model::spec::format::{at_least_one, check_dense_bytes, required, rows_of, weight};
 use lti_model::spec::{MatrixSpec, ScenarioSets};
 use serde::{Deserialize, Serialize};
 
@@ -62,6 +62,14 @@ impl MpcSettings {
     pub fn from_raw(raw: &RawMpc, sys: &LtiSystem) -> lti_model::Result<Self> {
         let horizon = required("mpc.horizon", raw.horizon, "horizon = 10")?;
         let horizon = at_least_one("mpc.horizon", horizon, "the prediction horizon N")?;
+        // Condensed: H (N n_u)², the predictions (N n_x) × (N n_u), F (N n_u) × n_x.
+        let (n, nu, nx) = (horizon as f64, sys.nu() as f64, sys.nx() as f64);
+        let vars = n * nu;
+        check_dense_bytes(
+            "mpc.horizon",
+            &format!("a condensed MPC with N·n_u = {vars} inputs"),
+            8.0 * (vars * vars + n * nx * vars + vars * nx),
+        )?;
         let q = weight(
             "mpc.q",
             raw.q.as_ref(),

@@ -102,16 +102,7 @@ impl Scenario {
     /// Reads, parses and validates a scenario file. I/O errors have key `"<file>"`.
     pub fn from_file(path: impl AsRef<Path>) -> Result<Self> {
         let path = path.as_ref();
-        let text = std::fs::read_to_string(path).map_err(|e| {
-            key_error(
-                "<file>",
-                format!(
-                    "cannot read `{}`: {e}; check the path (relative paths are resolved from the \
-                     current directory)",
-                    path.display()
-                ),
-            )
-        })?;
+        let text = format::read_limited(path)?;
         Self::from_toml_str(&text)
     }
 

@@ -9,13 +9,13 @@
 //! of each failure.
 
 use std::fmt::{self, Write as _};
-use std::fs;
+
 use std::path::{Path, PathBuf};
 
 use serde::Deserialize;
 use serde::de::{self, MapAccess, SeqAccess, Visitor};
 
-use super::error::{Result, SweepError, config_err, io_err};
+use super::error::{Result, SweepError, config_err};
 use super::metrics::{DEFAULT_BOUNDED_FACTOR, Metric};
 use super::{ControllerChoice, Method};
 
@@ -23,7 +23,7 @@ use super::{ControllerChoice, Method};
 pub const MAX_K: usize = 10_000_000;
 /// Largest horizon T accepted (a run's trace, MHE records included, is preallocated:
 /// about 1 KiB per step for the case study, per worker thread).
-pub const MAX_STEPS: usize = 100_000;
+pub const MAX_STEPS: usize = lti_model::spec::plant::MAX_STEPS;
 /// Largest number of seeds per point.
 pub const MAX_SEEDS: usize = 10_000_000;
 
@@ -556,7 +556,15 @@ impl SweepConfig {
     /// Reads and validates a config file.
     pub fn from_file(path: impl AsRef<Path>) -> Result<Self> {
         let path = path.as_ref();
-        let text = fs::read_to_string(path).map_err(io_err("read the sweep config", path))?;
+        let text = lti_model::spec::format::read_limited(path).map_err(|e| {
+            config_err(
+                "<file>",
+                match e {
+                    lti_model::ModelError::Scenario { problem, .. } => problem,
+                    other => other.to_string(),
+                },
+            )
+        })?;
         let base = path.parent().unwrap_or(Path::new("."));
         Self::from_toml_str(&text, base)
     }

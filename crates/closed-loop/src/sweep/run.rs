@@ -133,7 +133,12 @@ impl Sweep {
     /// it) and checks that a loop can be built for every solver.
     pub fn new(config: SweepConfig) -> Result<Self> {
         let path = config.scenario.clone();
-        let text = fs::read_to_string(&path).map_err(io_err("read the scenario", &path))?;
+        let text = lti_model::spec::format::read_limited(&path).map_err(|source| {
+            SweepError::Scenario {
+                path: path.clone(),
+                source,
+            }
+        })?;
         let original = Scenario::from_toml_str(&text).map_err(|source| SweepError::Scenario {
             path: path.clone(),
             source,

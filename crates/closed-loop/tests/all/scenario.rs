@@ -838,3 +838,55 @@ fn a_method_with_parameters_is_read_from_a_table() {
         "`rho` is not a parameter of `pg`",
     );
 }
+
+/// Resource limits are checked before anything large is allocated, each naming the key, the
+/// estimate and the limit (issue 14: a 640 GB allocation, a 32 GB trace, a silent 90 s run,
+/// an endless read).
+#[test]
+fn sizes_beyond_the_limits_are_refused_before_allocation() {
+    assert_key(
+        &replacing("horizon = 5", "horizon = 100000"),
+        "mpc.horizon",
+        "GiB",
+    );
+    assert_key(
+        &replacing("horizon = 3", "horizon = 1000000"),
+        "mhe.horizon",
+        "GiB",
+    );
+    assert_key(
+        &replacing("steps = 10", "steps = 1000000000"),
+        "simulation.steps",
+        "limit",
+    );
+    assert_key(
+        &replacing("iterations = 20", "iterations = 4000000000"),
+        "mhe.iterations",
+        "limit",
+    );
+    // Just inside the limits still parses.
+    assert!(Scenario::from_toml_str(&replacing("horizon = 5", "horizon = 200")).is_ok());
+    assert!(Scenario::from_toml_str(&replacing("steps = 10", "steps = 100000")).is_ok());
+}
+
+#[test]
+fn an_endless_or_huge_file_is_refused_not_read() {
+    match Scenario::from_file("/dev/zero") {
+        Err(ModelError::Scenario { key, problem }) => {
+            assert_eq!(key, "<file>");
+            assert!(problem.contains("MiB"), "{problem}");
+        }
+        other => panic!("{other:?}"),
+    }
+    let dir = std::env::temp_dir().join(format!("scenario-bytes-{}", std::process::id()));
+    std::fs::create_dir_all(&dir).unwrap();
+    let bin = dir.join("bin.toml");
+    std::fs::write(&bin, [0xff, 0xfe, 0x00, 0x41]).unwrap();
+    match Scenario::from_file(&bin) {
+        Err(ModelError::Scenario { key, problem }) => {
+            assert_eq!(key, "<file>");
+            assert!(problem.contains("not UTF-8"), "{problem}");
+        }
+        other => panic!("{other:?}"),
+    }
+}

@@ -624,3 +624,60 @@ pub fn parse<T: serde::de::DeserializeOwned>(text: &str) -> Result<T> {
     let de = toml::Deserializer::parse(text).map_err(|e| syntax_error(text, &e))?;
     serde_path_to_error::deserialize(de).map_err(|e| data_error(text, &e))
 }
+
+/// Largest input file read (scenario, sweep config, P file): 16 MiB. A scenario of the
+/// largest supported size is far smaller; without a cap `/dev/zero` reads forever.
+pub const MAX_FILE_BYTES: u64 = 16 << 20;
+
+/// Largest dense working set a scenario may imply (weights, condensed Hessians, prediction
+/// matrices, traces): 1 GiB, checked before anything is allocated.
+pub const MAX_DENSE_BYTES: f64 = (1u64 << 30) as f64;
+
+/// Reads a text file of at most [`MAX_FILE_BYTES`], refusing a larger (or endless) one with
+/// a [`ModelError::Scenario`] at key `"<file>"` before reading it all.
+pub fn read_limited(path: &std::path::Path) -> Result<String> {
+    use std::io::Read;
+    let fail = |problem: String| key_error("<file>", problem);
+    let file = std::fs::File::open(path).map_err(|e| {
+        fail(format!(
+            "cannot read `{}`: {e}; check the path (relative paths are resolved from the \
+             current directory)",
+            path.display()
+        ))
+    })?;
+    let mut bytes = Vec::new();
+    file.take(MAX_FILE_BYTES + 1)
+        .read_to_end(&mut bytes)
+        .map_err(|e| fail(format!("cannot read `{}`: {e}", path.display())))?;
+    if bytes.len() as u64 > MAX_FILE_BYTES {
+        return Err(fail(format!(
+            "`{}` is larger than {} MiB, the limit for input files; is it the right file?",
+            path.display(),
+            MAX_FILE_BYTES >> 20
+        )));
+    }
+    String::from_utf8(bytes).map_err(|e| {
+        fail(format!(
+            "`{}` is not UTF-8 text (invalid byte at offset {}); give a TOML text file",
+            path.display(),
+            e.utf8_error().valid_up_to()
+        ))
+    })
+}
+
+/// Refuses a working set of `bytes` (an estimate made before allocating) above
+/// [`MAX_DENSE_BYTES`], naming `key`, what it is for and the estimate.
+pub fn check_dense_bytes(key: &str, what: &str, bytes: f64) -> Result<()> {
+    if bytes > MAX_DENSE_BYTES {
+        return Err(key_error(
+            key,
+            format!(
+                "implies {what} of about {:.1} GiB, above the limit of {:.0} GiB for dense \
+                 matrices; reduce it (docs/limits.md)",
+                bytes / MAX_DENSE_BYTES,
+                1.0
+            ),
+        ));
+    }
+    Ok(())
+}

@@ -14,6 +14,9 @@ use crate::system::LtiSystem;
 /// Number of simulation steps when `[simulation].steps` is omitted (the case study's 40).
 pub const DEFAULT_STEPS: usize = 40;
 
+/// Largest T accepted (`simulation.steps`; a run's trace is preallocated).
+pub const MAX_STEPS: usize = 100_000;
+
 /// The constraint sets of eq. (1); an omitted set is the whole space.
 #[derive(Debug, Clone, PartialEq)]
 pub struct ScenarioSets {
@@ -419,6 +422,15 @@ pub fn validate_simulation(
         raw.and_then(|s| s.steps).unwrap_or(DEFAULT_STEPS),
         "the number of time steps",
     )?;
+    if steps > MAX_STEPS {
+        return Err(key_error(
+            "simulation.steps",
+            format!("is {steps}, above the limit {MAX_STEPS} (a run's trace is preallocated)"),
+        ));
+    }
+    // The trace: x, x̂, u, y, w per step.
+    let per_step = (2 * nx + plant.nu() + plant.ny() + plant.nw()) as f64;
+    check_dense_bytes("simulation.steps", "a trace", 8.0 * per_step * steps as f64)?;
     let violation = crate::sets::ConvexSet::violation(&sets.state, &x0);
     if violation > 0.0 {
         return Err(key_error(

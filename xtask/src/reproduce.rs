@@ -801,7 +801,13 @@ pub fn run_job(job: &Job, settings: &Settings) -> Result<Outcome> {
             .iter()
             .map(|s| SolverSummary::new(s, solver))
             .collect(),
-        paper_comparison: comparison(&cert, solver),
+        // The paper's published constants belong to its case study: shown for the two presets
+        // only, never beside a user's plant.
+        paper_comparison: if job.preset.is_some() {
+            comparison(&cert, solver)
+        } else {
+            Vec::new()
+        },
         runs: runs.iter().map(|r| r.summary.clone()).collect(),
         trajectory_check,
         files: files
@@ -1277,18 +1283,31 @@ fn summarize(d: &CertificateDocument, files: &[PathBuf], notes: &[String]) -> St
         );
     }
 
-    let _ = writeln!(
-        s,
-        "\nConstants: ours are for the STAND-IN plant; the paper's are for ITS OWN plant (not printed),\n\
-         so the two columns are not expected to agree."
-    );
-    let _ = writeln!(
-        s,
-        "  {:<16} {:<48} paper (published)",
-        "quantity", "ours (stand-in)"
-    );
-    for row in &d.paper_comparison {
-        let _ = writeln!(s, "  {:<16} {:<48} {}", row.quantity, row.ours, row.paper);
+    let preset = !d.paper_comparison.is_empty();
+    if preset {
+        let _ = writeln!(
+            s,
+            "\nConstants: ours are for the STAND-IN plant; the paper's are for ITS OWN plant (not printed),\n\
+             so the two columns are not expected to agree."
+        );
+        let _ = writeln!(
+            s,
+            "  {:<16} {:<48} paper (published)",
+            "quantity", "ours (stand-in)"
+        );
+        for row in &d.paper_comparison {
+            let _ = writeln!(s, "  {:<16} {:<48} {}", row.quantity, row.ours, row.paper);
+        }
+    } else if let Some(own) = d
+        .certificate
+        .solvers
+        .iter()
+        .find(|c| c.solver.name() == d.solver)
+    {
+        let _ = writeln!(s, "\nConstants of this scenario");
+        for row in comparison(&d.certificate, own.solver) {
+            let _ = writeln!(s, "  {:<16} {}", row.quantity, row.ours);
+        }
     }
 
     let _ = writeln!(

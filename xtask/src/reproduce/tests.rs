@@ -776,3 +776,25 @@ fn run_plan_follows_the_certificate() {
     // K_min = 0 (certified without iterating) still simulates one iteration.
     assert_eq!(plan_runs(1, Some(0), 5), vec![(1, KSource::ComputedKMin)]);
 }
+
+/// The paper's published constants are shown for the two presets only: a user's scenario
+/// (here the certified preset's file given as `--scenario`) gets its own constants and no
+/// paper column, in the summary and in certificate.json.
+#[test]
+fn user_scenarios_get_no_paper_column() {
+    let out = temp_dir("user-scenario");
+    let path = workspace_root().join(Preset::Certified.scenario_file());
+    let job = jobs(None, Some(path), Some(out)).remove(0);
+    assert!(job.preset.is_none());
+    let o = run_job(&job, &test_settings()).unwrap();
+    assert!(o.document.paper_comparison.is_empty());
+    assert!(!o.summary.contains("paper (published)"), "{}", o.summary);
+    assert!(
+        o.summary.contains("Constants of this scenario"),
+        "{}",
+        o.summary
+    );
+    assert!(o.summary.contains("γ₁,₃"), "{}", o.summary);
+    // The presets keep it.
+    assert!(!fixture().certified.document.paper_comparison.is_empty());
+}

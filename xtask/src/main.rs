@@ -74,6 +74,11 @@ enum Command {
         /// Output directory [default: target/reproduce in the workspace].
         #[arg(long, value_name = "DIR")]
         out: Option<PathBuf>,
+        /// Use this γ₁,₃ (Assumption 4) instead of computing it: reported as user-supplied,
+        /// not verified, and refused when the sampled lower estimate exceeds it. Overrides
+        /// the scenario's `certificate.gamma13`.
+        #[arg(long, value_name = "G")]
+        gamma13: Option<f64>,
     },
 }
 
@@ -112,7 +117,8 @@ fn run(cli: Cli) -> Result<ExitCode> {
             preset,
             scenario,
             out,
-        } => reproduce::main(preset, scenario, out),
+            gamma13,
+        } => reproduce::main(preset, scenario, out, gamma13),
     }
 }
 

@@ -646,9 +646,15 @@ pub fn run_job(job: &Job, settings: &Settings) -> Result<Outcome> {
     }
     let solver: Method = spec.method;
     let seed = scenario.noise.seed;
+    // γ₁,₃: the command line's value, else the scenario's `certificate.gamma13`, else computed.
+    let gamma13 = match (settings.gamma13, scenario.certificate.gamma13) {
+        (Gamma13Source::User(g), _) => Gamma13Source::User(g),
+        (_, Some(g)) => Gamma13Source::User(g),
+        (source, None) => source,
+    };
     let opts = CertificateOptions {
         solvers: Method::PRESETS.to_vec(),
-        gamma13: settings.gamma13,
+        gamma13,
         seed,
         lipschitz_pairs: settings.lipschitz_pairs,
         gamma13_sequences: settings.gamma13_sequences,
@@ -856,8 +862,15 @@ pub fn main(
     preset: Option<Preset>,
     scenario: Option<PathBuf>,
     out: Option<PathBuf>,
+    gamma13: Option<f64>,
 ) -> Result<std::process::ExitCode> {
-    let settings = Settings::default();
+    let mut settings = Settings::default();
+    if let Some(g) = gamma13 {
+        if !(g.is_finite() && g > 0.0) {
+            anyhow::bail!("--gamma13 {g}: γ₁,₃ must be a finite number > 0");
+        }
+        settings.gamma13 = Gamma13Source::User(g);
+    }
     let mut contradicted = false;
     for job in jobs(preset, scenario, out) {
         let t0 = std::time::Instant::now();

@@ -733,10 +733,12 @@ fn command_line_parses() {
             preset,
             scenario,
             out,
+            gamma13,
         } => {
             assert_eq!(preset, Some(Preset::Paper));
             assert_eq!(scenario, None);
             assert_eq!(out, Some(PathBuf::from("d")));
+            assert_eq!(gamma13, None);
         }
         other => panic!("{other:?}"),
     }
@@ -797,4 +799,28 @@ fn user_scenarios_get_no_paper_column() {
     assert!(o.summary.contains("γ₁,₃"), "{}", o.summary);
     // The presets keep it.
     assert!(!fixture().certified.document.paper_comparison.is_empty());
+}
+
+/// A user γ₁,₃ from the scenario (`certificate.gamma13`) is used and reported as
+/// user-supplied; one below the sampled lower estimate is refuted, not certified with.
+#[test]
+fn user_gamma13_from_the_scenario_key() {
+    let base =
+        std::fs::read_to_string(workspace_root().join(Preset::Certified.scenario_file())).unwrap();
+    let dir = temp_dir("user-gamma13");
+    let run = |g: f64| {
+        let path = dir.join(format!("g{g}.toml"));
+        std::fs::write(&path, format!("{base}\n[certificate]\ngamma13 = {g}\n")).unwrap();
+        let job = jobs(None, Some(path), Some(dir.join("out"))).remove(0);
+        run_job(&job, &test_settings()).unwrap().document
+    };
+    let generous = run(10.0);
+    let g = &generous.certificate.gamma13;
+    assert_eq!(g.used, 10.0);
+    assert!(g.source.contains("user"), "{}", g.source);
+    // Below the sampled lower estimate (≈ 0.61 on this plant): provably wrong.
+    let wrong = run(0.01);
+    let w = serde_json::to_string(&wrong.certificate.gamma13).unwrap();
+    assert!(w.contains("user"), "{w}");
+    assert!(wrong.solvers.iter().all(|s| s.k_min.is_none()), "{w}");
 }

@@ -85,6 +85,8 @@ pub struct Scenario {
     pub mhe: Option<MheSettings>,
     /// MPC settings (`[mpc]`), if the scenario has them.
     pub mpc: Option<MpcSettings>,
+    /// Certificate settings (`[certificate]`).
+    pub certificate: CertificateSettings,
     /// The verbatim text this scenario was parsed from (`None` if it was built in code), so
     /// that a run can record exactly what it used, comments included.
     pub source: Option<String>,
@@ -115,6 +117,38 @@ impl Scenario {
     }
 }
 
+/// The `[certificate]` section: inputs of Theorem 1's certificate the user may supply.
+#[derive(Debug, Clone, Copy, PartialEq, Default)]
+pub struct CertificateSettings {
+    /// γ₁,₃ of Assumption 4 given by the user (`certificate.gamma13`), reported as
+    /// "user-supplied, not verified" and refuted when the sampled lower estimate exceeds it;
+    /// `None`: computed.
+    pub gamma13: Option<f64>,
+}
+
+/// Serde mirror of `[certificate]`.
+#[derive(Debug, Default, Deserialize, Serialize)]
+#[serde(deny_unknown_fields)]
+struct RawCertificate {
+    #[serde(skip_serializing_if = "Option::is_none")]
+    gamma13: Option<f64>,
+}
+
+impl CertificateSettings {
+    fn from_raw(raw: Option<&RawCertificate>) -> Result<Self> {
+        let gamma13 = raw.and_then(|r| r.gamma13);
+        if let Some(g) = gamma13 {
+            if !(g.is_finite() && g > 0.0) {
+                return Err(key_error(
+                    "certificate.gamma13",
+                    format!("is {g}; γ₁,₃ must be a finite number > 0 (or omit it to compute it)"),
+                ));
+            }
+        }
+        Ok(Self { gamma13 })
+    }
+}
+
 // ---------------------------------------------------------------------------------------
 // Raw (serde) mirror of the file
 // ---------------------------------------------------------------------------------------
@@ -138,6 +172,8 @@ struct RawScenario {
     mhe: Option<Table<RawMhe>>,
     #[serde(skip_serializing_if = "Option::is_none")]
     mpc: Option<Table<RawMpc>>,
+    #[serde(skip_serializing_if = "Option::is_none")]
+    certificate: Option<Table<RawCertificate>>,
 }
 
 fn validate(raw: RawScenario) -> Result<Scenario> {
@@ -178,6 +214,7 @@ fn validate(raw: RawScenario) -> Result<Scenario> {
         simulation,
         mhe,
         mpc,
+        certificate: CertificateSettings::from_raw(raw.certificate.as_deref())?,
         source: None,
     })
 }
@@ -195,6 +232,10 @@ impl RawScenario {
             simulation: Some(Table(simulation)),
             mhe: s.mhe.as_ref().map(|m| Table(m.to_raw())),
             mpc: s.mpc.as_ref().map(|m| Table(m.to_raw())),
+            certificate: s
+                .certificate
+                .gamma13
+                .map(|g| Table(RawCertificate { gamma13: Some(g) })),
         }
     }
 }

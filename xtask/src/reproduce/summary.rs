@@ -1,0 +1,256 @@
+//! The text summary of a reproduce job and its verdict.
+
+use super::*;
+
+fn status(holds: bool) -> &'static str {
+    if holds { "pass" } else { "FAIL" }
+}
+
+/// One sentence: what the certificate says about the simulated solver and whether the
+/// simulation agrees.
+pub(super) fn verdict(d: &CertificateDocument) -> String {
+    let runs: Vec<RunOutcome<'_>> = d
+        .runs
+        .iter()
+        .map(|r| RunOutcome {
+            k: r.k,
+            completed: r.completed,
+            error: r.error.as_deref(),
+        })
+        .collect();
+    let own = d
+        .certificate
+        .solvers
+        .iter()
+        .find(|s| s.solver.name() == d.solver);
+    closed_loop::plan::verdict(own, d.trajectory_check.passed, &runs)
+}
+
+/// The text summary of one job.
+pub(super) fn summarize(d: &CertificateDocument, files: &[PathBuf], notes: &[String]) -> String {
+    let c = &d.certificate;
+    let mut s = String::new();
+    let _ = writeln!(
+        s,
+        "== reproduce `{}`: scenario `{}` ({}) ==",
+        d.label, d.scenario.name, d.scenario.path
+    );
+    if d.preset.is_some() {
+        let _ = writeln!(
+            s,
+            "Stand-in plant: A, B are a common 4-state benchmark (the paper does not print its A, B);\n\
+             C, the sets, the noise, the MHE/MPC settings, x₀ and the prior are the paper's."
+        );
+    }
+    let _ = writeln!(
+        s,
+        "M = {}, η = {}: 6·η^M = {:.4}, ρ = 6^(1/M)·η = {:.4}",
+        c.horizon,
+        c.eta,
+        6.0 * c.eta.powi(i32::try_from(c.horizon).unwrap_or(i32::MAX)),
+        c.rho
+    );
+    if let Some(f) = &c.ioss_failure {
+        let _ = writeln!(s, "δ-IOSS (LMI (2)) FAILS: {f}");
+    }
+
+    // Premises: scenario-wide ones once, solver-specific ones per solver.
+    let _ = writeln!(s, "\nPremises of Theorem 1");
+    let _ = writeln!(
+        s,
+        "  {:<20} {:<7} {:>12} {:>12}  status",
+        "premise", "solver", "value", "margin"
+    );
+    if let Some(first) = d.solvers.first() {
+        for (i, p) in first.premises.iter().enumerate() {
+            let same = d.solvers.iter().all(|o| {
+                o.premises
+                    .get(i)
+                    .is_some_and(|q| q.holds == p.holds && q.value.to_bits() == p.value.to_bits())
+            });
+            let rows: Vec<(&str, &Premise)> = if same {
+                vec![("all", p)]
+            } else {
+                d.solvers
+                    .iter()
+                    .filter_map(|o| o.premises.get(i).map(|q| (o.solver.as_str(), q)))
+                    .collect()
+            };
+            for (who, q) in rows {
+                let _ = writeln!(
+                    s,
+                    "  {:<20} {:<7} {:>12.6} {:>12.6}  {}",
+                    q.name,
+                    who,
+                    q.value,
+                    q.margin,
+                    status(q.holds)
+                );
+                if !q.holds {
+                    let _ = writeln!(s, "      fix: {}", q.fix);
+                }
+            }
+        }
+    }
+
+    let _ = writeln!(s, "\nSmallest certified K (Theorem 1, (sg1)–(sg3))");
+    for sv in &d.solvers {
+        let mark = if sv.simulated { " (simulated)" } else { "" };
+        match sv.k_min {
+            Some(k) => {
+                let _ = writeln!(
+                    s,
+                    "  {:<7} K_min = {k:<6} φ(K) = {:.3}·{:.6}^K, margin 1 − max(sg) = {:.3e}; with sampled L_Φ: {}{mark}",
+                    sv.solver,
+                    sv.phi_prefactor,
+                    sv.phi_rate,
+                    sv.margin_at_k_min.unwrap_or(f64::NAN),
+                    fmt_opt(sv.k_min_with_sampled_l_phi)
+                );
+            }
+            None => {
+                // The fixes are printed with the premises above; here the names only.
+                let failed: Vec<&str> = sv
+                    .premises
+                    .iter()
+                    .filter(|p| !p.holds)
+                    .map(|p| p.name.as_str())
+                    .collect();
+                let why = if failed.is_empty() {
+                    sv.void_reasons.join("; ")
+                } else {
+                    format!("{} fails (see the fix above)", failed.join(", "))
+                };
+                let _ = writeln!(s, "  {:<7} void: {why}{mark}", sv.solver);
+            }
+        }
+    }
+    if let Some(false) = d.scenario_iterations_match_k_min {
+        let _ = writeln!(
+            s,
+            "  note: the scenario's mhe.iterations = {} differs from the computed K_min; the runs use K_min",
+            d.scenario_iterations
+        );
+    }
+
+    let preset = !d.paper_comparison.is_empty();
+    if preset {
+        let _ = writeln!(
+            s,
+            "\nConstants: ours are for the STAND-IN plant; the paper's are for ITS OWN plant (not printed),\n\
+             so the two columns are not expected to agree."
+        );
+        let _ = writeln!(
+            s,
+            "  {:<16} {:<48} paper (published)",
+            "quantity", "ours (stand-in)"
+        );
+        for row in &d.paper_comparison {
+            let _ = writeln!(s, "  {:<16} {:<48} {}", row.quantity, row.ours, row.paper);
+        }
+    } else if let Some(own) = d
+        .certificate
+        .solvers
+        .iter()
+        .find(|c| c.solver.name() == d.solver)
+    {
+        let _ = writeln!(s, "\nConstants of this scenario");
+        for row in comparison(&d.certificate, own.solver) {
+            let _ = writeln!(s, "  {:<16} {}", row.quantity, row.ours);
+        }
+    }
+
+    let _ = writeln!(
+        s,
+        "\nClosed loop (Alg. 1, {} MHE, exact MPC, seed {}, T = {})",
+        d.solver,
+        d.runs.first().map_or(0, |r| r.seed),
+        d.runs.first().map_or(0, |r| r.steps)
+    );
+    let _ = writeln!(
+        s,
+        "  {:<8} {:<10} {:>10} {:>10} {:>12} {:>12} {:>12}",
+        "K", "why", "sup‖e‖", "sup‖x‖", "tail ‖e‖", "tail ‖x‖", "tail ε_t"
+    );
+    for r in &d.runs {
+        let why = match r.k_source {
+            KSource::ComputedKMin => "K_min",
+            KSource::Scenario => "scenario",
+            KSource::Small => "small K",
+        };
+        let f = |v: Option<f64>| v.map_or("-".to_string(), |v| format!("{v:.3e}"));
+        let _ = writeln!(
+            s,
+            "  {:<8} {:<10} {:>10.4} {:>10.4} {:>12} {:>12} {:>12}",
+            r.k,
+            why,
+            r.sup_norm_e,
+            r.sup_norm_x,
+            f(r.tail_mean_e),
+            f(r.tail_mean_x),
+            f(r.tail_mean_epsilon)
+        );
+        if let Some(e) = &r.error {
+            let _ = writeln!(s, "      stopped after {} steps: {e}", r.completed);
+        }
+    }
+    if d.runs.is_empty() {
+        let _ = writeln!(s, "  not simulated: the MHE needs a P and LMI (2) has none");
+    }
+
+    let tc = &d.trajectory_check;
+    let _ = writeln!(
+        s,
+        "\nTrajectory check of Props. 1 (ε_t) and 3 (e_t), both sides from the trace"
+    );
+    if tc.ran {
+        let line = |name: &str, c: &Option<TrajectoryCheck>| -> String {
+            match c {
+                Some(c) => format!(
+                    "  {name:<16} Prop. 1: {} (max lhs/rhs {:.3e} at t = {}), Prop. 3: {} (max lhs/rhs {:.3e} at t = {})",
+                    if c.prop1.holds {
+                        "holds at every t"
+                    } else {
+                        "VIOLATED"
+                    },
+                    c.prop1.worst_ratio,
+                    c.prop1.worst_t,
+                    if c.prop3.holds {
+                        "holds at every t"
+                    } else {
+                        "VIOLATED"
+                    },
+                    c.prop3.worst_ratio,
+                    c.prop3.worst_t
+                ),
+                None => format!("  {name:<16} not evaluated"),
+            }
+        };
+        let _ = writeln!(
+            s,
+            "  {} at K = {}, seed {}, {} steps",
+            tc.solver,
+            tc.k.unwrap_or(0),
+            tc.seed,
+            tc.steps
+        );
+        let _ = writeln!(s, "{}", line("certified L_Φ", &tc.certified_l_phi));
+        let _ = writeln!(s, "{}", line("sampled L_Φ", &tc.sampled_l_phi));
+    } else {
+        let _ = writeln!(
+            s,
+            "  not run: {}",
+            tc.reason.as_deref().unwrap_or("no reason recorded")
+        );
+    }
+
+    let _ = writeln!(s, "\nVerdict: {}", verdict(d));
+    let _ = writeln!(s, "\nFiles");
+    for f in files {
+        let _ = writeln!(s, "  {}", f.display());
+    }
+    for n in notes {
+        let _ = writeln!(s, "  note: {n}");
+    }
+    s
+}

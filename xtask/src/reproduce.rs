@@ -238,6 +238,48 @@ impl SolverSummary {
     }
 }
 
+/// ρ_lin of one method, or why it has none.
+#[derive(Debug, Clone, Serialize)]
+pub struct LinearEntry {
+    /// The method.
+    pub solver: String,
+    /// The report (null when the analysis does not apply).
+    pub report: Option<closed_loop::linear::LinearReport>,
+    /// Why there is no report (e.g. 0 on a bound of a box: no inactive neighbourhood).
+    pub error: Option<String>,
+}
+
+/// K grid of the linear analysis: 25 log-spaced K from 1 to max(2000, every K_min).
+fn linear_entries(resolved: &ResolvedScenario, cert: &ClosedLoopCertificate) -> Vec<LinearEntry> {
+    let top = cert
+        .solvers
+        .iter()
+        .filter_map(|s| s.k_min)
+        .fold(2000, usize::max);
+    let grid = closed_loop::sweep::log_spaced(1, top, 25);
+    Method::PRESETS
+        .iter()
+        .map(|&m| {
+            let result = LoopOptions::from_scenario(resolved.scenario())
+                .map_err(closed_loop::linear::LinearError::from)
+                .and_then(|mut o| {
+                    o.method = m;
+                    o.controller = ControllerChoice::ExactMpc;
+                    closed_loop::linear::linear_stability(resolved, &o, &grid, faer::Par::Seq)
+                });
+            let (report, error) = match result {
+                Ok(r) => (Some(r), None),
+                Err(e) => (None, Some(e.to_string())),
+            };
+            LinearEntry {
+                solver: m.name().into_owned(),
+                report,
+                error,
+            }
+        })
+        .collect()
+}
+
 /// What one simulation did.
 #[derive(Debug, Clone, Serialize)]
 pub struct RunSummary {
@@ -344,6 +386,9 @@ pub struct CertificateDocument {
     pub runs: Vec<RunSummary>,
     /// Props. 1/3 on the K_min run.
     pub trajectory_check: TrajectoryReport,
+    /// The exact linear stability boundary per method (exact MPC): ρ_lin(K) on a log grid,
+    /// K_lin and every K with ρ_lin ≥ 1 (necessary for stability; `closed_loop::linear`).
+    pub linear: Vec<LinearEntry>,
     /// Constants next to the paper's published values.
     pub paper_comparison: Vec<ComparisonRow>,
     /// Files written, relative to the output directory.
@@ -822,6 +867,7 @@ pub fn run_job(job: &Job, settings: &Settings) -> Result<Outcome> {
         },
         runs: runs.iter().map(|r| r.summary.clone()).collect(),
         trajectory_check,
+        linear: linear_entries(&resolved, &cert),
         files: files
             .iter()
             .map(|p| p.strip_prefix(&job.out).unwrap_or(p).display().to_string())

@@ -199,6 +199,30 @@ pub(super) fn summarize(d: &CertificateDocument, files: &[PathBuf], notes: &[Str
     }
 
     let tc = &d.trajectory_check;
+    if !d.linear.is_empty() {
+        let _ = writeln!(
+            s,
+            "\nLinear stability boundary (no constraint active, exact MPC): K_lin = smallest K from\n\
+             which ρ_lin(K) < 1 on the grid (necessary for stability, not sufficient)"
+        );
+        for l in &d.linear {
+            let line = match (&l.report, &l.error) {
+                (Some(r), _) => format!(
+                    "K_lin = {}{}",
+                    r.k_lin
+                        .map_or_else(|| "none on the grid".into(), |k| k.to_string()),
+                    if r.unstable_ks.is_empty() {
+                        String::new()
+                    } else {
+                        format!("; ρ_lin ≥ 1 at K = {:?}", r.unstable_ks)
+                    }
+                ),
+                (None, Some(e)) => format!("not applicable: {e}"),
+                (None, None) => "not computed".into(),
+            };
+            let _ = writeln!(s, "  {:<8} {line}", l.solver);
+        }
+    }
     let _ = writeln!(
         s,
         "\nTrajectory check of Props. 1 (ε_t) and 3 (e_t), both sides from the trace"

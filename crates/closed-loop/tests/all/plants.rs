@@ -138,3 +138,17 @@ pub fn scenario(
     );
     closed_loop::scenario::Scenario::from_toml_str(&text).unwrap()
 }
+
+#[test]
+#[ignore = "prints the cart-pendulum scenario text (used to write scenarios/cart-pendulum.toml)"]
+fn print_cart_pendulum_scenario() {
+    let s = scenario(
+        "cart-pendulum",
+        &cart_pendulum(0.02),
+        None,
+        10,
+        0.1,
+        &[0.0, 0.0, 0.1, 0.0],
+    );
+    println!("{}", s.source.unwrap());
+}

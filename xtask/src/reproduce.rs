@@ -35,9 +35,11 @@ use crate::figures::{self, Chart, HLine, Legend, Pattern, Series};
 use crate::provenance::{Provenance, workspace_root};
 
 mod charts;
+mod linear;
 mod summary;
 
 use charts::charts;
+use linear::{LinearEntry, linear_entries};
 use summary::summarize;
 
 /// `format` of certificate.json.
@@ -236,48 +238,6 @@ impl SolverSummary {
             k_min_with_sampled_l_phi: sc.k_min_with_sampled_l_phi,
         }
     }
-}
-
-/// ρ_lin of one method, or why it has none.
-#[derive(Debug, Clone, Serialize)]
-pub struct LinearEntry {
-    /// The method.
-    pub solver: String,
-    /// The report (null when the analysis does not apply).
-    pub report: Option<closed_loop::linear::LinearReport>,
-    /// Why there is no report (e.g. 0 on a bound of a box: no inactive neighbourhood).
-    pub error: Option<String>,
-}
-
-/// K grid of the linear analysis: 25 log-spaced K from 1 to max(2000, every K_min).
-fn linear_entries(resolved: &ResolvedScenario, cert: &ClosedLoopCertificate) -> Vec<LinearEntry> {
-    let top = cert
-        .solvers
-        .iter()
-        .filter_map(|s| s.k_min)
-        .fold(2000, usize::max);
-    let grid = closed_loop::sweep::log_spaced(1, top, 25);
-    Method::PRESETS
-        .iter()
-        .map(|&m| {
-            let result = LoopOptions::from_scenario(resolved.scenario())
-                .map_err(closed_loop::linear::LinearError::from)
-                .and_then(|mut o| {
-                    o.method = m;
-                    o.controller = ControllerChoice::ExactMpc;
-                    closed_loop::linear::linear_stability(resolved, &o, &grid, faer::Par::Seq)
-                });
-            let (report, error) = match result {
-                Ok(r) => (Some(r), None),
-                Err(e) => (None, Some(e.to_string())),
-            };
-            LinearEntry {
-                solver: m.name().into_owned(),
-                report,
-                error,
-            }
-        })
-        .collect()
 }
 
 /// What one simulation did.

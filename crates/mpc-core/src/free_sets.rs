@@ -71,6 +71,20 @@ pub struct LocalGains {
     pub saturated: Vec<usize>,
 }
 
+impl LocalGains {
+    /// A law with no saturable variable left: the single linear gain K_lin, an empty family.
+    fn linear(k_lin: Mat<f64>, saturated: &[usize]) -> Self {
+        let (nu, nx) = (k_lin.nrows(), k_lin.ncols());
+        Self {
+            k_lin,
+            g: Mat::zeros(nu, 0),
+            r: Mat::zeros(0, nx),
+            saturable: Vec::new(),
+            saturated: saturated.to_vec(),
+        }
+    }
+}
+
 /// PSD square root of a symmetric PSD matrix (negative round-off eigenvalues clamped to 0).
 pub(crate) fn psd_sqrt(m: MatRef<'_, f64>) -> Result<Mat<f64>> {
     let n = m.nrows();
@@ -218,13 +232,7 @@ impl CondensedMpc {
         let h = qp.h();
         let mut k_lin = Mat::<f64>::zeros(nu, nx);
         if m == 0 {
-            return Ok(LocalGains {
-                k_lin,
-                g: Mat::zeros(nu, 0),
-                r: Mat::zeros(0, nx),
-                saturable: Vec::new(),
-                saturated: saturated.to_vec(),
-            });
+            return Ok(LocalGains::linear(k_lin, saturated));
         }
         let h_n = Mat::from_fn(m, m, |a, b| h[(keep[a], keep[b])]);
         let f_n = Mat::from_fn(m, nx, |a, j| qp.f()[(keep[a], j)]);
@@ -249,13 +257,7 @@ impl CondensedMpc {
         let rel: Vec<usize> = (0..m).filter(|&a| role[keep[a]] == 2).collect();
         let s = rel.len();
         if s == 0 {
-            return Ok(LocalGains {
-                k_lin,
-                g: Mat::zeros(nu, 0),
-                r: Mat::zeros(0, nx),
-                saturable: Vec::new(),
-                saturated: saturated.to_vec(),
-            });
+            return Ok(LocalGains::linear(k_lin, saturated));
         }
         let gamma = Mat::from_fn(s, s, |a, b| h_inv[(rel[a], rel[b])]);
         let l = gamma

@@ -82,6 +82,9 @@ pub struct SweepConfig {
     /// default true; false writes them as void, e.g. for quick tests: the certificate
     /// takes seconds).
     pub certificate: bool,
+    /// Compute ρ_lin(K) and K_lin of the lifted loop on the sweep's K grid (`linear`,
+    /// default true; `crate::linear`, one eigenvalue problem of dim 𝔸(K) per K and solver).
+    pub linear: bool,
 }
 
 /// `n` log-spaced integers from `from` to `to` (rounded, duplicates removed).
@@ -131,6 +134,7 @@ struct RawConfig {
     common_random_numbers: Option<bool>,
     bounded_factor: Option<f64>,
     certificate: Option<bool>,
+    linear: Option<bool>,
 }
 
 /// `k`: a list of K, or a log-spaced range.
@@ -535,6 +539,7 @@ impl SweepConfig {
             ));
         }
         let certificate = raw.certificate.unwrap_or(true);
+        let linear = raw.linear.unwrap_or(true);
         Ok(Self {
             name,
             scenario,
@@ -550,6 +555,7 @@ impl SweepConfig {
             common_random_numbers,
             bounded_factor,
             certificate,
+            linear,
         })
     }
 
@@ -602,7 +608,7 @@ impl SweepConfig {
         let mut s = String::new();
         let _ = write!(
             s,
-            "k={:?};solvers=[{}];seeds={};scales={:?};steps={};base_seed={};exact={};controller={};metrics={:?};crn={};bounded_factor={:e};certificate={}",
+            "k={:?};solvers=[{}];seeds={};scales={:?};steps={};base_seed={};exact={};controller={};metrics={:?};crn={};bounded_factor={:e};certificate={};linear={}",
             self.k_grid,
             self.solvers
                 .iter()
@@ -626,6 +632,7 @@ impl SweepConfig {
             self.common_random_numbers,
             self.bounded_factor,
             self.certificate,
+            self.linear,
         );
         s
     }

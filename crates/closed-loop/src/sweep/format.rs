@@ -65,7 +65,8 @@ pub fn points_header(metrics: &[Metric]) -> String {
         }
         let _ = write!(h, ",{}_max", m.name());
     }
-    h.push_str(",phi,sg1,sg2,sg3,margin_cert,certified,k_min_cert,void_reason,wall_ms");
+    h.push_str(",phi,sg1,sg2,sg3,margin_cert,certified,k_min_cert,void_reason");
+    h.push_str(",rho_lin,k_lin,linear_note,wall_ms");
     h
 }
 
@@ -97,7 +98,7 @@ pub(super) fn point_row(p: &Point, s: &PointSummary) -> String {
     let sl = th.slopes;
     let _ = write!(
         out,
-        ",{},{},{},{},{},{},{},{},{}",
+        ",{},{},{},{},{},{},{},{},{},{},{},{}",
         cell(th.phi),
         cell(sl.map(|v| v[0])),
         cell(sl.map(|v| v[1])),
@@ -106,6 +107,9 @@ pub(super) fn point_row(p: &Point, s: &PointSummary) -> String {
         th.certified,
         th.k_min.map(|k| k.to_string()).unwrap_or_default(),
         th.void_reason,
+        cell(th.rho_lin),
+        th.k_lin.map(|k| k.to_string()).unwrap_or_default(),
+        th.linear_note,
         s.wall_ms
     );
     out
@@ -255,6 +259,10 @@ impl PointFileRules<'_> {
         // phi, sg1, sg2, sg3, margin_cert
         cells.extend((0..5).map(|_| Cell::NumberOrEmpty));
         cells.push(Cell::OneOf(&["yes", "no", "void"]));
+        cells.push(Cell::IntegerOrEmpty);
+        cells.push(Cell::Text);
+        // rho_lin, k_lin, linear_note
+        cells.push(Cell::NumberOrEmpty);
         cells.push(Cell::IntegerOrEmpty);
         cells.push(Cell::Text);
         cells.push(Cell::Number);

@@ -38,7 +38,8 @@
 //! | `config.rs` | [`SweepConfig`] (serde + key paths), its validation, the [`Point`] grid |
 //! | `seeds.rs` | [`run_seed`], [`Shard`] |
 //! | `metrics.rs` | [`RunMetrics`], the bounded rule, quantiles, [`PointSummary`] |
-//! | `theory.rs` | the certificate's columns per point ([`SolverTheory`], [`TheoryAtK`]) |
+//! | `thresholds.rs` | K_lin, K_emp, K_cert per solver from `points.csv` ([`thresholds`]) |
+//! | `theory.rs` | the certificate's and the linear analysis' columns per point ([`SolverTheory`], [`TheoryAtK`], [`LinearSide`]) |
 //! | `format.rs` | CSV rows and headers, fingerprint, point files (writing, reading, validation), [`Table`] |
 //! | `run.rs` | [`Sweep`], the run loop, [`Progress`]: the only contact with the simulation |
 //! | `merge.rs` | resume reading, [`assemble`], [`merge_point_dirs`] |
@@ -57,6 +58,7 @@ mod metrics;
 mod run;
 mod seeds;
 mod theory;
+mod thresholds;
 
 // The two types of `crate::sim` a sweep's data carries (Φ of a point, the controller),
 // imported once here; `run.rs` holds the rest of the coupling to the simulation.
@@ -74,4 +76,5 @@ pub use metrics::{
 };
 pub use run::{NoProgress, Progress, RunOptions, Sweep, SweepReport, run_cost};
 pub use seeds::{Shard, run_seed, splitmix64};
-pub use theory::{SolverTheory, TheoryAtK, solver_theory};
+pub use theory::{LinearSide, SolverTheory, TheoryAtK, solver_linear, solver_theory};
+pub use thresholds::{Thresholds, thresholds, thresholds_markdown};

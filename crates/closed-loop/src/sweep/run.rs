@@ -22,7 +22,7 @@ use super::lock::OutputLock;
 use super::merge::assemble_locked;
 use super::metrics::{RunMetrics, summarise};
 use super::seeds::{Shard, run_seed};
-use super::theory::{SolverTheory, TheoryAtK, solver_theory};
+use super::theory::{LinearSide, SolverTheory, TheoryAtK, solver_linear, solver_theory};
 use crate::scenario::{LoopOptions, ScenarioLoop};
 use crate::sim::ClosedLoopError;
 
@@ -126,6 +126,7 @@ pub struct Sweep {
     points: Vec<Point>,
     fingerprint: String,
     theory: OnceLock<Vec<(Method, SolverTheory)>>,
+    linear: OnceLock<LinearSide>,
 }
 
 impl Sweep {
@@ -187,6 +188,7 @@ impl Sweep {
             points,
             fingerprint,
             theory: OnceLock::new(),
+            linear: OnceLock::new(),
         };
         // Fail early (before any output) if a point cannot be set up.
         for &solver in &sweep.config.solvers {
@@ -242,15 +244,42 @@ impl Sweep {
             }
         })
     }
-    /// The certificate's columns for a point.
+    /// The linear side per solver: ρ_lin(K) on the solver's K grid and K_lin (computed on
+    /// first use, like [`Sweep::theory`]).
+    pub fn linear(&self) -> &LinearSide {
+        self.linear.get_or_init(|| {
+            if self.config.linear {
+                solver_linear(
+                    &self.resolved,
+                    &self.config.solvers,
+                    self.config.controller,
+                    |_| self.config.k_grid.clone(),
+                )
+            } else {
+                let reason = "not computed (linear = false in the sweep config)";
+                LinearSide(
+                    self.config
+                        .solvers
+                        .iter()
+                        .map(|&s| (s, Err(reason.to_string())))
+                        .collect(),
+                )
+            }
+        })
+    }
+
+    /// The certificate's and the linear analysis' columns for a point.
     pub fn theory_at(&self, p: &Point) -> TheoryAtK {
-        self.theory()
+        let mut t = self
+            .theory()
             .iter()
             .find(|(s, _)| *s == p.solver)
             .map(|(_, t)| t.at(p.k))
             .unwrap_or_else(|| {
                 SolverTheory::Unavailable("no analysis for this solver".into()).at(p.k)
-            })
+            });
+        self.linear().fill(p.solver, p.k, &mut t);
+        t
     }
 
     fn build(&self, p: &Point) -> Result<ScenarioLoop> {

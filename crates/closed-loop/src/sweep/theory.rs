@@ -1,8 +1,11 @@
 //! The certificate's side of a sweep point: Theorem 1 per solver (from the closed-loop
 //! certificate of the scenario), evaluated at each K as the theoretical columns of
-//! `points.csv` (φ(K), the slopes of (sg1)–(sg3), the margin, certified, K_min).
+//! `points.csv` (φ(K), the slopes of (sg1)–(sg3), the margin, certified, K_min), and the
+//! exact linear stability boundary beside it (ρ_lin(K) and K_lin of `crate::linear` on the
+//! sweep's own K grid).
 
-use crate::scenario::ResolvedScenario;
+use crate::linear::{LinearReport, linear_stability};
+use crate::scenario::{LoopOptions, ResolvedScenario};
 
 use super::format::csv_text;
 use super::{ControllerChoice, Method};
@@ -29,6 +32,7 @@ impl SolverTheory {
     /// The theoretical columns at K: slopes of (sg1)–(sg3), the margin 1 − max slope,
     /// `certified` = `"yes"`, `"no"` or `"void"` (a premise of Theorem 1 fails, whatever
     /// K), K_min and the reason of a void certificate.
+    /// The linear columns (ρ_lin, K_lin) are left empty here; [`LinearSide::fill`] adds them.
     pub fn at(&self, k: usize) -> TheoryAtK {
         match self {
             SolverTheory::Analysis {
@@ -61,6 +65,7 @@ impl SolverTheory {
                     },
                     k_min: *k_min,
                     void_reason: csv_text(&reasons.join("; ")),
+                    ..TheoryAtK::default()
                 }
             }
             SolverTheory::Unavailable(reason) => TheoryAtK {
@@ -70,13 +75,14 @@ impl SolverTheory {
                 certified: "void",
                 k_min: None,
                 void_reason: csv_text(reason),
+                ..TheoryAtK::default()
             },
         }
     }
 }
 
 /// The theoretical columns of a point.
-#[derive(Debug, Clone, PartialEq)]
+#[derive(Debug, Clone, PartialEq, Default)]
 pub struct TheoryAtK {
     /// φ(K) of Assumption 5 (the solver's certified contraction after K iterations).
     pub phi: Option<f64>,
@@ -90,6 +96,69 @@ pub struct TheoryAtK {
     pub k_min: Option<usize>,
     /// Why the certificate is void (empty otherwise).
     pub void_reason: String,
+    /// ρ_lin(K): spectral radius of the lifted loop 𝔸(K) (None when the linear analysis
+    /// is not available: then `linear_note` says why).
+    pub rho_lin: Option<f64>,
+    /// K_lin on the sweep's K grid for this solver (None: ρ_lin ≥ 1 at the largest K, or
+    /// no analysis).
+    pub k_lin: Option<usize>,
+    /// Why ρ_lin is missing (empty otherwise).
+    pub linear_note: String,
+}
+
+/// The linear side of a sweep per solver: ρ_lin on the solver's K grid, or why not.
+#[derive(Debug, Clone)]
+pub struct LinearSide(pub Vec<(Method, Result<LinearReport, String>)>);
+
+impl LinearSide {
+    /// Adds ρ_lin(K), K_lin (or the reason they are missing) of `solver` to `theory`.
+    pub fn fill(&self, solver: Method, k: usize, theory: &mut TheoryAtK) {
+        match self.0.iter().find(|(s, _)| *s == solver).map(|(_, r)| r) {
+            Some(Ok(report)) => {
+                theory.rho_lin = report
+                    .rho_lin
+                    .iter()
+                    .find(|(kk, _)| *kk == k)
+                    .map(|&(_, rho)| rho);
+                theory.k_lin = report.k_lin;
+                if theory.rho_lin.is_none() {
+                    theory.linear_note = format!("K = {k} is not on the analysed grid");
+                }
+            }
+            Some(Err(reason)) => theory.linear_note = csv_text(reason),
+            None => theory.linear_note = "no linear analysis for this solver".into(),
+        }
+    }
+}
+
+/// ρ_lin(K) of the lifted loop (`crate::linear`) for each solver on `grid(solver)` (the K of
+/// its points), with the sweep's controller. An analysis that cannot be done (a bound of Z
+/// through the origin, a failed eigenvalue solve) is kept as its reason, per solver.
+pub fn solver_linear(
+    resolved: &ResolvedScenario,
+    solvers: &[Method],
+    controller: ControllerChoice,
+    grid: impl Fn(Method) -> Vec<usize>,
+) -> LinearSide {
+    LinearSide(
+        solvers
+            .iter()
+            .map(|&s| {
+                // K, seed and T do not enter 𝔸(K)'s construction (`linear_stability`).
+                let opts = LoopOptions {
+                    method: s,
+                    iterations: 1,
+                    exact_mhe_solve: false,
+                    controller,
+                    seed: 0,
+                    steps: 1,
+                };
+                let report = linear_stability(resolved, &opts, &grid(s), faer::Par::Seq)
+                    .map_err(|e| format!("no linear analysis: {e}"));
+                (s, report)
+            })
+            .collect(),
+    )
 }
 
 /// Theorem 1 for each solver of the sweep, from the closed-loop certificate of the

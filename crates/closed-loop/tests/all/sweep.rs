@@ -814,3 +814,53 @@ fn monte_carlo_is_thread_count_independent_and_takes_user_components() {
             .all(|m| m.steps == 3 && !m.bounded && m.error.contains("my observer lost track"))
     );
 }
+
+/// The `rho_lin` / `k_lin` columns are ρ_lin(K) and K_lin of `closed_loop::linear` on the
+/// sweep's grid (the same numbers the standalone analysis gives), and `linear = false`
+/// leaves them empty with the reason.
+#[test]
+fn rho_lin_columns_match_the_linear_analysis() {
+    use closed_loop::linear::linear_stability;
+    let sweep = Sweep::new(small_config("")).unwrap();
+    let out = scratch("rho-lin");
+    run(&sweep, &out, 2, None);
+    let t = read_table(&out.join("points.csv"));
+    let resolved = sweep.resolved();
+    for solver in [Method::PG, Method::ADMM] {
+        let mut o = LoopOptions::from_scenario(resolved.scenario()).unwrap();
+        o.method = solver;
+        let report = linear_stability(resolved, &o, &[1, 4, 25], faer::Par::Seq).unwrap();
+        for row in 0..t.rows.len() {
+            if t.text(row, "solver") != Some(solver.name().as_ref()) {
+                continue;
+            }
+            let k: usize = t.text(row, "k").unwrap().parse().unwrap();
+            let want = report.rho_lin.iter().find(|p| p.0 == k).unwrap().1;
+            assert_eq!(t.number(row, "rho_lin"), Some(want), "{solver} K = {k}");
+            let k_lin = t.text(row, "k_lin").unwrap();
+            assert_eq!(
+                k_lin,
+                report.k_lin.map(|k| k.to_string()).unwrap_or_default()
+            );
+            assert_eq!(t.text(row, "linear_note"), Some(""));
+        }
+    }
+    // Thresholds read back from the file: K_lin agrees, K_emp exists (the stand-in is bounded
+    // at every K), no K_cert (certificate = false makes the columns void).
+    let th = closed_loop::sweep::thresholds(&t);
+    assert_eq!(th.len(), 4, "2 solvers × 2 scales");
+    assert!(th.iter().all(|x| x.k_emp == Some(1) && x.k_cert.is_none()));
+
+    let off = Sweep::new(small_config("linear = false")).unwrap();
+    let out = scratch("rho-lin-off");
+    run(&off, &out, 2, None);
+    let t = read_table(&out.join("points.csv"));
+    for row in 0..t.rows.len() {
+        assert_eq!(t.text(row, "rho_lin"), Some(""));
+        assert!(
+            t.text(row, "linear_note")
+                .unwrap()
+                .contains("linear = false")
+        );
+    }
+}

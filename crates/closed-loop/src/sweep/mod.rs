@@ -77,4 +77,4 @@ pub use metrics::{
 pub use run::{NoProgress, Progress, RunOptions, Sweep, SweepReport, run_cost};
 pub use seeds::{Shard, run_seed, splitmix64};
 pub use theory::{LinearSide, SolverTheory, TheoryAtK, solver_linear, solver_theory};
-pub use thresholds::{Thresholds, thresholds, thresholds_markdown};
+pub use thresholds::{SETTLE_TOLERANCE, Thresholds, thresholds, thresholds_markdown};

@@ -8,12 +8,20 @@
 //! not count. K_emp depends on the grid, the seeds, T and the noise; it can lie below K_lin
 //! when the constraints (a saturating 𝒲) hold a linearly unstable loop in, or when T is
 //! too short for a slow linear divergence to pass the bounded threshold.
+//!
+//! Bounded is a coarse test (a factor 1000 by default): a linearly unstable loop held in by
+//! a saturating 𝒲 stays bounded with an error many times its large-K level. K_settle shows
+//! that: the smallest grid K from which the median last-quarter error (`tail_mean_e_q50`)
+//! is within [`SETTLE_TOLERANCE`] of its value at the largest grid K, at every larger K.
 
 use std::fmt::Write as _;
 
 use serde::Serialize;
 
 use super::format::Table;
+
+/// K_settle's tolerance: the median last-quarter ‖e‖ within 10 % of its largest-K level.
+pub const SETTLE_TOLERANCE: f64 = 0.1;
 
 /// The thresholds of one solver at one disturbance scale.
 #[derive(Debug, Clone, PartialEq, Serialize)]
@@ -30,6 +38,10 @@ pub struct Thresholds {
     /// K_emp: the smallest grid K from which every run at every larger grid K is bounded
     /// (None: not even at the largest K).
     pub k_emp: Option<usize>,
+    /// K_settle: the smallest grid K from which the median last-quarter ‖e‖ is within
+    /// [`SETTLE_TOLERANCE`] of its largest-K level at every larger grid K (None without the
+    /// `tail_mean_e` metric or a finite largest-K level).
+    pub k_settle: Option<usize>,
     /// K_cert: Theorem 1's smallest certified K (None: void or beyond the search range;
     /// it may lie beyond the grid).
     pub k_cert: Option<usize>,
@@ -58,7 +70,8 @@ impl Thresholds {
 /// assert_eq!((t[0].k_lin, t[0].k_emp, t[0].k_cert), (Some(3), Some(30), Some(40)));
 /// ```
 pub fn thresholds(table: &Table) -> Vec<Thresholds> {
-    let mut out: Vec<(Thresholds, Vec<(usize, f64)>)> = Vec::new();
+    // Per (solver, scale): the grid as (K, bounded fraction, median tail error).
+    let mut out: Vec<(Thresholds, Vec<(usize, f64, Option<f64>)>)> = Vec::new();
     for row in 0..table.rows.len() {
         let (Some(solver), Some(scale), Some(k)) = (
             table.text(row, "solver"),
@@ -83,6 +96,7 @@ pub fn thresholds(table: &Table) -> Vec<Thresholds> {
                         k_max: 0,
                         k_lin: int("k_lin"),
                         k_emp: None,
+                        k_settle: None,
                         k_cert: if void { None } else { int("k_min_cert") },
                         void_reason: if void {
                             table.text(row, "void_reason").unwrap_or("").to_string()
@@ -95,7 +109,9 @@ pub fn thresholds(table: &Table) -> Vec<Thresholds> {
                 out.len() - 1
             }
         };
-        out[i].1.push((k, fraction));
+        out[i]
+            .1
+            .push((k, fraction, table.number(row, "tail_mean_e_q50")));
     }
     out.into_iter()
         .map(|(mut t, mut grid)| {
@@ -104,6 +120,13 @@ pub fn thresholds(table: &Table) -> Vec<Thresholds> {
             // The first K of the all-bounded tail of the grid.
             let tail = grid.iter().rev().take_while(|p| p.1 >= 1.0).count();
             t.k_emp = (tail > 0).then(|| grid[grid.len() - tail].0);
+            if let Some(level) = grid.last().and_then(|p| p.2).filter(|l| l.is_finite()) {
+                let settled = |e: Option<f64>| {
+                    e.is_some_and(|e| (e - level).abs() <= SETTLE_TOLERANCE * level.abs())
+                };
+                let tail = grid.iter().rev().take_while(|p| settled(p.2)).count();
+                t.k_settle = (tail > 0).then(|| grid[grid.len() - tail].0);
+            }
             t
         })
         .collect()
@@ -115,8 +138,8 @@ pub fn thresholds_markdown(rows: &[Thresholds]) -> String {
     let k = |v: Option<usize>, missing: String| v.map_or(missing, |k| k.to_string());
     let ratio = |v: Option<f64>| v.map_or("—".to_string(), |r| format!("{r:.3}"));
     let mut s = String::from(
-        "| solver | scale | K_lin | K_emp | K_cert | K_cert/K_emp | K_emp/K_lin |\n\
-         |---|---|---|---|---|---|---|\n",
+        "| solver | scale | K_lin | K_emp | K_settle | K_cert | K_cert/K_emp | K_emp/K_lin |\n\
+         |---|---|---|---|---|---|---|---|\n",
     );
     for t in rows {
         let cert = match (t.k_cert, t.void_reason.is_empty()) {
@@ -126,11 +149,12 @@ pub fn thresholds_markdown(rows: &[Thresholds]) -> String {
         };
         let _ = writeln!(
             s,
-            "| {} | {} | {} | {} | {} | {} | {} |",
+            "| {} | {} | {} | {} | {} | {} | {} | {} |",
             t.solver,
             t.scale,
             k(t.k_lin, format!("— (ρ_lin ≥ 1 or n/a at K = {})", t.k_max)),
             k(t.k_emp, format!("— (unbounded runs at K = {})", t.k_max)),
+            k(t.k_settle, "—".to_string()),
             cert,
             ratio(t.cert_over_emp()),
             ratio(t.emp_over_lin()),
@@ -146,12 +170,17 @@ mod tests {
 
     fn table(rows: &[(&str, usize, f64, &str, &str, &str)]) -> Table {
         let mut csv = String::from(
-            "point,k,solver,scale,bounded_fraction,certified,k_min_cert,void_reason,k_lin\n",
+            "point,k,solver,scale,bounded_fraction,certified,k_min_cert,void_reason,k_lin,tail_mean_e_q50\n",
         );
         for (i, (s, k, f, cert, kmin, klin)) in rows.iter().enumerate() {
             let reason = if *cert == "void" { "A unstable" } else { "" };
+            // A median tail error that settles at K = 30 (within 10 % of the K = 100 level).
+            let e = [(1, 9.0), (3, 1.05), (10, 2.0), (30, 1.09), (100, 1.0)]
+                .iter()
+                .find(|p| p.0 == *k)
+                .map_or(1.0, |p| p.1);
             csv.push_str(&format!(
-                "{i},{k},{s},1,{f},{cert},{kmin},{reason},{klin}\n"
+                "{i},{k},{s},1,{f},{cert},{kmin},{reason},{klin},{e}\n"
             ));
         }
         Table::parse(&csv).unwrap()
@@ -175,6 +204,11 @@ mod tests {
         assert_eq!(th[0].k_lin, Some(30));
         assert_eq!(th[0].k_cert, Some(500));
         assert_eq!(th[0].k_max, 100);
+        assert_eq!(
+            th[0].k_settle,
+            Some(30),
+            "1.05 at K = 3 is followed by 2.0 at K = 10"
+        );
         assert!((th[0].cert_over_emp().unwrap() - 500.0 / 30.0).abs() < 1e-12);
         assert_eq!(th[0].emp_over_lin(), Some(1.0));
         // Unbounded at the largest K: no K_emp; void: no K_cert, the reason kept.
@@ -183,7 +217,7 @@ mod tests {
         assert_eq!(th[1].void_reason, "A unstable");
         let md = thresholds_markdown(&th);
         assert!(
-            md.contains("| pg | 1 | 30 | 30 | 500 | 16.667 | 1.000 |"),
+            md.contains("| pg | 1 | 30 | 30 | 30 | 500 | 16.667 | 1.000 |"),
             "{md}"
         );
         assert!(md.contains("— (unbounded runs at K = 3)"), "{md}");

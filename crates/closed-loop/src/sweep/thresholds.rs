@@ -60,6 +60,9 @@ impl Thresholds {
     }
 }
 
+/// One grid K of a (solver, scale) curve: (K, bounded fraction, median tail error).
+type GridPoint = (usize, f64, Option<f64>);
+
 /// The thresholds per (scale, solver), in the order of `points.csv`.
 ///
 /// ```
@@ -70,8 +73,7 @@ impl Thresholds {
 /// assert_eq!((t[0].k_lin, t[0].k_emp, t[0].k_cert), (Some(3), Some(30), Some(40)));
 /// ```
 pub fn thresholds(table: &Table) -> Vec<Thresholds> {
-    // Per (solver, scale): the grid as (K, bounded fraction, median tail error).
-    let mut out: Vec<(Thresholds, Vec<(usize, f64, Option<f64>)>)> = Vec::new();
+    let mut out: Vec<(Thresholds, Vec<GridPoint>)> = Vec::new();
     for row in 0..table.rows.len() {
         let (Some(solver), Some(scale), Some(k)) = (
             table.text(row, "solver"),

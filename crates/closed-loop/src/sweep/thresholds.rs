@@ -138,7 +138,11 @@ pub fn thresholds(table: &Table) -> Vec<Thresholds> {
 /// and scale; `—` where a threshold does not exist on the grid.
 pub fn thresholds_markdown(rows: &[Thresholds]) -> String {
     let k = |v: Option<usize>, missing: String| v.map_or(missing, |k| k.to_string());
-    let ratio = |v: Option<f64>| v.map_or("—".to_string(), |r| format!("{r:.3}"));
+    let ratio = |v: Option<f64>| match v {
+        None => "—".to_string(),
+        Some(r) if (0.01..1e4).contains(&r) => format!("{r:.3}"),
+        Some(r) => format!("{r:.2e}"),
+    };
     let mut s = String::from(
         "| solver | scale | K_lin | K_emp | K_settle | K_cert | K_cert/K_emp | K_emp/K_lin |\n\
          |---|---|---|---|---|---|---|---|\n",

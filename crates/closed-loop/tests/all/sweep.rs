@@ -864,3 +864,20 @@ fn rho_lin_columns_match_the_linear_analysis() {
         );
     }
 }
+
+/// Every shipped sweep config under `sweeps/` parses, finds its scenario and sets up every
+/// point (so a shipped config cannot rot silently).
+#[test]
+fn shipped_sweep_configs_load() {
+    let dir = Path::new(env!("CARGO_MANIFEST_DIR")).join("../../sweeps");
+    let mut n = 0;
+    for entry in fs::read_dir(&dir).unwrap() {
+        let path = entry.unwrap().path();
+        if path.extension().is_some_and(|e| e == "toml") {
+            let cfg = SweepConfig::from_file(&path).unwrap_or_else(|e| panic!("{path:?}: {e}"));
+            Sweep::new(cfg).unwrap_or_else(|e| panic!("{path:?}: {e}"));
+            n += 1;
+        }
+    }
+    assert!(n >= 3, "smoke, case-study and cart-pendulum at least");
+}

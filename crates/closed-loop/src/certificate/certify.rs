@@ -31,6 +31,41 @@ pub fn certify_closed_loop(
     resolved: &ResolvedScenario,
     opts: &CertificateOptions,
 ) -> Result<ClosedLoopCertificate, ClosedLoopError> {
+    certify_closed_loop_timed(resolved, opts).map(|(c, _)| c)
+}
+
+/// Wall time of each part of [`certify_closed_loop`] (seconds), for the commands' own
+/// timing output (the certificate itself is deterministic; these are not).
+#[derive(Debug, Clone, Copy, Default, PartialEq, serde::Serialize)]
+pub struct CertificateTimes {
+    /// The MHE's condensed windows, H̄ and the certified L_Φ.
+    pub mhe_constants_s: f64,
+    /// The sampled L_Φ (exact solves of every window at seeded pairs).
+    pub l_phi_sampling_s: f64,
+    /// L_π (certified and sampled).
+    pub l_pi_s: f64,
+    /// γ₁,₃ (certified and sampled).
+    pub gamma13_s: f64,
+    /// Theorem 1 per solver (φ(K), the small-gain conditions, K_min).
+    pub theorem1_s: f64,
+    /// The whole certificate.
+    pub total_s: f64,
+}
+
+/// [`certify_closed_loop`] with the wall time of each part.
+pub fn certify_closed_loop_timed(
+    resolved: &ResolvedScenario,
+    opts: &CertificateOptions,
+) -> Result<(ClosedLoopCertificate, CertificateTimes), ClosedLoopError> {
+    let start = std::time::Instant::now();
+    let mut times = CertificateTimes::default();
+    let mut lap = start;
+    let mut split = move || {
+        let now = std::time::Instant::now();
+        let dt = (now - lap).as_secs_f64();
+        lap = now;
+        dt
+    };
     let scenario = resolved.scenario();
     let spec = scenario
         .mhe
@@ -63,6 +98,7 @@ pub fn certify_closed_loop(
         }
         None => None,
     };
+    times.mhe_constants_s = split();
     let (h_bar, l_phi, h_paper_norms) = match &problem {
         Some(pr) => {
             let sampling = LipschitzSampling {
@@ -99,10 +135,13 @@ pub fn certify_closed_loop(
         ),
     };
 
+    times.l_phi_sampling_s = split();
+
     // Controller constants.
     let radius = resolved.sampling_radius();
     let l_pi = mpc_core::lipschitz_report_for(&mpc, opts.lipschitz_pairs, opts.seed, radius)?;
     let l_pi_used = l_pi.l_pi();
+    times.l_pi_s = split();
     let gamma13 = crate::gamma13::gamma13_report(
         &mpc,
         opts.gamma13,
@@ -110,6 +149,7 @@ pub fn certify_closed_loop(
         opts.seed,
         opts.enumeration_max_vars,
     )?;
+    times.gamma13_s = split();
 
     let (p_min, p_max) = ioss_cert.as_ref().map_or((f64::NAN, f64::NAN), |c| {
         (c.p_min_eigenvalue, c.p_max_eigenvalue)
@@ -179,7 +219,9 @@ pub fn certify_closed_loop(
             k_min_with_sampled_l_phi: sampled_analysis.k_min(opts.k_max),
         });
     }
-    Ok(ClosedLoopCertificate {
+    times.theorem1_s = split();
+    times.total_s = start.elapsed().as_secs_f64();
+    let certificate = ClosedLoopCertificate {
         scenario: scenario.name.clone(),
         horizon: m,
         eta,
@@ -202,5 +244,6 @@ pub fn certify_closed_loop(
         },
         h_paper_norms,
         sigma_model_part: spectral_norm(sys.a()) + spectral_norm(sys.b()) + c_norm + 2.0,
-    })
+    };
+    Ok((certificate, times))
 }

@@ -36,7 +36,7 @@ use serde::Serialize;
 
 use crate::analysis::{GainsAtK, IssAnalysis};
 pub use crate::gamma13::{Gamma13Report, Gamma13Source};
-pub use certify::certify_closed_loop;
+pub use certify::{CertificateTimes, certify_closed_loop, certify_closed_loop_timed};
 pub use trajectory::{
     InequalityCheck, TrajectoryCheck, analysis_with_sampled_l_phi, check_trajectory,
 };

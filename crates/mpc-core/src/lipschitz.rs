@@ -568,11 +568,15 @@ impl std::fmt::Display for LipschitzReport {
             "  bound (a)      {:.6}  = ‖H^(-1/2)F‖₂/√λ_min(H), λ_min(H) = {:.6e}",
             c.sequence, c.h_min_eigenvalue
         )?;
-        writeln!(
-            f,
-            "  sampled        {:.6}  over {} pairs ({} evaluations, {} switches located), seed {}, radius {:.6}",
-            s.estimate, s.pairs, s.evaluations, s.switches_located, s.seed, s.radius
-        )?;
+        if s.pairs == 0 {
+            writeln!(f, "  sampled        skipped (0 pairs requested)")?;
+        } else {
+            writeln!(
+                f,
+                "  sampled        {:.6}  over {} pairs ({} evaluations, {} switches located), seed {}, radius {:.6}",
+                s.estimate, s.pairs, s.evaluations, s.switches_located, s.seed, s.radius
+            )?;
+        }
         if c.origin_interior {
             writeln!(
                 f,
@@ -595,7 +599,8 @@ impl std::fmt::Display for LipschitzReport {
 
 /// Both L_π figures for `mpc`: the certificate (bound (b), and L_enum when
 /// N·n_u ≤ [`ENUMERATION_MAX_VARS`]), the sampled estimate with the exact MPC (`n_pairs`,
-/// `seed`, `radius`), and ‖K‖₂ of the saturated LQR for comparison.
+/// `seed`, `radius`; `n_pairs = 0` skips it: estimate 0 over 0 pairs), and ‖K‖₂ of the
+/// saturated LQR for comparison.
 pub fn lipschitz_report_for(
     mpc: &CondensedMpc,
     n_pairs: usize,
@@ -603,7 +608,23 @@ pub fn lipschitz_report_for(
     radius: f64,
 ) -> Result<LipschitzReport> {
     let certified = mpc.lipschitz_certified()?;
-    let sampled = mpc.lipschitz_sampled(n_pairs, seed, radius)?;
+    // 0 pairs skips the sampled estimate (a caller that uses the certified bound only):
+    // the maximum over no pairs is the trivial lower bound 0, reported as 0 pairs.
+    let sampled = if n_pairs == 0 {
+        SampledLipschitz {
+            estimate: 0.0,
+            worst_x: Vec::new(),
+            worst_x_prime: Vec::new(),
+            pairs: 0,
+            evaluations: 0,
+            switches_located: 0,
+            seed,
+            radius,
+            delta: 1e-3 * radius,
+        }
+    } else {
+        mpc.lipschitz_sampled(n_pairs, seed, radius)?
+    };
     let enumerated = mpc.lipschitz_enumerated(ENUMERATION_MAX_VARS)?;
     let enumeration_skipped = enumerated.is_none().then(|| {
         format!(

@@ -216,7 +216,11 @@ pub fn certify_closed_loop_timed(
             analysis,
             k_min,
             void_reasons,
-            k_min_with_sampled_l_phi: sampled_analysis.k_min(opts.k_max),
+            k_min_with_sampled_l_phi: if opts.lipschitz_pairs == 0 {
+                None
+            } else {
+                sampled_analysis.k_min(opts.k_max)
+            },
         });
     }
     times.theorem1_s = split();

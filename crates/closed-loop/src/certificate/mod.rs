@@ -50,7 +50,8 @@ pub struct CertificateOptions {
     pub gamma13: Gamma13Source,
     /// Seed of every sampled estimate.
     pub seed: u64,
-    /// Random pairs for the sampled L_Φ and L_π.
+    /// Random pairs for the sampled L_Φ and L_π (0 skips both: they are reported as 0 over
+    /// 0 pairs, and no K_min is computed with the sampled L_Φ).
     pub lipschitz_pairs: usize,
     /// Injected error sequences per magnitude for the sampled γ₁,₃ (0 skips it).
     pub gamma13_sequences: usize,

@@ -162,8 +162,8 @@ pub fn solver_linear(
 }
 
 /// Theorem 1 for each solver of the sweep, from the closed-loop certificate of the
-/// scenario ([`certify_closed_loop`]; its sampled γ₁,₃ estimate is skipped, the
-/// certified value is what enters the slopes).
+/// scenario ([`certify_closed_loop`]; its sampled L_Φ, L_π and γ₁,₃ estimates are skipped,
+/// the certified values are what enter the slopes).
 ///
 /// The certificate covers the exact MPC (its L_π and γ₁,₃); for any other controller the
 /// columns are void with that reason. A certificate that cannot be computed makes the
@@ -184,9 +184,12 @@ pub fn solver_theory(
             "the certificate is for the exact MPC (its L_π and γ₁,₃); this sweep runs {controller:?}"
         ));
     }
+    // The sweep uses the certified constants only: the sampled L_Φ, L_π and γ₁,₃ estimates
+    // (exact solves at seeded points, most of the certificate's time) are skipped.
     let opts = CertificateOptions {
         solvers: solvers.to_vec(),
         gamma13_sequences: 0,
+        lipschitz_pairs: 0,
         ..CertificateOptions::default()
     };
     match certify_closed_loop(resolved, &opts) {

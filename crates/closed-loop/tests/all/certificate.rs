@@ -170,3 +170,30 @@ fn props_1_and_3_hold_on_200_seeds_at_k_min() {
     );
     assert!(worst1 <= 1.0 && worst3 <= 1.0);
 }
+
+/// `lipschitz_pairs = 0` (what the sweep uses) skips the sampled L_Φ and L_π and changes
+/// nothing certified: the same constants and K_min, no K from the sampled L_Φ.
+#[test]
+fn skipping_the_sampled_estimates_changes_nothing_certified() {
+    let s = scenario("case-study-certified.toml");
+    let with = crate::certify(&s, &fast()).unwrap();
+    let without = crate::certify(
+        &s,
+        &CertificateOptions {
+            lipschitz_pairs: 0,
+            ..fast()
+        },
+    )
+    .unwrap();
+    assert_eq!(with.l_phi.certified, without.l_phi.certified);
+    assert_eq!(with.l_pi_used, without.l_pi_used);
+    assert_eq!(with.gamma13.used, without.gamma13.used);
+    assert_eq!(without.l_phi.sampled, 0.0);
+    assert_eq!(without.l_pi.sampled.pairs, 0);
+    assert!(without.l_pi.consistent());
+    for (a, b) in with.solvers.iter().zip(&without.solvers) {
+        assert_eq!(a.k_min, b.k_min, "{}", a.solver);
+        assert!(a.k_min_with_sampled_l_phi.is_some());
+        assert_eq!(b.k_min_with_sampled_l_phi, None);
+    }
+}

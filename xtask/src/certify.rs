@@ -138,8 +138,14 @@ pub struct CertificateDocument {
     /// Always [`TOLERANCE_RULE`].
     pub tolerance_rule: String,
     /// L_π of the scenario's MPC (Assumption 3): certified bounds and a sampled estimate;
-    /// `null` when the scenario has no [mpc] section. Not part of the LMI pass/fail.
+    /// `null` when the scenario has no [mpc] section or the MPC it describes is not
+    /// supported (then `controller_lipschitz_skipped` says why). Not part of the LMI
+    /// pass/fail.
     pub controller_lipschitz: Option<mpc_core::LipschitzReport>,
+    /// Why L_π was not computed although the scenario has an [mpc] section (e.g. state
+    /// constraints in the MPC); `null` otherwise. A part of the scenario the LMI does not
+    /// need never blocks its check.
+    pub controller_lipschitz_skipped: Option<String>,
 }
 
 /// Result of [`certify`]: the document and its text summary.
@@ -330,6 +336,28 @@ pub fn certify(req: &CertifyRequest) -> Result<Outcome> {
         )
     };
 
+    // L_π of the scenario's MPC, if it has one. An MPC the project cannot build (state
+    // constraints) is reported as skipped with the reason: the LMI check does not need it.
+    let (controller_lipschitz, controller_lipschitz_skipped) = match &scenario.mpc {
+        Some(m) => {
+            match mpc_core::CondensedMpc::new(sys, m.config(&scenario.sets)).and_then(|mpc| {
+                mpc_core::lipschitz_report_for(
+                    &mpc,
+                    LPI_SAMPLE_PAIRS,
+                    scenario.noise.seed,
+                    scenario.sampling_radius(),
+                )
+            }) {
+                Ok(report) => (Some(report), None),
+                Err(e @ mpc_core::MpcError::Unsupported { .. }) => (None, Some(e.to_string())),
+                Err(e) => {
+                    return Err(anyhow!("{e}"))
+                        .context("cannot compute L_π for the scenario's [mpc] section");
+                }
+            }
+        }
+        None => (None, None),
+    };
     let document = CertificateDocument {
         format: FORMAT.to_string(),
         format_version: FORMAT_VERSION,
@@ -364,22 +392,8 @@ pub fn certify(req: &CertifyRequest) -> Result<Outcome> {
         },
         certificate,
         tolerance_rule: TOLERANCE_RULE.to_string(),
-        controller_lipschitz: match &scenario.mpc {
-            Some(m) => Some(
-                mpc_core::CondensedMpc::new(sys, m.config(&scenario.sets))
-                    .and_then(|mpc| {
-                        mpc_core::lipschitz_report_for(
-                            &mpc,
-                            LPI_SAMPLE_PAIRS,
-                            scenario.noise.seed,
-                            scenario.sampling_radius(),
-                        )
-                    })
-                    .map_err(|e| anyhow!("{e}"))
-                    .context("cannot compute L_π for the scenario's [mpc] section")?,
-            ),
-            None => None,
-        },
+        controller_lipschitz,
+        controller_lipschitz_skipped,
     };
     let summary = summarize(&document);
     Ok(Outcome { document, summary })
@@ -446,6 +460,12 @@ fn summarize(d: &CertificateDocument) -> String {
     }
     if let Some(l) = &d.controller_lipschitz {
         let _ = writeln!(s, "{l}");
+    }
+    if let Some(why) = &d.controller_lipschitz_skipped {
+        let _ = writeln!(
+            s,
+            "L_π (Assumption 3): not computed — {why} (the LMI (2) check above does not need it)"
+        );
     }
     let _ = write!(s, "{}", if d.passed { "PASS" } else { "FAIL" });
     s
@@ -729,5 +749,40 @@ mod tests {
         assert!(parse_p(&serde_json::json!([[1.0, 2.0], [3.0]])).is_err());
         assert!(parse_p(&serde_json::json!([["a"]])).is_err());
         assert!(parse_p(&serde_json::json!(1.0)).is_err());
+    }
+
+    /// Issue 15 item 4: a state set (which the MPC does not support yet) never blocks the
+    /// LMI (2) check: certify passes with L_π reported as not computed, and why.
+    #[test]
+    fn a_state_set_does_not_block_the_lmi_check() {
+        let text = std::fs::read_to_string(workspace_root().join("scenarios/case-study-certified.toml"))
+            .unwrap()
+            .replace(
+                "[sets]\n",
+                "[sets]\nstate = { lower = [-20.0, -20.0, -20.0, -20.0], upper = [20.0, 20.0, 20.0, 20.0] }\n",
+            );
+        assert!(text.contains("state = {"));
+        let path = temp_path("state-set.toml");
+        std::fs::write(&path, text).unwrap();
+        let out = certify(&CertifyRequest {
+            scenario: path,
+            eta: None,
+            p_file: None,
+        })
+        .unwrap();
+        assert!(out.document.passed);
+        assert!(out.document.controller_lipschitz.is_none());
+        let why = out
+            .document
+            .controller_lipschitz_skipped
+            .as_deref()
+            .unwrap();
+        assert!(why.contains("state constraints"), "{why}");
+        assert!(
+            out.summary.contains("L_π (Assumption 3): not computed"),
+            "{}",
+            out.summary
+        );
+        assert!(out.summary.ends_with("PASS"));
     }
 }

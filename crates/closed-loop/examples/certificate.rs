@@ -13,8 +13,15 @@ fn main() -> Result<(), Box<dyn std::error::Error>> {
         .unwrap_or_else(|| "scenarios/case-study.toml".into());
     let base = Scenario::from_file(&path)?;
     let horizons: Vec<usize> = args.filter_map(|a| a.parse().ok()).collect();
-    // The defaults `reproduce` uses (sampled γ₁,₃ estimate included).
-    let opts = CertificateOptions::default();
+    // The defaults `reproduce` uses (sampled γ₁,₃ estimate included), for the four methods
+    // on the problem as given and on the Jacobi-scaled problem.
+    let opts = CertificateOptions {
+        solvers: qp_iter::Method::PRESETS
+            .into_iter()
+            .chain(qp_iter::Method::JACOBI_PRESETS)
+            .collect(),
+        ..CertificateOptions::default()
+    };
     for m in if horizons.is_empty() {
         vec![0]
     } else {

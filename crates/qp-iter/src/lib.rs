@@ -28,11 +28,12 @@ pub mod method;
 pub mod pg;
 pub mod problem;
 pub mod reference;
+pub mod scaled;
 
 pub use certificate::{BoundedQuantity, CertNorm, Certificate};
 pub use driver::{RunResult, RunStatus, run_fixed, run_until};
 pub use error::{QpError, Result};
-pub use method::{Method, MethodMap, MethodState};
+pub use method::{Method, MethodKind, MethodMap, MethodState, Scaling};
 pub use problem::ParametricQp;
 
 /// The iteration map Φ of Assumption 5: z^{k+1} = Φ(z^k, θ).

@@ -34,11 +34,12 @@ use crate::error::{QpError, Result};
 use crate::fista::{Fista, FistaState};
 use crate::pg::{PgState, ProjectedGradient, StepRule};
 use crate::problem::ParametricQp;
+use crate::scaled::{Scaled, ScaledState, jacobi_scaling};
 use crate::{IterationMap, RunResult, run_fixed};
 
-/// An iteration map Φ of Assumption 5 with its parameters.
+/// The family of an iteration map and its parameters (the method without its scaling).
 #[derive(Debug, Clone, Copy, PartialEq)]
-pub enum Method {
+pub enum MethodKind {
     /// Projected gradient with a step rule ([`ProjectedGradient`]).
     Pg(StepRule),
     /// V-FISTA, the accelerated projected gradient for strongly convex problems ([`Fista`]).
@@ -47,38 +48,82 @@ pub enum Method {
     Admm(AdmmParams),
 }
 
+/// How the QP is scaled before the map runs on it ([`crate::scaled`]).
+#[derive(Debug, Clone, Copy, PartialEq, Eq, Default, Serialize, Deserialize)]
+#[serde(rename_all = "snake_case")]
+pub enum Scaling {
+    /// The problem as given.
+    #[default]
+    None,
+    /// z = Dy with D = diag(H)^{−½} (unit diagonal of DHD): removes the η^{−M} growth of
+    /// κ(H) of the MHE's QP; the certificate's prefactor gains κ(D), its rate improves.
+    Jacobi,
+}
+
+/// An iteration map Φ of Assumption 5 with its parameters and scaling.
+#[derive(Debug, Clone, Copy, PartialEq)]
+pub struct Method {
+    /// The family and its parameters.
+    pub kind: MethodKind,
+    /// The diagonal scaling of the problem it runs on.
+    pub scaling: Scaling,
+}
+
 impl Method {
+    const fn plain(kind: MethodKind) -> Self {
+        Method {
+            kind,
+            scaling: Scaling::None,
+        }
+    }
     /// `"pg"`: projected gradient with the optimal constant step 2/(L + μ).
-    pub const PG: Method = Method::Pg(StepRule::Optimal);
+    pub const PG: Method = Method::plain(MethodKind::Pg(StepRule::Optimal));
     /// `"fista"`.
-    pub const FISTA: Method = Method::Fista;
+    pub const FISTA: Method = Method::plain(MethodKind::Fista);
     /// `"admm"`: ρ = √(μL), α = 1.
-    pub const ADMM: Method = Method::Admm(AdmmParams {
+    pub const ADMM: Method = Method::plain(MethodKind::Admm(AdmmParams {
         penalty: Penalty::Optimal,
         relaxation: 1.0,
-    });
+    }));
     /// `"admm-pr"`: ρ = √(μL), α = 2 (Peaceman–Rachford): the certified rate
     /// δ = (√κ − 1)/(√κ + 1) instead of (1 + δ)/2, so about half the K of `"admm"`.
-    pub const ADMM_PR: Method = Method::Admm(AdmmParams {
+    pub const ADMM_PR: Method = Method::plain(MethodKind::Admm(AdmmParams {
         penalty: Penalty::Optimal,
         relaxation: 2.0,
-    });
+    }));
     /// The named methods, in the order reports list them.
     pub const PRESETS: [Method; 4] = [Method::PG, Method::FISTA, Method::ADMM, Method::ADMM_PR];
+    /// The named methods on the Jacobi-scaled problem (`"pg-jacobi"`, …).
+    pub const JACOBI_PRESETS: [Method; 4] = [
+        Method::PG.with_scaling(Scaling::Jacobi),
+        Method::FISTA.with_scaling(Scaling::Jacobi),
+        Method::ADMM.with_scaling(Scaling::Jacobi),
+        Method::ADMM_PR.with_scaling(Scaling::Jacobi),
+    ];
+
+    /// The same method on a differently scaled problem.
+    pub const fn with_scaling(self, scaling: Scaling) -> Self {
+        Method {
+            kind: self.kind,
+            scaling,
+        }
+    }
 
     /// Projected gradient with a fixed step α > 0 (`None`: the optimal step 2/(L + μ)).
     pub fn pg(step: Option<f64>) -> Result<Self> {
-        let m = Method::Pg(step.map_or(StepRule::Optimal, StepRule::Fixed));
+        let m = Method::plain(MethodKind::Pg(
+            step.map_or(StepRule::Optimal, StepRule::Fixed),
+        ));
         m.validate()?;
         Ok(m)
     }
 
     /// ADMM with penalty ρ > 0 (`None`: ρ = √(μL)) and relaxation α ∈ (0, 2].
     pub fn admm(rho: Option<f64>, alpha: f64) -> Result<Self> {
-        let m = Method::Admm(AdmmParams {
+        let m = Method::plain(MethodKind::Admm(AdmmParams {
             penalty: rho.map_or(Penalty::Optimal, Penalty::Fixed),
             relaxation: alpha,
-        });
+        }));
         m.validate()?;
         Ok(m)
     }
@@ -92,11 +137,11 @@ impl Method {
                 reason: reason.into(),
             })
         };
-        match *self {
-            Method::Pg(StepRule::Fixed(a)) if !(a > 0.0 && a.is_finite()) => {
+        match self.kind {
+            MethodKind::Pg(StepRule::Fixed(a)) if !(a > 0.0 && a.is_finite()) => {
                 bad("step", a, "the step must be positive and finite")
             }
-            Method::Admm(p) => {
+            MethodKind::Admm(p) => {
                 if let Penalty::Fixed(r) = p.penalty {
                     if !(r > 0.0 && r.is_finite()) {
                         return bad("rho", r, "the ADMM penalty must be positive and finite");
@@ -115,19 +160,27 @@ impl Method {
         }
     }
 
-    /// The method's name: `"pg"`, `"fista"`, `"admm"`, `"admm-pr"` for the named methods,
-    /// otherwise the family with its parameters (`"admm(rho=2,alpha=1.5)"`).
+    /// The method's name: `"pg"`, `"fista"`, `"admm"`, `"admm-pr"` for the named methods
+    /// (`"pg-jacobi"`, … on the Jacobi-scaled problem), otherwise the family with its
+    /// parameters (`"admm(rho=2,alpha=1.5)"`, `"pg(step=0.1,scaling=jacobi)"`).
     pub fn name(&self) -> Cow<'static, str> {
-        match *self {
-            Method::Pg(StepRule::Optimal) => "pg".into(),
-            Method::Pg(StepRule::InverseL) => "pg(step=1/L)".into(),
-            Method::Pg(StepRule::Fixed(a)) => format!("pg(step={a})").into(),
-            Method::Fista => "fista".into(),
-            Method::Admm(p) => match (p.penalty, p.relaxation) {
+        let base: Cow<'static, str> = match self.kind {
+            MethodKind::Pg(StepRule::Optimal) => "pg".into(),
+            MethodKind::Pg(StepRule::InverseL) => "pg(step=1/L)".into(),
+            MethodKind::Pg(StepRule::Fixed(a)) => format!("pg(step={a})").into(),
+            MethodKind::Fista => "fista".into(),
+            MethodKind::Admm(p) => match (p.penalty, p.relaxation) {
                 (Penalty::Optimal, 1.0) => "admm".into(),
                 (Penalty::Optimal, 2.0) => "admm-pr".into(),
                 (Penalty::Optimal, a) => format!("admm(alpha={a})").into(),
                 (Penalty::Fixed(r), a) => format!("admm(rho={r},alpha={a})").into(),
+            },
+        };
+        match self.scaling {
+            Scaling::None => base,
+            Scaling::Jacobi => match base.strip_suffix(')') {
+                Some(head) => format!("{head},scaling=jacobi)").into(),
+                None => format!("{base}-jacobi").into(),
             },
         }
     }
@@ -135,20 +188,30 @@ impl Method {
     /// The family name of the map (`"pg"`, `"fista"`, `"admm"`), what
     /// [`IterationMap::name`] reports.
     pub fn family(&self) -> &'static str {
-        match self {
-            Method::Pg(_) => "pg",
-            Method::Fista => "fista",
-            Method::Admm(_) => "admm",
+        match self.kind {
+            MethodKind::Pg(_) => "pg",
+            MethodKind::Fista => "fista",
+            MethodKind::Admm(_) => "admm",
         }
     }
 
     /// Builds Φ for `qp` (allocates: setup).
     pub fn build(&self, qp: ParametricQp) -> Result<MethodMap> {
-        Ok(match *self {
-            Method::Pg(rule) => MethodMap::Pg(ProjectedGradient::new(qp, rule)?),
-            Method::Fista => MethodMap::Fista(Fista::new(qp)),
-            Method::Admm(params) => MethodMap::Admm(Admm::new(qp, params)?),
-        })
+        let kind = self.kind;
+        let plain = move |qp: ParametricQp| -> Result<MethodMap> {
+            Ok(match kind {
+                MethodKind::Pg(rule) => MethodMap::Pg(ProjectedGradient::new(qp, rule)?),
+                MethodKind::Fista => MethodMap::Fista(Fista::new(qp)),
+                MethodKind::Admm(params) => MethodMap::Admm(Admm::new(qp, params)?),
+            })
+        };
+        match self.scaling {
+            Scaling::None => plain(qp),
+            Scaling::Jacobi => {
+                let d = jacobi_scaling(&qp);
+                Ok(MethodMap::Scaled(Box::new(Scaled::new(qp, d, plain)?)))
+            }
+        }
     }
 
     /// The certificate φ(K) this method has on `qp` (builds the map once).
@@ -172,15 +235,21 @@ impl fmt::Display for Method {
 
 impl FromStr for Method {
     type Err = QpError;
-    /// One of the names `"pg"`, `"fista"`, `"admm"`, `"admm-pr"`.
+    /// One of the names `"pg"`, `"fista"`, `"admm"`, `"admm-pr"`, each optionally with
+    /// `-jacobi` (the same method on the Jacobi-scaled problem).
     fn from_str(s: &str) -> Result<Self> {
-        match s {
-            "pg" => Ok(Method::PG),
-            "fista" => Ok(Method::FISTA),
-            "admm" => Ok(Method::ADMM),
-            "admm-pr" => Ok(Method::ADMM_PR),
-            other => Err(QpError::UnknownMethod { name: other.into() }),
-        }
+        let (base, scaling) = match s.strip_suffix("-jacobi") {
+            Some(b) => (b, Scaling::Jacobi),
+            None => (s, Scaling::None),
+        };
+        let m = match base {
+            "pg" => Method::PG,
+            "fista" => Method::FISTA,
+            "admm" => Method::ADMM,
+            "admm-pr" => Method::ADMM_PR,
+            _ => return Err(QpError::UnknownMethod { name: s.into() }),
+        };
+        Ok(m.with_scaling(scaling))
     }
 }
 
@@ -198,6 +267,8 @@ struct MethodTable {
     rho: Option<f64>,
     #[serde(default, skip_serializing_if = "Option::is_none")]
     alpha: Option<f64>,
+    #[serde(default, skip_serializing_if = "Option::is_none")]
+    scaling: Option<Scaling>,
 }
 
 impl MethodTable {
@@ -231,41 +302,34 @@ impl MethodTable {
             }
             other => return Err(QpError::UnknownMethod { name: other.into() }.to_string()),
         };
-        m.map_err(|e| e.to_string())
+        m.map(|m| m.with_scaling(self.scaling.unwrap_or_default()))
+            .map_err(|e| e.to_string())
     }
 }
 
 impl Serialize for Method {
     fn serialize<S: Serializer>(&self, s: S) -> std::result::Result<S::Ok, S::Error> {
-        if Method::PRESETS.contains(self) {
+        if Method::PRESETS.contains(self) || Method::JACOBI_PRESETS.contains(self) {
             return s.serialize_str(&self.name());
         }
-        let table = match *self {
-            Method::Pg(rule) => MethodTable {
-                method: "pg".into(),
-                step: match rule {
-                    StepRule::Fixed(a) => Some(a),
-                    _ => None,
-                },
-                rho: None,
-                alpha: None,
-            },
-            Method::Fista => MethodTable {
-                method: "fista".into(),
-                step: None,
-                rho: None,
-                alpha: None,
-            },
-            Method::Admm(p) => MethodTable {
-                method: "admm".into(),
-                step: None,
-                rho: match p.penalty {
+        let mut table = MethodTable {
+            method: self.family().into(),
+            step: None,
+            rho: None,
+            alpha: None,
+            scaling: (self.scaling != Scaling::None).then_some(self.scaling),
+        };
+        match self.kind {
+            MethodKind::Pg(StepRule::Fixed(a)) => table.step = Some(a),
+            MethodKind::Pg(_) | MethodKind::Fista => {}
+            MethodKind::Admm(p) => {
+                table.rho = match p.penalty {
                     Penalty::Fixed(r) => Some(r),
                     Penalty::Optimal => None,
-                },
-                alpha: Some(p.relaxation),
-            },
-        };
+                };
+                table.alpha = Some(p.relaxation);
+            }
+        }
         table.serialize(s)
     }
 }
@@ -277,8 +341,8 @@ impl<'de> Deserialize<'de> for Method {
             type Value = Method;
             fn expecting(&self, f: &mut fmt::Formatter<'_>) -> fmt::Result {
                 f.write_str(
-                    "a method name (\"pg\", \"fista\", \"admm\", \"admm-pr\") or a table \
-                     { method = \"…\", step / rho / alpha = … }",
+                    "a method name (\"pg\", \"fista\", \"admm\", \"admm-pr\", each optionally \
+                     with \"-jacobi\") or a table { method = \"…\", step / rho / alpha / scaling = … }",
                 )
             }
             fn visit_str<E: de::Error>(self, v: &str) -> std::result::Result<Method, E> {
@@ -310,6 +374,8 @@ pub enum MethodMap {
     Fista(Fista),
     /// ADMM.
     Admm(Admm),
+    /// One of the above on the diagonally scaled problem ([`crate::scaled`]).
+    Scaled(Box<Scaled<MethodMap>>),
 }
 
 /// The state of a [`MethodMap`]: the state of its concrete map.
@@ -321,6 +387,8 @@ pub enum MethodState {
     Fista(FistaState),
     /// Of ADMM.
     Admm(AdmmState),
+    /// Of a scaled map.
+    Scaled(Box<ScaledState<MethodState>>),
 }
 
 #[cold]
@@ -338,6 +406,7 @@ macro_rules! with_pair {
             (MethodMap::Pg($m), MethodState::Pg($s)) => $body,
             (MethodMap::Fista($m), MethodState::Fista($s)) => $body,
             (MethodMap::Admm($m), MethodState::Admm($s)) => $body,
+            (MethodMap::Scaled($m), MethodState::Scaled($s)) => $body,
             _ => foreign_state(),
         }
     };
@@ -350,6 +419,7 @@ macro_rules! with_map {
             MethodMap::Pg($m) => $body,
             MethodMap::Fista($m) => $body,
             MethodMap::Admm($m) => $body,
+            MethodMap::Scaled($m) => $body,
         }
     };
 }
@@ -376,6 +446,7 @@ impl IterationMap for MethodMap {
             MethodMap::Pg(m) => MethodState::Pg(m.new_state()),
             MethodMap::Fista(m) => MethodState::Fista(m.new_state()),
             MethodMap::Admm(m) => MethodState::Admm(m.new_state()),
+            MethodMap::Scaled(m) => MethodState::Scaled(Box::new(m.new_state())),
         }
     }
     fn load(&self, state: &mut MethodState, theta: &[f64]) {

@@ -37,6 +37,7 @@ use faer::{Accum, Mat, MatRef, Par};
 use qp_iter::admm::Admm;
 use qp_iter::fista::Fista;
 use qp_iter::pg::ProjectedGradient;
+use qp_iter::scaled::Scaled;
 use qp_iter::{IterationMap, MethodMap, MethodState, ParametricQp};
 
 use super::LinearError;
@@ -72,6 +73,7 @@ impl Linearise for MethodMap {
             MethodMap::Pg(m) => m.lift_dim(),
             MethodMap::Fista(m) => m.lift_dim(),
             MethodMap::Admm(m) => m.lift_dim(),
+            MethodMap::Scaled(m) => m.lift_dim(),
         }
     }
     fn start_steps(&self) -> usize {
@@ -79,6 +81,7 @@ impl Linearise for MethodMap {
             MethodMap::Pg(m) => m.start_steps(),
             MethodMap::Fista(m) => m.start_steps(),
             MethodMap::Admm(m) => m.start_steps(),
+            MethodMap::Scaled(m) => m.start_steps(),
         }
     }
     fn start_probe(&self, st: &mut MethodState, z0: &[f64], theta: &[f64], xi: &mut [f64]) {
@@ -86,6 +89,7 @@ impl Linearise for MethodMap {
             (MethodMap::Pg(m), MethodState::Pg(s)) => m.start_probe(s, z0, theta, xi),
             (MethodMap::Fista(m), MethodState::Fista(s)) => m.start_probe(s, z0, theta, xi),
             (MethodMap::Admm(m), MethodState::Admm(s)) => m.start_probe(s, z0, theta, xi),
+            (MethodMap::Scaled(m), MethodState::Scaled(s)) => m.start_probe(s, z0, theta, xi),
             _ => unreachable!("MethodMap states come from the same map"),
         }
     }
@@ -94,6 +98,7 @@ impl Linearise for MethodMap {
             (MethodMap::Pg(m), MethodState::Pg(s)) => m.step_probe(s, xi, theta, out),
             (MethodMap::Fista(m), MethodState::Fista(s)) => m.step_probe(s, xi, theta, out),
             (MethodMap::Admm(m), MethodState::Admm(s)) => m.step_probe(s, xi, theta, out),
+            (MethodMap::Scaled(m), MethodState::Scaled(s)) => m.step_probe(s, xi, theta, out),
             _ => unreachable!("MethodMap states come from the same map"),
         }
     }
@@ -102,7 +107,34 @@ impl Linearise for MethodMap {
             MethodMap::Pg(m) => m.readout(),
             MethodMap::Fista(m) => m.readout(),
             MethodMap::Admm(m) => m.readout(),
+            MethodMap::Scaled(m) => m.readout(),
         }
+    }
+}
+
+/// A map on the scaled problem z = Dy: ξ is the inner map's (in y); the start converts
+/// z⁰ to y⁰ = D⁻¹z⁰, the readout is D·R_inner. The reported iterate is refreshed after each
+/// probe so the interior check sees z.
+impl<M: Linearise> Linearise for Scaled<M> {
+    fn lift_dim(&self) -> usize {
+        self.inner().lift_dim()
+    }
+    fn start_steps(&self) -> usize {
+        self.inner().start_steps()
+    }
+    fn start_probe(&self, st: &mut Self::State, z0: &[f64], theta: &[f64], xi: &mut [f64]) {
+        let y0: Vec<f64> = z0.iter().zip(self.scaling()).map(|(z, d)| z / d).collect();
+        self.inner().start_probe(st.inner_mut(), &y0, theta, xi);
+        self.refresh(st);
+    }
+    fn step_probe(&self, st: &mut Self::State, xi: &[f64], theta: &[f64], out: &mut [f64]) {
+        self.inner().step_probe(st.inner_mut(), xi, theta, out);
+        self.refresh(st);
+    }
+    fn readout(&self) -> Mat<f64> {
+        let r = self.inner().readout();
+        let d = self.scaling();
+        Mat::from_fn(r.nrows(), r.ncols(), |i, j| d[i] * r[(i, j)])
     }
 }
 

@@ -1102,17 +1102,34 @@ fn a_k_min_run_beyond_the_work_limit_is_skipped_with_the_reason() {
     };
     let o = run_job(&job, &settings).unwrap();
     let d = &o.document;
-    let k_min = d.solvers.iter().find(|s| s.simulated).unwrap().k_min.unwrap();
+    let k_min = d
+        .solvers
+        .iter()
+        .find(|s| s.simulated)
+        .unwrap()
+        .k_min
+        .unwrap();
     assert_eq!(d.skipped_runs.len(), 1);
     let skipped = &d.skipped_runs[0];
-    assert_eq!((skipped.k, skipped.k_source), (k_min, KSource::ComputedKMin));
+    assert_eq!(
+        (skipped.k, skipped.k_source),
+        (k_min, KSource::ComputedKMin)
+    );
     assert!(skipped.reason.contains("1e13") && skipped.reason.contains("simulation.steps"));
     assert_eq!(d.runs.len(), 1);
     assert_eq!((d.runs[0].k, d.runs[0].completed), (10, 22000));
     let reason = d.trajectory_check.reason.as_deref().unwrap();
     assert!(reason.contains("was not run"), "{reason}");
-    assert!(o.summary.contains("not simulated: T·K·n_z²"), "{}", o.summary);
-    assert!(o.log.iter().any(|l| l.starts_with(&format!("not simulating pg at K = {k_min}"))));
+    assert!(
+        o.summary.contains("not simulated: T·K·n_z²"),
+        "{}",
+        o.summary
+    );
+    assert!(
+        o.log
+            .iter()
+            .any(|l| l.starts_with(&format!("not simulating pg at K = {k_min}")))
+    );
     let csv = std::fs::read_to_string(job.out.join("trace.csv")).unwrap();
     assert_eq!(csv.lines().count(), 1 + 22000);
 }

@@ -73,16 +73,48 @@ pub enum Legend {
     MiddleRight,
     /// Lower left corner.
     LowerLeft,
+    /// No legend (the other panels of a [`Grid`]: the first one carries it).
+    Hidden,
 }
 
 impl Legend {
-    fn position(self) -> SeriesLabelPosition {
+    fn position(self) -> Option<SeriesLabelPosition> {
         match self {
-            Legend::UpperRight => SeriesLabelPosition::UpperRight,
-            Legend::MiddleRight => SeriesLabelPosition::MiddleRight,
-            Legend::LowerLeft => SeriesLabelPosition::LowerLeft,
+            Legend::UpperRight => Some(SeriesLabelPosition::UpperRight),
+            Legend::MiddleRight => Some(SeriesLabelPosition::MiddleRight),
+            Legend::LowerLeft => Some(SeriesLabelPosition::LowerLeft),
+            Legend::Hidden => None,
         }
     }
+}
+
+/// Small multiples: one [`Chart`] per panel on a grid (e.g. one panel per state), under one
+/// title and one legend (the first panel's series and lines; give the series labels that
+/// hold for every panel), with an optional note below (e.g. that panels were left out).
+#[derive(Debug, Clone, PartialEq)]
+pub struct Grid {
+    /// Title above the panels.
+    pub title: String,
+    /// The panels, row by row.
+    pub panels: Vec<Chart>,
+    /// A line of text under the panels.
+    pub note: Option<String>,
+}
+
+/// Most panels a [`Grid`] draws (4 × 4); callers cap their panels at this and say so.
+pub const MAX_PANELS: usize = 16;
+
+/// Panel size in a grid of more than one panel.
+pub const PANEL_SIZE: (u32, u32) = (400, 260);
+
+/// (rows, columns) of a grid of `n` panels: at most 4 columns, as square as possible.
+pub fn grid_shape(n: usize) -> (usize, usize) {
+    let n = n.max(1);
+    let mut cols = 1;
+    while cols * cols < n && cols < 4 {
+        cols += 1;
+    }
+    (n.div_ceil(cols), cols)
 }
 
 /// Tick label of a log axis: plain for moderate magnitudes, else `1e-7` style.
@@ -271,14 +303,55 @@ macro_rules! draw_body {
                 });
             }
         }
-        $ctx.configure_series_labels()
-            .position(chart.legend.position())
-            .background_style(WHITE.mix(0.85))
-            .border_style(RGBColor(160, 160, 160))
-            .label_font(("sans-serif", 13))
-            .draw()
-            .map_err(err())?;
+        if let Some(position) = chart.legend.position() {
+            $ctx.configure_series_labels()
+                .position(position)
+                .background_style(WHITE.mix(0.85))
+                .border_style(RGBColor(160, 160, 160))
+                .label_font(("sans-serif", 13))
+                .draw()
+                .map_err(err())?;
+        }
     }};
+}
+
+/// Points of `chart` that cannot be drawn.
+fn dropped(chart: &Chart) -> usize {
+    chart
+        .series
+        .iter()
+        .flat_map(|s| s.points.iter())
+        .filter(|&&p| !drawable(chart.log_y, p))
+        .count()
+}
+
+/// Draws `chart` into `area` (a whole document or one panel); `caption` is the title's font
+/// size.
+fn draw_chart<DB: DrawingBackend>(
+    area: &DrawingArea<DB, plotters::coord::Shift>,
+    chart: &Chart,
+    caption: u32,
+) -> Result<()> {
+    let (xr, yr) = ranges(chart)?;
+    let err = || plot_err(&chart.title);
+    let mut builder = ChartBuilder::on(area);
+    builder
+        .caption(chart.title.as_str(), ("sans-serif", caption))
+        .margin(12)
+        .x_label_area_size(42)
+        .y_label_area_size(if chart.log_y { 62 } else { 56 });
+    if chart.log_y {
+        let mut ctx = builder
+            .build_cartesian_2d(xr.0..xr.1, (yr.0..yr.1).log_scale())
+            .map_err(err())?;
+        draw_body!(ctx, chart, xr);
+    } else {
+        let mut ctx = builder
+            .build_cartesian_2d(xr.0..xr.1, yr.0..yr.1)
+            .map_err(err())?;
+        draw_body!(ctx, chart, xr);
+    }
+    Ok(())
 }
 
 /// Renders a chart as an SVG document.
@@ -286,38 +359,139 @@ macro_rules! draw_body {
 /// Errors: no drawable point at all, or a drawing failure. (xtask is a binary crate, so
 /// the examples are the unit tests below.)
 pub fn render_svg(chart: &Chart) -> Result<Rendered> {
-    let (xr, yr) = ranges(chart)?;
-    let dropped = chart
-        .series
-        .iter()
-        .flat_map(|s| s.points.iter())
-        .filter(|&&p| !drawable(chart.log_y, p))
-        .count();
+    ranges(chart)?;
     let mut svg = String::new();
     {
         let root = SVGBackend::with_string(&mut svg, SIZE).into_drawing_area();
-        let err = || plot_err(&chart.title);
+        root.fill(&WHITE).map_err(plot_err(&chart.title))?;
+        draw_chart(&root, chart, 17)?;
+        root.present().map_err(plot_err(&chart.title))?;
+    }
+    Ok(Rendered {
+        svg,
+        dropped: dropped(chart),
+    })
+}
+
+/// The legend of a grid: (label, line style, dashed) of the series and the distinct
+/// reference lines of `chart`.
+fn legend_entries(chart: &Chart) -> Vec<(String, ShapeStyle, bool)> {
+    let mut out: Vec<(String, ShapeStyle, bool)> = chart
+        .series
+        .iter()
+        .map(|s| (s.label.clone(), style(s), s.pattern == Pattern::Dashed))
+        .collect();
+    for h in &chart.hlines {
+        if !out.iter().any(|(l, _, _)| *l == h.label) {
+            out.push((h.label.clone(), BOUND_COLOR.stroke_width(2), true));
+        }
+    }
+    out
+}
+
+/// (x, width, row) of each legend entry, left to right, wrapping at `width` (text width
+/// estimated at 7.5 px per character of 13 px sans-serif).
+fn place_legend(entries: &[(String, ShapeStyle, bool)], width: u32) -> Vec<(u32, u32, u32)> {
+    let mut out = Vec::with_capacity(entries.len());
+    let (mut x, mut row) = (16u32, 0u32);
+    for (label, _, _) in entries {
+        let w = 28 + (label.chars().count() as f64 * 7.5).ceil() as u32 + 24;
+        if x > 16 && x + w > width {
+            x = 16;
+            row += 1;
+        }
+        out.push((x, w, row));
+        x += w;
+    }
+    out
+}
+
+/// Renders small multiples as one SVG document: the panels on a [`grid_shape`] grid, a panel
+/// without a drawable point says so in its place. At most [`MAX_PANELS`] panels are drawn
+/// (callers cap and note it; more is an error here, never a silent cut).
+///
+/// Errors: no panel, more than [`MAX_PANELS`], no drawable point in any panel, or a drawing
+/// failure.
+pub fn render_grid_svg(grid: &Grid) -> Result<Rendered> {
+    let n = grid.panels.len();
+    if n == 0 || n > MAX_PANELS {
+        bail!(
+            "grid `{}` has {n} panels (1 to {MAX_PANELS} can be drawn)",
+            grid.title
+        );
+    }
+    if grid.panels.iter().all(|c| ranges(c).is_err()) {
+        bail!(
+            "grid `{}` has no drawable point (every value is missing, non-finite, or ≤ 0 on a log axis)",
+            grid.title
+        );
+    }
+    let (rows, cols) = grid_shape(n);
+    let (pw, ph) = if n == 1 { SIZE } else { PANEL_SIZE };
+    let width = pw * cols as u32;
+    let entries = legend_entries(&grid.panels[0]);
+    let placed = place_legend(&entries, width);
+    let legend_h = placed.last().map_or(0, |(_, _, row)| 22 * (row + 1));
+    let (title_h, note_h) = (34, if grid.note.is_some() { 26 } else { 0 });
+    let size = (width, title_h + legend_h + ph * rows as u32 + note_h);
+    let mut svg = String::new();
+    {
+        let err = || plot_err(&grid.title);
+        let root = SVGBackend::with_string(&mut svg, size).into_drawing_area();
         root.fill(&WHITE).map_err(err())?;
-        let mut builder = ChartBuilder::on(&root);
-        builder
-            .caption(chart.title.as_str(), ("sans-serif", 17))
-            .margin(12)
-            .x_label_area_size(42)
-            .y_label_area_size(if chart.log_y { 62 } else { 56 });
-        if chart.log_y {
-            let mut ctx = builder
-                .build_cartesian_2d(xr.0..xr.1, (yr.0..yr.1).log_scale())
+        let (top, rest) = root.split_vertically(title_h);
+        top.titled(grid.title.as_str(), ("sans-serif", 17))
+            .map_err(err())?;
+        let (legend, rest) = rest.split_vertically(legend_h);
+        for ((label, st, dashed), (x, _, row)) in entries.iter().zip(&placed) {
+            let (x, y) = (*x as i32, 11 + 22 * *row as i32);
+            let gap = if *dashed { 5 } else { 0 };
+            legend
+                .draw(&PathElement::new(vec![(x, y), (x + 9, y)], *st))
                 .map_err(err())?;
-            draw_body!(ctx, chart, xr);
-        } else {
-            let mut ctx = builder
-                .build_cartesian_2d(xr.0..xr.1, yr.0..yr.1)
+            legend
+                .draw(&PathElement::new(vec![(x + 9 + gap, y), (x + 22, y)], *st))
                 .map_err(err())?;
-            draw_body!(ctx, chart, xr);
+            legend
+                .draw_text(
+                    label,
+                    &("sans-serif", 13).into_font().color(&BLACK),
+                    (x + 28, y - 7),
+                )
+                .map_err(err())?;
+        }
+        let (body, bottom) = rest.split_vertically(ph * rows as u32);
+        if let Some(note) = &grid.note {
+            bottom
+                .draw_text(note, &("sans-serif", 13).into_font().color(&BLACK), (12, 6))
+                .map_err(err())?;
+        }
+        let cells = body.split_evenly((rows, cols));
+        for (cell, chart) in cells.iter().zip(&grid.panels) {
+            if ranges(chart).is_ok() {
+                // The grid's legend replaces the panels' own.
+                let panel = Chart {
+                    legend: Legend::Hidden,
+                    ..chart.clone()
+                };
+                draw_chart(cell, &panel, 14)?;
+            } else {
+                cell.titled(chart.title.as_str(), ("sans-serif", 14))
+                    .map_err(err())?
+                    .draw_text(
+                        "no drawable point",
+                        &("sans-serif", 13).into_font().color(&BLACK),
+                        (20, 40),
+                    )
+                    .map_err(err())?;
+            }
         }
         root.present().map_err(err())?;
     }
-    Ok(Rendered { svg, dropped })
+    Ok(Rendered {
+        svg,
+        dropped: grid.panels.iter().map(dropped).sum(),
+    })
 }
 
 #[cfg(test)]
@@ -423,6 +597,64 @@ mod tests {
         assert!(e.to_string().contains("no drawable point"), "{e}");
         let e = render_svg(&chart(false, vec![])).unwrap_err();
         assert!(e.to_string().contains("no drawable point"), "{e}");
+    }
+
+    #[test]
+    fn grids_are_at_most_four_wide_and_square_when_possible() {
+        assert_eq!(grid_shape(1), (1, 1));
+        assert_eq!(grid_shape(2), (1, 2));
+        assert_eq!(grid_shape(4), (2, 2));
+        assert_eq!(grid_shape(5), (2, 3));
+        assert_eq!(grid_shape(9), (3, 3));
+        assert_eq!(grid_shape(12), (3, 4));
+        assert_eq!(grid_shape(16), (4, 4));
+    }
+
+    #[test]
+    fn grid_draws_every_panel_and_its_note() {
+        let panel = |i: usize| Chart {
+            title: format!("panel {i}"),
+            legend: if i == 0 {
+                Legend::UpperRight
+            } else {
+                Legend::Hidden
+            },
+            ..chart(
+                false,
+                vec![line(
+                    &format!("s{i}"),
+                    (0..5).map(|t| (t as f64, (i * t) as f64)).collect(),
+                )],
+            )
+        };
+        let mut panels: Vec<Chart> = (0..12).map(panel).collect();
+        // A panel without data is drawn as a message, not an error.
+        panels[11].series[0].points = vec![(0.0, f64::NAN)];
+        let grid = Grid {
+            title: "states".into(),
+            panels,
+            note: Some("12 of 40 drawn".into()),
+        };
+        let r = render_grid_svg(&grid).unwrap();
+        assert_eq!(r.dropped, 1);
+        for i in 0..12 {
+            assert!(r.svg.contains(&format!("\npanel {i}\n")), "panel {i}");
+        }
+        assert!(r.svg.contains("12 of 40 drawn") && r.svg.contains("no drawable point"));
+        // One legend for the grid: the first panel's series.
+        assert_eq!(r.svg.matches("\ns0\n").count(), 1);
+        assert!(!r.svg.contains("\ns1\n"));
+        // 4 columns × 3 rows of 400 × 260, title, one legend row and the note.
+        assert!(
+            r.svg.contains(r#"width="1600" height="862""#),
+            "{}",
+            &r.svg[..120]
+        );
+        let too_many = Grid {
+            panels: (0..=MAX_PANELS).map(panel).collect(),
+            ..grid
+        };
+        assert!(render_grid_svg(&too_many).is_err());
     }
 
     #[test]

@@ -4,7 +4,8 @@
 //! - `cargo xtask certify --scenario FILE [--json OUT] [--eta X] [--p-file P.json]`
 //! - `cargo xtask sweep --config FILE.toml [--out DIR] [--threads N] [--shard I/N]`,
 //!   `cargo xtask sweep-merge --config FILE.toml --out DIR [SHARD_DIR...]` (docs/sweeps.md)
-//! - `cargo xtask reproduce [--preset paper|certified] [--scenario FILE] [--out DIR]`
+//! - `cargo xtask reproduce [--preset paper|certified] [--scenario FILE] [--out DIR]
+//!   [--gamma13 G] [--fig2c-t T]`
 //!
 //! Exit codes: 0 success, 1 error (bad input, I/O), 2 usage error, 3 a certificate check
 //! failed (certify: LMI (2) infeasible or a supplied P rejected; reproduce: a simulation at
@@ -79,6 +80,10 @@ enum Command {
         /// the scenario's `certificate.gamma13`.
         #[arg(long, value_name = "G")]
         gamma13: Option<f64>,
+        /// Time step of Fig. 2(c) (ŵ² of the MHE window at t), 0 ≤ t < simulation.steps
+        /// [default: 6 for the presets, M + 1 for a scenario].
+        #[arg(long = "fig2c-t", value_name = "T")]
+        fig2c_t: Option<usize>,
     },
 }
 
@@ -118,7 +123,8 @@ fn run(cli: Cli) -> Result<ExitCode> {
             scenario,
             out,
             gamma13,
-        } => reproduce::main(preset, scenario, out, gamma13),
+            fig2c_t,
+        } => reproduce::main(preset, scenario, out, gamma13, fig2c_t),
     }
 }
 

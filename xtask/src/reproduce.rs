@@ -9,8 +9,13 @@
 //!    at a small K for comparison when it is void;
 //! 3. the trajectory inequalities of Props. 1 and 3 on the K_min run, with the certified
 //!    L_Φ and with the sampled L_Φ;
-//! 4. `certificate.json`, `trace.json` and the SVG figures (Fig. 2 analogues, norms);
+//! 4. `certificate.json`, `trace.json`, `trace.csv` and the SVG figures (Fig. 2 analogues,
+//!    every state with its estimate, inputs and outputs with their bounds, norms);
 //! 5. a text summary with the constants next to the paper's published values.
+//!
+//! Before each simulation it says what it simulates and how much work that is
+//! ([`work::Work`]); a simulation beyond the work limit is refused (the scenario's K) or
+//! skipped with the reason (the computed K_min), never run silently for hours.
 //!
 //! Output layout and JSON schemas: docs/reproduce-output.md.
 
@@ -36,11 +41,15 @@ use crate::provenance::{Provenance, workspace_root};
 
 mod charts;
 mod linear;
+mod numfmt;
 mod summary;
+mod trace_csv;
+mod work;
 
 use charts::charts;
 use linear::{LinearEntry, linear_entries};
 use summary::summarize;
+pub use work::Work;
 
 /// `format` of certificate.json.
 pub const CERTIFICATE_FORMAT: &str = "suboptimal-mhe/closed-loop-certificate";
@@ -48,8 +57,59 @@ pub const CERTIFICATE_FORMAT: &str = "suboptimal-mhe/closed-loop-certificate";
 pub const TRACE_FORMAT: &str = "suboptimal-mhe/closed-loop-trace";
 /// `format_version` of both files; bumped on any incompatible change.
 pub const FORMAT_VERSION: u32 = 1;
-/// Time step of the ŵ² panel (the paper's Fig. 2(c) shows t = 6).
+/// Time step of the ŵ² panel of the presets (the paper's Fig. 2(c) shows t = 6).
 pub const FIG2C_T: usize = 6;
+
+/// Errors of `reproduce` beyond those of the scenario (which name their key).
+#[derive(Debug, Clone, PartialEq)]
+pub enum ReproduceError {
+    /// `--fig2c-t` outside the simulated steps.
+    Fig2cTime {
+        /// The t asked for.
+        t: usize,
+        /// T of the scenario.
+        steps: usize,
+    },
+    /// The scenario's K and T ask for more work than one simulation may do.
+    WorkLimit {
+        /// The refused simulation.
+        work: Work,
+    },
+}
+
+impl std::fmt::Display for ReproduceError {
+    fn fmt(&self, f: &mut std::fmt::Formatter<'_>) -> std::fmt::Result {
+        match self {
+            Self::Fig2cTime { t, steps } => write!(
+                f,
+                "--fig2c-t {t}: Fig. 2(c) needs a simulated step, t ∈ 0..={} \
+                 (simulation.steps = {steps})",
+                steps.saturating_sub(1)
+            ),
+            Self::WorkLimit { work } => write!(
+                f,
+                "mhe.iterations = {} with simulation.steps = {}: {} (docs/limits.md); lower \
+                 mhe.iterations or simulation.steps",
+                work.k,
+                work.steps,
+                work.excess()
+            ),
+        }
+    }
+}
+
+impl std::error::Error for ReproduceError {}
+
+/// The t of Fig. 2(c) when `--fig2c-t` is not given: 6 for the presets (the paper's), else
+/// M + 1 (the first step whose window is full and whose prior is the scheme's own estimate;
+/// 6 for the paper's M = 5), within the simulated steps.
+pub fn default_fig2c_t(preset: Option<Preset>, scenario: &Scenario) -> usize {
+    let last = scenario.simulation.steps.saturating_sub(1);
+    match (preset, &scenario.mhe) {
+        (Some(_), _) | (None, None) => FIG2C_T.min(last),
+        (None, Some(m)) => (m.horizon + 1).min(last),
+    }
+}
 
 /// The shipped case-study scenarios.
 #[derive(Debug, Clone, Copy, PartialEq, Eq, clap::ValueEnum, Serialize)]
@@ -122,6 +182,11 @@ pub struct Settings {
     pub small_k: usize,
     /// Write the SVG figures.
     pub figures: bool,
+    /// The t of Fig. 2(c) (`--fig2c-t`); None: [`default_fig2c_t`].
+    pub fig2c_t: Option<usize>,
+    /// Print each work line when it happens (stdout) and show progress on stderr; the lines
+    /// are in [`Outcome::log`] either way.
+    pub live: bool,
 }
 
 impl Default for Settings {
@@ -134,6 +199,8 @@ impl Default for Settings {
             k_max: 1 << 24,
             small_k: 5,
             figures: true,
+            fig2c_t: None,
+            live: false,
         }
     }
 }
@@ -196,6 +263,8 @@ pub struct SettingsRecord {
     pub k_max: usize,
     /// See [`Settings`].
     pub small_k: usize,
+    /// The t of Fig. 2(c) (`--fig2c-t`, or the default).
+    pub fig2c_t: usize,
 }
 
 /// One solver's verdict, flattened for readers of the JSON.
@@ -277,6 +346,17 @@ pub struct RunSummary {
     pub tail_mean_epsilon: Option<f64>,
 }
 
+/// A simulation of the plan that was not run.
+#[derive(Debug, Clone, Serialize)]
+pub struct SkippedRun {
+    /// Its K.
+    pub k: usize,
+    /// Why this K was planned.
+    pub k_source: KSource,
+    /// Why it was not run.
+    pub reason: String,
+}
+
 /// Props. 1 and 3 evaluated on the K_min run.
 #[derive(Debug, Clone, Serialize)]
 pub struct TrajectoryReport {
@@ -344,6 +424,8 @@ pub struct CertificateDocument {
     pub certificate: ClosedLoopCertificate,
     /// The simulations.
     pub runs: Vec<RunSummary>,
+    /// Simulations of the plan not run, and why (beyond the work limit).
+    pub skipped_runs: Vec<SkippedRun>,
     /// Props. 1/3 on the K_min run.
     pub trajectory_check: TrajectoryReport,
     /// The exact linear stability boundary per method (exact MPC): ρ_lin(K) on a log grid,
@@ -489,6 +571,11 @@ pub struct Outcome {
     pub document: CertificateDocument,
     /// The text summary.
     pub summary: String,
+    /// What was done, line by line, as it happened (the work lines; printed live with
+    /// [`Settings::live`], which is how the command shows them: this copy is for callers
+    /// that run quietly, such as the tests).
+    #[cfg_attr(not(test), allow(dead_code))]
+    pub log: Vec<String>,
 }
 
 impl Outcome {
@@ -516,7 +603,14 @@ struct Run {
     trace: Trace,
 }
 
-fn simulate(resolved: &ResolvedScenario, solver: Method, k: usize, source: KSource) -> Result<Run> {
+/// Simulates at K = `k` step by step, with [`work::Progress`] on stderr when `live`.
+fn simulate(
+    resolved: &ResolvedScenario,
+    solver: Method,
+    k: usize,
+    source: KSource,
+    live: bool,
+) -> Result<Run> {
     let scenario = resolved.scenario();
     let opts = LoopOptions {
         method: solver,
@@ -529,7 +623,18 @@ fn simulate(resolved: &ResolvedScenario, solver: Method, k: usize, source: KSour
     let mut cl = resolved
         .build_loop(&opts)
         .with_context(|| format!("cannot set up the closed loop at K = {k}"))?;
-    let error = cl.run().err().map(|e| e.to_string());
+    // Step by step (as `run` does) so that progress can be shown; the first step error stops
+    // the run and is its result.
+    let mut progress = work::Progress::new(format!("{} K = {k}", solver.name()), opts.steps, live);
+    let mut error = None;
+    while cl.t() < cl.steps() {
+        if let Err(e) = cl.step() {
+            error = Some(e.to_string());
+            break;
+        }
+        progress.update(cl.t());
+    }
+    progress.finish();
     let trace = cl.into_trace();
     let len = trace.len();
     let summary = RunSummary {
@@ -563,16 +668,16 @@ fn comparison(cert: &ClosedLoopCertificate, solver: Method) -> Vec<ComparisonRow
         || "not computed".to_string(),
         |s| {
             format!(
-                "{:.3}·{:.4}^K ({})",
-                s.phi_prefactor,
-                s.phi_rate,
+                "{}·{}^K ({})",
+                numfmt::num(s.phi_prefactor),
+                numfmt::rate(s.phi_rate),
                 s.solver.name()
             )
         },
     );
     let g = &cert.gamma13;
     let gamma_sampled = g.sampled.as_ref().map_or(String::new(), |s| {
-        format!("; sampled ≥ {:.3}", s.gamma13_lower)
+        format!("; sampled ≥ {}", numfmt::num(s.gamma13_lower))
     });
     let k = match sc {
         Some(s) => match s.k_min {
@@ -584,10 +689,15 @@ fn comparison(cert: &ClosedLoopCertificate, solver: Method) -> Vec<ComparisonRow
     vec![
         ComparisonRow {
             quantity: "ρ = 6^(1/M)·η".into(),
-            ours: format!("{:.4} (M = {}, η = {})", cert.rho, cert.horizon, cert.eta),
+            ours: format!(
+                "{} (M = {}, η = {})",
+                numfmt::num(cert.rho),
+                cert.horizon,
+                numfmt::num(cert.eta)
+            ),
             paper: format!(
-                "{:.4} (not printed; from M = 5, η = 0.8)",
-                6f64.powf(0.2) * 0.8
+                "{} (not printed; from M = 5, η = 0.8)",
+                numfmt::num(6f64.powf(0.2) * 0.8)
             ),
         },
         ComparisonRow {
@@ -598,21 +708,23 @@ fn comparison(cert: &ClosedLoopCertificate, solver: Method) -> Vec<ComparisonRow
         ComparisonRow {
             quantity: "L_Φ".into(),
             ours: format!(
-                "{:.3} certified; sampled {:.3}",
-                cert.l_phi.certified, cert.l_phi.sampled
+                "{} certified; sampled {}",
+                numfmt::num(cert.l_phi.certified),
+                numfmt::num(cert.l_phi.sampled)
             ),
             paper: "5.32 (sample-based)".into(),
         },
         ComparisonRow {
             quantity: "γ₁,₃".into(),
-            ours: format!("{:.3} {}{gamma_sampled}", g.used, g.source),
+            ours: format!("{} {}{gamma_sampled}", numfmt::num(g.used), g.source),
             paper: "28.8 (method of their journal paper)".into(),
         },
         ComparisonRow {
             quantity: "L_π".into(),
             ours: format!(
-                "{:.3} certified; sampled {:.3}",
-                cert.l_pi_used, cert.l_pi.sampled.estimate
+                "{} certified; sampled {}",
+                numfmt::num(cert.l_pi_used),
+                numfmt::num(cert.l_pi.sampled.estimate)
             ),
             paper: "2.65 (sample-based)".into(),
         },
@@ -657,6 +769,27 @@ pub fn run_job(job: &Job, settings: &Settings) -> Result<Outcome> {
     }
     let solver: Method = spec.method;
     let seed = scenario.noise.seed;
+    // Checked before the certificate (which can take minutes): the t of Fig. 2(c), and the
+    // work of the scenario's own K (always simulated).
+    let steps = scenario.simulation.steps;
+    let fig2c_t = settings
+        .fig2c_t
+        .unwrap_or_else(|| default_fig2c_t(job.preset, &scenario));
+    if fig2c_t >= steps {
+        return Err(ReproduceError::Fig2cTime { t: fig2c_t, steps })
+            .with_context(|| format!("scenario `{}`", job.scenario.display()));
+    }
+    if let Some(work) = Work::of(&scenario, spec.iterations).filter(|w| !w.within_limit()) {
+        return Err(ReproduceError::WorkLimit { work })
+            .with_context(|| format!("scenario `{}`", job.scenario.display()));
+    }
+    let mut log = Vec::new();
+    let mut say = |line: String| {
+        if settings.live {
+            println!("{line}");
+        }
+        log.push(line);
+    };
     // γ₁,₃: the command line's value, else the scenario's `certificate.gamma13`, else computed.
     let gamma13 = match (settings.gamma13, scenario.certificate.gamma13) {
         (Gamma13Source::User(g), _) => Gamma13Source::User(g),
@@ -678,19 +811,70 @@ pub fn run_job(job: &Job, settings: &Settings) -> Result<Outcome> {
             job.scenario.display()
         )
     })?;
+    say(format!(
+        "[{}] computing the certificate of Theorem 1 for {} …",
+        job.label,
+        opts.solvers
+            .iter()
+            .map(|m| m.name())
+            .collect::<Vec<_>>()
+            .join(", ")
+    ));
+    let t0 = std::time::Instant::now();
     let cert = certify_closed_loop(&resolved, &opts).with_context(|| {
         format!(
             "cannot compute the certificate of `{}`",
             job.scenario.display()
         )
     })?;
+    say(format!(
+        "  done in {} s",
+        numfmt::num(t0.elapsed().as_secs_f64())
+    ));
     let own = cert.solver(solver);
+    say(format!(
+        "[{}] computing the linear stability boundary ρ_lin(K) of each method …",
+        job.label
+    ));
+    let t0 = std::time::Instant::now();
+    let linear = linear_entries(&resolved, &cert);
+    say(format!(
+        "  done in {} s",
+        numfmt::num(t0.elapsed().as_secs_f64())
+    ));
 
-    // Simulations (skipped when LMI (2) is infeasible: the MHE needs a P).
+    // Simulations (skipped when LMI (2) is infeasible: the MHE needs a P), each announced
+    // with its work; one beyond the limit (only a computed K_min can be: the scenario's K
+    // was checked above) is skipped with the reason.
     let mut runs: Vec<Run> = Vec::new();
+    let mut skipped_runs = Vec::new();
     if cert.ioss.is_some() || spec.p.is_some() {
         for (k, source) in plan_runs(spec.iterations, own.and_then(|s| s.k_min), settings.small_k) {
-            runs.push(simulate(&resolved, solver, k, source)?);
+            if let Some(w) = Work::of(&scenario, k) {
+                if !w.within_limit() {
+                    let reason = format!("{}; lower simulation.steps to simulate it", w.excess());
+                    say(format!(
+                        "not simulating {} at K = {k}: {reason}",
+                        solver.name()
+                    ));
+                    skipped_runs.push(SkippedRun {
+                        k,
+                        k_source: source,
+                        reason,
+                    });
+                    continue;
+                }
+                say(w.line(solver, source));
+            }
+            let t0 = std::time::Instant::now();
+            let run = simulate(&resolved, solver, k, source, settings.live)?;
+            let secs = t0.elapsed().as_secs_f64();
+            say(format!(
+                "  done in {} s ({} iterations/s)",
+                numfmt::num(secs),
+                numfmt::num(k as f64 * run.trace.len() as f64 / secs.max(1e-9))
+            ));
+            runs.push(run);
         }
     }
 
@@ -728,6 +912,14 @@ pub fn run_job(job: &Job, settings: &Settings) -> Result<Outcome> {
         _ => TrajectoryReport {
             ran: false,
             reason: Some(match own {
+                Some(sc) if sc.k_min.is_some() => format!(
+                    "the simulation at K_min = {} was not run: {}",
+                    sc.k_min.unwrap_or(0),
+                    skipped_runs
+                        .iter()
+                        .find(|r| r.k_source == KSource::ComputedKMin)
+                        .map_or("no simulation (LMI (2) gave no P)", |r| r.reason.as_str())
+                ),
                 Some(sc) => format!(
                     "the certificate of {} is void ({}): there is no certified K to check",
                     solver.name(),
@@ -745,6 +937,12 @@ pub fn run_job(job: &Job, settings: &Settings) -> Result<Outcome> {
         },
     };
 
+    say(format!(
+        "[{}] writing trace.json, trace.csv and the figures to {} …",
+        job.label,
+        job.out.display()
+    ));
+    let t0 = std::time::Instant::now();
     std::fs::create_dir_all(&job.out)
         .with_context(|| format!("cannot create output directory `{}`", job.out.display()))?;
     let provenance = Provenance::collect();
@@ -765,21 +963,26 @@ pub fn run_job(job: &Job, settings: &Settings) -> Result<Outcome> {
             &serde_json::to_string(&doc).context("cannot serialise the trace")?,
         )?;
         files.push(path);
+        let path = job.out.join("trace.csv");
+        write_text(&path, &trace_csv::trace_csv(&runs))?;
+        files.push(path);
     }
     // Figures.
     let mut figure_notes = Vec::new();
     if settings.figures && !runs.is_empty() {
-        for (name, chart) in charts(&scenario, &runs) {
+        let (figs, notes) = charts(&scenario, &runs, fig2c_t);
+        figure_notes.extend(notes);
+        for (name, fig) in figs {
             // A figure without drawable data (e.g. ε_t ≡ 0 on a log axis) is reported,
             // not fatal: the JSON files hold the numbers.
-            let rendered = match figures::render_svg(&chart) {
+            let rendered = match fig.render() {
                 Ok(r) => r,
                 Err(e) => {
                     figure_notes.push(format!("{name} not written: {e}"));
                     continue;
                 }
             };
-            let path = job.out.join(name);
+            let path = job.out.join(&name);
             write_text(&path, &rendered.svg)?;
             if rendered.dropped > 0 {
                 figure_notes.push(format!(
@@ -790,6 +993,10 @@ pub fn run_job(job: &Job, settings: &Settings) -> Result<Outcome> {
             files.push(path);
         }
     }
+    say(format!(
+        "  done in {} s",
+        numfmt::num(t0.elapsed().as_secs_f64())
+    ));
     let cert_path = job.out.join("certificate.json");
     files.push(cert_path.clone());
 
@@ -808,6 +1015,7 @@ pub fn run_job(job: &Job, settings: &Settings) -> Result<Outcome> {
             enumeration_max_vars: settings.enumeration_max_vars,
             k_max: settings.k_max,
             small_k: settings.small_k,
+            fig2c_t,
         },
         solver: solver.name().into(),
         scenario_iterations: spec.iterations,
@@ -826,8 +1034,9 @@ pub fn run_job(job: &Job, settings: &Settings) -> Result<Outcome> {
             Vec::new()
         },
         runs: runs.iter().map(|r| r.summary.clone()).collect(),
+        skipped_runs,
         trajectory_check,
-        linear: linear_entries(&resolved, &cert),
+        linear,
         files: files
             .iter()
             .map(|p| p.strip_prefix(&job.out).unwrap_or(p).display().to_string())
@@ -841,7 +1050,11 @@ pub fn run_job(job: &Job, settings: &Settings) -> Result<Outcome> {
             + "\n"),
     )?;
     let summary = summarize(&document, &files, &figure_notes);
-    Ok(Outcome { document, summary })
+    Ok(Outcome {
+        document,
+        summary,
+        log,
+    })
 }
 
 /// Exit code when a simulation contradicts the certificate (Prop. 1/3 check failed).
@@ -875,8 +1088,13 @@ pub fn main(
     scenario: Option<PathBuf>,
     out: Option<PathBuf>,
     gamma13: Option<f64>,
+    fig2c_t: Option<usize>,
 ) -> Result<std::process::ExitCode> {
-    let mut settings = Settings::default();
+    let mut settings = Settings {
+        fig2c_t,
+        live: true,
+        ..Settings::default()
+    };
     if let Some(g) = gamma13 {
         if !(g.is_finite() && g > 0.0) {
             anyhow::bail!("--gamma13 {g}: γ₁,₃ must be a finite number > 0");
@@ -887,6 +1105,7 @@ pub fn main(
     for job in jobs(preset, scenario, out) {
         let t0 = std::time::Instant::now();
         let outcome = run_job(&job, &settings)?;
+        println!();
         println!("{}", outcome.summary);
         println!(
             "({} done in {:.1} s)\n",

@@ -55,3 +55,55 @@ fn usage_errors_exit_with_code_2() {
         assert_eq!(out.status.code(), Some(2), "{args:?}");
     }
 }
+
+/// `--fig2c-t` outside 0..T and a K·T beyond the work limit: exit code 1 at once, the
+/// message names the flag or both keys; nothing on stdout but the announcements.
+#[test]
+fn fig2c_t_and_work_limit_errors_name_the_flag_and_the_keys() {
+    let root = PathBuf::from(env!("CARGO_MANIFEST_DIR")).join("..");
+    let scenario = root.join("scenarios/case-study.toml");
+    let out = xtask()
+        .args(["reproduce", "--fig2c-t", "40", "--scenario"])
+        .arg(&scenario)
+        .arg("--out")
+        .arg(temp("out"))
+        .output()
+        .unwrap();
+    let stderr = String::from_utf8_lossy(&out.stderr);
+    assert_eq!(out.status.code(), Some(1), "{stderr}");
+    assert!(stderr.contains("--fig2c-t 40"), "{stderr}");
+    let text = std::fs::read_to_string(&scenario).unwrap();
+    let path = temp("max-work.toml");
+    std::fs::write(
+        &path,
+        text.replacen("steps = 40", "steps = 100000", 1).replacen(
+            "iterations = 652",
+            "iterations = 10000000",
+            1,
+        ),
+    )
+    .unwrap();
+    let out = xtask()
+        .args(["reproduce", "--scenario"])
+        .arg(&path)
+        .arg("--out")
+        .arg(temp("out"))
+        .output()
+        .unwrap();
+    let stderr = String::from_utf8_lossy(&out.stderr);
+    assert_eq!(out.status.code(), Some(1), "{stderr}");
+    for key in ["mhe.iterations", "simulation.steps", "limit"] {
+        assert!(stderr.contains(key), "{key}: {stderr}");
+    }
+    assert!(
+        out.stdout.is_empty(),
+        "{}",
+        String::from_utf8_lossy(&out.stdout)
+    );
+    // A negative t is a usage error.
+    let out = xtask()
+        .args(["reproduce", "--fig2c-t", "-1"])
+        .output()
+        .unwrap();
+    assert_eq!(out.status.code(), Some(2));
+}

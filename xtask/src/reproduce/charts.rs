@@ -1,9 +1,51 @@
-//! The SVG figures of a reproduce job (Fig. 2 analogues, norms).
+//! The SVG figures of a reproduce job: Fig. 2 analogues, every state with its estimate,
+//! inputs and outputs with their bounds, norms.
 
 use super::*;
+use crate::figures::{Grid, MAX_PANELS};
 
-/// The figures of one job: (file name, chart). Colour i+1 is run i; the true state is black.
-pub(super) fn charts(scenario: &Scenario, runs: &[Run]) -> Vec<(&'static str, Chart)> {
+/// One SVG file: a single chart or small multiples.
+#[derive(Debug)]
+pub(super) enum Figure {
+    /// One chart.
+    Single(Chart),
+    /// One panel per component.
+    Grid(Grid),
+}
+
+impl Figure {
+    pub(super) fn render(&self) -> Result<figures::Rendered> {
+        match self {
+            Figure::Single(c) => figures::render_svg(c),
+            Figure::Grid(g) => figures::render_grid_svg(g),
+        }
+    }
+}
+
+/// `i` (1-based) as subscript digits: 12 → `₁₂`.
+pub(super) fn subscript(i: usize) -> String {
+    i.to_string()
+        .chars()
+        .map(|c| char::from_u32(0x2080 + c.to_digit(10).unwrap_or(0)).unwrap_or(c))
+        .collect()
+}
+
+/// The figures of one job: (file name, figure), and notes on what they leave out. Colour
+/// i+1 is run i; the true state is black.
+pub(super) fn charts(
+    scenario: &Scenario,
+    runs: &[Run],
+    fig2c_t: usize,
+) -> (Vec<(String, Figure)>, Vec<String>) {
+    let (mut out, mut notes) = fig2(scenario, runs, fig2c_t);
+    let (grids, grid_notes) = component_grids(scenario, runs);
+    out.extend(grids);
+    notes.extend(grid_notes);
+    (out, notes)
+}
+
+/// Fig. 2(a)–(c) analogues and the norm plot.
+fn fig2(scenario: &Scenario, runs: &[Run], fig2c_t: usize) -> (Vec<(String, Figure)>, Vec<String>) {
     let steps = |tr: &Trace| 0..tr.len();
     let multi = runs.len() > 1;
     let pattern = |i: usize| {
@@ -14,6 +56,7 @@ pub(super) fn charts(scenario: &Scenario, runs: &[Run]) -> Vec<(&'static str, Ch
         }
     };
     let mut out = Vec::new();
+    let mut notes = Vec::new();
 
     // Fig. 2(a): x₁ and x̂₁.
     let mut series = Vec::new();
@@ -44,8 +87,8 @@ pub(super) fn charts(scenario: &Scenario, runs: &[Run]) -> Vec<(&'static str, Ch
         });
     }
     out.push((
-        "fig2a_x1.svg",
-        Chart {
+        "fig2a_x1.svg".to_string(),
+        Figure::Single(Chart {
             title: "Fig. 2(a): true state x₁ and sub-optimal estimate x̂₁".into(),
             x_label: "time step t".into(),
             y_label: "x₁".into(),
@@ -54,7 +97,7 @@ pub(super) fn charts(scenario: &Scenario, runs: &[Run]) -> Vec<(&'static str, Ch
             series,
             hlines: vec![],
             legend: Legend::UpperRight,
-        },
+        }),
     ));
 
     // Fig. 2(b): ε_t (log).
@@ -75,8 +118,8 @@ pub(super) fn charts(scenario: &Scenario, runs: &[Run]) -> Vec<(&'static str, Ch
         })
         .collect();
     out.push((
-        "fig2b_epsilon.svg",
-        Chart {
+        "fig2b_epsilon.svg".to_string(),
+        Figure::Single(Chart {
             title: "Fig. 2(b): sub-optimality ε_t = ‖zᴷ_t − z*_t‖".into(),
             x_label: "time step t".into(),
             y_label: "ε_t".into(),
@@ -85,18 +128,18 @@ pub(super) fn charts(scenario: &Scenario, runs: &[Run]) -> Vec<(&'static str, Ch
             series,
             hlines: vec![],
             legend: Legend::MiddleRight,
-        },
+        }),
     ));
 
-    // Fig. 2(c): ŵ² at t = 6, K-th iterate and exact optimum, with the bounds of 𝒲.
+    // Fig. 2(c): ŵ² at t, K-th iterate and exact optimum, with the bounds of 𝒲.
     let nw1 = scenario.plant.nw1();
     let nw2 = scenario.plant.nw2();
     let mut series = Vec::new();
     for (i, r) in runs.iter().enumerate() {
-        let Some(rec) = r.trace.mhe_step(FIG2C_T) else {
+        let Some(rec) = r.trace.mhe_step(fig2c_t) else {
             continue;
         };
-        let start = FIG2C_T.saturating_sub(rec.window());
+        let start = fig2c_t.saturating_sub(rec.window());
         for c in 0..nw2 {
             let comp = if nw2 > 1 {
                 format!("[{}]", c + 1)
@@ -139,11 +182,16 @@ pub(super) fn charts(scenario: &Scenario, runs: &[Run]) -> Vec<(&'static str, Ch
             }
         }
     }
-    if !series.is_empty() {
+    let name = format!("fig2c_w2_t{fig2c_t}.svg");
+    if series.is_empty() {
+        notes.push(format!(
+            "{name} not written: no run recorded the MHE window at t = {fig2c_t}"
+        ));
+    } else {
         out.push((
-            "fig2c_w2_t6.svg",
-            Chart {
-                title: format!("Fig. 2(c): estimated measurement noise ŵ² at t = {FIG2C_T}"),
+            name,
+            Figure::Single(Chart {
+                title: format!("Fig. 2(c): estimated measurement noise ŵ² at t = {fig2c_t}"),
                 x_label: "window stage (time index)".into(),
                 y_label: "ŵ²".into(),
                 log_y: false,
@@ -151,7 +199,7 @@ pub(super) fn charts(scenario: &Scenario, runs: &[Run]) -> Vec<(&'static str, Ch
                 series,
                 hlines,
                 legend: Legend::LowerLeft,
-            },
+            }),
         ));
     }
 
@@ -185,8 +233,8 @@ pub(super) fn charts(scenario: &Scenario, runs: &[Run]) -> Vec<(&'static str, Ch
         });
     }
     out.push((
-        "norms.svg",
-        Chart {
+        "norms.svg".to_string(),
+        Figure::Single(Chart {
             title: "State norm ‖x_t‖ and estimation error ‖e_t‖".into(),
             x_label: "time step t".into(),
             y_label: "norm".into(),
@@ -195,7 +243,183 @@ pub(super) fn charts(scenario: &Scenario, runs: &[Run]) -> Vec<(&'static str, Ch
             series,
             hlines: vec![],
             legend: Legend::UpperRight,
-        },
+        }),
     ));
-    out
+    (out, notes)
+}
+
+/// What a component grid shows.
+#[derive(Clone, Copy)]
+enum Signal {
+    /// x_i (black) and x̂_i per run.
+    State,
+    /// u_i per run, bounds of 𝒰.
+    Input,
+    /// y_i per run, bounds of 𝒴.
+    Output,
+}
+
+/// `states.svg`, `inputs.svg`, `outputs.svg`: one panel per component (at most
+/// [`MAX_PANELS`], with a note in the figure and in the notes when more exist).
+fn component_grids(scenario: &Scenario, runs: &[Run]) -> (Vec<(String, Figure)>, Vec<String>) {
+    let p = &scenario.plant;
+    let sets = &scenario.sets;
+    let mut out = Vec::new();
+    let mut notes = Vec::new();
+    for (signal, file, n, symbol, what, bounds, set) in [
+        (Signal::State, "states.svg", p.nx(), "x", "state", None, ""),
+        (
+            Signal::Input,
+            "inputs.svg",
+            p.nu(),
+            "u",
+            "input",
+            Some(&sets.input),
+            "𝒰",
+        ),
+        (
+            Signal::Output,
+            "outputs.svg",
+            p.ny(),
+            "y",
+            "output",
+            Some(&sets.output),
+            "𝒴",
+        ),
+    ] {
+        if n == 0 {
+            continue;
+        }
+        let shown = n.min(MAX_PANELS);
+        let note = (shown < n).then(|| {
+            format!(
+                "{shown} of {n} {what}s drawn ({symbol}{}…{symbol}{}); every {what} is in trace.csv and trace.json",
+                subscript(1),
+                subscript(shown)
+            )
+        });
+        if let Some(note) = &note {
+            notes.push(format!("{file}: {note}"));
+        }
+        let bounded = bounds.is_some_and(|b| {
+            b.lower()[..shown]
+                .iter()
+                .chain(&b.upper()[..shown])
+                .any(|v| v.is_finite())
+        });
+        // Bounds drawn where the set has them; with some bounded and others not, the panels
+        // without say so.
+        let panels = (0..shown)
+            .map(|i| component_panel(signal, i, symbol, bounds.filter(|_| bounded), set, runs))
+            .collect();
+        let bound_note = if bounded {
+            format!(", bounds of {set} in red")
+        } else {
+            format!(" ({set} has no bounds)")
+        };
+        let title = match signal {
+            Signal::State => "True states x_i (black) and their estimates x̂_i".to_string(),
+            Signal::Input => format!("Inputs u_t = π(x̂_t){bound_note}"),
+            Signal::Output => format!("Measurements y_t{bound_note}"),
+        };
+        out.push((
+            file.to_string(),
+            Figure::Grid(Grid {
+                title,
+                panels,
+                note,
+            }),
+        ));
+    }
+    (out, notes)
+}
+
+/// Panel i of a component grid (the grid draws one legend for all panels).
+fn component_panel(
+    signal: Signal,
+    i: usize,
+    symbol: &str,
+    bounds: Option<&BoxSet>,
+    set: &str,
+    runs: &[Run],
+) -> Chart {
+    let sub = subscript(i + 1);
+    let multi = runs.len() > 1;
+    let mut series = Vec::new();
+    for (r_i, r) in runs.iter().enumerate() {
+        let tr = &r.trace;
+        let k = r.summary.k;
+        let pattern = if r_i == 0 {
+            Pattern::Solid
+        } else {
+            Pattern::Dashed
+        };
+        let points = |f: &dyn Fn(usize) -> Option<f64>| -> Vec<(f64, f64)> {
+            (0..tr.len())
+                .filter_map(|t| f(t).map(|v| (t as f64, v)))
+                .collect()
+        };
+        match signal {
+            Signal::State => {
+                // The true state of the first run in black; other runs' true states dashed
+                // black (they differ when the estimates do). Labels hold for every panel
+                // (one legend per grid).
+                series.push(Series {
+                    label: if multi {
+                        format!("true state, K = {k} run")
+                    } else {
+                        "true state".to_string()
+                    },
+                    points: points(&|t| tr.x(t).map(|x| x[i])),
+                    color: 0,
+                    pattern,
+                    markers: false,
+                });
+                series.push(Series {
+                    label: format!("estimate x̂, K = {k}"),
+                    points: points(&|t| tr.x_hat(t).map(|x| x[i])),
+                    color: r_i + 1,
+                    pattern,
+                    markers: false,
+                });
+            }
+            Signal::Input | Signal::Output => series.push(Series {
+                label: format!("K = {k}"),
+                points: points(&|t| match signal {
+                    Signal::Input => tr.u(t).map(|u| u[i]),
+                    _ => tr.y(t).map(|y| y[i]),
+                }),
+                color: r_i + 1,
+                pattern,
+                markers: false,
+            }),
+        }
+    }
+    let mut hlines = Vec::new();
+    if let Some(b) = bounds {
+        for y in [b.lower()[i], b.upper()[i]] {
+            if y.is_finite() {
+                hlines.push(HLine {
+                    label: format!("bounds of {set}"),
+                    y,
+                });
+            }
+        }
+    }
+    // Only passed `bounds` when some component is bounded: then say which are not.
+    let unbounded = bounds.is_some() && hlines.is_empty();
+    Chart {
+        title: if unbounded {
+            format!("{symbol}{sub} (no bound in {set})")
+        } else {
+            format!("{symbol}{sub}")
+        },
+        x_label: "time step t".into(),
+        y_label: format!("{symbol}{sub}"),
+        log_y: false,
+        integer_x: true,
+        series,
+        hlines,
+        legend: Legend::Hidden,
+    }
 }

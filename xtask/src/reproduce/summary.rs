@@ -1,5 +1,6 @@
 //! The text summary of a reproduce job and its verdict.
 
+use super::numfmt::{num, opt, rate};
 use super::*;
 
 fn status(holds: bool) -> &'static str {
@@ -44,11 +45,11 @@ pub(super) fn summarize(d: &CertificateDocument, files: &[PathBuf], notes: &[Str
     }
     let _ = writeln!(
         s,
-        "M = {}, η = {}: 6·η^M = {:.4}, ρ = 6^(1/M)·η = {:.4}",
+        "M = {}, η = {}: 6·η^M = {}, ρ = 6^(1/M)·η = {}",
         c.horizon,
-        c.eta,
-        6.0 * c.eta.powi(i32::try_from(c.horizon).unwrap_or(i32::MAX)),
-        c.rho
+        num(c.eta),
+        num(6.0 * c.eta.powi(i32::try_from(c.horizon).unwrap_or(i32::MAX))),
+        num(c.rho)
     );
     if let Some(f) = &c.ioss_failure {
         let _ = writeln!(s, "δ-IOSS (LMI (2)) FAILS: {f}");
@@ -79,11 +80,11 @@ pub(super) fn summarize(d: &CertificateDocument, files: &[PathBuf], notes: &[Str
             for (who, q) in rows {
                 let _ = writeln!(
                     s,
-                    "  {:<20} {:<7} {:>12.6} {:>12.6}  {}",
+                    "  {:<20} {:<7} {:>12} {:>12}  {}",
                     q.name,
                     who,
-                    q.value,
-                    q.margin,
+                    num(q.value),
+                    num(q.margin),
                     status(q.holds)
                 );
                 if !q.holds {
@@ -100,11 +101,11 @@ pub(super) fn summarize(d: &CertificateDocument, files: &[PathBuf], notes: &[Str
             Some(k) => {
                 let _ = writeln!(
                     s,
-                    "  {:<7} K_min = {k:<6} φ(K) = {:.3}·{:.6}^K, margin 1 − max(sg) = {:.3e}; with sampled L_Φ: {}{mark}",
+                    "  {:<7} K_min = {k:<6} φ(K) = {}·{}^K, margin 1 − max(sg) = {}; with sampled L_Φ: {}{mark}",
                     sv.solver,
-                    sv.phi_prefactor,
-                    sv.phi_rate,
-                    sv.margin_at_k_min.unwrap_or(f64::NAN),
+                    num(sv.phi_prefactor),
+                    rate(sv.phi_rate),
+                    opt(sv.margin_at_k_min),
                     fmt_opt(sv.k_min_with_sampled_l_phi)
                 );
             }
@@ -178,23 +179,25 @@ pub(super) fn summarize(d: &CertificateDocument, files: &[PathBuf], notes: &[Str
             KSource::Scenario => "scenario",
             KSource::Small => "small K",
         };
-        let f = |v: Option<f64>| v.map_or("-".to_string(), |v| format!("{v:.3e}"));
         let _ = writeln!(
             s,
-            "  {:<8} {:<10} {:>10.4} {:>10.4} {:>12} {:>12} {:>12}",
+            "  {:<8} {:<10} {:>10} {:>10} {:>12} {:>12} {:>12}",
             r.k,
             why,
-            r.sup_norm_e,
-            r.sup_norm_x,
-            f(r.tail_mean_e),
-            f(r.tail_mean_x),
-            f(r.tail_mean_epsilon)
+            num(r.sup_norm_e),
+            num(r.sup_norm_x),
+            opt(r.tail_mean_e),
+            opt(r.tail_mean_x),
+            opt(r.tail_mean_epsilon)
         );
         if let Some(e) = &r.error {
             let _ = writeln!(s, "      stopped after {} steps: {e}", r.completed);
         }
     }
-    if d.runs.is_empty() {
+    for r in &d.skipped_runs {
+        let _ = writeln!(s, "  {:<8} not simulated: {}", r.k, r.reason);
+    }
+    if d.runs.is_empty() && d.skipped_runs.is_empty() {
         let _ = writeln!(s, "  not simulated: the MHE needs a P and LMI (2) has none");
     }
 
@@ -231,20 +234,20 @@ pub(super) fn summarize(d: &CertificateDocument, files: &[PathBuf], notes: &[Str
         let line = |name: &str, c: &Option<TrajectoryCheck>| -> String {
             match c {
                 Some(c) => format!(
-                    "  {name:<16} Prop. 1: {} (max lhs/rhs {:.3e} at t = {}), Prop. 3: {} (max lhs/rhs {:.3e} at t = {})",
+                    "  {name:<16} Prop. 1: {} (max lhs/rhs {} at t = {}), Prop. 3: {} (max lhs/rhs {} at t = {})",
                     if c.prop1.holds {
                         "holds at every t"
                     } else {
                         "VIOLATED"
                     },
-                    c.prop1.worst_ratio,
+                    num(c.prop1.worst_ratio),
                     c.prop1.worst_t,
                     if c.prop3.holds {
                         "holds at every t"
                     } else {
                         "VIOLATED"
                     },
-                    c.prop3.worst_ratio,
+                    num(c.prop3.worst_ratio),
                     c.prop3.worst_t
                 ),
                 None => format!("  {name:<16} not evaluated"),

@@ -62,13 +62,17 @@ fn read_json(path: &Path) -> Value {
     serde_json::from_str(&std::fs::read_to_string(path).unwrap()).unwrap()
 }
 
-const FILES: [&str; 6] = [
+const FILES: [&str; 10] = [
     "certificate.json",
     "trace.json",
+    "trace.csv",
     "fig2a_x1.svg",
     "fig2b_epsilon.svg",
     "fig2c_w2_t6.svg",
     "norms.svg",
+    "states.svg",
+    "inputs.svg",
+    "outputs.svg",
 ];
 
 /// K, M and P are read and computed once per scenario: one LMI (2) solve per preset,
@@ -734,11 +738,13 @@ fn command_line_parses() {
             scenario,
             out,
             gamma13,
+            fig2c_t,
         } => {
             assert_eq!(preset, Some(Preset::Paper));
             assert_eq!(scenario, None);
             assert_eq!(out, Some(PathBuf::from("d")));
             assert_eq!(gamma13, None);
+            assert_eq!(fig2c_t, None);
         }
         other => panic!("{other:?}"),
     }
@@ -790,6 +796,10 @@ fn user_scenarios_get_no_paper_column() {
     assert!(job.preset.is_none());
     let o = run_job(&job, &test_settings()).unwrap();
     assert!(o.document.paper_comparison.is_empty());
+    // Fig. 2(c) of a user scenario defaults to t = M + 1 (here M = 9).
+    assert_eq!(o.document.settings.fig2c_t, 10);
+    assert!(job.out.join("fig2c_w2_t10.svg").is_file());
+    assert!(!job.out.join("fig2c_w2_t6.svg").exists());
     assert!(!o.summary.contains("paper (published)"), "{}", o.summary);
     assert!(
         o.summary.contains("Constants of this scenario"),
@@ -812,7 +822,15 @@ fn user_gamma13_from_the_scenario_key() {
         let path = dir.join(format!("g{g}.toml"));
         std::fs::write(&path, format!("{base}\n[certificate]\ngamma13 = {g}\n")).unwrap();
         let job = jobs(None, Some(path), Some(dir.join("out"))).remove(0);
-        run_job(&job, &test_settings()).unwrap().document
+        // Fig. 2(c) at a t of the user's choosing (`--fig2c-t 3`).
+        let settings = Settings {
+            fig2c_t: Some(3),
+            ..test_settings()
+        };
+        let d = run_job(&job, &settings).unwrap().document;
+        assert_eq!(d.settings.fig2c_t, 3);
+        assert!(job.out.join("fig2c_w2_t3.svg").is_file());
+        d
     };
     let generous = run(10.0);
     let g = &generous.certificate.gamma13;
@@ -823,4 +841,295 @@ fn user_gamma13_from_the_scenario_key() {
     let w = serde_json::to_string(&wrong.certificate.gamma13).unwrap();
     assert!(w.contains("user"), "{w}");
     assert!(wrong.solvers.iter().all(|s| s.k_min.is_none()), "{w}");
+}
+
+// ---------------------------------------------------------------------------------------
+// Outputs for any plant (issue 15 item 3) and bounded work (issue 14 item 1)
+// ---------------------------------------------------------------------------------------
+
+/// trace.csv: the documented header (every column with its index) and one row per step of
+/// every run, each value equal to trace.json's bit for bit.
+#[test]
+fn trace_csv_has_one_row_per_step_and_the_documented_columns() {
+    let f = fixture();
+    let text = std::fs::read_to_string(f.out.join("paper/trace.csv")).unwrap();
+    let mut lines = text.lines();
+    let header = lines.next().unwrap();
+    assert_eq!(
+        header,
+        "k,t,x1,x2,x3,x4,xhat1,xhat2,xhat3,xhat4,u1,u2,y1,w1,w2,w3,w4,w5,e_norm,x_norm,eps,status"
+    );
+    assert_eq!(
+        trace_csv::header(2, 1, 3, 5).split(',').count(),
+        2 + 4 + 1 + 3 + 5 + 4
+    );
+    let rows: Vec<Vec<&str>> = lines.map(|l| l.split(',').collect()).collect();
+    // Two runs (K = 652, K = 5) of 40 steps.
+    assert_eq!(rows.len(), 80);
+    assert!(rows.iter().all(|r| r.len() == 22));
+    let doc = read_json(&f.out.join("paper/trace.json"));
+    for (i, run) in doc["runs"].as_array().unwrap().iter().enumerate() {
+        for (t, rec) in run["trace"]["records"]
+            .as_array()
+            .unwrap()
+            .iter()
+            .enumerate()
+        {
+            let row = &rows[40 * i + t];
+            assert_eq!(row[0], run["k"].to_string());
+            assert_eq!(row[1], t.to_string());
+            let mut expected: Vec<f64> = Vec::new();
+            for key in ["x", "x_hat", "u", "y", "w"] {
+                expected.extend(vecf(&rec[key]));
+            }
+            expected.push(rec["e_norm"].as_f64().unwrap());
+            expected.push(rec["x_norm"].as_f64().unwrap());
+            expected.push(rec["mhe"]["epsilon"].as_f64().unwrap());
+            for (j, v) in expected.iter().enumerate() {
+                let cell: f64 = row[2 + j].parse().unwrap();
+                assert_eq!(cell.to_bits(), v.to_bits(), "row {t} column {}", 2 + j);
+            }
+            assert_eq!(row[21], rec["mhe"]["status"].as_str().unwrap());
+        }
+    }
+}
+
+/// The issue's complaint: a metric that does not contract showed a gain of 0.0. Every gain
+/// of such a metric is null in certificate.json, with the reason beside it.
+#[test]
+fn gains_of_a_metric_that_does_not_contract_are_null_with_the_reason() {
+    let doc = read_json(&fixture().out.join("paper/certificate.json"));
+    let candidates = doc["certificate"]["gamma13"]["certified"]["candidates"]
+        .as_array()
+        .unwrap();
+    let mut non_contracting = 0;
+    for c in candidates {
+        let contracts = c["contraction"].as_f64().unwrap() < 1.0
+            && c["contraction_enumerated"].as_f64().is_none_or(|l| l < 1.0);
+        if contracts {
+            assert!(c["not_computed"].is_null(), "{c}");
+            assert!(c["input_gain"].as_f64().unwrap() > 0.0, "{c}");
+            continue;
+        }
+        non_contracting += 1;
+        for key in ["input_gain", "gamma13", "gamma1w"] {
+            assert!(c[key].is_null(), "{key}: {c}");
+        }
+        assert!(
+            c["input_gain_enumerated"].as_f64().is_none_or(|g| g > 0.0),
+            "{c}"
+        );
+        let why = c["not_computed"].as_str().unwrap();
+        assert!(
+            why.contains("does not contract") && why.contains("input_gain"),
+            "{why}"
+        );
+    }
+    // The identity metric (λ_S = 1.033 on the stand-in plant).
+    assert!(non_contracting >= 1);
+}
+
+/// Before each simulation the work is announced: method, K, T × K and n_z.
+#[test]
+fn each_simulation_is_announced_with_its_work() {
+    let f = fixture();
+    let log = &f.paper.log;
+    assert!(log[0].starts_with("[paper] computing the certificate of Theorem 1 for pg, fista"));
+    let sims: Vec<&String> = log.iter().filter(|l| l.starts_with("simulating")).collect();
+    assert_eq!(sims.len(), 2, "{log:?}");
+    // n_z = 4 + 5·(4 + 1) = 29.
+    assert!(
+        sims[0].starts_with(
+            "simulating PG at K = 652 (mhe.iterations): 40 steps × 652 iterations, n_z = 29, \
+             ≈ 2.608e4 iterations"
+        ),
+        "{}",
+        sims[0]
+    );
+    assert!(sims[1].starts_with("simulating PG at K = 5 (small K for comparison)"));
+    let k_min = f.certified.document.solvers[0].k_min.unwrap();
+    assert!(f.certified.log.iter().any(|l| l.starts_with(&format!(
+        "simulating PG at K = {k_min} (the computed K_min)"
+    ))));
+}
+
+/// Terminal numbers: at most 4 significant digits in the tables of the summary.
+#[test]
+fn summary_numbers_are_short() {
+    let s = &fixture().paper.summary;
+    let table: Vec<&str> = s
+        .lines()
+        .skip_while(|l| !l.starts_with("Closed loop"))
+        .skip(2)
+        .take(2)
+        .collect();
+    assert_eq!(table.len(), 2, "{s}");
+    for line in table {
+        for cell in line.split_whitespace().skip(2) {
+            let mantissa = cell.split('e').next().unwrap();
+            let digits = mantissa
+                .chars()
+                .filter(char::is_ascii_digit)
+                .collect::<String>();
+            assert!(
+                digits.trim_start_matches('0').len() <= 4,
+                "{cell} in {line}"
+            );
+        }
+    }
+    // Premise values and margins too (were printed with 6 decimals).
+    assert!(
+        s.contains("rho < 1              all            1.145      -0.1448  FAIL"),
+        "{s}"
+    );
+}
+
+fn with_key(base: &str, section: &str, key: &str, value: &str) -> String {
+    set_key(base, section, key, value)
+}
+
+/// `--fig2c-t` beyond the simulated steps: a typed error naming the flag, before any work.
+#[test]
+fn fig2c_t_outside_the_horizon_is_a_typed_error_naming_the_flag() {
+    let job = custom_job("fig2c", &paper_text());
+    let settings = Settings {
+        fig2c_t: Some(40),
+        ..test_settings()
+    };
+    let t0 = std::time::Instant::now();
+    let e = run_job(&job, &settings).unwrap_err();
+    assert!(
+        t0.elapsed().as_secs_f64() < 2.0,
+        "checked before the certificate"
+    );
+    let typed = e.chain().find_map(|c| c.downcast_ref::<ReproduceError>());
+    assert!(
+        matches!(typed, Some(ReproduceError::Fig2cTime { t: 40, steps: 40 })),
+        "{e:#}"
+    );
+    let msg = format!("{e:#}");
+    assert!(
+        msg.contains("--fig2c-t 40") && msg.contains("0..=39"),
+        "{msg}"
+    );
+    // The defaults: 6 for the presets, M + 1 for a scenario, within T.
+    let paper = Scenario::from_toml_str(&paper_text()).unwrap();
+    assert_eq!(default_fig2c_t(Some(Preset::Paper), &paper), 6);
+    assert_eq!(default_fig2c_t(None, &paper), 6); // M = 5
+    let short =
+        Scenario::from_toml_str(&with_key(&paper_text(), "simulation", "steps", "4")).unwrap();
+    assert_eq!(default_fig2c_t(Some(Preset::Paper), &short), 3);
+}
+
+/// `mhe.iterations` and `simulation.steps` at their maxima: refused at once with a typed
+/// error naming both keys and the limit (not a run of 10¹² iterations).
+#[test]
+fn work_beyond_the_limit_is_refused_naming_both_keys() {
+    let text = with_key(
+        &with_key(
+            &paper_text(),
+            "mhe",
+            "iterations",
+            &mhe_core::settings::MAX_ITERATIONS.to_string(),
+        ),
+        "simulation",
+        "steps",
+        &lti_model::spec::plant::MAX_STEPS.to_string(),
+    );
+    let t0 = std::time::Instant::now();
+    let e = run_text("max-work", &text);
+    assert!(
+        t0.elapsed().as_secs_f64() < 2.0,
+        "checked before the certificate"
+    );
+    let typed = e.chain().find_map(|c| c.downcast_ref::<ReproduceError>());
+    assert!(
+        matches!(typed, Some(ReproduceError::WorkLimit { .. })),
+        "{e:#}"
+    );
+    let msg = format!("{e:#}");
+    for needle in [
+        "mhe.iterations = 10000000",
+        "simulation.steps = 100000",
+        "1e12 iterations",
+        "limit 1e10",
+        "docs/limits.md",
+    ] {
+        assert!(msg.contains(needle), "`{needle}` not in {msg}");
+    }
+}
+
+/// A plant whose unobservable mode (|λ| = 1.2) grows without bound, with P given so that it
+/// is simulated: the run diverges and its sup‖e‖ is printed as a short number.
+#[test]
+fn a_diverged_run_prints_short_numbers() {
+    let text = UNDETECTABLE.replace("steps = 10", "steps = 2500").replace(
+        "iterations = 10",
+        "iterations = 2\np = [[1.0, 0.0], [0.0, 1.0]]",
+    );
+    let job = custom_job("diverging", &text);
+    let settings = Settings {
+        figures: false,
+        ..test_settings()
+    };
+    let o = run_job(&job, &settings).unwrap();
+    let run = &o.document.runs[0];
+    assert!(run.error.is_some() && run.completed < 2500, "{run:?}");
+    assert!(run.sup_norm_e > 1e100, "{}", run.sup_norm_e);
+    let row = o
+        .summary
+        .lines()
+        .find(|l| l.trim_start().starts_with("2 "))
+        .unwrap();
+    assert!(row.len() < 100, "{row}");
+    assert!(row.contains("e15") || row.contains("e16"), "{row}");
+}
+
+/// A computed K_min whose simulation exceeds the work limit (cart-pendulum: K_min = 139380,
+/// n_z = 58, here T = 22 000: ≈ 1.03e13 multiply-adds) is skipped with the reason; the
+/// scenario's own K is simulated and the certificate is written.
+#[test]
+fn a_k_min_run_beyond_the_work_limit_is_skipped_with_the_reason() {
+    let base =
+        std::fs::read_to_string(workspace_root().join("scenarios/cart-pendulum.toml")).unwrap();
+    let job = custom_job(
+        "cart-pendulum-long",
+        &set_key(&base, "simulation", "steps", "22000"),
+    );
+    let settings = Settings {
+        figures: false,
+        ..test_settings()
+    };
+    let o = run_job(&job, &settings).unwrap();
+    let d = &o.document;
+    let k_min = d
+        .solvers
+        .iter()
+        .find(|s| s.simulated)
+        .unwrap()
+        .k_min
+        .unwrap();
+    assert_eq!(d.skipped_runs.len(), 1);
+    let skipped = &d.skipped_runs[0];
+    assert_eq!(
+        (skipped.k, skipped.k_source),
+        (k_min, KSource::ComputedKMin)
+    );
+    assert!(skipped.reason.contains("1e13") && skipped.reason.contains("simulation.steps"));
+    assert_eq!(d.runs.len(), 1);
+    assert_eq!((d.runs[0].k, d.runs[0].completed), (10, 22000));
+    let reason = d.trajectory_check.reason.as_deref().unwrap();
+    assert!(reason.contains("was not run"), "{reason}");
+    assert!(
+        o.summary.contains("not simulated: T·K·n_z²"),
+        "{}",
+        o.summary
+    );
+    assert!(
+        o.log
+            .iter()
+            .any(|l| l.starts_with(&format!("not simulating pg at K = {k_min}")))
+    );
+    let csv = std::fs::read_to_string(job.out.join("trace.csv")).unwrap();
+    assert_eq!(csv.lines().count(), 1 + 22000);
 }

@@ -63,7 +63,8 @@ pub struct MetricResult {
     /// max over the 2^s free sets of ‖A + BK_𝔽‖_S (when enumerated; a lower bound ≥ 1 once
     /// it reaches 1, because the enumeration drops the metric there).
     pub contraction_enumerated: Option<f64>,
-    /// max over the 2^s free sets of ‖S^{½}BK_𝔽‖₂ (when enumerated).
+    /// max over the 2^s free sets of ‖S^{½}BK_𝔽‖₂ (when enumerated and the metric contracts
+    /// there; None when the enumeration dropped it at λ ≥ 1).
     pub input_gain_enumerated: Option<f64>,
     /// √(λ̄(S)/λ(S)): prefactor of β₁.
     pub condition_sqrt: f64,
@@ -75,6 +76,35 @@ pub struct MetricResult {
     pub gamma13: f64,
     /// γ₁ʷ = √(λ̄(S)/λ(S))/(1 − λ_S) for the λ_S used in `gamma13`, or ∞.
     pub gamma1w: f64,
+    /// Why gains of this metric are not computed (null in JSON) because it does not contract
+    /// (λ_S ≥ 1); None when every figure is computed.
+    pub not_computed: Option<String>,
+}
+
+/// The sentence of [`MetricResult::not_computed`]: which contraction factor is ≥ 1 and which
+/// figures are therefore left out.
+fn not_computed_reason(c: &MetricResult) -> Option<String> {
+    let enumerated = c.contraction_enumerated;
+    if c.contraction < 1.0 && enumerated.is_none_or(|l| l < 1.0) {
+        return None;
+    }
+    Some(match enumerated {
+        Some(l) if l < 1.0 => format!(
+            "λ_S = {:.4} ≥ 1 over the family 0 ⪯ M ⪯ I: input_gain and gamma13_polynomial are \
+             not computed; over the free sets λ = {l:.4} < 1 gives the enumerated figures",
+            c.contraction
+        ),
+        Some(l) => format!(
+            "the metric does not contract (λ_S = {:.4} ≥ 1 over the family, ≥ {l:.4} over the \
+             free sets): input_gain, input_gain_enumerated, gamma13 and gamma1w are not computed",
+            c.contraction
+        ),
+        None => format!(
+            "the metric does not contract (λ_S = {:.4} ≥ 1): input_gain, gamma13 and gamma1w \
+             are not computed",
+            c.contraction
+        ),
+    })
 }
 
 /// Which bound gave the certified γ₁,₃.
@@ -448,6 +478,7 @@ pub fn gamma13_certified_with(
             gamma13_enumerated: None,
             gamma13: g13,
             gamma1w: g1w,
+            not_computed: None,
         });
     }
     let gamma13_polynomial = candidates
@@ -498,7 +529,9 @@ pub fn gamma13_certified_with(
             let (g13, g1w) = gammas(lam, gin, &metrics[i]);
             let c = &mut candidates[i];
             c.contraction_enumerated = Some(lam);
-            c.input_gain_enumerated = Some(gin);
+            // The enumeration drops a metric once λ reaches 1: its g is then a partial maximum
+            // (possibly 0), not a figure.
+            c.input_gain_enumerated = (lam < 1.0).then_some(gin);
             c.gamma13_enumerated = Some(g13);
             if g13 < c.gamma13 {
                 c.gamma13 = g13;
@@ -521,6 +554,9 @@ pub fn gamma13_certified_with(
         }
     }
 
+    for c in &mut candidates {
+        c.not_computed = not_computed_reason(c);
+    }
     let best = candidates
         .iter()
         .filter(|c| c.gamma13.is_finite())
@@ -572,4 +608,62 @@ pub fn gamma13_certified_with(
         void,
         skipped,
     })
+}
+
+#[cfg(test)]
+mod tests {
+    #![allow(clippy::unwrap_used)]
+
+    use faer::Mat;
+    use lti_model::{BoxSet, LtiSystem};
+    use mpc_core::MpcConfig;
+    use rand::{Rng, SeedableRng};
+    use rand_chacha::ChaCha8Rng;
+
+    use super::*;
+
+    /// A random 2-state MPC with a bounded input, |λ(A)| up to ~1.2 (s = 4).
+    fn random_mpc(seed: u64) -> Option<CondensedMpc> {
+        let mut r = ChaCha8Rng::seed_from_u64(seed);
+        let mut gauss = |a: usize, b: usize| Mat::from_fn(a, b, |_, _| r.random_range(-1.0..1.0));
+        let (a, b, c) = (gauss(2, 2) * 1.2, gauss(2, 1), gauss(1, 2));
+        let sys = LtiSystem::new(a, b, c).ok()?;
+        let cfg = MpcConfig::new(
+            4,
+            Mat::identity(2, 2),
+            Mat::<f64>::identity(1, 1) * 0.1,
+            BoxSet::symmetric(&[1.0]).ok()?,
+        );
+        CondensedMpc::new(&sys, cfg).ok()
+    }
+
+    /// A metric that does not contract has no gain figures: null in JSON with the reason,
+    /// never the partial maximum the enumeration stopped at (issue 15: `input_gain` 0.0).
+    #[test]
+    fn gains_of_a_metric_that_does_not_contract_are_null_with_a_reason() {
+        let mut seen = 0;
+        for seed in 0..40 {
+            let Some(mpc) = random_mpc(seed) else {
+                continue;
+            };
+            let c = gamma13_certified(&mpc, 14).unwrap();
+            for m in &c.candidates {
+                let enumerated_stops = m.contraction_enumerated.is_some_and(|l| l >= 1.0);
+                if enumerated_stops {
+                    seen += 1;
+                    assert_eq!(m.input_gain_enumerated, None, "seed {seed} {}", m.metric);
+                    assert!(m.gamma13_enumerated.unwrap().is_infinite());
+                }
+                let contracts = m.contraction < 1.0 && !enumerated_stops;
+                assert_eq!(m.not_computed.is_none(), contracts, "seed {seed} {m:?}");
+                if m.contraction >= 1.0 {
+                    let reason = m.not_computed.as_deref().unwrap();
+                    assert!(reason.contains("≥ 1") && reason.contains("input_gain"));
+                    let json = serde_json::to_value(m).unwrap();
+                    assert!(json["input_gain"].is_null(), "{json}");
+                }
+            }
+        }
+        assert!(seen > 0, "no enumerated metric that does not contract");
+    }
 }

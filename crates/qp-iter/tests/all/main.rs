@@ -10,3 +10,4 @@ mod common;
 mod errors;
 mod premise;
 mod reference;
+mod scaled;

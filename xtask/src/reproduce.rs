@@ -796,8 +796,14 @@ pub fn run_job(job: &Job, settings: &Settings) -> Result<Outcome> {
         (_, Some(g)) => Gamma13Source::User(g),
         (source, None) => source,
     };
+    // The four named methods, and the scenario's own method when it is another one (a
+    // Jacobi-scaled map, custom parameters): it is the one simulated at its K_min.
+    let mut solvers = Method::PRESETS.to_vec();
+    if !solvers.contains(&solver) {
+        solvers.push(solver);
+    }
     let opts = CertificateOptions {
-        solvers: Method::PRESETS.to_vec(),
+        solvers,
         gamma13,
         seed,
         lipschitz_pairs: settings.lipschitz_pairs,

@@ -5,7 +5,7 @@
 //! - `cargo xtask sweep --config FILE.toml [--out DIR] [--threads N] [--shard I/N]`,
 //!   `cargo xtask sweep-merge --config FILE.toml --out DIR [SHARD_DIR...]` (docs/sweeps.md)
 //! - `cargo xtask reproduce [--preset paper|certified] [--scenario FILE] [--out DIR]
-//!   [--gamma13 G] [--fig2c-t T]`
+//!   [--gamma13 G] [--fig2c-t T] [--sim-k-cap K]`
 //!
 //! Exit codes: 0 success, 1 error (bad input, I/O), 2 usage error, 3 a certificate check
 //! failed (certify: LMI (2) infeasible or a supplied P rejected; reproduce: a simulation at
@@ -84,6 +84,10 @@ enum Command {
         /// [default: 6 for the presets, M + 1 for a scenario].
         #[arg(long = "fig2c-t", value_name = "T")]
         fig2c_t: Option<usize>,
+        /// Simulate at the computed K_min only if K_min ≤ K (a long horizon's unscaled
+        /// method can need millions); a K_min above it is reported as skipped, with the cap.
+        #[arg(long = "sim-k-cap", value_name = "K")]
+        sim_k_cap: Option<usize>,
     },
 }
 
@@ -124,7 +128,8 @@ fn run(cli: Cli) -> Result<ExitCode> {
             out,
             gamma13,
             fig2c_t,
-        } => reproduce::main(preset, scenario, out, gamma13, fig2c_t),
+            sim_k_cap,
+        } => reproduce::main(preset, scenario, out, gamma13, fig2c_t, sim_k_cap),
     }
 }
 

@@ -187,6 +187,9 @@ pub struct Settings {
     /// Print each work line when it happens (stdout) and show progress on stderr; the lines
     /// are in [`Outcome::log`] either way.
     pub live: bool,
+    /// `--sim-k-cap`: the largest computed K_min that is simulated (None: no cap beyond the
+    /// work limit).
+    pub sim_k_cap: Option<usize>,
 }
 
 impl Default for Settings {
@@ -201,6 +204,7 @@ impl Default for Settings {
             figures: true,
             fig2c_t: None,
             live: false,
+            sim_k_cap: None,
         }
     }
 }
@@ -265,6 +269,8 @@ pub struct SettingsRecord {
     pub small_k: usize,
     /// The t of Fig. 2(c) (`--fig2c-t`, or the default).
     pub fig2c_t: usize,
+    /// `--sim-k-cap` (null: none).
+    pub sim_k_cap: Option<usize>,
 }
 
 /// One solver's verdict, flattened for readers of the JSON.
@@ -856,6 +862,24 @@ pub fn run_job(job: &Job, settings: &Settings) -> Result<Outcome> {
     let mut skipped_runs = Vec::new();
     if cert.ioss.is_some() || spec.p.is_some() {
         for (k, source) in plan_runs(spec.iterations, own.and_then(|s| s.k_min), settings.small_k) {
+            if let Some(cap) = settings
+                .sim_k_cap
+                .filter(|&c| k > c && source == KSource::ComputedKMin)
+            {
+                let reason = format!(
+                    "K_min = {k} is above --sim-k-cap {cap}; raise the cap (or drop the flag) to simulate it"
+                );
+                say(format!(
+                    "not simulating {} at K = {k}: {reason}",
+                    solver.name()
+                ));
+                skipped_runs.push(SkippedRun {
+                    k,
+                    k_source: source,
+                    reason,
+                });
+                continue;
+            }
             if let Some(w) = Work::of(&scenario, k) {
                 if !w.within_limit() {
                     let reason = format!("{}; lower simulation.steps to simulate it", w.excess());
@@ -1022,6 +1046,7 @@ pub fn run_job(job: &Job, settings: &Settings) -> Result<Outcome> {
             k_max: settings.k_max,
             small_k: settings.small_k,
             fig2c_t,
+            sim_k_cap: settings.sim_k_cap,
         },
         solver: solver.name().into(),
         scenario_iterations: spec.iterations,
@@ -1095,10 +1120,15 @@ pub fn main(
     out: Option<PathBuf>,
     gamma13: Option<f64>,
     fig2c_t: Option<usize>,
+    sim_k_cap: Option<usize>,
 ) -> Result<std::process::ExitCode> {
+    if sim_k_cap == Some(0) {
+        anyhow::bail!("--sim-k-cap 0: the cap must be ≥ 1 (K = 0 iterations is no estimator)");
+    }
     let mut settings = Settings {
         fig2c_t,
         live: true,
+        sim_k_cap,
         ..Settings::default()
     };
     if let Some(g) = gamma13 {

@@ -739,12 +739,14 @@ fn command_line_parses() {
             out,
             gamma13,
             fig2c_t,
+            sim_k_cap,
         } => {
             assert_eq!(preset, Some(Preset::Paper));
             assert_eq!(scenario, None);
             assert_eq!(out, Some(PathBuf::from("d")));
             assert_eq!(gamma13, None);
             assert_eq!(fig2c_t, None);
+            assert_eq!(sim_k_cap, None);
         }
         other => panic!("{other:?}"),
     }
@@ -1132,4 +1134,32 @@ fn a_k_min_run_beyond_the_work_limit_is_skipped_with_the_reason() {
     );
     let csv = std::fs::read_to_string(job.out.join("trace.csv")).unwrap();
     assert_eq!(csv.lines().count(), 1 + 22000);
+}
+
+/// `--sim-k-cap`: a computed K_min above the cap is not simulated and says why (the cap is
+/// named and recorded in the settings); the scenario's own K still runs.
+#[test]
+fn a_k_min_above_the_sim_k_cap_is_skipped_with_the_cap_named() {
+    let base =
+        std::fs::read_to_string(workspace_root().join("scenarios/cart-pendulum.toml")).unwrap();
+    let job = custom_job("cart-pendulum-capped", &base);
+    let settings = Settings {
+        figures: false,
+        sim_k_cap: Some(1000),
+        ..test_settings()
+    };
+    let o = run_job(&job, &settings).unwrap();
+    let d = &o.document;
+    assert_eq!(d.settings.sim_k_cap, Some(1000));
+    assert_eq!(d.skipped_runs.len(), 1);
+    let skipped = &d.skipped_runs[0];
+    assert_eq!(skipped.k_source, KSource::ComputedKMin);
+    assert!(skipped.k > 1000);
+    assert!(
+        skipped.reason.contains("--sim-k-cap 1000"),
+        "{}",
+        skipped.reason
+    );
+    assert_eq!(d.runs.len(), 1);
+    assert_eq!(d.runs[0].k, 10);
 }

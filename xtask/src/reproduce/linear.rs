@@ -1,5 +1,7 @@
 //! The exact linear stability boundary per method, for certificate.json and the summary.
 
+use rayon::prelude::*;
+
 use super::*;
 
 /// ρ_lin of one method, or why it has none.
@@ -13,7 +15,9 @@ pub struct LinearEntry {
     pub error: Option<String>,
 }
 
-/// K grid of the linear analysis: 25 log-spaced K from 1 to max(2000, every K_min).
+/// K grid of the linear analysis: 25 log-spaced K from 1 to max(2000, every K_min), for
+/// every method of the certificate; the methods run in parallel on the global rayon pool
+/// (each analysis is sequential inside, so the result does not depend on the thread count).
 pub(super) fn linear_entries(
     resolved: &ResolvedScenario,
     cert: &ClosedLoopCertificate,
@@ -24,8 +28,9 @@ pub(super) fn linear_entries(
         .filter_map(|s| s.k_min)
         .fold(2000, usize::max);
     let grid = closed_loop::sweep::log_spaced(1, top, 25);
-    Method::PRESETS
-        .iter()
+    let methods: Vec<Method> = cert.solvers.iter().map(|s| s.solver).collect();
+    methods
+        .par_iter()
         .map(|&m| {
             let result = LoopOptions::from_scenario(resolved.scenario())
                 .map_err(closed_loop::linear::LinearError::from)

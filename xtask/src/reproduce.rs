@@ -862,13 +862,19 @@ pub fn run_job(job: &Job, settings: &Settings) -> Result<Outcome> {
     let mut skipped_runs = Vec::new();
     if cert.ioss.is_some() || spec.p.is_some() {
         for (k, source) in plan_runs(spec.iterations, own.and_then(|s| s.k_min), settings.small_k) {
-            if let Some(cap) = settings
-                .sim_k_cap
-                .filter(|&c| k > c && source == KSource::ComputedKMin)
-            {
-                let reason = format!(
+            // A K_min above --sim-k-cap, or any run beyond the work limit, is skipped.
+            let work = Work::of(&scenario, k);
+            let skip = match (settings.sim_k_cap, &work) {
+                (Some(cap), _) if k > cap && source == KSource::ComputedKMin => Some(format!(
                     "K_min = {k} is above --sim-k-cap {cap}; raise the cap (or drop the flag) to simulate it"
-                );
+                )),
+                (_, Some(w)) if !w.within_limit() => Some(format!(
+                    "{}; lower simulation.steps to simulate it",
+                    w.excess()
+                )),
+                _ => None,
+            };
+            if let Some(reason) = skip {
                 say(format!(
                     "not simulating {} at K = {k}: {reason}",
                     solver.name()
@@ -880,20 +886,7 @@ pub fn run_job(job: &Job, settings: &Settings) -> Result<Outcome> {
                 });
                 continue;
             }
-            if let Some(w) = Work::of(&scenario, k) {
-                if !w.within_limit() {
-                    let reason = format!("{}; lower simulation.steps to simulate it", w.excess());
-                    say(format!(
-                        "not simulating {} at K = {k}: {reason}",
-                        solver.name()
-                    ));
-                    skipped_runs.push(SkippedRun {
-                        k,
-                        k_source: source,
-                        reason,
-                    });
-                    continue;
-                }
+            if let Some(w) = &work {
                 say(w.line(solver, source));
             }
             let t0 = std::time::Instant::now();

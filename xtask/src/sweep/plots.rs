@@ -263,43 +263,35 @@ impl BandChart<'_> {
                                 .map(|p| Circle::new((p.0, p.2), 3, col.filled())),
                         )
                         .map_err(|e| err(&e))?;
-                    if let (None, Some(k)) = (&c.void_reason, c.k_min) {
-                        if k >= k_lo && k <= k_hi {
-                            chart
-                                .draw_series(DashedLineSeries::new(
-                                    vec![(k, $y_lo), (k, $y_hi)],
-                                    8,
-                                    5,
-                                    col.stroke_width(2),
-                                ))
-                                .map_err(|e| err(&e))?
-                                .label(format!("certified K_min({}) = {k}", c.solver))
-                                .legend(move |(x, y)| {
-                                    PathElement::new(
-                                        vec![(x, y), (x + 6, y), (x + 11, y), (x + 17, y)],
-                                        col.stroke_width(1),
-                                    )
-                                });
-                        }
-                    }
-                    if let Some(k) = c.k_lin {
-                        if k >= k_lo && k <= k_hi {
-                            chart
-                                .draw_series(DashedLineSeries::new(
-                                    vec![(k, $y_lo), (k, $y_hi)],
-                                    2,
-                                    4,
+                    // Certified K_min dashed (none when void), K_lin dotted.
+                    let k_min = c.k_min.filter(|_| c.void_reason.is_none());
+                    for (k, dash, gap, width, what) in [
+                        (k_min, 8, 5, 2, "certified K_min"),
+                        (c.k_lin, 2, 4, 1, "K_lin"),
+                    ] {
+                        let Some(k) = k.filter(|k| *k >= k_lo && *k <= k_hi) else {
+                            continue;
+                        };
+                        chart
+                            .draw_series(DashedLineSeries::new(
+                                vec![(k, $y_lo), (k, $y_hi)],
+                                dash,
+                                gap,
+                                col.stroke_width(width),
+                            ))
+                            .map_err(|e| err(&e))?
+                            .label(format!("{what}({}) = {k}", c.solver))
+                            .legend(move |(x, y)| {
+                                PathElement::new(
+                                    vec![
+                                        (x, y),
+                                        (x + dash as i32, y),
+                                        (x + (dash + gap) as i32, y),
+                                        (x + (2 * dash + gap) as i32, y),
+                                    ],
                                     col.stroke_width(1),
-                                ))
-                                .map_err(|e| err(&e))?
-                                .label(format!("K_lin({}) = {k}", c.solver))
-                                .legend(move |(x, y)| {
-                                    PathElement::new(
-                                        vec![(x, y), (x + 2, y), (x + 6, y), (x + 8, y)],
-                                        col.stroke_width(1),
-                                    )
-                                });
-                        }
+                                )
+                            });
                     }
                 }
                 if let Some((level, label)) = self.hline {

@@ -506,6 +506,18 @@ mod tests {
         dir.join(name)
     }
 
+    /// Certifies a scenario given as text (written to a temporary file `name`).
+    fn certify_text(name: &str, text: &str) -> Outcome {
+        let path = temp_path(name);
+        std::fs::write(&path, text).unwrap();
+        certify(&CertifyRequest {
+            scenario: path,
+            eta: None,
+            p_file: None,
+        })
+        .unwrap()
+    }
+
     fn mat(rows: &serde_json::Value) -> Mat<f64> {
         parse_p(rows).unwrap()
     }
@@ -694,14 +706,7 @@ mod tests {
             "[sets]",
             "e = [[1.0, 0.0, 0.0, 0.0], [0.0, 1.0, 0.0, 0.0], [0.0, 0.0, 0.0, 0.0], [0.0, 0.0, 0.0, 1.0]]\n\n[sets]",
         );
-        let path = temp_path("e1101.toml");
-        std::fs::write(&path, text).unwrap();
-        let out = certify(&CertifyRequest {
-            scenario: path,
-            eta: None,
-            p_file: None,
-        })
-        .unwrap();
+        let out = certify_text("e1101.toml", &text);
         assert!(out.document.passed, "{}", out.summary);
         let cert = out.document.certificate.as_ref().unwrap();
         assert_eq!(cert.method, ioss::METHOD_MAXIMAL);
@@ -762,14 +767,7 @@ mod tests {
                 "[sets]\nstate = { lower = [-20.0, -20.0, -20.0, -20.0], upper = [20.0, 20.0, 20.0, 20.0] }\n",
             );
         assert!(text.contains("state = {"));
-        let path = temp_path("state-set.toml");
-        std::fs::write(&path, text).unwrap();
-        let out = certify(&CertifyRequest {
-            scenario: path,
-            eta: None,
-            p_file: None,
-        })
-        .unwrap();
+        let out = certify_text("state-set.toml", &text);
         assert!(out.document.passed);
         assert!(out.document.controller_lipschitz.is_none());
         let why = out

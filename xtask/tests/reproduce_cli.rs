@@ -15,6 +15,17 @@ fn temp(name: &str) -> PathBuf {
     dir.join(name)
 }
 
+/// `xtask reproduce --scenario <scenario> --out <temp>` and its output.
+fn reproduce(scenario: &std::path::Path) -> std::process::Output {
+    xtask()
+        .args(["reproduce", "--scenario"])
+        .arg(scenario)
+        .arg("--out")
+        .arg(temp("out"))
+        .output()
+        .unwrap()
+}
+
 fn case_study_with(find: &str, replace: &str) -> PathBuf {
     let root = PathBuf::from(env!("CARGO_MANIFEST_DIR")).join("..");
     let text = std::fs::read_to_string(root.join("scenarios/case-study.toml")).unwrap();
@@ -32,13 +43,7 @@ fn bad_scenarios_exit_with_code_1_naming_the_key() {
         ("[mpc]", "[mpc_typo]", "mpc_typo"),
     ] {
         let scenario = case_study_with(find, replace);
-        let out = xtask()
-            .args(["reproduce", "--scenario"])
-            .arg(&scenario)
-            .arg("--out")
-            .arg(temp("out"))
-            .output()
-            .unwrap();
+        let out = reproduce(&scenario);
         let stderr = String::from_utf8_lossy(&out.stderr);
         assert_eq!(out.status.code(), Some(1), "{key}: {stderr}");
         assert!(stderr.contains(key), "{key}: {stderr}");
@@ -83,13 +88,7 @@ fn fig2c_t_and_work_limit_errors_name_the_flag_and_the_keys() {
         ),
     )
     .unwrap();
-    let out = xtask()
-        .args(["reproduce", "--scenario"])
-        .arg(&path)
-        .arg("--out")
-        .arg(temp("out"))
-        .output()
-        .unwrap();
+    let out = reproduce(&path);
     let stderr = String::from_utf8_lossy(&out.stderr);
     assert_eq!(out.status.code(), Some(1), "{stderr}");
     for key in ["mhe.iterations", "simulation.steps", "limit"] {

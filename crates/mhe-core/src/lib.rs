@@ -86,6 +86,7 @@ pub mod kalman;
 pub mod problem;
 pub mod record;
 pub mod settings;
+pub mod structured;
 
 pub use error::{MheError, Result};
 pub use estimator::{Estimator, MheConfig, MheEstimator, WarmStart};

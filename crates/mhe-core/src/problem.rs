@@ -568,7 +568,20 @@ fn build_window(
     let lipschitz_certified = top.max(0.0).sqrt() / lo.sqrt();
     let lipschitz_unconstrained = lti_model::matrix::spectral_norm(hinv_f.as_ref());
 
-    let qp = ParametricQp::new(h_c, vec![0.0; nz], f_c, zset)?;
+    // The structured product H_c z (forward + adjoint pass) for long windows.
+    let op = crate::structured::MheHessian::new(
+        layout,
+        a,
+        c,
+        e,
+        f,
+        w.eta,
+        w.p.as_ref(),
+        w.q.as_ref(),
+        w.r.as_ref(),
+    );
+    let qp =
+        ParametricQp::new(h_c, vec![0.0; nz], f_c, zset)?.with_operator(std::sync::Arc::new(op))?;
     Ok(MheWindow {
         layout,
         qp,

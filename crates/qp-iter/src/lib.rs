@@ -25,6 +25,7 @@ pub mod error;
 pub mod fista;
 pub mod kernel;
 pub mod method;
+pub mod operator;
 pub mod pg;
 pub mod problem;
 pub mod reference;

@@ -20,6 +20,7 @@ use crate::IterationMap;
 use crate::certificate::{BoundedQuantity, CertNorm, Certificate};
 use crate::error::{QpError, Result};
 use crate::kernel::{AlignedVec, Kernel, PaddedSymmetric, Vectors};
+use crate::operator::{HessianOperator, STRUCTURED_MIN_N};
 use crate::problem::ParametricQp;
 
 /// Step-size rule of [`ProjectedGradient`].
@@ -96,6 +97,9 @@ pub struct ProjectedGradient {
     g: GradientSetup,
     alpha: f64,
     cert: Certificate,
+    /// The problem's structured Hessian, used instead of the dense kernel when
+    /// n ≥ [`STRUCTURED_MIN_N`].
+    structured: Option<std::sync::Arc<dyn HessianOperator>>,
 }
 
 /// State of [`ProjectedGradient`]: the iterate (updated in place), the kernel's scratch
@@ -105,6 +109,8 @@ pub struct ProjectedGradient {
 pub struct PgState {
     /// [z, scratch, q].
     v: Vectors<3>,
+    /// Workspace of the structured Hessian (empty for the dense kernel).
+    work: Vec<f64>,
 }
 
 /// Indices into [`PgState`]'s vectors.
@@ -157,16 +163,36 @@ impl ProjectedGradient {
             source: "Nesterov (2018) Thm 2.1.15; contraction of z ↦ Π(z − α∇f(z)) for quadratics"
                 .into(),
         };
+        let structured = qp
+            .operator()
+            .filter(|_| qp.n() >= STRUCTURED_MIN_N)
+            .cloned();
         Ok(Self {
             g: GradientSetup::new(qp),
             alpha,
             cert,
+            structured,
         })
     }
 
     /// The step α.
     pub fn alpha(&self) -> f64 {
         self.alpha
+    }
+
+    /// Like [`ProjectedGradient::new`], but always through the problem's structured Hessian
+    /// when it has one, whatever n (to measure the crossover).
+    pub fn new_structured(qp: ParametricQp, rule: StepRule) -> Result<Self> {
+        let op = qp.operator().cloned();
+        let mut pg = Self::new(qp, rule)?;
+        pg.structured = op;
+        Ok(pg)
+    }
+
+    /// Whether the steps use the problem's structured Hessian (n ≥ [`STRUCTURED_MIN_N`]
+    /// and the problem has one) instead of the dense kernel.
+    pub fn is_structured(&self) -> bool {
+        self.structured.is_some()
     }
 }
 
@@ -182,6 +208,7 @@ impl IterationMap for ProjectedGradient {
     fn new_state(&self) -> PgState {
         let mut s = PgState {
             v: self.g.vectors(Q),
+            work: vec![0.0; self.structured.as_ref().map_or(0, |op| op.work_len())],
         };
         self.cold_start(&mut s);
         s
@@ -201,8 +228,28 @@ impl IterationMap for ProjectedGradient {
         // clamp), in place: no copy, no allocation, nothing else in the state changes.
         let g = &self.g;
         let [z, scratch, q] = s.v.all_mut();
-        g.kernel
-            .pg_step_padded(&g.h, z, q, self.alpha, &g.lower, &g.upper, scratch);
+        match &self.structured {
+            // Hz through the problem's structure (O(M) for the MHE), then the same
+            // update and NaN-preserving clamp as the kernel.
+            Some(op) => {
+                let n = g.qp.n();
+                op.apply(&z[..n], &mut scratch[..n], &mut s.work);
+                let (lo, hi) = (g.qp.zset().lower(), g.qp.zset().upper());
+                for i in 0..n {
+                    let v = z[i] - self.alpha * (scratch[i] + q[i]);
+                    z[i] = if v < lo[i] {
+                        lo[i]
+                    } else if v > hi[i] {
+                        hi[i]
+                    } else {
+                        v
+                    };
+                }
+            }
+            None => g
+                .kernel
+                .pg_step_padded(&g.h, z, q, self.alpha, &g.lower, &g.upper, scratch),
+        }
     }
     fn iterate<'s>(&self, state: &'s PgState) -> &'s [f64] {
         self.g.head(state.v.get(Z))

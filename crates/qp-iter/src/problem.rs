@@ -6,7 +6,8 @@ use lti_model::matrix::{
 };
 use lti_model::{BoxSet, ConvexSet};
 
-use crate::error::Result;
+use crate::error::{QpError, Result};
+use crate::operator::HessianOperator;
 
 /// A strongly convex parametric QP over a box: min ½zᵀHz + (q₀ + Fθ)ᵀz s.t. z ∈ Z.
 ///
@@ -35,6 +36,8 @@ pub struct ParametricQp {
     zset: BoxSet,
     mu: f64,
     l: f64,
+    /// A structured product z ↦ Hz equal to the dense one ([`crate::operator`]).
+    op: Option<std::sync::Arc<dyn HessianOperator>>,
 }
 
 impl ParametricQp {
@@ -70,7 +73,31 @@ impl ParametricQp {
             zset,
             mu,
             l,
+            op: None,
         })
+    }
+
+    /// Attaches a structured Hessian operator (it must compute the same Hz; projected
+    /// gradient uses it above [`crate::operator::STRUCTURED_MIN_N`] variables).
+    pub fn with_operator(mut self, op: std::sync::Arc<dyn HessianOperator>) -> Result<Self> {
+        if op.n() != self.n() {
+            return Err(QpError::Parameter {
+                name: "operator".into(),
+                value: op.n() as f64,
+                reason: format!(
+                    "the Hessian operator acts on {} variables, H on {}",
+                    op.n(),
+                    self.n()
+                ),
+            });
+        }
+        self.op = Some(op);
+        Ok(self)
+    }
+
+    /// The structured Hessian operator, if the problem has one.
+    pub fn operator(&self) -> Option<&std::sync::Arc<dyn HessianOperator>> {
+        self.op.as_ref()
     }
 
     /// Number of decision variables n.

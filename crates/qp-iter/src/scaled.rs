@@ -41,6 +41,7 @@ use lti_model::BoxSet;
 
 use crate::certificate::Certificate;
 use crate::error::Result;
+use crate::operator::DiagonalScaled;
 use crate::problem::ParametricQp;
 use crate::{IterationMap, QpError};
 
@@ -117,7 +118,14 @@ impl<M: IterationMap> Scaled<M> {
             lo.iter().zip(&d).map(|(l, di)| l / di).collect(),
             hi.iter().zip(&d).map(|(u, di)| u / di).collect(),
         )?;
-        let inner = build(ParametricQp::new(hs, q0, fs, zset)?)?;
+        let mut scaled = ParametricQp::new(hs, q0, fs, zset)?;
+        if let Some(op) = qp.operator() {
+            scaled = scaled.with_operator(std::sync::Arc::new(DiagonalScaled {
+                inner: op.clone(),
+                d: d.clone(),
+            }))?;
+        }
+        let inner = build(scaled)?;
         let (d_min, d_max) = d
             .iter()
             .fold((f64::INFINITY, 0.0_f64), |(a, b), &x| (a.min(x), b.max(x)));

@@ -10,3 +10,4 @@ mod errors;
 mod exact;
 mod kalman;
 mod problem;
+mod structured;

@@ -1,0 +1,67 @@
+//! A structured Hessian: H·z without the dense H, for problems whose H has a cheap
+//! product (the MHE's through its dynamics: a forward pass and an adjoint pass,
+//! O(M·(n_x² + n_x n_w + n_x n_y)) instead of O(n²) with n = n_x + M n_w).
+//!
+//! A [`ParametricQp`](crate::ParametricQp) can carry one
+//! ([`ParametricQp::with_operator`](crate::ParametricQp::with_operator)); projected gradient
+//! uses it instead of the dense kernel when n ≥ [`STRUCTURED_MIN_N`] (the measured
+//! crossover, `docs/benchmarks.md`). Everything else (μ, L, the certificates, the exact
+//! solvers) still uses the dense H, which the operator must equal: `apply` is a different
+//! way to compute the same product, checked against it in the tests of every operator.
+
+use std::fmt::Debug;
+
+/// Smallest n at which projected gradient uses a problem's structured operator instead of
+/// the dense kernel (measured crossover: `docs/benchmarks.md`, "Structured iteration").
+pub const STRUCTURED_MIN_N: usize = 200;
+
+/// z ↦ H z computed without the dense H.
+pub trait HessianOperator: Send + Sync + Debug {
+    /// n: the length of z.
+    fn n(&self) -> usize;
+    /// Length of the workspace `apply` needs.
+    fn work_len(&self) -> usize;
+    /// out = H z, using `work` (length [`HessianOperator::work_len`]) as scratch; must not
+    /// allocate.
+    fn apply(&self, z: &[f64], out: &mut [f64], work: &mut [f64]);
+}
+
+/// D·H·D for a diagonal D, from an operator for H (what a scaled problem carries).
+#[derive(Debug, Clone)]
+pub struct DiagonalScaled<O> {
+    /// The operator for H.
+    pub inner: O,
+    /// The diagonal of D.
+    pub d: Vec<f64>,
+}
+
+impl<O: HessianOperator> HessianOperator for DiagonalScaled<O> {
+    fn n(&self) -> usize {
+        self.d.len()
+    }
+    fn work_len(&self) -> usize {
+        self.inner.work_len() + self.d.len()
+    }
+    fn apply(&self, y: &[f64], out: &mut [f64], work: &mut [f64]) {
+        let (dy, rest) = work.split_at_mut(self.d.len());
+        for ((o, y), d) in dy.iter_mut().zip(y).zip(&self.d) {
+            *o = d * y;
+        }
+        self.inner.apply(dy, out, rest);
+        for (o, d) in out.iter_mut().zip(&self.d) {
+            *o *= d;
+        }
+    }
+}
+
+impl HessianOperator for std::sync::Arc<dyn HessianOperator> {
+    fn n(&self) -> usize {
+        (**self).n()
+    }
+    fn work_len(&self) -> usize {
+        (**self).work_len()
+    }
+    fn apply(&self, z: &[f64], out: &mut [f64], work: &mut [f64]) {
+        (**self).apply(z, out, work);
+    }
+}

@@ -127,9 +127,11 @@ pub fn double_integrator(ts: f64) -> LtiSystem {
 /// at P₋: h⁰ = (12.4, 12.7, 1.8, 1.4) cm, v⁰ = (3.00, 3.00) V, (k₁, k₂) = (3.33, 3.35)
 /// cm³/(V·s), (γ₁, γ₂) = (0.70, 0.60). With T_i = (A_i/a_i)√(2h⁰_i/g) (≈ 62, 90, 23, 30 s):
 ///
+/// ```text
 /// ẋ = [[−1/T₁, 0, A₃/(A₁T₃), 0], [0, −1/T₂, 0, A₄/(A₂T₄)], [0, 0, −1/T₃, 0], [0, 0, 0, −1/T₄]]x
 ///   + [[γ₁k₁/A₁, 0], [0, γ₂k₂/A₂], [0, (1−γ₂)k₂/A₃], [(1−γ₁)k₁/A₄, 0]]u,
 /// y = [[k_c, 0, 0, 0], [0, k_c, 0, 0]]x,
+/// ```
 ///
 /// x the level deviations (cm), u the pump-voltage deviations (V), y the level sensor
 /// voltages of the two lower tanks; ZOH with sampling time `ts` (s).

@@ -315,3 +315,47 @@ fn cart_pendulum_every_method_on_200_seeds() {
     }
     props_hold(&sc, &c, Method::PRESETS[0], 3);
 }
+
+/// The figures behind "(a′) is a void of the method" in docs/certificate-coverage.md: the γ₁,₃
+/// search on the Wang & Boyd chain (N = 30, |uᵢ| ≤ 0.5) over the damping λ, and at λ = 0.5
+/// with larger budgets for the partial enumeration than a scenario can ask for.
+#[test]
+#[ignore = "prints figures for the doc; the 4096-family budget takes about 80 s"]
+fn chain_gamma13_over_damping_and_enumeration_budget() {
+    use closed_loop::gamma13::{gamma13_certified, gamma13_certified_with};
+    use faer::Mat;
+    use lti_model::BoxSet;
+    use mpc_core::{CondensedMpc, MpcConfig};
+    let mpc = |damping: f64| {
+        CondensedMpc::new(
+            &plants::wang_boyd_chain(damping),
+            MpcConfig::new(
+                30,
+                Mat::identity(12, 12),
+                Mat::identity(3, 3),
+                BoxSet::symmetric(&[0.5; 3]).unwrap(),
+            ),
+        )
+        .unwrap()
+    };
+    for damping in [0.5, 0.7, 1.0, 2.0] {
+        let c = gamma13_certified(&mpc(damping), 20).unwrap();
+        println!(
+            "λ = {damping}: γ₁,₃ = {:.4}, void: {}",
+            c.gamma13,
+            c.void.map_or("none".to_string(), |v| v.to_string())
+        );
+    }
+    let light = mpc(0.5);
+    for families in [64, 4096] {
+        let t = std::time::Instant::now();
+        let c = gamma13_certified_with(&light, 20, families).unwrap();
+        println!(
+            "λ = 0.5, {families} families ({} blocks): γ₁,₃ = {}, void: {} ({:.1?})",
+            c.pattern_blocks,
+            c.gamma13,
+            c.void.map_or("none".to_string(), |v| v.to_string()),
+            t.elapsed()
+        );
+    }
+}

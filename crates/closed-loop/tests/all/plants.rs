@@ -125,7 +125,8 @@ pub fn double_integrator(ts: f64) -> LtiSystem {
 /// Parameters (Tables I and II): A₁ = A₃ = 28 cm², A₂ = A₄ = 32 cm² (tank sections),
 /// a₁ = a₃ = 0.071 cm², a₂ = a₄ = 0.057 cm² (outlet holes), k_c = 0.5 V/cm, g = 981 cm/s²;
 /// at P₋: h⁰ = (12.4, 12.7, 1.8, 1.4) cm, v⁰ = (3.00, 3.00) V, (k₁, k₂) = (3.33, 3.35)
-/// cm³/(V·s), (γ₁, γ₂) = (0.70, 0.60). With T_i = (A_i/a_i)√(2h⁰_i/g) (≈ 62, 90, 23, 30 s):
+/// cm³/(V·s), (γ₁, γ₂) = (0.70, 0.60). With T_i = (A_i/a_i)√(2h⁰_i/g) (62.7, 90.3, 23.9 and
+/// 30.0 s):
 ///
 /// ```text
 /// ẋ = [[−1/T₁, 0, A₃/(A₁T₃), 0], [0, −1/T₂, 0, A₄/(A₂T₄)], [0, 0, −1/T₃, 0], [0, 0, 0, −1/T₄]]x

@@ -3,6 +3,7 @@
 
 mod analysis;
 mod certificate;
+mod coverage;
 mod gamma13;
 mod linear;
 mod plants;

@@ -185,7 +185,16 @@ pub fn certify_closed_loop_timed(
             phi_fits_eq11: fits_eq11,
             lmi_certified: ioss_cert.is_some(),
         };
-        let analysis = IssAnalysis::new(inputs.clone());
+        let mut analysis = IssAnalysis::new(inputs.clone());
+        // The premise's own fix is generic ("supply γ₁,₃ or change the controller"): the
+        // typed reason says what is actually wrong (e.g. no gain can exist).
+        if let Some(v) = &gamma13.void {
+            for p in analysis.premises.iter_mut() {
+                if p.name == "gamma13 finite" && !p.holds {
+                    p.fix = v.to_string();
+                }
+            }
+        }
         let k_min = analysis.k_min(opts.k_max);
         let mut void_reasons: Vec<String> = analysis
             .violated()

@@ -40,7 +40,7 @@
 //! to the table (their own solver timers; a separate process run just before this one).
 //!
 //! Output: a markdown table per preset on stdout, JSON in `target/bench-results/mhe.json`.
-//! Run: `cargo bench -p benches --bench mhe` (≈ 3 min).
+//! Run: `cargo bench -p benches --bench mhe` (≈ 1.5 min, about 1 min of it M = 50).
 
 use std::collections::BTreeMap;
 use std::hint::black_box;

@@ -1,66 +1,102 @@
-//! PG, FISTA, ADMM and Clarabel on the real case-study MHE QPs (`mhe-core`), per preset
-//! (paper M = 5, certified M = 9), all timed interleaved in one run
+//! PG, FISTA, ADMM (α = 1 and 2), each plain and Jacobi-scaled, and Clarabel on the real
+//! case-study MHE QPs (`mhe-core`), per preset (paper M = 5, certified M = 9, m50 = the
+//! certified file at M = 50), all timed interleaved in one run per preset
 //! ([`benches::interleave`]): ratios between rows are the robust figures.
 //!
-//! Methods: PG (step 2/(L + μ)), V-FISTA, ADMM (ρ = √(μL), α = 1: the crate default and
-//! the case study's `admm`) and `admm_pr`, the same ADMM with relaxation α = 2
-//! (Peaceman–Rachford; certified rate δ instead of (1 + δ)/2).
+//! Methods ([`METHODS`], built as the scenario runs build them: [`Method::build`], a
+//! [`qp_iter::MethodMap`] that dispatches once per K-step run): PG (step 2/(L + μ)),
+//! V-FISTA, ADMM (ρ = √(μL), α = 1: the crate default and the case study's `admm`),
+//! `admm_pr`, the same ADMM with relaxation α = 2 (Peaceman–Rachford; certified rate δ
+//! instead of (1 + δ)/2), and the same four on the Jacobi-scaled problem (`*_jacobi`:
+//! the map runs on DHD, D = diag(H)^−½, and reports z = Dy; `qp_iter::scaled`).
 //!
 //! Rows per preset (instances: [`benches::case_study`], t = M … T of one closed-loop run):
 //! - `ref`: the fixed-size reference kernel y = Hx (compile-time n, AVX2 + FMA by run-time
-//!   detection) on the window-M Hessian; `matvec_padded`: our product on it
-//!   (`Kernel::matvec_padded`, the padded layout the methods use).
-//! - `step/<method>`: one iteration.
+//!   detection) on the window-M Hessian (n = 29 and 49 only); `matvec_padded`: our product
+//!   on it (`Kernel::matvec_padded`, the padded layout the methods use).
+//! - `step/<method>`: one iteration inside a run: `run_steps` of a batch of steps, per step
+//!   (a scaled map maps y back to z once per run, not per step).
 //! - `to_eps/<method>`: load θ_t + warm start z⁰_t + K_t steps, K_t the smallest count with
 //!   ‖z − z*‖ ≤ 1e-6‖z⁰ − z*‖ on that instance; mean over the instances.
 //! - `cert/<method>`: the same with K = the certificate's K for φ(K) ≤ 1e-6 (every
 //!   instance reaches 1e-6 by the certificate); mean over the instances.
 //! - `mhe/<method>`: one full MHE step (`MheEstimator::estimate`: θ assembly, load, warm
 //!   start, K = certificate's K iterations, cost and propagation) at t = T.
+//! - `mhe_kmin/<method>`: the same at K = K_min of Theorem 1 (the closed-loop certificate,
+//!   `closed_loop::certificate` with its certified constants only, as the sweeps compute
+//!   it), when it differs from the certificate's K for 1e-6 and the per-instance rows are
+//!   affordable.
 //! - `clarabel`: Clarabel's interior-point solve (tol 1e-8, no polish, set up once, q
 //!   updated), mean over the instances.
 //!
-//! Peers (DAQP, OSQP, ProxQP) are timed by `benches/peers/run.sh` on the same instances
-//! (exported by `export_qps`); if `target/peers/results.json` exists and matches these
-//! instances, their rows are added to the table (their own solver timers; a separate
-//! process run just before this one).
+//! A method whose certificate K makes a row unaffordable is left out of it, with the
+//! reason in the table: the per-instance rows (`to_eps`, `cert`, the worst error at the
+//! certificate K) need K·n² ≤ [`INSTANCE_WORK`], the MHE step K·n² ≤ [`MHE_WORK`] — at
+//! M = 50 the plain maps' certificates ask for 10⁴–10⁶ iterations.
+//!
+//! Peers (DAQP, OSQP condensed and uncondensed, ProxQP) are timed by
+//! `benches/peers/run.sh` on the same instances (exported by `export_qps`); if
+//! `target/peers/results.json` exists and matches these instances, their rows are added
+//! to the table (their own solver timers; a separate process run just before this one).
 //!
 //! Output: a markdown table per preset on stdout, JSON in `target/bench-results/mhe.json`.
-//! Run: `cargo bench -p benches --bench mhe` (≈ 1 min).
+//! Run: `cargo bench -p benches --bench mhe` (≈ 1.5 min, about 1 min of it M = 50).
 
 use std::collections::BTreeMap;
 use std::hint::black_box;
 
-use benches::case_study::{CaseStudyQps, EPS, MheInstance, PRESETS, certified_k};
+use benches::case_study::{CaseStudyQps, EPS, MHE_PRESETS, MheInstance, certified_k};
 use benches::{FixedLayout, FixedMatVec, Timing, Variant, dist, interleave};
-use qp_iter::admm::{Admm, AdmmParams};
-use qp_iter::fista::Fista;
+use closed_loop::certificate::{CertificateOptions, certify_closed_loop};
 use qp_iter::kernel::{AlignedVec, Kernel, PaddedSymmetric};
-use qp_iter::pg::{ProjectedGradient, StepRule};
+use qp_iter::method::{Method, MethodMap, Scaling};
 use qp_iter::reference::{ReferenceSettings, ReferenceSolver};
-use qp_iter::{IterationMap, ParametricQp, RunStatus, run_fixed, run_until};
+use qp_iter::{IterationMap, RunStatus, run_fixed, run_until};
 use serde_json::{Value, json};
 
-const ROUNDS: usize = 200;
-/// Row names of the methods: PG (step 2/(L + μ)), V-FISTA, ADMM (ρ = √(μL), α = 1, the
-/// crate default and the case study's), ADMM with α = 2 (Peaceman–Rachford).
-const METHODS: [&str; 4] = ["pg", "fista", "admm", "admm_pr"];
-/// Relaxed ADMM at α = 2 (Peaceman–Rachford splitting), ρ = √(μL).
-const PEACEMAN_RACHFORD: AdmmParams = AdmmParams {
-    penalty: qp_iter::admm::Penalty::Optimal,
-    relaxation: 2.0,
-};
-/// Calls per batch of the per-iteration rows.
-const STEP_BATCH: usize = 2000;
-/// Calls per batch of the MHE-step rows.
-const MHE_BATCH: usize = 20;
+/// Jacobi-scaled counterpart of a method.
+const fn jacobi(m: Method) -> Method {
+    m.with_scaling(Scaling::Jacobi)
+}
+
+/// Row names and methods: the four plain maps, then the same four Jacobi-scaled.
+const METHODS: [(&str, Method); 8] = [
+    ("pg", Method::PG),
+    ("fista", Method::FISTA),
+    ("admm", Method::ADMM),
+    ("admm_pr", Method::ADMM_PR),
+    ("pg_jacobi", jacobi(Method::PG)),
+    ("fista_jacobi", jacobi(Method::FISTA)),
+    ("admm_jacobi", jacobi(Method::ADMM)),
+    ("admm_pr_jacobi", jacobi(Method::ADMM_PR)),
+];
+
+/// Largest K·n² (multiply-adds per instance) for the per-instance rows of a method.
+const INSTANCE_WORK: f64 = 1e8;
+/// Largest K·n² for the MHE-step row of a method (≈ 1 s at n = 254).
+const MHE_WORK: f64 = 5e9;
+/// Multiply-adds per batch of the per-iteration rows (2000 steps at n = 29).
+const STEP_WORK: f64 = 2000.0 * 29.0 * 29.0;
+/// Multiply-adds per batch of the MHE-step rows, at least one step per batch.
+const MHE_BATCH_WORK: f64 = 20.0 * 130.0 * 29.0 * 29.0;
+
+/// Rounds of the interleaved timing: 200 for the small presets; at n > 100 (M = 50, where
+/// a round takes seconds) fewer.
+fn rounds(n: usize) -> usize {
+    if n > 100 { 40 } else { 200 }
+}
+
+/// Calls per batch for `work` multiply-adds per batch at `per_call` multiply-adds per call.
+fn batch(work: f64, per_call: f64) -> usize {
+    ((work / per_call).round() as usize).max(1)
+}
 
 fn main() {
     let kernel = Kernel::detect().path().name();
     let peers = read_peers();
     let mut all = serde_json::Map::new();
-    println!("kernel path: {kernel}; rounds: {ROUNDS}; accuracy: {EPS:e} relative\n");
-    for preset in PRESETS {
+    println!("kernel path: {kernel}; accuracy: {EPS:e} relative\n");
+    for preset in MHE_PRESETS {
         let qps = match CaseStudyQps::load(preset) {
             Ok(q) => q,
             Err(e) => {
@@ -92,7 +128,7 @@ fn main() {
             }
         }
     }
-    let out = json!({ "kernel_path": kernel, "eps": EPS, "rounds": ROUNDS, "presets": all });
+    let out = json!({ "kernel_path": kernel, "eps": EPS, "presets": all });
     let dir = std::path::Path::new(env!("CARGO_MANIFEST_DIR")).join("../target/bench-results");
     let text = serde_json::to_string_pretty(&out).unwrap_or_default();
     if let Err(e) =
@@ -113,23 +149,6 @@ fn read_peers() -> Option<serde_json::Map<String, Value>> {
 /// Sum of every entry of every q_t: the instance fingerprint the peer export also writes.
 fn fingerprint(instances: &[MheInstance]) -> f64 {
     instances.iter().flat_map(|i| &i.q).sum()
-}
-
-struct Methods {
-    pg: ProjectedGradient,
-    fista: Fista,
-    admm: Admm,
-    /// ADMM with relaxation α = 2 (Peaceman–Rachford): certified rate δ instead of (1 + δ)/2.
-    admm_pr: Admm,
-}
-
-fn methods(qp: &ParametricQp) -> Result<Methods, qp_iter::QpError> {
-    Ok(Methods {
-        pg: ProjectedGradient::new(qp.clone(), StepRule::Optimal)?,
-        fista: Fista::new(qp.clone()),
-        admm: Admm::new(qp.clone(), AdmmParams::default())?,
-        admm_pr: Admm::new(qp.clone(), PEACEMAN_RACHFORD)?,
-    })
 }
 
 /// Smallest K with ‖z^K − z*‖ ≤ EPS‖z⁰ − z*‖ from the instance's warm start.
@@ -166,18 +185,21 @@ fn worst_error_at<M: IterationMap>(map: &M, instances: &[MheInstance], k: usize)
         .fold(0.0, f64::max)
 }
 
-/// Batch: one step of `map`, STEP_BATCH times, from the first instance.
-fn step_variant<'a, M: IterationMap>(name: &str, map: &'a M, inst: &MheInstance) -> Variant<'a> {
+/// Batch: `batch` iterations of `map` in one `run_steps`, from the first instance.
+fn step_variant<'a, M: IterationMap>(
+    name: String,
+    map: &'a M,
+    inst: &MheInstance,
+    batch: usize,
+) -> Variant<'a> {
     let mut s = map.new_state();
     map.load(&mut s, &inst.theta);
     map.warm_start(&mut s, &inst.z0, None);
     Variant {
-        name: name.into(),
-        per_call: STEP_BATCH as f64,
+        name,
+        per_call: batch as f64,
         run: Box::new(move || {
-            for _ in 0..STEP_BATCH {
-                map.step(black_box(&mut s));
-            }
+            map.run_steps(black_box(&mut s), batch);
         }),
     }
 }
@@ -203,16 +225,17 @@ fn solve_variant<'a, M: IterationMap>(
     }
 }
 
-/// Batch: MHE_BATCH full MHE steps at t = T (idempotent `estimate`).
+/// Batch: `batch` full MHE steps at t = T (idempotent `estimate`).
 fn mhe_variant<'a, M: IterationMap + 'a>(
-    name: &str,
+    name: String,
     mut est: mhe_core::MheEstimator<M>,
+    batch: usize,
 ) -> Variant<'a> {
     Variant {
-        name: name.into(),
-        per_call: MHE_BATCH as f64,
+        name,
+        per_call: batch as f64,
         run: Box::new(move || {
-            for _ in 0..MHE_BATCH {
+            for _ in 0..batch {
                 let _ = black_box(est.estimate());
             }
         }),
@@ -220,16 +243,16 @@ fn mhe_variant<'a, M: IterationMap + 'a>(
 }
 
 /// The reference kernel at the preset's size (compile-time n: 29 and 49 are instantiated).
-fn reference_variant<'a>(h: &[f64], n: usize) -> Option<Variant<'a>> {
-    fn make<'a, const N: usize>(h: &[f64]) -> Option<Variant<'a>> {
+fn reference_variant<'a>(h: &[f64], n: usize, batch: usize) -> Option<Variant<'a>> {
+    fn make<'a, const N: usize>(h: &[f64], batch: usize) -> Option<Variant<'a>> {
         let k = FixedMatVec::<N>::new(h, FixedLayout::ColumnAxpy)?;
         let x: [f64; N] = std::array::from_fn(|i| ((i * 7919) % 13) as f64 / 13.0 - 0.5);
         let mut y = [0.0; N];
         Some(Variant {
             name: "ref".into(),
-            per_call: STEP_BATCH as f64,
+            per_call: batch as f64,
             run: Box::new(move || {
-                for _ in 0..STEP_BATCH {
+                for _ in 0..batch {
                     k.apply(black_box(&x), &mut y);
                     black_box(&mut y);
                 }
@@ -237,37 +260,69 @@ fn reference_variant<'a>(h: &[f64], n: usize) -> Option<Variant<'a>> {
         })
     }
     match n {
-        29 => make::<29>(h),
-        49 => make::<49>(h),
+        29 => make::<29>(h, batch),
+        49 => make::<49>(h, batch),
         _ => None,
     }
+}
+
+/// One method of the bench on one preset: its map, certificate K and what is affordable.
+struct Row {
+    name: &'static str,
+    method: Method,
+    map: MethodMap,
+    k_cert: usize,
+    /// K_min of Theorem 1 (None: the certificate is void for this method).
+    k_min: Option<usize>,
+    /// The per-instance rows run (K·n² ≤ INSTANCE_WORK).
+    per_instance: bool,
+    /// The MHE-step row runs (K·n² ≤ MHE_WORK).
+    mhe: bool,
 }
 
 fn run_preset(qps: &CaseStudyQps) -> Result<Value, String> {
     let qp = &qps.qp;
     let n = qp.n();
+    let n2 = (n * n) as f64;
     let inst = &qps.instances;
-    let m = methods(qp).map_err(|e| e.to_string())?;
-    let err = |e: benches::case_study::FixtureError| e.to_string();
-    let k_cert = [
-        certified_k(&m.pg).map_err(err)?,
-        certified_k(&m.fista).map_err(err)?,
-        certified_k(&m.admm).map_err(err)?,
-        certified_k(&m.admm_pr).map_err(err)?,
-    ];
-    let mut ks: [Vec<usize>; 4] = Default::default();
-    for i in inst {
-        ks[0].push(iterations_to_eps(&m.pg, i)?);
-        ks[1].push(iterations_to_eps(&m.fista, i)?);
-        ks[2].push(iterations_to_eps(&m.admm, i)?);
-        ks[3].push(iterations_to_eps(&m.admm_pr, i)?);
+    let fixture = |e: benches::case_study::FixtureError| e.to_string();
+    // K_min of Theorem 1 from the certified constants (the sampled estimates are skipped:
+    // they do not enter K_min).
+    let opts = CertificateOptions {
+        solvers: METHODS.iter().map(|(_, m)| *m).collect(),
+        gamma13_sequences: 0,
+        lipschitz_pairs: 0,
+        ..CertificateOptions::default()
+    };
+    let closed_loop_cert = certify_closed_loop(&qps.resolved, &opts).map_err(|e| e.to_string())?;
+    let mut rows = Vec::new();
+    for (name, method) in METHODS {
+        let map = method.build(qp.clone()).map_err(|e| e.to_string())?;
+        let k_cert = certified_k(&map).map_err(fixture)?;
+        let work = k_cert as f64 * n2;
+        let k_min = closed_loop_cert
+            .solvers
+            .iter()
+            .find(|c| c.solver == method)
+            .and_then(|c| c.k_min);
+        rows.push(Row {
+            name,
+            method,
+            map,
+            k_cert,
+            k_min,
+            per_instance: work <= INSTANCE_WORK,
+            mhe: work <= MHE_WORK,
+        });
     }
-    let worst_at_cert = [
-        worst_error_at(&m.pg, inst, k_cert[0]),
-        worst_error_at(&m.fista, inst, k_cert[1]),
-        worst_error_at(&m.admm, inst, k_cert[2]),
-        worst_error_at(&m.admm_pr, inst, k_cert[3]),
-    ];
+    let mut ks: BTreeMap<&str, Vec<usize>> = BTreeMap::new();
+    let mut worst_at_cert = BTreeMap::new();
+    for r in rows.iter().filter(|r| r.per_instance) {
+        let k: Result<Vec<usize>, String> =
+            inst.iter().map(|i| iterations_to_eps(&r.map, i)).collect();
+        ks.insert(r.name, k?);
+        worst_at_cert.insert(r.name, worst_error_at(&r.map, inst, r.k_cert));
+    }
     // Clarabel as a user would run it: tol 1e-8, no polish, set up once, q updated.
     let settings = ReferenceSettings {
         tol: 1e-8,
@@ -282,23 +337,30 @@ fn run_preset(qps: &CaseStudyQps) -> Result<Value, String> {
         ipm_iters.push(sol.iterations as usize);
         ipm_err = ipm_err.max(dist(&sol.z, &i.z_star) / dist(&i.z0, &i.z_star));
     }
-    let fixture = |e: benches::case_study::FixtureError| e.to_string();
-    let est_pg = qps
-        .estimator_at_end(k_cert[0], |q| ProjectedGradient::new(q, StepRule::Optimal))
-        .map_err(fixture)?;
-    let est_fista = qps
-        .estimator_at_end(k_cert[1], |q| Ok(Fista::new(q)))
-        .map_err(fixture)?;
-    let est_admm = qps
-        .estimator_at_end(k_cert[2], |q| Admm::new(q, AdmmParams::default()))
-        .map_err(fixture)?;
-    let est_admm_pr = qps
-        .estimator_at_end(k_cert[3], |q| Admm::new(q, PEACEMAN_RACHFORD))
-        .map_err(fixture)?;
+    let mut estimators = Vec::new();
+    for r in rows.iter().filter(|r| r.mhe) {
+        let method = r.method;
+        let est = qps
+            .estimator_at_end(r.k_cert, |q| method.build(q))
+            .map_err(fixture)?;
+        let b = batch(MHE_BATCH_WORK, r.k_cert as f64 * n2);
+        estimators.push((format!("mhe/{}", r.name), est, b));
+    }
+    for r in rows.iter().filter(|r| r.per_instance) {
+        if let Some(k) = r.k_min.filter(|&k| k != r.k_cert) {
+            let method = r.method;
+            let est = qps
+                .estimator_at_end(k, |q| method.build(q))
+                .map_err(fixture)?;
+            let b = batch(MHE_BATCH_WORK, k as f64 * n2);
+            estimators.push((format!("mhe_kmin/{}", r.name), est, b));
+        }
+    }
 
+    let step_batch = batch(STEP_WORK, n2);
     let h = qp.h_row_major().to_vec();
     let mut variants = Vec::new();
-    if let Some(v) = reference_variant(&h, n) {
+    if let Some(v) = reference_variant(&h, n, step_batch) {
         variants.push(v);
     }
     {
@@ -307,72 +369,42 @@ fn run_preset(qps: &CaseStudyQps) -> Result<Value, String> {
         let k = Kernel::detect();
         variants.push(Variant {
             name: "matvec_padded".into(),
-            per_call: STEP_BATCH as f64,
+            per_call: step_batch as f64,
             run: Box::new(move || {
-                for _ in 0..STEP_BATCH {
+                for _ in 0..step_batch {
                     k.matvec_padded(&hp, black_box(&x), &mut y);
                     black_box(&mut y);
                 }
             }),
         });
     }
-    variants.push(step_variant("step/pg", &m.pg, &inst[0]));
-    variants.push(step_variant("step/fista", &m.fista, &inst[0]));
-    variants.push(step_variant("step/admm", &m.admm, &inst[0]));
-    variants.push(step_variant("step/admm_pr", &m.admm_pr, &inst[0]));
-    variants.push(solve_variant(
-        "to_eps/pg".into(),
-        &m.pg,
-        inst,
-        ks[0].clone(),
-    ));
-    variants.push(solve_variant(
-        "to_eps/fista".into(),
-        &m.fista,
-        inst,
-        ks[1].clone(),
-    ));
-    variants.push(solve_variant(
-        "to_eps/admm".into(),
-        &m.admm,
-        inst,
-        ks[2].clone(),
-    ));
-    variants.push(solve_variant(
-        "to_eps/admm_pr".into(),
-        &m.admm_pr,
-        inst,
-        ks[3].clone(),
-    ));
-    let cert = |k: usize| vec![k; inst.len()];
-    variants.push(solve_variant(
-        "cert/pg".into(),
-        &m.pg,
-        inst,
-        cert(k_cert[0]),
-    ));
-    variants.push(solve_variant(
-        "cert/fista".into(),
-        &m.fista,
-        inst,
-        cert(k_cert[1]),
-    ));
-    variants.push(solve_variant(
-        "cert/admm".into(),
-        &m.admm,
-        inst,
-        cert(k_cert[2]),
-    ));
-    variants.push(solve_variant(
-        "cert/admm_pr".into(),
-        &m.admm_pr,
-        inst,
-        cert(k_cert[3]),
-    ));
-    variants.push(mhe_variant("mhe/pg", est_pg));
-    variants.push(mhe_variant("mhe/fista", est_fista));
-    variants.push(mhe_variant("mhe/admm", est_admm));
-    variants.push(mhe_variant("mhe/admm_pr", est_admm_pr));
+    for r in &rows {
+        variants.push(step_variant(
+            format!("step/{}", r.name),
+            &r.map,
+            &inst[0],
+            step_batch,
+        ));
+    }
+    for r in rows.iter().filter(|r| r.per_instance) {
+        variants.push(solve_variant(
+            format!("to_eps/{}", r.name),
+            &r.map,
+            inst,
+            ks[r.name].clone(),
+        ));
+    }
+    for r in rows.iter().filter(|r| r.per_instance) {
+        variants.push(solve_variant(
+            format!("cert/{}", r.name),
+            &r.map,
+            inst,
+            vec![r.k_cert; inst.len()],
+        ));
+    }
+    for (name, est, b) in estimators {
+        variants.push(mhe_variant(name, est, b));
+    }
     {
         let inst = inst.as_slice();
         variants.push(Variant {
@@ -385,7 +417,10 @@ fn run_preset(qps: &CaseStudyQps) -> Result<Value, String> {
             }),
         });
     }
-    let times = interleave(&mut variants, ROUNDS);
+    let rounds = rounds(n);
+    let started = std::time::Instant::now();
+    let times = interleave(&mut variants, rounds);
+    let elapsed_s = started.elapsed().as_secs_f64();
     let timing: BTreeMap<String, Value> = variants
         .iter()
         .zip(&times)
@@ -402,6 +437,26 @@ fn run_preset(qps: &CaseStudyQps) -> Result<Value, String> {
         json!({ "min": s[0], "median": s[s.len() / 2], "max": s[s.len() - 1],
                 "mean": s.iter().sum::<usize>() as f64 / s.len() as f64 })
     };
+    let methods: serde_json::Map<String, Value> = rows
+        .iter()
+        .map(|r| {
+            let work = r.k_cert as f64 * n2;
+            (
+                r.name.to_string(),
+                json!({
+                    "method": r.method.name(),
+                    "k_cert": r.k_cert,
+                    "k_min_theorem1": r.k_min,
+                    "k_to_eps": ks.get(r.name).map(|k| stats(k)),
+                    "worst_rel_error_at_k_cert": worst_at_cert.get(r.name),
+                    "per_instance_rows": r.per_instance,
+                    "mhe_row": r.mhe,
+                    "work_k_n2": work,
+                    "mhe_batch": r.mhe.then(|| batch(MHE_BATCH_WORK, work)),
+                }),
+            )
+        })
+        .collect();
     Ok(json!({
         "preset": qps.preset.name,
         "scenario": qps.preset.file,
@@ -412,11 +467,10 @@ fn run_preset(qps: &CaseStudyQps) -> Result<Value, String> {
         "instances": inst.len(),
         "t_range": [inst[0].t, inst[inst.len() - 1].t],
         "fingerprint": fingerprint(inst),
-        "k_cert": { "pg": k_cert[0], "fista": k_cert[1], "admm": k_cert[2], "admm_pr": k_cert[3] },
-        "worst_rel_error_at_k_cert": { "pg": worst_at_cert[0], "fista": worst_at_cert[1],
-                                       "admm": worst_at_cert[2], "admm_pr": worst_at_cert[3] },
-        "k_to_eps": { "pg": stats(&ks[0]), "fista": stats(&ks[1]), "admm": stats(&ks[2]),
-                      "admm_pr": stats(&ks[3]) },
+        "rounds": rounds,
+        "step_batch": step_batch,
+        "timing_s": elapsed_s,
+        "methods": methods,
         "clarabel": { "ipm_iterations": stats(&ipm_iters), "worst_rel_error": ipm_err },
         "timing": timing,
     }))
@@ -436,8 +490,11 @@ fn print_table(qps: &CaseStudyQps, v: &Value) {
     let t = |name: &str| v["timing"][name]["min_ns"].as_f64();
     let name = qps.preset.name;
     println!(
-        "### Preset `{name}` ({}): M = {}, n = {}, n_θ = {}, κ = {:.1}, {} instances (t = {}…{})\n",
+        "### Preset `{name}` ({}{}): M = {}, n = {}, n_θ = {}, κ = {:.3e}, {} instances (t = {}…{}), {} rounds in {:.0} s\n",
         qps.preset.file,
+        qps.preset
+            .horizon
+            .map_or(String::new(), |m| format!(" with M = {m}")),
         v["horizon"],
         v["n"],
         v["n_theta"],
@@ -445,24 +502,43 @@ fn print_table(qps: &CaseStudyQps, v: &Value) {
         v["instances"],
         v["t_range"][0],
         v["t_range"][1],
+        v["rounds"],
+        v["timing_s"].as_f64().unwrap_or(f64::NAN),
     );
     let r = |a: Option<f64>, b: Option<f64>| match (a, b) {
         (Some(a), Some(b)) => format!("{:.2}×", a / b),
         _ => "—".into(),
     };
-    println!("Per iteration (fastest batch of {ROUNDS}):\n");
-    println!("| variant | time | ratio to `ref` |");
-    println!("| --- | ---: | ---: |");
-    for row in [
-        "ref",
-        "matvec_padded",
-        "step/pg",
-        "step/fista",
-        "step/admm",
-        "step/admm_pr",
-    ] {
+    let base_row = if t("ref").is_some() {
+        "ref"
+    } else {
+        "matvec_padded"
+    };
+    println!(
+        "Per iteration (`run_steps` of {} steps, fastest batch of {}):\n",
+        v["step_batch"], v["rounds"]
+    );
+    println!("| variant | time | ratio to `{base_row}` | Jacobi-scaled / plain |");
+    println!("| --- | ---: | ---: | ---: |");
+    for row in ["ref", "matvec_padded"] {
         if let Some(x) = t(row) {
-            println!("| `{row}` | {} | {} |", fmt_ns(x), r(Some(x), t("ref")));
+            println!(
+                "| `{row}` | {} | {} | |",
+                fmt_ns(x),
+                r(Some(x), t(base_row))
+            );
+        }
+    }
+    for (m, _) in METHODS {
+        let row = format!("step/{m}");
+        if let Some(x) = t(&row) {
+            let plain = m.strip_suffix("_jacobi").map(|p| t(&format!("step/{p}")));
+            println!(
+                "| `{row}` | {} | {} | {} |",
+                fmt_ns(x),
+                r(Some(x), t(base_row)),
+                plain.map_or(String::new(), |p| r(Some(x), p)),
+            );
         }
     }
     // The exact solve a user would otherwise pick: DAQP when it ran, else Clarabel.
@@ -474,25 +550,49 @@ fn print_table(qps: &CaseStudyQps, v: &Value) {
         "\nPer instance, warm start z⁰_t, accuracy ‖z − z*‖ ≤ 1e-6‖z⁰ − z*‖ (ratios to {base_name}):\n"
     );
     println!(
-        "| method | K to 1e-6 (median / max) | time to 1e-6 | certificate K | QP at certificate K | MHE step at certificate K | MHE step / {base_name} |"
+        "| method | K to 1e-6 (median / max) | time to 1e-6 | certificate K | QP at certificate K | MHE step at certificate K | MHE step / {base_name} | Theorem 1 K_min | MHE step at K_min | / {base_name} |"
     );
-    println!("| --- | ---: | ---: | ---: | ---: | ---: | ---: |");
-    for m in METHODS {
-        let k = &v["k_to_eps"][m];
+    println!("| --- | ---: | ---: | ---: | ---: | ---: | ---: | ---: | ---: | ---: |");
+    let mut skipped = Vec::new();
+    for (m, _) in METHODS {
+        let d = &v["methods"][m];
+        let k = &d["k_to_eps"];
+        let kk = if k.is_null() {
+            "—".to_string()
+        } else {
+            format!("{} / {}", k["median"], k["max"])
+        };
+        let mhe = t(&format!("mhe/{m}"));
+        // At K_min: its own row, or the certificate-K row when the two K agree.
+        let kmin = d["k_min_theorem1"].as_u64();
+        let mhe_kmin =
+            t(&format!("mhe_kmin/{m}")).or_else(|| mhe.filter(|_| kmin == d["k_cert"].as_u64()));
         println!(
-            "| {m} | {} / {} | {} | {} | {} | {} | {} |",
-            k["median"],
-            k["max"],
+            "| {m} | {kk} | {} | {} | {} | {} | {} | {} | {} | {} |",
             t(&format!("to_eps/{m}")).map_or("—".into(), fmt_ns),
-            v["k_cert"][m],
+            d["k_cert"],
             t(&format!("cert/{m}")).map_or("—".into(), fmt_ns),
-            t(&format!("mhe/{m}")).map_or("—".into(), fmt_ns),
-            r(t(&format!("mhe/{m}")), base),
+            mhe.map_or("—".into(), fmt_ns),
+            r(mhe, base),
+            kmin.map_or("void".into(), |k| k.to_string()),
+            mhe_kmin.map_or("—".into(), fmt_ns),
+            r(mhe_kmin, base),
         );
+        if d["per_instance_rows"] == false {
+            skipped.push(format!(
+                "{m} (K·n² = {:.1e}{})",
+                d["work_k_n2"].as_f64().unwrap_or(f64::NAN),
+                if d["mhe_row"] == false {
+                    ": no row timed"
+                } else {
+                    ": MHE step only"
+                }
+            ));
+        }
     }
     let c = &v["clarabel"];
     println!(
-        "| Clarabel (IPM, tol 1e-8) | {} / {} IPM it. | {} | — | — | — | {} |",
+        "| Clarabel (IPM, tol 1e-8) | {} / {} IPM it. | {} | — | — | — | {} | | | |",
         c["ipm_iterations"]["median"],
         c["ipm_iterations"]["max"],
         t("clarabel").map_or("—".into(), fmt_ns),
@@ -501,12 +601,17 @@ fn print_table(qps: &CaseStudyQps, v: &Value) {
     for (key, label) in [
         ("daqp", "DAQP (cold)"),
         ("osqp", "OSQP (warm)"),
+        ("osqp_sparse", "OSQP (warm, uncondensed)"),
         ("proxqp", "ProxQP (warm)"),
     ] {
         let p = &peers[key];
         if let Some(s) = p["solve_ns"]["min"].as_f64() {
+            let label = match p["tolerance"].as_f64() {
+                Some(tol) => format!("{label}, tol {tol:.0e}"),
+                None => label.to_string(),
+            };
             println!(
-                "| {label} | {} / {} it. | {} (error {:.0e}) | — | — | — | {} |",
+                "| {label} | {} / {} it. | {} (error {:.0e}) | — | — | — | {} | | | |",
                 p["iterations"]["median"],
                 p["iterations"]["max"],
                 fmt_ns(s),
@@ -515,35 +620,50 @@ fn print_table(qps: &CaseStudyQps, v: &Value) {
             );
         }
     }
+    if !skipped.is_empty() {
+        println!(
+            "\nLeft out of the per-instance rows (K·n² > {INSTANCE_WORK:.0e}; MHE step only if ≤ {MHE_WORK:.0e}): {}.",
+            skipped.join(", ")
+        );
+    }
     if let Some(d) = daqp {
-        let best = METHODS
-            .into_iter()
-            .filter_map(|m| Some((m, t(&format!("mhe/{m}"))?)))
-            .min_by(|a, b| a.1.total_cmp(&b.1));
-        if let Some((m, x)) = best {
-            println!(
-                "\nTarget (one MHE step of the fastest method at its certificate K ≤ DAQP's exact solve): {} — {m} {} vs DAQP {} ({:.2}×).",
-                if x <= d { "met" } else { "missed" },
-                fmt_ns(x),
-                fmt_ns(d),
-                x / d
-            );
+        for (prefix, what) in [
+            ("mhe", "its certificate K for 1e-6"),
+            ("mhe_kmin", "its Theorem 1 K_min"),
+        ] {
+            let best = METHODS
+                .into_iter()
+                .filter_map(|(m, _)| {
+                    let own = t(&format!("{prefix}/{m}"));
+                    // K_min equal to the certificate K: the `mhe` row is the K_min row.
+                    let same = (prefix == "mhe_kmin"
+                        && v["methods"][m]["k_min_theorem1"] == v["methods"][m]["k_cert"])
+                        .then(|| t(&format!("mhe/{m}")))
+                        .flatten();
+                    Some((m, own.or(same)?))
+                })
+                .min_by(|a, b| a.1.total_cmp(&b.1));
+            if let Some((m, x)) = best {
+                println!(
+                    "\nTarget (one MHE step of the fastest method at {what} ≤ DAQP's exact solve): {} — {m} {} vs DAQP {} ({:.2}×).",
+                    if x <= d { "met" } else { "missed" },
+                    fmt_ns(x),
+                    fmt_ns(d),
+                    x / d
+                );
+            }
         }
     }
+    let worst: Vec<String> = METHODS
+        .into_iter()
+        .filter_map(|(m, _)| {
+            let w = v["methods"][m]["worst_rel_error_at_k_cert"].as_f64()?;
+            Some(format!("{m} {w:.1e}"))
+        })
+        .collect();
     println!(
-        "\nWorst ‖zᴷ − z*‖/‖z⁰ − z*‖ over the instances at the certificate K: PG {:.1e}, FISTA {:.1e}, ADMM {:.1e}, ADMM α = 2 {:.1e}; Clarabel {:.1e}.\n",
-        v["worst_rel_error_at_k_cert"]["pg"]
-            .as_f64()
-            .unwrap_or(f64::NAN),
-        v["worst_rel_error_at_k_cert"]["fista"]
-            .as_f64()
-            .unwrap_or(f64::NAN),
-        v["worst_rel_error_at_k_cert"]["admm"]
-            .as_f64()
-            .unwrap_or(f64::NAN),
-        v["worst_rel_error_at_k_cert"]["admm_pr"]
-            .as_f64()
-            .unwrap_or(f64::NAN),
+        "\nWorst ‖zᴷ − z*‖/‖z⁰ − z*‖ over the instances at the certificate K: {}; Clarabel {:.1e}.\n",
+        worst.join(", "),
         c["worst_rel_error"].as_f64().unwrap_or(f64::NAN),
     );
 }

@@ -2,12 +2,15 @@
 //! export: window-M problems ℙ_t along a simulated closed-loop trajectory.
 //!
 //! A [`Preset`] names a scenario file (`scenarios/case-study.toml`, the paper's M = 5, or
-//! `scenarios/case-study-certified.toml`, M = 9). [`CaseStudyQps::load`]
+//! `scenarios/case-study-certified.toml`, M = 9) and what it changes of it ([`M50`]: the
+//! certified file with M = 50, T = 80). [`CaseStudyQps::load`]
 //!
 //! 1. runs the scenario's closed loop ([`closed_loop::ResolvedScenario::build_loop`] with the file's
-//!    solver, K, noise seed and T, exact MPC) and keeps its trace (u_t, y_t);
-//! 2. replays (u_t, y_t) into an [`MheEstimator`] with V-FISTA at the K its certificate
-//!    needs for relative accuracy [`EPS`] (P from LMI (2) via [`closed_loop::ResolvedScenario`]),
+//!    solver, K, noise seed and T, exact MPC — or the preset's loop method at the K its
+//!    certificate needs for [`EPS`]) and keeps its trace (u_t, y_t);
+//! 2. replays (u_t, y_t) into an [`MheEstimator`] with the preset's replay map (V-FISTA,
+//!    plain or Jacobi-scaled) at the K its certificate needs for relative accuracy [`EPS`]
+//!    (P from LMI (2) via [`closed_loop::ResolvedScenario`]),
 //!    and at every t with a full window (t ≥ M) records θ_t, the linear term q_t, the
 //!    warm start z⁰_t the estimator starts from, and z*_t from the polished Clarabel
 //!    reference ([`ReferenceSolver`]).
@@ -21,33 +24,71 @@ use closed_loop::scenario::{LoopOptions, ResolvedScenario, Scenario};
 use closed_loop::{ClosedLoopError, Trace};
 use lti_model::ModelError;
 use mhe_core::{MheConfig, MheError, MheEstimator, MheProblem, MheSets};
-use qp_iter::fista::Fista;
+use qp_iter::method::{Method, Scaling};
 use qp_iter::reference::{ReferenceSettings, ReferenceSolver};
 use qp_iter::{IterationMap, ParametricQp, QpError};
 
 /// Relative accuracy of the MHE benchmarks: ‖z − z*‖ ≤ EPS‖z⁰ − z*‖.
 pub const EPS: f64 = 1e-6;
 
-/// A case-study scenario file and its short name.
-#[derive(Debug, Clone, Copy, PartialEq, Eq)]
+/// A case-study scenario file, its short name and what the preset changes of it.
+#[derive(Debug, Clone, Copy, PartialEq)]
 pub struct Preset {
-    /// Short name used in tables and file names (`"paper"`, `"certified"`).
+    /// Short name used in tables and file names (`"paper"`, `"certified"`, `"m50"`).
     pub name: &'static str,
     /// File name under `scenarios/`.
     pub file: &'static str,
+    /// `mhe.horizon` replaced by this M (`None`: the file's).
+    pub horizon: Option<usize>,
+    /// `simulation.steps` replaced by this T (`None`: the file's).
+    pub steps: Option<usize>,
+    /// The closed loop's MHE runs this method at the K its certificate needs for [`EPS`]
+    /// on the window-M QP (`None`: the file's method and K).
+    pub loop_method: Option<Method>,
+    /// The map whose estimator is replayed to record the warm starts z⁰_t, at the K its
+    /// certificate needs for [`EPS`].
+    pub replay: Method,
 }
 
-/// The paper's settings (M = 5) and the certified preset (M = 9, η = 0.8).
+/// V-FISTA on the Jacobi-scaled problem (`"fista-jacobi"`).
+const FISTA_JACOBI: Method = Method::FISTA.with_scaling(Scaling::Jacobi);
+
+/// The paper's settings (M = 5) and the certified preset (M = 9, η = 0.8), as the files
+/// have them (closed loop: PG at the file's K; replay: V-FISTA).
 pub const PRESETS: [Preset; 2] = [
     Preset {
         name: "paper",
         file: "case-study.toml",
+        horizon: None,
+        steps: None,
+        loop_method: None,
+        replay: Method::FISTA,
     },
     Preset {
         name: "certified",
         file: "case-study-certified.toml",
+        horizon: None,
+        steps: None,
+        loop_method: None,
+        replay: Method::FISTA,
     },
 ];
+
+/// The certified preset at M = 50 (η = 0.8: κ(H) ≈ 4.5·10⁵, the scale issue 12 is about),
+/// T = 80 so that 31 instances have a full window. The closed loop runs ADMM α = 2 on the
+/// Jacobi-scaled problem (`"admm-pr-jacobi"`) and the replay V-FISTA on it: the plain maps'
+/// certificates need 10⁴–10⁶ iterations here.
+pub const M50: Preset = Preset {
+    name: "m50",
+    file: "case-study-certified.toml",
+    horizon: Some(50),
+    steps: Some(80),
+    loop_method: Some(Method::ADMM_PR.with_scaling(Scaling::Jacobi)),
+    replay: FISTA_JACOBI,
+};
+
+/// The presets of the `mhe` bench and of `export_qps`: [`PRESETS`] and [`M50`].
+pub const MHE_PRESETS: [Preset; 3] = [PRESETS[0], PRESETS[1], M50];
 
 /// Why the case-study fixtures could not be built.
 #[derive(Debug, thiserror::Error)]
@@ -142,16 +183,22 @@ impl CaseStudyQps {
     pub fn load(preset: Preset) -> Result<Self, FixtureError> {
         let path = scenario_path(preset.file);
         let shown = path.display().to_string();
-        let scenario = Scenario::from_file(&path).map_err(|source| FixtureError::Scenario {
+        let mut scenario = Scenario::from_file(&path).map_err(|source| FixtureError::Scenario {
             path: shown.clone(),
             source,
         })?;
-        if scenario.mhe.is_none() {
-            return Err(FixtureError::NoMhe { path: shown });
+        match scenario.mhe.as_mut() {
+            None => return Err(FixtureError::NoMhe { path: shown }),
+            Some(mhe) => {
+                if let Some(m) = preset.horizon {
+                    mhe.horizon = m;
+                }
+            }
+        }
+        if let Some(t) = preset.steps {
+            scenario.simulation.steps = t;
         }
         let resolved = scenario.resolve()?;
-        let options = LoopOptions::from_scenario(resolved.scenario())?;
-        let trace = resolved.build_loop(&options)?.run()?.clone();
         let config = resolved.mhe_config()?.clone();
         let sets = resolved.mhe_sets().clone();
         let plant = &resolved.scenario().plant;
@@ -161,6 +208,12 @@ impl CaseStudyQps {
             Some(w) => w.qp().clone(),
             None => return Err(FixtureError::ShortRun { steps: 0, m }),
         };
+        let mut options = LoopOptions::from_scenario(resolved.scenario())?;
+        if let Some(method) = preset.loop_method {
+            options.method = method;
+            options.iterations = certified_k(&method.build(qp.clone())?)?;
+        }
+        let trace = resolved.build_loop(&options)?.run()?.clone();
         let mut qps = Self {
             preset,
             resolved,
@@ -177,9 +230,8 @@ impl CaseStudyQps {
                 m,
             });
         }
-        let fista = Fista::new(qp.clone());
-        let k = certified_k(&fista)?;
-        let mut est = qps.estimator(k, |qp| Ok(Fista::new(qp)))?;
+        let k = certified_k(&preset.replay.build(qp.clone())?)?;
+        let mut est = qps.estimator(k, |qp| preset.replay.build(qp))?;
         let mut reference = ReferenceSolver::new(&qp, ReferenceSettings::default())?;
         for t in 0..=qps.trace.len() {
             est.estimate()?;
@@ -313,6 +365,20 @@ mod tests {
             let scale = 1.0 + inst.q.iter().fold(0.0f64, |a, v| a.max(v.abs()));
             assert!(natural_residual(&qps.qp, &inst.q, &inst.z_star) <= 1e-9 * scale);
             assert!(natural_residual(&qps.qp, &inst.q, &inst.z0) > 1e-6);
+        }
+    }
+
+    /// The M = 50 preset: the certified file's plant at M = 50, T = 80, every instance a
+    /// full window with an optimal z* (the peers' and our accuracy yardstick).
+    #[test]
+    fn m50_preset_has_full_windows_with_optimal_references() {
+        let qps = CaseStudyQps::load(M50).unwrap();
+        let (nx, _, _, nw) = qps.trace.dims();
+        assert_eq!((qps.horizon(), qps.qp.n()), (50, nx + 50 * nw));
+        assert_eq!((qps.trace.len(), qps.instances.len()), (80, 31));
+        for inst in &qps.instances {
+            let scale = 1.0 + inst.q.iter().fold(0.0f64, |a, v| a.max(v.abs()));
+            assert!(natural_residual(&qps.qp, &inst.q, &inst.z_star) <= 1e-9 * scale);
         }
     }
 }

@@ -12,6 +12,7 @@
 //! - [`interleave`]: round-robin timing of several variants (fastest and median batch).
 
 pub mod case_study;
+pub mod uncondensed;
 
 use faer::Mat;
 use lti_model::BoxSet;

@@ -366,7 +366,7 @@ pub fn certify(req: &CertifyRequest) -> Result<Outcome> {
         tolerance_rule: TOLERANCE_RULE.to_string(),
         controller_lipschitz: match &scenario.mpc {
             Some(m) => Some(
-                mpc_core::CondensedMpc::new(sys, m.config(&scenario.sets))
+                m.build(sys, &scenario.sets)
                     .and_then(|mpc| {
                         mpc_core::lipschitz_report_for(
                             &mpc,

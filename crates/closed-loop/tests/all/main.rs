@@ -3,6 +3,7 @@
 
 mod analysis;
 mod certificate;
+mod findings;
 mod gamma13;
 mod linear;
 mod plants;

@@ -65,7 +65,9 @@ fn run_checked(args: &[&str], file: &Path, input: &[u8]) {
         "xtask {args:?} ended with {status} on:\n{:.2000}\n--- stderr:\n{stderr}",
         String::from_utf8_lossy(input)
     );
-    if code != Some(0) {
+    // A non-zero exit without a message is a verdict (`certify` prints FAIL on stdout
+    // when LMI (2) has no solution), not an input error.
+    if code != Some(0) && !stderr.trim().is_empty() {
         let name = file.display().to_string();
         let file_name = file
             .file_name()

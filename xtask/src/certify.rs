@@ -340,7 +340,7 @@ pub fn certify(req: &CertifyRequest) -> Result<Outcome> {
     // constraints) is reported as skipped with the reason: the LMI check does not need it.
     let (controller_lipschitz, controller_lipschitz_skipped) = match &scenario.mpc {
         Some(m) => {
-            match mpc_core::CondensedMpc::new(sys, m.config(&scenario.sets)).and_then(|mpc| {
+            match m.build(sys, &scenario.sets).and_then(|mpc| {
                 mpc_core::lipschitz_report_for(
                     &mpc,
                     LPI_SAMPLE_PAIRS,

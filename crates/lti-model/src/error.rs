@@ -231,20 +231,22 @@ impl std::fmt::Display for LmiFailure {
                 if modulus < 1.0 {
                     write!(
                         f,
-                        "The pair is detectable: any η > {:.6} (= |λ|²) may be feasible.",
+                        "The pair is detectable: any η > {:.6} (= |λ|²) may be feasible (scenario \
+                         key `mhe.eta`).",
                         modulus * modulus
                     )
                 } else {
                     write!(
                         f,
-                        "The pair is not detectable, so no η ∈ [0, 1) works: change C (add a sensor)."
+                        "The pair is not detectable, so no η ∈ [0, 1) works: change C (scenario key \
+                         `plant.c`: add a sensor that sees the mode)."
                     )
                 }
             }
             Self::ZeroEtaNeedsDeadbeat { gain } => write!(
                 f,
                 "η = 0 needs A x = 0 for every x with C x = 0 (the output must fix the next state), \
-                 but ‖A on ker C‖ = {gain:.6}: use η > 0"
+                 but ‖A on ker C‖ = {gain:.6}: use η > 0 (scenario key `mhe.eta`)"
             ),
             Self::SingularExtremalSolution {
                 min_eigenvalue,
@@ -256,8 +258,8 @@ impl std::fmt::Display for LmiFailure {
                 "the extremal solution of the Riccati equation of LMI (2) is numerically singular \
                  (λ_min(P)/λ_max(P) = {:.3e} ≤ {min_ratio:.0e}; λ_min = {min_eigenvalue:.3e}, \
                  λ_max = {max_eigenvalue:.3e}) although no unobservable mode is slower than √η: \
-                 η = {eta} is at the numerical feasibility boundary; try a larger η \
-                 (`ioss::min_feasible_eta`), or supply P (scenario key `mhe.p`, \
+                 η = {eta} is at the numerical feasibility boundary; try a larger η (scenario \
+                 key `mhe.eta`; `ioss::min_feasible_eta` finds the boundary), or supply P (scenario key `mhe.p`, \
                  `cargo xtask certify --p-file`)",
                 ratio(min_eigenvalue, max_eigenvalue)
             ),

@@ -436,7 +436,7 @@ pub(crate) fn validate_problem(
             what: "a bounded state set 𝒳: x̂_{i|t} ∈ 𝒳 for i > t − M_t is a general polytopic constraint on the \
                    condensed variables"
                 .into(),
-            hint: "use 𝒳 = ℝ^{n_x} for the MHE (the case study has x unconstrained), or solve with a method that \
+            hint: "use 𝒳 = ℝ^{n_x} for the MHE (omit scenario key `sets.state`: the case study has x unconstrained), or solve with a method that \
                    supports general constraints"
                 .into(),
         });
@@ -445,7 +445,7 @@ pub(crate) fn validate_problem(
         return Err(MheError::Unsupported {
             what: "a bounded output set 𝒴: ŷ_{i|t} ∈ 𝒴 is a general polytopic constraint on the condensed variables"
                 .into(),
-            hint: "use 𝒴 = ℝ^{n_y} for the MHE (the case study has y unconstrained)".into(),
+            hint: "use 𝒴 = ℝ^{n_y} for the MHE (omit scenario key `sets.output`: the case study has y unconstrained)".into(),
         });
     }
     Ok(())

@@ -21,8 +21,9 @@ use lti_model::spec::format::{
 use qp_iter::Method;
 use serde::{Deserialize, Serialize};
 
-use crate::error::Result;
+use crate::error::{MheError, Result};
 use crate::estimator::MheConfig;
+use crate::problem::STRONG_CONVEXITY_TOL;
 
 /// Largest K accepted (`mhe.iterations`).
 pub const MAX_ITERATIONS: usize = 10_000_000;
@@ -112,6 +113,8 @@ impl MheSettings {
                 ),
             ));
         }
+        // Before the size: a horizon the conditioning rules out is refused for that reason.
+        check_window_conditioning(horizon, eta, sys)?;
         // One condensed QP per window length m = 0..M: n_m = n_x + m·n_w variables,
         // θ_m = n_x + m(n_u + n_y) parameters; H is n_m², F is n_m × θ_m.
         let (nx, nw) = (sys.nx() as f64, sys.nw() as f64);
@@ -195,5 +198,161 @@ impl MheSettings {
             warm_start: self.warm_start,
             exact_solve,
         })
+    }
+}
+
+/// η^(M−1) below which a window's condition number is kept by the horizon advice: 1e-8,
+/// leaving four of the twelve digits of [`STRONG_CONVEXITY_TOL`] to the weights.
+const DECAY_FLOOR: f64 = 1e-8;
+
+/// The longest M with η^(M−1) ≥ [`DECAY_FLOOR`] (≥ 1), for advice.
+fn longest_horizon(eta: f64) -> usize {
+    if !(eta > 0.0) {
+        return 1;
+    }
+    let m = 1.0 + (DECAY_FLOOR.ln() / eta.ln()).floor();
+    if m.is_finite() && m >= 1.0 {
+        m.min(1e9) as usize
+    } else {
+        1
+    }
+}
+
+/// The smallest η with η^(M−1) ≥ [`DECAY_FLOOR`], for advice.
+fn smallest_eta(horizon: usize) -> f64 {
+    if horizon <= 1 {
+        return 0.0;
+    }
+    DECAY_FLOOR.powf(1.0 / (horizon - 1) as f64)
+}
+
+/// Refuses an (M, η) whose longest window cannot be strongly convex in f64, before any
+/// window is built. Stage j of the window of length M is weighted η^(M−1−j), and ŵ²_j
+/// (j's output noise) enters only stage j, so with n_w2 ≥ 1 the Rayleigh quotients of
+/// H_c along ŵ²_0 and ŵ²_{M−1} give λ_min/λ_max ≤ η^(M−1): at or below
+/// [`STRONG_CONVEXITY_TOL`] the window is refused whatever the weights.
+fn check_window_conditioning(horizon: usize, eta: f64, sys: &LtiSystem) -> lti_model::Result<()> {
+    // η = 0 is legal for LMI (2) alone (`xtask certify`); building the MHE names it
+    // ([`MheSettings::explain`]).
+    if horizon < 2 || sys.nw2() == 0 || eta == 0.0 {
+        return Ok(());
+    }
+    let decay = eta.powi(i32::try_from(horizon - 1).unwrap_or(i32::MAX));
+    if decay > STRONG_CONVEXITY_TOL {
+        return Ok(());
+    }
+    let condition = if decay > 0.0 {
+        format!("at least 1/η^(M−1) = {:.3e}", 1.0 / decay)
+    } else {
+        "beyond any f64 (η^(M−1) underflows to 0)".to_string()
+    };
+    Err(key_error(
+        "mhe.horizon",
+        format!(
+            "is {horizon} with `mhe.eta` = {eta}: the window's stage weights decay to \
+             η^(M−1) = {decay:.3e}, so the condition number of the condensed Hessian H_c is \
+             {condition}, beyond 1/{STRONG_CONVEXITY_TOL:e} where f64 cannot resolve it (the \
+             MHE problem is not strongly convex numerically); {} (docs/limits.md)",
+            horizon_advice(horizon, eta)
+        ),
+    ))
+}
+
+/// "use `mhe.horizon` ≤ M' at this η, or `mhe.eta` ≥ η' for this M" (the second part
+/// only when some η < 1 keeps η^(M−1) ≥ [`DECAY_FLOOR`]).
+fn horizon_advice(horizon: usize, eta: f64) -> String {
+    let shorter = format!("use `mhe.horizon` ≤ {} at this η", longest_horizon(eta));
+    let eta_min = smallest_eta(horizon);
+    if eta_min < 0.9999 {
+        format!("{shorter}, or `mhe.eta` ≥ {eta_min:.4} for this M")
+    } else {
+        format!("{shorter} (no η < 1 makes M = {horizon} well conditioned)")
+    }
+}
+
+impl MheSettings {
+    /// Says which scenario keys cause a failure to build the MHE from these settings: a
+    /// window that is not strongly convex (`MheError::NotStronglyConvex`) or whose H_c is
+    /// not finite is re-labelled as the key at fault — η = 0 (`mhe.eta`), an unstable A
+    /// amplified over the window (`plant.a`, `mhe.horizon`), the decay η^(m−1)
+    /// (`mhe.horizon`, `mhe.eta`), or else the weights (`mhe.q`, `mhe.r`, `mhe.p`, with
+    /// `plant.c`, `plant.f`) — with the condition number and the fix. Other errors pass.
+    pub fn explain(&self, sys: &LtiSystem, e: MheError) -> MheError {
+        let (window, lo, hi) = match e {
+            MheError::NotStronglyConvex {
+                window,
+                min_eigenvalue,
+                max_eigenvalue,
+            } => (window, min_eigenvalue, max_eigenvalue),
+            MheError::Model(lti_model::ModelError::Numerical { ref routine, .. })
+                if routine.contains("H_c") =>
+            {
+                (self.horizon, f64::NAN, f64::NAN)
+            }
+            other => return other,
+        };
+        let cond = if lo > 0.0 && hi.is_finite() {
+            format!("λ_max/λ_min = {:.3e}", hi / lo)
+        } else {
+            format!("λ_min = {lo:.3e}, λ_max = {hi:.3e}")
+        };
+        let limit = format!("beyond 1/{STRONG_CONVEXITY_TOL:e}");
+        let m = window;
+        let eta = self.eta;
+        if eta == 0.0 && m >= 1 {
+            return key_error(
+                "mhe.eta",
+                format!(
+                    "is 0: the prior gets weight η^m = 0, so the MHE problem of window length \
+                     {m} is not strongly convex (H_c: {cond}); use η > 0 (e.g. 0.8)"
+                ),
+            )
+            .into();
+        }
+        let rho = lti_model::system::spectral_radius(sys.a()).unwrap_or(f64::NAN);
+        let growth = rho.powi(i32::try_from(m).unwrap_or(i32::MAX));
+        let decay = eta.powi(i32::try_from(m.saturating_sub(1)).unwrap_or(i32::MAX));
+        if rho > 1.0 && !(growth < 1e3) {
+            let shorter = if rho.is_finite() {
+                ((3.0 / rho.log10()).floor() as usize).max(1)
+            } else {
+                1
+            };
+            return key_error(
+                "plant.a",
+                format!(
+                    "is unstable (spectral radius ρ(A) = {rho:.4e}): over a window of m = {m} \
+                     steps (`mhe.horizon` = {}) the predicted states grow like ρ^m = \
+                     {growth:.3e}, so the condensed MHE Hessian H_c is numerically singular \
+                     ({cond}, {limit}); use `mhe.horizon` ≤ {shorter} (ρ^M ≤ 1e3), or rescale \
+                     or pre-stabilise the plant",
+                    self.horizon
+                ),
+            )
+            .into();
+        }
+        if decay < DECAY_FLOOR {
+            return key_error(
+                "mhe.horizon",
+                format!(
+                    "is {} with `mhe.eta` = {eta}: the stage weights of the window of length \
+                     {m} decay to η^(m−1) = {decay:.3e}, so its condensed Hessian H_c is \
+                     numerically singular ({cond}, {limit}); {}",
+                    self.horizon,
+                    horizon_advice(self.horizon, eta)
+                ),
+            )
+            .into();
+        }
+        key_error(
+            "mhe.q",
+            format!(
+                "with `mhe.r`, `mhe.p` (or the P of LMI (2)) and `plant.c`, `plant.f`, makes the \
+                 MHE problem of window length {m} not strongly convex ({cond}, {limit}): the \
+                 weights are too unequal in size, or x̂ is not determined by the window; \
+                 rescale the weights towards the same magnitude"
+            ),
+        )
+        .into()
     }
 }

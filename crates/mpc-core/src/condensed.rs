@@ -172,7 +172,7 @@ impl CondensedMpc {
                 return Err(MpcError::Unsupported {
                     feature: "state constraints x_k ∈ 𝒳 in the MPC",
                     reason: "qp-iter solves QPs over a box in the decision variables only (no general constraints Gz ∈ 𝒞 yet); \
-                             omit the state set or give it infinite bounds",
+                             omit the state set (scenario key `sets.state`) or give it infinite bounds",
                 });
             }
         }

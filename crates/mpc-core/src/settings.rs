@@ -12,11 +12,14 @@
 
 use faer::Mat;
 use lti_model::LtiSystem;
-use lti_model::spec::format::{at_least_one, check_dense_bytes, required, rows_of, weight};
+use lti_model::spec::format::{
+    at_least_one, check_dense_bytes, key_error, required, rows_of, weight,
+};
 use lti_model::spec::{MatrixSpec, ScenarioSets};
 use serde::{Deserialize, Serialize};
 
-use crate::condensed::{MpcConfig, Terminal};
+use crate::condensed::{CondensedMpc, MpcConfig, Terminal};
+use crate::error::MpcError;
 
 /// Terminal cost of the MPC (`mpc.terminal`).
 #[derive(Debug, Clone, Copy, PartialEq, Eq, Serialize, Deserialize)]
@@ -60,6 +63,16 @@ pub struct RawMpc {
 impl MpcSettings {
     /// Validates the `[mpc]` table against the plant; errors name the key (`mpc.r`).
     pub fn from_raw(raw: &RawMpc, sys: &LtiSystem) -> lti_model::Result<Self> {
+        if sys.nu() == 0 {
+            return Err(key_error(
+                "plant.b",
+                format!(
+                    "has 0 columns (n_u = 0), but the MPC of [mpc] computes inputs; give B as \
+                     {} rows of n_u ≥ 1 entries, or remove [mpc]",
+                    sys.nx()
+                ),
+            ));
+        }
         let horizon = required("mpc.horizon", raw.horizon, "horizon = 10")?;
         let horizon = at_least_one("mpc.horizon", horizon, "the prediction horizon N")?;
         // Condensed: H (N n_u)², the predictions (N n_x) × (N n_u), F (N n_u) × n_x.
@@ -113,6 +126,98 @@ impl MpcSettings {
             terminal,
             input_set: sets.input.clone(),
             state_set: Some(sets.state.clone()),
+        }
+    }
+}
+
+impl MpcSettings {
+    /// The condensed MPC of these settings on `sys` ([`CondensedMpc::new`] with
+    /// [`MpcSettings::config`]), a failure named by its scenario key
+    /// ([`MpcSettings::explain`]).
+    pub fn build(&self, sys: &LtiSystem, sets: &ScenarioSets) -> crate::Result<CondensedMpc> {
+        CondensedMpc::new(sys, self.config(sets)).map_err(|e| self.explain(sys, e))
+    }
+
+    /// Says which scenario keys cause a numerical failure of the MPC built from these
+    /// settings: the DARE of the terminal cost (no stabilizing solution: `plant.a`,
+    /// `plant.b`, `mpc.q`) and a condensed Hessian H = 2(ΓᵀQ̄Γ + R̄) that is not positive
+    /// definite or not finite in f64 although `mpc.r` is — an unstable A amplified over the
+    /// horizon (`plant.a`, `mpc.horizon`), or else the scale of the prediction term against
+    /// `mpc.r`. Other errors (already naming a key, or not numerical) pass unchanged.
+    pub fn explain(&self, sys: &LtiSystem, e: MpcError) -> MpcError {
+        use lti_model::ModelError;
+        let rho = || lti_model::system::spectral_radius(sys.a()).unwrap_or(f64::NAN);
+        match e {
+            MpcError::Model(ModelError::Numerical { routine, reason })
+                if routine.starts_with("DARE") =>
+            {
+                key_error(
+                    "plant.b",
+                    format!(
+                        "cannot stabilise `plant.a` (spectral radius ρ(A) = {:.4e}): the terminal \
+                         cost `mpc.terminal` = \"dare\" needs (A, B) stabilizable and every \
+                         unstable mode of A seen by `mpc.q`, and the Riccati equation has no \
+                         stabilizing solution ({reason}); give B a column that reaches every \
+                         unstable mode, use `mpc.q` ≻ 0, or rescale the plant",
+                        rho()
+                    ),
+                )
+                .into()
+            }
+            MpcError::Qp(qp_iter::QpError::Model(
+                ModelError::NotPositiveDefinite { ref name, .. }
+                | ModelError::NonFinite { ref name, .. }
+                | ModelError::Numerical {
+                    routine: ref name, ..
+                },
+            )) if name.contains('H') || name.contains('F') => {
+                let n = self.horizon;
+                let rho = rho();
+                let growth = rho.powi(i32::try_from(n).unwrap_or(i32::MAX));
+                let r_min = lti_model::matrix::sym_extreme_eigenvalues("R_c", self.r.as_ref())
+                    .map_or(f64::NAN, |(lo, _)| lo);
+                if rho > 1.0 && !(growth < 1e3) {
+                    let shorter = if rho.is_finite() {
+                        ((3.0 / rho.log10()).floor() as usize).max(1)
+                    } else {
+                        1
+                    };
+                    return key_error(
+                        "plant.a",
+                        format!(
+                            "is unstable (spectral radius ρ(A) = {rho:.4e}): over the MPC horizon \
+                             `mpc.horizon` = {n} the predictions grow like ρ^N = {growth:.3e}, so \
+                             the condensed Hessian H = 2(ΓᵀQ̄Γ + R̄) loses `mpc.r` (λ_min = \
+                             {r_min:.3e}) to rounding and is not positive definite in f64; use \
+                             `mpc.horizon` ≤ {shorter} (ρ^N ≤ 1e3), or pre-stabilise or rescale \
+                             the plant"
+                        ),
+                    )
+                    .into();
+                }
+                key_error(
+                    "mpc.r",
+                    format!(
+                        "(λ_min = {r_min:.3e}) is lost to rounding next to the prediction term \
+                         ΓᵀQ̄Γ built from `plant.a`, `plant.b`, `mpc.q` and the DARE terminal \
+                         weight over `mpc.horizon` = {n} steps: the condensed Hessian is not \
+                         positive definite (or not finite) in f64; increase `mpc.r` or rescale \
+                         `plant.b` and `mpc.q` towards the size of `mpc.r`"
+                    ),
+                )
+                .into()
+            }
+            MpcError::Model(e @ ModelError::Scenario { .. }) => e.into(),
+            MpcError::Model(e) | MpcError::Qp(qp_iter::QpError::Model(e)) => key_error(
+                "mpc",
+                format!(
+                    "the MPC cannot be built from `plant.a`, `plant.b`, `mpc.q`, `mpc.r` over \
+                     `mpc.horizon` = {}: {e}; rescale the model towards entries of similar size",
+                    self.horizon
+                ),
+            )
+            .into(),
+            other => other,
         }
     }
 }

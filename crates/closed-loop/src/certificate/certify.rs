@@ -89,12 +89,10 @@ pub fn certify_closed_loop_timed(
         Some(c) => {
             let mut cfg = resolved.mhe_config()?.clone();
             cfg.p = c.p.clone();
-            Some(MheProblem::new(
-                sys,
-                m,
-                &cfg.weights(),
-                resolved.mhe_sets(),
-            )?)
+            Some(
+                MheProblem::new(sys, m, &cfg.weights(), resolved.mhe_sets())
+                    .map_err(|e| spec.explain(sys, e))?,
+            )
         }
         None => None,
     };

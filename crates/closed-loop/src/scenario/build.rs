@@ -156,7 +156,18 @@ pub fn scenario_disturbance(scenario: &Scenario, seed: u64) -> Result<Box<dyn Di
                     key: "noise.covariance".into(),
                     problem: "Gaussian noise needs a covariance".into(),
                 })?;
-            Box::new(Gaussian::new(vec![0.0; nw], cov, seed)?)
+            // scale²·covariance may underflow for a tiny scale (a sweep's `scales` reach
+            // here without the scenario's checks): name the scale, not the internal matrix.
+            Box::new(
+                Gaussian::new(vec![0.0; nw], cov, seed).map_err(|e| ModelError::Scenario {
+                    key: "noise.scale".into(),
+                    problem: format!(
+                        "is {:e}: the Gaussian's covariance scale²·`noise.covariance` is not \
+                         usable ({e}); use a larger scale, or 0 for no disturbance",
+                        noise.scale
+                    ),
+                })?,
+            )
         }
     })
 }
@@ -184,13 +195,18 @@ impl ResolvedScenario {
         cfg.iterations = iterations;
         cfg.exact_solve = exact_solve;
         let sc = self.scenario();
-        Ok(MheEstimator::new(
+        MheEstimator::new(
             &sc.plant,
             self.mhe_sets(),
             &cfg,
             &sc.simulation.prior,
             |qp| method.build(qp),
-        )?)
+        )
+        .map_err(|e| match &sc.mhe {
+            // Name the scenario key behind a window that is not strongly convex.
+            Some(settings) => settings.explain(&sc.plant, e).into(),
+            None => e.into(),
+        })
     }
 
     /// The controller π of `choice` for this scenario.
@@ -201,12 +217,15 @@ impl ResolvedScenario {
             .as_ref()
             .ok_or(ClosedLoopError::MissingSection { section: "mpc" })?;
         Ok(match choice {
-            ControllerChoice::SaturatedLqr => ScenarioController::SaturatedLqr(SaturatedLqr::new(
-                &sc.plant,
-                spec.q.as_ref(),
-                spec.r.as_ref(),
-                sc.sets.input.clone(),
-            )?),
+            ControllerChoice::SaturatedLqr => ScenarioController::SaturatedLqr(
+                SaturatedLqr::new(
+                    &sc.plant,
+                    spec.q.as_ref(),
+                    spec.r.as_ref(),
+                    sc.sets.input.clone(),
+                )
+                .map_err(|e| spec.explain(&sc.plant, e))?,
+            ),
             ControllerChoice::ExactMpc => {
                 ScenarioController::Exact(Box::new(ExactMpc::new(self.mpc()?)?))
             }

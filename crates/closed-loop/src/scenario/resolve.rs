@@ -6,6 +6,7 @@
 
 use lti_model::ModelError;
 use lti_model::ioss::{self, IossCertificate};
+use lti_model::spec::format::key_error;
 use mhe_core::{MheConfig, MheError, MheSets};
 use mpc_core::CondensedMpc;
 
@@ -44,14 +45,15 @@ impl ResolvedScenario {
                     Some(p) => ioss::verify(sys, s.eta, q, r, p.as_ref()),
                     None => ioss::certify(sys, s.eta, q, r),
                 };
+                let user_p = s.p.is_some();
                 let outcome = match outcome {
                     Ok(c) => Ok(c),
                     Err(
                         e @ (ModelError::LmiInfeasible { .. }
                         | ModelError::Numerical { .. }
                         | ModelError::NotPositiveDefinite { .. }),
-                    ) => Err(e),
-                    Err(e) => return Err(MheError::from(e).into()),
+                    ) => Err(name_lmi_keys(e, user_p)),
+                    Err(e) => return Err(MheError::from(name_lmi_keys(e, user_p)).into()),
                 };
                 // The file's P is used as given (verified or not: the certificate reports
                 // it); otherwise the LMI's P, when there is one.
@@ -74,7 +76,7 @@ impl ResolvedScenario {
             }
         };
         let mpc = match &scenario.mpc {
-            Some(s) => Some(CondensedMpc::new(sys, s.config(&scenario.sets))?),
+            Some(s) => Some(s.build(sys, &scenario.sets)?),
             None => None,
         };
         let mhe_sets = MheSets::from_scenario(&scenario.sets);
@@ -131,6 +133,27 @@ impl ResolvedScenario {
     /// where the closed loop starts.
     pub fn sampling_radius(&self) -> f64 {
         self.scenario.sampling_radius()
+    }
+}
+
+/// A failure of LMI (2) other than infeasibility (whose causes name their keys) comes from
+/// the numbers of the plant and the weights: name the keys they come from, so that no
+/// internal symbol (`LMI matrix`, `R`) is the only name in the message.
+fn name_lmi_keys(e: ModelError, user_p: bool) -> ModelError {
+    match e {
+        ModelError::LmiInfeasible { .. } | ModelError::Scenario { .. } => e,
+        ModelError::NotPositiveDefinite { .. } if user_p => key_error(
+            "mhe.p",
+            format!("{e}; LMI (2) needs the given P positive definite relative to its size"),
+        ),
+        other => key_error(
+            "mhe",
+            format!(
+                "LMI (2) of Assumption 2 could not be solved for the data of `plant.a`, \
+                 `plant.c`, `plant.e`, `plant.f`, `mhe.q`, `mhe.r` at `mhe.eta`: {other}; rescale \
+                 the model towards entries of similar size, or give P (`mhe.p`)"
+            ),
+        ),
     }
 }
 

@@ -4,6 +4,7 @@
 mod analysis;
 mod certificate;
 mod coverage;
+mod findings;
 mod gamma13;
 mod linear;
 mod plants;

@@ -849,10 +849,17 @@ fn sizes_beyond_the_limits_are_refused_before_allocation() {
         "mpc.horizon",
         "GiB",
     );
+    // At η = 0.99 the window's conditioning allows M = 2000 (η^1999 = 1.9e-9), its size not.
+    assert_key(
+        &replacing("horizon = 3", "horizon = 2000").replace("eta = 0.8", "eta = 0.99"),
+        "mhe.horizon",
+        "GiB",
+    );
+    // At η = 0.8 a horizon of 10⁶ is refused for its conditioning first (findings.rs).
     assert_key(
         &replacing("horizon = 3", "horizon = 1000000"),
         "mhe.horizon",
-        "GiB",
+        "condition number",
     );
     assert_key(
         &replacing("steps = 10", "steps = 1000000000"),

@@ -21,6 +21,34 @@ use crate::matrix;
 /// file could request terabytes; dense MHE/MPC at this size is already impractical.
 pub const MAX_DIMENSION: usize = 4096;
 
+/// Largest magnitude of a finite number in a scenario (matrix entries, vectors, finite
+/// bounds, scales): 1e100. The computations multiply a few of them (AᵀPA, BᵀXB, ΓᵀQ̄Γ,
+/// ‖x‖²); with every factor ≤ 1e100 a product of three summed over n ≤ 4096 terms stays
+/// below f64's 1.8e308, so a value that would overflow is refused here, naming its entry,
+/// instead of surfacing as ∞ or NaN inside the LMI, the Riccati equation or a norm.
+pub const MAX_MAGNITUDE: f64 = 1e100;
+
+/// The refusal of a finite `value` beyond [`MAX_MAGNITUDE`] at `what` (e.g. "entry (0, 1)").
+pub fn magnitude_error(key: &str, what: &str, value: f64) -> ModelError {
+    key_error(
+        key,
+        format!(
+            "{what} is {value:e}, beyond ±{MAX_MAGNITUDE:e}, the largest magnitude accepted \
+             (products of a few such numbers overflow f64); rescale the units of the model \
+             (docs/limits.md)"
+        ),
+    )
+}
+
+/// Refuses a finite number beyond [`MAX_MAGNITUDE`] (a non-finite one is checked by the
+/// caller, with its own message).
+pub fn check_magnitude(key: &str, what: &str, value: f64) -> Result<()> {
+    if value.is_finite() && value.abs() > MAX_MAGNITUDE {
+        return Err(magnitude_error(key, what, value));
+    }
+    Ok(())
+}
+
 pub fn check_dimension(key: &str, what: &str, n: usize) -> Result<()> {
     if n > MAX_DIMENSION {
         return Err(key_error(
@@ -455,7 +483,13 @@ fn check_entries(key: &str, m: &Mat<f64>) -> Result<()> {
             format!("entry ({row}, {col}) is {value}; every matrix entry must be a finite number"),
         ),
         other => wrap(key, other),
-    })
+    })?;
+    for j in 0..m.ncols() {
+        for i in 0..m.nrows() {
+            check_magnitude(key, &format!("entry ({i}, {j})"), m[(i, j)])?;
+        }
+    }
+    Ok(())
 }
 
 pub fn scalar_identity(key: &str, s: f64, n: usize) -> Result<Mat<f64>> {
@@ -465,6 +499,7 @@ pub fn scalar_identity(key: &str, s: f64, n: usize) -> Result<Mat<f64>> {
             format!("the scalar {s} (meaning s·I) must be a finite number"),
         ));
     }
+    check_magnitude(key, "the scalar s (meaning s·I)", s)?;
     Ok(Mat::from_fn(n, n, |i, j| if i == j { s } else { 0.0 }))
 }
 
@@ -475,6 +510,9 @@ pub fn diagonal(key: &str, d: &[f64]) -> Result<Mat<f64>> {
             key,
             format!("diagonal entry {i} is {v}; every matrix entry must be a finite number"),
         ));
+    }
+    for (i, v) in d.iter().enumerate() {
+        check_magnitude(key, &format!("diagonal entry {i}"), *v)?;
     }
     Ok(Mat::from_fn(d.len(), d.len(), |i, j| {
         if i == j { d[i] } else { 0.0 }
@@ -570,6 +608,9 @@ pub fn vector(key: &str, v: Option<&Vec<f64>>, n: usize, what: &str) -> Result<V
             format!("entry {i} is {x}; every entry must be a finite number"),
         ));
     }
+    for (i, x) in v.iter().enumerate() {
+        check_magnitude(key, &format!("entry {i}"), *x)?;
+    }
     Ok(v.clone())
 }
 
@@ -580,10 +621,33 @@ pub fn bound_vec(
     default: f64,
     what: &str,
 ) -> Result<Vec<f64>> {
+    // A finite bound beyond MAX_MAGNITUDE is refused: ±inf says "no bound", and a huge
+    // finite one makes upper − lower (the uniform noise's width) overflow.
+    let bound = |i: Option<usize>, v: f64| -> Result<()> {
+        if v.is_finite() && v.abs() > MAX_MAGNITUDE {
+            let what = i.map_or("the bound".to_string(), |i| format!("bound {i}"));
+            return Err(key_error(
+                key,
+                format!(
+                    "{what} is {v:e}, beyond ±{MAX_MAGNITUDE:e}, the largest finite magnitude \
+                     accepted; write inf / -inf for no bound, or rescale (docs/limits.md)"
+                ),
+            ));
+        }
+        Ok(())
+    };
     match b {
         None => Ok(vec![default; n]),
-        Some(Bounds::All(v)) => Ok(vec![*v; n]),
-        Some(Bounds::Each(v)) if v.len() == n => Ok(v.clone()),
+        Some(Bounds::All(v)) => {
+            bound(None, *v)?;
+            Ok(vec![*v; n])
+        }
+        Some(Bounds::Each(v)) if v.len() == n => {
+            for (i, x) in v.iter().enumerate() {
+                bound(Some(i), *x)?;
+            }
+            Ok(v.clone())
+        }
         Some(Bounds::Each(v)) => Err(key_error(
             key,
             format!(

@@ -332,6 +332,19 @@ pub fn validate_noise(
             format!("is {scale}; it must be a finite number ≥ 0"),
         ));
     }
+    check_magnitude("noise.scale", "the scale", scale)?;
+    // scale² multiplies the covariance: a nonzero scale so small that it underflows would
+    // silently give a singular (Gaussian) or zero (uniform) disturbance.
+    if scale > 0.0 && scale < 1.0 / MAX_MAGNITUDE {
+        return Err(key_error(
+            "noise.scale",
+            format!(
+                "is {scale:e}, nonzero but below {:e}, the smallest scale accepted (its square \
+                 underflows); use 0 for no disturbance, or a larger scale (docs/limits.md)",
+                1.0 / MAX_MAGNITUDE
+            ),
+        ));
+    }
     if kind == NoiseKind::Uniform && !bounded {
         return Err(key_error(
             "noise.kind",

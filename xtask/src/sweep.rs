@@ -161,7 +161,8 @@ fn load(config: &Path) -> Result<(String, Sweep)> {
     let text = lti_model::spec::format::read_limited(config)
         .map_err(|e| anyhow::anyhow!("{e}"))
         .with_context(|| format!("cannot read the sweep config `{}`", config.display()))?;
-    let cfg = SweepConfig::from_file(config)?;
+    let cfg = SweepConfig::from_file(config)
+        .with_context(|| format!("in the sweep config `{}`", config.display()))?;
     let sweep = Sweep::new(cfg)?;
     Ok((text, sweep))
 }

@@ -57,7 +57,7 @@ pub struct Uncondensed {
     pub lower: Vec<f64>,
     /// Bounds on v.
     pub upper: Vec<f64>,
-    /// v[z_index[i]] = z[i].
+    /// `v[z_index[i]] = z[i]`.
     pub z_index: Vec<usize>,
     /// Dense P_u (row-major n × n), for the lifting checks and q_u.
     p_dense: Vec<f64>,

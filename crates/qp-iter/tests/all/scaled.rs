@@ -63,7 +63,7 @@ fn badly_scaled(seed: u64) -> (Instance, Vec<f64>, f64) {
 
 #[test]
 fn jacobi_certificates_hold_and_need_the_kappa_d_factor() {
-    let mut held = vec![Tally::default(); 4];
+    let mut held = [Tally::default(); 4];
     let mut without_kappa_d = vec![Tally::default(); 4];
     let mut better_rate = 0;
     for seed in 60_000..60_000 + INSTANCES {

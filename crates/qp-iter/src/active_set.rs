@@ -24,8 +24,9 @@
 //! **The factor.** A bound entering or leaving W changes F by one variable; the factor of
 //! H_FF is then *updated* (a row appended, or a row removed and the triangle restored by
 //! Givens rotations: O(|F|²) instead of O(|F|³), Golub & Van Loan §6.5.4), and kept across
-//! calls. At the start of a call it is brought to the call's free set by the same updates,
-//! or recomputed from H when that is cheaper (many changes), after
+//! calls (not across [`ActiveSetSolver::reset`]). At the start of a call it is brought to
+//! the call's free set by the same updates, or recomputed from H when that is cheaper (many
+//! changes), after
 //! [`ActiveSetSettings::max_updates`] updates since the last fresh factorisation, and
 //! whenever an update reports numerical trouble.
 //!
@@ -194,12 +195,15 @@ impl ActiveSetSolver {
         Ok(s)
     }
 
-    /// Forgets the working set: the next call starts from z = Π_Z(0). (The cached factor
-    /// is kept: the next call updates it to its free set, or recomputes it if cheaper.)
+    /// Forgets the working set and the cached factor: the next call starts from
+    /// z = Π_Z(0) and computes the results a fresh solver would, bit for bit (the factor
+    /// updates make the last bits of z* depend on the path since the last fresh
+    /// factorisation, so a restarted Monte-Carlo run must not inherit them).
     pub fn reset(&mut self) {
         self.z.fill(0.0);
         self.qp.project(&mut self.z);
         self.set_state_from_z();
+        self.factor.invalidate();
     }
 
     /// The next call starts from z = Π_Z(`z0`) with the working set {i : z_i at a bound}
@@ -710,7 +714,8 @@ impl ExactSolver {
         Ok(&self.z)
     }
 
-    /// Forgets the warm start: the next call starts as a fresh solver's does.
+    /// Forgets the warm start and the cached factor: the next call gives a fresh solver's
+    /// results, bit for bit.
     pub fn reset(&mut self) {
         self.active.reset();
         self.last_info = None;

@@ -480,3 +480,33 @@ fn long_update_sequences_stay_accurate() {
         );
     }
 }
+
+/// After `reset` the solver reproduces a fresh solver bit for bit, whatever factor updates
+/// happened before (what a restarted Monte-Carlo run relies on).
+#[test]
+fn reset_reproduces_a_fresh_solver_bit_for_bit() {
+    let mut r = rng(31);
+    for seed in 0..200u64 {
+        let inst = random_instance(170_000 + seed, Gen::default());
+        let thetas: Vec<Vec<f64>> = (0..5)
+            .map(|_| {
+                inst.theta
+                    .iter()
+                    .map(|t| t + 2.0 * (r.random::<f64>() - 0.5))
+                    .collect()
+            })
+            .collect();
+        let mut used = ActiveSetSolver::new(&inst.qp, ActiveSetSettings::default()).unwrap();
+        for theta in thetas.iter().rev() {
+            used.solve(theta).unwrap();
+        }
+        used.reset();
+        let mut fresh = ActiveSetSolver::new(&inst.qp, ActiveSetSettings::default()).unwrap();
+        for theta in &thetas {
+            let a = used.solve(theta).unwrap();
+            let b = fresh.solve(theta).unwrap();
+            assert_eq!(a, b, "seed {seed}");
+            assert_eq!(used.z(), fresh.z(), "seed {seed}");
+        }
+    }
+}

@@ -304,6 +304,10 @@ pub struct MheEstimator<M: IterationMap> {
     x_hat_exact: Vec<f64>,
     record: MheRecord,
     references: Vec<ExactSolver>,
+    /// Where the exact solve of the next step starts (valid if `exact_start`): z*_t with a
+    /// zero newest stage while the window grows, shifted by one stage after.
+    zstar_start: Vec<f64>,
+    exact_start: bool,
 }
 
 impl<M: IterationMap> MheEstimator<M> {
@@ -387,6 +391,8 @@ impl<M: IterationMap> MheEstimator<M> {
             x_hat_exact: vec![0.0; dims.nx],
             record: MheRecord::with_capacity(dims, big_m),
             references,
+            zstar_start: vec![0.0; full.nz()],
+            exact_start: false,
         })
     }
 
@@ -405,6 +411,7 @@ impl<M: IterationMap> MheEstimator<M> {
         for r in &mut self.references {
             r.reset();
         }
+        self.exact_start = false;
         Ok(())
     }
 
@@ -518,10 +525,16 @@ impl<M: IterationMap> MheEstimator<M> {
 
         let mut exact = None;
         if let Some(reference) = self.references.get_mut(m) {
-            let z_star = reference.solve(theta).map_err(|e| MheError::Reference {
+            let to_error = |e: qp_iter::QpError| MheError::Reference {
                 t,
                 reason: e.to_string(),
-            })?;
+            };
+            if self.exact_start {
+                reference
+                    .warm_start(&self.zstar_start[..nz])
+                    .map_err(to_error)?;
+            }
+            let z_star = reference.solve(theta).map_err(to_error)?;
             let zs = &mut self.zstar[..nz];
             zs.copy_from_slice(z_star);
             let eps = dist(zk, zs);
@@ -590,6 +603,29 @@ impl<M: IterationMap> MheEstimator<M> {
                     self.z0[nz - nw..nz].fill(0.0);
                 }
             }
+        }
+        if !self.references.is_empty() {
+            // The exact solve of ℙ_{t+1} starts from ℙ_t's minimiser moved to the next
+            // window (its working set is mostly right; the answer does not depend on it).
+            let zs = &self.zstar[..nz];
+            let start = &mut self.zstar_start;
+            if t < big_m {
+                start[..nz].copy_from_slice(zs);
+                start[nz..nz + nw].fill(0.0);
+            } else {
+                let uo = lay.u_offset(0);
+                let wo = lay.w_offset(0);
+                self.model.step(
+                    &zs[..d.nx],
+                    &self.theta[uo..uo + d.nu],
+                    &zs[wo..wo + d.nw1],
+                    &mut self.x_tmp,
+                );
+                start[..d.nx].copy_from_slice(&self.x_tmp);
+                start[d.nx..nz - nw].copy_from_slice(&zs[d.nx + nw..nz]);
+                start[nz - nw..nz].fill(0.0);
+            }
+            self.exact_start = true;
         }
         self.estimates.push(self.record.x_hat());
         self.u_ring.push(u);

@@ -1,30 +1,45 @@
-//! An exact, allocation-free solver for small strictly convex box QPs: the primal
-//! active-set method (Nocedal–Wright, *Numerical Optimization*, 2nd ed., Alg. 16.3)
-//! specialised to bounds, warm-started from the previous working set.
+//! An exact, allocation-free solver for strictly convex box QPs: the primal active-set
+//! method (Nocedal–Wright, *Numerical Optimization*, 2nd ed., Alg. 16.3) specialised to
+//! bounds, warm-started from the previous working set (or from a point the caller supplies,
+//! [`ActiveSetSolver::warm_start`]).
 //!
 //! minimise ½zᵀHz + qᵀz subject to l ≤ z ≤ u, H ≻ 0.
 //!
-//! Why it exists: the exact MPC law π(x̂) = u*₀(x̂) is evaluated once per closed-loop step.
-//! Clarabel (an interior-point method) needs ≈ 150 µs for the case study's 20-variable QP;
-//! consecutive MPC problems share H and the box and differ only in q, so their optimal active
-//! sets rarely change, and a working-set method started from the last one usually finishes
-//! with one subspace solve on a cached Cholesky factor (a few hundred nanoseconds).
+//! Why it exists: the exact MPC law π(x̂) = u*₀(x̂) is evaluated once per closed-loop step,
+//! and analysis runs solve every MHE problem ℙ_t exactly to record ε_t. Clarabel (an
+//! interior-point method) needs ≈ 150 µs for the case study's 20-variable QP; consecutive
+//! problems share H and the box and differ only in q, so their optimal active sets differ
+//! little, and a working-set method started from the last one usually finishes in a few
+//! subspace solves on a cached Cholesky factor.
 //!
 //! Each iteration, for the working set W (variables held at a bound) and the free set F:
 //!
-//! 1. the subspace minimiser ẑ: ẑ_W = z_W, H_FF ẑ_F = −(q_F + H_FW z_W) (Cholesky of H_FF,
-//!    cached while W does not change);
+//! 1. the subspace minimiser ẑ: ẑ_W = z_W, H_FF ẑ_F = −(q_F + H_FW z_W), with the
+//!    Cholesky factor of H_FF and the right-hand side both kept up to date as W changes;
 //! 2. if ẑ violates a bound, step z ← z + α(ẑ − z) with the largest feasible α ∈ [0, 1) and
 //!    add the first blocking bound to W;
 //! 3. otherwise z ← ẑ and the multipliers λ_i = ±(Hz + q)_i of W are checked; if all are
 //!    ≥ −tol, z is optimal, else the most negative one leaves W.
 //!
-//! Every accepted solution passes an explicit KKT check (natural residual
-//! ‖z − Π_Z(z − (Hz + q))‖_∞ ≤ tol·scale) before it is returned; a run that does not finish
-//! in `max_iter` subspace solves (cycling under degeneracy is possible in theory) is a typed
-//! [`QpError::NotConverged`], so a caller can fall back to [`crate::reference`].
+//! **The factor.** A bound entering or leaving W changes F by one variable; the factor of
+//! H_FF is then *updated* (a row appended, or a row removed and the triangle restored by
+//! Givens rotations: O(|F|²) instead of O(|F|³), Golub & Van Loan §6.5.4), and kept across
+//! calls (not across [`ActiveSetSolver::reset`]). At the start of a call it is brought to
+//! the call's free set by the same updates, or recomputed from H when that is cheaper (many
+//! changes), after
+//! [`ActiveSetSettings::max_updates`] updates since the last fresh factorisation, and
+//! whenever an update reports numerical trouble.
+//!
+//! Every accepted solution passes an explicit KKT check on z and g = Hz + q computed from
+//! the problem data (not from the factor): multipliers ≥ −tol·scale and natural residual
+//! ‖z − Π_Z(z − g)‖_∞ ≤ tol·scale. If the check fails on an updated factor, the factor is
+//! recomputed from H and the iteration continues; a run that does not finish in `max_iter`
+//! subspace solves (cycling under degeneracy is possible in theory) or fails the check on a
+//! fresh factor is a typed [`QpError::NotConverged`], so a caller can fall back to
+//! [`crate::reference`] ([`ExactSolver`] does).
 
 use crate::error::{QpError, Result};
+use crate::free_factor::{FactorBreakdown, FreeFactor, dot};
 use crate::problem::ParametricQp;
 use crate::reference::{ReferenceSettings, ReferenceSolver};
 
@@ -36,6 +51,11 @@ pub struct ActiveSetSettings {
     pub tol: f64,
     /// Largest number of subspace solves per call (≥ 1). `None`: 10·n + 50.
     pub max_iter: Option<usize>,
+    /// Largest number of updates of the Cholesky factor of H_FF (one variable entering or
+    /// leaving the free set) since its last fresh factorisation; the next change after that
+    /// recomputes it from H. `Some(0)`: recompute at every change of the working set (no
+    /// updates). `None`: n.
+    pub max_updates: Option<usize>,
 }
 
 impl Default for ActiveSetSettings {
@@ -43,6 +63,7 @@ impl Default for ActiveSetSettings {
         Self {
             tol: 1e-10,
             max_iter: None,
+            max_updates: None,
         }
     }
 }
@@ -62,12 +83,23 @@ enum Bound {
 pub struct ActiveSetInfo {
     /// Subspace solves used (1 when the previous working set was optimal).
     pub iterations: usize,
-    /// Cholesky factorisations of H_FF computed (0 when the cached factor was reused).
+    /// Fresh Cholesky factorisations of H_FF computed (0 when the cached factor was reused
+    /// or updated).
     pub factorizations: usize,
+    /// Updates of the factor (one variable entering or leaving the free set), at the start
+    /// of the call and during it.
+    pub updates: usize,
     /// Number of variables held at a bound at the solution.
     pub active: usize,
     /// Natural residual ‖z − Π_Z(z − (Hz + q))‖_∞ of the returned z.
     pub kkt_residual: f64,
+}
+
+/// Factorisation and update counts of one call.
+#[derive(Debug, Clone, Copy, Default)]
+struct Counts {
+    factorizations: usize,
+    updates: usize,
 }
 
 /// Primal active-set solver for min ½zᵀHz + (q₀ + Fθ)ᵀz over a box, set up once for a
@@ -95,23 +127,24 @@ pub struct ActiveSetSolver {
     qp: ParametricQp,
     settings: ActiveSetSettings,
     max_iter: usize,
+    max_updates: usize,
     /// Linear term q of the current call.
     q: Vec<f64>,
     /// Current iterate (always feasible).
     z: Vec<f64>,
     /// Subspace minimiser.
     zhat: Vec<f64>,
-    /// Hz + q at the solution.
+    /// Hz + q (on W only during the iteration, everywhere at the solution).
     g: Vec<f64>,
     state: Vec<Bound>,
-    /// Indices of the free set F, ascending.
-    free: Vec<usize>,
-    /// The free set the cached factor belongs to (`None`: no valid factor).
-    factor_free: Vec<usize>,
-    factor_valid: bool,
-    /// Row-major lower Cholesky factor of H_FF (stride |F|).
-    chol: Vec<f64>,
+    /// Cholesky factor of H_FF, F in factor order.
+    factor: FreeFactor,
+    /// −(q_F + H_FW z_W) in factor order (first |F| entries), kept up to date with W.
     rhs: Vec<f64>,
+    /// Solve workspace (factor order).
+    work: Vec<f64>,
+    /// z with the free entries zeroed (workspace for a fresh right-hand side).
+    z_w: Vec<f64>,
     lam_l: Vec<f64>,
     lam_u: Vec<f64>,
 }
@@ -145,16 +178,16 @@ impl ActiveSetSolver {
             qp: qp.clone(),
             settings,
             max_iter,
+            max_updates: settings.max_updates.unwrap_or(n),
             q: qp.q0().to_vec(),
             z: vec![0.0; n],
             zhat: vec![0.0; n],
             g: vec![0.0; n],
             state: vec![Bound::Free; n],
-            free: Vec::with_capacity(n),
-            factor_free: Vec::with_capacity(n),
-            factor_valid: false,
-            chol: vec![0.0; n * n],
+            factor: FreeFactor::new(n),
             rhs: vec![0.0; n],
+            work: vec![0.0; n],
+            z_w: vec![0.0; n],
             lam_l: vec![0.0; n],
             lam_u: vec![0.0; n],
         };
@@ -162,10 +195,32 @@ impl ActiveSetSolver {
         Ok(s)
     }
 
-    /// Forgets the working set: the next call starts from z = Π_Z(0).
+    /// Forgets the working set and the cached factor: the next call starts from
+    /// z = Π_Z(0) and computes the results a fresh solver would, bit for bit (the factor
+    /// updates make the last bits of z* depend on the path since the last fresh
+    /// factorisation, so a restarted Monte-Carlo run must not inherit them).
     pub fn reset(&mut self) {
         self.z.fill(0.0);
         self.qp.project(&mut self.z);
+        self.set_state_from_z();
+        self.factor.invalidate();
+    }
+
+    /// The next call starts from z = Π_Z(`z0`) with the working set {i : z_i at a bound}
+    /// (e.g. a neighbouring problem's solution, shifted) instead of the previous call's.
+    /// Only the start changes: the answer is the same unique minimiser.
+    ///
+    /// Errors: `z0` of the wrong length or not finite ([`QpError::Model`]); nothing changes.
+    pub fn warm_start(&mut self, z0: &[f64]) -> Result<()> {
+        lti_model::matrix::check_len("z0", z0, self.qp.n())?;
+        lti_model::matrix::check_finite_slice("z0", z0)?;
+        self.z.copy_from_slice(z0);
+        self.qp.project(&mut self.z);
+        self.set_state_from_z();
+        Ok(())
+    }
+
+    fn set_state_from_z(&mut self) {
         let (lo, up) = (self.qp.zset().lower(), self.qp.zset().upper());
         for i in 0..self.z.len() {
             self.state[i] = if lo[i] == up[i] {
@@ -178,7 +233,6 @@ impl ActiveSetSolver {
                 Bound::Free
             };
         }
-        self.factor_valid = false;
     }
 
     /// The problem this solver was set up for.
@@ -225,24 +279,17 @@ impl ActiveSetSolver {
 
     fn solve_loaded(&mut self) -> Result<ActiveSetInfo> {
         let n = self.qp.n();
-        let mut factorizations = 0;
+        let mut counts = Counts::default();
+        let qmax = self.q.iter().fold(0.0f64, |m, v| m.max(v.abs()));
+        if let Err(e) = self.sync_factor(&mut counts) {
+            return Err(self.breakdown(1, e));
+        }
+        // After a failed KKT check on an updated factor, one more try on a fresh one.
+        let mut refreshed = false;
         for it in 1..=self.max_iter {
-            self.collect_free();
-            if !(self.factor_valid && self.factor_free == self.free) {
-                if let Err((pivot, var)) = self.factorize() {
-                    return Err(QpError::NotConverged {
-                        solver: "active set",
-                        iterations: it,
-                        reason: format!(
-                            "H_FF is not numerically positive definite (pivot {pivot:.3e} at variable {var})"
-                        ),
-                    });
-                }
-                factorizations += 1;
-            }
             self.subspace_minimiser();
             if self.zhat.iter().any(|v| !v.is_finite()) {
-                self.factor_valid = false;
+                self.factor.invalidate();
                 return Err(QpError::NotConverged {
                     solver: "active set",
                     iterations: it,
@@ -251,30 +298,50 @@ impl ActiveSetSolver {
                 });
             }
             if let Some((i, alpha, bound)) = self.blocking() {
-                for j in 0..n {
-                    if self.state[j] == Bound::Free {
-                        self.z[j] += alpha * (self.zhat[j] - self.z[j]);
-                    }
+                for &j in self.factor.order() {
+                    self.z[j] += alpha * (self.zhat[j] - self.z[j]);
                 }
                 let (lo, up) = (self.qp.zset().lower(), self.qp.zset().upper());
                 self.z[i] = if bound == Bound::Lower { lo[i] } else { up[i] };
                 self.state[i] = bound;
                 // Keep z feasible against rounding in the step.
                 self.qp.project(&mut self.z);
+                if let Err(e) = self.leave_free(i, &mut counts) {
+                    return Err(self.breakdown(it, e));
+                }
                 continue;
             }
             self.z.copy_from_slice(&self.zhat);
             self.qp.project(&mut self.z);
+            // Cheap test first: the gradient on W only, and the scale with (Hz)_F ≈ −q_F
+            // (g_F = 0 at the subspace minimiser up to rounding). It only decides the path.
+            let scale = self.working_gradient_and_scale(qmax);
+            if let Some(drop) = self.most_negative_multiplier(self.settings.tol * scale) {
+                if let Err(e) = self.enter_free(drop, &mut counts) {
+                    return Err(self.breakdown(it, e));
+                }
+                continue;
+            }
+            // The check of the answer: g and the scale from the data.
             let scale = self.gradient_and_scale();
             let tol = self.settings.tol * scale;
             if let Some(drop) = self.most_negative_multiplier(tol) {
-                self.state[drop] = Bound::Free;
+                if let Err(e) = self.enter_free(drop, &mut counts) {
+                    return Err(self.breakdown(it, e));
+                }
                 continue;
             }
             self.multipliers();
             let kkt_residual = self.natural_residual();
             if kkt_residual > tol {
-                self.factor_valid = false;
+                if !refreshed && self.factor.updates() > 0 {
+                    refreshed = true;
+                    if let Err(e) = self.refactor(&mut counts) {
+                        return Err(self.breakdown(it, e));
+                    }
+                    continue;
+                }
+                self.factor.invalidate();
                 return Err(QpError::NotConverged {
                     solver: "active set",
                     iterations: it,
@@ -283,16 +350,18 @@ impl ActiveSetSolver {
                     ),
                 });
             }
-            let active = self.state.iter().filter(|s| **s != Bound::Free).count();
+            let active = n - self.factor.len();
             return Ok(ActiveSetInfo {
                 iterations: it,
-                factorizations,
+                factorizations: counts.factorizations,
+                updates: counts.updates,
                 active,
                 kkt_residual,
             });
         }
         // Leave a consistent state: the next call restarts from scratch.
         self.reset();
+        self.factor.invalidate();
         Err(QpError::NotConverged {
             solver: "active set",
             iterations: self.max_iter,
@@ -300,82 +369,181 @@ impl ActiveSetSolver {
         })
     }
 
-    fn collect_free(&mut self) {
-        self.free.clear();
-        for (i, s) in self.state.iter().enumerate() {
-            if *s == Bound::Free {
-                self.free.push(i);
-            }
+    /// The error for a fresh factorisation that failed (H_FF not numerically PD).
+    fn breakdown(&mut self, it: usize, e: FactorBreakdown) -> QpError {
+        self.factor.invalidate();
+        QpError::NotConverged {
+            solver: "active set",
+            iterations: it,
+            reason: format!(
+                "H_FF is not numerically positive definite (pivot {:.3e} at variable {})",
+                e.pivot, e.var
+            ),
         }
     }
 
-    /// Cholesky H_FF = LLᵀ into `chol` (row-major, stride |F|); on failure, the pivot and
-    /// the variable it belongs to.
-    fn factorize(&mut self) -> std::result::Result<(), (f64, usize)> {
-        let n = self.qp.n();
-        let h = self.qp.h_row_major();
-        let nf = self.free.len();
-        self.factor_valid = false;
-        let l = &mut self.chol[..nf * nf];
-        for a in 0..nf {
-            let ia = self.free[a];
-            for b in 0..=a {
-                l[a * nf + b] = h[ia * n + self.free[b]];
-            }
-        }
-        for j in 0..nf {
-            let row_j = &l[j * nf..j * nf + j];
-            let d = l[j * nf + j] - dot(row_j, row_j);
-            if !(d > 0.0 && d.is_finite()) {
-                return Err((d, self.free[j]));
-            }
-            let d = d.sqrt();
-            l[j * nf + j] = d;
-            for i in j + 1..nf {
-                let (top, bottom) = l.split_at_mut(i * nf);
-                let row_j = &top[j * nf..j * nf + j];
-                let row_i = &mut bottom[..nf];
-                row_i[j] = (row_i[j] - dot(&row_i[..j], row_j)) / d;
-            }
-        }
-        self.factor_free.clear();
-        self.factor_free.extend_from_slice(&self.free);
-        self.factor_valid = true;
+    /// Fresh factor of H_FF for the current free set (ascending) and a fresh right-hand side.
+    fn refactor(&mut self, counts: &mut Counts) -> std::result::Result<(), FactorBreakdown> {
+        let state = &self.state;
+        let free = (0..state.len()).filter(|&i| state[i] == Bound::Free);
+        self.factor.factorize(self.qp.h_row_major(), free)?;
+        counts.factorizations += 1;
+        self.fresh_rhs();
         Ok(())
     }
 
-    /// ẑ_W = z_W, ẑ_F = −H_FF⁻¹(q_F + H_FW z_W).
-    fn subspace_minimiser(&mut self) {
+    /// Brings the cached factor to the current free set: by updates when few variables
+    /// differ and the update budget allows, else by a fresh factorisation. Then a fresh
+    /// right-hand side.
+    fn sync_factor(&mut self, counts: &mut Counts) -> std::result::Result<(), FactorBreakdown> {
+        if !self.factor.is_valid() {
+            return self.refactor(counts);
+        }
+        let n = self.qp.n();
+        let removals = self
+            .factor
+            .order()
+            .iter()
+            .filter(|&&i| self.state[i] != Bound::Free)
+            .count();
+        let nf_new = (0..n).filter(|&i| self.state[i] == Bound::Free).count();
+        let additions = nf_new + removals - self.factor.len();
+        let changes = removals + additions;
+        // An update costs ≈ |F|² flops, a factorisation ≈ |F|³/3.
+        if changes > 0
+            && (3 * changes > nf_new.max(self.factor.len())
+                || self.factor.updates() + changes > self.max_updates)
+        {
+            return self.refactor(counts);
+        }
+        let h = self.qp.h_row_major();
+        let mut a = self.factor.len();
+        while a > 0 {
+            a -= 1;
+            let i = self.factor.order()[a];
+            if self.state[i] != Bound::Free {
+                if self.factor.remove(i).is_err() {
+                    return self.refactor(counts);
+                }
+                counts.updates += 1;
+            }
+        }
+        for i in 0..n {
+            if self.state[i] == Bound::Free && !self.factor.contains(i) {
+                if self.factor.append(h, i).is_err() {
+                    return self.refactor(counts);
+                }
+                counts.updates += 1;
+            }
+        }
+        self.fresh_rhs();
+        Ok(())
+    }
+
+    /// rhs_a = −(q_i + Σ_{j∈W} h_ij z_j) for i = order[a]: by columns of W when W is
+    /// small (|W|·|F| flops), else by rows (|F|·n).
+    fn fresh_rhs(&mut self) {
         let n = self.qp.n();
         let h = self.qp.h_row_major();
-        let nf = self.free.len();
-        for (a, &i) in self.free.iter().enumerate() {
-            let row = &h[i * n..(i + 1) * n];
-            let mut s = self.q[i];
-            for (j, st) in self.state.iter().enumerate() {
-                if *st != Bound::Free {
-                    s += row[j] * self.z[j];
+        let order = self.factor.order();
+        let nf = order.len();
+        if 4 * (n - nf) <= n {
+            for (r, &i) in self.rhs[..nf].iter_mut().zip(order) {
+                *r = -self.q[i];
+            }
+            for j in 0..n {
+                let v = self.z[j];
+                if self.state[j] == Bound::Free || v == 0.0 {
+                    continue;
+                }
+                // h_ij = h_ji: row j of H.
+                let h_j = &h[j * n..(j + 1) * n];
+                for (r, &i) in self.rhs[..nf].iter_mut().zip(order) {
+                    *r -= h_j[i] * v;
                 }
             }
-            self.rhs[a] = -s;
+            return;
         }
-        let l = &self.chol[..nf * nf];
-        let y = &mut self.rhs[..nf];
-        // L y = b.
-        for a in 0..nf {
-            y[a] = (y[a] - dot(&l[a * nf..a * nf + a], &y[..a])) / l[a * nf + a];
+        for j in 0..n {
+            self.z_w[j] = if self.state[j] == Bound::Free {
+                0.0
+            } else {
+                self.z[j]
+            };
         }
-        // Lᵀ x = y.
-        for a in (0..nf).rev() {
-            let mut s = y[a];
-            for b in a + 1..nf {
-                s -= l[b * nf + a] * y[b];
+        for (a, &i) in order.iter().enumerate() {
+            self.rhs[a] = -(self.q[i] + dot(&h[i * n..(i + 1) * n], &self.z_w));
+        }
+    }
+
+    /// Variable `i` (free in the factor) has just been put on a bound (state and z set):
+    /// remove it from the factor and move its term to the right-hand side.
+    fn leave_free(
+        &mut self,
+        i: usize,
+        counts: &mut Counts,
+    ) -> std::result::Result<(), FactorBreakdown> {
+        if self.factor.updates() >= self.max_updates {
+            return self.refactor(counts);
+        }
+        let p = match self.factor.remove(i) {
+            Ok(p) => p,
+            Err(_) => return self.refactor(counts),
+        };
+        counts.updates += 1;
+        let nf = self.factor.len();
+        self.rhs.copy_within(p + 1..nf + 1, p);
+        let n = self.qp.n();
+        let h_i = &self.qp.h_row_major()[i * n..(i + 1) * n];
+        let v = self.z[i];
+        for (r, &j) in self.rhs[..nf].iter_mut().zip(self.factor.order()) {
+            *r -= h_i[j] * v;
+        }
+        Ok(())
+    }
+
+    /// Variable `i` (on a bound) leaves the working set: append it to the factor and take
+    /// its term out of the right-hand side.
+    fn enter_free(
+        &mut self,
+        i: usize,
+        counts: &mut Counts,
+    ) -> std::result::Result<(), FactorBreakdown> {
+        self.state[i] = Bound::Free;
+        if self.factor.updates() >= self.max_updates {
+            return self.refactor(counts);
+        }
+        let n = self.qp.n();
+        let h = self.qp.h_row_major();
+        if self.factor.append(h, i).is_err() {
+            return self.refactor(counts);
+        }
+        counts.updates += 1;
+        let nf = self.factor.len() - 1;
+        let h_i = &h[i * n..(i + 1) * n];
+        let v = self.z[i];
+        for (r, &j) in self.rhs[..nf].iter_mut().zip(self.factor.order()) {
+            *r += h_i[j] * v;
+        }
+        let mut s = self.q[i];
+        for j in 0..n {
+            if self.state[j] != Bound::Free {
+                s += h_i[j] * self.z[j];
             }
-            y[a] = s / l[a * nf + a];
         }
+        self.rhs[nf] = -s;
+        Ok(())
+    }
+
+    /// ẑ_W = z_W, ẑ_F = H_FF⁻¹ rhs.
+    fn subspace_minimiser(&mut self) {
+        let nf = self.factor.len();
+        let x = &mut self.work[..nf];
+        x.copy_from_slice(&self.rhs[..nf]);
+        self.factor.solve_in_place(x);
         self.zhat.copy_from_slice(&self.z);
-        for (a, &i) in self.free.iter().enumerate() {
-            self.zhat[i] = y[a];
+        for (&i, &v) in self.factor.order().iter().zip(x.iter()) {
+            self.zhat[i] = v;
         }
     }
 
@@ -384,7 +552,7 @@ impl ActiveSetSolver {
     fn blocking(&self) -> Option<(usize, f64, Bound)> {
         let (lo, up) = (self.qp.zset().lower(), self.qp.zset().upper());
         let mut best: Option<(usize, f64, Bound)> = None;
-        for &i in &self.free {
+        for &i in self.factor.order() {
             let (zi, zh) = (self.z[i], self.zhat[i]);
             let (ratio, bound) = if zh < lo[i] {
                 ((lo[i] - zi) / (zh - zi), Bound::Lower)
@@ -394,11 +562,28 @@ impl ActiveSetSolver {
                 continue;
             };
             let ratio = ratio.clamp(0.0, 1.0);
-            if best.is_none_or(|(_, a, _)| ratio < a) {
+            if best.is_none_or(|(j, a, _)| ratio < a || (ratio == a && i < j)) {
                 best = Some((i, ratio, bound));
             }
         }
         best
+    }
+
+    /// g_W = (Hz + q)_W; returns the scale estimate 1 + ‖q‖_∞ + max(‖(Hz)_W‖_∞, ‖q_F‖_∞).
+    fn working_gradient_and_scale(&mut self, qmax: f64) -> f64 {
+        let n = self.qp.n();
+        let h = self.qp.h_row_major();
+        let mut hzmax = 0.0f64;
+        for i in 0..n {
+            if self.state[i] == Bound::Free {
+                hzmax = hzmax.max(self.q[i].abs());
+            } else {
+                let hz = dot(&h[i * n..(i + 1) * n], &self.z);
+                self.g[i] = hz + self.q[i];
+                hzmax = hzmax.max(hz.abs());
+            }
+        }
+        1.0 + qmax + hzmax
     }
 
     /// g = Hz + q; returns the KKT scale 1 + ‖q‖_∞ + ‖Hz‖_∞.
@@ -454,22 +639,6 @@ impl ActiveSetSolver {
         }
         r
     }
-}
-
-#[inline]
-fn dot(a: &[f64], b: &[f64]) -> f64 {
-    let mut acc = [0.0f64; 4];
-    let chunks = a.len() / 4;
-    for c in 0..chunks {
-        for k in 0..4 {
-            acc[k] += a[4 * c + k] * b[4 * c + k];
-        }
-    }
-    let mut s = (acc[0] + acc[1]) + (acc[2] + acc[3]);
-    for k in 4 * chunks..a.len() {
-        s += a[k] * b[k];
-    }
-    s
 }
 
 /// An exact solve that cannot stop without an answer: [`ActiveSetSolver`] first, Clarabel
@@ -545,10 +714,18 @@ impl ExactSolver {
         Ok(&self.z)
     }
 
-    /// Forgets the warm start: the next call starts as a fresh solver's does.
+    /// Forgets the warm start and the cached factor: the next call gives a fresh solver's
+    /// results, bit for bit.
     pub fn reset(&mut self) {
         self.active.reset();
         self.last_info = None;
+    }
+
+    /// The next call starts from Π_Z(`z0`) and the working set of the bounds it touches
+    /// ([`ActiveSetSolver::warm_start`]) instead of the previous call's. Errors: `z0` of the
+    /// wrong length or not finite ([`QpError::Model`]).
+    pub fn warm_start(&mut self, z0: &[f64]) -> Result<()> {
+        self.active.warm_start(z0)
     }
 
     /// The last solution.

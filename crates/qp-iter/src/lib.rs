@@ -23,6 +23,7 @@ pub mod certificate;
 pub mod driver;
 pub mod error;
 pub mod fista;
+mod free_factor;
 pub mod kernel;
 pub mod method;
 pub mod operator;

@@ -122,3 +122,49 @@ fn no_method_allocates_after_setup() {
     });
     assert_eq!(count, 0);
 }
+
+/// The exact active-set solver: solves with working-set changes (factor updates), warm
+/// starts from a point, resets and fresh factorisations allocate nothing after setup.
+#[test]
+fn active_set_allocates_nothing_after_setup() {
+    use qp_iter::active_set::{ActiveSetSettings, ActiveSetSolver, ExactSolver};
+    let qp = problem();
+    let n = qp.n();
+    let thetas = [
+        [0.3, -1.0, 2.0],
+        [1.0, 0.0, -0.5],
+        [-2.0, 3.0, 1.0],
+        [0.0, 0.0, 0.0],
+    ];
+    let z0: Vec<f64> = (0..n)
+        .map(|i| if i % 3 == 0 { 0.7 } else { -0.1 })
+        .collect();
+    for max_updates in [None, Some(0), Some(3)] {
+        let settings = ActiveSetSettings {
+            max_updates,
+            ..ActiveSetSettings::default()
+        };
+        let mut s = ActiveSetSolver::new(&qp, settings).unwrap();
+        let mut e = ExactSolver::with_settings(&qp, settings).unwrap();
+        let mut updates = 0;
+        let mut run = |s: &mut ActiveSetSolver, e: &mut ExactSolver| {
+            for theta in &thetas {
+                updates += s.solve(theta).unwrap().updates;
+                std::hint::black_box(e.solve(theta).unwrap());
+            }
+            s.warm_start(&z0).unwrap();
+            e.warm_start(&z0).unwrap();
+            s.solve(&thetas[1]).unwrap();
+            e.solve(&thetas[2]).unwrap();
+            s.reset();
+            e.reset();
+            s.solve(&thetas[2]).unwrap();
+            e.solve(&thetas[0]).unwrap();
+        };
+        run(&mut s, &mut e); // warm-up
+        let count = allocations(|| run(&mut s, &mut e));
+        assert_eq!(count, 0, "max_updates {max_updates:?}: {count} allocations");
+        assert_eq!(e.fallbacks(), 0);
+        assert!(max_updates == Some(0) || updates > 0, "{max_updates:?}");
+    }
+}

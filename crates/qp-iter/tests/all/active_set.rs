@@ -268,7 +268,7 @@ fn bad_input_is_a_typed_error() {
     let inst = random_instance(3, Gen::default());
     for tol in [0.0, -1.0, 1.0, f64::NAN] {
         assert!(matches!(
-            ActiveSetSolver::new(&inst.qp, ActiveSetSettings { tol, max_iter: None }),
+            ActiveSetSolver::new(&inst.qp, ActiveSetSettings { tol, ..ActiveSetSettings::default() }),
             Err(QpError::Parameter { ref name, .. }) if name == "tol"
         ));
     }
@@ -361,4 +361,152 @@ fn exact_solver_falls_back_to_clarabel_and_counts_it() {
             Err(QpError::Model(_))
         ) || inst.qp.n_theta() == 0
     );
+}
+
+/// The factor updates (a bound entering or leaving W updates the Cholesky factor of H_FF
+/// instead of recomputing it) against recomputing it at every change (`max_updates =
+/// Some(0)`, the method before the updates): on thousands of random QPs, each solved for a
+/// sequence of strongly varying θ and from random warm-start points, so that the working
+/// set changes many times, the two give the same minimiser to 1e-10 relative.
+#[test]
+fn updated_factor_gives_the_same_solutions_as_fresh_factorisations() {
+    let mut r = rng(17);
+    let (mut solves, mut updates, mut fresh_factorizations) = (0usize, 0usize, 0usize);
+    let mut worst = 0.0f64;
+    for seed in 0..2500u64 {
+        let inst = random_instance(
+            130_000 + seed,
+            Gen {
+                n_min: 2,
+                n_max: 40,
+                ..Gen::default()
+            },
+        );
+        let n = inst.qp.n();
+        let mut upd = ActiveSetSolver::new(&inst.qp, ActiveSetSettings::default()).unwrap();
+        let mut fresh = ActiveSetSolver::new(
+            &inst.qp,
+            ActiveSetSettings {
+                max_updates: Some(0),
+                ..ActiveSetSettings::default()
+            },
+        )
+        .unwrap();
+        let mut theta = inst.theta.clone();
+        for step in 0..6 {
+            for t in theta.iter_mut() {
+                *t += 1.5 * (r.random::<f64>() - 0.5);
+            }
+            if step == 3 {
+                // A random start point: the cached factor is updated to its free set.
+                let z0: Vec<f64> = (0..n).map(|_| 3.0 * (r.random::<f64>() - 0.5)).collect();
+                upd.warm_start(&z0).unwrap();
+                fresh.warm_start(&z0).unwrap();
+            }
+            let a = upd
+                .solve(&theta)
+                .unwrap_or_else(|e| panic!("seed {seed}: {e}"));
+            let b = fresh.solve(&theta).unwrap();
+            assert_eq!(b.updates, 0);
+            let q = linear_term(&inst.qp, &theta);
+            let scale = 1.0 + norm(fresh.z()) + norm(&q);
+            let d = dist(upd.z(), fresh.z()) / scale;
+            assert!(
+                d <= 1e-10,
+                "seed {seed}, step {step}: relative difference {d:e}"
+            );
+            // Both are answers in their own right.
+            assert!(natural_residual(&inst.qp, &q, upd.z()) <= 1e-9 * scale);
+            worst = worst.max(d);
+            solves += 1;
+            updates += a.updates;
+            fresh_factorizations += a.factorizations;
+        }
+    }
+    println!(
+        "factor updates vs fresh factorisations: {solves} solves, {updates} updates, {fresh_factorizations} fresh factorisations, worst relative difference {worst:.2e}"
+    );
+    assert!(
+        updates > 10 * solves / 2,
+        "too few working-set changes: {updates}"
+    );
+}
+
+/// A long warm-started sequence on one QP (hundreds of updates between fresh
+/// factorisations) stays at the fresh answer, with and without a forced refresh budget.
+#[test]
+fn long_update_sequences_stay_accurate() {
+    let mut r = rng(23);
+    for seed in 0..20u64 {
+        let inst = random_instance(
+            150_000 + seed,
+            Gen {
+                n_min: 60,
+                n_max: 80,
+                log10_kappa_max: 3.0,
+                p_finite: 0.9,
+            },
+        );
+        let settings = |max_updates| ActiveSetSettings {
+            max_updates,
+            ..ActiveSetSettings::default()
+        };
+        let mut long = ActiveSetSolver::new(&inst.qp, settings(Some(usize::MAX))).unwrap();
+        let mut capped = ActiveSetSolver::new(&inst.qp, settings(None)).unwrap();
+        // q drifts (θ may be empty): the minimiser wanders through the box.
+        let mut q = linear_term(&inst.qp, &inst.theta);
+        let amp = 0.3 * (1.0 + norm(&q));
+        let (mut total, mut factorizations) = (0, 0);
+        for _ in 0..150 {
+            for v in q.iter_mut() {
+                *v += amp * (r.random::<f64>() - 0.5);
+            }
+            let info = long.solve_q(&q).unwrap();
+            total += info.updates;
+            factorizations += info.factorizations;
+            capped.solve_q(&q).unwrap();
+            let mut fresh = ActiveSetSolver::new(&inst.qp, settings(Some(0))).unwrap();
+            fresh.solve_q(&q).unwrap();
+            let scale = 1.0 + norm(fresh.z()) + norm(&q);
+            assert!(dist(long.z(), fresh.z()) <= 1e-10 * scale, "seed {seed}");
+            assert!(dist(capped.z(), fresh.z()) <= 1e-10 * scale, "seed {seed}");
+        }
+        let (lo, up) = (inst.qp.zset().lower(), inst.qp.zset().upper());
+        let unconstrained = lo.iter().chain(up).all(|b| b.is_infinite());
+        // One fresh factorisation, then hundreds of updates on it.
+        assert!(
+            factorizations == 1 && (total > 300 || unconstrained),
+            "seed {seed}: {total} updates, {factorizations} factorisations"
+        );
+    }
+}
+
+/// After `reset` the solver reproduces a fresh solver bit for bit, whatever factor updates
+/// happened before (what a restarted Monte-Carlo run relies on).
+#[test]
+fn reset_reproduces_a_fresh_solver_bit_for_bit() {
+    let mut r = rng(31);
+    for seed in 0..200u64 {
+        let inst = random_instance(170_000 + seed, Gen::default());
+        let thetas: Vec<Vec<f64>> = (0..5)
+            .map(|_| {
+                inst.theta
+                    .iter()
+                    .map(|t| t + 2.0 * (r.random::<f64>() - 0.5))
+                    .collect()
+            })
+            .collect();
+        let mut used = ActiveSetSolver::new(&inst.qp, ActiveSetSettings::default()).unwrap();
+        for theta in thetas.iter().rev() {
+            used.solve(theta).unwrap();
+        }
+        used.reset();
+        let mut fresh = ActiveSetSolver::new(&inst.qp, ActiveSetSettings::default()).unwrap();
+        for theta in &thetas {
+            let a = used.solve(theta).unwrap();
+            let b = fresh.solve(theta).unwrap();
+            assert_eq!(a, b, "seed {seed}");
+            assert_eq!(used.z(), fresh.z(), "seed {seed}");
+        }
+    }
 }

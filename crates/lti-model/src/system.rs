@@ -259,6 +259,31 @@ impl LtiSystem {
     }
 }
 
+/// An unstable A over a prediction horizon n: ρ(A) > 1 with ρⁿ ≥ 10³, where condensed
+/// Hessians lose their weights to rounding. Returns (ρ, ρⁿ, the longest horizon with
+/// ρⁿ ≤ 10³, at least 1); None when A is stable enough over n (what the MHE's and the MPC's
+/// error messages use to name `plant.a` and the horizon).
+///
+/// ```
+/// let (rho, growth, shorter) = lti_model::system::unstable_over(10.0, 5).unwrap();
+/// assert_eq!((rho, growth, shorter), (10.0, 1e5, 3));
+/// assert!(lti_model::system::unstable_over(1.1, 5).is_none());
+/// ```
+pub fn unstable_over(rho: f64, n: usize) -> Option<(f64, f64, usize)> {
+    let growth = rho.powi(i32::try_from(n).unwrap_or(i32::MAX));
+    // `!(growth < 1e3)` so that an infinite or NaN growth counts as unstable.
+    let unstable = rho > 1.0 && !(growth < 1e3);
+    if !unstable {
+        return None;
+    }
+    let shorter = if rho.is_finite() {
+        ((3.0 / rho.log10()).floor() as usize).max(1)
+    } else {
+        1
+    };
+    Some((rho, growth, shorter))
+}
+
 /// Spectral radius max |λ_i(M)| of a square matrix.
 pub fn spectral_radius(m: MatRef<'_, f64>) -> Result<f64> {
     if m.nrows() == 0 {

@@ -310,14 +310,8 @@ impl MheSettings {
             .into();
         }
         let rho = lti_model::system::spectral_radius(sys.a()).unwrap_or(f64::NAN);
-        let growth = rho.powi(i32::try_from(m).unwrap_or(i32::MAX));
         let decay = eta.powi(i32::try_from(m.saturating_sub(1)).unwrap_or(i32::MAX));
-        if rho > 1.0 && !(growth < 1e3) {
-            let shorter = if rho.is_finite() {
-                ((3.0 / rho.log10()).floor() as usize).max(1)
-            } else {
-                1
-            };
+        if let Some((rho, growth, shorter)) = lti_model::system::unstable_over(rho, m) {
             return key_error(
                 "plant.a",
                 format!(

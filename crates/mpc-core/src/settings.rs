@@ -172,16 +172,9 @@ impl MpcSettings {
                 },
             )) if name.contains('H') || name.contains('F') => {
                 let n = self.horizon;
-                let rho = rho();
-                let growth = rho.powi(i32::try_from(n).unwrap_or(i32::MAX));
                 let r_min = lti_model::matrix::sym_extreme_eigenvalues("R_c", self.r.as_ref())
                     .map_or(f64::NAN, |(lo, _)| lo);
-                if rho > 1.0 && !(growth < 1e3) {
-                    let shorter = if rho.is_finite() {
-                        ((3.0 / rho.log10()).floor() as usize).max(1)
-                    } else {
-                        1
-                    };
+                if let Some((rho, growth, shorter)) = lti_model::system::unstable_over(rho(), n) {
                     return key_error(
                         "plant.a",
                         format!(

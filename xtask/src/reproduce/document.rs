@@ -1,0 +1,387 @@
+//! The documents `reproduce` writes (`certificate.json`, `trace.json`) and its outcome:
+//! plain serialisable records, filled in by `run_job` (docs/reproduce-output.md).
+
+use super::*;
+
+/// The scenario as read.
+#[derive(Debug, Clone, Serialize)]
+pub struct ScenarioRecord {
+    /// `name`.
+    pub name: String,
+    /// `description`.
+    pub description: Option<String>,
+    /// Path, relative to the workspace when inside it.
+    pub path: String,
+    /// The file's text, verbatim (comments included).
+    pub text: Option<String>,
+}
+
+/// The machine a result was produced on.
+#[derive(Debug, Clone, Serialize)]
+pub struct HostInfo {
+    /// Host name, if it could be read.
+    pub hostname: Option<String>,
+    /// `std::env::consts::OS`.
+    pub os: String,
+    /// `std::env::consts::ARCH`.
+    pub arch: String,
+    /// Available parallelism (logical CPUs usable by this process).
+    pub cpus: Option<usize>,
+}
+
+impl HostInfo {
+    pub(super) fn collect() -> Self {
+        let hostname = std::fs::read_to_string("/proc/sys/kernel/hostname")
+            .or_else(|_| std::fs::read_to_string("/etc/hostname"))
+            .ok()
+            .map(|s| s.trim().to_string())
+            .or_else(|| std::env::var("HOSTNAME").ok())
+            .filter(|s| !s.is_empty());
+        Self {
+            hostname,
+            os: std::env::consts::OS.to_string(),
+            arch: std::env::consts::ARCH.to_string(),
+            cpus: std::thread::available_parallelism().ok().map(|n| n.get()),
+        }
+    }
+}
+
+/// The settings as recorded.
+#[derive(Debug, Clone, Serialize)]
+pub struct SettingsRecord {
+    /// Seed of every sampled estimate (the scenario's `noise.seed`).
+    pub sampling_seed: u64,
+    /// See [`Settings`].
+    pub lipschitz_pairs: usize,
+    /// See [`Settings`].
+    pub gamma13_sequences: usize,
+    /// See [`Settings`].
+    pub enumeration_max_vars: usize,
+    /// See [`Settings`].
+    pub k_max: usize,
+    /// See [`Settings`].
+    pub small_k: usize,
+    /// The t of Fig. 2(c) (`--fig2c-t`, or the default).
+    pub fig2c_t: usize,
+    /// `--sim-k-cap` (null: none).
+    pub sim_k_cap: Option<usize>,
+}
+
+/// One solver's verdict, flattened for readers of the JSON.
+#[derive(Debug, Clone, Serialize)]
+pub struct SolverSummary {
+    /// `"pg"`, `"fista"`, `"admm"`, `"admm-pr"`.
+    pub solver: String,
+    /// Whether this is the scenario's `[mhe] solver` (the one simulated).
+    pub simulated: bool,
+    /// Theorem 1 certifies ISS for some K (K_min exists).
+    pub certified: bool,
+    /// Smallest certified K; null when void.
+    pub k_min: Option<usize>,
+    /// Why there is no K_min (empty when there is one).
+    pub void_reasons: Vec<String>,
+    /// Every premise with pass/fail, value, margin and fix.
+    pub premises: Vec<Premise>,
+    /// φ(K) = prefactor · rateᴷ.
+    pub phi_rate: f64,
+    /// Prefactor of φ(K).
+    pub phi_prefactor: f64,
+    /// 1 − max(sg1, sg2, sg3) at K_min (null when void).
+    pub margin_at_k_min: Option<f64>,
+    /// K_min with the sampled L_Φ instead of the certified bound (not a certificate).
+    pub k_min_with_sampled_l_phi: Option<usize>,
+}
+
+impl SolverSummary {
+    pub(super) fn new(sc: &SolverCertificate, simulated: Method) -> Self {
+        Self {
+            solver: sc.solver.name().to_string(),
+            simulated: sc.solver == simulated,
+            certified: sc.k_min.is_some(),
+            k_min: sc.k_min,
+            void_reasons: sc.void_reasons.clone(),
+            premises: sc.analysis.premises.clone(),
+            phi_rate: sc.phi_rate,
+            phi_prefactor: sc.phi_prefactor,
+            margin_at_k_min: sc.at_k_min.as_ref().map(|g| g.margin),
+            k_min_with_sampled_l_phi: sc.k_min_with_sampled_l_phi,
+        }
+    }
+}
+
+/// What one simulation did.
+#[derive(Debug, Clone, Serialize)]
+pub struct RunSummary {
+    /// Short name (`"K=652"`).
+    pub label: String,
+    /// Iterations K of Φ per step.
+    pub k: usize,
+    /// Why this K.
+    pub k_source: KSource,
+    /// Φ of the MHE.
+    pub solver: String,
+    /// Always `"exact MPC"`.
+    pub controller: String,
+    /// ε_t recorded (exact MHE solve on).
+    pub exact_mhe_solve: bool,
+    /// Disturbance seed.
+    pub seed: u64,
+    /// T requested.
+    pub steps: usize,
+    /// Steps completed (< T only after an error).
+    pub completed: usize,
+    /// The step error, if the run stopped early (e.g. a diverged loop).
+    pub error: Option<String>,
+    /// sup_t ‖e_t‖.
+    pub sup_norm_e: f64,
+    /// sup_t ‖x_t‖.
+    pub sup_norm_x: f64,
+    /// ‖x_T‖.
+    pub final_norm_x: f64,
+    /// Mean ‖e_t‖ over the last quarter.
+    pub tail_mean_e: Option<f64>,
+    /// Mean ‖x_t‖ over the last quarter.
+    pub tail_mean_x: Option<f64>,
+    /// Mean ε_t over the last quarter.
+    pub tail_mean_epsilon: Option<f64>,
+}
+
+/// A simulation of the plan that was not run.
+#[derive(Debug, Clone, Serialize)]
+pub struct SkippedRun {
+    /// Its K.
+    pub k: usize,
+    /// Why this K was planned.
+    pub k_source: KSource,
+    /// Why it was not run.
+    pub reason: String,
+}
+
+/// Props. 1 and 3 evaluated on the K_min run.
+#[derive(Debug, Clone, Serialize)]
+pub struct TrajectoryReport {
+    /// The check ran (a K_min exists and ε_t was recorded).
+    pub ran: bool,
+    /// Why it did not run.
+    pub reason: Option<String>,
+    /// Method of the run.
+    pub solver: String,
+    /// K of the run (K_min) and of the constants.
+    pub k: Option<usize>,
+    /// Seed of the run.
+    pub seed: u64,
+    /// Steps evaluated.
+    pub steps: usize,
+    /// With the certificate's constants (certified L_Φ).
+    pub certified_l_phi: Option<TrajectoryCheck>,
+    /// The same constants with the sampled L_Φ (informative, not a certificate).
+    pub sampled_l_phi: Option<TrajectoryCheck>,
+    /// Both inequalities hold at every t with the certified constants.
+    pub passed: Option<bool>,
+}
+
+/// One row of the constants table (ours vs the paper's published values).
+#[derive(Debug, Clone, Serialize)]
+pub struct ComparisonRow {
+    /// Quantity.
+    pub quantity: String,
+    /// Ours, for the stand-in plant.
+    pub ours: String,
+    /// The paper's, for its own plant (not printed in the paper).
+    pub paper: String,
+}
+
+/// certificate.json (docs/reproduce-output.md).
+#[derive(Debug, Clone, Serialize)]
+pub struct CertificateDocument {
+    /// [`CERTIFICATE_FORMAT`].
+    pub format: String,
+    /// [`FORMAT_VERSION`].
+    pub format_version: u32,
+    /// The preset, if any.
+    pub preset: Option<Preset>,
+    /// The job label.
+    pub label: String,
+    /// The scenario.
+    pub scenario: ScenarioRecord,
+    /// Git revision, tool, compiler, time.
+    pub provenance: Provenance,
+    /// The machine.
+    pub host: HostInfo,
+    /// Sampling settings and seed.
+    pub settings: SettingsRecord,
+    /// The scenario's solver (the one simulated).
+    pub solver: String,
+    /// `mhe.iterations` of the scenario.
+    pub scenario_iterations: usize,
+    /// The scenario's solver has a K_min.
+    pub certified: bool,
+    /// `scenario_iterations == k_min` of the scenario's solver (null when void).
+    pub scenario_iterations_match_k_min: Option<bool>,
+    /// Per solver: premises, K_min or reasons.
+    pub solvers: Vec<SolverSummary>,
+    /// Everything `certify_closed_loop` computed.
+    pub certificate: ClosedLoopCertificate,
+    /// The simulations.
+    pub runs: Vec<RunSummary>,
+    /// Simulations of the plan not run, and why (beyond the work limit).
+    pub skipped_runs: Vec<SkippedRun>,
+    /// Props. 1/3 on the K_min run.
+    pub trajectory_check: TrajectoryReport,
+    /// The exact linear stability boundary per method (exact MPC): ρ_lin(K) on a log grid,
+    /// K_lin and every K with ρ_lin ≥ 1 (necessary for stability; `closed_loop::linear`).
+    pub linear: Vec<LinearEntry>,
+    /// Constants next to the paper's published values.
+    pub paper_comparison: Vec<ComparisonRow>,
+    /// Files written, relative to the output directory.
+    pub files: Vec<String>,
+    /// Figures not written or with points left out, and why.
+    pub figure_notes: Vec<String>,
+}
+
+/// A box with ±∞ bounds written as null.
+#[derive(Debug, Clone, Serialize)]
+pub struct BoxRecord {
+    /// Lower bounds (null = −∞).
+    pub lower: Vec<Option<f64>>,
+    /// Upper bounds (null = +∞).
+    pub upper: Vec<Option<f64>>,
+}
+
+impl BoxRecord {
+    pub(super) fn new(b: &BoxSet) -> Self {
+        let f = |v: &[f64]| v.iter().map(|a| a.is_finite().then_some(*a)).collect();
+        Self {
+            lower: f(b.lower()),
+            upper: f(b.upper()),
+        }
+    }
+}
+
+/// Plant of eq. (1).
+#[derive(Debug, Clone, Serialize)]
+pub struct ModelRecord {
+    /// n_x, n_u, n_y, dim w¹, dim w².
+    #[serde(flatten)]
+    pub dims: crate::certify::PlantDims,
+    /// A.
+    pub a: Vec<Vec<f64>>,
+    /// B.
+    pub b: Vec<Vec<f64>>,
+    /// C.
+    pub c: Vec<Vec<f64>>,
+    /// E (w¹ → x⁺).
+    pub e: Vec<Vec<f64>>,
+    /// F (w² → y).
+    pub f: Vec<Vec<f64>>,
+}
+
+/// 𝒳, 𝒰, 𝒴, 𝒲.
+#[derive(Debug, Clone, Serialize)]
+pub struct SetsRecord {
+    /// 𝒳.
+    pub state: BoxRecord,
+    /// 𝒰.
+    pub input: BoxRecord,
+    /// 𝒴.
+    pub output: BoxRecord,
+    /// 𝒲 (w = (w¹, w²)).
+    pub disturbance: BoxRecord,
+}
+
+/// The MHE problem's data (cost (9)).
+#[derive(Debug, Clone, Serialize)]
+pub struct MheInfo {
+    /// M.
+    pub horizon: usize,
+    /// η.
+    pub eta: f64,
+    /// P (computed from LMI (2) unless the scenario gives it).
+    pub p: Vec<Vec<f64>>,
+    /// Q.
+    pub q: Vec<Vec<f64>>,
+    /// R.
+    pub r: Vec<Vec<f64>>,
+    /// `"computed from LMI (2)"` or `"scenario mhe.p"`.
+    pub p_source: String,
+    /// Warm start rule.
+    pub warm_start: String,
+    /// The cost, written out.
+    pub cost: String,
+}
+
+/// The MPC's data.
+#[derive(Debug, Clone, Serialize)]
+pub struct MpcInfo {
+    /// N.
+    pub horizon: usize,
+    /// Q_c.
+    pub q_c: Vec<Vec<f64>>,
+    /// R_c.
+    pub r_c: Vec<Vec<f64>>,
+    /// P_f (DARE).
+    pub terminal_weight: Vec<Vec<f64>>,
+}
+
+/// One simulation in trace.json.
+#[derive(Debug, Serialize)]
+pub struct TraceRun<'a> {
+    /// Summary (same as in certificate.json).
+    #[serde(flatten)]
+    pub summary: &'a RunSummary,
+    /// Per step records.
+    pub trace: &'a Trace,
+}
+
+/// trace.json (docs/reproduce-output.md).
+#[derive(Debug, Serialize)]
+pub struct TraceDocument<'a> {
+    /// [`TRACE_FORMAT`].
+    pub format: &'static str,
+    /// [`FORMAT_VERSION`].
+    pub format_version: u32,
+    /// The preset, if any.
+    pub preset: Option<Preset>,
+    /// The job label.
+    pub label: &'a str,
+    /// The scenario.
+    pub scenario: &'a ScenarioRecord,
+    /// Provenance.
+    pub provenance: &'a Provenance,
+    /// Plant.
+    pub model: ModelRecord,
+    /// Sets.
+    pub sets: SetsRecord,
+    /// MHE data.
+    pub mhe: MheInfo,
+    /// MPC data.
+    pub mpc: MpcInfo,
+    /// x₀.
+    pub x0: &'a [f64],
+    /// x̄₀.
+    pub prior: &'a [f64],
+    /// The runs.
+    pub runs: Vec<TraceRun<'a>>,
+}
+
+/// Result of one job.
+#[derive(Debug)]
+pub struct Outcome {
+    /// certificate.json's content.
+    pub document: CertificateDocument,
+    /// The text summary.
+    pub summary: String,
+    /// What was done, line by line, as it happened (the work lines; printed live with
+    /// [`Settings::live`], which is how the command shows them: this copy is for callers
+    /// that run quietly, such as the tests).
+    #[cfg_attr(not(test), allow(dead_code))]
+    pub log: Vec<String>,
+}
+
+impl Outcome {
+    /// The certified trajectory check ran and failed: the simulation contradicts the
+    /// certificate.
+    pub fn contradicted(&self) -> bool {
+        self.document.trajectory_check.passed == Some(false)
+    }
+}

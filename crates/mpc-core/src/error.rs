@@ -71,8 +71,14 @@ pub enum MpcError {
     /// The K-iteration solver produced a NaN or ±∞ iterate (the controller state was reset).
     #[error("the K-iteration MPC produced a non-finite input sequence; the warm start was reset")]
     NonFiniteIterate,
-    /// The exact solver (Clarabel) did not return a solution.
-    #[error("exact MPC solve failed: {status}")]
+    /// The exact solver (active set, then Clarabel) did not return a solution: the MPC's QP
+    /// is too ill-conditioned for them (the scenario keys that shape it are named).
+    #[error(
+        "exact MPC solve failed: {status}; the MPC QP is too ill-conditioned to solve in f64 — \
+         its conditioning comes from `plant.a`, `plant.b` (an unstable or badly scaled plant \
+         grows like ρ(A)^N), `mpc.horizon`, `mpc.q` and `mpc.r`: rescale the plant, shorten \
+         `mpc.horizon` or balance the weights"
+    )]
     Solver {
         /// Clarabel's status or the reason.
         status: String,

@@ -137,7 +137,13 @@ pub fn certify_closed_loop_timed(
 
     // Controller constants.
     let radius = resolved.sampling_radius();
-    let l_pi = mpc_core::lipschitz_report_for(&mpc, opts.lipschitz_pairs, opts.seed, radius)?;
+    // A numerical failure of the MPC's analysis names the scenario keys that shape its QP.
+    let explain = |e: mpc_core::MpcError| match &scenario.mpc {
+        Some(spec) => spec.explain(sys, e),
+        None => e,
+    };
+    let l_pi = mpc_core::lipschitz_report_for(&mpc, opts.lipschitz_pairs, opts.seed, radius)
+        .map_err(explain)?;
     let l_pi_used = l_pi.l_pi();
     times.l_pi_s = split();
     let gamma13 = crate::gamma13::gamma13_report(
@@ -146,7 +152,8 @@ pub fn certify_closed_loop_timed(
         opts.gamma13_sequences,
         opts.seed,
         opts.enumeration_max_vars,
-    )?;
+    )
+    .map_err(explain)?;
     times.gamma13_s = split();
 
     let (p_min, p_max) = ioss_cert.as_ref().map_or((f64::NAN, f64::NAN), |c| {

@@ -236,3 +236,27 @@ fn window_failures_are_explained_by_key() {
     };
     assert_eq!(s.explain(&sys, other.clone()), other);
 }
+
+/// Found by the generated-input tests: a plant with a 670 entry in A (ρ(A)^N ≈ 3e8 over
+/// N = 3) whose MPC builds but whose L_π analysis fails its Cholesky; the certificate's
+/// error used to name only "H (L_π certificate)", and the exact MPC solve failure named no
+/// key. Both now name the scenario keys.
+#[test]
+fn an_ill_conditioned_mpc_names_its_keys_in_the_certificate_and_the_solve() {
+    let s = Scenario::from_toml_str(include_str!("ill_conditioned_mpc.toml")).unwrap();
+    let e = crate::certify(&s, &closed_loop::certificate::CertificateOptions::default())
+        .unwrap_err()
+        .to_string();
+    assert!(
+        e.contains("`plant.a`") && e.contains("`mpc.horizon`"),
+        "{e}"
+    );
+    let solve = mpc_core::MpcError::Solver {
+        status: "InsufficientProgress".into(),
+    }
+    .to_string();
+    assert!(
+        solve.contains("`plant.a`") && solve.contains("`mpc.r`"),
+        "{solve}"
+    );
+}

@@ -6,6 +6,14 @@
 //! All gains of the paper are linear (γ(s) = g·s), so each small-gain condition
 //! γ_a ∘ γ_b ∘ …(s) < s for all s > 0 is "product of slopes < 1".
 //!
+//! ## Sum-form estimates: the cycle conditions are not enough
+//! Props. 1 and 3 bound ε and e by *sums* of gains. For sum-form estimates the small-gain
+//! condition is ρ(Γ) < 1 for the gain matrix Γ, not "every cycle below 1" (the theorem for
+//! max-form estimates; [`crate::small_gain`] has a three-node counterexample). On this graph
+//! every cycle passes through e, so ρ(Γ) < 1 ⇔ det(I − Γ) = 1 − sg1 − sg2 − sg3 > 0. We
+//! certify with that sum (its margin is [`GainsAtK::margin`]) and report the paper's
+//! conditions beside it ([`GainsAtK::paper_conditions`]).
+//!
 //! ## Premises (checked, never assumed)
 //! - ρ < 1 with ρ^M = 6η^M (Prop. 3 sums geometric series in √ρ); the paper's own case study
 //!   (M = 5, η = 0.8) violates it: 6·0.8⁵ ≈ 1.97.
@@ -112,9 +120,15 @@ pub struct GainsAtK {
     pub sg2: f64,
     /// Slope of γ₁,₃ ∘ γ₃,₂ ∘ γ₂,₁ (sg3).
     pub sg3: f64,
-    /// 1 − max(sg1, sg2, sg3): the certified ISS margin (> 0 iff certified at this K).
+    /// The paper's conditions as printed: every slope (sg1)–(sg3) < 1 (the small-gain theorem
+    /// for max-form estimates; necessary, not sufficient for the sum-form estimates of
+    /// Props. 1 and 3, see [`crate::small_gain`]).
+    pub paper_conditions: bool,
+    /// 1 − (sg1 + sg2 + sg3) = det(I − Γ) of the three-node gain matrix (every cycle passes
+    /// through e): positive iff ρ(Γ) < 1, the small-gain condition of the sum-form
+    /// estimates. The certified ISS margin (> 0 iff certified at this K).
     pub margin: f64,
-    /// All premises hold and every slope is < 1.
+    /// All premises hold and ρ(Γ) < 1 (margin > 0, which implies every slope < 1).
     pub certified: bool,
 }
 
@@ -331,9 +345,12 @@ impl IssAnalysis {
         let sg2 = gamma23 * gamma32;
         let sg3 = i.gamma13 * gamma32 * gamma21;
         let worst = sg1.max(sg2).max(sg3);
-        let margin = 1.0 - worst;
+        let paper_conditions = worst < 1.0;
+        // det(I − Γ) for Γ with γ₁,₃, γ₂,₁, γ₂,₃, γ₃,₁, γ₃,₂: 1 − sg1 − sg2 − sg3; with I − Γ's
+        // other leading minors equal to 1 it is the whole M-matrix test (small_gain.rs).
+        let margin = 1.0 - (sg1 + sg2 + sg3);
         let certified =
-            self.premises_hold() && (0.0..1.0).contains(&phi) && worst < 1.0 && worst.is_finite();
+            self.premises_hold() && (0.0..1.0).contains(&phi) && margin > 0.0 && margin.is_finite();
         GainsAtK {
             k,
             phi,
@@ -354,12 +371,13 @@ impl IssAnalysis {
             sg1,
             sg2,
             sg3,
+            paper_conditions,
             margin,
             certified,
         }
     }
 
-    /// Smallest K at which (sg1)–(sg3) hold and φ(K) < 1, or `None` when a premise fails
+    /// Smallest K at which sg1 + sg2 + sg3 < 1 (hence each of (sg1)–(sg3)) and φ(K) < 1, or `None` when a premise fails
     /// (a void certificate never yields a K) or no K up to `k_max` works.
     ///
     /// Every slope is increasing in φ(K) and φ is decreasing in K, so "certified at K" is

@@ -19,11 +19,13 @@
 pub mod analysis;
 pub mod certificate;
 pub mod gamma13;
+pub mod joint;
 pub mod linear;
 pub mod plan;
 pub mod record;
 pub mod scenario;
 pub mod sim;
+pub mod small_gain;
 pub mod sweep;
 
 pub use record::{MheStep, MheTrace, Trace};

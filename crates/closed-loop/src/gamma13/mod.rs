@@ -43,6 +43,8 @@ mod sampled;
 pub use report::{Gamma13Report, Gamma13Source, gamma13_report};
 pub use sampled::{Gamma13Sampled, gamma13_sampled};
 
+use faer::Mat;
+use lti_model::matrix::spectral_norm;
 use lti_model::system::spectral_radius;
 use mpc_core::{CondensedMpc, MpcError, worst_case_norm};
 use rayon::prelude::*;
@@ -76,6 +78,11 @@ pub struct MetricResult {
     pub gamma13: f64,
     /// γ₁ʷ = √(λ̄(S)/λ(S))/(1 − λ_S) for the λ_S used in `gamma13`, or ∞.
     pub gamma1w: f64,
+    /// ‖S^{½}B‖₂: how an additive input error d (x⁺ = Ax + Bπ(x + e) + Bd + w¹) enters.
+    pub input_matrix_gain: f64,
+    /// γ₁,₄ = ‖S^{½}B‖₂/(√λ(S)(1 − λ_S)) with the λ_S of `gamma13`: the gain from d to x
+    /// in the same estimate as γ₁,₃ (the sub-optimal MPC's error, [`crate::joint`]), or ∞.
+    pub gamma14: f64,
     /// Why gains of this metric are not computed (null in JSON) because it does not contract
     /// (λ_S ≥ 1); None when every figure is computed.
     pub not_computed: Option<String>,
@@ -259,6 +266,16 @@ pub struct Gamma13Certificate {
     pub gamma13_enumerated: Option<f64>,
     /// Impulse-response γ₁,₃ of the linear law (when s = 0 and the loop is stable).
     pub gamma13_linear: Option<f64>,
+    /// γ₁,₄: the gain from an additive input error d to x in the *same* estimate as
+    /// `gamma13` (same metric, or the impulse response Σ‖A_clᵏB‖₂ for the linear law); ∞
+    /// when void. Used by the joint MPC + MHE certificate ([`crate::joint`]).
+    pub gamma14: f64,
+    /// γ₁ʷ of the same estimate (∞ when void).
+    pub gamma1w: f64,
+    /// β₁(s, t) = `beta_prefactor`·`beta_rate`ᵗ·s of the same estimate (NaN when void).
+    pub beta_prefactor: f64,
+    /// See `beta_prefactor`.
+    pub beta_rate: f64,
     /// Every candidate's figures.
     pub candidates: Vec<MetricResult>,
     /// N·n_u.
@@ -290,6 +307,10 @@ fn void_certificate(
         gamma13_polynomial: f64::INFINITY,
         gamma13_enumerated: None,
         gamma13_linear: None,
+        gamma14: f64::INFINITY,
+        gamma1w: f64::INFINITY,
+        beta_prefactor: f64::NAN,
+        beta_rate: f64::NAN,
         candidates: Vec::new(),
         variables,
         saturable,
@@ -354,6 +375,15 @@ fn metric_figures(fam: &Family, patterns: &[Family], m: &Metric) -> Result<(f64,
     Ok((lam, gin))
 }
 
+/// The λ_S behind a candidate's `gamma13`: the free-set maximum when that gave it, else the
+/// family bound.
+fn used_contraction(c: &MetricResult) -> f64 {
+    match (c.contraction_enumerated, c.gamma13_enumerated) {
+        (Some(l), Some(e)) if e <= c.gamma13_polynomial => l,
+        _ => c.contraction,
+    }
+}
+
 fn gammas(lam: f64, gin: f64, m: &Metric) -> (f64, f64) {
     if lam < 1.0 {
         (
@@ -365,11 +395,12 @@ fn gammas(lam: f64, gin: f64, m: &Metric) -> (f64, f64) {
     }
 }
 
-/// γ₁,₃ = Σ_{k≥0} ‖A_clᵏ·BK‖₂ for the linear law, summed until a certified tail bound
+/// γ₁,₃ = Σ_{k≥0} ‖A_clᵏ·BK‖₂ (`input` = BK; with `input` = B it is γ₁,₄) for the linear
+/// law, summed until a certified tail bound
 /// (from a metric with λ_S < 1) is below 10⁻⁸ of the sum; None if that takes > 10⁶ terms.
-fn impulse_response_gain(fam: &Family, m: &Metric, lam: f64) -> Option<f64> {
+fn impulse_response_gain(fam: &Family, input: &Mat<f64>, m: &Metric, lam: f64) -> Option<f64> {
     let a = &fam.a_lin;
-    let mut term = fam.bk_lin.clone(); // A_clᵏ·BK
+    let mut term = input.clone(); // A_clᵏ·(BK or B)
     let mut sum = 0.0;
     for _ in 0..1_000_000usize {
         let tail = lti_model::matrix::spectral_norm((&m.half * &term).as_ref())
@@ -478,6 +509,8 @@ pub fn gamma13_certified_with(
             gamma13_enumerated: None,
             gamma13: g13,
             gamma1w: g1w,
+            input_matrix_gain: spectral_norm((&m.half * mpc.system().b()).as_ref()),
+            gamma14: f64::INFINITY,
             not_computed: None,
         });
     }
@@ -550,12 +583,17 @@ pub fn gamma13_certified_with(
             .copied()
             .filter(|&i| candidates[i].gamma13.is_finite())
         {
-            gamma13_linear = impulse_response_gain(&fam, &metrics[i], candidates[i].contraction);
+            gamma13_linear =
+                impulse_response_gain(&fam, &fam.bk_lin, &metrics[i], candidates[i].contraction);
         }
     }
 
-    for c in &mut candidates {
+    for (c, m) in candidates.iter_mut().zip(&metrics) {
         c.not_computed = not_computed_reason(c);
+        let lam = used_contraction(c);
+        if lam < 1.0 {
+            c.gamma14 = c.input_matrix_gain / (m.lmin.sqrt() * (1.0 - lam));
+        }
     }
     let best = candidates
         .iter()
@@ -572,10 +610,23 @@ pub fn gamma13_certified_with(
             Gamma13Method::Polynomial
         }
     });
+    // γ₁,₄, γ₁ʷ and β₁ of the same estimate as γ₁,₃.
+    let mut gamma14 = best.map_or(f64::INFINITY, |c| c.gamma14);
+    let gamma1w = best.map_or(f64::INFINITY, |c| c.gamma1w);
+    let (beta_prefactor, beta_rate) = best.map_or((f64::NAN, f64::NAN), |c| {
+        (c.condition_sqrt, used_contraction(c))
+    });
     if let Some(l) = gamma13_linear.filter(|l| *l < gamma13) {
         gamma13 = l;
         method = Some(Gamma13Method::Linear);
         metric = Some("impulse response (tail from the best metric)".into());
+        // The linear law: superposition bounds each input's term separately, so the
+        // homogeneous and w terms may keep the metric's figures.
+        if let Some(i) = order.first().copied() {
+            let b = mpc.system().b().to_owned();
+            gamma14 = impulse_response_gain(&fam, &b, &metrics[i], candidates[i].contraction)
+                .unwrap_or(gamma14);
+        }
     }
     let void = if gamma13.is_finite() {
         None
@@ -600,6 +651,10 @@ pub fn gamma13_certified_with(
         gamma13_polynomial,
         gamma13_enumerated,
         gamma13_linear,
+        gamma14,
+        gamma1w,
+        beta_prefactor,
+        beta_rate,
         candidates,
         variables,
         saturable: s,

@@ -65,10 +65,37 @@ fn every_constant_matches_the_hand_derivation() {
         assert!(close(g.sg2, 8.0 * f / (1.0 - f) * c_eps));
         assert!(close(g.sg3, c_eps * 12.0 * f / (1.0 - f)));
     }
-    // By hand: sg3(K=5) = 1.4991 > 1, sg3(K=6) = 0.6382 and sg1, sg2 < 1 at K = 6.
-    assert!(!an.at(5).certified);
-    assert!(an.at(6).certified);
-    assert_eq!(an.k_min(1_000_000), Some(6));
+    // By hand: sg3(K=5) = 1.4991 > 1. At K = 6 (φ = 1/64): sg1 = 12√2/64 = 0.2652,
+    // sg2 = (8/63)(√2/64 + 2√2 + 1/2) = 0.4255, sg3 = (12/63)·3.3505 = 0.6382 — each below 1
+    // (the paper's conditions hold), but their sum 1.3289 > 1: det(I − Γ) < 0, ρ(Γ) > 1.
+    // At K = 7 (φ = 1/128): 0.1326 + 0.1946 + 0.2919 = 0.6191 < 1.
+    assert!(!an.at(5).certified && !an.at(5).paper_conditions);
+    let g6 = an.at(6);
+    assert!(g6.paper_conditions && !g6.certified);
+    assert!((g6.margin - (1.0 - 1.3289)).abs() < 1e-4, "{}", g6.margin);
+    let g7 = an.at(7);
+    assert!(g7.certified && (g7.margin - (1.0 - 0.6191)).abs() < 1e-4);
+    assert_eq!(an.k_min(1_000_000), Some(7));
+}
+
+/// The margin is det(I − Γ) of the three-node gain matrix and its sign is ρ(Γ) < 1.
+#[test]
+fn margin_is_the_m_matrix_test_of_the_gain_matrix() {
+    use closed_loop::small_gain::GainMatrix;
+    let an = IssAnalysis::new(hand_inputs());
+    for k in 3..12 {
+        let g = an.at(k);
+        let mut m = GainMatrix::new(3);
+        m.set(0, 2, 1.0); // γ₁,₃
+        m.set(1, 0, g.gamma21);
+        m.set(1, 2, g.gamma23);
+        m.set(2, 0, g.gamma31);
+        m.set(2, 1, g.gamma32);
+        assert!((m.det_i_minus() - g.margin).abs() < 1e-12 * (1.0 + g.margin.abs()));
+        assert_eq!(m.is_contracting(), g.certified, "K = {k}");
+        let cycles: f64 = m.cycles().iter().map(|c| c.gain).sum();
+        assert!((cycles - (g.sg1 + g.sg2 + g.sg3)).abs() < 1e-12 * cycles);
+    }
 }
 
 #[test]

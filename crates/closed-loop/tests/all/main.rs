@@ -6,6 +6,7 @@ mod certificate;
 mod coverage;
 mod findings;
 mod gamma13;
+mod joint;
 mod linear;
 mod plants;
 mod scenario;

@@ -1,0 +1,280 @@
+//! The gains of the four-subsystem interconnection at (K_e, K_c) and its premises.
+
+use serde::Serialize;
+
+use crate::analysis::{GainsAtK, IssAnalysis, IssInputs, Premise};
+use crate::small_gain::{Cycle, GainMatrix};
+
+/// Node names of the gain graph, in the order of [`JointGains::matrix`].
+pub const NODE_NAMES: [&str; 4] = ["x", "epsilon", "e", "delta"];
+
+/// Constants of the sub-optimal MPC (node 4).
+#[derive(Debug, Clone, PartialEq, Serialize)]
+pub struct MpcMapInputs {
+    /// L_U: Lipschitz constant of x ↦ U*(x), the whole optimal input sequence.
+    pub l_u: f64,
+    /// φ_c(K) = prefactor · rateᴷ of the MPC's iteration map.
+    pub phi_rate: f64,
+    /// Prefactor of φ_c.
+    pub phi_prefactor: f64,
+    /// φ_c bounds ‖Uᴷ − U*‖ in the Euclidean norm with a feasible iterate (eq. (11) for the
+    /// MPC's QP).
+    pub phi_fits_eq11: bool,
+    /// ω = ‖W‖₂ of the warm start U⁰_t = W Uᴷᶜ_{t−1}.
+    pub warm_gain: f64,
+    /// The warm start rule, for display.
+    pub warm_start: String,
+    /// U*(0) = 0 (0 ∈ 𝒰^N and the MPC's QP has no constant linear term).
+    pub origin_fixed: bool,
+}
+
+/// Inputs of the joint certificate.
+#[derive(Debug, Clone, PartialEq, Serialize)]
+pub struct JointInputs {
+    /// Theorem 1's inputs for the MHE side (φ_e of the MHE's map).
+    pub mhe: IssInputs,
+    /// γ₁,₄: gain from the MPC's input error d to x, from the same estimate as γ₁,₃.
+    pub gamma14: f64,
+    /// The MPC side.
+    pub mpc: MpcMapInputs,
+}
+
+/// The four-node small-gain analysis (module docs of [`crate::joint`]).
+#[derive(Debug, Clone, PartialEq, Serialize)]
+pub struct JointAnalysis {
+    /// The inputs.
+    pub inputs: JointInputs,
+    /// Theorem 1's analysis of the MHE side (constants of Props. 1 and 3).
+    pub theorem1: IssAnalysis,
+    /// Every K-independent premise: Theorem 1's and the MPC side's.
+    pub premises: Vec<Premise>,
+}
+
+/// Gains, cycles and the verdict at one pair (K_e, K_c).
+#[derive(Debug, Clone, PartialEq, Serialize)]
+pub struct JointGains {
+    /// MHE iterations per step.
+    pub k_e: usize,
+    /// MPC iterations per step.
+    pub k_c: usize,
+    /// Props. 1 and 3 at K_e (C₁…C₆, γ₂,·, γ₃,·; its `margin` is Theorem 1's, not this one).
+    pub mhe: GainsAtK,
+    /// φ_c(K_c).
+    pub phi_c: f64,
+    /// φ_c(K_c)·ω: the contraction of δ_t (must be < 1).
+    pub delta_rate: f64,
+    /// γ₁,₃ (e → x).
+    pub gamma13: f64,
+    /// γ₁,₄ (δ → x).
+    pub gamma14: f64,
+    /// γ₂,₄ = C₃/(1 − φ_e) (δ → ε).
+    pub gamma24: f64,
+    /// γ₃,₄ = √(2Λ^H̄_P)·C₃ (δ → e).
+    pub gamma34: f64,
+    /// γ₄,₁ = φ_c L_U (1 + ω)/(1 − φ_c ω) (x → δ).
+    pub gamma41: f64,
+    /// γ₄,₃ = γ₄,₁ (e → δ).
+    pub gamma43: f64,
+    /// Γ row-major (4 × 4, row i: gains into node i; nodes [`NODE_NAMES`]).
+    pub matrix: [f64; 16],
+    /// Every simple cycle and its gain.
+    pub cycles: Vec<Cycle>,
+    /// Every cycle gain < 1 (the max-form condition; necessary).
+    pub cycles_hold: bool,
+    /// ρ(Γ).
+    pub spectral_radius: f64,
+    /// 1 − ρ(Γ): the certified margin (> 0 iff certified, premises holding).
+    pub margin: f64,
+    /// Premises hold, φ_e(K_e) < 1, φ_c ω < 1 and ρ(Γ) < 1.
+    pub certified: bool,
+}
+
+fn premise(name: &str, needed_by: &str, holds: bool, value: f64, fix: String) -> Premise {
+    Premise {
+        name: name.into(),
+        needed_by: needed_by.into(),
+        holds,
+        value,
+        margin: if holds { 1.0 } else { -1.0 },
+        fix: if holds { String::new() } else { fix },
+    }
+}
+
+impl JointAnalysis {
+    /// Checks the premises of both sides.
+    pub fn new(inputs: JointInputs) -> Self {
+        let theorem1 = IssAnalysis::new(inputs.mhe.clone());
+        let mut premises = theorem1.premises.clone();
+        let m = &inputs.mpc;
+        premises.push(premise(
+            "gamma14 finite",
+            "subsystem 1 under the applied input π(x̂) + d (Assumption 4 with d)",
+            inputs.gamma14.is_finite() && inputs.gamma14 >= 0.0,
+            inputs.gamma14,
+            "no gain from the MPC's input error to x in the estimate of γ₁,₃: a user-supplied \
+             γ₁,₃ gives none (let the certificate compute γ₁,₃), or no metric contracts"
+                .into(),
+        ));
+        premises.push(premise(
+            "MPC phi fits eq. (11)",
+            "subsystem 4 (‖Uᴷᶜ − U*‖ ≤ φ_c(K_c)‖U⁰ − U*‖, feasible Uᴷᶜ)",
+            m.phi_fits_eq11,
+            f64::from(u8::from(m.phi_fits_eq11)),
+            "the MPC method's certificate bounds another quantity or norm: use pg or fista \
+             (or a -jacobi variant) for the MPC"
+                .into(),
+        ));
+        premises.push(premise(
+            "MPC phi rate < 1",
+            "subsystem 4 (φ_c ∈ 𝓛)",
+            m.phi_rate >= 0.0 && m.phi_rate < 1.0 && m.phi_prefactor.is_finite(),
+            m.phi_rate,
+            "the MPC's method does not contract: reduce its step size".into(),
+        ));
+        premises.push(premise(
+            "U*(0) = 0",
+            "subsystem 4 (‖U*(x̂)‖ ≤ L_U‖x̂‖)",
+            m.origin_fixed,
+            f64::from(u8::from(m.origin_fixed)),
+            "0 ∉ 𝒰 or the MPC's QP has a constant linear term: widen sets.input to contain 0"
+                .into(),
+        ));
+        premises.push(premise(
+            "L_U finite",
+            "subsystem 4 (Lipschitz constant of x ↦ U*(x))",
+            m.l_u.is_finite() && m.l_u >= 0.0,
+            m.l_u,
+            "L_U is not a finite non-negative number".into(),
+        ));
+        premises.push(premise(
+            "warm-start gain finite",
+            "subsystem 4 (‖W‖₂ of the warm start)",
+            m.warm_gain.is_finite() && m.warm_gain >= 0.0,
+            m.warm_gain,
+            "the warm start's gain is not a finite non-negative number".into(),
+        ));
+        Self {
+            inputs,
+            theorem1,
+            premises,
+        }
+    }
+
+    /// Whether every K-independent premise holds.
+    pub fn premises_hold(&self) -> bool {
+        self.premises.iter().all(|p| p.holds)
+    }
+
+    /// The premises that fail.
+    pub fn violated(&self) -> Vec<&Premise> {
+        self.premises.iter().filter(|p| !p.holds).collect()
+    }
+
+    /// φ_c(K_c).
+    pub fn phi_c(&self, k_c: usize) -> f64 {
+        let m = &self.inputs.mpc;
+        m.phi_prefactor * m.phi_rate.powi(i32::try_from(k_c).unwrap_or(i32::MAX))
+    }
+
+    /// Gains, cycles and verdict at (K_e, K_c) (computed even when premises fail).
+    pub fn at(&self, k_e: usize, k_c: usize) -> JointGains {
+        let g = self.theorem1.at(k_e);
+        let m = &self.inputs.mpc;
+        let phi_c = self.phi_c(k_c);
+        let omega = m.warm_gain;
+        let delta_rate = phi_c * omega;
+        let gamma13 = self.inputs.mhe.gamma13;
+        let gamma14 = self.inputs.gamma14;
+        let gamma24 = g.c3 / (1.0 - g.phi);
+        let gamma34 = (2.0 * self.theorem1.lambda_hp).sqrt() * g.c3;
+        let gamma41 = if delta_rate < 1.0 {
+            phi_c * m.l_u * (1.0 + omega) / (1.0 - delta_rate)
+        } else {
+            f64::INFINITY
+        };
+        let gamma43 = gamma41;
+        let mut gm = GainMatrix::new(4);
+        gm.set(0, 2, gamma13);
+        gm.set(0, 3, gamma14);
+        gm.set(1, 0, g.gamma21);
+        gm.set(1, 2, g.gamma23);
+        gm.set(1, 3, gamma24);
+        gm.set(2, 0, g.gamma31);
+        gm.set(2, 1, g.gamma32);
+        gm.set(2, 3, gamma34);
+        gm.set(3, 0, gamma41);
+        gm.set(3, 2, gamma43);
+        let mut matrix = [0.0; 16];
+        for (k, v) in matrix.iter_mut().enumerate() {
+            *v = gm.get(k / 4, k % 4);
+        }
+        let cycles = gm.cycles();
+        let cycles_hold = cycles.iter().all(|c| c.gain < 1.0);
+        let spectral_radius = gm.spectral_radius();
+        let certified = self.premises_hold()
+            && (0.0..1.0).contains(&g.phi)
+            && (0.0..1.0).contains(&delta_rate)
+            && gm.is_contracting();
+        JointGains {
+            k_e,
+            k_c,
+            mhe: g,
+            phi_c,
+            delta_rate,
+            gamma13,
+            gamma14,
+            gamma24,
+            gamma34,
+            gamma41,
+            gamma43,
+            matrix,
+            cycles,
+            cycles_hold,
+            spectral_radius,
+            margin: 1.0 - spectral_radius,
+            certified,
+        }
+    }
+
+    /// Smallest K_c ≤ `k_c_max` certified together with K_e (None if none is). Exact: the
+    /// verdict is monotone in K_c (every gain is non-decreasing in φ_c).
+    pub fn k_c_min(&self, k_e: usize, k_c_max: usize) -> Option<usize> {
+        first_true(0, k_c_max, |k| self.at(k_e, k).certified)
+    }
+
+    /// Smallest K_e ≤ `k_e_max` certified together with K_c (None if none is).
+    pub fn k_e_min(&self, k_c: usize, k_e_max: usize) -> Option<usize> {
+        first_true(0, k_e_max, |k| self.at(k, k_c).certified)
+    }
+}
+
+/// Smallest k in [lo, hi] with `f(k)` for a monotone (false…false true…true) predicate.
+pub(crate) fn first_true(lo: usize, hi: usize, f: impl Fn(usize) -> bool) -> Option<usize> {
+    if lo > hi || !f(hi) {
+        return None;
+    }
+    if f(lo) {
+        return Some(lo);
+    }
+    // Doubling from lo keeps the evaluations near small answers cheap and exact.
+    let (mut a, mut b) = (lo, hi); // f(a) false, f(b) true
+    let mut step = 1usize;
+    while a.saturating_add(step) < b {
+        let probe = a + step;
+        if f(probe) {
+            b = probe;
+            break;
+        }
+        a = probe;
+        step = step.saturating_mul(2);
+    }
+    while b - a > 1 {
+        let mid = a + (b - a) / 2;
+        if f(mid) {
+            b = mid;
+        } else {
+            a = mid;
+        }
+    }
+    Some(b)
+}

@@ -41,6 +41,7 @@ use crate::provenance::{Provenance, workspace_root};
 
 mod charts;
 mod document;
+mod joint;
 mod linear;
 mod numfmt;
 mod summary;
@@ -233,6 +234,7 @@ fn simulate(
     resolved: &ResolvedScenario,
     solver: Method,
     k: usize,
+    controller: ControllerChoice,
     source: KSource,
     live: bool,
 ) -> Result<Run> {
@@ -241,7 +243,7 @@ fn simulate(
         method: solver,
         iterations: k,
         exact_mhe_solve: true,
-        controller: ControllerChoice::ExactMpc,
+        controller,
         seed: scenario.noise.seed,
         steps: scenario.simulation.steps,
     };
@@ -267,7 +269,12 @@ fn simulate(
         k,
         k_source: source,
         solver: solver.name().to_string(),
-        controller: "exact MPC".into(),
+        controller: match controller {
+            ControllerChoice::SuboptimalMpc { iterations, method } => {
+                format!("MPC {method} with K_c = {iterations}")
+            }
+            _ => "exact MPC".into(),
+        },
         exact_mhe_solve: true,
         seed: opts.seed,
         steps: opts.steps,
@@ -474,13 +481,47 @@ pub fn run_job(job: &Job, settings: &Settings) -> Result<Outcome> {
         numfmt::num(t0.elapsed().as_secs_f64())
     ));
 
+    // The K-iteration MPC (`mpc.iterations`): the joint certificate decides the runs.
+    let joint_cert = joint::joint_certificate(&resolved, &cert, solver)?;
+    let own_controller = LoopOptions::from_scenario(&scenario)?.controller;
+    let plan: Vec<(usize, ControllerChoice, KSource)> = match &joint_cert {
+        Some(j) => {
+            say(format!(
+                "[{}] joint MPC + MHE certificate: cheapest certified pair (K_e, K_c) = {}",
+                job.label,
+                j.region
+                    .cheapest
+                    .map_or_else(|| "none".to_string(), |p| format!("({}, {})", p.k_e, p.k_c))
+            ));
+            let mut plan = Vec::new();
+            if let Some(p) = j.region.cheapest {
+                let at_pair = ControllerChoice::SuboptimalMpc {
+                    iterations: p.k_c,
+                    method: j.mpc_method,
+                };
+                plan.push((p.k_e, at_pair, KSource::ComputedKMin));
+            }
+            if !plan
+                .iter()
+                .any(|(k, c, _)| *k == spec.iterations && *c == own_controller)
+            {
+                plan.push((spec.iterations, own_controller, KSource::Scenario));
+            }
+            plan
+        }
+        None => plan_runs(spec.iterations, own.and_then(|s| s.k_min), settings.small_k)
+            .into_iter()
+            .map(|(k, source)| (k, ControllerChoice::ExactMpc, source))
+            .collect(),
+    };
+
     // Simulations (skipped when LMI (2) is infeasible: the MHE needs a P), each announced
     // with its work; one beyond the limit (only a computed K_min can be: the scenario's K
     // was checked above) is skipped with the reason.
     let mut runs: Vec<Run> = Vec::new();
     let mut skipped_runs = Vec::new();
     if cert.ioss.is_some() || spec.p.is_some() {
-        for (k, source) in plan_runs(spec.iterations, own.and_then(|s| s.k_min), settings.small_k) {
+        for (k, controller, source) in plan {
             // A K_min above --sim-k-cap, or any run beyond the work limit, is skipped.
             let work = Work::of(&scenario, k);
             let skip = match (settings.sim_k_cap, &work) {
@@ -509,7 +550,7 @@ pub fn run_job(job: &Job, settings: &Settings) -> Result<Outcome> {
                 say(w.line(solver, source));
             }
             let t0 = std::time::Instant::now();
-            let run = simulate(&resolved, solver, k, source, settings.live)?;
+            let run = simulate(&resolved, solver, k, controller, source, settings.live)?;
             let secs = t0.elapsed().as_secs_f64();
             say(format!(
                 "  done in {} s ({} iterations/s)",
@@ -524,7 +565,35 @@ pub fn run_job(job: &Job, settings: &Settings) -> Result<Outcome> {
     let kmin_run = runs
         .iter()
         .find(|r| r.summary.k_source == KSource::ComputedKMin);
+    let joint_report = match &joint_cert {
+        Some(j) => Some(joint::check(
+            &resolved,
+            &cert,
+            j,
+            kmin_run.map(|r| &r.trace),
+            spec_k_c(&scenario),
+        )?),
+        None => None,
+    };
     let trajectory_check = match (own, kmin_run) {
+        _ if joint_report.is_some() => TrajectoryReport {
+            ran: false,
+            reason: Some(
+                "the controller is the K-iteration MPC: Props. 1 and 3 assume the exact MPC; \
+                 the joint check (joint.trajectory) evaluates them with the δ terms"
+                    .into(),
+            ),
+            solver: solver.name().into(),
+            k: kmin_run.map(|r| r.summary.k),
+            seed,
+            steps: kmin_run.map_or(0, |r| r.trace.len()),
+            certified_l_phi: None,
+            sampled_l_phi: None,
+            passed: joint_report
+                .as_ref()
+                .and_then(|j| j.trajectory.as_ref())
+                .map(|t| t.holds() && kmin_run.is_some_and(|r| r.summary.error.is_none())),
+        },
         (Some(sc), Some(run)) => {
             let k = run.summary.k;
             let certified = check_trajectory(&cert, &sc.analysis, k, &run.trace);
@@ -679,6 +748,7 @@ pub fn run_job(job: &Job, settings: &Settings) -> Result<Outcome> {
         runs: runs.iter().map(|r| r.summary.clone()).collect(),
         skipped_runs,
         trajectory_check,
+        joint: joint_report,
         linear,
         files: files
             .iter()
@@ -698,6 +768,15 @@ pub fn run_job(job: &Job, settings: &Settings) -> Result<Outcome> {
         summary,
         log,
     })
+}
+
+/// K_c of the scenario's MPC (`mpc.iterations`, 0 for the exact MPC).
+fn spec_k_c(scenario: &Scenario) -> usize {
+    scenario
+        .mpc
+        .as_ref()
+        .and_then(|m| m.iterations)
+        .unwrap_or(0)
 }
 
 /// Exit code when a simulation contradicts the certificate (Prop. 1/3 check failed).

@@ -40,7 +40,16 @@ pub struct MpcSettings {
     pub r: Mat<f64>,
     /// Terminal cost (default DARE).
     pub terminal: TerminalCost,
+    /// K_c iterations of `method` per step: the sub-optimal MPC ([`crate::SuboptimalMpc`],
+    /// `mpc.iterations`); `None` is the exact MPC.
+    pub iterations: Option<usize>,
+    /// The sub-optimal MPC's iteration map (`mpc.method`, default FISTA; only with
+    /// `mpc.iterations`).
+    pub method: qp_iter::Method,
 }
+
+/// Largest K_c accepted (`mpc.iterations`).
+pub const MAX_ITERATIONS: usize = 10_000_000;
 
 /// Serde mirror of the `[mpc]` table: every key optional, unknown keys refused.
 #[derive(Debug, Default, Deserialize, Serialize)]
@@ -58,6 +67,12 @@ pub struct RawMpc {
     /// `terminal`.
     #[serde(skip_serializing_if = "Option::is_none")]
     pub terminal: Option<TerminalCost>,
+    /// `iterations` (K_c of the sub-optimal MPC).
+    #[serde(skip_serializing_if = "Option::is_none")]
+    pub iterations: Option<usize>,
+    /// `method` of the sub-optimal MPC.
+    #[serde(skip_serializing_if = "Option::is_none")]
+    pub method: Option<qp_iter::Method>,
 }
 
 impl MpcSettings {
@@ -95,11 +110,37 @@ impl MpcSettings {
             sys.nu(),
             &format!("n_u = {} square", sys.nu()),
         )?;
+        let iterations = match raw.iterations {
+            None => {
+                if raw.method.is_some() {
+                    return Err(key_error(
+                        "mpc.method",
+                        "is the sub-optimal MPC's method, but mpc.iterations is not set: add                          `iterations = 50` (K_c per step) or remove mpc.method for the exact MPC",
+                    ));
+                }
+                None
+            }
+            Some(k) => {
+                let k = at_least_one("mpc.iterations", k, "the MPC's iteration count K_c")?;
+                if k > MAX_ITERATIONS {
+                    return Err(key_error(
+                        "mpc.iterations",
+                        format!(
+                            "is {k}, above the limit {MAX_ITERATIONS} (each time step runs K_c \
+                             iterations); remove it for the exact MPC"
+                        ),
+                    ));
+                }
+                Some(k)
+            }
+        };
         Ok(Self {
             horizon,
             q,
             r,
             terminal: raw.terminal.unwrap_or(TerminalCost::Dare),
+            iterations,
+            method: raw.method.unwrap_or(qp_iter::Method::FISTA),
         })
     }
 
@@ -110,6 +151,8 @@ impl MpcSettings {
             q: Some(rows_of(&self.q)),
             r: Some(rows_of(&self.r)),
             terminal: Some(self.terminal),
+            iterations: self.iterations,
+            method: self.iterations.map(|_| self.method),
         }
     }
 
@@ -211,6 +254,46 @@ impl MpcSettings {
             )
             .into(),
             other => other,
+        }
+    }
+}
+
+#[cfg(test)]
+mod suboptimal_key_tests {
+    #![allow(clippy::unwrap_used)]
+
+    use super::*;
+
+    fn settings(text: &str) -> lti_model::Result<MpcSettings> {
+        let raw: RawMpc = lti_model::spec::format::parse(text)?;
+        let sys = LtiSystem::new(faer::mat![[0.5]], faer::mat![[1.0]], faer::mat![[1.0]]).unwrap();
+        MpcSettings::from_raw(&raw, &sys)
+    }
+
+    #[test]
+    fn iterations_select_the_suboptimal_mpc_and_round_trip() {
+        let s = settings("horizon = 5\niterations = 40\nmethod = \"pg\"").unwrap();
+        assert_eq!((s.iterations, s.method), (Some(40), qp_iter::Method::PG));
+        let s = settings("horizon = 5\niterations = 40").unwrap();
+        assert_eq!(s.method, qp_iter::Method::FISTA);
+        let raw = s.to_raw();
+        assert_eq!(
+            (raw.iterations, raw.method),
+            (Some(40), Some(qp_iter::Method::FISTA))
+        );
+        assert_eq!(settings("horizon = 5").unwrap().iterations, None);
+    }
+
+    #[test]
+    fn bad_iterations_and_orphan_method_name_the_key() {
+        for (text, key) in [
+            ("horizon = 5\niterations = 0", "mpc.iterations"),
+            ("horizon = 5\niterations = 99999999999", "mpc.iterations"),
+            ("horizon = 5\nmethod = \"pg\"", "mpc.method"),
+            ("horizon = 5\niterations = 3\nmethod = \"newton\"", "method"),
+        ] {
+            let e = settings(text).unwrap_err().to_string();
+            assert!(e.contains(key), "{text}: {e}");
         }
     }
 }

@@ -120,7 +120,7 @@ pub struct RunSummary {
     pub k_source: KSource,
     /// Φ of the MHE.
     pub solver: String,
-    /// Always `"exact MPC"`.
+    /// `"exact MPC"`, or `"MPC <method> with K_c = <K_c>"` for the K-iteration MPC.
     pub controller: String,
     /// ε_t recorded (exact MHE solve on).
     pub exact_mhe_solve: bool,
@@ -228,6 +228,10 @@ pub struct CertificateDocument {
     pub skipped_runs: Vec<SkippedRun>,
     /// Props. 1/3 on the K_min run.
     pub trajectory_check: TrajectoryReport,
+    /// The joint MPC + MHE certificate and its trajectory check (only when the scenario's
+    /// controller is the K-iteration MPC, `mpc.iterations`).
+    #[serde(skip_serializing_if = "Option::is_none")]
+    pub joint: Option<super::joint::JointReport>,
     /// The exact linear stability boundary per method (exact MPC): ρ_lin(K) on a log grid,
     /// K_lin and every K with ρ_lin ≥ 1 (necessary for stability; `closed_loop::linear`).
     pub linear: Vec<LinearEntry>,

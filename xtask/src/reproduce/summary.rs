@@ -19,6 +19,30 @@ pub(super) fn verdict(d: &CertificateDocument) -> String {
             error: r.error.as_deref(),
         })
         .collect();
+    if let Some(j) = &d.joint {
+        let c = &j.certificate;
+        return match (c.region.cheapest, d.trajectory_check.passed) {
+            (Some(p), passed) => format!(
+                "the joint certificate (ρ(Γ) < 1 over plant, ε, e, δ) certifies ISS of the loop with \
+                 MHE {} at K_e and MPC {} at K_c for every pair on or above the staircase through \
+                 ({}, {}) (the cheapest); {}.",
+                c.mhe_method,
+                c.mpc_method,
+                p.k_e,
+                p.k_c,
+                match passed {
+                    Some(true) =>
+                        "every inequality of the proof holds at every step of the run there",
+                    Some(false) => "the run there VIOLATES an inequality of the proof (see above)",
+                    None => "the trajectory check did not run",
+                }
+            ),
+            (None, _) => format!(
+                "the joint certificate is void: {}",
+                c.region.void_reasons.join("; ")
+            ),
+        };
+    }
     let own = d
         .certificate
         .solvers
@@ -163,8 +187,13 @@ pub(super) fn summarize(d: &CertificateDocument, files: &[PathBuf], notes: &[Str
 
     let _ = writeln!(
         s,
-        "\nClosed loop (Alg. 1, {} MHE, exact MPC, seed {}, T = {})",
+        "\nClosed loop (Alg. 1, {} MHE, {}, seed {}, T = {})",
         d.solver,
+        if d.joint.is_some() {
+            "K-iteration MPC (K_c per row)"
+        } else {
+            "exact MPC"
+        },
         d.runs.first().map_or(0, |r| r.seed),
         d.runs.first().map_or(0, |r| r.steps)
     );
@@ -174,10 +203,11 @@ pub(super) fn summarize(d: &CertificateDocument, files: &[PathBuf], notes: &[Str
         "K", "why", "sup‖e‖", "sup‖x‖", "tail ‖e‖", "tail ‖x‖", "tail ε_t"
     );
     for r in &d.runs {
-        let why = match r.k_source {
-            KSource::ComputedKMin => "K_min",
-            KSource::Scenario => "scenario",
-            KSource::Small => "small K",
+        let why = match (r.k_source, d.joint.is_some()) {
+            (KSource::ComputedKMin, false) => "K_min",
+            (KSource::ComputedKMin, true) => "cheapest",
+            (KSource::Scenario, _) => "scenario",
+            (KSource::Small, _) => "small K",
         };
         let _ = writeln!(
             s,
@@ -190,6 +220,9 @@ pub(super) fn summarize(d: &CertificateDocument, files: &[PathBuf], notes: &[Str
             opt(r.tail_mean_x),
             opt(r.tail_mean_epsilon)
         );
+        if d.joint.is_some() {
+            let _ = writeln!(s, "      {}", r.controller);
+        }
         if let Some(e) = &r.error {
             let _ = writeln!(s, "      stopped after {} steps: {e}", r.completed);
         }
@@ -269,6 +302,10 @@ pub(super) fn summarize(d: &CertificateDocument, files: &[PathBuf], notes: &[Str
             "  not run: {}",
             tc.reason.as_deref().unwrap_or("no reason recorded")
         );
+    }
+
+    if let Some(j) = &d.joint {
+        s.push_str(&super::joint::summary(j));
     }
 
     let _ = writeln!(s, "\nVerdict: {}", verdict(d));

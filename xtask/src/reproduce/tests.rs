@@ -1163,3 +1163,50 @@ fn a_k_min_above_the_sim_k_cap_is_skipped_with_the_cap_named() {
     assert_eq!(d.runs.len(), 1);
     assert_eq!(d.runs[0].k, 10);
 }
+
+/// A scenario whose controller is the K-iteration MPC (`mpc.iterations`): reproduce reports
+/// the joint certificate, simulates at its cheapest pair and checks every inequality there.
+#[test]
+fn suboptimal_mpc_scenario_gets_the_joint_certificate_and_its_check() {
+    let text = std::fs::read_to_string(workspace_root().join(Preset::Certified.scenario_file()))
+        .unwrap()
+        .replace("[mpc]\n", "[mpc]\niterations = 30\nmethod = \"fista\"\n");
+    assert!(text.contains("iterations = 30"));
+    let job = custom_job("suboptimal-mpc", &text);
+    let o = run_job(&job, &test_settings()).unwrap();
+    let d = &o.document;
+    let j = d.joint.as_ref().expect("joint certificate");
+    let p = j.certificate.region.cheapest.unwrap();
+    // The K_e floor is Theorem 1's K_min for the scenario's MHE method (PG, exact MPC).
+    assert_eq!(j.certificate.region.k_e_floor, d.solvers[0].k_min);
+    assert!(p.k_e >= j.certificate.region.k_e_floor.unwrap());
+    let t = j.trajectory.as_ref().unwrap();
+    assert!(t.holds(), "{t:?}");
+    assert_eq!(j.replay_mismatch, Some(0.0));
+    assert_eq!(d.trajectory_check.passed, Some(true));
+    // The cheapest pair and the scenario's own (K_e, K_c = 30) are simulated with the MPC
+    // they name.
+    let cheapest = d
+        .runs
+        .iter()
+        .find(|r| r.k_source == KSource::ComputedKMin)
+        .unwrap();
+    assert_eq!(cheapest.k, p.k_e);
+    assert_eq!(
+        cheapest.controller,
+        format!("MPC fista with K_c = {}", p.k_c)
+    );
+    assert!(
+        d.runs
+            .iter()
+            .any(|r| r.controller == "MPC fista with K_c = 30")
+    );
+    let doc = read_json(&job.out.join("certificate.json"));
+    assert!(doc["joint"]["certificate"]["region"]["pareto"].is_array());
+    assert!(o.summary.contains("Joint certificate"), "{}", o.summary);
+    assert!(
+        o.summary.contains("every inequality holds at every t"),
+        "{}",
+        o.summary
+    );
+}

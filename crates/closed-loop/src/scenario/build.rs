@@ -51,7 +51,8 @@ pub struct LoopOptions {
 
 impl LoopOptions {
     /// The scenario's own settings: `[mhe]` method and K, `[noise]` seed, `[simulation]`
-    /// steps, the exact MPC, exact MHE solve off.
+    /// steps, the exact MPC (or K_c iterations of `mpc.method` when `mpc.iterations` is set),
+    /// exact MHE solve off.
     pub fn from_scenario(scenario: &Scenario) -> Result<Self> {
         let mhe = scenario
             .mhe
@@ -61,7 +62,17 @@ impl LoopOptions {
             method: mhe.method,
             iterations: mhe.iterations,
             exact_mhe_solve: false,
-            controller: ControllerChoice::ExactMpc,
+            controller: match scenario
+                .mpc
+                .as_ref()
+                .and_then(|m| m.iterations.map(|k| (k, m)))
+            {
+                Some((iterations, m)) => ControllerChoice::SuboptimalMpc {
+                    iterations,
+                    method: m.method,
+                },
+                None => ControllerChoice::ExactMpc,
+            },
             seed: scenario.noise.seed,
             steps: scenario.simulation.steps,
         })

@@ -376,7 +376,7 @@ fn short_reason(s: &SolverCertificate) -> String {
         .map(|p| p.name.as_str())
         .collect();
     if names.is_empty() {
-        "no K satisfies (sg1)–(sg3)".into()
+        "no K satisfies sg1 + sg2 + sg3 < 1".into()
     } else {
         format!("{} fails", names.join(", "))
     }

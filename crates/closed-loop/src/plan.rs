@@ -89,7 +89,7 @@ pub fn verdict(
                 })
                 .unwrap_or_default();
             let why = if failed.is_empty() {
-                "no K satisfies (sg1)–(sg3)".to_string()
+                "no K satisfies sg1 + sg2 + sg3 < 1".to_string()
             } else {
                 format!("premise {} fails", failed.join(", "))
             };

@@ -86,7 +86,7 @@ pub struct SolverSummary {
     pub phi_rate: f64,
     /// Prefactor of φ(K).
     pub phi_prefactor: f64,
-    /// 1 − max(sg1, sg2, sg3) at K_min (null when void).
+    /// 1 − (sg1 + sg2 + sg3) = det(I − Γ) at K_min, > 0 iff ρ(Γ) < 1 (null when void).
     pub margin_at_k_min: Option<f64>,
     /// K_min with the sampled L_Φ instead of the certified bound (not a certificate).
     pub k_min_with_sampled_l_phi: Option<usize>,

@@ -118,14 +118,14 @@ pub(super) fn summarize(d: &CertificateDocument, files: &[PathBuf], notes: &[Str
         }
     }
 
-    let _ = writeln!(s, "\nSmallest certified K (Theorem 1, (sg1)–(sg3))");
+    let _ = writeln!(s, "\nSmallest certified K (Theorem 1 with sum-form small gain: sg1 + sg2 + sg3 < 1)");
     for sv in &d.solvers {
         let mark = if sv.simulated { " (simulated)" } else { "" };
         match sv.k_min {
             Some(k) => {
                 let _ = writeln!(
                     s,
-                    "  {:<7} K_min = {k:<6} φ(K) = {}·{}^K, margin 1 − max(sg) = {}; with sampled L_Φ: {}{mark}",
+                    "  {:<7} K_min = {k:<6} φ(K) = {}·{}^K, margin 1 − Σsg = {}; with sampled L_Φ: {}{mark}",
                     sv.solver,
                     num(sv.phi_prefactor),
                     rate(sv.phi_rate),

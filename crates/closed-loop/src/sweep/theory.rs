@@ -29,7 +29,7 @@ pub enum SolverTheory {
 }
 
 impl SolverTheory {
-    /// The theoretical columns at K: slopes of (sg1)–(sg3), the margin 1 − max slope,
+    /// The theoretical columns at K: slopes of (sg1)–(sg3), the margin 1 − (sg1 + sg2 + sg3),
     /// `certified` = `"yes"`, `"no"` or `"void"` (a premise of Theorem 1 fails, whatever
     /// K), K_min and the reason of a void certificate.
     /// The linear columns (ρ_lin, K_lin) are left empty here; [`LinearSide::fill`] adds them.
@@ -88,7 +88,7 @@ pub struct TheoryAtK {
     pub phi: Option<f64>,
     /// Slopes of (sg1), (sg2), (sg3) at K (None where φ(K) ≥ 1: undefined).
     pub slopes: Option<[f64; 3]>,
-    /// Certified ISS margin 1 − max slope.
+    /// Certified ISS margin 1 − (sg1 + sg2 + sg3) (> 0 iff ρ(Γ) < 1).
     pub margin: Option<f64>,
     /// `"yes"`, `"no"` or `"void"`.
     pub certified: &'static str,

@@ -102,63 +102,20 @@ fn main() -> Result<(), Box<dyn std::error::Error>> {
             continue;
         }
         let t1 = std::time::Instant::now();
-        let mut worst = [0.0_f64; 6];
-        let mut failed = 0usize;
-        let mut mismatch = 0.0_f64;
-        for seed in 0..seeds {
-            let opts = LoopOptions {
-                method: e,
-                iterations: p.k_e,
-                exact_mhe_solve: true,
-                controller: ControllerChoice::SuboptimalMpc {
-                    iterations: p.k_c,
-                    method: c,
-                },
-                seed,
-                ..LoopOptions::from_scenario(&scenario)?
-            };
-            let mut lp = resolved.build_loop(&opts)?;
-            let trace = lp.run()?.clone();
-            let d = delta_series(mpc, c, p.k_c, mpc_core::WarmStart::default(), &trace)?;
-            mismatch = mismatch.max(d.replay_mismatch);
-            let Some(ch) = check_joint_trajectory(
-                &cert,
-                &j.analysis,
-                p.k_e,
-                p.k_c,
-                &trace,
-                &d.delta,
-                &d.input_error,
-                j.plant_beta,
-                j.gamma1w,
-            ) else {
-                continue;
-            };
-            if !ch.holds() {
-                failed += 1;
-            }
-            for (w, c) in worst.iter_mut().zip([
-                &ch.plant,
-                &ch.prop1,
-                &ch.prop3,
-                &ch.delta_step,
-                &ch.delta,
-                &ch.input_error,
-            ]) {
-                *w = w.max(c.worst_ratio);
-            }
-        }
+        let c = check_on_seeds(&resolved, &cert, &j, p, seeds)?;
+        let w = c.worst;
         println!(
-            "  trajectory checks at ({}, {}) on {seeds} seeds: {failed} failed; worst lhs/rhs plant {:.3e}, Prop. 1 {:.3e}, Prop. 3 {:.3e}, δ step {:.3e}, δ {:.3e}, ‖u − π(x̂)‖/δ {:.3e}; replay mismatch {:.1e}  [{:.1?}]",
+            "  trajectory checks at ({}, {}) on {seeds} seeds: {} failed; worst lhs/rhs plant {:.3e}, Prop. 1 {:.3e}, Prop. 3 {:.3e}, δ step {:.3e}, δ {:.3e}, ‖u − π(x̂)‖/δ {:.3e}; replay mismatch {:.1e}  [{:.1?}]",
             p.k_e,
             p.k_c,
-            worst[0],
-            worst[1],
-            worst[2],
-            worst[3],
-            worst[4],
-            worst[5],
-            mismatch,
+            c.failed.len(),
+            w[0],
+            w[1],
+            w[2],
+            w[3],
+            w[4],
+            w[5],
+            c.replay_mismatch,
             t1.elapsed()
         );
     }

@@ -118,7 +118,10 @@ pub(super) fn summarize(d: &CertificateDocument, files: &[PathBuf], notes: &[Str
         }
     }
 
-    let _ = writeln!(s, "\nSmallest certified K (Theorem 1 with sum-form small gain: sg1 + sg2 + sg3 < 1)");
+    let _ = writeln!(
+        s,
+        "\nSmallest certified K (Theorem 1 with sum-form small gain: sg1 + sg2 + sg3 < 1)"
+    );
     for sv in &d.solvers {
         let mark = if sv.simulated { " (simulated)" } else { "" };
         match sv.k_min {

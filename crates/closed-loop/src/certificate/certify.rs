@@ -214,7 +214,10 @@ pub fn certify_closed_loop_timed(
             })
             .collect();
         if k_min.is_none() && void_reasons.is_empty() {
-            void_reasons.push(format!("no K ≤ {} satisfies sg1 + sg2 + sg3 < 1 (ρ(Γ) < 1)", opts.k_max));
+            void_reasons.push(format!(
+                "no K ≤ {} satisfies sg1 + sg2 + sg3 < 1 (ρ(Γ) < 1)",
+                opts.k_max
+            ));
         }
         let sampled_analysis = IssAnalysis::new(IssInputs {
             l_phi: l_phi.sampled,

@@ -20,6 +20,45 @@ pub struct InequalityCheck {
     pub first_violation: Option<usize>,
 }
 
+impl InequalityCheck {
+    /// Nothing evaluated yet (holds vacuously).
+    pub fn new() -> Self {
+        Self {
+            holds: true,
+            worst_ratio: 0.0,
+            worst_t: 0,
+            first_violation: None,
+        }
+    }
+
+    /// Evaluates lhs ≤ rhs at t (relative tolerance 1e-12 for rounding; NaN fails). t = 0
+    /// is checked but never the worst ratio (it is an identity or trivially tight).
+    pub fn record(&mut self, t: usize, lhs: f64, rhs: f64) {
+        let ratio = if rhs > 0.0 {
+            lhs / rhs
+        } else if lhs > 0.0 {
+            f64::INFINITY
+        } else {
+            0.0
+        };
+        if t > 0 && ratio > self.worst_ratio {
+            self.worst_ratio = ratio;
+            self.worst_t = t;
+        }
+        let tol = rhs.abs() * 1e-12 + 1e-14;
+        if (lhs > rhs + tol || lhs.is_nan() || rhs.is_nan()) && self.first_violation.is_none() {
+            self.holds = false;
+            self.first_violation = Some(t);
+        }
+    }
+}
+
+impl Default for InequalityCheck {
+    fn default() -> Self {
+        Self::new()
+    }
+}
+
 /// Prop. 1 and Prop. 3 evaluated on a trace.
 #[derive(Debug, Clone, PartialEq, Serialize)]
 pub struct TrajectoryCheck {
@@ -45,34 +84,10 @@ pub fn check_trajectory(
     let (xs, es, ws) = (trace.x_norms(), trace.e_norms(), trace.w_norms());
     let sqrt_rho = analysis.rho.sqrt();
     let a = (2.0 * analysis.lambda_hp).sqrt();
-    let mut p1 = InequalityCheck {
-        holds: true,
-        worst_ratio: 0.0,
-        worst_t: 0,
-        first_violation: None,
-    };
-    let mut p3 = p1.clone();
+    let mut p1 = InequalityCheck::new();
+    let mut p3 = InequalityCheck::new();
     let (mut sx, mut se, mut sw, mut seps, mut ssig) =
         (0.0_f64, 0.0_f64, 0.0_f64, 0.0_f64, 0.0_f64);
-    let tol = |r: f64| r.abs() * 1e-12 + 1e-14;
-    let record = |c: &mut InequalityCheck, t: usize, lhs: f64, rhs: f64| {
-        let ratio = if rhs > 0.0 {
-            lhs / rhs
-        } else if lhs > 0.0 {
-            f64::INFINITY
-        } else {
-            0.0
-        };
-        // t = 0 is an identity (rhs = ε₀ resp. ≥ ‖e₀‖): checked, but not a "worst ratio".
-        if t > 0 && ratio > c.worst_ratio {
-            c.worst_ratio = ratio;
-            c.worst_t = t;
-        }
-        if lhs > rhs + tol(rhs) && c.first_violation.is_none() {
-            c.holds = false;
-            c.first_violation = Some(t);
-        }
-    };
     for t in 0..n {
         if t > 0 {
             sx = sx.max(xs[t - 1]);
@@ -87,13 +102,13 @@ pub fn check_trajectory(
             + g.gamma23 * se
             + g.gamma2w * sw
             + g.gamma2sigma * ssig;
-        record(&mut p1, t, eps[t], rhs1);
+        p1.record(t, eps[t], rhs1);
         let rhs3 = g.c_e * sqrt_rho.powi(ti) * es[0]
             + a * g.c1 * sx
             + g.c_eps * seps
             + g.c_w * sw
             + g.gamma3sigma * ssig;
-        record(&mut p3, t, es[t], rhs3);
+        p3.record(t, es[t], rhs3);
     }
     Some(TrajectoryCheck {
         prop1: p1,

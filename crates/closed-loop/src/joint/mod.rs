@@ -22,6 +22,7 @@
 mod certify;
 mod gains;
 mod region;
+mod seeds;
 mod trajectory;
 
 pub use certify::{
@@ -29,4 +30,5 @@ pub use certify::{
 };
 pub use gains::{JointAnalysis, JointGains, JointInputs, MpcMapInputs, NODE_NAMES};
 pub use region::{JointRegion, RegionPoint};
+pub use seeds::{SeedChecks, check_on_seeds};
 pub use trajectory::{JointTrajectoryCheck, check_joint_trajectory};

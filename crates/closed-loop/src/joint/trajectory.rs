@@ -41,34 +41,6 @@ impl JointTrajectoryCheck {
     }
 }
 
-fn empty() -> InequalityCheck {
-    InequalityCheck {
-        holds: true,
-        worst_ratio: 0.0,
-        worst_t: 0,
-        first_violation: None,
-    }
-}
-
-fn record(c: &mut InequalityCheck, t: usize, lhs: f64, rhs: f64) {
-    let ratio = if rhs > 0.0 {
-        lhs / rhs
-    } else if lhs > 0.0 {
-        f64::INFINITY
-    } else {
-        0.0
-    };
-    if t > 0 && ratio > c.worst_ratio {
-        c.worst_ratio = ratio;
-        c.worst_t = t;
-    }
-    let tol = rhs.abs() * 1e-12 + 1e-14;
-    if (lhs > rhs + tol || lhs.is_nan() || rhs.is_nan()) && c.first_violation.is_none() {
-        c.holds = false;
-        c.first_violation = Some(t);
-    }
-}
-
 /// Evaluates the joint inequalities at (K_e, K_c) on `trace` (recorded with the exact MHE
 /// solve on, so ε_t is known). `delta[t]` = δ_t = ‖Uᴷᶜ_t − U*(x̂_t)‖ and `input_error[t]` =
 /// ‖u_t − π(x̂_t)‖, computed by the caller with an exact MPC (see
@@ -103,12 +75,12 @@ pub fn check_joint_trajectory(
     let sqrt_rho = analysis.theorem1.rho.sqrt();
     let a = (2.0 * analysis.theorem1.lambda_hp).sqrt();
     let mut out = JointTrajectoryCheck {
-        plant: empty(),
-        prop1: empty(),
-        prop3: empty(),
-        delta_step: empty(),
-        delta: empty(),
-        input_error: empty(),
+        plant: InequalityCheck::new(),
+        prop1: InequalityCheck::new(),
+        prop3: InequalityCheck::new(),
+        delta_step: InequalityCheck::new(),
+        delta: InequalityCheck::new(),
+        input_error: InequalityCheck::new(),
     };
     // Sups over [0, t−1] (s_*) and over [0, t] (x_now, e_now).
     let (mut sx, mut se, mut sw, mut seps, mut ssig, mut sd) =
@@ -128,21 +100,21 @@ pub fn check_joint_trajectory(
         let ti = i32::try_from(t).unwrap_or(i32::MAX);
         let rhs_plant =
             beta.0 * beta.1.powi(ti) * xs[0] + g.gamma13 * se + g.gamma14 * sd + gamma1w * sw;
-        record(&mut out.plant, t, xs[t], rhs_plant);
+        out.plant.record(t, xs[t], rhs_plant);
         let rhs1 = m.phi.powi(ti) * eps[0]
             + m.gamma21 * sx
             + m.gamma23 * se
             + m.gamma2w * sw
             + g.gamma24 * sd
             + m.gamma2sigma * ssig;
-        record(&mut out.prop1, t, eps[t], rhs1);
+        out.prop1.record(t, eps[t], rhs1);
         let rhs3 = m.c_e * sqrt_rho.powi(ti) * es[0]
             + a * m.c1 * sx
             + m.c_eps * seps
             + m.c_w * sw
             + g.gamma34 * sd
             + m.gamma3sigma * ssig;
-        record(&mut out.prop3, t, es[t], rhs3);
+        out.prop3.record(t, es[t], rhs3);
         let step_rhs = if t == 0 {
             g.phi_c * mpc.l_u * xh[0]
         } else {
@@ -151,10 +123,10 @@ pub fn check_joint_trajectory(
                     + mpc.warm_gain * mpc.l_u * xh[t - 1]
                     + mpc.l_u * xh[t])
         };
-        record(&mut out.delta_step, t, delta[t], step_rhs);
+        out.delta_step.record(t, delta[t], step_rhs);
         let rhs_d = g.delta_rate.powi(ti) * delta[0] + g.gamma41 * x_now + g.gamma43 * e_now;
-        record(&mut out.delta, t, delta[t], rhs_d);
-        record(&mut out.input_error, t, input_error[t], delta[t]);
+        out.delta.record(t, delta[t], rhs_d);
+        out.input_error.record(t, input_error[t], delta[t]);
     }
     Some(out)
 }

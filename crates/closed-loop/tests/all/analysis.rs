@@ -6,7 +6,7 @@ use closed_loop::analysis::{IssAnalysis, IssInputs, eta_sup_for_horizon, min_hor
 /// M = 1, η = 1/24 ⇒ ρ = 6^{1/1}·η = 1/4, √ρ = 1/2, ρ^M = 1/4, √(ρ^M) = 1/2;
 /// λ(P) = 1, λ_max(Q) = 1, H̄ = 1 ⇒ Λ^P_P = Λ^Q_P = Λ^H̄_P = 1;
 /// L_Φ = 2, L_π = 1, ‖C‖ = 1, γ₁,₃ = 1, φ(K) = 0.5ᴷ.
-fn hand_inputs() -> IssInputs {
+pub fn hand_inputs() -> IssInputs {
     IssInputs {
         horizon: 1,
         eta: 1.0 / 24.0,

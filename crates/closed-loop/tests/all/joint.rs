@@ -1,6 +1,5 @@
 //! The joint MPC + MHE certificate (issue 16): arithmetic by hand, premises, region.
 
-use closed_loop::analysis::IssInputs;
 use closed_loop::joint::{JointAnalysis, JointInputs, MpcMapInputs, RegionPoint};
 
 /// Theorem 1's hand inputs (analysis.rs): M = 1, η = 1/24 (ρ = 1/4), every Λ = 1, L_Φ = 2,
@@ -8,22 +7,7 @@ use closed_loop::joint::{JointAnalysis, JointInputs, MpcMapInputs, RegionPoint};
 /// ω = 1 (the previous sequence), γ₁,₄ = 1.
 fn hand() -> JointInputs {
     JointInputs {
-        mhe: IssInputs {
-            horizon: 1,
-            eta: 1.0 / 24.0,
-            p_min: 1.0,
-            p_max: 1.0,
-            q_max: 1.0,
-            h_bar: 1.0,
-            l_phi: 2.0,
-            l_pi: 1.0,
-            c_norm: 1.0,
-            gamma13: 1.0,
-            phi_rate: 0.5,
-            phi_prefactor: 1.0,
-            phi_fits_eq11: true,
-            lmi_certified: true,
-        },
+        mhe: crate::analysis::hand_inputs(),
         gamma14: 1.0,
         mpc: MpcMapInputs {
             l_u: 1.0,
@@ -236,8 +220,8 @@ fn trajectory_checks_hold(
     seeds: u64,
 ) -> RegionPoint {
     use closed_loop::certificate::{CertificateOptions, certify_closed_loop};
-    use closed_loop::joint::{JointOptions, certify_joint, check_joint_trajectory, delta_series};
-    use closed_loop::scenario::{ControllerChoice, LoopOptions, Scenario};
+    use closed_loop::joint::{JointOptions, certify_joint, check_on_seeds};
+    use closed_loop::scenario::Scenario;
     let path = format!("{}/../../scenarios/{file}", env!("CARGO_MANIFEST_DIR"));
     let sc = Scenario::from_file(&path).unwrap();
     let resolved = sc.clone().resolve().unwrap();
@@ -255,43 +239,10 @@ fn trajectory_checks_hold(
     let n_e = sc.plant.nx() + cert.horizon * (sc.plant.nx() + sc.plant.ny());
     let j = certify_joint(&cert, mpc, n_e, mhe, mpc_method, &JointOptions::default()).unwrap();
     let p = j.region.cheapest.unwrap();
-    for seed in 0..seeds {
-        let opts = LoopOptions {
-            method: mhe,
-            iterations: p.k_e,
-            exact_mhe_solve: true,
-            controller: ControllerChoice::SuboptimalMpc {
-                iterations: p.k_c,
-                method: mpc_method,
-            },
-            seed,
-            ..LoopOptions::from_scenario(&sc).unwrap()
-        };
-        let trace = resolved.build_loop(&opts).unwrap().run().unwrap().clone();
-        let d = delta_series(
-            mpc,
-            mpc_method,
-            p.k_c,
-            mpc_core::WarmStart::default(),
-            &trace,
-        )
-        .unwrap();
-        // The replay reproduces the applied inputs exactly: δ_t is the loop's own.
-        assert_eq!(d.replay_mismatch, 0.0);
-        let ch = check_joint_trajectory(
-            &cert,
-            &j.analysis,
-            p.k_e,
-            p.k_c,
-            &trace,
-            &d.delta,
-            &d.input_error,
-            j.plant_beta,
-            j.gamma1w,
-        )
-        .unwrap();
-        assert!(ch.holds(), "{file}, seed {seed}: {ch:?}");
-    }
+    let c = check_on_seeds(&resolved, &cert, &j, p, seeds).unwrap();
+    // The replay reproduces the applied inputs exactly: δ_t is the loop's own.
+    assert_eq!(c.replay_mismatch, 0.0);
+    assert!(c.failed.is_empty(), "{file}: {c:?}");
     p
 }
 

@@ -7,8 +7,8 @@
 //! optionally the MHE and MPC methods, default every pair of pg / fista).
 
 use closed_loop::certificate::{CertificateOptions, certify_closed_loop};
-use closed_loop::joint::{JointOptions, certify_joint, check_joint_trajectory, delta_series};
-use closed_loop::scenario::{ControllerChoice, LoopOptions, Scenario};
+use closed_loop::joint::{JointOptions, certify_joint, check_on_seeds};
+use closed_loop::scenario::Scenario;
 use qp_iter::Method;
 
 fn main() -> Result<(), Box<dyn std::error::Error>> {

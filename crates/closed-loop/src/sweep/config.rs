@@ -17,6 +17,7 @@ use serde::de::{self, MapAccess, SeqAccess, Visitor};
 
 use super::error::{Result, SweepError, config_err};
 use super::metrics::{DEFAULT_BOUNDED_FACTOR, Metric};
+use super::region::IterationCost;
 use super::{ControllerChoice, Method};
 
 /// Largest K accepted in a grid (a run costs T·K iterations).
@@ -68,8 +69,17 @@ pub struct SweepConfig {
     /// adds one active-set solve of the MHE QP per step).
     pub exact_mhe_solve: bool,
     /// The controller π (`controller`: `"exact-mpc"` (default), `"saturated-lqr"`, or
-    /// `{ kind = "suboptimal-mpc", iterations = Kc, solver = "pg" }`).
+    /// `{ kind = "suboptimal-mpc", iterations = Kc, solver = "pg" }`). In a 2-D sweep
+    /// (`k_c` given) it is the sub-optimal MPC with `iterations` = the smallest K_c of the
+    /// grid; every point runs its own K_c ([`SweepConfig::controller_at`]).
     pub controller: ControllerChoice,
+    /// The MPC's iteration budgets K_c (`k_c`, a list or `{ from, to, points }` like `k`),
+    /// sorted, without duplicates: a 2-D sweep over (K_e, K_c) = (`k`, `k_c`). Only with the
+    /// sub-optimal MPC, whose `iterations` it replaces. `None`: a 1-D sweep over K.
+    pub k_c_grid: Option<Vec<usize>>,
+    /// The weights of the cost K_e·t_e + K_c·t_c by which a 2-D sweep picks its cheapest
+    /// stable pair (`cost = { t_e, t_c }`, default 1:1; only with `k_c`).
+    pub cost: IterationCost,
     /// The metrics kept (`metrics`; default: all, `sup_eps` only with the exact solve).
     pub metrics: Vec<Metric>,
     /// Same disturbance draw for run r at every point (`common_random_numbers`, default
@@ -123,6 +133,8 @@ struct RawConfig {
     name: Option<String>,
     scenario: Option<String>,
     k: Option<RawK>,
+    k_c: Option<RawK>,
+    cost: Option<RawCost>,
     solvers: Option<Vec<String>>,
     seeds: Option<i64>,
     scales: Option<Vec<f64>>,
@@ -150,6 +162,14 @@ struct RawRange {
     from: Option<i64>,
     to: Option<i64>,
     points: Option<i64>,
+}
+
+/// `cost`: the weights t_e, t_c of K_e·t_e + K_c·t_c.
+#[derive(Debug, Deserialize)]
+#[serde(deny_unknown_fields)]
+struct RawCost {
+    t_e: Option<f64>,
+    t_c: Option<f64>,
 }
 
 /// `controller`: a name, or a table for the sub-optimal MPC.
@@ -295,13 +315,21 @@ fn k_grid(raw: Option<RawK>) -> Result<Vec<usize>> {
             "missing: give a list `k = [1, 10, 100]` or a log-spaced range `k = { from = 1, to = 2000, points = 12 }`",
         )
     })?;
+    budget_grid(
+        raw,
+        "k",
+        "K",
+        "the K grid is empty; list at least one K ≥ 1",
+    )
+}
+
+/// The grid of a budget key (`k`, `k_c`): a list of integers in 1..=[`MAX_K`], or a
+/// log-spaced range; sorted, duplicates removed. `what` names the budget in messages.
+fn budget_grid(raw: RawK, key: &str, what: &str, empty: &str) -> Result<Vec<usize>> {
     let mut grid = match raw {
         RawK::List(list) => {
             if list.is_empty() {
-                return Err(config_err(
-                    "k",
-                    "the K grid is empty; list at least one K ≥ 1",
-                ));
+                return Err(config_err(key, empty));
             }
             list.iter()
                 .enumerate()
@@ -311,9 +339,9 @@ fn k_grid(raw: Option<RawK>) -> Result<Vec<usize>> {
                         .filter(|&k| (1..=MAX_K).contains(&k))
                         .ok_or_else(|| {
                             config_err(
-                                format!("k[{i}]"),
+                                format!("{key}[{i}]"),
                                 format!(
-                                    "K = {k} is out of range: the iteration budget must be 1 ≤ K ≤ {MAX_K}"
+                                    "{what} = {k} is out of range: the iteration budget must be 1 ≤ {what} ≤ {MAX_K}"
                                 ),
                             )
                         })
@@ -321,19 +349,23 @@ fn k_grid(raw: Option<RawK>) -> Result<Vec<usize>> {
                 .collect::<Result<Vec<_>>>()?
         }
         RawK::Range(r) => {
-            let req = |v: Option<i64>, key: &str| -> Result<usize> {
+            let req = |v: Option<i64>, sub: &str| -> Result<usize> {
+                let name = format!("{key}.{sub}");
                 let v = v.ok_or_else(|| {
-                    config_err(key, "missing (a K range needs from, to, points ≥ 1)")
+                    config_err(
+                        &*name,
+                        format!("missing (a {what} range needs from, to, points ≥ 1)"),
+                    )
                 })?;
-                positive(v, key, MAX_K)
+                positive(v, &name, MAX_K)
             };
-            let from = req(r.from, "k.from")?;
-            let to = req(r.to, "k.to")?;
-            let points = req(r.points, "k.points")?;
+            let from = req(r.from, "from")?;
+            let to = req(r.to, "to")?;
+            let points = req(r.points, "points")?;
             if to < from {
                 return Err(config_err(
-                    "k.to",
-                    format!("must be ≥ k.from = {from}, got {to}"),
+                    format!("{key}.to"),
+                    format!("must be ≥ {key}.from = {from}, got {to}"),
                 ));
             }
             log_spaced(from, to, points)
@@ -344,7 +376,60 @@ fn k_grid(raw: Option<RawK>) -> Result<Vec<usize>> {
     Ok(grid)
 }
 
-fn controller(raw: Option<RawController>) -> Result<ControllerChoice> {
+/// `k_c`: the K_c grid of a 2-D sweep (None: a 1-D sweep).
+fn k_c_grid(raw: Option<RawK>) -> Result<Option<Vec<usize>>> {
+    raw.map(|raw| {
+        budget_grid(
+            raw,
+            "k_c",
+            "K_c",
+            "the K_c grid is empty; list at least one K_c ≥ 1, or remove k_c for a sweep over K alone",
+        )
+    })
+    .transpose()
+}
+
+/// `cost = { t_e, t_c }` (only with `k_c`; default 1:1).
+fn cost(raw: Option<RawCost>, two_d: bool) -> Result<IterationCost> {
+    let Some(raw) = raw else {
+        return Ok(IterationCost::default());
+    };
+    if !two_d {
+        return Err(config_err(
+            "cost",
+            "weighs K_e against K_c and needs a 2-D sweep: add a K_c grid `k_c = [...]` or remove cost",
+        ));
+    }
+    let weight = |v: Option<f64>, key: &str| -> Result<f64> {
+        let v = v.unwrap_or(1.0);
+        if v.is_finite() && v >= 0.0 {
+            Ok(v)
+        } else {
+            Err(config_err(
+                key,
+                format!("a cost per iteration must be finite and ≥ 0, got {v}"),
+            ))
+        }
+    };
+    let c = IterationCost {
+        t_e: weight(raw.t_e, "cost.t_e")?,
+        t_c: weight(raw.t_c, "cost.t_c")?,
+    };
+    if c.t_e == 0.0 && c.t_c == 0.0 {
+        return Err(config_err(
+            "cost",
+            "t_e = t_c = 0 makes every pair free; give at least one positive weight (default 1:1)",
+        ));
+    }
+    Ok(c)
+}
+
+/// `controller`; with a K_c grid (`k_c_first` = its smallest K_c) only the sub-optimal MPC,
+/// without `iterations`, is accepted.
+fn controller(raw: Option<RawController>, k_c_first: Option<usize>) -> Result<ControllerChoice> {
+    if let Some(first) = k_c_first {
+        return controller_2d(raw, first);
+    }
     let t = match raw {
         None => return Ok(ControllerChoice::ExactMpc),
         Some(RawController::Name(s)) => {
@@ -380,19 +465,76 @@ fn controller(raw: Option<RawController>) -> Result<ControllerChoice> {
             ));
         }
     }
-    let iterations = t
-        .iterations
-        .ok_or_else(|| config_err("controller.iterations", "missing (K_c ≥ 1)"))?;
+    let iterations = t.iterations.ok_or_else(|| {
+        config_err(
+            "controller.iterations",
+            "missing (K_c ≥ 1), or give a K_c grid `k_c = [1, 5, 20]` for a 2-D sweep over (K, K_c)",
+        )
+    })?;
     let iterations = positive(iterations, "controller.iterations", MAX_K)?;
-    let solver = match t.solver {
-        None => Method::PG,
-        Some(s) => s
-            .parse::<Method>()
-            .map_err(|e| config_err("controller.solver", e.to_string()))?,
-    };
     Ok(ControllerChoice::SuboptimalMpc {
         iterations,
-        method: solver,
+        method: mpc_solver(t.solver)?,
+    })
+}
+
+/// `controller.solver` (default PG).
+fn mpc_solver(raw: Option<String>) -> Result<Method> {
+    match raw {
+        None => Ok(Method::PG),
+        Some(s) => s
+            .parse::<Method>()
+            .map_err(|e| config_err("controller.solver", e.to_string())),
+    }
+}
+
+/// The controller of a 2-D sweep: the sub-optimal MPC (as a table without `iterations`,
+/// or the name `"suboptimal-mpc"` for its default solver PG); its K_c is each point's.
+fn controller_2d(raw: Option<RawController>, k_c_first: usize) -> Result<ControllerChoice> {
+    let needs = "a K_c grid needs the sub-optimal MPC: set `controller = { kind = \"suboptimal-mpc\", solver = \"pg\" }` (without iterations), or remove k_c";
+    let solver = match raw {
+        None => {
+            return Err(config_err(
+                "k_c",
+                format!("{needs} (the controller defaults to the exact MPC)"),
+            ));
+        }
+        Some(RawController::Name(s)) if s == "suboptimal-mpc" => None,
+        Some(RawController::Name(s)) => {
+            return Err(config_err("k_c", format!("{needs} (controller = \"{s}\")")));
+        }
+        Some(RawController::Table(t)) => {
+            match t.kind.as_deref() {
+                Some("suboptimal-mpc") => {}
+                Some(other) => {
+                    return Err(config_err(
+                        "controller.kind",
+                        format!(
+                            "a controller table must be kind = \"suboptimal-mpc\", got `{other}`"
+                        ),
+                    ));
+                }
+                None => {
+                    return Err(config_err(
+                        "controller.kind",
+                        "missing (\"suboptimal-mpc\")",
+                    ));
+                }
+            }
+            if let Some(n) = t.iterations {
+                return Err(config_err(
+                    "controller.iterations",
+                    format!(
+                        "= {n} conflicts with k_c: in a 2-D sweep every point runs its own K_c from the k_c grid; remove controller.iterations"
+                    ),
+                ));
+            }
+            t.solver
+        }
+    };
+    Ok(ControllerChoice::SuboptimalMpc {
+        iterations: k_c_first,
+        method: mpc_solver(solver)?,
     })
 }
 
@@ -528,7 +670,12 @@ impl SweepConfig {
             ),
         };
         let exact_mhe_solve = raw.exact_mhe_solve.unwrap_or(false);
-        let controller = controller(raw.controller)?;
+        let k_c_grid = k_c_grid(raw.k_c)?;
+        let controller = controller(
+            raw.controller,
+            k_c_grid.as_ref().and_then(|g| g.first().copied()),
+        )?;
+        let cost = cost(raw.cost, k_c_grid.is_some())?;
         let metrics = metrics(raw.metrics, exact_mhe_solve)?;
         let common_random_numbers = raw.common_random_numbers.unwrap_or(true);
         let bounded_factor = raw.bounded_factor.unwrap_or(DEFAULT_BOUNDED_FACTOR);
@@ -551,6 +698,8 @@ impl SweepConfig {
             base_seed,
             exact_mhe_solve,
             controller,
+            k_c_grid,
+            cost,
             metrics,
             common_random_numbers,
             bounded_factor,
@@ -575,25 +724,56 @@ impl SweepConfig {
         Self::from_toml_str(&text, base)
     }
 
-    /// The points of the sweep, in output order (scale, then solver, then K), with the
-    /// given scales (the config's, or `[default_scale]`).
+    /// The points of the sweep, in output order (scale, then solver, then K_c in a 2-D
+    /// sweep, then K), with the given scales (the config's, or `[default_scale]`).
     pub(super) fn points_with(&self, default_scale: f64) -> Vec<Point> {
         let scales = self.scales.clone().unwrap_or_else(|| vec![default_scale]);
+        let k_cs: Vec<Option<usize>> = match &self.k_c_grid {
+            None => vec![None],
+            Some(g) => g.iter().copied().map(Some).collect(),
+        };
         let mut out = Vec::new();
         for (scale_index, &scale) in scales.iter().enumerate() {
             for &solver in &self.solvers {
-                for &k in &self.k_grid {
-                    out.push(Point {
-                        index: out.len(),
-                        k,
-                        solver,
-                        scale,
-                        scale_index,
-                    });
+                for &k_c in &k_cs {
+                    for &k in &self.k_grid {
+                        out.push(Point {
+                            index: out.len(),
+                            k,
+                            k_c,
+                            solver,
+                            scale,
+                            scale_index,
+                        });
+                    }
                 }
             }
         }
         out
+    }
+
+    /// Whether this is a 2-D sweep over (K_e, K_c) (`k_c` given).
+    pub fn is_2d(&self) -> bool {
+        self.k_c_grid.is_some()
+    }
+
+    /// The controller of point `p`: the config's, with the point's K_c in a 2-D sweep.
+    pub fn controller_at(&self, p: &Point) -> ControllerChoice {
+        self.controller_for(p.k_c)
+    }
+
+    /// The controller at `k_c`: the sub-optimal MPC with K_c = `k_c` in a 2-D sweep, the
+    /// config's controller for `None`.
+    pub fn controller_for(&self, k_c: Option<usize>) -> ControllerChoice {
+        match (self.controller, k_c) {
+            (ControllerChoice::SuboptimalMpc { method, .. }, Some(k_c)) => {
+                ControllerChoice::SuboptimalMpc {
+                    iterations: k_c,
+                    method,
+                }
+            }
+            (c, _) => c,
+        }
     }
 
     /// The points of the sweep (scale 1 standing for the scenario's when `scales` is
@@ -603,7 +783,9 @@ impl SweepConfig {
     }
 
     /// A canonical text of every setting that changes results (not the name, not the
-    /// scenario path: the scenario's text enters the fingerprint instead).
+    /// scenario path: the scenario's text enters the fingerprint instead; not `cost`, which
+    /// only weighs the results). A 1-D sweep's text is the one fingerprints were first
+    /// written with (old output directories resume); a 2-D sweep appends its K_c grid.
     pub(super) fn canonical(&self, steps: usize, base_seed: u64, scales: &[f64]) -> String {
         let mut s = String::new();
         let _ = write!(
@@ -620,10 +802,14 @@ impl SweepConfig {
             steps,
             base_seed,
             self.exact_mhe_solve,
-            match self.controller {
-                ControllerChoice::ExactMpc => "ExactMpc".to_string(),
-                ControllerChoice::SaturatedLqr => "SaturatedLqr".to_string(),
-                ControllerChoice::SuboptimalMpc { iterations, method } => format!(
+            match (self.controller, self.is_2d()) {
+                (ControllerChoice::ExactMpc, _) => "ExactMpc".to_string(),
+                (ControllerChoice::SaturatedLqr, _) => "SaturatedLqr".to_string(),
+                (ControllerChoice::SuboptimalMpc { method, .. }, true) => format!(
+                    "SuboptimalMpc {{ iterations: k_c, solver: {} }}",
+                    fingerprint_name(&method)
+                ),
+                (ControllerChoice::SuboptimalMpc { iterations, method }, false) => format!(
                     "SuboptimalMpc {{ iterations: {iterations}, solver: {} }}",
                     fingerprint_name(&method)
                 ),
@@ -634,6 +820,9 @@ impl SweepConfig {
             self.certificate,
             self.linear,
         );
+        if let Some(g) = &self.k_c_grid {
+            let _ = write!(s, ";k_c={g:?}");
+        }
         s
     }
 }
@@ -650,13 +839,17 @@ fn fingerprint_name(m: &Method) -> String {
     }
 }
 
-/// One sweep point: K, the MHE's solver Φ and the disturbance scale.
+/// One sweep point: K (= K_e), K_c in a 2-D sweep, the MHE's solver Φ and the disturbance
+/// scale.
 #[derive(Debug, Clone, Copy, PartialEq)]
 pub struct Point {
     /// Index in the full grid (stable across shards; names the point file).
     pub index: usize,
-    /// Iteration budget K.
+    /// Iteration budget K (= K_e) of the MHE.
     pub k: usize,
+    /// Iteration budget K_c of the sub-optimal MPC in a 2-D sweep (None: a 1-D sweep, the
+    /// controller is the config's).
+    pub k_c: Option<usize>,
     /// Φ of the MHE.
     pub solver: Method,
     /// Disturbance scale (`noise.scale`).
@@ -667,11 +860,18 @@ pub struct Point {
 
 impl fmt::Display for Point {
     fn fmt(&self, f: &mut fmt::Formatter<'_>) -> fmt::Result {
-        write!(
-            f,
-            "point {} (K = {}, solver = {}, scale = {})",
-            self.index, self.k, self.solver, self.scale
-        )
+        match self.k_c {
+            None => write!(
+                f,
+                "point {} (K = {}, solver = {}, scale = {})",
+                self.index, self.k, self.solver, self.scale
+            ),
+            Some(k_c) => write!(
+                f,
+                "point {} (K = {}, K_c = {k_c}, solver = {}, scale = {})",
+                self.index, self.k, self.solver, self.scale
+            ),
+        }
     }
 }
 

@@ -35,6 +35,7 @@ impl Sweep {
             metrics: &cfg.metrics,
             seeds: cfg.seeds,
             steps: self.steps(),
+            two_d: cfg.is_2d(),
         };
         for p in self.points() {
             let path = pdir.join(point_file_name(p.index));
@@ -82,7 +83,8 @@ fn collect(sweep: &Sweep, dirs: &[&Path]) -> Result<BTreeMap<usize, Found>> {
                     });
                 }
                 Entry::Occupied(o) => {
-                    if !o.get().file.same_results(&file, &sweep.config().metrics) {
+                    let cfg = sweep.config();
+                    if !o.get().file.same_results(&file, &cfg.metrics, cfg.is_2d()) {
                         return Err(SweepError::Conflict {
                             point: i,
                             first: o.get().path.clone(),
@@ -119,9 +121,10 @@ fn check_complete(sweep: &Sweep, files: &BTreeMap<usize, Found>) -> Result<()> {
 fn write_outputs(sweep: &Sweep, files: &BTreeMap<usize, Found>, out: &Path) -> Result<usize> {
     check_complete(sweep, files)?;
     let metrics = &sweep.config().metrics;
-    let mut runs = runs_header(metrics);
+    let two_d = sweep.config().is_2d();
+    let mut runs = runs_header(metrics, two_d);
     runs.push('\n');
-    let mut points = points_header(metrics);
+    let mut points = points_header(metrics, two_d);
     points.push('\n');
     for f in files.values() {
         for r in &f.file.run_rows {

@@ -20,6 +20,62 @@ use super::error::{Result, io_err, point_file_err};
 use super::metrics::{Metric, PointSummary, QUANTILES, RunMetrics};
 use super::seeds::fnv1a;
 
+/// The file in `points/` recording the settings behind the fingerprint (a line with the
+/// fingerprint, a line with the canonical settings text), so a refused directory can say
+/// what differs.
+pub(super) const SETTINGS_FILE: &str = "settings.txt";
+
+/// The text of [`SETTINGS_FILE`].
+pub(super) fn settings_text(fingerprint: &str, canonical: &str) -> String {
+    format!("{fingerprint}\n{canonical}\n")
+}
+
+/// What differs between the settings of [`SETTINGS_FILE`] (`recorded`, its text) and this
+/// sweep's (`fingerprint`, `canonical`): `; settings that differ: k = [..] there, [..] here`,
+/// `; the scenario file differs` when the settings agree, or empty when nothing is known.
+pub(super) fn settings_diff(recorded: &str, fingerprint: &str, canonical: &str) -> String {
+    let mut lines = recorded.lines();
+    let (Some(found), Some(old)) = (lines.next(), lines.next()) else {
+        return String::new();
+    };
+    if found == fingerprint {
+        return String::new();
+    }
+    let pairs = |text: &str| -> Vec<(String, String)> {
+        text.split(';')
+            .map(|kv| match kv.split_once('=') {
+                Some((k, v)) => (k.to_string(), v.to_string()),
+                None => (kv.to_string(), String::new()),
+            })
+            .collect()
+    };
+    let (old, new) = (pairs(old), pairs(canonical));
+    let mut keys: Vec<&str> = old.iter().chain(&new).map(|(k, _)| k.as_str()).collect();
+    keys.dedup();
+    let mut seen = Vec::new();
+    let mut diffs = Vec::new();
+    for k in keys {
+        if seen.contains(&k) {
+            continue;
+        }
+        seen.push(k);
+        let get = |list: &[(String, String)]| {
+            list.iter()
+                .find(|(kk, _)| kk == k)
+                .map_or("(none)".to_string(), |(_, v)| v.clone())
+        };
+        let (a, b) = (get(&old), get(&new));
+        if a != b {
+            diffs.push(format!("{k} = {a} there, {b} here"));
+        }
+    }
+    if diffs.is_empty() {
+        "; the settings agree, so the scenario file differs".to_string()
+    } else {
+        format!("; settings that differ: {}", diffs.join(", "))
+    }
+}
+
 /// First line of every point file (followed by the fingerprint).
 const POINT_FILE_MAGIC: &str = "# suboptimal-mhe sweep point v1";
 /// Line separating the run rows from the summary row in a point file.
@@ -587,6 +643,26 @@ mod tests {
                 "prefix {cut} accepted"
             );
         }
+    }
+
+    #[test]
+    fn settings_diff_names_what_differs() {
+        let old = settings_text("aa", "k=[1, 2];seeds=3;k_c=[1, 5]");
+        assert_eq!(
+            settings_diff(&old, "bb", "k=[1, 2];seeds=4;k_c=[1, 2]"),
+            "; settings that differ: seeds = 3 there, 4 here, k_c = [1, 5] there, [1, 2] here"
+        );
+        assert_eq!(
+            settings_diff(&old, "bb", "k=[1, 2];seeds=3"),
+            "; settings that differ: k_c = [1, 5] there, (none) here"
+        );
+        assert_eq!(
+            settings_diff(&old, "bb", "k=[1, 2];seeds=3;k_c=[1, 5]"),
+            "; the settings agree, so the scenario file differs"
+        );
+        // Nothing known: no record, a garbled one, or the same fingerprint.
+        assert_eq!(settings_diff("", "bb", "k=[1]"), "");
+        assert_eq!(settings_diff(&old, "aa", "k=[1]"), "");
     }
 
     #[test]

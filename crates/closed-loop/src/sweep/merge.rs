@@ -13,7 +13,8 @@ use std::path::{Path, PathBuf};
 
 use super::error::{Result, SweepError, io_err};
 use super::format::{
-    PointFile, PointFileRules, commit, point_file_name, points_header, runs_header, write_temp,
+    PointFile, PointFileRules, SETTINGS_FILE, commit, point_file_name, points_header, runs_header,
+    settings_diff, settings_text, write_atomic, write_temp,
 };
 use super::run::{Progress, Sweep, take_lock};
 use super::seeds::run_seed;
@@ -44,10 +45,14 @@ impl Sweep {
             }
             let f = PointFile::read(&path)?;
             if f.fingerprint != self.fingerprint() {
+                let detail = fs::read_to_string(pdir.join(SETTINGS_FILE))
+                    .map(|t| settings_diff(&t, self.fingerprint(), self.canonical()))
+                    .unwrap_or_default();
                 return Err(SweepError::Fingerprint {
                     path,
                     found: f.fingerprint,
                     expected: self.fingerprint().to_string(),
+                    detail,
                 });
             }
             let seed_of = |r| run_seed(self.base_seed(), p, r, cfg.common_random_numbers);
@@ -202,6 +207,10 @@ pub fn merge_point_dirs(
     all.extend(dirs.iter().copied().filter(|d| !same_dir(d, out)));
     let files = collect(sweep, &all)?;
     check_complete(sweep, &files)?;
+    write_atomic(
+        &pdir.join(SETTINGS_FILE),
+        &settings_text(sweep.fingerprint(), sweep.canonical()),
+    )?;
     for (&i, f) in &files {
         if f.dir != 0 {
             f.file.write_atomic(&pdir.join(point_file_name(i)))?;

@@ -130,6 +130,7 @@ pub struct Sweep {
     base_seed: u64,
     points: Vec<Point>,
     fingerprint: String,
+    canonical: String,
     theory: OnceLock<Vec<(Method, SolverTheory)>>,
     linear: OnceLock<LinearSide>,
     certified: OnceLock<Vec<(Method, Staircase)>>,
@@ -185,7 +186,8 @@ impl Sweep {
             .scales
             .clone()
             .unwrap_or_else(|| vec![scenario.noise.scale]);
-        let fingerprint = format::fingerprint(&config.canonical(steps, base_seed, &scales), &text);
+        let canonical = config.canonical(steps, base_seed, &scales);
+        let fingerprint = format::fingerprint(&canonical, &text);
         let sweep = Self {
             config,
             resolved,
@@ -193,6 +195,7 @@ impl Sweep {
             base_seed,
             points,
             fingerprint,
+            canonical,
             theory: OnceLock::new(),
             linear: OnceLock::new(),
             certified: OnceLock::new(),
@@ -234,6 +237,12 @@ impl Sweep {
     /// every point file.
     pub fn fingerprint(&self) -> &str {
         &self.fingerprint
+    }
+    /// The canonical text of the settings that enter the fingerprint (recorded in
+    /// `points/settings.txt`, so that a directory of another sweep is refused naming what
+    /// differs).
+    pub fn canonical(&self) -> &str {
+        &self.canonical
     }
     /// The theoretical side per solver (computed on first use: the certificate takes a
     /// moment and a resumed or merged sweep may not need it).
@@ -429,6 +438,11 @@ impl Sweep {
         fs::write(&probe, b"probe").map_err(io_err("write into the output directory", &pdir))?;
         let _ = fs::remove_file(&probe);
         let done = self.finished_points(&opts.out_dir)?;
+        // The directory holds this sweep's points (or none): record its settings.
+        format::write_atomic(
+            &pdir.join(format::SETTINGS_FILE),
+            &format::settings_text(&self.fingerprint, &self.canonical),
+        )?;
         let todo: Vec<&Point> = self
             .points
             .iter()

@@ -149,6 +149,19 @@ mod tests {
             }
         }
         assert_eq!(seen.len(), 300);
+        // A 1-D point's stream is FNV-1a of "K/solver/scale bits", as seeds were first drawn
+        // (a 2-D point appends "/K_c").
+        let want = |key: &str| splitmix64(splitmix64(11 ^ splitmix64(fnv1a(key.as_bytes()))) ^ 7);
+        let bits = 1f64.to_bits();
+        assert_eq!(run_seed(11, &p[1], 7, false), want(&format!("2/pg/{bits}")));
+        let two_d = crate::sweep::Point {
+            k_c: Some(5),
+            ..p[1]
+        };
+        assert_eq!(
+            run_seed(11, &two_d, 7, false),
+            want(&format!("2/pg/{bits}/5"))
+        );
         // A fixed value guards against accidental changes of the seed function (which
         // would silently change every published sweep).
         assert_eq!(splitmix64(0), 0xE220_A839_7B1D_CDAF);

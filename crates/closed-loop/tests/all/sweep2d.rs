@@ -403,3 +403,39 @@ fn rho_lin_column_is_the_linear_analysis_at_each_k_c() {
         assert!(p.cheapest_certified.is_none() && p.certified_boundary.is_empty());
     }
 }
+
+#[test]
+fn two_d_shards_merge_to_the_unsharded_sweep() {
+    use closed_loop::sweep::{Shard, merge_point_dirs};
+    let sweep = Sweep::new(config("")).unwrap();
+    let whole = scratch("shard-whole");
+    run(&sweep, &whole, 2);
+    let shards: Vec<PathBuf> = (1..=3).map(|i| scratch(&format!("shard-{i}"))).collect();
+    for (i, d) in shards.iter().enumerate() {
+        let r = sweep
+            .run(
+                &RunOptions {
+                    out_dir: d.clone(),
+                    threads: 1,
+                    shard: Some(Shard {
+                        index: i + 1,
+                        count: 3,
+                    }),
+                },
+                &NoProgress,
+            )
+            .unwrap();
+        assert!(!r.assembled);
+    }
+    let merged = scratch("shard-merged");
+    let dirs: Vec<&Path> = shards.iter().map(PathBuf::as_path).collect();
+    assert_eq!(
+        merge_point_dirs(&sweep, &dirs, &merged, &NoProgress).unwrap(),
+        8
+    );
+    assert_eq!(outputs(&merged), outputs(&whole));
+    // The merged directory records its settings: a rerun there computes nothing.
+    assert!(merged.join("points").join("settings.txt").is_file());
+    let r = run(&sweep, &merged, 2);
+    assert_eq!((r.computed, r.skipped), (0, 8));
+}

@@ -37,6 +37,7 @@
 //! | file | job |
 //! | --- | --- |
 //! | `config.rs` | [`SweepConfig`] (serde + key paths), its validation, the [`Point`] grid |
+//! | `grid.rs` | the budget grids `k` and `k_c` (lists or [`log_spaced`] ranges) |
 //! | `seeds.rs` | [`run_seed`], [`Shard`] |
 //! | `metrics.rs` | [`RunMetrics`], the bounded rule, quantiles, [`PointSummary`] |
 //! | `thresholds.rs` | K_lin, K_emp, K_cert per solver from `points.csv` ([`thresholds`]) |
@@ -54,6 +55,7 @@ mod config;
 mod custom;
 mod error;
 mod format;
+mod grid;
 mod lock;
 mod merge;
 mod metrics;
@@ -68,10 +70,11 @@ mod thresholds;
 use crate::scenario::ControllerChoice;
 use qp_iter::Method;
 
-pub use config::{MAX_K, MAX_SEEDS, MAX_STEPS, Point, SweepConfig, log_spaced};
+pub use config::{MAX_K, MAX_SEEDS, MAX_STEPS, Point, SweepConfig};
 pub use custom::{MonteCarlo, monte_carlo, monte_carlo_seed};
 pub use error::{Result, SweepError};
 pub use format::{PointFile, Table, point_file_name, points_header, runs_header};
+pub use grid::log_spaced;
 pub use merge::{assemble, merge_point_dirs};
 pub use metrics::{
     DEFAULT_BOUNDED_FACTOR, Metric, PointSummary, QUANTILES, RunMetrics, quantile_sorted,

@@ -181,7 +181,7 @@ fn meta(
 ) -> serde_json::Value {
     let cfg = sweep.config();
     let prov = Provenance::collect();
-    json!({
+    let mut v = json!({
         "format": "suboptimal-mhe/sweep-meta",
         "format_version": 1,
         "name": cfg.name,
@@ -228,7 +228,15 @@ fn meta(
         "end_utc": iso_utc(times.1),
         "wall_s": times.1 - times.0,
         "run": extra,
-    })
+    });
+    if !cfg.is_2d() {
+        // A 1-D sweep's meta.json keeps the keys it always had.
+        if let Some(obj) = v.as_object_mut() {
+            obj.remove("k_c_grid");
+            obj.remove("cost");
+        }
+    }
+    v
 }
 
 fn write_json(path: &Path, v: &serde_json::Value) -> Result<()> {

@@ -1,5 +1,6 @@
 //! `cargo xtask sweep` and `cargo xtask sweep-merge`: argument handling, the progress bar,
-//! `meta.json` and the SVG plots. The sweep itself (runs, seeds, shards, point files,
+//! `meta.json` and the SVG plots (line plots over K for a 1-D sweep, heat maps over
+//! (K_e, K_c) for a 2-D one). The sweep itself (runs, seeds, shards, point files,
 //! resume, CSV assembly) is `closed_loop::sweep`, unit-tested there.
 
 use std::fmt::Write as _;
@@ -9,15 +10,18 @@ use std::time::{Instant, SystemTime, UNIX_EPOCH};
 
 use anyhow::{Context, Result, bail};
 use closed_loop::sweep::{
-    Point, Progress, RunOptions, Shard, Sweep, SweepConfig, SweepReport, merge_point_dirs,
-    thresholds, thresholds_markdown,
+    PairThresholds, Point, Progress, RunOptions, Shard, Sweep, SweepConfig, SweepReport, Table,
+    Thresholds, merge_point_dirs, pair_thresholds, pair_thresholds_markdown, thresholds,
+    thresholds_markdown,
 };
 use indicatif::{ProgressBar, ProgressStyle};
 use serde_json::json;
 
 use crate::provenance::{Provenance, workspace_root};
 
+mod heatmap;
 mod plots;
+use heatmap::heatmaps_all;
 use plots::{plot_all, read_points, shorten};
 
 /// Arguments of `cargo xtask sweep`.
@@ -73,8 +77,9 @@ impl Progress for Bar {
         self.0.inc(cost);
     }
     fn point_done(&self, p: &Point) {
+        let k_c = p.k_c.map(|k| format!(" K_c = {k}")).unwrap_or_default();
         self.0
-            .set_message(format!("done: K = {} {}", p.k, p.solver));
+            .set_message(format!("done: K = {}{k_c} {}", p.k, p.solver));
     }
     fn notice(&self, message: &str) {
         self.0.suspend(|| eprintln!("note: {message}"));
@@ -176,7 +181,7 @@ fn meta(
 ) -> serde_json::Value {
     let cfg = sweep.config();
     let prov = Provenance::collect();
-    json!({
+    let mut v = json!({
         "format": "suboptimal-mhe/sweep-meta",
         "format_version": 1,
         "name": cfg.name,
@@ -189,9 +194,19 @@ fn meta(
         "seed_rule": if cfg.common_random_numbers {
             "seed(run r) = splitmix64(splitmix64(base_seed ^ splitmix64(0)) ^ r), the same at every point (common random numbers)"
         } else {
-            "seed(point, run r) = splitmix64(splitmix64(base_seed ^ splitmix64(fnv1a(\"K/solver/scale_bits\"))) ^ r)"
+            if cfg.is_2d() {
+                "seed(point, run r) = splitmix64(splitmix64(base_seed ^ splitmix64(fnv1a(\"K/solver/scale_bits/K_c\"))) ^ r)"
+            } else {
+                "seed(point, run r) = splitmix64(splitmix64(base_seed ^ splitmix64(fnv1a(\"K/solver/scale_bits\"))) ^ r)"
+            }
         },
         "k_grid": cfg.k_grid,
+        "k_c_grid": cfg.k_c_grid,
+        "cost": cfg.k_c_grid.as_ref().map(|_| json!({
+            "t_e": cfg.cost.t_e,
+            "t_c": cfg.cost.t_c,
+            "rule": "cost(K_e, K_c) = K_e·t_e + K_c·t_c (config `cost`; default 1:1 counts iterations, not time)",
+        })),
         "solvers": cfg.solvers.iter().map(|s| s.name()).collect::<Vec<_>>(),
         "seeds": cfg.seeds,
         "scales": sweep.points().iter().map(|p| p.scale).fold(Vec::<f64>::new(), |mut v, s| { if !v.contains(&s) { v.push(s); } v }),
@@ -213,7 +228,15 @@ fn meta(
         "end_utc": iso_utc(times.1),
         "wall_s": times.1 - times.0,
         "run": extra,
-    })
+    });
+    if !cfg.is_2d() {
+        // A 1-D sweep's meta.json keeps the keys it always had.
+        if let Some(obj) = v.as_object_mut() {
+            obj.remove("k_c_grid");
+            obj.remove("cost");
+        }
+    }
+    v
 }
 
 fn write_json(path: &Path, v: &serde_json::Value) -> Result<()> {
@@ -247,14 +270,20 @@ pub fn sweep(args: &SweepArgs) -> Result<()> {
             .join("target/sweeps")
             .join(&sweep.config().name)
     });
+    let cfg = sweep.config();
+    let n_k_c = cfg.k_c_grid.as_ref().map_or(1, Vec::len);
     println!(
-        "sweep `{}`: {} points ({} K × {} solvers × {} scales) × {} seeds, T = {}, {} threads{} → {}",
-        sweep.config().name,
+        "sweep `{}`: {} points ({} K{} × {} solvers × {} scales) × {} seeds, T = {}, {} threads{} → {}",
+        cfg.name,
         sweep.points().len(),
-        sweep.config().k_grid.len(),
-        sweep.config().solvers.len(),
-        sweep.points().len() / (sweep.config().k_grid.len() * sweep.config().solvers.len()).max(1),
-        sweep.config().seeds,
+        cfg.k_grid.len(),
+        cfg.k_c_grid
+            .as_ref()
+            .map(|g| format!(" × {} K_c", g.len()))
+            .unwrap_or_default(),
+        cfg.solvers.len(),
+        sweep.points().len() / (cfg.k_grid.len() * n_k_c * cfg.solvers.len()).max(1),
+        cfg.seeds,
         sweep.steps(),
         threads,
         shard.map(|s| format!(", shard {s}")).unwrap_or_default(),
@@ -273,18 +302,14 @@ pub fn sweep(args: &SweepArgs) -> Result<()> {
     if report.computed > 0 {
         println!("certificate: {}", theory_summary(&sweep));
     }
-    let (plots, thresholds) = if report.assembled {
+    let (plots, thresholds, pairs) = if report.assembled {
         let table = read_points(&out)?;
-        (plot_all(&sweep, &out, &table)?, thresholds(&table))
+        let (thresholds, pairs) = all_thresholds(&sweep, &table);
+        (draw(&sweep, &out, &table, &pairs)?, thresholds, pairs)
     } else {
-        (Vec::new(), Vec::new())
+        (Vec::new(), Vec::new(), Vec::new())
     };
-    if !thresholds.is_empty() {
-        println!(
-            "thresholds (K_lin: ρ_lin < 1 from here on the grid; K_emp: every run bounded from here on; K_cert: Theorem 1):"
-        );
-        print!("{}", thresholds_markdown(&thresholds));
-    }
+    print_thresholds(&sweep, &thresholds, &pairs);
     let end = unix_now();
     let extra = json!({
         "threads": threads,
@@ -297,6 +322,7 @@ pub fn sweep(args: &SweepArgs) -> Result<()> {
         "plots": plots,
         "thresholds": thresholds,
     });
+    let extra = with_2d(&sweep, extra, &pairs);
     let meta_name = match shard {
         Some(s) => format!("meta.shard-{}-of-{}.json", s.index, s.count),
         None => "meta.json".into(),
@@ -353,8 +379,8 @@ pub fn merge(args: &MergeArgs) -> Result<()> {
     };
     let n = merge_point_dirs(&sweep, &inputs, &args.out, &Notices)?;
     let table = read_points(&args.out)?;
-    let plots = plot_all(&sweep, &args.out, &table)?;
-    let thresholds = thresholds(&table);
+    let (thresholds, pairs) = all_thresholds(&sweep, &table);
+    let plots = draw(&sweep, &args.out, &table, &pairs)?;
     // Keep the shards' own meta files for the record.
     let mut shards = Vec::new();
     for d in &inputs {
@@ -384,6 +410,7 @@ pub fn merge(args: &MergeArgs) -> Result<()> {
         "plots": plots,
         "thresholds": thresholds,
     });
+    let extra = with_2d(&sweep, extra, &pairs);
     write_json(
         &args.out.join("meta.json"),
         &meta(
@@ -403,8 +430,100 @@ pub fn merge(args: &MergeArgs) -> Result<()> {
     Ok(())
 }
 
+/// The thresholds of an assembled sweep: per solver and scale (and K_c: each K_c a curve
+/// over K_e), and for a 2-D sweep the regions and cheapest pairs of (K_e, K_c).
+fn all_thresholds(sweep: &Sweep, table: &Table) -> (Vec<Thresholds>, Vec<PairThresholds>) {
+    let certified: Vec<(String, closed_loop::sweep::Staircase)> = sweep
+        .certified_boundaries()
+        .iter()
+        .map(|(m, st)| (m.to_string(), st.clone()))
+        .collect();
+    let pairs = if sweep.config().is_2d() {
+        pair_thresholds(table, sweep.config().cost, &certified)
+    } else {
+        Vec::new()
+    };
+    (thresholds(table), pairs)
+}
+
+/// The plots of an assembled sweep: line plots over K (1-D) or heat maps (2-D).
+fn draw(sweep: &Sweep, dir: &Path, table: &Table, pairs: &[PairThresholds]) -> Result<Vec<String>> {
+    if sweep.config().is_2d() {
+        heatmaps_all(sweep, dir, table, pairs)
+    } else {
+        plot_all(sweep, dir, table)
+    }
+}
+
+fn print_thresholds(sweep: &Sweep, thresholds: &[Thresholds], pairs: &[PairThresholds]) {
+    if sweep.config().is_2d() {
+        if !pairs.is_empty() {
+            let c = sweep.config().cost;
+            println!(
+                "2-D thresholds (a region holds a pair when its criterion holds at every grid pair with K_e and K_c at least as large; cost K_e·{} + K_c·{}{}):",
+                c.t_e,
+                c.t_c,
+                if c == closed_loop::sweep::IterationCost::default() {
+                    ", the default 1:1 — iterations, not time"
+                } else {
+                    ""
+                }
+            );
+            print!("{}", pair_thresholds_markdown(pairs));
+        }
+    } else if !thresholds.is_empty() {
+        println!(
+            "thresholds (K_lin: ρ_lin < 1 from here on the grid; K_emp: every run bounded from here on; K_cert: Theorem 1):"
+        );
+        print!("{}", thresholds_markdown(thresholds));
+    }
+}
+
+/// `meta.json`'s `run` with the 2-D thresholds and the joint certificate's boundary (a 1-D
+/// sweep's `run` is unchanged).
+fn with_2d(
+    sweep: &Sweep,
+    mut extra: serde_json::Value,
+    pairs: &[PairThresholds],
+) -> serde_json::Value {
+    if !sweep.config().is_2d() {
+        return extra;
+    }
+    let certified: Vec<serde_json::Value> = sweep
+        .certified_boundaries()
+        .iter()
+        .map(|(m, st)| {
+            if st.is_empty() {
+                json!({ "solver": m.to_string(), "status": "not computed" })
+            } else {
+                json!({ "solver": m.to_string(), "status": "computed", "staircase": st })
+            }
+        })
+        .collect();
+    if let Some(obj) = extra.as_object_mut() {
+        obj.insert("pair_thresholds".into(), json!(pairs));
+        obj.insert("certified_boundary".into(), json!(certified));
+    }
+    extra
+}
+
 /// A one-line description of a sweep's theory per solver, for the terminal.
 pub fn theory_summary(sweep: &Sweep) -> String {
+    if sweep.config().is_2d() {
+        let computed = sweep
+            .certified_boundaries()
+            .iter()
+            .filter(|(_, st)| !st.is_empty())
+            .count();
+        return if computed == 0 {
+            "the joint (K_e, K_c) certificate is not computed (hook: closed_loop::sweep::certified_boundary); Theorem 1's columns are void for the sub-optimal MPC".to_string()
+        } else {
+            format!(
+                "the joint (K_e, K_c) certificate's region for {computed} of {} solvers (drawn on the heat maps)",
+                sweep.config().solvers.len()
+            )
+        };
+    }
     let mut s = String::new();
     for p in sweep
         .config()

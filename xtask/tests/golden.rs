@@ -1,9 +1,11 @@
 #![allow(clippy::unwrap_used)]
 //! Golden outputs: `reproduce` (both presets) and the smoke sweep must keep producing the
-//! numbers they produced before the architecture refactor (issue 10), bit for bit.
+//! numbers they produced before the architecture refactor (issue 10), bit for bit; the 2-D
+//! smoke sweep those it produced when it was added (issue 16).
 //!
 //! The golden files under `tests/golden/` are gzip'd copies of `certificate.json` and
-//! `trace.json` of both presets and of `points.csv` / `runs.csv` of `sweeps/smoke.toml`.
+//! `trace.json` of both presets and of `points.csv` / `runs.csv` of `sweeps/smoke.toml` and
+//! `sweeps/smoke-2d.toml`.
 //! Provenance and host records and every `wall_*` value (timings) are excluded from the
 //! comparison; every other number must be identical.
 //!
@@ -183,6 +185,19 @@ fn smoke_sweep_outputs_match_the_golden_files() {
     check(&[
         ("smoke-points.csv", out.join("points.csv")),
         ("smoke-runs.csv", out.join("runs.csv")),
+    ]);
+    let _ = std::fs::remove_dir_all(&out);
+}
+
+/// The 2-D smoke sweep over (K_e, K_c) (`sweeps/smoke-2d.toml`): the `k_c` column, the
+/// sub-optimal MPC at each K_c and ρ_lin(K_e, K_c) pinned like the 1-D smoke sweep.
+#[test]
+fn smoke_2d_sweep_outputs_match_the_golden_files() {
+    let out = out_dir("smoke-2d");
+    xtask(&["sweep", "--config", "sweeps/smoke-2d.toml"], &out);
+    check(&[
+        ("smoke-2d-points.csv", out.join("points.csv")),
+        ("smoke-2d-runs.csv", out.join("runs.csv")),
     ]);
     let _ = std::fs::remove_dir_all(&out);
 }

@@ -434,3 +434,78 @@ fn thread_count_and_input_size_are_bounded() {
     assert!(stderr.contains("per core"), "{stderr}");
     expect_error(&["sweep", "--config", "/dev/zero"], "MiB");
 }
+
+/// A 2-D sweep over (K_e, K_c) through the binary: heat maps instead of the line plots, the
+/// 2-D thresholds printed and in meta.json, the joint certificate reported as not computed,
+/// a rerun that resumes everything, and a K_c grid without the sub-optimal MPC refused.
+#[test]
+fn two_d_sweep_writes_heat_maps_and_pair_thresholds() {
+    let d = scratch("two-d");
+    let out = d.join("out");
+    let cfg = concat!(env!("CARGO_MANIFEST_DIR"), "/../sweeps/smoke-2d.toml");
+    let args = [
+        "sweep",
+        "--config",
+        cfg,
+        "--out",
+        out.to_str().unwrap(),
+        "--threads",
+        "2",
+    ];
+    let stdout = ok(&xtask(&args));
+    assert!(
+        stdout.contains("(3 K × 3 K_c × 2 solvers × 1 scales)"),
+        "{stdout}"
+    );
+    assert!(stdout.contains("2-D thresholds"), "{stdout}");
+    assert!(stdout.contains("certificate: not computed"), "{stdout}");
+    for solver in ["fista", "admm"] {
+        for map in ["bounded", "error", "rho-lin"] {
+            let svg = fs::read_to_string(out.join(format!("heatmap-{map}-{solver}.svg"))).unwrap();
+            assert!(svg.starts_with("<svg") && svg.trim_end().ends_with("</svg>"));
+            assert!(svg.contains("certificate: not computed"), "{map} {solver}");
+        }
+    }
+    assert!(
+        !out.join("error.svg").exists(),
+        "no line plots over K in 2-D"
+    );
+    let meta: serde_json::Value =
+        serde_json::from_str(&fs::read_to_string(out.join("meta.json")).unwrap()).unwrap();
+    assert_eq!(meta["k_c_grid"], serde_json::json!([1, 5, 20]));
+    assert_eq!(meta["cost"]["t_e"], 1.0);
+    let pairs = meta["run"]["pair_thresholds"].as_array().unwrap();
+    assert_eq!(pairs.len(), 2);
+    for p in pairs {
+        assert_eq!(p["k_c_grid"], serde_json::json!([1, 5, 20]));
+        assert!(p["empirical_boundary"].as_array().unwrap().len() == 3);
+        assert!(p["cheapest_certified"].is_null());
+    }
+    let cert = meta["run"]["certified_boundary"].as_array().unwrap();
+    assert!(cert.iter().all(|c| c["status"] == "not computed"));
+    // Per-K_c thresholds (each K_c a curve over K_e) are stored too.
+    let th = meta["run"]["thresholds"].as_array().unwrap();
+    assert_eq!(th.len(), 2 * 3);
+    assert!(th.iter().all(|t| t["k_c"].is_u64()));
+    let again = ok(&xtask(&args));
+    assert!(again.contains("0 computed, 18 skipped"), "{again}");
+    // The k_c column is the only change to the file layout.
+    let points = fs::read_to_string(out.join("points.csv")).unwrap();
+    assert!(points.starts_with("point,k,k_c,solver,scale,runs,bounded_fraction,"));
+    // A K_c grid with the exact MPC is an input error naming k_c.
+    let bad = config(
+        &d,
+        "bad.toml",
+        "name = \"bad\"\nk = [1]\nk_c = [1, 2]\nsolvers = [\"pg\"]\nseeds = 1\n",
+    );
+    expect_error(
+        &[
+            "sweep",
+            "--config",
+            bad.to_str().unwrap(),
+            "--out",
+            d.join("bad").to_str().unwrap(),
+        ],
+        "`k_c`: a K_c grid needs the sub-optimal MPC",
+    );
+}

@@ -67,7 +67,7 @@ pub enum SweepError {
     /// The output directory holds point files of a different configuration.
     #[error(
         "`{path}` was written by a different sweep configuration or scenario (fingerprint {found}, \
-         this sweep {expected}); use another --out directory or delete the old one"
+         this sweep {expected}{detail}); use another --out directory or delete the old one"
     )]
     Fingerprint {
         /// The point file.
@@ -76,6 +76,9 @@ pub enum SweepError {
         found: String,
         /// This sweep's fingerprint.
         expected: String,
+        /// What differs, when the directory records the settings it was written with
+        /// (`; settings that differ: k_c = [1, 5] there, [1, 2] here`), else empty.
+        detail: String,
     },
     /// A point file is malformed (cut, edited, copied from another point, not text).
     #[error(

@@ -20,6 +20,62 @@ use super::error::{Result, io_err, point_file_err};
 use super::metrics::{Metric, PointSummary, QUANTILES, RunMetrics};
 use super::seeds::fnv1a;
 
+/// The file in `points/` recording the settings behind the fingerprint (a line with the
+/// fingerprint, a line with the canonical settings text), so a refused directory can say
+/// what differs.
+pub(super) const SETTINGS_FILE: &str = "settings.txt";
+
+/// The text of [`SETTINGS_FILE`].
+pub(super) fn settings_text(fingerprint: &str, canonical: &str) -> String {
+    format!("{fingerprint}\n{canonical}\n")
+}
+
+/// What differs between the settings of [`SETTINGS_FILE`] (`recorded`, its text) and this
+/// sweep's (`fingerprint`, `canonical`): `; settings that differ: k = [..] there, [..] here`,
+/// `; the scenario file differs` when the settings agree, or empty when nothing is known.
+pub(super) fn settings_diff(recorded: &str, fingerprint: &str, canonical: &str) -> String {
+    let mut lines = recorded.lines();
+    let (Some(found), Some(old)) = (lines.next(), lines.next()) else {
+        return String::new();
+    };
+    if found == fingerprint {
+        return String::new();
+    }
+    let pairs = |text: &str| -> Vec<(String, String)> {
+        text.split(';')
+            .map(|kv| match kv.split_once('=') {
+                Some((k, v)) => (k.to_string(), v.to_string()),
+                None => (kv.to_string(), String::new()),
+            })
+            .collect()
+    };
+    let (old, new) = (pairs(old), pairs(canonical));
+    let mut keys: Vec<&str> = old.iter().chain(&new).map(|(k, _)| k.as_str()).collect();
+    keys.dedup();
+    let mut seen = Vec::new();
+    let mut diffs = Vec::new();
+    for k in keys {
+        if seen.contains(&k) {
+            continue;
+        }
+        seen.push(k);
+        let get = |list: &[(String, String)]| {
+            list.iter()
+                .find(|(kk, _)| kk == k)
+                .map_or("(none)".to_string(), |(_, v)| v.clone())
+        };
+        let (a, b) = (get(&old), get(&new));
+        if a != b {
+            diffs.push(format!("{k} = {a} there, {b} here"));
+        }
+    }
+    if diffs.is_empty() {
+        "; the settings agree, so the scenario file differs".to_string()
+    } else {
+        format!("; settings that differ: {}", diffs.join(", "))
+    }
+}
+
 /// First line of every point file (followed by the fingerprint).
 const POINT_FILE_MAGIC: &str = "# suboptimal-mhe sweep point v1";
 /// Line separating the run rows from the summary row in a point file.
@@ -45,9 +101,19 @@ fn cell(v: Option<f64>) -> String {
     v.map(|x| format!("{x}")).unwrap_or_default()
 }
 
-/// Header of `runs.csv` for the kept metrics.
-pub fn runs_header(metrics: &[Metric]) -> String {
-    let mut h = String::from("point,k,solver,scale,run,seed,steps");
+/// The identity columns of a row: `point,k,solver,scale`, with `k_c` after `k` in a 2-D
+/// sweep (a 1-D sweep's files are unchanged, so old files and tools keep working).
+fn identity_header(two_d: bool) -> &'static str {
+    if two_d {
+        "point,k,k_c,solver,scale"
+    } else {
+        "point,k,solver,scale"
+    }
+}
+
+/// Header of `runs.csv` for the kept metrics (`two_d`: a 2-D sweep, with the `k_c` column).
+pub fn runs_header(metrics: &[Metric], two_d: bool) -> String {
+    let mut h = format!("{},run,seed,steps", identity_header(two_d));
     for m in metrics {
         h.push(',');
         h.push_str(m.name());
@@ -56,9 +122,10 @@ pub fn runs_header(metrics: &[Metric]) -> String {
     h
 }
 
-/// Header of `points.csv` for the kept metrics.
-pub fn points_header(metrics: &[Metric]) -> String {
-    let mut h = String::from("point,k,solver,scale,runs,bounded_fraction");
+/// Header of `points.csv` for the kept metrics (`two_d`: a 2-D sweep, with the `k_c`
+/// column).
+pub fn points_header(metrics: &[Metric], two_d: bool) -> String {
+    let mut h = format!("{},runs,bounded_fraction", identity_header(two_d));
     for m in metrics {
         for (_, q) in QUANTILES {
             let _ = write!(h, ",{}_{q}", m.name());
@@ -71,7 +138,10 @@ pub fn points_header(metrics: &[Metric]) -> String {
 }
 
 fn point_prefix(p: &Point) -> String {
-    format!("{},{},{},{}", p.index, p.k, p.solver, p.scale)
+    match p.k_c {
+        None => format!("{},{},{},{}", p.index, p.k, p.solver, p.scale),
+        Some(k_c) => format!("{},{},{k_c},{},{}", p.index, p.k, p.solver, p.scale),
+    }
 }
 
 pub(super) fn run_row(p: &Point, r: &RunMetrics, metrics: &[Metric]) -> String {
@@ -232,12 +302,14 @@ pub(super) struct PointFileRules<'a> {
     pub seeds: usize,
     /// Horizon T (no run has more steps).
     pub steps: usize,
+    /// A 2-D sweep (the `k_c` column).
+    pub two_d: bool,
 }
 
 impl PointFileRules<'_> {
     /// The run-row cells of run `r` at point `p` whose seed is `seed`, with the column names.
     fn run_cells(&self, p: &Point, r: usize, seed: u64) -> Vec<(String, Cell)> {
-        let names = runs_header(self.metrics);
+        let names = runs_header(self.metrics, self.two_d);
         let mut cells = identity_cells(p);
         cells.push(Cell::Is(r.to_string()));
         cells.push(Cell::Is(seed.to_string()));
@@ -251,7 +323,7 @@ impl PointFileRules<'_> {
 
     /// The summary-row cells of point `p`, with the column names.
     fn summary_cells(&self, p: &Point) -> Vec<(String, Cell)> {
-        let names = points_header(self.metrics);
+        let names = points_header(self.metrics, self.two_d);
         let mut cells = identity_cells(p);
         cells.push(Cell::Is(self.seeds.to_string()));
         cells.push(Cell::Number);
@@ -287,7 +359,12 @@ fn check_row(row: &str, cells: &[(String, Cell)], what: &str) -> std::result::Re
             cells.len()
         ));
     }
-    let identity = got.iter().take(4).copied().collect::<Vec<_>>().join(",");
+    // The identity cells (`point,k[,k_c],solver,scale`) are the leading `Is` cells.
+    let n_id = cells
+        .iter()
+        .take_while(|(name, _)| !matches!(name.as_str(), "run" | "runs"))
+        .count();
+    let identity = got.iter().take(n_id).copied().collect::<Vec<_>>().join(",");
     for (c, (&value, (name, cell))) in got.iter().zip(cells).enumerate() {
         let ok = match cell {
             Cell::Is(want) => value == want,
@@ -302,19 +379,21 @@ fn check_row(row: &str, cells: &[(String, Cell)], what: &str) -> std::result::Re
             continue;
         }
         return Err(match cell {
-            Cell::Is(want) if c < 4 => {
+            Cell::Is(want) if c < n_id => {
                 let expected: Vec<&str> = cells
                     .iter()
-                    .take(4)
+                    .take(n_id)
                     .map(|(_, k)| match k {
                         Cell::Is(w) => w.as_str(),
                         _ => "",
                     })
                     .collect();
+                let names: Vec<&str> = cells.iter().take(n_id).map(|(n, _)| n.as_str()).collect();
                 format!(
-                    "{what} is a row of point `{identity}` (point,k,solver,scale), but this file is \
+                    "{what} is a row of point `{identity}` ({}), but this file is \
                      point `{}` (column `{name}` should be `{want}`), as if copied from another \
                      point's file",
+                    names.join(","),
                     expected.join(",")
                 )
             }
@@ -446,8 +525,8 @@ impl PointFile {
 
     /// Whether two (valid) files of one point hold the same results, the `wall_*` timing
     /// columns aside: a point computed twice gives the same results, not the same times.
-    pub(super) fn same_results(&self, other: &Self, metrics: &[Metric]) -> bool {
-        let (rh, ph) = (runs_header(metrics), points_header(metrics));
+    pub(super) fn same_results(&self, other: &Self, metrics: &[Metric], two_d: bool) -> bool {
+        let (rh, ph) = (runs_header(metrics, two_d), points_header(metrics, two_d));
         self.fingerprint == other.fingerprint
             && self.run_rows.len() == other.run_rows.len()
             && self
@@ -564,6 +643,26 @@ mod tests {
                 "prefix {cut} accepted"
             );
         }
+    }
+
+    #[test]
+    fn settings_diff_names_what_differs() {
+        let old = settings_text("aa", "k=[1, 2];seeds=3;k_c=[1, 5]");
+        assert_eq!(
+            settings_diff(&old, "bb", "k=[1, 2];seeds=4;k_c=[1, 2]"),
+            "; settings that differ: seeds = 3 there, 4 here, k_c = [1, 5] there, [1, 2] here"
+        );
+        assert_eq!(
+            settings_diff(&old, "bb", "k=[1, 2];seeds=3"),
+            "; settings that differ: k_c = [1, 5] there, (none) here"
+        );
+        assert_eq!(
+            settings_diff(&old, "bb", "k=[1, 2];seeds=3;k_c=[1, 5]"),
+            "; the settings agree, so the scenario file differs"
+        );
+        // Nothing known: no record, a garbled one, or the same fingerprint.
+        assert_eq!(settings_diff("", "bb", "k=[1]"), "");
+        assert_eq!(settings_diff(&old, "aa", "k=[1]"), "");
     }
 
     #[test]

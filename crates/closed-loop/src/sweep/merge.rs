@@ -13,7 +13,8 @@ use std::path::{Path, PathBuf};
 
 use super::error::{Result, SweepError, io_err};
 use super::format::{
-    PointFile, PointFileRules, commit, point_file_name, points_header, runs_header, write_temp,
+    PointFile, PointFileRules, SETTINGS_FILE, commit, point_file_name, points_header, runs_header,
+    settings_diff, settings_text, write_atomic, write_temp,
 };
 use super::run::{Progress, Sweep, take_lock};
 use super::seeds::run_seed;
@@ -35,6 +36,7 @@ impl Sweep {
             metrics: &cfg.metrics,
             seeds: cfg.seeds,
             steps: self.steps(),
+            two_d: cfg.is_2d(),
         };
         for p in self.points() {
             let path = pdir.join(point_file_name(p.index));
@@ -43,10 +45,14 @@ impl Sweep {
             }
             let f = PointFile::read(&path)?;
             if f.fingerprint != self.fingerprint() {
+                let detail = fs::read_to_string(pdir.join(SETTINGS_FILE))
+                    .map(|t| settings_diff(&t, self.fingerprint(), self.canonical()))
+                    .unwrap_or_default();
                 return Err(SweepError::Fingerprint {
                     path,
                     found: f.fingerprint,
                     expected: self.fingerprint().to_string(),
+                    detail,
                 });
             }
             let seed_of = |r| run_seed(self.base_seed(), p, r, cfg.common_random_numbers);
@@ -82,7 +88,8 @@ fn collect(sweep: &Sweep, dirs: &[&Path]) -> Result<BTreeMap<usize, Found>> {
                     });
                 }
                 Entry::Occupied(o) => {
-                    if !o.get().file.same_results(&file, &sweep.config().metrics) {
+                    let cfg = sweep.config();
+                    if !o.get().file.same_results(&file, &cfg.metrics, cfg.is_2d()) {
                         return Err(SweepError::Conflict {
                             point: i,
                             first: o.get().path.clone(),
@@ -119,9 +126,10 @@ fn check_complete(sweep: &Sweep, files: &BTreeMap<usize, Found>) -> Result<()> {
 fn write_outputs(sweep: &Sweep, files: &BTreeMap<usize, Found>, out: &Path) -> Result<usize> {
     check_complete(sweep, files)?;
     let metrics = &sweep.config().metrics;
-    let mut runs = runs_header(metrics);
+    let two_d = sweep.config().is_2d();
+    let mut runs = runs_header(metrics, two_d);
     runs.push('\n');
-    let mut points = points_header(metrics);
+    let mut points = points_header(metrics, two_d);
     points.push('\n');
     for f in files.values() {
         for r in &f.file.run_rows {
@@ -199,6 +207,10 @@ pub fn merge_point_dirs(
     all.extend(dirs.iter().copied().filter(|d| !same_dir(d, out)));
     let files = collect(sweep, &all)?;
     check_complete(sweep, &files)?;
+    write_atomic(
+        &pdir.join(SETTINGS_FILE),
+        &settings_text(sweep.fingerprint(), sweep.canonical()),
+    )?;
     for (&i, f) in &files {
         if f.dir != 0 {
             f.file.write_atomic(&pdir.join(point_file_name(i)))?;

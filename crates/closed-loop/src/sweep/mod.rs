@@ -1,7 +1,8 @@
 //! Monte-Carlo sweeps over the iteration budget K: where the closed loop of Alg. 1 really
 //! stays stable, next to where Theorem 1 certifies it.
 //!
-//! A sweep is a grid of *points* (K, solver Φ, disturbance scale); at every point it runs
+//! A sweep is a grid of *points* (K, solver Φ, disturbance scale — and K_c, the sub-optimal
+//! MPC's budget, in a 2-D sweep over (K_e, K_c) = (K, K_c)); at every point it runs
 //! `seeds` closed-loop simulations of the case study ([`ResolvedScenario::build_loop`](crate::scenario::ResolvedScenario::build_loop)) with different
 //! disturbance realisations and records per run the norms of the estimation error and the
 //! state, ε_t (optional), the empirical gains, constraint violations and a bounded flag
@@ -36,10 +37,12 @@
 //! | file | job |
 //! | --- | --- |
 //! | `config.rs` | [`SweepConfig`] (serde + key paths), its validation, the [`Point`] grid |
+//! | `grid.rs` | the budget grids `k` and `k_c` (lists or [`log_spaced`] ranges) |
 //! | `seeds.rs` | [`run_seed`], [`Shard`] |
 //! | `metrics.rs` | [`RunMetrics`], the bounded rule, quantiles, [`PointSummary`] |
 //! | `thresholds.rs` | K_lin, K_emp, K_cert per solver from `points.csv` ([`thresholds`]) |
-//! | `theory.rs` | the certificate's and the linear analysis' columns per point ([`SolverTheory`], [`TheoryAtK`], [`LinearSide`]) |
+//! | `region.rs` | 2-D sweeps: the empirical and linear regions of (K_e, K_c), their staircases and cheapest pairs ([`pair_thresholds`]) |
+//! | `theory.rs` | the certificate's and the linear analysis' columns per point ([`SolverTheory`], [`TheoryAtK`], [`LinearSide`]); the joint certificate's hook [`certified_boundary`] |
 //! | `format.rs` | CSV rows and headers, fingerprint, point files (writing, reading, validation), [`Table`] |
 //! | `run.rs` | [`Sweep`], the run loop, [`Progress`]: the only contact with the simulation |
 //! | `merge.rs` | resume reading, [`assemble`], [`merge_point_dirs`] |
@@ -52,9 +55,11 @@ mod config;
 mod custom;
 mod error;
 mod format;
+mod grid;
 mod lock;
 mod merge;
 mod metrics;
+mod region;
 mod run;
 mod seeds;
 mod theory;
@@ -65,16 +70,24 @@ mod thresholds;
 use crate::scenario::ControllerChoice;
 use qp_iter::Method;
 
-pub use config::{MAX_K, MAX_SEEDS, MAX_STEPS, Point, SweepConfig, log_spaced};
+pub use config::{MAX_K, MAX_SEEDS, MAX_STEPS, Point, SweepConfig};
 pub use custom::{MonteCarlo, monte_carlo, monte_carlo_seed};
 pub use error::{Result, SweepError};
 pub use format::{PointFile, Table, point_file_name, points_header, runs_header};
+pub use grid::log_spaced;
 pub use merge::{assemble, merge_point_dirs};
 pub use metrics::{
     DEFAULT_BOUNDED_FACTOR, Metric, PointSummary, QUANTILES, RunMetrics, quantile_sorted,
     run_metrics, summarise,
 };
+pub use region::{
+    IterationCost, Pair, PairThresholds, Staircase, cheapest_pair, pair_thresholds,
+    pair_thresholds_markdown, staircase, staircase_text, up_set,
+};
 pub use run::{NoProgress, Progress, RunOptions, Sweep, SweepReport, run_cost};
 pub use seeds::{Shard, run_seed, splitmix64};
-pub use theory::{LinearSide, SolverTheory, TheoryAtK, solver_linear, solver_theory};
+pub use theory::{
+    LinearEntry, LinearSide, SolverTheory, TheoryAtK, certified_boundary, solver_linear,
+    solver_theory,
+};
 pub use thresholds::{SETTLE_TOLERANCE, Thresholds, thresholds, thresholds_markdown};

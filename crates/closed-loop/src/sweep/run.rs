@@ -14,15 +14,19 @@ use std::time::Instant;
 use crate::scenario::{ResolvedScenario, Scenario};
 use rayon::prelude::*;
 
-use super::Method;
 use super::config::{Point, SweepConfig};
 use super::error::{Result, SweepError, config_err, io_err};
 use super::format::{self, PointFile, point_file_name, point_row, run_row, temp_path};
 use super::lock::OutputLock;
 use super::merge::assemble_locked;
 use super::metrics::{RunMetrics, summarise};
+use super::region::Staircase;
 use super::seeds::{Shard, run_seed};
-use super::theory::{LinearSide, SolverTheory, TheoryAtK, solver_linear, solver_theory};
+use super::theory::LinearEntry;
+use super::theory::{
+    LinearSide, SolverTheory, TheoryAtK, certified_boundary, solver_linear, solver_theory,
+};
+use super::{ControllerChoice, Method};
 use crate::scenario::{LoopOptions, ScenarioLoop};
 use crate::sim::ClosedLoopError;
 
@@ -67,7 +71,8 @@ pub struct NoProgress;
 impl Progress for NoProgress {}
 
 /// Relative cost of one run for progress and ETA: T·(K + 50) (the 50 stands for the
-/// per-step work outside the K iterations, mainly the controller).
+/// per-step work outside the K iterations, mainly the controller; a 2-D sweep passes
+/// K_e + K_c as K).
 pub fn run_cost(k: usize, steps: usize) -> u64 {
     (steps as u64).saturating_mul(k as u64 + 50)
 }
@@ -125,8 +130,10 @@ pub struct Sweep {
     base_seed: u64,
     points: Vec<Point>,
     fingerprint: String,
+    canonical: String,
     theory: OnceLock<Vec<(Method, SolverTheory)>>,
     linear: OnceLock<LinearSide>,
+    certified: OnceLock<Vec<(Method, Staircase)>>,
 }
 
 impl Sweep {
@@ -179,7 +186,8 @@ impl Sweep {
             .scales
             .clone()
             .unwrap_or_else(|| vec![scenario.noise.scale]);
-        let fingerprint = format::fingerprint(&config.canonical(steps, base_seed, &scales), &text);
+        let canonical = config.canonical(steps, base_seed, &scales);
+        let fingerprint = format::fingerprint(&canonical, &text);
         let sweep = Self {
             config,
             resolved,
@@ -187,8 +195,10 @@ impl Sweep {
             base_seed,
             points,
             fingerprint,
+            canonical,
             theory: OnceLock::new(),
             linear: OnceLock::new(),
+            certified: OnceLock::new(),
         };
         // Fail early (before any output) if a point cannot be set up.
         for &solver in &sweep.config.solvers {
@@ -228,11 +238,26 @@ impl Sweep {
     pub fn fingerprint(&self) -> &str {
         &self.fingerprint
     }
+    /// The canonical text of the settings that enter the fingerprint (recorded in
+    /// `points/settings.txt`, so that a directory of another sweep is refused naming what
+    /// differs).
+    pub fn canonical(&self) -> &str {
+        &self.canonical
+    }
     /// The theoretical side per solver (computed on first use: the certificate takes a
     /// moment and a resumed or merged sweep may not need it).
     pub fn theory(&self) -> &[(Method, SolverTheory)] {
         self.theory.get_or_init(|| {
-            if self.config.certificate {
+            if self.config.is_2d() {
+                // Theorem 1 (these columns) is for the exact MPC; the (K_e, K_c) region is
+                // the joint certificate's, drawn from `certified_boundaries`.
+                let reason = "Theorem 1 is for the exact MPC; a 2-D sweep runs the sub-optimal MPC at each K_c (its certified region: see the heat maps)";
+                self.config
+                    .solvers
+                    .iter()
+                    .map(|&s| (s, SolverTheory::Unavailable(reason.into())))
+                    .collect()
+            } else if self.config.certificate {
                 solver_theory(&self.resolved, &self.config.solvers, self.config.controller)
             } else {
                 let reason = "not computed (certificate = false in the sweep config)";
@@ -244,27 +269,62 @@ impl Sweep {
             }
         })
     }
-    /// The linear side per solver: ρ_lin(K) on the solver's K grid and K_lin (computed on
-    /// first use, like [`Sweep::theory`]).
+    /// The linear side per solver (and per K_c in a 2-D sweep): ρ_lin(K) on the K grid and
+    /// K_lin (computed on first use, like [`Sweep::theory`]).
     pub fn linear(&self) -> &LinearSide {
         self.linear.get_or_init(|| {
+            let controllers: Vec<(Option<usize>, ControllerChoice)> = match &self.config.k_c_grid {
+                None => vec![(None, self.config.controller)],
+                Some(g) => g
+                    .iter()
+                    .map(|&k_c| (Some(k_c), self.config.controller_for(Some(k_c))))
+                    .collect(),
+            };
             if self.config.linear {
-                solver_linear(
-                    &self.resolved,
-                    &self.config.solvers,
-                    self.config.controller,
-                    |_| self.config.k_grid.clone(),
-                )
+                solver_linear(&self.resolved, &self.config.solvers, &controllers, |_| {
+                    self.config.k_grid.clone()
+                })
             } else {
                 let reason = "not computed (linear = false in the sweep config)";
                 LinearSide(
                     self.config
                         .solvers
                         .iter()
-                        .map(|&s| (s, Err(reason.to_string())))
+                        .flat_map(|&solver| {
+                            controllers.iter().map(move |&(k_c, _)| LinearEntry {
+                                solver,
+                                k_c,
+                                report: Err(reason.to_string()),
+                            })
+                        })
                         .collect(),
                 )
             }
+        })
+    }
+
+    /// The joint certificate's region of (K_e, K_c) per MHE solver of a 2-D sweep, as a
+    /// staircase (K_e, smallest certified K_c or None) on the K_e grid: the hook
+    /// [`certified_boundary`](super::certified_boundary) (empty = not computed). Empty for a
+    /// 1-D sweep.
+    pub fn certified_boundaries(&self) -> &[(Method, Staircase)] {
+        self.certified.get_or_init(|| {
+            if !self.config.is_2d() {
+                return Vec::new();
+            }
+            self.config
+                .solvers
+                .iter()
+                .map(|&s| {
+                    let steps = certified_boundary(
+                        &self.resolved,
+                        s,
+                        self.config.controller,
+                        &self.config.k_grid,
+                    );
+                    (s, steps)
+                })
+                .collect()
         })
     }
 
@@ -278,7 +338,7 @@ impl Sweep {
             .unwrap_or_else(|| {
                 SolverTheory::Unavailable("no analysis for this solver".into()).at(p.k)
             });
-        self.linear().fill(p.solver, p.k, &mut t);
+        self.linear().fill(p.solver, p.k_c, p.k, &mut t);
         t
     }
 
@@ -289,7 +349,7 @@ impl Sweep {
             method: p.solver,
             iterations: p.k,
             exact_mhe_solve: self.config.exact_mhe_solve,
-            controller: self.config.controller,
+            controller: self.config.controller_at(p),
             seed: 0,
             steps: self.steps,
         };
@@ -311,7 +371,7 @@ impl Sweep {
             self.scenario().sets.input.lower(),
             self.scenario().sets.input.upper(),
         );
-        let cost = run_cost(p.k, self.steps);
+        let cost = run_cost(p.k + p.k_c.unwrap_or(0), self.steps);
         let setup = |source| SweepError::Setup {
             point: p.to_string(),
             source,
@@ -378,6 +438,11 @@ impl Sweep {
         fs::write(&probe, b"probe").map_err(io_err("write into the output directory", &pdir))?;
         let _ = fs::remove_file(&probe);
         let done = self.finished_points(&opts.out_dir)?;
+        // The directory holds this sweep's points (or none): record its settings.
+        format::write_atomic(
+            &pdir.join(format::SETTINGS_FILE),
+            &format::settings_text(&self.fingerprint, &self.canonical),
+        )?;
         let todo: Vec<&Point> = self
             .points
             .iter()
@@ -400,7 +465,9 @@ impl Sweep {
         progress.start(
             todo.len(),
             todo.len() as u64 * seeds,
-            todo.iter().map(|p| run_cost(p.k, self.steps) * seeds).sum(),
+            todo.iter()
+                .map(|p| run_cost(p.k + p.k_c.unwrap_or(0), self.steps) * seeds)
+                .sum(),
             skipped,
         );
         // No nested parallelism inside a run.

@@ -24,7 +24,8 @@ pub(super) fn fnv1a(bytes: &[u8]) -> u64 {
 
 /// The seed of run `run` at `point`: a function of (base seed, point, run index) only, so
 /// results do not depend on threads, shards or order. With `common_random_numbers` the
-/// point is ignored (same draw for run r at every point).
+/// point is ignored (same draw for run r at every point); otherwise the point enters as
+/// FNV-1a of `"K/solver/scale bits"` (`"K/solver/scale bits/K_c"` in a 2-D sweep).
 ///
 /// ```
 /// use closed_loop::sweep::{run_seed, SweepConfig};
@@ -39,7 +40,11 @@ pub fn run_seed(base_seed: u64, point: &Point, run: usize, common_random_numbers
     let stream = if common_random_numbers {
         0
     } else {
-        let key = format!("{}/{}/{}", point.k, point.solver, point.scale.to_bits());
+        let mut key = format!("{}/{}/{}", point.k, point.solver, point.scale.to_bits());
+        if let Some(k_c) = point.k_c {
+            // 2-D sweeps only: a 1-D point's key is the one seeds were first drawn with.
+            key.push_str(&format!("/{k_c}"));
+        }
         fnv1a(key.as_bytes())
     };
     splitmix64(splitmix64(base_seed ^ splitmix64(stream)) ^ run as u64)
@@ -144,6 +149,19 @@ mod tests {
             }
         }
         assert_eq!(seen.len(), 300);
+        // A 1-D point's stream is FNV-1a of "K/solver/scale bits", as seeds were first drawn
+        // (a 2-D point appends "/K_c").
+        let want = |key: &str| splitmix64(splitmix64(11 ^ splitmix64(fnv1a(key.as_bytes()))) ^ 7);
+        let bits = 1f64.to_bits();
+        assert_eq!(run_seed(11, &p[1], 7, false), want(&format!("2/pg/{bits}")));
+        let two_d = crate::sweep::Point {
+            k_c: Some(5),
+            ..p[1]
+        };
+        assert_eq!(
+            run_seed(11, &two_d, 7, false),
+            want(&format!("2/pg/{bits}/5"))
+        );
         // A fixed value guards against accidental changes of the seed function (which
         // would silently change every published sweep).
         assert_eq!(splitmix64(0), 0xE220_A839_7B1D_CDAF);

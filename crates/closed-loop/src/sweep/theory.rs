@@ -8,6 +8,7 @@ use crate::linear::{LinearReport, linear_stability};
 use crate::scenario::{LoopOptions, ResolvedScenario};
 
 use super::format::csv_text;
+use super::region::Staircase;
 use super::{ControllerChoice, Method};
 use crate::analysis::IssAnalysis;
 use crate::certificate::{CertificateOptions, certify_closed_loop};
@@ -106,14 +107,32 @@ pub struct TheoryAtK {
     pub linear_note: String,
 }
 
-/// The linear side of a sweep per solver: ρ_lin on the solver's K grid, or why not.
+/// ρ_lin of one MHE solver with one controller: the report on the K grid, or why not.
 #[derive(Debug, Clone)]
-pub struct LinearSide(pub Vec<(Method, Result<LinearReport, String>)>);
+pub struct LinearEntry {
+    /// Φ of the MHE.
+    pub solver: Method,
+    /// K_c of the sub-optimal MPC in a 2-D sweep (None: the sweep's one controller).
+    pub k_c: Option<usize>,
+    /// ρ_lin on the K grid and K_lin, or why the analysis is not available.
+    pub report: Result<LinearReport, String>,
+}
+
+/// The linear side of a sweep: per solver (and per K_c in a 2-D sweep) ρ_lin on the K grid,
+/// or why not.
+#[derive(Debug, Clone)]
+pub struct LinearSide(pub Vec<LinearEntry>);
 
 impl LinearSide {
-    /// Adds ρ_lin(K), K_lin (or the reason they are missing) of `solver` to `theory`.
-    pub fn fill(&self, solver: Method, k: usize, theory: &mut TheoryAtK) {
-        match self.0.iter().find(|(s, _)| *s == solver).map(|(_, r)| r) {
+    /// Adds ρ_lin(K), K_lin (or the reason they are missing) of `solver` (at `k_c` in a 2-D
+    /// sweep: ρ_lin(K_e, K_c), and K_lin on the K_e grid at that K_c) to `theory`.
+    pub fn fill(&self, solver: Method, k_c: Option<usize>, k: usize, theory: &mut TheoryAtK) {
+        match self
+            .0
+            .iter()
+            .find(|e| e.solver == solver && e.k_c == k_c)
+            .map(|e| &e.report)
+        {
             Some(Ok(report)) => {
                 theory.rho_lin = report
                     .rho_lin
@@ -131,34 +150,59 @@ impl LinearSide {
     }
 }
 
-/// ρ_lin(K) of the lifted loop (`crate::linear`) for each solver on `grid(solver)` (the K of
-/// its points), with the sweep's controller. An analysis that cannot be done (a bound of Z
-/// through the origin, a failed eigenvalue solve) is kept as its reason, per solver.
+/// ρ_lin(K) of the lifted loop (`crate::linear`) for each solver and each controller of
+/// `controllers` (`(None, c)`: the sweep's one controller; `(Some(K_c), c)`: the sub-optimal
+/// MPC at K_c in a 2-D sweep) on `grid(solver)` (the K of its points). An analysis that
+/// cannot be done (a bound of Z through the origin, a failed eigenvalue solve) is kept as
+/// its reason, per entry.
 pub fn solver_linear(
     resolved: &ResolvedScenario,
     solvers: &[Method],
-    controller: ControllerChoice,
+    controllers: &[(Option<usize>, ControllerChoice)],
     grid: impl Fn(Method) -> Vec<usize>,
 ) -> LinearSide {
-    LinearSide(
-        solvers
-            .iter()
-            .map(|&s| {
-                // K, seed and T do not enter 𝔸(K)'s construction (`linear_stability`).
-                let opts = LoopOptions {
-                    method: s,
-                    iterations: 1,
-                    exact_mhe_solve: false,
-                    controller,
-                    seed: 0,
-                    steps: 1,
-                };
-                let report = linear_stability(resolved, &opts, &grid(s), faer::Par::Seq)
-                    .map_err(|e| format!("no linear analysis: {e}"));
-                (s, report)
-            })
-            .collect(),
-    )
+    let mut out = Vec::new();
+    for &s in solvers {
+        let k_grid = grid(s);
+        for &(k_c, controller) in controllers {
+            // K, seed and T do not enter 𝔸(K)'s construction (`linear_stability`).
+            let opts = LoopOptions {
+                method: s,
+                iterations: 1,
+                exact_mhe_solve: false,
+                controller,
+                seed: 0,
+                steps: 1,
+            };
+            let report = linear_stability(resolved, &opts, &k_grid, faer::Par::Seq)
+                .map_err(|e| format!("no linear analysis: {e}"));
+            out.push(LinearEntry {
+                solver: s,
+                k_c,
+                report,
+            });
+        }
+    }
+    LinearSide(out)
+}
+
+/// **Hook for the joint certificate (issue 16).** The certified region of (K_e, K_c) for the
+/// MHE solver `solver` and the sweep's sub-optimal MPC `controller` (its `method`; its
+/// `iterations` is irrelevant), as a staircase: for each K_e of `k_e_grid`, ascending, the
+/// smallest certified K_c, or None when no K_c is certified at that K_e. The heat maps draw
+/// it and the 2-D thresholds take its cheapest pair ([`super::pair_thresholds`]).
+///
+/// Empty means *not computed*: the heat maps then say "certificate: not computed". It is
+/// empty until `crate::joint` (the certificate of the loop with both optimisers truncated)
+/// is wired in here; nothing else in the sweep needs to change.
+pub fn certified_boundary(
+    resolved: &ResolvedScenario,
+    solver: Method,
+    controller: ControllerChoice,
+    k_e_grid: &[usize],
+) -> Staircase {
+    let _ = (resolved, solver, controller, k_e_grid);
+    Vec::new()
 }
 
 /// Theorem 1 for each solver of the sweep, from the closed-loop certificate of the

@@ -1,4 +1,5 @@
-//! The three thresholds of a sweep per solver and scale, read from `points.csv`:
+//! The three thresholds of a sweep per solver and scale (and per K_c in a 2-D sweep: each
+//! K_c is a curve over K_e), read from `points.csv`:
 //! K_lin (linear stability, necessary), K_emp (what the runs show) and K_cert (Theorem 1,
 //! sufficient), with the ratios K_cert/K_emp and K_emp/K_lin.
 //!
@@ -30,6 +31,9 @@ pub struct Thresholds {
     pub solver: String,
     /// The disturbance scale (as written in `points.csv`).
     pub scale: String,
+    /// K_c of the curve in a 2-D sweep (absent in a 1-D sweep).
+    #[serde(skip_serializing_if = "Option::is_none")]
+    pub k_c: Option<usize>,
     /// The largest K of the grid.
     pub k_max: usize,
     /// K_lin of the linear analysis on the grid (None: ρ_lin ≥ 1 at the largest K, or no
@@ -63,7 +67,8 @@ impl Thresholds {
 /// One grid K of a (solver, scale) curve: (K, bounded fraction, median tail error).
 type GridPoint = (usize, f64, Option<f64>);
 
-/// The thresholds per (scale, solver), in the order of `points.csv`.
+/// The thresholds per (scale, solver), and per K_c when the table has a `k_c` column, in
+/// the order of `points.csv`.
 ///
 /// ```
 /// use closed_loop::sweep::{Table, thresholds};
@@ -82,10 +87,11 @@ pub fn thresholds(table: &Table) -> Vec<Thresholds> {
         ) else {
             continue;
         };
+        let k_c = table.text(row, "k_c").and_then(|k| k.parse::<usize>().ok());
         let fraction = table.number(row, "bounded_fraction").unwrap_or(0.0);
         let i = match out
             .iter()
-            .position(|(t, _)| t.solver == solver && t.scale == scale)
+            .position(|(t, _)| t.solver == solver && t.scale == scale && t.k_c == k_c)
         {
             Some(i) => i,
             None => {
@@ -95,6 +101,7 @@ pub fn thresholds(table: &Table) -> Vec<Thresholds> {
                     Thresholds {
                         solver: solver.to_string(),
                         scale: scale.to_string(),
+                        k_c,
                         k_max: 0,
                         k_lin: int("k_lin"),
                         k_emp: None,
@@ -135,27 +142,41 @@ pub fn thresholds(table: &Table) -> Vec<Thresholds> {
 }
 
 /// The thresholds as a Markdown table (the one `docs/sweeps.md` shows), one row per solver
-/// and scale; `—` where a threshold does not exist on the grid.
+/// and scale (and K_c, in a column after the scale, for a 2-D sweep); `—` where a threshold
+/// does not exist on the grid.
 pub fn thresholds_markdown(rows: &[Thresholds]) -> String {
+    let two_d = rows.iter().any(|t| t.k_c.is_some());
     let k = |v: Option<usize>, missing: String| v.map_or(missing, |k| k.to_string());
     let ratio = |v: Option<f64>| match v {
         None => "—".to_string(),
         Some(r) if (0.01..1e4).contains(&r) => format!("{r:.3}"),
         Some(r) => format!("{r:.2e}"),
     };
-    let mut s = String::from(
-        "| solver | scale | K_lin | K_emp | K_settle | K_cert | K_cert/K_emp | K_emp/K_lin |\n\
-         |---|---|---|---|---|---|---|---|\n",
-    );
+    let mut s = if two_d {
+        String::from(
+            "| solver | scale | K_c | K_lin | K_emp | K_settle | K_cert | K_cert/K_emp | K_emp/K_lin |\n\
+             |---|---|---|---|---|---|---|---|---|\n",
+        )
+    } else {
+        String::from(
+            "| solver | scale | K_lin | K_emp | K_settle | K_cert | K_cert/K_emp | K_emp/K_lin |\n\
+             |---|---|---|---|---|---|---|---|\n",
+        )
+    };
     for t in rows {
         let cert = match (t.k_cert, t.void_reason.is_empty()) {
             (Some(k), _) => k.to_string(),
             (None, false) => format!("void: {}", t.void_reason),
             (None, true) => "none in the search range".to_string(),
         };
+        let k_c = match (two_d, t.k_c) {
+            (false, _) => String::new(),
+            (true, Some(k_c)) => format!(" {k_c} |"),
+            (true, None) => " — |".to_string(),
+        };
         let _ = writeln!(
             s,
-            "| {} | {} | {} | {} | {} | {} | {} | {} |",
+            "| {} | {} |{k_c} {} | {} | {} | {} | {} | {} |",
             t.solver,
             t.scale,
             k(t.k_lin, format!("— (ρ_lin ≥ 1 or n/a at K = {})", t.k_max)),

@@ -12,6 +12,7 @@ mod plants;
 mod scenario;
 mod sim;
 mod sweep;
+mod sweep2d;
 
 use closed_loop::certificate::{CertificateOptions, ClosedLoopCertificate, certify_closed_loop};
 use closed_loop::scenario::{LoopOptions, Scenario, ScenarioLoop};

@@ -1,0 +1,877 @@
+//! Heat maps of a 2-D sweep over (K_e, K_c), drawn from its `points.csv`: per MHE solver and
+//! disturbance scale the bounded fraction and the median last-quarter ‖e‖, per solver ρ_lin
+//! (it does not depend on the scale), each with three region boundaries as staircases: the
+//! empirical one (every run bounded at every grid pair above), the linear one (ρ_lin < 1 at
+//! every grid pair above; `closed_loop::sweep::pair_thresholds`) and the joint certificate's
+//! (`Sweep::certified_boundaries`; "certificate: not computed" in the legend while it is
+//! empty).
+//!
+//! Cells are drawn on log axes when a grid is closer to geometric than to arithmetic spacing
+//! ([`Axis::new`]), with one cell per grid value and edges halfway between neighbours (in
+//! log K for a log axis). A boundary at a grid K_c runs along the lower edge of that K_c's
+//! cells: the region is the cells above and to the right of it.
+
+use std::path::Path;
+
+use anyhow::{Result, anyhow};
+use closed_loop::sweep::{PairThresholds, Staircase, Sweep, Table};
+use plotters::coord::ranged1d::{DefaultFormatting, KeyPointHint};
+use plotters::prelude::*;
+
+use super::plots::shorten;
+
+/// One axis of the grid: its values and whether cells are spaced in log K.
+#[derive(Debug, Clone, PartialEq)]
+pub(super) struct Axis {
+    values: Vec<usize>,
+    log: bool,
+    /// Cell edges in axis coordinates (values.len() + 1 of them).
+    edges: Vec<f64>,
+}
+
+impl Axis {
+    /// An axis over the sorted, distinct `values`, on a log scale when the grid's log
+    /// steps are more uniform than its linear steps (the relative spread of the steps,
+    /// max/min, is compared; a tie or a grid of fewer than 3 values spanning less than a
+    /// factor 10 is linear).
+    pub(super) fn new(values: &[usize]) -> Self {
+        let mut values = values.to_vec();
+        values.sort_unstable();
+        values.dedup();
+        let spread = |v: &[f64]| {
+            let steps: Vec<f64> = v.windows(2).map(|w| w[1] - w[0]).collect();
+            let lo = steps.iter().copied().fold(f64::INFINITY, f64::min);
+            let hi = steps.iter().copied().fold(0.0, f64::max);
+            if lo > 0.0 { hi / lo } else { f64::INFINITY }
+        };
+        let lin: Vec<f64> = values.iter().map(|&v| v as f64).collect();
+        let logs: Vec<f64> = lin.iter().map(|v| v.max(1.0).ln()).collect();
+        let log = match values.len() {
+            0 | 1 => false,
+            2 => lin[1] >= 10.0 * lin[0],
+            _ => spread(&logs) < spread(&lin),
+        };
+        let mut axis = Self {
+            values,
+            log,
+            edges: Vec::new(),
+        };
+        let t: Vec<f64> = axis.values.iter().map(|&v| axis.t(v as f64)).collect();
+        axis.edges = match t.len() {
+            0 => vec![0.0, 1.0],
+            1 => vec![t[0] - 0.5, t[0] + 0.5],
+            n => {
+                let mut e = vec![t[0] - (t[1] - t[0]) / 2.0];
+                e.extend(t.windows(2).map(|w| (w[0] + w[1]) / 2.0));
+                e.push(t[n - 1] + (t[n - 1] - t[n - 2]) / 2.0);
+                e
+            }
+        };
+        axis
+    }
+
+    /// The axis coordinate of a value.
+    fn t(&self, v: f64) -> f64 {
+        if self.log { v.max(1e-300).ln() } else { v }
+    }
+
+    fn lo(&self) -> f64 {
+        self.edges[0]
+    }
+
+    fn hi(&self) -> f64 {
+        self.edges[self.edges.len() - 1]
+    }
+
+    /// Where a region starting at `v` begins on this axis: the lower edge of v's cell for
+    /// a grid value, v itself otherwise; clamped to the axis (the flag says it was).
+    fn edge_below(&self, v: usize) -> (f64, bool) {
+        match self.values.iter().position(|&g| g == v) {
+            Some(i) => (self.edges[i], false),
+            None => {
+                let t = self.t(v as f64);
+                let c = t.clamp(self.lo(), self.hi());
+                (c, c != t)
+            }
+        }
+    }
+
+    /// The tick positions (a grid value per cell, thinned to at most 12 labels).
+    fn ticks(&self) -> Vec<f64> {
+        let step = self.values.len().div_ceil(12).max(1);
+        self.values
+            .iter()
+            .step_by(step)
+            .map(|&v| self.t(v as f64))
+            .collect()
+    }
+
+    /// The label of a tick: the grid value nearest to `t`.
+    fn label(&self, t: f64) -> String {
+        self.values
+            .iter()
+            .min_by(|a, b| {
+                (self.t(**a as f64) - t)
+                    .abs()
+                    .total_cmp(&(self.t(**b as f64) - t).abs())
+            })
+            .map_or_else(String::new, |v| v.to_string())
+    }
+
+    fn describe(&self, name: &str) -> String {
+        format!("{name} ({} scale)", if self.log { "log" } else { "linear" })
+    }
+}
+
+/// A linear plot coordinate over [lo, hi] whose ticks are the grid's cells (plotters'
+/// `f64` ranges choose round numbers instead).
+#[derive(Debug, Clone)]
+struct CellCoord {
+    lo: f64,
+    hi: f64,
+    ticks: Vec<f64>,
+}
+
+impl Ranged for CellCoord {
+    type FormatOption = DefaultFormatting;
+    type ValueType = f64;
+
+    fn map(&self, value: &f64, limit: (i32, i32)) -> i32 {
+        let s = if self.hi > self.lo {
+            (value - self.lo) / (self.hi - self.lo)
+        } else {
+            0.5
+        };
+        limit.0 + (s * f64::from(limit.1 - limit.0)).round() as i32
+    }
+
+    fn key_points<Hint: KeyPointHint>(&self, _hint: Hint) -> Vec<f64> {
+        self.ticks.clone()
+    }
+
+    fn range(&self) -> std::ops::Range<f64> {
+        self.lo..self.hi
+    }
+}
+
+/// How values map to colours.
+#[derive(Debug, Clone, Copy, PartialEq)]
+pub(super) enum ColorScale {
+    /// Viridis from `lo` to `hi` on a linear scale (the bounded fraction: 0 to 1).
+    Linear { lo: f64, hi: f64 },
+    /// Viridis from `lo` to `hi` on a log scale (the error).
+    Log { lo: f64, hi: f64 },
+    /// Blue below 1, white at 1, red above, in log ρ clipped at `e^±span` (ρ_lin).
+    AroundOne { span: f64 },
+}
+
+/// Viridis at s ∈ [0, 1] (piecewise linear through 9 samples of matplotlib's map).
+fn viridis(s: f64) -> RGBColor {
+    const V: [(u8, u8, u8); 9] = [
+        (68, 1, 84),
+        (71, 44, 122),
+        (59, 81, 139),
+        (44, 113, 142),
+        (33, 144, 141),
+        (39, 173, 129),
+        (92, 200, 99),
+        (170, 220, 50),
+        (253, 231, 37),
+    ];
+    let x = s.clamp(0.0, 1.0) * 8.0;
+    let i = (x.floor() as usize).min(7);
+    let f = x - i as f64;
+    let mix = |a: u8, b: u8| (f64::from(a) + f * (f64::from(b) - f64::from(a))).round() as u8;
+    RGBColor(
+        mix(V[i].0, V[i + 1].0),
+        mix(V[i].1, V[i + 1].1),
+        mix(V[i].2, V[i + 1].2),
+    )
+}
+
+impl ColorScale {
+    /// The colour of a finite value.
+    fn color(&self, v: f64) -> RGBColor {
+        match *self {
+            ColorScale::Linear { lo, hi } => {
+                viridis(if hi > lo { (v - lo) / (hi - lo) } else { 0.5 })
+            }
+            ColorScale::Log { lo, hi } => {
+                let (a, b) = (lo.ln(), hi.ln());
+                viridis(if b > a && v > 0.0 {
+                    (v.ln() - a) / (b - a)
+                } else {
+                    0.5
+                })
+            }
+            ColorScale::AroundOne { span } => {
+                let s = (v.max(1e-300).ln() / span).clamp(-1.0, 1.0);
+                let toward = |c: u8, s: f64| (255.0 + s * (f64::from(c) - 255.0)).round() as u8;
+                if s < 0.0 {
+                    RGBColor(toward(33, -s), toward(102, -s), toward(172, -s))
+                } else {
+                    RGBColor(toward(178, s), toward(24, s), toward(43, s))
+                }
+            }
+        }
+    }
+
+    /// The value at fraction s ∈ [0, 1] of the colour bar.
+    fn value_at(&self, s: f64) -> f64 {
+        match *self {
+            ColorScale::Linear { lo, hi } => lo + s * (hi - lo),
+            ColorScale::Log { lo, hi } => (lo.ln() + s * (hi.ln() - lo.ln())).exp(),
+            ColorScale::AroundOne { span } => ((2.0 * s - 1.0) * span).exp(),
+        }
+    }
+}
+
+/// Colour of a cell without a finite value: diverged (+∞) dark grey, missing light grey.
+const INFINITE_CELL: RGBColor = RGBColor(60, 60, 60);
+const MISSING_CELL: RGBColor = RGBColor(215, 215, 215);
+/// The boundaries: empirical solid black, linear dashed magenta, certified dash-dot orange.
+const EMPIRICAL: RGBColor = RGBColor(0, 0, 0);
+const LINEAR: RGBColor = RGBColor(220, 0, 200);
+const CERTIFIED: RGBColor = RGBColor(255, 140, 0);
+
+/// One heat map (data only) and its rendering.
+#[derive(Debug, Clone)]
+pub(super) struct HeatMap {
+    pub title: String,
+    /// What the colour shows (the colour bar's label).
+    pub value_label: String,
+    pub k_e: Axis,
+    pub k_c: Axis,
+    /// values[i][j] at (K_e index i, K_c index j).
+    pub values: Vec<Vec<Option<f64>>>,
+    pub scale: ColorScale,
+    pub empirical: Staircase,
+    /// None: the linear analysis is not available.
+    pub linear: Option<Staircase>,
+    /// Empty: not computed.
+    pub certified: Staircase,
+    pub notes: Vec<String>,
+}
+
+/// A staircase as polylines in axis coordinates: entry k spans from its K_e's left edge to
+/// the next entry's (the last to the right edge of the plot) at the lower edge of its K_c;
+/// a K_e without a K_c leaves a gap (the region's side drawn up to the top edge).
+fn staircase_paths(
+    st: &[(usize, Option<usize>)],
+    x: &Axis,
+    y: &Axis,
+) -> (Vec<Vec<(f64, f64)>>, bool) {
+    let mut st = st.to_vec();
+    st.sort_by_key(|s| s.0);
+    let top = y.hi();
+    let mut clamped = false;
+    let mut paths: Vec<Vec<(f64, f64)>> = Vec::new();
+    let mut cur: Vec<(f64, f64)> = Vec::new();
+    for (n, &(ke, kc)) in st.iter().enumerate() {
+        let (x_lo, cx) = x.edge_below(ke);
+        let x_hi = st.get(n + 1).map_or(x.hi(), |next| x.edge_below(next.0).0);
+        clamped |= cx;
+        match kc {
+            Some(kc) => {
+                let (yv, cy) = y.edge_below(kc);
+                clamped |= cy;
+                if cur.is_empty() && n > 0 {
+                    cur.push((x_lo, top));
+                }
+                cur.push((x_lo, yv));
+                cur.push((x_hi, yv));
+            }
+            None => {
+                if let Some(&(px, _)) = cur.last() {
+                    cur.push((px, top));
+                    paths.push(std::mem::take(&mut cur));
+                }
+            }
+        }
+    }
+    if !cur.is_empty() {
+        paths.push(cur);
+    }
+    (paths, clamped)
+}
+
+/// A tick or cell label with at most 3 significant digits (0.6, 1000, 2.5e-5).
+fn number(v: f64) -> String {
+    if v == 0.0 || !v.is_finite() {
+        return if v == f64::INFINITY {
+            "∞".into()
+        } else {
+            format!("{v}")
+        };
+    }
+    let a = v.abs();
+    if !(1e-3..1e5).contains(&a) {
+        return format!("{v:.1e}");
+    }
+    let digits = (2 - a.log10().floor() as i32).max(0) as usize;
+    let s = format!("{v:.digits$}");
+    if s.contains('.') {
+        s.trim_end_matches('0').trim_end_matches('.').to_string()
+    } else {
+        s
+    }
+}
+
+impl HeatMap {
+    pub(super) fn render(&self, path: &Path) -> Result<()> {
+        let err = |e: &dyn std::fmt::Display| anyhow!("heat map `{}`: {e}", path.display());
+        let mut notes = self.notes.clone();
+        let (emp_paths, emp_clamped) = staircase_paths(&self.empirical, &self.k_e, &self.k_c);
+        let lin = self
+            .linear
+            .as_ref()
+            .map(|st| staircase_paths(st, &self.k_e, &self.k_c));
+        let (cert_paths, cert_clamped) = staircase_paths(&self.certified, &self.k_e, &self.k_c);
+        if emp_clamped || lin.as_ref().is_some_and(|l| l.1) {
+            notes.push("a boundary passes outside the grid and is drawn at its edge".into());
+        }
+        if cert_clamped {
+            notes.push(
+                "the certified region extends beyond the grid: drawn at the grid's edge".into(),
+            );
+        }
+        let missing = self.values.iter().flatten().filter(|v| v.is_none()).count();
+        let infinite = self
+            .values
+            .iter()
+            .flatten()
+            .filter(|v| v.is_some_and(|v| !v.is_finite()))
+            .count();
+        if missing > 0 {
+            notes.push(format!("{missing} cells without a value (light grey)"));
+        }
+        if infinite > 0 {
+            notes.push(format!("{infinite} cells not finite (dark grey: diverged)"));
+        }
+        // The legend row, the notes (one may be added below).
+        let note_h = 30 + 17 * (notes.len() as u32 + 1);
+        let (w, h) = (980u32, 640u32);
+        let root = SVGBackend::new(path, (w, h + note_h)).into_drawing_area();
+        root.fill(&WHITE).map_err(|e| err(&e))?;
+        let (upper, lower) = root.split_vertically(h);
+        let (main, bar) = upper.split_horizontally(w - 120);
+        let (x_lo, x_hi, y_lo, y_hi) = (self.k_e.lo(), self.k_e.hi(), self.k_c.lo(), self.k_c.hi());
+        let mut chart = ChartBuilder::on(&main)
+            .caption(&self.title, ("sans-serif", 17))
+            .margin(14)
+            .x_label_area_size(44)
+            .y_label_area_size(64)
+            .build_cartesian_2d(
+                CellCoord {
+                    lo: x_lo,
+                    hi: x_hi,
+                    ticks: self.k_e.ticks(),
+                },
+                CellCoord {
+                    lo: y_lo,
+                    hi: y_hi,
+                    ticks: self.k_c.ticks(),
+                },
+            )
+            .map_err(|e| err(&e))?;
+        chart
+            .configure_mesh()
+            .disable_mesh()
+            .x_desc(self.k_e.describe("K_e: iterations of the MHE's Φ per step"))
+            .y_desc(self.k_c.describe("K_c: iterations of the MPC's Φ per step"))
+            .x_label_formatter(&|t: &f64| self.k_e.label(*t))
+            .y_label_formatter(&|t: &f64| self.k_c.label(*t))
+            .draw()
+            .map_err(|e| err(&e))?;
+        // Cells, with their value written in when there is room.
+        let (nx, ny) = (self.k_e.values.len(), self.k_c.values.len());
+        let write_values = nx <= 14 && ny <= 14;
+        for i in 0..nx {
+            for j in 0..ny {
+                let v = self.values.get(i).and_then(|r| r.get(j)).copied().flatten();
+                let color = match v {
+                    None => MISSING_CELL,
+                    Some(v) if !v.is_finite() => INFINITE_CELL,
+                    Some(v) => self.scale.color(v),
+                };
+                let (a, b) = (
+                    (self.k_e.edges[i], self.k_c.edges[j]),
+                    (self.k_e.edges[i + 1], self.k_c.edges[j + 1]),
+                );
+                chart
+                    .draw_series(std::iter::once(Rectangle::new([a, b], color.filled())))
+                    .map_err(|e| err(&e))?;
+                if let (true, Some(v)) = (write_values, v) {
+                    let RGBColor(r, g, bl) = color;
+                    let light =
+                        0.299 * f64::from(r) + 0.587 * f64::from(g) + 0.114 * f64::from(bl) > 140.0;
+                    let style = ("sans-serif", 11)
+                        .into_font()
+                        .color(if light { &BLACK } else { &WHITE })
+                        .pos(plotters::style::text_anchor::Pos::new(
+                            plotters::style::text_anchor::HPos::Center,
+                            plotters::style::text_anchor::VPos::Center,
+                        ));
+                    let centre = ((a.0 + b.0) / 2.0, (a.1 + b.1) / 2.0);
+                    chart
+                        .draw_series(std::iter::once(Text::new(number(v), centre, style)))
+                        .map_err(|e| err(&e))?;
+                }
+            }
+        }
+        // The boundaries; their legend goes under the chart (over the cells it would hide
+        // values).
+        let mut legend: Vec<Legend> = Vec::new();
+        let boundaries = [
+            (
+                Some((emp_paths, emp_clamped)),
+                Line::Solid,
+                EMPIRICAL,
+                4,
+                "empirical: every run bounded from here up".to_string(),
+                if self.empirical.iter().all(|s| s.1.is_none()) {
+                    "empirical: no all-bounded region on the grid".to_string()
+                } else {
+                    String::new()
+                },
+            ),
+            (
+                lin,
+                Line::Dashed(10, 6),
+                LINEAR,
+                3,
+                "linear: ρ_lin < 1 from here up".to_string(),
+                if self.linear.is_none() {
+                    "linear: not computed".to_string()
+                } else {
+                    "linear: ρ_lin ≥ 1 at the largest pair".to_string()
+                },
+            ),
+            (
+                Some((cert_paths, cert_clamped)),
+                Line::Dashed(4, 4),
+                CERTIFIED,
+                3,
+                "certified: joint certificate from here up".to_string(),
+                if self.certified.is_empty() {
+                    "certificate: not computed".to_string()
+                } else {
+                    "certified: no pair on the grid".to_string()
+                },
+            ),
+        ];
+        for (paths, line, color, width, label, missing) in boundaries {
+            let paths = paths.map(|p| p.0).unwrap_or_default();
+            for p in &paths {
+                let style = color.stroke_width(width);
+                match line {
+                    Line::Solid => chart
+                        .draw_series(LineSeries::new(p.iter().copied(), style))
+                        .map(|_| ()),
+                    Line::Dashed(dash, gap) => chart
+                        .draw_series(DashedLineSeries::new(p.iter().copied(), dash, gap, style))
+                        .map(|_| ()),
+                }
+                .map_err(|e| err(&e))?;
+            }
+            legend.push(if paths.is_empty() {
+                Legend {
+                    label: missing,
+                    color: color.mix(0.35),
+                    width: 2,
+                    line: Line::Solid,
+                }
+            } else {
+                Legend {
+                    label,
+                    color: color.to_rgba(),
+                    width,
+                    line,
+                }
+            });
+        }
+        let bottom = self.k_c.values.first().copied();
+        if !self.empirical.is_empty() && self.empirical.iter().all(|s| s.1 == bottom) {
+            notes.insert(
+                0,
+                "empirical region: the whole grid (its boundary is the axes)".into(),
+            );
+        }
+        self.draw_bar(&bar).map_err(|e| err(&e))?;
+        let text = ("sans-serif", 13).into_text_style(&lower);
+        for (i, l) in legend.iter().enumerate() {
+            let (x, y) = (80 + 300 * i as i32, 8);
+            let style = ShapeStyle::from(l.color).stroke_width(l.width);
+            match l.line {
+                Line::Solid => lower.draw(&PathElement::new(vec![(x, y), (x + 30, y)], style)),
+                Line::Dashed(dash, gap) => {
+                    let (d, g) = (dash as i32, gap as i32);
+                    let mut r = Ok(());
+                    let mut x0 = x;
+                    while x0 < x + 30 && r.is_ok() {
+                        r = lower.draw(&PathElement::new(
+                            vec![(x0, y), ((x0 + d).min(x + 30), y)],
+                            style,
+                        ));
+                        x0 += d + g;
+                    }
+                    r
+                }
+            }
+            .map_err(|e| err(&e))?;
+            lower
+                .draw_text(&l.label, &text, (x + 36, y - 7))
+                .map_err(|e| err(&e))?;
+        }
+        for (i, n) in notes.iter().enumerate() {
+            lower
+                .draw_text(n, &text, (14, 26 + 17 * i as i32))
+                .map_err(|e| err(&e))?;
+        }
+        root.present().map_err(|e| err(&e))?;
+        Ok(())
+    }
+
+    /// The colour bar: 60 bands from the bottom (low) to the top (high), 5 labels.
+    fn draw_bar<DB: DrawingBackend>(
+        &self,
+        area: &DrawingArea<DB, plotters::coord::Shift>,
+    ) -> std::result::Result<(), DrawingAreaErrorKind<DB::ErrorType>> {
+        let (top, bottom, x0, x1) = (70i32, 560i32, 10i32, 34i32);
+        let n = 60;
+        let band = f64::from(bottom - top) / f64::from(n);
+        for k in 0..n {
+            let s = (f64::from(k) + 0.5) / f64::from(n);
+            let y1 = bottom - (f64::from(k) * band) as i32;
+            let y0 = bottom - (f64::from(k + 1) * band).ceil() as i32;
+            area.draw(&Rectangle::new(
+                [(x0, y0), (x1, y1)],
+                self.scale.color(self.scale.value_at(s)).filled(),
+            ))?;
+        }
+        area.draw(&Rectangle::new(
+            [(x0, top), (x1, bottom)],
+            BLACK.stroke_width(1),
+        ))?;
+        let style = ("sans-serif", 12).into_text_style(area);
+        for k in 0..5 {
+            let s = f64::from(k) / 4.0;
+            let y = bottom - (s * f64::from(bottom - top)) as i32;
+            area.draw_text(&number(self.scale.value_at(s)), &style, (x1 + 5, y - 6))?;
+        }
+        area.draw_text(&shorten(&self.value_label, 16), &style, (4, top - 22))?;
+        Ok(())
+    }
+}
+
+/// How a boundary is stroked.
+#[derive(Debug, Clone, Copy)]
+enum Line {
+    Solid,
+    /// Dash and gap lengths in pixels.
+    Dashed(u32, u32),
+}
+
+/// One legend entry under the chart.
+struct Legend {
+    label: String,
+    color: RGBAColor,
+    width: u32,
+    line: Line,
+}
+
+/// The value grid of one column of `points.csv` for one solver and scale.
+fn values(
+    table: &Table,
+    solver: &str,
+    scale: &str,
+    column: &str,
+    k_e: &Axis,
+    k_c: &Axis,
+) -> Vec<Vec<Option<f64>>> {
+    let mut v = vec![vec![None; k_c.values.len()]; k_e.values.len()];
+    for row in 0..table.rows.len() {
+        if table.text(row, "solver") != Some(solver) || table.text(row, "scale") != Some(scale) {
+            continue;
+        }
+        let int = |name| table.text(row, name).and_then(|s| s.parse::<usize>().ok());
+        let (Some(ke), Some(kc)) = (int("k"), int("k_c")) else {
+            continue;
+        };
+        if let (Some(i), Some(j)) = (
+            k_e.values.iter().position(|&x| x == ke),
+            k_c.values.iter().position(|&x| x == kc),
+        ) {
+            v[i][j] = table.number(row, column);
+        }
+    }
+    v
+}
+
+/// The file stem of a solver (its name, safe in a file name).
+fn stem(solver: &str) -> String {
+    solver
+        .chars()
+        .map(|c| {
+            if c.is_ascii_alphanumeric() || c == '-' {
+                c
+            } else {
+                '_'
+            }
+        })
+        .collect()
+}
+
+/// Writes the heat maps of an assembled 2-D sweep directory from its `points.csv` (`table`)
+/// and its 2-D thresholds (`pairs`, which carry the boundaries); returns the file names.
+pub fn heatmaps_all(
+    sweep: &Sweep,
+    dir: &Path,
+    table: &Table,
+    pairs: &[PairThresholds],
+) -> Result<Vec<String>> {
+    let cfg = sweep.config();
+    let scales: Vec<&str> = pairs.iter().fold(Vec::new(), |mut v, p| {
+        if !v.contains(&p.scale.as_str()) {
+            v.push(p.scale.as_str());
+        }
+        v
+    });
+    let mpc = match cfg.controller {
+        closed_loop::scenario::ControllerChoice::SuboptimalMpc { method, .. } => method.to_string(),
+        _ => "?".into(),
+    };
+    let mut written = Vec::new();
+    for p in pairs {
+        let (k_e, k_c) = (Axis::new(&p.k_e_grid), Axis::new(&p.k_c_grid));
+        let suffix = if scales.len() > 1 {
+            format!("-scale{}", p.scale)
+        } else {
+            String::new()
+        };
+        let sub = format!(
+            "{} · MHE {} · MPC {mpc} · T = {} · {} seeds · w scale {}",
+            cfg.name,
+            p.solver,
+            sweep.steps(),
+            cfg.seeds,
+            p.scale
+        );
+        let rules = vec![
+            sub.clone(),
+            "regions: a pair counts when its criterion holds at every grid pair with K_e and K_c at least as large".to_string(),
+            format!(
+                "bounded: completed, finite, sup‖x‖ ≤ {f}·(1 + ‖x₀‖) and sup‖e‖ ≤ {f}·(1 + ‖e₀‖)",
+                f = cfg.bounded_factor
+            ),
+        ];
+        let make =
+            |title: String, label: &str, column: &str, scale: ColorScale, notes: Vec<String>| {
+                HeatMap {
+                    title,
+                    value_label: label.to_string(),
+                    values: values(table, &p.solver, &p.scale, column, &k_e, &k_c),
+                    k_e: k_e.clone(),
+                    k_c: k_c.clone(),
+                    scale,
+                    empirical: p.empirical_boundary.clone(),
+                    linear: p.linear_boundary.clone(),
+                    certified: p.certified_boundary.clone(),
+                    notes,
+                }
+            };
+        let mut maps = vec![(
+            make(
+                format!("fraction of bounded runs — MHE {}", p.solver),
+                "bounded fraction",
+                "bounded_fraction",
+                ColorScale::Linear { lo: 0.0, hi: 1.0 },
+                rules.clone(),
+            ),
+            format!("heatmap-bounded-{}{suffix}.svg", stem(&p.solver)),
+        )];
+        if table.column("tail_mean_e_q50").is_some() {
+            let mut m = make(
+                format!("median last-quarter ‖e_t‖ — MHE {}", p.solver),
+                "median ‖e‖",
+                "tail_mean_e_q50",
+                ColorScale::Log { lo: 1.0, hi: 10.0 },
+                rules.clone(),
+            );
+            let finite: Vec<f64> = m
+                .values
+                .iter()
+                .flatten()
+                .flatten()
+                .copied()
+                .filter(|v| v.is_finite() && *v > 0.0)
+                .collect();
+            let lo = finite.iter().copied().fold(f64::INFINITY, f64::min);
+            let hi = finite.iter().copied().fold(0.0, f64::max);
+            if lo.is_finite() {
+                m.scale = ColorScale::Log {
+                    lo,
+                    hi: hi.max(lo * 1.0001),
+                };
+            }
+            maps.push((m, format!("heatmap-error-{}{suffix}.svg", stem(&p.solver))));
+        }
+        if scales.first() == Some(&p.scale.as_str()) && table.column("rho_lin").is_some() {
+            let mut m = make(
+                format!("ρ_lin(K_e, K_c) of the lifted loop — MHE {}", p.solver),
+                "ρ_lin",
+                "rho_lin",
+                ColorScale::AroundOne { span: 0.1 },
+                vec![
+                    format!("{} · MHE {} · MPC {mpc} · the lifted loop of docs/theory.md (no constraint active)", cfg.name, p.solver),
+                    "ρ_lin ≥ 1 (red): small perturbations grow while no constraint is active; colours saturate at e^±span of the bar".to_string(),
+                    rules[2].clone(),
+                ],
+            );
+            let span = m
+                .values
+                .iter()
+                .flatten()
+                .flatten()
+                .filter(|v| v.is_finite() && **v > 0.0)
+                .map(|v| v.ln().abs())
+                .fold(0.0f64, f64::max);
+            m.scale = ColorScale::AroundOne {
+                span: span.clamp(0.01, std::f64::consts::LN_2),
+            };
+            maps.push((m, format!("heatmap-rho-lin-{}.svg", stem(&p.solver))));
+        }
+        for (m, name) in maps {
+            m.render(&dir.join(&name))?;
+            written.push(name);
+        }
+    }
+    Ok(written)
+}
+
+#[cfg(test)]
+mod tests {
+    #![allow(clippy::unwrap_used)]
+    use super::*;
+
+    #[test]
+    fn axes_pick_log_for_geometric_grids() {
+        assert!(Axis::new(&[1, 2, 5, 10, 20, 50]).log);
+        assert!(Axis::new(&[1, 3, 10, 32, 100]).log);
+        assert!(!Axis::new(&[10, 20, 30, 40]).log);
+        assert!(!Axis::new(&[5]).log);
+        assert!(Axis::new(&[1, 100]).log && !Axis::new(&[4, 6]).log);
+        let a = Axis::new(&[1, 4, 16]);
+        // Edges halfway in log K: 1/2, 2, 8, 32.
+        let e: Vec<f64> = a.edges.iter().map(|t| t.exp()).collect();
+        for (x, y) in e.iter().zip([0.5, 2.0, 8.0, 32.0]) {
+            assert!((x - y).abs() < 1e-9, "{e:?}");
+        }
+        let (t, clamped) = a.edge_below(4);
+        assert!((t - 2f64.ln()).abs() < 1e-12 && !clamped);
+        let (t, clamped) = a.edge_below(1000);
+        assert!(
+            (t - 32f64.ln()).abs() < 1e-12 && clamped,
+            "beyond the grid: clamped"
+        );
+        assert_eq!(a.label(3f64.ln()), "4");
+    }
+
+    #[test]
+    fn staircases_become_paths_with_gaps_for_empty_columns() {
+        let x = Axis::new(&[1, 2, 3]);
+        let y = Axis::new(&[1, 2, 3]);
+        // Linear axes: edges 0.5, 1.5, 2.5, 3.5.
+        let (p, clamped) = staircase_paths(&[(1, None), (2, Some(3)), (3, Some(1))], &x, &y);
+        assert!(!clamped);
+        assert_eq!(
+            p,
+            vec![vec![
+                (1.5, 3.5),
+                (1.5, 2.5),
+                (2.5, 2.5),
+                (2.5, 0.5),
+                (3.5, 0.5)
+            ]]
+        );
+        let (p, _) = staircase_paths(&[(1, Some(2)), (2, None), (3, Some(2))], &x, &y);
+        assert_eq!(p.len(), 2);
+        assert_eq!(p[0], vec![(0.5, 1.5), (1.5, 1.5), (1.5, 3.5)]);
+    }
+
+    /// Tags open and close in order (a minimal well-formedness check of the SVG text).
+    fn well_formed(svg: &str) -> bool {
+        let mut stack: Vec<String> = Vec::new();
+        let mut rest = svg;
+        while let Some(start) = rest.find('<') {
+            let Some(end) = rest[start..].find('>') else {
+                return false;
+            };
+            let tag = &rest[start + 1..start + end];
+            rest = &rest[start + end + 1..];
+            if tag.starts_with('?') || tag.starts_with('!') || tag.ends_with('/') {
+                continue;
+            }
+            if let Some(name) = tag.strip_prefix('/') {
+                if stack.pop().as_deref() != Some(name.trim()) {
+                    return false;
+                }
+            } else {
+                stack.push(tag.split_whitespace().next().unwrap_or("").to_string());
+            }
+        }
+        stack.is_empty()
+    }
+
+    #[test]
+    fn heat_map_is_a_valid_svg_with_the_three_boundaries() {
+        let k_e = Axis::new(&[1, 10, 100]);
+        let k_c = Axis::new(&[1, 5, 20]);
+        let map = HeatMap {
+            title: "bounded".into(),
+            value_label: "bounded fraction".into(),
+            values: vec![
+                vec![Some(0.5), Some(1.0), Some(1.0)],
+                vec![Some(0.0), None, Some(1.0)],
+                vec![Some(f64::INFINITY), Some(1.0), Some(1.0)],
+            ],
+            k_e,
+            k_c,
+            scale: ColorScale::Linear { lo: 0.0, hi: 1.0 },
+            empirical: vec![(1, Some(20)), (10, Some(20)), (100, Some(5))],
+            linear: Some(vec![(1, Some(20)), (10, Some(5)), (100, Some(5))]),
+            certified: vec![(10, None), (100, Some(20))],
+            notes: vec!["test".into()],
+        };
+        let dir = std::env::temp_dir().join(format!("xtask-heatmap-{}", std::process::id()));
+        std::fs::create_dir_all(&dir).unwrap();
+        let path = dir.join("h.svg");
+        map.render(&path).unwrap();
+        let svg = std::fs::read_to_string(&path).unwrap();
+        assert!(
+            svg.starts_with("<svg") && svg.trim_end().ends_with("</svg>"),
+            "{svg}"
+        );
+        assert!(well_formed(&svg));
+        for label in [
+            "empirical: every run bounded from here up",
+            "linear: ρ_lin &lt; 1 from here up",
+            "certified: joint certificate from here up",
+            "1 cells without a value",
+            "1 cells not finite",
+        ] {
+            assert!(svg.contains(label), "no `{label}` in the SVG");
+        }
+        // The boundaries' colours are drawn (stroke of the empirical and linear paths).
+        assert!(svg.contains("stroke=\"#000000\"") && svg.contains("stroke=\"#DC00C8\""));
+        // An empty certificate says so in the legend.
+        let mut none = map.clone();
+        none.certified.clear();
+        none.linear = None;
+        none.render(&path).unwrap();
+        let svg = std::fs::read_to_string(&path).unwrap();
+        assert!(well_formed(&svg));
+        assert!(svg.contains("certificate: not computed") && svg.contains("linear: not computed"));
+        let _ = std::fs::remove_dir_all(&dir);
+    }
+}

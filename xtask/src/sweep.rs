@@ -516,7 +516,7 @@ pub fn theory_summary(sweep: &Sweep) -> String {
             .filter(|(_, st)| !st.is_empty())
             .count();
         return if computed == 0 {
-            "the joint (K_e, K_c) certificate is not computed (hook: closed_loop::sweep::certified_boundary); Theorem 1's columns are void for the sub-optimal MPC".to_string()
+            "the joint (K_e, K_c) certificate could not be computed (closed_loop::sweep::certified_boundary); Theorem 1's columns are void for the sub-optimal MPC".to_string()
         } else {
             format!(
                 "the joint (K_e, K_c) certificate's region for {computed} of {} solvers (drawn on the heat maps)",

@@ -186,23 +186,47 @@ pub fn solver_linear(
     LinearSide(out)
 }
 
-/// **Hook for the joint certificate (issue 16).** The certified region of (K_e, K_c) for the
-/// MHE solver `solver` and the sweep's sub-optimal MPC `controller` (its `method`; its
-/// `iterations` is irrelevant), as a staircase: for each K_e of `k_e_grid`, ascending, the
-/// smallest certified K_c, or None when no K_c is certified at that K_e. The heat maps draw
-/// it and the 2-D thresholds take its cheapest pair ([`super::pair_thresholds`]).
+/// The joint certificate's region of (K_e, K_c) ([`crate::joint`]) for the MHE solver
+/// `solver` and the sweep's sub-optimal MPC `controller` (its `method`; its `iterations` is
+/// irrelevant), as a staircase: for each K_e of `k_e_grid`, ascending, the smallest certified
+/// K_c (searched up to 2²⁴, so it may lie beyond the sweep's K_c grid), or None when no K_c
+/// is certified at that K_e. The heat maps draw it and the 2-D thresholds take its cheapest
+/// pair ([`super::pair_thresholds`]).
 ///
-/// Empty means *not computed*: the heat maps then say "certificate: not computed". It is
-/// empty until `crate::joint` (the certificate of the loop with both optimisers truncated)
-/// is wired in here; nothing else in the sweep needs to change.
+/// Empty means *not computed*: another controller, or a certificate that cannot be computed
+/// (the heat maps then say "certificate: not computed"). A void certificate gives None at
+/// every K_e.
 pub fn certified_boundary(
     resolved: &ResolvedScenario,
     solver: Method,
     controller: ControllerChoice,
     k_e_grid: &[usize],
 ) -> Staircase {
-    let _ = (resolved, solver, controller, k_e_grid);
-    Vec::new()
+    let ControllerChoice::SuboptimalMpc {
+        method: mpc_method, ..
+    } = controller
+    else {
+        return Vec::new();
+    };
+    let opts = CertificateOptions {
+        solvers: vec![solver],
+        lipschitz_pairs: 0,
+        gamma13_sequences: 0,
+        ..CertificateOptions::default()
+    };
+    let Ok(cert) = certify_closed_loop(resolved, &opts) else {
+        return Vec::new();
+    };
+    let Ok(mpc) = resolved.mpc() else {
+        return Vec::new();
+    };
+    let plant = &resolved.scenario().plant;
+    let n_e = plant.nx() + cert.horizon * (plant.nx() + plant.ny());
+    let joint = crate::joint::JointOptions::default();
+    match crate::joint::certify_joint(&cert, mpc, n_e, solver, mpc_method, &joint) {
+        Ok(j) => j.analysis.boundary(k_e_grid, joint.k_max),
+        Err(_) => Vec::new(),
+    }
 }
 
 /// Theorem 1 for each solver of the sweep, from the closed-loop certificate of the

@@ -1,33 +1,71 @@
-//! Per-iteration time of projected gradient on the stand-in's MHE QP, dense kernel against
-//! the structured H_c z (forward + adjoint pass), for M = 2 … 50: the measured crossover
-//! behind `qp_iter::operator::STRUCTURED_MIN_N`. Ratios are from one run (shared machine).
-//! Run: `cargo run --release -p mhe-core --example structured_crossover`.
+//! Per-iteration time of projected gradient and FISTA on the stand-in's MHE QP, dense kernel
+//! against the structured H_c z (`mhe_core::structured`), for M = 2 … 50: the measured
+//! crossover behind `qp_iter::operator::STRUCTURED_MIN_N`. The variants take turns batch by
+//! batch (41 rounds, the first untimed), each figure is its fastest batch, so the ratios
+//! are from the same conditions (a shared machine).
+//! With `--detail`: also the product H_c z alone, fixed-size and run-time-size
+//! (`MheHessian::generic`), and PG on the run-time-size product.
+//! Run: `cargo run --release -p mhe-core --example structured_crossover [-- --detail]`.
 
+use std::hint::black_box;
+use std::sync::Arc;
 use std::time::Instant;
 
 use faer::Mat;
 use lti_model::BoxSet;
+use mhe_core::structured::MheHessian;
 use mhe_core::{MheProblem, MheSets, MheWeights};
+use qp_iter::fista::Fista;
+use qp_iter::operator::HessianOperator;
 use qp_iter::pg::{ProjectedGradient, StepRule};
 use qp_iter::{IterationMap, ParametricQp};
 
-/// Seconds per step of `map`, best of 5 rounds of `steps` steps.
-fn per_step(map: &ProjectedGradient, theta: &[f64], steps: usize) -> f64 {
+/// One timed variant: a name and a batch of `per_batch` operations.
+type Variant<'a> = (&'a str, usize, Box<dyn FnMut() + 'a>);
+
+/// Fastest batch per variant, in µs per operation, over `rounds` interleaved rounds.
+fn interleave(variants: &mut [Variant<'_>], rounds: usize) -> Vec<f64> {
+    let mut best = vec![f64::INFINITY; variants.len()];
+    for round in 0..=rounds {
+        for ((_, per, run), b) in variants.iter_mut().zip(&mut best) {
+            let t = Instant::now();
+            run();
+            let us = t.elapsed().as_secs_f64() * 1e6 / *per as f64;
+            if round > 0 {
+                *b = b.min(us);
+            }
+        }
+    }
+    best
+}
+
+/// A batch of `k` steps of `map` from a fixed warm start.
+fn steps<'a, M: IterationMap>(map: &'a M, theta: &[f64], k: usize) -> Box<dyn FnMut() + 'a> {
     let mut s = map.new_state();
     map.load(&mut s, theta);
-    let z0 = vec![0.0; map.problem().n()];
-    (0..5)
-        .map(|_| {
-            map.warm_start(&mut s, &z0, None);
-            let t = Instant::now();
-            map.run_steps(&mut s, steps);
-            std::hint::black_box(map.iterate(&s));
-            t.elapsed().as_secs_f64() / steps as f64
-        })
-        .fold(f64::INFINITY, f64::min)
+    let z0 = vec![0.01; map.problem().n()];
+    Box::new(move || {
+        map.warm_start(&mut s, &z0, None);
+        map.run_steps(&mut s, k);
+        black_box(map.iterate(&s));
+    })
+}
+
+/// A batch of `k` products H_c z.
+fn products<'a>(op: &'a dyn HessianOperator, k: usize) -> Box<dyn FnMut() + 'a> {
+    let n = op.n();
+    let z: Vec<f64> = (0..n).map(|i| (i as f64).sin()).collect();
+    let (mut out, mut work) = (vec![0.0; n], vec![0.0; op.work_len()]);
+    Box::new(move || {
+        for _ in 0..k {
+            op.apply(black_box(&z), &mut out, &mut work);
+        }
+        black_box(&out);
+    })
 }
 
 fn main() -> Result<(), Box<dyn std::error::Error>> {
+    let detail = std::env::args().any(|a| a == "--detail");
     let sys = lti_model::presets::case_study_plant();
     let q = Mat::<f64>::identity(5, 5);
     let r = Mat::<f64>::identity(1, 1);
@@ -39,32 +77,72 @@ fn main() -> Result<(), Box<dyn std::error::Error>> {
         q,
         r,
     };
-    println!("    M    n_z   dense (µs/step)   structured (µs/step)   structured/dense");
+    print!(
+        "    M    n_z   PG dense   PG struct   ratio   FISTA dense   FISTA struct   ratio  (µs/step)"
+    );
+    if detail {
+        print!("   H_c z fixed   H_c z generic   PG generic");
+    }
+    println!();
     for m in [2, 5, 10, 15, 20, 25, 30, 40, 50] {
         let prob = MheProblem::new(&sys, m, &weights, &sets)?;
-        let qp = prob.window(m).ok_or("window")?.qp().clone();
+        let w = prob.window(m).ok_or("window")?;
+        let qp = w.qp().clone();
         let dense_qp = ParametricQp::new(
             qp.h().to_owned(),
             qp.q0().to_vec(),
             qp.f().to_owned(),
             qp.zset().clone(),
         )?;
+        let generic = MheHessian::new(
+            w.layout(),
+            sys.a(),
+            sys.c(),
+            sys.e(),
+            sys.f(),
+            weights.eta,
+            weights.p.as_ref(),
+            weights.q.as_ref(),
+            weights.r.as_ref(),
+        )
+        .generic();
+        let fixed = qp.operator().ok_or("operator")?.clone();
+        let generic_qp = qp.clone().with_operator(Arc::new(generic.clone()))?;
         let theta = vec![0.5; qp.n_theta()];
-        let dense = ProjectedGradient::new(dense_qp, StepRule::Optimal)?;
         // Force the structured path whatever the crossover constant says.
-        let structured = ProjectedGradient::new_structured(qp.clone(), StepRule::Optimal)?;
-        let steps = 200_000 / qp.n().max(1);
-        let (td, ts) = (
-            per_step(&dense, &theta, steps),
-            per_step(&structured, &theta, steps),
+        let (pg_d, pg_s, pg_g) = (
+            ProjectedGradient::new(dense_qp.clone(), StepRule::Optimal)?,
+            ProjectedGradient::new_structured(qp.clone(), StepRule::Optimal)?,
+            ProjectedGradient::new_structured(generic_qp, StepRule::Optimal)?,
         );
-        println!(
-            "{m:>5} {:>6} {:>17.3} {:>22.3} {:>18.2}",
+        let (fi_d, fi_s) = (Fista::new(dense_qp), Fista::new_structured(qp.clone()));
+        let k = (20_000 / qp.n()).max(10);
+        let mut v: Vec<Variant<'_>> = vec![
+            ("pg dense", k, steps(&pg_d, &theta, k)),
+            ("pg structured", k, steps(&pg_s, &theta, k)),
+            ("fista dense", k, steps(&fi_d, &theta, k)),
+            ("fista structured", k, steps(&fi_s, &theta, k)),
+        ];
+        if detail {
+            v.push(("H_c z fixed", k, products(&*fixed, k)));
+            v.push(("H_c z generic", k, products(&generic, k)));
+            v.push(("pg generic", k, steps(&pg_g, &theta, k)));
+        }
+        let t = interleave(&mut v, 40);
+        print!(
+            "{m:>5} {:>6} {:>10.3} {:>11.3} {:>7.2} {:>13.3} {:>14.3} {:>7.2}",
             qp.n(),
-            td * 1e6,
-            ts * 1e6,
-            ts / td
+            t[0],
+            t[1],
+            t[1] / t[0],
+            t[2],
+            t[3],
+            t[3] / t[2]
         );
+        if detail {
+            print!("{:>14.3} {:>15.3} {:>12.3}", t[4], t[5], t[6]);
+        }
+        println!();
     }
     Ok(())
 }

@@ -16,11 +16,11 @@
 //! recursions are serial; the rest of a stage overlaps them. With the Jacobi scaling z = Dy
 //! (`qp_iter::scaled`) D is folded into the same passes ([`HessianOperator::apply_scaled`]).
 //!
-//! The blocks are stored per column, contiguously. For the plant shapes in
-//! [`SPECIALISED_SHAPES`] the passes run on fixed-size arrays (compile-time n_x, n_y,
-//! n_w1, n_w2, compiled for AVX2 + FMA when the CPU has them, as `qp_iter::kernel`
-//! decides); other shapes run the same passes with run-time sizes. The tests compare all
-//! of them with the dense H_c.
+//! The blocks are stored per column, contiguously, in fixed-size arrays (compile-time n_x,
+//! n_y, n_w1, n_w2: exact for the shapes in [`SPECIALISED_SHAPES`], zero-padded to
+//! (4, 4, 4, 4), (8, 8, 8, 8), (12, 8, 12, 8) or (16, 16, 16, 16) otherwise), compiled for
+//! AVX2 + FMA when the CPU has them (as `qp_iter::kernel` decides); larger plants run the
+//! same passes with run-time sizes. The tests compare each with the dense H_c.
 
 use faer::MatRef;
 use qp_iter::kernel::{Kernel, KernelPath};
@@ -33,25 +33,64 @@ use crate::problem::WindowLayout;
 pub const SPECIALISED_SHAPES: [(usize, usize, usize, usize); 3] =
     [(4, 1, 4, 1), (4, 2, 4, 2), (2, 1, 2, 1)];
 
-/// `s·` the block of `m` at (r0, c0), per column: `out[k][i] = s·m[r0 + i, c0 + k]`.
+/// `s·` the r × c block of `m` at (r0, c0), per column and zero-padded to R × C:
+/// `out[k][i] = s·m[r0 + i, c0 + k]` for i < r, k < c.
 fn cols<const R: usize, const C: usize>(
     m: MatRef<'_, f64>,
-    r0: usize,
-    c0: usize,
+    (r0, c0): (usize, usize),
+    (r, c): (usize, usize),
     s: f64,
 ) -> [[f64; R]; C] {
-    std::array::from_fn(|k| std::array::from_fn(|i| s * m[(r0 + i, c0 + k)]))
+    std::array::from_fn(|k| {
+        std::array::from_fn(|i| {
+            if i < r && k < c {
+                s * m[(r0 + i, c0 + k)]
+            } else {
+                0.0
+            }
+        })
+    })
 }
 
-/// `s·` the transpose of the R × C block of `m` at (r0, c0), per column (row i of the
-/// block): `out[i][k] = s·m[r0 + i, c0 + k]`.
+/// `s·` the transpose of the r × c block of `m` at (0, 0), per column (row i of the block)
+/// and zero-padded to C × R: `out[i][k] = s·m[i, k]` for i < r, k < c.
 fn cols_t<const R: usize, const C: usize>(
     m: MatRef<'_, f64>,
-    r0: usize,
-    c0: usize,
+    (r, c): (usize, usize),
     s: f64,
 ) -> [[f64; C]; R] {
-    std::array::from_fn(|i| std::array::from_fn(|k| s * m[(r0 + i, c0 + k)]))
+    std::array::from_fn(|i| {
+        std::array::from_fn(|k| if i < r && k < c { s * m[(i, k)] } else { 0.0 })
+    })
+}
+
+/// The first `n` entries of `src` (times `d` when `S`), zero-padded to N (unrolled over
+/// N: a copy loop of run-time length becomes a `memcpy` call).
+#[inline(always)]
+fn load<const N: usize, const S: bool>(src: &[f64], d: &[f64], n: usize) -> [f64; N] {
+    let (src, d) = (&src[..n], &d[..n]);
+    std::array::from_fn(|i| match (src.get(i), d.get(i)) {
+        (Some(x), Some(d)) => {
+            if S {
+                d * x
+            } else {
+                *x
+            }
+        }
+        _ => 0.0,
+    })
+}
+
+/// dst[..n] = src[..n] (n ≤ N, unrolled over N).
+#[inline(always)]
+fn store<const N: usize>(dst: &mut [f64], src: &[f64; N], n: usize) {
+    for (i, s) in src.iter().enumerate() {
+        if i < n {
+            if let Some(d) = dst.get_mut(i) {
+                *d = *s;
+            }
+        }
+    }
 }
 
 /// a·b + c, fused when `F` (only inside the AVX2 + FMA instantiation).
@@ -123,9 +162,13 @@ fn scale<const R: usize>(s: f64, v: [f64; R]) -> [f64; R] {
     v.map(|x| s * x)
 }
 
-/// The blocks of one stage for compile-time sizes, per column, weights folded in.
+/// The blocks of one stage for compile-time sizes NX ≥ n_x, NY ≥ n_y, NW1 ≥ n_w1,
+/// NW2 ≥ n_w2 (zero-padded when `PAD`, exact otherwise), per column, weights folded in.
 #[derive(Debug, Clone)]
-struct Blocks<const NX: usize, const NY: usize, const NW1: usize, const NW2: usize> {
+struct Blocks<const NX: usize, const NY: usize, const NW1: usize, const NW2: usize, const PAD: bool>
+{
+    /// (n_x, n_w1, n_w2): the actual sizes.
+    dims: (usize, usize, usize),
     a: [[f64; NX]; NX],
     at: [[f64; NX]; NX],
     e: [[f64; NX]; NW1],
@@ -145,25 +188,37 @@ struct Blocks<const NX: usize, const NY: usize, const NW1: usize, const NW2: usi
     p: [[f64; NX]; NX],
 }
 
-impl<const NX: usize, const NY: usize, const NW1: usize, const NW2: usize>
-    Blocks<NX, NY, NW1, NW2>
+impl<const NX: usize, const NY: usize, const NW1: usize, const NW2: usize, const PAD: bool>
+    Blocks<NX, NY, NW1, NW2, PAD>
 {
+    /// Whether a plant of these sizes fits (exactly, unless `PAD`).
+    fn fits(m: &Mats<'_>) -> bool {
+        let (nx, ny, nw1, nw2) = (m.a.nrows(), m.c.nrows(), m.e.ncols(), m.f.ncols());
+        if PAD {
+            nx <= NX && ny <= NY && nw1 <= NW1 && nw2 <= NW2
+        } else {
+            (nx, ny, nw1, nw2) == (NX, NY, NW1, NW2)
+        }
+    }
+
     fn new(m: &Mats<'_>) -> Self {
+        let (nx, ny, nw1, nw2) = (m.a.nrows(), m.c.nrows(), m.e.ncols(), m.f.ncols());
         Self {
-            a: cols(m.a, 0, 0, 1.0),
-            at: cols_t(m.a, 0, 0, 1.0),
-            e: cols(m.e, 0, 0, 1.0),
-            et: cols_t(m.e, 0, 0, 1.0),
-            c: cols(m.c, 0, 0, 1.0),
-            ct: cols_t(m.c, 0, 0, 1.0),
-            f: cols(m.f, 0, 0, 1.0),
-            ft: cols_t(m.f, 0, 0, 1.0),
-            q11: cols(m.q, 0, 0, 4.0),
-            q12: cols(m.q, 0, NW1, 4.0),
-            q21: cols(m.q, NW1, 0, 4.0),
-            q22: cols(m.q, NW1, NW1, 4.0),
-            r: cols(m.r, 0, 0, 2.0),
-            p: cols(m.p, 0, 0, 4.0 * m.eta_m),
+            dims: (nx, nw1, nw2),
+            a: cols(m.a, (0, 0), (nx, nx), 1.0),
+            at: cols_t(m.a, (nx, nx), 1.0),
+            e: cols(m.e, (0, 0), (nx, nw1), 1.0),
+            et: cols_t(m.e, (nx, nw1), 1.0),
+            c: cols(m.c, (0, 0), (ny, nx), 1.0),
+            ct: cols_t(m.c, (ny, nx), 1.0),
+            f: cols(m.f, (0, 0), (ny, nw2), 1.0),
+            ft: cols_t(m.f, (ny, nw2), 1.0),
+            q11: cols(m.q, (0, 0), (nw1, nw1), 4.0),
+            q12: cols(m.q, (0, nw1), (nw1, nw2), 4.0),
+            q21: cols(m.q, (nw1, 0), (nw2, nw1), 4.0),
+            q22: cols(m.q, (nw1, nw1), (nw2, nw2), 4.0),
+            r: cols(m.r, (0, 0), (ny, ny), 2.0),
+            p: cols(m.p, (0, 0), (nx, nx), 4.0 * m.eta_m),
         }
     }
 
@@ -178,13 +233,15 @@ impl<const NX: usize, const NY: usize, const NW1: usize, const NW2: usize>
         out: &mut [f64],
         cg: &mut [f64],
     ) {
-        let (m, nw) = (decay.len(), NW1 + NW2);
-        let n = NX + m * nw;
-        let (z0, zw) = z[..n].split_at(NX);
-        let (o0, ow) = out[..n].split_at_mut(NX);
-        let (d0, dw) = d[..n].split_at(NX);
+        // Compile-time sizes unless padded.
+        let (nx, nw1, nw2) = if PAD { self.dims } else { (NX, NW1, NW2) };
+        let (m, nw) = (decay.len(), nw1 + nw2);
+        let n = nx + m * nw;
+        let (z0, zw) = z[..n].split_at(nx);
+        let (o0, ow) = out[..n].split_at_mut(nx);
+        let (d0, dw) = d[..n].split_at(nx);
         let cg = &mut cg[..m * NX];
-        let x0: [f64; NX] = std::array::from_fn(|i| if S { d0[i] * z0[i] } else { z0[i] });
+        let x0: [f64; NX] = load::<NX, S>(z0, d0, nx);
         // Forward: x̂_{j+1} = A x̂_j + E ŵ¹_j, and stage j's terms without λ.
         let mut x = x0;
         let stages = zw
@@ -194,14 +251,8 @@ impl<const NX: usize, const NY: usize, const NW1: usize, const NW2: usize>
             .zip(cg.chunks_exact_mut(NX))
             .zip(decay);
         for ((((w, dj), o), cgj), &eta_j) in stages {
-            let w1: [f64; NW1] = std::array::from_fn(|i| if S { dj[i] * w[i] } else { w[i] });
-            let w2: [f64; NW2] = std::array::from_fn(|i| {
-                if S {
-                    dj[NW1 + i] * w[NW1 + i]
-                } else {
-                    w[NW1 + i]
-                }
-            });
+            let w1: [f64; NW1] = load::<NW1, S>(w, dj, nw1);
+            let w2: [f64; NW2] = load::<NW2, S>(&w[nw1..], &dj[nw1..], nw2);
             // ŷ_j = C x̂_j + F ŵ²_j, g_y = 2η^{m−1−j}R ŷ_j.
             let y = gemv::<NY, NX, F>(&self.c, &x, gemv0::<NY, NW2, F>(&self.f, &w2));
             let gy = scale(eta_j, gemv0::<NY, NY, F>(&self.r, &y));
@@ -213,8 +264,9 @@ impl<const NX: usize, const NY: usize, const NW1: usize, const NW2: usize>
                 &v1,
                 gemv::<NW2, NW2, F>(&self.q22, &v2, gemv0::<NW2, NY, F>(&self.ft, &gy)),
             );
-            o[..NW1].copy_from_slice(&o1);
-            o[NW1..].copy_from_slice(&o2);
+            let (o_1, o_2) = o.split_at_mut(nw1);
+            store(o_1, &o1, nw1);
+            store(o_2, &o2, nw2);
             x = gemv::<NX, NX, F>(&self.a, &x, gemv0::<NX, NW1, F>(&self.e, &w1));
         }
         // Backward: λ_m = 0, the ŵ¹_j-part gets Eᵀλ_{j+1}, λ_j = Aᵀλ_{j+1} + Cᵀg_{y,j}.
@@ -225,8 +277,8 @@ impl<const NX: usize, const NY: usize, const NW1: usize, const NW2: usize>
             .zip(cg.chunks_exact(NX))
             .rev();
         for ((o, dj), cgj) in stages {
-            let o1 = gemv::<NW1, NX, F>(&self.et, &lam, std::array::from_fn(|i| o[i]));
-            o[..NW1].copy_from_slice(&o1);
+            let o1 = gemv::<NW1, NX, F>(&self.et, &lam, load::<NW1, false>(o, o, nw1));
+            store(o, &o1, nw1);
             if S {
                 for (v, di) in o.iter_mut().zip(dj) {
                     *v *= di;
@@ -235,8 +287,8 @@ impl<const NX: usize, const NY: usize, const NW1: usize, const NW2: usize>
             lam = gemv::<NX, NX, F>(&self.at, &lam, std::array::from_fn(|i| cgj[i]));
         }
         let g0 = gemv::<NX, NX, F>(&self.p, &x0, lam);
-        for i in 0..NX {
-            o0[i] = if S { d0[i] * g0[i] } else { g0[i] };
+        for ((o, g), d) in o0.iter_mut().zip(&g0).zip(d0) {
+            *o = if S { d * g } else { *g };
         }
     }
 }
@@ -423,13 +475,54 @@ impl DynBlocks {
     }
 }
 
-/// The product's implementation, chosen at construction.
+/// The product's implementation, chosen at construction: exact fixed sizes, padded fixed
+/// sizes, or run-time sizes.
 #[derive(Debug, Clone)]
 enum Product {
-    S4141(Box<Blocks<4, 1, 4, 1>>),
-    S4242(Box<Blocks<4, 2, 4, 2>>),
-    S2121(Box<Blocks<2, 1, 2, 1>>),
+    S4141(Box<Blocks<4, 1, 4, 1, false>>),
+    S4242(Box<Blocks<4, 2, 4, 2, false>>),
+    S2121(Box<Blocks<2, 1, 2, 1, false>>),
+    P4(Box<Blocks<4, 4, 4, 4, true>>),
+    P8(Box<Blocks<8, 8, 8, 8, true>>),
+    P12(Box<Blocks<12, 8, 12, 8, true>>),
+    P16(Box<Blocks<16, 16, 16, 16, true>>),
     Dyn(DynBlocks),
+}
+
+impl Product {
+    /// The exact fixed size, else the smallest padded one the plant fits, else run-time
+    /// sizes.
+    fn new(m: &Mats<'_>) -> Self {
+        macro_rules! first_fit {
+            ($($v:ident $t:ty),*) => {
+                $(if <$t>::fits(m) {
+                    return Self::$v(Box::new(<$t>::new(m)));
+                })*
+            };
+        }
+        first_fit!(
+            S4141 Blocks<4, 1, 4, 1, false>,
+            S4242 Blocks<4, 2, 4, 2, false>,
+            S2121 Blocks<2, 1, 2, 1, false>,
+            P4 Blocks<4, 4, 4, 4, true>,
+            P8 Blocks<8, 8, 8, 8, true>,
+            P12 Blocks<12, 8, 12, 8, true>,
+            P16 Blocks<16, 16, 16, 16, true>
+        );
+        Self::Dyn(DynBlocks::new(m))
+    }
+
+    /// Rows of Cᵀg_y stored per stage (the padded n_x).
+    fn cg_rows(&self) -> usize {
+        match self {
+            Self::S4141(_) | Self::S4242(_) | Self::P4(_) => 4,
+            Self::S2121(_) => 2,
+            Self::P8(_) => 8,
+            Self::P12(_) => 12,
+            Self::P16(_) => 16,
+            Self::Dyn(b) => b.nx,
+        }
+    }
 }
 
 /// The structured H_c of one MHE window (see the module docs).
@@ -470,13 +563,7 @@ impl MheHessian {
             r,
             eta_m: eta.powi(crate::problem::pow_i32(m)),
         };
-        let d = layout.dims;
-        let product = match (d.nx, d.ny, d.nw1, d.nw2) {
-            (4, 1, 4, 1) => Product::S4141(Box::new(Blocks::new(&mats))),
-            (4, 2, 4, 2) => Product::S4242(Box::new(Blocks::new(&mats))),
-            (2, 1, 2, 1) => Product::S2121(Box::new(Blocks::new(&mats))),
-            _ => Product::Dyn(DynBlocks::new(&mats)),
-        };
+        let product = Product::new(&mats);
         let decay = (0..m)
             .map(|j| eta.powi(crate::problem::pow_i32(m - 1 - j)))
             .collect();
@@ -502,7 +589,8 @@ impl MheHessian {
         self
     }
 
-    /// Whether the product runs on fixed-size blocks ([`SPECIALISED_SHAPES`]).
+    /// Whether the product runs on fixed-size blocks (exact for [`SPECIALISED_SHAPES`],
+    /// zero-padded up to n_x, n_w1 ≤ 16 and n_y, n_w2 ≤ 16).
     pub fn is_specialised(&self) -> bool {
         !matches!(self.product, Product::Dyn(_))
     }
@@ -535,6 +623,10 @@ impl MheHessian {
             Product::S4141(b) => fixed!(b),
             Product::S4242(b) => fixed!(b),
             Product::S2121(b) => fixed!(b),
+            Product::P4(b) => fixed!(b),
+            Product::P8(b) => fixed!(b),
+            Product::P12(b) => fixed!(b),
+            Product::P16(b) => fixed!(b),
             Product::Dyn(b) => b.apply(decay, d, z, out, work),
         }
     }
@@ -552,8 +644,8 @@ trait FixedProduct {
     );
 }
 
-impl<const NX: usize, const NY: usize, const NW1: usize, const NW2: usize> FixedProduct
-    for Blocks<NX, NY, NW1, NW2>
+impl<const NX: usize, const NY: usize, const NW1: usize, const NW2: usize, const PAD: bool>
+    FixedProduct for Blocks<NX, NY, NW1, NW2, PAD>
 {
     #[inline(always)]
     fn apply_fma<const S: bool>(
@@ -606,7 +698,8 @@ impl HessianOperator for MheHessian {
         self.layout.nz()
     }
     fn work_len(&self) -> usize {
-        self.dyn_blocks.work_len(self.layout.m)
+        let m = self.layout.m;
+        self.dyn_blocks.work_len(m).max(m * self.product.cg_rows())
     }
     fn apply(&self, z: &[f64], out: &mut [f64], work: &mut [f64]) {
         self.run(None, z, out, work);

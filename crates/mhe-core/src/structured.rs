@@ -486,7 +486,7 @@ enum Product {
     P8(Box<Blocks<8, 8, 8, 8, true>>),
     P12(Box<Blocks<12, 8, 12, 8, true>>),
     P16(Box<Blocks<16, 16, 16, 16, true>>),
-    Dyn(DynBlocks),
+    Dyn(Box<DynBlocks>),
 }
 
 impl Product {
@@ -509,7 +509,7 @@ impl Product {
             P12 Blocks<12, 8, 12, 8, true>,
             P16 Blocks<16, 16, 16, 16, true>
         );
-        Self::Dyn(DynBlocks::new(m))
+        Self::Dyn(Box::new(DynBlocks::new(m)))
     }
 
     /// Rows of Cᵀg_y stored per stage (the padded n_x).
@@ -578,7 +578,7 @@ impl MheHessian {
 
     /// The same operator on the run-time-size product (for tests and benchmarks).
     pub fn generic(mut self) -> Self {
-        self.product = Product::Dyn(self.dyn_blocks.clone());
+        self.product = Product::Dyn(Box::new(self.dyn_blocks.clone()));
         self
     }
 

@@ -4,7 +4,9 @@
 //! batch (41 rounds, the first untimed), each figure is its fastest batch, so the ratios
 //! are from the same conditions (a shared machine).
 //! With `--detail`: also the product H_c z alone, fixed-size and run-time-size
-//! (`MheHessian::generic`), and PG on the run-time-size product.
+//! (`MheHessian::generic`), and PG on the run-time-size product. With `--shapes`: PG dense
+//! against structured on random plants of other shapes (n_x, n_y, n_w1, n_w2): exact
+//! fixed-size, zero-padded and run-time-size products.
 //! Run: `cargo run --release -p mhe-core --example structured_crossover [-- --detail]`.
 
 use std::hint::black_box;
@@ -64,7 +66,79 @@ fn products<'a>(op: &'a dyn HessianOperator, k: usize) -> Box<dyn FnMut() + 'a> 
     })
 }
 
+/// PG dense against structured on a random plant of each shape, identity weights.
+fn shapes() -> Result<(), Box<dyn std::error::Error>> {
+    println!("shape (n_x, n_y, n_w1, n_w2)     M    n_z   PG dense   PG struct   ratio  (µs/step)");
+    for shape in [
+        (2, 1, 2, 1),
+        (4, 2, 4, 2),
+        (3, 1, 3, 1),
+        (6, 3, 6, 3),
+        (12, 6, 6, 6),
+        (17, 2, 17, 2),
+    ] {
+        let (nx, ny, nw1, nw2) = shape;
+        let m_of = |k: usize, s: usize| {
+            Mat::from_fn(k, s, |i, j| ((i * 7 + j * 3) % 5) as f64 * 0.1 - 0.2)
+        };
+        let a = Mat::from_fn(nx, nx, |i, j| {
+            if i == j {
+                0.9
+            } else {
+                0.3 / nx as f64 * ((i + 2 * j) % 3) as f64
+            }
+        });
+        let sys = lti_model::LtiSystem::with_disturbance(
+            a,
+            m_of(nx, 1),
+            Mat::from_fn(ny, nx, |i, j| if i == j % ny { 1.0 } else { 0.1 }),
+            Mat::from_fn(nx, nw1, |i, j| if i == j { 1.0 } else { 0.0 }),
+            Mat::identity(ny, nw2),
+        )?;
+        let sets = MheSets::with_disturbance(&sys, BoxSet::symmetric(&vec![0.1; nw1 + nw2])?);
+        let weights = MheWeights {
+            eta: 0.8,
+            p: Mat::identity(nx, nx),
+            q: Mat::identity(nw1 + nw2, nw1 + nw2),
+            r: Mat::identity(ny, ny),
+        };
+        for m in [5, 10, 20, 40] {
+            let prob = MheProblem::new(&sys, m, &weights, &sets)?;
+            let qp = prob.window(m).ok_or("window")?.qp().clone();
+            let dense_qp = ParametricQp::new(
+                qp.h().to_owned(),
+                qp.q0().to_vec(),
+                qp.f().to_owned(),
+                qp.zset().clone(),
+            )?;
+            let theta = vec![0.5; qp.n_theta()];
+            let (d, s) = (
+                ProjectedGradient::new(dense_qp, StepRule::Optimal)?,
+                ProjectedGradient::new_structured(qp.clone(), StepRule::Optimal)?,
+            );
+            let k = (20_000 / qp.n()).max(10);
+            let mut v: Vec<Variant<'_>> = vec![
+                ("pg dense", k, steps(&d, &theta, k)),
+                ("pg structured", k, steps(&s, &theta, k)),
+            ];
+            let t = interleave(&mut v, 40);
+            println!(
+                "{:<30} {m:>5} {:>6} {:>10.3} {:>11.3} {:>7.2}",
+                format!("{shape:?}"),
+                qp.n(),
+                t[0],
+                t[1],
+                t[1] / t[0]
+            );
+        }
+    }
+    Ok(())
+}
+
 fn main() -> Result<(), Box<dyn std::error::Error>> {
+    if std::env::args().any(|a| a == "--shapes") {
+        return shapes();
+    }
     let detail = std::env::args().any(|a| a == "--detail");
     let sys = lti_model::presets::case_study_plant();
     let q = Mat::<f64>::identity(5, 5);
@@ -84,7 +158,7 @@ fn main() -> Result<(), Box<dyn std::error::Error>> {
         print!("   H_c z fixed   H_c z generic   PG generic");
     }
     println!();
-    for m in [2, 5, 10, 15, 20, 25, 30, 40, 50] {
+    for m in [2, 5, 8, 10, 11, 12, 13, 14, 15, 20, 25, 30, 40, 50] {
         let prob = MheProblem::new(&sys, m, &weights, &sets)?;
         let w = prob.window(m).ok_or("window")?;
         let qp = w.qp().clone();

@@ -33,6 +33,16 @@ use crate::problem::WindowLayout;
 pub const SPECIALISED_SHAPES: [(usize, usize, usize, usize); 3] =
     [(4, 1, 4, 1), (4, 2, 4, 2), (2, 1, 2, 1)];
 
+/// [`HessianOperator::dense_crossover`] of the exact fixed-size products: the smallest n_z
+/// from which PG and FISTA through them beat the dense kernel (measured on the stand-in,
+/// (4, 2, 4, 2) and (2, 1, 2, 1): `docs/benchmarks.md`, "Structured iteration").
+pub const EXACT_CROSSOVER: usize = 64;
+/// The same for the zero-padded fixed-size products (measured on (3, 1, 3, 1), (6, 3, 6, 3),
+/// (12, 6, 6, 6)).
+pub const PADDED_CROSSOVER: usize = 160;
+/// The same for the run-time-size product (measured on (17, 2, 17, 2)).
+pub const RUN_TIME_CROSSOVER: usize = 400;
+
 /// `s·` the r × c block of `m` at (r0, c0), per column and zero-padded to R × C:
 /// `out[k][i] = s·m[r0 + i, c0 + k]` for i < r, k < c.
 fn cols<const R: usize, const C: usize>(
@@ -703,6 +713,13 @@ impl HessianOperator for MheHessian {
     }
     fn apply(&self, z: &[f64], out: &mut [f64], work: &mut [f64]) {
         self.run(None, z, out, work);
+    }
+    fn dense_crossover(&self) -> usize {
+        match self.product {
+            Product::S4141(_) | Product::S4242(_) | Product::S2121(_) => EXACT_CROSSOVER,
+            Product::Dyn(_) => RUN_TIME_CROSSOVER,
+            _ => PADDED_CROSSOVER,
+        }
     }
     fn scaled_work_len(&self) -> usize {
         self.work_len()

@@ -106,11 +106,12 @@ fn estimate_and_push_do_not_allocate() {
     assert!(alloc_counter::count() > before && v.len() == 3);
 }
 
-/// The structured steps (n ≥ STRUCTURED_MIN_N: the stand-in at M = 50) of PG and FISTA,
+/// The structured steps (n above the crossover: the stand-in at M = 50) of PG and FISTA,
 /// plain and Jacobi-scaled, and an MHE at M = 50 running them, allocate nothing.
 #[test]
 fn structured_steps_do_not_allocate() {
     use qp_iter::method::{Method, Scaling};
+    use qp_iter::operator::HessianOperator;
     let (sys, sets, mut cfg) = case_study(WarmStart::Paper);
     cfg.horizon = 50;
     let weights = mhe_core::MheWeights {
@@ -121,7 +122,7 @@ fn structured_steps_do_not_allocate() {
     };
     let prob = mhe_core::MheProblem::new(&sys, 50, &weights, &sets).unwrap();
     let qp = prob.window(50).unwrap().qp().clone();
-    assert!(qp.n() >= qp_iter::operator::STRUCTURED_MIN_N);
+    assert!(qp.n() >= qp.operator().unwrap().dense_crossover());
     let theta = vec![0.3; qp.n_theta()];
     let z0 = vec![0.01; qp.n()];
     for method in [Method::PG, Method::FISTA] {
@@ -143,7 +144,7 @@ fn structured_steps_do_not_allocate() {
             method.with_scaling(Scaling::Jacobi).build(qp)
         })
         .unwrap();
-        // Steps 0..50 grow the window (windows ≥ 40 run structured), then steady state.
+        // Steps 0..50 grow the window (windows ≥ 12 run structured), then steady state.
         let n = allocations_per_run(&mut mhe, 0, 60);
         assert_eq!(n, 0, "MHE {method}-jacobi at M = 50: {n} allocations");
     }

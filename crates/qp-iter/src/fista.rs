@@ -128,9 +128,9 @@ impl Fista {
         f
     }
 
-    /// Whether the steps use the problem's structured Hessian
-    /// (n ≥ [`crate::operator::STRUCTURED_MIN_N`] and the problem has one) instead of the
-    /// dense kernel.
+    /// Whether the steps use the problem's structured Hessian (the problem has one and
+    /// n ≥ its [`crate::operator::HessianOperator::dense_crossover`]) instead of the dense
+    /// kernel.
     pub fn is_structured(&self) -> bool {
         self.g.op.is_some()
     }

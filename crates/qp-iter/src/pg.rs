@@ -20,7 +20,7 @@ use crate::IterationMap;
 use crate::certificate::{BoundedQuantity, CertNorm, Certificate};
 use crate::error::{QpError, Result};
 use crate::kernel::{AlignedVec, Kernel, PaddedSymmetric, Vectors, clamp_nan_propagating};
-use crate::operator::{HessianOperator, STRUCTURED_MIN_N};
+use crate::operator::HessianOperator;
 use crate::problem::ParametricQp;
 use std::sync::Arc;
 
@@ -47,8 +47,8 @@ pub(crate) struct GradientSetup {
     pub(crate) lower: AlignedVec,
     pub(crate) upper: AlignedVec,
     pub(crate) kernel: Kernel,
-    /// The problem's structured Hessian, used instead of the dense kernel when
-    /// n ≥ [`STRUCTURED_MIN_N`] (or when forced).
+    /// The problem's structured Hessian, used instead of the dense kernel when n ≥ its
+    /// [`HessianOperator::dense_crossover`] (or when forced).
     pub(crate) op: Option<Arc<dyn HessianOperator>>,
 }
 
@@ -61,7 +61,10 @@ impl GradientSetup {
             lower: AlignedVec::padded(qp.zset().lower()),
             upper: AlignedVec::padded(qp.zset().upper()),
             kernel: Kernel::detect(),
-            op: qp.operator().filter(|_| n >= STRUCTURED_MIN_N).cloned(),
+            op: qp
+                .operator()
+                .filter(|op| n >= op.dense_crossover())
+                .cloned(),
             qp,
         }
     }
@@ -196,8 +199,8 @@ impl ProjectedGradient {
         Ok(pg)
     }
 
-    /// Whether the steps use the problem's structured Hessian (n ≥ [`STRUCTURED_MIN_N`]
-    /// and the problem has one) instead of the dense kernel.
+    /// Whether the steps use the problem's structured Hessian (the problem has one and
+    /// n ≥ its [`HessianOperator::dense_crossover`]) instead of the dense kernel.
     pub fn is_structured(&self) -> bool {
         self.g.op.is_some()
     }

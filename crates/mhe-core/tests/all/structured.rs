@@ -9,7 +9,7 @@ use mhe_core::{MheProblem, MheSets, MheWindow};
 use qp_iter::fista::Fista;
 use qp_iter::kernel::Kernel;
 use qp_iter::method::{Method, MethodMap, Scaling};
-use qp_iter::operator::{HessianOperator, STRUCTURED_MIN_N};
+use qp_iter::operator::HessianOperator;
 use qp_iter::pg::{ProjectedGradient, StepRule};
 use qp_iter::{IterationMap, ParametricQp};
 use rand::{Rng, SeedableRng};
@@ -148,6 +148,11 @@ fn structured_product_equals_the_dense_hessian() {
     );
 }
 
+/// n from which PG and FISTA take the problem's operator.
+fn crossover(qp: &ParametricQp) -> usize {
+    qp.operator().unwrap().dense_crossover()
+}
+
 /// The QP without its operator: the dense kernel only.
 fn dense(qp: &ParametricQp) -> ParametricQp {
     ParametricQp::new(
@@ -196,7 +201,7 @@ fn max_relative_gap<A: IterationMap, B: IterationMap>(
 
 /// PG and FISTA through the operator give the dense kernel's iterates up to rounding:
 /// 1e-12 relative over 100 steps, on random windows (forced structured below the
-/// crossover) and on the stand-in at M = 50 (structured by the crossover).
+/// crossover) and on the stand-in at M = 12 and 50 (structured by the crossover).
 #[test]
 fn structured_projected_gradient_and_fista_match_the_dense_kernel() {
     let mut rng = ChaCha8Rng::seed_from_u64(5);
@@ -206,17 +211,19 @@ fn structured_projected_gradient_and_fista_match_the_dense_kernel() {
             problem(&f).windows().last().unwrap().qp().clone()
         })
         .collect();
-    let stand_in = problem(&case_study(50, 1, false))
-        .window(50)
-        .unwrap()
-        .qp()
-        .clone();
-    assert!(stand_in.n() >= STRUCTURED_MIN_N);
-    windows.push(stand_in);
+    for m in [12, 50] {
+        let stand_in = problem(&case_study(m, 1, false))
+            .window(m)
+            .unwrap()
+            .qp()
+            .clone();
+        assert!(stand_in.n() >= crossover(&stand_in));
+        windows.push(stand_in);
+    }
     let mut worst = 0.0_f64;
     for qp in &windows {
         let d = dense(qp);
-        let forced = qp.n() < STRUCTURED_MIN_N;
+        let forced = qp.n() < crossover(qp);
         let pg = if forced {
             ProjectedGradient::new_structured(qp.clone(), StepRule::Optimal).unwrap()
         } else {
@@ -246,17 +253,17 @@ fn structured_projected_gradient_and_fista_match_the_dense_kernel() {
 }
 
 /// The Jacobi-scaled PG and FISTA (`Scaled` over `DiagonalScaled`, D folded into the
-/// structured passes) against the same maps on the dense problem, M = 40 and 50.
+/// structured passes) against the same maps on the dense problem, M = 12, 40 and 50.
 #[test]
 fn jacobi_scaled_maps_run_structured_and_match_the_dense_kernel() {
     let mut rng = ChaCha8Rng::seed_from_u64(6);
-    for m in [40, 50] {
+    for m in [12, 40, 50] {
         let qp = problem(&case_study(m, 1, false))
             .window(m)
             .unwrap()
             .qp()
             .clone();
-        assert!(qp.n() >= STRUCTURED_MIN_N);
+        assert!(qp.n() >= crossover(&qp));
         for method in [Method::PG, Method::FISTA] {
             let method = method.with_scaling(Scaling::Jacobi);
             let (s, d) = (

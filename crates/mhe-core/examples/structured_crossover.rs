@@ -3,8 +3,10 @@
 //! crossover behind `qp_iter::operator::STRUCTURED_MIN_N`. The variants take turns batch by
 //! batch (41 rounds, the first untimed), each figure is its fastest batch, so the ratios
 //! are from the same conditions (a shared machine).
-//! With `--detail`: also the product H_c z alone, fixed-size and run-time-size
-//! (`MheHessian::generic`), and PG on the run-time-size product. With `--shapes`: PG dense
+//! With `--detail` (M = 5 … 50): the product H_c z alone — the dense kernel, the
+//! fixed-size blocks with AVX2 + FMA (as built) and without (portable), the run-time-size
+//! passes (`MheHessian::generic`) — the Jacobi-scaled PG and FISTA dense against
+//! structured, and PG on the run-time-size product. With `--shapes`: PG dense
 //! against structured on random plants of other shapes (n_x, n_y, n_w1, n_w2): exact
 //! fixed-size, zero-padded and run-time-size products.
 //! Run: `cargo run --release -p mhe-core --example structured_crossover [-- --detail]`.
@@ -18,8 +20,10 @@ use lti_model::BoxSet;
 use mhe_core::structured::MheHessian;
 use mhe_core::{MheProblem, MheSets, MheWeights};
 use qp_iter::fista::Fista;
+use qp_iter::kernel::{AlignedVec, Kernel, PaddedSymmetric};
 use qp_iter::operator::HessianOperator;
 use qp_iter::pg::{ProjectedGradient, StepRule};
+use qp_iter::scaled::{Scaled, jacobi_scaling};
 use qp_iter::{IterationMap, ParametricQp};
 
 /// One timed variant: a name and a batch of `per_batch` operations.
@@ -50,6 +54,21 @@ fn steps<'a, M: IterationMap>(map: &'a M, theta: &[f64], k: usize) -> Box<dyn Fn
         map.warm_start(&mut s, &z0, None);
         map.run_steps(&mut s, k);
         black_box(map.iterate(&s));
+    })
+}
+
+/// A batch of `k` dense products H_c z (the kernel the dense steps run).
+fn dense_products(qp: &ParametricQp, k: usize) -> Box<dyn FnMut() + '_> {
+    let n = qp.n();
+    let h = PaddedSymmetric::from_fn(n, |i, j| qp.h()[(i, j)]);
+    let z = AlignedVec::padded(&(0..n).map(|i| (i as f64).sin()).collect::<Vec<_>>());
+    let mut y = AlignedVec::zeros(h.ld());
+    let kernel = Kernel::detect();
+    Box::new(move || {
+        for _ in 0..k {
+            kernel.matvec_padded(&h, black_box(&z), &mut y);
+        }
+        black_box(&y);
     })
 }
 
@@ -151,14 +170,21 @@ fn main() -> Result<(), Box<dyn std::error::Error>> {
         q,
         r,
     };
-    print!(
-        "    M    n_z   PG dense   PG struct   ratio   FISTA dense   FISTA struct   ratio  (µs/step)"
-    );
     if detail {
-        print!("   H_c z fixed   H_c z generic   PG generic");
+        println!(
+            "    M    n_z | H_c z: dense  fixed  portable  generic | PG-J: dense  struct | FISTA-J: dense  struct | PG generic  (µs)"
+        );
+    } else {
+        println!(
+            "    M    n_z   PG dense   PG struct   ratio   FISTA dense   FISTA struct   ratio  (µs/step)"
+        );
     }
-    println!();
-    for m in [2, 5, 8, 10, 11, 12, 13, 14, 15, 20, 25, 30, 40, 50] {
+    let grid: &[usize] = if detail {
+        &[5, 10, 20, 30, 50]
+    } else {
+        &[2, 5, 8, 10, 11, 12, 13, 14, 15, 20, 25, 30, 40, 50]
+    };
+    for &m in grid {
         let prob = MheProblem::new(&sys, m, &weights, &sets)?;
         let w = prob.window(m).ok_or("window")?;
         let qp = w.qp().clone();
@@ -168,7 +194,35 @@ fn main() -> Result<(), Box<dyn std::error::Error>> {
             qp.f().to_owned(),
             qp.zset().clone(),
         )?;
-        let generic = MheHessian::new(
+        let theta = vec![0.5; qp.n_theta()];
+        let k = (20_000 / qp.n()).max(10);
+        if !detail {
+            // Force the structured path whatever the crossover says.
+            let (pg_d, pg_s) = (
+                ProjectedGradient::new(dense_qp.clone(), StepRule::Optimal)?,
+                ProjectedGradient::new_structured(qp.clone(), StepRule::Optimal)?,
+            );
+            let (fi_d, fi_s) = (Fista::new(dense_qp), Fista::new_structured(qp.clone()));
+            let mut v: Vec<Variant<'_>> = vec![
+                ("pg dense", k, steps(&pg_d, &theta, k)),
+                ("pg structured", k, steps(&pg_s, &theta, k)),
+                ("fista dense", k, steps(&fi_d, &theta, k)),
+                ("fista structured", k, steps(&fi_s, &theta, k)),
+            ];
+            let t = interleave(&mut v, 40);
+            println!(
+                "{m:>5} {:>6} {:>10.3} {:>11.3} {:>7.2} {:>13.3} {:>14.3} {:>7.2}",
+                qp.n(),
+                t[0],
+                t[1],
+                t[1] / t[0],
+                t[2],
+                t[3],
+                t[3] / t[2]
+            );
+            continue;
+        }
+        let op = MheHessian::new(
             w.layout(),
             sys.a(),
             sys.c(),
@@ -178,45 +232,63 @@ fn main() -> Result<(), Box<dyn std::error::Error>> {
             weights.p.as_ref(),
             weights.q.as_ref(),
             weights.r.as_ref(),
-        )
-        .generic();
-        let fixed = qp.operator().ok_or("operator")?.clone();
-        let generic_qp = qp.clone().with_operator(Arc::new(generic.clone()))?;
-        let theta = vec![0.5; qp.n_theta()];
-        // Force the structured path whatever the crossover constant says.
-        let (pg_d, pg_s, pg_g) = (
-            ProjectedGradient::new(dense_qp.clone(), StepRule::Optimal)?,
-            ProjectedGradient::new_structured(qp.clone(), StepRule::Optimal)?,
-            ProjectedGradient::new_structured(generic_qp, StepRule::Optimal)?,
         );
-        let (fi_d, fi_s) = (Fista::new(dense_qp), Fista::new_structured(qp.clone()));
-        let k = (20_000 / qp.n()).max(10);
+        let (portable, generic) = (
+            op.clone().with_kernel(Kernel::portable()),
+            op.clone().generic(),
+        );
+        let generic_qp = qp.clone().with_operator(Arc::new(generic.clone()))?;
+        let pg_g = ProjectedGradient::new_structured(generic_qp, StepRule::Optimal)?;
+        // Jacobi-scaled PG and FISTA (what `pg-jacobi`, `fista-jacobi` build), dense
+        // problem against the problem with its operator, structured path forced.
+        let d = jacobi_scaling(&qp);
+        let pg = |q: ParametricQp, s: bool| {
+            if s {
+                ProjectedGradient::new_structured(q, StepRule::Optimal)
+            } else {
+                ProjectedGradient::new(q, StepRule::Optimal)
+            }
+        };
+        let fi = |q: ParametricQp, s: bool| {
+            Ok(if s {
+                Fista::new_structured(q)
+            } else {
+                Fista::new(q)
+            })
+        };
+        let (pgj_d, pgj_s) = (
+            Scaled::new(dense_qp.clone(), d.clone(), |q| pg(q, false))?,
+            Scaled::new(qp.clone(), d.clone(), |q| pg(q, true))?,
+        );
+        let (fij_d, fij_s) = (
+            Scaled::new(dense_qp, d.clone(), |q| fi(q, false))?,
+            Scaled::new(qp.clone(), d, |q| fi(q, true))?,
+        );
         let mut v: Vec<Variant<'_>> = vec![
-            ("pg dense", k, steps(&pg_d, &theta, k)),
-            ("pg structured", k, steps(&pg_s, &theta, k)),
-            ("fista dense", k, steps(&fi_d, &theta, k)),
-            ("fista structured", k, steps(&fi_s, &theta, k)),
+            ("H_c z dense", k, dense_products(&qp, k)),
+            ("H_c z fixed", k, products(&op, k)),
+            ("H_c z portable", k, products(&portable, k)),
+            ("H_c z generic", k, products(&generic, k)),
+            ("pg-jacobi dense", k, steps(&pgj_d, &theta, k)),
+            ("pg-jacobi structured", k, steps(&pgj_s, &theta, k)),
+            ("fista-jacobi dense", k, steps(&fij_d, &theta, k)),
+            ("fista-jacobi structured", k, steps(&fij_s, &theta, k)),
+            ("pg generic", k, steps(&pg_g, &theta, k)),
         ];
-        if detail {
-            v.push(("H_c z fixed", k, products(&*fixed, k)));
-            v.push(("H_c z generic", k, products(&generic, k)));
-            v.push(("pg generic", k, steps(&pg_g, &theta, k)));
-        }
         let t = interleave(&mut v, 40);
-        print!(
-            "{m:>5} {:>6} {:>10.3} {:>11.3} {:>7.2} {:>13.3} {:>14.3} {:>7.2}",
+        println!(
+            "{m:>5} {:>6} | {:>11.3} {:>6.3} {:>9.3} {:>8.3} | {:>10.3} {:>7.3} | {:>13.3} {:>7.3} | {:>10.3}",
             qp.n(),
             t[0],
             t[1],
-            t[1] / t[0],
             t[2],
             t[3],
-            t[3] / t[2]
+            t[4],
+            t[5],
+            t[6],
+            t[7],
+            t[8]
         );
-        if detail {
-            print!("{:>14.3} {:>15.3} {:>12.3}", t[4], t[5], t[6]);
-        }
-        println!();
     }
     Ok(())
 }

@@ -94,6 +94,7 @@ fn shapes() -> Result<(), Box<dyn std::error::Error>> {
         (3, 1, 3, 1),
         (6, 3, 6, 3),
         (12, 6, 6, 6),
+        (12, 6, 12, 6),
         (17, 2, 17, 2),
     ] {
         let (nx, ny, nw1, nw2) = shape;
@@ -121,7 +122,7 @@ fn shapes() -> Result<(), Box<dyn std::error::Error>> {
             q: Mat::identity(nw1 + nw2, nw1 + nw2),
             r: Mat::identity(ny, ny),
         };
-        for m in [5, 10, 20, 40] {
+        for m in [5, 9, 10, 20, 40] {
             let prob = MheProblem::new(&sys, m, &weights, &sets)?;
             let qp = prob.window(m).ok_or("window")?.qp().clone();
             let dense_qp = ParametricQp::new(

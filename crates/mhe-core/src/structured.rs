@@ -38,7 +38,7 @@ pub const SPECIALISED_SHAPES: [(usize, usize, usize, usize); 3] =
 /// (4, 2, 4, 2) and (2, 1, 2, 1): `docs/benchmarks.md`, "Structured iteration").
 pub const EXACT_CROSSOVER: usize = 64;
 /// The same for the zero-padded fixed-size products (measured on (3, 1, 3, 1), (6, 3, 6, 3),
-/// (12, 6, 6, 6)).
+/// (12, 6, 6, 6), (12, 6, 12, 6)).
 pub const PADDED_CROSSOVER: usize = 160;
 /// The same for the run-time-size product (measured on (17, 2, 17, 2)).
 pub const RUN_TIME_CROSSOVER: usize = 400;

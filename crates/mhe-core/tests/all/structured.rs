@@ -285,6 +285,43 @@ fn jacobi_scaled_maps_run_structured_and_match_the_dense_kernel() {
     }
 }
 
+/// Each shape gets the implementation, and so the crossover, the docs say: exact for
+/// `SPECIALISED_SHAPES`, padded up to 16, run-time sizes beyond.
+#[test]
+fn shapes_get_their_implementation_and_crossover() {
+    use mhe_core::structured::{
+        EXACT_CROSSOVER, PADDED_CROSSOVER, RUN_TIME_CROSSOVER, SPECIALISED_SHAPES,
+    };
+    let cases = SPECIALISED_SHAPES
+        .iter()
+        .map(|&s| (s, EXACT_CROSSOVER))
+        .chain([
+            ((3, 1, 3, 1), PADDED_CROSSOVER),
+            ((4, 1, 3, 1), PADDED_CROSSOVER),
+            ((12, 6, 12, 6), PADDED_CROSSOVER),
+            ((16, 16, 16, 16), PADDED_CROSSOVER),
+            ((17, 2, 3, 1), RUN_TIME_CROSSOVER),
+            ((4, 1, 17, 1), RUN_TIME_CROSSOVER),
+        ]);
+    for (k, (shape, crossover)) in cases.enumerate() {
+        let f = sized_fixture(200 + k as u64, shape, 3);
+        let prob = problem(&f);
+        let w = prob.window(3).unwrap();
+        let op = &variants(&f, w)[0].1;
+        assert_eq!(op.dense_crossover(), crossover, "{shape:?}");
+        assert_eq!(
+            op.is_specialised(),
+            crossover != RUN_TIME_CROSSOVER,
+            "{shape:?}"
+        );
+        assert_eq!(
+            w.qp().operator().unwrap().dense_crossover(),
+            crossover,
+            "{shape:?}"
+        );
+    }
+}
+
 /// The run-time-size product on the stand-in equals the fixed-size one to rounding (both
 /// against each other, a second independent path).
 #[test]

@@ -105,3 +105,47 @@ fn estimate_and_push_do_not_allocate() {
     let v = std::hint::black_box(vec![1.0_f64; 3]);
     assert!(alloc_counter::count() > before && v.len() == 3);
 }
+
+/// The structured steps (n above the crossover: the stand-in at M = 50) of PG and FISTA,
+/// plain and Jacobi-scaled, and an MHE at M = 50 running them, allocate nothing.
+#[test]
+fn structured_steps_do_not_allocate() {
+    use qp_iter::method::{Method, Scaling};
+    use qp_iter::operator::HessianOperator;
+    let (sys, sets, mut cfg) = case_study(WarmStart::Paper);
+    cfg.horizon = 50;
+    let weights = mhe_core::MheWeights {
+        eta: cfg.eta,
+        p: cfg.p.clone(),
+        q: cfg.q.clone(),
+        r: cfg.r.clone(),
+    };
+    let prob = mhe_core::MheProblem::new(&sys, 50, &weights, &sets).unwrap();
+    let qp = prob.window(50).unwrap().qp().clone();
+    assert!(qp.n() >= qp.operator().unwrap().dense_crossover());
+    let theta = vec![0.3; qp.n_theta()];
+    let z0 = vec![0.01; qp.n()];
+    for method in [Method::PG, Method::FISTA] {
+        for method in [method, method.with_scaling(Scaling::Jacobi)] {
+            let map = method.build(qp.clone()).unwrap();
+            let mut s = map.new_state();
+            let before = alloc_counter::count();
+            for _ in 0..3 {
+                map.load(&mut s, &theta);
+                map.warm_start(&mut s, &z0, None);
+                map.step(&mut s);
+                map.run_steps(&mut s, 20);
+            }
+            let n = alloc_counter::count() - before;
+            assert_eq!(n, 0, "{method}: {n} allocations");
+            assert!(map.iterate(&s).iter().all(|v| v.is_finite()));
+        }
+        let mut mhe = MheEstimator::new(&sys, &sets, &cfg, &[7.0, -7.0, 3.0, -5.0], |qp| {
+            method.with_scaling(Scaling::Jacobi).build(qp)
+        })
+        .unwrap();
+        // Steps 0..50 grow the window (windows ≥ 12 run structured), then steady state.
+        let n = allocations_per_run(&mut mhe, 0, 60);
+        assert_eq!(n, 0, "MHE {method}-jacobi at M = 50: {n} allocations");
+    }
+}

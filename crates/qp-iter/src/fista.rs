@@ -42,7 +42,7 @@
 
 use crate::IterationMap;
 use crate::certificate::{BoundedQuantity, CertNorm, Certificate};
-use crate::kernel::Vectors;
+use crate::kernel::{Vectors, clamp_nan_propagating};
 use crate::pg::GradientSetup;
 use crate::problem::ParametricQp;
 
@@ -68,6 +68,8 @@ pub struct FistaState {
     v: Vectors<4>,
     /// True right after a warm/cold start: the next step is the plain PG step x₀ = T(z⁰).
     restart: bool,
+    /// Workspace of the structured Hessian (empty for the dense kernel).
+    work: Vec<f64>,
 }
 
 impl Fista {
@@ -118,6 +120,21 @@ impl Fista {
         }
     }
 
+    /// Like [`Fista::new`], but always through the problem's structured Hessian when it has
+    /// one, whatever n (to measure the crossover).
+    pub fn new_structured(qp: ParametricQp) -> Self {
+        let mut f = Self::new(qp);
+        f.g.force_structured();
+        f
+    }
+
+    /// Whether the steps use the problem's structured Hessian (the problem has one and
+    /// n ≥ its [`crate::operator::HessianOperator::dense_crossover`]) instead of the dense
+    /// kernel.
+    pub fn is_structured(&self) -> bool {
+        self.g.op.is_some()
+    }
+
     /// The momentum β = (√κ − 1)/(√κ + 1).
     pub fn momentum(&self) -> f64 {
         self.beta
@@ -149,6 +166,7 @@ impl IterationMap for Fista {
         let mut s = FistaState {
             v: self.g.vectors(Q),
             restart: true,
+            work: self.g.op_work(),
         };
         self.cold_start(&mut s);
         s
@@ -173,8 +191,30 @@ impl IterationMap for Fista {
         s.restart = false;
         let g = &self.g;
         let [z, y, scratch, q] = s.v.all_mut();
-        g.kernel
-            .fista_step_padded(&g.h, y, q, self.inv_l, &g.lower, &g.upper, b, z, scratch);
+        match &g.op {
+            // Hy through the problem's structure (O(M) for the MHE), then the kernel's
+            // update: NaN-preserving clamp, y⁺ = (1 + β)x⁺ − βx.
+            Some(op) => {
+                let n = g.qp.n();
+                op.apply(&y[..n], &mut scratch[..n], &mut s.work);
+                let a = self.inv_l;
+                for (((((y, z), hy), q), l), u) in y[..n]
+                    .iter_mut()
+                    .zip(&mut z[..n])
+                    .zip(&scratch[..n])
+                    .zip(&q[..n])
+                    .zip(&g.lower[..n])
+                    .zip(&g.upper[..n])
+                {
+                    let x = clamp_nan_propagating(*y - a * (hy + q), *l, *u);
+                    *y = (1.0 + b) * x - b * *z;
+                    *z = x;
+                }
+            }
+            None => g
+                .kernel
+                .fista_step_padded(&g.h, y, q, self.inv_l, &g.lower, &g.upper, b, z, scratch),
+        }
     }
     fn iterate<'s>(&self, state: &'s FistaState) -> &'s [f64] {
         self.g.head(state.v.get(Z))

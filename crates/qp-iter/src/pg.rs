@@ -19,9 +19,10 @@
 use crate::IterationMap;
 use crate::certificate::{BoundedQuantity, CertNorm, Certificate};
 use crate::error::{QpError, Result};
-use crate::kernel::{AlignedVec, Kernel, PaddedSymmetric, Vectors};
-use crate::operator::{HessianOperator, STRUCTURED_MIN_N};
+use crate::kernel::{AlignedVec, Kernel, PaddedSymmetric, Vectors, clamp_nan_propagating};
+use crate::operator::HessianOperator;
 use crate::problem::ParametricQp;
+use std::sync::Arc;
 
 /// Step-size rule of [`ProjectedGradient`].
 #[derive(Debug, Clone, Copy, PartialEq)]
@@ -37,7 +38,8 @@ pub enum StepRule {
 
 /// What projected gradient and FISTA share: the problem, H and the box in the padded
 /// layout of the kernels ([`crate::kernel::PaddedSymmetric`], zero padding), the kernel,
-/// and the handling of the padded state vectors (linear term, warm and cold start).
+/// the structured Hessian when it replaces the dense kernel, and the handling of the
+/// padded state vectors (linear term, warm and cold start).
 #[derive(Debug, Clone)]
 pub(crate) struct GradientSetup {
     pub(crate) qp: ParametricQp,
@@ -45,6 +47,9 @@ pub(crate) struct GradientSetup {
     pub(crate) lower: AlignedVec,
     pub(crate) upper: AlignedVec,
     pub(crate) kernel: Kernel,
+    /// The problem's structured Hessian, used instead of the dense kernel when n ≥ its
+    /// [`HessianOperator::dense_crossover`] (or when forced).
+    pub(crate) op: Option<Arc<dyn HessianOperator>>,
 }
 
 impl GradientSetup {
@@ -56,8 +61,22 @@ impl GradientSetup {
             lower: AlignedVec::padded(qp.zset().lower()),
             upper: AlignedVec::padded(qp.zset().upper()),
             kernel: Kernel::detect(),
+            op: qp
+                .operator()
+                .filter(|op| n >= op.dense_crossover())
+                .cloned(),
             qp,
         }
+    }
+
+    /// Uses the problem's structured Hessian (if it has one) whatever n.
+    pub(crate) fn force_structured(&mut self) {
+        self.op = self.qp.operator().cloned();
+    }
+
+    /// Workspace of the structured Hessian (empty for the dense kernel).
+    pub(crate) fn op_work(&self) -> Vec<f64> {
+        vec![0.0; self.op.as_ref().map_or(0, |op| op.work_len())]
     }
 
     /// `K` padded zero vectors; vector `q` holds the padded q₀ (the linear term of θ = 0).
@@ -97,9 +116,6 @@ pub struct ProjectedGradient {
     g: GradientSetup,
     alpha: f64,
     cert: Certificate,
-    /// The problem's structured Hessian, used instead of the dense kernel when
-    /// n ≥ [`STRUCTURED_MIN_N`].
-    structured: Option<std::sync::Arc<dyn HessianOperator>>,
 }
 
 /// State of [`ProjectedGradient`]: the iterate (updated in place), the kernel's scratch
@@ -163,15 +179,10 @@ impl ProjectedGradient {
             source: "Nesterov (2018) Thm 2.1.15; contraction of z ↦ Π(z − α∇f(z)) for quadratics"
                 .into(),
         };
-        let structured = qp
-            .operator()
-            .filter(|_| qp.n() >= STRUCTURED_MIN_N)
-            .cloned();
         Ok(Self {
             g: GradientSetup::new(qp),
             alpha,
             cert,
-            structured,
         })
     }
 
@@ -183,16 +194,15 @@ impl ProjectedGradient {
     /// Like [`ProjectedGradient::new`], but always through the problem's structured Hessian
     /// when it has one, whatever n (to measure the crossover).
     pub fn new_structured(qp: ParametricQp, rule: StepRule) -> Result<Self> {
-        let op = qp.operator().cloned();
         let mut pg = Self::new(qp, rule)?;
-        pg.structured = op;
+        pg.g.force_structured();
         Ok(pg)
     }
 
-    /// Whether the steps use the problem's structured Hessian (n ≥ [`STRUCTURED_MIN_N`]
-    /// and the problem has one) instead of the dense kernel.
+    /// Whether the steps use the problem's structured Hessian (the problem has one and
+    /// n ≥ its [`HessianOperator::dense_crossover`]) instead of the dense kernel.
     pub fn is_structured(&self) -> bool {
-        self.structured.is_some()
+        self.g.op.is_some()
     }
 }
 
@@ -208,7 +218,7 @@ impl IterationMap for ProjectedGradient {
     fn new_state(&self) -> PgState {
         let mut s = PgState {
             v: self.g.vectors(Q),
-            work: vec![0.0; self.structured.as_ref().map_or(0, |op| op.work_len())],
+            work: self.g.op_work(),
         };
         self.cold_start(&mut s);
         s
@@ -228,22 +238,21 @@ impl IterationMap for ProjectedGradient {
         // clamp), in place: no copy, no allocation, nothing else in the state changes.
         let g = &self.g;
         let [z, scratch, q] = s.v.all_mut();
-        match &self.structured {
+        match &g.op {
             // Hz through the problem's structure (O(M) for the MHE), then the same
             // update and NaN-preserving clamp as the kernel.
             Some(op) => {
                 let n = g.qp.n();
                 op.apply(&z[..n], &mut scratch[..n], &mut s.work);
-                let (lo, hi) = (g.qp.zset().lower(), g.qp.zset().upper());
-                for i in 0..n {
-                    let v = z[i] - self.alpha * (scratch[i] + q[i]);
-                    z[i] = if v < lo[i] {
-                        lo[i]
-                    } else if v > hi[i] {
-                        hi[i]
-                    } else {
-                        v
-                    };
+                let a = self.alpha;
+                for ((((z, hz), q), l), u) in z[..n]
+                    .iter_mut()
+                    .zip(&scratch[..n])
+                    .zip(&q[..n])
+                    .zip(&g.lower[..n])
+                    .zip(&g.upper[..n])
+                {
+                    *z = clamp_nan_propagating(*z - a * (hz + q), *l, *u);
                 }
             }
             None => g

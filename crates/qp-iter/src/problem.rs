@@ -78,7 +78,8 @@ impl ParametricQp {
     }
 
     /// Attaches a structured Hessian operator (it must compute the same Hz; projected
-    /// gradient uses it above [`crate::operator::STRUCTURED_MIN_N`] variables).
+    /// gradient and FISTA use it from its
+    /// [`dense_crossover`](crate::operator::HessianOperator::dense_crossover) variables).
     pub fn with_operator(mut self, op: std::sync::Arc<dyn HessianOperator>) -> Result<Self> {
         if op.n() != self.n() {
             return Err(QpError::Parameter {

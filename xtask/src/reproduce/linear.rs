@@ -1,7 +1,5 @@
 //! The exact linear stability boundary per method, for certificate.json and the summary.
 
-use rayon::prelude::*;
-
 use super::*;
 
 /// ρ_lin of one method, or why it has none.
@@ -16,8 +14,9 @@ pub struct LinearEntry {
 }
 
 /// K grid of the linear analysis: 25 log-spaced K from 1 to max(2000, every K_min), for
-/// every method of the certificate; the methods run in parallel on the global rayon pool
-/// (each analysis is sequential inside, so the result does not depend on the thread count).
+/// every method of the certificate; every (method, K) pair is a task on the global rayon pool
+/// ([`closed_loop::linear::linear_stability_all`]; the result does not depend on the thread
+/// count).
 pub(super) fn linear_entries(
     resolved: &ResolvedScenario,
     cert: &ClosedLoopCertificate,
@@ -29,16 +28,28 @@ pub(super) fn linear_entries(
         .fold(2000, usize::max);
     let grid = closed_loop::sweep::log_spaced(1, top, 25);
     let methods: Vec<Method> = cert.solvers.iter().map(|s| s.solver).collect();
-    methods
-        .par_iter()
+    let options: Vec<Result<LoopOptions, ClosedLoopError>> = methods
+        .iter()
         .map(|&m| {
-            let result = LoopOptions::from_scenario(resolved.scenario())
-                .map_err(closed_loop::linear::LinearError::from)
-                .and_then(|mut o| {
-                    o.method = m;
-                    o.controller = ControllerChoice::ExactMpc;
-                    closed_loop::linear::linear_stability(resolved, &o, &grid, faer::Par::Seq)
-                });
+            LoopOptions::from_scenario(resolved.scenario()).map(|mut o| {
+                o.method = m;
+                o.controller = ControllerChoice::ExactMpc;
+                o
+            })
+        })
+        .collect();
+    let ok: Vec<LoopOptions> = options.iter().filter_map(|o| o.as_ref().ok().copied()).collect();
+    let mut reports = closed_loop::linear::linear_stability_all(resolved, &ok, &grid).into_iter();
+    methods
+        .iter()
+        .zip(options)
+        .map(|(&m, o)| {
+            let result = match o {
+                Ok(_) => reports
+                    .next()
+                    .unwrap_or(Err(closed_loop::linear::LinearError::ZeroIterations)),
+                Err(e) => Err(closed_loop::linear::LinearError::from(e)),
+            };
             let (report, error) = match result {
                 Ok(r) => (Some(r), None),
                 Err(e) => (None, Some(e.to_string())),

@@ -178,12 +178,70 @@ pub fn linear_stability(
     if k_grid.is_empty() || k_grid.contains(&0) {
         return Err(LinearError::ZeroIterations);
     }
+    lifted_loop(resolved, options, k_grid[0], par)?.report(k_grid, par)
+}
+
+/// The lifted loop of `options` on the noise-free copy of `resolved` (module docs).
+fn lifted_loop(
+    resolved: &ResolvedScenario,
+    options: &LoopOptions,
+    k: usize,
+    par: Par,
+) -> Result<LiftedLoop, LinearError> {
     let mut quiet = resolved.clone();
     quiet.set_noise_scale(0.0);
     let mut opts = *options;
     opts.steps = 1;
-    opts.iterations = k_grid[0];
+    opts.iterations = k;
     opts.exact_mhe_solve = false;
     let cl = quiet.build_loop(&opts)?;
-    LiftedLoop::from_loop(&cl, &quiet, opts.method, par)?.report(k_grid, par)
+    LiftedLoop::from_loop(&cl, &quiet, opts.method, par)
+}
+
+/// [`linear_stability`] for several loops (e.g. one per method) on one grid, with every
+/// (loop, K) pair an independent task on the global rayon pool: the eigenvalue problems
+/// dominate and are balanced across threads, not one loop per thread. Each ρ_lin is computed
+/// sequentially inside, so the results do not depend on the thread count.
+pub fn linear_stability_all(
+    resolved: &ResolvedScenario,
+    options: &[LoopOptions],
+    k_grid: &[usize],
+) -> Vec<Result<LinearReport, LinearError>> {
+    use rayon::prelude::*;
+    if k_grid.is_empty() || k_grid.contains(&0) {
+        return options
+            .iter()
+            .map(|_| Err(LinearError::ZeroIterations))
+            .collect();
+    }
+    let lifted: Vec<Result<LiftedLoop, LinearError>> = options
+        .par_iter()
+        .map(|o| lifted_loop(resolved, o, k_grid[0], Par::Seq))
+        .collect();
+    let tasks: Vec<(usize, usize)> = lifted
+        .iter()
+        .enumerate()
+        .filter(|(_, l)| l.is_ok())
+        .flat_map(|(i, _)| k_grid.iter().map(move |&k| (i, k)))
+        .collect();
+    let rhos: Vec<Result<f64, LinearError>> = tasks
+        .par_iter()
+        .map(|&(i, k)| match &lifted[i] {
+            Ok(l) => l.spectral_radius(k, Par::Seq),
+            Err(_) => Err(LinearError::ZeroIterations),
+        })
+        .collect();
+    let mut out = Vec::with_capacity(options.len());
+    let mut next = tasks.iter().zip(rhos);
+    for l in lifted {
+        out.push(l.and_then(|l| {
+            let pairs = next
+                .by_ref()
+                .take(k_grid.len())
+                .map(|(&(_, k), r)| r.map(|r| (k, r)))
+                .collect::<Result<Vec<_>, LinearError>>()?;
+            Ok(LinearReport::from_pairs(l.solver(), l.dim(), pairs))
+        }));
+    }
+    out
 }

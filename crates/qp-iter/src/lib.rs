@@ -2,7 +2,8 @@
 //!
 //! Iteration maps Φ for parametric QPs (Assumption 5 of Yang–Manzie–Pu, eq. (11)):
 //!
-//! minimise ½ zᵀHz + (q₀ + Fθ)ᵀz subject to z ∈ Z (a box with ±∞ bounds).
+//! minimise ½ zᵀHz + (q₀ + Fθ)ᵀz subject to z ∈ Z (a box with ±∞ bounds) and, optionally,
+//! l₀ − Eθ ≤ Gz ≤ u₀ − Eθ ([`GeneralConstraints`]).
 //!
 //! - [`ParametricQp`]: validated problem data (H ≻ 0 symmetric, shapes, finite entries).
 //! - [`IterationMap`]: the algorithm object Φ (setup data only, `Send + Sync`) with a
@@ -21,6 +22,7 @@ pub mod active_set;
 pub mod admm;
 pub mod certificate;
 pub mod driver;
+pub mod dual_active_set;
 pub mod error;
 pub mod fista;
 mod free_factor;
@@ -36,7 +38,7 @@ pub use certificate::{BoundedQuantity, CertNorm, Certificate};
 pub use driver::{RunResult, RunStatus, run_fixed, run_until};
 pub use error::{QpError, Result};
 pub use method::{Method, MethodKind, MethodMap, MethodState, Scaling};
-pub use problem::ParametricQp;
+pub use problem::{GeneralConstraints, ParametricQp};
 
 /// The iteration map Φ of Assumption 5: z^{k+1} = Φ(z^k, θ).
 ///

@@ -8,6 +8,7 @@ mod behaviour;
 mod certificates;
 mod common;
 mod errors;
+mod general;
 mod premise;
 mod reference;
 mod scaled;

@@ -184,16 +184,21 @@ pub struct DualActiveSet {
 impl DualActiveSet {
     /// Sets the solver up for H (n × n, symmetric positive definite) and G (m × n).
     /// Factorises H once.
-    pub fn new(h: MatRef<'_, f64>, g: MatRef<'_, f64>, settings: DualActiveSetSettings) -> Result<Self> {
+    pub fn new(
+        h: MatRef<'_, f64>,
+        g: MatRef<'_, f64>,
+        settings: DualActiveSetSettings,
+    ) -> Result<Self> {
         let n = h.nrows();
         lti_model::matrix::check_positive_definite("H", h, n)?;
         let mut s = Self::identity(n, g, settings)?;
-        let llt = h.to_owned().llt(Side::Lower).map_err(|e| {
-            lti_model::ModelError::Numerical {
+        let llt = h
+            .to_owned()
+            .llt(Side::Lower)
+            .map_err(|e| lti_model::ModelError::Numerical {
                 routine: "Cholesky factorisation of H (dual active set)".into(),
                 reason: format!("{e:?}; H must be positive definite"),
-            }
-        })?;
+            })?;
         let l = llt.L();
         // J = L⁻ᵀ: solve Lᵀ J = I column by column (back substitution).
         let mut j0 = vec![0.0; n * n];
@@ -239,13 +244,29 @@ impl DualActiveSet {
         }
         lti_model::matrix::check_shape("G", g, g.nrows(), n)?;
         lti_model::matrix::check_finite("G", g)?;
+        Ok(Self::identity_validated(n, g, settings))
+    }
+
+    /// [`DualActiveSet::identity`] for settings and a G already validated (a
+    /// [`crate::problem::GeneralConstraints`] with the default settings).
+    pub(crate) fn identity_validated(
+        n: usize,
+        g: MatRef<'_, f64>,
+        settings: DualActiveSetSettings,
+    ) -> Self {
         let m = g.nrows();
         let rows = lti_model::matrix::row_major(g);
         let g_norm = (0..m)
-            .map(|i| rows[i * n..(i + 1) * n].iter().map(|v| v * v).sum::<f64>().sqrt())
+            .map(|i| {
+                rows[i * n..(i + 1) * n]
+                    .iter()
+                    .map(|v| v * v)
+                    .sum::<f64>()
+                    .sqrt()
+            })
             .collect();
         let nr = n + m;
-        Ok(Self {
+        Self {
             n,
             m,
             h: Vec::new(),
@@ -269,7 +290,7 @@ impl DualActiveSet {
             grad: vec![0.0; n],
             q: vec![0.0; n],
             iq: 0,
-        })
+        }
     }
 
     /// Number of variables n.
@@ -303,7 +324,11 @@ impl DualActiveSet {
             self.x[i]
         } else {
             let n = self.n;
-            self.h[i * n..(i + 1) * n].iter().zip(&self.x).map(|(a, b)| a * b).sum()
+            self.h[i * n..(i + 1) * n]
+                .iter()
+                .zip(&self.x)
+                .map(|(a, b)| a * b)
+                .sum()
         }
     }
 
@@ -314,7 +339,11 @@ impl DualActiveSet {
             x[r]
         } else {
             let (n, k) = (self.n, r - self.n);
-            self.g[k * n..(k + 1) * n].iter().zip(x).map(|(a, b)| a * b).sum()
+            self.g[k * n..(k + 1) * n]
+                .iter()
+                .zip(x)
+                .map(|(a, b)| a * b)
+                .sum()
         }
     }
 
@@ -322,7 +351,11 @@ impl DualActiveSet {
     #[inline]
     fn slack(&self, r: usize, side: u8) -> f64 {
         let ax = self.row_dot(r, &self.x);
-        if side == LOWER { ax - self.lo[r] } else { self.hi[r] - ax }
+        if side == LOWER {
+            ax - self.lo[r]
+        } else {
+            self.hi[r] - ax
+        }
     }
 
     /// Solves with linear term q, box [`box_lo`, `box_hi`] and general bounds
@@ -465,7 +498,11 @@ impl DualActiveSet {
             if self.row_state[r] != INACTIVE {
                 continue;
             }
-            let norm = if r < self.n { 1.0 } else { self.g_norm[r - self.n] };
+            let norm = if r < self.n {
+                1.0
+            } else {
+                self.g_norm[r - self.n]
+            };
             if norm == 0.0 {
                 continue; // a zero row: 0 ∈ [lo, hi] is checked by the final violation
             }

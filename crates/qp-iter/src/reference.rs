@@ -388,7 +388,11 @@ impl ReferenceSolver {
             *gi -= l;
         }
         let mut viol = 0.0f64;
-        for ((zi, l), u) in z.iter().zip(self.qp.zset().lower()).zip(self.qp.zset().upper()) {
+        for ((zi, l), u) in z
+            .iter()
+            .zip(self.qp.zset().lower())
+            .zip(self.qp.zset().upper())
+        {
             viol = viol.max(l - zi).max(zi - u);
         }
         if let Some(gc) = self.qp.general() {
@@ -454,7 +458,11 @@ impl ReferenceSolver {
             (false, true) => arow(i - n, j),
             (false, false) => 0.0,
         });
-        let rhs = Mat::from_fn(n + k, 1, |i, _| if i < n { -self.q[i] } else { act[i - n].1 });
+        let rhs = Mat::from_fn(
+            n + k,
+            1,
+            |i, _| if i < n { -self.q[i] } else { act[i - n].1 },
+        );
         let sol = faer::linalg::solvers::Solve::solve(&kkt.partial_piv_lu(), rhs);
         if (0..n + k).any(|i| !sol[(i, 0)].is_finite()) {
             return None;
@@ -464,7 +472,11 @@ impl ReferenceSolver {
         let mut lg = vec![0.0; gc.m()];
         for (a, &(r, bound)) in act.iter().enumerate() {
             let l = sol[(n + a, 0)];
-            let (rlo, rhi) = if r < n { (lo[r], up[r]) } else { (self.g_lo[r - n], self.g_hi[r - n]) };
+            let (rlo, rhi) = if r < n {
+                (lo[r], up[r])
+            } else {
+                (self.g_lo[r - n], self.g_hi[r - n])
+            };
             // Sign: λ ≥ 0 at a lower bound, ≤ 0 at an upper one (free for equalities).
             let lam = if rlo == rhi {
                 l

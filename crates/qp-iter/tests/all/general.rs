@@ -156,7 +156,10 @@ fn compare(seed: u64) -> std::result::Result<f64, TestCaseError> {
     );
     let q = linear_term(&qp, &theta);
     let (o1, o2) = (qp.objective(&q, gi.z()), sol.objective);
-    prop_assert!((o1 - o2).abs() <= 1e-9 * (1.0 + o2.abs()), "seed {seed}: {o1} vs {o2}");
+    prop_assert!(
+        (o1 - o2).abs() <= 1e-9 * (1.0 + o2.abs()),
+        "seed {seed}: {o1} vs {o2}"
+    );
     // The multipliers agree too (unique under LICQ + strict complementarity; here only
     // checked through stationarity of each answer, which both verify).
     Ok(rel)
@@ -200,7 +203,9 @@ fn the_worst_relative_distance_to_clarabel_is_reported() {
         let mut gi = ParametricDualActiveSet::new(&qp, DualActiveSetSettings::default()).unwrap();
         active += gi.solve(&theta).unwrap().active;
     }
-    println!("worst ‖z_GI − z_Clarabel‖/(1 + ‖z‖) over 500 seeds: {worst:.3e}; {active} active rows");
+    println!(
+        "worst ‖z_GI − z_Clarabel‖/(1 + ‖z‖) over 500 seeds: {worst:.3e}; {active} active rows"
+    );
     assert!(worst <= 1e-9 && active > 500);
 }
 
@@ -252,7 +257,10 @@ fn the_identity_solver_is_the_euclidean_projection() {
         let mpx: Vec<f64> = px.iter().map(|v| -v).collect();
         let info = p.solve(&mpx, lo, hi, &gl, &gu);
         assert!(info.is_verified(1e-10));
-        assert!(dist(p.z(), &px) <= 1e-12 * (1.0 + norm(&px)), "seed {seed}: P(P(x)) ≠ P(x)");
+        assert!(
+            dist(p.z(), &px) <= 1e-12 * (1.0 + norm(&px)),
+            "seed {seed}: P(P(x)) ≠ P(x)"
+        );
     }
 }
 
@@ -307,12 +315,12 @@ fn bad_general_constraints_are_typed_errors() {
         BoxSet::whole(2),
     )
     .unwrap();
-    let gc = GeneralConstraints::new(Mat::zeros(1, 3), Mat::zeros(1, 1), vec![0.0], vec![1.0])
-        .unwrap();
+    let gc =
+        GeneralConstraints::new(Mat::zeros(1, 3), Mat::zeros(1, 1), vec![0.0], vec![1.0]).unwrap();
     let e = qp.clone().with_general(gc).unwrap_err().to_string();
     assert!(e.contains("`G`"), "{e}");
-    let gc = GeneralConstraints::new(Mat::zeros(1, 2), Mat::zeros(1, 2), vec![0.0], vec![1.0])
-        .unwrap();
+    let gc =
+        GeneralConstraints::new(Mat::zeros(1, 2), Mat::zeros(1, 2), vec![0.0], vec![1.0]).unwrap();
     let e = qp.with_general(gc).unwrap_err().to_string();
     assert!(e.contains("`E`"), "{e}");
 }

@@ -9,6 +9,7 @@ mod certificates;
 mod common;
 mod errors;
 mod general;
+mod general_maps;
 mod premise;
 mod reference;
 mod scaled;

@@ -726,6 +726,7 @@ impl ExactSolver {
                     return Err(QpError::Infeasible {
                         solver: "dual active set",
                         detail: format!("{constraint} missed by {violation:.3e}"),
+                        constraint: Some(constraint),
                     });
                 }
                 _ if info.is_verified(1e-9) => {

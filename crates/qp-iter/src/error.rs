@@ -44,6 +44,8 @@ pub enum QpError {
         solver: &'static str,
         /// Which constraint could not be met, or the solver's status.
         detail: String,
+        /// The row the dual active set could not add (`None` from Clarabel).
+        constraint: Option<crate::dual_active_set::ConstraintRow>,
     },
     /// The exact reference solver (Clarabel) did not solve the problem.
     #[error("reference solver: {status}")]

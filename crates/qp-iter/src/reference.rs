@@ -308,6 +308,7 @@ impl ReferenceSolver {
             return Err(QpError::Infeasible {
                 solver: "Clarabel",
                 detail: format!("{:?} after {} iterations", sol.status, sol.iterations),
+                constraint: None,
             });
         }
         if sol.status != SolverStatus::Solved {

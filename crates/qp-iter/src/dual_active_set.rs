@@ -406,6 +406,21 @@ impl DualActiveSet {
         }
         self.iq = 0;
         self.row_state.fill(INACTIVE);
+        // A zero row of G constrains nothing but its bounds: 0 ∉ [lo, hi] is infeasible
+        // whatever z (no step can reach it).
+        for k in 0..self.m {
+            let r = self.n + k;
+            let miss = self.lo[r].max(-self.hi[r]);
+            if self.g_norm[k] == 0.0 && miss > self.settings.tol * (1.0 + miss.abs()) {
+                return (
+                    DualActiveSetStatus::Infeasible {
+                        constraint: ConstraintRow::General(k),
+                        violation: miss,
+                    },
+                    0,
+                );
+            }
+        }
         let mut iter = 0;
         loop {
             // Step 1: the most violated constraint (distance to its hyperplane).
@@ -504,7 +519,7 @@ impl DualActiveSet {
                 self.g_norm[r - self.n]
             };
             if norm == 0.0 {
-                continue; // a zero row: 0 ∈ [lo, hi] is checked by the final violation
+                continue; // a zero row: 0 ∈ [lo, hi] was checked at the start
             }
             let ax = self.row_dot(r, &self.x);
             let (lo, hi) = (self.lo[r], self.hi[r]);

@@ -324,3 +324,35 @@ fn bad_general_constraints_are_typed_errors() {
     let e = qp.with_general(gc).unwrap_err().to_string();
     assert!(e.contains("`E`"), "{e}");
 }
+
+#[test]
+fn a_zero_row_with_bounds_excluding_zero_is_infeasible() {
+    // The MPC's x₁ row of a state no input reaches in one step: G row 0, bound violated.
+    let g = faer::mat![[0.0, 0.0], [1.0, 0.0]];
+    let mut s = DualActiveSet::identity(2, g.as_ref(), Default::default()).unwrap();
+    let inf = f64::INFINITY;
+    let info = s.solve(
+        &[0.0, 0.0],
+        &[-inf, -inf],
+        &[inf, inf],
+        &[-inf, -inf],
+        &[-0.5, inf],
+    );
+    assert_eq!(
+        info.status,
+        DualActiveSetStatus::Infeasible {
+            constraint: ConstraintRow::General(0),
+            violation: 0.5
+        }
+    );
+    // With 0 inside its bounds the row is harmless.
+    let info = s.solve(
+        &[0.0, 0.0],
+        &[-inf, -inf],
+        &[inf, inf],
+        &[-1.0, 1.0],
+        &[0.5, inf],
+    );
+    assert_eq!(info.status, DualActiveSetStatus::Optimal);
+    assert_eq!(s.z(), &[1.0, 0.0]);
+}

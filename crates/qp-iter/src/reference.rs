@@ -423,9 +423,7 @@ impl ReferenceSolver {
         let mut act: Vec<(usize, f64)> = Vec::new();
         for i in 0..n {
             let l = lam_box[i];
-            if lo[i] == up[i] {
-                act.push((i, lo[i]));
-            } else if l > 0.0 && l > z[i] - lo[i] {
+            if lo[i] == up[i] || (l > 0.0 && l > z[i] - lo[i]) {
                 act.push((i, lo[i]));
             } else if l < 0.0 && -l > up[i] - z[i] {
                 act.push((i, up[i]));
@@ -434,9 +432,7 @@ impl ReferenceSolver {
         for r in 0..gc.m() {
             let gz = gc.row_dot(r, z);
             let (l, glo, ghi) = (lam_g[r], self.g_lo[r], self.g_hi[r]);
-            if glo == ghi {
-                act.push((n + r, glo));
-            } else if l > 0.0 && l > gz - glo {
+            if glo == ghi || (l > 0.0 && l > gz - glo) {
                 act.push((n + r, glo));
             } else if l < 0.0 && -l > ghi - gz {
                 act.push((n + r, ghi));

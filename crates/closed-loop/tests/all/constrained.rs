@@ -46,7 +46,7 @@ fn constrained_case_study_runs_and_records_what_the_mpc_applied() {
                 method: Method::FISTA,
             },
         ] {
-            let mut cl = crate::build(&s, &options(&s, Method::PG, controller.clone())).unwrap();
+            let mut cl = crate::build(&s, &options(&s, Method::PG, controller)).unwrap();
             let trace = cl.run().unwrap().clone();
             assert_eq!(trace.len(), 40);
             let infeasible: Vec<usize> = trace.infeasible_steps().collect();

@@ -104,11 +104,6 @@ pub fn general_instance(seed: u64, kind: Kind) -> (ParametricQp, Vec<f64>) {
             for j in 0..n {
                 g[(b, j)] = -g[(a, j)];
             }
-            for j in 0..nt {
-                // Same Eθ shift on both so the contradiction holds for every θ.
-                let v = e[(a, j)];
-                let _ = v;
-            }
             let et_a: f64 = (0..nt).map(|j| e[(a, j)] * theta[j]).sum();
             let et_b: f64 = (0..nt).map(|j| e[(b, j)] * theta[j]).sum();
             // a·z ≥ c and −a·z ≥ −c + gap  ⇔  a·z ≤ c − gap.
@@ -241,7 +236,7 @@ fn the_identity_solver_is_the_euclidean_projection() {
         )
         .unwrap();
         let qp_i = match qp.general() {
-            Some(gc) => qp_i
+            Some(_) => qp_i
                 .with_general(
                     GeneralConstraints::new(g.clone(), Mat::zeros(m, 0), gl.clone(), gu.clone())
                         .unwrap(),

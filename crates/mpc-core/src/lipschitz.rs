@@ -509,7 +509,9 @@ pub struct LipschitzReport {
     pub saturated_lqr: f64,
     /// Why no certified L_π exists (state constraints:
     /// [`crate::STATE_CONSTRAINED_VOID_REASON`]); then [`LipschitzReport::l_pi`] is +∞ and
-    /// `certified` describes the input-constrained relaxation only.
+    /// `certified` describes the input-constrained relaxation only. (Omitted from the
+    /// serialised report when absent.)
+    #[serde(skip_serializing_if = "Option::is_none")]
     pub void_reason: Option<&'static str>,
 }
 

@@ -98,6 +98,20 @@ fn the_certificate_is_void_with_the_exact_reasons() {
             "{all}"
         );
     }
+    // γ₁,₃ computed (not user-supplied): void with its typed reason.
+    let computed = CertificateOptions {
+        gamma13: Gamma13Source::Certified,
+        gamma13_sequences: 2,
+        lipschitz_pairs: 0,
+        solvers: vec![Method::PG],
+        ..CertificateOptions::default()
+    };
+    let c2 = crate::certify(&s, &computed).unwrap();
+    assert_eq!(
+        c2.gamma13.void,
+        Some(closed_loop::gamma13::Gamma13Void::StateConstrainedMpc)
+    );
+    assert!(c2.gamma13.used.is_infinite() && c2.solvers[0].k_min.is_none());
     // ADMM splits on the rows: its φ does not fit eq. (11), and its certificate says why.
     let admm = &c.solvers[1];
     assert!(!admm.fits_eq11);

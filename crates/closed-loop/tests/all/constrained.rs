@@ -121,3 +121,54 @@ fn the_certificate_is_void_with_the_exact_reasons() {
             .any(|p| p.premise.contains("surjective"))
     );
 }
+
+/// The linearisation of ADMM split on [I; G]z (ξ = (x, w, y)) reproduces K real steps where
+/// no bound or row is active, like the other maps' (PG and FISTA with the exact projection
+/// too: the projection is the identity there).
+#[test]
+fn linearisations_with_general_rows_match_brute_force() {
+    use closed_loop::linear::linearise;
+    use faer::Par;
+    use qp_iter::IterationMap;
+    let s = constrained(false);
+    for method in [Method::PG, Method::FISTA, Method::ADMM] {
+        let o = options(&s, method, ControllerChoice::ExactMpc);
+        let cl = crate::build(&s, &o).unwrap();
+        let e = cl.estimator();
+        let map = e.map(e.config().horizon).unwrap();
+        assert!(map.problem().general().is_some());
+        let lin = linearise(map, "MHE").unwrap();
+        let (n, nt) = (map.problem().n(), map.problem().n_theta());
+        let h = 1e-6;
+        let mut st = map.new_state();
+        for k in [1, 3, 12] {
+            let km = lin.k_step(k, Par::Seq).unwrap();
+            let (mut worst, mut scale) = (0.0f64, 0.0f64);
+            for c in 0..n + nt {
+                let (mut z0, mut theta) = (vec![0.0; n], vec![0.0; nt]);
+                if c < n {
+                    z0[c] = h;
+                } else {
+                    theta[c - n] = h;
+                }
+                map.load(&mut st, &theta);
+                map.warm_start(&mut st, &z0, None);
+                qp_iter::run_fixed(map, &mut st, k);
+                let z = map.iterate(&st);
+                for r in 0..n {
+                    let col = if c < n {
+                        km.g[(r, c)]
+                    } else {
+                        km.j[(r, c - n)]
+                    };
+                    worst = worst.max((z[r] / h - col).abs());
+                    scale = scale.max(col.abs());
+                }
+            }
+            assert!(
+                worst <= 1e-7 * scale.max(1.0),
+                "{method} K = {k}: {worst:e}"
+            );
+        }
+    }
+}

@@ -90,6 +90,8 @@ pub struct Trace {
     e_norm: Vec<f64>,
     x_norm: Vec<f64>,
     w_norm: Vec<f64>,
+    /// What the controller applied at each step ([`Trace::control_status`]).
+    control: Vec<mpc_core::ControlStatus>,
     mhe: Option<MheTrace>,
 }
 
@@ -121,8 +123,32 @@ impl Trace {
             e_norm: vec![0.0; steps],
             x_norm: vec![0.0; steps + 1],
             w_norm: vec![0.0; steps],
+            control: vec![mpc_core::ControlStatus::Applied { violation: 0.0 }; steps],
             mhe: None,
         }
+    }
+
+    /// Records what the controller applied at the step being taken (before `push_step`).
+    pub(crate) fn set_control_status(&mut self, s: mpc_core::ControlStatus) {
+        if let Some(slot) = self.control.get_mut(self.len) {
+            *slot = s;
+        }
+    }
+
+    /// What the controller applied at step t (`None` beyond the completed steps): the law as
+    /// designed (with the plan's measured constraint violation), or, for an infeasible
+    /// state-constrained MPC, the fallback it applied instead.
+    pub fn control_status(&self, t: usize) -> Option<mpc_core::ControlStatus> {
+        (t < self.len).then(|| self.control[t])
+    }
+
+    /// The steps at which the state-constrained MPC was infeasible (a fallback was applied).
+    pub fn infeasible_steps(&self) -> impl Iterator<Item = usize> + '_ {
+        self.control[..self.len]
+            .iter()
+            .enumerate()
+            .filter(|(_, s)| matches!(s, mpc_core::ControlStatus::Infeasible { .. }))
+            .map(|(t, _)| t)
     }
 
     pub(crate) fn enable_mhe(&mut self, dims: Dims, max_window: usize) {

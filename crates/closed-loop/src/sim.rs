@@ -453,6 +453,7 @@ impl<E: Estimator, C: Controller, D: Disturbance> ClosedLoop<E, C, D> {
                 source: ComponentError::new(e),
             })?;
         check_finite(t, "u", &self.u)?;
+        self.trace.set_control_status(self.controller.status());
         // 3. w_t.
         self.disturbance.sample(&mut self.w);
         check_finite(t, "w", &self.w)?;

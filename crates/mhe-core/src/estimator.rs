@@ -1,7 +1,7 @@
 //! The sub-optimal MHE of Alg. 1 (steps 1–3): K warm-started iterations of Φ per time step.
 
 use faer::Mat;
-use lti_model::{ConvexSet, LtiSystem};
+use lti_model::LtiSystem;
 use qp_iter::active_set::ExactSolver;
 use qp_iter::{IterationMap, ParametricQp, run_fixed};
 
@@ -316,7 +316,7 @@ impl<M: IterationMap> MheEstimator<M> {
     ///
     /// Errors name the field: `horizon` (M = 0), `eta` (∉ [0, 1)), `iterations` (K = 0),
     /// `P`/`Q`/`R` (shape, not positive definite), `prior` (length, NaN), the sets
-    /// (dimension; 𝒳 or 𝒴 bounded is [`MheError::Unsupported`]), and the factory's error.
+    /// (dimension), and the factory's error.
     pub fn new<F>(
         sys: &LtiSystem,
         sets: &MheSets,
@@ -511,7 +511,8 @@ impl<M: IterationMap> MheEstimator<M> {
         let run = run_fixed(map, state, self.config.iterations);
         let zk = &mut self.zk[..nz];
         zk.copy_from_slice(map.iterate(state));
-        let violation = window.qp().zset().violation(zk);
+        // Box and (with bounded 𝒳 / 𝒴) the general rows for this θ; 0 for PG / FISTA.
+        let violation = map.violation(state);
         let cost_k = self.model.cost(
             lay,
             zk,

@@ -44,9 +44,13 @@
 //! does not): Lemma 1's ‖z̃_{t−1} − z̃_t‖ becomes ‖θ_{t−1} − θ_t‖ here.
 //!
 //! **Constraints.** ŵ ∈ 𝒲 (box) and x̂_{t−M_t|t} ∈ 𝒳 (box) form the box Z of the QP.
-//! Constraints on the later x̂_i and on ŷ are general polytopic constraints in condensed
-//! coordinates; they are supported only when 𝒳 and 𝒴 are the whole space (as in the case
-//! study), otherwise construction fails with [`MheError::Unsupported`].
+//! x̂_i ∈ 𝒳 for the later stages and ŷ_i ∈ 𝒴 are general rows l₀ − Eθ ≤ Gz ≤ u₀ − Eθ of
+//! the QP (G, E from the prediction matrices; [`qp_iter::GeneralConstraints`]): PG and FISTA
+//! project onto them exactly (certificate unchanged), ADMM splits on them (void
+//! certificate, measured violation in `MheRecord::violation`), and the exact solve for ε_t
+//! uses the same rows (Goldfarb–Idnani). Their bounds move with the inputs in θ, so the
+//! certified L_Φ of Lemma 1 is void (+∞, [`problem::LIPSCHITZ_VOID_REASON`]); the sampled
+//! estimate is still reported.
 //!
 //! **Prior (trap 1).** For t ≤ M the prior is the initial x̄₀; for t > M it is
 //! x̂ᴷ_{t−M|t−M}, the estimate the estimator itself returned M steps earlier (ring buffer

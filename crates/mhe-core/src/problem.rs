@@ -31,10 +31,10 @@ pub struct MheWeights {
 
 /// The constraint sets of ℙ_t: 𝒳 (state), 𝒴 (output), 𝒲 (augmented disturbance).
 ///
-/// ŵ ∈ 𝒲 and x̂_{t−M_t|t} ∈ 𝒳 are boxes of the QP. Constraints on later states and on ŷ are
-/// general polytopic constraints that the box-QP iteration maps cannot handle, so 𝒳 and 𝒴
-/// must be the whole space (the case study's setting); anything else is
-/// [`MheError::Unsupported`].
+/// ŵ ∈ 𝒲 and x̂_{t−M_t|t} ∈ 𝒳 are boxes of the QP. x̂_{i|t} ∈ 𝒳 for the later stages
+/// i = 1..M_t and ŷ_i = Cx̂_i + Fŵ²_i ∈ 𝒴 for i = 0..M_t−1 are general rows
+/// l₀ − Eθ ≤ Gz ≤ u₀ − Eθ of the QP (G and E from the prediction matrices: x̂_i depends on the
+/// inputs in θ), one per finite component ([`qp_iter::GeneralConstraints`]).
 #[derive(Debug, Clone, PartialEq)]
 pub struct MheSets {
     /// 𝒳 ⊂ ℝ^{n_x}.
@@ -183,7 +183,14 @@ pub struct MheWindow {
     weight_max: f64,
     lipschitz_certified: f64,
     lipschitz_unconstrained: f64,
+    lipschitz_void: bool,
 }
+
+/// Why the certified L_Φ of Lemma 1 is void when 𝒳 or 𝒴 is bounded and the plant has inputs.
+pub const LIPSCHITZ_VOID_REASON: &str = "the certified L_Φ of Lemma 1 (an H-weighted projection onto a \
+     FIXED set) does not hold: with a bounded 𝒳 (`sets.state`) or 𝒴 (`sets.output`) the rows \
+     x̂_i ∈ 𝒳, ŷ_i ∈ 𝒴 have bounds that move with the inputs in θ, so the feasible set moves with θ; \
+     only the sampled estimate is reported";
 
 impl MheWindow {
     /// The index layout of z, θ and z_t.
@@ -242,9 +249,14 @@ impl MheWindow {
         (self.xend_z.as_ref(), self.xend_theta.as_ref())
     }
     /// Certified L_Φ(m) = ‖H_c^{-1/2}F_c‖₂/√λ_min(H_c): Lipschitz constant of θ ↦ z*(θ) in
-    /// Euclidean norms (Lemma 1; derivation in the crate documentation).
+    /// Euclidean norms (Lemma 1; derivation in the crate documentation). +∞ (void) when the
+    /// window has rows whose bounds move with θ ([`MheWindow::lipschitz_void_reason`]).
     pub fn lipschitz_certified(&self) -> f64 {
         self.lipschitz_certified
+    }
+    /// Why [`MheWindow::lipschitz_certified`] is void (+∞), if it is.
+    pub fn lipschitz_void_reason(&self) -> Option<&'static str> {
+        self.lipschitz_void.then_some(LIPSCHITZ_VOID_REASON)
     }
     /// ‖H_c⁻¹F_c‖₂: the exact Lipschitz constant of θ ↦ z*(θ) when no bound of Z is active
     /// (a lower bound on the sup over θ of the local constant whenever Z = ℝⁿ).
@@ -325,8 +337,7 @@ impl MheProblem {
     /// Validates the data and builds the windows m = 0..M.
     ///
     /// Errors: `horizon` = 0, η ∉ [0, 1), P/Q/R of the wrong shape or not positive
-    /// definite, sets of the wrong dimension, 𝒳 or 𝒴 not the whole space
-    /// ([`MheError::Unsupported`]), a window whose H_c is singular.
+    /// definite, sets of the wrong dimension, a window whose H_c is singular.
     pub fn new(
         sys: &LtiSystem,
         horizon: usize,
@@ -383,7 +394,14 @@ impl MheProblem {
             .map(MheWindow::weight_max_eigenvalue)
             .fold(0.0, f64::max)
     }
-    /// max_m L_Φ(m): the certified L_Φ of Lemma 1 over all window lengths.
+    /// Why the certified L_Φ is void (+∞) for some window length, if it is.
+    pub fn lipschitz_void_reason(&self) -> Option<&'static str> {
+        self.windows
+            .iter()
+            .find_map(MheWindow::lipschitz_void_reason)
+    }
+    /// max_m L_Φ(m): the certified L_Φ of Lemma 1 over all window lengths (+∞ when void:
+    /// [`MheProblem::lipschitz_void_reason`]).
     pub fn lipschitz_certified(&self) -> f64 {
         self.windows
             .iter()
@@ -431,23 +449,6 @@ pub(crate) fn validate_problem(
             .into());
         }
     }
-    if !sets.state.is_whole() {
-        return Err(MheError::Unsupported {
-            what: "a bounded state set 𝒳: x̂_{i|t} ∈ 𝒳 for i > t − M_t is a general polytopic constraint on the \
-                   condensed variables"
-                .into(),
-            hint: "use 𝒳 = ℝ^{n_x} for the MHE (omit scenario key `sets.state`: the case study has x unconstrained), or solve with a method that \
-                   supports general constraints"
-                .into(),
-        });
-    }
-    if !sets.output.is_whole() {
-        return Err(MheError::Unsupported {
-            what: "a bounded output set 𝒴: ŷ_{i|t} ∈ 𝒴 is a general polytopic constraint on the condensed variables"
-                .into(),
-            hint: "use 𝒴 = ℝ^{n_y} for the MHE (omit scenario key `sets.output`: the case study has y unconstrained)".into(),
-        });
-    }
     Ok(())
 }
 
@@ -483,6 +484,8 @@ fn build_window(
     for i in 0..nx {
         xz[(i, i)] = 1.0;
     }
+    // General rows (G, E, l₀, u₀): x̂_j ∈ 𝒳 for j = 1..m, ŷ_j ∈ 𝒴 for j = 0..m−1.
+    let mut rows = GeneralRows::default();
     for j in 0..m {
         let pw = layout.paper_w_offset(j);
         let py = layout.paper_y_offset(j);
@@ -526,6 +529,14 @@ fn build_window(
         }
         xz = xz_next;
         xth = xth_next;
+        rows.push_finite(&xz, &xth, sets.state.lower(), sets.state.upper());
+    }
+    // ŷ_j = T_y z + S_y θ: the rows of T and S at the output offsets.
+    for j in 0..m {
+        let py = layout.paper_y_offset(j);
+        let gy = t_map.subrows(py, ny).to_owned();
+        let ey = s_map.subrows(py, ny).to_owned();
+        rows.push_finite(&gy, &ey, sets.output.lower(), sets.output.upper());
     }
 
     let ht = &h_paper * &t_map;
@@ -565,7 +576,13 @@ fn build_window(
     let hinv_f = llt.solve(&f_c);
     let ft_hinv_f = lti_model::matrix::symmetrize((f_c.transpose() * &hinv_f).as_ref());
     let (_, top) = sym_extreme_eigenvalues("F_cᵀH_c⁻¹F_c", ft_hinv_f.as_ref())?;
-    let lipschitz_certified = top.max(0.0).sqrt() / lo.sqrt();
+    let mut lipschitz_certified = top.max(0.0).sqrt() / lo.sqrt();
+    // Lemma 1's bound is an H_c-weighted projection onto a FIXED set; rows whose bounds move
+    // with θ (E ≠ 0: the states depend on the inputs in θ) break it.
+    let lipschitz_void = rows.moves_with_theta();
+    if lipschitz_void {
+        lipschitz_certified = f64::INFINITY;
+    }
     let lipschitz_unconstrained = lti_model::matrix::spectral_norm(hinv_f.as_ref());
 
     // The structured product H_c z (forward + adjoint pass) for long windows.
@@ -580,8 +597,11 @@ fn build_window(
         w.q.as_ref(),
         w.r.as_ref(),
     );
-    let qp =
+    let mut qp =
         ParametricQp::new(h_c, vec![0.0; nz], f_c, zset)?.with_operator(std::sync::Arc::new(op))?;
+    if let Some(gc) = rows.build(nz, nth)? {
+        qp = qp.with_general(gc)?;
+    }
     Ok(MheWindow {
         layout,
         qp,
@@ -595,7 +615,48 @@ fn build_window(
         weight_max: 0.5 * hi,
         lipschitz_certified,
         lipschitz_unconstrained,
+        lipschitz_void,
     })
+}
+
+/// The general rows of one window, gathered stage by stage.
+#[derive(Default)]
+struct GeneralRows {
+    g: Vec<Vec<f64>>,
+    e: Vec<Vec<f64>>,
+    lo: Vec<f64>,
+    hi: Vec<f64>,
+}
+
+impl GeneralRows {
+    /// One row per component with a finite bound: lo_i ≤ (G_i z + E_i θ) ≤ hi_i, stored as
+    /// lo_i − E_iθ ≤ G_i z ≤ hi_i − E_iθ.
+    fn push_finite(&mut self, g: &Mat<f64>, e: &Mat<f64>, lo: &[f64], hi: &[f64]) {
+        for i in 0..g.nrows() {
+            if lo[i].is_finite() || hi[i].is_finite() {
+                self.g.push((0..g.ncols()).map(|k| g[(i, k)]).collect());
+                self.e.push((0..e.ncols()).map(|k| e[(i, k)]).collect());
+                self.lo.push(lo[i]);
+                self.hi.push(hi[i]);
+            }
+        }
+    }
+
+    fn moves_with_theta(&self) -> bool {
+        self.e.iter().any(|r| r.iter().any(|v| *v != 0.0))
+    }
+
+    fn build(self, nz: usize, nth: usize) -> Result<Option<qp_iter::GeneralConstraints>> {
+        if self.g.is_empty() {
+            return Ok(None);
+        }
+        let m = self.g.len();
+        let g = Mat::from_fn(m, nz, |i, k| self.g[i][k]);
+        let e = Mat::from_fn(m, nth, |i, k| self.e[i][k]);
+        Ok(Some(qp_iter::GeneralConstraints::new(
+            g, e, self.lo, self.hi,
+        )?))
+    }
 }
 
 /// Window lengths are small; saturate rather than wrap for absurd horizons.
@@ -675,8 +736,17 @@ impl MheWindow {
                 ta[i] = s.theta_radius * (2.0 * rng.random::<f64>() - 1.0);
                 tb[i] = ta[i] + s.perturbation * (2.0 * rng.random::<f64>() - 1.0);
             }
-            za.copy_from_slice(solver.solve(&ta)?);
-            let zb = solver.solve(&tb)?;
+            // With bounded 𝒳 / 𝒴 a random θ can make ℙ_t infeasible: such pairs are skipped.
+            match solver.solve(&ta) {
+                Ok(z) => za.copy_from_slice(z),
+                Err(qp_iter::QpError::Infeasible { .. }) => continue,
+                Err(e) => return Err(e.into()),
+            }
+            let zb = match solver.solve(&tb) {
+                Ok(z) => z,
+                Err(qp_iter::QpError::Infeasible { .. }) => continue,
+                Err(e) => return Err(e.into()),
+            };
             let dz = za
                 .iter()
                 .zip(zb)

@@ -33,7 +33,9 @@ pub struct MheRecord {
     pub epsilon: Option<f64>,
     /// ‖z⁰_t − z*_t‖₂ in condensed coordinates (if the exact solve is on).
     pub initial_error: Option<f64>,
-    /// Largest violation of Z by zᴷ_t (0 for PG/FISTA; see trap 7 for ADMM).
+    /// Largest violation by zᴷ_t of Z and, with bounded 𝒳 / 𝒴, of the rows x̂_i ∈ 𝒳,
+    /// ŷ_i ∈ 𝒴 for this θ ([`qp_iter::IterationMap::violation`]): 0 for PG/FISTA up to
+    /// rounding; for ADMM split on the rows the measured premise failure (trap 7).
     pub violation: f64,
     prior: Vec<f64>,
     u: Vec<f64>,

@@ -9,6 +9,12 @@
 //! with Q̄ = diag(Q_c, …, Q_c, P_f), R̄ = diag(R_c, …, R_c), H = 2(ΓᵀQ̄Γ + R̄) ≻ 0 (R_c ≻ 0)
 //! and F = 2ΓᵀQ̄Φ. The constant does not affect the minimiser, so π(x̂) = u*₀(x̂) where
 //! U*(x̂) solves the [`ParametricQp`] min ½UᵀHU + (Fx̂)ᵀU s.t. U ∈ 𝒰^N, θ = x̂, q₀ = 0.
+//!
+//! **State constraints.** With a bounded 𝒳 the predicted states x_k = Φ_k x̂ + Γ_k U ∈ 𝒳,
+//! k = 1..N, are general rows l − Φ_k x̂ ≤ Γ_k U ≤ u − Φ_k x̂ of the QP (one per finite
+//! component; [`qp_iter::GeneralConstraints`] with G = Γ_k, E = Φ_k). The MPC can then be
+//! infeasible at some x̂ ([`crate::ControlStatus::Infeasible`]), and the analysis of L_π and
+//! γ₁,₃ (box-constrained inputs only) does not apply: [`CondensedMpc::certificate_void_reason`].
 
 use faer::Mat;
 use lti_model::matrix::{
@@ -52,9 +58,8 @@ pub struct MpcConfig {
     pub terminal: Terminal,
     /// Input set 𝒰 (a box, possibly with infinite bounds).
     pub input_set: BoxSet,
-    /// State set 𝒳 imposed on the predicted x₁…x_N. Only `None` or the whole space are
-    /// accepted: `qp-iter` handles box constraints on the decision only, so finite state
-    /// bounds give [`MpcError::Unsupported`].
+    /// State set 𝒳 imposed on the predicted x₁…x_N (general rows of the QP; `None` or the
+    /// whole space: no rows).
     pub state_set: Option<BoxSet>,
 }
 
@@ -95,7 +100,15 @@ pub struct CondensedMpc {
     gamma: Mat<f64>,
     q_bar: Mat<f64>,
     qp: ParametricQp,
+    /// (k, i) of each general row: x_{k,i} ∈ 𝒳_i, k = 1..N.
+    state_rows: Vec<(usize, usize)>,
 }
+
+/// Why L_π and γ₁,₃ are void for an MPC with state constraints.
+pub const STATE_CONSTRAINED_VOID_REASON: &str = "the MPC has state constraints x_k ∈ 𝒳 \
+     (`sets.state`): the certified L_π and γ₁,₃ assume box-constrained inputs only (π is an \
+     H-weighted projection onto the fixed set 𝒰^N), but the predicted-state rows move with x̂ and \
+     the MPC can be infeasible; no certified L_π or γ₁,₃ is reported";
 
 /// Validates a weight that must be symmetric positive semidefinite (Q_c, P_f).
 pub(crate) fn check_psd(name: &'static str, m: &Mat<f64>, n: usize) -> Result<()> {
@@ -127,8 +140,7 @@ impl CondensedMpc {
     /// Errors: [`MpcError::Horizon`] (N = 0); `Model(Shape | NonFinite | NotSymmetric |
     /// NotPositiveDefinite)` naming `"Q_c"`, `"R_c"`, `"P_f"` or `"input_set"`;
     /// [`MpcError::NotPositiveSemidefinite`] for Q_c or P_f; `Model(Numerical)` if the DARE
-    /// has no stabilising solution ((A, B) not stabilisable or (A, Q_c) not detectable);
-    /// [`MpcError::Unsupported`] for finite state bounds.
+    /// has no stabilising solution ((A, B) not stabilisable or (A, Q_c) not detectable).
     pub fn new(system: &LtiSystem, config: MpcConfig) -> Result<Self> {
         let (nx, nu) = (system.nx(), system.nu());
         let n = config.horizon;
@@ -167,13 +179,6 @@ impl CondensedMpc {
                     actual_cols: 1,
                 }
                 .into());
-            }
-            if !xs.is_whole() {
-                return Err(MpcError::Unsupported {
-                    feature: "state constraints x_k ∈ 𝒳 in the MPC",
-                    reason: "qp-iter solves QPs over a box in the decision variables only (no general constraints Gz ∈ 𝒞 yet); \
-                             omit the state set (scenario key `sets.state`) or give it infinite bounds",
-                });
             }
         }
         let q_c = lti_model::matrix::symmetrize(config.q_c.as_ref());
@@ -224,7 +229,25 @@ impl CondensedMpc {
             .flat_map(|_| config.input_set.upper().iter().copied())
             .collect();
         let zset = BoxSet::named("input_set^N", lower, upper)?;
-        let qp = ParametricQp::new(h, vec![0.0; n * nu], f, zset)?;
+        let mut qp = ParametricQp::new(h, vec![0.0; n * nu], f, zset)?;
+        // x_k = Φ_k x̂ + Γ_k U ∈ 𝒳 for k = 1..N, one row per finite component.
+        let mut state_rows = Vec::new();
+        if let Some(xs) = config.state_set.as_ref().filter(|s| !s.is_whole()) {
+            for k in 1..=n {
+                for i in 0..nx {
+                    if xs.lower()[i].is_finite() || xs.upper()[i].is_finite() {
+                        state_rows.push((k, i));
+                    }
+                }
+            }
+            let r = |p: usize| (state_rows[p].0 - 1) * nx + state_rows[p].1;
+            let m = state_rows.len();
+            let g = Mat::from_fn(m, n * nu, |p, j| gamma[(r(p), j)]);
+            let e = Mat::from_fn(m, nx, |p, j| phi[(r(p), j)]);
+            let lo = state_rows.iter().map(|&(_, i)| xs.lower()[i]).collect();
+            let hi = state_rows.iter().map(|&(_, i)| xs.upper()[i]).collect();
+            qp = qp.with_general(qp_iter::GeneralConstraints::new(g, e, lo, hi)?)?;
+        }
         Ok(Self {
             system: system.clone(),
             horizon: n,
@@ -236,7 +259,37 @@ impl CondensedMpc {
             gamma,
             q_bar,
             qp,
+            state_rows,
         })
+    }
+
+    /// Whether the predicted states are constrained (x_k ∈ 𝒳, general rows of the QP).
+    pub fn has_state_constraints(&self) -> bool {
+        !self.state_rows.is_empty()
+    }
+
+    /// (k, i) of general row r: the row is x_{k,i} ∈ 𝒳_i (k = 1..N).
+    pub fn state_row(&self, r: usize) -> Option<(usize, usize)> {
+        self.state_rows.get(r).copied()
+    }
+
+    /// Why the certified L_π and γ₁,₃ do not apply (state constraints), if they do not.
+    ///
+    /// ```
+    /// use faer::{mat, Mat};
+    /// use lti_model::{BoxSet, LtiSystem};
+    /// use mpc_core::{CondensedMpc, MpcConfig};
+    /// let sys = LtiSystem::new(mat![[1.0, 0.1], [0.0, 1.0]], mat![[0.005], [0.1]], mat![[1.0, 0.0]]).unwrap();
+    /// let mut cfg = MpcConfig::new(5, Mat::identity(2, 2), mat![[0.1]], BoxSet::symmetric(&[1.0]).unwrap());
+    /// assert!(CondensedMpc::new(&sys, cfg.clone()).unwrap().certificate_void_reason().is_none());
+    /// cfg.state_set = Some(BoxSet::symmetric(&[5.0, 1.0]).unwrap());
+    /// let mpc = CondensedMpc::new(&sys, cfg).unwrap();
+    /// assert_eq!(mpc.qp().general().unwrap().m(), 10); // 2 components × N = 5
+    /// assert!(mpc.certificate_void_reason().unwrap().contains("state constraints"));
+    /// ```
+    pub fn certificate_void_reason(&self) -> Option<&'static str> {
+        self.has_state_constraints()
+            .then_some(STATE_CONSTRAINED_VOID_REASON)
     }
 
     /// The parametric QP (θ = x̂, Z = 𝒰^N); clone it to build an iteration map.

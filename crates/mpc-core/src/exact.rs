@@ -12,7 +12,7 @@ use qp_iter::reference::{ReferenceSettings, ReferenceSolver};
 
 use crate::condensed::CondensedMpc;
 use crate::error::{MpcError, Result};
-use crate::{Controller, check_io};
+use crate::{ControlStatus, Controller, MpcFallback, check_io};
 
 /// How [`ExactMpc`] computes U*(x̂).
 #[derive(Debug, Clone, Copy, PartialEq)]
@@ -41,8 +41,15 @@ enum Backend {
     Clarabel(Box<ReferenceSolver>),
 }
 
-/// The exact condensed MPC: every call solves min ½UᵀHU + (Fx̂)ᵀU over 𝒰^N and returns
-/// u*₀, projected onto 𝒰 so that it lies in 𝒰 exactly.
+/// The exact condensed MPC: every call solves min ½UᵀHU + (Fx̂)ᵀU over 𝒰^N (and the
+/// predicted-state rows, with state constraints) and returns u*₀, projected onto 𝒰 so that
+/// it lies in 𝒰 exactly.
+///
+/// **Infeasible steps** (state constraints only): [`ExactMpc::solve`] returns the typed
+/// error `MpcError::Qp(QpError::Infeasible { .. })`; [`Controller::control`] applies the
+/// documented fallback — u*₀ of the input-constrained MPC, i.e. the same QP without the
+/// state rows (always feasible) — and reports it in [`Controller::status`]
+/// ([`ControlStatus::Infeasible`] with [`MpcFallback::InputOnlyMpc`]).
 ///
 /// With the default [`ExactBackend::ActiveSet`], [`Controller::control`] allocates nothing
 /// after construction (unless a Clarabel fallback is needed, which the tests never see on
@@ -71,6 +78,10 @@ pub struct ExactMpc {
     u_seq: Vec<f64>,
     solved: bool,
     last_info: Option<ActiveSetInfo>,
+    /// With state constraints: the input-constrained MPC (rows dropped), the fallback of an
+    /// infeasible step.
+    input_only: Option<ExactSolver>,
+    status: ControlStatus,
 }
 
 impl ExactMpc {
@@ -94,7 +105,14 @@ impl ExactMpc {
                 Backend::Clarabel(Box::new(ReferenceSolver::new(mpc.qp(), settings)?))
             }
         };
+        let input_only = if mpc.has_state_constraints() {
+            Some(ExactSolver::new(&mpc.qp().without_general())?)
+        } else {
+            None
+        };
         Ok(Self {
+            input_only,
+            status: ControlStatus::Applied { violation: 0.0 },
             backend,
             input_set: mpc.input_set().clone(),
             nx: mpc.nx(),
@@ -173,10 +191,34 @@ impl Controller for ExactMpc {
     fn control(&mut self, x_hat: &[f64], u: &mut [f64]) -> Result<()> {
         check_io(x_hat, u, self.nx, self.nu)?;
         let nu = self.nu;
-        let u_seq = self.solve(x_hat)?;
-        u.copy_from_slice(&u_seq[..nu]);
+        match self.solve(x_hat) {
+            Ok(u_seq) => {
+                u.copy_from_slice(&u_seq[..nu]);
+                self.status = ControlStatus::Applied { violation: 0.0 };
+            }
+            Err(MpcError::Qp(QpError::Infeasible { constraint, .. })) => {
+                let Some(fallback) = self.input_only.as_mut() else {
+                    // Not reachable without state rows (a box is never empty).
+                    return Err(MpcError::Qp(QpError::Infeasible {
+                        solver: "exact MPC",
+                        detail: "infeasible without state constraints".into(),
+                        constraint,
+                    }));
+                };
+                let z = fallback.solve(x_hat).map_err(solver_error)?;
+                u.copy_from_slice(&z[..nu]);
+                self.status = ControlStatus::Infeasible {
+                    constraint,
+                    fallback: MpcFallback::InputOnlyMpc,
+                };
+            }
+            Err(e) => return Err(e),
+        }
         self.input_set.project(u);
         Ok(())
+    }
+    fn status(&self) -> ControlStatus {
+        self.status
     }
     fn nu(&self) -> usize {
         self.nu

@@ -30,7 +30,7 @@ pub mod robust_norm;
 pub mod settings;
 pub mod suboptimal;
 
-pub use condensed::{CondensedMpc, MpcConfig, Terminal};
+pub use condensed::{CondensedMpc, MpcConfig, STATE_CONSTRAINED_VOID_REASON, Terminal};
 pub use error::{MpcError, Result};
 pub use exact::{ExactBackend, ExactMpc};
 pub use free_sets::{FreeSetSummary, LocalGains};
@@ -62,6 +62,42 @@ pub trait Controller: std::fmt::Debug {
     fn nu(&self) -> usize;
     /// State dimension n_x.
     fn nx(&self) -> usize;
+    /// What the last successful [`Controller::control`] applied (a state-constrained MPC
+    /// can be infeasible and apply a fallback). The default: the law as designed.
+    fn status(&self) -> ControlStatus {
+        ControlStatus::Applied { violation: 0.0 }
+    }
+}
+
+/// What a controller applied at one step.
+#[derive(Debug, Clone, Copy, PartialEq, serde::Serialize)]
+#[serde(rename_all = "snake_case", tag = "status")]
+pub enum ControlStatus {
+    /// The law as designed: the exact optimum, or K iterations whose plan violates the
+    /// constraints by `violation` (0 for PG / FISTA; ADMM on state rows is feasible only in
+    /// the limit).
+    Applied {
+        /// The largest violation of 𝒰^N and of the state rows by the plan.
+        violation: f64,
+    },
+    /// The state-constrained MPC has no feasible plan at this x̂; `fallback` was applied.
+    Infeasible {
+        /// The row the exact solver could not meet (None when not identified).
+        constraint: Option<qp_iter::dual_active_set::ConstraintRow>,
+        /// What was applied instead.
+        fallback: MpcFallback,
+    },
+}
+
+/// What an infeasible state-constrained MPC applies (documented per controller).
+#[derive(Debug, Clone, Copy, PartialEq, Eq, serde::Serialize)]
+#[serde(rename_all = "snake_case")]
+pub enum MpcFallback {
+    /// u*₀ of the input-constrained MPC (the state rows dropped): [`ExactMpc`].
+    InputOnlyMpc,
+    /// The first block of the warm start — for the shifting rules the previous plan's next
+    /// input; Π_𝒰(0) after a cold start: [`SuboptimalMpc`].
+    ShiftedPlan,
 }
 
 /// Validates the arguments of [`Controller::control`] without allocating.

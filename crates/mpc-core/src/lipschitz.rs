@@ -507,6 +507,12 @@ pub struct LipschitzReport {
     pub enumeration_skipped: Option<String>,
     /// ‖K‖₂ of the saturated LQR for the same (A, B, Q_c, R_c, 𝒰), for comparison.
     pub saturated_lqr: f64,
+    /// Why no certified L_π exists (state constraints:
+    /// [`crate::STATE_CONSTRAINED_VOID_REASON`]); then [`LipschitzReport::l_pi`] is +∞ and
+    /// `certified` describes the input-constrained relaxation only. (Omitted from the
+    /// serialised report when absent.)
+    #[serde(skip_serializing_if = "Option::is_none")]
+    pub void_reason: Option<&'static str>,
 }
 
 /// Largest number of saturable variables s for which [`lipschitz_report_for`] enumerates
@@ -514,8 +520,12 @@ pub struct LipschitzReport {
 pub const ENUMERATION_MAX_VARS: usize = 20;
 
 impl LipschitzReport {
-    /// The tightest certified L_π available: L_enum if computed, else min(L_poly, (b)).
+    /// The tightest certified L_π available: L_enum if computed, else min(L_poly, (b));
+    /// +∞ when void ([`LipschitzReport::void_reason`]).
     pub fn l_pi(&self) -> f64 {
+        if self.void_reason.is_some() {
+            return f64::INFINITY;
+        }
         self.enumerated
             .map_or(self.certified.l_pi(), |e| e.min(self.certified.l_pi()))
     }
@@ -535,6 +545,9 @@ impl std::fmt::Display for LipschitzReport {
         let c = &self.certified;
         let s = &self.sampled;
         writeln!(f, "L_π (Assumption 3), condensed box-constrained MPC:")?;
+        if let Some(r) = self.void_reason {
+            writeln!(f, "  void: {r}")?;
+        }
         writeln!(
             f,
             "  certified L_π  {:.6}  (the tightest bound below)",
@@ -608,6 +621,10 @@ pub fn lipschitz_report_for(
     radius: f64,
 ) -> Result<LipschitzReport> {
     let certified = mpc.lipschitz_certified()?;
+    let void_reason = mpc.certificate_void_reason();
+    // With state constraints the law is not the analysed one (and can be infeasible):
+    // neither the sample nor the enumeration is run.
+    let n_pairs = if void_reason.is_some() { 0 } else { n_pairs };
     // 0 pairs skips the sampled estimate (a caller that uses the certified bound only):
     // the maximum over no pairs is the trivial lower bound 0, reported as 0 pairs.
     let sampled = if n_pairs == 0 {
@@ -625,8 +642,14 @@ pub fn lipschitz_report_for(
     } else {
         mpc.lipschitz_sampled(n_pairs, seed, radius)?
     };
-    let enumerated = mpc.lipschitz_enumerated(ENUMERATION_MAX_VARS)?;
+    let enumerated = match void_reason {
+        Some(_) => None,
+        None => mpc.lipschitz_enumerated(ENUMERATION_MAX_VARS)?,
+    };
     let enumeration_skipped = enumerated.is_none().then(|| {
+        if let Some(r) = void_reason {
+            return r.to_string();
+        }
         format!(
             "{} saturable input variables > cap {ENUMERATION_MAX_VARS} (2^{} free sets); L_poly is used",
             certified.saturable, certified.saturable
@@ -644,5 +667,6 @@ pub fn lipschitz_report_for(
         enumerated,
         enumeration_skipped,
         saturated_lqr: lqr.lipschitz_certified(),
+        void_reason,
     })
 }

@@ -157,7 +157,7 @@ impl MpcSettings {
     }
 
     /// The condensed MPC's configuration with the input set `sets.input` and the state set
-    /// `sets.state` (the latter must be the whole space, see [`MpcConfig::state_set`]).
+    /// `sets.state` (predicted-state rows when bounded, see [`MpcConfig::state_set`]).
     pub fn config(&self, sets: &ScenarioSets) -> MpcConfig {
         let terminal = match self.terminal {
             TerminalCost::Dare => Terminal::Dare,

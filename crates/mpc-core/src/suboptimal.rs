@@ -6,7 +6,7 @@ use qp_iter::{IterationMap, RunResult, RunStatus, run_fixed};
 
 use crate::condensed::CondensedMpc;
 use crate::error::{MpcError, Result};
-use crate::{Controller, check_io};
+use crate::{ControlStatus, Controller, MpcFallback, check_io};
 
 /// Warm start of [`SuboptimalMpc`] from the previous K-th iterate Uᴷ = (u₀, …, u_{N−1}).
 ///
@@ -57,6 +57,10 @@ pub struct SuboptimalMpc<M: IterationMap> {
     warm_buf: Vec<f64>,
     has_previous: bool,
     last: Option<RunResult>,
+    /// With state constraints: an infeasible projection (NaN iterate) applies the shifted
+    /// plan (see [`Controller::control`]).
+    state_constrained: bool,
+    status: ControlStatus,
 }
 
 /// Largest |a − b| over two equally long sequences of values (∞ = ∞ counts as equal).
@@ -133,6 +137,8 @@ impl<M: IterationMap> SuboptimalMpc<M> {
             warm_buf: vec![0.0; n],
             has_previous: false,
             last: None,
+            state_constrained: mpc.has_state_constraints(),
+            status: ControlStatus::Applied { violation: 0.0 },
         })
     }
 
@@ -195,16 +201,40 @@ impl<M: IterationMap> Controller for SuboptimalMpc<M> {
     fn control(&mut self, x_hat: &[f64], u: &mut [f64]) -> Result<()> {
         check_io(x_hat, u, self.nx, self.nu)?;
         self.map.load(&mut self.state, x_hat);
+        let warm = self.has_previous && self.warm != WarmStart::Cold;
         self.start();
         let run = run_fixed(&self.map, &mut self.state, self.iterations);
         self.last = Some(run);
         if run.status == RunStatus::NonFinite {
             self.has_previous = false;
+            if self.state_constrained {
+                // PG / FISTA project exactly onto 𝒰^N ∩ {state rows}: a NaN iterate from
+                // finite data means that set is empty at this x̂. Apply the first block of
+                // the warm start (for the shifting rules the previous plan's next input;
+                // Π_𝒰(0) after a cold start), which lies in 𝒰.
+                let nu = self.nu;
+                if warm {
+                    u.copy_from_slice(&self.warm_buf[..nu]);
+                } else {
+                    u.copy_from_slice(&self.zero_block);
+                }
+                self.status = ControlStatus::Infeasible {
+                    constraint: None,
+                    fallback: MpcFallback::ShiftedPlan,
+                };
+                return Ok(());
+            }
             return Err(MpcError::NonFiniteIterate);
         }
         u.copy_from_slice(&self.map.iterate(&self.state)[..self.nu]);
+        self.status = ControlStatus::Applied {
+            violation: self.map.violation(&self.state),
+        };
         self.has_previous = true;
         Ok(())
+    }
+    fn status(&self) -> ControlStatus {
+        self.status
     }
     fn nu(&self) -> usize {
         self.nu

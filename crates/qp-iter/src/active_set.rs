@@ -38,6 +38,7 @@
 //! fresh factor is a typed [`QpError::NotConverged`], so a caller can fall back to
 //! [`crate::reference`] ([`ExactSolver`] does).
 
+use crate::dual_active_set::{DualActiveSetSettings, DualActiveSetStatus, ParametricDualActiveSet};
 use crate::error::{QpError, Result};
 use crate::free_factor::{FactorBreakdown, FreeFactor, dot};
 use crate::problem::ParametricQp;
@@ -160,6 +161,15 @@ impl ActiveSetSolver {
                 name: "tol".into(),
                 value: settings.tol,
                 reason: "the active-set KKT tolerance must lie in (0, 1), e.g. 1e-10".into(),
+            });
+        }
+        if let Some(gc) = qp.general() {
+            return Err(QpError::Parameter {
+                name: "G".into(),
+                value: gc.m() as f64,
+                reason: "the primal active set solves box QPs only; use \
+                         `dual_active_set::ParametricDualActiveSet` (or `ExactSolver`) for general rows"
+                    .into(),
             });
         }
         let n = qp.n();
@@ -644,6 +654,9 @@ impl ActiveSetSolver {
 /// An exact solve that cannot stop without an answer: [`ActiveSetSolver`] first, Clarabel
 /// ([`ReferenceSolver`], default settings, built on first use) when the active-set method
 /// stops without a verified optimum. What `mpc-core`'s exact MPC and `mhe-core`'s ε_t use.
+/// A problem with general rows is solved by Goldfarb–Idnani
+/// ([`crate::dual_active_set`], started cold each call; warm starts are ignored) with the
+/// same Clarabel fallback, and an infeasible θ is [`QpError::Infeasible`].
 ///
 /// Allocation-free while the active set succeeds (every case-study test run); a fallback
 /// allocates (Clarabel) and is counted by [`ExactSolver::fallbacks`].
@@ -663,6 +676,8 @@ impl ActiveSetSolver {
 #[derive(Debug)]
 pub struct ExactSolver {
     active: ActiveSetSolver,
+    /// With general rows: Goldfarb–Idnani instead of `active` (which then solves nothing).
+    general: Option<Box<ParametricDualActiveSet>>,
     fallback: Option<Box<ReferenceSolver>>,
     fallbacks: usize,
     /// The last solution (the active set's, or Clarabel's after a fallback).
@@ -678,8 +693,16 @@ impl ExactSolver {
 
     /// Active set with the given settings.
     pub fn with_settings(qp: &ParametricQp, settings: ActiveSetSettings) -> Result<Self> {
+        let general = match qp.general() {
+            Some(_) => Some(Box::new(ParametricDualActiveSet::new(
+                qp,
+                DualActiveSetSettings::default(),
+            )?)),
+            None => None,
+        };
         Ok(Self {
-            active: ActiveSetSolver::new(qp, settings)?,
+            active: ActiveSetSolver::new(&qp.without_general(), settings)?,
+            general,
             fallback: None,
             fallbacks: 0,
             z: vec![0.0; qp.n()],
@@ -688,9 +711,43 @@ impl ExactSolver {
     }
 
     /// z*(θ). Errors: θ of the wrong length or not finite ([`QpError::Model`]); Clarabel
-    /// failing after an active-set failure ([`QpError::Reference`]).
+    /// failing after an active-set failure ([`QpError::Reference`]); with general rows,
+    /// constraints without a common point for this θ ([`QpError::Infeasible`], from the
+    /// Goldfarb–Idnani solver, naming the row it could not meet).
     pub fn solve(&mut self, theta: &[f64]) -> Result<&[f64]> {
         self.last_info = None;
+        if let Some(gi) = &mut self.general {
+            let info = gi.solve(theta)?;
+            match info.status {
+                DualActiveSetStatus::Infeasible {
+                    constraint,
+                    violation,
+                } => {
+                    return Err(QpError::Infeasible {
+                        solver: "dual active set",
+                        detail: format!("{constraint} missed by {violation:.3e}"),
+                        constraint: Some(constraint),
+                    });
+                }
+                _ if info.is_verified(1e-9) => {
+                    self.z.copy_from_slice(gi.z());
+                    return Ok(&self.z);
+                }
+                _ => {
+                    self.fallbacks += 1;
+                    let reference = match &mut self.fallback {
+                        Some(r) => r,
+                        slot => slot.insert(Box::new(ReferenceSolver::new(
+                            gi.problem(),
+                            ReferenceSettings::default(),
+                        )?)),
+                    };
+                    let sol = reference.solve(theta)?;
+                    self.z.copy_from_slice(&sol.z);
+                    return Ok(&self.z);
+                }
+            }
+        }
         match self.active.solve(theta) {
             Ok(info) => {
                 self.z.copy_from_slice(self.active.z());
@@ -743,8 +800,11 @@ impl ExactSolver {
         self.last_info
     }
 
-    /// The problem.
+    /// The problem (with its general rows, if any).
     pub fn problem(&self) -> &ParametricQp {
-        self.active.problem()
+        match &self.general {
+            Some(gi) => gi.problem(),
+            None => self.active.problem(),
+        }
     }
 }

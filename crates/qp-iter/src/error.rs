@@ -35,6 +35,18 @@ pub enum QpError {
         /// What went wrong, and what to do.
         reason: String,
     },
+    /// The constraints have no common point (box and general rows for this θ).
+    #[error(
+        "{solver}: the constraints are infeasible ({detail}); loosen the bounds of the sets involved"
+    )]
+    Infeasible {
+        /// Which solver detected it.
+        solver: &'static str,
+        /// Which constraint could not be met, or the solver's status.
+        detail: String,
+        /// The row the dual active set could not add (`None` from Clarabel).
+        constraint: Option<crate::dual_active_set::ConstraintRow>,
+    },
     /// The exact reference solver (Clarabel) did not solve the problem.
     #[error("reference solver: {status}")]
     Reference {

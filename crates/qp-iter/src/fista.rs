@@ -35,6 +35,9 @@
 //! PG step is exact. The bound is on the Euclidean iterate distance and every iterate is
 //! feasible, so it fits eq. (11) as is, with a prefactor > 1: for K below roughly
 //! √κ·ln κ it is weaker than projected gradient's (1 − 1/κ)ᴷ, beyond that much stronger.
+//! With general rows l ≤ Gz ≤ u, T projects exactly onto Z ∩ {l ≤ Gz ≤ u}
+//! ([`crate::general_projection`]); (a)–(c) use only that Z is closed convex with an exact
+//! projection, so the certificate holds unchanged.
 //!
 //! ## Reference
 //! A. Beck, *First-Order Methods in Optimization*, SIAM 2017, §10.7.7 (V-FISTA),
@@ -42,6 +45,7 @@
 
 use crate::IterationMap;
 use crate::certificate::{BoundedQuantity, CertNorm, Certificate};
+use crate::general_projection::ProjectionState;
 use crate::kernel::{Vectors, clamp_nan_propagating};
 use crate::pg::GradientSetup;
 use crate::problem::ParametricQp;
@@ -70,6 +74,15 @@ pub struct FistaState {
     restart: bool,
     /// Workspace of the structured Hessian (empty for the dense kernel).
     work: Vec<f64>,
+    /// The exact projection's workspace (general rows only).
+    proj: Option<Box<ProjectionState>>,
+}
+
+impl FistaState {
+    /// The projection's workspace and statistics, with general rows.
+    pub fn projection(&self) -> Option<&ProjectionState> {
+        self.proj.as_deref()
+    }
 }
 
 impl Fista {
@@ -98,6 +111,8 @@ impl Fista {
         let beta = (sk - 1.0) / (sk + 1.0);
         let rate = (1.0 - 1.0 / sk).max(0.0).sqrt();
         let prefactor = (kappa + sk).sqrt();
+        let g = GradientSetup::new(qp);
+        let projection = g.projection_words();
         let cert = Certificate {
             rate,
             prefactor,
@@ -106,14 +121,14 @@ impl Fista {
             fits_eq11: rate < 1.0,
             premise: format!(
                 "H ≻ 0 (μ = {mu:.6e}, L = {l:.6e}, κ = {kappa:.6e}), step 1/L, momentum β = (√κ−1)/(√κ+1) = {beta:.6e}, \
-                 first step after every (re)start a plain projected-gradient step; exact projection onto a box"
+                 first step after every (re)start a plain projected-gradient step; {projection}"
             ),
             source: "Beck (2017) Thm 10.16 + Thm 10.42 (V-FISTA) + quadratic growth: \
                      ‖z^K − z*‖ ≤ √(κ−1)(1 − 1/√κ)^((K−1)/2)‖z⁰ − z*‖"
                 .into(),
         };
         Self {
-            g: GradientSetup::new(qp),
+            g,
             inv_l: 1.0 / l,
             beta,
             cert,
@@ -167,12 +182,16 @@ impl IterationMap for Fista {
             v: self.g.vectors(Q),
             restart: true,
             work: self.g.op_work(),
+            proj: self.g.projection_state(),
         };
         self.cold_start(&mut s);
         s
     }
     fn load(&self, state: &mut FistaState, theta: &[f64]) {
         self.g.load(state.v.get_mut(Q), theta);
+        if let (Some(p), Some(ps)) = (&self.g.general, &mut state.proj) {
+            p.load(&self.g.qp, ps, theta);
+        }
     }
     fn warm_start(&self, state: &mut FistaState, z0: &[f64], _dual: Option<&[f64]>) {
         self.g.start(state.v.get_mut(Z), Some(z0));
@@ -191,6 +210,23 @@ impl IterationMap for Fista {
         s.restart = false;
         let g = &self.g;
         let [z, y, scratch, q] = s.v.all_mut();
+        if let (Some(p), Some(ps)) = (&g.general, &mut s.proj) {
+            // General rows: w = y − (Hy + q)/L unclamped, x⁺ = Π(w) exactly, then momentum.
+            let n = g.qp.n();
+            // (An empty AlignedVec holds no allocation.)
+            let mut w = std::mem::replace(&mut ps.w, crate::kernel::AlignedVec::zeros(0));
+            w.copy_from_slice(y);
+            g.kernel
+                .pg_step_padded(&g.h, &mut w, q, self.inv_l, &p.free_lo, &p.free_hi, scratch);
+            p.project(&g.qp, ps, &mut w[..n]);
+            for i in 0..n {
+                let x = w[i];
+                y[i] = x + b * (x - z[i]);
+                z[i] = x;
+            }
+            ps.w = w;
+            return;
+        }
         match &g.op {
             // Hy through the problem's structure (O(M) for the MHE), then the kernel's
             // update: NaN-preserving clamp, y⁺ = (1 + β)x⁺ − βx.
@@ -218,6 +254,9 @@ impl IterationMap for Fista {
     }
     fn iterate<'s>(&self, state: &'s FistaState) -> &'s [f64] {
         self.g.head(state.v.get(Z))
+    }
+    fn violation(&self, state: &FistaState) -> f64 {
+        self.g.violation(state.proj.as_deref(), self.iterate(state))
     }
     fn certificate(&self) -> &Certificate {
         &self.cert

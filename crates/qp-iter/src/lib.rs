@@ -2,7 +2,8 @@
 //!
 //! Iteration maps Φ for parametric QPs (Assumption 5 of Yang–Manzie–Pu, eq. (11)):
 //!
-//! minimise ½ zᵀHz + (q₀ + Fθ)ᵀz subject to z ∈ Z (a box with ±∞ bounds).
+//! minimise ½ zᵀHz + (q₀ + Fθ)ᵀz subject to z ∈ Z (a box with ±∞ bounds) and, optionally,
+//! l₀ − Eθ ≤ Gz ≤ u₀ − Eθ ([`GeneralConstraints`]).
 //!
 //! - [`ParametricQp`]: validated problem data (H ≻ 0 symmetric, shapes, finite entries).
 //! - [`IterationMap`]: the algorithm object Φ (setup data only, `Send + Sync`) with a
@@ -19,11 +20,14 @@
 
 pub mod active_set;
 pub mod admm;
+pub mod admm_general;
 pub mod certificate;
 pub mod driver;
+pub mod dual_active_set;
 pub mod error;
 pub mod fista;
 mod free_factor;
+pub mod general_projection;
 pub mod kernel;
 pub mod method;
 pub mod operator;
@@ -36,7 +40,7 @@ pub use certificate::{BoundedQuantity, CertNorm, Certificate};
 pub use driver::{RunResult, RunStatus, run_fixed, run_until};
 pub use error::{QpError, Result};
 pub use method::{Method, MethodKind, MethodMap, MethodState, Scaling};
-pub use problem::ParametricQp;
+pub use problem::{GeneralConstraints, ParametricQp};
 
 /// The iteration map Φ of Assumption 5: z^{k+1} = Φ(z^k, θ).
 ///
@@ -88,6 +92,14 @@ pub trait IterationMap: Send + Sync + std::fmt::Debug {
     /// The dual iterate, for methods that carry one.
     fn dual<'s>(&self, _state: &'s Self::State) -> Option<&'s [f64]> {
         None
+    }
+
+    /// The largest violation of the constraints (the box and, with general rows, the rows
+    /// with the loaded θ's bounds) by [`IterationMap::iterate`]: 0 for a feasible iterate
+    /// (PG, FISTA, box-only ADMM's v), the measured premise failure of Assumption 5 for a
+    /// method feasible only in the limit (ADMM split on general rows, design trap 7).
+    fn violation(&self, state: &Self::State) -> f64 {
+        general_projection::box_violation(self.problem(), self.iterate(state))
     }
 
     /// The certified contraction φ(K) of eq. (11) for this map.

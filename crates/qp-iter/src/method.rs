@@ -29,6 +29,7 @@ use serde::de::{self, MapAccess, Visitor};
 use serde::{Deserialize, Deserializer, Serialize, Serializer};
 
 use crate::admm::{Admm, AdmmParams, AdmmState, Penalty};
+use crate::admm_general::{AdmmSplit, AdmmSplitState};
 use crate::certificate::Certificate;
 use crate::error::{QpError, Result};
 use crate::fista::{Fista, FistaState};
@@ -202,6 +203,11 @@ impl Method {
             Ok(match kind {
                 MethodKind::Pg(rule) => MethodMap::Pg(ProjectedGradient::new(qp, rule)?),
                 MethodKind::Fista => MethodMap::Fista(Fista::new(qp)),
+                // With general rows ADMM splits on [I; G]z (no certificate, measured
+                // violation: `admm_general`).
+                MethodKind::Admm(params) if qp.general().is_some() => {
+                    MethodMap::AdmmSplit(AdmmSplit::new(qp, params)?)
+                }
                 MethodKind::Admm(params) => MethodMap::Admm(Admm::new(qp, params)?),
             })
         };
@@ -374,6 +380,8 @@ pub enum MethodMap {
     Fista(Fista),
     /// ADMM.
     Admm(Admm),
+    /// ADMM split on [I; G]z, for a problem with general rows (void certificate).
+    AdmmSplit(AdmmSplit),
     /// One of the above on the diagonally scaled problem ([`crate::scaled`]).
     Scaled(Box<Scaled<MethodMap>>),
 }
@@ -387,6 +395,8 @@ pub enum MethodState {
     Fista(FistaState),
     /// Of ADMM.
     Admm(AdmmState),
+    /// Of ADMM split on [I; G]z.
+    AdmmSplit(AdmmSplitState),
     /// Of a scaled map.
     Scaled(Box<ScaledState<MethodState>>),
 }
@@ -406,6 +416,7 @@ macro_rules! with_pair {
             (MethodMap::Pg($m), MethodState::Pg($s)) => $body,
             (MethodMap::Fista($m), MethodState::Fista($s)) => $body,
             (MethodMap::Admm($m), MethodState::Admm($s)) => $body,
+            (MethodMap::AdmmSplit($m), MethodState::AdmmSplit($s)) => $body,
             (MethodMap::Scaled($m), MethodState::Scaled($s)) => $body,
             _ => foreign_state(),
         }
@@ -419,6 +430,7 @@ macro_rules! with_map {
             MethodMap::Pg($m) => $body,
             MethodMap::Fista($m) => $body,
             MethodMap::Admm($m) => $body,
+            MethodMap::AdmmSplit($m) => $body,
             MethodMap::Scaled($m) => $body,
         }
     };
@@ -446,6 +458,7 @@ impl IterationMap for MethodMap {
             MethodMap::Pg(m) => MethodState::Pg(m.new_state()),
             MethodMap::Fista(m) => MethodState::Fista(m.new_state()),
             MethodMap::Admm(m) => MethodState::Admm(m.new_state()),
+            MethodMap::AdmmSplit(m) => MethodState::AdmmSplit(m.new_state()),
             MethodMap::Scaled(m) => MethodState::Scaled(Box::new(m.new_state())),
         }
     }
@@ -469,6 +482,9 @@ impl IterationMap for MethodMap {
     }
     fn dual<'s>(&self, state: &'s MethodState) -> Option<&'s [f64]> {
         with_pair!(self, state, |m, s| m.dual(s))
+    }
+    fn violation(&self, state: &MethodState) -> f64 {
+        with_pair!(self, state, |m, s| m.violation(s))
     }
     fn certificate(&self) -> &Certificate {
         with_map!(self, |m| m.certificate())

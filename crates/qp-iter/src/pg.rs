@@ -9,6 +9,8 @@
 //! is non-expansive and z* is a fixed point of the map. For α = 1/L this is (1 − μ/L)ᴷ,
 //! for α = 2/(L+μ) it is ((κ−1)/(κ+1))ᴷ.
 //! Every iterate is feasible (it is a projection), so the bound fits eq. (11) as is.
+//! With general rows l ≤ Gz ≤ u the projection onto Z ∩ {l ≤ Gz ≤ u} is exact
+//! ([`crate::general_projection`]), and the certificate holds unchanged.
 //!
 //! ## Reference
 //! Y. Nesterov, *Lectures on Convex Optimization* (2018), Thm. 2.1.15 and §2.2.4;
@@ -19,6 +21,7 @@
 use crate::IterationMap;
 use crate::certificate::{BoundedQuantity, CertNorm, Certificate};
 use crate::error::{QpError, Result};
+use crate::general_projection::{GeneralProjection, ProjectionState};
 use crate::kernel::{AlignedVec, Kernel, PaddedSymmetric, Vectors, clamp_nan_propagating};
 use crate::operator::HessianOperator;
 use crate::problem::ParametricQp;
@@ -48,22 +51,26 @@ pub(crate) struct GradientSetup {
     pub(crate) upper: AlignedVec,
     pub(crate) kernel: Kernel,
     /// The problem's structured Hessian, used instead of the dense kernel when n ≥ its
-    /// [`HessianOperator::dense_crossover`] (or when forced).
+    /// [`HessianOperator::dense_crossover`] (or when forced), and never with general rows.
     pub(crate) op: Option<Arc<dyn HessianOperator>>,
+    /// The exact projection onto Z ∩ {l ≤ Gz ≤ u} when the problem has general rows.
+    pub(crate) general: Option<GeneralProjection>,
 }
 
 impl GradientSetup {
     pub(crate) fn new(qp: ParametricQp) -> Self {
         let n = qp.n();
         let h = qp.h();
+        let h = PaddedSymmetric::from_fn(n, |i, j| h[(i, j)]);
         Self {
-            h: PaddedSymmetric::from_fn(n, |i, j| h[(i, j)]),
+            general: GeneralProjection::new(&qp, h.ld()),
+            h,
             lower: AlignedVec::padded(qp.zset().lower()),
             upper: AlignedVec::padded(qp.zset().upper()),
             kernel: Kernel::detect(),
             op: qp
                 .operator()
-                .filter(|op| n >= op.dense_crossover())
+                .filter(|op| n >= op.dense_crossover() && qp.general().is_none())
                 .cloned(),
             qp,
         }
@@ -71,7 +78,9 @@ impl GradientSetup {
 
     /// Uses the problem's structured Hessian (if it has one) whatever n.
     pub(crate) fn force_structured(&mut self) {
-        self.op = self.qp.operator().cloned();
+        if self.general.is_none() {
+            self.op = self.qp.operator().cloned();
+        }
     }
 
     /// Workspace of the structured Hessian (empty for the dense kernel).
@@ -103,6 +112,30 @@ impl GradientSetup {
         }
     }
 
+    /// The projection state of a new map state (`None` without general rows).
+    pub(crate) fn projection_state(&self) -> Option<Box<ProjectionState>> {
+        self.general
+            .as_ref()
+            .map(|p| Box::new(p.new_state(&self.qp, self.h.ld())))
+    }
+
+    /// The premise's words for the projection this setup performs.
+    pub(crate) fn projection_words(&self) -> &'static str {
+        if self.general.is_some() {
+            "exact projection onto Z ∩ {l ≤ Gz ≤ u} (Goldfarb–Idnani with H = I)"
+        } else {
+            "exact projection onto a box"
+        }
+    }
+
+    /// The largest violation by the iterate `z` (box, and the rows with the loaded bounds).
+    pub(crate) fn violation(&self, p: Option<&ProjectionState>, z: &[f64]) -> f64 {
+        match (&self.general, p) {
+            (Some(g), Some(p)) => g.violation(&self.qp, p, z),
+            _ => crate::general_projection::box_violation(&self.qp, z),
+        }
+    }
+
     /// The first n entries of a padded vector: the iterate a caller sees.
     #[inline]
     pub(crate) fn head<'a>(&self, v: &'a [f64]) -> &'a [f64] {
@@ -127,6 +160,15 @@ pub struct PgState {
     v: Vectors<3>,
     /// Workspace of the structured Hessian (empty for the dense kernel).
     work: Vec<f64>,
+    /// The exact projection's workspace (general rows only).
+    proj: Option<Box<ProjectionState>>,
+}
+
+impl PgState {
+    /// The projection's workspace and statistics, with general rows.
+    pub fn projection(&self) -> Option<&ProjectionState> {
+        self.proj.as_deref()
+    }
 }
 
 /// Indices into [`PgState`]'s vectors.
@@ -167,6 +209,8 @@ impl ProjectedGradient {
             }
         };
         let rate = (1.0 - alpha * mu).abs().max((1.0 - alpha * l).abs());
+        let g = GradientSetup::new(qp);
+        let projection = g.projection_words();
         let cert = Certificate {
             rate,
             prefactor: 1.0,
@@ -174,16 +218,12 @@ impl ProjectedGradient {
             norm: CertNorm::Euclidean,
             fits_eq11: rate < 1.0,
             premise: format!(
-                "H ≻ 0 (μ = {mu:.6e}, L = {l:.6e}), constant step α = {alpha:.6e} < 2/L; exact projection onto a box"
+                "H ≻ 0 (μ = {mu:.6e}, L = {l:.6e}), constant step α = {alpha:.6e} < 2/L; {projection}"
             ),
             source: "Nesterov (2018) Thm 2.1.15; contraction of z ↦ Π(z − α∇f(z)) for quadratics"
                 .into(),
         };
-        Ok(Self {
-            g: GradientSetup::new(qp),
-            alpha,
-            cert,
-        })
+        Ok(Self { g, alpha, cert })
     }
 
     /// The step α.
@@ -219,12 +259,16 @@ impl IterationMap for ProjectedGradient {
         let mut s = PgState {
             v: self.g.vectors(Q),
             work: self.g.op_work(),
+            proj: self.g.projection_state(),
         };
         self.cold_start(&mut s);
         s
     }
     fn load(&self, state: &mut PgState, theta: &[f64]) {
         self.g.load(state.v.get_mut(Q), theta);
+        if let (Some(p), Some(ps)) = (&self.g.general, &mut state.proj) {
+            p.load(&self.g.qp, ps, theta);
+        }
     }
     fn warm_start(&self, state: &mut PgState, z0: &[f64], _dual: Option<&[f64]>) {
         self.g.start(state.v.get_mut(Z), Some(z0));
@@ -238,6 +282,13 @@ impl IterationMap for ProjectedGradient {
         // clamp), in place: no copy, no allocation, nothing else in the state changes.
         let g = &self.g;
         let [z, scratch, q] = s.v.all_mut();
+        if let (Some(p), Some(ps)) = (&g.general, &mut s.proj) {
+            // General rows: the unclamped step, then the exact projection.
+            g.kernel
+                .pg_step_padded(&g.h, z, q, self.alpha, &p.free_lo, &p.free_hi, scratch);
+            p.project(&g.qp, ps, &mut z[..g.qp.n()]);
+            return;
+        }
         match &g.op {
             // Hz through the problem's structure (O(M) for the MHE), then the same
             // update and NaN-preserving clamp as the kernel.
@@ -262,6 +313,9 @@ impl IterationMap for ProjectedGradient {
     }
     fn iterate<'s>(&self, state: &'s PgState) -> &'s [f64] {
         self.g.head(state.v.get(Z))
+    }
+    fn violation(&self, state: &PgState) -> f64 {
+        self.g.violation(state.proj.as_deref(), self.iterate(state))
     }
     fn certificate(&self) -> &Certificate {
         &self.cert

@@ -1,4 +1,5 @@
-//! Parametric QP data: min ½zᵀHz + (q₀ + Fθ)ᵀz s.t. z ∈ Z.
+//! Parametric QP data: min ½zᵀHz + (q₀ + Fθ)ᵀz s.t. z ∈ Z and, optionally,
+//! l₀ − Eθ ≤ Gz ≤ u₀ − Eθ ([`GeneralConstraints`]).
 
 use faer::{Mat, MatRef};
 use lti_model::matrix::{
@@ -38,6 +39,134 @@ pub struct ParametricQp {
     l: f64,
     /// A structured product z ↦ Hz equal to the dense one ([`crate::operator`]).
     op: Option<std::sync::Arc<dyn HessianOperator>>,
+    /// Optional rows l₀ − Eθ ≤ Gz ≤ u₀ − Eθ besides the box.
+    general: Option<std::sync::Arc<GeneralConstraints>>,
+}
+
+/// General constraints l₀ − Eθ ≤ Gz ≤ u₀ − Eθ whose bounds move with the parameter θ (the
+/// MHE's state and output rows depend on the inputs in θ, the MPC's state rows on x̂).
+///
+/// Validated at construction: G (m × n) and E (m × n_θ) finite, bounds of length m with
+/// ±∞ allowed per side, no NaN, l₀ ≤ u₀, l₀ ≠ +∞ and u₀ ≠ −∞. The column counts are checked
+/// against the problem by [`ParametricQp::with_general`].
+///
+/// ```
+/// use faer::{mat, Mat};
+/// use qp_iter::problem::GeneralConstraints;
+/// // z₀ + z₁ ≤ 1 − θ₀, no lower bound.
+/// let gc = GeneralConstraints::new(mat![[1.0, 1.0]], mat![[1.0]],
+///     vec![f64::NEG_INFINITY], vec![1.0]).unwrap();
+/// let (mut lo, mut hi) = ([0.0], [0.0]);
+/// gc.bounds(&[0.25], &mut lo, &mut hi);
+/// assert_eq!((lo[0], hi[0]), (f64::NEG_INFINITY, 0.75));
+/// ```
+#[derive(Debug, Clone)]
+pub struct GeneralConstraints {
+    g: Mat<f64>,
+    e: Mat<f64>,
+    lower: Vec<f64>,
+    upper: Vec<f64>,
+    /// G row-major (m × n).
+    g_rows: Vec<f64>,
+    /// E row-major (m × n_θ).
+    e_rows: Vec<f64>,
+}
+
+impl GeneralConstraints {
+    /// Validates and builds the rows (see the type's documentation).
+    pub fn new(g: Mat<f64>, e: Mat<f64>, lower: Vec<f64>, upper: Vec<f64>) -> Result<Self> {
+        let m = g.nrows();
+        check_finite("G", g.as_ref())?;
+        check_shape("E", e.as_ref(), m, e.ncols())?;
+        check_finite("E", e.as_ref())?;
+        check_len("G lower bounds", &lower, m)?;
+        check_len("G upper bounds", &upper, m)?;
+        for i in 0..m {
+            let (l, u) = (lower[i], upper[i]);
+            if l.is_nan() || u.is_nan() || l > u || l == f64::INFINITY || u == f64::NEG_INFINITY {
+                return Err(lti_model::ModelError::InvalidSet {
+                    name: "G rows".into(),
+                    reason: format!(
+                        "row {i} has bounds [{l}, {u}]; each row needs lower ≤ upper, no NaN, \
+                         lower < +∞ and upper > −∞"
+                    ),
+                }
+                .into());
+            }
+        }
+        let g_rows = lti_model::matrix::row_major(g.as_ref());
+        let e_rows = lti_model::matrix::row_major(e.as_ref());
+        Ok(Self {
+            g,
+            e,
+            lower,
+            upper,
+            g_rows,
+            e_rows,
+        })
+    }
+
+    /// Number of rows m.
+    pub fn m(&self) -> usize {
+        self.g.nrows()
+    }
+    /// G (m × n).
+    pub fn g(&self) -> MatRef<'_, f64> {
+        self.g.as_ref()
+    }
+    /// G row-major (length m·n), for kernels.
+    pub fn g_row_major(&self) -> &[f64] {
+        &self.g_rows
+    }
+    /// E (m × n_θ).
+    pub fn e(&self) -> MatRef<'_, f64> {
+        self.e.as_ref()
+    }
+    /// l₀.
+    pub fn lower(&self) -> &[f64] {
+        &self.lower
+    }
+    /// u₀.
+    pub fn upper(&self) -> &[f64] {
+        &self.upper
+    }
+
+    /// The bounds for θ: `lo` = l₀ − Eθ, `hi` = u₀ − Eθ (±∞ stay ±∞). Allocation-free;
+    /// lengths are debug-asserted.
+    #[inline]
+    pub fn bounds(&self, theta: &[f64], lo: &mut [f64], hi: &mut [f64]) {
+        let (m, nt) = (self.m(), self.e.ncols());
+        debug_assert_eq!(theta.len(), nt);
+        debug_assert!(lo.len() == m && hi.len() == m);
+        for i in 0..m {
+            let row = &self.e_rows[i * nt..(i + 1) * nt];
+            let et: f64 = row.iter().zip(theta).map(|(a, b)| a * b).sum();
+            lo[i] = self.lower[i] - et;
+            hi[i] = self.upper[i] - et;
+        }
+    }
+
+    /// (Gz)_i for one row.
+    #[inline]
+    pub fn row_dot(&self, i: usize, z: &[f64]) -> f64 {
+        let n = self.g.ncols();
+        self.g_rows[i * n..(i + 1) * n]
+            .iter()
+            .zip(z)
+            .map(|(a, b)| a * b)
+            .sum()
+    }
+
+    /// max_i max(lo_i − (Gz)_i, (Gz)_i − hi_i, 0): the largest violation of the rows by z
+    /// for the bounds `lo`, `hi` (from [`GeneralConstraints::bounds`]). Allocation-free.
+    pub fn violation(&self, z: &[f64], lo: &[f64], hi: &[f64]) -> f64 {
+        let mut v = 0.0f64;
+        for i in 0..self.m() {
+            let gz = self.row_dot(i, z);
+            v = v.max(lo[i] - gz).max(gz - hi[i]);
+        }
+        v
+    }
 }
 
 impl ParametricQp {
@@ -74,7 +203,57 @@ impl ParametricQp {
             mu,
             l,
             op: None,
+            general: None,
         })
+    }
+
+    /// Adds general constraints l₀ − Eθ ≤ Gz ≤ u₀ − Eθ (G with n columns, E with n_θ).
+    ///
+    /// ```
+    /// use faer::{mat, Mat};
+    /// use lti_model::BoxSet;
+    /// use qp_iter::ParametricQp;
+    /// use qp_iter::problem::GeneralConstraints;
+    /// let qp = ParametricQp::new(Mat::identity(2, 2), vec![0.0; 2], Mat::zeros(2, 1),
+    ///     BoxSet::whole(2)).unwrap();
+    /// let gc = GeneralConstraints::new(mat![[1.0, 1.0]], mat![[1.0]], vec![-1.0], vec![1.0])
+    ///     .unwrap();
+    /// let qp = qp.with_general(gc).unwrap();
+    /// assert_eq!(qp.general().unwrap().m(), 1);
+    /// ```
+    pub fn with_general(mut self, gc: GeneralConstraints) -> Result<Self> {
+        check_shape("G", gc.g(), gc.m(), self.n())?;
+        check_shape("E", gc.e(), gc.m(), self.n_theta())?;
+        self.general = (gc.m() > 0).then(|| std::sync::Arc::new(gc));
+        Ok(self)
+    }
+
+    /// The general constraints, if the problem has any (m > 0).
+    pub fn general(&self) -> Option<&GeneralConstraints> {
+        self.general.as_deref()
+    }
+
+    /// The same problem without its general constraints (the box-only relaxation).
+    pub fn without_general(&self) -> Self {
+        let mut p = self.clone();
+        p.general = None;
+        p
+    }
+
+    /// The largest violation of the constraints by z for parameter θ: the box
+    /// max(l − z, z − u) and, with general rows, max(l₀ − Eθ − Gz, Gz − u₀ + Eθ); 0 if z is
+    /// feasible. Allocates nothing; `gbuf` must hold 2m entries (m = rows of G, 0 without).
+    pub fn violation(&self, z: &[f64], theta: &[f64], gbuf: &mut [f64]) -> f64 {
+        let mut v = 0.0f64;
+        for ((zi, l), u) in z.iter().zip(self.zset.lower()).zip(self.zset.upper()) {
+            v = v.max(l - zi).max(zi - u);
+        }
+        if let Some(gc) = self.general() {
+            let (lo, hi) = gbuf[..2 * gc.m()].split_at_mut(gc.m());
+            gc.bounds(theta, lo, hi);
+            v = v.max(gc.violation(z, lo, hi));
+        }
+        v
     }
 
     /// Attaches a structured Hessian operator (it must compute the same Hz; projected

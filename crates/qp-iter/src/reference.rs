@@ -15,6 +15,13 @@
 //! multiplier signs) to `polish_tol`; otherwise Clarabel's point is returned as is.
 //! Either way [`ReferenceSolution::kkt_residual`] reports the natural residual
 //! ‖z − Π_Z(z − (Hz + q))‖_∞, an independent check of optimality.
+//!
+//! **General rows** ([`crate::problem::GeneralConstraints`]): each finite side of
+//! l₀ − Eθ ≤ Gz ≤ u₀ − Eθ is one more row of `A` (G_r or −G_r), its `b` recomputed for each θ
+//! (`update_b`). The polish then solves the KKT system [H Aᵀ_W; A_W 0] of the guessed active
+//! rows W (box and G) by LU, and the residual reported is the larger of the stationarity
+//! ‖Hz + q − λ_box − Gᵀλ_G‖_∞ and the largest violation. A primal-infeasible problem is
+//! [`QpError::Infeasible`].
 
 use clarabel::algebra::CscMatrix;
 use clarabel::solver::{
@@ -65,8 +72,12 @@ pub struct ReferenceSolution {
     pub iterations: u32,
     /// True if the active-set polish was accepted.
     pub polished: bool,
-    /// Natural residual ‖z − Π_Z(z − (Hz + q))‖_∞ of the returned z (0 at the exact optimum).
+    /// Natural residual ‖z − Π_Z(z − (Hz + q))‖_∞ of the returned z (0 at the exact optimum);
+    /// with general rows max(stationarity, violation) (see the module docs).
     pub kkt_residual: f64,
+    /// Signed multipliers of the rows of G (λ > 0: lower side active, < 0: upper side):
+    /// Hz* + q = λ_l − λ_u + Gᵀλ_G. Empty without general rows.
+    pub general_multipliers: Vec<f64>,
 }
 
 impl ReferenceSolution {
@@ -103,6 +114,13 @@ pub struct ReferenceSolver {
     solver: DefaultSolver<f64>,
     /// For each constraint row: (variable index, is upper bound).
     rows: Vec<(usize, bool)>,
+    /// For each row after the box's: (row of G, is upper bound).
+    g_rows: Vec<(usize, bool)>,
+    /// b of the box rows, then of the G rows (recomputed per θ).
+    b: Vec<f64>,
+    /// l₀ − Eθ and u₀ − Eθ of the current θ.
+    g_lo: Vec<f64>,
+    g_hi: Vec<f64>,
     settings: ReferenceSettings,
     q: Vec<f64>,
 }
@@ -175,7 +193,48 @@ impl ReferenceSolver {
             }
             a_colptr.push(a_rowval.len());
         }
-        let m = rows.len();
+        // G rows: one per finite side of l₀ ≤ Gz ≤ u₀ (the side's finiteness does not
+        // change with θ), placed after the box rows.
+        let mut g_rows = Vec::new();
+        let (mut g_lo, mut g_hi) = (Vec::new(), Vec::new());
+        let mut a_dense: Vec<Vec<(usize, f64)>> = vec![Vec::new(); n];
+        if let Some(gc) = qp.general() {
+            let g = gc.g();
+            for r in 0..gc.m() {
+                for (upper, bound) in [(true, gc.upper()[r]), (false, gc.lower()[r])] {
+                    if bound.is_finite() {
+                        let row = rows.len() + g_rows.len();
+                        let sign = if upper { 1.0 } else { -1.0 };
+                        for (j, col) in a_dense.iter_mut().enumerate() {
+                            col.push((row, sign * g[(r, j)]));
+                        }
+                        g_rows.push((r, upper));
+                        b.push(if upper { bound } else { -bound });
+                    }
+                }
+            }
+            g_lo = gc.lower().to_vec();
+            g_hi = gc.upper().to_vec();
+        }
+        if !g_rows.is_empty() {
+            // Merge the G entries into the CSC columns (box rows first in each column).
+            let (mut cp, mut rv, mut nz) = (vec![0], Vec::new(), Vec::new());
+            for (j, extra) in a_dense.iter().enumerate() {
+                for k in a_colptr[j]..a_colptr[j + 1] {
+                    rv.push(a_rowval[k]);
+                    nz.push(a_nzval[k]);
+                }
+                for &(r, v) in extra {
+                    rv.push(r);
+                    nz.push(v);
+                }
+                cp.push(rv.len());
+            }
+            a_colptr = cp;
+            a_rowval = rv;
+            a_nzval = nz;
+        }
+        let m = rows.len() + g_rows.len();
         let a = CscMatrix::new(m, n, a_colptr, a_rowval, a_nzval);
         let cones = if m > 0 {
             vec![SupportedConeT::NonnegativeConeT(m)]
@@ -200,19 +259,35 @@ impl ReferenceSolver {
             qp: qp.clone(),
             solver,
             rows,
+            g_rows,
+            b,
+            g_lo,
+            g_hi,
             settings,
             q,
         })
     }
 
-    /// Solves for parameters θ (q = q₀ + Fθ). θ must have length n_θ and be finite.
+    /// Solves for parameters θ (q = q₀ + Fθ, general bounds l₀ − Eθ, u₀ − Eθ). θ must have
+    /// length n_θ and be finite.
     pub fn solve(&mut self, theta: &[f64]) -> Result<ReferenceSolution> {
         self.qp.check_theta(theta)?;
         self.qp.linear_term(theta, &mut self.q);
+        if let Some(gc) = self.qp.general() {
+            gc.bounds(theta, &mut self.g_lo, &mut self.g_hi);
+            let nb = self.rows.len();
+            for (k, &(r, upper)) in self.g_rows.iter().enumerate() {
+                self.b[nb + k] = if upper { self.g_hi[r] } else { -self.g_lo[r] };
+            }
+            self.solver
+                .update_b(&self.b)
+                .map_err(|e| clarabel_error("update_b", e))?;
+        }
         self.solve_loaded()
     }
 
-    /// Solves for a given linear term q (length n, finite).
+    /// Solves for a given linear term q (length n, finite); general bounds of the last θ
+    /// (θ = 0 before the first [`ReferenceSolver::solve`]).
     pub fn solve_q(&mut self, q: &[f64]) -> Result<ReferenceSolution> {
         lti_model::matrix::check_len("q", q, self.qp.n())?;
         lti_model::matrix::check_finite_slice("q", q)?;
@@ -226,6 +301,16 @@ impl ReferenceSolver {
             .map_err(|e| clarabel_error("update_q", e))?;
         self.solver.solve();
         let sol = &self.solver.solution;
+        if matches!(
+            sol.status,
+            SolverStatus::PrimalInfeasible | SolverStatus::AlmostPrimalInfeasible
+        ) {
+            return Err(QpError::Infeasible {
+                solver: "Clarabel",
+                detail: format!("{:?} after {} iterations", sol.status, sol.iterations),
+                constraint: None,
+            });
+        }
         if sol.status != SolverStatus::Solved {
             return Err(QpError::Reference {
                 status: format!(
@@ -247,6 +332,34 @@ impl ReferenceSolver {
         let mut z = sol.x.clone();
         let iterations = sol.iterations;
         let mut polished = false;
+        if !self.g_rows.is_empty() {
+            let nb = self.rows.len();
+            let mut lam_g = vec![0.0; self.g_lo.len()];
+            for (k, &(r, upper)) in self.g_rows.iter().enumerate() {
+                lam_g[r] += if upper { -sol.z[nb + k] } else { sol.z[nb + k] };
+            }
+            let mut lam_box: Vec<f64> = lam_l.iter().zip(&lam_u).map(|(l, u)| l - u).collect();
+            if self.settings.polish {
+                if let Some((zp, lb, lg)) = self.polish_general(&z, &lam_box, &lam_g) {
+                    z = zp;
+                    lam_box = lb;
+                    lam_g = lg;
+                    polished = true;
+                }
+            }
+            let objective = self.qp.objective(&self.q, &z);
+            let kkt_residual = self.general_residual(&z, &lam_box, &lam_g);
+            return Ok(ReferenceSolution {
+                z,
+                lower_multipliers: lam_box.iter().map(|v| v.max(0.0)).collect(),
+                upper_multipliers: lam_box.iter().map(|v| (-v).max(0.0)).collect(),
+                objective,
+                iterations,
+                polished,
+                kkt_residual,
+                general_multipliers: lam_g,
+            });
+        }
         if self.settings.polish {
             if let Some((zp, lp, up)) = self.polish(&self.q, &z, &lam_l, &lam_u) {
                 z = zp;
@@ -265,7 +378,127 @@ impl ReferenceSolver {
             iterations,
             polished,
             kkt_residual,
+            general_multipliers: Vec::new(),
         })
+    }
+
+    /// max(‖Hz + q − λ_box − Gᵀλ_G‖_∞, largest violation) for signed multipliers.
+    fn general_residual(&self, z: &[f64], lam_box: &[f64], lam_g: &[f64]) -> f64 {
+        let mut g = self.gradient(&self.q, z);
+        for (gi, l) in g.iter_mut().zip(lam_box) {
+            *gi -= l;
+        }
+        let mut viol = 0.0f64;
+        for ((zi, l), u) in z
+            .iter()
+            .zip(self.qp.zset().lower())
+            .zip(self.qp.zset().upper())
+        {
+            viol = viol.max(l - zi).max(zi - u);
+        }
+        if let Some(gc) = self.qp.general() {
+            let gm = gc.g();
+            for (r, &l) in lam_g.iter().enumerate() {
+                for (j, gj) in g.iter_mut().enumerate() {
+                    *gj -= l * gm[(r, j)];
+                }
+            }
+            viol = viol.max(gc.violation(z, &self.g_lo, &self.g_hi));
+        }
+        g.iter().fold(viol, |a, v| a.max(v.abs()))
+    }
+
+    /// Polish with general rows: the KKT system of the guessed active rows, solved by LU;
+    /// `None` unless the result is feasible with multipliers of the right signs.
+    fn polish_general(
+        &self,
+        z: &[f64],
+        lam_box: &[f64],
+        lam_g: &[f64],
+    ) -> Option<(Vec<f64>, Vec<f64>, Vec<f64>)> {
+        let gc = self.qp.general()?;
+        let n = self.qp.n();
+        let (lo, up) = (self.qp.zset().lower(), self.qp.zset().upper());
+        // Active rows (index < n: box, else G), with the bound they hold.
+        let mut act: Vec<(usize, f64)> = Vec::new();
+        for i in 0..n {
+            let l = lam_box[i];
+            if lo[i] == up[i] || (l > 0.0 && l > z[i] - lo[i]) {
+                act.push((i, lo[i]));
+            } else if l < 0.0 && -l > up[i] - z[i] {
+                act.push((i, up[i]));
+            }
+        }
+        for r in 0..gc.m() {
+            let gz = gc.row_dot(r, z);
+            let (l, glo, ghi) = (lam_g[r], self.g_lo[r], self.g_hi[r]);
+            if glo == ghi || (l > 0.0 && l > gz - glo) {
+                act.push((n + r, glo));
+            } else if l < 0.0 && -l > ghi - gz {
+                act.push((n + r, ghi));
+            }
+        }
+        let k = act.len();
+        let h = self.qp.h();
+        let gm = gc.g();
+        let arow = |a: usize, j: usize| {
+            let (r, _) = act[a];
+            if r < n {
+                if r == j { 1.0 } else { 0.0 }
+            } else {
+                gm[(r - n, j)]
+            }
+        };
+        let kkt = Mat::from_fn(n + k, n + k, |i, j| match (i < n, j < n) {
+            (true, true) => h[(i, j)],
+            (true, false) => -arow(j - n, i),
+            (false, true) => arow(i - n, j),
+            (false, false) => 0.0,
+        });
+        let rhs = Mat::from_fn(
+            n + k,
+            1,
+            |i, _| if i < n { -self.q[i] } else { act[i - n].1 },
+        );
+        let sol = faer::linalg::solvers::Solve::solve(&kkt.partial_piv_lu(), rhs);
+        if (0..n + k).any(|i| !sol[(i, 0)].is_finite()) {
+            return None;
+        }
+        let zp: Vec<f64> = (0..n).map(|i| sol[(i, 0)]).collect();
+        let mut lb = vec![0.0; n];
+        let mut lg = vec![0.0; gc.m()];
+        for (a, &(r, bound)) in act.iter().enumerate() {
+            let l = sol[(n + a, 0)];
+            let (rlo, rhi) = if r < n {
+                (lo[r], up[r])
+            } else {
+                (self.g_lo[r - n], self.g_hi[r - n])
+            };
+            // Sign: λ ≥ 0 at a lower bound, ≤ 0 at an upper one (free for equalities).
+            let lam = if rlo == rhi {
+                l
+            } else if bound == rlo {
+                if l < -1e-9 * (1.0 + l.abs()) {
+                    return None;
+                }
+                l.max(0.0)
+            } else {
+                if l > 1e-9 * (1.0 + l.abs()) {
+                    return None;
+                }
+                l.min(0.0)
+            };
+            if r < n {
+                lb[r] = lam;
+            } else {
+                lg[r - n] = lam;
+            }
+        }
+        let scale = 1.0
+            + zp.iter().map(|v| v.abs()).fold(0.0, f64::max)
+            + self.q.iter().map(|v| v.abs()).fold(0.0, f64::max);
+        let res = self.general_residual(&zp, &lb, &lg);
+        (res <= self.settings.polish_tol * scale).then_some((zp, lb, lg))
     }
 
     /// ‖z − Π_Z(z − (Hz + q))‖_∞.

@@ -119,6 +119,17 @@ impl<M: IterationMap> Scaled<M> {
             hi.iter().zip(&d).map(|(u, di)| u / di).collect(),
         )?;
         let mut scaled = ParametricQp::new(hs, q0, fs, zset)?;
+        // General rows carried through: G z = (G D) y, bounds and E unchanged.
+        if let Some(gc) = qp.general() {
+            let g = gc.g();
+            let gd = Mat::from_fn(gc.m(), n, |i, j| g[(i, j)] * d[j]);
+            scaled = scaled.with_general(crate::problem::GeneralConstraints::new(
+                gd,
+                gc.e().to_owned(),
+                gc.lower().to_vec(),
+                gc.upper().to_vec(),
+            )?)?;
+        }
         if let Some(op) = qp.operator() {
             scaled = scaled.with_operator(std::sync::Arc::new(DiagonalScaled {
                 inner: op.clone(),
@@ -183,8 +194,13 @@ impl<M: IterationMap> Scaled<M> {
         }
         s.has_dual = match self.inner.dual(&s.inner) {
             Some(l) => {
+                let n = self.d.len();
                 for ((o, l), d) in s.dual.iter_mut().zip(l).zip(&self.d) {
                     *o = l / d;
+                }
+                // G rows: G z = (G D) y, the same rows, the same multipliers.
+                for (o, l) in s.dual[n..].iter_mut().zip(l.get(n..).unwrap_or(&[])) {
+                    *o = *l;
                 }
                 true
             }
@@ -208,7 +224,8 @@ impl<M: IterationMap> IterationMap for Scaled<M> {
             inner: self.inner.new_state(),
             scratch: vec![0.0; n],
             z: vec![0.0; n],
-            dual: vec![0.0; n],
+            // Box multipliers, then (ADMM split on general rows) those of the G rows.
+            dual: vec![0.0; n + self.qp.general().map_or(0, |g| g.m())],
             has_dual: false,
         }
     }
@@ -224,11 +241,16 @@ impl<M: IterationMap> IterationMap for Scaled<M> {
             Some(l) => {
                 // λ_y = D λ_z; the inner map copies both before returning.
                 let mut ly = std::mem::take(&mut state.dual);
+                let n = self.d.len();
                 for ((o, l), d) in ly.iter_mut().zip(l).zip(&self.d) {
                     *o = l * d;
                 }
+                for (o, l) in ly[n..].iter_mut().zip(l.get(n..).unwrap_or(&[])) {
+                    *o = *l;
+                }
+                let k = l.len().min(ly.len());
                 self.inner
-                    .warm_start(&mut state.inner, &state.scratch, Some(&ly));
+                    .warm_start(&mut state.inner, &state.scratch, Some(&ly[..k]));
                 state.dual = ly;
             }
             None => self
@@ -251,6 +273,11 @@ impl<M: IterationMap> IterationMap for Scaled<M> {
     }
     fn iterate<'s>(&self, state: &'s Self::State) -> &'s [f64] {
         &state.z
+    }
+    /// The inner map's violation: G rows are the same rows (G z = (G D) y); box rows are
+    /// measured in y (in z they scale by d_i).
+    fn violation(&self, state: &Self::State) -> f64 {
+        self.inner.violation(&state.inner)
     }
     fn dual<'s>(&self, state: &'s Self::State) -> Option<&'s [f64]> {
         state.has_dual.then_some(state.dual.as_slice())

@@ -168,3 +168,43 @@ fn active_set_allocates_nothing_after_setup() {
         assert!(max_updates == Some(0) || updates > 0, "{max_updates:?}");
     }
 }
+
+/// With general rows: PG and FISTA with the exact projection, ADMM split on [I; G]z, the
+/// Jacobi-scaled PG and the exact solver (Goldfarb–Idnani) allocate nothing after setup.
+#[test]
+fn general_rows_allocate_nothing_after_setup() {
+    use qp_iter::GeneralConstraints;
+    use qp_iter::active_set::ExactSolver;
+    use qp_iter::method::{Method, Scaling};
+    let base = problem();
+    let n = base.n();
+    let m = 6;
+    let g = Mat::from_fn(m, n, |r, j| if (j + r) % 3 == 0 { 1.0 } else { 0.0 });
+    let e = Mat::from_fn(m, 3, |r, k| 0.1 * ((r + k) % 3) as f64);
+    let qp = base
+        .with_general(GeneralConstraints::new(g, e, vec![-0.8; m], vec![0.4; m]).unwrap())
+        .unwrap();
+    for method in [
+        Method::PG,
+        Method::FISTA,
+        Method::ADMM,
+        Method::PG.with_scaling(Scaling::Jacobi),
+    ] {
+        let map = method.build(qp.clone()).unwrap();
+        assert_no_allocations(&map, None);
+        let mut s = map.new_state();
+        let count = allocations(|| {
+            std::hint::black_box(map.violation(&s));
+            map.step(&mut s);
+        });
+        assert_eq!(count, 0, "{method}");
+    }
+    let mut ex = ExactSolver::new(&qp).unwrap();
+    ex.solve(&[0.3, -1.0, 2.0]).unwrap();
+    let count = allocations(|| {
+        for theta in [[0.3, -1.0, 2.0], [1.0, 0.0, -0.5]] {
+            std::hint::black_box(ex.solve(&theta).unwrap());
+        }
+    });
+    assert_eq!(count, 0);
+}

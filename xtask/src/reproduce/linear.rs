@@ -38,7 +38,10 @@ pub(super) fn linear_entries(
             })
         })
         .collect();
-    let ok: Vec<LoopOptions> = options.iter().filter_map(|o| o.as_ref().ok().copied()).collect();
+    let ok: Vec<LoopOptions> = options
+        .iter()
+        .filter_map(|o| o.as_ref().ok().copied())
+        .collect();
     let mut reports = closed_loop::linear::linear_stability_all(resolved, &ok, &grid).into_iter();
     methods
         .iter()

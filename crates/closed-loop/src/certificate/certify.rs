@@ -200,19 +200,32 @@ pub fn certify_closed_loop_timed(
                 }
             }
         }
-        let k_min = analysis.k_min(opts.k_max);
-        let mut void_reasons: Vec<String> = analysis
-            .violated()
-            .iter()
-            .map(|p| match &gamma13.void {
-                // The exact reason (typed in `gamma13.void`) instead of the generic fix.
-                Some(v) if p.name == "gamma13 finite" => format!("{} fails: {v}", p.name),
-                _ => format!(
-                    "{} fails ({} = {:.6}): {}",
-                    p.name, p.needed_by, p.value, p.fix
-                ),
-            })
+        // Constants whose certified value does not exist for this scenario (issue 15:
+        // bounded 𝒳 / 𝒴 in the MHE, state constraints in the MPC): void with the reason.
+        let structural_void: Vec<String> = problem
+            .as_ref()
+            .and_then(|p| p.lipschitz_void_reason())
+            .map(|r| format!("L_Φ (Lemma 1): {r}"))
+            .into_iter()
+            .chain(
+                mpc.certificate_void_reason()
+                    .map(|r| format!("L_π, γ₁,₃: {r}")),
+            )
             .collect();
+        let k_min = if structural_void.is_empty() {
+            analysis.k_min(opts.k_max)
+        } else {
+            None
+        };
+        let mut void_reasons: Vec<String> = structural_void;
+        void_reasons.extend(analysis.violated().iter().map(|p| match &gamma13.void {
+            // The exact reason (typed in `gamma13.void`) instead of the generic fix.
+            Some(v) if p.name == "gamma13 finite" => format!("{} fails: {v}", p.name),
+            _ => format!(
+                "{} fails ({} = {:.6}): {}",
+                p.name, p.needed_by, p.value, p.fix
+            ),
+        }));
         if k_min.is_none() && void_reasons.is_empty() {
             void_reasons.push(format!(
                 "no K ≤ {} satisfies sg1 + sg2 + sg3 < 1 (ρ(Γ) < 1)",
@@ -233,7 +246,9 @@ pub fn certify_closed_loop_timed(
             analysis,
             k_min,
             void_reasons,
-            k_min_with_sampled_l_phi: if opts.lipschitz_pairs == 0 {
+            k_min_with_sampled_l_phi: if opts.lipschitz_pairs == 0
+                || mpc.certificate_void_reason().is_some()
+            {
                 None
             } else {
                 sampled_analysis.k_min(opts.k_max)

@@ -153,6 +153,9 @@ pub enum Gamma13Void {
         /// Leading input blocks enumerated exactly in the family bound.
         pattern_blocks: usize,
     },
+    /// The MPC has state constraints: the analysis assumes box-constrained inputs only
+    /// (issue 15), so no certified γ₁,₃ exists.
+    StateConstrainedMpc,
     /// A user value below the sampled lower estimate: provably not a valid γ₁,₃.
     UserValueRefuted {
         /// The value supplied.
@@ -165,6 +168,7 @@ pub enum Gamma13Void {
 impl std::fmt::Display for Gamma13Void {
     fn fmt(&self, f: &mut std::fmt::Formatter<'_>) -> std::fmt::Result {
         match self {
+            Self::StateConstrainedMpc => f.write_str(mpc_core::STATE_CONSTRAINED_VOID_REASON),
             Self::OriginOutsideInputSet => write!(
                 f,
                 "0 ∉ 𝒰: the MPC law need not vanish at x = 0, so 0 is not an equilibrium of \

@@ -85,6 +85,16 @@ pub fn gamma13_report(
                 skipped: Vec::new(),
             }
         }
+        // State constraints: the certified analysis (box-constrained inputs) does not apply.
+        Gamma13Source::Certified if mpc.certificate_void_reason().is_some() => Gamma13Report {
+            used: f64::INFINITY,
+            source: "certified".into(),
+            user: None,
+            void: Some(Gamma13Void::StateConstrainedMpc),
+            skipped: Vec::new(),
+            certified: None,
+            sampled: None,
+        },
         Gamma13Source::Certified => {
             let c = gamma13_certified(mpc, max_vars)?;
             Gamma13Report {

@@ -35,6 +35,7 @@
 use faer::linalg::matmul::matmul;
 use faer::{Accum, Mat, MatRef, Par};
 use qp_iter::admm::Admm;
+use qp_iter::admm_general::AdmmSplit;
 use qp_iter::fista::Fista;
 use qp_iter::pg::ProjectedGradient;
 use qp_iter::scaled::Scaled;
@@ -73,6 +74,7 @@ impl Linearise for MethodMap {
             MethodMap::Pg(m) => m.lift_dim(),
             MethodMap::Fista(m) => m.lift_dim(),
             MethodMap::Admm(m) => m.lift_dim(),
+            MethodMap::AdmmSplit(m) => m.lift_dim(),
             MethodMap::Scaled(m) => m.lift_dim(),
         }
     }
@@ -81,6 +83,7 @@ impl Linearise for MethodMap {
             MethodMap::Pg(m) => m.start_steps(),
             MethodMap::Fista(m) => m.start_steps(),
             MethodMap::Admm(m) => m.start_steps(),
+            MethodMap::AdmmSplit(m) => m.start_steps(),
             MethodMap::Scaled(m) => m.start_steps(),
         }
     }
@@ -89,6 +92,7 @@ impl Linearise for MethodMap {
             (MethodMap::Pg(m), MethodState::Pg(s)) => m.start_probe(s, z0, theta, xi),
             (MethodMap::Fista(m), MethodState::Fista(s)) => m.start_probe(s, z0, theta, xi),
             (MethodMap::Admm(m), MethodState::Admm(s)) => m.start_probe(s, z0, theta, xi),
+            (MethodMap::AdmmSplit(m), MethodState::AdmmSplit(s)) => m.start_probe(s, z0, theta, xi),
             (MethodMap::Scaled(m), MethodState::Scaled(s)) => m.start_probe(s, z0, theta, xi),
             _ => unreachable!("MethodMap states come from the same map"),
         }
@@ -98,6 +102,7 @@ impl Linearise for MethodMap {
             (MethodMap::Pg(m), MethodState::Pg(s)) => m.step_probe(s, xi, theta, out),
             (MethodMap::Fista(m), MethodState::Fista(s)) => m.step_probe(s, xi, theta, out),
             (MethodMap::Admm(m), MethodState::Admm(s)) => m.step_probe(s, xi, theta, out),
+            (MethodMap::AdmmSplit(m), MethodState::AdmmSplit(s)) => m.step_probe(s, xi, theta, out),
             (MethodMap::Scaled(m), MethodState::Scaled(s)) => m.step_probe(s, xi, theta, out),
             _ => unreachable!("MethodMap states come from the same map"),
         }
@@ -107,6 +112,7 @@ impl Linearise for MethodMap {
             MethodMap::Pg(m) => m.readout(),
             MethodMap::Fista(m) => m.readout(),
             MethodMap::Admm(m) => m.readout(),
+            MethodMap::AdmmSplit(m) => m.readout(),
             MethodMap::Scaled(m) => m.readout(),
         }
     }
@@ -215,6 +221,31 @@ impl Linearise for Admm {
     }
     fn readout(&self) -> Mat<f64> {
         Mat::identity(self.problem().n(), self.problem().n())
+    }
+}
+
+/// ADMM split on [I; G]z (problems with general rows): ξ = (x, w, y), n + 2(n + m) entries,
+/// set and read through [`AdmmSplit::set_state_vector`] / [`AdmmSplit::state_vector`]; the
+/// step does not read x (zero columns), the iterate is x.
+impl Linearise for AdmmSplit {
+    fn lift_dim(&self) -> usize {
+        let n = self.problem().n();
+        n + 2 * (n + self.problem().general().map_or(0, |g| g.m()))
+    }
+    fn start_probe(&self, st: &mut Self::State, z0: &[f64], theta: &[f64], xi: &mut [f64]) {
+        self.load(st, theta);
+        self.warm_start(st, z0, None);
+        self.state_vector(st, xi);
+    }
+    fn step_probe(&self, st: &mut Self::State, xi: &[f64], theta: &[f64], out: &mut [f64]) {
+        self.load(st, theta);
+        self.set_state_vector(st, xi);
+        self.step(st);
+        self.state_vector(st, out);
+    }
+    fn readout(&self) -> Mat<f64> {
+        let n = self.problem().n();
+        Mat::from_fn(n, self.lift_dim(), |i, j| if i == j { 1.0 } else { 0.0 })
     }
 }
 

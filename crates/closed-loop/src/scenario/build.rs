@@ -131,6 +131,13 @@ impl Controller for ScenarioController {
             ScenarioController::SaturatedLqr(c) => c.nx(),
         }
     }
+    fn status(&self) -> mpc_core::ControlStatus {
+        match self {
+            ScenarioController::Exact(c) => c.status(),
+            ScenarioController::Suboptimal(c) => c.status(),
+            ScenarioController::SaturatedLqr(c) => c.status(),
+        }
+    }
 }
 
 /// A scenario's loop: the MHE with any method, the scenario controller, a boxed

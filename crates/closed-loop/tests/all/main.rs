@@ -3,6 +3,7 @@
 
 mod analysis;
 mod certificate;
+mod constrained;
 mod coverage;
 mod findings;
 mod gamma13;

@@ -5,6 +5,7 @@
 mod common;
 
 mod bookkeeping;
+mod constrained;
 mod convergence;
 mod errors;
 mod exact;

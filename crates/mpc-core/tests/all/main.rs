@@ -2,6 +2,7 @@
 #![allow(clippy::unwrap_used)]
 
 mod common;
+mod constrained;
 mod errors;
 mod exact;
 mod free_sets;

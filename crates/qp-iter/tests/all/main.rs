@@ -8,6 +8,8 @@ mod behaviour;
 mod certificates;
 mod common;
 mod errors;
+mod general;
+mod general_maps;
 mod premise;
 mod reference;
 mod scaled;

@@ -756,8 +756,8 @@ mod tests {
         assert!(parse_p(&serde_json::json!(1.0)).is_err());
     }
 
-    /// Issue 15 item 4: a state set (which the MPC does not support yet) never blocks the
-    /// LMI (2) check: certify passes with L_π reported as not computed, and why.
+    /// Issue 15 item 4: a state set never blocks the LMI (2) check: certify passes, and L_π
+    /// is reported void with the exact reason (the state rows of the MPC move with x̂).
     #[test]
     fn a_state_set_does_not_block_the_lmi_check() {
         let text = std::fs::read_to_string(workspace_root().join("scenarios/case-study-certified.toml"))
@@ -769,15 +769,13 @@ mod tests {
         assert!(text.contains("state = {"));
         let out = certify_text("state-set.toml", &text);
         assert!(out.document.passed);
-        assert!(out.document.controller_lipschitz.is_none());
-        let why = out
-            .document
-            .controller_lipschitz_skipped
-            .as_deref()
-            .unwrap();
+        let l_pi = out.document.controller_lipschitz.as_ref().unwrap();
+        let why = l_pi.void_reason.unwrap();
         assert!(why.contains("state constraints"), "{why}");
+        assert!(l_pi.l_pi().is_infinite());
         assert!(
-            out.summary.contains("L_π (Assumption 3): not computed"),
+            out.summary.contains("L_π (Assumption 3)")
+                && out.summary.contains("void: the MPC has state constraints"),
             "{}",
             out.summary
         );

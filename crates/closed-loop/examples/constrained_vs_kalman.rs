@@ -1,0 +1,153 @@
+//! The constrained MHE against a Kalman filter on the same disturbance draws (issue 15).
+//!
+//! For each seed the scenario's loop (its MHE with the state/output sets, its MPC) and the
+//! same loop with a fading-memory Kalman filter of the MHE's weights in place of the MHE
+//! (`mhe_core::KalmanFilter::matching_mhe`: the unconstrained counterpart of the MHE's cost)
+//! run on identical disturbances. Printed: mean ‖e_t‖ over all steps and over the last
+//! quarter, how often the true state and the estimates leave 𝒳, and the MPC's infeasible
+//! steps.
+//!
+//! ```text
+//! cargo run --release -p closed-loop --example constrained_vs_kalman -- \
+//!     scenarios/mass-chain-state-box.toml scenarios/mass-chain-state-box-tight.toml 200
+//! ```
+
+use closed_loop::record::Trace;
+use closed_loop::scenario::{LoopOptions, Scenario, scenario_disturbance};
+use closed_loop::sim::ClosedLoop;
+use mhe_core::KalmanFilter;
+use rayon::prelude::*;
+
+/// Per-run figures.
+#[derive(Debug, Clone, Copy, Default)]
+struct RunFigures {
+    mean_e: f64,
+    tail_e: f64,
+    /// Steps where the true x_t ∉ 𝒳 (beyond 1e-9).
+    x_outside: usize,
+    /// Largest box violation of an estimate x̂_t.
+    xhat_violation: f64,
+    /// MPC steps that were infeasible (a fallback was applied).
+    infeasible: usize,
+    steps: usize,
+    completed: bool,
+}
+
+fn box_violation(v: &[f64], lo: &[f64], hi: &[f64]) -> f64 {
+    v.iter()
+        .zip(lo.iter().zip(hi))
+        .map(|(x, (l, u))| (l - x).max(x - u).max(0.0))
+        .fold(0.0, f64::max)
+}
+
+fn figures(trace: &Trace, lo: &[f64], hi: &[f64], completed: bool) -> RunFigures {
+    let e = trace.e_norms();
+    let n = e.len();
+    let tail = &e[n - n / 4..];
+    let mut f = RunFigures {
+        mean_e: e.iter().sum::<f64>() / n.max(1) as f64,
+        tail_e: tail.iter().sum::<f64>() / tail.len().max(1) as f64,
+        infeasible: trace.infeasible_steps().count(),
+        steps: n,
+        completed,
+        ..RunFigures::default()
+    };
+    for t in 0..trace.len() {
+        if let Some(x) = trace.x(t) {
+            if box_violation(x, lo, hi) > 1e-9 {
+                f.x_outside += 1;
+            }
+        }
+        if let Some(xh) = trace.x_hat(t) {
+            f.xhat_violation = f.xhat_violation.max(box_violation(xh, lo, hi));
+        }
+    }
+    f
+}
+
+fn summarise(name: &str, runs: &[RunFigures]) {
+    let n = runs.len() as f64;
+    let mean = |g: fn(&RunFigures) -> f64| runs.iter().map(g).sum::<f64>() / n;
+    let steps: usize = runs.iter().map(|r| r.steps).sum();
+    println!(
+        "  {name:<10} completed {:>3}/{}  mean ‖e‖ {:.5}  tail ‖e‖ {:.5}  x ∉ 𝒳 {:.2} % of steps  max x̂ violation {:.1e}  MPC infeasible {} of {steps} steps",
+        runs.iter().filter(|r| r.completed).count(),
+        runs.len(),
+        mean(|r| r.mean_e),
+        mean(|r| r.tail_e),
+        100.0 * runs.iter().map(|r| r.x_outside).sum::<usize>() as f64 / steps.max(1) as f64,
+        runs.iter().map(|r| r.xhat_violation).fold(0.0, f64::max),
+        runs.iter().map(|r| r.infeasible).sum::<usize>(),
+    );
+}
+
+fn main() -> Result<(), Box<dyn std::error::Error>> {
+    let args: Vec<String> = std::env::args().skip(1).collect();
+    let runs: u64 = args.last().and_then(|a| a.parse().ok()).unwrap_or(200);
+    let files: Vec<&String> = args.iter().filter(|a| a.ends_with(".toml")).collect();
+    for path in files {
+        let t0 = std::time::Instant::now();
+        let resolved = Scenario::from_file(path)?.resolve()?;
+        let sc = resolved.scenario();
+        let base = LoopOptions::from_scenario(sc)?;
+        let (lo, hi) = (sc.sets.state.lower(), sc.sets.state.upper());
+        let mhe_cfg = resolved.mhe_config()?;
+        let spec = sc.mhe.as_ref().ok_or("the scenario has no [mhe]")?;
+        println!(
+            "{path}: {runs} seeds, T = {}, MHE {} K = {}, the same controller and disturbances in both rows",
+            base.steps, base.method, base.iterations
+        );
+        let results: Vec<Result<(RunFigures, RunFigures), String>> = (0..runs)
+            .into_par_iter()
+            .map(|seed| {
+                let mut o = base;
+                o.seed = seed;
+                let mut mhe_loop = resolved.build_loop(&o).map_err(|e| e.to_string())?;
+                let mhe_ok = mhe_loop.run().is_ok();
+                let mhe = figures(mhe_loop.trace(), lo, hi, mhe_ok);
+                let kf = KalmanFilter::matching_mhe(
+                    &sc.plant,
+                    &sc.simulation.prior,
+                    spec.eta,
+                    &mhe_cfg.p,
+                    &mhe_cfg.q,
+                    &mhe_cfg.r,
+                )
+                .map_err(|e| e.to_string())?;
+                let mut kf_loop = ClosedLoop::new(
+                    sc.plant.clone(),
+                    kf,
+                    resolved
+                        .controller(o.controller)
+                        .map_err(|e| e.to_string())?,
+                    scenario_disturbance(sc, seed).map_err(|e| e.to_string())?,
+                    &sc.simulation.x0,
+                    o.steps,
+                )
+                .map_err(|e| e.to_string())?;
+                let kf_ok = kf_loop.run().is_ok();
+                let kalman = figures(kf_loop.trace(), lo, hi, kf_ok);
+                Ok((mhe, kalman))
+            })
+            .collect();
+        let mut mhe = Vec::new();
+        let mut kalman = Vec::new();
+        for r in results {
+            let (m, k) = r?;
+            mhe.push(m);
+            kalman.push(k);
+        }
+        summarise("MHE", &mhe);
+        summarise("Kalman", &kalman);
+        let wins = mhe
+            .iter()
+            .zip(&kalman)
+            .filter(|(m, k)| m.mean_e < k.mean_e)
+            .count();
+        println!(
+            "  MHE's mean ‖e‖ below the Kalman filter's on {wins} of {runs} seeds  [{:.1?}]",
+            t0.elapsed()
+        );
+    }
+    Ok(())
+}

@@ -280,6 +280,7 @@ fn simulate(
         steps: opts.steps,
         completed: len,
         error,
+        mpc_infeasible_steps: trace.infeasible_steps().count(),
         sup_norm_e: trace.sup_norm_e(),
         sup_norm_x: trace.sup_norm_x(),
         final_norm_x: trace.x_norms().last().copied().unwrap_or(f64::NAN),

@@ -132,6 +132,9 @@ pub struct RunSummary {
     pub completed: usize,
     /// The step error, if the run stopped early (e.g. a diverged loop).
     pub error: Option<String>,
+    /// Steps at which the MPC was infeasible (state constraints) and applied its fallback
+    /// (`trace.csv` has the status per step).
+    pub mpc_infeasible_steps: usize,
     /// sup_t ‖e_t‖.
     pub sup_norm_e: f64,
     /// sup_t ‖x_t‖.

@@ -226,6 +226,13 @@ pub(super) fn summarize(d: &CertificateDocument, files: &[PathBuf], notes: &[Str
         if d.joint.is_some() {
             let _ = writeln!(s, "      {}", r.controller);
         }
+        if r.mpc_infeasible_steps > 0 {
+            let _ = writeln!(
+                s,
+                "      the MPC was infeasible at {} of {} steps (state constraints) and applied its fallback",
+                r.mpc_infeasible_steps, r.completed
+            );
+        }
         if let Some(e) = &r.error {
             let _ = writeln!(s, "      stopped after {} steps: {e}", r.completed);
         }

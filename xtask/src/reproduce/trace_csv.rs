@@ -4,13 +4,13 @@
 use super::numfmt::csv;
 use super::*;
 
-/// The header: `k,t,x1..x{n_x},xhat1..,u1..,y1..,w1..w{n_w},e_norm,x_norm,eps,status`.
+/// The header: `k,t,x1..x{n_x},xhat1..,u1..,y1..,w1..w{n_w},e_norm,x_norm,eps,status,mpc`.
 pub(super) fn header(nx: usize, nu: usize, ny: usize, nw: usize) -> String {
     let mut cols: Vec<String> = vec!["k".into(), "t".into()];
     for (name, n) in [("x", nx), ("xhat", nx), ("u", nu), ("y", ny), ("w", nw)] {
         cols.extend((1..=n).map(|i| format!("{name}{i}")));
     }
-    cols.extend(["e_norm", "x_norm", "eps", "status"].map(String::from));
+    cols.extend(["e_norm", "x_norm", "eps", "status", "mpc"].map(String::from));
     cols.join(",")
 }
 
@@ -36,6 +36,17 @@ pub(super) fn trace_csv(runs: &[Run]) -> String {
             // Missing (no exact MHE solve, no MHE record): an empty field.
             row.push(step.and_then(|s| s.epsilon()).map_or_else(String::new, csv));
             row.push(step.map_or_else(String::new, |s| status_name(s.status())));
+            row.push(match tr.control_status(t) {
+                Some(mpc_core::ControlStatus::Infeasible { fallback, .. }) => format!(
+                    "infeasible:{}",
+                    serde_json::to_value(fallback)
+                        .ok()
+                        .and_then(|v| v.as_str().map(str::to_owned))
+                        .unwrap_or_default()
+                ),
+                Some(_) => "applied".into(),
+                None => String::new(),
+            });
             out.push_str(&row.join(","));
             out.push('\n');
         }

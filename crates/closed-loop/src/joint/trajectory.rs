@@ -18,7 +18,7 @@ pub struct JointTrajectoryCheck {
     pub prop3: InequalityCheck,
     /// δ_t ≤ φ_c(ωδ_{t−1} + ωL_U‖x̂_{t−1}‖ + L_U‖x̂_t‖) (t ≥ 1), δ₀ ≤ φ_c L_U‖x̂₀‖.
     pub delta_step: InequalityCheck,
-    /// δ_t ≤ (φ_cω)ᵗδ₀ + γ₄,₁ sup_{[0,t]}‖x‖ + γ₄,₃ sup_{[0,t]}‖e‖.
+    /// δ_t ≤ (φ_cω)ᵗδ₀ + γ₄,₁ sup_{0…t}‖x‖ + γ₄,₃ sup_{0…t}‖e‖.
     pub delta: InequalityCheck,
     /// max_t ‖u_t − π(x̂_t)‖/δ_t − 1 ≤ 0: the applied input error is bounded by δ_t (d_t is the
     /// first block of Uᴷᶜ_t − U*(x̂_t)).

@@ -77,6 +77,33 @@ pub struct AdmmParams {
     pub relaxation: f64,
 }
 
+impl AdmmParams {
+    /// ρ (√(μL) for [`Penalty::Optimal`]) and α for `qp`, validated: ρ positive and finite,
+    /// α ∈ (0, 2]. Shared by [`Admm`] and the split on general rows.
+    pub(crate) fn resolve(&self, qp: &ParametricQp) -> Result<(f64, f64)> {
+        let rho = match self.penalty {
+            Penalty::Optimal => (qp.mu() * qp.l()).sqrt(),
+            Penalty::Fixed(r) => r,
+        };
+        if !(rho > 0.0 && rho.is_finite()) {
+            return Err(QpError::Parameter {
+                name: "rho".into(),
+                value: rho,
+                reason: "the ADMM penalty must be positive and finite".into(),
+            });
+        }
+        let alpha = self.relaxation;
+        if !(alpha > 0.0 && alpha <= 2.0) {
+            return Err(QpError::Parameter {
+                name: "alpha".into(),
+                value: alpha,
+                reason: "the ADMM relaxation must lie in (0, 2] (1 = plain ADMM)".into(),
+            });
+        }
+        Ok((rho, alpha))
+    }
+}
+
 impl Default for AdmmParams {
     fn default() -> Self {
         Self {
@@ -175,27 +202,7 @@ impl Admm {
     /// ```
     pub fn new(qp: ParametricQp, params: AdmmParams) -> Result<Self> {
         let (mu, l) = (qp.mu(), qp.l());
-        let rho = match params.penalty {
-            Penalty::Optimal => (mu * l).sqrt(),
-            Penalty::Fixed(r) => {
-                if !(r > 0.0 && r.is_finite()) {
-                    return Err(QpError::Parameter {
-                        name: "rho".into(),
-                        value: r,
-                        reason: "the ADMM penalty must be positive and finite".into(),
-                    });
-                }
-                r
-            }
-        };
-        let alpha = params.relaxation;
-        if !(alpha > 0.0 && alpha <= 2.0) {
-            return Err(QpError::Parameter {
-                name: "alpha".into(),
-                value: alpha,
-                reason: "the ADMM relaxation must lie in (0, 2] (1 = plain ADMM)".into(),
-            });
-        }
+        let (rho, alpha) = params.resolve(&qp)?;
         let n = qp.n();
         let h = qp.h();
         let shifted = Mat::from_fn(n, n, |i, j| h[(i, j)] + if i == j { rho } else { 0.0 });

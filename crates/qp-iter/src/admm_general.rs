@@ -31,9 +31,9 @@
 use faer::{Mat, Side};
 
 use crate::IterationMap;
-use crate::admm::{AdmmParams, Penalty};
+use crate::admm::AdmmParams;
 use crate::certificate::{BoundedQuantity, CertNorm, Certificate};
-use crate::error::{QpError, Result};
+use crate::error::Result;
 use crate::problem::ParametricQp;
 
 /// The reason the certificate of [`AdmmSplit`] is void (also its premise).
@@ -93,26 +93,7 @@ impl AdmmSplit {
     /// assert!(!admm.certificate().fits_eq11 && admm.certificate().rate >= 1.0);
     /// ```
     pub fn new(qp: ParametricQp, params: AdmmParams) -> Result<Self> {
-        let (mu, l) = (qp.mu(), qp.l());
-        let rho = match params.penalty {
-            Penalty::Optimal => (mu * l).sqrt(),
-            Penalty::Fixed(r) => r,
-        };
-        if !(rho > 0.0 && rho.is_finite()) {
-            return Err(QpError::Parameter {
-                name: "rho".into(),
-                value: rho,
-                reason: "the ADMM penalty must be positive and finite".into(),
-            });
-        }
-        let alpha = params.relaxation;
-        if !(alpha > 0.0 && alpha <= 2.0) {
-            return Err(QpError::Parameter {
-                name: "alpha".into(),
-                value: alpha,
-                reason: "the ADMM relaxation must lie in (0, 2] (1 = plain ADMM)".into(),
-            });
-        }
+        let (rho, alpha) = params.resolve(&qp)?;
         let n = qp.n();
         let h = qp.h();
         let mut k = Mat::from_fn(n, n, |i, j| h[(i, j)] + if i == j { rho } else { 0.0 });

@@ -859,16 +859,16 @@ fn trace_csv_has_one_row_per_step_and_the_documented_columns() {
     let header = lines.next().unwrap();
     assert_eq!(
         header,
-        "k,t,x1,x2,x3,x4,xhat1,xhat2,xhat3,xhat4,u1,u2,y1,w1,w2,w3,w4,w5,e_norm,x_norm,eps,status"
+        "k,t,x1,x2,x3,x4,xhat1,xhat2,xhat3,xhat4,u1,u2,y1,w1,w2,w3,w4,w5,e_norm,x_norm,eps,status,mpc"
     );
     assert_eq!(
         trace_csv::header(2, 1, 3, 5).split(',').count(),
-        2 + 4 + 1 + 3 + 5 + 4
+        2 + 4 + 1 + 3 + 5 + 5
     );
     let rows: Vec<Vec<&str>> = lines.map(|l| l.split(',').collect()).collect();
     // Two runs (K = 652, K = 5) of 40 steps.
     assert_eq!(rows.len(), 80);
-    assert!(rows.iter().all(|r| r.len() == 22));
+    assert!(rows.iter().all(|r| r.len() == 23));
     let doc = read_json(&f.out.join("paper/trace.json"));
     for (i, run) in doc["runs"].as_array().unwrap().iter().enumerate() {
         for (t, rec) in run["trace"]["records"]
@@ -892,6 +892,8 @@ fn trace_csv_has_one_row_per_step_and_the_documented_columns() {
                 assert_eq!(cell.to_bits(), v.to_bits(), "row {t} column {}", 2 + j);
             }
             assert_eq!(row[21], rec["mhe"]["status"].as_str().unwrap());
+            // The exact MPC without a state set: always applied.
+            assert_eq!(row[22], "applied");
         }
     }
 }

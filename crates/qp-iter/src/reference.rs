@@ -33,6 +33,29 @@ use lti_model::Projection;
 use crate::error::{QpError, Result};
 use crate::problem::ParametricQp;
 
+/// The nonzeros of a dense matrix in Clarabel's CSC form; `upper_only` keeps i ≤ j (the upper
+/// triangle Clarabel takes for P). For tests and references that build a QP by hand (the
+/// uncondensed MHE and MPC checks).
+///
+/// ```
+/// let m = faer::mat![[2.0, 1.0], [1.0, 0.0]];
+/// let p = qp_iter::reference::dense_to_csc(m.as_ref(), true);
+/// assert_eq!((p.colptr, p.rowval, p.nzval), (vec![0, 1, 2], vec![0, 0], vec![2.0, 1.0]));
+/// ```
+pub fn dense_to_csc(m: faer::MatRef<'_, f64>, upper_only: bool) -> CscMatrix<f64> {
+    let (mut colptr, mut rowval, mut nzval) = (vec![0], Vec::new(), Vec::new());
+    for j in 0..m.ncols() {
+        for i in 0..m.nrows() {
+            if (!upper_only || i <= j) && m[(i, j)] != 0.0 {
+                rowval.push(i);
+                nzval.push(m[(i, j)]);
+            }
+        }
+        colptr.push(rowval.len());
+    }
+    CscMatrix::new(m.nrows(), m.ncols(), colptr, rowval, nzval)
+}
+
 /// Settings of [`ReferenceSolver`].
 #[derive(Debug, Clone, Copy, PartialEq)]
 pub struct ReferenceSettings {

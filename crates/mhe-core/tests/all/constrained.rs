@@ -2,7 +2,6 @@
 //! uncondensed Clarabel formulation (x, w, ŷ as variables, the dynamics and the output map
 //! as equalities), the certificate consequences, and the K-iteration estimator.
 
-use clarabel::algebra::CscMatrix;
 use clarabel::solver::{
     DefaultSettingsBuilder, DefaultSolver, IPSolver, SolverStatus, SupportedConeT,
 };
@@ -16,7 +15,7 @@ use qp_iter::method::Method;
 use rand::{Rng, SeedableRng};
 use rand_chacha::ChaCha8Rng;
 
-use crate::common::{Fixture, dist, random_fixture};
+use crate::common::{Fixture, csc, dist, random_fixture};
 
 /// m steps of data with w inside 𝒲; 𝒳 and 𝒴 boxes just around the true trajectory (so ℙ
 /// is feasible and, the prior being wrong, bounds are active), some components unbounded.
@@ -85,21 +84,6 @@ fn theta(f: &Fixture, d: &Data) -> Vec<f64> {
         t.extend_from_slice(y);
     }
     t
-}
-
-/// A dense matrix as Clarabel CSC (explicit zeros dropped).
-fn csc(m: &Mat<f64>, upper_only: bool) -> CscMatrix<f64> {
-    let (mut colptr, mut rowval, mut nzval) = (vec![0], Vec::new(), Vec::new());
-    for j in 0..m.ncols() {
-        for i in 0..m.nrows() {
-            if (!upper_only || i <= j) && m[(i, j)] != 0.0 {
-                rowval.push(i);
-                nzval.push(m[(i, j)]);
-            }
-        }
-        colptr.push(rowval.len());
-    }
-    CscMatrix::new(m.nrows(), m.ncols(), colptr, rowval, nzval)
 }
 
 /// The uncondensed MHE (8)–(10): v = (x₀…x_m, ŵ₀…ŵ_{m−1}, ŷ₀…ŷ_{m−1}), minimise V_MHE with

@@ -2,7 +2,6 @@
 //! independent solve: Clarabel on the *uncondensed* problem (8) with explicit state,
 //! disturbance and output variables and the model as equality constraints.
 
-use clarabel::algebra::CscMatrix;
 use clarabel::solver::{
     DefaultSettingsBuilder, DefaultSolver, IPSolver, NonnegativeConeT, SolverStatus,
     SupportedConeT, ZeroConeT,
@@ -11,25 +10,7 @@ use faer::Mat;
 use mhe_core::{MheEstimator, MheRecord};
 use qp_iter::pg::{ProjectedGradient, StepRule};
 
-use crate::common::{Fixture, case_study, random_fixture, simulate};
-
-fn csc(m: &Mat<f64>, upper_only: bool) -> CscMatrix<f64> {
-    let (r, c) = (m.nrows(), m.ncols());
-    let (mut colptr, mut rowval, mut nzval) = (vec![0], Vec::new(), Vec::new());
-    for j in 0..c {
-        for i in 0..r {
-            if upper_only && i > j {
-                continue;
-            }
-            if m[(i, j)] != 0.0 {
-                rowval.push(i);
-                nzval.push(m[(i, j)]);
-            }
-        }
-        colptr.push(rowval.len());
-    }
-    CscMatrix::new(r, c, colptr, rowval, nzval)
-}
+use crate::common::{Fixture, case_study, csc, random_fixture, simulate};
 
 /// Solution of problem (8)–(9) with variables (x̂₀..x̂_m, ŵ₀..ŵ_{m−1}, ŷ₀..ŷ_{m−1}):
 /// returns (x̂ sequence, ŵ sequence, optimal V_MHE).

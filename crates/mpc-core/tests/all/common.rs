@@ -1,7 +1,6 @@
 //! Fixtures: the case study (design.md §4), seeded random systems, and an independent
 //! Clarabel solve of the *uncondensed* MPC (explicit states, equality constraints).
 
-use clarabel::algebra::CscMatrix;
 use clarabel::solver::{
     DefaultSettingsBuilder, DefaultSolver, IPSolver, SolverStatus, SupportedConeT,
 };
@@ -77,19 +76,9 @@ pub fn random_problem(seed: u64) -> (LtiSystem, MpcConfig) {
     )
 }
 
-/// CSC of a dense matrix; `upper_only` keeps i ≤ j (Clarabel's P).
-fn csc(m: &Mat<f64>, upper_only: bool) -> CscMatrix<f64> {
-    let (mut colptr, mut rowval, mut nzval) = (vec![0], Vec::new(), Vec::new());
-    for j in 0..m.ncols() {
-        for i in 0..m.nrows() {
-            if (!upper_only || i <= j) && m[(i, j)] != 0.0 {
-                rowval.push(i);
-                nzval.push(m[(i, j)]);
-            }
-        }
-        colptr.push(rowval.len());
-    }
-    CscMatrix::new(m.nrows(), m.ncols(), colptr, rowval, nzval)
+/// CSC of a dense matrix (Clarabel's form; `upper_only` for P).
+pub fn csc(m: &Mat<f64>, upper_only: bool) -> clarabel::algebra::CscMatrix<f64> {
+    qp_iter::reference::dense_to_csc(m.as_ref(), upper_only)
 }
 
 /// Solves the uncondensed MPC with Clarabel directly: variables (x₀, …, x_N, u₀, …,

@@ -2,7 +2,6 @@
 //! Clarabel solve, infeasible steps (typed error from `solve`, documented fallback and
 //! status from `control`), the K-iteration MPC, and the void L_π.
 
-use clarabel::algebra::CscMatrix;
 use clarabel::solver::{
     DefaultSettingsBuilder, DefaultSolver, IPSolver, SolverStatus, SupportedConeT,
 };
@@ -16,21 +15,7 @@ use qp_iter::QpError;
 use qp_iter::method::Method;
 use rand::Rng;
 
-use crate::common::{gaussian, random_problem, rng};
-
-fn csc(m: &Mat<f64>, upper_only: bool) -> CscMatrix<f64> {
-    let (mut colptr, mut rowval, mut nzval) = (vec![0], Vec::new(), Vec::new());
-    for j in 0..m.ncols() {
-        for i in 0..m.nrows() {
-            if (!upper_only || i <= j) && m[(i, j)] != 0.0 {
-                rowval.push(i);
-                nzval.push(m[(i, j)]);
-            }
-        }
-        colptr.push(rowval.len());
-    }
-    CscMatrix::new(m.nrows(), m.ncols(), colptr, rowval, nzval)
-}
+use crate::common::{csc, gaussian, random_problem, rng};
 
 /// Uncondensed: v = (x₀…x_N, u₀…u_{N−1}), x₀ = x̂, x_{k+1} = Ax_k + Bu_k, u_k ∈ 𝒰,
 /// x_k ∈ 𝒳 (k = 1..N). `None` if Clarabel says infeasible.

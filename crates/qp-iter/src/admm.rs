@@ -85,22 +85,12 @@ impl AdmmParams {
             Penalty::Optimal => (qp.mu() * qp.l()).sqrt(),
             Penalty::Fixed(r) => r,
         };
-        if !(rho > 0.0 && rho.is_finite()) {
-            return Err(QpError::Parameter {
-                name: "rho".into(),
-                value: rho,
-                reason: "the ADMM penalty must be positive and finite".into(),
-            });
-        }
-        let alpha = self.relaxation;
-        if !(alpha > 0.0 && alpha <= 2.0) {
-            return Err(QpError::Parameter {
-                name: "alpha".into(),
-                value: alpha,
-                reason: "the ADMM relaxation must lie in (0, 2] (1 = plain ADMM)".into(),
-            });
-        }
-        Ok((rho, alpha))
+        let resolved = AdmmParams {
+            penalty: Penalty::Fixed(rho),
+            relaxation: self.relaxation,
+        };
+        <Admm as crate::method::Family>::validate(&resolved)?;
+        Ok((rho, self.relaxation))
     }
 }
 
@@ -445,6 +435,98 @@ impl IterationMap for Admm {
     }
     fn matvecs_per_step(&self) -> usize {
         1
+    }
+}
+
+/// ξ = s, the splitting variable.
+impl crate::linearise::Linearise for Admm {
+    fn lift_dim(&self) -> usize {
+        self.problem().n()
+    }
+    /// s⁰ = z⁰ + y⁰/ρ with the gradient dual y⁰ = −(Hz⁰ + q) of the real warm start.
+    fn start_probe(&self, st: &mut AdmmState, z0: &[f64], theta: &[f64], xi: &mut [f64]) {
+        self.load(st, theta);
+        self.warm_start(st, z0, None);
+        self.splitting_variable(st, xi);
+    }
+    /// s = ξ is set through the warm start with the dual 0 (s = z⁰ + 0/ρ), then one real
+    /// step (allocates the zero dual: analysis only, never in the hot loop).
+    fn step_probe(&self, st: &mut AdmmState, xi: &[f64], theta: &[f64], out: &mut [f64]) {
+        let zero = vec![0.0; xi.len()];
+        self.load(st, theta);
+        self.warm_start(st, xi, Some(&zero));
+        self.step(st);
+        self.splitting_variable(st, out);
+    }
+    fn readout(&self) -> Mat<f64> {
+        Mat::identity(self.problem().n(), self.problem().n())
+    }
+}
+
+/// `"admm"` (ρ = √(μL), α = 1), `"admm-pr"` (α = 2), or `{ method = "admm", rho, alpha }`.
+/// With general rows it builds the split on [I; G]z ([`crate::admm_general::AdmmSplit`]).
+impl crate::method::Family for Admm {
+    type Params = AdmmParams;
+    const NAME: &'static str = "admm";
+    const PRESETS: &'static [(&'static str, AdmmParams)] = &[
+        (
+            "admm",
+            AdmmParams {
+                penalty: Penalty::Optimal,
+                relaxation: 1.0,
+            },
+        ),
+        (
+            "admm-pr",
+            AdmmParams {
+                penalty: Penalty::Optimal,
+                relaxation: 2.0,
+            },
+        ),
+    ];
+    const KEYS: &'static [&'static str] = &["rho", "alpha"];
+    fn with_keys(base: AdmmParams, key: &dyn Fn(&str) -> Option<f64>) -> AdmmParams {
+        AdmmParams {
+            penalty: key("rho").map_or(base.penalty, Penalty::Fixed),
+            relaxation: key("alpha").unwrap_or(base.relaxation),
+        }
+    }
+    fn keys_of(p: &AdmmParams) -> Vec<(&'static str, f64)> {
+        let mut keys = Vec::with_capacity(2);
+        if let Penalty::Fixed(r) = p.penalty {
+            keys.push(("rho", r));
+        }
+        keys.push(("alpha", p.relaxation));
+        keys
+    }
+    fn validate(p: &AdmmParams) -> Result<()> {
+        let bad = |name: &str, value: f64, reason: &str| {
+            Err(QpError::Parameter {
+                name: name.into(),
+                value,
+                reason: reason.into(),
+            })
+        };
+        if let Penalty::Fixed(r) = p.penalty {
+            if !(r > 0.0 && r.is_finite()) {
+                return bad("rho", r, "the ADMM penalty must be positive and finite");
+            }
+        }
+        if !(p.relaxation > 0.0 && p.relaxation <= 2.0) {
+            return bad(
+                "alpha",
+                p.relaxation,
+                "the ADMM relaxation must lie in (0, 2] (1 = plain ADMM)",
+            );
+        }
+        Ok(())
+    }
+    fn build(p: &AdmmParams, qp: ParametricQp) -> Result<crate::MethodMap> {
+        Ok(if qp.general().is_some() {
+            crate::MethodMap::AdmmSplit(crate::admm_general::AdmmSplit::new(qp, *p)?)
+        } else {
+            crate::MethodMap::Admm(Admm::new(qp, *p)?)
+        })
     }
 }
 

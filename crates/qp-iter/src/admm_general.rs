@@ -327,3 +327,27 @@ impl IterationMap for AdmmSplit {
         &self.cert
     }
 }
+
+/// ξ = (x, w, y), n + 2(n + m) entries, set and read through
+/// [`AdmmSplit::set_state_vector`] / [`AdmmSplit::state_vector`]; the step does not read x
+/// (zero columns), the iterate is x.
+impl crate::linearise::Linearise for AdmmSplit {
+    fn lift_dim(&self) -> usize {
+        let n = self.problem().n();
+        n + 2 * (n + self.problem().general().map_or(0, |g| g.m()))
+    }
+    fn start_probe(&self, st: &mut AdmmSplitState, z0: &[f64], theta: &[f64], xi: &mut [f64]) {
+        self.load(st, theta);
+        self.warm_start(st, z0, None);
+        self.state_vector(st, xi);
+    }
+    fn step_probe(&self, st: &mut AdmmSplitState, xi: &[f64], theta: &[f64], out: &mut [f64]) {
+        self.load(st, theta);
+        self.set_state_vector(st, xi);
+        self.step(st);
+        self.state_vector(st, out);
+    }
+    fn readout(&self) -> faer::Mat<f64> {
+        crate::linearise::leading_identity(self.problem().n(), self.lift_dim())
+    }
+}

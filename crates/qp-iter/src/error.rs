@@ -8,11 +8,13 @@ pub enum QpError {
     Model(#[from] lti_model::ModelError),
     /// A method name other than the named methods of [`crate::method::Method`].
     #[error(
-        "unknown method `{name}`; use \"pg\", \"fista\", \"admm\" or \"admm-pr\" (or a table with `method` and its parameters)"
+        "unknown method `{name}`; use one of {known} (each optionally with \"-jacobi\"), or a table {{ method = \"…\", … }} with its parameters"
     )]
     UnknownMethod {
         /// The name given.
         name: String,
+        /// The names the method list knows, quoted and comma-separated.
+        known: String,
     },
     /// A method parameter is invalid (step size, penalty, tolerance).
     #[error("parameter `{name}` = {value} is invalid: {reason}")]

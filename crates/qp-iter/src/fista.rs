@@ -263,6 +263,66 @@ impl IterationMap for Fista {
     }
 }
 
+/// ξ = (x, y). One coefficient cannot be reached through [`IterationMap`] (a state with
+/// x ≠ y cannot be set), so the momentum β is read from [`Fista::momentum`] while T is
+/// probed from the real restart step.
+impl crate::linearise::Linearise for Fista {
+    fn lift_dim(&self) -> usize {
+        2 * self.problem().n()
+    }
+    fn start_steps(&self) -> usize {
+        1
+    }
+    /// ξ₀ = (x₀, y₀) = (T(z⁰), T(z⁰)): the restart step of the real map.
+    fn start_probe(&self, st: &mut FistaState, z0: &[f64], theta: &[f64], xi: &mut [f64]) {
+        let n = self.problem().n();
+        self.load(st, theta);
+        self.warm_start(st, z0, None);
+        self.step(st);
+        let x = self.iterate(st);
+        xi[..n].copy_from_slice(x);
+        xi[n..].copy_from_slice(x);
+    }
+    /// x⁺ = T(y) from the real restart step (a plain step from y with zero momentum, the
+    /// same fused kernel), y⁺ = x⁺ + β(x⁺ − x) with the map's β.
+    fn step_probe(&self, st: &mut FistaState, xi: &[f64], theta: &[f64], out: &mut [f64]) {
+        let n = self.problem().n();
+        let beta = self.momentum();
+        self.load(st, theta);
+        self.warm_start(st, &xi[n..], None);
+        self.step(st);
+        let tx = self.iterate(st);
+        for i in 0..n {
+            out[i] = tx[i];
+            out[n + i] = tx[i] + beta * (tx[i] - xi[i]);
+        }
+    }
+    fn readout(&self) -> faer::Mat<f64> {
+        let n = self.problem().n();
+        crate::linearise::leading_identity(n, 2 * n)
+    }
+}
+
+/// `"fista"` (no parameters: step 1/L, momentum from κ).
+impl crate::method::Family for Fista {
+    type Params = ();
+    const NAME: &'static str = "fista";
+    const PRESETS: &'static [(&'static str, ())] = &[("fista", ())];
+    const KEYS: &'static [&'static str] = &[];
+    fn with_keys(base: (), _key: &dyn Fn(&str) -> Option<f64>) {
+        base
+    }
+    fn keys_of(_p: &()) -> Vec<(&'static str, f64)> {
+        Vec::new()
+    }
+    fn validate(_p: &()) -> crate::Result<()> {
+        Ok(())
+    }
+    fn build(_p: &(), qp: ParametricQp) -> crate::Result<crate::MethodMap> {
+        Ok(crate::MethodMap::Fista(Fista::new(qp)))
+    }
+}
+
 #[cfg(test)]
 mod tests {
     #![allow(clippy::unwrap_used)]

@@ -29,6 +29,7 @@ pub mod fista;
 mod free_factor;
 pub mod general_projection;
 pub mod kernel;
+pub mod linearise;
 pub mod method;
 pub mod operator;
 pub mod pg;
@@ -39,7 +40,8 @@ pub mod scaled;
 pub use certificate::{BoundedQuantity, CertNorm, Certificate};
 pub use driver::{RunResult, RunStatus, run_fixed, run_until};
 pub use error::{QpError, Result};
-pub use method::{Method, MethodKind, MethodMap, MethodState, Scaling};
+pub use linearise::Linearise;
+pub use method::{Family, Method, MethodKind, MethodMap, MethodState, Scaling};
 pub use problem::{GeneralConstraints, ParametricQp};
 
 /// The iteration map Φ of Assumption 5: z^{k+1} = Φ(z^k, θ).

@@ -3,9 +3,12 @@
 //! for a problem, dispatching to the concrete method **once per run**
 //! ([`IterationMap::run_steps`]), never per iteration.
 //!
-//! Adding a method is one new file with its [`IterationMap`] implementation and one arm in
-//! each `match` of this file (the compiler lists them); nothing above `qp-iter` changes.
-//! `docs/architecture.md` lists the places.
+//! Adding a method is one new file and one line of the list below (`method_list!`): the
+//! file holds the map with its [`IterationMap`], [`Linearise`] and [`Family`]
+//! implementations (names, parameters, validation, build); the enums, the parsing of names
+//! and tables, the naming and every dispatch are generated from the list, so nothing else
+//! in this crate or above it changes. The test-only `Trial` arm (`method/trial_method.rs`)
+//! is such a method; `docs/architecture.md` shows its diff.
 //!
 //! ## File format
 //! A method is written as its name — `"pg"` (step 2/(L + μ)), `"fista"`, `"admm"` (ρ = √(μL),
@@ -22,32 +25,327 @@
 //! ```
 
 use std::borrow::Cow;
+use std::collections::BTreeMap;
 use std::fmt;
 use std::str::FromStr;
 
 use serde::de::{self, MapAccess, Visitor};
+use serde::ser::SerializeMap;
 use serde::{Deserialize, Deserializer, Serialize, Serializer};
 
-use crate::admm::{Admm, AdmmParams, AdmmState, Penalty};
-use crate::admm_general::{AdmmSplit, AdmmSplitState};
+use crate::admm::{AdmmParams, Penalty};
 use crate::certificate::Certificate;
 use crate::error::{QpError, Result};
-use crate::fista::{Fista, FistaState};
-use crate::pg::{PgState, ProjectedGradient, StepRule};
+use crate::linearise::Linearise;
+use crate::pg::StepRule;
 use crate::problem::ParametricQp;
 use crate::scaled::{Scaled, ScaledState, jacobi_scaling};
 use crate::{IterationMap, RunResult, run_fixed};
 
-/// The family of an iteration map and its parameters (the method without its scaling).
-#[derive(Debug, Clone, Copy, PartialEq)]
-pub enum MethodKind {
-    /// Projected gradient with a step rule ([`ProjectedGradient`]).
-    Pg(StepRule),
-    /// V-FISTA, the accelerated projected gradient for strongly convex problems ([`Fista`]).
-    Fista,
-    /// ADMM with penalty ρ and relaxation α ([`Admm`]).
-    Admm(AdmmParams),
+#[cfg(test)]
+mod trial_method;
+
+/// What a method family's own file tells the method list: its names and parameters in
+/// files, their validation, and how to build its map. Implemented beside the map
+/// (`pg.rs`, `fista.rs`, `admm.rs`); [`MethodKind`], [`MethodMap`], [`MethodState`], the
+/// parsing and the dispatch are generated from the one list in this file.
+pub trait Family: IterationMap + Linearise + Sized {
+    /// The family's parameters (the payload of its [`MethodKind`] arm).
+    type Params: Copy + PartialEq + fmt::Debug + Send + Sync + 'static;
+    /// The family name in files and reports; also the first of [`Family::PRESETS`].
+    const NAME: &'static str;
+    /// Names that stand for preset parameters (`"admm-pr"`), the first being
+    /// [`Family::NAME`] with the family's default parameters.
+    const PRESETS: &'static [(&'static str, Self::Params)];
+    /// The parameter keys of the table form (`{ method = "admm", rho = 2 }`).
+    const KEYS: &'static [&'static str];
+    /// The parameters of a table: `base` are those of the table's `method` name, `key`
+    /// reads a key of [`Family::KEYS`] (validated afterwards by [`Family::validate`]).
+    fn with_keys(base: Self::Params, key: &dyn Fn(&str) -> Option<f64>) -> Self::Params;
+    /// The keys that describe `p` in the table form (omitted keys take the default).
+    fn keys_of(p: &Self::Params) -> Vec<(&'static str, f64)>;
+    /// Checks the parameters without a problem (the map checks them again at setup).
+    fn validate(p: &Self::Params) -> Result<()>;
+    /// Builds Φ for `qp` (allocates: setup).
+    fn build(p: &Self::Params, qp: ParametricQp) -> Result<MethodMap>;
+    /// The name of `p`: a preset's name, else `family(key=value,…)`.
+    fn describe(p: &Self::Params) -> Cow<'static, str> {
+        if let Some((name, _)) = Self::PRESETS.iter().find(|(_, q)| q == p) {
+            return (*name).into();
+        }
+        let keys: Vec<String> = Self::keys_of(p)
+            .iter()
+            .map(|(k, v)| format!("{k}={v}"))
+            .collect();
+        format!("{}({})", Self::NAME, keys.join(",")).into()
+    }
 }
+
+/// Generates, from one list of families (and of maps a family may build besides its
+/// own), the enums [`MethodKind`], [`MethodMap`], [`MethodState`] and every dispatch: the
+/// [`IterationMap`] and [`Linearise`] impls of [`MethodMap`] and the family lookups behind
+/// parsing, naming, validating and building a [`Method`]. A new method is its file and one
+/// line of the list.
+macro_rules! method_list {
+    (
+        families { $( $(#[doc = $fdoc:literal])* $(#[cfg($fcfg:meta)])? $fam:ident => $fmap:ty ),* $(,)? }
+        maps { $( $(#[doc = $mdoc:literal])* $(#[cfg($mcfg:meta)])? $extra:ident => $emap:ty ),* $(,)? }
+    ) => {
+        /// The family of an iteration map and its parameters (the method without its
+        /// scaling).
+        #[derive(Debug, Clone, Copy, PartialEq)]
+        #[non_exhaustive]
+        pub enum MethodKind {
+            $( $(#[doc = $fdoc])* $(#[cfg($fcfg)])? $fam(<$fmap as Family>::Params), )*
+        }
+
+        /// Φ built for one problem: one of the concrete maps, chosen by a [`Method`].
+        ///
+        /// As an [`IterationMap`] it dispatches per call; [`IterationMap::run_steps`] (what
+        /// [`run_fixed`] uses) dispatches once and then runs the concrete map's steps in a
+        /// loop, so K iterations cost one branch, not K.
+        #[derive(Debug, Clone)]
+        #[non_exhaustive]
+        pub enum MethodMap {
+            $( $(#[doc = $fdoc])* $(#[cfg($fcfg)])? $fam($fmap), )*
+            $( $(#[doc = $mdoc])* $(#[cfg($mcfg)])? $extra($emap), )*
+            /// One of the above on the diagonally scaled problem ([`crate::scaled`]).
+            Scaled(Box<Scaled<MethodMap>>),
+        }
+
+        /// The state of a [`MethodMap`]: the state of its concrete map.
+        #[derive(Debug)]
+        #[non_exhaustive]
+        pub enum MethodState {
+            $( $(#[doc = $fdoc])* $(#[cfg($fcfg)])? $fam(<$fmap as IterationMap>::State), )*
+            $( $(#[doc = $mdoc])* $(#[cfg($mcfg)])? $extra(<$emap as IterationMap>::State), )*
+            /// Of a scaled map.
+            Scaled(Box<ScaledState<MethodState>>),
+        }
+
+        impl MethodKind {
+            fn family(&self) -> &'static str {
+                match self { $( $(#[cfg($fcfg)])? MethodKind::$fam(_) => <$fmap as Family>::NAME, )* }
+            }
+            fn describe(&self) -> Cow<'static, str> {
+                match self { $( $(#[cfg($fcfg)])? MethodKind::$fam(p) => <$fmap as Family>::describe(p), )* }
+            }
+            fn validate(&self) -> Result<()> {
+                match self { $( $(#[cfg($fcfg)])? MethodKind::$fam(p) => <$fmap as Family>::validate(p), )* }
+            }
+            fn build(&self, qp: ParametricQp) -> Result<MethodMap> {
+                match self { $( $(#[cfg($fcfg)])? MethodKind::$fam(p) => <$fmap as Family>::build(p, qp), )* }
+            }
+            fn keys(&self) -> Vec<(&'static str, f64)> {
+                match self { $( $(#[cfg($fcfg)])? MethodKind::$fam(p) => <$fmap as Family>::keys_of(p), )* }
+            }
+            /// The family with the parameters of the preset `name` and its table keys.
+            fn preset(name: &str) -> Option<(MethodKind, &'static [&'static str], PresetParams)> {
+                $( $(#[cfg($fcfg)])? {
+                    if let Some((_, p)) = <$fmap as Family>::PRESETS.iter().find(|(n, _)| *n == name) {
+                        let with: PresetParams = |kind, key| match kind {
+                            MethodKind::$fam(p) => MethodKind::$fam(<$fmap as Family>::with_keys(p, key)),
+                            #[allow(unreachable_patterns)]
+                            other => other,
+                        };
+                        return Some((MethodKind::$fam(*p), <$fmap as Family>::KEYS, with));
+                    }
+                } )*
+                None
+            }
+            /// Every preset name, in list order (for messages).
+            fn preset_names() -> Vec<&'static str> {
+                let mut names = Vec::new();
+                $( $(#[cfg($fcfg)])? names.extend(<$fmap as Family>::PRESETS.iter().map(|(n, _)| *n)); )*
+                names
+            }
+        }
+
+        impl IterationMap for MethodMap {
+            type State = MethodState;
+
+            fn name(&self) -> &'static str {
+                match self {
+                    $( $(#[cfg($fcfg)])? MethodMap::$fam(m) => m.name(), )*
+                    $( $(#[cfg($mcfg)])? MethodMap::$extra(m) => m.name(), )*
+                    MethodMap::Scaled(m) => m.name(),
+                }
+            }
+            fn problem(&self) -> &ParametricQp {
+                match self {
+                    $( $(#[cfg($fcfg)])? MethodMap::$fam(m) => m.problem(), )*
+                    $( $(#[cfg($mcfg)])? MethodMap::$extra(m) => m.problem(), )*
+                    MethodMap::Scaled(m) => m.problem(),
+                }
+            }
+            fn new_state(&self) -> MethodState {
+                match self {
+                    $( $(#[cfg($fcfg)])? MethodMap::$fam(m) => MethodState::$fam(m.new_state()), )*
+                    $( $(#[cfg($mcfg)])? MethodMap::$extra(m) => MethodState::$extra(m.new_state()), )*
+                    MethodMap::Scaled(m) => MethodState::Scaled(Box::new(m.new_state())),
+                }
+            }
+            fn load(&self, state: &mut MethodState, theta: &[f64]) {
+                match (self, state) {
+                    $( $(#[cfg($fcfg)])? (MethodMap::$fam(m), MethodState::$fam(s)) => m.load(s, theta), )*
+                    $( $(#[cfg($mcfg)])? (MethodMap::$extra(m), MethodState::$extra(s)) => m.load(s, theta), )*
+                    (MethodMap::Scaled(m), MethodState::Scaled(s)) => m.load(s, theta),
+                    _ => foreign_state(),
+                }
+            }
+            fn warm_start(&self, state: &mut MethodState, z0: &[f64], dual: Option<&[f64]>) {
+                match (self, state) {
+                    $( $(#[cfg($fcfg)])? (MethodMap::$fam(m), MethodState::$fam(s)) => m.warm_start(s, z0, dual), )*
+                    $( $(#[cfg($mcfg)])? (MethodMap::$extra(m), MethodState::$extra(s)) => m.warm_start(s, z0, dual), )*
+                    (MethodMap::Scaled(m), MethodState::Scaled(s)) => m.warm_start(s, z0, dual),
+                    _ => foreign_state(),
+                }
+            }
+            fn cold_start(&self, state: &mut MethodState) {
+                match (self, state) {
+                    $( $(#[cfg($fcfg)])? (MethodMap::$fam(m), MethodState::$fam(s)) => m.cold_start(s), )*
+                    $( $(#[cfg($mcfg)])? (MethodMap::$extra(m), MethodState::$extra(s)) => m.cold_start(s), )*
+                    (MethodMap::Scaled(m), MethodState::Scaled(s)) => m.cold_start(s),
+                    _ => foreign_state(),
+                }
+            }
+            fn step(&self, state: &mut MethodState) {
+                match (self, state) {
+                    $( $(#[cfg($fcfg)])? (MethodMap::$fam(m), MethodState::$fam(s)) => m.step(s), )*
+                    $( $(#[cfg($mcfg)])? (MethodMap::$extra(m), MethodState::$extra(s)) => m.step(s), )*
+                    (MethodMap::Scaled(m), MethodState::Scaled(s)) => m.step(s),
+                    _ => foreign_state(),
+                }
+            }
+            fn run_steps(&self, state: &mut MethodState, k: usize) {
+                match (self, state) {
+                    $( $(#[cfg($fcfg)])? (MethodMap::$fam(m), MethodState::$fam(s)) => m.run_steps(s, k), )*
+                    $( $(#[cfg($mcfg)])? (MethodMap::$extra(m), MethodState::$extra(s)) => m.run_steps(s, k), )*
+                    (MethodMap::Scaled(m), MethodState::Scaled(s)) => m.run_steps(s, k),
+                    _ => foreign_state(),
+                }
+            }
+            fn iterate<'s>(&self, state: &'s MethodState) -> &'s [f64] {
+                match (self, state) {
+                    $( $(#[cfg($fcfg)])? (MethodMap::$fam(m), MethodState::$fam(s)) => m.iterate(s), )*
+                    $( $(#[cfg($mcfg)])? (MethodMap::$extra(m), MethodState::$extra(s)) => m.iterate(s), )*
+                    (MethodMap::Scaled(m), MethodState::Scaled(s)) => m.iterate(s),
+                    _ => foreign_state(),
+                }
+            }
+            fn dual<'s>(&self, state: &'s MethodState) -> Option<&'s [f64]> {
+                match (self, state) {
+                    $( $(#[cfg($fcfg)])? (MethodMap::$fam(m), MethodState::$fam(s)) => m.dual(s), )*
+                    $( $(#[cfg($mcfg)])? (MethodMap::$extra(m), MethodState::$extra(s)) => m.dual(s), )*
+                    (MethodMap::Scaled(m), MethodState::Scaled(s)) => m.dual(s),
+                    _ => foreign_state(),
+                }
+            }
+            fn violation(&self, state: &MethodState) -> f64 {
+                match (self, state) {
+                    $( $(#[cfg($fcfg)])? (MethodMap::$fam(m), MethodState::$fam(s)) => m.violation(s), )*
+                    $( $(#[cfg($mcfg)])? (MethodMap::$extra(m), MethodState::$extra(s)) => m.violation(s), )*
+                    (MethodMap::Scaled(m), MethodState::Scaled(s)) => m.violation(s),
+                    _ => foreign_state(),
+                }
+            }
+            fn certificate(&self) -> &Certificate {
+                match self {
+                    $( $(#[cfg($fcfg)])? MethodMap::$fam(m) => m.certificate(), )*
+                    $( $(#[cfg($mcfg)])? MethodMap::$extra(m) => m.certificate(), )*
+                    MethodMap::Scaled(m) => m.certificate(),
+                }
+            }
+            fn matvecs_per_step(&self) -> usize {
+                match self {
+                    $( $(#[cfg($fcfg)])? MethodMap::$fam(m) => m.matvecs_per_step(), )*
+                    $( $(#[cfg($mcfg)])? MethodMap::$extra(m) => m.matvecs_per_step(), )*
+                    MethodMap::Scaled(m) => m.matvecs_per_step(),
+                }
+            }
+        }
+
+        /// The dispatching map linearises as the concrete method it holds.
+        impl Linearise for MethodMap {
+            fn lift_dim(&self) -> usize {
+                match self {
+                    $( $(#[cfg($fcfg)])? MethodMap::$fam(m) => m.lift_dim(), )*
+                    $( $(#[cfg($mcfg)])? MethodMap::$extra(m) => m.lift_dim(), )*
+                    MethodMap::Scaled(m) => m.lift_dim(),
+                }
+            }
+            fn start_steps(&self) -> usize {
+                match self {
+                    $( $(#[cfg($fcfg)])? MethodMap::$fam(m) => m.start_steps(), )*
+                    $( $(#[cfg($mcfg)])? MethodMap::$extra(m) => m.start_steps(), )*
+                    MethodMap::Scaled(m) => m.start_steps(),
+                }
+            }
+            fn start_probe(&self, st: &mut MethodState, z0: &[f64], theta: &[f64], xi: &mut [f64]) {
+                match (self, st) {
+                    $( $(#[cfg($fcfg)])? (MethodMap::$fam(m), MethodState::$fam(s)) => m.start_probe(s, z0, theta, xi), )*
+                    $( $(#[cfg($mcfg)])? (MethodMap::$extra(m), MethodState::$extra(s)) => m.start_probe(s, z0, theta, xi), )*
+                    (MethodMap::Scaled(m), MethodState::Scaled(s)) => m.start_probe(s, z0, theta, xi),
+                    _ => foreign_state(),
+                }
+            }
+            fn step_probe(&self, st: &mut MethodState, xi: &[f64], theta: &[f64], out: &mut [f64]) {
+                match (self, st) {
+                    $( $(#[cfg($fcfg)])? (MethodMap::$fam(m), MethodState::$fam(s)) => m.step_probe(s, xi, theta, out), )*
+                    $( $(#[cfg($mcfg)])? (MethodMap::$extra(m), MethodState::$extra(s)) => m.step_probe(s, xi, theta, out), )*
+                    (MethodMap::Scaled(m), MethodState::Scaled(s)) => m.step_probe(s, xi, theta, out),
+                    _ => foreign_state(),
+                }
+            }
+            fn readout(&self) -> faer::Mat<f64> {
+                match self {
+                    $( $(#[cfg($fcfg)])? MethodMap::$fam(m) => m.readout(), )*
+                    $( $(#[cfg($mcfg)])? MethodMap::$extra(m) => m.readout(), )*
+                    MethodMap::Scaled(m) => m.readout(),
+                }
+            }
+        }
+    };
+}
+
+// ---------------------------------------------------------------------------------------
+// The list
+// ---------------------------------------------------------------------------------------
+
+method_list! {
+    families {
+        /// Projected gradient with a step rule ([`crate::pg::ProjectedGradient`]).
+        Pg => crate::pg::ProjectedGradient,
+        /// V-FISTA, the accelerated projected gradient for strongly convex problems
+        /// ([`crate::fista::Fista`]).
+        Fista => crate::fista::Fista,
+        /// ADMM with penalty ρ and relaxation α ([`crate::admm::Admm`]); on a problem with
+        /// general rows it builds [`crate::admm_general::AdmmSplit`].
+        Admm => crate::admm::Admm,
+        /// The trial method of `docs/architecture.md` ("Adding a method"): test builds only.
+        #[cfg(test)]
+        Trial => trial_method::Richardson,
+    }
+    maps {
+        /// ADMM split on [I; G]z, for a problem with general rows (void certificate).
+        AdmmSplit => crate::admm_general::AdmmSplit,
+    }
+}
+
+/// Applies a table's keys to a preset's parameters (generated per family).
+type PresetParams = fn(MethodKind, &dyn Fn(&str) -> Option<f64>) -> MethodKind;
+
+#[cold]
+#[inline(never)]
+fn foreign_state() -> ! {
+    // A programming error of the caller (a state made by a map of another method), never
+    // reachable from data: states come from `MethodMap::new_state` of the same map.
+    panic!("MethodMap: the state was created by a map of another method")
+}
+
+// ---------------------------------------------------------------------------------------
+// Method: a family, its parameters and its scaling
+// ---------------------------------------------------------------------------------------
 
 /// How the QP is scaled before the map runs on it ([`crate::scaled`]).
 #[derive(Debug, Clone, Copy, PartialEq, Eq, Default, Serialize, Deserialize)]
@@ -80,7 +378,7 @@ impl Method {
     /// `"pg"`: projected gradient with the optimal constant step 2/(L + μ).
     pub const PG: Method = Method::plain(MethodKind::Pg(StepRule::Optimal));
     /// `"fista"`.
-    pub const FISTA: Method = Method::plain(MethodKind::Fista);
+    pub const FISTA: Method = Method::plain(MethodKind::Fista(()));
     /// `"admm"`: ρ = √(μL), α = 1.
     pub const ADMM: Method = Method::plain(MethodKind::Admm(AdmmParams {
         penalty: Penalty::Optimal,
@@ -131,52 +429,14 @@ impl Method {
 
     /// Checks the parameters without a problem (the maps check them again at setup).
     pub fn validate(&self) -> Result<()> {
-        let bad = |name: &str, value: f64, reason: &str| {
-            Err(QpError::Parameter {
-                name: name.into(),
-                value,
-                reason: reason.into(),
-            })
-        };
-        match self.kind {
-            MethodKind::Pg(StepRule::Fixed(a)) if !(a > 0.0 && a.is_finite()) => {
-                bad("step", a, "the step must be positive and finite")
-            }
-            MethodKind::Admm(p) => {
-                if let Penalty::Fixed(r) = p.penalty {
-                    if !(r > 0.0 && r.is_finite()) {
-                        return bad("rho", r, "the ADMM penalty must be positive and finite");
-                    }
-                }
-                if !(p.relaxation > 0.0 && p.relaxation <= 2.0) {
-                    return bad(
-                        "alpha",
-                        p.relaxation,
-                        "the ADMM relaxation must lie in (0, 2] (1 = plain ADMM)",
-                    );
-                }
-                Ok(())
-            }
-            _ => Ok(()),
-        }
+        self.kind.validate()
     }
 
     /// The method's name: `"pg"`, `"fista"`, `"admm"`, `"admm-pr"` for the named methods
     /// (`"pg-jacobi"`, … on the Jacobi-scaled problem), otherwise the family with its
     /// parameters (`"admm(rho=2,alpha=1.5)"`, `"pg(step=0.1,scaling=jacobi)"`).
     pub fn name(&self) -> Cow<'static, str> {
-        let base: Cow<'static, str> = match self.kind {
-            MethodKind::Pg(StepRule::Optimal) => "pg".into(),
-            MethodKind::Pg(StepRule::InverseL) => "pg(step=1/L)".into(),
-            MethodKind::Pg(StepRule::Fixed(a)) => format!("pg(step={a})").into(),
-            MethodKind::Fista => "fista".into(),
-            MethodKind::Admm(p) => match (p.penalty, p.relaxation) {
-                (Penalty::Optimal, 1.0) => "admm".into(),
-                (Penalty::Optimal, 2.0) => "admm-pr".into(),
-                (Penalty::Optimal, a) => format!("admm(alpha={a})").into(),
-                (Penalty::Fixed(r), a) => format!("admm(rho={r},alpha={a})").into(),
-            },
-        };
+        let base = self.kind.describe();
         match self.scaling {
             Scaling::None => base,
             Scaling::Jacobi => match base.strip_suffix(')') {
@@ -189,33 +449,34 @@ impl Method {
     /// The family name of the map (`"pg"`, `"fista"`, `"admm"`), what
     /// [`IterationMap::name`] reports.
     pub fn family(&self) -> &'static str {
-        match self.kind {
-            MethodKind::Pg(_) => "pg",
-            MethodKind::Fista => "fista",
-            MethodKind::Admm(_) => "admm",
+        self.kind.family()
+    }
+
+    /// The family names in list order (what plots colour by).
+    pub fn families() -> Vec<&'static str> {
+        let mut out: Vec<&'static str> = Vec::new();
+        for name in MethodKind::preset_names() {
+            if let Some((kind, _, _)) = MethodKind::preset(name) {
+                if !out.contains(&kind.family()) {
+                    out.push(kind.family());
+                }
+            }
         }
+        out
     }
 
     /// Builds Φ for `qp` (allocates: setup).
     pub fn build(&self, qp: ParametricQp) -> Result<MethodMap> {
         let kind = self.kind;
-        let plain = move |qp: ParametricQp| -> Result<MethodMap> {
-            Ok(match kind {
-                MethodKind::Pg(rule) => MethodMap::Pg(ProjectedGradient::new(qp, rule)?),
-                MethodKind::Fista => MethodMap::Fista(Fista::new(qp)),
-                // With general rows ADMM splits on [I; G]z (no certificate, measured
-                // violation: `admm_general`).
-                MethodKind::Admm(params) if qp.general().is_some() => {
-                    MethodMap::AdmmSplit(AdmmSplit::new(qp, params)?)
-                }
-                MethodKind::Admm(params) => MethodMap::Admm(Admm::new(qp, params)?),
-            })
-        };
         match self.scaling {
-            Scaling::None => plain(qp),
+            Scaling::None => kind.build(qp),
             Scaling::Jacobi => {
                 let d = jacobi_scaling(&qp);
-                Ok(MethodMap::Scaled(Box::new(Scaled::new(qp, d, plain)?)))
+                Ok(MethodMap::Scaled(Box::new(Scaled::new(
+                    qp,
+                    d,
+                    move |qp| kind.build(qp),
+                )?)))
             }
         }
     }
@@ -239,23 +500,30 @@ impl fmt::Display for Method {
     }
 }
 
+fn unknown(name: &str) -> QpError {
+    QpError::UnknownMethod {
+        name: name.into(),
+        known: MethodKind::preset_names()
+            .iter()
+            .map(|n| format!("\"{n}\""))
+            .collect::<Vec<_>>()
+            .join(", "),
+    }
+}
+
 impl FromStr for Method {
     type Err = QpError;
-    /// One of the names `"pg"`, `"fista"`, `"admm"`, `"admm-pr"`, each optionally with
-    /// `-jacobi` (the same method on the Jacobi-scaled problem).
+    /// A preset name (`"pg"`, `"fista"`, `"admm"`, `"admm-pr"`), optionally with `-jacobi`
+    /// (the same method on the Jacobi-scaled problem).
     fn from_str(s: &str) -> Result<Self> {
         let (base, scaling) = match s.strip_suffix("-jacobi") {
             Some(b) => (b, Scaling::Jacobi),
             None => (s, Scaling::None),
         };
-        let m = match base {
-            "pg" => Method::PG,
-            "fista" => Method::FISTA,
-            "admm" => Method::ADMM,
-            "admm-pr" => Method::ADMM_PR,
-            _ => return Err(QpError::UnknownMethod { name: s.into() }),
-        };
-        Ok(m.with_scaling(scaling))
+        match MethodKind::preset(base) {
+            Some((kind, _, _)) => Ok(Method { kind, scaling }),
+            None => Err(unknown(s)),
+        }
     }
 }
 
@@ -263,53 +531,40 @@ impl FromStr for Method {
 // Serde: a name, or a table with the parameters.
 // ---------------------------------------------------------------------------------------
 
-#[derive(Deserialize, Serialize)]
-#[serde(deny_unknown_fields)]
+/// `{ method = "…", scaling = "…", <the family's keys> }`.
+#[derive(Deserialize)]
 struct MethodTable {
     method: String,
-    #[serde(default, skip_serializing_if = "Option::is_none")]
-    step: Option<f64>,
-    #[serde(default, skip_serializing_if = "Option::is_none")]
-    rho: Option<f64>,
-    #[serde(default, skip_serializing_if = "Option::is_none")]
-    alpha: Option<f64>,
-    #[serde(default, skip_serializing_if = "Option::is_none")]
+    #[serde(default)]
     scaling: Option<Scaling>,
+    #[serde(flatten)]
+    params: BTreeMap<String, f64>,
 }
 
 impl MethodTable {
     fn into_method(self) -> std::result::Result<Method, String> {
-        let family = self.method.as_str();
-        let only = |allowed: &[&str]| -> std::result::Result<(), String> {
-            for (key, given) in [
-                ("step", self.step.is_some()),
-                ("rho", self.rho.is_some()),
-                ("alpha", self.alpha.is_some()),
-            ] {
-                if given && !allowed.contains(&key) {
-                    return Err(format!("`{key}` is not a parameter of `{family}`"));
-                }
-            }
-            Ok(())
+        let name = self.method.as_str();
+        let Some((base, keys, with)) = MethodKind::preset(name) else {
+            return Err(unknown(name).to_string());
         };
-        let m = match family {
-            "pg" => {
-                only(&["step"])?;
-                Method::pg(self.step)
-            }
-            "fista" => {
-                only(&[])?;
-                Ok(Method::FISTA)
-            }
-            "admm" | "admm-pr" => {
-                only(&["rho", "alpha"])?;
-                let default_alpha = if family == "admm" { 1.0 } else { 2.0 };
-                Method::admm(self.rho, self.alpha.unwrap_or(default_alpha))
-            }
-            other => return Err(QpError::UnknownMethod { name: other.into() }.to_string()),
+        if let Some(key) = self.params.keys().find(|k| !keys.contains(&k.as_str())) {
+            let allowed = if keys.is_empty() {
+                "it has none".to_string()
+            } else {
+                format!("its parameters: {}", keys.join(", "))
+            };
+            return Err(format!(
+                "`{key}` is not a parameter of `{name}` ({allowed}; and `scaling`)"
+            ));
+        }
+        let params = &self.params;
+        let kind = with(base, &|k| params.get(k).copied());
+        let m = Method {
+            kind,
+            scaling: self.scaling.unwrap_or_default(),
         };
-        m.map(|m| m.with_scaling(self.scaling.unwrap_or_default()))
-            .map_err(|e| e.to_string())
+        m.validate().map_err(|e| e.to_string())?;
+        Ok(m)
     }
 }
 
@@ -318,25 +573,17 @@ impl Serialize for Method {
         if Method::PRESETS.contains(self) || Method::JACOBI_PRESETS.contains(self) {
             return s.serialize_str(&self.name());
         }
-        let mut table = MethodTable {
-            method: self.family().into(),
-            step: None,
-            rho: None,
-            alpha: None,
-            scaling: (self.scaling != Scaling::None).then_some(self.scaling),
-        };
-        match self.kind {
-            MethodKind::Pg(StepRule::Fixed(a)) => table.step = Some(a),
-            MethodKind::Pg(_) | MethodKind::Fista => {}
-            MethodKind::Admm(p) => {
-                table.rho = match p.penalty {
-                    Penalty::Fixed(r) => Some(r),
-                    Penalty::Optimal => None,
-                };
-                table.alpha = Some(p.relaxation);
-            }
+        let keys = self.kind.keys();
+        let scaled = self.scaling != Scaling::None;
+        let mut map = s.serialize_map(Some(1 + keys.len() + usize::from(scaled)))?;
+        map.serialize_entry("method", self.family())?;
+        for (k, v) in &keys {
+            map.serialize_entry(k, v)?;
         }
-        table.serialize(s)
+        if scaled {
+            map.serialize_entry("scaling", &self.scaling)?;
+        }
+        map.end()
     }
 }
 
@@ -346,9 +593,11 @@ impl<'de> Deserialize<'de> for Method {
         impl<'de> Visitor<'de> for V {
             type Value = Method;
             fn expecting(&self, f: &mut fmt::Formatter<'_>) -> fmt::Result {
-                f.write_str(
-                    "a method name (\"pg\", \"fista\", \"admm\", \"admm-pr\", each optionally \
-                     with \"-jacobi\") or a table { method = \"…\", step / rho / alpha / scaling = … }",
+                write!(
+                    f,
+                    "a method name ({}, each optionally with \"-jacobi\") or a table \
+                     {{ method = \"…\", <its parameters>, scaling = \"jacobi\" }}",
+                    MethodKind::preset_names().join(", ")
                 )
             }
             fn visit_str<E: de::Error>(self, v: &str) -> std::result::Result<Method, E> {
@@ -363,134 +612,11 @@ impl<'de> Deserialize<'de> for Method {
     }
 }
 
-// ---------------------------------------------------------------------------------------
-// The dispatching map
-// ---------------------------------------------------------------------------------------
-
-/// Φ built for one problem: one of the concrete maps, chosen by a [`Method`].
-///
-/// As an [`IterationMap`] it dispatches per call; [`IterationMap::run_steps`] (what
-/// [`run_fixed`] uses) dispatches once and then runs the concrete map's steps in a loop, so
-/// K iterations cost one branch, not K.
-#[derive(Debug, Clone)]
-pub enum MethodMap {
-    /// Projected gradient.
-    Pg(ProjectedGradient),
-    /// FISTA.
-    Fista(Fista),
-    /// ADMM.
-    Admm(Admm),
-    /// ADMM split on [I; G]z, for a problem with general rows (void certificate).
-    AdmmSplit(AdmmSplit),
-    /// One of the above on the diagonally scaled problem ([`crate::scaled`]).
-    Scaled(Box<Scaled<MethodMap>>),
-}
-
-/// The state of a [`MethodMap`]: the state of its concrete map.
-#[derive(Debug)]
-pub enum MethodState {
-    /// Of projected gradient.
-    Pg(PgState),
-    /// Of FISTA.
-    Fista(FistaState),
-    /// Of ADMM.
-    Admm(AdmmState),
-    /// Of ADMM split on [I; G]z.
-    AdmmSplit(AdmmSplitState),
-    /// Of a scaled map.
-    Scaled(Box<ScaledState<MethodState>>),
-}
-
-#[cold]
-#[inline(never)]
-fn foreign_state() -> ! {
-    // A programming error of the caller (a state made by a map of another method), never
-    // reachable from data: states come from `MethodMap::new_state` of the same map.
-    panic!("MethodMap: the state was created by a map of another method")
-}
-
-/// `$body` with `$m` the concrete map and `$s` its state.
-macro_rules! with_pair {
-    ($map:expr, $state:expr, |$m:ident, $s:ident| $body:expr) => {
-        match ($map, $state) {
-            (MethodMap::Pg($m), MethodState::Pg($s)) => $body,
-            (MethodMap::Fista($m), MethodState::Fista($s)) => $body,
-            (MethodMap::Admm($m), MethodState::Admm($s)) => $body,
-            (MethodMap::AdmmSplit($m), MethodState::AdmmSplit($s)) => $body,
-            (MethodMap::Scaled($m), MethodState::Scaled($s)) => $body,
-            _ => foreign_state(),
-        }
-    };
-}
-
-/// `$body` with `$m` the concrete map.
-macro_rules! with_map {
-    ($map:expr, |$m:ident| $body:expr) => {
-        match $map {
-            MethodMap::Pg($m) => $body,
-            MethodMap::Fista($m) => $body,
-            MethodMap::Admm($m) => $body,
-            MethodMap::AdmmSplit($m) => $body,
-            MethodMap::Scaled($m) => $body,
-        }
-    };
-}
-
 impl MethodMap {
     /// K = `k` steps of Φ and the status of the iterate, dispatched once
     /// (equivalent to [`run_fixed`]).
     pub fn run_fixed(&self, state: &mut MethodState, k: usize) -> RunResult {
         run_fixed(self, state, k)
-    }
-}
-
-impl IterationMap for MethodMap {
-    type State = MethodState;
-
-    fn name(&self) -> &'static str {
-        with_map!(self, |m| m.name())
-    }
-    fn problem(&self) -> &ParametricQp {
-        with_map!(self, |m| m.problem())
-    }
-    fn new_state(&self) -> MethodState {
-        match self {
-            MethodMap::Pg(m) => MethodState::Pg(m.new_state()),
-            MethodMap::Fista(m) => MethodState::Fista(m.new_state()),
-            MethodMap::Admm(m) => MethodState::Admm(m.new_state()),
-            MethodMap::AdmmSplit(m) => MethodState::AdmmSplit(m.new_state()),
-            MethodMap::Scaled(m) => MethodState::Scaled(Box::new(m.new_state())),
-        }
-    }
-    fn load(&self, state: &mut MethodState, theta: &[f64]) {
-        with_pair!(self, state, |m, s| m.load(s, theta))
-    }
-    fn warm_start(&self, state: &mut MethodState, z0: &[f64], dual: Option<&[f64]>) {
-        with_pair!(self, state, |m, s| m.warm_start(s, z0, dual))
-    }
-    fn cold_start(&self, state: &mut MethodState) {
-        with_pair!(self, state, |m, s| m.cold_start(s))
-    }
-    fn step(&self, state: &mut MethodState) {
-        with_pair!(self, state, |m, s| m.step(s))
-    }
-    fn run_steps(&self, state: &mut MethodState, k: usize) {
-        with_pair!(self, state, |m, s| m.run_steps(s, k))
-    }
-    fn iterate<'s>(&self, state: &'s MethodState) -> &'s [f64] {
-        with_pair!(self, state, |m, s| m.iterate(s))
-    }
-    fn dual<'s>(&self, state: &'s MethodState) -> Option<&'s [f64]> {
-        with_pair!(self, state, |m, s| m.dual(s))
-    }
-    fn violation(&self, state: &MethodState) -> f64 {
-        with_pair!(self, state, |m, s| m.violation(s))
-    }
-    fn certificate(&self) -> &Certificate {
-        with_map!(self, |m| m.certificate())
-    }
-    fn matvecs_per_step(&self) -> usize {
-        with_map!(self, |m| m.matvecs_per_step())
     }
 }
 

@@ -198,13 +198,7 @@ impl ProjectedGradient {
             StepRule::InverseL => 1.0 / l,
             StepRule::Optimal => 2.0 / (l + mu),
             StepRule::Fixed(a) => {
-                if !(a > 0.0 && a.is_finite()) {
-                    return Err(QpError::Parameter {
-                        name: "alpha".into(),
-                        value: a,
-                        reason: "the step must be positive and finite".into(),
-                    });
-                }
+                <Self as crate::method::Family>::validate(&rule)?;
                 a
             }
         };
@@ -319,6 +313,64 @@ impl IterationMap for ProjectedGradient {
     }
     fn certificate(&self) -> &Certificate {
         &self.cert
+    }
+}
+
+/// ξ = z: the start is the warm start, one step is the real step.
+impl crate::linearise::Linearise for ProjectedGradient {
+    fn lift_dim(&self) -> usize {
+        self.problem().n()
+    }
+    fn start_probe(&self, st: &mut PgState, z0: &[f64], theta: &[f64], xi: &mut [f64]) {
+        self.load(st, theta);
+        self.warm_start(st, z0, None);
+        xi.copy_from_slice(self.iterate(st));
+    }
+    fn step_probe(&self, st: &mut PgState, xi: &[f64], theta: &[f64], out: &mut [f64]) {
+        self.load(st, theta);
+        self.warm_start(st, xi, None);
+        self.step(st);
+        out.copy_from_slice(self.iterate(st));
+    }
+    fn readout(&self) -> faer::Mat<f64> {
+        faer::Mat::identity(self.problem().n(), self.problem().n())
+    }
+}
+
+/// `"pg"` (step 2/(L + μ)) or `{ method = "pg", step = α }`.
+impl crate::method::Family for ProjectedGradient {
+    type Params = StepRule;
+    const NAME: &'static str = "pg";
+    const PRESETS: &'static [(&'static str, StepRule)] = &[("pg", StepRule::Optimal)];
+    const KEYS: &'static [&'static str] = &["step"];
+    fn with_keys(base: StepRule, key: &dyn Fn(&str) -> Option<f64>) -> StepRule {
+        key("step").map_or(base, StepRule::Fixed)
+    }
+    fn keys_of(p: &StepRule) -> Vec<(&'static str, f64)> {
+        match p {
+            StepRule::Fixed(a) => vec![("step", *a)],
+            StepRule::Optimal | StepRule::InverseL => Vec::new(),
+        }
+    }
+    fn describe(p: &StepRule) -> std::borrow::Cow<'static, str> {
+        match p {
+            StepRule::Optimal => "pg".into(),
+            StepRule::InverseL => "pg(step=1/L)".into(),
+            StepRule::Fixed(a) => format!("pg(step={a})").into(),
+        }
+    }
+    fn validate(p: &StepRule) -> Result<()> {
+        match p {
+            StepRule::Fixed(a) if !(*a > 0.0 && a.is_finite()) => Err(QpError::Parameter {
+                name: "step".into(),
+                value: *a,
+                reason: "the step must be positive and finite".into(),
+            }),
+            _ => Ok(()),
+        }
+    }
+    fn build(p: &StepRule, qp: ParametricQp) -> Result<crate::MethodMap> {
+        Ok(crate::MethodMap::Pg(ProjectedGradient::new(qp, *p)?))
     }
 }
 

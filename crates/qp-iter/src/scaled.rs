@@ -289,3 +289,29 @@ impl<M: IterationMap> IterationMap for Scaled<M> {
         self.inner.matvecs_per_step()
     }
 }
+
+/// A map on the scaled problem z = Dy: ξ is the inner map's (in y); the start converts
+/// z⁰ to y⁰ = D⁻¹z⁰, the readout is D·R_inner. The reported iterate is refreshed after each
+/// probe so the interior check sees z.
+impl<M: crate::linearise::Linearise> crate::linearise::Linearise for Scaled<M> {
+    fn lift_dim(&self) -> usize {
+        self.inner().lift_dim()
+    }
+    fn start_steps(&self) -> usize {
+        self.inner().start_steps()
+    }
+    fn start_probe(&self, st: &mut Self::State, z0: &[f64], theta: &[f64], xi: &mut [f64]) {
+        let y0: Vec<f64> = z0.iter().zip(self.scaling()).map(|(z, d)| z / d).collect();
+        self.inner().start_probe(st.inner_mut(), &y0, theta, xi);
+        self.refresh(st);
+    }
+    fn step_probe(&self, st: &mut Self::State, xi: &[f64], theta: &[f64], out: &mut [f64]) {
+        self.inner().step_probe(st.inner_mut(), xi, theta, out);
+        self.refresh(st);
+    }
+    fn readout(&self) -> faer::Mat<f64> {
+        let r = self.inner().readout();
+        let d = self.scaling();
+        faer::Mat::from_fn(r.nrows(), r.ncols(), |i, j| d[i] * r[(i, j)])
+    }
+}

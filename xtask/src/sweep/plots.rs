@@ -21,20 +21,34 @@ struct Curve {
     void_reason: Option<String>,
 }
 
-const COLORS: [RGBColor; 4] = [
+const COLORS: [RGBColor; 8] = [
     RGBColor(31, 119, 180),
     RGBColor(214, 39, 40),
     RGBColor(44, 160, 44),
     RGBColor(148, 103, 189),
+    RGBColor(255, 127, 14),
+    RGBColor(140, 86, 75),
+    RGBColor(227, 119, 194),
+    RGBColor(23, 190, 207),
 ];
 
+/// A colour per method, from the one method list: the named methods (and their `-jacobi`
+/// forms) by their place in `Method::PRESETS`, any other method by its family's place in
+/// the list, after them.
 fn color_of(solver: &str) -> RGBColor {
-    match solver {
-        "pg" => COLORS[0],
-        "fista" => COLORS[1],
-        "admm" => COLORS[2],
-        _ => COLORS[3],
-    }
+    let base = solver.strip_suffix("-jacobi").unwrap_or(solver);
+    let index = match base.parse::<qp_iter::Method>() {
+        Ok(m) => match qp_iter::Method::PRESETS.iter().position(|p| *p == m) {
+            Some(i) => i,
+            None => {
+                let families = qp_iter::Method::families();
+                qp_iter::Method::PRESETS.len()
+                    + families.iter().position(|f| *f == m.family()).unwrap_or(0)
+            }
+        },
+        Err(_) => COLORS.len() - 1,
+    };
+    COLORS[index % COLORS.len()]
 }
 
 /// What a curve shows: a metric's quantile columns (`{m}_q05`, `_q50`, `_q95`) as a band,

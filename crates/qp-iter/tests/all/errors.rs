@@ -112,7 +112,8 @@ fn bad_method_parameters_are_rejected() {
     for a in [0.0, -1.0, f64::NAN, f64::INFINITY] {
         let e = ProjectedGradient::new(qp2(), StepRule::Fixed(a)).unwrap_err();
         assert!(
-            matches!(e, QpError::Parameter { ref name, .. } if name == "alpha"),
+            // The file's key (`{ method = "pg", step = … }`).
+            matches!(e, QpError::Parameter { ref name, .. } if name == "step"),
             "{e}"
         );
     }

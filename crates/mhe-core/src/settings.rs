@@ -25,8 +25,8 @@ use crate::error::{MheError, Result};
 use crate::estimator::MheConfig;
 use crate::problem::STRONG_CONVEXITY_TOL;
 
-/// Largest K accepted (`mhe.iterations`).
-pub const MAX_ITERATIONS: usize = 10_000_000;
+/// Largest K accepted (`mhe.iterations`): [`qp_iter::MAX_ITERATIONS`], the one budget limit.
+pub const MAX_ITERATIONS: usize = qp_iter::MAX_ITERATIONS;
 
 /// How z⁰_{t+1} is obtained from zᴷ_t (step 2 of Alg. 1).
 #[derive(Debug, Clone, Copy, PartialEq, Eq, Serialize, Deserialize)]

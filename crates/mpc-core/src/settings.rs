@@ -48,8 +48,12 @@ pub struct MpcSettings {
     pub method: qp_iter::Method,
 }
 
-/// Largest K_c accepted (`mpc.iterations`).
-pub const MAX_ITERATIONS: usize = 10_000_000;
+/// The sub-optimal MPC's Φ when `mpc.method` (or a sweep's `controller.solver`) is not
+/// given: FISTA.
+pub const DEFAULT_METHOD: qp_iter::Method = qp_iter::Method::FISTA;
+
+/// Largest K accepted (`mpc.iterations`): [`qp_iter::MAX_ITERATIONS`], the one budget limit.
+pub const MAX_ITERATIONS: usize = qp_iter::MAX_ITERATIONS;
 
 /// Serde mirror of the `[mpc]` table: every key optional, unknown keys refused.
 #[derive(Debug, Default, Deserialize, Serialize)]
@@ -140,7 +144,7 @@ impl MpcSettings {
             r,
             terminal: raw.terminal.unwrap_or(TerminalCost::Dare),
             iterations,
-            method: raw.method.unwrap_or(qp_iter::Method::FISTA),
+            method: raw.method.unwrap_or(DEFAULT_METHOD),
         })
     }
 

@@ -44,6 +44,12 @@ pub use linearise::Linearise;
 pub use method::{Family, Method, MethodKind, MethodMap, MethodState, Scaling};
 pub use problem::{GeneralConstraints, ParametricQp};
 
+/// The largest iteration budget (K of the MHE, K_c of the MPC) any scenario, sweep or
+/// command accepts: each time step runs K iterations, and a K beyond it is not practical
+/// to run. The one limit behind `mhe.iterations`, `mpc.iterations`, a sweep's `k` and
+/// `k_c`.
+pub const MAX_ITERATIONS: usize = 10_000_000;
+
 /// The iteration map Φ of Assumption 5: z^{k+1} = Φ(z^k, θ).
 ///
 /// The implementor holds setup data only (H, step sizes, factorisations, the certificate)

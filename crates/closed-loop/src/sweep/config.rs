@@ -22,7 +22,7 @@ use super::region::IterationCost;
 use super::{ControllerChoice, Method};
 
 /// Largest K accepted in a grid (a run costs T·K iterations).
-pub const MAX_K: usize = 10_000_000;
+pub const MAX_K: usize = qp_iter::MAX_ITERATIONS;
 /// Largest horizon T accepted (a run's trace, MHE records included, is preallocated:
 /// about 1 KiB per step for the case study, per worker thread).
 pub const MAX_STEPS: usize = lti_model::spec::plant::MAX_STEPS;
@@ -111,7 +111,8 @@ struct RawConfig {
     k: Option<RawK>,
     k_c: Option<RawK>,
     cost: Option<RawCost>,
-    solvers: Option<Vec<String>>,
+    #[serde(alias = "methods")]
+    solvers: Option<Vec<Method>>,
     seeds: Option<i64>,
     scales: Option<Vec<f64>>,
     steps: Option<i64>,
@@ -145,7 +146,8 @@ enum RawController {
 struct RawControllerTable {
     kind: Option<String>,
     iterations: Option<i64>,
-    solver: Option<String>,
+    #[serde(alias = "method")]
+    solver: Option<Method>,
 }
 
 // A string or a table, told apart by the TOML value itself (as `k` in `grid.rs`).
@@ -320,14 +322,10 @@ fn controller(raw: Option<RawController>, k_c_first: Option<usize>) -> Result<Co
     })
 }
 
-/// `controller.solver` (default PG).
-fn mpc_solver(raw: Option<String>) -> Result<Method> {
-    match raw {
-        None => Ok(Method::PG),
-        Some(s) => s
-            .parse::<Method>()
-            .map_err(|e| config_err("controller.solver", e.to_string())),
-    }
+/// `controller.solver` (the scenario's default, [`mpc_core::settings::DEFAULT_METHOD`]),
+/// read by the same serde path as `mpc.method`.
+fn mpc_solver(raw: Option<Method>) -> Result<Method> {
+    Ok(raw.unwrap_or(mpc_core::settings::DEFAULT_METHOD))
 }
 
 /// The controller of a 2-D sweep: the sub-optimal MPC (as a table without `iterations`,
@@ -380,31 +378,26 @@ fn controller_2d(raw: Option<RawController>, k_c_first: usize) -> Result<Control
     })
 }
 
-fn solvers(raw: Option<Vec<String>>) -> Result<Vec<Method>> {
-    let names = raw.ok_or_else(|| {
-        config_err(
-            "solvers",
-            "missing (any of \"pg\", \"fista\", \"admm\", \"admm-pr\")",
-        )
-    })?;
-    if names.is_empty() {
+/// `solvers` (or `methods`): read by the same serde path as `mhe.method` (names or tables
+/// with parameters); non-empty, no method twice.
+fn solvers(raw: Option<Vec<Method>>) -> Result<Vec<Method>> {
+    let names = Method::PRESETS.map(|m| format!("\"{m}\"")).join(", ");
+    let methods = raw.ok_or_else(|| config_err("solvers", format!("missing (any of {names})")))?;
+    if methods.is_empty() {
         return Err(config_err(
             "solvers",
-            "empty; list at least one of \"pg\", \"fista\", \"admm\", \"admm-pr\"",
+            format!("empty; list at least one of {names}"),
         ));
     }
     let mut out = Vec::new();
-    for (i, s) in names.iter().enumerate() {
-        let solver = s
-            .parse::<Method>()
-            .map_err(|e| config_err(format!("solvers[{i}]"), e.to_string()))?;
-        if out.contains(&solver) {
+    for (i, m) in methods.into_iter().enumerate() {
+        if out.contains(&m) {
             return Err(config_err(
                 format!("solvers[{i}]"),
-                format!("`{s}` is listed twice"),
+                format!("`{m}` is listed twice"),
             ));
         }
-        out.push(solver);
+        out.push(m);
     }
     Ok(out)
 }

@@ -881,3 +881,46 @@ fn shipped_sweep_configs_load() {
     }
     assert!(n >= 3, "smoke, case-study and cart-pendulum at least");
 }
+
+/// The sweep reads methods by the scenario's serde path: a table with parameters is a
+/// method (`{ method = "admm", rho = 2 }`), under `solvers` or its alias `methods`, and the
+/// MPC's `solver` (or `method`) likewise; an unknown method is named with the list.
+#[test]
+fn methods_with_parameters_are_read_as_in_the_scenario() {
+    use closed_loop::scenario::ControllerChoice;
+    let base = "name = 'm'\nscenario = 's.toml'\nk = [5]\nseeds = 1\n";
+    let c = SweepConfig::from_toml_str(
+        &format!(
+            "{base}methods = ['pg', {{ method = 'admm', rho = 2, alpha = 1.5 }}, 'fista-jacobi']\n\
+             controller = {{ kind = 'suboptimal-mpc', iterations = 3, method = {{ method = 'pg', step = 0.1 }} }}"
+        ),
+        Path::new("."),
+    )
+    .unwrap();
+    assert_eq!(
+        c.solvers,
+        vec![
+            Method::PG,
+            Method::admm(Some(2.0), 1.5).unwrap(),
+            "fista-jacobi".parse().unwrap()
+        ]
+    );
+    assert_eq!(
+        c.controller,
+        ControllerChoice::SuboptimalMpc {
+            iterations: 3,
+            method: Method::pg(Some(0.1)).unwrap()
+        }
+    );
+    let e = SweepConfig::from_toml_str(
+        &format!("{base}solvers = ['pg', {{ method = 'admm', step = 1 }}]"),
+        Path::new("."),
+    )
+    .unwrap_err()
+    .to_string();
+    assert!(e.contains("solvers[1]") && e.contains("`step`"), "{e}");
+    let e = SweepConfig::from_toml_str(&format!("{base}solvers = ['newton']"), Path::new("."))
+        .unwrap_err()
+        .to_string();
+    assert!(e.contains("newton") && e.contains("\"admm-pr\""), "{e}");
+}

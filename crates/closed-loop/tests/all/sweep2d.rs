@@ -166,7 +166,8 @@ fn k_c_config_errors_name_the_key_and_the_fix() {
             "{extra}: `{problem}` lacks `{needle}`"
         );
     }
-    // The name alone also selects the sub-optimal MPC (PG) in a 2-D sweep.
+    // The name alone also selects the sub-optimal MPC in a 2-D sweep, with the scenario's
+    // default Φ (`mpc.method`'s default, FISTA: one default for the file and the sweep).
     let c = SweepConfig::from_toml_str(
         &format!("{base}k_c = [3, 1, 3]\ncontroller = 'suboptimal-mpc'\ncost = {{ t_c = 0.25 }}"),
         Path::new("."),
@@ -184,7 +185,7 @@ fn k_c_config_errors_name_the_key_and_the_fix() {
         c.controller,
         ControllerChoice::SuboptimalMpc {
             iterations: 1,
-            method: Method::PG
+            method: Method::FISTA
         }
     );
     let c = SweepConfig::from_toml_str(

@@ -1,5 +1,7 @@
 //! The sub-optimal MHE of Alg. 1 (steps 1–3): K warm-started iterations of Φ per time step.
 
+use std::sync::Arc;
+
 use faer::Mat;
 use lti_model::LtiSystem;
 use qp_iter::active_set::ExactSolver;
@@ -255,6 +257,19 @@ pub(crate) fn check_vec(name: &'static str, v: &[f64], n: usize) -> Result<()> {
     Ok(())
 }
 
+/// K ≥ 1 and at most [`crate::settings::MAX_ITERATIONS`] (the library API's check; a
+/// scenario's `mhe.iterations` is checked with its key by [`crate::MheSettings`]).
+fn check_iterations(k: usize) -> Result<()> {
+    if k == 0 || k > crate::settings::MAX_ITERATIONS {
+        return Err(MheError::OutOfRange {
+            name: "iterations",
+            value: k as f64,
+            range: "integers 1 ..= 10⁷ (qp_iter::MAX_ITERATIONS)",
+        });
+    }
+    Ok(())
+}
+
 /// The sub-optimal MHE of Alg. 1, generic over the iteration map Φ.
 ///
 /// One Φ (and its state) per window length m = 0..M, all built at construction; a time
@@ -283,7 +298,9 @@ pub(crate) fn check_vec(name: &'static str, v: &[f64], n: usize) -> Result<()> {
 /// ```
 #[derive(Debug)]
 pub struct MheEstimator<M: IterationMap> {
-    problem: MheProblem,
+    /// ℙ_t for every window length, built once and shared (a sweep's runs, the
+    /// certificate and the simulation read the same one).
+    problem: Arc<MheProblem>,
     config: MheConfig,
     maps: Vec<M>,
     states: Vec<M::State>,
@@ -327,17 +344,65 @@ impl<M: IterationMap> MheEstimator<M> {
     where
         F: Fn(ParametricQp) -> qp_iter::Result<M>,
     {
-        if config.iterations == 0 {
-            return Err(MheError::OutOfRange {
-                name: "iterations",
-                value: 0.0,
-                range: "integers ≥ 1",
-            });
-        }
+        check_iterations(config.iterations)?;
         let dims = Dims::of(sys);
         crate::problem::validate_problem(dims, config.horizon, &config.weights(), sets)?;
         check_vec("prior", prior, dims.nx)?;
         let problem = MheProblem::new(sys, config.horizon, &config.weights(), sets)?;
+        Self::from_problem(
+            Arc::new(problem),
+            config.iterations,
+            config.warm_start,
+            config.exact_solve,
+            prior,
+            factory,
+        )
+    }
+
+    /// The estimator on a problem built once and shared ([`MheProblem`] carries the plant,
+    /// M, η, P, Q, R and the sets): only what a run chooses is given here — K, the warm
+    /// start, the exact solve of each ℙ_t — so many runs (a sweep, the certificate's
+    /// checks) share one set of windows.
+    ///
+    /// ```
+    /// use std::sync::Arc;
+    /// use faer::{mat, Mat};
+    /// use lti_model::LtiSystem;
+    /// use mhe_core::{Estimator, MheEstimator, MheProblem, MheSets, MheWeights, WarmStart};
+    /// let sys = LtiSystem::new(mat![[0.9, 0.1], [0.0, 0.8]], mat![[0.0], [1.0]], mat![[1.0, 0.0]]).unwrap();
+    /// let w = MheWeights { eta: 0.8, p: Mat::identity(2, 2), q: Mat::identity(3, 3), r: mat![[1.0]] };
+    /// let problem = Arc::new(MheProblem::new(&sys, 3, &w, &MheSets::unconstrained(&sys)).unwrap());
+    /// let mut a = MheEstimator::from_problem(problem.clone(), 20, WarmStart::Paper, false,
+    ///     &[1.0, -1.0], |qp| qp_iter::Method::FISTA.build(qp)).unwrap();
+    /// let mut b = MheEstimator::from_problem(problem, 5, WarmStart::Paper, false,
+    ///     &[1.0, -1.0], |qp| qp_iter::Method::PG.build(qp)).unwrap();
+    /// assert_eq!(a.estimate().unwrap(), b.estimate().unwrap()); // t = 0: the prior
+    /// ```
+    pub fn from_problem<F>(
+        problem: Arc<MheProblem>,
+        iterations: usize,
+        warm_start: WarmStart,
+        exact_solve: bool,
+        prior: &[f64],
+        factory: F,
+    ) -> Result<Self>
+    where
+        F: Fn(ParametricQp) -> qp_iter::Result<M>,
+    {
+        check_iterations(iterations)?;
+        let dims = problem.dims();
+        check_vec("prior", prior, dims.nx)?;
+        let weights = problem.weights();
+        let config = MheConfig {
+            horizon: problem.horizon(),
+            eta: weights.eta,
+            p: weights.p.clone(),
+            q: weights.q.clone(),
+            r: weights.r.clone(),
+            iterations,
+            warm_start,
+            exact_solve,
+        };
         let maps = problem
             .windows()
             .iter()
@@ -356,7 +421,7 @@ impl<M: IterationMap> MheEstimator<M> {
             }
         }
         let states = maps.iter().map(IterationMap::new_state).collect();
-        let references = if config.exact_solve {
+        let references = if exact_solve {
             problem
                 .windows()
                 .iter()
@@ -370,9 +435,9 @@ impl<M: IterationMap> MheEstimator<M> {
         let mut z0 = vec![0.0; full.nz()];
         z0[..dims.nx].copy_from_slice(prior);
         Ok(Self {
-            model: HotModel::new(sys, &config.weights()),
+            model: HotModel::new(problem.system(), weights),
             problem,
-            config: config.clone(),
+            config,
             maps,
             states,
             initial_prior: prior.to_vec(),
@@ -417,6 +482,10 @@ impl<M: IterationMap> MheEstimator<M> {
 
     /// The problem ℙ_t for every window length (H_c, F_c, W_m, L_Φ, …).
     pub fn problem(&self) -> &MheProblem {
+        &self.problem
+    }
+    /// The shared problem (to build another estimator on the same windows).
+    pub fn shared_problem(&self) -> &Arc<MheProblem> {
         &self.problem
     }
     /// The configuration.

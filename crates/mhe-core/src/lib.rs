@@ -84,6 +84,7 @@
 //! The MHE then equals the matching filter *restarted* at t − M from (x̂ᴷ_{t−M|t−M}, (2P)⁻¹)
 //! and run over the window; the difference to the un-restarted filter is bounded, not zero.
 
+pub mod builder;
 pub mod error;
 pub mod estimator;
 pub mod kalman;
@@ -92,12 +93,14 @@ pub mod record;
 pub mod settings;
 pub mod structured;
 
+pub use builder::MheBuilder;
 pub use error::{MheError, Result};
 pub use estimator::{Estimator, MheConfig, MheEstimator, WarmStart};
 pub use kalman::KalmanFilter;
 pub use problem::{
     LipschitzEstimate, LipschitzSampling, MheProblem, MheSets, MheWeights, MheWindow,
 };
+pub use qp_iter::Method;
 pub use record::MheRecord;
 pub use settings::{MheSettings, RawMhe};
 

@@ -85,15 +85,9 @@ pub fn certify_closed_loop_timed(
     };
 
     // MHE constants (need P).
+    // ℙ_t with the resolved P: the scenario's one problem, shared with the simulation.
     let problem = match &ioss_cert {
-        Some(c) => {
-            let mut cfg = resolved.mhe_config()?.clone();
-            cfg.p = c.p.clone();
-            Some(
-                MheProblem::new(sys, m, &cfg.weights(), resolved.mhe_sets())
-                    .map_err(|e| spec.explain(sys, e))?,
-            )
-        }
+        Some(_) => Some(resolved.mhe_problem()?.clone()),
         None => None,
     };
     times.mhe_constants_s = split();

@@ -202,29 +202,17 @@ impl ResolvedScenario {
         iterations: usize,
         exact_solve: bool,
     ) -> Result<ScenarioEstimator> {
-        if iterations == 0 {
-            return Err(ClosedLoopError::OutOfRange {
-                name: "iterations",
-                value: 0.0,
-                range: "integers ≥ 1",
-            });
-        }
-        let mut cfg = self.mhe_config()?.clone();
-        cfg.iterations = iterations;
-        cfg.exact_solve = exact_solve;
+        let cfg = self.mhe_config()?;
         let sc = self.scenario();
-        MheEstimator::new(
-            &sc.plant,
-            self.mhe_sets(),
-            &cfg,
+        MheEstimator::from_problem(
+            self.mhe_problem()?.clone(),
+            iterations,
+            cfg.warm_start,
+            exact_solve,
             &sc.simulation.prior,
             |qp| method.build(qp),
         )
-        .map_err(|e| match &sc.mhe {
-            // Name the scenario key behind a window that is not strongly convex.
-            Some(settings) => settings.explain(&sc.plant, e).into(),
-            None => e.into(),
-        })
+        .map_err(Into::into)
     }
 
     /// The controller π of `choice` for this scenario.

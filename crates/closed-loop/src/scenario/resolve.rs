@@ -7,7 +7,9 @@
 use lti_model::ModelError;
 use lti_model::ioss::{self, IossCertificate};
 use lti_model::spec::format::key_error;
-use mhe_core::{MheConfig, MheError, MheSets};
+use std::sync::{Arc, OnceLock};
+
+use mhe_core::{MheConfig, MheError, MheProblem, MheSets};
 use mpc_core::CondensedMpc;
 
 use super::Scenario;
@@ -24,6 +26,9 @@ pub struct ResolvedScenario {
     /// or without a P (LMI (2) infeasible).
     mhe: Option<MheConfig>,
     mhe_sets: MheSets,
+    /// ℙ_t for m = 0..M with the resolved P, built once on first use and shared by every
+    /// estimator and the certificate.
+    mhe_problem: OnceLock<std::result::Result<Arc<MheProblem>, ClosedLoopError>>,
     /// The condensed MPC of `[mpc]` (`None` without that section).
     mpc: Option<CondensedMpc>,
 }
@@ -85,6 +90,7 @@ impl ResolvedScenario {
             ioss,
             mhe,
             mhe_sets,
+            mhe_problem: OnceLock::new(),
             mpc,
         })
     }
@@ -109,6 +115,27 @@ impl ResolvedScenario {
             (None, Some(Err(e))) => Err(MheError::from(e.clone()).into()),
             (None, _) => Err(ClosedLoopError::MissingSection { section: "mhe" }),
         }
+    }
+
+    /// ℙ_t for every window length m = 0..M with the resolved P (H_c, F_c, L_Φ, …): built
+    /// once, on first use, and shared by every estimator ([`ResolvedScenario::estimator`])
+    /// and the certificate.
+    ///
+    /// Errors: as [`ResolvedScenario::mhe_config`], and a window that is not strongly
+    /// convex (named by its scenario key).
+    pub fn mhe_problem(&self) -> Result<&Arc<MheProblem>> {
+        let built = self.mhe_problem.get_or_init(|| {
+            let cfg = self.mhe_config()?;
+            let sc = &self.scenario;
+            MheProblem::new(&sc.plant, cfg.horizon, &cfg.weights(), &self.mhe_sets)
+                .map(Arc::new)
+                .map_err(|e| match &sc.mhe {
+                    // Name the scenario key behind a window that is not strongly convex.
+                    Some(settings) => settings.explain(&sc.plant, e).into(),
+                    None => e.into(),
+                })
+        });
+        built.as_ref().map_err(Clone::clone)
     }
 
     /// 𝒳, 𝒴, 𝒲 as the MHE uses them.

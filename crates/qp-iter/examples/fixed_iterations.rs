@@ -32,8 +32,10 @@ fn main() -> Result<(), qp_iter::QpError> {
             dist(pg.iterate(&state)),
             pg.certificate().phi(k) * dist(&[0.0, 0.0]),
         );
+        // Equal up to rounding here: with the optimal step on a 2 × 2 H, I − αH is the rate
+        // times a reflection, so the bound is tight while no constraint is active.
         assert!(
-            error <= bound * (1.0 + 1e-12),
+            error <= bound * (1.0 + 1e-9),
             "the certificate failed at K = {k}"
         );
         println!("{k:>3} {error:>12.3e} {bound:>12.3e}");

@@ -1,7 +1,9 @@
 //! A user's own estimator in the closed loop: a Luenberger observer (steady-state Kalman gain
 //! from the dual DARE) written here, with its own error type, run against the sub-optimal
 //! MHE at several K on the same disturbance draws, through the library's Monte-Carlo driver
-//! ([`closed_loop::sweep::monte_carlo`]: the sweep's seeds, metrics and bounded rule).
+//! ([`closed_loop::sweep::monte_carlo`]: the sweep's seeds, metrics and bounded rule). The
+//! factory that builds each run returns this file's own error type ([`SetupError`]): the
+//! driver hands it back unchanged.
 //!
 //! ```text
 //! cargo run --release -p closed-loop --example luenberger [-- SCENARIO.toml RUNS]
@@ -9,15 +11,18 @@
 //! (default `scenarios/case-study-certified.toml`, 20 runs).
 
 use closed_loop::scenario::{ControllerChoice, LoopOptions, Scenario, scenario_disturbance};
-use closed_loop::sim::ClosedLoop;
+use closed_loop::sim::{ClosedLoop, ClosedLoopError};
 use closed_loop::sweep::{DEFAULT_BOUNDED_FACTOR, Metric, MonteCarlo, RunMetrics, monte_carlo};
 use faer::Mat;
-use lti_model::LtiSystem;
+use lti_model::{LtiSystem, ModelError};
 use mhe_core::Estimator;
 
-/// The observer's own error: a measurement or input of the wrong length, or a NaN.
+/// The observer's own error: no gain for this plant, a measurement or input of the wrong
+/// length, or a NaN.
 #[derive(Debug, thiserror::Error)]
 enum ObserverError {
+    #[error("observer gain: the dual DARE has no stabilising solution: {0}")]
+    Gain(#[source] ModelError),
     #[error("`{name}` has length {actual}, expected {expected}")]
     Length {
         name: &'static str,
@@ -40,7 +45,7 @@ struct Luenberger {
 }
 
 impl Luenberger {
-    fn new(plant: &LtiSystem, prior: &[f64]) -> Result<Self, Box<dyn std::error::Error>> {
+    fn new(plant: &LtiSystem, prior: &[f64]) -> Result<Self, ObserverError> {
         let (nx, ny) = (plant.nx(), plant.ny());
         let at = plant.a().transpose().to_owned();
         let ct = plant.c().transpose().to_owned();
@@ -49,7 +54,8 @@ impl Luenberger {
             ct.as_ref(),
             Mat::<f64>::identity(nx, nx).as_ref(),
             Mat::<f64>::identity(ny, ny).as_ref(),
-        )?;
+        )
+        .map_err(ObserverError::Gain)?;
         let l = kd.transpose().to_owned();
         Ok(Self {
             plant: plant.clone(),
@@ -102,6 +108,16 @@ impl Estimator for Luenberger {
     }
 }
 
+/// Why one Monte-Carlo run could not be built: the observer, or the loop around it (the
+/// factory's own error type; `monte_carlo` returns it unchanged).
+#[derive(Debug, thiserror::Error)]
+enum SetupError {
+    #[error(transparent)]
+    Observer(#[from] ObserverError),
+    #[error(transparent)]
+    Loop(#[from] ClosedLoopError),
+}
+
 fn main() -> Result<(), Box<dyn std::error::Error>> {
     let args: Vec<String> = std::env::args().skip(1).collect();
     let path = args
@@ -137,21 +153,15 @@ fn main() -> Result<(), Box<dyn std::error::Error>> {
         );
     };
     // The user's observer, in the same loop type and driver as the built-in estimators.
-    let observer = monte_carlo(&settings, |seed| {
-        let est = Luenberger::new(&sc.plant, &sc.simulation.prior).map_err(|e| {
-            closed_loop::sim::ClosedLoopError::Model(lti_model::ModelError::Numerical {
-                routine: "observer gain (dual DARE)".into(),
-                reason: e.to_string(),
-            })
-        })?;
-        ClosedLoop::new(
+    let observer = monte_carlo(&settings, |seed| -> Result<_, SetupError> {
+        Ok(ClosedLoop::new(
             sc.plant.clone(),
-            est,
+            Luenberger::new(&sc.plant, &sc.simulation.prior)?,
             resolved.controller(ControllerChoice::ExactMpc)?,
             scenario_disturbance(sc, seed)?,
             &sc.simulation.x0,
             base.steps,
-        )
+        )?)
     })?;
     report("luenberger", &observer);
     // The sub-optimal MHE at several K, same seeds.

@@ -1,4 +1,6 @@
-//! # closed-loop
+#![doc = include_str!("../README.md")]
+//!
+//! ## Contents
 //!
 //! Alg. 1 of Yang–Manzie–Pu as a simulation (plant + sub-optimal MHE + controller) and the
 //! ISS analysis of Section III: every constant of Lemma 1, Props. 1–3 and Theorem 1, the

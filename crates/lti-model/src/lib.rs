@@ -1,4 +1,6 @@
-//! # lti-model
+#![doc = include_str!("../README.md")]
+//!
+//! ## Contents
 //!
 //! Constrained linear time-invariant plants for sub-optimal moving horizon estimation
 //! (Yang, Manzie, Pu, arXiv 2304.06216, Section II):
@@ -29,5 +31,8 @@ pub mod system;
 pub mod vecmath;
 
 pub use error::{LmiFailure, ModelError, Result};
+/// The linear algebra crate of every matrix in the API (`faer::Mat`), re-exported so that a
+/// user's `faer` is the same version.
+pub use faer;
 pub use sets::{BoxSet, ConvexSet, Polytope, Projection, Set};
 pub use system::LtiSystem;

@@ -1,4 +1,6 @@
-//! # mhe-core
+#![doc = include_str!("../README.md")]
+//!
+//! ## Contents
 //!
 //! The moving horizon estimator of Yang, Manzie, Pu (arXiv 2304.06216), Section II-B
 //! (eqs. 8–10) and Alg. 1 steps 1–3: the MHE problem ℙ_t as a parametric QP, solved with
@@ -100,6 +102,9 @@ pub use kalman::KalmanFilter;
 pub use problem::{
     LipschitzEstimate, LipschitzSampling, MheProblem, MheSets, MheWeights, MheWindow,
 };
+/// The iteration maps Φ this crate runs (`qp_iter::Method`, `qp_iter::pg`, …), re-exported so
+/// that a user needs no separate `qp-iter` dependency.
+pub use qp_iter;
 pub use qp_iter::Method;
 pub use record::MheRecord;
 pub use settings::{MheSettings, RawMhe};

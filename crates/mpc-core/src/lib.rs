@@ -1,4 +1,6 @@
-//! # mpc-core
+#![doc = include_str!("../README.md")]
+//!
+//! ## Contents
 //!
 //! The controller π of Yang–Manzie–Pu (arXiv 2304.06216), Assumptions 3–4: an
 //! input-constrained condensed linear MPC, exact or with K warm-started iterations of any
@@ -39,6 +41,9 @@ pub use lipschitz::{
     SampledLipschitz, lipschitz_report_for, lipschitz_sampled,
 };
 pub use lqr::SaturatedLqr;
+/// The iteration maps Φ this crate runs (`qp_iter::Method`, `qp_iter::pg`, …), re-exported so
+/// that a user needs no separate `qp-iter` dependency.
+pub use qp_iter;
 pub use robust_norm::{WorstCaseNorm, worst_case_norm};
 pub use settings::{MpcSettings, RawMpc};
 pub use suboptimal::{SuboptimalMpc, WarmStart};

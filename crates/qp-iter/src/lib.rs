@@ -1,4 +1,6 @@
-//! # qp-iter
+#![doc = include_str!("../README.md")]
+//!
+//! ## Contents
 //!
 //! Iteration maps Φ for parametric QPs (Assumption 5 of Yang–Manzie–Pu, eq. (11)):
 //!

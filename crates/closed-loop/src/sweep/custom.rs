@@ -35,7 +35,11 @@ pub struct MonteCarlo<'a> {
 
 /// Runs `settings.runs` closed loops built by `make(seed)` on the current rayon pool and
 /// returns their metrics in run order (the columns of `runs.csv`). A run that stops is a
-/// result (its `error` says where and why), not an error; only a failed `make` is.
+/// result (its `error` says where and why), not an error; only a failed `make` is, and its
+/// error is returned as the factory gave it: `make` may return its own error type `Err`
+/// (a user's enum, [`ClosedLoopError`], `Box<dyn Error + Send + Sync>`, …), which only has
+/// to be `Send`. When several runs fail to build, the error of the lowest-numbered one is
+/// returned (whatever the thread count).
 ///
 /// ```
 /// use closed_loop::scenario::{LoopOptions, Scenario};
@@ -57,15 +61,16 @@ pub struct MonteCarlo<'a> {
 /// }).unwrap();
 /// assert!(runs.iter().all(|r| r.bounded && r.steps == 20));
 /// ```
-pub fn monte_carlo<E, C, D, F>(
+pub fn monte_carlo<E, C, D, F, Err>(
     settings: &MonteCarlo<'_>,
     make: F,
-) -> Result<Vec<RunMetrics>, ClosedLoopError>
+) -> Result<Vec<RunMetrics>, Err>
 where
     E: Estimator + Send,
     C: Controller + Send,
     D: Disturbance + Send,
-    F: Fn(u64) -> Result<ClosedLoop<E, C, D>, ClosedLoopError> + Sync,
+    F: Fn(u64) -> Result<ClosedLoop<E, C, D>, Err> + Sync,
+    Err: Send,
 {
     (0..settings.runs)
         .into_par_iter()
@@ -85,6 +90,8 @@ where
                 settings.bounded_factor,
             ))
         })
+        .collect::<Vec<_>>()
+        .into_iter()
         .collect()
 }
 

@@ -9,6 +9,7 @@ mod findings;
 mod gamma13;
 mod joint;
 mod linear;
+mod monte_carlo;
 mod plants;
 mod scenario;
 mod sim;

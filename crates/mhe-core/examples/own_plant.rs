@@ -6,7 +6,7 @@
 use lti_model::disturbance::{Disturbance, UniformBox};
 use lti_model::LtiSystem;
 use lti_model::faer::mat;
-use mhe_core::{Estimator, Method, MheSets, MheSettings};
+use mhe_core::{Method, MheSets, MheSettings};
 
 fn main() -> Result<(), Box<dyn std::error::Error>> {
     // 1. Your plant x⁺ = Ax + Bu + w¹, y = Cx + w².

@@ -5,7 +5,7 @@
 //! ```
 //! use faer::mat;
 //! use lti_model::LtiSystem;
-//! use mhe_core::{Estimator, Method, MheSets, MheSettings};
+//! use mhe_core::{Method, MheSets, MheSettings};
 //! let sys = LtiSystem::new(mat![[1.0, 0.1], [0.0, 0.9]], mat![[0.0], [0.1]], mat![[1.0, 0.0]]).unwrap();
 //! let settings = MheSettings::builder().horizon(10).eta(0.8).iterations(40)
 //!     .method(Method::FISTA).build(&sys).unwrap(); // Q = I, R = I; P from LMI (2)

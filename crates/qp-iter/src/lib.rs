@@ -30,6 +30,7 @@ mod free_factor;
 pub mod general_projection;
 pub mod kernel;
 pub mod method;
+mod method_kernel;
 pub mod operator;
 pub mod pg;
 pub mod problem;

@@ -118,7 +118,7 @@ impl Artefact<'_> {
             ),
         }
         if self.scalar == ScalarKind::F32 {
-            lines.push(F32_NOT_COVERED.into());
+            lines.push(format!("f32: {F32_NOT_COVERED}."));
         }
         lines
             .iter()
@@ -129,7 +129,7 @@ impl Artefact<'_> {
 }
 
 /// What the certificate says about f32.
-pub(crate) const F32_NOT_COVERED: &str = "f32: not covered: rounding of f32 enters as a \
+pub(crate) const F32_NOT_COVERED: &str = "not covered: rounding of f32 enters as a \
     disturbance of the iteration that is not in the bound";
 
 fn scalar_name(s: ScalarKind) -> &'static str {
@@ -264,7 +264,11 @@ pub fn export(args: &ExportArgs) -> Result<()> {
         },
         scenario.name,
         art.method,
-        if certified { ", certified" } else { ", UNCERTIFIED" },
+        if certified {
+            ", certified"
+        } else {
+            ", UNCERTIFIED"
+        },
         args.out.display()
     );
     Ok(())
@@ -364,7 +368,9 @@ fn readme(art: &Artefact<'_>, lang: Lang) -> String {
             .to_string()
     };
     let f32_note = if art.scalar == ScalarKind::F32 {
-        format!("\n\nThis is an **f32** build. {F32_NOT_COVERED}.\n")
+        format!(
+            "\n\nThis is an **f32** build; the certificate's cover of f32: {F32_NOT_COVERED}.\n"
+        )
     } else {
         String::new()
     };

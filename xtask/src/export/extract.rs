@@ -203,6 +203,7 @@ impl OwnedProblem {
     }
 
     /// The windows as `mhe_embedded` views (borrowing `self`).
+    #[cfg(test)]
     pub(crate) fn window_views(&self) -> Vec<mhe_embedded::Window<'_, f64>> {
         self.windows
             .iter()
@@ -226,6 +227,7 @@ impl OwnedProblem {
     }
 
     /// The problem view over `windows` (from [`OwnedProblem::window_views`]).
+    #[cfg(test)]
     pub(crate) fn view<'a>(
         &'a self,
         windows: &'a [mhe_embedded::Window<'a, f64>],

@@ -9,14 +9,26 @@ use super::{Artefact, ScalarKind};
 
 /// The vendored crate's files (path in the artefact, content).
 pub(crate) const VENDORED: [(&str, &str); 6] = [
-    ("mhe-embedded/src/lib.rs", include_str!("../../../crates/mhe-embedded/src/lib.rs")),
-    ("mhe-embedded/src/data.rs", include_str!("../../../crates/mhe-embedded/src/data.rs")),
+    (
+        "mhe-embedded/src/lib.rs",
+        include_str!("../../../crates/mhe-embedded/src/lib.rs"),
+    ),
+    (
+        "mhe-embedded/src/data.rs",
+        include_str!("../../../crates/mhe-embedded/src/data.rs"),
+    ),
     (
         "mhe-embedded/src/estimator.rs",
         include_str!("../../../crates/mhe-embedded/src/estimator.rs"),
     ),
-    ("mhe-embedded/src/qp.rs", include_str!("../../../crates/mhe-embedded/src/qp.rs")),
-    ("mhe-embedded/src/scalar.rs", include_str!("../../../crates/mhe-embedded/src/scalar.rs")),
+    (
+        "mhe-embedded/src/qp.rs",
+        include_str!("../../../crates/mhe-embedded/src/qp.rs"),
+    ),
+    (
+        "mhe-embedded/src/scalar.rs",
+        include_str!("../../../crates/mhe-embedded/src/scalar.rs"),
+    ),
     (
         "mhe-embedded/Cargo.toml",
         "[package]\nname = \"mhe-embedded\"\nversion = \"0.1.0\"\nedition = \"2021\"\n\

@@ -20,15 +20,24 @@ static void print_estimate(const mhe_real *x) {
 #define SYST_CSR (*(volatile unsigned long *)0xE000E010u)
 #define SYST_RVR (*(volatile unsigned long *)0xE000E014u)
 #define SYST_CVR (*(volatile unsigned long *)0xE000E018u)
-static unsigned long ticks_now(void) { return SYST_CVR & 0xFFFFFFu; }
-static unsigned long ticks_since(unsigned long before) {
-    return (before - ticks_now()) & 0xFFFFFFu;
+/* Counted by the SysTick interrupt (cortex-m/startup.c) at every wrap of the 24-bit timer. */
+extern volatile unsigned long mhe_systick_wraps;
+/* Ticks since start-up (the down-counter and its wraps, read consistently). */
+static double ticks_now(void) {
+    unsigned long w, c;
+    do {
+        w = mhe_systick_wraps;
+        c = SYST_CVR & 0xFFFFFFu;
+    } while (w != mhe_systick_wraps);
+    return (double)w * 16777216.0 + (double)(0xFFFFFFu - c);
 }
+static double ticks_since(double before) { return ticks_now() - before; }
 /* Instructions per SysTick tick: a loop of a known instruction count (2 per pass). */
 static double calibrate(void) {
-    unsigned long before = ticks_now(), n = 1000000u;
+    double before = ticks_now();
+    unsigned long n = 1000000u;
     __asm volatile("1: subs %0, %0, #1\n bne 1b" : "+r"(n) : : "cc");
-    return 2000000.0 / (double)ticks_since(before);
+    return 2000000.0 / ticks_since(before);
 }
 #endif
 
@@ -40,7 +49,7 @@ int main(void) {
     double per_tick, total = 0.0, worst = 0.0;
     SYST_RVR = 0xFFFFFFu;
     SYST_CVR = 0u;
-    SYST_CSR = 5u; /* enable, processor clock */
+    SYST_CSR = 7u; /* enable, interrupt at each wrap, processor clock */
     per_tick = calibrate();
 #endif
     mhe_reset(&state, mhe_exported_prior);
@@ -70,7 +79,7 @@ int main(void) {
         }
         {
 #ifdef MHE_COUNT_SYSTICK
-            unsigned long before = ticks_now();
+            double before = ticks_now();
             double n;
 #endif
             const mhe_real *x;

@@ -20,10 +20,14 @@ void Reset_Handler(void) {
     exit(main());
 }
 void Default_Handler(void) { for (;;) {} }
+/* SysTick wraps (replay.c's instruction count with -DMHE_COUNT_SYSTICK). */
+volatile unsigned long mhe_systick_wraps;
+void SysTick_Handler(void);
+void SysTick_Handler(void) { mhe_systick_wraps++; }
 void _init(void) {}
 void _fini(void) {}
 __attribute__((section(".isr_vector"), used)) static const void *const vectors[16] = {
     &_estack, (void *)Reset_Handler, (void *)Default_Handler, (void *)Default_Handler,
     (void *)Default_Handler, (void *)Default_Handler, (void *)Default_Handler, 0, 0, 0, 0,
     (void *)Default_Handler, (void *)Default_Handler, 0, (void *)Default_Handler,
-    (void *)Default_Handler};
+    (void *)SysTick_Handler};

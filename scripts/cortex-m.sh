@@ -132,6 +132,11 @@ run() {
         read -r text data bss _ < <(arm-none-eabi-size "$art/replay-$tag.elf" | tail -1)
         mean=$(sed -n 's/.*mean \([0-9]*\), max \([0-9]*\).*/\1/p' "$OUT/$file-$tag.err")
         max=$(sed -n 's/.*mean \([0-9]*\), max \([0-9]*\).*/\2/p' "$OUT/$file-$tag.err")
+        if [ -z "$mean" ] || [ -z "$max" ]; then
+            echo "no instruction count in $OUT/$file-$tag.err:"
+            cat "$OUT/$file-$tag.err"
+            exit 1
+        fi
         echo "    flash $((text + data)) B, RAM $((data + bss)) B, instructions/step mean $mean, max $max"
         echo "| $file | $method | $k | $label | $((text + data)) | $((data + bss)) | $mean | $max | $rows |" >>"$summary"
     done

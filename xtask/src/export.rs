@@ -283,6 +283,23 @@ pub(crate) fn write_artefact(
     cert: &SolverCertificate,
     scenario_path: &Path,
 ) -> Result<()> {
+    write_code(out, lang, problem, art)?;
+    write_file(
+        out,
+        "certificate.json",
+        &(serde_json::to_string_pretty(&certificate_json(art, cert, scenario_path))? + "\n"),
+    )?;
+    write_file(out, "README.md", &readme(art, lang))?;
+    Ok(())
+}
+
+/// The code files of the artefact (everything but `certificate.json` and the README).
+pub(crate) fn write_code(
+    out: &Path,
+    lang: Lang,
+    problem: &OwnedProblem,
+    art: &Artefact<'_>,
+) -> Result<()> {
     std::fs::create_dir_all(out)
         .with_context(|| format!("cannot create directory `{}`", out.display()))?;
     match lang {
@@ -305,14 +322,12 @@ pub(crate) fn write_artefact(
             write_file(out, "src/lib.rs", &rust_gen::lib_rs(art))?;
             write_file(out, "src/data.rs", &rust_gen::data_rs(problem, art))?;
             write_file(out, "src/bin/replay.rs", &rust_gen::replay_rs(package))?;
+            write_file(out, "capi/Cargo.toml", &rust_gen::capi_cargo_toml(package))?;
+            write_file(out, "capi/src/lib.rs", rust_gen::CAPI_LIB_RS)?;
+            write_file(out, "capi/mhe_capi.h", rust_gen::CAPI_HEADER)?;
+            write_file(out, "capi/replay_capi.c", rust_gen::CAPI_REPLAY_C)?;
         }
     }
-    write_file(
-        out,
-        "certificate.json",
-        &(serde_json::to_string_pretty(&certificate_json(art, cert, scenario_path))? + "\n"),
-    )?;
-    write_file(out, "README.md", &readme(art, lang))?;
     Ok(())
 }
 

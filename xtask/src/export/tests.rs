@@ -215,28 +215,7 @@ fn artefact(c: &Case, method: Method, scalar: ScalarKind) -> (OwnedProblem, Arte
 
 fn write_files(dir: &Path, lang: Lang, p: &OwnedProblem, art: &Artefact<'_>) {
     // `certificate.json` needs a real certificate; the code files are what is tested here.
-    match lang {
-        Lang::C => {
-            for (name, text) in [
-                ("mhe.h", c_gen::MHE_H.to_string()),
-                ("mhe.c", c_gen::MHE_C.to_string()),
-                ("replay.c", c_gen::REPLAY_C.to_string()),
-                ("mhe_data.h", c_gen::data_h(p, art)),
-                ("mhe_data.c", c_gen::data_c(p, art)),
-            ] {
-                write_file(dir, name, &text).unwrap();
-            }
-        }
-        Lang::Rust => {
-            for (path, text) in rust_gen::VENDORED {
-                write_file(dir, path, text).unwrap();
-            }
-            write_file(dir, "Cargo.toml", &rust_gen::cargo_toml("mhe-export")).unwrap();
-            write_file(dir, "src/lib.rs", &rust_gen::lib_rs(art)).unwrap();
-            write_file(dir, "src/data.rs", &rust_gen::data_rs(p, art)).unwrap();
-            write_file(dir, "src/bin/replay.rs", &rust_gen::replay_rs("mhe-export")).unwrap();
-        }
-    }
+    write_code(dir, lang, p, art).unwrap();
 }
 
 fn scratch_dir(name: &str) -> PathBuf {
@@ -525,4 +504,120 @@ fn f32_deviation_over_200_seeds() {
             method.name()
         );
     }
+}
+
+/// The C ABI: the `no_std` static library builds (own panic handler, panic = abort), has no
+/// allocator and no `std` symbol (`nm`), and a C program linked against it replays the
+/// certified preset bit for bit as the std estimator.
+#[test]
+fn c_abi_static_library_has_no_malloc_or_std_and_replays_bit_for_bit() {
+    let c = case("case-study-certified.toml", None);
+    let method = Method::FISTA.with_scaling(qp_iter::Scaling::Jacobi);
+    let (p, art) = artefact(&c, method, ScalarKind::F64);
+    let dir = scratch_dir("capi");
+    write_files(&dir, Lang::Rust, &p, &art);
+    let target = workspace_root()
+        .join("target")
+        .join("export-tests-capi-target");
+    let status = Command::new(env!("CARGO"))
+        .current_dir(dir.join("capi"))
+        .env("CARGO_TARGET_DIR", &target)
+        .args(["build", "--quiet", "--offline", "--release"])
+        .status()
+        .unwrap();
+    assert!(status.success(), "cargo build of capi/ failed");
+    let lib = target.join("release").join("libmhe_export_capi.a");
+    let nm = Command::new("nm").arg("-C").arg(&lib).output().unwrap();
+    assert!(nm.status.success());
+    let symbols = String::from_utf8_lossy(&nm.stdout);
+    for name in [
+        "mhe_capi_reset",
+        "mhe_capi_push",
+        "mhe_capi_estimate",
+        "mhe_capi_dims",
+    ] {
+        assert!(
+            symbols.lines().any(|l| l.ends_with(&format!(" T {name}"))),
+            "{name} is not defined"
+        );
+    }
+    for l in symbols.lines() {
+        let sym = l.split_whitespace().last().unwrap_or("");
+        assert!(
+            ![
+                "malloc",
+                "calloc",
+                "realloc",
+                "free",
+                "__rust_alloc",
+                "__rdl_alloc"
+            ]
+            .contains(&sym),
+            "allocator symbol: {l}"
+        );
+        assert!(!sym.starts_with("std::"), "std symbol: {l}");
+    }
+    let status = Command::new("cc")
+        .current_dir(dir.join("capi"))
+        .args([
+            "-O2",
+            "-std=c99",
+            "-ffp-contract=off",
+            "-Wall",
+            "-Werror",
+            "-o",
+            "replay_capi",
+        ])
+        .arg("replay_capi.c")
+        .arg(&lib)
+        .status()
+        .unwrap();
+    assert!(status.success(), "linking replay_capi.c failed");
+    let got = parse_replay(&run_program(
+        &mut Command::new(dir.join("capi").join("replay_capi")),
+        &replay_input(&c.traj),
+    ));
+    let mut est = portable_estimator(&c.resolved, method, c.k).unwrap();
+    assert_eq!(bits(&got), bits(&run_std(&mut est, &c.traj)));
+}
+
+/// The checked-in header declares exactly the library's `extern "C"` functions, with the
+/// C types of their Rust signatures.
+#[test]
+fn c_abi_header_matches_the_rust_signatures() {
+    fn c_type(rust: &str) -> String {
+        match rust.trim() {
+            "*const MheReal" => "const mhe_real *".into(),
+            "*mut MheReal" => "mhe_real *".into(),
+            "*mut i32" => "int32_t *".into(),
+            "i32" => "int32_t".into(),
+            "" => "void".into(),
+            other => panic!("no C type for `{other}`"),
+        }
+    }
+    let mut from_rust = Vec::new();
+    let src = rust_gen::CAPI_LIB_RS;
+    for (i, _) in src.match_indices("extern \"C\" fn ") {
+        let rest = &src[i + "extern \"C\" fn ".len()..];
+        let name = &rest[..rest.find('(').unwrap()];
+        let args = &rest[rest.find('(').unwrap() + 1..rest.find(')').unwrap()];
+        let after = &rest[rest.find(')').unwrap() + 1..rest.find('{').unwrap()];
+        let ret = c_type(after.trim().trim_start_matches("->"));
+        let args: Vec<String> = args
+            .split(',')
+            .filter(|a| !a.trim().is_empty())
+            .map(|a| {
+                let (n, t) = a.split_once(':').unwrap();
+                format!("{}{}", c_type(t), n.trim())
+            })
+            .collect();
+        from_rust.push(format!("{ret} {name}({});", args.join(", ")).replace("* ", "*"));
+    }
+    let header: Vec<String> = rust_gen::CAPI_HEADER
+        .lines()
+        .filter(|l| l.contains("mhe_capi_") && l.ends_with(");"))
+        .map(|l| l.replace("* ", "*"))
+        .collect();
+    assert_eq!(from_rust.len(), 4);
+    assert_eq!(header, from_rust);
 }

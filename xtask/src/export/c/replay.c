@@ -50,6 +50,9 @@ int main(void) {
     SYST_RVR = 0xFFFFFFu;
     SYST_CVR = 0u;
     SYST_CSR = 7u; /* enable, interrupt at each wrap, processor clock */
+    while ((SYST_CVR & 0xFFFFFFu) == 0u) {
+        /* the write of CVR cleared it; the first tick reloads it */
+    }
     per_tick = calibrate();
 #endif
     mhe_reset(&state, mhe_exported_prior);

@@ -19,6 +19,11 @@ fn panic(_: &core::panic::PanicInfo<'_>) -> ! {
     loop {}
 }
 
+/// The precompiled `core` (built for unwinding) refers to this symbol; with
+/// `panic = "abort"` nothing unwinds, so it is never called.
+#[unsafe(no_mangle)]
+pub extern "C" fn rust_eh_personality() {}
+
 /// The instance, created with the exported prior on first use (`None` only if the
 /// exported data do not fit the estimator, which the exporter's tests rule out).
 fn state() -> Option<&'static mut Estimator> {

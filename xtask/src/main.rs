@@ -4,6 +4,8 @@
 //! - `cargo xtask certify --scenario FILE [--json OUT] [--eta X] [--p-file P.json]`
 //! - `cargo xtask sweep --config FILE.toml [--out DIR] [--threads N] [--shard I/N]`,
 //!   `cargo xtask sweep-merge --config FILE.toml --out DIR [SHARD_DIR...]` (docs/sweeps.md)
+//! - `cargo xtask export --scenario FILE --out DIR [--method M] [--k K|certified]
+//!   [--scalar f64|f32] [--lang rust|c] [--allow-uncertified]` (docs/embedded.md)
 //! - `cargo xtask reproduce [--preset paper|certified] [--scenario FILE] [--out DIR]
 //!   [--gamma13 G] [--fig2c-t T] [--sim-k-cap K]`
 //!
@@ -12,6 +14,7 @@
 //! the certified K violates Prop. 1 or 3 with the certificate's constants).
 
 mod certify;
+mod export;
 mod figures;
 mod provenance;
 mod reproduce;
@@ -43,6 +46,9 @@ struct Cli {
 enum Command {
     /// Monte-Carlo sweep over the iteration budget K (docs/sweeps.md).
     Sweep(sweep::SweepArgs),
+    /// Export the certified estimator for a microcontroller: no_std Rust or C, with
+    /// certificate.json and a replay program (docs/embedded.md).
+    Export(export::ExportArgs),
     /// Assemble the point files of sharded sweep runs into runs.csv, points.csv and plots.
     SweepMerge(sweep::MergeArgs),
     /// Compute (or verify) the δ-IOSS certificate P of LMI (2) for a scenario.
@@ -104,6 +110,7 @@ fn run(cli: Cli) -> Result<ExitCode> {
     match cli.command {
         Command::Sweep(args) => sweep::sweep(&args).map(|()| ExitCode::SUCCESS),
         Command::SweepMerge(args) => sweep::merge(&args).map(|()| ExitCode::SUCCESS),
+        Command::Export(args) => export::export(&args).map(|()| ExitCode::SUCCESS),
         Command::Certify {
             scenario,
             json,

@@ -270,6 +270,18 @@ impl Admm {
         self.alpha
     }
 
+    /// Runs the dense steps on `kernel` instead of the detected one (see
+    /// [`crate::pg::ProjectedGradient::set_kernel`]).
+    pub fn set_kernel(&mut self, kernel: Kernel) {
+        self.kernel = kernel;
+    }
+
+    /// The matrices a step and a load apply, as stored (for code generation that must
+    /// reproduce the steps bit for bit): ρ(H + ρI)⁻¹ and (H + ρI)⁻¹.
+    pub fn stored_inverses(&self) -> (&PaddedSymmetric, &PaddedSymmetric) {
+        (&self.m_rho, &self.m_inv)
+    }
+
     /// ‖s^K − s*‖ ≤ rᴷ‖s⁰ − s*‖ on the DR variable s = v + y/ρ: holds for any start and dual.
     pub fn splitting_certificate(&self) -> &Certificate {
         &self.split_cert

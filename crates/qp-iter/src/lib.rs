@@ -33,6 +33,7 @@ pub mod general_projection;
 pub mod kernel;
 pub mod linearise;
 pub mod method;
+mod method_kernel;
 pub mod operator;
 pub mod pg;
 pub mod problem;

@@ -181,6 +181,11 @@ impl<M: IterationMap> Scaled<M> {
         &self.inner
     }
 
+    /// The map on the scaled problem, mutable (to change its kernel).
+    pub fn inner_mut(&mut self) -> &mut M {
+        &mut self.inner
+    }
+
     /// Sets the reported iterate z = D·(inner iterate) and the dual in z from the inner
     /// state (the map does it after every call; a caller that drives the inner state
     /// directly, like a linearisation probe, calls it after).

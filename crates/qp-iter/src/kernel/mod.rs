@@ -105,10 +105,15 @@ static DETECTED: OnceLock<Kernel> = OnceLock::new();
 
 impl Kernel {
     /// The fastest path the running CPU supports (detected on first use, then cached).
+    ///
+    /// The environment variable `QP_ITER_KERNEL=portable`, read at that first use, makes
+    /// every detected kernel of the process the portable one (to reproduce a run bit for
+    /// bit with `mhe-embedded` or exported C; per map: `MethodMap::set_kernel`).
     #[inline]
     pub fn detect() -> Self {
         *DETECTED.get_or_init(|| {
-            if avx2_fma_detected() {
+            let forced = std::env::var("QP_ITER_KERNEL").is_ok_and(|v| v == "portable");
+            if avx2_fma_detected() && !forced {
                 Kernel {
                     path: KernelPath::Avx2Fma,
                 }

@@ -1,0 +1,158 @@
+#!/usr/bin/env bash
+# The exported estimator on the Cortex-M instruction set (docs/embedded.md):
+#
+#   for each shipped scenario (the certified preset, the cart-pendulum):
+#   1. `cargo xtask reproduce` on the portable kernel (QP_ITER_KERNEL=portable) → trace.csv;
+#   2. `cargo xtask export --lang c` for the scenario's method at the K that trace.csv ran;
+#   3. the replay built with the host's cc: x̂ equals trace.csv's xhat columns bit for bit;
+#   4. the replay built with Debian's arm-none-eabi-gcc for Cortex-M4F (mps2-an386) and
+#      Cortex-M7 (mps2-an500), run under qemu-system-arm with semihosting and -icount:
+#      the same bits; flash and RAM from arm-none-eabi-size; instructions per MHE step
+#      (push + estimate) from SysTick under -icount (instructions, not cycles).
+#
+# Installs gcc-arm-none-eabi, libnewlib-arm-none-eabi and qemu-system-arm with apt when
+# missing. Writes target/cortex-m/summary.md. Exit status non-zero on any mismatch.
+set -euo pipefail
+cd "$(dirname "${BASH_SOURCE[0]}")/.."
+
+need=()
+command -v arm-none-eabi-gcc >/dev/null 2>&1 || need+=(gcc-arm-none-eabi libnewlib-arm-none-eabi)
+[ -e /usr/lib/arm-none-eabi/lib/librdimon.a ] || need+=(libnewlib-arm-none-eabi)
+command -v qemu-system-arm >/dev/null 2>&1 || need+=(qemu-system-arm)
+command -v python3 >/dev/null 2>&1 || need+=(python3)
+command -v make >/dev/null 2>&1 || need+=(make)
+if [ ${#need[@]} -gt 0 ]; then
+    echo "installing ${need[*]} (apt)"
+    SUDO=""
+    [ "$(id -u)" -ne 0 ] && SUDO="sudo"
+    $SUDO apt-get update -qq
+    DEBIAN_FRONTEND=noninteractive $SUDO apt-get install -y -qq "${need[@]}" >/dev/null
+fi
+arm-none-eabi-gcc --version | head -1
+qemu-system-arm --version | head -1
+
+OUT=target/cortex-m
+rm -rf "$OUT"
+mkdir -p "$OUT"
+
+# Helpers on trace.csv and replay outputs (RUN_K selects one run of trace.csv, ROWS limits
+# the rows): `k` prints the run's K, `input` the replay input (u…,y… per row), `compare`
+# checks a replay output against the xhat columns bit for bit, `same` two replay outputs.
+csv_tools() {
+    python3 - "$@" <<'PY'
+import csv, os, struct, sys
+mode = sys.argv[1]
+def bits(line):
+    return [struct.pack('<d', float(v)) for v in line.split(',')]
+def lines(path):
+    return [l for l in open(path).read().splitlines() if l.strip()]
+if mode == 'same':
+    a, b = lines(sys.argv[2]), lines(sys.argv[3])
+    if len(a) < 2 or [bits(l) for l in a] != [bits(l) for l in b]:
+        sys.exit(f'{sys.argv[3]} differs from {sys.argv[2]}')
+    print(f'    {len(a)} estimates equal the host build bit for bit')
+    sys.exit(0)
+trace = sys.argv[2]
+rows = list(csv.DictReader(open(trace)))
+if os.environ.get('RUN_K'):
+    rows = [r for r in rows if r['k'] == os.environ['RUN_K']]
+if os.environ.get('ROWS'):
+    rows = rows[:int(os.environ['ROWS'])]
+if not rows:
+    sys.exit(f'{trace}: no rows for K = {os.environ.get("RUN_K")}')
+cols = rows[0].keys()
+nx = sum(1 for k in cols if k.startswith('xhat'))
+nu = sum(1 for k in cols if k[0] == 'u' and k[1:].isdigit())
+ny = sum(1 for k in cols if k[0] == 'y' and k[1:].isdigit())
+if mode == 'k':
+    print(rows[0]['k'])
+elif mode == 'input':
+    for r in rows:
+        print(','.join([r[f'u{i+1}'] for i in range(nu)] + [r[f'y{i+1}'] for i in range(ny)]))
+elif mode == 'compare':
+    got = lines(sys.argv[3])
+    if len(got) != len(rows) + 1:
+        sys.exit(f'{sys.argv[3]}: {len(got)} lines, expected {len(rows) + 1}')
+    bad = [t for t, r in enumerate(rows)
+           if bits(','.join(r[f'xhat{i+1}'] for i in range(nx))) != bits(got[t])]
+    for t in bad[:3]:
+        print(f'    row {t}: trace.csv and the replay differ: {got[t]}')
+    if bad:
+        sys.exit(f'{len(bad)} of {len(rows)} rows differ from {trace}')
+    print(f'    {len(rows)} rows equal trace.csv\'s xhat bit for bit')
+PY
+}
+
+summary="$OUT/summary.md"
+{
+    echo "| scenario | method | K | target | flash (B) | RAM (B) | instructions/step mean | max | steps |"
+    echo "| --- | --- | --- | --- | --- | --- | --- | --- | --- |"
+} >"$summary"
+
+# run FILE METHOD K ROWS CHECK_TRACE [REPRODUCE FLAGS...]
+#   K: a number, `certified`, or `trace` (the K trace.csv ran); ROWS: how many rows to
+#   replay; CHECK_TRACE: 1 = also compare with trace.csv (same method and K as its run).
+run() {
+    local file=$1 method=$2 k=$3 rows=$4 check=$5
+    shift 5
+    echo
+    echo "==> $file: $method"
+    QP_ITER_KERNEL=portable cargo xtask reproduce --scenario "scenarios/$file.toml" \
+        --out "$OUT/reproduce" "$@" >"$OUT/$file-reproduce.log" 2>&1 \
+        || { tail -20 "$OUT/$file-reproduce.log"; exit 1; }
+    local trace="$OUT/reproduce/$file/trace.csv"
+    local run_k
+    run_k=$(csv_tools k "$trace")
+    [ "$k" = trace ] && k=$run_k
+    local art="$OUT/$file-$method-c"
+    cargo xtask export --scenario "scenarios/$file.toml" --out "$art" --lang c \
+        --method "$method" --k "$k" >"$OUT/$file-export.log" 2>&1 \
+        || { cat "$OUT/$file-export.log"; exit 1; }
+    k=$(sed -n 's/^#define MHE_K \([0-9]*\)/\1/p' "$art/mhe_data.h")
+    RUN_K=$run_k ROWS=$rows csv_tools input "$trace" >"$OUT/$file-input.csv"
+    echo "  host (cc), K = $k, $rows steps of trace.csv's u and y (its run at K = $run_k):"
+    make -s -C "$art" replay
+    "$art/replay" <"$OUT/$file-input.csv" >"$OUT/$file-host.out"
+    if [ "$check" = 1 ]; then
+        RUN_K=$run_k ROWS=$rows csv_tools compare "$trace" "$OUT/$file-host.out"
+    fi
+    local target tag machine label text data bss mean max
+    for target in "m4:mps2-an386:Cortex-M4F" "m7:mps2-an500:Cortex-M7"; do
+        IFS=: read -r tag machine label <<<"$target"
+        make -s -C "$art" "replay-$tag.elf"
+        echo "  $label ($machine, qemu-system-arm -icount shift=0, semihosting):"
+        timeout 1200 qemu-system-arm -M "$machine" -nographic -monitor none -serial none \
+            -semihosting-config enable=on,target=native -icount shift=0 \
+            -kernel "$art/replay-$tag.elf" <"$OUT/$file-input.csv" \
+            >"$OUT/$file-$tag.out" 2>"$OUT/$file-$tag.err"
+        csv_tools same "$OUT/$file-host.out" "$OUT/$file-$tag.out"
+        if [ "$check" = 1 ]; then
+            RUN_K=$run_k ROWS=$rows csv_tools compare "$trace" "$OUT/$file-$tag.out"
+        fi
+        read -r text data bss _ < <(arm-none-eabi-size "$art/replay-$tag.elf" | tail -1)
+        mean=$(sed -n 's/.*mean \([0-9]*\), max \([0-9]*\).*/\1/p' "$OUT/$file-$tag.err")
+        max=$(sed -n 's/.*mean \([0-9]*\), max \([0-9]*\).*/\2/p' "$OUT/$file-$tag.err")
+        if [ -z "$mean" ] || [ -z "$max" ]; then
+            echo "no instruction count in $OUT/$file-$tag.err:"
+            cat "$OUT/$file-$tag.err"
+            exit 1
+        fi
+        echo "    flash $((text + data)) B, RAM $((data + bss)) B, instructions/step mean $mean, max $max"
+        echo "| $file | $method | $k | $label | $((text + data)) | $((data + bss)) | $mean | $max | $rows |" >>"$summary"
+    done
+}
+
+# The certified preset: PG at its K_min (= the K reproduce simulates); all 40 steps, and
+# trace.csv's xhat bit for bit on the host and on both targets.
+run case-study-certified pg trace 40 1
+# The cart-pendulum: ADMM-PR at its certified K_min (the smallest of the four methods; PG
+# needs 140227), on the u and y of the scenario's own run (`--sim-k-cap` skips the K_min
+# runs, so reproduce simulates only the scenario's K = 10); 20 steps (the M4F emulates f64
+# in software); the targets' bits against the host build's.
+run cart-pendulum admm-pr certified 20 0 --sim-k-cap 1000
+
+echo
+cat "$summary"
+echo "(flash = text + data, RAM = data + bss of the whole replay program, newlib's stdio"
+echo " included; instructions = SysTick ticks under -icount shift=0 times the instructions"
+echo " per tick of a calibration loop: emulated instructions, not cycles)"

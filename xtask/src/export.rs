@@ -1,0 +1,412 @@
+//! `cargo xtask export`: the certified estimator as a self-contained artefact for a
+//! microcontroller (docs/embedded.md).
+//!
+//! 1. Reads the scenario, computes Theorem 1's certificate for the method
+//!    (`closed_loop::certificate::certify_closed_loop`) and decides K: `--k certified` (the
+//!    default) is K_min; a given K below K_min, or any K with a void certificate, is refused
+//!    unless `--allow-uncertified`, which the artefact then says in its README, its headers
+//!    and `certificate.json`.
+//! 2. Builds the std `MheEstimator` with that method and K on the portable kernel and copies
+//!    its numbers out ([`extract`]).
+//! 3. Writes the artefact: the data (a Rust module or `.c`/`.h`), the estimator source
+//!    (vendored `mhe-embedded`, or `mhe.c`/`mhe.h`), the build files, the replay program,
+//!    `certificate.json` and a README.
+
+mod c_gen;
+pub(crate) mod extract;
+mod rust_gen;
+mod sha256;
+#[cfg(test)]
+mod tests;
+
+use std::path::{Path, PathBuf};
+
+use anyhow::{Context, Result, bail};
+use clap::{Args, ValueEnum};
+use closed_loop::certificate::{
+    CertificateOptions, Gamma13Source, SolverCertificate, certify_closed_loop,
+};
+use closed_loop::scenario::{ResolvedScenario, Scenario};
+use qp_iter::Method;
+use serde_json::json;
+
+use crate::provenance::Provenance;
+use extract::{OwnedProblem, portable_estimator};
+
+/// The scalar of the exported code.
+#[derive(Debug, Clone, Copy, PartialEq, Eq, ValueEnum)]
+pub enum ScalarKind {
+    /// Double precision: bit for bit the std build on the portable kernel.
+    F64,
+    /// Single precision (data rounded to f32 once; not covered by the certificate).
+    F32,
+}
+
+/// The language of the artefact.
+#[derive(Debug, Clone, Copy, PartialEq, Eq, ValueEnum)]
+pub enum Lang {
+    /// A Cargo package (no_std library + std replay binary).
+    Rust,
+    /// C99 sources, a Makefile and Cortex-M start-up files.
+    C,
+}
+
+/// `cargo xtask export` arguments.
+#[derive(Debug, Clone, Args)]
+pub struct ExportArgs {
+    /// Scenario file (TOML, docs/scenario-format.md) with [mhe] and [mpc].
+    #[arg(long)]
+    pub scenario: PathBuf,
+    /// Output directory (created; existing files in it are overwritten).
+    #[arg(long, value_name = "DIR")]
+    pub out: PathBuf,
+    /// The method (`pg`, `fista`, `admm`, `admm-pr`, `pg-jacobi`, …) [default: the
+    /// scenario's `mhe.method`].
+    #[arg(long)]
+    pub method: Option<String>,
+    /// Iterations K per step: a number, or `certified` for K_min of Theorem 1.
+    #[arg(long, default_value = "certified")]
+    pub k: String,
+    /// The scalar of the exported code.
+    #[arg(long, value_enum, default_value = "f64")]
+    pub scalar: ScalarKind,
+    /// The language of the artefact.
+    #[arg(long, value_enum, default_value = "c")]
+    pub lang: Lang,
+    /// Export even when K is below K_min or the certificate is void (the artefact says so).
+    #[arg(long)]
+    pub allow_uncertified: bool,
+}
+
+/// What the generated files say about themselves.
+#[derive(Debug, Clone)]
+pub(crate) struct Artefact<'a> {
+    pub scenario: &'a str,
+    pub method: String,
+    pub k: usize,
+    pub k_min: Option<usize>,
+    pub scalar: ScalarKind,
+    pub certified: bool,
+    pub prior: Vec<f64>,
+    pub sha256: String,
+}
+
+impl Artefact<'_> {
+    /// The banner of every generated file, each line starting with `prefix`.
+    pub(crate) fn banner(&self, prefix: &str) -> String {
+        let mut lines = vec![format!(
+            "Scenario `{}` (SHA-256 {}), method {}, K = {}, scalar {}.",
+            self.scenario,
+            self.sha256,
+            self.method,
+            self.k,
+            scalar_name(self.scalar)
+        )];
+        match (self.certified, self.k_min) {
+            (true, Some(k)) => lines.push(format!(
+                "Certified: K = {} ≥ K_min = {k} of Theorem 1 (certificate.json), in f64.",
+                self.k
+            )),
+            (_, Some(k)) => lines.push(format!(
+                "UNCERTIFIED: K = {} is below K_min = {k}; exported with --allow-uncertified.",
+                self.k
+            )),
+            (_, None) => lines.push(
+                "UNCERTIFIED: the certificate of Theorem 1 is void for this method (see \
+                 certificate.json); exported with --allow-uncertified."
+                    .into(),
+            ),
+        }
+        if self.scalar == ScalarKind::F32 {
+            lines.push(format!("f32: {F32_NOT_COVERED}."));
+        }
+        lines
+            .iter()
+            .map(|l| format!("{prefix}{l}"))
+            .collect::<Vec<_>>()
+            .join("\n")
+    }
+}
+
+/// What the certificate says about f32.
+pub(crate) const F32_NOT_COVERED: &str = "not covered: rounding of f32 enters as a \
+    disturbance of the iteration that is not in the bound";
+
+fn scalar_name(s: ScalarKind) -> &'static str {
+    match s {
+        ScalarKind::F64 => "f64",
+        ScalarKind::F32 => "f32",
+    }
+}
+
+/// The certificate of one method for a resolved scenario (Theorem 1; no sampled estimates).
+pub(crate) fn method_certificate(
+    resolved: &ResolvedScenario,
+    method: Method,
+) -> Result<SolverCertificate> {
+    let sc = resolved.scenario();
+    let opts = CertificateOptions {
+        solvers: vec![method],
+        gamma13: sc
+            .certificate
+            .gamma13
+            .map_or(Gamma13Source::Certified, Gamma13Source::User),
+        seed: sc.noise.seed,
+        lipschitz_pairs: 0,
+        gamma13_sequences: 0,
+        ..CertificateOptions::default()
+    };
+    let cert = certify_closed_loop(resolved, &opts)
+        .with_context(|| format!("cannot compute the certificate of `{}`", sc.name))?;
+    cert.solver(method)
+        .cloned()
+        .with_context(|| format!("the certificate has no entry for {}", method.name()))
+}
+
+/// K from `--k` and the certificate: (K, certified).
+pub(crate) fn decide_k(
+    k_arg: &str,
+    cert: &SolverCertificate,
+    allow_uncertified: bool,
+) -> Result<(usize, bool)> {
+    let method = cert.solver.name();
+    let void = || cert.void_reasons.join("; ");
+    if k_arg == "certified" {
+        return match cert.k_min {
+            Some(k) => Ok((k, true)),
+            None => bail!(
+                "--k certified: the certificate of Theorem 1 is void for {method} ({}); give \
+                 --k K with --allow-uncertified to export anyway",
+                void()
+            ),
+        };
+    }
+    let k: usize = k_arg
+        .parse()
+        .ok()
+        .filter(|k| *k >= 1)
+        .with_context(|| format!("--k {k_arg}: expected an integer ≥ 1 or `certified`"))?;
+    match cert.k_min {
+        Some(k_min) if k >= k_min => Ok((k, true)),
+        Some(_) if allow_uncertified => Ok((k, false)),
+        Some(k_min) => bail!(
+            "--k {k}: below the certified K_min = {k_min} of Theorem 1 for {method}; use \
+             --k certified (or K ≥ {k_min}), or --allow-uncertified to export an uncertified \
+             estimator"
+        ),
+        None if allow_uncertified => Ok((k, false)),
+        None => bail!(
+            "--k {k}: the certificate of Theorem 1 is void for {method} ({}); \
+             --allow-uncertified exports anyway",
+            void()
+        ),
+    }
+}
+
+/// Writes `text` to `dir/name` through a temporary file and a rename (no half-written file
+/// under the final name), creating parent directories.
+fn write_file(dir: &Path, name: &str, text: &str) -> Result<()> {
+    let path = dir.join(name);
+    if let Some(parent) = path.parent() {
+        std::fs::create_dir_all(parent)
+            .with_context(|| format!("cannot create directory `{}`", parent.display()))?;
+    }
+    let tmp = path.with_extension("export-tmp");
+    std::fs::write(&tmp, text).with_context(|| format!("cannot write `{}`", tmp.display()))?;
+    std::fs::rename(&tmp, &path).with_context(|| format!("cannot write `{}`", path.display()))
+}
+
+/// `cargo xtask export`.
+pub fn export(args: &ExportArgs) -> Result<()> {
+    let text = std::fs::read(&args.scenario)
+        .with_context(|| format!("cannot read `{}`", args.scenario.display()))?;
+    let sha256 = sha256::sha256_hex(&text);
+    let scenario = Scenario::from_file(&args.scenario)
+        .with_context(|| format!("cannot load `{}`", args.scenario.display()))?;
+    let mhe = scenario
+        .mhe
+        .as_ref()
+        .context("the scenario has no [mhe] section: nothing to export")?;
+    let method: Method = match &args.method {
+        Some(m) => m
+            .parse()
+            .map_err(|e| anyhow::anyhow!("--method {m}: {e}"))?,
+        None => mhe.method,
+    };
+    let resolved = scenario
+        .clone()
+        .resolve()
+        .with_context(|| format!("cannot set up `{}`", args.scenario.display()))?;
+    println!(
+        "computing the certificate of Theorem 1 for {} …",
+        method.name()
+    );
+    let cert = method_certificate(&resolved, method)?;
+    let (k, certified) = decide_k(&args.k, &cert, args.allow_uncertified)?;
+    let est = portable_estimator(&resolved, method, k)?;
+    let problem = OwnedProblem::from_estimator(&est, &scenario.plant)?;
+    let art = Artefact {
+        scenario: &scenario.name,
+        method: method.name().into_owned(),
+        k,
+        k_min: cert.k_min,
+        scalar: args.scalar,
+        certified,
+        prior: scenario.simulation.prior.clone(),
+        sha256,
+    };
+    write_artefact(&args.out, args.lang, &problem, &art, &cert, &args.scenario)?;
+    println!(
+        "wrote the {} artefact for `{}` ({}, K = {k}{}) to {}",
+        match args.lang {
+            Lang::Rust => "Rust",
+            Lang::C => "C",
+        },
+        scenario.name,
+        art.method,
+        if certified {
+            ", certified"
+        } else {
+            ", UNCERTIFIED"
+        },
+        args.out.display()
+    );
+    Ok(())
+}
+
+/// Writes every file of the artefact into `out`.
+pub(crate) fn write_artefact(
+    out: &Path,
+    lang: Lang,
+    problem: &OwnedProblem,
+    art: &Artefact<'_>,
+    cert: &SolverCertificate,
+    scenario_path: &Path,
+) -> Result<()> {
+    write_code(out, lang, problem, art)?;
+    write_file(
+        out,
+        "certificate.json",
+        &(serde_json::to_string_pretty(&certificate_json(art, cert, scenario_path))? + "\n"),
+    )?;
+    write_file(out, "README.md", &readme(art, lang))?;
+    Ok(())
+}
+
+/// The code files of the artefact (everything but `certificate.json` and the README).
+pub(crate) fn write_code(
+    out: &Path,
+    lang: Lang,
+    problem: &OwnedProblem,
+    art: &Artefact<'_>,
+) -> Result<()> {
+    std::fs::create_dir_all(out)
+        .with_context(|| format!("cannot create directory `{}`", out.display()))?;
+    match lang {
+        Lang::C => {
+            write_file(out, "mhe.h", c_gen::MHE_H)?;
+            write_file(out, "mhe.c", c_gen::MHE_C)?;
+            write_file(out, "replay.c", c_gen::REPLAY_C)?;
+            write_file(out, "mhe_data.h", &c_gen::data_h(problem, art))?;
+            write_file(out, "mhe_data.c", &c_gen::data_c(problem, art))?;
+            write_file(out, "Makefile", c_gen::MAKEFILE)?;
+            write_file(out, "cortex-m/startup.c", c_gen::STARTUP_C)?;
+            write_file(out, "cortex-m/link.ld", c_gen::LINK_LD)?;
+        }
+        Lang::Rust => {
+            let package = "mhe-export";
+            for (path, text) in rust_gen::VENDORED {
+                write_file(out, path, text)?;
+            }
+            write_file(out, "Cargo.toml", &rust_gen::cargo_toml(package))?;
+            write_file(out, "src/lib.rs", &rust_gen::lib_rs(art))?;
+            write_file(out, "src/data.rs", &rust_gen::data_rs(problem, art))?;
+            write_file(out, "src/bin/replay.rs", &rust_gen::replay_rs(package))?;
+            write_file(out, "capi/Cargo.toml", &rust_gen::capi_cargo_toml(package))?;
+            write_file(out, "capi/src/lib.rs", rust_gen::CAPI_LIB_RS)?;
+            write_file(out, "capi/mhe_capi.h", rust_gen::CAPI_HEADER)?;
+            write_file(out, "capi/replay_capi.c", rust_gen::CAPI_REPLAY_C)?;
+        }
+    }
+    Ok(())
+}
+
+fn certificate_json(
+    art: &Artefact<'_>,
+    cert: &SolverCertificate,
+    scenario_path: &Path,
+) -> serde_json::Value {
+    json!({
+        "format": "suboptimal-mhe/export-certificate",
+        "format_version": 1,
+        "scenario": {
+            "name": art.scenario,
+            "path": scenario_path.display().to_string(),
+            "sha256": art.sha256,
+        },
+        "method": art.method,
+        "iterations": art.k,
+        "k_min": art.k_min,
+        "scalar": scalar_name(art.scalar),
+        "certified": art.certified,
+        "uncertified_reason": (!art.certified).then(|| match art.k_min {
+            Some(k) => format!("K = {} is below K_min = {k}; exported with --allow-uncertified", art.k),
+            None => "the certificate of Theorem 1 is void for this method; exported with --allow-uncertified".to_string(),
+        }),
+        "covers": {
+            "method": art.method,
+            "iterations": art.k,
+            "f64": if art.certified {
+                "covered: the exported f64 code performs the certified iteration bit for bit as the std estimator on the portable kernel"
+            } else {
+                "not covered: K is not certified"
+            },
+            "f32": F32_NOT_COVERED,
+        },
+        "theorem1": cert,
+        "provenance": Provenance::collect(),
+    })
+}
+
+fn readme(art: &Artefact<'_>, lang: Lang) -> String {
+    let status = if art.certified {
+        format!(
+            "**Certified**: K = {} ≥ K_min = {} of Theorem 1 for {} (`certificate.json`), for the \
+             f64 build.",
+            art.k,
+            art.k_min.unwrap_or(art.k),
+            art.method
+        )
+    } else {
+        "**UNCERTIFIED** (exported with `--allow-uncertified`): see `uncertified_reason` in \
+         `certificate.json`. No stability guarantee comes with this K."
+            .to_string()
+    };
+    let f32_note = if art.scalar == ScalarKind::F32 {
+        format!(
+            "\n\nThis is an **f32** build; the certificate's cover of f32: {F32_NOT_COVERED}.\n"
+        )
+    } else {
+        String::new()
+    };
+    let build = match lang {
+        Lang::C => "```sh\nmake                      # host: ./replay\nmake replay-m4.elf        # Cortex-M4F (arm-none-eabi-gcc)\nmake replay-m7.elf        # Cortex-M7\nqemu-system-arm -M mps2-an386 -nographic -monitor none -serial none \\\n  -semihosting-config enable=on,target=native -icount shift=0 -kernel replay-m4.elf < inputs.csv\n```\n\nFiles: `mhe.h`/`mhe.c` (the estimator: `mhe_reset`, `mhe_estimate`, `mhe_push`; no allocation), `mhe_data.h`/`mhe_data.c` (the problem data, generated), `replay.c`, `Makefile` (`-ffp-contract=off`, no fast-math: needed for bit identity), `cortex-m/` (start-up code and linker script for QEMU's mps2 boards; adapt the memory map for a real board).".to_string(),
+        Lang::Rust => "```sh\ncargo build --release\ncargo run --release --bin replay < inputs.csv\n```\n\nFiles: `src/data.rs` (the problem data as `static` arrays, generated), `src/lib.rs` (`#![no_std]`: `estimator()`, the `Estimator` type), `mhe-embedded/` (the estimator crate, vendored: no dependencies, no allocation), `src/bin/replay.rs`.".to_string(),
+    };
+    format!(
+        "# Exported estimator: `{scenario}`, {method}, K = {k}\n\n\
+         Generated by `cargo xtask export` (docs/embedded.md of suboptimal-mhe). Scenario SHA-256 \
+         `{sha}`, scalar {scalar}.\n\n{status}{f32_note}\n\n## Build and run\n\n{build}\n\n\
+         ## Replay format\n\nThe replay program prints x̂_{{0|0}} first; then, for each input line \
+         t = 0, 1, … holding u_t and then y_t (comma-separated, the `u*` and `y*` columns of \
+         `trace.csv` row t of `cargo xtask reproduce`), it pushes the pair and prints \
+         x̂_{{t+1|t+1}}, comma-separated with 17 significant digits, so output line t is row t of \
+         `trace.csv`'s `xhat*` columns (bit for bit for an f64 build when `reproduce` ran with \
+         `QP_ITER_KERNEL=portable`).\n",
+        scenario = art.scenario,
+        method = art.method,
+        k = art.k,
+        sha = art.sha256,
+        scalar = scalar_name(art.scalar),
+    )
+}

@@ -1,0 +1,190 @@
+/* The estimator step; see mhe.h. Mirrors crates/mhe-embedded/src/{qp,estimator}.rs. */
+#include <string.h>
+#include "mhe.h"
+
+#define P (&mhe_exported_problem)
+
+static mhe_real clampr(mhe_real v, mhe_real l, mhe_real u) {
+    mhe_real w = (l > v) ? l : v;
+    return (u < w) ? u : w;
+}
+
+/* y[..n] = H x, H by columns, each row summed from 0 in column order. */
+static void matvec(const mhe_real *h, int n, const mhe_real *x, mhe_real *y) {
+    int i, j;
+    for (i = 0; i < n; i++) y[i] = (mhe_real)0;
+    for (j = 0; j < n; j++) {
+        const mhe_real *col = h + (long)j * n;
+        mhe_real xj = x[j];
+        for (i = 0; i < n; i++) y[i] = y[i] + col[i] * xj;
+    }
+}
+
+/* q = q0 + F theta, each row summed from q0_i in theta order. */
+static void linear_term(const mhe_window *w, const mhe_real *theta, mhe_real *q) {
+    int i, k, nt = w->n_theta;
+    for (i = 0; i < w->n; i++) {
+        const mhe_real *row = w->f + (long)i * nt;
+        mhe_real acc = w->q0[i];
+        for (k = 0; k < nt; k++) acc = acc + row[k] * theta[k];
+        q[i] = acc;
+    }
+}
+
+/* K iterations on window w for theta from z0; z^K into out. */
+static void run_window(const mhe_window *w, const mhe_real *theta, const mhe_real *z0,
+                       int iterations, mhe_real v[6][MHE_NZ], mhe_real *out) {
+    int n = w->n, i, k;
+    const mhe_real *lo = w->lower, *hi = w->upper;
+    mhe_real *z = v[0], *q = v[2];
+    if (n == 0) return;
+    linear_term(w, theta, q);
+    if (w->scaling == 0) {
+        for (i = 0; i < n; i++) z[i] = z0[i];
+    } else {
+        for (i = 0; i < n; i++) z[i] = z0[i] / w->scaling[i];
+    }
+    if (P->method == MHE_PG) {
+        mhe_real *hz = v[4];
+        for (k = 0; k < iterations; k++) {
+            matvec(w->h, n, z, hz);
+            for (i = 0; i < n; i++) {
+                mhe_real x = z[i] - w->step * (hz[i] + q[i]);
+                z[i] = clampr(x, lo[i], hi[i]);
+            }
+        }
+    } else if (P->method == MHE_FISTA) {
+        mhe_real *y = v[1], *hy = v[4];
+        for (i = 0; i < n; i++) y[i] = z[i];
+        for (k = 0; k < iterations; k++) {
+            mhe_real b = (k == 0) ? (mhe_real)0 : w->momentum;
+            matvec(w->h, n, y, hy);
+            for (i = 0; i < n; i++) {
+                mhe_real x = clampr(y[i] - w->step * (hy[i] + q[i]), lo[i], hi[i]);
+                y[i] = x + b * (x - z[i]);
+                z[i] = x;
+            }
+        }
+    } else {
+        mhe_real *s = v[1], *mq = v[3], *t = v[4], *y = v[5];
+        mhe_real a = w->relaxation;
+        matvec(w->m_inv, n, q, mq);
+        matvec(w->h, n, z, y);
+        for (i = 0; i < n; i++) y[i] = -(y[i] + q[i]);
+        for (i = 0; i < n; i++) {
+            s[i] = z[i] + w->inv_rho * y[i];
+            t[i] = (mhe_real)2 * clampr(s[i], lo[i], hi[i]) - s[i];
+        }
+        for (k = 0; k < iterations; k++) {
+            matvec(w->m_rho, n, t, z);
+            for (i = 0; i < n; i++) {
+                mhe_real vv, ww;
+                z[i] = z[i] - mq[i];
+                vv = clampr(s[i], lo[i], hi[i]);
+                ww = a * z[i] + (s[i] - a * vv);
+                t[i] = (mhe_real)2 * clampr(ww, lo[i], hi[i]) - ww;
+                s[i] = ww;
+            }
+        }
+        for (i = 0; i < n; i++) z[i] = clampr(s[i], lo[i], hi[i]);
+    }
+    if (w->scaling == 0) {
+        for (i = 0; i < n; i++) out[i] = z[i];
+    } else {
+        for (i = 0; i < n; i++) out[i] = w->scaling[i] * z[i];
+    }
+}
+
+/* y[..rows] += M x (row-major), each row summed from 0 first. */
+static void mul_add(const mhe_real *m, int rows, int cols, const mhe_real *x, mhe_real *y) {
+    int i, j;
+    for (i = 0; i < rows; i++) {
+        mhe_real acc = (mhe_real)0;
+        for (j = 0; j < cols; j++) acc = acc + m[(long)i * cols + j] * x[j];
+        y[i] = y[i] + acc;
+    }
+}
+
+/* out = A x + B u + E w1. */
+static void step_model(const mhe_real *x, const mhe_real *u, const mhe_real *w1, mhe_real *out) {
+    int i;
+    for (i = 0; i < MHE_NX; i++) out[i] = (mhe_real)0;
+    mul_add(P->a, MHE_NX, MHE_NX, x, out);
+    mul_add(P->b, MHE_NX, MHE_NU, u, out);
+    mul_add(P->e, MHE_NX, P->nw1, w1, out);
+}
+
+static void ring_push(mhe_real *data, int width, int next, const mhe_real *v) {
+    memcpy(data + (long)next * width, v, sizeof(mhe_real) * (size_t)width);
+}
+
+/* The k-th newest entry (k = 1 newest) of a ring of MHE_M rows of `width`. */
+static const mhe_real *ring_back(const mhe_real *data, int width, int next, int k) {
+    return data + (long)((next + MHE_M - k) % MHE_M) * width;
+}
+
+void mhe_reset(mhe_state *s, const mhe_real *prior) {
+    int i;
+    for (i = 0; i < MHE_NX; i++) s->prior[i] = prior[i];
+    s->t = 0;
+    s->estimated = 0;
+    s->ring_len = 0;
+    s->ring_next = 0;
+    for (i = 0; i < MHE_NZ; i++) s->z0[i] = (mhe_real)0;
+    for (i = 0; i < MHE_NX; i++) s->z0[i] = prior[i];
+}
+
+const mhe_real *mhe_estimate(mhe_state *s) {
+    long t = s->t;
+    int m = (t < MHE_M) ? (int)t : MHE_M;
+    int nw = P->nw1 + P->nw2, j, i;
+    const mhe_window *w = &P->windows[m];
+    int u_off = MHE_NX, y_off = MHE_NX + m * MHE_NU;
+    if (t <= MHE_M) {
+        for (i = 0; i < MHE_NX; i++) s->theta[i] = s->prior[i];
+    } else {
+        const mhe_real *e = ring_back(&s->est_ring[0][0], MHE_NX, s->ring_next, MHE_M);
+        for (i = 0; i < MHE_NX; i++) s->theta[i] = e[i];
+    }
+    for (j = 0; j < m; j++) {
+        const mhe_real *u = ring_back(&s->u_ring[0][0], MHE_NU_BUF, s->ring_next, m - j);
+        const mhe_real *y = ring_back(&s->y_ring[0][0], MHE_NY, s->ring_next, m - j);
+        for (i = 0; i < MHE_NU; i++) s->theta[u_off + j * MHE_NU + i] = u[i];
+        for (i = 0; i < MHE_NY; i++) s->theta[y_off + j * MHE_NY + i] = y[i];
+    }
+    run_window(w, s->theta, s->z0, P->iterations, s->work, s->zk);
+    for (i = 0; i < MHE_NX; i++) s->x_hat[i] = s->zk[i];
+    for (j = 0; j < m; j++) {
+        step_model(s->x_hat, s->theta + u_off + j * MHE_NU, s->zk + MHE_NX + j * nw, s->x_tmp);
+        for (i = 0; i < MHE_NX; i++) s->x_hat[i] = s->x_tmp[i];
+    }
+    s->estimated = 1;
+    return s->x_hat;
+}
+
+void mhe_push(mhe_state *s, const mhe_real *u, const mhe_real *y) {
+    long t;
+    int m, nw = P->nw1 + P->nw2, nz, i;
+    if (!s->estimated) mhe_estimate(s);
+    t = s->t;
+    m = (t < MHE_M) ? (int)t : MHE_M;
+    nz = MHE_NX + m * nw;
+    if (t < MHE_M) {
+        for (i = 0; i < nz; i++) s->z0[i] = s->zk[i];
+        for (i = nz; i < nz + nw; i++) s->z0[i] = (mhe_real)0;
+    } else if (P->warm_start == MHE_WARM_PAPER) {
+        for (i = 0; i < nz; i++) s->z0[i] = s->zk[i];
+    } else {
+        step_model(s->zk, s->theta + MHE_NX, s->zk + MHE_NX, s->x_tmp);
+        for (i = 0; i < MHE_NX; i++) s->z0[i] = s->x_tmp[i];
+        for (i = MHE_NX; i < nz - nw; i++) s->z0[i] = s->zk[i + nw];
+        for (i = nz - nw; i < nz; i++) s->z0[i] = (mhe_real)0;
+    }
+    ring_push(&s->est_ring[0][0], MHE_NX, s->ring_next, s->x_hat);
+    if (MHE_NU > 0) ring_push(&s->u_ring[0][0], MHE_NU_BUF, s->ring_next, u);
+    ring_push(&s->y_ring[0][0], MHE_NY, s->ring_next, y);
+    s->ring_next = (s->ring_next + 1) % MHE_M;
+    if (s->ring_len < MHE_M) s->ring_len++;
+    s->t = t + 1;
+    s->estimated = 0;
+}

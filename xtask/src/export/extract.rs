@@ -1,0 +1,251 @@
+//! The std estimator's numbers, copied out for `mhe-embedded` and the generated code: ℙ_t
+//! of every window as the built maps hold it (H, F, q₀, the box, α, β, ρ(H + ρI)⁻¹ and
+//! (H + ρI)⁻¹, the Jacobi d), and the model's A, B, E.
+
+use anyhow::{Result, bail};
+use closed_loop::scenario::ResolvedScenario;
+use lti_model::LtiSystem;
+use mhe_core::{MheEstimator, WarmStart};
+use qp_iter::kernel::{Kernel, PaddedSymmetric};
+use qp_iter::{IterationMap, Method, MethodMap, ParametricQp};
+
+/// One window's data (the fields of [`mhe_embedded::Window`], owned).
+#[derive(Debug, Clone, PartialEq)]
+pub(crate) struct OwnedWindow {
+    pub n: usize,
+    pub n_theta: usize,
+    pub h: Vec<f64>,
+    pub m_rho: Vec<f64>,
+    pub m_inv: Vec<f64>,
+    pub q0: Vec<f64>,
+    pub f: Vec<f64>,
+    pub lower: Vec<f64>,
+    pub upper: Vec<f64>,
+    pub scaling: Vec<f64>,
+    pub step: f64,
+    pub momentum: f64,
+    pub inv_rho: f64,
+    pub relaxation: f64,
+}
+
+/// The whole problem (the fields of [`mhe_embedded::Problem`], owned).
+#[derive(Debug, Clone, PartialEq)]
+pub(crate) struct OwnedProblem {
+    pub nx: usize,
+    pub nu: usize,
+    pub ny: usize,
+    pub nw1: usize,
+    pub nw2: usize,
+    pub horizon: usize,
+    pub iterations: usize,
+    pub method: mhe_embedded::Method,
+    pub warm_start: mhe_embedded::WarmStart,
+    pub a: Vec<f64>,
+    pub b: Vec<f64>,
+    pub e: Vec<f64>,
+    pub windows: Vec<OwnedWindow>,
+}
+
+/// The scenario's MHE with `method` and K on the portable kernel (the arithmetic every
+/// exported build repeats).
+pub(crate) fn portable_estimator(
+    resolved: &ResolvedScenario,
+    method: Method,
+    iterations: usize,
+) -> Result<MheEstimator<MethodMap>> {
+    let mut cfg = resolved.mhe_config()?.clone();
+    cfg.iterations = iterations;
+    cfg.exact_solve = false;
+    let sc = resolved.scenario();
+    Ok(MheEstimator::new(
+        &sc.plant,
+        resolved.mhe_sets(),
+        &cfg,
+        &sc.simulation.prior,
+        |qp| Ok(method.build(qp)?.with_kernel(Kernel::portable())),
+    )?)
+}
+
+/// Column-major n × n copy of a padded matrix (entry (i, j) at j·n + i).
+fn unpad(m: &PaddedSymmetric) -> Vec<f64> {
+    let (n, ld) = (m.n(), m.ld());
+    let s = m.as_slice();
+    (0..n * n).map(|k| s[(k / n) * ld + k % n]).collect()
+}
+
+fn dense_h(qp: &ParametricQp) -> Vec<f64> {
+    let n = qp.n();
+    let h = qp.h();
+    (0..n * n).map(|k| h[(k % n, k / n)]).collect()
+}
+
+fn row_major_f(qp: &ParametricQp) -> Vec<f64> {
+    let (n, nt) = (qp.n(), qp.n_theta());
+    let f = qp.f();
+    (0..n * nt).map(|k| f[(k / nt, k % nt)]).collect()
+}
+
+fn window_of(map: &MethodMap, m: usize) -> Result<(mhe_embedded::Method, OwnedWindow)> {
+    let qp = map.problem();
+    if qp.general().is_some() {
+        bail!(
+            "window m = {m} has general constraint rows (bounded sets.state or sets.output); \
+             the embedded estimator covers box constraints only: drop those sets to export"
+        );
+    }
+    let base = |qp: &ParametricQp| OwnedWindow {
+        n: qp.n(),
+        n_theta: qp.n_theta(),
+        h: dense_h(qp),
+        m_rho: Vec::new(),
+        m_inv: Vec::new(),
+        q0: qp.q0().to_vec(),
+        f: row_major_f(qp),
+        lower: qp.zset().lower().to_vec(),
+        upper: qp.zset().upper().to_vec(),
+        scaling: Vec::new(),
+        step: 0.0,
+        momentum: 0.0,
+        inv_rho: 0.0,
+        relaxation: 0.0,
+    };
+    let structured = || {
+        anyhow::anyhow!(
+            "window m = {m} (n = {}) runs through the structured Hessian product, which the \
+             embedded estimator does not implement; export a shorter horizon",
+            qp.n()
+        )
+    };
+    Ok(match map {
+        MethodMap::Pg(pg) => {
+            if pg.is_structured() {
+                return Err(structured());
+            }
+            let mut w = base(qp);
+            w.step = pg.alpha();
+            (mhe_embedded::Method::Pg, w)
+        }
+        MethodMap::Fista(f) => {
+            if f.is_structured() {
+                return Err(structured());
+            }
+            let mut w = base(qp);
+            w.step = f.step_size();
+            w.momentum = f.momentum();
+            (mhe_embedded::Method::Fista, w)
+        }
+        MethodMap::Admm(a) => {
+            let mut w = base(qp);
+            let (m_rho, m_inv) = a.stored_inverses();
+            w.m_rho = unpad(m_rho);
+            w.m_inv = unpad(m_inv);
+            w.inv_rho = 1.0 / a.rho();
+            w.relaxation = a.relaxation();
+            (mhe_embedded::Method::Admm, w)
+        }
+        MethodMap::AdmmSplit(_) => bail!(
+            "window m = {m}: ADMM split on general rows is not exportable (box constraints only)"
+        ),
+        MethodMap::Scaled(s) => {
+            let (method, mut w) = window_of(s.inner(), m)?;
+            w.scaling = s.scaling().to_vec();
+            (method, w)
+        }
+    })
+}
+
+fn row_major(m: faer::MatRef<'_, f64>) -> Vec<f64> {
+    lti_model::matrix::row_major(m)
+}
+
+impl OwnedProblem {
+    /// The data of `est` (built by [`portable_estimator`] or any `MheEstimator<MethodMap>`).
+    pub(crate) fn from_estimator(est: &MheEstimator<MethodMap>, sys: &LtiSystem) -> Result<Self> {
+        let mut method = None;
+        let mut windows = Vec::new();
+        for (m, map) in est.maps().iter().enumerate() {
+            let (kind, w) = window_of(map, m)?;
+            method = Some(kind);
+            windows.push(w);
+        }
+        let Some(method) = method else {
+            bail!("the estimator has no windows");
+        };
+        let cfg = est.config();
+        Ok(Self {
+            nx: sys.nx(),
+            nu: sys.nu(),
+            ny: sys.ny(),
+            nw1: sys.nw1(),
+            nw2: sys.nw2(),
+            horizon: cfg.horizon,
+            iterations: cfg.iterations,
+            method,
+            warm_start: match cfg.warm_start {
+                WarmStart::Paper => mhe_embedded::WarmStart::Paper,
+                WarmStart::Shifted => mhe_embedded::WarmStart::Shifted,
+            },
+            a: row_major(sys.a()),
+            b: row_major(sys.b()),
+            e: row_major(sys.e()),
+            windows,
+        })
+    }
+
+    /// n_z of the full window.
+    pub(crate) fn nz(&self) -> usize {
+        self.nx + self.horizon * (self.nw1 + self.nw2)
+    }
+
+    /// n_θ of the full window.
+    pub(crate) fn ntheta(&self) -> usize {
+        self.nx + self.horizon * (self.nu + self.ny)
+    }
+
+    /// The windows as `mhe_embedded` views (borrowing `self`).
+    #[cfg(test)]
+    pub(crate) fn window_views(&self) -> Vec<mhe_embedded::Window<'_, f64>> {
+        self.windows
+            .iter()
+            .map(|w| mhe_embedded::Window {
+                n: w.n,
+                n_theta: w.n_theta,
+                h: &w.h,
+                m_rho: &w.m_rho,
+                m_inv: &w.m_inv,
+                q0: &w.q0,
+                f: &w.f,
+                lower: &w.lower,
+                upper: &w.upper,
+                scaling: &w.scaling,
+                step: w.step,
+                momentum: w.momentum,
+                inv_rho: w.inv_rho,
+                relaxation: w.relaxation,
+            })
+            .collect()
+    }
+
+    /// The problem view over `windows` (from [`OwnedProblem::window_views`]).
+    #[cfg(test)]
+    pub(crate) fn view<'a>(
+        &'a self,
+        windows: &'a [mhe_embedded::Window<'a, f64>],
+    ) -> mhe_embedded::Problem<'a, f64> {
+        mhe_embedded::Problem {
+            nx: self.nx,
+            nu: self.nu,
+            ny: self.ny,
+            nw1: self.nw1,
+            nw2: self.nw2,
+            horizon: self.horizon,
+            iterations: self.iterations,
+            method: self.method,
+            warm_start: self.warm_start,
+            a: &self.a,
+            b: &self.b,
+            e: &self.e,
+            windows,
+        }
+    }
+}

@@ -3,8 +3,8 @@
 //! position, bounded disturbances, K = 20 ADMM iterations per step.
 //! Run: `cargo run -p mhe-core --example own_plant`.
 
-use lti_model::disturbance::{Disturbance, UniformBox};
 use lti_model::LtiSystem;
+use lti_model::disturbance::{Disturbance, UniformBox};
 use lti_model::faer::mat;
 use mhe_core::{Method, MheSets, MheSettings};
 

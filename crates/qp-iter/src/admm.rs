@@ -270,12 +270,6 @@ impl Admm {
         self.alpha
     }
 
-    /// Runs the dense steps on `kernel` instead of the detected one (see
-    /// [`crate::pg::ProjectedGradient::set_kernel`]).
-    pub fn set_kernel(&mut self, kernel: Kernel) {
-        self.kernel = kernel;
-    }
-
     /// The matrices a step and a load apply, as stored (for code generation that must
     /// reproduce the steps bit for bit): ρ(H + ρI)⁻¹ and (H + ρI)⁻¹.
     pub fn stored_inverses(&self) -> (&PaddedSymmetric, &PaddedSymmetric) {
@@ -444,6 +438,9 @@ impl IterationMap for Admm {
     }
     fn certificate(&self) -> &Certificate {
         &self.cert
+    }
+    fn set_kernel(&mut self, kernel: Kernel) {
+        self.kernel = kernel;
     }
     fn matvecs_per_step(&self) -> usize {
         1

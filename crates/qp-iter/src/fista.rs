@@ -160,12 +160,6 @@ impl Fista {
         self.inv_l
     }
 
-    /// Runs the dense steps on `kernel` instead of the detected one (see
-    /// [`crate::pg::ProjectedGradient::set_kernel`]).
-    pub fn set_kernel(&mut self, kernel: crate::kernel::Kernel) {
-        self.g.kernel = kernel;
-    }
-
     /// y = z⁰ and the restart flag: the next step is T(z⁰) with zero momentum.
     fn reset(&self, s: &mut FistaState) {
         let [z, y, ..] = s.v.all_mut();
@@ -266,6 +260,9 @@ impl IterationMap for Fista {
     }
     fn certificate(&self) -> &Certificate {
         &self.cert
+    }
+    fn set_kernel(&mut self, kernel: crate::kernel::Kernel) {
+        self.g.kernel = kernel;
     }
 }
 

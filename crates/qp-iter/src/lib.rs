@@ -33,7 +33,6 @@ pub mod general_projection;
 pub mod kernel;
 pub mod linearise;
 pub mod method;
-mod method_kernel;
 pub mod operator;
 pub mod pg;
 pub mod problem;
@@ -115,6 +114,11 @@ pub trait IterationMap: Send + Sync + std::fmt::Debug {
 
     /// The certified contraction φ(K) of eq. (11) for this map.
     fn certificate(&self) -> &Certificate;
+
+    /// Runs the map's dense steps on `kernel` instead of the detected one
+    /// ([`kernel::Kernel::portable`]: the arithmetic that `mhe-embedded` and the C of
+    /// `cargo xtask export` reproduce bit for bit). Maps without a dense kernel ignore it.
+    fn set_kernel(&mut self, _kernel: kernel::Kernel) {}
 
     /// Number of matrix–vector products (or triangular-solve pairs) one step performs.
     fn matvecs_per_step(&self) -> usize {

@@ -256,6 +256,13 @@ macro_rules! method_list {
                     MethodMap::Scaled(m) => m.certificate(),
                 }
             }
+            fn set_kernel(&mut self, kernel: crate::kernel::Kernel) {
+                match self {
+                    $( $(#[cfg($fcfg)])? MethodMap::$fam(m) => m.set_kernel(kernel), )*
+                    $( $(#[cfg($mcfg)])? MethodMap::$extra(m) => m.set_kernel(kernel), )*
+                    MethodMap::Scaled(m) => m.set_kernel(kernel),
+                }
+            }
             fn matvecs_per_step(&self) -> usize {
                 match self {
                     $( $(#[cfg($fcfg)])? MethodMap::$fam(m) => m.matvecs_per_step(), )*
@@ -613,6 +620,26 @@ impl<'de> Deserialize<'de> for Method {
 }
 
 impl MethodMap {
+    /// The map with its dense steps on `kernel` ([`IterationMap::set_kernel`]). With
+    /// [`crate::kernel::Kernel::portable`] the steps are the plain-Rust loops that
+    /// `mhe-embedded` and the C that `cargo xtask export` writes repeat operation for
+    /// operation (no FMA, the same summation order), so their estimates agree bit for bit.
+    ///
+    /// ```
+    /// use faer::{mat, Mat};
+    /// use lti_model::BoxSet;
+    /// use qp_iter::{Method, ParametricQp};
+    /// use qp_iter::kernel::Kernel;
+    /// let qp = ParametricQp::new(mat![[2.0, 0.0], [0.0, 1.0]], vec![-2.0, -4.0],
+    ///     Mat::zeros(2, 0), BoxSet::symmetric(&[2.0, 2.0]).unwrap()).unwrap();
+    /// let map = Method::FISTA.build(qp).unwrap().with_kernel(Kernel::portable());
+    /// # let _ = map;
+    /// ```
+    pub fn with_kernel(mut self, kernel: crate::kernel::Kernel) -> Self {
+        self.set_kernel(kernel);
+        self
+    }
+
     /// K = `k` steps of Φ and the status of the iterate, dispatched once
     /// (equivalent to [`run_fixed`]).
     pub fn run_fixed(&self, state: &mut MethodState, k: usize) -> RunResult {

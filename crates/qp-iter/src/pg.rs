@@ -225,13 +225,6 @@ impl ProjectedGradient {
         self.alpha
     }
 
-    /// Runs the dense steps on `kernel` instead of the detected one
-    /// ([`Kernel::portable`]: the arithmetic that `mhe-embedded` and exported C reproduce
-    /// bit for bit).
-    pub fn set_kernel(&mut self, kernel: Kernel) {
-        self.g.kernel = kernel;
-    }
-
     /// Like [`ProjectedGradient::new`], but always through the problem's structured Hessian
     /// when it has one, whatever n (to measure the crossover).
     pub fn new_structured(qp: ParametricQp, rule: StepRule) -> Result<Self> {
@@ -320,6 +313,9 @@ impl IterationMap for ProjectedGradient {
     }
     fn certificate(&self) -> &Certificate {
         &self.cert
+    }
+    fn set_kernel(&mut self, kernel: Kernel) {
+        self.g.kernel = kernel;
     }
 }
 

@@ -290,6 +290,9 @@ impl<M: IterationMap> IterationMap for Scaled<M> {
     fn certificate(&self) -> &Certificate {
         &self.cert
     }
+    fn set_kernel(&mut self, kernel: crate::kernel::Kernel) {
+        self.inner.set_kernel(kernel);
+    }
     fn matvecs_per_step(&self) -> usize {
         self.inner.matvecs_per_step()
     }

@@ -151,6 +151,11 @@ fn window_of(map: &MethodMap, m: usize) -> Result<(mhe_embedded::Method, OwnedWi
             w.scaling = s.scaling().to_vec();
             (method, w)
         }
+        other => bail!(
+            "window m = {m}: method `{}` has no embedded implementation (mhe-embedded \
+             implements pg, fista and admm, plain or Jacobi-scaled)",
+            other.name()
+        ),
     })
 }
 

@@ -594,13 +594,14 @@ fn bad_input_gives_typed_errors() {
     assert_eq!(dim_err(err), ("MHE record n_u", 2, 1));
 
     // Builder options.
+    // K = 0 is refused once, by the estimator that defines K (`MheEstimator`).
     let mut o = options(&s, 0, false);
     assert!(matches!(
         build(&s, &o),
-        Err(ClosedLoopError::OutOfRange {
+        Err(ClosedLoopError::Mhe(mhe_core::MheError::OutOfRange {
             name: "iterations",
             ..
-        })
+        }))
     ));
     o.iterations = 5;
     o.steps = 0;

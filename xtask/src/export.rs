@@ -264,10 +264,10 @@ pub fn export(args: &ExportArgs) -> Result<()> {
         },
         scenario.name,
         art.method,
-        if certified {
-            ", certified"
-        } else {
-            ", UNCERTIFIED"
+        match (certified, args.scalar) {
+            (true, ScalarKind::F64) => ", certified",
+            (true, ScalarKind::F32) => ", K certified; f32 not covered by the certificate",
+            (false, _) => ", UNCERTIFIED",
         },
         args.out.display()
     );
@@ -349,6 +349,7 @@ fn certificate_json(
         "k_min": art.k_min,
         "scalar": scalar_name(art.scalar),
         "certified": art.certified,
+        "artefact_covered": art.certified && art.scalar == ScalarKind::F64,
         "uncertified_reason": (!art.certified).then(|| match art.k_min {
             Some(k) => format!("K = {} is below K_min = {k}; exported with --allow-uncertified", art.k),
             None => "the certificate of Theorem 1 is void for this method; exported with --allow-uncertified".to_string(),

@@ -2,7 +2,7 @@
 //!
 //! Each function repeats the portable path of `qp_iter` (`kernel/portable.rs` and the maps'
 //! `load`/`warm_start`/`step`/`iterate`) operation for operation; a change there must be
-//! mirrored here and in the exported C (`xtask/src/export/c_src.rs`), and the equivalence
+//! mirrored here and in the exported C (`xtask/src/export/c/mhe.c`), and the equivalence
 //! tests fail until it is.
 
 use crate::data::{Method, Window};

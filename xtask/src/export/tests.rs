@@ -381,6 +381,7 @@ fn an_uncertified_artefact_says_so_everywhere() {
     assert!(read("README.md").contains("UNCERTIFIED"));
     let json: serde_json::Value = serde_json::from_str(&read("certificate.json")).unwrap();
     assert_eq!(json["certified"], false);
+    assert_eq!(json["artefact_covered"], false);
     assert_eq!(json["iterations"], k_min - 1);
     assert_eq!(json["k_min"], k_min);
     assert!(

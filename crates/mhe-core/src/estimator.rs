@@ -13,25 +13,9 @@ use crate::error::{MheError, Result};
 use crate::problem::{Dims, MheProblem, MheSets, MheWeights, WindowLayout, pow_i32};
 use crate::record::MheRecord;
 
-/// A state estimator that closed-loop code can compose: x̂_{t|t} from u and y up to t − 1.
-///
-/// Protocol per time step t: `estimate()` (uses data up to t − 1), then `push(u_t, y_t)`
-/// with the input applied and the measurement taken at t, which advances t.
-///
-/// A user's estimator (a Luenberger observer, a particle filter, …) implements this with
-/// its own error type; the closed loop, the sweep and the trajectory checks run it like the
-/// built-in [`MheEstimator`] and [`crate::KalmanFilter`].
-pub trait Estimator {
-    /// Why an estimate or a push failed (the estimator's own error type).
-    type Error: std::error::Error + Send + Sync + 'static;
-    /// The estimate x̂_{t|t} at the current t (calling it twice at the same t gives the same
-    /// result).
-    fn estimate(&mut self) -> std::result::Result<&[f64], Self::Error>;
-    /// Appends (u_t, y_t) and advances t. On error nothing changes.
-    fn push(&mut self, u: &[f64], y: &[f64]) -> std::result::Result<(), Self::Error>;
-    /// State dimension n_x.
-    fn nx(&self) -> usize;
-}
+/// The estimator trait of the closed loop (its own crate, `loop-traits`, so that a user's
+/// estimator needs no QP solver); re-exported here.
+pub use loop_traits::Estimator;
 
 /// Settings of [`MheEstimator`].
 #[derive(Debug, Clone)]

@@ -48,64 +48,11 @@ pub use robust_norm::{WorstCaseNorm, worst_case_norm};
 pub use settings::{MpcSettings, RawMpc};
 pub use suboptimal::{SuboptimalMpc, WarmStart};
 
-/// A state-feedback law u = π(x̂) (the controller of Assumption 3).
-///
-/// Implementations validate `x_hat` (length n_x, finite) and `u` (length n_u) on every
-/// call and return [`MpcError::Dimension`] / [`MpcError::NonFinite`] naming the argument;
-/// `u` is left unchanged on error. [`SuboptimalMpc`], [`SaturatedLqr`] and [`ExactMpc`]
-/// with its default active-set backend allocate nothing per call after construction
-/// (errors included); [`ExactMpc`] with the Clarabel backend (or fallback) does.
-///
-/// A user's controller implements this with its own error type; the closed loop and the
-/// sweep run it like the built-in ones.
-pub trait Controller: std::fmt::Debug {
-    /// Why a control computation failed (the controller's own error type).
-    type Error: std::error::Error + Send + Sync + 'static;
-    /// Writes π(x̂) into `u`.
-    fn control(&mut self, x_hat: &[f64], u: &mut [f64]) -> std::result::Result<(), Self::Error>;
-    /// Input dimension n_u.
-    fn nu(&self) -> usize;
-    /// State dimension n_x.
-    fn nx(&self) -> usize;
-    /// What the last successful [`Controller::control`] applied (a state-constrained MPC
-    /// can be infeasible and apply a fallback). The default: the law as designed.
-    fn status(&self) -> ControlStatus {
-        ControlStatus::Applied { violation: 0.0 }
-    }
-}
+/// The controller trait and what a controller applied (their own crate, `loop-traits`, so
+/// that a user's controller needs no QP solver); re-exported here.
+pub use loop_traits::{ControlStatus, Controller, MpcFallback};
 
-/// What a controller applied at one step.
-#[derive(Debug, Clone, Copy, PartialEq, serde::Serialize)]
-#[serde(rename_all = "snake_case", tag = "status")]
-pub enum ControlStatus {
-    /// The law as designed: the exact optimum, or K iterations whose plan violates the
-    /// constraints by `violation` (0 for PG / FISTA; ADMM on state rows is feasible only in
-    /// the limit).
-    Applied {
-        /// The largest violation of 𝒰^N and of the state rows by the plan.
-        violation: f64,
-    },
-    /// The state-constrained MPC has no feasible plan at this x̂; `fallback` was applied.
-    Infeasible {
-        /// The row the exact solver could not meet (None when not identified).
-        constraint: Option<qp_iter::dual_active_set::ConstraintRow>,
-        /// What was applied instead.
-        fallback: MpcFallback,
-    },
-}
-
-/// What an infeasible state-constrained MPC applies (documented per controller).
-#[derive(Debug, Clone, Copy, PartialEq, Eq, serde::Serialize)]
-#[serde(rename_all = "snake_case")]
-pub enum MpcFallback {
-    /// u*₀ of the input-constrained MPC (the state rows dropped): [`ExactMpc`].
-    InputOnlyMpc,
-    /// The first block of the warm start — for the shifting rules the previous plan's next
-    /// input; Π_𝒰(0) after a cold start: [`SuboptimalMpc`].
-    ShiftedPlan,
-}
-
-/// Validates the arguments of [`Controller::control`] without allocating.
+/// Validates the arguments of `Controller::control` without allocating.
 pub(crate) fn check_io(x_hat: &[f64], u: &[f64], nx: usize, nu: usize) -> Result<()> {
     error::check_len("x_hat", x_hat, nx)?;
     error::check_len("u", u, nu)?;

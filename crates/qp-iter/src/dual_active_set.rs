@@ -63,24 +63,8 @@ impl Default for DualActiveSetSettings {
     }
 }
 
-/// A row of the constraints: a bound of the box (z_i) or a row of G.
-#[derive(Debug, Clone, Copy, PartialEq, Eq, serde::Serialize)]
-#[serde(rename_all = "snake_case")]
-pub enum ConstraintRow {
-    /// l_i ≤ z_i ≤ u_i.
-    Box(usize),
-    /// The i-th row of l_G ≤ Gz ≤ u_G.
-    General(usize),
-}
-
-impl std::fmt::Display for ConstraintRow {
-    fn fmt(&self, f: &mut std::fmt::Formatter<'_>) -> std::fmt::Result {
-        match self {
-            ConstraintRow::Box(i) => write!(f, "box row {i} (z_{i})"),
-            ConstraintRow::General(i) => write!(f, "general row {i} ((Gz)_{i})"),
-        }
-    }
-}
+/// A row of the constraints (defined with the composition traits, which report it).
+pub use loop_traits::ConstraintRow;
 
 /// How a call of [`DualActiveSet`] ended.
 #[derive(Debug, Clone, Copy, PartialEq, serde::Serialize)]

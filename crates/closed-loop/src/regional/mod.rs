@@ -7,17 +7,13 @@
 //! that could make the loop non-linear — every point an MHE projection acts on, in every
 //! inner iteration of every window; every row of the MPC's unconstrained input sequence
 //! (exact MPC) or of the LQR input (saturated LQR); every general 𝒳/𝒴 row of the MHE — is a
-//! linear functional of X_t (or of υ for t < M). For a metric ‖X‖_P with ‖𝔸‖_P = λ < 1 and
-//! b = ‖P^{½}𝔹_w‖, the sublevel set {‖X‖_P ≤ r} is
-//!
-//! - free of active constraints iff r·‖P^{−½}cᵢᵀ‖ ≤ min(uᵢ, −lᵢ) for every row cᵢ
-//!   (the support function of the ellipsoid), so r ≤ r_max;
-//! - invariant for ‖w_t‖ ≤ w̄ iff λr + bw̄ ≤ r.
-//!
-//! If the start-up rows hold for every υ of the user's set, X_M lies in {‖X‖_P ≤ r_max} and
-//! bw̄/(1 − λ) ≤ r_max, then by induction the loop is the linear one for all t, and
-//! ‖X_t‖_P ≤ λ^{t−M}‖X_M‖_P + bw̄/(1 − λ): ISS with rate λ and asymptotic gains
-//! ‖x‖ ≤ ‖x_read P^{−½}‖·b/(1 − λ)·w̄, ‖e‖ ≤ ‖e_read P^{−½}‖·b/(1 − λ)·w̄.
+//! linear functional of X_t (or of υ for t < M). For a metric ‖X‖_P with ‖𝔸‖_P = λ < 1,
+//! superposition X_t = 𝔸^{t−M}X_M + Σ_k 𝔸^k𝔹_w w_{t−1−k} (valid while no row is active) gives
+//! |c_iX_t| ≤ ‖P^{−½}c_iᵀ‖λ^{t−M}‖X_M‖_P + w̄Σ_k‖c_i𝔸^k𝔹_w‖ (the second sum to T terms plus a
+//! certified tail). If the start-up rows hold over the user's set and every full-window row
+//! satisfies ‖P^{−½}c_iᵀ‖·sup‖X_M‖_P + w̄h̃_i ≤ min(u_i, −l_i), then by induction the loop is
+//! the linear one for all t: ISS with rate λ for the free response and the asymptotic gains
+//! Σ_k‖x_read𝔸^k𝔹_w‖, Σ_k‖e_read𝔸^k𝔹_w‖ (Theorem R of `docs/theory.md`).
 //!
 //! **What it does not claim.** It is regional: outside the certified set (a larger x₀, prior
 //! error or disturbance) only the global certificate (Theorem 1) speaks, and a constraint
@@ -126,13 +122,15 @@ pub struct RegionalCertificate {
     pub rate: f64,
     /// b = ‖P^{½}𝔹_w‖₂.
     pub disturbance_gain: f64,
-    /// r_max: the largest sublevel radius with no constraint active.
+    /// The largest ‖X_M‖_P for which no full-window row activates at the user's w̄:
+    /// min_c (bound_c − w̄h̃_c)/‖P^{−½}cᵀ‖ (theory.md, Theorem R).
     pub radius: f64,
-    /// The full-window row that sets r_max.
+    /// The full-window row that limits the user's set (largest reach / bound).
     pub radius_limit: Option<Limit>,
     /// sup over the user's set of ‖X_M‖_P.
     pub initial_radius: f64,
-    /// bw̄/(1 − λ): the smallest invariant radius at the user's w̄.
+    /// bw̄/(1 − λ): a bound on ‖X_t^{w}‖_P, the disturbance's part of the lifted state in
+    /// the metric (reported; the row conditions use the tighter per-row sums).
     pub invariant_radius: f64,
     /// Every start-up row holds over the user's set.
     pub startup_holds: bool,
@@ -209,18 +207,19 @@ impl RegionalOptions {
 }
 
 fn row_norms(rows: &Rows, neg_half: MatRef<'_, f64>) -> Vec<f64> {
-    let n = neg_half.nrows();
-    rows.mat
-        .iter()
-        .map(|c| {
-            let mut s = 0.0;
-            for j in 0..n {
-                let v: f64 = (0..n).map(|i| c[i] * neg_half[(i, j)]).sum();
-                s += v * v;
-            }
-            s.sqrt()
-        })
-        .collect()
+    let mut out = Vec::with_capacity(rows.labels.len());
+    for b in &rows.blocks {
+        let prod = b * neg_half;
+        for i in 0..prod.nrows() {
+            out.push(
+                (0..prod.ncols())
+                    .map(|j| prod[(i, j)].powi(2))
+                    .sum::<f64>()
+                    .sqrt(),
+            );
+        }
+    }
+    out
 }
 
 /// ‖·‖ of a sub-vector of a row.
@@ -240,26 +239,22 @@ fn startup_terms(
 ) -> Vec<(f64, f64, f64, f64, f64, f64)> {
     let (nx, nw) = (model.nx, model.nw);
     let big_m = model.layout.horizon;
-    model
-        .startup_rows
-        .mat
-        .iter()
-        .zip(
-            model
-                .startup_rows
-                .lower
-                .iter()
-                .zip(&model.startup_rows.upper),
-        )
-        .map(|(c, (&l, &u))| {
-            let cxp: Vec<f64> = (0..nx).map(|i| c[i] + c[nx + i]).collect();
+    let mut out = Vec::with_capacity(model.startup_rows.labels.len());
+    let mut i = 0;
+    for b in &model.startup_rows.blocks {
+        for r in 0..b.nrows() {
+            let c: Vec<f64> = (0..b.ncols()).map(|j| b[(r, j)]).collect();
+            let (l, u) = (model.startup_rows.lower[i], model.startup_rows.upper[i]);
+            i += 1;
+            let cxp: Vec<f64> = (0..nx).map(|k| c[k] + c[nx + k]).collect();
             let center: f64 = cxp.iter().zip(&o.x0_nominal).map(|(a, b)| a * b).sum();
             let ax = cxp.iter().map(|v| v * v).sum::<f64>().sqrt();
-            let ap = seg(c, nx, nx);
-            let aw: f64 = (0..big_m).map(|t| seg(c, 2 * nx + t * nw, nw)).sum();
-            (center, ax, ap, aw, l, u)
-        })
-        .collect()
+            let ap = seg(&c, nx, nx);
+            let aw: f64 = (0..big_m).map(|t| seg(&c, 2 * nx + t * nw, nw)).sum();
+            out.push((center, ax, ap, aw, l, u));
+        }
+    }
+    out
 }
 
 /// max s ≥ 0 with center ± s·dev inside [l, u] (dev ≥ 0); −∞ if the center is outside.
@@ -275,6 +270,12 @@ fn scale_limit(center: f64, dev: f64, l: f64, u: f64) -> f64 {
 }
 
 struct Candidate {
+    /// Largest s with (s·r_x, s·r_e, s·w̄) certified by the full-window rows.
+    scale: f64,
+    /// Largest r_x, r_e, w̄ by the full-window rows (the other two at the user's values).
+    max_x: f64,
+    max_p: f64,
+    max_w: f64,
     name: String,
     metric: metric::Metric,
     x_read_norm: f64,
@@ -291,8 +292,69 @@ struct Candidate {
     gain_e: f64,
 }
 
+/// The disturbance's exact contribution to every full-window row and readout: with
+/// X_t = X_t^{free} + X_t^{w} (superposition, valid while every row is inactive) and
+/// X_t^{w} = Σ_{k≥0} 𝔸^k𝔹_w w_{t−1−k}, |cX_t^{w}| ≤ w̄Σ_k‖c𝔸^k𝔹_w‖. The sum is taken to T
+/// terms here; [`evaluate`] adds the certified tail ‖cP^{−½}‖bλ^T/(1 − λ).
+struct Impulse {
+    terms: i32,
+    rows: Vec<f64>,
+    x: f64,
+    e: f64,
+}
+
+fn impulse(model: &RegionalModel, rho: f64) -> Impulse {
+    let t = if rho < 1e-3 {
+        8
+    } else {
+        ((1e-9f64).ln() / rho.ln()).ceil().clamp(8.0, 400.0) as usize
+    };
+    let (n, nw) = (model.a.nrows(), model.bw.ncols());
+    let mut ib = Mat::<f64>::zeros(n, nw * t);
+    let mut cur = model.bw.clone();
+    for k in 0..t {
+        for j in 0..nw {
+            for i in 0..n {
+                ib[(i, k * nw + j)] = cur[(i, j)];
+            }
+        }
+        cur = &model.a * &cur;
+    }
+    let sum_norms = |prod: &Mat<f64>, i: usize| -> f64 {
+        (0..t)
+            .map(|k| {
+                (0..nw)
+                    .map(|j| prod[(i, k * nw + j)].powi(2))
+                    .sum::<f64>()
+                    .sqrt()
+            })
+            .sum()
+    };
+    let mut rows = Vec::with_capacity(model.rows.labels.len());
+    for b in &model.rows.blocks {
+        let prod = b * &ib;
+        for i in 0..prod.nrows() {
+            rows.push(sum_norms(&prod, i));
+        }
+    }
+    let read = |m: &Mat<f64>| -> f64 {
+        // ‖·‖₂ of each k-block of m·[𝔹_w, 𝔸𝔹_w, …] (spectral, not row-wise).
+        let prod = m * &ib;
+        (0..t)
+            .map(|k| spectral_norm(prod.as_ref().subcols(k * nw, nw)))
+            .sum()
+    };
+    Impulse {
+        terms: t as i32,
+        rows,
+        x: read(&model.x_read),
+        e: read(&model.e_read),
+    }
+}
+
 fn evaluate(
     model: &RegionalModel,
+    imp: &Impulse,
     p: &metric::Metric,
     name: String,
     o: &RegionalOptions,
@@ -301,23 +363,11 @@ fn evaluate(
     let rate = spectral_norm((half * &model.a * neg).as_ref());
     let b = spectral_norm((half * &model.bw).as_ref());
     let norms = row_norms(&model.rows, neg);
-    let mut radius = f64::INFINITY;
-    let mut limit = None;
-    for (i, nrm) in norms.iter().enumerate() {
-        if *nrm > 0.0 {
-            let bound = model.rows.upper[i].min(-model.rows.lower[i]);
-            let r = bound / nrm;
-            if r < radius {
-                radius = r;
-                limit = Some((i, bound, *nrm));
-            }
-        }
-    }
-    let limit = limit.map(|(i, bound, _)| Limit {
-        row: model.rows.labels[i],
-        bound,
-        reach: bound,
-    });
+    let tail = if rate < 1.0 {
+        b * rate.powi(imp.terms) / (1.0 - rate)
+    } else {
+        f64::INFINITY
+    };
     let (nx, nw) = (model.nx, model.nw);
     let pm = half * &model.start_map;
     let mxp = Mat::from_fn(pm.nrows(), nx, |i, j| pm[(i, j)] + pm[(i, nx + j)]);
@@ -328,14 +378,70 @@ fn evaluate(
     let a_w: f64 = (0..model.layout.horizon)
         .map(|t| spectral_norm(pm.as_ref().subcols(2 * nx + t * nw, nw)))
         .sum();
-    let inv = if rate < 1.0 {
-        b / (1.0 - rate)
-    } else {
-        f64::INFINITY
-    };
     let x_read_norm = spectral_norm((&model.x_read * neg).as_ref());
     let e_read_norm = spectral_norm((&model.e_read * neg).as_ref());
+    // Per full-window row: n_c·‖X_M‖_P + w̄·h̃_c ≤ bound_c, h̃_c = h_c + n_c·tail, with
+    // ‖X_M‖_P ≤ nominal + r_x a_x + r_e a_p + w̄ a_w.
+    let init_var = o.x0_radius * a_x + o.prior_error * a_p + o.w_bar * a_w;
+    let (mut radius, mut scale) = (f64::INFINITY, f64::INFINITY);
+    let (mut max_x, mut max_p, mut max_w) = (f64::INFINITY, f64::INFINITY, f64::INFINITY);
+    let mut limit = None;
+    for (i, nc) in norms.iter().enumerate() {
+        let bound = model.rows.upper[i].min(-model.rows.lower[i]);
+        let h = imp.rows[i] + nc * tail;
+        if *nc == 0.0 && h == 0.0 {
+            continue;
+        }
+        let free = bound - o.w_bar * h;
+        radius = radius.min(if *nc > 0.0 {
+            free / nc
+        } else if free >= 0.0 {
+            f64::INFINITY
+        } else {
+            f64::NEG_INFINITY
+        });
+        let room = bound - nc * nominal;
+        let s_i = if room < 0.0 {
+            f64::NEG_INFINITY
+        } else {
+            let d = nc * init_var + o.w_bar * h;
+            if d > 0.0 { room / d } else { f64::INFINITY }
+        };
+        if s_i < scale {
+            scale = s_i;
+            limit = Some(Limit {
+                row: model.rows.labels[i],
+                bound,
+                reach: nc * (nominal + init_var) + o.w_bar * h,
+            });
+        }
+        let div = |num: f64, den: f64| {
+            if den > 0.0 {
+                num / den
+            } else if num >= 0.0 {
+                f64::INFINITY
+            } else {
+                f64::NEG_INFINITY
+            }
+        };
+        max_x = max_x.min(div(
+            room - nc * (o.prior_error * a_p + o.w_bar * a_w) - o.w_bar * h,
+            nc * a_x,
+        ));
+        max_p = max_p.min(div(
+            room - nc * (o.x0_radius * a_x + o.w_bar * a_w) - o.w_bar * h,
+            nc * a_p,
+        ));
+        max_w = max_w.min(div(
+            room - nc * (o.x0_radius * a_x + o.prior_error * a_p),
+            nc * a_w + h,
+        ));
+    }
     Candidate {
+        scale,
+        max_x,
+        max_p,
+        max_w,
         name,
         metric: p.clone(),
         x_read_norm,
@@ -348,30 +454,19 @@ fn evaluate(
         a_x,
         a_p,
         a_w,
-        gain_x: x_read_norm * inv,
-        gain_e: e_read_norm * inv,
+        gain_x: imp.x + x_read_norm * tail,
+        gain_e: imp.e + e_read_norm * tail,
     }
 }
 
 impl Candidate {
-    /// Largest s with (s·r_x, s·r_e, s·w̄) certified by the full-window conditions.
-    fn full_scale(&self, o: &RegionalOptions) -> f64 {
-        if !(self.rate < 1.0) || self.nominal > self.radius {
-            return f64::NEG_INFINITY;
+    /// Largest s with (s·r_x, s·r_e, s·w̄) certified by the full-window rows.
+    fn full_scale(&self, _o: &RegionalOptions) -> f64 {
+        if self.rate < 1.0 {
+            self.scale
+        } else {
+            f64::NEG_INFINITY
         }
-        let init = o.x0_radius * self.a_x + o.prior_error * self.a_p + o.w_bar * self.a_w;
-        let inv = o.w_bar * self.b / (1.0 - self.rate);
-        let s1 = if init > 0.0 {
-            (self.radius - self.nominal) / init
-        } else {
-            f64::INFINITY
-        };
-        let s2 = if inv > 0.0 {
-            self.radius / inv
-        } else {
-            f64::INFINITY
-        };
-        s1.min(s2)
     }
 }
 
@@ -384,7 +479,8 @@ pub fn regional_certificate(
     k: usize,
     options: &RegionalOptions,
 ) -> Result<RegionalCertificate, RegionalVoid> {
-    regional_detail(resolved, method, k, options).map(|r| r.0)
+    let pieces = model::pieces(resolved, method, options.controller)?;
+    certify_at(&pieces, method, k, options).map(|r| r.0)
 }
 
 /// The matrices behind a regional certificate (for checks and plots): the lifted loop
@@ -425,7 +521,8 @@ pub fn regional_detail(
     options: &RegionalOptions,
 ) -> Result<(RegionalCertificate, RegionalDetail), RegionalVoid> {
     let pieces = model::pieces(resolved, method, options.controller)?;
-    certify_at(&pieces, method, k, options)
+    let (c, model, m) = certify_at(&pieces, method, k, options)?;
+    Ok((c, detail_of(model, m)))
 }
 
 fn certify_at(
@@ -433,7 +530,7 @@ fn certify_at(
     method: qp_iter::Method,
     k: usize,
     o: &RegionalOptions,
-) -> Result<(RegionalCertificate, RegionalDetail), RegionalVoid> {
+) -> Result<(RegionalCertificate, RegionalModel, metric::Metric), RegionalVoid> {
     if o.x0_nominal.len() != pieces.a.nrows() {
         return Err(RegionalVoid::Options(format!(
             "x0_nominal has {} entries, the plant {} states",
@@ -446,6 +543,7 @@ fn certify_at(
     if !(rho < 1.0) {
         return Err(RegionalVoid::Unstable { k, rho });
     }
+    let imp = impulse(&model, rho);
     let mut best: Option<(f64, Candidate)> = None;
     for &f in &o.rate_fractions {
         let lam = rho + (1.0 - rho) * f;
@@ -457,6 +555,7 @@ fn certify_at(
         };
         let c = evaluate(
             &model,
+            &imp,
             &m,
             format!("Stein, λ = ρ_lin + {f}·(1 − ρ_lin) = {lam:.6}"),
             o,
@@ -519,11 +618,7 @@ fn certify_at(
     } else {
         f64::INFINITY
     };
-    let room = c.radius - c.nominal;
-    let full_x = (room - o.prior_error * c.a_p - o.w_bar * c.a_w) / c.a_x;
-    let full_p = (room - o.x0_radius * c.a_x - o.w_bar * c.a_w) / c.a_p;
-    let full_w =
-        ((room - o.x0_radius * c.a_x - o.prior_error * c.a_p) / c.a_w).min(c.radius / inv_rate);
+    let (full_x, full_p, full_w) = (c.max_x, c.max_p, c.max_w);
     let clamp = |v: f64| if v.is_nan() { 0.0 } else { v.max(0.0) };
     let cert = RegionalCertificate {
         method: method.to_string(),
@@ -534,10 +629,7 @@ fn certify_at(
         rate: c.rate,
         disturbance_gain: c.b,
         radius: c.radius,
-        radius_limit: c.limit.map(|mut l| {
-            l.reach = l.bound;
-            l
-        }),
+        radius_limit: c.limit,
         initial_radius: c.nominal + o.x0_radius * c.a_x + o.prior_error * c.a_p + o.w_bar * c.a_w,
         invariant_radius: o.w_bar * inv_rate,
         startup_holds,
@@ -554,20 +646,23 @@ fn certify_at(
         gain_e: c.gain_e,
         options: o.clone(),
     };
-    let detail = RegionalDetail {
+    Ok((cert, model, c.metric))
+}
+
+fn detail_of(model: RegionalModel, m: metric::Metric) -> RegionalDetail {
+    RegionalDetail {
+        rows: model.rows.to_vecs(),
         a: model.a,
         bw: model.bw,
         start_map: model.start_map,
         x_read: model.x_read,
         e_read: model.e_read,
-        rows: model.rows.mat,
         lower: model.rows.lower,
         upper: model.rows.upper,
         labels: model.rows.labels,
-        p_half: c.metric.half,
-        p_neg_half: c.metric.neg_half,
-    };
-    Ok((cert, detail))
+        p_half: m.half,
+        p_neg_half: m.neg_half,
+    }
 }
 
 /// K_reg: the smallest K at which the regional certificate contains the user's set.

@@ -44,10 +44,11 @@ pub struct RowLabel {
     pub index: usize,
 }
 
-/// Constraint rows over a column space: lower ≤ row·v ≤ upper.
+/// Constraint rows over a column space: lower ≤ row·v ≤ upper, stored as dense blocks (the
+/// rows of block 0, then of block 1, …) so that norms in a metric are one product per block.
 #[derive(Debug, Clone)]
 pub(crate) struct Rows {
-    pub mat: Vec<Vec<f64>>,
+    pub blocks: Vec<Mat<f64>>,
     pub lower: Vec<f64>,
     pub upper: Vec<f64>,
     pub labels: Vec<RowLabel>,
@@ -56,21 +57,45 @@ pub(crate) struct Rows {
 impl Rows {
     pub fn new() -> Self {
         Self {
-            mat: Vec::new(),
+            blocks: Vec::new(),
             lower: Vec::new(),
             upper: Vec::new(),
             labels: Vec::new(),
         }
     }
-    fn push(&mut self, m: MatRef<'_, f64>, i: usize, lo: f64, up: f64, label: RowLabel) {
-        if lo.is_finite() || up.is_finite() {
-            self.mat.push((0..m.ncols()).map(|c| m[(i, c)]).collect());
-            self.lower.push(lo);
-            self.upper.push(up);
-            self.labels.push(label);
+    /// Appends the rows of `m` that have a finite bound.
+    fn push_block(
+        &mut self,
+        m: MatRef<'_, f64>,
+        lower: &[f64],
+        upper: &[f64],
+        label: impl Fn(usize) -> RowLabel,
+    ) {
+        let keep: Vec<usize> = (0..m.nrows())
+            .filter(|&i| lower[i].is_finite() || upper[i].is_finite())
+            .collect();
+        if keep.is_empty() {
+            return;
+        }
+        self.blocks
+            .push(Mat::from_fn(keep.len(), m.ncols(), |r, c| m[(keep[r], c)]));
+        for &i in &keep {
+            self.lower.push(lower[i]);
+            self.upper.push(upper[i]);
+            self.labels.push(label(i));
         }
     }
+    /// Every row as a vector (for checks; allocates).
+    pub fn to_vecs(&self) -> Vec<Vec<f64>> {
+        self.blocks
+            .iter()
+            .flat_map(|b| (0..b.nrows()).map(move |i| (0..b.ncols()).map(|j| b[(i, j)]).collect()))
+            .collect()
+    }
 }
+
+/// (G, E, l₀, u₀): l₀ ≤ Gz + Eθ ≤ u₀.
+pub(crate) type GeneralRows = (Mat<f64>, Mat<f64>, Vec<f64>, Vec<f64>);
 
 /// One window length's step pieces.
 #[derive(Debug, Clone)]
@@ -82,7 +107,7 @@ pub(crate) struct WindowStep {
     pub lower: Vec<f64>,
     pub upper: Vec<f64>,
     /// (G, E, l₀, u₀) of the general rows.
-    pub general: Option<(Mat<f64>, Mat<f64>, Vec<f64>, Vec<f64>)>,
+    pub general: Option<GeneralRows>,
 }
 
 /// The control law's linear piece: v = gain·x̂ with lower ≤ v ≤ upper, u = first n_u rows.
@@ -277,20 +302,12 @@ pub(crate) fn mhe_step(
             iterate: j + lin.start_steps,
             index,
         };
-        for i in 0..n {
-            rows.push(
-                it.as_ref(),
-                i,
-                ws.lower[i],
-                ws.upper[i],
-                label(RowKind::MheBox, i),
-            );
-        }
+        rows.push_block(it.as_ref(), &ws.lower, &ws.upper, |i| {
+            label(RowKind::MheBox, i)
+        });
         if let Some((g, e, l0, u0)) = &ws.general {
             let gz = mul(g.as_ref(), it.as_ref()) + mul(e.as_ref(), theta);
-            for i in 0..g.nrows() {
-                rows.push(gz.as_ref(), i, l0[i], u0[i], label(RowKind::MheGeneral, i));
-            }
+            rows.push_block(gz.as_ref(), l0, u0, |i| label(RowKind::MheGeneral, i));
         }
     }
     let xh = mul(ws.x_z.as_ref(), it.as_ref()) + mul(ws.x_theta.as_ref(), theta);
@@ -306,20 +323,12 @@ pub(crate) fn control(
     rows: &mut Rows,
 ) -> Mat<f64> {
     let v = mul(law.gain.as_ref(), xh);
-    for i in 0..v.nrows() {
-        rows.push(
-            v.as_ref(),
-            i,
-            law.lower[i],
-            law.upper[i],
-            RowLabel {
-                kind: RowKind::Input,
-                step,
-                iterate: 0,
-                index: i,
-            },
-        );
-    }
+    rows.push_block(v.as_ref(), &law.lower, &law.upper, |i| RowLabel {
+        kind: RowKind::Input,
+        step,
+        iterate: 0,
+        index: i,
+    });
     v.as_ref().subrows(0, nu).to_owned()
 }
 

@@ -268,14 +268,12 @@ impl RawScenario {
                     || c.x0_radius.is_some()
                     || c.prior_error.is_some()
                     || c.w_bar.is_some())
-                .then(|| {
-                    Table(RawCertificate {
-                        gamma13: c.gamma13,
-                        x0_radius: c.x0_radius,
-                        prior_error: c.prior_error,
-                        w_bar: c.w_bar,
-                    })
-                })
+                .then_some(Table(RawCertificate {
+                    gamma13: c.gamma13,
+                    x0_radius: c.x0_radius,
+                    prior_error: c.prior_error,
+                    w_bar: c.w_bar,
+                }))
             },
         }
     }

@@ -44,6 +44,7 @@ mod document;
 mod joint;
 mod linear;
 mod numfmt;
+mod regional;
 mod summary;
 mod trace_csv;
 mod work;
@@ -477,6 +478,7 @@ pub fn run_job(job: &Job, settings: &Settings) -> Result<Outcome> {
     ));
     let t0 = std::time::Instant::now();
     let linear = linear_entries(&resolved, &cert);
+    let regional = regional::regional_entries(&resolved, &cert);
     say(format!(
         "  done in {} s",
         numfmt::num(t0.elapsed().as_secs_f64())
@@ -751,6 +753,7 @@ pub fn run_job(job: &Job, settings: &Settings) -> Result<Outcome> {
         trajectory_check,
         joint: joint_report,
         linear,
+        regional,
         files: files
             .iter()
             .map(|p| p.strip_prefix(&job.out).unwrap_or(p).display().to_string())

@@ -49,6 +49,9 @@ pub struct IssInputs {
     pub l_pi: f64,
     /// ‖C‖₂.
     pub c_norm: f64,
+    /// ‖F‖₂ (y = Cx + Fw²): the measurement noise enters the MHE's data through F, so every
+    /// gain from w through the window data carries it (C₃ʷ = C₃‖F‖).
+    pub f_norm: f64,
     /// γ₁,₃ slope of Assumption 4 (gain from estimation error to state).
     pub gamma13: f64,
     /// φ(K) = prefactor · rateᴷ.
@@ -90,11 +93,15 @@ pub struct GainsAtK {
     pub c1: f64,
     /// C₂(K) = 2φL_Φ(1 + M L_π), eq. (c2).
     pub c2: f64,
-    /// C₃(K) = 2φL_Φ M, eq. (c3).
+    /// C₃(K) = 2φL_Φ M, eq. (c3): the coefficient of one unit of change in the u or y data.
+    /// The joint certificate's input error δ enters the u data with this coefficient.
     pub c3: f64,
+    /// C₃ʷ(K) = C₃‖F‖₂: the w-coefficient of Prop. 1's one-step bound
+    /// (‖y_a − y_b‖ ≤ ‖C‖(‖x_a‖ + ‖x_b‖) + ‖F‖(‖w_a‖ + ‖w_b‖)); the paper's C₃ assumes F = I.
+    pub c3w: f64,
     /// C_e(K), eq. (c4).
     pub c_e: f64,
-    /// C_w(K), eq. (c5).
+    /// C_w(K), eq. (c5) with C₃ʷ in place of C₃.
     pub c_w: f64,
     /// C_ε(K), eq. (c6).
     pub c_eps: f64,
@@ -102,7 +109,7 @@ pub struct GainsAtK {
     pub gamma21: f64,
     /// γ₂,₃ = C₂/(1 − φ) (Prop. 1).
     pub gamma23: f64,
-    /// γ₂ʷ = C₃/(1 − φ) (Prop. 1).
+    /// γ₂ʷ = C₃ʷ/(1 − φ) (Prop. 1; C₃ʷ = C₃‖F‖).
     pub gamma2w: f64,
     /// γ₂^σ = φL_Φ/(1 − φ) (Prop. 1).
     pub gamma2sigma: f64,
@@ -256,6 +263,7 @@ impl IssAnalysis {
             ("L_pi", inputs.l_pi),
             ("H_bar", inputs.h_bar),
             ("norm C", inputs.c_norm),
+            ("norm F", inputs.f_norm),
         ] {
             let ok = v.is_finite() && v >= 0.0;
             premises.push(Premise {
@@ -313,6 +321,7 @@ impl IssAnalysis {
         let c1 = 2.0 * phi * lp * (1.0 + m * (i.c_norm + lpi));
         let c2 = 2.0 * phi * lp * (1.0 + m * lpi);
         let c3 = 2.0 * phi * lp * m;
+        let c3w = c3 * i.f_norm;
         let a = (3.0 * self.lambda_pp * self.lambda_hp).sqrt();
         let sum: f64 = (1..i.horizon).map(|j| sr.powi(-(1 + j as i32))).sum();
         let c_e = 2.0 * a * phi * lp * (sr.powi(-(i.horizon as i32)) + lpi / sr)
@@ -320,7 +329,7 @@ impl IssAnalysis {
             + (6.0 * self.lambda_pp).sqrt()
             + 2.0 * a * phi * lp * (lpi + 1.0) * sr.powi(-(i.horizon as i32) - 1);
         let inv1 = 1.0 / (1.0 - sr);
-        let c_w = (2.0 * self.lambda_hp).sqrt() * c3
+        let c_w = (2.0 * self.lambda_hp).sqrt() * c3w
             + (6.0 * self.lambda_qp).sqrt() * inv1
             + 4.0
                 * (3.0 * self.lambda_hp * self.lambda_qp).sqrt()
@@ -335,7 +344,7 @@ impl IssAnalysis {
         let one_minus_phi = 1.0 - phi;
         let gamma21 = c1 / one_minus_phi;
         let gamma23 = c2 / one_minus_phi;
-        let gamma2w = c3 / one_minus_phi;
+        let gamma2w = c3w / one_minus_phi;
         let gamma2sigma = phi * lp / one_minus_phi;
         let gamma31 = (2.0 * self.lambda_hp).sqrt() * c1;
         let gamma32 = c_eps;
@@ -357,6 +366,7 @@ impl IssAnalysis {
             c1,
             c2,
             c3,
+            c3w,
             c_e,
             c_w,
             c_eps,

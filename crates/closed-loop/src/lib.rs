@@ -25,6 +25,7 @@ pub mod joint;
 pub mod linear;
 pub mod plan;
 pub mod record;
+pub mod regional;
 pub mod scenario;
 pub mod sim;
 pub mod small_gain;

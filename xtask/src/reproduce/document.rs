@@ -238,6 +238,10 @@ pub struct CertificateDocument {
     /// The exact linear stability boundary per method (exact MPC): ρ_lin(K) on a log grid,
     /// K_lin and every K with ρ_lin ≥ 1 (necessary for stability; `closed_loop::linear`).
     pub linear: Vec<LinearEntry>,
+    /// The regional certificate of each method at its K_min (`closed_loop::regional`): the
+    /// region that contains the scenario's own uncertainty or the constraint that limits it,
+    /// the certified rate and gains (issue 27).
+    pub regional: Vec<super::regional::RegionalEntry>,
     /// Constants next to the paper's published values.
     pub paper_comparison: Vec<ComparisonRow>,
     /// Files written, relative to the output directory.

@@ -91,6 +91,9 @@ pub fn certify_closed_loop_timed(
         None => None,
     };
     times.mhe_constants_s = split();
+    let lemma1_origin_offsets: Vec<f64> = problem.as_ref().map_or_else(Vec::new, |pr| {
+        pr.windows().iter().map(lemma1::origin_offset).collect()
+    });
     let (h_bar, l_phi, h_paper_norms) = match &problem {
         Some(pr) => {
             let sampling = LipschitzSampling {
@@ -178,6 +181,7 @@ pub fn certify_closed_loop_timed(
             l_phi: l_phi.certified,
             l_pi: l_pi_used,
             c_norm,
+            f_norm: spectral_norm(sys.f()),
             gamma13: gamma13.used,
             phi_rate,
             phi_prefactor,
@@ -274,6 +278,7 @@ pub fn certify_closed_loop_timed(
         },
         h_paper_norms,
         sigma_model_part: spectral_norm(sys.a()) + spectral_norm(sys.b()) + c_norm + 2.0,
+        lemma1_origin_offsets,
     };
     Ok((certificate, times))
 }

@@ -28,6 +28,7 @@
 //! trajectory check reports it as part of the right-hand side, not as a verified bound.
 
 mod certify;
+pub mod lemma1;
 mod trajectory;
 
 use lti_model::ioss;
@@ -163,6 +164,9 @@ pub struct ClosedLoopCertificate {
     pub h_paper_norms: Vec<f64>,
     /// ‖A‖₂ + ‖B‖₂ + ‖C‖₂ + 2: the model part of σ_t.
     pub sigma_model_part: f64,
+    /// o_m ≥ ‖z*_m(0)‖ per window length m = 0..M (0 when 0 ∈ Z): the offsets of the mended
+    /// Lemma 1 for t ≤ M ([`lemma1`]), which replaces the paper's σ_t in the trajectory checks.
+    pub lemma1_origin_offsets: Vec<f64>,
 }
 
 impl ClosedLoopCertificate {
@@ -171,7 +175,9 @@ impl ClosedLoopCertificate {
         self.solvers.iter().find(|s| s.solver == solver)
     }
 
-    /// σ_t of Lemma 1 (module doc): |1 − η⁻¹|‖H_t‖ + ‖A‖ + ‖B‖ + ‖C‖ + 2 for t ≤ M, else 0.
+    /// The paper's σ_t of Lemma 1 (module doc): |1 − η⁻¹|‖H_t‖ + ‖A‖ + ‖B‖ + ‖C‖ + 2 for
+    /// t ≤ M, else 0. Reported for comparison only: it does not scale with the data, so the
+    /// checks use the mended, data-dependent σ_t of [`lemma1::sigma`] (issue 27).
     pub fn sigma(&self, t: usize) -> f64 {
         if t > self.horizon {
             return 0.0;

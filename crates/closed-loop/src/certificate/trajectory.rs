@@ -62,7 +62,8 @@ impl Default for InequalityCheck {
 /// Prop. 1 and Prop. 3 evaluated on a trace.
 #[derive(Debug, Clone, PartialEq, Serialize)]
 pub struct TrajectoryCheck {
-    /// ‖ε_t‖ ≤ φᵗε₀ + γ₂,₁‖x‖ + γ₂,₃‖e‖ + γ₂ʷ‖w‖ + γ₂^σ‖σ‖ (sups over [0, t−1]).
+    /// ‖ε_t‖ ≤ φᵗε₀ + γ₂,₁‖x‖ + γ₂,₃‖e‖ + γ₂ʷ‖w‖ + γ₂^σ‖σ‖ (sups over [0, t−1]; σ over
+    /// [0, t], the data-dependent σ_t of [`super::lemma1`]).
     pub prop1: InequalityCheck,
     /// ‖e_t‖ ≤ C_e√ρᵗ‖e₀‖ + √(2Λ^H̄_P)C₁‖x‖ + C_ε‖ε‖ + C_w‖w‖ + √(2Λ^H̄_P)φL_Φ‖σ‖.
     pub prop3: InequalityCheck,
@@ -94,8 +95,14 @@ pub fn check_trajectory(
             se = se.max(es[t - 1]);
             sw = sw.max(ws[t - 1]);
             seps = seps.max(eps[t - 1]);
-            ssig = ssig.max(cert.sigma(t - 1));
         }
+        // σ_t of the mended Lemma 1 enters at step t itself (Prop. 1, Case 1).
+        ssig = ssig.max(super::lemma1::sigma(
+            trace,
+            t,
+            &cert.lemma1_origin_offsets,
+            analysis.l_phi_used,
+        )?);
         let ti = i32::try_from(t).unwrap_or(i32::MAX);
         let rhs1 = g.phi.powi(ti) * eps[0]
             + g.gamma21 * sx

@@ -14,10 +14,10 @@
 //! both computed by the S-procedure ([`mpc_core::robust_norm`]: exact over the family, one
 //! scalar search, polynomial in N·n_u). With f(x) = Ax + Bπ(x), f(0) = 0 (0 ∈ 𝒰):
 //!
-//! x⁺ = f(x) + B(π(x + e) − π(x)) + w¹ ⇒ ‖x⁺‖_S ≤ λ_S‖x‖_S + g_S‖e‖ + √λ̄(S)‖w¹‖.
+//! x⁺ = f(x) + B(π(x + e) − π(x)) + Ew¹ ⇒ ‖x⁺‖_S ≤ λ_S‖x‖_S + g_S‖e‖ + ‖S^{½}E‖₂‖w¹‖.
 //!
 //! If λ_S < 1, Assumption 4 holds with β₁(s, g) = √(λ̄(S)/λ(S))·λ_S^g·s,
-//! **γ₁,₃ = g_S / (√λ(S)(1 − λ_S))**, γ₁ʷ = √(λ̄(S)/λ(S))/(1 − λ_S) (Lohmiller & Slotine,
+//! **γ₁,₃ = g_S / (√λ(S)(1 − λ_S))**, γ₁ʷ = ‖S^{½}E‖₂/(√λ(S)(1 − λ_S)) (Lohmiller & Slotine,
 //! Automatica 34(6), 1998, specialised to piecewise-affine laws). The candidate metrics are
 //! listed in `metrics.rs`; the smallest γ₁,₃ wins.
 //!
@@ -76,7 +76,8 @@ pub struct MetricResult {
     pub gamma13_enumerated: Option<f64>,
     /// min of the two: this metric's certified γ₁,₃.
     pub gamma13: f64,
-    /// γ₁ʷ = √(λ̄(S)/λ(S))/(1 − λ_S) for the λ_S used in `gamma13`, or ∞.
+    /// γ₁ʷ = ‖S^{½}E‖₂/(√λ(S)(1 − λ_S)) for the λ_S used in `gamma13`, or ∞ (w¹ enters as
+    /// Ew¹; with the paper's E = I this is √(λ̄(S)/λ(S))/(1 − λ_S)).
     pub gamma1w: f64,
     /// ‖S^{½}B‖₂: how an additive input error d (x⁺ = Ax + Bπ(x + e) + Bd + w¹) enters.
     pub input_matrix_gain: f64,
@@ -388,11 +389,13 @@ fn used_contraction(c: &MetricResult) -> f64 {
     }
 }
 
-fn gammas(lam: f64, gin: f64, m: &Metric) -> (f64, f64) {
+/// (γ₁,₃, γ₁ʷ) of one metric: g_S/(√λ(S)(1 − λ_S)) and ‖S^{½}E‖₂/(√λ(S)(1 − λ_S)), where
+/// `noise_gain` = ‖S^{½}E‖₂ (w¹ enters as Ew¹; the paper's E = I gives √λ̄(S)).
+fn gammas(lam: f64, gin: f64, m: &Metric, noise_gain: f64) -> (f64, f64) {
     if lam < 1.0 {
         (
             gin / (m.lmin.sqrt() * (1.0 - lam)),
-            (m.lmax / m.lmin).sqrt() / (1.0 - lam),
+            noise_gain / (m.lmin.sqrt() * (1.0 - lam)),
         )
     } else {
         (f64::INFINITY, f64::INFINITY)
@@ -499,9 +502,14 @@ pub fn gamma13_certified_with(
         .map(|m| metric_figures(&fam, &patterns, m))
         .collect();
     let mut candidates = Vec::with_capacity(metrics.len());
-    for (m, fig) in metrics.iter().zip(figures) {
+    // ‖S^{½}E‖₂ per metric: how w¹ enters (x⁺ = … + Ew¹).
+    let noise_gains: Vec<f64> = metrics
+        .iter()
+        .map(|m| spectral_norm((&m.half * mpc.system().e()).as_ref()))
+        .collect();
+    for ((m, fig), &ng) in metrics.iter().zip(figures).zip(&noise_gains) {
         let (lam, gin) = fig?;
-        let (g13, g1w) = gammas(lam, gin, m);
+        let (g13, g1w) = gammas(lam, gin, m, ng);
         candidates.push(MetricResult {
             metric: m.name.clone(),
             contraction: lam,
@@ -563,7 +571,7 @@ pub fn gamma13_certified_with(
         let mut best = f64::INFINITY;
         for (k, &i) in chosen.iter().enumerate() {
             let (lam, gin) = (v.contraction[k], v.input_gain[k]);
-            let (g13, g1w) = gammas(lam, gin, &metrics[i]);
+            let (g13, g1w) = gammas(lam, gin, &metrics[i], noise_gains[i]);
             let c = &mut candidates[i];
             c.contraction_enumerated = Some(lam);
             // The enumeration drops a metric once λ reaches 1: its g is then a partial maximum

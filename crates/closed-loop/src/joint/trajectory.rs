@@ -92,9 +92,15 @@ pub fn check_joint_trajectory(
             se = se.max(es[t - 1]);
             sw = sw.max(ws[t - 1]);
             seps = seps.max(eps[t - 1]);
-            ssig = ssig.max(cert.sigma(t - 1));
             sd = sd.max(delta[t - 1]);
         }
+        // σ_t of the mended Lemma 1 enters at step t itself (Prop. 1, Case 1).
+        ssig = ssig.max(crate::certificate::lemma1::sigma(
+            trace,
+            t,
+            &cert.lemma1_origin_offsets,
+            analysis.theorem1.l_phi_used,
+        )?);
         x_now = x_now.max(xs[t]);
         e_now = e_now.max(es[t]);
         let ti = i32::try_from(t).unwrap_or(i32::MAX);

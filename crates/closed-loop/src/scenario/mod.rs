@@ -124,6 +124,15 @@ pub struct CertificateSettings {
     /// "user-supplied, not verified" and refuted when the sampled lower estimate exceeds it;
     /// `None`: computed.
     pub gamma13: Option<f64>,
+    /// Regional certificate (`closed_loop::regional`): the true x₀ lies within this
+    /// Euclidean distance of `simulation.x0` (`certificate.x0_radius`; `None`: 0).
+    pub x0_radius: Option<f64>,
+    /// Regional certificate: ‖prior − x₀‖ ≤ this (`certificate.prior_error`; `None`: the
+    /// scenario's own ‖simulation.prior − simulation.x0‖).
+    pub prior_error: Option<f64>,
+    /// Regional certificate: ‖w_t‖₂ ≤ this at every t (`certificate.w_bar`; `None`: the
+    /// largest ‖w‖₂ of the noise the scenario draws, `sets.disturbance` × `noise.scale`).
+    pub w_bar: Option<f64>,
 }
 
 /// Serde mirror of `[certificate]`.
@@ -132,6 +141,12 @@ pub struct CertificateSettings {
 struct RawCertificate {
     #[serde(skip_serializing_if = "Option::is_none")]
     gamma13: Option<f64>,
+    #[serde(skip_serializing_if = "Option::is_none")]
+    x0_radius: Option<f64>,
+    #[serde(skip_serializing_if = "Option::is_none")]
+    prior_error: Option<f64>,
+    #[serde(skip_serializing_if = "Option::is_none")]
+    w_bar: Option<f64>,
 }
 
 impl CertificateSettings {
@@ -146,7 +161,21 @@ impl CertificateSettings {
             }
             format::check_magnitude("certificate.gamma13", "γ₁,₃", g)?;
         }
-        Ok(Self { gamma13 })
+        let radius = |key: &str, v: Option<f64>| -> Result<Option<f64>> {
+            match v {
+                Some(r) if !(r.is_finite() && r >= 0.0) => Err(key_error(
+                    key,
+                    format!("is {r}; it must be a finite number ≥ 0 (or omit it)"),
+                )),
+                other => Ok(other),
+            }
+        };
+        Ok(Self {
+            gamma13,
+            x0_radius: radius("certificate.x0_radius", raw.and_then(|r| r.x0_radius))?,
+            prior_error: radius("certificate.prior_error", raw.and_then(|r| r.prior_error))?,
+            w_bar: radius("certificate.w_bar", raw.and_then(|r| r.w_bar))?,
+        })
     }
 }
 
@@ -233,10 +262,19 @@ impl RawScenario {
             simulation: Some(Table(simulation)),
             mhe: s.mhe.as_ref().map(|m| Table(m.to_raw())),
             mpc: s.mpc.as_ref().map(|m| Table(m.to_raw())),
-            certificate: s
-                .certificate
-                .gamma13
-                .map(|g| Table(RawCertificate { gamma13: Some(g) })),
+            certificate: {
+                let c = &s.certificate;
+                (c.gamma13.is_some()
+                    || c.x0_radius.is_some()
+                    || c.prior_error.is_some()
+                    || c.w_bar.is_some())
+                .then_some(Table(RawCertificate {
+                    gamma13: c.gamma13,
+                    x0_radius: c.x0_radius,
+                    prior_error: c.prior_error,
+                    w_bar: c.w_bar,
+                }))
+            },
         }
     }
 }

@@ -17,6 +17,7 @@ pub fn hand_inputs() -> IssInputs {
         l_phi: 2.0,
         l_pi: 1.0,
         c_norm: 1.0,
+        f_norm: 1.0,
         gamma13: 1.0,
         phi_rate: 0.5,
         phi_prefactor: 1.0,
@@ -174,6 +175,40 @@ fn each_premise_voids_the_certificate() {
         );
         assert_eq!(an.k_min(1 << 30), None, "{name}");
     }
+}
+
+/// Mend (b) of issue 27: the measurement noise enters the data as y = Cx + Fw², so the
+/// w-gains through the window data carry ‖F‖. With ‖F‖ = 3 the paper's C₃ = 2φL_ΦM (which
+/// assumes F = I) understates γ₂ʷ and C_w three-fold in their C₃ part; the other constants and
+/// the small-gain slopes do not depend on F.
+#[test]
+fn the_w_gains_carry_the_norm_of_f() {
+    let one = IssAnalysis::new(hand_inputs());
+    let three = IssAnalysis::new(IssInputs {
+        f_norm: 3.0,
+        ..hand_inputs()
+    });
+    let s2 = 2f64.sqrt();
+    for k in [3usize, 6] {
+        let (a, b) = (one.at(k), three.at(k));
+        let f = a.phi;
+        assert!(
+            close(b.c3, 4.0 * f),
+            "C₃ itself (the u/y-data coefficient) is unchanged"
+        );
+        assert!(close(b.c3w, 12.0 * f));
+        assert!(close(b.gamma2w, 12.0 * f / (1.0 - f)));
+        // The old form: γ₂ʷ = C₃/(1 − φ) without ‖F‖ — three times too small here.
+        assert!(b.gamma2w > 2.9 * a.gamma2w);
+        // C_w = √2·C₃‖F‖ + (terms without F).
+        assert!(close(b.c_w - a.c_w, s2 * (12.0 - 4.0) * f));
+        assert_eq!((a.sg1, a.sg2, a.sg3), (b.sg1, b.sg2, b.sg3));
+    }
+    let bad = IssAnalysis::new(IssInputs {
+        f_norm: f64::NAN,
+        ..hand_inputs()
+    });
+    assert!(!bad.premises_hold());
 }
 
 #[test]

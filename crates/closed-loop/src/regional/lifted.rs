@@ -1,0 +1,166 @@
+//! The lifted loop with the disturbance, (𝔸, 𝔹_w), its constraint rows over X and the
+//! start-up map X_M = 𝕄υ with the start-up rows over υ (module docs of `model.rs`).
+
+use faer::Mat;
+
+use super::model::{Pieces, Rows, control, mhe_step, shifted_warm_start};
+use crate::linear::{LiftedLayout, LinearError};
+
+/// The loop at one K in the two column spaces.
+#[derive(Debug, Clone)]
+pub(crate) struct RegionalModel {
+    pub layout: LiftedLayout,
+    /// 𝔸(K): X_{t+1} = 𝔸X_t + 𝔹_w w_t for t ≥ M while no row is active.
+    pub a: Mat<f64>,
+    /// 𝔹_w (dim X × n_w): w¹ through E into x, w² through F into the newest y.
+    pub bw: Mat<f64>,
+    /// Rows over X_t (t ≥ M).
+    pub rows: Rows,
+    /// x_t = x_read·X_t.
+    pub x_read: Mat<f64>,
+    /// e_t = x̂_t − x_t = e_read·X_t.
+    pub e_read: Mat<f64>,
+    /// X_M = 𝕄υ, υ = (x₀, x̄₀, w₀, …, w_{M−1}).
+    pub start_map: Mat<f64>,
+    /// Rows over υ for t < M.
+    pub startup_rows: Rows,
+    /// n_x, n_w.
+    pub nx: usize,
+    pub nw: usize,
+}
+
+fn set_block(dst: &mut Mat<f64>, r0: usize, src: &Mat<f64>) {
+    for j in 0..src.ncols() {
+        for i in 0..src.nrows() {
+            dst[(r0 + i, j)] = src[(i, j)];
+        }
+    }
+}
+
+fn rows_of(m: &Mat<f64>, r0: usize, n: usize) -> Mat<f64> {
+    m.as_ref().subrows(r0, n).to_owned()
+}
+
+/// Builds the model at K from the pieces.
+pub(crate) fn build(p: &Pieces, k: usize) -> Result<RegionalModel, LinearError> {
+    let big_m = p.windows.len() - 1;
+    let full = &p.windows[big_m];
+    let w = full.layout;
+    let d = w.dims;
+    let (nx, nu, ny, nw, nw1) = (d.nx, d.nu, d.ny, d.nw(), d.nw1);
+    let layout = LiftedLayout {
+        nx,
+        nu,
+        ny,
+        horizon: big_m,
+        nz: w.nz(),
+        n_controller: 0,
+    };
+    let n = layout.dim();
+    let eye = Mat::<f64>::identity(n, n);
+
+    // ---- t ≥ M on X ----
+    let z0 = rows_of(&eye, layout.warm_start(), w.nz());
+    let mut theta = Mat::<f64>::zeros(w.n_theta(), n);
+    for i in 0..nx {
+        theta[(i, layout.estimates(0) + i)] = 1.0;
+    }
+    for j in 0..big_m {
+        for i in 0..nu {
+            theta[(w.u_offset(j) + i, layout.u_window(j) + i)] = 1.0;
+        }
+        for i in 0..ny {
+            theta[(w.y_offset(j) + i, layout.y_window(j) + i)] = 1.0;
+        }
+    }
+    let mut rows = Rows::new();
+    let (zk, xh) = mhe_step(full, k, z0.as_ref(), theta.as_ref(), None, &mut rows)?;
+    let u = control(&p.law, nu, xh.as_ref(), None, &mut rows);
+    let x_read = rows_of(&eye, layout.x(), nx);
+    let mut a = Mat::<f64>::zeros(n, n);
+    set_block(&mut a, layout.x(), &(&p.a * &x_read + &p.b * &u));
+    for j in 0..big_m - 1 {
+        for i in 0..nu {
+            a[(layout.u_window(j) + i, layout.u_window(j + 1) + i)] = 1.0;
+        }
+        for i in 0..ny {
+            a[(layout.y_window(j) + i, layout.y_window(j + 1) + i)] = 1.0;
+        }
+        for i in 0..nx {
+            a[(layout.estimates(j) + i, layout.estimates(j + 1) + i)] = 1.0;
+        }
+    }
+    set_block(&mut a, layout.u_window(big_m - 1), &u);
+    set_block(&mut a, layout.y_window(big_m - 1), &(&p.c * &x_read));
+    set_block(&mut a, layout.estimates(big_m - 1), &xh);
+    let z_next = if p.shifted {
+        let (wz, wth) = shifted_warm_start(p, w);
+        &wz * &zk + &wth * &theta
+    } else {
+        zk.clone()
+    };
+    set_block(&mut a, layout.warm_start(), &z_next);
+    let mut bw = Mat::<f64>::zeros(n, nw);
+    for i in 0..nx {
+        for j in 0..nw1 {
+            bw[(layout.x() + i, j)] = p.e[(i, j)];
+        }
+    }
+    for i in 0..ny {
+        for j in 0..nw - nw1 {
+            bw[(layout.y_window(big_m - 1) + i, nw1 + j)] = p.f[(i, j)];
+        }
+    }
+    let e_read = &xh - &x_read;
+
+    // ---- t < M on υ = (x₀, x̄₀, w₀..w_{M−1}) ----
+    let nv = 2 * nx + big_m * nw;
+    let ev = Mat::<f64>::identity(nv, nv);
+    let mut x = rows_of(&ev, 0, nx);
+    let prior = rows_of(&ev, nx, nx);
+    let mut z0 = prior.clone();
+    let (mut us, mut ys, mut xhs) = (Vec::new(), Vec::new(), Vec::new());
+    let mut startup_rows = Rows::new();
+    for t in 0..big_m {
+        let ws = &p.windows[t];
+        let lay = ws.layout;
+        let mut th = Mat::<f64>::zeros(lay.n_theta(), nv);
+        set_block(&mut th, 0, &prior);
+        for j in 0..t {
+            set_block(&mut th, lay.u_offset(j), &us[j]);
+            set_block(&mut th, lay.y_offset(j), &ys[j]);
+        }
+        let (zk, xh) = mhe_step(ws, k, z0.as_ref(), th.as_ref(), Some(t), &mut startup_rows)?;
+        let u = control(&p.law, nu, xh.as_ref(), Some(t), &mut startup_rows);
+        let w1 = rows_of(&ev, 2 * nx + t * nw, nw1);
+        let w2 = rows_of(&ev, 2 * nx + t * nw + nw1, nw - nw1);
+        let y = &p.c * &x + &p.f * &w2;
+        x = &p.a * &x + &p.b * &u + &p.e * &w1;
+        let mut next = Mat::<f64>::zeros(p.windows[t + 1].layout.nz(), nv);
+        set_block(&mut next, 0, &zk);
+        z0 = next;
+        us.push(u);
+        ys.push(y);
+        xhs.push(xh);
+    }
+    let mut start_map = Mat::<f64>::zeros(n, nv);
+    set_block(&mut start_map, layout.x(), &x);
+    for j in 0..big_m {
+        set_block(&mut start_map, layout.u_window(j), &us[j]);
+        set_block(&mut start_map, layout.y_window(j), &ys[j]);
+        set_block(&mut start_map, layout.estimates(j), &xhs[j]);
+    }
+    set_block(&mut start_map, layout.warm_start(), &z0);
+    Ok(RegionalModel {
+        layout,
+        a,
+        bw,
+        rows,
+        x_read,
+        e_read,
+        start_map,
+        startup_rows,
+        nx,
+        nw,
+    })
+}

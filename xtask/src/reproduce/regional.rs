@@ -1,0 +1,51 @@
+//! The regional certificate (issue 27, `closed_loop::regional`) of each method at its K_min,
+//! for certificate.json: the region, the limiting constraint and the certified gains.
+
+use super::*;
+
+/// One method's regional certificate at its K_min, or why there is none.
+#[derive(Debug, Clone, Serialize)]
+pub struct RegionalEntry {
+    /// The method.
+    pub solver: String,
+    /// The K it was evaluated at (the method's K_min; null when Theorem 1 is void).
+    pub k: Option<usize>,
+    /// The certificate (null when void).
+    pub certificate: Option<closed_loop::regional::RegionalCertificate>,
+    /// Why there is none.
+    pub void: Option<String>,
+}
+
+/// [`closed_loop::regional::regional_certificate`] of every method at its K_min, with the
+/// exact MPC and the scenario's own uncertainty (`certificate.x0_radius`, `prior_error`,
+/// `w_bar` or their defaults).
+pub(super) fn regional_entries(
+    resolved: &ResolvedScenario,
+    cert: &ClosedLoopCertificate,
+) -> Vec<RegionalEntry> {
+    use closed_loop::regional::{RegionalOptions, regional_certificate};
+    let options = RegionalOptions::from_scenario(resolved, ControllerChoice::ExactMpc);
+    cert.solvers
+        .iter()
+        .map(|s| {
+            let solver = s.solver.name().into_owned();
+            let (certificate, void) = match (&options, s.k_min) {
+                (Err(e), _) => (None, Some(e.to_string())),
+                (Ok(_), None) => (
+                    None,
+                    Some("not evaluated: Theorem 1 gives no K_min for this method".into()),
+                ),
+                (Ok(o), Some(k)) => match regional_certificate(resolved, s.solver, k.max(1), o) {
+                    Ok(c) => (Some(c), None),
+                    Err(e) => (None, Some(e.to_string())),
+                },
+            };
+            RegionalEntry {
+                solver,
+                k: s.k_min,
+                certificate,
+                void,
+            }
+        })
+        .collect()
+}

@@ -67,7 +67,8 @@
 //! is dimensionless and invariant under (P, Q, R) → c(P, Q, R) and under linear changes of
 //! the coordinates of x and w (J and S transform by the same congruence). P passes iff
 //!
-//! 1. λ_min(P) > ρ·λ_max(P), ρ = [`P_MIN_RATIO`] = 1e-10, and
+//! 1. λ_min(P̂) > ρ·λ_max(P̂) for the Jacobi-scaled P̂ = diag(P)^{−½}·P·diag(P)^{−½},
+//!    ρ = [`P_MIN_RATIO`] = 1e-10, and
 //! 2. μ(P) ≤ τ, τ = [`LMI_RELATIVE_TOL`] = 1e-9.
 //!
 //! What 2 means: μ ≤ τ ⇔ J ⪯ τS ⇔ (1 − τ)GᵀPG ⪯ diag((η + τ)P, (1 + τ)Q) + (1 + τ)HᵀRH,
@@ -85,7 +86,10 @@
 //! (λ_max(J) = +4.9e-14, μ ≈ 0.04); a tolerance scaled by max(1, ‖P‖, ‖Q‖, ‖R‖) (the rule
 //! before) is ≈ 1e-9 there and accepted that P.
 //!
-//! What 1 means: the symmetric eigensolver resolves eigenvalues of P to ≈ n·u·λ_max(P)
+//! What 1 means (P̂ rather than P so that the rule does not depend on the units of the
+//! states: x = Tx̃ with T diagonal maps P to TPT and leaves P̂ unchanged; a plant whose
+//! states differ in scale by 10⁶ has λ_min(P)/λ_max(P) ≈ 10⁻¹² for a perfectly resolvable
+//! P): the symmetric eigensolver resolves eigenvalues of P̂ to ≈ n·u·λ_max(P̂)
 //! ≈ 1e-15·λ_max(P), so ρ = 1e-10 leaves a 10⁵ margin before "λ_min(P) > 0" becomes a
 //! rounding artefact; Λ^P_P = λ_max/λ_min ≥ 10¹⁰ would also make the constants of Prop. 3
 //! void in practice. The refusal carries the measured ratio
@@ -93,6 +97,7 @@
 
 mod check;
 mod construct;
+mod doubling;
 
 use faer::{Mat, MatRef};
 use serde::Serialize;
@@ -113,18 +118,19 @@ pub const LMI_RELATIVE_TOL: f64 = 1e-9;
 pub const P_MIN_RATIO: f64 = 1e-10;
 
 /// `method` of a P computed as the maximal solution.
-pub const METHOD_MAXIMAL: &str = "riccati-value-iteration";
+pub const METHOD_MAXIMAL: &str = "riccati-doubling";
 /// `method` of a P computed with a fictitious disturbance (E does not reach every state).
-pub const METHOD_FICTITIOUS: &str = "riccati-value-iteration+fictitious-disturbance";
+pub const METHOD_FICTITIOUS: &str = "riccati-doubling+fictitious-disturbance";
 /// `method` of a user-supplied P.
 pub const METHOD_USER: &str = "user";
 
 /// Settings of [`certify_with`] and [`verify_with`].
 #[derive(Debug, Clone, Copy, PartialEq)]
 pub struct IossOptions {
-    /// Cap on value iterations of U.
+    /// Cap on doubling steps of the construction (at most 64 are ever used: each step
+    /// squares the closed-loop contraction).
     pub max_iterations: usize,
-    /// Stop when max|P_{k+1} − P_k| ≤ `tolerance`·max|P_k|.
+    /// Kept for compatibility (the doubling stops at 4ε relative change); must be in (0, 1).
     pub tolerance: f64,
     /// τ of the relative LMI check (see [`LMI_RELATIVE_TOL`]).
     pub lmi_relative_tolerance: f64,
@@ -138,7 +144,7 @@ pub struct IossOptions {
 impl Default for IossOptions {
     fn default() -> Self {
         Self {
-            max_iterations: 200_000,
+            max_iterations: 64,
             tolerance: 1e-14,
             lmi_relative_tolerance: LMI_RELATIVE_TOL,
             min_condition: P_MIN_RATIO,
@@ -403,8 +409,8 @@ pub fn certify_with(
             },
         },
         Extremal::NotConverged { iterations } => numerical(format!(
-            "no convergence in {iterations} iterations (η = {eta} is probably at the feasibility \
-             boundary); increase η or `max_iterations`, or supply P"
+            "the doubling iteration did not converge in {iterations} steps (η = {eta} is at the \
+             feasibility boundary of LMI (2)); increase η (scenario key `mhe.eta`), or supply P"
         )),
         Extremal::KktSingular { iteration } => numerical(format!(
             "singular KKT system at iteration {iteration} (ker A ∩ ker C ≠ {{0}} with η = 0?); \
@@ -583,10 +589,7 @@ pub fn min_feasible_eta(
         });
     }
     check_inputs(sys, 0.5, q, r)?;
-    let opts = IossOptions {
-        max_iterations: 20_000,
-        ..IossOptions::default()
-    };
+    let opts = IossOptions::default();
     if let Ok(c) = certify_with(sys, 0.0, q, r, &opts) {
         return Ok(EtaBisection {
             certificate: c,

@@ -57,12 +57,7 @@ impl JointAnalysis {
             region.void_reasons = self
                 .violated()
                 .iter()
-                .map(|p| {
-                    format!(
-                        "{} fails ({} = {:.6}): {}",
-                        p.name, p.needed_by, p.value, p.fix
-                    )
-                })
+                .map(|p| p.void_reason())
                 .collect();
             return region;
         }

@@ -6,7 +6,7 @@ use faer::linalg::solvers::Solve;
 use faer::{Mat, MatRef};
 
 use crate::error::Result;
-use crate::matrix::{sym_extreme_eigenvalues, symmetrize};
+use crate::matrix::symmetrize;
 use crate::system::LtiSystem;
 
 use super::IossOptions;

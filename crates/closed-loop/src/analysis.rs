@@ -86,7 +86,12 @@ pub struct Premise {
 }
 
 /// Premises built from P of LMI (2): not evaluated when LMI (2) fails.
-const NEEDS_P: [&str; 4] = ["phi fits eq. (11)", "phi rate < 1", "L_Phi finite", "H_bar finite"];
+const NEEDS_P: [&str; 4] = [
+    "phi fits eq. (11)",
+    "phi rate < 1",
+    "L_Phi finite",
+    "H_bar finite",
+];
 
 impl Premise {
     /// A premise with no dependency problem (`not_evaluated` = None).

@@ -218,11 +218,7 @@ pub(super) fn summarize(d: &CertificateDocument, files: &[PathBuf], notes: &[Str
             );
         }
         None => {
-            let _ = writeln!(
-                s,
-                "\nClosed loop (Alg. 1, {} MHE, {controller})",
-                d.solver
-            );
+            let _ = writeln!(s, "\nClosed loop (Alg. 1, {} MHE, {controller})", d.solver);
         }
     }
     for r in &d.runs {

@@ -472,9 +472,17 @@ pub fn gamma13_certified_with(
         ));
     }
     if s > 0 {
-        // Stable / marginal / unstable from the exact structure of A_sat (a defective A,
-        // e.g. integrator chains, has rounded eigenvalues off the unit circle).
-        let facts = lti_model::spectral::classify(fam.a_sat.as_ref())?;
+        // Stable / marginal / unstable from the exact structure (a defective A, e.g.
+        // integrator chains, has rounded eigenvalues off the unit circle). With 𝒰 bounded
+        // A_sat = A exactly (K_sat = K_lin + GR vanishes; its computed value is rounding,
+        // which a Jordan chain of length 3 amplifies to 1e-5 in |λ|), so A itself is
+        // classified; otherwise A_sat as computed.
+        let bounded = us.lower().iter().chain(us.upper()).all(|b| b.is_finite());
+        let facts = if bounded {
+            lti_model::spectral::classify(mpc.system().a())?
+        } else {
+            lti_model::spectral::classify(fam.a_sat.as_ref())?
+        };
         let rho = facts.spectral_radius;
         let marginal = match facts.stability {
             Stability::Unstable => Some(false),
@@ -483,7 +491,6 @@ pub fn gamma13_certified_with(
             Stability::Stable => None,
         };
         if let Some(marginal) = marginal {
-            let bounded = us.lower().iter().chain(us.upper()).all(|b| b.is_finite());
             return Ok(void_certificate(
                 variables,
                 s,

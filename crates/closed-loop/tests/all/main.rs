@@ -10,6 +10,7 @@ mod gamma13;
 mod joint;
 mod linear;
 mod plants;
+mod plants_ii;
 mod scenario;
 mod sim;
 mod sweep;

@@ -436,7 +436,7 @@ fn summarize(d: &CertificateDocument) -> String {
         let _ = writeln!(s, "  λmax(P)      {:.6e}", c.p_max_eigenvalue);
         let _ = writeln!(
             s,
-            "  λmin/λmax(P) {:.3e}   (must be > {:.0e})",
+            "  λmin/λmax(P) {:.3e}   (the test: λmin/λmax of diag(P)^(-1/2)·P·diag(P)^(-1/2) > {:.0e})",
             c.p_min_eigenvalue / c.p_max_eigenvalue,
             c.p_min_ratio
         );

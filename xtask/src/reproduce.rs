@@ -651,11 +651,25 @@ pub fn run_job(job: &Job, settings: &Settings) -> Result<Outcome> {
         },
     };
 
-    say(format!(
-        "[{}] writing trace.json, trace.csv and the figures to {} …",
-        job.label,
-        job.out.display()
-    ));
+    say(if runs.is_empty() {
+        format!(
+            "[{}] nothing was simulated; writing certificate.json to {} …",
+            job.label,
+            job.out.display()
+        )
+    } else if settings.figures {
+        format!(
+            "[{}] writing trace.json, trace.csv and the figures to {} …",
+            job.label,
+            job.out.display()
+        )
+    } else {
+        format!(
+            "[{}] writing trace.json and trace.csv to {} …",
+            job.label,
+            job.out.display()
+        )
+    });
     let t0 = std::time::Instant::now();
     std::fs::create_dir_all(&job.out)
         .with_context(|| format!("cannot create output directory `{}`", job.out.display()))?;

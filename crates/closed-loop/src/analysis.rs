@@ -78,8 +78,56 @@ pub struct Premise {
     pub value: f64,
     /// Signed margin (positive when it holds), e.g. 1 − ρ.
     pub margin: f64,
-    /// What to change when it fails (empty when it holds).
+    /// What to change when it fails (empty when it holds or was not evaluated).
     pub fix: String,
+    /// Set when the premise could not be evaluated because a premise it depends on failed
+    /// (e.g. φ and L_Φ are properties of the MHE's QP, which is built from P of LMI (2)):
+    /// the reason, naming that premise. The premise then counts as not holding, and its own
+    /// advice is not given (one failure, one reason).
+    #[serde(skip_serializing_if = "Option::is_none")]
+    pub not_evaluated: Option<String>,
+}
+
+/// Premises built from P of LMI (2): not evaluated when LMI (2) fails.
+const NEEDS_P: [&str; 4] = [
+    "phi fits eq. (11)",
+    "phi rate < 1",
+    "L_Phi finite",
+    "H_bar finite",
+];
+
+impl Premise {
+    /// A premise with no dependency problem (`not_evaluated` = None).
+    pub fn evaluated(
+        name: impl Into<String>,
+        needed_by: impl Into<String>,
+        holds: bool,
+        value: f64,
+        margin: f64,
+        fix: impl Into<String>,
+    ) -> Self {
+        Self {
+            name: name.into(),
+            needed_by: needed_by.into(),
+            holds,
+            value,
+            margin,
+            fix: fix.into(),
+            not_evaluated: None,
+        }
+    }
+
+    /// The sentence a void certificate gives for this premise: "NAME fails (NEEDED_BY =
+    /// VALUE): FIX", or "NAME not evaluated (because …)".
+    pub fn void_reason(&self) -> String {
+        match &self.not_evaluated {
+            Some(why) => format!("{} not evaluated (because {why})", self.name),
+            None => format!(
+                "{} fails ({} = {:.6}): {}",
+                self.name, self.needed_by, self.value, self.fix
+            ),
+        }
+    }
 }
 
 /// Constants and gains of Props. 1 and 3 at one K.
@@ -202,6 +250,7 @@ impl IssAnalysis {
             value: rho,
             margin: 1.0 - rho,
             fix: rho_fix,
+            not_evaluated: None,
         });
         premises.push(Premise {
             name: "LMI (2) feasible".into(),
@@ -214,6 +263,7 @@ impl IssAnalysis {
             } else {
                 "no P ≻ 0 satisfies LMI (2): see the δ-IOSS error".into()
             },
+            not_evaluated: None,
         });
         premises.push(Premise {
             name: "phi fits eq. (11)".into(),
@@ -226,6 +276,7 @@ impl IssAnalysis {
             } else {
                 "the solver's certificate bounds another quantity or its iterate may be infeasible: use PG or FISTA".into()
             },
+            not_evaluated: None,
         });
         premises.push(Premise {
             name: "phi rate < 1".into(),
@@ -240,6 +291,7 @@ impl IssAnalysis {
             } else {
                 "the solver does not contract: reduce the step size".into()
             },
+            not_evaluated: None,
         });
         premises.push(Premise {
             name: "gamma13 finite".into(),
@@ -257,6 +309,7 @@ impl IssAnalysis {
                 "no ISS gain from e to x could be established: supply γ₁,₃ or change the controller"
                     .into()
             },
+            not_evaluated: None,
         });
         for (name, v) in [
             ("L_Phi", inputs.l_phi),
@@ -277,7 +330,22 @@ impl IssAnalysis {
                 } else {
                     format!("{name} is not a finite non-negative number")
                 },
+                not_evaluated: None,
             });
+        }
+        if !inputs.lmi_certified {
+            for p in premises.iter_mut() {
+                if NEEDS_P.contains(&p.name.as_str()) {
+                    p.holds = false;
+                    p.margin = f64::NAN;
+                    p.fix = String::new();
+                    p.not_evaluated = Some(
+                        "\"LMI (2) feasible\" fails: the MHE's QP, its solver certificate φ, \
+                         L_Φ and H̄ are built from P"
+                            .into(),
+                    );
+                }
+            }
         }
         Self {
             inputs,

@@ -195,14 +195,15 @@ pub enum LmiFailure {
         /// The η asked for.
         eta: f64,
     },
-    /// P is positive definite but numerically singular relative to its own size:
-    /// λ_min(P) ≤ ρ·λ_max(P).
+    /// P is numerically singular relative to its own size: λ_min(P̂) ≤ ρ·λ_max(P̂) for the
+    /// Jacobi-scaled P̂ = diag(P)^{−½}·P·diag(P)^{−½} (invariant under changes of the
+    /// states' units).
     PNumericallySingular {
-        /// λ_min(P).
+        /// λ_min(P̂).
         min_eigenvalue: f64,
-        /// λ_max(P).
+        /// λ_max(P̂).
         max_eigenvalue: f64,
-        /// The floor ρ on λ_min(P)/λ_max(P).
+        /// The floor ρ on λ_min(P̂)/λ_max(P̂).
         min_ratio: f64,
     },
     /// P violates LMI (2) beyond the relative tolerance: μ(P) > τ, with μ the largest
@@ -258,9 +259,8 @@ impl std::fmt::Display for LmiFailure {
                 "the extremal solution of the Riccati equation of LMI (2) is numerically singular \
                  (λ_min(P)/λ_max(P) = {:.3e} ≤ {min_ratio:.0e}; λ_min = {min_eigenvalue:.3e}, \
                  λ_max = {max_eigenvalue:.3e}) although no unobservable mode is slower than √η: \
-                 η = {eta} is at the numerical feasibility boundary; try a larger η (scenario \
-                 key `mhe.eta`; `ioss::min_feasible_eta` finds the boundary), or supply P (scenario key `mhe.p`, \
-                 `cargo xtask certify --p-file`)",
+                 at η = {eta} LMI (2) has no P that is resolvable in f64; use a larger η (scenario \
+                 key `mhe.eta`), or supply P (scenario key `mhe.p`, `cargo xtask certify --p-file`)",
                 ratio(min_eigenvalue, max_eigenvalue)
             ),
             Self::PNumericallySingular {
@@ -269,8 +269,9 @@ impl std::fmt::Display for LmiFailure {
                 min_ratio,
             } => write!(
                 f,
-                "P is numerically singular relative to its size: λ_min(P)/λ_max(P) = {:.3e} ≤ {min_ratio:.0e} \
-                 (λ_min = {min_eigenvalue:.3e}, λ_max = {max_eigenvalue:.3e}); supply a P ≻ 0 whose \
+                "P is numerically singular relative to its size: λ_min(P̂)/λ_max(P̂) = {:.3e} ≤ {min_ratio:.0e} \
+                 for P̂ = diag(P)^(-1/2)·P·diag(P)^(-1/2) (λ_min = {min_eigenvalue:.3e}, \
+                 λ_max = {max_eigenvalue:.3e}); supply a P ≻ 0 whose \
                  smallest eigenvalue is resolvable in f64 (scenario key `mhe.p`, `--p-file`)",
                 ratio(min_eigenvalue, max_eigenvalue)
             ),

@@ -27,6 +27,7 @@ pub mod presets;
 pub mod riccati;
 pub mod sets;
 pub mod spec;
+pub mod spectral;
 pub mod system;
 pub mod vecmath;
 

@@ -109,10 +109,20 @@ pub(super) fn summarize(d: &CertificateDocument, files: &[PathBuf], notes: &[Str
                     who,
                     num(q.value),
                     num(q.margin),
-                    status(q.holds)
+                    if q.not_evaluated.is_some() {
+                        "not evaluated"
+                    } else {
+                        status(q.holds)
+                    }
                 );
-                if !q.holds {
-                    let _ = writeln!(s, "      fix: {}", q.fix);
+                match &q.not_evaluated {
+                    Some(why) => {
+                        let _ = writeln!(s, "      because {why}");
+                    }
+                    None if !q.holds => {
+                        let _ = writeln!(s, "      fix: {}", q.fix);
+                    }
+                    None => {}
                 }
             }
         }
@@ -188,23 +198,29 @@ pub(super) fn summarize(d: &CertificateDocument, files: &[PathBuf], notes: &[Str
         }
     }
 
-    let _ = writeln!(
-        s,
-        "\nClosed loop (Alg. 1, {} MHE, {}, seed {}, T = {})",
-        d.solver,
-        if d.joint.is_some() {
-            "K-iteration MPC (K_c per row)"
-        } else {
-            "exact MPC"
-        },
-        d.runs.first().map_or(0, |r| r.seed),
-        d.runs.first().map_or(0, |r| r.steps)
-    );
-    let _ = writeln!(
-        s,
-        "  {:<8} {:<10} {:>10} {:>10} {:>12} {:>12} {:>12}",
-        "K", "why", "sup‖e‖", "sup‖x‖", "tail ‖e‖", "tail ‖x‖", "tail ε_t"
-    );
+    let controller = if d.joint.is_some() {
+        "K-iteration MPC (K_c per row)"
+    } else {
+        "exact MPC"
+    };
+    // Seed and T only of runs that happened (nothing simulated: no "seed 0, T = 0").
+    match d.runs.first() {
+        Some(first) => {
+            let _ = writeln!(
+                s,
+                "\nClosed loop (Alg. 1, {} MHE, {controller}, seed {}, T = {})",
+                d.solver, first.seed, first.steps
+            );
+            let _ = writeln!(
+                s,
+                "  {:<8} {:<10} {:>10} {:>10} {:>12} {:>12} {:>12}",
+                "K", "why", "sup‖e‖", "sup‖x‖", "tail ‖e‖", "tail ‖x‖", "tail ε_t"
+            );
+        }
+        None => {
+            let _ = writeln!(s, "\nClosed loop (Alg. 1, {} MHE, {controller})", d.solver);
+        }
+    }
     for r in &d.runs {
         let why = match (r.k_source, d.joint.is_some()) {
             (KSource::ComputedKMin, false) => "K_min",

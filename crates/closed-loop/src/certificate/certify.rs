@@ -219,10 +219,7 @@ pub fn certify_closed_loop_timed(
         void_reasons.extend(analysis.violated().iter().map(|p| match &gamma13.void {
             // The exact reason (typed in `gamma13.void`) instead of the generic fix.
             Some(v) if p.name == "gamma13 finite" => format!("{} fails: {v}", p.name),
-            _ => format!(
-                "{} fails ({} = {:.6}): {}",
-                p.name, p.needed_by, p.value, p.fix
-            ),
+            _ => p.void_reason(),
         }));
         if k_min.is_none() && void_reasons.is_empty() {
             void_reasons.push(format!(

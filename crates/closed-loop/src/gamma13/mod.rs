@@ -45,7 +45,7 @@ pub use sampled::{Gamma13Sampled, gamma13_sampled};
 
 use faer::Mat;
 use lti_model::matrix::spectral_norm;
-use lti_model::system::spectral_radius;
+use lti_model::spectral::Stability;
 use mpc_core::{CondensedMpc, MpcError, worst_case_norm};
 use rayon::prelude::*;
 use serde::Serialize;
@@ -142,6 +142,10 @@ pub enum Gamma13Void {
         spectral_radius: f64,
         /// Every input component has two finite bounds (so A_sat = A).
         input_bounded: bool,
+        /// ρ(A_sat) = 1 exactly (every eigenvalue in the closed unit disc, some on the circle:
+        /// Jordan chains allowed), decided from the structure of A_sat
+        /// (`lti_model::spectral::classify`), not from rounded eigenvalue moduli.
+        marginal: bool,
     },
     /// Every candidate metric has λ_S ≥ 1.
     NoContractingMetric {
@@ -179,7 +183,8 @@ impl std::fmt::Display for Gamma13Void {
             Self::SaturatedDynamicsNotStable {
                 spectral_radius: r,
                 input_bounded: true,
-            } if *r > 1.0 + 1e-9 => write!(
+                marginal: false,
+            } => write!(
                 f,
                 "A has |λ| = {r:.4} ≥ 1 and 𝒰 is bounded: no global ISS gain from e to x exists \
                  (Assumption 4 cannot hold globally)"
@@ -187,6 +192,7 @@ impl std::fmt::Display for Gamma13Void {
             Self::SaturatedDynamicsNotStable {
                 spectral_radius: r,
                 input_bounded: true,
+                marginal: true,
             } => write!(
                 f,
                 "A has |λ| = {r:.4} ≥ 1 (marginally stable) and 𝒰 is bounded: with every input \
@@ -196,6 +202,7 @@ impl std::fmt::Display for Gamma13Void {
             Self::SaturatedDynamicsNotStable {
                 spectral_radius: r,
                 input_bounded: false,
+                ..
             } => write!(
                 f,
                 "with every bounded input saturated, A + BK_sat has |λ| = {r:.4} ≥ 1: the local \
@@ -468,15 +475,32 @@ pub fn gamma13_certified_with(
         ));
     }
     if s > 0 {
-        let rho = spectral_radius(fam.a_sat.as_ref())?;
-        if !(rho < 1.0 - 1e-10) {
-            let bounded = us.lower().iter().chain(us.upper()).all(|b| b.is_finite());
+        // Stable / marginal / unstable from the exact structure (a defective A, e.g.
+        // integrator chains, has rounded eigenvalues off the unit circle). With 𝒰 bounded
+        // A_sat = A exactly (K_sat = K_lin + GR vanishes; its computed value is rounding,
+        // which a Jordan chain of length 3 amplifies to 1e-5 in |λ|), so A itself is
+        // classified; otherwise A_sat as computed.
+        let bounded = us.lower().iter().chain(us.upper()).all(|b| b.is_finite());
+        let facts = if bounded {
+            lti_model::spectral::classify(mpc.system().a())?
+        } else {
+            lti_model::spectral::classify(fam.a_sat.as_ref())?
+        };
+        let rho = facts.spectral_radius;
+        let marginal = match facts.stability {
+            Stability::Unstable => Some(false),
+            Stability::Marginal => Some(true),
+            Stability::Stable if !(rho < 1.0 - 1e-10) => Some(true),
+            Stability::Stable => None,
+        };
+        if let Some(marginal) = marginal {
             return Ok(void_certificate(
                 variables,
                 s,
                 Gamma13Void::SaturatedDynamicsNotStable {
                     spectral_radius: rho,
                     input_bounded: bounded,
+                    marginal,
                 },
                 skipped,
             ));

@@ -97,6 +97,7 @@ fn premise(name: &str, needed_by: &str, holds: bool, value: f64, fix: String) ->
         value,
         margin: if holds { 1.0 } else { -1.0 },
         fix: if holds { String::new() } else { fix },
+        not_evaluated: None,
     }
 }
 

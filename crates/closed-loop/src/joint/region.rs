@@ -54,16 +54,7 @@ impl JointAnalysis {
             void_reasons: Vec::new(),
         };
         if !self.premises_hold() {
-            region.void_reasons = self
-                .violated()
-                .iter()
-                .map(|p| {
-                    format!(
-                        "{} fails ({} = {:.6}): {}",
-                        p.name, p.needed_by, p.value, p.fix
-                    )
-                })
-                .collect();
+            region.void_reasons = self.violated().iter().map(|p| p.void_reason()).collect();
             return region;
         }
         let Some(k_e_floor) = self.k_e_min(k_max, k_max) else {

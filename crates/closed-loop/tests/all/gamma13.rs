@@ -214,6 +214,7 @@ fn unstable_plant_with_bounded_input_is_void_with_its_eigenvalue() {
         Gamma13Void::SaturatedDynamicsNotStable {
             spectral_radius,
             input_bounded,
+            ..
         } => {
             assert!((spectral_radius - rho).abs() <= 1e-12 * rho && *input_bounded);
         }

@@ -12,6 +12,7 @@ mod linear;
 mod mends;
 mod monte_carlo;
 mod plants;
+mod plants_ii;
 mod regional;
 mod scenario;
 mod sim;

@@ -101,8 +101,13 @@ pub struct LmiCheck {
     pub p_min_eigenvalue: f64,
     /// λ_max(P).
     pub p_max_eigenvalue: f64,
-    /// The floor ρ: P must have λ_min(P) > ρ·λ_max(P).
+    /// The floor ρ: the Jacobi-scaled P̂ = diag(P)^{−½}·P·diag(P)^{−½} must have
+    /// λ_min(P̂) > ρ·λ_max(P̂).
     pub p_min_ratio: f64,
+    /// λ_min(P̂) of the Jacobi-scaled P̂ (NaN if a diagonal entry of P is not positive).
+    pub p_scaled_min_eigenvalue: f64,
+    /// λ_max(P̂) of the Jacobi-scaled P̂.
+    pub p_scaled_max_eigenvalue: f64,
     /// All eigenvalues of the LMI matrix J, ascending.
     pub lmi_eigenvalues: Vec<f64>,
     /// λ_max(J), unscaled (reported; the test is on `relative_violation`).
@@ -114,10 +119,14 @@ pub struct LmiCheck {
 }
 
 impl LmiCheck {
-    /// λ_min(P)/λ_max(P) (NaN if λ_max(P) ≤ 0).
+    /// λ_min(P̂)/λ_max(P̂) of the Jacobi-scaled P̂ = diag(P)^{−½}·P·diag(P)^{−½} (NaN if
+    /// P has a non-positive diagonal entry). Unlike λ_min(P)/λ_max(P) it does not change
+    /// when the states change units (x = Tx̃, T diagonal), and it is what decides whether
+    /// P ≻ 0 is resolvable in f64: the Jacobi-scaled matrix's eigenvalues are computed to
+    /// ≈ n·u·λ_max(P̂).
     pub fn p_ratio(&self) -> f64 {
-        if self.p_max_eigenvalue > 0.0 {
-            self.p_min_eigenvalue / self.p_max_eigenvalue
+        if self.p_scaled_max_eigenvalue > 0.0 {
+            self.p_scaled_min_eigenvalue / self.p_scaled_max_eigenvalue
         } else {
             f64::NAN
         }
@@ -129,8 +138,8 @@ impl LmiCheck {
     pub fn failure(&self) -> Option<LmiFailure> {
         if !(self.p_ratio() > self.p_min_ratio) {
             return Some(LmiFailure::PNumericallySingular {
-                min_eigenvalue: self.p_min_eigenvalue,
-                max_eigenvalue: self.p_max_eigenvalue,
+                min_eigenvalue: self.p_scaled_min_eigenvalue,
+                max_eigenvalue: self.p_scaled_max_eigenvalue,
                 min_ratio: self.p_min_ratio,
             });
         }
@@ -178,6 +187,15 @@ pub fn assess(
     let p = symmetrize(p);
     let p_eig = sym_eigenvalues("P", p.as_ref())?;
     let (p_min, p_max) = (p_eig[0], p_eig[p_eig.len() - 1]);
+    let n = p.nrows();
+    let (p_scaled_min, p_scaled_max) = if (0..n).all(|i| p[(i, i)] > 0.0) {
+        let d: Vec<f64> = (0..n).map(|i| 1.0 / p[(i, i)].sqrt()).collect();
+        let scaled = Mat::from_fn(n, n, |a, b| d[a] * p[(a, b)] * d[b]);
+        let e = sym_eigenvalues("diag(P)^(-1/2) P diag(P)^(-1/2)", scaled.as_ref())?;
+        (e[0], e[n - 1])
+    } else {
+        (f64::NAN, f64::NAN)
+    };
     let (j, s) = lmi_and_scale(sys, eta, q, r, p.as_ref());
     let lmi_eigenvalues = sym_eigenvalues("LMI matrix", j.as_ref())?;
     let lmi_max_eigenvalue = lmi_eigenvalues.last().copied().unwrap_or(0.0);
@@ -190,6 +208,8 @@ pub fn assess(
         p_min_eigenvalue: p_min,
         p_max_eigenvalue: p_max,
         p_min_ratio: opts.min_condition,
+        p_scaled_min_eigenvalue: p_scaled_min,
+        p_scaled_max_eigenvalue: p_scaled_max,
         lmi_eigenvalues,
         lmi_max_eigenvalue,
         relative_violation,

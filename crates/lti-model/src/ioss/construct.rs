@@ -2,19 +2,16 @@
 //! iteration of U, and the fictitious-disturbance variant for an E that does not reach
 //! every state (module doc of [`crate::ioss`], "Construction").
 
-use faer::linalg::solvers::{DenseSolveCore, Solve};
+use faer::linalg::solvers::Solve;
 use faer::{Mat, MatRef};
 
 use crate::error::Result;
-use crate::matrix::{sym_extreme_eigenvalues, symmetrize};
+use crate::matrix::symmetrize;
 use crate::system::LtiSystem;
 
 use super::IossOptions;
 use super::check::stacked;
-
-/// λ_min(X)/λ_max(X) at which the covariance phase stops early: X is then inverted into a
-/// well-conditioned start P₀ = X⁻¹ of the value iteration.
-const COVARIANCE_STOP_RATIO: f64 = 1e-6;
+use super::doubling::{Doubling, balance, invert_covariance, maximal_covariance};
 
 /// Outcome of [`extremal_solution`].
 #[derive(Debug, Clone)]
@@ -48,68 +45,6 @@ pub(super) fn first_covariance(
     let sol = m.partial_piv_lu().solve(bbar.transpose());
     let x = symmetrize((&bbar * sol).as_ref());
     x.norm_max().is_finite().then_some(x)
-}
-
-/// One covariance-form step X ↦ U(X⁻¹)⁻¹ = GΨ⁻¹Gᵀ for η > 0, with
-/// Ψ⁻¹ = Σ − ΣHᵀ(R⁻¹ + HΣHᵀ)⁻¹HΣ, Σ = diag(X/η, Q⁻¹) (Woodbury): no inverse of X, so
-/// X may be singular (P = +∞ on ker X).
-fn covariance_step(
-    g: &Mat<f64>,
-    h: &Mat<f64>,
-    eta: f64,
-    q_inv: &Mat<f64>,
-    r_inv: &Mat<f64>,
-    x: &Mat<f64>,
-) -> Option<Mat<f64>> {
-    let nx = x.nrows();
-    let nz = g.ncols();
-    let sigma = Mat::from_fn(nz, nz, |a, b| match (a < nx, b < nx) {
-        (true, true) => x[(a, b)] / eta,
-        (false, false) => q_inv[(a - nx, b - nx)],
-        _ => 0.0,
-    });
-    let sht = &sigma * h.transpose();
-    let t = h * &sht + r_inv;
-    let psi_inv = &sigma - &sht * t.partial_piv_lu().solve(sht.transpose());
-    let next = symmetrize((g * psi_inv * g.transpose()).as_ref());
-    next.norm_max().is_finite().then_some(next)
-}
-
-/// Start of the value iteration: P₀ = X_k⁻¹ = Uᵏ(+∞) ⪰ every feasible P, from the
-/// covariance phase X₀ = 0, X_{k+1} = U(X_k⁻¹)⁻¹ (k ≤ n_x + 1, stopping once X_k is
-/// well conditioned). None if X_k stays singular relative to `min_condition`.
-fn start_from_above(
-    sys: &LtiSystem,
-    eta: f64,
-    q: MatRef<'_, f64>,
-    r: MatRef<'_, f64>,
-    min_condition: f64,
-) -> Result<Option<Mat<f64>>> {
-    let nx = sys.nx();
-    if eta == 0.0 {
-        // U(P) does not depend on P when η = 0 (the x term has weight 0): any start works.
-        return Ok(Some(Mat::identity(nx, nx)));
-    }
-    let (g, h) = stacked(sys);
-    let q_inv = q.to_owned().partial_piv_lu().inverse();
-    let r_inv = r.to_owned().partial_piv_lu().inverse();
-    let mut x = Mat::<f64>::zeros(nx, nx);
-    let (mut lo, mut hi) = (0.0, 0.0);
-    for _ in 0..=nx {
-        let Some(next) = covariance_step(&g, &h, eta, &q_inv, &r_inv, &x) else {
-            return Ok(None);
-        };
-        x = next;
-        (lo, hi) = sym_extreme_eigenvalues("X", x.as_ref())?;
-        if hi > 0.0 && lo > COVARIANCE_STOP_RATIO * hi {
-            break;
-        }
-    }
-    if !(hi > 0.0 && lo > min_condition * hi) {
-        return Ok(None);
-    }
-    let p0 = x.partial_piv_lu().inverse();
-    Ok(p0.norm_max().is_finite().then(|| symmetrize(p0.as_ref())))
 }
 
 /// One application of U (module doc): the multiplier block of the KKT system
@@ -149,7 +84,12 @@ fn apply_u(
     u.norm_max().is_finite().then(|| symmetrize(u.as_ref()))
 }
 
-/// The maximal solution P* of LMI (2) by value iteration from P₀ = Uᵏ(+∞).
+/// The maximal solution P* of LMI (2): for η = 0 one application of U (exact, U does not
+/// depend on P); for η > 0 the doubling algorithm on the balanced, normalised data
+/// ([`super::doubling`]), tightened by a relative ε so that P passes the relative check with
+/// margin (module doc, "Construction at any scale"), then one value-iteration step U as a
+/// polish. Every candidate is measured against the user's data; the first that passes is
+/// returned.
 pub(super) fn extremal_solution(
     sys: &LtiSystem,
     eta: f64,
@@ -157,41 +97,87 @@ pub(super) fn extremal_solution(
     r: MatRef<'_, f64>,
     opts: &IossOptions,
 ) -> Result<Extremal> {
-    let Some(mut p) = start_from_above(sys, eta, q, r, opts.min_condition)? else {
-        return Ok(Extremal::Unreached);
-    };
-    let nx = sys.nx();
-    let mut iterations = 0;
-    let mut converged = false;
-    for k in 0..opts.max_iterations {
-        let Some(next) = apply_u(sys, eta, q, r, p.as_ref()) else {
-            return Ok(Extremal::KktSingular { iteration: k });
-        };
-        let mut diff = 0.0_f64;
-        for i in 0..nx {
-            for j in 0..nx {
-                diff = diff.max((next[(i, j)] - p[(i, j)]).abs());
-            }
-        }
-        let scale = p.norm_max();
-        p = next;
-        iterations = k + 1;
-        if diff <= opts.tolerance * scale {
-            converged = true;
-            break;
-        }
+    if eta == 0.0 {
+        return zero_eta_solution(sys, q, r, opts);
     }
-    let (lo, hi) = sym_extreme_eigenvalues("P", p.as_ref())?;
-    if !(hi > 0.0 && lo > opts.min_condition * hi) {
+    let scaled = balance(sys, q, r)?;
+    let margin = (opts.lmi_relative_tolerance * (2.0 + 1.0 / eta)).min(1e-6);
+    let mut outcome = Extremal::Unreached;
+    for eps in [margin, 0.0] {
+        let tight = 1.0 - eps;
+        let (q_t, r_t) = (&scaled.q * tight, &scaled.r * tight);
+        let x = match maximal_covariance(
+            &scaled.sys,
+            eta * tight,
+            q_t.as_ref(),
+            r_t.as_ref(),
+            opts.max_iterations,
+        ) {
+            Doubling::Converged { x, steps } => (x, steps),
+            Doubling::NotConverged { steps } => {
+                outcome = Extremal::NotConverged { iterations: steps };
+                continue;
+            }
+            Doubling::Failed => continue,
+        };
+        let (x, steps) = x;
+        let Some(p_scaled) = invert_covariance(&x)? else {
+            // X singular: P = +∞ on ker X (E does not reach every state).
+            outcome = Extremal::Unreached;
+            continue;
+        };
+        // Polish: one step of U on the tightened, scaled data (U(P*) = P*; it removes the
+        // rounding of the inversion).
+        let polished = apply_u(
+            &scaled.sys,
+            eta * tight,
+            q_t.as_ref(),
+            r_t.as_ref(),
+            p_scaled.as_ref(),
+        )
+        .unwrap_or(p_scaled);
+        let p = scaled.unscale(polished.as_ref());
+        let check = super::assess(sys, eta, q, r, p.as_ref(), opts)?;
+        if check.passed() {
+            return Ok(Extremal::Found {
+                p,
+                iterations: steps + 1,
+            });
+        }
+        outcome = if check.p_ratio() > opts.min_condition {
+            Extremal::Found {
+                p,
+                iterations: steps + 1,
+            }
+        } else {
+            Extremal::Singular {
+                min_eigenvalue: check.p_scaled_min_eigenvalue,
+                max_eigenvalue: check.p_scaled_max_eigenvalue,
+            }
+        };
+    }
+    Ok(outcome)
+}
+
+/// η = 0: U(P) does not depend on P, so P = U(I) is the maximal solution.
+fn zero_eta_solution(
+    sys: &LtiSystem,
+    q: MatRef<'_, f64>,
+    r: MatRef<'_, f64>,
+    opts: &IossOptions,
+) -> Result<Extremal> {
+    let nx = sys.nx();
+    let Some(p) = apply_u(sys, 0.0, q, r, Mat::<f64>::identity(nx, nx).as_ref()) else {
+        return Ok(Extremal::KktSingular { iteration: 0 });
+    };
+    let check = super::assess(sys, 0.0, q, r, p.as_ref(), opts)?;
+    if !(check.p_ratio() > opts.min_condition) {
         return Ok(Extremal::Singular {
-            min_eigenvalue: lo,
-            max_eigenvalue: hi,
+            min_eigenvalue: check.p_scaled_min_eigenvalue,
+            max_eigenvalue: check.p_scaled_max_eigenvalue,
         });
     }
-    if !converged {
-        return Ok(Extremal::NotConverged { iterations });
-    }
-    Ok(Extremal::Found { p, iterations })
+    Ok(Extremal::Found { p, iterations: 1 })
 }
 
 /// The system and weights with a fictitious disturbance w³ entering every state:

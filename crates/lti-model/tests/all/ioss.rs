@@ -129,7 +129,8 @@ fn scalar_closed_form() {
         };
         let got = cert.p[(0, 0)];
         assert!(
-            (got - expected).abs() <= 1e-10 * expected.max(1.0),
+            // the construction tightens (η, Q, R) by a relative ε ≈ 3e-9 for a margin
+            (got - expected).abs() <= 1e-7 * expected.max(1.0),
             "a={a}: P = {got}, closed form {expected}"
         );
     }

@@ -5,6 +5,8 @@ mod disturbance;
 mod ioss;
 mod ioss_any_e;
 mod ioss_relative;
+mod ioss_scale;
 mod numerics;
 mod sets;
+mod spectral;
 mod system;

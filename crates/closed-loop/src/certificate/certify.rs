@@ -146,12 +146,13 @@ pub fn certify_closed_loop_timed(
         .map_err(explain)?;
     let l_pi_used = l_pi.l_pi();
     times.l_pi_s = split();
-    let gamma13 = crate::gamma13::gamma13_report(
+    let gamma13 = crate::gamma13::gamma13_report_budgeted(
         &mpc,
         opts.gamma13,
         opts.gamma13_sequences,
         opts.seed,
         opts.enumeration_max_vars,
+        opts.phase_seconds,
     )
     .map_err(explain)?;
     times.gamma13_s = split();

@@ -60,6 +60,10 @@ pub struct CertificateOptions {
     pub enumeration_max_vars: usize,
     /// Largest K searched for K_min.
     pub k_max: usize,
+    /// Budget (estimated single-core seconds) of an optional analysis phase: the γ₁,₃
+    /// free-set enumeration is skipped beyond it ([`crate::budget`]; scenario key
+    /// `certificate.phase_seconds`).
+    pub phase_seconds: f64,
 }
 
 impl Default for CertificateOptions {
@@ -72,6 +76,7 @@ impl Default for CertificateOptions {
             gamma13_sequences: 30,
             enumeration_max_vars: 20,
             k_max: 1 << 24,
+            phase_seconds: crate::budget::DEFAULT_PHASE_SECONDS,
         }
     }
 }

@@ -124,6 +124,19 @@ pub struct CertificateSettings {
     /// "user-supplied, not verified" and refuted when the sampled lower estimate exceeds it;
     /// `None`: computed.
     pub gamma13: Option<f64>,
+    /// The analysis budget (`certificate.phase_seconds`: estimated single-core seconds one
+    /// optional phase may take — the γ₁,₃ free-set enumeration, ρ_lin; [`crate::budget`]);
+    /// `None`: the default
+    /// [`crate::budget::DEFAULT_PHASE_SECONDS`].
+    pub phase_seconds: Option<f64>,
+}
+
+impl CertificateSettings {
+    /// The budget in force: `certificate.phase_seconds` or the default.
+    pub fn phase_seconds(&self) -> f64 {
+        self.phase_seconds
+            .unwrap_or(crate::budget::DEFAULT_PHASE_SECONDS)
+    }
 }
 
 /// Serde mirror of `[certificate]`.
@@ -132,6 +145,8 @@ pub struct CertificateSettings {
 struct RawCertificate {
     #[serde(skip_serializing_if = "Option::is_none")]
     gamma13: Option<f64>,
+    #[serde(skip_serializing_if = "Option::is_none")]
+    phase_seconds: Option<f64>,
 }
 
 impl CertificateSettings {
@@ -146,7 +161,24 @@ impl CertificateSettings {
             }
             format::check_magnitude("certificate.gamma13", "γ₁,₃", g)?;
         }
-        Ok(Self { gamma13 })
+        let phase_seconds = raw.and_then(|r| r.phase_seconds);
+        if let Some(w) = phase_seconds {
+            let max = crate::budget::MAX_PHASE_SECONDS;
+            if !(w.is_finite() && w > 0.0 && w <= max) {
+                return Err(key_error(
+                    "certificate.phase_seconds",
+                    format!(
+                        "is {w}; the analysis budget (estimated seconds per optional phase) \
+                         must be in (0, {max:e}] (default {}; omit it for the default)",
+                        crate::budget::DEFAULT_PHASE_SECONDS
+                    ),
+                ));
+            }
+        }
+        Ok(Self {
+            gamma13,
+            phase_seconds,
+        })
     }
 }
 
@@ -233,10 +265,14 @@ impl RawScenario {
             simulation: Some(Table(simulation)),
             mhe: s.mhe.as_ref().map(|m| Table(m.to_raw())),
             mpc: s.mpc.as_ref().map(|m| Table(m.to_raw())),
-            certificate: s
-                .certificate
-                .gamma13
-                .map(|g| Table(RawCertificate { gamma13: Some(g) })),
+            certificate: (s.certificate.gamma13.is_some()
+                || s.certificate.phase_seconds.is_some())
+            .then(|| {
+                    Table(RawCertificate {
+                        gamma13: s.certificate.gamma13,
+                        phase_seconds: s.certificate.phase_seconds,
+                    })
+                }),
         }
     }
 }

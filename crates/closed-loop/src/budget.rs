@@ -70,8 +70,10 @@ pub fn secs(x: f64) -> String {
         format!("{x:.1e}")
     } else if x >= 100.0 {
         format!("{x:.0}")
+    } else if x >= 10.0 {
+        format!("{x:.1}")
     } else if x >= 1.0 {
-        format!("{x:.2}").trim_end_matches('0').trim_end_matches('.').to_string()
+        format!("{x:.2}")
     } else {
         format!("{x:.2e}")
     }

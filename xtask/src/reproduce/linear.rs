@@ -67,7 +67,11 @@ pub(super) fn linear_entries(
         }
     };
     let mut reports = closed_loop::linear::linear_stability_all_budgeted(
-        resolved, &ok, &grid, phase_seconds, &progress,
+        resolved,
+        &ok,
+        &grid,
+        phase_seconds,
+        &progress,
     )
     .into_iter();
     methods

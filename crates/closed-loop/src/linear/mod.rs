@@ -256,7 +256,8 @@ pub fn linear_stability_all_budgeted(
         .map(|o| lifted_loop(resolved, o, k_grid[0], Par::Seq))
         .collect();
     let built: Vec<&LiftedLoop> = lifted.iter().filter_map(|l| l.as_ref().ok()).collect();
-    let seconds = built.iter().map(|l| l.grid_work(k_grid)).sum::<f64>() / crate::budget::DENSE_RATE;
+    let seconds =
+        built.iter().map(|l| l.grid_work(k_grid)).sum::<f64>() / crate::budget::DENSE_RATE;
     if seconds > phase_seconds {
         let over = LinearError::OverBudget {
             dim: built.iter().map(|l| l.dim()).max().unwrap_or(0),

@@ -265,9 +265,8 @@ impl RawScenario {
             simulation: Some(Table(simulation)),
             mhe: s.mhe.as_ref().map(|m| Table(m.to_raw())),
             mpc: s.mpc.as_ref().map(|m| Table(m.to_raw())),
-            certificate: (s.certificate.gamma13.is_some()
-                || s.certificate.phase_seconds.is_some())
-            .then(|| {
+            certificate: (s.certificate.gamma13.is_some() || s.certificate.phase_seconds.is_some())
+                .then(|| {
                     Table(RawCertificate {
                         gamma13: s.certificate.gamma13,
                         phase_seconds: s.certificate.phase_seconds,

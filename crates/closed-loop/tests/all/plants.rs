@@ -189,7 +189,13 @@ pub fn thermal_rod(ts: f64) -> LtiSystem {
         }
     });
     let gain = 1.0 / (2.42e6 * 1e-4 * h);
-    let b_c = Mat::from_fn(n, 2, |i, j| if (j == 0 && i == 5) || (j == 1 && i == 14) { gain } else { 0.0 });
+    let b_c = Mat::from_fn(n, 2, |i, j| {
+        if (j == 0 && i == 5) || (j == 1 && i == 14) {
+            gain
+        } else {
+            0.0
+        }
+    });
     let c = Mat::from_fn(3, n, |r, j| f64::from(u8::from([0, 9, 19][r] == j)));
     let (a, b) = lti_model::riccati::zoh(a_c.as_ref(), b_c.as_ref(), ts).unwrap();
     LtiSystem::new(a, b, c).unwrap()

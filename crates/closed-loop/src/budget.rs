@@ -8,7 +8,8 @@
 //! | --- | --- |
 //! | γ₁,₃ free-set enumeration | skipped: the polynomial (S-procedure) bound alone is used, and the skip says so |
 //! | ρ_lin (the linear stability boundary, `reproduce`) | skipped with the estimate, the budget and the key |
-//! | δ-IOSS P, MHE constants (H̄, L_Φ, φ(K)), L_Φ sampling, L_π, γ₁,₃ family bounds | run (every certificate needs them); the estimate is printed first, so a long phase is announced |
+//! | L_Φ sampling (a lower estimate; no certificate depends on it) | fewer pairs, and `l_phi.pairs_reduced` says so |
+//! | δ-IOSS P, MHE constants (H̄, L_Φ, φ(K)), L_π, γ₁,₃ family bounds | run (every certificate needs them); the estimate is printed first, so a long phase is announced |
 //!
 //! The estimates are deterministic formulas of the dimensions (so the certificate does not
 //! depend on the machine), right to within a factor of a few: dense factorisations n³/3,
@@ -79,6 +80,41 @@ pub fn secs(x: f64) -> String {
     }
 }
 
+/// Estimated multiply-adds of one exact solve of every MHE window (the active set of the
+/// sampled L_Φ): Σ_m n_z,m³/3 (scalar loops).
+fn window_solves_work(nzs: impl Iterator<Item = usize>) -> f64 {
+    nzs.map(|n| (n as f64).powi(3) / 3.0).sum()
+}
+
+/// The pairs of the sampled L_Φ within the budget: `requested`, or fewer (at least 1) when
+/// 2·`requested` exact solves of every window are estimated beyond `phase_seconds`, with the
+/// sentence that says so (the sampled L_Φ is a lower estimate reported beside the certified
+/// bound; no certificate depends on it).
+pub fn l_phi_sampling_pairs(
+    problem: &mhe_core::MheProblem,
+    requested: usize,
+    phase_seconds: f64,
+) -> (usize, Option<String>) {
+    let per_pair =
+        2.0 * window_solves_work(problem.windows().iter().map(|w| w.qp().n())) / SCALAR_RATE;
+    let total = per_pair * requested as f64;
+    if requested == 0 || total <= phase_seconds {
+        return (requested, None);
+    }
+    let fit = ((phase_seconds / per_pair).floor() as usize).clamp(1, requested);
+    (
+        fit,
+        Some(format!(
+            "{requested} pairs are estimated at ≈ {} s of one core (2 exact solves of each of \
+             the {} windows per pair) > the analysis budget of {} s (scenario key \
+             `certificate.phase_seconds`): {fit} pair(s) sampled",
+            secs(total),
+            problem.windows().len(),
+            secs(phase_seconds)
+        )),
+    )
+}
+
 fn phase(name: &str, work: f64, rate: f64, runs: bool, detail: String) -> PhaseEstimate {
     PhaseEstimate {
         phase: name.into(),
@@ -135,18 +171,28 @@ pub fn estimate_phases(
             nz(m)
         ),
     ));
-    let sampling: f64 = (0..=m)
-        .map(|w| opts.lipschitz_pairs as f64 * 2.0 * nz(w).powi(3) / 3.0)
-        .sum();
+    let sampling = opts.lipschitz_pairs as f64
+        * 2.0
+        * window_solves_work((0..=m).map(|w| nz(w) as usize));
+    let within = sampling / SCALAR_RATE <= opts.phase_seconds;
     out.push(phase(
         "L_Φ sampling",
         sampling,
-        DENSE_RATE,
-        true,
-        format!(
-            "{} pairs × 2 exact solves per window (n_z³/3 each)",
-            opts.lipschitz_pairs
-        ),
+        SCALAR_RATE,
+        within,
+        if within {
+            format!(
+                "{} pairs × 2 exact solves per window (active set, ≈ n_z³/3 each)",
+                opts.lipschitz_pairs
+            )
+        } else {
+            format!(
+                "{} pairs × 2 exact solves per window (active set, ≈ n_z³/3 each): beyond the \
+                 budget of {} s (`certificate.phase_seconds`), fewer pairs are sampled",
+                opts.lipschitz_pairs,
+                secs(opts.phase_seconds)
+            )
+        },
     ));
     if let Some(mpc) = mpc {
         let n = mpc.qp().n() as f64;

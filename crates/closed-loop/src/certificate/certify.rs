@@ -99,8 +99,10 @@ pub fn certify_closed_loop_timed(
     times.mhe_constants_s = split();
     let (h_bar, l_phi, h_paper_norms) = match &problem {
         Some(pr) => {
+            let (pairs, pairs_reduced) =
+                crate::budget::l_phi_sampling_pairs(pr, opts.lipschitz_pairs, opts.phase_seconds);
             let sampling = LipschitzSampling {
-                pairs: opts.lipschitz_pairs,
+                pairs,
                 seed: opts.seed,
                 ..LipschitzSampling::default()
             };
@@ -118,6 +120,7 @@ pub fn certify_closed_loop_timed(
                     certified: pr.lipschitz_certified(),
                     sampled: per_window.iter().map(|p| p.1).fold(0.0, f64::max),
                     per_window,
+                    pairs_reduced,
                 },
                 norms,
             )
@@ -128,6 +131,7 @@ pub fn certify_closed_loop_timed(
                 certified: f64::NAN,
                 sampled: f64::NAN,
                 per_window: Vec::new(),
+                pairs_reduced: None,
             },
             Vec::new(),
         ),

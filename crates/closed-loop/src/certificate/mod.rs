@@ -90,6 +90,10 @@ pub struct LPhiReport {
     pub sampled: f64,
     /// Per window length m = 0..M: (certified, sampled).
     pub per_window: Vec<(f64, f64)>,
+    /// Why fewer pairs than `lipschitz_pairs` were sampled (the analysis budget,
+    /// [`crate::budget::l_phi_sampling_pairs`]); omitted when every pair was sampled.
+    #[serde(skip_serializing_if = "Option::is_none")]
+    pub pairs_reduced: Option<String>,
 }
 
 /// Certificate of one solver Φ.

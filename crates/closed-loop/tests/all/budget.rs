@@ -100,7 +100,10 @@ fn phase_estimates_name_every_phase_and_follow_the_key() {
         .filter(|p| !p.runs)
         .map(|p| p.phase.as_str())
         .collect();
-    assert_eq!(skipped, ["γ₁,₃ free-set enumeration", "ρ_lin (reproduce)"]);
+    assert_eq!(
+        skipped,
+        ["L_Φ sampling", "γ₁,₃ free-set enumeration", "ρ_lin (reproduce)"]
+    );
     // The key: parsed, validated, and raising it lets both run.
     let text = format!(
         "{}\n[certificate]\nphase_seconds = 1e5\n",

@@ -383,7 +383,10 @@ fn comparison(cert: &ClosedLoopCertificate, solver: Method) -> Vec<ComparisonRow
                 numfmt::num(g.used),
                 g.source,
                 // The enumeration replaced by the polynomial bound for the analysis budget.
-                if g.skipped.iter().any(|k| k.reason.contains("certificate.phase_seconds")) {
+                if g.skipped
+                    .iter()
+                    .any(|k| k.reason.contains("certificate.phase_seconds"))
+                {
                     " (S-procedure bound: the free-set enumeration is beyond the analysis \
                      budget, key `certificate.phase_seconds`)"
                 } else {

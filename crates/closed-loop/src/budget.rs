@@ -171,9 +171,8 @@ pub fn estimate_phases(
             nz(m)
         ),
     ));
-    let sampling = opts.lipschitz_pairs as f64
-        * 2.0
-        * window_solves_work((0..=m).map(|w| nz(w) as usize));
+    let sampling =
+        opts.lipschitz_pairs as f64 * 2.0 * window_solves_work((0..=m).map(|w| nz(w) as usize));
     let within = sampling / SCALAR_RATE <= opts.phase_seconds;
     out.push(phase(
         "L_Φ sampling",

@@ -251,6 +251,33 @@ pub fn linear_stability_all_budgeted(
             .map(|_| Err(LinearError::ZeroIterations))
             .collect();
     }
+    // A lower bound from the scenario's dimensions (every map's state has ≥ n_z entries):
+    // beyond the budget nothing is built (building the loops alone costs seconds at n_z ~ 10³).
+    let sc = resolved.scenario();
+    if let Some(spec) = sc.mhe.as_ref() {
+        let (p, m) = (&sc.plant, spec.horizon);
+        let dims = LiftedDims {
+            nx: p.nx(),
+            nu: p.nu(),
+            ny: p.ny(),
+            horizon: m,
+            nz: p.nx() + m * (p.nw1() + p.nw2()),
+            n_controller: 0,
+            n_theta: p.nx() + m * (p.nu() + p.ny()),
+        };
+        let seconds =
+            options.len() as f64 * dims.grid_work(dims.nz, k_grid) / crate::budget::DENSE_RATE;
+        if seconds > phase_seconds {
+            let over = LinearError::OverBudget {
+                dim: dims.dim(),
+                ks: k_grid.len(),
+                loops: options.len(),
+                seconds,
+                limit: phase_seconds,
+            };
+            return options.iter().map(|_| Err(over.clone())).collect();
+        }
+    }
     let mut lifted: Vec<Result<LiftedLoop, LinearError>> = options
         .par_iter()
         .map(|o| lifted_loop(resolved, o, k_grid[0], Par::Seq))

@@ -102,7 +102,11 @@ fn phase_estimates_name_every_phase_and_follow_the_key() {
         .collect();
     assert_eq!(
         skipped,
-        ["L_Φ sampling", "γ₁,₃ free-set enumeration", "ρ_lin (reproduce)"]
+        [
+            "L_Φ sampling",
+            "γ₁,₃ free-set enumeration",
+            "ρ_lin (reproduce)"
+        ]
     );
     // The key: parsed, validated, and raising it lets both run.
     let text = format!(

@@ -213,6 +213,35 @@ impl Default for Settings {
     }
 }
 
+/// The estimated work of each analysis phase, on stderr before the certificate is computed
+/// (closed_loop::budget; docs/limits.md). A closed stderr is ignored.
+fn budget_lines(
+    scenario: &Scenario,
+    mpc: Option<&mpc_core::CondensedMpc>,
+    opts: &CertificateOptions,
+) {
+    use std::io::Write;
+    let phases = closed_loop::budget::estimate_phases(scenario, mpc, opts, 2000);
+    let mut err = std::io::stderr().lock();
+    let _ = writeln!(
+        err,
+        "  analysis estimates (seconds of one core; an optional phase beyond {} s is skipped, \
+         scenario key `certificate.phase_seconds`):",
+        closed_loop::budget::secs(opts.phase_seconds)
+    );
+    for p in phases {
+        let _ = writeln!(
+            err,
+            "    {:<30} ≈ {:>8} s ({} multiply-adds)  {}{}",
+            p.phase,
+            closed_loop::budget::secs(p.seconds),
+            closed_loop::budget::sci(p.work),
+            if p.runs { "" } else { "[skipped] " },
+            p.detail
+        );
+    }
+}
+
 /// The cost (9) as the MHE minimises it (docs/reproduce-output.md repeats it).
 pub const MHE_COST: &str = "V = 2·η^{M_t}·‖x̂_{t−M_t} − prior‖²_P + Σ_{i=1}^{M_t} η^{i−1}·(2‖ŵ_{t−i}‖²_Q + \
      ‖C x̂_{t−i} + F ŵ²_{t−i} − y_{t−i}‖²_R), x̂_{j+1} = A x̂_j + B u_j + E ŵ¹_j, ŵ_j ∈ 𝒲, \
@@ -350,7 +379,21 @@ fn comparison(cert: &ClosedLoopCertificate, solver: Method) -> Vec<ComparisonRow
         },
         ComparisonRow {
             quantity: "γ₁,₃".into(),
-            ours: format!("{} {}{gamma_sampled}", numfmt::num(g.used), g.source),
+            ours: format!(
+                "{} {}{gamma_sampled}{}",
+                numfmt::num(g.used),
+                g.source,
+                // The enumeration replaced by the polynomial bound for the analysis budget.
+                if g.skipped
+                    .iter()
+                    .any(|k| k.reason.contains("certificate.phase_seconds"))
+                {
+                    " (S-procedure bound: the free-set enumeration is beyond the analysis \
+                     budget, key `certificate.phase_seconds`)"
+                } else {
+                    ""
+                }
+            ),
             paper: "28.8 (method of their journal paper)".into(),
         },
         ComparisonRow {
@@ -444,6 +487,7 @@ pub fn run_job(job: &Job, settings: &Settings) -> Result<Outcome> {
         gamma13_sequences: settings.gamma13_sequences,
         enumeration_max_vars: settings.enumeration_max_vars,
         k_max: settings.k_max,
+        phase_seconds: scenario.certificate.phase_seconds(),
     };
     let resolved = scenario.clone().resolve().with_context(|| {
         format!(
@@ -460,6 +504,9 @@ pub fn run_job(job: &Job, settings: &Settings) -> Result<Outcome> {
             .collect::<Vec<_>>()
             .join(", ")
     ));
+    if settings.live {
+        budget_lines(&scenario, resolved.mpc().ok(), &opts);
+    }
     let t0 = std::time::Instant::now();
     let cert = certify_closed_loop(&resolved, &opts).with_context(|| {
         format!(
@@ -477,7 +524,7 @@ pub fn run_job(job: &Job, settings: &Settings) -> Result<Outcome> {
         job.label
     ));
     let t0 = std::time::Instant::now();
-    let linear = linear_entries(&resolved, &cert);
+    let linear = linear_entries(&resolved, &cert, opts.phase_seconds, settings.live);
     let regional = regional::regional_entries(&resolved, &cert);
     say(format!(
         "  done in {} s",

@@ -19,6 +19,7 @@
 //!   S-procedure, partial and full free-set enumeration, typed void reasons, user values).
 
 pub mod analysis;
+pub mod budget;
 pub mod certificate;
 pub mod gamma13;
 pub mod joint;

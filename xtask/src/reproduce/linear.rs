@@ -17,9 +17,16 @@ pub struct LinearEntry {
 /// every method of the certificate; every (method, K) pair is a task on the global rayon pool
 /// ([`closed_loop::linear::linear_stability_all`]; the result does not depend on the thread
 /// count).
+///
+/// Beyond the budget `phase_seconds` (estimated seconds of one core for all methods) nothing
+/// is computed (each `error` names the estimate, the budget and `certificate.phase_seconds`);
+/// with `live`, progress lines go to
+/// stderr every 10 s once the analysis has run for 2 s.
 pub(super) fn linear_entries(
     resolved: &ResolvedScenario,
     cert: &ClosedLoopCertificate,
+    phase_seconds: f64,
+    live: bool,
 ) -> Vec<LinearEntry> {
     let top = cert
         .solvers
@@ -42,7 +49,31 @@ pub(super) fn linear_entries(
         .iter()
         .filter_map(|o| o.as_ref().ok().copied())
         .collect();
-    let mut reports = closed_loop::linear::linear_stability_all(resolved, &ok, &grid).into_iter();
+    let start = std::time::Instant::now();
+    let last = std::sync::Mutex::new(0.0_f64);
+    let progress = |done: usize, total: usize| {
+        if !live {
+            return;
+        }
+        let t = start.elapsed().as_secs_f64();
+        let Ok(mut last) = last.lock() else { return };
+        if t >= 2.0 && t - *last >= 10.0 {
+            *last = t;
+            use std::io::Write;
+            let _ = writeln!(
+                std::io::stderr(),
+                "  ρ_lin: {done}/{total} (method, K) eigenvalue problems done, {t:.0} s"
+            );
+        }
+    };
+    let mut reports = closed_loop::linear::linear_stability_all_budgeted(
+        resolved,
+        &ok,
+        &grid,
+        phase_seconds,
+        &progress,
+    )
+    .into_iter();
     methods
         .iter()
         .zip(options)

@@ -96,8 +96,10 @@ pub fn certify_closed_loop_timed(
     });
     let (h_bar, l_phi, h_paper_norms) = match &problem {
         Some(pr) => {
+            let (pairs, pairs_reduced) =
+                crate::budget::l_phi_sampling_pairs(pr, opts.lipschitz_pairs, opts.phase_seconds);
             let sampling = LipschitzSampling {
-                pairs: opts.lipschitz_pairs,
+                pairs,
                 seed: opts.seed,
                 ..LipschitzSampling::default()
             };
@@ -115,6 +117,7 @@ pub fn certify_closed_loop_timed(
                     certified: pr.lipschitz_certified(),
                     sampled: per_window.iter().map(|p| p.1).fold(0.0, f64::max),
                     per_window,
+                    pairs_reduced,
                 },
                 norms,
             )
@@ -125,6 +128,7 @@ pub fn certify_closed_loop_timed(
                 certified: f64::NAN,
                 sampled: f64::NAN,
                 per_window: Vec::new(),
+                pairs_reduced: None,
             },
             Vec::new(),
         ),
@@ -143,12 +147,13 @@ pub fn certify_closed_loop_timed(
         .map_err(explain)?;
     let l_pi_used = l_pi.l_pi();
     times.l_pi_s = split();
-    let gamma13 = crate::gamma13::gamma13_report(
+    let gamma13 = crate::gamma13::gamma13_report_budgeted(
         &mpc,
         opts.gamma13,
         opts.gamma13_sequences,
         opts.seed,
         opts.enumeration_max_vars,
+        opts.phase_seconds,
     )
     .map_err(explain)?;
     times.gamma13_s = split();

@@ -61,6 +61,10 @@ pub struct CertificateOptions {
     pub enumeration_max_vars: usize,
     /// Largest K searched for K_min.
     pub k_max: usize,
+    /// Budget (estimated single-core seconds) of an optional analysis phase: the γ₁,₃
+    /// free-set enumeration is skipped beyond it ([`crate::budget`]; scenario key
+    /// `certificate.phase_seconds`).
+    pub phase_seconds: f64,
 }
 
 impl Default for CertificateOptions {
@@ -73,6 +77,7 @@ impl Default for CertificateOptions {
             gamma13_sequences: 30,
             enumeration_max_vars: 20,
             k_max: 1 << 24,
+            phase_seconds: crate::budget::DEFAULT_PHASE_SECONDS,
         }
     }
 }
@@ -86,6 +91,10 @@ pub struct LPhiReport {
     pub sampled: f64,
     /// Per window length m = 0..M: (certified, sampled).
     pub per_window: Vec<(f64, f64)>,
+    /// Why fewer pairs than `lipschitz_pairs` were sampled (the analysis budget,
+    /// [`crate::budget::l_phi_sampling_pairs`]); omitted when every pair was sampled.
+    #[serde(skip_serializing_if = "Option::is_none")]
+    pub pairs_reduced: Option<String>,
 }
 
 /// Certificate of one solver Φ.

@@ -40,7 +40,7 @@ mod metrics;
 mod report;
 mod sampled;
 
-pub use report::{Gamma13Report, Gamma13Source, gamma13_report};
+pub use report::{Gamma13Report, Gamma13Source, gamma13_report, gamma13_report_budgeted};
 pub use sampled::{Gamma13Sampled, gamma13_sampled};
 
 use faer::Mat;
@@ -428,6 +428,31 @@ fn impulse_response_gain(fam: &Family, input: &Mat<f64>, m: &Metric, lam: f64) -
     None
 }
 
+/// Estimated work (multiply-adds) of the free-set enumeration of [`gamma13_certified`] with
+/// `metrics` metrics: 2^s free sets, each a Cholesky factorisation and n_x solves of the free
+/// block (nf ≤ N·n_u: nf³/6 + 2nf²n_x) and per metric three n_x × n_x products and two
+/// symmetric eigenvalue bounds (≈ 26 n_x³ with the eigen-solve's sweeps); ∞ when s > 62.
+///
+/// ```
+/// # use faer::{mat, Mat};
+/// # use lti_model::{BoxSet, LtiSystem};
+/// # use mpc_core::{CondensedMpc, MpcConfig};
+/// let sys = LtiSystem::new(mat![[0.9, 0.1], [0.0, 0.8]], mat![[0.0], [0.1]], mat![[1.0, 0.0]]).unwrap();
+/// let mpc = CondensedMpc::new(&sys, MpcConfig::new(4, Mat::identity(2, 2), mat![[0.1]],
+///     BoxSet::symmetric(&[1.0]).unwrap())).unwrap();
+/// let w = closed_loop::gamma13::enumeration_work(&mpc, 3);
+/// assert!(w > 16.0 && w < 1e6); // 2^4 free sets of a 4-variable QP, n_x = 2
+/// ```
+pub fn enumeration_work(mpc: &CondensedMpc, metrics: usize) -> f64 {
+    let s = mpc.saturable().len();
+    if s > 62 {
+        return f64::INFINITY;
+    }
+    let (n, nx) = (mpc.qp().n() as f64, mpc.nx() as f64);
+    let per_set = n.powi(3) / 6.0 + 2.0 * n * n * nx + metrics as f64 * 26.0 * nx.powi(3);
+    (1u64 << s) as f64 * per_set
+}
+
 /// Family budget of the partial enumeration (module docs): the saturation patterns of the
 /// leading input blocks are enumerated while 2^{|𝒫_k|} ≤ this.
 pub const GAMMA13_PATTERN_FAMILIES: u64 = 16;
@@ -460,6 +485,20 @@ pub fn gamma13_certified_with(
     mpc: &CondensedMpc,
     max_vars: usize,
     pattern_families: u64,
+) -> Result<Gamma13Certificate, MpcError> {
+    gamma13_certified_budgeted(mpc, max_vars, pattern_families, f64::INFINITY)
+}
+
+/// [`gamma13_certified_with`] with a time budget for the free-set enumeration: when its
+/// estimated time ([`enumeration_work`] at [`crate::budget::SCALAR_RATE`]) exceeds
+/// `phase_seconds`, the enumeration is not run, the polynomial bound alone is used and the
+/// skip says so (with the estimate, the budget and the scenario key
+/// `certificate.phase_seconds` that raises it).
+pub fn gamma13_certified_budgeted(
+    mpc: &CondensedMpc,
+    max_vars: usize,
+    pattern_families: u64,
+    phase_seconds: f64,
 ) -> Result<Gamma13Certificate, MpcError> {
     let variables = mpc.qp().n();
     let us = mpc.input_set();
@@ -571,20 +610,40 @@ pub fn gamma13_certified_with(
         (0..metrics.len()).collect()
     };
     let refs: Vec<&Metric> = chosen.iter().map(|&i| &metrics[i]).collect();
-    let vertex = if s <= max_vars.min(30) {
+    let work = enumeration_work(mpc, refs.len());
+    let seconds = work / crate::budget::SCALAR_RATE;
+    let affordable = s <= max_vars.min(30) && seconds <= phase_seconds;
+    let vertex = if affordable {
         enumerate::vertex_max(mpc, &refs, max_vars)?
     } else {
         None
     };
     let (enumerated, free_sets) = match &vertex {
         Some(v) => (true, v.free_sets),
-        None => {
+        None if s > max_vars.min(30) => {
             skipped.push(SkippedComputation {
                 computation: "free-set enumeration".into(),
                 reason: format!(
                     "{s} saturable input variables > cap {} (2^{s} free sets); the S-procedure \
                      bound over 0 ⪯ Π ⪯ I with the first {depth} input block(s) enumerated is used",
                     max_vars.min(30)
+                ),
+            });
+            (false, 0)
+        }
+        None => {
+            skipped.push(SkippedComputation {
+                computation: "free-set enumeration".into(),
+                reason: format!(
+                    "2^{s} free sets × {} metric(s) at n_x = {}: estimated {} multiply-adds, \
+                     ≈ {} s > the analysis budget of {} s per phase (scenario key \
+                     `certificate.phase_seconds`); the S-procedure bound over 0 ⪯ Π ⪯ I with \
+                     the first {depth} input block(s) enumerated is used",
+                    refs.len(),
+                    mpc.nx(),
+                    crate::budget::sci(work),
+                    crate::budget::secs(seconds),
+                    crate::budget::secs(phase_seconds),
                 ),
             });
             (false, 0)

@@ -10,8 +10,8 @@ use mpc_core::{CondensedMpc, ExactMpc, MpcError};
 use serde::Serialize;
 
 use super::{
-    Gamma13Certificate, Gamma13Sampled, Gamma13Void, SkippedComputation, gamma13_certified,
-    gamma13_sampled,
+    Gamma13Certificate, Gamma13Sampled, Gamma13Void, SkippedComputation,
+    gamma13_certified_budgeted, gamma13_sampled,
 };
 
 /// Where γ₁,₃ comes from.
@@ -55,7 +55,7 @@ pub struct Gamma13Report {
 
 /// γ₁,₃ for the certificate: `source`, the sampled lower estimate with `sequences`
 /// sequences per magnitude (0 skips it, and the skip is recorded), `seed`, and the
-/// enumeration cap `max_vars` of [`gamma13_certified`].
+/// enumeration cap `max_vars` of [`super::gamma13_certified`].
 ///
 /// Errors: `Parameter` for a user value that is negative or not finite; errors of the
 /// certificate and of the exact MPC.
@@ -65,6 +65,19 @@ pub fn gamma13_report(
     sequences: usize,
     seed: u64,
     max_vars: usize,
+) -> Result<Gamma13Report, MpcError> {
+    gamma13_report_budgeted(mpc, source, sequences, seed, max_vars, f64::INFINITY)
+}
+
+/// [`gamma13_report`] whose free-set enumeration is skipped (and the skip reported) when its
+/// estimated time exceeds `phase_seconds` ([`super::gamma13_certified_budgeted`]).
+pub fn gamma13_report_budgeted(
+    mpc: &CondensedMpc,
+    source: Gamma13Source,
+    sequences: usize,
+    seed: u64,
+    max_vars: usize,
+    phase_seconds: f64,
 ) -> Result<Gamma13Report, MpcError> {
     let mut report = match source {
         Gamma13Source::User(g) => {
@@ -96,7 +109,12 @@ pub fn gamma13_report(
             sampled: None,
         },
         Gamma13Source::Certified => {
-            let c = gamma13_certified(mpc, max_vars)?;
+            let c = gamma13_certified_budgeted(
+                mpc,
+                max_vars,
+                super::GAMMA13_PATTERN_FAMILIES,
+                phase_seconds,
+            )?;
             Gamma13Report {
                 used: c.gamma13,
                 source: "certified".into(),

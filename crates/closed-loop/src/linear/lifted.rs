@@ -236,6 +236,23 @@ impl LiftedLoop {
     pub fn dim(&self) -> usize {
         self.layout.dim()
     }
+    /// The dimensions that set the cost of ρ_lin.
+    pub fn dims(&self) -> super::LiftedDims {
+        let l = self.layout;
+        super::LiftedDims {
+            nx: l.nx,
+            nu: l.nu,
+            ny: l.ny,
+            horizon: l.horizon,
+            nz: l.nz,
+            n_controller: l.n_controller,
+            n_theta: self.mhe.n_theta,
+        }
+    }
+    /// Estimated multiply-adds of ρ_lin on `grid` ([`super::LiftedDims::k_work`]).
+    pub fn grid_work(&self, grid: &[usize]) -> f64 {
+        self.dims().grid_work(self.mhe.lift_dim(), grid)
+    }
     /// The linearised MHE map Φ at window length M.
     pub fn mhe_linearisation(&self) -> &IterationLinearisation {
         &self.mhe
@@ -266,10 +283,16 @@ impl LiftedLoop {
     ///
     /// Errors: K = 0, a non-finite K-step map.
     pub fn matrix(&self, k: usize, par: Par) -> Result<Mat<f64>, LinearError> {
+        let km = self.mhe.k_step(k, par)?;
+        self.matrix_with(&km, par)
+    }
+
+    /// 𝔸(K) from the MHE's K-step map `km` (K = `km.k`).
+    fn matrix_with(&self, km: &KStepMap, par: Par) -> Result<Mat<f64>, LinearError> {
+        let k = km.k;
         let (l, w) = (self.layout, self.window);
         let (nx, nu, ny, big_m, nz) = (l.nx, l.nu, l.ny, l.horizon, l.nz);
         let n = l.dim();
-        let km = self.mhe.k_step(k, par)?;
         let s_theta = self.theta_selection();
         // zᴷ_t = G z⁰_t + J θ_t.
         let mut zk = mul(km.j.as_ref(), s_theta.as_ref(), par);
@@ -357,6 +380,28 @@ impl LiftedLoop {
     /// ρ_lin(K) = max |λ(𝔸(K))|.
     pub fn spectral_radius(&self, k: usize, par: Par) -> Result<f64, LinearError> {
         spectral_radius(self.matrix(k, par)?.as_ref(), par)
+    }
+
+    /// ρ_lin(K) for every K of an ascending `grid`, the K-step maps shared along the grid
+    /// (`kgrid.rs`): the same values as [`LiftedLoop::spectral_radius`] per K up to rounding,
+    /// at a fraction of the cost of the powers. `done(K)` is called after each K.
+    ///
+    /// Errors: as [`LiftedLoop::spectral_radius`]; a grid that is not ascending.
+    pub fn spectral_radii(
+        &self,
+        grid: &[usize],
+        par: Par,
+        done: &mut dyn FnMut(usize),
+    ) -> Result<Vec<(usize, f64)>, LinearError> {
+        let mut out = Vec::with_capacity(grid.len());
+        super::kgrid::k_steps(&self.mhe, grid, par, |km| {
+            let k = km.k;
+            let rho = spectral_radius(self.matrix_with(&km, par)?.as_ref(), par)?;
+            out.push((k, rho));
+            done(k);
+            Ok(())
+        })?;
+        Ok(out)
     }
 }
 

@@ -33,13 +33,16 @@
 //! [`LiftedLoop`] (the matrix 𝔸(K) itself), [`linearise`] (one iteration map).
 
 mod iteration;
+mod kgrid;
 mod lifted;
+mod work;
 
 use faer::Par;
 use serde::Serialize;
 
 pub use iteration::{IterationLinearisation, KStepMap, Linearise, linearise};
 pub use lifted::{LiftedLayout, LiftedLoop, spectral_radius};
+pub use work::LiftedDims;
 
 use crate::scenario::{LoopOptions, ResolvedScenario};
 use crate::sim::ClosedLoopError;
@@ -95,6 +98,26 @@ pub enum LinearError {
         /// dim X.
         dim: usize,
     },
+    /// The estimated time of ρ_lin on the K grid exceeds the analysis budget.
+    #[error(
+        "not computed: ρ_lin of {loops} method(s) on {ks} K of the {dim} × {dim} lifted matrix is \
+         estimated at ≈ {} s of one core > the analysis budget of {} s (scenario key \
+         `certificate.phase_seconds`; raise it to compute ρ_lin)",
+        crate::budget::secs(*seconds),
+        crate::budget::secs(*limit)
+    )]
+    OverBudget {
+        /// dim X.
+        dim: usize,
+        /// Number of K on the grid.
+        ks: usize,
+        /// Number of loops (methods) analysed together.
+        loops: usize,
+        /// The estimate (seconds of one core).
+        seconds: f64,
+        /// The budget.
+        limit: f64,
+    },
     /// A structural invariant of the built objects does not hold (a bug, not bad input).
     #[error("internal: {0}")]
     Internal(&'static str),
@@ -146,10 +169,10 @@ impl LiftedLoop {
         if k_grid.is_empty() || k_grid.contains(&0) {
             return Err(LinearError::ZeroIterations);
         }
-        let pairs = k_grid
-            .iter()
-            .map(|&k| Ok((k, self.spectral_radius(k, par)?)))
-            .collect::<Result<Vec<_>, LinearError>>()?;
+        let mut grid = k_grid.to_vec();
+        grid.sort_unstable();
+        grid.dedup();
+        let pairs = self.spectral_radii(&grid, par, &mut |_| {})?;
         Ok(LinearReport::from_pairs(self.solver(), self.dim(), pairs))
     }
 }
@@ -198,50 +221,99 @@ fn lifted_loop(
     LiftedLoop::from_loop(&cl, &quiet, opts.method, par)
 }
 
-/// [`linear_stability`] for several loops (e.g. one per method) on one grid, with every
-/// (loop, K) pair an independent task on the global rayon pool: the eigenvalue problems
-/// dominate and are balanced across threads, not one loop per thread. Each ρ_lin is computed
-/// sequentially inside, so the results do not depend on the thread count.
+/// [`linear_stability`] for several loops (e.g. one per method) on one grid, one loop per
+/// task on the global rayon pool (its K-step maps shared along the grid). Each ρ_lin is
+/// computed sequentially inside, so the results do not depend on the thread count.
 pub fn linear_stability_all(
     resolved: &ResolvedScenario,
     options: &[LoopOptions],
     k_grid: &[usize],
 ) -> Vec<Result<LinearReport, LinearError>> {
+    linear_stability_all_budgeted(resolved, options, k_grid, f64::INFINITY, &|_, _| {})
+}
+
+/// [`linear_stability_all`] with a time budget: when the estimated time of all loops on the
+/// grid ([`LiftedLoop::grid_work`] at [`crate::budget::DENSE_RATE`]) exceeds
+/// `phase_seconds`, none is computed ([`LinearError::OverBudget`], naming the scenario key);
+/// `progress(done, total)` is called after each (loop, K) (from the worker threads).
+pub fn linear_stability_all_budgeted(
+    resolved: &ResolvedScenario,
+    options: &[LoopOptions],
+    k_grid: &[usize],
+    phase_seconds: f64,
+    progress: &(dyn Fn(usize, usize) + Sync),
+) -> Vec<Result<LinearReport, LinearError>> {
     use rayon::prelude::*;
+    use std::sync::atomic::{AtomicUsize, Ordering};
     if k_grid.is_empty() || k_grid.contains(&0) {
         return options
             .iter()
             .map(|_| Err(LinearError::ZeroIterations))
             .collect();
     }
-    let lifted: Vec<Result<LiftedLoop, LinearError>> = options
+    // A lower bound from the scenario's dimensions (every map's state has ≥ n_z entries):
+    // beyond the budget nothing is built (building the loops alone costs seconds at n_z ~ 10³).
+    let sc = resolved.scenario();
+    if let Some(spec) = sc.mhe.as_ref() {
+        let (p, m) = (&sc.plant, spec.horizon);
+        let dims = LiftedDims {
+            nx: p.nx(),
+            nu: p.nu(),
+            ny: p.ny(),
+            horizon: m,
+            nz: p.nx() + m * (p.nw1() + p.nw2()),
+            n_controller: 0,
+            n_theta: p.nx() + m * (p.nu() + p.ny()),
+        };
+        let seconds =
+            options.len() as f64 * dims.grid_work(dims.nz, k_grid) / crate::budget::DENSE_RATE;
+        if seconds > phase_seconds {
+            let over = LinearError::OverBudget {
+                dim: dims.dim(),
+                ks: k_grid.len(),
+                loops: options.len(),
+                seconds,
+                limit: phase_seconds,
+            };
+            return options.iter().map(|_| Err(over.clone())).collect();
+        }
+    }
+    let mut lifted: Vec<Result<LiftedLoop, LinearError>> = options
         .par_iter()
         .map(|o| lifted_loop(resolved, o, k_grid[0], Par::Seq))
         .collect();
-    let tasks: Vec<(usize, usize)> = lifted
-        .iter()
-        .enumerate()
-        .filter(|(_, l)| l.is_ok())
-        .flat_map(|(i, _)| k_grid.iter().map(move |&k| (i, k)))
-        .collect();
-    let rhos: Vec<Result<f64, LinearError>> = tasks
-        .par_iter()
-        .map(|&(i, k)| match &lifted[i] {
-            Ok(l) => l.spectral_radius(k, Par::Seq),
-            Err(_) => Err(LinearError::ZeroIterations),
-        })
-        .collect();
-    let mut out = Vec::with_capacity(options.len());
-    let mut next = tasks.iter().zip(rhos);
-    for l in lifted {
-        out.push(l.and_then(|l| {
-            let pairs = next
-                .by_ref()
-                .take(k_grid.len())
-                .map(|(&(_, k), r)| r.map(|r| (k, r)))
-                .collect::<Result<Vec<_>, LinearError>>()?;
-            Ok(LinearReport::from_pairs(l.solver(), l.dim(), pairs))
-        }));
+    let built: Vec<&LiftedLoop> = lifted.iter().filter_map(|l| l.as_ref().ok()).collect();
+    let seconds =
+        built.iter().map(|l| l.grid_work(k_grid)).sum::<f64>() / crate::budget::DENSE_RATE;
+    if seconds > phase_seconds {
+        let over = LinearError::OverBudget {
+            dim: built.iter().map(|l| l.dim()).max().unwrap_or(0),
+            ks: k_grid.len(),
+            loops: built.len(),
+            seconds,
+            limit: phase_seconds,
+        };
+        for l in &mut lifted {
+            if l.is_ok() {
+                *l = Err(over.clone());
+            }
+        }
     }
-    out
+    let mut grid = k_grid.to_vec();
+    grid.sort_unstable();
+    grid.dedup();
+    let total = grid.len() * lifted.iter().filter(|l| l.is_ok()).count();
+    let done = AtomicUsize::new(0);
+    // One loop per task, its K walked upwards (the K-step maps shared along the grid); each
+    // ρ_lin is computed sequentially inside, so the results do not depend on the thread count.
+    lifted
+        .into_par_iter()
+        .map(|l| {
+            let l = l?;
+            let pairs = l.spectral_radii(&grid, Par::Seq, &mut |_| {
+                progress(done.fetch_add(1, Ordering::Relaxed) + 1, total);
+            })?;
+            Ok(LinearReport::from_pairs(l.solver(), l.dim(), pairs))
+        })
+        .collect()
 }

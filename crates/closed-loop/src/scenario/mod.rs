@@ -133,6 +133,19 @@ pub struct CertificateSettings {
     /// Regional certificate: ‖w_t‖₂ ≤ this at every t (`certificate.w_bar`; `None`: the
     /// largest ‖w‖₂ of the noise the scenario draws, `sets.disturbance` × `noise.scale`).
     pub w_bar: Option<f64>,
+    /// The analysis budget (`certificate.phase_seconds`: estimated single-core seconds one
+    /// optional phase may take — the γ₁,₃ free-set enumeration, ρ_lin; [`crate::budget`]);
+    /// `None`: the default
+    /// [`crate::budget::DEFAULT_PHASE_SECONDS`].
+    pub phase_seconds: Option<f64>,
+}
+
+impl CertificateSettings {
+    /// The budget in force: `certificate.phase_seconds` or the default.
+    pub fn phase_seconds(&self) -> f64 {
+        self.phase_seconds
+            .unwrap_or(crate::budget::DEFAULT_PHASE_SECONDS)
+    }
 }
 
 /// Serde mirror of `[certificate]`.
@@ -147,6 +160,8 @@ struct RawCertificate {
     prior_error: Option<f64>,
     #[serde(skip_serializing_if = "Option::is_none")]
     w_bar: Option<f64>,
+    #[serde(skip_serializing_if = "Option::is_none")]
+    phase_seconds: Option<f64>,
 }
 
 impl CertificateSettings {
@@ -161,6 +176,20 @@ impl CertificateSettings {
             }
             format::check_magnitude("certificate.gamma13", "γ₁,₃", g)?;
         }
+        let phase_seconds = raw.and_then(|r| r.phase_seconds);
+        if let Some(w) = phase_seconds {
+            let max = crate::budget::MAX_PHASE_SECONDS;
+            if !(w.is_finite() && w > 0.0 && w <= max) {
+                return Err(key_error(
+                    "certificate.phase_seconds",
+                    format!(
+                        "is {w}; the analysis budget (estimated seconds per optional phase) \
+                         must be in (0, {max:e}] (default {}; omit it for the default)",
+                        crate::budget::DEFAULT_PHASE_SECONDS
+                    ),
+                ));
+            }
+        }
         let radius = |key: &str, v: Option<f64>| -> Result<Option<f64>> {
             match v {
                 Some(r) if !(r.is_finite() && r >= 0.0) => Err(key_error(
@@ -172,6 +201,7 @@ impl CertificateSettings {
         };
         Ok(Self {
             gamma13,
+            phase_seconds,
             x0_radius: radius("certificate.x0_radius", raw.and_then(|r| r.x0_radius))?,
             prior_error: radius("certificate.prior_error", raw.and_then(|r| r.prior_error))?,
             w_bar: radius("certificate.w_bar", raw.and_then(|r| r.w_bar))?,
@@ -267,12 +297,14 @@ impl RawScenario {
                 (c.gamma13.is_some()
                     || c.x0_radius.is_some()
                     || c.prior_error.is_some()
-                    || c.w_bar.is_some())
+                    || c.w_bar.is_some()
+                    || c.phase_seconds.is_some())
                 .then_some(Table(RawCertificate {
                     gamma13: c.gamma13,
                     x0_radius: c.x0_radius,
                     prior_error: c.prior_error,
                     w_bar: c.w_bar,
+                    phase_seconds: c.phase_seconds,
                 }))
             },
         }

@@ -451,3 +451,64 @@ fn certified_preset_converges_only_where_rho_lin_is_below_one() {
         }
     }
 }
+
+/// The K-step maps shared along the grid (`LiftedLoop::spectral_radii`) give the ρ_lin of
+/// the per-K repeated squaring (`LiftedLoop::spectral_radius`) to 1e-10, for every method
+/// (including FISTA's two-vector state and the Jacobi-scaled maps) on the unstable plant and
+/// on the certified preset, with K on both sides of ρ_lin = 1.
+#[test]
+fn rho_lin_along_the_grid_equals_the_per_k_computation() {
+    let certified = Scenario::from_file(CERTIFIED).unwrap();
+    let grid = [1usize, 2, 3, 7, 16, 40, 100, 513, 2000];
+    for s in [unstable(), certified] {
+        for solver in METHODS {
+            let o = options(&s, solver, 1, ControllerChoice::ExactMpc);
+            let cl = build(&s, &o).unwrap();
+            let lifted = LiftedLoop::from_loop(&cl, &resolve(&s), o.method, Par::Seq).unwrap();
+            let mut seen = Vec::new();
+            let along = lifted
+                .spectral_radii(&grid, Par::Seq, &mut |k| seen.push(k))
+                .unwrap();
+            assert_eq!(seen, grid);
+            for (k, rho) in along {
+                let direct = lifted.spectral_radius(k, Par::Seq).unwrap();
+                assert!(
+                    (rho - direct).abs() <= 1e-10 * direct.max(1e-3),
+                    "{} {solver} K = {k}: along the grid {rho}, per K {direct}",
+                    s.name
+                );
+            }
+        }
+    }
+}
+
+/// Beyond the analysis budget ρ_lin is not computed, and the error names the estimate, the
+/// budget and the scenario key; within it the budgeted call equals the unbudgeted one.
+#[test]
+fn rho_lin_beyond_the_budget_names_the_key() {
+    use closed_loop::linear::linear_stability_all_budgeted;
+    let s = Scenario::from_file(CERTIFIED).unwrap();
+    let r = resolve(&s);
+    let opts: Vec<LoopOptions> = Method::PRESETS
+        .iter()
+        .map(|&m| options(&s, m, 1, ControllerChoice::ExactMpc))
+        .collect();
+    let grid = log_spaced(1, 2000, 25);
+    let over = linear_stability_all_budgeted(&r, &opts, &grid, 1e-9, &|_, _| {});
+    for e in &over {
+        let e = e.as_ref().unwrap_err();
+        assert!(matches!(e, LinearError::OverBudget { .. }), "{e}");
+        let text = e.to_string();
+        assert!(
+            text.contains("certificate.phase_seconds") && text.contains("1.00e-9"),
+            "{text}"
+        );
+    }
+    let calls = std::sync::atomic::AtomicUsize::new(0);
+    let within = linear_stability_all_budgeted(&r, &opts, &grid, 1e6, &|_, _| {
+        calls.fetch_add(1, std::sync::atomic::Ordering::Relaxed);
+    });
+    assert_eq!(calls.into_inner(), opts.len() * grid.len());
+    let plain = closed_loop::linear::linear_stability_all(&r, &opts, &grid);
+    assert_eq!(within, plain);
+}

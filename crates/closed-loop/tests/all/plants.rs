@@ -160,6 +160,47 @@ pub fn quadruple_tank(ts: f64) -> LtiSystem {
     LtiSystem::new(a, b, mat![[kc, 0.0, 0.0, 0.0], [0.0, kc, 0.0, 0.0]]).unwrap()
 }
 
+/// A 20-node thermal rod: the heat equation ∂T/∂t = α ∂²T/∂ξ² − β(T − T_amb) on an
+/// aluminium rod of length 0.4 m with insulated ends, discretised in space by finite
+/// differences on 20 nodes (h = 0.02 m, the Neumann ends by mirrored ghost nodes), with two
+/// heaters at nodes 6 and 15 and thermocouples at nodes 1, 10 and 20 (1-based):
+///
+/// ```text
+/// ẋ = (α/h²)·L·x − β·x + B_c u,   L = tridiag(1, −2, 1) with L₁₁ = L₂₀,₂₀ = −1,
+/// B_c = e₆, e₁₅ columns × 1/(ρc_p·A·h),   y = (x₁, x₁₀, x₂₀),
+/// ```
+///
+/// α = 9.7·10⁻⁵ m²/s (aluminium: α/h² = 0.2425 s⁻¹), β = 0.01 s⁻¹ (convective loss to the
+/// ambient, a 100 s time constant), ρc_p = 2.42·10⁶ J/(m³K), cross-section A = 10⁻⁴ m²
+/// (so one watt heats a node by 1/4.84 K/s); x the temperature deviations from the ambient
+/// (K), u the heater powers (W). ZOH with sampling time `ts` (s).
+pub fn thermal_rod(ts: f64) -> LtiSystem {
+    let n = 20;
+    let (alpha, h, beta) = (9.7e-5_f64, 0.02_f64, 0.01_f64);
+    let k = alpha / (h * h);
+    let a_c = Mat::from_fn(n, n, |i, j| {
+        if i == j {
+            let neighbours = if i == 0 || i == n - 1 { 1.0 } else { 2.0 };
+            -k * neighbours - beta
+        } else if i.abs_diff(j) == 1 {
+            k
+        } else {
+            0.0
+        }
+    });
+    let gain = 1.0 / (2.42e6 * 1e-4 * h);
+    let b_c = Mat::from_fn(n, 2, |i, j| {
+        if (j == 0 && i == 5) || (j == 1 && i == 14) {
+            gain
+        } else {
+            0.0
+        }
+    });
+    let c = Mat::from_fn(3, n, |r, j| f64::from(u8::from([0, 9, 19][r] == j)));
+    let (a, b) = lti_model::riccati::zoh(a_c.as_ref(), b_c.as_ref(), ts).unwrap();
+    LtiSystem::new(a, b, c).unwrap()
+}
+
 /// MPC of the chain: horizon `n`, Q_c = I₁₂, R_c = I₃, DARE terminal cost, |u_i| ≤ 0.5.
 pub fn mass_chain_mpc(damping: f64, n: usize) -> CondensedMpc {
     CondensedMpc::new(
@@ -215,6 +256,11 @@ pub struct Spec<'a> {
 
 /// The scenario file body (TOML) of `spec`.
 pub fn scenario_text(spec: &Spec<'_>) -> String {
+    scenario_text_with_horizon(spec, 9)
+}
+
+/// [`scenario_text`] with the MHE horizon `m` (η = 0.8 as in the certified preset).
+pub fn scenario_text_with_horizon(spec: &Spec<'_>, m: usize) -> String {
     let sys = spec.sys;
     let (nx, nu, nw1, nw2) = (sys.nx(), sys.nu(), sys.nw1(), sys.nw2());
     let input = spec.input.map_or(String::new(), |u| {
@@ -243,7 +289,7 @@ pub fn scenario_text(spec: &Spec<'_>) -> String {
          [sets]\n{input}disturbance = {{ lower = {}, upper = {} }}\n\
          [noise]\nkind = \"uniform\"\nscale = {:?}\nseed = 11\n\
          [simulation]\nx0 = {}\nprior = {}\nsteps = {}\n\
-         [mhe]\nhorizon = 9\neta = 0.8\nq = 1.0\nr = 1.0\niterations = {k}\nmethod = \"{method}\"\nwarm_start = \"paper\"\n\
+         [mhe]\nhorizon = {m}\neta = 0.8\nq = 1.0\nr = 1.0\niterations = {k}\nmethod = \"{method}\"\nwarm_start = \"paper\"\n\
          [mpc]\nhorizon = {n}\nq = 1.0\nr = {r_c:?}\nterminal = \"dare\"\n",
         spec.name,
         toml_matrix(sys.a()),
@@ -389,7 +435,35 @@ pub fn coverage_scenarios() -> Vec<(&'static str, String)> {
                 mpc: (10, 1.0),
             }),
         ),
+        (
+            "thermal-rod-m10.toml",
+            thermal_rod_text("thermal-rod-m10", 10, 10),
+        ),
+        (
+            "thermal-rod-m30.toml",
+            thermal_rod_text("thermal-rod-m30", 30, 8),
+        ),
     ]
+}
+
+/// The thermal rod's scenario (T_s = 2 s): heaters ±2 W, w¹ ±0.01 K per step at every
+/// node, thermocouple noise ±0.05 K, 1 K initial deviation, MHE horizon `m`, MPC horizon `n`
+/// with R_c = 0.1, ADMM α = 2 at K = 10, 60 steps.
+fn thermal_rod_text(name: &str, m: usize, n: usize) -> String {
+    scenario_text_with_horizon(
+        &Spec {
+            name,
+            sys: &thermal_rod(2.0),
+            input: Some(2.0),
+            w: (0.01, 0.05),
+            noise_scale: 1.0,
+            x0: &[1.0; 20],
+            steps: 60,
+            mhe: (10, "admm-pr"),
+            mpc: (n, 0.1),
+        },
+        m,
+    )
 }
 
 #[test]

@@ -1,0 +1,62 @@
+//! The work of ρ_lin, estimated from the dimensions before anything is computed
+//! ([`crate::budget`]): per K, the K-step map of the MHE's iteration (repeated squaring of the
+//! augmented step matrix of n_ξ + n_θ rows), the products that assemble 𝔸(K), and the
+//! eigenvalues of the dim X × dim X lifted matrix (≈ 10 dim³, Hessenberg reduction and
+//! Francis QR without vectors).
+
+/// The dimensions that set the cost of ρ_lin.
+#[derive(Debug, Clone, Copy, PartialEq, Eq)]
+pub struct LiftedDims {
+    /// n_x.
+    pub nx: usize,
+    /// n_u.
+    pub nu: usize,
+    /// n_y.
+    pub ny: usize,
+    /// M.
+    pub horizon: usize,
+    /// n_z = n_x + M n_w.
+    pub nz: usize,
+    /// N n_u for the sub-optimal MPC, 0 for a static law.
+    pub n_controller: usize,
+    /// n_θ = n_x + M(n_u + n_y).
+    pub n_theta: usize,
+}
+
+impl LiftedDims {
+    /// dim X = n_x + M(n_u + n_y + n_x) + n_z (+ N n_u).
+    pub fn dim(&self) -> usize {
+        self.nx + self.horizon * (self.nu + self.ny + self.nx) + self.nz + self.n_controller
+    }
+
+    /// Estimated multiply-adds of ρ_lin on an ascending `grid` (as computed by
+    /// [`super::LiftedLoop::spectral_radii`]) for an iteration map whose state has `lift`
+    /// entries (n_ξ: n_z for PG and ADMM, 2n_z for FISTA): the binary powers of the step
+    /// matrix once, one product per set bit of each advance along the grid, the readout, the
+    /// assembly of 𝔸(K) and its eigenvalues (≈ 10 dim³) per K.
+    pub fn grid_work(&self, lift: usize, grid: &[usize]) -> f64 {
+        let (xi, nz, nt, dim) = (
+            lift as f64,
+            self.nz as f64,
+            self.n_theta as f64,
+            self.dim() as f64,
+        );
+        let top = grid.iter().copied().max().unwrap_or(0);
+        let bits = f64::from(usize::BITS - top.leading_zeros());
+        let mut work = bits * (xi.powi(3) + xi * xi * nt);
+        let mut prev = 0usize;
+        let mut sorted = grid.to_vec();
+        sorted.sort_unstable();
+        sorted.dedup();
+        for k in sorted {
+            let advances = f64::from((k - prev.min(k)).count_ones());
+            prev = k;
+            work += advances * xi * xi * (nz + nt)
+                + nz * xi * (nz + nt)
+                + nz * nt * dim
+                + 2.0 * self.nx as f64 * nz * dim
+                + 10.0 * dim.powi(3);
+        }
+        work
+    }
+}

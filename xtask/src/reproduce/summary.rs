@@ -17,11 +17,19 @@ pub(super) fn verdict(d: &CertificateDocument) -> String {
             k: r.k,
             completed: r.completed,
             error: r.error.as_deref(),
+            divergence: r.divergence,
         })
         .collect();
+    let lead = closed_loop::plan::divergence_lead(&runs);
+    if let Some(r) = &d.not_covered {
+        return format!(
+            "{lead}NOT CERTIFIED: {r}. The constants and K below are reported for reference \
+             only; no certificate covers this configuration."
+        );
+    }
     if let Some(j) = &d.joint {
         let c = &j.certificate;
-        return match (c.region.cheapest, d.trajectory_check.passed) {
+        return lead + &match (c.region.cheapest, d.trajectory_check.passed) {
             (Some(p), passed) => format!(
                 "the joint certificate (ρ(Γ) < 1 over plant, ε, e, δ) certifies ISS of the loop with \
                  MHE {} at K_e and MPC {} at K_c for every pair on or above the staircase through \
@@ -49,6 +57,19 @@ pub(super) fn verdict(d: &CertificateDocument) -> String {
         .iter()
         .find(|s| s.solver.name() == d.solver);
     closed_loop::plan::verdict(own, d.trajectory_check.passed, &runs)
+}
+
+/// ", N step(s) within the rounding floor (≤ …)" when the floor was needed (empty otherwise).
+fn floor_note(c: &TrajectoryCheck) -> String {
+    let n = c.prop1.within_rounding_floor + c.prop3.within_rounding_floor;
+    if n == 0 {
+        return String::new();
+    }
+    format!(
+        "; {n} step(s) within the rounding floor (≤ {}: the measured side is rounding there, \
+         docs/reproduce-output.md)",
+        num(c.prop1.max_rounding_floor.max(c.prop3.max_rounding_floor))
+    )
 }
 
 /// The text summary of one job.
@@ -292,7 +313,7 @@ pub(super) fn summarize(d: &CertificateDocument, files: &[PathBuf], notes: &[Str
                     },
                     num(c.prop3.worst_ratio),
                     c.prop3.worst_t
-                ),
+                ) + &floor_note(c),
                 None => format!("  {name:<16} not evaluated"),
             }
         };

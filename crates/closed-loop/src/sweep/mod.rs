@@ -88,6 +88,6 @@ pub use run::{NoProgress, Progress, RunOptions, Sweep, SweepReport, run_cost};
 pub use seeds::{Shard, run_seed, splitmix64};
 pub use theory::{
     LinearEntry, LinearSide, SolverTheory, TheoryAtK, certified_boundary, solver_linear,
-    solver_theory,
+    solver_theory, joint_staircase,
 };
 pub use thresholds::{SETTLE_TOLERANCE, Thresholds, thresholds, thresholds_markdown};

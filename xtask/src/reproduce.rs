@@ -443,9 +443,10 @@ pub fn run_job(job: &Job, settings: &Settings) -> Result<Outcome> {
         (_, Some(g)) => Gamma13Source::User(g),
         (source, None) => source,
     };
-    // The four named methods, and the scenario's own method when it is another one (a
-    // Jacobi-scaled map, custom parameters): it is the one simulated at its K_min.
-    let mut solvers = Method::PRESETS.to_vec();
+    // The four named methods, plain and Jacobi-scaled (long horizons: the scaled maps keep
+    // K_min near its short-horizon value), and the scenario's own method when it is another
+    // one (custom parameters): it is the one simulated at its K_min.
+    let mut solvers = CertificateOptions::default().solvers;
     if !solvers.contains(&solver) {
         solvers.push(solver);
     }

@@ -23,7 +23,7 @@ pub(super) fn verdict(d: &CertificateDocument) -> String {
     let lead = closed_loop::plan::divergence_lead(&runs);
     if let Some(r) = &d.not_covered {
         return format!(
-            "{lead}NOT CERTIFIED: {r}. The constants and K below are reported for reference \
+            "{lead}NOT CERTIFIED: {r}. The constants and K_min are reported for reference \
              only; no certificate covers this configuration."
         );
     }
@@ -104,7 +104,7 @@ pub(super) fn summarize(d: &CertificateDocument, files: &[PathBuf], notes: &[Str
     let _ = writeln!(s, "\nPremises of Theorem 1");
     let _ = writeln!(
         s,
-        "  {:<20} {:<7} {:>12} {:>12}  status",
+        "  {:<20} {:<14} {:>12} {:>12}  status",
         "premise", "solver", "value", "margin"
     );
     if let Some(first) = d.solvers.first() {
@@ -125,7 +125,7 @@ pub(super) fn summarize(d: &CertificateDocument, files: &[PathBuf], notes: &[Str
             for (who, q) in rows {
                 let _ = writeln!(
                     s,
-                    "  {:<20} {:<7} {:>12} {:>12}  {}",
+                    "  {:<20} {:<14} {:>12} {:>12}  {}",
                     q.name,
                     who,
                     num(q.value),
@@ -149,7 +149,7 @@ pub(super) fn summarize(d: &CertificateDocument, files: &[PathBuf], notes: &[Str
             Some(k) => {
                 let _ = writeln!(
                     s,
-                    "  {:<7} K_min = {k:<6} φ(K) = {}·{}^K, margin 1 − Σsg = {}; with sampled L_Φ: {}{mark}",
+                    "  {:<14} K_min = {k:<6} φ(K) = {}·{}^K, margin 1 − Σsg = {}; with sampled L_Φ: {}{mark}",
                     sv.solver,
                     num(sv.phi_prefactor),
                     rate(sv.phi_rate),
@@ -170,7 +170,7 @@ pub(super) fn summarize(d: &CertificateDocument, files: &[PathBuf], notes: &[Str
                 } else {
                     format!("{} fails (see the fix above)", failed.join(", "))
                 };
-                let _ = writeln!(s, "  {:<7} void: {why}{mark}", sv.solver);
+                let _ = writeln!(s, "  {:<14} void: {why}{mark}", sv.solver);
             }
         }
     }
@@ -287,7 +287,7 @@ pub(super) fn summarize(d: &CertificateDocument, files: &[PathBuf], notes: &[Str
                 (None, Some(e)) => format!("not applicable: {e}"),
                 (None, None) => "not computed".into(),
             };
-            let _ = writeln!(s, "  {:<8} {line}", l.solver);
+            let _ = writeln!(s, "  {:<14} {line}", l.solver);
         }
     }
     let _ = writeln!(

@@ -49,7 +49,9 @@ pub use trajectory::{
 /// Settings of [`certify_closed_loop`].
 #[derive(Debug, Clone, PartialEq)]
 pub struct CertificateOptions {
-    /// Solvers to certify.
+    /// Solvers to certify (default: the four named methods, then the same four on the
+    /// Jacobi-scaled problem, which keep K_min small at long horizons: docs/theory.md,
+    /// "Preconditioned maps").
     pub solvers: Vec<Method>,
     /// γ₁,₃ source.
     pub gamma13: Gamma13Source,
@@ -70,7 +72,10 @@ pub struct CertificateOptions {
 impl Default for CertificateOptions {
     fn default() -> Self {
         Self {
-            solvers: Method::PRESETS.to_vec(),
+            solvers: Method::PRESETS
+                .into_iter()
+                .chain(Method::JACOBI_PRESETS)
+                .collect(),
             gamma13: Gamma13Source::Certified,
             seed: 0,
             lipschitz_pairs: 200,

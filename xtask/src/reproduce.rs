@@ -491,7 +491,7 @@ pub fn run_job(job: &Job, settings: &Settings) -> Result<Outcome> {
         job.label
     ));
     let t0 = std::time::Instant::now();
-    let linear = linear_entries(&resolved, &cert);
+    let linear = linear_entries(&resolved, &cert, solver);
     say(format!(
         "  done in {} s",
         numfmt::num(t0.elapsed().as_secs_f64())

@@ -640,14 +640,12 @@ pub fn run_job(job: &Job, settings: &Settings) -> Result<Outcome> {
                 k,
                 &run.trace,
             );
-            let passed = certified
-                .as_ref()
-                .map(|c| {
-                    c.prop1.holds
-                        && c.prop3.holds
-                        && run.summary.error.is_none()
-                        && !run.summary.diverged
-                });
+            let passed = certified.as_ref().map(|c| {
+                c.prop1.holds
+                    && c.prop3.holds
+                    && run.summary.error.is_none()
+                    && !run.summary.diverged
+            });
             TrajectoryReport {
                 ran: certified.is_some(),
                 reason: certified
@@ -786,7 +784,9 @@ pub fn run_job(job: &Job, settings: &Settings) -> Result<Outcome> {
             Applicable::Theorem1 { k_min, .. } => k_min.is_some(),
             Applicable::Joint { .. } => {
                 applicable.void_reasons().is_empty()
-                    && joint_cert.as_ref().is_some_and(|j| j.region.cheapest.is_some())
+                    && joint_cert
+                        .as_ref()
+                        .is_some_and(|j| j.region.cheapest.is_some())
             }
             Applicable::Uncovered(_) => false,
         },
@@ -1001,3 +1001,5 @@ fn trace_document<'a>(
 
 #[cfg(test)]
 mod tests;
+#[cfg(test)]
+mod truth_tests;

@@ -183,7 +183,9 @@ impl Applicable {
                         let mut void_reasons: Vec<String> = sc
                             .void_reasons
                             .iter()
-                            .filter(|r| r.starts_with(STRUCTURAL[0]) || r.starts_with(STRUCTURAL[1]))
+                            .filter(|r| {
+                                r.starts_with(STRUCTURAL[0]) || r.starts_with(STRUCTURAL[1])
+                            })
                             .cloned()
                             .collect();
                         for r in &j.region.void_reasons {

@@ -29,27 +29,29 @@ pub(super) fn verdict(d: &CertificateDocument) -> String {
     }
     if let Some(j) = &d.joint {
         let c = &j.certificate;
-        return lead + &match (c.region.cheapest, d.trajectory_check.passed) {
-            (Some(p), passed) => format!(
-                "the joint certificate (ρ(Γ) < 1 over plant, ε, e, δ) certifies ISS of the loop with \
+        return lead
+            + &match (c.region.cheapest, d.trajectory_check.passed) {
+                (Some(p), passed) => format!(
+                    "the joint certificate (ρ(Γ) < 1 over plant, ε, e, δ) certifies ISS of the loop with \
                  MHE {} at K_e and MPC {} at K_c for every pair on or above the staircase through \
                  ({}, {}) (the cheapest); {}.",
-                c.mhe_method,
-                c.mpc_method,
-                p.k_e,
-                p.k_c,
-                match passed {
-                    Some(true) =>
-                        "every inequality of the proof holds at every step of the run there",
-                    Some(false) => "the run there VIOLATES an inequality of the proof (see above)",
-                    None => "the trajectory check did not run",
-                }
-            ),
-            (None, _) => format!(
-                "the joint certificate is void: {}",
-                c.region.void_reasons.join("; ")
-            ),
-        };
+                    c.mhe_method,
+                    c.mpc_method,
+                    p.k_e,
+                    p.k_c,
+                    match passed {
+                        Some(true) =>
+                            "every inequality of the proof holds at every step of the run there",
+                        Some(false) =>
+                            "the run there VIOLATES an inequality of the proof (see above)",
+                        None => "the trajectory check did not run",
+                    }
+                ),
+                (None, _) => format!(
+                    "the joint certificate is void: {}",
+                    c.region.void_reasons.join("; ")
+                ),
+            };
     }
     let own = d
         .certificate
@@ -297,23 +299,25 @@ pub(super) fn summarize(d: &CertificateDocument, files: &[PathBuf], notes: &[Str
     if tc.ran {
         let line = |name: &str, c: &Option<TrajectoryCheck>| -> String {
             match c {
-                Some(c) => format!(
-                    "  {name:<16} Prop. 1: {} (max lhs/rhs {} at t = {}), Prop. 3: {} (max lhs/rhs {} at t = {})",
-                    if c.prop1.holds {
-                        "holds at every t"
-                    } else {
-                        "VIOLATED"
-                    },
-                    num(c.prop1.worst_ratio),
-                    c.prop1.worst_t,
-                    if c.prop3.holds {
-                        "holds at every t"
-                    } else {
-                        "VIOLATED"
-                    },
-                    num(c.prop3.worst_ratio),
-                    c.prop3.worst_t
-                ) + &floor_note(c),
+                Some(c) => {
+                    format!(
+                        "  {name:<16} Prop. 1: {} (max lhs/rhs {} at t = {}), Prop. 3: {} (max lhs/rhs {} at t = {})",
+                        if c.prop1.holds {
+                            "holds at every t"
+                        } else {
+                            "VIOLATED"
+                        },
+                        num(c.prop1.worst_ratio),
+                        c.prop1.worst_t,
+                        if c.prop3.holds {
+                            "holds at every t"
+                        } else {
+                            "VIOLATED"
+                        },
+                        num(c.prop3.worst_ratio),
+                        c.prop3.worst_t
+                    ) + &floor_note(c)
+                }
                 None => format!("  {name:<16} not evaluated"),
             }
         };

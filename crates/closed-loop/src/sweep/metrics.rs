@@ -197,8 +197,8 @@ pub fn run_metrics(
     ];
     // The one bounded rule (crate::bounded): e, x, ε and u against their own initial scale;
     // any early stop counts as unbounded.
-    let bounded = !diverged
-        && crate::bounded::first_unbounded(trace, x0, bounded_factor, false).is_none();
+    let bounded =
+        !diverged && crate::bounded::first_unbounded(trace, x0, bounded_factor, false).is_none();
     (values, bounded)
 }
 

@@ -107,7 +107,10 @@ fn the_bounded_rule_finds_the_first_failing_step_on_two_plants() {
             assert_eq!(Some(d.t), first_e, "{file}");
             assert!(d.value > d.limit && (d.limit - 1e3 * (1.0 + e0)).abs() < 1e-9);
         }
-        assert!(d.to_string().starts_with(&format!("diverged at t = {}", d.t)));
+        assert!(
+            d.to_string()
+                .starts_with(&format!("diverged at t = {}", d.t))
+        );
         // Bounded at the certified-looking large K on the stable chain is not asked here; the
         // sweep's metric uses the same rule:
         let input = (s.sets.input.lower(), s.sets.input.upper());
@@ -255,14 +258,19 @@ fn a_one_d_sweep_with_the_k_c_mpc_is_under_the_joint_certificate() {
             yes += usize::from(cell == "yes");
         }
         if k_c == 200 {
-            assert!(yes >= 2, "K_c = 200 certifies K_e = 50 and 300 on the stand-in");
+            assert!(
+                yes >= 2,
+                "K_c = 200 certifies K_e = 50 and 300 on the stand-in"
+            );
         } else {
             assert_eq!(yes, 0, "K_c = 5 certifies no grid K_e");
         }
     }
-    let shifted = fs::read_to_string(&sc)
-        .unwrap()
-        .replacen("warm_start = \"paper\"", "warm_start = \"shifted\"", 1);
+    let shifted = fs::read_to_string(&sc).unwrap().replacen(
+        "warm_start = \"paper\"",
+        "warm_start = \"shifted\"",
+        1,
+    );
     let shifted_path = scratch("shifted-scenario").join("shifted.toml");
     fs::write(&shifted_path, shifted).unwrap();
     let text2 = text(200, "").replace(&sc, &shifted_path.display().to_string());
@@ -305,7 +313,10 @@ fn two_d_points_agree_with_the_certified_up_set() {
         assert_eq!(cell == "yes", in_up_set, "({k}, {k_c}): {cell}");
         assert_ne!(cell, "void");
         if k >= cheapest.0 && k_c >= cheapest.1 {
-            assert_eq!(cell, "yes", "({k}, {k_c}) is above the cheapest certified pair");
+            assert_eq!(
+                cell, "yes",
+                "({k}, {k_c}) is above the cheapest certified pair"
+            );
         }
         yes += usize::from(cell == "yes");
     }
@@ -343,8 +354,14 @@ fn long_horizons_are_certified_by_default() {
         c.solvers.iter().filter_map(|s| s.k_min).min().unwrap()
     };
     let (b10, b30) = (best(10, false), best(30, false));
-    assert!(b30 <= 3 * b10, "best default K_min: {b10} at M = 10, {b30} at M = 30");
-    assert!(best(30, true) > 3 * b10, "the plain methods alone do not keep it");
+    assert!(
+        b30 <= 3 * b10,
+        "best default K_min: {b10} at M = 10, {b30} at M = 30"
+    );
+    assert!(
+        best(30, true) > 3 * b10,
+        "the plain methods alone do not keep it"
+    );
 }
 
 /// The bounded rule at the first step: a huge prior error is judged against its own scale.

@@ -984,7 +984,7 @@ fn summary_numbers_are_short() {
     }
     // Premise values and margins too (were printed with 6 decimals).
     assert!(
-        s.contains("rho < 1              all            1.145      -0.1448  FAIL"),
+        s.contains("rho < 1              all                   1.145      -0.1448  FAIL"),
         "{s}"
     );
 }

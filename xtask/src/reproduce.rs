@@ -28,6 +28,7 @@ use closed_loop::certificate::{
     CertificateOptions, ClosedLoopCertificate, Gamma13Source, SolverCertificate, TrajectoryCheck,
     analysis_with_sampled_l_phi, certify_closed_loop, check_trajectory,
 };
+use closed_loop::coverage::Applicable;
 use closed_loop::plan::{KSource, RunOutcome, plan_runs};
 use closed_loop::scenario::{ControllerChoice, LoopOptions, ResolvedScenario, Scenario};
 use closed_loop::{ClosedLoopError, Trace};
@@ -284,8 +285,10 @@ fn simulate(
     // the run and is its result.
     let mut progress = work::Progress::new(format!("{} K = {k}", solver.name()), opts.steps, live);
     let mut error = None;
+    let mut stopped_non_finite = false;
     while cl.t() < cl.steps() {
         if let Err(e) = cl.step() {
+            stopped_non_finite = matches!(e, ClosedLoopError::NonFinite { .. });
             error = Some(e.to_string());
             break;
         }
@@ -294,6 +297,13 @@ fn simulate(
     progress.finish();
     let trace = cl.into_trace();
     let len = trace.len();
+    // The sweep's bounded rule, applied by the library to this run.
+    let divergence = closed_loop::bounded::first_unbounded(
+        &trace,
+        &scenario.simulation.x0,
+        closed_loop::bounded::DEFAULT_BOUNDED_FACTOR,
+        stopped_non_finite,
+    );
     let summary = RunSummary {
         label: format!("K={k}"),
         k,
@@ -310,6 +320,10 @@ fn simulate(
         steps: opts.steps,
         completed: len,
         error,
+        diverged: divergence.is_some(),
+        diverged_at: divergence.map(|d| d.t),
+        signal: divergence.map(|d| d.signal),
+        divergence,
         mpc_infeasible_steps: trace.infeasible_steps().count(),
         sup_norm_e: trace.sup_norm_e(),
         sup_norm_x: trace.sup_norm_x(),
@@ -473,9 +487,10 @@ pub fn run_job(job: &Job, settings: &Settings) -> Result<Outcome> {
         (_, Some(g)) => Gamma13Source::User(g),
         (source, None) => source,
     };
-    // The four named methods, and the scenario's own method when it is another one (a
-    // Jacobi-scaled map, custom parameters): it is the one simulated at its K_min.
-    let mut solvers = Method::PRESETS.to_vec();
+    // The four named methods, plain and Jacobi-scaled (long horizons: the scaled maps keep
+    // K_min near its short-horizon value), and the scenario's own method when it is another
+    // one (custom parameters): it is the one simulated at its K_min.
+    let mut solvers = CertificateOptions::default().solvers;
     if !solvers.contains(&solver) {
         solvers.push(solver);
     }
@@ -524,7 +539,7 @@ pub fn run_job(job: &Job, settings: &Settings) -> Result<Outcome> {
         job.label
     ));
     let t0 = std::time::Instant::now();
-    let linear = linear_entries(&resolved, &cert, opts.phase_seconds, settings.live);
+    let linear = linear_entries(&resolved, &cert, solver, opts.phase_seconds, settings.live);
     let regional = regional::regional_entries(&resolved, &cert);
     say(format!(
         "  done in {} s",
@@ -534,6 +549,23 @@ pub fn run_job(job: &Job, settings: &Settings) -> Result<Outcome> {
     // The K-iteration MPC (`mpc.iterations`): the joint certificate decides the runs.
     let joint_cert = joint::joint_certificate(&resolved, &cert, solver)?;
     let own_controller = LoopOptions::from_scenario(&scenario)?.controller;
+    // The certificate covering the scenario's configuration (closed_loop::coverage): the
+    // same decision as the sweeps' `certified` column.
+    let applicable = Applicable::new(&resolved, &cert, solver, own_controller);
+    let not_covered = match &applicable {
+        Applicable::Uncovered(reason) => Some(reason.clone()),
+        _ => None,
+    };
+    let at_scenario = applicable.at(
+        spec.iterations,
+        match own_controller {
+            ControllerChoice::SuboptimalMpc { iterations, .. } => Some(iterations),
+            _ => None,
+        },
+    );
+    if let Some(r) = &not_covered {
+        say(format!("[{}] NOT CERTIFIED: {r}", job.label));
+    }
     let plan: Vec<(usize, ControllerChoice, KSource)> = match &joint_cert {
         Some(j) => {
             say(format!(
@@ -642,7 +674,11 @@ pub fn run_job(job: &Job, settings: &Settings) -> Result<Outcome> {
             passed: joint_report
                 .as_ref()
                 .and_then(|j| j.trajectory.as_ref())
-                .map(|t| t.holds() && kmin_run.is_some_and(|r| r.summary.error.is_none())),
+                .map(|t| {
+                    t.holds()
+                        && kmin_run
+                            .is_some_and(|r| r.summary.error.is_none() && !r.summary.diverged)
+                }),
         },
         (Some(sc), Some(run)) => {
             let k = run.summary.k;
@@ -653,9 +689,12 @@ pub fn run_job(job: &Job, settings: &Settings) -> Result<Outcome> {
                 k,
                 &run.trace,
             );
-            let passed = certified
-                .as_ref()
-                .map(|c| c.prop1.holds && c.prop3.holds && run.summary.error.is_none());
+            let passed = certified.as_ref().map(|c| {
+                c.prop1.holds
+                    && c.prop3.holds
+                    && run.summary.error.is_none()
+                    && !run.summary.diverged
+            });
             TrajectoryReport {
                 ran: certified.is_some(),
                 reason: certified
@@ -697,6 +736,15 @@ pub fn run_job(job: &Job, settings: &Settings) -> Result<Outcome> {
             passed: None,
         },
     };
+
+    // A configuration no certificate covers has nothing to contradict.
+    let mut trajectory_check = trajectory_check;
+    if let Some(r) = &not_covered {
+        trajectory_check.passed = None;
+        trajectory_check.reason = Some(format!(
+            "not certified: {r} (the inequalities are evaluated for reference only)"
+        ));
+    }
 
     say(if runs.is_empty() {
         format!(
@@ -795,7 +843,19 @@ pub fn run_job(job: &Job, settings: &Settings) -> Result<Outcome> {
         },
         solver: solver.name().into(),
         scenario_iterations: spec.iterations,
-        certified: own.is_some_and(|s| s.k_min.is_some()),
+        certified: match &applicable {
+            Applicable::Theorem1 { k_min, .. } => k_min.is_some(),
+            Applicable::Joint { .. } => {
+                applicable.void_reasons().is_empty()
+                    && joint_cert
+                        .as_ref()
+                        .is_some_and(|j| j.region.cheapest.is_some())
+            }
+            Applicable::Uncovered(_) => false,
+        },
+        certificate_applies: applicable.kind(),
+        not_covered,
+        at_scenario,
         scenario_iterations_match_k_min: own.and_then(|s| s.k_min).map(|k| k == spec.iterations),
         solvers: cert
             .solvers
@@ -844,8 +904,12 @@ fn spec_k_c(scenario: &Scenario) -> usize {
         .unwrap_or(0)
 }
 
-/// Exit code when a simulation contradicts the certificate (Prop. 1/3 check failed).
+/// Exit code when a simulation contradicts the certificate (Prop. 1/3 check failed beyond
+/// the rounding floor, or the run at the certified K diverged).
 pub const EXIT_CONTRADICTED: u8 = 3;
+/// Exit code when a simulated run diverged (the bounded rule of [`closed_loop::bounded`])
+/// and no certificate was contradicted: the loop is not certified at that K, and it blew up.
+pub const EXIT_DIVERGED: u8 = 4;
 
 /// The jobs of a command line: one preset, a user scenario, or both presets (default).
 pub fn jobs(preset: Option<Preset>, scenario: Option<PathBuf>, out: Option<PathBuf>) -> Vec<Job> {
@@ -868,8 +932,9 @@ pub fn jobs(preset: Option<Preset>, scenario: Option<PathBuf>, out: Option<PathB
     }
 }
 
-/// `cargo xtask reproduce`: runs the jobs, prints each summary. Exit code 0, or
-/// [`EXIT_CONTRADICTED`] when a certified trajectory check fails; errors for bad input.
+/// `cargo xtask reproduce`: runs the jobs, prints each summary. Exit code 0,
+/// [`EXIT_CONTRADICTED`] when a certified trajectory check fails, [`EXIT_DIVERGED`] when a
+/// run diverged otherwise; errors (1) for bad input.
 pub fn main(
     preset: Option<Preset>,
     scenario: Option<PathBuf>,
@@ -894,6 +959,7 @@ pub fn main(
         settings.gamma13 = Gamma13Source::User(g);
     }
     let mut contradicted = false;
+    let mut diverged = false;
     for job in jobs(preset, scenario, out) {
         let t0 = std::time::Instant::now();
         let outcome = run_job(&job, &settings)?;
@@ -905,12 +971,19 @@ pub fn main(
             t0.elapsed().as_secs_f64()
         );
         contradicted |= outcome.contradicted();
+        diverged |= outcome.diverged();
     }
     Ok(if contradicted {
         eprintln!(
             "error: a simulation at the certified K violates Prop. 1 or 3 with the certificate's constants"
         );
         std::process::ExitCode::from(EXIT_CONTRADICTED)
+    } else if diverged {
+        eprintln!(
+            "a simulated run diverged (bounded rule: ‖e‖, ‖x‖, ε within 1000·(1 + initial scale); \
+             see the verdict and `runs[].diverged_at` in certificate.json)"
+        );
+        std::process::ExitCode::from(EXIT_DIVERGED)
     } else {
         std::process::ExitCode::SUCCESS
     })
@@ -992,3 +1065,5 @@ fn trace_document<'a>(
 
 #[cfg(test)]
 mod tests;
+#[cfg(test)]
+mod truth_tests;

@@ -473,7 +473,7 @@ fn print_thresholds(sweep: &Sweep, thresholds: &[Thresholds], pairs: &[PairThres
         }
     } else if !thresholds.is_empty() {
         println!(
-            "thresholds (K_lin: ρ_lin < 1 from here on the grid; K_emp: every run bounded from here on; K_cert: Theorem 1):"
+            "thresholds (K_lin: ρ_lin < 1 from here on the grid; K_emp: every run bounded from here on; K_cert: the covering certificate, Theorem 1 or with a K_c-iteration MPC the joint one):"
         );
         print!("{}", thresholds_markdown(thresholds));
     }

@@ -13,14 +13,19 @@
 //!   disturbance.
 //! - [`linear`]: ρ_lin(K) and K_lin, the exact linear stability boundary where no constraint
 //!   is active (the lifted LTI system of Alg. 1).
+//! - [`bounded`]: the one bounded rule of every run (first failing step and signal).
+//! - [`coverage`]: which certificate a configuration (method, K_e, controller, K_c) is
+//!   under, and its verdict there (one decision for reproduce, sweeps and plots).
 //! - [`plan`]: which K to simulate for a certificate, and the verdict.
 //! - [`record`]: the per-step [`Trace`] of a run (with the MHE records), JSON output.
 //! - [`gamma13`]: γ₁,₃ of Assumption 4 for the MPC on any plant (family bound by the
 //!   S-procedure, partial and full free-set enumeration, typed void reasons, user values).
 
 pub mod analysis;
+pub mod bounded;
 pub mod budget;
 pub mod certificate;
+pub mod coverage;
 pub mod gamma13;
 pub mod joint;
 pub mod linear;

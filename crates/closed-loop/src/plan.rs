@@ -3,6 +3,7 @@
 
 use serde::Serialize;
 
+use crate::bounded::Divergence;
 use crate::certificate::SolverCertificate;
 
 /// Why a run was made at its K.
@@ -54,12 +55,45 @@ pub struct RunOutcome<'a> {
     pub completed: usize,
     /// Why the run stopped early (`None` if it completed).
     pub error: Option<&'a str>,
+    /// Where the run first left the bounded rule ([`crate::bounded::first_unbounded`]).
+    pub divergence: Option<Divergence>,
 }
 
-/// The verdict on one method: what Theorem 1 certifies (or why nothing), what the trajectory
-/// check of Props. 1 and 3 found (`None`: it did not run), and every run that stopped —
-/// "diverged at t = …" when the loop diverged.
+/// The verdict on one method: every run that diverged first ("diverged at t = 7: ‖e‖ =
+/// 1.2e4 > 1.0e4 (run at K = 1)", the bounded rule of [`crate::bounded`]), then what
+/// Theorem 1 certifies (or why nothing), what the trajectory check of Props. 1 and 3 found
+/// (`None`: it did not run), and every other run that stopped.
 pub fn verdict(
+    cert: Option<&SolverCertificate>,
+    trajectory_check: Option<bool>,
+    runs: &[RunOutcome<'_>],
+) -> String {
+    format!(
+        "{}{}",
+        divergence_lead(runs),
+        theorem1_verdict(cert, trajectory_check, runs)
+    )
+}
+
+/// The leading sentences of a verdict for the runs that diverged (empty when none did).
+///
+/// ```
+/// use closed_loop::bounded::{Divergence, Signal};
+/// use closed_loop::plan::{RunOutcome, divergence_lead};
+/// let d = Divergence { t: 7, signal: Signal::E, value: 1.2e4, limit: 1.0e4, stopped: false };
+/// let runs = [RunOutcome { k: 1, completed: 60, error: None, divergence: Some(d) }];
+/// assert_eq!(divergence_lead(&runs), "diverged at t = 7: ‖e‖ = 1.2e4 > 1.0e4 (the run at K = 1). ");
+/// ```
+pub fn divergence_lead(runs: &[RunOutcome<'_>]) -> String {
+    runs.iter()
+        .filter_map(|r| {
+            r.divergence
+                .map(|d| format!("{d} (the run at K = {}). ", r.k))
+        })
+        .collect()
+}
+
+fn theorem1_verdict(
     cert: Option<&SolverCertificate>,
     trajectory_check: Option<bool>,
     runs: &[RunOutcome<'_>],
@@ -108,6 +142,7 @@ pub fn verdict(
     // A run that stopped is a result: say where and when.
     let stopped: String = runs
         .iter()
+        .filter(|r| r.divergence.is_none())
         .filter_map(|r| {
             r.error.map(|e| {
                 let what = if e.contains("diverged") {
@@ -136,11 +171,13 @@ mod tests {
                 k: 652,
                 completed: 40,
                 error: None,
+                divergence: None,
             },
             RunOutcome {
                 k: 1,
                 completed: 125,
                 error: Some("step t = 125: `x_next` … the closed loop diverged at t = 125"),
+                divergence: None,
             },
         ];
         let v = verdict(None, None, &runs);

@@ -132,6 +132,16 @@ pub struct RunSummary {
     pub completed: usize,
     /// The step error, if the run stopped early (e.g. a diverged loop).
     pub error: Option<String>,
+    /// The run left the bounded rule ([`closed_loop::bounded`], the sweep's: ‖e‖, ‖x‖, ε
+    /// within 1000 times their initial scale, u finite) or stopped on a non-finite signal.
+    pub diverged: bool,
+    /// The first step at which it did (None when bounded).
+    pub diverged_at: Option<usize>,
+    /// The signal that failed first there: `"e"`, `"x"`, `"epsilon"` or `"u"`.
+    pub signal: Option<closed_loop::bounded::Signal>,
+    /// The failure itself: t, signal, value, the limit, and whether the loop stopped there
+    /// (None when bounded).
+    pub divergence: Option<closed_loop::bounded::Divergence>,
     /// Steps at which the MPC was infeasible (state constraints) and applied its fallback
     /// (`trace.csv` has the status per step).
     pub mpc_infeasible_steps: usize,
@@ -219,6 +229,15 @@ pub struct CertificateDocument {
     pub scenario_iterations: usize,
     /// The scenario's solver has a K_min.
     pub certified: bool,
+    /// The certificate covering the scenario's configuration (method, controller, warm
+    /// start: [`closed_loop::coverage`]): `"theorem1"`, `"joint"`, or null when none does.
+    pub certificate_applies: Option<closed_loop::coverage::CertificateKind>,
+    /// Why no certificate covers the configuration (null when one does); `certified` is
+    /// then false whatever Theorem 1's constants give.
+    pub not_covered: Option<String>,
+    /// The covering certificate's verdict at the scenario's own pair (`mhe.iterations`,
+    /// `mpc.iterations`): the same function the sweeps' `certified` column calls.
+    pub at_scenario: closed_loop::coverage::PairVerdict,
     /// `scenario_iterations == k_min` of the scenario's solver (null when void).
     pub scenario_iterations_match_k_min: Option<bool>,
     /// Per solver: premises, K_min or reasons.
@@ -394,5 +413,10 @@ impl Outcome {
     /// certificate.
     pub fn contradicted(&self) -> bool {
         self.document.trajectory_check.passed == Some(false)
+    }
+
+    /// A simulated run left the bounded rule ([`closed_loop::bounded`]).
+    pub fn diverged(&self) -> bool {
+        self.document.runs.iter().any(|r| r.diverged)
     }
 }

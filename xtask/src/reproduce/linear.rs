@@ -13,21 +13,33 @@ pub struct LinearEntry {
     pub error: Option<String>,
 }
 
+/// Largest MHE window size n_z = n_x + M·n_w for which ρ_lin is computed for every method of
+/// the certificate; above it only for the scenario's own method (the one simulated). One
+/// eigenvalue problem of the lifted loop costs O(dim³) with dim ≈ 2·n_z + …, 25 per method:
+/// at M = 50 on the stand-in (n_z = 254, dim = 608) eight methods took most of `reproduce`'s
+/// time.
+pub const LINEAR_ALL_METHODS_MAX_NZ: usize = 128;
+
 /// K grid of the linear analysis: 25 log-spaced K from 1 to max(2000, every K_min), for
-/// every method of the certificate; every (method, K) pair is a task on the global rayon pool
-/// ([`closed_loop::linear::linear_stability_all`]; the result does not depend on the thread
-/// count).
+/// every method of the certificate (only for `own`, the scenario's method, when the window
+/// has more than [`LINEAR_ALL_METHODS_MAX_NZ`] variables: the others then say so); every
+/// (method, K) pair is a task on the global rayon pool
+/// ([`closed_loop::linear::linear_stability_all_budgeted`]; the result does not depend on the
+/// thread count).
 ///
 /// Beyond the budget `phase_seconds` (estimated seconds of one core for all methods) nothing
 /// is computed (each `error` names the estimate, the budget and `certificate.phase_seconds`);
-/// with `live`, progress lines go to
-/// stderr every 10 s once the analysis has run for 2 s.
+/// with `live`, progress lines go to stderr every 10 s once the analysis has run for 2 s.
 pub(super) fn linear_entries(
     resolved: &ResolvedScenario,
     cert: &ClosedLoopCertificate,
+    own: Method,
     phase_seconds: f64,
     live: bool,
 ) -> Vec<LinearEntry> {
+    let plant = &resolved.scenario().plant;
+    let n_z = plant.nx() + cert.horizon * plant.nw();
+    let all = n_z <= LINEAR_ALL_METHODS_MAX_NZ;
     let top = cert
         .solvers
         .iter()
@@ -37,6 +49,7 @@ pub(super) fn linear_entries(
     let methods: Vec<Method> = cert.solvers.iter().map(|s| s.solver).collect();
     let options: Vec<Result<LoopOptions, ClosedLoopError>> = methods
         .iter()
+        .filter(|&&m| all || m == own)
         .map(|&m| {
             LoopOptions::from_scenario(resolved.scenario()).map(|mut o| {
                 o.method = m;
@@ -74,10 +87,26 @@ pub(super) fn linear_entries(
         &progress,
     )
     .into_iter();
+    let mut options = options.into_iter();
     methods
         .iter()
-        .zip(options)
-        .map(|(&m, o)| {
+        .map(|&m| {
+            if !(all || m == own) {
+                return LinearEntry {
+                    solver: m.name().into_owned(),
+                    report: None,
+                    error: Some(format!(
+                        "not computed: the MHE window has n_z = {n_z} > {LINEAR_ALL_METHODS_MAX_NZ} \
+                         variables, so ρ_lin is computed for the scenario's method ({}) only; \
+                         set mhe.method = \"{}\" to get it for this one",
+                        own.name(),
+                        m.name()
+                    )),
+                };
+            }
+            let o = options
+                .next()
+                .unwrap_or(Err(ClosedLoopError::MissingSection { section: "mhe" }));
             let result = match o {
                 Ok(_) => reports
                     .next()

@@ -17,31 +17,41 @@ pub(super) fn verdict(d: &CertificateDocument) -> String {
             k: r.k,
             completed: r.completed,
             error: r.error.as_deref(),
+            divergence: r.divergence,
         })
         .collect();
+    let lead = closed_loop::plan::divergence_lead(&runs);
+    if let Some(r) = &d.not_covered {
+        return format!(
+            "{lead}NOT CERTIFIED: {r}. The constants and K_min are reported for reference \
+             only; no certificate covers this configuration."
+        );
+    }
     if let Some(j) = &d.joint {
         let c = &j.certificate;
-        return match (c.region.cheapest, d.trajectory_check.passed) {
-            (Some(p), passed) => format!(
-                "the joint certificate (ρ(Γ) < 1 over plant, ε, e, δ) certifies ISS of the loop with \
+        return lead
+            + &match (c.region.cheapest, d.trajectory_check.passed) {
+                (Some(p), passed) => format!(
+                    "the joint certificate (ρ(Γ) < 1 over plant, ε, e, δ) certifies ISS of the loop with \
                  MHE {} at K_e and MPC {} at K_c for every pair on or above the staircase through \
                  ({}, {}) (the cheapest); {}.",
-                c.mhe_method,
-                c.mpc_method,
-                p.k_e,
-                p.k_c,
-                match passed {
-                    Some(true) =>
-                        "every inequality of the proof holds at every step of the run there",
-                    Some(false) => "the run there VIOLATES an inequality of the proof (see above)",
-                    None => "the trajectory check did not run",
-                }
-            ),
-            (None, _) => format!(
-                "the joint certificate is void: {}",
-                c.region.void_reasons.join("; ")
-            ),
-        };
+                    c.mhe_method,
+                    c.mpc_method,
+                    p.k_e,
+                    p.k_c,
+                    match passed {
+                        Some(true) =>
+                            "every inequality of the proof holds at every step of the run there",
+                        Some(false) =>
+                            "the run there VIOLATES an inequality of the proof (see above)",
+                        None => "the trajectory check did not run",
+                    }
+                ),
+                (None, _) => format!(
+                    "the joint certificate is void: {}",
+                    c.region.void_reasons.join("; ")
+                ),
+            };
     }
     let own = d
         .certificate
@@ -49,6 +59,19 @@ pub(super) fn verdict(d: &CertificateDocument) -> String {
         .iter()
         .find(|s| s.solver.name() == d.solver);
     closed_loop::plan::verdict(own, d.trajectory_check.passed, &runs)
+}
+
+/// ", N step(s) within the rounding floor (≤ …)" when the floor was needed (empty otherwise).
+fn floor_note(c: &TrajectoryCheck) -> String {
+    let n = c.prop1.within_rounding_floor + c.prop3.within_rounding_floor;
+    if n == 0 {
+        return String::new();
+    }
+    format!(
+        "; {n} step(s) within the rounding floor (≤ {}: the measured side is rounding there, \
+         docs/reproduce-output.md)",
+        num(c.prop1.max_rounding_floor.max(c.prop3.max_rounding_floor))
+    )
 }
 
 /// The text summary of one job.
@@ -83,7 +106,7 @@ pub(super) fn summarize(d: &CertificateDocument, files: &[PathBuf], notes: &[Str
     let _ = writeln!(s, "\nPremises of Theorem 1");
     let _ = writeln!(
         s,
-        "  {:<20} {:<7} {:>12} {:>12}  status",
+        "  {:<20} {:<14} {:>12} {:>12}  status",
         "premise", "solver", "value", "margin"
     );
     if let Some(first) = d.solvers.first() {
@@ -104,7 +127,7 @@ pub(super) fn summarize(d: &CertificateDocument, files: &[PathBuf], notes: &[Str
             for (who, q) in rows {
                 let _ = writeln!(
                     s,
-                    "  {:<20} {:<7} {:>12} {:>12}  {}",
+                    "  {:<20} {:<14} {:>12} {:>12}  {}",
                     q.name,
                     who,
                     num(q.value),
@@ -138,7 +161,7 @@ pub(super) fn summarize(d: &CertificateDocument, files: &[PathBuf], notes: &[Str
             Some(k) => {
                 let _ = writeln!(
                     s,
-                    "  {:<7} K_min = {k:<6} φ(K) = {}·{}^K, margin 1 − Σsg = {}; with sampled L_Φ: {}{mark}",
+                    "  {:<14} K_min = {k:<6} φ(K) = {}·{}^K, margin 1 − Σsg = {}; with sampled L_Φ: {}{mark}",
                     sv.solver,
                     num(sv.phi_prefactor),
                     rate(sv.phi_rate),
@@ -159,7 +182,7 @@ pub(super) fn summarize(d: &CertificateDocument, files: &[PathBuf], notes: &[Str
                 } else {
                     format!("{} fails (see the fix above)", failed.join(", "))
                 };
-                let _ = writeln!(s, "  {:<7} void: {why}{mark}", sv.solver);
+                let _ = writeln!(s, "  {:<14} void: {why}{mark}", sv.solver);
             }
         }
     }
@@ -282,7 +305,7 @@ pub(super) fn summarize(d: &CertificateDocument, files: &[PathBuf], notes: &[Str
                 (None, Some(e)) => format!("not applicable: {e}"),
                 (None, None) => "not computed".into(),
             };
-            let _ = writeln!(s, "  {:<8} {line}", l.solver);
+            let _ = writeln!(s, "  {:<14} {line}", l.solver);
         }
     }
     let _ = writeln!(
@@ -292,23 +315,25 @@ pub(super) fn summarize(d: &CertificateDocument, files: &[PathBuf], notes: &[Str
     if tc.ran {
         let line = |name: &str, c: &Option<TrajectoryCheck>| -> String {
             match c {
-                Some(c) => format!(
-                    "  {name:<16} Prop. 1: {} (max lhs/rhs {} at t = {}), Prop. 3: {} (max lhs/rhs {} at t = {})",
-                    if c.prop1.holds {
-                        "holds at every t"
-                    } else {
-                        "VIOLATED"
-                    },
-                    num(c.prop1.worst_ratio),
-                    c.prop1.worst_t,
-                    if c.prop3.holds {
-                        "holds at every t"
-                    } else {
-                        "VIOLATED"
-                    },
-                    num(c.prop3.worst_ratio),
-                    c.prop3.worst_t
-                ),
+                Some(c) => {
+                    format!(
+                        "  {name:<16} Prop. 1: {} (max lhs/rhs {} at t = {}), Prop. 3: {} (max lhs/rhs {} at t = {})",
+                        if c.prop1.holds {
+                            "holds at every t"
+                        } else {
+                            "VIOLATED"
+                        },
+                        num(c.prop1.worst_ratio),
+                        c.prop1.worst_t,
+                        if c.prop3.holds {
+                            "holds at every t"
+                        } else {
+                            "VIOLATED"
+                        },
+                        num(c.prop3.worst_ratio),
+                        c.prop3.worst_t
+                    ) + &floor_note(c)
+                }
                 None => format!("  {name:<16} not evaluated"),
             }
         };

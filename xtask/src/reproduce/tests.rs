@@ -134,7 +134,8 @@ fn paper_preset_is_void_for_every_solver_and_prints_no_k() {
     assert_eq!(d.scenario_iterations_match_k_min, None);
     let doc = read_json(&f.out.join("paper/certificate.json"));
     let solvers = doc["solvers"].as_array().unwrap();
-    assert_eq!(solvers.len(), 4);
+    // The four named methods, plain and Jacobi-scaled (the default certificate set).
+    assert_eq!(solvers.len(), 8);
     for s in solvers {
         assert_eq!(s["certified"], false, "{s}");
         assert!(s["k_min"].is_null(), "{s}");
@@ -983,7 +984,7 @@ fn summary_numbers_are_short() {
     }
     // Premise values and margins too (were printed with 6 decimals).
     assert!(
-        s.contains("rho < 1              all            1.145      -0.1448  FAIL"),
+        s.contains("rho < 1              all                   1.145      -0.1448  FAIL"),
         "{s}"
     );
 }

@@ -17,7 +17,10 @@
 //! computed from a void bound.
 //!
 //! [`check_trajectory`] evaluates the trajectory inequalities of Prop. 1 (ε_t) and Prop. 3
-//! (e_t) on a simulated trace with the reported constants, both sides computed from the trace.
+//! (e_t) on a simulated trace with the reported constants, both sides computed from the trace,
+//! above a rounding floor derived from the quantities' scale and the operation count
+//! ([`rounding_floor`]: a measured ε_t of 1e-14 against a bound of 1e-21 is rounding, not a
+//! contradiction).
 //!
 //! ## The virtual disturbance σ_t (Lemma 1)
 //! For t ≤ M the paper bounds the jump of z* while the window grows by L_Φσ_t with
@@ -28,6 +31,7 @@
 //! trajectory check reports it as part of the right-hand side, not as a verified bound.
 
 mod certify;
+mod rounding;
 pub mod lemma1;
 mod trajectory;
 
@@ -38,6 +42,7 @@ use serde::Serialize;
 use crate::analysis::{GainsAtK, IssAnalysis};
 pub use crate::gamma13::{Gamma13Report, Gamma13Source};
 pub use certify::{CertificateTimes, certify_closed_loop, certify_closed_loop_timed};
+pub use rounding::{UNIT_ROUNDOFF, gamma_n, rounding_floor};
 pub use trajectory::{
     InequalityCheck, TrajectoryCheck, analysis_with_sampled_l_phi, check_trajectory,
 };
@@ -45,7 +50,9 @@ pub use trajectory::{
 /// Settings of [`certify_closed_loop`].
 #[derive(Debug, Clone, PartialEq)]
 pub struct CertificateOptions {
-    /// Solvers to certify.
+    /// Solvers to certify (default: the four named methods, then the same four on the
+    /// Jacobi-scaled problem, which keep K_min small at long horizons: docs/theory.md,
+    /// "Preconditioned maps").
     pub solvers: Vec<Method>,
     /// γ₁,₃ source.
     pub gamma13: Gamma13Source,
@@ -70,7 +77,10 @@ pub struct CertificateOptions {
 impl Default for CertificateOptions {
     fn default() -> Self {
         Self {
-            solvers: Method::PRESETS.to_vec(),
+            solvers: Method::PRESETS
+                .into_iter()
+                .chain(Method::JACOBI_PRESETS)
+                .collect(),
             gamma13: Gamma13Source::Certified,
             seed: 0,
             lipschitz_pairs: 200,

@@ -18,6 +18,11 @@ pub struct InequalityCheck {
     pub worst_t: usize,
     /// First t where it failed, if any.
     pub first_violation: Option<usize>,
+    /// Steps at which lhs exceeded rhs but not rhs + the rounding floor
+    /// ([`super::rounding`]): the measured side was floating-point rounding there.
+    pub within_rounding_floor: usize,
+    /// Largest rounding floor used at such a step (0 when none).
+    pub max_rounding_floor: f64,
 }
 
 impl InequalityCheck {
@@ -28,12 +33,36 @@ impl InequalityCheck {
             worst_ratio: 0.0,
             worst_t: 0,
             first_violation: None,
+            within_rounding_floor: 0,
+            max_rounding_floor: 0.0,
         }
     }
 
     /// Evaluates lhs ≤ rhs at t (relative tolerance 1e-12 for rounding; NaN fails). t = 0
     /// is checked but never the worst ratio (it is an identity or trivially tight).
     pub fn record(&mut self, t: usize, lhs: f64, rhs: f64) {
+        self.record_with_floor(t, lhs, rhs, 0.0);
+    }
+
+    /// [`InequalityCheck::record`] with a rounding floor (`floor` ≥ 0, [`super::rounding`]):
+    /// lhs ≤ rhs + floor holds; a step that needs the floor is counted, and a step with
+    /// lhs > rhs + floor is a violation.
+    pub fn record_with_floor(&mut self, t: usize, lhs: f64, rhs: f64, floor: f64) {
+        let floor = if floor.is_finite() && floor > 0.0 {
+            floor
+        } else {
+            0.0
+        };
+        let tol = |r: f64| r.abs() * 1e-12 + 1e-14;
+        if floor > 0.0 && lhs > rhs + tol(rhs) && lhs <= rhs + floor + tol(rhs + floor) {
+            self.within_rounding_floor += 1;
+            self.max_rounding_floor = self.max_rounding_floor.max(floor);
+        }
+        // The floor is part of the right-hand side: the ratio is lhs/(rhs + floor).
+        self.record_plain(t, lhs, rhs + floor);
+    }
+
+    fn record_plain(&mut self, t: usize, lhs: f64, rhs: f64) {
         let ratio = if rhs > 0.0 {
             lhs / rhs
         } else if lhs > 0.0 {
@@ -67,6 +96,15 @@ pub struct TrajectoryCheck {
     pub prop1: InequalityCheck,
     /// ‖e_t‖ ≤ C_e√ρᵗ‖e₀‖ + √(2Λ^H̄_P)C₁‖x‖ + C_ε‖ε‖ + C_w‖w‖ + √(2Λ^H̄_P)φL_Φ‖σ‖.
     pub prop3: InequalityCheck,
+    /// Where the run first left the bounded rule ([`crate::bounded`]; None: bounded).
+    pub divergence: Option<crate::bounded::Divergence>,
+}
+
+impl TrajectoryCheck {
+    /// Both inequalities held at every t and the run stayed bounded.
+    pub fn holds(&self) -> bool {
+        self.prop1.holds && self.prop3.holds && self.divergence.is_none()
+    }
 }
 
 /// Evaluates the trajectory inequalities of Props. 1 and 3 at budget `k` with the constants
@@ -109,17 +147,22 @@ pub fn check_trajectory(
             + g.gamma23 * se
             + g.gamma2w * sw
             + g.gamma2sigma * ssig;
-        p1.record(t, eps[t], rhs1);
+        let (floor_eps, floor_e) = super::rounding::rounding_floor(trace, t, k);
+        p1.record_with_floor(t, eps[t], rhs1, floor_eps);
         let rhs3 = g.c_e * sqrt_rho.powi(ti) * es[0]
             + a * g.c1 * sx
             + g.c_eps * seps
             + g.c_w * sw
             + g.gamma3sigma * ssig;
-        p3.record(t, es[t], rhs3);
+        p3.record_with_floor(t, es[t], rhs3, floor_e);
     }
+    let divergence = trace.x(0).and_then(|x0| {
+        crate::bounded::first_unbounded(trace, x0, crate::bounded::DEFAULT_BOUNDED_FACTOR, false)
+    });
     Some(TrajectoryCheck {
         prop1: p1,
         prop3: p3,
+        divergence,
     })
 }
 

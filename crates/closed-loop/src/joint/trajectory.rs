@@ -23,6 +23,8 @@ pub struct JointTrajectoryCheck {
     /// max_t ‖u_t − π(x̂_t)‖/δ_t − 1 ≤ 0: the applied input error is bounded by δ_t (d_t is the
     /// first block of Uᴷᶜ_t − U*(x̂_t)).
     pub input_error: InequalityCheck,
+    /// Where the run first left the bounded rule ([`crate::bounded`]; None: bounded).
+    pub divergence: Option<crate::bounded::Divergence>,
 }
 
 impl JointTrajectoryCheck {
@@ -38,6 +40,7 @@ impl JointTrajectoryCheck {
         ]
         .iter()
         .all(|c| c.holds)
+            && self.divergence.is_none()
     }
 }
 
@@ -81,6 +84,14 @@ pub fn check_joint_trajectory(
         delta_step: InequalityCheck::new(),
         delta: InequalityCheck::new(),
         input_error: InequalityCheck::new(),
+        divergence: trace.x(0).and_then(|x0| {
+            crate::bounded::first_unbounded(
+                trace,
+                x0,
+                crate::bounded::DEFAULT_BOUNDED_FACTOR,
+                false,
+            )
+        }),
     };
     // Sups over [0, t−1] (s_*) and over [0, t] (x_now, e_now).
     let (mut sx, mut se, mut sw, mut seps, mut ssig, mut sd) =
@@ -113,14 +124,15 @@ pub fn check_joint_trajectory(
             + m.gamma2w * sw
             + g.gamma24 * sd
             + m.gamma2sigma * ssig;
-        out.prop1.record(t, eps[t], rhs1);
+        let (floor_eps, floor_e) = crate::certificate::rounding_floor(trace, t, k_e);
+        out.prop1.record_with_floor(t, eps[t], rhs1, floor_eps);
         let rhs3 = m.c_e * sqrt_rho.powi(ti) * es[0]
             + a * m.c1 * sx
             + m.c_eps * seps
             + m.c_w * sw
             + g.gamma34 * sd
             + m.gamma3sigma * ssig;
-        out.prop3.record(t, es[t], rhs3);
+        out.prop3.record_with_floor(t, es[t], rhs3, floor_e);
         let step_rhs = if t == 0 {
             g.phi_c * mpc.l_u * xh[0]
         } else {

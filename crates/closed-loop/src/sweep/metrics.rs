@@ -4,12 +4,13 @@
 use std::str::FromStr;
 
 use super::theory::TheoryAtK;
-use crate::record::{Trace, norm2};
+use crate::record::Trace;
 use crate::sim::ClosedLoopError;
 
-/// Default bound factor: a run is *bounded* when it completed with finite signals,
-/// sup‖x_t‖ ≤ 1000·(1 + ‖x₀‖) and sup‖e_t‖ ≤ 1000·(1 + ‖e₀‖), e₀ = x₀ − x̂₀.
-pub const DEFAULT_BOUNDED_FACTOR: f64 = 1e3;
+/// Default bound factor: a run is *bounded* when it completed and
+/// [`crate::bounded::first_unbounded`] finds no failing step (sup‖x_t‖ ≤ 1000·(1 + ‖x₀‖),
+/// sup‖e_t‖ ≤ 1000·(1 + ‖e₀‖), e₀ = x₀ − x̂₀, ε_t ≤ 1000·(1 + ‖e₀‖ + ε₀), u finite).
+pub const DEFAULT_BOUNDED_FACTOR: f64 = crate::bounded::DEFAULT_BOUNDED_FACTOR;
 /// Quantile levels of `points.csv` (5 %, 50 %, 95 %), next to the maximum.
 pub const QUANTILES: [(f64, &str); 3] = [(0.05, "q05"), (0.5, "q50"), (0.95, "q95")];
 
@@ -113,8 +114,8 @@ pub struct RunMetrics {
     pub steps: usize,
     /// Values of [`Metric::ALL`], in that order (`None` = not available, an empty cell).
     pub values: [Option<f64>; 14],
-    /// Completed, finite, sup‖x‖ ≤ bounded_factor·(1 + ‖x₀‖) and
-    /// sup‖e‖ ≤ bounded_factor·(1 + ‖e₀‖): the estimation error counts, not only the state.
+    /// Completed and within the bounded rule ([`crate::bounded`]): sup‖x‖ ≤
+    /// bounded_factor·(1 + ‖x₀‖), sup‖e‖ ≤ bounded_factor·(1 + ‖e₀‖), ε and u likewise.
     pub bounded: bool,
     /// Why the run stopped early (empty if it did not).
     pub error: String,
@@ -194,15 +195,10 @@ pub fn run_metrics(
         Some(input_violation(trace, input_box.0, input_box.1)),
         mhe_violation,
     ];
-    // Both the state and the estimation error must stay within the bound (an estimator can
-    // diverge while saturated inputs keep x bounded). e₀ = x₀ − x̂₀ scales the error's bound.
-    let limit_x = bounded_factor * (1.0 + norm2(x0));
-    let e0 = trace
-        .x_hat(0)
-        .map_or(0.0, |xh| lti_model::vecmath::dist2(x0, xh));
-    let limit_e = bounded_factor * (1.0 + e0);
+    // The one bounded rule (crate::bounded): e, x, ε and u against their own initial scale;
+    // any early stop counts as unbounded.
     let bounded =
-        !diverged && sup_x.is_finite() && sup_e.is_finite() && sup_x <= limit_x && sup_e <= limit_e;
+        !diverged && crate::bounded::first_unbounded(trace, x0, bounded_factor, false).is_none();
     (values, bounded)
 }
 

@@ -87,7 +87,7 @@ pub use region::{
 pub use run::{NoProgress, Progress, RunOptions, Sweep, SweepReport, run_cost};
 pub use seeds::{Shard, run_seed, splitmix64};
 pub use theory::{
-    LinearEntry, LinearSide, SolverTheory, TheoryAtK, certified_boundary, solver_linear,
-    solver_theory,
+    LinearEntry, LinearSide, SolverTheory, TheoryAtK, certified_boundary, joint_staircase,
+    solver_linear, solver_theory,
 };
 pub use thresholds::{SETTLE_TOLERANCE, Thresholds, thresholds, thresholds_markdown};

@@ -24,7 +24,7 @@ use super::region::Staircase;
 use super::seeds::{Shard, run_seed};
 use super::theory::LinearEntry;
 use super::theory::{
-    LinearSide, SolverTheory, TheoryAtK, certified_boundary, solver_linear, solver_theory,
+    LinearSide, SolverTheory, TheoryAtK, joint_staircase, solver_linear, solver_theory,
 };
 use super::{ControllerChoice, Method};
 use crate::scenario::{LoopOptions, ScenarioLoop};
@@ -248,16 +248,9 @@ impl Sweep {
     /// moment and a resumed or merged sweep may not need it).
     pub fn theory(&self) -> &[(Method, SolverTheory)] {
         self.theory.get_or_init(|| {
-            if self.config.is_2d() {
-                // Theorem 1 (these columns) is for the exact MPC; the (K_e, K_c) region is
-                // the joint certificate's, drawn from `certified_boundaries`.
-                let reason = "Theorem 1 is for the exact MPC; a 2-D sweep runs the sub-optimal MPC at each K_c (its certified region: see the heat maps)";
-                self.config
-                    .solvers
-                    .iter()
-                    .map(|&s| (s, SolverTheory::Unavailable(reason.into())))
-                    .collect()
-            } else if self.config.certificate {
+            // The certificate covering (solver, controller) (crate::coverage): Theorem 1
+            // for the exact MPC, the joint one for the K_c-iteration MPC (1-D or 2-D).
+            if self.config.certificate || self.config.is_2d() {
                 solver_theory(&self.resolved, &self.config.solvers, self.config.controller)
             } else {
                 let reason = "not computed (certificate = false in the sweep config)";
@@ -312,18 +305,10 @@ impl Sweep {
             if !self.config.is_2d() {
                 return Vec::new();
             }
-            self.config
-                .solvers
+            // The same analysis as the points' `certified` column (`theory_at`).
+            self.theory()
                 .iter()
-                .map(|&s| {
-                    let steps = certified_boundary(
-                        &self.resolved,
-                        s,
-                        self.config.controller,
-                        &self.config.k_grid,
-                    );
-                    (s, steps)
-                })
+                .map(|(s, t)| (*s, joint_staircase(t, &self.config.k_grid)))
                 .collect()
         })
     }
@@ -334,12 +319,20 @@ impl Sweep {
             .theory()
             .iter()
             .find(|(s, _)| *s == p.solver)
-            .map(|(_, t)| t.at(p.k))
+            .map(|(_, t)| t.at_pair(p.k, self.k_c_at(p)))
             .unwrap_or_else(|| {
                 SolverTheory::Unavailable("no analysis for this solver".into()).at(p.k)
             });
         self.linear().fill(p.solver, p.k_c, p.k, &mut t);
         t
+    }
+
+    /// K_c of the controller at point `p` (None: the exact MPC or another controller).
+    fn k_c_at(&self, p: &Point) -> Option<usize> {
+        match self.config.controller_at(p) {
+            ControllerChoice::SuboptimalMpc { iterations, .. } => Some(iterations),
+            _ => None,
+        }
     }
 
     fn build(&self, p: &Point) -> Result<ScenarioLoop> {

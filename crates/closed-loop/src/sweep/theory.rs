@@ -12,6 +12,7 @@ use super::region::Staircase;
 use super::{ControllerChoice, Method};
 use crate::analysis::IssAnalysis;
 use crate::certificate::{CertificateOptions, certify_closed_loop};
+use crate::coverage::{Applicable, Coverage, covering};
 
 /// The certificate's side of a point: Theorem 1 for one solver.
 #[derive(Debug, Clone)]
@@ -25,11 +26,38 @@ pub enum SolverTheory {
         /// Why the certificate is void, whatever K (empty when the premises hold).
         void_reasons: Vec<String>,
     },
+    /// The joint certificate of the MHE solver with the K_c-iteration MPC
+    /// ([`crate::coverage::Applicable::Joint`]): the verdict at (K_e, K_c).
+    Joint(Box<Applicable>),
     /// No analysis available (the reason is written in the `void_reason` column).
     Unavailable(String),
 }
 
 impl SolverTheory {
+    /// The theoretical columns at (K_e, K_c): [`SolverTheory::at`] for Theorem 1 (the exact
+    /// MPC: `k_c` is ignored), the joint certificate's verdict at the pair otherwise
+    /// ([`Applicable::at`]; φ is φ_e(K_e), the margin 1 − ρ(Γ), K_min the smallest certified
+    /// K_e at this K_c; no slopes).
+    pub fn at_pair(&self, k: usize, k_c: Option<usize>) -> TheoryAtK {
+        let SolverTheory::Joint(app) = self else {
+            return self.at(k);
+        };
+        let v = app.at(k, k_c);
+        let phi = match app.as_ref() {
+            Applicable::Joint { analysis, .. } => Some(analysis.theorem1.at(k).phi),
+            _ => None,
+        };
+        TheoryAtK {
+            phi,
+            slopes: None,
+            margin: v.margin,
+            certified: v.certified.as_str(),
+            k_min: v.k_min,
+            void_reason: csv_text(&v.reason),
+            ..TheoryAtK::default()
+        }
+    }
+
     /// The theoretical columns at K: slopes of (sg1)–(sg3), the margin 1 − (sg1 + sg2 + sg3),
     /// `certified` = `"yes"`, `"no"` or `"void"` (a premise of Theorem 1 fails, whatever
     /// K), K_min and the reason of a void certificate.
@@ -68,6 +96,9 @@ impl SolverTheory {
                     void_reason: csv_text(&reasons.join("; ")),
                     ..TheoryAtK::default()
                 }
+            }
+            SolverTheory::Joint(_) => {
+                self.at_pair(k, None) // no K_c: void, "the joint certificate needs K_c"
             }
             SolverTheory::Unavailable(reason) => TheoryAtK {
                 phi: None,
@@ -202,40 +233,45 @@ pub fn certified_boundary(
     controller: ControllerChoice,
     k_e_grid: &[usize],
 ) -> Staircase {
-    let ControllerChoice::SuboptimalMpc {
-        method: mpc_method, ..
-    } = controller
-    else {
+    if !matches!(controller, ControllerChoice::SuboptimalMpc { .. }) {
         return Vec::new();
-    };
-    let opts = CertificateOptions {
-        solvers: vec![solver],
-        lipschitz_pairs: 0,
-        gamma13_sequences: 0,
-        ..CertificateOptions::default()
-    };
-    let Ok(cert) = certify_closed_loop(resolved, &opts) else {
-        return Vec::new();
-    };
-    let Ok(mpc) = resolved.mpc() else {
-        return Vec::new();
-    };
-    let plant = &resolved.scenario().plant;
-    let n_e = plant.nx() + cert.horizon * (plant.nx() + plant.ny());
-    let joint = crate::joint::JointOptions::default();
-    match crate::joint::certify_joint(&cert, mpc, n_e, solver, mpc_method, &joint) {
-        Ok(j) => j.analysis.boundary(k_e_grid, joint.k_max),
-        Err(_) => Vec::new(),
+    }
+    match solver_theory(resolved, &[solver], controller).pop() {
+        Some((_, theory)) => joint_staircase(&theory, k_e_grid),
+        None => Vec::new(),
     }
 }
 
-/// Theorem 1 for each solver of the sweep, from the closed-loop certificate of the
-/// scenario ([`certify_closed_loop`]; its sampled L_Φ, L_π and γ₁,₃ estimates are skipped,
-/// the certified values are what enter the slopes).
-///
-/// The certificate covers the exact MPC (its L_π and γ₁,₃); for any other controller the
-/// columns are void with that reason. A certificate that cannot be computed makes the
-/// columns void with the error as the reason (the empirical side is still useful).
+/// The staircase of a solver's joint certificate on `k_e_grid` (empty: not the joint
+/// certificate, or uncovered; None at every K_e: void). The same analysis as the points'
+/// `certified` column ([`SolverTheory::at_pair`]), so the two cannot disagree.
+pub fn joint_staircase(theory: &SolverTheory, k_e_grid: &[usize]) -> Staircase {
+    match theory {
+        SolverTheory::Joint(app) => match app.as_ref() {
+            Applicable::Joint {
+                analysis,
+                k_max,
+                void_reasons,
+            } => {
+                if void_reasons.is_empty() {
+                    analysis.boundary(k_e_grid, *k_max)
+                } else {
+                    k_e_grid.iter().map(|&k| (k, None)).collect()
+                }
+            }
+            _ => Vec::new(),
+        },
+        _ => Vec::new(),
+    }
+}
+
+/// The certificate covering each solver of the sweep with `controller`
+/// ([`crate::coverage`]): Theorem 1 for the exact MPC, the joint certificate for the
+/// K_c-iteration MPC, void with the reason otherwise (a shifted warm start, the saturated
+/// LQR). Computed from the closed-loop certificate of the scenario
+/// ([`certify_closed_loop`]; its sampled L_Φ, L_π and γ₁,₃ estimates are skipped, the
+/// certified values are what enter the gains). A certificate that cannot be computed makes
+/// the columns void with the error as the reason (the empirical side is still useful).
 pub fn solver_theory(
     resolved: &ResolvedScenario,
     solvers: &[Method],
@@ -247,10 +283,10 @@ pub fn solver_theory(
             .map(|&s| (s, SolverTheory::Unavailable(reason.clone())))
             .collect()
     };
-    if controller != ControllerChoice::ExactMpc {
-        return unavailable(format!(
-            "the certificate is for the exact MPC (its L_π and γ₁,₃); this sweep runs {controller:?}"
-        ));
+    if let Some(&first) = solvers.first() {
+        if let Coverage::Uncovered(reason) = covering(resolved.scenario(), first, controller) {
+            return unavailable(reason);
+        }
     }
     // The sweep uses the certified constants only: the sampled L_Φ, L_π and γ₁,₃ estimates
     // (exact solves at seeded points, most of the certificate's time) are skipped.
@@ -265,15 +301,18 @@ pub fn solver_theory(
         Ok(cert) => solvers
             .iter()
             .map(|&s| {
-                let theory = match cert.solver(s) {
-                    Some(sc) => SolverTheory::Analysis {
-                        analysis: Box::new(sc.analysis.clone()),
-                        k_min: sc.k_min,
-                        void_reasons: sc.void_reasons.clone(),
+                let theory = match Applicable::new(resolved, &cert, s, controller) {
+                    Applicable::Theorem1 {
+                        analysis,
+                        k_min,
+                        void_reasons,
+                    } => SolverTheory::Analysis {
+                        analysis,
+                        k_min,
+                        void_reasons,
                     },
-                    None => {
-                        SolverTheory::Unavailable(format!("the certificate has no entry for {s}"))
-                    }
+                    Applicable::Uncovered(r) => SolverTheory::Unavailable(r),
+                    joint @ Applicable::Joint { .. } => SolverTheory::Joint(Box::new(joint)),
                 };
                 (s, theory)
             })

@@ -19,6 +19,7 @@ mod scenario;
 mod sim;
 mod sweep;
 mod sweep2d;
+mod truth;
 
 use closed_loop::certificate::{CertificateOptions, ClosedLoopCertificate, certify_closed_loop};
 use closed_loop::scenario::{LoopOptions, Scenario, ScenarioLoop};

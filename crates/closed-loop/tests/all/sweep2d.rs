@@ -358,9 +358,22 @@ fn rho_lin_column_is_the_linear_analysis_at_each_k_c() {
                     t.text(r, "k_lin").unwrap(),
                     report.k_lin.map(|k| k.to_string()).unwrap_or_default()
                 );
-                // Theorem 1's columns are void with the reason (it is for the exact MPC).
-                assert_eq!(t.text(r, "certified"), Some("void"));
-                assert!(t.text(r, "void_reason").unwrap().contains("exact MPC"));
+                // The joint certificate's verdict at (K_e, K_c) (closed_loop::coverage):
+                // the same one the certified staircase is drawn from.
+                let st = &sweep
+                    .certified_boundaries()
+                    .iter()
+                    .find(|(m, _)| *m == solver)
+                    .unwrap()
+                    .1;
+                let in_up_set = st
+                    .iter()
+                    .find(|(ke, _)| *ke == k)
+                    .and_then(|(_, first)| *first)
+                    .is_some_and(|f| k_c >= f);
+                let cert = t.text(r, "certified").unwrap();
+                assert_eq!(cert == "yes", in_up_set, "{solver} ({k}, {k_c}): {cert}");
+                assert!(!t.text(r, "void_reason").unwrap().contains("exact MPC"));
             }
         }
     }

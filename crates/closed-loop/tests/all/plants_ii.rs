@@ -132,6 +132,7 @@ fn premises_that_need_p_are_not_evaluated_when_lmi_2_fails() {
         l_phi: f64::NAN,
         l_pi: 1.0,
         c_norm: 1.0,
+        f_norm: 1.0,
         gamma13: 2.0,
         phi_rate: f64::NAN,
         phi_prefactor: f64::NAN,

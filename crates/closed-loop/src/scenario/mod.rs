@@ -266,12 +266,10 @@ impl RawScenario {
             mhe: s.mhe.as_ref().map(|m| Table(m.to_raw())),
             mpc: s.mpc.as_ref().map(|m| Table(m.to_raw())),
             certificate: (s.certificate.gamma13.is_some() || s.certificate.phase_seconds.is_some())
-                .then(|| {
-                    Table(RawCertificate {
-                        gamma13: s.certificate.gamma13,
-                        phase_seconds: s.certificate.phase_seconds,
-                    })
-                }),
+                .then_some(Table(RawCertificate {
+                    gamma13: s.certificate.gamma13,
+                    phase_seconds: s.certificate.phase_seconds,
+                })),
         }
     }
 }

@@ -43,6 +43,7 @@ pub fn schedule_json(report: &SweepReport, serial_s: f64, wall_s: f64, tasks_fil
         "tasks_file": if s.tasks.is_empty() { None } else { Some(tasks_file) },
         "busy_s": busy,
         "cpu_s": s.cpu_s(),
+        "help_s": s.help_s,
         "builds": s.builds(),
         "build_s": s.build_s(),
         "longest_task_s": s.longest_task_s(),

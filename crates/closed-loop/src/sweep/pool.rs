@@ -29,8 +29,10 @@ use crate::scenario::ScenarioLoop;
 /// What a task computes.
 #[derive(Debug, Clone, Copy)]
 enum Job {
-    /// Theorem 1 for `solvers[i]`.
-    Certificate(usize),
+    /// Theorem 1 for every solver: one certificate (its constants L_Φ, L_π, γ₁,₃ are
+    /// shared by the solvers and are most of its time, so one task per solver would
+    /// compute them once per solver).
+    Certificate,
     /// ρ_lin for entry `i` of (solver, K_c) pairs.
     Linear(usize, Method, Option<usize>, ControllerChoice),
     /// The joint boundary of `solvers[i]`.
@@ -43,7 +45,8 @@ enum Job {
 #[derive(Debug, Default)]
 struct TheoryState {
     left: usize,
-    certificates: Vec<Option<(Method, SolverTheory)>>,
+    certificates: Option<Vec<(Method, SolverTheory)>>,
+    certificate_task: bool,
     linear: Vec<Option<LinearEntry>>,
     boundaries: Vec<Option<(Method, Staircase)>>,
     /// Finished points whose file waits for the theory.
@@ -91,8 +94,8 @@ impl Sweep {
         let mut jobs = Vec::new();
         let mut st = TheoryState::default();
         if self.theory.get().is_none() && cfg.certificate && !cfg.is_2d() {
-            st.certificates = vec![None; cfg.solvers.len()];
-            jobs.extend((0..cfg.solvers.len()).map(|i| (Job::Certificate(i), 0)));
+            st.certificate_task = true;
+            jobs.push((Job::Certificate, 0));
         }
         if self.linear.get().is_none() && cfg.linear {
             let controllers: Vec<(Option<usize>, ControllerChoice)> = match &cfg.k_c_grid {
@@ -166,7 +169,9 @@ impl Sweep {
             .thread_name(|i| format!("sweep-{i}"))
             .build()
             .map_err(|e| SweepError::Threads(e.to_string()))?;
-        for mine in pool.broadcast(|ctx| sh.worker(ctx.index())) {
+        let mut help_s = 0.0;
+        for (mine, help) in pool.broadcast(|ctx| sh.worker(ctx.index())) {
+            help_s += help;
             for (i, t) in mine {
                 times[i] = Some(t);
             }
@@ -181,6 +186,7 @@ impl Sweep {
             schedule: ScheduleReport {
                 threads,
                 pool_wall_s,
+                help_s,
                 tasks: times.into_iter().flatten().collect(),
             },
         })
@@ -188,11 +194,22 @@ impl Sweep {
 }
 
 impl Shared<'_> {
-    fn worker(&self, w: usize) -> Vec<(usize, TaskTime)> {
+    fn worker(&self, w: usize) -> (Vec<(usize, TaskTime)>, f64) {
         let mut mine = Vec::new();
+        let mut help_s = 0.0;
         // The loop of the point this worker ran last: (slot, loop).
         let mut lp: Option<(usize, ScenarioLoop)> = None;
         while !self.abort.load(Ordering::Relaxed) {
+            // Between tasks, help with the pending pieces of a theory task's own parallel
+            // parts (the γ₁,₃ enumeration's `par_iter` on another worker).
+            let h = Instant::now();
+            let mut helped = false;
+            while let Some(rayon::Yield::Executed) = rayon::yield_now() {
+                helped = true;
+            }
+            if helped {
+                help_s += h.elapsed().as_secs_f64();
+            }
             let i = self.next.fetch_add(1, Ordering::Relaxed);
             let Some(&(job, cost)) = self.jobs.get(i) else {
                 break;
@@ -201,7 +218,7 @@ impl Shared<'_> {
             let cpu = thread_cpu_s();
             let mut build_s = 0.0;
             let (kind, point, run) = match job {
-                Job::Certificate(_) => (TaskKind::Certificate, None, None),
+                Job::Certificate => (TaskKind::Certificate, None, None),
                 Job::Linear(..) => (TaskKind::Linear, None, None),
                 Job::Boundary(_) => (TaskKind::Boundary, None, None),
                 Job::Run { slot, run } => (TaskKind::Run, Some(self.todo[slot].index), Some(run)),
@@ -229,7 +246,7 @@ impl Shared<'_> {
                 },
             ));
         }
-        mine
+        (mine, help_s)
     }
 
     fn run(
@@ -289,12 +306,8 @@ impl Shared<'_> {
         let mut out_linear = None;
         let mut out_boundary = None;
         match job {
-            Job::Certificate(i) => {
-                let s = cfg.solvers[i];
-                out_cert = solver_theory(resolved, &[s], cfg.controller)
-                    .into_iter()
-                    .next()
-                    .map(|t| (i, t));
+            Job::Certificate => {
+                out_cert = Some(solver_theory(resolved, &cfg.solvers, cfg.controller));
             }
             Job::Linear(i, s, k_c, c) => {
                 let grid = cfg.k_grid.clone();
@@ -313,8 +326,8 @@ impl Shared<'_> {
         }
         let pending = {
             let mut st = lock(&self.theory);
-            if let Some((i, t)) = out_cert {
-                st.certificates[i] = Some(t);
+            if out_cert.is_some() {
+                st.certificates = out_cert;
             }
             if let Some((i, e)) = out_linear {
                 st.linear[i] = Some(e);
@@ -326,9 +339,8 @@ impl Shared<'_> {
             if st.left > 0 {
                 return Ok(());
             }
-            if !st.certificates.is_empty() {
-                let v = std::mem::take(&mut st.certificates).into_iter().flatten();
-                let _ = sweep.theory.set(v.collect());
+            if let Some(v) = st.certificates.take().filter(|_| st.certificate_task) {
+                let _ = sweep.theory.set(v);
             }
             if !st.linear.is_empty() {
                 let v = std::mem::take(&mut st.linear).into_iter().flatten();

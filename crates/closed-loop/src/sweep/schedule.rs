@@ -1,7 +1,7 @@
 //! The sweep's scheduling policy, its measured task times and a replay of them.
 //!
 //! **Policy.** One pool of `threads` workers runs one flat list of tasks: first the theory
-//! (the certificate per solver, ρ_lin per solver and K_c, the joint boundary per solver —
+//! (the certificate, ρ_lin per solver and K_c, the joint boundary per solver —
 //! the longest single tasks of every shipped sweep), then every run of every point, ordered
 //! longest first by the estimate [`run_cost`](super::run_cost) = T·(K + 50) (ties: point
 //! index, then run index). A free worker takes the next task of the list (one shared atomic
@@ -22,7 +22,7 @@ use serde::Serialize;
 #[derive(Debug, Clone, Copy, PartialEq, Eq, Serialize)]
 #[serde(rename_all = "snake_case")]
 pub enum TaskKind {
-    /// Theorem 1's certificate for one solver.
+    /// Theorem 1's certificate (every solver).
     Certificate,
     /// ρ_lin(K) of one solver (and K_c in a 2-D sweep).
     Linear,
@@ -75,6 +75,9 @@ pub struct ScheduleReport {
     pub threads: usize,
     /// Wall time from the pool's start to the last worker's end.
     pub pool_wall_s: f64,
+    /// Time workers spent between tasks on pieces of a theory task's own parallel parts
+    /// (the γ₁,₃ enumeration), summed over workers; busy, but in no task.
+    pub help_s: f64,
     /// Every task, in list (scheduling) order.
     pub tasks: Vec<TaskTime>,
 }
@@ -93,9 +96,9 @@ pub struct Prediction {
 }
 
 impl ScheduleReport {
-    /// Σ of the tasks' busy times.
+    /// Σ of the tasks' busy times and the help time.
     pub fn busy_s(&self) -> f64 {
-        self.tasks.iter().map(|t| t.busy_s).sum()
+        self.tasks.iter().map(|t| t.busy_s).sum::<f64>() + self.help_s
     }
     /// Σ of the tasks' CPU times (NaN when not measurable).
     pub fn cpu_s(&self) -> f64 {
@@ -248,6 +251,7 @@ mod tests {
         let r = ScheduleReport {
             threads: 1,
             pool_wall_s: 4.0,
+            help_s: 0.0,
             tasks: vec![
                 run(0, 1.5, 0.5),
                 run(0, 1.0, 0.0),
@@ -275,6 +279,7 @@ mod tests {
         let mk = |d: &[f64]| ScheduleReport {
             threads: 1,
             pool_wall_s: 6.0,
+            help_s: 0.0,
             tasks: d
                 .iter()
                 .enumerate()

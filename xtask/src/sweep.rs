@@ -35,7 +35,7 @@ pub struct SweepArgs {
     /// the same directory resumes: finished points are skipped.
     #[arg(long, value_name = "DIR")]
     pub out: Option<PathBuf>,
-    /// Worker threads of the rayon pool [default: all logical CPUs].
+    /// Worker threads of the pool [default: all logical CPUs].
     #[arg(long, value_name = "N")]
     pub threads: Option<usize>,
     /// Run only shard I of N (1 ≤ I ≤ N; points with index mod N = I − 1); assemble the

@@ -11,12 +11,21 @@ pub const PREDICT_AT: [usize; 4] = [1, 2, 16, 64];
 
 /// `meta.json`'s `run.schedule`: `serial_s` is the command's wall time outside the pool,
 /// `wall_s` the whole command's.
-pub fn schedule_json(report: &SweepReport, serial_s: f64, wall_s: f64, tasks_file: &str) -> serde_json::Value {
+pub fn schedule_json(
+    report: &SweepReport,
+    serial_s: f64,
+    wall_s: f64,
+    tasks_file: &str,
+) -> serde_json::Value {
     let s = &report.schedule;
     let busy = s.busy_s();
     let with_serial = |threads: usize, pool: f64| {
         let wall = serial_s + pool;
-        if wall > 0.0 { busy / (threads as f64 * wall) } else { 0.0 }
+        if wall > 0.0 {
+            busy / (threads as f64 * wall)
+        } else {
+            0.0
+        }
     };
     let predicted: Vec<serde_json::Value> = PREDICT_AT
         .iter()
@@ -78,7 +87,11 @@ pub fn schedule_lines(report: &SweepReport, serial_s: f64, wall_s: f64) -> Vec<S
         ),
         format!(
             "serial time {serial_s:.3} s = {:.2} % of the wall time {wall_s:.2} s",
-            if wall_s > 0.0 { 100.0 * serial_s / wall_s } else { 0.0 }
+            if wall_s > 0.0 {
+                100.0 * serial_s / wall_s
+            } else {
+                0.0
+            }
         ),
     ];
     let preds: Vec<String> = PREDICT_AT

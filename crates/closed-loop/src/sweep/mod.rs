@@ -15,7 +15,8 @@
 //!   of those values only. By default (`common_random_numbers = true`) the point does not
 //!   enter, so run r sees the same disturbance sequence at every K and solver (differences
 //!   along a curve come from K, not from the draw).
-//! - Runs are spread over a rayon pool of `threads` workers; each worker restarts a loop of
+//! - Runs are tasks of one pool of `threads` workers (with the certificate and ρ_lin as
+//!   tasks beside them, longest first: `schedule.rs`); each worker restarts a loop of
 //!   its own with [`ScenarioLoop::reseed`](crate::scenario::ScenarioLoop::reseed), which is equivalent to a fresh build. faer's
 //!   global parallelism is set to sequential (no nested pools inside a run).
 //! - Every output value is a function of the configuration and the scenario only, except

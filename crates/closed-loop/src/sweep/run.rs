@@ -1,6 +1,6 @@
 //! The run loop: a [`Sweep`] (the config, the scenario resolved once, the points, the
-//! theory) runs every run of every point on a rayon pool, writes each finished point file
-//! at once and assembles the outputs.
+//! theory) runs the theory and every run of every point on one worker pool (`pool.rs`),
+//! writes each finished point file at once and assembles the outputs.
 //!
 //! This file (with the config parser for `solvers` and `controller`) is where the sweep
 //! meets the simulation of `crate::sim`: building the case-study loop of a point and
@@ -19,9 +19,9 @@ use super::error::{Result, SweepError, config_err, io_err};
 use super::format::{self, PointFile, point_row, run_row, temp_path};
 use super::lock::OutputLock;
 use super::merge::write_files;
-use super::schedule::ScheduleReport;
 use super::metrics::{RunMetrics, summarise};
 use super::region::Staircase;
+use super::schedule::ScheduleReport;
 use super::seeds::Shard;
 use super::theory::LinearEntry;
 use super::theory::{
@@ -36,7 +36,7 @@ use crate::sim::ClosedLoopError;
 pub struct RunOptions {
     /// Output directory (created if needed).
     pub out_dir: PathBuf,
-    /// Worker threads ≥ 1 of the rayon pool.
+    /// Worker threads ≥ 1 of the pool.
     pub threads: usize,
     /// Run only this shard's points (and do not assemble).
     pub shard: Option<Shard>,

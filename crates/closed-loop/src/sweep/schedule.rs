@@ -161,9 +161,15 @@ impl ScheduleReport {
         let (mut busy, mut n_builds) = (0.0, 0);
         for t in &self.tasks {
             // The first free worker (lowest index on a tie), as a shared counter gives.
-            let (w, _) = free.iter().enumerate().fold((0, f64::INFINITY), |best, (i, &f)| {
-                if f < best.1 { (i, f) } else { best }
-            });
+            let (w, _) = free
+                .iter()
+                .enumerate()
+                .fold(
+                    (0, f64::INFINITY),
+                    |best, (i, &f)| {
+                        if f < best.1 { (i, f) } else { best }
+                    },
+                );
             let mut d = t.busy_s - t.build_s;
             if let Some(p) = t.point {
                 if current[w] != Some(p) {
@@ -280,11 +286,7 @@ mod tests {
             threads: 1,
             pool_wall_s: 6.0,
             help_s: 0.0,
-            tasks: d
-                .iter()
-                .enumerate()
-                .map(|(i, &b)| run(i, b, 0.0))
-                .collect(),
+            tasks: d.iter().enumerate().map(|(i, &b)| run(i, b, 0.0)).collect(),
         };
         assert_eq!(mk(&[3.0, 2.0, 1.0]).replay(2).pool_wall_s, 3.0);
         assert_eq!(mk(&[1.0, 2.0, 3.0]).replay(2).pool_wall_s, 4.0);

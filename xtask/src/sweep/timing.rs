@@ -31,6 +31,7 @@ pub fn schedule_json(
         .iter()
         .map(|&n| {
             let p: Prediction = s.replay(n);
+            let r = s.replay_runs(n);
             json!({
                 "threads": n,
                 "pool_wall_s": p.pool_wall_s,
@@ -38,6 +39,10 @@ pub fn schedule_json(
                 "efficiency": p.efficiency,
                 "efficiency_with_serial": with_serial(n, p.pool_wall_s),
                 "builds": p.builds,
+                "runs_only": {
+                    "pool_wall_s": r.pool_wall_s,
+                    "efficiency": r.efficiency,
+                },
             })
         })
         .collect();
@@ -108,6 +113,21 @@ pub fn schedule_lines(report: &SweepReport, serial_s: f64, wall_s: f64) -> Vec<S
     lines.push(format!(
         "replay of these task times (pool wall, efficiency): {}",
         preds.join(", ")
+    ));
+    let runs: Vec<String> = PREDICT_AT
+        .iter()
+        .map(|&n| {
+            let p = s.replay_runs(n);
+            format!(
+                "{n}: {:.2} s ({:.1} %)",
+                p.pool_wall_s,
+                100.0 * p.efficiency
+            )
+        })
+        .collect();
+    lines.push(format!(
+        "replay of the run tasks alone: {}",
+        runs.join(", ")
     ));
     lines
 }

@@ -126,7 +126,7 @@ impl Sweep {
             })
             .collect();
         // Stable: equal costs keep point order, then run order.
-        runs.sort_by(|a, b| b.1.cmp(&a.1));
+        runs.sort_by_key(|r| std::cmp::Reverse(r.1));
         jobs.extend(runs);
         (jobs, st)
     }
@@ -214,6 +214,8 @@ impl Shared<'_> {
             let Some(&(job, cost)) = self.jobs.get(i) else {
                 break;
             };
+            // The CPU-clock reads (system calls) are inside the timed interval: a process
+            // switch at their return counts in the task, not between tasks.
             let start = Instant::now();
             let cpu = thread_cpu_s();
             let mut build_s = 0.0;
@@ -227,6 +229,8 @@ impl Shared<'_> {
                 Job::Run { slot, run } => self.run(slot, run, cost, &mut lp, &mut build_s),
                 theory => self.theory_task(theory),
             };
+            let cpu_s = thread_cpu_s() - cpu;
+            let busy_s = start.elapsed().as_secs_f64();
             if let Err(e) = res {
                 lock(&self.error).get_or_insert(e);
                 self.abort.store(true, Ordering::Relaxed);
@@ -240,9 +244,9 @@ impl Shared<'_> {
                     cost,
                     worker: w,
                     start_s: (start - self.clock).as_secs_f64(),
-                    busy_s: start.elapsed().as_secs_f64(),
+                    busy_s,
                     build_s,
-                    cpu_s: thread_cpu_s() - cpu,
+                    cpu_s,
                 },
             ));
         }

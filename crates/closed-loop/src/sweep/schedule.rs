@@ -11,7 +11,9 @@
 //! **Replay.** [`ScheduleReport::replay`] pushes the measured task times through the same
 //! policy for another worker count: a simulated worker that is free first (lowest index on
 //! a tie) takes the next task; a run task costs its measured time without its build, plus
-//! the point's mean measured build time when the simulated worker last ran another point.
+//! the point's mean measured build time when the simulated worker last ran another point;
+//! the measured help with the certificate's parallel parts (`help_s`) is shared evenly by
+//! the workers other than the certificate's before they take their first task.
 //! Assumptions (docs/sweeps.md, "Scaling"): a task takes as long on any worker count as it
 //! took when measured (no memory-bandwidth, cache, turbo or SMT effects), dispatch costs
 //! nothing, and the serial part is the measured one.
@@ -144,6 +146,17 @@ impl ScheduleReport {
     /// Replays the measured task times through the scheduler's policy on `threads`
     /// workers (module docs: policy and assumptions).
     pub fn replay(&self, threads: usize) -> Prediction {
+        self.replay_tasks(threads, |_| true)
+    }
+
+    /// [`ScheduleReport::replay`] of the run tasks alone: how the runs balance, without the
+    /// theory's tasks (whose one certificate task is a sequential chain that bounds the
+    /// makespan on many threads).
+    pub fn replay_runs(&self, threads: usize) -> Prediction {
+        self.replay_tasks(threads, |t| t.kind == TaskKind::Run)
+    }
+
+    fn replay_tasks(&self, threads: usize, keep: impl Fn(&TaskTime) -> bool) -> Prediction {
         let threads = threads.max(1);
         // Mean measured build time per point.
         let mut builds: std::collections::BTreeMap<usize, (f64, usize)> = Default::default();
@@ -157,9 +170,28 @@ impl ScheduleReport {
         let build_of = |p: usize| builds.get(&p).map_or(0.0, |&(s, n)| s / n as f64);
         // Worker state: (free at, current point).
         let mut free = vec![0.0f64; threads];
+        // The help with the certificate's parallel parts: done by the workers other than
+        // the certificate's (worker 0 takes it, the first task), shared evenly; on one
+        // worker, by that worker.
+        let help = if self
+            .tasks
+            .iter()
+            .any(|t| keep(t) && t.kind != TaskKind::Run)
+        {
+            self.help_s
+        } else {
+            0.0
+        };
+        if threads == 1 {
+            free[0] = help;
+        } else {
+            for f in free.iter_mut().skip(1) {
+                *f = help / (threads - 1) as f64;
+            }
+        }
         let mut current: Vec<Option<usize>> = vec![None; threads];
-        let (mut busy, mut n_builds) = (0.0, 0);
-        for t in &self.tasks {
+        let (mut busy, mut n_builds) = (help, 0);
+        for t in self.tasks.iter().filter(|t| keep(t)) {
             // The first free worker (lowest index on a tie), as a shared counter gives.
             let (w, _) = free
                 .iter()
@@ -276,6 +308,33 @@ mod tests {
         let many = r.replay(8);
         assert_eq!((many.pool_wall_s, many.builds), (1.5, 4));
         assert!((many.efficiency - 6.0 / 12.0).abs() < 1e-12);
+    }
+
+    #[test]
+    fn replay_shares_the_help_among_the_other_workers() {
+        // A 4 s certificate (worker 0) whose parallel part took 2 s of another worker's
+        // time, then four 1 s runs of four points.
+        let mut tasks = vec![TaskTime {
+            kind: TaskKind::Certificate,
+            point: None,
+            run: None,
+            ..run(0, 4.0, 0.0)
+        }];
+        tasks.extend((0..4).map(|p| run(p, 1.0, 0.0)));
+        let r = ScheduleReport {
+            threads: 2,
+            pool_wall_s: 5.0,
+            help_s: 2.0,
+            tasks,
+        };
+        assert_eq!(r.busy_s(), 10.0);
+        // One worker does everything: 10 s. Two: worker 1 helps 2 s, then runs 3 tasks
+        // (5 s); worker 0 runs the certificate and one run (5 s).
+        assert_eq!(r.replay(1).pool_wall_s, 10.0);
+        assert_eq!(r.replay(2).pool_wall_s, 5.0);
+        assert!((r.replay(2).efficiency - 1.0).abs() < 1e-12);
+        // The runs alone carry no help.
+        assert_eq!(r.replay_runs(2).pool_wall_s, 2.0);
     }
 
     #[test]

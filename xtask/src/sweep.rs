@@ -21,6 +21,7 @@ use crate::provenance::{Provenance, workspace_root};
 
 mod heatmap;
 mod plots;
+mod timing;
 use heatmap::heatmaps_all;
 use plots::{plot_all, read_points, shorten};
 
@@ -34,7 +35,7 @@ pub struct SweepArgs {
     /// the same directory resumes: finished points are skipped.
     #[arg(long, value_name = "DIR")]
     pub out: Option<PathBuf>,
-    /// Worker threads of the rayon pool [default: all logical CPUs].
+    /// Worker threads of the pool [default: all logical CPUs].
     #[arg(long, value_name = "N")]
     pub threads: Option<usize>,
     /// Run only shard I of N (1 ≤ I ≤ N; points with index mod N = I − 1); assemble the
@@ -311,6 +312,19 @@ pub fn sweep(args: &SweepArgs) -> Result<()> {
     };
     print_thresholds(&sweep, &thresholds, &pairs);
     let end = unix_now();
+    // Serial time: the command's wall time outside the pool (setup, checks, assembly,
+    // thresholds, plots; meta.json and tasks.csv below take milliseconds).
+    let wall = clock.elapsed().as_secs_f64();
+    let serial_s = (wall - report.schedule.pool_wall_s).max(0.0);
+    let tasks_name = match shard {
+        Some(s) => format!("tasks.shard-{}-of-{}.csv", s.index, s.count),
+        None => "tasks.csv".into(),
+    };
+    if !report.schedule.tasks.is_empty() {
+        let path = out.join(&tasks_name);
+        std::fs::write(&path, report.schedule.tasks_csv())
+            .with_context(|| format!("cannot write `{}`", path.display()))?;
+    }
     let extra = json!({
         "threads": threads,
         "shard": shard.map(|s| s.to_string()),
@@ -319,6 +333,7 @@ pub fn sweep(args: &SweepArgs) -> Result<()> {
         "closed_loop_steps": report.steps_simulated,
         "runs_wall_s": report.runs_wall_s,
         "steps_per_second_per_thread": report.steps_per_second_per_thread(),
+        "schedule": timing::schedule_json(&report, serial_s, wall, &tasks_name),
         "plots": plots,
         "thresholds": thresholds,
     });
@@ -338,6 +353,9 @@ pub fn sweep(args: &SweepArgs) -> Result<()> {
         &meta_name,
         &plots,
     );
+    for line in timing::schedule_lines(&report, serial_s, wall) {
+        println!("{line}");
+    }
     Ok(())
 }
 

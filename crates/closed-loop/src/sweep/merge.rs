@@ -125,18 +125,55 @@ fn check_complete(sweep: &Sweep, files: &BTreeMap<usize, Found>) -> Result<()> {
 /// point: both to temporary names first, renamed only when both are written.
 fn write_outputs(sweep: &Sweep, files: &BTreeMap<usize, Found>, out: &Path) -> Result<usize> {
     check_complete(sweep, files)?;
+    write_point_files(sweep, files.values().map(|f| &f.file), out)?;
+    Ok(files.len())
+}
+
+/// Writes `runs.csv` and `points.csv` into `out` from point files already validated and in
+/// memory (a sweep's own: those it found at the start and those it wrote), covering every
+/// point; the caller holds the lock of `out`.
+pub(super) fn write_files(
+    sweep: &Sweep,
+    files: &BTreeMap<usize, PointFile>,
+    out: &Path,
+) -> Result<usize> {
+    let total = sweep.points().len();
+    if files.len() < total {
+        let first = sweep
+            .points()
+            .iter()
+            .map(|p| p.index)
+            .find(|i| !files.contains_key(i))
+            .unwrap_or(0);
+        return Err(SweepError::Incomplete {
+            missing: total - files.len(),
+            total,
+            first,
+        });
+    }
+    write_point_files(sweep, files.values(), out)?;
+    Ok(files.len())
+}
+
+/// `runs.csv` and `points.csv` from point files in point order: both to temporary names
+/// first, renamed only when both are written.
+fn write_point_files<'a>(
+    sweep: &Sweep,
+    files: impl Iterator<Item = &'a PointFile>,
+    out: &Path,
+) -> Result<()> {
     let metrics = &sweep.config().metrics;
     let two_d = sweep.config().is_2d();
     let mut runs = runs_header(metrics, two_d);
     runs.push('\n');
     let mut points = points_header(metrics, two_d);
     points.push('\n');
-    for f in files.values() {
-        for r in &f.file.run_rows {
+    for f in files {
+        for r in &f.run_rows {
             runs.push_str(r);
             runs.push('\n');
         }
-        points.push_str(&f.file.point_row);
+        points.push_str(&f.point_row);
         points.push('\n');
     }
     let (runs_path, points_path) = (out.join("runs.csv"), out.join("points.csv"));
@@ -148,7 +185,7 @@ fn write_outputs(sweep: &Sweep, files: &BTreeMap<usize, Found>, out: &Path) -> R
         let _ = fs::remove_file(&points_tmp);
     })?;
     commit(&points_tmp, &points_path)?;
-    Ok(files.len())
+    Ok(())
 }
 
 /// [`assemble`] for a caller that holds the lock of `out`.

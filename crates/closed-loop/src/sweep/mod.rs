@@ -15,7 +15,8 @@
 //!   of those values only. By default (`common_random_numbers = true`) the point does not
 //!   enter, so run r sees the same disturbance sequence at every K and solver (differences
 //!   along a curve come from K, not from the draw).
-//! - Runs are spread over a rayon pool of `threads` workers; each worker restarts a loop of
+//! - Runs are tasks of one pool of `threads` workers (with the certificate and ρ_lin as
+//!   tasks beside them, longest first: `schedule.rs`); each worker restarts a loop of
 //!   its own with [`ScenarioLoop::reseed`](crate::scenario::ScenarioLoop::reseed), which is equivalent to a fresh build. faer's
 //!   global parallelism is set to sequential (no nested pools inside a run).
 //! - Every output value is a function of the configuration and the scenario only, except
@@ -45,6 +46,8 @@
 //! | `theory.rs` | the certificate's and the linear analysis' columns per point ([`SolverTheory`], [`TheoryAtK`], [`LinearSide`]); the joint certificate's hook [`certified_boundary`] |
 //! | `format.rs` | CSV rows and headers, fingerprint, point files (writing, reading, validation), [`Table`] |
 //! | `run.rs` | [`Sweep`], the run loop, [`Progress`]: the only contact with the simulation |
+//! | `pool.rs` | the theory and every run as tasks of one worker pool, point files written as points finish |
+//! | `schedule.rs` | the scheduling policy, the measured task times ([`ScheduleReport`]) and their replay for other thread counts |
 //! | `merge.rs` | resume reading, [`assemble`], [`merge_point_dirs`] |
 //! | `lock.rs` | one writer per output directory |
 //! | `error.rs` | [`SweepError`] |
@@ -59,8 +62,10 @@ mod grid;
 mod lock;
 mod merge;
 mod metrics;
+mod pool;
 mod region;
 mod run;
+mod schedule;
 mod seeds;
 mod theory;
 mod thresholds;
@@ -85,6 +90,7 @@ pub use region::{
     pair_thresholds_markdown, staircase, staircase_text, up_set,
 };
 pub use run::{NoProgress, Progress, RunOptions, Sweep, SweepReport, run_cost};
+pub use schedule::{Prediction, ScheduleReport, TaskKind, TaskTime};
 pub use seeds::{Shard, run_seed, splitmix64};
 pub use theory::{
     LinearEntry, LinearSide, SolverTheory, TheoryAtK, certified_boundary, joint_staircase,

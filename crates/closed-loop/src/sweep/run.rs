@@ -1,27 +1,28 @@
 //! The run loop: a [`Sweep`] (the config, the scenario resolved once, the points, the
-//! theory) runs every run of every point on a rayon pool, writes each finished point file
-//! at once and assembles the outputs.
+//! theory) runs the theory and every run of every point on one worker pool (`pool.rs`),
+//! writes each finished point file at once and assembles the outputs.
 //!
 //! This file (with the config parser for `solvers` and `controller`) is where the sweep
 //! meets the simulation of `crate::sim`: building the case-study loop of a point and
 //! running it per seed.
 
+use std::collections::BTreeMap;
 use std::fs;
 use std::path::{Path, PathBuf};
 use std::sync::OnceLock;
 use std::time::Instant;
 
 use crate::scenario::{ResolvedScenario, Scenario};
-use rayon::prelude::*;
 
 use super::config::{Point, SweepConfig};
 use super::error::{Result, SweepError, config_err, io_err};
-use super::format::{self, PointFile, point_file_name, point_row, run_row, temp_path};
+use super::format::{self, PointFile, point_row, run_row, temp_path};
 use super::lock::OutputLock;
-use super::merge::assemble_locked;
+use super::merge::write_files;
 use super::metrics::{RunMetrics, summarise};
 use super::region::Staircase;
-use super::seeds::{Shard, run_seed};
+use super::schedule::ScheduleReport;
+use super::seeds::Shard;
 use super::theory::LinearEntry;
 use super::theory::{
     LinearSide, SolverTheory, TheoryAtK, joint_staircase, solver_linear, solver_theory,
@@ -35,7 +36,7 @@ use crate::sim::ClosedLoopError;
 pub struct RunOptions {
     /// Output directory (created if needed).
     pub out_dir: PathBuf,
-    /// Worker threads ≥ 1 of the rayon pool.
+    /// Worker threads ≥ 1 of the pool.
     pub threads: usize,
     /// Run only this shard's points (and do not assemble).
     pub shard: Option<Shard>,
@@ -88,12 +89,16 @@ pub struct SweepReport {
     pub steps_simulated: u64,
     /// Wall time of this call in seconds.
     pub wall_s: f64,
-    /// Wall time of the runs alone (without the certificate and the file assembly).
+    /// Wall time of the pool (the runs, the theory computed beside them and the point files
+    /// written as they finish; without the setup and the assembly).
     pub runs_wall_s: f64,
     /// Threads used.
     pub threads: usize,
     /// Whether `runs.csv` and `points.csv` were assembled (false for a shard).
     pub assembled: bool,
+    /// Every task's measured time and the replay of them (`schedule.rs`); empty when
+    /// nothing was computed.
+    pub schedule: ScheduleReport,
 }
 
 impl SweepReport {
@@ -107,19 +112,6 @@ impl SweepReport {
     }
 }
 
-/// A worker thread's loop for the point it is running (built once per point and thread).
-struct WorkerLoop {
-    fingerprint: String,
-    point: usize,
-    lp: ScenarioLoop,
-}
-
-thread_local! {
-    /// The loop of the current worker thread; the sweep's pool threads end with the sweep,
-    /// and their loops with them.
-    static WORKER_LOOP: std::cell::RefCell<Option<WorkerLoop>> = const { std::cell::RefCell::new(None) };
-}
-
 /// A sweep ready to run: the config, the scenario (with P of LMI (2) computed once), the
 /// points and the theoretical side.
 #[derive(Debug)]
@@ -131,9 +123,9 @@ pub struct Sweep {
     points: Vec<Point>,
     fingerprint: String,
     canonical: String,
-    theory: OnceLock<Vec<(Method, SolverTheory)>>,
-    linear: OnceLock<LinearSide>,
-    certified: OnceLock<Vec<(Method, Staircase)>>,
+    pub(super) theory: OnceLock<Vec<(Method, SolverTheory)>>,
+    pub(super) linear: OnceLock<LinearSide>,
+    pub(super) certified: OnceLock<Vec<(Method, Staircase)>>,
 }
 
 impl Sweep {
@@ -165,6 +157,9 @@ impl Sweep {
             point: "(scenario)".into(),
             source,
         })?;
+        // ℙ_t built once here, so every point's clone shares it (an error surfaces per
+        // point, with its key, when the loop is built).
+        let _ = resolved.mhe_problem();
         if let Some(Err(source)) = resolved.ioss() {
             if resolved
                 .scenario()
@@ -335,7 +330,8 @@ impl Sweep {
         }
     }
 
-    fn build(&self, p: &Point) -> Result<ScenarioLoop> {
+    pub(super) fn build(&self, p: &Point) -> Result<ScenarioLoop> {
+        // A clone shares the MHE problem built once in `Sweep::new` (an `Arc`).
         let mut resolved = self.resolved.clone();
         resolved.set_noise_scale(p.scale);
         let opts = LoopOptions {
@@ -352,52 +348,6 @@ impl Sweep {
                 point: p.to_string(),
                 source,
             })
-    }
-
-    /// Runs every run of one point on the current rayon pool, one task per run. Each
-    /// worker thread builds the point's loop once and restarts it per run with
-    /// [`ScenarioLoop::reseed`] (equivalent to a fresh build, allocation-free), so the
-    /// runs balance across threads at the granularity of one run. The result is in run
-    /// order.
-    pub fn run_point(&self, p: &Point, progress: &dyn Progress) -> Result<Vec<RunMetrics>> {
-        let input = (
-            self.scenario().sets.input.lower(),
-            self.scenario().sets.input.upper(),
-        );
-        let cost = run_cost(p.k + p.k_c.unwrap_or(0), self.steps);
-        let setup = |source| SweepError::Setup {
-            point: p.to_string(),
-            source,
-        };
-        (0..self.config.seeds)
-            .into_par_iter()
-            .with_max_len(1)
-            .map(|r| {
-                let seed = run_seed(self.base_seed, p, r, self.config.common_random_numbers);
-                let m = WORKER_LOOP.with(|cell| {
-                    let mut slot = cell.borrow_mut();
-                    let mine =
-                        |w: &WorkerLoop| w.fingerprint == self.fingerprint && w.point == p.index;
-                    let mut w = match slot.take() {
-                        Some(w) if mine(&w) => w,
-                        stale => {
-                            drop(stale); // free the previous point's loop first
-                            WorkerLoop {
-                                fingerprint: self.fingerprint.clone(),
-                                point: p.index,
-                                lp: self.build(p)?,
-                            }
-                        }
-                    };
-                    let res = simulate(&mut w.lp, r, seed, input, self.config.bounded_factor)
-                        .map_err(setup);
-                    *slot = Some(w);
-                    res
-                });
-                progress.run_done(cost);
-                m
-            })
-            .collect()
     }
 
     /// The point file of a computed point.
@@ -448,43 +398,36 @@ impl Sweep {
             .filter(|p| opts.shard.is_none_or(|s| s.owns(p.index)))
             .count()
             - todo.len();
-        drop(done);
-        if !todo.is_empty() {
-            // The certificate (seconds) before the progress report and the clock of the
-            // runs start.
-            let _ = self.theory();
-        }
         let seeds = self.config.seeds as u64;
         progress.start(
             todo.len(),
             todo.len() as u64 * seeds,
             todo.iter()
-                .map(|p| run_cost(p.k + p.k_c.unwrap_or(0), self.steps) * seeds)
-                .sum(),
+                .map(|p| run_cost(p.k + p.k_c.unwrap_or(0), self.steps))
+                .sum::<u64>()
+                * seeds,
             skipped,
         );
         // No nested parallelism inside a run.
         faer::set_global_parallelism(faer::Par::Seq);
-        let pool = rayon::ThreadPoolBuilder::new()
-            .num_threads(opts.threads)
-            .thread_name(|i| format!("sweep-{i}"))
-            .build()
-            .map_err(|e| SweepError::Threads(e.to_string()))?;
-        let runs_clock = Instant::now();
-        let mut steps_done = 0u64;
-        let mut computed = 0;
-        for p in todo {
-            let runs = pool.install(|| self.run_point(p, progress))?;
-            steps_done += runs.iter().map(|r| r.steps as u64).sum::<u64>();
-            let file = self.point_file(p, &runs);
-            file.write_atomic(&pdir.join(point_file_name(p.index)))?;
-            progress.point_done(p);
-            computed += 1;
-        }
-        let runs_wall_s = runs_clock.elapsed().as_secs_f64();
+        // The theory and every run as tasks of one pool (`pool.rs`, `schedule.rs`).
+        let outcome = if todo.is_empty() {
+            None
+        } else {
+            Some(self.execute(&todo, opts.threads, &pdir, progress)?)
+        };
+        let computed = todo.len();
+        let (steps_done, schedule, mut files) = match outcome {
+            Some(o) => (o.steps, o.schedule, o.files),
+            None => (0, ScheduleReport::default(), BTreeMap::new()),
+        };
+        let runs_wall_s = schedule.pool_wall_s;
         let assembled = opts.shard.is_none();
         if assembled {
-            assemble_locked(self, &[opts.out_dir.as_path()], &opts.out_dir)?;
+            // Every point file is in memory: the ones found (validated above) and the ones
+            // written now.
+            files.extend(done);
+            write_files(self, &files, &opts.out_dir)?;
         }
         drop(lock);
         Ok(SweepReport {
@@ -495,6 +438,7 @@ impl Sweep {
             runs_wall_s,
             threads: opts.threads,
             assembled,
+            schedule,
         })
     }
 }
@@ -518,7 +462,7 @@ pub(super) fn take_lock(
 }
 
 /// Runs `lp` once with `seed` (restarting it first) and returns its metrics.
-fn simulate(
+pub(super) fn simulate(
     lp: &mut ScenarioLoop,
     run: usize,
     seed: u64,

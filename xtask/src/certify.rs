@@ -478,7 +478,7 @@ pub fn write_json(doc: &CertificateDocument, path: &Path) -> Result<()> {
             .with_context(|| format!("cannot create directory `{}`", dir.display()))?;
     }
     let text = serde_json::to_string_pretty(doc).context("cannot serialise the certificate")?;
-    std::fs::write(path, text + "\n").with_context(|| format!("cannot write `{}`", path.display()))
+    crate::output::write_atomic(path, (text + "\n").as_bytes())
 }
 
 #[cfg(test)]

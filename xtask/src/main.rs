@@ -9,7 +9,13 @@
 //!
 //! Exit codes: 0 success, 1 error (bad input, I/O), 2 usage error, 3 a certificate check
 //! failed (certify: LMI (2) infeasible or a supplied P rejected; reproduce: a simulation at
-//! the certified K violates Prop. 1 or 3 with the certificate's constants).
+//! the certified K violates Prop. 1 or 3 with the certificate's constants), 4 the work
+//! completed and its files were written but stdout or stderr could not be written (closed
+//! pipe, full device; [`console`]).
+
+#[macro_use]
+mod console;
+mod output;
 
 mod certify;
 mod figures;
@@ -92,10 +98,10 @@ enum Command {
 }
 
 fn report(outcome: &Outcome, json: Option<&Path>) -> Result<()> {
-    println!("{}", outcome.summary);
+    outln!("{}", outcome.summary);
     if let Some(path) = json {
         write_json(&outcome.document, path)?;
-        println!("wrote {}", path.display());
+        outln!("wrote {}", path.display());
     }
     Ok(())
 }
@@ -110,6 +116,9 @@ fn run(cli: Cli) -> Result<ExitCode> {
             eta,
             p_file,
         } => {
+            if let Some(path) = &json {
+                output::check_out_file(path, "--json")?;
+            }
             let outcome = certify(&CertifyRequest {
                 scenario,
                 eta,
@@ -135,13 +144,14 @@ fn run(cli: Cli) -> Result<ExitCode> {
 
 fn main() -> ExitCode {
     let cli = Cli::parse();
-    match run(cli) {
+    let code = match run(cli) {
         Ok(code) => code,
         Err(e) => {
-            eprintln!("error: {e:#}");
+            errln!("error: {e:#}");
             ExitCode::FAILURE
         }
-    }
+    };
+    console::exit_code(code)
 }
 
 #[cfg(test)]

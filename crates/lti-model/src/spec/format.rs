@@ -702,6 +702,32 @@ pub const MAX_DENSE_BYTES: f64 = (1u64 << 30) as f64;
 pub fn read_limited(path: &std::path::Path) -> Result<String> {
     use std::io::Read;
     let fail = |problem: String| key_error("<file>", problem);
+    // Checked before opening: opening a FIFO blocks until a writer appears, and a device
+    // or a directory is no input file.
+    let meta = std::fs::metadata(path).map_err(|e| {
+        fail(format!(
+            "cannot read `{}`: {e}; check the path (relative paths are resolved from the \
+             current directory)",
+            path.display()
+        ))
+    })?;
+    if !meta.is_file() {
+        let kind = special_kind(&meta);
+        return Err(fail(format!(
+            "`{}` is {kind}, not a regular file; give a text file of at most {} MiB",
+            path.display(),
+            MAX_FILE_BYTES >> 20
+        )));
+    }
+    if meta.len() > MAX_FILE_BYTES {
+        return Err(fail(format!(
+            "`{}` is larger than {} MiB ({} bytes), the limit for input files; is it the right \
+             file?",
+            path.display(),
+            MAX_FILE_BYTES >> 20,
+            meta.len()
+        )));
+    }
     let file = std::fs::File::open(path).map_err(|e| {
         fail(format!(
             "cannot read `{}`: {e}; check the path (relative paths are resolved from the \
@@ -727,6 +753,31 @@ pub fn read_limited(path: &std::path::Path) -> Result<String> {
             e.utf8_error().valid_up_to()
         ))
     })
+}
+
+/// What a path that is not a regular file is, for messages.
+fn special_kind(meta: &std::fs::Metadata) -> &'static str {
+    let t = meta.file_type();
+    if t.is_dir() {
+        return "a directory";
+    }
+    #[cfg(unix)]
+    {
+        use std::os::unix::fs::FileTypeExt as _;
+        if t.is_fifo() {
+            return "a FIFO (named pipe)";
+        }
+        if t.is_char_device() {
+            return "a character device";
+        }
+        if t.is_block_device() {
+            return "a block device";
+        }
+        if t.is_socket() {
+            return "a socket";
+        }
+    }
+    "a special file"
 }
 
 /// Refuses a working set of `bytes` (an estimate made before allocating) above

@@ -261,6 +261,16 @@ pub fn check_out_file(path: &Path, flag: &str) -> Result<()> {
     }
 }
 
+/// Reads an input text file (a regular file of at most 16 MiB, UTF-8; a FIFO or device is
+/// refused without opening it): [`lti_model::spec::format::read_limited`] with its message
+/// unwrapped from the scenario's `<file>` key.
+pub fn read_input(path: &Path) -> Result<String> {
+    lti_model::spec::format::read_limited(path).map_err(|e| match e {
+        lti_model::ModelError::Scenario { problem, .. } => anyhow!(problem),
+        other => anyhow!(other),
+    })
+}
+
 /// Hard links of files a later step may have to put back (see the module docs).
 #[derive(Debug)]
 pub struct Backup {
@@ -295,6 +305,9 @@ impl Backup {
     pub fn restore(mut self) {
         for (path, link) in std::mem::take(&mut self.kept) {
             let _ = fs::rename(&link, &path);
+            // A rename between two links of one file does nothing (POSIX): the file was not
+            // replaced, so the link is only removed.
+            let _ = fs::remove_file(&link);
         }
     }
 

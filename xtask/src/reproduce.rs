@@ -831,6 +831,12 @@ pub fn main(
         if !(g.is_finite() && g > 0.0) {
             anyhow::bail!("--gamma13 {g}: γ₁,₃ must be a finite number > 0");
         }
+        // The scenario's limits for `certificate.gamma13` (docs/limits.md).
+        if let Err(lti_model::ModelError::Scenario { problem, .. }) =
+            lti_model::spec::format::check_scale("--gamma13", g)
+        {
+            anyhow::bail!("--gamma13 {problem}");
+        }
         settings.gamma13 = Gamma13Source::User(g);
     }
     let jobs = jobs(preset, scenario, out);

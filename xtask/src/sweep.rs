@@ -435,7 +435,7 @@ fn shard_metas(dirs: &[&Path]) -> Result<Vec<serde_json::Value>> {
         for p in names {
             let fix = "restore it from the shard's run, or rerun that shard; sweep-merge keeps \
                        every shard's meta in meta.json";
-            let text = lti_model::spec::format::read_limited(&p).map_err(|e| {
+            let text = crate::output::read_input(&p).map_err(|e| {
                 anyhow::anyhow!("cannot read the shard meta `{}`: {e}; {fix}", p.display())
             })?;
             let v = serde_json::from_str::<serde_json::Value>(&text).map_err(|e| {

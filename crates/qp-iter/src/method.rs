@@ -168,13 +168,15 @@ impl Method {
         let base: Cow<'static, str> = match self.kind {
             MethodKind::Pg(StepRule::Optimal) => "pg".into(),
             MethodKind::Pg(StepRule::InverseL) => "pg(step=1/L)".into(),
-            MethodKind::Pg(StepRule::Fixed(a)) => format!("pg(step={a})").into(),
+            MethodKind::Pg(StepRule::Fixed(a)) => format!("pg(step={})", short(a)).into(),
             MethodKind::Fista => "fista".into(),
             MethodKind::Admm(p) => match (p.penalty, p.relaxation) {
                 (Penalty::Optimal, 1.0) => "admm".into(),
                 (Penalty::Optimal, 2.0) => "admm-pr".into(),
-                (Penalty::Optimal, a) => format!("admm(alpha={a})").into(),
-                (Penalty::Fixed(r), a) => format!("admm(rho={r},alpha={a})").into(),
+                (Penalty::Optimal, a) => format!("admm(alpha={})", short(a)).into(),
+                (Penalty::Fixed(r), a) => {
+                    format!("admm(rho={},alpha={})", short(r), short(a)).into()
+                }
             },
         };
         match self.scaling {
@@ -491,6 +493,16 @@ impl IterationMap for MethodMap {
     }
     fn matvecs_per_step(&self) -> usize {
         with_map!(self, |m| m.matvecs_per_step())
+    }
+}
+
+/// A parameter in a method's name: exact (it round-trips, the name identifies the method)
+/// and short: `1.5`, and `1e-300` rather than 300 digits.
+fn short(x: f64) -> String {
+    if x != 0.0 && !(1e-4..1e15).contains(&x.abs()) {
+        format!("{x:e}")
+    } else {
+        format!("{x}")
     }
 }
 

@@ -33,7 +33,7 @@ pub fn magnitude_error(key: &str, what: &str, value: f64) -> ModelError {
     key_error(
         key,
         format!(
-            "{what} is {value:e}, beyond ±{MAX_MAGNITUDE:e}, the largest magnitude accepted \
+            "{what} is {value:.3e}, beyond ±{MAX_MAGNITUDE:e}, the largest magnitude accepted \
              (products of a few such numbers overflow f64); rescale the units of the model \
              (docs/limits.md)"
         ),
@@ -45,6 +45,35 @@ pub fn magnitude_error(key: &str, what: &str, value: f64) -> ModelError {
 pub fn check_magnitude(key: &str, what: &str, value: f64) -> Result<()> {
     if value.is_finite() && value.abs() > MAX_MAGNITUDE {
         return Err(magnitude_error(key, what, value));
+    }
+    Ok(())
+}
+
+/// The smallest nonzero magnitude of a scale factor (`noise.scale`, a sweep's `scales`,
+/// γ₁,₃): 1/[`MAX_MAGNITUDE`] = 1e-100. Its square must not underflow, and its inverse must
+/// stay within the limit.
+pub const MIN_SCALE: f64 = 1.0 / MAX_MAGNITUDE;
+
+/// Refuses a scale factor outside {0} ∪ [[`MIN_SCALE`], [`MAX_MAGNITUDE`]] (or not finite),
+/// naming `key`: the one rule for `noise.scale`, a sweep's `scales` and γ₁,₃ (which must
+/// also be > 0: the caller checks).
+pub fn check_scale(key: &str, value: f64) -> Result<()> {
+    if !(value.is_finite() && value >= 0.0) {
+        return Err(key_error(
+            key,
+            format!("is {value}; it must be a finite number ≥ 0"),
+        ));
+    }
+    check_magnitude(key, "the value", value)?;
+    if value > 0.0 && value < MIN_SCALE {
+        return Err(key_error(
+            key,
+            format!(
+                "is {value:.3e}, nonzero but below {MIN_SCALE:e}, the smallest scale accepted \
+                 (its square underflows, its inverse overflows); use 0 or a larger value \
+                 (docs/limits.md)"
+            ),
+        ));
     }
     Ok(())
 }
@@ -748,7 +777,7 @@ pub fn read_limited(path: &std::path::Path) -> Result<String> {
     }
     String::from_utf8(bytes).map_err(|e| {
         fail(format!(
-            "`{}` is not UTF-8 text (invalid byte at offset {}); give a TOML text file",
+            "`{}` is not UTF-8 text (invalid byte at offset {}); give a text file",
             path.display(),
             e.utf8_error().valid_up_to()
         ))

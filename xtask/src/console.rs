@@ -37,7 +37,9 @@ fn slot(stream: Stream) -> usize {
 /// Writes `args` and a newline to `stream` unless an earlier write to it failed; a failure
 /// is remembered (never a panic). Returns whether the line was written.
 pub fn line(stream: Stream, args: fmt::Arguments<'_>) -> bool {
-    let mut lost = LOST.lock().unwrap_or_else(std::sync::PoisonError::into_inner);
+    let mut lost = LOST
+        .lock()
+        .unwrap_or_else(std::sync::PoisonError::into_inner);
     let i = slot(stream);
     if lost[i].is_some() {
         return false;
@@ -63,7 +65,9 @@ pub fn line(stream: Stream, args: fmt::Arguments<'_>) -> bool {
 
 /// The first write error of `stream`, if any.
 pub fn lost(stream: Stream) -> Option<String> {
-    LOST.lock().unwrap_or_else(std::sync::PoisonError::into_inner)[slot(stream)].clone()
+    LOST.lock()
+        .unwrap_or_else(std::sync::PoisonError::into_inner)[slot(stream)]
+    .clone()
 }
 
 /// The process's exit code: `code` unless the run succeeded and a stream was lost, then

@@ -155,7 +155,10 @@ impl OutputSet {
                 )
             });
         }
-        self.staged.push(Staged { tmp, path: path.clone() });
+        self.staged.push(Staged {
+            tmp,
+            path: path.clone(),
+        });
         Ok(path)
     }
 
@@ -287,15 +290,13 @@ impl Backup {
         };
         for e in rd.flatten() {
             let name = e.file_name().to_string_lossy().into_owned();
-            if name.ends_with(".tmp") || !keep(&name) || !e.file_type().is_ok_and(|t| t.is_file())
-            {
+            if name.ends_with(".tmp") || !keep(&name) || !e.file_type().is_ok_and(|t| t.is_file()) {
                 continue;
             }
             let path = e.path();
             let link = temp_path(&path.with_file_name(format!("{name}.previous")));
-            fs::hard_link(&path, &link).with_context(|| {
-                format!("cannot keep the previous `{}` aside", path.display())
-            })?;
+            fs::hard_link(&path, &link)
+                .with_context(|| format!("cannot keep the previous `{}` aside", path.display()))?;
             kept.push((path, link));
         }
         Ok(Self { kept })
@@ -357,14 +358,22 @@ mod tests {
     #[test]
     fn a_set_that_fails_after_n_bytes_leaves_the_previous_set() {
         let d = tmp_dir("set");
-        let old = [("a.json", "old a"), ("b.csv", "old b, longer"), ("c.svg", "old c")];
+        let old = [
+            ("a.json", "old a"),
+            ("b.csv", "old b, longer"),
+            ("c.svg", "old c"),
+        ];
         let mut first = OutputSet::new(&d).unwrap();
         for (n, t) in old {
             first.add(n, t.as_bytes()).unwrap();
         }
         first.commit().unwrap();
         let before = listing(&d);
-        let new = [("a.json", "NEW A"), ("b.csv", "NEW B, much longer"), ("c.svg", "NEW C!")];
+        let new = [
+            ("a.json", "NEW A"),
+            ("b.csv", "NEW B, much longer"),
+            ("c.svg", "NEW C!"),
+        ];
         let total: usize = new.iter().map(|(_, t)| t.len()).sum();
         for budget in 0..total as u64 {
             let mut set = OutputSet::with_budget(&d, budget).unwrap();
@@ -378,8 +387,10 @@ mod tests {
             set.add(n, t.as_bytes()).unwrap();
         }
         set.commit().unwrap();
-        let after: Vec<(String, String)> =
-            new.iter().map(|(n, t)| (n.to_string(), t.to_string())).collect();
+        let after: Vec<(String, String)> = new
+            .iter()
+            .map(|(n, t)| (n.to_string(), t.to_string()))
+            .collect();
         assert_eq!(listing(&d), after);
         let _ = fs::remove_dir_all(&d);
     }

@@ -372,7 +372,13 @@ pub fn sweep(args: &SweepArgs) -> Result<()> {
             "thresholds": thresholds,
         });
         let extra = with_2d(&sweep, extra, &pairs);
-        let text = json_text(&meta(&sweep, &args.config, &config_text, (start, end), extra))?;
+        let text = json_text(&meta(
+            &sweep,
+            &args.config,
+            &config_text,
+            (start, end),
+            extra,
+        ))?;
         set.add(&meta_name, text.as_bytes())?;
         Ok(())
     })?;
@@ -390,7 +396,8 @@ pub fn sweep(args: &SweepArgs) -> Result<()> {
 fn print_summary(report: &SweepReport, wall: f64, out: &Path, meta: &str, plots: &[String]) {
     outln!(
         "points: {} computed, {} skipped (finished before)",
-        report.computed, report.skipped
+        report.computed,
+        report.skipped
     );
     outln!(
         "closed-loop steps: {} in {:.2} s of runs on {} threads = {:.0} steps/s per thread",
@@ -439,7 +446,10 @@ fn shard_metas(dirs: &[&Path]) -> Result<Vec<serde_json::Value>> {
                 anyhow::anyhow!("cannot read the shard meta `{}`: {e}; {fix}", p.display())
             })?;
             let v = serde_json::from_str::<serde_json::Value>(&text).map_err(|e| {
-                anyhow::anyhow!("the shard meta `{}` is not valid JSON ({e}); {fix}", p.display())
+                anyhow::anyhow!(
+                    "the shard meta `{}` is not valid JSON ({e}); {fix}",
+                    p.display()
+                )
             })?;
             shards.push(json!({"file": p.display().to_string(), "meta": v}));
         }

@@ -87,6 +87,7 @@
 pub mod error;
 pub mod estimator;
 pub mod kalman;
+pub mod memory;
 pub mod problem;
 pub mod record;
 pub mod settings;

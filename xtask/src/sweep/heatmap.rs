@@ -365,7 +365,8 @@ impl HeatMap {
             root.fill(&WHITE).map_err(|e| err(&e))?;
             let (upper, lower) = root.split_vertically(h);
             let (main, bar) = upper.split_horizontally(w - 120);
-            let (x_lo, x_hi, y_lo, y_hi) = (self.k_e.lo(), self.k_e.hi(), self.k_c.lo(), self.k_c.hi());
+            let (x_lo, x_hi, y_lo, y_hi) =
+                (self.k_e.lo(), self.k_e.hi(), self.k_c.lo(), self.k_c.hi());
             let mut chart = ChartBuilder::on(&main)
                 .caption(&self.title, ("sans-serif", 17))
                 .margin(14)
@@ -414,7 +415,8 @@ impl HeatMap {
                     if let (true, Some(v)) = (write_values, v) {
                         let RGBColor(r, g, bl) = color;
                         let light =
-                            0.299 * f64::from(r) + 0.587 * f64::from(g) + 0.114 * f64::from(bl) > 140.0;
+                            0.299 * f64::from(r) + 0.587 * f64::from(g) + 0.114 * f64::from(bl)
+                                > 140.0;
                         let style = ("sans-serif", 11)
                             .into_font()
                             .color(if light { &BLACK } else { &WHITE })

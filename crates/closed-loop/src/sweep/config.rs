@@ -395,20 +395,18 @@ fn solvers(raw: Option<Vec<String>>) -> Result<Vec<Method>> {
     }
     let mut out = Vec::new();
     for (i, s) in names.iter().enumerate() {
-        let solver = s
-            .parse::<Method>()
-            .map_err(|e| match e {
-                // A sweep lists solvers by name (a string each): the method table a scenario
-                // accepts is not offered here.
-                qp_iter::QpError::UnknownMethod { name } => config_err(
-                    format!("solvers[{i}]"),
-                    format!(
-                        "unknown solver `{name}`; a sweep lists named methods: \"pg\", \"fista\", \
+        let solver = s.parse::<Method>().map_err(|e| match e {
+            // A sweep lists solvers by name (a string each): the method table a scenario
+            // accepts is not offered here.
+            qp_iter::QpError::UnknownMethod { name } => config_err(
+                format!("solvers[{i}]"),
+                format!(
+                    "unknown solver `{name}`; a sweep lists named methods: \"pg\", \"fista\", \
                          \"admm\", \"admm-pr\" (each also with \"-jacobi\")"
-                    ),
                 ),
-                other => config_err(format!("solvers[{i}]"), other.to_string()),
-            })?;
+            ),
+            other => config_err(format!("solvers[{i}]"), other.to_string()),
+        })?;
         if out.contains(&solver) {
             return Err(config_err(
                 format!("solvers[{i}]"),

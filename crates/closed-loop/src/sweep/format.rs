@@ -437,13 +437,16 @@ fn metric_domain_violation(m: Metric, v: f64, completed: bool) -> Option<&'stati
         Metric::SupEps | Metric::InputViolation | Metric::MheViolation
     );
     if v.is_nan() {
-        return (!nan_ok).then_some("is not a number (NaN), but this metric is a norm or a gain ≥ 0");
+        return (!nan_ok)
+            .then_some("is not a number (NaN), but this metric is a norm or a gain ≥ 0");
     }
     if v < 0.0 {
         return Some("is negative, but this metric is ≥ 0");
     }
     if norm && completed && !v.is_finite() {
-        return Some("is not finite, but the run completed (a run whose signals grow beyond 1e154 stops with an error)");
+        return Some(
+            "is not finite, but the run completed (a run whose signals grow beyond 1e154 stops with an error)",
+        );
     }
     None
 }
@@ -588,10 +591,7 @@ impl PointFile {
                 }
                 let v: f64 = text.parse().unwrap_or(f64::NAN);
                 if let Some(rule) = metric_domain_violation(m, v, completed) {
-                    return Err(format!(
-                        "{what}, column `{}`: `{text}` {rule}",
-                        m.name()
-                    ));
+                    return Err(format!("{what}, column `{}`: `{text}` {rule}", m.name()));
                 }
                 values[i].push(v);
             }

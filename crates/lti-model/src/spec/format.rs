@@ -64,14 +64,23 @@ pub fn check_scale(key: &str, value: f64) -> Result<()> {
             format!("is {value}; it must be a finite number ≥ 0"),
         ));
     }
-    check_magnitude(key, "the value", value)?;
+    if value > MAX_MAGNITUDE {
+        return Err(key_error(
+            key,
+            format!(
+                "is {value:.3e}, above {MAX_MAGNITUDE:e}, the largest scale accepted (products of \
+                 a few such numbers overflow f64); rescale the units of the model \
+                 (docs/limits.md)"
+            ),
+        ));
+    }
     if value > 0.0 && value < MIN_SCALE {
         return Err(key_error(
             key,
             format!(
                 "is {value:.3e}, nonzero but below {MIN_SCALE:e}, the smallest scale accepted \
-                 (its square underflows, its inverse overflows); use 0 or a larger value \
-                 (docs/limits.md)"
+                 (its square underflows, its inverse overflows); use a larger value, or 0 where \
+                 it turns a disturbance off (docs/limits.md)"
             ),
         ));
     }

@@ -96,3 +96,33 @@ pub fn setup_bytes(shape: &SetupShape) -> f64 {
     }
     8.0 * (entries + last_temp)
 }
+
+#[cfg(test)]
+mod tests {
+    use super::*;
+
+    fn one_state(horizon: usize) -> SetupShape {
+        SetupShape {
+            nx: 1,
+            nu: 1,
+            ny: 1,
+            nw: 2,
+            state_rows: 1,
+            output_rows: 1,
+            horizon,
+            method: Method::default(),
+            exact_solve: true,
+        }
+    }
+
+    /// Issue 23: a one-state plant with M = 300 aborted at 4.6 GB under a 1 GiB limit (the
+    /// old estimate counted H_c and F_c once); it is now beyond the limit, M = 100 within.
+    #[test]
+    fn the_one_state_plant_at_m_300_is_beyond_the_limit() {
+        let limit = lti_model::spec::format::MAX_DENSE_BYTES;
+        assert!(setup_bytes(&one_state(300)) > limit);
+        assert!(setup_bytes(&one_state(100)) < limit);
+        // Monotone in M.
+        assert!(setup_bytes(&one_state(50)) < setup_bytes(&one_state(51)));
+    }
+}

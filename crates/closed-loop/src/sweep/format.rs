@@ -417,6 +417,21 @@ fn check_row(row: &str, cells: &[(String, Cell)], what: &str) -> std::result::Re
     Ok(())
 }
 
+/// Two differing cells for a message: numbers with 4 significant digits, unless that hides
+/// the difference (then as written).
+fn short_pair(a: &str, b: &str) -> (String, String) {
+    let short = |t: &str| match t.parse::<f64>() {
+        Ok(v) if v.is_finite() && t.len() > 8 => format!("{v:.3e}"),
+        _ => t.to_string(),
+    };
+    let (sa, sb) = (short(a), short(b));
+    if sa == sb {
+        (a.to_string(), b.to_string())
+    } else {
+        (sa, sb)
+    }
+}
+
 /// Why value `v` of metric `m` is outside its domain (None: inside). Every metric is ≥ 0.
 /// The norms (`sup_e`, `sup_x`, `tail_mean_*`, `final_*`, `sup_w`) of a completed run are
 /// finite (a signal beyond `DIVERGED_MAGNITUDE` stops the run) and +∞ after a stop; a gain
@@ -627,9 +642,10 @@ impl PointFile {
         for (name, want) in expected {
             let got = pcol(&name);
             if got != want {
+                let (g, w) = short_pair(got, &want);
                 return Err(format!(
-                    "line {line} (summary row), column `{name}`: `{got}`, but the run rows \
-                     (lines 2–{}) give `{want}`; the file was edited",
+                    "line {line} (summary row), column `{name}`: `{g}`, but the run rows \
+                     (lines 2–{}) give `{w}`; the file was edited",
                     runs + 1
                 ));
             }

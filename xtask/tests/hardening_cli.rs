@@ -79,7 +79,10 @@ fn names(snap: &[(String, Vec<u8>)]) -> Vec<&str> {
 fn a_full_or_closed_stdout_is_exit_4_with_the_files_written() {
     let dir = scratch("streams");
     let json = dir.join("cert.json");
-    let full = fs::OpenOptions::new().write(true).open("/dev/full").unwrap();
+    let full = fs::OpenOptions::new()
+        .write(true)
+        .open("/dev/full")
+        .unwrap();
     let o = Command::new(XTASK)
         .args(["certify", "--scenario", &case_study(), "--json"])
         .arg(&json)
@@ -87,7 +90,11 @@ fn a_full_or_closed_stdout_is_exit_4_with_the_files_written() {
         .output()
         .unwrap();
     assert_eq!(o.status.code(), Some(4), "{}", stderr(&o));
-    assert!(stderr(&o).contains("stdout could not be written"), "{}", stderr(&o));
+    assert!(
+        stderr(&o).contains("stdout could not be written"),
+        "{}",
+        stderr(&o)
+    );
     let v: serde_json::Value = serde_json::from_str(&fs::read_to_string(&json).unwrap()).unwrap();
     assert!(v.get("passed").is_some());
     // A pipe whose reader is gone: the sweep still writes meta.json and its plots.
@@ -137,10 +144,16 @@ fn special_input_paths_are_refused_without_blocking() {
                 .stdin(Stdio::null())
                 .output()
                 .unwrap();
-            assert!(started.elapsed() < Duration::from_secs(20), "{args:?} {p:?} blocked");
+            assert!(
+                started.elapsed() < Duration::from_secs(20),
+                "{args:?} {p:?} blocked"
+            );
             assert_eq!(o.status.code(), Some(1), "{args:?} {p:?}: {}", stderr(&o));
             let e = stderr(&o);
-            assert!(e.contains(what) && e.contains("not a regular file"), "{args:?}: {e}");
+            assert!(
+                e.contains(what) && e.contains("not a regular file"),
+                "{args:?}: {e}"
+            );
         }
     }
 }
@@ -153,7 +166,13 @@ fn out_is_checked_before_any_work() {
     let f = file.display().to_string();
     for args in [
         vec!["reproduce", "--preset", "certified", "--out", &f],
-        vec!["certify", "--scenario", &case_study(), "--json", dir.to_str().unwrap()],
+        vec![
+            "certify",
+            "--scenario",
+            &case_study(),
+            "--json",
+            dir.to_str().unwrap(),
+        ],
     ] {
         let started = Instant::now();
         let o = run(&args, None);
@@ -164,7 +183,10 @@ fn out_is_checked_before_any_work() {
         assert!(e.contains("--out") || e.contains("--json"), "{e}");
     }
     let cfg = tiny_config(&dir);
-    let o = run(&["sweep", "--config", cfg.to_str().unwrap(), "--out", &f], None);
+    let o = run(
+        &["sweep", "--config", cfg.to_str().unwrap(), "--out", &f],
+        None,
+    );
     assert_eq!(o.status.code(), Some(1));
     assert!(stderr(&o).contains("not a directory"), "{}", stderr(&o));
 }
@@ -177,7 +199,13 @@ fn a_failed_rerun_leaves_the_previous_complete_output() {
     // reproduce
     let out = dir.join("rep");
     let o = run(
-        &["reproduce", "--preset", "paper", "--out", out.to_str().unwrap()],
+        &[
+            "reproduce",
+            "--preset",
+            "paper",
+            "--out",
+            out.to_str().unwrap(),
+        ],
         None,
     );
     assert!(o.status.success(), "{}", stderr(&o));
@@ -185,11 +213,21 @@ fn a_failed_rerun_leaves_the_previous_complete_output() {
     let total: usize = before.iter().map(|(_, b)| b.len()).sum();
     for n in [0, 1000, total / 2, total - 1] {
         let o = run(
-            &["reproduce", "--preset", "paper", "--out", out.to_str().unwrap()],
+            &[
+                "reproduce",
+                "--preset",
+                "paper",
+                "--out",
+                out.to_str().unwrap(),
+            ],
             Some((FAULT_ENV, &n.to_string())),
         );
         assert_eq!(o.status.code(), Some(1), "N = {n}");
-        assert!(stderr(&o).contains("previous output is intact"), "{}", stderr(&o));
+        assert!(
+            stderr(&o).contains("previous output is intact"),
+            "{}",
+            stderr(&o)
+        );
         assert_eq!(snapshot(&out.join("paper")), before, "N = {n}");
     }
     // sweep, then sweep-merge of two shards
@@ -197,10 +235,17 @@ fn a_failed_rerun_leaves_the_previous_complete_output() {
     let c = cfg.to_str().unwrap();
     let sw = dir.join("sweep");
     let s = sw.to_str().unwrap();
-    assert!(run(&["sweep", "--config", c, "--out", s], None).status.success());
+    assert!(
+        run(&["sweep", "--config", c, "--out", s], None)
+            .status
+            .success()
+    );
     let before = snapshot(&sw);
     for n in [0, 5000, 40_000] {
-        let o = run(&["sweep", "--config", c, "--out", s], Some((FAULT_ENV, &n.to_string())));
+        let o = run(
+            &["sweep", "--config", c, "--out", s],
+            Some((FAULT_ENV, &n.to_string())),
+        );
         assert_eq!(o.status.code(), Some(1), "N = {n}: {}", stderr(&o));
         let after = snapshot(&sw);
         assert_eq!(names(&after), names(&before), "N = {n}");
@@ -212,7 +257,18 @@ fn a_failed_rerun_leaves_the_previous_complete_output() {
     let (s1, s2, m) = (dir.join("s1"), dir.join("s2"), dir.join("merged"));
     for (i, d) in [(1, &s1), (2, &s2)] {
         let shard = format!("{i}/2");
-        let o = run(&["sweep", "--config", c, "--out", d.to_str().unwrap(), "--shard", &shard], None);
+        let o = run(
+            &[
+                "sweep",
+                "--config",
+                c,
+                "--out",
+                d.to_str().unwrap(),
+                "--shard",
+                &shard,
+            ],
+            None,
+        );
         assert!(o.status.success(), "{}", stderr(&o));
     }
     let merge = |env| {
@@ -241,7 +297,10 @@ fn a_failed_rerun_leaves_the_previous_complete_output() {
     let o = merge(None);
     assert_eq!(o.status.code(), Some(1));
     let e = stderr(&o);
-    assert!(e.contains("meta.shard-2-of-2.json") && e.contains("not valid JSON"), "{e}");
+    assert!(
+        e.contains("meta.shard-2-of-2.json") && e.contains("not valid JSON"),
+        "{e}"
+    );
     assert_eq!(snapshot(&m), before);
 }
 
@@ -254,7 +313,11 @@ fn point_files_are_checked_for_meaning() {
     let c = cfg.to_str().unwrap();
     let out = dir.join("o");
     let s = out.to_str().unwrap();
-    assert!(run(&["sweep", "--config", c, "--out", s], None).status.success());
+    assert!(
+        run(&["sweep", "--config", c, "--out", s], None)
+            .status
+            .success()
+    );
     let file = out.join("points").join("p00001.csv");
     let original = fs::read_to_string(&file).unwrap();
     let lines: Vec<&str> = original.lines().collect();
@@ -272,11 +335,20 @@ fn point_files_are_checked_for_meaning() {
     };
     let summary = lines.len() - 1;
     let cases = [
-        (edit(summary, &points_header, "bounded_fraction", "2"), "bounded_fraction"),
-        (edit(summary, &points_header, "bounded_fraction", "0.5"), "bounded_fraction"),
+        (
+            edit(summary, &points_header, "bounded_fraction", "2"),
+            "bounded_fraction",
+        ),
+        (
+            edit(summary, &points_header, "bounded_fraction", "0.5"),
+            "bounded_fraction",
+        ),
         (edit(1, &runs_header, "sup_e", "NaN"), "sup_e"),
         (edit(1, &runs_header, "sup_e", "-1"), "sup_e"),
-        (edit(summary, &points_header, "sup_e_q50", "inf"), "sup_e_q50"),
+        (
+            edit(summary, &points_header, "sup_e_q50", "inf"),
+            "sup_e_q50",
+        ),
         // A run's sup_e above the point's: the recomputed quantiles and maximum differ.
         (edit(1, &runs_header, "sup_e", "1e300"), "sup_e_q"),
     ];
@@ -291,5 +363,9 @@ fn point_files_are_checked_for_meaning() {
         );
     }
     fs::write(&file, &original).unwrap();
-    assert!(run(&["sweep", "--config", c, "--out", s], None).status.success());
+    assert!(
+        run(&["sweep", "--config", c, "--out", s], None)
+            .status
+            .success()
+    );
 }

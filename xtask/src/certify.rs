@@ -193,7 +193,8 @@ pub fn parse_p(value: &serde_json::Value) -> Result<Mat<f64>> {
     matrix::from_rows("P", &rows).map_err(|e| anyhow!("{e}"))
 }
 
-/// P is square (every row as long as there are rows; a short row is named) and every entry
+/// Every row of P as long as the first (a short row is named; the shape against n_x is
+/// checked later) and every entry
 /// within ±[`MAX_MAGNITUDE`](lti_model::spec::format::MAX_MAGNITUDE), the scenario's limit
 /// (a larger one makes the eigenvalue solver fail without saying why).
 fn check_p_rows(rows: &[Vec<f64>]) -> Result<()> {
@@ -201,11 +202,12 @@ fn check_p_rows(rows: &[Vec<f64>]) -> Result<()> {
     if n == 0 {
         bail!("P has no rows; give the n_x × n_x matrix as an array of rows");
     }
+    let width = rows[0].len();
     for (i, row) in rows.iter().enumerate() {
-        if row.len() != n {
+        if row.len() != width {
             bail!(
-                "row {i} of P has {} entries, but P has {n} rows and must be square ({n} × {n}); \
-                 complete the row",
+                "row {i} of P has {} entries, but row 0 has {width}; every row of P needs \
+                 the same number of entries (P is n_x × n_x); complete the row",
                 row.len()
             );
         }

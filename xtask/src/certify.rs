@@ -163,7 +163,9 @@ pub fn read_p_file(path: &Path) -> Result<Mat<f64>> {
     let text = lti_model::spec::format::read_limited(path)
         .map_err(|e| anyhow!("{e}"))
         .with_context(|| format!("cannot read --p-file `{}`", path.display()))?;
-    let value: serde_json::Value = serde_json::from_str(&text)
+    // A byte-order mark is accepted, as in a TOML scenario.
+    let text = text.strip_prefix('\u{feff}').unwrap_or(&text);
+    let value: serde_json::Value = serde_json::from_str(text)
         .with_context(|| format!("--p-file `{}` is not valid JSON", path.display()))?;
     parse_p(&value).with_context(|| format!("--p-file `{}`", path.display()))
 }
@@ -187,7 +189,39 @@ pub fn parse_p(value: &serde_json::Value) -> Result<Mat<f64>> {
     };
     let rows: Vec<Vec<f64>> = serde_json::from_value(rows_value.clone())
         .context("P must be an array of rows of numbers, e.g. [[2.0, 0.1], [0.1, 1.0]]")?;
+    check_p_rows(&rows)?;
     matrix::from_rows("P", &rows).map_err(|e| anyhow!("{e}"))
+}
+
+/// Every row of P as long as the first (a short row is named; the shape against n_x is
+/// checked later) and every entry
+/// within ±[`MAX_MAGNITUDE`](lti_model::spec::format::MAX_MAGNITUDE), the scenario's limit
+/// (a larger one makes the eigenvalue solver fail without saying why).
+fn check_p_rows(rows: &[Vec<f64>]) -> Result<()> {
+    let n = rows.len();
+    if n == 0 {
+        bail!("P has no rows; give the n_x × n_x matrix as an array of rows");
+    }
+    let width = rows[0].len();
+    for (i, row) in rows.iter().enumerate() {
+        if row.len() != width {
+            bail!(
+                "row {i} of P has {} entries, but row 0 has {width}; every row of P needs \
+                 the same number of entries (P is n_x × n_x); complete the row",
+                row.len()
+            );
+        }
+        for (j, &x) in row.iter().enumerate() {
+            lti_model::spec::format::check_magnitude("P", &format!("entry ({i}, {j})"), x)
+                .map_err(|e| match e {
+                    lti_model::ModelError::Scenario { problem, .. } => {
+                        anyhow!("P {problem}")
+                    }
+                    other => anyhow!(other),
+                })?;
+        }
+    }
+    Ok(())
 }
 
 /// The LMI check of a P that [`ioss::verify`] rejected, so a failure can still be reported
@@ -478,7 +512,7 @@ pub fn write_json(doc: &CertificateDocument, path: &Path) -> Result<()> {
             .with_context(|| format!("cannot create directory `{}`", dir.display()))?;
     }
     let text = serde_json::to_string_pretty(doc).context("cannot serialise the certificate")?;
-    std::fs::write(path, text + "\n").with_context(|| format!("cannot write `{}`", path.display()))
+    crate::output::write_atomic(path, (text + "\n").as_bytes())
 }
 
 #[cfg(test)]

@@ -237,7 +237,7 @@ pub fn export(args: &ExportArgs) -> Result<()> {
         .clone()
         .resolve()
         .with_context(|| format!("cannot set up `{}`", args.scenario.display()))?;
-    println!(
+    outln!(
         "computing the certificate of Theorem 1 for {} …",
         method.name()
     );
@@ -256,7 +256,7 @@ pub fn export(args: &ExportArgs) -> Result<()> {
         sha256,
     };
     write_artefact(&args.out, args.lang, &problem, &art, &cert, &args.scenario)?;
-    println!(
+    outln!(
         "wrote the {} artefact for `{}` ({}, K = {k}{}) to {}",
         match args.lang {
             Lang::Rust => "Rust",

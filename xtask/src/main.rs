@@ -11,7 +11,14 @@
 //!
 //! Exit codes: 0 success, 1 error (bad input, I/O), 2 usage error, 3 a certificate check
 //! failed (certify: LMI (2) infeasible or a supplied P rejected; reproduce: a simulation at
-//! the certified K violates Prop. 1 or 3 with the certificate's constants).
+//! the certified K violates Prop. 1 or 3 with the certificate's constants), 4 reproduce: a
+//! simulated run diverged at an uncertified K (the bounded rule), 5 the work completed and
+//! its files were written but stdout or stderr could not be written (closed pipe, full
+//! device; [`console`]).
+
+#[macro_use]
+mod console;
+mod output;
 
 mod certify;
 mod export;
@@ -98,10 +105,10 @@ enum Command {
 }
 
 fn report(outcome: &Outcome, json: Option<&Path>) -> Result<()> {
-    println!("{}", outcome.summary);
+    outln!("{}", outcome.summary);
     if let Some(path) = json {
         write_json(&outcome.document, path)?;
-        println!("wrote {}", path.display());
+        outln!("wrote {}", path.display());
     }
     Ok(())
 }
@@ -117,6 +124,9 @@ fn run(cli: Cli) -> Result<ExitCode> {
             eta,
             p_file,
         } => {
+            if let Some(path) = &json {
+                output::check_out_file(path, "--json")?;
+            }
             let outcome = certify(&CertifyRequest {
                 scenario,
                 eta,
@@ -142,13 +152,14 @@ fn run(cli: Cli) -> Result<ExitCode> {
 
 fn main() -> ExitCode {
     let cli = Cli::parse();
-    match run(cli) {
+    let code = match run(cli) {
         Ok(code) => code,
         Err(e) => {
-            eprintln!("error: {e:#}");
+            errln!("error: {e:#}");
             ExitCode::FAILURE
         }
-    }
+    };
+    console::exit_code(code)
 }
 
 #[cfg(test)]

@@ -38,6 +38,7 @@ use qp_iter::Method;
 use serde::Serialize;
 
 use crate::figures::{self, Chart, HLine, Legend, Pattern, Series};
+use crate::output::OutputSet;
 use crate::provenance::{Provenance, workspace_root};
 
 mod charts;
@@ -477,7 +478,7 @@ pub fn run_job(job: &Job, settings: &Settings) -> Result<Outcome> {
     let mut log = Vec::new();
     let mut say = |line: String| {
         if settings.live {
-            println!("{line}");
+            outln!("{line}");
         }
         log.push(line);
     };
@@ -766,8 +767,9 @@ pub fn run_job(job: &Job, settings: &Settings) -> Result<Outcome> {
         )
     });
     let t0 = std::time::Instant::now();
-    std::fs::create_dir_all(&job.out)
-        .with_context(|| format!("cannot create output directory `{}`", job.out.display()))?;
+    // Every file is staged and renamed into place only when all are written
+    // (crate::output): a failed rerun leaves the previous complete output.
+    let mut set = OutputSet::new(&job.out)?;
     let provenance = Provenance::collect();
     let scenario_record = ScenarioRecord {
         name: scenario.name.clone(),
@@ -780,14 +782,14 @@ pub fn run_job(job: &Job, settings: &Settings) -> Result<Outcome> {
     // trace.json
     if !runs.is_empty() {
         let doc = trace_document(job, &resolved, &scenario_record, &provenance, &runs)?;
-        let path = job.out.join("trace.json");
-        write_text(
-            &path,
-            &serde_json::to_string(&doc).context("cannot serialise the trace")?,
+        let path = set.add(
+            "trace.json",
+            serde_json::to_string(&doc)
+                .context("cannot serialise the trace")?
+                .as_bytes(),
         )?;
         files.push(path);
-        let path = job.out.join("trace.csv");
-        write_text(&path, &trace_csv::trace_csv(&runs))?;
+        let path = set.add("trace.csv", trace_csv::trace_csv(&runs).as_bytes())?;
         files.push(path);
     }
     // Figures.
@@ -805,8 +807,7 @@ pub fn run_job(job: &Job, settings: &Settings) -> Result<Outcome> {
                     continue;
                 }
             };
-            let path = job.out.join(&name);
-            write_text(&path, &rendered.svg)?;
+            let path = set.add(&name, rendered.svg.as_bytes())?;
             if rendered.dropped > 0 {
                 figure_notes.push(format!(
                     "{name}: {} point(s) ≤ 0 or non-finite not drawn",
@@ -882,11 +883,14 @@ pub fn run_job(job: &Job, settings: &Settings) -> Result<Outcome> {
         figure_notes: figure_notes.clone(),
         certificate: cert,
     };
-    write_text(
-        &cert_path,
-        &(serde_json::to_string_pretty(&document).context("cannot serialise the certificate")?
-            + "\n"),
+    let previous = previous_files(&cert_path);
+    set.add(
+        "certificate.json",
+        (serde_json::to_string_pretty(&document).context("cannot serialise the certificate")?
+            + "\n")
+            .as_bytes(),
     )?;
+    set.commit_replacing(&previous)?;
     let summary = summarize(&document, &files, &figure_notes);
     Ok(Outcome {
         document,
@@ -956,16 +960,27 @@ pub fn main(
         if !(g.is_finite() && g > 0.0) {
             anyhow::bail!("--gamma13 {g}: γ₁,₃ must be a finite number > 0");
         }
+        // The scenario's limits for `certificate.gamma13` (docs/limits.md).
+        if let Err(lti_model::ModelError::Scenario { problem, .. }) =
+            lti_model::spec::format::check_scale("--gamma13", g)
+        {
+            anyhow::bail!("--gamma13 {problem}");
+        }
         settings.gamma13 = Gamma13Source::User(g);
+    }
+    let jobs = jobs(preset, scenario, out);
+    // The output directories are checked before any work (the certificate can take minutes).
+    for job in &jobs {
+        crate::output::check_out_dir(&job.out, "--out")?;
     }
     let mut contradicted = false;
     let mut diverged = false;
-    for job in jobs(preset, scenario, out) {
+    for job in jobs {
         let t0 = std::time::Instant::now();
         let outcome = run_job(&job, &settings)?;
-        println!();
-        println!("{}", outcome.summary);
-        println!(
+        outln!();
+        outln!("{}", outcome.summary);
+        outln!(
             "({} done in {:.1} s)\n",
             job.label,
             t0.elapsed().as_secs_f64()
@@ -974,12 +989,12 @@ pub fn main(
         diverged |= outcome.diverged();
     }
     Ok(if contradicted {
-        eprintln!(
+        errln!(
             "error: a simulation at the certified K violates Prop. 1 or 3 with the certificate's constants"
         );
         std::process::ExitCode::from(EXIT_CONTRADICTED)
     } else if diverged {
-        eprintln!(
+        errln!(
             "a simulated run diverged (bounded rule: ‖e‖, ‖x‖, ε within 1000·(1 + initial scale); \
              see the verdict and `runs[].diverged_at` in certificate.json)"
         );
@@ -989,8 +1004,22 @@ pub fn main(
     })
 }
 
-fn write_text(path: &Path, text: &str) -> Result<()> {
-    std::fs::write(path, text).with_context(|| format!("cannot write `{}`", path.display()))
+/// The files of the previous run in a directory, from its `certificate.json` (`files`):
+/// those the new set does not replace are removed when it is committed.
+fn previous_files(cert_path: &Path) -> Vec<String> {
+    let Ok(text) = lti_model::spec::format::read_limited(cert_path) else {
+        return Vec::new();
+    };
+    serde_json::from_str::<serde_json::Value>(&text)
+        .ok()
+        .and_then(|v| {
+            v.get("files")?.as_array().map(|a| {
+                a.iter()
+                    .filter_map(|f| f.as_str().map(str::to_string))
+                    .collect()
+            })
+        })
+        .unwrap_or_default()
 }
 
 fn trace_document<'a>(

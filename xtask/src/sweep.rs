@@ -17,6 +17,7 @@ use closed_loop::sweep::{
 use indicatif::{ProgressBar, ProgressStyle};
 use serde_json::json;
 
+use crate::output::{Backup, OutputSet, check_out_dir};
 use crate::provenance::{Provenance, workspace_root};
 
 mod heatmap;
@@ -83,7 +84,7 @@ impl Progress for Bar {
             .set_message(format!("done: K = {}{k_c} {}", p.k, p.solver));
     }
     fn notice(&self, message: &str) {
-        self.0.suspend(|| eprintln!("note: {message}"));
+        self.0.suspend(|| errln!("note: {message}"));
     }
 }
 
@@ -92,7 +93,7 @@ struct Notices;
 
 impl Progress for Notices {
     fn notice(&self, message: &str) {
-        eprintln!("note: {message}");
+        errln!("note: {message}");
     }
 }
 
@@ -240,9 +241,44 @@ fn meta(
     v
 }
 
-fn write_json(path: &Path, v: &serde_json::Value) -> Result<()> {
-    let text = serde_json::to_string_pretty(v)?;
-    std::fs::write(path, text + "\n").with_context(|| format!("cannot write `{}`", path.display()))
+/// `v` as pretty JSON text with a final newline.
+fn json_text(v: &serde_json::Value) -> Result<String> {
+    Ok(serde_json::to_string_pretty(v)? + "\n")
+}
+
+/// The files of an output directory that one run replaces as a set (the library's
+/// `runs.csv` / `points.csv`, then the plots and the meta file): kept aside by
+/// [`Backup`] and put back if a later step fails.
+fn replaced_by_a_run(name: &str) -> bool {
+    name == "runs.csv"
+        || name == "points.csv"
+        || name == "meta.json"
+        || (name.starts_with("meta.shard-") && name.ends_with(".json"))
+        || name.ends_with(".svg")
+}
+
+/// Stages the plots (assembled sweeps) and the meta file in one [`OutputSet`] and commits
+/// it; on failure the files in `backup` are put back, so the directory keeps the previous
+/// complete output.
+fn write_set(
+    out: &Path,
+    backup: Backup,
+    stage: impl FnOnce(&mut OutputSet) -> Result<()>,
+) -> Result<()> {
+    let staged = OutputSet::new(out).and_then(|mut set| {
+        stage(&mut set)?;
+        set.commit()
+    });
+    match staged {
+        Ok(_) => {
+            backup.discard();
+            Ok(())
+        }
+        Err(e) => {
+            backup.restore();
+            Err(e)
+        }
+    }
 }
 
 /// `cargo xtask sweep`.
@@ -265,15 +301,20 @@ pub fn sweep(args: &SweepArgs) -> Result<()> {
         Some(n) => n,
         None => cores,
     };
+    // --out is checked before the config is resolved (the certificate can take minutes).
+    if let Some(out) = &args.out {
+        check_out_dir(out, "--out")?;
+    }
     let (config_text, sweep) = load(&args.config)?;
     let out = args.out.clone().unwrap_or_else(|| {
         workspace_root()
             .join("target/sweeps")
             .join(&sweep.config().name)
     });
+    check_out_dir(&out, "--out")?;
     let cfg = sweep.config();
     let n_k_c = cfg.k_c_grid.as_ref().map_or(1, Vec::len);
-    println!(
+    outln!(
         "sweep `{}`: {} points ({} K{} × {} solvers × {} scales) × {} seeds, T = {}, {} threads{} → {}",
         cfg.name,
         sweep.points().len(),
@@ -291,6 +332,9 @@ pub fn sweep(args: &SweepArgs) -> Result<()> {
         out.display()
     );
     let bar = Bar(progress_bar());
+    // The library replaces runs.csv and points.csv (each atomically) before the plots and
+    // meta.json are drawn: keep the previous ones to put back if a later step fails.
+    let backup = Backup::take(&out, replaced_by_a_run)?;
     let report = sweep.run(
         &RunOptions {
             out_dir: out.clone(),
@@ -301,51 +345,58 @@ pub fn sweep(args: &SweepArgs) -> Result<()> {
     )?;
     bar.0.finish_and_clear();
     if report.computed > 0 {
-        println!("certificate: {}", theory_summary(&sweep));
+        outln!("certificate: {}", theory_summary(&sweep));
     }
-    let (plots, thresholds, pairs) = if report.assembled {
-        let table = read_points(&out)?;
-        let (thresholds, pairs) = all_thresholds(&sweep, &table);
-        (draw(&sweep, &out, &table, &pairs)?, thresholds, pairs)
-    } else {
-        (Vec::new(), Vec::new(), Vec::new())
-    };
-    print_thresholds(&sweep, &thresholds, &pairs);
-    let end = unix_now();
-    // Serial time: the command's wall time outside the pool (setup, checks, assembly,
-    // thresholds, plots; meta.json and tasks.csv below take milliseconds).
-    let wall = clock.elapsed().as_secs_f64();
-    let serial_s = (wall - report.schedule.pool_wall_s).max(0.0);
-    let tasks_name = match shard {
-        Some(s) => format!("tasks.shard-{}-of-{}.csv", s.index, s.count),
-        None => "tasks.csv".into(),
-    };
-    if !report.schedule.tasks.is_empty() {
-        let path = out.join(&tasks_name);
-        std::fs::write(&path, report.schedule.tasks_csv())
-            .with_context(|| format!("cannot write `{}`", path.display()))?;
-    }
-    let extra = json!({
-        "threads": threads,
-        "shard": shard.map(|s| s.to_string()),
-        "points_computed": report.computed,
-        "points_skipped_resumed": report.skipped,
-        "closed_loop_steps": report.steps_simulated,
-        "runs_wall_s": report.runs_wall_s,
-        "steps_per_second_per_thread": report.steps_per_second_per_thread(),
-        "schedule": timing::schedule_json(&report, serial_s, wall, &tasks_name),
-        "plots": plots,
-        "thresholds": thresholds,
-    });
-    let extra = with_2d(&sweep, extra, &pairs);
     let meta_name = match shard {
         Some(s) => format!("meta.shard-{}-of-{}.json", s.index, s.count),
         None => "meta.json".into(),
     };
-    write_json(
-        &out.join(&meta_name),
-        &meta(&sweep, &args.config, &config_text, (start, end), extra),
-    )?;
+    let tasks_name = match shard {
+        Some(s) => format!("tasks.shard-{}-of-{}.csv", s.index, s.count),
+        None => "tasks.csv".into(),
+    };
+    let mut plots = Vec::new();
+    let mut thresholds = Vec::new();
+    let mut pairs = Vec::new();
+    let (mut serial_s, mut wall) = (0.0, 0.0);
+    write_set(&out, backup, |set| {
+        if report.assembled {
+            let table = read_points(&out)?;
+            (thresholds, pairs) = all_thresholds(&sweep, &table);
+            plots = draw(&sweep, set, &table, &pairs)?;
+        }
+        let end = unix_now();
+        // Serial time: the command's wall time outside the pool (setup, checks, assembly,
+        // thresholds, plots; meta.json and tasks.csv take milliseconds).
+        wall = clock.elapsed().as_secs_f64();
+        serial_s = (wall - report.schedule.pool_wall_s).max(0.0);
+        if !report.schedule.tasks.is_empty() {
+            set.add(&tasks_name, report.schedule.tasks_csv().as_bytes())?;
+        }
+        let extra = json!({
+            "threads": threads,
+            "shard": shard.map(|s| s.to_string()),
+            "points_computed": report.computed,
+            "points_skipped_resumed": report.skipped,
+            "closed_loop_steps": report.steps_simulated,
+            "runs_wall_s": report.runs_wall_s,
+            "steps_per_second_per_thread": report.steps_per_second_per_thread(),
+            "schedule": timing::schedule_json(&report, serial_s, wall, &tasks_name),
+            "plots": plots,
+            "thresholds": thresholds,
+        });
+        let extra = with_2d(&sweep, extra, &pairs);
+        let text = json_text(&meta(
+            &sweep,
+            &args.config,
+            &config_text,
+            (start, end),
+            extra,
+        ))?;
+        set.add(&meta_name, text.as_bytes())?;
+        Ok(())
+    })?;
+    print_thresholds(&sweep, &thresholds, &pairs);
     print_summary(
         &report,
         clock.elapsed().as_secs_f64(),
@@ -354,17 +405,18 @@ pub fn sweep(args: &SweepArgs) -> Result<()> {
         &plots,
     );
     for line in timing::schedule_lines(&report, serial_s, wall) {
-        println!("{line}");
+        outln!("{line}");
     }
     Ok(())
 }
 
 fn print_summary(report: &SweepReport, wall: f64, out: &Path, meta: &str, plots: &[String]) {
-    println!(
+    outln!(
         "points: {} computed, {} skipped (finished before)",
-        report.computed, report.skipped
+        report.computed,
+        report.skipped
     );
-    println!(
+    outln!(
         "closed-loop steps: {} in {:.2} s of runs on {} threads = {:.0} steps/s per thread",
         report.steps_simulated,
         report.runs_wall_s,
@@ -372,74 +424,93 @@ fn print_summary(report: &SweepReport, wall: f64, out: &Path, meta: &str, plots:
         report.steps_per_second_per_thread()
     );
     if report.assembled {
-        println!(
+        outln!(
             "wrote {}/{{runs.csv, points.csv, {meta}}} and {} plots",
             out.display(),
             plots.len()
         );
     } else {
-        println!(
+        outln!(
             "shard done: point files in {}/points, {meta}; assemble with `cargo xtask sweep-merge`",
             out.display()
         );
     }
-    println!("total wall time: {wall:.2} s");
+    outln!("total wall time: {wall:.2} s");
+}
+
+/// The shards' own meta files in `dirs` (`meta.shard-*.json`), read and parsed before
+/// anything is merged: an unreadable or malformed one is an error naming it, not a gap in
+/// `meta.json`.
+fn shard_metas(dirs: &[&Path]) -> Result<Vec<serde_json::Value>> {
+    let mut shards = Vec::new();
+    for d in dirs {
+        let Ok(rd) = std::fs::read_dir(d) else {
+            continue;
+        };
+        let mut names: Vec<PathBuf> = rd
+            .filter_map(|e| e.ok().map(|e| e.path()))
+            .filter(|p| {
+                p.file_name()
+                    .and_then(|n| n.to_str())
+                    .is_some_and(|n| n.starts_with("meta.shard-") && n.ends_with(".json"))
+            })
+            .collect();
+        names.sort();
+        for p in names {
+            let fix = "restore it from the shard's run, or rerun that shard; sweep-merge keeps \
+                       every shard's meta in meta.json";
+            let text = crate::output::read_input(&p).map_err(|e| {
+                anyhow::anyhow!("cannot read the shard meta `{}`: {e}; {fix}", p.display())
+            })?;
+            let v = serde_json::from_str::<serde_json::Value>(&text).map_err(|e| {
+                anyhow::anyhow!(
+                    "the shard meta `{}` is not valid JSON ({e}); {fix}",
+                    p.display()
+                )
+            })?;
+            shards.push(json!({"file": p.display().to_string(), "meta": v}));
+        }
+    }
+    Ok(shards)
 }
 
 /// `cargo xtask sweep-merge`.
 pub fn merge(args: &MergeArgs) -> Result<()> {
     let start = unix_now();
+    check_out_dir(&args.out, "--out")?;
     let (config_text, sweep) = load(&args.config)?;
     let inputs: Vec<&Path> = if args.inputs.is_empty() {
         vec![args.out.as_path()]
     } else {
         args.inputs.iter().map(PathBuf::as_path).collect()
     };
+    // The shards' meta files are read before anything is written (kept for the record).
+    let shards = shard_metas(&inputs)?;
+    let backup = Backup::take(&args.out, replaced_by_a_run)?;
     let n = merge_point_dirs(&sweep, &inputs, &args.out, &Notices)?;
-    let table = read_points(&args.out)?;
-    let (thresholds, pairs) = all_thresholds(&sweep, &table);
-    let plots = draw(&sweep, &args.out, &table, &pairs)?;
-    // Keep the shards' own meta files for the record.
-    let mut shards = Vec::new();
-    for d in &inputs {
-        if let Ok(rd) = std::fs::read_dir(d) {
-            let mut names: Vec<PathBuf> = rd
-                .filter_map(|e| e.ok().map(|e| e.path()))
-                .filter(|p| {
-                    p.file_name()
-                        .and_then(|n| n.to_str())
-                        .is_some_and(|n| n.starts_with("meta.shard-"))
-                })
-                .collect();
-            names.sort();
-            for p in names {
-                if let Some(v) = std::fs::read_to_string(&p)
-                    .ok()
-                    .and_then(|t| serde_json::from_str::<serde_json::Value>(&t).ok())
-                {
-                    shards.push(json!({"file": p.display().to_string(), "meta": v}));
-                }
-            }
-        }
-    }
-    let extra = json!({
-        "merged_from": inputs.iter().map(|p| p.display().to_string()).collect::<Vec<_>>(),
-        "shard_meta": shards,
-        "plots": plots,
-        "thresholds": thresholds,
-    });
-    let extra = with_2d(&sweep, extra, &pairs);
-    write_json(
-        &args.out.join("meta.json"),
-        &meta(
+    let mut plots = Vec::new();
+    write_set(&args.out, backup, |set| {
+        let table = read_points(&args.out)?;
+        let (thresholds, pairs) = all_thresholds(&sweep, &table);
+        plots = draw(&sweep, set, &table, &pairs)?;
+        let extra = json!({
+            "merged_from": inputs.iter().map(|p| p.display().to_string()).collect::<Vec<_>>(),
+            "shard_meta": shards,
+            "plots": plots,
+            "thresholds": thresholds,
+        });
+        let extra = with_2d(&sweep, extra, &pairs);
+        let text = json_text(&meta(
             &sweep,
             &args.config,
             &config_text,
             (start, unix_now()),
             extra,
-        ),
-    )?;
-    println!(
+        ))?;
+        set.add("meta.json", text.as_bytes())?;
+        Ok(())
+    })?;
+    outln!(
         "merged {n} points from {} directories into {}/{{runs.csv, points.csv, meta.json}} and {} plots",
         inputs.len(),
         args.out.display(),
@@ -465,11 +536,16 @@ fn all_thresholds(sweep: &Sweep, table: &Table) -> (Vec<Thresholds>, Vec<PairThr
 }
 
 /// The plots of an assembled sweep: line plots over K (1-D) or heat maps (2-D).
-fn draw(sweep: &Sweep, dir: &Path, table: &Table, pairs: &[PairThresholds]) -> Result<Vec<String>> {
+fn draw(
+    sweep: &Sweep,
+    set: &mut OutputSet,
+    table: &Table,
+    pairs: &[PairThresholds],
+) -> Result<Vec<String>> {
     if sweep.config().is_2d() {
-        heatmaps_all(sweep, dir, table, pairs)
+        heatmaps_all(sweep, set, table, pairs)
     } else {
-        plot_all(sweep, dir, table)
+        plot_all(sweep, set, table)
     }
 }
 
@@ -477,7 +553,7 @@ fn print_thresholds(sweep: &Sweep, thresholds: &[Thresholds], pairs: &[PairThres
     if sweep.config().is_2d() {
         if !pairs.is_empty() {
             let c = sweep.config().cost;
-            println!(
+            outln!(
                 "2-D thresholds (a region holds a pair when its criterion holds at every grid pair with K_e and K_c at least as large; cost K_e·{} + K_c·{}{}):",
                 c.t_e,
                 c.t_c,
@@ -487,13 +563,13 @@ fn print_thresholds(sweep: &Sweep, thresholds: &[Thresholds], pairs: &[PairThres
                     ""
                 }
             );
-            print!("{}", pair_thresholds_markdown(pairs));
+            outln!("{}", pair_thresholds_markdown(pairs).trim_end_matches('\n'));
         }
     } else if !thresholds.is_empty() {
-        println!(
+        outln!(
             "thresholds (K_lin: ρ_lin < 1 from here on the grid; K_emp: every run bounded from here on; K_cert: the covering certificate, Theorem 1 or with a K_c-iteration MPC the joint one):"
         );
-        print!("{}", thresholds_markdown(thresholds));
+        outln!("{}", thresholds_markdown(thresholds).trim_end_matches('\n'));
     }
 }
 

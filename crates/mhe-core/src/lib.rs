@@ -90,6 +90,7 @@ pub mod builder;
 pub mod error;
 pub mod estimator;
 pub mod kalman;
+pub mod memory;
 pub mod problem;
 pub mod record;
 pub mod settings;

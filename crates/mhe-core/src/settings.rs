@@ -115,21 +115,26 @@ impl MheSettings {
         }
         // Before the size: a horizon the conditioning rules out is refused for that reason.
         check_window_conditioning(horizon, eta, sys)?;
-        // One condensed QP per window length m = 0..M: n_m = n_x + m·n_w variables,
-        // θ_m = n_x + m(n_u + n_y) parameters; H is n_m², F is n_m × θ_m.
-        let (nx, nw) = (sys.nx() as f64, sys.nw() as f64);
-        let nuy = (sys.nu() + sys.ny()) as f64;
-        let mut bytes = 0.0;
-        for m in 0..=horizon.min(1 << 20) {
-            let (n, theta) = (nx + m as f64 * nw, nx + m as f64 * nuy);
-            bytes += 8.0 * (n * n + n * theta);
-            if bytes > lti_model::spec::format::MAX_DENSE_BYTES {
-                break;
-            }
-        }
+        // The setup's heap from the sizes the code allocates by (crate::memory): every
+        // window's QP, one Φ per window, the exact solvers of ε_t. The sets are not known
+        // here: every state and output counted as bounded (an upper bound).
+        let bytes = crate::memory::setup_bytes(&crate::memory::SetupShape {
+            nx: sys.nx(),
+            nu: sys.nu(),
+            ny: sys.ny(),
+            nw: sys.nw(),
+            state_rows: sys.nx(),
+            output_rows: sys.ny(),
+            horizon,
+            method: raw.method.unwrap_or_default(),
+            exact_solve: true,
+        });
         check_dense_bytes(
             "mhe.horizon",
-            &format!("condensed MHE QPs for windows up to M = {horizon}"),
+            &format!(
+                "an MHE setup (one condensed QP, one Φ and one exact solver per window length up \
+                 to M = {horizon})"
+            ),
             bytes,
         )?;
         let nw = sys.nw();

@@ -548,11 +548,20 @@ impl std::fmt::Display for LipschitzReport {
         if let Some(r) = self.void_reason {
             writeln!(f, "  void: {r}")?;
         }
-        writeln!(
-            f,
-            "  certified L_π  {:.6}  (the tightest bound below)",
-            self.l_pi()
-        )?;
+        if self.void_reason.is_some() {
+            // The bounds below are those of the box-constrained MPC; void above, they do not
+            // certify this one.
+            writeln!(
+                f,
+                "  certified L_π  none (void: the bounds below do not hold for this MPC)"
+            )?;
+        } else {
+            writeln!(
+                f,
+                "  certified L_π  {:.6}  (the tightest bound below)",
+                self.l_pi()
+            )?;
+        }
         match self.enumerated {
             Some(e) => writeln!(
                 f,

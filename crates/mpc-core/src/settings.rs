@@ -198,6 +198,16 @@ impl MpcSettings {
             MpcError::Model(ModelError::Numerical { routine, reason })
                 if routine.starts_with("DARE") =>
             {
+                // A badly scaled entry (1e50 in a Schur-stable A, `mpc.q = 1e100`) breaks the
+                // Riccati iteration in f64: named as such, not as "not stabilizable".
+                if let Some(e) = badly_scaled(&[
+                    ("plant.a", sys.a()),
+                    ("plant.b", sys.b()),
+                    ("mpc.q", self.q.as_ref()),
+                    ("mpc.r", self.r.as_ref()),
+                ]) {
+                    return e.into();
+                }
                 key_error(
                     "plant.b",
                     format!(
@@ -260,6 +270,49 @@ impl MpcSettings {
             other => other,
         }
     }
+}
+
+/// Ratio of the largest to the smallest nonzero entry magnitude of the MPC's data beyond
+/// which a failed Riccati equation is reported as bad scaling: 1e12 (the DARE's iterates
+/// lose every significant digit of the small entries in f64 well before 1e16).
+pub const BADLY_SCALED_RATIO: f64 = 1e12;
+
+/// The error naming the largest entry of `mats` (scenario key, matrix) when it is more than
+/// [`BADLY_SCALED_RATIO`] times the smallest nonzero one; None when the data are scaled
+/// within that range.
+fn badly_scaled(mats: &[(&str, faer::MatRef<'_, f64>)]) -> Option<MpcError> {
+    let mut big: Option<(&str, usize, usize, f64)> = None;
+    let mut small: Option<(&str, f64)> = None;
+    for &(key, m) in mats {
+        for j in 0..m.ncols() {
+            for i in 0..m.nrows() {
+                let v = m[(i, j)].abs();
+                if v == 0.0 || !v.is_finite() {
+                    continue;
+                }
+                if big.is_none_or(|b| v > b.3) {
+                    big = Some((key, i, j, v));
+                }
+                if small.is_none_or(|s| v < s.1) {
+                    small = Some((key, v));
+                }
+            }
+        }
+    }
+    let ((key, i, j, hi), (small_key, lo)) = (big?, small?);
+    (hi > BADLY_SCALED_RATIO * lo).then(|| {
+        key_error(
+            key,
+            format!(
+                "is badly scaled: entry ({i}, {j}) is {hi:.3e}, {:.3e} times the smallest nonzero \
+                 entry ({lo:.3e}, in `{small_key}`) of `plant.a`, `plant.b`, `mpc.q`, `mpc.r`; the \
+                 Riccati equation of `mpc.terminal` = \"dare\" cannot be solved in f64 across \
+                 that range (the limit is {BADLY_SCALED_RATIO:e}); rescale the units of the model",
+                hi / lo
+            ),
+        )
+        .into()
+    })
 }
 
 #[cfg(test)]

@@ -75,7 +75,7 @@ pub trait Family: IterationMap + Linearise + Sized {
         }
         let keys: Vec<String> = Self::keys_of(p)
             .iter()
-            .map(|(k, v)| format!("{k}={v}"))
+            .map(|(k, v)| format!("{k}={}", short(*v)))
             .collect();
         format!("{}({})", Self::NAME, keys.join(",")).into()
     }
@@ -644,6 +644,16 @@ impl MethodMap {
     /// (equivalent to [`run_fixed`]).
     pub fn run_fixed(&self, state: &mut MethodState, k: usize) -> RunResult {
         run_fixed(self, state, k)
+    }
+}
+
+/// A parameter in a method's name: exact (it round-trips, the name identifies the method)
+/// and short: `1.5`, and `1e-300` rather than 300 digits.
+pub(crate) fn short(x: f64) -> String {
+    if x != 0.0 && !(1e-4..1e15).contains(&x.abs()) {
+        format!("{x:e}")
+    } else {
+        format!("{x}")
     }
 }
 

@@ -359,7 +359,7 @@ impl crate::method::Family for ProjectedGradient {
         match p {
             StepRule::Optimal => "pg".into(),
             StepRule::InverseL => "pg(step=1/L)".into(),
-            StepRule::Fixed(a) => format!("pg(step={a})").into(),
+            StepRule::Fixed(a) => format!("pg(step={})", crate::method::short(*a)).into(),
         }
     }
     fn validate(p: &StepRule) -> Result<()> {

@@ -173,7 +173,7 @@ impl Progress {
             } else {
                 String::new()
             };
-            eprintln!(
+            errln!(
                 "  {}: step {done}/{} after {} s{left}",
                 self.label,
                 self.steps,

@@ -11,6 +11,7 @@
 //! log K for a log axis). A boundary at a grid K_c runs along the lower edge of that K_c's
 //! cells: the region is the cells above and to the right of it.
 
+#[cfg(test)]
 use std::path::Path;
 
 use anyhow::{Result, anyhow};
@@ -19,6 +20,7 @@ use plotters::coord::ranged1d::{DefaultFormatting, KeyPointHint};
 use plotters::prelude::*;
 
 use super::plots::shorten;
+use crate::output::OutputSet;
 
 /// One axis of the grid: its values and whether cells are spaced in log K.
 #[derive(Debug, Clone, PartialEq)]
@@ -318,8 +320,14 @@ fn number(v: f64) -> String {
 }
 
 impl HeatMap {
+    #[cfg(test)]
     pub(super) fn render(&self, path: &Path) -> Result<()> {
-        let err = |e: &dyn std::fmt::Display| anyhow!("heat map `{}`: {e}", path.display());
+        crate::output::write_atomic(path, self.svg(&path.display().to_string())?.as_bytes())
+    }
+
+    /// Renders the heat map as SVG text (`name` for messages).
+    pub(super) fn svg(&self, name: &str) -> Result<String> {
+        let err = |e: &dyn std::fmt::Display| anyhow!("heat map `{name}`: {e}");
         let mut notes = self.notes.clone();
         let (emp_paths, emp_clamped) = staircase_paths(&self.empirical, &self.k_e, &self.k_c);
         let lin = self
@@ -351,185 +359,190 @@ impl HeatMap {
         // The legend row, the notes (one may be added below).
         let note_h = 30 + 17 * (notes.len() as u32 + 1);
         let (w, h) = (980u32, 640u32);
-        let root = SVGBackend::new(path, (w, h + note_h)).into_drawing_area();
-        root.fill(&WHITE).map_err(|e| err(&e))?;
-        let (upper, lower) = root.split_vertically(h);
-        let (main, bar) = upper.split_horizontally(w - 120);
-        let (x_lo, x_hi, y_lo, y_hi) = (self.k_e.lo(), self.k_e.hi(), self.k_c.lo(), self.k_c.hi());
-        let mut chart = ChartBuilder::on(&main)
-            .caption(&self.title, ("sans-serif", 17))
-            .margin(14)
-            .x_label_area_size(44)
-            .y_label_area_size(64)
-            .build_cartesian_2d(
-                CellCoord {
-                    lo: x_lo,
-                    hi: x_hi,
-                    ticks: self.k_e.ticks(),
-                },
-                CellCoord {
-                    lo: y_lo,
-                    hi: y_hi,
-                    ticks: self.k_c.ticks(),
-                },
-            )
-            .map_err(|e| err(&e))?;
-        chart
-            .configure_mesh()
-            .disable_mesh()
-            .x_desc(self.k_e.describe("K_e: iterations of the MHE's Φ per step"))
-            .y_desc(self.k_c.describe("K_c: iterations of the MPC's Φ per step"))
-            .x_label_formatter(&|t: &f64| self.k_e.label(*t))
-            .y_label_formatter(&|t: &f64| self.k_c.label(*t))
-            .draw()
-            .map_err(|e| err(&e))?;
-        // Cells, with their value written in when there is room.
-        let (nx, ny) = (self.k_e.values.len(), self.k_c.values.len());
-        let write_values = nx <= 14 && ny <= 14;
-        for i in 0..nx {
-            for j in 0..ny {
-                let v = self.values.get(i).and_then(|r| r.get(j)).copied().flatten();
-                let color = match v {
-                    None => MISSING_CELL,
-                    Some(v) if !v.is_finite() => INFINITE_CELL,
-                    Some(v) => self.scale.color(v),
-                };
-                let (a, b) = (
-                    (self.k_e.edges[i], self.k_c.edges[j]),
-                    (self.k_e.edges[i + 1], self.k_c.edges[j + 1]),
-                );
-                chart
-                    .draw_series(std::iter::once(Rectangle::new([a, b], color.filled())))
-                    .map_err(|e| err(&e))?;
-                if let (true, Some(v)) = (write_values, v) {
-                    let RGBColor(r, g, bl) = color;
-                    let light =
-                        0.299 * f64::from(r) + 0.587 * f64::from(g) + 0.114 * f64::from(bl) > 140.0;
-                    let style = ("sans-serif", 11)
-                        .into_font()
-                        .color(if light { &BLACK } else { &WHITE })
-                        .pos(plotters::style::text_anchor::Pos::new(
-                            plotters::style::text_anchor::HPos::Center,
-                            plotters::style::text_anchor::VPos::Center,
-                        ));
-                    let centre = ((a.0 + b.0) / 2.0, (a.1 + b.1) / 2.0);
+        let mut svg = String::new();
+        {
+            let root = SVGBackend::with_string(&mut svg, (w, h + note_h)).into_drawing_area();
+            root.fill(&WHITE).map_err(|e| err(&e))?;
+            let (upper, lower) = root.split_vertically(h);
+            let (main, bar) = upper.split_horizontally(w - 120);
+            let (x_lo, x_hi, y_lo, y_hi) =
+                (self.k_e.lo(), self.k_e.hi(), self.k_c.lo(), self.k_c.hi());
+            let mut chart = ChartBuilder::on(&main)
+                .caption(&self.title, ("sans-serif", 17))
+                .margin(14)
+                .x_label_area_size(44)
+                .y_label_area_size(64)
+                .build_cartesian_2d(
+                    CellCoord {
+                        lo: x_lo,
+                        hi: x_hi,
+                        ticks: self.k_e.ticks(),
+                    },
+                    CellCoord {
+                        lo: y_lo,
+                        hi: y_hi,
+                        ticks: self.k_c.ticks(),
+                    },
+                )
+                .map_err(|e| err(&e))?;
+            chart
+                .configure_mesh()
+                .disable_mesh()
+                .x_desc(self.k_e.describe("K_e: iterations of the MHE's Φ per step"))
+                .y_desc(self.k_c.describe("K_c: iterations of the MPC's Φ per step"))
+                .x_label_formatter(&|t: &f64| self.k_e.label(*t))
+                .y_label_formatter(&|t: &f64| self.k_c.label(*t))
+                .draw()
+                .map_err(|e| err(&e))?;
+            // Cells, with their value written in when there is room.
+            let (nx, ny) = (self.k_e.values.len(), self.k_c.values.len());
+            let write_values = nx <= 14 && ny <= 14;
+            for i in 0..nx {
+                for j in 0..ny {
+                    let v = self.values.get(i).and_then(|r| r.get(j)).copied().flatten();
+                    let color = match v {
+                        None => MISSING_CELL,
+                        Some(v) if !v.is_finite() => INFINITE_CELL,
+                        Some(v) => self.scale.color(v),
+                    };
+                    let (a, b) = (
+                        (self.k_e.edges[i], self.k_c.edges[j]),
+                        (self.k_e.edges[i + 1], self.k_c.edges[j + 1]),
+                    );
                     chart
-                        .draw_series(std::iter::once(Text::new(number(v), centre, style)))
+                        .draw_series(std::iter::once(Rectangle::new([a, b], color.filled())))
                         .map_err(|e| err(&e))?;
-                }
-            }
-        }
-        // The boundaries; their legend goes under the chart (over the cells it would hide
-        // values).
-        let mut legend: Vec<Legend> = Vec::new();
-        let boundaries = [
-            (
-                Some((emp_paths, emp_clamped)),
-                Line::Solid,
-                EMPIRICAL,
-                4,
-                "empirical: every run bounded from here up".to_string(),
-                if self.empirical.iter().all(|s| s.1.is_none()) {
-                    "empirical: no all-bounded region on the grid".to_string()
-                } else {
-                    String::new()
-                },
-            ),
-            (
-                lin,
-                Line::Dashed(10, 6),
-                LINEAR,
-                3,
-                "linear: ρ_lin < 1 from here up".to_string(),
-                if self.linear.is_none() {
-                    "linear: not computed".to_string()
-                } else {
-                    "linear: ρ_lin ≥ 1 at the largest pair".to_string()
-                },
-            ),
-            (
-                Some((cert_paths, cert_clamped)),
-                Line::Dashed(4, 4),
-                CERTIFIED,
-                3,
-                "certified: joint certificate from here up".to_string(),
-                if self.certified.is_empty() {
-                    "certificate: not computed".to_string()
-                } else {
-                    "certified: no pair on the grid".to_string()
-                },
-            ),
-        ];
-        for (paths, line, color, width, label, missing) in boundaries {
-            let paths = paths.map(|p| p.0).unwrap_or_default();
-            for p in &paths {
-                let style = color.stroke_width(width);
-                match line {
-                    Line::Solid => chart
-                        .draw_series(LineSeries::new(p.iter().copied(), style))
-                        .map(|_| ()),
-                    Line::Dashed(dash, gap) => chart
-                        .draw_series(DashedLineSeries::new(p.iter().copied(), dash, gap, style))
-                        .map(|_| ()),
-                }
-                .map_err(|e| err(&e))?;
-            }
-            legend.push(if paths.is_empty() {
-                Legend {
-                    label: missing,
-                    color: color.mix(0.35),
-                    width: 2,
-                    line: Line::Solid,
-                }
-            } else {
-                Legend {
-                    label,
-                    color: color.to_rgba(),
-                    width,
-                    line,
-                }
-            });
-        }
-        let bottom = self.k_c.values.first().copied();
-        if !self.empirical.is_empty() && self.empirical.iter().all(|s| s.1 == bottom) {
-            notes.insert(
-                0,
-                "empirical region: the whole grid (its boundary is the axes)".into(),
-            );
-        }
-        self.draw_bar(&bar).map_err(|e| err(&e))?;
-        let text = ("sans-serif", 13).into_text_style(&lower);
-        for (i, l) in legend.iter().enumerate() {
-            let (x, y) = (80 + 300 * i as i32, 8);
-            let style = ShapeStyle::from(l.color).stroke_width(l.width);
-            match l.line {
-                Line::Solid => lower.draw(&PathElement::new(vec![(x, y), (x + 30, y)], style)),
-                Line::Dashed(dash, gap) => {
-                    let (d, g) = (dash as i32, gap as i32);
-                    let mut r = Ok(());
-                    let mut x0 = x;
-                    while x0 < x + 30 && r.is_ok() {
-                        r = lower.draw(&PathElement::new(
-                            vec![(x0, y), ((x0 + d).min(x + 30), y)],
-                            style,
-                        ));
-                        x0 += d + g;
+                    if let (true, Some(v)) = (write_values, v) {
+                        let RGBColor(r, g, bl) = color;
+                        let light =
+                            0.299 * f64::from(r) + 0.587 * f64::from(g) + 0.114 * f64::from(bl)
+                                > 140.0;
+                        let style = ("sans-serif", 11)
+                            .into_font()
+                            .color(if light { &BLACK } else { &WHITE })
+                            .pos(plotters::style::text_anchor::Pos::new(
+                                plotters::style::text_anchor::HPos::Center,
+                                plotters::style::text_anchor::VPos::Center,
+                            ));
+                        let centre = ((a.0 + b.0) / 2.0, (a.1 + b.1) / 2.0);
+                        chart
+                            .draw_series(std::iter::once(Text::new(number(v), centre, style)))
+                            .map_err(|e| err(&e))?;
                     }
-                    r
                 }
             }
-            .map_err(|e| err(&e))?;
-            lower
-                .draw_text(&l.label, &text, (x + 36, y - 7))
+            // The boundaries; their legend goes under the chart (over the cells it would hide
+            // values).
+            let mut legend: Vec<Legend> = Vec::new();
+            let boundaries = [
+                (
+                    Some((emp_paths, emp_clamped)),
+                    Line::Solid,
+                    EMPIRICAL,
+                    4,
+                    "empirical: every run bounded from here up".to_string(),
+                    if self.empirical.iter().all(|s| s.1.is_none()) {
+                        "empirical: no all-bounded region on the grid".to_string()
+                    } else {
+                        String::new()
+                    },
+                ),
+                (
+                    lin,
+                    Line::Dashed(10, 6),
+                    LINEAR,
+                    3,
+                    "linear: ρ_lin < 1 from here up".to_string(),
+                    if self.linear.is_none() {
+                        "linear: not computed".to_string()
+                    } else {
+                        "linear: ρ_lin ≥ 1 at the largest pair".to_string()
+                    },
+                ),
+                (
+                    Some((cert_paths, cert_clamped)),
+                    Line::Dashed(4, 4),
+                    CERTIFIED,
+                    3,
+                    "certified: joint certificate from here up".to_string(),
+                    if self.certified.is_empty() {
+                        "certificate: not computed".to_string()
+                    } else {
+                        "certified: no pair on the grid".to_string()
+                    },
+                ),
+            ];
+            for (paths, line, color, width, label, missing) in boundaries {
+                let paths = paths.map(|p| p.0).unwrap_or_default();
+                for p in &paths {
+                    let style = color.stroke_width(width);
+                    match line {
+                        Line::Solid => chart
+                            .draw_series(LineSeries::new(p.iter().copied(), style))
+                            .map(|_| ()),
+                        Line::Dashed(dash, gap) => chart
+                            .draw_series(DashedLineSeries::new(p.iter().copied(), dash, gap, style))
+                            .map(|_| ()),
+                    }
+                    .map_err(|e| err(&e))?;
+                }
+                legend.push(if paths.is_empty() {
+                    Legend {
+                        label: missing,
+                        color: color.mix(0.35),
+                        width: 2,
+                        line: Line::Solid,
+                    }
+                } else {
+                    Legend {
+                        label,
+                        color: color.to_rgba(),
+                        width,
+                        line,
+                    }
+                });
+            }
+            let bottom = self.k_c.values.first().copied();
+            if !self.empirical.is_empty() && self.empirical.iter().all(|s| s.1 == bottom) {
+                notes.insert(
+                    0,
+                    "empirical region: the whole grid (its boundary is the axes)".into(),
+                );
+            }
+            self.draw_bar(&bar).map_err(|e| err(&e))?;
+            let text = ("sans-serif", 13).into_text_style(&lower);
+            for (i, l) in legend.iter().enumerate() {
+                let (x, y) = (80 + 300 * i as i32, 8);
+                let style = ShapeStyle::from(l.color).stroke_width(l.width);
+                match l.line {
+                    Line::Solid => lower.draw(&PathElement::new(vec![(x, y), (x + 30, y)], style)),
+                    Line::Dashed(dash, gap) => {
+                        let (d, g) = (dash as i32, gap as i32);
+                        let mut r = Ok(());
+                        let mut x0 = x;
+                        while x0 < x + 30 && r.is_ok() {
+                            r = lower.draw(&PathElement::new(
+                                vec![(x0, y), ((x0 + d).min(x + 30), y)],
+                                style,
+                            ));
+                            x0 += d + g;
+                        }
+                        r
+                    }
+                }
                 .map_err(|e| err(&e))?;
+                lower
+                    .draw_text(&l.label, &text, (x + 36, y - 7))
+                    .map_err(|e| err(&e))?;
+            }
+            for (i, n) in notes.iter().enumerate() {
+                lower
+                    .draw_text(n, &text, (14, 26 + 17 * i as i32))
+                    .map_err(|e| err(&e))?;
+            }
+            root.present().map_err(|e| err(&e))?;
         }
-        for (i, n) in notes.iter().enumerate() {
-            lower
-                .draw_text(n, &text, (14, 26 + 17 * i as i32))
-                .map_err(|e| err(&e))?;
-        }
-        root.present().map_err(|e| err(&e))?;
-        Ok(())
+        Ok(svg)
     }
 
     /// The colour bar: 60 bands from the bottom (low) to the top (high), 5 labels.
@@ -626,7 +639,7 @@ fn stem(solver: &str) -> String {
 /// and its 2-D thresholds (`pairs`, which carry the boundaries); returns the file names.
 pub fn heatmaps_all(
     sweep: &Sweep,
-    dir: &Path,
+    set: &mut OutputSet,
     table: &Table,
     pairs: &[PairThresholds],
 ) -> Result<Vec<String>> {
@@ -742,7 +755,7 @@ pub fn heatmaps_all(
             maps.push((m, format!("heatmap-rho-lin-{}.svg", stem(&p.solver))));
         }
         for (m, name) in maps {
-            m.render(&dir.join(&name))?;
+            set.add(&name, m.svg(&name)?.as_bytes())?;
             written.push(name);
         }
     }

@@ -9,6 +9,8 @@ use anyhow::{Context, Result, anyhow};
 use closed_loop::sweep::{Sweep, Table};
 use plotters::prelude::*;
 
+use crate::output::OutputSet;
+
 /// One solver's curve at one scale.
 #[derive(Debug, Clone, PartialEq)]
 struct Curve {
@@ -210,153 +212,162 @@ impl BandChart<'_> {
         }
     }
 
-    fn render(&self, path: &Path) -> Result<()> {
-        let err = |e: &dyn std::fmt::Display| anyhow!("plot `{}`: {e}", path.display());
+    /// Renders the chart as SVG text (`name` for messages).
+    fn svg(&self, name: &str) -> Result<String> {
+        let err = |e: &dyn std::fmt::Display| anyhow!("plot `{name}`: {e}");
         let note_h = 18 * self.notes.len() as u32;
-        let root = SVGBackend::new(path, (900, 540 + note_h)).into_drawing_area();
-        root.fill(&WHITE).map_err(|e| err(&e))?;
-        let (upper, lower) = root.split_vertically(540);
-        let (k_lo, k_hi) = self.k_range();
-        let x = (k_lo / 1.25)..(k_hi * 1.25);
-        let ys = self
-            .curves
-            .iter()
-            .flat_map(|c| c.points.iter().flat_map(|p| [p.1, p.3]));
-        let (y_min, y_max) = ys.fold((f64::INFINITY, f64::NEG_INFINITY), |(a, b), y| {
-            (a.min(y), b.max(y))
-        });
-        let (y_min, y_max) = if y_min.is_finite() {
-            (y_min, y_max)
-        } else {
-            (1.0, 10.0)
-        };
-        let mut builder = ChartBuilder::on(&upper);
-        builder
-            .caption(&self.title, ("sans-serif", 17))
-            .margin(14)
-            .x_label_area_size(44)
-            .y_label_area_size(74);
-        macro_rules! draw {
-            ($chart:expr, $y_lo:expr, $y_hi:expr) => {{
-                let mut chart = $chart;
-                chart
-                    .configure_mesh()
-                    .x_desc("K (iterations of Φ per MHE step, log scale)")
-                    .y_desc(self.y_label)
-                    .x_label_formatter(&|x: &f64| tick(*x))
-                    .y_label_formatter(&|y: &f64| tick(*y))
-                    .draw()
-                    .map_err(|e| err(&e))?;
-                for c in &self.curves {
-                    let col = color_of(&c.solver);
-                    if c.points.iter().any(|p| p.1 != p.3) {
-                        let mut poly: Vec<(f64, f64)> =
-                            c.points.iter().map(|p| (p.0, p.1)).collect();
-                        poly.extend(c.points.iter().rev().map(|p| (p.0, p.3)));
-                        chart
-                            .draw_series(std::iter::once(Polygon::new(
-                                poly,
-                                col.mix(0.18).filled(),
-                            )))
-                            .map_err(|e| err(&e))?;
-                    }
+        let mut svg = String::new();
+        {
+            let root = SVGBackend::with_string(&mut svg, (900, 540 + note_h)).into_drawing_area();
+            root.fill(&WHITE).map_err(|e| err(&e))?;
+            let (upper, lower) = root.split_vertically(540);
+            let (k_lo, k_hi) = self.k_range();
+            let x = (k_lo / 1.25)..(k_hi * 1.25);
+            let ys = self
+                .curves
+                .iter()
+                .flat_map(|c| c.points.iter().flat_map(|p| [p.1, p.3]));
+            let (y_min, y_max) = ys.fold((f64::INFINITY, f64::NEG_INFINITY), |(a, b), y| {
+                (a.min(y), b.max(y))
+            });
+            let (y_min, y_max) = if y_min.is_finite() {
+                (y_min, y_max)
+            } else {
+                (1.0, 10.0)
+            };
+            let mut builder = ChartBuilder::on(&upper);
+            builder
+                .caption(&self.title, ("sans-serif", 17))
+                .margin(14)
+                .x_label_area_size(44)
+                .y_label_area_size(74);
+            macro_rules! draw {
+                ($chart:expr, $y_lo:expr, $y_hi:expr) => {{
+                    let mut chart = $chart;
                     chart
-                        .draw_series(LineSeries::new(
-                            c.points.iter().map(|p| (p.0, p.2)),
-                            col.stroke_width(2),
-                        ))
-                        .map_err(|e| err(&e))?
-                        .label(c.solver.as_str())
-                        .legend(move |(x, y)| {
-                            PathElement::new(vec![(x, y), (x + 22, y)], col.stroke_width(2))
-                        });
-                    chart
-                        .draw_series(
-                            c.points
-                                .iter()
-                                .map(|p| Circle::new((p.0, p.2), 3, col.filled())),
-                        )
+                        .configure_mesh()
+                        .x_desc("K (iterations of Φ per MHE step, log scale)")
+                        .y_desc(self.y_label)
+                        .x_label_formatter(&|x: &f64| tick(*x))
+                        .y_label_formatter(&|y: &f64| tick(*y))
+                        .draw()
                         .map_err(|e| err(&e))?;
-                    // Certified K_min dashed (none when void), K_lin dotted.
-                    let k_min = c.k_min.filter(|_| c.void_reason.is_none());
-                    for (k, dash, gap, width, what) in [
-                        (k_min, 8, 5, 2, "certified K_min"),
-                        (c.k_lin, 2, 4, 1, "K_lin"),
-                    ] {
-                        let Some(k) = k.filter(|k| *k >= k_lo && *k <= k_hi) else {
-                            continue;
-                        };
+                    for c in &self.curves {
+                        let col = color_of(&c.solver);
+                        if c.points.iter().any(|p| p.1 != p.3) {
+                            let mut poly: Vec<(f64, f64)> =
+                                c.points.iter().map(|p| (p.0, p.1)).collect();
+                            poly.extend(c.points.iter().rev().map(|p| (p.0, p.3)));
+                            chart
+                                .draw_series(std::iter::once(Polygon::new(
+                                    poly,
+                                    col.mix(0.18).filled(),
+                                )))
+                                .map_err(|e| err(&e))?;
+                        }
                         chart
-                            .draw_series(DashedLineSeries::new(
-                                vec![(k, $y_lo), (k, $y_hi)],
-                                dash,
-                                gap,
-                                col.stroke_width(width),
+                            .draw_series(LineSeries::new(
+                                c.points.iter().map(|p| (p.0, p.2)),
+                                col.stroke_width(2),
                             ))
                             .map_err(|e| err(&e))?
-                            .label(format!("{what}({}) = {k}", c.solver))
+                            .label(c.solver.as_str())
                             .legend(move |(x, y)| {
-                                PathElement::new(
-                                    vec![
-                                        (x, y),
-                                        (x + dash as i32, y),
-                                        (x + (dash + gap) as i32, y),
-                                        (x + (2 * dash + gap) as i32, y),
-                                    ],
-                                    col.stroke_width(1),
-                                )
+                                PathElement::new(vec![(x, y), (x + 22, y)], col.stroke_width(2))
+                            });
+                        chart
+                            .draw_series(
+                                c.points
+                                    .iter()
+                                    .map(|p| Circle::new((p.0, p.2), 3, col.filled())),
+                            )
+                            .map_err(|e| err(&e))?;
+                        // Certified K_min dashed (none when void), K_lin dotted.
+                        let k_min = c.k_min.filter(|_| c.void_reason.is_none());
+                        for (k, dash, gap, width, what) in [
+                            (k_min, 8, 5, 2, "certified K_min"),
+                            (c.k_lin, 2, 4, 1, "K_lin"),
+                        ] {
+                            let Some(k) = k.filter(|k| *k >= k_lo && *k <= k_hi) else {
+                                continue;
+                            };
+                            chart
+                                .draw_series(DashedLineSeries::new(
+                                    vec![(k, $y_lo), (k, $y_hi)],
+                                    dash,
+                                    gap,
+                                    col.stroke_width(width),
+                                ))
+                                .map_err(|e| err(&e))?
+                                .label(format!("{what}({}) = {k}", c.solver))
+                                .legend(move |(x, y)| {
+                                    PathElement::new(
+                                        vec![
+                                            (x, y),
+                                            (x + dash as i32, y),
+                                            (x + (dash + gap) as i32, y),
+                                            (x + (2 * dash + gap) as i32, y),
+                                        ],
+                                        col.stroke_width(1),
+                                    )
+                                });
+                        }
+                    }
+                    if let Some((level, label)) = self.hline {
+                        chart
+                            .draw_series(LineSeries::new(
+                                vec![(k_lo / 1.25, level), (k_hi * 1.25, level)],
+                                BLACK.stroke_width(1),
+                            ))
+                            .map_err(|e| err(&e))?
+                            .label(label)
+                            .legend(move |(x, y)| {
+                                PathElement::new(vec![(x, y), (x + 22, y)], BLACK.stroke_width(1))
                             });
                     }
-                }
-                if let Some((level, label)) = self.hline {
                     chart
-                        .draw_series(LineSeries::new(
-                            vec![(k_lo / 1.25, level), (k_hi * 1.25, level)],
-                            BLACK.stroke_width(1),
-                        ))
-                        .map_err(|e| err(&e))?
-                        .label(label)
-                        .legend(move |(x, y)| {
-                            PathElement::new(vec![(x, y), (x + 22, y)], BLACK.stroke_width(1))
-                        });
-                }
-                chart
-                    .configure_series_labels()
-                    .position(if self.log_y {
-                        SeriesLabelPosition::UpperRight
-                    } else {
-                        SeriesLabelPosition::LowerRight
-                    })
-                    .background_style(WHITE.mix(0.85))
-                    .border_style(BLACK)
-                    .draw()
+                        .configure_series_labels()
+                        .position(if self.log_y {
+                            SeriesLabelPosition::UpperRight
+                        } else {
+                            SeriesLabelPosition::LowerRight
+                        })
+                        .background_style(WHITE.mix(0.85))
+                        .border_style(BLACK)
+                        .draw()
+                        .map_err(|e| err(&e))?;
+                }};
+            }
+            if self.log_y {
+                let (lo, hi) = (y_min / 1.5, y_max * 1.5);
+                let chart = builder
+                    .build_cartesian_2d(x.clone().log_scale(), (lo..hi).log_scale())
                     .map_err(|e| err(&e))?;
-            }};
+                draw!(chart, lo, hi);
+            } else {
+                let (lo, hi) = (y_min.min(0.0), y_max.max(1.0) * 1.05);
+                let chart = builder
+                    .build_cartesian_2d(x.clone().log_scale(), lo..hi)
+                    .map_err(|e| err(&e))?;
+                draw!(chart, lo, hi);
+            }
+            for (i, n) in self.notes.iter().enumerate() {
+                lower
+                    .draw_text(
+                        n,
+                        &("sans-serif", 13).into_text_style(&lower),
+                        (14, 18 * i as i32),
+                    )
+                    .map_err(|e| err(&e))?;
+            }
+            root.present().map_err(|e| err(&e))?;
         }
-        if self.log_y {
-            let (lo, hi) = (y_min / 1.5, y_max * 1.5);
-            let chart = builder
-                .build_cartesian_2d(x.clone().log_scale(), (lo..hi).log_scale())
-                .map_err(|e| err(&e))?;
-            draw!(chart, lo, hi);
-        } else {
-            let (lo, hi) = (y_min.min(0.0), y_max.max(1.0) * 1.05);
-            let chart = builder
-                .build_cartesian_2d(x.clone().log_scale(), lo..hi)
-                .map_err(|e| err(&e))?;
-            draw!(chart, lo, hi);
-        }
-        for (i, n) in self.notes.iter().enumerate() {
-            lower
-                .draw_text(
-                    n,
-                    &("sans-serif", 13).into_text_style(&lower),
-                    (14, 18 * i as i32),
-                )
-                .map_err(|e| err(&e))?;
-        }
-        root.present().map_err(|e| err(&e))?;
-        Ok(())
+        Ok(svg)
+    }
+
+    #[cfg(test)]
+    fn render(&self, path: &Path) -> Result<()> {
+        crate::output::write_atomic(path, self.svg(&path.display().to_string())?.as_bytes())
     }
 }
 
@@ -416,9 +427,9 @@ pub fn read_points(dir: &Path) -> Result<Table> {
     Table::parse(&text).map_err(|e| anyhow!("`{}`: {e}", path.display()))
 }
 
-/// Writes the SVG plots of an assembled sweep directory from its `points.csv` (`table`);
+/// Stages the SVG plots of an assembled sweep from its `points.csv` (`table`) in `set`;
 /// returns the file names.
-pub fn plot_all(sweep: &Sweep, dir: &Path, table: &Table) -> Result<Vec<String>> {
+pub fn plot_all(sweep: &Sweep, set: &mut OutputSet, table: &Table) -> Result<Vec<String>> {
     let mut scales: Vec<String> = Vec::new();
     for r in 0..table.rows.len() {
         if let Some(s) = table.text(r, "scale") {
@@ -431,7 +442,7 @@ pub fn plot_all(sweep: &Sweep, dir: &Path, table: &Table) -> Result<Vec<String>>
     let mut written = Vec::new();
     let mut render = |mut chart: BandChart<'_>, name: String| -> Result<()> {
         chart.prepare();
-        chart.render(&dir.join(&name))?;
+        set.add(&name, chart.svg(&name)?.as_bytes())?;
         written.push(name);
         Ok(())
     };

@@ -174,7 +174,7 @@ impl CertificateSettings {
                     format!("is {g}; γ₁,₃ must be a finite number > 0 (or omit it to compute it)"),
                 ));
             }
-            format::check_magnitude("certificate.gamma13", "γ₁,₃", g)?;
+            format::check_scale("certificate.gamma13", g)?;
         }
         let phase_seconds = raw.and_then(|r| r.phase_seconds);
         if let Some(w) = phase_seconds {

@@ -415,10 +415,15 @@ fn scales(raw: Option<Vec<f64>>) -> Result<Option<Vec<f64>>> {
     let mut out = Vec::new();
     for (i, &s) in list.iter().enumerate() {
         let key = format!("scales[{i}]");
-        if !(s.is_finite() && s >= 0.0) {
+        // The same limits as the scenario's `noise.scale` (docs/limits.md).
+        if let Err(e) = lti_model::spec::format::check_scale("noise.scale", s) {
+            let problem = match e {
+                lti_model::ModelError::Scenario { problem, .. } => problem,
+                other => other.to_string(),
+            };
             return Err(config_err(
                 key,
-                format!("a disturbance scale must be finite and ≥ 0, got {s}"),
+                format!("a disturbance scale (it replaces the scenario's `noise.scale`) {problem}"),
             ));
         }
         if out.contains(&s) {
@@ -466,7 +471,8 @@ fn name(raw: Option<String>) -> Result<String> {
         return Err(config_err(
             "name",
             format!(
-                "`{name}` must be non-empty ASCII letters, digits, `-`, `_`, `.` (it names a directory)"
+                "`{name}` must be non-empty ASCII letters, digits, `-`, `_`, `.`, and must not start \
+                 with `.` (it names a directory)"
             ),
         ));
     }

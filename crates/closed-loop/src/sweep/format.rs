@@ -417,6 +417,55 @@ fn check_row(row: &str, cells: &[(String, Cell)], what: &str) -> std::result::Re
     Ok(())
 }
 
+/// Two differing cells for a message: numbers with 4 significant digits, unless that hides
+/// the difference (then as written).
+fn short_pair(a: &str, b: &str) -> (String, String) {
+    let short = |t: &str| match t.parse::<f64>() {
+        Ok(v) if v.is_finite() && t.len() > 8 => format!("{v:.3e}"),
+        _ => t.to_string(),
+    };
+    let (sa, sb) = (short(a), short(b));
+    if sa == sb {
+        (a.to_string(), b.to_string())
+    } else {
+        (sa, sb)
+    }
+}
+
+/// Why value `v` of metric `m` is outside its domain (None: inside). Every metric is ≥ 0.
+/// The norms (`sup_e`, `sup_x`, `tail_mean_*`, `final_*`, `sup_w`) of a completed run are
+/// finite (a signal beyond `DIVERGED_MAGNITUDE` stops the run) and +∞ after a stop; a gain
+/// may be +∞ (a tiny `sup_w`); `sup_eps` and the violations record NaN from a failed solve.
+fn metric_domain_violation(m: Metric, v: f64, completed: bool) -> Option<&'static str> {
+    let norm = matches!(
+        m,
+        Metric::SupE
+            | Metric::SupX
+            | Metric::TailMeanE
+            | Metric::FinalE
+            | Metric::TailMeanX
+            | Metric::FinalX
+            | Metric::SupW
+    );
+    let nan_ok = matches!(
+        m,
+        Metric::SupEps | Metric::InputViolation | Metric::MheViolation
+    );
+    if v.is_nan() {
+        return (!nan_ok)
+            .then_some("is not a number (NaN), but this metric is a norm or a gain ≥ 0");
+    }
+    if v < 0.0 {
+        return Some("is negative, but this metric is ≥ 0");
+    }
+    if norm && completed && !v.is_finite() {
+        return Some(
+            "is not finite, but the run completed (a run whose signals grow beyond 1e154 stops with an error)",
+        );
+    }
+    None
+}
+
 /// A row without its `wall_*` cells (names from `header`).
 fn without_timing<'a>(row: &'a str, header: &str) -> Vec<&'a str> {
     row.split(',')
@@ -520,7 +569,88 @@ impl PointFile {
         }
         let what = format!("line {} (summary row)", self.run_rows.len() + 3);
         check_row(&self.point_row, &rules.summary_cells(p), &what)
+            .map_err(|problem| point_file_err(path, problem))?;
+        self.check_meaning(rules)
             .map_err(|problem| point_file_err(path, problem))
+    }
+
+    /// Checks what the (well-formed) cells mean: every metric in its domain (≥ 0; the norms
+    /// of a completed run finite; NaN only where the run records it for a failed solve),
+    /// `bounded = 1` only for a completed run, and the summary row equal, cell for cell, to
+    /// the one recomputed from the run rows ([`summarise`](super::metrics::summarise)'s
+    /// rule: bounded fraction, quantiles, maximum).
+    fn check_meaning(&self, rules: &PointFileRules<'_>) -> std::result::Result<(), String> {
+        let rh = runs_header(rules.metrics, rules.two_d);
+        let names: Vec<&str> = rh.split(',').collect();
+        let col = |name: &str| names.iter().position(|n| *n == name).unwrap_or(usize::MAX);
+        let (c_bounded, c_error) = (col("bounded"), col("error"));
+        let mut values: Vec<Vec<f64>> = vec![Vec::new(); rules.metrics.len()];
+        let mut bounded = 0usize;
+        for (r, row) in self.run_rows.iter().enumerate() {
+            let cells: Vec<&str> = row.split(',').collect();
+            let what = format!("line {} (run {r})", r + 2);
+            let completed = cells.get(c_error).is_some_and(|e| e.is_empty());
+            if cells.get(c_bounded) == Some(&"1") {
+                if !completed {
+                    return Err(format!(
+                        "{what}, column `bounded`: `1`, but the run stopped (column `error` is \
+                         not empty), and a stopped run is never bounded"
+                    ));
+                }
+                bounded += 1;
+            }
+            for (i, &m) in rules.metrics.iter().enumerate() {
+                let text = cells.get(col(m.name())).copied().unwrap_or("");
+                if text.is_empty() {
+                    continue;
+                }
+                let v: f64 = text.parse().unwrap_or(f64::NAN);
+                if let Some(rule) = metric_domain_violation(m, v, completed) {
+                    return Err(format!("{what}, column `{}`: `{text}` {rule}", m.name()));
+                }
+                values[i].push(v);
+            }
+        }
+        // The summary row recomputed from the run rows, compared cell by cell.
+        let ph = points_header(rules.metrics, rules.two_d);
+        let summary: Vec<&str> = self.point_row.split(',').collect();
+        let pcol = |name: &str| {
+            ph.split(',')
+                .position(|n| n == name)
+                .and_then(|c| summary.get(c).copied())
+                .unwrap_or("")
+        };
+        let runs = self.run_rows.len();
+        let mut expected = vec![(
+            "bounded_fraction".to_string(),
+            if runs == 0 {
+                0.0f64.to_string()
+            } else {
+                (bounded as f64 / runs as f64).to_string()
+            },
+        )];
+        for (i, &m) in rules.metrics.iter().enumerate() {
+            let v = &mut values[i];
+            v.sort_by(f64::total_cmp);
+            let q = |p| cell(super::metrics::quantile_sorted(v, p));
+            for (p, name) in QUANTILES {
+                expected.push((format!("{}_{name}", m.name()), q(p)));
+            }
+            expected.push((format!("{}_max", m.name()), cell(v.last().copied())));
+        }
+        let line = runs + 3;
+        for (name, want) in expected {
+            let got = pcol(&name);
+            if got != want {
+                let (g, w) = short_pair(got, &want);
+                return Err(format!(
+                    "line {line} (summary row), column `{name}`: `{g}`, but the run rows \
+                     (lines 2–{}) give `{w}`; the file was edited",
+                    runs + 1
+                ));
+            }
+        }
+        Ok(())
     }
 
     /// Whether two (valid) files of one point hold the same results, the `wall_*` timing

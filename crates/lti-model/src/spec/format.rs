@@ -33,7 +33,7 @@ pub fn magnitude_error(key: &str, what: &str, value: f64) -> ModelError {
     key_error(
         key,
         format!(
-            "{what} is {value:e}, beyond ±{MAX_MAGNITUDE:e}, the largest magnitude accepted \
+            "{what} is {value:.3e}, beyond ±{MAX_MAGNITUDE:e}, the largest magnitude accepted \
              (products of a few such numbers overflow f64); rescale the units of the model \
              (docs/limits.md)"
         ),
@@ -45,6 +45,44 @@ pub fn magnitude_error(key: &str, what: &str, value: f64) -> ModelError {
 pub fn check_magnitude(key: &str, what: &str, value: f64) -> Result<()> {
     if value.is_finite() && value.abs() > MAX_MAGNITUDE {
         return Err(magnitude_error(key, what, value));
+    }
+    Ok(())
+}
+
+/// The smallest nonzero magnitude of a scale factor (`noise.scale`, a sweep's `scales`,
+/// γ₁,₃): 1/[`MAX_MAGNITUDE`] = 1e-100. Its square must not underflow, and its inverse must
+/// stay within the limit.
+pub const MIN_SCALE: f64 = 1.0 / MAX_MAGNITUDE;
+
+/// Refuses a scale factor outside {0} ∪ [[`MIN_SCALE`], [`MAX_MAGNITUDE`]] (or not finite),
+/// naming `key`: the one rule for `noise.scale`, a sweep's `scales` and γ₁,₃ (which must
+/// also be > 0: the caller checks).
+pub fn check_scale(key: &str, value: f64) -> Result<()> {
+    if !(value.is_finite() && value >= 0.0) {
+        return Err(key_error(
+            key,
+            format!("is {value}; it must be a finite number ≥ 0"),
+        ));
+    }
+    if value > MAX_MAGNITUDE {
+        return Err(key_error(
+            key,
+            format!(
+                "is {value:.3e}, above {MAX_MAGNITUDE:e}, the largest scale accepted (products of \
+                 a few such numbers overflow f64); rescale the units of the model \
+                 (docs/limits.md)"
+            ),
+        ));
+    }
+    if value > 0.0 && value < MIN_SCALE {
+        return Err(key_error(
+            key,
+            format!(
+                "is {value:.3e}, nonzero but below {MIN_SCALE:e}, the smallest scale accepted \
+                 (its square underflows, its inverse overflows); use a larger value, or 0 where \
+                 it turns a disturbance off (docs/limits.md)"
+            ),
+        ));
     }
     Ok(())
 }
@@ -702,6 +740,32 @@ pub const MAX_DENSE_BYTES: f64 = (1u64 << 30) as f64;
 pub fn read_limited(path: &std::path::Path) -> Result<String> {
     use std::io::Read;
     let fail = |problem: String| key_error("<file>", problem);
+    // Checked before opening: opening a FIFO blocks until a writer appears, and a device
+    // or a directory is no input file.
+    let meta = std::fs::metadata(path).map_err(|e| {
+        fail(format!(
+            "cannot read `{}`: {e}; check the path (relative paths are resolved from the \
+             current directory)",
+            path.display()
+        ))
+    })?;
+    if !meta.is_file() {
+        let kind = special_kind(&meta);
+        return Err(fail(format!(
+            "`{}` is {kind}, not a regular file; give a text file of at most {} MiB",
+            path.display(),
+            MAX_FILE_BYTES >> 20
+        )));
+    }
+    if meta.len() > MAX_FILE_BYTES {
+        return Err(fail(format!(
+            "`{}` is larger than {} MiB ({} bytes), the limit for input files; is it the right \
+             file?",
+            path.display(),
+            MAX_FILE_BYTES >> 20,
+            meta.len()
+        )));
+    }
     let file = std::fs::File::open(path).map_err(|e| {
         fail(format!(
             "cannot read `{}`: {e}; check the path (relative paths are resolved from the \
@@ -722,11 +786,36 @@ pub fn read_limited(path: &std::path::Path) -> Result<String> {
     }
     String::from_utf8(bytes).map_err(|e| {
         fail(format!(
-            "`{}` is not UTF-8 text (invalid byte at offset {}); give a TOML text file",
+            "`{}` is not UTF-8 text (invalid byte at offset {}); give a text file",
             path.display(),
             e.utf8_error().valid_up_to()
         ))
     })
+}
+
+/// What a path that is not a regular file is, for messages.
+fn special_kind(meta: &std::fs::Metadata) -> &'static str {
+    let t = meta.file_type();
+    if t.is_dir() {
+        return "a directory";
+    }
+    #[cfg(unix)]
+    {
+        use std::os::unix::fs::FileTypeExt as _;
+        if t.is_fifo() {
+            return "a FIFO (named pipe)";
+        }
+        if t.is_char_device() {
+            return "a character device";
+        }
+        if t.is_block_device() {
+            return "a block device";
+        }
+        if t.is_socket() {
+            return "a socket";
+        }
+    }
+    "a special file"
 }
 
 /// Refuses a working set of `bytes` (an estimate made before allocating) above

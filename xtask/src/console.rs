@@ -1,0 +1,111 @@
+//! Terminal output that cannot panic.
+//!
+//! `println!` panics when stdout is closed (`| head -1` under `set -o pipefail`) or full
+//! (`> /dev/full`), which would abort the work and lose its files. Every terminal line of
+//! `xtask` goes through [`outln!`] / [`errln!`] instead: a failed write is an ordinary I/O
+//! error, remembered, and the stream is not written again. The work completes and its files
+//! are written; [`exit_code`] then turns a lost stdout into exit code [`EXIT_STREAM`]
+//! (when the run would otherwise have succeeded), and the first error is reported on
+//! stderr if stderr still works.
+
+use std::fmt;
+use std::io::Write as _;
+use std::process::ExitCode;
+use std::sync::Mutex;
+
+/// Exit code when the work succeeded and its files were written, but stdout (or stderr)
+/// could not be written: closed pipe, full device.
+pub const EXIT_STREAM: u8 = 5;
+
+/// Which stream.
+#[derive(Debug, Clone, Copy, PartialEq, Eq)]
+pub enum Stream {
+    Stdout,
+    Stderr,
+}
+
+/// The first write error of each stream (`None`: no error so far).
+static LOST: Mutex<[Option<String>; 2]> = Mutex::new([None, None]);
+
+fn slot(stream: Stream) -> usize {
+    match stream {
+        Stream::Stdout => 0,
+        Stream::Stderr => 1,
+    }
+}
+
+/// Writes `args` and a newline to `stream` unless an earlier write to it failed; a failure
+/// is remembered (never a panic). Returns whether the line was written.
+pub fn line(stream: Stream, args: fmt::Arguments<'_>) -> bool {
+    let mut lost = LOST
+        .lock()
+        .unwrap_or_else(std::sync::PoisonError::into_inner);
+    let i = slot(stream);
+    if lost[i].is_some() {
+        return false;
+    }
+    let written = match stream {
+        Stream::Stdout => {
+            let mut out = std::io::stdout().lock();
+            writeln!(out, "{args}").and_then(|()| out.flush())
+        }
+        Stream::Stderr => {
+            let mut err = std::io::stderr().lock();
+            writeln!(err, "{args}").and_then(|()| err.flush())
+        }
+    };
+    match written {
+        Ok(()) => true,
+        Err(e) => {
+            lost[i] = Some(e.to_string());
+            false
+        }
+    }
+}
+
+/// The first write error of `stream`, if any.
+pub fn lost(stream: Stream) -> Option<String> {
+    LOST.lock()
+        .unwrap_or_else(std::sync::PoisonError::into_inner)[slot(stream)]
+    .clone()
+}
+
+/// The process's exit code: `code` unless the run succeeded and a stream was lost, then
+/// [`EXIT_STREAM`] (with a note on stderr when stderr still works).
+pub fn exit_code(code: ExitCode) -> ExitCode {
+    let (out, err) = (lost(Stream::Stdout), lost(Stream::Stderr));
+    if out.is_none() && err.is_none() {
+        return code;
+    }
+    if let Some(e) = &out {
+        line(
+            Stream::Stderr,
+            format_args!(
+                "note: stdout could not be written ({e}); the work completed and its files \
+                 were written (exit code {EXIT_STREAM})"
+            ),
+        );
+    }
+    if code == ExitCode::SUCCESS {
+        ExitCode::from(EXIT_STREAM)
+    } else {
+        code
+    }
+}
+
+/// `println!` that never panics: a line on stdout through [`line`].
+macro_rules! outln {
+    () => {
+        $crate::console::line($crate::console::Stream::Stdout, format_args!(""))
+    };
+    ($($arg:tt)*) => {
+        $crate::console::line($crate::console::Stream::Stdout, format_args!($($arg)*))
+    };
+}
+
+/// `eprintln!` that never panics: a line on stderr through [`line`].
+macro_rules! errln {
+    ($($arg:tt)*) => {
+        $crate::console::line($crate::console::Stream::Stderr, format_args!($($arg)*))
+    };
+}

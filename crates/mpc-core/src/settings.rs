@@ -206,7 +206,7 @@ impl MpcSettings {
                     ("mpc.q", self.q.as_ref()),
                     ("mpc.r", self.r.as_ref()),
                 ]) {
-                    return e.into();
+                    return e;
                 }
                 key_error(
                     "plant.b",

@@ -31,8 +31,8 @@
 //! trajectory check reports it as part of the right-hand side, not as a verified bound.
 
 mod certify;
-mod rounding;
 pub mod lemma1;
+mod rounding;
 mod trajectory;
 
 use lti_model::ioss;

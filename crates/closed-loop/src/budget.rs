@@ -127,7 +127,7 @@ fn phase(name: &str, work: f64, rate: f64, runs: bool, detail: String) -> PhaseE
 
 /// Estimated work of the certificate's phases for `scenario` (needs `[mhe]`; `mpc` is the
 /// scenario's condensed MPC, for the number of saturable variables) under `opts`. The
-/// estimate of ρ_lin is the one of [`crate::linear::LiftedLoop::work`] from the dimensions,
+/// estimate of ρ_lin is the one of [`crate::linear::LiftedDims::grid_work`] from the dimensions,
 /// for the four preset methods on reproduce's 25-point K grid up to `k_top`.
 pub fn estimate_phases(
     scenario: &Scenario,

@@ -19,7 +19,7 @@ pub struct InequalityCheck {
     /// First t where it failed, if any.
     pub first_violation: Option<usize>,
     /// Steps at which lhs exceeded rhs but not rhs + the rounding floor
-    /// ([`super::rounding`]): the measured side was floating-point rounding there.
+    /// ([`super::rounding_floor`]): the measured side was floating-point rounding there.
     pub within_rounding_floor: usize,
     /// Largest rounding floor used at such a step (0 when none).
     pub max_rounding_floor: f64,
@@ -44,7 +44,7 @@ impl InequalityCheck {
         self.record_with_floor(t, lhs, rhs, 0.0);
     }
 
-    /// [`InequalityCheck::record`] with a rounding floor (`floor` ≥ 0, [`super::rounding`]):
+    /// [`InequalityCheck::record`] with a rounding floor (`floor` ≥ 0, [`super::rounding_floor`]):
     /// lhs ≤ rhs + floor holds; a step that needs the floor is counted, and a step with
     /// lhs > rhs + floor is a violation.
     pub fn record_with_floor(&mut self, t: usize, lhs: f64, rhs: f64, floor: f64) {

@@ -249,7 +249,7 @@ impl LiftedLoop {
             n_theta: self.mhe.n_theta,
         }
     }
-    /// Estimated multiply-adds of ρ_lin on `grid` ([`super::LiftedDims::k_work`]).
+    /// Estimated multiply-adds of ρ_lin on `grid` ([`super::LiftedDims::grid_work`]).
     pub fn grid_work(&self, grid: &[usize]) -> f64 {
         self.dims().grid_work(self.mhe.lift_dim(), grid)
     }

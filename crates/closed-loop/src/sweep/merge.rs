@@ -103,7 +103,8 @@ fn collect(sweep: &Sweep, dirs: &[&Path]) -> Result<BTreeMap<usize, Found>> {
     Ok(files)
 }
 
-fn check_complete(sweep: &Sweep, files: &BTreeMap<usize, Found>) -> Result<()> {
+/// Every point of the sweep has a file in `files` (by point index), or the first missing one.
+fn check_complete<V>(sweep: &Sweep, files: &BTreeMap<usize, V>) -> Result<()> {
     let total = sweep.points().len();
     if files.len() < total {
         let first = sweep
@@ -137,20 +138,7 @@ pub(super) fn write_files(
     files: &BTreeMap<usize, PointFile>,
     out: &Path,
 ) -> Result<usize> {
-    let total = sweep.points().len();
-    if files.len() < total {
-        let first = sweep
-            .points()
-            .iter()
-            .map(|p| p.index)
-            .find(|i| !files.contains_key(i))
-            .unwrap_or(0);
-        return Err(SweepError::Incomplete {
-            missing: total - files.len(),
-            total,
-            first,
-        });
-    }
+    check_complete(sweep, files)?;
     write_point_files(sweep, files.values(), out)?;
     Ok(files.len())
 }

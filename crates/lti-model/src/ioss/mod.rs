@@ -45,7 +45,7 @@
 //! The value iteration converges linearly with the closed-loop rate of the covariance
 //! recursion and its stopping test depends on the units (issue 25: AFTI-16 with its speed in
 //! 100 ft/s, `mhe.r = 1e4`). The code therefore computes the same P* = X*⁻¹ differently
-//! ([`doubling`] module):
+//! (the `doubling` module):
 //!
 //! 1. **Balance and normalise** by congruences that leave μ(P) unchanged: w = D_w w̃ with
 //!    D_w = diag(Q)^{−½} and y scaled by diag(R)^{½} (Q̃, R̃ with unit diagonal; a common

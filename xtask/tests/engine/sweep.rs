@@ -15,10 +15,7 @@ use xtask::sweep_engine::{
     merge_point_dirs, point_file_name, run_seed,
 };
 
-const SCENARIO: &str = concat!(
-    env!("CARGO_MANIFEST_DIR"),
-    "/../scenarios/case-study.toml"
-);
+const SCENARIO: &str = concat!(env!("CARGO_MANIFEST_DIR"), "/../scenarios/case-study.toml");
 
 /// A fresh, empty directory under the test target's temp dir.
 fn scratch(name: &str) -> PathBuf {
@@ -755,12 +752,8 @@ fn monte_carlo_is_thread_count_independent_and_takes_user_components() {
     .resolve()
     .unwrap();
     let sc = resolved.scenario();
-    let settings = MonteCarlo {
-        runs: 6,
-        base_seed: 11,
-        input_box: (sc.sets.input.lower(), sc.sets.input.upper()),
-        bounded_factor: 1e3,
-    };
+    let settings = MonteCarlo::new(6, 11, (sc.sets.input.lower(), sc.sets.input.upper()))
+        .with_bounded_factor(1e3);
     let make = |seed| {
         let mut o = LoopOptions::from_scenario(sc).unwrap();
         o.iterations = 5;

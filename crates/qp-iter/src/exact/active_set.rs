@@ -38,9 +38,9 @@
 //! fresh factor is a typed [`QpError::NotConverged`], so a caller can fall back to
 //! [`crate::reference`] ([`ExactSolver`] does).
 
+use super::free_factor::{FactorBreakdown, FreeFactor, dot};
 use crate::dual_active_set::{DualActiveSetSettings, DualActiveSetStatus, ParametricDualActiveSet};
 use crate::error::{QpError, Result};
-use crate::free_factor::{FactorBreakdown, FreeFactor, dot};
 use crate::problem::ParametricQp;
 use crate::reference::{ReferenceSettings, ReferenceSolver};
 

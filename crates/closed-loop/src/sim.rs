@@ -46,6 +46,7 @@ use crate::record::{CaptureError, Trace};
 /// Errors of the closed-loop simulation: bad setup (at construction) or a failed step
 /// (naming the step t and the cause). After a step error the loop is stopped.
 #[derive(Debug, Clone, PartialEq, thiserror::Error)]
+#[non_exhaustive]
 pub enum ClosedLoopError {
     /// T = 0.
     #[error("the horizon `steps` (T) is 0: a closed-loop run needs T ≥ 1 steps")]

@@ -50,9 +50,11 @@
 
 mod data;
 mod estimator;
+mod mpc;
 mod qp;
 mod scalar;
 
 pub use data::{DataError, Method, Problem, WarmStart, Window};
 pub use estimator::Mhe;
+pub use mpc::{Mpc, MpcError, MpcProblem};
 pub use scalar::Scalar;

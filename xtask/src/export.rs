@@ -19,6 +19,8 @@ mod sha256;
 #[cfg(test)]
 mod tests;
 #[cfg(test)]
+mod tests_capi;
+#[cfg(test)]
 mod tests_mpc;
 
 use std::path::{Path, PathBuf};
@@ -517,6 +519,7 @@ pub(crate) fn write_code(
             write_file(out, "capi/src/lib.rs", rust_gen::CAPI_LIB_RS)?;
             write_file(out, "capi/mhe_capi.h", rust_gen::CAPI_HEADER)?;
             write_file(out, "capi/replay_capi.c", rust_gen::CAPI_REPLAY_C)?;
+            write_file(out, "capi/loop_capi.c", rust_gen::CAPI_LOOP_C)?;
         }
     }
     Ok(())

@@ -233,6 +233,7 @@ pub(crate) fn lib_rs(a: &Artefact<'_>) -> String {
 pub(crate) const CAPI_LIB_RS: &str = include_str!("capi/lib.rs");
 pub(crate) const CAPI_HEADER: &str = include_str!("capi/mhe_capi.h");
 pub(crate) const CAPI_REPLAY_C: &str = include_str!("capi/replay_capi.c");
+pub(crate) const CAPI_LOOP_C: &str = include_str!("capi/loop_capi.c");
 
 /// `capi/Cargo.toml`.
 pub(crate) fn capi_cargo_toml(package: &str) -> String {

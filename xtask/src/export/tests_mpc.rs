@@ -175,7 +175,10 @@ fn loop_io(std: &[(Vec<f64>, Vec<f64>, Vec<f64>)]) -> (String, Vec<Vec<u64>>) {
 /// and u bit for bit, for every MPC method, on both scenarios.
 #[test]
 fn exported_c_and_rust_loops_equal_std_portable_bit_for_bit() {
-    let target = workspace_root().join("target").join("export-tests-target");
+    // Its own target directory: the replay test builds a package of the same name.
+    let target = workspace_root()
+        .join("target")
+        .join("export-tests-loop-target");
     for (file, tag, k_c) in [
         ("case-study-certified.toml", "certified", 125),
         ("cart-pendulum.toml", "cart", 30),

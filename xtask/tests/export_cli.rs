@@ -85,20 +85,20 @@ fn bits(line: &str) -> Vec<u64> {
 fn replay_of_the_exported_c_reproduces_trace_csv_bit_for_bit() {
     let dir = scratch("certified");
     let out = dir.join("reproduce");
+    let scenario = root().join("scenarios/case-study-certified.toml");
     run_ok(
         xtask()
             .env("QP_ITER_KERNEL", "portable")
-            .args(["reproduce", "--preset", "certified", "--out"])
+            .args(["reproduce", "--scenario"])
+            .arg(&scenario)
+            .arg("--out")
             .arg(&out),
     );
-    let trace = std::fs::read_to_string(out.join("case-study-certified").join("trace.csv"))
-        .unwrap_or_else(|_| {
-            std::fs::read_to_string(out.join("trace.csv")).expect("trace.csv of reproduce")
-        });
+    let trace =
+        std::fs::read_to_string(out.join("case-study-certified").join("trace.csv")).unwrap();
     let (header, rows) = first_run(&trace);
     let k = rows[0][0].clone();
     let art = dir.join("art");
-    let scenario = root().join("scenarios/case-study-certified.toml");
     let printed = run_ok(
         xtask()
             .args(["export", "--scenario"])
@@ -115,7 +115,7 @@ fn replay_of_the_exported_c_reproduces_trace_csv_bit_for_bit() {
     assert_eq!(cert["mpc"]["certified"], true);
     assert_eq!(cert["mpc"]["iterations"], cert["mpc"]["k_c_min"]);
     assert_eq!(cert["loop_certified"], true);
-    assert_eq!(cert["mpc"]["joint"]["mpc_method"], "pg");
+    assert_eq!(cert["mpc"]["joint"]["mpc_method"], cert["mpc"]["method"]);
     run_ok(Command::new("make").current_dir(&art).args(["-s", "replay", "loop"]));
     // The replay: (u_t, y_t) of each row in, x̂ out; line t = row t's xhat.
     let (cu, cy, cx) = (

@@ -436,7 +436,15 @@ pub fn export(args: &ExportArgs) -> Result<()> {
         mpc: mpc_export.as_ref().map(|m| m.1.clone()),
     };
     let mpc = mpc_export.as_ref().map(|(d, _, j)| (d, j));
-    write_artefact(&args.out, args.lang, &problem, mpc, &art, &cert, &args.scenario)?;
+    write_artefact(
+        &args.out,
+        args.lang,
+        &problem,
+        mpc,
+        &art,
+        &cert,
+        &args.scenario,
+    )?;
     outln!(
         "wrote the {} artefact for `{}` ({}, K = {k}{}) to {}",
         match args.lang {
@@ -449,10 +457,10 @@ pub fn export(args: &ExportArgs) -> Result<()> {
             (true, ScalarKind::F64) => ", certified".to_string(),
             (true, ScalarKind::F32) => ", certified K; f32 not covered by the certificate".into(),
             (false, _) => ", UNCERTIFIED".into(),
-        } + &art
-            .mpc
-            .as_ref()
-            .map_or_else(String::new, |m| format!(", MPC {} with K_c = {}", m.method, m.k_c)),
+        } + &art.mpc.as_ref().map_or_else(String::new, |m| format!(
+            ", MPC {} with K_c = {}",
+            m.method, m.k_c
+        )),
         args.out.display()
     );
     Ok(())

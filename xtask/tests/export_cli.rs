@@ -105,7 +105,16 @@ fn replay_of_the_exported_c_reproduces_trace_csv_bit_for_bit() {
             .arg(&scenario)
             .arg("--out")
             .arg(&art)
-            .args(["--lang", "c", "--method", "pg", "--k", &k, "--kc", "certified"]),
+            .args([
+                "--lang",
+                "c",
+                "--method",
+                "pg",
+                "--k",
+                &k,
+                "--kc",
+                "certified",
+            ]),
     );
     assert!(printed.contains("certified"), "{printed}");
     let cert: serde_json::Value =
@@ -116,7 +125,11 @@ fn replay_of_the_exported_c_reproduces_trace_csv_bit_for_bit() {
     assert_eq!(cert["mpc"]["iterations"], cert["mpc"]["k_c_min"]);
     assert_eq!(cert["loop_certified"], true);
     assert_eq!(cert["mpc"]["joint"]["mpc_method"], cert["mpc"]["method"]);
-    run_ok(Command::new("make").current_dir(&art).args(["-s", "replay", "loop"]));
+    run_ok(
+        Command::new("make")
+            .current_dir(&art)
+            .args(["-s", "replay", "loop"]),
+    );
     // The replay: (u_t, y_t) of each row in, x̂ out; line t = row t's xhat.
     let (cu, cy, cx) = (
         columns(&header, "u"),
@@ -138,7 +151,11 @@ fn replay_of_the_exported_c_reproduces_trace_csv_bit_for_bit() {
     let got: Vec<&str> = got.lines().collect();
     assert_eq!(got.len(), rows.len() + 1);
     for (t, r) in rows.iter().enumerate() {
-        let xhat = cx.iter().map(|&i| r[i].as_str()).collect::<Vec<_>>().join(",");
+        let xhat = cx
+            .iter()
+            .map(|&i| r[i].as_str())
+            .collect::<Vec<_>>()
+            .join(",");
         assert_eq!(
             bits(got[t]),
             bits(&xhat),
@@ -149,7 +166,13 @@ fn replay_of_the_exported_c_reproduces_trace_csv_bit_for_bit() {
     // is checked here; tests in src/export compare the loop with the std loop bit for bit).
     let input: String = rows
         .iter()
-        .map(|r| cy.iter().map(|&i| r[i].as_str()).collect::<Vec<_>>().join(",") + "\n")
+        .map(|r| {
+            cy.iter()
+                .map(|&i| r[i].as_str())
+                .collect::<Vec<_>>()
+                .join(",")
+                + "\n"
+        })
         .collect();
     let got = pipe(&art.join("loop"), &input);
     let got: Vec<&str> = got.lines().collect();

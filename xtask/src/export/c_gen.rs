@@ -77,7 +77,9 @@ pub(crate) fn data_h(p: &OwnedProblem, mpc: Option<&OwnedMpc>, a: &Artefact<'_>)
                 m.iterations,
                 u8::from(am.certified)
             ),
-            _ => "/* No MPC in this export (cargo xtask export --kc). */\n#define MHE_HAS_MPC 0\n\n".into(),
+            _ =>
+                "/* No MPC in this export (cargo xtask export --kc). */\n#define MHE_HAS_MPC 0\n\n"
+                    .into(),
         },
         nx = p.nx,
         nu = p.nu,

@@ -281,7 +281,9 @@ pub(crate) fn portable_mpc(
     iterations: usize,
 ) -> Result<SuboptimalMpc<MethodMap>> {
     let mpc = resolved.mpc()?;
-    let map = method.build(mpc.qp().clone())?.with_kernel(Kernel::portable());
+    let map = method
+        .build(mpc.qp().clone())?
+        .with_kernel(Kernel::portable());
     Ok(SuboptimalMpc::new(
         mpc,
         map,
@@ -307,7 +309,10 @@ impl OwnedMpc {
             bail!("the embedded MPC implements the shift-and-repeat warm start only");
         }
         let (method, qp) = window_of(ctrl.map(), 0).map_err(|e| {
-            anyhow::anyhow!("the MPC's QP: {}", e.to_string().replace("window m = 0", "it"))
+            anyhow::anyhow!(
+                "the MPC's QP: {}",
+                e.to_string().replace("window m = 0", "it")
+            )
         })?;
         Ok(Self {
             nx: mpc.nx(),

@@ -214,7 +214,11 @@ fn exported_c_and_rust_loops_equal_std_portable_bit_for_bit() {
                 .args(["build", "--quiet", "--offline", "--bin", "loop"])
                 .status()
                 .unwrap();
-            assert!(status.success(), "cargo build failed in {}", rust_dir.display());
+            assert!(
+                status.success(),
+                "cargo build failed in {}",
+                rust_dir.display()
+            );
             let got = parse_replay(&run_program(
                 &mut Command::new(target.join("debug").join("loop")),
                 &input,
@@ -239,18 +243,26 @@ fn a_k_c_below_the_joint_floor_is_refused_unless_allowed() {
     let joint = joint_certificate(&resolved, &cert, Method::PG, Method::PG).unwrap();
     let k_e = cert.solver(Method::PG).unwrap().k_min.unwrap();
     let floor = joint.analysis.k_c_min(k_e, joint.region.k_max).unwrap();
-    assert_eq!(decide_kc("certified", k_e, &joint, false).unwrap(), (floor, true));
+    assert_eq!(
+        decide_kc("certified", k_e, &joint, false).unwrap(),
+        (floor, true)
+    );
     assert_eq!(
         decide_kc(&(floor + 3).to_string(), k_e, &joint, false).unwrap(),
         (floor + 3, true)
     );
     let below = (floor - 1).to_string();
-    let err = decide_kc(&below, k_e, &joint, false).unwrap_err().to_string();
+    let err = decide_kc(&below, k_e, &joint, false)
+        .unwrap_err()
+        .to_string();
     assert!(
         err.contains("below the joint certificate's floor") && err.contains("--allow-uncertified"),
         "{err}"
     );
-    assert_eq!(decide_kc(&below, k_e, &joint, true).unwrap(), (floor - 1, false));
+    assert_eq!(
+        decide_kc(&below, k_e, &joint, true).unwrap(),
+        (floor - 1, false)
+    );
     assert!(decide_kc("0", k_e, &joint, true).is_err());
     // Below the K_e floor no K_c is certified.
     let err = decide_kc("certified", k_e - 1, &joint, false)

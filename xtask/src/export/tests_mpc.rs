@@ -270,3 +270,44 @@ fn a_k_c_below_the_joint_floor_is_refused_unless_allowed() {
         .to_string();
     assert!(err.contains("no K_c"), "{err}");
 }
+
+/// An f32 export with the MPC builds (C, `float`) and its loop stays near the f64 loop on
+/// the certified preset's y: the measured largest deviation in x̂ and in u is printed (the
+/// certificate does not cover f32).
+#[test]
+fn f32_loop_builds_and_stays_near_f64() {
+    let c = LoopCase::new("case-study-certified.toml", 125);
+    let method = Method::PG;
+    let std = c.run_std(method);
+    let (input, expected) = loop_io(&std);
+    let (p, m) = c.data(method);
+    let mut art = exported_artefact(&c.path, &c.resolved, c.mhe, c.k_e, Some(c.k_c));
+    art.scalar = ScalarKind::F32;
+    let dir = scratch_dir("loop-c-f32");
+    write_files(&dir, Lang::C, &p, Some(&m), &art);
+    let status = Command::new("make")
+        .current_dir(&dir)
+        .args(["-s", "loop", "CFLAGS=-O2 -Werror"])
+        .status()
+        .unwrap();
+    assert!(status.success(), "make loop failed in {}", dir.display());
+    let got = parse_replay(&run_program(&mut Command::new(dir.join("loop")), &input));
+    let nx = c.resolved.scenario().plant.nx();
+    let (mut dx, mut du, mut scale) = (0.0f64, 0.0f64, 0.0f64);
+    for (g, e) in got.iter().zip(&expected) {
+        for (i, (a, b)) in g.iter().zip(e).enumerate() {
+            let b = f64::from_bits(*b);
+            let d = (a - b).abs();
+            if i < nx {
+                dx = dx.max(d);
+                scale = scale.max(b.abs());
+            } else {
+                du = du.max(d);
+            }
+        }
+    }
+    println!(
+        "f32 loop: max |x̂_f32 − x̂_f64| = {dx:.3e} (max |x̂| = {scale:.3e}), max |u_f32 − u_f64| = {du:.3e}"
+    );
+    assert!(dx > 0.0 && dx < 1e-3 * scale && du < 1e-3, "{dx:e} {du:e}");
+}

@@ -269,6 +269,35 @@ fn a_k_c_below_the_joint_floor_is_refused_unless_allowed() {
         .unwrap_err()
         .to_string();
     assert!(err.contains("no K_c"), "{err}");
+    // An uncertified K_c says so in the header, the README and certificate.json.
+    let c = LoopCase::new("case-study-certified.toml", floor - 1);
+    let c = LoopCase { k_e, ..c };
+    let (p, m) = c.data(Method::PG);
+    let mut art = exported_artefact(&path, &resolved, Method::PG, k_e, Some(floor - 1));
+    art.certified = true;
+    art.k_min = Some(k_e);
+    art.mpc = Some(MpcArtefact {
+        method: "pg".into(),
+        k_c: floor - 1,
+        k_c_min: Some(floor),
+        certified: false,
+    });
+    let dir = scratch_dir("uncertified-mpc");
+    let sc = cert.solver(Method::PG).unwrap();
+    write_artefact(&dir, Lang::C, &p, Some((&m, &joint)), &art, sc, &path).unwrap();
+    let read = |f: &str| std::fs::read_to_string(dir.join(f)).unwrap();
+    assert!(read("mhe_data.h").contains("#define MPC_CERTIFIED 0"));
+    assert!(read("mhe_data.h").contains("UNCERTIFIED, the joint certificate needs K_c"));
+    assert!(read("README.md").contains("**UNCERTIFIED**"));
+    let json: serde_json::Value = serde_json::from_str(&read("certificate.json")).unwrap();
+    assert_eq!(json["certified"], true);
+    assert_eq!(json["loop_certified"], false);
+    assert_eq!(json["artefact_covered"], false);
+    assert_eq!(json["mpc"]["certified"], false);
+    assert_eq!(json["mpc"]["iterations"], floor - 1);
+    assert_eq!(json["mpc"]["k_c_min"], floor);
+    assert_eq!(json["mpc"]["at_pair"]["certified"], false);
+    assert_eq!(json["mpc"]["joint"]["region"]["k_e_floor"], k_e);
 }
 
 /// An f32 export with the MPC builds (C, `float`) and its loop stays near the f64 loop on

@@ -53,16 +53,28 @@ fn pipe(program: &Path, input: &str) -> String {
     String::from_utf8(out.stdout).unwrap()
 }
 
-/// The rows of trace.csv's first run (same `k` as its first row), by column name.
-fn first_run(trace: &str) -> (Vec<String>, Vec<Vec<String>>) {
+/// The header and the rows of trace.csv's run with `k` (None: its first run).
+fn run_rows(trace: &str, k: Option<&str>) -> (Vec<String>, Vec<Vec<String>>) {
     let mut lines = trace.lines();
     let header: Vec<String> = lines.next().unwrap().split(',').map(String::from).collect();
     let rows: Vec<Vec<String>> = lines
         .map(|l| l.split(',').map(String::from).collect())
         .collect();
-    let k = rows[0][0].clone();
-    let rows = rows.into_iter().filter(|r| r[0] == k).collect();
+    let k = k.map_or_else(|| rows[0][0].clone(), String::from);
+    let rows: Vec<Vec<String>> = rows.into_iter().filter(|r| r[0] == k).collect();
+    assert!(!rows.is_empty(), "trace.csv has no run with k = {k}");
     (header, rows)
+}
+
+fn first_run(trace: &str) -> (Vec<String>, Vec<Vec<String>>) {
+    run_rows(trace, None)
+}
+
+fn join(r: &[String], cols: &[usize]) -> String {
+    cols.iter()
+        .map(|&i| r[i].as_str())
+        .collect::<Vec<_>>()
+        .join(",")
 }
 
 fn columns(header: &[String], prefix: &str) -> Vec<usize> {
@@ -203,4 +215,68 @@ fn a_k_c_below_the_joint_floor_is_refused() {
         "{stderr}"
     );
     assert!(!dir.join("art").join("mhe_data.c").exists());
+}
+
+/// The loop program against `reproduce`'s trace.csv of a scenario whose controller is the
+/// K_c-iteration MPC (the certified preset with `mpc.iterations = 99`, the joint floor of its
+/// FISTA MPC at K = 243): fed the y columns of the scenario's own run (K = 243, K_c = 99) it
+/// prints that run's xhat and u columns bit for bit.
+#[test]
+fn loop_of_the_exported_c_reproduces_trace_csv_of_a_k_c_iteration_mpc_run() {
+    let dir = scratch("loop");
+    let text = std::fs::read_to_string(root().join("scenarios/case-study-certified.toml")).unwrap();
+    assert!(text.contains("terminal = \"dare\""));
+    let text = text.replacen(
+        "terminal = \"dare\"",
+        "terminal = \"dare\"\niterations = 99\nmethod = \"fista\"",
+        1,
+    );
+    let scenario = dir.join("case-study-certified-kc.toml");
+    std::fs::write(&scenario, text).unwrap();
+    let out = dir.join("reproduce");
+    run_ok(
+        xtask()
+            .env("QP_ITER_KERNEL", "portable")
+            .args(["reproduce", "--scenario"])
+            .arg(&scenario)
+            .arg("--out")
+            .arg(&out),
+    );
+    let trace =
+        std::fs::read_to_string(out.join("case-study-certified-kc").join("trace.csv")).unwrap();
+    let (header, rows) = run_rows(&trace, Some("243"));
+    let art = dir.join("art");
+    run_ok(
+        xtask()
+            .args(["export", "--scenario"])
+            .arg(&scenario)
+            .arg("--out")
+            .arg(&art)
+            .args(["--lang", "c", "--method", "pg", "--k", "243"]),
+    );
+    let cert: serde_json::Value =
+        serde_json::from_str(&std::fs::read_to_string(art.join("certificate.json")).unwrap())
+            .unwrap();
+    // K_c is the scenario's (mpc.iterations), certified at (243, 99).
+    assert_eq!(cert["mpc"]["iterations"], 99);
+    assert_eq!(cert["mpc"]["method"], "fista");
+    assert_eq!(cert["loop_certified"], true);
+    run_ok(Command::new("make").current_dir(&art).args(["-s", "loop"]));
+    let (cu, cy, cx) = (
+        columns(&header, "u"),
+        columns(&header, "y"),
+        columns(&header, "xhat"),
+    );
+    let input: String = rows.iter().map(|r| join(r, &cy) + "\n").collect();
+    let got = pipe(&art.join("loop"), &input);
+    let got: Vec<&str> = got.lines().collect();
+    assert_eq!(got.len(), rows.len() + 1);
+    for (t, r) in rows.iter().enumerate() {
+        let expected = join(r, &cx) + "," + &join(r, &cu);
+        assert_eq!(
+            bits(got[t]),
+            bits(&expected),
+            "row {t}: the loop differs from trace.csv's xhat and u"
+        );
+    }
 }

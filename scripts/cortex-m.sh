@@ -75,17 +75,21 @@ elif mode == 'input':
 elif mode == 'yinput':
     for r in rows:
         print(','.join(r[f'y{i+1}'] for i in range(ny)))
-elif mode == 'compare':
+elif mode in ('compare', 'compare_loop'):
     got = lines(sys.argv[3])
     if len(got) != len(rows) + 1:
         sys.exit(f'{sys.argv[3]}: {len(got)} lines, expected {len(rows) + 1}')
+    cols = [f'xhat{i+1}' for i in range(nx)]
+    if mode == 'compare_loop':
+        cols += [f'u{i+1}' for i in range(nu)]
     bad = [t for t, r in enumerate(rows)
-           if bits(','.join(r[f'xhat{i+1}'] for i in range(nx))) != bits(got[t])]
+           if bits(','.join(r[c] for c in cols)) != bits(got[t])]
     for t in bad[:3]:
-        print(f'    row {t}: trace.csv and the replay differ: {got[t]}')
+        print(f'    row {t}: trace.csv and the program differ: {got[t]}')
     if bad:
         sys.exit(f'{len(bad)} of {len(rows)} rows differ from {trace}')
-    print(f'    {len(rows)} rows equal trace.csv\'s xhat bit for bit')
+    what = 'xhat and u' if mode == 'compare_loop' else 'xhat'
+    print(f'    {len(rows)} rows equal trace.csv\'s {what} bit for bit')
 PY
 }
 
@@ -109,8 +113,9 @@ targets() {
             -kernel "$art/$program-$tag.elf" <"$input" \
             >"$OUT/$file-$program-$tag.out" 2>"$OUT/$file-$program-$tag.err"
         csv_tools same "$OUT/$file-$program-host.out" "$OUT/$file-$program-$tag.out"
-        if [ "$program" = replay ] && [ "${CHECK_TRACE:-0}" = 1 ]; then
-            csv_tools compare "$TRACE" "$OUT/$file-$program-$tag.out"
+        if [ "${CHECK_TRACE:-0}" = 1 ]; then
+            csv_tools "$([ "$program" = loop ] && echo compare_loop || echo compare)" \
+                "$TRACE" "$OUT/$file-$program-$tag.out"
         fi
         read -r text data bss _ < <(arm-none-eabi-size "$art/$program-$tag.elf" | tail -1)
         mean=$(sed -n 's/.*mean \([0-9]*\), max \([0-9]*\).*/\1/p' "$OUT/$file-$program-$tag.err")
@@ -128,23 +133,29 @@ targets() {
 # run FILE METHOD K ROWS CHECK_TRACE KC [REPRODUCE FLAGS...]
 #   K: a number, `certified`, or `trace` (the K trace.csv ran); ROWS: how many rows to
 #   replay; CHECK_TRACE: 1 = also compare with trace.csv (same method and K as its run);
-#   KC: `-` (no MPC) or the --kc of the export (the loop program is run too).
+#   KC: `-` (no MPC) or the --kc of the export (the loop program is run too; with
+#   CHECK_TRACE = 1 the scenario's controller must be that MPC, so that trace.csv's run at K
+#   is the loop's). The scenario is $OUT/FILE.toml when it exists, else scenarios/FILE.toml;
+#   with a numeric K and CHECK_TRACE = 1 the run of trace.csv at that K is used.
 run() {
     local file=$1 method=$2 k=$3 rows=$4 check=$5 kc=$6
     shift 6
     echo
     echo "==> $file: $method"
-    QP_ITER_KERNEL=portable cargo xtask reproduce --scenario "scenarios/$file.toml" \
+    local scenario="scenarios/$file.toml"
+    [ -e "$OUT/$file.toml" ] && scenario="$OUT/$file.toml"
+    QP_ITER_KERNEL=portable cargo xtask reproduce --scenario "$scenario" \
         --out "$OUT/reproduce" "$@" >"$OUT/$file-reproduce.log" 2>&1 \
         || { tail -20 "$OUT/$file-reproduce.log"; exit 1; }
     local trace="$OUT/reproduce/$file/trace.csv"
     local run_k
     run_k=$(csv_tools k "$trace")
     [ "$k" = trace ] && k=$run_k
+    if [ "$check" = 1 ] && [[ "$k" =~ ^[0-9]+$ ]]; then run_k=$k; fi
     local art="$OUT/$file-$method-c"
     local mpc_flags=()
     [ "$kc" != - ] && mpc_flags=(--kc "$kc")
-    cargo xtask export --scenario "scenarios/$file.toml" --out "$art" --lang c \
+    cargo xtask export --scenario "$scenario" --out "$art" --lang c \
         --method "$method" --k "$k" "${mpc_flags[@]}" >"$OUT/$file-export.log" 2>&1 \
         || { cat "$OUT/$file-export.log"; exit 1; }
     k=$(sed -n 's/^#define MHE_K \([0-9]*\)/\1/p' "$art/mhe_data.h")
@@ -165,16 +176,24 @@ run() {
         echo "  loop (estimator + MPC $mpc_m, K_c = $kc_n) on trace.csv's y, host (cc):"
         make -s -C "$art" loop
         "$art/loop" <"$OUT/$file-yinput.csv" >"$OUT/$file-loop-host.out"
+        if [ "$check" = 1 ]; then
+            csv_tools compare_loop "$trace" "$OUT/$file-loop-host.out"
+        fi
         targets loop "$art" "$file" "$OUT/$file-yinput.csv" \
             "$method, K = $k + MPC $mpc_m, K_c = $kc_n" "$rows"
     fi
     unset RUN_K ROWS TRACE CHECK_TRACE
 }
 
-# The certified preset: PG at its K_min (= the K reproduce simulates); all 40 steps, and
-# trace.csv's xhat bit for bit on the host and on both targets.
-# With the MPC at the joint certificate's floor K_c for that K (the loop program).
-run case-study-certified pg trace 40 1 certified
+# The certified preset with the K_c-iteration MPC as its controller (mpc.iterations = 99,
+# the joint certificate's floor for its FISTA MPC at K = 243): PG at K = 243 = K_min; all 40
+# steps of trace.csv's run at K = 243 (its run at the cheapest certified pair is the other);
+# the replay gives its xhat and the loop program its xhat and u, bit for bit, on the host
+# and on both targets.
+sed 's/^terminal = "dare".*/&\niterations = 99\nmethod = "fista"/' \
+    scenarios/case-study-certified.toml >"$OUT/case-study-certified-kc.toml"
+grep -q '^iterations = 99' "$OUT/case-study-certified-kc.toml"
+run case-study-certified-kc pg 243 40 1 99
 # The cart-pendulum: ADMM-PR at its certified K_min (the smallest of the four methods; PG
 # needs 140227), on the u and y of the scenario's own run (`--sim-k-cap` skips the K_min
 # runs, so reproduce simulates only the scenario's K = 10); 20 steps (the M4F emulates f64

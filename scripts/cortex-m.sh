@@ -8,7 +8,10 @@
 #   4. the replay built with Debian's arm-none-eabi-gcc for Cortex-M4F (mps2-an386) and
 #      Cortex-M7 (mps2-an500), run under qemu-system-arm with semihosting and -icount:
 #      the same bits; flash and RAM from arm-none-eabi-size; instructions per MHE step
-#      (push + estimate) from SysTick under -icount (instructions, not cycles).
+#      (push + estimate) from SysTick under -icount (instructions, not cycles);
+#   5. with the MPC (certified preset): the loop program (estimator + K_c-iteration MPC at
+#      the joint certificate's floor) on trace.csv's y, on the host and on both targets:
+#      the same bits; flash, RAM and instructions per loop step (push + estimate + control).
 #
 # Installs gcc-arm-none-eabi, libnewlib-arm-none-eabi and qemu-system-arm with apt when
 # missing. Writes target/cortex-m/summary.md. Exit status non-zero on any mismatch.
@@ -50,7 +53,7 @@ if mode == 'same':
     a, b = lines(sys.argv[2]), lines(sys.argv[3])
     if len(a) < 2 or [bits(l) for l in a] != [bits(l) for l in b]:
         sys.exit(f'{sys.argv[3]} differs from {sys.argv[2]}')
-    print(f'    {len(a)} estimates equal the host build bit for bit')
+    print(f'    {len(a)} output lines equal the host build bit for bit')
     sys.exit(0)
 trace = sys.argv[2]
 rows = list(csv.DictReader(open(trace)))
@@ -69,90 +72,137 @@ if mode == 'k':
 elif mode == 'input':
     for r in rows:
         print(','.join([r[f'u{i+1}'] for i in range(nu)] + [r[f'y{i+1}'] for i in range(ny)]))
-elif mode == 'compare':
+elif mode == 'yinput':
+    for r in rows:
+        print(','.join(r[f'y{i+1}'] for i in range(ny)))
+elif mode in ('compare', 'compare_loop'):
     got = lines(sys.argv[3])
     if len(got) != len(rows) + 1:
         sys.exit(f'{sys.argv[3]}: {len(got)} lines, expected {len(rows) + 1}')
+    cols = [f'xhat{i+1}' for i in range(nx)]
+    if mode == 'compare_loop':
+        cols += [f'u{i+1}' for i in range(nu)]
     bad = [t for t, r in enumerate(rows)
-           if bits(','.join(r[f'xhat{i+1}'] for i in range(nx))) != bits(got[t])]
+           if bits(','.join(r[c] for c in cols)) != bits(got[t])]
     for t in bad[:3]:
-        print(f'    row {t}: trace.csv and the replay differ: {got[t]}')
+        print(f'    row {t}: trace.csv and the program differ: {got[t]}')
     if bad:
         sys.exit(f'{len(bad)} of {len(rows)} rows differ from {trace}')
-    print(f'    {len(rows)} rows equal trace.csv\'s xhat bit for bit')
+    what = 'xhat and u' if mode == 'compare_loop' else 'xhat'
+    print(f'    {len(rows)} rows equal trace.csv\'s {what} bit for bit')
 PY
 }
 
 summary="$OUT/summary.md"
 {
-    echo "| scenario | method | K | target | flash (B) | RAM (B) | instructions/step mean | max | steps |"
-    echo "| --- | --- | --- | --- | --- | --- | --- | --- | --- |"
+    echo "| scenario | program | method | K | target | flash (B) | RAM (B) | instructions/step mean | max | steps |"
+    echo "| --- | --- | --- | --- | --- | --- | --- | --- | --- | --- |"
 } >"$summary"
 
-# run FILE METHOD K ROWS CHECK_TRACE [REPRODUCE FLAGS...]
+# target PROGRAM ART FILE INPUT LABEL_K: builds PROGRAM-m4/m7.elf, runs them under QEMU on
+# INPUT, checks the host's bits, appends the size and instruction counts to the summary.
+targets() {
+    local program=$1 art=$2 file=$3 input=$4 label_k=$5 rows=$6
+    local target tag machine label text data bss mean max
+    for target in "m4:mps2-an386:Cortex-M4F" "m7:mps2-an500:Cortex-M7"; do
+        IFS=: read -r tag machine label <<<"$target"
+        make -s -C "$art" "$program-$tag.elf"
+        echo "  $program, $label ($machine, qemu-system-arm -icount shift=0, semihosting):"
+        timeout 1200 qemu-system-arm -M "$machine" -nographic -monitor none -serial none \
+            -semihosting-config enable=on,target=native -icount shift=0 \
+            -kernel "$art/$program-$tag.elf" <"$input" \
+            >"$OUT/$file-$program-$tag.out" 2>"$OUT/$file-$program-$tag.err"
+        csv_tools same "$OUT/$file-$program-host.out" "$OUT/$file-$program-$tag.out"
+        if [ "${CHECK_TRACE:-0}" = 1 ]; then
+            csv_tools "$([ "$program" = loop ] && echo compare_loop || echo compare)" \
+                "$TRACE" "$OUT/$file-$program-$tag.out"
+        fi
+        read -r text data bss _ < <(arm-none-eabi-size "$art/$program-$tag.elf" | tail -1)
+        mean=$(sed -n 's/.*mean \([0-9]*\), max \([0-9]*\).*/\1/p' "$OUT/$file-$program-$tag.err")
+        max=$(sed -n 's/.*mean \([0-9]*\), max \([0-9]*\).*/\2/p' "$OUT/$file-$program-$tag.err")
+        if [ -z "$mean" ] || [ -z "$max" ]; then
+            echo "no instruction count in $OUT/$file-$program-$tag.err:"
+            cat "$OUT/$file-$program-$tag.err"
+            exit 1
+        fi
+        echo "    flash $((text + data)) B, RAM $((data + bss)) B, instructions/step mean $mean, max $max"
+        echo "| $file | $program | $label_k | $label | $((text + data)) | $((data + bss)) | $mean | $max | $rows |" >>"$summary"
+    done
+}
+
+# run FILE METHOD K ROWS CHECK_TRACE KC [REPRODUCE FLAGS...]
 #   K: a number, `certified`, or `trace` (the K trace.csv ran); ROWS: how many rows to
-#   replay; CHECK_TRACE: 1 = also compare with trace.csv (same method and K as its run).
+#   replay; CHECK_TRACE: 1 = also compare with trace.csv (same method and K as its run);
+#   KC: `-` (no MPC) or the --kc of the export (the loop program is run too; with
+#   CHECK_TRACE = 1 the scenario's controller must be that MPC, so that trace.csv's run at K
+#   is the loop's). The scenario is $OUT/FILE.toml when it exists, else scenarios/FILE.toml;
+#   with a numeric K and CHECK_TRACE = 1 the run of trace.csv at that K is used.
 run() {
-    local file=$1 method=$2 k=$3 rows=$4 check=$5
-    shift 5
+    local file=$1 method=$2 k=$3 rows=$4 check=$5 kc=$6
+    shift 6
     echo
     echo "==> $file: $method"
-    QP_ITER_KERNEL=portable cargo xtask reproduce --scenario "scenarios/$file.toml" \
+    local scenario="scenarios/$file.toml"
+    [ -e "$OUT/$file.toml" ] && scenario="$OUT/$file.toml"
+    QP_ITER_KERNEL=portable cargo xtask reproduce --scenario "$scenario" \
         --out "$OUT/reproduce" "$@" >"$OUT/$file-reproduce.log" 2>&1 \
         || { tail -20 "$OUT/$file-reproduce.log"; exit 1; }
     local trace="$OUT/reproduce/$file/trace.csv"
     local run_k
     run_k=$(csv_tools k "$trace")
     [ "$k" = trace ] && k=$run_k
+    if [ "$check" = 1 ] && [[ "$k" =~ ^[0-9]+$ ]]; then run_k=$k; fi
     local art="$OUT/$file-$method-c"
-    cargo xtask export --scenario "scenarios/$file.toml" --out "$art" --lang c \
-        --method "$method" --k "$k" >"$OUT/$file-export.log" 2>&1 \
+    local mpc_flags=()
+    [ "$kc" != - ] && mpc_flags=(--kc "$kc")
+    cargo xtask export --scenario "$scenario" --out "$art" --lang c \
+        --method "$method" --k "$k" "${mpc_flags[@]}" >"$OUT/$file-export.log" 2>&1 \
         || { cat "$OUT/$file-export.log"; exit 1; }
     k=$(sed -n 's/^#define MHE_K \([0-9]*\)/\1/p' "$art/mhe_data.h")
     RUN_K=$run_k ROWS=$rows csv_tools input "$trace" >"$OUT/$file-input.csv"
     echo "  host (cc), K = $k, $rows steps of trace.csv's u and y (its run at K = $run_k):"
     make -s -C "$art" replay
-    "$art/replay" <"$OUT/$file-input.csv" >"$OUT/$file-host.out"
+    "$art/replay" <"$OUT/$file-input.csv" >"$OUT/$file-replay-host.out"
     if [ "$check" = 1 ]; then
-        RUN_K=$run_k ROWS=$rows csv_tools compare "$trace" "$OUT/$file-host.out"
+        RUN_K=$run_k ROWS=$rows csv_tools compare "$trace" "$OUT/$file-replay-host.out"
     fi
-    local target tag machine label text data bss mean max
-    for target in "m4:mps2-an386:Cortex-M4F" "m7:mps2-an500:Cortex-M7"; do
-        IFS=: read -r tag machine label <<<"$target"
-        make -s -C "$art" "replay-$tag.elf"
-        echo "  $label ($machine, qemu-system-arm -icount shift=0, semihosting):"
-        timeout 1200 qemu-system-arm -M "$machine" -nographic -monitor none -serial none \
-            -semihosting-config enable=on,target=native -icount shift=0 \
-            -kernel "$art/replay-$tag.elf" <"$OUT/$file-input.csv" \
-            >"$OUT/$file-$tag.out" 2>"$OUT/$file-$tag.err"
-        csv_tools same "$OUT/$file-host.out" "$OUT/$file-$tag.out"
+    export RUN_K=$run_k ROWS=$rows TRACE=$trace CHECK_TRACE=$check
+    targets replay "$art" "$file" "$OUT/$file-input.csv" "$method, K = $k" "$rows"
+    if [ "$kc" != - ]; then
+        local kc_n mpc_m
+        kc_n=$(sed -n 's/^#define MPC_KC \([0-9]*\)/\1/p' "$art/mhe_data.h")
+        mpc_m=$(python3 -c "import json,sys; print(json.load(open(sys.argv[1]))['mpc']['method'])" "$art/certificate.json")
+        csv_tools yinput "$trace" >"$OUT/$file-yinput.csv"
+        echo "  loop (estimator + MPC $mpc_m, K_c = $kc_n) on trace.csv's y, host (cc):"
+        make -s -C "$art" loop
+        "$art/loop" <"$OUT/$file-yinput.csv" >"$OUT/$file-loop-host.out"
         if [ "$check" = 1 ]; then
-            RUN_K=$run_k ROWS=$rows csv_tools compare "$trace" "$OUT/$file-$tag.out"
+            csv_tools compare_loop "$trace" "$OUT/$file-loop-host.out"
         fi
-        read -r text data bss _ < <(arm-none-eabi-size "$art/replay-$tag.elf" | tail -1)
-        mean=$(sed -n 's/.*mean \([0-9]*\), max \([0-9]*\).*/\1/p' "$OUT/$file-$tag.err")
-        max=$(sed -n 's/.*mean \([0-9]*\), max \([0-9]*\).*/\2/p' "$OUT/$file-$tag.err")
-        if [ -z "$mean" ] || [ -z "$max" ]; then
-            echo "no instruction count in $OUT/$file-$tag.err:"
-            cat "$OUT/$file-$tag.err"
-            exit 1
-        fi
-        echo "    flash $((text + data)) B, RAM $((data + bss)) B, instructions/step mean $mean, max $max"
-        echo "| $file | $method | $k | $label | $((text + data)) | $((data + bss)) | $mean | $max | $rows |" >>"$summary"
-    done
+        targets loop "$art" "$file" "$OUT/$file-yinput.csv" \
+            "$method, K = $k + MPC $mpc_m, K_c = $kc_n" "$rows"
+    fi
+    unset RUN_K ROWS TRACE CHECK_TRACE
 }
 
-# The certified preset: PG at its K_min (= the K reproduce simulates); all 40 steps, and
-# trace.csv's xhat bit for bit on the host and on both targets.
-run case-study-certified pg trace 40 1
+# The certified preset with the K_c-iteration MPC as its controller (mpc.iterations = 99,
+# the joint certificate's floor for its FISTA MPC at K = 243): PG at K = 243 = K_min; all 40
+# steps of trace.csv's run at K = 243 (its run at the cheapest certified pair is the other);
+# the replay gives its xhat and the loop program its xhat and u, bit for bit, on the host
+# and on both targets.
+sed 's/^terminal = "dare".*/&\niterations = 99\nmethod = "fista"/' \
+    scenarios/case-study-certified.toml >"$OUT/case-study-certified-kc.toml"
+grep -q '^iterations = 99' "$OUT/case-study-certified-kc.toml"
+run case-study-certified-kc pg 243 40 1 99
 # The cart-pendulum: ADMM-PR at its certified K_min (the smallest of the four methods; PG
 # needs 140227), on the u and y of the scenario's own run (`--sim-k-cap` skips the K_min
 # runs, so reproduce simulates only the scenario's K = 10); 20 steps (the M4F emulates f64
 # in software); the targets' bits against the host build's.
-run cart-pendulum admm-pr certified 20 0 --sim-k-cap 1000
+run cart-pendulum admm-pr certified 20 0 - --sim-k-cap 1000
 
 echo
 cat "$summary"
-echo "(flash = text + data, RAM = data + bss of the whole replay program, newlib's stdio"
-echo " included; instructions = SysTick ticks under -icount shift=0 times the instructions"
-echo " per tick of a calibration loop: emulated instructions, not cycles)"
+echo "(flash = text + data, RAM = data + bss of the whole program, newlib's stdio included;"
+echo " instructions = SysTick ticks under -icount shift=0 times the instructions per tick of a"
+echo " calibration loop: emulated instructions, not cycles; a replay step is push + estimate,"
+echo " a loop step push + estimate + control)"

@@ -18,20 +18,26 @@ mod rust_gen;
 mod sha256;
 #[cfg(test)]
 mod tests;
+#[cfg(test)]
+mod tests_capi;
+#[cfg(test)]
+mod tests_mpc;
 
 use std::path::{Path, PathBuf};
 
 use anyhow::{Context, Result, bail};
 use clap::{Args, ValueEnum};
-use closed_loop::scenario::{ResolvedScenario, Scenario};
 use iss_certificate::certificate::{
-    CertificateOptions, Gamma13Source, SolverCertificate, certify_closed_loop,
+    CertificateOptions, ClosedLoopCertificate, Gamma13Source, SolverCertificate,
+    certify_closed_loop,
 };
+use iss_certificate::joint::{JointCertificate, JointOptions, certify_joint};
+use closed_loop::scenario::{ResolvedScenario, Scenario};
 use qp_iter::Method;
 use serde_json::json;
 
 use crate::provenance::Provenance;
-use extract::{OwnedProblem, portable_estimator};
+use extract::{OwnedMpc, OwnedProblem, portable_estimator, portable_mpc};
 
 /// The scalar of the exported code.
 #[derive(Debug, Clone, Copy, PartialEq, Eq, ValueEnum)]
@@ -73,9 +79,29 @@ pub struct ExportArgs {
     /// The language of the artefact.
     #[arg(long, value_enum, default_value = "c")]
     pub lang: Lang,
-    /// Export even when K is below K_min or the certificate is void (the artefact says so).
+    /// Also export the K_c-iteration MPC (the whole certified loop): K_c iterations, or
+    /// `certified` for the joint certificate's floor at the exported K [default: the
+    /// scenario's `mpc.iterations` when set, else no MPC].
+    #[arg(long, value_name = "K_C")]
+    pub kc: Option<String>,
+    /// The MPC's method [default: the scenario's `mpc.method`].
+    #[arg(long)]
+    pub mpc_method: Option<String>,
+    /// Export even when K (or K_c) is below its certified floor or the certificate is void
+    /// (the artefact says so).
     #[arg(long)]
     pub allow_uncertified: bool,
+}
+
+/// What the generated files say about the exported MPC.
+#[derive(Debug, Clone)]
+pub(crate) struct MpcArtefact {
+    pub method: String,
+    pub k_c: usize,
+    /// The joint certificate's floor K_c at the exported K (None: no K_c is certified).
+    pub k_c_min: Option<usize>,
+    /// (K, K_c) certified by the joint certificate.
+    pub certified: bool,
 }
 
 /// What the generated files say about themselves.
@@ -89,9 +115,17 @@ pub(crate) struct Artefact<'a> {
     pub certified: bool,
     pub prior: Vec<f64>,
     pub sha256: String,
+    /// The exported MPC, if any.
+    pub mpc: Option<MpcArtefact>,
 }
 
 impl Artefact<'_> {
+    /// The certificate that covers the exported loop holds: Theorem 1 for K (estimator
+    /// only), and the joint certificate at (K, K_c) when the MPC is exported.
+    pub(crate) fn loop_certified(&self) -> bool {
+        self.certified && self.mpc.as_ref().is_none_or(|m| m.certified)
+    }
+
     /// The banner of every generated file, each line starting with `prefix`.
     pub(crate) fn banner(&self, prefix: &str) -> String {
         let mut lines = vec![format!(
@@ -117,6 +151,25 @@ impl Artefact<'_> {
                     .into(),
             ),
         }
+        if let Some(m) = &self.mpc {
+            lines.push(match (m.certified, m.k_c_min) {
+                (true, _) => format!(
+                    "MPC: {}, K_c = {}; the loop (K, K_c) is certified by the joint certificate \
+                     (certificate.json `mpc.joint`), in f64.",
+                    m.method, m.k_c
+                ),
+                (false, Some(f)) => format!(
+                    "MPC: {}, K_c = {}: UNCERTIFIED, the joint certificate needs K_c ≥ {f} at \
+                     K = {}; exported with --allow-uncertified.",
+                    m.method, m.k_c, self.k
+                ),
+                (false, None) => format!(
+                    "MPC: {}, K_c = {}: UNCERTIFIED, no K_c is certified with K = {} by the joint \
+                     certificate; exported with --allow-uncertified.",
+                    m.method, m.k_c, self.k
+                ),
+            });
+        }
         if self.scalar == ScalarKind::F32 {
             lines.push(format!("f32: {F32_NOT_COVERED}."));
         }
@@ -139,11 +192,12 @@ fn scalar_name(s: ScalarKind) -> &'static str {
     }
 }
 
-/// The certificate of one method for a resolved scenario (Theorem 1; no sampled estimates).
-pub(crate) fn method_certificate(
+/// The closed-loop certificate of one MHE method for a resolved scenario (Theorem 1; no
+/// sampled estimates).
+pub(crate) fn closed_loop_certificate(
     resolved: &ResolvedScenario,
     method: Method,
-) -> Result<SolverCertificate> {
+) -> Result<ClosedLoopCertificate> {
     let sc = resolved.scenario();
     let opts = CertificateOptions {
         solvers: vec![method],
@@ -156,8 +210,20 @@ pub(crate) fn method_certificate(
         gamma13_sequences: 0,
         ..CertificateOptions::default()
     };
-    let cert = certify_closed_loop(resolved, &opts)
-        .with_context(|| format!("cannot compute the certificate of `{}`", sc.name))?;
+    certify_closed_loop(resolved, &opts)
+        .with_context(|| format!("cannot compute the certificate of `{}`", sc.name))
+}
+
+/// The certificate of one method for a resolved scenario (Theorem 1; no sampled estimates).
+#[cfg(test)]
+pub(crate) fn method_certificate(
+    resolved: &ResolvedScenario,
+    method: Method,
+) -> Result<SolverCertificate> {
+    solver_entry(&closed_loop_certificate(resolved, method)?, method)
+}
+
+fn solver_entry(cert: &ClosedLoopCertificate, method: Method) -> Result<SolverCertificate> {
     cert.solver(method)
         .cloned()
         .with_context(|| format!("the certificate has no entry for {}", method.name()))
@@ -203,6 +269,86 @@ pub(crate) fn decide_k(
     }
 }
 
+/// The joint certificate (MHE `mhe` + MPC `mpc_method`, shift-and-repeat warm start) of a
+/// resolved scenario from its closed-loop certificate `cert` (which has `mhe`).
+pub(crate) fn joint_certificate(
+    resolved: &ResolvedScenario,
+    cert: &ClosedLoopCertificate,
+    mhe: Method,
+    mpc_method: Method,
+) -> Result<JointCertificate> {
+    let sc = resolved.scenario();
+    let mpc = resolved.mpc()?;
+    let (nx, ny) = (sc.plant.nx(), sc.plant.ny());
+    let n_e = nx + cert.horizon * (nx + ny);
+    certify_joint(cert, mpc, n_e, mhe, mpc_method, &JointOptions::default())
+        .context("cannot compute the joint MPC + MHE certificate")
+}
+
+/// K_c from `--kc` and the joint certificate at K_e = `k_e`: (K_c, certified).
+pub(crate) fn decide_kc(
+    kc_arg: &str,
+    k_e: usize,
+    joint: &JointCertificate,
+    allow_uncertified: bool,
+) -> Result<(usize, bool)> {
+    let region = &joint.region;
+    let floor = joint.analysis.k_c_min(k_e, region.k_max);
+    let none_reason = || {
+        if !region.void_reasons.is_empty() {
+            format!(
+                "the joint certificate is void ({})",
+                region.void_reasons.join("; ")
+            )
+        } else {
+            format!(
+                "no K_c is certified with K = {k_e} by the joint certificate (its smallest K is \
+                 {}{})",
+                region
+                    .k_e_floor
+                    .map_or_else(|| "none".to_string(), |k| k.to_string()),
+                region.cheapest.map_or_else(String::new, |p| format!(
+                    "; the cheapest certified pair is K = {}, K_c = {}",
+                    p.k_e, p.k_c
+                ))
+            )
+        }
+    };
+    if kc_arg == "certified" {
+        return match floor {
+            Some(k) => Ok((k, true)),
+            None => bail!(
+                "--kc certified: {}; give a larger --k, or --kc K with --allow-uncertified",
+                none_reason()
+            ),
+        };
+    }
+    let k: usize = kc_arg
+        .parse()
+        .ok()
+        .filter(|k| *k >= 1)
+        .with_context(|| format!("--kc {kc_arg}: expected an integer ≥ 1 or `certified`"))?;
+    if joint.analysis.at(k_e, k).certified {
+        return Ok((k, true));
+    }
+    if allow_uncertified {
+        return Ok((k, false));
+    }
+    match floor {
+        Some(f) => bail!(
+            "--kc {k}: below the joint certificate's floor K_c = {f} at K = {k_e} (MHE {}, MPC \
+             {}); use --kc certified (or K_c ≥ {f}), or --allow-uncertified to export an \
+             uncertified loop",
+            joint.mhe_method,
+            joint.mpc_method
+        ),
+        None => bail!(
+            "--kc {k}: {}; --allow-uncertified exports anyway",
+            none_reason()
+        ),
+    }
+}
+
 /// Writes `text` to `dir/name` through a temporary file and a rename (no half-written file
 /// under the final name), creating parent directories.
 fn write_file(dir: &Path, name: &str, text: &str) -> Result<()> {
@@ -241,10 +387,43 @@ pub fn export(args: &ExportArgs) -> Result<()> {
         "computing the certificate of Theorem 1 for {} …",
         method.name()
     );
-    let cert = method_certificate(&resolved, method)?;
+    let loop_cert = closed_loop_certificate(&resolved, method)?;
+    let cert = solver_entry(&loop_cert, method)?;
     let (k, certified) = decide_k(&args.k, &cert, args.allow_uncertified)?;
     let est = portable_estimator(&resolved, method, k)?;
     let problem = OwnedProblem::from_estimator(&est, &scenario.plant)?;
+    // The MPC: asked for with --kc, or the scenario's controller (mpc.iterations).
+    let mpc_spec = scenario.mpc.as_ref();
+    let kc_arg = args
+        .kc
+        .clone()
+        .or_else(|| mpc_spec.and_then(|m| m.iterations).map(|k| k.to_string()));
+    let mut mpc_export = None;
+    if let Some(kc_arg) = kc_arg {
+        let spec = mpc_spec.context("--kc: the scenario has no [mpc] section: no MPC to export")?;
+        let mpc_method: Method = match &args.mpc_method {
+            Some(m) => m
+                .parse()
+                .map_err(|e| anyhow::anyhow!("--mpc-method {m}: {e}"))?,
+            None => spec.method,
+        };
+        outln!(
+            "computing the joint certificate for MHE {} + MPC {} …",
+            method.name(),
+            mpc_method.name()
+        );
+        let joint = joint_certificate(&resolved, &loop_cert, method, mpc_method)?;
+        let (k_c, mpc_certified) = decide_kc(&kc_arg, k, &joint, args.allow_uncertified)?;
+        let ctrl = portable_mpc(&resolved, mpc_method, k_c)?;
+        let data = OwnedMpc::from_controller(&ctrl, resolved.mpc()?)?;
+        let art = MpcArtefact {
+            method: mpc_method.name().into_owned(),
+            k_c,
+            k_c_min: joint.analysis.k_c_min(k, joint.region.k_max),
+            certified: mpc_certified,
+        };
+        mpc_export = Some((data, art, joint));
+    }
     let art = Artefact {
         scenario: &scenario.name,
         method: method.name().into_owned(),
@@ -254,8 +433,18 @@ pub fn export(args: &ExportArgs) -> Result<()> {
         certified,
         prior: scenario.simulation.prior.clone(),
         sha256,
+        mpc: mpc_export.as_ref().map(|m| m.1.clone()),
     };
-    write_artefact(&args.out, args.lang, &problem, &art, &cert, &args.scenario)?;
+    let mpc = mpc_export.as_ref().map(|(d, _, j)| (d, j));
+    write_artefact(
+        &args.out,
+        args.lang,
+        &problem,
+        mpc,
+        &art,
+        &cert,
+        &args.scenario,
+    )?;
     outln!(
         "wrote the {} artefact for `{}` ({}, K = {k}{}) to {}",
         match args.lang {
@@ -264,30 +453,36 @@ pub fn export(args: &ExportArgs) -> Result<()> {
         },
         scenario.name,
         art.method,
-        match (certified, args.scalar) {
-            (true, ScalarKind::F64) => ", certified",
-            (true, ScalarKind::F32) => ", K certified; f32 not covered by the certificate",
-            (false, _) => ", UNCERTIFIED",
-        },
+        match (art.loop_certified(), args.scalar) {
+            (true, ScalarKind::F64) => ", certified".to_string(),
+            (true, ScalarKind::F32) => ", certified K; f32 not covered by the certificate".into(),
+            (false, _) => ", UNCERTIFIED".into(),
+        } + &art.mpc.as_ref().map_or_else(String::new, |m| format!(
+            ", MPC {} with K_c = {}",
+            m.method, m.k_c
+        )),
         args.out.display()
     );
     Ok(())
 }
 
-/// Writes every file of the artefact into `out`.
+/// Writes every file of the artefact into `out` (`mpc`: the MPC's data and its joint
+/// certificate, when exported).
 pub(crate) fn write_artefact(
     out: &Path,
     lang: Lang,
     problem: &OwnedProblem,
+    mpc: Option<(&OwnedMpc, &JointCertificate)>,
     art: &Artefact<'_>,
     cert: &SolverCertificate,
     scenario_path: &Path,
 ) -> Result<()> {
-    write_code(out, lang, problem, art)?;
+    write_code(out, lang, problem, mpc.map(|m| m.0), art)?;
+    let json = certificate_json(art, cert, mpc.map(|m| m.1), scenario_path);
     write_file(
         out,
         "certificate.json",
-        &(serde_json::to_string_pretty(&certificate_json(art, cert, scenario_path))? + "\n"),
+        &(serde_json::to_string_pretty(&json)? + "\n"),
     )?;
     write_file(out, "README.md", &readme(art, lang))?;
     Ok(())
@@ -298,6 +493,7 @@ pub(crate) fn write_code(
     out: &Path,
     lang: Lang,
     problem: &OwnedProblem,
+    mpc: Option<&OwnedMpc>,
     art: &Artefact<'_>,
 ) -> Result<()> {
     std::fs::create_dir_all(out)
@@ -307,8 +503,12 @@ pub(crate) fn write_code(
             write_file(out, "mhe.h", c_gen::MHE_H)?;
             write_file(out, "mhe.c", c_gen::MHE_C)?;
             write_file(out, "replay.c", c_gen::REPLAY_C)?;
-            write_file(out, "mhe_data.h", &c_gen::data_h(problem, art))?;
-            write_file(out, "mhe_data.c", &c_gen::data_c(problem, art))?;
+            write_file(out, "mpc.h", c_gen::MPC_H)?;
+            write_file(out, "mpc.c", c_gen::MPC_C)?;
+            write_file(out, "loop.c", c_gen::LOOP_C)?;
+            write_file(out, "count.h", c_gen::COUNT_H)?;
+            write_file(out, "mhe_data.h", &c_gen::data_h(problem, mpc, art))?;
+            write_file(out, "mhe_data.c", &c_gen::data_c(problem, mpc, art))?;
             write_file(out, "Makefile", c_gen::MAKEFILE)?;
             write_file(out, "cortex-m/startup.c", c_gen::STARTUP_C)?;
             write_file(out, "cortex-m/link.ld", c_gen::LINK_LD)?;
@@ -320,12 +520,14 @@ pub(crate) fn write_code(
             }
             write_file(out, "Cargo.toml", &rust_gen::cargo_toml(package))?;
             write_file(out, "src/lib.rs", &rust_gen::lib_rs(art))?;
-            write_file(out, "src/data.rs", &rust_gen::data_rs(problem, art))?;
+            write_file(out, "src/data.rs", &rust_gen::data_rs(problem, mpc, art))?;
             write_file(out, "src/bin/replay.rs", &rust_gen::replay_rs(package))?;
+            write_file(out, "src/bin/loop.rs", &rust_gen::loop_rs(package))?;
             write_file(out, "capi/Cargo.toml", &rust_gen::capi_cargo_toml(package))?;
             write_file(out, "capi/src/lib.rs", rust_gen::CAPI_LIB_RS)?;
             write_file(out, "capi/mhe_capi.h", rust_gen::CAPI_HEADER)?;
             write_file(out, "capi/replay_capi.c", rust_gen::CAPI_REPLAY_C)?;
+            write_file(out, "capi/loop_capi.c", rust_gen::CAPI_LOOP_C)?;
         }
     }
     Ok(())
@@ -334,8 +536,24 @@ pub(crate) fn write_code(
 fn certificate_json(
     art: &Artefact<'_>,
     cert: &SolverCertificate,
+    joint: Option<&JointCertificate>,
     scenario_path: &Path,
 ) -> serde_json::Value {
+    let mpc = match (&art.mpc, joint) {
+        (Some(m), Some(j)) => json!({
+            "method": m.method,
+            "iterations": m.k_c,
+            "warm_start": j.warm_start,
+            "k_c_min": m.k_c_min,
+            "certified": m.certified,
+            "covers": "the exported f64 MPC performs the certified K_c iterations bit for bit as \
+                the std SuboptimalMpc on the portable kernel; the joint certificate holds at \
+                (K, K_c) iff `certified`",
+            "at_pair": j.analysis.at(art.k, m.k_c),
+            "joint": j,
+        }),
+        _ => serde_json::Value::Null,
+    };
     json!({
         "format": "suboptimal-mhe/export-certificate",
         "format_version": 1,
@@ -349,7 +567,9 @@ fn certificate_json(
         "k_min": art.k_min,
         "scalar": scalar_name(art.scalar),
         "certified": art.certified,
-        "artefact_covered": art.certified && art.scalar == ScalarKind::F64,
+        "loop_certified": art.loop_certified(),
+        "artefact_covered": art.loop_certified() && art.scalar == ScalarKind::F64,
+        "mpc": mpc,
         "uncertified_reason": (!art.certified).then(|| match art.k_min {
             Some(k) => format!("K = {} is below K_min = {k}; exported with --allow-uncertified", art.k),
             None => "the certificate of Theorem 1 is void for this method; exported with --allow-uncertified".to_string(),
@@ -390,20 +610,48 @@ fn readme(art: &Artefact<'_>, lang: Lang) -> String {
     } else {
         String::new()
     };
+    let mpc_note = art.mpc.as_ref().map_or_else(String::new, |m| {
+        let status = if m.certified {
+            format!(
+                "**certified** with K = {} by the joint MPC + MHE certificate (`mpc.joint` in \
+                 `certificate.json`; its floor at this K is K_c = {})",
+                art.k,
+                m.k_c_min.unwrap_or(m.k_c)
+            )
+        } else {
+            "**UNCERTIFIED** (exported with `--allow-uncertified`; `mpc.k_c_min` in \
+             `certificate.json` is the joint certificate's floor at this K)"
+                .to_string()
+        };
+        format!(
+            "\n\nThe K_c-iteration MPC is exported too: {}, K_c = {}, shift-and-repeat warm \
+             start; the loop (K, K_c) is {status}.",
+            m.method, m.k_c
+        )
+    });
+    let loop_section = if art.mpc.is_some() {
+        "\n\n## Loop format\n\nThe loop program (`loop`: estimator + MPC) prints x̂_{0|0} and \
+         u_0 = π(x̂_{0|0}) on one line; then, for each input line t = 0, 1, … holding y_t (the \
+         `y*` columns of `trace.csv` row t), it pushes (u_t, y_t), estimates x̂_{t+1|t+1}, computes \
+         u_{t+1} and prints them, comma-separated with 17 significant digits: output line t is row \
+         t of `trace.csv`'s `xhat*` and `u*` columns for a run of this loop.\n"
+    } else {
+        ""
+    };
     let build = match lang {
-        Lang::C => "```sh\nmake                      # host: ./replay\nmake replay-m4.elf        # Cortex-M4F (arm-none-eabi-gcc)\nmake replay-m7.elf        # Cortex-M7\nqemu-system-arm -M mps2-an386 -nographic -monitor none -serial none \\\n  -semihosting-config enable=on,target=native -icount shift=0 -kernel replay-m4.elf < inputs.csv\n```\n\nFiles: `mhe.h`/`mhe.c` (the estimator: `mhe_reset`, `mhe_estimate`, `mhe_push`; no allocation), `mhe_data.h`/`mhe_data.c` (the problem data, generated), `replay.c`, `Makefile` (`-ffp-contract=off`, no fast-math: needed for bit identity), `cortex-m/` (start-up code and linker script for QEMU's mps2 boards; adapt the memory map for a real board).".to_string(),
-        Lang::Rust => "```sh\ncargo build --release\ncargo run --release --bin replay < inputs.csv\n```\n\nFiles: `src/data.rs` (the problem data as `static` arrays, generated), `src/lib.rs` (`#![no_std]`: `estimator()`, the `Estimator` type), `mhe-embedded/` (the estimator crate, vendored: no dependencies, no allocation), `src/bin/replay.rs`.".to_string(),
+        Lang::C => "```sh\nmake                      # host: ./replay\nmake replay-m4.elf        # Cortex-M4F (arm-none-eabi-gcc)\nmake replay-m7.elf        # Cortex-M7\nmake loop                 # with the MPC: ./loop (also loop-m4.elf, loop-m7.elf)\nqemu-system-arm -M mps2-an386 -nographic -monitor none -serial none \\\n  -semihosting-config enable=on,target=native -icount shift=0 -kernel replay-m4.elf < inputs.csv\n```\n\nFiles: `mhe.h`/`mhe.c` (the estimator: `mhe_reset`, `mhe_estimate`, `mhe_push`; no allocation), `mpc.h`/`mpc.c` (the MPC: `mpc_reset`, `mpc_control`; with `MHE_HAS_MPC`), `mhe_data.h`/`mhe_data.c` (the problem data, generated), `replay.c`, `loop.c`, `count.h` (instruction counting on Cortex-M), `Makefile` (`-ffp-contract=off`, no fast-math: needed for bit identity), `cortex-m/` (start-up code and linker script for QEMU's mps2 boards; adapt the memory map for a real board).".to_string(),
+        Lang::Rust => "```sh\ncargo build --release\ncargo run --release --bin replay < inputs.csv\ncargo run --release --bin loop < y.csv   # with the MPC\n```\n\nFiles: `src/data.rs` (the problem data as `static` arrays, generated), `src/lib.rs` (`#![no_std]`: `estimator()`, the `Estimator` type, `controller()`, the `Controller` type), `mhe-embedded/` (the crate, vendored: no dependencies, no allocation), `src/bin/replay.rs`, `src/bin/loop.rs`, `capi/` (the C ABI: a `no_std` static library and its cbindgen header).".to_string(),
     };
     format!(
         "# Exported estimator: `{scenario}`, {method}, K = {k}\n\n\
          Generated by `cargo xtask export` (docs/embedded.md of suboptimal-mhe). Scenario SHA-256 \
-         `{sha}`, scalar {scalar}.\n\n{status}{f32_note}\n\n## Build and run\n\n{build}\n\n\
+         `{sha}`, scalar {scalar}.\n\n{status}{mpc_note}{f32_note}\n\n## Build and run\n\n{build}\n\n\
          ## Replay format\n\nThe replay program prints x̂_{{0|0}} first; then, for each input line \
          t = 0, 1, … holding u_t and then y_t (comma-separated, the `u*` and `y*` columns of \
          `trace.csv` row t of `cargo xtask reproduce`), it pushes the pair and prints \
          x̂_{{t+1|t+1}}, comma-separated with 17 significant digits, so output line t is row t of \
          `trace.csv`'s `xhat*` columns (bit for bit for an f64 build when `reproduce` ran with \
-         `QP_ITER_KERNEL=portable`).\n",
+         `QP_ITER_KERNEL=portable`).\n{loop_section}",
         scenario = art.scenario,
         method = art.method,
         k = art.k,

@@ -5,7 +5,8 @@
 //! - `cargo xtask sweep --config FILE.toml [--out DIR] [--threads N] [--shard I/N]`,
 //!   `cargo xtask sweep-merge --config FILE.toml --out DIR [SHARD_DIR...]` (docs/sweeps.md)
 //! - `cargo xtask export --scenario FILE --out DIR [--method M] [--k K|certified]
-//!   [--scalar f64|f32] [--lang rust|c] [--allow-uncertified]` (docs/embedded.md)
+//!   [--kc K_C|certified] [--mpc-method M] [--scalar f64|f32] [--lang rust|c]
+//!   [--allow-uncertified]` (docs/embedded.md)
 //! - `cargo xtask reproduce [--preset paper|certified] [--scenario FILE] [--out DIR]
 //!   [--gamma13 G] [--fig2c-t T] [--sim-k-cap K]`
 //!
@@ -53,8 +54,9 @@ struct Cli {
 enum Command {
     /// Monte-Carlo sweep over the iteration budget K (docs/sweeps.md).
     Sweep(sweep::SweepArgs),
-    /// Export the certified estimator for a microcontroller: no_std Rust or C, with
-    /// certificate.json and a replay program (docs/embedded.md).
+    /// Export the certified estimator (and with --kc the K_c-iteration MPC) for a
+    /// microcontroller: no_std Rust or C, with certificate.json, a replay and a loop program
+    /// (docs/embedded.md).
     Export(export::ExportArgs),
     /// Assemble the point files of sharded sweep runs into runs.csv, points.csv and plots.
     SweepMerge(sweep::MergeArgs),

@@ -112,7 +112,7 @@ impl core::fmt::Display for DataError {
     }
 }
 
-fn check(what: &'static str, expected: usize, actual: usize) -> Result<(), DataError> {
+pub(crate) fn check(what: &'static str, expected: usize, actual: usize) -> Result<(), DataError> {
     if expected == actual {
         Ok(())
     } else {

@@ -174,7 +174,7 @@ impl<
             p.method,
             w,
             &self.theta[..nth],
-            &self.z0[..nz],
+            Some(&self.z0[..nz]),
             p.iterations,
             &mut self.work,
             &mut self.zk[..nz],

@@ -9,13 +9,19 @@
 //! problem data (ℙ_t for every window length, the model) is borrowed, normally from
 //! `static` arrays that `cargo xtask export` generates.
 //!
+//! [`Mpc`] is the K_c-iteration MPC of the same loop (`mpc_core::SuboptimalMpc` with the
+//! shift-and-repeat warm start): per call θ = x̂, K_c iterations of its method on the
+//! condensed QP over the box 𝒰^N (the same kernel as the estimator's windows), u = the first
+//! block of Uᴷᶜ; together they run the loop of the joint MPC + MHE certificate.
+//!
 //! **Bit identity.** The data are the std build's own numbers (H, F, q₀, the bounds, α, β,
 //! ρ(H + ρI)⁻¹ and (H + ρI)⁻¹, the Jacobi d), and every operation here is the one the std
 //! estimator performs on the portable kernel (`qp_iter::kernel::Kernel::portable`), in the
 //! same order: products summed column by column from 0, no fused multiply–add, the same
 //! clamp. So with `T = f64` the estimates equal the std `MheEstimator`'s on that kernel bit
-//! for bit (tests/equivalence.rs), and the exported C does the same operations. Against the
-//! AVX2 + FMA kernel the difference is rounding only (measured in the tests).
+//! for bit (the workspace's `xtask/src/export/tests.rs` and `tests_mpc.rs`), and the
+//! exported C does the same operations. Against the AVX2 + FMA kernel the difference is
+//! rounding only (measured in the tests).
 //!
 //! ```
 //! use mhe_embedded::{Method, Mhe, Problem, WarmStart, Window};
@@ -45,14 +51,34 @@
 //! mhe.push(&[], &[1.0]);
 //! assert!(mhe.estimate()[0].is_finite());
 //! ```
+//!
+//! The MPC (made-up data: N = 2, n_u = n_x = 1, U ∈ [−1, 1]²):
+//!
+//! ```
+//! use mhe_embedded::{Method, Mpc, MpcProblem, Window};
+//! static QP: Window<'static, f64> = Window {
+//!     n: 2, n_theta: 1, h: &[4.0, 1.0, 1.0, 2.0], m_rho: &[], m_inv: &[], q0: &[0.0, 0.0],
+//!     f: &[3.0, 1.0], lower: &[-1.0, -1.0], upper: &[1.0, 1.0], scaling: &[],
+//!     step: 0.3, momentum: 0.0, inv_rho: 0.0, relaxation: 0.0,
+//! };
+//! static MPC: MpcProblem<'static, f64> =
+//!     MpcProblem { nx: 1, nu: 1, horizon: 2, iterations: 30, method: Method::Pg, qp: QP };
+//! // Buffers: NX, NU, NSEQ = N·NU.
+//! let mut mpc = Mpc::<f64, 1, 1, 2>::new(&MPC).unwrap();
+//! let u = mpc.control(&[2.0]).unwrap(); // cold start, then K_c = 30 PG steps
+//! assert_eq!(u, &[-1.0]);                // saturated: the unconstrained u₀ is −10/7
+//! assert!(mpc.control(&[f64::NAN]).is_err());
+//! ```
 
 #![no_std]
 
 mod data;
 mod estimator;
+mod mpc;
 mod qp;
 mod scalar;
 
 pub use data::{DataError, Method, Problem, WarmStart, Window};
 pub use estimator::Mhe;
+pub use mpc::{Mpc, MpcError, MpcProblem};
 pub use scalar::Scalar;

@@ -42,13 +42,13 @@ fn linear_term<S: Scalar>(w: &Window<'_, S>, theta: &[S], q: &mut [S]) {
     }
 }
 
-/// Runs K iterations of `method` on window `w` for θ from z⁰ (in z) and writes zᴷ (in z)
-/// into `out[..n]`.
+/// Runs K iterations of `method` on window `w` for θ from z⁰ (in z; `None`: the cold
+/// start Π_Z(0), as the std maps' `cold_start`) and writes zᴷ (in z) into `out[..n]`.
 pub(crate) fn run<S: Scalar, const NZ: usize>(
     method: Method,
     w: &Window<'_, S>,
     theta: &[S],
-    z0: &[S],
+    z0: Option<&[S]>,
     iterations: usize,
     v: &mut [[S; NZ]; SLOTS],
     out: &mut [S],
@@ -60,12 +60,19 @@ pub(crate) fn run<S: Scalar, const NZ: usize>(
     let (lo, hi) = (w.lower, w.upper);
     // load: q = q₀ + Fθ (the scaled problem's F and q₀ give D q directly).
     linear_term(w, theta, &mut v[Q]);
-    // warm start: y⁰ = D⁻¹z⁰ on a scaled problem.
-    if w.scaling.is_empty() {
-        v[Z][..n].copy_from_slice(&z0[..n]);
-    } else {
-        for i in 0..n {
-            v[Z][i] = z0[i] / w.scaling[i];
+    // warm start: y⁰ = D⁻¹z⁰ on a scaled problem; cold start: Π(0) in the coordinates
+    // the method runs in (the box of the scaled problem when scaled).
+    match z0 {
+        None => {
+            for i in 0..n {
+                v[Z][i] = clamp(S::ZERO, lo[i], hi[i]);
+            }
+        }
+        Some(z0) if w.scaling.is_empty() => v[Z][..n].copy_from_slice(&z0[..n]),
+        Some(z0) => {
+            for i in 0..n {
+                v[Z][i] = z0[i] / w.scaling[i];
+            }
         }
     }
     match method {

@@ -6,6 +6,7 @@ use anyhow::{Result, bail};
 use closed_loop::scenario::ResolvedScenario;
 use lti_model::LtiSystem;
 use mhe_core::{MheEstimator, WarmStart};
+use mpc_core::{CondensedMpc, SuboptimalMpc};
 use qp_iter::kernel::{Kernel, PaddedSymmetric};
 use qp_iter::{IterationMap, Method, MethodMap, ParametricQp};
 
@@ -26,6 +27,30 @@ pub(crate) struct OwnedWindow {
     pub momentum: f64,
     pub inv_rho: f64,
     pub relaxation: f64,
+}
+
+impl OwnedWindow {
+    /// The `mhe_embedded` view (borrowing `self`).
+    #[cfg(test)]
+    pub(crate) fn view(&self) -> mhe_embedded::Window<'_, f64> {
+        let w = self;
+        mhe_embedded::Window {
+            n: w.n,
+            n_theta: w.n_theta,
+            h: &w.h,
+            m_rho: &w.m_rho,
+            m_inv: &w.m_inv,
+            q0: &w.q0,
+            f: &w.f,
+            lower: &w.lower,
+            upper: &w.upper,
+            scaling: &w.scaling,
+            step: w.step,
+            momentum: w.momentum,
+            inv_rho: w.inv_rho,
+            relaxation: w.relaxation,
+        }
+    }
 }
 
 /// The whole problem (the fields of [`mhe_embedded::Problem`], owned).
@@ -210,25 +235,7 @@ impl OwnedProblem {
     /// The windows as `mhe_embedded` views (borrowing `self`).
     #[cfg(test)]
     pub(crate) fn window_views(&self) -> Vec<mhe_embedded::Window<'_, f64>> {
-        self.windows
-            .iter()
-            .map(|w| mhe_embedded::Window {
-                n: w.n,
-                n_theta: w.n_theta,
-                h: &w.h,
-                m_rho: &w.m_rho,
-                m_inv: &w.m_inv,
-                q0: &w.q0,
-                f: &w.f,
-                lower: &w.lower,
-                upper: &w.upper,
-                scaling: &w.scaling,
-                step: w.step,
-                momentum: w.momentum,
-                inv_rho: w.inv_rho,
-                relaxation: w.relaxation,
-            })
-            .collect()
+        self.windows.iter().map(OwnedWindow::view).collect()
     }
 
     /// The problem view over `windows` (from [`OwnedProblem::window_views`]).
@@ -251,6 +258,87 @@ impl OwnedProblem {
             b: &self.b,
             e: &self.e,
             windows,
+        }
+    }
+}
+
+/// The MPC's data (the fields of [`mhe_embedded::MpcProblem`], owned).
+#[derive(Debug, Clone, PartialEq)]
+pub(crate) struct OwnedMpc {
+    pub nx: usize,
+    pub nu: usize,
+    pub horizon: usize,
+    pub iterations: usize,
+    pub method: mhe_embedded::Method,
+    pub qp: OwnedWindow,
+}
+
+/// The scenario's K_c-iteration MPC with `method` on the portable kernel, warm-started by
+/// shift-and-repeat (`mpc_core::WarmStart::default()`, as the scenario's controller).
+pub(crate) fn portable_mpc(
+    resolved: &ResolvedScenario,
+    method: Method,
+    iterations: usize,
+) -> Result<SuboptimalMpc<MethodMap>> {
+    let mpc = resolved.mpc()?;
+    let map = method
+        .build(mpc.qp().clone())?
+        .with_kernel(Kernel::portable());
+    Ok(SuboptimalMpc::new(
+        mpc,
+        map,
+        iterations,
+        mpc_core::WarmStart::ShiftRepeatLast,
+    )?)
+}
+
+impl OwnedMpc {
+    /// The data of `ctrl` (built by [`portable_mpc`]) for the MPC `mpc`.
+    pub(crate) fn from_controller(
+        ctrl: &SuboptimalMpc<MethodMap>,
+        mpc: &CondensedMpc,
+    ) -> Result<Self> {
+        if mpc.has_state_constraints() {
+            bail!(
+                "the MPC has state constraints (bounded sets.state: general rows of its QP); \
+                 the embedded MPC covers box input constraints only: drop sets.state to export \
+                 the MPC"
+            );
+        }
+        if ctrl.warm_start_rule() != mpc_core::WarmStart::ShiftRepeatLast {
+            bail!("the embedded MPC implements the shift-and-repeat warm start only");
+        }
+        let (method, qp) = window_of(ctrl.map(), 0).map_err(|e| {
+            anyhow::anyhow!(
+                "the MPC's QP: {}",
+                e.to_string().replace("window m = 0", "it")
+            )
+        })?;
+        Ok(Self {
+            nx: mpc.nx(),
+            nu: mpc.nu(),
+            horizon: mpc.horizon(),
+            iterations: ctrl.iterations(),
+            method,
+            qp,
+        })
+    }
+
+    /// N n_u.
+    pub(crate) fn nseq(&self) -> usize {
+        self.horizon * self.nu
+    }
+
+    /// The `mhe_embedded` view (borrowing `self`).
+    #[cfg(test)]
+    pub(crate) fn view(&self) -> mhe_embedded::MpcProblem<'_, f64> {
+        mhe_embedded::MpcProblem {
+            nx: self.nx,
+            nu: self.nu,
+            horizon: self.horizon,
+            iterations: self.iterations,
+            method: self.method,
+            qp: self.qp.view(),
         }
     }
 }

@@ -10,12 +10,12 @@ use closed_loop::scenario::{LoopOptions, ResolvedScenario, Scenario};
 use mhe_core::MheEstimator;
 use qp_iter::{Method, MethodMap};
 
-use super::extract::{OwnedProblem, portable_estimator};
+use super::extract::{OwnedMpc, OwnedProblem, portable_estimator};
 use super::*;
 use crate::provenance::workspace_root;
 
 /// Every method the certificate covers on box constraints.
-fn methods() -> Vec<Method> {
+pub(super) fn methods() -> Vec<Method> {
     let mut v = Method::PRESETS.to_vec();
     v.extend(Method::JACOBI_PRESETS);
     v
@@ -89,7 +89,7 @@ fn run_embedded<
     out
 }
 
-fn bits(v: &[Vec<f64>]) -> Vec<Vec<u64>> {
+pub(super) fn bits(v: &[Vec<f64>]) -> Vec<Vec<u64>> {
     v.iter()
         .map(|r| r.iter().map(|x| x.to_bits()).collect())
         .collect()
@@ -173,13 +173,13 @@ fn replay_input(traj: &[(Vec<f64>, Vec<f64>)]) -> String {
         .collect()
 }
 
-fn parse_replay(out: &str) -> Vec<Vec<f64>> {
+pub(super) fn parse_replay(out: &str) -> Vec<Vec<f64>> {
     out.lines()
         .map(|l| l.split(',').map(|v| v.trim().parse().unwrap()).collect())
         .collect()
 }
 
-fn run_program(cmd: &mut Command, input: &str) -> String {
+pub(super) fn run_program(cmd: &mut Command, input: &str) -> String {
     use std::io::Write;
     let mut child = cmd
         .stdin(Stdio::piped())
@@ -200,25 +200,49 @@ fn run_program(cmd: &mut Command, input: &str) -> String {
 fn artefact(c: &Case, method: Method, scalar: ScalarKind) -> (OwnedProblem, Artefact<'static>) {
     let est = portable_estimator(&c.resolved, method, c.k).unwrap();
     let p = OwnedProblem::from_estimator(&est, &c.resolved.scenario().plant).unwrap();
-    let art = Artefact {
-        scenario: "test",
-        method: method.name().into_owned(),
-        k: c.k,
-        k_min: None,
-        scalar,
-        certified: false,
-        prior: c.resolved.scenario().simulation.prior.clone(),
-        sha256: super::sha256::sha256_hex(&std::fs::read(&c.path).unwrap()),
-    };
+    let mut art = exported_artefact(&c.path, &c.resolved, method, c.k, None);
+    art.scalar = scalar;
     (p, art)
 }
 
-fn write_files(dir: &Path, lang: Lang, p: &OwnedProblem, art: &Artefact<'_>) {
+pub(super) fn write_files(
+    dir: &Path,
+    lang: Lang,
+    p: &OwnedProblem,
+    mpc: Option<&OwnedMpc>,
+    art: &Artefact<'_>,
+) {
     // `certificate.json` needs a real certificate; the code files are what is tested here.
-    write_code(dir, lang, p, art).unwrap();
+    write_code(dir, lang, p, mpc, art).unwrap();
 }
 
-fn scratch_dir(name: &str) -> PathBuf {
+/// The banner data of a test artefact (uncertified: no certificate is computed).
+pub(super) fn exported_artefact(
+    path: &Path,
+    resolved: &ResolvedScenario,
+    method: Method,
+    k: usize,
+    k_c: Option<usize>,
+) -> Artefact<'static> {
+    Artefact {
+        scenario: "test",
+        method: method.name().into_owned(),
+        k,
+        k_min: None,
+        scalar: ScalarKind::F64,
+        certified: false,
+        prior: resolved.scenario().simulation.prior.clone(),
+        sha256: super::sha256::sha256_hex(&std::fs::read(path).unwrap()),
+        mpc: k_c.map(|k_c| MpcArtefact {
+            method: "test".into(),
+            k_c,
+            k_c_min: None,
+            certified: false,
+        }),
+    }
+}
+
+pub(super) fn scratch_dir(name: &str) -> PathBuf {
     let dir = workspace_root()
         .join("target")
         .join("export-tests")
@@ -236,7 +260,7 @@ fn check_c(file: &str, tag: &str) {
     for method in methods() {
         let (p, art) = artefact(&c, method, ScalarKind::F64);
         let dir = scratch_dir(&format!("c-{tag}-{}", method.name()));
-        write_files(&dir, Lang::C, &p, &art);
+        write_files(&dir, Lang::C, &p, None, &art);
         let status = Command::new("cc")
             .current_dir(&dir)
             .args(["-O2", "-std=c99", "-ffp-contract=off", "-fno-fast-math"])
@@ -282,7 +306,7 @@ fn exported_rust_equals_std_portable_bit_for_bit() {
         let dir = scratch_dir(&format!("rust-{tag}"));
         for method in methods() {
             let (p, art) = artefact(&c, method, ScalarKind::F64);
-            write_files(&dir, Lang::Rust, &p, &art);
+            write_files(&dir, Lang::Rust, &p, None, &art);
             let status = Command::new(env!("CARGO"))
                 .current_dir(&dir)
                 .env("CARGO_TARGET_DIR", &target)
@@ -372,9 +396,10 @@ fn an_uncertified_artefact_says_so_everywhere() {
         certified: false,
         prior: resolved.scenario().simulation.prior.clone(),
         sha256: super::sha256::sha256_hex(&std::fs::read(&path).unwrap()),
+        mpc: None,
     };
     let dir = scratch_dir("uncertified");
-    write_artefact(&dir, Lang::C, &p, &art, &cert, &path).unwrap();
+    write_artefact(&dir, Lang::C, &p, None, &art, &cert, &path).unwrap();
     let read = |f: &str| std::fs::read_to_string(dir.join(f)).unwrap();
     assert!(read("mhe_data.h").contains("UNCERTIFIED"));
     assert!(read("mhe_data.h").contains("#define MHE_CERTIFIED 0"));
@@ -505,123 +530,4 @@ fn f32_deviation_over_200_seeds() {
             method.name()
         );
     }
-}
-
-/// The C ABI: the `no_std` static library builds (own panic handler, panic = abort), has no
-/// allocator and no `std` symbol (`nm`), and a C program linked against it replays the
-/// certified preset bit for bit as the std estimator.
-#[test]
-fn c_abi_static_library_has_no_malloc_or_std_and_replays_bit_for_bit() {
-    let c = case("case-study-certified.toml", None);
-    let method = Method::FISTA.with_scaling(qp_iter::Scaling::Jacobi);
-    let (p, art) = artefact(&c, method, ScalarKind::F64);
-    let dir = scratch_dir("capi");
-    write_files(&dir, Lang::Rust, &p, &art);
-    let target = workspace_root()
-        .join("target")
-        .join("export-tests-capi-target");
-    let status = Command::new(env!("CARGO"))
-        .current_dir(dir.join("capi"))
-        .env("CARGO_TARGET_DIR", &target)
-        .args(["build", "--quiet", "--offline", "--release"])
-        .status()
-        .unwrap();
-    assert!(status.success(), "cargo build of capi/ failed");
-    let lib = target.join("release").join("libmhe_export_capi.a");
-    let nm = Command::new("nm").arg("-C").arg(&lib).output().unwrap();
-    assert!(nm.status.success());
-    let symbols = String::from_utf8_lossy(&nm.stdout);
-    for name in [
-        "mhe_capi_reset",
-        "mhe_capi_push",
-        "mhe_capi_estimate",
-        "mhe_capi_dims",
-    ] {
-        assert!(
-            symbols.lines().any(|l| l.ends_with(&format!(" T {name}"))),
-            "{name} is not defined"
-        );
-    }
-    for l in symbols.lines() {
-        let sym = l.split_whitespace().last().unwrap_or("");
-        assert!(
-            ![
-                "malloc",
-                "calloc",
-                "realloc",
-                "free",
-                "__rust_alloc",
-                "__rdl_alloc"
-            ]
-            .contains(&sym),
-            "allocator symbol: {l}"
-        );
-        assert!(!sym.starts_with("std::"), "std symbol: {l}");
-    }
-    let status = Command::new("cc")
-        .current_dir(dir.join("capi"))
-        .args([
-            "-O2",
-            "-std=c99",
-            "-ffp-contract=off",
-            "-Wall",
-            "-Werror",
-            "-o",
-            "replay_capi",
-        ])
-        .arg("replay_capi.c")
-        .arg(&lib)
-        .status()
-        .unwrap();
-    assert!(status.success(), "linking replay_capi.c failed");
-    let got = parse_replay(&run_program(
-        &mut Command::new(dir.join("capi").join("replay_capi")),
-        &replay_input(&c.traj),
-    ));
-    let mut est = portable_estimator(&c.resolved, method, c.k).unwrap();
-    assert_eq!(bits(&got), bits(&run_std(&mut est, &c.traj)));
-}
-
-/// The checked-in header declares exactly the library's `extern "C"` functions, with the
-/// C types of their Rust signatures.
-#[test]
-fn c_abi_header_matches_the_rust_signatures() {
-    fn c_type(rust: &str) -> String {
-        match rust.trim() {
-            "*const MheReal" => "const mhe_real *".into(),
-            "*mut MheReal" => "mhe_real *".into(),
-            "*mut i32" => "int32_t *".into(),
-            "i32" => "int32_t".into(),
-            "" => "void".into(),
-            other => panic!("no C type for `{other}`"),
-        }
-    }
-    let mut from_rust = Vec::new();
-    let src = rust_gen::CAPI_LIB_RS;
-    for (i, _) in src.match_indices("extern \"C\" fn ") {
-        let rest = &src[i + "extern \"C\" fn ".len()..];
-        let name = &rest[..rest.find('(').unwrap()];
-        if name == "rust_eh_personality" {
-            continue; // a symbol for the precompiled core, not part of the interface
-        }
-        let args = &rest[rest.find('(').unwrap() + 1..rest.find(')').unwrap()];
-        let after = &rest[rest.find(')').unwrap() + 1..rest.find('{').unwrap()];
-        let ret = c_type(after.trim().trim_start_matches("->"));
-        let args: Vec<String> = args
-            .split(',')
-            .filter(|a| !a.trim().is_empty())
-            .map(|a| {
-                let (n, t) = a.split_once(':').unwrap();
-                format!("{}{}", c_type(t), n.trim())
-            })
-            .collect();
-        from_rust.push(format!("{ret} {name}({});", args.join(", ")).replace("* ", "*"));
-    }
-    let header: Vec<String> = rust_gen::CAPI_HEADER
-        .lines()
-        .filter(|l| l.contains("mhe_capi_") && l.ends_with(");"))
-        .map(|l| l.replace("* ", "*"))
-        .collect();
-    assert_eq!(from_rust.len(), 4);
-    assert_eq!(header, from_rust);
 }

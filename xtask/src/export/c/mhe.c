@@ -31,20 +31,21 @@ static void linear_term(const mhe_window *w, const mhe_real *theta, mhe_real *q)
     }
 }
 
-/* K iterations on window w for theta from z0; z^K into out. */
-static void run_window(const mhe_window *w, const mhe_real *theta, const mhe_real *z0,
-                       int iterations, mhe_real v[6][MHE_NZ], mhe_real *out) {
+void mhe_run_window(const mhe_window *w, int method, const mhe_real *theta,
+                    const mhe_real *z0, int iterations, mhe_real *const v[6], mhe_real *out) {
     int n = w->n, i, k;
     const mhe_real *lo = w->lower, *hi = w->upper;
     mhe_real *z = v[0], *q = v[2];
     if (n == 0) return;
     linear_term(w, theta, q);
-    if (w->scaling == 0) {
+    if (z0 == 0) {
+        for (i = 0; i < n; i++) z[i] = clampr((mhe_real)0, lo[i], hi[i]);
+    } else if (w->scaling == 0) {
         for (i = 0; i < n; i++) z[i] = z0[i];
     } else {
         for (i = 0; i < n; i++) z[i] = z0[i] / w->scaling[i];
     }
-    if (P->method == MHE_PG) {
+    if (method == MHE_PG) {
         mhe_real *hz = v[4];
         for (k = 0; k < iterations; k++) {
             matvec(w->h, n, z, hz);
@@ -53,7 +54,7 @@ static void run_window(const mhe_window *w, const mhe_real *theta, const mhe_rea
                 z[i] = clampr(x, lo[i], hi[i]);
             }
         }
-    } else if (P->method == MHE_FISTA) {
+    } else if (method == MHE_FISTA) {
         mhe_real *y = v[1], *hy = v[4];
         for (i = 0; i < n; i++) y[i] = z[i];
         for (k = 0; k < iterations; k++) {
@@ -152,7 +153,11 @@ const mhe_real *mhe_estimate(mhe_state *s) {
         for (i = 0; i < MHE_NU; i++) s->theta[u_off + j * MHE_NU + i] = u[i];
         for (i = 0; i < MHE_NY; i++) s->theta[y_off + j * MHE_NY + i] = y[i];
     }
-    run_window(w, s->theta, s->z0, P->iterations, s->work, s->zk);
+    {
+        mhe_real *const v[6] = {s->work[0], s->work[1], s->work[2],
+                                s->work[3], s->work[4], s->work[5]};
+        mhe_run_window(w, P->method, s->theta, s->z0, P->iterations, v, s->zk);
+    }
     for (i = 0; i < MHE_NX; i++) s->x_hat[i] = s->zk[i];
     for (j = 0; j < m; j++) {
         step_model(s->x_hat, s->theta + u_off + j * MHE_NU, s->zk + MHE_NX + j * nw, s->x_tmp);

@@ -51,6 +51,12 @@ typedef struct {
     mhe_real x_hat[MHE_NX], x_tmp[MHE_NX];
 } mhe_state;
 
+/* K iterations of `method` on the problem w for theta from z0 (NULL: the cold start, the
+ * projection of 0 onto the box), z^K into out[0..n); v: six work vectors of n entries.
+ * Shared by the estimator and the MPC (mpc.c). */
+void mhe_run_window(const mhe_window *w, int method, const mhe_real *theta,
+                    const mhe_real *z0, int iterations, mhe_real *const v[6], mhe_real *out);
+
 /* t = 0 with the prior x0bar = prior (n_x entries). */
 void mhe_reset(mhe_state *s, const mhe_real *prior);
 /* x_hat_{t|t} from the data up to t - 1 (n_x entries, valid until the next call). */

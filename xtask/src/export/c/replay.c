@@ -7,6 +7,7 @@
 #include <stdlib.h>
 #include <string.h>
 #include "mhe.h"
+#include "count.h"
 
 static mhe_state state;
 
@@ -16,44 +17,13 @@ static void print_estimate(const mhe_real *x) {
     printf("\n");
 }
 
-#ifdef MHE_COUNT_SYSTICK
-#define SYST_CSR (*(volatile unsigned long *)0xE000E010u)
-#define SYST_RVR (*(volatile unsigned long *)0xE000E014u)
-#define SYST_CVR (*(volatile unsigned long *)0xE000E018u)
-/* Counted by the SysTick interrupt (cortex-m/startup.c) at every wrap of the 24-bit timer. */
-extern volatile unsigned long mhe_systick_wraps;
-/* Ticks since start-up (the down-counter and its wraps, read consistently). */
-static double ticks_now(void) {
-    unsigned long w, c;
-    do {
-        w = mhe_systick_wraps;
-        c = SYST_CVR & 0xFFFFFFu;
-    } while (w != mhe_systick_wraps);
-    return (double)w * 16777216.0 + (double)(0xFFFFFFu - c);
-}
-static double ticks_since(double before) { return ticks_now() - before; }
-/* Instructions per SysTick tick: a loop of a known instruction count (2 per pass). */
-static double calibrate(void) {
-    double before = ticks_now();
-    unsigned long n = 1000000u;
-    __asm volatile("1: subs %0, %0, #1\n bne 1b" : "+r"(n) : : "cc");
-    return 2000000.0 / ticks_since(before);
-}
-#endif
 
 int main(void) {
     static char line[8192];
     mhe_real u[MHE_NU_BUF], y[MHE_NY];
     long row = 0;
 #ifdef MHE_COUNT_SYSTICK
-    double per_tick, total = 0.0, worst = 0.0;
-    SYST_RVR = 0xFFFFFFu;
-    SYST_CVR = 0u;
-    SYST_CSR = 7u; /* enable, interrupt at each wrap, processor clock */
-    while ((SYST_CVR & 0xFFFFFFu) == 0u) {
-        /* the write of CVR cleared it; the first tick reloads it */
-    }
-    per_tick = calibrate();
+    double per_tick = count_init(), total = 0.0, worst = 0.0;
 #endif
     mhe_reset(&state, mhe_exported_prior);
     print_estimate(mhe_estimate(&state));

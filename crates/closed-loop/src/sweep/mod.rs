@@ -58,6 +58,7 @@ mod config;
 mod custom;
 mod error;
 mod format;
+mod graph;
 mod grid;
 mod lock;
 mod merge;
@@ -90,6 +91,7 @@ pub use region::{
     pair_thresholds_markdown, staircase, staircase_text, up_set,
 };
 pub use run::{NoProgress, Progress, RunOptions, Sweep, SweepReport, run_cost};
+pub use graph::L_PI_CHUNKS;
 pub use schedule::{Prediction, ScheduleReport, TaskKind, TaskTime};
 pub use seeds::{Shard, run_seed, splitmix64};
 pub use theory::{

@@ -426,6 +426,43 @@ mod tests {
     }
 
     #[test]
+    fn replay_waits_for_a_task_s_inputs() {
+        // A 1 s plan, two 1 s chunks after it, a 0.5 s assembly after both, four 1 s runs.
+        let theory = |kind, busy, after: Vec<usize>| TaskTime {
+            kind,
+            point: None,
+            run: None,
+            after,
+            ..run(0, busy, 0.0)
+        };
+        let mut tasks = vec![
+            theory(TaskKind::Gamma13Plan, 1.0, vec![]),
+            theory(TaskKind::Gamma13Enumeration, 1.0, vec![0]),
+            theory(TaskKind::Gamma13Enumeration, 1.0, vec![0]),
+            theory(TaskKind::Certificate, 0.5, vec![1, 2]),
+        ];
+        tasks.extend((0..4).map(|p| run(p, 1.0, 0.0)));
+        let r = ScheduleReport {
+            threads: 1,
+            pool_wall_s: 7.5,
+            help_s: 0.0,
+            tasks,
+        };
+        assert_eq!(r.critical_path_s(), 2.5);
+        assert_eq!(r.replay(1).pool_wall_s, 7.5);
+        // Two workers: a run beside the plan, the chunks side by side, then the assembly
+        // on one worker and the three runs left: 2.5 | 2 + 1, then 3.5 and 4.
+        assert_eq!(r.replay(2).pool_wall_s, 4.0);
+        // Four: the plan beside three runs, the chunks beside the last run, one worker
+        // idles until the chunks end, then the assembly: the critical path.
+        let four = r.replay(4);
+        assert_eq!(four.pool_wall_s, 2.5);
+        assert!((four.efficiency - 7.5 / 10.0).abs() < 1e-12);
+        // The runs alone: 4 × 1 s.
+        assert_eq!(r.replay_runs(4).pool_wall_s, 1.0);
+    }
+
+    #[test]
     fn replay_takes_tasks_in_list_order() {
         // Longest first on two workers: 3 | 2 + 1 → 3 s. Shortest first: 1 | 2, then 3 on
         // the worker free at 1 → 4 s.

@@ -23,7 +23,7 @@
 //! - `mhe/<method>`: one full MHE step (`MheEstimator::estimate`: θ assembly, load, warm
 //!   start, K = certificate's K iterations, cost and propagation) at t = T.
 //! - `mhe_kmin/<method>`: the same at K = K_min of Theorem 1 (the closed-loop certificate,
-//!   `closed_loop::certificate` with its certified constants only, as the sweeps compute
+//!   `iss_certificate::certificate` with its certified constants only, as the sweeps compute
 //!   it), when it differs from the certificate's K for 1e-6 and the per-instance rows are
 //!   affordable.
 //! - `clarabel`: Clarabel's interior-point solve (tol 1e-8, no polish, set up once, q
@@ -47,7 +47,7 @@ use std::hint::black_box;
 
 use benches::case_study::{CaseStudyQps, EPS, MHE_PRESETS, MheInstance, certified_k};
 use benches::{FixedLayout, FixedMatVec, Timing, Variant, dist, interleave};
-use closed_loop::certificate::{CertificateOptions, certify_closed_loop};
+use iss_certificate::certificate::{CertificateOptions, certify_closed_loop};
 use qp_iter::kernel::{AlignedVec, Kernel, PaddedSymmetric};
 use qp_iter::method::{Method, MethodMap, Scaling};
 use qp_iter::reference::{ReferenceSettings, ReferenceSolver};

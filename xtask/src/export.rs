@@ -2,7 +2,7 @@
 //! microcontroller (docs/embedded.md).
 //!
 //! 1. Reads the scenario, computes Theorem 1's certificate for the method
-//!    (`closed_loop::certificate::certify_closed_loop`) and decides K: `--k certified` (the
+//!    (`iss_certificate::certificate::certify_closed_loop`) and decides K: `--k certified` (the
 //!    default) is K_min; a given K below K_min, or any K with a void certificate, is refused
 //!    unless `--allow-uncertified`, which the artefact then says in its README, its headers
 //!    and `certificate.json`.
@@ -23,10 +23,10 @@ use std::path::{Path, PathBuf};
 
 use anyhow::{Context, Result, bail};
 use clap::{Args, ValueEnum};
-use closed_loop::certificate::{
+use closed_loop::scenario::{ResolvedScenario, Scenario};
+use iss_certificate::certificate::{
     CertificateOptions, Gamma13Source, SolverCertificate, certify_closed_loop,
 };
-use closed_loop::scenario::{ResolvedScenario, Scenario};
 use qp_iter::Method;
 use serde_json::json;
 

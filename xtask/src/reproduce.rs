@@ -2,7 +2,7 @@
 //! plant, end to end, for one scenario (a preset or a user's file):
 //!
 //! 1. the closed-loop certificate of Theorem 1 for every solver
-//!    ([`closed_loop::certificate::certify_closed_loop`]): premises with margins, K_min or
+//!    ([`iss_certificate::certificate::certify_closed_loop`]): premises with margins, K_min or
 //!    the reasons it is void;
 //! 2. Alg. 1 simulated with the scenario's solver, the exact MPC and the exact MHE solve on
 //!    (for ε_t), at the computed K_min when the certificate holds, at the scenario's K, and
@@ -23,15 +23,15 @@ use std::fmt::Write as _;
 use std::path::{Path, PathBuf};
 
 use anyhow::{Context, Result};
-use closed_loop::analysis::Premise;
-use closed_loop::certificate::{
+use closed_loop::scenario::{ControllerChoice, LoopOptions, ResolvedScenario, Scenario};
+use closed_loop::{ClosedLoopError, Trace};
+use iss_certificate::analysis::Premise;
+use iss_certificate::certificate::{
     CertificateOptions, ClosedLoopCertificate, Gamma13Source, SolverCertificate, TrajectoryCheck,
     analysis_with_sampled_l_phi, certify_closed_loop, check_trajectory,
 };
-use closed_loop::coverage::Applicable;
-use closed_loop::plan::{KSource, RunOutcome, plan_runs};
-use closed_loop::scenario::{ControllerChoice, LoopOptions, ResolvedScenario, Scenario};
-use closed_loop::{ClosedLoopError, Trace};
+use iss_certificate::coverage::Applicable;
+use iss_certificate::plan::{KSource, RunOutcome, plan_runs};
 use lti_model::BoxSet;
 use lti_model::matrix::to_rows;
 use qp_iter::Method;
@@ -216,28 +216,28 @@ impl Default for Settings {
 }
 
 /// The estimated work of each analysis phase, on stderr before the certificate is computed
-/// (closed_loop::budget; docs/limits.md). A closed stderr is ignored.
+/// (iss_certificate::budget; docs/limits.md). A closed stderr is ignored.
 fn budget_lines(
     scenario: &Scenario,
     mpc: Option<&mpc_core::CondensedMpc>,
     opts: &CertificateOptions,
 ) {
     use std::io::Write;
-    let phases = closed_loop::budget::estimate_phases(scenario, mpc, opts, 2000);
+    let phases = iss_certificate::budget::estimate_phases(scenario, mpc, opts, 2000);
     let mut err = std::io::stderr().lock();
     let _ = writeln!(
         err,
         "  analysis estimates (seconds of one core; an optional phase beyond {} s is skipped, \
          scenario key `certificate.phase_seconds`):",
-        closed_loop::budget::secs(opts.phase_seconds)
+        iss_certificate::budget::secs(opts.phase_seconds)
     );
     for p in phases {
         let _ = writeln!(
             err,
             "    {:<30} ≈ {:>8} s ({} multiply-adds)  {}{}",
             p.phase,
-            closed_loop::budget::secs(p.seconds),
-            closed_loop::budget::sci(p.work),
+            iss_certificate::budget::secs(p.seconds),
+            iss_certificate::budget::sci(p.work),
             if p.runs { "" } else { "[skipped] " },
             p.detail
         );
@@ -550,7 +550,7 @@ pub fn run_job(job: &Job, settings: &Settings) -> Result<Outcome> {
     // The K-iteration MPC (`mpc.iterations`): the joint certificate decides the runs.
     let joint_cert = joint::joint_certificate(&resolved, &cert, solver)?;
     let own_controller = LoopOptions::from_scenario(&scenario)?.controller;
-    // The certificate covering the scenario's configuration (closed_loop::coverage): the
+    // The certificate covering the scenario's configuration (iss_certificate::coverage): the
     // same decision as the sweeps' `certified` column.
     let applicable = Applicable::new(&resolved, &cert, solver, own_controller);
     let not_covered = match &applicable {

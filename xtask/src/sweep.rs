@@ -9,13 +9,13 @@ use std::path::{Path, PathBuf};
 use std::time::{Instant, SystemTime, UNIX_EPOCH};
 
 use anyhow::{Context, Result, bail};
-use closed_loop::sweep::{
+use indicatif::{ProgressBar, ProgressStyle};
+use serde_json::json;
+use xtask::sweep_engine::{
     PairThresholds, Point, Progress, RunOptions, Shard, Sweep, SweepConfig, SweepReport, Table,
     Thresholds, merge_point_dirs, pair_thresholds, pair_thresholds_markdown, thresholds,
     thresholds_markdown,
 };
-use indicatif::{ProgressBar, ProgressStyle};
-use serde_json::json;
 
 use crate::output::{Backup, OutputSet, check_out_dir};
 use crate::provenance::{Provenance, workspace_root};
@@ -522,7 +522,7 @@ pub fn merge(args: &MergeArgs) -> Result<()> {
 /// The thresholds of an assembled sweep: per solver and scale (and K_c: each K_c a curve
 /// over K_e), and for a 2-D sweep the regions and cheapest pairs of (K_e, K_c).
 fn all_thresholds(sweep: &Sweep, table: &Table) -> (Vec<Thresholds>, Vec<PairThresholds>) {
-    let certified: Vec<(String, closed_loop::sweep::Staircase)> = sweep
+    let certified: Vec<(String, xtask::sweep_engine::Staircase)> = sweep
         .certified_boundaries()
         .iter()
         .map(|(m, st)| (m.to_string(), st.clone()))
@@ -557,7 +557,7 @@ fn print_thresholds(sweep: &Sweep, thresholds: &[Thresholds], pairs: &[PairThres
                 "2-D thresholds (a region holds a pair when its criterion holds at every grid pair with K_e and K_c at least as large; cost K_e·{} + K_c·{}{}):",
                 c.t_e,
                 c.t_c,
-                if c == closed_loop::sweep::IterationCost::default() {
+                if c == xtask::sweep_engine::IterationCost::default() {
                     ", the default 1:1 — iterations, not time"
                 } else {
                     ""
@@ -610,7 +610,7 @@ pub fn theory_summary(sweep: &Sweep) -> String {
             .filter(|(_, st)| !st.is_empty())
             .count();
         return if computed == 0 {
-            "the joint (K_e, K_c) certificate could not be computed (closed_loop::sweep::certified_boundary); Theorem 1's columns are void for the sub-optimal MPC".to_string()
+            "the joint (K_e, K_c) certificate could not be computed (xtask::sweep_engine::certified_boundary); Theorem 1's columns are void for the sub-optimal MPC".to_string()
         } else {
             format!(
                 "the joint (K_e, K_c) certificate's region for {computed} of {} solvers (drawn on the heat maps)",

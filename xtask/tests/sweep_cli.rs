@@ -8,7 +8,7 @@ use std::path::{Path, PathBuf};
 use std::process::{Command, Output, Stdio};
 use std::time::{Duration, Instant};
 
-use closed_loop::sweep::{Sweep, SweepConfig, Table};
+use xtask::sweep_engine::{Sweep, SweepConfig, Table};
 
 const XTASK: &str = env!("CARGO_BIN_EXE_xtask");
 const SCENARIO: &str = concat!(
@@ -382,7 +382,7 @@ fn corrupt_point_files_and_missing_shard_dirs_are_named() {
     // Random bytes in a point file: named, with the fix, not an I/O message.
     // Seeded bytes (SplitMix64 of 0, 1, 2, …).
     let bytes: Vec<u8> = (0..125u64)
-        .flat_map(|i| closed_loop::sweep::splitmix64(i).to_le_bytes())
+        .flat_map(|i| closed_loop::monte_carlo::splitmix64(i).to_le_bytes())
         .collect();
     assert!(String::from_utf8(bytes.clone()).is_err());
     fs::write(out.join("points/p00001.csv"), &bytes).unwrap();

@@ -1,7 +1,7 @@
 //! A user's own estimator in the closed loop: a Luenberger observer (steady-state Kalman gain
 //! from the dual DARE) written here, with its own error type, run against the sub-optimal
 //! MHE at several K on the same disturbance draws, through the library's Monte-Carlo driver
-//! ([`closed_loop::sweep::monte_carlo`]: the sweep's seeds, metrics and bounded rule). The
+//! ([`closed_loop::monte_carlo::monte_carlo`]: the sweep's seeds, metrics and bounded rule). The
 //! factory that builds each run returns this file's own error type ([`SetupError`]): the
 //! driver hands it back unchanged.
 //!
@@ -10,9 +10,10 @@
 //! ```
 //! (default `scenarios/case-study-certified.toml`, 20 runs).
 
+use closed_loop::metrics::{DEFAULT_BOUNDED_FACTOR, Metric, RunMetrics};
+use closed_loop::monte_carlo::{MonteCarlo, monte_carlo};
 use closed_loop::scenario::{ControllerChoice, LoopOptions, Scenario, scenario_disturbance};
 use closed_loop::sim::{ClosedLoop, ClosedLoopError};
-use closed_loop::sweep::{DEFAULT_BOUNDED_FACTOR, Metric, MonteCarlo, RunMetrics, monte_carlo};
 use faer::Mat;
 use lti_model::{LtiSystem, ModelError};
 use mhe_core::Estimator;

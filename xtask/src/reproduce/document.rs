@@ -230,14 +230,14 @@ pub struct CertificateDocument {
     /// The scenario's solver has a K_min.
     pub certified: bool,
     /// The certificate covering the scenario's configuration (method, controller, warm
-    /// start: [`closed_loop::coverage`]): `"theorem1"`, `"joint"`, or null when none does.
-    pub certificate_applies: Option<closed_loop::coverage::CertificateKind>,
+    /// start: [`iss_certificate::coverage`]): `"theorem1"`, `"joint"`, or null when none does.
+    pub certificate_applies: Option<iss_certificate::coverage::CertificateKind>,
     /// Why no certificate covers the configuration (null when one does); `certified` is
     /// then false whatever Theorem 1's constants give.
     pub not_covered: Option<String>,
     /// The covering certificate's verdict at the scenario's own pair (`mhe.iterations`,
     /// `mpc.iterations`): the same function the sweeps' `certified` column calls.
-    pub at_scenario: closed_loop::coverage::PairVerdict,
+    pub at_scenario: iss_certificate::coverage::PairVerdict,
     /// `scenario_iterations == k_min` of the scenario's solver (null when void).
     pub scenario_iterations_match_k_min: Option<bool>,
     /// Per solver: premises, K_min or reasons.
@@ -255,9 +255,9 @@ pub struct CertificateDocument {
     #[serde(skip_serializing_if = "Option::is_none")]
     pub joint: Option<super::joint::JointReport>,
     /// The exact linear stability boundary per method (exact MPC): ρ_lin(K) on a log grid,
-    /// K_lin and every K with ρ_lin ≥ 1 (necessary for stability; `closed_loop::linear`).
+    /// K_lin and every K with ρ_lin ≥ 1 (necessary for stability; `iss_certificate::linear`).
     pub linear: Vec<LinearEntry>,
-    /// The regional certificate of each method at its K_min (`closed_loop::regional`): the
+    /// The regional certificate of each method at its K_min (`iss_certificate::regional`): the
     /// region that contains the scenario's own uncertainty or the constraint that limits it,
     /// the certified rate and gains (issue 27).
     pub regional: Vec<super::regional::RegionalEntry>,

@@ -1,17 +1,17 @@
 //! `reproduce` for a scenario whose controller is the K-iteration MPC (`mpc.iterations`): the
-//! joint MPC + MHE certificate (closed_loop::joint), the run at the cheapest certified pair and
+//! joint MPC + MHE certificate (iss_certificate::joint), the run at the cheapest certified pair and
 //! every inequality of the joint proof checked on it.
 
 use std::fmt::Write as _;
 
 use anyhow::{Context, Result};
 use closed_loop::Trace;
-use closed_loop::certificate::ClosedLoopCertificate;
-use closed_loop::joint::{
+use closed_loop::scenario::ResolvedScenario;
+use iss_certificate::certificate::ClosedLoopCertificate;
+use iss_certificate::joint::{
     JointCertificate, JointOptions, JointTrajectoryCheck, certify_joint, check_joint_trajectory,
     delta_series,
 };
-use closed_loop::scenario::ResolvedScenario;
 use qp_iter::Method;
 use serde::Serialize;
 

@@ -8,7 +8,7 @@ pub struct LinearEntry {
     /// The method.
     pub solver: String,
     /// The report (null when the analysis does not apply).
-    pub report: Option<closed_loop::linear::LinearReport>,
+    pub report: Option<iss_certificate::linear::LinearReport>,
     /// Why there is no report (e.g. 0 on a bound of a box: no inactive neighbourhood).
     pub error: Option<String>,
 }
@@ -24,7 +24,7 @@ pub const LINEAR_ALL_METHODS_MAX_NZ: usize = 128;
 /// every method of the certificate (only for `own`, the scenario's method, when the window
 /// has more than [`LINEAR_ALL_METHODS_MAX_NZ`] variables: the others then say so); every
 /// (method, K) pair is a task on the global rayon pool
-/// ([`closed_loop::linear::linear_stability_all_budgeted`]; the result does not depend on the
+/// ([`iss_certificate::linear::linear_stability_all_budgeted`]; the result does not depend on the
 /// thread count).
 ///
 /// Beyond the budget `phase_seconds` (estimated seconds of one core for all methods) nothing
@@ -45,7 +45,7 @@ pub(super) fn linear_entries(
         .iter()
         .filter_map(|s| s.k_min)
         .fold(2000, usize::max);
-    let grid = closed_loop::sweep::log_spaced(1, top, 25);
+    let grid = iss_certificate::linear::log_spaced(1, top, 25);
     let methods: Vec<Method> = cert.solvers.iter().map(|s| s.solver).collect();
     let options: Vec<Result<LoopOptions, ClosedLoopError>> = methods
         .iter()
@@ -79,7 +79,7 @@ pub(super) fn linear_entries(
             );
         }
     };
-    let mut reports = closed_loop::linear::linear_stability_all_budgeted(
+    let mut reports = iss_certificate::linear::linear_stability_all_budgeted(
         resolved,
         &ok,
         &grid,
@@ -110,8 +110,8 @@ pub(super) fn linear_entries(
             let result = match o {
                 Ok(_) => reports
                     .next()
-                    .unwrap_or(Err(closed_loop::linear::LinearError::ZeroIterations)),
-                Err(e) => Err(closed_loop::linear::LinearError::from(e)),
+                    .unwrap_or(Err(iss_certificate::linear::LinearError::ZeroIterations)),
+                Err(e) => Err(iss_certificate::linear::LinearError::from(e)),
             };
             let (report, error) = match result {
                 Ok(r) => (Some(r), None),

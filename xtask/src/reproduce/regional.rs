@@ -1,4 +1,4 @@
-//! The regional certificate (issue 27, `closed_loop::regional`) of each method at its K_min,
+//! The regional certificate (issue 27, `iss_certificate::regional`) of each method at its K_min,
 //! for certificate.json: the region, the limiting constraint and the certified gains.
 
 use super::*;
@@ -11,7 +11,7 @@ pub struct RegionalEntry {
     /// The K it was evaluated at (the method's K_min; null when Theorem 1 is void).
     pub k: Option<usize>,
     /// The certificate (null when void).
-    pub certificate: Option<closed_loop::regional::RegionalCertificate>,
+    pub certificate: Option<iss_certificate::regional::RegionalCertificate>,
     /// Why there is none.
     pub void: Option<String>,
 }
@@ -21,14 +21,14 @@ pub struct RegionalEntry {
 /// cart-pendulum's PG at K_min = 140 227 needed more than 24 GB. Beyond it the entry says so.
 pub const REGIONAL_MAX_K_NZ: usize = 200_000;
 
-/// [`closed_loop::regional::regional_certificate`] of every method at its K_min, with the
+/// [`iss_certificate::regional::regional_certificate`] of every method at its K_min, with the
 /// exact MPC and the scenario's own uncertainty (`certificate.x0_radius`, `prior_error`,
 /// `w_bar` or their defaults); not computed when K_min·n_z > [`REGIONAL_MAX_K_NZ`].
 pub(super) fn regional_entries(
     resolved: &ResolvedScenario,
     cert: &ClosedLoopCertificate,
 ) -> Vec<RegionalEntry> {
-    use closed_loop::regional::{RegionalOptions, regional_certificate};
+    use iss_certificate::regional::{RegionalOptions, regional_certificate};
     let options = RegionalOptions::from_scenario(resolved, ControllerChoice::ExactMpc);
     let plant = &resolved.scenario().plant;
     let n_z = plant.nx() + cert.horizon * plant.nw();
@@ -47,7 +47,7 @@ pub(super) fn regional_entries(
                     Some(format!(
                         "not computed: the region's rows grow with K·n_z, and K_min·n_z = \
                          {k}·{n_z} is above {REGIONAL_MAX_K_NZ}, the limit of `reproduce` \
-                         (closed_loop::regional::regional_certificate computes it)"
+                         (iss_certificate::regional::regional_certificate computes it)"
                     )),
                 ),
                 (Ok(o), Some(k)) => match regional_certificate(resolved, s.solver, k.max(1), o) {

@@ -20,7 +20,7 @@ pub(super) fn verdict(d: &CertificateDocument) -> String {
             divergence: r.divergence,
         })
         .collect();
-    let lead = closed_loop::plan::divergence_lead(&runs);
+    let lead = iss_certificate::plan::divergence_lead(&runs);
     if let Some(r) = &d.not_covered {
         return format!(
             "{lead}NOT CERTIFIED: {r}. The constants and K_min are reported for reference \
@@ -58,7 +58,7 @@ pub(super) fn verdict(d: &CertificateDocument) -> String {
         .solvers
         .iter()
         .find(|s| s.solver.name() == d.solver);
-    closed_loop::plan::verdict(own, d.trajectory_check.passed, &runs)
+    iss_certificate::plan::verdict(own, d.trajectory_check.passed, &runs)
 }
 
 /// ", N step(s) within the rounding floor (≤ …)" when the floor was needed (empty otherwise).

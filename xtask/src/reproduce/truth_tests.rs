@@ -6,8 +6,8 @@
 
 use std::path::Path;
 
-use closed_loop::coverage::{CertificateKind, Certified};
-use closed_loop::sweep::{NoProgress, RunOptions, Sweep, SweepConfig, Table};
+use iss_certificate::coverage::{CertificateKind, Certified};
+use xtask::sweep_engine::{NoProgress, RunOptions, Sweep, SweepConfig, Table};
 
 use super::*;
 

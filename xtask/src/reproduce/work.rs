@@ -9,9 +9,9 @@
 use std::io::IsTerminal;
 use std::time::{Duration, Instant};
 
-use closed_loop::plan::KSource;
 use closed_loop::scenario::Scenario;
 use indicatif::{ProgressBar, ProgressDrawTarget, ProgressStyle};
+use iss_certificate::plan::KSource;
 use qp_iter::Method;
 
 use super::numfmt;

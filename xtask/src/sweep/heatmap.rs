@@ -2,7 +2,7 @@
 //! disturbance scale the bounded fraction and the median last-quarter ‖e‖, per solver ρ_lin
 //! (it does not depend on the scale), each with three region boundaries as staircases: the
 //! empirical one (every run bounded at every grid pair above), the linear one (ρ_lin < 1 at
-//! every grid pair above; `closed_loop::sweep::pair_thresholds`) and the joint certificate's
+//! every grid pair above; `xtask::sweep_engine::pair_thresholds`) and the joint certificate's
 //! (`Sweep::certified_boundaries`; "certificate: not computed" in the legend while it is
 //! empty).
 //!
@@ -15,9 +15,9 @@
 use std::path::Path;
 
 use anyhow::{Result, anyhow};
-use closed_loop::sweep::{PairThresholds, Staircase, Sweep, Table};
 use plotters::coord::ranged1d::{DefaultFormatting, KeyPointHint};
 use plotters::prelude::*;
+use xtask::sweep_engine::{PairThresholds, Staircase, Sweep, Table};
 
 use super::plots::shorten;
 use crate::output::OutputSet;

@@ -6,8 +6,8 @@
 use std::path::Path;
 
 use anyhow::{Context, Result, anyhow};
-use closed_loop::sweep::{Sweep, Table};
 use plotters::prelude::*;
+use xtask::sweep_engine::{Sweep, Table};
 
 use crate::output::OutputSet;
 

@@ -1,10 +1,10 @@
 //! The schedule of a sweep in `meta.json` and on the terminal: serial time, the pool's
 //! measured efficiency, and the replay of the measured task times for other thread counts
-//! (`closed_loop::sweep::ScheduleReport`; model and assumptions in docs/sweeps.md,
+//! (`xtask::sweep_engine::ScheduleReport`; model and assumptions in docs/sweeps.md,
 //! "Scaling").
 
-use closed_loop::sweep::{Prediction, SweepReport};
 use serde_json::json;
+use xtask::sweep_engine::{Prediction, SweepReport};
 
 /// Thread counts the replay predicts (1 and 2 check the model against measured walls).
 pub const PREDICT_AT: [usize; 4] = [1, 2, 16, 64];

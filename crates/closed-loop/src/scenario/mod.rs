@@ -117,6 +117,13 @@ impl Scenario {
     }
 }
 
+/// Default `certificate.phase_seconds`: the estimated seconds of one core an optional
+/// analysis phase of the certificate may take before it is skipped.
+pub const DEFAULT_PHASE_SECONDS: f64 = 10.0;
+
+/// Largest accepted `certificate.phase_seconds` (about 11 days).
+pub const MAX_PHASE_SECONDS: f64 = 1e6;
+
 /// The `[certificate]` section: inputs of Theorem 1's certificate the user may supply.
 #[derive(Debug, Clone, Copy, PartialEq, Default)]
 pub struct CertificateSettings {
@@ -124,7 +131,7 @@ pub struct CertificateSettings {
     /// "user-supplied, not verified" and refuted when the sampled lower estimate exceeds it;
     /// `None`: computed.
     pub gamma13: Option<f64>,
-    /// Regional certificate (`closed_loop::regional`): the true x₀ lies within this
+    /// Regional certificate (`iss_certificate::regional`): the true x₀ lies within this
     /// Euclidean distance of `simulation.x0` (`certificate.x0_radius`; `None`: 0).
     pub x0_radius: Option<f64>,
     /// Regional certificate: ‖prior − x₀‖ ≤ this (`certificate.prior_error`; `None`: the
@@ -134,17 +141,16 @@ pub struct CertificateSettings {
     /// largest ‖w‖₂ of the noise the scenario draws, `sets.disturbance` × `noise.scale`).
     pub w_bar: Option<f64>,
     /// The analysis budget (`certificate.phase_seconds`: estimated single-core seconds one
-    /// optional phase may take — the γ₁,₃ free-set enumeration, ρ_lin; [`crate::budget`]);
+    /// optional phase may take — the γ₁,₃ free-set enumeration, ρ_lin; `iss_certificate::budget`);
     /// `None`: the default
-    /// [`crate::budget::DEFAULT_PHASE_SECONDS`].
+    /// [`DEFAULT_PHASE_SECONDS`].
     pub phase_seconds: Option<f64>,
 }
 
 impl CertificateSettings {
     /// The budget in force: `certificate.phase_seconds` or the default.
     pub fn phase_seconds(&self) -> f64 {
-        self.phase_seconds
-            .unwrap_or(crate::budget::DEFAULT_PHASE_SECONDS)
+        self.phase_seconds.unwrap_or(DEFAULT_PHASE_SECONDS)
     }
 }
 
@@ -178,14 +184,14 @@ impl CertificateSettings {
         }
         let phase_seconds = raw.and_then(|r| r.phase_seconds);
         if let Some(w) = phase_seconds {
-            let max = crate::budget::MAX_PHASE_SECONDS;
+            let max = MAX_PHASE_SECONDS;
             if !(w.is_finite() && w > 0.0 && w <= max) {
                 return Err(key_error(
                     "certificate.phase_seconds",
                     format!(
                         "is {w}; the analysis budget (estimated seconds per optional phase) \
                          must be in (0, {max:e}] (default {}; omit it for the default)",
-                        crate::budget::DEFAULT_PHASE_SECONDS
+                        DEFAULT_PHASE_SECONDS
                     ),
                 ));
             }

@@ -1,10 +1,10 @@
-//! `closed_loop::sweep::monte_carlo` with a factory that returns its own error type: the
+//! `closed_loop::monte_carlo::monte_carlo` with a factory that returns its own error type: the
 //! error comes back as the factory gave it (no conversion to `ClosedLoopError`), and it is
 //! the error of the lowest-numbered failing run whatever the thread count.
 
+use closed_loop::monte_carlo::{MonteCarlo, monte_carlo, monte_carlo_seed};
 use closed_loop::scenario::{LoopOptions, Scenario};
 use closed_loop::sim::ClosedLoopError;
-use closed_loop::sweep::{MonteCarlo, monte_carlo, monte_carlo_seed};
 
 /// A user's own setup error: its own failure, or the library's.
 #[derive(Debug, thiserror::Error)]

@@ -898,10 +898,10 @@ fn a_diverging_estimator_with_bounded_state_is_not_bounded() {
     // x̂ = 2ᵗ·1: ‖e‖ reaches ~1e12 while |u| ≤ 1 keeps the stable plant's x bounded.
     let diverging = run(Doubling(vec![1.0; 4]));
     assert!(diverging.sup_norm_x() < 1e3 * (1.0 + norm(x0)));
-    let (_, bounded) = closed_loop::sweep::run_metrics(&diverging, x0, input, 1e3, None);
+    let (_, bounded) = closed_loop::metrics::run_metrics(&diverging, x0, input, 1e3, None);
     assert!(!bounded, "sup ‖e‖ = {}", diverging.sup_norm_e());
     // The same loop with a sane estimate is bounded.
     let sane = run(Doubling(vec![0.0; 4]));
-    let (_, bounded) = closed_loop::sweep::run_metrics(&sane, x0, input, 1e3, None);
+    let (_, bounded) = closed_loop::metrics::run_metrics(&sane, x0, input, 1e3, None);
     assert!(bounded);
 }

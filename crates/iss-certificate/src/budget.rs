@@ -1,0 +1,288 @@
+//! Time budgets of the analysis phases (issue 25 item 4, issue 23 item 3): every phase of
+//! the certificate has an estimate (multiply-adds from the dimensions alone, converted to
+//! seconds of one core at a rate per kind of kernel) before it starts, and one budget per
+//! phase, `certificate.phase_seconds` (default [`DEFAULT_PHASE_SECONDS`]), decides what
+//! happens to a phase beyond it:
+//!
+//! | phase | beyond the budget |
+//! | --- | --- |
+//! | γ₁,₃ free-set enumeration | skipped: the polynomial (S-procedure) bound alone is used, and the skip says so |
+//! | ρ_lin (the linear stability boundary, `reproduce`) | skipped with the estimate, the budget and the key |
+//! | L_Φ sampling (a lower estimate; no certificate depends on it) | fewer pairs, and `l_phi.pairs_reduced` says so |
+//! | δ-IOSS P, MHE constants (H̄, L_Φ, φ(K)), L_π, γ₁,₃ family bounds | run (every certificate needs them); the estimate is printed first, so a long phase is announced |
+//!
+//! The estimates are deterministic formulas of the dimensions (so the certificate does not
+//! depend on the machine), right to within a factor of a few: dense factorisations n³/3,
+//! eigenvalues ≈ 10n³, products mnk multiply-adds. Blocked dense kernels (faer) run at about
+//! [`DENSE_RATE`] multiply-adds per second on one core of the project's machine, the scalar
+//! loops over small matrices (the free-set enumerations) at about [`SCALAR_RATE`]; the
+//! calibration is in docs/limits.md.
+
+use crate::certificate::CertificateOptions;
+use closed_loop::scenario::Scenario;
+use mpc_core::CondensedMpc;
+use serde::Serialize;
+
+/// The budget's default and limit are defined where `certificate.phase_seconds` is read.
+pub use closed_loop::scenario::{DEFAULT_PHASE_SECONDS, MAX_PHASE_SECONDS};
+
+/// Multiply-adds per second of one core in blocked dense kernels (products, factorisations,
+/// eigenvalues of faer): measured 3·10¹⁰ on ρ_lin of the thermal rod (M = 10), rounded down.
+pub const DENSE_RATE: f64 = 2e10;
+
+/// Multiply-adds per second of one core in the scalar loops over small matrices (the
+/// free-set enumerations): measured ≈ 1.2·10⁹ on the γ₁,₃ enumeration of the thermal rod.
+pub const SCALAR_RATE: f64 = 1e9;
+
+/// One analysis phase with its estimated work.
+#[derive(Debug, Clone, PartialEq, Serialize)]
+pub struct PhaseEstimate {
+    /// The phase (`"δ-IOSS P"`, `"γ₁,₃ free-set enumeration"`, …).
+    pub phase: String,
+    /// Estimated multiply-adds.
+    pub work: f64,
+    /// Estimated seconds of one core (`work` at the kernel's rate).
+    pub seconds: f64,
+    /// Whether the phase runs within the budget (false: skipped, `detail` says what is used
+    /// instead).
+    pub runs: bool,
+    /// What the estimate counts, and what happens beyond the limit.
+    pub detail: String,
+}
+
+/// `x` with 3 significant digits in scientific notation (`2.00e10`), or `inf`.
+pub fn sci(x: f64) -> String {
+    if x.is_finite() {
+        format!("{x:.2e}")
+    } else {
+        "inf".into()
+    }
+}
+
+/// Seconds with at most 3 significant digits (`0.012`, `7.5`, `672`, `1.2e4`).
+pub fn secs(x: f64) -> String {
+    if !x.is_finite() {
+        "inf".into()
+    } else if x >= 1e4 {
+        format!("{x:.1e}")
+    } else if x >= 100.0 {
+        format!("{x:.0}")
+    } else if x >= 10.0 {
+        format!("{x:.1}")
+    } else if x >= 1.0 {
+        format!("{x:.2}")
+    } else {
+        format!("{x:.2e}")
+    }
+}
+
+/// Estimated multiply-adds of one exact solve of every MHE window (the active set of the
+/// sampled L_Φ): Σ_m n_z,m³/3 (scalar loops).
+fn window_solves_work(nzs: impl Iterator<Item = usize>) -> f64 {
+    nzs.map(|n| (n as f64).powi(3) / 3.0).sum()
+}
+
+/// The pairs of the sampled L_Φ within the budget: `requested`, or fewer (at least 1) when
+/// 2·`requested` exact solves of every window are estimated beyond `phase_seconds`, with the
+/// sentence that says so (the sampled L_Φ is a lower estimate reported beside the certified
+/// bound; no certificate depends on it).
+pub fn l_phi_sampling_pairs(
+    problem: &mhe_core::MheProblem,
+    requested: usize,
+    phase_seconds: f64,
+) -> (usize, Option<String>) {
+    let per_pair =
+        2.0 * window_solves_work(problem.windows().iter().map(|w| w.qp().n())) / SCALAR_RATE;
+    let total = per_pair * requested as f64;
+    if requested == 0 || total <= phase_seconds {
+        return (requested, None);
+    }
+    let fit = ((phase_seconds / per_pair).floor() as usize).clamp(1, requested);
+    (
+        fit,
+        Some(format!(
+            "{requested} pairs are estimated at ≈ {} s of one core (2 exact solves of each of \
+             the {} windows per pair) > the analysis budget of {} s (scenario key \
+             `certificate.phase_seconds`): {fit} pair(s) sampled",
+            secs(total),
+            problem.windows().len(),
+            secs(phase_seconds)
+        )),
+    )
+}
+
+fn phase(name: &str, work: f64, rate: f64, runs: bool, detail: String) -> PhaseEstimate {
+    PhaseEstimate {
+        phase: name.into(),
+        work,
+        seconds: work / rate,
+        runs,
+        detail,
+    }
+}
+
+/// Estimated work of the certificate's phases for `scenario` (needs `[mhe]`; `mpc` is the
+/// scenario's condensed MPC, for the number of saturable variables) under `opts`. The
+/// estimate of ρ_lin is the one of [`crate::linear::LiftedDims::grid_work`] from the dimensions,
+/// for the four preset methods on reproduce's 25-point K grid up to `k_top`.
+pub fn estimate_phases(
+    scenario: &Scenario,
+    mpc: Option<&CondensedMpc>,
+    opts: &CertificateOptions,
+    k_top: usize,
+) -> Vec<PhaseEstimate> {
+    let sys = &scenario.plant;
+    let (nx, nw) = (sys.nx() as f64, (sys.nw1() + sys.nw2()) as f64);
+    let m = scenario.mhe.as_ref().map_or(0, |s| s.horizon);
+    let nz = |w: usize| nx + w as f64 * nw;
+    let solvers = opts.solvers.len() as f64;
+    let mut out = Vec::new();
+    out.push(phase(
+        "δ-IOSS P (LMI (2))",
+        10.0 * nx.powi(3) * 300.0,
+        DENSE_RATE,
+        true,
+        format!(
+            "≈ 10 n_x³ per iteration of the maximal-P iteration, ~300 iterations (at most \
+             200 000); n_x = {nx}"
+        ),
+    ));
+    // Per window m = 0..M: the condensed Hessian (nz²·nx), its eigenvalues per solver (10 nz³)
+    // and the certified L_Φ (10 nz³).
+    let windows: f64 = (0..=m)
+        .map(|w| {
+            let n = nz(w);
+            n * n * nx + (solvers + 1.0) * 10.0 * n.powi(3)
+        })
+        .sum();
+    out.push(phase(
+        "MHE constants (H̄, L_Φ, φ(K))",
+        windows,
+        DENSE_RATE,
+        true,
+        format!(
+            "{} windows m = 0..M of n_z = n_x + m·n_w ≤ {} variables: eigenvalues per solver \
+             and the certified L_Φ (≈ 10 n_z³ each)",
+            m + 1,
+            nz(m)
+        ),
+    ));
+    let sampling =
+        opts.lipschitz_pairs as f64 * 2.0 * window_solves_work((0..=m).map(|w| nz(w) as usize));
+    let within = sampling / SCALAR_RATE <= opts.phase_seconds;
+    out.push(phase(
+        "L_Φ sampling",
+        sampling,
+        SCALAR_RATE,
+        within,
+        if within {
+            format!(
+                "{} pairs × 2 exact solves per window (active set, ≈ n_z³/3 each)",
+                opts.lipschitz_pairs
+            )
+        } else {
+            format!(
+                "{} pairs × 2 exact solves per window (active set, ≈ n_z³/3 each): beyond the \
+                 budget of {} s (`certificate.phase_seconds`), fewer pairs are sampled",
+                opts.lipschitz_pairs,
+                secs(opts.phase_seconds)
+            )
+        },
+    ));
+    if let Some(mpc) = mpc {
+        let n = mpc.qp().n() as f64;
+        let s = mpc.saturable().len();
+        let enumerate_l_pi = s <= mpc_core::ENUMERATION_MAX_VARS;
+        let l_pi = if enumerate_l_pi {
+            (1u64 << s) as f64 * (n.powi(3) / 6.0 + 2.0 * n * n * nx)
+        } else {
+            0.0
+        } + opts.lipschitz_pairs as f64 * 40.0 * n * n * (n + nx);
+        out.push(phase(
+            "L_π",
+            l_pi,
+            SCALAR_RATE,
+            true,
+            if enumerate_l_pi {
+                format!("2^{s} free sets (Cholesky of ≤ {n} variables) and the sampled estimate")
+            } else {
+                format!(
+                    "polynomial bound (s = {s} > {}) and the sampled estimate",
+                    mpc_core::ENUMERATION_MAX_VARS
+                )
+            },
+        ));
+        let fams = crate::gamma13::GAMMA13_PATTERN_FAMILIES as f64;
+        out.push(phase(
+            "γ₁,₃ family bounds",
+            20.0 * (fams + 1.0) * 2.0 * 30.0 * (n + nx).powi(3),
+            SCALAR_RATE,
+            true,
+            "≈ 20 metrics × ≤ 17 families × 2 S-procedure searches (≈ 30 eigenvalue problems \
+             of n_x + N·n_u each)"
+                .into(),
+        ));
+        let enum_work = crate::gamma13::enumeration_work(mpc, 3);
+        let allowed = s <= opts.enumeration_max_vars.min(30);
+        let within = enum_work / SCALAR_RATE <= opts.phase_seconds;
+        out.push(phase(
+            "γ₁,₃ free-set enumeration",
+            if allowed { enum_work } else { 0.0 },
+            SCALAR_RATE,
+            allowed && within,
+            if !allowed {
+                format!(
+                    "not run: s = {s} saturable variables > cap {}",
+                    opts.enumeration_max_vars.min(30)
+                )
+            } else if within {
+                format!("2^{s} free sets × 3 metrics at n_x = {nx}")
+            } else {
+                format!(
+                    "2^{s} free sets × 3 metrics at n_x = {nx}: beyond the budget of {} s \
+                     (`certificate.phase_seconds`), the polynomial bound is used instead",
+                    secs(opts.phase_seconds)
+                )
+            },
+        ));
+        let dims = crate::linear::LiftedDims {
+            nx: sys.nx(),
+            nu: sys.nu(),
+            ny: sys.ny(),
+            horizon: m,
+            nz: nz(m) as usize,
+            n_controller: 0,
+            n_theta: sys.nx() + m * (sys.nu() + sys.ny()),
+        };
+        let grid = crate::linear::log_spaced(1, k_top.max(2000), 25);
+        let per_method: Vec<f64> = [1usize, 2, 1, 1]
+            .iter()
+            .map(|&lift| dims.grid_work(nz(m) as usize * lift, &grid))
+            .collect();
+        let total: f64 = per_method.iter().sum();
+        let runs = total / DENSE_RATE <= opts.phase_seconds;
+        out.push(phase(
+            "ρ_lin (reproduce)",
+            total,
+            DENSE_RATE,
+            runs,
+            format!(
+                "{} methods × {} K: the K-step map and the eigenvalues of the {} × {} lifted \
+                 matrix{}",
+                per_method.len(),
+                grid.len(),
+                dims.dim(),
+                dims.dim(),
+                if runs {
+                    String::new()
+                } else {
+                    format!(
+                        "; beyond the budget of {} s (`certificate.phase_seconds`): not computed",
+                        secs(opts.phase_seconds)
+                    )
+                }
+            ),
+        ));
+    }
+    out
+}

@@ -1,0 +1,332 @@
+//! Computing the certificate of a resolved scenario: every constant, per method.
+
+use lti_model::matrix::{spectral_norm, sym_extreme_eigenvalues};
+use mhe_core::{LipschitzSampling, MheProblem};
+
+use super::*;
+use crate::analysis::{IssInputs, eta_sup_for_horizon, min_horizon_for_eta};
+use closed_loop::scenario::ResolvedScenario;
+use closed_loop::sim::ClosedLoopError;
+
+fn map_certificates(
+    solver: Method,
+    problem: &MheProblem,
+) -> Result<Vec<Certificate>, ClosedLoopError> {
+    problem
+        .windows()
+        .iter()
+        .map(|w| {
+            solver
+                .certificate_for(w.qp().clone())
+                .map_err(|e| ClosedLoopError::Mhe(mhe_core::MheError::Qp(e)))
+        })
+        .collect()
+}
+
+/// Computes the closed-loop certificate of a scenario (needs `[mhe]` and `[mpc]`).
+///
+/// Errors only for bad input (missing sections, invalid data); an infeasible LMI or a
+/// violated premise is *reported* in the result (void certificates), not an error.
+pub fn certify_closed_loop(
+    resolved: &ResolvedScenario,
+    opts: &CertificateOptions,
+) -> Result<ClosedLoopCertificate, ClosedLoopError> {
+    certify_closed_loop_timed(resolved, opts).map(|(c, _)| c)
+}
+
+/// Wall time of each part of [`certify_closed_loop`] (seconds), for the commands' own
+/// timing output (the certificate itself is deterministic; these are not).
+#[derive(Debug, Clone, Copy, Default, PartialEq, serde::Serialize)]
+pub struct CertificateTimes {
+    /// The MHE's condensed windows, H̄ and the certified L_Φ.
+    pub mhe_constants_s: f64,
+    /// The sampled L_Φ (exact solves of every window at seeded pairs).
+    pub l_phi_sampling_s: f64,
+    /// L_π (certified and sampled).
+    pub l_pi_s: f64,
+    /// γ₁,₃ (certified and sampled).
+    pub gamma13_s: f64,
+    /// Theorem 1 per solver (φ(K), the small-gain conditions, K_min).
+    pub theorem1_s: f64,
+    /// The whole certificate.
+    pub total_s: f64,
+}
+
+/// [`certify_closed_loop`] with the wall time of each part.
+pub fn certify_closed_loop_timed(
+    resolved: &ResolvedScenario,
+    opts: &CertificateOptions,
+) -> Result<(ClosedLoopCertificate, CertificateTimes), ClosedLoopError> {
+    certify_closed_loop_with(resolved, opts, ComputedParts::default())
+}
+
+/// The two long enumerations of the certificate, computed elsewhere in independent pieces
+/// (the sweep's pool runs them as tasks beside its runs: [`mpc_core::CondensedMpc::lipschitz_enumerated_in`]
+/// and the stages of [`crate::gamma13::Gamma13Plan`]). `None`: computed by
+/// [`certify_closed_loop_with`] itself.
+#[derive(Debug, Default)]
+pub struct ComputedParts {
+    /// L_enum of the scenario's MPC: what `mpc.lipschitz_enumerated(`[`mpc_core::ENUMERATION_MAX_VARS`]`)`
+    /// returns (used only without state constraints).
+    pub l_pi_enumerated: Option<Result<Option<f64>, mpc_core::MpcError>>,
+    /// The certified γ₁,₃: what [`crate::gamma13::gamma13_certified_budgeted`] returns with
+    /// `opts.enumeration_max_vars`, [`crate::gamma13::GAMMA13_PATTERN_FAMILIES`] and
+    /// `opts.phase_seconds` (used only for [`Gamma13Source::Certified`] without state
+    /// constraints).
+    pub gamma13_certified: Option<Result<crate::gamma13::Gamma13Certificate, mpc_core::MpcError>>,
+}
+
+/// [`certify_closed_loop_timed`] with the parts of `parts` computed elsewhere: the same
+/// certificate, bit for bit, when they are what their fields say.
+pub fn certify_closed_loop_with(
+    resolved: &ResolvedScenario,
+    opts: &CertificateOptions,
+    parts: ComputedParts,
+) -> Result<(ClosedLoopCertificate, CertificateTimes), ClosedLoopError> {
+    let ComputedParts {
+        l_pi_enumerated,
+        gamma13_certified,
+    } = parts;
+    let start = std::time::Instant::now();
+    let mut times = CertificateTimes::default();
+    let mut lap = start;
+    let mut split = move || {
+        let now = std::time::Instant::now();
+        let dt = (now - lap).as_secs_f64();
+        lap = now;
+        dt
+    };
+    let scenario = resolved.scenario();
+    let spec = scenario
+        .mhe
+        .as_ref()
+        .ok_or(ClosedLoopError::MissingSection { section: "mhe" })?;
+    let mpc = resolved.mpc()?.clone();
+    let sys = &scenario.plant;
+    let (m, eta) = (spec.horizon, spec.eta);
+    let c_norm = spectral_norm(sys.c());
+    let (_, q_max) = sym_extreme_eigenvalues("Q", spec.q.as_ref())?;
+
+    // Assumption 2 (resolved once with the scenario).
+    let (ioss_cert, ioss_failure) = match resolved.ioss() {
+        Some(Ok(c)) => (Some(c.clone()), None),
+        Some(Err(e)) => (None, Some(e.to_string())),
+        None => return Err(ClosedLoopError::MissingSection { section: "mhe" }),
+    };
+
+    // MHE constants (need P).
+    // ℙ_t with the resolved P: the scenario's one problem, shared with the simulation.
+    let problem = match &ioss_cert {
+        Some(_) => Some(resolved.mhe_problem()?.clone()),
+        None => None,
+    };
+    times.mhe_constants_s = split();
+    let lemma1_origin_offsets: Vec<f64> = problem.as_ref().map_or_else(Vec::new, |pr| {
+        pr.windows().iter().map(lemma1::origin_offset).collect()
+    });
+    let (h_bar, l_phi, h_paper_norms) = match &problem {
+        Some(pr) => {
+            let (pairs, pairs_reduced) =
+                crate::budget::l_phi_sampling_pairs(pr, opts.lipschitz_pairs, opts.phase_seconds);
+            let sampling = LipschitzSampling {
+                pairs,
+                seed: opts.seed,
+                ..LipschitzSampling::default()
+            };
+            let est = pr.sample_lipschitz(&sampling)?;
+            let per_window: Vec<(f64, f64)> =
+                est.iter().map(|e| (e.certified, e.sampled)).collect();
+            let norms = pr
+                .windows()
+                .iter()
+                .map(|w| spectral_norm(w.h_paper()))
+                .collect();
+            (
+                pr.h_bar(),
+                LPhiReport {
+                    certified: pr.lipschitz_certified(),
+                    sampled: per_window.iter().map(|p| p.1).fold(0.0, f64::max),
+                    per_window,
+                    pairs_reduced,
+                },
+                norms,
+            )
+        }
+        None => (
+            f64::NAN,
+            LPhiReport {
+                certified: f64::NAN,
+                sampled: f64::NAN,
+                per_window: Vec::new(),
+                pairs_reduced: None,
+            },
+            Vec::new(),
+        ),
+    };
+
+    times.l_phi_sampling_s = split();
+
+    // Controller constants.
+    let radius = resolved.sampling_radius();
+    // A numerical failure of the MPC's analysis names the scenario keys that shape its QP.
+    let explain = |e: mpc_core::MpcError| match &scenario.mpc {
+        Some(spec) => spec.explain(sys, e),
+        None => e,
+    };
+    let l_pi = mpc_core::lipschitz_report_with(
+        &mpc,
+        opts.lipschitz_pairs,
+        opts.seed,
+        radius,
+        |m| match l_pi_enumerated {
+            Some(r) => r,
+            None => m.lipschitz_enumerated(mpc_core::ENUMERATION_MAX_VARS),
+        },
+    )
+    .map_err(explain)?;
+    let l_pi_used = l_pi.l_pi();
+    times.l_pi_s = split();
+    let gamma13 = crate::gamma13::gamma13_report_with(
+        &mpc,
+        opts.gamma13,
+        opts.gamma13_sequences,
+        opts.seed,
+        |m| match gamma13_certified {
+            Some(r) => r,
+            None => crate::gamma13::gamma13_certified_budgeted(
+                m,
+                opts.enumeration_max_vars,
+                crate::gamma13::GAMMA13_PATTERN_FAMILIES,
+                opts.phase_seconds,
+            ),
+        },
+    )
+    .map_err(explain)?;
+    times.gamma13_s = split();
+
+    let (p_min, p_max) = ioss_cert.as_ref().map_or((f64::NAN, f64::NAN), |c| {
+        (c.p_min_eigenvalue, c.p_max_eigenvalue)
+    });
+    let mut solvers = Vec::new();
+    for &solver in &opts.solvers {
+        let per_window = match &problem {
+            Some(pr) => map_certificates(solver, pr)?,
+            None => Vec::new(),
+        };
+        let phi_rate = per_window
+            .iter()
+            .map(|c| c.rate)
+            .fold(if per_window.is_empty() { f64::NAN } else { 0.0 }, f64::max);
+        let phi_prefactor = per_window
+            .iter()
+            .map(|c| c.prefactor)
+            .fold(if per_window.is_empty() { f64::NAN } else { 0.0 }, f64::max);
+        let fits_eq11 = !per_window.is_empty() && per_window.iter().all(|c| c.fits_eq11);
+        let inputs = IssInputs {
+            horizon: m,
+            eta,
+            p_min,
+            p_max,
+            q_max,
+            h_bar,
+            l_phi: l_phi.certified,
+            l_pi: l_pi_used,
+            c_norm,
+            f_norm: spectral_norm(sys.f()),
+            gamma13: gamma13.used,
+            phi_rate,
+            phi_prefactor,
+            phi_fits_eq11: fits_eq11,
+            lmi_certified: ioss_cert.is_some(),
+        };
+        let mut analysis = IssAnalysis::new(inputs.clone());
+        // The premise's own fix is generic ("supply γ₁,₃ or change the controller"): the
+        // typed reason says what is actually wrong (e.g. no gain can exist).
+        if let Some(v) = &gamma13.void {
+            for p in analysis.premises.iter_mut() {
+                if p.name == "gamma13 finite" && !p.holds {
+                    p.fix = v.to_string();
+                }
+            }
+        }
+        // Constants whose certified value does not exist for this scenario (issue 15:
+        // bounded 𝒳 / 𝒴 in the MHE, state constraints in the MPC): void with the reason.
+        let structural_void: Vec<String> = problem
+            .as_ref()
+            .and_then(|p| p.lipschitz_void_reason())
+            .map(|r| format!("L_Φ (Lemma 1): {r}"))
+            .into_iter()
+            .chain(
+                mpc.certificate_void_reason()
+                    .map(|r| format!("L_π, γ₁,₃: {r}")),
+            )
+            .collect();
+        let k_min = if structural_void.is_empty() {
+            analysis.k_min(opts.k_max)
+        } else {
+            None
+        };
+        let mut void_reasons: Vec<String> = structural_void;
+        void_reasons.extend(analysis.violated().iter().map(|p| match &gamma13.void {
+            // The exact reason (typed in `gamma13.void`) instead of the generic fix.
+            Some(v) if p.name == "gamma13 finite" => format!("{} fails: {v}", p.name),
+            _ => p.void_reason(),
+        }));
+        if k_min.is_none() && void_reasons.is_empty() {
+            void_reasons.push(format!(
+                "no K ≤ {} satisfies sg1 + sg2 + sg3 < 1 (ρ(Γ) < 1)",
+                opts.k_max
+            ));
+        }
+        let sampled_analysis = IssAnalysis::new(IssInputs {
+            l_phi: l_phi.sampled,
+            ..inputs
+        });
+        solvers.push(SolverCertificate {
+            solver,
+            phi_rate,
+            phi_prefactor,
+            fits_eq11,
+            per_window,
+            at_k_min: k_min.map(|k| analysis.at(k)),
+            analysis,
+            k_min,
+            void_reasons,
+            k_min_with_sampled_l_phi: if opts.lipschitz_pairs == 0
+                || mpc.certificate_void_reason().is_some()
+            {
+                None
+            } else {
+                sampled_analysis.k_min(opts.k_max)
+            },
+        });
+    }
+    times.theorem1_s = split();
+    times.total_s = start.elapsed().as_secs_f64();
+    let certificate = ClosedLoopCertificate {
+        scenario: scenario.name.clone(),
+        horizon: m,
+        eta,
+        rho: 6f64.powf(1.0 / m as f64) * eta,
+        ioss: ioss_cert.as_ref().map(ioss::IossCertificate::report),
+        ioss_failure,
+        p_min,
+        p_max,
+        q_max,
+        h_bar,
+        c_norm,
+        l_phi,
+        l_pi,
+        l_pi_used,
+        gamma13,
+        solvers,
+        nearest: NearestParameters {
+            min_horizon_at_eta: min_horizon_for_eta(eta),
+            eta_sup_at_horizon: eta_sup_for_horizon(m),
+        },
+        h_paper_norms,
+        sigma_model_part: spectral_norm(sys.a()) + spectral_norm(sys.b()) + c_norm + 2.0,
+        lemma1_origin_offsets,
+    };
+    Ok((certificate, times))
+}

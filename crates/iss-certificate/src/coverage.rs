@@ -1,0 +1,301 @@
+//! Which certificate a configuration is under, and its verdict at (K_e, K_c): the one
+//! decision behind `reproduce`'s `certified`, the sweep's `certified` column (1-D and 2-D),
+//! the thresholds and the heat maps.
+//!
+//! A configuration is (MHE method, K_e, controller, K_c) on a scenario. [`covering`] decides
+//! from its structure which certificate can speak about it:
+//!
+//! | configuration | certificate |
+//! | --- | --- |
+//! | exact MPC, the paper's warm start Σ_t | Theorem 1 ([`crate::certificate`]) |
+//! | K_c-iteration MPC, the paper's warm start Σ_t | the joint certificate ([`crate::joint`]) |
+//! | a time-shifted MHE warm start | none: outside the analysis |
+//! | the saturated LQR | none: L_π and γ₁,₃ are the MPC's |
+//!
+//! A certificate that applies may still be *void* (a premise fails, e.g. L_Φ with bounded
+//! 𝒳 / 𝒴 in the MHE: general rows, where the ADMM split is feasible only in the limit) —
+//! its own void reasons say why. [`Applicable`] holds what the covering certificate needs to
+//! give a verdict at any pair ([`Applicable::at`]). Another certificate (e.g. a regional one)
+//! is one more arm of [`CertificateKind`], [`covering`] and [`Applicable`].
+
+use mhe_core::WarmStart;
+use qp_iter::Method;
+use serde::Serialize;
+
+use crate::analysis::IssAnalysis;
+use crate::certificate::ClosedLoopCertificate;
+use crate::joint::{JointAnalysis, JointOptions, certify_joint};
+use closed_loop::scenario::{ControllerChoice, ResolvedScenario, Scenario};
+
+/// Prefixes of the structural void reasons of [`crate::certificate::certify_closed_loop`].
+const STRUCTURAL: [&str; 2] = ["L_Φ (Lemma 1): ", "L_π, γ₁,₃: "];
+
+/// The certificates a configuration can be under.
+#[derive(Debug, Clone, Copy, PartialEq, Eq, Serialize)]
+#[serde(rename_all = "snake_case")]
+pub enum CertificateKind {
+    /// Theorem 1: the sub-optimal MHE with the exact MPC.
+    Theorem1,
+    /// The joint certificate: the sub-optimal MHE with the K_c-iteration MPC.
+    Joint,
+}
+
+impl CertificateKind {
+    /// `"theorem1"` or `"joint"` (the `certificate` column and key).
+    pub fn name(self) -> &'static str {
+        match self {
+            CertificateKind::Theorem1 => "theorem1",
+            CertificateKind::Joint => "joint",
+        }
+    }
+}
+
+/// Which certificate covers a configuration, or why none does.
+#[derive(Debug, Clone, PartialEq, Eq, Serialize)]
+#[serde(rename_all = "snake_case")]
+pub enum Coverage {
+    /// This certificate applies (it may still be void for these parameters).
+    Covered(CertificateKind),
+    /// No certificate covers the configuration: the reason names the scenario key.
+    Uncovered(String),
+}
+
+/// Decides which certificate covers the MHE `method` with `controller` on `scenario`
+/// (K_e and K_c do not change the decision, only the verdict).
+pub fn covering(scenario: &Scenario, _method: Method, controller: ControllerChoice) -> Coverage {
+    if scenario
+        .mhe
+        .as_ref()
+        .is_some_and(|m| m.warm_start == WarmStart::Shifted)
+    {
+        return Coverage::Uncovered(
+            "mhe.warm_start = \"shifted\" is not covered by the analysis (Lemma 1 and Prop. 1 \
+             assume the paper's warm start Σ_t); set mhe.warm_start = \"paper\" for a certificate"
+                .into(),
+        );
+    }
+    match controller {
+        ControllerChoice::ExactMpc => Coverage::Covered(CertificateKind::Theorem1),
+        ControllerChoice::SuboptimalMpc { .. } => Coverage::Covered(CertificateKind::Joint),
+        ControllerChoice::SaturatedLqr => Coverage::Uncovered(
+            "the controller is the saturated LQR: the certificates are for the MPC (its L_π and \
+             γ₁,₃); use the exact or the K_c-iteration MPC for a certificate"
+                .into(),
+        ),
+    }
+}
+
+/// `yes`, `no` or `void` at a pair.
+#[derive(Debug, Clone, Copy, PartialEq, Eq, Serialize)]
+#[serde(rename_all = "lowercase")]
+pub enum Certified {
+    /// The certificate holds at this pair.
+    Yes,
+    /// It applies and its premises hold, but not at this pair (too few iterations).
+    No,
+    /// No certificate at any pair: a premise fails, or none covers the configuration.
+    Void,
+}
+
+impl Certified {
+    /// `"yes"`, `"no"` or `"void"`.
+    pub fn as_str(self) -> &'static str {
+        match self {
+            Certified::Yes => "yes",
+            Certified::No => "no",
+            Certified::Void => "void",
+        }
+    }
+}
+
+/// The verdict at one pair (K_e, K_c).
+#[derive(Debug, Clone, PartialEq, Serialize)]
+pub struct PairVerdict {
+    /// The covering certificate (None: uncovered).
+    pub certificate: Option<CertificateKind>,
+    /// The verdict.
+    pub certified: Certified,
+    /// Smallest certified K_e at this K_c (Theorem 1: K_min; joint: at the pair's K_c).
+    pub k_min: Option<usize>,
+    /// The certified margin at the pair (1 − ρ(Γ)); None where undefined.
+    pub margin: Option<f64>,
+    /// Why void (empty otherwise).
+    pub reason: String,
+}
+
+/// What the covering certificate needs to give a verdict at any pair.
+#[derive(Debug, Clone)]
+pub enum Applicable {
+    /// Theorem 1 for the method.
+    Theorem1 {
+        /// Its analysis.
+        analysis: Box<IssAnalysis>,
+        /// K_min (None: void or beyond the search range).
+        k_min: Option<usize>,
+        /// Why void whatever K (empty when the premises hold).
+        void_reasons: Vec<String>,
+    },
+    /// The joint certificate of the method with the MPC's method.
+    Joint {
+        /// Its four-node analysis.
+        analysis: Box<JointAnalysis>,
+        /// Largest K_e searched for K_min.
+        k_max: usize,
+        /// Why void whatever the pair (empty when the premises hold).
+        void_reasons: Vec<String>,
+    },
+    /// Nothing covers the configuration.
+    Uncovered(String),
+}
+
+impl Applicable {
+    /// The certificate covering `method` with `controller` on `resolved`, evaluated from the
+    /// closed-loop certificate `cert` (computed for the scenario with `method` among its
+    /// solvers).
+    pub fn new(
+        resolved: &ResolvedScenario,
+        cert: &ClosedLoopCertificate,
+        method: Method,
+        controller: ControllerChoice,
+    ) -> Self {
+        let scenario = resolved.scenario();
+        let kind = match covering(scenario, method, controller) {
+            Coverage::Uncovered(r) => return Applicable::Uncovered(r),
+            Coverage::Covered(k) => k,
+        };
+        let Some(sc) = cert.solver(method) else {
+            return Applicable::Uncovered(format!("the certificate has no entry for {method}"));
+        };
+        match (kind, controller) {
+            (CertificateKind::Joint, ControllerChoice::SuboptimalMpc { method: mpc_m, .. }) => {
+                let mpc = match resolved.mpc() {
+                    Ok(m) => m,
+                    Err(e) => return Applicable::Uncovered(format!("no MPC: {e}")),
+                };
+                let plant = &scenario.plant;
+                let n_e = plant.nx() + cert.horizon * (plant.nx() + plant.ny());
+                let opts = JointOptions::default();
+                match certify_joint(cert, mpc, n_e, method, mpc_m, &opts) {
+                    Ok(j) => {
+                        // The structural reasons of Theorem 1's constants (L_Φ with general
+                        // rows, L_π with state constraints) void the joint certificate too;
+                        // its premises are the joint analysis' own.
+                        let mut void_reasons: Vec<String> = sc
+                            .void_reasons
+                            .iter()
+                            .filter(|r| {
+                                r.starts_with(STRUCTURAL[0]) || r.starts_with(STRUCTURAL[1])
+                            })
+                            .cloned()
+                            .collect();
+                        for r in &j.region.void_reasons {
+                            if !void_reasons.contains(r) {
+                                void_reasons.push(r.clone());
+                            }
+                        }
+                        Applicable::Joint {
+                            analysis: Box::new(j.analysis),
+                            k_max: opts.k_max,
+                            void_reasons,
+                        }
+                    }
+                    Err(e) => Applicable::Uncovered(format!("no joint certificate: {e}")),
+                }
+            }
+            _ => Applicable::Theorem1 {
+                analysis: Box::new(sc.analysis.clone()),
+                k_min: sc.k_min,
+                void_reasons: sc.void_reasons.clone(),
+            },
+        }
+    }
+
+    /// The covering certificate (None: uncovered).
+    pub fn kind(&self) -> Option<CertificateKind> {
+        match self {
+            Applicable::Theorem1 { .. } => Some(CertificateKind::Theorem1),
+            Applicable::Joint { .. } => Some(CertificateKind::Joint),
+            Applicable::Uncovered(_) => None,
+        }
+    }
+
+    /// Void whatever the pair (uncovered, or a premise fails).
+    pub fn void_reasons(&self) -> Vec<String> {
+        match self {
+            Applicable::Theorem1 {
+                void_reasons,
+                k_min,
+                ..
+            } => {
+                if k_min.is_some() {
+                    Vec::new()
+                } else {
+                    void_reasons.clone()
+                }
+            }
+            Applicable::Joint { void_reasons, .. } => void_reasons.clone(),
+            Applicable::Uncovered(r) => vec![r.clone()],
+        }
+    }
+
+    /// The verdict at (K_e, K_c); `k_c` is ignored by Theorem 1 (the exact MPC) and required
+    /// by the joint certificate (None there: void, "no K_c").
+    pub fn at(&self, k_e: usize, k_c: Option<usize>) -> PairVerdict {
+        let kind = self.kind();
+        let void = |reason: String| PairVerdict {
+            certificate: kind,
+            certified: Certified::Void,
+            k_min: None,
+            margin: None,
+            reason,
+        };
+        match self {
+            Applicable::Uncovered(r) => void(r.clone()),
+            Applicable::Theorem1 {
+                analysis,
+                k_min,
+                void_reasons,
+            } => {
+                if k_min.is_none() && !void_reasons.is_empty() {
+                    return void(void_reasons.join("; "));
+                }
+                let g = analysis.at(k_e);
+                PairVerdict {
+                    certificate: kind,
+                    certified: if g.certified {
+                        Certified::Yes
+                    } else {
+                        Certified::No
+                    },
+                    k_min: *k_min,
+                    margin: (g.phi < 1.0 && g.phi.is_finite()).then_some(g.margin),
+                    reason: String::new(),
+                }
+            }
+            Applicable::Joint {
+                analysis,
+                k_max,
+                void_reasons,
+            } => {
+                if !void_reasons.is_empty() {
+                    return void(void_reasons.join("; "));
+                }
+                let Some(k_c) = k_c else {
+                    return void("the joint certificate needs K_c".into());
+                };
+                let g = analysis.at(k_e, k_c);
+                PairVerdict {
+                    certificate: kind,
+                    certified: if g.certified {
+                        Certified::Yes
+                    } else {
+                        Certified::No
+                    },
+                    k_min: analysis.k_e_min(k_c, *k_max),
+                    margin: g.margin.is_finite().then_some(g.margin),
+                    reason: String::new(),
+                }
+            }
+        }
+    }
+}

@@ -1,0 +1,757 @@
+//! Regional ISS of Alg. 1 from its lifted linear loop (issue 27; derivation and proof in
+//! `docs/theory.md`, "Regional ISS of the lifted loop").
+//!
+//! Where no constraint is active, Alg. 1 with a fixed K is exactly linear: for t ≥ M,
+//! X_{t+1} = 𝔸(K)X_t + 𝔹_w w_t on the lifted state of [`crate::linear`]; for t < M the
+//! growing windows compose to X_M = 𝕄υ with υ = (x₀, x̄₀, w₀, …, w_{M−1}). Every constraint
+//! that could make the loop non-linear — every point an MHE projection acts on, in every
+//! inner iteration of every window; every row of the MPC's unconstrained input sequence
+//! (exact MPC) or of the LQR input (saturated LQR); every general 𝒳/𝒴 row of the MHE — is a
+//! linear functional of X_t (or of υ for t < M). For a metric ‖X‖_P with ‖𝔸‖_P = λ < 1,
+//! superposition X_t = 𝔸^{t−M}X_M + Σ_k 𝔸^k𝔹_w w_{t−1−k} (valid while no row is active) gives
+//! |c_iX_t| ≤ ‖P^{−½}c_iᵀ‖λ^{t−M}‖X_M‖_P + w̄Σ_k‖c_i𝔸^k𝔹_w‖ (the second sum to T terms plus a
+//! certified tail). If the start-up rows hold over the user's set and every full-window row
+//! satisfies ‖P^{−½}c_iᵀ‖·sup‖X_M‖_P + w̄h̃_i ≤ min(u_i, −l_i), then by induction the loop is
+//! the linear one for all t: ISS with rate λ for the free response and the asymptotic gains
+//! Σ_k‖x_read𝔸^k𝔹_w‖, Σ_k‖e_read𝔸^k𝔹_w‖ (Theorem R of `docs/theory.md`).
+//!
+//! **What it does not claim.** It is regional: outside the certified set (a larger x₀, prior
+//! error or disturbance) only the global certificate (Theorem 1) speaks, and a constraint
+//! that activates voids nothing but this certificate. It covers the exact MPC and the
+//! saturated LQR, not a K_c-iteration MPC; PG, FISTA and ADMM on a box, PG and FISTA on
+//! general rows. The disturbance bound is a Euclidean bound per step (a Gaussian noise has
+//! none: give `certificate.w_bar`).
+
+mod lifted;
+mod metric;
+mod model;
+
+use faer::{Mat, MatRef, Par};
+use lti_model::matrix::spectral_norm;
+use serde::Serialize;
+
+pub use model::{ModelError, RowKind, RowLabel};
+
+use crate::linear::spectral_radius;
+use closed_loop::scenario::{ControllerChoice, ResolvedScenario};
+use lifted::RegionalModel;
+use model::Rows;
+
+/// The user's uncertainty and the search settings.
+#[derive(Debug, Clone, PartialEq, Serialize)]
+pub struct RegionalOptions {
+    /// The controller (exact MPC or saturated LQR).
+    #[serde(skip)]
+    pub controller: ControllerChoice,
+    /// Nominal x₀ (`simulation.x0`).
+    pub x0_nominal: Vec<f64>,
+    /// ‖x₀ − x₀_nominal‖ ≤ this (`certificate.x0_radius`).
+    pub x0_radius: f64,
+    /// ‖x̄₀ − x₀‖ ≤ this (`certificate.prior_error`).
+    pub prior_error: f64,
+    /// ‖w_t‖₂ ≤ this (`certificate.w_bar`).
+    pub w_bar: f64,
+    /// Candidate metrics: λ = ρ_lin + (1 − ρ_lin)·f for each f here (Stein equation with
+    /// Q = I at the rate λ).
+    pub rate_fractions: Vec<f64>,
+}
+
+/// Why there is no regional certificate.
+#[derive(Debug, Clone, PartialEq, thiserror::Error)]
+pub enum RegionalVoid {
+    /// The loop could not be modelled (with the reason).
+    #[error(transparent)]
+    Model(#[from] ModelError),
+    /// ρ_lin(K) ≥ 1: the linear loop itself is not stable, no region exists.
+    #[error(
+        "ρ_lin(K = {k}) = {rho:.6} ≥ 1: the loop is unstable even where no constraint is active"
+    )]
+    Unstable {
+        /// K.
+        k: usize,
+        /// ρ_lin(K).
+        rho: f64,
+    },
+    /// No candidate metric could be formed (ill-conditioned Stein solutions).
+    #[error(
+        "no Lyapunov metric of the lifted matrix could be formed at K = {k} (ρ_lin = {rho:.6})"
+    )]
+    NoMetric {
+        /// K.
+        k: usize,
+        /// ρ_lin(K).
+        rho: f64,
+    },
+    /// The noise has no per-step bound and none was given.
+    #[error(
+        "the scenario's noise is Gaussian (no per-step bound): set `certificate.w_bar` to the \
+         disturbance level the region must tolerate"
+    )]
+    UnboundedNoise,
+    /// A bad option.
+    #[error("{0}")]
+    Options(String),
+}
+
+/// The binding row of a region, with its figures.
+#[derive(Debug, Clone, PartialEq, Serialize)]
+pub struct Limit {
+    /// Which constraint.
+    pub row: RowLabel,
+    /// Its bound min(u, −l) (full-window rows) or the bound it reaches (start-up rows).
+    pub bound: f64,
+    /// The largest value the row takes over the certified set (full window: r·‖P^{−½}cᵀ‖;
+    /// start-up: |center| + deviation).
+    pub reach: f64,
+}
+
+/// The regional certificate at one K.
+#[derive(Debug, Clone, PartialEq, Serialize)]
+pub struct RegionalCertificate {
+    /// Φ of the MHE.
+    pub method: String,
+    /// K.
+    pub k: usize,
+    /// dim X.
+    pub dim: usize,
+    /// ρ_lin(K).
+    pub rho_lin: f64,
+    /// The metric chosen (the candidate with the largest margin).
+    pub metric: String,
+    /// λ = ‖𝔸‖_P: the certified decay rate per step.
+    pub rate: f64,
+    /// b = ‖P^{½}𝔹_w‖₂.
+    pub disturbance_gain: f64,
+    /// The largest ‖X_M‖_P for which no full-window row activates at the user's w̄:
+    /// min_c (bound_c − w̄h̃_c)/‖P^{−½}cᵀ‖ (theory.md, Theorem R).
+    pub radius: f64,
+    /// The full-window row that limits the user's set (largest reach / bound).
+    pub radius_limit: Option<Limit>,
+    /// sup over the user's set of ‖X_M‖_P.
+    pub initial_radius: f64,
+    /// bw̄/(1 − λ): a bound on ‖X_t^{w}‖_P, the disturbance's part of the lifted state in
+    /// the metric (reported; the row conditions use the tighter per-row sums).
+    pub invariant_radius: f64,
+    /// Every start-up row holds over the user's set.
+    pub startup_holds: bool,
+    /// The start-up row with the smallest slack.
+    pub startup_limit: Option<Limit>,
+    /// Number of constraint rows (full window, start-up).
+    pub rows: (usize, usize),
+    /// The user's set lies in the certified region.
+    pub contains: bool,
+    /// The largest factor s such that (s·x0_radius, s·prior_error, s·w̄) is still certified
+    /// (the nominal x₀ kept); ≥ 1 iff `contains` (∞ if the set is a point and certified).
+    pub margin: f64,
+    /// The largest x0_radius certified with the user's prior_error and w̄ (0 if none).
+    pub max_x0_radius: f64,
+    /// The largest prior_error certified with the user's x0_radius and w̄.
+    pub max_prior_error: f64,
+    /// The largest w̄ certified with the user's x0_radius and prior_error.
+    pub max_w_bar: f64,
+    /// ‖x_read P^{−½}‖: ‖x_t‖ ≤ this·‖X_t‖_P.
+    pub x_read_norm: f64,
+    /// ‖e_read P^{−½}‖: ‖e_t‖ ≤ this·‖X_t‖_P.
+    pub e_read_norm: f64,
+    /// Certified asymptotic gain from w̄ to sup‖x_t‖: ‖x_read P^{−½}‖·b/(1 − λ).
+    pub gain_x: f64,
+    /// Certified asymptotic gain from w̄ to sup‖e_t‖.
+    pub gain_e: f64,
+    /// The user's set.
+    pub options: RegionalOptions,
+}
+
+impl RegionalOptions {
+    /// The scenario's own uncertainty: x0_radius (default 0), prior_error (default
+    /// ‖prior − x₀‖), w̄ (default the largest ‖w‖₂ of the uniform noise, 0 for none).
+    pub fn from_scenario(
+        resolved: &ResolvedScenario,
+        controller: ControllerChoice,
+    ) -> Result<Self, RegionalVoid> {
+        let sc = resolved.scenario();
+        let sim = &sc.simulation;
+        let cs = &sc.certificate;
+        let default_prior = sim
+            .prior
+            .iter()
+            .zip(&sim.x0)
+            .map(|(a, b)| (a - b).powi(2))
+            .sum::<f64>()
+            .sqrt();
+        let w_bar = match cs.w_bar {
+            Some(w) => w,
+            None => match sc.noise.kind {
+                lti_model::spec::NoiseKind::Zero => 0.0,
+                lti_model::spec::NoiseKind::Gaussian => return Err(RegionalVoid::UnboundedNoise),
+                lti_model::spec::NoiseKind::Uniform => {
+                    let d = &sc.sets.disturbance;
+                    sc.noise.scale
+                        * d.lower()
+                            .iter()
+                            .zip(d.upper())
+                            .map(|(l, u)| l.abs().max(u.abs()).powi(2))
+                            .sum::<f64>()
+                            .sqrt()
+                }
+            },
+        };
+        Ok(Self {
+            controller,
+            x0_nominal: sim.x0.clone(),
+            x0_radius: cs.x0_radius.unwrap_or(0.0),
+            prior_error: cs.prior_error.unwrap_or(default_prior),
+            w_bar,
+            rate_fractions: vec![0.02, 0.1, 0.25, 0.5, 0.75],
+        })
+    }
+}
+
+fn row_norms(rows: &Rows, neg_half: MatRef<'_, f64>) -> Vec<f64> {
+    let mut out = Vec::with_capacity(rows.labels.len());
+    for b in &rows.blocks {
+        let prod = b * neg_half;
+        for i in 0..prod.nrows() {
+            out.push(
+                (0..prod.ncols())
+                    .map(|j| prod[(i, j)].powi(2))
+                    .sum::<f64>()
+                    .sqrt(),
+            );
+        }
+    }
+    out
+}
+
+/// ‖·‖ of a sub-vector of a row.
+fn seg(c: &[f64], from: usize, len: usize) -> f64 {
+    c[from..from + len]
+        .iter()
+        .map(|v| v * v)
+        .sum::<f64>()
+        .sqrt()
+}
+
+/// The start-up rows' linear data: for each row (center, coefficient of x0_radius, of
+/// prior_error, of w̄, bound on the side that binds).
+fn startup_terms(
+    model: &RegionalModel,
+    o: &RegionalOptions,
+) -> Vec<(f64, f64, f64, f64, f64, f64)> {
+    let (nx, nw) = (model.nx, model.nw);
+    let big_m = model.layout.horizon;
+    let mut out = Vec::with_capacity(model.startup_rows.labels.len());
+    let mut i = 0;
+    for b in &model.startup_rows.blocks {
+        for r in 0..b.nrows() {
+            let c: Vec<f64> = (0..b.ncols()).map(|j| b[(r, j)]).collect();
+            let (l, u) = (model.startup_rows.lower[i], model.startup_rows.upper[i]);
+            i += 1;
+            let cxp: Vec<f64> = (0..nx).map(|k| c[k] + c[nx + k]).collect();
+            let center: f64 = cxp.iter().zip(&o.x0_nominal).map(|(a, b)| a * b).sum();
+            let ax = cxp.iter().map(|v| v * v).sum::<f64>().sqrt();
+            let ap = seg(&c, nx, nx);
+            let aw: f64 = (0..big_m).map(|t| seg(&c, 2 * nx + t * nw, nw)).sum();
+            out.push((center, ax, ap, aw, l, u));
+        }
+    }
+    out
+}
+
+/// max s ≥ 0 with center ± s·dev inside [l, u] (dev ≥ 0); −∞ if the center is outside.
+fn scale_limit(center: f64, dev: f64, l: f64, u: f64) -> f64 {
+    let slack = (u - center).min(center - l);
+    if slack < 0.0 {
+        f64::NEG_INFINITY
+    } else if dev > 0.0 {
+        slack / dev
+    } else {
+        f64::INFINITY
+    }
+}
+
+struct Candidate {
+    /// Largest s with (s·r_x, s·r_e, s·w̄) certified by the full-window rows.
+    scale: f64,
+    /// Largest r_x, r_e, w̄ by the full-window rows (the other two at the user's values).
+    max_x: f64,
+    max_p: f64,
+    max_w: f64,
+    name: String,
+    metric: metric::Metric,
+    x_read_norm: f64,
+    e_read_norm: f64,
+    rate: f64,
+    b: f64,
+    radius: f64,
+    limit: Option<Limit>,
+    nominal: f64,
+    a_x: f64,
+    a_p: f64,
+    a_w: f64,
+    gain_x: f64,
+    gain_e: f64,
+}
+
+/// The disturbance's exact contribution to every full-window row and readout: with
+/// X_t = X_t^{free} + X_t^{w} (superposition, valid while every row is inactive) and
+/// X_t^{w} = Σ_{k≥0} 𝔸^k𝔹_w w_{t−1−k}, |cX_t^{w}| ≤ w̄Σ_k‖c𝔸^k𝔹_w‖. The sum is taken to T
+/// terms here; [`evaluate`] adds the certified tail ‖cP^{−½}‖bλ^T/(1 − λ).
+struct Impulse {
+    terms: i32,
+    rows: Vec<f64>,
+    x: f64,
+    e: f64,
+}
+
+fn impulse(model: &RegionalModel, rho: f64) -> Impulse {
+    let t = if rho < 1e-3 {
+        8
+    } else {
+        ((1e-9f64).ln() / rho.ln()).ceil().clamp(8.0, 400.0) as usize
+    };
+    let (n, nw) = (model.a.nrows(), model.bw.ncols());
+    let mut ib = Mat::<f64>::zeros(n, nw * t);
+    let mut cur = model.bw.clone();
+    for k in 0..t {
+        for j in 0..nw {
+            for i in 0..n {
+                ib[(i, k * nw + j)] = cur[(i, j)];
+            }
+        }
+        cur = &model.a * &cur;
+    }
+    let sum_norms = |prod: &Mat<f64>, i: usize| -> f64 {
+        (0..t)
+            .map(|k| {
+                (0..nw)
+                    .map(|j| prod[(i, k * nw + j)].powi(2))
+                    .sum::<f64>()
+                    .sqrt()
+            })
+            .sum()
+    };
+    let mut rows = Vec::with_capacity(model.rows.labels.len());
+    for b in &model.rows.blocks {
+        let prod = b * &ib;
+        for i in 0..prod.nrows() {
+            rows.push(sum_norms(&prod, i));
+        }
+    }
+    let read = |m: &Mat<f64>| -> f64 {
+        // ‖·‖₂ of each k-block of m·[𝔹_w, 𝔸𝔹_w, …] (spectral, not row-wise).
+        let prod = m * &ib;
+        (0..t)
+            .map(|k| spectral_norm(prod.as_ref().subcols(k * nw, nw)))
+            .sum()
+    };
+    Impulse {
+        terms: t as i32,
+        rows,
+        x: read(&model.x_read),
+        e: read(&model.e_read),
+    }
+}
+
+fn evaluate(
+    model: &RegionalModel,
+    imp: &Impulse,
+    p: &metric::Metric,
+    name: String,
+    o: &RegionalOptions,
+) -> Candidate {
+    let (half, neg) = (p.half.as_ref(), p.neg_half.as_ref());
+    let rate = spectral_norm((half * &model.a * neg).as_ref());
+    let b = spectral_norm((half * &model.bw).as_ref());
+    let norms = row_norms(&model.rows, neg);
+    let tail = if rate < 1.0 {
+        b * rate.powi(imp.terms) / (1.0 - rate)
+    } else {
+        f64::INFINITY
+    };
+    let (nx, nw) = (model.nx, model.nw);
+    let pm = half * &model.start_map;
+    let mxp = Mat::from_fn(pm.nrows(), nx, |i, j| pm[(i, j)] + pm[(i, nx + j)]);
+    let x0 = Mat::from_fn(nx, 1, |i, _| o.x0_nominal[i]);
+    let nominal = spectral_norm((&mxp * &x0).as_ref());
+    let a_x = spectral_norm(mxp.as_ref());
+    let a_p = spectral_norm(pm.as_ref().subcols(nx, nx));
+    let a_w: f64 = (0..model.layout.horizon)
+        .map(|t| spectral_norm(pm.as_ref().subcols(2 * nx + t * nw, nw)))
+        .sum();
+    let x_read_norm = spectral_norm((&model.x_read * neg).as_ref());
+    let e_read_norm = spectral_norm((&model.e_read * neg).as_ref());
+    // Per full-window row: n_c·‖X_M‖_P + w̄·h̃_c ≤ bound_c, h̃_c = h_c + n_c·tail, with
+    // ‖X_M‖_P ≤ nominal + r_x a_x + r_e a_p + w̄ a_w.
+    let init_var = o.x0_radius * a_x + o.prior_error * a_p + o.w_bar * a_w;
+    let (mut radius, mut scale) = (f64::INFINITY, f64::INFINITY);
+    let (mut max_x, mut max_p, mut max_w) = (f64::INFINITY, f64::INFINITY, f64::INFINITY);
+    let mut limit = None;
+    for (i, nc) in norms.iter().enumerate() {
+        let bound = model.rows.upper[i].min(-model.rows.lower[i]);
+        let h = imp.rows[i] + nc * tail;
+        if *nc == 0.0 && h == 0.0 {
+            continue;
+        }
+        let free = bound - o.w_bar * h;
+        radius = radius.min(if *nc > 0.0 {
+            free / nc
+        } else if free >= 0.0 {
+            f64::INFINITY
+        } else {
+            f64::NEG_INFINITY
+        });
+        let room = bound - nc * nominal;
+        let s_i = if room < 0.0 {
+            f64::NEG_INFINITY
+        } else {
+            let d = nc * init_var + o.w_bar * h;
+            if d > 0.0 { room / d } else { f64::INFINITY }
+        };
+        if s_i < scale {
+            scale = s_i;
+            limit = Some(Limit {
+                row: model.rows.labels[i],
+                bound,
+                reach: nc * (nominal + init_var) + o.w_bar * h,
+            });
+        }
+        let div = |num: f64, den: f64| {
+            if den > 0.0 {
+                num / den
+            } else if num >= 0.0 {
+                f64::INFINITY
+            } else {
+                f64::NEG_INFINITY
+            }
+        };
+        max_x = max_x.min(div(
+            room - nc * (o.prior_error * a_p + o.w_bar * a_w) - o.w_bar * h,
+            nc * a_x,
+        ));
+        max_p = max_p.min(div(
+            room - nc * (o.x0_radius * a_x + o.w_bar * a_w) - o.w_bar * h,
+            nc * a_p,
+        ));
+        max_w = max_w.min(div(
+            room - nc * (o.x0_radius * a_x + o.prior_error * a_p),
+            nc * a_w + h,
+        ));
+    }
+    Candidate {
+        scale,
+        max_x,
+        max_p,
+        max_w,
+        name,
+        metric: p.clone(),
+        x_read_norm,
+        e_read_norm,
+        rate,
+        b,
+        radius,
+        limit,
+        nominal,
+        a_x,
+        a_p,
+        a_w,
+        gain_x: imp.x + x_read_norm * tail,
+        gain_e: imp.e + e_read_norm * tail,
+    }
+}
+
+impl Candidate {
+    /// Largest s with (s·r_x, s·r_e, s·w̄) certified by the full-window rows.
+    fn full_scale(&self, _o: &RegionalOptions) -> f64 {
+        if self.rate < 1.0 {
+            self.scale
+        } else {
+            f64::NEG_INFINITY
+        }
+    }
+}
+
+/// The regional certificate of `method` at K (module docs).
+///
+/// Errors are void reasons: the loop cannot be modelled, ρ_lin(K) ≥ 1, no metric.
+pub fn regional_certificate(
+    resolved: &ResolvedScenario,
+    method: qp_iter::Method,
+    k: usize,
+    options: &RegionalOptions,
+) -> Result<RegionalCertificate, RegionalVoid> {
+    let pieces = model::pieces(resolved, method, options.controller)?;
+    certify_at(&pieces, method, k, options).map(|r| r.0)
+}
+
+/// The matrices behind a regional certificate (for checks and plots): the lifted loop
+/// X_{t+1} = 𝔸X_t + 𝔹_w w_t (t ≥ M), X_M = 𝕄υ with υ = (x₀, x̄₀, w₀, …, w_{M−1}), the
+/// readouts x_t = x_read·X_t and e_t = e_read·X_t, the full-window rows
+/// lower ≤ row·X ≤ upper, and the chosen metric's P^{±½}.
+#[derive(Debug, Clone)]
+pub struct RegionalDetail {
+    /// 𝔸(K).
+    pub a: Mat<f64>,
+    /// 𝔹_w.
+    pub bw: Mat<f64>,
+    /// 𝕄.
+    pub start_map: Mat<f64>,
+    /// x_read.
+    pub x_read: Mat<f64>,
+    /// e_read.
+    pub e_read: Mat<f64>,
+    /// The full-window rows.
+    pub rows: Vec<Vec<f64>>,
+    /// Their lower bounds.
+    pub lower: Vec<f64>,
+    /// Their upper bounds.
+    pub upper: Vec<f64>,
+    /// Their labels.
+    pub labels: Vec<RowLabel>,
+    /// P^{½}.
+    pub p_half: Mat<f64>,
+    /// P^{−½}.
+    pub p_neg_half: Mat<f64>,
+}
+
+/// [`regional_certificate`] with its [`RegionalDetail`].
+pub fn regional_detail(
+    resolved: &ResolvedScenario,
+    method: qp_iter::Method,
+    k: usize,
+    options: &RegionalOptions,
+) -> Result<(RegionalCertificate, RegionalDetail), RegionalVoid> {
+    let pieces = model::pieces(resolved, method, options.controller)?;
+    let (c, model, m) = certify_at(&pieces, method, k, options)?;
+    Ok((c, detail_of(model, m)))
+}
+
+fn certify_at(
+    pieces: &model::Pieces,
+    method: qp_iter::Method,
+    k: usize,
+    o: &RegionalOptions,
+) -> Result<(RegionalCertificate, RegionalModel, metric::Metric), RegionalVoid> {
+    if o.x0_nominal.len() != pieces.a.nrows() {
+        return Err(RegionalVoid::Options(format!(
+            "x0_nominal has {} entries, the plant {} states",
+            o.x0_nominal.len(),
+            pieces.a.nrows()
+        )));
+    }
+    let model = lifted::build(pieces, k).map_err(ModelError::from)?;
+    let rho = spectral_radius(model.a.as_ref(), Par::Seq).map_err(ModelError::from)?;
+    if !(rho < 1.0) {
+        return Err(RegionalVoid::Unstable { k, rho });
+    }
+    let imp = impulse(&model, rho);
+    let mut best: Option<(f64, Candidate)> = None;
+    for &f in &o.rate_fractions {
+        let lam = rho + (1.0 - rho) * f;
+        let Some(p) = metric::stein(model.a.as_ref(), lam) else {
+            continue;
+        };
+        let Some(m) = metric::metric(p.as_ref()) else {
+            continue;
+        };
+        let c = evaluate(
+            &model,
+            &imp,
+            &m,
+            format!("Stein, λ = ρ_lin + {f}·(1 − ρ_lin) = {lam:.6}"),
+            o,
+        );
+        // Rank by the certified scale of the user's set, then by the radius.
+        let key = c.full_scale(o).min(f64::MAX);
+        let better = match &best {
+            None => true,
+            Some((bk, bc)) => key > *bk || (key == *bk && c.radius > bc.radius),
+        };
+        if better {
+            best = Some((key, c));
+        }
+    }
+    let Some((_, c)) = best else {
+        return Err(RegionalVoid::NoMetric { k, rho });
+    };
+
+    // Start-up rows over the user's set.
+    let terms = startup_terms(&model, o);
+    let mut startup_scale = f64::INFINITY;
+    let mut startup_limit = None;
+    let (mut sx, mut sp, mut sw) = (f64::INFINITY, f64::INFINITY, f64::INFINITY);
+    let mut startup_holds = true;
+    for (i, &(center, ax, ap, aw, l, u)) in terms.iter().enumerate() {
+        let dev = o.x0_radius * ax + o.prior_error * ap + o.w_bar * aw;
+        let s = scale_limit(center, dev, l, u);
+        if center + dev > u || center - dev < l {
+            startup_holds = false;
+        }
+        let slack = (u - center).min(center - l);
+        let one = |a: f64, rest: f64| {
+            if slack < 0.0 {
+                f64::NEG_INFINITY
+            } else if a > 0.0 {
+                (slack - rest) / a
+            } else {
+                f64::INFINITY
+            }
+        };
+        sx = sx.min(one(ax, o.prior_error * ap + o.w_bar * aw));
+        sp = sp.min(one(ap, o.x0_radius * ax + o.w_bar * aw));
+        sw = sw.min(one(aw, o.x0_radius * ax + o.prior_error * ap));
+        if s < startup_scale {
+            startup_scale = s;
+            let reach = center.abs() + dev;
+            startup_limit = Some(Limit {
+                row: model.startup_rows.labels[i],
+                bound: if center >= 0.0 { u } else { -l },
+                reach,
+            });
+        }
+    }
+    let full_scale = c.full_scale(o);
+    let margin = full_scale.min(startup_scale);
+    let contains = startup_holds && margin >= 1.0;
+    // Largest single radius with the other two fixed (full-window and start-up conditions).
+    let inv_rate = if c.rate < 1.0 {
+        c.b / (1.0 - c.rate)
+    } else {
+        f64::INFINITY
+    };
+    let (full_x, full_p, full_w) = (c.max_x, c.max_p, c.max_w);
+    let clamp = |v: f64| if v.is_nan() { 0.0 } else { v.max(0.0) };
+    let cert = RegionalCertificate {
+        method: method.to_string(),
+        k,
+        dim: model.layout.dim(),
+        rho_lin: rho,
+        metric: c.name,
+        rate: c.rate,
+        disturbance_gain: c.b,
+        radius: c.radius,
+        radius_limit: c.limit,
+        initial_radius: c.nominal + o.x0_radius * c.a_x + o.prior_error * c.a_p + o.w_bar * c.a_w,
+        invariant_radius: o.w_bar * inv_rate,
+        startup_holds,
+        startup_limit,
+        rows: (model.rows.labels.len(), model.startup_rows.labels.len()),
+        contains,
+        margin,
+        max_x0_radius: clamp(full_x.min(sx)),
+        max_prior_error: clamp(full_p.min(sp)),
+        max_w_bar: clamp(full_w.min(sw)),
+        x_read_norm: c.x_read_norm,
+        e_read_norm: c.e_read_norm,
+        gain_x: c.gain_x,
+        gain_e: c.gain_e,
+        options: o.clone(),
+    };
+    Ok((cert, model, c.metric))
+}
+
+fn detail_of(model: RegionalModel, m: metric::Metric) -> RegionalDetail {
+    RegionalDetail {
+        rows: model.rows.to_vecs(),
+        a: model.a,
+        bw: model.bw,
+        start_map: model.start_map,
+        x_read: model.x_read,
+        e_read: model.e_read,
+        lower: model.rows.lower,
+        upper: model.rows.upper,
+        labels: model.rows.labels,
+        p_half: m.half,
+        p_neg_half: m.neg_half,
+    }
+}
+
+/// K_reg: the smallest K at which the regional certificate contains the user's set.
+#[derive(Debug, Clone, PartialEq, Serialize)]
+pub struct KReg {
+    /// K_reg (None: no K up to `k_max` on the search).
+    pub k_reg: Option<usize>,
+    /// The certificate at K_reg, or at the largest K tried when none contains the set.
+    pub certificate: Option<RegionalCertificate>,
+    /// Every K evaluated with its margin (−∞ / NaN: void), ascending.
+    pub tried: Vec<(usize, f64)>,
+    /// The void reason at the largest K tried, if it is void.
+    pub void: Option<String>,
+}
+
+/// K_reg of `method` (module docs): K = 1, 2, 4, … up to `k_max` until the certificate
+/// contains the user's set, then bisection between the last failing and the first passing
+/// K. The margin need not be monotone in K: K_reg is certified (evaluated exactly there) and
+/// is the smallest K found by this search, not a claim about every K above it.
+pub fn k_reg(
+    resolved: &ResolvedScenario,
+    method: qp_iter::Method,
+    options: &RegionalOptions,
+    k_max: usize,
+) -> Result<KReg, RegionalVoid> {
+    let pieces = model::pieces(resolved, method, options.controller)?;
+    let start = pieces.windows[0].lin.start_steps.max(1);
+    let mut tried = Vec::new();
+    let eval = |k: usize, tried: &mut Vec<(usize, f64)>| {
+        let r = certify_at(&pieces, method, k, options).map(|r| r.0);
+        tried.push((
+            k,
+            r.as_ref().map_or(f64::NAN, |c| {
+                if c.contains {
+                    c.margin
+                } else {
+                    c.margin.min(0.999_999)
+                }
+            }),
+        ));
+        r
+    };
+    let mut lo = start - 1; // not certified (or below the first K)
+    let mut k = start;
+    let mut last = None;
+    let mut found = None;
+    loop {
+        let r = eval(k, &mut tried);
+        let ok = r.as_ref().is_ok_and(|c| c.contains);
+        if ok {
+            found = Some((k, r));
+            break;
+        }
+        last = Some(r);
+        if k >= k_max {
+            break;
+        }
+        lo = k;
+        k = (k * 2).min(k_max);
+    }
+    let Some((mut hi, mut best)) = found else {
+        let (certificate, void) = match last {
+            Some(Ok(c)) => (Some(c), None),
+            Some(Err(e)) => (None, Some(e.to_string())),
+            None => (None, None),
+        };
+        tried.sort_by_key(|t| t.0);
+        return Ok(KReg {
+            k_reg: None,
+            certificate,
+            tried,
+            void,
+        });
+    };
+    while hi - lo > 1 {
+        let mid = lo + (hi - lo) / 2;
+        let r = eval(mid, &mut tried);
+        if r.as_ref().is_ok_and(|c| c.contains) {
+            hi = mid;
+            best = r;
+        } else {
+            lo = mid;
+        }
+    }
+    tried.sort_by_key(|t| t.0);
+    Ok(KReg {
+        k_reg: Some(hi),
+        certificate: best.ok(),
+        tried,
+        void: None,
+    })
+}

@@ -1,0 +1,356 @@
+//! The linear pieces of Alg. 1 where no constraint is active, with the disturbance and with
+//! every constraint row written as a linear functional (derivation: `docs/theory.md`,
+//! "Regional ISS of the lifted loop").
+//!
+//! One time step of the MHE with window length m is linear in its inputs (z⁰_t, θ_t): the
+//! iteration state starts at ξ₀ = Ξ(z⁰, θ) and moves by ξ_{j+1} = Sξ_j + S_θθ; the point the
+//! projection acts on at inner step j is Rξ_j (PG: the iterate; FISTA: T(y); ADMM: the split
+//! variable s), and the projection is the identity exactly when that point lies in Z. So the
+//! rows "Rξ_j ∈ Z for j = 0..K − k₀" (and, with general rows, l₀ ≤ GRξ_j + Eθ ≤ u₀) are the
+//! exact conditions for the step to be the linear map. The same code runs on two column
+//! spaces: the start-up unknowns υ = (x₀, x̄₀, w₀..w_{M−1}) for t < M, and the lifted state
+//! X_t for t ≥ M.
+
+use faer::{Mat, MatRef};
+use mhe_core::problem::WindowLayout;
+use serde::Serialize;
+
+use crate::linear::{IterationLinearisation, LinearError, linearise};
+use closed_loop::scenario::{ControllerChoice, ResolvedScenario};
+
+/// What a constraint row constrains.
+#[derive(Debug, Clone, Copy, PartialEq, Eq, Serialize)]
+#[serde(rename_all = "snake_case")]
+pub enum RowKind {
+    /// A component of the point the MHE's projection acts on (box Z = 𝒳 × 𝒲^m).
+    MheBox,
+    /// A general row of the MHE (𝒳 / 𝒴 on propagated states or outputs).
+    MheGeneral,
+    /// A row of the MPC's input sequence (exact MPC: −H⁻¹Fx̂ ∈ 𝒰^N, then its predicted-state
+    /// rows) or of the saturated LQR.
+    Input,
+}
+
+/// Which constraint a row is.
+#[derive(Debug, Clone, Copy, PartialEq, Eq, Serialize)]
+pub struct RowLabel {
+    /// The kind.
+    pub kind: RowKind,
+    /// Start-up step t < M, or `None` for the full-window steps t ≥ M.
+    pub step: Option<usize>,
+    /// Inner iteration j (0 for the input rows).
+    pub iterate: usize,
+    /// Component of the constrained vector.
+    pub index: usize,
+}
+
+/// Constraint rows over a column space: lower ≤ row·v ≤ upper, stored as dense blocks (the
+/// rows of block 0, then of block 1, …) so that norms in a metric are one product per block.
+#[derive(Debug, Clone)]
+pub(crate) struct Rows {
+    pub blocks: Vec<Mat<f64>>,
+    pub lower: Vec<f64>,
+    pub upper: Vec<f64>,
+    pub labels: Vec<RowLabel>,
+}
+
+impl Rows {
+    pub fn new() -> Self {
+        Self {
+            blocks: Vec::new(),
+            lower: Vec::new(),
+            upper: Vec::new(),
+            labels: Vec::new(),
+        }
+    }
+    /// Appends the rows of `m` that have a finite bound.
+    fn push_block(
+        &mut self,
+        m: MatRef<'_, f64>,
+        lower: &[f64],
+        upper: &[f64],
+        label: impl Fn(usize) -> RowLabel,
+    ) {
+        let keep: Vec<usize> = (0..m.nrows())
+            .filter(|&i| lower[i].is_finite() || upper[i].is_finite())
+            .collect();
+        if keep.is_empty() {
+            return;
+        }
+        self.blocks
+            .push(Mat::from_fn(keep.len(), m.ncols(), |r, c| m[(keep[r], c)]));
+        for &i in &keep {
+            self.lower.push(lower[i]);
+            self.upper.push(upper[i]);
+            self.labels.push(label(i));
+        }
+    }
+    /// Every row as a vector (for checks; allocates).
+    pub fn to_vecs(&self) -> Vec<Vec<f64>> {
+        self.blocks
+            .iter()
+            .flat_map(|b| (0..b.nrows()).map(move |i| (0..b.ncols()).map(|j| b[(i, j)]).collect()))
+            .collect()
+    }
+}
+
+/// (G, E, l₀, u₀): l₀ ≤ Gz + Eθ ≤ u₀.
+pub(crate) type GeneralRows = (Mat<f64>, Mat<f64>, Vec<f64>, Vec<f64>);
+
+/// One window length's step pieces.
+#[derive(Debug, Clone)]
+pub(crate) struct WindowStep {
+    pub lin: IterationLinearisation,
+    pub layout: WindowLayout,
+    pub x_z: Mat<f64>,
+    pub x_theta: Mat<f64>,
+    pub lower: Vec<f64>,
+    pub upper: Vec<f64>,
+    /// (G, E, l₀, u₀) of the general rows.
+    pub general: Option<GeneralRows>,
+}
+
+/// The control law's linear piece: v = gain·x̂ with lower ≤ v ≤ upper, u = first n_u rows.
+#[derive(Debug, Clone)]
+pub(crate) struct Law {
+    pub gain: Mat<f64>,
+    pub lower: Vec<f64>,
+    pub upper: Vec<f64>,
+}
+
+/// Why the model cannot be built (a void reason of the regional certificate).
+#[derive(Debug, Clone, PartialEq, thiserror::Error)]
+pub enum ModelError {
+    /// The linear analysis failed (origin not interior, probe active, …).
+    #[error(transparent)]
+    Linear(#[from] LinearError),
+    /// A structure the regional certificate does not cover.
+    #[error("{0}")]
+    NotCovered(String),
+}
+
+pub(crate) fn mul(a: MatRef<'_, f64>, b: MatRef<'_, f64>) -> Mat<f64> {
+    a * b
+}
+
+/// Every window length's pieces and the law, from the objects the simulation runs.
+pub(crate) struct Pieces {
+    pub windows: Vec<WindowStep>,
+    pub law: Law,
+    pub a: Mat<f64>,
+    pub b: Mat<f64>,
+    pub c: Mat<f64>,
+    pub e: Mat<f64>,
+    pub f: Mat<f64>,
+    pub shifted: bool,
+}
+
+pub(crate) fn pieces(
+    resolved: &ResolvedScenario,
+    method: qp_iter::Method,
+    controller: ControllerChoice,
+) -> Result<Pieces, ModelError> {
+    let est = resolved
+        .estimator(method, 1, false)
+        .map_err(|e| ModelError::Linear(LinearError::Build(e)))?;
+    let big_m = est.config().horizon;
+    let mut windows = Vec::with_capacity(big_m + 1);
+    for m in 0..=big_m {
+        let w = est.problem().window(m).ok_or(LinearError::Internal(
+            "the MHE has no window of this length",
+        ))?;
+        let map = est
+            .map(m)
+            .ok_or(LinearError::Internal("the MHE has no map of this length"))?;
+        let lin = linearise(map, "MHE")?;
+        let qp = w.qp();
+        let general = qp.general().map(|g| {
+            (
+                g.g().to_owned(),
+                g.e().to_owned(),
+                g.lower().to_vec(),
+                g.upper().to_vec(),
+            )
+        });
+        if general.is_some() && lin.lift_dim() != lin.n && lin.lift_dim() != 2 * lin.n {
+            return Err(ModelError::NotCovered(
+                "the MHE has general rows (sets.state / sets.output on the window) and runs the \
+                 ADMM split, whose projected variable is not the iterate: the regional \
+                 certificate covers PG and FISTA on general rows, and every method on a box"
+                    .into(),
+            ));
+        }
+        let (x_z, x_theta) = w.x_end_maps();
+        windows.push(WindowStep {
+            lin,
+            layout: w.layout(),
+            x_z: x_z.to_owned(),
+            x_theta: x_theta.to_owned(),
+            lower: qp.zset().lower().to_vec(),
+            upper: qp.zset().upper().to_vec(),
+            general,
+        });
+    }
+    let mpc = resolved
+        .mpc()
+        .map_err(|e| ModelError::Linear(LinearError::Build(e)))?;
+    let law = match controller {
+        ControllerChoice::ExactMpc => {
+            use faer::linalg::solvers::Solve;
+            let qp = mpc.qp();
+            let llt =
+                qp.h().to_owned().llt(faer::Side::Lower).map_err(|_| {
+                    LinearError::Internal("the MPC Hessian is not positive definite")
+                })?;
+            let sol = llt.solve(qp.f());
+            let gain = Mat::from_fn(sol.nrows(), sol.ncols(), |i, j| -sol[(i, j)]);
+            let mut lower = qp.zset().lower().to_vec();
+            let mut upper = qp.zset().upper().to_vec();
+            // State rows of the MPC (x_k ∈ 𝒳): l₀ ≤ GU* + Ex̂ ≤ u₀, appended after U*.
+            let gain = match qp.general() {
+                None => gain,
+                Some(g) => {
+                    let rows = g.g() * &gain + g.e();
+                    lower.extend_from_slice(g.lower());
+                    upper.extend_from_slice(g.upper());
+                    let n = gain.nrows();
+                    Mat::from_fn(n + rows.nrows(), gain.ncols(), |i, j| {
+                        if i < n {
+                            gain[(i, j)]
+                        } else {
+                            rows[(i - n, j)]
+                        }
+                    })
+                }
+            };
+            Law { gain, lower, upper }
+        }
+        ControllerChoice::SaturatedLqr => {
+            let ctrl = resolved
+                .controller(ControllerChoice::SaturatedLqr)
+                .map_err(|e| ModelError::Linear(LinearError::Build(e)))?;
+            let closed_loop::scenario::ScenarioController::SaturatedLqr(lqr) = ctrl else {
+                return Err(LinearError::Internal("the saturated LQR was not built").into());
+            };
+            let k = lqr.gain();
+            Law {
+                gain: Mat::from_fn(k.nrows(), k.ncols(), |i, j| -k[(i, j)]),
+                lower: lqr.input_set().lower().to_vec(),
+                upper: lqr.input_set().upper().to_vec(),
+            }
+        }
+        ControllerChoice::SuboptimalMpc { .. } => {
+            return Err(ModelError::NotCovered(
+                "a K_c-iteration MPC: the regional certificate covers the exact MPC and the \
+                 saturated LQR (the MPC's inner iterates would add rows like the MHE's)"
+                    .into(),
+            ));
+        }
+    };
+    for (l, u) in law.lower.iter().zip(&law.upper) {
+        if !(*l < 0.0 && *u > 0.0) && (l.is_finite() || u.is_finite()) {
+            return Err(LinearError::OriginNotInterior {
+                problem: "MPC",
+                index: 0,
+                lower: *l,
+                upper: *u,
+            }
+            .into());
+        }
+    }
+    let sys = &resolved.scenario().plant;
+    Ok(Pieces {
+        windows,
+        law,
+        a: sys.a().to_owned(),
+        b: sys.b().to_owned(),
+        c: sys.c().to_owned(),
+        e: sys.e().to_owned(),
+        f: sys.f().to_owned(),
+        shifted: matches!(est.config().warm_start, mhe_core::WarmStart::Shifted),
+    })
+}
+
+/// One MHE step of window `ws` with K iterations on the column space of `z0`, `theta`:
+/// pushes the rows of every projected point, returns (zᴷ, x̂).
+pub(crate) fn mhe_step(
+    ws: &WindowStep,
+    k: usize,
+    z0: MatRef<'_, f64>,
+    theta: MatRef<'_, f64>,
+    step: Option<usize>,
+    rows: &mut Rows,
+) -> Result<(Mat<f64>, Mat<f64>), LinearError> {
+    let lin = &ws.lin;
+    let (n, nt, nxi) = (lin.n, lin.n_theta, lin.lift_dim());
+    if k == 0 || k < lin.start_steps {
+        return Err(LinearError::ZeroIterations);
+    }
+    let start = lin.start.as_ref();
+    let mut xi = mul(start.subcols(0, n), z0) + mul(start.subcols(n, nt), theta);
+    let s = lin.step.as_ref().subcols(0, nxi);
+    let s_theta = mul(lin.step.as_ref().subcols(nxi, nt), theta);
+    let mut it = Mat::<f64>::zeros(n, z0.ncols());
+    for j in 0..=(k - lin.start_steps) {
+        if j > 0 {
+            xi = mul(s, xi.as_ref()) + &s_theta;
+        }
+        it = mul(lin.readout.as_ref(), xi.as_ref());
+        let label = |kind, index| RowLabel {
+            kind,
+            step,
+            iterate: j + lin.start_steps,
+            index,
+        };
+        rows.push_block(it.as_ref(), &ws.lower, &ws.upper, |i| {
+            label(RowKind::MheBox, i)
+        });
+        if let Some((g, e, l0, u0)) = &ws.general {
+            let gz = mul(g.as_ref(), it.as_ref()) + mul(e.as_ref(), theta);
+            rows.push_block(gz.as_ref(), l0, u0, |i| label(RowKind::MheGeneral, i));
+        }
+    }
+    let xh = mul(ws.x_z.as_ref(), it.as_ref()) + mul(ws.x_theta.as_ref(), theta);
+    Ok((it, xh))
+}
+
+/// The law on x̂: pushes its rows and returns u.
+pub(crate) fn control(
+    law: &Law,
+    nu: usize,
+    xh: MatRef<'_, f64>,
+    step: Option<usize>,
+    rows: &mut Rows,
+) -> Mat<f64> {
+    let v = mul(law.gain.as_ref(), xh);
+    rows.push_block(v.as_ref(), &law.lower, &law.upper, |i| RowLabel {
+        kind: RowKind::Input,
+        step,
+        iterate: 0,
+        index: i,
+    });
+    v.as_ref().subrows(0, nu).to_owned()
+}
+
+/// The time-shifted warm start z⁰ = W_z zᴷ + W_θ θ (as `MheEstimator::push` for t ≥ M).
+pub(crate) fn shifted_warm_start(p: &Pieces, w: WindowLayout) -> (Mat<f64>, Mat<f64>) {
+    let d = w.dims;
+    let (nz, nw) = (w.nz(), d.nw());
+    let mut wz = Mat::<f64>::zeros(nz, nz);
+    let mut wth = Mat::<f64>::zeros(nz, w.n_theta());
+    for i in 0..d.nx {
+        for j in 0..d.nx {
+            wz[(i, j)] += p.a[(i, j)];
+        }
+        for j in 0..d.nw1 {
+            wz[(i, w.w_offset(0) + j)] += p.e[(i, j)];
+        }
+        for j in 0..d.nu {
+            wth[(i, w.u_offset(0) + j)] += p.b[(i, j)];
+        }
+    }
+    for i in d.nx..nz - nw {
+        wz[(i, i + nw)] = 1.0;
+    }
+    (wz, wth)
+}

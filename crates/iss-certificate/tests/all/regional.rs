@@ -1,0 +1,409 @@
+//! The regional certificate (issue 27): the lifted model against the real loop, soundness on
+//! random plants, the region's boundary, and the void reasons.
+
+use closed_loop::scenario::{ControllerChoice, LoopOptions, Scenario, ScenarioLoop};
+use faer::{Mat, Par};
+use iss_certificate::linear::{LiftedLayout, LiftedLoop};
+use iss_certificate::regional::{
+    RegionalOptions, RegionalVoid, RowKind, k_reg, regional_certificate, regional_detail,
+};
+use qp_iter::Method;
+use rand::{Rng, SeedableRng};
+use rand_chacha::ChaCha8Rng;
+
+use crate::build;
+
+fn norm(v: &[f64]) -> f64 {
+    v.iter().map(|x| x * x).sum::<f64>().sqrt()
+}
+
+fn apply(a: &Mat<f64>, x: &[f64]) -> Vec<f64> {
+    (0..a.nrows())
+        .map(|i| (0..a.ncols()).map(|j| a[(i, j)] * x[j]).sum())
+        .collect()
+}
+
+/// X_t from the running loop (t ≥ M), as in the linear tests.
+fn lifted_state(cl: &ScenarioLoop, l: LiftedLayout) -> Vec<f64> {
+    let (t, tr) = (cl.t(), cl.trace());
+    let mut x = vec![0.0; l.dim()];
+    x[..l.nx].copy_from_slice(cl.state());
+    for j in 0..l.horizon {
+        let s = t - l.horizon + j;
+        x[l.u_window(j)..l.u_window(j) + l.nu].copy_from_slice(tr.u(s).unwrap());
+        x[l.y_window(j)..l.y_window(j) + l.ny].copy_from_slice(tr.y(s).unwrap());
+        x[l.estimates(j)..l.estimates(j) + l.nx].copy_from_slice(tr.x_hat(s).unwrap());
+    }
+    x[l.warm_start()..l.warm_start() + l.nz].copy_from_slice(cl.estimator().warm_start_point());
+    x
+}
+
+fn options(s: &Scenario, method: Method, k: usize) -> LoopOptions {
+    let mut o = LoopOptions::from_scenario(s).unwrap();
+    o.method = method;
+    o.iterations = k;
+    o.controller = ControllerChoice::ExactMpc;
+    o
+}
+
+const STAND_IN: &str = concat!(
+    env!("CARGO_MANIFEST_DIR"),
+    "/../../scenarios/case-study-certified.toml"
+);
+
+/// 𝔸(K) of the regional model is the matrix of `linear::LiftedLoop` (same layout), for
+/// each method and both warm starts.
+#[test]
+fn lifted_matrix_matches_the_linear_module() {
+    for (method, shifted) in [
+        (Method::PG, false),
+        (Method::FISTA, false),
+        (Method::ADMM, true),
+    ] {
+        let mut s = Scenario::from_file(STAND_IN).unwrap();
+        if shifted {
+            s.mhe.as_mut().unwrap().warm_start = mhe_core::WarmStart::Shifted;
+        }
+        let res = s.clone().resolve().unwrap();
+        let o = options(&s, method, 7);
+        let cl = build(&s, &o).unwrap();
+        let lin = LiftedLoop::from_loop(&cl, &res, method, Par::Seq).unwrap();
+        let a = lin.matrix(7, Par::Seq).unwrap();
+        let ro = RegionalOptions::from_scenario(&res, ControllerChoice::ExactMpc).unwrap();
+        let (_, d) = regional_detail(&res, method, 7, &ro).unwrap();
+        assert_eq!((d.a.nrows(), d.a.ncols()), (a.nrows(), a.ncols()));
+        let gap = (&d.a - &a).norm_max();
+        assert!(gap <= 1e-12 * a.norm_max().max(1.0), "{method}: {gap:e}");
+    }
+}
+
+/// A random plant: stable (ρ(A) < 1), marginal (ρ = 1) or unstable with 𝒰 = ℝ; the noise on
+/// a subset of the states (E a column selection); small x₀ and prior so the region can
+/// contain them.
+fn random_plant(seed: u64, kind: usize) -> Scenario {
+    let mut r = ChaCha8Rng::seed_from_u64(seed);
+    let nx = 2 + (seed % 2) as usize;
+    let mut a = Mat::from_fn(nx, nx, |_, _| r.random_range(-1.0..1.0));
+    let rho = lti_model::system::spectral_radius(a.as_ref())
+        .unwrap()
+        .max(1e-3);
+    let target = [0.7, 1.0, 1.3][kind];
+    a *= faer::Scale(target / rho);
+    let row = |v: Vec<f64>| {
+        format!(
+            "[{}]",
+            v.iter()
+                .map(|x| format!("{x:e}"))
+                .collect::<Vec<_>>()
+                .join(", ")
+        )
+    };
+    let mat = |m: &Mat<f64>| {
+        format!(
+            "[{}]",
+            (0..m.nrows())
+                .map(|i| row((0..m.ncols()).map(|j| m[(i, j)]).collect()))
+                .collect::<Vec<_>>()
+                .join(", ")
+        )
+    };
+    let b = Mat::from_fn(nx, 1, |i, _| {
+        if i == nx - 1 {
+            1.0
+        } else {
+            r.random_range(-0.5..0.5)
+        }
+    });
+    let c = Mat::from_fn(1, nx, |_, j| {
+        if j == 0 {
+            1.0
+        } else {
+            r.random_range(-0.5..0.5)
+        }
+    });
+    // Noise on the first state only: E = e₁ (n_x × 1), F = 1.
+    let e = Mat::from_fn(nx, 1, |i, _| if i == 0 { 1.0 } else { 0.0 });
+    let input = if kind == 2 {
+        String::new()
+    } else {
+        "input = { lower = [-1.0], upper = [1.0] }".into()
+    };
+    let x0: Vec<f64> = (0..nx).map(|_| r.random_range(-0.01..0.01)).collect();
+    let text = format!(
+        r#"name = "random-{seed}"
+[plant]
+a = {a}
+b = {b}
+c = {c}
+e = {e}
+f = [[1.0]]
+[sets]
+{input}
+disturbance = {{ lower = [-0.5, -0.5], upper = [0.5, 0.5] }}
+[noise]
+kind = "uniform"
+scale = 0.002
+seed = {seed}
+[simulation]
+x0 = {x0}
+prior = {p0}
+steps = 60
+[mhe]
+horizon = 3
+eta = 0.5
+iterations = 1
+[mpc]
+horizon = 5
+q = 1.0
+r = 1.0
+"#,
+        a = mat(&a),
+        b = mat(&b),
+        c = mat(&c),
+        e = mat(&e),
+        x0 = row(x0.clone()),
+        p0 = row(vec![0.0; nx]),
+    );
+    Scenario::from_toml_str(&text).unwrap()
+}
+
+/// Soundness against the real loop: at K_reg of random stable, marginal and unstable
+/// (𝒰 = ℝ) plants with noise on one state, the simulated loop (its own uniform noise within
+/// w̄) stays the linear loop for every step — no constraint activates, X_t equals the lifted
+/// prediction — and ‖X_t‖_P, ‖x_t‖, ‖e_t‖ meet the certified decay bounds.
+#[test]
+fn random_plants_stay_linear_and_meet_the_certified_decay() {
+    let mut checked = 0;
+    for seed in 0..12u64 {
+        let kind = (seed % 3) as usize;
+        let s = random_plant(1000 + seed, kind);
+        let res = s.clone().resolve().unwrap();
+        let ro = RegionalOptions::from_scenario(&res, ControllerChoice::ExactMpc).unwrap();
+        for method in [Method::PG, Method::FISTA, Method::ADMM] {
+            let kr = match k_reg(&res, method, &ro, 256) {
+                Ok(kr) => kr,
+                Err(e) => panic!("seed {seed} {method}: {e}"),
+            };
+            let Some(k) = kr.k_reg else { continue };
+            let (c, d) = regional_detail(&res, method, k, &ro).unwrap();
+            assert!(c.contains && c.rate < 1.0);
+            let o = options(&s, method, k);
+            let mut cl = build(&s, &o).unwrap();
+            let big_m = s.mhe.as_ref().unwrap().horizon;
+            for _ in 0..big_m {
+                cl.step().unwrap();
+            }
+            let l = LiftedLayout {
+                nx: s.plant.nx(),
+                nu: 1,
+                ny: 1,
+                horizon: big_m,
+                nz: s.plant.nx() + big_m * s.plant.nw(),
+                n_controller: 0,
+            };
+            // X_M = 𝕄υ from the run's own x₀, x̄₀ and w₀..w_{M−1}.
+            let tr = cl.trace();
+            let mut v = s.simulation.x0.clone();
+            v.extend_from_slice(&s.simulation.prior);
+            for t in 0..big_m {
+                v.extend_from_slice(tr.w(t).unwrap());
+            }
+            let mut x = apply(&d.start_map, &v);
+            let pnorm = |x: &[f64]| norm(&apply(&d.p_half, x));
+            let x_m = pnorm(&x);
+            assert!(x_m <= c.initial_radius * (1.0 + 1e-9));
+            let w_bar = ro.w_bar;
+            for step in 0..40 {
+                let sim = lifted_state(&cl, l);
+                let gap = norm(&x.iter().zip(&sim).map(|(p, q)| p - q).collect::<Vec<_>>());
+                assert!(
+                    gap <= 1e-8 * norm(&sim).max(1e-12),
+                    "seed {seed} {method} K = {k} step {step}: left the linear loop ({gap:e})"
+                );
+                let lam_t = c.rate.powi(step);
+                let bound =
+                    lam_t * x_m + c.disturbance_gain * w_bar * (1.0 - lam_t) / (1.0 - c.rate);
+                assert!(pnorm(&sim) <= bound * (1.0 + 1e-9) + 1e-15);
+                assert!(norm(cl.state()) <= c.x_read_norm * bound * (1.0 + 1e-9) + 1e-15);
+                let t = cl.t();
+                let e_now = norm(&apply(&d.e_read, &sim));
+                assert!(e_now <= c.e_read_norm * bound * (1.0 + 1e-9) + 1e-15);
+                cl.step().unwrap();
+                let w = cl.trace().w(t).unwrap().to_vec();
+                x = apply(&d.a, &x)
+                    .iter()
+                    .zip(apply(&d.bw, &w))
+                    .map(|(p, q)| p + q)
+                    .collect();
+            }
+            checked += 1;
+        }
+    }
+    assert!(
+        checked >= 12,
+        "only {checked} certified (plant, method) pairs"
+    );
+}
+
+/// The region's boundary. Without disturbance the certified set of X_M is the ellipsoid
+/// ‖X‖_P ≤ r = min_c bound_c/‖P^{−½}cᵀ‖: from the point extreme along each row's normal the
+/// linear loop keeps every row within its bound at every step and decays at the certified
+/// rate, and the binding row's point 1 % farther out activates it. With the disturbance, the
+/// certified radius shrinks by w̄h̃_c/‖P^{−½}cᵀ‖; from the same extreme points with the
+/// worst-case disturbance sequence for that row, no row activates either.
+#[test]
+fn boundary_points_along_each_normal_are_inactive_and_one_percent_more_activates() {
+    for seed in [2000u64, 2001, 2002] {
+        let s = random_plant(seed, (seed % 3) as usize);
+        let res = s.clone().resolve().unwrap();
+        let ro = RegionalOptions::from_scenario(&res, ControllerChoice::ExactMpc).unwrap();
+        for w_bar in [0.0, ro.w_bar] {
+            let o = RegionalOptions {
+                w_bar,
+                ..ro.clone()
+            };
+            let (c, d) = regional_detail(&res, Method::FISTA, 20, &o).unwrap();
+            let r = c.radius;
+            assert!(r.is_finite() && r > 0.0, "seed {seed}: radius {r}");
+            let p_inv = &d.p_neg_half * &d.p_neg_half;
+            let inside = |x: &[f64], tag: &str| {
+                for (j, other) in d.rows.iter().enumerate() {
+                    let v: f64 = other.iter().zip(x).map(|(a, b)| a * b).sum();
+                    let tol = 1e-9 * d.upper[j].abs().min(d.lower[j].abs()).max(1e-12);
+                    assert!(
+                        v <= d.upper[j] + tol && v >= d.lower[j] - tol,
+                        "seed {seed} w̄ = {w_bar}: row {j} active ({v} ∉ [{}, {}]) {tag}",
+                        d.lower[j],
+                        d.upper[j]
+                    );
+                }
+            };
+            let pnorm = |x: &[f64]| norm(&apply(&d.p_half, x));
+            let mut hit_limit = false;
+            for (i, row) in d.rows.iter().enumerate().step_by(3) {
+                let cv = Mat::from_fn(row.len(), 1, |j, _| row[j]);
+                let pc = &p_inv * &cv;
+                let nrm = norm(&apply(&d.p_neg_half, row));
+                let xs: Vec<f64> = (0..row.len()).map(|j| r * pc[(j, 0)] / nrm).collect();
+                // Worst-case disturbance for row i at step T: w_{T−1−k} ∥ (c𝔸ᵏ𝔹_w)ᵀ.
+                let t_end = 30;
+                let mut v = Vec::new();
+                let mut cak = row.clone(); // c𝔸ᵏ
+                for _ in 0..t_end {
+                    let g = apply(&d.bw.transpose().to_owned(), &cak);
+                    let gn = norm(&g);
+                    v.push(if gn > 0.0 {
+                        g.iter().map(|x| w_bar * x / gn).collect::<Vec<_>>()
+                    } else {
+                        vec![0.0; g.len()]
+                    });
+                    cak = apply(&d.a.transpose().to_owned(), &cak);
+                }
+                let mut x = xs.clone();
+                let x0p = pnorm(&xs);
+                let mut xf = xs.clone(); // the free response
+                for t in 0..t_end {
+                    inside(&x, &format!("at step {t} from row {i}'s point"));
+                    let lt = c.rate.powi(t as i32);
+                    assert!(pnorm(&xf) <= lt * x0p * (1.0 + 1e-9) + 1e-15);
+                    let w = &v[t_end - 1 - t];
+                    x = apply(&d.a, &x)
+                        .iter()
+                        .zip(apply(&d.bw, w))
+                        .map(|(p, q)| p + q)
+                        .collect();
+                    xf = apply(&d.a, &xf);
+                }
+                hit_limit |= i == 0;
+            }
+            assert!(hit_limit);
+            if w_bar == 0.0 {
+                // The binding row: argmin bound/‖P^{−½}cᵀ‖, which sets r at w̄ = 0.
+                let i = (0..d.rows.len())
+                    .min_by(|&a, &b| {
+                        let f = |j: usize| {
+                            d.upper[j].min(-d.lower[j]) / norm(&apply(&d.p_neg_half, &d.rows[j]))
+                        };
+                        f(a).total_cmp(&f(b))
+                    })
+                    .unwrap();
+                let row = &d.rows[i];
+                let cv = Mat::from_fn(row.len(), 1, |j, _| row[j]);
+                let pc = &p_inv * &cv;
+                let nrm = norm(&apply(&d.p_neg_half, row));
+                let v: f64 = (0..row.len())
+                    .map(|j| row[j] * 1.01 * r * pc[(j, 0)] / nrm)
+                    .sum();
+                assert!(
+                    v > d.upper[i] || v < d.lower[i],
+                    "1 % farther must activate"
+                );
+            }
+        }
+    }
+}
+
+/// Each broken premise voids with its exact reason.
+#[test]
+fn broken_premises_void_with_their_reason() {
+    // ρ_lin ≥ 1: the unstable test plant at K = 1 (PG).
+    let s = Scenario::from_file(concat!(
+        env!("CARGO_MANIFEST_DIR"),
+        "/tests/data/unstable-2state.toml"
+    ))
+    .unwrap();
+    let res = s.clone().resolve().unwrap();
+    let ro = RegionalOptions::from_scenario(&res, ControllerChoice::ExactMpc).unwrap();
+    match regional_certificate(&res, Method::PG, 1, &ro) {
+        Err(RegionalVoid::Unstable { k: 1, rho }) => assert!(rho >= 1.0),
+        other => panic!("{other:?}"),
+    }
+    // A K_c-iteration MPC is not covered.
+    let sub = RegionalOptions {
+        controller: ControllerChoice::SuboptimalMpc {
+            iterations: 5,
+            method: Method::PG,
+        },
+        ..ro.clone()
+    };
+    let e = regional_certificate(&res, Method::PG, 600, &sub).unwrap_err();
+    assert!(e.to_string().contains("K_c-iteration MPC"), "{e}");
+    // Gaussian noise without certificate.w_bar.
+    let text = std::fs::read_to_string(STAND_IN).unwrap().replace(
+        "kind = \"uniform\"",
+        "kind = \"gaussian\"\ncovariance = [[1,0,0,0,0],[0,1,0,0,0],[0,0,1,0,0],[0,0,0,1,0],[0,0,0,0,1]]",
+    );
+    let g = Scenario::from_toml_str(&text).unwrap().resolve().unwrap();
+    assert_eq!(
+        RegionalOptions::from_scenario(&g, ControllerChoice::ExactMpc).unwrap_err(),
+        RegionalVoid::UnboundedNoise
+    );
+    // 0 on the boundary of 𝒰.
+    let text = std::fs::read_to_string(STAND_IN)
+        .unwrap()
+        .replace("lower = [-1.0, -1.0]", "lower = [0.0, -1.0]");
+    let b = Scenario::from_toml_str(&text).unwrap().resolve().unwrap();
+    let ro = RegionalOptions::from_scenario(&b, ControllerChoice::ExactMpc).unwrap();
+    let e = regional_certificate(&b, Method::PG, 10, &ro).unwrap_err();
+    assert!(
+        e.to_string()
+            .contains("0 is not an interior point of the MPC"),
+        "{e}"
+    );
+}
+
+/// The stand-in's own uncertainty (x₀ = (12, −10, 10, −10), prior error 10.9, w̄ = 0.22) is
+/// far outside any region: the MHE's 𝒲 = [−0.1, 0.1] and 𝒰 = [−1, 1] rows bind, and the
+/// certificate says which and by how much.
+#[test]
+fn the_stand_in_names_its_limiting_constraint() {
+    let res = Scenario::from_file(STAND_IN).unwrap().resolve().unwrap();
+    let ro = RegionalOptions::from_scenario(&res, ControllerChoice::ExactMpc).unwrap();
+    let c = regional_certificate(&res, Method::ADMM, 20, &ro).unwrap();
+    assert!(!c.contains);
+    assert!(c.margin < 1.0);
+    let lim = c.radius_limit.unwrap();
+    assert!(matches!(lim.row.kind, RowKind::MheBox | RowKind::Input));
+    let sl = c.startup_limit.unwrap();
+    assert!(sl.reach > sl.bound, "{sl:?}");
+}

@@ -22,7 +22,9 @@ use std::sync::{OnceLock, PoisonError, RwLock};
 use mpc_core::{CondensedMpc, ENUMERATION_MAX_VARS, MpcError};
 
 use closed_loop::scenario::ResolvedScenario;
-use iss_certificate::certificate::{ClosedLoopCertificate, ComputedParts, certify_closed_loop_with};
+use iss_certificate::certificate::{
+    ClosedLoopCertificate, ComputedParts, certify_closed_loop_with,
+};
 use iss_certificate::coverage::{Coverage, covering};
 use iss_certificate::gamma13::{
     GAMMA13_PATTERN_FAMILIES, Gamma13Chunk, Gamma13Plan, Gamma13Source, Gamma13Stage,
@@ -198,10 +200,7 @@ impl<'a> TheoryGraph<'a> {
     fn certificate_jobs(&mut self) {
         let opts = certificate_options(&self.config.solvers);
         let mut inputs = Vec::new();
-        if let Some(mpc) = self
-            .mpc
-            .filter(|m| m.certificate_void_reason().is_none())
-        {
+        if let Some(mpc) = self.mpc.filter(|m| m.certificate_void_reason().is_none()) {
             if opts.gamma13 == Gamma13Source::Certified {
                 self.gamma13_tasks = true;
                 let plan = self.jobs.len();
@@ -269,12 +268,11 @@ impl<'a> TheoryGraph<'a> {
             }
             TheoryJob::Linear(e, s, k_c, c) => {
                 let grid = self.config.k_grid.clone();
-                if let Some(entry) = solver_linear(self.resolved, &[s], &[(k_c, c)], |_| {
-                    grid.clone()
-                })
-                .0
-                .into_iter()
-                .next()
+                if let Some(entry) =
+                    solver_linear(self.resolved, &[s], &[(k_c, c)], |_| grid.clone())
+                        .0
+                        .into_iter()
+                        .next()
                 {
                     let _ = self.linear[e].set(entry);
                 }
@@ -373,7 +371,12 @@ impl<'a> TheoryGraph<'a> {
                 .theory_wanted
                 .then(|| solvers().into_iter().map(|(s, t, _)| (s, t)).collect()),
             linear: self.linear_wanted.then(|| {
-                LinearSide(self.linear.iter().filter_map(|c| c.get().cloned()).collect())
+                LinearSide(
+                    self.linear
+                        .iter()
+                        .filter_map(|c| c.get().cloned())
+                        .collect(),
+                )
             }),
             boundaries: self
                 .boundaries_wanted

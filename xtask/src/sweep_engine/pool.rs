@@ -100,9 +100,8 @@ impl Sweep {
             self.certified.get().is_none() && cfg.is_2d(),
         );
         self.store(ready);
-        let mut jobs: Vec<(Job, u64)> = (0..graph.jobs.len())
-            .map(|i| (Job::Theory(i), 0))
-            .collect();
+        let mut jobs: Vec<(Job, u64)> =
+            (0..graph.jobs.len()).map(|i| (Job::Theory(i), 0)).collect();
         let mut runs: Vec<(Job, u64)> = todo
             .iter()
             .enumerate()

@@ -245,12 +245,15 @@ impl ScheduleReport {
             .peekable();
         loop {
             // The first free worker (lowest index on a tie), as a shared counter gives.
-            let (w, at) = free.iter().enumerate().fold(
-                (0, f64::INFINITY),
-                |best, (i, &f)| {
-                    if f < best.1 { (i, f) } else { best }
-                },
-            );
+            let (w, at) = free
+                .iter()
+                .enumerate()
+                .fold(
+                    (0, f64::INFINITY),
+                    |best, (i, &f)| {
+                        if f < best.1 { (i, f) } else { best }
+                    },
+                );
             let done_by = |d: &usize| end.get(*d).copied().flatten().is_some_and(|e| e <= at);
             let pick = match waiting
                 .iter()

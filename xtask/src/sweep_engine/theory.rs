@@ -11,7 +11,9 @@ use super::format::csv_text;
 use super::region::Staircase;
 use super::{ControllerChoice, Method};
 use iss_certificate::analysis::IssAnalysis;
-use iss_certificate::certificate::{CertificateOptions, ClosedLoopCertificate, certify_closed_loop};
+use iss_certificate::certificate::{
+    CertificateOptions, ClosedLoopCertificate, certify_closed_loop,
+};
 use iss_certificate::coverage::{Applicable, Coverage, covering};
 
 /// The certificate's side of a point: Theorem 1 for one solver.

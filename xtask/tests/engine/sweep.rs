@@ -15,10 +15,7 @@ use xtask::sweep_engine::{
     merge_point_dirs, point_file_name, run_seed,
 };
 
-const SCENARIO: &str = concat!(
-    env!("CARGO_MANIFEST_DIR"),
-    "/../scenarios/case-study.toml"
-);
+const SCENARIO: &str = concat!(env!("CARGO_MANIFEST_DIR"), "/../scenarios/case-study.toml");
 
 /// A fresh, empty directory under the test target's temp dir.
 fn scratch(name: &str) -> PathBuf {
@@ -462,7 +459,11 @@ fn theory_tasks_equal_the_sequential_certificate() {
         let sweep = Sweep::new(SweepConfig::from_toml_str(&cfg, Path::new(".")).unwrap()).unwrap();
         let out = d.join(format!("t{threads}"));
         let report = run(&sweep, &out, threads, None);
-        assert_eq!(format!("{:?}", sweep.theory()), sequential, "{threads} threads");
+        assert_eq!(
+            format!("{:?}", sweep.theory()),
+            sequential,
+            "{threads} threads"
+        );
         let tasks = &report.schedule.tasks;
         let count = |k: TaskKind| tasks.iter().filter(|t| t.kind == k).count();
         assert_eq!(count(TaskKind::Gamma13Plan), 1);

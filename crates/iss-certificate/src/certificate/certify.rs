@@ -173,17 +173,14 @@ pub fn certify_closed_loop_with(
         Some(spec) => spec.explain(sys, e),
         None => e,
     };
-    let l_pi = mpc_core::lipschitz_report_with(
-        &mpc,
-        opts.lipschitz_pairs,
-        opts.seed,
-        radius,
-        |m| match l_pi_enumerated {
-            Some(r) => r,
-            None => m.lipschitz_enumerated(mpc_core::ENUMERATION_MAX_VARS),
-        },
-    )
-    .map_err(explain)?;
+    let l_pi =
+        mpc_core::lipschitz_report_with(&mpc, opts.lipschitz_pairs, opts.seed, radius, |m| {
+            match l_pi_enumerated {
+                Some(r) => r,
+                None => m.lipschitz_enumerated(mpc_core::ENUMERATION_MAX_VARS),
+            }
+        })
+        .map_err(explain)?;
     let l_pi_used = l_pi.l_pi();
     times.l_pi_s = split();
     let gamma13 = crate::gamma13::gamma13_report_with(

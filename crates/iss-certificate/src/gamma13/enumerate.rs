@@ -76,9 +76,7 @@ impl VertexEnumeration {
         let total = mpc.free_set_count();
         let step = total.div_ceil(VERTEX_CHUNKS).max(1);
         let ranges: Vec<std::ops::Range<u64>> = (0..VERTEX_CHUNKS)
-            .map(|c| {
-                (c.saturating_mul(step)).min(total)..(c + 1).saturating_mul(step).min(total)
-            })
+            .map(|c| (c.saturating_mul(step)).min(total)..(c + 1).saturating_mul(step).min(total))
             .filter(|r| !r.is_empty())
             .collect();
         Self {

@@ -41,10 +41,10 @@ mod plan;
 mod report;
 mod sampled;
 
+pub use plan::{Gamma13Chunk, Gamma13Plan, Gamma13Stage};
 pub use report::{
     Gamma13Report, Gamma13Source, gamma13_report, gamma13_report_budgeted, gamma13_report_with,
 };
-pub use plan::{Gamma13Chunk, Gamma13Plan, Gamma13Stage};
 pub use sampled::{Gamma13Sampled, gamma13_sampled};
 
 use faer::Mat;

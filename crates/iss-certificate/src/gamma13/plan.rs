@@ -195,7 +195,6 @@ impl<'a> Gamma13Plan<'a> {
             skipped,
             enumeration,
         })))
-
     }
 
     /// An upper bound on [`Gamma13Plan::chunks`] for any plan of `mpc`, known before the
@@ -208,7 +207,9 @@ impl<'a> Gamma13Plan<'a> {
     /// Chunks of the free-set enumeration (0 when it is not run: too many saturable
     /// variables, or over the budget).
     pub fn chunks(&self) -> usize {
-        self.enumeration.as_ref().map_or(0, VertexEnumeration::chunks)
+        self.enumeration
+            .as_ref()
+            .map_or(0, VertexEnumeration::chunks)
     }
 
     /// Chunk `i` (< [`Gamma13Plan::chunks`]) of the free-set enumeration.
@@ -325,8 +326,12 @@ impl<'a> Gamma13Plan<'a> {
                 .copied()
                 .filter(|&i| candidates[i].gamma13.is_finite())
             {
-                gamma13_linear =
-                    impulse_response_gain(&fam, &fam.bk_lin, &metrics[i], candidates[i].contraction);
+                gamma13_linear = impulse_response_gain(
+                    &fam,
+                    &fam.bk_lin,
+                    &metrics[i],
+                    candidates[i].contraction,
+                );
             }
         }
 

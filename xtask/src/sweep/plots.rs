@@ -364,7 +364,7 @@ impl BandChart<'_> {
     }
 
     #[cfg(test)]
-    fn render(&self, path: &Path) -> Result<()> {
+    fn render(&self, path: &std::path::Path) -> Result<()> {
         crate::output::write_atomic(path, self.svg(&path.display().to_string())?.as_bytes())
     }
 }

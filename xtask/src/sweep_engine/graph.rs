@@ -5,7 +5,7 @@
 //!
 //! | task | inputs | computes |
 //! | --- | --- | --- |
-//! | `gamma13_plan` | — | γ₁,₃'s families, candidate metrics and S-procedure figures ([`Gamma13Plan::new`]) |
+//! | `gamma13_plan` | — | γ₁,₃'s families, candidate metrics and S-procedure figures ([`Gamma13Plan::start`]) |
 //! | `gamma13_enumeration` × ≤ 64 | the plan | one mask chunk of γ₁,₃'s free-set enumeration ([`Gamma13Plan::chunk`]) |
 //! | `l_pi_enumeration` × ≤ 32 | — | one mask chunk of L_π's free-set enumeration ([`CondensedMpc::lipschitz_enumerated_in`]) |
 //! | `linear` × solvers (× K_c) | — | ρ_lin on the K grid ([`solver_linear`]) |
@@ -242,7 +242,7 @@ impl<'a> TheoryGraph<'a> {
             TheoryJob::Gamma13Plan => {
                 let opts = certificate_options(&self.config.solvers);
                 if let Some(mpc) = self.mpc {
-                    let stage = Gamma13Plan::new(
+                    let stage = Gamma13Plan::start(
                         mpc,
                         opts.enumeration_max_vars,
                         GAMMA13_PATTERN_FAMILIES,

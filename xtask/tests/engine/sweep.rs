@@ -451,7 +451,7 @@ fn theory_tasks_equal_the_sequential_certificate() {
         let c = sweep.config();
         format!(
             "{:?}",
-            closed_loop::sweep::solver_theory(sweep.resolved(), &c.solvers, c.controller)
+            xtask::sweep_engine::solver_theory(sweep.resolved(), &c.solvers, c.controller)
         )
     };
     assert!(sequential.contains("Analysis"), "{sequential}");

@@ -504,7 +504,7 @@ pub fn gamma13_certified_budgeted(
     pattern_families: u64,
     phase_seconds: f64,
 ) -> Result<Gamma13Certificate, MpcError> {
-    match Gamma13Plan::new(mpc, max_vars, pattern_families, phase_seconds)? {
+    match Gamma13Plan::start(mpc, max_vars, pattern_families, phase_seconds)? {
         Gamma13Stage::Done(c) => Ok(*c),
         Gamma13Stage::Plan(plan) => {
             // One chunk per task (in order), so the result does not depend on the thread

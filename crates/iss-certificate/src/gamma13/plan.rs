@@ -1,6 +1,6 @@
 //! The certified γ₁,₃ of [`super::gamma13_certified_budgeted`] in three stages, so that a
 //! caller can schedule them itself (the sweep's pool runs each as a task): the plan
-//! ([`Gamma13Plan::new`]: the families, the candidate metrics and their S-procedure
+//! ([`Gamma13Plan::start`]: the families, the candidate metrics and their S-procedure
 //! figures, the choice of the metrics to enumerate), the free-set enumeration in
 //! independent mask chunks ([`Gamma13Plan::chunk`]), and the result
 //! ([`Gamma13Plan::finish`]). The chunks are fixed by 2^s, not by who runs them, and
@@ -14,7 +14,7 @@ use super::enumerate::{VertexChunk, VertexEnumeration};
 use super::metrics::{self, Family, Metric};
 use super::*;
 
-/// What [`Gamma13Plan::new`] gives: the certificate already (void before any enumeration),
+/// What [`Gamma13Plan::start`] gives: the certificate already (void before any enumeration),
 /// or the plan of the rest.
 #[derive(Debug)]
 pub enum Gamma13Stage<'a> {
@@ -53,7 +53,7 @@ pub type Gamma13Chunk = VertexChunk;
 
 impl<'a> Gamma13Plan<'a> {
     /// The first stage of [`super::gamma13_certified_budgeted`] (same arguments).
-    pub fn new(
+    pub fn start(
         mpc: &'a CondensedMpc,
         max_vars: usize,
         pattern_families: u64,

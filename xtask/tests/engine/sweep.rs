@@ -432,7 +432,7 @@ fn theoretical_columns_follow_the_certificate() {
 fn theory_tasks_equal_the_sequential_certificate() {
     let certified = concat!(
         env!("CARGO_MANIFEST_DIR"),
-        "/../../scenarios/case-study-certified.toml"
+        "/../scenarios/case-study-certified.toml"
     );
     // N = 5: 2^10 free sets, so both enumerations run (in 64 and 32 chunks) in a moment.
     let text = fs::read_to_string(certified)

@@ -8,9 +8,11 @@
 //! untouched: a failed rerun never leaves a mixture of old and new files, nor a cut file.
 //! [`write_atomic`] is the one-file case (`certify --json`, and `export`).
 //!
-//! [`Backup`] covers the files a library call replaces before the set is written (the
-//! sweep's `runs.csv` / `points.csv`): it hard-links them aside (no data is copied, so it
-//! works on a full disk) and puts them back when a later step fails.
+//! The renames follow the staging order, and the file staged last can record the set
+//! ([`OutputSet::manifest`]: every other file's name, size and hash): the sweep stages its
+//! `runs.csv` and `points.csv` first and its `meta.json` last, so a kill before the commit
+//! leaves the previous set, and a directory whose files match its `meta.json`'s `files` is
+//! one complete set.
 //!
 //! Fault injection for tests: with the environment variable
 //! `SUBOPTIMAL_MHE_FAULT_WRITE_BYTES=N`, the output sets of this process may write N bytes
@@ -98,11 +100,20 @@ fn sync_dir(dir: &Path) -> Result<()> {
     }
 }
 
-/// One staged file: its temporary and its final path.
+/// One staged file: its temporary and its final path, its size and FNV-1a hash.
 #[derive(Debug)]
 struct Staged {
     tmp: PathBuf,
     path: PathBuf,
+    bytes: usize,
+    fnv1a64: u64,
+}
+
+/// FNV-1a (64 bit) of `bytes`: the manifest's check that a file is the one staged.
+pub fn fnv1a64(bytes: &[u8]) -> u64 {
+    bytes.iter().fold(0xcbf2_9ce4_8422_2325, |h, &b| {
+        (h ^ u64::from(b)).wrapping_mul(0x0000_0100_0000_01b3)
+    })
 }
 
 /// Files of one run, staged under temporary names and renamed into place together by
@@ -158,8 +169,29 @@ impl OutputSet {
         self.staged.push(Staged {
             tmp,
             path: path.clone(),
+            bytes: bytes.len(),
+            fnv1a64: fnv1a64(bytes),
         });
         Ok(path)
+    }
+
+    /// The files staged so far, in order, as JSON `{"file", "bytes", "fnv1a64"}` (the hash
+    /// as 16 hex digits): the manifest a file staged last (the sweep's `meta.json`) records,
+    /// so a reader can check that the directory holds exactly that set. The renames of
+    /// [`commit`](Self::commit) follow the staging order: the file staged last appears last.
+    pub fn manifest(&self) -> serde_json::Value {
+        serde_json::Value::Array(
+            self.staged
+                .iter()
+                .map(|s| {
+                    serde_json::json!({
+                        "file": s.path.file_name().map(|n| n.to_string_lossy().into_owned()),
+                        "bytes": s.bytes,
+                        "fnv1a64": format!("{:016x}", s.fnv1a64),
+                    })
+                })
+                .collect(),
+        )
     }
 
     /// Renames every staged file into place and syncs the directory; returns the final
@@ -274,58 +306,6 @@ pub fn read_input(path: &Path) -> Result<String> {
     })
 }
 
-/// Hard links of files a later step may have to put back (see the module docs).
-#[derive(Debug)]
-pub struct Backup {
-    /// (final path, backup link).
-    kept: Vec<(PathBuf, PathBuf)>,
-}
-
-impl Backup {
-    /// Links every existing regular file of `dir` that `keep` selects (by file name) aside.
-    pub fn take(dir: &Path, keep: impl Fn(&str) -> bool) -> Result<Self> {
-        let mut kept = Vec::new();
-        let Ok(rd) = fs::read_dir(dir) else {
-            return Ok(Self { kept });
-        };
-        for e in rd.flatten() {
-            let name = e.file_name().to_string_lossy().into_owned();
-            if name.ends_with(".tmp") || !keep(&name) || !e.file_type().is_ok_and(|t| t.is_file()) {
-                continue;
-            }
-            let path = e.path();
-            let link = temp_path(&path.with_file_name(format!("{name}.previous")));
-            fs::hard_link(&path, &link)
-                .with_context(|| format!("cannot keep the previous `{}` aside", path.display()))?;
-            kept.push((path, link));
-        }
-        Ok(Self { kept })
-    }
-
-    /// Puts every kept file back under its name (after a failed step).
-    pub fn restore(mut self) {
-        for (path, link) in std::mem::take(&mut self.kept) {
-            let _ = fs::rename(&link, &path);
-            // A rename between two links of one file does nothing (POSIX): the file was not
-            // replaced, so the link is only removed.
-            let _ = fs::remove_file(&link);
-        }
-    }
-
-    /// Removes the kept links (after the new set is committed); dropping does the same.
-    pub fn discard(self) {
-        drop(self);
-    }
-}
-
-impl Drop for Backup {
-    fn drop(&mut self) {
-        for (_, link) in &self.kept {
-            let _ = fs::remove_file(link);
-        }
-    }
-}
-
 #[cfg(test)]
 mod tests {
     #![allow(clippy::unwrap_used)]
@@ -392,24 +372,6 @@ mod tests {
             .map(|(n, t)| (n.to_string(), t.to_string()))
             .collect();
         assert_eq!(listing(&d), after);
-        let _ = fs::remove_dir_all(&d);
-    }
-
-    #[test]
-    fn a_backup_puts_replaced_files_back() {
-        let d = tmp_dir("backup");
-        fs::write(d.join("runs.csv"), "old runs").unwrap();
-        fs::write(d.join("other.txt"), "x").unwrap();
-        let b = Backup::take(&d, |n| n.ends_with(".csv")).unwrap();
-        write_atomic(&d.join("runs.csv"), b"new runs").unwrap();
-        b.restore();
-        assert_eq!(fs::read_to_string(d.join("runs.csv")).unwrap(), "old runs");
-        assert_eq!(listing(&d).len(), 2);
-        let b = Backup::take(&d, |n| n.ends_with(".csv")).unwrap();
-        write_atomic(&d.join("runs.csv"), b"new runs").unwrap();
-        b.discard();
-        assert_eq!(fs::read_to_string(d.join("runs.csv")).unwrap(), "new runs");
-        assert_eq!(listing(&d).len(), 2);
         let _ = fs::remove_dir_all(&d);
     }
 

@@ -8,23 +8,23 @@ use std::io::IsTerminal as _;
 use std::path::{Path, PathBuf};
 use std::time::{Instant, SystemTime, UNIX_EPOCH};
 
-use anyhow::{Context, Result, bail};
+use anyhow::{Context, Result, anyhow, bail};
 use indicatif::{ProgressBar, ProgressStyle};
 use serde_json::json;
 use xtask::sweep_engine::{
-    PairThresholds, Point, Progress, RunOptions, Shard, Sweep, SweepConfig, SweepReport, Table,
-    Thresholds, merge_point_dirs, pair_thresholds, pair_thresholds_markdown, thresholds,
+    Assembled, PairThresholds, Point, Progress, RunOptions, Shard, Sweep, SweepConfig, SweepReport,
+    Table, Thresholds, merge_staged, pair_thresholds, pair_thresholds_markdown, thresholds,
     thresholds_markdown,
 };
 
-use crate::output::{Backup, OutputSet, check_out_dir};
+use crate::output::{OutputSet, check_out_dir};
 use crate::provenance::{Provenance, workspace_root};
 
 mod heatmap;
 mod plots;
 mod timing;
 use heatmap::heatmaps_all;
-use plots::{plot_all, read_points, shorten};
+use plots::{plot_all, shorten};
 
 /// Arguments of `cargo xtask sweep`.
 #[derive(Debug, Clone, clap::Args)]
@@ -246,39 +246,29 @@ fn json_text(v: &serde_json::Value) -> Result<String> {
     Ok(serde_json::to_string_pretty(v)? + "\n")
 }
 
-/// The files of an output directory that one run replaces as a set (the library's
-/// `runs.csv` / `points.csv`, then the plots and the meta file): kept aside by
-/// [`Backup`] and put back if a later step fails.
-fn replaced_by_a_run(name: &str) -> bool {
-    name == "runs.csv"
-        || name == "points.csv"
-        || name == "meta.json"
-        || (name.starts_with("meta.shard-") && name.ends_with(".json"))
-        || name.ends_with(".svg")
-}
-
-/// Stages the plots (assembled sweeps) and the meta file in one [`OutputSet`] and commits
-/// it; on failure the files in `backup` are put back, so the directory keeps the previous
-/// complete output.
+/// Stages `runs.csv` and `points.csv` (when assembled), then what `stage` adds (the
+/// plots, `tasks.csv`, and last the meta file), in one [`OutputSet`] and commits it: every
+/// file is on disk under a temporary name before the first is renamed into place, so a
+/// failure or a kill before the commit leaves the previous complete output, and the meta
+/// file, renamed last, lists every other file of the set with its size and hash
+/// ([`OutputSet::manifest`]). Returns the table of `points.csv` passed to `stage`.
 fn write_set(
     out: &Path,
-    backup: Backup,
-    stage: impl FnOnce(&mut OutputSet) -> Result<()>,
+    outputs: Option<&Assembled>,
+    stage: impl FnOnce(&mut OutputSet, Option<&Table>) -> Result<()>,
 ) -> Result<()> {
-    let staged = OutputSet::new(out).and_then(|mut set| {
-        stage(&mut set)?;
-        set.commit()
-    });
-    match staged {
-        Ok(_) => {
-            backup.discard();
-            Ok(())
+    let mut set = OutputSet::new(out)?;
+    let table = match outputs {
+        Some(a) => {
+            set.add("runs.csv", a.runs.as_bytes())?;
+            set.add("points.csv", a.points.as_bytes())?;
+            Some(Table::parse(&a.points).map_err(|e| anyhow!("points.csv: {e}"))?)
         }
-        Err(e) => {
-            backup.restore();
-            Err(e)
-        }
-    }
+        None => None,
+    };
+    stage(&mut set, table.as_ref())?;
+    set.commit()?;
+    Ok(())
 }
 
 /// `cargo xtask sweep`.
@@ -332,10 +322,9 @@ pub fn sweep(args: &SweepArgs) -> Result<()> {
         out.display()
     );
     let bar = Bar(progress_bar());
-    // The library replaces runs.csv and points.csv (each atomically) before the plots and
-    // meta.json are drawn: keep the previous ones to put back if a later step fails.
-    let backup = Backup::take(&out, replaced_by_a_run)?;
-    let report = sweep.run(
+    // runs.csv and points.csv come back unwritten, with the directory's lock held: they are
+    // committed in one set with the plots and meta.json (`write_set`).
+    let staged = sweep.run_staged(
         &RunOptions {
             out_dir: out.clone(),
             threads,
@@ -343,6 +332,7 @@ pub fn sweep(args: &SweepArgs) -> Result<()> {
         },
         &bar,
     )?;
+    let report = &staged.report;
     bar.0.finish_and_clear();
     if report.computed > 0 {
         outln!("certificate: {}", theory_summary(&sweep));
@@ -359,11 +349,10 @@ pub fn sweep(args: &SweepArgs) -> Result<()> {
     let mut thresholds = Vec::new();
     let mut pairs = Vec::new();
     let (mut serial_s, mut wall) = (0.0, 0.0);
-    write_set(&out, backup, |set| {
-        if report.assembled {
-            let table = read_points(&out)?;
-            (thresholds, pairs) = all_thresholds(&sweep, &table);
-            plots = draw(&sweep, set, &table, &pairs)?;
+    write_set(&out, staged.outputs.as_ref(), |set, table| {
+        if let Some(table) = table {
+            (thresholds, pairs) = all_thresholds(&sweep, table);
+            plots = draw(&sweep, set, table, &pairs)?;
         }
         let end = unix_now();
         // Serial time: the command's wall time outside the pool (setup, checks, assembly,
@@ -381,9 +370,10 @@ pub fn sweep(args: &SweepArgs) -> Result<()> {
             "closed_loop_steps": report.steps_simulated,
             "runs_wall_s": report.runs_wall_s,
             "steps_per_second_per_thread": report.steps_per_second_per_thread(),
-            "schedule": timing::schedule_json(&report, serial_s, wall, &tasks_name),
+            "schedule": timing::schedule_json(report, serial_s, wall, &tasks_name),
             "plots": plots,
             "thresholds": thresholds,
+            "files": set.manifest(),
         });
         let extra = with_2d(&sweep, extra, &pairs);
         let text = json_text(&meta(
@@ -398,13 +388,13 @@ pub fn sweep(args: &SweepArgs) -> Result<()> {
     })?;
     print_thresholds(&sweep, &thresholds, &pairs);
     print_summary(
-        &report,
+        report,
         clock.elapsed().as_secs_f64(),
         &out,
         &meta_name,
         &plots,
     );
-    for line in timing::schedule_lines(&report, serial_s, wall) {
+    for line in timing::schedule_lines(report, serial_s, wall) {
         outln!("{line}");
     }
     Ok(())
@@ -486,18 +476,19 @@ pub fn merge(args: &MergeArgs) -> Result<()> {
     };
     // The shards' meta files are read before anything is written (kept for the record).
     let shards = shard_metas(&inputs)?;
-    let backup = Backup::take(&args.out, replaced_by_a_run)?;
-    let n = merge_point_dirs(&sweep, &inputs, &args.out, &Notices)?;
+    // runs.csv and points.csv are committed in one set with the plots and meta.json.
+    let (n, staged) = merge_staged(&sweep, &inputs, &args.out, &Notices)?;
     let mut plots = Vec::new();
-    write_set(&args.out, backup, |set| {
-        let table = read_points(&args.out)?;
-        let (thresholds, pairs) = all_thresholds(&sweep, &table);
-        plots = draw(&sweep, set, &table, &pairs)?;
+    write_set(&args.out, staged.outputs.as_ref(), |set, table| {
+        let table = table.ok_or_else(|| anyhow!("the merge assembled no points.csv"))?;
+        let (thresholds, pairs) = all_thresholds(&sweep, table);
+        plots = draw(&sweep, set, table, &pairs)?;
         let extra = json!({
             "merged_from": inputs.iter().map(|p| p.display().to_string()).collect::<Vec<_>>(),
             "shard_meta": shards,
             "plots": plots,
             "thresholds": thresholds,
+            "files": set.manifest(),
         });
         let extra = with_2d(&sweep, extra, &pairs);
         let text = json_text(&meta(

@@ -57,6 +57,7 @@
 mod config;
 mod error;
 mod format;
+mod graph;
 mod grid;
 mod lock;
 mod merge;
@@ -80,13 +81,14 @@ pub use closed_loop::metrics::{
 pub use config::{MAX_K, MAX_SEEDS, MAX_STEPS, Point, SweepConfig};
 pub use error::{Result, SweepError};
 pub use format::{PointFile, Table, point_file_name, points_header, runs_header};
+pub use graph::L_PI_CHUNKS;
 pub use iss_certificate::linear::log_spaced;
-pub use merge::{assemble, merge_point_dirs};
+pub use merge::{Assembled, assemble, merge_point_dirs, merge_staged};
 pub use region::{
     IterationCost, Pair, PairThresholds, Staircase, cheapest_pair, pair_thresholds,
     pair_thresholds_markdown, staircase, staircase_text, up_set,
 };
-pub use run::{NoProgress, Progress, RunOptions, Sweep, SweepReport, run_cost};
+pub use run::{NoProgress, Progress, RunOptions, Staged, Sweep, SweepReport, run_cost};
 pub use schedule::{Prediction, ScheduleReport, TaskKind, TaskTime};
 pub use seeds::{Shard, run_seed, splitmix64};
 pub use summary::{PointSummary, summarise};

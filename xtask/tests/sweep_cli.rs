@@ -188,6 +188,109 @@ fn killed_sweep_resumes_to_the_uninterrupted_result() {
 
 /// Runs `xtask sweep` and expects a clean error (exit 1, message, no panic, an OS error
 /// printed at most once); returns stderr.
+/// Checks that the files `meta.json` lists under `run.files` are in `dir` with the size and
+/// FNV-1a hash it records: the directory holds one complete set (issue 23).
+fn check_manifest(dir: &Path) {
+    let meta: serde_json::Value =
+        serde_json::from_str(&fs::read_to_string(dir.join("meta.json")).unwrap()).unwrap();
+    let files = meta["run"]["files"].as_array().unwrap();
+    assert!(files.len() >= 3, "{files:?}");
+    for f in files {
+        let name = f["file"].as_str().unwrap();
+        let bytes = fs::read(dir.join(name)).unwrap();
+        let hash = bytes.iter().fold(0xcbf2_9ce4_8422_2325_u64, |h, &b| {
+            (h ^ u64::from(b)).wrapping_mul(0x0000_0100_0000_01b3)
+        });
+        assert_eq!(bytes.len() as u64, f["bytes"].as_u64().unwrap(), "{name}");
+        assert_eq!(
+            format!("{hash:016x}"),
+            f["fnv1a64"].as_str().unwrap(),
+            "{name}"
+        );
+    }
+}
+
+/// A staged (not yet committed) file of the output set in `dir`: `runs.csv.<pid>.<n>.tmp`
+/// (`early`), or a plot's or `meta.json`'s, staged after the tables (`!early`).
+fn staged(dir: &Path, early: bool) -> bool {
+    fs::read_dir(dir).is_ok_and(|rd| {
+        rd.flatten().any(|e| {
+            let n = e.file_name().to_string_lossy().into_owned();
+            n.ends_with(".tmp")
+                && if early {
+                    n.starts_with("runs.csv.") || n.starts_with("points.csv.")
+                } else {
+                    n.contains(".svg.") || n.starts_with("meta.json.")
+                }
+        })
+    })
+}
+
+/// `runs.csv`, `points.csv`, the plots and `meta.json` are committed as one set: a rerun
+/// killed (SIGKILL) while it stages them — the tables, or the plots and `meta.json` after
+/// them — leaves the previous set, whose files all match its `meta.json` (before issue 23's
+/// fix the library had already replaced `runs.csv` and `points.csv` when the plots were
+/// drawn); a final rerun completes it.
+#[test]
+fn killed_while_writing_the_outputs_leaves_one_complete_set() {
+    let d = scratch("kill-commit");
+    let cfg = config(&d, "sweep.toml", SMALL);
+    let out = d.join("out");
+    let args = [
+        "sweep",
+        "--config",
+        cfg.to_str().unwrap(),
+        "--out",
+        out.to_str().unwrap(),
+    ];
+    ok(&xtask(&args));
+    check_manifest(&out);
+    let mut killed = [0, 0];
+    for trial in 0..24 {
+        // One point recomputed: its wall_ms, so runs.csv and points.csv change.
+        let files = point_files(&out);
+        fs::remove_file(&files[trial % files.len()]).unwrap();
+        // The temporaries of the previous killed trial (the next sweep would remove them
+        // too) must not be taken for this one's.
+        for e in fs::read_dir(&out).unwrap().flatten() {
+            if e.file_name().to_string_lossy().ends_with(".tmp") {
+                let _ = fs::remove_file(e.path());
+            }
+        }
+        let early = trial % 2 == 0;
+        let mut child = Command::new(XTASK)
+            .args(args)
+            .stdout(Stdio::null())
+            .stderr(Stdio::null())
+            .spawn()
+            .unwrap();
+        let start = Instant::now();
+        loop {
+            if child.try_wait().unwrap().is_some() {
+                break; // finished before a staged file was seen
+            }
+            if staged(&out, early) {
+                child.kill().unwrap();
+                child.wait().unwrap();
+                killed[usize::from(!early)] += 1;
+                break;
+            }
+            assert!(
+                start.elapsed() < Duration::from_secs(300),
+                "trial {trial} hangs"
+            );
+        }
+        check_manifest(&out);
+    }
+    assert!(
+        killed[0] + killed[1] >= 2,
+        "killed while staging: {killed:?}"
+    );
+    ok(&xtask(&args));
+    check_manifest(&out);
+    assert_eq!(point_files(&out).len(), 12);
+}
+
 fn expect_error(args: &[&str], needle: &str) -> String {
     let out = xtask(args);
     let stderr = String::from_utf8_lossy(&out.stderr).to_string();

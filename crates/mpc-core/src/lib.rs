@@ -38,7 +38,7 @@ pub use exact::{ExactBackend, ExactMpc};
 pub use free_sets::{FreeSetSummary, LocalGains};
 pub use lipschitz::{
     ENUMERATION_MAX_VARS, LIPSCHITZ_PATTERN_FAMILIES, LipschitzCertificate, LipschitzReport,
-    SampledLipschitz, lipschitz_report_for, lipschitz_sampled,
+    SampledLipschitz, lipschitz_report_for, lipschitz_report_with, lipschitz_sampled,
 };
 pub use lqr::SaturatedLqr;
 /// The iteration maps Φ this crate runs (`qp_iter::Method`, `qp_iter::pg`, …), re-exported so

@@ -220,10 +220,22 @@ impl CondensedMpc {
     /// assert!(mpc.lipschitz_enumerated(4).unwrap().is_none()); // s = N·n_u = 5 > 4
     /// ```
     pub fn lipschitz_enumerated(&self, max_vars: usize) -> Result<Option<f64>> {
+        self.lipschitz_enumerated_in(max_vars, 0..self.free_set_count())
+    }
+
+    /// [`CondensedMpc::lipschitz_enumerated`] over the free sets of the masks in `masks`
+    /// only ([`CondensedMpc::for_each_free_set_in`]): the maximum of the pieces over ranges
+    /// that cover 0..2^s is L_enum, bit for bit (a maximum does not depend on the order), so
+    /// a caller can run the enumeration as independent tasks. `Ok(None)` when s > `max_vars`.
+    pub fn lipschitz_enumerated_in(
+        &self,
+        max_vars: usize,
+        masks: std::ops::Range<u64>,
+    ) -> Result<Option<f64>> {
         let nu = self.nu();
         let mut g = vec![0.0; nu * nu];
         let mut best = 0.0_f64;
-        let visited = self.for_each_free_set(max_vars, |_, k, nx| {
+        let visited = self.for_each_free_set_in(max_vars, masks, |_, k, nx| {
             // ‖K_f‖₂² = λ_max(K_f K_fᵀ) (n_u × n_u).
             for p in 0..nu {
                 for q in 0..nu {
@@ -629,6 +641,22 @@ pub fn lipschitz_report_for(
     seed: u64,
     radius: f64,
 ) -> Result<LipschitzReport> {
+    lipschitz_report_with(mpc, n_pairs, seed, radius, |m| {
+        m.lipschitz_enumerated(ENUMERATION_MAX_VARS)
+    })
+}
+
+/// [`lipschitz_report_for`] with L_enum supplied by `enumerated` (called only when the
+/// enumeration applies, i.e. without state constraints; it must return
+/// `mpc.lipschitz_enumerated(ENUMERATION_MAX_VARS)`, e.g. assembled from
+/// [`CondensedMpc::lipschitz_enumerated_in`] pieces computed elsewhere).
+pub fn lipschitz_report_with(
+    mpc: &CondensedMpc,
+    n_pairs: usize,
+    seed: u64,
+    radius: f64,
+    enumerated: impl FnOnce(&CondensedMpc) -> Result<Option<f64>>,
+) -> Result<LipschitzReport> {
     let certified = mpc.lipschitz_certified()?;
     let void_reason = mpc.certificate_void_reason();
     // With state constraints the law is not the analysed one (and can be infeasible):
@@ -653,7 +681,7 @@ pub fn lipschitz_report_for(
     };
     let enumerated = match void_reason {
         Some(_) => None,
-        None => mpc.lipschitz_enumerated(ENUMERATION_MAX_VARS)?,
+        None => enumerated(mpc)?,
     };
     let enumeration_skipped = enumerated.is_none().then(|| {
         if let Some(r) = void_reason {

@@ -3,9 +3,7 @@
 //! (dashed) and K_lin (dotted) drawn per solver, void certificates and undrawable points
 //! noted under the chart (never dropped silently).
 
-use std::path::Path;
-
-use anyhow::{Context, Result, anyhow};
+use anyhow::{Result, anyhow};
 use plotters::prelude::*;
 use xtask::sweep_engine::{Sweep, Table};
 
@@ -366,7 +364,7 @@ impl BandChart<'_> {
     }
 
     #[cfg(test)]
-    fn render(&self, path: &Path) -> Result<()> {
+    fn render(&self, path: &std::path::Path) -> Result<()> {
         crate::output::write_atomic(path, self.svg(&path.display().to_string())?.as_bytes())
     }
 }
@@ -418,14 +416,6 @@ const PLOTS: [(&str, &str, &str, &str); 9] = [
         "sup ε",
     ),
 ];
-
-/// Reads the assembled `points.csv` of a sweep directory.
-pub fn read_points(dir: &Path) -> Result<Table> {
-    let path = dir.join("points.csv");
-    let text = std::fs::read_to_string(&path)
-        .with_context(|| format!("cannot read `{}`", path.display()))?;
-    Table::parse(&text).map_err(|e| anyhow!("`{}`: {e}", path.display()))
-}
 
 /// Stages the SVG plots of an assembled sweep from its `points.csv` (`table`) in `set`;
 /// returns the file names.

@@ -47,7 +47,7 @@ pub fn schedule_json(
         })
         .collect();
     json!({
-        "policy": "one pool: theory tasks first, then every run longest first by T·(K + 50); a free worker takes the next task (docs/sweeps.md, Scaling)",
+        "policy": "one pool: the theory as a task graph (a task ready when its inputs are done), then every run longest first by T·(K + 50); a free worker takes the first ready task (docs/sweeps.md, Scaling)",
         "threads": s.threads,
         "wall_s": wall_s,
         "serial_s": serial_s,
@@ -61,6 +61,7 @@ pub fn schedule_json(
         "builds": s.builds(),
         "build_s": s.build_s(),
         "longest_task_s": s.longest_task_s(),
+        "critical_path_s": s.critical_path_s(),
         "busy_by_kind": s.busy_by_kind().iter().map(|(k, n, b)| json!({"kind": k.name(), "tasks": n, "busy_s": b})).collect::<Vec<_>>(),
         "efficiency": s.efficiency(),
         "efficiency_with_serial": with_serial(s.threads, s.pool_wall_s),
@@ -113,6 +114,11 @@ pub fn schedule_lines(report: &SweepReport, serial_s: f64, wall_s: f64) -> Vec<S
     lines.push(format!(
         "replay of these task times (pool wall, efficiency): {}",
         preds.join(", ")
+    ));
+    lines.push(format!(
+        "longest task {:.3} s, longest chain of theory tasks (a bound on the pool wall at any thread count) {:.3} s",
+        s.longest_task_s(),
+        s.critical_path_s()
     ));
     let runs: Vec<String> = PREDICT_AT
         .iter()

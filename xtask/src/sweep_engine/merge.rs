@@ -3,8 +3,9 @@
 //!
 //! Every point file is validated in full before anything is written ([`Sweep::finished_points`]);
 //! two directories that hold different results for one point are a conflict naming both
-//! files; `runs.csv` and `points.csv` are written to temporary names and renamed only when
-//! both are complete.
+//! files; `runs.csv` and `points.csv` are assembled in memory ([`Assembled`]) and either
+//! written here (to temporary names, renamed only when both are complete) or handed to the
+//! caller, which commits them in one set with its own files (`xtask sweep`).
 
 use std::collections::BTreeMap;
 use std::collections::btree_map::Entry;
@@ -16,7 +17,7 @@ use super::format::{
     PointFile, PointFileRules, SETTINGS_FILE, commit, point_file_name, points_header, runs_header,
     settings_diff, settings_text, write_atomic, write_temp,
 };
-use super::run::{Progress, Sweep, take_lock};
+use super::run::{Progress, Staged, Sweep, SweepReport, take_lock};
 use super::seeds::run_seed;
 
 impl Sweep {
@@ -122,34 +123,43 @@ fn check_complete<V>(sweep: &Sweep, files: &BTreeMap<usize, V>) -> Result<()> {
     Ok(())
 }
 
-/// Writes `runs.csv` and `points.csv` into `out` from validated files covering every
-/// point: both to temporary names first, renamed only when both are written.
-fn write_outputs(sweep: &Sweep, files: &BTreeMap<usize, Found>, out: &Path) -> Result<usize> {
-    check_complete(sweep, files)?;
-    write_point_files(sweep, files.values().map(|f| &f.file), out)?;
-    Ok(files.len())
+/// The text of `runs.csv` and `points.csv` of an assembled sweep.
+#[derive(Debug, Clone, PartialEq)]
+pub struct Assembled {
+    /// `runs.csv`.
+    pub runs: String,
+    /// `points.csv`.
+    pub points: String,
 }
 
-/// Writes `runs.csv` and `points.csv` into `out` from point files already validated and in
-/// memory (a sweep's own: those it found at the start and those it wrote), covering every
-/// point; the caller holds the lock of `out`.
-pub(super) fn write_files(
+impl Assembled {
+    /// Writes both into `out`: to temporary names first, renamed only when both are
+    /// written (a caller with more files to write stages these with them instead).
+    pub fn write(&self, out: &Path) -> Result<()> {
+        let (runs_path, points_path) = (out.join("runs.csv"), out.join("points.csv"));
+        let runs_tmp = write_temp(&runs_path, &self.runs)?;
+        let points_tmp = write_temp(&points_path, &self.points).inspect_err(|_| {
+            let _ = fs::remove_file(&runs_tmp);
+        })?;
+        commit(&runs_tmp, &runs_path).inspect_err(|_| {
+            let _ = fs::remove_file(&points_tmp);
+        })?;
+        commit(&points_tmp, &points_path)
+    }
+}
+
+/// `runs.csv` and `points.csv` from point files already validated and in memory (a
+/// sweep's own: those it found at the start and those it wrote), covering every point.
+pub(super) fn assemble_files(
     sweep: &Sweep,
     files: &BTreeMap<usize, PointFile>,
-    out: &Path,
-) -> Result<usize> {
+) -> Result<Assembled> {
     check_complete(sweep, files)?;
-    write_point_files(sweep, files.values(), out)?;
-    Ok(files.len())
+    Ok(assemble_texts(sweep, files.values()))
 }
 
-/// `runs.csv` and `points.csv` from point files in point order: both to temporary names
-/// first, renamed only when both are written.
-fn write_point_files<'a>(
-    sweep: &Sweep,
-    files: impl Iterator<Item = &'a PointFile>,
-    out: &Path,
-) -> Result<()> {
+/// `runs.csv` and `points.csv` from point files in point order.
+fn assemble_texts<'a>(sweep: &Sweep, files: impl Iterator<Item = &'a PointFile>) -> Assembled {
     let metrics = &sweep.config().metrics;
     let two_d = sweep.config().is_2d();
     let mut runs = runs_header(metrics, two_d);
@@ -164,22 +174,20 @@ fn write_point_files<'a>(
         points.push_str(&f.point_row);
         points.push('\n');
     }
-    let (runs_path, points_path) = (out.join("runs.csv"), out.join("points.csv"));
-    let runs_tmp = write_temp(&runs_path, &runs)?;
-    let points_tmp = write_temp(&points_path, &points).inspect_err(|_| {
-        let _ = fs::remove_file(&runs_tmp);
-    })?;
-    commit(&runs_tmp, &runs_path).inspect_err(|_| {
-        let _ = fs::remove_file(&points_tmp);
-    })?;
-    commit(&points_tmp, &points_path)?;
-    Ok(())
+    Assembled { runs, points }
+}
+
+/// Validates `files` (every point present) and assembles them.
+fn assemble_found(sweep: &Sweep, files: &BTreeMap<usize, Found>) -> Result<Assembled> {
+    check_complete(sweep, files)?;
+    Ok(assemble_texts(sweep, files.values().map(|f| &f.file)))
 }
 
 /// [`assemble`] for a caller that holds the lock of `out`.
 pub(super) fn assemble_locked(sweep: &Sweep, dirs: &[&Path], out: &Path) -> Result<usize> {
     let files = collect(sweep, dirs)?;
-    write_outputs(sweep, &files, out)
+    assemble_found(sweep, &files)?.write(out)?;
+    Ok(files.len())
 }
 
 /// Writes `runs.csv` and `points.csv` into `out` from the point files found in `dirs`
@@ -220,6 +228,22 @@ pub fn merge_point_dirs(
     out: &Path,
     progress: &dyn Progress,
 ) -> Result<usize> {
+    let (n, staged) = merge_staged(sweep, dirs, out, progress)?;
+    if let Some(a) = &staged.outputs {
+        a.write(out)?;
+    }
+    Ok(n)
+}
+
+/// [`merge_point_dirs`] without writing `runs.csv` and `points.csv`: the point files are
+/// copied into `out/points`, and the two tables are returned with the lock of `out` held
+/// (see [`Sweep::run_staged`]). Returns the number of points.
+pub fn merge_staged(
+    sweep: &Sweep,
+    dirs: &[&Path],
+    out: &Path,
+    progress: &dyn Progress,
+) -> Result<(usize, Staged)> {
     if let Some(d) = dirs.iter().find(|d| !d.join("points").is_dir()) {
         return Err(SweepError::NotASweepDir {
             path: d.to_path_buf(),
@@ -227,7 +251,7 @@ pub fn merge_point_dirs(
     }
     let pdir = out.join("points");
     fs::create_dir_all(&pdir).map_err(io_err("create the output directory", &pdir))?;
-    let _lock = take_lock(out, None, progress)?;
+    let lock = take_lock(out, None, progress)?;
     let mut all = vec![out];
     all.extend(dirs.iter().copied().filter(|d| !same_dir(d, out)));
     let files = collect(sweep, &all)?;
@@ -241,5 +265,20 @@ pub fn merge_point_dirs(
             f.file.write_atomic(&pdir.join(point_file_name(i)))?;
         }
     }
-    write_outputs(sweep, &files, out)
+    let outputs = assemble_found(sweep, &files)?;
+    let staged = Staged {
+        report: SweepReport {
+            computed: files.len(),
+            skipped: 0,
+            steps_simulated: 0,
+            wall_s: 0.0,
+            runs_wall_s: 0.0,
+            threads: 0,
+            assembled: true,
+            schedule: Default::default(),
+        },
+        outputs: Some(outputs),
+        _lock: lock,
+    };
+    Ok((files.len(), staged))
 }

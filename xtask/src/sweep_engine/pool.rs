@@ -1,5 +1,5 @@
-//! Executing a sweep on one pool of worker threads: the theory (certificate, ρ_lin, joint
-//! boundary) and every run of every point as tasks of one list, in the order and by the
+//! Executing a sweep on one pool of worker threads: the theory (the task graph of
+//! `graph.rs`: the certificate's pieces, ρ_lin, the per-solver theory) and every run of every point as tasks of one list, in the order and by the
 //! policy of `schedule.rs`; each point file written by the worker that finishes the point's
 //! last run (once the theory it needs is there), the task times recorded.
 //!
@@ -10,45 +10,40 @@
 use std::collections::BTreeMap;
 use std::path::Path;
 use std::sync::atomic::{AtomicBool, AtomicU64, AtomicUsize, Ordering};
-use std::sync::{Mutex, MutexGuard, OnceLock};
+use std::sync::{Condvar, Mutex, MutexGuard, OnceLock};
 use std::time::Instant;
 
 use super::config::Point;
 use super::error::{Result, SweepError};
 use super::format::{PointFile, point_file_name};
-use super::region::Staircase;
+use super::graph::TheoryGraph;
 use super::run::{Progress, Sweep, run_cost, simulate};
 use super::schedule::{ScheduleReport, TaskKind, TaskTime, thread_cpu_s};
 use super::seeds::run_seed;
-use super::theory::{LinearEntry, LinearSide, SolverTheory, certified_boundary};
-use super::theory::{solver_linear, solver_theory};
-use super::{ControllerChoice, Method};
 use closed_loop::metrics::RunMetrics;
 use closed_loop::scenario::ScenarioLoop;
 
 /// What a task computes.
 #[derive(Debug, Clone, Copy)]
 enum Job {
-    /// Theorem 1 for every solver: one certificate (its constants L_Φ, L_π, γ₁,₃ are
-    /// shared by the solvers and are most of its time, so one task per solver would
-    /// compute them once per solver).
-    Certificate,
-    /// ρ_lin for entry `i` of (solver, K_c) pairs.
-    Linear(usize, Method, Option<usize>, ControllerChoice),
-    /// The joint boundary of `solvers[i]`.
-    Boundary(usize),
+    /// Task `i` of the theory graph.
+    Theory(usize),
     /// Run `run` of `todo[slot]`.
     Run { slot: usize, run: usize },
 }
 
-/// The theory's results as they arrive, and the points that wait for them.
+/// The theory tasks' readiness (`schedule.rs`: a free worker takes the first ready task).
 #[derive(Debug, Default)]
-struct TheoryState {
+struct Ready {
+    /// Inputs not done yet, per theory task.
+    inputs_left: Vec<usize>,
+    /// The theory tasks that need each one.
+    needed_by: Vec<Vec<usize>>,
+    taken: Vec<bool>,
+    /// Theory tasks not taken yet.
+    open: usize,
+    /// Theory tasks not finished yet.
     left: usize,
-    certificates: Option<Vec<(Method, SolverTheory)>>,
-    certificate_task: bool,
-    linear: Vec<Option<LinearEntry>>,
-    boundaries: Vec<Option<(Method, Staircase)>>,
     /// Finished points whose file waits for the theory.
     pending: Vec<usize>,
 }
@@ -72,12 +67,17 @@ struct Shared<'a> {
     sweep: &'a Sweep,
     todo: &'a [&'a Point],
     jobs: Vec<(Job, u64)>,
-    next: AtomicUsize,
+    graph: TheoryGraph<'a>,
+    n_theory: usize,
+    next_run: AtomicUsize,
+    /// Theory tasks not taken yet (read without the lock: 0 means only runs are left).
+    theory_open: AtomicUsize,
+    ready: Mutex<Ready>,
+    finished: Condvar,
     abort: AtomicBool,
     error: Mutex<Option<SweepError>>,
     results: Vec<OnceLock<RunMetrics>>,
     remaining: Vec<AtomicUsize>,
-    theory: Mutex<TheoryState>,
     theory_ready: AtomicBool,
     files: Mutex<BTreeMap<usize, PointFile>>,
     steps: AtomicU64,
@@ -87,36 +87,21 @@ struct Shared<'a> {
 }
 
 impl Sweep {
-    /// The task list: the theory not computed yet, then every run of `todo` longest first
-    /// (cost T·(K + 50), ties by point index then run index), each with its cost estimate.
-    fn jobs(&self, todo: &[&Point]) -> (Vec<(Job, u64)>, TheoryState) {
+    /// The theory graph of what is not computed yet (`graph.rs`) and every run of `todo`
+    /// longest first (cost T·(K + 50), ties by point index then run index), each with its
+    /// cost estimate; the theory that needs no task is stored at once.
+    fn jobs<'a>(&'a self, todo: &[&Point]) -> (Vec<(Job, u64)>, TheoryGraph<'a>) {
         let cfg = self.config();
-        let mut jobs = Vec::new();
-        let mut st = TheoryState::default();
-        if self.theory.get().is_none() && cfg.certificate && !cfg.is_2d() {
-            st.certificate_task = true;
-            jobs.push((Job::Certificate, 0));
-        }
-        if self.linear.get().is_none() && cfg.linear {
-            let controllers: Vec<(Option<usize>, ControllerChoice)> = match &cfg.k_c_grid {
-                None => vec![(None, cfg.controller)],
-                Some(g) => g
-                    .iter()
-                    .map(|&k_c| (Some(k_c), cfg.controller_for(Some(k_c))))
-                    .collect(),
-            };
-            for &s in &cfg.solvers {
-                for &(k_c, c) in &controllers {
-                    jobs.push((Job::Linear(st.linear.len(), s, k_c, c), 0));
-                    st.linear.push(None);
-                }
-            }
-        }
-        if self.certified.get().is_none() && cfg.is_2d() {
-            st.boundaries = vec![None; cfg.solvers.len()];
-            jobs.extend((0..cfg.solvers.len()).map(|i| (Job::Boundary(i), 0)));
-        }
-        st.left = jobs.len();
+        let (graph, ready) = TheoryGraph::new(
+            self.resolved(),
+            cfg,
+            self.theory.get().is_none() && (cfg.certificate || cfg.is_2d()),
+            self.linear.get().is_none() && cfg.linear,
+            self.certified.get().is_none() && cfg.is_2d(),
+        );
+        self.store(ready);
+        let mut jobs: Vec<(Job, u64)> =
+            (0..graph.jobs.len()).map(|i| (Job::Theory(i), 0)).collect();
         let mut runs: Vec<(Job, u64)> = todo
             .iter()
             .enumerate()
@@ -128,7 +113,20 @@ impl Sweep {
         // Stable: equal costs keep point order, then run order.
         runs.sort_by_key(|r| std::cmp::Reverse(r.1));
         jobs.extend(runs);
-        (jobs, st)
+        (jobs, graph)
+    }
+
+    /// Stores what the theory graph computed in the sweep's caches.
+    fn store(&self, r: super::graph::TheoryResults) {
+        if let Some(v) = r.theory {
+            let _ = self.theory.set(v);
+        }
+        if let Some(v) = r.linear {
+            let _ = self.linear.set(v);
+        }
+        if let Some(v) = r.boundaries {
+            let _ = self.certified.set(v);
+        }
     }
 
     /// Runs the theory and every run of `todo` on `threads` workers, writing each point's
@@ -140,30 +138,48 @@ impl Sweep {
         pdir: &Path,
         progress: &dyn Progress,
     ) -> Result<PoolOutcome> {
-        let (jobs, theory) = self.jobs(todo);
+        let (jobs, graph) = self.jobs(todo);
         let seeds = self.config().seeds;
-        let ready = theory.left == 0;
+        let n_theory = graph.jobs.len();
+        let mut ready = Ready {
+            inputs_left: graph.jobs.iter().map(|(_, d)| d.len()).collect(),
+            needed_by: vec![Vec::new(); n_theory],
+            taken: vec![false; n_theory],
+            open: n_theory,
+            left: n_theory,
+            pending: Vec::new(),
+        };
+        for (i, (_, deps)) in graph.jobs.iter().enumerate() {
+            for &d in deps {
+                ready.needed_by[d].push(i);
+            }
+        }
         let sh = Shared {
             sweep: self,
             todo,
-            next: AtomicUsize::new(0),
+            n_theory,
+            next_run: AtomicUsize::new(0),
+            theory_open: AtomicUsize::new(n_theory),
+            ready: Mutex::new(ready),
+            finished: Condvar::new(),
             abort: AtomicBool::new(false),
             error: Mutex::new(None),
             results: (0..todo.len() * seeds).map(|_| OnceLock::new()).collect(),
             remaining: (0..todo.len()).map(|_| AtomicUsize::new(seeds)).collect(),
-            theory: Mutex::new(theory),
-            theory_ready: AtomicBool::new(ready),
+            theory_ready: AtomicBool::new(n_theory == 0),
             files: Mutex::new(BTreeMap::new()),
             steps: AtomicU64::new(0),
             pdir,
             progress,
             clock: Instant::now(),
+            graph,
             jobs,
         };
         let mut times: Vec<Option<TaskTime>> = vec![None; sh.jobs.len()];
-        // A rayon pool whose every thread runs one worker loop (`broadcast`): the theory's
-        // own parallel parts (γ₁,₃ enumeration, ρ_lin per K) then run on the calling worker
-        // (and on workers that ran out of tasks), not on a second pool competing for cores.
+        // A rayon pool whose every thread runs one worker loop (`broadcast`): a theory
+        // task's own parallel parts (the γ₁,₃ plan's figures per metric) then run on the
+        // calling worker (and on workers between two tasks), not on a second pool competing
+        // for cores.
         let pool = rayon::ThreadPoolBuilder::new()
             .num_threads(threads)
             .thread_name(|i| format!("sweep-{i}"))
@@ -210,30 +226,39 @@ impl Shared<'_> {
             if helped {
                 help_s += h.elapsed().as_secs_f64();
             }
-            let i = self.next.fetch_add(1, Ordering::Relaxed);
-            let Some(&(job, cost)) = self.jobs.get(i) else {
+            let Some(i) = self.next_task() else {
                 break;
             };
+            let (job, cost) = self.jobs[i];
             // The CPU-clock reads (system calls) are inside the timed interval: a process
             // switch at their return counts in the task, not between tasks.
             let start = Instant::now();
             let cpu = thread_cpu_s();
             let mut build_s = 0.0;
-            let (kind, point, run) = match job {
-                Job::Certificate => (TaskKind::Certificate, None, None),
-                Job::Linear(..) => (TaskKind::Linear, None, None),
-                Job::Boundary(_) => (TaskKind::Boundary, None, None),
-                Job::Run { slot, run } => (TaskKind::Run, Some(self.todo[slot].index), Some(run)),
+            let (kind, point, run, after) = match job {
+                Job::Theory(t) => {
+                    let (j, deps) = &self.graph.jobs[t];
+                    (j.kind(), None, None, deps.clone())
+                }
+                Job::Run { slot, run } => (
+                    TaskKind::Run,
+                    Some(self.todo[slot].index),
+                    Some(run),
+                    Vec::new(),
+                ),
             };
             let res = match job {
                 Job::Run { slot, run } => self.run(slot, run, cost, &mut lp, &mut build_s),
-                theory => self.theory_task(theory),
+                Job::Theory(t) => self.theory_task(t),
             };
             let cpu_s = thread_cpu_s() - cpu;
             let busy_s = start.elapsed().as_secs_f64();
             if let Err(e) = res {
                 lock(&self.error).get_or_insert(e);
                 self.abort.store(true, Ordering::Relaxed);
+                // Wake the workers waiting for a theory task.
+                let _ready = lock(&self.ready);
+                self.finished.notify_all();
             }
             mine.push((
                 i,
@@ -241,6 +266,7 @@ impl Shared<'_> {
                     kind,
                     point,
                     run,
+                    after,
                     cost,
                     worker: w,
                     start_s: (start - self.clock).as_secs_f64(),
@@ -290,7 +316,7 @@ impl Shared<'_> {
         self.progress.run_done(cost);
         if self.remaining[slot].fetch_sub(1, Ordering::AcqRel) == 1 {
             if !self.theory_ready.load(Ordering::Acquire) {
-                let mut st = lock(&self.theory);
+                let mut st = lock(&self.ready);
                 // Checked again under the lock: the theory may have finished meanwhile.
                 if !self.theory_ready.load(Ordering::Acquire) {
                     st.pending.push(slot);
@@ -302,60 +328,55 @@ impl Shared<'_> {
         Ok(())
     }
 
-    fn theory_task(&self, job: Job) -> Result<()> {
-        let sweep = self.sweep;
-        let cfg = sweep.config();
-        let resolved = sweep.resolved();
-        let mut out_cert = None;
-        let mut out_linear = None;
-        let mut out_boundary = None;
-        match job {
-            Job::Certificate => {
-                out_cert = Some(solver_theory(resolved, &cfg.solvers, cfg.controller));
-            }
-            Job::Linear(i, s, k_c, c) => {
-                let grid = cfg.k_grid.clone();
-                out_linear = solver_linear(resolved, &[s], &[(k_c, c)], |_| grid.clone())
-                    .0
-                    .into_iter()
-                    .next()
-                    .map(|e| (i, e));
-            }
-            Job::Boundary(i) => {
-                let s = cfg.solvers[i];
-                let st = certified_boundary(resolved, s, cfg.controller, &cfg.k_grid);
-                out_boundary = Some((i, (s, st)));
-            }
-            Job::Run { .. } => return Ok(()),
+    /// The first ready task of the list (module docs of `schedule.rs`): a ready theory
+    /// task, else the next run, else (only theory tasks waiting for inputs left) the first
+    /// that becomes ready; None when nothing is left.
+    fn next_task(&self) -> Option<usize> {
+        let next_run = || {
+            let r = self.next_run.fetch_add(1, Ordering::Relaxed);
+            (self.n_theory + r < self.jobs.len()).then_some(self.n_theory + r)
+        };
+        if self.theory_open.load(Ordering::Acquire) == 0 {
+            return next_run();
         }
+        let mut q = lock(&self.ready);
+        loop {
+            if q.open == 0 || self.abort.load(Ordering::Relaxed) {
+                drop(q);
+                return next_run();
+            }
+            if let Some(t) = (0..self.n_theory).find(|&t| !q.taken[t] && q.inputs_left[t] == 0) {
+                q.taken[t] = true;
+                q.open -= 1;
+                self.theory_open.store(q.open, Ordering::Release);
+                return Some(t);
+            }
+            if let Some(r) = next_run() {
+                return Some(r);
+            }
+            q = self
+                .finished
+                .wait(q)
+                .unwrap_or_else(std::sync::PoisonError::into_inner);
+        }
+    }
+
+    fn theory_task(&self, t: usize) -> Result<()> {
+        self.graph.run(t);
         let pending = {
-            let mut st = lock(&self.theory);
-            if out_cert.is_some() {
-                st.certificates = out_cert;
+            let mut q = lock(&self.ready);
+            let needed_by = std::mem::take(&mut q.needed_by[t]);
+            for d in needed_by {
+                q.inputs_left[d] -= 1;
             }
-            if let Some((i, e)) = out_linear {
-                st.linear[i] = Some(e);
-            }
-            if let Some((i, b)) = out_boundary {
-                st.boundaries[i] = Some(b);
-            }
-            st.left -= 1;
-            if st.left > 0 {
+            q.left -= 1;
+            self.finished.notify_all();
+            if q.left > 0 {
                 return Ok(());
             }
-            if let Some(v) = st.certificates.take().filter(|_| st.certificate_task) {
-                let _ = sweep.theory.set(v);
-            }
-            if !st.linear.is_empty() {
-                let v = std::mem::take(&mut st.linear).into_iter().flatten();
-                let _ = sweep.linear.set(LinearSide(v.collect()));
-            }
-            if !st.boundaries.is_empty() {
-                let v = std::mem::take(&mut st.boundaries).into_iter().flatten();
-                let _ = sweep.certified.set(v.collect());
-            }
+            self.sweep.store(self.graph.results());
             self.theory_ready.store(true, Ordering::Release);
-            std::mem::take(&mut st.pending)
+            std::mem::take(&mut q.pending)
         };
         for slot in pending {
             self.write_point(slot)?;

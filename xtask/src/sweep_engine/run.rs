@@ -18,7 +18,7 @@ use super::config::{Point, SweepConfig};
 use super::error::{Result, SweepError, config_err, io_err};
 use super::format::{self, PointFile, point_row, run_row, temp_path};
 use super::lock::OutputLock;
-use super::merge::write_files;
+use super::merge::{Assembled, assemble_files};
 use super::region::Staircase;
 use super::schedule::ScheduleReport;
 use super::seeds::Shard;
@@ -367,6 +367,18 @@ impl Sweep {
     /// already there in full, skips those points, writes each finished point file at once,
     /// and (unsharded) assembles `runs.csv` and `points.csv`.
     pub fn run(&self, opts: &RunOptions, progress: &dyn Progress) -> Result<SweepReport> {
+        let staged = self.run_staged(opts, progress)?;
+        if let Some(a) = &staged.outputs {
+            a.write(&opts.out_dir)?;
+        }
+        Ok(staged.report)
+    }
+
+    /// [`Sweep::run`] without writing `runs.csv` and `points.csv`: their text is returned
+    /// (unsharded) with the directory's lock still held, so the caller writes them in one
+    /// set with its own files (`xtask sweep`: the plots, `meta.json`, `tasks.csv`, committed
+    /// together by `output::OutputSet`) before another sweep may write the directory.
+    pub fn run_staged(&self, opts: &RunOptions, progress: &dyn Progress) -> Result<Staged> {
         let started = Instant::now();
         if opts.threads == 0 {
             return Err(SweepError::Threads("--threads must be ≥ 1".into()));
@@ -424,24 +436,41 @@ impl Sweep {
         };
         let runs_wall_s = schedule.pool_wall_s;
         let assembled = opts.shard.is_none();
-        if assembled {
+        let outputs = if assembled {
             // Every point file is in memory: the ones found (validated above) and the ones
             // written now.
             files.extend(done);
-            write_files(self, &files, &opts.out_dir)?;
-        }
-        drop(lock);
-        Ok(SweepReport {
-            computed,
-            skipped,
-            steps_simulated: steps_done,
-            wall_s: started.elapsed().as_secs_f64(),
-            runs_wall_s,
-            threads: opts.threads,
-            assembled,
-            schedule,
+            Some(assemble_files(self, &files)?)
+        } else {
+            None
+        };
+        Ok(Staged {
+            report: SweepReport {
+                computed,
+                skipped,
+                steps_simulated: steps_done,
+                wall_s: started.elapsed().as_secs_f64(),
+                runs_wall_s,
+                threads: opts.threads,
+                assembled,
+                schedule,
+            },
+            outputs,
+            _lock: lock,
         })
     }
+}
+
+/// A finished sweep (or merge) whose `runs.csv` and `points.csv` are not written yet
+/// ([`Sweep::run_staged`], [`super::merge_staged`]): dropping it releases the output
+/// directory's lock.
+#[derive(Debug)]
+pub struct Staged {
+    /// What the run did (for a merge: the points assembled in `computed`).
+    pub report: SweepReport,
+    /// `runs.csv` and `points.csv` (None for a shard, which does not assemble).
+    pub outputs: Option<Assembled>,
+    pub(super) _lock: OutputLock,
 }
 
 /// Takes the lock of `dir` (the whole directory, or one shard) and reports a stale lock

@@ -1,19 +1,24 @@
 //! The sweep's scheduling policy, its measured task times and a replay of them.
 //!
-//! **Policy.** One pool of `threads` workers runs one flat list of tasks: first the theory
-//! (the certificate, ρ_lin per solver and K_c, the joint boundary per solver —
-//! the longest single tasks of every shipped sweep), then every run of every point, ordered
-//! longest first by the estimate [`run_cost`](super::run_cost) = T·(K + 50) (ties: point
-//! index, then run index). A free worker takes the next task of the list (one shared atomic
-//! counter: dynamic list scheduling). A worker keeps the loop of the point it ran last and
-//! builds a new one when it takes a run of another point (the *build* time of a task).
+//! **Policy.** One pool of `threads` workers runs one list of tasks: first the theory, as a
+//! graph of small tasks (`graph.rs`: γ₁,₃'s plan and its ≤ 64 enumeration chunks, L_π's
+//! ≤ 32 enumeration chunks, ρ_lin per solver and K_c, the certificate's assembly, the
+//! theory of each solver), each ready once its inputs are done; then every run of every
+//! point, ordered longest first by the estimate [`run_cost`](super::run_cost) = T·(K + 50)
+//! (ties: point index, then run index). A free worker takes the first *ready* task of the
+//! list: a ready theory task if there is one, else the next run (one shared atomic
+//! counter), else it waits for a theory task to finish. A worker keeps the loop of the
+//! point it ran last and builds a new one when it takes a run of another point (the *build*
+//! time of a task).
 //!
 //! **Replay.** [`ScheduleReport::replay`] pushes the measured task times through the same
-//! policy for another worker count: a simulated worker that is free first (lowest index on
-//! a tie) takes the next task; a run task costs its measured time without its build, plus
-//! the point's mean measured build time when the simulated worker last ran another point;
-//! the measured help with the certificate's parallel parts (`help_s`) is shared evenly by
-//! the workers other than the certificate's before they take their first task.
+//! policy for another worker count: the simulated worker that is free first (lowest index
+//! on a tie) takes the first task of the list whose inputs have finished by then (it idles
+//! until the next input finishes when only waiting theory tasks are left); a run task costs
+//! its measured time without its build, plus the point's mean measured build time when the
+//! simulated worker last ran another point; the measured help with a theory task's own
+//! parallel parts (`help_s`, rayon pieces run between tasks) is shared evenly by the
+//! workers other than the first before they take their first task.
 //! Assumptions (docs/sweeps.md, "Scaling"): a task takes as long on any worker count as it
 //! took when measured (no memory-bandwidth, cache, turbo or SMT effects), dispatch costs
 //! nothing, and the serial part is the measured one.
@@ -24,23 +29,43 @@ use serde::Serialize;
 #[derive(Debug, Clone, Copy, PartialEq, Eq, Serialize)]
 #[serde(rename_all = "snake_case")]
 pub enum TaskKind {
-    /// Theorem 1's certificate (every solver).
-    Certificate,
+    /// γ₁,₃'s plan: families, candidate metrics, their S-procedure figures.
+    Gamma13Plan,
+    /// One mask chunk of γ₁,₃'s free-set enumeration.
+    Gamma13Enumeration,
+    /// One mask chunk of L_π's free-set enumeration.
+    LPiEnumeration,
     /// ρ_lin(K) of one solver (and K_c in a 2-D sweep).
     Linear,
-    /// The joint certificate's (K_e, K_c) boundary for one solver (2-D sweeps).
-    Boundary,
+    /// The certificate assembled from its pieces (L_Φ, Theorem 1 per solver).
+    Certificate,
+    /// The certificate covering one solver (and its (K_e, K_c) staircase in a 2-D sweep).
+    Solver,
     /// One run of one point.
     Run,
 }
 
 impl TaskKind {
+    /// Every kind, in the order of the list.
+    pub const ALL: [TaskKind; 7] = [
+        TaskKind::Gamma13Plan,
+        TaskKind::Gamma13Enumeration,
+        TaskKind::LPiEnumeration,
+        TaskKind::Linear,
+        TaskKind::Certificate,
+        TaskKind::Solver,
+        TaskKind::Run,
+    ];
+
     /// The name written in `tasks.csv`.
     pub fn name(self) -> &'static str {
         match self {
-            TaskKind::Certificate => "certificate",
+            TaskKind::Gamma13Plan => "gamma13_plan",
+            TaskKind::Gamma13Enumeration => "gamma13_enumeration",
+            TaskKind::LPiEnumeration => "l_pi_enumeration",
             TaskKind::Linear => "linear",
-            TaskKind::Boundary => "boundary",
+            TaskKind::Certificate => "certificate",
+            TaskKind::Solver => "solver",
             TaskKind::Run => "run",
         }
     }
@@ -55,6 +80,9 @@ pub struct TaskTime {
     pub point: Option<usize>,
     /// The run index of a run task.
     pub run: Option<usize>,
+    /// The tasks whose results it needs (positions in [`ScheduleReport::tasks`]): it is
+    /// ready once they are done. Empty for runs.
+    pub after: Vec<usize>,
     /// The scheduler's cost estimate, T·(K + 50) (0 for theory tasks).
     pub cost: u64,
     /// The worker that ran it.
@@ -122,21 +150,33 @@ impl ScheduleReport {
             0.0
         }
     }
-    /// Σ busy of the tasks of each kind, in the order certificate, linear, boundary, run.
+    /// Σ busy of the tasks of each kind, in the order of [`TaskKind::ALL`] (kinds without
+    /// tasks left out).
     pub fn busy_by_kind(&self) -> Vec<(TaskKind, usize, f64)> {
-        [
-            TaskKind::Certificate,
-            TaskKind::Linear,
-            TaskKind::Boundary,
-            TaskKind::Run,
-        ]
-        .into_iter()
-        .map(|k| {
-            let of: Vec<&TaskTime> = self.tasks.iter().filter(|t| t.kind == k).collect();
-            (k, of.len(), of.iter().map(|t| t.busy_s).sum())
-        })
-        .filter(|(_, n, _)| *n > 0)
-        .collect()
+        TaskKind::ALL
+            .into_iter()
+            .map(|k| {
+                let of: Vec<&TaskTime> = self.tasks.iter().filter(|t| t.kind == k).collect();
+                (k, of.len(), of.iter().map(|t| t.busy_s).sum())
+            })
+            .filter(|(_, n, _)| *n > 0)
+            .collect()
+    }
+    /// The longest chain of theory tasks through their inputs (the sum of the measured busy
+    /// times along it): a lower bound on the pool's wall time at any thread count.
+    pub fn critical_path_s(&self) -> f64 {
+        let mut end = vec![0.0f64; self.tasks.len()];
+        let mut best = 0.0f64;
+        for (i, t) in self.tasks.iter().enumerate() {
+            let ready = t
+                .after
+                .iter()
+                .filter_map(|&d| end.get(d).copied())
+                .fold(0.0, f64::max);
+            end[i] = ready + t.busy_s;
+            best = best.max(end[i]);
+        }
+        best
     }
     /// The longest task's busy time.
     pub fn longest_task_s(&self) -> f64 {
@@ -168,11 +208,10 @@ impl ScheduleReport {
             }
         }
         let build_of = |p: usize| builds.get(&p).map_or(0.0, |&(s, n)| s / n as f64);
-        // Worker state: (free at, current point).
+        // Worker state: free at, current point.
         let mut free = vec![0.0f64; threads];
-        // The help with the certificate's parallel parts: done by the workers other than
-        // the certificate's (worker 0 takes it, the first task), shared evenly; on one
-        // worker, by that worker.
+        // The help with a theory task's parallel parts: done by the workers other than the
+        // first, shared evenly; on one worker, by that worker.
         let help = if self
             .tasks
             .iter()
@@ -191,9 +230,22 @@ impl ScheduleReport {
         }
         let mut current: Vec<Option<usize>> = vec![None; threads];
         let (mut busy, mut n_builds) = (help, 0);
-        for t in self.tasks.iter().filter(|t| keep(t)) {
+        // When each task finished in the replay (None: not started, or not kept — an input
+        // that is not kept counts as done at 0).
+        let mut end: Vec<Option<f64>> = self
+            .tasks
+            .iter()
+            .map(|t| if keep(t) { None } else { Some(0.0) })
+            .collect();
+        let mut waiting: Vec<usize> = (0..self.tasks.len())
+            .filter(|&i| keep(&self.tasks[i]) && self.tasks[i].kind != TaskKind::Run)
+            .collect();
+        let mut runs = (0..self.tasks.len())
+            .filter(|&i| keep(&self.tasks[i]) && self.tasks[i].kind == TaskKind::Run)
+            .peekable();
+        loop {
             // The first free worker (lowest index on a tie), as a shared counter gives.
-            let (w, _) = free
+            let (w, at) = free
                 .iter()
                 .enumerate()
                 .fold(
@@ -202,6 +254,33 @@ impl ScheduleReport {
                         if f < best.1 { (i, f) } else { best }
                     },
                 );
+            let done_by = |d: &usize| end.get(*d).copied().flatten().is_some_and(|e| e <= at);
+            let pick = match waiting
+                .iter()
+                .position(|&i| self.tasks[i].after.iter().all(done_by))
+            {
+                Some(pos) => Some(waiting.remove(pos)),
+                None => runs.next(),
+            };
+            let Some(i) = pick else {
+                if waiting.is_empty() {
+                    break;
+                }
+                // Only theory tasks whose inputs are running are left: wait for the next
+                // input to finish.
+                let next = end
+                    .iter()
+                    .flatten()
+                    .copied()
+                    .filter(|&e| e > at)
+                    .fold(f64::INFINITY, f64::min);
+                if !next.is_finite() {
+                    break; // an input that never runs (a failed sweep): stop
+                }
+                free[w] = next;
+                continue;
+            };
+            let t = &self.tasks[i];
             let mut d = t.busy_s - t.build_s;
             if let Some(p) = t.point {
                 if current[w] != Some(p) {
@@ -211,9 +290,14 @@ impl ScheduleReport {
                 }
             }
             busy += d;
-            free[w] += d;
+            free[w] = at + d;
+            end[i] = Some(at + d);
         }
-        let wall = free.iter().copied().fold(0.0, f64::max);
+        let wall = free
+            .iter()
+            .copied()
+            .chain(end.iter().flatten().copied())
+            .fold(0.0, f64::max);
         Prediction {
             threads,
             pool_wall_s: wall,
@@ -228,11 +312,12 @@ impl ScheduleReport {
 
     /// The task list as CSV (header + one row per task, in list order).
     pub fn tasks_csv(&self) -> String {
-        let mut s = String::from("order,kind,point,run,cost,worker,start_s,busy_s,build_s,cpu_s\n");
+        let mut s =
+            String::from("order,kind,point,run,cost,worker,start_s,busy_s,build_s,cpu_s,after\n");
         let opt = |v: Option<usize>| v.map(|v| v.to_string()).unwrap_or_default();
         for (i, t) in self.tasks.iter().enumerate() {
             s.push_str(&format!(
-                "{i},{},{},{},{},{},{:.6},{:.6},{:.6},{:.6}\n",
+                "{i},{},{},{},{},{},{:.6},{:.6},{:.6},{:.6},{}\n",
                 t.kind.name(),
                 opt(t.point),
                 opt(t.run),
@@ -241,7 +326,12 @@ impl ScheduleReport {
                 t.start_s,
                 t.busy_s,
                 t.build_s,
-                t.cpu_s
+                t.cpu_s,
+                t.after
+                    .iter()
+                    .map(|d| d.to_string())
+                    .collect::<Vec<_>>()
+                    .join(" ")
             ));
         }
         s
@@ -274,6 +364,7 @@ mod tests {
             kind: TaskKind::Run,
             point: Some(point),
             run: Some(0),
+            after: Vec::new(),
             cost: 1,
             worker: 0,
             start_s: 0.0,
@@ -335,6 +426,43 @@ mod tests {
         assert!((r.replay(2).efficiency - 1.0).abs() < 1e-12);
         // The runs alone carry no help.
         assert_eq!(r.replay_runs(2).pool_wall_s, 2.0);
+    }
+
+    #[test]
+    fn replay_waits_for_a_task_s_inputs() {
+        // A 1 s plan, two 1 s chunks after it, a 0.5 s assembly after both, four 1 s runs.
+        let theory = |kind, busy, after: Vec<usize>| TaskTime {
+            kind,
+            point: None,
+            run: None,
+            after,
+            ..run(0, busy, 0.0)
+        };
+        let mut tasks = vec![
+            theory(TaskKind::Gamma13Plan, 1.0, vec![]),
+            theory(TaskKind::Gamma13Enumeration, 1.0, vec![0]),
+            theory(TaskKind::Gamma13Enumeration, 1.0, vec![0]),
+            theory(TaskKind::Certificate, 0.5, vec![1, 2]),
+        ];
+        tasks.extend((0..4).map(|p| run(p, 1.0, 0.0)));
+        let r = ScheduleReport {
+            threads: 1,
+            pool_wall_s: 7.5,
+            help_s: 0.0,
+            tasks,
+        };
+        assert_eq!(r.critical_path_s(), 2.5);
+        assert_eq!(r.replay(1).pool_wall_s, 7.5);
+        // Two workers: a run beside the plan, the chunks side by side, then the assembly
+        // on one worker and the three runs left: 2.5 | 2 + 1, then 3.5 and 4.
+        assert_eq!(r.replay(2).pool_wall_s, 4.0);
+        // Four: the plan beside three runs, the chunks beside the last run, one worker
+        // idles until the chunks end, then the assembly: the critical path.
+        let four = r.replay(4);
+        assert_eq!(four.pool_wall_s, 2.5);
+        assert!((four.efficiency - 7.5 / 10.0).abs() < 1e-12);
+        // The runs alone: 4 × 1 s.
+        assert_eq!(r.replay_runs(4).pool_wall_s, 1.0);
     }
 
     #[test]

@@ -11,7 +11,9 @@ use super::format::csv_text;
 use super::region::Staircase;
 use super::{ControllerChoice, Method};
 use iss_certificate::analysis::IssAnalysis;
-use iss_certificate::certificate::{CertificateOptions, certify_closed_loop};
+use iss_certificate::certificate::{
+    CertificateOptions, ClosedLoopCertificate, certify_closed_loop,
+};
 use iss_certificate::coverage::{Applicable, Coverage, covering};
 
 /// The certificate's side of a point: Theorem 1 for one solver.
@@ -288,34 +290,46 @@ pub fn solver_theory(
             return unavailable(reason);
         }
     }
-    // The sweep uses the certified constants only: the sampled L_Φ, L_π and γ₁,₃ estimates
-    // (exact solves at seeded points, most of the certificate's time) are skipped.
-    let opts = CertificateOptions {
+    match certify_closed_loop(resolved, &certificate_options(solvers)) {
+        Err(e) => unavailable(format!("no certificate: {e}")),
+        Ok(cert) => solvers
+            .iter()
+            .map(|&s| (s, theory_of(resolved, &cert, s, controller)))
+            .collect(),
+    }
+}
+
+/// The certificate options of a sweep: the certified constants only — the sampled L_Φ,
+/// L_π and γ₁,₃ estimates (exact solves at seeded points, most of the certificate's time)
+/// are skipped.
+pub(super) fn certificate_options(solvers: &[Method]) -> CertificateOptions {
+    CertificateOptions {
         solvers: solvers.to_vec(),
         gamma13_sequences: 0,
         lipschitz_pairs: 0,
         ..CertificateOptions::default()
-    };
-    match certify_closed_loop(resolved, &opts) {
-        Err(e) => unavailable(format!("no certificate: {e}")),
-        Ok(cert) => solvers
-            .iter()
-            .map(|&s| {
-                let theory = match Applicable::new(resolved, &cert, s, controller) {
-                    Applicable::Theorem1 {
-                        analysis,
-                        k_min,
-                        void_reasons,
-                    } => SolverTheory::Analysis {
-                        analysis,
-                        k_min,
-                        void_reasons,
-                    },
-                    Applicable::Uncovered(r) => SolverTheory::Unavailable(r),
-                    joint @ Applicable::Joint { .. } => SolverTheory::Joint(Box::new(joint)),
-                };
-                (s, theory)
-            })
-            .collect(),
+    }
+}
+
+/// The certificate covering `solver` with `controller`, from the scenario's certificate
+/// ([`Applicable::new`]: Theorem 1, the joint certificate, or uncovered).
+pub(super) fn theory_of(
+    resolved: &ResolvedScenario,
+    cert: &ClosedLoopCertificate,
+    solver: Method,
+    controller: ControllerChoice,
+) -> SolverTheory {
+    match Applicable::new(resolved, cert, solver, controller) {
+        Applicable::Theorem1 {
+            analysis,
+            k_min,
+            void_reasons,
+        } => SolverTheory::Analysis {
+            analysis,
+            k_min,
+            void_reasons,
+        },
+        Applicable::Uncovered(r) => SolverTheory::Unavailable(r),
+        joint @ Applicable::Joint { .. } => SolverTheory::Joint(Box::new(joint)),
     }
 }

@@ -11,7 +11,7 @@ use closed_loop::scenario::LoopOptions;
 use closed_loop::scenario::Scenario;
 use qp_iter::Method;
 use xtask::sweep_engine::{
-    NoProgress, RunOptions, Shard, SolverTheory, Sweep, SweepConfig, SweepError, Table,
+    NoProgress, RunOptions, Shard, SolverTheory, Sweep, SweepConfig, SweepError, Table, TaskKind,
     merge_point_dirs, point_file_name, run_seed,
 };
 
@@ -422,6 +422,71 @@ fn theoretical_columns_follow_the_certificate() {
     assert_eq!(t.certified, "void");
     assert!(t.void_reason.contains("rho"), "{}", t.void_reason);
     assert!(t.k_min.is_none());
+}
+
+/// The theory computed as the pool's task graph (γ₁,₃'s plan and enumeration chunks, L_π's
+/// chunks, the certificate assembled from them, one task per solver) is the sequential
+/// certificate's, bit for bit, at 1 and 3 threads; the task list records each task's
+/// inputs, and every input precedes its task.
+#[test]
+fn theory_tasks_equal_the_sequential_certificate() {
+    let certified = concat!(
+        env!("CARGO_MANIFEST_DIR"),
+        "/../scenarios/case-study-certified.toml"
+    );
+    // N = 5: 2^10 free sets, so both enumerations run (in 64 and 32 chunks) in a moment.
+    let text = fs::read_to_string(certified)
+        .unwrap()
+        .replace("horizon = 10       # N", "horizon = 5");
+    let d = scratch("theory-tasks");
+    let scenario = d.join("scenario.toml");
+    fs::write(&scenario, text).unwrap();
+    let cfg = format!(
+        "name = \"tasks\"\nscenario = \"{}\"\nk = [1, 50, 400]\n\
+         solvers = [\"pg\", \"fista\", \"admm\", \"admm-pr\"]\nseeds = 2\nsteps = 3\n",
+        scenario.display()
+    );
+    let sequential = {
+        let sweep = Sweep::new(SweepConfig::from_toml_str(&cfg, Path::new(".")).unwrap()).unwrap();
+        let c = sweep.config();
+        format!(
+            "{:?}",
+            xtask::sweep_engine::solver_theory(sweep.resolved(), &c.solvers, c.controller)
+        )
+    };
+    assert!(sequential.contains("Analysis"), "{sequential}");
+    for threads in [1, 3] {
+        let sweep = Sweep::new(SweepConfig::from_toml_str(&cfg, Path::new(".")).unwrap()).unwrap();
+        let out = d.join(format!("t{threads}"));
+        let report = run(&sweep, &out, threads, None);
+        assert_eq!(
+            format!("{:?}", sweep.theory()),
+            sequential,
+            "{threads} threads"
+        );
+        let tasks = &report.schedule.tasks;
+        let count = |k: TaskKind| tasks.iter().filter(|t| t.kind == k).count();
+        assert_eq!(count(TaskKind::Gamma13Plan), 1);
+        assert_eq!(count(TaskKind::Gamma13Enumeration), 64);
+        assert_eq!(count(TaskKind::LPiEnumeration), 32);
+        assert_eq!(count(TaskKind::Certificate), 1);
+        assert_eq!(count(TaskKind::Solver), 4);
+        let cert = tasks
+            .iter()
+            .position(|t| t.kind == TaskKind::Certificate)
+            .unwrap();
+        assert_eq!(tasks[cert].after.len(), 1 + 64 + 32);
+        for (i, t) in tasks.iter().enumerate() {
+            assert!(t.after.iter().all(|&d| d < i), "task {i}: {:?}", t.after);
+            // A task started after its inputs (their end is measured after they released
+            // it, so only the start is compared).
+            for &d in &t.after {
+                assert!(t.start_s >= tasks[d].start_s, "task {i} before input {d}");
+            }
+        }
+        let p = report.schedule.replay(threads);
+        assert!(p.pool_wall_s >= report.schedule.critical_path_s() - 1e-9);
+    }
 }
 
 // ---------------------------------------------------------------------------------------

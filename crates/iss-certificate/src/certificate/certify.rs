@@ -57,6 +57,36 @@ pub fn certify_closed_loop_timed(
     resolved: &ResolvedScenario,
     opts: &CertificateOptions,
 ) -> Result<(ClosedLoopCertificate, CertificateTimes), ClosedLoopError> {
+    certify_closed_loop_with(resolved, opts, ComputedParts::default())
+}
+
+/// The two long enumerations of the certificate, computed elsewhere in independent pieces
+/// (the sweep's pool runs them as tasks beside its runs: [`mpc_core::CondensedMpc::lipschitz_enumerated_in`]
+/// and the stages of [`crate::gamma13::Gamma13Plan`]). `None`: computed by
+/// [`certify_closed_loop_with`] itself.
+#[derive(Debug, Default)]
+pub struct ComputedParts {
+    /// L_enum of the scenario's MPC: what `mpc.lipschitz_enumerated(`[`mpc_core::ENUMERATION_MAX_VARS`]`)`
+    /// returns (used only without state constraints).
+    pub l_pi_enumerated: Option<Result<Option<f64>, mpc_core::MpcError>>,
+    /// The certified γ₁,₃: what [`crate::gamma13::gamma13_certified_budgeted`] returns with
+    /// `opts.enumeration_max_vars`, [`crate::gamma13::GAMMA13_PATTERN_FAMILIES`] and
+    /// `opts.phase_seconds` (used only for [`Gamma13Source::Certified`] without state
+    /// constraints).
+    pub gamma13_certified: Option<Result<crate::gamma13::Gamma13Certificate, mpc_core::MpcError>>,
+}
+
+/// [`certify_closed_loop_timed`] with the parts of `parts` computed elsewhere: the same
+/// certificate, bit for bit, when they are what their fields say.
+pub fn certify_closed_loop_with(
+    resolved: &ResolvedScenario,
+    opts: &CertificateOptions,
+    parts: ComputedParts,
+) -> Result<(ClosedLoopCertificate, CertificateTimes), ClosedLoopError> {
+    let ComputedParts {
+        l_pi_enumerated,
+        gamma13_certified,
+    } = parts;
     let start = std::time::Instant::now();
     let mut times = CertificateTimes::default();
     let mut lap = start;
@@ -143,17 +173,30 @@ pub fn certify_closed_loop_timed(
         Some(spec) => spec.explain(sys, e),
         None => e,
     };
-    let l_pi = mpc_core::lipschitz_report_for(&mpc, opts.lipschitz_pairs, opts.seed, radius)
+    let l_pi =
+        mpc_core::lipschitz_report_with(&mpc, opts.lipschitz_pairs, opts.seed, radius, |m| {
+            match l_pi_enumerated {
+                Some(r) => r,
+                None => m.lipschitz_enumerated(mpc_core::ENUMERATION_MAX_VARS),
+            }
+        })
         .map_err(explain)?;
     let l_pi_used = l_pi.l_pi();
     times.l_pi_s = split();
-    let gamma13 = crate::gamma13::gamma13_report_budgeted(
+    let gamma13 = crate::gamma13::gamma13_report_with(
         &mpc,
         opts.gamma13,
         opts.gamma13_sequences,
         opts.seed,
-        opts.enumeration_max_vars,
-        opts.phase_seconds,
+        |m| match gamma13_certified {
+            Some(r) => r,
+            None => crate::gamma13::gamma13_certified_budgeted(
+                m,
+                opts.enumeration_max_vars,
+                crate::gamma13::GAMMA13_PATTERN_FAMILIES,
+                opts.phase_seconds,
+            ),
+        },
     )
     .map_err(explain)?;
     times.gamma13_s = split();

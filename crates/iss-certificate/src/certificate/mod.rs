@@ -41,7 +41,10 @@ use serde::Serialize;
 
 use crate::analysis::{GainsAtK, IssAnalysis};
 pub use crate::gamma13::{Gamma13Report, Gamma13Source};
-pub use certify::{CertificateTimes, certify_closed_loop, certify_closed_loop_timed};
+pub use certify::{
+    CertificateTimes, ComputedParts, certify_closed_loop, certify_closed_loop_timed,
+    certify_closed_loop_with,
+};
 pub use rounding::{UNIT_ROUNDOFF, gamma_n, rounding_floor};
 pub use trajectory::{
     InequalityCheck, TrajectoryCheck, analysis_with_sampled_l_phi, check_trajectory,

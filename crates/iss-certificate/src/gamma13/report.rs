@@ -79,6 +79,27 @@ pub fn gamma13_report_budgeted(
     max_vars: usize,
     phase_seconds: f64,
 ) -> Result<Gamma13Report, MpcError> {
+    gamma13_report_with(mpc, source, sequences, seed, |mpc| {
+        gamma13_certified_budgeted(
+            mpc,
+            max_vars,
+            super::GAMMA13_PATTERN_FAMILIES,
+            phase_seconds,
+        )
+    })
+}
+
+/// [`gamma13_report_budgeted`] with the certified γ₁,₃ supplied by `certified` (called only
+/// for [`Gamma13Source::Certified`] without state constraints; it must return what
+/// [`gamma13_certified_budgeted`] returns, e.g. from a [`super::Gamma13Plan`] whose stages
+/// ran elsewhere).
+pub fn gamma13_report_with(
+    mpc: &CondensedMpc,
+    source: Gamma13Source,
+    sequences: usize,
+    seed: u64,
+    certified: impl FnOnce(&CondensedMpc) -> Result<Gamma13Certificate, MpcError>,
+) -> Result<Gamma13Report, MpcError> {
     let mut report = match source {
         Gamma13Source::User(g) => {
             if !(g.is_finite() && g >= 0.0) {
@@ -109,12 +130,7 @@ pub fn gamma13_report_budgeted(
             sampled: None,
         },
         Gamma13Source::Certified => {
-            let c = gamma13_certified_budgeted(
-                mpc,
-                max_vars,
-                super::GAMMA13_PATTERN_FAMILIES,
-                phase_seconds,
-            )?;
+            let c = certified(mpc)?;
             Gamma13Report {
                 used: c.gamma13,
                 source: "certified".into(),

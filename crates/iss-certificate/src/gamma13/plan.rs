@@ -1,0 +1,414 @@
+//! The certified γ₁,₃ of [`super::gamma13_certified_budgeted`] in three stages, so that a
+//! caller can schedule them itself (the sweep's pool runs each as a task): the plan
+//! ([`Gamma13Plan::start`]: the families, the candidate metrics and their S-procedure
+//! figures, the choice of the metrics to enumerate), the free-set enumeration in
+//! independent mask chunks ([`Gamma13Plan::chunk`]), and the result
+//! ([`Gamma13Plan::finish`]). The chunks are fixed by 2^s, not by who runs them, and
+//! their reduction is a maximum in chunk order: the certificate is the same bit for bit
+//! however the chunks are run.
+
+use mpc_core::{CondensedMpc, MpcError};
+use rayon::prelude::*;
+
+use super::enumerate::{VertexChunk, VertexEnumeration};
+use super::metrics::{self, Family, Metric};
+use super::*;
+
+/// What [`Gamma13Plan::start`] gives: the certificate already (void before any enumeration),
+/// or the plan of the rest.
+#[derive(Debug)]
+pub enum Gamma13Stage<'a> {
+    /// The certificate (void: 0 ∉ 𝒰, or the saturated dynamics do not contract).
+    Done(Box<Gamma13Certificate>),
+    /// The enumeration and the result still to compute.
+    Plan(Box<Gamma13Plan<'a>>),
+}
+
+/// The γ₁,₃ certificate after its first stage (module docs).
+#[derive(Debug)]
+pub struct Gamma13Plan<'a> {
+    mpc: &'a CondensedMpc,
+    max_vars: usize,
+    phase_seconds: f64,
+    fam: Family,
+    depth: usize,
+    pattern_families: usize,
+    metrics: Vec<Metric>,
+    candidates: Vec<MetricResult>,
+    noise_gains: Vec<f64>,
+    gamma13_polynomial: f64,
+    order: Vec<usize>,
+    chosen: Vec<usize>,
+    n_refs: usize,
+    work: f64,
+    seconds: f64,
+    s: usize,
+    variables: usize,
+    skipped: Vec<SkippedComputation>,
+    enumeration: Option<VertexEnumeration>,
+}
+
+/// The figures of one chunk of the free-set enumeration ([`Gamma13Plan::chunk`]).
+pub type Gamma13Chunk = VertexChunk;
+
+impl<'a> Gamma13Plan<'a> {
+    /// The first stage of [`super::gamma13_certified_budgeted`] (same arguments).
+    pub fn start(
+        mpc: &'a CondensedMpc,
+        max_vars: usize,
+        pattern_families: u64,
+        phase_seconds: f64,
+    ) -> Result<Gamma13Stage<'a>, MpcError> {
+        let variables = mpc.qp().n();
+        let us = mpc.input_set();
+        let skipped = Vec::new();
+        let fam = Family::new(mpc)?;
+        let s = fam.saturable;
+        if !(us.lower().iter().all(|l| *l <= 0.0) && us.upper().iter().all(|u| *u >= 0.0)) {
+            return Ok(Gamma13Stage::Done(Box::new(void_certificate(
+                variables,
+                s,
+                Gamma13Void::OriginOutsideInputSet,
+                skipped,
+            ))));
+        }
+        if s > 0 {
+            // Stable / marginal / unstable from the exact structure (a defective A, e.g.
+            // integrator chains, has rounded eigenvalues off the unit circle). With 𝒰 bounded
+            // A_sat = A exactly (K_sat = K_lin + GR vanishes; its computed value is rounding,
+            // which a Jordan chain of length 3 amplifies to 1e-5 in |λ|), so A itself is
+            // classified; otherwise A_sat as computed.
+            let bounded = us.lower().iter().chain(us.upper()).all(|b| b.is_finite());
+            let facts = if bounded {
+                lti_model::spectral::classify(mpc.system().a())?
+            } else {
+                lti_model::spectral::classify(fam.a_sat.as_ref())?
+            };
+            let rho = facts.spectral_radius;
+            let marginal = match facts.stability {
+                Stability::Unstable => Some(false),
+                Stability::Marginal => Some(true),
+                Stability::Stable if !(rho < 1.0 - 1e-10) => Some(true),
+                Stability::Stable => None,
+            };
+            if let Some(marginal) = marginal {
+                return Ok(Gamma13Stage::Done(Box::new(void_certificate(
+                    variables,
+                    s,
+                    Gamma13Void::SaturatedDynamicsNotStable {
+                        spectral_radius: rho,
+                        input_bounded: bounded,
+                        marginal,
+                    },
+                    skipped,
+                ))));
+            }
+        }
+        let depth = if s > 0 {
+            mpc.pattern_depth(pattern_families)
+        } else {
+            0
+        };
+        let patterns: Vec<Family> = if depth > 0 {
+            mpc.pattern_gains(depth)?
+                .iter()
+                .map(|g| Family::from_gains(mpc, g))
+                .collect::<Result<_, _>>()?
+        } else {
+            Vec::new()
+        };
+        let metrics = metrics::candidates(mpc, &fam);
+        // One metric per task (in order), so the result does not depend on the thread count.
+        let figures: Vec<Result<(f64, f64), MpcError>> = metrics
+            .par_iter()
+            .map(|m| metric_figures(&fam, &patterns, m))
+            .collect();
+        let mut candidates = Vec::with_capacity(metrics.len());
+        // ‖S^{½}E‖₂ per metric: how w¹ enters (x⁺ = … + Ew¹).
+        let noise_gains: Vec<f64> = metrics
+            .iter()
+            .map(|m| spectral_norm((&m.half * mpc.system().e()).as_ref()))
+            .collect();
+        for ((m, fig), &ng) in metrics.iter().zip(figures).zip(&noise_gains) {
+            let (lam, gin) = fig?;
+            let (g13, g1w) = gammas(lam, gin, m, ng);
+            candidates.push(MetricResult {
+                metric: m.name.clone(),
+                contraction: lam,
+                input_gain: gin,
+                contraction_enumerated: None,
+                input_gain_enumerated: None,
+                condition_sqrt: (m.lmax / m.lmin).sqrt(),
+                gamma13_polynomial: g13,
+                gamma13_enumerated: None,
+                gamma13: g13,
+                gamma1w: g1w,
+                input_matrix_gain: spectral_norm((&m.half * mpc.system().b()).as_ref()),
+                gamma14: f64::INFINITY,
+                not_computed: None,
+            });
+        }
+        let gamma13_polynomial = candidates
+            .iter()
+            .map(|c| c.gamma13_polynomial)
+            .fold(f64::INFINITY, f64::min);
+
+        // Enumeration: the three best metrics by the family bound (so the enumerated minimum never
+        // exceeds the polynomial one); every metric if none certifies.
+        let mut order: Vec<usize> = (0..metrics.len()).collect();
+        order.sort_by(|&i, &j| {
+            candidates[i]
+                .gamma13_polynomial
+                .total_cmp(&candidates[j].gamma13_polynomial)
+        });
+        let chosen: Vec<usize> = if gamma13_polynomial.is_finite() {
+            let mut c: Vec<usize> = order.iter().copied().take(3).collect();
+            c.sort_unstable();
+            c
+        } else {
+            (0..metrics.len()).collect()
+        };
+        let refs: Vec<&Metric> = chosen.iter().map(|&i| &metrics[i]).collect();
+        let n_refs = refs.len();
+        let work = enumeration_work(mpc, refs.len());
+        let seconds = work / crate::budget::SCALAR_RATE;
+        let affordable = s <= max_vars.min(30) && seconds <= phase_seconds;
+        let enumeration = affordable.then(|| VertexEnumeration::new(mpc, &refs, max_vars));
+        Ok(Gamma13Stage::Plan(Box::new(Gamma13Plan {
+            mpc,
+            max_vars,
+            phase_seconds,
+            fam,
+            depth,
+            pattern_families: patterns.len(),
+            metrics,
+            candidates,
+            noise_gains,
+            gamma13_polynomial,
+            order,
+            chosen,
+            n_refs,
+            work,
+            seconds,
+            s,
+            variables,
+            skipped,
+            enumeration,
+        })))
+    }
+
+    /// An upper bound on [`Gamma13Plan::chunks`] for any plan of `mpc`, known before the
+    /// plan: min(64, 2^s) (the chunks are fixed by 2^s).
+    pub fn max_chunks(mpc: &CondensedMpc) -> usize {
+        usize::try_from(super::enumerate::VERTEX_CHUNKS.min(mpc.free_set_count()))
+            .unwrap_or(usize::MAX)
+    }
+
+    /// Chunks of the free-set enumeration (0 when it is not run: too many saturable
+    /// variables, or over the budget).
+    pub fn chunks(&self) -> usize {
+        self.enumeration
+            .as_ref()
+            .map_or(0, VertexEnumeration::chunks)
+    }
+
+    /// Chunk `i` (< [`Gamma13Plan::chunks`]) of the free-set enumeration.
+    pub fn chunk(&self, i: usize) -> Result<Gamma13Chunk, MpcError> {
+        match &self.enumeration {
+            Some(e) if i < e.chunks() => e.chunk(self.mpc, i),
+            _ => Err(MpcError::Parameter {
+                name: "γ₁,₃ enumeration chunk",
+                value: i as f64,
+                reason: "below the plan's number of chunks",
+            }),
+        }
+    }
+
+    /// The certificate from every chunk's figures, in chunk order (all
+    /// [`Gamma13Plan::chunks`] of them).
+    pub fn finish(
+        self,
+        chunks: Vec<Result<Gamma13Chunk, MpcError>>,
+    ) -> Result<Gamma13Certificate, MpcError> {
+        let Gamma13Plan {
+            mpc,
+            max_vars,
+            phase_seconds,
+            fam,
+            depth,
+            pattern_families,
+            metrics,
+            mut candidates,
+            noise_gains,
+            gamma13_polynomial,
+            order,
+            chosen,
+            n_refs,
+            work,
+            seconds,
+            s,
+            variables,
+            mut skipped,
+            enumeration,
+        } = self;
+        let vertex = match &enumeration {
+            Some(e) if chunks.len() == e.chunks() => e.reduce(chunks)?,
+            Some(e) => {
+                return Err(MpcError::Parameter {
+                    name: "γ₁,₃ enumeration chunks",
+                    value: chunks.len() as f64,
+                    reason: if e.chunks() > chunks.len() {
+                        "fewer than the plan's number of chunks"
+                    } else {
+                        "more than the plan's number of chunks"
+                    },
+                });
+            }
+            None => None,
+        };
+        let (enumerated, free_sets) = match &vertex {
+            Some(v) => (true, v.free_sets),
+            None if s > max_vars.min(30) => {
+                skipped.push(SkippedComputation {
+                    computation: "free-set enumeration".into(),
+                    reason: format!(
+                        "{s} saturable input variables > cap {} (2^{s} free sets); the S-procedure \
+                         bound over 0 ⪯ Π ⪯ I with the first {depth} input block(s) enumerated is used",
+                        max_vars.min(30)
+                    ),
+                });
+                (false, 0)
+            }
+            None => {
+                skipped.push(SkippedComputation {
+                    computation: "free-set enumeration".into(),
+                    reason: format!(
+                        "2^{s} free sets × {} metric(s) at n_x = {}: estimated {} multiply-adds, \
+                         ≈ {} s > the analysis budget of {} s per phase (scenario key \
+                         `certificate.phase_seconds`); the S-procedure bound over 0 ⪯ Π ⪯ I with \
+                         the first {depth} input block(s) enumerated is used",
+                        n_refs,
+                        mpc.nx(),
+                        crate::budget::sci(work),
+                        crate::budget::secs(seconds),
+                        crate::budget::secs(phase_seconds),
+                    ),
+                });
+                (false, 0)
+            }
+        };
+        let mut gamma13_enumerated = None;
+        if let Some(v) = &vertex {
+            let mut best = f64::INFINITY;
+            for (k, &i) in chosen.iter().enumerate() {
+                let (lam, gin) = (v.contraction[k], v.input_gain[k]);
+                let (g13, g1w) = gammas(lam, gin, &metrics[i], noise_gains[i]);
+                let c = &mut candidates[i];
+                c.contraction_enumerated = Some(lam);
+                // The enumeration drops a metric once λ reaches 1: its g is then a partial maximum
+                // (possibly 0), not a figure.
+                c.input_gain_enumerated = (lam < 1.0).then_some(gin);
+                c.gamma13_enumerated = Some(g13);
+                if g13 < c.gamma13 {
+                    c.gamma13 = g13;
+                    c.gamma1w = g1w;
+                }
+                best = best.min(g13);
+            }
+            gamma13_enumerated = Some(best);
+        }
+
+        // The linear law: impulse-response sum with the best contracting metric's tail bound.
+        let mut gamma13_linear = None;
+        if s == 0 {
+            if let Some(i) = order
+                .first()
+                .copied()
+                .filter(|&i| candidates[i].gamma13.is_finite())
+            {
+                gamma13_linear = impulse_response_gain(
+                    &fam,
+                    &fam.bk_lin,
+                    &metrics[i],
+                    candidates[i].contraction,
+                );
+            }
+        }
+
+        for (c, m) in candidates.iter_mut().zip(&metrics) {
+            c.not_computed = not_computed_reason(c);
+            let lam = used_contraction(c);
+            if lam < 1.0 {
+                c.gamma14 = c.input_matrix_gain / (m.lmin.sqrt() * (1.0 - lam));
+            }
+        }
+        let best = candidates
+            .iter()
+            .filter(|c| c.gamma13.is_finite())
+            .min_by(|x, y| x.gamma13.total_cmp(&y.gamma13));
+        let mut gamma13 = best.map_or(f64::INFINITY, |c| c.gamma13);
+        let mut metric = best.map(|c| c.metric.clone());
+        let mut method = best.map(|c| {
+            if c.gamma13_enumerated
+                .is_some_and(|e| e <= c.gamma13_polynomial)
+            {
+                Gamma13Method::Enumerated
+            } else {
+                Gamma13Method::Polynomial
+            }
+        });
+        // γ₁,₄, γ₁ʷ and β₁ of the same estimate as γ₁,₃.
+        let mut gamma14 = best.map_or(f64::INFINITY, |c| c.gamma14);
+        let gamma1w = best.map_or(f64::INFINITY, |c| c.gamma1w);
+        let (beta_prefactor, beta_rate) = best.map_or((f64::NAN, f64::NAN), |c| {
+            (c.condition_sqrt, used_contraction(c))
+        });
+        if let Some(l) = gamma13_linear.filter(|l| *l < gamma13) {
+            gamma13 = l;
+            method = Some(Gamma13Method::Linear);
+            metric = Some("impulse response (tail from the best metric)".into());
+            // The linear law: superposition bounds each input's term separately, so the
+            // homogeneous and w terms may keep the metric's figures.
+            if let Some(i) = order.first().copied() {
+                let b = mpc.system().b().to_owned();
+                gamma14 = impulse_response_gain(&fam, &b, &metrics[i], candidates[i].contraction)
+                    .unwrap_or(gamma14);
+            }
+        }
+        let void = if gamma13.is_finite() {
+            None
+        } else {
+            let worst = |c: &MetricResult| c.contraction_enumerated.unwrap_or(c.contraction);
+            let b = candidates
+                .iter()
+                .min_by(|x, y| worst(x).total_cmp(&worst(y)));
+            Some(Gamma13Void::NoContractingMetric {
+                best_contraction: b.map_or(f64::INFINITY, worst),
+                metric: b.map_or_else(|| "none".into(), |c| c.metric.clone()),
+                enumerated,
+                pattern_blocks: depth,
+            })
+        };
+        Ok(Gamma13Certificate {
+            gamma13,
+            method,
+            metric,
+            pattern_blocks: depth,
+            pattern_families,
+            gamma13_polynomial,
+            gamma13_enumerated,
+            gamma13_linear,
+            gamma14,
+            gamma1w,
+            beta_prefactor,
+            beta_rate,
+            candidates,
+            variables,
+            saturable: s,
+            free_sets,
+            enumerated,
+            void,
+            skipped,
+        })
+    }
+}

@@ -110,6 +110,13 @@ pub const STATE_CONSTRAINED_VOID_REASON: &str = "the MPC has state constraints x
      H-weighted projection onto the fixed set 𝒰^N), but the predicted-state rows move with x̂ and \
      the MPC can be infeasible; no certified L_π or γ₁,₃ is reported";
 
+/// Whether a symmetric PSD weight is singular: λ_min ≤ 1e-12·max(1, λ_max) (then the
+/// detectability of (A, Q_c^½) decides whether the DARE has a stabilising solution).
+pub(crate) fn is_singular(m: &Mat<f64>) -> bool {
+    sym_extreme_eigenvalues("Q_c", m.as_ref())
+        .map_or(true, |(lo, hi)| lo <= 1e-12 * hi.abs().max(1.0))
+}
+
 /// Validates a weight that must be symmetric positive semidefinite (Q_c, P_f).
 pub(crate) fn check_psd(name: &'static str, m: &Mat<f64>, n: usize) -> Result<()> {
     check_shape(name, m.as_ref(), n, n)?;
@@ -184,7 +191,14 @@ impl CondensedMpc {
         let q_c = lti_model::matrix::symmetrize(config.q_c.as_ref());
         let r_c = lti_model::matrix::symmetrize(config.r_c.as_ref());
         let p_f = match config.terminal {
-            Terminal::Dare => dare(system.a(), system.b(), q_c.as_ref(), r_c.as_ref())?,
+            Terminal::Dare => {
+                // Q_c ⪰ 0: the stabilising DARE solution needs (A, Q_c^½) detectable; a
+                // singular Q_c is checked first so the error names the unseen mode.
+                if is_singular(&q_c) {
+                    crate::detectable::check_detectable(system.a(), q_c.as_ref())?;
+                }
+                dare(system.a(), system.b(), q_c.as_ref(), r_c.as_ref())?
+            }
             Terminal::Given(p) => {
                 check_psd("P_f", &p, nx)?;
                 lti_model::matrix::symmetrize(p.as_ref())

@@ -23,6 +23,7 @@
 //! [`MpcConfig::state_set`] for state constraints.
 
 pub mod condensed;
+pub mod detectable;
 pub mod error;
 pub mod exact;
 pub mod free_sets;

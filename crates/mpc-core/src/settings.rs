@@ -13,7 +13,7 @@
 use faer::Mat;
 use lti_model::LtiSystem;
 use lti_model::spec::format::{
-    at_least_one, check_dense_bytes, key_error, required, rows_of, weight,
+    at_least_one, check_dense_bytes, key_error, required, rows_of, sized_matrix, weight, wrap,
 };
 use lti_model::spec::{MatrixSpec, ScenarioSets};
 use serde::{Deserialize, Serialize};
@@ -34,7 +34,8 @@ pub enum TerminalCost {
 pub struct MpcSettings {
     /// Prediction horizon N ≥ 1 (`mpc.horizon`).
     pub horizon: usize,
-    /// Stage state weight Q_c, n_x square, positive definite (default I).
+    /// Stage state weight Q_c, n_x square, positive semidefinite with (A, Q_c^½) detectable
+    /// (default I; see [`crate::detectable`]).
     pub q: Mat<f64>,
     /// Stage input weight R_c, n_u square, positive definite (default I).
     pub r: Mat<f64>,
@@ -102,12 +103,7 @@ impl MpcSettings {
             &format!("a condensed MPC with N·n_u = {vars} inputs"),
             8.0 * (vars * vars + n * nx * vars + vars * nx),
         )?;
-        let q = weight(
-            "mpc.q",
-            raw.q.as_ref(),
-            sys.nx(),
-            &format!("n_x = {} square", sys.nx()),
-        )?;
+        let q = state_weight(raw.q.as_ref(), sys)?;
         let r = weight(
             "mpc.r",
             raw.r.as_ref(),
@@ -257,6 +253,16 @@ impl MpcSettings {
                 )
                 .into()
             }
+            MpcError::NotDetectable { mode } => key_error(
+                "mpc.q",
+                format!(
+                    "is singular and the mode {mode} of `plant.a` is not seen by it and does not \
+                     decay, so (A, Q_c^½) is not detectable and the DARE terminal cost has no \
+                     stabilising solution; give a positive weight to one of those state \
+                     components in `mpc.q` (or make `mpc.q` positive definite)"
+                ),
+            )
+            .into(),
             MpcError::Model(e @ ModelError::Scenario { .. }) => e.into(),
             MpcError::Model(e) | MpcError::Qp(qp_iter::QpError::Model(e)) => key_error(
                 "mpc",
@@ -270,6 +276,50 @@ impl MpcSettings {
             other => other,
         }
     }
+}
+
+/// `mpc.q`: n_x square, finite, symmetric, positive *semi*definite (default I); a singular
+/// Q_c must leave no non-decaying mode of A unseen ((A, Q_c^½) detectable, so that the DARE
+/// terminal cost exists). Errors name `mpc.q`, the mode and the fix.
+fn state_weight(spec: Option<&MatrixSpec>, sys: &LtiSystem) -> lti_model::Result<Mat<f64>> {
+    let nx = sys.nx();
+    let Some(spec) = spec else {
+        return Ok(Mat::identity(nx, nx));
+    };
+    let m = sized_matrix("mpc.q", spec, nx, nx, &format!("n_x = {nx} square"))?;
+    if let Err(e) = crate::condensed::check_psd("Q_c", &m, nx) {
+        return Err(match e {
+            MpcError::Model(e) => wrap("mpc.q", e),
+            MpcError::NotPositiveSemidefinite { min_eigenvalue, .. } => key_error(
+                "mpc.q",
+                format!(
+                    "is not positive semidefinite (smallest eigenvalue {min_eigenvalue:e}); the \
+                     stage weight Q_c must be symmetric with nonnegative eigenvalues"
+                ),
+            ),
+            other => key_error("mpc.q", other.to_string()),
+        });
+    }
+    if crate::condensed::is_singular(&m) {
+        match crate::detectable::undetectable_modes(sys.a(), m.as_ref()) {
+            Ok(modes) if modes.is_empty() => {}
+            Ok(modes) => {
+                return Err(key_error(
+                    "mpc.q",
+                    format!(
+                        "is singular, which is allowed when (A, Q_c^½) is detectable, but the mode \
+                         {} of `plant.a` is not seen by `mpc.q` and does not decay (|λ| ≥ 1), so \
+                         the DARE terminal cost has no stabilising solution and the MPC would not \
+                         penalise that mode; give a positive weight to one of those state \
+                         components in `mpc.q` (or make `mpc.q` positive definite)",
+                        modes[0]
+                    ),
+                ));
+            }
+            Err(e) => return Err(key_error("mpc.q", e.to_string())),
+        }
+    }
+    Ok(m)
 }
 
 /// Ratio of the largest to the smallest nonzero entry magnitude of the MPC's data beyond

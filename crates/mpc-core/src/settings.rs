@@ -47,6 +47,9 @@ pub struct MpcSettings {
     /// The sub-optimal MPC's iteration map (`mpc.method`, default FISTA; only with
     /// `mpc.iterations`).
     pub method: qp_iter::Method,
+    /// Output constraints C x_k ∈ 𝒴_c on the predicted outputs k = 1..N (`mpc.output`, a
+    /// box of n_y bounds containing 0; `None`: none). Not the MHE's `sets.output`.
+    pub output: Option<lti_model::BoxSet>,
 }
 
 /// The sub-optimal MPC's Φ when `mpc.method` (or a sweep's `controller.solver`) is not
@@ -78,6 +81,9 @@ pub struct RawMpc {
     /// `method` of the sub-optimal MPC.
     #[serde(skip_serializing_if = "Option::is_none")]
     pub method: Option<qp_iter::Method>,
+    /// `output`: the MPC's output box 𝒴_c.
+    #[serde(skip_serializing_if = "Option::is_none")]
+    pub output: Option<lti_model::spec::Table<lti_model::spec::plant::RawBox>>,
 }
 
 impl MpcSettings {
@@ -134,7 +140,18 @@ impl MpcSettings {
                 Some(k)
             }
         };
+        let output = match raw.output.as_deref() {
+            None => None,
+            Some(b) => Some(lti_model::spec::plant::box_set(
+                "mpc.output",
+                Some(b),
+                sys.ny(),
+                "output",
+            )?)
+            .filter(|set| !set.is_whole()),
+        };
         Ok(Self {
+            output,
             horizon,
             q,
             r,
@@ -153,11 +170,16 @@ impl MpcSettings {
             terminal: Some(self.terminal),
             iterations: self.iterations,
             method: self.iterations.map(|_| self.method),
+            output: self
+                .output
+                .as_ref()
+                .map(|b| lti_model::spec::Table(lti_model::spec::plant::raw_box(b))),
         }
     }
 
-    /// The condensed MPC's configuration with the input set `sets.input` and the state set
-    /// `sets.state` (predicted-state rows when bounded, see [`MpcConfig::state_set`]).
+    /// The condensed MPC's configuration with the input set `sets.input`, the state set
+    /// `sets.state` (predicted-state rows when bounded, see [`MpcConfig::state_set`]) and the
+    /// output box `mpc.output` (predicted-output rows, [`MpcConfig::output_set`]).
     pub fn config(&self, sets: &ScenarioSets) -> MpcConfig {
         let terminal = match self.terminal {
             TerminalCost::Dare => Terminal::Dare,
@@ -169,6 +191,7 @@ impl MpcSettings {
             terminal,
             input_set: sets.input.clone(),
             state_set: Some(sets.state.clone()),
+            output_set: self.output.clone(),
         }
     }
 }

@@ -20,6 +20,7 @@ mod sim;
 mod sweep;
 mod sweep2d;
 mod truth;
+mod users;
 
 use closed_loop::certificate::{CertificateOptions, ClosedLoopCertificate, certify_closed_loop};
 use closed_loop::scenario::{LoopOptions, Scenario, ScenarioLoop};

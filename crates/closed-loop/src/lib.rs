@@ -22,6 +22,7 @@
 //!   S-procedure, partial and full free-set enumeration, typed void reasons, user values).
 
 pub mod analysis;
+pub mod baseline;
 pub mod bounded;
 pub mod budget;
 pub mod certificate;

@@ -217,3 +217,116 @@ fn noise_keys_are_validated_by_name() {
     );
     assert!(e.contains("noise.truncate"), "{e}");
 }
+
+/// The standard predictor-form Kalman filter written out with dense matrices (no shared
+/// code with `mhe_core::KalmanFilter`), for Q̄ = E Σ_w,11 Eᵀ, R̄ = F Σ_w,22 Fᵀ + Σ_v,
+/// S̄ = E Σ_w,12 Fᵀ.
+fn dense_kalman(
+    sys: &lti_model::LtiSystem,
+    prior: &[f64],
+    pi0: faer::Mat<f64>,
+    sw: &faer::Mat<f64>,
+    sv: &faer::Mat<f64>,
+    trace: &closed_loop::record::Trace,
+) -> Vec<Vec<f64>> {
+    use faer::linalg::solvers::DenseSolveCore;
+    let (nx, nw1, nw2) = (sys.nx(), sys.nw1(), sys.nw2());
+    let (a, b, c, e, f) = (sys.a(), sys.b(), sys.c(), sys.e(), sys.f());
+    let s11 = sw.as_ref().submatrix(0, 0, nw1, nw1);
+    let s12 = sw.as_ref().submatrix(0, nw1, nw1, nw2);
+    let s22 = sw.as_ref().submatrix(nw1, nw1, nw2, nw2);
+    let qbar = e * s11 * e.transpose();
+    let rbar = f * s22 * f.transpose() + sv;
+    let sbar = e * s12 * f.transpose();
+    let mut x = faer::Mat::from_fn(nx, 1, |i, _| prior[i]);
+    let mut pi = pi0;
+    let mut out = Vec::new();
+    for t in 0..trace.len() {
+        out.push((0..nx).map(|i| x[(i, 0)]).collect());
+        let u = faer::Mat::from_fn(sys.nu(), 1, |i, _| trace.u(t).unwrap()[i]);
+        let y = faer::Mat::from_fn(sys.ny(), 1, |i, _| trace.y(t).unwrap()[i]);
+        let s = c * &pi * c.transpose() + &rbar;
+        let k = (a * &pi * c.transpose() + &sbar) * s.partial_piv_lu().inverse();
+        x = a * &x + b * &u + &k * (&y - c * &x);
+        pi = a * &pi * a.transpose() + &qbar - &k * &s * k.transpose();
+    }
+    out
+}
+
+#[test]
+fn the_kalman_baseline_uses_the_mhe_weights_and_matches_a_dense_filter() {
+    let s = Scenario::from_toml_str(&std::fs::read_to_string(CASE_STUDY).unwrap()).unwrap();
+    let trace = run(&s, 40);
+    let resolved = s.clone().resolve().unwrap();
+    let cfg = resolved.mhe_config().unwrap();
+    let sys = &s.plant;
+    let mut kf =
+        closed_loop::baseline::kalman_for_mhe(sys, &s.simulation.prior, &cfg.p, &cfg.q, &cfg.r)
+            .unwrap();
+    let b = closed_loop::baseline::run_on_trace(&mut kf, &trace);
+    assert!(b.error.is_none() && !b.diverged(), "{b:?}");
+    assert_eq!(b.x_hat.len(), 40);
+    // Π₀ = (2P)⁻¹, Σ_w = (2Q)⁻¹, Σ_v = R⁻¹ computed here by a Cholesky-free route: solve with
+    // the explicit inverse of 2P etc.
+    use faer::linalg::solvers::DenseSolveCore;
+    let half_inv = |m: &faer::Mat<f64>, s: f64| (m * s).partial_piv_lu().inverse();
+    let reference = dense_kalman(
+        sys,
+        &s.simulation.prior,
+        half_inv(&cfg.p, 2.0),
+        &half_inv(&cfg.q, 2.0),
+        &half_inv(&cfg.r, 1.0),
+        &trace,
+    );
+    for t in 0..40 {
+        let d: f64 = b.x_hat[t]
+            .iter()
+            .zip(&reference[t])
+            .map(|(p, q)| (p - q).abs())
+            .fold(0.0, f64::max);
+        assert!(
+            d < 1e-9 * (1.0 + reference[t].iter().map(|v| v.abs()).fold(0.0, f64::max)),
+            "t = {t}: {d:e}"
+        );
+    }
+    // The error norms are of x_t − x̂^b_t.
+    let e0: f64 = trace
+        .x(0)
+        .unwrap()
+        .iter()
+        .zip(&b.x_hat[0])
+        .map(|(p, q)| (p - q).powi(2))
+        .sum::<f64>()
+        .sqrt();
+    assert!((b.e_norms[0] - e0).abs() < 1e-12);
+}
+
+/// An estimator whose estimate grows without bound: reported diverged, with the step.
+#[derive(Debug)]
+struct Exploding(Vec<f64>);
+
+impl mhe_core::Estimator for Exploding {
+    type Error = mhe_core::MheError;
+    fn estimate(&mut self) -> Result<&[f64], Self::Error> {
+        Ok(&self.0)
+    }
+    fn push(&mut self, _u: &[f64], _y: &[f64]) -> Result<(), Self::Error> {
+        for v in &mut self.0 {
+            *v = 10.0 * *v + 1.0;
+        }
+        Ok(())
+    }
+    fn nx(&self) -> usize {
+        self.0.len()
+    }
+}
+
+#[test]
+fn a_diverging_baseline_is_reported_diverged() {
+    let s = Scenario::from_toml_str(&std::fs::read_to_string(CASE_STUDY).unwrap()).unwrap();
+    let trace = run(&s, 40);
+    let b = closed_loop::baseline::run_on_trace(&mut Exploding(vec![0.0; 4]), &trace);
+    let d = b.divergence.expect("diverged");
+    assert!(b.diverged() && d.t > 0 && d.t < 40, "{d:?}");
+    assert!(d.to_string().contains("diverged at t ="), "{d}");
+}

@@ -330,3 +330,40 @@ fn a_diverging_baseline_is_reported_diverged() {
     assert!(b.diverged() && d.t > 0 && d.t < 40, "{d:?}");
     assert!(d.to_string().contains("diverged at t ="), "{d}");
 }
+
+/// A singular Q_c leaves every constant of the certificate defined: L_π and γ₁,₃ use
+/// H = 2(ΓᵀQ̄Γ + R̄) ≻ 0 (R_c ≻ 0) and metrics that are positive definite by construction;
+/// a singular DARE solution is left out of the γ₁,₃ metric search, never inverted.
+#[test]
+fn a_singular_q_c_keeps_the_certificate_finite_or_void_by_name() {
+    let text = case_study_with("mpc", "").replace(
+        "q = 1.0            # Q_c = I₄",
+        "q = { diagonal = [0.0, 0.0, 1.0, 0.0] }",
+    );
+    let s = Scenario::from_toml_str(&text).unwrap();
+    let opts = CertificateOptions {
+        gamma13: Gamma13Source::Certified,
+        gamma13_sequences: 0,
+        lipschitz_pairs: 0,
+        solvers: vec![Method::PG],
+        ..CertificateOptions::default()
+    };
+    let c = crate::certify(&s, &opts).unwrap();
+    assert!(
+        c.l_pi.certified.l_pi().is_finite(),
+        "{:?}",
+        c.l_pi.certified
+    );
+    match &c.gamma13.void {
+        None => assert!(c.gamma13.used.is_finite() && c.gamma13.used > 0.0),
+        Some(v) => assert!(!v.to_string().is_empty()),
+    }
+    let sc = &c.solvers[0];
+    assert!(sc.k_min.is_some() || !sc.void_reasons.is_empty());
+    println!(
+        "singular Q_c: L_π = {}, γ₁,₃ = {}, K_min = {:?}",
+        c.l_pi.certified.l_pi(),
+        c.gamma13.used,
+        sc.k_min
+    );
+}

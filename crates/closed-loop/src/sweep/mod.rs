@@ -54,6 +54,7 @@
 //!
 //! Column reference: `docs/sweeps.md`.
 
+mod baseline;
 mod config;
 mod custom;
 mod error;
@@ -75,6 +76,7 @@ mod thresholds;
 use crate::scenario::ControllerChoice;
 use qp_iter::Method;
 
+pub use baseline::kalman_header;
 pub use config::{MAX_K, MAX_SEEDS, MAX_STEPS, Point, SweepConfig};
 pub use custom::{MonteCarlo, monte_carlo, monte_carlo_seed};
 pub use error::{Result, SweepError};

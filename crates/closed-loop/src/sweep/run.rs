@@ -428,6 +428,9 @@ impl Sweep {
             // written now.
             files.extend(done);
             write_files(self, &files, &opts.out_dir)?;
+            if self.config.kalman {
+                super::baseline::write_kalman(self, &opts.out_dir)?;
+            }
         }
         drop(lock);
         Ok(SweepReport {

@@ -259,6 +259,60 @@ fn relative(path: &Path) -> String {
 struct Run {
     summary: RunSummary,
     trace: Trace,
+    /// The Kalman baseline on the same u_t, y_t (None when it could not be built).
+    kalman: Option<closed_loop::baseline::BaselineRun>,
+}
+
+/// The Kalman filter of the MHE's weights run on `trace` (module `closed_loop::baseline`).
+fn kalman_baseline(
+    resolved: &ResolvedScenario,
+    trace: &Trace,
+) -> (
+    Option<closed_loop::baseline::BaselineRun>,
+    Option<KalmanSummary>,
+) {
+    let scenario = resolved.scenario();
+    let weights = "standard (λ = 1), Π₀ = (2P)⁻¹, Σ_w = (2Q)⁻¹, Σ_v = R⁻¹".to_string();
+    let built = resolved
+        .mhe_config()
+        .map_err(|e| e.to_string())
+        .and_then(|cfg| {
+            closed_loop::baseline::kalman_for_mhe(
+                &scenario.plant,
+                &scenario.simulation.prior,
+                &cfg.p,
+                &cfg.q,
+                &cfg.r,
+            )
+            .map_err(|e| e.to_string())
+        });
+    match built {
+        Ok(mut kf) => {
+            let run = closed_loop::baseline::run_on_trace(&mut kf, trace);
+            let summary = KalmanSummary {
+                weights,
+                completed: run.e_norms.len(),
+                sup_norm_e: run.sup_norm_e(),
+                tail_mean_e: run.tail_mean_e(),
+                diverged: run.diverged(),
+                divergence: run.divergence,
+                error: run.error.clone(),
+            };
+            (Some(run), Some(summary))
+        }
+        Err(e) => (
+            None,
+            Some(KalmanSummary {
+                weights,
+                completed: 0,
+                sup_norm_e: f64::NAN,
+                tail_mean_e: None,
+                diverged: false,
+                divergence: None,
+                error: Some(format!("not built: {e}")),
+            }),
+        ),
+    }
 }
 
 /// Simulates at K = `k` step by step, with [`work::Progress`] on stderr when `live`.
@@ -298,6 +352,8 @@ fn simulate(
     progress.finish();
     let trace = cl.into_trace();
     let len = trace.len();
+    let outside = closed_loop::scenario::draws_outside(&trace, &scenario.sets.disturbance);
+    let (kalman, kalman_summary) = kalman_baseline(resolved, &trace);
     // The sweep's bounded rule, applied by the library to this run.
     let divergence = closed_loop::bounded::first_unbounded(
         &trace,
@@ -332,8 +388,15 @@ fn simulate(
         tail_mean_e: trace.tail_mean_e(),
         tail_mean_x: trace.tail_mean_x(),
         tail_mean_epsilon: trace.tail_mean_epsilon(),
+        w_outside: outside.len(),
+        w_outside_first: outside.first().copied(),
+        kalman: kalman_summary,
     };
-    Ok(Run { summary, trace })
+    Ok(Run {
+        summary,
+        trace,
+        kalman,
+    })
 }
 
 fn fmt_opt(v: Option<usize>) -> String {
@@ -789,7 +852,10 @@ pub fn run_job(job: &Job, settings: &Settings) -> Result<Outcome> {
                 .as_bytes(),
         )?;
         files.push(path);
-        let path = set.add("trace.csv", trace_csv::trace_csv(&runs).as_bytes())?;
+        let path = set.add(
+            "trace.csv",
+            trace_csv::trace_csv(&runs, &scenario.sets.disturbance).as_bytes(),
+        )?;
         files.push(path);
     }
     // Figures.
@@ -1087,6 +1153,7 @@ fn trace_document<'a>(
             .map(|r| TraceRun {
                 summary: &r.summary,
                 trace: &r.trace,
+                kalman: r.kalman.as_ref(),
             })
             .collect(),
     })

@@ -262,6 +262,9 @@ fn write_set(
         Some(a) => {
             set.add("runs.csv", a.runs.as_bytes())?;
             set.add("points.csv", a.points.as_bytes())?;
+            if let Some(k) = &a.kalman {
+                set.add("kalman.csv", k.as_bytes())?;
+            }
             Some(Table::parse(&a.points).map_err(|e| anyhow!("points.csv: {e}"))?)
         }
         None => None,

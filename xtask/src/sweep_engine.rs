@@ -54,6 +54,7 @@
 //!
 //! Column reference: `docs/sweeps.md`.
 
+mod baseline;
 mod config;
 mod error;
 mod format;
@@ -78,6 +79,7 @@ use qp_iter::Method;
 pub use closed_loop::metrics::{
     DEFAULT_BOUNDED_FACTOR, Metric, QUANTILES, RunMetrics, quantile_sorted, run_metrics,
 };
+pub use baseline::kalman_header;
 pub use config::{MAX_K, MAX_SEEDS, MAX_STEPS, Point, SweepConfig};
 pub use error::{Result, SweepError};
 pub use format::{PointFile, Table, point_file_name, points_header, runs_header};

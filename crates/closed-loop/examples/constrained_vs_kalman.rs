@@ -31,6 +31,8 @@ struct RunFigures {
     infeasible: usize,
     steps: usize,
     completed: bool,
+    /// The step at which the run left the bounded rule (`closed_loop::bounded`), if it did.
+    diverged: Option<usize>,
 }
 
 fn box_violation(v: &[f64], lo: &[f64], hi: &[f64]) -> f64 {
@@ -40,7 +42,15 @@ fn box_violation(v: &[f64], lo: &[f64], hi: &[f64]) -> f64 {
         .fold(0.0, f64::max)
 }
 
-fn figures(trace: &Trace, lo: &[f64], hi: &[f64], completed: bool) -> RunFigures {
+/// The run's figures; `stopped_early`: the loop stopped before T on a step error.
+fn figures(
+    trace: &Trace,
+    x0: &[f64],
+    lo: &[f64],
+    hi: &[f64],
+    completed: bool,
+    stopped_early: bool,
+) -> RunFigures {
     let e = trace.e_norms();
     let n = e.len();
     let tail = &e[n - n / 4..];
@@ -50,6 +60,13 @@ fn figures(trace: &Trace, lo: &[f64], hi: &[f64], completed: bool) -> RunFigures
         infeasible: trace.infeasible_steps().count(),
         steps: n,
         completed,
+        diverged: closed_loop::bounded::first_unbounded(
+            trace,
+            x0,
+            closed_loop::bounded::DEFAULT_BOUNDED_FACTOR,
+            stopped_early,
+        )
+        .map(|d| d.t),
         ..RunFigures::default()
     };
     for t in 0..trace.len() {
@@ -65,20 +82,55 @@ fn figures(trace: &Trace, lo: &[f64], hi: &[f64], completed: bool) -> RunFigures
     f
 }
 
+/// One line per estimator. Error statistics are over the bounded runs only: a diverged run
+/// (the bounded rule of `closed_loop::bounded`) is counted as diverged, never averaged in
+/// (a mean of 7.7·10²² says nothing but "diverged").
 fn summarise(name: &str, runs: &[RunFigures]) {
-    let n = runs.len() as f64;
-    let mean = |g: fn(&RunFigures) -> f64| runs.iter().map(g).sum::<f64>() / n;
+    let ok: Vec<&RunFigures> = runs.iter().filter(|r| r.diverged.is_none()).collect();
+    let n = ok.len() as f64;
+    let mean = |g: fn(&RunFigures) -> f64| ok.iter().map(|r| g(r)).sum::<f64>() / n;
     let steps: usize = runs.iter().map(|r| r.steps).sum();
+    let diverged: Vec<usize> = runs.iter().filter_map(|r| r.diverged).collect();
+    let verdict = if diverged.is_empty() {
+        "all bounded".to_string()
+    } else {
+        format!(
+            "DIVERGED in {} of {} runs (earliest at t = {})",
+            diverged.len(),
+            runs.len(),
+            diverged.iter().min().copied().unwrap_or(0)
+        )
+    };
+    if ok.is_empty() {
+        println!(
+            "  {name:<10} completed {:>3}/{}  {verdict}: no error statistics",
+            runs.iter().filter(|r| r.completed).count(),
+            runs.len()
+        );
+        return;
+    }
     println!(
-        "  {name:<10} completed {:>3}/{}  mean ‖e‖ {:.5}  tail ‖e‖ {:.5}  x ∉ 𝒳 {:.2} % of steps  max x̂ violation {:.1e}  MPC infeasible {} of {steps} steps",
+        "  {name:<10} completed {:>3}/{}  {verdict}  over the {} bounded runs: mean ‖e‖ {:.5}  tail ‖e‖ {:.5}  x ∉ 𝒳 {:.2} % of steps  max x̂ violation {:.1e}  MPC infeasible {} of {steps} steps",
         runs.iter().filter(|r| r.completed).count(),
         runs.len(),
+        ok.len(),
         mean(|r| r.mean_e),
         mean(|r| r.tail_e),
         100.0 * runs.iter().map(|r| r.x_outside).sum::<usize>() as f64 / steps.max(1) as f64,
         runs.iter().map(|r| r.xhat_violation).fold(0.0, f64::max),
         runs.iter().map(|r| r.infeasible).sum::<usize>(),
     );
+}
+
+/// Whether the loop stopped before T: a step error (a non-finite signal, or a component
+/// that failed). The bounded rule then reports the run diverged at that step.
+fn stopped_early<E, C, D>(cl: &ClosedLoop<E, C, D>) -> bool
+where
+    E: mhe_core::Estimator,
+    C: mpc_core::Controller,
+    D: lti_model::disturbance::Disturbance,
+{
+    cl.t() < cl.steps()
 }
 
 fn main() -> Result<(), Box<dyn std::error::Error>> {
@@ -103,8 +155,15 @@ fn main() -> Result<(), Box<dyn std::error::Error>> {
                 let mut o = base;
                 o.seed = seed;
                 let mut mhe_loop = resolved.build_loop(&o).map_err(|e| e.to_string())?;
-                let mhe_ok = mhe_loop.run().is_ok();
-                let mhe = figures(mhe_loop.trace(), lo, hi, mhe_ok);
+                let mhe_run = mhe_loop.run().map(|_| ());
+                let mhe = figures(
+                    mhe_loop.trace(),
+                    &sc.simulation.x0,
+                    lo,
+                    hi,
+                    mhe_run.is_ok(),
+                    stopped_early(&mhe_loop),
+                );
                 let kf = KalmanFilter::matching_mhe(
                     &sc.plant,
                     &sc.simulation.prior,
@@ -125,8 +184,15 @@ fn main() -> Result<(), Box<dyn std::error::Error>> {
                     o.steps,
                 )
                 .map_err(|e| e.to_string())?;
-                let kf_ok = kf_loop.run().is_ok();
-                let kalman = figures(kf_loop.trace(), lo, hi, kf_ok);
+                let kf_run = kf_loop.run().map(|_| ());
+                let kalman = figures(
+                    kf_loop.trace(),
+                    &sc.simulation.x0,
+                    lo,
+                    hi,
+                    kf_run.is_ok(),
+                    stopped_early(&kf_loop),
+                );
                 Ok((mhe, kalman))
             })
             .collect();
@@ -139,13 +205,18 @@ fn main() -> Result<(), Box<dyn std::error::Error>> {
         }
         summarise("MHE", &mhe);
         summarise("Kalman", &kalman);
+        // A diverged run loses the comparison; two diverged runs are a tie (not counted).
         let wins = mhe
             .iter()
             .zip(&kalman)
-            .filter(|(m, k)| m.mean_e < k.mean_e)
+            .filter(|(m, k)| match (m.diverged, k.diverged) {
+                (None, None) => m.mean_e < k.mean_e,
+                (None, Some(_)) => true,
+                _ => false,
+            })
             .count();
         println!(
-            "  MHE's mean ‖e‖ below the Kalman filter's on {wins} of {runs} seeds  [{:.1?}]",
+            "  MHE's mean ‖e‖ below the Kalman filter's on {wins} of {runs} seeds (a diverged run loses)  [{:.1?}]",
             t0.elapsed()
         );
     }

@@ -17,6 +17,7 @@
 //!   error type), seeded per run, with the per-run [`metrics`] and the bounded rule.
 //! - [`record`]: the per-step [`Trace`] of a run (with the MHE records), JSON output.
 
+pub mod baseline;
 pub mod bounded;
 pub mod metrics;
 pub mod monte_carlo;

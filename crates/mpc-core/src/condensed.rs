@@ -61,6 +61,10 @@ pub struct MpcConfig {
     /// State set 𝒳 imposed on the predicted x₁…x_N (general rows of the QP; `None` or the
     /// whole space: no rows).
     pub state_set: Option<BoxSet>,
+    /// Output set 𝒴_c imposed on the predicted outputs C x₁ … C x_N (noise-free: the MPC
+    /// predicts with w = 0); general rows after the state rows (`None` or the whole space:
+    /// no rows). In a scenario: `mpc.output`.
+    pub output_set: Option<BoxSet>,
 }
 
 impl MpcConfig {
@@ -73,6 +77,7 @@ impl MpcConfig {
             terminal: Terminal::Dare,
             input_set,
             state_set: None,
+            output_set: None,
         }
     }
 }
@@ -102,6 +107,8 @@ pub struct CondensedMpc {
     qp: ParametricQp,
     /// (k, i) of each general row: x_{k,i} ∈ 𝒳_i, k = 1..N.
     state_rows: Vec<(usize, usize)>,
+    /// (k, i) of each output row (after the state rows): (C x_k)_i ∈ 𝒴_c,i, k = 1..N.
+    output_rows: Vec<(usize, usize)>,
 }
 
 /// Why L_π and γ₁,₃ are void for an MPC with state constraints.
@@ -109,6 +116,19 @@ pub const STATE_CONSTRAINED_VOID_REASON: &str = "the MPC has state constraints x
      (`sets.state`): the certified L_π and γ₁,₃ assume box-constrained inputs only (π is an \
      H-weighted projection onto the fixed set 𝒰^N), but the predicted-state rows move with x̂ and \
      the MPC can be infeasible; no certified L_π or γ₁,₃ is reported";
+
+/// Whether a symmetric PSD weight is singular: λ_min ≤ 1e-12·max(1, λ_max) (then the
+/// detectability of (A, Q_c^½) decides whether the DARE has a stabilising solution).
+pub(crate) fn is_singular(m: &Mat<f64>) -> bool {
+    sym_extreme_eigenvalues("Q_c", m.as_ref())
+        .map_or(true, |(lo, hi)| lo <= 1e-12 * hi.abs().max(1.0))
+}
+
+/// Why L_π and γ₁,₃ are void for an MPC with output constraints (and no state constraints).
+pub const OUTPUT_CONSTRAINED_VOID_REASON: &str = "the MPC has output constraints C x_k ∈ 𝒴_c \
+     (`mpc.output`): the certified L_π and γ₁,₃ assume box-constrained inputs only (π is an \
+     H-weighted projection onto the fixed set 𝒰^N), but the predicted-output rows move with x̂ \
+     and the MPC can be infeasible; no certified L_π or γ₁,₃ is reported";
 
 /// Validates a weight that must be symmetric positive semidefinite (Q_c, P_f).
 pub(crate) fn check_psd(name: &'static str, m: &Mat<f64>, n: usize) -> Result<()> {
@@ -170,6 +190,18 @@ impl CondensedMpc {
             }
             .into());
         }
+        if let Some(ys) = &config.output_set {
+            if ys.dim() != system.ny() {
+                return Err(ModelError::Shape {
+                    name: "output_set".into(),
+                    expected_rows: system.ny(),
+                    expected_cols: 1,
+                    actual_rows: ys.dim(),
+                    actual_cols: 1,
+                }
+                .into());
+            }
+        }
         if let Some(xs) = &config.state_set {
             if xs.dim() != nx {
                 return Err(ModelError::Shape {
@@ -185,7 +217,14 @@ impl CondensedMpc {
         let q_c = lti_model::matrix::symmetrize(config.q_c.as_ref());
         let r_c = lti_model::matrix::symmetrize(config.r_c.as_ref());
         let p_f = match config.terminal {
-            Terminal::Dare => dare(system.a(), system.b(), q_c.as_ref(), r_c.as_ref())?,
+            Terminal::Dare => {
+                // Q_c ⪰ 0: the stabilising DARE solution needs (A, Q_c^½) detectable; a
+                // singular Q_c is checked first so the error names the unseen mode.
+                if is_singular(&q_c) {
+                    crate::detectable::check_detectable(system.a(), q_c.as_ref())?;
+                }
+                dare(system.a(), system.b(), q_c.as_ref(), r_c.as_ref())?
+            }
             Terminal::Given(p) => {
                 check_psd("P_f", &p, nx)?;
                 lti_model::matrix::symmetrize(p.as_ref())
@@ -231,22 +270,50 @@ impl CondensedMpc {
             .collect();
         let zset = BoxSet::named("input_set^N", lower, upper)?;
         let mut qp = ParametricQp::new(h, vec![0.0; n * nu], f, zset)?;
-        // x_k = Φ_k x̂ + Γ_k U ∈ 𝒳 for k = 1..N, one row per finite component.
-        let mut state_rows = Vec::new();
-        if let Some(xs) = config.state_set.as_ref().filter(|s| !s.is_whole()) {
-            for k in 1..=n {
-                for i in 0..nx {
-                    if xs.lower()[i].is_finite() || xs.upper()[i].is_finite() {
-                        state_rows.push((k, i));
-                    }
+        // x_k = Φ_k x̂ + Γ_k U ∈ 𝒳 for k = 1..N, one row per finite component; then
+        // C x_k = CΦ_k x̂ + CΓ_k U ∈ 𝒴_c.
+        let finite_rows = |set: Option<&BoxSet>, dim: usize| -> Vec<(usize, usize)> {
+            let Some(set) = set.filter(|s| !s.is_whole()) else {
+                return Vec::new();
+            };
+            (1..=n)
+                .flat_map(|k| (0..dim).map(move |i| (k, i)))
+                .filter(|&(_, i)| set.lower()[i].is_finite() || set.upper()[i].is_finite())
+                .collect()
+        };
+        let state_rows = finite_rows(config.state_set.as_ref(), nx);
+        let output_rows = finite_rows(config.output_set.as_ref(), system.ny());
+        let (ms, mo) = (state_rows.len(), output_rows.len());
+        if ms + mo > 0 {
+            let c = system.c();
+            // Row p of G (of E): Γ (Φ) row (k − 1)n_x + i for a state row; C times the
+            // block k of Γ (Φ) for an output row.
+            let entry = |m: &Mat<f64>, p: usize, j: usize| -> f64 {
+                if p < ms {
+                    let (k, i) = state_rows[p];
+                    m[((k - 1) * nx + i, j)]
+                } else {
+                    let (k, i) = output_rows[p - ms];
+                    (0..nx).map(|l| c[(i, l)] * m[((k - 1) * nx + l, j)]).sum()
                 }
-            }
-            let r = |p: usize| (state_rows[p].0 - 1) * nx + state_rows[p].1;
-            let m = state_rows.len();
-            let g = Mat::from_fn(m, n * nu, |p, j| gamma[(r(p), j)]);
-            let e = Mat::from_fn(m, nx, |p, j| phi[(r(p), j)]);
-            let lo = state_rows.iter().map(|&(_, i)| xs.lower()[i]).collect();
-            let hi = state_rows.iter().map(|&(_, i)| xs.upper()[i]).collect();
+            };
+            let g = Mat::from_fn(ms + mo, n * nu, |p, j| entry(&gamma, p, j));
+            let e = Mat::from_fn(ms + mo, nx, |p, j| entry(&phi, p, j));
+            let bound = |p: usize, upper: bool| -> f64 {
+                let (set, i) = if p < ms {
+                    (config.state_set.as_ref(), state_rows[p].1)
+                } else {
+                    (config.output_set.as_ref(), output_rows[p - ms].1)
+                };
+                let set = set.expect("rows exist only for a given set");
+                if upper {
+                    set.upper()[i]
+                } else {
+                    set.lower()[i]
+                }
+            };
+            let lo = (0..ms + mo).map(|p| bound(p, false)).collect();
+            let hi = (0..ms + mo).map(|p| bound(p, true)).collect();
             qp = qp.with_general(qp_iter::GeneralConstraints::new(g, e, lo, hi)?)?;
         }
         Ok(Self {
@@ -261,6 +328,7 @@ impl CondensedMpc {
             q_bar,
             qp,
             state_rows,
+            output_rows,
         })
     }
 
@@ -274,7 +342,26 @@ impl CondensedMpc {
         self.state_rows.get(r).copied()
     }
 
-    /// Why the certified L_π and γ₁,₃ do not apply (state constraints), if they do not.
+    /// Whether the predicted outputs are constrained (C x_k ∈ 𝒴_c, general rows after the
+    /// state rows).
+    pub fn has_output_constraints(&self) -> bool {
+        !self.output_rows.is_empty()
+    }
+
+    /// (k, i) of general row r when it is an output row: (C x_k)_i ∈ 𝒴_c,i (k = 1..N).
+    pub fn output_row(&self, r: usize) -> Option<(usize, usize)> {
+        r.checked_sub(self.state_rows.len())
+            .and_then(|p| self.output_rows.get(p).copied())
+    }
+
+    /// Whether the QP has general rows (state or output constraints): the MPC can then be
+    /// infeasible at some x̂.
+    pub fn has_general_rows(&self) -> bool {
+        self.has_state_constraints() || self.has_output_constraints()
+    }
+
+    /// Why the certified L_π and γ₁,₃ do not apply (state or output constraints), if they
+    /// do not: [`STATE_CONSTRAINED_VOID_REASON`], else [`OUTPUT_CONSTRAINED_VOID_REASON`].
     ///
     /// ```
     /// use faer::{mat, Mat};
@@ -289,8 +376,13 @@ impl CondensedMpc {
     /// assert!(mpc.certificate_void_reason().unwrap().contains("state constraints"));
     /// ```
     pub fn certificate_void_reason(&self) -> Option<&'static str> {
-        self.has_state_constraints()
-            .then_some(STATE_CONSTRAINED_VOID_REASON)
+        if self.has_state_constraints() {
+            Some(STATE_CONSTRAINED_VOID_REASON)
+        } else if self.has_output_constraints() {
+            Some(OUTPUT_CONSTRAINED_VOID_REASON)
+        } else {
+            None
+        }
     }
 
     /// The parametric QP (θ = x̂, Z = 𝒰^N); clone it to build an iteration map.

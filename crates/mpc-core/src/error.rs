@@ -35,6 +35,18 @@ pub enum MpcError {
         /// Its smallest eigenvalue.
         min_eigenvalue: f64,
     },
+    /// Q_c is singular and (A, Q_c^½) is not detectable: a mode of A that Q_c does not see
+    /// does not decay, so the DARE terminal cost has no stabilising solution and the MPC's
+    /// cost does not penalise that mode ([`crate::detectable`]).
+    #[error(
+        "`Q_c` ⪰ 0 is allowed when (A, Q_c^½) is detectable, but the mode {mode} of A is not \
+         seen by Q_c and does not decay (|λ| ≥ 1); weigh one of those state components \
+         (a positive diagonal entry of Q_c there), or use Q_c ≻ 0"
+    )]
+    NotDetectable {
+        /// The undetectable mode (eigenvalue, modulus, state components).
+        mode: crate::detectable::UndetectableMode,
+    },
     /// A vector passed to a controller or analysis routine has the wrong length.
     #[error("`{name}` has length {actual}, expected {expected}")]
     Dimension {

@@ -105,7 +105,7 @@ impl ExactMpc {
                 Backend::Clarabel(Box::new(ReferenceSolver::new(mpc.qp(), settings)?))
             }
         };
-        let input_only = if mpc.has_state_constraints() {
+        let input_only = if mpc.has_general_rows() {
             Some(ExactSolver::new(&mpc.qp().without_general())?)
         } else {
             None

@@ -23,6 +23,7 @@
 //! [`MpcConfig::state_set`] for state constraints.
 
 pub mod condensed;
+pub mod detectable;
 pub mod error;
 pub mod exact;
 pub mod free_sets;
@@ -32,7 +33,10 @@ pub mod robust_norm;
 pub mod settings;
 pub mod suboptimal;
 
-pub use condensed::{CondensedMpc, MpcConfig, STATE_CONSTRAINED_VOID_REASON, Terminal};
+pub use condensed::{
+    CondensedMpc, MpcConfig, OUTPUT_CONSTRAINED_VOID_REASON, STATE_CONSTRAINED_VOID_REASON,
+    Terminal,
+};
 pub use error::{MpcError, Result};
 pub use exact::{ExactBackend, ExactMpc};
 pub use free_sets::{FreeSetSummary, LocalGains};

@@ -49,6 +49,9 @@ impl SaturatedLqr {
         let (nx, nu) = (system.nx(), system.nu());
         crate::condensed::check_psd("Q_c", &q_c.to_owned(), nx)?;
         check_positive_definite("R_c", r_c, nu)?;
+        if crate::condensed::is_singular(&q_c.to_owned()) {
+            crate::detectable::check_detectable(system.a(), q_c)?;
+        }
         let (k, _) =
             dlqr_gain(system.a(), system.b(), q_c, r_c).map_err(|e| e.in_context("lqr"))?;
         Self::from_gain(k, input_set)

@@ -13,7 +13,7 @@
 use faer::Mat;
 use lti_model::LtiSystem;
 use lti_model::spec::format::{
-    at_least_one, check_dense_bytes, key_error, required, rows_of, weight,
+    at_least_one, check_dense_bytes, key_error, required, rows_of, sized_matrix, weight, wrap,
 };
 use lti_model::spec::{MatrixSpec, ScenarioSets};
 use serde::{Deserialize, Serialize};
@@ -34,7 +34,8 @@ pub enum TerminalCost {
 pub struct MpcSettings {
     /// Prediction horizon N ≥ 1 (`mpc.horizon`).
     pub horizon: usize,
-    /// Stage state weight Q_c, n_x square, positive definite (default I).
+    /// Stage state weight Q_c, n_x square, positive semidefinite with (A, Q_c^½) detectable
+    /// (default I; see [`crate::detectable`]).
     pub q: Mat<f64>,
     /// Stage input weight R_c, n_u square, positive definite (default I).
     pub r: Mat<f64>,
@@ -46,6 +47,9 @@ pub struct MpcSettings {
     /// The sub-optimal MPC's iteration map (`mpc.method`, default FISTA; only with
     /// `mpc.iterations`).
     pub method: qp_iter::Method,
+    /// Output constraints C x_k ∈ 𝒴_c on the predicted outputs k = 1..N (`mpc.output`, a
+    /// box of n_y bounds containing 0; `None`: none). Not the MHE's `sets.output`.
+    pub output: Option<lti_model::BoxSet>,
 }
 
 /// The sub-optimal MPC's Φ when `mpc.method` (or a sweep's `controller.solver`) is not
@@ -77,6 +81,9 @@ pub struct RawMpc {
     /// `method` of the sub-optimal MPC.
     #[serde(skip_serializing_if = "Option::is_none")]
     pub method: Option<qp_iter::Method>,
+    /// `output`: the MPC's output box 𝒴_c.
+    #[serde(skip_serializing_if = "Option::is_none")]
+    pub output: Option<lti_model::spec::Table<lti_model::spec::plant::RawBox>>,
 }
 
 impl MpcSettings {
@@ -102,12 +109,7 @@ impl MpcSettings {
             &format!("a condensed MPC with N·n_u = {vars} inputs"),
             8.0 * (vars * vars + n * nx * vars + vars * nx),
         )?;
-        let q = weight(
-            "mpc.q",
-            raw.q.as_ref(),
-            sys.nx(),
-            &format!("n_x = {} square", sys.nx()),
-        )?;
+        let q = state_weight(raw.q.as_ref(), sys)?;
         let r = weight(
             "mpc.r",
             raw.r.as_ref(),
@@ -138,7 +140,18 @@ impl MpcSettings {
                 Some(k)
             }
         };
+        let output = match raw.output.as_deref() {
+            None => None,
+            Some(b) => Some(lti_model::spec::plant::box_set(
+                "mpc.output",
+                Some(b),
+                sys.ny(),
+                "output",
+            )?)
+            .filter(|set| !set.is_whole()),
+        };
         Ok(Self {
+            output,
             horizon,
             q,
             r,
@@ -157,11 +170,16 @@ impl MpcSettings {
             terminal: Some(self.terminal),
             iterations: self.iterations,
             method: self.iterations.map(|_| self.method),
+            output: self
+                .output
+                .as_ref()
+                .map(|b| lti_model::spec::Table(lti_model::spec::plant::raw_box(b))),
         }
     }
 
-    /// The condensed MPC's configuration with the input set `sets.input` and the state set
-    /// `sets.state` (predicted-state rows when bounded, see [`MpcConfig::state_set`]).
+    /// The condensed MPC's configuration with the input set `sets.input`, the state set
+    /// `sets.state` (predicted-state rows when bounded, see [`MpcConfig::state_set`]) and the
+    /// output box `mpc.output` (predicted-output rows, [`MpcConfig::output_set`]).
     pub fn config(&self, sets: &ScenarioSets) -> MpcConfig {
         let terminal = match self.terminal {
             TerminalCost::Dare => Terminal::Dare,
@@ -173,6 +191,7 @@ impl MpcSettings {
             terminal,
             input_set: sets.input.clone(),
             state_set: Some(sets.state.clone()),
+            output_set: self.output.clone(),
         }
     }
 }
@@ -257,6 +276,16 @@ impl MpcSettings {
                 )
                 .into()
             }
+            MpcError::NotDetectable { mode } => key_error(
+                "mpc.q",
+                format!(
+                    "is singular and the mode {mode} of `plant.a` is not seen by it and does not \
+                     decay, so (A, Q_c^½) is not detectable and the DARE terminal cost has no \
+                     stabilising solution; give a positive weight to one of those state \
+                     components in `mpc.q` (or make `mpc.q` positive definite)"
+                ),
+            )
+            .into(),
             MpcError::Model(e @ ModelError::Scenario { .. }) => e.into(),
             MpcError::Model(e) | MpcError::Qp(qp_iter::QpError::Model(e)) => key_error(
                 "mpc",
@@ -270,6 +299,50 @@ impl MpcSettings {
             other => other,
         }
     }
+}
+
+/// `mpc.q`: n_x square, finite, symmetric, positive *semi*definite (default I); a singular
+/// Q_c must leave no non-decaying mode of A unseen ((A, Q_c^½) detectable, so that the DARE
+/// terminal cost exists). Errors name `mpc.q`, the mode and the fix.
+fn state_weight(spec: Option<&MatrixSpec>, sys: &LtiSystem) -> lti_model::Result<Mat<f64>> {
+    let nx = sys.nx();
+    let Some(spec) = spec else {
+        return Ok(Mat::identity(nx, nx));
+    };
+    let m = sized_matrix("mpc.q", spec, nx, nx, &format!("n_x = {nx} square"))?;
+    if let Err(e) = crate::condensed::check_psd("Q_c", &m, nx) {
+        return Err(match e {
+            MpcError::Model(e) => wrap("mpc.q", e),
+            MpcError::NotPositiveSemidefinite { min_eigenvalue, .. } => key_error(
+                "mpc.q",
+                format!(
+                    "is not positive semidefinite (smallest eigenvalue {min_eigenvalue:e}); the \
+                     stage weight Q_c must be symmetric with nonnegative eigenvalues"
+                ),
+            ),
+            other => key_error("mpc.q", other.to_string()),
+        });
+    }
+    if crate::condensed::is_singular(&m) {
+        match crate::detectable::undetectable_modes(sys.a(), m.as_ref()) {
+            Ok(modes) if modes.is_empty() => {}
+            Ok(modes) => {
+                return Err(key_error(
+                    "mpc.q",
+                    format!(
+                        "is singular, which is allowed when (A, Q_c^½) is detectable, but the mode \
+                         {} of `plant.a` is not seen by `mpc.q` and does not decay (|λ| ≥ 1), so \
+                         the DARE terminal cost has no stabilising solution and the MPC would not \
+                         penalise that mode; give a positive weight to one of those state \
+                         components in `mpc.q` (or make `mpc.q` positive definite)",
+                        modes[0]
+                    ),
+                ));
+            }
+            Err(e) => return Err(key_error("mpc.q", e.to_string())),
+        }
+    }
+    Ok(m)
 }
 
 /// Ratio of the largest to the smallest nonzero entry magnitude of the MPC's data beyond

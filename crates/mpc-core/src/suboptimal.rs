@@ -137,7 +137,7 @@ impl<M: IterationMap> SuboptimalMpc<M> {
             warm_buf: vec![0.0; n],
             has_previous: false,
             last: None,
-            state_constrained: mpc.has_state_constraints(),
+            state_constrained: mpc.has_general_rows(),
             status: ControlStatus::Applied { violation: 0.0 },
         })
     }

@@ -231,11 +231,26 @@ fn fig2(scenario: &Scenario, runs: &[Run], fig2c_t: usize) -> (Vec<(String, Figu
             pattern: Pattern::Dashed,
             markers: false,
         });
+        // The Kalman baseline's error on the same data, beside the MHE's (markers).
+        if let Some(kf) = &r.kalman {
+            series.push(Series {
+                label: format!("‖e_t‖ Kalman filter, K = {} run", r.summary.k),
+                points: kf
+                    .e_norms
+                    .iter()
+                    .enumerate()
+                    .map(|(t, v)| (t as f64, *v))
+                    .collect(),
+                color: i + 1,
+                pattern: Pattern::Dashed,
+                markers: true,
+            });
+        }
     }
     out.push((
         "norms.svg".to_string(),
         Figure::Single(Chart {
-            title: "State norm ‖x_t‖ and estimation error ‖e_t‖".into(),
+            title: "State norm ‖x_t‖, estimation error ‖e_t‖ (MHE; Kalman filter, markers)".into(),
             x_label: "time step t".into(),
             y_label: "norm".into(),
             log_y: true,

@@ -157,6 +157,35 @@ pub struct RunSummary {
     pub tail_mean_x: Option<f64>,
     /// Mean ε_t over the last quarter.
     pub tail_mean_epsilon: Option<f64>,
+    /// Steps whose simulated draw w_t lies outside 𝒲 (`sets.disturbance`, the set the MHE
+    /// and the certificate assume): the ISS statement is not claimed from the first of them
+    /// on (`closed_loop::scenario::draws_outside`).
+    pub w_outside: usize,
+    /// The first such step.
+    pub w_outside_first: Option<usize>,
+    /// The Kalman filter of the MHE's weights on the same u_t, y_t
+    /// (`closed_loop::baseline::kalman_for_mhe`); None when it could not be built (the
+    /// reason is in `kalman_error`).
+    pub kalman: Option<KalmanSummary>,
+}
+
+/// The Kalman baseline of one run (`closed_loop::baseline`).
+#[derive(Debug, Clone, Serialize)]
+pub struct KalmanSummary {
+    /// `"standard, Π₀ = (2P)⁻¹, Σ_w = (2Q)⁻¹, Σ_v = R⁻¹"`.
+    pub weights: String,
+    /// Steps filtered.
+    pub completed: usize,
+    /// sup_t ‖x_t − x̂^KF_t‖.
+    pub sup_norm_e: f64,
+    /// Mean ‖x_t − x̂^KF_t‖ over the last quarter.
+    pub tail_mean_e: Option<f64>,
+    /// The filter left the bounded rule (signal e) or stopped.
+    pub diverged: bool,
+    /// Where, if it did.
+    pub divergence: Option<closed_loop::bounded::Divergence>,
+    /// The filter's error (construction or update), if any.
+    pub error: Option<String>,
 }
 
 /// A simulation of the plan that was not run.
@@ -361,6 +390,9 @@ pub struct TraceRun<'a> {
     pub summary: &'a RunSummary,
     /// Per step records.
     pub trace: &'a Trace,
+    /// The Kalman baseline's estimates x̂^KF_t and error norms on the same data.
+    #[serde(skip_serializing_if = "Option::is_none")]
+    pub kalman: Option<&'a closed_loop::baseline::BaselineRun>,
 }
 
 /// trace.json (docs/reproduce-output.md).

@@ -275,6 +275,20 @@ pub(super) fn summarize(d: &CertificateDocument, files: &[PathBuf], notes: &[Str
         if let Some(e) = &r.error {
             let _ = writeln!(s, "      stopped after {} steps: {e}", r.completed);
         }
+        if let Some(d) = r.divergence.filter(|_| r.error.is_none()) {
+            let _ = writeln!(s, "      the MHE run DIVERGED: {d}");
+        }
+        if let Some(kf) = &r.kalman {
+            let _ = writeln!(s, "      {}", kalman_line(kf));
+        }
+        if let Some(first) = r.w_outside_first {
+            let _ = writeln!(
+                s,
+                "      w_t ∉ 𝒲 at {} of {} steps (first t = {first}): the certificate assumes w_t ∈ 𝒲 \
+                 (sets.disturbance), so its ISS bound is not claimed from t = {first} on",
+                r.w_outside, r.completed
+            );
+        }
     }
     for r in &d.skipped_runs {
         let _ = writeln!(s, "  {:<8} not simulated: {}", r.k, r.reason);
@@ -368,4 +382,24 @@ pub(super) fn summarize(d: &CertificateDocument, files: &[PathBuf], notes: &[Str
         let _ = writeln!(s, "  note: {n}");
     }
     s
+}
+
+/// The Kalman baseline's line under a run: its error statistics, or that it diverged.
+fn kalman_line(kf: &KalmanSummary) -> String {
+    let head = "Kalman filter of the same weights on the same draws:";
+    match (&kf.divergence, &kf.error) {
+        (_, Some(e)) if kf.completed == 0 => format!("{head} {e}"),
+        (Some(d), _) => format!(
+            "{head} DIVERGED ({d}) after {} steps{}",
+            kf.completed,
+            kf.error
+                .as_ref()
+                .map_or_else(String::new, |e| format!(": {e}"))
+        ),
+        (None, _) => format!(
+            "{head} sup‖e‖ = {}, tail ‖e‖ = {}",
+            num(kf.sup_norm_e),
+            opt(kf.tail_mean_e)
+        ),
+    }
 }

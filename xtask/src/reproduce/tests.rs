@@ -860,16 +860,17 @@ fn trace_csv_has_one_row_per_step_and_the_documented_columns() {
     let header = lines.next().unwrap();
     assert_eq!(
         header,
-        "k,t,x1,x2,x3,x4,xhat1,xhat2,xhat3,xhat4,u1,u2,y1,w1,w2,w3,w4,w5,e_norm,x_norm,eps,status,mpc"
+        "k,t,x1,x2,x3,x4,xhat1,xhat2,xhat3,xhat4,u1,u2,y1,w1,w2,w3,w4,w5,e_norm,x_norm,eps,status,mpc,\
+         xkf1,xkf2,xkf3,xkf4,ekf_norm,w_outside"
     );
     assert_eq!(
         trace_csv::header(2, 1, 3, 5).split(',').count(),
-        2 + 4 + 1 + 3 + 5 + 5
+        2 + 4 + 1 + 3 + 5 + 5 + 2 + 2
     );
     let rows: Vec<Vec<&str>> = lines.map(|l| l.split(',').collect()).collect();
     // Two runs (K = 652, K = 5) of 40 steps.
     assert_eq!(rows.len(), 80);
-    assert!(rows.iter().all(|r| r.len() == 23));
+    assert!(rows.iter().all(|r| r.len() == 29));
     let doc = read_json(&f.out.join("paper/trace.json"));
     for (i, run) in doc["runs"].as_array().unwrap().iter().enumerate() {
         for (t, rec) in run["trace"]["records"]
@@ -895,6 +896,16 @@ fn trace_csv_has_one_row_per_step_and_the_documented_columns() {
             assert_eq!(row[21], rec["mhe"]["status"].as_str().unwrap());
             // The exact MPC without a state set: always applied.
             assert_eq!(row[22], "applied");
+            // The Kalman baseline's estimate and error, as in trace.json; the case study's
+            // uniform noise never leaves 𝒲.
+            let kf = &run["kalman"];
+            let mut kf_expected = vecf(&kf["x_hat"][t]);
+            kf_expected.push(kf["e_norms"][t].as_f64().unwrap());
+            for (j, v) in kf_expected.iter().enumerate() {
+                let cell: f64 = row[23 + j].parse().unwrap();
+                assert_eq!(cell.to_bits(), v.to_bits(), "row {t} column {}", 23 + j);
+            }
+            assert_eq!(row[28], "0");
         }
     }
 }

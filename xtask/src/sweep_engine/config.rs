@@ -96,6 +96,10 @@ pub struct SweepConfig {
     /// Compute ρ_lin(K) and K_lin of the lifted loop on the sweep's K grid (`linear`,
     /// default true; `iss_certificate::linear`, one eigenvalue problem of dim 𝔸(K) per K and solver).
     pub linear: bool,
+    /// Also run the Kalman filter of the MHE's weights in place of the MHE (`estimators =
+    /// ["mhe", "kalman"]`; default `["mhe"]`): the same controller and, run by run, the same
+    /// draws; written to `kalman.csv` ([`super::baseline`]).
+    pub kalman: bool,
 }
 
 // ---------------------------------------------------------------------------------------
@@ -124,6 +128,7 @@ struct RawConfig {
     bounded_factor: Option<f64>,
     certificate: Option<bool>,
     linear: Option<bool>,
+    estimators: Option<Vec<String>>,
 }
 
 /// `cost`: the weights t_e, t_c of K_e·t_e + K_c·t_c.
@@ -528,7 +533,9 @@ impl SweepConfig {
         }
         let certificate = raw.certificate.unwrap_or(true);
         let linear = raw.linear.unwrap_or(true);
+        let kalman = super::baseline::parse_estimators(raw.estimators.as_deref())?;
         Ok(Self {
+            kalman,
             name,
             scenario,
             k_grid,
@@ -663,6 +670,10 @@ impl SweepConfig {
         );
         if let Some(g) = &self.k_c_grid {
             let _ = write!(s, ";k_c={g:?}");
+        }
+        // Only when set, so that existing sweeps keep their fingerprints.
+        if self.kalman {
+            s.push_str(";estimators=[mhe, kalman]");
         }
         s
     }

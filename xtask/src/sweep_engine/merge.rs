@@ -130,6 +130,8 @@ pub struct Assembled {
     pub runs: String,
     /// `points.csv`.
     pub points: String,
+    /// `kalman.csv`: the Kalman-filter baseline (`estimators = ["mhe", "kalman"]`), when asked.
+    pub kalman: Option<String>,
 }
 
 impl Assembled {
@@ -144,7 +146,11 @@ impl Assembled {
         commit(&runs_tmp, &runs_path).inspect_err(|_| {
             let _ = fs::remove_file(&points_tmp);
         })?;
-        commit(&points_tmp, &points_path)
+        commit(&points_tmp, &points_path)?;
+        match &self.kalman {
+            Some(k) => super::format::write_atomic(&out.join("kalman.csv"), k),
+            None => Ok(()),
+        }
     }
 }
 
@@ -174,7 +180,11 @@ fn assemble_texts<'a>(sweep: &Sweep, files: impl Iterator<Item = &'a PointFile>)
         points.push_str(&f.point_row);
         points.push('\n');
     }
-    Assembled { runs, points }
+    Assembled {
+        runs,
+        points,
+        kalman: None,
+    }
 }
 
 /// Validates `files` (every point present) and assembles them.

@@ -440,7 +440,11 @@ impl Sweep {
             // Every point file is in memory: the ones found (validated above) and the ones
             // written now.
             files.extend(done);
-            Some(assemble_files(self, &files)?)
+            let mut tables = assemble_files(self, &files)?;
+            if self.config.kalman {
+                tables.kalman = Some(super::baseline::kalman_text(self)?);
+            }
+            Some(tables)
         } else {
             None
         };

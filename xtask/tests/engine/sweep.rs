@@ -988,3 +988,69 @@ fn methods_with_parameters_are_read_as_in_the_scenario() {
         .to_string();
     assert!(e.contains("newton") && e.contains("\"admm-pr\""), "{e}");
 }
+
+/// `estimators = ["mhe", "kalman"]`: kalman.csv has one row per (scale, run), on the MHE's
+/// run seeds (the same draws: the `sup_w` of row r equals runs.csv's at every point of that
+/// scale), judged by the same bounded rule; the MHE's outputs are unchanged.
+#[test]
+fn the_kalman_estimator_runs_on_the_mhe_runs_draws() {
+    let plain = Sweep::new(small_config("")).unwrap();
+    let with = Sweep::new(small_config("estimators = [\"mhe\", \"kalman\"]")).unwrap();
+    assert!(with.config().kalman && !plain.config().kalman);
+    let (a, b) = (scratch("kalman-plain"), scratch("kalman-with"));
+    run(&plain, &a, 2, None);
+    run(&with, &b, 2, None);
+    // runs.csv unchanged but for the timing column (wall_ms, last).
+    let strip = |p: PathBuf| -> Vec<String> {
+        fs::read_to_string(p)
+            .unwrap()
+            .lines()
+            .map(|l| l.rsplit_once(',').unwrap().0.to_string())
+            .collect()
+    };
+    assert_eq!(strip(a.join("runs.csv")), strip(b.join("runs.csv")));
+    assert!(!a.join("kalman.csv").exists());
+    let text = fs::read_to_string(b.join("kalman.csv")).unwrap();
+    let mut lines = text.lines();
+    let header: Vec<&str> = lines.next().unwrap().split(',').collect();
+    assert_eq!(
+        header[..6],
+        ["estimator", "scale", "run", "seed", "steps", "bounded"]
+    );
+    let rows: Vec<Vec<&str>> = lines.map(|l| l.split(',').collect()).collect();
+    assert_eq!(rows.len(), 2 * 5);
+    let col = |name: &str| header.iter().position(|h| *h == name).unwrap();
+    let runs = read_table(&b.join("runs.csv"));
+    for row in &rows {
+        assert_eq!(row[0], "kalman");
+        assert_eq!(row[col("bounded")], "1", "{row:?}");
+        assert_eq!(row[col("w_outside")], "0");
+        // The same draw as the MHE's run with this seed.
+        let seed = row[col("seed")];
+        let sup_w: Vec<&str> = runs
+            .rows
+            .iter()
+            .filter(|r| {
+                r[runs.column("seed").unwrap()] == seed
+                    && r[runs.column("scale").unwrap()] == row[col("scale")]
+            })
+            .map(|r| r[runs.column("sup_w").unwrap()].as_str())
+            .collect();
+        assert!(!sup_w.is_empty());
+        let kf_w: f64 = row[col("sup_w")].parse().unwrap();
+        for w in sup_w {
+            assert_eq!(
+                w.parse::<f64>().unwrap().to_bits(),
+                kf_w.to_bits(),
+                "seed {seed}"
+            );
+        }
+    }
+    let e = SweepConfig::from_toml_str(
+        &format!("name = \"x\"\nscenario = \"{SCENARIO}\"\nk = [1]\nsolvers = [\"pg\"]\nseeds = 1\nestimators = [\"kalman\"]\n"),
+        Path::new("."),
+    )
+    .unwrap_err()
+    .to_string();
+    assert!(e.contains("estimators"), "{e}");
+}

@@ -6,7 +6,7 @@
 //! run), so adding a method touches nothing here.
 
 use lti_model::ModelError;
-use lti_model::disturbance::{Disturbance, Gaussian, UniformBox, Zero};
+use lti_model::disturbance::{Disturbance, Gaussian, TruncatedNormal, UniformBox, Zero};
 use lti_model::spec::NoiseKind;
 use mhe_core::{MheEstimator, MheRecord};
 use mpc_core::{Controller, ExactMpc, MpcError, SaturatedLqr, SuboptimalMpc};
@@ -144,19 +144,45 @@ impl Controller for ScenarioController {
 /// disturbance (one virtual call per step, no allocation).
 pub type ScenarioLoop = ClosedLoop<ScenarioEstimator, ScenarioController, Box<dyn Disturbance>>;
 
-/// The scenario's true disturbance w_t: uniform on `noise.scale`·𝒲, zero-mean Gaussian
-/// with covariance `scale²·covariance`, or zero, seeded with `seed`. A zero scale gives
-/// w ≡ 0.
+/// The scenario's true disturbance w_t, seeded with `seed`: μ + uniform on `noise.scale`·𝒲,
+/// Gaussian N(μ, `scale²·covariance`), the truncated normal N(μ, `scale²·covariance`)
+/// conditioned on `noise.truncate`, or zero (μ = `noise.mean`, default 0). A zero scale
+/// gives w ≡ μ. The simulated law need not respect 𝒲, which stays the set the MHE and the
+/// certificate assume; [`crate::scenario::draws_outside`] counts the draws that leave it.
 ///
 /// Errors: uniform noise on an unbounded 𝒲 (`InvalidSet` naming `"W"`).
 pub fn scenario_disturbance(scenario: &Scenario, seed: u64) -> Result<Box<dyn Disturbance>> {
     let nw = scenario.plant.nw();
     let noise = &scenario.noise;
-    if noise.scale == 0.0 {
-        return Ok(Box::new(Zero(nw)));
+    let mean: Vec<f64> = (0..nw).map(|i| noise.mean_at(i)).collect();
+    if noise.kind == NoiseKind::Zero || noise.scale == 0.0 {
+        // scale multiplies the random part only: w ≡ μ (a zero-width box) with a mean offset.
+        return Ok(if mean.iter().all(|m| *m == 0.0) {
+            Box::new(Zero(nw))
+        } else {
+            Box::new(UniformBox::new(mean.clone(), mean, seed)?)
+        });
     }
     Ok(match noise.kind {
         NoiseKind::Zero => Box::new(Zero(nw)),
+        NoiseKind::TruncatedNormal => {
+            let (Some(cov), Some(set)) = (noise.covariance.as_ref(), noise.truncate.as_ref())
+            else {
+                return Err(ModelError::Scenario {
+                    key: "noise.covariance".into(),
+                    problem: "a truncated normal needs a covariance and a truncation box".into(),
+                }
+                .into());
+            };
+            let std: Vec<f64> = (0..nw).map(|i| noise.scale * cov[(i, i)].sqrt()).collect();
+            Box::new(
+                TruncatedNormal::new(mean, std, set.lower().to_vec(), set.upper().to_vec(), seed)
+                    .map_err(|e| ModelError::Scenario {
+                    key: "noise.truncate".into(),
+                    problem: e.to_string(),
+                })?,
+            )
+        }
         NoiseKind::Uniform => {
             let (lower, upper) =
                 noise
@@ -177,7 +203,7 @@ pub fn scenario_disturbance(scenario: &Scenario, seed: u64) -> Result<Box<dyn Di
             // scale²·covariance may underflow for a tiny scale (a sweep's `scales` reach
             // here without the scenario's checks): name the scale, not the internal matrix.
             Box::new(
-                Gaussian::new(vec![0.0; nw], cov, seed).map_err(|e| ModelError::Scenario {
+                Gaussian::new(mean, cov, seed).map_err(|e| ModelError::Scenario {
                     key: "noise.scale".into(),
                     problem: format!(
                         "is {:e}: the Gaussian's covariance scale²·`noise.covariance` is not \

@@ -38,6 +38,7 @@
 //! ```
 
 mod build;
+mod noise;
 mod resolve;
 
 use std::path::Path;
@@ -57,6 +58,7 @@ pub use build::{
     ControllerChoice, LoopOptions, ScenarioController, ScenarioEstimator, ScenarioLoop,
     scenario_disturbance,
 };
+pub use noise::draws_outside;
 pub use resolve::ResolvedScenario;
 
 // ---------------------------------------------------------------------------------------

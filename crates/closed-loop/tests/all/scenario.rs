@@ -556,7 +556,7 @@ fn weights_must_be_symmetric_positive_definite() {
     assert_key(
         &with("mpc", "q = [[1.0, 2.0], [2.0, 1.0]]"),
         "mpc.q",
-        "positive definite",
+        "positive semidefinite",
     );
     assert_key(&with("mpc", "r = -0.1"), "mpc.r", "positive definite");
     assert_key(

@@ -165,6 +165,9 @@ pub enum Gamma13Void {
     /// The MPC has state constraints: the analysis assumes box-constrained inputs only
     /// (issue 15), so no certified γ₁,₃ exists.
     StateConstrainedMpc,
+    /// The MPC has output constraints C x_k ∈ 𝒴_c (`mpc.output`) and no state constraints:
+    /// the same box-input-only analysis does not apply, so no certified γ₁,₃ exists.
+    OutputConstrainedMpc,
     /// A user value below the sampled lower estimate: provably not a valid γ₁,₃.
     UserValueRefuted {
         /// The value supplied.
@@ -178,6 +181,7 @@ impl std::fmt::Display for Gamma13Void {
     fn fmt(&self, f: &mut std::fmt::Formatter<'_>) -> std::fmt::Result {
         match self {
             Self::StateConstrainedMpc => f.write_str(mpc_core::STATE_CONSTRAINED_VOID_REASON),
+            Self::OutputConstrainedMpc => f.write_str(mpc_core::OUTPUT_CONSTRAINED_VOID_REASON),
             Self::OriginOutsideInputSet => write!(
                 f,
                 "0 ∉ 𝒰: the MPC law need not vanish at x = 0, so 0 is not an equilibrium of \

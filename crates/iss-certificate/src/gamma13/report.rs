@@ -119,12 +119,17 @@ pub fn gamma13_report_with(
                 skipped: Vec::new(),
             }
         }
-        // State constraints: the certified analysis (box-constrained inputs) does not apply.
+        // State or output constraints: the certified analysis (box-constrained inputs) does
+        // not apply.
         Gamma13Source::Certified if mpc.certificate_void_reason().is_some() => Gamma13Report {
             used: f64::INFINITY,
             source: "certified".into(),
             user: None,
-            void: Some(Gamma13Void::StateConstrainedMpc),
+            void: Some(if mpc.has_state_constraints() {
+                Gamma13Void::StateConstrainedMpc
+            } else {
+                Gamma13Void::OutputConstrainedMpc
+            }),
             skipped: Vec::new(),
             certified: None,
             sampled: None,

@@ -84,8 +84,9 @@ pub enum RegionalVoid {
     },
     /// The noise has no per-step bound and none was given.
     #[error(
-        "the scenario's noise is Gaussian (no per-step bound): set `certificate.w_bar` to the \
-         disturbance level the region must tolerate"
+        "the scenario's noise has no per-step bound (Gaussian, or a truncated normal with an \
+         infinite `noise.truncate` bound): set `certificate.w_bar` to the disturbance level the \
+         region must tolerate"
     )]
     UnboundedNoise,
     /// A bad option.
@@ -180,20 +181,38 @@ impl RegionalOptions {
             .sqrt();
         let w_bar = match cs.w_bar {
             Some(w) => w,
-            None => match sc.noise.kind {
-                lti_model::spec::NoiseKind::Zero => 0.0,
-                lti_model::spec::NoiseKind::Gaussian => return Err(RegionalVoid::UnboundedNoise),
-                lti_model::spec::NoiseKind::Uniform => {
-                    let d = &sc.sets.disturbance;
-                    sc.noise.scale
-                        * d.lower()
-                            .iter()
-                            .zip(d.upper())
-                            .map(|(l, u)| l.abs().max(u.abs()).powi(2))
-                            .sum::<f64>()
-                            .sqrt()
+            // The largest ‖w‖₂ the simulated law draws (its box, with the mean offset).
+            None => {
+                let n = &sc.noise;
+                let nw = sc.sets.disturbance.lower().len();
+                let norm = |lo: &[f64], hi: &[f64]| {
+                    lo.iter()
+                        .zip(hi)
+                        .map(|(l, u)| l.abs().max(u.abs()).powi(2))
+                        .sum::<f64>()
+                        .sqrt()
+                };
+                let mean: Vec<f64> = (0..nw).map(|i| n.mean_at(i)).collect();
+                match n.kind {
+                    lti_model::spec::NoiseKind::Zero => norm(&mean, &mean),
+                    _ if n.scale == 0.0 => norm(&mean, &mean),
+                    lti_model::spec::NoiseKind::Gaussian => {
+                        return Err(RegionalVoid::UnboundedNoise);
+                    }
+                    lti_model::spec::NoiseKind::Uniform => {
+                        match n.uniform_box(&sc.sets.disturbance) {
+                            Some((lo, hi)) => norm(&lo, &hi),
+                            None => return Err(RegionalVoid::UnboundedNoise),
+                        }
+                    }
+                    lti_model::spec::NoiseKind::TruncatedNormal => match &n.truncate {
+                        Some(t) if t.lower().iter().chain(t.upper()).all(|b| b.is_finite()) => {
+                            norm(t.lower(), t.upper())
+                        }
+                        _ => return Err(RegionalVoid::UnboundedNoise),
+                    },
                 }
-            },
+            }
         };
         Ok(Self {
             controller,

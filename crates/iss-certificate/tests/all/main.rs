@@ -14,6 +14,7 @@ mod mends;
 mod plants;
 mod plants_ii;
 mod regional;
+mod users;
 
 use closed_loop::scenario::{LoopOptions, Scenario, ScenarioLoop};
 use closed_loop::sim::ClosedLoopError;

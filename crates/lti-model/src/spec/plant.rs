@@ -40,6 +40,10 @@ pub enum NoiseKind {
     Gaussian,
     /// w_t = 0.
     Zero,
+    /// Independent truncated normal entries: N(μ_i, `scale²`·`covariance`_ii) conditioned
+    /// on the box `noise.truncate` (default 𝒲); `covariance` must be diagonal.
+    #[serde(rename = "truncated-normal")]
+    TruncatedNormal,
 }
 
 /// The `[noise]` section: which disturbance the simulation draws, and its seed.
@@ -54,6 +58,12 @@ pub struct NoiseSpec {
     pub covariance: Option<Mat<f64>>,
     /// Seed of the disturbance generator (ChaCha8).
     pub seed: u64,
+    /// Mean offset μ added to every draw (`noise.mean`, n_w; `None`: 0). For the truncated
+    /// normal, the location of the underlying normal.
+    pub mean: Option<Vec<f64>>,
+    /// The truncation box of [`NoiseKind::TruncatedNormal`] (`noise.truncate`; `Some`
+    /// exactly for that kind, default 𝒲 = `sets.disturbance`).
+    pub truncate: Option<BoxSet>,
 }
 
 impl NoiseSpec {
@@ -66,6 +76,8 @@ impl NoiseSpec {
     ///     scale: 2.0,
     ///     covariance: Some(faer::Mat::from_fn(2, 2, |i, j| if i == j { 0.25 } else { 0.0 })),
     ///     seed: 0,
+    ///     mean: None,
+    ///     truncate: None,
     /// };
     /// let cov = noise.scaled_covariance().unwrap();
     /// assert_eq!((cov[(0, 0)], cov[(1, 1)], cov[(0, 1)]), (1.0, 1.0, 0.0));
@@ -77,12 +89,49 @@ impl NoiseSpec {
             .map(|c| Mat::from_fn(c.nrows(), c.ncols(), |i, j| s2 * c[(i, j)]))
     }
 
-    /// The box uniform noise is drawn from, `scale`·𝒲 (`None` unless uniform).
+    /// The box uniform noise is drawn from, μ + `scale`·𝒲 (`None` unless uniform).
     pub fn uniform_box(&self, disturbance: &BoxSet) -> Option<(Vec<f64>, Vec<f64>)> {
         (self.kind == NoiseKind::Uniform).then(|| {
-            let scale = |v: &[f64]| v.iter().map(|b| self.scale * b).collect::<Vec<f64>>();
+            let scale = |v: &[f64]| {
+                v.iter()
+                    .enumerate()
+                    .map(|(i, b)| self.scale * b + self.mean_at(i))
+                    .collect::<Vec<f64>>()
+            };
             (scale(disturbance.lower()), scale(disturbance.upper()))
         })
+    }
+
+    /// The mean offset of component i (0 without `noise.mean`).
+    pub fn mean_at(&self, i: usize) -> f64 {
+        self.mean.as_ref().map_or(0.0, |m| m[i])
+    }
+
+    /// Whether the simulated law can draw outside 𝒲 (`disturbance`): a Gaussian (unbounded),
+    /// a scaled or shifted box, a truncation box not inside 𝒲. Then the runs report the
+    /// draws outside 𝒲 (the ISS statement does not cover those steps).
+    pub fn can_leave(&self, disturbance: &BoxSet) -> bool {
+        let inside = |lo: &[f64], hi: &[f64]| {
+            lo.iter().zip(disturbance.lower()).all(|(a, b)| a >= b)
+                && hi.iter().zip(disturbance.upper()).all(|(a, b)| a <= b)
+        };
+        match self.kind {
+            NoiseKind::Zero => false,
+            _ if self.scale == 0.0 => {
+                let mean: Vec<f64> = (0..disturbance.lower().len())
+                    .map(|i| self.mean_at(i))
+                    .collect();
+                !inside(&mean, &mean)
+            }
+            NoiseKind::Gaussian => true,
+            NoiseKind::Uniform => self
+                .uniform_box(disturbance)
+                .is_none_or(|(lo, hi)| !inside(&lo, &hi)),
+            NoiseKind::TruncatedNormal => self
+                .truncate
+                .as_ref()
+                .is_none_or(|t| !inside(t.lower(), t.upper())),
+        }
     }
 }
 
@@ -146,6 +195,10 @@ pub struct RawNoise {
     pub covariance: Option<MatrixSpec>,
     #[serde(skip_serializing_if = "Option::is_none")]
     pub seed: Option<u64>,
+    #[serde(skip_serializing_if = "Option::is_none")]
+    pub mean: Option<Vec<f64>>,
+    #[serde(skip_serializing_if = "Option::is_none")]
+    pub truncate: Option<Table<RawBox>>,
 }
 
 #[derive(Debug, Deserialize, Serialize)]
@@ -308,6 +361,8 @@ pub fn validate_noise(
                 scale: 1.0,
                 covariance: None,
                 seed: 0,
+                mean: None,
+                truncate: None,
             });
         }
         if !bounded {
@@ -322,6 +377,8 @@ pub fn validate_noise(
             scale: 1.0,
             covariance: None,
             seed: 0,
+            mean: None,
+            truncate: None,
         });
     };
     let kind = raw.kind.unwrap_or(NoiseKind::Uniform);
@@ -353,12 +410,21 @@ pub fn validate_noise(
         ));
     }
     let covariance = match (kind, raw.covariance.as_ref()) {
-        (NoiseKind::Gaussian, Some(c)) => Some(weight(
+        (NoiseKind::Gaussian | NoiseKind::TruncatedNormal, Some(c)) => Some(weight(
             "noise.covariance",
             Some(c),
             nw,
             "n_w = n_w1 + n_w2 square",
         )?),
+        (NoiseKind::TruncatedNormal, None) => {
+            return Err(key_error(
+                "noise.covariance",
+                format!(
+                    "kind = \"truncated-normal\" needs the covariance of the underlying normal \
+                     ({nw}×{nw}, diagonal, positive); add e.g. `covariance = 0.01` for 0.01·I"
+                ),
+            ));
+        }
         (NoiseKind::Gaussian, None) => {
             return Err(key_error(
                 "noise.covariance",
@@ -371,7 +437,86 @@ pub fn validate_noise(
         (_, Some(_)) => {
             return Err(key_error(
                 "noise.covariance",
-                "is only used with kind = \"gaussian\"; remove it or set kind = \"gaussian\"",
+                "is only used with kind = \"gaussian\" or \"truncated-normal\"; remove it or set \
+                 kind = \"gaussian\"",
+            ));
+        }
+        (_, None) => None,
+    };
+    let mean = match (&raw.mean, kind) {
+        (None, _) => None,
+        (Some(_), NoiseKind::Zero) => {
+            return Err(key_error(
+                "noise.mean",
+                "is an offset of the drawn noise, but kind = \"zero\" draws nothing; remove it or \
+                 choose kind = \"uniform\", \"gaussian\" or \"truncated-normal\"",
+            ));
+        }
+        (Some(m), _) => Some(vector(
+            "noise.mean",
+            Some(m),
+            nw,
+            "disturbance component (w¹ then w²)",
+        )?),
+    };
+    let truncate = match (kind, raw.truncate.as_deref()) {
+        (NoiseKind::TruncatedNormal, t) => {
+            if let Some(c) = &covariance {
+                for i in 0..nw {
+                    for j in 0..nw {
+                        if i != j && c[(i, j)] != 0.0 {
+                            return Err(key_error(
+                                "noise.covariance",
+                                format!(
+                                    "entry ({i}, {j}) is {}; kind = \"truncated-normal\" draws \
+                                     independent components, so the covariance must be diagonal \
+                                     (use kind = \"gaussian\" for correlated noise)",
+                                    c[(i, j)]
+                                ),
+                            ));
+                        }
+                    }
+                }
+            }
+            let set = match t {
+                None => sets.disturbance.clone(),
+                Some(t) => {
+                    let lower = bound_vec(
+                        "noise.truncate.lower",
+                        t.lower.as_ref(),
+                        nw,
+                        f64::NEG_INFINITY,
+                        "disturbance component",
+                    )?;
+                    let upper = bound_vec(
+                        "noise.truncate.upper",
+                        t.upper.as_ref(),
+                        nw,
+                        f64::INFINITY,
+                        "disturbance component",
+                    )?;
+                    BoxSet::named("noise.truncate", lower, upper)
+                        .map_err(|e| wrap("noise.truncate", e))?
+                }
+            };
+            for i in 0..nw {
+                if !(set.lower()[i] < set.upper()[i]) {
+                    return Err(key_error(
+                        "noise.truncate",
+                        format!(
+                            "component {i} is [{}, {}]: a truncated normal needs lower < upper",
+                            set.lower()[i],
+                            set.upper()[i]
+                        ),
+                    ));
+                }
+            }
+            Some(set)
+        }
+        (_, Some(_)) => {
+            return Err(key_error(
+                "noise.truncate",
+                "is only used with kind = \"truncated-normal\"; remove it or set that kind",
             ));
         }
         (_, None) => None,
@@ -381,6 +526,8 @@ pub fn validate_noise(
         scale,
         covariance,
         seed: raw.seed.unwrap_or(0),
+        mean,
+        truncate,
     })
 }
 
@@ -483,6 +630,8 @@ pub fn raw_sections(
             scale: Some(noise.scale),
             covariance: noise.covariance.as_ref().map(rows_of),
             seed: Some(noise.seed),
+            mean: noise.mean.clone(),
+            truncate: noise.truncate.as_ref().map(|b| Table(raw_box(b))),
         },
         RawSimulation {
             x0: Some(simulation.x0.clone()),

@@ -20,6 +20,16 @@ use crate::common::{csc, gaussian, random_problem, rng};
 /// Uncondensed: v = (x₀…x_N, u₀…u_{N−1}), x₀ = x̂, x_{k+1} = Ax_k + Bu_k, u_k ∈ 𝒰,
 /// x_k ∈ 𝒳 (k = 1..N). `None` if Clarabel says infeasible.
 fn uncondensed(mpc: &CondensedMpc, xs: &BoxSet, x_hat: &[f64]) -> Option<Vec<f64>> {
+    uncondensed_with_outputs(mpc, xs, None, x_hat)
+}
+
+/// [`uncondensed`] with output rows C x_k ∈ 𝒴_c (k = 1..N) as well.
+fn uncondensed_with_outputs(
+    mpc: &CondensedMpc,
+    xs: &BoxSet,
+    ys: Option<&BoxSet>,
+    x_hat: &[f64],
+) -> Option<Vec<f64>> {
     let sys = mpc.system();
     let (nx, nu, n) = (sys.nx(), sys.nu(), mpc.horizon());
     let nvx = (n + 1) * nx;
@@ -76,6 +86,22 @@ fn uncondensed(mpc: &CondensedMpc, xs: &BoxSet, x_hat: &[f64]) -> Option<Vec<f64
         }
         for i in 0..nx {
             bound((k + 1) * nx + i, xs.lower()[i], xs.upper()[i]);
+        }
+    }
+    if let Some(ys) = ys {
+        let c = sys.c();
+        for k in 1..=n {
+            for i in 0..sys.ny() {
+                let row = |sign: f64| -> Vec<(usize, f64)> {
+                    (0..nx).map(|j| (k * nx + j, sign * c[(i, j)])).collect()
+                };
+                if ys.upper()[i].is_finite() {
+                    rows.push((row(1.0), ys.upper()[i]));
+                }
+                if ys.lower()[i].is_finite() {
+                    rows.push((row(-1.0), -ys.lower()[i]));
+                }
+            }
         }
     }
     let am = Mat::from_fn(rows.len(), nv, |r, v| {
@@ -272,4 +298,148 @@ fn l_pi_is_void_with_state_constraints() {
     let rep = lipschitz_report_for(&mpc, 50, 0, 1.0).unwrap();
     assert!(rep.l_pi().is_infinite() && rep.void_reason.is_some());
     assert!(rep.to_string().contains("void"));
+}
+
+/// A random MPC with a random output box 𝒴_c (some components bounded, around 0) and no
+/// state rows.
+fn output_constrained(seed: u64) -> (LtiSystem, MpcConfig, BoxSet) {
+    let (sys, mut cfg) = random_problem(seed);
+    let mut r = rng(seed ^ 0x0707);
+    let ny = sys.ny();
+    let mut side = |sign: f64| -> Vec<f64> {
+        (0..ny)
+            .map(|_| {
+                if r.random::<f64>() < 0.8 {
+                    sign * (0.3 + 2.0 * r.random::<f64>())
+                } else {
+                    sign * f64::INFINITY
+                }
+            })
+            .collect()
+    };
+    let (mut lo, hi) = (side(-1.0), side(1.0));
+    if lo.iter().chain(&hi).all(|v| v.is_infinite()) {
+        lo[0] = -0.5;
+    }
+    let ys = BoxSet::new(lo, hi).unwrap();
+    cfg.state_set = None;
+    cfg.output_set = Some(ys.clone());
+    (sys, cfg, ys)
+}
+
+#[test]
+fn output_constrained_exact_mpc_matches_uncondensed_clarabel() {
+    let (mut feasible, mut infeasible, mut active, mut worst) = (0, 0, 0, 0.0f64);
+    for seed in 0..120u64 {
+        let (sys, cfg, ys) = output_constrained(seed);
+        let whole = BoxSet::whole(sys.nx());
+        let mpc = CondensedMpc::new(&sys, cfg).unwrap();
+        assert!(mpc.has_output_constraints() && !mpc.has_state_constraints());
+        assert_eq!(
+            mpc.certificate_void_reason(),
+            Some(mpc_core::OUTPUT_CONSTRAINED_VOID_REASON)
+        );
+        let mut exact = ExactMpc::new(&mpc).unwrap();
+        let mut r = rng(seed);
+        for _ in 0..4 {
+            let x_hat = gaussian(&mut r, sys.nx(), 1.0);
+            let reference = uncondensed_with_outputs(&mpc, &whole, Some(&ys), &x_hat);
+            match (exact.solve(&x_hat).map(<[f64]>::to_vec), reference) {
+                (Ok(u), Some(uc)) => {
+                    let d: f64 = u
+                        .iter()
+                        .zip(&uc)
+                        .map(|(a, b)| (a - b) * (a - b))
+                        .sum::<f64>()
+                        .sqrt();
+                    let s = 1.0 + uc.iter().map(|v| v * v).sum::<f64>().sqrt();
+                    assert!(d / s <= 1e-7, "seed {seed}: {:.3e}", d / s);
+                    worst = worst.max(d / s);
+                    feasible += 1;
+                    // Is an output row active at the optimum?
+                    let g = mpc.qp().general().unwrap();
+                    let gz =
+                        g.g() * lti_model::matrix::col(&u) + g.e() * lti_model::matrix::col(&x_hat);
+                    if (0..g.m()).any(|p| {
+                        (gz[(p, 0)] - g.upper()[p]).abs() < 1e-7
+                            || (gz[(p, 0)] - g.lower()[p]).abs() < 1e-7
+                    }) {
+                        active += 1;
+                    }
+                }
+                (Err(MpcError::Qp(QpError::Infeasible { .. })), None) => infeasible += 1,
+                (a, b) => panic!("seed {seed}: exact {a:?} vs Clarabel {b:?}"),
+            }
+        }
+    }
+    println!(
+        "{feasible} feasible ({active} with an active output row, worst rel. {worst:.3e}), {infeasible} infeasible"
+    );
+    assert!(
+        feasible > 100 && active > 20,
+        "{feasible} {active} {infeasible}"
+    );
+}
+
+#[test]
+fn an_active_output_bound_moves_the_plan_and_is_met() {
+    // Double integrator, y = position, |y| ≤ 0.5: from x̂ = (0.4, 1.0) the input-only MPC
+    // overshoots 0.5; with the output row the plan keeps C x_k ≤ 0.5 and Clarabel agrees.
+    let sys = LtiSystem::new(
+        faer::mat![[1.0, 0.1], [0.0, 1.0]],
+        faer::mat![[0.005], [0.1]],
+        faer::mat![[1.0, 0.0]],
+    )
+    .unwrap();
+    let mut cfg = MpcConfig::new(
+        10,
+        Mat::identity(2, 2),
+        faer::mat![[0.1]],
+        BoxSet::symmetric(&[5.0]).unwrap(),
+    );
+    let free = CondensedMpc::new(&sys, cfg.clone()).unwrap();
+    let ys = BoxSet::symmetric(&[0.5]).unwrap();
+    cfg.output_set = Some(ys.clone());
+    let mpc = CondensedMpc::new(&sys, cfg).unwrap();
+    assert_eq!(mpc.qp().general().unwrap().m(), 10);
+    assert_eq!(mpc.output_row(3), Some((4, 0)));
+    let x_hat = [0.4, 1.0];
+    let peak = |m: &CondensedMpc, u: &[f64]| -> f64 {
+        let x = m.phi() * lti_model::matrix::col(&x_hat) + m.gamma() * lti_model::matrix::col(u);
+        (0..m.horizon())
+            .map(|k| x[(2 * k, 0)])
+            .fold(f64::MIN, f64::max)
+    };
+    let u_free = ExactMpc::new(&free)
+        .unwrap()
+        .solve(&x_hat)
+        .unwrap()
+        .to_vec();
+    assert!(
+        peak(&free, &u_free) > 0.5 + 1e-3,
+        "{}",
+        peak(&free, &u_free)
+    );
+    let u = ExactMpc::new(&mpc).unwrap().solve(&x_hat).unwrap().to_vec();
+    let p = peak(&mpc, &u);
+    assert!((p - 0.5).abs() < 1e-9, "the bound is active: peak {p}");
+    let uc = uncondensed_with_outputs(&mpc, &BoxSet::whole(2), Some(&ys), &x_hat).unwrap();
+    let d = u
+        .iter()
+        .zip(&uc)
+        .map(|(a, b)| (a - b).abs())
+        .fold(0.0, f64::max);
+    assert!(d < 1e-6, "exact vs Clarabel: {d:e}");
+    // The K-iteration MPC (FISTA projects exactly onto 𝒰^N ∩ rows) keeps the bound too.
+    let mut sub = SuboptimalMpc::new(
+        &mpc,
+        qp_iter::fista::Fista::new(mpc.qp().clone()),
+        500,
+        WarmStart::default(),
+    )
+    .unwrap();
+    let mut u0 = [0.0];
+    sub.control(&x_hat, &mut u0).unwrap();
+    assert!(matches!(sub.status(), ControlStatus::Applied { .. }));
+    assert!((u0[0] - u[0]).abs() < 1e-3, "{} vs {}", u0[0], u[0]);
 }

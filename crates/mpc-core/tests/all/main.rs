@@ -8,4 +8,5 @@ mod exact;
 mod free_sets;
 mod lipschitz;
 mod lqr;
+mod psd_weight;
 mod suboptimal;

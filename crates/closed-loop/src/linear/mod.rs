@@ -34,6 +34,7 @@
 
 mod iteration;
 mod kgrid;
+mod krylov;
 mod lifted;
 mod work;
 
@@ -41,8 +42,9 @@ use faer::Par;
 use serde::Serialize;
 
 pub use iteration::{IterationLinearisation, KStepMap, Linearise, linearise};
-pub use lifted::{LiftedLayout, LiftedLoop, spectral_radius};
-pub use work::LiftedDims;
+pub use krylov::{KRYLOV_MIN_DIM, spectral_radius_krylov, spectral_radius_krylov_steps};
+pub use lifted::{LiftedLayout, LiftedLoop, spectral_radius, spectral_radius_dense};
+pub use work::{LiftedDims, eigen_work};
 
 use crate::scenario::{LoopOptions, ResolvedScenario};
 use crate::sim::ClosedLoopError;

@@ -15,6 +15,7 @@ use lti_model::{LtiSystem, ModelError, matrix};
 use serde::Serialize;
 
 use crate::provenance::Provenance;
+use crate::reproduce::numfmt::num;
 
 /// Value of the `format` field.
 pub const FORMAT: &str = "suboptimal-mhe/ioss-certificate";
@@ -361,9 +362,9 @@ pub fn certify(req: &CertifyRequest) -> Result<Outcome> {
         Some(
             match ioss::min_feasible_eta(sys, q.as_ref(), r.as_ref(), ETA_HINT_RESOLUTION) {
                 Ok(b) => format!(
-                    "the smallest feasible η for these Q, R is ≈ {:.4} (bisection to {ETA_HINT_RESOLUTION:e}); \
+                    "the smallest feasible η for these Q, R is ≈ {} (bisection to {ETA_HINT_RESOLUTION:e}); \
                  pass --eta or set mhe.eta at or above it",
-                    b.certificate.eta
+                    num(b.certificate.eta)
                 ),
                 Err(e) => format!("no η ∈ [0, 1) is feasible for these Q, R: {e}"),
             },
@@ -447,7 +448,7 @@ fn summarize(d: &CertificateDocument) -> String {
         sys.nx, sys.nu, sys.ny, sys.nw1, sys.nw2
     );
     let i = &d.inputs;
-    let _ = writeln!(s, "  η            {} ({})", i.eta, i.eta_source);
+    let _ = writeln!(s, "  η            {} ({})", num(i.eta), i.eta_source);
     let _ = writeln!(
         s,
         "  Q, R         {}×{}, {}×{} ({})",
@@ -466,24 +467,25 @@ fn summarize(d: &CertificateDocument) -> String {
                 c.method, c.iterations
             );
         }
-        let _ = writeln!(s, "  λmin(P)      {:.6e}", c.p_min_eigenvalue);
-        let _ = writeln!(s, "  λmax(P)      {:.6e}", c.p_max_eigenvalue);
+        let _ = writeln!(s, "  λmin(P)      {}", num(c.p_min_eigenvalue));
+        let _ = writeln!(s, "  λmax(P)      {}", num(c.p_max_eigenvalue));
         let _ = writeln!(
             s,
-            "  λmin/λmax(P) {:.3e}   (the test: λmin/λmax of diag(P)^(-1/2)·P·diag(P)^(-1/2) > {:.0e})",
-            c.p_min_eigenvalue / c.p_max_eigenvalue,
-            c.p_min_ratio
+            "  λmin/λmax(P) {}   (the test: λmin/λmax of diag(P)^(-1/2)·P·diag(P)^(-1/2) > {})",
+            num(c.p_min_eigenvalue / c.p_max_eigenvalue),
+            num(c.p_min_ratio)
         );
         let _ = writeln!(
             s,
-            "  λmax(LMI)    {:.6e}   (J of LMI (2), unscaled)",
-            c.lmi_max_eigenvalue
+            "  λmax(LMI)    {}   (J of LMI (2), unscaled)",
+            num(c.lmi_max_eigenvalue)
         );
         let _ = writeln!(
             s,
-            "  μ = max vᵀJv/vᵀSv {:.3e}   (must be ≤ {:.0e}; S = GᵀPG + diag(P, Q) + HᵀRH, the \
+            "  μ = max vᵀJv/vᵀSv {}   (must be ≤ {}; S = GᵀPG + diag(P, Q) + HᵀRH, the \
              sum of the LMI's terms)",
-            c.lmi_relative_violation, c.lmi_relative_tolerance
+            num(c.lmi_relative_violation),
+            num(c.lmi_relative_tolerance)
         );
     }
     if let Some(f) = &d.failure {
@@ -493,7 +495,7 @@ fn summarize(d: &CertificateDocument) -> String {
         let _ = writeln!(s, "  hint         {h}");
     }
     if let Some(l) = &d.controller_lipschitz {
-        let _ = writeln!(s, "{l}");
+        let _ = writeln!(s, "{}", lipschitz_block(l));
     }
     if let Some(why) = &d.controller_lipschitz_skipped {
         let _ = writeln!(
@@ -502,6 +504,96 @@ fn summarize(d: &CertificateDocument) -> String {
         );
     }
     let _ = write!(s, "{}", if d.passed { "PASS" } else { "FAIL" });
+    s
+}
+
+/// The L_π block of the summary: the text of [`mpc_core::LipschitzReport`]'s `Display`
+/// with every number at most 4 significant digits (issue 23; certificate.json keeps them
+/// all).
+fn lipschitz_block(l: &mpc_core::LipschitzReport) -> String {
+    let (c, sm) = (&l.certified, &l.sampled);
+    let mut s = String::from("L_π (Assumption 3), condensed box-constrained MPC:\n");
+    if let Some(r) = l.void_reason {
+        let _ = writeln!(s, "  void: {r}");
+        let _ = writeln!(
+            s,
+            "  certified L_π  none (void: the bounds below do not hold for this MPC)"
+        );
+    } else {
+        let _ = writeln!(
+            s,
+            "  certified L_π  {}  (the tightest bound below)",
+            num(l.l_pi())
+        );
+    }
+    match l.enumerated {
+        Some(e) => {
+            let _ = writeln!(
+                s,
+                "  L_enum         {}  = max over all free sets f of ‖E₀J_f‖₂",
+                num(e)
+            );
+        }
+        None => {
+            let _ = writeln!(
+                s,
+                "  L_enum         skipped: {}",
+                l.enumeration_skipped.as_deref().unwrap_or("not computed")
+            );
+        }
+    }
+    let _ = writeln!(
+        s,
+        "  L_poly         {}  = sup over 0 ⪯ M ⪯ I of ‖K_lin + G·M·R‖₂ (S-procedure; {} \
+         saturable variables)",
+        num(c.polynomial),
+        c.saturable
+    );
+    let _ = writeln!(
+        s,
+        "  bound (b)      {}  = ‖E₀H^(-1/2)‖₂·‖H^(-1/2)F‖₂ = {}·{}",
+        num(c.first_block),
+        num(c.e0_h_inv_sqrt),
+        num(c.h_inv_sqrt_f)
+    );
+    let _ = writeln!(
+        s,
+        "  bound (a)      {}  = ‖H^(-1/2)F‖₂/√λ_min(H), λ_min(H) = {}",
+        num(c.sequence),
+        num(c.h_min_eigenvalue)
+    );
+    if sm.pairs == 0 {
+        let _ = writeln!(s, "  sampled        skipped (0 pairs requested)");
+    } else {
+        let _ = writeln!(
+            s,
+            "  sampled        {}  over {} pairs ({} evaluations, {} switches located), seed {}, \
+             radius {}",
+            num(sm.estimate),
+            sm.pairs,
+            sm.evaluations,
+            sm.switches_located,
+            sm.seed,
+            num(sm.radius)
+        );
+    }
+    if c.origin_interior {
+        let _ = writeln!(
+            s,
+            "  unconstrained  {}  = ‖E₀H⁻¹F‖₂ (a lower bound on L_π: 0 ∈ int 𝒰)",
+            num(c.unconstrained_gain)
+        );
+    }
+    let _ = writeln!(
+        s,
+        "  saturated LQR  {}  = ‖K‖₂ (its certified L_π)",
+        num(l.saturated_lqr)
+    );
+    if l.consistent() {
+        let _ = write!(s, "  sampled ≤ certified: yes");
+    } else {
+        let _ = write!(s, "  sampled ≤ certified: NO (a bug: please report it)");
+    }
     s
 }
 

@@ -45,7 +45,7 @@ mod charts;
 mod document;
 mod joint;
 mod linear;
-mod numfmt;
+pub(crate) mod numfmt;
 mod regional;
 mod summary;
 mod trace_csv;

@@ -194,7 +194,7 @@ impl std::fmt::Display for Gamma13Void {
                 marginal: false,
             } => write!(
                 f,
-                "A has |λ| = {r:.4} ≥ 1 and 𝒰 is bounded: no global ISS gain from e to x exists \
+                "A has |λ| = {r:.3} ≥ 1 and 𝒰 is bounded: no global ISS gain from e to x exists \
                  (Assumption 4 cannot hold globally)"
             ),
             Self::SaturatedDynamicsNotStable {
@@ -203,7 +203,7 @@ impl std::fmt::Display for Gamma13Void {
                 marginal: true,
             } => write!(
                 f,
-                "A has |λ| = {r:.4} ≥ 1 (marginally stable) and 𝒰 is bounded: with every input \
+                "A has |λ| = {r:.3} ≥ 1 (marginally stable) and 𝒰 is bounded: with every input \
                  saturated x⁺ = Ax + const does not contract, so no metric certifies a global \
                  gain from e to x (Assumption 4 cannot be certified globally)"
             ),
@@ -213,7 +213,7 @@ impl std::fmt::Display for Gamma13Void {
                 ..
             } => write!(
                 f,
-                "with every bounded input saturated, A + BK_sat has |λ| = {r:.4} ≥ 1: the local \
+                "with every bounded input saturated, A + BK_sat has |λ| = {r:.3} ≥ 1: the local \
                  gains include one that does not contract, so no contraction metric exists \
                  (global ISS is not excluded; supply γ₁,₃ if you know one)"
             ),

@@ -34,6 +34,7 @@
 
 mod iteration;
 mod kgrid;
+mod krylov;
 mod lifted;
 mod work;
 
@@ -42,8 +43,9 @@ use serde::Serialize;
 
 pub use iteration::{IterationLinearisation, KStepMap, Linearise, linearise};
 pub use kgrid::log_spaced;
-pub use lifted::{LiftedLayout, LiftedLoop, spectral_radius};
-pub use work::LiftedDims;
+pub use krylov::{KRYLOV_MIN_DIM, spectral_radius_krylov, spectral_radius_krylov_steps};
+pub use lifted::{LiftedLayout, LiftedLoop, spectral_radius, spectral_radius_dense};
+pub use work::{LiftedDims, eigen_work};
 
 use closed_loop::scenario::{LoopOptions, ResolvedScenario};
 use closed_loop::sim::ClosedLoopError;

@@ -226,7 +226,7 @@ fn void_rows_report_their_exact_reason() {
             k_min: [None; 4],
             gamma13: f64::INFINITY,
             void: Some(
-                "gamma13 finite fails: A has |λ| = 1.0000 ≥ 1 (marginally stable) and 𝒰 is \
+                "gamma13 finite fails: A has |λ| = 1.000 ≥ 1 (marginally stable) and 𝒰 is \
                  bounded: with every input saturated x⁺ = Ax + const does not contract, so no \
                  metric certifies a global gain from e to x (Assumption 4 cannot be certified \
                  globally)",
@@ -237,7 +237,7 @@ fn void_rows_report_their_exact_reason() {
             k_min: [None; 4],
             gamma13: f64::INFINITY,
             void: Some(
-                "gamma13 finite fails: A has |λ| = 1.1177 ≥ 1 and 𝒰 is bounded: no global ISS \
+                "gamma13 finite fails: A has |λ| = 1.118 ≥ 1 and 𝒰 is bounded: no global ISS \
                  gain from e to x exists (Assumption 4 cannot hold globally)",
             ),
         },

@@ -9,6 +9,7 @@ mod coverage;
 mod findings;
 mod gamma13;
 mod joint;
+mod krylov;
 mod linear;
 mod mends;
 mod plants;

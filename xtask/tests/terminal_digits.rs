@@ -1,0 +1,156 @@
+#![allow(clippy::unwrap_used)]
+//! Issue 23 item 5: every number `xtask` prints to the terminal has at most 4 significant
+//! digits (files — CSV, JSON — keep full precision). `certify` and `reproduce` run as
+//! processes on shipped scenarios and their stdout and stderr are scanned.
+//!
+//! **The rule.** A *number* is a maximal run `D+(.D+)?([eE][-+]?D+)?` (D an ASCII digit) that
+//! is not glued to a word, path or version: the character before it is not a letter, digit,
+//! `_`, `.`, `/` or `-` following a letter (so `m30`, `t31`, `x₁`, `fig2a`, `/tmp/1.5` and
+//! `0.24.4` are not numbers), and the character after it is not a letter, digit or `_`.
+//! A number without a decimal point and without an exponent is an *integer* (K, counts,
+//! seeds, dimensions, years) and is exempt. Every other number has at most 4 significant
+//! digits: the digits of its mantissa with leading zeros removed (trailing zeros count, so
+//! `2.000` has 4 and `1.00000` has 6).
+
+use std::path::PathBuf;
+use std::process::Command;
+
+fn root() -> PathBuf {
+    PathBuf::from(env!("CARGO_MANIFEST_DIR")).join("..")
+}
+
+/// Every number of `text` with more than 4 significant digits, with its line.
+pub fn violations(text: &str) -> Vec<(String, String)> {
+    let mut out = Vec::new();
+    for line in text.lines() {
+        let chars: Vec<char> = line.chars().collect();
+        let mut i = 0;
+        while i < chars.len() {
+            if !chars[i].is_ascii_digit() {
+                i += 1;
+                continue;
+            }
+            let glued = i > 0 && {
+                let p = chars[i - 1];
+                p.is_alphanumeric()
+                    || p == '_'
+                    || p == '.'
+                    || p == '/'
+                    || (p == '-' && i > 1 && chars[i - 2].is_alphanumeric())
+            };
+            let start = i;
+            while i < chars.len() && chars[i].is_ascii_digit() {
+                i += 1;
+            }
+            let mut mantissa: String = chars[start..i].iter().collect();
+            let mut real = false;
+            if i + 1 < chars.len() && chars[i] == '.' && chars[i + 1].is_ascii_digit() {
+                i += 1;
+                while i < chars.len() && chars[i].is_ascii_digit() {
+                    mantissa.push(chars[i]);
+                    i += 1;
+                }
+                real = true;
+            }
+            if i < chars.len() && (chars[i] == 'e' || chars[i] == 'E') {
+                let mut j = i + 1;
+                if j < chars.len() && (chars[j] == '-' || chars[j] == '+') {
+                    j += 1;
+                }
+                if j < chars.len() && chars[j].is_ascii_digit() {
+                    while j < chars.len() && chars[j].is_ascii_digit() {
+                        j += 1;
+                    }
+                    i = j;
+                    real = true;
+                }
+            }
+            let glued_after = i < chars.len()
+                && (chars[i].is_alphanumeric() || chars[i] == '_' || chars[i] == '.');
+            if glued || glued_after || !real {
+                // Skip the rest of a glued token (a version's further components).
+                while i < chars.len() && (chars[i].is_ascii_digit() || chars[i] == '.') {
+                    i += 1;
+                }
+                continue;
+            }
+            if mantissa.trim_start_matches('0').len() > 4 {
+                out.push((chars[start..i].iter().collect(), line.to_string()));
+            }
+        }
+    }
+    out
+}
+
+#[test]
+fn the_rule_itself() {
+    let ok = "K = 3434, seed 11, ρ = 0.8492, 1.435e-5, 2.000, x₁₆ m30 t31 fig2a 0.24.4 /tmp/1.23456 \
+              1e4 -0.5 (1 − 1.47e-4) 12345 2026";
+    assert!(violations(ok).is_empty(), "{:?}", violations(ok));
+    for bad in [
+        "3.418421",
+        "λmin 1.654240e-2",
+        "-4.883462e-11",
+        "1.00000",
+        "0.012345",
+    ] {
+        assert_eq!(violations(bad).len(), 1, "{bad}");
+    }
+}
+
+fn run(args: &[&str]) -> String {
+    let out = Command::new(env!("CARGO_BIN_EXE_xtask"))
+        .current_dir(root())
+        .args(args)
+        .output()
+        .unwrap();
+    let text = format!(
+        "{}\n{}",
+        String::from_utf8_lossy(&out.stdout),
+        String::from_utf8_lossy(&out.stderr)
+    );
+    assert!(
+        matches!(out.status.code(), Some(0 | 4)),
+        "{args:?}: exit {:?}\n{text}",
+        out.status.code()
+    );
+    text
+}
+
+fn assert_clean(what: &str, text: &str) {
+    let v = violations(text);
+    assert!(
+        v.is_empty(),
+        "{what}: {} number(s) with more than 4 significant digits:\n{}",
+        v.len(),
+        v.iter()
+            .map(|(n, l)| format!("  {n}  in  {l}"))
+            .collect::<Vec<_>>()
+            .join("\n")
+    );
+}
+
+#[test]
+fn certify_prints_at_most_four_significant_digits() {
+    for s in [
+        "scenarios/thermal-rod-m10.toml",
+        "scenarios/case-study-certified.toml",
+        "scenarios/quadrotor.toml",
+    ] {
+        let text = run(&["certify", "--scenario", s]);
+        assert_clean(s, &text);
+    }
+}
+
+#[test]
+fn reproduce_prints_at_most_four_significant_digits() {
+    let out = std::env::temp_dir().join(format!("xtask-digits-{}", std::process::id()));
+    for s in [
+        "scenarios/double-integrator.toml",
+        "scenarios/case-study-certified.toml",
+    ] {
+        let text = run(&["reproduce", "--scenario", s, "--out", out.to_str().unwrap()]);
+        assert_clean(s, &text);
+    }
+    let _ = std::fs::remove_dir_all(&out);
+}

@@ -27,12 +27,12 @@ use std::path::{Path, PathBuf};
 
 use anyhow::{Context, Result, bail};
 use clap::{Args, ValueEnum};
+use closed_loop::scenario::{ResolvedScenario, Scenario};
 use iss_certificate::certificate::{
     CertificateOptions, ClosedLoopCertificate, Gamma13Source, SolverCertificate,
     certify_closed_loop,
 };
 use iss_certificate::joint::{JointCertificate, JointOptions, certify_joint};
-use closed_loop::scenario::{ResolvedScenario, Scenario};
 use qp_iter::Method;
 use serde_json::json;
 

@@ -76,10 +76,10 @@ mod thresholds;
 use closed_loop::scenario::ControllerChoice;
 use qp_iter::Method;
 
+pub use baseline::kalman_header;
 pub use closed_loop::metrics::{
     DEFAULT_BOUNDED_FACTOR, Metric, QUANTILES, RunMetrics, quantile_sorted, run_metrics,
 };
-pub use baseline::kalman_header;
 pub use config::{MAX_K, MAX_SEEDS, MAX_STEPS, Point, SweepConfig};
 pub use error::{Result, SweepError};
 pub use format::{PointFile, Table, point_file_name, points_header, runs_header};

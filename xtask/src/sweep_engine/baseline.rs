@@ -12,9 +12,9 @@ use rayon::prelude::*;
 
 use super::error::{Result, SweepError, config_err};
 use super::format::csv_text;
-use closed_loop::metrics::{Metric, run_metrics};
 use super::run::Sweep;
 use super::seeds::run_seed;
+use closed_loop::metrics::{Metric, run_metrics};
 use closed_loop::scenario::{draws_outside, scenario_disturbance};
 use closed_loop::sim::ClosedLoop;
 

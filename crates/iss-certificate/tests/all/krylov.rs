@@ -3,12 +3,12 @@
 //! structure (delay lines feeding a dense core). Whenever Arnoldi accepts an answer it agrees
 //! with the dense spectral radius to 1e-9 relative.
 
+use closed_loop::scenario::{ControllerChoice, LoopOptions, ResolvedScenario, Scenario};
+use faer::{Mat, Par};
 use iss_certificate::linear::{
     KRYLOV_MIN_DIM, LiftedLoop, spectral_radius, spectral_radius_dense, spectral_radius_krylov,
     spectral_radius_krylov_steps,
 };
-use closed_loop::scenario::{ControllerChoice, LoopOptions, ResolvedScenario, Scenario};
-use faer::{Mat, Par};
 use rand::{Rng, SeedableRng};
 
 /// Relative agreement required between an accepted Arnoldi ρ and the dense one.

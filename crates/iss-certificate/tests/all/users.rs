@@ -1,8 +1,8 @@
 //! Issue 25, item 5: the MPC and the noise users bring — a PSD `mpc.q`, output rows of the
 //! MPC (`mpc.output`), and the simulated noise model separate from 𝒲.
 
-use iss_certificate::certificate::{CertificateOptions, Gamma13Source};
 use closed_loop::scenario::{ControllerChoice, LoopOptions, Scenario};
+use iss_certificate::certificate::{CertificateOptions, Gamma13Source};
 use qp_iter::Method;
 
 const CASE_STUDY: &str = concat!(

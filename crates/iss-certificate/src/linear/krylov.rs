@@ -158,7 +158,7 @@ fn ritz(h: &Mat<f64>, m: usize) -> Option<Vec<(f64, f64, f64)>> {
 }
 
 /// max |λ(a)| by Arnoldi's method (module docs), or None when it is not accepted within
-/// [`MAX_SUBSPACE`] (or on a non-finite value): the caller then computes the dense
+/// `MAX_SUBSPACE` (or on a non-finite value): the caller then computes the dense
 /// eigenvalues. `a` must be square.
 pub fn spectral_radius_krylov(a: MatRef<'_, f64>, par: Par) -> Option<f64> {
     spectral_radius_krylov_steps(a, par).map(|p| p.0)

@@ -106,3 +106,36 @@ fn fig2c_t_and_work_limit_errors_name_the_flag_and_the_keys() {
         .unwrap();
     assert_eq!(out.status.code(), Some(2));
 }
+
+/// Issue 21: K, M and P are validated and computed once per scenario. The default run (the
+/// paper preset and the certified one: two scenarios) solves LMI (2) twice, reads `[mhe]`
+/// twice, builds ℙ_t and the MPC twice — however many certificates, simulations, ρ_lin
+/// loops and regional models it derives from them; every estimator it builds (one per
+/// simulated run, linearised loop or regional model, each checking its own K) shares ℙ_t.
+#[test]
+fn reproduce_computes_k_m_and_p_once_per_scenario() {
+    let out = xtask()
+        .args(["reproduce", "--out"])
+        .arg(temp("work-count"))
+        .env("SUBOPTIMAL_MHE_COUNT_WORK", "1")
+        .output()
+        .unwrap();
+    let stderr = String::from_utf8_lossy(&out.stderr);
+    assert_eq!(out.status.code(), Some(0), "{stderr}");
+    let line = stderr
+        .lines()
+        .find_map(|l| l.strip_prefix("work: "))
+        .unwrap_or_else(|| panic!("no work line: {stderr}"));
+    let count = |name: &str| -> usize {
+        line.split_whitespace()
+            .find_map(|kv| kv.strip_prefix(name)?.strip_prefix('='))
+            .unwrap_or_else(|| panic!("{name} missing in `{line}`"))
+            .parse()
+            .unwrap()
+    };
+    assert_eq!(count("lmi_solves"), 2, "{line}");
+    assert_eq!(count("mhe_settings"), 2, "{line}");
+    assert_eq!(count("mhe_problems"), 2, "{line}");
+    assert_eq!(count("mpc_builds"), 2, "{line}");
+    assert!(count("estimators") >= 2, "{line}");
+}

@@ -129,12 +129,12 @@ fn main() -> Result<(), Box<dyn std::error::Error>> {
     let sc = resolved.scenario();
     let base = LoopOptions::from_scenario(sc)?;
     // The library's Monte-Carlo driver: same seeds, metrics and bounded rule as `sweep`.
-    let settings = MonteCarlo {
+    let settings = MonteCarlo::new(
         runs,
-        base_seed: sc.noise.seed,
-        input_box: (sc.sets.input.lower(), sc.sets.input.upper()),
-        bounded_factor: DEFAULT_BOUNDED_FACTOR,
-    };
+        sc.noise.seed,
+        (sc.sets.input.lower(), sc.sets.input.upper()),
+    )
+    .with_bounded_factor(DEFAULT_BOUNDED_FACTOR);
     println!("# {path}: {runs} runs per row (exact MPC, the same disturbance draws in every row)");
     println!(
         "{:<22} {:>9} {:>14} {:>14}",

@@ -107,7 +107,7 @@ impl FromStr for Metric {
 pub struct RunMetrics {
     /// Run index r (0-based) at its point.
     pub run: usize,
-    /// The disturbance seed ([`run_seed`](super::run_seed)).
+    /// The disturbance seed of the run (a sweep's `run_seed`, or [`monte_carlo_seed`](crate::monte_carlo::monte_carlo_seed)).
     pub seed: u64,
     /// Steps completed (T unless the run stopped).
     pub steps: usize,

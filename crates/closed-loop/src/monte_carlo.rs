@@ -27,8 +27,10 @@ pub fn monte_carlo_seed(base_seed: u64, run: usize) -> u64 {
     splitmix64(base_seed ^ splitmix64(run as u64))
 }
 
-/// Settings of [`monte_carlo`].
+/// Settings of [`monte_carlo`]: [`MonteCarlo::new`] with the default bounded rule, changed
+/// by the `with_*` methods (new settings will not break your code).
 #[derive(Debug, Clone, Copy, PartialEq)]
+#[non_exhaustive]
 pub struct MonteCarlo<'a> {
     /// Number of runs.
     pub runs: usize,
@@ -38,6 +40,27 @@ pub struct MonteCarlo<'a> {
     pub input_box: (&'a [f64], &'a [f64]),
     /// The bounded rule's factor c (see [`crate::metrics::DEFAULT_BOUNDED_FACTOR`]).
     pub bounded_factor: f64,
+}
+
+impl<'a> MonteCarlo<'a> {
+    /// `runs` runs seeded from `base_seed`, with 𝒰 = `input_box` (lower, upper) for the
+    /// input-violation metric and the default bounded factor
+    /// ([`crate::metrics::DEFAULT_BOUNDED_FACTOR`]).
+    pub fn new(runs: usize, base_seed: u64, input_box: (&'a [f64], &'a [f64])) -> Self {
+        Self {
+            runs,
+            base_seed,
+            input_box,
+            bounded_factor: crate::metrics::DEFAULT_BOUNDED_FACTOR,
+        }
+    }
+
+    /// The bounded rule's factor c.
+    #[must_use]
+    pub fn with_bounded_factor(mut self, bounded_factor: f64) -> Self {
+        self.bounded_factor = bounded_factor;
+        self
+    }
 }
 
 /// Runs `settings.runs` closed loops built by `make(seed)` on the current rayon pool and
@@ -57,10 +80,8 @@ pub struct MonteCarlo<'a> {
 ///     [mpc]\nhorizon = 5\n";
 /// let resolved = Scenario::from_toml_str(text).unwrap().resolve().unwrap();
 /// let sc = resolved.scenario();
-/// let settings = MonteCarlo {
-///     runs: 4, base_seed: 7, bounded_factor: 1e3,
-///     input_box: (sc.sets.input.lower(), sc.sets.input.upper()),
-/// };
+/// let input_box = (sc.sets.input.lower(), sc.sets.input.upper());
+/// let settings = MonteCarlo::new(4, 7, input_box).with_bounded_factor(1e3);
 /// let runs = monte_carlo(&settings, |seed| {
 ///     let mut o = LoopOptions::from_scenario(sc)?;
 ///     o.seed = seed;

@@ -46,6 +46,7 @@ use crate::record::{CaptureError, Trace};
 /// Errors of the closed-loop simulation: bad setup (at construction) or a failed step
 /// (naming the step t and the cause). After a step error the loop is stopped.
 #[derive(Debug, Clone, PartialEq, thiserror::Error)]
+#[non_exhaustive]
 pub enum ClosedLoopError {
     /// T = 0.
     #[error("the horizon `steps` (T) is 0: a closed-loop run needs T ≥ 1 steps")]
@@ -276,10 +277,8 @@ fn check_dim(what: &'static str, expected: usize, actual: usize) -> Result<()> {
 /// use qp_iter::pg::{ProjectedGradient, StepRule};
 /// let sys = LtiSystem::new(mat![[0.9, 0.1], [0.0, 0.8]], mat![[0.0], [1.0]], mat![[1.0, 0.0]]).unwrap();
 /// let w_box = BoxSet::symmetric(&[0.05; 3]).unwrap();
-/// let cfg = MheConfig {
-///     horizon: 3, eta: 0.8, p: Mat::identity(2, 2), q: Mat::identity(3, 3), r: mat![[1.0]],
-///     iterations: 20, warm_start: WarmStart::Paper, exact_solve: true,
-/// };
+/// let cfg = MheConfig::new(3, 0.8, Mat::identity(2, 2), Mat::identity(3, 3), mat![[1.0]], 20)
+///     .with_exact_solve(true);
 /// let mhe = MheEstimator::new(&sys, &MheSets::with_disturbance(&sys, w_box.clone()), &cfg,
 ///     &[0.0, 0.0], |qp| ProjectedGradient::new(qp, StepRule::Optimal)).unwrap();
 /// let lqr = SaturatedLqr::new(&sys, Mat::identity(2, 2).as_ref(), mat![[0.1]].as_ref(),

@@ -7,6 +7,7 @@
 
 /// Errors raised by `lti-model` constructors, certificates and scenario parsing.
 #[derive(Debug, Clone, PartialEq, thiserror::Error)]
+#[non_exhaustive]
 pub enum ModelError {
     /// A matrix or vector has the wrong shape.
     #[error(

@@ -30,6 +30,7 @@ pub mod spec;
 pub mod spectral;
 pub mod system;
 pub mod vecmath;
+pub mod work_count;
 
 pub use error::{LmiFailure, ModelError, Result};
 /// The linear algebra crate of every matrix in the API (`faer::Mat`), re-exported so that a

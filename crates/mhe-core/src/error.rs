@@ -6,6 +6,7 @@
 
 /// Errors raised when setting up an estimator or feeding it data.
 #[derive(Debug, Clone, PartialEq, thiserror::Error)]
+#[non_exhaustive]
 pub enum MheError {
     /// Invalid matrix / vector / set data (shape, NaN, not symmetric, not positive definite),
     /// raised by the `lti-model` validators; the field is named inside.

@@ -17,8 +17,20 @@ use crate::record::MheRecord;
 /// estimator needs no QP solver); re-exported here.
 pub use loop_traits::Estimator;
 
-/// Settings of [`MheEstimator`].
+/// Settings of [`MheEstimator`]: built by [`MheConfig::new`] with the paper's warm start
+/// and no exact solve, changed by the `with_*` methods (new settings will not break your
+/// code), or read from a scenario file by `MheSettings`.
+///
+/// ```
+/// use faer::{Mat, mat};
+/// use mhe_core::{MheConfig, WarmStart};
+/// let cfg = MheConfig::new(5, 0.8, Mat::identity(2, 2), Mat::identity(3, 3), mat![[1.0]], 20)
+///     .with_warm_start(WarmStart::Paper)
+///     .with_exact_solve(true);
+/// assert_eq!((cfg.horizon, cfg.iterations, cfg.exact_solve), (5, 20, true));
+/// ```
 #[derive(Debug, Clone)]
+#[non_exhaustive]
 pub struct MheConfig {
     /// Horizon M ≥ 1.
     pub horizon: usize,
@@ -40,6 +52,42 @@ pub struct MheConfig {
 }
 
 impl MheConfig {
+    /// Horizon M, η of cost (9), the weights P, Q, R and K iterations per step, with the
+    /// paper's warm start Σ_t and no exact solve. Checked when an estimator is built.
+    pub fn new(
+        horizon: usize,
+        eta: f64,
+        p: Mat<f64>,
+        q: Mat<f64>,
+        r: Mat<f64>,
+        iterations: usize,
+    ) -> Self {
+        Self {
+            horizon,
+            eta,
+            p,
+            q,
+            r,
+            iterations,
+            warm_start: WarmStart::Paper,
+            exact_solve: false,
+        }
+    }
+
+    /// The warm-start rule Σ_t.
+    #[must_use]
+    pub fn with_warm_start(mut self, warm_start: WarmStart) -> Self {
+        self.warm_start = warm_start;
+        self
+    }
+
+    /// Also solve ℙ_t exactly each step and record ε_t.
+    #[must_use]
+    pub fn with_exact_solve(mut self, exact_solve: bool) -> Self {
+        self.exact_solve = exact_solve;
+        self
+    }
+
     /// The weights (η, P, Q, R).
     pub fn weights(&self) -> MheWeights {
         MheWeights {
@@ -266,10 +314,8 @@ fn check_iterations(k: usize) -> Result<()> {
 /// use qp_iter::pg::{ProjectedGradient, StepRule};
 /// use mhe_core::{Estimator, MheConfig, MheEstimator, MheSets, WarmStart};
 /// let sys = LtiSystem::new(mat![[0.9, 0.1], [0.0, 0.8]], mat![[0.0], [1.0]], mat![[1.0, 0.0]]).unwrap();
-/// let cfg = MheConfig {
-///     horizon: 3, eta: 0.8, p: Mat::identity(2, 2), q: Mat::identity(3, 3), r: mat![[1.0]],
-///     iterations: 20, warm_start: WarmStart::Paper, exact_solve: true,
-/// };
+/// let cfg = MheConfig::new(3, 0.8, Mat::identity(2, 2), Mat::identity(3, 3), mat![[1.0]], 20)
+///     .with_exact_solve(true);
 /// let mut mhe = MheEstimator::new(&sys, &MheSets::unconstrained(&sys), &cfg, &[1.0, -1.0],
 ///     |qp| ProjectedGradient::new(qp, StepRule::Optimal)).unwrap();
 /// assert_eq!(mhe.estimate().unwrap(), &[1.0, -1.0]); // t = 0: the prior
@@ -329,6 +375,7 @@ impl<M: IterationMap> MheEstimator<M> {
         F: Fn(ParametricQp) -> qp_iter::Result<M>,
     {
         check_iterations(config.iterations)?;
+        lti_model::work_count::record(lti_model::work_count::Work::EstimatorBuilt);
         let dims = Dims::of(sys);
         crate::problem::validate_problem(dims, config.horizon, &config.weights(), sets)?;
         check_vec("prior", prior, dims.nx)?;
@@ -374,19 +421,20 @@ impl<M: IterationMap> MheEstimator<M> {
         F: Fn(ParametricQp) -> qp_iter::Result<M>,
     {
         check_iterations(iterations)?;
+        lti_model::work_count::record(lti_model::work_count::Work::EstimatorBuilt);
         let dims = problem.dims();
         check_vec("prior", prior, dims.nx)?;
         let weights = problem.weights();
-        let config = MheConfig {
-            horizon: problem.horizon(),
-            eta: weights.eta,
-            p: weights.p.clone(),
-            q: weights.q.clone(),
-            r: weights.r.clone(),
+        let config = MheConfig::new(
+            problem.horizon(),
+            weights.eta,
+            weights.p.clone(),
+            weights.q.clone(),
+            weights.r.clone(),
             iterations,
-            warm_start,
-            exact_solve,
-        };
+        )
+        .with_warm_start(warm_start)
+        .with_exact_solve(exact_solve);
         let maps = problem
             .windows()
             .iter()

@@ -344,6 +344,7 @@ impl MheProblem {
         weights: &MheWeights,
         sets: &MheSets,
     ) -> Result<Self> {
+        lti_model::work_count::record(lti_model::work_count::Work::MheProblemBuilt);
         let dims = Dims::of(sys);
         validate_problem(dims, horizon, weights, sets)?;
         let windows = (0..=horizon)

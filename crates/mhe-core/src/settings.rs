@@ -93,6 +93,7 @@ pub struct RawMhe {
 impl MheSettings {
     /// Validates the `[mhe]` table against the plant; errors name the key (`mhe.eta`).
     pub fn from_raw(raw: &RawMhe, sys: &LtiSystem) -> lti_model::Result<Self> {
+        lti_model::work_count::record(lti_model::work_count::Work::MheSettingsValidated);
         let horizon = required("mhe.horizon", raw.horizon, "horizon = 5")?;
         let horizon = at_least_one("mhe.horizon", horizon, "the estimation horizon M")?;
         let eta = required("mhe.eta", raw.eta, "eta = 0.8")?;
@@ -193,16 +194,16 @@ impl MheSettings {
             Some(p) => p.clone(),
             None => lti_model::ioss::certify(sys, self.eta, self.q.as_ref(), self.r.as_ref())?.p,
         };
-        Ok(MheConfig {
-            horizon: self.horizon,
-            eta: self.eta,
+        Ok(MheConfig::new(
+            self.horizon,
+            self.eta,
             p,
-            q: self.q.clone(),
-            r: self.r.clone(),
-            iterations: self.iterations,
-            warm_start: self.warm_start,
-            exact_solve,
-        })
+            self.q.clone(),
+            self.r.clone(),
+            self.iterations,
+        )
+        .with_warm_start(self.warm_start)
+        .with_exact_solve(exact_solve))
     }
 }
 

@@ -21,16 +21,7 @@ fn case_study(warm: WarmStart) -> (LtiSystem, MheSets, MheConfig) {
         .unwrap()
         .p;
     let sets = MheSets::with_disturbance(&sys, BoxSet::symmetric(&[0.1; 5]).unwrap());
-    let cfg = MheConfig {
-        horizon: 5,
-        eta: 0.8,
-        p,
-        q,
-        r,
-        iterations: 20,
-        warm_start: warm,
-        exact_solve: false,
-    };
+    let cfg = MheConfig::new(5, 0.8, p, q, r, 20).with_warm_start(warm);
     (sys, sets, cfg)
 }
 
@@ -181,16 +172,15 @@ fn setup_memory_estimate_is_within_2x_of_the_peak() {
             sets.state = BoxSet::symmetric(&vec![50.0; nx]).unwrap();
             sets.output = BoxSet::symmetric(&vec![50.0; ny]).unwrap();
         }
-        let cfg = MheConfig {
-            horizon: m,
-            eta: 0.9,
-            p: Mat::identity(nx, nx),
-            q: Mat::identity(nw, nw),
-            r: Mat::identity(ny, ny),
-            iterations: 5,
-            warm_start: WarmStart::Paper,
-            exact_solve: exact,
-        };
+        let cfg = MheConfig::new(
+            m,
+            0.9,
+            Mat::identity(nx, nx),
+            Mat::identity(nw, nw),
+            Mat::identity(ny, ny),
+            5,
+        )
+        .with_exact_solve(exact);
         let meth: qp_iter::Method = method.parse().unwrap();
         let prior = vec![0.0; nx];
         let (est, peak) = alloc_counter::peak_bytes(|| {

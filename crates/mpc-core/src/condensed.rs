@@ -142,6 +142,7 @@ impl CondensedMpc {
     /// [`MpcError::NotPositiveSemidefinite`] for Q_c or P_f; `Model(Numerical)` if the DARE
     /// has no stabilising solution ((A, B) not stabilisable or (A, Q_c) not detectable).
     pub fn new(system: &LtiSystem, config: MpcConfig) -> Result<Self> {
+        lti_model::work_count::record(lti_model::work_count::Work::MpcBuilt);
         let (nx, nu) = (system.nx(), system.nu());
         let n = config.horizon;
         if n == 0 {

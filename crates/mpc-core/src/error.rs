@@ -10,6 +10,7 @@ use qp_iter::QpError;
 
 /// Errors raised by `mpc-core`.
 #[derive(Debug, Clone, PartialEq, thiserror::Error)]
+#[non_exhaustive]
 pub enum MpcError {
     /// Invalid matrix / set data from `lti-model` checks; the variant names the field
     /// (`"Q_c"`, `"R_c"`, `"P_f"`, `"input_set"`, ...).

@@ -2,6 +2,7 @@
 
 /// Errors raised when building a problem or an iteration map.
 #[derive(Debug, Clone, PartialEq, thiserror::Error)]
+#[non_exhaustive]
 pub enum QpError {
     /// Invalid matrix / vector / set data (shape, NaN, not symmetric, not PD, empty box).
     #[error(transparent)]

@@ -20,15 +20,13 @@
 //!
 //! This crate knows parametric QPs only: never A, B or C.
 
-pub mod active_set;
 pub mod admm;
 pub mod admm_general;
 pub mod certificate;
 pub mod driver;
-pub mod dual_active_set;
 pub mod error;
+pub mod exact;
 pub mod fista;
-mod free_factor;
 pub mod general_projection;
 pub mod kernel;
 pub mod linearise;
@@ -36,12 +34,12 @@ pub mod method;
 pub mod operator;
 pub mod pg;
 pub mod problem;
-pub mod reference;
 pub mod scaled;
 
 pub use certificate::{BoundedQuantity, CertNorm, Certificate};
 pub use driver::{RunResult, RunStatus, run_fixed, run_until};
 pub use error::{QpError, Result};
+pub use exact::{active_set, dual_active_set, reference};
 pub use linearise::Linearise;
 pub use method::{Family, Method, MethodKind, MethodMap, MethodState, Scaling};
 pub use problem::{GeneralConstraints, ParametricQp};

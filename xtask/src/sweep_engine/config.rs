@@ -32,7 +32,7 @@ pub const MAX_SEEDS: usize = 10_000_000;
 /// A validated sweep configuration (a TOML file; see `docs/sweeps.md`).
 ///
 /// ```
-/// use crate::sweep_engine::SweepConfig;
+/// use xtask::sweep_engine::SweepConfig;
 /// let cfg = SweepConfig::from_toml_str(r#"
 ///     name = "demo"
 ///     scenario = "../scenarios/case-study.toml"

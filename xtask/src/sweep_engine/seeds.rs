@@ -22,7 +22,7 @@ pub(super) fn fnv1a(bytes: &[u8]) -> u64 {
 /// FNV-1a of `"K/solver/scale bits"` (`"K/solver/scale bits/K_c"` in a 2-D sweep).
 ///
 /// ```
-/// use crate::sweep_engine::{run_seed, SweepConfig};
+/// use xtask::sweep_engine::{run_seed, SweepConfig};
 /// let cfg = SweepConfig::from_toml_str(
 ///     "name='d'\nscenario='s'\nk=[1,2]\nsolvers=['pg']\nseeds=2", std::path::Path::new(".")).unwrap();
 /// let p = cfg.points();
@@ -48,7 +48,7 @@ pub fn run_seed(base_seed: u64, point: &Point, run: usize, common_random_numbers
 /// mix of cheap and expensive K.
 ///
 /// ```
-/// use crate::sweep_engine::Shard;
+/// use xtask::sweep_engine::Shard;
 /// let s: Shard = "2/4".parse().unwrap();
 /// assert!(s.owns(1) && s.owns(5) && !s.owns(2));
 /// assert!("3/2".parse::<Shard>().is_err());

@@ -817,12 +817,8 @@ fn monte_carlo_is_thread_count_independent_and_takes_user_components() {
     .resolve()
     .unwrap();
     let sc = resolved.scenario();
-    let settings = MonteCarlo {
-        runs: 6,
-        base_seed: 11,
-        input_box: (sc.sets.input.lower(), sc.sets.input.upper()),
-        bounded_factor: 1e3,
-    };
+    let settings = MonteCarlo::new(6, 11, (sc.sets.input.lower(), sc.sets.input.upper()))
+        .with_bounded_factor(1e3);
     let make = |seed| {
         let mut o = LoopOptions::from_scenario(sc).unwrap();
         o.iterations = 5;

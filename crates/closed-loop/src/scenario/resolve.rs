@@ -67,15 +67,9 @@ impl ResolvedScenario {
                     (None, Ok(c)) => Some(c.p.clone()),
                     (None, Err(_)) => None,
                 };
-                let mhe = p.map(|p| MheConfig {
-                    horizon: s.horizon,
-                    eta: s.eta,
-                    p,
-                    q: s.q.clone(),
-                    r: s.r.clone(),
-                    iterations: s.iterations,
-                    warm_start: s.warm_start,
-                    exact_solve: false,
+                let mhe = p.map(|p| {
+                    MheConfig::new(s.horizon, s.eta, p, s.q.clone(), s.r.clone(), s.iterations)
+                        .with_warm_start(s.warm_start)
                 });
                 (Some(outcome), mhe)
             }

@@ -24,12 +24,8 @@ const TEXT: &str = "name = \"mc\"\n[plant]\na = [[0.5]]\nb = [[1.0]]\nc = [[1.0]
 fn factory_errors_keep_the_users_type_and_the_lowest_failing_run() {
     let resolved = Scenario::from_toml_str(TEXT).unwrap().resolve().unwrap();
     let sc = resolved.scenario();
-    let settings = MonteCarlo {
-        runs: 8,
-        base_seed: 3,
-        input_box: (sc.sets.input.lower(), sc.sets.input.upper()),
-        bounded_factor: 1e3,
-    };
+    let settings = MonteCarlo::new(8, 3, (sc.sets.input.lower(), sc.sets.input.upper()))
+        .with_bounded_factor(1e3);
     // Runs 2, 5 and 7 fail to build, with the user's own error.
     let failing = [2, 5, 7].map(|r| monte_carlo_seed(settings.base_seed, r));
     let make = |seed| -> Result<_, SetupError> {

@@ -396,6 +396,7 @@ pub fn certify_with(
     r: MatRef<'_, f64>,
     opts: &IossOptions,
 ) -> Result<IossCertificate> {
+    crate::work_count::record(crate::work_count::Work::LmiSolve);
     SOLVES.with(|c| c.set(c.get() + 1));
     check_inputs(sys, eta, q, r)?;
     check_options(opts)?;
@@ -580,6 +581,7 @@ pub fn verify_with(
     p: MatRef<'_, f64>,
     opts: &IossOptions,
 ) -> Result<IossCertificate> {
+    crate::work_count::record(crate::work_count::Work::LmiSolve);
     check_options(opts)?;
     let check = assess(sys, eta, q, r, p, opts)?;
     if !(check.p_min_eigenvalue > 0.0) {

@@ -4,6 +4,7 @@
 //! (format: `docs/scenario-format.md`).
 
 pub mod format;
+pub mod limits;
 pub mod plant;
 
 pub use format::{Bounds, MAX_DIMENSION, MatrixSpec, Table, key_error};

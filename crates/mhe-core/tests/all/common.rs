@@ -2,7 +2,7 @@
 
 use faer::{Mat, mat};
 use lti_model::{BoxSet, LtiSystem};
-use mhe_core::{MheConfig, MheSets, WarmStart};
+use mhe_core::{MheConfig, MheSets};
 use rand::{Rng, SeedableRng};
 use rand_chacha::ChaCha8Rng;
 
@@ -26,16 +26,8 @@ pub fn case_study(horizon: usize, iterations: usize, exact_solve: bool) -> Fixtu
     let cert = lti_model::ioss::certify(&sys, 0.8, q.as_ref(), r.as_ref()).unwrap();
     let sets = MheSets::with_disturbance(&sys, BoxSet::symmetric(&[0.1; 5]).unwrap());
     Fixture {
-        config: MheConfig {
-            horizon,
-            eta: 0.8,
-            p: cert.p,
-            q,
-            r,
-            iterations,
-            warm_start: WarmStart::Paper,
-            exact_solve,
-        },
+        config: MheConfig::new(horizon, 0.8, cert.p, q, r, iterations)
+            .with_exact_solve(exact_solve),
         sys,
         sets,
         prior: vec![7.0, -7.0, 3.0, -5.0],
@@ -81,16 +73,15 @@ pub fn random_fixture(seed: u64, horizon: usize, iterations: usize, exact_solve:
         let radius: Vec<f64> = (0..nw).map(|_| 0.05 + 0.3 * rng.random::<f64>()).collect();
         let sets = MheSets::with_disturbance(&sys, BoxSet::symmetric(&radius).unwrap());
         let eta = 0.5 + 0.45 * rng.random::<f64>();
-        let config = MheConfig {
+        let config = MheConfig::new(
             horizon,
             eta,
-            p: random_spd(&mut rng, nx, 0.2),
-            q: random_spd(&mut rng, nw, 0.2),
-            r: random_spd(&mut rng, ny, 0.2),
+            random_spd(&mut rng, nx, 0.2),
+            random_spd(&mut rng, nw, 0.2),
+            random_spd(&mut rng, ny, 0.2),
             iterations,
-            warm_start: WarmStart::Paper,
-            exact_solve,
-        };
+        )
+        .with_exact_solve(exact_solve);
         let prior = (0..nx)
             .map(|_| 3.0 * (2.0 * rng.random::<f64>() - 1.0))
             .collect();

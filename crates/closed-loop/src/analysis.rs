@@ -123,8 +123,11 @@ impl Premise {
         match &self.not_evaluated {
             Some(why) => format!("{} not evaluated (because {why})", self.name),
             None => format!(
-                "{} fails ({} = {:.6}): {}",
-                self.name, self.needed_by, self.value, self.fix
+                "{} fails ({} = {}): {}",
+                self.name,
+                self.needed_by,
+                lti_model::numfmt::sig4(self.value),
+                self.fix
             ),
         }
     }

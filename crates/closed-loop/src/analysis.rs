@@ -123,11 +123,8 @@ impl Premise {
         match &self.not_evaluated {
             Some(why) => format!("{} not evaluated (because {why})", self.name),
             None => format!(
-                "{} fails ({} = {}): {}",
-                self.name,
-                self.needed_by,
-                lti_model::numfmt::sig4(self.value),
-                self.fix
+                "{} fails ({} = {:.6}): {}",
+                self.name, self.needed_by, self.value, self.fix
             ),
         }
     }

@@ -559,10 +559,7 @@ fn certify_at(
             &model,
             &imp,
             &m,
-            format!(
-                "Stein, λ = ρ_lin + {f}·(1 − ρ_lin) = {}",
-                lti_model::numfmt::sig4(lam)
-            ),
+            format!("Stein, λ = ρ_lin + {f}·(1 − ρ_lin) = {lam:.6}"),
             o,
         );
         // Rank by the certified scale of the user's set, then by the radius.

@@ -253,7 +253,7 @@ fn case_study_rows() {
         k_min: [None; 4],
         gamma13: 4.567594637308808,
         void: Some(
-            "rho < 1 fails (Prop. 3 (ρ^M = 6η^M; geometric series in √ρ) = 1.145): \
+            "rho < 1 fails (Prop. 3 (ρ^M = 6η^M; geometric series in √ρ) = 1.144775): \
                  6η^M = 1.9661 ≥ 1. Increase the horizon to M ≥ 9 at η = 0.8, or lower η below \
                  6^(-1/M) = 0.6988 at M = 5 (η must stay feasible for LMI (2))",
         ),

@@ -255,7 +255,18 @@ pub fn estimate_phases(
             n_theta: sys.nx() + m * (sys.nu() + sys.ny()),
         };
         let grid = crate::linear::log_spaced(1, k_top.max(2000), 25);
-        let per_method: Vec<f64> = [1usize, 2, 1, 1]
+        // What `reproduce` computes: the four preset families when n_z ≤
+        // [`crate::linear::ALL_METHODS_MAX_NZ`], else the scenario's own method only.
+        let own_lift = match scenario.mhe.as_ref().map(|s| s.method.family()) {
+            Some("fista") => 2usize,
+            _ => 1,
+        };
+        let lifts: Vec<usize> = if nz(m) as usize <= crate::linear::ALL_METHODS_MAX_NZ {
+            vec![1, 2, 1, 1]
+        } else {
+            vec![own_lift]
+        };
+        let per_method: Vec<f64> = lifts
             .iter()
             .map(|&lift| dims.grid_work(nz(m) as usize * lift, &grid))
             .collect();
@@ -267,7 +278,7 @@ pub fn estimate_phases(
             DENSE_RATE,
             runs,
             format!(
-                "{} methods × {} K: the K-step map and the eigenvalues of the {} × {} lifted \
+                "{} method(s) × {} K: the K-step map and the spectral radius of the {} × {} lifted \
                  matrix{}",
                 per_method.len(),
                 grid.len(),

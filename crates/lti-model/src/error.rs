@@ -227,15 +227,17 @@ impl std::fmt::Display for LmiFailure {
                 let sqrt_eta = eta.sqrt();
                 write!(
                     f,
-                    "(A, C) has an unobservable mode with |λ| = {modulus:.6} ≥ √η = {sqrt_eta:.6}; LMI (2) needs \
-                     every unobservable mode to decay faster than √η. "
+                    "(A, C) has an unobservable mode with |λ| = {} ≥ √η = {}; LMI (2) needs \
+                     every unobservable mode to decay faster than √η. ",
+                    crate::numfmt::sig4(modulus),
+                    crate::numfmt::sig4(sqrt_eta)
                 )?;
                 if modulus < 1.0 {
                     write!(
                         f,
-                        "The pair is detectable: any η > {:.6} (= |λ|²) may be feasible (scenario \
+                        "The pair is detectable: any η > {} (= |λ|²) may be feasible (scenario \
                          key `mhe.eta`).",
-                        modulus * modulus
+                        crate::numfmt::sig4(modulus * modulus)
                     )
                 } else {
                     write!(
@@ -248,7 +250,8 @@ impl std::fmt::Display for LmiFailure {
             Self::ZeroEtaNeedsDeadbeat { gain } => write!(
                 f,
                 "η = 0 needs A x = 0 for every x with C x = 0 (the output must fix the next state), \
-                 but ‖A on ker C‖ = {gain:.6}: use η > 0 (scenario key `mhe.eta`)"
+                 but ‖A on ker C‖ = {}: use η > 0 (scenario key `mhe.eta`)",
+                crate::numfmt::sig4(gain)
             ),
             Self::SingularExtremalSolution {
                 min_eigenvalue,

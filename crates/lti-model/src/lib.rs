@@ -23,6 +23,7 @@ pub mod disturbance;
 pub mod error;
 pub mod ioss;
 pub mod matrix;
+pub mod numfmt;
 pub mod presets;
 pub mod riccati;
 pub mod sets;

@@ -18,7 +18,7 @@ pub struct LinearEntry {
 /// eigenvalue problem of the lifted loop costs O(dim³) with dim ≈ 2·n_z + …, 25 per method:
 /// at M = 50 on the stand-in (n_z = 254, dim = 608) eight methods took most of `reproduce`'s
 /// time.
-pub const LINEAR_ALL_METHODS_MAX_NZ: usize = 128;
+pub const LINEAR_ALL_METHODS_MAX_NZ: usize = iss_certificate::linear::ALL_METHODS_MAX_NZ;
 
 /// K grid of the linear analysis: 25 log-spaced K from 1 to max(2000, every K_min), for
 /// every method of the certificate (only for `own`, the scenario's method, when the window

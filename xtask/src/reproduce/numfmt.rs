@@ -6,46 +6,10 @@
 //!   tell it from 1.
 //! - [`csv`]: every digit (shortest round-trip form), `nan`/`inf`/`-inf` explicitly.
 
-/// `v` with at most 4 significant digits (module docs).
+/// `v` with at most 4 significant digits (module docs): [`lti_model::numfmt::sig4`], the one
+/// formatter of terminal numbers in every crate.
 pub(crate) fn num(v: f64) -> String {
-    if v.is_nan() {
-        return "nan".into();
-    }
-    if v.is_infinite() {
-        return if v > 0.0 { "inf" } else { "-inf" }.into();
-    }
-    if v == 0.0 {
-        return "0".into();
-    }
-    let a = v.abs();
-    if (1e-3..1e4).contains(&a) {
-        // Digits after the point for 4 significant ones; rounding can carry into a fifth
-        // (9999.7 → 10000), which goes to the scientific form.
-        let decimals = (3 - a.log10().floor() as i32).max(0) as usize;
-        let s = format!("{v:.decimals$}");
-        let rounded: f64 = s.parse().unwrap_or(v);
-        if rounded.abs() < 1e4 {
-            return trim_zeros(&s).to_string();
-        }
-    }
-    sci(v)
-}
-
-/// `1.435e-5`-style with at most 4 significant digits, trailing zeros of the mantissa removed.
-fn sci(v: f64) -> String {
-    let s = format!("{v:.3e}");
-    match s.split_once('e') {
-        Some((mantissa, exp)) => format!("{}e{exp}", trim_zeros(mantissa)),
-        None => s,
-    }
-}
-
-fn trim_zeros(s: &str) -> &str {
-    if s.contains('.') {
-        s.trim_end_matches('0').trim_end_matches('.')
-    } else {
-        s
-    }
+    lti_model::numfmt::sig4(v)
 }
 
 /// A rate in (0, 1): [`num`], or `(1 − d)` when 1 − rate < 0.01 (then 4 digits of the rate

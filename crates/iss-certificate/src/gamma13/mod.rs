@@ -244,8 +244,9 @@ impl std::fmt::Display for Gamma13Void {
             } => write!(
                 f,
                 "user-supplied γ₁,₃ = {user} is provably wrong: a simulated error sequence gives \
-                 sup‖x‖/sup‖e‖ = {sampled_lower:.6} > {user}; the certificate is not computed \
-                 with it"
+                 sup‖x‖/sup‖e‖ = {} > {user}; the certificate is not computed \
+                 with it",
+                lti_model::numfmt::sig4(*sampled_lower)
             ),
         }
     }

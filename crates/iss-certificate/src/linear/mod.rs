@@ -51,6 +51,12 @@ use closed_loop::scenario::{LoopOptions, ResolvedScenario};
 use closed_loop::sim::ClosedLoopError;
 use qp_iter::Method;
 
+/// Largest MHE window size n_z = n_x + M·n_w for which `reproduce` computes ρ_lin for every
+/// method of the certificate; above it only for the scenario's own method (the one
+/// simulated). The budget's estimate ([`crate::budget::estimate_phases`]) follows the same
+/// rule.
+pub const ALL_METHODS_MAX_NZ: usize = 128;
+
 /// Errors of the linear stability analysis.
 #[derive(Debug, Clone, PartialEq, thiserror::Error)]
 pub enum LinearError {

@@ -64,7 +64,8 @@ pub enum RegionalVoid {
     Model(#[from] ModelError),
     /// ρ_lin(K) ≥ 1: the linear loop itself is not stable, no region exists.
     #[error(
-        "ρ_lin(K = {k}) = {rho:.6} ≥ 1: the loop is unstable even where no constraint is active"
+        "ρ_lin(K = {k}) = {} ≥ 1: the loop is unstable even where no constraint is active",
+        lti_model::numfmt::sig4(*rho)
     )]
     Unstable {
         /// K.
@@ -74,7 +75,8 @@ pub enum RegionalVoid {
     },
     /// No candidate metric could be formed (ill-conditioned Stein solutions).
     #[error(
-        "no Lyapunov metric of the lifted matrix could be formed at K = {k} (ρ_lin = {rho:.6})"
+        "no Lyapunov metric of the lifted matrix could be formed at K = {k} (ρ_lin = {})",
+        lti_model::numfmt::sig4(*rho)
     )]
     NoMetric {
         /// K.

@@ -100,14 +100,9 @@ fn phase_estimates_name_every_phase_and_follow_the_key() {
         .filter(|p| !p.runs)
         .map(|p| p.phase.as_str())
         .collect();
-    assert_eq!(
-        skipped,
-        [
-            "L_Φ sampling",
-            "γ₁,₃ free-set enumeration",
-            "ρ_lin (reproduce)"
-        ]
-    );
+    // ρ_lin of the scenario's method alone (n_z = 710 > 128) by Arnoldi's method fits the
+    // default budget.
+    assert_eq!(skipped, ["L_Φ sampling", "γ₁,₃ free-set enumeration"]);
     // The key: parsed, validated, and raising it lets both run.
     let text = format!(
         "{}\n[certificate]\nphase_seconds = 1e5\n",

@@ -55,15 +55,32 @@ fn krylov_agrees_with_dense_on_shipped_scenarios() {
         "quadruple-tank",
         "rao-rawlings-lee",
     ] {
-        let Some((l, _)) = lifted(name) else { continue };
+        let t0 = std::time::Instant::now();
+        let Some((l, _)) = lifted(name) else {
+            eprintln!("{name}: no lifted loop");
+            continue;
+        };
+        eprintln!(
+            "{name}: dim {}, built in {:.2} s",
+            l.dim(),
+            t0.elapsed().as_secs_f64()
+        );
         if l.dim() < 100 {
             continue;
         }
         for k in [1usize, 10, 100, 1000] {
             let a = l.matrix(k, Par::Seq).unwrap();
+            let t0 = std::time::Instant::now();
             let dense = spectral_radius_dense(a.as_ref(), Par::Seq).unwrap();
+            let td = t0.elapsed().as_secs_f64();
             tried += 1;
-            if let Some(rho) = spectral_radius_krylov(a.as_ref(), Par::Seq) {
+            let t0 = std::time::Instant::now();
+            let kr = spectral_radius_krylov_steps(a.as_ref(), Par::Seq);
+            eprintln!(
+                "  K = {k}: dense {dense} in {td:.3} s, Arnoldi {kr:?} in {:.3} s",
+                t0.elapsed().as_secs_f64()
+            );
+            if let Some(rho) = kr.map(|p| p.0) {
                 accepted += 1;
                 assert!(
                     close(rho, dense),

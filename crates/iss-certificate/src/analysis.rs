@@ -123,8 +123,11 @@ impl Premise {
         match &self.not_evaluated {
             Some(why) => format!("{} not evaluated (because {why})", self.name),
             None => format!(
-                "{} fails ({} = {:.6}): {}",
-                self.name, self.needed_by, self.value, self.fix
+                "{} fails ({} = {}): {}",
+                self.name,
+                self.needed_by,
+                lti_model::numfmt::sig4(self.value),
+                self.fix
             ),
         }
     }
@@ -235,9 +238,9 @@ impl IssAnalysis {
             let m_min =
                 min_horizon_for_eta(inputs.eta).map_or("none".to_string(), |m| m.to_string());
             format!(
-                "6η^M = {:.4} ≥ 1. Increase the horizon to M ≥ {m_min} at η = {}, or lower η below \
+                "6η^M = {} ≥ 1. Increase the horizon to M ≥ {m_min} at η = {}, or lower η below \
                  6^(-1/M) = {:.4} at M = {} (η must stay feasible for LMI (2))",
-                6.0 * inputs.eta.powi(m as i32),
+                lti_model::numfmt::sig4(6.0 * inputs.eta.powi(m as i32)),
                 inputs.eta,
                 eta_sup_for_horizon(m),
                 m

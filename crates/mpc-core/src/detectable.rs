@@ -45,20 +45,20 @@ pub struct UndetectableMode {
 impl std::fmt::Display for UndetectableMode {
     fn fmt(&self, f: &mut std::fmt::Formatter<'_>) -> std::fmt::Result {
         let lambda = if self.im == 0.0 {
-            format!("{:.6}", self.re)
+            lti_model::numfmt::sig4(self.re)
         } else {
             format!(
-                "{:.6} {} {:.6}i",
-                self.re,
+                "{} {} {}i",
+                lti_model::numfmt::sig4(self.re),
                 if self.im < 0.0 { '−' } else { '+' },
-                self.im.abs()
+                lti_model::numfmt::sig4(self.im.abs())
             )
         };
         let states: Vec<String> = self.states.iter().map(|i| format!("x_{i}")).collect();
         write!(
             f,
-            "λ = {lambda} (|λ| = {:.6}) in the state component(s) {}",
-            self.modulus,
+            "λ = {lambda} (|λ| = {}) in the state component(s) {}",
+            lti_model::numfmt::sig4(self.modulus),
             states.join(", ")
         )
     }

@@ -47,6 +47,7 @@ pub use report::{
 };
 pub use sampled::{Gamma13Sampled, gamma13_sampled};
 
+use lti_model::numfmt::sig4;
 use faer::Mat;
 use lti_model::matrix::spectral_norm;
 use lti_model::spectral::Stability;
@@ -102,19 +103,21 @@ fn not_computed_reason(c: &MetricResult) -> Option<String> {
     }
     Some(match enumerated {
         Some(l) if l < 1.0 => format!(
-            "λ_S = {:.4} ≥ 1 over the family 0 ⪯ M ⪯ I: input_gain and gamma13_polynomial are \
-             not computed; over the free sets λ = {l:.4} < 1 gives the enumerated figures",
-            c.contraction
+            "λ_S = {} ≥ 1 over the family 0 ⪯ M ⪯ I: input_gain and gamma13_polynomial are \
+             not computed; over the free sets λ = {} < 1 gives the enumerated figures",
+            sig4(c.contraction),
+            sig4(l)
         ),
         Some(l) => format!(
-            "the metric does not contract (λ_S = {:.4} ≥ 1 over the family, ≥ {l:.4} over the \
+            "the metric does not contract (λ_S = {} ≥ 1 over the family, ≥ {} over the \
              free sets): input_gain, input_gain_enumerated, gamma13 and gamma1w are not computed",
-            c.contraction
+            sig4(c.contraction),
+            sig4(l)
         ),
         None => format!(
-            "the metric does not contract (λ_S = {:.4} ≥ 1): input_gain, gamma13 and gamma1w \
+            "the metric does not contract (λ_S = {} ≥ 1): input_gain, gamma13 and gamma1w \
              are not computed",
-            c.contraction
+            sig4(c.contraction)
         ),
     })
 }

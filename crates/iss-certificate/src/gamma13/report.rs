@@ -190,8 +190,8 @@ impl std::fmt::Display for Gamma13Report {
             (Some(v), _) => write!(f, "void: {v}")?,
             (None, Some(c)) => write!(
                 f,
-                "{:.6} ({}, {:?}, metric {})",
-                self.used,
+                "{} ({}, {:?}, metric {})",
+                lti_model::numfmt::sig4(self.used),
                 self.source,
                 c.method,
                 c.metric.as_deref().unwrap_or("-")
@@ -201,25 +201,35 @@ impl std::fmt::Display for Gamma13Report {
         if let Some(c) = &self.certified {
             write!(
                 f,
-                "\n  family bound (S-procedure, {} saturable of {} variables) {:.6}",
-                c.saturable, c.variables, c.gamma13_polynomial
+                "\n  family bound (S-procedure, {} saturable of {} variables) {}",
+                c.saturable,
+                c.variables,
+                lti_model::numfmt::sig4(c.gamma13_polynomial)
             )?;
             if let Some(e) = c.gamma13_enumerated {
                 write!(
                     f,
-                    "\n  enumerated over {} free sets     {e:.6}",
-                    c.free_sets
+                    "\n  enumerated over {} free sets     {}",
+                    c.free_sets,
+                    lti_model::numfmt::sig4(e)
                 )?;
             }
             if let Some(l) = c.gamma13_linear {
-                write!(f, "\n  linear law, impulse response     {l:.6}")?;
+                write!(
+                    f,
+                    "\n  linear law, impulse response     {}",
+                    lti_model::numfmt::sig4(l)
+                )?;
             }
         }
         if let Some(s) = &self.sampled {
             write!(
                 f,
-                "\n  sampled lower estimate ≥ {:.6} ({} sequences × {} steps, seed {})",
-                s.gamma13_lower, s.sequences, s.steps, s.seed
+                "\n  sampled lower estimate ≥ {} ({} sequences × {} steps, seed {})",
+                lti_model::numfmt::sig4(s.gamma13_lower),
+                s.sequences,
+                s.steps,
+                s.seed
             )?;
         }
         for s in &self.skipped {

@@ -60,8 +60,8 @@ impl JointAnalysis {
         let Some(k_e_floor) = self.k_e_min(k_max, k_max) else {
             region.void_reasons.push(format!(
                 "no pair with K_e, K_c ≤ {k_max} makes ρ(Γ) < 1 (at K_e = K_c = {k_max}: ρ(Γ) = \
-                 {:.4})",
-                self.at(k_max, k_max).spectral_radius
+                 {})",
+                lti_model::numfmt::sig4(self.at(k_max, k_max).spectral_radius)
             ));
             return region;
         };

@@ -229,7 +229,8 @@ impl std::fmt::Display for Gamma13Void {
                 write!(
                     f,
                     "no metric found in which every local gain contracts (best λ_S = \
-                     {best_contraction:.4}, metric {metric}; "
+                     {}, metric {metric}; ",
+                    sig4(*best_contraction)
                 )?;
                 if *enumerated {
                     write!(f, "all free sets enumerated)")

@@ -217,7 +217,7 @@ fn void_rows_report_their_exact_reason() {
             gamma13: f64::INFINITY,
             void: Some(
                 "gamma13 finite fails: no metric found in which every local gain contracts \
-                 (best λ_S = 1.0286, metric dare-R×100; S-procedure over 0 ⪯ Π ⪯ I with the \
+                 (best λ_S = 1.029, metric dare-R×100; S-procedure over 0 ⪯ Π ⪯ I with the \
                  first 1 input block(s) enumerated)",
             ),
         },
@@ -253,8 +253,8 @@ fn case_study_rows() {
         k_min: [None; 4],
         gamma13: 4.567594637308808,
         void: Some(
-            "rho < 1 fails (Prop. 3 (ρ^M = 6η^M; geometric series in √ρ) = 1.144775): \
-                 6η^M = 1.9661 ≥ 1. Increase the horizon to M ≥ 9 at η = 0.8, or lower η below \
+            "rho < 1 fails (Prop. 3 (ρ^M = 6η^M; geometric series in √ρ) = 1.145): \
+                 6η^M = 1.966 ≥ 1. Increase the horizon to M ≥ 9 at η = 0.8, or lower η below \
                  6^(-1/M) = 0.6988 at M = 5 (η must stay feasible for LMI (2))",
         ),
     });

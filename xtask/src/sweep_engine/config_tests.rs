@@ -63,8 +63,7 @@ fn config_errors_name_the_key() {
     );
     assert_eq!(
         key_of(
-            cfg("k = [1]\ncontroller = { kind = 'suboptimal-mpc', iterations = 0 }")
-                .unwrap_err()
+            cfg("k = [1]\ncontroller = { kind = 'suboptimal-mpc', iterations = 0 }").unwrap_err()
         ),
         "controller.iterations"
     );

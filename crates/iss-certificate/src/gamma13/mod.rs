@@ -47,9 +47,9 @@ pub use report::{
 };
 pub use sampled::{Gamma13Sampled, gamma13_sampled};
 
-use lti_model::numfmt::sig4;
 use faer::Mat;
 use lti_model::matrix::spectral_norm;
+use lti_model::numfmt::sig4;
 use lti_model::spectral::Stability;
 use mpc_core::{CondensedMpc, MpcError, worst_case_norm};
 use rayon::prelude::*;

@@ -299,7 +299,8 @@ fn undamped_chain_is_void_as_marginally_stable_and_weakly_damped_chain_names_the
         other => panic!("{other:?}"),
     }
     assert!(c.void.unwrap().to_string().starts_with(&format!(
-        "no metric found in which every local gain contracts (best λ_S = {best:.4}"
+        "no metric found in which every local gain contracts (best λ_S = {}",
+        lti_model::numfmt::sig4(best)
     )));
 }
 

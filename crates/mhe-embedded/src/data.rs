@@ -124,6 +124,19 @@ pub(crate) fn check(what: &'static str, expected: usize, actual: usize) -> Resul
     }
 }
 
+/// `Ok` when a count that must be positive is (`what` names it, e.g. `"iterations (≥ 1)"`).
+pub(crate) fn at_least_one(what: &'static str, actual: usize) -> Result<(), DataError> {
+    if actual >= 1 {
+        Ok(())
+    } else {
+        Err(DataError {
+            what,
+            expected: 1,
+            actual,
+        })
+    }
+}
+
 impl<T: Scalar> Problem<'_, T> {
     /// n_w = n_w1 + n_w2.
     pub fn nw(&self) -> usize {
@@ -147,20 +160,8 @@ impl<T: Scalar> Problem<'_, T> {
         check("M (horizon)", self.horizon, m)?;
         check("NZ (n_x + M n_w)", self.nx + m * self.nw(), nz)?;
         check("NTH (n_x + M (n_u + n_y))", self.nx + m * (nu + ny), nth)?;
-        if self.horizon == 0 {
-            return Err(DataError {
-                what: "horizon (≥ 1)",
-                expected: 1,
-                actual: 0,
-            });
-        }
-        if self.iterations == 0 {
-            return Err(DataError {
-                what: "iterations (≥ 1)",
-                expected: 1,
-                actual: 0,
-            });
-        }
+        at_least_one("horizon (≥ 1)", self.horizon)?;
+        at_least_one("iterations (≥ 1)", self.iterations)?;
         check("a length", nx * nx, self.a.len())?;
         check("b length", nx * nu, self.b.len())?;
         check("e length", nx * self.nw1, self.e.len())?;

@@ -1,7 +1,7 @@
 //! The K_c-iteration MPC (`mpc_core::SuboptimalMpc` with the shift-and-repeat warm start)
 //! with every buffer sized at compile time.
 
-use crate::data::{DataError, Method, Window, check};
+use crate::data::{DataError, Method, Window, at_least_one, check};
 use crate::qp::{self, SLOTS};
 use crate::scalar::Scalar;
 
@@ -52,20 +52,8 @@ impl<T: Scalar> MpcProblem<'_, T> {
         check("NX (n_x)", self.nx, nx)?;
         check("NU (n_u)", self.nu, nu)?;
         check("NSEQ (N n_u)", self.horizon * self.nu, nseq)?;
-        if self.horizon == 0 || nu == 0 {
-            return Err(DataError {
-                what: "horizon and n_u (≥ 1)",
-                expected: 1,
-                actual: 0,
-            });
-        }
-        if self.iterations == 0 {
-            return Err(DataError {
-                what: "iterations (≥ 1)",
-                expected: 1,
-                actual: 0,
-            });
-        }
+        at_least_one("horizon and n_u (≥ 1)", self.horizon.min(nu))?;
+        at_least_one("iterations (≥ 1)", self.iterations)?;
         let w = &self.qp;
         check("qp n", nseq, w.n)?;
         check("qp n_theta", nx, w.n_theta)?;

@@ -9,6 +9,7 @@
 //! | γ₁,₃ free-set enumeration | skipped: the polynomial (S-procedure) bound alone is used, and the skip says so |
 //! | ρ_lin (the linear stability boundary, `reproduce`) | skipped with the estimate, the budget and the key |
 //! | L_Φ sampling (a lower estimate; no certificate depends on it) | fewer pairs, and `l_phi.pairs_reduced` says so |
+//! | the regional certificate (`crate::regional`: its two stages at one K, or a whole K_reg search) | not computed: the void reason names the stage, its estimate, what is left and the key |
 //! | δ-IOSS P, MHE constants (H̄, L_Φ, φ(K)), L_π, γ₁,₃ family bounds | run (every certificate needs them); the estimate is printed first, so a long phase is announced |
 //!
 //! The estimates are deterministic formulas of the dimensions (so the certificate does not

@@ -22,6 +22,7 @@
 //! general rows. The disturbance bound is a Euclidean bound per step (a Gaussian noise has
 //! none: give `certificate.w_bar`).
 
+mod cost;
 mod lifted;
 mod metric;
 mod model;
@@ -54,6 +55,9 @@ pub struct RegionalOptions {
     /// Candidate metrics: λ = ρ_lin + (1 − ρ_lin)·f for each f here (Stein equation with
     /// Q = I at the rate λ).
     pub rate_fractions: Vec<f64>,
+    /// Estimated single-core seconds one certificate (or one K_reg search) may take
+    /// (`certificate.phase_seconds`; `regional/cost.rs` estimates each stage before it runs).
+    pub phase_seconds: f64,
 }
 
 /// Why there is no regional certificate.
@@ -94,6 +98,101 @@ pub enum RegionalVoid {
     /// A bad option.
     #[error("{0}")]
     Options(String),
+    /// A stage's estimated cost is beyond what is left of the budget (`regional/cost.rs`).
+    #[error(
+        "not computed at K = {k}: {stage} is estimated at ≈ {} s of one core ({} multiply-adds, \
+         ≈ {} of memory), more than the {} s left of the analysis budget (scenario key \
+         `certificate.phase_seconds`, {} s; raise it to compute)",
+        crate::budget::secs(*seconds),
+        crate::budget::sci(*work),
+        bytes_text(*bytes),
+        crate::budget::secs(*left),
+        crate::budget::secs(*budget)
+    )]
+    OverBudget {
+        /// K.
+        k: usize,
+        /// The stage (the lifted model and its rows, or the metrics and margins).
+        stage: &'static str,
+        /// Estimated multiply-adds.
+        work: f64,
+        /// Estimated seconds of one core.
+        seconds: f64,
+        /// Estimated peak bytes.
+        bytes: f64,
+        /// Seconds left of the budget when the stage was reached.
+        left: f64,
+        /// `certificate.phase_seconds`.
+        budget: f64,
+    },
+    /// A stage's estimated memory is beyond the documented limit for dense matrices.
+    #[error(
+        "not computed at K = {k}: {stage} would hold ≈ {} (its constraint rows grow with \
+         K·n_z·dim X), above the limit of {} for dense matrices (docs/limits.md); lower K or \
+         `mhe.horizon`",
+        bytes_text(*bytes),
+        bytes_text(lti_model::spec::limits::MAX_DENSE_BYTES)
+    )]
+    OverMemory {
+        /// K.
+        k: usize,
+        /// The stage.
+        stage: &'static str,
+        /// Estimated peak bytes.
+        bytes: f64,
+    },
+}
+
+/// Bytes in MiB or GiB with at most 4 significant digits.
+fn bytes_text(b: f64) -> String {
+    const MIB: f64 = (1u64 << 20) as f64;
+    if b >= 1024.0 * MIB {
+        format!("{} GiB", lti_model::numfmt::sig4(b / (1024.0 * MIB)))
+    } else {
+        format!("{} MiB", lti_model::numfmt::sig4(b / MIB))
+    }
+}
+
+/// What is left of the budget of one certificate or one K_reg search.
+struct Budget {
+    total: f64,
+    left: f64,
+}
+
+impl Budget {
+    fn new(total: f64) -> Self {
+        Self { total, left: total }
+    }
+
+    /// Spends the stage's estimate, or refuses it (memory first: it is a hard limit).
+    fn spend(
+        &mut self,
+        k: usize,
+        stage: &'static str,
+        c: cost::StageCost,
+    ) -> Result<(), RegionalVoid> {
+        if c.bytes > lti_model::spec::limits::MAX_DENSE_BYTES {
+            return Err(RegionalVoid::OverMemory {
+                k,
+                stage,
+                bytes: c.bytes,
+            });
+        }
+        let seconds = c.work / crate::budget::DENSE_RATE;
+        if seconds > self.left {
+            return Err(RegionalVoid::OverBudget {
+                k,
+                stage,
+                work: c.work,
+                seconds,
+                bytes: c.bytes,
+                left: self.left,
+                budget: self.total,
+            });
+        }
+        self.left -= seconds;
+        Ok(())
+    }
 }
 
 /// The binding row of a region, with its figures.
@@ -223,6 +322,7 @@ impl RegionalOptions {
             prior_error: cs.prior_error.unwrap_or(default_prior),
             w_bar,
             rate_fractions: vec![0.02, 0.1, 0.25, 0.5, 0.75],
+            phase_seconds: cs.phase_seconds(),
         })
     }
 }
@@ -325,11 +425,7 @@ struct Impulse {
 }
 
 fn impulse(model: &RegionalModel, rho: f64) -> Impulse {
-    let t = if rho < 1e-3 {
-        8
-    } else {
-        ((1e-9f64).ln() / rho.ln()).ceil().clamp(8.0, 400.0) as usize
-    };
+    let t = cost::impulse_terms(rho);
     let (n, nw) = (model.a.nrows(), model.bw.ncols());
     let mut ib = Mat::<f64>::zeros(n, nw * t);
     let mut cur = model.bw.clone();
@@ -501,7 +597,42 @@ pub fn regional_certificate(
     options: &RegionalOptions,
 ) -> Result<RegionalCertificate, RegionalVoid> {
     let pieces = model::pieces(resolved, method, options.controller)?;
-    certify_at(&pieces, method, k, options).map(|r| r.0)
+    let mut budget = Budget::new(options.phase_seconds);
+    certify_at(&pieces, method, k, options, &mut budget).map(|r| r.0)
+}
+
+/// The estimated cost of [`regional_certificate`] at K, as its budget checks it
+/// (`regional/cost.rs`): multiply-adds, seconds of one core at
+/// [`crate::budget::DENSE_RATE`], and the peak bytes of its large matrices.
+#[derive(Debug, Clone, Copy, PartialEq, Serialize)]
+pub struct RegionalEstimate {
+    /// Multiply-adds of both stages.
+    pub work: f64,
+    /// `work` in seconds of one core.
+    pub seconds: f64,
+    /// Peak bytes (the larger stage).
+    pub bytes: f64,
+}
+
+/// [`RegionalEstimate`] of `method` at K. ρ_lin(K) sets the length of the impulse response
+/// (the second stage): pass the certificate's `rho_lin` when known, else a bound (a ρ close
+/// to 1 gives the longest, 400 terms).
+pub fn estimate(
+    resolved: &ResolvedScenario,
+    method: qp_iter::Method,
+    k: usize,
+    options: &RegionalOptions,
+    rho: f64,
+) -> Result<RegionalEstimate, RegionalVoid> {
+    let pieces = model::pieces(resolved, method, options.controller)?;
+    let a = cost::model_cost(&pieces, k);
+    let b = cost::analysis_cost(&cost::sizes(&pieces, k), rho, &options.rate_fractions);
+    let work = a.work + b.work;
+    Ok(RegionalEstimate {
+        work,
+        seconds: work / crate::budget::DENSE_RATE,
+        bytes: a.bytes.max(b.bytes),
+    })
 }
 
 /// The matrices behind a regional certificate (for checks and plots): the lifted loop
@@ -542,7 +673,8 @@ pub fn regional_detail(
     options: &RegionalOptions,
 ) -> Result<(RegionalCertificate, RegionalDetail), RegionalVoid> {
     let pieces = model::pieces(resolved, method, options.controller)?;
-    let (c, model, m) = certify_at(&pieces, method, k, options)?;
+    let mut budget = Budget::new(options.phase_seconds);
+    let (c, model, m) = certify_at(&pieces, method, k, options, &mut budget)?;
     Ok((c, detail_of(model, m)))
 }
 
@@ -551,6 +683,7 @@ fn certify_at(
     method: qp_iter::Method,
     k: usize,
     o: &RegionalOptions,
+    budget: &mut Budget,
 ) -> Result<(RegionalCertificate, RegionalModel, metric::Metric), RegionalVoid> {
     if o.x0_nominal.len() != pieces.a.nrows() {
         return Err(RegionalVoid::Options(format!(
@@ -559,11 +692,24 @@ fn certify_at(
             pieces.a.nrows()
         )));
     }
+    if k == 0 || pieces.windows.iter().any(|w| k < w.lin.start_steps) {
+        return Err(ModelError::from(crate::linear::LinearError::ZeroIterations).into());
+    }
+    budget.spend(
+        k,
+        "the lifted model (every inner iterate's rows) and ρ_lin",
+        cost::model_cost(pieces, k),
+    )?;
     let model = lifted::build(pieces, k).map_err(ModelError::from)?;
     let rho = spectral_radius(model.a.as_ref(), Par::Seq).map_err(ModelError::from)?;
     if !(rho < 1.0) {
         return Err(RegionalVoid::Unstable { k, rho });
     }
+    budget.spend(
+        k,
+        "the impulse response, the candidate metrics and the rows' margins",
+        cost::analysis_cost(&cost::sizes(pieces, k), rho, &o.rate_fractions),
+    )?;
     let imp = impulse(&model, rho);
     let mut best: Option<(f64, Candidate)> = None;
     for &f in &o.rate_fractions {
@@ -689,20 +835,28 @@ fn detail_of(model: RegionalModel, m: metric::Metric) -> RegionalDetail {
 /// K_reg: the smallest K at which the regional certificate contains the user's set.
 #[derive(Debug, Clone, PartialEq, Serialize)]
 pub struct KReg {
-    /// K_reg (None: no K up to `k_max` on the search).
+    /// K_reg (None: no K up to `k_max` on the search, or the budget ended it first).
     pub k_reg: Option<usize>,
-    /// The certificate at K_reg, or at the largest K tried when none contains the set.
+    /// The certificate at K_reg, or at the largest K evaluated when none contains the set.
     pub certificate: Option<RegionalCertificate>,
     /// Every K evaluated with its margin (−∞ / NaN: void), ascending.
     pub tried: Vec<(usize, f64)>,
     /// The void reason at the largest K tried, if it is void.
     pub void: Option<String>,
+    /// Why the search stopped before it was complete: the next evaluation's estimate is beyond
+    /// what is left of `certificate.phase_seconds` (or the memory limit). With a K_reg this
+    /// means the bisection below it was cut short (K_reg is still certified, possibly not the
+    /// smallest); without, that no K beyond the last one tried was evaluated.
+    pub stopped: Option<String>,
 }
 
 /// K_reg of `method` (module docs): K = 1, 2, 4, … up to `k_max` until the certificate
 /// contains the user's set, then bisection between the last failing and the first passing
 /// K. The margin need not be monotone in K: K_reg is certified (evaluated exactly there) and
 /// is the smallest K found by this search, not a claim about every K above it.
+///
+/// The whole search shares one budget, `options.phase_seconds`: each evaluation's stages are
+/// estimated before they run, and the first that does not fit ends the search (`stopped`).
 pub fn k_reg(
     resolved: &ResolvedScenario,
     method: qp_iter::Method,
@@ -710,10 +864,20 @@ pub fn k_reg(
     k_max: usize,
 ) -> Result<KReg, RegionalVoid> {
     let pieces = model::pieces(resolved, method, options.controller)?;
-    let start = pieces.windows[0].lin.start_steps.max(1);
+    let start = pieces
+        .windows
+        .iter()
+        .map(|w| w.lin.start_steps)
+        .max()
+        .unwrap_or(1)
+        .max(1);
+    let mut budget = Budget::new(options.phase_seconds);
     let mut tried = Vec::new();
-    let eval = |k: usize, tried: &mut Vec<(usize, f64)>| {
-        let r = certify_at(&pieces, method, k, options).map(|r| r.0);
+    let mut eval = |k: usize, tried: &mut Vec<(usize, f64)>| {
+        let r = certify_at(&pieces, method, k, options, &mut budget).map(|r| r.0);
+        if let Err(e @ (RegionalVoid::OverBudget { .. } | RegionalVoid::OverMemory { .. })) = r {
+            return Err(e.to_string());
+        }
         tried.push((
             k,
             r.as_ref().map_or(f64::NAN, |c| {
@@ -724,16 +888,22 @@ pub fn k_reg(
                 }
             }),
         ));
-        r
+        Ok(r)
     };
     let mut lo = start - 1; // not certified (or below the first K)
     let mut k = start;
     let mut last = None;
     let mut found = None;
+    let mut stopped = None;
     loop {
-        let r = eval(k, &mut tried);
-        let ok = r.as_ref().is_ok_and(|c| c.contains);
-        if ok {
+        let r = match eval(k, &mut tried) {
+            Ok(r) => r,
+            Err(why) => {
+                stopped = Some(why);
+                break;
+            }
+        };
+        if r.as_ref().is_ok_and(|c| c.contains) {
             found = Some((k, r));
             break;
         }
@@ -748,7 +918,7 @@ pub fn k_reg(
         let (certificate, void) = match last {
             Some(Ok(c)) => (Some(c), None),
             Some(Err(e)) => (None, Some(e.to_string())),
-            None => (None, None),
+            None => (None, stopped.clone()),
         };
         tried.sort_by_key(|t| t.0);
         return Ok(KReg {
@@ -756,11 +926,18 @@ pub fn k_reg(
             certificate,
             tried,
             void,
+            stopped,
         });
     };
     while hi - lo > 1 {
         let mid = lo + (hi - lo) / 2;
-        let r = eval(mid, &mut tried);
+        let r = match eval(mid, &mut tried) {
+            Ok(r) => r,
+            Err(why) => {
+                stopped = Some(why);
+                break;
+            }
+        };
         if r.as_ref().is_ok_and(|c| c.contains) {
             hi = mid;
             best = r;
@@ -774,5 +951,6 @@ pub fn k_reg(
         certificate: best.ok(),
         tried,
         void: None,
+        stopped,
     })
 }

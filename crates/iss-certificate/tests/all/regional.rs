@@ -407,3 +407,57 @@ fn the_stand_in_names_its_limiting_constraint() {
     let sl = c.startup_limit.unwrap();
     assert!(sl.reach > sl.bound, "{sl:?}");
 }
+
+/// The budget (`certificate.phase_seconds`) and the memory limit: a stage whose estimate does
+/// not fit is refused before it runs, naming the key; a K_reg search stops at the first
+/// evaluation that does not fit and says so, keeping what it certified.
+#[test]
+fn the_budget_refuses_a_stage_before_it_runs_and_stops_the_search() {
+    use iss_certificate::regional::estimate;
+    let res = Scenario::from_file(STAND_IN).unwrap().resolve().unwrap();
+    let ro = RegionalOptions::from_scenario(&res, ControllerChoice::ExactMpc).unwrap();
+    assert_eq!(
+        ro.phase_seconds,
+        closed_loop::scenario::DEFAULT_PHASE_SECONDS
+    );
+    let est = estimate(&res, Method::ADMM, 20, &ro, 0.9).unwrap();
+    assert!(est.seconds > 0.0 && est.bytes > 0.0 && est.work > 0.0);
+    // A budget below the first stage's estimate: refused at once, nothing computed.
+    let tiny = RegionalOptions {
+        phase_seconds: est.seconds * 1e-6,
+        ..ro.clone()
+    };
+    let started = std::time::Instant::now();
+    let e = regional_certificate(&res, Method::ADMM, 20, &tiny).unwrap_err();
+    assert!(matches!(e, RegionalVoid::OverBudget { k: 20, .. }), "{e:?}");
+    let text = e.to_string();
+    assert!(text.contains("certificate.phase_seconds"), "{text}");
+    assert!(text.contains("K = 20"), "{text}");
+    // A K so large that its rows exceed the memory limit: refused by the estimate, at once.
+    let e = regional_certificate(&res, Method::ADMM, 10_000_000, &ro).unwrap_err();
+    assert!(matches!(e, RegionalVoid::OverMemory { .. }), "{e:?}");
+    assert!(e.to_string().contains("GiB"), "{e}");
+    assert!(started.elapsed().as_secs_f64() < 60.0);
+    // The search: with a budget that fits K = 1, 2, 4 but not 8 (each evaluation costs more
+    // than the last), it stops at 8 and says why.
+    let cost = |k: usize| estimate(&res, Method::ADMM, k, &ro, 0.9).unwrap().seconds;
+    let budget = cost(1) + cost(2) + cost(4) + 0.5 * cost(8);
+    let cut = RegionalOptions {
+        phase_seconds: budget,
+        ..ro.clone()
+    };
+    let kr = k_reg(&res, Method::ADMM, &cut, 1 << 20).unwrap();
+    assert_eq!(kr.k_reg, None, "{kr:?}");
+    let stopped = kr.stopped.as_deref().unwrap();
+    assert!(
+        stopped.contains("K = 8") && stopped.contains("phase_seconds"),
+        "{stopped}"
+    );
+    assert!(kr.tried.iter().all(|t| t.0 <= 4), "{:?}", kr.tried);
+    // Without the cut the search goes on past K = 8.
+    let full = k_reg(&res, Method::ADMM, &ro, 16).unwrap();
+    assert!(
+        full.stopped.is_none() && full.tried.iter().any(|t| t.0 == 16),
+        "{full:?}"
+    );
+}

@@ -1,0 +1,169 @@
+//! The cost of one regional certificate, estimated from the dimensions before each stage
+//! starts (issue 23 item 3, issue 25 item 4), with the same counts the code allocates by.
+//!
+//! Two stages, each checked against what is left of the budget before it runs:
+//!
+//! 1. **The lifted model** ([`model_cost`]): every inner iterate of every window as a linear
+//!    map — per iterate a product of the step matrix (n_ξ × n_ξ) with the n_ξ × cols iterate
+//!    and the readout (n_z × n_ξ); cols = dim X for the full window, dim υ = 2n_x + M n_w for
+//!    the M start-up windows — then the spectral radius of 𝔸(K) ([`crate::linear::eigen_work`]).
+//!    Its memory is the rows: one stored row of cols entries per finitely bounded component of
+//!    every projected point of every iterate.
+//! 2. **The metrics and the margins** ([`analysis_cost`], once ρ_lin(K) is known): the impulse
+//!    response to T terms (T from ρ_lin, as `impulse` picks it) and its product with every
+//!    full-window row (rows × dim X × T n_w), then per candidate rate a Stein equation by
+//!    doubling (3 dim³ per doubling step, as many steps as (ρ/λ)^(2^j) needs to reach 1e-14),
+//!    the square roots (≈ 12 dim³) and the rows in the metric (rows × dim X²).
+//!
+//! All are multiply-adds of blocked dense kernels, at [`crate::budget::DENSE_RATE`] per second
+//! of one core; the calibration against measured times is in `docs/limits.md`.
+
+use super::model::Pieces;
+use crate::linear::eigen_work;
+
+/// Bytes of one f64, times the overhead measured over the counted matrices (column padding,
+/// the row labels and bounds, transient copies): the heap peak of `regional_certificate` was
+/// 1.2–1.4× the counted f64s on the grid of `tests/regional_memory.rs`.
+const F64: f64 = 8.0 * 1.35;
+
+/// Estimated work and memory of one stage.
+#[derive(Debug, Clone, Copy, PartialEq)]
+pub(crate) struct StageCost {
+    /// Multiply-adds.
+    pub work: f64,
+    /// Peak bytes held by the stage's large matrices.
+    pub bytes: f64,
+}
+
+/// The sizes of the model at K that the stages' costs depend on.
+#[derive(Debug, Clone, Copy, PartialEq)]
+pub(crate) struct Sizes {
+    /// dim X.
+    pub dim: f64,
+    /// dim υ = 2n_x + M n_w.
+    pub nv: f64,
+    /// n_w.
+    pub nw: f64,
+    /// Full-window rows.
+    pub rows: f64,
+    /// Start-up rows.
+    pub startup_rows: f64,
+}
+
+fn finite_bounds(lower: &[f64], upper: &[f64]) -> f64 {
+    lower
+        .iter()
+        .zip(upper)
+        .filter(|(l, u)| l.is_finite() || u.is_finite())
+        .count() as f64
+}
+
+/// (work, rows) of one MHE step of window `w` with K iterations on `cols` columns
+/// (`model::mhe_step`).
+fn step_cost(w: &super::model::WindowStep, k: usize, cols: f64) -> (f64, f64) {
+    let lin = &w.lin;
+    let (n, nt, xi) = (lin.n as f64, lin.n_theta as f64, lin.lift_dim() as f64);
+    let iterates = (k.saturating_sub(lin.start_steps) + 1) as f64;
+    let (g_rows, g_work) = w.general.as_ref().map_or((0.0, 0.0), |(g, _, l, u)| {
+        (finite_bounds(l, u), g.nrows() as f64 * (n + nt) * cols)
+    });
+    let per_iterate = (xi * xi + n * xi) * cols + g_work;
+    let work = xi * (n + nt) * cols + xi * nt * cols + iterates * per_iterate + n * cols * n;
+    let rows = iterates * (finite_bounds(&w.lower, &w.upper) + g_rows);
+    (work, rows)
+}
+
+/// The sizes of the model at K, from the pieces alone.
+pub(crate) fn sizes(p: &Pieces, k: usize) -> Sizes {
+    let big_m = p.windows.len() - 1;
+    let full = &p.windows[big_m];
+    let d = full.layout.dims;
+    let (nx, nu, ny, nw) = (d.nx, d.nu, d.ny, d.nw());
+    let dim = nx + big_m * (nu + ny + nx) + full.layout.nz();
+    let nv = 2 * nx + big_m * nw;
+    let law_rows = finite_bounds(&p.law.lower, &p.law.upper);
+    let (_, full_rows) = step_cost(full, k, dim as f64);
+    let startup_rows: f64 = p.windows[..big_m]
+        .iter()
+        .map(|w| step_cost(w, k, nv as f64).1 + law_rows)
+        .sum();
+    Sizes {
+        dim: dim as f64,
+        nv: nv as f64,
+        nw: nw as f64,
+        rows: full_rows + law_rows,
+        startup_rows,
+    }
+}
+
+/// Stage 1: the lifted model at K and ρ_lin(K).
+pub(crate) fn model_cost(p: &Pieces, k: usize) -> StageCost {
+    let s = sizes(p, k);
+    let big_m = p.windows.len() - 1;
+    let full = step_cost(&p.windows[big_m], k, s.dim).0;
+    let startup: f64 = p.windows[..big_m]
+        .iter()
+        .map(|w| step_cost(w, k, s.nv).0)
+        .sum();
+    let law = p.law.gain.nrows() as f64 * p.law.gain.ncols() as f64 * (s.dim + big_m as f64 * s.nv);
+    let work = full + startup + law + eigen_work(s.dim as usize) + 2.0 * s.dim.powi(3);
+    let bytes =
+        F64 * (s.rows * s.dim + s.startup_rows * s.nv + 4.0 * s.dim * s.dim + 2.0 * s.dim * s.nv);
+    StageCost { work, bytes }
+}
+
+/// The number of impulse-response terms `impulse` takes at ρ_lin = `rho`.
+pub(crate) fn impulse_terms(rho: f64) -> usize {
+    if rho < 1e-3 {
+        8
+    } else {
+        ((1e-9f64).ln() / rho.ln()).ceil().clamp(8.0, 400.0) as usize
+    }
+}
+
+/// Doubling steps of the Stein series at rate λ for ρ(A) = ρ: (ρ/λ)^(2^j) ≤ 1e-14.
+fn doubling_steps(rho: f64, lambda: f64) -> f64 {
+    let q = (rho / lambda).clamp(1e-300, 1.0 - 1e-12);
+    let needed = (1e-14f64).ln() / q.ln();
+    // +3: transient growth of non-normal 𝔸 before the decay sets in.
+    (needed.max(1.0).log2().ceil() + 3.0).min(64.0)
+}
+
+/// Stage 2: the impulse response, the candidate metrics and every row's margin.
+pub(crate) fn analysis_cost(s: &Sizes, rho: f64, fractions: &[f64]) -> StageCost {
+    let t = impulse_terms(rho) as f64;
+    let impulse = t * s.dim * s.dim * s.nw + s.rows * s.dim * s.nw * t;
+    let candidates: f64 = fractions
+        .iter()
+        .map(|f| {
+            let lambda = rho + (1.0 - rho) * f;
+            (3.0 * doubling_steps(rho, lambda) + 16.0) * s.dim.powi(3)
+                + s.rows * s.dim * s.dim
+                + s.dim * s.dim * s.nv
+        })
+        .sum();
+    let bytes = F64 * (s.rows * s.dim + s.dim * s.nw * t + 8.0 * s.dim * s.dim);
+    StageCost {
+        work: impulse + candidates,
+        bytes,
+    }
+}
+
+#[cfg(test)]
+mod tests {
+    use super::*;
+
+    #[test]
+    fn impulse_terms_follow_the_rate() {
+        assert_eq!(impulse_terms(0.0), 8);
+        assert_eq!(impulse_terms(0.5), 30);
+        assert_eq!(impulse_terms(0.999_999), 400);
+    }
+
+    #[test]
+    fn doubling_steps_grow_as_the_rate_nears_rho() {
+        let fast = doubling_steps(0.5, 0.9);
+        let slow = doubling_steps(0.99, 0.9902);
+        assert!(fast < slow && slow <= 64.0, "{fast} {slow}");
+    }
+}

@@ -848,6 +848,9 @@ pub struct KReg {
     /// means the bisection below it was cut short (K_reg is still certified, possibly not the
     /// smallest); without, that no K beyond the last one tried was evaluated.
     pub stopped: Option<String>,
+    /// Estimated single-core seconds the search spent (the sum of the estimates of the stages
+    /// it ran): a caller running several searches under one budget subtracts it.
+    pub spent_seconds: f64,
 }
 
 /// K_reg of `method` (module docs): K = 1, 2, 4, … up to `k_max` until the certificate
@@ -927,6 +930,7 @@ pub fn k_reg(
             tried,
             void,
             stopped,
+            spent_seconds: budget.total - budget.left,
         });
     };
     while hi - lo > 1 {
@@ -952,5 +956,6 @@ pub fn k_reg(
         tried,
         void: None,
         stopped,
+        spent_seconds: budget.total - budget.left,
     })
 }

@@ -454,6 +454,11 @@ fn the_budget_refuses_a_stage_before_it_runs_and_stops_the_search() {
         "{stopped}"
     );
     assert!(kr.tried.iter().all(|t| t.0 <= 4), "{:?}", kr.tried);
+    assert!(
+        kr.spent_seconds > 0.0 && kr.spent_seconds <= budget,
+        "{} of {budget}",
+        kr.spent_seconds
+    );
     // Without the cut the search goes on past K = 8.
     let full = k_reg(&res, Method::ADMM, &ro, 16).unwrap();
     assert!(

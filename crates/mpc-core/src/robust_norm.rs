@@ -26,7 +26,7 @@
 //! The bound depends on U and V only through UUᵀ and VᵀV.
 
 use faer::{Mat, MatRef, Side};
-use lti_model::matrix::sym_lambda_max_in_place;
+use lti_model::matrix::sym_lambda_max;
 use serde::Serialize;
 
 use crate::error::{MpcError, Result};
@@ -127,9 +127,41 @@ pub fn worst_case_norm(
     let mut g = vec![0.0; q * q];
     let mut evaluations = 0usize;
     // γ²(τ₀ + t); t is kept ≥ 1e-10·τ₀, far above the round-off of the λᵢ.
+    // Wide families (q above the Jacobi size): Zᵀdiag(1/(τ − λ))Z as one blocked product of
+    // the scaled rows, VᵀV added, and the dense eigenvalues; narrow ones keep the scalar
+    // loop (bit for bit the earlier results).
+    let wide = q > lti_model::matrix::JACOBI_MAX_DIM;
+    let (mut zs, mut gm) = if wide {
+        (Mat::<f64>::zeros(p, q), Mat::<f64>::zeros(q, q))
+    } else {
+        (Mat::new(), Mat::new())
+    };
     let mut gamma2 = |t: f64| -> f64 {
         evaluations += 1;
         let tau = tau0 + t;
+        if wide {
+            for i in 0..p {
+                // τ − λᵢ ≥ t > 0.
+                let w = (tau - lam[i]).recip().sqrt();
+                for a in 0..q {
+                    zs[(i, a)] = z[(i, a)] * w;
+                }
+            }
+            faer::linalg::matmul::matmul(
+                gm.as_mut(),
+                faer::Accum::Replace,
+                zs.transpose(),
+                zs.as_ref(),
+                1.0,
+                faer::Par::Seq,
+            );
+            for a in 0..q {
+                for b in 0..q {
+                    g[a * q + b] = gm[(a, b)] + vtv[(a, b)];
+                }
+            }
+            return tau * sym_lambda_max(&mut g, q).max(0.0);
+        }
         for a in 0..q {
             for b in 0..=a {
                 let mut acc = vtv[(a, b)];
@@ -140,7 +172,7 @@ pub fn worst_case_norm(
                 g[b * q + a] = acc;
             }
         }
-        tau * sym_lambda_max_in_place(&mut g, q).max(0.0)
+        tau * sym_lambda_max(&mut g, q).max(0.0)
     };
     let t_lo = 1e-10 * tau0;
     // Scalar case: t* = |u·m|/|v|; use its matrix analogue as the centre of the scan.

@@ -102,6 +102,8 @@ pub fn certify_closed_loop_with(
         .as_ref()
         .ok_or(ClosedLoopError::MissingSection { section: "mhe" })?;
     let mpc = resolved.mpc()?.clone();
+    // A phase every certificate needs, estimated beyond its documented limit: refused now.
+    crate::budget::check_required_phases(scenario, Some(&mpc), opts)?;
     let sys = &scenario.plant;
     let (m, eta) = (spec.horizon, spec.eta);
     let c_norm = spectral_norm(sys.c());

@@ -42,9 +42,11 @@ pub(crate) fn metric(name: impl Into<String>, s: MatRef<'_, f64>) -> Option<Metr
     if !(lmin > 1e-13 * lmax) || !lmax.is_finite() {
         return None;
     }
+    // d_k^p once per k (the products below are unchanged, bit for bit).
     let build = |p: f64| {
+        let dp: Vec<f64> = (0..n).map(|k| d[k].powf(p)).collect();
         Mat::from_fn(n, n, |i, j| {
-            (0..n).map(|k| u[(i, k)] * d[k].powf(p) * u[(j, k)]).sum()
+            (0..n).map(|k| u[(i, k)] * dp[k] * u[(j, k)]).sum()
         })
     };
     Some(Metric {

@@ -128,3 +128,39 @@ fn phase_estimates_name_every_phase_and_follow_the_key() {
         assert!(e.contains("certificate.phase_seconds"), "{bad}: {e}");
     }
 }
+
+/// A phase every certificate needs, estimated beyond `REQUIRED_PHASE_FACTOR` × the budget, is
+/// refused before the certificate starts, naming the phase, its estimate and the key; within
+/// the limit the same scenario certifies.
+#[test]
+fn a_required_phase_beyond_its_limit_refuses_the_certificate_before_it_starts() {
+    use iss_certificate::budget::{REQUIRED_PHASE_FACTOR, check_required_phases};
+    use iss_certificate::certificate::certify_closed_loop;
+    let s = scenario("case-study-certified.toml");
+    let r = s.clone().resolve().unwrap();
+    let opts = CertificateOptions::default();
+    let phases = estimate_phases(&s, r.mpc().ok(), &opts, 1);
+    let largest = phases
+        .iter()
+        .filter(|p| p.required)
+        .map(|p| p.seconds)
+        .fold(0.0, f64::max);
+    assert!(largest > 0.0);
+    assert!(check_required_phases(&s, r.mpc().ok(), &opts).is_ok());
+    // A budget whose limit lies just below the largest required phase.
+    let tight = CertificateOptions {
+        phase_seconds: 0.9 * largest / REQUIRED_PHASE_FACTOR,
+        ..CertificateOptions::default()
+    };
+    let started = std::time::Instant::now();
+    let e = certify_closed_loop(&r, &tight).unwrap_err().to_string();
+    assert!(started.elapsed().as_secs_f64() < 5.0);
+    assert!(e.contains("certificate.phase_seconds"), "{e}");
+    assert!(e.contains("every certificate"), "{e}");
+    // Just above it: computed.
+    let enough = CertificateOptions {
+        phase_seconds: 1.1 * largest / REQUIRED_PHASE_FACTOR,
+        ..CertificateOptions::default()
+    };
+    assert!(check_required_phases(&s, r.mpc().ok(), &enough).is_ok());
+}

@@ -102,6 +102,39 @@ fn worst_case_norm_matches_scalar_closed_form_and_degenerate_cases() {
     assert!((b.bound - spectral(&m0)).abs() <= 1e-9 * spectral(&m0));
 }
 
+/// Wide families (q = 40 columns, above `lti_model::matrix::JACOBI_MAX_DIM`, where γ²(τ) uses
+/// the dense eigenvalues): M₀ = 0 gives ‖U‖‖V‖ exactly, and for a general M₀ the bound lies
+/// above every sampled rank-one Δ and below ‖M₀‖ + ‖U‖‖V‖.
+#[test]
+fn worst_case_norm_of_wide_families_is_sound_and_tight() {
+    let mut r = rng(12);
+    let q = 40;
+    assert!(q > lti_model::matrix::JACOBI_MAX_DIM);
+    let (u, v, m0) = (
+        gauss(&mut r, 6, 3),
+        gauss(&mut r, 5, q),
+        gauss(&mut r, 6, q),
+    );
+    let b = worst_case_norm(Mat::<f64>::zeros(6, q).as_ref(), u.as_ref(), v.as_ref()).unwrap();
+    let exact = spectral(&u) * spectral(&v);
+    assert!(
+        (b.bound - exact).abs() <= 1e-7 * exact && b.bound >= exact,
+        "{} {exact}",
+        b.bound
+    );
+    let b = worst_case_norm(m0.as_ref(), u.as_ref(), v.as_ref())
+        .unwrap()
+        .bound;
+    assert!(b <= spectral(&m0) + exact + 1e-9, "{b}");
+    for _ in 0..200 {
+        let a = gauss(&mut r, 3, 1);
+        let c = gauss(&mut r, 1, 5);
+        let delta = &a * &c * faer::Scale(1.0 / (spectral(&a) * spectral(&c)));
+        let sample = spectral(&(&m0 + &u * &delta * &v));
+        assert!(sample <= b * (1.0 + 1e-12), "{sample} > {b}");
+    }
+}
+
 /// sup_Δ ‖M₀ + UΔV‖ = max over unit x, y of yᵀM₀x + ‖Uᵀy‖‖Vx‖ (take Δ rank one); in ℝ² this
 /// is a search over two angles: a 720² grid, then a local grid refinement.
 fn brute_force_2x2(m0: &Mat<f64>, u: &Mat<f64>, v: &Mat<f64>) -> f64 {

@@ -252,7 +252,7 @@ fn parts_in(dir: &Path) -> Result<Vec<(PathBuf, Shard)>> {
             Some((e.path(), part_shard(&name)?))
         })
         .collect();
-    out.sort();
+    out.sort_by(|a, b| a.0.cmp(&b.0));
     Ok(out)
 }
 

@@ -145,7 +145,8 @@ fn the_eta_hint_is_below_the_bound_it_names() {
     }
     let mut inp = hand_inputs();
     inp.eta = 0.5;
-    let fix = &IssAnalysis::new(inp).violated()[0].fix;
+    let an = IssAnalysis::new(inp);
+    let fix = &an.violated()[0].fix;
     assert!(fix.contains("6^(-1/M) = 0.1666 at M = 1"), "{fix}");
 }
 

@@ -235,7 +235,7 @@ fn export_prints_at_most_four_significant_digits() {
         &["export", "--scenario", s, "--out", a, "--method", "pg", "--kc", "certified"],
         &[0],
     );
-    assert!(text.contains("wrote the Rust artefact"), "{text}");
+    assert!(text.contains("artefact for"), "{text}");
     assert_clean("export", &text);
     for (args, what) in [
         (vec!["--method", "pg", "--k", "5"], "an uncertified K"),

@@ -9,8 +9,8 @@ use std::path::{Path, PathBuf};
 use std::time::{Instant, SystemTime, UNIX_EPOCH};
 
 use anyhow::{Context, Result, anyhow, bail};
-use lti_model::numfmt::sig4;
 use indicatif::{ProgressBar, ProgressStyle};
+use lti_model::numfmt::sig4;
 use serde_json::json;
 use xtask::sweep_engine::{
     Assembled, PairThresholds, Point, Progress, RunOptions, Shard, Sweep, SweepConfig, SweepReport,

@@ -204,7 +204,13 @@ fn sweep_prints_at_most_four_significant_digits() {
     for i in 1..=2 {
         let shard = format!("{i}/2");
         let text = run(&[
-            "sweep", "--config", c, "--out", &format!("{d}/s{i}"), "--shard", &shard,
+            "sweep",
+            "--config",
+            c,
+            "--out",
+            &format!("{d}/s{i}"),
+            "--shard",
+            &shard,
         ]);
         assert_clean(&format!("sweep --shard {shard}"), &text);
     }
@@ -232,7 +238,17 @@ fn export_prints_at_most_four_significant_digits() {
     let art = dir.join("art");
     let a = art.to_str().unwrap();
     let text = run_with(
-        &["export", "--scenario", s, "--out", a, "--method", "pg", "--kc", "certified"],
+        &[
+            "export",
+            "--scenario",
+            s,
+            "--out",
+            a,
+            "--method",
+            "pg",
+            "--kc",
+            "certified",
+        ],
         &[0],
     );
     assert!(text.contains("artefact for"), "{text}");

@@ -143,7 +143,10 @@ fn read_part(sweep: &Sweep, path: &Path, shard: Shard) -> Result<Part> {
             return Err(corrupt(
                 path,
                 shard,
-                format!("line {line}: a second row of scale index {}, run {}", key.0, key.1),
+                format!(
+                    "line {line}: a second row of scale index {}, run {}",
+                    key.0, key.1
+                ),
             ));
         }
         rows.push((key.0, key.1, row.to_string()));
@@ -184,7 +187,12 @@ fn check_row(
     let s = scales
         .iter()
         .position(|t| t == cell("scale"))
-        .ok_or_else(|| bad("scale", &format!("is none of the sweep's scales ({})", scales.join(", "))))?;
+        .ok_or_else(|| {
+            bad(
+                "scale",
+                &format!("is none of the sweep's scales ({})", scales.join(", ")),
+            )
+        })?;
     let seeds = sweep.config().seeds;
     let r = cell("run")
         .parse::<usize>()
@@ -210,12 +218,22 @@ fn check_row(
         .parse::<usize>()
         .ok()
         .filter(|&n| n <= sweep.steps())
-        .ok_or_else(|| bad("steps", &format!("is not an integer from 0 to T = {}", sweep.steps())))?;
+        .ok_or_else(|| {
+            bad(
+                "steps",
+                &format!("is not an integer from 0 to T = {}", sweep.steps()),
+            )
+        })?;
     let completed = cell("error").is_empty();
     match cell("bounded") {
         "0" => {}
         "1" if completed => {}
-        "1" => return Err(bad("bounded", "but the run stopped (column `error` is not empty)")),
+        "1" => {
+            return Err(bad(
+                "bounded",
+                "but the run stopped (column `error` is not empty)",
+            ));
+        }
         _ => return Err(bad("bounded", "is neither 0 nor 1")),
     }
     for m in Metric::ALL {
@@ -293,8 +311,11 @@ pub(super) fn assemble_kalman(
             }
             let name = kalman_part_name(part.shard);
             if di > 0 && !dirs[0].join("points").join(&name).exists() {
-                copies.push((dirs[0].join("points").join(name), fs::read_to_string(&part.path)
-                    .map_err(io_err("read the Kalman part", &part.path))?));
+                copies.push((
+                    dirs[0].join("points").join(name),
+                    fs::read_to_string(&part.path)
+                        .map_err(io_err("read the Kalman part", &part.path))?,
+                ));
             }
         }
     }

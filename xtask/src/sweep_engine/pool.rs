@@ -306,12 +306,13 @@ impl Shared<'_> {
         );
         let seed = run_seed(sweep.base_seed(), p, run, cfg.common_random_numbers);
         let disturbance = &sweep.scenario().sets.disturbance;
-        let m = simulate(l, run, seed, input, disturbance, cfg.bounded_factor).map_err(|source| {
-            SweepError::Setup {
-                point: p.to_string(),
-                source,
-            }
-        })?;
+        let m =
+            simulate(l, run, seed, input, disturbance, cfg.bounded_factor).map_err(|source| {
+                SweepError::Setup {
+                    point: p.to_string(),
+                    source,
+                }
+            })?;
         self.steps
             .fetch_add(m.metrics.steps as u64, Ordering::Relaxed);
         let _ = self.results[slot * cfg.seeds + run].set(m);

@@ -514,15 +514,8 @@ pub(super) fn simulate(
     let start = Instant::now();
     lp.reseed(seed)?;
     let stop = lp.run().err();
-    let metrics = closed_loop::monte_carlo::finish_run(
-        lp,
-        run,
-        seed,
-        stop,
-        start,
-        input_box,
-        bounded_factor,
-    );
+    let metrics =
+        closed_loop::monte_carlo::finish_run(lp, run, seed, stop, start, input_box, bounded_factor);
     let w_outside = draws_outside(lp.trace(), disturbance).len();
     Ok(SweepRun { metrics, w_outside })
 }

@@ -139,8 +139,14 @@ fn runs_count_the_draws_outside_w() {
                 .collect();
             let want_total: usize = counts.iter().sum();
             let want_runs = counts.iter().filter(|&&n| n > 0).count();
-            assert_eq!(points.text(p, "w_outside_total"), Some(&*want_total.to_string()));
-            assert_eq!(points.text(p, "w_outside_runs"), Some(&*want_runs.to_string()));
+            assert_eq!(
+                points.text(p, "w_outside_total"),
+                Some(&*want_total.to_string())
+            );
+            assert_eq!(
+                points.text(p, "w_outside_runs"),
+                Some(&*want_runs.to_string())
+            );
             sum += want_total;
         }
         assert_eq!(sum, total);
@@ -179,11 +185,24 @@ fn an_edited_count_is_refused_naming_file_row_and_cell() {
     let c_runs = points.column("w_outside_runs").unwrap();
     let c_steps = runs.column("steps").unwrap();
     let summary = 4 + 2; // magic line, 4 run rows, separator, summary row
-    let run0: usize = original.lines().nth(1).unwrap().split(',').nth(c_run).unwrap().parse().unwrap();
+    let run0: usize = original
+        .lines()
+        .nth(1)
+        .unwrap()
+        .split(',')
+        .nth(c_run)
+        .unwrap()
+        .parse()
+        .unwrap();
     assert!(run0 > 0, "the wide noise leaves 𝒲 in run 0");
     let before = fs::read(out.join("runs.csv")).unwrap();
     for (line, col, value, needle) in [
-        (2, c_run, "13", "line 2 (run 0), column `w_outside`: `13` is not an integer from 0 to 12"),
+        (
+            2,
+            c_run,
+            "13",
+            "line 2 (run 0), column `w_outside`: `13` is not an integer from 0 to 12",
+        ),
         (2, c_run, "-1", "column `w_outside`: `-1` is not an integer"),
         (2, c_run, "1.5", "column `w_outside`: `1.5`"),
         (3, c_run, "", "line 3 (run 1), column `w_outside`"),
@@ -193,7 +212,12 @@ fn an_edited_count_is_refused_naming_file_row_and_cell() {
             "49",
             "column `w_outside_total`: `49` is not an integer from 0 to 48",
         ),
-        (summary + 1, c_runs, "5", "column `w_outside_runs`: `5` is not an integer from 0 to 4"),
+        (
+            summary + 1,
+            c_runs,
+            "5",
+            "column `w_outside_runs`: `5` is not an integer from 0 to 4",
+        ),
         // More draws outside than steps.
         (2, c_steps, "0", "line 2 (run 0), column `w_outside`"),
     ] {
@@ -203,7 +227,10 @@ fn an_edited_count_is_refused_naming_file_row_and_cell() {
         let text = e.to_string();
         match &e {
             SweepError::PointFile { path, problem } => {
-                assert!(path.ends_with(format!("points/{}", point_file_name(1))), "{text}");
+                assert!(
+                    path.ends_with(format!("points/{}", point_file_name(1))),
+                    "{text}"
+                );
                 assert!(problem.contains(needle), "`{needle}` not in {text}");
             }
             other => panic!("not a point-file error: {other}"),
@@ -215,8 +242,17 @@ fn an_edited_count_is_refused_naming_file_row_and_cell() {
     // its domain: run 0's count moved by one is refused at the summary row.
     fs::write(&file, &original).unwrap();
     edit_cell(&file, 2, c_run, &(run0 - 1).to_string());
-    let e = sweep.run(&opts(&out, None), &NoProgress).unwrap_err().to_string();
-    assert!(e.contains(&format!("line {} (summary row), column `w_outside_", summary + 1)), "{e}");
+    let e = sweep
+        .run(&opts(&out, None), &NoProgress)
+        .unwrap_err()
+        .to_string();
+    assert!(
+        e.contains(&format!(
+            "line {} (summary row), column `w_outside_",
+            summary + 1
+        )),
+        "{e}"
+    );
     fs::write(&file, &original).unwrap();
     sweep.run(&opts(&out, None), &NoProgress).unwrap();
 }
@@ -252,7 +288,10 @@ fn sharded_sweep_merges_kalman_csv() {
     }
     let dirs: Vec<&Path> = shards.iter().map(PathBuf::as_path).collect();
     let merged = d.join("merged");
-    assert_eq!(merge_point_dirs(&sweep, &dirs, &merged, &NoProgress).unwrap(), 4);
+    assert_eq!(
+        merge_point_dirs(&sweep, &dirs, &merged, &NoProgress).unwrap(),
+        4
+    );
     let bytes = |p: &Path, f: &str| fs::read(p.join(f)).unwrap();
     assert_eq!(bytes(&merged, "kalman.csv"), bytes(&whole, "kalman.csv"));
     assert_eq!(table(&whole.join("kalman.csv")).rows.len(), 8);
@@ -268,7 +307,9 @@ fn sharded_sweep_merges_kalman_csv() {
     merge_point_dirs(&sweep, &[merged.as_path()], &merged, &NoProgress).unwrap();
     assert_eq!(bytes(&merged, "kalman.csv"), bytes(&whole, "kalman.csv"));
 
-    let part2 = shards[1].join("points").join(kalman_part_name(Shard { index: 2, count: 3 }));
+    let part2 = shards[1]
+        .join("points")
+        .join(kalman_part_name(Shard { index: 2, count: 3 }));
     let original = fs::read_to_string(&part2).unwrap();
     let refused = |what: &str, needles: &[&str]| {
         let out = d.join(format!("merged-{what}"));
@@ -282,7 +323,10 @@ fn sharded_sweep_merges_kalman_csv() {
     };
     // Missing: named by the file that should hold the rows, with the shard to rerun.
     fs::remove_file(&part2).unwrap();
-    refused("missing", &["kalman.shard-2-of-3.csv", "missing", "--shard 2/3"]);
+    refused(
+        "missing",
+        &["kalman.shard-2-of-3.csv", "missing", "--shard 2/3"],
+    );
     // Corrupt: a cell out of its domain, a cut file, another header.
     let header = original.lines().nth(1).unwrap().to_string();
     let c_outside = header.split(',').position(|c| c == "w_outside").unwrap();
@@ -294,13 +338,32 @@ fn sharded_sweep_merges_kalman_csv() {
         original.replace(&row, &cells.join(","))
     };
     for (what, text, needle) in [
-        ("outside", with(c_outside, "13"), "line 3: column `w_outside`: `13`"),
-        ("bounded", with(c_bounded, "2"), "line 3: column `bounded`: `2`"),
-        ("cut", original[..original.len() - 5].to_string(), "truncated"),
-        ("header", original.replace(&header, "estimator,scale"), "line 2"),
+        (
+            "outside",
+            with(c_outside, "13"),
+            "line 3: column `w_outside`: `13`",
+        ),
+        (
+            "bounded",
+            with(c_bounded, "2"),
+            "line 3: column `bounded`: `2`",
+        ),
+        (
+            "cut",
+            original[..original.len() - 5].to_string(),
+            "truncated",
+        ),
+        (
+            "header",
+            original.replace(&header, "estimator,scale"),
+            "line 2",
+        ),
     ] {
         fs::write(&part2, text).unwrap();
-        refused(what, &["kalman.shard-2-of-3.csv", needle, "rerun that shard"]);
+        refused(
+            what,
+            &["kalman.shard-2-of-3.csv", needle, "rerun that shard"],
+        );
     }
     // Conflict: shard 1's part copied into shard 2's directory with one number changed.
     fs::write(&part2, &original).unwrap();

@@ -33,7 +33,7 @@ fn wide_noise_scenario(dir: &Path) -> PathBuf {
         .find(|l| l.starts_with("kind = \"uniform\""))
         .unwrap();
     let row = |i: usize| {
-        let mut r = vec!["0.0"; 5];
+        let mut r = ["0.0"; 5];
         r[i] = "0.01";
         format!("[{}]", r.join(", "))
     };

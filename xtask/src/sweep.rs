@@ -10,6 +10,7 @@ use std::time::{Instant, SystemTime, UNIX_EPOCH};
 
 use anyhow::{Context, Result, anyhow, bail};
 use indicatif::{ProgressBar, ProgressStyle};
+use lti_model::numfmt::sig4;
 use serde_json::json;
 use xtask::sweep_engine::{
     Assembled, PairThresholds, Point, Progress, RunOptions, Shard, Sweep, SweepConfig, SweepReport,
@@ -396,6 +397,7 @@ pub fn sweep(args: &SweepArgs) -> Result<()> {
         &out,
         &meta_name,
         &plots,
+        sweep.config().kalman,
     );
     for line in timing::schedule_lines(report, serial_s, wall) {
         outln!("{line}");
@@ -403,32 +405,47 @@ pub fn sweep(args: &SweepArgs) -> Result<()> {
     Ok(())
 }
 
-fn print_summary(report: &SweepReport, wall: f64, out: &Path, meta: &str, plots: &[String]) {
+/// The end-of-run lines (numbers with at most 4 significant digits, [`sig4`]; `kalman`:
+/// the sweep runs the Kalman baseline).
+fn print_summary(
+    report: &SweepReport,
+    wall: f64,
+    out: &Path,
+    meta: &str,
+    plots: &[String],
+    kalman: bool,
+) {
     outln!(
         "points: {} computed, {} skipped (finished before)",
         report.computed,
         report.skipped
     );
     outln!(
-        "closed-loop steps: {} in {:.2} s of runs on {} threads = {:.0} steps/s per thread",
+        "closed-loop steps: {} in {} s of runs on {} threads = {} steps/s per thread",
         report.steps_simulated,
-        report.runs_wall_s,
+        sig4(report.runs_wall_s),
         report.threads,
-        report.steps_per_second_per_thread()
+        sig4(report.steps_per_second_per_thread())
     );
     if report.assembled {
         outln!(
-            "wrote {}/{{runs.csv, points.csv, {meta}}} and {} plots",
+            "wrote {}/{{runs.csv, points.csv, {}{meta}}} and {} plots",
             out.display(),
+            if kalman { "kalman.csv, " } else { "" },
             plots.len()
         );
     } else {
         outln!(
-            "shard done: point files in {}/points, {meta}; assemble with `cargo xtask sweep-merge`",
-            out.display()
+            "shard done: point files in {}/points{}, {meta}; assemble with `cargo xtask sweep-merge`",
+            out.display(),
+            if kalman {
+                " (with its part of kalman.csv)"
+            } else {
+                ""
+            }
         );
     }
-    outln!("total wall time: {wall:.2} s");
+    outln!("total wall time: {} s", sig4(wall));
 }
 
 /// The shards' own meta files in `dirs` (`meta.shard-*.json`), read and parsed before
@@ -505,9 +522,14 @@ pub fn merge(args: &MergeArgs) -> Result<()> {
         Ok(())
     })?;
     outln!(
-        "merged {n} points from {} directories into {}/{{runs.csv, points.csv, meta.json}} and {} plots",
+        "merged {n} points from {} directories into {}/{{runs.csv, points.csv, {}meta.json}} and {} plots",
         inputs.len(),
         args.out.display(),
+        if sweep.config().kalman {
+            "kalman.csv, "
+        } else {
+            ""
+        },
         plots.len()
     );
     Ok(())

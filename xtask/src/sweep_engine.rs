@@ -30,7 +30,9 @@
 //!   from another point or of another configuration is refused, naming it.
 //! - `runs.csv`, `points.csv`: assembled from the point files in point order
 //!   ([`assemble`]), replaced atomically once every point file is validated; shards
-//!   (`--shard I/N`) only write point files, and [`merge_point_dirs`] assembles them.
+//!   (`--shard I/N`) only write point files (and, with the Kalman baseline, their part of
+//!   `kalman.csv`: `points/kalman.shard-I-of-N.csv`), and [`merge_point_dirs`] assembles
+//!   them.
 //! - `.lock` (`.lock.shard-I-of-N` for a shard): the pid of the sweep writing the
 //!   directory; a second writer is refused, a stale lock of a killed sweep taken over.
 //!
@@ -49,6 +51,8 @@
 //! | `pool.rs` | the theory and every run as tasks of one worker pool, point files written as points finish |
 //! | `schedule.rs` | the scheduling policy, the measured task times ([`ScheduleReport`]) and their replay for other thread counts |
 //! | `merge.rs` | resume reading, [`assemble`], [`merge_point_dirs`] |
+//! | `baseline.rs` | the Kalman baseline's runs (`kalman.csv`) |
+//! | `kalman_parts.rs` | a shard's part of `kalman.csv`, checked and assembled by a merge |
 //! | `lock.rs` | one writer per output directory |
 //! | `error.rs` | [`SweepError`] |
 //!
@@ -60,6 +64,7 @@ mod error;
 mod format;
 mod graph;
 mod grid;
+mod kalman_parts;
 mod lock;
 mod merge;
 mod pool;
@@ -85,6 +90,7 @@ pub use error::{Result, SweepError};
 pub use format::{PointFile, Table, point_file_name, points_header, runs_header};
 pub use graph::L_PI_CHUNKS;
 pub use iss_certificate::linear::log_spaced;
+pub use kalman_parts::kalman_part_name;
 pub use merge::{Assembled, assemble, merge_point_dirs, merge_staged};
 pub use region::{
     IterationCost, Pair, PairThresholds, Staircase, cheapest_pair, pair_thresholds,
@@ -93,7 +99,7 @@ pub use region::{
 pub use run::{NoProgress, Progress, RunOptions, Staged, Sweep, SweepReport, run_cost};
 pub use schedule::{Prediction, ScheduleReport, TaskKind, TaskTime};
 pub use seeds::{Shard, run_seed, splitmix64};
-pub use summary::{PointSummary, summarise};
+pub use summary::{PointSummary, SweepRun, summarise};
 pub use theory::{
     LinearEntry, LinearSide, SolverTheory, TheoryAtK, certified_boundary, joint_staircase,
     solver_linear, solver_theory,

@@ -154,3 +154,115 @@ fn reproduce_prints_at_most_four_significant_digits() {
     }
     let _ = std::fs::remove_dir_all(&out);
 }
+
+/// Runs `xtask` with `args` and returns stdout and stderr whatever the exit code, after
+/// checking it is one of `codes` (a refusal is a terminal message too).
+fn run_with(args: &[&str], codes: &[i32]) -> String {
+    let out = Command::new(env!("CARGO_BIN_EXE_xtask"))
+        .current_dir(root())
+        .args(args)
+        .output()
+        .unwrap();
+    let text = format!(
+        "{}\n{}",
+        String::from_utf8_lossy(&out.stdout),
+        String::from_utf8_lossy(&out.stderr)
+    );
+    assert!(
+        out.status.code().is_some_and(|c| codes.contains(&c)),
+        "{args:?}: exit {:?}\n{text}",
+        out.status.code()
+    );
+    text
+}
+
+/// The sweep's end-of-run summary (the certificate line, the thresholds, the points and
+/// steps, the schedule and its replay, the wall time), a shard's and `sweep-merge`'s lines:
+/// a small sweep of the certified case study with the certificate and the linear analysis
+/// on, unsharded and as two merged shards.
+#[test]
+fn sweep_prints_at_most_four_significant_digits() {
+    let dir = std::env::temp_dir().join(format!("xtask-digits-sweep-{}", std::process::id()));
+    let _ = std::fs::remove_dir_all(&dir);
+    std::fs::create_dir_all(&dir).unwrap();
+    let scenario = root().join("scenarios/case-study-certified.toml");
+    let cfg = dir.join("sweep.toml");
+    std::fs::write(
+        &cfg,
+        format!(
+            "name = \"digits\"\nscenario = \"{}\"\nk = [1, 30, 300]\nsolvers = [\"pg\"]\n\
+             seeds = 3\nsteps = 20\nbase_seed = 1\nestimators = [\"mhe\", \"kalman\"]\n",
+            scenario.display()
+        ),
+    )
+    .unwrap();
+    let (c, d) = (cfg.to_str().unwrap(), dir.to_str().unwrap());
+    let whole = format!("{d}/whole");
+    let text = run(&["sweep", "--config", c, "--out", &whole, "--threads", "2"]);
+    assert!(text.contains("total wall time"), "{text}");
+    assert_clean("sweep", &text);
+    for i in 1..=2 {
+        let shard = format!("{i}/2");
+        let text = run(&[
+            "sweep",
+            "--config",
+            c,
+            "--out",
+            &format!("{d}/s{i}"),
+            "--shard",
+            &shard,
+        ]);
+        assert_clean(&format!("sweep --shard {shard}"), &text);
+    }
+    let text = run(&[
+        "sweep-merge",
+        "--config",
+        c,
+        "--out",
+        &format!("{d}/merged"),
+        &format!("{d}/s1"),
+        &format!("{d}/s2"),
+    ]);
+    assert!(text.contains("kalman.csv"), "{text}");
+    assert_clean("sweep-merge", &text);
+    let _ = std::fs::remove_dir_all(&dir);
+}
+
+/// `export`'s lines: a certified artefact with its MPC, and the refusals of an uncertified
+/// K and K_c (their messages name the certificate's numbers).
+#[test]
+fn export_prints_at_most_four_significant_digits() {
+    let dir = std::env::temp_dir().join(format!("xtask-digits-export-{}", std::process::id()));
+    let _ = std::fs::remove_dir_all(&dir);
+    let s = "scenarios/case-study-certified.toml";
+    let art = dir.join("art");
+    let a = art.to_str().unwrap();
+    let text = run_with(
+        &[
+            "export",
+            "--scenario",
+            s,
+            "--out",
+            a,
+            "--method",
+            "pg",
+            "--kc",
+            "certified",
+        ],
+        &[0],
+    );
+    assert!(text.contains("artefact for"), "{text}");
+    assert_clean("export", &text);
+    for (args, what) in [
+        (vec!["--method", "pg", "--k", "5"], "an uncertified K"),
+        (vec!["--method", "pg", "--kc", "1"], "an uncertified K_c"),
+    ] {
+        let out = dir.join("refused");
+        let mut all = vec!["export", "--scenario", s, "--out", out.to_str().unwrap()];
+        all.extend(args);
+        let text = run_with(&all, &[1]);
+        assert!(text.contains("error"), "{what}: {text}");
+        assert_clean(what, &text);
+    }
+    let _ = std::fs::remove_dir_all(&dir);
+}

@@ -239,10 +239,12 @@ impl IssAnalysis {
                 min_horizon_for_eta(inputs.eta).map_or("none".to_string(), |m| m.to_string());
             format!(
                 "6η^M = {} ≥ 1. Increase the horizon to M ≥ {m_min} at η = {}, or lower η below \
-                 6^(-1/M) = {:.4} at M = {} (η must stay feasible for LMI (2))",
+                 6^(-1/M) = {} at M = {} (η must stay feasible for LMI (2))",
                 lti_model::numfmt::sig4(6.0 * inputs.eta.powi(m as i32)),
                 inputs.eta,
-                eta_sup_for_horizon(m),
+                // Rounded down: the number shown is itself below the bound, so η below it
+                // is below the bound.
+                lti_model::numfmt::sig4_below(eta_sup_for_horizon(m)),
                 m
             )
         };

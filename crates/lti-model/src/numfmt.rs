@@ -41,6 +41,43 @@ pub fn sig4(v: f64) -> String {
     }
 }
 
+/// [`sig4`] rounded toward −∞ so that the number shown is strictly below `v`: for a hint
+/// "lower η below X", X must itself be below the bound (`sig4(0.16667)` is `0.1667`, above
+/// 1/6; `sig4_below(1.0 / 6.0)` is `0.1666`). At most 4 significant digits; `v` itself
+/// when it is not finite.
+///
+/// ```
+/// use lti_model::numfmt::sig4_below;
+/// assert_eq!(sig4_below(1.0 / 6.0), "0.1666");
+/// assert_eq!(sig4_below(0.6988), "0.6987");
+/// assert_eq!(sig4_below(1.0), "0.999");
+/// assert_eq!(sig4_below(-2.5e-7), "-2.501e-7");
+/// ```
+pub fn sig4_below(v: f64) -> String {
+    if !v.is_finite() {
+        return sig4(v);
+    }
+    let shown = sig4(v);
+    if shown.parse::<f64>().is_ok_and(|x| x < v) {
+        return shown;
+    }
+    // One unit of the 4th significant digit at v, then down the grid until below v.
+    let step = if v == 0.0 {
+        1e-3
+    } else {
+        10f64.powi(v.abs().log10().floor() as i32 - 3)
+    };
+    let mut x = (v / step).floor() * step;
+    for _ in 0..4 {
+        let t = sig4(x);
+        if t.parse::<f64>().is_ok_and(|y| y < v) {
+            return t;
+        }
+        x -= step;
+    }
+    sig4(x)
+}
+
 fn trim_zeros(s: &str) -> &str {
     if s.contains('.') {
         s.trim_end_matches('0').trim_end_matches('.')

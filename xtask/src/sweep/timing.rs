@@ -3,6 +3,7 @@
 //! (`xtask::sweep_engine::ScheduleReport`; model and assumptions in docs/sweeps.md,
 //! "Scaling").
 
+use lti_model::numfmt::sig4;
 use serde_json::json;
 use xtask::sweep_engine::{Prediction, SweepReport};
 
@@ -69,35 +70,42 @@ pub fn schedule_json(
     })
 }
 
-/// The schedule's lines for the end of the sweep.
+/// The schedule's lines for the end of the sweep (numbers with at most 4 significant
+/// digits, [`sig4`]).
 pub fn schedule_lines(report: &SweepReport, serial_s: f64, wall_s: f64) -> Vec<String> {
     let s = &report.schedule;
     if s.tasks.is_empty() {
-        return vec![format!("serial time {serial_s:.2} s (nothing to compute)")];
+        return vec![format!(
+            "serial time {} s (nothing to compute)",
+            sig4(serial_s)
+        )];
     }
     let busy = s.busy_s();
     let kinds: Vec<String> = s
         .busy_by_kind()
         .iter()
-        .map(|(k, n, b)| format!("{n} {} {b:.2} s", k.name()))
+        .map(|(k, n, b)| format!("{n} {} {} s", k.name(), sig4(*b)))
         .collect();
     let mut lines = vec![
         format!(
-            "schedule: {} tasks ({}), Σ busy {busy:.2} s (thread CPU {:.2} s), pool {:.2} s on {} threads: efficiency {:.1} %",
+            "schedule: {} tasks ({}), Σ busy {} s (thread CPU {} s), pool {} s on {} threads: efficiency {} %",
             s.tasks.len(),
             kinds.join(", "),
-            s.cpu_s(),
-            s.pool_wall_s,
+            sig4(busy),
+            sig4(s.cpu_s()),
+            sig4(s.pool_wall_s),
             s.threads,
-            100.0 * s.efficiency()
+            sig4(100.0 * s.efficiency())
         ),
         format!(
-            "serial time {serial_s:.3} s = {:.2} % of the wall time {wall_s:.2} s",
-            if wall_s > 0.0 {
+            "serial time {} s = {} % of the wall time {} s",
+            sig4(serial_s),
+            sig4(if wall_s > 0.0 {
                 100.0 * serial_s / wall_s
             } else {
                 0.0
-            }
+            }),
+            sig4(wall_s)
         ),
     ];
     let preds: Vec<String> = PREDICT_AT
@@ -105,9 +113,9 @@ pub fn schedule_lines(report: &SweepReport, serial_s: f64, wall_s: f64) -> Vec<S
         .map(|&n| {
             let p = s.replay(n);
             format!(
-                "{n} threads {:.2} s ({:.1} %)",
-                p.pool_wall_s,
-                100.0 * p.efficiency
+                "{n} threads {} s ({} %)",
+                sig4(p.pool_wall_s),
+                sig4(100.0 * p.efficiency)
             )
         })
         .collect();
@@ -116,18 +124,18 @@ pub fn schedule_lines(report: &SweepReport, serial_s: f64, wall_s: f64) -> Vec<S
         preds.join(", ")
     ));
     lines.push(format!(
-        "longest task {:.3} s, longest chain of theory tasks (a bound on the pool wall at any thread count) {:.3} s",
-        s.longest_task_s(),
-        s.critical_path_s()
+        "longest task {} s, longest chain of theory tasks (a bound on the pool wall at any thread count) {} s",
+        sig4(s.longest_task_s()),
+        sig4(s.critical_path_s())
     ));
     let runs: Vec<String> = PREDICT_AT
         .iter()
         .map(|&n| {
             let p = s.replay_runs(n);
             format!(
-                "{n}: {:.2} s ({:.1} %)",
-                p.pool_wall_s,
-                100.0 * p.efficiency
+                "{n}: {} s ({} %)",
+                sig4(p.pool_wall_s),
+                sig4(100.0 * p.efficiency)
             )
         })
         .collect();

@@ -5,6 +5,9 @@
 //! as every MHE point's run r). The filter has no K and no solver, so it is not a point of
 //! the grid: its runs go to `kalman.csv`, one row per (scale, run), with the metrics and the
 //! bounded rule of `runs.csv` and the count of draws outside 𝒲.
+//!
+//! Row j = s·seeds + r (scale index s, run r) belongs to shard I of N when j mod N = I − 1:
+//! a shard writes its rows to a part file (`kalman_parts.rs`), `sweep-merge` assembles them.
 
 use std::fmt::Write as _;
 
@@ -55,9 +58,44 @@ pub fn kalman_header() -> String {
     cols.join(",")
 }
 
-/// Runs the Kalman baseline of `sweep` (every scale × `seeds` runs, on the current rayon
-/// pool) and writes `kalman.csv` into `out`. Returns the number of runs.
+/// The text of `kalman.csv`: its header and every row of the Kalman baseline of `sweep`
+/// (every scale × `seeds` runs, on the current rayon pool).
 pub(super) fn kalman_text(sweep: &Sweep) -> Result<String> {
+    Ok(kalman_csv(&kalman_rows(sweep, &|_| true)?))
+}
+
+/// `kalman.csv` from rows sorted by (scale index, run).
+pub(super) fn kalman_csv(rows: &[KalmanRow]) -> String {
+    let mut text = kalman_header();
+    text.push('\n');
+    for (_, _, row) in rows {
+        text.push_str(row);
+        text.push('\n');
+    }
+    text
+}
+
+/// A row of `kalman.csv` with its scale index and run.
+pub(super) type KalmanRow = (usize, usize, String);
+
+/// The first point of every scale (its run r's seed is the Kalman run r's), in scale order.
+pub(super) fn scale_points(sweep: &Sweep) -> Vec<&super::Point> {
+    let mut firsts: Vec<&super::Point> = Vec::new();
+    for p in sweep.points() {
+        if !firsts.iter().any(|q| q.scale_index == p.scale_index) {
+            firsts.push(p);
+        }
+    }
+    firsts.sort_by_key(|p| p.scale_index);
+    firsts
+}
+
+/// The rows of the Kalman baseline whose row index j = s·seeds + r (scale index s, run r)
+/// `keep` accepts, sorted by (s, r).
+pub(super) fn kalman_rows(
+    sweep: &Sweep,
+    keep: &(dyn Fn(usize) -> bool + Sync),
+) -> Result<Vec<KalmanRow>> {
     let config = sweep.config();
     let setup = |e: String| SweepError::Setup {
         point: "kalman".into(),
@@ -67,19 +105,13 @@ pub(super) fn kalman_text(sweep: &Sweep) -> Result<String> {
         }),
     };
     // One MHE point per scale gives the seeds (its run r's draw).
-    let mut firsts = Vec::new();
-    for p in sweep.points() {
-        if !firsts
-            .iter()
-            .any(|q: &&super::Point| q.scale_index == p.scale_index)
-        {
-            firsts.push(p);
-        }
-    }
-    let mut rows: Vec<(usize, usize, String)> = firsts
+    let firsts = scale_points(sweep);
+    let seeds = config.seeds;
+    let mut rows: Vec<KalmanRow> = firsts
         .par_iter()
-        .flat_map(|p| (0..config.seeds).into_par_iter().map(move |r| (*p, r)))
-        .map(|(p, r)| -> Result<(usize, usize, String)> {
+        .flat_map(|p| (0..seeds).into_par_iter().map(move |r| (*p, r)))
+        .filter(|(p, r)| keep(p.scale_index * seeds + r))
+        .map(|(p, r)| -> Result<KalmanRow> {
             let mut resolved = sweep.resolved().clone();
             resolved.set_noise_scale(p.scale);
             let sc = resolved.scenario();
@@ -140,11 +172,5 @@ pub(super) fn kalman_text(sweep: &Sweep) -> Result<String> {
         })
         .collect::<Result<Vec<_>>>()?;
     rows.sort_by_key(|(s, r, _)| (*s, *r));
-    let mut text = kalman_header();
-    text.push('\n');
-    for (_, _, row) in &rows {
-        text.push_str(row);
-        text.push('\n');
-    }
-    Ok(text)
+    Ok(rows)
 }

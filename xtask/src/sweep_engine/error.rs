@@ -126,6 +126,15 @@ pub enum SweepError {
         /// The lock file.
         lock: PathBuf,
     },
+    /// A part of the Kalman baseline of a sharded sweep (`points/kalman.shard-I-of-N.csv`)
+    /// is missing, malformed, or disagrees with another one.
+    #[error("Kalman baseline part `{path}`: {problem}")]
+    KalmanPart {
+        /// The part file (for a missing one: the name it should have, under `points/`).
+        path: PathBuf,
+        /// What is wrong (the line and column where it applies) and the fix.
+        problem: String,
+    },
     /// Assembling needs every point, and some are missing.
     #[error(
         "{missing} of {total} points have no point file (first missing: point {first}); run the \

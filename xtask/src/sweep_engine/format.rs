@@ -19,8 +19,8 @@ use std::sync::atomic::{AtomicU64, Ordering};
 use super::config::Point;
 use super::error::{Result, io_err, point_file_err};
 use super::seeds::fnv1a;
-use super::summary::PointSummary;
-use closed_loop::metrics::{Metric, QUANTILES, RunMetrics};
+use super::summary::{PointSummary, SweepRun};
+use closed_loop::metrics::{Metric, QUANTILES};
 
 /// The file in `points/` recording the settings behind the fingerprint (a line with the
 /// fingerprint, a line with the canonical settings text), so a refused directory can say
@@ -109,7 +109,7 @@ pub fn runs_header(metrics: &[Metric], two_d: bool) -> String {
         h.push(',');
         h.push_str(m.name());
     }
-    h.push_str(",bounded,error,wall_ms");
+    h.push_str(",bounded,error,w_outside,wall_ms");
     h
 }
 
@@ -124,7 +124,7 @@ pub fn points_header(metrics: &[Metric], two_d: bool) -> String {
         let _ = write!(h, ",{}_max", m.name());
     }
     h.push_str(",phi,sg1,sg2,sg3,margin_cert,certified,k_min_cert,void_reason");
-    h.push_str(",rho_lin,k_lin,linear_note,wall_ms");
+    h.push_str(",rho_lin,k_lin,linear_note,w_outside_runs,w_outside_total,wall_ms");
     h
 }
 
@@ -135,14 +135,22 @@ fn point_prefix(p: &Point) -> String {
     }
 }
 
-pub(super) fn run_row(p: &Point, r: &RunMetrics, metrics: &[Metric]) -> String {
+pub(super) fn run_row(p: &Point, run: &SweepRun, metrics: &[Metric]) -> String {
+    let r = &run.metrics;
     let mut s = point_prefix(p);
     let _ = write!(s, ",{},{},{}", r.run, r.seed, r.steps);
     for &m in metrics {
         s.push(',');
         s.push_str(&cell(r.get(m)));
     }
-    let _ = write!(s, ",{},{},{}", u8::from(r.bounded), r.error, r.wall_ms);
+    let _ = write!(
+        s,
+        ",{},{},{},{}",
+        u8::from(r.bounded),
+        r.error,
+        run.w_outside,
+        r.wall_ms
+    );
     s
 }
 
@@ -159,7 +167,7 @@ pub(super) fn point_row(p: &Point, s: &PointSummary) -> String {
     let sl = th.slopes;
     let _ = write!(
         out,
-        ",{},{},{},{},{},{},{},{},{},{},{},{}",
+        ",{},{},{},{},{},{},{},{},{},{},{},{},{},{}",
         cell(th.phi),
         cell(sl.map(|v| v[0])),
         cell(sl.map(|v| v[1])),
@@ -171,6 +179,8 @@ pub(super) fn point_row(p: &Point, s: &PointSummary) -> String {
         cell(th.rho_lin),
         th.k_lin.map(|k| k.to_string()).unwrap_or_default(),
         th.linear_note,
+        s.w_outside_runs,
+        s.w_outside_total,
         s.wall_ms
     );
     out
@@ -308,6 +318,8 @@ impl PointFileRules<'_> {
         cells.extend(self.metrics.iter().map(|_| Cell::NumberOrEmpty));
         cells.push(Cell::OneOf(&["0", "1"]));
         cells.push(Cell::Text);
+        // w_outside: at most one draw per step (checked against the row's `steps` below).
+        cells.push(Cell::UpTo(self.steps));
         cells.push(Cell::Number);
         names.split(',').map(str::to_string).zip(cells).collect()
     }
@@ -328,6 +340,9 @@ impl PointFileRules<'_> {
         cells.push(Cell::NumberOrEmpty);
         cells.push(Cell::IntegerOrEmpty);
         cells.push(Cell::Text);
+        // w_outside_runs, w_outside_total (recomputed from the run rows below)
+        cells.push(Cell::UpTo(self.seeds));
+        cells.push(Cell::UpTo(self.seeds.saturating_mul(self.steps)));
         cells.push(Cell::Number);
         names.split(',').map(str::to_string).zip(cells).collect()
     }
@@ -427,7 +442,7 @@ fn short_pair(a: &str, b: &str) -> (String, String) {
 /// The norms (`sup_e`, `sup_x`, `tail_mean_*`, `final_*`, `sup_w`) of a completed run are
 /// finite (a signal beyond `DIVERGED_MAGNITUDE` stops the run) and +∞ after a stop; a gain
 /// may be +∞ (a tiny `sup_w`); `sup_eps` and the violations record NaN from a failed solve.
-fn metric_domain_violation(m: Metric, v: f64, completed: bool) -> Option<&'static str> {
+pub(super) fn metric_domain_violation(m: Metric, v: f64, completed: bool) -> Option<&'static str> {
     let norm = matches!(
         m,
         Metric::SupE
@@ -567,16 +582,19 @@ impl PointFile {
 
     /// Checks what the (well-formed) cells mean: every metric in its domain (≥ 0; the norms
     /// of a completed run finite; NaN only where the run records it for a failed solve),
-    /// `bounded = 1` only for a completed run, and the summary row equal, cell for cell, to
-    /// the one recomputed from the run rows ([`summarise`](super::summary::summarise)'s
-    /// rule: bounded fraction, quantiles, maximum).
+    /// `bounded = 1` only for a completed run, `w_outside` ≤ the run's `steps`, and the
+    /// summary row equal, cell for cell, to the one recomputed from the run rows
+    /// ([`summarise`](super::summary::summarise)'s rule: bounded fraction, quantiles,
+    /// maximum, runs with draws outside 𝒲 and their total).
     fn check_meaning(&self, rules: &PointFileRules<'_>) -> std::result::Result<(), String> {
         let rh = runs_header(rules.metrics, rules.two_d);
         let names: Vec<&str> = rh.split(',').collect();
         let col = |name: &str| names.iter().position(|n| *n == name).unwrap_or(usize::MAX);
         let (c_bounded, c_error) = (col("bounded"), col("error"));
+        let (c_steps, c_outside) = (col("steps"), col("w_outside"));
         let mut values: Vec<Vec<f64>> = vec![Vec::new(); rules.metrics.len()];
         let mut bounded = 0usize;
+        let (mut outside_runs, mut outside_total) = (0usize, 0usize);
         for (r, row) in self.run_rows.iter().enumerate() {
             let cells: Vec<&str> = row.split(',').collect();
             let what = format!("line {} (run {r})", r + 2);
@@ -589,6 +607,18 @@ impl PointFile {
                     ));
                 }
                 bounded += 1;
+            }
+            // Cells of the form checked (`check_row`): integers.
+            let int = |c: usize| cells.get(c).and_then(|t| t.parse::<usize>().ok());
+            if let (Some(steps), Some(outside)) = (int(c_steps), int(c_outside)) {
+                if outside > steps {
+                    return Err(format!(
+                        "{what}, column `w_outside`: `{outside}` draws outside 𝒲, but the run \
+                         has {steps} steps (column `steps`), one draw per step"
+                    ));
+                }
+                outside_runs += usize::from(outside > 0);
+                outside_total += outside;
             }
             for (i, &m) in rules.metrics.iter().enumerate() {
                 let text = cells.get(col(m.name())).copied().unwrap_or("");
@@ -629,6 +659,8 @@ impl PointFile {
             }
             expected.push((format!("{}_max", m.name()), cell(v.last().copied())));
         }
+        expected.push(("w_outside_runs".to_string(), outside_runs.to_string()));
+        expected.push(("w_outside_total".to_string(), outside_total.to_string()));
         let line = runs + 3;
         for (name, want) in expected {
             let got = pcol(&name);

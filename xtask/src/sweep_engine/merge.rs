@@ -1,5 +1,6 @@
 //! Reading finished point files back (resume) and assembling them into `runs.csv` and
-//! `points.csv`, from one output directory or from several shard directories (merge).
+//! `points.csv` (and `kalman.csv` from the shards' parts, `kalman_parts.rs`), from one
+//! output directory or from several shard directories (merge).
 //!
 //! Every point file is validated in full before anything is written ([`Sweep::finished_points`]);
 //! two directories that hold different results for one point are a conflict naming both
@@ -17,6 +18,7 @@ use super::format::{
     PointFile, PointFileRules, SETTINGS_FILE, commit, point_file_name, points_header, runs_header,
     settings_diff, settings_text, write_atomic, write_temp,
 };
+use super::kalman_parts::{assemble_kalman, copy_parts};
 use super::run::{Progress, Staged, Sweep, SweepReport, take_lock};
 use super::seeds::run_seed;
 
@@ -123,7 +125,7 @@ fn check_complete<V>(sweep: &Sweep, files: &BTreeMap<usize, V>) -> Result<()> {
     Ok(())
 }
 
-/// The text of `runs.csv` and `points.csv` of an assembled sweep.
+/// The text of `runs.csv`, `points.csv` (and `kalman.csv`) of an assembled sweep.
 #[derive(Debug, Clone, PartialEq)]
 pub struct Assembled {
     /// `runs.csv`.
@@ -187,16 +189,30 @@ fn assemble_texts<'a>(sweep: &Sweep, files: impl Iterator<Item = &'a PointFile>)
     }
 }
 
-/// Validates `files` (every point present) and assembles them.
-fn assemble_found(sweep: &Sweep, files: &BTreeMap<usize, Found>) -> Result<Assembled> {
+/// Validates `files` (every point present) and assembles them, with `kalman.csv` from the
+/// shards' parts in `dirs` when the sweep runs the Kalman baseline. Returns the tables and
+/// the Kalman parts to copy into `dirs[0]` ([`assemble_kalman`]).
+fn assemble_found(
+    sweep: &Sweep,
+    files: &BTreeMap<usize, Found>,
+    dirs: &[&Path],
+) -> Result<(Assembled, Vec<(PathBuf, String)>)> {
     check_complete(sweep, files)?;
-    Ok(assemble_texts(sweep, files.values().map(|f| &f.file)))
+    let mut tables = assemble_texts(sweep, files.values().map(|f| &f.file));
+    let mut copies = Vec::new();
+    if sweep.config().kalman {
+        let (text, c) = assemble_kalman(sweep, dirs)?;
+        tables.kalman = Some(text);
+        copies = c;
+    }
+    Ok((tables, copies))
 }
 
 /// [`assemble`] for a caller that holds the lock of `out`.
 pub(super) fn assemble_locked(sweep: &Sweep, dirs: &[&Path], out: &Path) -> Result<usize> {
     let files = collect(sweep, dirs)?;
-    assemble_found(sweep, &files)?.write(out)?;
+    let (tables, _) = assemble_found(sweep, &files, dirs)?;
+    tables.write(out)?;
     Ok(files.len())
 }
 
@@ -265,7 +281,8 @@ pub fn merge_staged(
     let mut all = vec![out];
     all.extend(dirs.iter().copied().filter(|d| !same_dir(d, out)));
     let files = collect(sweep, &all)?;
-    check_complete(sweep, &files)?;
+    // Every table assembled (every file checked) before anything is written.
+    let (outputs, kalman_copies) = assemble_found(sweep, &files, &all)?;
     write_atomic(
         &pdir.join(SETTINGS_FILE),
         &settings_text(sweep.fingerprint(), sweep.canonical()),
@@ -275,7 +292,7 @@ pub fn merge_staged(
             f.file.write_atomic(&pdir.join(point_file_name(i)))?;
         }
     }
-    let outputs = assemble_found(sweep, &files)?;
+    copy_parts(&kalman_copies)?;
     let staged = Staged {
         report: SweepReport {
             computed: files.len(),

@@ -20,7 +20,7 @@ use super::graph::TheoryGraph;
 use super::run::{Progress, Sweep, run_cost, simulate};
 use super::schedule::{ScheduleReport, TaskKind, TaskTime, thread_cpu_s};
 use super::seeds::run_seed;
-use closed_loop::metrics::RunMetrics;
+use super::summary::SweepRun;
 use closed_loop::scenario::ScenarioLoop;
 
 /// What a task computes.
@@ -76,7 +76,7 @@ struct Shared<'a> {
     finished: Condvar,
     abort: AtomicBool,
     error: Mutex<Option<SweepError>>,
-    results: Vec<OnceLock<RunMetrics>>,
+    results: Vec<OnceLock<SweepRun>>,
     remaining: Vec<AtomicUsize>,
     theory_ready: AtomicBool,
     files: Mutex<BTreeMap<usize, PointFile>>,
@@ -305,13 +305,16 @@ impl Shared<'_> {
             sweep.scenario().sets.input.upper(),
         );
         let seed = run_seed(sweep.base_seed(), p, run, cfg.common_random_numbers);
-        let m = simulate(l, run, seed, input, cfg.bounded_factor).map_err(|source| {
-            SweepError::Setup {
-                point: p.to_string(),
-                source,
-            }
-        })?;
-        self.steps.fetch_add(m.steps as u64, Ordering::Relaxed);
+        let disturbance = &sweep.scenario().sets.disturbance;
+        let m =
+            simulate(l, run, seed, input, disturbance, cfg.bounded_factor).map_err(|source| {
+                SweepError::Setup {
+                    point: p.to_string(),
+                    source,
+                }
+            })?;
+        self.steps
+            .fetch_add(m.metrics.steps as u64, Ordering::Relaxed);
         let _ = self.results[slot * cfg.seeds + run].set(m);
         self.progress.run_done(cost);
         if self.remaining[slot].fetch_sub(1, Ordering::AcqRel) == 1 {
@@ -388,7 +391,7 @@ impl Shared<'_> {
     fn write_point(&self, slot: usize) -> Result<()> {
         let p = self.todo[slot];
         let seeds = self.sweep.config().seeds;
-        let runs: Vec<RunMetrics> = self.results[slot * seeds..(slot + 1) * seeds]
+        let runs: Vec<SweepRun> = self.results[slot * seeds..(slot + 1) * seeds]
             .iter()
             .filter_map(|c| c.get().cloned())
             .collect();

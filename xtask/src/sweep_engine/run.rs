@@ -22,14 +22,13 @@ use super::merge::{Assembled, assemble_files};
 use super::region::Staircase;
 use super::schedule::ScheduleReport;
 use super::seeds::Shard;
-use super::summary::summarise;
+use super::summary::{SweepRun, summarise};
 use super::theory::LinearEntry;
 use super::theory::{
     LinearSide, SolverTheory, TheoryAtK, joint_staircase, solver_linear, solver_theory,
 };
 use super::{ControllerChoice, Method};
-use closed_loop::metrics::RunMetrics;
-use closed_loop::scenario::{LoopOptions, ScenarioLoop};
+use closed_loop::scenario::{LoopOptions, ScenarioLoop, draws_outside};
 use closed_loop::sim::ClosedLoopError;
 
 /// How to run a sweep.
@@ -95,7 +94,9 @@ pub struct SweepReport {
     pub runs_wall_s: f64,
     /// Threads used.
     pub threads: usize,
-    /// Whether `runs.csv` and `points.csv` were assembled (false for a shard).
+    /// Whether `runs.csv` and `points.csv` (and `kalman.csv` with the Kalman baseline) were
+    /// assembled (false for a shard, which writes its part of `kalman.csv` to
+    /// `points/kalman.shard-I-of-N.csv`).
     pub assembled: bool,
     /// Every task's measured time and the replay of them (`schedule.rs`); empty when
     /// nothing was computed.
@@ -352,7 +353,7 @@ impl Sweep {
     }
 
     /// The point file of a computed point.
-    pub fn point_file(&self, p: &Point, runs: &[RunMetrics]) -> PointFile {
+    pub fn point_file(&self, p: &Point, runs: &[SweepRun]) -> PointFile {
         let metrics = &self.config.metrics;
         let summary = summarise(runs, metrics, self.theory_at(p));
         PointFile {
@@ -446,6 +447,10 @@ impl Sweep {
             }
             Some(tables)
         } else {
+            // A shard's rows of kalman.csv go to its part file, assembled by a merge.
+            if let (Some(shard), true) = (opts.shard, self.config.kalman) {
+                super::kalman_parts::write_kalman_part(self, shard, &pdir)?;
+            }
             None
         };
         Ok(Staged {
@@ -495,24 +500,22 @@ pub(super) fn take_lock(
     Ok(lock)
 }
 
-/// Runs `lp` once with `seed` (restarting it first) and returns its metrics.
+/// Runs `lp` once with `seed` (restarting it first) and returns its metrics and the count
+/// of its draws outside 𝒲 (`disturbance`), both from the trace after the run (the steps
+/// themselves allocate nothing for either).
 pub(super) fn simulate(
     lp: &mut ScenarioLoop,
     run: usize,
     seed: u64,
     input_box: (&[f64], &[f64]),
+    disturbance: &lti_model::BoxSet,
     bounded_factor: f64,
-) -> std::result::Result<RunMetrics, ClosedLoopError> {
+) -> std::result::Result<SweepRun, ClosedLoopError> {
     let start = Instant::now();
     lp.reseed(seed)?;
     let stop = lp.run().err();
-    Ok(closed_loop::monte_carlo::finish_run(
-        lp,
-        run,
-        seed,
-        stop,
-        start,
-        input_box,
-        bounded_factor,
-    ))
+    let metrics =
+        closed_loop::monte_carlo::finish_run(lp, run, seed, stop, start, input_box, bounded_factor);
+    let w_outside = draws_outside(lp.trace(), disturbance).len();
+    Ok(SweepRun { metrics, w_outside })
 }

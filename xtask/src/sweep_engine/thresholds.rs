@@ -149,8 +149,7 @@ pub fn thresholds_markdown(rows: &[Thresholds]) -> String {
     let k = |v: Option<usize>, missing: String| v.map_or(missing, |k| k.to_string());
     let ratio = |v: Option<f64>| match v {
         None => "—".to_string(),
-        Some(r) if (0.01..1e4).contains(&r) => format!("{r:.3}"),
-        Some(r) => format!("{r:.2e}"),
+        Some(r) => lti_model::numfmt::sig4(r),
     };
     let mut s = if two_d {
         String::from(
@@ -244,7 +243,7 @@ mod tests {
         assert_eq!(th[1].void_reason, "A unstable");
         let md = thresholds_markdown(&th);
         assert!(
-            md.contains("| pg | 1 | 30 | 30 | 30 | 500 | 16.667 | 1.000 |"),
+            md.contains("| pg | 1 | 30 | 30 | 30 | 500 | 16.67 | 1 |"),
             "{md}"
         );
         assert!(md.contains("— (unbounded runs at K = 3)"), "{md}");

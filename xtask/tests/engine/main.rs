@@ -4,6 +4,7 @@
 
 mod sweep;
 mod sweep2d;
+mod sweep_io;
 mod truth;
 
 use closed_loop::scenario::{LoopOptions, Scenario, ScenarioLoop};

@@ -118,6 +118,38 @@ fn paper_parameters_void_the_certificate() {
     assert!(!an.at(652).certified);
 }
 
+/// The hint "lower η below 6^(-1/M) = X" shows an X that is itself below the bound (rounded
+/// down, never up): at M = 1, 6^(-1) = 0.16667 shows as 0.1666 (rounded to nearest it would
+/// be 0.1667, above the bound), and η = X then satisfies 6η^M < 1.
+#[test]
+fn the_eta_hint_is_below_the_bound_it_names() {
+    for m in 1..=40 {
+        let mut inp = hand_inputs();
+        inp.horizon = m;
+        inp.eta = 0.99;
+        let an = IssAnalysis::new(inp);
+        let fix = &an.violated()[0].fix;
+        let shown = fix
+            .split("6^(-1/M) = ")
+            .nth(1)
+            .and_then(|t| t.split(' ').next())
+            .unwrap_or_else(|| panic!("no bound in {fix}"));
+        let x: f64 = shown.parse().unwrap_or_else(|_| panic!("{shown} in {fix}"));
+        let bound = eta_sup_for_horizon(m);
+        assert!(x < bound, "M = {m}: shown {shown} ≥ 6^(-1/M) = {bound}");
+        assert!(6.0 * x.powi(m as i32) < 1.0, "M = {m}: η = {shown}");
+        // Still the bound to 4 significant digits (one unit of the last digit below).
+        assert!(bound - x <= 1e-3 * bound, "M = {m}: {shown} vs {bound}");
+        let digits = shown.trim_start_matches(['0', '.']).replace('.', "");
+        assert!(digits.len() <= 4, "{shown}");
+    }
+    let mut inp = hand_inputs();
+    inp.eta = 0.5;
+    let an = IssAnalysis::new(inp);
+    let fix = &an.violated()[0].fix;
+    assert!(fix.contains("6^(-1/M) = 0.1666 at M = 1"), "{fix}");
+}
+
 #[test]
 fn nearest_parameters_for_rho_below_one() {
     // 6·0.8⁸ = 1.0066 ≥ 1, 6·0.8⁹ = 0.8053 < 1.

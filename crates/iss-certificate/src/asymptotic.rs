@@ -152,7 +152,7 @@ pub enum AsymptoticVoid {
         k: usize,
         /// The smallest certified K, if any.
         k_min: Option<usize>,
-        /// 1 − (sg1 + sg2 + sg3) at K (≤ 0), or φ(K) ≥ 1.
+        /// 1 − (sg1 + sg2 + sg3) at K (≤ 0 unless φ(K) ≥ 1, when it means nothing).
         margin: f64,
         /// φ(K).
         phi: f64,
@@ -177,9 +177,16 @@ impl std::fmt::Display for AsymptoticVoid {
                 phi,
             } => write!(
                 f,
-                "Theorem 1 does not certify K = {k} (φ(K) = {}, 1 − (sg1 + sg2 + sg3) = {} ≤ 0){}",
-                sig4(*phi),
-                sig4(*margin),
+                "Theorem 1 does not certify K = {k} ({}){}",
+                if *phi >= 1.0 {
+                    format!("φ(K) = {} ≥ 1", sig4(*phi))
+                } else {
+                    format!(
+                        "φ(K) = {}, 1 − (sg1 + sg2 + sg3) = {} ≤ 0",
+                        sig4(*phi),
+                        sig4(*margin)
+                    )
+                },
                 match k_min {
                     Some(m) => format!("; it certifies K ≥ K_min = {m}"),
                     None => String::new(),

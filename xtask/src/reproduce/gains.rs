@@ -156,13 +156,13 @@ pub(super) fn report(
                      MPC (the joint certificate's asymptotic gains are not derived)"
                         .into(),
                 )
-            } else if let Some(first) = r.summary.w_outside_first {
-                Some(format!(
-                    "w_t ∉ 𝒲 at {} step(s) from t = {first}: the bound assumes w_t ∈ 𝒲",
-                    r.summary.w_outside
-                ))
             } else {
-                None
+                r.summary.w_outside_first.map(|first| {
+                    format!(
+                        "w_t ∉ 𝒲 at {} step(s) from t = {first}: the bound assumes w_t ∈ 𝒲",
+                        r.summary.w_outside
+                    )
+                })
             };
             let certified = match (void, own) {
                 (Some(v), _) => Err(v),

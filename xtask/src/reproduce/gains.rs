@@ -264,6 +264,16 @@ pub(super) fn methods_section(r: &GainsReport) -> String {
         "\nCertified asymptotic gains at K_min (lim sup ‖e‖ ≤ g_e·w̄, lim sup ‖x‖ ≤ g_x·w̄, \
          w̄ ≥ sup‖w_t‖; docs/theory.md)"
     );
+    if r.methods
+        .iter()
+        .all(|m| m.theorem1.is_none() && m.regional.is_none())
+    {
+        let _ = writeln!(
+            s,
+            "  none: no method has a certified K (the reasons are above)"
+        );
+        return s;
+    }
     for m in &r.methods {
         let t1 = match &m.theorem1 {
             Some(g) => format!(

@@ -43,6 +43,7 @@ use crate::provenance::{Provenance, workspace_root};
 
 mod charts;
 mod document;
+mod gains;
 mod joint;
 mod linear;
 pub(crate) mod numfmt;
@@ -896,6 +897,7 @@ pub fn run_job(job: &Job, settings: &Settings) -> Result<Outcome> {
     let cert_path = job.out.join("certificate.json");
     files.push(cert_path.clone());
 
+    let asymptotic_gains = gains::report(&cert, &regional, &runs, solver, not_covered.as_deref());
     let document = CertificateDocument {
         format: CERTIFICATE_FORMAT.into(),
         format_version: FORMAT_VERSION,
@@ -948,6 +950,7 @@ pub fn run_job(job: &Job, settings: &Settings) -> Result<Outcome> {
         joint: joint_report,
         linear,
         regional,
+        asymptotic_gains,
         files: files
             .iter()
             .map(|p| p.strip_prefix(&job.out).unwrap_or(p).display().to_string())

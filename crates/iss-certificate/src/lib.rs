@@ -10,6 +10,8 @@
 //! - [`certificate`]: Theorem 1 for a resolved scenario ([`certificate::certify_closed_loop`]):
 //!   every premise with its margin, K_min per method.
 //! - [`analysis`]: Theorem 1's arithmetic (C₁…C₆, gains, slopes, premises, K_min).
+//! - [`asymptotic`]: what Theorem 1 guarantees: the certified asymptotic gains
+//!   lim sup‖x‖ ≤ g_x·w̄, lim sup ε ≤ g_ε·w̄, lim sup‖e‖ ≤ g_e·w̄, and the measured ones of a run.
 //! - [`small_gain`]: the sum-form small-gain conditions and their cycles.
 //! - [`gamma13`]: γ₁,₃ of Assumption 4 for the MPC on any plant (family bound by the
 //!   S-procedure, partial and full free-set enumeration, typed void reasons, user values).
@@ -24,6 +26,7 @@
 //! - [`budget`]: the cost estimate and the budget of every optional analysis phase.
 
 pub mod analysis;
+pub mod asymptotic;
 pub mod budget;
 pub mod certificate;
 pub mod coverage;

@@ -290,6 +290,10 @@ pub struct CertificateDocument {
     /// region that contains the scenario's own uncertainty or the constraint that limits it,
     /// the certified rate and gains (issue 27).
     pub regional: Vec<super::regional::RegionalEntry>,
+    /// What the certificate guarantees: Theorem 1's certified asymptotic gains (and the
+    /// regional ones) per method at K_min, and per run the certified bound next to the
+    /// measured gains (`iss_certificate::asymptotic`, issue 27).
+    pub asymptotic_gains: super::gains::GainsReport,
     /// Constants next to the paper's published values.
     pub paper_comparison: Vec<ComparisonRow>,
     /// Files written, relative to the output directory.

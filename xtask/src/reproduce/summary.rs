@@ -193,6 +193,7 @@ pub(super) fn summarize(d: &CertificateDocument, files: &[PathBuf], notes: &[Str
             d.scenario_iterations
         );
     }
+    s.push_str(&super::gains::methods_section(&d.asymptotic_gains));
 
     let preset = !d.paper_comparison.is_empty();
     if preset {
@@ -244,7 +245,7 @@ pub(super) fn summarize(d: &CertificateDocument, files: &[PathBuf], notes: &[Str
             let _ = writeln!(s, "\nClosed loop (Alg. 1, {} MHE, {controller})", d.solver);
         }
     }
-    for r in &d.runs {
+    for (i, r) in d.runs.iter().enumerate() {
         let why = match (r.k_source, d.joint.is_some()) {
             (KSource::ComputedKMin, false) => "K_min",
             (KSource::ComputedKMin, true) => "cheapest",
@@ -280,6 +281,9 @@ pub(super) fn summarize(d: &CertificateDocument, files: &[PathBuf], notes: &[Str
         }
         if let Some(kf) = &r.kalman {
             let _ = writeln!(s, "      {}", kalman_line(kf));
+        }
+        if let Some(g) = d.asymptotic_gains.runs.get(i) {
+            let _ = writeln!(s, "      {}", super::gains::run_line(g));
         }
         if let Some(first) = r.w_outside_first {
             let _ = writeln!(

@@ -2,6 +2,7 @@
 #![allow(clippy::unwrap_used)]
 
 mod analysis;
+mod asymptotic;
 mod budget;
 mod certificate;
 mod constrained;

@@ -622,7 +622,7 @@ pub fn theory_summary(sweep: &Sweep) -> String {
         let t = sweep.theory_at(p);
         let _ = write!(
             s,
-            "{}: {}, {}; ",
+            "{}: {}, {}, {}; ",
             p.solver,
             match (t.certified, t.k_min) {
                 ("void", _) => format!("void ({})", shorten(&t.void_reason, 60)),
@@ -633,6 +633,10 @@ pub fn theory_summary(sweep: &Sweep) -> String {
                 (Some(k), _) => format!("K_lin = {k}"),
                 (None, true) => "ρ_lin ≥ 1 at the largest K".into(),
                 (None, false) => shorten(&t.linear_note, 60),
+            },
+            match t.k_reg {
+                Some(k) => format!("K_reg = {k}"),
+                None => format!("no K_reg ({})", shorten(&t.regional_note, 60)),
             }
         );
     }

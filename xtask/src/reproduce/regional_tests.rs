@@ -24,10 +24,13 @@ fn k_mins(res: &ResolvedScenario, methods: &[Method]) -> Vec<Option<usize>> {
         ..CertificateOptions::default()
     };
     let cert = certify_closed_loop(res, &opts).unwrap();
-    methods.iter().map(|&m| cert.solver(m).k_min).collect()
+    methods
+        .iter()
+        .map(|&m| cert.solver(m).and_then(|s| s.k_min))
+        .collect()
 }
 
-/// A small uncertainty around the origin (x₀ = 0.01·1, prior error 0.01, w̄ = 10⁻⁴): the
+/// A small uncertainty around the origin (x₀ = 10⁻⁴·1, prior error 10⁻⁴, w̄ = 10⁻⁶): the
 /// region contains it as soon as the linear loop is stable with room to spare. The entry's
 /// K_reg is the library's `k_reg` up to the entry's search cap (K_min), its certificate is
 /// at K_reg and contains the set, and K_lin ≤ K_reg ≤ K_min with K_lin exact (every K).
@@ -35,10 +38,10 @@ fn k_mins(res: &ResolvedScenario, methods: &[Method]) -> Vec<Option<usize>> {
 fn k_reg_is_the_library_search_between_k_lin_and_k_min() {
     let res = stand_in();
     let mut o = RegionalOptions::from_scenario(&res, ControllerChoice::ExactMpc).unwrap();
-    o.x0_nominal = vec![0.01; 4];
+    o.x0_nominal = vec![1e-4; 4];
     o.x0_radius = 0.0;
-    o.prior_error = 0.01;
-    o.w_bar = 1e-4;
+    o.prior_error = 1e-4;
+    o.w_bar = 1e-6;
     let methods = [Method::ADMM, Method::FISTA];
     let k_min = k_mins(&res, &methods);
     for (&m, &k_min) in methods.iter().zip(&k_min) {

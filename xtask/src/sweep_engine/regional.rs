@@ -179,7 +179,9 @@ pub fn limit_text(c: &RegionalCertificate) -> String {
         );
     }
     let scale = if c.margin == f64::NEG_INFINITY {
-        "the nominal point alone activates a row".to_string()
+        "the certified scale of (x0_radius, prior_error, w̄) is −∞: the bound on the nominal \
+         x₀'s reach alone exceeds a row's bound"
+            .to_string()
     } else {
         format!(
             "the largest certified scale of (x0_radius, prior_error, w̄) is {}× the scenario's",

@@ -30,7 +30,7 @@ fn scratch(name: &str) -> PathBuf {
 }
 
 /// The certified stand-in with N = 5 (2^10 free sets: the certificate in a moment); `small`:
-/// x₀ = 0.01·1, the prior at x₀, the noise scaled to 1 % (w̄ = 2.2·10⁻³), so a region
+/// x₀ = 10⁻⁴·1, the prior at x₀, the noise scaled to 10⁻⁴ (w̄ = 2.2·10⁻⁵), so a region
 /// contains the uncertainty; else the file's own (x₀ = (12, −10, 10, −10)), which none does.
 fn scenario(dir: &Path, small: bool) -> PathBuf {
     let mut text = fs::read_to_string(CERTIFIED)
@@ -40,13 +40,13 @@ fn scenario(dir: &Path, small: bool) -> PathBuf {
         text = text
             .replace(
                 "x0 = [12.0, -10.0, 10.0, -10.0]",
-                "x0 = [0.01, 0.01, 0.01, 0.01]",
+                "x0 = [1e-4, 1e-4, 1e-4, 1e-4]",
             )
             .replace(
                 "prior = [7.0, -7.0, 3.0, -5.0]",
-                "prior = [0.01, 0.01, 0.01, 0.01]",
+                "prior = [1e-4, 1e-4, 1e-4, 1e-4]",
             )
-            .replace("scale = 1.0", "scale = 0.01");
+            .replace("scale = 1.0", "scale = 1e-4");
     }
     let path = dir.join("scenario.toml");
     fs::write(&path, text).unwrap();

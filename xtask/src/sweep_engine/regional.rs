@@ -135,11 +135,11 @@ pub fn row_text(row: &iss_certificate::regional::RowLabel) -> String {
     };
     match row.kind {
         RowKind::MheBox => format!(
-            "MHE box Z = 𝒳 × 𝒲^M, component {} of inner iterate {} ({when})",
+            "MHE box Z = 𝒳 × 𝒲^M: component {} of inner iterate {} ({when})",
             row.index, row.iterate
         ),
         RowKind::MheGeneral => format!(
-            "MHE general 𝒳/𝒴 row {}, inner iterate {} ({when})",
+            "MHE general 𝒳/𝒴 row {} of inner iterate {} ({when})",
             row.index, row.iterate
         ),
         RowKind::Input => format!("MPC input/state row {} ({when})", row.index),

@@ -30,8 +30,9 @@ fn scratch(name: &str) -> PathBuf {
 }
 
 /// The certified stand-in with N = 5 (2^10 free sets: the certificate in a moment); `small`:
-/// x₀ = 10⁻⁴·1, the prior at x₀, the noise scaled to 10⁻⁴ (w̄ = 2.2·10⁻⁵), so a region
-/// contains the uncertainty; else the file's own (x₀ = (12, −10, 10, −10)), which none does.
+/// x₀ = 10⁻⁴·1 and the prior at x₀ (the sweep's scales 10⁻⁴ and 5·10⁻⁵ make w̄ = 2.2·10⁻⁵
+/// and half that), so a region contains the uncertainty; else the file's own
+/// (x₀ = (12, −10, 10, −10)), which none does.
 fn scenario(dir: &Path, small: bool) -> PathBuf {
     let mut text = fs::read_to_string(CERTIFIED)
         .unwrap()
@@ -88,7 +89,7 @@ fn points(dir: &Path) -> Table {
 fn k_reg_column_is_the_library_search_and_survives_shards_and_merge() {
     let d = scratch("small");
     let sc = scenario(&d, true);
-    let sweep = Sweep::new(config(&sc, BOTH, "scales = [1.0, 0.5]")).unwrap();
+    let sweep = Sweep::new(config(&sc, BOTH, "scales = [1e-4, 5e-5]")).unwrap();
     let whole = d.join("t1");
     let report = run(&sweep, &whole, 1, None);
     let regional = report
@@ -134,14 +135,18 @@ fn k_reg_column_is_the_library_search_and_survives_shards_and_merge() {
             assert!(!table.text(row, "regional_note").unwrap().is_empty());
         }
     }
-    assert!(found > 0, "no K_reg in the small-uncertainty sweep");
+    assert!(
+        found > 0,
+        "no K_reg in the small-uncertainty sweep: {:?}",
+        table.text(0, "regional_note")
+    );
     // 3 threads, and 2 shards merged: the same points.csv (timing aside).
     let three = d.join("t3");
     run(&sweep, &three, 3, None);
     assert_eq!(points(&three).without_timing(), table.without_timing());
     let shards: Vec<PathBuf> = (1..=2).map(|i| d.join(format!("shard-{i}"))).collect();
     for (i, s) in shards.iter().enumerate() {
-        let fresh = Sweep::new(config(&sc, BOTH, "scales = [1.0, 0.5]")).unwrap();
+        let fresh = Sweep::new(config(&sc, BOTH, "scales = [1e-4, 5e-5]")).unwrap();
         run(
             &fresh,
             s,
@@ -154,7 +159,7 @@ fn k_reg_column_is_the_library_search_and_survives_shards_and_merge() {
     }
     let merged = d.join("merged");
     let dirs: Vec<&Path> = shards.iter().map(PathBuf::as_path).collect();
-    let fresh = Sweep::new(config(&sc, BOTH, "scales = [1.0, 0.5]")).unwrap();
+    let fresh = Sweep::new(config(&sc, BOTH, "scales = [1e-4, 5e-5]")).unwrap();
     merge_point_dirs(&fresh, &dirs, &merged, &NoProgress).unwrap();
     assert_eq!(points(&merged).without_timing(), table.without_timing());
     // The thresholds table: K_reg with its ratio to K_lin.
@@ -188,7 +193,7 @@ fn a_missing_k_reg_carries_its_reason() {
 
     let text = fs::read_to_string(&sc)
         .unwrap()
-        .replace("kind = \"uniform\"", "kind = \"gaussian\"");
+        .replace("kind = \"uniform\"", "kind = \"gaussian\"\ncovariance = 1e-4");
     let gauss = d.join("gauss.toml");
     fs::write(&gauss, text).unwrap();
     let g = Sweep::new(config(&gauss, BOTH, "linear = false")).unwrap();

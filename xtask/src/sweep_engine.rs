@@ -94,8 +94,8 @@ pub use region::{
 };
 pub use regional::{
     KRegOutcome, REGIONAL_MAX_K_NZ, REGIONAL_SEARCH_CAP, RegionalEntry, RegionalPlan,
-    RegionalSearch, RegionalSide, k_reg_outcome, limit_text, row_text, search_max,
-    theorem1_k_min, window_size,
+    RegionalSearch, RegionalSide, k_reg_outcome, limit_text, row_text, search_max, theorem1_k_min,
+    window_size,
 };
 pub use run::{NoProgress, Progress, RunOptions, Staged, Sweep, SweepReport, run_cost};
 pub use schedule::{Prediction, ScheduleReport, TaskKind, TaskTime};

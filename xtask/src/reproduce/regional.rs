@@ -135,6 +135,7 @@ pub(super) fn summary(entries: &[RegionalEntry]) -> String {
     for e in entries {
         let reg = match e.k_reg {
             Some(r) => r.to_string(),
+            None if e.tried.is_empty() => "none".into(),
             None => format!("none ≤ {}", e.search_max),
         };
         let _ = writeln!(

@@ -64,7 +64,10 @@ fn k_reg_is_the_library_search_between_k_lin_and_k_min() {
         let grid: Vec<usize> = (1..=k_reg).collect();
         let lin = linear_stability(&res, &lo, &grid, faer::Par::Seq).unwrap();
         let k_lin = lin.k_lin.unwrap();
-        assert!(k_lin <= k_reg && k_reg <= k_min, "{m}: {k_lin} {k_reg} {k_min}");
+        assert!(
+            k_lin <= k_reg && k_reg <= k_min,
+            "{m}: {k_lin} {k_reg} {k_min}"
+        );
         // The summary line carries the three and the ratios.
         let e = RegionalEntry {
             k_lin: Some(k_lin),

@@ -242,9 +242,10 @@ impl<'a> TheoryGraph<'a> {
         );
         for (i, search) in plan.searches.iter().enumerate() {
             let slot = self.config.solvers.iter().position(|&s| s == search.solver);
-            let task = self.jobs.iter().position(|(j, _)| {
-                matches!(j, TheoryJob::Solver(k) if Some(*k) == slot)
-            });
+            let task = self
+                .jobs
+                .iter()
+                .position(|(j, _)| matches!(j, TheoryJob::Solver(k) if Some(*k) == slot));
             let from = |t: Option<&[(Method, SolverTheory)]>| {
                 t.and_then(|t| t.iter().find(|(s, _)| *s == search.solver))
                     .and_then(|(_, th)| theorem1_k_min(th))

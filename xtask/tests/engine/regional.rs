@@ -63,7 +63,12 @@ fn config(scenario: &Path, solvers: &str, extra: &str) -> SweepConfig {
     SweepConfig::from_toml_str(&text, Path::new(".")).unwrap()
 }
 
-fn run(sweep: &Sweep, out: &Path, threads: usize, shard: Option<Shard>) -> xtask::sweep_engine::SweepReport {
+fn run(
+    sweep: &Sweep,
+    out: &Path,
+    threads: usize,
+    shard: Option<Shard>,
+) -> xtask::sweep_engine::SweepReport {
     sweep
         .run(
             &RunOptions {
@@ -166,7 +171,10 @@ fn k_reg_column_is_the_library_search_and_survives_shards_and_merge() {
     let th = thresholds(&table);
     assert!(th.iter().any(|t| t.k_reg.is_some()));
     let md = thresholds_markdown(&th);
-    assert!(md.contains("| K_lin | K_reg |") && md.contains("K_reg/K_lin"), "{md}");
+    assert!(
+        md.contains("| K_lin | K_reg |") && md.contains("K_reg/K_lin"),
+        "{md}"
+    );
 }
 
 /// No K_reg, with the reason: the stand-in's own uncertainty (the limiting constraint and
@@ -189,17 +197,26 @@ fn a_missing_k_reg_carries_its_reason() {
     let off = Sweep::new(config(&sc, BOTH, "certificate = false")).unwrap();
     let t = off.theory_at(&off.points()[0]);
     assert_eq!(t.k_reg, None);
-    assert!(t.regional_note.contains("certificate = false"), "{}", t.regional_note);
+    assert!(
+        t.regional_note.contains("certificate = false"),
+        "{}",
+        t.regional_note
+    );
 
-    let text = fs::read_to_string(&sc)
-        .unwrap()
-        .replace("kind = \"uniform\"", "kind = \"gaussian\"\ncovariance = 1e-4");
+    let text = fs::read_to_string(&sc).unwrap().replace(
+        "kind = \"uniform\"",
+        "kind = \"gaussian\"\ncovariance = 1e-4",
+    );
     let gauss = d.join("gauss.toml");
     fs::write(&gauss, text).unwrap();
     let g = Sweep::new(config(&gauss, BOTH, "linear = false")).unwrap();
     let t = g.theory_at(&g.points()[0]);
     assert_eq!(t.k_reg, None);
-    assert!(t.regional_note.contains("certificate.w_bar"), "{}", t.regional_note);
+    assert!(
+        t.regional_note.contains("certificate.w_bar"),
+        "{}",
+        t.regional_note
+    );
 
     let two_d = format!(
         "name = \"kreg2d\"\nscenario = \"{}\"\nk = [1, 10]\nk_c = [1, 5]\nsolvers = [\"admm\"]\n\

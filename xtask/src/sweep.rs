@@ -561,7 +561,7 @@ fn print_thresholds(sweep: &Sweep, thresholds: &[Thresholds], pairs: &[PairThres
         }
     } else if !thresholds.is_empty() {
         outln!(
-            "thresholds (K_lin: ρ_lin < 1 from here on the grid; K_emp: every run bounded from here on; K_cert: the covering certificate, Theorem 1 or with a K_c-iteration MPC the joint one):"
+            "thresholds (K_lin: ρ_lin < 1 from here on the grid; K_reg: the regional certificate's smallest K; K_emp: every run bounded from here on; K_cert: the covering certificate, Theorem 1 or with a K_c-iteration MPC the joint one):"
         );
         outln!("{}", thresholds_markdown(thresholds).trim_end_matches('\n'));
     }

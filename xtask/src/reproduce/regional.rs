@@ -138,12 +138,15 @@ pub(super) fn summary(entries: &[RegionalEntry]) -> String {
             None if e.tried.is_empty() => "none".into(),
             None => format!("none ≤ {}", e.search_max),
         };
+        // "no K_min", not "K_min = none": a void summary prints no `K_min =`.
+        let k_min = e
+            .k_min
+            .map_or_else(|| "no K_min".to_string(), |k| format!("K_min = {k}"));
         let _ = writeln!(
             s,
-            "  {:<14} K_lin = {}, K_reg = {reg}, K_min = {}; K_reg/K_lin = {}, K_min/K_lin = {}",
+            "  {:<14} K_lin = {}, K_reg = {reg}, {k_min}; K_reg/K_lin = {}, K_min/K_lin = {}",
             e.solver,
             k(e.k_lin),
-            k(e.k_min),
             ratio(e.k_reg, e.k_lin),
             ratio(e.k_min, e.k_lin),
         );

@@ -583,7 +583,7 @@ fn print_thresholds(sweep: &Sweep, thresholds: &[Thresholds], pairs: &[PairThres
         }
     } else if !thresholds.is_empty() {
         outln!(
-            "thresholds (K_lin: ρ_lin < 1 from here on the grid; K_emp: every run bounded from here on; K_cert: the covering certificate, Theorem 1 or with a K_c-iteration MPC the joint one):"
+            "thresholds (K_lin: ρ_lin < 1 from here on the grid; K_reg: the regional certificate's smallest K; K_emp: every run bounded from here on; K_cert: the covering certificate, Theorem 1 or with a K_c-iteration MPC the joint one):"
         );
         outln!("{}", thresholds_markdown(thresholds).trim_end_matches('\n'));
     }
@@ -644,7 +644,7 @@ pub fn theory_summary(sweep: &Sweep) -> String {
         let t = sweep.theory_at(p);
         let _ = write!(
             s,
-            "{}: {}, {}; ",
+            "{}: {}, {}, {}; ",
             p.solver,
             match (t.certified, t.k_min) {
                 ("void", _) => format!("void ({})", shorten(&t.void_reason, 60)),
@@ -655,6 +655,10 @@ pub fn theory_summary(sweep: &Sweep) -> String {
                 (Some(k), _) => format!("K_lin = {k}"),
                 (None, true) => "ρ_lin ≥ 1 at the largest K".into(),
                 (None, false) => shorten(&t.linear_note, 60),
+            },
+            match t.k_reg {
+                Some(k) => format!("K_reg = {k}"),
+                None => format!("no K_reg ({})", shorten(&t.regional_note, 60)),
             }
         );
     }

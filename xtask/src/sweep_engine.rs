@@ -44,6 +44,7 @@
 //! | `seeds.rs` | [`run_seed`], [`Shard`] |
 //! | `summary.rs` | [`PointSummary`]: quantiles of the runs' [`RunMetrics`] (from `closed_loop::metrics`) beside the certificate at K |
 //! | `thresholds.rs` | K_lin, K_emp, K_cert per solver from `points.csv` ([`thresholds`]) |
+//! | `regional.rs` | K_reg per solver and scale (the regional certificate's search, shared with `reproduce`), and why there is none ([`RegionalSide`], [`k_reg_outcome`]) |
 //! | `region.rs` | 2-D sweeps: the empirical and linear regions of (K_e, K_c), their staircases and cheapest pairs ([`pair_thresholds`]) |
 //! | `theory.rs` | the certificate's and the linear analysis' columns per point ([`SolverTheory`], [`TheoryAtK`], [`LinearSide`]); the joint certificate's hook [`certified_boundary`] |
 //! | `format.rs` | CSV rows and headers, fingerprint, point files (writing, reading, validation), [`Table`] |
@@ -69,6 +70,7 @@ mod lock;
 mod merge;
 mod pool;
 mod region;
+mod regional;
 mod run;
 mod schedule;
 mod seeds;
@@ -95,6 +97,11 @@ pub use merge::{Assembled, assemble, merge_point_dirs, merge_staged};
 pub use region::{
     IterationCost, Pair, PairThresholds, Staircase, cheapest_pair, pair_thresholds,
     pair_thresholds_markdown, staircase, staircase_text, up_set,
+};
+pub use regional::{
+    KRegOutcome, REGIONAL_MAX_K_NZ, REGIONAL_SEARCH_CAP, RegionalEntry, RegionalPlan,
+    RegionalSearch, RegionalSide, k_reg_outcome, limit_text, row_text, search_max, theorem1_k_min,
+    window_size,
 };
 pub use run::{NoProgress, Progress, RunOptions, Staged, Sweep, SweepReport, run_cost};
 pub use schedule::{Prediction, ScheduleReport, TaskKind, TaskTime};

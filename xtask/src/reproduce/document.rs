@@ -286,9 +286,10 @@ pub struct CertificateDocument {
     /// The exact linear stability boundary per method (exact MPC): ρ_lin(K) on a log grid,
     /// K_lin and every K with ρ_lin ≥ 1 (necessary for stability; `iss_certificate::linear`).
     pub linear: Vec<LinearEntry>,
-    /// The regional certificate of each method at its K_min (`iss_certificate::regional`): the
-    /// region that contains the scenario's own uncertainty or the constraint that limits it,
-    /// the certified rate and gains (issue 27).
+    /// K_reg of each method (`iss_certificate::regional`): the smallest K whose region
+    /// contains the scenario's own uncertainty, searched up to K_min, with the region there
+    /// (the certified rate and gains) — or the certificate at the largest K tried and the
+    /// constraint that limits it (issue 27).
     pub regional: Vec<super::regional::RegionalEntry>,
     /// What the certificate guarantees: Theorem 1's certified asymptotic gains (and the
     /// regional ones) per method at K_min, and per run the certified bound next to the

@@ -1,5 +1,5 @@
 //! What the certificate guarantees (issue 27): the certified asymptotic gains of Theorem 1
-//! (`iss_certificate::asymptotic`) and of the regional certificate, per method at its K_min,
+//! (`iss_certificate::asymptotic`, per method at its K_min) and of the regional certificate (at K_reg),
 //! and per simulated run the certified bound next to the measured gains, for
 //! certificate.json (`asymptotic_gains`) and the summary.
 
@@ -32,7 +32,8 @@ pub struct MethodGains {
     pub theorem1: Option<AsymptoticGains>,
     /// Why there are none (null when there are).
     pub theorem1_void: Option<String>,
-    /// The regional certificate's gains at K_min (null when it has none).
+    /// The regional certificate's gains at the K of the regional entry (K_reg, or the largest K
+    /// its search tried; null when it has none).
     pub regional: Option<RegionalGains>,
     /// Why there are none.
     pub regional_void: Option<String>,

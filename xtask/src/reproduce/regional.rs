@@ -1,66 +1,176 @@
-//! The regional certificate (issue 27, `iss_certificate::regional`) of each method at its K_min,
-//! for certificate.json: the region, the limiting constraint and the certified gains.
+//! K_reg of each method (issue 27, `iss_certificate::regional`) for certificate.json and the
+//! summary: the smallest K whose regional certificate contains the scenario's own
+//! uncertainty, searched up to the method's K_min (`xtask::sweep_engine::search_max`), with
+//! the region there — or, when there is none, the certificate at the largest K tried with the
+//! constraint that limits the region and by how much.
 
 use super::*;
+use iss_certificate::regional::{RegionalCertificate, RegionalOptions, RegionalVoid};
+use xtask::sweep_engine::{k_reg_outcome, window_size};
 
-/// One method's regional certificate at its K_min, or why there is none.
+/// One K the search evaluated.
+#[derive(Debug, Clone, Serialize)]
+pub struct TriedK {
+    /// K.
+    pub k: usize,
+    /// The largest certified scale of the scenario's uncertainty at K (capped just below 1
+    /// when the region does not contain it; null: void at K, or ∞ when `contains`).
+    pub margin: f64,
+    /// The region at K contains the scenario's uncertainty.
+    pub contains: bool,
+}
+
+/// One method's K_reg and regional certificate, or why there is none.
 #[derive(Debug, Clone, Serialize)]
 pub struct RegionalEntry {
     /// The method.
     pub solver: String,
-    /// The K it was evaluated at (the method's K_min; null when Theorem 1 is void).
+    /// K_lin of `linear[]` (null: none on the grid, or not computed), for the ratios.
+    pub k_lin: Option<usize>,
+    /// Theorem 1's K_min (null: void or beyond its search range): it caps the search.
+    pub k_min: Option<usize>,
+    /// K_reg: the smallest K the search found whose region contains the scenario's own
+    /// uncertainty (null: `void` says why).
+    pub k_reg: Option<usize>,
+    /// The largest K the search could try: min(K_min, or 2000 without one; ⌊200 000/n_z⌋).
+    pub search_max: usize,
+    /// Why `search_max` is that K.
+    pub search_max_reason: String,
+    /// The K `certificate` was evaluated at: K_reg, or the largest K tried when there is
+    /// none (null: nothing evaluated).
     pub k: Option<usize>,
-    /// The certificate (null when void).
-    pub certificate: Option<iss_certificate::regional::RegionalCertificate>,
-    /// Why there is none.
+    /// The regional certificate at `k` (null when it could not be evaluated there).
+    pub certificate: Option<RegionalCertificate>,
+    /// Every K the search evaluated, ascending.
+    pub tried: Vec<TriedK>,
+    /// Why there is no K_reg (null when there is one): the void reason, or which constraint
+    /// limits the region at the largest K tried and by how much.
     pub void: Option<String>,
 }
 
-/// Largest K·n_z at which `reproduce` evaluates the regional certificate: its rows (every
-/// pre-projection point of all K inner iterates of every window) grow with K·n_z, and the
-/// cart-pendulum's PG at K_min = 140 227 needed more than 24 GB. Beyond it the entry says so.
-pub const REGIONAL_MAX_K_NZ: usize = 200_000;
-
-/// [`iss_certificate::regional::regional_certificate`] of every method at its K_min, with the
-/// exact MPC and the scenario's own uncertainty (`certificate.x0_radius`, `prior_error`,
-/// `w_bar` or their defaults); not computed when K_min·n_z > [`REGIONAL_MAX_K_NZ`].
+/// K_reg ([`xtask::sweep_engine::k_reg_outcome`]) of every method with the exact MPC and the
+/// scenario's own uncertainty (`certificate.x0_radius`, `prior_error`, `w_bar` or their
+/// defaults), the search capped at the method's K_min.
 pub(super) fn regional_entries(
     resolved: &ResolvedScenario,
     cert: &ClosedLoopCertificate,
+    linear: &[LinearEntry],
 ) -> Vec<RegionalEntry> {
-    use iss_certificate::regional::{RegionalOptions, regional_certificate};
     let options = RegionalOptions::from_scenario(resolved, ControllerChoice::ExactMpc);
-    let plant = &resolved.scenario().plant;
-    let n_z = plant.nx() + cert.horizon * plant.nw();
     cert.solvers
         .iter()
         .map(|s| {
-            let solver = s.solver.name().into_owned();
-            let (certificate, void) = match (&options, s.k_min) {
-                (Err(e), _) => (None, Some(e.to_string())),
-                (Ok(_), None) => (
-                    None,
-                    Some("not evaluated: Theorem 1 gives no K_min for this method".into()),
-                ),
-                (Ok(_), Some(k)) if k.saturating_mul(n_z) > REGIONAL_MAX_K_NZ => (
-                    None,
-                    Some(format!(
-                        "not computed: the region's rows grow with K·n_z, and K_min·n_z = \
-                         {k}·{n_z} is above {REGIONAL_MAX_K_NZ}, the limit of `reproduce` \
-                         (iss_certificate::regional::regional_certificate computes it)"
-                    )),
-                ),
-                (Ok(o), Some(k)) => match regional_certificate(resolved, s.solver, k.max(1), o) {
-                    Ok(c) => (Some(c), None),
-                    Err(e) => (None, Some(e.to_string())),
-                },
-            };
-            RegionalEntry {
-                solver,
-                k: s.k_min,
-                certificate,
-                void,
-            }
+            let k_lin = linear
+                .iter()
+                .find(|l| l.solver == s.solver.name())
+                .and_then(|l| l.report.as_ref())
+                .and_then(|r| r.k_lin);
+            regional_entry(resolved, s.solver, &options, s.k_min, k_lin)
         })
         .collect()
 }
+
+/// K_reg of one method (K_min caps the search; K_lin is copied for the ratios).
+pub(super) fn regional_entry(
+    resolved: &ResolvedScenario,
+    method: Method,
+    options: &Result<RegionalOptions, RegionalVoid>,
+    k_min: Option<usize>,
+    k_lin: Option<usize>,
+) -> RegionalEntry {
+    let o = k_reg_outcome(resolved, method, options, k_min, window_size(resolved));
+    RegionalEntry {
+        solver: method.name().into_owned(),
+        k_lin,
+        k_min,
+        k_reg: o.k_reg,
+        search_max: o.search_max,
+        search_max_reason: o.search_max_reason,
+        k: o.k,
+        certificate: o.certificate,
+        tried: o
+            .tried
+            .into_iter()
+            .map(|(k, margin)| TriedK {
+                k,
+                margin,
+                contains: margin >= 1.0,
+            })
+            .collect(),
+        void: o.note,
+    }
+}
+
+/// The summary's lines: per method K_lin ≤ K_reg against K_min with the ratios, and why there
+/// is no K_reg where there is none.
+pub(super) fn summary(entries: &[RegionalEntry]) -> String {
+    use lti_model::numfmt::sig4;
+    let mut s = String::new();
+    if entries.is_empty() {
+        return s;
+    }
+    let _ = writeln!(
+        s,
+        "\nRegional certificate (exact MPC; inside the region no constraint is active, so the loop \
+         is the linear one): K_reg = smallest K whose region contains the scenario's uncertainty,\n\
+         searched up to K_min; K_lin ≤ K_reg (K_lin is necessary), against Theorem 1's K_min"
+    );
+    if let Some(o) = entries
+        .iter()
+        .find_map(|e| e.certificate.as_ref().map(|c| &c.options))
+    {
+        let _ = writeln!(
+            s,
+            "  uncertainty: ‖x₀ − x₀_nominal‖ ≤ {}, prior error ≤ {}, w̄ = {}",
+            sig4(o.x0_radius),
+            sig4(o.prior_error),
+            sig4(o.w_bar)
+        );
+    }
+    let k = |v: Option<usize>| v.map_or_else(|| "none".to_string(), |k| k.to_string());
+    let ratio = |a: Option<usize>, b: Option<usize>| match (a, b) {
+        (Some(a), Some(b)) if b > 0 => sig4(a as f64 / b as f64),
+        _ => "-".into(),
+    };
+    for e in entries {
+        let reg = match e.k_reg {
+            Some(r) => r.to_string(),
+            None if e.tried.is_empty() => "none".into(),
+            None => format!("none ≤ {}", e.search_max),
+        };
+        // "no K_min", not "K_min = none": a void summary prints no `K_min =`.
+        let k_min = e
+            .k_min
+            .map_or_else(|| "no K_min".to_string(), |k| format!("K_min = {k}"));
+        let _ = writeln!(
+            s,
+            "  {:<14} K_lin = {}, K_reg = {reg}, {k_min}; K_reg/K_lin = {}, K_min/K_lin = {}",
+            e.solver,
+            k(e.k_lin),
+            ratio(e.k_reg, e.k_lin),
+            ratio(e.k_min, e.k_lin),
+        );
+        match (&e.certificate, &e.void) {
+            (Some(c), None) => {
+                let _ = writeln!(
+                    s,
+                    "      at K_reg: rate λ = {}, certified gains sup‖x‖ ≤ {}·w̄, sup‖e‖ ≤ {}·w̄, \
+                     uncertainty certified up to {}× the scenario's",
+                    super::numfmt::rate(c.rate),
+                    sig4(c.gain_x),
+                    sig4(c.gain_e),
+                    sig4(c.margin)
+                );
+            }
+            (_, Some(v)) => {
+                let _ = writeln!(s, "      no K_reg: {v}");
+            }
+            (None, None) => {}
+        }
+    }
+    s
+}
+
+#[cfg(test)]
+#[path = "regional_tests.rs"]
+mod tests;

@@ -326,6 +326,7 @@ pub(super) fn summarize(d: &CertificateDocument, files: &[PathBuf], notes: &[Str
             let _ = writeln!(s, "  {:<14} {line}", l.solver);
         }
     }
+    s.push_str(&super::regional::summary(&d.regional));
     let _ = writeln!(
         s,
         "\nTrajectory check of Props. 1 (ε_t) and 3 (e_t), both sides from the trace"

@@ -1,7 +1,8 @@
 //! The SVG plots of an assembled sweep, drawn from its `points.csv`: one band chart per
 //! metric (5–95 % band, median line), the bounded fraction, and ρ_lin(K); certified K_min
-//! (dashed) and K_lin (dotted) drawn per solver, void certificates and undrawable points
-//! noted under the chart (never dropped silently).
+//! (dashed), K_reg (long thin dashes: the regional certificate) and K_lin (dotted) drawn per
+//! solver, void certificates, missing K_reg and undrawable points noted under the chart
+//! (never dropped silently).
 
 use anyhow::{Result, anyhow};
 use plotters::prelude::*;
@@ -18,6 +19,10 @@ struct Curve {
     k_min: Option<f64>,
     /// K_lin of the linear analysis on the grid (drawn dotted).
     k_lin: Option<f64>,
+    /// K_reg of the regional certificate (drawn in long thin dashes).
+    k_reg: Option<f64>,
+    /// Why there is no K_reg (empty when there is one or the column is absent).
+    regional_note: String,
     void_reason: Option<String>,
 }
 
@@ -93,6 +98,8 @@ fn curves(table: &Table, scale: &str, column: Column<'_>) -> Vec<Curve> {
                     points: Vec::new(),
                     k_min: table.number(row, "k_min_cert"),
                     k_lin: table.number(row, "k_lin"),
+                    k_reg: table.number(row, "k_reg"),
+                    regional_note: table.text(row, "regional_note").unwrap_or("").to_string(),
                     void_reason: void,
                 });
                 out.len() - 1
@@ -194,6 +201,17 @@ impl BandChart<'_> {
                 )),
                 _ => {}
             }
+            match c.k_reg {
+                Some(k) if k < k_lo || k > k_hi => self
+                    .notes
+                    .push(format!("{}: K_reg = {k} lies outside the K grid", c.solver)),
+                None if !c.regional_note.is_empty() => self.notes.push(format!(
+                    "{}: no K_reg ({})",
+                    c.solver,
+                    shorten(&c.regional_note, 110)
+                )),
+                _ => {}
+            }
         }
     }
 
@@ -284,6 +302,7 @@ impl BandChart<'_> {
                         let k_min = c.k_min.filter(|_| c.void_reason.is_none());
                         for (k, dash, gap, width, what) in [
                             (k_min, 8, 5, 2, "certified K_min"),
+                            (c.k_reg, 14, 3, 1, "regional K_reg"),
                             (c.k_lin, 2, 4, 1, "K_lin"),
                         ] {
                             let Some(k) = k.filter(|k| *k >= k_lo && *k <= k_hi) else {

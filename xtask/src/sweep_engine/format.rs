@@ -124,7 +124,7 @@ pub fn points_header(metrics: &[Metric], two_d: bool) -> String {
         let _ = write!(h, ",{}_max", m.name());
     }
     h.push_str(",phi,sg1,sg2,sg3,margin_cert,certified,k_min_cert,void_reason");
-    h.push_str(",rho_lin,k_lin,linear_note,w_outside_runs,w_outside_total,wall_ms");
+    h.push_str(",rho_lin,k_lin,linear_note,k_reg,regional_note,w_outside_runs,w_outside_total,wall_ms");
     h
 }
 
@@ -167,7 +167,7 @@ pub(super) fn point_row(p: &Point, s: &PointSummary) -> String {
     let sl = th.slopes;
     let _ = write!(
         out,
-        ",{},{},{},{},{},{},{},{},{},{},{},{},{},{}",
+        ",{},{},{},{},{},{},{},{},{},{},{},{},{},{},{},{}",
         cell(th.phi),
         cell(sl.map(|v| v[0])),
         cell(sl.map(|v| v[1])),
@@ -179,6 +179,8 @@ pub(super) fn point_row(p: &Point, s: &PointSummary) -> String {
         cell(th.rho_lin),
         th.k_lin.map(|k| k.to_string()).unwrap_or_default(),
         th.linear_note,
+        th.k_reg.map(|k| k.to_string()).unwrap_or_default(),
+        th.regional_note,
         s.w_outside_runs,
         s.w_outside_total,
         s.wall_ms
@@ -338,6 +340,9 @@ impl PointFileRules<'_> {
         cells.push(Cell::Text);
         // rho_lin, k_lin, linear_note
         cells.push(Cell::NumberOrEmpty);
+        cells.push(Cell::IntegerOrEmpty);
+        cells.push(Cell::Text);
+        // k_reg, regional_note
         cells.push(Cell::IntegerOrEmpty);
         cells.push(Cell::Text);
         // w_outside_runs, w_outside_total (recomputed from the run rows below)

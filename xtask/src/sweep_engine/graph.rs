@@ -11,6 +11,7 @@
 //! | `linear` × solvers (× K_c) | — | ρ_lin on the K grid ([`solver_linear`]) |
 //! | `certificate` | every chunk and the plan | the scenario's certificate from the pieces ([`certify_closed_loop_with`]): L_Φ, Theorem 1 per solver |
 //! | `solver` × solvers | the certificate | the certificate covering the solver ([`theory_of`]) and, in a 2-D sweep, its (K_e, K_c) staircase |
+//! | `regional` × solvers (× distinct uncertainty of the scales) | the solver's task (its K_min caps the search) | K_reg ([`RegionalPlan::run`]) |
 //!
 //! The chunks are fixed by 2^s (not by the thread count) and reduced in chunk order by a
 //! maximum, so the certificate equals [`super::solver_theory`]'s bit for bit
@@ -32,6 +33,7 @@ use iss_certificate::gamma13::{
 
 use super::config::SweepConfig;
 use super::region::Staircase;
+use super::regional::{RegionalPlan, RegionalSide, theorem1_k_min};
 use super::schedule::TaskKind;
 use super::theory::{
     LinearEntry, LinearSide, SolverTheory, certificate_options, joint_staircase, solver_linear,
@@ -57,6 +59,18 @@ pub(super) enum TheoryJob {
     Certificate,
     /// The theory (and 2-D staircase) of `solvers[i]`.
     Solver(usize),
+    /// Search `i` of the K_reg plan.
+    Regional(usize),
+}
+
+/// Where a K_reg search takes the K_min that caps it.
+#[derive(Debug, Clone, Copy)]
+enum KMin {
+    /// Known when the graph is built (no certificate covers the configuration, or the
+    /// theory was computed before).
+    Known(Option<usize>),
+    /// From the `Solver` task of `solvers[i]`.
+    Solver(usize),
 }
 
 impl TheoryJob {
@@ -68,6 +82,7 @@ impl TheoryJob {
             TheoryJob::Linear(..) => TaskKind::Linear,
             TheoryJob::Certificate => TaskKind::Certificate,
             TheoryJob::Solver(_) => TaskKind::Solver,
+            TheoryJob::Regional(_) => TaskKind::Regional,
         }
     }
 }
@@ -78,6 +93,7 @@ pub(super) struct TheoryResults {
     pub theory: Option<Vec<(Method, SolverTheory)>>,
     pub linear: Option<LinearSide>,
     pub boundaries: Option<Vec<(Method, Staircase)>>,
+    pub regional: Option<RegionalSide>,
 }
 
 type Stage<'a> = Option<Result<Gamma13Stage<'a>, MpcError>>;
@@ -98,6 +114,9 @@ pub(super) struct TheoryGraph<'a> {
     certificate: OnceLock<Result<ClosedLoopCertificate, String>>,
     solvers: Vec<OnceLock<(SolverTheory, Staircase)>>,
     linear: Vec<OnceLock<LinearEntry>>,
+    regional_plan: Option<RegionalPlan>,
+    regional_k_min: Vec<KMin>,
+    regional: Vec<OnceLock<(Option<usize>, String)>>,
     theory_wanted: bool,
     linear_wanted: bool,
     boundaries_wanted: bool,
@@ -105,7 +124,9 @@ pub(super) struct TheoryGraph<'a> {
 
 impl<'a> TheoryGraph<'a> {
     /// The tasks for what is wanted: the certificate's pieces and the per-solver theory
-    /// when `theory` (or, in a 2-D sweep, `boundaries`) is wanted, ρ_lin when `linear` is.
+    /// when `theory` (or, in a 2-D sweep, `boundaries`) is wanted, ρ_lin when `linear` is,
+    /// the K_reg searches when `regional` is (`Some(known)`: `known` is the theory computed
+    /// before, if any, else the searches wait for the solvers' tasks).
     /// A configuration no certificate covers needs no task: its theory is returned in
     /// `ready` at once.
     pub(super) fn new(
@@ -114,6 +135,7 @@ impl<'a> TheoryGraph<'a> {
         theory: bool,
         linear: bool,
         boundaries: bool,
+        regional: Option<Option<&[(Method, SolverTheory)]>>,
     ) -> (Self, TheoryResults) {
         let mut ready = TheoryResults::default();
         let mut g = TheoryGraph {
@@ -129,6 +151,9 @@ impl<'a> TheoryGraph<'a> {
             certificate: OnceLock::new(),
             solvers: Vec::new(),
             linear: Vec::new(),
+            regional_plan: None,
+            regional_k_min: Vec::new(),
+            regional: Vec::new(),
             theory_wanted: false,
             linear_wanted: false,
             boundaries_wanted: false,
@@ -191,7 +216,49 @@ impl<'a> TheoryGraph<'a> {
             }
             g.jobs.splice(at..at, lin);
         }
+        if let Some(known) = regional {
+            g.regional_jobs(known, ready.theory.as_deref());
+        }
         (g, ready)
+    }
+
+    /// The K_reg searches (after every other theory task), each after its solver's task
+    /// when the theory is computed here.
+    fn regional_jobs(
+        &mut self,
+        known: Option<&[(Method, SolverTheory)]>,
+        ready: Option<&[(Method, SolverTheory)]>,
+    ) {
+        let scales = self
+            .config
+            .scales
+            .clone()
+            .unwrap_or_else(|| vec![self.resolved.scenario().noise.scale]);
+        let plan = RegionalPlan::new(
+            self.resolved,
+            &self.config.solvers,
+            &scales,
+            self.config.controller,
+        );
+        for (i, search) in plan.searches.iter().enumerate() {
+            let slot = self.config.solvers.iter().position(|&s| s == search.solver);
+            let task = self
+                .jobs
+                .iter()
+                .position(|(j, _)| matches!(j, TheoryJob::Solver(k) if Some(*k) == slot));
+            let from = |t: Option<&[(Method, SolverTheory)]>| {
+                t.and_then(|t| t.iter().find(|(s, _)| *s == search.solver))
+                    .and_then(|(_, th)| theorem1_k_min(th))
+            };
+            let (k_min, deps) = match (task, slot) {
+                (Some(t), Some(k)) => (KMin::Solver(k), vec![t]),
+                _ => (KMin::Known(from(known).or_else(|| from(ready))), Vec::new()),
+            };
+            self.regional_k_min.push(k_min);
+            self.regional.push(OnceLock::new());
+            self.jobs.push((TheoryJob::Regional(i), deps));
+        }
+        self.regional_plan = Some(plan);
     }
 
     /// The certificate's tasks: γ₁,₃'s plan and chunks and L_π's chunks (when the
@@ -302,6 +369,16 @@ impl<'a> TheoryGraph<'a> {
                 };
                 let _ = self.solvers[k].set((theory, staircase));
             }
+            TheoryJob::Regional(i) => {
+                let Some(plan) = &self.regional_plan else {
+                    return;
+                };
+                let k_min = match self.regional_k_min[i] {
+                    KMin::Known(k) => k,
+                    KMin::Solver(k) => self.solvers[k].get().and_then(|(t, _)| theorem1_k_min(t)),
+                };
+                let _ = self.regional[i].set(plan.run(self.resolved, i, k_min));
+            }
         }
     }
 
@@ -381,6 +458,10 @@ impl<'a> TheoryGraph<'a> {
             boundaries: self
                 .boundaries_wanted
                 .then(|| solvers().into_iter().map(|(s, _, b)| (s, b)).collect()),
+            regional: self
+                .regional_plan
+                .as_ref()
+                .map(|p| p.side(|i| self.regional[i].get().cloned())),
         }
     }
 }

@@ -98,6 +98,8 @@ impl Sweep {
             self.theory.get().is_none() && (cfg.certificate || cfg.is_2d()),
             self.linear.get().is_none() && cfg.linear,
             self.certified.get().is_none() && cfg.is_2d(),
+            (self.regional.get().is_none() && self.regional_unavailable().is_none())
+                .then(|| self.theory.get().map(Vec::as_slice)),
         );
         self.store(ready);
         let mut jobs: Vec<(Job, u64)> =
@@ -126,6 +128,9 @@ impl Sweep {
         }
         if let Some(v) = r.boundaries {
             let _ = self.certified.set(v);
+        }
+        if let Some(v) = r.regional {
+            let _ = self.regional.set(v);
         }
     }
 

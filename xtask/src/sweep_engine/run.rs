@@ -20,6 +20,7 @@ use super::format::{self, PointFile, point_row, run_row, temp_path};
 use super::lock::OutputLock;
 use super::merge::{Assembled, assemble_files};
 use super::region::Staircase;
+use super::regional::{RegionalPlan, RegionalSide, theorem1_k_min};
 use super::schedule::ScheduleReport;
 use super::seeds::Shard;
 use super::summary::{SweepRun, summarise};
@@ -128,6 +129,7 @@ pub struct Sweep {
     pub(super) theory: OnceLock<Vec<(Method, SolverTheory)>>,
     pub(super) linear: OnceLock<LinearSide>,
     pub(super) certified: OnceLock<Vec<(Method, Staircase)>>,
+    pub(super) regional: OnceLock<RegionalSide>,
 }
 
 impl Sweep {
@@ -196,6 +198,7 @@ impl Sweep {
             theory: OnceLock::new(),
             linear: OnceLock::new(),
             certified: OnceLock::new(),
+            regional: OnceLock::new(),
         };
         // Fail early (before any output) if a point cannot be set up.
         for &solver in &sweep.config.solvers {
@@ -293,6 +296,62 @@ impl Sweep {
         })
     }
 
+    /// The disturbance scales of the sweep (`scales`, or the scenario's `noise.scale`).
+    pub(super) fn scales(&self) -> Vec<f64> {
+        self.config
+            .scales
+            .clone()
+            .unwrap_or_else(|| vec![self.scenario().noise.scale])
+    }
+
+    /// Why the sweep has no K_reg (None: it is computed): a 2-D sweep (the K_c-iteration
+    /// MPC is not covered by the regional certificate) or `certificate = false`.
+    pub(super) fn regional_unavailable(&self) -> Option<&'static str> {
+        if self.config.is_2d() {
+            Some(
+                "not computed: the regional certificate covers the exact MPC and the saturated \
+                 LQR, not the K_c-iteration MPC of a 2-D sweep",
+            )
+        } else if !self.config.certificate {
+            Some("not computed (certificate = false in the sweep config)")
+        } else {
+            None
+        }
+    }
+
+    /// K_reg per solver and scale ([`super::regional`]: the smallest K whose regional
+    /// certificate contains the scenario's uncertainty at that scale, searched up to the
+    /// solver's K_min), or why there is none (computed on first use, like
+    /// [`Sweep::theory`]).
+    pub fn regional(&self) -> &RegionalSide {
+        self.regional.get_or_init(|| {
+            let scales = self.scales();
+            if let Some(note) = self.regional_unavailable() {
+                return RegionalSide::unavailable(&self.config.solvers, &scales, note);
+            }
+            let plan = RegionalPlan::new(
+                &self.resolved,
+                &self.config.solvers,
+                &scales,
+                self.config.controller,
+            );
+            let results: Vec<(Option<usize>, String)> = plan
+                .searches
+                .iter()
+                .enumerate()
+                .map(|(i, search)| {
+                    let k_min = self
+                        .theory()
+                        .iter()
+                        .find(|(s, _)| *s == search.solver)
+                        .and_then(|(_, t)| theorem1_k_min(t));
+                    plan.run(&self.resolved, i, k_min)
+                })
+                .collect();
+            plan.side(|i| results.get(i).cloned())
+        })
+    }
+
     /// The joint certificate's region of (K_e, K_c) per MHE solver of a 2-D sweep, as a
     /// staircase (K_e, smallest certified K_c or None) on the K_e grid: the hook
     /// [`certified_boundary`](super::certified_boundary) (empty = not computed). Empty for a
@@ -321,6 +380,7 @@ impl Sweep {
                 SolverTheory::Unavailable("no analysis for this solver".into()).at(p.k)
             });
         self.linear().fill(p.solver, p.k_c, p.k, &mut t);
+        self.regional().fill(p.solver, p.scale, &mut t);
         t
     }
 

@@ -41,19 +41,23 @@ pub enum TaskKind {
     Certificate,
     /// The certificate covering one solver (and its (K_e, K_c) staircase in a 2-D sweep).
     Solver,
+    /// K_reg of one solver (per distinct uncertainty of the scales): the regional
+    /// certificate's search.
+    Regional,
     /// One run of one point.
     Run,
 }
 
 impl TaskKind {
     /// Every kind, in the order of the list.
-    pub const ALL: [TaskKind; 7] = [
+    pub const ALL: [TaskKind; 8] = [
         TaskKind::Gamma13Plan,
         TaskKind::Gamma13Enumeration,
         TaskKind::LPiEnumeration,
         TaskKind::Linear,
         TaskKind::Certificate,
         TaskKind::Solver,
+        TaskKind::Regional,
         TaskKind::Run,
     ];
 
@@ -66,6 +70,7 @@ impl TaskKind {
             TaskKind::Linear => "linear",
             TaskKind::Certificate => "certificate",
             TaskKind::Solver => "solver",
+            TaskKind::Regional => "regional",
             TaskKind::Run => "run",
         }
     }

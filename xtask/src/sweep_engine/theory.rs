@@ -138,6 +138,12 @@ pub struct TheoryAtK {
     pub k_lin: Option<usize>,
     /// Why ρ_lin is missing (empty otherwise).
     pub linear_note: String,
+    /// K_reg of this solver at this point's disturbance scale: the smallest K whose
+    /// regional certificate contains the scenario's uncertainty (`iss_certificate::regional`;
+    /// None: `regional_note` says why).
+    pub k_reg: Option<usize>,
+    /// Why K_reg is missing (empty otherwise).
+    pub regional_note: String,
 }
 
 /// ρ_lin of one MHE solver with one controller: the report on the K grid, or why not.

@@ -1,7 +1,9 @@
 //! The three thresholds of a sweep per solver and scale (and per K_c in a 2-D sweep: each
 //! K_c is a curve over K_e), read from `points.csv`:
-//! K_lin (linear stability, necessary), K_emp (what the runs show) and K_cert (Theorem 1,
-//! sufficient), with the ratios K_cert/K_emp and K_emp/K_lin.
+//! K_lin (linear stability, necessary), K_reg (the regional certificate: sufficient inside a
+//! region that contains the scenario's uncertainty), K_emp (what the runs show) and K_cert
+//! (Theorem 1, sufficient globally), with the ratios K_reg/K_lin, K_cert/K_lin,
+//! K_cert/K_emp and K_emp/K_lin.
 //!
 //! K_emp is the smallest grid K from which *every* grid K above has every run bounded
 //! (bounded covers x and e, and a diverged or failed run is never bounded): the bounded
@@ -39,6 +41,11 @@ pub struct Thresholds {
     /// K_lin of the linear analysis on the grid (None: ρ_lin ≥ 1 at the largest K, or no
     /// analysis).
     pub k_lin: Option<usize>,
+    /// K_reg: the smallest K whose regional certificate contains the scenario's uncertainty
+    /// at this scale (None: `regional_note` says why; it may lie beyond the grid).
+    pub k_reg: Option<usize>,
+    /// Why there is no K_reg (empty otherwise, and for files without the column).
+    pub regional_note: String,
     /// K_emp: the smallest grid K from which every run at every larger grid K is bounded
     /// (None: not even at the largest K).
     pub k_emp: Option<usize>,
@@ -61,6 +68,14 @@ impl Thresholds {
     /// K_emp / K_lin (what the nonlinear runs need beyond linear stability).
     pub fn emp_over_lin(&self) -> Option<f64> {
         Some(self.k_emp? as f64 / self.k_lin? as f64)
+    }
+    /// K_reg / K_lin (the regional certificate against the necessary bound).
+    pub fn reg_over_lin(&self) -> Option<f64> {
+        Some(self.k_reg? as f64 / self.k_lin? as f64)
+    }
+    /// K_cert / K_lin (the global certificate against the necessary bound).
+    pub fn cert_over_lin(&self) -> Option<f64> {
+        Some(self.k_cert? as f64 / self.k_lin? as f64)
     }
 }
 
@@ -104,6 +119,8 @@ pub fn thresholds(table: &Table) -> Vec<Thresholds> {
                         k_c,
                         k_max: 0,
                         k_lin: int("k_lin"),
+                        k_reg: int("k_reg"),
+                        regional_note: table.text(row, "regional_note").unwrap_or("").to_string(),
                         k_emp: None,
                         k_settle: None,
                         k_cert: if void { None } else { int("k_min_cert") },
@@ -143,7 +160,8 @@ pub fn thresholds(table: &Table) -> Vec<Thresholds> {
 
 /// The thresholds as a Markdown table (the one `docs/sweeps.md` shows), one row per solver
 /// and scale (and K_c, in a column after the scale, for a 2-D sweep); `—` where a threshold
-/// does not exist on the grid.
+/// does not exist on the grid. Below the table, one line per row without K_reg says why
+/// (the void reason, or the constraint that limits the region and by how much).
 pub fn thresholds_markdown(rows: &[Thresholds]) -> String {
     let two_d = rows.iter().any(|t| t.k_c.is_some());
     let k = |v: Option<usize>, missing: String| v.map_or(missing, |k| k.to_string());
@@ -153,16 +171,27 @@ pub fn thresholds_markdown(rows: &[Thresholds]) -> String {
     };
     let mut s = if two_d {
         String::from(
-            "| solver | scale | K_c | K_lin | K_emp | K_settle | K_cert | K_cert/K_emp | K_emp/K_lin |\n\
-             |---|---|---|---|---|---|---|---|---|\n",
+            "| solver | scale | K_c | K_lin | K_reg | K_emp | K_settle | K_cert | K_reg/K_lin | K_cert/K_lin | K_cert/K_emp | K_emp/K_lin |\n\
+             |---|---|---|---|---|---|---|---|---|---|---|---|\n",
         )
     } else {
         String::from(
-            "| solver | scale | K_lin | K_emp | K_settle | K_cert | K_cert/K_emp | K_emp/K_lin |\n\
-             |---|---|---|---|---|---|---|---|\n",
+            "| solver | scale | K_lin | K_reg | K_emp | K_settle | K_cert | K_reg/K_lin | K_cert/K_lin | K_cert/K_emp | K_emp/K_lin |\n\
+             |---|---|---|---|---|---|---|---|---|---|---|\n",
         )
     };
+    let mut notes = String::new();
     for t in rows {
+        if t.k_reg.is_none() && !t.regional_note.is_empty() {
+            let _ = writeln!(
+                notes,
+                "- K_reg of {} at scale {}{}: {}",
+                t.solver,
+                t.scale,
+                t.k_c.map_or_else(String::new, |k| format!(", K_c = {k}")),
+                t.regional_note
+            );
+        }
         let cert = match (t.k_cert, t.void_reason.is_empty()) {
             (Some(k), _) => k.to_string(),
             (None, false) => format!("void: {}", t.void_reason),
@@ -175,16 +204,23 @@ pub fn thresholds_markdown(rows: &[Thresholds]) -> String {
         };
         let _ = writeln!(
             s,
-            "| {} | {} |{k_c} {} | {} | {} | {} | {} | {} |",
+            "| {} | {} |{k_c} {} | {} | {} | {} | {} | {} | {} | {} | {} |",
             t.solver,
             t.scale,
             k(t.k_lin, format!("— (ρ_lin ≥ 1 or n/a at K = {})", t.k_max)),
+            k(t.k_reg, "—".to_string()),
             k(t.k_emp, format!("— (unbounded runs at K = {})", t.k_max)),
             k(t.k_settle, "—".to_string()),
             cert,
+            ratio(t.reg_over_lin()),
+            ratio(t.cert_over_lin()),
             ratio(t.cert_over_emp()),
             ratio(t.emp_over_lin()),
         );
+    }
+    if !notes.is_empty() {
+        s.push('\n');
+        s.push_str(&notes);
     }
     s
 }
@@ -243,7 +279,7 @@ mod tests {
         assert_eq!(th[1].void_reason, "A unstable");
         let md = thresholds_markdown(&th);
         assert!(
-            md.contains("| pg | 1 | 30 | 30 | 30 | 500 | 16.67 | 1 |"),
+            md.contains("| pg | 1 | 30 | — | 30 | 30 | 500 | — | 16.67 | 16.67 | 1 |"),
             "{md}"
         );
         assert!(md.contains("— (unbounded runs at K = 3)"), "{md}");

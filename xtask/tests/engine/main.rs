@@ -2,6 +2,7 @@
 //! of the bounded rule, the coverage and the thresholds across reproduce and sweeps.
 #![allow(clippy::unwrap_used)]
 
+mod regional;
 mod sweep;
 mod sweep2d;
 mod sweep_io;

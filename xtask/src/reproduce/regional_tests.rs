@@ -1,0 +1,129 @@
+#![allow(clippy::unwrap_used)]
+//! K_reg as `reproduce` reports it: the library's search, ordered between K_lin and K_min,
+//! and a reason whenever there is none.
+
+use super::*;
+use iss_certificate::linear::linear_stability;
+use iss_certificate::regional::k_reg;
+
+const STAND_IN: &str = concat!(
+    env!("CARGO_MANIFEST_DIR"),
+    "/../scenarios/case-study-certified.toml"
+);
+
+fn stand_in() -> ResolvedScenario {
+    Scenario::from_file(STAND_IN).unwrap().resolve().unwrap()
+}
+
+/// Theorem 1's K_min per method, without the sampled estimates.
+fn k_mins(res: &ResolvedScenario, methods: &[Method]) -> Vec<Option<usize>> {
+    let opts = CertificateOptions {
+        solvers: methods.to_vec(),
+        gamma13_sequences: 0,
+        lipschitz_pairs: 0,
+        ..CertificateOptions::default()
+    };
+    let cert = certify_closed_loop(res, &opts).unwrap();
+    methods
+        .iter()
+        .map(|&m| cert.solver(m).and_then(|s| s.k_min))
+        .collect()
+}
+
+/// A small uncertainty around the origin (x₀ = 10⁻⁴·1, prior error 10⁻⁴, w̄ = 10⁻⁶): the
+/// region contains it as soon as the linear loop is stable with room to spare. The entry's
+/// K_reg is the library's `k_reg` up to the entry's search cap (K_min), its certificate is
+/// at K_reg and contains the set, and K_lin ≤ K_reg ≤ K_min with K_lin exact (every K).
+#[test]
+fn k_reg_is_the_library_search_between_k_lin_and_k_min() {
+    let res = stand_in();
+    let mut o = RegionalOptions::from_scenario(&res, ControllerChoice::ExactMpc).unwrap();
+    o.x0_nominal = vec![1e-4; 4];
+    o.x0_radius = 0.0;
+    o.prior_error = 1e-4;
+    o.w_bar = 1e-6;
+    let methods = [Method::ADMM, Method::FISTA];
+    let k_min = k_mins(&res, &methods);
+    for (&m, &k_min) in methods.iter().zip(&k_min) {
+        let k_min = k_min.unwrap();
+        let e = regional_entry(&res, m, &Ok(o.clone()), Some(k_min), None);
+        assert_eq!(e.search_max, k_min, "{}", e.search_max_reason);
+        let direct = k_reg(&res, m, &o, k_min).unwrap();
+        assert_eq!(e.k_reg, direct.k_reg, "{m}");
+        let k_reg = e.k_reg.unwrap_or_else(|| panic!("{m}: {:?}", e.void));
+        assert!(e.void.is_none());
+        let c = e.certificate.as_ref().unwrap();
+        assert_eq!((e.k, c.k), (Some(k_reg), k_reg));
+        assert!(c.contains && c.margin >= 1.0 && c.rho_lin < 1.0);
+        assert_eq!(e.tried.len(), direct.tried.len());
+        assert!(e.tried.iter().any(|t| t.k == k_reg && t.contains));
+        // K_lin exactly: ρ_lin on every K up to K_reg.
+        let mut lo = LoopOptions::from_scenario(res.scenario()).unwrap();
+        lo.method = m;
+        lo.controller = ControllerChoice::ExactMpc;
+        let grid: Vec<usize> = (1..=k_reg).collect();
+        let lin = linear_stability(&res, &lo, &grid, faer::Par::Seq).unwrap();
+        let k_lin = lin.k_lin.unwrap();
+        assert!(
+            k_lin <= k_reg && k_reg <= k_min,
+            "{m}: {k_lin} {k_reg} {k_min}"
+        );
+        // The summary line carries the three and the ratios.
+        let e = RegionalEntry {
+            k_lin: Some(k_lin),
+            ..e
+        };
+        let text = summary(std::slice::from_ref(&e));
+        assert!(
+            text.contains(&format!(
+                "K_lin = {k_lin}, K_reg = {k_reg}, K_min = {k_min}; K_reg/K_lin = {}, K_min/K_lin = {}",
+                lti_model::numfmt::sig4(k_reg as f64 / k_lin as f64),
+                lti_model::numfmt::sig4(k_min as f64 / k_lin as f64)
+            )),
+            "{text}"
+        );
+    }
+}
+
+/// The stand-in's own uncertainty (x₀ = (12, −10, 10, −10), prior error 10.9, w̄ = 0.22) is
+/// in no region: no K_reg, and the entry says which constraint limits the region at the
+/// largest K tried (K_min) and by how much; a void uncertainty (Gaussian noise without
+/// `certificate.w_bar`) keeps its reason.
+#[test]
+fn no_k_reg_carries_its_reason() {
+    let res = stand_in();
+    let o = RegionalOptions::from_scenario(&res, ControllerChoice::ExactMpc);
+    let e = regional_entry(&res, Method::ADMM_PR, &o, Some(42), Some(7));
+    assert_eq!(e.k_reg, None);
+    assert_eq!((e.search_max, e.k), (42, Some(42)));
+    let c = e.certificate.as_ref().unwrap();
+    assert!(!c.contains);
+    let why = e.void.as_deref().unwrap();
+    assert!(
+        why.contains("no K ≤ 42 (K_min = 42)")
+            && why.contains("at K = 42:")
+            && why.contains("reaches")
+            && why.contains("against its bound"),
+        "{why}"
+    );
+    let text = summary(std::slice::from_ref(&e));
+    assert!(text.contains("K_reg = none ≤ 42"), "{text}");
+    assert!(text.contains("no K_reg: no K ≤ 42"), "{text}");
+
+    let void = Err(iss_certificate::regional::RegionalVoid::UnboundedNoise);
+    let e = regional_entry(&res, Method::ADMM, &void, Some(89), None);
+    assert_eq!((e.k_reg, e.k, e.tried.len()), (None, None, 0));
+    assert!(e.void.unwrap().contains("certificate.w_bar"));
+}
+
+/// Without a K_min the search stops at the documented cap, and at ⌊200 000/n_z⌋ when that is
+/// smaller.
+#[test]
+fn the_search_cap_is_k_min_or_the_documented_cap() {
+    use xtask::sweep_engine::{REGIONAL_MAX_K_NZ, REGIONAL_SEARCH_CAP, search_max};
+    assert_eq!(search_max(Some(243), 49).0, 243);
+    assert_eq!(search_max(None, 49).0, REGIONAL_SEARCH_CAP);
+    let (k, why) = search_max(Some(140_227), 14);
+    assert_eq!(k, REGIONAL_MAX_K_NZ / 14);
+    assert!(why.contains("K_min = 140227"), "{why}");
+}

@@ -1,0 +1,366 @@
+//! K_reg of one method as `reproduce` and the sweep report it (issue 27): the search of
+//! [`iss_certificate::regional::k_reg`] with the bound this crate puts on it, and the text
+//! that says why there is no K_reg — which constraint limits the region, by how much.
+//!
+//! The search tries K = 1, 2, 4, … then bisects, up to [`search_max`]: the method's K_min
+//! when Theorem 1 gives one (a K_reg above K_min adds nothing: the global certificate
+//! already holds there), else [`REGIONAL_SEARCH_CAP`]; and never beyond K·n_z =
+//! [`REGIONAL_MAX_K_NZ`] (the region's rows grow with K·n_z).
+
+use closed_loop::scenario::ResolvedScenario;
+use iss_certificate::regional::{
+    Limit, RegionalCertificate, RegionalOptions, RegionalVoid, RowKind, k_reg,
+};
+use lti_model::numfmt::sig4;
+use qp_iter::Method;
+use serde::Serialize;
+
+/// Largest K·n_z the K_reg search evaluates: the region's rows (every pre-projection point
+/// of all K inner iterates of every window) grow with K·n_z, and the cart-pendulum's PG at
+/// K_min = 140 227 needed more than 24 GB.
+pub const REGIONAL_MAX_K_NZ: usize = 200_000;
+
+/// Largest K the K_reg search tries when Theorem 1 gives no K_min: the top of the linear
+/// analysis' default grid (`reproduce` computes ρ_lin on 1 … max(2000, K_min)).
+pub const REGIONAL_SEARCH_CAP: usize = 2000;
+
+/// The largest K the search of a method tries, and why that K: min(K_min or
+/// [`REGIONAL_SEARCH_CAP`], ⌊[`REGIONAL_MAX_K_NZ`]/n_z⌋), at least 1.
+pub fn search_max(k_min: Option<usize>, n_z: usize) -> (usize, String) {
+    let by_cost = (REGIONAL_MAX_K_NZ / n_z.max(1)).max(1);
+    let (base, why) = match k_min {
+        Some(k) => (k.max(1), format!("K_min = {k}")),
+        None => (
+            REGIONAL_SEARCH_CAP,
+            format!("the search cap {REGIONAL_SEARCH_CAP} (Theorem 1 gives no K_min)"),
+        ),
+    };
+    if by_cost < base {
+        (
+            by_cost,
+            format!(
+                "K·n_z ≤ {REGIONAL_MAX_K_NZ} with n_z = {n_z} (below {why}: the region's rows \
+                 grow with K·n_z)"
+            ),
+        )
+    } else {
+        (base, why)
+    }
+}
+
+/// K_reg of one method with the certificate behind it.
+#[derive(Debug, Clone, PartialEq, Serialize)]
+pub struct KRegOutcome {
+    /// K_reg: the smallest K the search found whose region contains the scenario's
+    /// uncertainty (null: none up to `search_max`, or void; `note` says which).
+    pub k_reg: Option<usize>,
+    /// The largest K the search could try ([`search_max`]).
+    pub search_max: usize,
+    /// Why `search_max` is that K.
+    pub search_max_reason: String,
+    /// The K of `certificate`: K_reg, or the largest K tried when there is none.
+    pub k: Option<usize>,
+    /// The regional certificate at `k` (null when it could not be evaluated there).
+    pub certificate: Option<RegionalCertificate>,
+    /// Every K evaluated with its margin (the scale of the user's set that is certified;
+    /// ≥ 1 iff the region contains it; null = void there), ascending.
+    pub tried: Vec<(usize, f64)>,
+    /// Why there is no K_reg (null when there is one): the void reason, or the constraint
+    /// that limits the region at the largest K tried and by how much.
+    pub note: Option<String>,
+}
+
+/// K_reg of `method` ([`k_reg`] up to [`search_max`]`(k_min, n_z)`), with the reason when
+/// there is none. `options` is the scenario's uncertainty (or why it has none).
+pub fn k_reg_outcome(
+    resolved: &ResolvedScenario,
+    method: Method,
+    options: &Result<RegionalOptions, RegionalVoid>,
+    k_min: Option<usize>,
+    n_z: usize,
+) -> KRegOutcome {
+    let (search_max, search_max_reason) = search_max(k_min, n_z);
+    let mut out = KRegOutcome {
+        k_reg: None,
+        search_max,
+        search_max_reason,
+        k: None,
+        certificate: None,
+        tried: Vec::new(),
+        note: None,
+    };
+    let o = match options {
+        Ok(o) => o,
+        Err(e) => {
+            out.note = Some(e.to_string());
+            return out;
+        }
+    };
+    match k_reg(resolved, method, o, search_max) {
+        Err(e) => out.note = Some(e.to_string()),
+        Ok(kr) => {
+            out.k_reg = kr.k_reg;
+            out.k = kr
+                .certificate
+                .as_ref()
+                .map(|c| c.k)
+                .or_else(|| kr.tried.last().map(|t| t.0));
+            out.tried = kr.tried;
+            out.note = match (kr.k_reg, &kr.certificate, kr.void) {
+                (Some(_), _, _) => None,
+                (None, _, Some(v)) => Some(format!(
+                    "void at the largest K tried (K = {}): {v}",
+                    out.k.unwrap_or(search_max)
+                )),
+                (None, Some(c), None) => Some(format!(
+                    "no K ≤ {search_max} ({}) whose region contains the scenario's uncertainty; \
+                     at K = {}: {}",
+                    out.search_max_reason,
+                    c.k,
+                    limit_text(c)
+                )),
+                (None, None, None) => Some("no K was evaluated".into()),
+            };
+            out.certificate = kr.certificate;
+        }
+    }
+    out
+}
+
+/// A constraint row in words.
+pub fn row_text(row: &iss_certificate::regional::RowLabel) -> String {
+    let when = match row.step {
+        Some(t) => format!("start-up step t = {t}"),
+        None => "full window".into(),
+    };
+    match row.kind {
+        RowKind::MheBox => format!(
+            "MHE box Z = 𝒳 × 𝒲^M: component {} of inner iterate {} ({when})",
+            row.index, row.iterate
+        ),
+        RowKind::MheGeneral => format!(
+            "MHE general 𝒳/𝒴 row {} of inner iterate {} ({when})",
+            row.index, row.iterate
+        ),
+        RowKind::Input => format!("MPC input/state row {} ({when})", row.index),
+    }
+}
+
+fn limit_line(l: &Limit) -> String {
+    let by = if l.bound > 0.0 {
+        format!(" (×{})", sig4(l.reach / l.bound))
+    } else {
+        String::new()
+    };
+    format!(
+        "{} reaches {} against its bound {}{by}",
+        row_text(&l.row),
+        sig4(l.reach),
+        sig4(l.bound)
+    )
+}
+
+/// What keeps a certificate's region from containing the user's set: every limiting row
+/// (full window, start-up) that the set drives past its bound, with reach, bound and their
+/// ratio, and the certified scale of the set (`margin`).
+pub fn limit_text(c: &RegionalCertificate) -> String {
+    let mut parts = Vec::new();
+    for l in [&c.radius_limit, &c.startup_limit].into_iter().flatten() {
+        if l.reach > l.bound {
+            parts.push(limit_line(l));
+        }
+    }
+    if parts.is_empty() {
+        parts.extend(
+            [&c.radius_limit, &c.startup_limit]
+                .into_iter()
+                .flatten()
+                .map(limit_line),
+        );
+    }
+    let scale = if c.margin == f64::NEG_INFINITY {
+        "the certified scale of (x0_radius, prior_error, w̄) is −∞: the bound on the nominal \
+         x₀'s reach alone exceeds a row's bound"
+            .to_string()
+    } else {
+        format!(
+            "the largest certified scale of (x0_radius, prior_error, w̄) is {}× the scenario's",
+            sig4(c.margin.max(0.0))
+        )
+    };
+    if parts.is_empty() {
+        scale
+    } else {
+        format!("{}; {scale}", parts.join("; "))
+    }
+}
+
+// ---------------------------------------------------------------------------------------
+// The sweep's K_reg: per solver and disturbance scale
+// ---------------------------------------------------------------------------------------
+
+/// n_z = n_x + M·n_w of the scenario's MHE (n_x when it has none).
+pub fn window_size(resolved: &ResolvedScenario) -> usize {
+    let plant = &resolved.scenario().plant;
+    let horizon = resolved.mhe_config().map_or(0, |c| c.horizon);
+    plant.nx() + horizon * plant.nw()
+}
+
+/// K_reg of one solver at one disturbance scale of a sweep, as `points.csv` writes it.
+#[derive(Debug, Clone, PartialEq)]
+pub struct RegionalEntry {
+    /// Φ of the MHE.
+    pub solver: Method,
+    /// The disturbance scale (the scenario's uncertainty w̄ scales with it unless
+    /// `certificate.w_bar` is given).
+    pub scale: f64,
+    /// K_reg (None: see `note`).
+    pub k_reg: Option<usize>,
+    /// Why there is no K_reg (empty when there is one), CSV-safe.
+    pub note: String,
+}
+
+/// The sweep's K_reg per solver and scale (the `k_reg` and `regional_note` columns).
+#[derive(Debug, Clone, Default, PartialEq)]
+pub struct RegionalSide(pub Vec<RegionalEntry>);
+
+impl RegionalSide {
+    /// Adds K_reg of `solver` at `scale` (or why there is none) to `theory`.
+    pub fn fill(&self, solver: Method, scale: f64, theory: &mut super::TheoryAtK) {
+        match self
+            .0
+            .iter()
+            .find(|e| e.solver == solver && e.scale.to_bits() == scale.to_bits())
+        {
+            Some(e) => {
+                theory.k_reg = e.k_reg;
+                theory.regional_note = e.note.clone();
+            }
+            None => theory.regional_note = "no regional certificate for this point".into(),
+        }
+    }
+
+    /// Every (solver, scale) with the same note (nothing computed).
+    pub fn unavailable(solvers: &[Method], scales: &[f64], note: &str) -> Self {
+        RegionalSide(
+            solvers
+                .iter()
+                .flat_map(|&solver| {
+                    scales.iter().map(move |&scale| RegionalEntry {
+                        solver,
+                        scale,
+                        k_reg: None,
+                        note: super::format::csv_text(note),
+                    })
+                })
+                .collect(),
+        )
+    }
+}
+
+/// One K_reg search of a sweep: a solver with the uncertainty of one or more scales.
+#[derive(Debug, Clone)]
+pub struct RegionalSearch {
+    /// Φ of the MHE.
+    pub solver: Method,
+    /// The uncertainty (or why there is none).
+    pub options: Result<RegionalOptions, RegionalVoid>,
+}
+
+/// The K_reg searches of a sweep: one per solver and distinct uncertainty (the scales whose
+/// uncertainty is the same share one search), and which search answers each (solver, scale).
+#[derive(Debug, Clone)]
+pub struct RegionalPlan {
+    /// The searches.
+    pub searches: Vec<RegionalSearch>,
+    /// (solver, scale, index in `searches`).
+    pub entries: Vec<(Method, f64, usize)>,
+}
+
+impl RegionalPlan {
+    /// The plan for `solvers` × `scales` with `controller` (the scenario's uncertainty at
+    /// each scale, [`RegionalOptions::from_scenario`]).
+    pub fn new(
+        resolved: &ResolvedScenario,
+        solvers: &[Method],
+        scales: &[f64],
+        controller: closed_loop::scenario::ControllerChoice,
+    ) -> Self {
+        let options: Vec<Result<RegionalOptions, RegionalVoid>> = scales
+            .iter()
+            .map(|&scale| {
+                let mut r = resolved.clone();
+                r.set_noise_scale(scale);
+                RegionalOptions::from_scenario(&r, controller)
+            })
+            .collect();
+        let mut searches: Vec<RegionalSearch> = Vec::new();
+        let mut entries = Vec::new();
+        for &solver in solvers {
+            for (&scale, o) in scales.iter().zip(&options) {
+                let i = match searches
+                    .iter()
+                    .position(|s| s.solver == solver && s.options == *o)
+                {
+                    Some(i) => i,
+                    None => {
+                        searches.push(RegionalSearch {
+                            solver,
+                            options: o.clone(),
+                        });
+                        searches.len() - 1
+                    }
+                };
+                entries.push((solver, scale, i));
+            }
+        }
+        Self { searches, entries }
+    }
+
+    /// Search `i` with the solver's K_min (None: Theorem 1 gives none), as the columns
+    /// write it: K_reg, or the reason there is none.
+    pub fn run(
+        &self,
+        resolved: &ResolvedScenario,
+        i: usize,
+        k_min: Option<usize>,
+    ) -> (Option<usize>, String) {
+        let s = &self.searches[i];
+        let out = k_reg_outcome(resolved, s.solver, &s.options, k_min, window_size(resolved));
+        (
+            out.k_reg,
+            super::format::csv_text(out.note.as_deref().unwrap_or("")),
+        )
+    }
+
+    /// The side from the searches' results (`result(i)`, None: not computed).
+    pub fn side(&self, result: impl Fn(usize) -> Option<(Option<usize>, String)>) -> RegionalSide {
+        RegionalSide(
+            self.entries
+                .iter()
+                .map(|&(solver, scale, i)| {
+                    let (k_reg, note) =
+                        result(i).unwrap_or_else(|| (None, "K_reg not computed".into()));
+                    RegionalEntry {
+                        solver,
+                        scale,
+                        k_reg,
+                        note,
+                    }
+                })
+                .collect(),
+        )
+    }
+}
+
+/// The K_min that caps a solver's K_reg search: Theorem 1's, when it holds.
+pub fn theorem1_k_min(theory: &super::SolverTheory) -> Option<usize> {
+    match theory {
+        super::SolverTheory::Analysis {
+            k_min,
+            void_reasons,
+            ..
+        } if void_reasons.is_empty() => *k_min,
+        _ => None,
+    }
+}

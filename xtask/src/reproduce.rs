@@ -612,8 +612,11 @@ pub fn run_job(job: &Job, settings: &Settings) -> Result<Outcome> {
     let t0 = std::time::Instant::now();
     let linear = linear_entries(&resolved, &cert, solver, opts.phase_seconds, settings.live);
     say(format!(
-        "  done in {} s; searching K_reg, the regional certificate's smallest K, of each method …",
-        numfmt::num(t0.elapsed().as_secs_f64())
+        "  done in {} s; searching K_reg, the regional certificate's smallest K, of each method \
+         (estimated work within `certificate.phase_seconds` = {} s, split over the {} methods) …",
+        numfmt::num(t0.elapsed().as_secs_f64()),
+        numfmt::num(opts.phase_seconds),
+        cert.solvers.len()
     ));
     let t0 = std::time::Instant::now();
     let regional = regional::regional_entries(&resolved, &cert, &linear);

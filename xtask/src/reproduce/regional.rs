@@ -50,15 +50,24 @@ pub struct RegionalEntry {
 
 /// K_reg ([`xtask::sweep_engine::k_reg_outcome`]) of every method with the exact MPC and the
 /// scenario's own uncertainty (`certificate.x0_radius`, `prior_error`, `w_bar` or their
-/// defaults), the search capped at the method's K_min.
+/// defaults), the search capped at the method's K_min. The phase has one budget,
+/// `certificate.phase_seconds`, split evenly among the methods (so what each search may do
+/// does not depend on the order or the thread count); the searches run in parallel.
 pub(super) fn regional_entries(
     resolved: &ResolvedScenario,
     cert: &ClosedLoopCertificate,
     linear: &[LinearEntry],
 ) -> Vec<RegionalEntry> {
-    let options = RegionalOptions::from_scenario(resolved, ControllerChoice::ExactMpc);
+    use rayon::prelude::*;
+    let share = cert.solvers.len().max(1) as f64;
+    let options = RegionalOptions::from_scenario(resolved, ControllerChoice::ExactMpc).map(|o| {
+        RegionalOptions {
+            phase_seconds: o.phase_seconds / share,
+            ..o
+        }
+    });
     cert.solvers
-        .iter()
+        .par_iter()
         .map(|s| {
             let k_lin = linear
                 .iter()

@@ -68,6 +68,10 @@ pub struct KRegOutcome {
     /// Why there is no K_reg (null when there is one): the void reason, or the constraint
     /// that limits the region at the largest K tried and by how much.
     pub note: Option<String>,
+    /// Why the search stopped early: its next evaluation was estimated beyond what was left of
+    /// `certificate.phase_seconds` (or the memory limit). With a K_reg, the bisection below it
+    /// was cut short (K_reg is certified, possibly not the smallest).
+    pub stopped: Option<String>,
 }
 
 /// K_reg of `method` ([`k_reg`] up to [`search_max`]`(k_min, n_z)`), with the reason when
@@ -88,6 +92,7 @@ pub fn k_reg_outcome(
         certificate: None,
         tried: Vec::new(),
         note: None,
+        stopped: None,
     };
     let o = match options {
         Ok(o) => o,
@@ -106,8 +111,15 @@ pub fn k_reg_outcome(
                 .map(|c| c.k)
                 .or_else(|| kr.tried.last().map(|t| t.0));
             out.tried = kr.tried;
+            out.stopped = kr.stopped.clone();
             out.note = match (kr.k_reg, &kr.certificate, kr.void) {
                 (Some(_), _, _) => None,
+                (None, _, _) if kr.stopped.is_some() => Some(format!(
+                    "the search stopped before a K whose region contains the scenario's \
+                     uncertainty{}: {}",
+                    out.k.map_or(String::new(), |k| format!(" (largest K evaluated: {k})")),
+                    kr.stopped.as_deref().unwrap_or_default()
+                )),
                 (None, _, Some(v)) => Some(format!(
                     "void at the largest K tried (K = {}): {v}",
                     out.k.unwrap_or(search_max)

@@ -3,6 +3,7 @@
 //! and a reason whenever there is none.
 
 use super::*;
+use iss_certificate::certificate::certify_closed_loop;
 use iss_certificate::linear::linear_stability;
 use iss_certificate::regional::k_reg;
 

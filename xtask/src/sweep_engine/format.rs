@@ -124,7 +124,9 @@ pub fn points_header(metrics: &[Metric], two_d: bool) -> String {
         let _ = write!(h, ",{}_max", m.name());
     }
     h.push_str(",phi,sg1,sg2,sg3,margin_cert,certified,k_min_cert,void_reason");
-    h.push_str(",rho_lin,k_lin,linear_note,k_reg,regional_note,w_outside_runs,w_outside_total,wall_ms");
+    h.push_str(
+        ",rho_lin,k_lin,linear_note,k_reg,regional_note,w_outside_runs,w_outside_total,wall_ms",
+    );
     h
 }
 

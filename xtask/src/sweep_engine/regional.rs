@@ -117,7 +117,8 @@ pub fn k_reg_outcome(
                 (None, _, _) if kr.stopped.is_some() => Some(format!(
                     "the search stopped before a K whose region contains the scenario's \
                      uncertainty{}: {}",
-                    out.k.map_or(String::new(), |k| format!(" (largest K evaluated: {k})")),
+                    out.k
+                        .map_or(String::new(), |k| format!(" (largest K evaluated: {k})")),
                     kr.stopped.as_deref().unwrap_or_default()
                 )),
                 (None, _, Some(v)) => Some(format!(

@@ -77,7 +77,13 @@ impl SolverTheory {
                     reasons = analysis
                         .violated()
                         .iter()
-                        .map(|p| format!("{} fails (value {:.4})", p.name, p.value))
+                        .map(|p| {
+                            format!(
+                                "{} fails (value {})",
+                                p.name,
+                                lti_model::numfmt::sig4(p.value)
+                            )
+                        })
                         .collect();
                 }
                 // Props. 1 and 3 divide by 1 − φ(K): for φ(K) ≥ 1 the gains, slopes and

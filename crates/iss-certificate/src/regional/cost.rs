@@ -112,6 +112,26 @@ pub(crate) fn model_cost(p: &Pieces, k: usize) -> StageCost {
     StageCost { work, bytes }
 }
 
+/// A floor on one evaluation's cost from the scenario's dimensions alone (before the
+/// windows' iteration maps are built, which is itself costly at large n_z): the candidate
+/// metrics' square roots and products, 16 dim³ each, at least. Beyond the budget no K can be
+/// evaluated, so the search is refused before anything is built.
+pub(crate) fn floor_from_dims(
+    nx: usize,
+    nu: usize,
+    ny: usize,
+    nw: usize,
+    horizon: usize,
+    candidates: usize,
+) -> StageCost {
+    let nz = nx + horizon * nw;
+    let dim = (nx + horizon * (nu + ny + nx) + nz) as f64;
+    StageCost {
+        work: candidates as f64 * 16.0 * dim.powi(3),
+        bytes: F64 * 4.0 * dim * dim,
+    }
+}
+
 /// The number of impulse-response terms `impulse` takes at ρ_lin = `rho`.
 pub(crate) fn impulse_terms(rho: f64) -> usize {
     if rho < 1e-3 {

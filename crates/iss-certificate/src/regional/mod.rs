@@ -164,6 +164,36 @@ impl Budget {
         Self { total, left: total }
     }
 
+    /// Refuses at once when even the floor of one evaluation (`cost::floor_from_dims`) does
+    /// not fit: nothing is built (spends nothing).
+    fn check_floor(
+        &self,
+        resolved: &ResolvedScenario,
+        k: usize,
+        options: &RegionalOptions,
+    ) -> Result<(), RegionalVoid> {
+        let sc = resolved.scenario();
+        let sys = &sc.plant;
+        let horizon = sc.mhe.as_ref().map_or(0, |m| m.horizon);
+        let floor = cost::floor_from_dims(
+            sys.nx(),
+            sys.nu(),
+            sys.ny(),
+            sys.nw(),
+            horizon,
+            options.rate_fractions.len(),
+        );
+        let mut probe = Budget {
+            total: self.total,
+            left: self.left,
+        };
+        probe.spend(
+            k,
+            "one evaluation (at least its candidate metrics, 16 dim³ each, from the dimensions)",
+            floor,
+        )
+    }
+
     /// Spends the stage's estimate, or refuses it (memory first: it is a hard limit).
     fn spend(
         &mut self,
@@ -596,8 +626,9 @@ pub fn regional_certificate(
     k: usize,
     options: &RegionalOptions,
 ) -> Result<RegionalCertificate, RegionalVoid> {
-    let pieces = model::pieces(resolved, method, options.controller)?;
     let mut budget = Budget::new(options.phase_seconds);
+    budget.check_floor(resolved, k, options)?;
+    let pieces = model::pieces(resolved, method, options.controller)?;
     certify_at(&pieces, method, k, options, &mut budget).map(|r| r.0)
 }
 
@@ -672,8 +703,9 @@ pub fn regional_detail(
     k: usize,
     options: &RegionalOptions,
 ) -> Result<(RegionalCertificate, RegionalDetail), RegionalVoid> {
-    let pieces = model::pieces(resolved, method, options.controller)?;
     let mut budget = Budget::new(options.phase_seconds);
+    budget.check_floor(resolved, k, options)?;
+    let pieces = model::pieces(resolved, method, options.controller)?;
     let (c, model, m) = certify_at(&pieces, method, k, options, &mut budget)?;
     Ok((c, detail_of(model, m)))
 }
@@ -866,6 +898,17 @@ pub fn k_reg(
     options: &RegionalOptions,
     k_max: usize,
 ) -> Result<KReg, RegionalVoid> {
+    if let Err(e) = Budget::new(options.phase_seconds).check_floor(resolved, 1, options) {
+        let why = e.to_string();
+        return Ok(KReg {
+            k_reg: None,
+            certificate: None,
+            tried: Vec::new(),
+            void: Some(why.clone()),
+            stopped: Some(why),
+            spent_seconds: 0.0,
+        });
+    }
     let pieces = model::pieces(resolved, method, options.controller)?;
     let start = pieces
         .windows

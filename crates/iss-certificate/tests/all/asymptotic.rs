@@ -160,24 +160,7 @@ fn random_plant(seed: u64, unstable: bool) -> Scenario {
         .unwrap()
         .max(1e-3);
     a *= faer::Scale(if unstable { 1.2 } else { 0.7 } / rho);
-    let row = |v: Vec<f64>| {
-        format!(
-            "[{}]",
-            v.iter()
-                .map(|x| format!("{x:e}"))
-                .collect::<Vec<_>>()
-                .join(", ")
-        )
-    };
-    let mat = |m: &Mat<f64>| {
-        format!(
-            "[{}]",
-            (0..m.nrows())
-                .map(|i| row((0..m.ncols()).map(|j| m[(i, j)]).collect()))
-                .collect::<Vec<_>>()
-                .join(", ")
-        )
-    };
+    let (row, mat) = (crate::toml_row, crate::toml_matrix);
     let b = Mat::from_fn(nx, 1, |i, _| {
         if i == nx - 1 {
             1.0

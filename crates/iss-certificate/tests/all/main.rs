@@ -24,6 +24,20 @@ use iss_certificate::certificate::{
     CertificateOptions, ClosedLoopCertificate, certify_closed_loop,
 };
 
+/// A vector as a TOML array, every entry exact (`{:e}` round-trips f64).
+pub fn toml_row(v: Vec<f64>) -> String {
+    let cells: Vec<String> = v.iter().map(|x| format!("{x:e}")).collect();
+    format!("[{}]", cells.join(", "))
+}
+
+/// A matrix as a TOML array of rows (for scenario files written by the tests).
+pub fn toml_matrix(m: &faer::Mat<f64>) -> String {
+    let rows: Vec<String> = (0..m.nrows())
+        .map(|i| toml_row((0..m.ncols()).map(|j| m[(i, j)]).collect()))
+        .collect();
+    format!("[{}]", rows.join(", "))
+}
+
 /// Resolves `s` and builds its loop (tests that vary the scenario between builds).
 pub fn build(s: &Scenario, o: &LoopOptions) -> Result<ScenarioLoop, ClosedLoopError> {
     s.clone().resolve()?.build_loop(o)

@@ -11,6 +11,25 @@ mod truth;
 use closed_loop::scenario::{LoopOptions, Scenario, ScenarioLoop};
 use closed_loop::sim::ClosedLoopError;
 
+/// Runs `sweep` into `out` on `threads` threads (one shard of it, if given), silently.
+pub fn run_sweep(
+    sweep: &xtask::sweep_engine::Sweep,
+    out: &std::path::Path,
+    threads: usize,
+    shard: Option<xtask::sweep_engine::Shard>,
+) -> xtask::sweep_engine::SweepReport {
+    sweep
+        .run(
+            &xtask::sweep_engine::RunOptions {
+                out_dir: out.to_path_buf(),
+                threads,
+                shard,
+            },
+            &xtask::sweep_engine::NoProgress,
+        )
+        .unwrap()
+}
+
 /// Resolves `s` and builds its loop (tests that vary the scenario between builds).
 pub fn build(s: &Scenario, o: &LoopOptions) -> Result<ScenarioLoop, ClosedLoopError> {
     s.clone().resolve()?.build_loop(o)

@@ -9,8 +9,8 @@ use closed_loop::scenario::{ControllerChoice, LoopOptions};
 use iss_certificate::linear::linear_stability;
 use iss_certificate::regional::{RegionalOptions, k_reg};
 use xtask::sweep_engine::{
-    NoProgress, RunOptions, Shard, Sweep, SweepConfig, Table, TaskKind, merge_point_dirs,
-    theorem1_k_min, thresholds, thresholds_markdown,
+    NoProgress, Shard, Sweep, SweepConfig, Table, TaskKind, merge_point_dirs, theorem1_k_min,
+    thresholds, thresholds_markdown,
 };
 
 const CERTIFIED: &str = concat!(
@@ -63,23 +63,7 @@ fn config(scenario: &Path, solvers: &str, extra: &str) -> SweepConfig {
     SweepConfig::from_toml_str(&text, Path::new(".")).unwrap()
 }
 
-fn run(
-    sweep: &Sweep,
-    out: &Path,
-    threads: usize,
-    shard: Option<Shard>,
-) -> xtask::sweep_engine::SweepReport {
-    sweep
-        .run(
-            &RunOptions {
-                out_dir: out.to_path_buf(),
-                threads,
-                shard,
-            },
-            &NoProgress,
-        )
-        .unwrap()
-}
+use crate::run_sweep as run;
 
 fn points(dir: &Path) -> Table {
     Table::parse(&fs::read_to_string(dir.join("points.csv")).unwrap()).unwrap()

@@ -36,23 +36,7 @@ fn small_config(extra: &str) -> SweepConfig {
     SweepConfig::from_toml_str(&text, Path::new(".")).unwrap()
 }
 
-fn run(
-    sweep: &Sweep,
-    out: &Path,
-    threads: usize,
-    shard: Option<Shard>,
-) -> xtask::sweep_engine::SweepReport {
-    sweep
-        .run(
-            &RunOptions {
-                out_dir: out.to_path_buf(),
-                threads,
-                shard,
-            },
-            &NoProgress,
-        )
-        .unwrap()
-}
+use crate::run_sweep as run;
 
 fn read_table(path: &Path) -> Table {
     Table::parse(&fs::read_to_string(path).unwrap()).unwrap()

@@ -18,8 +18,12 @@
 //! All are multiply-adds of blocked dense kernels, at [`crate::budget::DENSE_RATE`] per second
 //! of one core; the calibration against measured times is in `docs/limits.md`.
 
-use super::model::Pieces;
+use serde::Serialize;
+
+use super::model::{self, Pieces};
+use super::{RegionalOptions, RegionalVoid};
 use crate::linear::eigen_work;
+use closed_loop::scenario::ResolvedScenario;
 
 /// Bytes of one f64, times the overhead measured over the counted matrices (column padding,
 /// the row labels and bounds, transient copies): the heap peak of `regional_certificate` was
@@ -167,6 +171,122 @@ pub(crate) fn analysis_cost(s: &Sizes, rho: f64, fractions: &[f64]) -> StageCost
         work: impulse + candidates,
         bytes,
     }
+}
+
+/// Bytes in MiB or GiB with at most 4 significant digits.
+pub(crate) fn bytes_text(b: f64) -> String {
+    const MIB: f64 = (1u64 << 20) as f64;
+    if b >= 1024.0 * MIB {
+        format!("{} GiB", lti_model::numfmt::sig4(b / (1024.0 * MIB)))
+    } else {
+        format!("{} MiB", lti_model::numfmt::sig4(b / MIB))
+    }
+}
+
+/// What is left of the budget of one certificate or one K_reg search.
+pub(crate) struct Budget {
+    pub total: f64,
+    pub left: f64,
+}
+
+impl Budget {
+    pub fn new(total: f64) -> Self {
+        Self { total, left: total }
+    }
+
+    /// Refuses at once when even the floor of one evaluation (`floor_from_dims`) does
+    /// not fit: nothing is built (spends nothing).
+    pub fn check_floor(
+        &self,
+        resolved: &ResolvedScenario,
+        k: usize,
+        options: &RegionalOptions,
+    ) -> Result<(), RegionalVoid> {
+        let sc = resolved.scenario();
+        let sys = &sc.plant;
+        let horizon = sc.mhe.as_ref().map_or(0, |m| m.horizon);
+        let floor = floor_from_dims(
+            sys.nx(),
+            sys.nu(),
+            sys.ny(),
+            sys.nw(),
+            horizon,
+            options.rate_fractions.len(),
+        );
+        let mut probe = Budget {
+            total: self.total,
+            left: self.left,
+        };
+        probe.spend(
+            k,
+            "one evaluation (at least its candidate metrics, 16 dim³ each, from the dimensions)",
+            floor,
+        )
+    }
+
+    /// Spends the stage's estimate, or refuses it (memory first: it is a hard limit).
+    pub fn spend(
+        &mut self,
+        k: usize,
+        stage: &'static str,
+        c: StageCost,
+    ) -> Result<(), RegionalVoid> {
+        if c.bytes > lti_model::spec::limits::MAX_DENSE_BYTES {
+            return Err(RegionalVoid::OverMemory {
+                k,
+                stage,
+                bytes: c.bytes,
+            });
+        }
+        let seconds = c.work / crate::budget::DENSE_RATE;
+        if seconds > self.left {
+            return Err(RegionalVoid::OverBudget {
+                k,
+                stage,
+                work: c.work,
+                seconds,
+                bytes: c.bytes,
+                left: self.left,
+                budget: self.total,
+            });
+        }
+        self.left -= seconds;
+        Ok(())
+    }
+}
+
+/// The estimated cost of [`super::regional_certificate`] at K, as its budget checks it
+/// (`regional/cost.rs`): multiply-adds, seconds of one core at
+/// [`crate::budget::DENSE_RATE`], and the peak bytes of its large matrices.
+#[derive(Debug, Clone, Copy, PartialEq, Serialize)]
+pub struct RegionalEstimate {
+    /// Multiply-adds of both stages.
+    pub work: f64,
+    /// `work` in seconds of one core.
+    pub seconds: f64,
+    /// Peak bytes (the larger stage).
+    pub bytes: f64,
+}
+
+/// [`RegionalEstimate`] of `method` at K. ρ_lin(K) sets the length of the impulse response
+/// (the second stage): pass the certificate's `rho_lin` when known, else a bound (a ρ close
+/// to 1 gives the longest, 400 terms).
+pub fn estimate(
+    resolved: &ResolvedScenario,
+    method: qp_iter::Method,
+    k: usize,
+    options: &RegionalOptions,
+    rho: f64,
+) -> Result<RegionalEstimate, RegionalVoid> {
+    let pieces = model::pieces(resolved, method, options.controller)?;
+    let a = model_cost(&pieces, k);
+    let b = analysis_cost(&sizes(&pieces, k), rho, &options.rate_fractions);
+    let work = a.work + b.work;
+    Ok(RegionalEstimate {
+        work,
+        seconds: work / crate::budget::DENSE_RATE,
+        bytes: a.bytes.max(b.bytes),
+    })
 }
 
 #[cfg(test)]

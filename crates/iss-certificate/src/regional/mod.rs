@@ -26,15 +26,19 @@ mod cost;
 mod lifted;
 mod metric;
 mod model;
+mod search;
 
 use faer::{Mat, MatRef, Par};
 use lti_model::matrix::spectral_norm;
 use serde::Serialize;
 
+pub use cost::{RegionalEstimate, estimate};
 pub use model::{ModelError, RowKind, RowLabel};
+pub use search::{KReg, k_reg};
 
 use crate::linear::spectral_radius;
 use closed_loop::scenario::{ControllerChoice, ResolvedScenario};
+use cost::{Budget, bytes_text};
 use lifted::RegionalModel;
 use model::Rows;
 
@@ -141,88 +145,6 @@ pub enum RegionalVoid {
         /// Estimated peak bytes.
         bytes: f64,
     },
-}
-
-/// Bytes in MiB or GiB with at most 4 significant digits.
-fn bytes_text(b: f64) -> String {
-    const MIB: f64 = (1u64 << 20) as f64;
-    if b >= 1024.0 * MIB {
-        format!("{} GiB", lti_model::numfmt::sig4(b / (1024.0 * MIB)))
-    } else {
-        format!("{} MiB", lti_model::numfmt::sig4(b / MIB))
-    }
-}
-
-/// What is left of the budget of one certificate or one K_reg search.
-struct Budget {
-    total: f64,
-    left: f64,
-}
-
-impl Budget {
-    fn new(total: f64) -> Self {
-        Self { total, left: total }
-    }
-
-    /// Refuses at once when even the floor of one evaluation (`cost::floor_from_dims`) does
-    /// not fit: nothing is built (spends nothing).
-    fn check_floor(
-        &self,
-        resolved: &ResolvedScenario,
-        k: usize,
-        options: &RegionalOptions,
-    ) -> Result<(), RegionalVoid> {
-        let sc = resolved.scenario();
-        let sys = &sc.plant;
-        let horizon = sc.mhe.as_ref().map_or(0, |m| m.horizon);
-        let floor = cost::floor_from_dims(
-            sys.nx(),
-            sys.nu(),
-            sys.ny(),
-            sys.nw(),
-            horizon,
-            options.rate_fractions.len(),
-        );
-        let mut probe = Budget {
-            total: self.total,
-            left: self.left,
-        };
-        probe.spend(
-            k,
-            "one evaluation (at least its candidate metrics, 16 dim³ each, from the dimensions)",
-            floor,
-        )
-    }
-
-    /// Spends the stage's estimate, or refuses it (memory first: it is a hard limit).
-    fn spend(
-        &mut self,
-        k: usize,
-        stage: &'static str,
-        c: cost::StageCost,
-    ) -> Result<(), RegionalVoid> {
-        if c.bytes > lti_model::spec::limits::MAX_DENSE_BYTES {
-            return Err(RegionalVoid::OverMemory {
-                k,
-                stage,
-                bytes: c.bytes,
-            });
-        }
-        let seconds = c.work / crate::budget::DENSE_RATE;
-        if seconds > self.left {
-            return Err(RegionalVoid::OverBudget {
-                k,
-                stage,
-                work: c.work,
-                seconds,
-                bytes: c.bytes,
-                left: self.left,
-                budget: self.total,
-            });
-        }
-        self.left -= seconds;
-        Ok(())
-    }
 }
 
 /// The binding row of a region, with its figures.
@@ -632,40 +554,6 @@ pub fn regional_certificate(
     certify_at(&pieces, method, k, options, &mut budget).map(|r| r.0)
 }
 
-/// The estimated cost of [`regional_certificate`] at K, as its budget checks it
-/// (`regional/cost.rs`): multiply-adds, seconds of one core at
-/// [`crate::budget::DENSE_RATE`], and the peak bytes of its large matrices.
-#[derive(Debug, Clone, Copy, PartialEq, Serialize)]
-pub struct RegionalEstimate {
-    /// Multiply-adds of both stages.
-    pub work: f64,
-    /// `work` in seconds of one core.
-    pub seconds: f64,
-    /// Peak bytes (the larger stage).
-    pub bytes: f64,
-}
-
-/// [`RegionalEstimate`] of `method` at K. ρ_lin(K) sets the length of the impulse response
-/// (the second stage): pass the certificate's `rho_lin` when known, else a bound (a ρ close
-/// to 1 gives the longest, 400 terms).
-pub fn estimate(
-    resolved: &ResolvedScenario,
-    method: qp_iter::Method,
-    k: usize,
-    options: &RegionalOptions,
-    rho: f64,
-) -> Result<RegionalEstimate, RegionalVoid> {
-    let pieces = model::pieces(resolved, method, options.controller)?;
-    let a = cost::model_cost(&pieces, k);
-    let b = cost::analysis_cost(&cost::sizes(&pieces, k), rho, &options.rate_fractions);
-    let work = a.work + b.work;
-    Ok(RegionalEstimate {
-        work,
-        seconds: work / crate::budget::DENSE_RATE,
-        bytes: a.bytes.max(b.bytes),
-    })
-}
-
 /// The matrices behind a regional certificate (for checks and plots): the lifted loop
 /// X_{t+1} = 𝔸X_t + 𝔹_w w_t (t ≥ M), X_M = 𝕄υ with υ = (x₀, x̄₀, w₀, …, w_{M−1}), the
 /// readouts x_t = x_read·X_t and e_t = e_read·X_t, the full-window rows
@@ -862,143 +750,4 @@ fn detail_of(model: RegionalModel, m: metric::Metric) -> RegionalDetail {
         p_half: m.half,
         p_neg_half: m.neg_half,
     }
-}
-
-/// K_reg: the smallest K at which the regional certificate contains the user's set.
-#[derive(Debug, Clone, PartialEq, Serialize)]
-pub struct KReg {
-    /// K_reg (None: no K up to `k_max` on the search, or the budget ended it first).
-    pub k_reg: Option<usize>,
-    /// The certificate at K_reg, or at the largest K evaluated when none contains the set.
-    pub certificate: Option<RegionalCertificate>,
-    /// Every K evaluated with its margin (−∞ / NaN: void), ascending.
-    pub tried: Vec<(usize, f64)>,
-    /// The void reason at the largest K tried, if it is void.
-    pub void: Option<String>,
-    /// Why the search stopped before it was complete: the next evaluation's estimate is beyond
-    /// what is left of `certificate.phase_seconds` (or the memory limit). With a K_reg this
-    /// means the bisection below it was cut short (K_reg is still certified, possibly not the
-    /// smallest); without, that no K beyond the last one tried was evaluated.
-    pub stopped: Option<String>,
-    /// Estimated single-core seconds the search spent (the sum of the estimates of the stages
-    /// it ran): a caller running several searches under one budget subtracts it.
-    pub spent_seconds: f64,
-}
-
-/// K_reg of `method` (module docs): K = 1, 2, 4, … up to `k_max` until the certificate
-/// contains the user's set, then bisection between the last failing and the first passing
-/// K. The margin need not be monotone in K: K_reg is certified (evaluated exactly there) and
-/// is the smallest K found by this search, not a claim about every K above it.
-///
-/// The whole search shares one budget, `options.phase_seconds`: each evaluation's stages are
-/// estimated before they run, and the first that does not fit ends the search (`stopped`).
-pub fn k_reg(
-    resolved: &ResolvedScenario,
-    method: qp_iter::Method,
-    options: &RegionalOptions,
-    k_max: usize,
-) -> Result<KReg, RegionalVoid> {
-    if let Err(e) = Budget::new(options.phase_seconds).check_floor(resolved, 1, options) {
-        let why = e.to_string();
-        return Ok(KReg {
-            k_reg: None,
-            certificate: None,
-            tried: Vec::new(),
-            void: Some(why.clone()),
-            stopped: Some(why),
-            spent_seconds: 0.0,
-        });
-    }
-    let pieces = model::pieces(resolved, method, options.controller)?;
-    let start = pieces
-        .windows
-        .iter()
-        .map(|w| w.lin.start_steps)
-        .max()
-        .unwrap_or(1)
-        .max(1);
-    let mut budget = Budget::new(options.phase_seconds);
-    let mut tried = Vec::new();
-    let mut eval = |k: usize, tried: &mut Vec<(usize, f64)>| {
-        let r = certify_at(&pieces, method, k, options, &mut budget).map(|r| r.0);
-        if let Err(e @ (RegionalVoid::OverBudget { .. } | RegionalVoid::OverMemory { .. })) = r {
-            return Err(e.to_string());
-        }
-        tried.push((
-            k,
-            r.as_ref().map_or(f64::NAN, |c| {
-                if c.contains {
-                    c.margin
-                } else {
-                    c.margin.min(0.999_999)
-                }
-            }),
-        ));
-        Ok(r)
-    };
-    let mut lo = start - 1; // not certified (or below the first K)
-    let mut k = start;
-    let mut last = None;
-    let mut found = None;
-    let mut stopped = None;
-    loop {
-        let r = match eval(k, &mut tried) {
-            Ok(r) => r,
-            Err(why) => {
-                stopped = Some(why);
-                break;
-            }
-        };
-        if r.as_ref().is_ok_and(|c| c.contains) {
-            found = Some((k, r));
-            break;
-        }
-        last = Some(r);
-        if k >= k_max {
-            break;
-        }
-        lo = k;
-        k = (k * 2).min(k_max);
-    }
-    let Some((mut hi, mut best)) = found else {
-        let (certificate, void) = match last {
-            Some(Ok(c)) => (Some(c), None),
-            Some(Err(e)) => (None, Some(e.to_string())),
-            None => (None, stopped.clone()),
-        };
-        tried.sort_by_key(|t| t.0);
-        return Ok(KReg {
-            k_reg: None,
-            certificate,
-            tried,
-            void,
-            stopped,
-            spent_seconds: budget.total - budget.left,
-        });
-    };
-    while hi - lo > 1 {
-        let mid = lo + (hi - lo) / 2;
-        let r = match eval(mid, &mut tried) {
-            Ok(r) => r,
-            Err(why) => {
-                stopped = Some(why);
-                break;
-            }
-        };
-        if r.as_ref().is_ok_and(|c| c.contains) {
-            hi = mid;
-            best = r;
-        } else {
-            lo = mid;
-        }
-    }
-    tried.sort_by_key(|t| t.0);
-    Ok(KReg {
-        k_reg: Some(hi),
-        certificate: best.ok(),
-        tried,
-        void: None,
-        stopped,
-        spent_seconds: budget.total - budget.left,
-    })
 }

@@ -1,0 +1,146 @@
+//! K_reg: the smallest K whose regional certificate contains the user's set, by doubling
+//! then bisection, under one budget for the whole search.
+
+use serde::Serialize;
+
+use super::{Budget, RegionalCertificate, RegionalOptions, RegionalVoid, certify_at, model};
+use closed_loop::scenario::ResolvedScenario;
+
+/// K_reg: the smallest K at which the regional certificate contains the user's set.
+#[derive(Debug, Clone, PartialEq, Serialize)]
+pub struct KReg {
+    /// K_reg (None: no K up to `k_max` on the search, or the budget ended it first).
+    pub k_reg: Option<usize>,
+    /// The certificate at K_reg, or at the largest K evaluated when none contains the set.
+    pub certificate: Option<RegionalCertificate>,
+    /// Every K evaluated with its margin (−∞ / NaN: void), ascending.
+    pub tried: Vec<(usize, f64)>,
+    /// The void reason at the largest K tried, if it is void.
+    pub void: Option<String>,
+    /// Why the search stopped before it was complete: the next evaluation's estimate is beyond
+    /// what is left of `certificate.phase_seconds` (or the memory limit). With a K_reg this
+    /// means the bisection below it was cut short (K_reg is still certified, possibly not the
+    /// smallest); without, that no K beyond the last one tried was evaluated.
+    pub stopped: Option<String>,
+    /// Estimated single-core seconds the search spent (the sum of the estimates of the stages
+    /// it ran): a caller running several searches under one budget subtracts it.
+    pub spent_seconds: f64,
+}
+
+/// K_reg of `method` (module docs): K = 1, 2, 4, … up to `k_max` until the certificate
+/// contains the user's set, then bisection between the last failing and the first passing
+/// K. The margin need not be monotone in K: K_reg is certified (evaluated exactly there) and
+/// is the smallest K found by this search, not a claim about every K above it.
+///
+/// The whole search shares one budget, `options.phase_seconds`: each evaluation's stages are
+/// estimated before they run, and the first that does not fit ends the search (`stopped`).
+pub fn k_reg(
+    resolved: &ResolvedScenario,
+    method: qp_iter::Method,
+    options: &RegionalOptions,
+    k_max: usize,
+) -> Result<KReg, RegionalVoid> {
+    if let Err(e) = Budget::new(options.phase_seconds).check_floor(resolved, 1, options) {
+        let why = e.to_string();
+        return Ok(KReg {
+            k_reg: None,
+            certificate: None,
+            tried: Vec::new(),
+            void: Some(why.clone()),
+            stopped: Some(why),
+            spent_seconds: 0.0,
+        });
+    }
+    let pieces = model::pieces(resolved, method, options.controller)?;
+    let start = pieces
+        .windows
+        .iter()
+        .map(|w| w.lin.start_steps)
+        .max()
+        .unwrap_or(1)
+        .max(1);
+    let mut budget = Budget::new(options.phase_seconds);
+    let mut tried = Vec::new();
+    let mut eval = |k: usize, tried: &mut Vec<(usize, f64)>| {
+        let r = certify_at(&pieces, method, k, options, &mut budget).map(|r| r.0);
+        if let Err(e @ (RegionalVoid::OverBudget { .. } | RegionalVoid::OverMemory { .. })) = r {
+            return Err(e.to_string());
+        }
+        tried.push((
+            k,
+            r.as_ref().map_or(f64::NAN, |c| {
+                if c.contains {
+                    c.margin
+                } else {
+                    c.margin.min(0.999_999)
+                }
+            }),
+        ));
+        Ok(r)
+    };
+    let mut lo = start - 1; // not certified (or below the first K)
+    let mut k = start;
+    let mut last = None;
+    let mut found = None;
+    let mut stopped = None;
+    loop {
+        let r = match eval(k, &mut tried) {
+            Ok(r) => r,
+            Err(why) => {
+                stopped = Some(why);
+                break;
+            }
+        };
+        if r.as_ref().is_ok_and(|c| c.contains) {
+            found = Some((k, r));
+            break;
+        }
+        last = Some(r);
+        if k >= k_max {
+            break;
+        }
+        lo = k;
+        k = (k * 2).min(k_max);
+    }
+    let Some((mut hi, mut best)) = found else {
+        let (certificate, void) = match last {
+            Some(Ok(c)) => (Some(c), None),
+            Some(Err(e)) => (None, Some(e.to_string())),
+            None => (None, stopped.clone()),
+        };
+        tried.sort_by_key(|t| t.0);
+        return Ok(KReg {
+            k_reg: None,
+            certificate,
+            tried,
+            void,
+            stopped,
+            spent_seconds: budget.total - budget.left,
+        });
+    };
+    while hi - lo > 1 {
+        let mid = lo + (hi - lo) / 2;
+        let r = match eval(mid, &mut tried) {
+            Ok(r) => r,
+            Err(why) => {
+                stopped = Some(why);
+                break;
+            }
+        };
+        if r.as_ref().is_ok_and(|c| c.contains) {
+            hi = mid;
+            best = r;
+        } else {
+            lo = mid;
+        }
+    }
+    tried.sort_by_key(|t| t.0);
+    Ok(KReg {
+        k_reg: Some(hi),
+        certificate: best.ok(),
+        tried,
+        void: None,
+        stopped,
+        spent_seconds: budget.total - budget.left,
+    })
+}

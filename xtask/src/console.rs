@@ -78,13 +78,24 @@ pub fn exit_code(code: ExitCode) -> ExitCode {
         return code;
     }
     if let Some(e) = &out {
-        line(
-            Stream::Stderr,
-            format_args!(
-                "note: stdout could not be written ({e}); the work completed and its files \
-                 were written (exit code {EXIT_STREAM})"
-            ),
-        );
+        // Exit code 5 only replaces success: a verdict or an error keeps its own code, and
+        // the note must not claim otherwise.
+        if code == ExitCode::SUCCESS {
+            line(
+                Stream::Stderr,
+                format_args!(
+                    "note: stdout could not be written ({e}); the work completed and its files \
+                     were written (exit code {EXIT_STREAM})"
+                ),
+            );
+        } else {
+            line(
+                Stream::Stderr,
+                format_args!(
+                    "note: stdout could not be written ({e}); the exit code is the command's own"
+                ),
+            );
+        }
     }
     if code == ExitCode::SUCCESS {
         ExitCode::from(EXIT_STREAM)

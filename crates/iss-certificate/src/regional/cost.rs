@@ -213,24 +213,28 @@ impl Budget {
             horizon,
             options.rate_fractions.len(),
         );
-        let mut probe = Budget {
-            total: self.total,
-            left: self.left,
-        };
-        probe.spend(
+        self.fits(
             k,
             "one evaluation (at least its candidate metrics, 16 dim³ each, from the dimensions)",
             floor,
         )
+        .map(|_| ())
     }
 
-    /// Spends the stage's estimate, or refuses it (memory first: it is a hard limit).
+    /// Spends the stage's estimate, or refuses it.
     pub fn spend(
         &mut self,
         k: usize,
         stage: &'static str,
         c: StageCost,
     ) -> Result<(), RegionalVoid> {
+        self.left -= self.fits(k, stage, c)?;
+        Ok(())
+    }
+
+    /// The stage's estimated seconds if it fits what is left, else why not (memory first: it
+    /// is a hard limit).
+    fn fits(&self, k: usize, stage: &'static str, c: StageCost) -> Result<f64, RegionalVoid> {
         if c.bytes > lti_model::spec::limits::MAX_DENSE_BYTES {
             return Err(RegionalVoid::OverMemory {
                 k,
@@ -250,8 +254,7 @@ impl Budget {
                 budget: self.total,
             });
         }
-        self.left -= seconds;
-        Ok(())
+        Ok(seconds)
     }
 }
 

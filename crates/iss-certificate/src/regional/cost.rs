@@ -11,7 +11,9 @@
 //!    every projected point of every iterate.
 //! 2. **The metrics and the margins** ([`analysis_cost`], once ρ_lin(K) is known): the impulse
 //!    response to T terms (T from ρ_lin, as `impulse` picks it) and its product with every
-//!    full-window row (rows × dim X × T n_w), then per candidate rate a Stein equation by
+//!    full-window row (rows × dim X × T n_w), the free response's exact reach over S ≤ T steps
+//!    (`reach.rs`: S (dim X² + rows × dim X) dim υ, S = T when it fits in the budget, see
+//!    [`free_steps`]), then per candidate rate a Stein equation by
 //!    doubling (3 dim³ per doubling step, as many steps as (ρ/λ)^(2^j) needs to reach 1e-14),
 //!    the square roots (≈ 12 dim³) and the rows in the metric (rows × dim X²).
 //!
@@ -154,7 +156,7 @@ fn doubling_steps(rho: f64, lambda: f64) -> f64 {
 }
 
 /// Stage 2: the impulse response, the candidate metrics and every row's margin.
-pub(crate) fn analysis_cost(s: &Sizes, rho: f64, fractions: &[f64]) -> StageCost {
+pub(crate) fn analysis_cost(s: &Sizes, rho: f64, fractions: &[f64], steps: usize) -> StageCost {
     let t = impulse_terms(rho) as f64;
     let impulse = t * s.dim * s.dim * s.nw + s.rows * s.dim * s.nw * t;
     let candidates: f64 = fractions
@@ -166,11 +168,40 @@ pub(crate) fn analysis_cost(s: &Sizes, rho: f64, fractions: &[f64]) -> StageCost
                 + s.dim * s.dim * s.nv
         })
         .sum();
-    let bytes = F64 * (s.rows * s.dim + s.dim * s.nw * t + 8.0 * s.dim * s.dim);
+    let free = steps as f64 * free_step_work(s);
+    let bytes =
+        F64 * (s.rows * s.dim + s.dim * s.nw * t + 8.0 * s.dim * s.dim + 2.0 * s.dim * s.nv);
     StageCost {
-        work: impulse + candidates,
+        work: impulse + free + candidates,
         bytes,
     }
+}
+
+/// One step of the free response's exact reach (`reach.rs`): 𝔸·𝔸^s𝕄, every row times
+/// 𝔸^s𝕄, and the rows' norms.
+fn free_step_work(s: &Sizes) -> f64 {
+    s.dim * s.dim * s.nv + s.rows * s.dim * s.nv + s.rows * s.nv
+}
+
+/// S, the steps the free response is taken exactly: T (the impulse's terms), or fewer when
+/// T steps do not fit in half the `left_seconds` of the budget (the other half stays for the
+/// next K of a search) — but never fewer than the steps
+/// that cost as much as the rest of stage 2. The metric bounds the steps beyond S, so a
+/// smaller S is sound, only less tight; S depends on estimates only, never on the clock.
+pub(crate) fn free_steps(s: &Sizes, rho: f64, fractions: &[f64], left_seconds: f64) -> usize {
+    let t = impulse_terms(rho);
+    let rest = t as f64 * (s.dim * s.dim * s.nw + s.rows * s.dim * s.nw)
+        + fractions
+            .iter()
+            .map(|f| {
+                let lambda = rho + (1.0 - rho) * f;
+                (3.0 * doubling_steps(rho, lambda) + 16.0) * s.dim.powi(3) + s.rows * s.dim * s.dim
+            })
+            .sum::<f64>();
+    let per_step = free_step_work(s).max(1.0);
+    let floor = (rest / per_step).floor();
+    let affordable = ((0.5 * left_seconds * crate::budget::DENSE_RATE - rest) / per_step).floor();
+    (t as f64).min(floor.max(affordable)).max(1.0) as usize
 }
 
 /// Bytes in MiB or GiB with at most 4 significant digits.
@@ -283,7 +314,9 @@ pub fn estimate(
 ) -> Result<RegionalEstimate, RegionalVoid> {
     let pieces = model::pieces(resolved, method, options.controller)?;
     let a = model_cost(&pieces, k);
-    let b = analysis_cost(&sizes(&pieces, k), rho, &options.rate_fractions);
+    let sz = sizes(&pieces, k);
+    let steps = free_steps(&sz, rho, &options.rate_fractions, options.phase_seconds);
+    let b = analysis_cost(&sz, rho, &options.rate_fractions, steps);
     let work = a.work + b.work;
     Ok(RegionalEstimate {
         work,

@@ -26,6 +26,7 @@ mod cost;
 mod lifted;
 mod metric;
 mod model;
+mod reach;
 mod search;
 
 use faer::{Mat, MatRef, Par};
@@ -56,6 +57,10 @@ pub struct RegionalOptions {
     pub prior_error: f64,
     /// ‖w_t‖₂ ≤ this (`certificate.w_bar`).
     pub w_bar: f64,
+    /// The per-step disturbance set's shape. `Some(r)`: the box |w_i| ≤ (w̄/‖r‖₂)·r_i — at the
+    /// default w̄ = ‖r‖₂ the scenario's own noise box, inside the ball ‖w‖₂ ≤ w̄ and up to
+    /// √n_w times smaller in a row's worst case; `None`: the ball (`certificate.w_bar`).
+    pub w_box: Option<Vec<f64>>,
     /// Candidate metrics: λ = ρ_lin + (1 − ρ_lin)·f for each f here (Stein equation with
     /// Q = I at the rate λ).
     pub rate_fractions: Vec<f64>,
@@ -232,39 +237,41 @@ impl RegionalOptions {
             .map(|(a, b)| (a - b).powi(2))
             .sum::<f64>()
             .sqrt();
-        let w_bar = match cs.w_bar {
-            Some(w) => w,
-            // The largest ‖w‖₂ the simulated law draws (its box, with the mean offset).
+        let (w_bar, w_box) = match cs.w_bar {
+            Some(w) => (w, None),
+            // The box the simulated law draws from (with the mean offset), symmetrised:
+            // r_i = max(|lo_i|, |hi_i|), w̄ = ‖r‖₂.
             None => {
                 let n = &sc.noise;
                 let nw = sc.sets.disturbance.lower().len();
-                let norm = |lo: &[f64], hi: &[f64]| {
+                let half = |lo: &[f64], hi: &[f64]| -> Vec<f64> {
                     lo.iter()
                         .zip(hi)
-                        .map(|(l, u)| l.abs().max(u.abs()).powi(2))
-                        .sum::<f64>()
-                        .sqrt()
+                        .map(|(l, u)| l.abs().max(u.abs()))
+                        .collect()
                 };
                 let mean: Vec<f64> = (0..nw).map(|i| n.mean_at(i)).collect();
-                match n.kind {
-                    lti_model::spec::NoiseKind::Zero => norm(&mean, &mean),
-                    _ if n.scale == 0.0 => norm(&mean, &mean),
+                let r = match n.kind {
+                    lti_model::spec::NoiseKind::Zero => half(&mean, &mean),
+                    _ if n.scale == 0.0 => half(&mean, &mean),
                     lti_model::spec::NoiseKind::Gaussian => {
                         return Err(RegionalVoid::UnboundedNoise);
                     }
                     lti_model::spec::NoiseKind::Uniform => {
                         match n.uniform_box(&sc.sets.disturbance) {
-                            Some((lo, hi)) => norm(&lo, &hi),
+                            Some((lo, hi)) => half(&lo, &hi),
                             None => return Err(RegionalVoid::UnboundedNoise),
                         }
                     }
                     lti_model::spec::NoiseKind::TruncatedNormal => match &n.truncate {
                         Some(t) if t.lower().iter().chain(t.upper()).all(|b| b.is_finite()) => {
-                            norm(t.lower(), t.upper())
+                            half(t.lower(), t.upper())
                         }
                         _ => return Err(RegionalVoid::UnboundedNoise),
                     },
-                }
+                };
+                let norm = r.iter().map(|v| v * v).sum::<f64>().sqrt();
+                (norm, (norm > 0.0).then_some(r))
             }
         };
         Ok(Self {
@@ -273,9 +280,24 @@ impl RegionalOptions {
             x0_radius: cs.x0_radius.unwrap_or(0.0),
             prior_error: cs.prior_error.unwrap_or(default_prior),
             w_bar,
+            w_box,
             rate_fractions: vec![0.02, 0.1, 0.25, 0.5, 0.75],
             phase_seconds: cs.phase_seconds(),
         })
+    }
+}
+
+impl RegionalOptions {
+    /// sup g·w over one step's disturbance set at w̄ = 1, g = (g(from), …, g(from + n_w − 1)):
+    /// Σ|g_i|r_i/‖r‖₂ for the box, ‖g‖₂ for the ball (the dual norm; ≤ ‖g‖₂ either way).
+    pub(crate) fn w_support(&self, g: impl Fn(usize) -> f64, from: usize, len: usize) -> f64 {
+        match &self.w_box {
+            Some(r) if r.len() == len => {
+                let n = r.iter().map(|v| v * v).sum::<f64>().sqrt();
+                (0..len).map(|j| g(from + j).abs() * r[j]).sum::<f64>() / n
+            }
+            _ => (from..from + len).map(|j| g(j).powi(2)).sum::<f64>().sqrt(),
+        }
     }
 }
 
@@ -323,7 +345,9 @@ fn startup_terms(
             let center: f64 = cxp.iter().zip(&o.x0_nominal).map(|(a, b)| a * b).sum();
             let ax = cxp.iter().map(|v| v * v).sum::<f64>().sqrt();
             let ap = seg(&c, nx, nx);
-            let aw: f64 = (0..big_m).map(|t| seg(&c, 2 * nx + t * nw, nw)).sum();
+            let aw: f64 = (0..big_m)
+                .map(|t| o.w_support(|j| c[j], 2 * nx + t * nw, nw))
+                .sum();
             out.push((center, ax, ap, aw, l, u));
         }
     }
@@ -363,6 +387,8 @@ struct Candidate {
     a_w: f64,
     gain_x: f64,
     gain_e: f64,
+    /// Per full-window row, its reach over the user's set (see [`RegionalDetail::reach`]).
+    reach: Vec<f64>,
 }
 
 /// The disturbance's exact contribution to every full-window row and readout: with
@@ -376,7 +402,7 @@ struct Impulse {
     e: f64,
 }
 
-fn impulse(model: &RegionalModel, rho: f64) -> Impulse {
+fn impulse(model: &RegionalModel, rho: f64, o: &RegionalOptions) -> Impulse {
     let t = cost::impulse_terms(rho);
     let (n, nw) = (model.a.nrows(), model.bw.ncols());
     let mut ib = Mat::<f64>::zeros(n, nw * t);
@@ -391,12 +417,7 @@ fn impulse(model: &RegionalModel, rho: f64) -> Impulse {
     }
     let sum_norms = |prod: &Mat<f64>, i: usize| -> f64 {
         (0..t)
-            .map(|k| {
-                (0..nw)
-                    .map(|j| prod[(i, k * nw + j)].powi(2))
-                    .sum::<f64>()
-                    .sqrt()
-            })
+            .map(|k| o.w_support(|j| prod[(i, j)], k * nw, nw))
             .sum()
     };
     let mut rows = Vec::with_capacity(model.rows.labels.len());
@@ -424,6 +445,7 @@ fn impulse(model: &RegionalModel, rho: f64) -> Impulse {
 fn evaluate(
     model: &RegionalModel,
     imp: &Impulse,
+    free: &reach::FreeReach,
     p: &metric::Metric,
     name: String,
     o: &RegionalOptions,
@@ -438,42 +460,64 @@ fn evaluate(
         f64::INFINITY
     };
     let (nx, nw) = (model.nx, model.nw);
-    let pm = half * &model.start_map;
-    let mxp = Mat::from_fn(pm.nrows(), nx, |i, j| pm[(i, j)] + pm[(i, nx + j)]);
-    let x0 = Mat::from_fn(nx, 1, |i, _| o.x0_nominal[i]);
-    let nominal = spectral_norm((&mxp * &x0).as_ref());
-    let a_x = spectral_norm(mxp.as_ref());
-    let a_p = spectral_norm(pm.as_ref().subcols(nx, nx));
-    let a_w: f64 = (0..model.layout.horizon)
-        .map(|t| spectral_norm(pm.as_ref().subcols(2 * nx + t * nw, nw)))
-        .sum();
+    // sup over the user's set of ‖M X‖_P for M = 𝕄 (X_M, reported) and M = 𝔸^S𝕄 (the free
+    // response after the S exact steps): nominal + r_x a_x + r_e a_p + w̄ a_w.
+    let parts = |m: &Mat<f64>| {
+        let pm = half * m;
+        let mxp = Mat::from_fn(pm.nrows(), nx, |i, j| pm[(i, j)] + pm[(i, nx + j)]);
+        let x0 = Mat::from_fn(nx, 1, |i, _| o.x0_nominal[i]);
+        let a_w: f64 = (0..model.layout.horizon)
+            .map(|t| spectral_norm(pm.as_ref().subcols(2 * nx + t * nw, nw)))
+            .sum();
+        [
+            spectral_norm((&mxp * &x0).as_ref()),
+            spectral_norm(mxp.as_ref()),
+            spectral_norm(pm.as_ref().subcols(nx, nx)),
+            a_w,
+        ]
+    };
+    let [nominal, a_x, a_p, a_w] = parts(&model.start_map);
+    let after = if free.steps == 0 {
+        [nominal, a_x, a_p, a_w]
+    } else {
+        parts(&free.shifted)
+    };
     let x_read_norm = spectral_norm((&model.x_read * neg).as_ref());
     let e_read_norm = spectral_norm((&model.e_read * neg).as_ref());
-    // Per full-window row: n_c·‖X_M‖_P + w̄·h̃_c ≤ bound_c, h̃_c = h_c + n_c·tail, with
-    // ‖X_M‖_P ≤ nominal + r_x a_x + r_e a_p + w̄ a_w.
-    let init_var = o.x0_radius * a_x + o.prior_error * a_p + o.w_bar * a_w;
+    // Per full-window row: the free response's reach N + r_x X + r_e P + w̄ W (each part the
+    // larger of its exact maximum over s < S and n_c times the metric's bound at S) plus the
+    // disturbance's w̄·h̃_c, h̃_c = h_c + n_c·tail, within bound_c.
     let (mut radius, mut scale) = (f64::INFINITY, f64::INFINITY);
     let (mut max_x, mut max_p, mut max_w) = (f64::INFINITY, f64::INFINITY, f64::INFINITY);
     let mut limit = None;
+    let mut reach = vec![0.0; norms.len()];
     for (i, nc) in norms.iter().enumerate() {
         let bound = model.rows.upper[i].min(-model.rows.lower[i]);
         let h = imp.rows[i] + nc * tail;
         if *nc == 0.0 && h == 0.0 {
             continue;
         }
-        let free = bound - o.w_bar * h;
+        let slack = bound - o.w_bar * h;
         radius = radius.min(if *nc > 0.0 {
-            free / nc
-        } else if free >= 0.0 {
+            slack / nc
+        } else if slack >= 0.0 {
             f64::INFINITY
         } else {
             f64::NEG_INFINITY
         });
-        let room = bound - nc * nominal;
+        let [n_i, x_i, p_i, w_i] = [
+            free.nominal[i].max(nc * after[0]),
+            free.x[i].max(nc * after[1]),
+            free.p[i].max(nc * after[2]),
+            free.w[i].max(nc * after[3]),
+        ];
+        let init_var = o.x0_radius * x_i + o.prior_error * p_i + o.w_bar * w_i;
+        reach[i] = n_i + init_var + o.w_bar * h;
+        let room = bound - n_i;
         let s_i = if room < 0.0 {
             f64::NEG_INFINITY
         } else {
-            let d = nc * init_var + o.w_bar * h;
+            let d = init_var + o.w_bar * h;
             if d > 0.0 { room / d } else { f64::INFINITY }
         };
         if s_i < scale {
@@ -481,7 +525,7 @@ fn evaluate(
             limit = Some(Limit {
                 row: model.rows.labels[i],
                 bound,
-                reach: nc * (nominal + init_var) + o.w_bar * h,
+                reach: n_i + init_var + o.w_bar * h,
             });
         }
         let div = |num: f64, den: f64| {
@@ -493,18 +537,9 @@ fn evaluate(
                 f64::NEG_INFINITY
             }
         };
-        max_x = max_x.min(div(
-            room - nc * (o.prior_error * a_p + o.w_bar * a_w) - o.w_bar * h,
-            nc * a_x,
-        ));
-        max_p = max_p.min(div(
-            room - nc * (o.x0_radius * a_x + o.w_bar * a_w) - o.w_bar * h,
-            nc * a_p,
-        ));
-        max_w = max_w.min(div(
-            room - nc * (o.x0_radius * a_x + o.prior_error * a_p),
-            nc * a_w + h,
-        ));
+        max_x = max_x.min(div(room - o.prior_error * p_i - o.w_bar * (w_i + h), x_i));
+        max_p = max_p.min(div(room - o.x0_radius * x_i - o.w_bar * (w_i + h), p_i));
+        max_w = max_w.min(div(room - o.x0_radius * x_i - o.prior_error * p_i, w_i + h));
     }
     Candidate {
         scale,
@@ -525,6 +560,7 @@ fn evaluate(
         a_w,
         gain_x: imp.x + x_read_norm * tail,
         gain_e: imp.e + e_read_norm * tail,
+        reach,
     }
 }
 
@@ -582,6 +618,10 @@ pub struct RegionalDetail {
     pub p_half: Mat<f64>,
     /// P^{−½}.
     pub p_neg_half: Mat<f64>,
+    /// Per full-window row, a bound on |row·X_t| for every t ≥ M over the user's set while no
+    /// row is active: the free response's reach (exact over S steps, the metric's beyond)
+    /// plus the disturbance's w̄·h̃ (Theorem R).
+    pub reach: Vec<f64>,
 }
 
 /// [`regional_certificate`] with its [`RegionalDetail`].
@@ -594,8 +634,8 @@ pub fn regional_detail(
     let mut budget = Budget::new(options.phase_seconds);
     budget.check_floor(resolved, k, options)?;
     let pieces = model::pieces(resolved, method, options.controller)?;
-    let (c, model, m) = certify_at(&pieces, method, k, options, &mut budget)?;
-    Ok((c, detail_of(model, m)))
+    let (c, model, m, reach) = certify_at(&pieces, method, k, options, &mut budget)?;
+    Ok((c, detail_of(model, m, reach)))
 }
 
 fn certify_at(
@@ -604,7 +644,7 @@ fn certify_at(
     k: usize,
     o: &RegionalOptions,
     budget: &mut Budget,
-) -> Result<(RegionalCertificate, RegionalModel, metric::Metric), RegionalVoid> {
+) -> Result<(RegionalCertificate, RegionalModel, metric::Metric, Vec<f64>), RegionalVoid> {
     if o.x0_nominal.len() != pieces.a.nrows() {
         return Err(RegionalVoid::Options(format!(
             "x0_nominal has {} entries, the plant {} states",
@@ -625,12 +665,15 @@ fn certify_at(
     if !(rho < 1.0) {
         return Err(RegionalVoid::Unstable { k, rho });
     }
+    let sizes = cost::sizes(pieces, k);
+    let steps = cost::free_steps(&sizes, rho, &o.rate_fractions, budget.left);
     budget.spend(
         k,
-        "the impulse response, the candidate metrics and the rows' margins",
-        cost::analysis_cost(&cost::sizes(pieces, k), rho, &o.rate_fractions),
+        "the impulse response, the free response, the candidate metrics and the rows' margins",
+        cost::analysis_cost(&sizes, rho, &o.rate_fractions, steps),
     )?;
-    let imp = impulse(&model, rho);
+    let imp = impulse(&model, rho, o);
+    let free = reach::free_reach(&model, o, steps);
     let mut best: Option<(f64, Candidate)> = None;
     for &f in &o.rate_fractions {
         let lam = rho + (1.0 - rho) * f;
@@ -643,6 +686,7 @@ fn certify_at(
         let c = evaluate(
             &model,
             &imp,
+            &free,
             &m,
             format!("Stein, λ = ρ_lin + {f}·(1 − ρ_lin) = {lam:.6}"),
             o,
@@ -733,11 +777,12 @@ fn certify_at(
         gain_e: c.gain_e,
         options: o.clone(),
     };
-    Ok((cert, model, c.metric))
+    Ok((cert, model, c.metric, c.reach))
 }
 
-fn detail_of(model: RegionalModel, m: metric::Metric) -> RegionalDetail {
+fn detail_of(model: RegionalModel, m: metric::Metric, reach: Vec<f64>) -> RegionalDetail {
     RegionalDetail {
+        reach,
         rows: model.rows.to_vecs(),
         a: model.a,
         bw: model.bw,

@@ -9,9 +9,11 @@
 //! (exact MPC) or of the LQR input (saturated LQR); every general 𝒳/𝒴 row of the MHE — is a
 //! linear functional of X_t (or of υ for t < M). For a metric ‖X‖_P with ‖𝔸‖_P = λ < 1,
 //! superposition X_t = 𝔸^{t−M}X_M + Σ_k 𝔸^k𝔹_w w_{t−1−k} (valid while no row is active) gives
-//! |c_iX_t| ≤ ‖P^{−½}c_iᵀ‖λ^{t−M}‖X_M‖_P + w̄Σ_k‖c_i𝔸^k𝔹_w‖ (the second sum to T terms plus a
-//! certified tail). If the start-up rows hold over the user's set and every full-window row
-//! satisfies ‖P^{−½}c_iᵀ‖·sup‖X_M‖_P + w̄h̃_i ≤ min(u_i, −l_i), then by induction the loop is
+//! |c_iX_t| ≤ (the free response's reach over the user's set: exact for t − M < S, see
+//! `reach.rs`, and ‖P^{−½}c_iᵀ‖·‖𝔸^S X_M‖_P beyond) + w̄Σ_k‖c_i𝔸^k𝔹_w‖_* (the second sum to
+//! T terms plus a certified tail; ‖·‖_* the dual norm of one step's disturbance set, the
+//! scenario's noise box by default). If the start-up rows hold over the user's set and every
+//! full-window row's reach is within min(u_i, −l_i), then by induction the loop is
 //! the linear one for all t: ISS with rate λ for the free response and the asymptotic gains
 //! Σ_k‖x_read𝔸^k𝔹_w‖, Σ_k‖e_read𝔸^k𝔹_w‖ (Theorem R of `docs/theory.md`).
 //!

@@ -165,8 +165,29 @@ fn limit_line(l: &Limit) -> String {
     } else {
         String::new()
     };
+    // The certified reach is an upper bound; `attained` a value an admissible realization
+    // reaches. Above the bound it proves activation.
+    let witness = if l.attained > l.bound {
+        format!(
+            "; an admissible realization of the set reaches {} at t = {} (×{}): a constraint \
+             activates, so no region without active constraints contains the set at this K",
+            sig4(l.attained),
+            l.attained_at,
+            sig4(l.attained / l.bound)
+        )
+    } else if l.attained < l.reach {
+        format!(
+            "; its true worst case lies in [{}, {}] (the lower end reached by an admissible \
+             realization at t = {})",
+            sig4(l.attained),
+            sig4(l.reach),
+            l.attained_at
+        )
+    } else {
+        String::new()
+    };
     format!(
-        "{} reaches {} against its bound {}{by}",
+        "{} reaches {} against its bound {}{by}{witness}",
         row_text(&l.row),
         sig4(l.reach),
         sig4(l.bound)
@@ -190,6 +211,15 @@ pub fn limit_text(c: &RegionalCertificate) -> String {
                 .flatten()
                 .map(limit_line),
         );
+    }
+    if let Some(w) = &c.witness {
+        let shown = [&c.radius_limit, &c.startup_limit]
+            .into_iter()
+            .flatten()
+            .any(|l| l.row == w.row && l.attained > l.bound);
+        if !shown {
+            parts.push(limit_line(w));
+        }
     }
     let scale = if c.margin == f64::NEG_INFINITY {
         "the certified scale of (x0_radius, prior_error, w̄) is −∞: the bound on the nominal \

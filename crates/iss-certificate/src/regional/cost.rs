@@ -177,17 +177,18 @@ pub(crate) fn analysis_cost(s: &Sizes, rho: f64, fractions: &[f64], steps: usize
     }
 }
 
-/// One step of the free response's exact reach (`reach.rs`): 𝔸·𝔸^s𝕄, every row times
-/// 𝔸^s𝕄, and the rows' norms.
+/// One step of the free response's exact reach (`reach.rs`): 𝔸·[𝔸^s𝕄, 𝔸^s𝔹_w], every row
+/// times both, and the rows' norms.
 fn free_step_work(s: &Sizes) -> f64 {
-    s.dim * s.dim * s.nv + s.rows * s.dim * s.nv + s.rows * s.nv
+    (s.dim * s.dim + s.rows * s.dim) * (s.nv + s.nw) + s.rows * (s.nv + s.nw)
 }
 
-/// S, the steps the free response is taken exactly: T (the impulse's terms), or fewer when
-/// T steps do not fit in half the `left_seconds` of the budget (the other half stays for the
-/// next K of a search) — but never fewer than the steps
-/// that cost as much as the rest of stage 2. The metric bounds the steps beyond S, so a
-/// smaller S is sound, only less tight; S depends on estimates only, never on the clock.
+/// S, the steps the free response is taken exactly: T (the impulse's terms), or as many as
+/// fit in half the `left_seconds` of the budget after the rest of stage 2 (the other half
+/// stays for the next K of a search), down to 0. The metric bounds the steps beyond S, so a
+/// smaller S is sound, only less tight — S = 0 is the metric bound alone, which costs nothing
+/// more, so the exact steps never make a certificate refuse that the budget would otherwise
+/// admit. S depends on estimates only, never on the clock.
 pub(crate) fn free_steps(s: &Sizes, rho: f64, fractions: &[f64], left_seconds: f64) -> usize {
     let t = impulse_terms(rho);
     let rest = t as f64 * (s.dim * s.dim * s.nw + s.rows * s.dim * s.nw)
@@ -199,9 +200,8 @@ pub(crate) fn free_steps(s: &Sizes, rho: f64, fractions: &[f64], left_seconds: f
             })
             .sum::<f64>();
     let per_step = free_step_work(s).max(1.0);
-    let floor = (rest / per_step).floor();
     let affordable = ((0.5 * left_seconds * crate::budget::DENSE_RATE - rest) / per_step).floor();
-    (t as f64).min(floor.max(affordable)).max(1.0) as usize
+    (t as f64).min(affordable).max(0.0) as usize
 }
 
 /// Bytes in MiB or GiB with at most 4 significant digits.

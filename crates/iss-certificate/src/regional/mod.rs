@@ -161,9 +161,16 @@ pub struct Limit {
     pub row: RowLabel,
     /// Its bound min(u, −l) (full-window rows) or the bound it reaches (start-up rows).
     pub bound: f64,
-    /// The largest value the row takes over the certified set (full window: r·‖P^{−½}cᵀ‖;
-    /// start-up: |center| + deviation).
+    /// The certified bound on the largest value the row takes over the user's set (full
+    /// window: its reach in Theorem R; start-up: |center| + deviation).
     pub reach: f64,
+    /// A value of the row that an admissible realization of the user's set reaches in the
+    /// linear loop (≤ `reach`; equal for start-up rows): the true worst case lies in
+    /// [attained, reach]. Above `bound`, a constraint certainly activates (theory.md,
+    /// Theorem R, "the witness").
+    pub attained: f64,
+    /// The step t at which `attained` is reached.
+    pub attained_at: usize,
 }
 
 /// The regional certificate at one K.
@@ -197,6 +204,14 @@ pub struct RegionalCertificate {
     pub startup_holds: bool,
     /// The start-up row with the smallest slack.
     pub startup_limit: Option<Limit>,
+    /// S: the steps after M over which every full-window row's free response was taken
+    /// exactly (Theorem R; the metric bounds the rest; 0 when the budget left none).
+    pub exact_steps: usize,
+    /// The row (full window or start-up) that an admissible realization of the user's set
+    /// drives farthest past its bound in the linear loop, when one is driven past it: then a
+    /// constraint certainly activates and no region on which none is active contains the set
+    /// at this K (theory.md, Theorem R, "the witness").
+    pub witness: Option<Limit>,
     /// Number of constraint rows (full window, start-up).
     pub rows: (usize, usize),
     /// The user's set lies in the certified region.
@@ -391,6 +406,8 @@ struct Candidate {
     gain_e: f64,
     /// Per full-window row, its reach over the user's set (see [`RegionalDetail::reach`]).
     reach: Vec<f64>,
+    /// The full-window row with the largest attained value against its bound.
+    witness: Option<Limit>,
 }
 
 /// The disturbance's exact contribution to every full-window row and readout: with
@@ -493,6 +510,7 @@ fn evaluate(
     let (mut max_x, mut max_p, mut max_w) = (f64::INFINITY, f64::INFINITY, f64::INFINITY);
     let mut limit = None;
     let mut reach = vec![0.0; norms.len()];
+    let mut witness: Option<(f64, usize)> = None;
     for (i, nc) in norms.iter().enumerate() {
         let bound = model.rows.upper[i].min(-model.rows.lower[i]);
         let h = imp.rows[i] + nc * tail;
@@ -515,6 +533,10 @@ fn evaluate(
         ];
         let init_var = o.x0_radius * x_i + o.prior_error * p_i + o.w_bar * w_i;
         reach[i] = n_i + init_var + o.w_bar * h;
+        let ratio = free.attained[i].value / bound;
+        if witness.is_none_or(|(r, _)| ratio > r) {
+            witness = Some((ratio, i));
+        }
         let room = bound - n_i;
         let s_i = if room < 0.0 {
             f64::NEG_INFINITY
@@ -528,6 +550,8 @@ fn evaluate(
                 row: model.rows.labels[i],
                 bound,
                 reach: n_i + init_var + o.w_bar * h,
+                attained: free.attained[i].value,
+                attained_at: model.layout.horizon + free.attained[i].step,
             });
         }
         let div = |num: f64, den: f64| {
@@ -562,6 +586,13 @@ fn evaluate(
         a_w,
         gain_x: imp.x + x_read_norm * tail,
         gain_e: imp.e + e_read_norm * tail,
+        witness: witness.map(|(_, i)| Limit {
+            row: model.rows.labels[i],
+            bound: model.rows.upper[i].min(-model.rows.lower[i]),
+            reach: reach[i],
+            attained: free.attained[i].value,
+            attained_at: model.layout.horizon + free.attained[i].step,
+        }),
         reach,
     }
 }
@@ -735,13 +766,22 @@ fn certify_at(
         if s < startup_scale {
             startup_scale = s;
             let reach = center.abs() + dev;
+            let label = model.startup_rows.labels[i];
             startup_limit = Some(Limit {
-                row: model.startup_rows.labels[i],
+                row: label,
                 bound: if center >= 0.0 { u } else { -l },
                 reach,
+                attained: reach,
+                attained_at: label.step.unwrap_or(0),
             });
         }
     }
+    let ratio = |l: &Limit| l.attained / l.bound;
+    let witness = [c.witness.clone(), startup_limit.clone()]
+        .into_iter()
+        .flatten()
+        .filter(|l| l.attained > l.bound)
+        .max_by(|a, b| ratio(a).total_cmp(&ratio(b)));
     let full_scale = c.full_scale(o);
     let margin = full_scale.min(startup_scale);
     let contains = startup_holds && margin >= 1.0;
@@ -767,6 +807,8 @@ fn certify_at(
         invariant_radius: o.w_bar * inv_rate,
         startup_holds,
         startup_limit,
+        witness,
+        exact_steps: free.steps,
         rows: (model.rows.labels.len(), model.startup_rows.labels.len()),
         contains,
         margin,

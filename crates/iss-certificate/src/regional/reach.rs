@@ -34,6 +34,28 @@ pub(crate) struct FreeReach {
     pub w: Vec<f64>,
     /// 𝔸^S𝕄, for the metric's bound on s ≥ S.
     pub shifted: Mat<f64>,
+    /// Per row, max_{s<S} of the row's value at t = M + s under the worst admissible
+    /// realization for that row and step ([`Attained`]): a lower bound on the true worst case.
+    pub attained: Vec<Attained>,
+}
+
+/// A value of one full-window row that an admissible realization reaches (module docs).
+///
+/// At t = M + s the row is g·υ + Σ_{k<s} c𝔸^k𝔹_w w_{t−1−k} with g = c𝔸^s𝕄; choosing x₀ − x₀ⁿᵒᵐ
+/// along ±(g_x + g_p), the prior error along ±g_p, each w_j on the face of the disturbance set
+/// that maximises ±g_{w_j}·w_j and each later w the same way (the sign that of the nominal
+/// value) makes every term add up: the value is |g_nom| + r_x‖g_x + g_p‖ + r_e‖g_p‖ +
+/// w̄Σ_j‖g_{w_j}‖_* + w̄Σ_{k<s}‖c𝔸^k𝔹_w‖_*, exactly. Every such realization lies in the user's
+/// set, so if the value exceeds the row's bound, the linear loop leaves the row's bound at t —
+/// and the real loop, which equals the linear one until a first row activates (Lemma R1),
+/// activates a constraint at t or before: no region on which no constraint is active can
+/// contain the user's set at this K.
+#[derive(Debug, Clone, Copy, PartialEq, Default)]
+pub(crate) struct Attained {
+    /// The value.
+    pub value: f64,
+    /// s = t − M.
+    pub step: usize,
 }
 
 fn seg(g: impl Fn(usize) -> f64, from: usize, len: usize) -> f64 {
@@ -51,25 +73,40 @@ pub(crate) fn free_reach(model: &RegionalModel, o: &RegionalOptions, steps: usiz
         vec![0.0; rows],
         vec![0.0; rows],
     );
+    let mut attained = vec![Attained::default(); rows];
+    // Σ_{k<s}‖c𝔸^k𝔹_w‖_* per row: the forced response's worst case at t = M + s.
+    let mut forced = vec![0.0; rows];
     let mut m = model.start_map.clone();
-    for _ in 0..steps {
+    let mut ab = model.bw.clone();
+    for s in 0..steps {
         let mut i = 0;
         for b in &model.rows.blocks {
             let g = b * &m;
+            let gb = b * &ab;
             for r in 0..g.nrows() {
                 let gx = |j: usize| g[(r, j)] + g[(r, nx + j)];
                 let center: f64 = (0..nx).map(|j| gx(j) * o.x0_nominal[j]).sum();
-                nominal[i] = f64::max(nominal[i], center.abs());
-                x[i] = f64::max(x[i], seg(gx, 0, nx));
-                p[i] = f64::max(p[i], seg(|j| g[(r, j)], nx, nx));
+                let (cx, cp) = (seg(gx, 0, nx), seg(|j| g[(r, j)], nx, nx));
                 let wsum: f64 = (0..big_m)
                     .map(|t| o.w_support(|j| g[(r, j)], 2 * nx + t * nw, nw))
                     .sum();
+                nominal[i] = f64::max(nominal[i], center.abs());
+                x[i] = f64::max(x[i], cx);
+                p[i] = f64::max(p[i], cp);
                 w[i] = f64::max(w[i], wsum);
+                let value = center.abs()
+                    + o.x0_radius * cx
+                    + o.prior_error * cp
+                    + o.w_bar * (wsum + forced[i]);
+                if value > attained[i].value {
+                    attained[i] = Attained { value, step: s };
+                }
+                forced[i] += o.w_support(|j| gb[(r, j)], 0, nw);
                 i += 1;
             }
         }
         m = &model.a * &m;
+        ab = &model.a * &ab;
     }
     FreeReach {
         steps,
@@ -78,5 +115,6 @@ pub(crate) fn free_reach(model: &RegionalModel, o: &RegionalOptions, steps: usiz
         p,
         w,
         shifted: m,
+        attained,
     }
 }

@@ -114,12 +114,18 @@ pub fn k_reg_outcome(
             out.stopped = kr.stopped.clone();
             out.note = match (kr.k_reg, &kr.certificate, kr.void) {
                 (Some(_), _, _) => None,
-                (None, _, _) if kr.stopped.is_some() => Some(format!(
+                (None, c, _) if kr.stopped.is_some() => Some(format!(
                     "the search stopped before a K whose region contains the scenario's \
-                     uncertainty{}: {}",
+                     uncertainty{}: {}{}",
                     out.k
                         .map_or(String::new(), |k| format!(" (largest K evaluated: {k})")),
-                    kr.stopped.as_deref().unwrap_or_default()
+                    kr.stopped.as_deref().unwrap_or_default(),
+                    // What the last certificate computed says about the set.
+                    c.as_ref().map_or(String::new(), |c| format!(
+                        "; at K = {}: {}",
+                        c.k,
+                        limit_text(c)
+                    ))
                 )),
                 (None, _, Some(v)) => Some(format!(
                     "void at the largest K tried (K = {}): {v}",
@@ -175,7 +181,7 @@ fn limit_line(l: &Limit) -> String {
             l.attained_at,
             sig4(l.attained / l.bound)
         )
-    } else if l.attained < l.reach {
+    } else if l.attained > 0.0 && l.attained < l.reach {
         format!(
             "; its true worst case lies in [{}, {}] (the lower end reached by an admissible \
              realization at t = {})",

@@ -98,7 +98,7 @@ pub struct SweepConfig {
     pub linear: bool,
     /// Also run the Kalman filter of the MHE's weights in place of the MHE (`estimators =
     /// ["mhe", "kalman"]`; default `["mhe"]`): the same controller and, run by run, the same
-    /// draws; written to `kalman.csv` ([`super::baseline`]).
+    /// draws; written to `kalman.csv` (`sweep_engine::baseline`).
     pub kalman: bool,
 }
 

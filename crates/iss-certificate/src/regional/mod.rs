@@ -503,9 +503,8 @@ fn evaluate(
     };
     let x_read_norm = spectral_norm((&model.x_read * neg).as_ref());
     let e_read_norm = spectral_norm((&model.e_read * neg).as_ref());
-    // Per full-window row: the free response's reach N + r_x X + r_e P + w̄ W (each part the
-    // larger of its exact maximum over s < S and n_c times the metric's bound at S) plus the
-    // disturbance's w̄·h̃_c, h̃_c = h_c + n_c·tail, within bound_c.
+    // Per full-window row: for s < S the exact worst case A_i(s) (reach.rs); for s ≥ S the
+    // metric's bound n_c·r(𝔸^S𝕄) plus the disturbance's whole w̄·h̃_c, h̃_c = h_c + n_c·tail.
     let (mut radius, mut scale) = (f64::INFINITY, f64::INFINITY);
     let (mut max_x, mut max_p, mut max_w) = (f64::INFINITY, f64::INFINITY, f64::INFINITY);
     let mut limit = None;
@@ -525,47 +524,51 @@ fn evaluate(
         } else {
             f64::NEG_INFINITY
         });
-        let [n_i, x_i, p_i, w_i] = [
-            free.nominal[i].max(nc * after[0]),
-            free.x[i].max(nc * after[1]),
-            free.p[i].max(nc * after[2]),
-            free.w[i].max(nc * after[3]),
-        ];
-        let init_var = o.x0_radius * x_i + o.prior_error * p_i + o.w_bar * w_i;
-        reach[i] = n_i + init_var + o.w_bar * h;
-        let ratio = free.attained[i].value / bound;
+        let [n_t, x_t, p_t, w_t] = after.map(|a| nc * a);
+        let tail_var = o.x0_radius * x_t + o.prior_error * p_t + o.w_bar * (w_t + h);
+        let attained = free.attained[i];
+        reach[i] = attained.value.max(n_t + tail_var);
+        let ratio = attained.value / bound;
         if witness.is_none_or(|(r, _)| ratio > r) {
             witness = Some((ratio, i));
         }
-        let room = bound - n_i;
-        let s_i = if room < 0.0 {
-            f64::NEG_INFINITY
-        } else {
-            let d = init_var + o.w_bar * h;
-            if d > 0.0 { room / d } else { f64::INFINITY }
+        let room = bound - n_t;
+        let tail_limit = |num: f64, den: f64| {
+            if room < 0.0 {
+                f64::NEG_INFINITY
+            } else {
+                reach::ratio_limit(num, den)
+            }
         };
+        let s_i = tail_limit(room, tail_var).min(free.scale[i]);
         if s_i < scale {
             scale = s_i;
             limit = Some(Limit {
                 row: model.rows.labels[i],
                 bound,
-                reach: n_i + init_var + o.w_bar * h,
-                attained: free.attained[i].value,
-                attained_at: model.layout.horizon + free.attained[i].step,
+                reach: reach[i],
+                attained: attained.value,
+                attained_at: model.layout.horizon + attained.step,
             });
         }
-        let div = |num: f64, den: f64| {
-            if den > 0.0 {
-                num / den
-            } else if num >= 0.0 {
-                f64::INFINITY
-            } else {
-                f64::NEG_INFINITY
-            }
-        };
-        max_x = max_x.min(div(room - o.prior_error * p_i - o.w_bar * (w_i + h), x_i));
-        max_p = max_p.min(div(room - o.x0_radius * x_i - o.w_bar * (w_i + h), p_i));
-        max_w = max_w.min(div(room - o.x0_radius * x_i - o.prior_error * p_i, w_i + h));
+        max_x = max_x
+            .min(tail_limit(
+                room - o.prior_error * p_t - o.w_bar * (w_t + h),
+                x_t,
+            ))
+            .min(free.max_x[i]);
+        max_p = max_p
+            .min(tail_limit(
+                room - o.x0_radius * x_t - o.w_bar * (w_t + h),
+                p_t,
+            ))
+            .min(free.max_p[i]);
+        max_w = max_w
+            .min(tail_limit(
+                room - o.x0_radius * x_t - o.prior_error * p_t,
+                w_t + h,
+            ))
+            .min(free.max_w[i]);
     }
     Candidate {
         scale,

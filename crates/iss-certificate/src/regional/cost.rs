@@ -143,7 +143,7 @@ pub(crate) fn impulse_terms(rho: f64) -> usize {
     if rho < 1e-3 {
         8
     } else {
-        ((1e-9f64).ln() / rho.ln()).ceil().clamp(8.0, 400.0) as usize
+        ((1e-9f64).ln() / rho.ln()).ceil().clamp(8.0, 2000.0) as usize
     }
 }
 
@@ -333,7 +333,7 @@ mod tests {
     fn impulse_terms_follow_the_rate() {
         assert_eq!(impulse_terms(0.0), 8);
         assert_eq!(impulse_terms(0.5), 30);
-        assert_eq!(impulse_terms(0.999_999), 400);
+        assert_eq!(impulse_terms(0.999_999), 2000);
     }
 
     #[test]

@@ -558,7 +558,7 @@ fn the_rows_reach_bounds_sampled_extreme_points_and_is_attained_by_the_nominal()
             .map(|i| peak[i] / d.reach[i])
             .fold(0.0f64, f64::max);
         // Attained on the stable plants; on marginal and unstable ones ρ_lin(20) is close to
-        // 1, S (≤ 400 steps) ends before the response has decayed and the metric's bound
+        // 1, S (≤ 2000 steps) ends before the response has decayed and the metric's bound
         // beyond S can dominate (docs/theory.md, Theorem R: what S costs).
         if kind == 0 {
             assert!(

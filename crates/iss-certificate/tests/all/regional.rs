@@ -5,7 +5,8 @@ use closed_loop::scenario::{ControllerChoice, LoopOptions, Scenario, ScenarioLoo
 use faer::{Mat, Par};
 use iss_certificate::linear::{LiftedLayout, LiftedLoop};
 use iss_certificate::regional::{
-    RegionalOptions, RegionalVoid, RowKind, k_reg, regional_certificate, regional_detail,
+    RegionalDetail, RegionalOptions, RegionalVoid, RowKind, k_reg, regional_certificate,
+    regional_detail,
 };
 use qp_iter::Method;
 use rand::{Rng, SeedableRng};
@@ -36,6 +37,26 @@ fn lifted_state(cl: &ScenarioLoop, l: LiftedLayout) -> Vec<f64> {
     }
     x[l.warm_start()..l.warm_start() + l.nz].copy_from_slice(cl.estimator().warm_start_point());
     x
+}
+
+/// X_{t+1} = 𝔸X_t + 𝔹_w w_t of the regional model.
+fn lifted_step(d: &RegionalDetail, x: &[f64], w: &[f64]) -> Vec<f64> {
+    apply(&d.a, x)
+        .iter()
+        .zip(apply(&d.bw, w))
+        .map(|(p, q)| p + q)
+        .collect()
+}
+
+/// X_M = 𝕄υ from a run's own x₀, x̄₀ and w₀..w_{M−1} (the loop stepped M times).
+fn start_up_state(cl: &ScenarioLoop, s: &Scenario, d: &RegionalDetail) -> Vec<f64> {
+    let big_m = s.mhe.as_ref().unwrap().horizon;
+    let mut v = s.simulation.x0.clone();
+    v.extend_from_slice(&s.simulation.prior);
+    for t in 0..big_m {
+        v.extend_from_slice(cl.trace().w(t).unwrap());
+    }
+    apply(&d.start_map, &v)
 }
 
 fn options(s: &Scenario, method: Method, k: usize) -> LoopOptions {
@@ -184,14 +205,7 @@ fn random_plants_stay_linear_and_meet_the_certified_decay() {
                 nz: s.plant.nx() + big_m * s.plant.nw(),
                 n_controller: 0,
             };
-            // X_M = 𝕄υ from the run's own x₀, x̄₀ and w₀..w_{M−1}.
-            let tr = cl.trace();
-            let mut v = s.simulation.x0.clone();
-            v.extend_from_slice(&s.simulation.prior);
-            for t in 0..big_m {
-                v.extend_from_slice(tr.w(t).unwrap());
-            }
-            let mut x = apply(&d.start_map, &v);
+            let mut x = start_up_state(&cl, &s, &d);
             let pnorm = |x: &[f64]| norm(&apply(&d.p_half, x));
             let x_m = pnorm(&x);
             assert!(x_m <= c.initial_radius * (1.0 + 1e-9));
@@ -213,11 +227,7 @@ fn random_plants_stay_linear_and_meet_the_certified_decay() {
                 assert!(e_now <= c.e_read_norm * bound * (1.0 + 1e-9) + 1e-15);
                 cl.step().unwrap();
                 let w = cl.trace().w(t).unwrap().to_vec();
-                x = apply(&d.a, &x)
-                    .iter()
-                    .zip(apply(&d.bw, &w))
-                    .map(|(p, q)| p + q)
-                    .collect();
+                x = lifted_step(&d, &x, &w);
             }
             checked += 1;
         }
@@ -290,11 +300,7 @@ fn boundary_points_along_each_normal_are_inactive_and_one_percent_more_activates
                     let lt = c.rate.powi(t as i32);
                     assert!(pnorm(&xf) <= lt * x0p * (1.0 + 1e-9) + 1e-15);
                     let w = &v[t_end - 1 - t];
-                    x = apply(&d.a, &x)
-                        .iter()
-                        .zip(apply(&d.bw, w))
-                        .map(|(p, q)| p + q)
-                        .collect();
+                    x = lifted_step(&d, &x, w);
                     xf = apply(&d.a, &xf);
                 }
                 hit_limit |= i == 0;
@@ -522,11 +528,7 @@ fn the_rows_reach_bounds_sampled_extreme_points_and_is_attained_by_the_nominal()
                 }
                 let w = vertex();
                 assert_eq!(w.len(), nw);
-                x = apply(&d.a, &x)
-                    .iter()
-                    .zip(apply(&d.bw, &w))
-                    .map(|(p, q)| p + q)
-                    .collect();
+                x = lifted_step(&d, &x, &w);
             }
         }
         // Random extreme points are not the worst case of any row: no lower bound on `worst`
@@ -637,11 +639,7 @@ fn the_witness_realization_attains_the_reported_value() {
         let mut x = apply(&d.start_map, &v);
         for j in 0..steps {
             let w = vertex(&at(&d.bw, steps - 1 - j));
-            x = apply(&d.a, &x)
-                .iter()
-                .zip(apply(&d.bw, &w))
-                .map(|(p, q)| p + q)
-                .collect();
+            x = lifted_step(&d, &x, &w);
         }
         let value: f64 = d.rows[i].iter().zip(&x).map(|(a, b)| a * b).sum();
         assert!(
@@ -695,13 +693,7 @@ fn the_cart_pendulum_at_its_k_reg_stays_the_linear_loop() {
         for _ in 0..big_m {
             cl.step().unwrap();
         }
-        let tr = cl.trace();
-        let mut v = s.simulation.x0.clone();
-        v.extend_from_slice(&s.simulation.prior);
-        for t in 0..big_m {
-            v.extend_from_slice(tr.w(t).unwrap());
-        }
-        let mut x = apply(&d.start_map, &v);
+        let mut x = start_up_state(&cl, &s, &d);
         for step in 0..150 {
             let sim = lifted_state(&cl, l);
             let gap = norm(&x.iter().zip(&sim).map(|(p, q)| p - q).collect::<Vec<_>>());
@@ -719,11 +711,7 @@ fn the_cart_pendulum_at_its_k_reg_stays_the_linear_loop() {
             let t = cl.t();
             cl.step().unwrap();
             let w = cl.trace().w(t).unwrap().to_vec();
-            x = apply(&d.a, &x)
-                .iter()
-                .zip(apply(&d.bw, &w))
-                .map(|(p, q)| p + q)
-                .collect();
+            x = lifted_step(&d, &x, &w);
         }
     }
 }

@@ -8,7 +8,7 @@ use lti_model::matrix::spectral_norm;
 
 use super::lifted::RegionalModel;
 use super::model::Rows;
-use super::{Limit, RegionalOptions, cost, metric, reach};
+use super::{Limit, RegionalOptions, metric, reach};
 
 fn row_norms(rows: &Rows, neg_half: MatRef<'_, f64>) -> Vec<f64> {
     let mut out = Vec::with_capacity(rows.labels.len());
@@ -64,8 +64,7 @@ pub(super) struct Impulse {
     pub(super) e: f64,
 }
 
-pub(super) fn impulse(model: &RegionalModel, rho: f64, o: &RegionalOptions) -> Impulse {
-    let t = cost::impulse_terms(rho);
+pub(super) fn impulse(model: &RegionalModel, t: usize, o: &RegionalOptions) -> Impulse {
     let (n, nw) = (model.a.nrows(), model.bw.ncols());
     let mut ib = Mat::<f64>::zeros(n, nw * t);
     let mut cur = model.bw.clone();

@@ -9,13 +9,13 @@
 //!    the M start-up windows — then the spectral radius of 𝔸(K) ([`crate::linear::eigen_work`]).
 //!    Its memory is the rows: one stored row of cols entries per finitely bounded component of
 //!    every projected point of every iterate.
-//! 2. **The metrics and the margins** ([`analysis_cost`], once ρ_lin(K) is known): the impulse
-//!    response to T terms (T from ρ_lin, as `impulse` picks it) and its product with every
-//!    full-window row (rows × dim X × T n_w), the free response's exact reach over S ≤ T steps
-//!    (`reach.rs`: S (dim X² + rows × dim X) dim υ, S = T when it fits in the budget, see
-//!    [`free_steps`]), then per candidate rate a Stein equation by
-//!    doubling (3 dim³ per doubling step, as many steps as (ρ/λ)^(2^j) needs to reach 1e-14),
-//!    the square roots (≈ 12 dim³) and the rows in the metric (rows × dim X²).
+//! 2. **The metrics and the margins** ([`analysis_plan`], once ρ_lin(K) is known): the impulse
+//!    response to T terms and its product with every full-window row (rows × dim X × T n_w),
+//!    the free response's exact reach over S steps (`reach.rs`: S (dim X² + rows × dim X)
+//!    dim υ), and per candidate rate a Stein equation by doubling (3 dim³ per doubling step, as
+//!    many steps as (ρ/λ)^(2^j) needs to reach 1e-14), the square roots (≈ 12 dim³) and the
+//!    rows in the metric (rows × dim X²). T, S and the candidates are fitted to the budget:
+//!    only 8 terms and the cheapest candidate are required ([`AnalysisPlan`]).
 //!
 //! All are multiply-adds of blocked dense kernels, at [`crate::budget::DENSE_RATE`] per second
 //! of one core; the calibration against measured times is in `docs/limits.md`.
@@ -155,26 +155,26 @@ fn doubling_steps(rho: f64, lambda: f64) -> f64 {
     (needed.max(1.0).log2().ceil() + 3.0).min(64.0)
 }
 
-/// Stage 2: the impulse response, the candidate metrics and every row's margin.
-pub(crate) fn analysis_cost(s: &Sizes, rho: f64, fractions: &[f64], steps: usize) -> StageCost {
-    let t = impulse_terms(rho) as f64;
-    let impulse = t * s.dim * s.dim * s.nw + s.rows * s.dim * s.nw * t;
-    let candidates: f64 = fractions
-        .iter()
-        .map(|f| {
-            let lambda = rho + (1.0 - rho) * f;
-            (3.0 * doubling_steps(rho, lambda) + 16.0) * s.dim.powi(3)
-                + s.rows * s.dim * s.dim
-                + s.dim * s.dim * s.nv
-        })
-        .sum();
-    let free = steps as f64 * free_step_work(s);
-    let bytes =
-        F64 * (s.rows * s.dim + s.dim * s.nw * t + 8.0 * s.dim * s.dim + 2.0 * s.dim * s.nv);
-    StageCost {
-        work: impulse + free + candidates,
-        bytes,
-    }
+/// The fewest impulse terms a certificate takes: the metric's certified tail bounds the rest.
+const MIN_TERMS: usize = 8;
+
+/// The exact steps taken first, before the rest of the stage: a witness (theory.md, Theorem R)
+/// shows up within a few dozen steps on the shipped loops (t = M + 1 … M + 93), and it refutes
+/// the K at once, so nothing else is computed.
+const PROBE_STEPS: usize = 64;
+
+/// One impulse term: 𝔸·𝔸^k𝔹_w and every row times it.
+fn impulse_term_work(s: &Sizes) -> f64 {
+    s.dim * s.dim * s.nw + s.rows * s.dim * s.nw
+}
+
+/// One candidate metric at rate λ = ρ + (1 − ρ)f: the Stein equation by doubling, its square
+/// roots, the rows in the metric and the start map in it.
+fn candidate_work(s: &Sizes, rho: f64, f: f64) -> f64 {
+    let lambda = rho + (1.0 - rho) * f;
+    (3.0 * doubling_steps(rho, lambda) + 16.0) * s.dim.powi(3)
+        + s.rows * s.dim * s.dim
+        + s.dim * s.dim * s.nv
 }
 
 /// One step of the free response's exact reach (`reach.rs`): 𝔸·[𝔸^s𝕄, 𝔸^s𝔹_w], every row
@@ -183,25 +183,119 @@ fn free_step_work(s: &Sizes) -> f64 {
     (s.dim * s.dim + s.rows * s.dim) * (s.nv + s.nw) + s.rows * (s.nv + s.nw)
 }
 
-/// S, the steps the free response is taken exactly: T (the impulse's terms), or as many as
-/// fit in half the `left_seconds` of the budget after the rest of stage 2 (the other half
-/// stays for the next K of a search), down to 0. The metric bounds the steps beyond S, so a
-/// smaller S is sound, only less tight — S = 0 is the metric bound alone, which costs nothing
-/// more, so the exact steps never make a certificate refuse that the budget would otherwise
-/// admit. S depends on estimates only, never on the clock.
-pub(crate) fn free_steps(s: &Sizes, rho: f64, fractions: &[f64], left_seconds: f64) -> usize {
-    let t = impulse_terms(rho);
-    let rest = t as f64 * (s.dim * s.dim * s.nw + s.rows * s.dim * s.nw)
-        + fractions
-            .iter()
-            .map(|f| {
-                let lambda = rho + (1.0 - rho) * f;
-                (3.0 * doubling_steps(rho, lambda) + 16.0) * s.dim.powi(3) + s.rows * s.dim * s.dim
-            })
-            .sum::<f64>();
-    let per_step = free_step_work(s).max(1.0);
-    let affordable = ((0.5 * left_seconds * crate::budget::DENSE_RATE - rest) / per_step).floor();
-    (t as f64).min(affordable).max(0.0) as usize
+/// What stage 2 computes at one K, chosen from the estimates before it runs (never from the
+/// clock): T impulse terms, S exact steps of the free response, and which candidate metrics.
+///
+/// The least a certificate needs — min(T_ρ, 8) terms and the cheapest candidate metric — must
+/// fit in what is left of the budget (else the stage is refused). What it adds is taken, in
+/// this order, from half of what is left (the other half stays for the next K of a search):
+/// the first min(T_ρ, 64) exact steps (the probe: a witness there refutes the K, and then
+/// only the least is computed besides), more impulse terms up to T_ρ (the length at which
+/// ρ_lin^T ≤ 10⁻⁹; a short sum loosens every row by the metric's tail), the other candidate
+/// metrics, then the exact steps up to T_ρ (computed again from the start). Each is sound at
+/// any length — fewer terms, steps or metrics only loosen the bound — so the budget decides
+/// how tight a certificate is, not whether there is one.
+#[derive(Debug, Clone, PartialEq)]
+pub(crate) struct AnalysisPlan {
+    /// The least number of impulse terms, min(T_ρ, 8).
+    pub least_terms: usize,
+    /// T: impulse terms summed exactly when no witness refutes the K.
+    pub terms: usize,
+    /// The probe's exact steps.
+    pub probe: usize,
+    /// S: steps of the free response taken exactly (≥ `probe` when larger than it: then the
+    /// steps are taken again from the start).
+    pub steps: usize,
+    /// The candidate metrics evaluated (indices into `rate_fractions`, ascending).
+    pub candidates: Vec<usize>,
+    /// The cheapest of them, evaluated first (alone when a witness refutes the K).
+    pub cheapest: usize,
+    /// Work of the least, the probe, the extra terms and the longer steps, with the stage's
+    /// peak bytes (the other candidates are spent as they are evaluated).
+    pub base: StageCost,
+    /// Work of each candidate (by index).
+    pub candidate_work: Vec<f64>,
+    /// Work of one impulse term.
+    pub term_work: f64,
+    /// Work of one exact step.
+    pub step_work: f64,
+}
+
+/// The plan of stage 2 at ρ_lin = `rho` with `left_seconds` of the budget left.
+pub(crate) fn analysis_plan(
+    s: &Sizes,
+    rho: f64,
+    fractions: &[f64],
+    left_seconds: f64,
+) -> AnalysisPlan {
+    let full = impulse_terms(rho);
+    let candidate_work: Vec<f64> = fractions
+        .iter()
+        .map(|&f| candidate_work(s, rho, f))
+        .collect();
+    let cheapest = (0..candidate_work.len())
+        .min_by(|&a, &b| candidate_work[a].total_cmp(&candidate_work[b]))
+        .unwrap_or(0);
+    let (term_work, step_work) = (impulse_term_work(s).max(1.0), free_step_work(s).max(1.0));
+    let least_terms = full.min(MIN_TERMS);
+    let cheapest_work = candidate_work.get(cheapest).copied().unwrap_or(0.0);
+    let mut spare = 0.5 * left_seconds * crate::budget::DENSE_RATE
+        - least_terms as f64 * term_work
+        - cheapest_work;
+    let mut take = |per: f64, most: usize| -> usize {
+        if spare <= 0.0 {
+            return 0;
+        }
+        let n = (spare / per).floor().min(most as f64).max(0.0) as usize;
+        spare -= n as f64 * per;
+        n
+    };
+    let probe = take(step_work, full.min(PROBE_STEPS));
+    let terms = least_terms + take(term_work, full - least_terms);
+    let mut candidates = Vec::with_capacity(candidate_work.len());
+    for (i, &w) in candidate_work.iter().enumerate() {
+        if i == cheapest || take(w, 1) == 1 {
+            candidates.push(i);
+        }
+    }
+    // Longer steps are taken again from the start: S steps cost S on top of the probe.
+    let longer = if probe == full.min(PROBE_STEPS) {
+        take(step_work, full)
+    } else {
+        0
+    };
+    let steps = if longer > probe { longer } else { probe };
+    let step_total = probe + if longer > probe { longer } else { 0 };
+    let bytes = F64
+        * (s.rows * s.dim + s.dim * s.nw * terms as f64 + 8.0 * s.dim * s.dim + 2.0 * s.dim * s.nv);
+    AnalysisPlan {
+        least_terms,
+        terms,
+        probe,
+        steps,
+        base: StageCost {
+            work: terms as f64 * term_work + step_total as f64 * step_work + cheapest_work,
+            bytes,
+        },
+        candidates,
+        cheapest,
+        candidate_work,
+        term_work,
+        step_work,
+    }
+}
+
+impl AnalysisPlan {
+    /// The work of the whole plan (every candidate evaluated, every step taken).
+    pub fn work(&self) -> f64 {
+        self.base.work
+            + self
+                .candidates
+                .iter()
+                .filter(|&&i| i != self.cheapest)
+                .map(|&i| self.candidate_work[i])
+                .sum::<f64>()
+    }
 }
 
 /// Bytes in MiB or GiB with at most 4 significant digits.
@@ -263,6 +357,13 @@ impl Budget {
         Ok(())
     }
 
+    /// Gives back the estimate of work that turned out unnecessary (exact steps after a
+    /// witness, candidates a witness made pointless): what a search may still do depends on
+    /// estimates only.
+    pub fn refund(&mut self, work: f64) {
+        self.left = (self.left + work / crate::budget::DENSE_RATE).min(self.total);
+    }
+
     /// The stage's estimated seconds if it fits what is left, else why not (memory first: it
     /// is a hard limit).
     fn fits(&self, k: usize, stage: &'static str, c: StageCost) -> Result<f64, RegionalVoid> {
@@ -304,7 +405,8 @@ pub struct RegionalEstimate {
 
 /// [`RegionalEstimate`] of `method` at K. ρ_lin(K) sets the length of the impulse response
 /// (the second stage): pass the certificate's `rho_lin` when known, else a bound (a ρ close
-/// to 1 gives the longest, 400 terms).
+/// to 1 gives the longest, 2000 terms). The plan is the one a single certificate with the
+/// whole `phase_seconds` would make.
 pub fn estimate(
     resolved: &ResolvedScenario,
     method: qp_iter::Method,
@@ -315,13 +417,17 @@ pub fn estimate(
     let pieces = model::pieces(resolved, method, options.controller)?;
     let a = model_cost(&pieces, k);
     let sz = sizes(&pieces, k);
-    let steps = free_steps(&sz, rho, &options.rate_fractions, options.phase_seconds);
-    let b = analysis_cost(&sz, rho, &options.rate_fractions, steps);
-    let work = a.work + b.work;
+    let plan = analysis_plan(
+        &sz,
+        rho,
+        &options.rate_fractions,
+        options.phase_seconds - a.work / crate::budget::DENSE_RATE,
+    );
+    let work = a.work + plan.work();
     Ok(RegionalEstimate {
         work,
         seconds: work / crate::budget::DENSE_RATE,
-        bytes: a.bytes.max(b.bytes),
+        bytes: a.bytes.max(plan.base.bytes),
     })
 }
 

@@ -184,7 +184,7 @@ pub struct RegionalCertificate {
     pub dim: usize,
     /// ρ_lin(K).
     pub rho_lin: f64,
-    /// The metric chosen (the candidate with the largest margin).
+    /// The metric chosen (the evaluated candidate with the largest margin).
     pub metric: String,
     /// λ = ‖𝔸‖_P: the certified decay rate per step.
     pub rate: f64,
@@ -207,6 +207,12 @@ pub struct RegionalCertificate {
     /// S: the steps after M over which every full-window row's free response was taken
     /// exactly (Theorem R; the metric bounds the rest; 0 when the budget left none).
     pub exact_steps: usize,
+    /// T: the impulse terms summed exactly (the metric's tail bounds the rest; fewer than the
+    /// 10⁻⁹ decay length only when the budget left no more).
+    pub impulse_terms: usize,
+    /// How many of the candidate metrics (`options.rate_fractions`) were evaluated: all that
+    /// the budget admits, or one when a witness refutes the set at this K.
+    pub metrics_evaluated: usize,
     /// The row (full window or start-up) that an admissible realization of the user's set
     /// drives farthest past its bound in the linear loop, when one is driven past it: then a
     /// constraint certainly activates and no region on which none is active contains the set
@@ -458,46 +464,34 @@ fn certify_at(
         return Err(RegionalVoid::Unstable { k, rho });
     }
     let sizes = cost::sizes(pieces, k);
-    let steps = cost::free_steps(&sizes, rho, &o.rate_fractions, budget.left);
+    let plan = cost::analysis_plan(&sizes, rho, &o.rate_fractions, budget.left);
     budget.spend(
         k,
         "the impulse response, the free response, the candidate metrics and the rows' margins",
-        cost::analysis_cost(&sizes, rho, &o.rate_fractions, steps),
+        plan.base,
     )?;
-    let imp = impulse(&model, rho, o);
-    let free = reach::free_reach(&model, o, steps);
-    let mut best: Option<(f64, Candidate)> = None;
-    for &f in &o.rate_fractions {
-        let lam = rho + (1.0 - rho) * f;
-        let Some(p) = metric::stein(model.a.as_ref(), lam) else {
-            continue;
-        };
-        let Some(m) = metric::metric(p.as_ref()) else {
-            continue;
-        };
-        let c = evaluate(
-            &model,
-            &imp,
-            &free,
-            &m,
-            format!("Stein, λ = ρ_lin + {f}·(1 − ρ_lin) = {lam:.6}"),
-            o,
-        );
-        // Rank by the certified scale of the user's set, then by the radius.
-        let key = c.full_scale(o).min(f64::MAX);
-        let better = match &best {
-            None => true,
-            Some((bk, bc)) => key > *bk || (key == *bk && c.radius > bc.radius),
-        };
-        if better {
-            best = Some((key, c));
+    // The probe first: a witness there refutes the K (then only the least is computed).
+    let mut free = reach::free_reach(&model, o, plan.probe);
+    let mut refund = (plan.probe - free.steps) as f64 * plan.step_work;
+    let probe_refutes = free.steps < plan.probe || free_refutes(&model, &free);
+    if plan.steps > plan.probe {
+        if probe_refutes {
+            refund += plan.steps as f64 * plan.step_work;
+        } else {
+            free = reach::free_reach(&model, o, plan.steps);
+            refund += (plan.steps - free.steps) as f64 * plan.step_work;
         }
     }
-    let Some((_, c)) = best else {
-        return Err(RegionalVoid::NoMetric { k, rho });
+    let imp_terms = if probe_refutes {
+        plan.least_terms
+    } else {
+        plan.terms
     };
+    refund += (plan.terms - imp_terms) as f64 * plan.term_work;
+    budget.refund(refund);
+    let imp = impulse(&model, imp_terms, o);
 
-    // Start-up rows over the user's set.
+    // Start-up rows over the user's set (exact: linear in υ).
     let terms = startup_terms(&model, o);
     let mut startup_scale = f64::INFINITY;
     let mut startup_limit = None;
@@ -535,6 +529,62 @@ fn certify_at(
             });
         }
     }
+    // A witness (an admissible realization past a bound) refutes the set at this K whatever
+    // the metric: one candidate then gives the certificate's figures, the others are skipped.
+    let refuted = !startup_holds || free_refutes(&model, &free);
+    let mut best: Option<(f64, Candidate)> = None;
+    let mut metrics = 0;
+    let order = std::iter::once(plan.cheapest).chain(
+        plan.candidates
+            .iter()
+            .copied()
+            .filter(|&i| i != plan.cheapest),
+    );
+    for i in order {
+        if i != plan.cheapest {
+            if refuted && best.is_some() {
+                continue;
+            }
+            budget.spend(
+                k,
+                "a further candidate metric",
+                cost::StageCost {
+                    work: plan.candidate_work[i],
+                    bytes: plan.base.bytes,
+                },
+            )?;
+        }
+        metrics += 1;
+        let f = o.rate_fractions[i];
+        let lam = rho + (1.0 - rho) * f;
+        let Some(p) = metric::stein(model.a.as_ref(), lam) else {
+            continue;
+        };
+        let Some(m) = metric::metric(p.as_ref()) else {
+            continue;
+        };
+        let c = evaluate(
+            &model,
+            &imp,
+            &free,
+            &m,
+            format!("Stein, λ = ρ_lin + {f}·(1 − ρ_lin) = {lam:.6}"),
+            o,
+        );
+        // Rank by the certified scale of the user's set, then by the radius.
+        let key = c.full_scale(o).min(f64::MAX);
+        let better = match &best {
+            None => true,
+            Some((bk, bc)) => key > *bk || (key == *bk && c.radius > bc.radius),
+        };
+        if better {
+            best = Some((key, c));
+        }
+    }
+    let Some((_, c)) = best else {
+        return Err(RegionalVoid::NoMetric { k, rho });
+    };
+
     let ratio = |l: &Limit| l.attained / l.bound;
     let witness = [c.witness.clone(), startup_limit.clone()]
         .into_iter()
@@ -568,6 +618,8 @@ fn certify_at(
         startup_limit,
         witness,
         exact_steps: free.steps,
+        impulse_terms: imp_terms,
+        metrics_evaluated: metrics,
         rows: (model.rows.labels.len(), model.startup_rows.labels.len()),
         contains,
         margin,
@@ -581,6 +633,14 @@ fn certify_at(
         options: o.clone(),
     };
     Ok((cert, model, c.metric, c.reach))
+}
+
+/// Some full-window row's exact steps reach past its bound: a witness.
+fn free_refutes(model: &RegionalModel, free: &reach::FreeReach) -> bool {
+    free.attained
+        .iter()
+        .enumerate()
+        .any(|(i, a)| a.value > model.rows.upper[i].min(-model.rows.lower[i]))
 }
 
 fn detail_of(model: RegionalModel, m: metric::Metric, reach: Vec<f64>) -> RegionalDetail {

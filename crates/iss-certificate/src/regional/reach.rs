@@ -79,7 +79,10 @@ fn seg(g: impl Fn(usize) -> f64, from: usize, len: usize) -> f64 {
     (from..from + len).map(|j| g(j).powi(2)).sum::<f64>().sqrt()
 }
 
-/// The exact reach of the free response over S steps (module docs).
+/// The exact reach of the free response over S steps (module docs). The steps stop after the
+/// first s at which an admissible realization takes a row past its bound (the witness, see
+/// [`Attained`]): the set is then refuted at this K, and the metric bounds the steps after
+/// it as it bounds those after S. `FreeReach::steps` is the number taken.
 pub(crate) fn free_reach(model: &RegionalModel, o: &RegionalOptions, steps: usize) -> FreeReach {
     let (nx, nw) = (model.nx, model.nw);
     let big_m = model.layout.horizon;
@@ -91,7 +94,10 @@ pub(crate) fn free_reach(model: &RegionalModel, o: &RegionalOptions, steps: usiz
     let mut forced = vec![0.0; rows];
     let mut m = model.start_map.clone();
     let mut ab = model.bw.clone();
-    for s in 0..steps {
+    let mut taken = 0;
+    while taken < steps {
+        let s = taken;
+        let mut refuted = false;
         let mut i = 0;
         for b in &model.rows.blocks {
             let g = b * &m;
@@ -110,7 +116,9 @@ pub(crate) fn free_reach(model: &RegionalModel, o: &RegionalOptions, steps: usiz
                     attained[i] = Attained { value, step: s };
                 }
                 // A_i(s) at a scaled set: c0 + σ·dev ≤ bound, one affine constraint per s.
-                let room = model.rows.upper[i].min(-model.rows.lower[i]) - c0;
+                let bound = model.rows.upper[i].min(-model.rows.lower[i]);
+                refuted |= value > bound;
+                let room = bound - c0;
                 let limit = |num: f64, den: f64| {
                     if room < 0.0 {
                         f64::NEG_INFINITY
@@ -128,9 +136,13 @@ pub(crate) fn free_reach(model: &RegionalModel, o: &RegionalOptions, steps: usiz
         }
         m = &model.a * &m;
         ab = &model.a * &ab;
+        taken += 1;
+        if refuted {
+            break;
+        }
     }
     FreeReach {
-        steps,
+        steps: taken,
         shifted: m,
         attained,
         scale,

@@ -715,3 +715,90 @@ fn the_cart_pendulum_at_its_k_reg_stays_the_linear_loop() {
         }
     }
 }
+
+/// The budget fits stage 2 to what is left (`regional/cost.rs`, `AnalysisPlan`): fewer impulse
+/// terms, metrics or exact steps only loosen the certificate. On the cart-pendulum's
+/// FISTA-Jacobi, from the least budget that computes a certificate up to a generous one: at a K
+/// it certifies, every row's reach stays at or above the generous budget's, the margin never
+/// exceeds the generous one, and a certificate that contains the set under a small budget
+/// contains it under the large one; at a refuted K no budget contains
+/// the set, and a probe that reaches the witness's step finds the same witness (row, step,
+/// value), computing one metric besides.
+#[test]
+fn a_smaller_budget_only_loosens_the_certificate_and_finds_the_same_witness() {
+    use iss_certificate::regional::estimate;
+    let path = concat!(
+        env!("CARGO_MANIFEST_DIR"),
+        "/../../scenarios/cart-pendulum-regional.toml"
+    );
+    let res = Scenario::from_file(path).unwrap().resolve().unwrap();
+    let ro = RegionalOptions::from_scenario(&res, ControllerChoice::ExactMpc).unwrap();
+    let method: Method = "fista-jacobi".parse().unwrap();
+    let with = |seconds: f64| RegionalOptions {
+        phase_seconds: seconds,
+        ..ro.clone()
+    };
+    for k in [8, 13] {
+        let (big, big_d) = regional_detail(&res, method, k, &with(1e4)).unwrap();
+        let full = estimate(&res, method, k, &with(1e4), big.rho_lin)
+            .unwrap()
+            .seconds;
+        let (mut computed, mut witnessed) = (0, 0);
+        for fraction in [0.02, 0.05, 0.15, 0.4] {
+            let Ok((c, d)) = regional_detail(&res, method, k, &with(full * fraction)) else {
+                continue;
+            };
+            computed += 1;
+            if big.witness.is_none() {
+                assert!(
+                    c.impulse_terms <= big.impulse_terms
+                        && c.metrics_evaluated <= big.metrics_evaluated,
+                    "K = {k}, {fraction}: {} {} against {} {}",
+                    c.impulse_terms,
+                    c.metrics_evaluated,
+                    big.impulse_terms,
+                    big.metrics_evaluated
+                );
+                assert!(
+                    c.margin <= big.margin * (1.0 + 1e-9) + 1e-12,
+                    "K = {k}, {fraction}: margin {} above the generous {}",
+                    c.margin,
+                    big.margin
+                );
+                assert!(!c.contains || big.contains, "K = {k}, {fraction}");
+                for (i, (r, r_big)) in d.reach.iter().zip(&big_d.reach).enumerate() {
+                    assert!(
+                        *r >= r_big * (1.0 - 1e-9) || *r >= big_d.upper[i].min(-big_d.lower[i]),
+                        "K = {k}, {fraction}, row {i}: reach {r} below the generous {r_big}"
+                    );
+                }
+            } else {
+                // Refuted: no sound certificate may contain the set, whatever its budget.
+                assert!(!c.contains, "K = {k}, {fraction}: contains a refuted set");
+            }
+            // The generous run's exact steps stop at the witness; a budget whose probe reaches
+            // that step finds it too.
+            if let Some(w) = big
+                .witness
+                .as_ref()
+                .filter(|_| c.exact_steps >= big.exact_steps)
+            {
+                let wc = c.witness.as_ref().expect("the probe finds the witness");
+                assert_eq!(
+                    (wc.row, wc.attained_at),
+                    (w.row, w.attained_at),
+                    "K = {k}, {fraction}"
+                );
+                assert!((wc.attained - w.attained).abs() <= 1e-12 * w.attained.abs());
+                assert_eq!(c.metrics_evaluated, 1, "a refuted K computes one metric");
+                witnessed += 1;
+            }
+        }
+        assert!(computed >= 2, "K = {k}: only {computed} budgets computed");
+        assert_eq!(
+            big.witness.is_some(),
+            witnessed > 0,
+            "K = {k}: the refuted K is refuted under some smaller budget too"
+        );
+    }
+}

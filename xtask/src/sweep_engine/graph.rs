@@ -239,6 +239,7 @@ impl<'a> TheoryGraph<'a> {
             &self.config.solvers,
             &scales,
             self.config.controller,
+            self.config.k_c_grid.as_deref(),
         );
         for (i, search) in plan.searches.iter().enumerate() {
             let slot = self.config.solvers.iter().position(|&s| s == search.solver);

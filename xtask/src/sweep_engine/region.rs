@@ -86,6 +86,13 @@ pub struct PairThresholds {
     pub certified_boundary: Staircase,
     /// The cheapest certified pair (None: not computed, or nothing certified).
     pub cheapest_certified: Option<Pair>,
+    /// Per grid K_c, K_reg: the smallest K_e whose regional certificate (with this K_c-iteration
+    /// MPC) contains the scenario's uncertainty (the `k_reg` column; None: none, see
+    /// `regional_note`). K_reg need not lie on the K_e grid: the certificate is evaluated there.
+    pub regional: Vec<(usize, Option<usize>)>,
+    /// The cheapest (K_reg, K_c) pair (None: no K_c with a K_reg). Regional: it holds for the
+    /// scenario's own uncertainty, not for every initial condition.
+    pub cheapest_regional: Option<Pair>,
 }
 
 /// The up-set of `pass` on a grid (`pass[i][j]`: K_e index i, K_c index j): (i, j) is in it
@@ -161,6 +168,8 @@ struct Grid {
     solver: String,
     scale: String,
     cells: Vec<GridCell>,
+    /// (K_c, K_reg) as the points give it.
+    regional: Vec<(usize, Option<usize>)>,
 }
 
 /// The 2-D thresholds per (scale, solver), in the order of `points.csv` (a table without a
@@ -209,11 +218,15 @@ pub fn pair_thresholds(
                     solver: solver.to_string(),
                     scale: scale.to_string(),
                     cells: Vec::new(),
+                    regional: Vec::new(),
                 });
                 grids.len() - 1
             }
         };
         grids[i].cells.push((k_e, k_c, fraction, rho));
+        if !grids[i].regional.iter().any(|r| r.0 == k_c) {
+            grids[i].regional.push((k_c, int("k_reg")));
+        }
     }
     grids
         .into_iter()
@@ -257,7 +270,26 @@ fn thresholds_of(
         .find(|(s, _)| *s == g.solver)
         .map(|(_, st)| st.clone())
         .unwrap_or_default();
+    let mut regional = g.regional;
+    regional.sort_unstable();
+    let cheapest_regional = regional
+        .iter()
+        .filter_map(|&(k_c, k_reg)| {
+            k_reg.map(|k_e| Pair {
+                k_e,
+                k_c,
+                cost: cost.of(k_e, k_c),
+            })
+        })
+        .min_by(|a, b| {
+            a.cost
+                .total_cmp(&b.cost)
+                .then(a.k_e.cmp(&b.k_e))
+                .then(a.k_c.cmp(&b.k_c))
+        });
     PairThresholds {
+        regional,
+        cheapest_regional,
         cheapest_empirical: cheapest_pair(&empirical_boundary, cost),
         cheapest_linear: linear_boundary
             .as_ref()
@@ -293,8 +325,8 @@ pub fn pair_thresholds_markdown(rows: &[PairThresholds]) -> String {
         None => missing.to_string(),
     };
     let mut s = String::from(
-        "| solver | scale | cheapest empirical (K_e, K_c) | cheapest linear | cheapest certified | empirical region K_e→K_c | linear region K_e→K_c |\n\
-         |---|---|---|---|---|---|---|\n",
+        "| solver | scale | cheapest empirical (K_e, K_c) | cheapest linear | cheapest certified | cheapest regional (K_reg, K_c) | empirical region K_e→K_c | linear region K_e→K_c |\n\
+         |---|---|---|---|---|---|---|---|\n",
     );
     for t in rows {
         let certified = if t.certified_boundary.is_empty() {
@@ -304,7 +336,7 @@ pub fn pair_thresholds_markdown(rows: &[PairThresholds]) -> String {
         };
         let _ = writeln!(
             s,
-            "| {} | {} | {} | {} | {} | {} | {} |",
+            "| {} | {} | {} | {} | {} | {} | {} | {} |",
             t.solver,
             t.scale,
             pair(t.cheapest_empirical, "— (no all-bounded region)"),
@@ -317,6 +349,10 @@ pub fn pair_thresholds_markdown(rows: &[PairThresholds]) -> String {
                 }
             ),
             pair(t.cheapest_certified, certified),
+            pair(
+                t.cheapest_regional,
+                "— (no K_c with a K_reg: see `regional_note`)"
+            ),
             staircase_text(&t.empirical_boundary),
             t.linear_boundary
                 .as_deref()

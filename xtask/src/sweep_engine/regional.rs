@@ -255,7 +255,8 @@ pub fn window_size(resolved: &ResolvedScenario) -> usize {
     plant.nx() + horizon * plant.nw()
 }
 
-/// K_reg of one solver at one disturbance scale of a sweep, as `points.csv` writes it.
+/// K_reg of one solver at one disturbance scale (and one K_c of a 2-D sweep) of a sweep, as
+/// `points.csv` writes it.
 #[derive(Debug, Clone, PartialEq)]
 pub struct RegionalEntry {
     /// Φ of the MHE.
@@ -263,6 +264,9 @@ pub struct RegionalEntry {
     /// The disturbance scale (the scenario's uncertainty w̄ scales with it unless
     /// `certificate.w_bar` is given).
     pub scale: f64,
+    /// K_c of the MPC in a 2-D sweep (None: the sweep's one controller; an entry without K_c
+    /// answers every K_c).
+    pub k_c: Option<usize>,
     /// K_reg (None: see `note`).
     pub k_reg: Option<usize>,
     /// Why there is no K_reg (empty when there is one), CSV-safe.
@@ -274,13 +278,19 @@ pub struct RegionalEntry {
 pub struct RegionalSide(pub Vec<RegionalEntry>);
 
 impl RegionalSide {
-    /// Adds K_reg of `solver` at `scale` (or why there is none) to `theory`.
-    pub fn fill(&self, solver: Method, scale: f64, theory: &mut super::TheoryAtK) {
-        match self
-            .0
-            .iter()
-            .find(|e| e.solver == solver && e.scale.to_bits() == scale.to_bits())
-        {
+    /// Adds K_reg of `solver` at `scale` and `k_c` (or why there is none) to `theory`.
+    pub fn fill(
+        &self,
+        solver: Method,
+        scale: f64,
+        k_c: Option<usize>,
+        theory: &mut super::TheoryAtK,
+    ) {
+        match self.0.iter().find(|e| {
+            e.solver == solver
+                && e.scale.to_bits() == scale.to_bits()
+                && (e.k_c.is_none() || e.k_c == k_c)
+        }) {
             Some(e) => {
                 theory.k_reg = e.k_reg;
                 theory.regional_note = e.note.clone();
@@ -298,6 +308,7 @@ impl RegionalSide {
                     scales.iter().map(move |&scale| RegionalEntry {
                         solver,
                         scale,
+                        k_c: None,
                         k_reg: None,
                         note: super::format::csv_text(note),
                     })
@@ -316,37 +327,59 @@ pub struct RegionalSearch {
     pub options: Result<RegionalOptions, RegionalVoid>,
 }
 
-/// The K_reg searches of a sweep: one per solver and distinct uncertainty (the scales whose
-/// uncertainty is the same share one search), and which search answers each (solver, scale).
+/// The K_reg searches of a sweep: one per solver, distinct uncertainty (the scales whose
+/// uncertainty is the same share one search) and, in a 2-D sweep, K_c of the grid (the
+/// regional certificate of the K_c-iteration MPC), and which search answers each (solver,
+/// scale, K_c).
 #[derive(Debug, Clone)]
 pub struct RegionalPlan {
     /// The searches.
     pub searches: Vec<RegionalSearch>,
-    /// (solver, scale, index in `searches`).
-    pub entries: Vec<(Method, f64, usize)>,
+    /// (solver, scale, K_c, index in `searches`).
+    pub entries: Vec<(Method, f64, Option<usize>, usize)>,
 }
 
 impl RegionalPlan {
-    /// The plan for `solvers` × `scales` with `controller` (the scenario's uncertainty at
-    /// each scale, [`RegionalOptions::from_scenario`]).
+    /// The plan for `solvers` × `scales` (× `k_c_grid` with the sweep's K_c-iteration MPC)
+    /// with `controller` (the scenario's uncertainty at each scale,
+    /// [`RegionalOptions::from_scenario`]).
     pub fn new(
         resolved: &ResolvedScenario,
         solvers: &[Method],
         scales: &[f64],
         controller: closed_loop::scenario::ControllerChoice,
+        k_c_grid: Option<&[usize]>,
     ) -> Self {
-        let options: Vec<Result<RegionalOptions, RegionalVoid>> = scales
+        use closed_loop::scenario::ControllerChoice;
+        let controllers: Vec<(Option<usize>, ControllerChoice)> = match (controller, k_c_grid) {
+            (ControllerChoice::SuboptimalMpc { method, .. }, Some(grid)) => grid
+                .iter()
+                .map(|&k_c| {
+                    (
+                        Some(k_c),
+                        ControllerChoice::SuboptimalMpc {
+                            iterations: k_c,
+                            method,
+                        },
+                    )
+                })
+                .collect(),
+            _ => vec![(None, controller)],
+        };
+        let options: Vec<(f64, Option<usize>, Result<RegionalOptions, RegionalVoid>)> = controllers
             .iter()
-            .map(|&scale| {
-                let mut r = resolved.clone();
-                r.set_noise_scale(scale);
-                RegionalOptions::from_scenario(&r, controller)
+            .flat_map(|&(k_c, c)| {
+                scales.iter().map(move |&scale| {
+                    let mut r = resolved.clone();
+                    r.set_noise_scale(scale);
+                    (scale, k_c, RegionalOptions::from_scenario(&r, c))
+                })
             })
             .collect();
         let mut searches: Vec<RegionalSearch> = Vec::new();
         let mut entries = Vec::new();
         for &solver in solvers {
-            for (&scale, o) in scales.iter().zip(&options) {
+            for (scale, k_c, o) in &options {
                 let i = match searches
                     .iter()
                     .position(|s| s.solver == solver && s.options == *o)
@@ -360,7 +393,7 @@ impl RegionalPlan {
                         searches.len() - 1
                     }
                 };
-                entries.push((solver, scale, i));
+                entries.push((solver, *scale, *k_c, i));
             }
         }
         Self { searches, entries }
@@ -387,12 +420,13 @@ impl RegionalPlan {
         RegionalSide(
             self.entries
                 .iter()
-                .map(|&(solver, scale, i)| {
+                .map(|&(solver, scale, k_c, i)| {
                     let (k_reg, note) =
                         result(i).unwrap_or_else(|| (None, "K_reg not computed".into()));
                     RegionalEntry {
                         solver,
                         scale,
+                        k_c,
                         k_reg,
                         note,
                     }

@@ -304,15 +304,9 @@ impl Sweep {
             .unwrap_or_else(|| vec![self.scenario().noise.scale])
     }
 
-    /// Why the sweep has no K_reg (None: it is computed): a 2-D sweep (the K_c-iteration
-    /// MPC is not covered by the regional certificate) or `certificate = false`.
+    /// Why the sweep has no K_reg (None: it is computed): `certificate = false`.
     pub(super) fn regional_unavailable(&self) -> Option<&'static str> {
-        if self.config.is_2d() {
-            Some(
-                "not computed: the regional certificate covers the exact MPC and the saturated \
-                 LQR, not the K_c-iteration MPC of a 2-D sweep",
-            )
-        } else if !self.config.certificate {
+        if !self.config.certificate {
             Some("not computed (certificate = false in the sweep config)")
         } else {
             None
@@ -334,6 +328,7 @@ impl Sweep {
                 &self.config.solvers,
                 &scales,
                 self.config.controller,
+                self.config.k_c_grid.as_deref(),
             );
             let results: Vec<(Option<usize>, String)> = plan
                 .searches
@@ -380,7 +375,8 @@ impl Sweep {
                 SolverTheory::Unavailable("no analysis for this solver".into()).at(p.k)
             });
         self.linear().fill(p.solver, p.k_c, p.k, &mut t);
-        self.regional().fill(p.solver, p.scale, &mut t);
+        self.regional()
+            .fill(p.solver, p.scale, self.k_c_at(p), &mut t);
         t
     }
 

@@ -162,8 +162,7 @@ fn k_reg_column_is_the_library_search_and_survives_shards_and_merge() {
 }
 
 /// No K_reg, with the reason: the stand-in's own uncertainty (the limiting constraint and
-/// by how much), `certificate = false`, a 2-D sweep, and Gaussian noise without
-/// `certificate.w_bar`.
+/// by how much), `certificate = false`, and Gaussian noise without `certificate.w_bar`.
 #[test]
 fn a_missing_k_reg_carries_its_reason() {
     let d = scratch("own");
@@ -201,24 +200,68 @@ fn a_missing_k_reg_carries_its_reason() {
         "{}",
         t.regional_note
     );
+}
 
+/// A 2-D sweep has K_reg per K_c: at every point, `k_reg` is the library's search with the
+/// point's K_c-iteration MPC (capped as `search_max` caps it), and the cheapest regional pair
+/// of the 2-D thresholds is the cheapest (K_reg, K_c) over the K_c grid.
+#[test]
+fn a_2d_sweep_has_k_reg_per_k_c_and_the_cheapest_regional_pair() {
+    use xtask::sweep_engine::{IterationCost, pair_thresholds, search_max, window_size};
+    let d = scratch("two-d");
+    let sc = scenario(&d, true);
     let two_d = format!(
-        "name = \"kreg2d\"\nscenario = \"{}\"\nk = [1, 10]\nk_c = [1, 5]\nsolvers = [\"admm\"]\n\
-         seeds = 1\nsteps = 3\ncontroller = {{ kind = \"suboptimal-mpc\", solver = \"pg\" }}\n\
-         linear = false\n",
+        "name = \"kreg2d\"\nscenario = \"{}\"\nk = [1, 10]\nk_c = [2, 5]\nsolvers = [\"fista\"]\n\
+         seeds = 1\nsteps = 3\nscales = [1e-4]\n\
+         controller = {{ kind = \"suboptimal-mpc\", solver = \"pg\" }}\n",
         sc.display()
     );
     let s2 = Sweep::new(SweepConfig::from_toml_str(&two_d, Path::new(".")).unwrap()).unwrap();
     let out = d.join("two-d");
     run(&s2, &out, 2, None);
     let table = points(&out);
+    let res = closed_loop::scenario::Scenario::from_file(&sc)
+        .unwrap()
+        .resolve()
+        .unwrap();
+    let cap = search_max(None, window_size(&res)).0;
+    let mut direct = Vec::new();
+    for k_c in [2, 5] {
+        let controller = ControllerChoice::SuboptimalMpc {
+            iterations: k_c,
+            method: qp_iter::Method::PG,
+        };
+        let o = RegionalOptions::from_scenario(&res, controller).unwrap();
+        direct.push((
+            k_c,
+            k_reg(&res, qp_iter::Method::FISTA, &o, cap).unwrap().k_reg,
+        ));
+    }
+    assert!(
+        direct.iter().any(|d| d.1.is_some()),
+        "the small set has a region at some K_c: {direct:?}"
+    );
     for row in 0..table.rows.len() {
-        assert_eq!(table.text(row, "k_reg"), Some(""));
-        assert!(
-            table
-                .text(row, "regional_note")
-                .unwrap()
-                .contains("K_c-iteration MPC"),
+        let k_c: usize = table.text(row, "k_c").unwrap().parse().unwrap();
+        let want = direct.iter().find(|d| d.0 == k_c).unwrap().1;
+        assert_eq!(
+            table.text(row, "k_reg").unwrap(),
+            want.map(|k| k.to_string()).unwrap_or_default(),
+            "row {row}, K_c = {k_c}"
+        );
+        assert_eq!(
+            table.text(row, "regional_note").unwrap().is_empty(),
+            want.is_some(),
+            "row {row}"
         );
     }
+    let pairs = pair_thresholds(&table, IterationCost::default(), &[]);
+    let best = direct
+        .iter()
+        .filter_map(|&(k_c, k)| k.map(|k| (k + k_c, k, k_c)))
+        .min()
+        .unwrap();
+    let p = pairs[0].cheapest_regional.unwrap();
+    assert_eq!((p.k_e, p.k_c, p.cost), (best.1, best.2, best.0 as f64));
+    assert_eq!(pairs[0].regional, direct);
 }

@@ -133,23 +133,28 @@ fn suboptimal_piece<M: Linearise>(
     let lin = linearise(ctrl.map(), "MPC")?;
     let KStepMap { g, j, .. } = lin.k_step(ctrl.iterations(), par)?;
     let n = lin.n;
+    let w = mpc_warm_matrix(ctrl.warm_start_rule(), n, nu);
+    Ok(ControlPiece::Iterative {
+        g_w: mul(g.as_ref(), w.as_ref(), par),
+        j,
+    })
+}
+
+/// W: the linear part of the sub-optimal MPC's warm start U⁰_t = W U_{t−1} (constants such as
+/// Π_𝒰(0) dropped: 0 is interior to 𝒰 wherever this is used).
+pub(crate) fn mpc_warm_matrix(rule: MpcWarmStart, n: usize, nu: usize) -> Mat<f64> {
     let blocks = n / nu;
-    // W: the linear part of the warm start from U_{t−1} (constants such as Π_𝒰(0) dropped).
-    let w = Mat::from_fn(n, n, |r, c| {
+    Mat::from_fn(n, n, |r, c| {
         let (br, ir) = (r / nu, r % nu);
         let (bc, ic) = (c / nu, c % nu);
         let hit = |src: usize| bc == src && ic == ir;
-        let v = match ctrl.warm_start_rule() {
+        let v = match rule {
             MpcWarmStart::Previous => r == c,
             MpcWarmStart::Cold => false,
             MpcWarmStart::ShiftZero => br + 1 < blocks && hit(br + 1),
             MpcWarmStart::ShiftRepeatLast => hit((br + 1).min(blocks - 1)),
         };
         if v { 1.0 } else { 0.0 }
-    });
-    Ok(ControlPiece::Iterative {
-        g_w: mul(g.as_ref(), w.as_ref(), par),
-        j,
     })
 }
 

@@ -44,6 +44,7 @@ use serde::Serialize;
 pub use iteration::{IterationLinearisation, KStepMap, Linearise, linearise};
 pub use kgrid::log_spaced;
 pub use krylov::{KRYLOV_MIN_DIM, spectral_radius_krylov, spectral_radius_krylov_steps};
+pub(crate) use lifted::mpc_warm_matrix;
 pub use lifted::{LiftedLayout, LiftedLoop, spectral_radius, spectral_radius_dense};
 pub use work::{LiftedDims, eigen_work};
 

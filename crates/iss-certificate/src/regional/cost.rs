@@ -79,15 +79,37 @@ fn step_cost(w: &super::model::WindowStep, k: usize, cols: f64) -> (f64, f64) {
     (work, rows)
 }
 
+/// (work, rows) of the control law on `cols` columns: the static gain, or the K_c steps of the
+/// MPC's Φ with their rows (`model::control`).
+fn law_cost(law: &super::model::Law, cols: f64) -> (f64, f64) {
+    let bounded = finite_bounds(&law.lower, &law.upper);
+    match &law.iterative {
+        None => (
+            law.gain.nrows() as f64 * law.gain.ncols() as f64 * cols,
+            bounded,
+        ),
+        Some(m) => {
+            let lin = &m.lin;
+            let (n, nt, xi) = (lin.n as f64, lin.n_theta as f64, lin.lift_dim() as f64);
+            let iterates = (m.k.saturating_sub(lin.start_steps) + 1) as f64;
+            let work = n * n * cols
+                + xi * (n + nt) * cols
+                + xi * nt * cols
+                + iterates * (xi * xi + n * xi) * cols;
+            (work, iterates * bounded)
+        }
+    }
+}
+
 /// The sizes of the model at K, from the pieces alone.
 pub(crate) fn sizes(p: &Pieces, k: usize) -> Sizes {
     let big_m = p.windows.len() - 1;
     let full = &p.windows[big_m];
     let d = full.layout.dims;
     let (nx, nu, ny, nw) = (d.nx, d.nu, d.ny, d.nw());
-    let dim = nx + big_m * (nu + ny + nx) + full.layout.nz();
+    let dim = nx + big_m * (nu + ny + nx) + full.layout.nz() + p.law.n_controller();
     let nv = 2 * nx + big_m * nw;
-    let law_rows = finite_bounds(&p.law.lower, &p.law.upper);
+    let law_rows = law_cost(&p.law, 1.0).1;
     let (_, full_rows) = step_cost(full, k, dim as f64);
     let startup_rows: f64 = p.windows[..big_m]
         .iter()
@@ -111,7 +133,7 @@ pub(crate) fn model_cost(p: &Pieces, k: usize) -> StageCost {
         .iter()
         .map(|w| step_cost(w, k, s.nv).0)
         .sum();
-    let law = p.law.gain.nrows() as f64 * p.law.gain.ncols() as f64 * (s.dim + big_m as f64 * s.nv);
+    let law = law_cost(&p.law, s.dim).0 + big_m as f64 * law_cost(&p.law, s.nv).0;
     let work = full + startup + law + eigen_work(s.dim as usize) + 2.0 * s.dim.powi(3);
     let bytes =
         F64 * (s.rows * s.dim + s.startup_rows * s.nv + 4.0 * s.dim * s.dim + 2.0 * s.dim * s.nv);

@@ -54,7 +54,7 @@ pub(crate) fn build(p: &Pieces, k: usize) -> Result<RegionalModel, LinearError> 
         ny,
         horizon: big_m,
         nz: w.nz(),
-        n_controller: 0,
+        n_controller: p.law.n_controller(),
     };
     let n = layout.dim();
     let eye = Mat::<f64>::identity(n, n);
@@ -75,7 +75,16 @@ pub(crate) fn build(p: &Pieces, k: usize) -> Result<RegionalModel, LinearError> 
     }
     let mut rows = Rows::new();
     let (zk, xh) = mhe_step(full, k, z0.as_ref(), theta.as_ref(), None, &mut rows)?;
-    let u = control(&p.law, nu, xh.as_ref(), None, &mut rows);
+    let nc = layout.n_controller;
+    let prev = (nc > 0).then(|| rows_of(&eye, layout.controller(), nc));
+    let (u, seq) = control(
+        &p.law,
+        nu,
+        xh.as_ref(),
+        prev.as_ref().map(|m| m.as_ref()),
+        None,
+        &mut rows,
+    )?;
     let x_read = rows_of(&eye, layout.x(), nx);
     let mut a = Mat::<f64>::zeros(n, n);
     set_block(&mut a, layout.x(), &(&p.a * &x_read + &p.b * &u));
@@ -100,6 +109,9 @@ pub(crate) fn build(p: &Pieces, k: usize) -> Result<RegionalModel, LinearError> 
         zk.clone()
     };
     set_block(&mut a, layout.warm_start(), &z_next);
+    if let Some(seq) = &seq {
+        set_block(&mut a, layout.controller(), seq);
+    }
     let mut bw = Mat::<f64>::zeros(n, nw);
     for i in 0..nx {
         for j in 0..nw1 {
@@ -120,6 +132,7 @@ pub(crate) fn build(p: &Pieces, k: usize) -> Result<RegionalModel, LinearError> 
     let prior = rows_of(&ev, nx, nx);
     let mut z0 = prior.clone();
     let (mut us, mut ys, mut xhs) = (Vec::new(), Vec::new(), Vec::new());
+    let mut seq_prev: Option<Mat<f64>> = None;
     let mut startup_rows = Rows::new();
     for t in 0..big_m {
         let ws = &p.windows[t];
@@ -131,7 +144,15 @@ pub(crate) fn build(p: &Pieces, k: usize) -> Result<RegionalModel, LinearError> 
             set_block(&mut th, lay.y_offset(j), &ys[j]);
         }
         let (zk, xh) = mhe_step(ws, k, z0.as_ref(), th.as_ref(), Some(t), &mut startup_rows)?;
-        let u = control(&p.law, nu, xh.as_ref(), Some(t), &mut startup_rows);
+        let (u, seq) = control(
+            &p.law,
+            nu,
+            xh.as_ref(),
+            seq_prev.as_ref().map(|m| m.as_ref()),
+            Some(t),
+            &mut startup_rows,
+        )?;
+        seq_prev = seq;
         let w1 = rows_of(&ev, 2 * nx + t * nw, nw1);
         let w2 = rows_of(&ev, 2 * nx + t * nw + nw1, nw - nw1);
         let y = &p.c * &x + &p.f * &w2;
@@ -151,6 +172,9 @@ pub(crate) fn build(p: &Pieces, k: usize) -> Result<RegionalModel, LinearError> 
         set_block(&mut start_map, layout.estimates(j), &xhs[j]);
     }
     set_block(&mut start_map, layout.warm_start(), &z0);
+    if let Some(seq) = &seq_prev {
+        set_block(&mut start_map, layout.controller(), seq);
+    }
     Ok(RegionalModel {
         layout,
         a,

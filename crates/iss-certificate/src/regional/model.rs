@@ -27,7 +27,8 @@ pub enum RowKind {
     /// A general row of the MHE (𝒳 / 𝒴 on propagated states or outputs).
     MheGeneral,
     /// A row of the MPC's input sequence (exact MPC: −H⁻¹Fx̂ ∈ 𝒰^N, then its predicted-state
-    /// rows) or of the saturated LQR.
+    /// rows; K_c-iteration MPC: the point inner iterate `iterate` projects) or of the
+    /// saturated LQR.
     Input,
 }
 
@@ -110,12 +111,36 @@ pub(crate) struct WindowStep {
     pub general: Option<GeneralRows>,
 }
 
-/// The control law's linear piece: v = gain·x̂ with lower ≤ v ≤ upper, u = first n_u rows.
+/// The control law's linear piece. Static (exact MPC, saturated LQR): v = gain·x̂ with
+/// lower ≤ v ≤ upper, u = its first n_u rows. The K_c-iteration MPC (`iterative`): U_t is K_c
+/// steps of its Φ on θ = x̂_t from the warm start W·U_{t−1} (U = 0 at t = 0, the cold start),
+/// and the point every inner iterate projects must lie in 𝒰^N = [lower, upper].
 #[derive(Debug, Clone)]
 pub(crate) struct Law {
+    /// The static gain (0 × n_x for the K_c-iteration MPC).
     pub gain: Mat<f64>,
     pub lower: Vec<f64>,
     pub upper: Vec<f64>,
+    pub iterative: Option<MpcIteration>,
+}
+
+/// The K_c-iteration MPC's linear pieces.
+#[derive(Debug, Clone)]
+pub(crate) struct MpcIteration {
+    /// Its Φ, linearised where no projection acts.
+    pub lin: IterationLinearisation,
+    /// K_c.
+    pub k: usize,
+    /// W of the warm start U⁰_t = W U_{t−1}.
+    pub warm: Mat<f64>,
+}
+
+impl Law {
+    /// N n_u for the K_c-iteration MPC (its previous sequence is part of the lifted state),
+    /// 0 for a static law.
+    pub fn n_controller(&self) -> usize {
+        self.iterative.as_ref().map_or(0, |m| m.lin.n)
+    }
 }
 
 /// Why the model cannot be built (a void reason of the regional certificate).
@@ -223,7 +248,12 @@ pub(crate) fn pieces(
                     })
                 }
             };
-            Law { gain, lower, upper }
+            Law {
+                gain,
+                lower,
+                upper,
+                iterative: None,
+            }
         }
         ControllerChoice::SaturatedLqr => {
             let ctrl = resolved
@@ -237,14 +267,37 @@ pub(crate) fn pieces(
                 gain: Mat::from_fn(k.nrows(), k.ncols(), |i, j| -k[(i, j)]),
                 lower: lqr.input_set().lower().to_vec(),
                 upper: lqr.input_set().upper().to_vec(),
+                iterative: None,
             }
         }
-        ControllerChoice::SuboptimalMpc { .. } => {
-            return Err(ModelError::NotCovered(
-                "a K_c-iteration MPC: the regional certificate covers the exact MPC and the \
-                 saturated LQR (the MPC's inner iterates would add rows like the MHE's)"
-                    .into(),
-            ));
+        ControllerChoice::SuboptimalMpc { iterations, .. } => {
+            if mpc.has_general_rows() {
+                return Err(ModelError::NotCovered(
+                    "a K_c-iteration MPC with state rows (sets.state in the MPC): it runs the \
+                     ADMM split, whose projected variable is not the iterate; the regional \
+                     certificate covers the K_c-iteration MPC on the input box 𝒰^N"
+                        .into(),
+                ));
+            }
+            let ctrl = resolved
+                .controller(controller)
+                .map_err(|e| ModelError::Linear(LinearError::Build(e)))?;
+            let closed_loop::scenario::ScenarioController::Suboptimal(c) = ctrl else {
+                return Err(LinearError::Internal("the K_c-iteration MPC was not built").into());
+            };
+            let lin = linearise(c.map(), "MPC")?;
+            let warm = crate::linear::mpc_warm_matrix(c.warm_start_rule(), lin.n, mpc.nu());
+            let qp = mpc.qp();
+            Law {
+                gain: Mat::zeros(0, qp.n_theta()),
+                lower: qp.zset().lower().to_vec(),
+                upper: qp.zset().upper().to_vec(),
+                iterative: Some(MpcIteration {
+                    lin,
+                    k: iterations,
+                    warm,
+                }),
+            }
         }
     };
     for (l, u) in law.lower.iter().zip(&law.upper) {
@@ -271,17 +324,20 @@ pub(crate) fn pieces(
     })
 }
 
-/// One MHE step of window `ws` with K iterations on the column space of `z0`, `theta`:
-/// pushes the rows of every projected point, returns (zᴷ, x̂).
-pub(crate) fn mhe_step(
-    ws: &WindowStep,
+/// K iterations of a linearised Φ on the column space of `z0`, `theta`: pushes the rows of the
+/// point every inner iterate projects (`kind`: on the box [lower, upper]; general rows as
+/// `RowKind::MheGeneral`), returns zᴷ.
+#[allow(clippy::too_many_arguments)]
+fn iterate(
+    lin: &IterationLinearisation,
     k: usize,
     z0: MatRef<'_, f64>,
     theta: MatRef<'_, f64>,
-    step: Option<usize>,
+    (lower, upper): (&[f64], &[f64]),
+    general: Option<&GeneralRows>,
+    (kind, step): (RowKind, Option<usize>),
     rows: &mut Rows,
-) -> Result<(Mat<f64>, Mat<f64>), LinearError> {
-    let lin = &ws.lin;
+) -> Result<Mat<f64>, LinearError> {
     let (n, nt, nxi) = (lin.n, lin.n_theta, lin.lift_dim());
     if k == 0 || k < lin.start_steps {
         return Err(LinearError::ZeroIterations);
@@ -302,34 +358,74 @@ pub(crate) fn mhe_step(
             iterate: j + lin.start_steps,
             index,
         };
-        rows.push_block(it.as_ref(), &ws.lower, &ws.upper, |i| {
-            label(RowKind::MheBox, i)
-        });
-        if let Some((g, e, l0, u0)) = &ws.general {
+        rows.push_block(it.as_ref(), lower, upper, |i| label(kind, i));
+        if let Some((g, e, l0, u0)) = general {
             let gz = mul(g.as_ref(), it.as_ref()) + mul(e.as_ref(), theta);
             rows.push_block(gz.as_ref(), l0, u0, |i| label(RowKind::MheGeneral, i));
         }
     }
+    Ok(it)
+}
+
+/// One MHE step of window `ws` with K iterations on the column space of `z0`, `theta`:
+/// pushes the rows of every projected point, returns (zᴷ, x̂).
+pub(crate) fn mhe_step(
+    ws: &WindowStep,
+    k: usize,
+    z0: MatRef<'_, f64>,
+    theta: MatRef<'_, f64>,
+    step: Option<usize>,
+    rows: &mut Rows,
+) -> Result<(Mat<f64>, Mat<f64>), LinearError> {
+    let it = iterate(
+        &ws.lin,
+        k,
+        z0,
+        theta,
+        (&ws.lower, &ws.upper),
+        ws.general.as_ref(),
+        (RowKind::MheBox, step),
+        rows,
+    )?;
     let xh = mul(ws.x_z.as_ref(), it.as_ref()) + mul(ws.x_theta.as_ref(), theta);
     Ok((it, xh))
 }
 
-/// The law on x̂: pushes its rows and returns u.
+/// The law on x̂: pushes its rows, returns u and, for the K_c-iteration MPC, U_t. `prev` is
+/// U_{t−1} on the same column space (None: the cold start, U⁰ = 0).
 pub(crate) fn control(
     law: &Law,
     nu: usize,
     xh: MatRef<'_, f64>,
+    prev: Option<MatRef<'_, f64>>,
     step: Option<usize>,
     rows: &mut Rows,
-) -> Mat<f64> {
-    let v = mul(law.gain.as_ref(), xh);
-    rows.push_block(v.as_ref(), &law.lower, &law.upper, |i| RowLabel {
-        kind: RowKind::Input,
-        step,
-        iterate: 0,
-        index: i,
-    });
-    v.as_ref().subrows(0, nu).to_owned()
+) -> Result<(Mat<f64>, Option<Mat<f64>>), LinearError> {
+    let Some(m) = &law.iterative else {
+        let v = mul(law.gain.as_ref(), xh);
+        rows.push_block(v.as_ref(), &law.lower, &law.upper, |i| RowLabel {
+            kind: RowKind::Input,
+            step,
+            iterate: 0,
+            index: i,
+        });
+        return Ok((v.as_ref().subrows(0, nu).to_owned(), None));
+    };
+    let z0 = match prev {
+        Some(p) => mul(m.warm.as_ref(), p),
+        None => Mat::zeros(m.lin.n, xh.ncols()),
+    };
+    let seq = iterate(
+        &m.lin,
+        m.k,
+        z0.as_ref(),
+        xh,
+        (&law.lower, &law.upper),
+        None,
+        (RowKind::Input, step),
+        rows,
+    )?;
+    Ok((seq.as_ref().subrows(0, nu).to_owned(), Some(seq)))
 }
 
 /// The time-shifted warm start z⁰ = W_z zᴷ + W_θ θ (as `MheEstimator::push` for t ≥ M).

@@ -36,6 +36,12 @@ fn lifted_state(cl: &ScenarioLoop, l: LiftedLayout) -> Vec<f64> {
         x[l.estimates(j)..l.estimates(j) + l.nx].copy_from_slice(tr.x_hat(s).unwrap());
     }
     x[l.warm_start()..l.warm_start() + l.nz].copy_from_slice(cl.estimator().warm_start_point());
+    if l.n_controller > 0 {
+        let closed_loop::scenario::ScenarioController::Suboptimal(c) = cl.controller() else {
+            panic!("a controller block without the K_c-iteration MPC");
+        };
+        x[l.controller()..l.controller() + l.n_controller].copy_from_slice(c.input_sequence());
+    }
     x
 }
 
@@ -801,4 +807,78 @@ fn a_smaller_budget_only_loosens_the_certificate_and_finds_the_same_witness() {
             "K = {k}: the refuted K is refuted under some smaller budget too"
         );
     }
+}
+
+/// The K_c-iteration MPC in the regional model (its previous sequence U_{t−1} in the lifted
+/// state, every inner iterate's projected point a row): on the cart-pendulum with FISTA-Jacobi
+/// at K_e = 13 and K_c PG steps of the MPC, 𝔸 is the linear module's matrix, and the real loop —
+/// start-up through 𝕄 from the cold-started MPC, then 150 steps, 6 seeds — equals the lifted
+/// linear loop while no row is active; where the certificate contains the scenario's set no row
+/// ever is.
+#[test]
+fn the_k_c_iteration_mpc_is_modelled_exactly() {
+    let path = concat!(
+        env!("CARGO_MANIFEST_DIR"),
+        "/../../scenarios/cart-pendulum-regional.toml"
+    );
+    let s = Scenario::from_file(path).unwrap();
+    let res = s.clone().resolve().unwrap();
+    let method: Method = "fista-jacobi".parse().unwrap();
+    let k = 13;
+    let mut contained = 0;
+    for k_c in [20, 50, 160] {
+        let controller = ControllerChoice::SuboptimalMpc {
+            iterations: k_c,
+            method: Method::PG,
+        };
+        let ro = RegionalOptions::from_scenario(&res, controller).unwrap();
+        let (c, d) = regional_detail(&res, method, k, &ro).unwrap();
+        let mut o = options(&s, method, k);
+        o.controller = controller;
+        let cl = build(&s, &o).unwrap();
+        let lin = LiftedLoop::from_loop(&cl, &res, method, Par::Seq).unwrap();
+        let a = lin.matrix(k, Par::Seq).unwrap();
+        let gap = (&d.a - &a).norm_max();
+        assert!(gap <= 1e-12 * a.norm_max().max(1.0), "K_c = {k_c}: {gap:e}");
+        let l = lin.layout();
+        assert_eq!(l.n_controller, 10, "N n_u of the cart-pendulum's MPC");
+        contained += usize::from(c.contains);
+        for seed in 0..6u64 {
+            let mut o = o;
+            o.seed = seed;
+            o.steps = l.horizon + 151;
+            let mut cl = build(&s, &o).unwrap();
+            for _ in 0..l.horizon {
+                cl.step().unwrap();
+            }
+            let mut x = start_up_state(&cl, &s, &d);
+            for step in 0..150 {
+                let sim = lifted_state(&cl, l);
+                let active = d.rows.iter().enumerate().any(|(i, row)| {
+                    let val: f64 = row.iter().zip(&sim).map(|(a, b)| a * b).sum();
+                    val > d.upper[i] || val < d.lower[i]
+                });
+                assert!(
+                    !(c.contains && active),
+                    "K_c = {k_c}, seed {seed}, step {step}: a row is active inside the region"
+                );
+                if active {
+                    break;
+                }
+                let gap = norm(&x.iter().zip(&sim).map(|(p, q)| p - q).collect::<Vec<_>>());
+                assert!(
+                    gap <= 1e-8 * norm(&sim).max(1e-12),
+                    "K_c = {k_c}, seed {seed}, step {step}: the loop left the linear one ({gap:e})"
+                );
+                let t = cl.t();
+                cl.step().unwrap();
+                let w = cl.trace().w(t).unwrap().to_vec();
+                x = lifted_step(&d, &x, &w);
+            }
+        }
+    }
+    assert!(
+        contained >= 1,
+        "no K_c of the test has a region containing the set"
+    );
 }

@@ -235,6 +235,8 @@ const MISSING_CELL: RGBColor = RGBColor(215, 215, 215);
 const EMPIRICAL: RGBColor = RGBColor(0, 0, 0);
 const LINEAR: RGBColor = RGBColor(220, 0, 200);
 const CERTIFIED: RGBColor = RGBColor(255, 140, 0);
+/// The regional certificate's pairs (K_reg, K_c): green dots.
+const REGIONAL: RGBColor = RGBColor(0, 170, 60);
 
 /// One heat map (data only) and its rendering.
 #[derive(Debug, Clone)]
@@ -252,6 +254,8 @@ pub(super) struct HeatMap {
     pub linear: Option<Staircase>,
     /// Empty: not computed.
     pub certified: Staircase,
+    /// (K_c, K_reg) per grid K_c: a dot at (K_reg, K_c) where there is one.
+    pub regional: Vec<(usize, Option<usize>)>,
     pub notes: Vec<String>,
 }
 
@@ -352,6 +356,24 @@ impl HeatMap {
             .count();
         if missing > 0 {
             notes.push(format!("{missing} cells without a value (light grey)"));
+        }
+        let dots: Vec<(f64, f64)> = self
+            .regional
+            .iter()
+            .filter_map(|&(k_c, k_reg)| {
+                let j = self.k_c.values.iter().position(|&v| v == k_c)?;
+                let x = self
+                    .k_e
+                    .t(k_reg? as f64)
+                    .clamp(self.k_e.lo(), self.k_e.hi());
+                Some((x, (self.k_c.edges[j] + self.k_c.edges[j + 1]) / 2.0))
+            })
+            .collect();
+        if !dots.is_empty() {
+            notes.push(
+                "green dots: (K_reg, K_c), the regional certificate at that pair (for the scenario's own set)"
+                    .into(),
+            );
         }
         if infinite > 0 {
             notes.push(format!("{infinite} cells not finite (dark grey: diverged)"));
@@ -502,6 +524,15 @@ impl HeatMap {
                     }
                 });
             }
+            chart
+                .draw_series(dots.iter().map(|&c| Circle::new(c, 6, REGIONAL.filled())))
+                .map_err(|e| err(&e))?;
+            chart
+                .draw_series(
+                    dots.iter()
+                        .map(|&c| Circle::new(c, 6, BLACK.stroke_width(1))),
+                )
+                .map_err(|e| err(&e))?;
             let bottom = self.k_c.values.first().copied();
             if !self.empirical.is_empty() && self.empirical.iter().all(|s| s.1 == bottom) {
                 notes.insert(
@@ -690,6 +721,7 @@ pub fn heatmaps_all(
                     empirical: p.empirical_boundary.clone(),
                     linear: p.linear_boundary.clone(),
                     certified: p.certified_boundary.clone(),
+                    regional: p.regional.clone(),
                     notes,
                 }
             };

@@ -73,7 +73,7 @@ fn well_formed(svg: &str) -> bool {
 }
 
 #[test]
-fn heat_map_is_a_valid_svg_with_the_three_boundaries() {
+fn heat_map_is_a_valid_svg_with_the_three_boundaries_and_the_regional_dots() {
     let k_e = Axis::new(&[1, 10, 100]);
     let k_c = Axis::new(&[1, 5, 20]);
     let map = HeatMap {
@@ -90,6 +90,7 @@ fn heat_map_is_a_valid_svg_with_the_three_boundaries() {
         empirical: vec![(1, Some(20)), (10, Some(20)), (100, Some(5))],
         linear: Some(vec![(1, Some(20)), (10, Some(5)), (100, Some(5))]),
         certified: vec![(10, None), (100, Some(20))],
+        regional: vec![(1, None), (5, Some(13)), (20, Some(13))],
         notes: vec!["test".into()],
     };
     let dir = std::env::temp_dir().join(format!("xtask-heatmap-{}", std::process::id()));
@@ -108,18 +109,23 @@ fn heat_map_is_a_valid_svg_with_the_three_boundaries() {
         "certified: joint certificate from here up",
         "1 cells without a value",
         "1 cells not finite",
+        "green dots: (K_reg, K_c)",
     ] {
         assert!(svg.contains(label), "no `{label}` in the SVG");
     }
+    // Two regional dots (K_c = 5 and 20; none at K_c = 1), filled green.
+    assert_eq!(svg.matches("fill=\"#00AA3C\"").count(), 2, "{svg}");
     // The boundaries' colours are drawn (stroke of the empirical and linear paths).
     assert!(svg.contains("stroke=\"#000000\"") && svg.contains("stroke=\"#DC00C8\""));
     // An empty certificate says so in the legend.
     let mut none = map.clone();
     none.certified.clear();
     none.linear = None;
+    none.regional.clear();
     none.render(&path).unwrap();
     let svg = std::fs::read_to_string(&path).unwrap();
     assert!(well_formed(&svg));
     assert!(svg.contains("certificate: not computed") && svg.contains("linear: not computed"));
+    assert!(!svg.contains("green dots"));
     let _ = std::fs::remove_dir_all(&dir);
 }

@@ -19,8 +19,10 @@
 //!
 //! **What it does not claim.** It is regional: outside the certified set (a larger x₀, prior
 //! error or disturbance) only the global certificate (Theorem 1) speaks, and a constraint
-//! that activates voids nothing but this certificate. It covers the exact MPC and the
-//! saturated LQR, not a K_c-iteration MPC; PG, FISTA and ADMM on a box, PG and FISTA on
+//! that activates voids nothing but this certificate. It covers the exact MPC, the saturated
+//! LQR and the K_c-iteration MPC on the input box 𝒰^N (its previous sequence U_{t−1} joins X,
+//! the point each of its inner iterates projects is a row; not with the MPC's state rows);
+//! PG, FISTA and ADMM on a box, PG and FISTA on
 //! general rows. The disturbance bound is a Euclidean bound per step (a Gaussian noise has
 //! none: give `certificate.w_bar`).
 

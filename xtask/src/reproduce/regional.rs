@@ -48,7 +48,8 @@ pub struct RegionalEntry {
     pub void: Option<String>,
 }
 
-/// K_reg ([`xtask::sweep_engine::k_reg_outcome`]) of every method with the exact MPC and the
+/// K_reg ([`xtask::sweep_engine::k_reg_outcome`]) of every method with the scenario's
+/// controller (the exact MPC, or the K_c-iteration MPC of `mpc.iterations`) and the
 /// scenario's own uncertainty (`certificate.x0_radius`, `prior_error`, `w_bar` or their
 /// defaults), the search capped at the method's K_min. The phase has one budget,
 /// `certificate.phase_seconds`, split evenly among the methods (so what each search may do
@@ -60,12 +61,13 @@ pub(super) fn regional_entries(
 ) -> Vec<RegionalEntry> {
     use rayon::prelude::*;
     let share = cert.solvers.len().max(1) as f64;
-    let options = RegionalOptions::from_scenario(resolved, ControllerChoice::ExactMpc).map(|o| {
-        RegionalOptions {
-            phase_seconds: o.phase_seconds / share,
-            ..o
-        }
-    });
+    let options =
+        RegionalOptions::from_scenario(resolved, scenario_controller(resolved)).map(|o| {
+            RegionalOptions {
+                phase_seconds: o.phase_seconds / share,
+                ..o
+            }
+        });
     cert.solvers
         .par_iter()
         .map(|s| {
@@ -112,6 +114,24 @@ pub(super) fn regional_entry(
 
 /// The summary's lines: per method K_lin ≤ K_reg against K_min with the ratios, and why there
 /// is no K_reg where there is none.
+/// The scenario's own controller: the exact MPC, or K_c iterations of `mpc.method` when
+/// `mpc.iterations` is set.
+pub(super) fn scenario_controller(resolved: &ResolvedScenario) -> ControllerChoice {
+    closed_loop::scenario::LoopOptions::from_scenario(resolved.scenario())
+        .map_or(ControllerChoice::ExactMpc, |o| o.controller)
+}
+
+/// The controller of a regional certificate in words.
+fn controller_text(c: ControllerChoice) -> String {
+    match c {
+        ControllerChoice::ExactMpc => "exact MPC".into(),
+        ControllerChoice::SaturatedLqr => "saturated LQR".into(),
+        ControllerChoice::SuboptimalMpc { iterations, method } => {
+            format!("MPC with K_c = {iterations} iterations of {method}")
+        }
+    }
+}
+
 pub(super) fn summary(entries: &[RegionalEntry]) -> String {
     use lti_model::numfmt::sig4;
     let mut s = String::new();
@@ -120,9 +140,16 @@ pub(super) fn summary(entries: &[RegionalEntry]) -> String {
     }
     let _ = writeln!(
         s,
-        "\nRegional certificate (exact MPC; inside the region no constraint is active, so the loop \
+        "\nRegional certificate ({}; inside the region no constraint is active, so the loop \
          is the linear one): K_reg = smallest K whose region contains the scenario's uncertainty,\n\
-         searched up to K_min; K_lin ≤ K_reg (K_lin is necessary), against Theorem 1's K_min"
+         searched up to K_min; K_lin ≤ K_reg (K_lin is necessary), against Theorem 1's K_min",
+        entries
+            .iter()
+            .find_map(|e| e
+                .certificate
+                .as_ref()
+                .map(|c| controller_text(c.options.controller)))
+            .unwrap_or_else(|| "the scenario's controller".into())
     );
     if let Some(o) = entries
         .iter()

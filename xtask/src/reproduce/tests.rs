@@ -1178,6 +1178,41 @@ fn a_k_min_above_the_sim_k_cap_is_skipped_with_the_cap_named() {
     assert_eq!(d.runs[0].k, 10);
 }
 
+/// K_reg in `reproduce` is for the scenario's own controller: the K_c-iteration MPC when
+/// `mpc.iterations` is set (the cart-pendulum with K_c = 20 PG steps: FISTA-Jacobi has a
+/// K_reg, the library's search with that MPC), the exact MPC otherwise.
+#[test]
+fn regional_entries_use_the_scenarios_controller() {
+    use iss_certificate::regional::{RegionalOptions, k_reg};
+    let path = workspace_root().join("scenarios/cart-pendulum.toml");
+    let text = std::fs::read_to_string(&path)
+        .unwrap()
+        .replace("[mpc]\n", "[mpc]\niterations = 20\nmethod = \"pg\"\n");
+    let file = write_scenario("kc-regional", &text);
+    let res = Scenario::from_file(&file).unwrap().resolve().unwrap();
+    let c = regional::scenario_controller(&res);
+    assert_eq!(
+        c,
+        ControllerChoice::SuboptimalMpc {
+            iterations: 20,
+            method: qp_iter::Method::PG
+        }
+    );
+    let plain = Scenario::from_file(&path).unwrap().resolve().unwrap();
+    assert_eq!(
+        regional::scenario_controller(&plain),
+        ControllerChoice::ExactMpc
+    );
+    let method: qp_iter::Method = "fista-jacobi".parse().unwrap();
+    let o = RegionalOptions::from_scenario(&res, c).unwrap();
+    let e = regional::regional_entry(&res, method, &Ok(o.clone()), Some(839), Some(1));
+    let direct = k_reg(&res, method, &o, 839).unwrap();
+    assert_eq!(e.k_reg, direct.k_reg);
+    assert!(e.k_reg.is_some(), "{:?}", e.void);
+    let s = regional::summary(&[e]);
+    assert!(s.contains("MPC with K_c = 20 iterations of pg"), "{s}");
+}
+
 /// A scenario whose controller is the K-iteration MPC (`mpc.iterations`): reproduce reports
 /// the joint certificate, simulates at its cheapest pair and checks every inequality there.
 #[test]

@@ -114,6 +114,20 @@ pub fn k_reg_outcome(
             out.stopped = kr.stopped.clone();
             out.note = match (kr.k_reg, &kr.certificate, kr.void) {
                 (Some(_), _, _) => None,
+                (None, _, _) if kr.refuted_every_k.is_some() => {
+                    let l = kr
+                        .refuted_every_k
+                        .as_ref()
+                        .map(limit_line)
+                        .unwrap_or_default();
+                    Some(format!(
+                        "no K whose region contains the scenario's uncertainty exists: {l}; step \
+                         t = 0 does not depend on K (the MHE's window-0 problem is solved by its \
+                         warm start, the prior, at every K), so this holds at every K (shown at \
+                         K = {})",
+                        out.k.unwrap_or(1)
+                    ))
+                }
                 (None, c, _) if kr.stopped.is_some() => Some(format!(
                     "the search stopped before a K whose region contains the scenario's \
                      uncertainty{}: {}{}",

@@ -209,6 +209,12 @@ pub struct RegionalCertificate {
     /// S: the steps after M over which every full-window row's free response was taken
     /// exactly (Theorem R; the metric bounds the rest; 0 when the budget left none).
     pub exact_steps: usize,
+    /// A row of step t = 0 that an admissible realization drives past its bound. Step 0 does
+    /// not depend on K: the MHE's window-0 problem (the prior alone) is solved by its warm
+    /// start, the prior, so every iterate of every Φ is the prior and x̂₀ = x̄₀ at every K; so
+    /// this refutes the set at every K, not only at this one (theory.md, Theorem R, "the
+    /// witness").
+    pub refuted_at_start: Option<Limit>,
     /// T: the impulse terms summed exactly (the metric's tail bounds the rest; fewer than the
     /// 10⁻⁹ decay length only when the budget left no more).
     pub impulse_terms: usize,
@@ -499,11 +505,33 @@ fn certify_at(
     let mut startup_limit = None;
     let (mut sx, mut sp, mut sw) = (f64::INFINITY, f64::INFINITY, f64::INFINITY);
     let mut startup_holds = true;
+    let mut at_start: Option<Limit> = None;
     for (i, &(center, ax, ap, aw, l, u)) in terms.iter().enumerate() {
         let dev = o.x0_radius * ax + o.prior_error * ap + o.w_bar * aw;
         let s = scale_limit(center, dev, l, u);
         if center + dev > u || center - dev < l {
             startup_holds = false;
+            let label = model.startup_rows.labels[i];
+            if label.step == Some(0) {
+                // The side an admissible realization passes by the larger factor.
+                let (value, bound) = if (center + dev) / u.abs() >= (dev - center) / l.abs() {
+                    (center + dev, u)
+                } else {
+                    (dev - center, -l)
+                };
+                if at_start
+                    .as_ref()
+                    .is_none_or(|a| value / bound > a.attained / a.bound)
+                {
+                    at_start = Some(Limit {
+                        row: label,
+                        bound,
+                        reach: value,
+                        attained: value,
+                        attained_at: 0,
+                    });
+                }
+            }
         }
         let slack = (u - center).min(center - l);
         let one = |a: f64, rest: f64| {
@@ -619,6 +647,7 @@ fn certify_at(
         startup_holds,
         startup_limit,
         witness,
+        refuted_at_start: at_start,
         exact_steps: free.steps,
         impulse_terms: imp_terms,
         metrics_evaluated: metrics,

@@ -22,6 +22,10 @@ pub struct KReg {
     /// means the bisection below it was cut short (K_reg is still certified, possibly not the
     /// smallest); without, that no K beyond the last one tried was evaluated.
     pub stopped: Option<String>,
+    /// A step-0 row that an admissible realization drives past its bound
+    /// ([`RegionalCertificate::refuted_at_start`]): step 0 does not depend on K, so no K has a
+    /// region, and the search ends at the first K that shows it.
+    pub refuted_every_k: Option<super::Limit>,
     /// Estimated single-core seconds the search spent (the sum of the estimates of the stages
     /// it ran): a caller running several searches under one budget subtracts it.
     pub spent_seconds: f64,
@@ -29,7 +33,7 @@ pub struct KReg {
 
 /// K_reg of `method` (module docs): K = 1, 2, 4, … up to `k_max` until the certificate
 /// contains the user's set, then bisection between the last failing and the first passing
-/// K. The margin need not be monotone in K: K_reg is certified (evaluated exactly there) and
+/// K. A step-0 witness (`refuted_every_k`) ends the search at once: it holds at every K. The margin need not be monotone in K: K_reg is certified (evaluated exactly there) and
 /// is the smallest K found by this search, not a claim about every K above it.
 ///
 /// The whole search shares one budget, `options.phase_seconds`: each evaluation's stages are
@@ -48,6 +52,7 @@ pub fn k_reg(
             tried: Vec::new(),
             void: Some(why.clone()),
             stopped: Some(why),
+            refuted_every_k: None,
             spent_seconds: 0.0,
         });
     }
@@ -83,6 +88,7 @@ pub fn k_reg(
     let mut last = None;
     let mut found = None;
     let mut stopped = None;
+    let mut refuted_every_k = None;
     loop {
         let r = match eval(k, &mut tried) {
             Ok(r) => r,
@@ -95,7 +101,12 @@ pub fn k_reg(
             found = Some((k, r));
             break;
         }
+        let every_k = r.as_ref().ok().and_then(|c| c.refuted_at_start.clone());
         last = Some(r);
+        if let Some(l) = every_k {
+            refuted_every_k = Some(l);
+            break;
+        }
         if k >= k_max {
             break;
         }
@@ -115,6 +126,7 @@ pub fn k_reg(
             tried,
             void,
             stopped,
+            refuted_every_k,
             spent_seconds: budget.total - budget.left,
         });
     };
@@ -141,6 +153,7 @@ pub fn k_reg(
         tried,
         void: None,
         stopped,
+        refuted_every_k: None,
         spent_seconds: budget.total - budget.left,
     })
 }

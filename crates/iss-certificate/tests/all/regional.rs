@@ -882,3 +882,43 @@ fn the_k_c_iteration_mpc_is_modelled_exactly() {
         "no K_c of the test has a region containing the set"
     );
 }
+
+/// A step-0 witness refutes every K: t = 0 does not depend on K (the window-0 MHE is solved by
+/// its warm start, the prior, whatever Φ and K). On the stand-in the exact MPC's input
+/// sequence at t = 0 leaves |u| ≤ 1 by a factor above 8 for an admissible prior: the same row
+/// and value at K = 1, 3, 40 and for PG, FISTA and ADMM (to 1e-12), and the K_reg search stops
+/// at its first K with `refuted_every_k`.
+#[test]
+fn a_step_zero_witness_is_the_same_at_every_k_and_ends_the_search() {
+    let res = Scenario::from_file(STAND_IN).unwrap().resolve().unwrap();
+    let ro = RegionalOptions::from_scenario(&res, ControllerChoice::ExactMpc).unwrap();
+    let mut seen: Option<iss_certificate::regional::Limit> = None;
+    for method in [Method::PG, Method::FISTA, Method::ADMM] {
+        for k in [1, 3, 40] {
+            let c = regional_certificate(&res, method, k, &ro).unwrap();
+            let w = c
+                .refuted_at_start
+                .clone()
+                .unwrap_or_else(|| panic!("{method} K = {k}: no step-0 witness"));
+            assert!(w.attained > w.bound && w.row.step == Some(0) && !c.contains);
+            match &seen {
+                None => seen = Some(w),
+                Some(s) => {
+                    assert_eq!(s.row, w.row, "{method} K = {k}");
+                    assert!(
+                        (s.attained - w.attained).abs() <= 1e-12 * s.attained,
+                        "{method} K = {k}: {} against {}",
+                        w.attained,
+                        s.attained
+                    );
+                }
+            }
+        }
+    }
+    let s = seen.unwrap();
+    assert!(s.attained / s.bound > 8.0, "{s:?}");
+    let kr = k_reg(&res, Method::FISTA, &ro, 1 << 10).unwrap();
+    assert_eq!(kr.k_reg, None);
+    assert_eq!(kr.tried.len(), 1, "{:?}", kr.tried);
+    assert_eq!(kr.refuted_every_k.as_ref().map(|l| l.row), Some(s.row));
+}

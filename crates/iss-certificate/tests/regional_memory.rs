@@ -46,11 +46,12 @@ fn memory_estimate_is_within_2x_of_the_peak() {
             for k in ks {
                 let (r, peak) =
                     alloc_counter::peak_bytes(|| regional_certificate(&res, method, k, &o));
-                let rho = match &r {
-                    Ok(c) => c.rho_lin,
-                    // ρ_lin ≥ 1 ends the certificate after the first stage: its estimate
-                    // alone is what ran (a ρ of 0 gives the shortest second stage).
-                    Err(RegionalVoid::Unstable { .. }) => 0.0,
+                let (rho, unstable) = match &r {
+                    Ok(c) => (c.rho_lin, false),
+                    // ρ_lin ≥ 1 ends the certificate at its first stage (ρ_lin from the K-step
+                    // maps, before any row is built): the estimate of the stages it would have
+                    // run is then an upper bound, not a match.
+                    Err(RegionalVoid::Unstable { .. }) => (0.0, true),
                     Err(e) => panic!("{file} M = {horizon} {method} K = {k}: {e}"),
                 };
                 let est = estimate(&res, method, k, &o, rho).unwrap();
@@ -61,7 +62,11 @@ fn memory_estimate_is_within_2x_of_the_peak() {
                     est.bytes
                 );
                 assert!(
-                    (0.5..=2.0).contains(&ratio),
+                    if unstable {
+                        ratio >= 0.5
+                    } else {
+                        (0.5..=2.0).contains(&ratio)
+                    },
                     "{file} M = {horizon} {method} K = {k}: estimate {:.0} B, measured peak \
                      {peak} B (ratio {ratio:.2})",
                     est.bytes

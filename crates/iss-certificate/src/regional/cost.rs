@@ -124,6 +124,26 @@ pub(crate) fn sizes(p: &Pieces, k: usize) -> Sizes {
     }
 }
 
+/// Stage 0: 𝔸(K) from the K-step maps and ρ_lin(K) (`lifted::matrix`): per map ⌈log₂K⌉
+/// squarings and as many products of its augmented step (n_ξ + n_θ)³, the maps applied to the
+/// dim X columns, the assembly, and the eigenvalues.
+pub(crate) fn rho_cost(p: &Pieces, k: usize) -> StageCost {
+    let s = sizes(p, k);
+    let power = |lin: &crate::linear::IterationLinearisation, k: usize| {
+        let m = (lin.lift_dim() + lin.n_theta) as f64;
+        2.0 * (k.max(2) as f64).log2().ceil() * m.powi(3) + lin.n as f64 * m * s.dim
+    };
+    let big_m = p.windows.len() - 1;
+    let mpc = p.law.iterative.as_ref().map_or(0.0, |m| power(&m.lin, m.k));
+    StageCost {
+        work: power(&p.windows[big_m].lin, k)
+            + mpc
+            + 4.0 * s.dim * s.dim * s.nv
+            + eigen_work(s.dim as usize),
+        bytes: F64 * 6.0 * s.dim * s.dim,
+    }
+}
+
 /// Stage 1: the lifted model at K and ρ_lin(K).
 pub(crate) fn model_cost(p: &Pieces, k: usize) -> StageCost {
     let s = sizes(p, k);
@@ -437,7 +457,12 @@ pub fn estimate(
     rho: f64,
 ) -> Result<RegionalEstimate, RegionalVoid> {
     let pieces = model::pieces(resolved, method, options.controller)?;
-    let a = model_cost(&pieces, k);
+    let r = rho_cost(&pieces, k);
+    let m = model_cost(&pieces, k);
+    let a = StageCost {
+        work: r.work + m.work,
+        bytes: r.bytes.max(m.bytes),
+    };
     let sz = sizes(&pieces, k);
     let plan = analysis_plan(
         &sz,

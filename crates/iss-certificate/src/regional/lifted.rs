@@ -41,8 +41,20 @@ fn rows_of(m: &Mat<f64>, r0: usize, n: usize) -> Mat<f64> {
     m.as_ref().subrows(r0, n).to_owned()
 }
 
-/// Builds the model at K from the pieces.
-pub(crate) fn build(p: &Pieces, k: usize) -> Result<RegionalModel, LinearError> {
+/// The loop for t ≥ M on X: 𝔸, 𝔹_w, the readouts, and (with `rows`) every row over X.
+struct FullWindow {
+    layout: LiftedLayout,
+    a: Mat<f64>,
+    bw: Mat<f64>,
+    x_read: Mat<f64>,
+    e_read: Mat<f64>,
+}
+
+fn full_window(
+    p: &Pieces,
+    k: usize,
+    mut rows: Option<&mut Rows>,
+) -> Result<FullWindow, LinearError> {
     let big_m = p.windows.len() - 1;
     let full = &p.windows[big_m];
     let w = full.layout;
@@ -58,8 +70,6 @@ pub(crate) fn build(p: &Pieces, k: usize) -> Result<RegionalModel, LinearError> 
     };
     let n = layout.dim();
     let eye = Mat::<f64>::identity(n, n);
-
-    // ---- t ≥ M on X ----
     let z0 = rows_of(&eye, layout.warm_start(), w.nz());
     let mut theta = Mat::<f64>::zeros(w.n_theta(), n);
     for i in 0..nx {
@@ -73,8 +83,14 @@ pub(crate) fn build(p: &Pieces, k: usize) -> Result<RegionalModel, LinearError> 
             theta[(w.y_offset(j) + i, layout.y_window(j) + i)] = 1.0;
         }
     }
-    let mut rows = Rows::new();
-    let (zk, xh) = mhe_step(full, k, z0.as_ref(), theta.as_ref(), None, &mut rows)?;
+    let (zk, xh) = mhe_step(
+        full,
+        k,
+        z0.as_ref(),
+        theta.as_ref(),
+        None,
+        rows.as_deref_mut(),
+    )?;
     let nc = layout.n_controller;
     let prev = (nc > 0).then(|| rows_of(&eye, layout.controller(), nc));
     let (u, seq) = control(
@@ -83,7 +99,7 @@ pub(crate) fn build(p: &Pieces, k: usize) -> Result<RegionalModel, LinearError> 
         xh.as_ref(),
         prev.as_ref().map(|m| m.as_ref()),
         None,
-        &mut rows,
+        rows,
     )?;
     let x_read = rows_of(&eye, layout.x(), nx);
     let mut a = Mat::<f64>::zeros(n, n);
@@ -124,6 +140,34 @@ pub(crate) fn build(p: &Pieces, k: usize) -> Result<RegionalModel, LinearError> 
         }
     }
     let e_read = &xh - &x_read;
+    Ok(FullWindow {
+        layout,
+        a,
+        bw,
+        x_read,
+        e_read,
+    })
+}
+
+/// 𝔸(K) alone, from the K-step maps (no rows): what ρ_lin(K) needs, at log₂K products of the
+/// lifted step instead of K, so an unstable K is refused before its rows are built.
+pub(crate) fn matrix(p: &Pieces, k: usize) -> Result<Mat<f64>, LinearError> {
+    Ok(full_window(p, k, None)?.a)
+}
+
+/// Builds the model at K from the pieces.
+pub(crate) fn build(p: &Pieces, k: usize) -> Result<RegionalModel, LinearError> {
+    let big_m = p.windows.len() - 1;
+    let d = p.windows[big_m].layout.dims;
+    let (nx, nu, nw, nw1) = (d.nx, d.nu, d.nw(), d.nw1);
+    let mut rows = Rows::new();
+    let FullWindow {
+        layout,
+        a,
+        bw,
+        x_read,
+        e_read,
+    } = full_window(p, k, Some(&mut rows))?;
 
     // ---- t < M on υ = (x₀, x̄₀, w₀..w_{M−1}) ----
     let nv = 2 * nx + big_m * nw;
@@ -143,14 +187,21 @@ pub(crate) fn build(p: &Pieces, k: usize) -> Result<RegionalModel, LinearError> 
             set_block(&mut th, lay.u_offset(j), &us[j]);
             set_block(&mut th, lay.y_offset(j), &ys[j]);
         }
-        let (zk, xh) = mhe_step(ws, k, z0.as_ref(), th.as_ref(), Some(t), &mut startup_rows)?;
+        let (zk, xh) = mhe_step(
+            ws,
+            k,
+            z0.as_ref(),
+            th.as_ref(),
+            Some(t),
+            Some(&mut startup_rows),
+        )?;
         let (u, seq) = control(
             &p.law,
             nu,
             xh.as_ref(),
             seq_prev.as_ref().map(|m| m.as_ref()),
             Some(t),
-            &mut startup_rows,
+            Some(&mut startup_rows),
         )?;
         seq_prev = seq;
         let w1 = rows_of(&ev, 2 * nx + t * nw, nw1);
@@ -164,7 +215,7 @@ pub(crate) fn build(p: &Pieces, k: usize) -> Result<RegionalModel, LinearError> 
         ys.push(y);
         xhs.push(xh);
     }
-    let mut start_map = Mat::<f64>::zeros(n, nv);
+    let mut start_map = Mat::<f64>::zeros(layout.dim(), nv);
     set_block(&mut start_map, layout.x(), &x);
     for j in 0..big_m {
         set_block(&mut start_map, layout.u_window(j), &us[j]);

@@ -461,6 +461,19 @@ fn certify_at(
     if k == 0 || pieces.windows.iter().any(|w| k < w.lin.start_steps) {
         return Err(ModelError::from(crate::linear::LinearError::ZeroIterations).into());
     }
+    // ρ_lin(K) first, from the K-step maps (log₂K products): an unstable K is refused before
+    // its K·n_z rows are built. The margin 10⁻⁹ leaves the borderline cases to the iterated
+    // matrix below, whose ρ_lin the certificate reports.
+    budget.spend(
+        k,
+        "ρ_lin(K) from the K-step maps",
+        cost::rho_cost(pieces, k),
+    )?;
+    let fast = lifted::matrix(pieces, k).map_err(ModelError::from)?;
+    let rho_fast = spectral_radius(fast.as_ref(), Par::Seq).map_err(ModelError::from)?;
+    if !(rho_fast < 1.0 + 1e-9) {
+        return Err(RegionalVoid::Unstable { k, rho: rho_fast });
+    }
     budget.spend(
         k,
         "the lifted model (every inner iterate's rows) and ρ_lin",

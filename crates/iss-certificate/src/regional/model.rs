@@ -326,7 +326,8 @@ pub(crate) fn pieces(
 
 /// K iterations of a linearised Φ on the column space of `z0`, `theta`: pushes the rows of the
 /// point every inner iterate projects (`kind`: on the box [lower, upper]; general rows as
-/// `RowKind::MheGeneral`), returns zᴷ.
+/// `RowKind::MheGeneral`), returns zᴷ. Without `rows` (ρ_lin alone) zᴷ comes from the K-step
+/// map by repeated squaring: log₂K products of the lifted step instead of K.
 #[allow(clippy::too_many_arguments)]
 fn iterate(
     lin: &IterationLinearisation,
@@ -336,12 +337,16 @@ fn iterate(
     (lower, upper): (&[f64], &[f64]),
     general: Option<&GeneralRows>,
     (kind, step): (RowKind, Option<usize>),
-    rows: &mut Rows,
+    rows: Option<&mut Rows>,
 ) -> Result<Mat<f64>, LinearError> {
     let (n, nt, nxi) = (lin.n, lin.n_theta, lin.lift_dim());
     if k == 0 || k < lin.start_steps {
         return Err(LinearError::ZeroIterations);
     }
+    let Some(rows) = rows else {
+        let km = lin.k_step(k, faer::Par::Seq)?;
+        return Ok(mul(km.g.as_ref(), z0) + mul(km.j.as_ref(), theta));
+    };
     let start = lin.start.as_ref();
     let mut xi = mul(start.subcols(0, n), z0) + mul(start.subcols(n, nt), theta);
     let s = lin.step.as_ref().subcols(0, nxi);
@@ -368,14 +373,14 @@ fn iterate(
 }
 
 /// One MHE step of window `ws` with K iterations on the column space of `z0`, `theta`:
-/// pushes the rows of every projected point, returns (zᴷ, x̂).
+/// pushes the rows of every projected point (when given), returns (zᴷ, x̂).
 pub(crate) fn mhe_step(
     ws: &WindowStep,
     k: usize,
     z0: MatRef<'_, f64>,
     theta: MatRef<'_, f64>,
     step: Option<usize>,
-    rows: &mut Rows,
+    rows: Option<&mut Rows>,
 ) -> Result<(Mat<f64>, Mat<f64>), LinearError> {
     let it = iterate(
         &ws.lin,
@@ -391,24 +396,26 @@ pub(crate) fn mhe_step(
     Ok((it, xh))
 }
 
-/// The law on x̂: pushes its rows, returns u and, for the K_c-iteration MPC, U_t. `prev` is
-/// U_{t−1} on the same column space (None: the cold start, U⁰ = 0).
+/// The law on x̂: pushes its rows (when given), returns u and, for the K_c-iteration MPC, U_t.
+/// `prev` is U_{t−1} on the same column space (None: the cold start, U⁰ = 0).
 pub(crate) fn control(
     law: &Law,
     nu: usize,
     xh: MatRef<'_, f64>,
     prev: Option<MatRef<'_, f64>>,
     step: Option<usize>,
-    rows: &mut Rows,
+    rows: Option<&mut Rows>,
 ) -> Result<(Mat<f64>, Option<Mat<f64>>), LinearError> {
     let Some(m) = &law.iterative else {
         let v = mul(law.gain.as_ref(), xh);
-        rows.push_block(v.as_ref(), &law.lower, &law.upper, |i| RowLabel {
-            kind: RowKind::Input,
-            step,
-            iterate: 0,
-            index: i,
-        });
+        if let Some(rows) = rows {
+            rows.push_block(v.as_ref(), &law.lower, &law.upper, |i| RowLabel {
+                kind: RowKind::Input,
+                step,
+                iterate: 0,
+                index: i,
+            });
+        }
         return Ok((v.as_ref().subrows(0, nu).to_owned(), None));
     };
     let z0 = match prev {

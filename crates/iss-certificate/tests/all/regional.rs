@@ -353,16 +353,23 @@ fn broken_premises_void_with_their_reason() {
         Err(RegionalVoid::Unstable { k: 1, rho }) => assert!(rho >= 1.0),
         other => panic!("{other:?}"),
     }
-    // A K_c-iteration MPC is not covered.
-    let sub = RegionalOptions {
-        controller: ControllerChoice::SuboptimalMpc {
-            iterations: 5,
-            method: Method::PG,
-        },
-        ..ro.clone()
+    // A K_c-iteration MPC is covered on its input box; with the MPC's state rows it is not,
+    // and says so (the mass chain with its state box in `sets.state`).
+    let sub = ControllerChoice::SuboptimalMpc {
+        iterations: 5,
+        method: Method::PG,
     };
-    let e = regional_certificate(&res, Method::PG, 600, &sub).unwrap_err();
-    assert!(e.to_string().contains("K_c-iteration MPC"), "{e}");
+    let boxed = concat!(
+        env!("CARGO_MANIFEST_DIR"),
+        "/../../scenarios/mass-chain-state-box.toml"
+    );
+    let rb = Scenario::from_file(boxed).unwrap().resolve().unwrap();
+    let ob = RegionalOptions::from_scenario(&rb, sub).unwrap();
+    let e = regional_certificate(&rb, Method::PG, 4, &ob).unwrap_err();
+    assert!(
+        e.to_string().contains("K_c-iteration MPC with state rows"),
+        "{e}"
+    );
     // Gaussian noise without certificate.w_bar.
     let text = std::fs::read_to_string(STAND_IN).unwrap().replace(
         "kind = \"uniform\"",
@@ -436,6 +443,15 @@ fn the_budget_refuses_a_stage_before_it_runs_and_stops_the_search() {
     // The search: with a budget that fits K = 1, 2, 4 at their full estimates (an evaluation
     // with less budget left takes fewer exact free-response steps, so it costs at most its
     // estimate), it evaluates them, stops at the first K that does not fit, and says why.
+    // On the cart-pendulum (𝒰 = ℝ: no step-0 witness ends the search at once).
+    let res = Scenario::from_file(concat!(
+        env!("CARGO_MANIFEST_DIR"),
+        "/../../scenarios/cart-pendulum.toml"
+    ))
+    .unwrap()
+    .resolve()
+    .unwrap();
+    let ro = RegionalOptions::from_scenario(&res, ControllerChoice::ExactMpc).unwrap();
     let cost = |k: usize| estimate(&res, Method::ADMM, k, &ro, 0.9).unwrap().seconds;
     let budget = cost(1) + cost(2) + cost(4) + 0.5 * cost(8);
     let cut = RegionalOptions {

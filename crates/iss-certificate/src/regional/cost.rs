@@ -161,9 +161,9 @@ pub(crate) fn model_cost(p: &Pieces, k: usize) -> StageCost {
 }
 
 /// A floor on one evaluation's cost from the scenario's dimensions alone (before the
-/// windows' iteration maps are built, which is itself costly at large n_z): the candidate
-/// metrics' square roots and products, 16 dim³ each, at least. Beyond the budget no K can be
-/// evaluated, so the search is refused before anything is built.
+/// windows' iteration maps are built, which is itself costly at large n_z): the square roots
+/// and products of `candidates` metrics, 16 dim³ each, at least (one is required). Beyond the
+/// budget no K can be evaluated, so the search is refused before anything is built.
 pub(crate) fn floor_from_dims(
     nx: usize,
     nu: usize,
@@ -378,11 +378,12 @@ impl Budget {
             sys.ny(),
             sys.nw(),
             horizon,
-            options.rate_fractions.len(),
+            // One candidate metric is all an evaluation requires (`AnalysisPlan`).
+            options.rate_fractions.len().min(1),
         );
         self.fits(
             k,
-            "one evaluation (at least its candidate metrics, 16 dim³ each, from the dimensions)",
+            "one evaluation (at least one candidate metric, 16 dim³, from the dimensions)",
             floor,
         )
         .map(|_| ())

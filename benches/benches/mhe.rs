@@ -1,6 +1,6 @@
 //! PG, FISTA, ADMM (α = 1 and 2), each plain and Jacobi-scaled, and Clarabel on the real
 //! case-study MHE QPs (`mhe-core`), per preset (paper M = 5, certified M = 9, m50 = the
-//! certified file at M = 50), all timed interleaved in one run per preset
+//! certified file at M = 50, cart-pendulum M = 9), all timed interleaved in one run per preset
 //! ([`benches::interleave`]): ratios between rows are the robust figures.
 //!
 //! Methods ([`METHODS`], built as the scenario runs build them: [`Method::build`], a
@@ -26,6 +26,11 @@
 //!   `iss_certificate::certificate` with its certified constants only, as the sweeps compute
 //!   it), when it differs from the certificate's K for 1e-6 and the per-instance rows are
 //!   affordable.
+//! - `mhe_kreg/<method>`: the same at K = K_reg, the smallest K whose regional certificate
+//!   contains the scenario's own uncertainty (`iss_certificate::regional::k_reg`, searched
+//!   as `cargo xtask reproduce` searches it: [`k_reg_search`]), on the presets that ask for
+//!   it ([`benches::case_study::Preset::k_reg`]); where a method has none, the search's
+//!   reason is printed under the table.
 //! - `clarabel`: Clarabel's interior-point solve (tol 1e-8, no polish, set up once, q
 //!   updated), mean over the instances.
 //!
@@ -40,14 +45,17 @@
 //! to the table (their own solver timers; a separate process run just before this one).
 //!
 //! Output: a markdown table per preset on stdout, JSON in `target/bench-results/mhe.json`.
-//! Run: `cargo bench -p benches --bench mhe` (≈ 1.5 min, about 1 min of it M = 50).
+//! Run: `cargo bench -p benches --bench mhe` (≈ 2.2 min; the cart-pendulum's K_reg searches
+//! take 40–50 s of it).
 
 use std::collections::BTreeMap;
 use std::hint::black_box;
 
 use benches::case_study::{CaseStudyQps, EPS, MHE_PRESETS, MheInstance, certified_k};
 use benches::{FixedLayout, FixedMatVec, Timing, Variant, dist, interleave};
+use closed_loop::scenario::{ControllerChoice, LoopOptions, ResolvedScenario};
 use iss_certificate::certificate::{CertificateOptions, certify_closed_loop};
+use iss_certificate::regional::{Limit, RegionalOptions, k_reg};
 use qp_iter::kernel::{AlignedVec, Kernel, PaddedSymmetric};
 use qp_iter::method::{Method, MethodMap, Scaling};
 use qp_iter::reference::{ReferenceSettings, ReferenceSolver};
@@ -79,6 +87,13 @@ const MHE_WORK: f64 = 5e9;
 const STEP_WORK: f64 = 2000.0 * 29.0 * 29.0;
 /// Multiply-adds per batch of the MHE-step rows, at least one step per batch.
 const MHE_BATCH_WORK: f64 = 20.0 * 130.0 * 29.0 * 29.0;
+
+/// The K_reg search's bounds, as `xtask::sweep_engine::search_max` sets them for
+/// `reproduce` (xtask is no dependency of this crate): up to K_min, or this K when Theorem 1
+/// gives none ...
+const REGIONAL_SEARCH_CAP: usize = 2000;
+/// ... and never beyond K·n_z = this (the region's rows grow with K·n_z).
+const REGIONAL_MAX_K_NZ: usize = 200_000;
 
 /// Rounds of the interleaved timing: 200 for the small presets; at n > 100 (M = 50, where
 /// a round takes seconds) fewer.
@@ -242,7 +257,7 @@ fn mhe_variant<'a, M: IterationMap + 'a>(
     }
 }
 
-/// The reference kernel at the preset's size (compile-time n: 29 and 49 are instantiated).
+/// The reference kernel at the preset's size (compile-time n: 29, 49 and 58 are instantiated).
 fn reference_variant<'a>(h: &[f64], n: usize, batch: usize) -> Option<Variant<'a>> {
     fn make<'a, const N: usize>(h: &[f64], batch: usize) -> Option<Variant<'a>> {
         let k = FixedMatVec::<N>::new(h, FixedLayout::ColumnAxpy)?;
@@ -262,6 +277,7 @@ fn reference_variant<'a>(h: &[f64], n: usize, batch: usize) -> Option<Variant<'a
     match n {
         29 => make::<29>(h, batch),
         49 => make::<49>(h, batch),
+        58 => make::<58>(h, batch),
         _ => None,
     }
 }
@@ -274,10 +290,148 @@ struct Row {
     k_cert: usize,
     /// K_min of Theorem 1 (None: the certificate is void for this method).
     k_min: Option<usize>,
+    /// The K_reg search (None: not asked for on this preset).
+    k_reg: Option<KRegSearch>,
     /// The per-instance rows run (K·n² ≤ INSTANCE_WORK).
     per_instance: bool,
     /// The MHE-step row runs (K·n² ≤ MHE_WORK).
     mhe: bool,
+}
+
+/// One method's K_reg search.
+struct KRegSearch {
+    /// K_reg (None: `note` says why).
+    k_reg: Option<usize>,
+    /// The largest K the search could try.
+    k_max: usize,
+    /// Every K evaluated with its margin (≥ 1: the region contains the uncertainty).
+    tried: Vec<(usize, f64)>,
+    /// Why there is no K_reg: the search's void or stop text.
+    note: Option<String>,
+    /// Why the search stopped early (with a K_reg: certified, possibly not the smallest).
+    stopped: Option<String>,
+    /// Wall seconds of the search.
+    seconds: f64,
+}
+
+/// A witness row in words: an admissible realization drives it past its bound.
+fn witness_text(w: &Limit) -> String {
+    format!(
+        "; a witness (an admissible realization) takes {:?} row {} of inner iterate {} at {} to \
+         {:.4} against its bound {}",
+        w.row.kind,
+        w.row.index,
+        w.row.iterate,
+        w.row
+            .step
+            .map_or("the full window".into(), |t| format!("t = {t}")),
+        w.attained,
+        w.bound
+    )
+}
+
+/// K_reg of `method` as `reproduce` searches it, so the bench times the K it reports: the
+/// scenario's own uncertainty and controller, `certificate.phase_seconds` split evenly over
+/// `share` methods, K up to min(K_min or [`REGIONAL_SEARCH_CAP`], ⌊[`REGIONAL_MAX_K_NZ`]/n_z⌋).
+fn k_reg_search(
+    resolved: &ResolvedScenario,
+    method: Method,
+    k_min: Option<usize>,
+    n_z: usize,
+    share: usize,
+) -> KRegSearch {
+    let k_max = k_min
+        .unwrap_or(REGIONAL_SEARCH_CAP)
+        .min(REGIONAL_MAX_K_NZ / n_z.max(1))
+        .max(1);
+    let started = std::time::Instant::now();
+    let controller = LoopOptions::from_scenario(resolved.scenario())
+        .map_or(ControllerChoice::ExactMpc, |o| o.controller);
+    let result = RegionalOptions::from_scenario(resolved, controller).and_then(|o| {
+        let o = RegionalOptions {
+            phase_seconds: o.phase_seconds / share as f64,
+            ..o
+        };
+        k_reg(resolved, method, &o, k_max)
+    });
+    let mut out = KRegSearch {
+        k_reg: None,
+        k_max,
+        tried: Vec::new(),
+        note: None,
+        stopped: None,
+        seconds: 0.0,
+    };
+    match result {
+        Err(e) => out.note = Some(e.to_string()),
+        Ok(kr) => {
+            let last = kr
+                .certificate
+                .as_ref()
+                .map(|c| c.k)
+                .or_else(|| kr.tried.last().map(|t| t.0));
+            let at = last.map_or(String::new(), |k| format!(" (largest K evaluated: {k})"));
+            out.note = match (kr.k_reg, &kr.stopped, &kr.void, &kr.certificate) {
+                (Some(_), ..) => None,
+                (None, ..) if kr.refuted_every_k.is_some() => Some(format!(
+                    "a step-0 witness refutes every K (step 0 does not depend on K){at}{}",
+                    kr.refuted_every_k
+                        .as_ref()
+                        .map_or(String::new(), witness_text)
+                )),
+                (None, Some(why), ..) => Some(format!("the search stopped{at}: {why}")),
+                (None, None, Some(why), _) => Some(format!("void{at}: {why}")),
+                (None, None, None, Some(c)) => Some(format!(
+                    "no K ≤ {k_max} whose region contains the scenario's uncertainty; at K = {}: \
+                     certified scale {:.3}× the scenario's{}",
+                    c.k,
+                    c.margin.max(0.0),
+                    c.witness.as_ref().map_or(String::new(), witness_text)
+                )),
+                (None, None, None, None) => Some("no K was evaluated".into()),
+            };
+            out.k_reg = kr.k_reg;
+            out.tried = kr.tried;
+            out.stopped = kr.stopped;
+        }
+    }
+    out.seconds = started.elapsed().as_secs_f64();
+    out
+}
+
+/// [`k_reg_search`] of every `(method, K_min)` in `jobs`, in that order, on as many threads
+/// as the machine has: the searches are independent and take tens of seconds each.
+fn k_reg_searches(
+    resolved: &ResolvedScenario,
+    jobs: &[(Method, Option<usize>)],
+    n_z: usize,
+) -> Vec<KRegSearch> {
+    use std::sync::atomic::{AtomicUsize, Ordering};
+    let threads = std::thread::available_parallelism().map_or(1, |t| t.get());
+    let next = AtomicUsize::new(0);
+    let mut done: Vec<(usize, KRegSearch)> = std::thread::scope(|s| {
+        let workers: Vec<_> = (0..threads.min(jobs.len()))
+            .map(|_| {
+                s.spawn(|| {
+                    let mut mine = Vec::new();
+                    loop {
+                        let i = next.fetch_add(1, Ordering::Relaxed);
+                        let Some(&(method, k_min)) = jobs.get(i) else {
+                            break;
+                        };
+                        mine.push((i, k_reg_search(resolved, method, k_min, n_z, jobs.len())));
+                    }
+                    mine
+                })
+            })
+            .collect();
+        workers
+            .into_iter()
+            .flat_map(|w| w.join().unwrap_or_else(|e| std::panic::resume_unwind(e)))
+            .collect()
+    });
+    done.sort_by_key(|d| d.0);
+    done.into_iter().map(|d| d.1).collect()
 }
 
 fn run_preset(qps: &CaseStudyQps) -> Result<Value, String> {
@@ -311,9 +465,19 @@ fn run_preset(qps: &CaseStudyQps) -> Result<Value, String> {
             map,
             k_cert,
             k_min,
+            k_reg: None,
             per_instance: work <= INSTANCE_WORK,
             mhe: work <= MHE_WORK,
         });
+    }
+    let mut k_reg_s = None;
+    if qps.preset.k_reg {
+        let started = std::time::Instant::now();
+        let jobs: Vec<_> = rows.iter().map(|r| (r.method, r.k_min)).collect();
+        for (r, s) in rows.iter_mut().zip(k_reg_searches(&qps.resolved, &jobs, n)) {
+            r.k_reg = Some(s);
+        }
+        k_reg_s = Some(started.elapsed().as_secs_f64());
     }
     let mut ks: BTreeMap<&str, Vec<usize>> = BTreeMap::new();
     let mut worst_at_cert = BTreeMap::new();
@@ -354,6 +518,19 @@ fn run_preset(qps: &CaseStudyQps) -> Result<Value, String> {
                 .map_err(fixture)?;
             let b = batch(MHE_BATCH_WORK, k as f64 * n2);
             estimators.push((format!("mhe_kmin/{}", r.name), est, b));
+        }
+    }
+    for r in &rows {
+        let Some(k) = r.k_reg.as_ref().and_then(|s| s.k_reg) else {
+            continue;
+        };
+        if k as f64 * n2 <= MHE_WORK {
+            let method = r.method;
+            let est = qps
+                .estimator_at_end(k, |q| method.build(q))
+                .map_err(fixture)?;
+            let b = batch(MHE_BATCH_WORK, k as f64 * n2);
+            estimators.push((format!("mhe_kreg/{}", r.name), est, b));
         }
     }
 
@@ -447,6 +624,14 @@ fn run_preset(qps: &CaseStudyQps) -> Result<Value, String> {
                     "method": r.method.name(),
                     "k_cert": r.k_cert,
                     "k_min_theorem1": r.k_min,
+                    "k_reg": r.k_reg.as_ref().and_then(|s| s.k_reg),
+                    "k_reg_search": r.k_reg.as_ref().map(|s| json!({
+                        "k_max": s.k_max,
+                        "tried": s.tried,
+                        "note": s.note,
+                        "stopped": s.stopped,
+                        "seconds": s.seconds,
+                    })),
                     "k_to_eps": ks.get(r.name).map(|k| stats(k)),
                     "worst_rel_error_at_k_cert": worst_at_cert.get(r.name),
                     "per_instance_rows": r.per_instance,
@@ -470,6 +655,7 @@ fn run_preset(qps: &CaseStudyQps) -> Result<Value, String> {
         "rounds": rounds,
         "step_batch": step_batch,
         "timing_s": elapsed_s,
+        "k_reg_search_s": k_reg_s,
         "methods": methods,
         "clarabel": { "ipm_iterations": stats(&ipm_iters), "worst_rel_error": ipm_err },
         "timing": timing,
@@ -549,11 +735,23 @@ fn print_table(qps: &CaseStudyQps, v: &Value) {
     println!(
         "\nPer instance, warm start z⁰_t, accuracy ‖z − z*‖ ≤ 1e-6‖z⁰ − z*‖ (ratios to {base_name}):\n"
     );
+    // K_reg columns only where the preset searched it.
+    let with_kreg = v["k_reg_search_s"].is_number();
+    let (kreg_head, kreg_align, kreg_blank) = if with_kreg {
+        (
+            format!(" K_reg | MHE step at K_reg | / {base_name} |"),
+            " ---: | ---: | ---: |",
+            " | | |",
+        )
+    } else {
+        (String::new(), "", "")
+    };
     println!(
-        "| method | K to 1e-6 (median / max) | time to 1e-6 | certificate K | QP at certificate K | MHE step at certificate K | MHE step / {base_name} | Theorem 1 K_min | MHE step at K_min | / {base_name} |"
+        "| method | K to 1e-6 (median / max) | time to 1e-6 | certificate K | QP at certificate K | MHE step at certificate K | MHE step / {base_name} | Theorem 1 K_min | MHE step at K_min | / {base_name} |{kreg_head}"
     );
-    println!("| --- | ---: | ---: | ---: | ---: | ---: | ---: | ---: | ---: | ---: |");
+    println!("| --- | ---: | ---: | ---: | ---: | ---: | ---: | ---: | ---: | ---: |{kreg_align}");
     let mut skipped = Vec::new();
+    let mut kreg_notes = Vec::new();
     for (m, _) in METHODS {
         let d = &v["methods"][m];
         let k = &d["k_to_eps"];
@@ -567,8 +765,19 @@ fn print_table(qps: &CaseStudyQps, v: &Value) {
         let kmin = d["k_min_theorem1"].as_u64();
         let mhe_kmin =
             t(&format!("mhe_kmin/{m}")).or_else(|| mhe.filter(|_| kmin == d["k_cert"].as_u64()));
+        let kreg = if with_kreg {
+            let x = t(&format!("mhe_kreg/{m}"));
+            format!(
+                " {} | {} | {} |",
+                d["k_reg"].as_u64().map_or("none".into(), |k| k.to_string()),
+                x.map_or("—".into(), fmt_ns),
+                r(x, base)
+            )
+        } else {
+            String::new()
+        };
         println!(
-            "| {m} | {kk} | {} | {} | {} | {} | {} | {} | {} | {} |",
+            "| {m} | {kk} | {} | {} | {} | {} | {} | {} | {} | {} |{kreg}",
             t(&format!("to_eps/{m}")).map_or("—".into(), fmt_ns),
             d["k_cert"],
             t(&format!("cert/{m}")).map_or("—".into(), fmt_ns),
@@ -578,6 +787,19 @@ fn print_table(qps: &CaseStudyQps, v: &Value) {
             mhe_kmin.map_or("—".into(), fmt_ns),
             r(mhe_kmin, base),
         );
+        let search = &d["k_reg_search"];
+        if let Some(note) = search["note"].as_str() {
+            kreg_notes.push(format!(
+                "- {m} (searched up to K = {}): {note}",
+                search["k_max"]
+            ));
+        } else if let Some(why) = search["stopped"].as_str() {
+            kreg_notes.push(format!(
+                "- {m}: K_reg = {} is certified, possibly not the smallest (the bisection below \
+                 it stopped: {why})",
+                d["k_reg"]
+            ));
+        }
         if d["per_instance_rows"] == false {
             skipped.push(format!(
                 "{m} (K·n² = {:.1e}{})",
@@ -592,7 +814,7 @@ fn print_table(qps: &CaseStudyQps, v: &Value) {
     }
     let c = &v["clarabel"];
     println!(
-        "| Clarabel (IPM, tol 1e-8) | {} / {} IPM it. | {} | — | — | — | {} | | | |",
+        "| Clarabel (IPM, tol 1e-8) | {} / {} IPM it. | {} | — | — | — | {} | | | |{kreg_blank}",
         c["ipm_iterations"]["median"],
         c["ipm_iterations"]["max"],
         t("clarabel").map_or("—".into(), fmt_ns),
@@ -611,7 +833,7 @@ fn print_table(qps: &CaseStudyQps, v: &Value) {
                 None => label.to_string(),
             };
             println!(
-                "| {label} | {} / {} it. | {} (error {:.0e}) | — | — | — | {} | | | |",
+                "| {label} | {} / {} it. | {} (error {:.0e}) | — | — | — | {} | | | |{kreg_blank}",
                 p["iterations"]["median"],
                 p["iterations"]["max"],
                 fmt_ns(s),
@@ -625,6 +847,19 @@ fn print_table(qps: &CaseStudyQps, v: &Value) {
             "\nLeft out of the per-instance rows (K·n² > {INSTANCE_WORK:.0e}; MHE step only if ≤ {MHE_WORK:.0e}): {}.",
             skipped.join(", ")
         );
+    }
+    if with_kreg {
+        println!(
+            "\nK_reg: the smallest K whose regional certificate contains the scenario's own \
+             uncertainty (`iss_certificate::regional::k_reg` as `reproduce` runs it: the scenario's controller, \
+             `certificate.phase_seconds` split over the {} methods, K up to K_min; searched in \
+             {:.0} s).",
+            METHODS.len(),
+            v["k_reg_search_s"].as_f64().unwrap_or(f64::NAN)
+        );
+        if !kreg_notes.is_empty() {
+            println!("\nThe search's notes:\n\n{}", kreg_notes.join("\n"));
+        }
     }
     if let Some(d) = daqp {
         for (prefix, what) in [
@@ -652,6 +887,19 @@ fn print_table(qps: &CaseStudyQps, v: &Value) {
                     x / d
                 );
             }
+        }
+        let best = METHODS
+            .into_iter()
+            .filter_map(|(m, _)| Some((m, t(&format!("mhe_kreg/{m}"))?)))
+            .min_by(|a, b| a.1.total_cmp(&b.1));
+        if let Some((m, x)) = best {
+            println!(
+                "\nFastest MHE step at K_reg (no target): {m} (K_reg = {}) {} vs DAQP {} ({:.2}×).",
+                v["methods"][m]["k_reg"],
+                fmt_ns(x),
+                fmt_ns(d),
+                x / d
+            );
         }
     }
     let worst: Vec<String> = METHODS

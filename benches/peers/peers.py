@@ -37,8 +37,8 @@ Every solution is checked against z*: the largest ||z - z*|| / ||z0 - z*|| per s
 reported (the benchmark's accuracy target is 1e-6); a solver that fails to report
 "solved" on any instance makes the script exit non-zero.
 
-Usage: peers.py [DIR]   (DIR holds paper.json, certified.json, m50.json; default
-target/peers; a preset whose file is missing is skipped)
+Usage: peers.py [DIR]   (DIR holds paper.json, certified.json, m50.json,
+cart-pendulum.json; default target/peers; a preset whose file is missing is skipped)
 """
 
 import json
@@ -278,7 +278,7 @@ def main():
         "presets": {},
     }
     failed = False
-    for preset in ["paper", "certified", "m50"]:
+    for preset in ["paper", "certified", "m50", "cart-pendulum"]:
         path = os.path.join(folder, preset + ".json")
         if not os.path.exists(path):
             print("no", path, "- skipped")

@@ -3,7 +3,8 @@
 //!
 //! A [`Preset`] names a scenario file (`scenarios/case-study.toml`, the paper's M = 5, or
 //! `scenarios/case-study-certified.toml`, M = 9) and what it changes of it ([`M50`]: the
-//! certified file with M = 50, T = 80). [`CaseStudyQps::load`]
+//! certified file with M = 50, T = 80; [`CART_PENDULUM`]: the cart-pendulum with the regional
+//! budget, T = 40). [`CaseStudyQps::load`]
 //!
 //! 1. runs the scenario's closed loop ([`closed_loop::ResolvedScenario::build_loop`] with the file's
 //!    solver, K, noise seed and T, exact MPC — or the preset's loop method at the K its
@@ -48,6 +49,10 @@ pub struct Preset {
     /// The map whose estimator is replayed to record the warm starts z⁰_t, at the K its
     /// certificate needs for [`EPS`].
     pub replay: Method,
+    /// The `mhe` bench searches K_reg (`iss_certificate::regional::k_reg`) on this preset:
+    /// only where the file's `certificate.phase_seconds` lets the search reach it (it takes
+    /// tens of seconds per method).
+    pub k_reg: bool,
 }
 
 /// V-FISTA on the Jacobi-scaled problem (`"fista-jacobi"`).
@@ -63,6 +68,7 @@ pub const PRESETS: [Preset; 2] = [
         steps: None,
         loop_method: None,
         replay: Method::FISTA,
+        k_reg: false,
     },
     Preset {
         name: "certified",
@@ -71,6 +77,7 @@ pub const PRESETS: [Preset; 2] = [
         steps: None,
         loop_method: None,
         replay: Method::FISTA,
+        k_reg: false,
     },
 ];
 
@@ -85,10 +92,28 @@ pub const M50: Preset = Preset {
     steps: Some(80),
     loop_method: Some(Method::ADMM_PR.with_scaling(Scaling::Jacobi)),
     replay: FISTA_JACOBI,
+    k_reg: false,
 };
 
-/// The presets of the `mhe` bench and of `export_qps`: [`PRESETS`] and [`M50`].
-pub const MHE_PRESETS: [Preset; 3] = [PRESETS[0], PRESETS[1], M50];
+/// The cart-pendulum with the regional budget (`cart-pendulum-regional.toml`: M = 9,
+/// n_x = 4, n_w = 6, 𝒰 = ℝ), the shipped scenario with a K_reg (FISTA-Jacobi 13 where
+/// Theorem 1 needs 839), so the bench can time the MHE step at K_reg. T = 40 as in the
+/// certified preset (32 instances). The file's loop, PG at K = 10, is uncertified (PG's
+/// K_lin is 4423) and swings the pendulum to 0.87 rad by t = 40, so the loop and the replay
+/// run FISTA-Jacobi at the K its certificate needs for [`EPS`].
+pub const CART_PENDULUM: Preset = Preset {
+    name: "cart-pendulum",
+    file: "cart-pendulum-regional.toml",
+    horizon: None,
+    steps: Some(40),
+    loop_method: Some(FISTA_JACOBI),
+    replay: FISTA_JACOBI,
+    k_reg: true,
+};
+
+/// The presets of the `mhe` bench and of `export_qps`: [`PRESETS`], [`M50`] and
+/// [`CART_PENDULUM`].
+pub const MHE_PRESETS: [Preset; 4] = [PRESETS[0], PRESETS[1], M50, CART_PENDULUM];
 
 /// Why the case-study fixtures could not be built.
 #[derive(Debug, thiserror::Error)]
@@ -376,6 +401,20 @@ mod tests {
         let (nx, _, _, nw) = qps.trace.dims();
         assert_eq!((qps.horizon(), qps.qp.n()), (50, nx + 50 * nw));
         assert_eq!((qps.trace.len(), qps.instances.len()), (80, 31));
+        for inst in &qps.instances {
+            let scale = 1.0 + inst.q.iter().fold(0.0f64, |a, v| a.max(v.abs()));
+            assert!(natural_residual(&qps.qp, &inst.q, &inst.z_star) <= 1e-9 * scale);
+        }
+    }
+
+    /// The cart-pendulum preset: n_w = 6 (four process, two measurement components), so
+    /// n = 4 + 9·6 = 58; T = 40 gives 32 full windows, each with an optimal z*.
+    #[test]
+    fn cart_pendulum_preset_has_full_windows_with_optimal_references() {
+        let qps = CaseStudyQps::load(CART_PENDULUM).unwrap();
+        let (nx, _, _, nw) = qps.trace.dims();
+        assert_eq!((nx, nw, qps.horizon(), qps.qp.n()), (4, 6, 9, 58));
+        assert_eq!((qps.trace.len(), qps.instances.len()), (40, 32));
         for inst in &qps.instances {
             let scale = 1.0 + inst.q.iter().fold(0.0f64, |a, v| a.max(v.abs()));
             assert!(natural_residual(&qps.qp, &inst.q, &inst.z_star) <= 1e-9 * scale);

@@ -269,15 +269,22 @@ impl Uncondensed {
 mod tests {
     #![allow(clippy::unwrap_used)]
     use super::*;
-    use crate::case_study::{CaseStudyQps, PRESETS};
+    use crate::case_study::{CART_PENDULUM, CaseStudyQps, PRESETS};
 
     /// The lifting v(z) = Lz + l(θ) turns the uncondensed objective into the condensed one:
     /// its gradient pulled back through L is H_c z + F_cθ, for any z (checked at z*, z⁰ and
     /// a perturbed point of every instance), and v(z) satisfies A_eq v = b(θ).
+    /// On the certified preset (n_w1 = 4, n_w2 = 1) and the cart-pendulum (n_w1 = 4,
+    /// n_w2 = 2).
     #[test]
     fn lifted_uncondensed_objective_is_the_condensed_one() {
-        let qps = CaseStudyQps::load(PRESETS[1]).unwrap();
-        let u = Uncondensed::new(&qps);
+        for preset in [PRESETS[1], CART_PENDULUM] {
+            check_lifting(&CaseStudyQps::load(preset).unwrap());
+        }
+    }
+
+    fn check_lifting(qps: &CaseStudyQps) {
+        let u = Uncondensed::new(qps);
         let qp = &qps.qp;
         let n = qp.n();
         let h = qp.h_row_major();

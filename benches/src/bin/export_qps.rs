@@ -1,6 +1,7 @@
 //! Writes the case-study MHE QPs ([`benches::case_study`]) as JSON for the peer solvers
 //! of `benches/peers/` (DAQP, OSQP, ProxQP): one file per preset of
-//! [`MHE_PRESETS`] (paper M = 5, certified M = 9, m50 M = 50), `<out>/<preset>.json`, holding
+//! [`MHE_PRESETS`] (paper M = 5, certified M = 9, m50 M = 50, cart-pendulum M = 9),
+//! `<out>/<preset>.json`, holding
 //!
 //! - `H` (n × n, row-major nested arrays), `lower`, `upper` (`null` = unbounded),
 //! - per instance t = M … T: `t`, `q`, the MHE warm start `z0`, and `z_star` (polished

@@ -16,6 +16,7 @@ mod mends;
 mod plants;
 mod plants_ii;
 mod regional;
+mod regional_search;
 mod users;
 
 use closed_loop::scenario::{LoopOptions, Scenario, ScenarioLoop};

@@ -1,0 +1,216 @@
+//! The regional certificate's budget and its K_reg search: what each stage costs and what a
+//! smaller budget gives up (only tightness), and the witnesses that end a search.
+
+use closed_loop::scenario::{ControllerChoice, Scenario};
+use iss_certificate::regional::{
+    RegionalOptions, RegionalVoid, k_reg, regional_certificate, regional_detail,
+};
+use qp_iter::Method;
+
+use super::regional::STAND_IN;
+
+/// The budget (`certificate.phase_seconds`) and the memory limit: a stage whose estimate does
+/// not fit is refused before it runs, naming the key; a K_reg search stops at the first
+/// evaluation that does not fit and says so, keeping what it certified.
+#[test]
+fn the_budget_refuses_a_stage_before_it_runs_and_stops_the_search() {
+    use iss_certificate::regional::estimate;
+    let res = Scenario::from_file(STAND_IN).unwrap().resolve().unwrap();
+    let ro = RegionalOptions::from_scenario(&res, ControllerChoice::ExactMpc).unwrap();
+    assert_eq!(
+        ro.phase_seconds,
+        closed_loop::scenario::DEFAULT_PHASE_SECONDS
+    );
+    let est = estimate(&res, Method::ADMM, 20, &ro, 0.9).unwrap();
+    assert!(est.seconds > 0.0 && est.bytes > 0.0 && est.work > 0.0);
+    // A budget below the first stage's estimate: refused at once, nothing computed.
+    let tiny = RegionalOptions {
+        phase_seconds: est.seconds * 1e-6,
+        ..ro.clone()
+    };
+    let started = std::time::Instant::now();
+    let e = regional_certificate(&res, Method::ADMM, 20, &tiny).unwrap_err();
+    assert!(matches!(e, RegionalVoid::OverBudget { k: 20, .. }), "{e:?}");
+    let text = e.to_string();
+    assert!(text.contains("certificate.phase_seconds"), "{text}");
+    assert!(text.contains("K = 20"), "{text}");
+    // A K so large that its rows exceed the memory limit: refused by the estimate, at once.
+    let e = regional_certificate(&res, Method::ADMM, 10_000_000, &ro).unwrap_err();
+    assert!(matches!(e, RegionalVoid::OverMemory { .. }), "{e:?}");
+    assert!(e.to_string().contains("GiB"), "{e}");
+    assert!(started.elapsed().as_secs_f64() < 60.0);
+    // The search: with a budget that fits K = 1, 2, 4 at their full estimates (an evaluation
+    // with less budget left takes fewer exact free-response steps, so it costs at most its
+    // estimate), it evaluates them, stops at the first K that does not fit, and says why.
+    // On the cart-pendulum (𝒰 = ℝ: no step-0 witness ends the search at once).
+    let res = Scenario::from_file(concat!(
+        env!("CARGO_MANIFEST_DIR"),
+        "/../../scenarios/cart-pendulum.toml"
+    ))
+    .unwrap()
+    .resolve()
+    .unwrap();
+    let ro = RegionalOptions::from_scenario(&res, ControllerChoice::ExactMpc).unwrap();
+    let cost = |k: usize| estimate(&res, Method::ADMM, k, &ro, 0.9).unwrap().seconds;
+    let budget = cost(1) + cost(2) + cost(4) + 0.5 * cost(8);
+    let cut = RegionalOptions {
+        phase_seconds: budget,
+        ..ro.clone()
+    };
+    let kr = k_reg(&res, Method::ADMM, &cut, 1 << 20).unwrap();
+    assert_eq!(kr.k_reg, None, "{kr:?}");
+    let stopped = kr.stopped.as_deref().unwrap();
+    let stop_k: usize = stopped
+        .split("K = ")
+        .nth(1)
+        .and_then(|t| t.split(':').next())
+        .and_then(|t| t.parse().ok())
+        .unwrap_or_else(|| panic!("{stopped}"));
+    assert!(
+        stop_k >= 8 && stopped.contains("phase_seconds"),
+        "{stopped}"
+    );
+    assert!(
+        kr.tried.iter().any(|t| t.0 == 4) && kr.tried.iter().all(|t| t.0 < stop_k),
+        "{:?}",
+        kr.tried
+    );
+    assert!(
+        kr.spent_seconds > 0.0 && kr.spent_seconds <= budget,
+        "{} of {budget}",
+        kr.spent_seconds
+    );
+    // Without the cut the search goes on past K = 8.
+    let full = k_reg(&res, Method::ADMM, &ro, 16).unwrap();
+    assert!(
+        full.stopped.is_none() && full.tried.iter().any(|t| t.0 == 16),
+        "{full:?}"
+    );
+}
+
+/// The budget fits stage 2 to what is left (`regional/cost.rs`, `AnalysisPlan`): fewer impulse
+/// terms, metrics or exact steps only loosen the certificate. On the cart-pendulum's
+/// FISTA-Jacobi, from the least budget that computes a certificate up to a generous one: at a K
+/// it certifies, every row's reach stays at or above the generous budget's, the margin never
+/// exceeds the generous one, and a certificate that contains the set under a small budget
+/// contains it under the large one; at a refuted K no budget contains
+/// the set, and a probe that reaches the witness's step finds the same witness (row, step,
+/// value), computing one metric besides.
+#[test]
+fn a_smaller_budget_only_loosens_the_certificate_and_finds_the_same_witness() {
+    use iss_certificate::regional::estimate;
+    let path = concat!(
+        env!("CARGO_MANIFEST_DIR"),
+        "/../../scenarios/cart-pendulum-regional.toml"
+    );
+    let res = Scenario::from_file(path).unwrap().resolve().unwrap();
+    let ro = RegionalOptions::from_scenario(&res, ControllerChoice::ExactMpc).unwrap();
+    let method: Method = "fista-jacobi".parse().unwrap();
+    let with = |seconds: f64| RegionalOptions {
+        phase_seconds: seconds,
+        ..ro.clone()
+    };
+    for k in [8, 13] {
+        let (big, big_d) = regional_detail(&res, method, k, &with(1e4)).unwrap();
+        let full = estimate(&res, method, k, &with(1e4), big.rho_lin)
+            .unwrap()
+            .seconds;
+        let (mut computed, mut witnessed) = (0, 0);
+        for fraction in [0.02, 0.05, 0.15, 0.4] {
+            let Ok((c, d)) = regional_detail(&res, method, k, &with(full * fraction)) else {
+                continue;
+            };
+            computed += 1;
+            if big.witness.is_none() {
+                assert!(
+                    c.impulse_terms <= big.impulse_terms
+                        && c.metrics_evaluated <= big.metrics_evaluated,
+                    "K = {k}, {fraction}: {} {} against {} {}",
+                    c.impulse_terms,
+                    c.metrics_evaluated,
+                    big.impulse_terms,
+                    big.metrics_evaluated
+                );
+                assert!(
+                    c.margin <= big.margin * (1.0 + 1e-9) + 1e-12,
+                    "K = {k}, {fraction}: margin {} above the generous {}",
+                    c.margin,
+                    big.margin
+                );
+                assert!(!c.contains || big.contains, "K = {k}, {fraction}");
+                for (i, (r, r_big)) in d.reach.iter().zip(&big_d.reach).enumerate() {
+                    assert!(
+                        *r >= r_big * (1.0 - 1e-9) || *r >= big_d.upper[i].min(-big_d.lower[i]),
+                        "K = {k}, {fraction}, row {i}: reach {r} below the generous {r_big}"
+                    );
+                }
+            } else {
+                // Refuted: no sound certificate may contain the set, whatever its budget.
+                assert!(!c.contains, "K = {k}, {fraction}: contains a refuted set");
+            }
+            // The generous run's exact steps stop at the witness; a budget whose probe reaches
+            // that step finds it too.
+            if let Some(w) = big
+                .witness
+                .as_ref()
+                .filter(|_| c.exact_steps >= big.exact_steps)
+            {
+                let wc = c.witness.as_ref().expect("the probe finds the witness");
+                assert_eq!(
+                    (wc.row, wc.attained_at),
+                    (w.row, w.attained_at),
+                    "K = {k}, {fraction}"
+                );
+                assert!((wc.attained - w.attained).abs() <= 1e-12 * w.attained.abs());
+                assert_eq!(c.metrics_evaluated, 1, "a refuted K computes one metric");
+                witnessed += 1;
+            }
+        }
+        assert!(computed >= 2, "K = {k}: only {computed} budgets computed");
+        assert_eq!(
+            big.witness.is_some(),
+            witnessed > 0,
+            "K = {k}: the refuted K is refuted under some smaller budget too"
+        );
+    }
+}
+
+/// A step-0 witness refutes every K: t = 0 does not depend on K (the window-0 MHE is solved by
+/// its warm start, the prior, whatever Φ and K). On the stand-in the exact MPC's input
+/// sequence at t = 0 leaves |u| ≤ 1 by a factor above 8 for an admissible prior: the same row
+/// and value at K = 1, 3, 40 and for PG, FISTA and ADMM (to 1e-12), and the K_reg search stops
+/// at its first K with `refuted_every_k`.
+#[test]
+fn a_step_zero_witness_is_the_same_at_every_k_and_ends_the_search() {
+    let res = Scenario::from_file(STAND_IN).unwrap().resolve().unwrap();
+    let ro = RegionalOptions::from_scenario(&res, ControllerChoice::ExactMpc).unwrap();
+    let mut seen: Option<iss_certificate::regional::Limit> = None;
+    for method in [Method::PG, Method::FISTA, Method::ADMM] {
+        for k in [1, 3, 40] {
+            let c = regional_certificate(&res, method, k, &ro).unwrap();
+            let w = c
+                .refuted_at_start
+                .clone()
+                .unwrap_or_else(|| panic!("{method} K = {k}: no step-0 witness"));
+            assert!(w.attained > w.bound && w.row.step == Some(0) && !c.contains);
+            match &seen {
+                None => seen = Some(w),
+                Some(s) => {
+                    assert_eq!(s.row, w.row, "{method} K = {k}");
+                    assert!(
+                        (s.attained - w.attained).abs() <= 1e-12 * s.attained,
+                        "{method} K = {k}: {} against {}",
+                        w.attained,
+                        s.attained
+                    );
+                }
+            }
+        }
+    }
+    let s = seen.unwrap();
+    assert!(s.attained / s.bound > 8.0, "{s:?}");
+    let kr = k_reg(&res, Method::FISTA, &ro, 1 << 10).unwrap();
+    assert_eq!(kr.k_reg, None);
+    assert_eq!(kr.tried.len(), 1, "{:?}", kr.tried);
+    assert_eq!(kr.refuted_every_k.as_ref().map(|l| l.row), Some(s.row));
+}

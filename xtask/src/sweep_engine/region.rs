@@ -272,21 +272,12 @@ fn thresholds_of(
         .unwrap_or_default();
     let mut regional = g.regional;
     regional.sort_unstable();
-    let cheapest_regional = regional
+    // (K_reg, K_c) pairs in the staircase form (K_e, K_c) of `cheapest_pair`.
+    let regional_pairs: Vec<(usize, Option<usize>)> = regional
         .iter()
-        .filter_map(|&(k_c, k_reg)| {
-            k_reg.map(|k_e| Pair {
-                k_e,
-                k_c,
-                cost: cost.of(k_e, k_c),
-            })
-        })
-        .min_by(|a, b| {
-            a.cost
-                .total_cmp(&b.cost)
-                .then(a.k_e.cmp(&b.k_e))
-                .then(a.k_c.cmp(&b.k_c))
-        });
+        .filter_map(|&(k_c, k_reg)| k_reg.map(|k_e| (k_e, Some(k_c))))
+        .collect();
+    let cheapest_regional = cheapest_pair(&regional_pairs, cost);
     PairThresholds {
         regional,
         cheapest_regional,

@@ -46,6 +46,9 @@ pub struct RegionalEntry {
     /// Why there is no K_reg (null when there is one): the void reason, or which constraint
     /// limits the region at the largest K tried and by how much.
     pub void: Option<String>,
+    /// The step-0 row an admissible realization drives past its bound, when one does: no K
+    /// has a region (step 0 does not depend on K; `void` says so).
+    pub refuted_every_k: Option<iss_certificate::regional::Limit>,
 }
 
 /// K_reg ([`xtask::sweep_engine::k_reg_outcome`]) of every method with the scenario's
@@ -109,11 +112,10 @@ pub(super) fn regional_entry(
             })
             .collect(),
         void: o.note,
+        refuted_every_k: o.refuted_every_k,
     }
 }
 
-/// The summary's lines: per method K_lin ≤ K_reg against K_min with the ratios, and why there
-/// is no K_reg where there is none.
 /// The scenario's own controller: the exact MPC, or K_c iterations of `mpc.method` when
 /// `mpc.iterations` is set.
 pub(super) fn scenario_controller(resolved: &ResolvedScenario) -> ControllerChoice {
@@ -132,6 +134,8 @@ fn controller_text(c: ControllerChoice) -> String {
     }
 }
 
+/// The summary's lines: per method K_lin ≤ K_reg against K_min with the ratios, and why there
+/// is no K_reg where there is none.
 pub(super) fn summary(entries: &[RegionalEntry]) -> String {
     use lti_model::numfmt::sig4;
     let mut s = String::new();

@@ -72,6 +72,9 @@ pub struct KRegOutcome {
     /// `certificate.phase_seconds` (or the memory limit). With a K_reg, the bisection below it
     /// was cut short (K_reg is certified, possibly not the smallest).
     pub stopped: Option<String>,
+    /// A row of step t = 0 that an admissible realization drives past its bound: step 0 does
+    /// not depend on K, so no K has a region (checked before the search; `note` says so).
+    pub refuted_every_k: Option<iss_certificate::regional::Limit>,
 }
 
 /// K_reg of `method` ([`k_reg`] up to [`search_max`]`(k_min, n_z)`), with the reason when
@@ -93,6 +96,7 @@ pub fn k_reg_outcome(
         tried: Vec::new(),
         note: None,
         stopped: None,
+        refuted_every_k: None,
     };
     let o = match options {
         Ok(o) => o,
@@ -115,18 +119,7 @@ pub fn k_reg_outcome(
             out.note = match (kr.k_reg, &kr.certificate, kr.void) {
                 (Some(_), _, _) => None,
                 (None, _, _) if kr.refuted_every_k.is_some() => {
-                    let l = kr
-                        .refuted_every_k
-                        .as_ref()
-                        .map(limit_line)
-                        .unwrap_or_default();
-                    Some(format!(
-                        "no K whose region contains the scenario's uncertainty exists: {l}; step \
-                         t = 0 does not depend on K (the MHE's window-0 problem is solved by its \
-                         warm start, the prior, at every K), so this holds at every K (shown at \
-                         K = {})",
-                        out.k.unwrap_or(1)
-                    ))
+                    kr.refuted_every_k.as_ref().map(step_zero_line)
                 }
                 (None, c, _) if kr.stopped.is_some() => Some(format!(
                     "the search stopped before a K whose region contains the scenario's \
@@ -155,6 +148,7 @@ pub fn k_reg_outcome(
                 (None, None, None) => Some("no K was evaluated".into()),
             };
             out.certificate = kr.certificate;
+            out.refuted_every_k = kr.refuted_every_k;
         }
     }
     out
@@ -177,6 +171,21 @@ pub fn row_text(row: &iss_certificate::regional::RowLabel) -> String {
         ),
         RowKind::Input => format!("MPC input/state row {} ({when})", row.index),
     }
+}
+
+/// A step-0 witness in words: it refutes every K.
+fn step_zero_line(l: &Limit) -> String {
+    format!(
+        "no K whose region contains the scenario's uncertainty exists: {} reaches {} against its \
+         bound {} (×{}) for an admissible realization of the set, so a constraint activates at \
+         t = 0; step t = 0 does not depend on K (the MHE's window-0 problem is solved by its \
+         warm start, the prior, at every K), so this holds at every K (step 0 is checked once, \
+         before the search)",
+        row_text(&l.row),
+        sig4(l.attained),
+        sig4(l.bound),
+        sig4(l.attained / l.bound)
+    )
 }
 
 fn limit_line(l: &Limit) -> String {

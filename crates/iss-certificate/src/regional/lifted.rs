@@ -159,7 +159,7 @@ pub(crate) fn matrix(p: &Pieces, k: usize) -> Result<Mat<f64>, LinearError> {
 pub(crate) fn build(p: &Pieces, k: usize) -> Result<RegionalModel, LinearError> {
     let big_m = p.windows.len() - 1;
     let d = p.windows[big_m].layout.dims;
-    let (nx, nu, nw, nw1) = (d.nx, d.nu, d.nw(), d.nw1);
+    let (nx, nw) = (d.nx, d.nw());
     let mut rows = Rows::new();
     let FullWindow {
         layout,
@@ -169,52 +169,16 @@ pub(crate) fn build(p: &Pieces, k: usize) -> Result<RegionalModel, LinearError> 
         e_read,
     } = full_window(p, k, Some(&mut rows))?;
 
-    // ---- t < M on υ = (x₀, x̄₀, w₀..w_{M−1}) ----
+    let StartUp {
+        x,
+        us,
+        ys,
+        xhs,
+        z0,
+        seq_prev,
+        rows: startup_rows,
+    } = startup(p, k, big_m)?;
     let nv = 2 * nx + big_m * nw;
-    let ev = Mat::<f64>::identity(nv, nv);
-    let mut x = rows_of(&ev, 0, nx);
-    let prior = rows_of(&ev, nx, nx);
-    let mut z0 = prior.clone();
-    let (mut us, mut ys, mut xhs) = (Vec::new(), Vec::new(), Vec::new());
-    let mut seq_prev: Option<Mat<f64>> = None;
-    let mut startup_rows = Rows::new();
-    for t in 0..big_m {
-        let ws = &p.windows[t];
-        let lay = ws.layout;
-        let mut th = Mat::<f64>::zeros(lay.n_theta(), nv);
-        set_block(&mut th, 0, &prior);
-        for j in 0..t {
-            set_block(&mut th, lay.u_offset(j), &us[j]);
-            set_block(&mut th, lay.y_offset(j), &ys[j]);
-        }
-        let (zk, xh) = mhe_step(
-            ws,
-            k,
-            z0.as_ref(),
-            th.as_ref(),
-            Some(t),
-            Some(&mut startup_rows),
-        )?;
-        let (u, seq) = control(
-            &p.law,
-            nu,
-            xh.as_ref(),
-            seq_prev.as_ref().map(|m| m.as_ref()),
-            Some(t),
-            Some(&mut startup_rows),
-        )?;
-        seq_prev = seq;
-        let w1 = rows_of(&ev, 2 * nx + t * nw, nw1);
-        let w2 = rows_of(&ev, 2 * nx + t * nw + nw1, nw - nw1);
-        let y = &p.c * &x + &p.f * &w2;
-        x = &p.a * &x + &p.b * &u + &p.e * &w1;
-        let mut next = Mat::<f64>::zeros(p.windows[t + 1].layout.nz(), nv);
-        set_block(&mut next, 0, &zk);
-        z0 = next;
-        us.push(u);
-        ys.push(y);
-        xhs.push(xh);
-    }
     let mut start_map = Mat::<f64>::zeros(layout.dim(), nv);
     set_block(&mut start_map, layout.x(), &x);
     for j in 0..big_m {
@@ -238,4 +202,76 @@ pub(crate) fn build(p: &Pieces, k: usize) -> Result<RegionalModel, LinearError> 
         nx,
         nw,
     })
+}
+
+/// The growing-window steps t < `steps` on υ = (x₀, x̄₀, w₀..w_{M−1}): the state, the
+/// windows' data, the estimates, the warm start and the rows of every step.
+struct StartUp {
+    x: Mat<f64>,
+    us: Vec<Mat<f64>>,
+    ys: Vec<Mat<f64>>,
+    xhs: Vec<Mat<f64>>,
+    z0: Mat<f64>,
+    seq_prev: Option<Mat<f64>>,
+    rows: Rows,
+}
+
+fn startup(p: &Pieces, k: usize, steps: usize) -> Result<StartUp, LinearError> {
+    let big_m = p.horizon;
+    let d = p.windows[0].layout.dims;
+    let (nx, nu, nw, nw1) = (d.nx, d.nu, d.nw(), d.nw1);
+    let nv = 2 * nx + big_m * nw;
+    let ev = Mat::<f64>::identity(nv, nv);
+    let mut x = rows_of(&ev, 0, nx);
+    let prior = rows_of(&ev, nx, nx);
+    let mut z0 = prior.clone();
+    let (mut us, mut ys, mut xhs) = (Vec::new(), Vec::new(), Vec::new());
+    let mut seq_prev: Option<Mat<f64>> = None;
+    let mut rows = Rows::new();
+    for t in 0..steps.min(big_m).min(p.windows.len() - 1) {
+        let ws = &p.windows[t];
+        let lay = ws.layout;
+        let mut th = Mat::<f64>::zeros(lay.n_theta(), nv);
+        set_block(&mut th, 0, &prior);
+        for j in 0..t {
+            set_block(&mut th, lay.u_offset(j), &us[j]);
+            set_block(&mut th, lay.y_offset(j), &ys[j]);
+        }
+        let (zk, xh) = mhe_step(ws, k, z0.as_ref(), th.as_ref(), Some(t), Some(&mut rows))?;
+        let (u, seq) = control(
+            &p.law,
+            nu,
+            xh.as_ref(),
+            seq_prev.as_ref().map(|m| m.as_ref()),
+            Some(t),
+            Some(&mut rows),
+        )?;
+        seq_prev = seq;
+        let w1 = rows_of(&ev, 2 * nx + t * nw, nw1);
+        let w2 = rows_of(&ev, 2 * nx + t * nw + nw1, nw - nw1);
+        let y = &p.c * &x + &p.f * &w2;
+        x = &p.a * &x + &p.b * &u + &p.e * &w1;
+        let mut next = Mat::<f64>::zeros(p.windows[t + 1].layout.nz(), nv);
+        set_block(&mut next, 0, &zk);
+        z0 = next;
+        us.push(u);
+        ys.push(y);
+        xhs.push(xh);
+    }
+    Ok(StartUp {
+        x,
+        us,
+        ys,
+        xhs,
+        z0,
+        seq_prev,
+        rows,
+    })
+}
+
+/// The rows of step t = 0 alone, on υ, at K: the window-0 MHE's inner iterates and the law at
+/// x̂₀. They do not depend on K (the window-0 problem is solved by its warm start, the prior),
+/// so a witness among them refutes every K at the cost of one step.
+pub(crate) fn step_zero_rows(p: &Pieces, k: usize) -> Result<Rows, LinearError> {
+    Ok(startup(p, k, 1)?.rows)
 }

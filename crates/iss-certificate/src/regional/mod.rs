@@ -344,17 +344,16 @@ fn seg(c: &[f64], from: usize, len: usize) -> f64 {
 /// The start-up rows' linear data: for each row (center, coefficient of x0_radius, of
 /// prior_error, of w̄, bound on the side that binds).
 fn startup_terms(
-    model: &RegionalModel,
+    rows: &model::Rows,
+    (nx, nw, big_m): (usize, usize, usize),
     o: &RegionalOptions,
 ) -> Vec<(f64, f64, f64, f64, f64, f64)> {
-    let (nx, nw) = (model.nx, model.nw);
-    let big_m = model.layout.horizon;
-    let mut out = Vec::with_capacity(model.startup_rows.labels.len());
+    let mut out = Vec::with_capacity(rows.labels.len());
     let mut i = 0;
-    for b in &model.startup_rows.blocks {
+    for b in &rows.blocks {
         for r in 0..b.nrows() {
             let c: Vec<f64> = (0..b.ncols()).map(|j| b[(r, j)]).collect();
-            let (l, u) = (model.startup_rows.lower[i], model.startup_rows.upper[i]);
+            let (l, u) = (rows.lower[i], rows.upper[i]);
             i += 1;
             let cxp: Vec<f64> = (0..nx).map(|k| c[k] + c[nx + k]).collect();
             let center: f64 = cxp.iter().zip(&o.x0_nominal).map(|(a, b)| a * b).sum();
@@ -367,6 +366,67 @@ fn startup_terms(
         }
     }
     out
+}
+
+/// The step-0 row that an admissible realization drives past its bound by the largest factor
+/// (`RegionalCertificate::refuted_at_start`), from the start-up rows' terms.
+fn start_witness(
+    rows: &model::Rows,
+    terms: &[(f64, f64, f64, f64, f64, f64)],
+    o: &RegionalOptions,
+) -> Option<Limit> {
+    let mut at_start: Option<Limit> = None;
+    for (i, &(center, ax, ap, aw, l, u)) in terms.iter().enumerate() {
+        let label = rows.labels[i];
+        let dev = o.x0_radius * ax + o.prior_error * ap + o.w_bar * aw;
+        if label.step != Some(0) || !(center + dev > u || center - dev < l) {
+            continue;
+        }
+        // The side an admissible realization passes by the larger factor.
+        let (value, bound) = if (center + dev) / u.abs() >= (dev - center) / l.abs() {
+            (center + dev, u)
+        } else {
+            (dev - center, -l)
+        };
+        if at_start
+            .as_ref()
+            .is_none_or(|a| value / bound > a.attained / a.bound)
+        {
+            at_start = Some(Limit {
+                row: label,
+                bound,
+                reach: value,
+                attained: value,
+                attained_at: 0,
+            });
+        }
+    }
+    at_start
+}
+
+/// The step-0 witness alone (module docs of `search.rs`): the rows of t = 0 at K (any K the
+/// method admits; they do not depend on it) over the user's set.
+pub(crate) fn refuted_at_start(
+    pieces: &model::Pieces,
+    k: usize,
+    o: &RegionalOptions,
+) -> Result<Option<Limit>, RegionalVoid> {
+    check_nominal(pieces, o)?;
+    let rows = lifted::step_zero_rows(pieces, k).map_err(ModelError::from)?;
+    let d = pieces.windows[0].layout.dims;
+    let terms = startup_terms(&rows, (d.nx, d.nw(), pieces.horizon), o);
+    Ok(start_witness(&rows, &terms, o))
+}
+
+fn check_nominal(pieces: &model::Pieces, o: &RegionalOptions) -> Result<(), RegionalVoid> {
+    if o.x0_nominal.len() != pieces.a.nrows() {
+        return Err(RegionalVoid::Options(format!(
+            "x0_nominal has {} entries, the plant {} states",
+            o.x0_nominal.len(),
+            pieces.a.nrows()
+        )));
+    }
+    Ok(())
 }
 
 /// max s ≥ 0 with center ± s·dev inside [l, u] (dev ≥ 0); −∞ if the center is outside.
@@ -451,13 +511,7 @@ fn certify_at(
     o: &RegionalOptions,
     budget: &mut Budget,
 ) -> Result<(RegionalCertificate, RegionalModel, metric::Metric, Vec<f64>), RegionalVoid> {
-    if o.x0_nominal.len() != pieces.a.nrows() {
-        return Err(RegionalVoid::Options(format!(
-            "x0_nominal has {} entries, the plant {} states",
-            o.x0_nominal.len(),
-            pieces.a.nrows()
-        )));
-    }
+    check_nominal(pieces, o)?;
     if k == 0 || pieces.windows.iter().any(|w| k < w.lin.start_steps) {
         return Err(ModelError::from(crate::linear::LinearError::ZeroIterations).into());
     }
@@ -513,38 +567,21 @@ fn certify_at(
     let imp = impulse(&model, imp_terms, o);
 
     // Start-up rows over the user's set (exact: linear in υ).
-    let terms = startup_terms(&model, o);
+    let terms = startup_terms(
+        &model.startup_rows,
+        (model.nx, model.nw, model.layout.horizon),
+        o,
+    );
+    let at_start = start_witness(&model.startup_rows, &terms, o);
     let mut startup_scale = f64::INFINITY;
     let mut startup_limit = None;
     let (mut sx, mut sp, mut sw) = (f64::INFINITY, f64::INFINITY, f64::INFINITY);
     let mut startup_holds = true;
-    let mut at_start: Option<Limit> = None;
     for (i, &(center, ax, ap, aw, l, u)) in terms.iter().enumerate() {
         let dev = o.x0_radius * ax + o.prior_error * ap + o.w_bar * aw;
         let s = scale_limit(center, dev, l, u);
         if center + dev > u || center - dev < l {
             startup_holds = false;
-            let label = model.startup_rows.labels[i];
-            if label.step == Some(0) {
-                // The side an admissible realization passes by the larger factor.
-                let (value, bound) = if (center + dev) / u.abs() >= (dev - center) / l.abs() {
-                    (center + dev, u)
-                } else {
-                    (dev - center, -l)
-                };
-                if at_start
-                    .as_ref()
-                    .is_none_or(|a| value / bound > a.attained / a.bound)
-                {
-                    at_start = Some(Limit {
-                        row: label,
-                        bound,
-                        reach: value,
-                        attained: value,
-                        attained_at: 0,
-                    });
-                }
-            }
         }
         let slack = (u - center).min(center - l);
         let one = |a: f64, rest: f64| {

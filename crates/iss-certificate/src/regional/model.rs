@@ -168,6 +168,8 @@ pub(crate) struct Pieces {
     pub e: Mat<f64>,
     pub f: Mat<f64>,
     pub shifted: bool,
+    /// M (the windows above may stop short of it: [`pieces_upto`]).
+    pub horizon: usize,
 }
 
 pub(crate) fn pieces(
@@ -175,12 +177,23 @@ pub(crate) fn pieces(
     method: qp_iter::Method,
     controller: ControllerChoice,
 ) -> Result<Pieces, ModelError> {
+    pieces_upto(resolved, method, controller, usize::MAX)
+}
+
+/// [`pieces`] with the windows of length 0..=min(`last`, M) only: what the first steps need
+/// (step 0 needs windows 0 and 1), at a fraction of the cost on a long horizon.
+pub(crate) fn pieces_upto(
+    resolved: &ResolvedScenario,
+    method: qp_iter::Method,
+    controller: ControllerChoice,
+    last: usize,
+) -> Result<Pieces, ModelError> {
     let est = resolved
         .estimator(method, 1, false)
         .map_err(|e| ModelError::Linear(LinearError::Build(e)))?;
     let big_m = est.config().horizon;
-    let mut windows = Vec::with_capacity(big_m + 1);
-    for m in 0..=big_m {
+    let mut windows = Vec::with_capacity(big_m.min(last) + 1);
+    for m in 0..=big_m.min(last) {
         let w = est.problem().window(m).ok_or(LinearError::Internal(
             "the MHE has no window of this length",
         ))?;
@@ -321,6 +334,7 @@ pub(crate) fn pieces(
         e: sys.e().to_owned(),
         f: sys.f().to_owned(),
         shifted: matches!(est.config().warm_start, mhe_core::WarmStart::Shifted),
+        horizon: big_m,
     })
 }
 

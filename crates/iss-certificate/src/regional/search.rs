@@ -24,16 +24,19 @@ pub struct KReg {
     pub stopped: Option<String>,
     /// A step-0 row that an admissible realization drives past its bound
     /// ([`RegionalCertificate::refuted_at_start`]): step 0 does not depend on K, so no K has a
-    /// region, and the search ends at the first K that shows it.
+    /// region. It is checked once, before any K (then `certificate` is `None` and `tried`
+    /// empty); a witness found later, inside a K's certificate, ends the search the same way.
     pub refuted_every_k: Option<super::Limit>,
     /// Estimated single-core seconds the search spent (the sum of the estimates of the stages
     /// it ran): a caller running several searches under one budget subtracts it.
     pub spent_seconds: f64,
 }
 
-/// K_reg of `method` (module docs): K = 1, 2, 4, … up to `k_max` until the certificate
+/// K_reg of `method` (module docs). Step t = 0 first: its rows do not depend on K, and a
+/// witness among them (`refuted_every_k`) ends the search before any K is evaluated (no
+/// certificate, nothing tried). Then K = 1, 2, 4, … up to `k_max` until the certificate
 /// contains the user's set, then bisection between the last failing and the first passing
-/// K. A step-0 witness (`refuted_every_k`) ends the search at once: it holds at every K. The margin need not be monotone in K: K_reg is certified (evaluated exactly there) and
+/// K. The margin need not be monotone in K: K_reg is certified (evaluated exactly there) and
 /// is the smallest K found by this search, not a claim about every K above it.
 ///
 /// The whole search shares one budget, `options.phase_seconds`: each evaluation's stages are
@@ -44,26 +47,37 @@ pub fn k_reg(
     options: &RegionalOptions,
     k_max: usize,
 ) -> Result<KReg, RegionalVoid> {
+    let start_of = |p: &model::Pieces| {
+        p.windows
+            .iter()
+            .map(|w| w.lin.start_steps)
+            .max()
+            .unwrap_or(1)
+            .max(1)
+    };
+    let none = |void: Option<String>, stopped: Option<String>, every_k| KReg {
+        k_reg: None,
+        certificate: None,
+        tried: Vec::new(),
+        void,
+        stopped,
+        refuted_every_k: every_k,
+        spent_seconds: 0.0,
+    };
+    // Step 0 first, from the windows of length 0 and 1 alone: its rows are one step's (not
+    // charged to the budget) and do not depend on K, so a witness there ends the search before
+    // any K is evaluated.
+    let first = model::pieces_upto(resolved, method, options.controller, 1)?;
+    let r0 = super::refuted_at_start(&first, start_of(&first), options)?;
+    if let Some(l) = r0 {
+        return Ok(none(None, None, Some(l)));
+    }
     if let Err(e) = Budget::new(options.phase_seconds).check_floor(resolved, 1, options) {
         let why = e.to_string();
-        return Ok(KReg {
-            k_reg: None,
-            certificate: None,
-            tried: Vec::new(),
-            void: Some(why.clone()),
-            stopped: Some(why),
-            refuted_every_k: None,
-            spent_seconds: 0.0,
-        });
+        return Ok(none(Some(why.clone()), Some(why), None));
     }
     let pieces = model::pieces(resolved, method, options.controller)?;
-    let start = pieces
-        .windows
-        .iter()
-        .map(|w| w.lin.start_steps)
-        .max()
-        .unwrap_or(1)
-        .max(1);
+    let start = start_of(&pieces);
     let mut budget = Budget::new(options.phase_seconds);
     let mut tried = Vec::new();
     let mut eval = |k: usize, tried: &mut Vec<(usize, f64)>| {

@@ -178,8 +178,9 @@ fn a_smaller_budget_only_loosens_the_certificate_and_finds_the_same_witness() {
 /// A step-0 witness refutes every K: t = 0 does not depend on K (the window-0 MHE is solved by
 /// its warm start, the prior, whatever Φ and K). On the stand-in the exact MPC's input
 /// sequence at t = 0 leaves |u| ≤ 1 by a factor above 8 for an admissible prior: the same row
-/// and value at K = 1, 3, 40 and for PG, FISTA and ADMM (to 1e-12), and the K_reg search stops
-/// at its first K with `refuted_every_k`.
+/// and value at K = 1, 3, 40 and for PG, FISTA and ADMM (to 1e-12), and the K_reg search
+/// checks step 0 first and ends with `refuted_every_k` (the same row) before any K is
+/// evaluated, for every method, ADMM α = 2 (K_lin = 7) included.
 #[test]
 fn a_step_zero_witness_is_the_same_at_every_k_and_ends_the_search() {
     let res = Scenario::from_file(STAND_IN).unwrap().resolve().unwrap();
@@ -209,8 +210,12 @@ fn a_step_zero_witness_is_the_same_at_every_k_and_ends_the_search() {
     }
     let s = seen.unwrap();
     assert!(s.attained / s.bound > 8.0, "{s:?}");
-    let kr = k_reg(&res, Method::FISTA, &ro, 1 << 10).unwrap();
-    assert_eq!(kr.k_reg, None);
-    assert_eq!(kr.tried.len(), 1, "{:?}", kr.tried);
-    assert_eq!(kr.refuted_every_k.as_ref().map(|l| l.row), Some(s.row));
+    for method in Method::PRESETS.into_iter().chain(Method::JACOBI_PRESETS) {
+        let kr = k_reg(&res, method, &ro, 1 << 10).unwrap();
+        assert_eq!(kr.k_reg, None, "{method}");
+        assert!(kr.tried.is_empty() && kr.certificate.is_none(), "{method}: {:?}", kr.tried);
+        let l = kr.refuted_every_k.as_ref().unwrap();
+        assert_eq!(l.row, s.row, "{method}");
+        assert!((l.attained - s.attained).abs() <= 1e-12 * s.attained, "{method}");
+    }
 }

@@ -119,7 +119,7 @@ pub fn k_reg_outcome(
             out.note = match (kr.k_reg, &kr.certificate, kr.void) {
                 (Some(_), _, _) => None,
                 (None, _, _) if kr.refuted_every_k.is_some() => {
-                    kr.refuted_every_k.as_ref().map(step_zero_line)
+                    kr.refuted_every_k.as_ref().map(k_free_line)
                 }
                 (None, c, _) if kr.stopped.is_some() => Some(format!(
                     "the search stopped before a K whose region contains the scenario's \
@@ -173,18 +173,21 @@ pub fn row_text(row: &iss_certificate::regional::RowLabel) -> String {
     }
 }
 
-/// A step-0 witness in words: it refutes every K.
-fn step_zero_line(l: &Limit) -> String {
+/// A witness on a row that does not depend on K (step 0, or the MHE's first inner iterates
+/// at step 1) in words: it refutes every K.
+fn k_free_line(l: &Limit) -> String {
     format!(
         "no K whose region contains the scenario's uncertainty exists: {} reaches {} against its \
          bound {} (×{}) for an admissible realization of the set, so a constraint activates at \
-         t = 0; step t = 0 does not depend on K (the MHE's window-0 problem is solved by its \
-         warm start, the prior, at every K), so this holds at every K (step 0 is checked once, \
+         t = {}; this row does not depend on K (at t = 0 the MHE's window-0 problem is solved by \
+         its warm start, the prior, at every K; at t = 1 the MHE's first inner iterates start \
+         from that prior with the data of t = 0), so this holds at every K (checked once, \
          before the search)",
         row_text(&l.row),
         sig4(l.attained),
         sig4(l.bound),
-        sig4(l.attained / l.bound)
+        sig4(l.attained / l.bound),
+        l.attained_at
     )
 }
 

@@ -3,7 +3,7 @@
 
 use faer::Mat;
 
-use super::model::{Pieces, Rows, control, mhe_step, shifted_warm_start};
+use super::model::{Pieces, RowKind, Rows, control, mhe_step, shifted_warm_start};
 use crate::linear::{LiftedLayout, LinearError};
 
 /// The loop at one K in the two column spaces.
@@ -269,9 +269,75 @@ fn startup(p: &Pieces, k: usize, steps: usize) -> Result<StartUp, LinearError> {
     })
 }
 
-/// The rows of step t = 0 alone, on υ, at K: the window-0 MHE's inner iterates and the law at
-/// x̂₀. They do not depend on K (the window-0 problem is solved by its warm start, the prior),
-/// so a witness among them refutes every K at the cost of one step.
-pub(crate) fn step_zero_rows(p: &Pieces, k: usize) -> Result<Rows, LinearError> {
-    Ok(startup(p, k, 1)?.rows)
+/// The rows that take the same value at every K ≥ `k` (the first K the method admits), on υ:
+/// every row of step t = 0 (the window-0 problem is solved by its warm start, the prior, so
+/// x̂₀ = x̄₀ at every K), and at t = 1 the MHE's rows of the inner iterates up to `k` (their
+/// warm start, the padded prior, and their data x̄₀, u₀, y₀ come from step 0 alone). The MPC's
+/// rows at t = 1 depend on x̂₁, hence on K, and are left out. A witness among these refutes
+/// every K at the cost of two steps.
+pub(crate) fn k_free_rows(p: &Pieces, k: usize) -> Result<Rows, LinearError> {
+    Ok(startup(p, k, 2)?.rows.retain(|l| {
+        l.step == Some(0)
+            || (l.step == Some(1) && matches!(l.kind, RowKind::MheBox | RowKind::MheGeneral))
+    }))
+}
+
+#[cfg(test)]
+mod tests {
+    use super::*;
+    use closed_loop::scenario::{ControllerChoice, Scenario};
+    use qp_iter::Method;
+
+    /// The rows `k_free_rows` keeps take the same value at every K: the full model's start-up
+    /// rows at three K carry each of them with the same label and coefficients, and step 1's
+    /// MHE rows are among them (the double integrator's 𝒲 box at t = 1 is its witness).
+    #[test]
+    fn k_free_rows_are_the_same_at_every_k() {
+        for (name, method) in [
+            ("double-integrator", Method::PG),
+            ("double-integrator", Method::ADMM_PR),
+            ("case-study-certified", Method::FISTA),
+            ("cart-pendulum", Method::ADMM),
+        ] {
+            let file = format!("{}/../../scenarios/{name}.toml", env!("CARGO_MANIFEST_DIR"));
+            let res = Scenario::from_file(&file).unwrap().resolve().unwrap();
+            let p = super::super::model::pieces(&res, method, ControllerChoice::ExactMpc).unwrap();
+            let start = p
+                .windows
+                .iter()
+                .map(|w| w.lin.start_steps)
+                .max()
+                .unwrap()
+                .max(1);
+            let free = k_free_rows(&p, start).unwrap();
+            assert!(
+                free.labels.iter().any(|l| l.step == Some(1)),
+                "{name} {method}: no step-1 row"
+            );
+            let free_rows = free.to_vecs();
+            for k in [start, start + 3, start + 30] {
+                let m = build(&p, k).unwrap();
+                let all = m.startup_rows.to_vecs();
+                for (i, l) in free.labels.iter().enumerate() {
+                    let j = m
+                        .startup_rows
+                        .labels
+                        .iter()
+                        .position(|x| x == l)
+                        .unwrap_or_else(|| panic!("{name} {method} K = {k}: {l:?} missing"));
+                    let scale = free_rows[i].iter().fold(1.0f64, |a, v| a.max(v.abs()));
+                    for (a, b) in free_rows[i].iter().zip(&all[j]) {
+                        assert!(
+                            (a - b).abs() <= 1e-12 * scale,
+                            "{name} {method} K = {k}: {l:?}: {a} against {b}"
+                        );
+                    }
+                    assert_eq!(
+                        (free.lower[i], free.upper[i]),
+                        (m.startup_rows.lower[j], m.startup_rows.upper[j])
+                    );
+                }
+            }
+        }
+    }
 }

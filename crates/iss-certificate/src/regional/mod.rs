@@ -368,18 +368,19 @@ fn startup_terms(
     out
 }
 
-/// The step-0 row that an admissible realization drives past its bound by the largest factor
-/// (`RegionalCertificate::refuted_at_start`), from the start-up rows' terms.
+/// The start-up row accepted by `keep` that an admissible realization drives past its bound by
+/// the largest factor, from the start-up rows' terms.
 fn start_witness(
     rows: &model::Rows,
     terms: &[(f64, f64, f64, f64, f64, f64)],
     o: &RegionalOptions,
+    keep: impl Fn(&RowLabel) -> bool,
 ) -> Option<Limit> {
     let mut at_start: Option<Limit> = None;
     for (i, &(center, ax, ap, aw, l, u)) in terms.iter().enumerate() {
         let label = rows.labels[i];
         let dev = o.x0_radius * ax + o.prior_error * ap + o.w_bar * aw;
-        if label.step != Some(0) || !(center + dev > u || center - dev < l) {
+        if !keep(&label) || !(center + dev > u || center - dev < l) {
             continue;
         }
         // The side an admissible realization passes by the larger factor.
@@ -397,25 +398,26 @@ fn start_witness(
                 bound,
                 reach: value,
                 attained: value,
-                attained_at: 0,
+                attained_at: label.step.unwrap_or(0),
             });
         }
     }
     at_start
 }
 
-/// The step-0 witness alone (module docs of `search.rs`): the rows of t = 0 at K (any K the
-/// method admits; they do not depend on it) over the user's set.
+/// A witness among the rows that do not depend on K (`lifted::k_free_rows`: step 0, and the
+/// MHE's first inner iterates at step 1), at `k` = the first K the method admits: it refutes
+/// every K.
 pub(crate) fn refuted_at_start(
     pieces: &model::Pieces,
     k: usize,
     o: &RegionalOptions,
 ) -> Result<Option<Limit>, RegionalVoid> {
     check_nominal(pieces, o)?;
-    let rows = lifted::step_zero_rows(pieces, k).map_err(ModelError::from)?;
+    let rows = lifted::k_free_rows(pieces, k).map_err(ModelError::from)?;
     let d = pieces.windows[0].layout.dims;
     let terms = startup_terms(&rows, (d.nx, d.nw(), pieces.horizon), o);
-    Ok(start_witness(&rows, &terms, o))
+    Ok(start_witness(&rows, &terms, o, |_| true))
 }
 
 fn check_nominal(pieces: &model::Pieces, o: &RegionalOptions) -> Result<(), RegionalVoid> {
@@ -572,7 +574,7 @@ fn certify_at(
         (model.nx, model.nw, model.layout.horizon),
         o,
     );
-    let at_start = start_witness(&model.startup_rows, &terms, o);
+    let at_start = start_witness(&model.startup_rows, &terms, o, |l| l.step == Some(0));
     let mut startup_scale = f64::INFINITY;
     let mut startup_limit = None;
     let (mut sx, mut sp, mut sw) = (f64::INFINITY, f64::INFINITY, f64::INFINITY);

@@ -86,6 +86,29 @@ impl Rows {
             self.labels.push(label(i));
         }
     }
+    /// The rows whose label `keep` accepts, in order.
+    pub fn retain(&self, keep: impl Fn(&RowLabel) -> bool) -> Self {
+        let mut out = Self::new();
+        let mut i = 0;
+        for b in &self.blocks {
+            let picked: Vec<usize> = (0..b.nrows())
+                .filter(|&r| keep(&self.labels[i + r]))
+                .collect();
+            if !picked.is_empty() {
+                out.blocks
+                    .push(Mat::from_fn(picked.len(), b.ncols(), |r, c| {
+                        b[(picked[r], c)]
+                    }));
+                for &r in &picked {
+                    out.lower.push(self.lower[i + r]);
+                    out.upper.push(self.upper[i + r]);
+                    out.labels.push(self.labels[i + r]);
+                }
+            }
+            i += b.nrows();
+        }
+        out
+    }
     /// Every row as a vector (for checks; allocates).
     pub fn to_vecs(&self) -> Vec<Vec<f64>> {
         self.blocks

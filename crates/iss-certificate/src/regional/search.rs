@@ -22,19 +22,20 @@ pub struct KReg {
     /// means the bisection below it was cut short (K_reg is still certified, possibly not the
     /// smallest); without, that no K beyond the last one tried was evaluated.
     pub stopped: Option<String>,
-    /// A step-0 row that an admissible realization drives past its bound
-    /// ([`RegionalCertificate::refuted_at_start`]): step 0 does not depend on K, so no K has a
-    /// region. It is checked once, before any K (then `certificate` is `None` and `tried`
-    /// empty); a witness found later, inside a K's certificate, ends the search the same way.
+    /// A row that does not depend on K — of step 0, or of the MHE's first inner iterates at
+    /// step 1 — that an admissible realization drives past its bound: no K has a region. These
+    /// rows are checked once, before any K (then `certificate` is `None` and `tried` empty); a
+    /// step-0 witness found later inside a K's certificate
+    /// ([`RegionalCertificate::refuted_at_start`]) ends the search the same way.
     pub refuted_every_k: Option<super::Limit>,
     /// Estimated single-core seconds the search spent (the sum of the estimates of the stages
     /// it ran): a caller running several searches under one budget subtracts it.
     pub spent_seconds: f64,
 }
 
-/// K_reg of `method` (module docs). Step t = 0 first: its rows do not depend on K, and a
-/// witness among them (`refuted_every_k`) ends the search before any K is evaluated (no
-/// certificate, nothing tried). Then K = 1, 2, 4, … up to `k_max` until the certificate
+/// K_reg of `method` (module docs). The rows that do not depend on K first (step 0, and the
+/// MHE's first inner iterates at step 1): a witness among them (`refuted_every_k`) ends the
+/// search before any K is evaluated (no certificate, nothing tried). Then K = 1, 2, 4, … up to `k_max` until the certificate
 /// contains the user's set, then bisection between the last failing and the first passing
 /// K. The margin need not be monotone in K: K_reg is certified (evaluated exactly there) and
 /// is the smallest K found by this search, not a claim about every K above it.
@@ -64,10 +65,10 @@ pub fn k_reg(
         refuted_every_k: every_k,
         spent_seconds: 0.0,
     };
-    // Step 0 first, from the windows of length 0 and 1 alone: its rows are one step's (not
-    // charged to the budget) and do not depend on K, so a witness there ends the search before
-    // any K is evaluated.
-    let first = model::pieces_upto(resolved, method, options.controller, 1)?;
+    // The rows that do not depend on K first (step 0, and the MHE's first inner iterates at
+    // step 1), from the windows of length 0..=2 alone: two steps' rows (not charged to the
+    // budget), so a witness there ends the search before any K is evaluated.
+    let first = model::pieces_upto(resolved, method, options.controller, 2)?;
     let r0 = super::refuted_at_start(&first, start_of(&first), options)?;
     if let Some(l) = r0 {
         return Ok(none(None, None, Some(l)));

@@ -49,6 +49,8 @@ pub struct RegionalEntry {
     /// The step-0 row an admissible realization drives past its bound, when one does: no K
     /// has a region (step 0 does not depend on K; `void` says so).
     pub refuted_every_k: Option<iss_certificate::regional::Limit>,
+    /// The scenario's uncertainty the search was for (null when it has none: `void` says why).
+    pub uncertainty: Option<RegionalOptions>,
 }
 
 /// K_reg ([`xtask::sweep_engine::k_reg_outcome`]) of every method with the scenario's
@@ -113,6 +115,7 @@ pub(super) fn regional_entry(
             .collect(),
         void: o.note,
         refuted_every_k: o.refuted_every_k,
+        uncertainty: options.as_ref().ok().cloned(),
     }
 }
 
@@ -149,16 +152,10 @@ pub(super) fn summary(entries: &[RegionalEntry]) -> String {
          searched up to K_min; K_lin ≤ K_reg (K_lin is necessary), against Theorem 1's K_min",
         entries
             .iter()
-            .find_map(|e| e
-                .certificate
-                .as_ref()
-                .map(|c| controller_text(c.options.controller)))
+            .find_map(|e| e.uncertainty.as_ref().map(|o| controller_text(o.controller)))
             .unwrap_or_else(|| "the scenario's controller".into())
     );
-    if let Some(o) = entries
-        .iter()
-        .find_map(|e| e.certificate.as_ref().map(|c| &c.options))
-    {
+    if let Some(o) = entries.iter().find_map(|e| e.uncertainty.as_ref()) {
         let _ = writeln!(
             s,
             "  uncertainty: ‖x₀ − x₀_nominal‖ ≤ {}, prior error ≤ {}, w̄ = {}",
@@ -175,6 +172,7 @@ pub(super) fn summary(entries: &[RegionalEntry]) -> String {
     for e in entries {
         let reg = match e.k_reg {
             Some(r) => r.to_string(),
+            None if e.refuted_every_k.is_some() => "none at any K".into(),
             None if e.tried.is_empty() => "none".into(),
             None => format!("none ≤ {}", e.search_max),
         };

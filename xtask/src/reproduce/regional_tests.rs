@@ -86,9 +86,10 @@ fn k_reg_is_the_library_search_between_k_lin_and_k_min() {
     }
 }
 
-/// The stand-in's own uncertainty (x₀ = (12, −10, 10, −10), prior error 10.9, w̄ = 0.22) is
-/// in no region, at any K: at t = 0 the exact MPC's input from an admissible prior leaves its
-/// box, and t = 0 does not depend on K, so the search ends before any K is evaluated and the
+/// The stand-in's own uncertainty (x₀ = (12, −10, 10, −10), prior error 10.39, w̄ = 0.2236) is
+/// in no region, at any K: at t = 1 the MHE's first inner iterate, which does not depend on K,
+/// takes a 𝒲 component past its box (×73) under an admissible realization (and at t = 0 the
+/// exact MPC's input leaves its box), so the search ends before any K is evaluated and the
 /// entry names the row, by how much, and that it holds at every K; a void uncertainty (Gaussian noise without `certificate.w_bar`) keeps its reason.
 #[test]
 fn no_k_reg_carries_its_reason() {
@@ -101,14 +102,15 @@ fn no_k_reg_carries_its_reason() {
     let why = e.void.as_deref().unwrap();
     assert!(
         why.contains("no K whose region contains the scenario's uncertainty exists")
-            && why.contains("start-up step t = 0")
+            && why.contains("start-up step t = 1")
             && why.contains("against its bound")
             && why.contains("so this holds at every K (checked once, before the search)"),
         "{why}"
     );
     let text = summary(std::slice::from_ref(&e));
-    assert!(text.contains("K_reg = none ≤ 42"), "{text}");
+    assert!(text.contains("K_reg = none at any K"), "{text}");
     assert!(text.contains("holds at every K"), "{text}");
+    assert!(text.contains("uncertainty: ‖x₀ − x₀_nominal‖ ≤ 0, prior error ≤ 10.39, w̄ = 0.2236"), "{text}");
 
     let void = Err(iss_certificate::regional::RegionalVoid::UnboundedNoise);
     let e = regional_entry(&res, Method::ADMM, &void, Some(89), None);

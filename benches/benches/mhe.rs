@@ -374,7 +374,8 @@ fn k_reg_search(
             out.note = match (kr.k_reg, &kr.stopped, &kr.void, &kr.certificate) {
                 (Some(_), ..) => None,
                 (None, ..) if kr.refuted_every_k.is_some() => Some(format!(
-                    "a step-0 witness refutes every K (step 0 does not depend on K){at}{}",
+                    "a witness on a row free of K (t = 0, or the MHE's first inner iterates at \
+                     t = 1) refutes every K{}",
                     kr.refuted_every_k
                         .as_ref()
                         .map_or(String::new(), witness_text)

@@ -152,7 +152,10 @@ pub(super) fn summary(entries: &[RegionalEntry]) -> String {
          searched up to K_min; K_lin ≤ K_reg (K_lin is necessary), against Theorem 1's K_min",
         entries
             .iter()
-            .find_map(|e| e.uncertainty.as_ref().map(|o| controller_text(o.controller)))
+            .find_map(|e| e
+                .uncertainty
+                .as_ref()
+                .map(|o| controller_text(o.controller)))
             .unwrap_or_else(|| "the scenario's controller".into())
     );
     if let Some(o) = entries.iter().find_map(|e| e.uncertainty.as_ref()) {

@@ -110,7 +110,10 @@ fn no_k_reg_carries_its_reason() {
     let text = summary(std::slice::from_ref(&e));
     assert!(text.contains("K_reg = none at any K"), "{text}");
     assert!(text.contains("holds at every K"), "{text}");
-    assert!(text.contains("uncertainty: ‖x₀ − x₀_nominal‖ ≤ 0, prior error ≤ 10.39, w̄ = 0.2236"), "{text}");
+    assert!(
+        text.contains("uncertainty: ‖x₀ − x₀_nominal‖ ≤ 0, prior error ≤ 10.39, w̄ = 0.2236"),
+        "{text}"
+    );
 
     let void = Err(iss_certificate::regional::RegionalVoid::UnboundedNoise);
     let e = regional_entry(&res, Method::ADMM, &void, Some(89), None);

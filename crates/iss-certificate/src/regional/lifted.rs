@@ -284,6 +284,7 @@ pub(crate) fn k_free_rows(p: &Pieces, k: usize) -> Result<Rows, LinearError> {
 
 #[cfg(test)]
 mod tests {
+    #![allow(clippy::unwrap_used)]
     use super::*;
     use closed_loop::scenario::{ControllerChoice, Scenario};
     use qp_iter::Method;

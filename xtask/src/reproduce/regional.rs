@@ -49,6 +49,10 @@ pub struct RegionalEntry {
     /// The step-0 row an admissible realization drives past its bound, when one does: no K
     /// has a region (step 0 does not depend on K; `void` says so).
     pub refuted_every_k: Option<iss_certificate::regional::Limit>,
+    /// What the rows free of K (t = 0, the MHE's first inner iterates at t = 1) allow at any K:
+    /// `{scale, max_x0_radius, max_prior_error, max_w_bar}`; no K's region contains a set
+    /// beyond it (null: the search did not run).
+    pub k_free: Option<iss_certificate::regional::KFreeLimits>,
     /// The scenario's uncertainty the search was for (null when it has none: `void` says why).
     pub uncertainty: Option<RegionalOptions>,
 }
@@ -115,6 +119,7 @@ pub(super) fn regional_entry(
             .collect(),
         void: o.note,
         refuted_every_k: o.refuted_every_k,
+        k_free: o.k_free,
         uncertainty: options.as_ref().ok().cloned(),
     }
 }

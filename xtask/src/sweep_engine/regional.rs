@@ -9,7 +9,7 @@
 
 use closed_loop::scenario::ResolvedScenario;
 use iss_certificate::regional::{
-    Limit, RegionalCertificate, RegionalOptions, RegionalVoid, RowKind, k_reg,
+    KFreeLimits, Limit, RegionalCertificate, RegionalOptions, RegionalVoid, RowKind, k_reg,
 };
 use lti_model::numfmt::sig4;
 use qp_iter::Method;
@@ -75,6 +75,9 @@ pub struct KRegOutcome {
     /// A row of step t = 0 that an admissible realization drives past its bound: step 0 does
     /// not depend on K, so no K has a region (checked before the search; `note` says so).
     pub refuted_every_k: Option<iss_certificate::regional::Limit>,
+    /// What the rows free of K allow at any K (null: the search did not run): no K's region
+    /// contains a set beyond it.
+    pub k_free: Option<iss_certificate::regional::KFreeLimits>,
 }
 
 /// K_reg of `method` ([`k_reg`] up to [`search_max`]`(k_min, n_z)`), with the reason when
@@ -97,6 +100,7 @@ pub fn k_reg_outcome(
         note: None,
         stopped: None,
         refuted_every_k: None,
+        k_free: None,
     };
     let o = match options {
         Ok(o) => o,
@@ -118,9 +122,10 @@ pub fn k_reg_outcome(
             out.stopped = kr.stopped.clone();
             out.note = match (kr.k_reg, &kr.certificate, kr.void) {
                 (Some(_), _, _) => None,
-                (None, _, _) if kr.refuted_every_k.is_some() => {
-                    kr.refuted_every_k.as_ref().map(k_free_line)
-                }
+                (None, _, _) if kr.refuted_every_k.is_some() => kr
+                    .refuted_every_k
+                    .as_ref()
+                    .map(|l| k_free_line(l, &kr.k_free, o)),
                 (None, c, _) if kr.stopped.is_some() => Some(format!(
                     "the search stopped before a K whose region contains the scenario's \
                      uncertainty{}: {}{}",
@@ -149,6 +154,7 @@ pub fn k_reg_outcome(
             };
             out.certificate = kr.certificate;
             out.refuted_every_k = kr.refuted_every_k;
+            out.k_free = Some(kr.k_free);
         }
     }
     out
@@ -175,19 +181,40 @@ pub fn row_text(row: &iss_certificate::regional::RowLabel) -> String {
 
 /// A witness on a row that does not depend on K (step 0, or the MHE's first inner iterates
 /// at step 1) in words: it refutes every K.
-fn k_free_line(l: &Limit) -> String {
+fn k_free_line(l: &Limit, k_free: &KFreeLimits, o: &RegionalOptions) -> String {
+    let at_most = |v: f64, yours: f64, what: &str| {
+        if v.is_finite() {
+            format!("{what} ≤ {} (yours {})", sig4(v), sig4(yours))
+        } else {
+            format!("any {what}")
+        }
+    };
     format!(
         "no K whose region contains the scenario's uncertainty exists: {} reaches {} against its \
          bound {} (×{}) for an admissible realization of the set, so a constraint activates at \
          t = {}; this row does not depend on K (at t = 0 the MHE's window-0 problem is solved by \
          its warm start, the prior, at every K; at t = 1 the MHE's first inner iterates start \
          from that prior with the data of t = 0), so this holds at every K (checked once, \
-         before the search)",
+         before the search). {}",
         row_text(&l.row),
         sig4(l.attained),
         sig4(l.bound),
         sig4(l.attained / l.bound),
-        l.attained_at
+        l.attained_at,
+        if k_free.scale > 0.0 {
+            format!(
+                "The rows free of K admit your set scaled by {} at most, or one radius at a time \
+                 with the others at yours: {}, {}, {}",
+                sig4(k_free.scale),
+                at_most(k_free.max_prior_error, o.prior_error, "prior error"),
+                at_most(k_free.max_x0_radius, o.x0_radius, "x₀ radius"),
+                at_most(k_free.max_w_bar, o.w_bar, "w̄"),
+            )
+        } else {
+            "The nominal point alone (x₀ nominal, the prior exact, w = 0) takes a row free of K \
+             past its bound: no smaller uncertainty helps"
+                .to_string()
+        }
     )
 }
 

@@ -368,6 +368,81 @@ fn startup_terms(
     out
 }
 
+/// The start-up rows over the user's set: whether all hold, the largest scale of the set that
+/// keeps them within their bounds with its binding row, and the largest single radius (the
+/// other two at the user's values).
+struct StartupCheck {
+    holds: bool,
+    scale: f64,
+    limit: Option<Limit>,
+    max_x: f64,
+    max_p: f64,
+    max_w: f64,
+}
+
+fn startup_check(
+    rows: &model::Rows,
+    terms: &[(f64, f64, f64, f64, f64, f64)],
+    o: &RegionalOptions,
+) -> StartupCheck {
+    let mut c = StartupCheck {
+        holds: true,
+        scale: f64::INFINITY,
+        limit: None,
+        max_x: f64::INFINITY,
+        max_p: f64::INFINITY,
+        max_w: f64::INFINITY,
+    };
+    for (i, &(center, ax, ap, aw, l, u)) in terms.iter().enumerate() {
+        let dev = o.x0_radius * ax + o.prior_error * ap + o.w_bar * aw;
+        let s = scale_limit(center, dev, l, u);
+        if center + dev > u || center - dev < l {
+            c.holds = false;
+        }
+        let slack = (u - center).min(center - l);
+        // The largest radius with coefficient a, the rest of the set fixed: a row that does
+        // not depend on it (a = 0) limits nothing if it holds and everything if it does not.
+        let one = |a: f64, rest: f64| {
+            if slack < 0.0 {
+                f64::NEG_INFINITY
+            } else {
+                reach::ratio_limit(slack - rest, a)
+            }
+        };
+        c.max_x = c.max_x.min(one(ax, o.prior_error * ap + o.w_bar * aw));
+        c.max_p = c.max_p.min(one(ap, o.x0_radius * ax + o.w_bar * aw));
+        c.max_w = c.max_w.min(one(aw, o.x0_radius * ax + o.prior_error * ap));
+        if s < c.scale {
+            c.scale = s;
+            let reach = center.abs() + dev;
+            let label = rows.labels[i];
+            c.limit = Some(Limit {
+                row: label,
+                bound: if center >= 0.0 { u } else { -l },
+                reach,
+                attained: reach,
+                attained_at: label.step.unwrap_or(0),
+            });
+        }
+    }
+    c
+}
+
+/// What the rows free of K (t = 0, the MHE's first inner iterates at t = 1) allow at any K:
+/// no K's region can contain a set beyond these (necessary, not sufficient).
+#[derive(Debug, Clone, PartialEq, Serialize)]
+pub struct KFreeLimits {
+    /// The largest factor s such that (s·x0_radius, s·prior_error, s·w̄) keeps every row free
+    /// of K within its bound (∞: any; 0: the nominal point alone passes one).
+    pub scale: f64,
+    /// The largest x0_radius with the user's prior_error and w̄ (0: none).
+    pub max_x0_radius: f64,
+    /// The largest prior_error with the user's x0_radius and w̄.
+    pub max_prior_error: f64,
+    /// The largest w̄ with the user's x0_radius and prior_error.
+    pub max_w_bar: f64,
+}
+
 /// The start-up row accepted by `keep` that an admissible realization drives past its bound by
 /// the largest factor, from the start-up rows' terms.
 fn start_witness(
@@ -412,12 +487,20 @@ pub(crate) fn refuted_at_start(
     pieces: &model::Pieces,
     k: usize,
     o: &RegionalOptions,
-) -> Result<Option<Limit>, RegionalVoid> {
+) -> Result<(Option<Limit>, KFreeLimits), RegionalVoid> {
     check_nominal(pieces, o)?;
     let rows = lifted::k_free_rows(pieces, k).map_err(ModelError::from)?;
     let d = pieces.windows[0].layout.dims;
     let terms = startup_terms(&rows, (d.nx, d.nw(), pieces.horizon), o);
-    Ok(start_witness(&rows, &terms, o, |_| true))
+    let c = startup_check(&rows, &terms, o);
+    let clamp = |v: f64| if v.is_nan() { 0.0 } else { v.max(0.0) };
+    let limits = KFreeLimits {
+        scale: clamp(c.scale),
+        max_x0_radius: clamp(c.max_x),
+        max_prior_error: clamp(c.max_p),
+        max_w_bar: clamp(c.max_w),
+    };
+    Ok((start_witness(&rows, &terms, o, |_| true), limits))
 }
 
 fn check_nominal(pieces: &model::Pieces, o: &RegionalOptions) -> Result<(), RegionalVoid> {
@@ -575,42 +658,14 @@ fn certify_at(
         o,
     );
     let at_start = start_witness(&model.startup_rows, &terms, o, |l| l.step == Some(0));
-    let mut startup_scale = f64::INFINITY;
-    let mut startup_limit = None;
-    let (mut sx, mut sp, mut sw) = (f64::INFINITY, f64::INFINITY, f64::INFINITY);
-    let mut startup_holds = true;
-    for (i, &(center, ax, ap, aw, l, u)) in terms.iter().enumerate() {
-        let dev = o.x0_radius * ax + o.prior_error * ap + o.w_bar * aw;
-        let s = scale_limit(center, dev, l, u);
-        if center + dev > u || center - dev < l {
-            startup_holds = false;
-        }
-        let slack = (u - center).min(center - l);
-        let one = |a: f64, rest: f64| {
-            if slack < 0.0 {
-                f64::NEG_INFINITY
-            } else if a > 0.0 {
-                (slack - rest) / a
-            } else {
-                f64::INFINITY
-            }
-        };
-        sx = sx.min(one(ax, o.prior_error * ap + o.w_bar * aw));
-        sp = sp.min(one(ap, o.x0_radius * ax + o.w_bar * aw));
-        sw = sw.min(one(aw, o.x0_radius * ax + o.prior_error * ap));
-        if s < startup_scale {
-            startup_scale = s;
-            let reach = center.abs() + dev;
-            let label = model.startup_rows.labels[i];
-            startup_limit = Some(Limit {
-                row: label,
-                bound: if center >= 0.0 { u } else { -l },
-                reach,
-                attained: reach,
-                attained_at: label.step.unwrap_or(0),
-            });
-        }
-    }
+    let StartupCheck {
+        holds: startup_holds,
+        scale: startup_scale,
+        limit: startup_limit,
+        max_x: sx,
+        max_p: sp,
+        max_w: sw,
+    } = startup_check(&model.startup_rows, &terms, o);
     // A witness (an admissible realization past a bound) refutes the set at this K whatever
     // the metric: one candidate then gives the certificate's figures, the others are skipped.
     let refuted = !startup_holds || free_refutes(&model, &free);

@@ -28,6 +28,8 @@ pub struct KReg {
     /// step-0 witness found later inside a K's certificate
     /// ([`RegionalCertificate::refuted_at_start`]) ends the search the same way.
     pub refuted_every_k: Option<super::Limit>,
+    /// What the rows free of K allow at any K: no K's region contains a set beyond it.
+    pub k_free: super::KFreeLimits,
     /// Estimated single-core seconds the search spent (the sum of the estimates of the stages
     /// it ran): a caller running several searches under one budget subtracts it.
     pub spent_seconds: f64,
@@ -56,6 +58,11 @@ pub fn k_reg(
             .unwrap_or(1)
             .max(1)
     };
+    // The rows that do not depend on K first (step 0, and the MHE's first inner iterates at
+    // step 1), from the windows of length 0..=2 alone: two steps' rows (not charged to the
+    // budget), so a witness there ends the search before any K is evaluated.
+    let first = model::pieces_upto(resolved, method, options.controller, 2)?;
+    let (witness, k_free) = super::refuted_at_start(&first, start_of(&first), options)?;
     let none = |void: Option<String>, stopped: Option<String>, every_k| KReg {
         k_reg: None,
         certificate: None,
@@ -63,14 +70,10 @@ pub fn k_reg(
         void,
         stopped,
         refuted_every_k: every_k,
+        k_free: k_free.clone(),
         spent_seconds: 0.0,
     };
-    // The rows that do not depend on K first (step 0, and the MHE's first inner iterates at
-    // step 1), from the windows of length 0..=2 alone: two steps' rows (not charged to the
-    // budget), so a witness there ends the search before any K is evaluated.
-    let first = model::pieces_upto(resolved, method, options.controller, 2)?;
-    let r0 = super::refuted_at_start(&first, start_of(&first), options)?;
-    if let Some(l) = r0 {
+    if let Some(l) = witness {
         return Ok(none(None, None, Some(l)));
     }
     if let Err(e) = Budget::new(options.phase_seconds).check_floor(resolved, 1, options) {
@@ -142,6 +145,7 @@ pub fn k_reg(
             void,
             stopped,
             refuted_every_k,
+            k_free: k_free.clone(),
             spent_seconds: budget.total - budget.left,
         });
     };
@@ -169,6 +173,7 @@ pub fn k_reg(
         void: None,
         stopped,
         refuted_every_k: None,
+        k_free: k_free.clone(),
         spent_seconds: budget.total - budget.left,
     })
 }

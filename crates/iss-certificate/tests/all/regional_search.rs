@@ -236,3 +236,76 @@ fn a_step_zero_witness_is_the_same_at_every_k_and_ends_the_search() {
         assert_eq!(l.attained_at, l.row.step.unwrap());
     }
 }
+
+/// `KReg::k_free` is exact for the rows free of K: on the free quadrotor and the double
+/// integrator (refuted at every K by the MHE's first iterate at t = 1: their prior error against
+/// the noise box), the prior error it reports, times 0.99, leaves no row free of K past its
+/// bound (the search goes on to evaluate K), and times 1.01 is refuted again; the same for the
+/// joint scale of the set. On the stand-in the nominal point alone passes one (the exact MPC's
+/// input at t = 0 from x₀ = (12, −10, 10, −10) leaves |u| ≤ 1): every limit is 0.
+#[test]
+fn the_k_free_limits_are_where_the_refutation_starts() {
+    let res = Scenario::from_file(STAND_IN).unwrap().resolve().unwrap();
+    let ro = RegionalOptions::from_scenario(&res, ControllerChoice::ExactMpc).unwrap();
+    let kr = k_reg(&res, Method::PG, &ro, 2).unwrap();
+    assert!(kr.refuted_every_k.is_some());
+    assert_eq!(
+        (kr.k_free.scale, kr.k_free.max_prior_error),
+        (0.0, 0.0),
+        "{:?}",
+        kr.k_free
+    );
+    for (name, method) in [
+        ("quadrotor-free", Method::PG),
+        ("quadrotor-free", Method::ADMM_PR),
+        ("double-integrator", Method::FISTA),
+    ] {
+        let file = format!("{}/../../scenarios/{name}.toml", env!("CARGO_MANIFEST_DIR"));
+        let res = Scenario::from_file(&file).unwrap().resolve().unwrap();
+        let ro = RegionalOptions::from_scenario(&res, ControllerChoice::ExactMpc).unwrap();
+        let kr = k_reg(&res, method, &ro, 2).unwrap();
+        assert!(kr.refuted_every_k.is_some(), "{name} {method}");
+        let lim = kr.k_free.clone();
+        assert!(
+            lim.scale < 1.0 && lim.scale > 0.0,
+            "{name} {method}: {lim:?}"
+        );
+        assert!(
+            lim.max_prior_error < ro.prior_error,
+            "{name} {method}: {lim:?}"
+        );
+        // Prior error alone (the other radii the user's), then the whole set scaled.
+        let prior = |f: f64| RegionalOptions {
+            prior_error: lim.max_prior_error * f,
+            ..ro.clone()
+        };
+        let scaled = |f: f64| RegionalOptions {
+            prior_error: ro.prior_error * lim.scale * f,
+            x0_radius: ro.x0_radius * lim.scale * f,
+            w_bar: ro.w_bar * lim.scale * f,
+            ..ro.clone()
+        };
+        let mut cases: Vec<(&str, &dyn Fn(f64) -> RegionalOptions)> = vec![("scale", &scaled)];
+        if lim.max_prior_error > 0.0 {
+            cases.push(("prior error", &prior));
+        } else {
+            // A row free of K that the prior does not reach is past its bound at the user's
+            // x₀ radius and w̄: an exact prior is refuted too.
+            let exact = k_reg(&res, method, &prior(0.0), 2).unwrap();
+            assert!(exact.refuted_every_k.is_some(), "{name} {method}");
+        }
+        for (what, o_of) in cases {
+            let below = k_reg(&res, method, &o_of(0.99), 2).unwrap();
+            assert!(
+                below.refuted_every_k.is_none() && !below.tried.is_empty(),
+                "{name} {method} {what} ×0.99: {:?}",
+                below.refuted_every_k
+            );
+            let above = k_reg(&res, method, &o_of(1.01), 2).unwrap();
+            assert!(
+                above.refuted_every_k.is_some(),
+                "{name} {method} {what} ×1.01"
+            );
+        }
+    }
+}

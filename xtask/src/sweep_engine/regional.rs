@@ -182,12 +182,40 @@ pub fn row_text(row: &iss_certificate::regional::RowLabel) -> String {
 /// A witness on a row that does not depend on K (step 0, or the MHE's first inner iterates
 /// at step 1) in words: it refutes every K.
 fn k_free_line(l: &Limit, k_free: &KFreeLimits, o: &RegionalOptions) -> String {
-    let at_most = |v: f64, yours: f64, what: &str| {
+    // One radius at a time, the others at the user's; a radius the user left at 0 that stays
+    // at 0 says nothing and is left out.
+    let radii: Vec<String> = [
+        (k_free.max_prior_error, o.prior_error, "prior error"),
+        (k_free.max_x0_radius, o.x0_radius, "x₀ radius"),
+        (k_free.max_w_bar, o.w_bar, "w̄"),
+    ]
+    .into_iter()
+    .filter(|&(v, yours, _)| yours > 0.0 || v > 0.0)
+    .map(|(v, yours, what)| {
         if v.is_finite() {
             format!("{what} ≤ {} (yours {})", sig4(v), sig4(yours))
         } else {
             format!("any {what}")
         }
+    })
+    .collect();
+    let admits = if k_free.scale > 0.0 {
+        format!(
+            "The rows free of K admit your set scaled by {} at most{}",
+            sig4(k_free.scale),
+            if radii.is_empty() {
+                String::new()
+            } else {
+                format!(
+                    ", or one radius at a time with the others at yours: {}",
+                    radii.join(", ")
+                )
+            }
+        )
+    } else {
+        "The nominal point alone (x₀ nominal, the prior exact, w = 0) takes a row free of K past \
+         its bound: no smaller uncertainty helps"
+            .to_string()
     };
     format!(
         "no K whose region contains the scenario's uncertainty exists: {} reaches {} against its \
@@ -195,26 +223,12 @@ fn k_free_line(l: &Limit, k_free: &KFreeLimits, o: &RegionalOptions) -> String {
          t = {}; this row does not depend on K (at t = 0 the MHE's window-0 problem is solved by \
          its warm start, the prior, at every K; at t = 1 the MHE's first inner iterates start \
          from that prior with the data of t = 0), so this holds at every K (checked once, \
-         before the search). {}",
+         before the search). {admits}",
         row_text(&l.row),
         sig4(l.attained),
         sig4(l.bound),
         sig4(l.attained / l.bound),
         l.attained_at,
-        if k_free.scale > 0.0 {
-            format!(
-                "The rows free of K admit your set scaled by {} at most, or one radius at a time \
-                 with the others at yours: {}, {}, {}",
-                sig4(k_free.scale),
-                at_most(k_free.max_prior_error, o.prior_error, "prior error"),
-                at_most(k_free.max_x0_radius, o.x0_radius, "x₀ radius"),
-                at_most(k_free.max_w_bar, o.w_bar, "w̄"),
-            )
-        } else {
-            "The nominal point alone (x₀ nominal, the prior exact, w = 0) takes a row free of K \
-             past its bound: no smaller uncertainty helps"
-                .to_string()
-        }
     )
 }
 

@@ -480,10 +480,10 @@ fn start_witness(
     at_start
 }
 
-/// A witness among the rows that do not depend on K (`lifted::k_free_rows`: step 0, and the
-/// MHE's first inner iterates at step 1), at `k` = the first K the method admits: it refutes
-/// every K.
-pub(crate) fn refuted_at_start(
+/// The rows that do not depend on K (`lifted::k_free_rows`: step 0, and the MHE's first inner
+/// iterates at step 1), built at `k` = the first K the method admits, over the user's set: the
+/// witness among them (it refutes every K) and the largest set they admit ([`KFreeLimits`]).
+pub(crate) fn k_free_check(
     pieces: &model::Pieces,
     k: usize,
     o: &RegionalOptions,

@@ -62,7 +62,7 @@ pub fn k_reg(
     // step 1), from the windows of length 0..=2 alone: two steps' rows (not charged to the
     // budget), so a witness there ends the search before any K is evaluated.
     let first = model::pieces_upto(resolved, method, options.controller, 2)?;
-    let (witness, k_free) = super::refuted_at_start(&first, start_of(&first), options)?;
+    let (witness, k_free) = super::k_free_check(&first, start_of(&first), options)?;
     let none = |void: Option<String>, stopped: Option<String>, every_k| KReg {
         k_reg: None,
         certificate: None,

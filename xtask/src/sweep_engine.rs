@@ -99,7 +99,7 @@ pub use region::{
     pair_thresholds_markdown, staircase, staircase_text, up_set,
 };
 pub use regional::{
-    KRegOutcome, REGIONAL_MAX_K_NZ, REGIONAL_SEARCH_CAP, RegionalEntry, RegionalPlan,
+    KRegOutcome, ProbeNote, REGIONAL_MAX_K_NZ, REGIONAL_SEARCH_CAP, RegionalEntry, RegionalPlan,
     RegionalSearch, RegionalSide, k_reg_outcome, limit_text, row_text, search_max, theorem1_k_min,
     window_size,
 };

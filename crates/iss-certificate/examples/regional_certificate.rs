@@ -12,7 +12,7 @@
 use closed_loop::scenario::{ControllerChoice, LoopOptions, Scenario};
 use iss_certificate::linear::linear_stability;
 use iss_certificate::linear::log_spaced;
-use iss_certificate::regional::{RegionalOptions, k_reg, regional_certificate};
+use iss_certificate::regional::{RegionalOptions, k_reg_probing, regional_certificate};
 use qp_iter::Method;
 
 fn main() -> Result<(), Box<dyn std::error::Error>> {
@@ -37,7 +37,7 @@ fn main() -> Result<(), Box<dyn std::error::Error>> {
         let k_lin = linear_stability(&resolved, &o, &grid, faer::Par::Seq)
             .ok()
             .and_then(|r| r.k_lin);
-        let kr = k_reg(&resolved, method, &ro, k_max)?;
+        let kr = k_reg_probing(&resolved, method, &ro, k_max, k_lin.map(|k| 2 * k))?;
         let dt = t0.elapsed().as_secs_f64();
         println!(
             "\n## {method}: K_lin = {k_lin:?}, K_reg = {:?} ({dt:.1} s)",
@@ -48,6 +48,15 @@ fn main() -> Result<(), Box<dyn std::error::Error>> {
         }
         if let Some(v) = &kr.void {
             println!("void at the largest K tried: {v}");
+        }
+        if let Some(p) = &kr.probe {
+            match &p.certificate {
+                Some(c) => println!(
+                    "at 2·K_lin = {}: contains = {}, margin = {:.4e}, witness: {:?}",
+                    p.k, c.contains, c.margin, c.witness
+                ),
+                None => println!("at 2·K_lin = {}: void: {:?}", p.k, p.void),
+            }
         }
         let tried: Vec<String> = kr
             .tried

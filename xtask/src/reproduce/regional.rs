@@ -6,7 +6,7 @@
 
 use super::*;
 use iss_certificate::regional::{RegionalCertificate, RegionalOptions, RegionalVoid};
-use xtask::sweep_engine::{k_reg_outcome, window_size};
+use xtask::sweep_engine::{ProbeNote, k_reg_outcome, window_size};
 
 /// One K the search evaluated.
 #[derive(Debug, Clone, Serialize)]
@@ -55,6 +55,10 @@ pub struct RegionalEntry {
     pub k_free: Option<iss_certificate::regional::KFreeLimits>,
     /// The scenario's uncertainty the search was for (null when it has none: `void` says why).
     pub uncertainty: Option<RegionalOptions>,
+    /// The certificate at K = 2·K_lin, the target, when the search evaluated it (it
+    /// asks for it as a bisection point: `iss_certificate::regional::k_reg_probing`): with
+    /// K_reg above 2·K_lin, which row limits the region there and by how much.
+    pub at_two_k_lin: Option<ProbeNote>,
 }
 
 /// K_reg ([`xtask::sweep_engine::k_reg_outcome`]) of every method with the scenario's
@@ -98,7 +102,14 @@ pub(super) fn regional_entry(
     k_min: Option<usize>,
     k_lin: Option<usize>,
 ) -> RegionalEntry {
-    let o = k_reg_outcome(resolved, method, options, k_min, window_size(resolved));
+    let o = k_reg_outcome(
+        resolved,
+        method,
+        options,
+        k_min,
+        window_size(resolved),
+        k_lin.map(|k| 2 * k),
+    );
     RegionalEntry {
         solver: method.name().into_owned(),
         k_lin,
@@ -121,6 +132,7 @@ pub(super) fn regional_entry(
         refuted_every_k: o.refuted_every_k,
         k_free: o.k_free,
         uncertainty: options.as_ref().ok().cloned(),
+        at_two_k_lin: o.probe,
     }
 }
 
@@ -196,6 +208,11 @@ pub(super) fn summary(entries: &[RegionalEntry]) -> String {
             ratio(e.k_reg, e.k_lin),
             ratio(e.k_min, e.k_lin),
         );
+        if let (Some(r), Some(l), Some(p)) = (e.k_reg, e.k_lin, &e.at_two_k_lin) {
+            if r > 2 * l && !p.contains {
+                let _ = writeln!(s, "      not at 2·K_lin = {}: {}", p.k, p.note);
+            }
+        }
         match (&e.certificate, &e.void) {
             (Some(c), None) => {
                 let _ = writeln!(

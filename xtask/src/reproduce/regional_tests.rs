@@ -135,3 +135,48 @@ fn the_search_cap_is_k_min_or_the_documented_cap() {
     assert_eq!(k, REGIONAL_MAX_K_NZ / 14);
     assert!(why.contains("K_min = 140227"), "{why}");
 }
+
+/// K_reg above 2·K_lin, the target, says why: the entry carries the certificate at
+/// 2·K_lin (`at_two_k_lin`, from `iss_certificate::regional::k_reg_probing`) and the summary
+/// names the row an admissible realization drives past its bound there. The cart-pendulum's
+/// FISTA-Jacobi: K_lin = 1, K_reg ≥ 13, and at K = 2 a 𝒲 component of the MHE's box leaves
+/// it. With K_reg ≤ 2·K_lin (PG-Jacobi's 112 ≤ 170 on cart-pendulum-regional) no line is
+/// printed, and without K_lin nothing is probed.
+#[test]
+fn k_reg_above_twice_k_lin_names_the_row_that_limits_the_region_there() {
+    let res = Scenario::from_file(concat!(
+        env!("CARGO_MANIFEST_DIR"),
+        "/../scenarios/cart-pendulum.toml"
+    ))
+    .unwrap()
+    .resolve()
+    .unwrap();
+    let o = RegionalOptions::from_scenario(&res, ControllerChoice::ExactMpc);
+    let fj = Method::JACOBI_PRESETS[1];
+    let e = regional_entry(&res, fj, &o, Some(64), Some(1));
+    let k_reg = e.k_reg.unwrap_or_else(|| panic!("{:?}", e.void));
+    assert!(k_reg > 2, "{k_reg}");
+    let p = e.at_two_k_lin.as_ref().expect("K = 2 was evaluated");
+    assert_eq!((p.k, p.contains), (2, false));
+    assert!(
+        p.note.contains("drives a row past its bound")
+            && p.note.contains("MHE box")
+            && p.note.contains("so a constraint activates"),
+        "{}",
+        p.note
+    );
+    let text = summary(std::slice::from_ref(&e));
+    assert!(
+        text.contains(&format!("not at 2·K_lin = 2: {}", p.note)),
+        "{text}"
+    );
+    // K_reg ≤ 2·K_lin: the same entry with K_lin = K_reg prints no such line.
+    let within = RegionalEntry {
+        k_lin: Some(k_reg),
+        ..e.clone()
+    };
+    assert!(!summary(std::slice::from_ref(&within)).contains("not at 2·K_lin"));
+    let unprobed = regional_entry(&res, fj, &o, Some(64), None);
+    assert!(unprobed.at_two_k_lin.is_none());
+    assert_eq!(unprobed.k_reg, e.k_reg);
+}

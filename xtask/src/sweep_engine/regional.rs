@@ -9,7 +9,7 @@
 
 use closed_loop::scenario::ResolvedScenario;
 use iss_certificate::regional::{
-    KFreeLimits, Limit, RegionalCertificate, RegionalOptions, RegionalVoid, RowKind, k_reg,
+    KFreeLimits, Limit, RegionalCertificate, RegionalOptions, RegionalVoid, RowKind, k_reg_probing,
 };
 use lti_model::numfmt::sig4;
 use qp_iter::Method;
@@ -78,16 +78,35 @@ pub struct KRegOutcome {
     /// What the rows free of K allow at any K (null: the search did not run): no K's region
     /// contains a set beyond it.
     pub k_free: Option<iss_certificate::regional::KFreeLimits>,
+    /// The certificate at the probe K (`reproduce`: 2·K_lin) when the search evaluated it.
+    pub probe: Option<ProbeNote>,
 }
 
-/// K_reg of `method` ([`k_reg`] up to [`search_max`]`(k_min, n_z)`), with the reason when
-/// there is none. `options` is the scenario's uncertainty (or why it has none).
+/// What the regional certificate says at one K the caller asked about (`reproduce` asks
+/// about 2·K_lin, the issue's target): whether its region contains the scenario's set, and
+/// which row limits it there and by how much.
+#[derive(Debug, Clone, PartialEq, Serialize)]
+pub struct ProbeNote {
+    /// The K.
+    pub k: usize,
+    /// The region at K contains the scenario's uncertainty.
+    pub contains: bool,
+    /// The largest certified scale of the scenario's set at K (null: void there).
+    pub margin: Option<f64>,
+    /// The limiting row(s) and the certified scale, or the void reason.
+    pub note: String,
+}
+
+/// K_reg of `method` ([`k_reg_probing`] up to [`search_max`]`(k_min, n_z)`), with the reason
+/// when there is none. `options` is the scenario's uncertainty (or why it has none); `probe`
+/// a K to explain (2·K_lin in `reproduce`; None: the plain search).
 pub fn k_reg_outcome(
     resolved: &ResolvedScenario,
     method: Method,
     options: &Result<RegionalOptions, RegionalVoid>,
     k_min: Option<usize>,
     n_z: usize,
+    probe: Option<usize>,
 ) -> KRegOutcome {
     let (search_max, search_max_reason) = search_max(k_min, n_z);
     let mut out = KRegOutcome {
@@ -101,6 +120,7 @@ pub fn k_reg_outcome(
         stopped: None,
         refuted_every_k: None,
         k_free: None,
+        probe: None,
     };
     let o = match options {
         Ok(o) => o,
@@ -109,7 +129,7 @@ pub fn k_reg_outcome(
             return out;
         }
     };
-    match k_reg(resolved, method, o, search_max) {
+    match k_reg_probing(resolved, method, o, search_max, probe) {
         Err(e) => out.note = Some(e.to_string()),
         Ok(kr) => {
             out.k_reg = kr.k_reg;
@@ -155,6 +175,28 @@ pub fn k_reg_outcome(
             out.certificate = kr.certificate;
             out.refuted_every_k = kr.refuted_every_k;
             out.k_free = Some(kr.k_free);
+            out.probe = kr.probe.map(|p| match (&p.certificate, p.void) {
+                (Some(c), _) => ProbeNote {
+                    k: p.k,
+                    contains: c.contains,
+                    margin: Some(c.margin),
+                    note: if c.contains {
+                        format!(
+                            "the region contains the scenario's uncertainty ({}× of it is \
+                             certified)",
+                            sig4(c.margin)
+                        )
+                    } else {
+                        probe_text(c)
+                    },
+                },
+                (None, v) => ProbeNote {
+                    k: p.k,
+                    contains: false,
+                    margin: None,
+                    note: format!("void: {}", v.unwrap_or_default()),
+                },
+            });
         }
     }
     out
@@ -265,6 +307,25 @@ fn limit_line(l: &Limit) -> String {
         sig4(l.reach),
         sig4(l.bound)
     )
+}
+
+/// Why the region at a probed K does not contain the set, shortest first: the witness (a
+/// constraint an admissible realization activates), else [`limit_text`].
+fn probe_text(c: &RegionalCertificate) -> String {
+    match &c.witness {
+        Some(w) if w.bound > 0.0 => format!(
+            "an admissible realization of the set drives a row past its bound: {} reaches {} \
+             at t = {} against its bound {} (×{}), so a constraint activates and no region \
+             without active constraints contains the set at K = {}",
+            row_text(&w.row),
+            sig4(w.attained),
+            w.attained_at,
+            sig4(w.bound),
+            sig4(w.attained / w.bound),
+            c.k
+        ),
+        _ => limit_text(c),
+    }
 }
 
 /// What keeps a certificate's region from containing the user's set: every limiting row
@@ -475,7 +536,14 @@ impl RegionalPlan {
         k_min: Option<usize>,
     ) -> (Option<usize>, String) {
         let s = &self.searches[i];
-        let out = k_reg_outcome(resolved, s.solver, &s.options, k_min, window_size(resolved));
+        let out = k_reg_outcome(
+            resolved,
+            s.solver,
+            &s.options,
+            k_min,
+            window_size(resolved),
+            None,
+        );
         (
             out.k_reg,
             super::format::csv_text(out.note.as_deref().unwrap_or("")),

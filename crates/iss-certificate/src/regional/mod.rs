@@ -39,7 +39,7 @@ use serde::Serialize;
 
 pub use cost::{RegionalEstimate, estimate};
 pub use model::{ModelError, RowKind, RowLabel};
-pub use search::{KReg, k_reg};
+pub use search::{KReg, Probe, k_reg, k_reg_probing};
 
 use crate::linear::spectral_radius;
 use candidate::{Candidate, evaluate, impulse};

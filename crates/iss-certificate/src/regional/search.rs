@@ -33,6 +33,21 @@ pub struct KReg {
     /// Estimated single-core seconds the search spent (the sum of the estimates of the stages
     /// it ran): a caller running several searches under one budget subtracts it.
     pub spent_seconds: f64,
+    /// The outcome at the probe K of [`k_reg_probing`] (say 2·K_lin) when the search
+    /// evaluated it: the certificate there says which row limits the region at that K and by
+    /// how much, which is why K_reg is above it when the set is not contained.
+    pub probe: Option<Probe>,
+}
+
+/// The regional certificate at a K the caller asked about ([`k_reg_probing`]).
+#[derive(Debug, Clone, PartialEq, Serialize)]
+pub struct Probe {
+    /// The K.
+    pub k: usize,
+    /// The certificate at K (None: void there, `void` says why).
+    pub certificate: Option<RegionalCertificate>,
+    /// Why there is no certificate at K.
+    pub void: Option<String>,
 }
 
 /// K_reg of `method` (module docs). The rows that do not depend on K first (step 0, and the
@@ -49,6 +64,41 @@ pub fn k_reg(
     method: qp_iter::Method,
     options: &RegionalOptions,
     k_max: usize,
+) -> Result<KReg, RegionalVoid> {
+    k_reg_probing(resolved, method, options, k_max, None)
+}
+
+/// [`k_reg`] that also answers "why not at K = `probe`?" (the issue's question is K_reg ≤
+/// 2·K_lin). After the search, a probe below K_reg (or up to `k_max` when there is none) that
+/// was not tried is evaluated on a budget of its own, `options.phase_seconds` again (so a
+/// probed search may spend up to twice it): one evaluation more than [`k_reg`], which runs
+/// first and unchanged. The margin need not be monotone in K, so the
+/// probe can contain the set where larger K's did not; below a K_reg it then becomes K_reg
+/// and the bisection runs again below it. The certificate at the probe, whenever the search
+/// evaluated it (also as a power of two or a midpoint), is kept in [`KReg::probe`].
+///
+/// ```no_run
+/// # fn main() -> Result<(), Box<dyn std::error::Error>> {
+/// use iss_certificate::regional::{RegionalOptions, k_reg_probing};
+/// let resolved = closed_loop::scenario::Scenario::from_file("scenarios/cart-pendulum-regional.toml")?
+///     .resolve()?;
+/// let ctrl = closed_loop::scenario::ControllerChoice::ExactMpc;
+/// let options = RegionalOptions::from_scenario(&resolved, ctrl)?;
+/// let k_lin = 19; // K_lin of FISTA on this plant (reproduce's `linear[]`)
+/// let kr = k_reg_probing(&resolved, qp_iter::Method::FISTA, &options, 5896, Some(2 * k_lin))?;
+/// if let Some(p) = &kr.probe {
+///     let contains = p.certificate.as_ref().is_some_and(|c| c.contains);
+///     println!("at K = {}: contains the set: {contains}", p.k);
+/// }
+/// # Ok(())
+/// # }
+/// ```
+pub fn k_reg_probing(
+    resolved: &ResolvedScenario,
+    method: qp_iter::Method,
+    options: &RegionalOptions,
+    k_max: usize,
+    probe: Option<usize>,
 ) -> Result<KReg, RegionalVoid> {
     let start_of = |p: &model::Pieces| {
         p.windows
@@ -72,6 +122,7 @@ pub fn k_reg(
         refuted_every_k: every_k,
         k_free: k_free.clone(),
         spent_seconds: 0.0,
+        probe: None,
     };
     if let Some(l) = witness {
         return Ok(none(None, None, Some(l)));
@@ -83,11 +134,25 @@ pub fn k_reg(
     let pieces = model::pieces(resolved, method, options.controller)?;
     let start = start_of(&pieces);
     let mut budget = Budget::new(options.phase_seconds);
+    // The probe's own budget (the search's is not shared with it: its results are as
+    // without a probe).
+    let mut probe_budget = Budget::new(options.phase_seconds);
     let mut tried = Vec::new();
-    let mut eval = |k: usize, tried: &mut Vec<(usize, f64)>| {
-        let r = certify_at(&pieces, method, k, options, &mut budget).map(|r| r.0);
+    let mut at_probe = None;
+    let eval = |k: usize,
+                tried: &mut Vec<(usize, f64)>,
+                at_probe: &mut Option<Probe>,
+                budget: &mut Budget| {
+        let r = certify_at(&pieces, method, k, options, budget).map(|r| r.0);
         if let Err(e @ (RegionalVoid::OverBudget { .. } | RegionalVoid::OverMemory { .. })) = r {
             return Err(e.to_string());
+        }
+        if probe == Some(k) {
+            *at_probe = Some(Probe {
+                k,
+                certificate: r.as_ref().ok().cloned(),
+                void: r.as_ref().err().map(ToString::to_string),
+            });
         }
         tried.push((
             k,
@@ -101,14 +166,13 @@ pub fn k_reg(
         ));
         Ok(r)
     };
-    let mut lo = start - 1; // not certified (or below the first K)
     let mut k = start;
     let mut last = None;
     let mut found = None;
     let mut stopped = None;
     let mut refuted_every_k = None;
     loop {
-        let r = match eval(k, &mut tried) {
+        let r = match eval(k, &mut tried, &mut at_probe, &mut budget) {
             Ok(r) => r,
             Err(why) => {
                 stopped = Some(why);
@@ -128,8 +192,24 @@ pub fn k_reg(
         if k >= k_max {
             break;
         }
-        lo = k;
         k = (k * 2).min(k_max);
+    }
+    // The probe, when the bracketing skipped it: the margin need not be monotone, so a K
+    // below the last failing one is not known to fail. It runs after the search on its own
+    // budget; over it, it is left out (`KReg::probe` stays None).
+    let unprobed = |tried: &[(usize, f64)], upper: usize| {
+        probe.filter(|&p| p >= start && p < upper && !tried.iter().any(|t| t.0 == p))
+    };
+    if found.is_none() && refuted_every_k.is_none() && stopped.is_none() {
+        // No K of the doubling contains the set: the probe may (then the bisection below
+        // runs under it).
+        if let Some(p) = unprobed(&tried, k_max + 1) {
+            if let Ok(r) = eval(p, &mut tried, &mut at_probe, &mut probe_budget) {
+                if r.as_ref().is_ok_and(|c| c.contains) {
+                    found = Some((p, r));
+                }
+            }
+        }
     }
     let Some((mut hi, mut best)) = found else {
         let (certificate, void) = match last {
@@ -146,23 +226,38 @@ pub fn k_reg(
             stopped,
             refuted_every_k,
             k_free: k_free.clone(),
-            spent_seconds: budget.total - budget.left,
+            spent_seconds: budget.total - budget.left + probe_budget.total - probe_budget.left,
+            probe: at_probe,
         });
     };
-    while hi - lo > 1 {
-        let mid = lo + (hi - lo) / 2;
-        let r = match eval(mid, &mut tried) {
-            Ok(r) => r,
-            Err(why) => {
-                stopped = Some(why);
-                break;
+    loop {
+        // Every K tried below the bracket top failed (the probe may sit below the last one).
+        let mut lo = tried
+            .iter()
+            .map(|t| t.0)
+            .filter(|&t| t < hi)
+            .max()
+            .unwrap_or(start - 1);
+        while hi - lo > 1 && stopped.is_none() {
+            let mid = lo + (hi - lo) / 2;
+            match eval(mid, &mut tried, &mut at_probe, &mut budget) {
+                Ok(r) if r.as_ref().is_ok_and(|c| c.contains) => {
+                    hi = mid;
+                    best = r;
+                }
+                Ok(_) => lo = mid,
+                Err(why) => stopped = Some(why),
             }
+        }
+        let Some(p) = unprobed(&tried, hi).filter(|_| stopped.is_none()) else {
+            break;
         };
-        if r.as_ref().is_ok_and(|c| c.contains) {
-            hi = mid;
-            best = r;
-        } else {
-            lo = mid;
+        match eval(p, &mut tried, &mut at_probe, &mut probe_budget) {
+            Ok(r) if r.as_ref().is_ok_and(|c| c.contains) => {
+                hi = p;
+                best = r;
+            }
+            _ => break,
         }
     }
     tried.sort_by_key(|t| t.0);
@@ -174,6 +269,7 @@ pub fn k_reg(
         stopped,
         refuted_every_k: None,
         k_free: k_free.clone(),
-        spent_seconds: budget.total - budget.left,
+        spent_seconds: budget.total - budget.left + probe_budget.total - probe_budget.left,
+        probe: at_probe,
     })
 }

@@ -309,3 +309,63 @@ fn the_k_free_limits_are_where_the_refutation_starts() {
         }
     }
 }
+
+/// `k_reg_probing` answers "why not at K = probe?" without changing the search: the same K's
+/// with the same margins as `k_reg`, plus the probe evaluated on its own budget. On the
+/// cart-pendulum's FISTA-Jacobi (K_reg 13 or 16 by the budget) a probe at K = 3, below K_reg
+/// and not a K the search tries, is refuted by a witness: an admissible realization drives a
+/// row past its bound there, the same witness the certificate at K = 3 alone finds. A probe
+/// above K_reg is not evaluated (unless the search tried it), and a probe is never below the
+/// first K.
+#[test]
+fn a_probe_says_why_k_reg_is_above_it_and_leaves_the_search_as_it_was() {
+    use iss_certificate::regional::k_reg_probing;
+    let res = Scenario::from_file(concat!(
+        env!("CARGO_MANIFEST_DIR"),
+        "/../../scenarios/cart-pendulum.toml"
+    ))
+    .unwrap()
+    .resolve()
+    .unwrap();
+    let ro = RegionalOptions::from_scenario(&res, ControllerChoice::ExactMpc).unwrap();
+    let fj = Method::JACOBI_PRESETS[1];
+    let plain = k_reg(&res, fj, &ro, 64).unwrap();
+    let k_reg_found = plain
+        .k_reg
+        .expect("FISTA-Jacobi has a K_reg on the cart-pendulum");
+    assert!(k_reg_found > 3, "{plain:?}");
+    assert!(plain.tried.iter().all(|t| t.0 != 3), "{:?}", plain.tried);
+    let probed = k_reg_probing(&res, fj, &ro, 64, Some(3)).unwrap();
+    assert_eq!(probed.k_reg, plain.k_reg);
+    assert_eq!(probed.certificate, plain.certificate);
+    let without_probe: Vec<(usize, f64)> =
+        probed.tried.iter().copied().filter(|t| t.0 != 3).collect();
+    assert_eq!(
+        format!("{without_probe:?}"),
+        format!("{:?}", plain.tried),
+        "the search's own K's and margins"
+    );
+    let p = probed
+        .probe
+        .as_ref()
+        .expect("the probe at K = 3 was evaluated");
+    assert_eq!(p.k, 3);
+    let c = p.certificate.as_ref().unwrap();
+    assert!(!c.contains && c.k == 3, "{c:?}");
+    let w = c.witness.as_ref().expect("a witness refutes K = 3");
+    assert!(w.attained > w.bound, "{w:?}");
+    let alone = regional_certificate(&res, fj, 3, &ro).unwrap();
+    assert_eq!(
+        alone.witness.as_ref().map(|l| (l.row, l.attained_at)),
+        Some((w.row, w.attained_at))
+    );
+    assert!(probed.spent_seconds > plain.spent_seconds);
+    // Above K_reg: the search's answer stands, the probe is not evaluated.
+    let above = k_reg_probing(&res, fj, &ro, 64, Some(k_reg_found + 5)).unwrap();
+    assert_eq!(above.k_reg, plain.k_reg);
+    assert!(above.probe.is_none(), "{:?}", above.probe);
+    // A probe the search tries anyway (a power of two below K_reg) is kept at no cost.
+    let two = k_reg_probing(&res, fj, &ro, 64, Some(2)).unwrap();
+    assert_eq!(two.probe.as_ref().map(|p| p.k), Some(2));
+    assert_eq!(two.spent_seconds, plain.spent_seconds);
+}

@@ -208,8 +208,9 @@ pub(super) fn summary(entries: &[RegionalEntry]) -> String {
             ratio(e.k_reg, e.k_lin),
             ratio(e.k_min, e.k_lin),
         );
-        if let (Some(r), Some(l), Some(p)) = (e.k_reg, e.k_lin, &e.at_two_k_lin) {
-            if r > 2 * l && !p.contains {
+        // Why not K_reg ≤ 2·K_lin (the target), when the search evaluated 2·K_lin.
+        if let (Some(l), Some(p)) = (e.k_lin, &e.at_two_k_lin) {
+            if e.k_reg.is_none_or(|r| r > 2 * l) && !p.contains {
                 let _ = writeln!(s, "      not at 2·K_lin = {}: {}", p.k, p.note);
             }
         }

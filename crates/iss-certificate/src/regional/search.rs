@@ -196,11 +196,12 @@ pub fn k_reg_probing(
     }
     // The probe, when the bracketing skipped it: the margin need not be monotone, so a K
     // below the last failing one is not known to fail. It runs after the search on its own
-    // budget; over it, it is left out (`KReg::probe` stays None).
+    // budget (also when the search's budget ran out); over it, it is left out (`KReg::probe`
+    // stays None).
     let unprobed = |tried: &[(usize, f64)], upper: usize| {
         probe.filter(|&p| p >= start && p < upper && !tried.iter().any(|t| t.0 == p))
     };
-    if found.is_none() && refuted_every_k.is_none() && stopped.is_none() {
+    if found.is_none() && refuted_every_k.is_none() {
         // No K of the doubling contains the set: the probe may (then the bisection below
         // runs under it).
         if let Some(p) = unprobed(&tried, k_max + 1) {
@@ -249,7 +250,7 @@ pub fn k_reg_probing(
                 Err(why) => stopped = Some(why),
             }
         }
-        let Some(p) = unprobed(&tried, hi).filter(|_| stopped.is_none()) else {
+        let Some(p) = unprobed(&tried, hi) else {
             break;
         };
         match eval(p, &mut tried, &mut at_probe, &mut probe_budget) {

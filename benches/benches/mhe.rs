@@ -55,7 +55,7 @@ use benches::case_study::{CaseStudyQps, EPS, MHE_PRESETS, MheInstance, certified
 use benches::{FixedLayout, FixedMatVec, Timing, Variant, dist, interleave};
 use closed_loop::scenario::{ControllerChoice, LoopOptions, ResolvedScenario};
 use iss_certificate::certificate::{CertificateOptions, certify_closed_loop};
-use iss_certificate::regional::{Limit, RegionalOptions, k_reg};
+use iss_certificate::regional::{Limit, RegionalOptions, k_reg, search_max};
 use qp_iter::kernel::{AlignedVec, Kernel, PaddedSymmetric};
 use qp_iter::method::{Method, MethodMap, Scaling};
 use qp_iter::reference::{ReferenceSettings, ReferenceSolver};
@@ -87,13 +87,6 @@ const MHE_WORK: f64 = 5e9;
 const STEP_WORK: f64 = 2000.0 * 29.0 * 29.0;
 /// Multiply-adds per batch of the MHE-step rows, at least one step per batch.
 const MHE_BATCH_WORK: f64 = 20.0 * 130.0 * 29.0 * 29.0;
-
-/// The K_reg search's bounds, as `xtask::sweep_engine::search_max` sets them for
-/// `reproduce` (xtask is no dependency of this crate): up to K_min, or this K when Theorem 1
-/// gives none ...
-const REGIONAL_SEARCH_CAP: usize = 2000;
-/// ... and never beyond K·n_z = this (the region's rows grow with K·n_z).
-const REGIONAL_MAX_K_NZ: usize = 200_000;
 
 /// Rounds of the interleaved timing: 200 for the small presets; at n > 100 (M = 50, where
 /// a round takes seconds) fewer.
@@ -332,7 +325,7 @@ fn witness_text(w: &Limit) -> String {
 
 /// K_reg of `method` as `reproduce` searches it, so the bench times the K it reports: the
 /// scenario's own uncertainty and controller, `certificate.phase_seconds` split evenly over
-/// `share` methods, K up to min(K_min or [`REGIONAL_SEARCH_CAP`], ⌊[`REGIONAL_MAX_K_NZ`]/n_z⌋).
+/// `share` methods, K up to `iss_certificate::regional::search_max` (the cap `reproduce` uses).
 fn k_reg_search(
     resolved: &ResolvedScenario,
     method: Method,
@@ -340,10 +333,7 @@ fn k_reg_search(
     n_z: usize,
     share: usize,
 ) -> KRegSearch {
-    let k_max = k_min
-        .unwrap_or(REGIONAL_SEARCH_CAP)
-        .min(REGIONAL_MAX_K_NZ / n_z.max(1))
-        .max(1);
+    let k_max = search_max(k_min, n_z).0;
     let started = std::time::Instant::now();
     let controller = LoopOptions::from_scenario(resolved.scenario())
         .map_or(ControllerChoice::ExactMpc, |o| o.controller);

@@ -1,6 +1,7 @@
 //! K_reg of one method as `reproduce` and the sweep report it (issue 27): the search of
-//! [`iss_certificate::regional::k_reg`] with the bound this crate puts on it, and the text
-//! that says why there is no K_reg — which constraint limits the region, by how much.
+//! [`iss_certificate::regional::k_reg`] under the library's cap ([`search_max`], re-exported
+//! here; the bench uses the same), and the text that says why there is no K_reg — which
+//! constraint limits the region, by how much.
 //!
 //! The search tries K = 1, 2, 4, … then bisects, up to [`search_max`]: the method's K_min
 //! when Theorem 1 gives one (a K_reg above K_min adds nothing: the global certificate
@@ -15,38 +16,7 @@ use lti_model::numfmt::sig4;
 use qp_iter::Method;
 use serde::Serialize;
 
-/// Largest K·n_z the K_reg search evaluates: the region's rows (every pre-projection point
-/// of all K inner iterates of every window) grow with K·n_z, and the cart-pendulum's PG at
-/// K_min = 140 227 needed more than 24 GB.
-pub const REGIONAL_MAX_K_NZ: usize = 200_000;
-
-/// Largest K the K_reg search tries when Theorem 1 gives no K_min: the top of the linear
-/// analysis' default grid (`reproduce` computes ρ_lin on 1 … max(2000, K_min)).
-pub const REGIONAL_SEARCH_CAP: usize = 2000;
-
-/// The largest K the search of a method tries, and why that K: min(K_min or
-/// [`REGIONAL_SEARCH_CAP`], ⌊[`REGIONAL_MAX_K_NZ`]/n_z⌋), at least 1.
-pub fn search_max(k_min: Option<usize>, n_z: usize) -> (usize, String) {
-    let by_cost = (REGIONAL_MAX_K_NZ / n_z.max(1)).max(1);
-    let (base, why) = match k_min {
-        Some(k) => (k.max(1), format!("K_min = {k}")),
-        None => (
-            REGIONAL_SEARCH_CAP,
-            format!("the search cap {REGIONAL_SEARCH_CAP} (Theorem 1 gives no K_min)"),
-        ),
-    };
-    if by_cost < base {
-        (
-            by_cost,
-            format!(
-                "K·n_z ≤ {REGIONAL_MAX_K_NZ} with n_z = {n_z} (below {why}: the region's rows \
-                 grow with K·n_z)"
-            ),
-        )
-    } else {
-        (base, why)
-    }
-}
+pub use iss_certificate::regional::{REGIONAL_MAX_K_NZ, REGIONAL_SEARCH_CAP, search_max};
 
 /// K_reg of one method with the certificate behind it.
 #[derive(Debug, Clone, PartialEq, Serialize)]

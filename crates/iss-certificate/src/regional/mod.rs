@@ -39,7 +39,9 @@ use serde::Serialize;
 
 pub use cost::{RegionalEstimate, estimate};
 pub use model::{ModelError, RowKind, RowLabel};
-pub use search::{KReg, Probe, k_reg, k_reg_probing};
+pub use search::{
+    KReg, Probe, REGIONAL_MAX_K_NZ, REGIONAL_SEARCH_CAP, k_reg, k_reg_probing, search_max,
+};
 
 use crate::linear::spectral_radius;
 use candidate::{Candidate, evaluate, impulse};

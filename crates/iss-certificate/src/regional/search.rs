@@ -1,10 +1,52 @@
 //! K_reg: the smallest K whose regional certificate contains the user's set, by doubling
-//! then bisection, under one budget for the whole search.
+//! then bisection, under one budget for the whole search; and the cap on K that `reproduce`,
+//! the sweep and the bench put on it ([`search_max`]), defined once here.
 
 use serde::Serialize;
 
 use super::{Budget, RegionalCertificate, RegionalOptions, RegionalVoid, certify_at, model};
 use closed_loop::scenario::ResolvedScenario;
+
+/// Largest K·n_z the K_reg search of `reproduce`, the sweep and the bench evaluates: the region's rows (every pre-projection point
+/// of all K inner iterates of every window) grow with K·n_z, and the cart-pendulum's PG at
+/// K_min = 140 227 needed more than 24 GB.
+pub const REGIONAL_MAX_K_NZ: usize = 200_000;
+
+/// Largest K the K_reg search tries when Theorem 1 gives no K_min: the top of the linear
+/// analysis' default grid (`reproduce` computes ρ_lin on 1 … max(2000, K_min)).
+pub const REGIONAL_SEARCH_CAP: usize = 2000;
+
+/// The largest K the search of a method tries, and why that K: min(K_min or
+/// [`REGIONAL_SEARCH_CAP`], ⌊[`REGIONAL_MAX_K_NZ`]/n_z⌋), at least 1. A K_reg above K_min
+/// adds nothing: Theorem 1 already holds there.
+///
+/// ```
+/// use iss_certificate::regional::search_max;
+/// assert_eq!(search_max(Some(243), 49).0, 243);
+/// assert_eq!(search_max(None, 49).0, 2000);
+/// assert_eq!(search_max(Some(140_227), 58).0, 200_000 / 58);
+/// ```
+pub fn search_max(k_min: Option<usize>, n_z: usize) -> (usize, String) {
+    let by_cost = (REGIONAL_MAX_K_NZ / n_z.max(1)).max(1);
+    let (base, why) = match k_min {
+        Some(k) => (k.max(1), format!("K_min = {k}")),
+        None => (
+            REGIONAL_SEARCH_CAP,
+            format!("the search cap {REGIONAL_SEARCH_CAP} (Theorem 1 gives no K_min)"),
+        ),
+    };
+    if by_cost < base {
+        (
+            by_cost,
+            format!(
+                "K·n_z ≤ {REGIONAL_MAX_K_NZ} with n_z = {n_z} (below {why}: the region's rows \
+                 grow with K·n_z)"
+            ),
+        )
+    } else {
+        (base, why)
+    }
+}
 
 /// K_reg: the smallest K at which the regional certificate contains the user's set.
 #[derive(Debug, Clone, PartialEq, Serialize)]

@@ -39,9 +39,7 @@ use serde::Serialize;
 
 pub use cost::{RegionalEstimate, estimate};
 pub use model::{ModelError, RowKind, RowLabel};
-pub use search::{
-    KReg, Probe, REGIONAL_MAX_K_NZ, REGIONAL_SEARCH_CAP, k_reg, k_reg_probing, search_max,
-};
+pub use search::*;
 
 use crate::linear::spectral_radius;
 use candidate::{Candidate, evaluate, impulse};

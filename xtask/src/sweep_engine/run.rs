@@ -313,7 +313,7 @@ impl Sweep {
         }
     }
 
-    /// K_reg per solver and scale ([`super::regional`]: the smallest K whose regional
+    /// K_reg per solver and scale ([`super::k_reg_outcome`]: the smallest K whose regional
     /// certificate contains the scenario's uncertainty at that scale, searched up to the
     /// solver's K_min), or why there is none (computed on first use, like
     /// [`Sweep::theory`]).

@@ -42,19 +42,25 @@ use crate::output::OutputSet;
 use crate::provenance::{Provenance, workspace_root};
 
 mod charts;
+mod comparison;
 mod document;
 mod gains;
+mod job;
 mod joint;
 mod linear;
 pub(crate) mod numfmt;
 mod regional;
+mod runs;
 mod summary;
 mod trace_csv;
 mod work;
 
 use charts::charts;
+use comparison::{comparison, fmt_opt, short_reason};
 pub use document::*;
+pub use job::*;
 use linear::{LinearEntry, linear_entries};
+use runs::{Run, simulate};
 use summary::summarize;
 pub use work::Work;
 
@@ -107,115 +113,6 @@ impl std::fmt::Display for ReproduceError {
 
 impl std::error::Error for ReproduceError {}
 
-/// The t of Fig. 2(c) when `--fig2c-t` is not given: 6 for the presets (the paper's), else
-/// M + 1 (the first step whose window is full and whose prior is the scheme's own estimate;
-/// 6 for the paper's M = 5), within the simulated steps.
-pub fn default_fig2c_t(preset: Option<Preset>, scenario: &Scenario) -> usize {
-    let last = scenario.simulation.steps.saturating_sub(1);
-    match (preset, &scenario.mhe) {
-        (Some(_), _) | (None, None) => FIG2C_T.min(last),
-        (None, Some(m)) => (m.horizon + 1).min(last),
-    }
-}
-
-/// The shipped case-study scenarios.
-#[derive(Debug, Clone, Copy, PartialEq, Eq, clap::ValueEnum, Serialize)]
-#[serde(rename_all = "lowercase")]
-pub enum Preset {
-    /// The paper's M = 5, η = 0.8, K = 652 (certificate void: 6·0.8⁵ ≥ 1).
-    Paper,
-    /// The nearest parameters satisfying every premise (M = 9), simulated at K_min.
-    Certified,
-}
-
-impl Preset {
-    /// Both presets, in the order `reproduce` runs them.
-    pub const ALL: [Preset; 2] = [Preset::Paper, Preset::Certified];
-
-    /// `"paper"` or `"certified"` (also the output subdirectory).
-    pub fn name(self) -> &'static str {
-        match self {
-            Preset::Paper => "paper",
-            Preset::Certified => "certified",
-        }
-    }
-
-    /// The scenario file, relative to the workspace root.
-    pub fn scenario_file(self) -> &'static str {
-        match self {
-            Preset::Paper => "scenarios/case-study.toml",
-            Preset::Certified => "scenarios/case-study-certified.toml",
-        }
-    }
-
-    /// A job for this preset writing into `out_root/<name>`.
-    pub fn job(self, out_root: &Path) -> Job {
-        Job {
-            label: self.name().to_string(),
-            preset: Some(self),
-            scenario: workspace_root().join(self.scenario_file()),
-            out: out_root.join(self.name()),
-        }
-    }
-}
-
-/// One scenario to reproduce and where its files go.
-#[derive(Debug, Clone, PartialEq)]
-pub struct Job {
-    /// Name used in the outputs (`"paper"`, `"certified"`, or the file stem).
-    pub label: String,
-    /// The preset, if the scenario is one.
-    pub preset: Option<Preset>,
-    /// Scenario file.
-    pub scenario: PathBuf,
-    /// Output directory (created).
-    pub out: PathBuf,
-}
-
-/// Sampling and search settings (defaults: those of the shipped results).
-#[derive(Debug, Clone, PartialEq)]
-pub struct Settings {
-    /// Random pairs of the sampled L_Φ and L_π.
-    pub lipschitz_pairs: usize,
-    /// Injected error sequences per magnitude for the sampled γ₁,₃ (0 skips it).
-    pub gamma13_sequences: usize,
-    /// Cap on N·n_u for the free-set enumerations (γ₁,₃, L_π).
-    pub enumeration_max_vars: usize,
-    /// γ₁,₃ from the certified enumeration or supplied.
-    pub gamma13: Gamma13Source,
-    /// Largest K searched for K_min.
-    pub k_max: usize,
-    /// The small K simulated next to the scenario's K when the certificate is void.
-    pub small_k: usize,
-    /// Write the SVG figures.
-    pub figures: bool,
-    /// The t of Fig. 2(c) (`--fig2c-t`); None: [`default_fig2c_t`].
-    pub fig2c_t: Option<usize>,
-    /// Print each work line when it happens (stdout) and show progress on stderr; the lines
-    /// are in [`Outcome::log`] either way.
-    pub live: bool,
-    /// `--sim-k-cap`: the largest computed K_min that is simulated (None: no cap beyond the
-    /// work limit).
-    pub sim_k_cap: Option<usize>,
-}
-
-impl Default for Settings {
-    fn default() -> Self {
-        Self {
-            lipschitz_pairs: 200,
-            gamma13_sequences: 30,
-            enumeration_max_vars: 20,
-            gamma13: Gamma13Source::Certified,
-            k_max: 1 << 24,
-            small_k: 5,
-            figures: true,
-            fig2c_t: None,
-            live: false,
-            sim_k_cap: None,
-        }
-    }
-}
-
 /// The estimated work of each analysis phase, on stderr before the certificate is computed
 /// (iss_certificate::budget; docs/limits.md). A closed stderr is ignored.
 fn budget_lines(
@@ -255,255 +152,6 @@ fn relative(path: &Path) -> String {
         .unwrap_or(path)
         .display()
         .to_string()
-}
-
-struct Run {
-    summary: RunSummary,
-    trace: Trace,
-    /// The Kalman baseline on the same u_t, y_t (None when it could not be built).
-    kalman: Option<closed_loop::baseline::BaselineRun>,
-}
-
-/// The Kalman filter of the MHE's weights run on `trace` (module `closed_loop::baseline`).
-fn kalman_baseline(
-    resolved: &ResolvedScenario,
-    trace: &Trace,
-) -> (
-    Option<closed_loop::baseline::BaselineRun>,
-    Option<KalmanSummary>,
-) {
-    let scenario = resolved.scenario();
-    let weights = "standard (λ = 1), Π₀ = (2P)⁻¹, Σ_w = (2Q)⁻¹, Σ_v = R⁻¹".to_string();
-    let built = resolved
-        .mhe_config()
-        .map_err(|e| e.to_string())
-        .and_then(|cfg| {
-            closed_loop::baseline::kalman_for_mhe(
-                &scenario.plant,
-                &scenario.simulation.prior,
-                &cfg.p,
-                &cfg.q,
-                &cfg.r,
-            )
-            .map_err(|e| e.to_string())
-        });
-    match built {
-        Ok(mut kf) => {
-            let run = closed_loop::baseline::run_on_trace(&mut kf, trace);
-            let summary = KalmanSummary {
-                weights,
-                completed: run.e_norms.len(),
-                sup_norm_e: run.sup_norm_e(),
-                tail_mean_e: run.tail_mean_e(),
-                diverged: run.diverged(),
-                divergence: run.divergence,
-                error: run.error.clone(),
-            };
-            (Some(run), Some(summary))
-        }
-        Err(e) => (
-            None,
-            Some(KalmanSummary {
-                weights,
-                completed: 0,
-                sup_norm_e: f64::NAN,
-                tail_mean_e: None,
-                diverged: false,
-                divergence: None,
-                error: Some(format!("not built: {e}")),
-            }),
-        ),
-    }
-}
-
-/// Simulates at K = `k` step by step, with [`work::Progress`] on stderr when `live`.
-fn simulate(
-    resolved: &ResolvedScenario,
-    solver: Method,
-    k: usize,
-    controller: ControllerChoice,
-    source: KSource,
-    live: bool,
-) -> Result<Run> {
-    let scenario = resolved.scenario();
-    let opts = LoopOptions {
-        method: solver,
-        iterations: k,
-        exact_mhe_solve: true,
-        controller,
-        seed: scenario.noise.seed,
-        steps: scenario.simulation.steps,
-    };
-    let mut cl = resolved
-        .build_loop(&opts)
-        .with_context(|| format!("cannot set up the closed loop at K = {k}"))?;
-    // Step by step (as `run` does) so that progress can be shown; the first step error stops
-    // the run and is its result.
-    let mut progress = work::Progress::new(format!("{} K = {k}", solver.name()), opts.steps, live);
-    let mut error = None;
-    let mut stopped_non_finite = false;
-    while cl.t() < cl.steps() {
-        if let Err(e) = cl.step() {
-            stopped_non_finite = matches!(e, ClosedLoopError::NonFinite { .. });
-            error = Some(e.to_string());
-            break;
-        }
-        progress.update(cl.t());
-    }
-    progress.finish();
-    let trace = cl.into_trace();
-    let len = trace.len();
-    let outside = closed_loop::scenario::draws_outside(&trace, &scenario.sets.disturbance);
-    let (kalman, kalman_summary) = kalman_baseline(resolved, &trace);
-    // The sweep's bounded rule, applied by the library to this run.
-    let divergence = closed_loop::bounded::first_unbounded(
-        &trace,
-        &scenario.simulation.x0,
-        closed_loop::bounded::DEFAULT_BOUNDED_FACTOR,
-        stopped_non_finite,
-    );
-    let summary = RunSummary {
-        label: format!("K={k}"),
-        k,
-        k_source: source,
-        solver: solver.name().to_string(),
-        controller: match controller {
-            ControllerChoice::SuboptimalMpc { iterations, method } => {
-                format!("MPC {method} with K_c = {iterations}")
-            }
-            _ => "exact MPC".into(),
-        },
-        exact_mhe_solve: true,
-        seed: opts.seed,
-        steps: opts.steps,
-        completed: len,
-        error,
-        diverged: divergence.is_some(),
-        diverged_at: divergence.map(|d| d.t),
-        signal: divergence.map(|d| d.signal),
-        divergence,
-        mpc_infeasible_steps: trace.infeasible_steps().count(),
-        sup_norm_e: trace.sup_norm_e(),
-        sup_norm_x: trace.sup_norm_x(),
-        final_norm_x: trace.x_norms().last().copied().unwrap_or(f64::NAN),
-        tail_mean_e: trace.tail_mean_e(),
-        tail_mean_x: trace.tail_mean_x(),
-        tail_mean_epsilon: trace.tail_mean_epsilon(),
-        w_outside: outside.len(),
-        w_outside_first: outside.first().copied(),
-        kalman: kalman_summary,
-    };
-    Ok(Run {
-        summary,
-        trace,
-        kalman,
-    })
-}
-
-fn fmt_opt(v: Option<usize>) -> String {
-    v.map_or_else(|| "none".to_string(), |k| k.to_string())
-}
-
-fn comparison(cert: &ClosedLoopCertificate, solver: Method) -> Vec<ComparisonRow> {
-    let sc = cert.solver(solver);
-    let phi = sc.map_or_else(
-        || "not computed".to_string(),
-        |s| {
-            format!(
-                "{}·{}^K ({})",
-                numfmt::num(s.phi_prefactor),
-                numfmt::rate(s.phi_rate),
-                s.solver.name()
-            )
-        },
-    );
-    let g = &cert.gamma13;
-    let gamma_sampled = g.sampled.as_ref().map_or(String::new(), |s| {
-        format!("; sampled ≥ {}", numfmt::num(s.gamma13_lower))
-    });
-    let k = match sc {
-        Some(s) => match s.k_min {
-            Some(k) => format!("K_min = {k} ({})", s.solver.name()),
-            None => format!("none: void ({})", short_reason(s)),
-        },
-        None => "not computed".into(),
-    };
-    vec![
-        ComparisonRow {
-            quantity: "ρ = 6^(1/M)·η".into(),
-            ours: format!(
-                "{} (M = {}, η = {})",
-                numfmt::num(cert.rho),
-                cert.horizon,
-                numfmt::num(cert.eta)
-            ),
-            paper: format!(
-                "{} (not printed; from M = 5, η = 0.8)",
-                numfmt::num(6f64.powf(0.2) * 0.8)
-            ),
-        },
-        ComparisonRow {
-            quantity: "φ(K)".into(),
-            ours: phi,
-            paper: "0.98^K (partial gradient)".into(),
-        },
-        ComparisonRow {
-            quantity: "L_Φ".into(),
-            ours: format!(
-                "{} certified; sampled {}",
-                numfmt::num(cert.l_phi.certified),
-                numfmt::num(cert.l_phi.sampled)
-            ),
-            paper: "5.32 (sample-based)".into(),
-        },
-        ComparisonRow {
-            quantity: "γ₁,₃".into(),
-            ours: format!(
-                "{} {}{gamma_sampled}{}",
-                numfmt::num(g.used),
-                g.source,
-                // The enumeration replaced by the polynomial bound for the analysis budget.
-                if g.skipped
-                    .iter()
-                    .any(|k| k.reason.contains("certificate.phase_seconds"))
-                {
-                    " (S-procedure bound: the free-set enumeration is beyond the analysis \
-                     budget, key `certificate.phase_seconds`)"
-                } else {
-                    ""
-                }
-            ),
-            paper: "28.8 (method of their journal paper)".into(),
-        },
-        ComparisonRow {
-            quantity: "L_π".into(),
-            ours: format!(
-                "{} certified; sampled {}",
-                numfmt::num(cert.l_pi_used),
-                numfmt::num(cert.l_pi.sampled.estimate)
-            ),
-            paper: "2.65 (sample-based)".into(),
-        },
-        ComparisonRow {
-            quantity: "K".into(),
-            ours: k,
-            paper: "652 (from (sg1)–(sg3))".into(),
-        },
-    ]
-}
-
-fn short_reason(s: &SolverCertificate) -> String {
-    let names: Vec<&str> = s
-        .analysis
-        .violated()
-        .iter()
-        .map(|p| p.name.as_str())
-        .collect();
-    if names.is_empty() {
-        "no K satisfies sg1 + sg2 + sg3 < 1".into()
-    } else {
-        format!("{} fails", names.join(", "))
-    }
 }
 
 /// Runs one job: certificate, simulations, trajectory check, files, summary.
@@ -998,27 +646,6 @@ pub const EXIT_CONTRADICTED: u8 = 3;
 /// and no certificate was contradicted: the loop is not certified at that K, and it blew up.
 pub const EXIT_DIVERGED: u8 = 4;
 
-/// The jobs of a command line: one preset, a user scenario, or both presets (default).
-pub fn jobs(preset: Option<Preset>, scenario: Option<PathBuf>, out: Option<PathBuf>) -> Vec<Job> {
-    let out = out.unwrap_or_else(|| workspace_root().join("target/reproduce"));
-    match (preset, scenario) {
-        (_, Some(path)) => {
-            let label = path.file_stem().map_or_else(
-                || "scenario".to_string(),
-                |s| s.to_string_lossy().into_owned(),
-            );
-            vec![Job {
-                out: out.join(&label),
-                label,
-                preset: None,
-                scenario: path,
-            }]
-        }
-        (Some(p), None) => vec![p.job(&out)],
-        (None, None) => Preset::ALL.iter().map(|p| p.job(&out)).collect(),
-    }
-}
-
 /// `cargo xtask reproduce`: runs the jobs, prints each summary. Exit code 0,
 /// [`EXIT_CONTRADICTED`] when a certified trajectory check fails, [`EXIT_DIVERGED`] when a
 /// run diverged otherwise; errors (1) for bad input.
@@ -1084,95 +711,6 @@ pub fn main(
         std::process::ExitCode::from(EXIT_DIVERGED)
     } else {
         std::process::ExitCode::SUCCESS
-    })
-}
-
-/// The files of the previous run in a directory, from its `certificate.json` (`files`):
-/// those the new set does not replace are removed when it is committed.
-fn previous_files(cert_path: &Path) -> Vec<String> {
-    let Ok(text) = lti_model::spec::format::read_limited(cert_path) else {
-        return Vec::new();
-    };
-    serde_json::from_str::<serde_json::Value>(&text)
-        .ok()
-        .and_then(|v| {
-            v.get("files")?.as_array().map(|a| {
-                a.iter()
-                    .filter_map(|f| f.as_str().map(str::to_string))
-                    .collect()
-            })
-        })
-        .unwrap_or_default()
-}
-
-fn trace_document<'a>(
-    job: &'a Job,
-    resolved: &'a ResolvedScenario,
-    record: &'a ScenarioRecord,
-    provenance: &'a Provenance,
-    runs: &'a [Run],
-) -> Result<TraceDocument<'a>> {
-    let scenario = resolved.scenario();
-    let sys = &scenario.plant;
-    let spec = scenario
-        .mhe
-        .as_ref()
-        .ok_or(ClosedLoopError::MissingSection { section: "mhe" })?;
-    let mpc = resolved.mpc()?;
-    // The P the estimator used: the scenario's, or the maximal solution of LMI (2).
-    let cfg = resolved.mhe_config()?;
-    let m = |x: faer::MatRef<'_, f64>| to_rows(x);
-    Ok(TraceDocument {
-        format: TRACE_FORMAT,
-        format_version: FORMAT_VERSION,
-        preset: job.preset,
-        label: &job.label,
-        scenario: record,
-        provenance,
-        model: ModelRecord {
-            dims: crate::certify::PlantDims::of(sys),
-            a: m(sys.a()),
-            b: m(sys.b()),
-            c: m(sys.c()),
-            e: m(sys.e()),
-            f: m(sys.f()),
-        },
-        sets: SetsRecord {
-            state: BoxRecord::new(&scenario.sets.state),
-            input: BoxRecord::new(&scenario.sets.input),
-            output: BoxRecord::new(&scenario.sets.output),
-            disturbance: BoxRecord::new(&scenario.sets.disturbance),
-        },
-        mhe: MheInfo {
-            horizon: cfg.horizon,
-            eta: cfg.eta,
-            p: m(cfg.p.as_ref()),
-            q: m(cfg.q.as_ref()),
-            r: m(cfg.r.as_ref()),
-            p_source: if spec.p.is_some() {
-                "scenario mhe.p".into()
-            } else {
-                "computed from LMI (2)".into()
-            },
-            warm_start: format!("{:?}", cfg.warm_start).to_lowercase(),
-            cost: MHE_COST.into(),
-        },
-        mpc: MpcInfo {
-            horizon: mpc.horizon(),
-            q_c: m(mpc.q_c().as_ref()),
-            r_c: m(mpc.r_c().as_ref()),
-            terminal_weight: m(mpc.terminal_weight().as_ref()),
-        },
-        x0: &scenario.simulation.x0,
-        prior: &scenario.simulation.prior,
-        runs: runs
-            .iter()
-            .map(|r| TraceRun {
-                summary: &r.summary,
-                trace: &r.trace,
-                kalman: r.kalman.as_ref(),
-            })
-            .collect(),
     })
 }
 

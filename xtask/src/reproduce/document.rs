@@ -457,3 +457,92 @@ impl Outcome {
         self.document.runs.iter().any(|r| r.diverged)
     }
 }
+
+/// The files of the previous run in a directory, from its `certificate.json` (`files`):
+/// those the new set does not replace are removed when it is committed.
+pub(super) fn previous_files(cert_path: &Path) -> Vec<String> {
+    let Ok(text) = lti_model::spec::format::read_limited(cert_path) else {
+        return Vec::new();
+    };
+    serde_json::from_str::<serde_json::Value>(&text)
+        .ok()
+        .and_then(|v| {
+            v.get("files")?.as_array().map(|a| {
+                a.iter()
+                    .filter_map(|f| f.as_str().map(str::to_string))
+                    .collect()
+            })
+        })
+        .unwrap_or_default()
+}
+
+pub(super) fn trace_document<'a>(
+    job: &'a Job,
+    resolved: &'a ResolvedScenario,
+    record: &'a ScenarioRecord,
+    provenance: &'a Provenance,
+    runs: &'a [Run],
+) -> Result<TraceDocument<'a>> {
+    let scenario = resolved.scenario();
+    let sys = &scenario.plant;
+    let spec = scenario
+        .mhe
+        .as_ref()
+        .ok_or(ClosedLoopError::MissingSection { section: "mhe" })?;
+    let mpc = resolved.mpc()?;
+    // The P the estimator used: the scenario's, or the maximal solution of LMI (2).
+    let cfg = resolved.mhe_config()?;
+    let m = |x: faer::MatRef<'_, f64>| to_rows(x);
+    Ok(TraceDocument {
+        format: TRACE_FORMAT,
+        format_version: FORMAT_VERSION,
+        preset: job.preset,
+        label: &job.label,
+        scenario: record,
+        provenance,
+        model: ModelRecord {
+            dims: crate::certify::PlantDims::of(sys),
+            a: m(sys.a()),
+            b: m(sys.b()),
+            c: m(sys.c()),
+            e: m(sys.e()),
+            f: m(sys.f()),
+        },
+        sets: SetsRecord {
+            state: BoxRecord::new(&scenario.sets.state),
+            input: BoxRecord::new(&scenario.sets.input),
+            output: BoxRecord::new(&scenario.sets.output),
+            disturbance: BoxRecord::new(&scenario.sets.disturbance),
+        },
+        mhe: MheInfo {
+            horizon: cfg.horizon,
+            eta: cfg.eta,
+            p: m(cfg.p.as_ref()),
+            q: m(cfg.q.as_ref()),
+            r: m(cfg.r.as_ref()),
+            p_source: if spec.p.is_some() {
+                "scenario mhe.p".into()
+            } else {
+                "computed from LMI (2)".into()
+            },
+            warm_start: format!("{:?}", cfg.warm_start).to_lowercase(),
+            cost: MHE_COST.into(),
+        },
+        mpc: MpcInfo {
+            horizon: mpc.horizon(),
+            q_c: m(mpc.q_c().as_ref()),
+            r_c: m(mpc.r_c().as_ref()),
+            terminal_weight: m(mpc.terminal_weight().as_ref()),
+        },
+        x0: &scenario.simulation.x0,
+        prior: &scenario.simulation.prior,
+        runs: runs
+            .iter()
+            .map(|r| TraceRun {
+                summary: &r.summary,
+                trace: &r.trace,
+                kalman: r.kalman.as_ref(),
+            })
+            .collect(),
+    })
+}

@@ -9,6 +9,19 @@ use qp_iter::Method;
 
 use super::regional::STAND_IN;
 
+/// The cart-pendulum (𝒰 = ℝ, default budget) and its own uncertainty with the exact MPC.
+fn cart_pendulum() -> (closed_loop::scenario::ResolvedScenario, RegionalOptions) {
+    let res = Scenario::from_file(concat!(
+        env!("CARGO_MANIFEST_DIR"),
+        "/../../scenarios/cart-pendulum.toml"
+    ))
+    .unwrap()
+    .resolve()
+    .unwrap();
+    let ro = RegionalOptions::from_scenario(&res, ControllerChoice::ExactMpc).unwrap();
+    (res, ro)
+}
+
 /// The budget (`certificate.phase_seconds`) and the memory limit: a stage whose estimate does
 /// not fit is refused before it runs, naming the key; a K_reg search stops at the first
 /// evaluation that does not fit and says so, keeping what it certified.
@@ -44,14 +57,7 @@ fn the_budget_refuses_a_stage_before_it_runs_and_stops_the_search() {
     // estimate), it evaluates them, stops at the first K that does not fit, and says why.
     // FISTA-Jacobi on the cart-pendulum (𝒰 = ℝ and K_lin = 1: no row free of K refutes the
     // set, and K = 1, 2, 4 are stable, so every stage runs).
-    let res = Scenario::from_file(concat!(
-        env!("CARGO_MANIFEST_DIR"),
-        "/../../scenarios/cart-pendulum.toml"
-    ))
-    .unwrap()
-    .resolve()
-    .unwrap();
-    let ro = RegionalOptions::from_scenario(&res, ControllerChoice::ExactMpc).unwrap();
+    let (res, ro) = cart_pendulum();
     let fj = Method::JACOBI_PRESETS[1];
     let cost = |k: usize| estimate(&res, fj, k, &ro, 0.9).unwrap().seconds;
     let budget = cost(1) + cost(2) + cost(4) + 0.5 * cost(8);
@@ -320,14 +326,7 @@ fn the_k_free_limits_are_where_the_refutation_starts() {
 #[test]
 fn a_probe_says_why_k_reg_is_above_it_and_leaves_the_search_as_it_was() {
     use iss_certificate::regional::k_reg_probing;
-    let res = Scenario::from_file(concat!(
-        env!("CARGO_MANIFEST_DIR"),
-        "/../../scenarios/cart-pendulum.toml"
-    ))
-    .unwrap()
-    .resolve()
-    .unwrap();
-    let ro = RegionalOptions::from_scenario(&res, ControllerChoice::ExactMpc).unwrap();
+    let (res, ro) = cart_pendulum();
     let fj = Method::JACOBI_PRESETS[1];
     let plain = k_reg(&res, fj, &ro, 64).unwrap();
     let k_reg_found = plain

@@ -7,9 +7,9 @@ use serde::Serialize;
 use super::{Budget, RegionalCertificate, RegionalOptions, RegionalVoid, certify_at, model};
 use closed_loop::scenario::ResolvedScenario;
 
-/// Largest K·n_z the K_reg search of `reproduce`, the sweep and the bench evaluates: the region's rows (every pre-projection point
-/// of all K inner iterates of every window) grow with K·n_z, and the cart-pendulum's PG at
-/// K_min = 140 227 needed more than 24 GB.
+/// Largest K·n_z the K_reg search of `reproduce`, the sweep and the bench evaluates: the
+/// region's rows (every pre-projection point of all K inner iterates of every window) grow
+/// with K·n_z, and the cart-pendulum's PG at K_min = 140 227 needed more than 24 GB.
 pub const REGIONAL_MAX_K_NZ: usize = 200_000;
 
 /// Largest K the K_reg search tries when Theorem 1 gives no K_min: the top of the linear

@@ -34,6 +34,7 @@ pub mod method;
 pub mod operator;
 pub mod pg;
 pub mod problem;
+pub mod rounding;
 pub mod scaled;
 
 pub use certificate::{BoundedQuantity, CertNorm, Certificate};

@@ -1,0 +1,373 @@
+//! Rounding model of one iteration in precision u (issue 36): the iteration the portable
+//! kernel runs in floating point is the exact map plus a bounded perturbation,
+//!
+//! fl(Φ)(z) = Φ(z) + δ,  ‖δ‖₂ ≤ a‖z‖₂ + b‖θ‖₂ + c,
+//!
+//! where Φ is the exact map on the exact data (H, F, q₀, the box, the step, held in f64)
+//! and fl(Φ) is the map computed with every datum rounded once to precision u and every
+//! operation correctly rounded, summed in the order of `mhe_embedded` (products of a row
+//! summed from 0 in column order, q = q₀ + Fθ summed from q₀ in θ order, no fused
+//! multiply–add). docs/theory.md, "Certified f32: rounding as an input (issue 36)", derives
+//! a, b and c; the proof is Higham's (Accuracy and Stability of Numerical Algorithms,
+//! 2nd ed., Lemma 3.1 and §3.1): a quantity computed as a sum of products, each term
+//! carrying at most N rounding factors (1 + δᵢ), |δᵢ| ≤ u, equals Σ termⱼ(1 + θⱼ) with
+//! |θⱼ| ≤ γ_N = Nu/(1 − Nu). The clamp is exact (a comparison); only the rounded bounds of
+//! the box move it, by at most u·|bound| per component.
+//!
+//! Covered: projected gradient on the problem as given (any constant step). Not covered
+//! (typed [`RoundingVoid`] with the reason): FISTA (an accelerated method accumulates the
+//! errors of its inexact steps — Devolder, Glineur & Nesterov, Math. Program. 146, 2014 —
+//! and its state (z, y) has no Euclidean contraction to carry them), ADMM (its stored
+//! ρ(H + ρI)⁻¹ is perturbed by rounding in proportion to κ(H + ρI); the bound is not derived
+//! here yet), the Jacobi-scaled maps, and problems with general constraint rows.
+//!
+//! Subnormal numbers: an underflowing product adds an absolute error ≤ 2⁻¹⁵⁰ (f32) or
+//! 2⁻¹⁰⁷⁵ (f64), an underflowing sum is exact (gradual underflow); `c` includes that
+//! term. Overflow is a premise: every magnitude stays below the format's maximum (the
+//! caller checks it with the bound itself).
+
+use crate::method::{Method, MethodKind, Scaling};
+use crate::pg::StepRule;
+use crate::problem::ParametricQp;
+
+/// Unit round-off of f32, u = 2⁻²⁴.
+pub const F32_UNIT_ROUNDOFF: f64 = 5.960_464_477_539_063e-8;
+/// Unit round-off of f64, u = 2⁻⁵³.
+pub const F64_UNIT_ROUNDOFF: f64 = f64::EPSILON / 2.0;
+
+/// γ_n = n·u/(1 − n·u) (∞ when n·u ≥ 1).
+///
+/// ```
+/// use qp_iter::rounding::{F32_UNIT_ROUNDOFF, gamma};
+/// assert!((gamma(10, F32_UNIT_ROUNDOFF) - 5.96e-7).abs() < 1e-9);
+/// assert_eq!(gamma(1 << 24, F32_UNIT_ROUNDOFF), f64::INFINITY);
+/// ```
+pub fn gamma(n: usize, u: f64) -> f64 {
+    let nu = n as f64 * u;
+    if nu >= 1.0 { f64::INFINITY } else { nu / (1.0 - nu) }
+}
+
+/// The smallest positive subnormal's half for precision u: the absolute error of one
+/// underflowing product (2⁻¹⁵⁰ for f32, 2⁻¹⁰⁷⁵ for f64, 0 for any other u).
+fn underflow_unit(u: f64) -> f64 {
+    if u == F32_UNIT_ROUNDOFF {
+        2f64.powi(-150)
+    } else if u == F64_UNIT_ROUNDOFF {
+        // 2⁻¹⁰⁷⁵ is below f64's range: it rounds to 0, and so does its effect.
+        0.0
+    } else {
+        f64::NAN
+    }
+}
+
+/// A bound on ‖|M|‖₂ (the spectral norm of the entrywise absolute value) of a matrix given
+/// by `get(i, j)`: √(‖|M|‖₁‖|M|‖_∞), which is ≥ ‖|M|‖₂ (Hölder).
+pub fn abs_norm_bound(rows: usize, cols: usize, get: impl Fn(usize, usize) -> f64) -> f64 {
+    let mut col_max = 0.0f64;
+    let mut row_sums = vec![0.0f64; rows];
+    for j in 0..cols {
+        let mut s = 0.0;
+        for (i, r) in row_sums.iter_mut().enumerate() {
+            let v = get(i, j).abs();
+            s += v;
+            *r += v;
+        }
+        col_max = col_max.max(s);
+    }
+    let row_max = row_sums.into_iter().fold(0.0, f64::max);
+    // The f64 sums above round up by at most a relative γ_n(2⁻⁵³): covered by this factor.
+    (col_max * row_max).sqrt() * (1.0 + 1e-12)
+}
+
+/// Why the rounding of a method is not covered.
+#[derive(Debug, Clone, PartialEq, Eq, serde::Serialize)]
+pub struct RoundingVoid {
+    /// The sentence a report prints (what is not covered and why).
+    pub reason: String,
+}
+
+impl std::fmt::Display for RoundingVoid {
+    fn fmt(&self, f: &mut std::fmt::Formatter<'_>) -> std::fmt::Result {
+        f.write_str(&self.reason)
+    }
+}
+
+/// The rounding model of one iteration of a covered method on one QP (module docs):
+/// ‖fl(Φ)(z) − Φ(z)‖ ≤ a‖z‖ + b‖θ‖ + c, and the exact map's Euclidean contraction rate r.
+#[derive(Debug, Clone, Copy, PartialEq, serde::Serialize)]
+pub struct IterationRounding {
+    /// The unit round-off u the model is for.
+    pub unit_roundoff: f64,
+    /// The exact map's rate r: ‖Φ(z) − Φ(z')‖ ≤ r‖z − z'‖ (at fixed θ).
+    pub rate: f64,
+    /// Its sensitivity to θ: ‖Φ_θ(z) − Φ_θ'(z)‖ ≤ s_θ‖θ − θ'‖ (PG: α‖F‖₂ bounded by α‖|F|‖₂).
+    pub theta_sensitivity: f64,
+    /// Coefficient of ‖z‖.
+    pub a: f64,
+    /// Coefficient of ‖θ‖.
+    pub b: f64,
+    /// Constant (q₀, the rounded box, underflow).
+    pub c: f64,
+    /// N: the most rounding factors one term of a component carries (γ_N is used).
+    pub roundings: usize,
+}
+
+impl IterationRounding {
+    /// r + a: the rate of the computed iteration towards z* (docs/theory.md, step 2).
+    pub fn perturbed_rate(&self) -> f64 {
+        self.rate + self.a
+    }
+
+    /// Whether the computed iteration still contracts (r + a < 1): the premise every bound
+    /// below needs.
+    pub fn contracts(&self) -> bool {
+        self.perturbed_rate() < 1.0
+    }
+
+    /// The additive term of K computed iterations from any z⁰:
+    /// ‖zᴷ − z*‖ ≤ (r + a)ᴷ‖z⁰ − z*‖ + d_K with d_K = (a‖z*‖ + b‖θ‖ + c)·Σ_{k<K}(r + a)ᵏ;
+    /// ∞ when r + a ≥ 1.
+    pub fn additive(&self, k: usize, z_star_norm: f64, theta_norm: f64) -> f64 {
+        let q = self.perturbed_rate();
+        if !(q < 1.0) {
+            return f64::INFINITY;
+        }
+        let sum = (1.0 - q.powi(i32::try_from(k).unwrap_or(i32::MAX))) / (1.0 - q);
+        (self.a * z_star_norm + self.b * theta_norm + self.c) * sum
+    }
+}
+
+/// The rounding model of `method` on `qp` in precision `u` (module docs), or why it is not
+/// covered.
+pub fn iteration_rounding(
+    method: &Method,
+    qp: &ParametricQp,
+    u: f64,
+) -> Result<IterationRounding, RoundingVoid> {
+    let void = |reason: String| Err(RoundingVoid { reason });
+    if !(u > 0.0 && u < 1.0) {
+        return void(format!("unit round-off {u} is not in (0, 1)"));
+    }
+    if qp.general().is_some() {
+        return void(
+            "the problem has general constraint rows (bounded sets.state or sets.output): \
+             their projection is not an exact clamp, so its rounding is not modelled"
+                .into(),
+        );
+    }
+    if method.scaling != Scaling::None {
+        return void(format!(
+            "`{}`: the rounding of the Jacobi-scaled iteration (the iterate runs in y = D⁻¹z) \
+             is not modelled yet; use the plain method",
+            method.name()
+        ));
+    }
+    let alpha = match method.kind {
+        MethodKind::Pg(rule) => match rule {
+            StepRule::InverseL => 1.0 / qp.l(),
+            StepRule::Optimal => 2.0 / (qp.l() + qp.mu()),
+            StepRule::Fixed(a) => a,
+        },
+        MethodKind::Fista(_) => {
+            return void(
+                "FISTA: an accelerated method accumulates the errors of its inexact steps \
+                 (Devolder, Glineur & Nesterov 2014) and its state (z, y) has no Euclidean \
+                 contraction to carry them; no rounding bound is derived (use pg)"
+                    .into(),
+            );
+        }
+        MethodKind::Admm(_) => {
+            return void(
+                "ADMM: the bound on its stored ρ(H + ρI)⁻¹ and (H + ρI)⁻¹ rounded to the \
+                 scalar (a perturbation ∝ u·κ(H + ρI)) is not derived yet (use pg)"
+                    .into(),
+            );
+        }
+        _ => {
+            return void(format!(
+                "`{}` has no rounding model (only pg is covered)",
+                method.name()
+            ));
+        }
+    };
+    let (n, nt) = (qp.n(), qp.n_theta());
+    let rate = (1.0 - alpha * qp.mu()).abs().max((1.0 - alpha * qp.l()).abs());
+    let h = qp.h();
+    let f = qp.f();
+    let h_abs = abs_norm_bound(n, n, |i, j| h[(i, j)]);
+    let f_abs = abs_norm_bound(n, nt, |i, j| f[(i, j)]);
+    // Rounding factors per term of x = z − α(Hz + q₀ + Fθ) (docs/theory.md, step 1):
+    // H_ij z_j: the stored H (1), the product (1), the row sum (≤ n), + q (1), the stored
+    // α (1), the product by α (1), the subtraction (1): n + 5. F_ik θ_k: the stored F and
+    // θ (2), the product (1), the sum from q₀ (n_θ), + Hz (1), α (2), − (1): n_θ + 7.
+    // q₀: stored (1), the sum (n_θ), + Hz (1), α (2), − (1): n_θ + 5. z: − (1).
+    let roundings = (n + 5).max(nt + 7);
+    let nu = gamma(roundings, u);
+    let norm = |v: &mut dyn Iterator<Item = f64>| v.map(|x| x * x).sum::<f64>().sqrt();
+    let q0 = norm(&mut qp.q0().iter().copied());
+    let zset = qp.zset();
+    let bounds = norm(
+        &mut zset
+            .lower()
+            .iter()
+            .zip(zset.upper())
+            .map(|(l, h)| {
+                let l = if l.is_finite() { l.abs() } else { 0.0 };
+                let h = if h.is_finite() { h.abs() } else { 0.0 };
+                l.max(h)
+            }),
+    );
+    // An underflowing product per term: n + n_θ + 2 products per component.
+    let underflow = underflow_unit(u) * (n + nt + 2) as f64 * (n as f64).sqrt();
+    let a = nu * (1.0 + alpha * h_abs);
+    let b = nu * alpha * f_abs;
+    let c = nu * alpha * q0 + u * bounds + underflow;
+    Ok(IterationRounding {
+        unit_roundoff: u,
+        rate,
+        theta_sensitivity: alpha * f_abs,
+        a,
+        b,
+        c,
+        roundings,
+    })
+}
+
+#[cfg(test)]
+mod tests {
+    use super::*;
+    use faer::Mat;
+    use lti_model::sets::BoxSet;
+    use rand::{Rng, SeedableRng};
+    use rand_chacha::ChaCha8Rng;
+
+    /// A random box QP with H = diag(1 … κ, geometric) + GGᵀ/(10n): condition ≈ κ.
+    fn qp(seed: u64, n: usize, nt: usize, kappa: f64) -> ParametricQp {
+        let mut rng = ChaCha8Rng::seed_from_u64(seed);
+        let g = Mat::<f64>::from_fn(n, n, |_, _| rng.random_range(-1.0..1.0));
+        let mut h = &g * g.transpose() * faer::Scale(0.1 / n as f64);
+        for i in 0..n {
+            h[(i, i)] += kappa.powf(i as f64 / (n - 1) as f64);
+        }
+        let f = Mat::<f64>::from_fn(n, nt, |_, _| rng.random_range(-2.0..2.0));
+        let lower = (0..n).map(|i| if i % 3 == 0 { f64::NEG_INFINITY } else { -0.3 }).collect();
+        let upper = (0..n).map(|i| if i % 3 == 0 { f64::INFINITY } else { 0.7 }).collect();
+        ParametricQp::new(h, vec![0.1; n], f, BoxSet::new(lower, upper).expect("box"))
+            .expect("valid QP")
+    }
+
+    /// One PG step in the scalar `T` in `mhe_embedded`'s order (independent of the model).
+    fn pg_step_f32(qp: &ParametricQp, alpha: f64, theta: &[f64], z: &[f32]) -> Vec<f32> {
+        let (n, nt) = (qp.n(), qp.n_theta());
+        let (h, f) = (qp.h(), qp.f());
+        let a = alpha as f32;
+        let mut q = vec![0f32; n];
+        for (i, qi) in q.iter_mut().enumerate() {
+            let mut acc = qp.q0()[i] as f32;
+            for k in 0..nt {
+                acc += f[(i, k)] as f32 * theta[k] as f32;
+            }
+            *qi = acc;
+        }
+        let mut hz = vec![0f32; n];
+        for j in 0..n {
+            for (i, y) in hz.iter_mut().enumerate() {
+                *y += h[(i, j)] as f32 * z[j];
+            }
+        }
+        let zs = qp.zset();
+        (0..n)
+            .map(|i| {
+                let x = z[i] - a * (hz[i] + q[i]);
+                let l = zs.lower()[i] as f32;
+                let u = zs.upper()[i] as f32;
+                let w = if l > x { l } else { x };
+                if u < w { u } else { w }
+            })
+            .collect()
+    }
+
+    /// The exact step Φ(z) in f64 (its own rounding, ~1e-16, is far below the f32 bound).
+    fn pg_step_exact(qp: &ParametricQp, alpha: f64, theta: &[f64], z: &[f64]) -> Vec<f64> {
+        let n = qp.n();
+        let mut q = vec![0.0; n];
+        qp.linear_term(theta, &mut q);
+        let h = qp.h();
+        let mut x: Vec<f64> = (0..n)
+            .map(|i| {
+                let hz: f64 = (0..n).map(|j| h[(i, j)] * z[j]).sum();
+                z[i] - alpha * (hz + q[i])
+            })
+            .collect();
+        qp.project(&mut x);
+        x
+    }
+
+    #[test]
+    fn one_pg_step_in_f32_stays_within_the_model() {
+        let mut worst = 0.0f64;
+        for seed in 0..40 {
+            let (n, nt) = (3 + (seed as usize % 20), 2 + (seed as usize % 7));
+            let p = qp(seed, n, nt, 10f64.powi(1 + (seed % 4) as i32));
+            let r = iteration_rounding(&Method::PG, &p, F32_UNIT_ROUNDOFF).expect("pg is covered");
+            let alpha = 2.0 / (p.l() + p.mu());
+            let mut rng = ChaCha8Rng::seed_from_u64(1000 + seed);
+            for _ in 0..20 {
+                let scale = 10f64.powi(rng.random_range(-3..4));
+                let theta: Vec<f64> = (0..nt).map(|_| scale * rng.random_range(-1.0..1.0)).collect();
+                let z32: Vec<f32> =
+                    (0..n).map(|_| (scale * rng.random_range(-1.0..1.0)) as f32).collect();
+                let z: Vec<f64> = z32.iter().map(|v| f64::from(*v)).collect();
+                let got = pg_step_f32(&p, alpha, &theta, &z32);
+                let want = pg_step_exact(&p, alpha, &theta, &z);
+                let err = got
+                    .iter()
+                    .zip(&want)
+                    .map(|(g, w)| (f64::from(*g) - w).powi(2))
+                    .sum::<f64>()
+                    .sqrt();
+                let zn = z.iter().map(|v| v * v).sum::<f64>().sqrt();
+                let tn = theta.iter().map(|v| v * v).sum::<f64>().sqrt();
+                let bound = r.a * zn + r.b * tn + r.c;
+                assert!(err <= bound, "seed {seed}: error {err:e} > bound {bound:e}");
+                worst = worst.max(err / bound);
+            }
+        }
+        // The model is a worst case: the measured error sits well below it, but not absurdly.
+        assert!(worst > 1e-4, "measured/bound = {worst:e}");
+    }
+
+    #[test]
+    fn an_ill_conditioned_qp_breaks_the_f32_contraction_and_not_the_f64_one() {
+        // κ = 1e7: 1 − r = 2/(κ + 1) ≈ 2e-7 < a ≈ (n + 5)u(1 + α‖|H|‖) in f32.
+        let p = qp(7, 12, 4, 1e7);
+        let r32 = iteration_rounding(&Method::PG, &p, F32_UNIT_ROUNDOFF).expect("covered");
+        assert!(r32.rate < 1.0 && !r32.contracts(), "{r32:?}");
+        assert_eq!(r32.additive(10, 1.0, 1.0), f64::INFINITY);
+        let r64 = iteration_rounding(&Method::PG, &p, F64_UNIT_ROUNDOFF).expect("covered");
+        assert!(r64.contracts(), "{r64:?}");
+        // A well-conditioned one contracts in f32 too.
+        let good = iteration_rounding(&Method::PG, &qp(7, 12, 4, 100.0), F32_UNIT_ROUNDOFF)
+            .expect("covered");
+        assert!(good.contracts());
+    }
+
+    #[test]
+    fn uncovered_methods_say_why() {
+        let p = qp(1, 5, 2, 10.0);
+        for m in [
+            Method::FISTA,
+            Method::ADMM,
+            Method::PG.with_scaling(Scaling::Jacobi),
+        ] {
+            let e = iteration_rounding(&m, &p, F32_UNIT_ROUNDOFF).expect_err("not covered");
+            assert!(!e.reason.is_empty());
+        }
+        assert!(
+            iteration_rounding(&Method::FISTA, &p, F32_UNIT_ROUNDOFF)
+                .expect_err("not covered")
+                .reason
+                .contains("Devolder")
+        );
+    }
+}

@@ -385,35 +385,42 @@ impl IssAnalysis {
     /// All constants, gains and slopes at K (computed even when premises fail, for
     /// display; `certified` is false then).
     pub fn at(&self, k: usize) -> GainsAtK {
+        self.at_perturbed(k, self.phi(k), 0.0)
+    }
+
+    /// [`IssAnalysis::at`] with φ(K) replaced by `phi` and every φ(K)·L_Φ that multiplies a
+    /// data term (C₁, C₂, C₃, C_e, C_w, C_ε; not the σ-gains) replaced by φL_Φ + `extra`:
+    /// Theorem 1 for an iteration whose K-step bound is ‖zᴷ − z*‖ ≤ φ‖z⁰ − z*‖ plus
+    /// extra·‖θ‖ and a constant (the rounding model of issue 36, [`crate::certificate::precision`];
+    /// docs/theory.md, "Certified f32"). `at_perturbed(k, self.phi(k), 0.0)` is `at(k)`.
+    pub fn at_perturbed(&self, k: usize, phi: f64, extra: f64) -> GainsAtK {
         let i = &self.inputs;
         let m = i.horizon as f64;
-        let phi = self.phi(k);
         let lp = self.l_phi_used;
+        // Each `k·φ·L_Φ + k·extra` keeps `at`'s association, so extra = 0 is bit for bit.
         let lpi = i.l_pi;
         let sr = self.rho.sqrt();
-        let c1 = 2.0 * phi * lp * (1.0 + m * (i.c_norm + lpi));
-        let c2 = 2.0 * phi * lp * (1.0 + m * lpi);
-        let c3 = 2.0 * phi * lp * m;
+        let c1 = (2.0 * phi * lp + 2.0 * extra) * (1.0 + m * (i.c_norm + lpi));
+        let c2 = (2.0 * phi * lp + 2.0 * extra) * (1.0 + m * lpi);
+        let c3 = (2.0 * phi * lp + 2.0 * extra) * m;
         let c3w = c3 * i.f_norm;
         let a = (3.0 * self.lambda_pp * self.lambda_hp).sqrt();
         let sum: f64 = (1..i.horizon).map(|j| sr.powi(-(1 + j as i32))).sum();
-        let c_e = 2.0 * a * phi * lp * (sr.powi(-(i.horizon as i32)) + lpi / sr)
-            + 4.0 * a * phi * lp * lpi * sum
+        let c_e = (2.0 * a * phi * lp + 2.0 * a * extra) * (sr.powi(-(i.horizon as i32)) + lpi / sr)
+            + (4.0 * a * phi * lp + 4.0 * a * extra) * lpi * sum
             + (6.0 * self.lambda_pp).sqrt()
-            + 2.0 * a * phi * lp * (lpi + 1.0) * sr.powi(-(i.horizon as i32) - 1);
+            + (2.0 * a * phi * lp + 2.0 * a * extra) * (lpi + 1.0) * sr.powi(-(i.horizon as i32) - 1);
         let inv1 = 1.0 / (1.0 - sr);
         let c_w = (2.0 * self.lambda_hp).sqrt() * c3w
             + (6.0 * self.lambda_qp).sqrt() * inv1
-            + 4.0
-                * (3.0 * self.lambda_hp * self.lambda_qp).sqrt()
-                * phi
-                * lp
+            + (4.0 * (3.0 * self.lambda_hp * self.lambda_qp).sqrt() * phi * lp
+                + 4.0 * (3.0 * self.lambda_hp * self.lambda_qp).sqrt() * extra)
                 * (lpi * m + 1.0)
                 * inv1;
         let inv_m = 1.0 / (1.0 - self.rho.powi(i.horizon as i32).sqrt());
         let c_eps = (2.0 * self.lambda_hp).sqrt() * phi
             + (2.0 * self.lambda_hp).sqrt() * inv_m
-            + 4.0 * self.lambda_hp * phi * lp * (lpi * m + 1.0) * inv_m;
+            + (4.0 * self.lambda_hp * phi * lp + 4.0 * self.lambda_hp * extra) * (lpi * m + 1.0) * inv_m;
         let one_minus_phi = 1.0 - phi;
         let gamma21 = c1 / one_minus_phi;
         let gamma23 = c2 / one_minus_phi;

@@ -183,6 +183,8 @@ pub fn iteration_rounding(
                     .into(),
             );
         }
+        // The test-only `Trial` method (cfg(test)): unreachable in the library build.
+        #[allow(unreachable_patterns)]
         _ => {
             return void(format!(
                 "`{}` has no rounding model (only pg is covered)",

@@ -32,6 +32,7 @@
 
 mod certify;
 pub mod lemma1;
+pub mod precision;
 mod rounding;
 mod trajectory;
 

@@ -1,0 +1,504 @@
+//! Theorem 1 in a given precision (issue 36): the rounding of the estimator's arithmetic as
+//! an extra input with its own gain (docs/theory.md, "Certified f32: rounding as an input").
+//!
+//! Per window length m the iteration's rounding model ([`qp_iter::rounding`]) gives
+//! ‖fl(Φ)(z) − Φ(z)‖ ≤ a_m‖z‖ + b_m‖θ‖ + c_m and the exact rate r_m. Then:
+//!
+//! 1. K computed iterations contract with φ_u(K) = max_m (r_m + a_m)ᴷ towards the optimum of
+//!    the exact data and add at most g_d‖θ_t‖ + c_d ([`ScalarCertificate::rounding_gain`],
+//!    [`ScalarCertificate::rounding_offset`]); the premise is r_m + a_m < 1 (it fails where
+//!    u·κ(H) is not small: the exact reason names the window).
+//! 2. Props. 1 and 3 with φ → φ_u and φL_Φ → φ_uL_Φ + g_d in every data gain
+//!    ([`crate::analysis::IssAnalysis::at_perturbed`]), plus the rounding of x̂'s
+//!    propagation through the window, ‖r_t‖ ≤ ρ_z‖zᴷ_t‖ + ρ_u‖u window‖, which enters e_t
+//!    with gain k_r and adds a self-loop s on e: the certified condition is
+//!    1 − s − sg1 − sg2 − sg3 > 0.
+//!
+//! So K_min(f32) ≥ K_min(f64), equal when u's effect is below the margin's resolution, and
+//! the constant terms (q₀, the rounded box bounds) leave an offset in the lim-sup bounds.
+//!
+//! [`DeviationBound`] is the per-step bound on ‖x̂_f32 − x̂_f64‖ of two estimators fed the same
+//! (u, y), computable along a trajectory from ‖θ_t‖ alone; the tests compare it with
+//! `mhe_embedded` runs.
+
+use faer::{Mat, MatRef};
+use qp_iter::rounding::{
+    F32_UNIT_ROUNDOFF, F64_UNIT_ROUNDOFF, IterationRounding, abs_norm_bound, gamma,
+    iteration_rounding,
+};
+use qp_iter::{Method, MethodKind};
+use serde::Serialize;
+
+use super::ClosedLoopCertificate;
+use closed_loop::scenario::ResolvedScenario;
+use closed_loop::sim::ClosedLoopError;
+use lti_model::LtiSystem;
+
+/// The scalar type the estimator runs in.
+#[derive(Debug, Clone, Copy, PartialEq, Eq, Serialize)]
+#[serde(rename_all = "snake_case")]
+pub enum Scalar {
+    /// IEEE binary64: the certificate as computed (its rounding is the trajectory checks'
+    /// floor, [`super::rounding_floor`]).
+    F64,
+    /// IEEE binary32, u = 2⁻²⁴.
+    F32,
+}
+
+impl Scalar {
+    /// The unit round-off u.
+    pub fn unit_roundoff(self) -> f64 {
+        match self {
+            Scalar::F64 => F64_UNIT_ROUNDOFF,
+            Scalar::F32 => F32_UNIT_ROUNDOFF,
+        }
+    }
+}
+
+/// ‖M‖₂ bounded above by √(‖M‖₁‖M‖_∞) (rigorous, unlike a computed SVD).
+fn norm_bound(m: MatRef<'_, f64>) -> f64 {
+    abs_norm_bound(m.nrows(), m.ncols(), |i, j| m[(i, j)])
+}
+
+/// Rounding of x̂'s propagation through a window of length m in `mhe_embedded`'s order
+/// (x⁺ = Ax + Bu + Ew¹, each product summed from 0, then added in that order):
+/// ‖fl(x̂) − x̂(z)‖ ≤ from_z‖z‖ + from_u‖u window‖.
+#[derive(Debug, Clone, Copy, PartialEq, Serialize)]
+pub struct PropagationRounding {
+    /// Coefficient of ‖zᴷ‖.
+    pub from_z: f64,
+    /// Coefficient of ‖(u_{t−m}, …, u_{t−1})‖.
+    pub from_u: f64,
+    /// ‖Ψ_m‖ bound: x̂(z) = Ψ_m z + Υ_m u (the exact propagation's gain from z).
+    pub psi: f64,
+    /// ‖Υ_m‖ bound (its gain from the u window).
+    pub upsilon: f64,
+}
+
+fn propagation_rounding(sys: &LtiSystem, m: usize, u: f64) -> PropagationRounding {
+    let (nx, nu, nw1) = (sys.nx(), sys.nu(), sys.nw1());
+    let (na, nb, ne) = (norm_bound(sys.a()), norm_bound(sys.b()), norm_bound(sys.e()));
+    // |A|, |B|, |E| have the same √(‖·‖₁‖·‖_∞) bound as A, B, E.
+    // Per term: the stored entry and the stored input (2), the product (1), the row sum
+    // (≤ n), the additions into x⁺ (≤ 3).
+    let g = gamma(nx.max(nu).max(nw1) + 6, u);
+    // Linear recursions in (‖z‖, ‖u‖): X_j ≥ ‖computed x̂_j‖, R_j ≥ ‖its error‖.
+    let (mut xz, mut xu) = (1.0f64, 0.0f64);
+    let (mut rz, mut ru) = (0.0f64, 0.0f64);
+    for _ in 0..m {
+        let (lz, lu) = (g * (na * xz + ne), g * (na * xu + nb));
+        rz = na * rz + lz;
+        ru = na * ru + lu;
+        xz = na * xz + ne + lz;
+        xu = na * xu + nb + lu;
+    }
+    // Ψ_m = [A^m, A^{m−1}E, …, E] on (x₀, w¹_0, …) and Υ_m = [A^{m−1}B, …, B]:
+    // ‖Ψ_m z‖ ≤ (Σ blocks' norms²)^{1/2}‖z‖ (Cauchy–Schwarz over the blocks).
+    let mut pow = Mat::<f64>::identity(nx, nx);
+    let (mut psi2, mut ups2) = (0.0f64, 0.0f64);
+    for _ in 0..m {
+        psi2 += norm_bound((&pow * sys.e()).as_ref()).powi(2);
+        ups2 += norm_bound((&pow * sys.b()).as_ref()).powi(2);
+        pow = sys.a() * &pow;
+    }
+    psi2 += norm_bound(pow.as_ref()).powi(2);
+    PropagationRounding {
+        from_z: rz,
+        from_u: ru,
+        psi: psi2.sqrt(),
+        upsilon: ups2.sqrt(),
+    }
+}
+
+/// The rounding of one window length m.
+#[derive(Debug, Clone, PartialEq, Serialize)]
+pub struct WindowRounding {
+    /// Window length m.
+    pub m: usize,
+    /// The iteration's model (rate r_m, a_m, b_m, c_m).
+    pub iteration: IterationRounding,
+    /// x̂'s propagation.
+    pub propagation: PropagationRounding,
+    /// Certified L_Φ of this window (‖z*(θ) − z*(θ')‖ ≤ L‖θ − θ'‖).
+    pub l_phi: f64,
+    /// o_m ≥ ‖z*_m(0)‖ ([`super::lemma1::origin_offset`]).
+    pub origin_offset: f64,
+}
+
+/// The per-window models of `solver` on the scenario's MHE in `scalar`, or why the
+/// rounding is not covered (the first reason).
+pub fn window_roundings(
+    resolved: &ResolvedScenario,
+    cert: &ClosedLoopCertificate,
+    solver: Method,
+    scalar: Scalar,
+) -> Result<Result<Vec<WindowRounding>, String>, ClosedLoopError> {
+    let problem = resolved.mhe_problem()?;
+    let sys = problem.system();
+    let u = scalar.unit_roundoff();
+    let mut out = Vec::new();
+    for (m, w) in problem.windows().iter().enumerate() {
+        let iteration = match iteration_rounding(&solver, w.qp(), u) {
+            Ok(r) => r,
+            Err(e) => return Ok(Err(format!("window m = {m}: {e}"))),
+        };
+        let l_phi = cert
+            .l_phi
+            .per_window
+            .get(m)
+            .map_or(f64::NAN, |p| p.0)
+            .max(1.0);
+        let origin_offset = cert.lemma1_origin_offsets.get(m).copied().unwrap_or(f64::NAN);
+        if !(l_phi.is_finite() && origin_offset.is_finite()) {
+            return Ok(Err(format!(
+                "window m = {m}: L_Φ or ‖z*(0)‖ has no finite certified bound"
+            )));
+        }
+        out.push(WindowRounding {
+            m,
+            iteration,
+            propagation: propagation_rounding(sys, m, u),
+            l_phi,
+            origin_offset,
+        });
+    }
+    Ok(Ok(out))
+}
+
+/// What Theorem 1 certifies for one solver in one scalar type.
+#[derive(Debug, Clone, PartialEq, Serialize)]
+pub struct ScalarCertificate {
+    /// The scalar type.
+    pub scalar: Scalar,
+    /// The solver.
+    pub solver: Method,
+    /// The smallest certified K in this scalar (None: `reason` says why).
+    pub k_min: Option<usize>,
+    /// The f64 certificate's K_min (the certificate as computed), for comparison.
+    pub k_min_f64: Option<usize>,
+    /// max_m (r_m + a_m): the rate of the computed iteration (0 for f64).
+    pub perturbed_rate: f64,
+    /// g_d: the rounding's gain from ‖θ_t‖ into ε_t (0 for f64).
+    pub rounding_gain: f64,
+    /// c_d: its constant part (the lim-sup of ε gains c_d/(1 − φ_u(K))).
+    pub rounding_offset: f64,
+    /// The rounding's self-loop gain on e at K_min (x̂'s propagation), when certified.
+    pub self_loop: Option<f64>,
+    /// The certified margin 1 − s − sg1 − sg2 − sg3 at K_min.
+    pub margin: Option<f64>,
+    /// Why there is no K_min (None when there is one).
+    pub reason: Option<String>,
+}
+
+/// The f32 rounding's constants of Theorem 1 (docs/theory.md, "Certified f32", steps 3–4).
+#[derive(Debug, Clone, Copy)]
+struct Fold {
+    /// max_m (r_m + a_m).
+    q: f64,
+    g_d: f64,
+    c_d: f64,
+    rho_z: f64,
+    rho_u: f64,
+    l_phi: f64,
+}
+
+impl Fold {
+    fn new(windows: &[WindowRounding], u: f64) -> Self {
+        let q = windows
+            .iter()
+            .map(|w| w.iteration.perturbed_rate())
+            .fold(0.0, f64::max);
+        let s = 1.0 / (1.0 - q);
+        let (mut g_d, mut c_d, mut rho_z, mut rho_u, mut l_phi) = (0.0f64, 0.0f64, 0.0f64, 0.0f64, 0.0f64);
+        for w in windows {
+            let it = &w.iteration;
+            // ‖zᴷ − z*(θ)‖ ≤ q^K(‖z⁰ − z*(θ)‖ + L u‖θ‖) + (a‖z*(θ̃)‖ + b‖θ̃‖ + c)S + L u‖θ‖,
+            // θ̃ = the data rounded to the scalar, ‖θ̃‖ ≤ (1 + u)‖θ‖, ‖z*(θ̃)‖ ≤ o + L‖θ̃‖.
+            g_d = g_d.max(2.0 * w.l_phi * u + (it.a * w.l_phi + it.b) * (1.0 + u) * s);
+            c_d = c_d.max((it.a * w.origin_offset + it.c) * s);
+            rho_z = rho_z.max(w.propagation.from_z);
+            rho_u = rho_u.max(w.propagation.from_u);
+            l_phi = l_phi.max(w.l_phi);
+        }
+        Self {
+            q,
+            g_d,
+            c_d,
+            rho_z,
+            rho_u,
+            l_phi,
+        }
+    }
+}
+
+/// Margin and self-loop of Theorem 1 at K with the rounding folded in (module docs, step 2).
+/// Returns (certified at K, margin, self-loop s).
+fn margin_at(a: &crate::analysis::IssAnalysis, fold: &Fold, k: usize, u: f64) -> (bool, f64, f64) {
+    let phi = fold.q.powi(i32::try_from(k).unwrap_or(i32::MAX));
+    let g = a.at_perturbed(k, phi, fold.g_d);
+    let i = &a.inputs;
+    let m = i.horizon as f64;
+    // e-terms of (lemma 3 last): coefficient √(2Λ^H̄_P)·(φL_Φ + g_d)·2(M L_π + 1).
+    let s_e = (2.0 * a.lambda_hp).sqrt()
+        * (phi * a.l_phi_used + fold.g_d)
+        * 2.0
+        * (m * i.l_pi + 1.0);
+    let kappa_r = 1.0 + a.lambda_pp.sqrt() / (1.0 - a.rho.powi(i.horizon as i32).sqrt());
+    let k_r = (1.0 + s_e) * kappa_r;
+    // ‖r_t‖ ≤ ρ_z(o + L‖θ̃‖ + ε_t) + ρ_u‖θ‖; ‖θ‖ ≤ (1 + M(‖C‖ + L_π))‖x‖ + (1 + M L_π)‖e‖
+    // + M‖F‖‖w‖ (π(0) = 0).
+    let theta_gain = (fold.rho_z * fold.l_phi * (1.0 + u) + fold.rho_u) * k_r;
+    let gamma31 = g.gamma31 + theta_gain * (1.0 + m * (i.c_norm + i.l_pi));
+    let gamma32 = g.gamma32 + k_r * fold.rho_z;
+    let self_loop = theta_gain * (1.0 + m * i.l_pi);
+    let sg1 = i.gamma13 * gamma31;
+    let sg2 = g.gamma23 * gamma32;
+    let sg3 = i.gamma13 * gamma32 * g.gamma21;
+    let margin = 1.0 - self_loop - sg1 - sg2 - sg3;
+    let ok = a.premises_hold() && (0.0..1.0).contains(&phi) && margin > 0.0 && margin.is_finite();
+    (ok, margin, self_loop)
+}
+
+/// Whether the MPC's law is 0 at x = 0 (q₀ = 0, 0 in the input box, no general rows): the
+/// bound ‖u‖ ≤ L_π‖x̂‖ the fold needs.
+fn mpc_vanishes_at_origin(resolved: &ResolvedScenario) -> Result<bool, ClosedLoopError> {
+    let qp = resolved.mpc()?.qp();
+    let z = qp.zset();
+    Ok(qp.general().is_none()
+        && qp.q0().iter().all(|v| *v == 0.0)
+        && z.lower().iter().zip(z.upper()).all(|(l, h)| *l <= 0.0 && *h >= 0.0))
+}
+
+/// Theorem 1 for `solver` in `scalar` (module docs). f64 returns the certificate as
+/// computed; f32 folds the rounding model in, or says exactly why it cannot.
+///
+/// Errors only when the scenario has no MHE or MPC (as [`super::certify_closed_loop`]).
+pub fn certify_scalar(
+    resolved: &ResolvedScenario,
+    cert: &ClosedLoopCertificate,
+    solver: Method,
+    scalar: Scalar,
+    k_max: usize,
+) -> Result<ScalarCertificate, ClosedLoopError> {
+    let sc = cert.solver(solver);
+    let k_min_f64 = sc.and_then(|s| s.k_min);
+    let mut out = ScalarCertificate {
+        scalar,
+        solver,
+        k_min: None,
+        k_min_f64,
+        perturbed_rate: 0.0,
+        rounding_gain: 0.0,
+        rounding_offset: 0.0,
+        self_loop: None,
+        margin: None,
+        reason: None,
+    };
+    let Some(sc) = sc else {
+        out.reason = Some(format!("`{}` is not among the certified solvers", solver.name()));
+        return Ok(out);
+    };
+    if scalar == Scalar::F64 {
+        out.k_min = k_min_f64;
+        out.margin = sc.at_k_min.as_ref().map(|g| g.margin);
+        out.reason = (k_min_f64.is_none()).then(|| sc.void_reasons.join("; "));
+        return Ok(out);
+    }
+    let void = |mut out: ScalarCertificate, why: String| {
+        out.reason = Some(why);
+        Ok(out)
+    };
+    if k_min_f64.is_none() {
+        let why = format!("void in f64 already: {}", sc.void_reasons.join("; "));
+        return void(out, why);
+    }
+    if resolved.mhe_config()?.warm_start != mhe_core::WarmStart::Paper {
+        return void(
+            out,
+            "the shifted warm start rounds its model step; only the paper's warm start \
+             (an exact copy of zᴷ) is covered"
+                .into(),
+        );
+    }
+    if !mpc_vanishes_at_origin(resolved)? {
+        return void(
+            out,
+            "the MPC law is not 0 at x = 0 (a linear term or an input box excluding 0): the \
+             bound ‖u‖ ≤ L_π‖x̂‖ of the fold does not hold"
+                .into(),
+        );
+    }
+    let u = scalar.unit_roundoff();
+    let windows = match window_roundings(resolved, cert, solver, scalar)? {
+        Ok(w) => w,
+        Err(why) => return void(out, format!("not covered: {why}")),
+    };
+    if let Some(w) = windows.iter().find(|w| !w.iteration.contracts()) {
+        let it = &w.iteration;
+        let why = format!(
+            "void: rounding breaks the contraction in window m = {} (rate r = {} plus the \
+             rounding's a = {} is ≥ 1; 1 − r ≈ 2/κ(H) is below (n + 5)·u·(1 + α‖|H|‖)): \
+             improve the conditioning (a shorter horizon, the Jacobi scaling once modelled) \
+             or run in f64",
+            w.m,
+            lti_model::numfmt::sig4(it.rate),
+            lti_model::numfmt::sig4(it.a)
+        );
+        return void(out, why);
+    }
+    let fold = Fold::new(&windows, u);
+    out.perturbed_rate = fold.q;
+    out.rounding_gain = fold.g_d;
+    out.rounding_offset = fold.c_d;
+    let a = &sc.analysis;
+    let certified = |k: usize| margin_at(a, &fold, k, u).0;
+    let k0 = k_min_f64.unwrap_or(1).max(1);
+    // The margin increases with K (every gain increases with φ_u(K) = qᴷ, q < 1).
+    let (limit, _, s) = margin_at(a, &fold, k_max, u);
+    if !limit {
+        return void(
+            out,
+            format!(
+                "void: with the rounding folded in no K ≤ {k_max} satisfies \
+                 1 − s − sg1 − sg2 − sg3 > 0 (self-loop s = {} at K = {k_max}); \
+                 the rounding alone breaks the small-gain condition",
+                lti_model::numfmt::sig4(s)
+            ),
+        );
+    }
+    let (mut lo, mut hi) = (k0 - 1, k0);
+    while !certified(hi) {
+        lo = hi;
+        hi = (hi * 2).min(k_max);
+    }
+    while hi - lo > 1 {
+        let mid = lo + (hi - lo) / 2;
+        if certified(mid) {
+            hi = mid;
+        } else {
+            lo = mid;
+        }
+    }
+    let (_, margin, s) = margin_at(a, &fold, hi, u);
+    out.k_min = Some(hi);
+    out.margin = Some(margin);
+    out.self_loop = Some(s);
+    Ok(out)
+}
+
+/// Whether `method` is a plain projected gradient (the family the f32 model covers).
+pub fn rounding_covers(method: &Method) -> bool {
+    matches!(method.kind, MethodKind::Pg(_)) && method.scaling == qp_iter::Scaling::None
+}
+
+/// The per-step bound on ‖x̂_f32,t − x̂_f64,t‖ of two estimators (same method, K, data) fed
+/// the same (u_t, y_t), the f32 one with its data rounded once: docs/theory.md,
+/// "Certified f32", step 5. Call [`DeviationBound::step`] once per t with ‖θ_t‖ and the
+/// u window's norm of the f64 run; it returns the bound at t.
+#[derive(Debug, Clone)]
+pub struct DeviationBound {
+    w32: Vec<WindowRounding>,
+    w64: Vec<WindowRounding>,
+    k: usize,
+    horizon: usize,
+    t: usize,
+    /// ‖zᴷ_32 − zᴷ_64‖ bound at t − 1.
+    z_dev: f64,
+    /// ‖zᴷ_64 − z*‖ and ‖z*‖ bounds at t − 1.
+    eps64: f64,
+    z_star: f64,
+    /// Deviation bounds of x̂ so far.
+    history: Vec<f64>,
+}
+
+impl DeviationBound {
+    /// The tracker for `solver` at K = `k`, or why the rounding is not covered.
+    pub fn new(
+        resolved: &ResolvedScenario,
+        cert: &ClosedLoopCertificate,
+        solver: Method,
+        k: usize,
+    ) -> Result<Result<Self, String>, ClosedLoopError> {
+        if resolved.mhe_config()?.warm_start != mhe_core::WarmStart::Paper {
+            return Ok(Err("only the paper's warm start is covered".into()));
+        }
+        let w32 = match window_roundings(resolved, cert, solver, Scalar::F32)? {
+            Ok(w) => w,
+            Err(e) => return Ok(Err(e)),
+        };
+        let w64 = match window_roundings(resolved, cert, solver, Scalar::F64)? {
+            Ok(w) => w,
+            Err(e) => return Ok(Err(e)),
+        };
+        if let Some(w) = w32.iter().find(|w| !w.iteration.contracts()) {
+            return Ok(Err(format!("window m = {}: r + a ≥ 1 in f32", w.m)));
+        }
+        Ok(Ok(Self {
+            horizon: w32.len() - 1,
+            w32,
+            w64,
+            k,
+            t: 0,
+            z_dev: 0.0,
+            eps64: 0.0,
+            z_star: 0.0,
+            history: Vec::new(),
+        }))
+    }
+
+    /// The bound on ‖x̂_f32,t − x̂_f64,t‖ at the next t, from ‖θ_t‖ (the f64 run's window
+    /// data: prior, u and y) and the norm of its u window.
+    pub fn step(&mut self, theta_norm: f64, u_window_norm: f64) -> f64 {
+        let u32 = F32_UNIT_ROUNDOFF;
+        let m = self.t.min(self.horizon);
+        let (a, b) = (&self.w32[m], &self.w64[m]);
+        let (i32r, i64r) = (&a.iteration, &b.iteration);
+        let k = i32::try_from(self.k).unwrap_or(i32::MAX);
+        // The f64 run: ‖z⁰ − z*‖ ≤ ‖zᴷ_{t−1} − z*_{t−1}‖ + ‖z*_{t−1}‖ + ‖z*_t‖ (any window
+        // change; at t = 0, z⁰ = (prior, 0) with ‖prior‖ ≤ ‖θ_0‖).
+        let z_star = b.origin_offset + b.l_phi * theta_norm;
+        let e0 = if self.t == 0 {
+            theta_norm + z_star
+        } else {
+            self.eps64 + self.z_star + z_star
+        };
+        let q64 = i64r.perturbed_rate();
+        let d64 = i64r.additive(self.k, z_star, theta_norm);
+        let eps64 = q64.powi(k) * e0 + d64;
+        // Every f64 iterate of this step: ‖z_k‖ ≤ ‖z*‖ + ‖z⁰ − z*‖ + d.
+        let r_max = z_star + e0 + d64;
+        // The data: the prior differs by the deviation M steps back, u and y by rounding.
+        let prior_dev = if self.t > self.horizon {
+            self.history[self.t - self.horizon]
+        } else {
+            0.0
+        };
+        let d_theta = prior_dev + u32 * theta_norm;
+        // Δ_{k+1} ≤ (r + a₃₂)Δ_k + s_θΔθ + (a₃₂ + a₆₄)R + b₃₂(‖θ‖ + Δθ) + b₆₄‖θ‖ + c₃₂ + c₆₄.
+        let q = i32r.perturbed_rate();
+        let forcing = i32r.theta_sensitivity * d_theta
+            + (i32r.a + i64r.a) * r_max
+            + i32r.b * (theta_norm + d_theta)
+            + i64r.b * theta_norm
+            + i32r.c
+            + i64r.c;
+        let qk = q.powi(k);
+        let z_dev = qk * self.z_dev + (1.0 - qk) / (1.0 - q) * forcing;
+        // x̂ = Ψ_m zᴷ + Υ_m u, each computed with its propagation rounding.
+        let z_norm64 = z_star + eps64;
+        let p32 = &a.propagation;
+        let p64 = &b.propagation;
+        let x_dev = p32.psi * z_dev
+            + p32.upsilon * u32 * u_window_norm
+            + p32.from_z * (z_norm64 + z_dev)
+            + p32.from_u * u_window_norm * (1.0 + u32)
+            + p64.from_z * z_norm64
+            + p64.from_u * u_window_norm;
+        self.eps64 = eps64;
+        self.z_star = z_star;
+        self.z_dev = z_dev;
+        self.history.push(x_dev);
+        self.t += 1;
+        x_dev
+    }
+}

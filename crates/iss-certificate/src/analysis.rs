@@ -406,10 +406,13 @@ impl IssAnalysis {
         let c3w = c3 * i.f_norm;
         let a = (3.0 * self.lambda_pp * self.lambda_hp).sqrt();
         let sum: f64 = (1..i.horizon).map(|j| sr.powi(-(1 + j as i32))).sum();
-        let c_e = (2.0 * a * phi * lp + 2.0 * a * extra) * (sr.powi(-(i.horizon as i32)) + lpi / sr)
+        let c_e = (2.0 * a * phi * lp + 2.0 * a * extra)
+            * (sr.powi(-(i.horizon as i32)) + lpi / sr)
             + (4.0 * a * phi * lp + 4.0 * a * extra) * lpi * sum
             + (6.0 * self.lambda_pp).sqrt()
-            + (2.0 * a * phi * lp + 2.0 * a * extra) * (lpi + 1.0) * sr.powi(-(i.horizon as i32) - 1);
+            + (2.0 * a * phi * lp + 2.0 * a * extra)
+                * (lpi + 1.0)
+                * sr.powi(-(i.horizon as i32) - 1);
         let inv1 = 1.0 / (1.0 - sr);
         let c_w = (2.0 * self.lambda_hp).sqrt() * c3w
             + (6.0 * self.lambda_qp).sqrt() * inv1
@@ -420,7 +423,9 @@ impl IssAnalysis {
         let inv_m = 1.0 / (1.0 - self.rho.powi(i.horizon as i32).sqrt());
         let c_eps = (2.0 * self.lambda_hp).sqrt() * phi
             + (2.0 * self.lambda_hp).sqrt() * inv_m
-            + (4.0 * self.lambda_hp * phi * lp + 4.0 * self.lambda_hp * extra) * (lpi * m + 1.0) * inv_m;
+            + (4.0 * self.lambda_hp * phi * lp + 4.0 * self.lambda_hp * extra)
+                * (lpi * m + 1.0)
+                * inv_m;
         let one_minus_phi = 1.0 - phi;
         let gamma21 = c1 / one_minus_phi;
         let gamma23 = c2 / one_minus_phi;

@@ -3,9 +3,14 @@
 //! certifies a K ≥ the f64 K_min, and the bound refuses f32 where rounding breaks a premise.
 
 use closed_loop::scenario::{LoopOptions, ResolvedScenario, Scenario};
-use iss_certificate::certificate::precision::{DeviationBound, Scalar, certify_scalar};
-use iss_certificate::certificate::{CertificateOptions, ClosedLoopCertificate, certify_closed_loop};
+use iss_certificate::certificate::precision::{
+    DeviationBound, Scalar, certify_rounded, certify_scalar,
+};
+use iss_certificate::certificate::{
+    CertificateOptions, ClosedLoopCertificate, certify_closed_loop,
+};
 use qp_iter::Method;
+use qp_iter::rounding::F64_UNIT_ROUNDOFF;
 
 fn scenario(file: &str) -> (Scenario, ResolvedScenario) {
     let path = std::path::Path::new(env!("CARGO_MANIFEST_DIR"))
@@ -70,7 +75,12 @@ fn to32(v: &[f64]) -> Vec<f32> {
 }
 
 fn norm(parts: &[&[f64]]) -> f64 {
-    parts.iter().flat_map(|p| p.iter()).map(|v| v * v).sum::<f64>().sqrt()
+    parts
+        .iter()
+        .flat_map(|p| p.iter())
+        .map(|v| v * v)
+        .sum::<f64>()
+        .sqrt()
 }
 
 /// Over `seeds` closed-loop trajectories (the std loop, its (u, y) fed to both estimators):
@@ -103,7 +113,15 @@ fn deviation_vs_bound(seeds: u64) -> (f64, f64, f64) {
         .collect();
     let s32: Vec<[Vec<f32>; 5]> = ws
         .iter()
-        .map(|w| [to32(&w.h), to32(&w.q0), to32(&w.f), to32(&w.lo), to32(&w.hi)])
+        .map(|w| {
+            [
+                to32(&w.h),
+                to32(&w.q0),
+                to32(&w.f),
+                to32(&w.lo),
+                to32(&w.hi),
+            ]
+        })
         .collect();
     let v32: Vec<mhe_embedded::Window<'_, f32>> = ws
         .iter()
@@ -168,11 +186,8 @@ fn deviation_vs_bound(seeds: u64) -> (f64, f64, f64) {
     for seed in 0..seeds {
         let mut opts = LoopOptions::from_scenario(&sc).expect("loop options");
         opts.seed = seed;
-        let trace = resolved
-            .build_loop(&opts)
-            .expect("loop builds")
-            .run()
-            .expect("loop runs");
+        let mut cl = resolved.build_loop(&opts).expect("loop builds");
+        let trace = cl.run().expect("loop runs");
         let traj: Vec<(Vec<f64>, Vec<f64>)> = (0..trace.len())
             .map(|t| {
                 (
@@ -192,12 +207,24 @@ fn deviation_vs_bound(seeds: u64) -> (f64, f64, f64) {
             let x32: Vec<f64> = m32.estimate().iter().map(|v| f64::from(*v)).collect();
             // θ_t = (prior, u_{t−m..t−1}, y_{t−m..t−1}) of the f64 run.
             let m = t.min(horizon);
-            let p = if t <= horizon { prior.to_vec() } else { estimates[t - horizon].clone() };
+            let p = if t <= horizon {
+                prior.to_vec()
+            } else {
+                estimates[t - horizon].clone()
+            };
             let us: Vec<f64> = traj[t - m..t].iter().flat_map(|(u, _)| u.clone()).collect();
             let ys: Vec<f64> = traj[t - m..t].iter().flat_map(|(_, y)| y.clone()).collect();
             let b = bound.step(norm(&[&p, &us, &ys]), norm(&[&us]));
-            let d = x64.iter().zip(&x32).map(|(p, q)| (p - q).powi(2)).sum::<f64>().sqrt();
-            assert!(d <= b, "seed {seed}, t = {t}: ‖x̂_f32 − x̂_f64‖ = {d:e} > bound {b:e}");
+            let d = x64
+                .iter()
+                .zip(&x32)
+                .map(|(p, q)| (p - q).powi(2))
+                .sum::<f64>()
+                .sqrt();
+            assert!(
+                d <= b,
+                "seed {seed}, t = {t}: ‖x̂_f32 − x̂_f64‖ = {d:e} > bound {b:e}"
+            );
             worst_ratio = worst_ratio.max(d / b);
             if d > 0.0 {
                 tightest = tightest.min(b / d);
@@ -237,20 +264,38 @@ fn the_f32_deviation_stays_within_its_bound_on_200_seeds() {
 }
 
 #[test]
-fn theorem_1_in_f32_certifies_pg_at_a_k_no_smaller_than_in_f64() {
+fn theorem_1_with_rounding_folded_in() {
     let (_, resolved) = scenario("case-study-certified.toml");
     let cert = certificate(&resolved);
-    let f64c = certify_scalar(&resolved, &cert, Method::PG, Scalar::F64, 1 << 24).expect("runs");
-    let f32c = certify_scalar(&resolved, &cert, Method::PG, Scalar::F32, 1 << 24).expect("runs");
-    println!("{f64c:?}\n{f32c:?}");
-    let (k64, k32) = (
-        f64c.k_min.expect("PG is certified in f64"),
-        f32c.k_min.unwrap_or_else(|| panic!("f32: {:?}", f32c.reason)),
-    );
-    assert!(k32 >= k64, "K_min(f32) = {k32} < K_min(f64) = {k64}");
-    assert!(f32c.rounding_gain > 0.0 && f32c.perturbed_rate < 1.0);
+    let k_max = 1 << 24;
+    let f64c = certify_scalar(&resolved, &cert, Method::PG, Scalar::F64, k_max).expect("runs");
+    let k64 = f64c.k_min.expect("PG is certified in f64");
+    // f64's own rounding folded in costs nothing: the same K_min.
+    let u64c =
+        certify_rounded(&resolved, &cert, Method::PG, F64_UNIT_ROUNDOFF, k_max).expect("runs");
+    println!("{f64c:?}\n{u64c:?}");
+    assert_eq!(u64c.k_min, Some(k64), "{u64c:?}");
+    assert!(u64c.rounding_gain > 0.0 && u64c.margin.is_some_and(|m| m > 0.0));
+    // f32: the rounding's gain from ‖θ‖ into ε (≈ 9e-4) is above φ(K)L_Φ at K_min: void,
+    // with the reason (K_min(f32) ≥ K_min(f64) holds vacuously).
+    let f32c = certify_scalar(&resolved, &cert, Method::PG, Scalar::F32, k_max).expect("runs");
+    println!("{f32c:?}");
+    assert_eq!(f32c.k_min, None);
+    let why = f32c.reason.as_deref().unwrap_or("");
+    assert!(why.starts_with("void") && why.contains("g_d"), "{why}");
+    assert!(f32c.rounding_gain > 1e3 * u64c.rounding_gain);
+    // Between the two: a precision whose rounding fits certifies at K ≥ K_min(f64).
+    let mid = certify_rounded(&resolved, &cert, Method::PG, 2f64.powi(-40), k_max).expect("runs");
+    println!("{mid:?}");
+    assert!(mid.k_min.is_some_and(|k| k >= k64), "{mid:?}");
     // FISTA is not covered, with the accumulation reason.
-    let fista = certify_scalar(&resolved, &cert, Method::FISTA, Scalar::F32, 1 << 24).expect("runs");
+    let fista = certify_scalar(&resolved, &cert, Method::FISTA, Scalar::F32, k_max).expect("runs");
     assert!(fista.k_min.is_none());
-    assert!(fista.reason.as_deref().is_some_and(|r| r.contains("Devolder")), "{fista:?}");
+    assert!(
+        fista
+            .reason
+            .as_deref()
+            .is_some_and(|r| r.contains("Devolder")),
+        "{fista:?}"
+    );
 }

@@ -44,19 +44,21 @@ pub const F64_UNIT_ROUNDOFF: f64 = f64::EPSILON / 2.0;
 /// ```
 pub fn gamma(n: usize, u: f64) -> f64 {
     let nu = n as f64 * u;
-    if nu >= 1.0 { f64::INFINITY } else { nu / (1.0 - nu) }
+    if nu >= 1.0 {
+        f64::INFINITY
+    } else {
+        nu / (1.0 - nu)
+    }
 }
 
-/// The smallest positive subnormal's half for precision u: the absolute error of one
-/// underflowing product (2⁻¹⁵⁰ for f32, 2⁻¹⁰⁷⁵ for f64, 0 for any other u).
+/// The absolute error of one underflowing product in precision u: 2⁻¹⁰⁷⁵ for f64 (which
+/// rounds to 0 in f64 itself, and so does its effect), else 2⁻¹⁵⁰, f32's (valid for any
+/// format with at least f32's exponent range).
 fn underflow_unit(u: f64) -> f64 {
-    if u == F32_UNIT_ROUNDOFF {
-        2f64.powi(-150)
-    } else if u == F64_UNIT_ROUNDOFF {
-        // 2⁻¹⁰⁷⁵ is below f64's range: it rounds to 0, and so does its effect.
+    if u == F64_UNIT_ROUNDOFF {
         0.0
     } else {
-        f64::NAN
+        2f64.powi(-150)
     }
 }
 
@@ -193,7 +195,9 @@ pub fn iteration_rounding(
         }
     };
     let (n, nt) = (qp.n(), qp.n_theta());
-    let rate = (1.0 - alpha * qp.mu()).abs().max((1.0 - alpha * qp.l()).abs());
+    let rate = (1.0 - alpha * qp.mu())
+        .abs()
+        .max((1.0 - alpha * qp.l()).abs());
     let h = qp.h();
     let f = qp.f();
     let h_abs = abs_norm_bound(n, n, |i, j| h[(i, j)]);
@@ -208,17 +212,11 @@ pub fn iteration_rounding(
     let norm = |v: &mut dyn Iterator<Item = f64>| v.map(|x| x * x).sum::<f64>().sqrt();
     let q0 = norm(&mut qp.q0().iter().copied());
     let zset = qp.zset();
-    let bounds = norm(
-        &mut zset
-            .lower()
-            .iter()
-            .zip(zset.upper())
-            .map(|(l, h)| {
-                let l = if l.is_finite() { l.abs() } else { 0.0 };
-                let h = if h.is_finite() { h.abs() } else { 0.0 };
-                l.max(h)
-            }),
-    );
+    let bounds = norm(&mut zset.lower().iter().zip(zset.upper()).map(|(l, h)| {
+        let l = if l.is_finite() { l.abs() } else { 0.0 };
+        let h = if h.is_finite() { h.abs() } else { 0.0 };
+        l.max(h)
+    }));
     // An underflowing product per term: n + n_θ + 2 products per component.
     let underflow = underflow_unit(u) * (n + nt + 2) as f64 * (n as f64).sqrt();
     let a = nu * (1.0 + alpha * h_abs);
@@ -252,8 +250,12 @@ mod tests {
             h[(i, i)] += kappa.powf(i as f64 / (n - 1) as f64);
         }
         let f = Mat::<f64>::from_fn(n, nt, |_, _| rng.random_range(-2.0..2.0));
-        let lower = (0..n).map(|i| if i % 3 == 0 { f64::NEG_INFINITY } else { -0.3 }).collect();
-        let upper = (0..n).map(|i| if i % 3 == 0 { f64::INFINITY } else { 0.7 }).collect();
+        let lower = (0..n)
+            .map(|i| if i % 3 == 0 { f64::NEG_INFINITY } else { -0.3 })
+            .collect();
+        let upper = (0..n)
+            .map(|i| if i % 3 == 0 { f64::INFINITY } else { 0.7 })
+            .collect();
         ParametricQp::new(h, vec![0.1; n], f, BoxSet::new(lower, upper).expect("box"))
             .expect("valid QP")
     }
@@ -316,9 +318,12 @@ mod tests {
             let mut rng = ChaCha8Rng::seed_from_u64(1000 + seed);
             for _ in 0..20 {
                 let scale = 10f64.powi(rng.random_range(-3..4));
-                let theta: Vec<f64> = (0..nt).map(|_| scale * rng.random_range(-1.0..1.0)).collect();
-                let z32: Vec<f32> =
-                    (0..n).map(|_| (scale * rng.random_range(-1.0..1.0)) as f32).collect();
+                let theta: Vec<f64> = (0..nt)
+                    .map(|_| scale * rng.random_range(-1.0..1.0))
+                    .collect();
+                let z32: Vec<f32> = (0..n)
+                    .map(|_| (scale * rng.random_range(-1.0..1.0)) as f32)
+                    .collect();
                 let z: Vec<f64> = z32.iter().map(|v| f64::from(*v)).collect();
                 let got = pg_step_f32(&p, alpha, &theta, &z32);
                 let want = pg_step_exact(&p, alpha, &theta, &z);

@@ -77,7 +77,11 @@ pub struct PropagationRounding {
 
 fn propagation_rounding(sys: &LtiSystem, m: usize, u: f64) -> PropagationRounding {
     let (nx, nu, nw1) = (sys.nx(), sys.nu(), sys.nw1());
-    let (na, nb, ne) = (norm_bound(sys.a()), norm_bound(sys.b()), norm_bound(sys.e()));
+    let (na, nb, ne) = (
+        norm_bound(sys.a()),
+        norm_bound(sys.b()),
+        norm_bound(sys.e()),
+    );
     // |A|, |B|, |E| have the same √(‖·‖₁‖·‖_∞) bound as A, B, E.
     // Per term: the stored entry and the stored input (2), the product (1), the row sum
     // (≤ n), the additions into x⁺ (≤ 3).
@@ -125,17 +129,16 @@ pub struct WindowRounding {
     pub origin_offset: f64,
 }
 
-/// The per-window models of `solver` on the scenario's MHE in `scalar`, or why the
+/// The per-window models of `solver` on the scenario's MHE in unit round-off `u`, or why the
 /// rounding is not covered (the first reason).
 pub fn window_roundings(
     resolved: &ResolvedScenario,
     cert: &ClosedLoopCertificate,
     solver: Method,
-    scalar: Scalar,
+    u: f64,
 ) -> Result<Result<Vec<WindowRounding>, String>, ClosedLoopError> {
     let problem = resolved.mhe_problem()?;
     let sys = problem.system();
-    let u = scalar.unit_roundoff();
     let mut out = Vec::new();
     for (m, w) in problem.windows().iter().enumerate() {
         let iteration = match iteration_rounding(&solver, w.qp(), u) {
@@ -148,7 +151,11 @@ pub fn window_roundings(
             .get(m)
             .map_or(f64::NAN, |p| p.0)
             .max(1.0);
-        let origin_offset = cert.lemma1_origin_offsets.get(m).copied().unwrap_or(f64::NAN);
+        let origin_offset = cert
+            .lemma1_origin_offsets
+            .get(m)
+            .copied()
+            .unwrap_or(f64::NAN);
         if !(l_phi.is_finite() && origin_offset.is_finite()) {
             return Ok(Err(format!(
                 "window m = {m}: L_Φ or ‖z*(0)‖ has no finite certified bound"
@@ -209,7 +216,8 @@ impl Fold {
             .map(|w| w.iteration.perturbed_rate())
             .fold(0.0, f64::max);
         let s = 1.0 / (1.0 - q);
-        let (mut g_d, mut c_d, mut rho_z, mut rho_u, mut l_phi) = (0.0f64, 0.0f64, 0.0f64, 0.0f64, 0.0f64);
+        let (mut g_d, mut c_d, mut rho_z, mut rho_u, mut l_phi) =
+            (0.0f64, 0.0f64, 0.0f64, 0.0f64, 0.0f64);
         for w in windows {
             let it = &w.iteration;
             // ‖zᴷ − z*(θ)‖ ≤ q^K(‖z⁰ − z*(θ)‖ + L u‖θ‖) + (a‖z*(θ̃)‖ + b‖θ̃‖ + c)S + L u‖θ‖,
@@ -239,10 +247,8 @@ fn margin_at(a: &crate::analysis::IssAnalysis, fold: &Fold, k: usize, u: f64) ->
     let i = &a.inputs;
     let m = i.horizon as f64;
     // e-terms of (lemma 3 last): coefficient √(2Λ^H̄_P)·(φL_Φ + g_d)·2(M L_π + 1).
-    let s_e = (2.0 * a.lambda_hp).sqrt()
-        * (phi * a.l_phi_used + fold.g_d)
-        * 2.0
-        * (m * i.l_pi + 1.0);
+    let s_e =
+        (2.0 * a.lambda_hp).sqrt() * (phi * a.l_phi_used + fold.g_d) * 2.0 * (m * i.l_pi + 1.0);
     let kappa_r = 1.0 + a.lambda_pp.sqrt() / (1.0 - a.rho.powi(i.horizon as i32).sqrt());
     let k_r = (1.0 + s_e) * kappa_r;
     // ‖r_t‖ ≤ ρ_z(o + L‖θ̃‖ + ε_t) + ρ_u‖θ‖; ‖θ‖ ≤ (1 + M(‖C‖ + L_π))‖x‖ + (1 + M L_π)‖e‖
@@ -266,11 +272,15 @@ fn mpc_vanishes_at_origin(resolved: &ResolvedScenario) -> Result<bool, ClosedLoo
     let z = qp.zset();
     Ok(qp.general().is_none()
         && qp.q0().iter().all(|v| *v == 0.0)
-        && z.lower().iter().zip(z.upper()).all(|(l, h)| *l <= 0.0 && *h >= 0.0))
+        && z.lower()
+            .iter()
+            .zip(z.upper())
+            .all(|(l, h)| *l <= 0.0 && *h >= 0.0))
 }
 
 /// Theorem 1 for `solver` in `scalar` (module docs). f64 returns the certificate as
-/// computed; f32 folds the rounding model in, or says exactly why it cannot.
+/// computed; f32 folds the rounding model in ([`certify_rounded`] at u = 2⁻²⁴), or says
+/// exactly why it cannot.
 ///
 /// Errors only when the scenario has no MHE or MPC (as [`super::certify_closed_loop`]).
 pub fn certify_scalar(
@@ -280,9 +290,50 @@ pub fn certify_scalar(
     scalar: Scalar,
     k_max: usize,
 ) -> Result<ScalarCertificate, ClosedLoopError> {
+    if scalar == Scalar::F32 {
+        return certify_rounded(resolved, cert, solver, F32_UNIT_ROUNDOFF, k_max);
+    }
     let sc = cert.solver(solver);
     let k_min_f64 = sc.and_then(|s| s.k_min);
-    let mut out = ScalarCertificate {
+    Ok(ScalarCertificate {
+        scalar,
+        solver,
+        k_min: k_min_f64,
+        k_min_f64,
+        perturbed_rate: 0.0,
+        rounding_gain: 0.0,
+        rounding_offset: 0.0,
+        self_loop: None,
+        margin: sc.and_then(|s| s.at_k_min.as_ref()).map(|g| g.margin),
+        reason: match sc {
+            None => Some(format!(
+                "`{}` is not among the certified solvers",
+                solver.name()
+            )),
+            Some(s) => s.k_min.is_none().then(|| s.void_reasons.join("; ")),
+        },
+    })
+}
+
+/// Theorem 1 with the rounding model at unit round-off `u` folded in (module docs): f32 is
+/// `u` = 2⁻²⁴; `u` = 2⁻⁵³ shows what folding f64's own rounding in would cost (nothing, on
+/// the shipped scenarios: the same K_min). `scalar` of the result is F32 when u is f32's,
+/// else F64.
+pub fn certify_rounded(
+    resolved: &ResolvedScenario,
+    cert: &ClosedLoopCertificate,
+    solver: Method,
+    u: f64,
+    k_max: usize,
+) -> Result<ScalarCertificate, ClosedLoopError> {
+    let scalar = if u == F32_UNIT_ROUNDOFF {
+        Scalar::F32
+    } else {
+        Scalar::F64
+    };
+    let sc = cert.solver(solver);
+    let k_min_f64 = sc.and_then(|s| s.k_min);
+    let out = ScalarCertificate {
         scalar,
         solver,
         k_min: None,
@@ -294,19 +345,13 @@ pub fn certify_scalar(
         margin: None,
         reason: None,
     };
-    let Some(sc) = sc else {
-        out.reason = Some(format!("`{}` is not among the certified solvers", solver.name()));
-        return Ok(out);
-    };
-    if scalar == Scalar::F64 {
-        out.k_min = k_min_f64;
-        out.margin = sc.at_k_min.as_ref().map(|g| g.margin);
-        out.reason = (k_min_f64.is_none()).then(|| sc.void_reasons.join("; "));
-        return Ok(out);
-    }
     let void = |mut out: ScalarCertificate, why: String| {
         out.reason = Some(why);
         Ok(out)
+    };
+    let Some(sc) = sc else {
+        let why = format!("`{}` is not among the certified solvers", solver.name());
+        return void(out, why);
     };
     if k_min_f64.is_none() {
         let why = format!("void in f64 already: {}", sc.void_reasons.join("; "));
@@ -328,8 +373,7 @@ pub fn certify_scalar(
                 .into(),
         );
     }
-    let u = scalar.unit_roundoff();
-    let windows = match window_roundings(resolved, cert, solver, scalar)? {
+    let windows = match window_roundings(resolved, cert, solver, u)? {
         Ok(w) => w,
         Err(why) => return void(out, format!("not covered: {why}")),
     };
@@ -347,9 +391,12 @@ pub fn certify_scalar(
         return void(out, why);
     }
     let fold = Fold::new(&windows, u);
-    out.perturbed_rate = fold.q;
-    out.rounding_gain = fold.g_d;
-    out.rounding_offset = fold.c_d;
+    let mut out = ScalarCertificate {
+        perturbed_rate: fold.q,
+        rounding_gain: fold.g_d,
+        rounding_offset: fold.c_d,
+        ..out
+    };
     let a = &sc.analysis;
     let certified = |k: usize| margin_at(a, &fold, k, u).0;
     let k0 = k_min_f64.unwrap_or(1).max(1);
@@ -360,8 +407,14 @@ pub fn certify_scalar(
             out,
             format!(
                 "void: with the rounding folded in no K ≤ {k_max} satisfies \
-                 1 − s − sg1 − sg2 − sg3 > 0 (self-loop s = {} at K = {k_max}); \
-                 the rounding alone breaks the small-gain condition",
+                 1 − s − sg1 − sg2 − sg3 > 0: the rounding enters ε with gain g_d = {} per \
+                 unit of ‖θ_t‖ (the window's magnitude), against φ(K)L_Φ = {} at the f64 \
+                 K_min, and x̂'s propagation adds a self-loop s = {} on e; Theorem 1's \
+                 gains leave no room for it (run in f64, or tighten the rounding model)",
+                lti_model::numfmt::sig4(fold.g_d),
+                lti_model::numfmt::sig4(
+                    k_min_f64.map_or(f64::NAN, |k| sc.analysis.phi(k) * sc.analysis.l_phi_used)
+                ),
                 lti_model::numfmt::sig4(s)
             ),
         );
@@ -422,11 +475,11 @@ impl DeviationBound {
         if resolved.mhe_config()?.warm_start != mhe_core::WarmStart::Paper {
             return Ok(Err("only the paper's warm start is covered".into()));
         }
-        let w32 = match window_roundings(resolved, cert, solver, Scalar::F32)? {
+        let w32 = match window_roundings(resolved, cert, solver, F32_UNIT_ROUNDOFF)? {
             Ok(w) => w,
             Err(e) => return Ok(Err(e)),
         };
-        let w64 = match window_roundings(resolved, cert, solver, Scalar::F64)? {
+        let w64 = match window_roundings(resolved, cert, solver, F64_UNIT_ROUNDOFF)? {
             Ok(w) => w,
             Err(e) => return Ok(Err(e)),
         };

@@ -341,6 +341,7 @@ mod tests {
             }
         }
         // The model is a worst case: the measured error sits well below it, but not absurdly.
+        println!("largest measured/bound over 800 steps: {worst:.3e}");
         assert!(worst > 1e-4, "measured/bound = {worst:e}");
     }
 

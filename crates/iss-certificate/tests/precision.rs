@@ -288,6 +288,15 @@ fn theorem_1_with_rounding_folded_in() {
     let mid = certify_rounded(&resolved, &cert, Method::PG, 2f64.powi(-40), k_max).expect("runs");
     println!("{mid:?}");
     assert!(mid.k_min.is_some_and(|k| k >= k64), "{mid:?}");
+    assert!(f64c.covers(k64) && !f64c.covers(k64 - 1) && !f32c.covers(usize::MAX));
+    // Half precision (u = 2⁻¹¹): the rounding breaks the contraction itself (r + a ≥ 1,
+    // 1 − r ≈ 0.04 on these windows), and the reason names the window.
+    let half = certify_rounded(&resolved, &cert, Method::PG, 2f64.powi(-11), k_max).expect("runs");
+    let why = half.reason.as_deref().unwrap_or("");
+    assert!(
+        half.k_min.is_none() && why.contains("breaks the contraction in window m = "),
+        "{why}"
+    );
     // FISTA is not covered, with the accumulation reason.
     let fista = certify_scalar(&resolved, &cert, Method::FISTA, Scalar::F32, k_max).expect("runs");
     assert!(fista.k_min.is_none());

@@ -22,11 +22,11 @@
 //! `mhe_embedded` runs.
 
 use faer::{Mat, MatRef};
+use qp_iter::Method;
 use qp_iter::rounding::{
     F32_UNIT_ROUNDOFF, F64_UNIT_ROUNDOFF, IterationRounding, abs_norm_bound, gamma,
     iteration_rounding,
 };
-use qp_iter::{Method, MethodKind};
 use serde::Serialize;
 
 use super::ClosedLoopCertificate;
@@ -195,6 +195,14 @@ pub struct ScalarCertificate {
     pub margin: Option<f64>,
     /// Why there is no K_min (None when there is one).
     pub reason: Option<String>,
+}
+
+impl ScalarCertificate {
+    /// Whether this scalar is certified at iteration budget K (K ≥ K_min): the verdict the
+    /// export and the coverage table use for (method, K, scalar).
+    pub fn covers(&self, k: usize) -> bool {
+        self.k_min.is_some_and(|m| k >= m)
+    }
 }
 
 /// The f32 rounding's constants of Theorem 1 (docs/theory.md, "Certified f32", steps 3–4).
@@ -437,11 +445,6 @@ pub fn certify_rounded(
     out.margin = Some(margin);
     out.self_loop = Some(s);
     Ok(out)
-}
-
-/// Whether `method` is a plain projected gradient (the family the f32 model covers).
-pub fn rounding_covers(method: &Method) -> bool {
-    matches!(method.kind, MethodKind::Pg(_)) && method.scaling == qp_iter::Scaling::None
 }
 
 /// The per-step bound on ‖x̂_f32,t − x̂_f64,t‖ of two estimators (same method, K, data) fed

@@ -485,7 +485,10 @@ pub(crate) fn replace_artefact(out: &Path, write: impl FnOnce(&Path) -> Result<(
     check_out(out)?;
     if let Some(parent) = out.parent().filter(|p| !p.as_os_str().is_empty()) {
         std::fs::create_dir_all(parent).with_context(|| {
-            format!("--out `{}`: cannot create its parent directory", out.display())
+            format!(
+                "--out `{}`: cannot create its parent directory",
+                out.display()
+            )
         })?;
     }
     let stage = sibling(out, "export-new");
@@ -562,9 +565,7 @@ pub fn export(args: &ExportArgs) -> Result<()> {
             mpc_spec.context("--kc: the scenario has no [mpc] section: no MPC to export")?;
             Some(k)
         }
-        None => mpc_spec
-            .and_then(|m| m.iterations)
-            .map(Iterations::Given),
+        None => mpc_spec.and_then(|m| m.iterations).map(Iterations::Given),
     };
     let mpc_method = match (&kc_arg, mpc_method_flag, mpc_spec) {
         (None, Some(m), _) => bail!(

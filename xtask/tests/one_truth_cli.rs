@@ -102,11 +102,21 @@ fn verdicts(c: &Case) -> Verdicts {
     let f = file.to_str().unwrap();
 
     // reproduce: the verdict at the scenario's own (K, K_c), and the per-solver flag.
-    let out = run(&["reproduce", "--scenario", f, "--out", d.join("r").to_str().unwrap()]);
-    assert!(out.status.success(), "{}: reproduce\n{}", c.name, text(&out));
+    let out = run(&[
+        "reproduce",
+        "--scenario",
+        f,
+        "--out",
+        d.join("r").to_str().unwrap(),
+    ]);
+    assert!(
+        out.status.success(),
+        "{}: reproduce\n{}",
+        c.name,
+        text(&out)
+    );
     let doc: serde_json::Value =
-        serde_json::from_str(&fs::read_to_string(d.join("r/s/certificate.json")).unwrap())
-            .unwrap();
+        serde_json::from_str(&fs::read_to_string(d.join("r/s/certificate.json")).unwrap()).unwrap();
     let reproduce = doc["at_scenario"]["certified"]
         .as_str()
         .unwrap()
@@ -119,7 +129,9 @@ fn verdicts(c: &Case) -> Verdicts {
 
     // sweep: the `certified` column at the same pair.
     let controller = c.k_c.map_or_else(String::new, |(k_c, m)| {
-        format!("controller = {{ kind = \"suboptimal-mpc\", iterations = {k_c}, solver = \"{m}\" }}\n")
+        format!(
+            "controller = {{ kind = \"suboptimal-mpc\", iterations = {k_c}, solver = \"{m}\" }}\n"
+        )
     });
     let cfg = d.join("sweep.toml");
     fs::write(

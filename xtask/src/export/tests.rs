@@ -402,7 +402,10 @@ fn a_k_below_k_min_is_refused_unless_allowed() {
     let err = decide(&void, given(100_000), f64, false)
         .unwrap_err()
         .to_string();
-    assert!(err.contains("NOT CERTIFIED") && err.contains("ρ ≥ 1"), "{err}");
+    assert!(
+        err.contains("NOT CERTIFIED") && err.contains("ρ ≥ 1"),
+        "{err}"
+    );
     assert_eq!(
         decide(&void, given(100_000), f64, true).unwrap(),
         (100_000, false)
@@ -425,7 +428,10 @@ fn an_uncertified_artefact_says_so_everywhere() {
         k_min: Some(k_min),
         scalar: ScalarKind::F64,
         certified: false,
-        reason: Some(format!("K = {} is below the certified floor {k_min}", k_min - 1)),
+        reason: Some(format!(
+            "K = {} is below the certified floor {k_min}",
+            k_min - 1
+        )),
         prior: resolved.scenario().simulation.prior.clone(),
         sha256: super::sha256::sha256_hex(&std::fs::read(&path).unwrap()),
         mpc: None,

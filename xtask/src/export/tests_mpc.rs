@@ -244,16 +244,8 @@ fn a_k_c_below_the_joint_floor_is_refused_unless_allowed() {
     let k_e = cert.solver(Method::PG).unwrap().k_min.unwrap();
     let floor = joint.analysis.k_c_min(k_e, joint.region.k_max).unwrap();
     let decide = |kc: Iterations, k_e: usize, allow: bool| {
-        decide_kc(
-            &resolved,
-            &cert,
-            &joint,
-            kc,
-            k_e,
-            ScalarKind::F64,
-            allow,
-        )
-        .map(|(k, v)| (k, v.certified == Certified::Yes))
+        decide_kc(&resolved, &cert, &joint, kc, k_e, ScalarKind::F64, allow)
+            .map(|(k, v)| (k, v.certified == Certified::Yes))
     };
     assert_eq!(
         decide(Iterations::Certified, k_e, false).unwrap(),
@@ -293,7 +285,10 @@ fn a_k_c_below_the_joint_floor_is_refused_unless_allowed() {
         k_c: floor - 1,
         k_c_min: Some(floor),
         certified: false,
-        reason: Some(format!("K_c = {} is below the certified floor {floor}", floor - 1)),
+        reason: Some(format!(
+            "K_c = {} is below the certified floor {floor}",
+            floor - 1
+        )),
     });
     let dir = scratch_dir("uncertified-mpc");
     let sc = cert.solver(Method::PG).unwrap();

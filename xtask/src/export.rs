@@ -345,7 +345,6 @@ pub(crate) fn joint_certificate(
 /// with `mpc_method`, `scalar`) of [`iss_certificate::coverage::verdict`]: K_c and the
 /// verdict. `--kc certified` is the joint certificate's floor at K_e; a pair the verdict does
 /// not certify is refused unless `allow_uncertified`.
-#[allow(clippy::too_many_arguments)]
 pub(crate) fn decide_kc(
     resolved: &ResolvedScenario,
     cert: &ClosedLoopCertificate,

@@ -356,11 +356,19 @@ fn a_reused_out_is_replaced_as_a_set() {
             .unwrap()
     };
     let res = export(&["--lang", "c", "--k", "300"]);
-    assert!(res.status.success(), "{}", String::from_utf8_lossy(&res.stderr));
+    assert!(
+        res.status.success(),
+        "{}",
+        String::from_utf8_lossy(&res.stderr)
+    );
     assert!(art.join("mhe.c").exists());
     std::fs::write(art.join("stale.txt"), "from the first export").unwrap();
     let res = export(&["--lang", "rust", "--k", "certified"]);
-    assert!(res.status.success(), "{}", String::from_utf8_lossy(&res.stderr));
+    assert!(
+        res.status.success(),
+        "{}",
+        String::from_utf8_lossy(&res.stderr)
+    );
     let cert: serde_json::Value =
         serde_json::from_str(&std::fs::read_to_string(art.join("certificate.json")).unwrap())
             .unwrap();
@@ -369,7 +377,10 @@ fn a_reused_out_is_replaced_as_a_set() {
     assert!(k_min < 300);
     assert!(art.join("Cargo.toml").exists());
     for gone in ["mhe.c", "mhe_data.h", "Makefile", "stale.txt"] {
-        assert!(!art.join(gone).exists(), "{gone} of the first export remains");
+        assert!(
+            !art.join(gone).exists(),
+            "{gone} of the first export remains"
+        );
     }
     // No temporary sibling is left behind.
     let siblings: Vec<String> = std::fs::read_dir(&dir)

@@ -147,6 +147,11 @@ pub struct CertificateDocument {
     /// constraints in the MPC); `null` otherwise. A part of the scenario the LMI does not
     /// need never blocks its check.
     pub controller_lipschitz_skipped: Option<String>,
+    /// Which closed-loop certificate covers the scenario's configuration (its method, warm
+    /// start and controller: `iss_certificate::coverage::covering`, the decision `reproduce`,
+    /// `sweep` and `export` make), or why none does; `null` without [mhe]. `certify` checks
+    /// LMI (2) only: the verdict at K is `reproduce`'s.
+    pub closed_loop: Option<iss_certificate::coverage::Coverage>,
 }
 
 /// Result of [`certify`]: the document and its text summary.
@@ -393,6 +398,9 @@ pub fn certify(req: &CertifyRequest) -> Result<Outcome> {
         }
         None => (None, None),
     };
+    let closed_loop = closed_loop::scenario::LoopOptions::from_scenario(&scenario)
+        .ok()
+        .map(|o| iss_certificate::coverage::covering(&scenario, o.method, o.controller));
     let document = CertificateDocument {
         format: FORMAT.to_string(),
         format_version: FORMAT_VERSION,
@@ -429,6 +437,7 @@ pub fn certify(req: &CertifyRequest) -> Result<Outcome> {
         tolerance_rule: TOLERANCE_RULE.to_string(),
         controller_lipschitz,
         controller_lipschitz_skipped,
+        closed_loop,
     };
     let summary = summarize(&document);
     Ok(Outcome { document, summary })
@@ -502,6 +511,27 @@ fn summarize(d: &CertificateDocument) -> String {
             s,
             "L_π (Assumption 3): not computed — {why} (the LMI (2) check above does not need it)"
         );
+    }
+    match &d.closed_loop {
+        Some(iss_certificate::coverage::Coverage::Covered(kind)) => {
+            let _ = writeln!(
+                s,
+                "closed loop: covered by the {} certificate; its verdict at K is `cargo xtask \
+                 reproduce`'s (PASS/FAIL below is LMI (2) alone)",
+                match kind {
+                    iss_certificate::coverage::CertificateKind::Theorem1 => "Theorem 1",
+                    iss_certificate::coverage::CertificateKind::Joint => "joint MPC + MHE",
+                }
+            );
+        }
+        Some(iss_certificate::coverage::Coverage::Uncovered(why)) => {
+            let _ = writeln!(
+                s,
+                "closed loop: NOT CERTIFIED — {why} (PASS/FAIL below is LMI (2) alone, not a \
+                 closed-loop certificate)"
+            );
+        }
+        None => {}
     }
     let _ = write!(s, "{}", if d.passed { "PASS" } else { "FAIL" });
     s

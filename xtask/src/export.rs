@@ -1,16 +1,21 @@
 //! `cargo xtask export`: the certified estimator as a self-contained artefact for a
 //! microcontroller (docs/embedded.md).
 //!
-//! 1. Reads the scenario, computes Theorem 1's certificate for the method
-//!    (`iss_certificate::certificate::certify_closed_loop`) and decides K: `--k certified` (the
-//!    default) is K_min; a given K below K_min, or any K with a void certificate, is refused
-//!    unless `--allow-uncertified`, which the artefact then says in its README, its headers
-//!    and `certificate.json`.
+//! 1. Reads the scenario and checks every argument (`--k`, `--kc`, `--method`,
+//!    `--mpc-method`, `--out`) before any work; computes the closed-loop certificate with the
+//!    options every command uses (`iss_certificate::coverage::verdict_options`: the user's
+//!    γ₁,₃ and the sample that can refute it) and decides K: `--k certified` (the default) is
+//!    K_min of Theorem 1. The verdict on (method, K, the MPC's K_c, scalar, the scenario's
+//!    warm start) is `iss_certificate::coverage::verdict`'s — the one `reproduce` and the
+//!    sweep print; a configuration it does not certify is refused unless
+//!    `--allow-uncertified`, which the artefact then says in its README, its headers and
+//!    `certificate.json`.
 //! 2. Builds the std `MheEstimator` with that method and K on the portable kernel and copies
 //!    its numbers out ([`extract`]).
-//! 3. Writes the artefact: the data (a Rust module or `.c`/`.h`), the estimator source
-//!    (vendored `mhe-embedded`, or `mhe.c`/`mhe.h`), the build files, the replay program,
-//!    `certificate.json` and a README.
+//! 3. Writes the artefact into a temporary sibling of `--out` and replaces `--out` with it
+//!    as a whole (no file of an earlier export survives beside the new certificate): the
+//!    data (a Rust module or `.c`/`.h`), the estimator source (vendored `mhe-embedded`, or
+//!    `mhe.c`/`mhe.h`), the build files, the replay program, `certificate.json` and a README.
 
 mod c_gen;
 pub(crate) mod extract;
@@ -27,11 +32,10 @@ use std::path::{Path, PathBuf};
 
 use anyhow::{Context, Result, bail};
 use clap::{Args, ValueEnum};
-use closed_loop::scenario::{ResolvedScenario, Scenario};
-use iss_certificate::certificate::{
-    CertificateOptions, ClosedLoopCertificate, Gamma13Source, SolverCertificate,
-    certify_closed_loop,
-};
+use closed_loop::scenario::{ControllerChoice, ResolvedScenario, Scenario};
+use iss_certificate::certificate::{ClosedLoopCertificate, SolverCertificate, certify_closed_loop};
+pub(crate) use iss_certificate::coverage::F32_NOT_COVERED;
+use iss_certificate::coverage::{Certified, Configuration, PairVerdict, Scalar, verdict_options};
 use iss_certificate::joint::{JointCertificate, JointOptions, certify_joint};
 use qp_iter::Method;
 use serde_json::json;
@@ -63,7 +67,8 @@ pub struct ExportArgs {
     /// Scenario file (TOML, docs/scenario-format.md) with [mhe] and [mpc].
     #[arg(long)]
     pub scenario: PathBuf,
-    /// Output directory (created; existing files in it are overwritten).
+    /// Output directory: created, or replaced as a whole when it holds an earlier export
+    /// (its `certificate.json`); any other existing path is refused.
     #[arg(long, value_name = "DIR")]
     pub out: PathBuf,
     /// The method (`pg`, `fista`, `admm`, `admm-pr`, `pg-jacobi`, …) [default: the
@@ -84,7 +89,7 @@ pub struct ExportArgs {
     /// scenario's `mpc.iterations` when set, else no MPC].
     #[arg(long, value_name = "K_C")]
     pub kc: Option<String>,
-    /// The MPC's method [default: the scenario's `mpc.method`].
+    /// The MPC's method [default: the scenario's `mpc.method`]; only with an exported MPC.
     #[arg(long)]
     pub mpc_method: Option<String>,
     /// Export even when K (or K_c) is below its certified floor or the certificate is void
@@ -100,8 +105,10 @@ pub(crate) struct MpcArtefact {
     pub k_c: usize,
     /// The joint certificate's floor K_c at the exported K (None: no K_c is certified).
     pub k_c_min: Option<usize>,
-    /// (K, K_c) certified by the joint certificate.
+    /// (K, K_c) certified by the joint certificate ([`iss_certificate::coverage::verdict`]).
     pub certified: bool,
+    /// Why not (None when certified).
+    pub reason: Option<String>,
 }
 
 /// What the generated files say about themselves.
@@ -112,7 +119,11 @@ pub(crate) struct Artefact<'a> {
     pub k: usize,
     pub k_min: Option<usize>,
     pub scalar: ScalarKind,
+    /// The verdict on (method, K, scalar, warm start) with Theorem 1
+    /// ([`iss_certificate::coverage::verdict`]).
     pub certified: bool,
+    /// Why not (None when certified).
+    pub reason: Option<String>,
     pub prior: Vec<f64>,
     pub sha256: String,
     /// The exported MPC, if any.
@@ -141,15 +152,12 @@ impl Artefact<'_> {
                 "Certified: K = {} ≥ K_min = {k} of Theorem 1 (certificate.json), in f64.",
                 self.k
             )),
-            (_, Some(k)) => lines.push(format!(
-                "UNCERTIFIED: K = {} is below K_min = {k}; exported with --allow-uncertified.",
-                self.k
+            _ => lines.push(format!(
+                "UNCERTIFIED: {}; exported with --allow-uncertified.",
+                self.reason
+                    .as_deref()
+                    .unwrap_or("see certificate.json `uncertified_reason`")
             )),
-            (_, None) => lines.push(
-                "UNCERTIFIED: the certificate of Theorem 1 is void for this method (see \
-                 certificate.json); exported with --allow-uncertified."
-                    .into(),
-            ),
         }
         if let Some(m) = &self.mpc {
             lines.push(match (m.certified, m.k_c_min) {
@@ -158,19 +166,25 @@ impl Artefact<'_> {
                      (certificate.json `mpc.joint`), in f64.",
                     m.method, m.k_c
                 ),
-                (false, Some(f)) => format!(
+                (false, Some(f)) if m.k_c < f => format!(
                     "MPC: {}, K_c = {}: UNCERTIFIED, the joint certificate needs K_c ≥ {f} at \
                      K = {}; exported with --allow-uncertified.",
                     m.method, m.k_c, self.k
                 ),
-                (false, None) => format!(
+                (false, None) if m.reason.is_none() => format!(
                     "MPC: {}, K_c = {}: UNCERTIFIED, no K_c is certified with K = {} by the joint \
                      certificate; exported with --allow-uncertified.",
                     m.method, m.k_c, self.k
                 ),
+                (false, _) => format!(
+                    "MPC: {}, K_c = {}: UNCERTIFIED, {}; exported with --allow-uncertified.",
+                    m.method,
+                    m.k_c,
+                    m.reason.as_deref().unwrap_or("not certified")
+                ),
             });
         }
-        if self.scalar == ScalarKind::F32 {
+        if self.scalar == ScalarKind::F32 && self.reason.is_none() {
             lines.push(format!("f32: {F32_NOT_COVERED}."));
         }
         lines
@@ -181,10 +195,6 @@ impl Artefact<'_> {
     }
 }
 
-/// What the certificate says about f32.
-pub(crate) const F32_NOT_COVERED: &str = "not covered: rounding of f32 enters as a \
-    disturbance of the iteration that is not in the bound";
-
 fn scalar_name(s: ScalarKind) -> &'static str {
     match s {
         ScalarKind::F64 => "f64",
@@ -192,24 +202,15 @@ fn scalar_name(s: ScalarKind) -> &'static str {
     }
 }
 
-/// The closed-loop certificate of one MHE method for a resolved scenario (Theorem 1; no
-/// sampled estimates).
+/// The closed-loop certificate of one MHE method for a resolved scenario, with the options
+/// that decide every command's verdict ([`verdict_options`]: a user γ₁,₃ is tested by the
+/// same sample as in `reproduce`).
 pub(crate) fn closed_loop_certificate(
     resolved: &ResolvedScenario,
     method: Method,
 ) -> Result<ClosedLoopCertificate> {
     let sc = resolved.scenario();
-    let opts = CertificateOptions {
-        solvers: vec![method],
-        gamma13: sc
-            .certificate
-            .gamma13
-            .map_or(Gamma13Source::Certified, Gamma13Source::User),
-        seed: sc.noise.seed,
-        lipschitz_pairs: 0,
-        gamma13_sequences: 0,
-        ..CertificateOptions::default()
-    };
+    let opts = verdict_options(sc, vec![method], None);
     certify_closed_loop(resolved, &opts)
         .with_context(|| format!("cannot compute the certificate of `{}`", sc.name))
 }
@@ -229,42 +230,97 @@ fn solver_entry(cert: &ClosedLoopCertificate, method: Method) -> Result<SolverCe
         .with_context(|| format!("the certificate has no entry for {}", method.name()))
 }
 
-/// K from `--k` and the certificate: (K, certified).
-pub(crate) fn decide_k(
-    k_arg: &str,
-    cert: &SolverCertificate,
-    allow_uncertified: bool,
-) -> Result<(usize, bool)> {
-    let method = cert.solver.name();
-    let void = || cert.void_reasons.join("; ");
-    if k_arg == "certified" {
-        return match cert.k_min {
-            Some(k) => Ok((k, true)),
-            None => bail!(
-                "--k certified: the certificate of Theorem 1 is void for {method} ({}); give \
-                 --k K with --allow-uncertified to export anyway",
-                void()
-            ),
-        };
+/// An iteration count from the command line: `certified` or a number ≥ 1.
+#[derive(Debug, Clone, Copy, PartialEq, Eq)]
+pub(crate) enum Iterations {
+    /// The certified floor (K_min, or the joint certificate's K_c at the exported K).
+    Certified,
+    /// A given count.
+    Given(usize),
+}
+
+/// Parses `--k` / `--kc` (`flag`) before any work.
+pub(crate) fn parse_iterations(flag: &str, arg: &str) -> Result<Iterations> {
+    if arg == "certified" {
+        return Ok(Iterations::Certified);
     }
-    let k: usize = k_arg
-        .parse()
+    arg.parse()
         .ok()
         .filter(|k| *k >= 1)
-        .with_context(|| format!("--k {k_arg}: expected an integer ≥ 1 or `certified`"))?;
-    match cert.k_min {
-        Some(k_min) if k >= k_min => Ok((k, true)),
-        Some(_) if allow_uncertified => Ok((k, false)),
-        Some(k_min) => bail!(
-            "--k {k}: below the certified K_min = {k_min} of Theorem 1 for {method}; use \
-             --k certified (or K ≥ {k_min}), or --allow-uncertified to export an uncertified \
-             estimator"
+        .map(Iterations::Given)
+        .with_context(|| format!("{flag} {arg}: expected an integer ≥ 1 or `certified`"))
+}
+
+fn coverage_scalar(s: ScalarKind) -> Scalar {
+    match s {
+        ScalarKind::F64 => Scalar::F64,
+        ScalarKind::F32 => Scalar::F32,
+    }
+}
+
+/// Why a verdict is not "certified" (None when it is), in the artefact's words.
+fn uncertified_reason(v: &PairVerdict, what: &str) -> Option<String> {
+    match v.certified {
+        Certified::Yes => None,
+        Certified::No => Some(match v.k_min {
+            Some(k_min) => format!("{what} is below the certified floor {k_min}"),
+            None => format!("{what} is not certified"),
+        }),
+        Certified::Void => Some(v.reason.clone()),
+    }
+}
+
+/// K from `--k` and the verdict on (method, K, the exact MPC, `scalar`) of
+/// [`iss_certificate::coverage::verdict`]: K and the verdict. `--k certified` is K_min of
+/// Theorem 1; a configuration the verdict does not certify is refused unless
+/// `allow_uncertified`.
+pub(crate) fn decide_k(
+    resolved: &ResolvedScenario,
+    cert: &ClosedLoopCertificate,
+    method: Method,
+    k_arg: Iterations,
+    scalar: ScalarKind,
+    allow_uncertified: bool,
+) -> Result<(usize, PairVerdict)> {
+    let sc = solver_entry(cert, method)?;
+    let name = method.name();
+    let k = match (k_arg, sc.k_min) {
+        (Iterations::Given(k), _) => k,
+        (Iterations::Certified, Some(k)) => k,
+        (Iterations::Certified, None) => bail!(
+            "--k certified: the certificate of Theorem 1 is void for {name} ({}); give --k K \
+             with --allow-uncertified to export anyway",
+            sc.void_reasons.join("; ")
         ),
-        None if allow_uncertified => Ok((k, false)),
-        None => bail!(
-            "--k {k}: the certificate of Theorem 1 is void for {method} ({}); \
-             --allow-uncertified exports anyway",
-            void()
+    };
+    let config = Configuration {
+        method,
+        k_e: k,
+        controller: ControllerChoice::ExactMpc,
+        scalar: coverage_scalar(scalar),
+    };
+    let v = iss_certificate::coverage::verdict(resolved, cert, &config);
+    let flag = match k_arg {
+        Iterations::Certified => format!("--k certified (K = {k})"),
+        Iterations::Given(_) => format!("--k {k}"),
+    };
+    match (v.certified, allow_uncertified) {
+        (Certified::Yes, _) | (_, true) => Ok((k, v)),
+        (Certified::No, false) => match v.k_min {
+            Some(k_min) => bail!(
+                "{flag}: below the certified K_min = {k_min} of Theorem 1 for {name}; use \
+                 --k certified (or K ≥ {k_min}), or --allow-uncertified to export an uncertified \
+                 estimator"
+            ),
+            None => bail!(
+                "{flag}: not certified for {name}; --allow-uncertified exports an uncertified \
+                 estimator"
+            ),
+        },
+        (Certified::Void, false) => bail!(
+            "{flag}: NOT CERTIFIED for {name} (the verdict `reproduce` gives): {}; \
+             --allow-uncertified exports anyway, and the artefact says so",
+            v.reason
         ),
     }
 }
@@ -285,13 +341,19 @@ pub(crate) fn joint_certificate(
         .context("cannot compute the joint MPC + MHE certificate")
 }
 
-/// K_c from `--kc` and the joint certificate at K_e = `k_e`: (K_c, certified).
+/// K_c from `--kc` and the verdict on the loop (method, K_e = `k_e`, the K_c-iteration MPC
+/// with `mpc_method`, `scalar`) of [`iss_certificate::coverage::verdict`]: K_c and the
+/// verdict. `--kc certified` is the joint certificate's floor at K_e; a pair the verdict does
+/// not certify is refused unless `allow_uncertified`.
 pub(crate) fn decide_kc(
-    kc_arg: &str,
-    k_e: usize,
+    resolved: &ResolvedScenario,
+    cert: &ClosedLoopCertificate,
     joint: &JointCertificate,
+    kc_arg: Iterations,
+    k_e: usize,
+    scalar: ScalarKind,
     allow_uncertified: bool,
-) -> Result<(usize, bool)> {
+) -> Result<(usize, PairVerdict)> {
     let region = &joint.region;
     let floor = joint.analysis.k_c_min(k_e, region.k_max);
     let none_reason = || {
@@ -314,37 +376,41 @@ pub(crate) fn decide_kc(
             )
         }
     };
-    if kc_arg == "certified" {
-        return match floor {
-            Some(k) => Ok((k, true)),
-            None => bail!(
-                "--kc certified: {}; give a larger --k, or --kc K with --allow-uncertified",
-                none_reason()
-            ),
-        };
-    }
-    let k: usize = kc_arg
-        .parse()
-        .ok()
-        .filter(|k| *k >= 1)
-        .with_context(|| format!("--kc {kc_arg}: expected an integer ≥ 1 or `certified`"))?;
-    if joint.analysis.at(k_e, k).certified {
-        return Ok((k, true));
-    }
-    if allow_uncertified {
-        return Ok((k, false));
-    }
-    match floor {
-        Some(f) => bail!(
-            "--kc {k}: below the joint certificate's floor K_c = {f} at K = {k_e} (MHE {}, MPC \
+    let k_c = match (kc_arg, floor) {
+        (Iterations::Given(k), _) => k,
+        (Iterations::Certified, Some(k)) => k,
+        (Iterations::Certified, None) => bail!(
+            "--kc certified: {}; give a larger --k, or --kc K with --allow-uncertified",
+            none_reason()
+        ),
+    };
+    let config = Configuration {
+        method: joint.mhe_method,
+        k_e,
+        controller: ControllerChoice::SuboptimalMpc {
+            iterations: k_c,
+            method: joint.mpc_method,
+        },
+        scalar: coverage_scalar(scalar),
+    };
+    let v = iss_certificate::coverage::verdict(resolved, cert, &config);
+    match (v.certified, allow_uncertified, floor) {
+        (Certified::Yes, _, _) | (_, true, _) => Ok((k_c, v)),
+        (Certified::No, false, Some(f)) => bail!(
+            "--kc {k_c}: below the joint certificate's floor K_c = {f} at K = {k_e} (MHE {}, MPC \
              {}); use --kc certified (or K_c ≥ {f}), or --allow-uncertified to export an \
              uncertified loop",
             joint.mhe_method,
             joint.mpc_method
         ),
-        None => bail!(
-            "--kc {k}: {}; --allow-uncertified exports anyway",
+        (Certified::No, false, None) => bail!(
+            "--kc {k_c}: {}; --allow-uncertified exports anyway",
             none_reason()
+        ),
+        (Certified::Void, false, _) => bail!(
+            "--kc {k_c}: NOT CERTIFIED (the verdict `reproduce` gives): {}; \
+             --allow-uncertified exports anyway, and the artefact says so",
+            v.reason
         ),
     }
 }
@@ -362,8 +428,125 @@ fn write_file(dir: &Path, name: &str, text: &str) -> Result<()> {
     std::fs::rename(&tmp, &path).with_context(|| format!("cannot write `{}`", path.display()))
 }
 
+/// The `format` of the artefact's `certificate.json`.
+pub(crate) const EXPORT_FORMAT: &str = "suboptimal-mhe/export-certificate";
+
+/// Checks `--out` before any work: a path that does not exist (its parent must be
+/// creatable), an empty directory, or an earlier export (a directory whose
+/// `certificate.json` is an export certificate), which the new one replaces as a whole.
+/// Anything else is refused, so `export` never deletes a directory it did not write.
+pub(crate) fn check_out(out: &Path) -> Result<()> {
+    let shown = out.display();
+    let meta = match std::fs::symlink_metadata(out) {
+        Err(e) if e.kind() == std::io::ErrorKind::NotFound => return Ok(()),
+        Err(e) => return Err(e).with_context(|| format!("--out `{shown}`: cannot read it")),
+        Ok(m) => m,
+    };
+    if !meta.is_dir() {
+        bail!(
+            "--out `{shown}` exists and is not a directory; give a new directory (or an earlier \
+             export's directory, which is replaced)"
+        );
+    }
+    let mut entries = std::fs::read_dir(out)
+        .with_context(|| format!("--out `{shown}`: cannot list the directory"))?;
+    if entries.next().is_none() {
+        return Ok(());
+    }
+    let ours = std::fs::read_to_string(out.join("certificate.json"))
+        .ok()
+        .and_then(|t| serde_json::from_str::<serde_json::Value>(&t).ok())
+        .is_some_and(|j| j["format"] == EXPORT_FORMAT);
+    if !ours {
+        bail!(
+            "--out `{shown}` is a directory that is not empty and holds no artefact of `cargo \
+             xtask export` (no certificate.json of format `{EXPORT_FORMAT}`); export replaces \
+             its --out as a whole, so it refuses to delete this one: give a new or empty \
+             directory"
+        );
+    }
+    Ok(())
+}
+
+/// A sibling of `out` named `<name>.<tag>.<pid>`.
+fn sibling(out: &Path, tag: &str) -> PathBuf {
+    let name = out
+        .file_name()
+        .map_or_else(|| "export".into(), |n| n.to_string_lossy().into_owned());
+    out.with_file_name(format!(".{name}.{tag}.{}", std::process::id()))
+}
+
+/// Writes the artefact with `write` into a temporary sibling directory of `out`, then
+/// replaces `out` (checked by [`check_out`] again: it may have changed during the
+/// certificate) by it: no file of an earlier export survives beside the new
+/// `certificate.json`, and a failed write leaves the earlier export as it was.
+pub(crate) fn replace_artefact(out: &Path, write: impl FnOnce(&Path) -> Result<()>) -> Result<()> {
+    check_out(out)?;
+    if let Some(parent) = out.parent().filter(|p| !p.as_os_str().is_empty()) {
+        std::fs::create_dir_all(parent).with_context(|| {
+            format!(
+                "--out `{}`: cannot create its parent directory",
+                out.display()
+            )
+        })?;
+    }
+    let stage = sibling(out, "export-new");
+    let _ = std::fs::remove_dir_all(&stage);
+    if let Err(e) = std::fs::create_dir(&stage)
+        .with_context(|| format!("cannot create `{}`", stage.display()))
+        .and_then(|()| write(&stage))
+    {
+        let _ = std::fs::remove_dir_all(&stage);
+        return Err(e.context(format!(
+            "nothing was replaced: `{}` is as it was",
+            out.display()
+        )));
+    }
+    let old = sibling(out, "export-old");
+    let had_old = out.exists();
+    if had_old {
+        let _ = std::fs::remove_dir_all(&old);
+        if let Err(e) = std::fs::rename(out, &old) {
+            let _ = std::fs::remove_dir_all(&stage);
+            return Err(e).with_context(|| format!("cannot replace `{}`", out.display()));
+        }
+    }
+    if let Err(e) = std::fs::rename(&stage, out) {
+        if had_old {
+            let _ = std::fs::rename(&old, out);
+        }
+        let _ = std::fs::remove_dir_all(&stage);
+        return Err(e).with_context(|| format!("cannot replace `{}`", out.display()));
+    }
+    if had_old {
+        let _ = std::fs::remove_dir_all(&old);
+    }
+    Ok(())
+}
+
 /// `cargo xtask export`.
 pub fn export(args: &ExportArgs) -> Result<()> {
+    // Every argument is checked before the certificate (seconds to minutes).
+    let k_arg = parse_iterations("--k", &args.k)?;
+    let kc_flag = args
+        .kc
+        .as_deref()
+        .map(|a| parse_iterations("--kc", a))
+        .transpose()?;
+    let method_flag: Option<Method> = args
+        .method
+        .as_deref()
+        .map(|m| m.parse().map_err(|e| anyhow::anyhow!("--method {m}: {e}")))
+        .transpose()?;
+    let mpc_method_flag: Option<Method> = args
+        .mpc_method
+        .as_deref()
+        .map(|m| {
+            m.parse()
+                .map_err(|e| anyhow::anyhow!("--mpc-method {m}: {e}"))
+        })
+        .transpose()?;
+    check_out(&args.out)?;
     let text = std::fs::read(&args.scenario)
         .with_context(|| format!("cannot read `{}`", args.scenario.display()))?;
     let sha256 = sha256::sha256_hex(&text);
@@ -373,11 +556,26 @@ pub fn export(args: &ExportArgs) -> Result<()> {
         .mhe
         .as_ref()
         .context("the scenario has no [mhe] section: nothing to export")?;
-    let method: Method = match &args.method {
-        Some(m) => m
-            .parse()
-            .map_err(|e| anyhow::anyhow!("--method {m}: {e}"))?,
-        None => mhe.method,
+    let method = method_flag.unwrap_or(mhe.method);
+    // The MPC: asked for with --kc, or the scenario's controller (mpc.iterations).
+    let mpc_spec = scenario.mpc.as_ref();
+    let kc_arg = match kc_flag {
+        Some(k) => {
+            mpc_spec.context("--kc: the scenario has no [mpc] section: no MPC to export")?;
+            Some(k)
+        }
+        None => mpc_spec.and_then(|m| m.iterations).map(Iterations::Given),
+    };
+    let mpc_method = match (&kc_arg, mpc_method_flag, mpc_spec) {
+        (None, Some(m), _) => bail!(
+            "--mpc-method {}: no MPC is exported (give --kc K_C or --kc certified, or set \
+             mpc.iterations in the scenario), so the flag would be ignored",
+            m.name()
+        ),
+        (None, None, _) => None,
+        (Some(_), Some(m), _) => Some(m),
+        (Some(_), None, Some(spec)) => Some(spec.method),
+        (Some(_), None, None) => bail!("--kc: the scenario has no [mpc] section: no MPC to export"),
     };
     let resolved = scenario
         .clone()
@@ -389,38 +587,41 @@ pub fn export(args: &ExportArgs) -> Result<()> {
     );
     let loop_cert = closed_loop_certificate(&resolved, method)?;
     let cert = solver_entry(&loop_cert, method)?;
-    let (k, certified) = decide_k(&args.k, &cert, args.allow_uncertified)?;
+    let (k, k_verdict) = decide_k(
+        &resolved,
+        &loop_cert,
+        method,
+        k_arg,
+        args.scalar,
+        args.allow_uncertified,
+    )?;
     let est = portable_estimator(&resolved, method, k)?;
     let problem = OwnedProblem::from_estimator(&est, &scenario.plant)?;
-    // The MPC: asked for with --kc, or the scenario's controller (mpc.iterations).
-    let mpc_spec = scenario.mpc.as_ref();
-    let kc_arg = args
-        .kc
-        .clone()
-        .or_else(|| mpc_spec.and_then(|m| m.iterations).map(|k| k.to_string()));
     let mut mpc_export = None;
-    if let Some(kc_arg) = kc_arg {
-        let spec = mpc_spec.context("--kc: the scenario has no [mpc] section: no MPC to export")?;
-        let mpc_method: Method = match &args.mpc_method {
-            Some(m) => m
-                .parse()
-                .map_err(|e| anyhow::anyhow!("--mpc-method {m}: {e}"))?,
-            None => spec.method,
-        };
+    if let (Some(kc_arg), Some(mpc_method)) = (kc_arg, mpc_method) {
         outln!(
             "computing the joint certificate for MHE {} + MPC {} …",
             method.name(),
             mpc_method.name()
         );
         let joint = joint_certificate(&resolved, &loop_cert, method, mpc_method)?;
-        let (k_c, mpc_certified) = decide_kc(&kc_arg, k, &joint, args.allow_uncertified)?;
+        let (k_c, v) = decide_kc(
+            &resolved,
+            &loop_cert,
+            &joint,
+            kc_arg,
+            k,
+            args.scalar,
+            args.allow_uncertified,
+        )?;
         let ctrl = portable_mpc(&resolved, mpc_method, k_c)?;
         let data = OwnedMpc::from_controller(&ctrl, resolved.mpc()?)?;
         let art = MpcArtefact {
             method: mpc_method.name().into_owned(),
             k_c,
             k_c_min: joint.analysis.k_c_min(k, joint.region.k_max),
-            certified: mpc_certified,
+            certified: v.certified == Certified::Yes,
+            reason: uncertified_reason(&v, &format!("K_c = {k_c}")),
         };
         mpc_export = Some((data, art, joint));
     }
@@ -430,21 +631,16 @@ pub fn export(args: &ExportArgs) -> Result<()> {
         k,
         k_min: cert.k_min,
         scalar: args.scalar,
-        certified,
+        certified: k_verdict.certified == Certified::Yes,
+        reason: uncertified_reason(&k_verdict, &format!("K = {k}")),
         prior: scenario.simulation.prior.clone(),
         sha256,
         mpc: mpc_export.as_ref().map(|m| m.1.clone()),
     };
     let mpc = mpc_export.as_ref().map(|(d, _, j)| (d, j));
-    write_artefact(
-        &args.out,
-        args.lang,
-        &problem,
-        mpc,
-        &art,
-        &cert,
-        &args.scenario,
-    )?;
+    replace_artefact(&args.out, |dir| {
+        write_artefact(dir, args.lang, &problem, mpc, &art, &cert, &args.scenario)
+    })?;
     outln!(
         "wrote the {} artefact for `{}` ({}, K = {k}{}) to {}",
         match args.lang {
@@ -453,10 +649,16 @@ pub fn export(args: &ExportArgs) -> Result<()> {
         },
         scenario.name,
         art.method,
-        match (art.loop_certified(), args.scalar) {
-            (true, ScalarKind::F64) => ", certified".to_string(),
-            (true, ScalarKind::F32) => ", certified K; f32 not covered by the certificate".into(),
-            (false, _) => ", UNCERTIFIED".into(),
+        if art.loop_certified() {
+            ", certified".to_string()
+        } else {
+            format!(
+                ", UNCERTIFIED ({})",
+                art.reason
+                    .as_deref()
+                    .or(art.mpc.as_ref().and_then(|m| m.reason.as_deref()))
+                    .unwrap_or("not certified")
+            )
         } + &art.mpc.as_ref().map_or_else(String::new, |m| format!(
             ", MPC {} with K_c = {}",
             m.method, m.k_c
@@ -546,6 +748,7 @@ fn certificate_json(
             "warm_start": j.warm_start,
             "k_c_min": m.k_c_min,
             "certified": m.certified,
+            "uncertified_reason": m.reason,
             "covers": "the exported f64 MPC performs the certified K_c iterations bit for bit as \
                 the std SuboptimalMpc on the portable kernel; the joint certificate holds at \
                 (K, K_c) iff `certified`",
@@ -555,7 +758,7 @@ fn certificate_json(
         _ => serde_json::Value::Null,
     };
     json!({
-        "format": "suboptimal-mhe/export-certificate",
+        "format": EXPORT_FORMAT,
         "format_version": 1,
         "scenario": {
             "name": art.scenario,
@@ -570,17 +773,14 @@ fn certificate_json(
         "loop_certified": art.loop_certified(),
         "artefact_covered": art.loop_certified() && art.scalar == ScalarKind::F64,
         "mpc": mpc,
-        "uncertified_reason": (!art.certified).then(|| match art.k_min {
-            Some(k) => format!("K = {} is below K_min = {k}; exported with --allow-uncertified", art.k),
-            None => "the certificate of Theorem 1 is void for this method; exported with --allow-uncertified".to_string(),
-        }),
+        "uncertified_reason": art.reason.as_ref().map(|r| format!("{r}; exported with --allow-uncertified")),
         "covers": {
             "method": art.method,
             "iterations": art.k,
             "f64": if art.certified {
                 "covered: the exported f64 code performs the certified iteration bit for bit as the std estimator on the portable kernel"
             } else {
-                "not covered: K is not certified"
+                "not covered: this configuration is not certified (`uncertified_reason`)"
             },
             "f32": F32_NOT_COVERED,
         },

@@ -30,7 +30,7 @@ use iss_certificate::certificate::{
     CertificateOptions, ClosedLoopCertificate, Gamma13Source, SolverCertificate, TrajectoryCheck,
     analysis_with_sampled_l_phi, certify_closed_loop_timed, check_trajectory,
 };
-use iss_certificate::coverage::Applicable;
+use iss_certificate::coverage::{Applicable, verdict_options};
 use iss_certificate::plan::{KSource, RunOutcome, plan_runs};
 use lti_model::BoxSet;
 use lti_model::matrix::to_rows;
@@ -195,10 +195,9 @@ pub fn run_job(job: &Job, settings: &Settings) -> Result<Outcome> {
         log.push(line);
     };
     // γ₁,₃: the command line's value, else the scenario's `certificate.gamma13`, else computed.
-    let gamma13 = match (settings.gamma13, scenario.certificate.gamma13) {
-        (Gamma13Source::User(g), _) => Gamma13Source::User(g),
-        (_, Some(g)) => Gamma13Source::User(g),
-        (source, None) => source,
+    let cli_gamma13 = match settings.gamma13 {
+        Gamma13Source::User(g) => Some(g),
+        Gamma13Source::Certified => None,
     };
     // The four named methods, plain and Jacobi-scaled (long horizons: the scaled maps keep
     // K_min near its short-horizon value), and the scenario's own method when it is another
@@ -207,15 +206,20 @@ pub fn run_job(job: &Job, settings: &Settings) -> Result<Outcome> {
     if !solvers.contains(&solver) {
         solvers.push(solver);
     }
+    // The options that decide the verdict are every command's (`verdict_options`: a user
+    // γ₁,₃ is tested by the same sample as in `export` and the sweep); the sampled
+    // estimates beside the certified values are reproduce's own.
+    let verdict = verdict_options(&scenario, solvers, cli_gamma13);
     let opts = CertificateOptions {
-        solvers,
-        gamma13,
-        seed,
         lipschitz_pairs: settings.lipschitz_pairs,
-        gamma13_sequences: settings.gamma13_sequences,
+        gamma13_sequences: if verdict.gamma13 == Gamma13Source::Certified {
+            settings.gamma13_sequences
+        } else {
+            verdict.gamma13_sequences
+        },
         enumeration_max_vars: settings.enumeration_max_vars,
         k_max: settings.k_max,
-        phase_seconds: scenario.certificate.phase_seconds(),
+        ..verdict
     };
     let resolved = scenario.clone().resolve().with_context(|| {
         format!(
@@ -591,7 +595,7 @@ pub fn run_job(job: &Job, settings: &Settings) -> Result<Outcome> {
         solvers: cert
             .solvers
             .iter()
-            .map(|s| SolverSummary::new(s, solver))
+            .map(|s| SolverSummary::new(s, solver, &scenario, own_controller))
             .collect(),
         // The paper's published constants belong to its case study: shown for the two presets
         // only, never beside a user's plant.

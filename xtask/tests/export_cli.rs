@@ -280,3 +280,121 @@ fn loop_of_the_exported_c_reproduces_trace_csv_of_a_k_c_iteration_mpc_run() {
         );
     }
 }
+
+/// Issue 37, item 11: every bad argument fails before the certificate (which takes seconds
+/// on the certified preset), with an error naming the flag; an existing file, or a
+/// directory that holds something other than an export, is refused as `--out` (export
+/// replaces its `--out` as a whole and never deletes what it did not write).
+#[test]
+fn bad_arguments_fail_before_the_certificate_naming_the_flag() {
+    let dir = scratch("bad-arguments");
+    let file = dir.join("a-file");
+    std::fs::write(&file, "keep me").unwrap();
+    let foreign = dir.join("foreign");
+    std::fs::create_dir_all(&foreign).unwrap();
+    std::fs::write(foreign.join("notes.txt"), "keep me").unwrap();
+    let out = dir.join("art");
+    let (o, f, g) = (
+        out.to_str().unwrap(),
+        file.to_str().unwrap(),
+        foreign.to_str().unwrap(),
+    );
+    let cases: [(&[&str], &str); 7] = [
+        (&["--out", o, "--k", "0"], "--k 0"),
+        (&["--out", o, "--kc", "0"], "--kc 0"),
+        (&["--out", o, "--method", "nope"], "--method nope"),
+        (&["--out", o, "--mpc-method", "nope"], "--mpc-method nope"),
+        // The certified preset has no mpc.iterations: without --kc no MPC is exported.
+        (&["--out", o, "--mpc-method", "pg"], "--mpc-method pg"),
+        (&["--out", f], "--out"),
+        (&["--out", g], "--out"),
+    ];
+    for (args, flag) in cases {
+        let t0 = std::time::Instant::now();
+        let res = xtask()
+            .args(["export", "--scenario"])
+            .arg(root().join("scenarios/case-study-certified.toml"))
+            .args(args)
+            .output()
+            .unwrap();
+        let (stdout, stderr) = (
+            String::from_utf8_lossy(&res.stdout),
+            String::from_utf8_lossy(&res.stderr),
+        );
+        assert_eq!(res.status.code(), Some(1), "{args:?}: {stdout}{stderr}");
+        assert!(stderr.contains(flag), "{args:?}: {stderr}");
+        assert!(
+            !stdout.contains("computing the certificate"),
+            "{args:?}: checked after the certificate\n{stdout}"
+        );
+        eprintln!("{args:?}: {:.2} s", t0.elapsed().as_secs_f64());
+    }
+    assert_eq!(std::fs::read_to_string(&file).unwrap(), "keep me");
+    assert_eq!(
+        std::fs::read_to_string(foreign.join("notes.txt")).unwrap(),
+        "keep me"
+    );
+    assert!(!out.exists());
+}
+
+/// Issue 37, item 11: an `--out` reused across exports holds the new export only (no source
+/// of the old K beside the new certificate, no stray file); a refused export leaves the
+/// earlier one as it was. The double integrator (seconds).
+#[test]
+fn a_reused_out_is_replaced_as_a_set() {
+    let dir = scratch("replace");
+    let scenario = root().join("scenarios/double-integrator.toml");
+    let art = dir.join("art");
+    let export = |extra: &[&str]| {
+        xtask()
+            .args(["export", "--scenario"])
+            .arg(&scenario)
+            .arg("--out")
+            .arg(&art)
+            .args(extra)
+            .output()
+            .unwrap()
+    };
+    let res = export(&["--lang", "c", "--k", "300"]);
+    assert!(
+        res.status.success(),
+        "{}",
+        String::from_utf8_lossy(&res.stderr)
+    );
+    assert!(art.join("mhe.c").exists());
+    std::fs::write(art.join("stale.txt"), "from the first export").unwrap();
+    let res = export(&["--lang", "rust", "--k", "certified"]);
+    assert!(
+        res.status.success(),
+        "{}",
+        String::from_utf8_lossy(&res.stderr)
+    );
+    let cert: serde_json::Value =
+        serde_json::from_str(&std::fs::read_to_string(art.join("certificate.json")).unwrap())
+            .unwrap();
+    let k_min = cert["k_min"].as_u64().unwrap();
+    assert_eq!(cert["iterations"], k_min);
+    assert!(k_min < 300);
+    assert!(art.join("Cargo.toml").exists());
+    for gone in ["mhe.c", "mhe_data.h", "Makefile", "stale.txt"] {
+        assert!(
+            !art.join(gone).exists(),
+            "{gone} of the first export remains"
+        );
+    }
+    // No temporary sibling is left behind.
+    let siblings: Vec<String> = std::fs::read_dir(&dir)
+        .unwrap()
+        .map(|e| e.unwrap().file_name().to_string_lossy().into_owned())
+        .collect();
+    assert_eq!(siblings, vec!["art".to_string()]);
+    // A refused export (K below K_min) leaves the earlier one untouched.
+    let before = std::fs::read_to_string(art.join("certificate.json")).unwrap();
+    let res = export(&["--lang", "c", "--k", "1"]);
+    assert_eq!(res.status.code(), Some(1));
+    assert_eq!(
+        std::fs::read_to_string(art.join("certificate.json")).unwrap(),
+        before
+    );
+    assert!(!art.join("mhe.c").exists());
+}

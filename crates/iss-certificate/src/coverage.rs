@@ -17,13 +17,21 @@
 //! its own void reasons say why. [`Applicable`] holds what the covering certificate needs to
 //! give a verdict at any pair ([`Applicable::at`]). Another certificate (e.g. a regional one)
 //! is one more arm of [`CertificateKind`], [`covering`] and [`Applicable`].
+//!
+//! Every command asks the same two functions, so they cannot disagree (issue 37): the
+//! certificate is computed with [`verdict_options`] (the user's γ₁,₃ and the sample that can
+//! refute it, the scenario's budget), and a configuration — method, K_e, controller with its
+//! K_c, scalar, and the scenario's warm start — gets its verdict from [`verdict`]. f32 is
+//! not covered by the certificate ([`F32_NOT_COVERED`]).
 
 use mhe_core::WarmStart;
 use qp_iter::Method;
 use serde::Serialize;
 
 use crate::analysis::IssAnalysis;
-use crate::certificate::ClosedLoopCertificate;
+use crate::certificate::{
+    CertificateOptions, ClosedLoopCertificate, Gamma13Source, SolverCertificate,
+};
 use crate::joint::{JointAnalysis, JointOptions, certify_joint};
 use closed_loop::scenario::{ControllerChoice, ResolvedScenario, Scenario};
 
@@ -48,6 +56,100 @@ impl CertificateKind {
             CertificateKind::Joint => "joint",
         }
     }
+}
+
+/// Injected error sequences per magnitude that test a user-supplied γ₁,₃ (the sampled lower
+/// estimate that refutes it when it exceeds the value). One number for every command: a
+/// different sample could refute a value in one command and not in another.
+pub const USER_GAMMA13_SEQUENCES: usize = 30;
+
+/// What the certificate says about an f32 build.
+pub const F32_NOT_COVERED: &str = "not covered: rounding of f32 enters as a disturbance of the \
+    iteration that is not in the bound";
+
+/// The options of [`crate::certificate::certify_closed_loop`] that decide every verdict, for
+/// `solvers` on `scenario`: γ₁,₃ is the user's (`cli_gamma13`, else the scenario's
+/// `certificate.gamma13`) tested by [`USER_GAMMA13_SEQUENCES`] sampled sequences per magnitude
+/// with the scenario's seed, else the certified one; the budget is the scenario's
+/// `certificate.phase_seconds`. The sampled estimates that decide nothing (L_Φ, L_π, and
+/// γ₁,₃ beside a certified value) are skipped; a command that reports them raises
+/// `lipschitz_pairs` / `gamma13_sequences` (the latter only without a user γ₁,₃).
+pub fn verdict_options(
+    scenario: &Scenario,
+    solvers: Vec<Method>,
+    cli_gamma13: Option<f64>,
+) -> CertificateOptions {
+    let user = cli_gamma13.or(scenario.certificate.gamma13);
+    CertificateOptions {
+        solvers,
+        gamma13: user.map_or(Gamma13Source::Certified, Gamma13Source::User),
+        seed: scenario.noise.seed,
+        lipschitz_pairs: 0,
+        gamma13_sequences: if user.is_some() {
+            USER_GAMMA13_SEQUENCES
+        } else {
+            0
+        },
+        phase_seconds: scenario.certificate.phase_seconds(),
+        ..CertificateOptions::default()
+    }
+}
+
+/// The arithmetic of a configuration.
+#[derive(Debug, Clone, Copy, PartialEq, Eq, Serialize)]
+#[serde(rename_all = "lowercase")]
+pub enum Scalar {
+    /// Double precision: what the certificate is computed for.
+    F64,
+    /// Single precision: not covered ([`F32_NOT_COVERED`]).
+    F32,
+}
+
+/// One configuration whose verdict a command states.
+#[derive(Debug, Clone, Copy, PartialEq)]
+pub struct Configuration {
+    /// The MHE's method.
+    pub method: Method,
+    /// Iterations K_e of the MHE per step.
+    pub k_e: usize,
+    /// The controller (its K_c for the K_c-iteration MPC).
+    pub controller: ControllerChoice,
+    /// The arithmetic.
+    pub scalar: Scalar,
+}
+
+/// The verdict on `config` for `resolved` (its warm start and constraints come from the
+/// scenario), from the closed-loop certificate `cert` computed with [`verdict_options`]
+/// (with `config.method` among its solvers): the one decision behind `reproduce`'s
+/// `certified`, the sweep's `certified` column and `export`'s `MHE_CERTIFIED`.
+pub fn verdict(
+    resolved: &ResolvedScenario,
+    cert: &ClosedLoopCertificate,
+    config: &Configuration,
+) -> PairVerdict {
+    let k_c = match config.controller {
+        ControllerChoice::SuboptimalMpc { iterations, .. } => Some(iterations),
+        _ => None,
+    };
+    Applicable::new(resolved, cert, config.method, config.controller).at_scalar(
+        config.k_e,
+        k_c,
+        config.scalar,
+    )
+}
+
+/// Whether Theorem 1's entry `sc` certifies some K for the scenario's configuration (its
+/// warm start and `controller`): the per-solver `certified` of `reproduce`'s
+/// certificate.json. False when nothing covers the configuration, whatever K_min says.
+pub fn solver_certified(
+    scenario: &Scenario,
+    sc: &SolverCertificate,
+    controller: ControllerChoice,
+) -> bool {
+    matches!(
+        covering(scenario, sc.solver, controller),
+        Coverage::Covered(_)
+    ) && sc.k_min.is_some()
 }
 
 /// Which certificate covers a configuration, or why none does.
@@ -235,6 +337,25 @@ impl Applicable {
             }
             Applicable::Joint { void_reasons, .. } => void_reasons.clone(),
             Applicable::Uncovered(r) => vec![r.clone()],
+        }
+    }
+
+    /// [`Applicable::at`] in the arithmetic `scalar`: an f32 configuration is void
+    /// ([`F32_NOT_COVERED`]), with the f64 K_min kept for information.
+    pub fn at_scalar(&self, k_e: usize, k_c: Option<usize>, scalar: Scalar) -> PairVerdict {
+        let v = self.at(k_e, k_c);
+        match scalar {
+            Scalar::F64 => v,
+            Scalar::F32 => PairVerdict {
+                certified: Certified::Void,
+                margin: None,
+                reason: if v.reason.is_empty() {
+                    format!("f32: {F32_NOT_COVERED}")
+                } else {
+                    format!("f32: {F32_NOT_COVERED}; {}", v.reason)
+                },
+                ..v
+            },
         }
     }
 

@@ -231,6 +231,7 @@ pub(super) fn exported_artefact(
         k_min: None,
         scalar: ScalarKind::F64,
         certified: false,
+        reason: Some("a test artefact (no certificate computed)".into()),
         prior: resolved.scenario().simulation.prior.clone(),
         sha256: super::sha256::sha256_hex(&std::fs::read(path).unwrap()),
         mpc: k_c.map(|k_c| MpcArtefact {
@@ -238,6 +239,7 @@ pub(super) fn exported_artefact(
             k_c,
             k_c_min: None,
             certified: false,
+            reason: Some("a test artefact (no certificate computed)".into()),
         }),
     }
 }
@@ -348,34 +350,66 @@ fn vendored_sources_are_the_crate() {
 fn a_k_below_k_min_is_refused_unless_allowed() {
     let path = workspace_root().join("scenarios/case-study-certified.toml");
     let resolved = Scenario::from_file(&path).unwrap().resolve().unwrap();
-    let cert = method_certificate(&resolved, Method::PG).unwrap();
-    let k_min = cert.k_min.unwrap();
-    assert_eq!(decide_k("certified", &cert, false).unwrap(), (k_min, true));
+    let loop_cert = closed_loop_certificate(&resolved, Method::PG).unwrap();
+    let k_min = loop_cert.solver(Method::PG).unwrap().k_min.unwrap();
+    let decide = |cert: &ClosedLoopCertificate, k: Iterations, scalar, allow| {
+        decide_k(&resolved, cert, Method::PG, k, scalar, allow)
+            .map(|(k, v)| (k, v.certified == Certified::Yes))
+    };
+    let f64 = ScalarKind::F64;
+    let given = Iterations::Given;
     assert_eq!(
-        decide_k(&k_min.to_string(), &cert, false).unwrap(),
+        decide(&loop_cert, Iterations::Certified, f64, false).unwrap(),
         (k_min, true)
     );
     assert_eq!(
-        decide_k(&(k_min + 5).to_string(), &cert, false).unwrap(),
+        decide(&loop_cert, given(k_min), f64, false).unwrap(),
+        (k_min, true)
+    );
+    assert_eq!(
+        decide(&loop_cert, given(k_min + 5), f64, false).unwrap(),
         (k_min + 5, true)
     );
-    let below = (k_min - 1).to_string();
-    let err = decide_k(&below, &cert, false).unwrap_err().to_string();
+    let err = decide(&loop_cert, given(k_min - 1), f64, false)
+        .unwrap_err()
+        .to_string();
     assert!(
         err.contains("below the certified K_min") && err.contains("--allow-uncertified"),
         "{err}"
     );
-    assert_eq!(decide_k(&below, &cert, true).unwrap(), (k_min - 1, false));
-    assert!(decide_k("0", &cert, true).is_err());
-    assert!(decide_k("many", &cert, true).is_err());
+    assert_eq!(
+        decide(&loop_cert, given(k_min - 1), f64, true).unwrap(),
+        (k_min - 1, false)
+    );
+    assert!(parse_iterations("--k", "0").is_err());
+    assert!(parse_iterations("--k", "many").is_err());
+    // f32 is not covered: refused at K_min unless allowed, uncertified with the flag.
+    let err = decide(&loop_cert, Iterations::Certified, ScalarKind::F32, false)
+        .unwrap_err()
+        .to_string();
+    assert!(err.contains("f32") && err.contains("not covered"), "{err}");
+    assert_eq!(
+        decide(&loop_cert, Iterations::Certified, ScalarKind::F32, true).unwrap(),
+        (k_min, false)
+    );
     // A void certificate: refused even at a large K, and `certified` has no K.
-    let mut void = cert.clone();
-    void.k_min = None;
-    void.void_reasons = vec!["ρ ≥ 1".into()];
-    assert!(decide_k("certified", &void, true).is_err());
-    let err = decide_k("100000", &void, false).unwrap_err().to_string();
-    assert!(err.contains("void"), "{err}");
-    assert_eq!(decide_k("100000", &void, true).unwrap(), (100_000, false));
+    let mut void = loop_cert.clone();
+    for s in &mut void.solvers {
+        s.k_min = None;
+        s.void_reasons = vec!["ρ ≥ 1".into()];
+    }
+    assert!(decide(&void, Iterations::Certified, f64, true).is_err());
+    let err = decide(&void, given(100_000), f64, false)
+        .unwrap_err()
+        .to_string();
+    assert!(
+        err.contains("NOT CERTIFIED") && err.contains("ρ ≥ 1"),
+        "{err}"
+    );
+    assert_eq!(
+        decide(&void, given(100_000), f64, true).unwrap(),
+        (100_000, false)
+    );
 }
 
 /// The uncertified artefact says so in its header, README and certificate.json.
@@ -394,6 +428,10 @@ fn an_uncertified_artefact_says_so_everywhere() {
         k_min: Some(k_min),
         scalar: ScalarKind::F64,
         certified: false,
+        reason: Some(format!(
+            "K = {} is below the certified floor {k_min}",
+            k_min - 1
+        )),
         prior: resolved.scenario().simulation.prior.clone(),
         sha256: super::sha256::sha256_hex(&std::fs::read(&path).unwrap()),
         mpc: None,

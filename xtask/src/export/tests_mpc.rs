@@ -243,16 +243,19 @@ fn a_k_c_below_the_joint_floor_is_refused_unless_allowed() {
     let joint = joint_certificate(&resolved, &cert, Method::PG, Method::PG).unwrap();
     let k_e = cert.solver(Method::PG).unwrap().k_min.unwrap();
     let floor = joint.analysis.k_c_min(k_e, joint.region.k_max).unwrap();
+    let decide = |kc: Iterations, k_e: usize, allow: bool| {
+        decide_kc(&resolved, &cert, &joint, kc, k_e, ScalarKind::F64, allow)
+            .map(|(k, v)| (k, v.certified == Certified::Yes))
+    };
     assert_eq!(
-        decide_kc("certified", k_e, &joint, false).unwrap(),
+        decide(Iterations::Certified, k_e, false).unwrap(),
         (floor, true)
     );
     assert_eq!(
-        decide_kc(&(floor + 3).to_string(), k_e, &joint, false).unwrap(),
+        decide(Iterations::Given(floor + 3), k_e, false).unwrap(),
         (floor + 3, true)
     );
-    let below = (floor - 1).to_string();
-    let err = decide_kc(&below, k_e, &joint, false)
+    let err = decide(Iterations::Given(floor - 1), k_e, false)
         .unwrap_err()
         .to_string();
     assert!(
@@ -260,12 +263,12 @@ fn a_k_c_below_the_joint_floor_is_refused_unless_allowed() {
         "{err}"
     );
     assert_eq!(
-        decide_kc(&below, k_e, &joint, true).unwrap(),
+        decide(Iterations::Given(floor - 1), k_e, true).unwrap(),
         (floor - 1, false)
     );
-    assert!(decide_kc("0", k_e, &joint, true).is_err());
+    assert!(parse_iterations("--kc", "0").is_err());
     // Below the K_e floor no K_c is certified.
-    let err = decide_kc("certified", k_e - 1, &joint, false)
+    let err = decide(Iterations::Certified, k_e - 1, false)
         .unwrap_err()
         .to_string();
     assert!(err.contains("no K_c"), "{err}");
@@ -275,12 +278,17 @@ fn a_k_c_below_the_joint_floor_is_refused_unless_allowed() {
     let (p, m) = c.data(Method::PG);
     let mut art = exported_artefact(&path, &resolved, Method::PG, k_e, Some(floor - 1));
     art.certified = true;
+    art.reason = None;
     art.k_min = Some(k_e);
     art.mpc = Some(MpcArtefact {
         method: "pg".into(),
         k_c: floor - 1,
         k_c_min: Some(floor),
         certified: false,
+        reason: Some(format!(
+            "K_c = {} is below the certified floor {floor}",
+            floor - 1
+        )),
     });
     let dir = scratch_dir("uncertified-mpc");
     let sc = cert.solver(Method::PG).unwrap();

@@ -74,7 +74,9 @@ pub struct SolverSummary {
     pub solver: String,
     /// Whether this is the scenario's `[mhe] solver` (the one simulated).
     pub simulated: bool,
-    /// Theorem 1 certifies ISS for some K (K_min exists).
+    /// Theorem 1 certifies ISS for some K (K_min exists) and a certificate covers the
+    /// scenario's configuration (false for a shifted warm start or the saturated LQR:
+    /// `iss_certificate::coverage::solver_certified`).
     pub certified: bool,
     /// Smallest certified K; null when void.
     pub k_min: Option<usize>,
@@ -93,11 +95,19 @@ pub struct SolverSummary {
 }
 
 impl SolverSummary {
-    pub(super) fn new(sc: &SolverCertificate, simulated: Method) -> Self {
+    /// The entry of `sc`; `certified` is [`iss_certificate::coverage::solver_certified`]'s
+    /// verdict for the scenario's configuration (false when no certificate covers it, e.g. a
+    /// shifted warm start, whatever K_min says).
+    pub(super) fn new(
+        sc: &SolverCertificate,
+        simulated: Method,
+        scenario: &closed_loop::scenario::Scenario,
+        controller: closed_loop::scenario::ControllerChoice,
+    ) -> Self {
         Self {
             solver: sc.solver.name().to_string(),
             simulated: sc.solver == simulated,
-            certified: sc.k_min.is_some(),
+            certified: iss_certificate::coverage::solver_certified(scenario, sc, controller),
             k_min: sc.k_min,
             void_reasons: sc.void_reasons.clone(),
             premises: sc.analysis.premises.clone(),

@@ -266,7 +266,7 @@ impl<'a> TheoryGraph<'a> {
     /// enumerations apply: the certified γ₁,₃, no state constraints in the MPC), the
     /// assembly, one task per solver.
     fn certificate_jobs(&mut self) {
-        let opts = certificate_options(&self.config.solvers);
+        let opts = certificate_options(self.resolved.scenario(), &self.config.solvers);
         let mut inputs = Vec::new();
         if let Some(mpc) = self.mpc.filter(|m| m.certificate_void_reason().is_none()) {
             if opts.gamma13 == Gamma13Source::Certified {
@@ -308,7 +308,7 @@ impl<'a> TheoryGraph<'a> {
         let (job, _) = self.jobs[i];
         match job {
             TheoryJob::Gamma13Plan => {
-                let opts = certificate_options(&self.config.solvers);
+                let opts = certificate_options(self.resolved.scenario(), &self.config.solvers);
                 if let Some(mpc) = self.mpc {
                     let stage = Gamma13Plan::start(
                         mpc,
@@ -350,7 +350,7 @@ impl<'a> TheoryGraph<'a> {
                     l_pi_enumerated: self.l_pi_enumerated(),
                     gamma13_certified: self.gamma13_certified(),
                 };
-                let opts = certificate_options(&self.config.solvers);
+                let opts = certificate_options(self.resolved.scenario(), &self.config.solvers);
                 let cert = certify_closed_loop_with(self.resolved, &opts, parts)
                     .map(|(c, _)| c)
                     .map_err(|e| format!("no certificate: {e}"));

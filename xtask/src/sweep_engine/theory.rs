@@ -4,7 +4,7 @@
 //! exact linear stability boundary beside it (ρ_lin(K) and K_lin of `iss_certificate::linear` on the
 //! sweep's own K grid).
 
-use closed_loop::scenario::{LoopOptions, ResolvedScenario};
+use closed_loop::scenario::{LoopOptions, ResolvedScenario, Scenario};
 use iss_certificate::linear::{LinearReport, linear_stability};
 
 use super::format::csv_text;
@@ -302,7 +302,7 @@ pub fn solver_theory(
             return unavailable(reason);
         }
     }
-    match certify_closed_loop(resolved, &certificate_options(solvers)) {
+    match certify_closed_loop(resolved, &certificate_options(resolved.scenario(), solvers)) {
         Err(e) => unavailable(format!("no certificate: {e}")),
         Ok(cert) => solvers
             .iter()
@@ -311,16 +311,12 @@ pub fn solver_theory(
     }
 }
 
-/// The certificate options of a sweep: the certified constants only — the sampled L_Φ,
-/// L_π and γ₁,₃ estimates (exact solves at seeded points, most of the certificate's time)
-/// are skipped.
-pub(super) fn certificate_options(solvers: &[Method]) -> CertificateOptions {
-    CertificateOptions {
-        solvers: solvers.to_vec(),
-        gamma13_sequences: 0,
-        lipschitz_pairs: 0,
-        ..CertificateOptions::default()
-    }
+/// The certificate options of a sweep: every command's
+/// ([`iss_certificate::coverage::verdict_options`]: the scenario's user γ₁,₃ with the sample
+/// that can refute it, its budget), so the `certified` column is `reproduce`'s verdict; the
+/// other sampled estimates are skipped.
+pub(super) fn certificate_options(scenario: &Scenario, solvers: &[Method]) -> CertificateOptions {
+    iss_certificate::coverage::verdict_options(scenario, solvers.to_vec(), None)
 }
 
 /// The certificate covering `solver` with `controller`, from the scenario's certificate

@@ -390,8 +390,13 @@ pub fn export(args: &ExportArgs) -> Result<()> {
     let loop_cert = closed_loop_certificate(&resolved, method)?;
     let cert = solver_entry(&loop_cert, method)?;
     let (k, certified) = decide_k(&args.k, &cert, args.allow_uncertified)?;
-    let est = portable_estimator(&resolved, method, k)?;
-    let problem = OwnedProblem::from_estimator(&est, &scenario.plant)?;
+    let mut est = portable_estimator(&resolved, method, k)?;
+    let mut problem = OwnedProblem::from_estimator(&est, &scenario.plant)?;
+    // The C self-test's stored steps (f64: the std estimator's bits; M + 2 steps).
+    if args.scalar == ScalarKind::F64 {
+        let steps = problem.horizon + 2;
+        problem.record_self_test(&mut est, &scenario.plant, &scenario.simulation.prior, steps)?;
+    }
     // The MPC: asked for with --kc, or the scenario's controller (mpc.iterations).
     let mpc_spec = scenario.mpc.as_ref();
     let kc_arg = args
@@ -507,6 +512,7 @@ pub(crate) fn write_code(
             write_file(out, "mpc.c", c_gen::MPC_C)?;
             write_file(out, "loop.c", c_gen::LOOP_C)?;
             write_file(out, "count.h", c_gen::COUNT_H)?;
+            write_file(out, "parse.h", c_gen::PARSE_H)?;
             write_file(out, "mhe_data.h", &c_gen::data_h(problem, mpc, art))?;
             write_file(out, "mhe_data.c", &c_gen::data_c(problem, mpc, art))?;
             write_file(out, "Makefile", c_gen::MAKEFILE)?;

@@ -205,6 +205,16 @@ fn artefact(c: &Case, method: Method, scalar: ScalarKind) -> (OwnedProblem, Arte
     (p, art)
 }
 
+/// The self-test's stored steps, as `export` records them (M + 2 steps of a fresh std
+/// estimator on the portable kernel).
+fn record_self_test(c: &Case, method: Method, p: &mut OwnedProblem) {
+    let mut est = portable_estimator(&c.resolved, method, c.k).unwrap();
+    let sc = c.resolved.scenario();
+    let steps = p.horizon + 2;
+    p.record_self_test(&mut est, &sc.plant, &sc.simulation.prior, steps)
+        .unwrap();
+}
+
 pub(super) fn write_files(
     dir: &Path,
     lang: Lang,
@@ -258,13 +268,15 @@ fn check_c(file: &str, tag: &str) {
     let c = case(file, None);
     let input = replay_input(&c.traj);
     for method in methods() {
-        let (p, art) = artefact(&c, method, ScalarKind::F64);
+        let (mut p, art) = artefact(&c, method, ScalarKind::F64);
+        record_self_test(&c, method, &mut p);
         let dir = scratch_dir(&format!("c-{tag}-{}", method.name()));
         write_files(&dir, Lang::C, &p, None, &art);
         let status = Command::new("cc")
             .current_dir(&dir)
             .args(["-O2", "-std=c99", "-ffp-contract=off", "-fno-fast-math"])
-            .args(["-Wall", "-Wextra", "-Werror", "-o", "replay"])
+            .args(["-DMHE_ALLOW_UNCERTIFIED", "-Wall", "-Wextra", "-Werror"])
+            .args(["-Wpedantic", "-o", "replay"])
             .args(["mhe.c", "mhe_data.c", "replay.c", "-lm"])
             .status()
             .unwrap();

@@ -21,6 +21,8 @@ mod tests;
 #[cfg(test)]
 mod tests_capi;
 #[cfg(test)]
+mod tests_firmware;
+#[cfg(test)]
 mod tests_mpc;
 
 use std::path::{Path, PathBuf};
@@ -530,10 +532,11 @@ pub(crate) fn write_code(
             write_file(out, "src/bin/replay.rs", &rust_gen::replay_rs(package))?;
             write_file(out, "src/bin/loop.rs", &rust_gen::loop_rs(package))?;
             write_file(out, "capi/Cargo.toml", &rust_gen::capi_cargo_toml(package))?;
-            write_file(out, "capi/src/lib.rs", rust_gen::CAPI_LIB_RS)?;
-            write_file(out, "capi/mhe_capi.h", rust_gen::CAPI_HEADER)?;
+            write_file(out, "capi/src/lib.rs", &rust_gen::capi_lib_rs(art.scalar))?;
+            write_file(out, "capi/mhe_capi.h", &rust_gen::capi_header(art.scalar))?;
             write_file(out, "capi/replay_capi.c", rust_gen::CAPI_REPLAY_C)?;
             write_file(out, "capi/loop_capi.c", rust_gen::CAPI_LOOP_C)?;
+            write_file(out, "capi/parse.h", c_gen::PARSE_H)?;
         }
     }
     Ok(())

@@ -230,8 +230,31 @@ pub(crate) fn lib_rs(a: &Artefact<'_>) -> String {
 }
 
 /// The C ABI crate `capi/` (a `no_std` static library over the export) and its header.
-pub(crate) const CAPI_LIB_RS: &str = include_str!("capi/lib.rs");
-pub(crate) const CAPI_HEADER: &str = include_str!("capi/mhe_capi.h");
+const CAPI_LIB_RS: &str = include_str!("capi/lib.rs");
+const CAPI_HEADER: &str = include_str!("capi/mhe_capi.h");
+
+/// The checked-in C ABI source or header (f64) for the export's scalar: an f32 export gets
+/// `mhe_capi_f32_*` symbols on `float`, so a header and a library of different scalars do
+/// not link.
+fn for_scalar(text: &str, s: ScalarKind) -> String {
+    match s {
+        ScalarKind::F64 => text.to_string(),
+        ScalarKind::F32 => text
+            .replace("mhe_capi_f64_", "mhe_capi_f32_")
+            .replace("typedef double mhe_real;", "typedef float mhe_real;")
+            .replace("const SCALAR_BYTES: usize = 8;", "const SCALAR_BYTES: usize = 4;"),
+    }
+}
+
+/// `capi/src/lib.rs`.
+pub(crate) fn capi_lib_rs(s: ScalarKind) -> String {
+    for_scalar(CAPI_LIB_RS, s)
+}
+
+/// `capi/mhe_capi.h`.
+pub(crate) fn capi_header(s: ScalarKind) -> String {
+    for_scalar(CAPI_HEADER, s)
+}
 pub(crate) const CAPI_REPLAY_C: &str = include_str!("capi/replay_capi.c");
 pub(crate) const CAPI_LOOP_C: &str = include_str!("capi/loop_capi.c");
 
@@ -247,6 +270,53 @@ pub(crate) fn capi_cargo_toml(package: &str) -> String {
     )
 }
 
+/// The strict line reader of the replay and loop programs: exactly `count` finite numbers
+/// per line, comma-separated; a line that is not UTF-8 or cannot be read is an error naming
+/// it (never a silent end of input).
+const INPUT_RS: &str = r#"/// Reads stdin line by line, strictly.
+struct Input {
+    lock: std::io::StdinLock<'static>,
+    buf: Vec<u8>,
+    lineno: usize,
+}
+
+impl Input {
+    fn new() -> Self {
+        Self { lock: std::io::stdin().lock(), buf: Vec::new(), lineno: 0 }
+    }
+
+    /// The next non-blank line's numbers with its 1-based number; None at the end.
+    fn next(&mut self, count: usize, what: &str) -> Result<Option<(usize, Vec<f64>)>, String> {
+        loop {
+            self.buf.clear();
+            self.lineno += 1;
+            let n = self.lineno;
+            match self.lock.read_until(b'\n', &mut self.buf) {
+                Ok(0) => return Ok(None),
+                Ok(_) => {}
+                Err(e) => return Err(format!("line {n}: cannot read the input: {e}")),
+            }
+            let Ok(line) = std::str::from_utf8(&self.buf) else {
+                return Err(format!("line {n}: not valid UTF-8"));
+            };
+            if line.trim().is_empty() {
+                continue;
+            }
+            let vals: Option<Vec<f64>> = line
+                .split(',')
+                .map(|s| s.trim().parse::<f64>().ok().filter(|v| v.is_finite()))
+                .collect();
+            return match vals {
+                Some(v) if v.len() == count => Ok(Some((n, v))),
+                _ => Err(format!(
+                    "line {n}: expected exactly {count} finite numbers ({what}), comma-separated"
+                )),
+            };
+        }
+    }
+}
+"#;
+
 /// `src/bin/loop.rs` (std: reads y per line, prints x̂ and u with 17 significant digits).
 pub(crate) fn loop_rs(crate_name: &str) -> String {
     let krate = crate_name.replace('-', "_");
@@ -257,6 +327,8 @@ pub(crate) fn loop_rs(crate_name: &str) -> String {
 //! prints "x̂…,u…": output line t is row t of trace.csv's xhat and u columns (17
 //! significant digits, comma-separated).
 use std::io::{{BufRead, Write}};
+
+{input}
 use {krate}::data::{{NY, Real}};
 
 fn print(out: &mut impl Write, x: &[Real], u: &[Real]) -> std::io::Result<()> {{
@@ -285,21 +357,20 @@ fn main() -> std::process::ExitCode {{
     }};
     let mut ok = print(&mut out, &x, &u).is_ok();
     let mut y = [0.0 as Real; NY];
-    for (row, line) in std::io::stdin().lock().lines().enumerate() {{
-        let Ok(line) = line else {{ break }};
-        if line.trim().is_empty() {{
-            continue;
+    let mut input = Input::new();
+    loop {{
+        let (lineno, vals) = match input.next(NY, "y") {{
+            Ok(Some(v)) => v,
+            Ok(None) => break,
+            Err(msg) => return fail(msg),
+        }};
+        let row = lineno - 1;
+        for (i, x) in vals.iter().enumerate() {{
+            y[i] = *x as Real;
         }}
-        let vals: Result<Vec<f64>, _> = line.split(',').map(|s| s.trim().parse::<f64>()).collect();
-        match vals {{
-            Ok(v) if v.len() == NY => {{
-                for (i, x) in v.iter().enumerate() {{
-                    y[i] = *x as Real;
-                }}
-            }}
-            _ => return fail(format!("line {{}}: expected {{}} numbers (y), comma-separated", row + 1, NY)),
+        if let Err(e) = est.push(&u, &y) {{
+            return fail(format!("line {{lineno}}: refused: {{e}}"));
         }}
-        est.push(&u, &y);
         let x = *est.estimate();
         u = match ctrl.control(&x) {{
             Ok(u) => *u,
@@ -310,7 +381,8 @@ fn main() -> std::process::ExitCode {{
     ok &= out.flush().is_ok();
     if ok {{ std::process::ExitCode::SUCCESS }} else {{ std::process::ExitCode::FAILURE }}
 }}
-"#
+"#,
+        input = INPUT_RS
     )
 }
 
@@ -334,6 +406,8 @@ pub(crate) fn replay_rs(crate_name: &str) -> String {
 //! prints x̂_{{t+1|t+1}}: output line t is row t of trace.csv's xhat columns (17 significant
 //! digits, comma-separated).
 use std::io::{{BufRead, Write}};
+
+{input}
 use {krate}::data::{{NU, NY, Real}};
 
 fn print(out: &mut impl Write, x: &[Real]) -> std::io::Result<()> {{
@@ -353,29 +427,29 @@ fn main() -> std::process::ExitCode {{
     let mut out = std::io::BufWriter::new(stdout.lock());
     let mut ok = print(&mut out, est.estimate()).is_ok();
     let (mut u, mut y) = ([0.0 as Real; NU], [0.0 as Real; NY]);
-    for (row, line) in std::io::stdin().lock().lines().enumerate() {{
-        let Ok(line) = line else {{ break }};
-        if line.trim().is_empty() {{
-            continue;
-        }}
-        let vals: Result<Vec<f64>, _> = line.split(',').map(|s| s.trim().parse::<f64>()).collect();
-        match vals {{
-            Ok(v) if v.len() == NU + NY => {{
-                for (i, x) in v.iter().enumerate() {{
-                    if i < NU {{ u[i] = *x as Real }} else {{ y[i - NU] = *x as Real }}
-                }}
-            }}
-            _ => {{
-                eprintln!("replay: line {{}}: expected {{}} numbers (u then y), comma-separated", row + 1, NU + NY);
+    let mut input = Input::new();
+    loop {{
+        let (lineno, vals) = match input.next(NU + NY, "u then y") {{
+            Ok(Some(v)) => v,
+            Ok(None) => break,
+            Err(msg) => {{
+                eprintln!("replay: {{msg}}");
                 return std::process::ExitCode::FAILURE;
             }}
+        }};
+        for (i, x) in vals.iter().enumerate() {{
+            if i < NU {{ u[i] = *x as Real }} else {{ y[i - NU] = *x as Real }}
         }}
-        est.push(&u, &y);
+        if let Err(e) = est.push(&u, &y) {{
+            eprintln!("replay: line {{lineno}}: refused: {{e}}");
+            return std::process::ExitCode::FAILURE;
+        }}
         ok &= print(&mut out, est.estimate()).is_ok();
     }}
     ok &= out.flush().is_ok();
     if ok {{ std::process::ExitCode::SUCCESS }} else {{ std::process::ExitCode::FAILURE }}
 }}
-"#
+"#,
+        input = INPUT_RS
     )
 }

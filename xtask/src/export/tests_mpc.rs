@@ -104,7 +104,7 @@ fn run_embedded<
         let x = *mhe.estimate();
         let u = *ctrl.control(&x).unwrap();
         out.push((x.to_vec(), u.to_vec()));
-        mhe.push(&u, y.as_slice().try_into().unwrap());
+        mhe.push(&u, y.as_slice().try_into().unwrap()).unwrap();
     }
     out
 }

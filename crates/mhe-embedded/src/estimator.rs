@@ -286,37 +286,74 @@ mod tests {
     // n_x = 1, n_u = 1, n_y = 1, n_w = 2, M = 2 (made-up data, PG).
     const INF: f64 = f64::INFINITY;
     static W0: Window<'static, f64> = Window {
-        n: 1, n_theta: 1, h: &[2.0], m_rho: &[], m_inv: &[], q0: &[0.0], f: &[-2.0],
-        lower: &[-INF], upper: &[INF], scaling: &[],
-        step: 0.5, momentum: 0.0, inv_rho: 0.0, relaxation: 0.0,
+        n: 1,
+        n_theta: 1,
+        h: &[2.0],
+        m_rho: &[],
+        m_inv: &[],
+        q0: &[0.0],
+        f: &[-2.0],
+        lower: &[-INF],
+        upper: &[INF],
+        scaling: &[],
+        step: 0.5,
+        momentum: 0.0,
+        inv_rho: 0.0,
+        relaxation: 0.0,
     };
     static W1: Window<'static, f64> = Window {
-        n: 3, n_theta: 3,
+        n: 3,
+        n_theta: 3,
         h: &[3.0, 0.0, 1.0, 0.0, 2.0, 0.0, 1.0, 0.0, 3.0],
-        m_rho: &[], m_inv: &[], q0: &[0.0; 3],
+        m_rho: &[],
+        m_inv: &[],
+        q0: &[0.0; 3],
         f: &[-1.6, 0.1, 0.0, 0.0, 0.0, 0.0, 0.0, 0.0, -2.0],
-        lower: &[-INF, -0.1, -0.1], upper: &[INF, 0.1, 0.1], scaling: &[],
-        step: 0.4, momentum: 0.0, inv_rho: 0.0, relaxation: 0.0,
+        lower: &[-INF, -0.1, -0.1],
+        upper: &[INF, 0.1, 0.1],
+        scaling: &[],
+        step: 0.4,
+        momentum: 0.0,
+        inv_rho: 0.0,
+        relaxation: 0.0,
     };
     static W2: Window<'static, f64> = Window {
-        n: 5, n_theta: 5,
+        n: 5,
+        n_theta: 5,
         h: &[
             3.0, 0.0, 1.0, 0.0, 0.5, 0.0, 2.0, 0.0, 0.0, 0.0, 1.0, 0.0, 3.0, 0.0, 0.0, 0.0, 0.0,
             0.0, 2.0, 0.0, 0.5, 0.0, 0.0, 0.0, 3.0,
         ],
-        m_rho: &[], m_inv: &[], q0: &[0.0; 5],
+        m_rho: &[],
+        m_inv: &[],
+        q0: &[0.0; 5],
         f: &[
-            -1.6, 0.1, 0.0, 0.0, 0.0, 0.0, 0.0, 0.0, 0.0, 0.0, 0.0, 0.0, 0.0, -2.0, 0.0, 0.0,
-            0.0, 0.0, 0.0, 0.0, 0.0, 0.0, 0.0, 0.0, -2.0,
+            -1.6, 0.1, 0.0, 0.0, 0.0, 0.0, 0.0, 0.0, 0.0, 0.0, 0.0, 0.0, 0.0, -2.0, 0.0, 0.0, 0.0,
+            0.0, 0.0, 0.0, 0.0, 0.0, 0.0, 0.0, -2.0,
         ],
-        lower: &[-INF, -0.1, -0.1, -0.1, -0.1], upper: &[INF, 0.1, 0.1, 0.1, 0.1],
-        scaling: &[], step: 0.3, momentum: 0.0, inv_rho: 0.0, relaxation: 0.0,
+        lower: &[-INF, -0.1, -0.1, -0.1, -0.1],
+        upper: &[INF, 0.1, 0.1, 0.1, 0.1],
+        scaling: &[],
+        step: 0.3,
+        momentum: 0.0,
+        inv_rho: 0.0,
+        relaxation: 0.0,
     };
     static WINDOWS: [Window<'static, f64>; 3] = [W0, W1, W2];
     static P: Problem<'static, f64> = Problem {
-        nx: 1, nu: 1, ny: 1, nw1: 1, nw2: 1, horizon: 2, iterations: 5,
-        method: Method::Pg, warm_start: WarmStart::Shifted,
-        a: &[0.9], b: &[0.5], e: &[1.0], windows: &WINDOWS,
+        nx: 1,
+        nu: 1,
+        ny: 1,
+        nw1: 1,
+        nw2: 1,
+        horizon: 2,
+        iterations: 5,
+        method: Method::Pg,
+        warm_start: WarmStart::Shifted,
+        a: &[0.9],
+        b: &[0.5],
+        e: &[1.0],
+        windows: &WINDOWS,
     };
     type Est = Mhe<'static, f64, 1, 1, 1, 2, 5, 5>;
 
@@ -340,7 +377,10 @@ mod tests {
             let (u, y) = pair(k);
             a.push(&u, &y).expect("finite");
             b.push(&u, &y).expect("finite");
-            assert_eq!(a.estimate().map(f64::to_bits), b.estimate().map(f64::to_bits));
+            assert_eq!(
+                a.estimate().map(f64::to_bits),
+                b.estimate().map(f64::to_bits)
+            );
         }
     }
 
@@ -368,6 +408,9 @@ mod tests {
         let mut b = before;
         a.push(&[0.2], &[0.7]).expect("finite");
         b.push(&[0.2], &[0.7]).expect("finite");
-        assert_eq!(a.estimate().map(f64::to_bits), b.estimate().map(f64::to_bits));
+        assert_eq!(
+            a.estimate().map(f64::to_bits),
+            b.estimate().map(f64::to_bits)
+        );
     }
 }

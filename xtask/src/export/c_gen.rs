@@ -125,7 +125,10 @@ fn self_test_steps(p: &OwnedProblem, a: &Artefact<'_>) -> usize {
 
 /// A 2-D `const mhe_real name[rows][cols]` (cols ≥ 1; an empty row is one 0).
 fn table(out: &mut String, name: &str, cols: &str, rows: &[&[f64]], s: ScalarKind) {
-    let _ = writeln!(out, "const mhe_real {name}[MHE_SELF_TEST_STEPS][{cols}] = {{");
+    let _ = writeln!(
+        out,
+        "const mhe_real {name}[MHE_SELF_TEST_STEPS][{cols}] = {{"
+    );
     for r in rows {
         let v: Vec<String> = if r.is_empty() {
             vec![literal(0.0, s)]

@@ -242,7 +242,10 @@ fn for_scalar(text: &str, s: ScalarKind) -> String {
         ScalarKind::F32 => text
             .replace("mhe_capi_f64_", "mhe_capi_f32_")
             .replace("typedef double mhe_real;", "typedef float mhe_real;")
-            .replace("const SCALAR_BYTES: usize = 8;", "const SCALAR_BYTES: usize = 4;"),
+            .replace(
+                "const SCALAR_BYTES: usize = 8;",
+                "const SCALAR_BYTES: usize = 4;",
+            ),
     }
 }
 
@@ -255,6 +258,7 @@ pub(crate) fn capi_lib_rs(s: ScalarKind) -> String {
 pub(crate) fn capi_header(s: ScalarKind) -> String {
     for_scalar(CAPI_HEADER, s)
 }
+/// The C ABI's replay program.
 pub(crate) const CAPI_REPLAY_C: &str = include_str!("capi/replay_capi.c");
 pub(crate) const CAPI_LOOP_C: &str = include_str!("capi/loop_capi.c");
 

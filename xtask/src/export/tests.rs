@@ -51,7 +51,10 @@ pub(super) fn case(file: &str, seed: Option<u64>) -> Case {
 }
 
 /// x̂_{t|t} for t = 0..=T of a std estimator over the trajectory.
-pub(super) fn run_std(est: &mut MheEstimator<MethodMap>, traj: &[(Vec<f64>, Vec<f64>)]) -> Vec<Vec<f64>> {
+pub(super) fn run_std(
+    est: &mut MheEstimator<MethodMap>,
+    traj: &[(Vec<f64>, Vec<f64>)],
+) -> Vec<Vec<f64>> {
     let mut out = vec![est.estimate().unwrap().to_vec()];
     for (u, y) in traj {
         est.push(u, y).unwrap();
@@ -198,7 +201,11 @@ pub(super) fn run_program(cmd: &mut Command, input: &str) -> String {
     String::from_utf8(out.stdout).unwrap()
 }
 
-pub(super) fn artefact(c: &Case, method: Method, scalar: ScalarKind) -> (OwnedProblem, Artefact<'static>) {
+pub(super) fn artefact(
+    c: &Case,
+    method: Method,
+    scalar: ScalarKind,
+) -> (OwnedProblem, Artefact<'static>) {
     let est = portable_estimator(&c.resolved, method, c.k).unwrap();
     let p = OwnedProblem::from_estimator(&est, &c.resolved.scenario().plant).unwrap();
     let mut art = exported_artefact(&c.path, &c.resolved, method, c.k, None);

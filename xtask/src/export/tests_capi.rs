@@ -90,7 +90,10 @@ fn c_abi_header_is_the_cbindgen_output() {
         "mhe_capi_mpc_reset",
         "mhe_capi_mpc_control",
     ] {
-        assert!(checked_in.contains(&format!("#define {name} mhe_capi_f64_")), "{name}");
+        assert!(
+            checked_in.contains(&format!("#define {name} mhe_capi_f64_")),
+            "{name}"
+        );
         let symbol = name.replace("mhe_capi_", "mhe_capi_f64_");
         assert!(checked_in.contains(&format!("{symbol}(")), "{name}");
     }
@@ -147,7 +150,9 @@ fn c_abi_static_library_has_no_malloc_or_std_and_runs_bit_for_bit() {
     ] {
         let symbol = name.replace("mhe_capi_", "mhe_capi_f64_");
         assert!(
-            symbols.lines().any(|l| l.ends_with(&format!(" T {symbol}"))),
+            symbols
+                .lines()
+                .any(|l| l.ends_with(&format!(" T {symbol}"))),
             "{symbol} is not defined"
         );
     }
@@ -208,4 +213,59 @@ fn c_abi_static_library_has_no_malloc_or_std_and_runs_bit_for_bit() {
         .map(|(x, u, _)| x.iter().chain(u).copied().collect())
         .collect();
     assert_eq!(bits(&got[..rows.len()]), bits(&rows), "loop_capi differs");
+    // A non-finite pair is refused with −2 and the state kept: the next finite pair gives the
+    // same estimate as without the refused call.
+    std::fs::write(capi.join("nonfinite_capi.c"), NONFINITE_CAPI_C).unwrap();
+    cc(&capi, "nonfinite_capi", "nonfinite_capi.c", &lib);
+    let out = run_program(&mut Command::new(capi.join("nonfinite_capi")), "");
+    assert_eq!(out.trim(), "refused -2 -2, then the same estimate");
+    // The f32 header does not link against this f64 library.
+    let f32_dir = scratch_dir("capi-f32-header");
+    std::fs::write(
+        f32_dir.join("mhe_capi.h"),
+        rust_gen::capi_header(ScalarKind::F32),
+    )
+    .unwrap();
+    std::fs::write(f32_dir.join("parse.h"), c_gen::PARSE_H).unwrap();
+    std::fs::write(f32_dir.join("replay_capi.c"), rust_gen::CAPI_REPLAY_C).unwrap();
+    let o = Command::new("cc")
+        .current_dir(&f32_dir)
+        .args(["-O2", "-std=c99", "-o", "replay_capi", "replay_capi.c"])
+        .arg(&lib)
+        .output()
+        .unwrap();
+    assert!(
+        !o.status.success(),
+        "an f32 header linked with an f64 library"
+    );
+    let err = String::from_utf8_lossy(&o.stderr);
+    assert!(err.contains("mhe_capi_f32_"), "{err}");
 }
+
+const NONFINITE_CAPI_C: &str = r#"#include <math.h>
+#include <stdio.h>
+#include <string.h>
+#include "mhe_capi.h"
+int main(void) {
+    mhe_real u[64] = {0}, y[64] = {0}, a[64], b[64];
+    int32_t nx, nu, ny, r1, r2;
+    mhe_capi_dims(&nx, &nu, &ny);
+    if (mhe_capi_reset(NULL) != 0) return 1;
+    y[0] = 0.1;
+    if (mhe_capi_push(u, y) != 0) return 2;
+    y[0] = NAN;
+    r1 = mhe_capi_push(u, y);
+    y[0] = 0.1;
+    u[0] = INFINITY;
+    r2 = nu > 0 ? mhe_capi_push(u, y) : -2;
+    u[0] = 0.0;
+    if (mhe_capi_push(u, y) != 0 || mhe_capi_estimate(a) != 0) return 3;
+    if (mhe_capi_reset(NULL) != 0) return 4;
+    y[0] = 0.1;
+    if (mhe_capi_push(u, y) != 0 || mhe_capi_push(u, y) != 0 || mhe_capi_estimate(b) != 0)
+        return 5;
+    if (memcmp(a, b, sizeof(mhe_real) * (size_t)nx) != 0) return 6;
+    printf("refused %d %d, then the same estimate\n", (int)r1, (int)r2);
+    return 0;
+}
+"#;

@@ -202,7 +202,12 @@ fn c_uncertified_artefact_needs_the_opt_in() {
     art.certified = true;
     let dir = scratch_dir("firmware-uncertified-mpc");
     write_files(&dir, Lang::C, &p, Some(&m), &art);
-    let o = cc(&dir, "loop", &["mhe.c", "mhe_data.c", "mpc.c", "loop.c"], &[]);
+    let o = cc(
+        &dir,
+        "loop",
+        &["mhe.c", "mhe_data.c", "mpc.c", "loop.c"],
+        &[],
+    );
     assert!(!o.status.success(), "an uncertified MPC compiled");
 }
 
@@ -256,7 +261,12 @@ fn c_fp_contraction_is_off_and_the_self_test_catches_reassociation() {
 fn c_replay_and_loop_parse_strictly() {
     let (dir, _) = pg_export("parse");
     assert_built(
-        &cc(&dir, "replay", &["mhe.c", "mhe_data.c", "replay.c"], &[ALLOW]),
+        &cc(
+            &dir,
+            "replay",
+            &["mhe.c", "mhe_data.c", "replay.c"],
+            &[ALLOW],
+        ),
         "replay",
     );
     // n_u = 2, n_y = 1: three numbers per line.
@@ -276,7 +286,10 @@ fn c_replay_and_loop_parse_strictly() {
         assert_eq!(code, Some(1), "{what}: {err}");
         assert!(err.contains("replay: line 2:"), "{what}: {err}");
     }
-    let (code, out, err) = run_raw(&dir.join("replay"), format!("{good} 0.1 , 0.2,0.3\n").as_bytes());
+    let (code, out, err) = run_raw(
+        &dir.join("replay"),
+        format!("{good} 0.1 , 0.2,0.3\n").as_bytes(),
+    );
     assert_eq!(code, Some(0), "{err}");
     assert_eq!(out.lines().count(), 3);
     // The loop (n_y = 1).
@@ -298,10 +311,52 @@ fn c_replay_and_loop_parse_strictly() {
         ("trailing garbage", "0.3\n0.3abc\n".to_string()),
         ("extra number", "0.3\n0.3,0.4\n".into()),
         ("NaN", "0.3\nNaN\n".into()),
-        ("line over 8191 bytes", format!("0.3\n{}1\n", "0".repeat(8200))),
+        (
+            "line over 8191 bytes",
+            format!("0.3\n{}1\n", "0".repeat(8200)),
+        ),
     ] {
         let (code, _, err) = run_raw(&dir.join("loop"), input.as_bytes());
         assert_eq!(code, Some(1), "{what}: {err}");
         assert!(err.contains("loop: line 2:"), "{what}: {err}");
     }
+}
+
+/// The exported Rust replay refuses what the C one refuses, and an invalid-UTF-8 line is an
+/// error naming it (it used to end the input silently with exit 0).
+#[test]
+fn rust_replay_parses_strictly() {
+    let c = case("case-study-certified.toml", None);
+    let (p, art) = artefact(&c, Method::PG, ScalarKind::F64);
+    let dir = scratch_dir("firmware-rust-parse");
+    write_files(&dir, Lang::Rust, &p, None, &art);
+    let target = crate::provenance::workspace_root()
+        .join("target")
+        .join("export-tests-target");
+    let status = Command::new(env!("CARGO"))
+        .current_dir(&dir)
+        .env("CARGO_TARGET_DIR", &target)
+        .args(["build", "--quiet", "--offline", "--bin", "replay"])
+        .status()
+        .unwrap();
+    assert!(status.success(), "cargo build failed in {}", dir.display());
+    // Copied: another test rebuilds the same target directory's replay.
+    let replay = dir.join("replay-bin");
+    std::fs::copy(target.join("debug").join("replay"), &replay).unwrap();
+    let good = b"0.1,0.2,0.3\n".to_vec();
+    let with = |bad: &[u8]| [good.as_slice(), bad].concat();
+    for (what, input) in [
+        ("invalid UTF-8", with(b"0.1,0.2,\xff0.3\n")),
+        ("trailing garbage", with(b"0.1,0.2,0.3abc\n")),
+        ("extra number", with(b"0.1,0.2,0.3,0.4\n")),
+        ("NaN", with(b"0.1,NaN,0.3\n")),
+        ("infinity", with(b"0.1,0.2,inf\n")),
+    ] {
+        let (code, _, err) = run_raw(&replay, &input);
+        assert_eq!(code, Some(1), "{what}: {err}");
+        assert!(err.contains("replay: line 2:"), "{what}: {err}");
+    }
+    let (code, out, err) = run_raw(&replay, &with(b"\n 0.1 , 0.2,0.3\n"));
+    assert_eq!(code, Some(0), "{err}");
+    assert_eq!(out.lines().count(), 3);
 }

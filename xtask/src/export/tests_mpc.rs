@@ -194,7 +194,12 @@ fn exported_c_and_rust_loops_equal_std_portable_bit_for_bit() {
             write_files(&dir, Lang::C, &p, Some(&m), &art);
             let status = Command::new("make")
                 .current_dir(&dir)
-                .args(["-s", "loop", "CFLAGS=-O2 -Werror", "DEFS=-DMHE_ALLOW_UNCERTIFIED"])
+                .args([
+                    "-s",
+                    "loop",
+                    "CFLAGS=-O2 -Werror",
+                    "DEFS=-DMHE_ALLOW_UNCERTIFIED",
+                ])
                 .status()
                 .unwrap();
             assert!(status.success(), "make loop failed in {}", dir.display());
@@ -316,7 +321,12 @@ fn f32_loop_builds_and_stays_near_f64() {
     write_files(&dir, Lang::C, &p, Some(&m), &art);
     let status = Command::new("make")
         .current_dir(&dir)
-        .args(["-s", "loop", "CFLAGS=-O2 -Werror", "DEFS=-DMHE_ALLOW_UNCERTIFIED"])
+        .args([
+            "-s",
+            "loop",
+            "CFLAGS=-O2 -Werror",
+            "DEFS=-DMHE_ALLOW_UNCERTIFIED",
+        ])
         .status()
         .unwrap();
     assert!(status.success(), "make loop failed in {}", dir.display());

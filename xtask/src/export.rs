@@ -93,6 +93,10 @@ pub struct ExportArgs {
     /// (the artefact says so).
     #[arg(long)]
     pub allow_uncertified: bool,
+    /// C only: the prefix of every generated name (`{prefix}_reset`, `{PREFIX}_NX`, files
+    /// `{prefix}.h`, …), so several estimators link into one firmware.
+    #[arg(long, default_value = "mhe")]
+    pub prefix: String,
 }
 
 /// What the generated files say about the exported MPC.
@@ -366,6 +370,7 @@ fn write_file(dir: &Path, name: &str, text: &str) -> Result<()> {
 
 /// `cargo xtask export`.
 pub fn export(args: &ExportArgs) -> Result<()> {
+    c_gen::check_prefix(&args.prefix)?;
     let text = std::fs::read(&args.scenario)
         .with_context(|| format!("cannot read `{}`", args.scenario.display()))?;
     let sha256 = sha256::sha256_hex(&text);
@@ -452,6 +457,9 @@ pub fn export(args: &ExportArgs) -> Result<()> {
         &cert,
         &args.scenario,
     )?;
+    if args.lang == Lang::C && args.prefix != "mhe" {
+        c_gen::apply_prefix(&args.out, &args.prefix)?;
+    }
     outln!(
         "wrote the {} artefact for `{}` ({}, K = {k}{}) to {}",
         match args.lang {
@@ -491,7 +499,8 @@ pub(crate) fn write_artefact(
         "certificate.json",
         &(serde_json::to_string_pretty(&json)? + "\n"),
     )?;
-    write_file(out, "README.md", &readme(art, lang))?;
+    let firmware = c_gen::firmware_readme(problem, mpc.map(|m| m.0), art, lang);
+    write_file(out, "README.md", &(readme(art, lang) + &firmware))?;
     Ok(())
 }
 

@@ -360,3 +360,83 @@ fn rust_replay_parses_strictly() {
     assert_eq!(code, Some(0), "{err}");
     assert_eq!(out.lines().count(), 3);
 }
+
+/// Two estimators in one program: the case study's PG export with `--prefix est_a` and its
+/// FISTA export with the default names link together, and each equals its std estimator
+/// bit for bit (without the prefix every symbol is defined twice).
+#[test]
+fn c_two_prefixed_estimators_link_into_one_firmware() {
+    let c = case("case-study-certified.toml", None);
+    let root = scratch_dir("firmware-prefix");
+    for (sub, method) in [("a", Method::PG), ("b", Method::FISTA)] {
+        let (mut p, mut art) = artefact(&c, method, ScalarKind::F64);
+        record_self_test(&c, method, &mut p);
+        art.certified = true;
+        let dir = root.join(sub);
+        write_files(&dir, Lang::C, &p, None, &art);
+        if sub == "a" {
+            c_gen::apply_prefix(&dir, "est_a").unwrap();
+        }
+    }
+    assert!(root.join("a/est_a.h").exists() && root.join("a/est_a_data.c").exists());
+    assert!(!root.join("a/mhe.c").exists());
+    std::fs::write(root.join("two.c"), TWO_C).unwrap();
+    let srcs = [
+        "a/est_a.c",
+        "a/est_a_data.c",
+        "b/mhe.c",
+        "b/mhe_data.c",
+        "two.c",
+    ];
+    assert_built(&cc(&root, "two", &srcs, &[]), "two estimators");
+    let out = run_program(&mut Command::new(root.join("two")), &replay_input(&c.traj));
+    let rows = parse_replay(&out);
+    for (k, method) in [(0, Method::PG), (1, Method::FISTA)] {
+        let mut est = portable_estimator(&c.resolved, method, c.k).unwrap();
+        let expected = bits(&run_std(&mut est, &c.traj));
+        let got: Vec<Vec<f64>> = rows
+            .iter()
+            .map(|r| r[k * 4..(k + 1) * 4].to_vec())
+            .collect();
+        assert_eq!(bits(&got), expected, "{}", method.name());
+    }
+    assert!(
+        c_gen::check_prefix("Bad-name").is_err()
+            && c_gen::check_prefix("mhe_a").is_err()
+            && c_gen::check_prefix("pend2").is_ok()
+    );
+}
+
+const TWO_C: &str = r#"#include <stdio.h>
+#include "a/est_a.h"
+#include "b/mhe.h"
+#include "b/parse.h"
+static est_a_state sa;
+static mhe_state sb;
+static void show(const est_a_real *a, const mhe_real *b) {
+    int i;
+    for (i = 0; i < EST_A_NX; i++) printf(i ? ",%.17g" : "%.17g", (double)a[i]);
+    for (i = 0; i < MHE_NX; i++) printf(",%.17g", (double)b[i]);
+    printf("\n");
+}
+int main(void) {
+    static char line[MHE_LINE_MAX];
+    double v[MHE_NU + MHE_NY];
+    est_a_real ua[EST_A_NU_BUF], ya[EST_A_NY];
+    mhe_real ub[MHE_NU_BUF], yb[MHE_NY];
+    long lineno = 0;
+    int i;
+    if (est_a_self_test(&sa) != 0 || mhe_self_test(&sb) != 0) return 1;
+    est_a_reset(&sa, est_a_exported_prior);
+    mhe_reset(&sb, mhe_exported_prior);
+    show(est_a_estimate(&sa), mhe_estimate(&sb));
+    while (mhe_read_line("two", line, ++lineno) == 1) {
+        if (mhe_parse_line("two", line, lineno, MHE_NU + MHE_NY, "u then y", v) != 0) return 1;
+        for (i = 0; i < MHE_NU; i++) ua[i] = ub[i] = v[i];
+        for (i = 0; i < MHE_NY; i++) ya[i] = yb[i] = v[MHE_NU + i];
+        if (est_a_push(&sa, ua, ya) != EST_A_OK || mhe_push(&sb, ub, yb) != MHE_OK) return 1;
+        show(est_a_estimate(&sa), mhe_estimate(&sb));
+    }
+    return 0;
+}
+"#;

@@ -331,6 +331,7 @@ fn exported_rust_equals_std_portable_bit_for_bit() {
                 .current_dir(&dir)
                 .env("CARGO_TARGET_DIR", &target)
                 .args(["build", "--quiet", "--offline", "--bin", "replay"])
+                .args(["--features", "allow-uncertified"])
                 .status()
                 .unwrap();
             assert!(status.success(), "cargo build failed in {}", dir.display());

@@ -323,7 +323,8 @@ fn c_replay_and_loop_parse_strictly() {
 }
 
 /// The exported Rust replay refuses what the C one refuses, and an invalid-UTF-8 line is an
-/// error naming it (it used to end the input silently with exit 0).
+/// error naming it (it used to end the input silently with exit 0). An uncertified Rust
+/// artefact builds only with `--features allow-uncertified`.
 #[test]
 fn rust_replay_parses_strictly() {
     let c = case("case-study-certified.toml", None);
@@ -333,10 +334,24 @@ fn rust_replay_parses_strictly() {
     let target = crate::provenance::workspace_root()
         .join("target")
         .join("export-tests-target");
+    // The test artefact is uncertified: it stops at compile_error! without the opt-in.
+    let o = Command::new(env!("CARGO"))
+        .current_dir(&dir)
+        .env("CARGO_TARGET_DIR", &target)
+        .args(["build", "--quiet", "--offline", "--bin", "replay"])
+        .output()
+        .unwrap();
+    assert!(!o.status.success(), "an uncertified Rust artefact built");
+    let err = String::from_utf8_lossy(&o.stderr);
+    assert!(
+        err.contains("UNCERTIFIED") && err.contains("allow-uncertified"),
+        "{err}"
+    );
     let status = Command::new(env!("CARGO"))
         .current_dir(&dir)
         .env("CARGO_TARGET_DIR", &target)
         .args(["build", "--quiet", "--offline", "--bin", "replay"])
+        .args(["--features", "allow-uncertified"])
         .status()
         .unwrap();
     assert!(status.success(), "cargo build failed in {}", dir.display());

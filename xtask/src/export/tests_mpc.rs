@@ -217,6 +217,7 @@ fn exported_c_and_rust_loops_equal_std_portable_bit_for_bit() {
                 .current_dir(&rust_dir)
                 .env("CARGO_TARGET_DIR", &target)
                 .args(["build", "--quiet", "--offline", "--bin", "loop"])
+                .args(["--features", "allow-uncertified"])
                 .status()
                 .unwrap();
             assert!(

@@ -26,6 +26,8 @@ mod tests;
 #[cfg(test)]
 mod tests_capi;
 #[cfg(test)]
+mod tests_firmware;
+#[cfg(test)]
 mod tests_mpc;
 
 use std::path::{Path, PathBuf};
@@ -96,6 +98,10 @@ pub struct ExportArgs {
     /// (the artefact says so).
     #[arg(long)]
     pub allow_uncertified: bool,
+    /// C only: the prefix of every generated name (`{prefix}_reset`, `{PREFIX}_NX`, files
+    /// `{prefix}.h`, …), so several estimators link into one firmware.
+    #[arg(long, default_value = "mhe")]
+    pub prefix: String,
 }
 
 /// What the generated files say about the exported MPC.
@@ -547,6 +553,7 @@ pub fn export(args: &ExportArgs) -> Result<()> {
         })
         .transpose()?;
     check_out(&args.out)?;
+    c_gen::check_prefix(&args.prefix)?;
     let text = std::fs::read(&args.scenario)
         .with_context(|| format!("cannot read `{}`", args.scenario.display()))?;
     let sha256 = sha256::sha256_hex(&text);
@@ -595,8 +602,13 @@ pub fn export(args: &ExportArgs) -> Result<()> {
         args.scalar,
         args.allow_uncertified,
     )?;
-    let est = portable_estimator(&resolved, method, k)?;
-    let problem = OwnedProblem::from_estimator(&est, &scenario.plant)?;
+    let mut est = portable_estimator(&resolved, method, k)?;
+    let mut problem = OwnedProblem::from_estimator(&est, &scenario.plant)?;
+    // The C self-test's stored steps (f64: the std estimator's bits; M + 2 steps).
+    if args.scalar == ScalarKind::F64 {
+        let steps = problem.horizon + 2;
+        problem.record_self_test(&mut est, &scenario.plant, &scenario.simulation.prior, steps)?;
+    }
     let mut mpc_export = None;
     if let (Some(kc_arg), Some(mpc_method)) = (kc_arg, mpc_method) {
         outln!(
@@ -639,7 +651,11 @@ pub fn export(args: &ExportArgs) -> Result<()> {
     };
     let mpc = mpc_export.as_ref().map(|(d, _, j)| (d, j));
     replace_artefact(&args.out, |dir| {
-        write_artefact(dir, args.lang, &problem, mpc, &art, &cert, &args.scenario)
+        write_artefact(dir, args.lang, &problem, mpc, &art, &cert, &args.scenario)?;
+        if args.lang == Lang::C && args.prefix != "mhe" {
+            c_gen::apply_prefix(dir, &args.prefix)?;
+        }
+        Ok(())
     })?;
     outln!(
         "wrote the {} artefact for `{}` ({}, K = {k}{}) to {}",
@@ -686,7 +702,8 @@ pub(crate) fn write_artefact(
         "certificate.json",
         &(serde_json::to_string_pretty(&json)? + "\n"),
     )?;
-    write_file(out, "README.md", &readme(art, lang))?;
+    let firmware = c_gen::firmware_readme(problem, mpc.map(|m| m.0), art, lang);
+    write_file(out, "README.md", &(readme(art, lang) + &firmware))?;
     Ok(())
 }
 
@@ -709,6 +726,7 @@ pub(crate) fn write_code(
             write_file(out, "mpc.c", c_gen::MPC_C)?;
             write_file(out, "loop.c", c_gen::LOOP_C)?;
             write_file(out, "count.h", c_gen::COUNT_H)?;
+            write_file(out, "parse.h", c_gen::PARSE_H)?;
             write_file(out, "mhe_data.h", &c_gen::data_h(problem, mpc, art))?;
             write_file(out, "mhe_data.c", &c_gen::data_c(problem, mpc, art))?;
             write_file(out, "Makefile", c_gen::MAKEFILE)?;
@@ -726,10 +744,11 @@ pub(crate) fn write_code(
             write_file(out, "src/bin/replay.rs", &rust_gen::replay_rs(package))?;
             write_file(out, "src/bin/loop.rs", &rust_gen::loop_rs(package))?;
             write_file(out, "capi/Cargo.toml", &rust_gen::capi_cargo_toml(package))?;
-            write_file(out, "capi/src/lib.rs", rust_gen::CAPI_LIB_RS)?;
-            write_file(out, "capi/mhe_capi.h", rust_gen::CAPI_HEADER)?;
+            write_file(out, "capi/src/lib.rs", &rust_gen::capi_lib_rs(art.scalar))?;
+            write_file(out, "capi/mhe_capi.h", &rust_gen::capi_header(art.scalar))?;
             write_file(out, "capi/replay_capi.c", rust_gen::CAPI_REPLAY_C)?;
             write_file(out, "capi/loop_capi.c", rust_gen::CAPI_LOOP_C)?;
+            write_file(out, "capi/parse.h", c_gen::PARSE_H)?;
         }
     }
     Ok(())

@@ -4,6 +4,31 @@ use crate::data::{DataError, Problem, WarmStart};
 use crate::qp::{self, SLOTS};
 use crate::scalar::Scalar;
 
+/// Why [`Mhe::push`] refused a pair: an entry is NaN or ±∞ (nothing changed). No finite
+/// range is imposed: the certificate bounds the disturbances, not the measurements.
+#[derive(Debug, Clone, Copy, PartialEq, Eq)]
+pub enum PushError {
+    /// u[index] is not finite.
+    NonFiniteInput {
+        /// The entry of u.
+        index: usize,
+    },
+    /// y[index] is not finite.
+    NonFiniteMeasurement {
+        /// The entry of y.
+        index: usize,
+    },
+}
+
+impl core::fmt::Display for PushError {
+    fn fmt(&self, f: &mut core::fmt::Formatter<'_>) -> core::fmt::Result {
+        match self {
+            PushError::NonFiniteInput { index } => write!(f, "u[{index}] is not finite"),
+            PushError::NonFiniteMeasurement { index } => write!(f, "y[{index}] is not finite"),
+        }
+    }
+}
+
 /// Fixed-capacity ring buffer of M vectors of length W.
 #[derive(Debug, Clone, Copy)]
 struct Ring<T, const W: usize, const M: usize> {
@@ -130,7 +155,8 @@ impl<
         self.z0[..NX].copy_from_slice(&prior);
     }
 
-    /// The number of pairs pushed.
+    /// The number of pairs pushed, saturated at M + 1 (only min(t, M) and whether t > M
+    /// matter, and a free-running counter would overflow).
     pub fn t(&self) -> usize {
         self.t
     }
@@ -198,8 +224,15 @@ impl<
     }
 
     /// Steps 2–3 of Alg. 1: the warm start Σ_t, the prior ring buffer and (u_t, y_t);
-    /// t ← t + 1. Runs [`Mhe::estimate`] first if it was not run at this t.
-    pub fn push(&mut self, u: &[T; NU], y: &[T; NY]) {
+    /// t ← t + 1. Runs [`Mhe::estimate`] first if it was not run at this t. A NaN or ±∞ in
+    /// u or y is refused before anything changes.
+    pub fn push(&mut self, u: &[T; NU], y: &[T; NY]) -> Result<(), PushError> {
+        if let Some(index) = u.iter().position(|v| !v.is_finite()) {
+            return Err(PushError::NonFiniteInput { index });
+        }
+        if let Some(index) = y.iter().position(|v| !v.is_finite()) {
+            return Err(PushError::NonFiniteMeasurement { index });
+        }
         if !self.estimated {
             self.estimate();
         }
@@ -237,7 +270,147 @@ impl<
         self.estimates.push(&self.x_hat);
         self.u_ring.push(u);
         self.y_ring.push(y);
-        self.t += 1;
+        if self.t <= M {
+            self.t += 1;
+        }
         self.estimated = false;
+        Ok(())
+    }
+}
+
+#[cfg(test)]
+mod tests {
+    use super::*;
+    use crate::data::{Method, Window};
+
+    // n_x = 1, n_u = 1, n_y = 1, n_w = 2, M = 2 (made-up data, PG).
+    const INF: f64 = f64::INFINITY;
+    static W0: Window<'static, f64> = Window {
+        n: 1,
+        n_theta: 1,
+        h: &[2.0],
+        m_rho: &[],
+        m_inv: &[],
+        q0: &[0.0],
+        f: &[-2.0],
+        lower: &[-INF],
+        upper: &[INF],
+        scaling: &[],
+        step: 0.5,
+        momentum: 0.0,
+        inv_rho: 0.0,
+        relaxation: 0.0,
+    };
+    static W1: Window<'static, f64> = Window {
+        n: 3,
+        n_theta: 3,
+        h: &[3.0, 0.0, 1.0, 0.0, 2.0, 0.0, 1.0, 0.0, 3.0],
+        m_rho: &[],
+        m_inv: &[],
+        q0: &[0.0; 3],
+        f: &[-1.6, 0.1, 0.0, 0.0, 0.0, 0.0, 0.0, 0.0, -2.0],
+        lower: &[-INF, -0.1, -0.1],
+        upper: &[INF, 0.1, 0.1],
+        scaling: &[],
+        step: 0.4,
+        momentum: 0.0,
+        inv_rho: 0.0,
+        relaxation: 0.0,
+    };
+    static W2: Window<'static, f64> = Window {
+        n: 5,
+        n_theta: 5,
+        h: &[
+            3.0, 0.0, 1.0, 0.0, 0.5, 0.0, 2.0, 0.0, 0.0, 0.0, 1.0, 0.0, 3.0, 0.0, 0.0, 0.0, 0.0,
+            0.0, 2.0, 0.0, 0.5, 0.0, 0.0, 0.0, 3.0,
+        ],
+        m_rho: &[],
+        m_inv: &[],
+        q0: &[0.0; 5],
+        f: &[
+            -1.6, 0.1, 0.0, 0.0, 0.0, 0.0, 0.0, 0.0, 0.0, 0.0, 0.0, 0.0, 0.0, -2.0, 0.0, 0.0, 0.0,
+            0.0, 0.0, 0.0, 0.0, 0.0, 0.0, 0.0, -2.0,
+        ],
+        lower: &[-INF, -0.1, -0.1, -0.1, -0.1],
+        upper: &[INF, 0.1, 0.1, 0.1, 0.1],
+        scaling: &[],
+        step: 0.3,
+        momentum: 0.0,
+        inv_rho: 0.0,
+        relaxation: 0.0,
+    };
+    static WINDOWS: [Window<'static, f64>; 3] = [W0, W1, W2];
+    static P: Problem<'static, f64> = Problem {
+        nx: 1,
+        nu: 1,
+        ny: 1,
+        nw1: 1,
+        nw2: 1,
+        horizon: 2,
+        iterations: 5,
+        method: Method::Pg,
+        warm_start: WarmStart::Shifted,
+        a: &[0.9],
+        b: &[0.5],
+        e: &[1.0],
+        windows: &WINDOWS,
+    };
+    type Est = Mhe<'static, f64, 1, 1, 1, 2, 5, 5>;
+
+    fn pair(k: usize) -> ([f64; 1], [f64; 1]) {
+        ([0.1 * k as f64], [1.0 - 0.05 * k as f64])
+    }
+
+    /// A counter set to usize::MAX once the window is full (as after 2^64 − 1 steps, or
+    /// 2^32 − 1 on a 32-bit target) runs on with the same bits as one that counted.
+    #[test]
+    fn the_step_counter_started_near_the_limit_saturates() {
+        let mut a = Est::new(&P, [0.5]).expect("the data fit");
+        for k in 0..4 {
+            let (u, y) = pair(k);
+            a.push(&u, &y).expect("finite");
+        }
+        assert_eq!(a.t(), 3, "saturated at M + 1");
+        let mut b = a.clone();
+        b.t = usize::MAX;
+        for k in 4..10 {
+            let (u, y) = pair(k);
+            a.push(&u, &y).expect("finite");
+            b.push(&u, &y).expect("finite");
+            assert_eq!(
+                a.estimate().map(f64::to_bits),
+                b.estimate().map(f64::to_bits)
+            );
+        }
+    }
+
+    /// NaN or ±∞ in u or y: refused with the entry named, the estimator unchanged.
+    #[test]
+    fn a_non_finite_pair_is_refused_and_nothing_changes() {
+        let mut a = Est::new(&P, [0.5]).expect("the data fit");
+        for k in 0..3 {
+            let (u, y) = pair(k);
+            a.push(&u, &y).expect("finite");
+        }
+        let before = a.clone();
+        assert_eq!(
+            a.push(&[f64::NAN], &[1.0]),
+            Err(PushError::NonFiniteInput { index: 0 })
+        );
+        assert_eq!(
+            a.push(&[0.0], &[f64::NEG_INFINITY]),
+            Err(PushError::NonFiniteMeasurement { index: 0 })
+        );
+        assert_eq!(a.t, before.t);
+        assert_eq!(a.estimated, before.estimated);
+        assert_eq!(a.z0.map(f64::to_bits), before.z0.map(f64::to_bits));
+        assert_eq!(a.y_ring.data, before.y_ring.data);
+        let mut b = before;
+        a.push(&[0.2], &[0.7]).expect("finite");
+        b.push(&[0.2], &[0.7]).expect("finite");
+        assert_eq!(
+            a.estimate().map(f64::to_bits),
+            b.estimate().map(f64::to_bits)
+        );
     }
 }

@@ -48,7 +48,8 @@
 //! // Buffers: NX, NU, NY, M, NZ = NX + M·n_w, NTH = NX + M·(NU + NY).
 //! let mut mhe = Mhe::<f64, 1, 0, 1, 1, 3, 2>::new(&P, [0.5]).unwrap();
 //! assert_eq!(mhe.estimate(), &[0.5]); // t = 0: the prior
-//! mhe.push(&[], &[1.0]);
+//! mhe.push(&[], &[1.0]).unwrap();
+//! assert!(mhe.push(&[], &[f64::NAN]).is_err()); // refused, nothing changed
 //! assert!(mhe.estimate()[0].is_finite());
 //! ```
 //!
@@ -79,6 +80,6 @@ mod qp;
 mod scalar;
 
 pub use data::{DataError, Method, Problem, WarmStart, Window};
-pub use estimator::Mhe;
+pub use estimator::{Mhe, PushError};
 pub use mpc::{Mpc, MpcError, MpcProblem};
 pub use scalar::Scalar;

@@ -69,6 +69,17 @@ pub(crate) struct OwnedProblem {
     pub b: Vec<f64>,
     pub e: Vec<f64>,
     pub windows: Vec<OwnedWindow>,
+    /// The stored steps of the artefact's self-test (empty: no self-test).
+    pub self_test: Vec<SelfTestStep>,
+}
+
+/// One stored step of the artefact's self-test: (u_t, y_t) pushed, then x̂_{t+1|t+1} of the
+/// std estimator on the portable kernel.
+#[derive(Debug, Clone, PartialEq)]
+pub(crate) struct SelfTestStep {
+    pub u: Vec<f64>,
+    pub y: Vec<f64>,
+    pub x: Vec<f64>,
 }
 
 /// The scenario's MHE with `method` and K on the portable kernel (the arithmetic every
@@ -219,7 +230,43 @@ impl OwnedProblem {
             b: row_major(sys.b()),
             e: row_major(sys.e()),
             windows,
+            self_test: Vec::new(),
         })
+    }
+
+    /// Records the self-test: `steps` pairs of a noise-free run of `sys` from `prior` with a
+    /// deterministic input (u_i = 0.1 sin(t + i)), and x̂ of `est` (fresh: at t = 0 with
+    /// the prior `prior`) after each push. M + 2 steps cover the growing window, the full
+    /// one and the prior taken from the ring of past estimates.
+    pub(crate) fn record_self_test(
+        &mut self,
+        est: &mut MheEstimator<MethodMap>,
+        sys: &LtiSystem,
+        prior: &[f64],
+        steps: usize,
+    ) -> Result<()> {
+        let (a, b, c) = (row_major(sys.a()), row_major(sys.b()), row_major(sys.c()));
+        let (nx, nu, ny) = (sys.nx(), sys.nu(), sys.ny());
+        let mut x = prior.to_vec();
+        let mut out = Vec::with_capacity(steps);
+        est.estimate()?;
+        for t in 0..steps {
+            let u: Vec<f64> = (0..nu).map(|i| 0.1 * ((t + i) as f64).sin()).collect();
+            let y: Vec<f64> = (0..ny)
+                .map(|i| (0..nx).map(|j| c[i * nx + j] * x[j]).sum())
+                .collect();
+            est.push(&u, &y)?;
+            let xh = est.estimate()?.to_vec();
+            x = (0..nx)
+                .map(|i| {
+                    (0..nx).map(|j| a[i * nx + j] * x[j]).sum::<f64>()
+                        + (0..nu).map(|j| b[i * nu + j] * u[j]).sum::<f64>()
+                })
+                .collect();
+            out.push(SelfTestStep { u, y, x: xh });
+        }
+        self.self_test = out;
+        Ok(())
     }
 
     /// n_z of the full window.

@@ -21,15 +21,15 @@ pub(super) fn methods() -> Vec<Method> {
     v
 }
 
-struct Case {
-    path: PathBuf,
-    resolved: ResolvedScenario,
-    k: usize,
+pub(super) struct Case {
+    pub(super) path: PathBuf,
+    pub(super) resolved: ResolvedScenario,
+    pub(super) k: usize,
     /// (u_t, y_t) of the scenario's closed-loop run.
-    traj: Vec<(Vec<f64>, Vec<f64>)>,
+    pub(super) traj: Vec<(Vec<f64>, Vec<f64>)>,
 }
 
-fn case(file: &str, seed: Option<u64>) -> Case {
+pub(super) fn case(file: &str, seed: Option<u64>) -> Case {
     let path = workspace_root().join("scenarios").join(file);
     let sc = Scenario::from_file(&path).unwrap();
     let resolved = sc.clone().resolve().unwrap();
@@ -51,7 +51,10 @@ fn case(file: &str, seed: Option<u64>) -> Case {
 }
 
 /// x̂_{t|t} for t = 0..=T of a std estimator over the trajectory.
-fn run_std(est: &mut MheEstimator<MethodMap>, traj: &[(Vec<f64>, Vec<f64>)]) -> Vec<Vec<f64>> {
+pub(super) fn run_std(
+    est: &mut MheEstimator<MethodMap>,
+    traj: &[(Vec<f64>, Vec<f64>)],
+) -> Vec<Vec<f64>> {
     let mut out = vec![est.estimate().unwrap().to_vec()];
     for (u, y) in traj {
         est.push(u, y).unwrap();
@@ -83,7 +86,8 @@ fn run_embedded<
         mhe.push(
             u.as_slice().try_into().unwrap(),
             y.as_slice().try_into().unwrap(),
-        );
+        )
+        .unwrap();
         out.push(mhe.estimate().to_vec());
     }
     out
@@ -160,7 +164,7 @@ fn embedded_equals_std_portable_bit_for_bit_on_the_cart_pendulum() {
 }
 
 /// The replay's input: one "u…,y…" line per step (shortest round-trip digits).
-fn replay_input(traj: &[(Vec<f64>, Vec<f64>)]) -> String {
+pub(super) fn replay_input(traj: &[(Vec<f64>, Vec<f64>)]) -> String {
     traj.iter()
         .map(|(u, y)| {
             u.iter()
@@ -197,12 +201,26 @@ pub(super) fn run_program(cmd: &mut Command, input: &str) -> String {
     String::from_utf8(out.stdout).unwrap()
 }
 
-fn artefact(c: &Case, method: Method, scalar: ScalarKind) -> (OwnedProblem, Artefact<'static>) {
+pub(super) fn artefact(
+    c: &Case,
+    method: Method,
+    scalar: ScalarKind,
+) -> (OwnedProblem, Artefact<'static>) {
     let est = portable_estimator(&c.resolved, method, c.k).unwrap();
     let p = OwnedProblem::from_estimator(&est, &c.resolved.scenario().plant).unwrap();
     let mut art = exported_artefact(&c.path, &c.resolved, method, c.k, None);
     art.scalar = scalar;
     (p, art)
+}
+
+/// The self-test's stored steps, as `export` records them (M + 2 steps of a fresh std
+/// estimator on the portable kernel).
+pub(super) fn record_self_test(c: &Case, method: Method, p: &mut OwnedProblem) {
+    let mut est = portable_estimator(&c.resolved, method, c.k).unwrap();
+    let sc = c.resolved.scenario();
+    let steps = p.horizon + 2;
+    p.record_self_test(&mut est, &sc.plant, &sc.simulation.prior, steps)
+        .unwrap();
 }
 
 pub(super) fn write_files(
@@ -260,13 +278,15 @@ fn check_c(file: &str, tag: &str) {
     let c = case(file, None);
     let input = replay_input(&c.traj);
     for method in methods() {
-        let (p, art) = artefact(&c, method, ScalarKind::F64);
+        let (mut p, art) = artefact(&c, method, ScalarKind::F64);
+        record_self_test(&c, method, &mut p);
         let dir = scratch_dir(&format!("c-{tag}-{}", method.name()));
         write_files(&dir, Lang::C, &p, None, &art);
         let status = Command::new("cc")
             .current_dir(&dir)
             .args(["-O2", "-std=c99", "-ffp-contract=off", "-fno-fast-math"])
-            .args(["-Wall", "-Wextra", "-Werror", "-o", "replay"])
+            .args(["-DMHE_ALLOW_UNCERTIFIED", "-Wall", "-Wextra", "-Werror"])
+            .args(["-Wpedantic", "-o", "replay"])
             .args(["mhe.c", "mhe_data.c", "replay.c", "-lm"])
             .status()
             .unwrap();
@@ -313,6 +333,7 @@ fn exported_rust_equals_std_portable_bit_for_bit() {
                 .current_dir(&dir)
                 .env("CARGO_TARGET_DIR", &target)
                 .args(["build", "--quiet", "--offline", "--bin", "replay"])
+                .args(["--features", "allow-uncertified"])
                 .status()
                 .unwrap();
             assert!(status.success(), "cargo build failed in {}", dir.display());
@@ -543,8 +564,9 @@ fn f32_deviation(seeds: u64, method: Method) -> (f64, f64) {
             }
             let u: [f64; 2] = u.as_slice().try_into().unwrap();
             let y: [f64; 1] = y.as_slice().try_into().unwrap();
-            m64.push(&u, &y);
-            m32.push(&u.map(|x| x as f32), &y.map(|x| x as f32));
+            m64.push(&u, &y).unwrap();
+            m32.push(&u.map(|x| x as f32), &y.map(|x| x as f32))
+                .unwrap();
         }
     }
     (worst, scale)

@@ -9,6 +9,7 @@
 #include <stdlib.h>
 #include "mpc.h"
 #include "count.h"
+#include "parse.h"
 
 #if MHE_HAS_MPC
 static mhe_state state;
@@ -32,47 +33,41 @@ static int control(const mhe_real *x, mhe_real *u, long row) {
 }
 
 int main(void) {
-    static char line[8192];
+    static char line[MHE_LINE_MAX];
+    double vals[MHE_NY];
     mhe_real u[MHE_NU_BUF], y[MHE_NY];
     const mhe_real *x;
-    long row = 0;
+    long row = 0, lineno = 0;
+    int rc;
 #ifdef MHE_COUNT_SYSTICK
     double per_tick = count_init(), total = 0.0, worst = 0.0;
 #endif
+    rc = mhe_self_test(&state);
+    if (rc != 0) {
+        fprintf(stderr, "loop: self-test failed at step %d: this build does not reproduce the "
+                        "exported estimator bit for bit (fused multiply-add or fast-math?)\n", rc);
+        return 1;
+    }
     mhe_reset(&state, mhe_exported_prior);
     mpc_reset(&ctrl);
     x = mhe_estimate(&state);
     if (control(x, u, 0) != 0) return 1;
     print_row(x, u);
-    while (fgets(line, sizeof line, stdin)) {
-        char *p = line, *end;
+    while ((rc = mhe_read_line("loop", line, ++lineno)) == 1) {
         int i;
-        if (line[0] == '\n' || line[0] == '\0') continue;
-        for (i = 0; i < MHE_NY; i++) {
-            double v = strtod(p, &end);
-            if (end == p) {
-                fprintf(stderr, "loop: line %ld: expected %d numbers (y), comma-separated\n",
-                        row + 1, MHE_NY);
-                return 1;
-            }
-            y[i] = (mhe_real)v;
-            p = end;
-            while (*p == ' ' || *p == '\t') p++;
-            if (i + 1 < MHE_NY) {
-                if (*p != ',') {
-                    fprintf(stderr, "loop: line %ld: expected %d numbers (y), comma-separated\n",
-                            row + 1, MHE_NY);
-                    return 1;
-                }
-                p++;
-            }
-        }
+        if (mhe_blank(line)) continue;
+        if (mhe_parse_line("loop", line, lineno, MHE_NY, "y", vals) != 0) return 1;
+        for (i = 0; i < MHE_NY; i++) y[i] = (mhe_real)vals[i];
         {
 #ifdef MHE_COUNT_SYSTICK
             double before = ticks_now();
             double n;
 #endif
-            mhe_push(&state, u, y);
+            if (mhe_push(&state, u, y) != MHE_OK) {
+                fprintf(stderr, "loop: line %ld: refused by mhe_push (a value is not finite in "
+                                "the scalar of this export)\n", lineno);
+                return 1;
+            }
             x = mhe_estimate(&state);
             if (control(x, u, row + 1) != 0) return 1;
 #ifdef MHE_COUNT_SYSTICK
@@ -84,6 +79,7 @@ int main(void) {
         }
         row++;
     }
+    if (rc < 0) return 1;
 #ifdef MHE_COUNT_SYSTICK
     if (row > 0)
         fprintf(stderr, "instructions per step (push + estimate + control): mean %.0f, max %.0f over %ld steps\n",

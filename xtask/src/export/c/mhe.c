@@ -1,4 +1,17 @@
 /* The estimator step; see mhe.h. Mirrors crates/mhe-embedded/src/{qp,estimator}.rs. */
+/* Bit identity needs IEEE operations as written: no fused multiply-add (GCC's default GNU
+ * mode contracts a*b + c into an FMA where the target has one, e.g. the Cortex-M4F's
+ * vfma.f32), no fast-math. The pragmas turn contraction off for this file (ISO C; GCC
+ * ignores the STDC one, hence its own); mhe_self_test catches what they cannot. */
+#if defined(__GNUC__) && !defined(__clang__)
+#pragma GCC optimize("fp-contract=off")
+#else
+#pragma STDC FP_CONTRACT OFF
+#endif
+#if defined(__FAST_MATH__)
+#error "mhe.c: compiled with -ffast-math/-Ofast: the estimator's bits (and the certified iteration) would change; remove it"
+#endif
+#include <math.h>
 #include <string.h>
 #include "mhe.h"
 
@@ -167,9 +180,13 @@ const mhe_real *mhe_estimate(mhe_state *s) {
     return s->x_hat;
 }
 
-void mhe_push(mhe_state *s, const mhe_real *u, const mhe_real *y) {
+int mhe_push(mhe_state *s, const mhe_real *u, const mhe_real *y) {
     long t;
     int m, nw = P->nw1 + P->nw2, nz, i;
+    for (i = 0; i < MHE_NU; i++)
+        if (!isfinite(u[i])) return MHE_E_NONFINITE;
+    for (i = 0; i < MHE_NY; i++)
+        if (!isfinite(y[i])) return MHE_E_NONFINITE;
     if (!s->estimated) mhe_estimate(s);
     t = s->t;
     m = (t < MHE_M) ? (int)t : MHE_M;
@@ -190,6 +207,26 @@ void mhe_push(mhe_state *s, const mhe_real *u, const mhe_real *y) {
     ring_push(&s->y_ring[0][0], MHE_NY, s->ring_next, y);
     s->ring_next = (s->ring_next + 1) % MHE_M;
     if (s->ring_len < MHE_M) s->ring_len++;
-    s->t = t + 1;
+    /* Saturate: beyond M + 1 only "the window is full" matters, and a free-running counter
+     * would overflow (2^31 steps of a 32-bit long are 25 days at 1 kHz). */
+    if (t <= MHE_M) s->t = t + 1;
     s->estimated = 0;
+    return MHE_OK;
+}
+
+int mhe_self_test(mhe_state *scratch) {
+#if MHE_SELF_TEST_STEPS > 0
+    int k;
+    mhe_reset(scratch, mhe_exported_prior);
+    for (k = 0; k < MHE_SELF_TEST_STEPS; k++) {
+        const mhe_real *x;
+        if (mhe_push(scratch, mhe_self_test_u[k], mhe_self_test_y[k]) != MHE_OK) return k + 1;
+        x = mhe_estimate(scratch);
+        if (memcmp(x, mhe_self_test_x[k], sizeof(mhe_real) * MHE_NX) != 0) return k + 1;
+    }
+    return 0;
+#else
+    (void)scratch;
+    return 0;
+#endif
 }

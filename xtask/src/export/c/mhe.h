@@ -39,6 +39,7 @@ extern const mhe_problem mhe_exported_problem;
 
 typedef struct {
     mhe_real prior[MHE_NX];
+    /* min(t, M + 1): saturated, so it cannot overflow (only min(t, M) and t > M matter). */
     long t;
     int estimated;
     mhe_real u_ring[MHE_M][MHE_NU_BUF];
@@ -57,12 +58,24 @@ typedef struct {
 void mhe_run_window(const mhe_window *w, int method, const mhe_real *theta,
                     const mhe_real *z0, int iterations, mhe_real *const v[6], mhe_real *out);
 
+/* Status of mhe_push: accepted, or refused because an entry of u or y is NaN or infinite
+ * (the state is unchanged). No finite bound is imposed: the certificate bounds the
+ * disturbances, not the measurements, so no finite range of y is implied by it. */
+enum { MHE_OK = 0, MHE_E_NONFINITE = -1 };
+
 /* t = 0 with the prior x0bar = prior (n_x entries). */
 void mhe_reset(mhe_state *s, const mhe_real *prior);
 /* x_hat_{t|t} from the data up to t - 1 (n_x entries, valid until the next call). */
 const mhe_real *mhe_estimate(mhe_state *s);
-/* Appends (u_t, y_t) and advances t (estimates first if not done at this t). */
-void mhe_push(mhe_state *s, const mhe_real *u, const mhe_real *y);
+/* Appends (u_t, y_t) and advances t (estimates first if not done at this t). Returns
+ * MHE_OK, or MHE_E_NONFINITE (nothing changed) if an entry of u or y is not finite. */
+int mhe_push(mhe_state *s, const mhe_real *u, const mhe_real *y);
+/* Runs the estimator on MHE_SELF_TEST_STEPS stored (u, y) pairs from the exported prior
+ * (in *scratch, which it resets) and compares every x_hat with the stored std estimator's
+ * bit for bit. Returns 0 when all match, else the first step that differs (1-based): a
+ * build with fused multiply-add, fast-math or reassociated sums differs. f64 exports only
+ * (MHE_SELF_TEST_STEPS is 0 for f32, and the function then returns 0). */
+int mhe_self_test(mhe_state *scratch);
 
 #ifdef __cplusplus
 }

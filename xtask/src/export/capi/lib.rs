@@ -3,6 +3,11 @@
 //! allocation, its own panic handler. Header: `mhe_capi.h` beside this crate, generated from
 //! this file by cbindgen (the exporter's tests regenerate it and fail on any difference).
 //! Not reentrant: call from one context only.
+//!
+//! The symbols carry the scalar (`mhe_capi_f64_*` here; the exporter writes `_f32_` and
+//! `float` for an f32 export, header included), and the header maps the plain names onto
+//! them: a program built against one scalar's header does not link with the other's
+//! library.
 #![no_std]
 
 use core::ptr::addr_of_mut;
@@ -12,6 +17,13 @@ use mhe_export::{Controller, Estimator};
 
 /// The scalar of the ABI (`mhe_real` in the header).
 pub type MheReal = Real;
+
+/// The bytes of the scalar the symbol names promise (the exporter writes 4 for f32).
+const SCALAR_BYTES: usize = 8;
+const _: () = assert!(
+    core::mem::size_of::<MheReal>() == SCALAR_BYTES,
+    "the data's scalar is not the one of the symbol names"
+);
 
 static mut STATE: Option<Estimator> = None;
 static mut MPC: Option<Controller> = None;
@@ -43,7 +55,7 @@ fn state() -> Option<&'static mut Estimator> {
 /// # Safety
 /// `prior` is NULL or points to NX readable values.
 #[unsafe(no_mangle)]
-pub unsafe extern "C" fn mhe_capi_reset(prior: *const MheReal) -> i32 {
+pub unsafe extern "C" fn mhe_capi_f64_reset(prior: *const MheReal) -> i32 {
     let Some(s) = state() else { return -1 };
     let mut p = PRIOR;
     if !prior.is_null() {
@@ -54,12 +66,13 @@ pub unsafe extern "C" fn mhe_capi_reset(prior: *const MheReal) -> i32 {
     0
 }
 
-/// Appends (u_t, y_t) and advances t. Returns 0, or −1 on a NULL pointer.
+/// Appends (u_t, y_t) and advances t. Returns 0; −1 on a NULL pointer; −2 (nothing
+/// changed) if an entry of u or y is NaN or ±∞.
 ///
 /// # Safety
 /// `u` points to NU readable values (may be NULL when NU = 0), `y` to NY.
 #[unsafe(no_mangle)]
-pub unsafe extern "C" fn mhe_capi_push(u: *const MheReal, y: *const MheReal) -> i32 {
+pub unsafe extern "C" fn mhe_capi_f64_push(u: *const MheReal, y: *const MheReal) -> i32 {
     if (u.is_null() && NU > 0) || y.is_null() {
         return -1;
     }
@@ -72,8 +85,10 @@ pub unsafe extern "C" fn mhe_capi_push(u: *const MheReal, y: *const MheReal) -> 
     }
     // SAFETY: the caller guarantees NY readable values.
     yy.copy_from_slice(unsafe { core::slice::from_raw_parts(y, NY) });
-    s.push(&uu, &yy);
-    0
+    match s.push(&uu, &yy) {
+        Ok(()) => 0,
+        Err(_) => -2,
+    }
 }
 
 /// Writes x̂_{t|t} to `x_hat[0..NX]`. Returns 0, or −1 on a NULL pointer.
@@ -81,7 +96,7 @@ pub unsafe extern "C" fn mhe_capi_push(u: *const MheReal, y: *const MheReal) -> 
 /// # Safety
 /// `x_hat` points to NX writable values.
 #[unsafe(no_mangle)]
-pub unsafe extern "C" fn mhe_capi_estimate(x_hat: *mut MheReal) -> i32 {
+pub unsafe extern "C" fn mhe_capi_f64_estimate(x_hat: *mut MheReal) -> i32 {
     if x_hat.is_null() {
         return -1;
     }
@@ -94,7 +109,7 @@ pub unsafe extern "C" fn mhe_capi_estimate(x_hat: *mut MheReal) -> i32 {
 
 /// n_x, n_u, n_y of the export (for callers that size their buffers at run time).
 #[unsafe(no_mangle)]
-pub extern "C" fn mhe_capi_dims(nx: *mut i32, nu: *mut i32, ny: *mut i32) {
+pub extern "C" fn mhe_capi_f64_dims(nx: *mut i32, nu: *mut i32, ny: *mut i32) {
     for (p, v) in [(nx, NX), (nu, NU), (ny, NY)] {
         if !p.is_null() {
             // SAFETY: a non-NULL pointer from the caller points to a writable int32.
@@ -115,14 +130,14 @@ fn controller() -> Option<&'static mut Controller> {
 
 /// 1 if this export has the K_c-iteration MPC (`mhe_capi_mpc_*`), 0 if not.
 #[unsafe(no_mangle)]
-pub extern "C" fn mhe_capi_has_mpc() -> i32 {
+pub extern "C" fn mhe_capi_f64_has_mpc() -> i32 {
     i32::from(controller().is_some())
 }
 
 /// Forgets the MPC's previous sequence: the next call cold-starts. Returns 0, or −1 when
 /// the export has no MPC.
 #[unsafe(no_mangle)]
-pub extern "C" fn mhe_capi_mpc_reset() -> i32 {
+pub extern "C" fn mhe_capi_f64_mpc_reset() -> i32 {
     let Some(c) = controller() else { return -1 };
     c.reset();
     0
@@ -136,7 +151,7 @@ pub extern "C" fn mhe_capi_mpc_reset() -> i32 {
 /// # Safety
 /// `x_hat` points to NX readable values, `u` to NU writable values.
 #[unsafe(no_mangle)]
-pub unsafe extern "C" fn mhe_capi_mpc_control(x_hat: *const MheReal, u: *mut MheReal) -> i32 {
+pub unsafe extern "C" fn mhe_capi_f64_mpc_control(x_hat: *const MheReal, u: *mut MheReal) -> i32 {
     if x_hat.is_null() || u.is_null() {
         return -1;
     }

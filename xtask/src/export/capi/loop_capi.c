@@ -4,6 +4,7 @@
 #include <stdio.h>
 #include <stdlib.h>
 #include "mhe_capi.h"
+#include "parse.h"
 
 static void print_row(int nx, int nu, const mhe_real *x, const mhe_real *u) {
     int i;
@@ -13,10 +14,12 @@ static void print_row(int nx, int nu, const mhe_real *x, const mhe_real *u) {
 }
 
 int main(void) {
-    static char line[8192];
+    static char line[MHE_LINE_MAX];
+    double vals[64];
+    long lineno = 0;
+    int rc;
     int32_t nx, nu, ny;
     mhe_real x[64], u[64], y[64];
-    long row = 0;
     mhe_capi_dims(&nx, &nu, &ny);
     if (nx > 64 || nu > 64 || ny > 64 || !mhe_capi_has_mpc()) {
         fprintf(stderr, "loop: this export has no MPC\n");
@@ -25,26 +28,20 @@ int main(void) {
     if (mhe_capi_reset(NULL) != 0 || mhe_capi_mpc_reset() != 0) return 1;
     if (mhe_capi_estimate(x) != 0 || mhe_capi_mpc_control(x, u) != 0) return 1;
     print_row(nx, nu, x, u);
-    while (fgets(line, sizeof line, stdin)) {
-        char *p = line, *end;
+    while ((rc = mhe_read_line("loop", line, ++lineno)) == 1) {
         int i;
-        if (line[0] == '\n') continue;
-        for (i = 0; i < ny; i++) {
-            double v = strtod(p, &end);
-            if (end == p) {
-                fprintf(stderr, "loop: line %ld: expected %d numbers\n", row + 1, (int)ny);
-                return 1;
-            }
-            y[i] = (mhe_real)v;
-            p = (*end == ',') ? end + 1 : end;
+        if (mhe_blank(line)) continue;
+        if (mhe_parse_line("loop", line, lineno, (int)ny, "y", vals) != 0) return 1;
+        for (i = 0; i < ny; i++) y[i] = (mhe_real)vals[i];
+        if (mhe_capi_push(u, y) != 0 || mhe_capi_estimate(x) != 0) {
+            fprintf(stderr, "loop: line %ld: refused by mhe_capi_push\n", lineno);
+            return 1;
         }
-        if (mhe_capi_push(u, y) != 0 || mhe_capi_estimate(x) != 0) return 1;
         if (mhe_capi_mpc_control(x, u) != 0) {
-            fprintf(stderr, "loop: step %ld: the MPC failed\n", row + 1);
+            fprintf(stderr, "loop: line %ld: the MPC failed\n", lineno);
             return 1;
         }
         print_row(nx, nu, x, u);
-        row++;
     }
-    return 0;
+    return rc < 0;
 }

@@ -3,6 +3,7 @@
 #include <stdio.h>
 #include <stdlib.h>
 #include "mhe_capi.h"
+#include "parse.h"
 
 static void print_estimate(int nx) {
     mhe_real x[64];
@@ -13,29 +14,27 @@ static void print_estimate(int nx) {
 }
 
 int main(void) {
-    static char line[8192];
+    static char line[MHE_LINE_MAX];
     int32_t nx, nu, ny;
     mhe_real u[64], y[64];
-    long row = 0;
+    double vals[128];
+    long lineno = 0;
+    int rc;
     mhe_capi_dims(&nx, &nu, &ny);
     if (nx > 64 || nu > 64 || ny > 64 || mhe_capi_reset(NULL) != 0) return 1;
     print_estimate(nx);
-    while (fgets(line, sizeof line, stdin)) {
-        char *p = line, *end;
+    while ((rc = mhe_read_line("replay", line, ++lineno)) == 1) {
         int i;
-        if (line[0] == '\n') continue;
+        if (mhe_blank(line)) continue;
+        if (mhe_parse_line("replay", line, lineno, (int)(nu + ny), "u then y", vals) != 0) return 1;
         for (i = 0; i < nu + ny; i++) {
-            double v = strtod(p, &end);
-            if (end == p) {
-                fprintf(stderr, "replay: line %ld: expected %d numbers\n", row + 1, (int)(nu + ny));
-                return 1;
-            }
-            if (i < nu) u[i] = (mhe_real)v; else y[i - nu] = (mhe_real)v;
-            p = (*end == ',') ? end + 1 : end;
+            if (i < nu) u[i] = (mhe_real)vals[i]; else y[i - nu] = (mhe_real)vals[i];
         }
-        if (mhe_capi_push(u, y) != 0) return 1;
+        if (mhe_capi_push(u, y) != 0) {
+            fprintf(stderr, "replay: line %ld: refused by mhe_capi_push\n", lineno);
+            return 1;
+        }
         print_estimate(nx);
-        row++;
     }
-    return 0;
+    return rc < 0;
 }

@@ -83,10 +83,13 @@ impl LureStep {
         for (k, (sec, lam)) in self.sectors.iter().zip(lambda).enumerate() {
             let s = sector_form(sec, m, np, k);
             out.axpy(*lam, &s);
-            scale.axpy(lam.abs(), &Sym {
-                n: nz,
-                a: s.a.iter().map(|x| x.abs()).collect(),
-            });
+            scale.axpy(
+                lam.abs(),
+                &Sym {
+                    n: nz,
+                    a: s.a.iter().map(|x| x.abs()).collect(),
+                },
+            );
         }
         (out, scale.abs_sum())
     }
@@ -96,8 +99,7 @@ impl LureStep {
     fn blocks(&self, rho: f64) -> (Vec<AffineBlock>, Vec<f64>) {
         let (m, np) = (self.m, self.p());
         let nz = m + np;
-        let pairs: Vec<(usize, usize)> =
-            (0..m).flat_map(|i| (i..m).map(move |j| (i, j))).collect();
+        let pairs: Vec<(usize, usize)> = (0..m).flat_map(|i| (i..m).map(move |j| (i, j))).collect();
         let np_vars = pairs.len();
         let d = np_vars + np + 1;
         let unit_p = |(i, j): (usize, usize)| {
@@ -202,7 +204,14 @@ impl LureStep {
     /// Solves the LMI at rate ρ and checks the answer independently.
     pub(crate) fn certify_at(&self, rho: f64) -> Option<RateCertificate> {
         let (blocks, y0) = self.blocks(rho);
-        let y = maximise_last(&blocks, y0, 1e-11)?;
+        // Stop at the first centred point whose (P̃, λ) passes the independent check.
+        let passes = |y: &[f64]| {
+            y[y.len() - 1] > 0.0 && {
+                let (p, lambda) = self.unpack(y);
+                self.check(rho, p, lambda).is_some()
+            }
+        };
+        let y = maximise_last(&blocks, y0, 1e-11, passes)?;
         if !(y[y.len() - 1] > 0.0) {
             return None;
         }

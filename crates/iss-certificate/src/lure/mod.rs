@@ -167,12 +167,7 @@ pub enum InnerMap {
 
 /// The inner rate of `map` for every QP whose Hessian has its spectrum in [μ, L]
 /// (and any closed convex Z with an exact projection).
-pub fn inner_rate_for(
-    name: &str,
-    map: InnerMap,
-    mu: f64,
-    l: f64,
-) -> Result<InnerRate, LureError> {
+pub fn inner_rate_for(name: &str, map: InnerMap, mu: f64, l: f64) -> Result<InnerRate, LureError> {
     if !(mu > 0.0) || !(l >= mu) || !l.is_finite() {
         return Err(LureError::NotStronglyConvex { mu, allowance: 0.0 });
     }
@@ -189,13 +184,18 @@ pub fn inner_rate_for(
         storage: c.p.a.clone(),
         multipliers: c.lambda.clone(),
     };
+    // Every map is invariant under H → H/L with the step scaled by L (ADMM's penalty by
+    // 1/L): the LMI is solved on the spectrum [μ/L, 1], where its entries are O(1).
+    let mu_n = mu / l;
     match map {
         InnerMap::Pg { step } => {
-            let c = inner::pg_step(step, mu, l).best_rate().ok_or_else(no_rate)?;
+            let c = inner::pg_step(step * l, mu_n, 1.0)
+                .best_rate()
+                .ok_or_else(no_rate)?;
             Ok(pack(&c, 1.0, 0, 1.0))
         }
         InnerMap::Fista { momentum, step } => {
-            let c = inner::fista_step(momentum, step, mu, l)
+            let c = inner::fista_step(momentum, step * l, mu_n, 1.0)
                 .best_rate()
                 .ok_or_else(no_rate)?;
             // ξ₀ = (e, e) after the restart step, which contracts by max|1 − s·λ|;
@@ -215,13 +215,11 @@ pub fn inner_rate_for(
             penalty,
             relaxation,
         } => {
-            let c = inner::admm_step(penalty, relaxation, mu, l)
+            let c = inner::admm_step(penalty / l, relaxation, mu_n, 1.0)
                 .best_rate()
                 .ok_or_else(no_rate)?;
             // ‖vᴷ − z*‖ ≤ ‖sᴷ − s*‖ and s⁰ − s* = (I − H/ρ)(z⁰ − z*).
-            let start = (1.0 - mu / penalty)
-                .abs()
-                .max((1.0 - l / penalty).abs())
+            let start = (1.0 - mu / penalty).abs().max((1.0 - l / penalty).abs())
                 * (1.0 + 8.0 * f64::EPSILON);
             Ok(pack(&c, start, 0, start))
         }

@@ -149,8 +149,14 @@ fn barrier(blocks: &[AffineBlock], y: &[f64], tau: f64) -> Option<f64> {
 
 /// Maximises the last unknown subject to every block positive definite, from a strictly
 /// feasible `y`. Returns the final point (strictly feasible; within `gap` of the optimum
-/// when it converged) or None when `y` is not strictly feasible.
-pub(crate) fn maximise_last(blocks: &[AffineBlock], mut y: Vec<f64>, gap: f64) -> Option<Vec<f64>> {
+/// when it converged, or the first centred point `good` accepts) or None when `y` is not
+/// strictly feasible.
+pub(crate) fn maximise_last(
+    blocks: &[AffineBlock],
+    mut y: Vec<f64>,
+    gap: f64,
+    good: impl Fn(&[f64]) -> bool,
+) -> Option<Vec<f64>> {
     let d = y.len();
     let nu: f64 = blocks.iter().map(|b| b.f0.n as f64).sum();
     barrier(blocks, &y, 0.0)?;
@@ -221,7 +227,7 @@ pub(crate) fn maximise_last(blocks: &[AffineBlock], mut y: Vec<f64>, gap: f64) -
                 break;
             }
         }
-        if nu / tau < gap {
+        if nu / tau < gap || good(&y) {
             break;
         }
         tau *= 8.0;
@@ -315,10 +321,7 @@ mod tests {
             fi: vec![fx, ft],
         };
         let b2 = AffineBlock {
-            f0: Sym {
-                n: 1,
-                a: vec![0.5],
-            },
+            f0: Sym { n: 1, a: vec![0.5] },
             fi: vec![
                 Sym {
                     n: 1,
@@ -327,7 +330,8 @@ mod tests {
                 Sym::zeros(1),
             ],
         };
-        let y = maximise_last(&[b1, b2], vec![0.1, -1.0], 1e-10).expect("feasible start");
+        let y =
+            maximise_last(&[b1, b2], vec![0.1, -1.0], 1e-10, |_| false).expect("feasible start");
         assert!((y[1] - 1.0).abs() < 1e-8 && y[0].abs() < 1e-4, "{y:?}");
     }
 }

@@ -28,9 +28,6 @@ pub(crate) struct LureStep {
     pub a: Vec<f64>,
     pub b: Vec<f64>,
     pub sectors: Vec<Sector>,
-    /// Further systems of the same shape that must satisfy the LMI with the *same* P̃ and
-    /// λ (the two ends of a curvature interval in [`fista_modal_rate`]).
-    pub also: Vec<LureStep>,
 }
 
 /// A checked solution of the rate LMI at rate ρ.
@@ -141,20 +138,6 @@ impl LureStep {
                 fi: f2,
             },
         ];
-        for twin in &self.also {
-            let mut fi = Vec::with_capacity(d);
-            for &pr in &pairs {
-                fi.push(neg(twin.lmi_matrix(rho, &unit_p(pr), &zero_lambda).0));
-            }
-            for k in 0..np {
-                fi.push(neg(sector_form(&twin.sectors[k], m, np, k)));
-            }
-            fi.push(neg(Sym::identity(nz)));
-            blocks.push(AffineBlock {
-                f0: Sym::zeros(nz),
-                fi,
-            });
-        }
         // λ_j > 0.
         for k in 0..np {
             let mut fi = vec![Sym::zeros(1); d];
@@ -196,13 +179,8 @@ impl LureStep {
             y0[np_vars + k] = w;
         }
         let (p0, l0) = self.unpack(&y0);
-        let top = std::iter::once(self)
-            .chain(&self.also)
-            .map(|st| {
-                let (m0, _) = st.lmi_matrix(rho, &p0, &l0);
-                sym_eigenvalues(&m0).last().copied().unwrap_or(0.0)
-            })
-            .fold(f64::NEG_INFINITY, f64::max);
+        let (m0, _) = self.lmi_matrix(rho, &p0, &l0);
+        let top = sym_eigenvalues(&m0).last().copied().unwrap_or(0.0);
         y0[d - 1] = (-top).min(w) - 1.0;
         (blocks, y0)
     }
@@ -253,21 +231,17 @@ impl LureStep {
         if !(p_ev[0] > p_tol) {
             return None;
         }
-        let mut margin = f64::INFINITY;
-        for st in std::iter::once(self).chain(&self.also) {
-            let (mm, scale) = st.lmi_matrix(rho, &p, &lambda);
-            let top = sym_eigenvalues(&mm).last().copied()?;
-            let tol = 1e3 * mm.n as f64 * eps * scale;
-            if !(top < -tol) {
-                return None;
-            }
-            margin = margin.min(-top / scale);
+        let (mm, scale) = self.lmi_matrix(rho, &p, &lambda);
+        let top = sym_eigenvalues(&mm).last().copied()?;
+        let tol = 1e3 * mm.n as f64 * eps * scale;
+        if !(top < -tol) {
+            return None;
         }
         Some(RateCertificate {
             rho,
             p,
             lambda,
-            margin,
+            margin: -top / scale,
         })
     }
 
@@ -291,77 +265,6 @@ impl LureStep {
         }
         Some(best)
     }
-}
-
-/// V-FISTA on the window's own H, mode by mode: in H's eigenbasis the gradient is exact and
-/// the projection (firmly non-expansive, one multiplier) is the only nonlinear channel, so a
-/// storage Σ_i ξ̃_iᵀP̃_iξ̃_i commuting with H turns the LMI into one 3 × 3 LMI per curvature h.
-/// The LMI is affine in h, so one P̃_j that satisfies it at both ends of an interval
-/// [h_a, h_b] satisfies it on the whole interval; [μ, L] is covered by `pieces` geometric
-/// intervals. Returns the common rate (the largest over the intervals), the P̃_j rescaled to
-/// the common multiplier λ = 1, and the smallest relative margin.
-pub(crate) fn fista_modal_rate(
-    beta: f64,
-    step: f64,
-    mu: f64,
-    l: f64,
-    pieces: usize,
-) -> Option<(f64, Vec<Sym>, f64)> {
-    let mode = |h: f64| {
-        let g = 1.0 - step * h;
-        LureStep {
-            m: 2,
-            a: vec![0.0, 0.0, 1.0, 0.0],
-            b: vec![1.0, 0.0],
-            sectors: vec![Sector {
-                c: vec![(1.0 + beta) * g, -beta * g],
-                d: vec![0.0],
-                lo: 0.0,
-                hi: 1.0,
-            }],
-            also: Vec::new(),
-        }
-    };
-    let ratio = (l / mu).powf(1.0 / pieces as f64);
-    let ends: Vec<f64> = (0..=pieces)
-        .map(|j| {
-            if j == pieces {
-                l
-            } else {
-                mu * ratio.powi(j as i32)
-            }
-        })
-        .collect();
-    let steps: Vec<LureStep> = ends
-        .windows(2)
-        .map(|w| {
-            let mut s = mode(w[0]);
-            s.also.push(mode(w[1]));
-            s
-        })
-        .collect();
-    let rho = steps
-        .iter()
-        .map(|s| s.best_rate().map(|c| c.rho))
-        .try_fold(0.0_f64, |a, r| r.map(|r| a.max(r)))?;
-    let mut ps = Vec::with_capacity(pieces);
-    let mut margin = f64::INFINITY;
-    for s in &steps {
-        let c = s.certify_at(rho)?;
-        let lam = c.lambda[0];
-        if !(lam > 0.0) {
-            return None;
-        }
-        let p = Sym {
-            n: 2,
-            a: c.p.a.iter().map(|x| x / lam).collect(),
-        };
-        // Re-check the rescaled storage with λ = 1 (the common multiplier).
-        let c1 = s.check(rho, p, vec![1.0])?;
-        margin = margin.min(c1.margin);
-        ps.push(c1.p);
-    }
-    Some((rho, ps, margin))
 }
 
 /// S_k: the quadratic form (π_k − lo·v)(hi·v − π_k) in ζ = (ξ, π), symmetrised.
@@ -404,7 +307,6 @@ pub(crate) fn pg_step(alpha: f64, mu: f64, l: f64) -> LureStep {
                 hi: 1.0,
             },
         ],
-        also: Vec::new(),
     }
 }
 
@@ -428,7 +330,6 @@ pub(crate) fn fista_step(beta: f64, step: f64, mu: f64, l: f64) -> LureStep {
                 hi: 1.0,
             },
         ],
-        also: Vec::new(),
     }
 }
 
@@ -453,7 +354,6 @@ pub(crate) fn admm_step(rho: f64, alpha: f64, mu: f64, l: f64) -> LureStep {
                 hi: rho / (rho + mu),
             },
         ],
-        also: Vec::new(),
     }
 }
 

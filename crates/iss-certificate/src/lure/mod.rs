@@ -20,9 +20,6 @@ mod sdp;
 use qp_iter::{Certificate, IterationMap, Method, MethodMap, ParametricQp};
 use serde::Serialize;
 
-/// Curvature intervals of the modal V-FISTA storage (geometric in [μ, L]).
-const MODAL_PIECES: usize = 16;
-
 /// Why no inner rate.
 #[derive(Debug, Clone, PartialEq, thiserror::Error)]
 pub enum LureError {
@@ -198,39 +195,21 @@ pub fn inner_rate_for(name: &str, map: InnerMap, mu: f64, l: f64) -> Result<Inne
             Ok(pack(&c, 1.0, 0, 1.0))
         }
         InnerMap::Fista { momentum, step } => {
-            let first = (1.0 - step * mu).abs().max((1.0 - step * l).abs());
+            let c = inner::fista_step(momentum, step * l, mu_n, 1.0)
+                .best_rate()
+                .ok_or_else(no_rate)?;
             // ξ₀ = (e, e) after the restart step, which contracts by max|1 − s·λ|;
-            // ‖e_x‖² ≤ (P̃⁻¹)₁₁·V and V₀ = 𝟙ᵀP̃𝟙‖e_{x₀}‖² (max over the storage's blocks).
-            let ones = |p: &[f64]| p[0] + p[1] + p[2] + p[3];
-            let inv11 = |p: &[f64]| p[3] / (p[0] * p[3] - p[1] * p[2]);
-            let prefactor_of = |ps: &[&[f64]]| {
-                let o = ps.iter().map(|p| ones(p)).fold(0.0, f64::max);
-                let i = ps.iter().map(|p| inv11(p)).fold(0.0, f64::max);
-                (o * i).sqrt() * first * (1.0 + 8.0 * f64::EPSILON)
-            };
-            // The window's own H, mode by mode (docs: "the modal storage"); the class LMI
-            // (curvature free in [μ, L]) only where it certifies a smaller rate.
-            let modal = inner::fista_modal_rate(momentum, step * l, mu_n, 1.0, MODAL_PIECES);
-            let class = inner::fista_step(momentum, step * l, mu_n, 1.0).best_rate();
-            let from_modal = modal.map(|(rho, ps, margin)| {
-                let refs: Vec<&[f64]> = ps.iter().map(|p| p.a.as_slice()).collect();
-                InnerRate {
-                    method: name.to_string(),
-                    rate: rho,
-                    prefactor: prefactor_of(&refs),
-                    lag: 1,
-                    start: 1.0,
-                    lmi_margin: margin,
-                    storage: ps.iter().flat_map(|p| p.a.iter().copied()).collect(),
-                    multipliers: vec![1.0],
-                }
-            });
-            let from_class = class.map(|c| pack(&c, prefactor_of(&[c.p.a.as_slice()]), 1, 1.0));
-            let best = match (from_modal, from_class) {
-                (Some(a), Some(b)) => Some(if b.rate < a.rate { b } else { a }),
-                (a, b) => a.or(b),
-            };
-            best.filter(|r| r.prefactor.is_finite()).ok_or_else(no_rate)
+            // ‖e_x‖² ≤ (P̃⁻¹)₁₁·V and V₀ = 𝟙ᵀP̃𝟙‖e_{x₀}‖².
+            let p = &c.p.a;
+            let det = p[0] * p[3] - p[1] * p[2];
+            let inv11 = p[3] / det;
+            let ones = p[0] + p[1] + p[2] + p[3];
+            let first = (1.0 - step * mu).abs().max((1.0 - step * l).abs());
+            let prefactor = (ones * inv11).sqrt() * first * (1.0 + 8.0 * f64::EPSILON);
+            if !(prefactor.is_finite() && det > 0.0) {
+                return Err(no_rate());
+            }
+            Ok(pack(&c, prefactor, 1, 1.0))
         }
         InnerMap::Admm {
             penalty,

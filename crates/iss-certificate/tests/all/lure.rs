@@ -70,31 +70,29 @@ fn admm_rate_is_giselsson_boyd() {
     }
 }
 
-/// V-FISTA: the class LMI (curvature free in [μ, L]) certifies nothing beyond κ ≈ 1.5 — constant
-/// momentum is not contractive under a curvature that changes from step to step
-/// (Lessard–Recht–Packard needed the off-by-one IQC for Nesterov's method) — while the modal
-/// storage on the QP's own H does, with a rate close to the unconstrained 1 − 1/√κ.
+/// V-FISTA: a rate for κ near 1 (where it is nearly PG), none for κ = 10 — the sector
+/// description of the gradient admits a time-varying curvature, under which constant
+/// momentum is not contractive in any block-quadratic storage (Lessard–Recht–Packard needed the off-by-one IQC for Nesterov's method).
 #[test]
-fn fista_rate_from_the_modal_storage() {
-    for kappa in [1.5_f64, 10.0, 100.0, 1e4] {
+fn fista_class_lmi_certifies_only_small_kappa() {
+    let rate = |kappa: f64| {
         let sk = kappa.sqrt();
-        let beta = (sk - 1.0) / (sk + 1.0);
-        let t = std::time::Instant::now();
-        let r = inner_rate_for(
+        inner_rate_for(
             "fista",
             InnerMap::Fista {
-                momentum: beta,
+                momentum: (sk - 1.0) / (sk + 1.0),
                 step: 1.0 / kappa,
             },
             1.0,
             kappa,
-        );
-        eprintln!(
-            "κ {kappa}: {r:?} ({} s) 1−1/√κ = {}",
-            t.elapsed().as_secs_f64(),
-            1.0 - 1.0 / sk
-        );
-    }
+        )
+    };
+    let r = rate(1.5).unwrap();
+    assert!(
+        r.rate < 1.0 && r.lag == 1 && r.prefactor.is_finite(),
+        "{r:?}"
+    );
+    assert!(matches!(rate(10.0), Err(LureError::NoRate { .. })));
 }
 
 /// The premise: no strong convexity, no rate; a PG step beyond 2/L, no rate (the

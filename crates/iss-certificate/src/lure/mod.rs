@@ -10,7 +10,7 @@
 //! and prefactor c with ‖zᴷ − z*‖ ≤ φ_iqc(K)‖z⁰ − z*‖, φ_iqc(K) = c·ρ_inᴷ⁻ᵏ⁰ — the same
 //! quantity, norm and premise as the method's own φ(K) of eq. (11), so that
 //! min(φ(K), φ_iqc(K)) is again a sound φ(K) ([`InnerRate::phi_min`]). The LMI is solved by
-//! a small pure-Rust barrier method ([`sdp`]), and every returned storage matrix and
+//! a small pure-Rust barrier method (`lure::sdp`), and every returned storage matrix and
 //! multiplier is re-checked independently (Jacobi eigenvalues with a margin above the
 //! rounding of the terms) before a rate is reported.
 

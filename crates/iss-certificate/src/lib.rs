@@ -18,6 +18,8 @@
 //! - [`joint`]: sub-optimal MPC and MHE together (the 4×4 gain matrix, the (K_e, K_c) region).
 //! - [`linear`]: ρ_lin(K) and K_lin, the exact linear stability boundary where no constraint
 //!   is active (the lifted LTI system of Alg. 1).
+//! - [`lure`]: the closed loop as a Lur'e system (issue 35); today the inner level, a
+//!   per-method rate ρ_in from a small LMI, φ_iqc(K) beside φ(K).
 //! - [`regional`]: regional ISS from the lifted loop (a sublevel set on which no constraint
 //!   is active).
 //! - [`coverage`]: which certificate a configuration (method, K_e, controller, K_c) is
@@ -33,6 +35,7 @@ pub mod coverage;
 pub mod gamma13;
 pub mod joint;
 pub mod linear;
+pub mod lure;
 pub mod plan;
 pub mod regional;
 pub mod small_gain;

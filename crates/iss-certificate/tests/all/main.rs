@@ -13,6 +13,7 @@ mod gamma13;
 mod joint;
 mod krylov;
 mod linear;
+mod lure;
 mod mends;
 mod plants;
 mod plants_ii;

@@ -1,0 +1,337 @@
+//! A small primal log-barrier interior-point solver for LMIs, and the independent check of
+//! its answer.
+//!
+//! After the Kronecker reduction of [`super::inner`] the LMIs of this module have at most
+//! six unknowns and blocks of at most 5 × 5, so a dense barrier method on plain `Vec<f64>`
+//! is exact enough, fast, and pure Rust (Clarabel's PSD cone would pull in BLAS/LAPACK).
+//! Its answer is never trusted as is: [`sym_eigenvalues`] (cyclic Jacobi, no Cholesky, no
+//! shared code with the solver) recomputes the spectrum of every matrix a caller certifies.
+
+/// A dense symmetric matrix stored row-major, n × n.
+#[derive(Debug, Clone, PartialEq)]
+pub(crate) struct Sym {
+    pub n: usize,
+    pub a: Vec<f64>,
+}
+
+impl Sym {
+    pub fn zeros(n: usize) -> Self {
+        Self {
+            n,
+            a: vec![0.0; n * n],
+        }
+    }
+    pub fn identity(n: usize) -> Self {
+        let mut s = Self::zeros(n);
+        for i in 0..n {
+            s.a[i * n + i] = 1.0;
+        }
+        s
+    }
+    #[inline]
+    pub fn at(&self, i: usize, j: usize) -> f64 {
+        self.a[i * self.n + j]
+    }
+    #[inline]
+    pub fn add(&mut self, i: usize, j: usize, v: f64) {
+        self.a[i * self.n + j] += v;
+    }
+    /// self += s·other.
+    pub fn axpy(&mut self, s: f64, other: &Sym) {
+        for (x, y) in self.a.iter_mut().zip(&other.a) {
+            *x += s * y;
+        }
+    }
+    /// Σ|a_ij|: the scale rounding errors are measured against.
+    pub fn abs_sum(&self) -> f64 {
+        self.a.iter().map(|x| x.abs()).sum()
+    }
+}
+
+/// G(y) = F₀ + Σᵢ yᵢFᵢ, required positive definite.
+#[derive(Debug, Clone)]
+pub(crate) struct AffineBlock {
+    pub f0: Sym,
+    pub fi: Vec<Sym>,
+}
+
+impl AffineBlock {
+    fn eval(&self, y: &[f64]) -> Sym {
+        let mut g = self.f0.clone();
+        for (yi, fi) in y.iter().zip(&self.fi) {
+            if *yi != 0.0 {
+                g.axpy(*yi, fi);
+            }
+        }
+        g
+    }
+}
+
+/// Lower Cholesky factor of a symmetric matrix, None unless positive definite.
+fn cholesky(s: &Sym) -> Option<Vec<f64>> {
+    let n = s.n;
+    let mut l = vec![0.0; n * n];
+    for j in 0..n {
+        let mut d = s.at(j, j);
+        for k in 0..j {
+            d -= l[j * n + k] * l[j * n + k];
+        }
+        if !(d > 0.0) || !d.is_finite() {
+            return None;
+        }
+        let d = d.sqrt();
+        l[j * n + j] = d;
+        for i in j + 1..n {
+            let mut v = s.at(i, j);
+            for k in 0..j {
+                v -= l[i * n + k] * l[j * n + k];
+            }
+            l[i * n + j] = v / d;
+        }
+    }
+    Some(l)
+}
+
+/// log det and the inverse from a Cholesky factor.
+fn logdet_inverse(l: &[f64], n: usize) -> (f64, Sym) {
+    let logdet = 2.0 * (0..n).map(|i| l[i * n + i].ln()).sum::<f64>();
+    let mut inv = Sym::zeros(n);
+    let mut col = vec![0.0; n];
+    for c in 0..n {
+        // Solve L Lᵀ x = e_c.
+        for i in 0..n {
+            let mut v = if i == c { 1.0 } else { 0.0 };
+            for k in 0..i {
+                v -= l[i * n + k] * col[k];
+            }
+            col[i] = v / l[i * n + i];
+        }
+        for i in (0..n).rev() {
+            let mut v = col[i];
+            for k in i + 1..n {
+                v -= l[k * n + i] * col[k];
+            }
+            col[i] = v / l[i * n + i];
+        }
+        for i in 0..n {
+            inv.a[i * n + c] = col[i];
+        }
+    }
+    (logdet, inv)
+}
+
+fn matmul(a: &Sym, b: &Sym) -> Vec<f64> {
+    let n = a.n;
+    let mut c = vec![0.0; n * n];
+    for i in 0..n {
+        for k in 0..n {
+            let aik = a.a[i * n + k];
+            if aik != 0.0 {
+                for j in 0..n {
+                    c[i * n + j] += aik * b.a[k * n + j];
+                }
+            }
+        }
+    }
+    c
+}
+
+/// The barrier value −τ·y_last − Σ log det G_b(y), None outside the interior.
+fn barrier(blocks: &[AffineBlock], y: &[f64], tau: f64) -> Option<f64> {
+    let mut v = -tau * y[y.len() - 1];
+    for b in blocks {
+        let g = b.eval(y);
+        let l = cholesky(&g)?;
+        v -= 2.0 * (0..g.n).map(|i| l[i * g.n + i].ln()).sum::<f64>();
+    }
+    Some(v)
+}
+
+/// Maximises the last unknown subject to every block positive definite, from a strictly
+/// feasible `y`. Returns the final point (strictly feasible; within `gap` of the optimum
+/// when it converged, or the first centred point `good` accepts) or None when `y` is not
+/// strictly feasible.
+pub(crate) fn maximise_last(
+    blocks: &[AffineBlock],
+    mut y: Vec<f64>,
+    gap: f64,
+    good: impl Fn(&[f64]) -> bool,
+) -> Option<Vec<f64>> {
+    let d = y.len();
+    let nu: f64 = blocks.iter().map(|b| b.f0.n as f64).sum();
+    barrier(blocks, &y, 0.0)?;
+    let mut tau = 1.0;
+    for _outer in 0..60 {
+        for _newton in 0..100 {
+            let mut grad = vec![0.0; d];
+            let mut hess = vec![0.0; d * d];
+            grad[d - 1] -= tau;
+            for b in blocks {
+                let g = b.eval(&y);
+                let l = cholesky(&g)?;
+                let (_, inv) = logdet_inverse(&l, g.n);
+                let w: Vec<Vec<f64>> = b.fi.iter().map(|f| matmul(&inv, f)).collect();
+                let n = g.n;
+                for i in 0..d {
+                    grad[i] -= (0..n).map(|r| w[i][r * n + r]).sum::<f64>();
+                    for k in 0..=i {
+                        // tr(W_i W_k)
+                        let mut s = 0.0;
+                        for r in 0..n {
+                            for c in 0..n {
+                                s += w[i][r * n + c] * w[k][c * n + r];
+                            }
+                        }
+                        hess[i * d + k] += s;
+                        if k != i {
+                            hess[k * d + i] += s;
+                        }
+                    }
+                }
+            }
+            // Newton step: H Δ = −g (a tiny ridge if H is singular in floating point).
+            let mut hs = Sym { n: d, a: hess };
+            let l = match cholesky(&hs) {
+                Some(l) => l,
+                None => {
+                    let ridge = 1e-12 * (1.0 + hs.abs_sum());
+                    for i in 0..d {
+                        hs.add(i, i, ridge);
+                    }
+                    cholesky(&hs)?
+                }
+            };
+            let (_, hinv) = logdet_inverse(&l, d);
+            let step: Vec<f64> = (0..d)
+                .map(|i| -(0..d).map(|k| hinv.at(i, k) * grad[k]).sum::<f64>())
+                .collect();
+            let decrement: f64 = -step.iter().zip(&grad).map(|(s, g)| s * g).sum::<f64>();
+            if !(decrement > 1e-14) {
+                break;
+            }
+            let f0 = barrier(blocks, &y, tau)?;
+            let mut s = 1.0;
+            let mut moved = false;
+            for _ in 0..60 {
+                let trial: Vec<f64> = y.iter().zip(&step).map(|(a, b)| a + s * b).collect();
+                if let Some(f) = barrier(blocks, &trial, tau) {
+                    if f <= f0 - 0.25 * s * decrement {
+                        y = trial;
+                        moved = true;
+                        break;
+                    }
+                }
+                s *= 0.5;
+            }
+            if !moved || decrement < 1e-10 {
+                break;
+            }
+        }
+        if nu / tau < gap || good(&y) {
+            break;
+        }
+        tau *= 8.0;
+    }
+    Some(y)
+}
+
+/// Eigenvalues of a symmetric matrix by the cyclic Jacobi method (ascending): slow but
+/// accurate to a few ε‖S‖, and independent of the solver's Cholesky factorisations.
+pub(crate) fn sym_eigenvalues(s: &Sym) -> Vec<f64> {
+    let n = s.n;
+    let mut a = s.a.clone();
+    // Symmetrise exactly (the callers build symmetric matrices; this removes any doubt).
+    for i in 0..n {
+        for j in 0..i {
+            let m = 0.5 * (a[i * n + j] + a[j * n + i]);
+            a[i * n + j] = m;
+            a[j * n + i] = m;
+        }
+    }
+    for _sweep in 0..100 {
+        let off: f64 = (0..n)
+            .flat_map(|i| (0..n).filter(move |&j| j != i).map(move |j| (i, j)))
+            .map(|(i, j)| a[i * n + j] * a[i * n + j])
+            .sum();
+        let diag: f64 = (0..n).map(|i| a[i * n + i] * a[i * n + i]).sum();
+        if off <= 1e-34 * diag || off == 0.0 {
+            break;
+        }
+        for p in 0..n {
+            for q in p + 1..n {
+                let apq = a[p * n + q];
+                if apq == 0.0 {
+                    continue;
+                }
+                let theta = (a[q * n + q] - a[p * n + p]) / (2.0 * apq);
+                let t = theta.signum() / (theta.abs() + (theta * theta + 1.0).sqrt());
+                let t = if theta == 0.0 { 1.0 } else { t };
+                let c = 1.0 / (t * t + 1.0).sqrt();
+                let sn = t * c;
+                for k in 0..n {
+                    let akp = a[k * n + p];
+                    let akq = a[k * n + q];
+                    a[k * n + p] = c * akp - sn * akq;
+                    a[k * n + q] = sn * akp + c * akq;
+                }
+                for k in 0..n {
+                    let apk = a[p * n + k];
+                    let aqk = a[q * n + k];
+                    a[p * n + k] = c * apk - sn * aqk;
+                    a[q * n + k] = sn * apk + c * aqk;
+                }
+            }
+        }
+    }
+    let mut ev: Vec<f64> = (0..n).map(|i| a[i * n + i]).collect();
+    ev.sort_by(f64::total_cmp);
+    ev
+}
+
+#[cfg(test)]
+mod tests {
+    use super::*;
+
+    #[test]
+    fn jacobi_eigenvalues_of_a_known_matrix() {
+        // [[2,1],[1,2]]: 1 and 3.
+        let s = Sym {
+            n: 2,
+            a: vec![2.0, 1.0, 1.0, 2.0],
+        };
+        let ev = sym_eigenvalues(&s);
+        assert!((ev[0] - 1.0).abs() < 1e-14 && (ev[1] - 3.0).abs() < 1e-14);
+    }
+
+    #[test]
+    fn barrier_maximises_a_scalar_lmi() {
+        // max t s.t. [[1 − t, x], [x, 1 − t]] ≻ 0 and 1 − x² … as blocks: y = (x, t),
+        // G₁ = [[1 − t, x], [x, 1 − t]] (needs |x| < 1 − t), G₂ = 0.5 − x (x < 0.5).
+        // The optimum: x = 0, t = 1.
+        let mut f0 = Sym::identity(2);
+        f0.a[1] = 0.0;
+        let fx = Sym {
+            n: 2,
+            a: vec![0.0, 1.0, 1.0, 0.0],
+        };
+        let mut ft = Sym::identity(2);
+        ft.a.iter_mut().for_each(|v| *v = -*v);
+        let b1 = AffineBlock {
+            f0,
+            fi: vec![fx, ft],
+        };
+        let b2 = AffineBlock {
+            f0: Sym { n: 1, a: vec![0.5] },
+            fi: vec![
+                Sym {
+                    n: 1,
+                    a: vec![-1.0],
+                },
+                Sym::zeros(1),
+            ],
+        };
+        let y =
+            maximise_last(&[b1, b2], vec![0.1, -1.0], 1e-10, |_| false).expect("feasible start");
+        assert!((y[1] - 1.0).abs() < 1e-8 && y[0].abs() < 1e-4, "{y:?}");
+    }
+}

@@ -82,7 +82,7 @@ pub fn check_required_phases(
                 format!(
                     "the certificate's phase \"{}\" is estimated at ≈ {} s of one core ({} \
                      multiply-adds: {}), above the limit of {} s for a phase every certificate \
-                     needs ({REQUIRED_PHASE_FACTOR} × `certificate.phase_seconds` = {} s); raise \
+                     needs ({REQUIRED_PHASE_FACTOR} × `certificate.phase_seconds`, which is {} s); raise \
                      `certificate.phase_seconds` to at least {} to compute it, or reduce the \
                      plant's size or the horizons",
                     p.phase,

@@ -167,7 +167,8 @@ impl OutputSet {
             } else {
                 "nothing was written: there was no previous output here"
             };
-            return Err(anyhow!(e)).with_context(|| format!("cannot write `{}` ({what})", path.display()));
+            return Err(anyhow!(e))
+                .with_context(|| format!("cannot write `{}` ({what})", path.display()));
         }
         self.staged.push(Staged {
             tmp,

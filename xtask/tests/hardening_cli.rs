@@ -382,7 +382,11 @@ fn help_or_a_run_into_a_full_or_closed_stdout_is_exit_5() {
             .open("/dev/full")
             .unwrap()
     };
-    for args in [&["--help"][..], &["certify", "--help"][..], &["--version"][..]] {
+    for args in [
+        &["--help"][..],
+        &["certify", "--help"][..],
+        &["--version"][..],
+    ] {
         let o = Command::new(XTASK)
             .args(args)
             .stdout(Stdio::from(full()))

@@ -421,11 +421,17 @@ mod tests {
             .filter(|p| p.required)
             .map(|p| p.seconds / REQUIRED_PHASE_FACTOR)
             .fold(0.0, f64::max);
-        assert!(advice >= needed && advice <= 1.02 * needed, "{advice} vs {needed}: {e}");
+        assert!(
+            advice >= needed && advice <= 1.02 * needed,
+            "{advice} vs {needed}: {e}"
+        );
         let advised = CertificateOptions {
             phase_seconds: advice,
             ..CertificateOptions::default()
         };
-        assert!(check_required_phases(&s, r.mpc().ok(), &advised).is_ok(), "{e}");
+        assert!(
+            check_required_phases(&s, r.mpc().ok(), &advised).is_ok(),
+            "{e}"
+        );
     }
 }

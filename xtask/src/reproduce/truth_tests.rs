@@ -224,7 +224,10 @@ fn reproduce_agrees_with_the_two_d_sweep_at_three_pairs() {
 fn large_noise_on_a_stable_plant_is_neither_diverged_nor_a_contradiction() {
     let base = scenario_text("rao-rawlings-lee.toml");
     for (name, text) in [
-        ("rrl-noise-1000", replace(&base, "scale = 1.0", "scale = 1000.0")),
+        (
+            "rrl-noise-1000",
+            replace(&base, "scale = 1.0", "scale = 1000.0"),
+        ),
         (
             "rrl-w-1e6",
             replace(
@@ -275,6 +278,12 @@ fn a_stopped_runs_kalman_line_has_no_tail() {
     assert!(!line.contains("tail ‖e‖ ="), "{line}");
     assert!(line.contains("stopped at t = 3 of 100"), "{line}");
     // A complete run keeps its tail.
-    let line = summary::kalman_line(&KalmanSummary { completed: 100, ..kf }, 100);
+    let line = summary::kalman_line(
+        &KalmanSummary {
+            completed: 100,
+            ..kf
+        },
+        100,
+    );
     assert!(line.contains("tail ‖e‖ = 0"), "{line}");
 }

@@ -67,7 +67,7 @@ mod at_start {
 }
 
 /// Counts a standard stream that was closed when the process started as lost (see
-/// [`at_start`]); call first in `main`. Elsewhere than Linux it does nothing.
+/// the module `at_start`); call first in `main`. Elsewhere than Linux it does nothing.
 pub fn check_streams_at_start() {
     #[cfg(target_os = "linux")]
     {

@@ -34,6 +34,70 @@ fn slot(stream: Stream) -> usize {
     }
 }
 
+/// Whether stdout and stderr were open when the process started (Linux).
+///
+/// The Rust runtime reopens a closed standard descriptor on `/dev/null` before `main`, so a
+/// command run with stdout closed (`xtask … >&-`) would write into nothing and exit 0. This
+/// probe runs from `.init_array`, before the runtime's reopening, and records which of the
+/// two was closed; [`check_streams_at_start`] then counts that stream as lost (exit code
+/// [`EXIT_STREAM`] for a run that otherwise succeeded; issue 37 item 14).
+#[cfg(target_os = "linux")]
+mod at_start {
+    use std::sync::atomic::{AtomicU8, Ordering};
+
+    /// Bit 0: stdout was closed; bit 1: stderr was closed.
+    pub(super) static CLOSED: AtomicU8 = AtomicU8::new(0);
+
+    extern "C" fn probe() {
+        let mut bits = 0;
+        for (fd, bit) in [(1, 1_u8), (2, 2_u8)] {
+            // SAFETY: F_GETFD reads the flags of a descriptor number; no memory is passed,
+            // and a closed number only returns -1 (EBADF).
+            if unsafe { libc::fcntl(fd, libc::F_GETFD) } == -1 {
+                bits |= bit;
+            }
+        }
+        CLOSED.store(bits, Ordering::Relaxed);
+    }
+
+    /// Called by the C runtime before `main` (and before the Rust runtime's start-up).
+    #[used]
+    #[unsafe(link_section = ".init_array")]
+    static PROBE: extern "C" fn() = probe;
+}
+
+/// Counts a standard stream that was closed when the process started as lost (see
+/// the module `at_start`); call first in `main`. Elsewhere than Linux it does nothing.
+pub fn check_streams_at_start() {
+    #[cfg(target_os = "linux")]
+    {
+        let bits = at_start::CLOSED.load(std::sync::atomic::Ordering::Relaxed);
+        let mut lost = LOST
+            .lock()
+            .unwrap_or_else(std::sync::PoisonError::into_inner);
+        for (bit, stream, name) in [(1, Stream::Stdout, "stdout"), (2, Stream::Stderr, "stderr")] {
+            if bits & bit != 0 {
+                lost[slot(stream)] = Some(format!("{name} was closed when the command started"));
+            }
+        }
+    }
+}
+
+/// Prints a command-line parse result of clap (its help, its version, or a usage error)
+/// through [`line`], so that a help written to a full or closed stdout is a lost stream
+/// (exit code [`EXIT_STREAM`]), not a success; returns clap's exit code (0 for help and
+/// version, 2 for a usage error).
+pub fn clap_message(e: &clap::Error) -> ExitCode {
+    let text = e.render().to_string();
+    let stream = if e.use_stderr() {
+        Stream::Stderr
+    } else {
+        Stream::Stdout
+    };
+    line(stream, format_args!("{}", text.trim_end()));
+    ExitCode::from(u8::try_from(e.exit_code()).unwrap_or(2))
+}
+
 /// Writes `args` and a newline to `stream` unless an earlier write to it failed; a failure
 /// is remembered (never a panic). Returns whether the line was written.
 pub fn line(stream: Stream, args: fmt::Arguments<'_>) -> bool {

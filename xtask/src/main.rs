@@ -10,12 +10,13 @@
 //! - `cargo xtask reproduce [--preset paper|certified] [--scenario FILE] [--out DIR]
 //!   [--gamma13 G] [--fig2c-t T] [--sim-k-cap K]`
 //!
-//! Exit codes: 0 success, 1 error (bad input, I/O), 2 usage error, 3 a certificate check
-//! failed (certify: LMI (2) infeasible or a supplied P rejected; reproduce: a simulation at
-//! the certified K violates Prop. 1 or 3 with the certificate's constants), 4 reproduce: a
-//! simulated run diverged at an uncertified K (the bounded rule), 5 the work completed and
-//! its files were written but stdout or stderr could not be written (closed pipe, full
-//! device; [`console`]).
+//! Exit codes (docs/limits.md): 0 success, 1 error (bad input, I/O), 2 usage error, 3 a
+//! certificate check failed (certify: LMI (2) infeasible or a supplied P rejected;
+//! reproduce: an inequality of Props. 1–3 is violated beyond the rounding floor with the
+//! certificate's constants — nothing else), 4 reproduce: a simulated run diverged (the
+//! bounded rule of `closed_loop::bounded`) or stopped early and no inequality was violated,
+//! 5 the work completed and its files were written but stdout or stderr could not be
+//! written (closed, closed pipe, full device — `--help` included; [`console`]).
 
 #[macro_use]
 mod console;
@@ -158,7 +159,12 @@ fn run(cli: Cli) -> Result<ExitCode> {
 const WORK_COUNT_ENV: &str = "SUBOPTIMAL_MHE_COUNT_WORK";
 
 fn main() -> ExitCode {
-    let cli = Cli::parse();
+    console::check_streams_at_start();
+    // Not `Cli::parse()`: clap would print the help and exit 0 even when stdout is full.
+    let cli = match Cli::try_parse() {
+        Ok(cli) => cli,
+        Err(e) => return console::exit_code(console::clap_message(&e)),
+    };
     let code = match run(cli) {
         Ok(code) => code,
         Err(e) => {

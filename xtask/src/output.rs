@@ -159,12 +159,16 @@ impl OutputSet {
         let tmp = temp_path(&path);
         if let Err(e) = write_synced(&tmp, bytes, self.budget.as_mut()) {
             let _ = fs::remove_file(&tmp);
-            return Err(anyhow!(e)).with_context(|| {
-                format!(
-                    "cannot write `{}` (nothing was replaced: the previous output is intact)",
-                    path.display()
-                )
-            });
+            // "Intact" only when there is a previous output: a file of this set already in
+            // place (issue 37 item 9: a first run on a full disk claimed one).
+            let previous = path.is_file() || self.staged.iter().any(|s| s.path.is_file());
+            let what = if previous {
+                "nothing was replaced: the previous output is intact"
+            } else {
+                "nothing was written: there was no previous output here"
+            };
+            return Err(anyhow!(e))
+                .with_context(|| format!("cannot write `{}` ({what})", path.display()));
         }
         self.staged.push(Staged {
             tmp,
@@ -372,6 +376,26 @@ mod tests {
             .map(|(n, t)| (n.to_string(), t.to_string()))
             .collect();
         assert_eq!(listing(&d), after);
+        let _ = fs::remove_dir_all(&d);
+    }
+
+    /// Issue 37 item 9: a first run on a full disk said "the previous output is intact"
+    /// when there was none; it says nothing was written, and "intact" only with a previous set.
+    #[test]
+    fn a_failed_first_write_does_not_claim_a_previous_output() {
+        let d = tmp_dir("first");
+        let mut set = OutputSet::with_budget(&d, 3).unwrap();
+        let e = format!("{:#}", set.add("a.json", b"too long").unwrap_err());
+        assert!(e.contains("nothing was written"), "{e}");
+        assert!(!e.contains("intact"), "{e}");
+        drop(set);
+        assert!(listing(&d).is_empty());
+        let mut first = OutputSet::new(&d).unwrap();
+        first.add("a.json", b"old").unwrap();
+        first.commit().unwrap();
+        let mut set = OutputSet::with_budget(&d, 3).unwrap();
+        let e = format!("{:#}", set.add("a.json", b"too long").unwrap_err());
+        assert!(e.contains("the previous output is intact"), "{e}");
         let _ = fs::remove_dir_all(&d);
     }
 

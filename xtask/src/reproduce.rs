@@ -405,11 +405,9 @@ pub fn run_job(job: &Job, settings: &Settings) -> Result<Outcome> {
             passed: joint_report
                 .as_ref()
                 .and_then(|j| j.trajectory.as_ref())
-                .map(|t| {
-                    t.holds()
-                        && kmin_run
-                            .is_some_and(|r| r.summary.error.is_none() && !r.summary.diverged)
-                }),
+                // Exit code 3 only for a violated inequality; a divergence or a stopped run
+                // is its own verdict (exit code 4, `Outcome::diverged`).
+                .map(|t| t.inequalities_hold()),
         },
         (Some(sc), Some(run)) => {
             let k = run.summary.k;
@@ -420,12 +418,9 @@ pub fn run_job(job: &Job, settings: &Settings) -> Result<Outcome> {
                 k,
                 &run.trace,
             );
-            let passed = certified.as_ref().map(|c| {
-                c.prop1.holds
-                    && c.prop3.holds
-                    && run.summary.error.is_none()
-                    && !run.summary.diverged
-            });
+            // Exit code 3 only for a violated inequality (issue 37 item 3): a divergence or
+            // a stopped run is its own verdict (exit code 4, `Outcome::diverged`).
+            let passed = certified.as_ref().map(TrajectoryCheck::inequalities_hold);
             TrajectoryReport {
                 ran: certified.is_some(),
                 reason: certified
@@ -643,16 +638,17 @@ fn spec_k_c(scenario: &Scenario) -> usize {
         .unwrap_or(0)
 }
 
-/// Exit code when a simulation contradicts the certificate (Prop. 1/3 check failed beyond
-/// the rounding floor, or the run at the certified K diverged).
+/// Exit code when a simulation contradicts the certificate: an inequality of Props. 1–3
+/// fails beyond the rounding floor with the certificate's constants. Nothing else.
 pub const EXIT_CONTRADICTED: u8 = 3;
 /// Exit code when a simulated run diverged (the bounded rule of [`closed_loop::bounded`])
-/// and no certificate was contradicted: the loop is not certified at that K, and it blew up.
+/// or stopped early, and no inequality was violated; the verdict's first sentence says
+/// where and when.
 pub const EXIT_DIVERGED: u8 = 4;
 
 /// `cargo xtask reproduce`: runs the jobs, prints each summary. Exit code 0,
 /// [`EXIT_CONTRADICTED`] when a certified trajectory check fails, [`EXIT_DIVERGED`] when a
-/// run diverged otherwise; errors (1) for bad input.
+/// run diverged or stopped otherwise; errors (1) for bad input.
 pub fn main(
     preset: Option<Preset>,
     scenario: Option<PathBuf>,
@@ -709,8 +705,9 @@ pub fn main(
         std::process::ExitCode::from(EXIT_CONTRADICTED)
     } else if diverged {
         errln!(
-            "a simulated run diverged (bounded rule: ‖e‖, ‖x‖, ε within 1000·(1 + initial scale); \
-             see the verdict and `runs[].diverged_at` in certificate.json)"
+            "a simulated run diverged or stopped (bounded rule: ‖e‖, ‖x‖, ε within \
+             1000·(1 + initial scale + max_{{s ≤ t}} ‖w_s‖); see the verdict and \
+             `runs[].diverged_at` in certificate.json)"
         );
         std::process::ExitCode::from(EXIT_DIVERGED)
     } else {

@@ -369,3 +369,53 @@ fn point_files_are_checked_for_meaning() {
             .success()
     );
 }
+
+/// Issue 37 item 14: `--help > /dev/full` and runs with stdout closed (`>&-`) exited 0 (clap
+/// printed the help and ignored the error; the Rust runtime reopens a closed stdout on
+/// /dev/null). Both are now exit code 5, the documented code for an unwritable stream; a
+/// readable help still exits 0.
+#[test]
+fn help_or_a_run_into_a_full_or_closed_stdout_is_exit_5() {
+    let full = || {
+        fs::OpenOptions::new()
+            .write(true)
+            .open("/dev/full")
+            .unwrap()
+    };
+    for args in [
+        &["--help"][..],
+        &["certify", "--help"][..],
+        &["--version"][..],
+    ] {
+        let o = Command::new(XTASK)
+            .args(args)
+            .stdout(Stdio::from(full()))
+            .output()
+            .unwrap();
+        assert_eq!(o.status.code(), Some(5), "{args:?}: {}", stderr(&o));
+        let o = Command::new(XTASK).args(args).output().unwrap();
+        assert_eq!(o.status.code(), Some(0), "{args:?}: {}", stderr(&o));
+        assert!(!o.stdout.is_empty());
+    }
+    // stdout closed by the shell.
+    for cmd in [
+        "\"$0\" --help >&-".to_string(),
+        format!("\"$0\" certify --scenario '{}' >&-", case_study()),
+    ] {
+        let o = Command::new("sh")
+            .arg("-c")
+            .arg(&cmd)
+            .arg(XTASK)
+            .output()
+            .unwrap();
+        assert_eq!(o.status.code(), Some(5), "{cmd}: {}", stderr(&o));
+        assert!(stderr(&o).contains("stdout was closed"), "{}", stderr(&o));
+    }
+    // A usage error keeps its own code (2) whatever stdout is.
+    let o = Command::new(XTASK)
+        .arg("--no-such-flag")
+        .stdout(Stdio::from(full()))
+        .output()
+        .unwrap();
+    assert_eq!(o.status.code(), Some(2), "{}", stderr(&o));
+}

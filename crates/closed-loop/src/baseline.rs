@@ -5,7 +5,8 @@
 //! MHE saw (the same disturbance draws, the same plant trajectory), so its error
 //! e^b_t = x_t − x̂^b_t is comparable with the MHE's step by step. Its run is judged by the
 //! one bounded rule ([`crate::bounded`], signal e): a filter whose error leaves
-//! 1000·(1 + ‖e^b_0‖), or becomes non-finite, or whose update fails, is reported as diverged.
+//! 1000·(1 + ‖e^b_0‖ + w̄_t) (w̄_t = max_{s ≤ t} ‖w_s‖ of the recorded draws), or becomes
+//! non-finite, or whose update fails, is reported as diverged.
 //!
 //! **The Kalman filter of the MHE's weights** ([`kalman_for_mhe`]). The MHE cost (9) is
 //! 2η^{M_t}‖x̂ − x̄‖²_P + Σ_i η^{i−1}(2‖ŵ‖²_Q + ‖ŷ − y‖²_R); read as −2 log of a Gaussian
@@ -60,7 +61,7 @@ impl BaselineRun {
 
 /// Runs `est` over the inputs and measurements of `trace`: at each recorded t,
 /// x̂^b_t = `est.estimate()`, then `est.push(u_t, y_t)`. The bounded rule's scale is the
-/// baseline's own ‖e^b_0‖. Allocates the result only (the estimator's step is its own).
+/// baseline's own ‖e^b_0‖ and the run's disturbance w̄_t. Allocates the result only (the estimator's step is its own).
 pub fn run_on_trace<E: Estimator>(est: &mut E, trace: &Trace) -> BaselineRun {
     let mut x_hat = Vec::with_capacity(trace.len());
     let mut e_norms = Vec::with_capacity(trace.len());
@@ -92,6 +93,7 @@ pub fn run_on_trace<E: Estimator>(est: &mut E, trace: &Trace) -> BaselineRun {
         &[],
         &[],
         &[],
+        trace.w_norms(),
         if e0.is_finite() { e0 } else { 0.0 },
         0.0,
         DEFAULT_BOUNDED_FACTOR,

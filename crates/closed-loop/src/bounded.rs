@@ -3,14 +3,21 @@
 //! [`first_unbounded`].
 //!
 //! A run is **bounded** when every signal stays finite and within `factor` (default
-//! [`DEFAULT_BOUNDED_FACTOR`] = 1000) times its own initial scale:
+//! [`DEFAULT_BOUNDED_FACTOR`] = 1000) times its own scale: the initial one and the run's
+//! own disturbance so far, w̄_t = max_{s ≤ t} ‖w_s‖ (process and measurement noise as
+//! drawn, 0 when not recorded):
 //!
 //! | signal | limit at every recorded t |
 //! | --- | --- |
-//! | e (‖x_t − x̂_t‖) | factor·(1 + ‖e₀‖), e₀ = x₀ − x̂₀ |
-//! | x (‖x_t‖, x_T included) | factor·(1 + ‖x₀‖) |
-//! | ε (ε_t = ‖zᴷ_t − z*_t‖, when recorded) | factor·(1 + ‖e₀‖ + ε₀) |
+//! | e (‖x_t − x̂_t‖) | factor·(1 + ‖e₀‖ + w̄_t), e₀ = x₀ − x̂₀ |
+//! | x (‖x_t‖, x_T included) | factor·(1 + ‖x₀‖ + w̄_t) |
+//! | ε (ε_t = ‖zᴷ_t − z*_t‖, when recorded) | factor·(1 + ‖e₀‖ + ε₀ + w̄_t) |
 //! | u (‖u_t‖) | finite (the input box, not this rule, bounds u) |
+//!
+//! The w̄_t term makes the rule independent of the units of the disturbance (issue 37 item
+//! 3): a stable plant driven by noise of size 10³ has states of size 10³·(its gain), which
+//! is bounded, not diverged; an absolute limit called it diverged at t = 2. A loop that
+//! does diverge grows geometrically and still crosses the limit within a few steps.
 //!
 //! The first step t (and signal, in the order e, x, ε, u at equal t) at which a limit fails
 //! is reported as a [`Divergence`]. A run that stopped early (a non-finite signal caught by
@@ -94,15 +101,18 @@ impl std::fmt::Display for Divergence {
     }
 }
 
-/// The limits of the rule for one run (see the module docs).
+/// The limits of the rule for one run without the disturbance term (see the module docs):
+/// at step t each limit is raised by `factor`·w̄_t.
 #[derive(Debug, Clone, Copy, PartialEq)]
 pub struct BoundedLimits {
-    /// Limit on ‖e_t‖.
+    /// Limit on ‖e_t‖ at w̄_t = 0.
     pub e: f64,
-    /// Limit on ‖x_t‖.
+    /// Limit on ‖x_t‖ at w̄_t = 0.
     pub x: f64,
-    /// Limit on ε_t.
+    /// Limit on ε_t at w̄_t = 0.
     pub epsilon: f64,
+    /// The factor (multiplies w̄_t).
+    pub factor: f64,
 }
 
 impl BoundedLimits {
@@ -121,6 +131,7 @@ impl BoundedLimits {
             e: factor * (1.0 + e0),
             x: factor * (1.0 + norm2(x0)),
             epsilon: factor * (1.0 + e0 + eps0),
+            factor,
         }
     }
 }
@@ -136,12 +147,18 @@ fn exceeds(v: f64, limit: f64) -> bool {
 ///
 /// ```
 /// use closed_loop::bounded::{DEFAULT_BOUNDED_FACTOR, Signal, first_unbounded_in};
-/// // ‖e‖ crosses 1000·(1 + 1) at t = 2.
+/// // No disturbance recorded: ‖e‖ crosses 1000·(1 + 1) at t = 2.
 /// let e = [1.0, 10.0, 3.0e3, 1.0e9];
 /// let x = [1.0, 1.0, 1.0, 1.0, 1.0];
-/// let d = first_unbounded_in(&e, &x, &[], &[], 1.0, 1.0, DEFAULT_BOUNDED_FACTOR, false).unwrap();
+/// let d = first_unbounded_in(&e, &x, &[], &[], &[], 1.0, 1.0, DEFAULT_BOUNDED_FACTOR, false)
+///     .unwrap();
 /// assert_eq!((d.t, d.signal), (2, Signal::E));
 /// assert_eq!(d.to_string(), "diverged at t = 2: ‖e‖ = 3.0e3 > 2.0e3");
+/// // With ‖w_t‖ = 10 the limit is 1000·(1 + 1 + 10): 3e3 is within it, 1e9 is not.
+/// let w = [10.0; 4];
+/// let d = first_unbounded_in(&e, &x, &[], &[], &w, 1.0, 1.0, DEFAULT_BOUNDED_FACTOR, false)
+///     .unwrap();
+/// assert_eq!(d.t, 3);
 /// ```
 pub fn first_unbounded(
     trace: &Trace,
@@ -159,19 +176,21 @@ pub fn first_unbounded(
         trace.x_norms(),
         &eps,
         &u_norms,
+        trace.w_norms(),
         limits,
         stopped,
     )
 }
 
-/// [`first_unbounded`] on the norms themselves (‖e_t‖, ‖x_t‖, ε_t, ‖u_t‖ per step; ε and u
-/// may be empty), with ‖e₀‖ = `e0` and ‖x₀‖ = `x0_norm`.
+/// [`first_unbounded`] on the norms themselves (‖e_t‖, ‖x_t‖, ε_t, ‖u_t‖, ‖w_t‖ per step;
+/// ε, u and w may be empty), with ‖e₀‖ = `e0` and ‖x₀‖ = `x0_norm`.
 #[allow(clippy::too_many_arguments)]
 pub fn first_unbounded_in(
     e: &[f64],
     x: &[f64],
     eps: &[f64],
     u: &[f64],
+    w: &[f64],
     e0: f64,
     x0_norm: f64,
     factor: f64,
@@ -186,8 +205,9 @@ pub fn first_unbounded_in(
         e: factor * (1.0 + e0),
         x: factor * (1.0 + x0_norm),
         epsilon: factor * (1.0 + e0 + eps0),
+        factor,
     };
-    scan(e, x, eps, u, limits, stopped)
+    scan(e, x, eps, u, w, limits, stopped)
 }
 
 fn scan(
@@ -195,15 +215,24 @@ fn scan(
     x: &[f64],
     eps: &[f64],
     u: &[f64],
+    w: &[f64],
     limits: BoundedLimits,
     stopped: bool,
 ) -> Option<Divergence> {
     let n = e.len().max(x.len()).max(eps.len()).max(u.len());
+    // w̄_t = max_{s ≤ t} ‖w_s‖ (a non-finite draw does not raise it: f64::max drops NaN).
+    let mut w_bar = 0.0_f64;
     for t in 0..n {
+        if let Some(&wt) = w.get(t)
+            && wt.is_finite()
+        {
+            w_bar = w_bar.max(wt);
+        }
+        let raise = limits.factor * w_bar;
         let checks = [
-            (Signal::E, e.get(t), limits.e),
-            (Signal::X, x.get(t), limits.x),
-            (Signal::Epsilon, eps.get(t), limits.epsilon),
+            (Signal::E, e.get(t), limits.e + raise),
+            (Signal::X, x.get(t), limits.x + raise),
+            (Signal::Epsilon, eps.get(t), limits.epsilon + raise),
             (Signal::U, u.get(t), f64::INFINITY),
         ];
         for (signal, v, limit) in checks {
@@ -226,7 +255,7 @@ fn scan(
             t,
             signal: Signal::X,
             value: x.last().copied().unwrap_or(f64::NAN),
-            limit: limits.x,
+            limit: limits.x + limits.factor * w_bar,
             stopped: true,
         }
     })
@@ -242,12 +271,12 @@ mod tests {
         // x fails at t = 3, e at t = 4: x is first.
         let e = [0.5, 1.0, 1.0, 1.0, 1e6];
         let x = [2.0, 2.0, 2.0, 5e3, 1.0, 1.0];
-        let d = first_unbounded_in(&e, &x, &[], &[], 0.5, 2.0, 1e3, false).unwrap();
+        let d = first_unbounded_in(&e, &x, &[], &[], &[], 0.5, 2.0, 1e3, false).unwrap();
         assert_eq!((d.t, d.signal), (3, Signal::X));
         assert_eq!(d.limit, 3e3);
         // At equal t, e is reported before x.
         let e = [0.5, 1.0, 1.0, 1e6];
-        let d = first_unbounded_in(&e, &x, &[], &[], 0.5, 2.0, 1e3, false).unwrap();
+        let d = first_unbounded_in(&e, &x, &[], &[], &[], 0.5, 2.0, 1e3, false).unwrap();
         assert_eq!((d.t, d.signal), (3, Signal::E));
     }
 
@@ -256,24 +285,47 @@ mod tests {
         let e = [1.0; 4];
         let x = [1.0; 5];
         let eps = [0.1, 0.2, 1e9, 0.1];
-        let d = first_unbounded_in(&e, &x, &eps, &[], 1.0, 1.0, 1e3, false).unwrap();
+        let d = first_unbounded_in(&e, &x, &eps, &[], &[], 1.0, 1.0, 1e3, false).unwrap();
         assert_eq!((d.t, d.signal), (2, Signal::Epsilon));
         let u = [0.0, f64::NAN, 0.0, 0.0];
-        let d = first_unbounded_in(&e, &x, &[], &u, 1.0, 1.0, 1e3, false).unwrap();
+        let d = first_unbounded_in(&e, &x, &[], &u, &[], 1.0, 1.0, 1e3, false).unwrap();
         assert_eq!((d.t, d.signal), (1, Signal::U));
         assert!(d.to_string().contains("not finite"), "{d}");
         // Bounded: exactly at the limit passes.
         let e = [1.0, 2e3];
-        assert!(first_unbounded_in(&e, &x, &[], &[], 1.0, 1.0, 1e3, false).is_none());
+        assert!(first_unbounded_in(&e, &x, &[], &[], &[], 1.0, 1.0, 1e3, false).is_none());
     }
 
     #[test]
     fn a_stopped_run_diverged_where_it_stopped() {
         let e = [1.0, 1.0, 1.0];
         let x = [1.0, 1.0, 1.0];
-        let d = first_unbounded_in(&e, &x, &[], &[], 1.0, 1.0, 1e3, true).unwrap();
+        let d = first_unbounded_in(&e, &x, &[], &[], &[], 1.0, 1.0, 1e3, true).unwrap();
         assert_eq!(d.t, 3);
         assert!(d.stopped);
         assert!(d.to_string().starts_with("diverged at t = 3"), "{d}");
+    }
+
+    /// Issue 37 item 3: a stable plant driven by noise of size 10³ (the Rao–Rawlings–Lee
+    /// scenario with `noise.scale = 1000`) has ‖x‖, ‖e‖ of a few 10³·(its gain): bounded.
+    /// The absolute rule (1000·(1 + ‖e₀‖) = 2.4e3) called it diverged at t = 2; scaled by
+    /// the run's own w̄_t it is bounded, and a geometric blow-up is still caught.
+    #[test]
+    fn the_limit_scales_with_the_runs_own_disturbance() {
+        let e0 = 2f64.sqrt();
+        let w = [3.0e3; 6];
+        // x, e of the size of 4·w̄ (bounded: the plant's gain times the noise).
+        let e = [e0, 4.7e3, 8.0e3, 6.0e3, 7.0e3, 6.5e3];
+        let x = [e0, 3.0e3, 1.2e4, 1.1e4, 1.0e4, 1.1e4];
+        assert!(first_unbounded_in(&e, &x, &[], &[], &w, e0, e0, 1e3, false).is_none());
+        // Without the disturbance term (the old rule) the same run "diverged" at t = 1.
+        let d = first_unbounded_in(&e, &x, &[], &[], &[], e0, e0, 1e3, false).unwrap();
+        assert_eq!((d.t, d.signal), (1, Signal::E));
+        // A run that grows 10× per step still diverges, at the step it crosses
+        // 1000·(1 + ‖e₀‖ + 3e3) ≈ 3.0e6.
+        let e: Vec<f64> = (0..8).map(|t| 10f64.powi(t)).collect();
+        let d = first_unbounded_in(&e, &[], &[], &[], &[3.0e3; 8], 1.0, 0.0, 1e3, false).unwrap();
+        assert_eq!((d.t, d.signal), (7, Signal::E));
+        assert!((d.limit - 1e3 * (1.0 + 1.0 + 3.0e3)).abs() < 1e-6, "{d:?}");
     }
 }

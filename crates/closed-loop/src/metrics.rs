@@ -7,8 +7,9 @@ use crate::record::Trace;
 use crate::sim::ClosedLoopError;
 
 /// Default bound factor: a run is *bounded* when it completed and
-/// [`crate::bounded::first_unbounded`] finds no failing step (sup‖x_t‖ ≤ 1000·(1 + ‖x₀‖),
-/// sup‖e_t‖ ≤ 1000·(1 + ‖e₀‖), e₀ = x₀ − x̂₀, ε_t ≤ 1000·(1 + ‖e₀‖ + ε₀), u finite).
+/// [`crate::bounded::first_unbounded`] finds no failing step (‖x_t‖ ≤ 1000·(1 + ‖x₀‖ + w̄_t),
+/// ‖e_t‖ ≤ 1000·(1 + ‖e₀‖ + w̄_t), e₀ = x₀ − x̂₀, ε_t ≤ 1000·(1 + ‖e₀‖ + ε₀ + w̄_t), u finite;
+/// w̄_t = max_{s ≤ t} ‖w_s‖, the run's own disturbance).
 pub const DEFAULT_BOUNDED_FACTOR: f64 = crate::bounded::DEFAULT_BOUNDED_FACTOR;
 /// Quantile levels of `points.csv` (5 %, 50 %, 95 %), next to the maximum.
 pub const QUANTILES: [(f64, &str); 3] = [(0.05, "q05"), (0.5, "q50"), (0.95, "q95")];
@@ -194,8 +195,8 @@ pub fn run_metrics(
         Some(input_violation(trace, input_box.0, input_box.1)),
         mhe_violation,
     ];
-    // The one bounded rule (crate::bounded): e, x, ε and u against their own initial scale;
-    // any early stop counts as unbounded.
+    // The one bounded rule (crate::bounded): e, x, ε and u against their own initial scale
+    // and the run's disturbance; any early stop counts as unbounded.
     let bounded =
         !diverged && crate::bounded::first_unbounded(trace, x0, bounded_factor, false).is_none();
     (values, bounded)

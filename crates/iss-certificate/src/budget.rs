@@ -68,14 +68,21 @@ pub fn check_required_phases(
     opts: &CertificateOptions,
 ) -> Result<(), lti_model::ModelError> {
     let limit = REQUIRED_PHASE_FACTOR * opts.phase_seconds;
-    for p in estimate_phases(scenario, mpc, opts, 1) {
+    let phases = estimate_phases(scenario, mpc, opts, 1);
+    // The advice must suffice for every required phase, not only the first one refused.
+    let needed = phases
+        .iter()
+        .filter(|p| p.required)
+        .map(|p| p.seconds / REQUIRED_PHASE_FACTOR)
+        .fold(0.0, f64::max);
+    for p in phases {
         if p.required && p.seconds > limit {
             return Err(lti_model::spec::format::key_error(
                 "certificate.phase_seconds",
                 format!(
                     "the certificate's phase \"{}\" is estimated at ≈ {} s of one core ({} \
                      multiply-adds: {}), above the limit of {} s for a phase every certificate \
-                     needs ({REQUIRED_PHASE_FACTOR} × `certificate.phase_seconds` = {} s); raise \
+                     needs ({REQUIRED_PHASE_FACTOR} × `certificate.phase_seconds`, which is {} s); raise \
                      `certificate.phase_seconds` to at least {} to compute it, or reduce the \
                      plant's size or the horizons",
                     p.phase,
@@ -84,7 +91,7 @@ pub fn check_required_phases(
                     p.detail,
                     secs(limit),
                     secs(opts.phase_seconds),
-                    secs((p.seconds / REQUIRED_PHASE_FACTOR).ceil())
+                    secs_at_least(needed)
                 ),
             ));
         }
@@ -116,6 +123,27 @@ pub fn secs(x: f64) -> String {
     } else {
         format!("{x:.2e}")
     }
+}
+
+/// [`secs`] of the smallest number ≥ `x` it can print: the printed value, read back, is never
+/// below `x` (a budget advised this way suffices; issue 37 item 9: `phase_seconds = 1e-9`
+/// was advised "at least 1.00", whatever the phases needed).
+pub fn secs_at_least(x: f64) -> String {
+    if !(x.is_finite() && x > 0.0) {
+        return secs(x);
+    }
+    // Round up at 3 significant digits, then by one unit of the printed digit until the
+    // text reads back ≥ x (at most a few steps: `secs` prints 2 or 3 digits).
+    let unit = 10f64.powf(x.log10().floor() - 2.0);
+    let mut v = (x / unit).ceil() * unit;
+    for _ in 0..200 {
+        let text = secs(v);
+        if text.parse::<f64>().is_ok_and(|r| r >= x) {
+            return text;
+        }
+        v += unit;
+    }
+    secs(v)
 }
 
 /// Estimated multiply-adds of one exact solve of every MHE window (the active set of the
@@ -344,4 +372,66 @@ pub fn estimate_phases(
         ));
     }
     out
+}
+
+#[cfg(test)]
+mod tests {
+    #![allow(clippy::unwrap_used)]
+    use super::*;
+
+    #[test]
+    fn secs_at_least_reads_back_at_least_its_argument() {
+        for x in [
+            4.0e-8, 1.234_5e-6, 0.999_9, 1.0, 1.234_5, 9.999, 12.345, 999.4, 1234.5, 9_999.5,
+            12_345.0, 1.04e6,
+        ] {
+            let t = secs_at_least(x);
+            let r: f64 = t.parse().unwrap();
+            assert!(r >= x && r <= 1.11 * x, "{x} → {t}");
+        }
+    }
+
+    /// Issue 37 item 9: `phase_seconds = 1e-9` advised "at least 1.00" (the ceiling of the
+    /// first refused phase). The advice is now the smallest printed value that lets every
+    /// required phase run, and it does.
+    #[test]
+    fn the_advised_phase_seconds_suffices_and_is_computed_from_the_estimate() {
+        let path = concat!(
+            env!("CARGO_MANIFEST_DIR"),
+            "/../../scenarios/case-study-certified.toml"
+        );
+        let s = Scenario::from_file(path).unwrap();
+        let r = s.clone().resolve().unwrap();
+        let tiny = CertificateOptions {
+            phase_seconds: 1e-9,
+            ..CertificateOptions::default()
+        };
+        let e = check_required_phases(&s, r.mpc().ok(), &tiny)
+            .unwrap_err()
+            .to_string();
+        let advice: f64 = e
+            .split("to at least ")
+            .nth(1)
+            .and_then(|t| t.split_whitespace().next())
+            .unwrap()
+            .parse()
+            .unwrap();
+        let needed = estimate_phases(&s, r.mpc().ok(), &tiny, 1)
+            .iter()
+            .filter(|p| p.required)
+            .map(|p| p.seconds / REQUIRED_PHASE_FACTOR)
+            .fold(0.0, f64::max);
+        assert!(
+            advice >= needed && advice <= 1.02 * needed,
+            "{advice} vs {needed}: {e}"
+        );
+        let advised = CertificateOptions {
+            phase_seconds: advice,
+            ..CertificateOptions::default()
+        };
+        assert!(
+            check_required_phases(&s, r.mpc().ok(), &advised).is_ok(),
+            "{e}"
+        );
+    }
 }

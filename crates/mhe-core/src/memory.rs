@@ -80,20 +80,25 @@ fn window_entries(s: &SetupShape, m: f64) -> (f64, f64) {
 
 /// Estimated peak heap bytes of [`MheEstimator::new`](crate::MheEstimator::new) for
 /// `shape`: the sum over m = 0..M of every window's matrices, plus the temporaries of the
-/// last. Stops summing once past [`MAX_DENSE_BYTES`](lti_model::spec::format::MAX_DENSE_BYTES)
-/// (the value is then only known to exceed the limit).
+/// last. Every window's kept entries are a quadratic in m (products of sizes linear in m),
+/// so the sum is computed in closed form, for any M in O(1): the estimate printed is the
+/// estimate, not the limit (issue 37 item 9: M = 200 and M = 600 both printed "about 2.0 GiB").
 pub fn setup_bytes(shape: &SetupShape) -> f64 {
-    let limit = lti_model::spec::format::MAX_DENSE_BYTES;
-    let mut entries = 0.0;
-    let mut last_temp = 0.0;
-    for m in 0..=shape.horizon {
-        let (kept, temp) = window_entries(shape, m as f64);
-        entries += kept;
-        last_temp = temp;
-        if 8.0 * entries > limit {
-            break;
-        }
-    }
+    // f(m) = a + b·m + c·m², from f(0), f(1), f(2).
+    let f = |m: f64| window_entries(shape, m).0;
+    let (f0, f1, f2) = (f(0.0), f(1.0), f(2.0));
+    let c = 0.5 * (f2 - 2.0 * f1 + f0);
+    let b = f1 - f0 - c;
+    let a = f0;
+    let m = shape.horizon as f64;
+    // Σ_{m=0}^{M} 1, m, m².
+    let (s0, s1, s2) = (
+        m + 1.0,
+        m * (m + 1.0) / 2.0,
+        m * (m + 1.0) * (2.0 * m + 1.0) / 6.0,
+    );
+    let entries = a * s0 + b * s1 + c * s2;
+    let last_temp = window_entries(shape, m).1;
     8.0 * (entries + last_temp)
 }
 
@@ -124,5 +129,35 @@ mod tests {
         assert!(setup_bytes(&one_state(100)) < limit);
         // Monotone in M.
         assert!(setup_bytes(&one_state(50)) < setup_bytes(&one_state(51)));
+    }
+
+    /// The closed form equals the window-by-window sum (the definition), and beyond the
+    /// limit it is still the estimate: M = 600 needs about 8× M = 300 (cubic in M), where
+    /// the summation that stopped at the limit gave ≈ 2 GiB for both (issue 37 item 9).
+    #[test]
+    fn the_estimate_is_the_sum_of_the_windows_beyond_the_limit_too() {
+        for shape in [one_state(0), one_state(1), one_state(7), one_state(300)] {
+            let (mut kept, mut temp) = (0.0, 0.0);
+            for m in 0..=shape.horizon {
+                let (k, t) = window_entries(&shape, m as f64);
+                kept += k;
+                temp = t;
+            }
+            let direct = 8.0 * (kept + temp);
+            let closed = setup_bytes(&shape);
+            assert!(
+                (closed - direct).abs() <= 1e-12 * direct,
+                "M = {}: {closed} vs {direct}",
+                shape.horizon
+            );
+        }
+        let limit = lti_model::spec::format::MAX_DENSE_BYTES;
+        let (b200, b300, b600) = (
+            setup_bytes(&one_state(200)),
+            setup_bytes(&one_state(300)),
+            setup_bytes(&one_state(600)),
+        );
+        assert!(b300 > limit && b600 > 7.0 * b300, "{b300} {b600}");
+        assert!(b200 < b300, "{b200} {b300}");
     }
 }

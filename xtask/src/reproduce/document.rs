@@ -462,9 +462,13 @@ impl Outcome {
         self.document.trajectory_check.passed == Some(false)
     }
 
-    /// A simulated run left the bounded rule ([`closed_loop::bounded`]).
+    /// A simulated run left the bounded rule ([`closed_loop::bounded`]) or stopped early
+    /// on an error: exit code 4 unless an inequality was violated.
     pub fn diverged(&self) -> bool {
-        self.document.runs.iter().any(|r| r.diverged)
+        self.document
+            .runs
+            .iter()
+            .any(|r| r.diverged || r.error.is_some())
     }
 }
 

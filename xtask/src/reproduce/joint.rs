@@ -148,10 +148,11 @@ pub fn summary(r: &JointReport) -> String {
             let _ = writeln!(
                 s,
                 "  trajectory check at the cheapest pair: {} (max lhs/rhs: plant {}, Prop. 1 {}, Prop. 3 {}, δ step {}, δ {}, ‖u − π(x̂)‖/δ {}; replay mismatch {})",
-                if t.holds() {
-                    "every inequality holds at every t"
-                } else {
-                    "VIOLATED"
+                match (t.inequalities_hold(), t.divergence) {
+                    (true, None) => "every inequality holds at every t".to_string(),
+                    (true, Some(d)) =>
+                        format!("every inequality holds at every t, but the run {d}"),
+                    (false, _) => "VIOLATED".to_string(),
                 },
                 num(t.plant.worst_ratio),
                 num(t.prop1.worst_ratio),

@@ -12,6 +12,8 @@ pub(super) struct Run {
 }
 
 /// The Kalman filter of the MHE's weights run on `trace` (module `closed_loop::baseline`).
+/// A trace shorter than `simulation.steps` (the run stopped early) has no tail: the
+/// filter's `tail_mean_e` is then `None` (issue 37 item 9), not the mean of a cut run.
 pub(super) fn kalman_baseline(
     resolved: &ResolvedScenario,
     trace: &Trace,
@@ -37,11 +39,12 @@ pub(super) fn kalman_baseline(
     match built {
         Ok(mut kf) => {
             let run = closed_loop::baseline::run_on_trace(&mut kf, trace);
+            let full = trace.len() >= scenario.simulation.steps;
             let summary = KalmanSummary {
                 weights,
                 completed: run.e_norms.len(),
                 sup_norm_e: run.sup_norm_e(),
-                tail_mean_e: run.tail_mean_e(),
+                tail_mean_e: run.tail_mean_e().filter(|_| full),
                 diverged: run.diverged(),
                 divergence: run.divergence,
                 error: run.error.clone(),
@@ -133,9 +136,10 @@ pub(super) fn simulate(
         sup_norm_e: trace.sup_norm_e(),
         sup_norm_x: trace.sup_norm_x(),
         final_norm_x: trace.x_norms().last().copied().unwrap_or(f64::NAN),
-        tail_mean_e: trace.tail_mean_e(),
-        tail_mean_x: trace.tail_mean_x(),
-        tail_mean_epsilon: trace.tail_mean_epsilon(),
+        // A run that stopped early has no tail (its last quarter is not the steady state).
+        tail_mean_e: trace.tail_mean_e().filter(|_| len >= opts.steps),
+        tail_mean_x: trace.tail_mean_x().filter(|_| len >= opts.steps),
+        tail_mean_epsilon: trace.tail_mean_epsilon().filter(|_| len >= opts.steps),
         w_outside: outside.len(),
         w_outside_first: outside.first().copied(),
         kalman: kalman_summary,

@@ -280,7 +280,7 @@ pub(super) fn summarize(d: &CertificateDocument, files: &[PathBuf], notes: &[Str
             let _ = writeln!(s, "      the MHE run DIVERGED: {d}");
         }
         if let Some(kf) = &r.kalman {
-            let _ = writeln!(s, "      {}", kalman_line(kf));
+            let _ = writeln!(s, "      {}", kalman_line(kf, r.steps));
         }
         if let Some(g) = d.asymptotic_gains.runs.get(i) {
             let _ = writeln!(s, "      {}", super::gains::run_line(g));
@@ -389,8 +389,10 @@ pub(super) fn summarize(d: &CertificateDocument, files: &[PathBuf], notes: &[Str
     s
 }
 
-/// The Kalman baseline's line under a run: its error statistics, or that it diverged.
-fn kalman_line(kf: &KalmanSummary) -> String {
+/// The Kalman baseline's line under a run of `steps` planned steps: its error statistics, or
+/// that it diverged. A filter that ran fewer steps (the MHE run stopped early) has no tail:
+/// the line says where it stopped instead of printing a tail mean (issue 37 item 9).
+pub(super) fn kalman_line(kf: &KalmanSummary, steps: usize) -> String {
     let head = "Kalman filter of the same weights on the same draws:";
     match (&kf.divergence, &kf.error) {
         (_, Some(e)) if kf.completed == 0 => format!("{head} {e}"),
@@ -400,6 +402,13 @@ fn kalman_line(kf: &KalmanSummary) -> String {
             kf.error
                 .as_ref()
                 .map_or_else(String::new, |e| format!(": {e}"))
+        ),
+        (None, _) if kf.completed < steps => format!(
+            "{head} sup‖e‖ = {} over the {} step(s) filtered; tail ‖e‖ not available (the run \
+             stopped at t = {} of {steps})",
+            num(kf.sup_norm_e),
+            kf.completed,
+            kf.completed
         ),
         (None, _) => format!(
             "{head} sup‖e‖ = {}, tail ‖e‖ = {}",

@@ -213,3 +213,77 @@ fn reproduce_agrees_with_the_two_d_sweep_at_three_pairs() {
     // The grid has both verdicts at these pairs.
     assert!(seen.iter().any(|c| c == "yes") && seen.iter().any(|c| c == "no"));
 }
+
+/// Issue 37 item 3: the Rao–Rawlings–Lee scenario with `noise.scale = 1000` (noise outside
+/// 𝒲), and held out with 𝒲 widened to ±1e6 and the noise inside it, exited 3 ("VIOLATES
+/// Prop. 1 or 3") while both check lines said "holds at every t": the absolute bounded rule
+/// (1000·(1 + ‖e₀‖) ≈ 2.4e3) called a stable plant under large noise diverged, and a
+/// divergence counted as a contradiction. The rule now scales with the run's own w̄_t, and
+/// exit code 3 is for a violated inequality only.
+#[test]
+fn large_noise_on_a_stable_plant_is_neither_diverged_nor_a_contradiction() {
+    let base = scenario_text("rao-rawlings-lee.toml");
+    for (name, text) in [
+        (
+            "rrl-noise-1000",
+            replace(&base, "scale = 1.0", "scale = 1000.0"),
+        ),
+        (
+            "rrl-w-1e6",
+            replace(
+                &base,
+                "disturbance = { lower = [0.0, -0.3], upper = [3.0, 0.3] }",
+                "disturbance = { lower = [0.0, -1e6], upper = [1e6, 1e6] }",
+            ),
+        ),
+    ] {
+        let j = job(name, &text);
+        let o = run_job(&j, &settings()).unwrap();
+        let check = &o.document.trajectory_check;
+        assert_eq!(check.passed, Some(true), "{name}: {}", o.summary);
+        assert!(!o.contradicted(), "{name}: {}", o.summary);
+        assert!(!o.diverged(), "{name}: {}", o.summary);
+        let verdict = o
+            .summary
+            .lines()
+            .find(|l| l.starts_with("Verdict:"))
+            .unwrap();
+        assert!(
+            !verdict.contains("diverged") && !verdict.contains("VIOLATES"),
+            "{name}: {verdict}"
+        );
+        // The runs were large (the noise is): bounded is relative to it.
+        assert!(
+            o.document.runs.iter().all(|r| r.sup_norm_e > 2.5e3),
+            "{name}: {}",
+            o.summary
+        );
+    }
+}
+
+/// Issue 37 item 9: a Kalman baseline over a run that stopped early has no tail: the line
+/// says where the run stopped instead of printing "tail ‖e‖ = 0".
+#[test]
+fn a_stopped_runs_kalman_line_has_no_tail() {
+    let kf = KalmanSummary {
+        weights: String::new(),
+        completed: 3,
+        sup_norm_e: 0.5,
+        tail_mean_e: Some(0.0),
+        diverged: false,
+        divergence: None,
+        error: None,
+    };
+    let line = summary::kalman_line(&kf, 100);
+    assert!(!line.contains("tail ‖e‖ ="), "{line}");
+    assert!(line.contains("stopped at t = 3 of 100"), "{line}");
+    // A complete run keeps its tail.
+    let line = summary::kalman_line(
+        &KalmanSummary {
+            completed: 100,
+            ..kf
+        },
+        100,
+    );
+    assert!(line.contains("tail ‖e‖ = 0"), "{line}");
+}

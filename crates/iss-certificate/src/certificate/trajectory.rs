@@ -103,7 +103,14 @@ pub struct TrajectoryCheck {
 impl TrajectoryCheck {
     /// Both inequalities held at every t and the run stayed bounded.
     pub fn holds(&self) -> bool {
-        self.prop1.holds && self.prop3.holds && self.divergence.is_none()
+        self.inequalities_hold() && self.divergence.is_none()
+    }
+
+    /// Both inequalities held at every t (beyond the rounding floor): the one question whose
+    /// "no" contradicts the certificate (`reproduce` exit code 3). A divergence is a separate
+    /// verdict (exit code 4), not a violated inequality.
+    pub fn inequalities_hold(&self) -> bool {
+        self.prop1.holds && self.prop3.holds
     }
 }
 

@@ -28,8 +28,13 @@ pub struct JointTrajectoryCheck {
 }
 
 impl JointTrajectoryCheck {
-    /// Every inequality held at every t.
+    /// Every inequality held at every t and the run stayed bounded.
     pub fn holds(&self) -> bool {
+        self.inequalities_hold() && self.divergence.is_none()
+    }
+
+    /// Every inequality held at every t (a divergence is a separate verdict, exit code 4).
+    pub fn inequalities_hold(&self) -> bool {
         [
             &self.plant,
             &self.prop1,
@@ -40,7 +45,6 @@ impl JointTrajectoryCheck {
         ]
         .iter()
         .all(|c| c.holds)
-            && self.divergence.is_none()
     }
 }
 

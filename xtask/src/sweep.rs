@@ -549,7 +549,7 @@ fn shard_metas(dirs: &[&Path]) -> Result<Vec<serde_json::Value>> {
         if let Some((i, n)) = shard_of_meta_name(name) {
             let want = format!("{i}/{n}");
             let recorded = v.pointer("/run/shard");
-                if recorded.and_then(|s| s.as_str()) != Some(want.as_str()) {
+            if recorded.and_then(|s| s.as_str()) != Some(want.as_str()) {
                 bail!(
                     "the shard meta `{}` does not record shard {want} (its `shard` is {}): \
                          renamed or edited; {fix}",

@@ -681,9 +681,15 @@ fn a_method_table_sweeps_resumes_and_merges() {
     for (i, d) in [(1, &s1), (2, &s2)] {
         let shard = format!("{i}/2");
         let d = d.to_str().unwrap();
-        ok(&xtask(&["sweep", "--config", c, "--out", d, "--shard", &shard]));
+        ok(&xtask(&[
+            "sweep", "--config", c, "--out", d, "--shard", &shard,
+        ]));
     }
-    let (s1, s2, m) = (s1.to_str().unwrap(), s2.to_str().unwrap(), m.to_str().unwrap());
+    let (s1, s2, m) = (
+        s1.to_str().unwrap(),
+        s2.to_str().unwrap(),
+        m.to_str().unwrap(),
+    );
     ok(&xtask(&["sweep-merge", "--config", c, "--out", m, s1, s2]));
     for f in ["runs.csv", "points.csv"] {
         assert_eq!(text(&dir.join("m").join(f)), text(&out.join(f)), "{f}");
@@ -826,7 +832,10 @@ fn merge_requires_exactly_the_shards_of_one_run() {
         for n in needles {
             assert!(e.contains(n), "`{n}` not in: {e}");
         }
-        assert!(!m.join("points.csv").exists(), "{needles:?}: wrote points.csv");
+        assert!(
+            !m.join("points.csv").exists(),
+            "{needles:?}: wrote points.csv"
+        );
     };
     fs::remove_file(&meta1).unwrap();
     refused(&["meta.shard-1-of-2.json is missing from every input directory"]);

@@ -856,3 +856,64 @@ fn merge_requires_exactly_the_shards_of_one_run() {
     ok(&merge());
     assert!(m.join("points.csv").exists());
 }
+
+/// Issue 37 item 8: "bounded" is not "stable". On the open-loop unstable cart-pendulum
+/// (𝒲 rarely active, the input unconstrained but the MHE's ŵ boxed) PG at K = 1 and ADMM
+/// α = 2 at K = 25 have ρ_lin ≫ 1 (1.14 and 75) and every run stays bounded, but none
+/// converges to the disturbance level; ADMM α = 2 at K = 2000 (ρ_lin < 1) converges.
+#[test]
+fn bounded_runs_above_rho_lin_one_do_not_converge() {
+    let dir = scratch("converged");
+    let scenario = concat!(
+        env!("CARGO_MANIFEST_DIR"),
+        "/../scenarios/cart-pendulum.toml"
+    );
+    let path = dir.join("cp.toml");
+    fs::write(
+        &path,
+        format!(
+            "scenario = \"{scenario}\"\nname = \"cp\"\nk = [1, 25, 2000]\n\
+             solvers = [\"pg\", \"admm-pr\"]\nseeds = 4\nsteps = 150\nbase_seed = 11\n\
+             certificate = false\n"
+        ),
+    )
+    .unwrap();
+    let out = dir.join("o");
+    ok(&xtask(&[
+        "sweep",
+        "--config",
+        path.to_str().unwrap(),
+        "--out",
+        out.to_str().unwrap(),
+    ]));
+    let p = Table::parse(&fs::read_to_string(out.join("points.csv")).unwrap()).unwrap();
+    let row = |k: &str, solver: &str| {
+        (0..p.rows.len())
+            .find(|&r| p.text(r, "k") == Some(k) && p.text(r, "solver") == Some(solver))
+            .unwrap()
+    };
+    for (k, solver, rho_above, converged) in [
+        ("1", "pg", 1.1, 0.0),
+        ("25", "admm-pr", 10.0, 0.0),
+        ("2000", "admm-pr", 0.0, 1.0),
+    ] {
+        let r = row(k, solver);
+        let rho = p.number(r, "rho_lin").unwrap();
+        assert!(rho > rho_above, "{solver} K = {k}: ρ_lin = {rho}");
+        assert_eq!(
+            p.number(r, "bounded_fraction"),
+            Some(1.0),
+            "{solver} K = {k}"
+        );
+        assert_eq!(
+            p.number(r, "converged_fraction"),
+            Some(converged),
+            "{solver} K = {k}"
+        );
+    }
+    let runs = Table::parse(&fs::read_to_string(out.join("runs.csv")).unwrap()).unwrap();
+    for r in 0..runs.rows.len() {
+        let converged = runs.text(r, "converged") == Some("1");
+        assert!(!converged || runs.text(r, "bounded") == Some("1"));
+    }
+}

@@ -12,7 +12,9 @@
 #   4. preemption: submits the array again into a fresh directory, cancels array task 2
 #      (`scancel JOB_2`) once it has written a point file, lets the others finish, resubmits
 #      task 2 alone (it resumes), merges and checks the result is still exact;
-#   5. stops the daemons it started (by their pid files) and removes the temp dir.
+#   5. cancels any job of its own controller still queued, stops the daemons it started (by
+#      their pid files) and removes the temp dir.
+# Every wait on SLURM has a limit (WAIT_LIMIT); a cancel is checked once its state settled.
 #
 # Needs root (apt-get, the daemons) and a release build of xtask (built when missing).
 # Usage: scripts/slurm-sweep.sh          (about 1–3 min on 2 idle cores; see docs/sweeps.md)
@@ -54,6 +56,12 @@ mkdir -p "$TMP/state" "$TMP/spool" "$TMP/out" "$TMP/munge"
 PIDS=()
 cleanup() {
     local rc=$?
+    # Jobs still queued on this script's private controller (a failed wait): cancel them
+    # first, so no job step outlives the daemons.
+    if [ -s "$TMP/slurmctld.pid" ] && [ -n "${SLURM_CONF:-}" ]; then
+        scancel --partition=ci 2>/dev/null || true
+        sleep 1
+    fi
     # Stop only the daemons this script started, by their pid files.
     for f in "$TMP/slurmd.pid" "$TMP/slurmctld.pid" "$TMP/munge/munged.pid"; do
         if [ -s "$f" ]; then

@@ -502,7 +502,7 @@ fn resum_wall(path: &Path) {
     let sum: f64 = lines[1..sep]
         .iter()
         .map(|l| l.rsplit(',').next().unwrap().parse::<f64>().unwrap())
-        .fold(0.0, |a, v| a + v);
+        .sum();
     let n = lines[sep + 1].split(',').count();
     edit_line(path, sep + 2, |l| set_cell(l, n - 1, &sum.to_string()));
 }

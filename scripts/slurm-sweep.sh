@@ -12,18 +12,27 @@
 #   4. preemption: submits the array again into a fresh directory, cancels array task 2
 #      (`scancel JOB_2`) once it has written a point file, lets the others finish, resubmits
 #      task 2 alone (it resumes), merges and checks the result is still exact;
-#   5. stops the daemons it started (by their pid files) and removes the temp dir.
+#   5. cancels any job of its own controller still queued, stops the daemons it started (by
+#      their pid files) and removes the temp dir.
+# Every wait on SLURM has a limit (WAIT_LIMIT); a cancel is checked once its state settled.
 #
 # Needs root (apt-get, the daemons) and a release build of xtask (built when missing).
 # Usage: scripts/slurm-sweep.sh          (about 1–3 min on 2 idle cores; see docs/sweeps.md)
 # Env: XTASK=path/to/xtask  KEEP=1 (keep the temp dir)  SLURM_PORT_BASE=16817
+#      WAIT_LIMIT=900 (seconds any one wait on SLURM may take before the script fails)
+# Every failure ends with a line `FAIL: …` and exit status 1: the checks are explicit, and
+# anything else that fails under `set -e` is reported by the ERR trap with its line.
 set -euo pipefail
 
 cd "$(dirname "${BASH_SOURCE[0]}")/.."
 ROOT=$PWD
 START=$(date +%s)
 say() { printf '[slurm-sweep %3ss] %s\n' "$(($(date +%s) - START))" "$*"; }
-die() { say "FAIL: $*"; exit 1; }
+# To stderr, so a FAIL inside `$(…)` is seen, not captured.
+die() { say "FAIL: $*" >&2; exit 1; }
+trap 'rc=$?; say "FAIL: line $LINENO: \`$BASH_COMMAND\` exited with status $rc"; exit 1' ERR
+WAIT_LIMIT=${WAIT_LIMIT:-900}
+case $WAIT_LIMIT in '' | *[!0-9]*) die "WAIT_LIMIT=$WAIT_LIMIT is not a number of seconds" ;; esac
 
 [ "$(id -u)" = 0 ] || die "needs root: it installs packages and starts munged, slurmctld, slurmd"
 
@@ -47,6 +56,12 @@ mkdir -p "$TMP/state" "$TMP/spool" "$TMP/out" "$TMP/munge"
 PIDS=()
 cleanup() {
     local rc=$?
+    # Jobs still queued on this script's private controller (a failed wait): cancel them
+    # first, so no job step outlives the daemons.
+    if [ -s "$TMP/slurmctld.pid" ] && [ -n "${SLURM_CONF:-}" ]; then
+        scancel --partition=ci 2>/dev/null || true
+        sleep 1
+    fi
     # Stop only the daemons this script started, by their pid files.
     for f in "$TMP/slurmd.pid" "$TMP/slurmctld.pid" "$TMP/munge/munged.pid"; do
         if [ -s "$f" ]; then
@@ -136,7 +151,8 @@ certificate = false
 EOF
 
 say "reference: the unsharded sweep"
-"$XTASK" sweep --config "$CFG" --out "$TMP/reference" --threads "$CPUS" >"$TMP/reference.log"
+"$XTASK" sweep --config "$CFG" --out "$TMP/reference" --threads "$CPUS" >"$TMP/reference.log" 2>&1 \
+    || die "the unsharded reference sweep failed: $(tail -n 3 "$TMP/reference.log" | tr '\n' ' ')"
 
 # The job array of docs/sweeps.md, one shard per array task into one shared directory.
 ARRAY="$TMP/array.sh"
@@ -163,46 +179,118 @@ same_as_reference() {
     done
     say "$dir: runs.csv ($(($(wc -l <"$dir/runs.csv") - 1)) runs) and points.csv equal the unsharded run, timing columns aside"
 }
-wait_job() {
-    local id=$1
-    while squeue -h -j "$id" 2>/dev/null | grep -q .; do sleep 0.5; done
+# The state of a job or array task (`JOB_I`) from scontrol (MinJobAge keeps finished jobs
+# for 10 min), or UNKNOWN when scontrol has no record; never fails under `set -e`.
+state_of() {
+    local out
+    out=$(scontrol show job "$1" 2>/dev/null || true)
+    out=$(printf '%s\n' "$out" | grep -o 'JobState=[A-Z_]*' | head -n 1 || true)
+    printf '%s\n' "${out#JobState=}" | sed 's/^$/UNKNOWN/'
 }
-state_of() { scontrol show job "$1" 2>/dev/null | grep -o 'JobState=[A-Z_]*' | head -1 | cut -d= -f2; }
+# Whether a state is final (the job will not change state any more).
+is_final() {
+    case $1 in
+        COMPLETED | CANCELLED | FAILED | TIMEOUT | NODE_FAIL | PREEMPTED | OUT_OF_MEMORY | BOOT_FAIL | DEADLINE) return 0 ;;
+        *) return 1 ;;
+    esac
+}
+# Waits until the job (all its array tasks) has left the queue, at most WAIT_LIMIT s.
+wait_job() {
+    local id=$1 t0=$SECONDS q
+    while :; do
+        q=$(squeue -h -j "$id" 2>/dev/null || true)
+        [ -z "$q" ] && return 0
+        [ $((SECONDS - t0)) -lt "$WAIT_LIMIT" ] \
+            || die "job $id still queued after WAIT_LIMIT=$WAIT_LIMIT s: $(printf '%s' "$q" | head -n 3 | tr '\n' ';')"
+        sleep 0.5
+    done
+}
+# Waits until array task `$1` has a final state (a cancel takes effect asynchronously:
+# CANCELLING/COMPLETING come first), at most WAIT_LIMIT s; prints that state.
+settled_state() {
+    local id=$1 t0=$SECONDS st
+    while :; do
+        st=$(state_of "$id")
+        if is_final "$st"; then
+            printf '%s\n' "$st"
+            return 0
+        fi
+        [ $((SECONDS - t0)) -lt "$WAIT_LIMIT" ] \
+            || die "job $id did not reach a final state within WAIT_LIMIT=$WAIT_LIMIT s (still $st)"
+        sleep 0.2
+    done
+}
+# sbatch --parsable prints `id` or `id;cluster`.
+submit() {
+    local out
+    out=$(sbatch --parsable "$@" 2>&1) || die "sbatch $* failed: $out"
+    out=${out%%;*}
+    case $out in '' | *[!0-9]*) die "sbatch $* printed no job id: $out" ;; esac
+    printf '%s\n' "$out"
+}
 
 say "submitting the 4-task job array"
 export SWEEP_OUT="$TMP/sharded"
-JOB=$(sbatch --parsable "$ARRAY")
+JOB=$(submit "$ARRAY")
 wait_job "$JOB"
 for i in 1 2 3 4; do
-    [ "$(state_of "${JOB}_$i")" = COMPLETED ] || die "array task ${JOB}_$i: $(state_of "${JOB}_$i")"
+    st=$(settled_state "${JOB}_$i")
+    [ "$st" = COMPLETED ] || die "array task ${JOB}_$i: $st (expected COMPLETED)"
 done
-"$XTASK" sweep-merge --config "$CFG" --out "$TMP/sharded" >"$TMP/merge.log"
+"$XTASK" sweep-merge --config "$CFG" --out "$TMP/sharded" >"$TMP/merge.log" 2>&1 \
+    || die "sweep-merge of the 4 shards failed: $(tail -n 3 "$TMP/merge.log" | tr '\n' ' ')"
 same_as_reference "$TMP/sharded"
 
 say "preemption: the array again, task 2 cancelled once it has written a point file"
 export SWEEP_OUT="$TMP/preempted"
-JOB=$(sbatch --parsable "$ARRAY")
+JOB=$(submit "$ARRAY")
 # Shard 2 owns the points with index ≡ 1 (mod 4): p00001, p00005, …
-for _ in $(seq 1200); do
-    ls "$SWEEP_OUT/points/" 2>/dev/null | grep -qE '^p000(01|05|09|13|17|21)\.csv$' && break
+shard2_files() {
+    local names
+    names=$(ls "$SWEEP_OUT/points/" 2>/dev/null || true)
+    printf '%s\n' "$names" | grep -cE '^p000(01|05|09|13|17|21)\.csv$' || true
+}
+t0=$SECONDS
+until [ "$(shard2_files)" -gt 0 ]; do
+    [ $((SECONDS - t0)) -lt "$WAIT_LIMIT" ] \
+        || die "array task 2 wrote no point file within WAIT_LIMIT=$WAIT_LIMIT s (state $(state_of "${JOB}_2"))"
     sleep 0.1
 done
-[ "$(state_of "${JOB}_2")" = RUNNING ] || die "array task 2 was not running when it was to be cancelled: $(state_of "${JOB}_2")"
-scancel "${JOB}_2"
+st=$(state_of "${JOB}_2")
+[ "$st" = RUNNING ] || die "array task 2 was not running when it was to be cancelled: $st"
+scancel "${JOB}_2" || die "scancel ${JOB}_2 failed"
+# The cancel is asynchronous: wait for task 2's final state, then for the others.
+st=$(settled_state "${JOB}_2")
 wait_job "$JOB"
-[ "$(state_of "${JOB}_2")" = CANCELLED ] || die "array task 2: $(state_of "${JOB}_2") (expected CANCELLED)"
+if [ "$st" = COMPLETED ]; then
+    die "array task 2 finished between the RUNNING check and scancel: the preemption was not exercised (rerun; a larger sweep makes this rarer)"
+fi
+[ "$st" = CANCELLED ] || die "array task 2: $st (expected CANCELLED)"
+for i in 1 3 4; do
+    st=$(settled_state "${JOB}_$i")
+    [ "$st" = COMPLETED ] || die "array task ${JOB}_$i: $st (expected COMPLETED)"
+done
 have=$(ls "$SWEEP_OUT/points/" | grep -cE '^p[0-9]+\.csv$' || true)
 say "task 2 cancelled; $have of 24 point files present"
 if "$XTASK" sweep-merge --config "$CFG" --out "$SWEEP_OUT" >"$TMP/merge-incomplete.log" 2>&1; then
     die "merging with a cancelled shard succeeded"
 fi
-say "merge refuses the incomplete set: $(grep -m1 -o 'error: .*' "$TMP/merge-incomplete.log" | cut -c1-100)"
-JOB2=$(sbatch --parsable --array=2 "$ARRAY")
+why=$(grep -m1 -o 'error: .*' "$TMP/merge-incomplete.log" || true)
+[ -n "$why" ] || die "the refused merge printed no error line: $(tail -n 3 "$TMP/merge-incomplete.log" | tr '\n' ' ')"
+say "merge refuses the incomplete set: $(printf '%s' "$why" | cut -c1-100)"
+JOB2=$(submit --array=2 "$ARRAY")
 wait_job "$JOB2"
-[ "$(state_of "${JOB2}_2")" = COMPLETED ] || die "resubmitted task 2: $(state_of "${JOB2}_2")"
-skipped=$(grep -o '"points_skipped_resumed": [0-9]*' "$SWEEP_OUT/meta.shard-2-of-4.json" | grep -o '[0-9]*$')
+st=$(settled_state "${JOB2}_2")
+[ "$st" = COMPLETED ] || die "resubmitted task 2: $st (expected COMPLETED)"
+skipped=$(grep -o '"points_skipped_resumed": [0-9]*' "$SWEEP_OUT/meta.shard-2-of-4.json" || true)
+skipped=${skipped##* }
+case $skipped in
+    '' | *[!0-9]*) die "meta.shard-2-of-4.json records no points_skipped_resumed" ;;
+    0) die "resubmitted task 2 resumed nothing (points_skipped_resumed = 0), though it had written a point file" ;;
+esac
 say "resubmitted task 2 resumed: $skipped of its points were already finished"
-"$XTASK" sweep-merge --config "$CFG" --out "$SWEEP_OUT" >"$TMP/merge2.log"
+"$XTASK" sweep-merge --config "$CFG" --out "$SWEEP_OUT" >"$TMP/merge2.log" 2>&1 \
+    || die "sweep-merge after the resumed shard failed: $(tail -n 3 "$TMP/merge2.log" | tr '\n' ' ')"
 same_as_reference "$SWEEP_OUT"
 
 say "ok: sharded, merged and preempted runs equal the unsharded one"

@@ -218,6 +218,11 @@ fn meta(
         "controller": format!("{:?}", cfg.controller),
         "metrics": cfg.metrics.iter().map(|m| m.name()).collect::<Vec<_>>(),
         "bounded_rule": format!("completed, finite, sup_t ‖x_t‖ ≤ {f}·(1 + ‖x₀‖) and sup_t ‖e_t‖ ≤ {f}·(1 + ‖e₀‖)", f = cfg.bounded_factor),
+        "converged_rule": format!(
+            "bounded, and over the last quarter of the steps mean ‖e_t‖ ≤ {f}·w̄ + {d:e}·(1 + ‖e₀‖) and mean ‖x_t‖ ≤ {f}·w̄ + {d:e}·(1 + ‖x₀‖), w̄ = sup_t ‖w_t‖ of the run",
+            f = closed_loop::metrics::CONVERGED_FACTOR,
+            d = closed_loop::metrics::CONVERGED_FLOOR
+        ),
         "points": sweep.points().len(),
         "git_revision": prov.git_revision,
         "git_dirty": prov.git_dirty,
@@ -448,11 +453,69 @@ fn print_summary(
     outln!("total wall time: {} s", sig4(wall));
 }
 
+/// (I, N) of a shard meta's file name `meta.shard-I-of-N.json` (1 ≤ I ≤ N), else None.
+fn shard_of_meta_name(name: &str) -> Option<(usize, usize)> {
+    let (i, n) = name
+        .strip_prefix("meta.shard-")?
+        .strip_suffix(".json")?
+        .split_once("-of-")?;
+    let (i, n) = (i.parse::<usize>().ok()?, n.parse::<usize>().ok()?);
+    (1 <= i && i <= n).then_some((i, n))
+}
+
+/// Checks that the shard metas found (`paths`) are exactly one sharding's: every name
+/// `meta.shard-I-of-N.json` with one N, each I of 1..=N once. None found is fine (a merge
+/// of unsharded directories, or of an `--out` alone).
+fn check_shard_set(paths: &[PathBuf]) -> Result<()> {
+    let fix = "sweep-merge takes the directories of one sharded run: every shard I of N \
+               once, with its meta.shard-I-of-N.json";
+    let mut found: Vec<(usize, usize, &Path)> = Vec::new();
+    for p in paths {
+        let name = p.file_name().and_then(|n| n.to_str()).unwrap_or("");
+        let Some((i, n)) = shard_of_meta_name(name) else {
+            bail!(
+                "`{}` is not a shard meta's name (meta.shard-I-of-N.json, 1 ≤ I ≤ N): a \
+                 stray file; remove it. {fix}",
+                p.display()
+            );
+        };
+        if let Some((_, _, other)) = found.iter().find(|(fi, fnn, _)| (*fi, *fnn) == (i, n)) {
+            bail!(
+                "shard {i} of {n} is there twice (`{}` and `{}`); keep one. {fix}",
+                other.display(),
+                p.display()
+            );
+        }
+        found.push((i, n, p));
+    }
+    let Some(&(_, n, first)) = found.first() else {
+        return Ok(());
+    };
+    if let Some((i, m, p)) = found.iter().find(|(_, m, _)| *m != n) {
+        bail!(
+            "`{}` is shard {i} of {m}, but `{}` is of a {n}-shard run: a stray of another \
+             sharding; remove it. {fix}",
+            p.display(),
+            first.display()
+        );
+    }
+    if let Some(i) = (1..=n).find(|i| !found.iter().any(|(fi, _, _)| fi == i)) {
+        bail!(
+            "meta.shard-{i}-of-{n}.json is missing from every input directory (found {} of \
+             the {n} shards' metas); restore it from the shard's run, or rerun shard {i}/{n}. \
+             {fix}",
+            found.len()
+        );
+    }
+    Ok(())
+}
+
 /// The shards' own meta files in `dirs` (`meta.shard-*.json`), read and parsed before
 /// anything is merged: an unreadable or malformed one is an error naming it, not a gap in
-/// `meta.json`.
+/// `meta.json`; they must be exactly one sharding's ([`check_shard_set`]), and each one's
+/// `shard` field must be its name's.
 fn shard_metas(dirs: &[&Path]) -> Result<Vec<serde_json::Value>> {
-    let mut shards = Vec::new();
+    let mut all = Vec::new();
     for d in dirs {
         let Ok(rd) = std::fs::read_dir(d) else {
             continue;
@@ -466,20 +529,36 @@ fn shard_metas(dirs: &[&Path]) -> Result<Vec<serde_json::Value>> {
             })
             .collect();
         names.sort();
-        for p in names {
-            let fix = "restore it from the shard's run, or rerun that shard; sweep-merge keeps \
+        all.extend(names);
+    }
+    check_shard_set(&all)?;
+    let mut shards = Vec::new();
+    for p in all {
+        let fix = "restore it from the shard's run, or rerun that shard; sweep-merge keeps \
                        every shard's meta in meta.json";
-            let text = crate::output::read_input(&p).map_err(|e| {
-                anyhow::anyhow!("cannot read the shard meta `{}`: {e}; {fix}", p.display())
-            })?;
-            let v = serde_json::from_str::<serde_json::Value>(&text).map_err(|e| {
-                anyhow::anyhow!(
-                    "the shard meta `{}` is not valid JSON ({e}); {fix}",
-                    p.display()
-                )
-            })?;
-            shards.push(json!({"file": p.display().to_string(), "meta": v}));
+        let text = crate::output::read_input(&p).map_err(|e| {
+            anyhow::anyhow!("cannot read the shard meta `{}`: {e}; {fix}", p.display())
+        })?;
+        let v = serde_json::from_str::<serde_json::Value>(&text).map_err(|e| {
+            anyhow::anyhow!(
+                "the shard meta `{}` is not valid JSON ({e}); {fix}",
+                p.display()
+            )
+        })?;
+        let name = p.file_name().and_then(|n| n.to_str()).unwrap_or("");
+        if let Some((i, n)) = shard_of_meta_name(name) {
+            let want = format!("{i}/{n}");
+            let recorded = v.pointer("/run/shard");
+            if recorded.and_then(|s| s.as_str()) != Some(want.as_str()) {
+                bail!(
+                    "the shard meta `{}` does not record shard {want} (its `shard` is {}): \
+                         renamed or edited; {fix}",
+                    p.display(),
+                    recorded.map_or("missing".to_string(), |s| s.to_string())
+                );
+            }
         }
+        shards.push(json!({"file": p.display().to_string(), "meta": v}));
     }
     Ok(shards)
 }

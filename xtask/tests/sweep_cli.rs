@@ -395,6 +395,29 @@ fn bad_input_exits_with_an_error_not_a_panic() {
     ]);
     let stderr = String::from_utf8_lossy(&out.stderr);
     assert_eq!(out.status.code(), Some(1), "{stderr}");
+    // Shard 1 never ran: its meta is missing, which the merge names before the points.
+    assert!(
+        stderr.contains("meta.shard-1-of-2.json is missing") && stderr.contains("shard 1/2"),
+        "{stderr}"
+    );
+    // With that meta present (shard 1 cut short), the missing points are named.
+    let meta = two_dir.join("meta.shard-2-of-2.json");
+    let text = fs::read_to_string(&meta).unwrap();
+    fs::write(
+        two_dir.join("meta.shard-1-of-2.json"),
+        text.replace("\"2/2\"", "\"1/2\""),
+    )
+    .unwrap();
+    let out = xtask(&[
+        "sweep-merge",
+        "--config",
+        two.to_str().unwrap(),
+        "--out",
+        d.join("m").to_str().unwrap(),
+        two_dir.to_str().unwrap(),
+    ]);
+    let stderr = String::from_utf8_lossy(&out.stderr);
+    assert_eq!(out.status.code(), Some(1), "{stderr}");
     assert!(
         stderr.contains("1 of 2 points have no point file"),
         "{stderr}"
@@ -620,4 +643,277 @@ fn two_d_sweep_writes_heat_maps_and_pair_thresholds() {
         ],
         "`k_c`: a K_c grid needs the sub-optimal MPC",
     );
+}
+
+/// A tiny sweep body: 2 K × the given solvers, 2 seeds, T = 8, no certificate.
+fn tiny(solvers: &str) -> String {
+    format!(
+        "name = \"tiny\"\nk = [1, 5]\nsolvers = [{solvers}]\nseeds = 2\nsteps = 8\n\
+         base_seed = 3\ncertificate = false\n"
+    )
+}
+
+/// Issue 37 item 10: a method given as a table with parameters (docs/sweeps.md) has a
+/// comma in its name; its `solver` cell is written `admm(rho=2;alpha=1.5)`, so the sweep
+/// assembles, resumes (every point file accepted) and merges its shards.
+#[test]
+fn a_method_table_sweeps_resumes_and_merges() {
+    let dir = scratch("method-table");
+    let cfg = config(
+        &dir,
+        "m.toml",
+        &tiny(r#""pg", { method = "admm", rho = 2.0, alpha = 1.5 }"#),
+    );
+    let c = cfg.to_str().unwrap();
+    let out = dir.join("o");
+    let o = out.to_str().unwrap();
+    ok(&xtask(&["sweep", "--config", c, "--out", o]));
+    let points = Table::parse(&fs::read_to_string(out.join("points.csv")).unwrap()).unwrap();
+    assert_eq!(points.rows.len(), 4);
+    assert_eq!(points.text(2, "solver"), Some("admm(rho=2;alpha=1.5)"));
+    let runs = Table::parse(&fs::read_to_string(out.join("runs.csv")).unwrap()).unwrap();
+    assert_eq!(runs.rows.len(), 8);
+    // Resume: every point file is valid, nothing is recomputed.
+    let again = ok(&xtask(&["sweep", "--config", c, "--out", o]));
+    assert!(again.contains("0 computed, 4 skipped"), "{again}");
+    // Shards and a merge give the unsharded tables.
+    let (s1, s2, m) = (dir.join("s1"), dir.join("s2"), dir.join("m"));
+    for (i, d) in [(1, &s1), (2, &s2)] {
+        let shard = format!("{i}/2");
+        let d = d.to_str().unwrap();
+        ok(&xtask(&[
+            "sweep", "--config", c, "--out", d, "--shard", &shard,
+        ]));
+    }
+    let (s1, s2, m) = (
+        s1.to_str().unwrap(),
+        s2.to_str().unwrap(),
+        m.to_str().unwrap(),
+    );
+    ok(&xtask(&["sweep-merge", "--config", c, "--out", m, s1, s2]));
+    for f in ["runs.csv", "points.csv"] {
+        assert_eq!(text(&dir.join("m").join(f)), text(&out.join(f)), "{f}");
+    }
+}
+
+/// Issue 37 item 12: every field of a resumed point file is checked — a completed run's
+/// `steps` is T, wall times are finite and ≥ 0 (the summary's the runs' sum), `converged`
+/// implies `bounded`, the fractions are the run rows', the gains and ρ_lin ≥ 0 — and an
+/// edited file is refused naming the file, the line and the column.
+#[test]
+fn a_resumed_point_file_is_checked_field_by_field() {
+    let dir = scratch("resume-fields");
+    let cfg = config(&dir, "t.toml", &tiny("\"pg\""));
+    let c = cfg.to_str().unwrap();
+    let out = dir.join("o");
+    let o = out.to_str().unwrap();
+    ok(&xtask(&["sweep", "--config", c, "--out", o]));
+    let file = out.join("points").join("p00001.csv");
+    let original = fs::read_to_string(&file).unwrap();
+    let lines: Vec<&str> = original.lines().collect();
+    let header = |f: &str| -> Vec<String> {
+        let t = fs::read_to_string(out.join(f)).unwrap();
+        t.lines()
+            .next()
+            .unwrap()
+            .split(',')
+            .map(str::to_string)
+            .collect()
+    };
+    let (rh, ph) = (header("runs.csv"), header("points.csv"));
+    // Line 1 the fingerprint, 2–3 the runs, 4 `=`, 5 the summary (1-based, as in messages).
+    let edit = |edits: &[(usize, &str, &str)]| -> String {
+        let mut ls: Vec<String> = lines.iter().map(|l| (*l).to_string()).collect();
+        for &(line, column, value) in edits {
+            let h = if line == 5 { &ph } else { &rh };
+            let c = h.iter().position(|n| n == column).unwrap();
+            let mut cells: Vec<String> = ls[line - 1].split(',').map(str::to_string).collect();
+            cells[c] = value.to_string();
+            ls[line - 1] = cells.join(",");
+        }
+        ls.join("\n") + "\n"
+    };
+    let cases: Vec<(String, &str)> = vec![
+        (
+            edit(&[(2, "steps", "3")]),
+            "line 2 (run 0), column `steps`: `3`, but the run completed",
+        ),
+        (
+            edit(&[(2, "wall_ms", "-5")]),
+            "line 2 (run 0), column `wall_ms`: `-5` is not a finite number ≥ 0",
+        ),
+        (
+            edit(&[(3, "wall_ms", "inf")]),
+            "line 3 (run 1), column `wall_ms`: `inf` is not a finite number ≥ 0",
+        ),
+        (
+            edit(&[(5, "wall_ms", "-5")]),
+            "line 5 (summary row), column `wall_ms`: `-5` is not a finite number ≥ 0",
+        ),
+        (
+            edit(&[(5, "wall_ms", "123456")]),
+            "line 5 (summary row), column `wall_ms`",
+        ),
+        (
+            edit(&[(2, "bounded", "0"), (2, "converged", "1")]),
+            "line 2 (run 0), column `converged`: `1`, but column `bounded` is `0`",
+        ),
+        (
+            edit(&[(2, "converged", "2")]),
+            "line 2 (run 0), column `converged`: `2` is none of 0, 1",
+        ),
+        (
+            edit(&[(5, "converged_fraction", "0.25")]),
+            "line 5 (summary row), column `converged_fraction`",
+        ),
+        (
+            edit(&[(5, "rho_lin", "-1")]),
+            "line 5 (summary row), column `rho_lin`: `-1` is not a number ≥ 0",
+        ),
+        (
+            edit(&[(5, "phi", "-0.5")]),
+            "line 5 (summary row), column `phi`: `-0.5` is not a number ≥ 0",
+        ),
+    ];
+    for (edited, needle) in cases {
+        fs::write(&file, &edited).unwrap();
+        let out = xtask(&["sweep", "--config", c, "--out", o]);
+        let e = String::from_utf8_lossy(&out.stderr).to_string();
+        assert_eq!(out.status.code(), Some(1), "{needle}: {e}");
+        assert!(
+            e.contains("p00001.csv") && e.contains(needle) && e.contains("delete it"),
+            "`{needle}` not in: {e}"
+        );
+    }
+    fs::write(&file, &original).unwrap();
+    let again = ok(&xtask(&["sweep", "--config", c, "--out", o]));
+    assert!(again.contains("0 computed, 2 skipped"), "{again}");
+}
+
+/// Issue 37 item 12: `sweep-merge` takes exactly one sharding's metas — a missing
+/// `meta.shard-1-of-2.json`, a stray `meta.shard-1-of-3.json`, a duplicate or a renamed
+/// one is refused naming the file, and nothing is written.
+#[test]
+fn merge_requires_exactly_the_shards_of_one_run() {
+    let dir = scratch("shard-set");
+    let cfg = config(&dir, "t.toml", &tiny("\"pg\""));
+    let c = cfg.to_str().unwrap();
+    let (s1, s2, m) = (dir.join("s1"), dir.join("s2"), dir.join("m"));
+    for (i, d) in [(1, &s1), (2, &s2)] {
+        let shard = format!("{i}/2");
+        ok(&xtask(&[
+            "sweep",
+            "--config",
+            c,
+            "--out",
+            d.to_str().unwrap(),
+            "--shard",
+            &shard,
+        ]));
+    }
+    let merge = || {
+        xtask(&[
+            "sweep-merge",
+            "--config",
+            c,
+            "--out",
+            m.to_str().unwrap(),
+            s1.to_str().unwrap(),
+            s2.to_str().unwrap(),
+        ])
+    };
+    let meta1 = s1.join("meta.shard-1-of-2.json");
+    let meta2 = s2.join("meta.shard-2-of-2.json");
+    let text1 = fs::read(&meta1).unwrap();
+    let refused = |needles: &[&str]| {
+        let o = merge();
+        let e = String::from_utf8_lossy(&o.stderr).to_string();
+        assert_eq!(o.status.code(), Some(1), "{needles:?}: {e}");
+        for n in needles {
+            assert!(e.contains(n), "`{n}` not in: {e}");
+        }
+        assert!(
+            !m.join("points.csv").exists(),
+            "{needles:?}: wrote points.csv"
+        );
+    };
+    fs::remove_file(&meta1).unwrap();
+    refused(&["meta.shard-1-of-2.json is missing from every input directory"]);
+    fs::write(&meta1, &text1).unwrap();
+    let stray = s2.join("meta.shard-1-of-3.json");
+    fs::write(&stray, &text1).unwrap();
+    refused(&["meta.shard-1-of-3.json", "shard 1 of 3", "stray"]);
+    fs::remove_file(&stray).unwrap();
+    let twice = s2.join("meta.shard-1-of-2.json");
+    fs::write(&twice, &text1).unwrap();
+    refused(&["shard 1 of 2 is there twice"]);
+    fs::remove_file(&twice).unwrap();
+    // A meta renamed to another shard's name: its `shard` field says which it is.
+    let text2 = fs::read(&meta2).unwrap();
+    fs::write(&meta2, &text1).unwrap();
+    refused(&["meta.shard-2-of-2.json", "does not record shard 2/2"]);
+    fs::write(&meta2, &text2).unwrap();
+    ok(&merge());
+    assert!(m.join("points.csv").exists());
+}
+
+/// Issue 37 item 8: "bounded" is not "stable". On the open-loop unstable cart-pendulum
+/// (𝒲 rarely active, the input unconstrained but the MHE's ŵ boxed) PG at K = 1 and ADMM
+/// α = 2 at K = 25 have ρ_lin ≫ 1 (1.14 and 75) and every run stays bounded, but none
+/// converges to the disturbance level; ADMM α = 2 at K = 2000 (ρ_lin < 1) converges.
+#[test]
+fn bounded_runs_above_rho_lin_one_do_not_converge() {
+    let dir = scratch("converged");
+    let scenario = concat!(
+        env!("CARGO_MANIFEST_DIR"),
+        "/../scenarios/cart-pendulum.toml"
+    );
+    let path = dir.join("cp.toml");
+    fs::write(
+        &path,
+        format!(
+            "scenario = \"{scenario}\"\nname = \"cp\"\nk = [1, 25, 2000]\n\
+             solvers = [\"pg\", \"admm-pr\"]\nseeds = 4\nsteps = 150\nbase_seed = 11\n\
+             certificate = false\n"
+        ),
+    )
+    .unwrap();
+    let out = dir.join("o");
+    ok(&xtask(&[
+        "sweep",
+        "--config",
+        path.to_str().unwrap(),
+        "--out",
+        out.to_str().unwrap(),
+    ]));
+    let p = Table::parse(&fs::read_to_string(out.join("points.csv")).unwrap()).unwrap();
+    let row = |k: &str, solver: &str| {
+        (0..p.rows.len())
+            .find(|&r| p.text(r, "k") == Some(k) && p.text(r, "solver") == Some(solver))
+            .unwrap()
+    };
+    for (k, solver, rho_above, converged) in [
+        ("1", "pg", 1.1, 0.0),
+        ("25", "admm-pr", 10.0, 0.0),
+        ("2000", "admm-pr", 0.0, 1.0),
+    ] {
+        let r = row(k, solver);
+        let rho = p.number(r, "rho_lin").unwrap();
+        assert!(rho > rho_above, "{solver} K = {k}: ρ_lin = {rho}");
+        assert_eq!(
+            p.number(r, "bounded_fraction"),
+            Some(1.0),
+            "{solver} K = {k}"
+        );
+        assert_eq!(
+            p.number(r, "converged_fraction"),
+            Some(converged),
+            "{solver} K = {k}"
+        );
+    }
+    let runs = Table::parse(&fs::read_to_string(out.join("runs.csv")).unwrap()).unwrap();
+    for r in 0..runs.rows.len() {
+        let converged = runs.text(r, "converged") == Some("1");
+        assert!(!converged || runs.text(r, "bounded") == Some("1"));
+    }
 }

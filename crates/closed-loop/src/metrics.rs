@@ -117,6 +117,10 @@ pub struct RunMetrics {
     /// Completed and within the bounded rule ([`crate::bounded`]): sup‖x‖ ≤
     /// bounded_factor·(1 + ‖x₀‖), sup‖e‖ ≤ bounded_factor·(1 + ‖e₀‖), ε and u likewise.
     pub bounded: bool,
+    /// Bounded, and over the last quarter the errors and states are back at the
+    /// disturbance level ([`converged`]): what "stable" looks like in a run, which
+    /// `bounded` alone does not say (a saturated loop can stay bounded without settling).
+    pub converged: bool,
     /// Why the run stopped early (empty if it did not).
     pub error: String,
     /// Wall time of the run in milliseconds (timing: differs between runs of a sweep).
@@ -200,6 +204,44 @@ pub fn run_metrics(
     let bounded =
         !diverged && crate::bounded::first_unbounded(trace, x0, bounded_factor, false).is_none();
     (values, bounded)
+}
+
+/// Factor F of the converged rule ([`converged`]): the tail may exceed the run's
+/// disturbance level w̄ = sup_t ‖w_t‖ by F (a stable loop with a good estimator sits at a
+/// few w̄; the Kalman baseline's `tail_gain_*` in `kalman.csv` give the plant's own level).
+pub const CONVERGED_FACTOR: f64 = 100.0;
+/// Relative floor δ of the converged rule: a tail below δ·(1 + ‖·₀‖) counts as converged
+/// whatever w̄ (a noise-free run decays to 0, never "to the level" 0).
+pub const CONVERGED_FLOOR: f64 = 1e-3;
+
+/// Whether a run *converged* to the disturbance level: it completed (`stopped` false),
+/// and over the last quarter of its steps (the steps of [`Trace::tail_mean_e`])
+/// mean ‖e_t‖ ≤ F·w̄ + δ·(1 + ‖e₀‖) and mean ‖x_t‖ ≤ F·w̄ + δ·(1 + ‖x₀‖), with
+/// w̄ = sup_t ‖w_t‖ of the run, F = [`CONVERGED_FACTOR`], δ = [`CONVERGED_FLOOR`].
+/// A sweep counts it only among the bounded runs (`converged ⇒ bounded`).
+///
+/// ```
+/// use closed_loop::metrics::converged_norms;
+/// // Decays to the noise level 0.01: converged; settles at 5 with w̄ = 0.01: not.
+/// assert!(converged_norms(&[1.0, 0.1, 0.02, 0.01], &[1.0, 0.1, 0.02, 0.01, 0.01], 0.01));
+/// assert!(!converged_norms(&[1.0, 5.0, 5.0, 5.0], &[1.0, 5.0, 5.0, 5.0, 5.0], 0.01));
+/// ```
+pub fn converged(trace: &Trace, stopped: bool) -> bool {
+    !stopped && converged_norms(trace.e_norms(), trace.x_norms(), trace.sup_norm_w())
+}
+
+/// [`converged`] on the norms: ‖e_t‖ for t < T, ‖x_t‖ for t ≤ T (x_T is not in the tail,
+/// as in [`Trace::tail_mean_x`]), and w̄. False for an empty run or a non-finite tail.
+pub fn converged_norms(e: &[f64], x: &[f64], w_bar: f64) -> bool {
+    let len = e.len();
+    if len == 0 || x.len() < len {
+        return false;
+    }
+    let start = len - len.div_ceil(4);
+    let mean = |v: &[f64]| v.iter().sum::<f64>() / v.len() as f64;
+    let (tail_e, tail_x) = (mean(&e[start..len]), mean(&x[start..len]));
+    let level = |first: f64| CONVERGED_FACTOR * w_bar + CONVERGED_FLOOR * (1.0 + first);
+    tail_e.is_finite() && tail_x.is_finite() && tail_e <= level(e[0]) && tail_x <= level(x[0])
 }
 
 /// A free text as one CSV cell: separators, quotes and line breaks replaced (the `error`

@@ -149,6 +149,7 @@ pub fn finish_run<E: Estimator, C: Controller, D: Disturbance>(
         steps: trace.len(),
         values,
         bounded,
+        converged: bounded && crate::metrics::converged(trace, stop.is_some()),
         error: stop.map(|e| csv_text(&e.to_string())).unwrap_or_default(),
         wall_ms,
     }

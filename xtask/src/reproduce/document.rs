@@ -294,7 +294,8 @@ pub struct CertificateDocument {
     #[serde(skip_serializing_if = "Option::is_none")]
     pub joint: Option<super::joint::JointReport>,
     /// The exact linear stability boundary per method (exact MPC): ρ_lin(K) on a log grid,
-    /// K_lin and every K with ρ_lin ≥ 1 (necessary for stability; `iss_certificate::linear`).
+    /// K_lin and every K with ρ_lin ≥ 1 (ρ_lin < 1 is necessary for local asymptotic stability of
+    /// the origin when no constraint is active there; `iss_certificate::linear`).
     pub linear: Vec<LinearEntry>,
     /// K_reg of each method (`iss_certificate::regional`): the smallest K whose region
     /// contains the scenario's own uncertainty, searched up to K_min, with the region there

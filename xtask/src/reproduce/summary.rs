@@ -306,7 +306,8 @@ pub(super) fn summarize(d: &CertificateDocument, files: &[PathBuf], notes: &[Str
         let _ = writeln!(
             s,
             "\nLinear stability boundary (no constraint active, exact MPC): K_lin = smallest K from\n\
-             which ρ_lin(K) < 1 on the grid (necessary for stability, not sufficient)"
+             which ρ_lin(K) < 1 on the grid (necessary for local asymptotic stability of the origin when no\n\
+             constraint is active there; not sufficient; a saturated loop can stay bounded at K < K_lin)"
         );
         for l in &d.linear {
             let line = match (&l.report, &l.error) {

@@ -21,6 +21,7 @@ use super::error::{Result, io_err, point_file_err};
 use super::seeds::fnv1a;
 use super::summary::{PointSummary, SweepRun};
 use closed_loop::metrics::{Metric, QUANTILES};
+use qp_iter::Method;
 
 /// The file in `points/` recording the settings behind the fingerprint (a line with the
 /// fingerprint, a line with the canonical settings text), so a refused directory can say
@@ -87,9 +88,17 @@ const POINT_FILE_SEPARATOR: &str = "=";
 // CSV rows
 // ---------------------------------------------------------------------------------------
 
-/// Text for a CSV cell: commas, quotes and line breaks replaced, so no quoting is needed.
+/// Text for a CSV cell: a number, or empty for none.
 fn cell(v: Option<f64>) -> String {
     v.map(|x| format!("{x}")).unwrap_or_default()
+}
+
+/// The `solver` cell of a method: its name ([`Method::name`]) with the commas of a method
+/// table's parameters written `;` (`admm(rho=2;alpha=1.5)`), so the files need no quoting
+/// and every reader splits a row at its commas. Names of different methods stay different
+/// (no method name holds a `;`).
+pub fn solver_label(m: &Method) -> String {
+    csv_text(&m.name())
 }
 
 /// The identity columns of a row: `point,k,solver,scale`, with `k_c` after `k` in a 2-D
@@ -109,14 +118,17 @@ pub fn runs_header(metrics: &[Metric], two_d: bool) -> String {
         h.push(',');
         h.push_str(m.name());
     }
-    h.push_str(",bounded,error,w_outside,wall_ms");
+    h.push_str(",bounded,converged,error,w_outside,wall_ms");
     h
 }
 
 /// Header of `points.csv` for the kept metrics (`two_d`: a 2-D sweep, with the `k_c`
 /// column).
 pub fn points_header(metrics: &[Metric], two_d: bool) -> String {
-    let mut h = format!("{},runs,bounded_fraction", identity_header(two_d));
+    let mut h = format!(
+        "{},runs,bounded_fraction,converged_fraction",
+        identity_header(two_d)
+    );
     for m in metrics {
         for (_, q) in QUANTILES {
             let _ = write!(h, ",{}_{q}", m.name());
@@ -131,9 +143,10 @@ pub fn points_header(metrics: &[Metric], two_d: bool) -> String {
 }
 
 fn point_prefix(p: &Point) -> String {
+    let solver = solver_label(&p.solver);
     match p.k_c {
-        None => format!("{},{},{},{}", p.index, p.k, p.solver, p.scale),
-        Some(k_c) => format!("{},{},{k_c},{},{}", p.index, p.k, p.solver, p.scale),
+        None => format!("{},{},{solver},{}", p.index, p.k, p.scale),
+        Some(k_c) => format!("{},{},{k_c},{solver},{}", p.index, p.k, p.scale),
     }
 }
 
@@ -147,8 +160,9 @@ pub(super) fn run_row(p: &Point, run: &SweepRun, metrics: &[Metric]) -> String {
     }
     let _ = write!(
         s,
-        ",{},{},{},{}",
+        ",{},{},{},{},{}",
         u8::from(r.bounded),
+        u8::from(r.converged),
         r.error,
         run.w_outside,
         r.wall_ms
@@ -158,7 +172,11 @@ pub(super) fn run_row(p: &Point, run: &SweepRun, metrics: &[Metric]) -> String {
 
 pub(super) fn point_row(p: &Point, s: &PointSummary) -> String {
     let mut out = point_prefix(p);
-    let _ = write!(out, ",{},{}", s.runs, s.bounded_fraction);
+    let _ = write!(
+        out,
+        ",{},{},{}",
+        s.runs, s.bounded_fraction, s.converged_fraction
+    );
     for (_, q) in &s.quantiles {
         for v in q {
             out.push(',');
@@ -286,8 +304,10 @@ enum Cell {
     Is(String),
     /// An integer 0 ≤ n ≤ max.
     UpTo(usize),
-    /// A number (`inf` and `NaN` included).
-    Number,
+    /// A finite number ≥ 0 (the wall times).
+    NonNegative,
+    /// A number ≥ 0 (`inf` and `NaN` included), or empty.
+    NonNegativeOrEmpty,
     /// A number or empty (not available).
     NumberOrEmpty,
     /// An integer or empty.
@@ -320,11 +340,13 @@ impl PointFileRules<'_> {
         cells.push(Cell::Is(seed.to_string()));
         cells.push(Cell::UpTo(self.steps));
         cells.extend(self.metrics.iter().map(|_| Cell::NumberOrEmpty));
+        // bounded, converged (converged ⇒ bounded, checked below)
+        cells.push(Cell::OneOf(&["0", "1"]));
         cells.push(Cell::OneOf(&["0", "1"]));
         cells.push(Cell::Text);
         // w_outside: at most one draw per step (checked against the row's `steps` below).
         cells.push(Cell::UpTo(self.steps));
-        cells.push(Cell::Number);
+        cells.push(Cell::NonNegative);
         names.split(',').map(str::to_string).zip(cells).collect()
     }
 
@@ -333,15 +355,18 @@ impl PointFileRules<'_> {
         let names = points_header(self.metrics, self.two_d);
         let mut cells = identity_cells(p);
         cells.push(Cell::Is(self.seeds.to_string()));
-        cells.push(Cell::Number);
+        // bounded_fraction, converged_fraction (recomputed from the run rows below)
+        cells.push(Cell::NonNegative);
+        cells.push(Cell::NonNegative);
         cells.extend((0..4 * self.metrics.len()).map(|_| Cell::NumberOrEmpty));
-        // phi, sg1, sg2, sg3, margin_cert
-        cells.extend((0..5).map(|_| Cell::NumberOrEmpty));
+        // phi, sg1, sg2, sg3 (≥ 0), margin_cert (1 − ρ(Γ), any sign)
+        cells.extend((0..4).map(|_| Cell::NonNegativeOrEmpty));
+        cells.push(Cell::NumberOrEmpty);
         cells.push(Cell::OneOf(&["yes", "no", "void"]));
         cells.push(Cell::IntegerOrEmpty);
         cells.push(Cell::Text);
-        // rho_lin, k_lin, linear_note
-        cells.push(Cell::NumberOrEmpty);
+        // rho_lin (a spectral radius, ≥ 0), k_lin, linear_note
+        cells.push(Cell::NonNegativeOrEmpty);
         cells.push(Cell::IntegerOrEmpty);
         cells.push(Cell::Text);
         // k_reg, regional_note
@@ -350,7 +375,8 @@ impl PointFileRules<'_> {
         // w_outside_runs, w_outside_total (recomputed from the run rows below)
         cells.push(Cell::UpTo(self.seeds));
         cells.push(Cell::UpTo(self.seeds.saturating_mul(self.steps)));
-        cells.push(Cell::Number);
+        // wall_ms: the sum of the runs' (checked below)
+        cells.push(Cell::NonNegative);
         names.split(',').map(str::to_string).zip(cells).collect()
     }
 }
@@ -382,7 +408,12 @@ fn check_row(row: &str, cells: &[(String, Cell)], what: &str) -> std::result::Re
         let ok = match cell {
             Cell::Is(want) => value == want,
             Cell::UpTo(max) => value.parse::<usize>().is_ok_and(|n| n <= *max),
-            Cell::Number => value.parse::<f64>().is_ok(),
+            Cell::NonNegative => value
+                .parse::<f64>()
+                .is_ok_and(|v| v.is_finite() && v >= 0.0),
+            Cell::NonNegativeOrEmpty => {
+                value.is_empty() || value.parse::<f64>().is_ok_and(|v| v.is_nan() || v >= 0.0)
+            }
             Cell::NumberOrEmpty => value.is_empty() || value.parse::<f64>().is_ok(),
             Cell::IntegerOrEmpty => value.is_empty() || value.parse::<usize>().is_ok(),
             Cell::OneOf(words) => words.contains(&value),
@@ -414,8 +445,14 @@ fn check_row(row: &str, cells: &[(String, Cell)], what: &str) -> std::result::Re
             Cell::UpTo(max) => {
                 format!("{what}, column `{name}`: `{value}` is not an integer from 0 to {max}")
             }
-            Cell::Number | Cell::NumberOrEmpty => {
+            Cell::NumberOrEmpty => {
                 format!("{what}, column `{name}`: `{value}` is not a number")
+            }
+            Cell::NonNegative => {
+                format!("{what}, column `{name}`: `{value}` is not a finite number ≥ 0")
+            }
+            Cell::NonNegativeOrEmpty => {
+                format!("{what}, column `{name}`: `{value}` is not a number ≥ 0")
             }
             Cell::IntegerOrEmpty => {
                 format!("{what}, column `{name}`: `{value}` is not an integer")
@@ -597,10 +634,11 @@ impl PointFile {
         let rh = runs_header(rules.metrics, rules.two_d);
         let names: Vec<&str> = rh.split(',').collect();
         let col = |name: &str| names.iter().position(|n| *n == name).unwrap_or(usize::MAX);
-        let (c_bounded, c_error) = (col("bounded"), col("error"));
-        let (c_steps, c_outside) = (col("steps"), col("w_outside"));
+        let (c_bounded, c_converged, c_error) = (col("bounded"), col("converged"), col("error"));
+        let (c_steps, c_outside, c_wall) = (col("steps"), col("w_outside"), col("wall_ms"));
         let mut values: Vec<Vec<f64>> = vec![Vec::new(); rules.metrics.len()];
-        let mut bounded = 0usize;
+        let (mut bounded, mut converged) = (0usize, 0usize);
+        let mut wall_ms = 0.0f64;
         let (mut outside_runs, mut outside_total) = (0usize, 0usize);
         for (r, row) in self.run_rows.iter().enumerate() {
             let cells: Vec<&str> = row.split(',').collect();
@@ -615,8 +653,21 @@ impl PointFile {
                 }
                 bounded += 1;
             }
+            if cells.get(c_converged) == Some(&"1") {
+                if cells.get(c_bounded) != Some(&"1") {
+                    return Err(format!(
+                        "{what}, column `converged`: `1`, but column `bounded` is `0`; a \
+                         converged run is bounded"
+                    ));
+                }
+                converged += 1;
+            }
             // Cells of the form checked (`check_row`): integers.
             let int = |c: usize| cells.get(c).and_then(|t| t.parse::<usize>().ok());
+            wall_ms += cells
+                .get(c_wall)
+                .and_then(|t| t.parse::<f64>().ok())
+                .unwrap_or(f64::NAN);
             if let (Some(steps), Some(outside)) = (int(c_steps), int(c_outside)) {
                 if outside > steps {
                     return Err(format!(
@@ -626,6 +677,14 @@ impl PointFile {
                 }
                 outside_runs += usize::from(outside > 0);
                 outside_total += outside;
+            }
+            if completed && int(c_steps) != Some(rules.steps) {
+                return Err(format!(
+                    "{what}, column `steps`: `{}`, but the run completed (column `error` is \
+                     empty), so it has the sweep's T = {} steps",
+                    cells.get(c_steps).copied().unwrap_or(""),
+                    rules.steps
+                ));
             }
             for (i, &m) in rules.metrics.iter().enumerate() {
                 let text = cells.get(col(m.name())).copied().unwrap_or("");
@@ -649,14 +708,17 @@ impl PointFile {
                 .unwrap_or("")
         };
         let runs = self.run_rows.len();
-        let mut expected = vec![(
-            "bounded_fraction".to_string(),
+        let fraction = |n: usize| {
             if runs == 0 {
                 0.0f64.to_string()
             } else {
-                (bounded as f64 / runs as f64).to_string()
-            },
-        )];
+                (n as f64 / runs as f64).to_string()
+            }
+        };
+        let mut expected = vec![
+            ("bounded_fraction".to_string(), fraction(bounded)),
+            ("converged_fraction".to_string(), fraction(converged)),
+        ];
         for (i, &m) in rules.metrics.iter().enumerate() {
             let v = &mut values[i];
             v.sort_by(f64::total_cmp);
@@ -668,6 +730,8 @@ impl PointFile {
         }
         expected.push(("w_outside_runs".to_string(), outside_runs.to_string()));
         expected.push(("w_outside_total".to_string(), outside_total.to_string()));
+        // `summarise` sums the runs' wall times in run order; `{}` round-trips an f64.
+        expected.push(("wall_ms".to_string(), wall_ms.to_string()));
         let line = runs + 3;
         for (name, want) in expected {
             let got = pcol(&name);

@@ -24,6 +24,9 @@ pub struct PointSummary {
     pub runs: usize,
     /// Fraction of bounded runs.
     pub bounded_fraction: f64,
+    /// Fraction of converged runs (bounded and back at the disturbance level over the last
+    /// quarter, [`closed_loop::metrics::converged`]); ≤ `bounded_fraction`.
+    pub converged_fraction: f64,
     /// Per kept metric: (q05, q50, q95, max) over the runs that have it.
     pub quantiles: Vec<(Metric, [Option<f64>; 4])>,
     /// The certificate at K.
@@ -58,14 +61,17 @@ pub fn summarise(runs: &[SweepRun], metrics: &[Metric], theory: TheoryAtK) -> Po
             )
         })
         .collect();
-    let bounded = runs.iter().filter(|r| r.bounded).count();
-    PointSummary {
-        runs: runs.len(),
-        bounded_fraction: if runs.is_empty() {
+    let fraction = |n: usize| {
+        if runs.is_empty() {
             0.0
         } else {
-            bounded as f64 / runs.len() as f64
-        },
+            n as f64 / runs.len() as f64
+        }
+    };
+    PointSummary {
+        runs: runs.len(),
+        bounded_fraction: fraction(runs.iter().filter(|r| r.bounded).count()),
+        converged_fraction: fraction(runs.iter().filter(|r| r.converged).count()),
         quantiles,
         theory,
         w_outside_runs: counts.iter().filter(|&&n| n > 0).count(),

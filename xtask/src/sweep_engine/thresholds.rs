@@ -1,6 +1,7 @@
 //! The three thresholds of a sweep per solver and scale (and per K_c in a 2-D sweep: each
 //! K_c is a curve over K_e), read from `points.csv`:
-//! K_lin (linear stability, necessary), K_reg (the regional certificate: sufficient inside a
+//! K_lin (ρ_lin < 1: necessary for local asymptotic stability of the origin when no
+//! constraint is active there; a saturated loop can stay bounded below it), K_reg (the regional certificate: sufficient inside a
 //! region that contains the scenario's uncertainty), K_emp (what the runs show) and K_cert
 //! (Theorem 1, sufficient globally), with the ratios K_reg/K_lin, K_cert/K_lin,
 //! K_cert/K_emp and K_emp/K_lin.

@@ -234,8 +234,9 @@ fn deviation_vs_bound(seeds: u64) -> (f64, f64, f64) {
             if let Some((u, y)) = traj.get(t) {
                 let u: [f64; 2] = u.as_slice().try_into().expect("n_u = 2");
                 let y: [f64; 1] = y.as_slice().try_into().expect("n_y = 1");
-                m64.push(&u, &y);
-                m32.push(&u.map(|x| x as f32), &y.map(|x| x as f32));
+                m64.push(&u, &y).expect("finite (u, y)");
+                m32.push(&u.map(|x| x as f32), &y.map(|x| x as f32))
+                    .expect("finite (u, y)");
             }
         }
     }

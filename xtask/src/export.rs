@@ -36,7 +36,12 @@ use anyhow::{Context, Result, bail};
 use clap::{Args, ValueEnum};
 use closed_loop::scenario::{ControllerChoice, ResolvedScenario, Scenario};
 use iss_certificate::certificate::{ClosedLoopCertificate, SolverCertificate, certify_closed_loop};
-pub(crate) use iss_certificate::coverage::F32_NOT_COVERED;
+/// What an f32 artefact's certificate covers when its verdict is certified.
+pub(crate) const F32_COVERED: &str = "covered: Theorem 1 with the f32 rounding of the \
+    portable kernel folded in (docs/theory.md, \"Certified f32\") certifies this K";
+/// What an f64 artefact says about f32.
+const F32_DECIDED_BY: &str = "an f32 export is certified where Theorem 1 with the f32 \
+    rounding folded in certifies its K (iss_certificate::coverage::verdict)";
 use iss_certificate::coverage::{Certified, Configuration, PairVerdict, Scalar, verdict_options};
 use iss_certificate::joint::{JointCertificate, JointOptions, certify_joint};
 use qp_iter::Method;
@@ -155,8 +160,9 @@ impl Artefact<'_> {
         )];
         match (self.certified, self.k_min) {
             (true, Some(k)) => lines.push(format!(
-                "Certified: K = {} ≥ K_min = {k} of Theorem 1 (certificate.json), in f64.",
-                self.k
+                "Certified: K = {} ≥ K_min = {k} of Theorem 1 (certificate.json), in {}.",
+                self.k,
+                scalar_name(self.scalar)
             )),
             _ => lines.push(format!(
                 "UNCERTIFIED: {}; exported with --allow-uncertified.",
@@ -190,8 +196,8 @@ impl Artefact<'_> {
                 ),
             });
         }
-        if self.scalar == ScalarKind::F32 && self.reason.is_none() {
-            lines.push(format!("f32: {F32_NOT_COVERED}."));
+        if self.scalar == ScalarKind::F32 && self.certified {
+            lines.push(format!("f32: {F32_COVERED}."));
         }
         lines
             .iter()
@@ -641,7 +647,7 @@ pub fn export(args: &ExportArgs) -> Result<()> {
         scenario: &scenario.name,
         method: method.name().into_owned(),
         k,
-        k_min: cert.k_min,
+        k_min: k_verdict.k_min.or(cert.k_min),
         scalar: args.scalar,
         certified: k_verdict.certified == Certified::Yes,
         reason: uncertified_reason(&k_verdict, &format!("K = {k}")),
@@ -801,7 +807,11 @@ fn certificate_json(
             } else {
                 "not covered: this configuration is not certified (`uncertified_reason`)"
             },
-            "f32": F32_NOT_COVERED,
+            "f32": match (art.scalar, art.certified) {
+                (ScalarKind::F32, true) => F32_COVERED,
+                (ScalarKind::F32, false) => "not covered: this configuration is not certified in f32 (`uncertified_reason`)",
+                (ScalarKind::F64, _) => F32_DECIDED_BY,
+            },
         },
         "theorem1": cert,
         "provenance": Provenance::collect(),
@@ -824,7 +834,12 @@ fn readme(art: &Artefact<'_>, lang: Lang) -> String {
     };
     let f32_note = if art.scalar == ScalarKind::F32 {
         format!(
-            "\n\nThis is an **f32** build; the certificate's cover of f32: {F32_NOT_COVERED}.\n"
+            "\n\nThis is an **f32** build; the certificate's cover of f32: {}.\n",
+            if art.certified {
+                F32_COVERED
+            } else {
+                "not covered (see `uncertified_reason`)"
+            }
         )
     } else {
         String::new()

@@ -22,7 +22,10 @@
 //! certificate is computed with [`verdict_options`] (the user's γ₁,₃ and the sample that can
 //! refute it, the scenario's budget), and a configuration — method, K_e, controller with its
 //! K_c, scalar, and the scenario's warm start — gets its verdict from [`verdict`]. f32 is
-//! not covered by the certificate ([`F32_NOT_COVERED`]).
+//! covered where Theorem 1 with the f32 rounding folded in certifies K
+//! ([`crate::certificate::precision::certify_scalar`], docs/theory.md "Certified f32"); the
+//! joint certificate has no rounding model, so an f32 loop with the K_c-iteration MPC is
+//! void ([`F32_NOT_COVERED`]).
 
 use mhe_core::WarmStart;
 use qp_iter::Method;
@@ -63,9 +66,10 @@ impl CertificateKind {
 /// different sample could refute a value in one command and not in another.
 pub const USER_GAMMA13_SEQUENCES: usize = 30;
 
-/// What the certificate says about an f32 build.
-pub const F32_NOT_COVERED: &str = "not covered: rounding of f32 enters as a disturbance of the \
-    iteration that is not in the bound";
+/// What the joint certificate says about an f32 build (Theorem 1's is
+/// [`crate::certificate::precision::certify_scalar`]).
+pub const F32_NOT_COVERED: &str = "not covered: the joint certificate (K_c-iteration MPC) has \
+    no rounding model of f32";
 
 /// The options of [`crate::certificate::certify_closed_loop`] that decide every verdict, for
 /// `solvers` on `scenario`: γ₁,₃ is the user's (`cli_gamma13`, else the scenario's
@@ -96,14 +100,7 @@ pub fn verdict_options(
 }
 
 /// The arithmetic of a configuration.
-#[derive(Debug, Clone, Copy, PartialEq, Eq, Serialize)]
-#[serde(rename_all = "lowercase")]
-pub enum Scalar {
-    /// Double precision: what the certificate is computed for.
-    F64,
-    /// Single precision: not covered ([`F32_NOT_COVERED`]).
-    F32,
-}
+pub use crate::certificate::precision::Scalar;
 
 /// One configuration whose verdict a command states.
 #[derive(Debug, Clone, Copy, PartialEq)]
@@ -131,11 +128,75 @@ pub fn verdict(
         ControllerChoice::SuboptimalMpc { iterations, .. } => Some(iterations),
         _ => None,
     };
-    Applicable::new(resolved, cert, config.method, config.controller).at_scalar(
-        config.k_e,
-        k_c,
-        config.scalar,
-    )
+    let applicable = Applicable::new(resolved, cert, config.method, config.controller);
+    let v = applicable.at(config.k_e, k_c);
+    match config.scalar {
+        Scalar::F64 => v,
+        Scalar::F32 => f32_verdict(resolved, cert, config, v),
+    }
+}
+
+/// The f32 verdict from the f64 one `v`: Theorem 1 with the f32 rounding folded in
+/// ([`crate::certificate::precision::certify_scalar`]); the joint certificate has no rounding
+/// model ([`F32_NOT_COVERED`]). The f64 K_min is kept where f32 has none.
+fn f32_verdict(
+    resolved: &ResolvedScenario,
+    cert: &ClosedLoopCertificate,
+    config: &Configuration,
+    v: PairVerdict,
+) -> PairVerdict {
+    let void = |why: String, v: PairVerdict| PairVerdict {
+        certified: Certified::Void,
+        margin: None,
+        reason: if v.reason.is_empty() {
+            format!("f32: {why}")
+        } else {
+            format!("f32: {why}; {}", v.reason)
+        },
+        ..v
+    };
+    if v.certified == Certified::Void || v.certificate != Some(CertificateKind::Theorem1) {
+        let why = match v.certificate {
+            Some(CertificateKind::Joint) => F32_NOT_COVERED.to_string(),
+            _ => "not covered: the f64 certificate is void or does not apply".to_string(),
+        };
+        return void(why, v);
+    }
+    let sc = match crate::certificate::precision::certify_scalar(
+        resolved,
+        cert,
+        config.method,
+        Scalar::F32,
+        CertificateOptions::default().k_max,
+    ) {
+        Ok(sc) => sc,
+        Err(e) => return void(format!("the rounding model cannot be computed: {e}"), v),
+    };
+    match sc.k_min {
+        Some(k_min) if config.k_e >= k_min => PairVerdict {
+            certified: Certified::Yes,
+            k_min: Some(k_min),
+            margin: None,
+            reason: String::new(),
+            ..v
+        },
+        Some(k_min) => PairVerdict {
+            certified: Certified::No,
+            k_min: Some(k_min),
+            margin: None,
+            reason: format!(
+                "f32: K = {} is below the f32 K_min = {k_min} (Theorem 1 with the f32 rounding \
+                 folded in)",
+                config.k_e
+            ),
+            ..v
+        },
+        None => void(
+            sc.reason
+                .unwrap_or_else(|| "no K certified with the f32 rounding".into()),
+            v,
+        ),
+    }
 }
 
 /// Whether Theorem 1's entry `sc` certifies some K for the scenario's configuration (its
@@ -337,25 +398,6 @@ impl Applicable {
             }
             Applicable::Joint { void_reasons, .. } => void_reasons.clone(),
             Applicable::Uncovered(r) => vec![r.clone()],
-        }
-    }
-
-    /// [`Applicable::at`] in the arithmetic `scalar`: an f32 configuration is void
-    /// ([`F32_NOT_COVERED`]), with the f64 K_min kept for information.
-    pub fn at_scalar(&self, k_e: usize, k_c: Option<usize>, scalar: Scalar) -> PairVerdict {
-        let v = self.at(k_e, k_c);
-        match scalar {
-            Scalar::F64 => v,
-            Scalar::F32 => PairVerdict {
-                certified: Certified::Void,
-                margin: None,
-                reason: if v.reason.is_empty() {
-                    format!("f32: {F32_NOT_COVERED}")
-                } else {
-                    format!("f32: {F32_NOT_COVERED}; {}", v.reason)
-                },
-                ..v
-            },
         }
     }
 

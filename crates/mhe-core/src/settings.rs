@@ -141,8 +141,9 @@ impl MheSettings {
                 .filter(|(l, u)| l.is_finite() || u.is_finite())
                 .count()
         };
-        let (state_rows, output_rows) =
-            sets.map_or((sys.nx(), sys.ny()), |s| (bounded(&s.state), bounded(&s.output)));
+        let (state_rows, output_rows) = sets.map_or((sys.nx(), sys.ny()), |s| {
+            (bounded(&s.state), bounded(&s.output))
+        });
         let bytes = crate::memory::setup_bytes(&crate::memory::SetupShape {
             nx: sys.nx(),
             nu: sys.nu(),

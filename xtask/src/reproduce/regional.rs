@@ -91,9 +91,7 @@ pub(super) fn regional_entries(
         .par_iter()
         .map(|s| {
             let entry = linear.iter().find(|l| l.solver == s.solver.name());
-            let k_lin = entry
-                .and_then(|l| l.report.as_ref())
-                .and_then(|r| r.k_lin);
+            let k_lin = entry.and_then(|l| l.report.as_ref()).and_then(|r| r.k_lin);
             let mut e = regional_entry(resolved, s.solver, &options, s.k_min, k_lin);
             e.k_lin_not_computed = match entry {
                 Some(l) if l.report.is_none() => Some(

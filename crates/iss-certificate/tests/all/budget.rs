@@ -202,7 +202,10 @@ fn a_budget_cut_names_the_phase_its_estimate_and_the_value_to_set() {
 
 /// A quadrotor-sized plant (n_x = 12, n_u = 4) as in `scenarios/quadrotor.toml`.
 fn quadrotor_with_mpc_horizon(n: usize) -> String {
-    let path = concat!(env!("CARGO_MANIFEST_DIR"), "/../../scenarios/quadrotor.toml");
+    let path = concat!(
+        env!("CARGO_MANIFEST_DIR"),
+        "/../../scenarios/quadrotor.toml"
+    );
     let text = std::fs::read_to_string(path).expect("the shipped quadrotor");
     let mut in_mpc = false;
     text.lines()
@@ -231,7 +234,13 @@ fn a_condensed_mpc_beyond_the_memory_limit_is_refused_before_it_is_built() {
         .expect_err("N = 1000 is beyond the limit")
         .to_string();
     assert!(t0.elapsed().as_secs_f64() < 2.0, "{:?}", t0.elapsed());
-    for part in ["mpc.horizon", "is 1000", "GiB", "limit of 2 GiB", "the largest N within it is"] {
+    for part in [
+        "mpc.horizon",
+        "is 1000",
+        "GiB",
+        "limit of 2 GiB",
+        "the largest N within it is",
+    ] {
         assert!(e.contains(part), "{part:?} not in {e}");
     }
     // The largest N named is accepted, the next refused.
@@ -255,7 +264,13 @@ fn unbounded_24_state_plant(m: usize, state_box: bool) -> String {
     let n = 24;
     let row = |i: usize, v: f64, len: usize| {
         let r: Vec<String> = (0..len)
-            .map(|j| if j == i { format!("{v:?}") } else { "0.0".into() })
+            .map(|j| {
+                if j == i {
+                    format!("{v:?}")
+                } else {
+                    "0.0".into()
+                }
+            })
             .collect();
         format!("[{}]", r.join(", "))
     };
@@ -363,11 +378,17 @@ fn a_certificate_cut_by_the_budget_is_not_computed_and_the_advised_budget_comput
     assert!(nc.needed_seconds > 0.01, "{nc:?}");
     // The premise's fix and the γ₁,₃ report say "not computed", not "void".
     let g = cut.gamma13.to_string();
-    assert!(g.contains("not computed within the budget") && !g.contains("void"), "{g}");
+    assert!(
+        g.contains("not computed within the budget") && !g.contains("void"),
+        "{g}"
+    );
     let v = verdict(Some(s), None, &[]);
     assert!(v.contains("not computed within the budget"), "{v}");
     assert!(v.contains("raise `certificate.phase_seconds` to ≈"), "{v}");
-    assert!(!v.contains("void") && !v.contains("certifies nothing"), "{v}");
+    assert!(
+        !v.contains("void") && !v.contains("certifies nothing"),
+        "{v}"
+    );
     let json = serde_json::to_value(s).expect("serialises");
     assert_eq!(json["not_computed"]["phase"], "γ₁,₃ free-set enumeration");
     assert!(json["void_reasons"].as_array().is_some_and(Vec::is_empty));
@@ -375,7 +396,11 @@ fn a_certificate_cut_by_the_budget_is_not_computed_and_the_advised_budget_comput
     let full =
         iss_certificate::certificate::certify_closed_loop(&r, &opts(nc.raise_to())).expect("runs");
     let f = &full.solvers[0];
-    assert!(f.k_min.is_some() && f.not_computed.is_none(), "{:?}", f.void_reasons);
+    assert!(
+        f.k_min.is_some() && f.not_computed.is_none(),
+        "{:?}",
+        f.void_reasons
+    );
     assert!(full.gamma13.used.is_finite());
     // A void reason that does not depend on the budget stays void: the chain at N = 3 has
     // no contracting metric over all its free sets either.

@@ -446,11 +446,17 @@ pub fn run_job(job: &Job, settings: &Settings) -> Result<Outcome> {
                         .find(|r| r.k_source == KSource::ComputedKMin)
                         .map_or("no simulation (LMI (2) gave no P)", |r| r.reason.as_str())
                 ),
-                Some(sc) => format!(
-                    "the certificate of {} is void ({}): there is no certified K to check",
-                    solver.name(),
-                    short_reason(sc)
-                ),
+                Some(sc) => match &sc.not_computed {
+                    Some(nc) => format!(
+                        "the certificate of {} is {nc}: there is no certified K to check",
+                        solver.name()
+                    ),
+                    None => format!(
+                        "the certificate of {} is void ({}): there is no certified K to check",
+                        solver.name(),
+                        short_reason(sc)
+                    ),
+                },
                 None => "the scenario's solver was not certified".into(),
             }),
             solver: solver.name().into(),

@@ -294,7 +294,9 @@ impl IssAnalysis {
             fix: if inputs.phi_rate < 1.0 {
                 String::new()
             } else {
-                "the solver does not contract: reduce the step size".into()
+                "the solver's certified rate is ≥ 1 (it does not contract): see the method's \
+                 own fix (`phi_rate_fix`)"
+                    .into()
             },
             not_evaluated: None,
         });
@@ -501,5 +503,35 @@ impl IssAnalysis {
             }
         }
         Some(hi)
+    }
+}
+
+/// The fix of a failed "phi rate < 1" for `method` (issue 37 item 13: "reduce the step size"
+/// was offered for ADMM, which has no step): what sets each family's certified rate, and the
+/// method to switch to. `general_rows`: the MHE's QP has general rows (finite state or output
+/// bounds), where ADMM runs on a split with no certified rate.
+pub fn phi_rate_fix(method: qp_iter::Method, general_rows: bool) -> String {
+    let name = method.name();
+    match method.family() {
+        "pg" => format!(
+            "{name} does not contract at its step: the certified rate needs a step in \
+             (0, 2/L); drop `step` from mhe.method for the optimal 2/(L + μ), or use fista"
+        ),
+        "fista" => format!(
+            "{name} has no parameter that sets its rate (V-FISTA with the problem's L and μ): \
+             use pg or admm, or improve the conditioning of the MHE's weights"
+        ),
+        "admm" if general_rows => format!(
+            "{name} runs on the split [I; G]z when the MHE has state or output bounds (general \
+             rows), and that split has no certified rate whatever its penalty ρ and relaxation \
+             α: use pg or fista (their certificate holds with the bounds), or remove the \
+             finite bounds of sets.state / sets.output"
+        ),
+        "admm" => format!(
+            "{name}'s rate is set by its penalty ρ and relaxation α (it has no step size): use \
+             ρ = √(μL), the default (`mhe.method = \"admm\"` or \"admm-pr\" without `rho`), \
+             α ∈ (0, 2), or use pg or fista"
+        ),
+        _ => format!("{name} does not contract: use pg or fista"),
     }
 }

@@ -316,7 +316,11 @@ pub fn certified_gains(
     // not exist for this scenario, or no K up to the search limit).
     let Some(k_min) = solver.k_min else {
         return Err(AsymptoticVoid::Void {
-            reasons: solver.void_reasons.clone(),
+            // Cut by the budget: the sentence says "not computed within the budget".
+            reasons: match &solver.not_computed {
+                Some(nc) => vec![nc.to_string()],
+                None => solver.void_reasons.clone(),
+            },
         });
     };
     let analysis = &solver.analysis;

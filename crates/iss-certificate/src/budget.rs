@@ -6,7 +6,7 @@
 //!
 //! | phase | beyond the budget |
 //! | --- | --- |
-//! | γ₁,₃ free-set enumeration | skipped: the polynomial (S-procedure) bound alone is used, and the skip says so |
+//! | γ₁,₃ free-set enumeration | skipped: the polynomial (S-procedure) bound alone is used, and the skip says so; a Theorem 1 verdict with no K_min that the enumeration could change is [`NotComputed`] ("not computed within the budget", with the estimate to raise the key to), never void |
 //! | ρ_lin (the linear stability boundary, `reproduce`) | skipped with the estimate, the budget and the key |
 //! | L_Φ sampling (a lower estimate; no certificate depends on it) | fewer pairs, and `l_phi.pairs_reduced` says so |
 //! | the regional certificate (`crate::regional`: its two stages at one K, or a whole K_reg search) | not computed: the void reason names the stage, its estimate, what is left and the key |
@@ -97,6 +97,48 @@ pub fn check_required_phases(
         }
     }
     Ok(())
+}
+
+/// A result the analysis budget stopped (issue 37 item 6): *not computed within the
+/// budget*, never "void" — a void certificate is a proof that no K works, this is not. The
+/// estimate is the one the phase was skipped by (its plan, before it ran), so raising
+/// `certificate.phase_seconds` to [`NotComputed::raise_to`] runs it.
+#[derive(Debug, Clone, PartialEq, Serialize)]
+pub struct NotComputed {
+    /// The phase that was not run (`"γ₁,₃ free-set enumeration"`).
+    pub phase: String,
+    /// Its estimated seconds of one core (from the dimensions, before it ran).
+    pub needed_seconds: f64,
+    /// The budget it exceeded (`certificate.phase_seconds`).
+    pub budget_seconds: f64,
+}
+
+impl NotComputed {
+    /// The value of `certificate.phase_seconds` that runs the phase: its estimate rounded up
+    /// to two significant digits (the estimates are right to within a factor of a few, so more
+    /// digits would be noise).
+    pub fn raise_to(&self) -> f64 {
+        let x = self.needed_seconds;
+        if !(x.is_finite() && x > 0.0) {
+            return x;
+        }
+        let scale = 10f64.powf(x.log10().floor() - 1.0);
+        (x / scale).ceil() * scale
+    }
+}
+
+impl std::fmt::Display for NotComputed {
+    fn fmt(&self, f: &mut std::fmt::Formatter<'_>) -> std::fmt::Result {
+        write!(
+            f,
+            "not computed within the budget: the {} is estimated at ≈ {} s of one core, above \
+             `certificate.phase_seconds` = {} s (raise `certificate.phase_seconds` to ≈ {})",
+            self.phase,
+            secs(self.needed_seconds),
+            secs(self.budget_seconds),
+            secs(self.raise_to())
+        )
+    }
 }
 
 /// `x` with 3 significant digits in scientific notation (`2.00e10`), or `inf`.

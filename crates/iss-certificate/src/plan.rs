@@ -102,7 +102,23 @@ fn theorem1_verdict(
         || "the scenario's method".to_string(),
         |c| c.solver.to_string(),
     );
+    let not_computed = cert.and_then(|s| s.not_computed.as_ref());
     let head = match cert.and_then(|s| s.k_min) {
+        None if not_computed.is_some() => {
+            let sims = if runs.is_empty() {
+                "nothing was simulated".to_string()
+            } else {
+                let ks: Vec<String> = runs.iter().map(|r| r.k.to_string()).collect();
+                format!(
+                    "the loop was simulated anyway (K = {}) without a certificate",
+                    ks.join(", ")
+                )
+            };
+            format!(
+                "Theorem 1's verdict for {name} is {}; {sims}.",
+                not_computed.map_or_else(String::new, ToString::to_string)
+            )
+        }
         Some(k) => {
             let check = match trajectory_check {
                 Some(true) => "Props. 1 and 3 hold at every step of the simulation at K_min",

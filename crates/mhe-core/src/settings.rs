@@ -91,8 +91,23 @@ pub struct RawMhe {
 }
 
 impl MheSettings {
-    /// Validates the `[mhe]` table against the plant; errors name the key (`mhe.eta`).
+    /// Validates the `[mhe]` table against the plant; errors name the key (`mhe.eta`). The
+    /// sets are not known here: the memory check of `mhe.horizon` counts every state and
+    /// output as bounded (an upper bound; [`MheSettings::from_raw_with_sets`] counts the
+    /// scenario's own).
     pub fn from_raw(raw: &RawMhe, sys: &LtiSystem) -> lti_model::Result<Self> {
+        Self::from_raw_with_sets(raw, sys, None)
+    }
+
+    /// [`MheSettings::from_raw`] with the scenario's sets: the memory check of `mhe.horizon`
+    /// counts the general rows the MHE actually has (a finite state or output bound each), so
+    /// a plant without state bounds is not refused for rows it never builds (issue 37 item
+    /// 13: a 24-node rod at M = 30).
+    pub fn from_raw_with_sets(
+        raw: &RawMhe,
+        sys: &LtiSystem,
+        sets: Option<&lti_model::spec::ScenarioSets>,
+    ) -> lti_model::Result<Self> {
         lti_model::work_count::record(lti_model::work_count::Work::MheSettingsValidated);
         let horizon = required("mhe.horizon", raw.horizon, "horizon = 5")?;
         let horizon = at_least_one("mhe.horizon", horizon, "the estimation horizon M")?;
@@ -117,15 +132,25 @@ impl MheSettings {
         // Before the size: a horizon the conditioning rules out is refused for that reason.
         check_window_conditioning(horizon, eta, sys)?;
         // The setup's heap from the sizes the code allocates by (crate::memory): every
-        // window's QP, one Φ per window, the exact solvers of ε_t. The sets are not known
-        // here: every state and output counted as bounded (an upper bound).
+        // window's QP, one Φ per window, the exact solvers of ε_t. Without the sets every
+        // state and output is counted as bounded (an upper bound).
+        let bounded = |b: &lti_model::BoxSet| {
+            b.lower()
+                .iter()
+                .zip(b.upper())
+                .filter(|(l, u)| l.is_finite() || u.is_finite())
+                .count()
+        };
+        let (state_rows, output_rows) = sets.map_or((sys.nx(), sys.ny()), |s| {
+            (bounded(&s.state), bounded(&s.output))
+        });
         let bytes = crate::memory::setup_bytes(&crate::memory::SetupShape {
             nx: sys.nx(),
             nu: sys.nu(),
             ny: sys.ny(),
             nw: sys.nw(),
-            state_rows: sys.nx(),
-            output_rows: sys.ny(),
+            state_rows,
+            output_rows,
             horizon,
             method: raw.method.unwrap_or_default(),
             exact_solve: true,

@@ -27,7 +27,10 @@ pub(super) fn comparison(cert: &ClosedLoopCertificate, solver: Method) -> Vec<Co
     let k = match sc {
         Some(s) => match s.k_min {
             Some(k) => format!("K_min = {k} ({})", s.solver.name()),
-            None => format!("none: void ({})", short_reason(s)),
+            None => match &s.not_computed {
+                Some(nc) => format!("none: {nc}"),
+                None => format!("none: void ({})", short_reason(s)),
+            },
         },
         None => "not computed".into(),
     };

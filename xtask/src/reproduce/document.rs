@@ -80,8 +80,12 @@ pub struct SolverSummary {
     pub certified: bool,
     /// Smallest certified K; null when void.
     pub k_min: Option<usize>,
-    /// Why there is no K_min (empty when there is one).
+    /// Why there is no K_min (empty when there is one, and when it was not computed).
     pub void_reasons: Vec<String>,
+    /// Not certified and not void: the analysis budget stopped the phase that decides it
+    /// (phase, estimated seconds, budget; docs/reproduce-output.md). Omitted otherwise.
+    #[serde(skip_serializing_if = "Option::is_none")]
+    pub not_computed: Option<iss_certificate::budget::NotComputed>,
     /// Every premise with pass/fail, value, margin and fix.
     pub premises: Vec<Premise>,
     /// φ(K) = prefactor · rateᴷ.
@@ -110,6 +114,7 @@ impl SolverSummary {
             certified: iss_certificate::coverage::solver_certified(scenario, sc, controller),
             k_min: sc.k_min,
             void_reasons: sc.void_reasons.clone(),
+            not_computed: sc.not_computed.clone(),
             premises: sc.analysis.premises.clone(),
             phi_rate: sc.phi_rate,
             phi_prefactor: sc.phi_prefactor,

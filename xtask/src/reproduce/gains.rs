@@ -113,7 +113,10 @@ pub(super) fn report(
                 },
                 None => (
                     None,
-                    Some(format!("Theorem 1 is void: {}", s.void_reasons.join("; "))),
+                    Some(match &s.not_computed {
+                        Some(nc) => format!("Theorem 1 is {nc}"),
+                        None => format!("Theorem 1 is void: {}", s.void_reasons.join("; ")),
+                    }),
                 ),
             };
             let entry = regional.iter().find(|r| r.solver == name);

@@ -25,8 +25,14 @@ pub struct TriedK {
 pub struct RegionalEntry {
     /// The method.
     pub solver: String,
-    /// K_lin of `linear[]` (null: none on the grid, or not computed), for the ratios.
+    /// K_lin of `linear[]` (null: none on the grid, or not computed — then
+    /// `k_lin_not_computed` says why), for the ratios.
     pub k_lin: Option<usize>,
+    /// Why ρ_lin, hence K_lin, was not computed for this method (the `error` of its
+    /// `linear[]` entry: above n_z = 128 only the scenario's method, the budget, …); omitted
+    /// when it was computed, so a null `k_lin` without it means "none on the grid".
+    #[serde(skip_serializing_if = "Option::is_none")]
+    pub k_lin_not_computed: Option<String>,
     /// Theorem 1's K_min (null: void or beyond its search range): it caps the search.
     pub k_min: Option<usize>,
     /// K_reg: the smallest K the search found whose region contains the scenario's own
@@ -84,12 +90,19 @@ pub(super) fn regional_entries(
     cert.solvers
         .par_iter()
         .map(|s| {
-            let k_lin = linear
-                .iter()
-                .find(|l| l.solver == s.solver.name())
-                .and_then(|l| l.report.as_ref())
-                .and_then(|r| r.k_lin);
-            regional_entry(resolved, s.solver, &options, s.k_min, k_lin)
+            let entry = linear.iter().find(|l| l.solver == s.solver.name());
+            let k_lin = entry.and_then(|l| l.report.as_ref()).and_then(|r| r.k_lin);
+            let mut e = regional_entry(resolved, s.solver, &options, s.k_min, k_lin);
+            e.k_lin_not_computed = match entry {
+                Some(l) if l.report.is_none() => Some(
+                    l.error
+                        .clone()
+                        .unwrap_or_else(|| "not computed".to_string()),
+                ),
+                Some(_) => None,
+                None => Some("not computed: no ρ_lin entry for this method".to_string()),
+            };
+            e
         })
         .collect()
 }
@@ -113,6 +126,7 @@ pub(super) fn regional_entry(
     RegionalEntry {
         solver: method.name().into_owned(),
         k_lin,
+        k_lin_not_computed: None,
         k_min,
         k_reg: o.k_reg,
         search_max: o.search_max,
@@ -190,6 +204,11 @@ pub(super) fn summary(entries: &[RegionalEntry]) -> String {
         _ => "-".into(),
     };
     for e in entries {
+        // "not computed", never "none", when ρ_lin was not computed (issue 37 item 13).
+        let k_lin = match (&e.k_lin_not_computed, e.k_lin) {
+            (Some(_), _) => "not computed".to_string(),
+            (None, v) => k(v),
+        };
         let reg = match e.k_reg {
             Some(r) => r.to_string(),
             None if e.refuted_every_k.is_some() => "none at any K".into(),
@@ -204,10 +223,14 @@ pub(super) fn summary(entries: &[RegionalEntry]) -> String {
             s,
             "  {:<14} K_lin = {}, K_reg = {reg}, {k_min}; K_reg/K_lin = {}, K_min/K_lin = {}",
             e.solver,
-            k(e.k_lin),
+            k_lin,
             ratio(e.k_reg, e.k_lin),
             ratio(e.k_min, e.k_lin),
         );
+        if let Some(why) = &e.k_lin_not_computed {
+            let why = why.strip_prefix("not computed: ").unwrap_or(why);
+            let _ = writeln!(s, "      K_lin not computed: {why}");
+        }
         // Why not K_reg ≤ 2·K_lin (the issue's target), when the search evaluated 2·K_lin.
         if let (Some(l), Some(p)) = (e.k_lin, &e.at_two_k_lin) {
             if e.k_reg.is_none_or(|r| r > 2 * l) && !p.contains {

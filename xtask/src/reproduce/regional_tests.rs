@@ -180,3 +180,35 @@ fn k_reg_above_twice_k_lin_names_the_row_that_limits_the_region_there() {
     assert!(unprobed.at_two_k_lin.is_none());
     assert_eq!(unprobed.k_reg, e.k_reg);
 }
+
+/// Issue 37 item 13: above n_z = 128 ρ_lin is computed for the scenario's method only; the
+/// others' K_lin is "not computed" with the reason, in the summary and in the JSON — never
+/// "K_lin = none", which reads as "no K on the grid is stable".
+#[test]
+fn a_k_lin_not_computed_says_so_and_why() {
+    let res = stand_in();
+    let o = RegionalOptions::from_scenario(&res, ControllerChoice::ExactMpc);
+    let why = "not computed: the MHE window has n_z = 300 > 128 variables, so ρ_lin is computed \
+               for the scenario's method (admm-pr) only";
+    let e = RegionalEntry {
+        k_lin_not_computed: Some(why.to_string()),
+        ..regional_entry(&res, Method::ADMM_PR, &o, Some(42), None)
+    };
+    let text = summary(std::slice::from_ref(&e));
+    assert!(text.contains("K_lin = not computed,"), "{text}");
+    assert!(!text.contains("K_lin = none"), "{text}");
+    assert!(
+        text.contains("K_lin not computed: the MHE window has n_z = 300 > 128"),
+        "{text}"
+    );
+    let json = serde_json::to_value(&e).expect("an entry serialises");
+    assert_eq!(json["k_lin_not_computed"], why);
+    // Computed and none on the grid: the key is absent and the table says "none".
+    let none = RegionalEntry {
+        k_lin_not_computed: None,
+        ..e
+    };
+    assert!(summary(std::slice::from_ref(&none)).contains("K_lin = none,"));
+    let json = serde_json::to_value(&none).expect("an entry serialises");
+    assert!(json.get("k_lin_not_computed").is_none());
+}

@@ -169,6 +169,14 @@ pub(super) fn summarize(d: &CertificateDocument, files: &[PathBuf], notes: &[Str
                     fmt_opt(sv.k_min_with_sampled_l_phi)
                 );
             }
+            // Cut by the analysis budget: not void (the sentence names the key and value).
+            None if sv.not_computed.is_some() => {
+                let nc = sv
+                    .not_computed
+                    .as_ref()
+                    .map_or_else(String::new, ToString::to_string);
+                let _ = writeln!(s, "  {:<14} {nc}{mark}", sv.solver);
+            }
             None => {
                 // The fixes are printed with the premises above; here the names only.
                 let failed: Vec<&str> = sv

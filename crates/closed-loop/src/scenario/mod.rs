@@ -265,7 +265,7 @@ fn validate(raw: RawScenario) -> Result<Scenario> {
     let mhe = raw
         .mhe
         .as_ref()
-        .map(|m| MheSettings::from_raw(m, &plant))
+        .map(|m| MheSettings::from_raw_with_sets(m, &plant, Some(&sets)))
         .transpose()?;
     let mpc = raw
         .mpc

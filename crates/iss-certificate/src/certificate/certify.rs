@@ -23,6 +23,34 @@ fn map_certificates(
         .collect()
 }
 
+/// The verdict the analysis budget cut short (issue 37 item 6): no K_min, the certified
+/// γ₁,₃'s free-set enumeration skipped for `certificate.phase_seconds`, and nothing else
+/// that voids the certificate whatever γ₁,₃ is (a structural reason, or a premise other than
+/// "gamma13 finite"). The enumeration gives a γ₁,₃ no larger than the family bound, so with
+/// it the certificate may exist: "not computed", with the enumeration's estimate, not "void".
+fn budget_cut(
+    k_min: Option<usize>,
+    analysis: &IssAnalysis,
+    gamma13: &Gamma13Report,
+    structurally_void: bool,
+) -> Option<crate::budget::NotComputed> {
+    if k_min.is_some() || structurally_void {
+        return None;
+    }
+    // A refuted user value (or any other void reason of γ₁,₃ than the budget) stands.
+    let cut = match &gamma13.void {
+        None | Some(crate::gamma13::Gamma13Void::NotComputedWithinBudget { .. }) => {
+            gamma13.certified.as_ref()?.over_budget.clone()?
+        }
+        Some(_) => return None,
+    };
+    analysis
+        .violated()
+        .iter()
+        .all(|p| p.name == "gamma13 finite")
+        .then_some(cut)
+}
+
 /// Computes the closed-loop certificate of a scenario (needs `[mhe]` and `[mpc]`).
 ///
 /// Errors only for bad input (missing sections, invalid data); an infeasible LMI or a
@@ -248,6 +276,15 @@ pub fn certify_closed_loop_with(
                 }
             }
         }
+        // A rate ≥ 1: the fix this method has (ADMM has no step size; issue 37 item 13).
+        let general_rows = problem
+            .as_ref()
+            .is_some_and(|pr| pr.windows().iter().any(|w| w.qp().general().is_some()));
+        for p in analysis.premises.iter_mut() {
+            if p.name == "phi rate < 1" && !p.holds && p.not_evaluated.is_none() {
+                p.fix = crate::analysis::phi_rate_fix(solver, general_rows);
+            }
+        }
         // Constants whose certified value does not exist for this scenario (issue 15:
         // bounded 𝒳 / 𝒴 in the MHE, state constraints in the MPC): void with the reason.
         let structural_void: Vec<String> = problem
@@ -260,6 +297,7 @@ pub fn certify_closed_loop_with(
                     .map(|r| format!("L_π, γ₁,₃: {r}")),
             )
             .collect();
+        let structurally_void = !structural_void.is_empty();
         let k_min = if structural_void.is_empty() {
             analysis.k_min(opts.k_max)
         } else {
@@ -277,6 +315,10 @@ pub fn certify_closed_loop_with(
                 opts.k_max
             ));
         }
+        let not_computed = budget_cut(k_min, &analysis, &gamma13, structurally_void);
+        if not_computed.is_some() {
+            void_reasons.clear();
+        }
         let sampled_analysis = IssAnalysis::new(IssInputs {
             l_phi: l_phi.sampled,
             ..inputs
@@ -291,6 +333,7 @@ pub fn certify_closed_loop_with(
             analysis,
             k_min,
             void_reasons,
+            not_computed,
             k_min_with_sampled_l_phi: if opts.lipschitz_pairs == 0
                 || mpc.certificate_void_reason().is_some()
             {

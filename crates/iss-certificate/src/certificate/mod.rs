@@ -14,7 +14,8 @@
 //!
 //! The controller analysed is the exact MPC (the paper's setting). A violated premise makes
 //! a solver's certificate void: `k_min` is `None` and `void_reasons` says why; a K is never
-//! computed from a void bound.
+//! computed from a void bound. A verdict the analysis budget cut short is not void:
+//! `not_computed` says which phase, its estimate and the budget that computes it.
 //!
 //! [`check_trajectory`] evaluates the trajectory inequalities of Prop. 1 (ε_t) and Prop. 3
 //! (e_t) on a simulated trace with the reported constants, both sides computed from the trace,
@@ -130,8 +131,14 @@ pub struct SolverCertificate {
     pub k_min: Option<usize>,
     /// Constants and slopes at K_min.
     pub at_k_min: Option<GainsAtK>,
-    /// Why there is no K_min (empty when there is one).
+    /// Why there is no K_min (empty when there is one, and when it was not computed).
     pub void_reasons: Vec<String>,
+    /// No K_min, and not void either: the analysis budget stopped a phase whose result
+    /// could change the verdict (the γ₁,₃ free-set enumeration; issue 37 item 6). The
+    /// verdict is "not computed within the budget", with the `certificate.phase_seconds`
+    /// that computes it. Omitted otherwise.
+    #[serde(skip_serializing_if = "Option::is_none")]
+    pub not_computed: Option<crate::budget::NotComputed>,
     /// K_min with the *sampled* L_Φ in place of the certified bound — not a certificate,
     /// reported to show how much of K_min is due to L_Φ's conservatism.
     pub k_min_with_sampled_l_phi: Option<usize>,

@@ -171,6 +171,14 @@ pub enum Gamma13Void {
     /// The MPC has output constraints C x_k ∈ 𝒴_c (`mpc.output`) and no state constraints:
     /// the same box-input-only analysis does not apply, so no certified γ₁,₃ exists.
     OutputConstrainedMpc,
+    /// No metric contracts by the family bound, and the free-set enumeration that could
+    /// find one was not run for the analysis budget: not computed, not void (issue 37).
+    NotComputedWithinBudget {
+        /// The smallest λ_S of the family bounds.
+        best_contraction: f64,
+        /// The skipped enumeration, its estimate and the budget.
+        not_computed: crate::budget::NotComputed,
+    },
     /// A user value below the sampled lower estimate: provably not a valid γ₁,₃.
     UserValueRefuted {
         /// The value supplied.
@@ -242,6 +250,15 @@ impl std::fmt::Display for Gamma13Void {
                     )
                 }
             }
+            Self::NotComputedWithinBudget {
+                best_contraction,
+                not_computed,
+            } => write!(
+                f,
+                "{not_computed}; by the family bound alone no metric contracts (best λ_S = {}), \
+                 and the enumeration decides whether one does",
+                sig4(*best_contraction)
+            ),
             Self::UserValueRefuted {
                 user,
                 sampled_lower,
@@ -315,6 +332,10 @@ pub struct Gamma13Certificate {
     pub void: Option<Gamma13Void>,
     /// Computations not run, with the reason.
     pub skipped: Vec<SkippedComputation>,
+    /// The free-set enumeration skipped for the analysis budget (not for the cap on s): a
+    /// verdict the enumeration could change is "not computed within the budget", not void.
+    #[serde(skip_serializing_if = "Option::is_none")]
+    pub over_budget: Option<crate::budget::NotComputed>,
 }
 
 fn void_certificate(
@@ -343,6 +364,7 @@ fn void_certificate(
         enumerated: false,
         void: Some(void),
         skipped,
+        over_budget: None,
     }
 }
 

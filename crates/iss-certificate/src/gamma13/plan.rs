@@ -266,6 +266,7 @@ impl<'a> Gamma13Plan<'a> {
             }
             None => None,
         };
+        let mut over_budget = None;
         let (enumerated, free_sets) = match &vertex {
             Some(v) => (true, v.free_sets),
             None if s > max_vars.min(30) => {
@@ -280,6 +281,11 @@ impl<'a> Gamma13Plan<'a> {
                 (false, 0)
             }
             None => {
+                over_budget = Some(crate::budget::NotComputed {
+                    phase: "γ₁,₃ free-set enumeration".into(),
+                    needed_seconds: seconds,
+                    budget_seconds: phase_seconds,
+                });
                 skipped.push(SkippedComputation {
                     computation: "free-set enumeration".into(),
                     reason: format!(
@@ -382,11 +388,19 @@ impl<'a> Gamma13Plan<'a> {
             let b = candidates
                 .iter()
                 .min_by(|x, y| worst(x).total_cmp(&worst(y)));
-            Some(Gamma13Void::NoContractingMetric {
-                best_contraction: b.map_or(f64::INFINITY, worst),
-                metric: b.map_or_else(|| "none".into(), |c| c.metric.clone()),
-                enumerated,
-                pattern_blocks: depth,
+            let best_contraction = b.map_or(f64::INFINITY, worst);
+            Some(match &over_budget {
+                // The enumeration could find a contracting metric: not proved void.
+                Some(nc) => Gamma13Void::NotComputedWithinBudget {
+                    best_contraction,
+                    not_computed: nc.clone(),
+                },
+                None => Gamma13Void::NoContractingMetric {
+                    best_contraction,
+                    metric: b.map_or_else(|| "none".into(), |c| c.metric.clone()),
+                    enumerated,
+                    pattern_blocks: depth,
+                },
             })
         };
         Ok(Gamma13Certificate {
@@ -409,6 +423,7 @@ impl<'a> Gamma13Plan<'a> {
             enumerated,
             void,
             skipped,
+            over_budget,
         })
     }
 }

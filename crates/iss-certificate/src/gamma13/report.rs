@@ -187,6 +187,8 @@ impl std::fmt::Display for Gamma13Report {
     fn fmt(&self, f: &mut std::fmt::Formatter<'_>) -> std::fmt::Result {
         write!(f, "γ₁,₃ (Assumption 4): ")?;
         match (&self.void, &self.certified) {
+            // Stopped by the budget: not void (its sentence says "not computed").
+            (Some(v @ Gamma13Void::NotComputedWithinBudget { .. }), _) => write!(f, "{v}")?,
             (Some(v), _) => write!(f, "void: {v}")?,
             (None, Some(c)) => write!(
                 f,

@@ -164,3 +164,252 @@ fn a_required_phase_beyond_its_limit_refuses_the_certificate_before_it_starts() 
     };
     assert!(check_required_phases(&s, r.mpc().ok(), &enough).is_ok());
 }
+
+/// Issue 37 item 6: a result the budget stopped is "not computed within the budget" with the
+/// phase, its estimate and the value of `certificate.phase_seconds` that computes it — never
+/// "void".
+#[test]
+fn a_budget_cut_names_the_phase_its_estimate_and_the_value_to_set() {
+    use iss_certificate::budget::NotComputed;
+    let nc = NotComputed {
+        phase: "γ₁,₃ free-set enumeration".into(),
+        needed_seconds: 672.3,
+        budget_seconds: 10.0,
+    };
+    // Rounded up (two digits): the value suffices for the estimate.
+    assert_eq!(nc.raise_to(), 680.0);
+    assert!(nc.raise_to() >= nc.needed_seconds);
+    let s = nc.to_string();
+    for part in [
+        "not computed within the budget",
+        "γ₁,₃ free-set enumeration",
+        "≈ 672 s",
+        "`certificate.phase_seconds` = 10.0 s",
+        "raise `certificate.phase_seconds` to ≈ 680",
+    ] {
+        assert!(s.contains(part), "{part:?} not in {s}");
+    }
+    assert!(!s.contains("void"), "{s}");
+    for x in [0.0123, 1.0, 9.99, 10.01, 123.4, 5.5e4] {
+        let r = NotComputed {
+            needed_seconds: x,
+            ..nc.clone()
+        }
+        .raise_to();
+        assert!(r >= x && r <= 1.1 * x + 1e-12, "{x} → {r}");
+    }
+}
+
+/// A quadrotor-sized plant (n_x = 12, n_u = 4) as in `scenarios/quadrotor.toml`.
+fn quadrotor_with_mpc_horizon(n: usize) -> String {
+    let path = concat!(
+        env!("CARGO_MANIFEST_DIR"),
+        "/../../scenarios/quadrotor.toml"
+    );
+    let text = std::fs::read_to_string(path).expect("the shipped quadrotor");
+    let mut in_mpc = false;
+    text.lines()
+        .map(|l| {
+            if l.starts_with('[') {
+                in_mpc = l.trim() == "[mpc]";
+            }
+            if in_mpc && l.starts_with("horizon") {
+                format!("horizon = {n}")
+            } else {
+                l.to_string()
+            }
+        })
+        .collect::<Vec<_>>()
+        .join("\n")
+}
+
+/// Issue 37 item 13 (a): `certify` ran 137 s to 2.4 GB before refusing the quadrotor at
+/// `mpc.horizon = 1000`. The condensed MPC's dense Q̄ alone is (N·n_x)² = 1.44·10⁸ entries:
+/// the scenario is refused while it is read, before anything is built, naming the key, the
+/// limit and the largest N within it.
+#[test]
+fn a_condensed_mpc_beyond_the_memory_limit_is_refused_before_it_is_built() {
+    let t0 = std::time::Instant::now();
+    let e = Scenario::from_toml_str(&quadrotor_with_mpc_horizon(1000))
+        .expect_err("N = 1000 is beyond the limit")
+        .to_string();
+    assert!(t0.elapsed().as_secs_f64() < 2.0, "{:?}", t0.elapsed());
+    for part in [
+        "mpc.horizon",
+        "is 1000",
+        "GiB",
+        "limit of 2 GiB",
+        "the largest N within it is",
+    ] {
+        assert!(e.contains(part), "{part:?} not in {e}");
+    }
+    // The largest N named is accepted, the next refused.
+    let n_max: usize = e
+        .split("the largest N within it is ")
+        .nth(1)
+        .and_then(|r| r.split(':').next())
+        .and_then(|n| n.trim().parse().ok())
+        .expect("N_max in the message");
+    assert!(n_max > 100 && n_max < 1000, "{n_max}");
+    assert!(Scenario::from_toml_str(&quadrotor_with_mpc_horizon(n_max)).is_ok());
+    assert!(Scenario::from_toml_str(&quadrotor_with_mpc_horizon(n_max + 1)).is_err());
+    // The estimate counts Q̄: at N = 1000 it is above the measured 2.4 GB peak's 2.2 GiB.
+    let bytes = mpc_core::settings::condensed_bytes(1000, 12, 4);
+    assert!(bytes > 2.2 * (1u64 << 30) as f64, "{bytes:e}");
+}
+
+/// A 24-state plant without state bounds: 27 disturbance entries, 3 outputs, `mhe.horizon`
+/// = `m`, ADMM; `state_box` adds |x_i| ≤ 10 on every state.
+fn unbounded_24_state_plant(m: usize, state_box: bool) -> String {
+    let n = 24;
+    let row = |i: usize, v: f64, len: usize| {
+        let r: Vec<String> = (0..len)
+            .map(|j| {
+                if j == i {
+                    format!("{v:?}")
+                } else {
+                    "0.0".into()
+                }
+            })
+            .collect();
+        format!("[{}]", r.join(", "))
+    };
+    let a: Vec<String> = (0..n).map(|i| row(i, 0.5, n)).collect();
+    let b: Vec<String> = (0..n).map(|i| row(i % 2, 0.1, 2)).collect();
+    let c: Vec<String> = [0, 12, 23].iter().map(|&i| row(i, 1.0, n)).collect();
+    let zeros = vec!["0.0"; n].join(", ");
+    let state = if state_box {
+        "state = { lower = -10.0, upper = 10.0 }\n".to_string()
+    } else {
+        String::new()
+    };
+    format!(
+        "name = \"rod-24\"\n[plant]\na = [{}]\nb = [{}]\nc = [{}]\n[sets]\n{state}\
+         input = {{ lower = -2.0, upper = 2.0 }}\ndisturbance = {{ lower = -0.01, upper = 0.01 }}\n\
+         [simulation]\nx0 = [{zeros}]\nsteps = 10\n[mhe]\nhorizon = {m}\neta = 0.8\n\
+         iterations = 10\nmethod = \"admm\"\n[mpc]\nhorizon = 5\n",
+        a.join(", "),
+        b.join(", "),
+        c.join(", ")
+    )
+}
+
+/// Issue 37 item 13 (b): `mhe.horizon`'s memory check counted every state and output as
+/// bounded (5(r² + r·n_z) entries per window of general rows nobody builds), so a plant
+/// without state bounds was refused at a horizon whose MHE fits. The check now counts the
+/// scenario's own bounds; with a bound on every state the same horizon is still refused.
+#[test]
+fn the_mhe_memory_check_counts_the_bounds_the_scenario_has() {
+    let t0 = std::time::Instant::now();
+    let s = Scenario::from_toml_str(&unbounded_24_state_plant(40, false));
+    assert!(s.is_ok(), "{:?}", s.err());
+    let e = Scenario::from_toml_str(&unbounded_24_state_plant(40, true))
+        .expect_err("every state bounded: beyond the limit")
+        .to_string();
+    assert!(e.contains("mhe.horizon") && e.contains("GiB"), "{e}");
+    assert!(t0.elapsed().as_secs_f64() < 2.0, "{:?}", t0.elapsed());
+}
+
+/// Issue 37 item 13 (d): the fix of a rate ≥ 1 is the method's own — ADMM has a penalty ρ
+/// and a relaxation α, not a step size; with state bounds its split has no certified rate.
+#[test]
+fn a_non_contracting_method_gets_its_own_fix() {
+    use iss_certificate::analysis::phi_rate_fix;
+    use qp_iter::Method;
+    let admm = phi_rate_fix(Method::ADMM, false);
+    assert!(admm.contains("ρ") && admm.contains("α"), "{admm}");
+    let admm_state = phi_rate_fix(Method::ADMM_PR, true);
+    assert!(admm_state.contains("use pg or fista"), "{admm_state}");
+    assert!(admm_state.contains("sets.state"), "{admm_state}");
+    for fix in [&admm, &admm_state] {
+        assert!(!fix.contains("reduce the step size"), "{fix}");
+    }
+    assert!(phi_rate_fix(Method::PG, false).contains("step"));
+    assert!(phi_rate_fix(Method::FISTA, false).contains("use pg or admm"));
+}
+
+/// Issue 37 item 6: a verdict the budget cut is "not computed within the budget", never
+/// "void". The lightly damped mass chain with an MPC horizon of 2 has no contracting metric
+/// by the family bound (λ_S ≥ 1) but one over its 2⁶ free sets (γ₁,₃ ≈ 2.1·10³, K_min
+/// exists). With `certificate.phase_seconds` below the enumeration's estimate the old
+/// certificate said "void (no metric contracts)"; it now says "not computed", names the
+/// estimate, and the value it advises computes the certificate.
+#[test]
+fn a_certificate_cut_by_the_budget_is_not_computed_and_the_advised_budget_computes_it() {
+    use iss_certificate::plan::verdict;
+    let path = concat!(
+        env!("CARGO_MANIFEST_DIR"),
+        "/../../scenarios/mass-chain-light-damping.toml"
+    );
+    let text = std::fs::read_to_string(path).expect("the shipped scenario");
+    let mut in_mpc = false;
+    let text: String = text
+        .lines()
+        .map(|l| {
+            if l.starts_with('[') {
+                in_mpc = l.trim() == "[mpc]";
+            }
+            if in_mpc && l.starts_with("horizon") {
+                "horizon = 2".to_string()
+            } else {
+                l.to_string()
+            }
+        })
+        .collect::<Vec<_>>()
+        .join("\n");
+    let r = Scenario::from_toml_str(&text)
+        .expect("valid")
+        .resolve()
+        .expect("resolves");
+    let opts = |phase_seconds: f64| CertificateOptions {
+        solvers: vec![qp_iter::Method::ADMM_PR],
+        lipschitz_pairs: 0,
+        gamma13_sequences: 0,
+        phase_seconds,
+        ..CertificateOptions::default()
+    };
+    let cut = iss_certificate::certificate::certify_closed_loop(&r, &opts(0.01)).expect("runs");
+    let s = &cut.solvers[0];
+    assert_eq!(s.k_min, None);
+    assert!(s.void_reasons.is_empty(), "{:?}", s.void_reasons);
+    let nc = s.not_computed.clone().expect("cut by the budget");
+    assert_eq!(nc.phase, "γ₁,₃ free-set enumeration");
+    assert_eq!(nc.budget_seconds, 0.01);
+    assert!(nc.needed_seconds > 0.01, "{nc:?}");
+    // The premise's fix and the γ₁,₃ report say "not computed", not "void".
+    let g = cut.gamma13.to_string();
+    assert!(
+        g.contains("not computed within the budget") && !g.contains("void"),
+        "{g}"
+    );
+    let v = verdict(Some(s), None, &[]);
+    assert!(v.contains("not computed within the budget"), "{v}");
+    assert!(v.contains("raise `certificate.phase_seconds` to ≈"), "{v}");
+    assert!(
+        !v.contains("void") && !v.contains("certifies nothing"),
+        "{v}"
+    );
+    let json = serde_json::to_value(s).expect("serialises");
+    assert_eq!(json["not_computed"]["phase"], "γ₁,₃ free-set enumeration");
+    assert!(json["void_reasons"].as_array().is_some_and(Vec::is_empty));
+    // The advised budget computes the certificate.
+    let full =
+        iss_certificate::certificate::certify_closed_loop(&r, &opts(nc.raise_to())).expect("runs");
+    let f = &full.solvers[0];
+    assert!(
+        f.k_min.is_some() && f.not_computed.is_none(),
+        "{:?}",
+        f.void_reasons
+    );
+    assert!(full.gamma13.used.is_finite());
+    // A void reason that does not depend on the budget stays void: the chain at N = 3 has
+    // no contracting metric over all its free sets either.
+    let text3 = text.replace("horizon = 2", "horizon = 3");
+    let r3 = Scenario::from_toml_str(&text3)
+        .expect("valid")
+        .resolve()
+        .expect("resolves");
+    let proved = iss_certificate::certificate::certify_closed_loop(&r3, &opts(10.0)).expect("runs");
+    let p = &proved.solvers[0];
+    assert!(p.k_min.is_none() && p.not_computed.is_none() && !p.void_reasons.is_empty());
+}

@@ -278,7 +278,7 @@ fn uncertified_reason(v: &PairVerdict, what: &str) -> Option<String> {
             Some(k_min) => format!("{what} is below the certified floor {k_min}"),
             None => format!("{what} is not certified"),
         }),
-        Certified::Void => Some(v.reason.clone()),
+        Certified::Void | Certified::NotComputed => Some(v.reason.clone()),
     }
 }
 
@@ -329,7 +329,7 @@ pub(crate) fn decide_k(
                  estimator"
             ),
         },
-        (Certified::Void, false) => bail!(
+        (Certified::Void | Certified::NotComputed, false) => bail!(
             "{flag}: NOT CERTIFIED for {name} (the verdict `reproduce` gives): {}; \
              --allow-uncertified exports anyway, and the artefact says so",
             v.reason
@@ -419,7 +419,7 @@ pub(crate) fn decide_kc(
             "--kc {k_c}: {}; --allow-uncertified exports anyway",
             none_reason()
         ),
-        (Certified::Void, false, _) => bail!(
+        (Certified::Void | Certified::NotComputed, false, _) => bail!(
             "--kc {k_c}: NOT CERTIFIED (the verdict `reproduce` gives): {}; \
              --allow-uncertified exports anyway, and the artefact says so",
             v.reason

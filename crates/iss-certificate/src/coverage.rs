@@ -248,9 +248,9 @@ pub fn covering(scenario: &Scenario, _method: Method, controller: ControllerChoi
     }
 }
 
-/// `yes`, `no` or `void` at a pair.
+/// `yes`, `no`, `void` or `not_computed` at a pair.
 #[derive(Debug, Clone, Copy, PartialEq, Eq, Serialize)]
-#[serde(rename_all = "lowercase")]
+#[serde(rename_all = "snake_case")]
 pub enum Certified {
     /// The certificate holds at this pair.
     Yes,
@@ -258,15 +258,19 @@ pub enum Certified {
     No,
     /// No certificate at any pair: a premise fails, or none covers the configuration.
     Void,
+    /// The analysis budget (`certificate.phase_seconds`) cut the verdict: not proved void,
+    /// not computed (the reason names the phase and the budget that would compute it).
+    NotComputed,
 }
 
 impl Certified {
-    /// `"yes"`, `"no"` or `"void"`.
+    /// `"yes"`, `"no"`, `"void"` or `"not_computed"`.
     pub fn as_str(self) -> &'static str {
         match self {
             Certified::Yes => "yes",
             Certified::No => "no",
             Certified::Void => "void",
+            Certified::NotComputed => "not_computed",
         }
     }
 }
@@ -297,6 +301,8 @@ pub enum Applicable {
         k_min: Option<usize>,
         /// Why void whatever K (empty when the premises hold).
         void_reasons: Vec<String>,
+        /// The budget cut the verdict (None: computed).
+        not_computed: Option<String>,
     },
     /// The joint certificate of the method with the MPC's method.
     Joint {
@@ -309,6 +315,58 @@ pub enum Applicable {
     },
     /// Nothing covers the configuration.
     Uncovered(String),
+}
+
+/// Theorem 1's verdict at K from its analysis, K_min, void reasons and budget cut: the one
+/// rule behind [`Applicable::at`] and the sweep's columns. Void when a premise fails (its
+/// reasons, or the violated premises themselves when none was recorded); not computed when
+/// the budget cut the analysis and nothing else voids it; else yes or no at K.
+pub fn theorem1_at(
+    analysis: &IssAnalysis,
+    k_min: Option<usize>,
+    void_reasons: &[String],
+    not_computed: Option<&str>,
+    k_e: usize,
+) -> PairVerdict {
+    let verdict = |certified, reason: String| PairVerdict {
+        certificate: Some(CertificateKind::Theorem1),
+        certified,
+        k_min: None,
+        margin: None,
+        reason,
+    };
+    if k_min.is_none() && !void_reasons.is_empty() {
+        return verdict(Certified::Void, void_reasons.join("; "));
+    }
+    if let (None, Some(why)) = (k_min, not_computed) {
+        return verdict(Certified::NotComputed, why.to_string());
+    }
+    let violated = analysis.violated();
+    if k_min.is_none() && !violated.is_empty() {
+        let reasons: Vec<String> = violated
+            .iter()
+            .map(|p| {
+                format!(
+                    "{} fails (value {})",
+                    p.name,
+                    lti_model::numfmt::sig4(p.value)
+                )
+            })
+            .collect();
+        return verdict(Certified::Void, reasons.join("; "));
+    }
+    let g = analysis.at(k_e);
+    PairVerdict {
+        certificate: Some(CertificateKind::Theorem1),
+        certified: if g.certified {
+            Certified::Yes
+        } else {
+            Certified::No
+        },
+        k_min,
+        margin: (g.phi < 1.0 && g.phi.is_finite()).then_some(g.margin),
+        reason: String::new(),
+    }
 }
 
 impl Applicable {
@@ -369,6 +427,7 @@ impl Applicable {
                 analysis: Box::new(sc.analysis.clone()),
                 k_min: sc.k_min,
                 void_reasons: sc.void_reasons.clone(),
+                not_computed: sc.not_computed.as_ref().map(ToString::to_string),
             },
         }
     }
@@ -418,23 +477,8 @@ impl Applicable {
                 analysis,
                 k_min,
                 void_reasons,
-            } => {
-                if k_min.is_none() && !void_reasons.is_empty() {
-                    return void(void_reasons.join("; "));
-                }
-                let g = analysis.at(k_e);
-                PairVerdict {
-                    certificate: kind,
-                    certified: if g.certified {
-                        Certified::Yes
-                    } else {
-                        Certified::No
-                    },
-                    k_min: *k_min,
-                    margin: (g.phi < 1.0 && g.phi.is_finite()).then_some(g.margin),
-                    reason: String::new(),
-                }
-            }
+                not_computed,
+            } => theorem1_at(analysis, *k_min, void_reasons, not_computed.as_deref(), k_e),
             Applicable::Joint {
                 analysis,
                 k_max,

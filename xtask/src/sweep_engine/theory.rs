@@ -14,7 +14,7 @@ use iss_certificate::analysis::IssAnalysis;
 use iss_certificate::certificate::{
     CertificateOptions, ClosedLoopCertificate, certify_closed_loop,
 };
-use iss_certificate::coverage::{Applicable, Coverage, covering};
+use iss_certificate::coverage::{Applicable, Coverage, covering, theorem1_at};
 
 /// The certificate's side of a point: Theorem 1 for one solver.
 #[derive(Debug, Clone)]
@@ -27,6 +27,8 @@ pub enum SolverTheory {
         k_min: Option<usize>,
         /// Why the certificate is void, whatever K (empty when the premises hold).
         void_reasons: Vec<String>,
+        /// The analysis budget cut the verdict (None: computed).
+        not_computed: Option<String>,
     },
     /// The joint certificate of the MHE solver with the K_c-iteration MPC
     /// ([`iss_certificate::coverage::Applicable::Joint`]): the verdict at (K_e, K_c).
@@ -70,22 +72,11 @@ impl SolverTheory {
                 analysis,
                 k_min,
                 void_reasons,
+                not_computed,
             } => {
                 let g = analysis.at(k);
-                let mut reasons = void_reasons.clone();
-                if reasons.is_empty() {
-                    reasons = analysis
-                        .violated()
-                        .iter()
-                        .map(|p| {
-                            format!(
-                                "{} fails (value {})",
-                                p.name,
-                                lti_model::numfmt::sig4(p.value)
-                            )
-                        })
-                        .collect();
-                }
+                // The verdict is the one rule of `iss_certificate::coverage`.
+                let v = theorem1_at(analysis, *k_min, void_reasons, not_computed.as_deref(), k);
                 // Props. 1 and 3 divide by 1 − φ(K): for φ(K) ≥ 1 the gains, slopes and
                 // margin are undefined (written empty), not large.
                 let defined = g.phi < 1.0 && g.phi.is_finite();
@@ -93,15 +84,9 @@ impl SolverTheory {
                     phi: Some(g.phi),
                     slopes: defined.then_some([g.sg1, g.sg2, g.sg3]),
                     margin: defined.then_some(g.margin),
-                    certified: if !reasons.is_empty() {
-                        "void"
-                    } else if g.certified {
-                        "yes"
-                    } else {
-                        "no"
-                    },
+                    certified: v.certified.as_str(),
                     k_min: *k_min,
-                    void_reason: csv_text(&reasons.join("; ")),
+                    void_reason: csv_text(&v.reason),
                     ..TheoryAtK::default()
                 }
             }
@@ -332,10 +317,12 @@ pub(super) fn theory_of(
             analysis,
             k_min,
             void_reasons,
+            not_computed,
         } => SolverTheory::Analysis {
             analysis,
             k_min,
             void_reasons,
+            not_computed,
         },
         Applicable::Uncovered(r) => SolverTheory::Unavailable(r),
         joint @ Applicable::Joint { .. } => SolverTheory::Joint(Box::new(joint)),

@@ -367,6 +367,7 @@ fn theoretical_columns_follow_the_certificate() {
                 analysis,
                 k_min,
                 void_reasons,
+                ..
             } => {
                 assert!(void_reasons.is_empty(), "{void_reasons:?}");
                 (analysis, k_min.unwrap())

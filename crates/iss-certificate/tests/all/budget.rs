@@ -392,6 +392,23 @@ fn a_certificate_cut_by_the_budget_is_not_computed_and_the_advised_budget_comput
     let json = serde_json::to_value(s).expect("serialises");
     assert_eq!(json["not_computed"]["phase"], "γ₁,₃ free-set enumeration");
     assert!(json["void_reasons"].as_array().is_some_and(Vec::is_empty));
+    // The one verdict every command states (reproduce, sweep, export) says "not computed".
+    let config = iss_certificate::coverage::Configuration {
+        method: qp_iter::Method::ADMM_PR,
+        k_e: 10_000,
+        controller: closed_loop::scenario::ControllerChoice::ExactMpc,
+        scalar: iss_certificate::coverage::Scalar::F64,
+    };
+    let pv = iss_certificate::coverage::verdict(&r, &cut, &config);
+    assert_eq!(
+        pv.certified,
+        iss_certificate::coverage::Certified::NotComputed,
+        "{pv:?}"
+    );
+    assert!(
+        pv.reason.contains("raise `certificate.phase_seconds`"),
+        "{pv:?}"
+    );
     // The advised budget computes the certificate.
     let full =
         iss_certificate::certificate::certify_closed_loop(&r, &opts(nc.raise_to())).expect("runs");

@@ -65,6 +65,98 @@ fn lmi_and_scale(
     (symmetrize(j.as_ref()), symmetrize(s.as_ref()))
 }
 
+/// J and S of [`lmi_and_scale`] in the coordinates z̃ = (x, w¹, v, ξ) with v = Cx + Fw²
+/// the output residual and ξ the part of w² that F does not see, or None when F does not
+/// have full row rank (σ_min(F) ≤ [`SPLIT_MIN_SV`]·σ_max(F)), F is empty, or the SVD
+/// fails.
+///
+/// With F = UΣVᵀ = U[Σ₁ 0][V₁ V₂]ᵀ and K = V₁Σ₁⁻¹Uᵀ (FK = I, FV₂ = 0), w² = K(v − Cx) + V₂ξ
+/// is z = T z̃ with T invertible, so J̃ = TᵀJT and S̃ = TᵀST (a congruence: μ is the same).
+/// In these coordinates H T = [0, 0, I, 0]: the output term is diag(0, 0, R, 0) exactly, on
+/// coordinates of its own, instead of the rank-n_y term HᵀRH spread over every row of J. For
+/// R much larger than Q (or Q much smaller than R) that term is what rounds away the terms
+/// of size Q and P in J (issue 37, item 4: `mhe.r = 1e12` measured μ = 6.7e-6 for a valid
+/// P); here every term is formed on its own scale and the Jacobi scaling of the pencil
+/// separates them. K and V₂ come from an SVD: the rounding is a relative perturbation of F
+/// of order u, far below τ.
+fn lmi_and_scale_split(
+    sys: &LtiSystem,
+    eta: f64,
+    q: MatRef<'_, f64>,
+    r: MatRef<'_, f64>,
+    p: MatRef<'_, f64>,
+) -> Option<(Mat<f64>, Mat<f64>)> {
+    let (nx, nw1, nw2, ny) = (sys.nx(), sys.nw1(), sys.nw2(), sys.ny());
+    if ny == 0 || nw2 < ny {
+        return None;
+    }
+    let f = sys.f();
+    let svd = f.to_owned().svd().ok()?;
+    let sv = svd.S().column_vector();
+    let smax = (0..ny).map(|i| sv[i]).fold(0.0, f64::max);
+    if !(0..ny).all(|i| sv[i] > SPLIT_MIN_SV * smax) {
+        return None;
+    }
+    let (u, v) = (svd.U(), svd.V());
+    // K = V₁Σ₁⁻¹Uᵀ (n_w2 × n_y), V₂ (n_w2 × (n_w2 − n_y)).
+    let k = Mat::from_fn(nw2, ny, |i, j| {
+        (0..ny).map(|l| v[(i, l)] / sv[l] * u[(j, l)]).sum::<f64>()
+    });
+    let kc = &k * sys.c();
+    let nz = nx + nw1 + nw2;
+    // z̃ = (x, w¹, v, ξ): column offsets.
+    let (ow1, ov, oxi) = (nx, nx + nw1, nx + nw1 + ny);
+    // G̃ = G T = [A, E, 0, 0].
+    let g = Mat::from_fn(nx, nz, |i, j| {
+        if j < nx {
+            sys.a()[(i, j)]
+        } else if j < ov {
+            sys.e()[(i, j - ow1)]
+        } else {
+            0.0
+        }
+    });
+    // L = the w-rows of T: w¹ = w¹, w² = −KCx + Kv + V₂ξ.
+    let l = Mat::from_fn(nw1 + nw2, nz, |i, j| {
+        if i < nw1 {
+            f64::from(u8::from(j == ow1 + i))
+        } else {
+            let i2 = i - nw1;
+            if j < nx {
+                -kc[(i2, j)]
+            } else if j < ov {
+                0.0
+            } else if j < oxi {
+                k[(i2, j - ov)]
+            } else {
+                v[(i2, ny + j - oxi)]
+            }
+        }
+    });
+    let gpg = g.transpose() * p * &g;
+    let lql = l.transpose() * q * &l;
+    let mut j = &gpg - &lql;
+    let mut s = &gpg + &lql;
+    for a in 0..nx {
+        for b in 0..nx {
+            j[(a, b)] -= eta * p[(a, b)];
+            s[(a, b)] += p[(a, b)];
+        }
+    }
+    for a in 0..ny {
+        for b in 0..ny {
+            j[(ov + a, ov + b)] -= r[(a, b)];
+            s[(ov + a, ov + b)] += r[(a, b)];
+        }
+    }
+    Some((symmetrize(j.as_ref()), symmetrize(s.as_ref())))
+}
+
+/// F counts as having full row rank for [`lmi_and_scale_split`] when σ_min(F) >
+/// SPLIT_MIN_SV·σ_max(F): K = F⁺ then has ‖K‖·‖F‖ < 1e8, so the SVD's rounding stays a
+/// relative perturbation of F far below τ.
+const SPLIT_MIN_SV: f64 = 1e-8;
+
 /// The LMI matrix of (2) for a given P (⪯ 0 iff P certifies δ-IOSS with (η, Q, R)):
 ///
 /// [[AᵀPA − ηP − CᵀRC, AᵀPB̄ − CᵀRD̄], [B̄ᵀPA − D̄ᵀRC, B̄ᵀPB̄ − Q − D̄ᵀRD̄]].
@@ -112,8 +204,14 @@ pub struct LmiCheck {
     pub lmi_eigenvalues: Vec<f64>,
     /// λ_max(J), unscaled (reported; the test is on `relative_violation`).
     pub lmi_max_eigenvalue: f64,
-    /// μ(P) = max_v vᵀJv / vᵀSv ∈ [−1, 1]; NaN when P is not positive definite.
+    /// μ(P) = max_v vᵀJv / vᵀSv ∈ [−1, 1], computed in the output-residual coordinates
+    /// when F has full row rank (`lmi_and_scale_split`), else as the next field; NaN when
+    /// P is not positive definite. The verdict is on this value.
     pub relative_violation: f64,
+    /// The same μ(P) computed from J and S in the user's coordinates (x, w), reported for
+    /// comparison: with R ≫ Q its rounding error is ≈ u·r/q (issue 37, item 4), so it may
+    /// exceed τ for a valid P.
+    pub relative_violation_original_units: f64,
     /// τ: P passes when μ(P) ≤ τ.
     pub relative_tolerance: f64,
 }
@@ -199,10 +297,15 @@ pub fn assess(
     let (j, s) = lmi_and_scale(sys, eta, q, r, p.as_ref());
     let lmi_eigenvalues = sym_eigenvalues("LMI matrix", j.as_ref())?;
     let lmi_max_eigenvalue = lmi_eigenvalues.last().copied().unwrap_or(0.0);
-    let relative_violation = if p_min > 0.0 {
-        relative_violation(j.as_ref(), s.as_ref())?
+    let (relative_violation, relative_violation_original_units) = if p_min > 0.0 {
+        let original = relative_violation(j.as_ref(), s.as_ref())?;
+        let split = match lmi_and_scale_split(sys, eta, q, r, p.as_ref()) {
+            Some((js, ss)) => relative_violation(js.as_ref(), ss.as_ref())?,
+            None => original,
+        };
+        (split, original)
     } else {
-        f64::NAN
+        (f64::NAN, f64::NAN)
     };
     Ok(LmiCheck {
         p_min_eigenvalue: p_min,
@@ -213,6 +316,7 @@ pub fn assess(
         lmi_eigenvalues,
         lmi_max_eigenvalue,
         relative_violation,
+        relative_violation_original_units,
         relative_tolerance: opts.lmi_relative_tolerance,
     })
 }

@@ -153,6 +153,9 @@ pub const P_MIN_RATIO: f64 = 1e-10;
 pub const METHOD_MAXIMAL: &str = "riccati-doubling";
 /// `method` of a P computed with a fictitious disturbance (E does not reach every state).
 pub const METHOD_FICTITIOUS: &str = "riccati-doubling+fictitious-disturbance";
+/// `method` of a P computed as the maximal solution for a smaller output weight c·R
+/// (c = 10⁻², 10⁻⁴, …): the maximal P of the user's R/Q ratio was not resolvable in f64.
+pub const METHOD_REDUCED_R: &str = "riccati-doubling+reduced-output-weight";
 /// `method` of a user-supplied P.
 pub const METHOD_USER: &str = "user";
 
@@ -401,11 +404,22 @@ pub fn certify_with(
     check_inputs(sys, eta, q, r)?;
     check_options(opts)?;
     let first = extremal_solution(sys, eta, q, r, opts)?;
-    if let Extremal::Found { p, iterations } = first {
-        return finish(sys, eta, q, r, p, opts, METHOD_MAXIMAL, iterations);
+    if let Extremal::Found { p, iterations } = &first {
+        let check = assess(sys, eta, q, r, p.as_ref(), opts)?;
+        if check.passed() {
+            return certificate_from(p.clone(), eta, q, r, check, METHOD_MAXIMAL, *iterations);
+        }
     }
     if let Some(cause) = infeasibility_reason(sys, eta) {
         return Err(ModelError::LmiInfeasible { cause });
+    }
+    // Feasible, but the maximal P of these weights is not resolved (R/Q beyond ≈ 1e8):
+    // a P of the same Q with a smaller R certifies the user's R too (module doc).
+    if let Some((p, iterations)) = reduced_output_weight_solution(sys, eta, q, r, opts)? {
+        return finish(sys, eta, q, r, p, opts, METHOD_REDUCED_R, iterations);
+    }
+    if let Extremal::Found { p, iterations } = first {
+        return finish(sys, eta, q, r, p, opts, METHOD_MAXIMAL, iterations);
     }
     // E does not reach every state: retry with a fictitious disturbance (module doc).
     let x1 = first_covariance(sys, q, r);
@@ -455,6 +469,37 @@ pub fn certify_with(
                 .to_string(),
         ),
     })
+}
+
+/// Steps of [`reduced_output_weight_solution`]: R·10⁻², R·10⁻⁴, …, R·10⁻²⁴.
+const REDUCED_R_STEPS: i32 = 12;
+
+/// A P for (η, Q, c·R) with c = 10⁻², 10⁻⁴, … that passes the check against the user's
+/// (η, Q, R), or None. LMI (2) is monotone in R (c·R ⪯ R makes the term −HᵀRH only
+/// smaller), so such a P certifies the user's data; it is the maximal P of the smaller R,
+/// not of R. Used when the maximal P of (Q, R) is not resolvable (R/Q ≳ 1e8, issue 37,
+/// item 4): the doubling is accurate at moderate ratios.
+fn reduced_output_weight_solution(
+    sys: &LtiSystem,
+    eta: f64,
+    q: MatRef<'_, f64>,
+    r: MatRef<'_, f64>,
+    opts: &IossOptions,
+) -> Result<Option<(Mat<f64>, usize)>> {
+    let mut total = 0;
+    for k in 1..=REDUCED_R_STEPS {
+        let r_c = r * 10f64.powi(-2 * k);
+        let Extremal::Found { p, iterations } =
+            extremal_solution(sys, eta, q, r_c.as_ref(), opts)?
+        else {
+            continue;
+        };
+        total += iterations;
+        if assess(sys, eta, q, r, p.as_ref(), opts)?.passed() {
+            return Ok(Some((p, total)));
+        }
+    }
+    Ok(None)
 }
 
 fn numerical(reason: String) -> ModelError {

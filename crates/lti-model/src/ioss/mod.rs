@@ -489,8 +489,7 @@ fn reduced_output_weight_solution(
     let mut total = 0;
     for k in 1..=REDUCED_R_STEPS {
         let r_c = r * 10f64.powi(-2 * k);
-        let Extremal::Found { p, iterations } =
-            extremal_solution(sys, eta, q, r_c.as_ref(), opts)?
+        let Extremal::Found { p, iterations } = extremal_solution(sys, eta, q, r_c.as_ref(), opts)?
         else {
             continue;
         };

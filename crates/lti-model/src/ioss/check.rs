@@ -205,8 +205,9 @@ pub struct LmiCheck {
     /// λ_max(J), unscaled (reported; the test is on `relative_violation`).
     pub lmi_max_eigenvalue: f64,
     /// μ(P) = max_v vᵀJv / vᵀSv ∈ [−1, 1], computed in the output-residual coordinates
-    /// when F has full row rank (`lmi_and_scale_split`), else as the next field; NaN when
-    /// P is not positive definite. The verdict is on this value.
+    /// (`lmi_and_scale_split`, F of full row rank) or the user's, whichever has the
+    /// better-conditioned Jacobi-scaled S (the smaller rounding error); NaN when P is not
+    /// positive definite. The verdict is on this value.
     pub relative_violation: f64,
     /// The same μ(P) computed from J and S in the user's coordinates (x, w), reported for
     /// comparison: with R ≫ Q its rounding error is ≈ u·r/q (issue 37, item 4), so it may
@@ -298,12 +299,21 @@ pub fn assess(
     let lmi_eigenvalues = sym_eigenvalues("LMI matrix", j.as_ref())?;
     let lmi_max_eigenvalue = lmi_eigenvalues.last().copied().unwrap_or(0.0);
     let (relative_violation, relative_violation_original_units) = if p_min > 0.0 {
+        // μ is the same in both coordinate systems; its rounding error is ≈ n·u·cond(Ŝ)
+        // (Ŝ the Jacobi-scaled S), so the verdict takes the better-conditioned one: the
+        // residual coordinates when R dominates Q, the user's when Q dominates R (where
+        // eliminating w² cancels terms of size Q).
         let original = relative_violation(j.as_ref(), s.as_ref())?;
         let split = match lmi_and_scale_split(sys, eta, q, r, p.as_ref()) {
             Some((js, ss)) => relative_violation(js.as_ref(), ss.as_ref())?,
             None => original,
         };
-        (split, original)
+        let chosen = if split.1 < original.1 {
+            split
+        } else {
+            original
+        };
+        (chosen.0, original.0)
     } else {
         (f64::NAN, f64::NAN)
     };
@@ -324,7 +334,9 @@ pub fn assess(
 /// μ = λ_max of the pencil (J, S) for S ≻ 0 (NaN if S is singular to working precision): with the Jacobi scaling D = diag(S)^{−½}
 /// and DSD = VΛVᵀ, μ = λ_max(Λ^{−½}VᵀDJDVΛ^{−½}). The scaling changes nothing
 /// mathematically (a congruence) and makes the rounding relative to each row's own scale.
-fn relative_violation(j: MatRef<'_, f64>, s: MatRef<'_, f64>) -> Result<f64> {
+///
+/// Returns (μ, cond(DSD)); μ's rounding error is ≈ n·u·cond(DSD).
+fn relative_violation(j: MatRef<'_, f64>, s: MatRef<'_, f64>) -> Result<(f64, f64)> {
     let n = s.nrows();
     let d: Vec<f64> = (0..n).map(|i| 1.0 / s[(i, i)].sqrt()).collect();
     let s_hat = Mat::from_fn(n, n, |a, b| d[a] * s[(a, b)] * d[b]);
@@ -339,12 +351,16 @@ fn relative_violation(j: MatRef<'_, f64>, s: MatRef<'_, f64>) -> Result<f64> {
     let lam = evd.S().column_vector();
     let v = evd.U();
     let lam_min = (0..n).map(|i| lam[i]).fold(f64::INFINITY, f64::min);
+    let lam_max = (0..n).map(|i| lam[i]).fold(0.0, f64::max);
     if !(lam_min > 0.0) {
         // Only for a P that is singular to working precision (refused by the ρ test anyway).
-        return Ok(f64::NAN);
+        return Ok((f64::NAN, f64::INFINITY));
     }
     let w = Mat::from_fn(n, n, |a, b| v[(a, b)] / lam[b].sqrt());
     let k = w.transpose() * &j_hat * &w;
     let eig = sym_eigenvalues("scaled LMI matrix", k.as_ref())?;
-    Ok(eig.last().copied().unwrap_or(f64::NEG_INFINITY))
+    Ok((
+        eig.last().copied().unwrap_or(f64::NEG_INFINITY),
+        lam_max / lam_min,
+    ))
 }

@@ -413,14 +413,7 @@ pub fn certify_with(
     if let Some(cause) = infeasibility_reason(sys, eta) {
         return Err(ModelError::LmiInfeasible { cause });
     }
-    // Feasible, but the maximal P of these weights is not resolved (R/Q beyond ≈ 1e8):
-    // a P of the same Q with a smaller R certifies the user's R too (module doc).
-    if let Some((p, iterations)) = reduced_output_weight_solution(sys, eta, q, r, opts)? {
-        return finish(sys, eta, q, r, p, opts, METHOD_REDUCED_R, iterations);
-    }
-    if let Extremal::Found { p, iterations } = first {
-        return finish(sys, eta, q, r, p, opts, METHOD_MAXIMAL, iterations);
-    }
+
     // E does not reach every state: retry with a fictitious disturbance (module doc).
     let x1 = first_covariance(sys, q, r);
     let x1_max = match &x1 {
@@ -440,8 +433,19 @@ pub fn certify_with(
         if let Extremal::Found { p, iterations } =
             extremal_solution(&aug, eta, q_aug.as_ref(), r, opts)?
         {
-            return finish(sys, eta, q, r, p, opts, METHOD_FICTITIOUS, iterations);
+            let check = assess(sys, eta, q, r, p.as_ref(), opts)?;
+            if check.passed() {
+                return certificate_from(p, eta, q, r, check, METHOD_FICTITIOUS, iterations);
+            }
         }
+    }
+    // Feasible, but the maximal P of these weights is not resolved (R/Q beyond ≈ 1e8):
+    // a P of the same Q with a smaller R certifies the user's R too (module doc).
+    if let Some((p, iterations)) = reduced_output_weight_solution(sys, eta, q, r, opts)? {
+        return finish(sys, eta, q, r, p, opts, METHOD_REDUCED_R, iterations);
+    }
+    if let Extremal::Found { p, iterations } = first {
+        return finish(sys, eta, q, r, p, opts, METHOD_MAXIMAL, iterations);
     }
     Err(match first {
         Extremal::Singular {

@@ -68,10 +68,11 @@
 //! For η = 0, U does not depend on P and P = U(I) is computed directly. Tested against
 //! pinned SDP solutions for three plants × three weight ratios × weight scalings 1e-12 … 1e12
 //! × unit changes spanning 10⁶ (`tests/all/ioss_scale.rs`, `scripts/lmi2_reference.py`).
-//! Limit: for extreme ratios of R to Q the relative check cannot resolve μ below τ (the
-//! rank-n_y term HᵀRH rounds away the terms of size Q in J). Measured on the stand-in:
-//! r/q = 1e6 passes, r/q = 1e12 is refused with μ ≈ 5e-6 (the ratio only matters, not the
-//! common scale: q = r = 1e±12 pass).
+//! 5. **Reduced R.** If the P of steps 1–4 fails the check although LMI (2) is feasible (the
+//!    doubling loses accuracy for R/Q ≳ 1e8), the maximal P of (Q, c·R), c = 10⁻², 10⁻⁴, …,
+//!    10⁻²⁴, is taken instead: c·R ⪯ R, and LMI (2) is monotone in R, so it certifies the
+//!    user's data ([`METHOD_REDUCED_R`]; not the maximal P of R). Issue 37, item 4: the stand-in
+//!    with `mhe.r = 1e9 … 1e12` or `mhe.q ≤ 1e-10` was refused.
 //!
 //! **E that does not reach every state** (rank E < n_x and (A, E) not controllable, e.g.
 //! noise on some decoupled states only): X_k stays singular; along an unreached mode that
@@ -97,7 +98,14 @@
 //! μ(P) = max_v vᵀJ(P)v / vᵀS(P)v ∈ [−1, 1]
 //!
 //! is dimensionless and invariant under (P, Q, R) → c(P, Q, R) and under linear changes of
-//! the coordinates of x and w (J and S transform by the same congruence). P passes iff
+//! the coordinates of x and w (J and S transform by the same congruence). It is therefore
+//! computed where it is best resolved: in the user's coordinates and, when F has full row
+//! rank, in the output-residual coordinates (x, w¹, v = Cx + Fw², ξ ∈ ker F), where the
+//! output term is diag(0, 0, R, 0) on coordinates of its own rather than the rank-n_y term
+//! HᵀRH spread over every row of J (with R ≫ Q that term rounds away the terms of size Q:
+//! μ ≈ 6.7e-6 measured for a valid P at r/q = 1e12). The coordinates whose Jacobi-scaled S
+//! is better conditioned decide (μ's rounding is ≈ n·u·cond); the user-coordinate value is
+//! reported as [`LmiCheck::relative_violation_original_units`]. P passes iff
 //!
 //! 1. λ_min(P̂) > ρ·λ_max(P̂) for the Jacobi-scaled P̂ = diag(P)^{−½}·P·diag(P)^{−½},
 //!    ρ = [`P_MIN_RATIO`] = 1e-10, and
@@ -303,6 +311,19 @@ impl IossCertificate {
     pub fn lambda_pp(&self) -> f64 {
         self.p_max_eigenvalue / self.p_min_eigenvalue
     }
+}
+
+/// The diagonal state scaling x = T x̃ (T = diag(t), powers of two) that balances
+/// [A, E; C] after normalising Q and R to unit diagonal — the scaling LMI (2) is solved in
+/// (module doc, "Construction at any scale"). A large max t / min t says the states' units
+/// differ in scale; a user whose problem is ill-conditioned because of units can measure
+/// state i in units t_i times larger (issue 37, item 7).
+///
+/// Errors: Q or R not symmetric positive definite of the right size.
+pub fn state_scaling(sys: &LtiSystem, q: MatRef<'_, f64>, r: MatRef<'_, f64>) -> Result<Vec<f64>> {
+    check_positive_definite("Q", q, sys.nw())?;
+    check_positive_definite("R", r, sys.ny())?;
+    Ok(doubling::balance(sys, q, r)?.t)
 }
 
 fn check_inputs(sys: &LtiSystem, eta: f64, q: MatRef<'_, f64>, r: MatRef<'_, f64>) -> Result<()> {

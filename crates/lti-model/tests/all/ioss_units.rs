@@ -148,3 +148,38 @@ proptest! {
             check.relative_violation, check.relative_violation_original_units);
     }
 }
+
+/// Issue 37, item 14a: a P with a subnormal entry is refused with the entry named and the
+/// fix (the eigen-solvers used to fail with "NoConvergence"); the same P with 0 there passes.
+#[test]
+fn subnormal_p_entry_is_a_named_error() {
+    let sys = lti_model::presets::case_study_plant();
+    let (q, r) = (Mat::<f64>::identity(5, 5), Mat::<f64>::identity(1, 1));
+    let p = ioss::certify(&sys, 0.8, q.as_ref(), r.as_ref())
+        .expect("q = r = 1")
+        .p;
+    let mut bad = p.clone();
+    bad[(0, 3)] = 5e-324;
+    bad[(3, 0)] = 5e-324;
+    let err = ioss::verify(&sys, 0.8, q.as_ref(), r.as_ref(), bad.as_ref())
+        .expect_err("a subnormal entry is refused");
+    let text = err.to_string();
+    assert!(
+        matches!(err, lti_model::ModelError::OutOfRange { .. })
+            && text.contains("P entry (0, 3)")
+            && text.contains("write 0"),
+        "{text}"
+    );
+    let mut fixed = p;
+    fixed[(0, 3)] = 0.0;
+    fixed[(3, 0)] = 0.0;
+    let v = ioss::verify(&sys, 0.8, q.as_ref(), r.as_ref(), fixed.as_ref());
+    assert!(
+        !matches!(
+            v,
+            Err(lti_model::ModelError::Numerical { .. })
+                | Err(lti_model::ModelError::OutOfRange { .. })
+        ),
+        "{v:?}"
+    );
+}

@@ -152,6 +152,10 @@ fn lmi_and_scale_split(
     Some((symmetrize(j.as_ref()), symmetrize(s.as_ref())))
 }
 
+/// The user's coordinates decide μ while their rounding estimate n·u·cond(Ŝ) is at most
+/// this share of τ (a hundredth: the verdict cannot be moved by rounding).
+const ROUNDING_SHARE: f64 = 1e-2;
+
 /// F counts as having full row rank for [`lmi_and_scale_split`] when σ_min(F) >
 /// SPLIT_MIN_SV·σ_max(F): K = F⁺ then has ‖K‖·‖F‖ < 1e8, so the SVD's rounding stays a
 /// relative perturbation of F far below τ.
@@ -301,18 +305,22 @@ pub fn assess(
     let lmi_max_eigenvalue = lmi_eigenvalues.last().copied().unwrap_or(0.0);
     let (relative_violation, relative_violation_original_units) = if p_min > 0.0 {
         // μ is the same in both coordinate systems; its rounding error is ≈ n·u·cond(Ŝ)
-        // (Ŝ the Jacobi-scaled S), so the verdict takes the better-conditioned one: the
-        // residual coordinates when R dominates Q, the user's when Q dominates R (where
-        // eliminating w² cancels terms of size Q).
+        // (Ŝ the Jacobi-scaled S). The user's coordinates decide while that error is below
+        // ROUNDING_SHARE·τ (so well-scaled problems give bit-identical results); beyond, the
+        // better-conditioned of the two: the residual coordinates when R dominates Q, the
+        // user's when Q dominates R (where eliminating w² cancels terms of size Q).
         let original = relative_violation(j.as_ref(), s.as_ref())?;
         let split = match lmi_and_scale_split(sys, eta, q, r, p.as_ref()) {
             Some((js, ss)) => relative_violation(js.as_ref(), ss.as_ref())?,
             None => original,
         };
-        let chosen = if split.1 < original.1 {
-            split
-        } else {
+        let dim = s.nrows() as f64;
+        let resolved =
+            dim * f64::EPSILON * original.1 <= ROUNDING_SHARE * opts.lmi_relative_tolerance;
+        let chosen = if resolved || split.1 >= original.1 {
             original
+        } else {
+            split
         };
         (chosen.0, original.0)
     } else {
@@ -337,15 +345,17 @@ pub fn assess(
 /// not flushed to 0 silently: the check must be of the P the user gave, and such an entry is
 /// almost always a solver's or a writer's artefact that is best written as 0.
 fn check_no_subnormal(p: MatRef<'_, f64>) -> Result<()> {
-    for j in 0..p.ncols() {
-        for i in 0..p.nrows() {
+    for i in 0..p.nrows() {
+        for j in 0..p.ncols() {
             let value = p[(i, j)];
             if value.is_subnormal() {
-                return Err(ModelError::OutOfRange {
-                    name: format!("P entry ({i}, {j})"),
-                    value,
-                    range: format!(
-                        "0 or |x| ≥ {:e} (a subnormal f64 makes the eigen-solvers of the check                          fail to converge); write 0 there (scenario key `mhe.p`, or the                          --p-file), or rescale P, Q and R together",
+                return Err(ModelError::Scenario {
+                    key: "mhe.p".into(),
+                    problem: format!(
+                        "P entry ({i}, {j}) = {value:e} is subnormal (0 < |x| < {:e}), and the \
+                         eigen-solvers of the LMI (2) check do not converge on subnormal \
+                         numbers; write 0 there (in `mhe.p` or the --p-file), or rescale P, Q \
+                         and R together",
                         f64::MIN_POSITIVE
                     ),
                 });

@@ -103,9 +103,10 @@
 //! rank, in the output-residual coordinates (x, w¹, v = Cx + Fw², ξ ∈ ker F), where the
 //! output term is diag(0, 0, R, 0) on coordinates of its own rather than the rank-n_y term
 //! HᵀRH spread over every row of J (with R ≫ Q that term rounds away the terms of size Q:
-//! μ ≈ 6.7e-6 measured for a valid P at r/q = 1e12). The coordinates whose Jacobi-scaled S
-//! is better conditioned decide (μ's rounding is ≈ n·u·cond); the user-coordinate value is
-//! reported as [`LmiCheck::relative_violation_original_units`]. P passes iff
+//! μ ≈ 6.7e-6 measured for a valid P at r/q = 1e12). μ's rounding is ≈ n·u·cond(Ŝ), Ŝ the
+//! Jacobi-scaled S: the user's coordinates decide while that is below τ/100, beyond it the
+//! better-conditioned of the two; the user-coordinate value is reported as
+//! [`LmiCheck::relative_violation_original_units`]. P passes iff
 //!
 //! 1. λ_min(P̂) > ρ·λ_max(P̂) for the Jacobi-scaled P̂ = diag(P)^{−½}·P·diag(P)^{−½},
 //!    ρ = [`P_MIN_RATIO`] = 1e-10, and

@@ -116,8 +116,8 @@ proptest! {
 
     /// The verdict and μ are invariant: for q, r in 1e-12 … 1e12 (r ≥ q) and states up to
     /// 10³ apart, certify passes, and the P of q = r = 1 in the new units (T P₁ T·q) passes
-    /// with the same μ as at q = r = 1 up to 1e-12 (μ is invariant under the congruence;
-    /// the old check's rounding was ≈ u·r/q).
+    /// with the same μ as at q = r = 1 up to τ/10 (μ is invariant under the congruence;
+    /// the old check's rounding was ≈ u·r/q: 6.7e-6 at r/q = 1e12).
     #[test]
     fn verdict_invariant_under_weight_and_state_scaling(
         lq in -12.0f64..12.0,
@@ -140,10 +140,14 @@ proptest! {
         let p = Mat::from_fn(4, 4, |i, j| t[i] * p1.p[(i, j)] * t[j] * q);
         let check = ioss::assess(&sys, 0.8, qm.as_ref(), rm.as_ref(), p.as_ref(),
             &IossOptions::default()).expect("assess");
-        if lr == lq {
-            prop_assert!((check.relative_violation - mu1).abs() < 1e-12,
-                "μ = {:e}, at q = r = 1: {mu1:e}", check.relative_violation);
-        }
+        // The top direction of the pencil has Hv = 0, so μ does not change with r ≥ q
+        // either; measured −1.5380e-9 (residual coordinates) and −1.5077e-9 (the user's, at
+        // q = r = 1): the two roundings differ by 3e-11, a thirtieth of τ.
+        prop_assert!(
+            (check.relative_violation - mu1).abs() < 1e-10,
+            "μ = {:e}, at q = r = 1: {mu1:e}",
+            check.relative_violation
+        );
         prop_assert!(check.passed(), "q = {q:e}, r = {r:e}, t = {t:?}: μ = {:e} (user units: {:e})",
             check.relative_violation, check.relative_violation_original_units);
     }
@@ -165,7 +169,7 @@ fn subnormal_p_entry_is_a_named_error() {
         .expect_err("a subnormal entry is refused");
     let text = err.to_string();
     assert!(
-        matches!(err, lti_model::ModelError::OutOfRange { .. })
+        matches!(err, lti_model::ModelError::Scenario { .. })
             && text.contains("P entry (0, 3)")
             && text.contains("write 0"),
         "{text}"
@@ -178,7 +182,7 @@ fn subnormal_p_entry_is_a_named_error() {
         !matches!(
             v,
             Err(lti_model::ModelError::Numerical { .. })
-                | Err(lti_model::ModelError::OutOfRange { .. })
+                | Err(lti_model::ModelError::Scenario { .. })
         ),
         "{v:?}"
     );

@@ -187,3 +187,26 @@ fn subnormal_p_entry_is_a_named_error() {
         "{v:?}"
     );
 }
+
+/// Well-scaled data keep the user's coordinates, bit for bit: the case study at q = r = 1
+/// (the presets of the golden files) has the μ of `xtask/tests/golden/*-certificate.json.gz`.
+#[test]
+fn well_scaled_check_is_unchanged() {
+    let sys = lti_model::presets::case_study_plant();
+    let (q, r) = (Mat::<f64>::identity(5, 5), Mat::<f64>::identity(1, 1));
+    let cert = ioss::certify(&sys, 0.8, q.as_ref(), r.as_ref()).expect("q = r = 1");
+    let check = ioss::assess(
+        &sys,
+        0.8,
+        q.as_ref(),
+        r.as_ref(),
+        cert.p.as_ref(),
+        &IossOptions::default(),
+    )
+    .expect("assess");
+    assert_eq!(
+        check.relative_violation.to_bits(),
+        check.relative_violation_original_units.to_bits()
+    );
+    assert_eq!(cert.lmi_relative_violation, -1.5076704189025632e-9);
+}

@@ -17,7 +17,15 @@
 //!    the *mean* of a cluster is well conditioned (its error is O(u·‖A_b‖), not
 //!    O(u^{1/k})), so it decides where the eigenvalue lies.
 //! 3. **Decision.** An eigenvalue (or cluster mean) λ is on the unit circle when
-//!    ||λ| − 1| ≤ k·c·u·max(1, ‖A_b‖); outside that band it is stable or unstable.
+//!    ||λ| − 1| ≤ k·c·u·max(1, ‖A_b‖); below that band it is stable.
+//! 4. **Unstable only beyond the data's precision.** An eigenvalue with |λ| > 1 beyond the
+//!    band of 3 is still counted on the circle when A_b is within a relative perturbation
+//!    [`DATA_PRECISION`] = 1e-10 of a matrix with an eigenvalue on the circle
+//!    (σ_min(A_b − zI) ≤ δ_A·‖A_b‖₂ for z on the circle near λ: |λ| − 1 is below the
+//!    eigenvalue's perturbation bound κ(λ)·δ_A·‖A_b‖₂). The verdict then follows the
+//!    spectrum, not the last digits of A (issue 37, item 5). For simple eigenvalues only:
+//!    a cluster (a Jordan chain) is moved onto the circle by a tiny perturbation with its
+//!    other members still outside, so its well-conditioned mean decides by step 3.
 //!
 //! The result says Stable (ρ(A) < 1), Marginal (ρ(A) = 1: the largest eigenvalues lie on
 //! the unit circle; [`SpectralFacts::longest_chain`] says whether they are semisimple) or
@@ -31,6 +39,53 @@ use crate::error::{ModelError, Result};
 /// c of the tolerances above: a multiple of the backward error n·u of the eigensolver.
 const TOL_FACTOR: f64 = 64.0;
 
+/// δ_A of step 4: A is taken to be known to a relative (2-norm) perturbation of 1e-10.
+/// Why this size: it is ≥ 10⁵ times the eigensolver's backward error n·u (so rounding alone
+/// never decides), above the accuracy of a plant produced by a ZOH discretisation (expm,
+/// ≈ 1e-13 relative) or printed with 12 to 17 digits, and a mode with |λ| − 1 of that order
+/// needs ≳ 1e10 steps to grow by a factor e — an instability no simulation or horizon of this
+/// project can tell from a marginal mode. Issue 37, item 5: an undamped mass chain whose A
+/// differs from the shipped one by 5e-13 must get the same verdict.
+pub const DATA_PRECISION: f64 = 1e-10;
+
+/// Step 4: is the block `a` within DATA_PRECISION·‖a‖₂ (a complex perturbation) of a
+/// matrix with an eigenvalue on the unit circle near λ = re + i·im? The distance from `a` to
+/// the matrices with eigenvalue z is σ_min(a − zI) exactly; it is evaluated at the radial
+/// projection z = λ/|λ| and at nearby angles (±κ·δ scales, where the minimum over the circle
+/// lies for an eigenvalue close to it). To first order σ_min(a − zI) ≈ |λ − z|/κ(λ), κ the
+/// eigenvalue's condition number, so the test reads "|λ| − 1 ≤ κ(λ)·δ_A·‖a‖₂": the
+/// eigenvalue's perturbation bound, Jordan chains included (their κ is unbounded, and the
+/// backward-error form needs no eigenvectors).
+fn within_data_precision_of_circle(a: &Mat<f64>, re: f64, im: f64) -> bool {
+    let n = a.nrows();
+    let Ok(norm_sv) = a.singular_values() else {
+        return false;
+    };
+    let norm = norm_sv.iter().copied().fold(0.0, f64::max);
+    let bound = DATA_PRECISION * norm.max(f64::MIN_POSITIVE);
+    let theta = im.atan2(re);
+    let gap = re.hypot(im) - 1.0;
+    // angles: the radial projection, and offsets of the order of the distance to the circle
+    let offsets = [0.0, gap, -gap, 4.0 * gap, -4.0 * gap];
+    offsets.iter().any(|&dt| {
+        let (zr, zi) = ((theta + dt).cos(), (theta + dt).sin());
+        // σ_min of the complex a − zI as the real 2n × 2n [[a − zr·I, zi·I], [−zi·I, a − zr·I]]
+        // (its singular values are those of a − zI, each twice).
+        let m = Mat::from_fn(2 * n, 2 * n, |i, j| {
+            let (bi, bj) = (i / n, j / n);
+            let (ii, jj) = (i % n, j % n);
+            let diag = if ii == jj { 1.0 } else { 0.0 };
+            match (bi, bj) {
+                (0, 0) | (1, 1) => a[(ii, jj)] - zr * diag,
+                (0, 1) => zi * diag,
+                _ => -zi * diag,
+            }
+        });
+        m.singular_values()
+            .is_ok_and(|sv| sv.iter().copied().fold(f64::INFINITY, f64::min) <= bound)
+    })
+}
+
 /// How x⁺ = Ax behaves.
 #[derive(Debug, Clone, Copy, PartialEq, Eq, Serialize)]
 #[serde(rename_all = "snake_case")]
@@ -39,7 +94,8 @@ pub enum Stability {
     Stable,
     /// No eigenvalue has |λ| > 1 and some has |λ| = 1.
     Marginal,
-    /// Some eigenvalue has |λ| > 1.
+    /// Some eigenvalue has |λ| > 1 by more than its perturbation bound for a relative
+    /// change [`DATA_PRECISION`] of A.
     Unstable,
 }
 
@@ -91,6 +147,16 @@ pub fn classify(a: MatRef<'_, f64>) -> Result<SpectralFacts> {
             if (modulus - 1.0).abs() <= tol {
                 on_circle += mult;
                 if im.abs() <= tol {
+                    let v = if re > 0.0 { 1.0 } else { -1.0 };
+                    if !real_unit.contains(&v) {
+                        real_unit.push(v);
+                    }
+                }
+            } else if modulus > 1.0 && mult == 1 && within_data_precision_of_circle(&sub, re, im) {
+                // |λ| − 1 is below the perturbation bound of λ for a relative change of A
+                // of DATA_PRECISION (step 4): on the circle as far as the data can tell.
+                on_circle += mult;
+                if im.abs() <= DATA_PRECISION.sqrt() * modulus {
                     let v = if re > 0.0 { 1.0 } else { -1.0 };
                     if !real_unit.contains(&v) {
                         real_unit.push(v);

@@ -289,6 +289,33 @@ fn check_window_conditioning(horizon: usize, eta: f64, sys: &LtiSystem) -> lti_m
     ))
 }
 
+/// States whose balancing scales (`lti_model::ioss::state_scaling`) spread by more than
+/// this are blamed for an ill-conditioned window before the weights: H_c's condition grows
+/// like the square of the spread.
+const UNITS_SPREAD: f64 = 1e2;
+
+/// When the states' units differ in scale (spread of the balancing scaling T ≥
+/// [`UNITS_SPREAD`]), the scaling to apply, with numbers (issue 37, item 7: AFTI-16 with its
+/// speed in ft/s was refused as "weights too unequal" with Q = R = I).
+fn units_advice(sys: &LtiSystem, q: &Mat<f64>, r: &Mat<f64>) -> Option<String> {
+    let t = lti_model::ioss::state_scaling(sys, q.as_ref(), r.as_ref()).ok()?;
+    let lo = t.iter().copied().fold(f64::INFINITY, f64::min);
+    let hi = t.iter().copied().fold(0.0, f64::max);
+    if !(lo > 0.0 && hi / lo >= UNITS_SPREAD) {
+        return None;
+    }
+    let list: Vec<String> = t.iter().map(|v| format!("{:.3e}", v / lo)).collect();
+    Some(format!(
+        "balancing (A, E, C) gives the diagonal scaling x = T·x̃ with T = diag({}) (largest / \
+         smallest = {:.1e}); measure state i in units t_i times larger: replace `plant.a` by \
+         T⁻¹AT, `plant.b` by T⁻¹B, `plant.c` by CT, `plant.e` by T⁻¹E, and divide the state \
+         bounds, `simulation.x0` and `simulation.prior` entrywise by t (docs/theory.md, \
+         \"Assumption 2\")",
+        list.join(", "),
+        hi / lo
+    ))
+}
+
 /// "use `mhe.horizon` ≤ M' at this η, or `mhe.eta` ≥ η' for this M" (the second part
 /// only when some η < 1 keeps η^(M−1) ≥ [`DECAY_FLOOR`]).
 fn horizon_advice(horizon: usize, eta: f64) -> String {
@@ -365,6 +392,17 @@ impl MheSettings {
                      numerically singular ({cond}, {limit}); {}",
                     self.horizon,
                     horizon_advice(self.horizon, eta)
+                ),
+            )
+            .into();
+        }
+        if let Some(advice) = units_advice(sys, &self.q, &self.r) {
+            return key_error(
+                "plant.a",
+                format!(
+                    "has states whose units differ in scale, which makes the MHE problem of \
+                     window length {m} numerically not strongly convex ({cond}, {limit}) — \
+                     not the weights: {advice}"
                 ),
             )
             .into();

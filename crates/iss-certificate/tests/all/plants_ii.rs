@@ -160,3 +160,47 @@ fn premises_that_need_p_are_not_evaluated_when_lmi_2_fails() {
         assert!(!all.contains(wrong), "{wrong}: {all}");
     }
 }
+
+/// Issue 37, item 5: the shipped undamped chain with 5e-13 added to the diagonal of A (every
+/// |λ| moves to ≈ 1 + 5e-13, beyond the old rounding band of ≈ 1.5e-13) gets the shipped
+/// file's marginal sentence, not "no global ISS gain exists": the verdict follows the
+/// spectrum up to the data's precision (`lti_model::spectral::DATA_PRECISION`).
+#[test]
+fn undamped_chain_nudged_by_5e_13_keeps_the_marginal_sentence() {
+    let mut sc = scenario("mass-chain-undamped.toml");
+    let p = &sc.plant;
+    let n = p.nx();
+    let a = Mat::from_fn(n, n, |i, j| {
+        p.a()[(i, j)] + if i == j { 5e-13 } else { 0.0 }
+    });
+    sc.plant = lti_model::LtiSystem::with_disturbance(
+        a,
+        p.b().to_owned(),
+        p.c().to_owned(),
+        p.e().to_owned(),
+        p.f().to_owned(),
+    )
+    .unwrap();
+    let o = CertificateOptions {
+        lipschitz_pairs: 20,
+        gamma13_sequences: 3,
+        ..CertificateOptions::default()
+    };
+    let c = crate::certify(&sc, &o).unwrap();
+    match c.gamma13.void.as_ref().unwrap() {
+        Gamma13Void::SaturatedDynamicsNotStable {
+            spectral_radius,
+            marginal,
+            ..
+        } => assert!(*marginal && *spectral_radius == 1.0),
+        other => panic!("{other:?}"),
+    }
+    for s in &c.solvers {
+        assert!(
+            s.void_reasons[0].contains("marginally stable")
+                && !s.void_reasons[0].contains("no global ISS gain"),
+            "{:?}",
+            s.void_reasons
+        );
+    }
+}

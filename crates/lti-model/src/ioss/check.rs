@@ -65,6 +65,102 @@ fn lmi_and_scale(
     (symmetrize(j.as_ref()), symmetrize(s.as_ref()))
 }
 
+/// J and S of [`lmi_and_scale`] in the coordinates z̃ = (x, w¹, v, ξ) with v = Cx + Fw²
+/// the output residual and ξ the part of w² that F does not see, or None when F does not
+/// have full row rank (σ_min(F) ≤ [`SPLIT_MIN_SV`]·σ_max(F)), F is empty, or the SVD
+/// fails.
+///
+/// With F = UΣVᵀ = U[Σ₁ 0][V₁ V₂]ᵀ and K = V₁Σ₁⁻¹Uᵀ (FK = I, FV₂ = 0), w² = K(v − Cx) + V₂ξ
+/// is z = T z̃ with T invertible, so J̃ = TᵀJT and S̃ = TᵀST (a congruence: μ is the same).
+/// In these coordinates H T = [0, 0, I, 0]: the output term is diag(0, 0, R, 0) exactly, on
+/// coordinates of its own, instead of the rank-n_y term HᵀRH spread over every row of J. For
+/// R much larger than Q (or Q much smaller than R) that term is what rounds away the terms
+/// of size Q and P in J (issue 37, item 4: `mhe.r = 1e12` measured μ = 6.7e-6 for a valid
+/// P); here every term is formed on its own scale and the Jacobi scaling of the pencil
+/// separates them. K and V₂ come from an SVD: the rounding is a relative perturbation of F
+/// of order u, far below τ.
+fn lmi_and_scale_split(
+    sys: &LtiSystem,
+    eta: f64,
+    q: MatRef<'_, f64>,
+    r: MatRef<'_, f64>,
+    p: MatRef<'_, f64>,
+) -> Option<(Mat<f64>, Mat<f64>)> {
+    let (nx, nw1, nw2, ny) = (sys.nx(), sys.nw1(), sys.nw2(), sys.ny());
+    if ny == 0 || nw2 < ny {
+        return None;
+    }
+    let f = sys.f();
+    let svd = f.to_owned().svd().ok()?;
+    let sv = svd.S().column_vector();
+    let smax = (0..ny).map(|i| sv[i]).fold(0.0, f64::max);
+    if !(0..ny).all(|i| sv[i] > SPLIT_MIN_SV * smax) {
+        return None;
+    }
+    let (u, v) = (svd.U(), svd.V());
+    // K = V₁Σ₁⁻¹Uᵀ (n_w2 × n_y), V₂ (n_w2 × (n_w2 − n_y)).
+    let k = Mat::from_fn(nw2, ny, |i, j| {
+        (0..ny).map(|l| v[(i, l)] / sv[l] * u[(j, l)]).sum::<f64>()
+    });
+    let kc = &k * sys.c();
+    let nz = nx + nw1 + nw2;
+    // z̃ = (x, w¹, v, ξ): column offsets.
+    let (ow1, ov, oxi) = (nx, nx + nw1, nx + nw1 + ny);
+    // G̃ = G T = [A, E, 0, 0].
+    let g = Mat::from_fn(nx, nz, |i, j| {
+        if j < nx {
+            sys.a()[(i, j)]
+        } else if j < ov {
+            sys.e()[(i, j - ow1)]
+        } else {
+            0.0
+        }
+    });
+    // L = the w-rows of T: w¹ = w¹, w² = −KCx + Kv + V₂ξ.
+    let l = Mat::from_fn(nw1 + nw2, nz, |i, j| {
+        if i < nw1 {
+            f64::from(u8::from(j == ow1 + i))
+        } else {
+            let i2 = i - nw1;
+            if j < nx {
+                -kc[(i2, j)]
+            } else if j < ov {
+                0.0
+            } else if j < oxi {
+                k[(i2, j - ov)]
+            } else {
+                v[(i2, ny + j - oxi)]
+            }
+        }
+    });
+    let gpg = g.transpose() * p * &g;
+    let lql = l.transpose() * q * &l;
+    let mut j = &gpg - &lql;
+    let mut s = &gpg + &lql;
+    for a in 0..nx {
+        for b in 0..nx {
+            j[(a, b)] -= eta * p[(a, b)];
+            s[(a, b)] += p[(a, b)];
+        }
+    }
+    for a in 0..ny {
+        for b in 0..ny {
+            j[(ov + a, ov + b)] -= r[(a, b)];
+            s[(ov + a, ov + b)] += r[(a, b)];
+        }
+    }
+    Some((symmetrize(j.as_ref()), symmetrize(s.as_ref())))
+}
+
+/// The user's coordinates decide μ while their rounding estimate n·u·cond(Ŝ) is at most
+/// this share of τ (a hundredth: the verdict cannot be moved by rounding).
+const ROUNDING_SHARE: f64 = 1e-2;
+
+/// F counts as having full row rank for [`lmi_and_scale_split`] when σ_min(F) >
+/// SPLIT_MIN_SV·σ_max(F): K = F⁺ then has ‖K‖·‖F‖ < 1e8, so the SVD's rounding stays a
+/// relative perturbation of F far below τ.
+const SPLIT_MIN_SV: f64 = 1e-8;
+
 /// The LMI matrix of (2) for a given P (⪯ 0 iff P certifies δ-IOSS with (η, Q, R)):
 ///
 /// [[AᵀPA − ηP − CᵀRC, AᵀPB̄ − CᵀRD̄], [B̄ᵀPA − D̄ᵀRC, B̄ᵀPB̄ − Q − D̄ᵀRD̄]].
@@ -112,8 +208,15 @@ pub struct LmiCheck {
     pub lmi_eigenvalues: Vec<f64>,
     /// λ_max(J), unscaled (reported; the test is on `relative_violation`).
     pub lmi_max_eigenvalue: f64,
-    /// μ(P) = max_v vᵀJv / vᵀSv ∈ [−1, 1]; NaN when P is not positive definite.
+    /// μ(P) = max_v vᵀJv / vᵀSv ∈ [−1, 1], computed in the output-residual coordinates
+    /// (`lmi_and_scale_split`, F of full row rank) or the user's, whichever has the
+    /// better-conditioned Jacobi-scaled S (the smaller rounding error); NaN when P is not
+    /// positive definite. The verdict is on this value.
     pub relative_violation: f64,
+    /// The same μ(P) computed from J and S in the user's coordinates (x, w), reported for
+    /// comparison: with R ≫ Q its rounding error is ≈ u·r/q (issue 37, item 4), so it may
+    /// exceed τ for a valid P.
+    pub relative_violation_original_units: f64,
     /// τ: P passes when μ(P) ≤ τ.
     pub relative_tolerance: f64,
 }
@@ -177,6 +280,7 @@ pub fn assess(
     check_inputs(sys, eta, q, r)?;
     check_shape("P", p, sys.nx(), sys.nx())?;
     check_finite("P", p)?;
+    check_no_subnormal(p)?;
     let asym = asymmetry(p);
     if asym > SYMMETRY_TOL * p.norm_max() {
         return Err(ModelError::NotSymmetric {
@@ -199,10 +303,28 @@ pub fn assess(
     let (j, s) = lmi_and_scale(sys, eta, q, r, p.as_ref());
     let lmi_eigenvalues = sym_eigenvalues("LMI matrix", j.as_ref())?;
     let lmi_max_eigenvalue = lmi_eigenvalues.last().copied().unwrap_or(0.0);
-    let relative_violation = if p_min > 0.0 {
-        relative_violation(j.as_ref(), s.as_ref())?
+    let (relative_violation, relative_violation_original_units) = if p_min > 0.0 {
+        // μ is the same in both coordinate systems; its rounding error is ≈ n·u·cond(Ŝ)
+        // (Ŝ the Jacobi-scaled S). The user's coordinates decide while that error is below
+        // ROUNDING_SHARE·τ (so well-scaled problems give bit-identical results); beyond, the
+        // better-conditioned of the two: the residual coordinates when R dominates Q, the
+        // user's when Q dominates R (where eliminating w² cancels terms of size Q).
+        let original = relative_violation(j.as_ref(), s.as_ref())?;
+        let split = match lmi_and_scale_split(sys, eta, q, r, p.as_ref()) {
+            Some((js, ss)) => relative_violation(js.as_ref(), ss.as_ref())?,
+            None => original,
+        };
+        let dim = s.nrows() as f64;
+        let resolved =
+            dim * f64::EPSILON * original.1 <= ROUNDING_SHARE * opts.lmi_relative_tolerance;
+        let chosen = if resolved || split.1 >= original.1 {
+            original
+        } else {
+            split
+        };
+        (chosen.0, original.0)
     } else {
-        f64::NAN
+        (f64::NAN, f64::NAN)
     };
     Ok(LmiCheck {
         p_min_eigenvalue: p_min,
@@ -213,14 +335,42 @@ pub fn assess(
         lmi_eigenvalues,
         lmi_max_eigenvalue,
         relative_violation,
+        relative_violation_original_units,
         relative_tolerance: opts.lmi_relative_tolerance,
     })
+}
+
+/// A subnormal entry of P (0 < |p_ij| < 2.2e-308) is refused, naming it (issue 37, item
+/// 14a: the eigen-solvers did not converge on it and the user read "NoConvergence"). It is
+/// not flushed to 0 silently: the check must be of the P the user gave, and such an entry is
+/// almost always a solver's or a writer's artefact that is best written as 0.
+fn check_no_subnormal(p: MatRef<'_, f64>) -> Result<()> {
+    for i in 0..p.nrows() {
+        for j in 0..p.ncols() {
+            let value = p[(i, j)];
+            if value.is_subnormal() {
+                return Err(ModelError::Scenario {
+                    key: "mhe.p".into(),
+                    problem: format!(
+                        "P entry ({i}, {j}) = {value:e} is subnormal (0 < |x| < {:e}), and the \
+                         eigen-solvers of the LMI (2) check do not converge on subnormal \
+                         numbers; write 0 there (in `mhe.p` or the --p-file), or rescale P, Q \
+                         and R together",
+                        f64::MIN_POSITIVE
+                    ),
+                });
+            }
+        }
+    }
+    Ok(())
 }
 
 /// μ = λ_max of the pencil (J, S) for S ≻ 0 (NaN if S is singular to working precision): with the Jacobi scaling D = diag(S)^{−½}
 /// and DSD = VΛVᵀ, μ = λ_max(Λ^{−½}VᵀDJDVΛ^{−½}). The scaling changes nothing
 /// mathematically (a congruence) and makes the rounding relative to each row's own scale.
-fn relative_violation(j: MatRef<'_, f64>, s: MatRef<'_, f64>) -> Result<f64> {
+///
+/// Returns (μ, cond(DSD)); μ's rounding error is ≈ n·u·cond(DSD).
+fn relative_violation(j: MatRef<'_, f64>, s: MatRef<'_, f64>) -> Result<(f64, f64)> {
     let n = s.nrows();
     let d: Vec<f64> = (0..n).map(|i| 1.0 / s[(i, i)].sqrt()).collect();
     let s_hat = Mat::from_fn(n, n, |a, b| d[a] * s[(a, b)] * d[b]);
@@ -235,12 +385,16 @@ fn relative_violation(j: MatRef<'_, f64>, s: MatRef<'_, f64>) -> Result<f64> {
     let lam = evd.S().column_vector();
     let v = evd.U();
     let lam_min = (0..n).map(|i| lam[i]).fold(f64::INFINITY, f64::min);
+    let lam_max = (0..n).map(|i| lam[i]).fold(0.0, f64::max);
     if !(lam_min > 0.0) {
         // Only for a P that is singular to working precision (refused by the ρ test anyway).
-        return Ok(f64::NAN);
+        return Ok((f64::NAN, f64::INFINITY));
     }
     let w = Mat::from_fn(n, n, |a, b| v[(a, b)] / lam[b].sqrt());
     let k = w.transpose() * &j_hat * &w;
     let eig = sym_eigenvalues("scaled LMI matrix", k.as_ref())?;
-    Ok(eig.last().copied().unwrap_or(f64::NEG_INFINITY))
+    Ok((
+        eig.last().copied().unwrap_or(f64::NEG_INFINITY),
+        lam_max / lam_min,
+    ))
 }

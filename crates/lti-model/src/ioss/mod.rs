@@ -68,10 +68,11 @@
 //! For η = 0, U does not depend on P and P = U(I) is computed directly. Tested against
 //! pinned SDP solutions for three plants × three weight ratios × weight scalings 1e-12 … 1e12
 //! × unit changes spanning 10⁶ (`tests/all/ioss_scale.rs`, `scripts/lmi2_reference.py`).
-//! Limit: for extreme ratios of R to Q the relative check cannot resolve μ below τ (the
-//! rank-n_y term HᵀRH rounds away the terms of size Q in J). Measured on the stand-in:
-//! r/q = 1e6 passes, r/q = 1e12 is refused with μ ≈ 5e-6 (the ratio only matters, not the
-//! common scale: q = r = 1e±12 pass).
+//! 5. **Reduced R.** If the P of steps 1–4 fails the check although LMI (2) is feasible (the
+//!    doubling loses accuracy for R/Q ≳ 1e8), the maximal P of (Q, c·R), c = 10⁻², 10⁻⁴, …,
+//!    10⁻²⁴, is taken instead: c·R ⪯ R, and LMI (2) is monotone in R, so it certifies the
+//!    user's data ([`METHOD_REDUCED_R`]; not the maximal P of R). Issue 37, item 4: the stand-in
+//!    with `mhe.r = 1e9 … 1e12` or `mhe.q ≤ 1e-10` was refused.
 //!
 //! **E that does not reach every state** (rank E < n_x and (A, E) not controllable, e.g.
 //! noise on some decoupled states only): X_k stays singular; along an unreached mode that
@@ -97,7 +98,15 @@
 //! μ(P) = max_v vᵀJ(P)v / vᵀS(P)v ∈ [−1, 1]
 //!
 //! is dimensionless and invariant under (P, Q, R) → c(P, Q, R) and under linear changes of
-//! the coordinates of x and w (J and S transform by the same congruence). P passes iff
+//! the coordinates of x and w (J and S transform by the same congruence). It is therefore
+//! computed where it is best resolved: in the user's coordinates and, when F has full row
+//! rank, in the output-residual coordinates (x, w¹, v = Cx + Fw², ξ ∈ ker F), where the
+//! output term is diag(0, 0, R, 0) on coordinates of its own rather than the rank-n_y term
+//! HᵀRH spread over every row of J (with R ≫ Q that term rounds away the terms of size Q:
+//! μ ≈ 6.7e-6 measured for a valid P at r/q = 1e12). μ's rounding is ≈ n·u·cond(Ŝ), Ŝ the
+//! Jacobi-scaled S: the user's coordinates decide while that is below τ/100, beyond it the
+//! better-conditioned of the two; the user-coordinate value is reported as
+//! [`LmiCheck::relative_violation_original_units`]. P passes iff
 //!
 //! 1. λ_min(P̂) > ρ·λ_max(P̂) for the Jacobi-scaled P̂ = diag(P)^{−½}·P·diag(P)^{−½},
 //!    ρ = [`P_MIN_RATIO`] = 1e-10, and
@@ -153,6 +162,9 @@ pub const P_MIN_RATIO: f64 = 1e-10;
 pub const METHOD_MAXIMAL: &str = "riccati-doubling";
 /// `method` of a P computed with a fictitious disturbance (E does not reach every state).
 pub const METHOD_FICTITIOUS: &str = "riccati-doubling+fictitious-disturbance";
+/// `method` of a P computed as the maximal solution for a smaller output weight c·R
+/// (c = 10⁻², 10⁻⁴, …): the maximal P of the user's R/Q ratio was not resolvable in f64.
+pub const METHOD_REDUCED_R: &str = "riccati-doubling+reduced-output-weight";
 /// `method` of a user-supplied P.
 pub const METHOD_USER: &str = "user";
 
@@ -302,6 +314,19 @@ impl IossCertificate {
     }
 }
 
+/// The diagonal state scaling x = T x̃ (T = diag(t), powers of two) that balances
+/// [A, E; C] after normalising Q and R to unit diagonal — the scaling LMI (2) is solved in
+/// (module doc, "Construction at any scale"). A large max t / min t says the states' units
+/// differ in scale; a user whose problem is ill-conditioned because of units can measure
+/// state i in units t_i times larger (issue 37, item 7).
+///
+/// Errors: Q or R not symmetric positive definite of the right size.
+pub fn state_scaling(sys: &LtiSystem, q: MatRef<'_, f64>, r: MatRef<'_, f64>) -> Result<Vec<f64>> {
+    check_positive_definite("Q", q, sys.nw())?;
+    check_positive_definite("R", r, sys.ny())?;
+    Ok(doubling::balance(sys, q, r)?.t)
+}
+
 fn check_inputs(sys: &LtiSystem, eta: f64, q: MatRef<'_, f64>, r: MatRef<'_, f64>) -> Result<()> {
     if !(0.0..1.0).contains(&eta) {
         return Err(ModelError::OutOfRange {
@@ -401,12 +426,16 @@ pub fn certify_with(
     check_inputs(sys, eta, q, r)?;
     check_options(opts)?;
     let first = extremal_solution(sys, eta, q, r, opts)?;
-    if let Extremal::Found { p, iterations } = first {
-        return finish(sys, eta, q, r, p, opts, METHOD_MAXIMAL, iterations);
+    if let Extremal::Found { p, iterations } = &first {
+        let check = assess(sys, eta, q, r, p.as_ref(), opts)?;
+        if check.passed() {
+            return certificate_from(p.clone(), eta, q, r, check, METHOD_MAXIMAL, *iterations);
+        }
     }
     if let Some(cause) = infeasibility_reason(sys, eta) {
         return Err(ModelError::LmiInfeasible { cause });
     }
+
     // E does not reach every state: retry with a fictitious disturbance (module doc).
     let x1 = first_covariance(sys, q, r);
     let x1_max = match &x1 {
@@ -426,8 +455,19 @@ pub fn certify_with(
         if let Extremal::Found { p, iterations } =
             extremal_solution(&aug, eta, q_aug.as_ref(), r, opts)?
         {
-            return finish(sys, eta, q, r, p, opts, METHOD_FICTITIOUS, iterations);
+            let check = assess(sys, eta, q, r, p.as_ref(), opts)?;
+            if check.passed() {
+                return certificate_from(p, eta, q, r, check, METHOD_FICTITIOUS, iterations);
+            }
         }
+    }
+    // Feasible, but the maximal P of these weights is not resolved (R/Q beyond ≈ 1e8):
+    // a P of the same Q with a smaller R certifies the user's R too (module doc).
+    if let Some((p, iterations)) = reduced_output_weight_solution(sys, eta, q, r, opts)? {
+        return finish(sys, eta, q, r, p, opts, METHOD_REDUCED_R, iterations);
+    }
+    if let Extremal::Found { p, iterations } = first {
+        return finish(sys, eta, q, r, p, opts, METHOD_MAXIMAL, iterations);
     }
     Err(match first {
         Extremal::Singular {
@@ -455,6 +495,36 @@ pub fn certify_with(
                 .to_string(),
         ),
     })
+}
+
+/// Steps of [`reduced_output_weight_solution`]: R·10⁻², R·10⁻⁴, …, R·10⁻²⁴.
+const REDUCED_R_STEPS: i32 = 12;
+
+/// A P for (η, Q, c·R) with c = 10⁻², 10⁻⁴, … that passes the check against the user's
+/// (η, Q, R), or None. LMI (2) is monotone in R (c·R ⪯ R makes the term −HᵀRH only
+/// smaller), so such a P certifies the user's data; it is the maximal P of the smaller R,
+/// not of R. Used when the maximal P of (Q, R) is not resolvable (R/Q ≳ 1e8, issue 37,
+/// item 4): the doubling is accurate at moderate ratios.
+fn reduced_output_weight_solution(
+    sys: &LtiSystem,
+    eta: f64,
+    q: MatRef<'_, f64>,
+    r: MatRef<'_, f64>,
+    opts: &IossOptions,
+) -> Result<Option<(Mat<f64>, usize)>> {
+    let mut total = 0;
+    for k in 1..=REDUCED_R_STEPS {
+        let r_c = r * 10f64.powi(-2 * k);
+        let Extremal::Found { p, iterations } = extremal_solution(sys, eta, q, r_c.as_ref(), opts)?
+        else {
+            continue;
+        };
+        total += iterations;
+        if assess(sys, eta, q, r, p.as_ref(), opts)?.passed() {
+            return Ok(Some((p, total)));
+        }
+    }
+    Ok(None)
 }
 
 fn numerical(reason: String) -> ModelError {

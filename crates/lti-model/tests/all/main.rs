@@ -6,6 +6,7 @@ mod ioss;
 mod ioss_any_e;
 mod ioss_relative;
 mod ioss_scale;
+mod ioss_units;
 mod numerics;
 mod sets;
 mod spectral;

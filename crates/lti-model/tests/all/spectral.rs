@@ -149,3 +149,56 @@ fn rotation_is_marginal_and_semisimple() {
         Stability::Stable
     );
 }
+
+/// An undamped chain of `n` unit masses with unit springs to each other and to both walls,
+/// ZOH at 0.5 s (the structure of `scenarios/mass-chain-undamped.toml`, with n masses):
+/// every eigenvalue is on the unit circle (|λ| = 1, semisimple).
+fn undamped_chain(n: usize) -> Mat<f64> {
+    let a_c = Mat::from_fn(2 * n, 2 * n, |r, c| match (r < n, c < n) {
+        (true, true) => 0.0,
+        (true, false) => f64::from(u8::from(c - n == r)),
+        (false, true) => {
+            let (i, j) = (r - n, c);
+            if i == j {
+                -2.0
+            } else if i.abs_diff(j) == 1 {
+                1.0
+            } else {
+                0.0
+            }
+        }
+        (false, false) => 0.0,
+    });
+    let b_c = Mat::<f64>::zeros(2 * n, 1);
+    lti_model::riccati::zoh(a_c.as_ref(), b_c.as_ref(), 0.5)
+        .expect("zoh of the chain")
+        .0
+}
+
+/// Issue 37, item 5: a 10-mass undamped chain and the same A changed by 5e-13 (on the
+/// diagonal: every eigenvalue moves out by ≈ 5e-13, beyond the rounding band of 3e-13 the
+/// old rule used) get the same verdict, marginal; a real instability (negative damping,
+/// |λ| − 1 ≈ 1e-4) is still unstable, and so is one of 1e-8 (far above δ_A·κ).
+#[test]
+fn marginal_chain_verdict_follows_the_spectrum_not_rounding() {
+    let a = undamped_chain(10);
+    let shipped = classify(a.as_ref()).expect("classify");
+    assert_eq!(shipped.stability, Stability::Marginal, "{shipped:?}");
+    let n = a.nrows();
+    let nudged = Mat::from_fn(n, n, |i, j| a[(i, j)] + if i == j { 5e-13 } else { 0.0 });
+    let ev = nudged.eigenvalues().expect("eigenvalues");
+    let naive = ev.iter().map(|z| z.norm()).fold(0.0, f64::max);
+    assert!(
+        naive > 1.0 + 3e-13,
+        "the nudge must move |λ| past the old band: {naive}"
+    );
+    let f = classify(nudged.as_ref()).expect("classify");
+    assert_eq!(f.stability, Stability::Marginal, "{f:?}");
+    assert_eq!(f.spectral_radius, 1.0);
+    for grow in [1e-4, 1e-8] {
+        let unstable = &a * (1.0 + grow);
+        let f = classify(unstable.as_ref()).expect("classify");
+        assert_eq!(f.stability, Stability::Unstable, "|λ| = 1 + {grow}: {f:?}");
+        assert!((f.spectral_radius - 1.0 - grow).abs() < 1e-9, "{f:?}");
+    }
+}

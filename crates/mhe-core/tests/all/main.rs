@@ -12,3 +12,4 @@ mod exact;
 mod kalman;
 mod problem;
 mod structured;
+mod units;

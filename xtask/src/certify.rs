@@ -317,6 +317,31 @@ pub fn certify(req: &CertifyRequest) -> Result<Outcome> {
         Some((p, _)) => ioss::verify(sys, eta, q.as_ref(), r.as_ref(), p.as_ref()),
         None => ioss::certify(sys, eta, q.as_ref(), r.as_ref()),
     };
+    // One verdict (issue 37 item 4): feasibility is monotone in η (−η'P ⪯ −ηP for η' > η), so
+    // when the construction at η fails but the bisection finds a P at some η_min ≤ η, that
+    // P — verified at η itself — is the certificate, and "infeasible" is never printed beside
+    // "the smallest feasible η is below yours".
+    let mut bisection = None;
+    let result = match result {
+        Err(ModelError::LmiInfeasible { cause }) if user_p.is_none() => {
+            let b = ioss::min_feasible_eta(sys, q.as_ref(), r.as_ref(), ETA_HINT_RESOLUTION);
+            let at_eta = match &b {
+                Ok(b) if b.certificate.eta <= eta => {
+                    ioss::verify(sys, eta, q.as_ref(), r.as_ref(), b.certificate.p.as_ref())
+                        .ok()
+                        .map(|mut c| {
+                            c.method =
+                                format!("{} at η = {}", b.certificate.method, b.certificate.eta);
+                            c
+                        })
+                }
+                _ => None,
+            };
+            bisection = Some(b);
+            at_eta.ok_or(ModelError::LmiInfeasible { cause })
+        }
+        other => other,
+    };
     let (passed, failure, certificate) = match result {
         Ok(cert) => (true, None, Some(cert.report())),
         Err(ModelError::LmiInfeasible { cause }) => match &user_p {
@@ -365,7 +390,9 @@ pub fn certify(req: &CertifyRequest) -> Result<Outcome> {
         )
     } else {
         Some(
-            match ioss::min_feasible_eta(sys, q.as_ref(), r.as_ref(), ETA_HINT_RESOLUTION) {
+            match bisection.unwrap_or_else(|| {
+                ioss::min_feasible_eta(sys, q.as_ref(), r.as_ref(), ETA_HINT_RESOLUTION)
+            }) {
                 Ok(b) => format!(
                     "the smallest feasible η for these Q, R is ≈ {} (bisection to {ETA_HINT_RESOLUTION:e}); \
                  pass --eta or set mhe.eta at or above it",

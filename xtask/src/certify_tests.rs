@@ -191,6 +191,15 @@ fn infeasible_eta_fails_with_hint() {
     );
     let hint = out.document.hint.as_ref().unwrap();
     assert!(hint.contains("smallest feasible η"), "{hint}");
+    // One verdict: "infeasible" is never printed beside a smallest feasible η at or below
+    // the requested one (feasibility is monotone in η).
+    let eta_min: f64 = hint
+        .split("≈ ")
+        .nth(1)
+        .and_then(|t| t.split(' ').next())
+        .and_then(|t| t.parse().ok())
+        .unwrap_or_else(|| panic!("no η in the hint: {hint}"));
+    assert!(eta_min > 0.0, "{hint}");
     assert_eq!(out.document.inputs.eta_source, "--eta");
 }
 

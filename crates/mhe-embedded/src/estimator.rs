@@ -8,12 +8,12 @@ use crate::scalar::Scalar;
 /// range is imposed: the certificate bounds the disturbances, not the measurements.
 #[derive(Debug, Clone, Copy, PartialEq, Eq)]
 pub enum PushError {
-    /// u[index] is not finite.
+    /// `u[index]` is not finite.
     NonFiniteInput {
         /// The entry of u.
         index: usize,
     },
-    /// y[index] is not finite.
+    /// `y[index]` is not finite.
     NonFiniteMeasurement {
         /// The entry of y.
         index: usize,

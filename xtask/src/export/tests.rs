@@ -404,11 +404,15 @@ fn a_k_below_k_min_is_refused_unless_allowed() {
     );
     assert!(parse_iterations("--k", "0").is_err());
     assert!(parse_iterations("--k", "many").is_err());
-    // f32 is not covered: refused at K_min unless allowed, uncertified with the flag.
+    // f32 is certified only where Theorem 1 with the f32 rounding folded in certifies K; on
+    // the case study it certifies none: refused at K_min unless allowed, with the reason.
     let err = decide(&loop_cert, Iterations::Certified, ScalarKind::F32, false)
         .unwrap_err()
         .to_string();
-    assert!(err.contains("f32") && err.contains("not covered"), "{err}");
+    assert!(
+        err.contains("f32") && err.contains("rounding folded in"),
+        "{err}"
+    );
     assert_eq!(
         decide(&loop_cert, Iterations::Certified, ScalarKind::F32, true).unwrap(),
         (k_min, false)
@@ -475,11 +479,12 @@ fn an_uncertified_artefact_says_so_everywhere() {
             .contains("below")
     );
     assert_eq!(json["scenario"]["sha256"].as_str().unwrap().len(), 64);
+    // An f64 artefact says what decides an f32 one.
     assert!(
         json["covers"]["f32"]
             .as_str()
             .unwrap()
-            .starts_with("not covered")
+            .contains("f32 rounding folded in")
     );
 }
 

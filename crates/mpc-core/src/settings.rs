@@ -138,8 +138,8 @@ impl MpcSettings {
                     "is {horizon}: the condensed MPC (N·n_u = {} inputs, N·n_x = {} predicted \
                      states) needs an estimated {:.1} GiB of dense matrices to build, above the \
                      limit of {:.0} GiB (docs/limits.md); {}",
-                    horizon * sys.nu(),
-                    horizon * sys.nx(),
+                    horizon.saturating_mul(sys.nu()),
+                    horizon.saturating_mul(sys.nx()),
                     bytes / (1u64 << 30) as f64,
                     lti_model::spec::format::MAX_DENSE_BYTES / (1u64 << 30) as f64,
                     match largest {

@@ -75,6 +75,7 @@ mod run;
 mod schedule;
 mod seeds;
 mod summary;
+mod table;
 mod theory;
 mod thresholds;
 

@@ -7,6 +7,8 @@
 //! small-gain conditions (sg1)–(sg3), the smallest certified iteration budget K, and the
 //! exact linear boundary K_lin below which no certificate can go.
 //!
+//! - [`model`]: a loop built from Rust values ([`LoopModel`]) and its certificate in one
+//!   call ([`certify`]): K_min per method and the verdict at any K.
 //! - [`certificate`]: Theorem 1 for a resolved scenario ([`certificate::certify_closed_loop`]):
 //!   every premise with its margin, K_min per method.
 //! - [`analysis`]: Theorem 1's arithmetic (C₁…C₆, gains, slopes, premises, K_min).
@@ -36,6 +38,12 @@ pub mod gamma13;
 pub mod joint;
 pub mod linear;
 pub mod lure;
+pub mod model;
 pub mod plan;
 pub mod regional;
 pub mod small_gain;
+
+pub use model::{
+    Certificate, CertifyOptions, LoopModel, LoopModelBuilder, Method, MheSettings, ModelBuildError,
+    MpcSettings, certify,
+};

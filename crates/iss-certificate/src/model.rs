@@ -287,7 +287,8 @@ impl LoopModelBuilder {
     /// anything large is allocated), solves LMI (2) for P when the MHE gives none, and
     /// builds the MPC. Errors name the Rust item ([`ModelBuildError`]).
     pub fn build(self) -> Result<LoopModel, ModelBuildError> {
-        let to_rows = |m: faer::MatRef<'_, f64>| Some(MatrixSpec::Rows(lti_model::matrix::to_rows(m)));
+        let to_rows =
+            |m: faer::MatRef<'_, f64>| Some(MatrixSpec::Rows(lti_model::matrix::to_rows(m)));
         let p = &self.plant;
         let raw_plant = RawPlant {
             a: to_rows(p.a()),
@@ -303,7 +304,8 @@ impl LoopModelBuilder {
             output: self.output.map(Table),
             disturbance: self.disturbance.map(Table),
         };
-        let (sets, disturbance_given) = validate_sets(Some(&raw_sets), &plant).map_err(from_model)?;
+        let (sets, disturbance_given) =
+            validate_sets(Some(&raw_sets), &plant).map_err(from_model)?;
         let noise =
             validate_noise(None, &sets, disturbance_given, plant.nw()).map_err(from_model)?;
         let raw_sim = RawSimulation {
@@ -311,8 +313,7 @@ impl LoopModelBuilder {
             prior: self.prior,
             steps: None,
         };
-        let simulation =
-            validate_simulation(Some(&raw_sim), &plant, &sets).map_err(from_model)?;
+        let simulation = validate_simulation(Some(&raw_sim), &plant, &sets).map_err(from_model)?;
         let mhe = self.mhe.ok_or(ModelBuildError::Missing {
             part: "LoopModelBuilder::mhe",
             why: "the certificate is of the MHE's iterations; give \
@@ -582,7 +583,10 @@ impl Certificate {
 ///
 /// Errors: a bad option, or a numerical failure of an analysis step; a violated premise is
 /// not an error (the verdict is `void`, with the reason).
-pub fn certify(model: &LoopModel, options: &CertifyOptions) -> Result<Certificate, ModelBuildError> {
+pub fn certify(
+    model: &LoopModel,
+    options: &CertifyOptions,
+) -> Result<Certificate, ModelBuildError> {
     options.check()?;
     let mut opts = verdict_options(model.scenario(), options.methods.clone(), options.gamma13);
     if let Some(s) = options.phase_seconds {

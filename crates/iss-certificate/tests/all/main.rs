@@ -15,6 +15,7 @@ mod krylov;
 mod linear;
 mod lure;
 mod mends;
+mod model;
 mod plants;
 mod plants_ii;
 mod regional;

@@ -1,0 +1,300 @@
+//! The typed entry point (issue 38 item 1): a `LoopModel` built from Rust values gives the
+//! certificate of the TOML scenario it mirrors, bit for bit, and every bad value is refused
+//! with an error naming the Rust item, before anything large is built.
+
+use closed_loop::scenario::Scenario;
+use faer::{Mat, mat};
+use iss_certificate::certificate::certify_closed_loop;
+use iss_certificate::coverage::verdict_options;
+use iss_certificate::{
+    CertifyOptions, LoopModel, LoopModelBuilder, Method, MheSettings, ModelBuildError, MpcSettings,
+    certify,
+};
+use lti_model::LtiSystem;
+
+fn scenario(file: &str) -> Scenario {
+    let dir = concat!(env!("CARGO_MANIFEST_DIR"), "/../../scenarios/");
+    Scenario::from_file(format!("{dir}{file}")).expect("shipped scenario")
+}
+
+/// The typed model's certificate against `certify_closed_loop` on the file, with the
+/// options every command uses: equal as JSON (every constant, margin and K_min, bit for
+/// bit: serde_json writes f64 round-trip exact) and K_min per method.
+fn assert_same_certificate(model: &LoopModel, file: &str) {
+    let sc = scenario(file);
+    let methods: Vec<Method> = Method::PRESETS
+        .into_iter()
+        .chain(Method::JACOBI_PRESETS)
+        .collect();
+    let opts = verdict_options(&sc, methods, None);
+    let resolved = sc.resolve().expect("resolves");
+    let from_file = certify_closed_loop(&resolved, &opts).expect("certifies");
+    let typed = certify(model, &CertifyOptions::default()).expect("certifies");
+    for s in &from_file.solvers {
+        assert_eq!(
+            typed.k_min(s.solver),
+            s.k_min,
+            "{file}: K_min of {}",
+            s.solver
+        );
+    }
+    assert_eq!(
+        serde_json::to_string(typed.closed_loop()).expect("json"),
+        serde_json::to_string(&from_file).expect("json"),
+        "{file}"
+    );
+}
+
+#[test]
+fn case_study_certified_typed_equals_toml() {
+    // scenarios/case-study-certified.toml as Rust values (noise and steps do not enter the
+    // certificate; x₀ and the prior set the sampled estimates' ball).
+    let a = mat![
+        [0.7, -0.1, 0.0, 0.0],
+        [0.2, -0.5, 0.1, 0.0],
+        [0.0, 0.1, 0.1, 0.0],
+        [0.5, 0.0, 0.5, 0.5],
+    ];
+    let b = mat![[0.0, 0.1], [0.1, 1.0], [0.1, 0.0], [0.0, 0.0]];
+    let c = mat![[0.1, 0.3, 0.8, 0.5]];
+    let r_c = Mat::from_fn(2, 2, |i, j| if i == j { 0.1 } else { 0.0 });
+    let plant = LtiSystem::new(a, b, c).expect("plant");
+    let mpc = MpcSettings {
+        horizon: 10,
+        q: Mat::identity(4, 4),
+        r: r_c,
+        terminal: mpc_core::settings::TerminalCost::Dare,
+        iterations: None,
+        method: mpc_core::settings::DEFAULT_METHOD,
+        output: None,
+    };
+    let model = LoopModel::builder(plant)
+        .name("case-study-certified")
+        .input_box(&[-1.0; 2], &[1.0; 2])
+        .disturbance_box(&[-0.1; 5], &[0.1; 5])
+        .initial_state(&[12.0, -10.0, 10.0, -10.0])
+        .prior(&[7.0, -7.0, 3.0, -5.0])
+        .mhe(
+            MheSettings::builder()
+                .horizon(9)
+                .eta(0.8)
+                .iterations(243)
+                .method(Method::PG),
+        )
+        .mpc(mpc)
+        .build()
+        .expect("valid model");
+    assert_same_certificate(&model, "case-study-certified.toml");
+    let cert = certify(
+        &model,
+        &CertifyOptions::default().with_methods(vec![Method::PG]),
+    )
+    .expect("certifies");
+    // The file's K is PG's K_min (a test of xtask keeps it so): certified at K, not below.
+    assert_eq!(cert.k_min(Method::PG), Some(243));
+    assert_eq!(cert.verdict(Method::PG, 243).certified.as_str(), "yes");
+    assert_eq!(cert.verdict(Method::PG, 242).certified.as_str(), "no");
+}
+
+#[test]
+fn double_integrator_typed_equals_toml() {
+    // scenarios/double-integrator.toml: no input bound, the exact MPC; A's entries as the
+    // file writes them (1 − 2⁻⁵³ …), so the plant is the same to the bit.
+    let plant = LtiSystem::new(
+        mat![
+            [0.9999999999999999, 0.09999999999999998],
+            [0.0, 0.9999999999999999]
+        ],
+        mat![[0.004999999999999998], [0.09999999999999998]],
+        mat![[1.0, 0.0]],
+    )
+    .expect("plant");
+    let model = LoopModel::builder(plant)
+        .name("double-integrator")
+        .disturbance_box(&[-0.01; 3], &[0.01; 3])
+        .initial_state(&[1.0, 0.0])
+        .mhe(
+            MheSettings::builder()
+                .horizon(9)
+                .eta(0.8)
+                .iterations(10)
+                .method(Method::ADMM_PR),
+        )
+        .mpc_horizon(10)
+        .build()
+        .expect("valid model");
+    assert_same_certificate(&model, "double-integrator.toml");
+}
+
+/// A small valid model's builder (n_x = 2, n_u = 1, n_y = 1, n_w = 3) for the bad inputs.
+fn small(plant: LtiSystem) -> LoopModelBuilder {
+    LoopModel::builder(plant)
+        .input_box(&[-1.0], &[1.0])
+        .mhe(MheSettings::builder().horizon(3).eta(0.5).iterations(10))
+        .mpc_horizon(3)
+}
+
+fn plant() -> LtiSystem {
+    LtiSystem::new(
+        mat![[0.9, 0.1], [0.0, 0.8]],
+        mat![[0.0], [0.1]],
+        mat![[1.0, 0.0]],
+    )
+    .expect("plant")
+}
+
+/// The error of `b`, its field, and a check that its message names no file key.
+fn refused(b: LoopModelBuilder) -> (String, String) {
+    let e = b.build().expect_err("refused");
+    let text = e.to_string();
+    for key in [
+        "mhe.",
+        "mpc.",
+        "sets.",
+        "plant.",
+        "simulation.",
+        "certificate.",
+        "[mhe]",
+    ] {
+        assert!(!text.contains(key), "{text} names the file key {key}");
+    }
+    match e {
+        ModelBuildError::Invalid { field, .. } => (field, text),
+        ModelBuildError::Missing { part, .. } => (part.to_string(), text),
+        other => panic!("not a refusal of a value: {other}"),
+    }
+}
+
+#[test]
+fn bad_mhe_values_name_mhe_settings_fields() {
+    let (field, text) =
+        refused(small(plant()).mhe(MheSettings::builder().horizon(3).eta(1.2).iterations(10)));
+    assert_eq!(field, "MheSettings::eta");
+    assert!(
+        text.starts_with("MheSettings::eta: is 1.2, but η must lie in [0, 1)"),
+        "{text}"
+    );
+    let (field, _) = refused(
+        small(plant()).mhe(
+            MheSettings::builder()
+                .horizon(3)
+                .eta(f64::NAN)
+                .iterations(10),
+        ),
+    );
+    assert_eq!(field, "MheSettings::eta");
+    let (field, _) =
+        refused(small(plant()).mhe(MheSettings::builder().horizon(0).eta(0.5).iterations(10)));
+    assert_eq!(field, "MheSettings::horizon");
+    let (field, _) =
+        refused(small(plant()).mhe(MheSettings::builder().horizon(3).eta(0.5).iterations(0)));
+    assert_eq!(field, "MheSettings::iterations");
+    let (field, text) = refused(small(plant()).mhe(MheSettings::builder().horizon(3).eta(0.5)));
+    assert_eq!(field, "MheSettings::iterations", "{text}");
+    // Q must be n_w × n_w (3 × 3) and positive definite.
+    let not_pd = Mat::from_fn(3, 3, |i, j| if i == j { -1.0 } else { 0.0 });
+    let (field, _) = refused(
+        small(plant()).mhe(
+            MheSettings::builder()
+                .horizon(3)
+                .eta(0.5)
+                .iterations(10)
+                .q(&not_pd),
+        ),
+    );
+    assert_eq!(field, "MheSettings::q");
+    let (field, _) = refused(
+        small(plant()).mhe(
+            MheSettings::builder()
+                .horizon(3)
+                .eta(0.5)
+                .iterations(10)
+                .r(&Mat::identity(2, 2)),
+        ),
+    );
+    assert_eq!(field, "MheSettings::r");
+    // A horizon whose MHE setup exceeds the memory limit: refused before anything is built.
+    let (field, _) = refused(
+        small(plant()).mhe(
+            MheSettings::builder()
+                .horizon(1 << 20)
+                .eta(0.5)
+                .iterations(10),
+        ),
+    );
+    assert_eq!(field, "MheSettings::horizon");
+}
+
+#[test]
+fn bad_plant_sets_and_mpc_values_name_rust_items() {
+    let nan_a = LtiSystem::new(
+        mat![[0.9, f64::NAN], [0.0, 0.8]],
+        mat![[0.0], [0.1]],
+        mat![[1.0, 0.0]],
+    )
+    .expect("LtiSystem::new checks shapes only");
+    let (field, _) = refused(small(nan_a));
+    assert!(
+        field.starts_with("LtiSystem::a") || field == "LtiSystem",
+        "{field}"
+    );
+    let (field, _) = refused(small(plant()).input_box(&[-1.0, -1.0], &[1.0, 1.0]));
+    assert!(field.starts_with("LoopModelBuilder::input_box"), "{field}");
+    let (field, _) = refused(small(plant()).disturbance_box(&[0.1; 3], &[0.2; 3]));
+    assert!(
+        field.starts_with("LoopModelBuilder::disturbance_box"),
+        "{field}"
+    );
+    let (field, _) = refused(small(plant()).state_box(&[-1.0, f64::NAN], &[1.0, 1.0]));
+    assert!(field.starts_with("LoopModelBuilder::state_box"), "{field}");
+    let (field, _) = refused(small(plant()).initial_state(&[1.0]));
+    assert_eq!(field, "LoopModelBuilder::initial_state");
+    let (field, _) = refused(small(plant()).w_bar(f64::INFINITY));
+    assert_eq!(field, "LoopModelBuilder::w_bar");
+    // The MPC: N = 0, N beyond the dense-memory limit, R_c not positive definite.
+    let (field, _) = refused(small(plant()).mpc_horizon(0));
+    assert_eq!(field, "MpcSettings::horizon");
+    let (field, text) = refused(small(plant()).mpc_horizon(1 << 24));
+    assert_eq!(field, "MpcSettings::horizon", "{text}");
+    let bad_r = MpcSettings {
+        horizon: 3,
+        q: Mat::identity(2, 2),
+        r: mat![[0.0]],
+        terminal: mpc_core::settings::TerminalCost::Dare,
+        iterations: None,
+        method: Method::FISTA,
+        output: None,
+    };
+    let (field, _) = refused(small(plant()).mpc(bad_r));
+    assert_eq!(field, "MpcSettings::r");
+}
+
+#[test]
+fn missing_parts_and_bad_options_are_refused() {
+    let (part, _) = refused(LoopModel::builder(plant()).mpc_horizon(3));
+    assert_eq!(part, "LoopModelBuilder::mhe");
+    let (part, _) = refused(
+        LoopModel::builder(plant()).mhe(MheSettings::builder().horizon(3).eta(0.5).iterations(10)),
+    );
+    assert_eq!(part, "LoopModelBuilder::mpc");
+    let model = small(plant()).build().expect("valid");
+    for (opts, field) in [
+        (
+            CertifyOptions::default().with_gamma13(-1.0),
+            "CertifyOptions::gamma13",
+        ),
+        (
+            CertifyOptions::default().with_phase_seconds(f64::NAN),
+            "CertifyOptions::phase_seconds",
+        ),
+        (
+            CertifyOptions::default().with_methods(Vec::new()),
+            "CertifyOptions::methods",
+        ),
+    ] {
+        match certify(&model, &opts) {
+            Err(ModelBuildError::Invalid { field: f, .. }) => assert_eq!(f, field),
+            other => panic!("{field}: {other:?}"),
+        }
+    }
+}

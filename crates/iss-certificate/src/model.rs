@@ -451,6 +451,8 @@ pub struct CertifyOptions {
     /// skipped and its verdict reported "not computed" ([`crate::budget`]; `None`: the
     /// default [`crate::budget::DEFAULT_PHASE_SECONDS`]).
     pub phase_seconds: Option<f64>,
+    /// Seed of every sampled estimate (a scenario file's `noise.seed`; default 0).
+    pub seed: u64,
 }
 
 impl Default for CertifyOptions {
@@ -462,6 +464,7 @@ impl Default for CertifyOptions {
                 .collect(),
             gamma13: None,
             phase_seconds: None,
+            seed: 0,
         }
     }
 }
@@ -477,6 +480,12 @@ impl CertifyOptions {
     #[must_use]
     pub fn with_gamma13(mut self, gamma13: f64) -> Self {
         self.gamma13 = Some(gamma13);
+        self
+    }
+    /// These options with the seed of the sampled estimates.
+    #[must_use]
+    pub fn with_seed(mut self, seed: u64) -> Self {
+        self.seed = seed;
         self
     }
     /// These options with the analysis budget `seconds` per optional phase.
@@ -592,6 +601,7 @@ pub fn certify(
     if let Some(s) = options.phase_seconds {
         opts.phase_seconds = s;
     }
+    opts.seed = options.seed;
     let closed_loop = certify_closed_loop(model.resolved(), &opts).map_err(from_closed_loop)?;
     Ok(Certificate {
         model: model.clone(),

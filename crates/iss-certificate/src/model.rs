@@ -153,9 +153,17 @@ fn rust_field(key: &str) -> String {
 }
 
 /// `text` with every scenario key and section replaced by its Rust name, and the file
-/// format's hints (which a Rust caller cannot use) dropped.
+/// format's hints (which a Rust caller cannot use) dropped or written as the builder call
+/// (`e.g. \`iterations = 50\`` → `e.g. \`.iterations(50)\``).
 fn rust_text(text: &str) -> String {
     let mut out = text.replace(" (a positive number s gives s·I)", "");
+    if let Some((head, tail)) = out.split_once("e.g. `")
+        && let Some((assignment, rest)) = tail.split_once('`')
+        && let Some((name, value)) = assignment.split_once(" = ")
+        && !name.contains('.')
+    {
+        out = format!("{head}e.g. `.{name}({value})`{rest}");
+    }
     for (toml, rust) in SECTIONS {
         out = out.replace(toml, rust);
     }

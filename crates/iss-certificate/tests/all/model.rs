@@ -198,6 +198,7 @@ fn bad_mhe_values_name_mhe_settings_fields() {
     assert_eq!(field, "MheSettings::iterations");
     let (field, text) = refused(small(plant()).mhe(MheSettings::builder().horizon(3).eta(0.5)));
     assert_eq!(field, "MheSettings::iterations", "{text}");
+    assert!(text.ends_with("e.g. `.iterations(50)`"), "{text}");
     // Q must be n_w × n_w (3 × 3) and positive definite.
     let not_pd = Mat::from_fn(3, 3, |i, j| if i == j { -1.0 } else { 0.0 });
     let (field, _) = refused(

@@ -305,3 +305,33 @@ fn missing_parts_and_bad_options_are_refused() {
         }
     }
 }
+
+#[test]
+fn verdict_gains_and_w_bar_of_a_small_model() {
+    // w̄ defaults to the largest ‖w‖₂ over 𝒲 and a given w̄ overrides it.
+    let model = small(plant())
+        .disturbance_box(&[-0.01; 3], &[0.02; 3])
+        .build()
+        .expect("valid");
+    let expected = (3.0f64 * 0.02 * 0.02).sqrt();
+    assert!((model.w_bar().expect("bounded 𝒲") - expected).abs() < 1e-15);
+    assert_eq!(small(plant()).build().expect("valid").w_bar(), None);
+    let model = small(plant()).w_bar(0.05).build().expect("valid");
+    assert_eq!(model.w_bar(), Some(0.05));
+    let cert = certify(
+        &model,
+        &CertifyOptions::default().with_methods(vec![Method::PG]),
+    )
+    .expect("certifies");
+    let k = cert.k_min(Method::PG).expect("certified");
+    assert_eq!(cert.verdict(Method::PG, k).certified.as_str(), "yes");
+    assert_eq!(cert.verdict(Method::PG, k - 1).certified.as_str(), "no");
+    let g = cert.gains(Method::PG, k).expect("gains at K_min");
+    assert!(g.gain_e.is_finite() && g.gain_e > 0.0 && g.gain_x.is_finite());
+    assert!(cert.gains(Method::PG, k - 1).is_err());
+    // A method not certified is not "certified": the verdict says why.
+    let v = cert.verdict(Method::FISTA, k);
+    assert_eq!(v.certified.as_str(), "void");
+    assert!(v.reason.contains("no entry for fista"), "{}", v.reason);
+    assert!(cert.gains(Method::FISTA, k).is_err());
+}

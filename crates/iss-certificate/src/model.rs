@@ -90,9 +90,9 @@ pub enum ModelBuildError {
     },
 }
 
-/// Scenario keys and the Rust items that set them, longest key first within a section so
-/// that a key is rewritten before a key it starts with.
-const RUST_NAMES: [(&str, &str); 30] = [
+/// Scenario keys and the Rust items that set them (no key starts with another, so the
+/// order does not matter).
+const RUST_NAMES: [(&str, &str); 29] = [
     ("plant.a", "LtiSystem::a"),
     ("plant.b", "LtiSystem::b"),
     ("plant.c", "LtiSystem::c"),
@@ -122,7 +122,6 @@ const RUST_NAMES: [(&str, &str); 30] = [
     ("certificate.w_bar", "LoopModelBuilder::w_bar"),
     ("certificate.gamma13", "CertifyOptions::gamma13"),
     ("certificate.phase_seconds", "CertifyOptions::phase_seconds"),
-    ("noise.scale", "LoopModelBuilder::disturbance_box"),
 ];
 
 /// Whole sections named in messages, and what a Rust caller calls them.
@@ -314,8 +313,13 @@ impl LoopModelBuilder {
         };
         let (sets, disturbance_given) =
             validate_sets(Some(&raw_sets), &plant).map_err(from_model)?;
-        let noise =
-            validate_noise(None, &sets, disturbance_given, plant.nw()).map_err(from_model)?;
+        // The disturbance a simulation of the model draws (uniform on a bounded 𝒲, else
+        // none): the certificate does not use it, so an unbounded 𝒲 is not refused here.
+        let bounded = (sets.disturbance.lower().iter())
+            .chain(sets.disturbance.upper())
+            .all(|b| b.is_finite());
+        let noise = validate_noise(None, &sets, disturbance_given && bounded, plant.nw())
+            .map_err(from_model)?;
         let raw_sim = RawSimulation {
             x0: self.x0,
             prior: self.prior,

@@ -316,6 +316,11 @@ fn verdict_gains_and_w_bar_of_a_small_model() {
     let expected = (3.0f64 * 0.02 * 0.02).sqrt();
     assert!((model.w_bar().expect("bounded 𝒲") - expected).abs() < 1e-15);
     assert_eq!(small(plant()).build().expect("valid").w_bar(), None);
+    let inf = f64::INFINITY;
+    let unbounded = small(plant())
+        .disturbance_box(&[-inf; 3], &[inf; 3])
+        .build();
+    assert_eq!(unbounded.expect("an unbounded 𝒲 is valid").w_bar(), None);
     let model = small(plant()).w_bar(0.05).build().expect("valid");
     assert_eq!(model.w_bar(), Some(0.05));
     let cert = certify(

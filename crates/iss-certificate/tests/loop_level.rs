@@ -33,7 +33,13 @@ impl Plant {
     /// H, F (gradient Hξ − F X) and α = 1/λ_max(H).
     fn qp(&self) -> ([[f64; 2]; 2], [[f64; 3]; 2], f64) {
         let Plant {
-            a, b, ell, q, qw, r, ..
+            a,
+            b,
+            ell,
+            q,
+            qw,
+            r,
+            ..
         } = *self;
         // Residuals gᵀξ − fᵀX with weights.
         let res: [(f64, [f64; 2], [f64; 3]); 4] = [
@@ -62,7 +68,13 @@ impl Plant {
 
     /// One sample of the real loop: K projected-gradient steps with the box [−c, c] on the
     /// clamped components (c = ∞: unclamped), or with the given slopes per iteration.
-    fn step(&self, x: &[f64; 3], w: f64, k: usize, clamp: &mut dyn FnMut(usize, usize, f64) -> f64) -> [f64; 3] {
+    fn step(
+        &self,
+        x: &[f64; 3],
+        w: f64,
+        k: usize,
+        clamp: &mut dyn FnMut(usize, usize, f64) -> f64,
+    ) -> [f64; 3] {
         let (h, f, alpha) = self.qp();
         let mut xi = [x[2], 0.0];
         for kk in 0..k {
@@ -72,7 +84,11 @@ impl Plant {
                     - (f[i][0] * x[0] + f[i][1] * x[1] + f[i][2] * x[2]);
                 v[i] = xi[i] - alpha * grad;
             }
-            let s_new = if self.clamp_s { clamp(kk, 1, v[0]) } else { v[0] };
+            let s_new = if self.clamp_s {
+                clamp(kk, 1, v[0])
+            } else {
+                v[0]
+            };
             xi = [s_new, clamp(kk, 0, v[1])];
         }
         let xhat = self.a * xi[0] + xi[1] - self.b * self.ell * x[2];
@@ -162,7 +178,7 @@ const UNSTABLE: Plant = Plant {
     b: 1.0,
     ell: 1.0,
     q: 0.05,
-    qw: 0.5,
+    qw: 50.0,
     r: 1.0,
     clamp_s: false,
 };
@@ -172,7 +188,7 @@ fn plants() -> [Plant; 3] {
         UNSTABLE,
         Plant {
             a: 1.2,
-            qw: 2.0,
+            qw: 100.0,
             q: 0.2,
             ell: 0.9,
             ..UNSTABLE
@@ -191,18 +207,29 @@ fn plants() -> [Plant; 3] {
 fn unclamped_chain_reaches_k_lin() {
     let opts = LoopOptions::default();
     for p in plants() {
-        let k_lin = p.k_lin(12).expect("K_lin within 12");
+        let k_lin = p.k_lin(15).expect("K_lin within 15");
         let lp = p.lure().unclamped();
-        let cert = k_loop(&lp, 12, &opts)
+        let cert = k_loop(&lp, 15, &opts)
             .expect("small LMI")
             .expect("a certificate where ρ_lin < 1");
-        assert_eq!(cert.k, k_lin, "{p:?}: K_loop(unclamped) = {} vs K_lin = {k_lin}", cert.k);
+        assert_eq!(
+            cert.k, k_lin,
+            "{p:?}: K_loop(unclamped) = {} vs K_lin = {k_lin}",
+            cert.k
+        );
         let rl = p.rho_lin(cert.k);
         // A quadratic certificate with rate ρ bounds the spectral radius; the bisection
         // brackets ρ_lin to its tolerance.
         assert!(cert.rho >= rl - 1e-9, "ρ = {} < ρ_lin = {rl}", cert.rho);
-        assert!(cert.rho <= rl + 0.02, "ρ = {} far above ρ_lin = {rl}", cert.rho);
-        eprintln!("{p:?}: K_lin = K_loop = {k_lin}, ρ_lin = {rl:.4}, ρ = {:.4}", cert.rho);
+        assert!(
+            cert.rho <= rl + 0.02,
+            "ρ = {} far above ρ_lin = {rl}",
+            cert.rho
+        );
+        eprintln!(
+            "{p:?}: K_lin = K_loop = {k_lin}, ρ_lin = {rl:.4}, ρ = {:.4}",
+            cert.rho
+        );
     }
 }
 
@@ -210,8 +237,8 @@ fn unclamped_chain_reaches_k_lin() {
 fn clamped_k_loop_is_at_least_k_lin() {
     let opts = LoopOptions::default();
     for p in plants() {
-        let k_lin = p.k_lin(12).expect("K_lin within 12");
-        let c = k_loop(&p.lure(), 12, &opts).expect("small LMI");
+        let k_lin = p.k_lin(15).expect("K_lin within 15");
+        let c = k_loop(&p.lure(), 15, &opts).expect("small LMI");
         match &c {
             Some(c) => assert!(c.k >= k_lin, "{p:?}: K_loop {} < K_lin {k_lin}", c.k),
             None => {}
@@ -236,10 +263,13 @@ fn certifies_nothing_where_the_clamped_loop_is_globally_unstable() {
     let opts = LoopOptions::default();
     for k in 0..=8 {
         let r = certify_loop(&p.lure(), k, &opts);
-        assert!(matches!(r, Err(LoopError::NotCertified { .. })), "K = {k}: {r:?}");
+        assert!(
+            matches!(r, Err(LoopError::NotCertified { .. })),
+            "K = {k}: {r:?}"
+        );
     }
     // And the clamps really make it diverge from a large start at a K where ρ_lin < 1.
-    let k = p.k_lin(12).expect("K_lin");
+    let k = p.k_lin(15).expect("K_lin");
     let mut x = [50.0, 50.0, 0.0];
     for _ in 0..60 {
         x = p.step(&x, 0.0, k, &mut |_, _, v| v.clamp(-1.0, 1.0));
@@ -249,7 +279,13 @@ fn certifies_nothing_where_the_clamped_loop_is_globally_unstable() {
 
 /// The largest one-step ratio (‖X⁺‖²_P − γ²w²)/(ρ²‖X‖²_P) over X, w and per-iteration
 /// slopes s ∈ [0, 1]: random starts, then coordinate-wise local improvement.
-fn worst_ratio(p: &Plant, c: &LoopCertificate, wbar: f64, rng: &mut ChaCha8Rng, starts: usize) -> f64 {
+fn worst_ratio(
+    p: &Plant,
+    c: &LoopCertificate,
+    wbar: f64,
+    rng: &mut ChaCha8Rng,
+    starts: usize,
+) -> f64 {
     let k = c.k;
     let nsl = 2 * k.max(1);
     let eval = |x: &[f64; 3], w: f64, sl: &[f64]| {
@@ -258,10 +294,20 @@ fn worst_ratio(p: &Plant, c: &LoopCertificate, wbar: f64, rng: &mut ChaCha8Rng, 
     };
     let mut best = f64::NEG_INFINITY;
     for _ in 0..starts {
-        let mut x = [rng.gen_range(-1.0..1.0), rng.gen_range(-1.0..1.0), rng.gen_range(-1.0..1.0)];
-        let mut w = rng.gen_range(-wbar..=wbar);
+        let mut x = [
+            rng.random_range(-1.0..1.0),
+            rng.random_range(-1.0..1.0),
+            rng.random_range(-1.0..1.0),
+        ];
+        let mut w = rng.random_range(-wbar..=wbar);
         let mut sl: Vec<f64> = (0..nsl)
-            .map(|_| if rng.gen_bool(0.5) { rng.gen_range(0.0..=1.0) } else { f64::from(u8::from(rng.gen_bool(0.5))) })
+            .map(|_| {
+                if rng.random_bool(0.5) {
+                    rng.random_range(0.0..=1.0)
+                } else {
+                    f64::from(u8::from(rng.random_bool(0.5)))
+                }
+            })
             .collect();
         let mut val = eval(&x, w, &sl);
         let mut h = 0.3;
@@ -291,15 +337,15 @@ fn worst_ratio(p: &Plant, c: &LoopCertificate, wbar: f64, rng: &mut ChaCha8Rng, 
 }
 
 fn random_plant(rng: &mut ChaCha8Rng) -> Plant {
-    let a = rng.gen_range(0.3..1.6);
+    let a = rng.random_range(0.3..1.6);
     Plant {
         a,
-        b: rng.gen_range(0.5..1.5),
+        b: rng.random_range(0.5..1.5),
         ell: 0.0,
-        q: rng.gen_range(0.01..1.0),
-        qw: rng.gen_range(0.2..5.0),
+        q: rng.random_range(0.01..1.0),
+        qw: rng.random_range(0.2..50.0),
         r: 1.0,
-        clamp_s: a < 0.9 && rng.gen_bool(0.5),
+        clamp_s: a < 0.9 && rng.random_bool(0.5),
     }
     .with_deadbeat_gain()
 }
@@ -323,44 +369,60 @@ fn sampled_and_adversarial_clamps_respect_the_certificate() {
         ..LoopOptions::default()
     };
     let (mut certified, mut runs, mut worst) = (0usize, 0usize, 0.0_f64);
-    for _inst in 0..40 {
+    for _inst in 0..30 {
         let p = random_plant(&mut rng);
-        let k = rng.gen_range(1..=6);
+        let k = rng.random_range(1..=6);
         let Ok(c) = certify_loop(&p.lure(), k, &opts) else {
             continue;
         };
         certified += 1;
         let wbar = 0.1;
         for run in 0..100 {
-            let cbox: f64 = rng.gen_range(0.01..2.0);
-            let mut x = [rng.gen_range(-5.0..5.0), rng.gen_range(-5.0..5.0), rng.gen_range(-5.0..5.0)];
+            let cbox: f64 = rng.random_range(0.01..2.0);
+            let mut x = [
+                rng.random_range(-5.0..5.0),
+                rng.random_range(-5.0..5.0),
+                rng.random_range(-5.0..5.0),
+            ];
             let v0 = norm_p(&c, &x);
             let mut vt;
             let mut rho2t = 1.0;
             for _t in 0..80 {
-                let w = rng.gen_range(-wbar..=wbar);
+                let w = rng.random_range(-wbar..=wbar);
                 let before = norm_p(&c, &x);
                 x = if run % 2 == 0 {
                     p.step(&x, w, k, &mut |_, _, v| v.clamp(-cbox, cbox))
                 } else {
-                    let s: f64 = rng.gen_range(0.0..=1.0);
+                    let s: f64 = rng.random_range(0.0..=1.0);
                     p.step(&x, w, k, &mut |_, _, v| s * v)
                 };
                 vt = norm_p(&c, &x);
                 rho2t *= c.rho * c.rho;
                 let one = c.rho * c.rho * before + c.gamma * c.gamma * w * w;
-                assert!(vt <= one * (1.0 + 1e-9) + 1e-300, "{p:?} K = {k}: one step {vt} > {one}");
+                assert!(
+                    vt <= one * (1.0 + 1e-9) + 1e-300,
+                    "{p:?} K = {k}: one step {vt} > {one}"
+                );
                 let iss = rho2t * v0 + c.gamma * c.gamma / (1.0 - c.rho * c.rho) * wbar * wbar;
-                assert!(vt <= iss * (1.0 + 1e-9), "{p:?} K = {k}: ISS bound {vt} > {iss}");
+                assert!(
+                    vt <= iss * (1.0 + 1e-9),
+                    "{p:?} K = {k}: ISS bound {vt} > {iss}"
+                );
                 runs += 1;
             }
         }
         let r = worst_ratio(&p, &c, 0.1, &mut rng, 20);
         worst = worst.max(r);
-        assert!(r <= 1.0 + 1e-9, "{p:?} K = {k}: adversarial one-step ratio {r}");
+        assert!(
+            r <= 1.0 + 1e-9,
+            "{p:?} K = {k}: adversarial one-step ratio {r}"
+        );
     }
-    eprintln!("{certified}/40 certified; {runs} sampled steps; worst adversarial ratio {worst:.6}");
-    assert!(certified >= 10, "too few certified instances ({certified}) to test anything");
+    eprintln!("{certified}/30 certified; {runs} sampled steps; worst adversarial ratio {worst:.6}");
+    assert!(
+        certified >= 8,
+        "too few certified instances ({certified}) to test anything"
+    );
 }
 
 /// (iii) The premise matters: the certificate of the unclamped loop (multipliers dropped,
@@ -373,11 +435,14 @@ fn dropping_the_multipliers_gives_a_certificate_clamps_refute() {
         ..UNSTABLE
     };
     let opts = LoopOptions::default();
-    let k = p.k_lin(12).expect("K_lin");
+    let k = p.k_lin(15).expect("K_lin");
     let unsound = certify_loop(&p.lure().unclamped(), k, &opts).expect("linear loop certified");
     let mut rng = ChaCha8Rng::seed_from_u64(7);
     let r = worst_ratio(&p, &unsound, 0.1, &mut rng, 20);
-    assert!(r > 1.0 + 1e-3, "search found no violation of the unclamped certificate: {r}");
+    assert!(
+        r > 1.0 + 1e-3,
+        "search found no violation of the unclamped certificate: {r}"
+    );
     let mut x = [50.0, 50.0, 0.0];
     let v0 = norm_p(&unsound, &x);
     let mut refuted = false;
@@ -388,7 +453,10 @@ fn dropping_the_multipliers_gives_a_certificate_clamps_refute() {
         refuted |= norm_p(&unsound, &x) > rho2t * v0;
     }
     assert!(refuted, "clamped run stayed inside the unclamped bound");
-    eprintln!("unclamped certificate at K = {k}: ρ = {:.4}; adversarial one-step ratio {r:.3}", unsound.rho);
+    eprintln!(
+        "unclamped certificate at K = {k}: ρ = {:.4}; adversarial one-step ratio {r:.3}",
+        unsound.rho
+    );
 }
 
 #[test]
@@ -404,6 +472,9 @@ fn bad_shapes_and_sizes_are_typed_errors() {
         ..LoopOptions::default()
     };
     let e = certify_loop(&UNSTABLE.lure(), 5, &opts).expect_err("too large");
-    assert!(matches!(e, LoopError::SizeLimit { unknowns, .. } if unknowns > 50), "{e}");
+    assert!(
+        matches!(e, LoopError::SizeLimit { unknowns, .. } if unknowns > 50),
+        "{e}"
+    );
     assert!(e.to_string().contains("unknowns"));
 }

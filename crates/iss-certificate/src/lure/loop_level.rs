@@ -111,7 +111,9 @@ pub struct LureLoop {
 #[derive(Debug, Clone, PartialEq, thiserror::Error)]
 pub enum LoopError {
     /// A matrix has the wrong shape or a non-finite entry.
-    #[error("loop matrix `{name}` is {rows} × {cols} (expected {want_rows} × {want_cols}) or not finite")]
+    #[error(
+        "loop matrix `{name}` is {rows} × {cols} (expected {want_rows} × {want_cols}) or not finite"
+    )]
     Shape {
         /// The field of [`LureLoop`].
         name: &'static str,
@@ -517,7 +519,11 @@ fn links(lp: &LureLoop, lay: &Layout, rho: f64, y: &[f64]) -> Links {
         let nplus = stack(
             nx,
             d,
-            &[(0, 0, &lp.a_loop), (0, nx, &lp.g_loop), (0, nx + nxi, &lp.b_loop)],
+            &[
+                (0, 0, &lp.a_loop),
+                (0, nx, &lp.g_loop),
+                (0, nx + nxi, &lp.b_loop),
+            ],
         );
         let nk = stack(nx + nxi, d, &[(0, 0, &eye(nx + nxi))]);
         let (m1, s1) = congruence(&nplus, &p);
@@ -593,10 +599,7 @@ fn blocks(lp: &LureLoop, lay: &Layout, rho: f64) -> Vec<SparseBlock> {
         let mut ft = Sym::identity(m0.n);
         ft.a.iter_mut().for_each(|x| *x = -*x);
         terms.push((lay.t, ft));
-        out.push(SparseBlock {
-            f0: neg(m0),
-            terms,
-        });
+        out.push(SparseBlock { f0: neg(m0), terms });
     }
     // P − tI.
     {
@@ -626,7 +629,13 @@ fn blocks(lp: &LureLoop, lay: &Layout, rho: f64) -> Vec<SparseBlock> {
             f0: Sym::zeros(1),
             terms: vec![
                 (i, Sym::identity(1)),
-                (lay.t, Sym { n: 1, a: vec![-1.0] }),
+                (
+                    lay.t,
+                    Sym {
+                        n: 1,
+                        a: vec![-1.0],
+                    },
+                ),
             ],
         });
     }
@@ -657,13 +666,25 @@ fn blocks(lp: &LureLoop, lay: &Layout, rho: f64) -> Vec<SparseBlock> {
         for i in 0..lay.nx {
             for j in i..lay.nx {
                 if i == j {
-                    terms.push((idx, Sym { n: 1, a: vec![-1.0] }));
+                    terms.push((
+                        idx,
+                        Sym {
+                            n: 1,
+                            a: vec![-1.0],
+                        },
+                    ));
                 }
                 idx += 1;
             }
         }
         for i in lay.l0..lay.t {
-            terms.push((i, Sym { n: 1, a: vec![-1.0] }));
+            terms.push((
+                i,
+                Sym {
+                    n: 1,
+                    a: vec![-1.0],
+                },
+            ));
         }
         out.push(SparseBlock {
             f0: Sym::identity(1),

@@ -410,6 +410,27 @@ fn sampled_and_adversarial_clamps_respect_the_certificate() {
                 runs += 1;
             }
         }
+        // From X₀ = 0 the certified readout gains bound every sample, not only the lim sup.
+        let ge = c
+            .readout_gain(&Matrix::new(1, 3, vec![0.0, 1.0, -1.0]))
+            .expect("P invertible");
+        let gx = c
+            .readout_gain(&Matrix::new(1, 3, vec![1.0, 0.0, 0.0]))
+            .expect("P invertible");
+        assert!(gx.is_finite() && ge.is_finite() && gx > 0.0);
+        for _run in 0..20 {
+            let cbox: f64 = rng.random_range(0.01..2.0);
+            let mut x = [0.0; 3];
+            for _t in 0..80 {
+                let w = if rng.random_bool(0.5) { wbar } else { -wbar };
+                x = p.step(&x, w, k, &mut |_, _, v| v.clamp(-cbox, cbox));
+                assert!(
+                    (x[1] - x[2]).abs() <= ge * wbar * (1.0 + 1e-9),
+                    "‖e‖ above its gain"
+                );
+                assert!(x[0].abs() <= gx * wbar * (1.0 + 1e-9), "‖x‖ above its gain");
+            }
+        }
         let r = worst_ratio(&p, &c, 0.1, &mut rng, 20);
         worst = worst.max(r);
         assert!(

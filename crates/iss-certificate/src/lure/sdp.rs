@@ -467,4 +467,36 @@ mod tests {
             maximise_last(&[b1, b2], vec![0.1, -1.0], 1e-10, |_| false).expect("feasible start");
         assert!((y[1] - 1.0).abs() < 1e-8 && y[0].abs() < 1e-4, "{y:?}");
     }
+
+    #[test]
+    fn sparse_barrier_matches_the_dense_one() {
+        // The LMI of `barrier_maximises_a_scalar_lmi` as sparse terms: same optimum.
+        let mut f0 = Sym::identity(2);
+        f0.a[1] = 0.0;
+        let fx = Sym {
+            n: 2,
+            a: vec![0.0, 1.0, 1.0, 0.0],
+        };
+        let ft = Sym {
+            n: 2,
+            a: vec![-1.0, 0.0, 0.0, -1.0],
+        };
+        let b1 = SparseBlock {
+            f0,
+            terms: vec![(0, fx), (1, ft)],
+        };
+        let b2 = SparseBlock {
+            f0: Sym { n: 1, a: vec![0.5] },
+            terms: vec![(
+                0,
+                Sym {
+                    n: 1,
+                    a: vec![-1.0],
+                },
+            )],
+        };
+        let y = maximise_last_sparse(&[b1, b2], vec![0.1, -1.0], 1e-10, |_| false)
+            .expect("feasible start");
+        assert!((y[1] - 1.0).abs() < 1e-8 && y[0].abs() < 1e-4, "{y:?}");
+    }
 }

@@ -20,8 +20,9 @@
 //! - [`joint`]: sub-optimal MPC and MHE together (the 4×4 gain matrix, the (K_e, K_c) region).
 //! - [`linear`]: ρ_lin(K) and K_lin, the exact linear stability boundary where no constraint
 //!   is active (the lifted LTI system of Alg. 1).
-//! - [`lure`]: the closed loop as a Lur'e system (issue 35); today the inner level, a
-//!   per-method rate ρ_in from a small LMI, φ_iqc(K) beside φ(K).
+//! - [`lure`]: the closed loop as a Lur'e system (issue 35): the inner level, a
+//!   per-method rate ρ_in from a small LMI, φ_iqc(K) beside φ(K); and the loop level
+//!   (`lure::loop_level`, Theorem L2) for loops small enough for its dense solver.
 //! - [`regional`]: regional ISS from the lifted loop (a sublevel set on which no constraint
 //!   is active).
 //! - [`coverage`]: which certificate a configuration (method, K_e, controller, K_c) is

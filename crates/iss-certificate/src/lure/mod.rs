@@ -13,8 +13,14 @@
 //! a small pure-Rust barrier method (`lure::sdp`), and every returned storage matrix and
 //! multiplier is re-checked independently (Jacobi eigenvalues with a margin above the
 //! rounding of the terms) before a rate is reported.
+//!
+//! [`loop_level`] implements the **loop level** (Theorem L2): global ISS of the
+//! sample-to-sample loop with every clamp of every inner iteration as a slope-[0, 1]
+//! channel, from a chain of storages — today for loops given by their matrices and small
+//! enough for the dense solver (docs/theory.md §3).
 
 mod inner;
+pub mod loop_level;
 mod sdp;
 
 use qp_iter::{Certificate, IterationMap, Method, MethodMap, ParametricQp};

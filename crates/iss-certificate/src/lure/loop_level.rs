@@ -1,0 +1,853 @@
+//! The loop level: Theorem L2 of docs/theory.md ("One certificate for the whole loop",
+//! §3) — global ISS of a sample-to-sample loop whose inner iterations pass through
+//! slope-[0, 1] clamps, from a chain of quadratic storages V₀ … V_K, one LMI per link.
+//!
+//! The loop ([`LureLoop`]) is given by its matrices: with X the sample-level state, w the
+//! disturbance, ξ the iteration state and Δ the clamp outputs,
+//!
+//! ```text
+//! ξ⁰ = S₀X + S_w w,
+//! ξᵏ⁺¹ = A_ξ ξᵏ + B_Δ Δᵏ + E_X X + E_w w,   Δᵏ_i = s·vᵏ_i with s ∈ [0, 1],
+//! vᵏ = C ξᵏ + D_X X + D_w w,
+//! X⁺ = 𝒜X + 𝒢ξᴷ + ℬw.
+//! ```
+//!
+//! A box projection with 0 in the box is such a channel: Π(v)_i = s_i v_i, s_i ∈ [0, 1]
+//! (docs/theory.md §1), whatever the bounds. For a fixed K and ρ the chain (a)–(c) is an LMI
+//! in (P, Q₀ … Q_K, Λ₀ … Λ_{K−1}, g₀ … g_{K+1}); it is solved by the barrier method of
+//! `lure::sdp` on blocks sparse in the unknowns, and a solution is accepted only after the
+//! independent check (Jacobi eigenvalues of every link's matrix, formed afresh, clear a
+//! rounding allowance). ρ is bisected. The unknowns grow as K·(n_X + n_ξ)²/2: the dense
+//! Newton system limits the size ([`LoopOptions::max_unknowns`]), and the lifted loops of
+//! the shipped scenarios (n_X ≥ 39) are above it today.
+
+use super::sdp::{
+    SparseBlock, Sym, cholesky, logdet_inverse, maximise_last_sparse, sym_eigenvalues,
+};
+use serde::Serialize;
+
+/// A dense row-major matrix (rows × cols).
+#[derive(Debug, Clone, PartialEq, Serialize)]
+pub struct Matrix {
+    /// Rows.
+    pub rows: usize,
+    /// Columns.
+    pub cols: usize,
+    /// Row-major entries.
+    pub data: Vec<f64>,
+}
+
+impl Matrix {
+    /// A matrix from its row-major entries.
+    pub fn new(rows: usize, cols: usize, data: Vec<f64>) -> Self {
+        Self { rows, cols, data }
+    }
+    /// The zero matrix.
+    pub fn zeros(rows: usize, cols: usize) -> Self {
+        Self::new(rows, cols, vec![0.0; rows * cols])
+    }
+    /// Entry (i, j).
+    #[inline]
+    pub fn at(&self, i: usize, j: usize) -> f64 {
+        self.data[i * self.cols + j]
+    }
+    /// y = self · x.
+    pub fn apply(&self, x: &[f64]) -> Vec<f64> {
+        (0..self.rows)
+            .map(|i| (0..self.cols).map(|j| self.at(i, j) * x[j]).sum())
+            .collect()
+    }
+    fn mul(&self, o: &Matrix) -> Matrix {
+        let mut c = Matrix::zeros(self.rows, o.cols);
+        for i in 0..self.rows {
+            for k in 0..self.cols {
+                let a = self.at(i, k);
+                if a != 0.0 {
+                    for j in 0..o.cols {
+                        c.data[i * o.cols + j] += a * o.at(k, j);
+                    }
+                }
+            }
+        }
+        c
+    }
+    fn add(&self, o: &Matrix) -> Matrix {
+        let data = self.data.iter().zip(&o.data).map(|(a, b)| a + b).collect();
+        Matrix::new(self.rows, self.cols, data)
+    }
+}
+
+/// The loop: a linear sample map in feedback with slope-[0, 1] channels inside its K inner
+/// iterations (module docs for the equations; every name is the matrix of the same name).
+#[derive(Debug, Clone, PartialEq)]
+pub struct LureLoop {
+    /// S₀: n_ξ × n_X, the start of the iteration from the loop state (warm start).
+    pub s0: Matrix,
+    /// S_w: n_ξ × n_w.
+    pub s_w: Matrix,
+    /// A_ξ: n_ξ × n_ξ.
+    pub a_xi: Matrix,
+    /// B_Δ: n_ξ × n_c.
+    pub b_delta: Matrix,
+    /// E_X: n_ξ × n_X (the data θ = ΘX entering each iteration).
+    pub e_x: Matrix,
+    /// E_w: n_ξ × n_w.
+    pub e_w: Matrix,
+    /// C: n_c × n_ξ (the clamps' arguments).
+    pub c: Matrix,
+    /// D_X: n_c × n_X.
+    pub d_x: Matrix,
+    /// D_w: n_c × n_w.
+    pub d_w: Matrix,
+    /// 𝒜: n_X × n_X.
+    pub a_loop: Matrix,
+    /// 𝒢: n_X × n_ξ (the last iterate's way into the loop).
+    pub g_loop: Matrix,
+    /// ℬ: n_X × n_w.
+    pub b_loop: Matrix,
+}
+
+/// Why no loop certificate.
+#[derive(Debug, Clone, PartialEq, thiserror::Error)]
+pub enum LoopError {
+    /// A matrix has the wrong shape or a non-finite entry.
+    #[error(
+        "loop matrix `{name}` is {rows} × {cols} (expected {want_rows} × {want_cols}) or not finite"
+    )]
+    Shape {
+        /// The field of [`LureLoop`].
+        name: &'static str,
+        /// Its rows.
+        rows: usize,
+        /// Its columns.
+        cols: usize,
+        /// Expected rows.
+        want_rows: usize,
+        /// Expected columns.
+        want_cols: usize,
+    },
+    /// The chain's LMI has more unknowns than the dense barrier method handles.
+    #[error(
+        "the loop LMI at K = {k} has {unknowns} unknowns (n_X = {n_x}, n_ξ = {n_xi}), above the \
+         limit {limit} of the dense solver; reduce K or the window (mhe.horizon)"
+    )]
+    SizeLimit {
+        /// K.
+        k: usize,
+        /// Unknowns of the LMI.
+        unknowns: usize,
+        /// dim X.
+        n_x: usize,
+        /// dim ξ.
+        n_xi: usize,
+        /// The limit.
+        limit: usize,
+    },
+    /// No ρ < 1 passed the solver and the independent check.
+    #[error(
+        "no loop certificate at K = {k}: the chain LMI is infeasible for ρ = {rho_max} (or its \
+         solution failed the independent check)"
+    )]
+    NotCertified {
+        /// K.
+        k: usize,
+        /// The largest ρ tried.
+        rho_max: f64,
+    },
+}
+
+/// Options of the loop certificate.
+#[derive(Debug, Clone, Copy, PartialEq)]
+pub struct LoopOptions {
+    /// Bisection stops when the bracket of ρ is narrower.
+    pub rho_tol: f64,
+    /// The largest ρ tried (< 1).
+    pub rho_max: f64,
+    /// Size limit of the LMI (unknowns).
+    pub max_unknowns: usize,
+}
+
+impl Default for LoopOptions {
+    fn default() -> Self {
+        Self {
+            rho_tol: 1e-3,
+            rho_max: 0.9999,
+            max_unknowns: 1200,
+        }
+    }
+}
+
+/// A checked loop certificate: ‖X_{t+1}‖²_P ≤ ρ²‖X_t‖²_P + γ²‖w_t‖² along every run with K
+/// inner iterations, whatever the clamps do, hence
+/// ‖X_t‖²_P ≤ ρ^{2t}‖X_0‖²_P + γ²/(1 − ρ²)·w̄².
+#[derive(Debug, Clone, PartialEq, Serialize)]
+pub struct LoopCertificate {
+    /// K.
+    pub k: usize,
+    /// ρ < 1.
+    pub rho: f64,
+    /// γ ≥ 0.
+    pub gamma: f64,
+    /// P ≻ 0 (row-major n_X × n_X).
+    pub p: Vec<f64>,
+    /// The smallest relative margin −λ_max/scale over the chain's links in the check.
+    pub margin: f64,
+    /// lim sup ‖X‖ ≤ `gain_x`·w̄: γ/√(λ_min(P)(1 − ρ²)).
+    pub gain_x: f64,
+}
+
+impl LoopCertificate {
+    /// ‖X‖²_P.
+    pub fn storage(&self, x: &[f64]) -> f64 {
+        let n = x.len();
+        (0..n)
+            .map(|i| (0..n).map(|j| x[i] * self.p[i * n + j] * x[j]).sum::<f64>())
+            .sum()
+    }
+
+    /// The certified asymptotic gain of a readout R X (e.g. the estimation error or x):
+    /// lim sup ‖RX‖ ≤ γ·√(λ_max(R P⁻¹ Rᵀ)/(1 − ρ²))·w̄. None if P is not numerically
+    /// invertible.
+    pub fn readout_gain(&self, r: &Matrix) -> Option<f64> {
+        let n = r.cols;
+        let l = cholesky(&Sym {
+            n,
+            a: self.p.clone(),
+        })?;
+        let (_, inv) = logdet_inverse(&l, n);
+        let mut m = Sym::zeros(r.rows);
+        for i in 0..r.rows {
+            for j in 0..r.rows {
+                let mut v = 0.0;
+                for a in 0..n {
+                    for b in 0..n {
+                        v += r.at(i, a) * inv.at(a, b) * r.at(j, b);
+                    }
+                }
+                m.add(i, j, v);
+            }
+        }
+        let top = sym_eigenvalues(&m).last().copied().unwrap_or(0.0).max(0.0);
+        Some(self.gamma * (top / (1.0 - self.rho * self.rho)).sqrt() * (1.0 + 1e-9))
+    }
+}
+
+impl LureLoop {
+    /// dim X.
+    pub fn n_x(&self) -> usize {
+        self.a_loop.rows
+    }
+    /// dim ξ.
+    pub fn n_xi(&self) -> usize {
+        self.a_xi.rows
+    }
+    /// Number of clamp channels per iteration.
+    pub fn n_c(&self) -> usize {
+        self.c.rows
+    }
+    /// dim w.
+    pub fn n_w(&self) -> usize {
+        self.b_loop.cols
+    }
+
+    /// Checks every shape against n_X = rows of 𝒜, n_ξ = rows of A_ξ, n_c = rows of C and
+    /// n_w = columns of ℬ.
+    pub fn validate(&self) -> Result<(), LoopError> {
+        let (nx, nxi, nc, nw) = (self.n_x(), self.n_xi(), self.n_c(), self.n_w());
+        let list: [(&'static str, &Matrix, usize, usize); 12] = [
+            ("s0", &self.s0, nxi, nx),
+            ("s_w", &self.s_w, nxi, nw),
+            ("a_xi", &self.a_xi, nxi, nxi),
+            ("b_delta", &self.b_delta, nxi, nc),
+            ("e_x", &self.e_x, nxi, nx),
+            ("e_w", &self.e_w, nxi, nw),
+            ("c", &self.c, nc, nxi),
+            ("d_x", &self.d_x, nc, nx),
+            ("d_w", &self.d_w, nc, nw),
+            ("a_loop", &self.a_loop, nx, nx),
+            ("g_loop", &self.g_loop, nx, nxi),
+            ("b_loop", &self.b_loop, nx, nw),
+        ];
+        for (name, m, r, c) in list {
+            let ok = m.rows == r
+                && m.cols == c
+                && m.data.len() == r * c
+                && m.data.iter().all(|v| v.is_finite());
+            if !ok {
+                return Err(LoopError::Shape {
+                    name,
+                    rows: m.rows,
+                    cols: m.cols,
+                    want_rows: r,
+                    want_cols: c,
+                });
+            }
+        }
+        Ok(())
+    }
+
+    /// The loop with every clamp replaced by the identity (Δ = v): the linear loop of
+    /// `linear`, whose lifted matrix has spectral radius ρ_lin(K). Its certificate says
+    /// nothing once a clamp is active — the tests show sampled clamps refuting it.
+    pub fn unclamped(&self) -> LureLoop {
+        let (nx, nxi, nw) = (self.n_x(), self.n_xi(), self.n_w());
+        LureLoop {
+            a_xi: self.a_xi.add(&self.b_delta.mul(&self.c)),
+            e_x: self.e_x.add(&self.b_delta.mul(&self.d_x)),
+            e_w: self.e_w.add(&self.b_delta.mul(&self.d_w)),
+            b_delta: Matrix::zeros(nxi, 0),
+            c: Matrix::zeros(0, nxi),
+            d_x: Matrix::zeros(0, nx),
+            d_w: Matrix::zeros(0, nw),
+            ..self.clone()
+        }
+    }
+
+    /// The lifted sample matrix with every clamp the identity and w = 0 (for tests and
+    /// the linear limit): X⁺ = 𝔸(K)X.
+    pub fn lifted_linear(&self, k: usize) -> Matrix {
+        let u = self.unclamped();
+        // ξᴷ = T X with T⁰ = S₀, Tᵏ⁺¹ = A_ξTᵏ + E_X.
+        let mut t = u.s0.clone();
+        for _ in 0..k {
+            t = u.a_xi.mul(&t).add(&u.e_x);
+        }
+        u.a_loop.add(&u.g_loop.mul(&t))
+    }
+}
+
+/// The variables of one chain at a fixed K (indices into the unknown vector y).
+struct Layout {
+    nx: usize,
+    nxi: usize,
+    nc: usize,
+    nw: usize,
+    k: usize,
+    p0: usize,
+    q0: usize,
+    nq: usize,
+    l0: usize,
+    g0: usize,
+    t: usize,
+}
+
+impl Layout {
+    fn new(lp: &LureLoop, k: usize) -> Self {
+        let (nx, nxi, nc, nw) = (lp.n_x(), lp.n_xi(), lp.n_c(), lp.n_w());
+        let ns = nx + nxi;
+        let nq = ns * (ns + 1) / 2;
+        let p0 = 0;
+        let q0 = nx * (nx + 1) / 2;
+        let l0 = q0 + (k + 1) * nq;
+        let g0 = l0 + k * nc;
+        let t = g0 + k + 2;
+        Self {
+            nx,
+            nxi,
+            nc,
+            nw,
+            k,
+            p0,
+            q0,
+            nq,
+            l0,
+            g0,
+            t,
+        }
+    }
+    fn unknowns(&self) -> usize {
+        self.t + 1
+    }
+    fn sym_from(&self, y: &[f64], start: usize, n: usize) -> Sym {
+        let mut s = Sym::zeros(n);
+        let mut idx = start;
+        for i in 0..n {
+            for j in i..n {
+                s.a[i * n + j] = y[idx];
+                s.a[j * n + i] = y[idx];
+                idx += 1;
+            }
+        }
+        s
+    }
+    fn p(&self, y: &[f64]) -> Sym {
+        self.sym_from(y, self.p0, self.nx)
+    }
+    fn q(&self, y: &[f64], k: usize) -> Sym {
+        self.sym_from(y, self.q0 + k * self.nq, self.nx + self.nxi)
+    }
+    fn lambda<'a>(&self, y: &'a [f64], k: usize) -> &'a [f64] {
+        &y[self.l0 + k * self.nc..self.l0 + (k + 1) * self.nc]
+    }
+    fn g(&self, y: &[f64], k: usize) -> f64 {
+        y[self.g0 + k]
+    }
+}
+
+/// Nᵀ Q N and |N|ᵀ|Q||N| (the latter bounds the rounding of the former).
+fn congruence(n: &Matrix, q: &Sym) -> (Sym, Sym) {
+    let d = n.cols;
+    let mut out = Sym::zeros(d);
+    let mut abs = Sym::zeros(d);
+    for i in 0..d {
+        for j in 0..d {
+            let (mut v, mut s) = (0.0, 0.0);
+            for r in 0..n.rows {
+                let a = n.at(r, i);
+                if a == 0.0 {
+                    continue;
+                }
+                for c in 0..n.rows {
+                    let t = a * q.at(r, c) * n.at(c, j);
+                    v += t;
+                    s += t.abs();
+                }
+            }
+            out.a[i * d + j] = v;
+            abs.a[i * d + j] = s;
+        }
+    }
+    (out, abs)
+}
+
+/// Stacks row blocks [[I 0 …], …] given as (matrix, column offset) into an r × d matrix.
+fn stack(rows: usize, cols: usize, parts: &[(usize, usize, &Matrix)]) -> Matrix {
+    let mut m = Matrix::zeros(rows, cols);
+    for (r0, c0, p) in parts {
+        for i in 0..p.rows {
+            for j in 0..p.cols {
+                m.data[(r0 + i) * cols + c0 + j] += p.at(i, j);
+            }
+        }
+    }
+    m
+}
+
+fn eye(n: usize) -> Matrix {
+    let mut m = Matrix::zeros(n, n);
+    for i in 0..n {
+        m.data[i * n + i] = 1.0;
+    }
+    m
+}
+
+/// The chain's link matrices M (each must be ⪯ 0) and their rounding scales, formed from
+/// concrete values of the unknowns by explicit products.
+struct Links {
+    /// (a), (b)_0 … (b)_{K−1}, (c).
+    mats: Vec<(Sym, f64)>,
+}
+
+fn links(lp: &LureLoop, lay: &Layout, rho: f64, y: &[f64]) -> Links {
+    let (nx, nxi, nc, nw, k) = (lay.nx, lay.nxi, lay.nc, lay.nw, lay.k);
+    let mut mats = Vec::with_capacity(k + 2);
+    let p = lay.p(y);
+    // (a): ζ = (X, w); V₀(X, S₀X + S_w w) − ρ²‖X‖²_P − g₀‖w‖².
+    {
+        let d = nx + nw;
+        let n0 = stack(
+            nx + nxi,
+            d,
+            &[(0, 0, &eye(nx)), (nx, 0, &lp.s0), (nx, nx, &lp.s_w)],
+        );
+        let (mut m, mut s) = congruence(&n0, &lay.q(y, 0));
+        for i in 0..nx {
+            for j in 0..nx {
+                let t = rho * rho * p.at(i, j);
+                m.a[i * d + j] -= t;
+                s.a[i * d + j] += t.abs();
+            }
+        }
+        let g = lay.g(y, 0);
+        for i in nx..d {
+            m.a[i * d + i] -= g;
+            s.a[i * d + i] += g.abs();
+        }
+        mats.push((m, s.abs_sum()));
+    }
+    // (b)_k: ζ = (X, ξ, Δ, w).
+    let d = nx + nxi + nc + nw;
+    let (cx, cxi, cd, cw) = (0, nx, nx + nxi, nx + nxi + nc);
+    let n1 = stack(
+        nx + nxi,
+        d,
+        &[
+            (0, 0, &eye(nx)),
+            (nx, cx, &lp.e_x),
+            (nx, cxi, &lp.a_xi),
+            (nx, cd, &lp.b_delta),
+            (nx, cw, &lp.e_w),
+        ],
+    );
+    let n0 = stack(nx + nxi, d, &[(0, 0, &eye(nx)), (nx, cxi, &eye(nxi))]);
+    // v = D_X X + C ξ + D_w w as rows over ζ.
+    let v = stack(
+        nc,
+        d,
+        &[(0, cx, &lp.d_x), (0, cxi, &lp.c), (0, cw, &lp.d_w)],
+    );
+    for kk in 0..k {
+        let (m1, s1) = congruence(&n1, &lay.q(y, kk + 1));
+        let (m0, s0) = congruence(&n0, &lay.q(y, kk));
+        let mut m = m1;
+        m.axpy(-1.0, &m0);
+        let mut s = s1;
+        s.axpy(1.0, &s0);
+        // + Σ λ_i·2Δ_i(v_i − Δ_i).
+        for (i, lam) in lay.lambda(y, kk).iter().enumerate() {
+            let di = cd + i;
+            for j in 0..d {
+                let t = lam * v.at(i, j);
+                m.a[di * d + j] += t;
+                m.a[j * d + di] += t;
+                s.a[di * d + j] += t.abs();
+                s.a[j * d + di] += t.abs();
+            }
+            m.a[di * d + di] -= 2.0 * lam;
+            s.a[di * d + di] += 2.0 * lam.abs();
+        }
+        let g = lay.g(y, kk + 1);
+        for i in cw..d {
+            m.a[i * d + i] -= g;
+            s.a[i * d + i] += g.abs();
+        }
+        mats.push((m, s.abs_sum()));
+    }
+    // (c): ζ = (X, ξ, w); ‖𝒜X + 𝒢ξ + ℬw‖²_P − V_K(X, ξ) − g_{K+1}‖w‖².
+    {
+        let d = nx + nxi + nw;
+        let nplus = stack(
+            nx,
+            d,
+            &[
+                (0, 0, &lp.a_loop),
+                (0, nx, &lp.g_loop),
+                (0, nx + nxi, &lp.b_loop),
+            ],
+        );
+        let nk = stack(nx + nxi, d, &[(0, 0, &eye(nx + nxi))]);
+        let (m1, s1) = congruence(&nplus, &p);
+        let (m0, s0) = congruence(&nk, &lay.q(y, k));
+        let mut m = m1;
+        m.axpy(-1.0, &m0);
+        let mut s = s1;
+        s.axpy(1.0, &s0);
+        let g = lay.g(y, k + 1);
+        for i in nx + nxi..d {
+            m.a[i * d + i] -= g;
+            s.a[i * d + i] += g.abs();
+        }
+        mats.push((m, s.abs_sum()));
+    }
+    Links { mats }
+}
+
+/// Upper bound on the entries of each Q_k relative to tr P ≤ 1: keeps the barrier's
+/// feasible set bounded (a certificate needing larger storages is not found).
+const Q_BOUND: f64 = 1e4;
+
+/// The unknowns of each link (for the sparse blocks): P, Q_k, Q_{k+1}, Λ_k, g.
+fn link_unknowns(lay: &Layout, link: usize) -> Vec<usize> {
+    let k = lay.k;
+    let qr = |kk: usize| lay.q0 + kk * lay.nq..lay.q0 + (kk + 1) * lay.nq;
+    let mut v: Vec<usize> = Vec::new();
+    if link == 0 {
+        v.extend(lay.p0..lay.q0);
+        v.extend(qr(0));
+        v.push(lay.g0);
+    } else if link <= k {
+        let kk = link - 1;
+        v.extend(qr(kk));
+        v.extend(qr(kk + 1));
+        v.extend(lay.l0 + kk * lay.nc..lay.l0 + (kk + 1) * lay.nc);
+        v.push(lay.g0 + kk + 1);
+    } else {
+        v.extend(lay.p0..lay.q0);
+        v.extend(qr(k));
+        v.push(lay.g0 + k + 1);
+    }
+    v
+}
+
+fn neg(s: &Sym) -> Sym {
+    Sym {
+        n: s.n,
+        a: s.a.iter().map(|x| -x).collect(),
+    }
+}
+
+/// The blocks of the feasibility problem at ρ: −M_link − tI ≻ 0, P − tI ≻ 0, λ − t > 0,
+/// Q_BOUND·I − Q_k ≻ 0, 1 − tr P − Σg − Σλ > 0; maximise t.
+fn blocks(lp: &LureLoop, lay: &Layout, rho: f64) -> Vec<SparseBlock> {
+    let d = lay.unknowns();
+    let zero = vec![0.0; d];
+    let base = links(lp, lay, rho, &zero);
+    let mut out = Vec::new();
+    let mut probe = zero.clone();
+    for (li, (m0, _)) in base.mats.iter().enumerate() {
+        let mut terms = Vec::new();
+        for i in link_unknowns(lay, li) {
+            probe[i] = 1.0;
+            let mi = &links_one(lp, lay, rho, &probe, li).0;
+            probe[i] = 0.0;
+            let mut f = neg(mi);
+            f.axpy(1.0, m0);
+            if f.a.iter().any(|x| *x != 0.0) {
+                terms.push((i, f));
+            }
+        }
+        let mut ft = Sym::identity(m0.n);
+        ft.a.iter_mut().for_each(|x| *x = -*x);
+        terms.push((lay.t, ft));
+        out.push(SparseBlock { f0: neg(m0), terms });
+    }
+    // P − tI.
+    {
+        let nx = lay.nx;
+        let mut terms = Vec::new();
+        let mut idx = lay.p0;
+        for i in 0..nx {
+            for j in i..nx {
+                let mut e = Sym::zeros(nx);
+                e.add(i, j, 1.0);
+                if i != j {
+                    e.add(j, i, 1.0);
+                }
+                terms.push((idx, e));
+                idx += 1;
+            }
+        }
+        terms.push((lay.t, neg(&Sym::identity(nx))));
+        out.push(SparseBlock {
+            f0: Sym::zeros(nx),
+            terms,
+        });
+    }
+    // λ − t.
+    for i in lay.l0..lay.g0 {
+        out.push(SparseBlock {
+            f0: Sym::zeros(1),
+            terms: vec![
+                (i, Sym::identity(1)),
+                (
+                    lay.t,
+                    Sym {
+                        n: 1,
+                        a: vec![-1.0],
+                    },
+                ),
+            ],
+        });
+    }
+    // Q_BOUND·I − Q_k.
+    let ns = lay.nx + lay.nxi;
+    for kk in 0..=lay.k {
+        let mut f0 = Sym::identity(ns);
+        f0.a.iter_mut().for_each(|x| *x *= Q_BOUND);
+        let mut terms = Vec::new();
+        let mut idx = lay.q0 + kk * lay.nq;
+        for i in 0..ns {
+            for j in i..ns {
+                let mut e = Sym::zeros(ns);
+                e.add(i, j, -1.0);
+                if i != j {
+                    e.add(j, i, -1.0);
+                }
+                terms.push((idx, e));
+                idx += 1;
+            }
+        }
+        out.push(SparseBlock { f0, terms });
+    }
+    // 1 − tr P − Σλ − Σg.
+    {
+        let mut terms = Vec::new();
+        let mut idx = lay.p0;
+        for i in 0..lay.nx {
+            for j in i..lay.nx {
+                if i == j {
+                    terms.push((
+                        idx,
+                        Sym {
+                            n: 1,
+                            a: vec![-1.0],
+                        },
+                    ));
+                }
+                idx += 1;
+            }
+        }
+        for i in lay.l0..lay.t {
+            terms.push((
+                i,
+                Sym {
+                    n: 1,
+                    a: vec![-1.0],
+                },
+            ));
+        }
+        out.push(SparseBlock {
+            f0: Sym::identity(1),
+            terms,
+        });
+    }
+    out
+}
+
+/// One link's matrix (for probing the basis).
+fn links_one(lp: &LureLoop, lay: &Layout, rho: f64, y: &[f64], li: usize) -> (Sym, f64) {
+    links(lp, lay, rho, y).mats.swap_remove(li)
+}
+
+/// The independent check of a candidate: λ ≥ 0, P ≻ 0 and every link ⪯ 0, by Jacobi
+/// eigenvalues of matrices formed afresh, each clearing 10³·dim·ε·scale. Returns the
+/// smallest relative margin.
+fn check(lp: &LureLoop, lay: &Layout, rho: f64, y: &[f64]) -> Option<f64> {
+    let tol = |n: usize, scale: f64| 1e3 * n as f64 * f64::EPSILON * scale.max(f64::MIN_POSITIVE);
+    if (lay.l0..lay.g0).any(|i| !(y[i] >= 0.0)) {
+        return None;
+    }
+    let p = lay.p(y);
+    let ps = p.abs_sum();
+    let ev = sym_eigenvalues(&p);
+    if !(ev[0] > tol(p.n, ps)) {
+        return None;
+    }
+    let mut margin = f64::INFINITY;
+    for (m, scale) in links(lp, lay, rho, y).mats {
+        let top = sym_eigenvalues(&m).last().copied().unwrap_or(0.0);
+        if !(-top > tol(m.n, scale)) {
+            return None;
+        }
+        margin = margin.min(-top / scale);
+    }
+    Some(margin)
+}
+
+fn sizes(lp: &LureLoop, k: usize, opts: &LoopOptions) -> Result<Layout, LoopError> {
+    lp.validate()?;
+    let lay = Layout::new(lp, k);
+    let unknowns = lay.unknowns();
+    if unknowns > opts.max_unknowns {
+        return Err(LoopError::SizeLimit {
+            k,
+            unknowns,
+            n_x: lp.n_x(),
+            n_xi: lp.n_xi(),
+            limit: opts.max_unknowns,
+        });
+    }
+    Ok(lay)
+}
+
+/// The number of unknowns of the chain LMI at K (for size estimates).
+pub fn loop_unknowns(n_x: usize, n_xi: usize, n_c: usize, k: usize) -> usize {
+    let ns = n_x + n_xi;
+    n_x * (n_x + 1) / 2 + (k + 1) * ns * (ns + 1) / 2 + k * n_c + k + 3
+}
+
+/// The chain LMI at a fixed ρ: a checked certificate or None.
+pub fn certify_loop_at(
+    lp: &LureLoop,
+    k: usize,
+    rho: f64,
+    opts: &LoopOptions,
+) -> Result<Option<LoopCertificate>, LoopError> {
+    let lay = sizes(lp, k, opts)?;
+    Ok(solve_at(lp, &lay, rho))
+}
+
+fn solve_at(lp: &LureLoop, lay: &Layout, rho: f64) -> Option<LoopCertificate> {
+    let d = lay.unknowns();
+    let bl = blocks(lp, lay, rho);
+    // Strictly feasible start: small P, g, λ; Q = 0; t far below every block's spectrum.
+    let mut y = vec![0.0; d];
+    let nx = lay.nx;
+    let mut idx = lay.p0;
+    for i in 0..nx {
+        for j in i..nx {
+            if i == j {
+                y[idx] = 0.2 / nx as f64;
+            }
+            idx += 1;
+        }
+    }
+    let extra = (lay.t - lay.l0).max(1) as f64;
+    for v in &mut y[lay.l0..lay.t] {
+        *v = 0.2 / extra;
+    }
+    let mut worst: f64 = 1.0;
+    for b in &bl {
+        worst = worst.max(b.eval_abs_sum(&y));
+    }
+    y[lay.t] = -(worst + 1.0);
+    let good = |y: &[f64]| y[lay.t] > 0.0 && check(lp, lay, rho, y).is_some();
+    let y = maximise_last_sparse(&bl, y, 1e-9, good)?;
+    let margin = check(lp, lay, rho, &y)?;
+    let p = lay.p(&y);
+    let gsum: f64 = (0..lay.k + 2).map(|i| lay.g(&y, i)).sum();
+    let gamma = gsum.max(0.0).sqrt();
+    let lmin = sym_eigenvalues(&p)[0];
+    let gain_x = gamma / (lmin * (1.0 - rho * rho)).sqrt() * (1.0 + 1e-9);
+    Some(LoopCertificate {
+        k: lay.k,
+        rho,
+        gamma,
+        p: p.a,
+        margin,
+        gain_x,
+    })
+}
+
+/// The loop certificate at K with the smallest ρ found by bisection (to `opts.rho_tol`).
+pub fn certify_loop(
+    lp: &LureLoop,
+    k: usize,
+    opts: &LoopOptions,
+) -> Result<LoopCertificate, LoopError> {
+    let lay = sizes(lp, k, opts)?;
+    let mut best = solve_at(lp, &lay, opts.rho_max).ok_or(LoopError::NotCertified {
+        k,
+        rho_max: opts.rho_max,
+    })?;
+    let (mut lo, mut hi) = (0.0, opts.rho_max);
+    while hi - lo > opts.rho_tol {
+        let mid = 0.5 * (lo + hi);
+        match solve_at(lp, &lay, mid) {
+            Some(c) => {
+                hi = mid;
+                best = c;
+            }
+            None => lo = mid,
+        }
+    }
+    Ok(best)
+}
+
+/// K_loop: the smallest K ≤ `k_max` with a loop certificate (a scan from K = 0; ρ at the
+/// feasibility end only, then bisected at the K found). Err(SizeLimit) if the LMI outgrows
+/// the solver before a certificate is found; Ok(None) if no K ≤ `k_max` is certified.
+pub fn k_loop(
+    lp: &LureLoop,
+    k_max: usize,
+    opts: &LoopOptions,
+) -> Result<Option<LoopCertificate>, LoopError> {
+    for k in 0..=k_max {
+        let lay = sizes(lp, k, opts)?;
+        if solve_at(lp, &lay, opts.rho_max).is_some() {
+            return certify_loop(lp, k, opts).map(Some);
+        }
+    }
+    Ok(None)
+}
+
+impl SparseBlock {
+    /// Σ|entries| of the block at y (a bound on its spectral radius).
+    fn eval_abs_sum(&self, y: &[f64]) -> f64 {
+        let mut g = self.f0.clone();
+        for (i, f) in &self.terms {
+            g.axpy(y[*i], f);
+        }
+        g.abs_sum()
+    }
+}

@@ -17,6 +17,7 @@ use pyo3::create_exception;
 use pyo3::exceptions::PyValueError;
 use pyo3::prelude::*;
 use qp_iter::{Method, MethodMap};
+use std::sync::{Mutex, MutexGuard};
 
 create_exception!(
     suboptimal_mhe,
@@ -153,7 +154,10 @@ fn slice_of<'a>(a: &'a PyReadonlyArray1<'_, f64>, name: &str) -> PyResult<&'a [f
         .map_err(|_| ShapeError::new_err(format!("`{name}` must be a contiguous 1-D array")))
 }
 
-fn matrix_py<'py>(py: Python<'py>, m: faer::MatRef<'_, f64>) -> PyResult<Bound<'py, PyArray2<f64>>> {
+fn matrix_py<'py>(
+    py: Python<'py>,
+    m: faer::MatRef<'_, f64>,
+) -> PyResult<Bound<'py, PyArray2<f64>>> {
     let rows: Vec<Vec<f64>> = (0..m.nrows())
         .map(|i| (0..m.ncols()).map(|j| m[(i, j)]).collect())
         .collect();
@@ -176,8 +180,9 @@ impl Plant {
         e: PyReadonlyArray2<'_, f64>,
         f: PyReadonlyArray2<'_, f64>,
     ) -> PyResult<Self> {
-        let sys = LtiSystem::with_disturbance(mat_of(&a), mat_of(&b), mat_of(&c), mat_of(&e), mat_of(&f))
-            .map_err(|e| model_err(&e))?;
+        let sys =
+            LtiSystem::with_disturbance(mat_of(&a), mat_of(&b), mat_of(&c), mat_of(&e), mat_of(&f))
+                .map_err(|e| model_err(&e))?;
         Ok(Self { sys })
     }
 
@@ -196,7 +201,11 @@ impl Plant {
             "C" => s.c(),
             "E" => s.e(),
             "F" => s.f(),
-            _ => return Err(InputError::new_err(format!("no matrix `{name}`: use A, B, C, E or F"))),
+            _ => {
+                return Err(InputError::new_err(format!(
+                    "no matrix `{name}`: use A, B, C, E or F"
+                )));
+            }
         };
         matrix_py(py, m)
     }
@@ -205,10 +214,22 @@ impl Plant {
 /// Alg. 1 with K iterations of the certified method per step (`mhe_core::MheEstimator`).
 #[pyclass(module = "suboptimal_mhe._native", name = "_Estimator")]
 struct Estimator {
-    mhe: MheEstimator<MethodMap>,
+    /// Behind a mutex: the iteration state has `Cell`s (Send, not Sync), and a Python
+    /// object may be reached from several threads; uncontended, a lock costs nanoseconds.
+    mhe: Mutex<MheEstimator<MethodMap>>,
     settings: MheSettings,
     /// x̂_{t|t} of the last `estimate()` (cached so repeated calls do not iterate again).
     nx: usize,
+}
+
+impl Estimator {
+    /// The estimator, refused after a panic inside an earlier call (its state may be
+    /// half-updated: a new estimator is the fix).
+    fn mhe(&self) -> PyResult<MutexGuard<'_, MheEstimator<MethodMap>>> {
+        self.mhe.lock().map_err(|_| {
+            MheError::new_err("the estimator failed inside an earlier call; create a new Estimator")
+        })
+    }
 }
 
 #[pymethods]
@@ -227,10 +248,14 @@ impl Estimator {
         r: Option<PyReadonlyArray2<'_, f64>>,
         p: Option<PyReadonlyArray2<'_, f64>>,
     ) -> PyResult<Self> {
-        let method: Method = method
-            .parse()
-            .map_err(|e: qp_iter::QpError| InputError::new_err(format!("argument `method`: {e}")))?;
-        let mut b = MheSettings::builder().horizon(horizon).eta(eta).iterations(k).method(method);
+        let method: Method = method.parse().map_err(|e: qp_iter::QpError| {
+            InputError::new_err(format!("argument `method`: {e}"))
+        })?;
+        let mut b = MheSettings::builder()
+            .horizon(horizon)
+            .eta(eta)
+            .iterations(k)
+            .method(method);
         if let Some(q) = &q {
             b = b.q(&mat_of(q));
         }
@@ -251,28 +276,36 @@ impl Estimator {
             })
             .map_err(|e| mhe_err(&e))?;
         let nx = plant.sys.nx();
-        Ok(Self { mhe, settings, nx })
+        Ok(Self {
+            mhe: Mutex::new(mhe),
+            settings,
+            nx,
+        })
     }
 
     /// Appends (u_t, y_t) to the window.
-    fn push(&mut self, u: PyReadonlyArray1<'_, f64>, y: PyReadonlyArray1<'_, f64>) -> PyResult<()> {
+    fn push(&self, u: PyReadonlyArray1<'_, f64>, y: PyReadonlyArray1<'_, f64>) -> PyResult<()> {
         let (u, y) = (slice_of(&u, "u")?, slice_of(&y, "y")?);
-        self.mhe.push(u, y).map_err(|e| mhe_err(&e))
+        self.mhe()?.push(u, y).map_err(|e| mhe_err(&e))
     }
 
     /// x̂_{t|t}: K iterations on the current window (a new array each call).
-    fn estimate<'py>(&mut self, py: Python<'py>) -> PyResult<Bound<'py, PyArray1<f64>>> {
-        let x = self.mhe.estimate().map_err(|e| mhe_err(&e))?;
+    fn estimate<'py>(&self, py: Python<'py>) -> PyResult<Bound<'py, PyArray1<f64>>> {
+        let mut mhe = self.mhe()?;
+        let x = mhe.estimate().map_err(|e| mhe_err(&e))?;
         Ok(PyArray1::from_slice(py, x))
     }
 
     /// x̂_{t|t} written into `out` (length n_x, float64): no allocation per call.
-    fn estimate_into(&mut self, out: &Bound<'_, PyArray1<f64>>) -> PyResult<()> {
-        let x = self.mhe.estimate().map_err(|e| mhe_err(&e))?;
-        let mut w = out.try_readwrite().map_err(|e| InputError::new_err(format!("argument `out`: {e}")))?;
-        let dst = w
-            .as_slice_mut()
-            .map_err(|_| ShapeError::new_err("argument `out` must be a contiguous 1-D float64 array"))?;
+    fn estimate_into(&self, out: &Bound<'_, PyArray1<f64>>) -> PyResult<()> {
+        let mut mhe = self.mhe()?;
+        let x = mhe.estimate().map_err(|e| mhe_err(&e))?;
+        let mut w = out
+            .try_readwrite()
+            .map_err(|e| InputError::new_err(format!("argument `out`: {e}")))?;
+        let dst = w.as_slice_mut().map_err(|_| {
+            ShapeError::new_err("argument `out` must be a contiguous 1-D float64 array")
+        })?;
         if dst.len() != self.nx {
             return Err(ShapeError::new_err(format!(
                 "argument `out` has length {}, expected n_x = {}",
@@ -284,22 +317,40 @@ impl Estimator {
         Ok(())
     }
 
+    /// Wall seconds of `n` calls of `push(u, y)` + `estimate()` made in Rust alone: the
+    /// baseline of the per-call overhead benchmark (python/benches/overhead.py).
+    fn time_rust_calls(
+        &self,
+        u: PyReadonlyArray1<'_, f64>,
+        y: PyReadonlyArray1<'_, f64>,
+        n: usize,
+    ) -> PyResult<f64> {
+        let (u, y) = (slice_of(&u, "u")?, slice_of(&y, "y")?);
+        let mut mhe = self.mhe()?;
+        let t0 = std::time::Instant::now();
+        for _ in 0..n {
+            mhe.push(u, y).map_err(|e| mhe_err(&e))?;
+            std::hint::black_box(mhe.estimate().map_err(|e| mhe_err(&e))?);
+        }
+        Ok(t0.elapsed().as_secs_f64())
+    }
+
     /// Restarts at t = 0 with the prior x̄₀ = `prior`.
-    fn reset(&mut self, prior: PyReadonlyArray1<'_, f64>) -> PyResult<()> {
+    fn reset(&self, prior: PyReadonlyArray1<'_, f64>) -> PyResult<()> {
         let prior = slice_of(&prior, "prior")?;
-        self.mhe.reset(prior).map_err(|e| mhe_err(&e))
+        self.mhe()?.reset(prior).map_err(|e| mhe_err(&e))
     }
 
     /// Time step t (number of pushes since the last reset).
     #[getter]
-    fn t(&self) -> usize {
-        self.mhe.t()
+    fn t(&self) -> PyResult<usize> {
+        Ok(self.mhe()?.t())
     }
 
     /// The prior weight P in use (from LMI (2) unless given).
     #[getter]
     fn p<'py>(&self, py: Python<'py>) -> PyResult<Bound<'py, PyArray2<f64>>> {
-        matrix_py(py, self.mhe.config().weights().p.as_ref())
+        matrix_py(py, self.mhe()?.config().weights().p.as_ref())
     }
 
     /// (horizon M, eta, K, method name).
@@ -342,7 +393,9 @@ impl PyScenario {
     }
 
     fn plant(&self) -> Plant {
-        Plant { sys: self.scenario.plant.clone() }
+        Plant {
+            sys: self.scenario.plant.clone(),
+        }
     }
 }
 
@@ -362,10 +415,11 @@ fn certify_json(
     gamma13: Option<f64>,
 ) -> PyResult<String> {
     let sc = scenario.scenario.clone();
-    let mhe = sc
-        .mhe
-        .as_ref()
-        .ok_or_else(|| ScenarioError::new_err("the scenario has no [mhe] section: add one (horizon, eta, iterations)"))?;
+    let mhe = sc.mhe.as_ref().ok_or_else(|| {
+        ScenarioError::new_err(
+            "the scenario has no [mhe] section: add one (horizon, eta, iterations)",
+        )
+    })?;
     if sc.mpc.is_none() {
         return Err(ScenarioError::new_err(
             "the scenario has no [mpc] section: the closed-loop certificate needs the controller",
@@ -422,9 +476,9 @@ fn simulate<'py>(
         opts.seed = seed;
     }
     if let Some(m) = method {
-        opts.method = m
-            .parse()
-            .map_err(|e: qp_iter::QpError| InputError::new_err(format!("argument `method`: {e}")))?;
+        opts.method = m.parse().map_err(|e: qp_iter::QpError| {
+            InputError::new_err(format!("argument `method`: {e}"))
+        })?;
     }
     if let Some(k) = k {
         opts.iterations = k;
@@ -470,7 +524,10 @@ fn _native(m: &Bound<'_, PyModule>) -> PyResult<()> {
     m.add("InputError", py.get_type::<InputError>())?;
     m.add("ShapeError", py.get_type::<ShapeError>())?;
     m.add("NonFiniteError", py.get_type::<NonFiniteError>())?;
-    m.add("NotPositiveDefiniteError", py.get_type::<NotPositiveDefiniteError>())?;
+    m.add(
+        "NotPositiveDefiniteError",
+        py.get_type::<NotPositiveDefiniteError>(),
+    )?;
     m.add("OutOfRangeError", py.get_type::<OutOfRangeError>())?;
     m.add("ScenarioError", py.get_type::<ScenarioError>())?;
     m.add("CertificateError", py.get_type::<CertificateError>())?;

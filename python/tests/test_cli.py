@@ -103,6 +103,12 @@ def test_bad_certify_and_simulate_arguments(root, call, exc, words):
         assert w in str(info.value), str(info.value)
 
 
+def test_scenario_errors_name_the_scenario_key(root):
+    text = (root / SCENARIO).read_text().replace("eta = 0.8", "eta = 1.5")
+    with pytest.raises(sm.ScenarioError, match=r"mhe\.eta"):
+        sm.Scenario.from_toml(text)
+
+
 def test_certify_needs_mpc(root):
     text = (root / SCENARIO).read_text()
     no_mpc = text[: text.index("[mpc]")]

@@ -94,7 +94,9 @@ def test_p_is_the_certified_prior_weight_of_lmi2():
         (dict(method="newton"), sm.InputError, ["method"]),
         (dict(dtype="float32"), sm.UnsupportedError, ["dtype", "float64"]),
         (dict(dtype="int8"), sm.InputError, ["dtype"]),
-        (dict(horizon=10**9), sm.InputError, ["horizon"]),
+        (dict(horizon=10**9, eta=0.0), sm.InputError, ["argument `horizon`", "GiB"]),
+        (dict(horizon=10**9), sm.InputError, ["argument `horizon`", "`eta`"]),
+        (dict(horizon=200, eta=0.5), sm.InputError, ["argument `horizon`", "eta"]),
     ],
 )
 def test_bad_settings_raise_the_named_exception(kwargs, exc, words):

@@ -114,3 +114,24 @@ def test_certify_needs_mpc(root):
     no_mpc = text[: text.index("[mpc]")]
     with pytest.raises(sm.ScenarioError, match=r"\[mpc\]"):
         sm.certify(sm.Scenario.from_toml(no_mpc))
+
+
+def test_certify_releases_the_gil(root):
+    # While certify runs in a thread, this thread keeps running Python. With the GIL held
+    # for the whole call, this loop would stall for about the call's duration (one gap as
+    # long as the call); released, its longest gap is a scheduler slice.
+    import threading
+    import time
+
+    sc = sm.Scenario.from_file(root / SCENARIO)
+    worker = threading.Thread(target=lambda: sm.certify(sc))
+    t0 = last = time.perf_counter()
+    longest = 0.0
+    worker.start()
+    while worker.is_alive():
+        now = time.perf_counter()
+        longest = max(longest, now - last)
+        last = now
+    duration = time.perf_counter() - t0
+    worker.join()
+    assert longest < 0.5 * duration, (longest, duration)

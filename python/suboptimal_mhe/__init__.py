@@ -120,7 +120,10 @@ def _finite(name: str, arr: np.ndarray) -> None:
 
 def _weight(name: str, value: Any, n: int) -> np.ndarray:
     """A symmetric positive definite n x n weight; a scalar s means s·I."""
-    arr = np.asarray(value, dtype=np.float64) if not isinstance(value, np.ndarray) else value.astype(np.float64)
+    try:
+        arr = np.asarray(value, dtype=np.float64)
+    except (TypeError, ValueError) as e:
+        raise InputError(f"argument `{name}` is not a numeric matrix ({e}); pass {n}x{n} floats or a scalar") from None
     if arr.ndim == 0:
         _finite(name, arr.reshape(1))
         arr = float(arr) * np.eye(n)

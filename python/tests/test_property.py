@@ -66,3 +66,37 @@ def test_certify_raises_only_package_errors(text):
     for s in d["solvers"]:
         # One verdict: a K_min, or the reasons it is void, never both.
         assert (s["k_min"] is None) == bool(s["void_reasons"]), s
+
+
+@st.composite
+def estimator_args(draw):
+    nx, nu, ny = draw(st.integers(1, 3)), draw(st.integers(0, 2)), draw(st.integers(1, 2))
+    mat = lambda r, c: np.array(draw(st.lists(entry, min_size=r * c, max_size=r * c))).reshape(r, c)  # noqa: E731
+    plant = dict(A=mat(nx, nx), B=mat(nx, nu), C=mat(ny, nx))
+    est = dict(
+        horizon=draw(st.integers(1, 12)),
+        eta=draw(st.floats(0.0, 0.99)),
+        k=draw(st.integers(1, 30)),
+        method=draw(st.sampled_from([m + s for m in sm.METHODS for s in ("", "-jacobi")])),
+        q=draw(st.one_of(st.none(), st.floats(-1.0, 10.0))),
+    )
+    data = [(mat(1, nu)[0], mat(1, ny)[0] * draw(st.sampled_from([1.0, 1e3, np.nan]))) for _ in range(draw(st.integers(0, 15)))]
+    return plant, est, data
+
+
+@settings(max_examples=60, deadline=None, suppress_health_check=[HealthCheck.too_slow])
+@given(estimator_args())
+def test_estimator_raises_only_package_errors(args):
+    plant, kwargs, data = args
+    try:
+        est = sm.Estimator(sm.Plant(**plant), **kwargs)
+    except sm.MheError:
+        return
+    for u, y in data:
+        try:
+            est.push(u, y)
+        except sm.NonFiniteError:
+            assert not np.all(np.isfinite(y))
+            continue
+        x_hat = est.estimate()
+        assert x_hat.shape == (plant["A"].shape[0],)

@@ -92,6 +92,7 @@ def test_p_is_the_certified_prior_weight_of_lmi2():
         (dict(prior=[0.0, np.inf]), sm.NonFiniteError, ["prior"]),
         (dict(prior=[0.0]), sm.ShapeError, ["prior"]),
         (dict(method="newton"), sm.InputError, ["method"]),
+        (dict(q=np.array(["a"])), sm.InputError, ["`q`"]),
         (dict(dtype="float32"), sm.UnsupportedError, ["dtype", "float64"]),
         (dict(dtype="int8"), sm.InputError, ["dtype"]),
         (dict(horizon=10**9, eta=0.0), sm.InputError, ["argument `horizon`", "GiB"]),

@@ -241,7 +241,7 @@ struct Estimator {
     /// object may be reached from several threads; uncontended, a lock costs nanoseconds.
     mhe: Mutex<MheEstimator<MethodMap>>,
     settings: MheSettings,
-    /// x̂_{t|t} of the last `estimate()` (cached so repeated calls do not iterate again).
+    /// n_x: the length `estimate_into` checks `out` against.
     nx: usize,
 }
 

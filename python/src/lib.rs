@@ -520,9 +520,21 @@ fn simulate<'py>(
         let y = collect(&|t| trace.y(t).map(<[f64]>::to_vec), n);
         let w = collect(&|t| trace.w(t).map(<[f64]>::to_vec), n);
         let e_norm = trace.e_norms()[..n].to_vec();
-        Ok((x, x_hat, u, y, w, e_norm))
+        // The Kalman baseline of reproduce's trace.csv (xkf, ekf_norm): the standard filter
+        // of the MHE's weights run over the same u and y.
+        let cfg = resolved.mhe_config()?;
+        let sc = resolved.scenario();
+        let kalman = closed_loop::baseline::kalman_for_mhe(
+            &sc.plant,
+            &sc.simulation.prior,
+            &cfg.p,
+            &cfg.q,
+            &cfg.r,
+        )
+        .map(|mut kf| closed_loop::baseline::run_on_trace(&mut kf, trace));
+        Ok((x, x_hat, u, y, w, e_norm, kalman))
     });
-    let (x, x_hat, u, y, w, e_norm) = out.map_err(|e| loop_err(&e))?;
+    let (x, x_hat, u, y, w, e_norm, kalman) = out.map_err(|e| loop_err(&e))?;
     let d = pyo3::types::PyDict::new(py);
     let arr2 = |rows: &[Vec<f64>], ncols: usize| -> PyResult<Bound<'py, PyArray2<f64>>> {
         let flat: Vec<f64> = rows.iter().flatten().copied().collect();
@@ -537,6 +549,18 @@ fn simulate<'py>(
     d.set_item("y", arr2(&y, sys.ny())?)?;
     d.set_item("w", arr2(&w, sys.nw())?)?;
     d.set_item("e_norm", PyArray1::from_vec(py, e_norm))?;
+    match kalman {
+        Ok(run) => {
+            d.set_item("x_kf", arr2(&run.x_hat, sys.nx())?)?;
+            d.set_item("e_kf_norm", PyArray1::from_vec(py, run.e_norms))?;
+            d.set_item("kalman_error", run.error)?;
+        }
+        Err(e) => {
+            d.set_item("x_kf", arr2(&[], sys.nx())?)?;
+            d.set_item("e_kf_norm", PyArray1::from_vec(py, Vec::<f64>::new()))?;
+            d.set_item("kalman_error", Some(e.to_string()))?;
+        }
+    }
     Ok(d)
 }
 

@@ -489,7 +489,10 @@ def simulate(
     Defaults: the scenario's ``simulation.steps``, ``noise.seed``, ``mhe.method`` and
     ``mhe.iterations``. Returns NumPy arrays: ``x`` (T+1 x n_x, the true state), ``x_hat``
     (T x n_x), ``u`` (T x n_u), ``y`` (T x n_y), ``w`` (T x n_w) and ``e_norm`` (T,
-    ‖x̂_t − x_t‖₂). The GIL is released while it runs.
+    ‖x̂_t − x_t‖₂); beside them the Kalman baseline of reproduce's trace.csv (the standard
+    filter of the MHE's weights on the same u, y): ``x_kf``, ``e_kf_norm`` (shorter if the
+    filter stopped) and ``kalman_error`` (``None``, or why it stopped / was not built).
+    The GIL is released while it runs.
     """
     sc = _scenario(scenario)
     if steps is not None:

@@ -108,4 +108,5 @@ def simulate(
     *,
     method: Optional[str] = ...,
     k: Optional[int] = ...,
-) -> Dict[str, NDArray[np.float64]]: ...
+) -> Dict[str, Any]: ...
+    """x, x_hat, u, y, w, e_norm, x_kf, e_kf_norm (NumPy arrays) and kalman_error (str | None)."""

@@ -63,6 +63,10 @@ def test_simulate_equals_trace_csv_bit_for_bit(root, reproduced):
         for name, prefix, n in [("x", "x", 2), ("x_hat", "xhat", 2), ("u", "u", 1), ("y", "y", 1), ("w", "w", 3)]:
             np.testing.assert_array_equal(sim[name][:T], column(rows, prefix, n), err_msg=f"{name}, k = {run['k']}")
         np.testing.assert_array_equal(sim["e_norm"], [float(r["e_norm"]) for r in rows])
+        # The Kalman baseline beside it (trace.csv's xkf, ekf_norm).
+        assert sim["kalman_error"] is None
+        np.testing.assert_array_equal(sim["x_kf"], column(rows, "xkf", 2))
+        np.testing.assert_array_equal(sim["e_kf_norm"], [float(r["ekf_norm"]) for r in rows])
         assert sim["x"].shape == (T + 1, 2)
 
 

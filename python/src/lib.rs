@@ -1,0 +1,591 @@
+//! `suboptimal_mhe._native`: the thin PyO3 layer of the Python package (issue 39).
+//!
+//! Everything here converts NumPy arrays to the workspace's typed Rust API (`LtiSystem`,
+//! `MheSettings::builder()`, `Scenario`, `certify_closed_loop`, `ScenarioLoop`) and Rust
+//! errors to the package's exceptions; the Python module `suboptimal_mhe` adds argument
+//! checks that name the Python argument, docstrings and the result classes. No numerical
+//! routine lives here: the numbers are the CLI's, computed by the same functions.
+
+use closed_loop::scenario::{LoopOptions, Scenario};
+use faer::Mat;
+use iss_certificate::certificate::{CertificateOptions, Gamma13Source, certify_closed_loop};
+use iss_certificate::coverage::verdict_options;
+use lti_model::{LtiSystem, ModelError};
+use mhe_core::{MheError as RustMheError, MheEstimator, MheSets, MheSettings};
+use numpy::{PyArray1, PyArray2, PyArrayMethods, PyReadonlyArray1, PyReadonlyArray2};
+use pyo3::create_exception;
+use pyo3::exceptions::PyValueError;
+use pyo3::prelude::*;
+use qp_iter::{Method, MethodMap};
+use std::sync::{Mutex, MutexGuard};
+
+create_exception!(
+    suboptimal_mhe,
+    MheError,
+    PyValueError,
+    "Base of every error the package raises (a ValueError: the input was refused)."
+);
+create_exception!(
+    suboptimal_mhe,
+    InputError,
+    MheError,
+    "An argument is invalid; the message names it and says how to fix it."
+);
+create_exception!(
+    suboptimal_mhe,
+    ShapeError,
+    InputError,
+    "An array has the wrong shape or a dimension is above the supported maximum."
+);
+create_exception!(
+    suboptimal_mhe,
+    NonFiniteError,
+    InputError,
+    "An array or scalar has a NaN or infinite entry."
+);
+create_exception!(
+    suboptimal_mhe,
+    NotPositiveDefiniteError,
+    InputError,
+    "A weight (Q, R, P) is not symmetric positive definite."
+);
+create_exception!(
+    suboptimal_mhe,
+    OutOfRangeError,
+    InputError,
+    "A scalar is outside its admissible range (e.g. eta not in [0, 1), k < 1)."
+);
+create_exception!(
+    suboptimal_mhe,
+    ScenarioError,
+    MheError,
+    "A scenario (file or TOML text) is invalid or lacks a section the call needs."
+);
+create_exception!(
+    suboptimal_mhe,
+    CertificateError,
+    MheError,
+    "The model cannot be set up for the certificate (e.g. LMI (2) infeasible for the MHE)."
+);
+create_exception!(
+    suboptimal_mhe,
+    NumericalError,
+    MheError,
+    "A numerical step failed (e.g. a window's QP is not strongly convex)."
+);
+create_exception!(
+    suboptimal_mhe,
+    UnsupportedError,
+    MheError,
+    "The request is valid but not supported by this version; the message says what is."
+);
+
+/// The keys of `[mhe]` that are arguments of `Estimator(...)`.
+const MHE_KEYS: [&str; 7] = [
+    "mhe.horizon",
+    "mhe.eta",
+    "mhe.iterations",
+    "mhe.method",
+    "mhe.q",
+    "mhe.r",
+    "mhe.p",
+];
+
+/// The Python argument a scenario key of `[mhe]` corresponds to (the builder fills the
+/// same table a scenario file does, so its errors name `mhe.*`).
+fn argument_of(key: &str) -> &str {
+    match key {
+        "mhe.horizon" => "horizon",
+        "mhe.eta" => "eta",
+        "mhe.iterations" => "k",
+        "mhe.method" => "method",
+        "mhe.q" => "q",
+        "mhe.r" => "r",
+        "mhe.p" => "p",
+        other => other,
+    }
+}
+
+/// A `ModelError` as the package exception of its kind.
+fn model_err(e: &ModelError) -> PyErr {
+    let msg = e.to_string();
+    match e {
+        ModelError::Shape { .. } => ShapeError::new_err(msg),
+        ModelError::NonFinite { .. } => NonFiniteError::new_err(msg),
+        ModelError::NotSymmetric { .. } | ModelError::NotPositiveDefinite { .. } => {
+            NotPositiveDefiniteError::new_err(msg)
+        }
+        ModelError::OutOfRange { .. } => OutOfRangeError::new_err(msg),
+        ModelError::InvalidSet { .. } => InputError::new_err(msg),
+        ModelError::LmiInfeasible { .. } => CertificateError::new_err(msg),
+        ModelError::Numerical { .. } => NumericalError::new_err(msg),
+        ModelError::Scenario { .. } => ScenarioError::new_err(msg),
+        _ => MheError::new_err(msg),
+    }
+}
+
+/// An error of `Estimator(...)`: the builder validates the keys of a scenario's `[mhe]`
+/// table, so its `mhe.*` keys are renamed to the Python arguments.
+fn estimator_err(e: &RustMheError) -> PyErr {
+    match e {
+        RustMheError::Model(ModelError::Scenario { key, problem }) if key.starts_with("mhe.") => {
+            let mut problem = problem.clone();
+            for k in MHE_KEYS {
+                problem = problem.replace(&format!("`{k}`"), &format!("`{}`", argument_of(k)));
+            }
+            InputError::new_err(format!("argument `{}`: {problem}", argument_of(key)))
+        }
+        other => mhe_err(other),
+    }
+}
+
+/// An `mhe_core::MheError` as the package exception of its kind.
+fn mhe_err(e: &RustMheError) -> PyErr {
+    let msg = e.to_string();
+    match e {
+        RustMheError::Model(m) => model_err(m),
+        RustMheError::OutOfRange { .. } => OutOfRangeError::new_err(msg),
+        RustMheError::Length { .. } => ShapeError::new_err(msg),
+        RustMheError::NonFinite { .. } => NonFiniteError::new_err(msg),
+        RustMheError::Unsupported { .. } => UnsupportedError::new_err(msg),
+        RustMheError::NotStronglyConvex { .. } | RustMheError::Numerical { .. } => {
+            NumericalError::new_err(msg)
+        }
+        _ => MheError::new_err(msg),
+    }
+}
+
+/// A closed-loop / scenario error: the model errors keep their kind, the rest are about the
+/// scenario (missing section, dimensions).
+fn loop_err(e: &closed_loop::ClosedLoopError) -> PyErr {
+    use closed_loop::ClosedLoopError as E;
+    match e {
+        E::Model(m) => model_err(m),
+        E::Mhe(m) => mhe_err(m),
+        other => ScenarioError::new_err(other.to_string()),
+    }
+}
+
+/// A dense matrix from a 2-D NumPy array (C or Fortran order, any strides).
+fn mat_of(a: &PyReadonlyArray2<'_, f64>) -> Mat<f64> {
+    let v = a.as_array();
+    Mat::from_fn(v.nrows(), v.ncols(), |i, j| v[[i, j]])
+}
+
+fn slice_of<'a>(a: &'a PyReadonlyArray1<'_, f64>, name: &str) -> PyResult<&'a [f64]> {
+    a.as_slice()
+        .map_err(|_| ShapeError::new_err(format!("`{name}` must be a contiguous 1-D array")))
+}
+
+fn matrix_py<'py>(
+    py: Python<'py>,
+    m: faer::MatRef<'_, f64>,
+) -> PyResult<Bound<'py, PyArray2<f64>>> {
+    let rows: Vec<Vec<f64>> = (0..m.nrows())
+        .map(|i| (0..m.ncols()).map(|j| m[(i, j)]).collect())
+        .collect();
+    PyArray2::from_vec2(py, &rows).map_err(|e| MheError::new_err(e.to_string()))
+}
+
+/// The plant x⁺ = Ax + Bu + Ew¹, y = Cx + Fw² (eq. (1)), validated by `LtiSystem`.
+#[pyclass(module = "suboptimal_mhe._native", name = "_Plant", frozen)]
+struct Plant {
+    sys: LtiSystem,
+}
+
+#[pymethods]
+impl Plant {
+    #[new]
+    fn new(
+        a: PyReadonlyArray2<'_, f64>,
+        b: PyReadonlyArray2<'_, f64>,
+        c: PyReadonlyArray2<'_, f64>,
+        e: PyReadonlyArray2<'_, f64>,
+        f: PyReadonlyArray2<'_, f64>,
+    ) -> PyResult<Self> {
+        let sys =
+            LtiSystem::with_disturbance(mat_of(&a), mat_of(&b), mat_of(&c), mat_of(&e), mat_of(&f))
+                .map_err(|e| model_err(&e))?;
+        Ok(Self { sys })
+    }
+
+    /// (n_x, n_u, n_y, n_w1, n_w2).
+    #[getter]
+    fn dims(&self) -> (usize, usize, usize, usize, usize) {
+        let s = &self.sys;
+        (s.nx(), s.nu(), s.ny(), s.nw1(), s.nw2())
+    }
+
+    fn matrix<'py>(&self, py: Python<'py>, name: &str) -> PyResult<Bound<'py, PyArray2<f64>>> {
+        let s = &self.sys;
+        let m = match name {
+            "A" => s.a(),
+            "B" => s.b(),
+            "C" => s.c(),
+            "E" => s.e(),
+            "F" => s.f(),
+            _ => {
+                return Err(InputError::new_err(format!(
+                    "no matrix `{name}`: use A, B, C, E or F"
+                )));
+            }
+        };
+        matrix_py(py, m)
+    }
+}
+
+/// Alg. 1 with K iterations of the certified method per step (`mhe_core::MheEstimator`).
+#[pyclass(module = "suboptimal_mhe._native", name = "_Estimator")]
+struct Estimator {
+    /// Behind a mutex: the iteration state has `Cell`s (Send, not Sync), and a Python
+    /// object may be reached from several threads; uncontended, a lock costs nanoseconds.
+    mhe: Mutex<MheEstimator<MethodMap>>,
+    settings: MheSettings,
+    /// n_x: the length `estimate_into` checks `out` against.
+    nx: usize,
+}
+
+impl Estimator {
+    /// The estimator, refused after a panic inside an earlier call (its state may be
+    /// half-updated: a new estimator is the fix).
+    fn mhe(&self) -> PyResult<MutexGuard<'_, MheEstimator<MethodMap>>> {
+        self.mhe.lock().map_err(|_| {
+            MheError::new_err("the estimator failed inside an earlier call; create a new Estimator")
+        })
+    }
+}
+
+#[pymethods]
+impl Estimator {
+    #[new]
+    #[pyo3(signature = (plant, horizon, eta, k, method, prior, q=None, r=None, p=None))]
+    fn new(
+        py: Python<'_>,
+        plant: &Plant,
+        horizon: usize,
+        eta: f64,
+        k: usize,
+        method: &str,
+        prior: PyReadonlyArray1<'_, f64>,
+        q: Option<PyReadonlyArray2<'_, f64>>,
+        r: Option<PyReadonlyArray2<'_, f64>>,
+        p: Option<PyReadonlyArray2<'_, f64>>,
+    ) -> PyResult<Self> {
+        let method: Method = method.parse().map_err(|e: qp_iter::QpError| {
+            InputError::new_err(format!("argument `method`: {e}"))
+        })?;
+        let mut b = MheSettings::builder()
+            .horizon(horizon)
+            .eta(eta)
+            .iterations(k)
+            .method(method);
+        if let Some(q) = &q {
+            b = b.q(&mat_of(q));
+        }
+        if let Some(r) = &r {
+            b = b.r(&mat_of(r));
+        }
+        if let Some(p) = &p {
+            b = b.p(&mat_of(p));
+        }
+        let prior = slice_of(&prior, "prior")?.to_vec();
+        let sys = plant.sys.clone();
+        // P from LMI (2) and the condensed windows: the long part, without the GIL.
+        let (settings, mhe) = py
+            .detach(move || -> Result<_, RustMheError> {
+                let settings = b.build(&sys)?;
+                let mhe = settings.estimator(&sys, &MheSets::unconstrained(&sys), &prior)?;
+                Ok((settings, mhe))
+            })
+            .map_err(|e| estimator_err(&e))?;
+        let nx = plant.sys.nx();
+        Ok(Self {
+            mhe: Mutex::new(mhe),
+            settings,
+            nx,
+        })
+    }
+
+    /// Appends (u_t, y_t) to the window.
+    fn push(&self, u: PyReadonlyArray1<'_, f64>, y: PyReadonlyArray1<'_, f64>) -> PyResult<()> {
+        let (u, y) = (slice_of(&u, "u")?, slice_of(&y, "y")?);
+        self.mhe()?.push(u, y).map_err(|e| mhe_err(&e))
+    }
+
+    /// x̂_{t|t}: K iterations on the current window (a new array each call).
+    fn estimate<'py>(&self, py: Python<'py>) -> PyResult<Bound<'py, PyArray1<f64>>> {
+        let mut mhe = self.mhe()?;
+        let x = mhe.estimate().map_err(|e| mhe_err(&e))?;
+        Ok(PyArray1::from_slice(py, x))
+    }
+
+    /// x̂_{t|t} written into `out` (length n_x, float64): no allocation per call.
+    fn estimate_into(&self, out: &Bound<'_, PyArray1<f64>>) -> PyResult<()> {
+        let mut mhe = self.mhe()?;
+        let x = mhe.estimate().map_err(|e| mhe_err(&e))?;
+        let mut w = out
+            .try_readwrite()
+            .map_err(|e| InputError::new_err(format!("argument `out`: {e}")))?;
+        let dst = w.as_slice_mut().map_err(|_| {
+            ShapeError::new_err("argument `out` must be a contiguous 1-D float64 array")
+        })?;
+        if dst.len() != self.nx {
+            return Err(ShapeError::new_err(format!(
+                "argument `out` has length {}, expected n_x = {}",
+                dst.len(),
+                self.nx
+            )));
+        }
+        dst.copy_from_slice(x);
+        Ok(())
+    }
+
+    /// Wall seconds of `n` calls of `push(u, y)` + `estimate()` made in Rust alone: the
+    /// baseline of the per-call overhead benchmark (python/benches/overhead.py).
+    fn time_rust_calls(
+        &self,
+        u: PyReadonlyArray1<'_, f64>,
+        y: PyReadonlyArray1<'_, f64>,
+        n: usize,
+    ) -> PyResult<f64> {
+        let (u, y) = (slice_of(&u, "u")?, slice_of(&y, "y")?);
+        let mut mhe = self.mhe()?;
+        let t0 = std::time::Instant::now();
+        for _ in 0..n {
+            mhe.push(u, y).map_err(|e| mhe_err(&e))?;
+            std::hint::black_box(mhe.estimate().map_err(|e| mhe_err(&e))?);
+        }
+        Ok(t0.elapsed().as_secs_f64())
+    }
+
+    /// Restarts at t = 0 with the prior x̄₀ = `prior`.
+    fn reset(&self, prior: PyReadonlyArray1<'_, f64>) -> PyResult<()> {
+        let prior = slice_of(&prior, "prior")?;
+        self.mhe()?.reset(prior).map_err(|e| mhe_err(&e))
+    }
+
+    /// Time step t (number of pushes since the last reset).
+    #[getter]
+    fn t(&self) -> PyResult<usize> {
+        Ok(self.mhe()?.t())
+    }
+
+    /// The prior weight P in use (from LMI (2) unless given).
+    #[getter]
+    fn p<'py>(&self, py: Python<'py>) -> PyResult<Bound<'py, PyArray2<f64>>> {
+        matrix_py(py, self.mhe()?.config().weights().p.as_ref())
+    }
+
+    /// (horizon M, eta, K, method name).
+    #[getter]
+    fn settings(&self) -> (usize, f64, usize, String) {
+        let s = &self.settings;
+        (s.horizon, s.eta, s.iterations, s.method.name().into_owned())
+    }
+}
+
+/// A validated scenario (`closed_loop::scenario::Scenario`).
+#[pyclass(module = "suboptimal_mhe._native", name = "_Scenario", frozen)]
+struct PyScenario {
+    scenario: Scenario,
+}
+
+#[pymethods]
+impl PyScenario {
+    #[staticmethod]
+    fn from_file(path: std::path::PathBuf) -> PyResult<Self> {
+        Scenario::from_file(&path)
+            .map(|scenario| Self { scenario })
+            .map_err(|e| model_err(&e))
+    }
+
+    #[staticmethod]
+    fn from_toml(text: &str) -> PyResult<Self> {
+        Scenario::from_toml_str(text)
+            .map(|scenario| Self { scenario })
+            .map_err(|e| model_err(&e))
+    }
+
+    #[getter]
+    fn name(&self) -> String {
+        self.scenario.name.clone()
+    }
+
+    fn to_toml(&self) -> PyResult<String> {
+        self.scenario.to_toml_string().map_err(|e| model_err(&e))
+    }
+
+    fn plant(&self) -> Plant {
+        Plant {
+            sys: self.scenario.plant.clone(),
+        }
+    }
+}
+
+/// The closed-loop certificate of `scenario` as the JSON `cargo xtask reproduce` writes
+/// under `certificate` in certificate.json: the same options (`verdict_options` with
+/// reproduce's sampling defaults, the four named methods plain and Jacobi-scaled plus the
+/// scenario's own), so the numbers are the CLI's.
+#[pyfunction]
+#[pyo3(signature = (scenario, lipschitz_pairs=200, gamma13_sequences=30, enumeration_max_vars=20, k_max=1 << 24, gamma13=None))]
+fn certify_json(
+    py: Python<'_>,
+    scenario: &PyScenario,
+    lipschitz_pairs: usize,
+    gamma13_sequences: usize,
+    enumeration_max_vars: usize,
+    k_max: usize,
+    gamma13: Option<f64>,
+) -> PyResult<String> {
+    let sc = scenario.scenario.clone();
+    let mhe = sc.mhe.as_ref().ok_or_else(|| {
+        ScenarioError::new_err(
+            "the scenario has no [mhe] section: add one (horizon, eta, iterations)",
+        )
+    })?;
+    if sc.mpc.is_none() {
+        return Err(ScenarioError::new_err(
+            "the scenario has no [mpc] section: the closed-loop certificate needs the controller",
+        ));
+    }
+    let mut solvers = CertificateOptions::default().solvers;
+    if !solvers.contains(&mhe.method) {
+        solvers.push(mhe.method);
+    }
+    let verdict = verdict_options(&sc, solvers, gamma13);
+    let opts = CertificateOptions {
+        lipschitz_pairs,
+        gamma13_sequences: if verdict.gamma13 == Gamma13Source::Certified {
+            gamma13_sequences
+        } else {
+            verdict.gamma13_sequences
+        },
+        enumeration_max_vars,
+        k_max,
+        ..verdict
+    };
+    // PyErr is built lazily, so it may be made without the GIL.
+    py.detach(move || {
+        let resolved = sc.resolve().map_err(|e| loop_err(&e))?;
+        let cert = certify_closed_loop(&resolved, &opts).map_err(|e| loop_err(&e))?;
+        serde_json::to_string(&cert).map_err(|e| MheError::new_err(e.to_string()))
+    })
+}
+
+/// One closed-loop run of the scenario (`ScenarioLoop::run`): x (T+1 × n_x), x̂, u, y, w
+/// (T rows each) and ‖e_t‖.
+#[pyfunction]
+#[pyo3(signature = (scenario, steps=None, seed=None, method=None, k=None))]
+fn simulate<'py>(
+    py: Python<'py>,
+    scenario: &PyScenario,
+    steps: Option<usize>,
+    seed: Option<u64>,
+    method: Option<&str>,
+    k: Option<usize>,
+) -> PyResult<Bound<'py, pyo3::types::PyDict>> {
+    let sc = scenario.scenario.clone();
+    let mut opts = LoopOptions::from_scenario(&sc).map_err(|e| loop_err(&e))?;
+    if let Some(steps) = steps {
+        if steps == 0 || steps > lti_model::spec::plant::MAX_STEPS {
+            return Err(OutOfRangeError::new_err(format!(
+                "argument `steps` = {steps} must lie in [1, {}]",
+                lti_model::spec::plant::MAX_STEPS
+            )));
+        }
+        opts.steps = steps;
+    }
+    if let Some(seed) = seed {
+        opts.seed = seed;
+    }
+    if let Some(m) = method {
+        opts.method = m.parse().map_err(|e: qp_iter::QpError| {
+            InputError::new_err(format!("argument `method`: {e}"))
+        })?;
+    }
+    if let Some(k) = k {
+        opts.iterations = k;
+    }
+    let out = py.detach(move || -> Result<_, closed_loop::ClosedLoopError> {
+        let resolved = sc.resolve()?;
+        let mut cl = resolved.build_loop(&opts)?;
+        let trace = cl.run()?;
+        let n = trace.len();
+        let collect = |f: &dyn Fn(usize) -> Option<Vec<f64>>, rows: usize| -> Vec<Vec<f64>> {
+            (0..rows).filter_map(f).collect()
+        };
+        let x = collect(&|t| trace.x(t).map(<[f64]>::to_vec), n + 1);
+        let x_hat = collect(&|t| trace.x_hat(t).map(<[f64]>::to_vec), n);
+        let u = collect(&|t| trace.u(t).map(<[f64]>::to_vec), n);
+        let y = collect(&|t| trace.y(t).map(<[f64]>::to_vec), n);
+        let w = collect(&|t| trace.w(t).map(<[f64]>::to_vec), n);
+        let e_norm = trace.e_norms()[..n].to_vec();
+        // The Kalman baseline of reproduce's trace.csv (xkf, ekf_norm): the standard filter
+        // of the MHE's weights run over the same u and y.
+        let cfg = resolved.mhe_config()?;
+        let sc = resolved.scenario();
+        let kalman = closed_loop::baseline::kalman_for_mhe(
+            &sc.plant,
+            &sc.simulation.prior,
+            &cfg.p,
+            &cfg.q,
+            &cfg.r,
+        )
+        .map(|mut kf| closed_loop::baseline::run_on_trace(&mut kf, trace));
+        Ok((x, x_hat, u, y, w, e_norm, kalman))
+    });
+    let (x, x_hat, u, y, w, e_norm, kalman) = out.map_err(|e| loop_err(&e))?;
+    let d = pyo3::types::PyDict::new(py);
+    let arr2 = |rows: &[Vec<f64>], ncols: usize| -> PyResult<Bound<'py, PyArray2<f64>>> {
+        let flat: Vec<f64> = rows.iter().flatten().copied().collect();
+        PyArray1::from_vec(py, flat)
+            .reshape([rows.len(), ncols])
+            .map_err(|e| MheError::new_err(e.to_string()))
+    };
+    let sys = &scenario.scenario.plant;
+    d.set_item("x", arr2(&x, sys.nx())?)?;
+    d.set_item("x_hat", arr2(&x_hat, sys.nx())?)?;
+    d.set_item("u", arr2(&u, sys.nu())?)?;
+    d.set_item("y", arr2(&y, sys.ny())?)?;
+    d.set_item("w", arr2(&w, sys.nw())?)?;
+    d.set_item("e_norm", PyArray1::from_vec(py, e_norm))?;
+    match kalman {
+        Ok(run) => {
+            d.set_item("x_kf", arr2(&run.x_hat, sys.nx())?)?;
+            d.set_item("e_kf_norm", PyArray1::from_vec(py, run.e_norms))?;
+            d.set_item("kalman_error", run.error)?;
+        }
+        Err(e) => {
+            d.set_item("x_kf", arr2(&[], sys.nx())?)?;
+            d.set_item("e_kf_norm", PyArray1::from_vec(py, Vec::<f64>::new()))?;
+            d.set_item("kalman_error", Some(e.to_string()))?;
+        }
+    }
+    Ok(d)
+}
+
+#[pymodule]
+fn _native(m: &Bound<'_, PyModule>) -> PyResult<()> {
+    let py = m.py();
+    m.add("MheError", py.get_type::<MheError>())?;
+    m.add("InputError", py.get_type::<InputError>())?;
+    m.add("ShapeError", py.get_type::<ShapeError>())?;
+    m.add("NonFiniteError", py.get_type::<NonFiniteError>())?;
+    m.add(
+        "NotPositiveDefiniteError",
+        py.get_type::<NotPositiveDefiniteError>(),
+    )?;
+    m.add("OutOfRangeError", py.get_type::<OutOfRangeError>())?;
+    m.add("ScenarioError", py.get_type::<ScenarioError>())?;
+    m.add("CertificateError", py.get_type::<CertificateError>())?;
+    m.add("NumericalError", py.get_type::<NumericalError>())?;
+    m.add("UnsupportedError", py.get_type::<UnsupportedError>())?;
+    m.add("MAX_DIMENSION", lti_model::spec::MAX_DIMENSION)?;
+    m.add("MAX_STEPS", lti_model::spec::plant::MAX_STEPS)?;
+    m.add_class::<Plant>()?;
+    m.add_class::<Estimator>()?;
+    m.add_class::<PyScenario>()?;
+    m.add_function(wrap_pyfunction!(certify_json, m)?)?;
+    m.add_function(wrap_pyfunction!(simulate, m)?)?;
+    Ok(())
+}

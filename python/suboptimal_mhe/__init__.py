@@ -1,0 +1,508 @@
+"""suboptimal_mhe: the certified fixed-iteration moving horizon estimator from Python.
+
+NumPy in and out; the numbers are computed by the Rust workspace (the same functions as
+``cargo xtask``), so a certificate here equals the CLI's ``certificate.json`` key by key.
+
+Quick start (a double integrator measured in position, sampled at 0.1 s)::
+
+    import numpy as np, suboptimal_mhe as sm
+    plant = sm.Plant(A=[[1, .1], [0, 1]], B=[[.005], [.1]], C=[[1, 0]])
+    est = sm.Estimator(plant, horizon=10, eta=0.8, k=20, method="admm")
+    x_hat = est.estimate()            # x̂_{0|0} = the prior
+    est.push(u=[0.0], y=[1.02])       # u_0, y_0
+    x_hat = est.estimate()            # x̂_{1|1} after K = 20 ADMM iterations
+
+Every error is a subclass of :class:`MheError` (itself a ``ValueError``) whose message names
+the argument and the fix; arguments are checked before anything large is allocated.
+"""
+
+from __future__ import annotations
+
+import json
+import math
+import os
+from typing import Any, Dict, List, Optional
+
+import numpy as np
+
+from . import _native
+from ._native import (
+    CertificateError,
+    InputError,
+    MheError,
+    NonFiniteError,
+    NotPositiveDefiniteError,
+    NumericalError,
+    OutOfRangeError,
+    ScenarioError,
+    ShapeError,
+    UnsupportedError,
+)
+
+__all__ = [
+    "Plant",
+    "Estimator",
+    "Scenario",
+    "Certificate",
+    "certify",
+    "simulate",
+    "MheError",
+    "InputError",
+    "ShapeError",
+    "NonFiniteError",
+    "NotPositiveDefiniteError",
+    "OutOfRangeError",
+    "ScenarioError",
+    "CertificateError",
+    "NumericalError",
+    "UnsupportedError",
+    "MAX_DIMENSION",
+    "METHODS",
+]
+
+#: Largest plant dimension accepted (n_x, n_u, n_y, n_w), as for a scenario file.
+MAX_DIMENSION: int = _native.MAX_DIMENSION
+#: The named methods Φ (each also with the suffix ``-jacobi``: the Jacobi-scaled problem).
+METHODS = ("pg", "fista", "admm", "admm-pr")
+
+
+# --------------------------------------------------------------------------------------
+# Argument checks: cheap, before any Rust call (so before anything large is allocated).
+# --------------------------------------------------------------------------------------
+
+
+def _matrix(name: str, value: Any, rows: Optional[int] = None, cols: Optional[int] = None) -> np.ndarray:
+    """`value` as a finite float64 2-D array (a scalar is 1x1), shape-checked."""
+    try:
+        arr = np.asarray(value, dtype=np.float64)
+    except (TypeError, ValueError) as e:
+        raise InputError(f"argument `{name}` is not a numeric array ({e}); pass a 2-D array of floats") from None
+    if arr.ndim == 0:
+        arr = arr.reshape(1, 1)
+    if arr.ndim != 2:
+        raise ShapeError(f"argument `{name}` has {arr.ndim} dimensions, expected a 2-D array (a matrix)")
+    r, c = arr.shape
+    if (rows is not None and r != rows) or (cols is not None and c != cols):
+        want = f"{rows if rows is not None else 'any'}x{cols if cols is not None else 'any'}"
+        raise ShapeError(f"argument `{name}` has shape {r}x{c}, expected {want}")
+    if max(r, c) > MAX_DIMENSION:
+        raise ShapeError(
+            f"argument `{name}` has shape {r}x{c}, above the supported maximum dimension {MAX_DIMENSION}"
+        )
+    _finite(name, arr)
+    return np.ascontiguousarray(arr)
+
+
+def _vector(name: str, value: Any, length: int) -> np.ndarray:
+    """`value` as a finite float64 1-D array of `length` entries (a scalar is length 1)."""
+    try:
+        arr = np.asarray(value, dtype=np.float64)
+    except (TypeError, ValueError) as e:
+        raise InputError(f"argument `{name}` is not a numeric vector ({e})") from None
+    if arr.ndim == 0:
+        arr = arr.reshape(1)
+    if arr.ndim != 1:
+        arr = arr.reshape(-1) if arr.size == length else arr
+    if arr.ndim != 1 or arr.shape[0] != length:
+        raise ShapeError(f"argument `{name}` has shape {arr.shape}, expected a vector of length {length}")
+    _finite(name, arr)
+    return np.ascontiguousarray(arr)
+
+
+def _finite(name: str, arr: np.ndarray) -> None:
+    bad = np.argwhere(~np.isfinite(arr))
+    if bad.size:
+        idx = tuple(int(i) for i in bad[0])
+        raise NonFiniteError(
+            f"argument `{name}` has a non-finite entry {arr[idx]} at index {idx}; all entries must be finite"
+        )
+
+
+def _weight(name: str, value: Any, n: int) -> np.ndarray:
+    """A symmetric positive definite n x n weight; a scalar s means s·I."""
+    try:
+        arr = np.asarray(value, dtype=np.float64)
+    except (TypeError, ValueError) as e:
+        raise InputError(f"argument `{name}` is not a numeric matrix ({e}); pass {n}x{n} floats or a scalar") from None
+    if arr.ndim == 0:
+        _finite(name, arr.reshape(1))
+        arr = float(arr) * np.eye(n)
+    arr = _matrix(name, arr, n, n)
+    asym = float(np.max(np.abs(arr - arr.T))) if n else 0.0
+    if asym > 1e-12 * max(1.0, float(np.max(np.abs(arr)))):
+        raise NotPositiveDefiniteError(
+            f"argument `{name}` is not symmetric (max |M - M^T| = {asym:.3e}); pass a symmetric matrix"
+        )
+    lam = float(np.linalg.eigvalsh(arr)[0])
+    if not lam > 0.0:
+        raise NotPositiveDefiniteError(
+            f"argument `{name}` is not positive definite (smallest eigenvalue {lam:.3e}); "
+            "use a symmetric matrix with positive eigenvalues"
+        )
+    return arr
+
+
+def _positive_int(name: str, value: Any, hint: str) -> int:
+    if isinstance(value, bool) or not isinstance(value, (int, np.integer)):
+        raise InputError(f"argument `{name}` must be an int, got {type(value).__name__}; {hint}")
+    if value < 1:
+        raise OutOfRangeError(f"argument `{name}` = {value} is out of range: must be >= 1; {hint}")
+    return int(value)
+
+
+def _eta(value: Any) -> float:
+    try:
+        eta = float(value)
+    except (TypeError, ValueError):
+        raise InputError(f"argument `eta` must be a number in [0, 1), got {value!r}") from None
+    if not math.isfinite(eta):
+        raise NonFiniteError(f"argument `eta` = {eta} is not finite; eta must lie in [0, 1), e.g. 0.8")
+    if not 0.0 <= eta < 1.0:
+        raise OutOfRangeError(
+            f"argument `eta` = {eta} is out of range: must lie in [0, 1) (Assumption 2); pick e.g. 0.8"
+        )
+    return eta
+
+
+# --------------------------------------------------------------------------------------
+# Models
+# --------------------------------------------------------------------------------------
+
+
+class Plant:
+    """The plant x_{t+1} = A x_t + B u_t + E w¹_t, y_t = C x_t + F w²_t (eq. (1) of the paper).
+
+    ``E`` defaults to I (w¹ enters every state) and ``F`` to I (w² every output), the paper's
+    structure. Matrices are array-likes of floats, in the plant's own units; a scalar is 1x1.
+    An empty input (n_u = 0) is ``B=np.zeros((n_x, 0))``.
+    """
+
+    def __init__(self, A: Any, B: Any, C: Any, E: Any = None, F: Any = None) -> None:
+        a = _matrix("A", A)
+        nx = a.shape[0]
+        a = _matrix("A", a, nx, nx)
+        b = _matrix("B", B, nx, None)
+        c = _matrix("C", C, None, nx)
+        ny = c.shape[0]
+        e = np.eye(nx) if E is None else _matrix("E", E, nx, None)
+        f = np.eye(ny) if F is None else _matrix("F", F, ny, None)
+        self._native = _native._Plant(a, b, c, e, f)
+
+    @classmethod
+    def _wrap(cls, native: Any) -> "Plant":
+        obj = cls.__new__(cls)
+        obj._native = native
+        return obj
+
+    @property
+    def nx(self) -> int:
+        """State dimension n_x."""
+        return self._native.dims[0]
+
+    @property
+    def nu(self) -> int:
+        """Input dimension n_u."""
+        return self._native.dims[1]
+
+    @property
+    def ny(self) -> int:
+        """Output dimension n_y."""
+        return self._native.dims[2]
+
+    @property
+    def nw(self) -> int:
+        """Disturbance dimension n_w = n_w1 + n_w2 (w = (w¹, w²))."""
+        d = self._native.dims
+        return d[3] + d[4]
+
+    @property
+    def A(self) -> np.ndarray:
+        return self._native.matrix("A")
+
+    @property
+    def B(self) -> np.ndarray:
+        return self._native.matrix("B")
+
+    @property
+    def C(self) -> np.ndarray:
+        return self._native.matrix("C")
+
+    @property
+    def E(self) -> np.ndarray:
+        return self._native.matrix("E")
+
+    @property
+    def F(self) -> np.ndarray:
+        return self._native.matrix("F")
+
+    def __repr__(self) -> str:
+        return f"Plant(nx={self.nx}, nu={self.nu}, ny={self.ny}, nw={self.nw})"
+
+
+class Estimator:
+    """Alg. 1: the MHE with exactly ``k`` iterations of ``method`` per time step.
+
+    ``horizon`` is M (steps), ``eta`` the decay rate η ∈ [0, 1) of LMI (2), ``q`` (n_w x n_w)
+    and ``r`` (n_y x n_y) the stage weights (default I; a scalar s means s·I), ``p`` the prior
+    weight (default: computed from LMI (2), the certified prior weight of Assumption 2),
+    ``prior`` the initial prior x̄₀ (default 0). ``method`` is one of :data:`METHODS`,
+    optionally with ``-jacobi``.
+
+    Per step: ``est.estimate()`` returns x̂_{t|t} from the data up to t − 1, then
+    ``est.push(u_t, y_t)``, the same order as ``mhe_core::MheEstimator`` (do-mpc's
+    ``make_step`` is ``push`` followed by ``estimate``).
+
+    ``dtype="float32"`` (the microcontroller's single-precision kernel) is not available in
+    this version and raises :class:`UnsupportedError`; use ``cargo xtask export`` for it.
+    """
+
+    def __init__(
+        self,
+        model: Plant,
+        horizon: int,
+        eta: float,
+        k: int,
+        method: str = "pg",
+        q: Any = None,
+        r: Any = None,
+        p: Any = None,
+        prior: Any = None,
+        dtype: str = "float64",
+    ) -> None:
+        if not isinstance(model, Plant):
+            raise InputError(f"argument `model` must be a suboptimal_mhe.Plant, got {type(model).__name__}")
+        if dtype not in ("float64", np.float64, "float32", np.float32):
+            raise InputError(f"argument `dtype` = {dtype!r}: use \"float64\" (or \"float32\", not yet available)")
+        if dtype in ("float32", np.float32):
+            raise UnsupportedError(
+                "argument `dtype` = \"float32\": the f32 kernel of mhe-embedded has compile-time sizes "
+                "and is not callable from Python yet; use dtype=\"float64\", or `cargo xtask export` "
+                "for the board's f32 code"
+            )
+        horizon = _positive_int("horizon", horizon, "the horizon M is a number of steps, e.g. 10")
+        k = _positive_int("k", k, "K is the number of iterations per step, e.g. 20")
+        eta = _eta(eta)
+        if not isinstance(method, str):
+            raise InputError(f"argument `method` must be a str, one of {METHODS} (optionally with -jacobi)")
+        self.model = model
+        nx, ny, nw = model.nx, model.ny, model.nw
+        qm = None if q is None else _weight("q", q, nw)
+        rm = None if r is None else _weight("r", r, ny)
+        pm = None if p is None else _weight("p", p, nx)
+        x0 = np.zeros(nx) if prior is None else _vector("prior", prior, nx)
+        self._native = _native._Estimator(model._native, horizon, eta, k, method, x0, q=qm, r=rm, p=pm)
+        self._u = np.empty(model.nu)
+        self._y = np.empty(ny)
+
+    def push(self, u: Any, y: Any) -> None:
+        """Appends the input u_t (length n_u) and the measurement y_t (length n_y)."""
+        self._native.push(self._as(u, "u", self._u), self._as(y, "y", self._y))
+
+    @staticmethod
+    def _as(v: Any, name: str, like: np.ndarray) -> np.ndarray:
+        if isinstance(v, np.ndarray) and v.dtype == np.float64 and v.ndim == 1 and v.flags.c_contiguous:
+            return v  # the Rust side checks length and finiteness
+        return _vector(name, v, like.shape[0])
+
+    def estimate(self, out: Optional[np.ndarray] = None) -> np.ndarray:
+        """x̂_{t|t} (length n_x): K iterations on the current window.
+
+        With ``out`` (a float64 array of length n_x) the estimate is written into it and
+        ``out`` is returned: no allocation per call.
+        """
+        if out is None:
+            return self._native.estimate()
+        self._native.estimate_into(out)
+        return out
+
+    def reset(self, prior: Any = None) -> None:
+        """Restarts at t = 0 with the prior x̄₀ = ``prior`` (default 0)."""
+        nx = self.model.nx
+        self._native.reset(np.zeros(nx) if prior is None else _vector("prior", prior, nx))
+
+    @property
+    def t(self) -> int:
+        """Time step t: the number of pushes since construction or the last reset."""
+        return self._native.t
+
+    @property
+    def P(self) -> np.ndarray:
+        """The prior weight P in use (from LMI (2) unless given)."""
+        return self._native.p
+
+    def __repr__(self) -> str:
+        m, eta, k, method = self._native.settings
+        return f"Estimator(horizon={m}, eta={eta}, k={k}, method={method!r}, t={self.t})"
+
+
+class Scenario:
+    """A validated scenario (the TOML format of ``scenarios/*.toml``, docs/scenario-format.md)."""
+
+    def __init__(self, native: Any) -> None:
+        self._native = native
+
+    @classmethod
+    def from_file(cls, path: "os.PathLike[str] | str") -> "Scenario":
+        """Reads and validates a scenario file (at most 16 MiB)."""
+        return cls(_native._Scenario.from_file(os.fspath(path)))
+
+    @classmethod
+    def from_toml(cls, text: str) -> "Scenario":
+        """Parses and validates a scenario from TOML text."""
+        if not isinstance(text, str):
+            raise InputError("argument `text` must be a str of TOML")
+        return cls(_native._Scenario.from_toml(text))
+
+    @property
+    def name(self) -> str:
+        return self._native.name
+
+    @property
+    def plant(self) -> Plant:
+        return Plant._wrap(self._native.plant())
+
+    def to_toml(self) -> str:
+        """The canonical TOML: every default explicit (parses back to an equal scenario)."""
+        return self._native.to_toml()
+
+    def __repr__(self) -> str:
+        return f"Scenario(name={self.name!r})"
+
+
+def _scenario(s: Any) -> Scenario:
+    if isinstance(s, Scenario):
+        return s
+    if isinstance(s, (str, os.PathLike)):
+        return Scenario.from_file(s)
+    raise InputError(
+        f"argument `scenario` must be a Scenario or a path to a scenario file, got {type(s).__name__}"
+    )
+
+
+# --------------------------------------------------------------------------------------
+# Certificate
+# --------------------------------------------------------------------------------------
+
+
+class Certificate:
+    """The closed-loop certificate (Theorem 1 per method): ``certificate`` in certificate.json.
+
+    ``to_dict()`` / ``to_json()`` give the serde JSON of
+    ``iss_certificate::certificate::ClosedLoopCertificate`` exactly as ``cargo xtask
+    reproduce`` writes it (docs/reproduce-output.md); the attributes are shortcuts.
+    """
+
+    def __init__(self, text: str) -> None:
+        self._json = text
+        self._dict: Dict[str, Any] = json.loads(text)
+
+    def to_json(self) -> str:
+        """The JSON text, as the Rust code serialised it."""
+        return self._json
+
+    def to_dict(self) -> Dict[str, Any]:
+        """A fresh ``dict`` of the JSON (safe to mutate)."""
+        return json.loads(self._json)
+
+    @property
+    def methods(self) -> List[str]:
+        """The certified methods, in the certificate's order."""
+        return [s["solver"] if isinstance(s["solver"], str) else json.dumps(s["solver"]) for s in self._dict["solvers"]]
+
+    def _solver(self, method: str) -> Dict[str, Any]:
+        for s in self._dict["solvers"]:
+            if s["solver"] == method:
+                return s
+        raise InputError(f"argument `method` = {method!r} is not in the certificate; use one of {self.methods}")
+
+    def k_min(self, method: str) -> Optional[int]:
+        """K_min of Theorem 1 for ``method``; ``None`` when the certificate is void for it."""
+        return self._solver(method)["k_min"]
+
+    def void_reasons(self, method: str) -> List[str]:
+        """Why the certificate of ``method`` is void (empty when K_min exists)."""
+        return list(self._solver(method)["void_reasons"])
+
+    @property
+    def k_mins(self) -> Dict[str, Optional[int]]:
+        """K_min per method (``None``: void)."""
+        return {m: self.k_min(m) for m in self.methods}
+
+    @property
+    def ioss_passed(self) -> bool:
+        """LMI (2) (Assumption 2) holds."""
+        return self._dict["ioss"] is not None and self._dict["ioss_failure"] is None
+
+    def __repr__(self) -> str:
+        return f"Certificate(scenario={self._dict['scenario']!r}, k_min={self.k_mins})"
+
+
+def certify(
+    scenario: "Scenario | str | os.PathLike[str]",
+    *,
+    lipschitz_pairs: int = 200,
+    gamma13_sequences: int = 30,
+    enumeration_max_vars: int = 20,
+    k_max: int = 1 << 24,
+    gamma13: Optional[float] = None,
+) -> Certificate:
+    """The closed-loop certificate of a scenario (needs its ``[mhe]`` and ``[mpc]`` sections).
+
+    The options are ``cargo xtask reproduce``'s (same defaults), so the result equals the
+    ``certificate`` key of its certificate.json. The GIL is released while it runs.
+    """
+    sc = _scenario(scenario)
+    for name, v in (
+        ("lipschitz_pairs", lipschitz_pairs),
+        ("gamma13_sequences", gamma13_sequences),
+        ("enumeration_max_vars", enumeration_max_vars),
+    ):
+        if isinstance(v, bool) or not isinstance(v, (int, np.integer)) or v < 0:
+            raise OutOfRangeError(f"argument `{name}` = {v!r} must be an int >= 0")
+    k_max = _positive_int("k_max", k_max, "the largest K searched for K_min, e.g. 2**24")
+    if gamma13 is not None:
+        g = float(gamma13)
+        if not (math.isfinite(g) and g >= 0.0):
+            raise OutOfRangeError(f"argument `gamma13` = {gamma13!r} must be a finite number >= 0")
+        gamma13 = g
+    text = _native.certify_json(
+        sc._native,
+        lipschitz_pairs=int(lipschitz_pairs),
+        gamma13_sequences=int(gamma13_sequences),
+        enumeration_max_vars=int(enumeration_max_vars),
+        k_max=k_max,
+        gamma13=gamma13,
+    )
+    return Certificate(text)
+
+
+def simulate(
+    scenario: "Scenario | str | os.PathLike[str]",
+    steps: Optional[int] = None,
+    seed: Optional[int] = None,
+    *,
+    method: Optional[str] = None,
+    k: Optional[int] = None,
+) -> Dict[str, np.ndarray]:
+    """One closed-loop run of the scenario (plant, MHE, MPC), as ``reproduce`` simulates it.
+
+    Defaults: the scenario's ``simulation.steps``, ``noise.seed``, ``mhe.method`` and
+    ``mhe.iterations``. Returns NumPy arrays: ``x`` (T+1 x n_x, the true state), ``x_hat``
+    (T x n_x), ``u`` (T x n_u), ``y`` (T x n_y), ``w`` (T x n_w) and ``e_norm`` (T,
+    ‖x̂_t − x_t‖₂); beside them the Kalman baseline of reproduce's trace.csv (the standard
+    filter of the MHE's weights on the same u, y): ``x_kf``, ``e_kf_norm`` (shorter if the
+    filter stopped) and ``kalman_error`` (``None``, or why it stopped / was not built).
+    The GIL is released while it runs.
+    """
+    sc = _scenario(scenario)
+    if steps is not None:
+        steps = _positive_int("steps", steps, f"the number of steps T, at most {_native.MAX_STEPS}")
+    if seed is not None:
+        if isinstance(seed, bool) or not isinstance(seed, (int, np.integer)) or not 0 <= seed < 2**64:
+            raise OutOfRangeError(f"argument `seed` = {seed!r} must be an int in [0, 2**64)")
+        seed = int(seed)
+    if k is not None:
+        k = _positive_int("k", k, "K is the number of iterations per step")
+    if method is not None and not isinstance(method, str):
+        raise InputError(f"argument `method` must be a str, one of {METHODS}")
+    return _native.simulate(sc._native, steps, seed, method, k)

@@ -1,0 +1,102 @@
+"""Property test: over random small plants, certify raises nothing but the package's errors."""
+
+import numpy as np
+import pytest
+
+import suboptimal_mhe as sm
+
+hypothesis = pytest.importorskip("hypothesis")
+from hypothesis import HealthCheck, given, settings  # noqa: E402
+from hypothesis import strategies as st  # noqa: E402
+
+entry = st.floats(min_value=-2.0, max_value=2.0, allow_nan=False, allow_infinity=False)
+
+
+def rows(m):
+    return "[" + ", ".join("[" + ", ".join(repr(float(v)) for v in r) + "]" for r in m) + "]"
+
+
+@st.composite
+def scenarios(draw):
+    nx = draw(st.integers(1, 3))
+    nu = draw(st.integers(1, 2))
+    ny = draw(st.integers(1, 2))
+    mat = lambda r, c: np.array(draw(st.lists(entry, min_size=r * c, max_size=r * c))).reshape(r, c)  # noqa: E731
+    a, b, c = mat(nx, nx), mat(nx, nu), mat(ny, nx)
+    horizon = draw(st.integers(1, 8))
+    eta = draw(st.sampled_from([0.0, 0.5, 0.8, 0.95]))
+    k = draw(st.integers(1, 50))
+    method = draw(st.sampled_from(list(sm.METHODS)))
+    w = draw(st.sampled_from([0.0, 0.01, 0.1]))
+    nw = nx + ny
+    return f"""
+name = "random"
+[plant]
+a = {rows(a)}
+b = {rows(b)}
+c = {rows(c)}
+[sets]
+disturbance = {{ lower = {[-w] * nw}, upper = {[w] * nw} }}
+input = {{ lower = {[-1.0] * nu}, upper = {[1.0] * nu} }}
+[simulation]
+x0 = {[0.5] * nx}
+prior = {[0.0] * nx}
+steps = 10
+[mhe]
+horizon = {horizon}
+eta = {eta}
+iterations = {k}
+method = "{method}"
+[mpc]
+horizon = 3
+q = 1.0
+r = 1.0
+"""
+
+
+@settings(max_examples=25, deadline=None, suppress_health_check=[HealthCheck.too_slow])
+@given(scenarios())
+def test_certify_raises_only_package_errors(text):
+    try:
+        sc = sm.Scenario.from_toml(text)
+        cert = sm.certify(sc, lipschitz_pairs=0, gamma13_sequences=0, k_max=1 << 16)
+    except sm.MheError:
+        return
+    d = cert.to_dict()
+    for s in d["solvers"]:
+        # One verdict: a K_min, or the reasons it is void, never both.
+        assert (s["k_min"] is None) == bool(s["void_reasons"]), s
+
+
+@st.composite
+def estimator_args(draw):
+    nx, nu, ny = draw(st.integers(1, 3)), draw(st.integers(0, 2)), draw(st.integers(1, 2))
+    mat = lambda r, c: np.array(draw(st.lists(entry, min_size=r * c, max_size=r * c))).reshape(r, c)  # noqa: E731
+    plant = dict(A=mat(nx, nx), B=mat(nx, nu), C=mat(ny, nx))
+    est = dict(
+        horizon=draw(st.integers(1, 12)),
+        eta=draw(st.floats(0.0, 0.99)),
+        k=draw(st.integers(1, 30)),
+        method=draw(st.sampled_from([m + s for m in sm.METHODS for s in ("", "-jacobi")])),
+        q=draw(st.one_of(st.none(), st.floats(-1.0, 10.0))),
+    )
+    data = [(mat(1, nu)[0], mat(1, ny)[0] * draw(st.sampled_from([1.0, 1e3, np.nan]))) for _ in range(draw(st.integers(0, 15)))]
+    return plant, est, data
+
+
+@settings(max_examples=60, deadline=None, suppress_health_check=[HealthCheck.too_slow])
+@given(estimator_args())
+def test_estimator_raises_only_package_errors(args):
+    plant, kwargs, data = args
+    try:
+        est = sm.Estimator(sm.Plant(**plant), **kwargs)
+    except sm.MheError:
+        return
+    for u, y in data:
+        try:
+            est.push(u, y)
+        except sm.NonFiniteError:
+            assert not np.all(np.isfinite(y))
+            continue
+        x_hat = est.estimate()
+        assert x_hat.shape == (plant["A"].shape[0],)

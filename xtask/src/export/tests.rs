@@ -15,7 +15,7 @@ use super::*;
 use crate::provenance::workspace_root;
 
 /// `scenarios/case-study-certified.toml`'s closed-loop certificate for PG, computed once per
-/// test binary: two tests read it (each computation is seconds in the test profile).
+/// test binary: three tests read it (each computation is seconds in the test profile).
 pub(super) fn certified_preset_pg(resolved: &ResolvedScenario) -> &'static ClosedLoopCertificate {
     static CERTIFICATE: std::sync::OnceLock<ClosedLoopCertificate> = std::sync::OnceLock::new();
     assert_eq!(resolved.scenario().name, "case-study-certified");
@@ -452,7 +452,7 @@ fn a_k_below_k_min_is_refused_unless_allowed() {
 fn an_uncertified_artefact_says_so_everywhere() {
     let path = workspace_root().join("scenarios/case-study-certified.toml");
     let resolved = Scenario::from_file(&path).unwrap().resolve().unwrap();
-    let cert = method_certificate(&resolved, Method::PG).unwrap();
+    let cert = solver_entry(certified_preset_pg(&resolved), Method::PG).unwrap();
     let k_min = cert.k_min.unwrap();
     let est = portable_estimator(&resolved, Method::PG, k_min - 1).unwrap();
     let p = OwnedProblem::from_estimator(&est, &resolved.scenario().plant).unwrap();

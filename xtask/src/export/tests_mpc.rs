@@ -11,7 +11,8 @@ use qp_iter::Method;
 
 use super::extract::{OwnedMpc, OwnedProblem, portable_estimator, portable_mpc};
 use super::tests::{
-    bits, certified_preset_pg, exported_artefact, methods, parse_replay, run_program, scratch_dir, write_files,
+    bits, certified_preset_pg, exported_artefact, methods, parse_replay, run_program, scratch_dir,
+    write_files,
 };
 use super::*;
 use crate::provenance::workspace_root;

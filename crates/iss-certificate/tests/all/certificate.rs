@@ -4,10 +4,10 @@
 use crate::build;
 use closed_loop::scenario::Scenario;
 use closed_loop::scenario::{ControllerChoice, LoopOptions};
+use iss_certificate::certificate::ClosedLoopCertificate;
 use iss_certificate::certificate::{
     CertificateOptions, Gamma13Source, analysis_with_sampled_l_phi, check_trajectory,
 };
-use iss_certificate::certificate::ClosedLoopCertificate;
 use qp_iter::Method;
 use std::sync::OnceLock;
 

@@ -17,6 +17,13 @@ fn request(eta: Option<f64>, p_file: Option<PathBuf>) -> CertifyRequest {
     }
 }
 
+/// The case study certified with the computed P, once per test binary (two tests read it;
+/// each certification is seconds in the test profile).
+fn case_study_outcome() -> &'static Outcome {
+    static OUTCOME: std::sync::OnceLock<Outcome> = std::sync::OnceLock::new();
+    OUTCOME.get_or_init(|| certify(&request(None, None)).expect("the case study certifies"))
+}
+
 fn temp_path(name: &str) -> PathBuf {
     let dir = std::env::temp_dir().join(format!("xtask-certify-test-{}", std::process::id()));
     std::fs::create_dir_all(&dir).unwrap();
@@ -77,7 +84,7 @@ fn lmi_max_from_json(doc: &serde_json::Value) -> f64 {
 
 #[test]
 fn case_study_passes_and_json_verifies_independently() {
-    let out = certify(&request(None, None)).unwrap();
+    let out = case_study_outcome();
     assert!(out.document.passed, "{}", out.summary);
     assert!(out.summary.ends_with("PASS"));
     let path = temp_path("cert.json");
@@ -127,7 +134,7 @@ fn case_study_passes_and_json_verifies_independently() {
 
 #[test]
 fn too_large_p_fails_with_eigenvalues() {
-    let out = certify(&request(None, None)).unwrap();
+    let out = case_study_outcome();
     let p = &out.document.certificate.as_ref().unwrap().p;
     // The computed P is the maximal solution (ioss docs), so 2P violates LMI (2).
     let doubled: Vec<Vec<f64>> = p

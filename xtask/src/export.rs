@@ -229,15 +229,6 @@ pub(crate) fn closed_loop_certificate(
         .with_context(|| format!("cannot compute the certificate of `{}`", sc.name))
 }
 
-/// The certificate of one method for a resolved scenario (Theorem 1; no sampled estimates).
-#[cfg(test)]
-pub(crate) fn method_certificate(
-    resolved: &ResolvedScenario,
-    method: Method,
-) -> Result<SolverCertificate> {
-    solver_entry(&closed_loop_certificate(resolved, method)?, method)
-}
-
 fn solver_entry(cert: &ClosedLoopCertificate, method: Method) -> Result<SolverCertificate> {
     cert.solver(method)
         .cloned()

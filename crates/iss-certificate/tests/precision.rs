@@ -21,17 +21,23 @@ fn scenario(file: &str) -> (Scenario, ResolvedScenario) {
     (sc, resolved)
 }
 
-fn certificate(resolved: &ResolvedScenario) -> ClosedLoopCertificate {
-    certify_closed_loop(
-        resolved,
-        &CertificateOptions {
-            solvers: vec![Method::PG, Method::FISTA],
-            lipschitz_pairs: 0,
-            gamma13_sequences: 0,
-            ..CertificateOptions::default()
-        },
-    )
-    .expect("certificate computes")
+/// The certificate of `case-study-certified.toml` (PG and FISTA), computed once per test
+/// binary: both tests read it (it is seconds in the test profile).
+fn certificate(resolved: &ResolvedScenario) -> &'static ClosedLoopCertificate {
+    static CERTIFICATE: std::sync::OnceLock<ClosedLoopCertificate> = std::sync::OnceLock::new();
+    assert_eq!(resolved.scenario().name, "case-study-certified");
+    CERTIFICATE.get_or_init(|| {
+        certify_closed_loop(
+            resolved,
+            &CertificateOptions {
+                solvers: vec![Method::PG, Method::FISTA],
+                lipschitz_pairs: 0,
+                gamma13_sequences: 0,
+                ..CertificateOptions::default()
+            },
+        )
+        .expect("certificate computes")
+    })
 }
 
 /// One window's data for `mhe_embedded` (PG on the problem as given), as the exporter
@@ -196,7 +202,7 @@ fn deviation_vs_bound(seeds: u64) -> (f64, f64, f64) {
                 )
             })
             .collect();
-        let mut bound = DeviationBound::new(&resolved, &cert, Method::PG, k)
+        let mut bound = DeviationBound::new(&resolved, cert, Method::PG, k)
             .expect("scenario has an MHE")
             .expect("pg is covered in f32");
         m64.reset(prior);
@@ -269,37 +275,37 @@ fn theorem_1_with_rounding_folded_in() {
     let (_, resolved) = scenario("case-study-certified.toml");
     let cert = certificate(&resolved);
     let k_max = 1 << 24;
-    let f64c = certify_scalar(&resolved, &cert, Method::PG, Scalar::F64, k_max).expect("runs");
+    let f64c = certify_scalar(&resolved, cert, Method::PG, Scalar::F64, k_max).expect("runs");
     let k64 = f64c.k_min.expect("PG is certified in f64");
     // f64's own rounding folded in costs nothing: the same K_min.
     let u64c =
-        certify_rounded(&resolved, &cert, Method::PG, F64_UNIT_ROUNDOFF, k_max).expect("runs");
+        certify_rounded(&resolved, cert, Method::PG, F64_UNIT_ROUNDOFF, k_max).expect("runs");
     println!("{f64c:?}\n{u64c:?}");
     assert_eq!(u64c.k_min, Some(k64), "{u64c:?}");
     assert!(u64c.rounding_gain > 0.0 && u64c.margin.is_some_and(|m| m > 0.0));
     // f32: the rounding's gain from ‖θ‖ into ε (≈ 9e-4) is above φ(K)L_Φ at K_min: void,
     // with the reason (K_min(f32) ≥ K_min(f64) holds vacuously).
-    let f32c = certify_scalar(&resolved, &cert, Method::PG, Scalar::F32, k_max).expect("runs");
+    let f32c = certify_scalar(&resolved, cert, Method::PG, Scalar::F32, k_max).expect("runs");
     println!("{f32c:?}");
     assert_eq!(f32c.k_min, None);
     let why = f32c.reason.as_deref().unwrap_or("");
     assert!(why.starts_with("void") && why.contains("g_d"), "{why}");
     assert!(f32c.rounding_gain > 1e3 * u64c.rounding_gain);
     // Between the two: a precision whose rounding fits certifies at K ≥ K_min(f64).
-    let mid = certify_rounded(&resolved, &cert, Method::PG, 2f64.powi(-40), k_max).expect("runs");
+    let mid = certify_rounded(&resolved, cert, Method::PG, 2f64.powi(-40), k_max).expect("runs");
     println!("{mid:?}");
     assert!(mid.k_min.is_some_and(|k| k >= k64), "{mid:?}");
     assert!(f64c.covers(k64) && !f64c.covers(k64 - 1) && !f32c.covers(usize::MAX));
     // Half precision (u = 2⁻¹¹): the rounding breaks the contraction itself (r + a ≥ 1,
     // 1 − r ≈ 0.04 on these windows), and the reason names the window.
-    let half = certify_rounded(&resolved, &cert, Method::PG, 2f64.powi(-11), k_max).expect("runs");
+    let half = certify_rounded(&resolved, cert, Method::PG, 2f64.powi(-11), k_max).expect("runs");
     let why = half.reason.as_deref().unwrap_or("");
     assert!(
         half.k_min.is_none() && why.contains("breaks the contraction in window m = "),
         "{why}"
     );
     // FISTA is not covered, with the accumulation reason.
-    let fista = certify_scalar(&resolved, &cert, Method::FISTA, Scalar::F32, k_max).expect("runs");
+    let fista = certify_scalar(&resolved, cert, Method::FISTA, Scalar::F32, k_max).expect("runs");
     assert!(fista.k_min.is_none());
     assert!(
         fista

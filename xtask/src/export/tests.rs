@@ -14,6 +14,16 @@ use super::extract::{OwnedMpc, OwnedProblem, portable_estimator};
 use super::*;
 use crate::provenance::workspace_root;
 
+/// `scenarios/case-study-certified.toml`'s closed-loop certificate for PG, computed once per
+/// test binary: three tests read it (each computation is seconds in the test profile).
+pub(super) fn certified_preset_pg(resolved: &ResolvedScenario) -> &'static ClosedLoopCertificate {
+    static CERTIFICATE: std::sync::OnceLock<ClosedLoopCertificate> = std::sync::OnceLock::new();
+    assert_eq!(resolved.scenario().name, "case-study-certified");
+    CERTIFICATE.get_or_init(|| {
+        closed_loop_certificate(resolved, Method::PG).expect("the certified preset certifies")
+    })
+}
+
 /// Every method the certificate covers on box constraints.
 pub(super) fn methods() -> Vec<Method> {
     let mut v = Method::PRESETS.to_vec();
@@ -371,7 +381,7 @@ fn vendored_sources_are_the_crate() {
 fn a_k_below_k_min_is_refused_unless_allowed() {
     let path = workspace_root().join("scenarios/case-study-certified.toml");
     let resolved = Scenario::from_file(&path).unwrap().resolve().unwrap();
-    let loop_cert = closed_loop_certificate(&resolved, Method::PG).unwrap();
+    let loop_cert = certified_preset_pg(&resolved);
     let k_min = loop_cert.solver(Method::PG).unwrap().k_min.unwrap();
     let decide = |cert: &ClosedLoopCertificate, k: Iterations, scalar, allow| {
         decide_k(&resolved, cert, Method::PG, k, scalar, allow)
@@ -380,18 +390,18 @@ fn a_k_below_k_min_is_refused_unless_allowed() {
     let f64 = ScalarKind::F64;
     let given = Iterations::Given;
     assert_eq!(
-        decide(&loop_cert, Iterations::Certified, f64, false).unwrap(),
+        decide(loop_cert, Iterations::Certified, f64, false).unwrap(),
         (k_min, true)
     );
     assert_eq!(
-        decide(&loop_cert, given(k_min), f64, false).unwrap(),
+        decide(loop_cert, given(k_min), f64, false).unwrap(),
         (k_min, true)
     );
     assert_eq!(
-        decide(&loop_cert, given(k_min + 5), f64, false).unwrap(),
+        decide(loop_cert, given(k_min + 5), f64, false).unwrap(),
         (k_min + 5, true)
     );
-    let err = decide(&loop_cert, given(k_min - 1), f64, false)
+    let err = decide(loop_cert, given(k_min - 1), f64, false)
         .unwrap_err()
         .to_string();
     assert!(
@@ -399,14 +409,14 @@ fn a_k_below_k_min_is_refused_unless_allowed() {
         "{err}"
     );
     assert_eq!(
-        decide(&loop_cert, given(k_min - 1), f64, true).unwrap(),
+        decide(loop_cert, given(k_min - 1), f64, true).unwrap(),
         (k_min - 1, false)
     );
     assert!(parse_iterations("--k", "0").is_err());
     assert!(parse_iterations("--k", "many").is_err());
     // f32 is certified only where Theorem 1 with the f32 rounding folded in certifies K; on
     // the case study it certifies none: refused at K_min unless allowed, with the reason.
-    let err = decide(&loop_cert, Iterations::Certified, ScalarKind::F32, false)
+    let err = decide(loop_cert, Iterations::Certified, ScalarKind::F32, false)
         .unwrap_err()
         .to_string();
     assert!(
@@ -414,7 +424,7 @@ fn a_k_below_k_min_is_refused_unless_allowed() {
         "{err}"
     );
     assert_eq!(
-        decide(&loop_cert, Iterations::Certified, ScalarKind::F32, true).unwrap(),
+        decide(loop_cert, Iterations::Certified, ScalarKind::F32, true).unwrap(),
         (k_min, false)
     );
     // A void certificate: refused even at a large K, and `certified` has no K.
@@ -442,7 +452,7 @@ fn a_k_below_k_min_is_refused_unless_allowed() {
 fn an_uncertified_artefact_says_so_everywhere() {
     let path = workspace_root().join("scenarios/case-study-certified.toml");
     let resolved = Scenario::from_file(&path).unwrap().resolve().unwrap();
-    let cert = method_certificate(&resolved, Method::PG).unwrap();
+    let cert = solver_entry(certified_preset_pg(&resolved), Method::PG).unwrap();
     let k_min = cert.k_min.unwrap();
     let est = portable_estimator(&resolved, Method::PG, k_min - 1).unwrap();
     let p = OwnedProblem::from_estimator(&est, &resolved.scenario().plant).unwrap();

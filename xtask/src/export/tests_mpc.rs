@@ -11,7 +11,8 @@ use qp_iter::Method;
 
 use super::extract::{OwnedMpc, OwnedProblem, portable_estimator, portable_mpc};
 use super::tests::{
-    bits, exported_artefact, methods, parse_replay, run_program, scratch_dir, write_files,
+    bits, certified_preset_pg, exported_artefact, methods, parse_replay, run_program, scratch_dir,
+    write_files,
 };
 use super::*;
 use crate::provenance::workspace_root;
@@ -245,12 +246,12 @@ fn exported_c_and_rust_loops_equal_std_portable_bit_for_bit() {
 fn a_k_c_below_the_joint_floor_is_refused_unless_allowed() {
     let path = workspace_root().join("scenarios/case-study-certified.toml");
     let resolved = Scenario::from_file(&path).unwrap().resolve().unwrap();
-    let cert = closed_loop_certificate(&resolved, Method::PG).unwrap();
-    let joint = joint_certificate(&resolved, &cert, Method::PG, Method::PG).unwrap();
+    let cert = certified_preset_pg(&resolved);
+    let joint = joint_certificate(&resolved, cert, Method::PG, Method::PG).unwrap();
     let k_e = cert.solver(Method::PG).unwrap().k_min.unwrap();
     let floor = joint.analysis.k_c_min(k_e, joint.region.k_max).unwrap();
     let decide = |kc: Iterations, k_e: usize, allow: bool| {
-        decide_kc(&resolved, &cert, &joint, kc, k_e, ScalarKind::F64, allow)
+        decide_kc(&resolved, cert, &joint, kc, k_e, ScalarKind::F64, allow)
             .map(|(k, v)| (k, v.certified == Certified::Yes))
     };
     assert_eq!(

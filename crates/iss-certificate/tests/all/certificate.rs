@@ -4,10 +4,12 @@
 use crate::build;
 use closed_loop::scenario::Scenario;
 use closed_loop::scenario::{ControllerChoice, LoopOptions};
+use iss_certificate::certificate::ClosedLoopCertificate;
 use iss_certificate::certificate::{
     CertificateOptions, Gamma13Source, analysis_with_sampled_l_phi, check_trajectory,
 };
 use qp_iter::Method;
+use std::sync::OnceLock;
 
 fn scenario(file: &str) -> Scenario {
     let path = concat!(env!("CARGO_MANIFEST_DIR"), "/../../scenarios/");
@@ -23,6 +25,16 @@ fn fast() -> CertificateOptions {
         lipschitz_pairs: 50,
         ..CertificateOptions::default()
     }
+}
+
+/// The certified preset under [`fast`], certified once per test binary: three tests read it
+/// (each certification is seconds in the test profile).
+fn certified_preset() -> &'static ClosedLoopCertificate {
+    static CERTIFICATE: OnceLock<ClosedLoopCertificate> = OnceLock::new();
+    CERTIFICATE.get_or_init(|| {
+        crate::certify(&scenario("case-study-certified.toml"), &fast())
+            .expect("the certified preset certifies")
+    })
 }
 
 #[test]
@@ -47,7 +59,7 @@ fn paper_preset_is_void_for_every_solver() {
 #[test]
 fn certified_preset_has_a_first_certified_k_matching_the_shipped_file() {
     let sc = scenario("case-study-certified.toml");
-    let c = crate::certify(&sc, &fast()).unwrap();
+    let c = certified_preset();
     assert!(c.rho < 1.0);
     for s in &c.solvers {
         let k = s
@@ -130,12 +142,13 @@ fn gamma13_certified_dominates_its_sampled_lower_bound() {
 /// sides are computed from the trace (exact MHE solve on for ε_t). The same check with the
 /// sampled L_Φ is evaluated and reported.
 #[test]
-fn props_1_and_3_hold_on_200_seeds_at_k_min() {
+#[ignore = "long: run by .ci/run with --ignored"]
+fn long_props_1_and_3_hold_on_200_seeds_at_k_min() {
     let sc = scenario("case-study-certified.toml");
-    let c = crate::certify(&sc, &fast()).unwrap();
+    let c = certified_preset();
     let pg = c.solver(Method::PG).unwrap();
     let k = pg.k_min.unwrap();
-    let sampled_analysis = analysis_with_sampled_l_phi(&c, pg);
+    let sampled_analysis = analysis_with_sampled_l_phi(c, pg);
     let opts = LoopOptions {
         method: Method::PG,
         iterations: k,
@@ -149,7 +162,7 @@ fn props_1_and_3_hold_on_200_seeds_at_k_min() {
     for seed in 0..200u64 {
         lp.reseed(seed).unwrap();
         let trace = lp.run().unwrap();
-        let chk = check_trajectory(&c, &pg.analysis, k, trace).unwrap();
+        let chk = check_trajectory(c, &pg.analysis, k, trace).unwrap();
         assert!(
             chk.prop1.holds,
             "seed {seed}: Prop. 1 fails at t = {:?}",
@@ -162,7 +175,7 @@ fn props_1_and_3_hold_on_200_seeds_at_k_min() {
         );
         worst1 = worst1.max(chk.prop1.worst_ratio);
         worst3 = worst3.max(chk.prop3.worst_ratio);
-        let s = check_trajectory(&c, &sampled_analysis, k, trace).unwrap();
+        let s = check_trajectory(c, &sampled_analysis, k, trace).unwrap();
         sampled_failures += usize::from(!(s.prop1.holds && s.prop3.holds));
     }
     println!(
@@ -176,7 +189,7 @@ fn props_1_and_3_hold_on_200_seeds_at_k_min() {
 #[test]
 fn skipping_the_sampled_estimates_changes_nothing_certified() {
     let s = scenario("case-study-certified.toml");
-    let with = crate::certify(&s, &fast()).unwrap();
+    let with = certified_preset();
     let without = crate::certify(
         &s,
         &CertificateOptions {
@@ -203,7 +216,8 @@ fn skipping_the_sampled_estimates_changes_nothing_certified() {
 /// (the κ(D) prefactor included) hold at every t at each method's K_min — 200 seeds for ADMM
 /// α = 2 (the cheapest), 40 for the others.
 #[test]
-fn props_1_and_3_hold_for_the_jacobi_scaled_maps_at_m_30() {
+#[ignore = "long: run by .ci/run with --ignored"]
+fn long_props_1_and_3_hold_for_the_jacobi_scaled_maps_at_m_30() {
     let mut sc = scenario("case-study-certified.toml");
     sc.mhe.as_mut().unwrap().horizon = 30;
     let c = crate::certify(

@@ -3,7 +3,8 @@
 //! scenario files against their derivations (plants.rs), and the trajectory inequalities of
 //! Props. 1 and 3 with the certificate's own constants on every newly certified scenario.
 //!
-//! One test per row certifies its scenario once and checks both. In the normal suite the
+//! One test per row certifies its scenario once and checks both; the certified rows are
+//! `long_*` (ignored; `.ci/run` runs them with `--ignored long_`, docs/testing.md). There the
 //! trajectory check runs the scenario's own method (ADMM α = 2, the smallest K_min) at K_min on
 //! all the steps of the file and on 200 seeds where that is cheap, fewer on the 12-state chain
 //! and the cart-pendulum (`seeds` below); `*_every_method_on_200_seeds` (ignored) runs every
@@ -172,13 +173,15 @@ const QUADRUPLE_TANK: Row = Row {
 };
 
 #[test]
-fn mass_chain_is_certified_and_props_hold_at_k_min() {
+#[ignore = "long: run by .ci/run with --ignored"]
+fn long_mass_chain_is_certified_and_props_hold_at_k_min() {
     let (sc, c) = check_row(&MASS_CHAIN);
     props_hold(&sc, &c, ADMM_PR, 10);
 }
 
 #[test]
-fn mass_chain_with_velocity_noise_is_certified_and_props_hold_at_k_min() {
+#[ignore = "long: run by .ci/run with --ignored"]
+fn long_mass_chain_with_velocity_noise_is_certified_and_props_hold_at_k_min() {
     let sc = scenario(MASS_CHAIN_VELOCITY_NOISE.file);
     let e = sc.plant.e();
     assert_eq!(
@@ -191,19 +194,22 @@ fn mass_chain_with_velocity_noise_is_certified_and_props_hold_at_k_min() {
 }
 
 #[test]
-fn cart_pendulum_is_certified_and_props_hold_at_k_min() {
+#[ignore = "long: run by .ci/run with --ignored"]
+fn long_cart_pendulum_is_certified_and_props_hold_at_k_min() {
     let (sc, c) = check_row(&CART_PENDULUM);
     props_hold(&sc, &c, ADMM_PR, 10);
 }
 
 #[test]
-fn double_integrator_is_certified_and_props_hold_on_200_seeds() {
+#[ignore = "long: run by .ci/run with --ignored"]
+fn long_double_integrator_is_certified_and_props_hold_on_200_seeds() {
     let (sc, c) = check_row(&DOUBLE_INTEGRATOR);
     props_hold(&sc, &c, ADMM_PR, 200);
 }
 
 #[test]
-fn quadruple_tank_is_certified_and_props_hold_on_200_seeds() {
+#[ignore = "long: run by .ci/run with --ignored"]
+fn long_quadruple_tank_is_certified_and_props_hold_on_200_seeds() {
     let (sc, c) = check_row(&QUADRUPLE_TANK);
     props_hold(&sc, &c, ADMM_PR, 200);
 }
@@ -247,7 +253,8 @@ fn void_rows_report_their_exact_reason() {
 }
 
 #[test]
-fn case_study_rows() {
+#[ignore = "long: run by .ci/run with --ignored"]
+fn long_case_study_rows() {
     check_row(&Row {
         file: "case-study.toml",
         k_min: [None; 4],

@@ -355,7 +355,8 @@ fn random_mpc(seed: u64) -> CondensedMpc {
 }
 
 #[test]
-fn family_bound_dominates_enumerated_dominates_sampled_on_200_random_mpcs() {
+#[ignore = "long: run by .ci/run with --ignored"]
+fn long_family_bound_dominates_enumerated_dominates_sampled_on_200_random_mpcs() {
     let tol = 1e-9;
     let (mut finite, mut strict) = (0, 0);
     for seed in 0..200 {

@@ -247,7 +247,8 @@ fn trajectory_checks_hold(
 }
 
 #[test]
-fn every_inequality_holds_on_200_seeds_at_the_cheapest_pair_of_the_stand_in() {
+#[ignore = "long: run by .ci/run with --ignored"]
+fn long_every_inequality_holds_on_200_seeds_at_the_cheapest_pair_of_the_stand_in() {
     let p = trajectory_checks_hold(
         "case-study-certified.toml",
         qp_iter::Method::FISTA,

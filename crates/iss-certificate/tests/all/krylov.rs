@@ -155,7 +155,8 @@ fn lifted_like(
 /// filling a disk, the hard case) an accepted ρ agrees too, and the dispatching function
 /// agrees always (Arnoldi or its dense fallback).
 #[test]
-fn krylov_agrees_with_dense_on_random_instances() {
+#[ignore = "long: run by .ci/run with --ignored"]
+fn long_krylov_agrees_with_dense_on_random_instances() {
     let mut rng = rand_chacha::ChaCha8Rng::seed_from_u64(2025);
     let mut accepted = 0;
     let mut tried = 0;

@@ -81,7 +81,8 @@ proptest! {
     /// versions: ‖zᴷ − z*‖ ≤ φ(K)‖z⁰ − z*‖ on random QPs with general rows, K = 0…60, and
     /// every iterate feasible.
     #[test]
-    fn pg_and_fista_certificates_hold_with_general_rows(seed in any::<u64>()) {
+    #[ignore = "long: run by .ci/run with --ignored"]
+    fn long_pg_and_fista_certificates_hold_with_general_rows(seed in any::<u64>()) {
         for m in [Method::PG, Method::FISTA, Method::PG.with_scaling(Scaling::Jacobi),
                   Method::FISTA.with_scaling(Scaling::Jacobi)] {
             check_certified(m, seed)?;
@@ -126,7 +127,8 @@ proptest! {
     /// nearly parallel equality rows (‖λ‖_∞ ~ 10³) the dual must travel far and ADMM takes
     /// ~10⁶ steps (z* with its multipliers is checked to be a fixed point instead).
     #[test]
-    fn admm_split_converges_but_is_not_certified(seed in any::<u64>()) {
+    #[ignore = "long: run by .ci/run with --ignored"]
+    fn long_admm_split_converges_but_is_not_certified(seed in any::<u64>()) {
         let (qp, theta, zstar, z0) = solved(seed);
         let mut gi = ParametricDualActiveSet::new(&qp, Default::default()).unwrap();
         gi.solve(&theta).unwrap();

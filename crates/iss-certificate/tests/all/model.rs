@@ -51,7 +51,8 @@ fn assert_same_certificate(
 }
 
 #[test]
-fn case_study_certified_typed_equals_toml() {
+#[ignore = "long: run by .ci/run with --ignored"]
+fn long_case_study_certified_typed_equals_toml() {
     // scenarios/case-study-certified.toml as Rust values (noise and steps do not enter the
     // certificate; x₀ and the prior set the sampled estimates' ball).
     let a = mat![

@@ -452,8 +452,10 @@ pub struct TraceDocument<'a> {
 pub struct Outcome {
     /// certificate.json's content.
     pub document: CertificateDocument,
-    /// The text summary.
+    /// The long text summary (printed with `-v`; in summary.md).
     pub summary: String,
+    /// The summary that fits a screen: one table and the verdict (printed by default).
+    pub screen: String,
     /// What was done, line by line, as it happened (the work lines; printed live with
     /// [`Settings::live`], which is how the command shows them: this copy is for callers
     /// that run quietly, such as the tests).

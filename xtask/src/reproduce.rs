@@ -11,7 +11,9 @@
 //!    L_Φ and with the sampled L_Φ;
 //! 4. `certificate.json`, `trace.json`, `trace.csv` and the SVG figures (Fig. 2 analogues,
 //!    every state with its estimate, inputs and outputs with their bounds, norms);
-//! 5. a text summary with the constants next to the paper's published values.
+//! 5. a summary that fits a screen ([`screen`]: one table and the verdict), and with `-v`
+//!    the long summary with the constants next to the paper's published values; both and the
+//!    work log in `summary.md`.
 //!
 //! Before each simulation it says what it simulates and how much work that is
 //! ([`work::Work`]); a simulation beyond the work limit is refused (the scenario's K) or

@@ -87,8 +87,8 @@ pub struct Settings {
     pub figures: bool,
     /// The t of Fig. 2(c) (`--fig2c-t`); None: [`default_fig2c_t`].
     pub fig2c_t: Option<usize>,
-    /// Print each work line when it happens (stdout) and show progress on stderr; the lines
-    /// are in [`Outcome::log`] either way.
+    /// Show progress on stderr, and with [`Settings::verbose`] print each work line when it
+    /// happens (stdout); the lines are in [`Outcome::log`] and summary.md either way.
     pub live: bool,
     /// `-v`: print the work lines, the analysis estimates and the long summary (the
     /// default prints the screen summary only; summary.md has everything either way).

@@ -255,7 +255,7 @@ fn render(
     // summary.md: the long summary and the work log, so nothing the terminal leaves out
     // without -v is lost. Not in certificate.json's `files` (it is rendered from that file).
     let markdown = format!(
-        "# reproduce `{}`\n\n```text\n{}\n{}```\n\n## Work log\n\n```text\n{}\n```\n",
+        "# reproduce `{}`\n\n```text\n{}\n\n{}```\n\n## Work log\n\n```text\n{}\n```\n",
         job.label,
         screen::screen(&document, &job.out),
         summary,

@@ -92,11 +92,11 @@ pub(super) fn screen(d: &CertificateDocument, out: &Path) -> String {
         } else {
             String::new()
         };
-        let _ = writeln!(
-            s,
+        let row = format!(
             "  {:<14} {k_min:>8} {k_lin:>8} {k_reg:>8} {g_e:>8} {g_x:>8}  {simulated}",
             sv.solver
         );
+        let _ = writeln!(s, "{}", row.trim_end());
     }
     for (i, n) in notes.0.iter().enumerate() {
         let _ = writeln!(s, "  [{}] {n}", i + 1);

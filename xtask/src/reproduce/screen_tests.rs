@@ -107,6 +107,10 @@ fn the_default_output_of_both_presets_fits_40_lines() {
 #[test]
 fn equal_reasons_are_one_footnote() {
     let s = &fixture().paper.screen;
+    assert!(
+        s.lines().all(|l| l == l.trim_end()),
+        "trailing blanks:\n{s}"
+    );
     let (_, rows) = table(s);
     assert_eq!(rows.len(), 8, "{s}");
     // Every method of the paper preset is void for the same reason (ρ ≥ 1): one footnote.

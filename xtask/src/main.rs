@@ -8,7 +8,7 @@
 //!   [--kc K_C|certified] [--mpc-method M] [--scalar f64|f32] [--lang rust|c]
 //!   [--allow-uncertified]` (docs/embedded.md)
 //! - `cargo xtask reproduce [--preset paper|certified] [--scenario FILE] [--out DIR]
-//!   [--gamma13 G] [--fig2c-t T] [--sim-k-cap K]`
+//!   [--gamma13 G] [--fig2c-t T] [--sim-k-cap K] [-v]`
 //!
 //! Exit codes (docs/limits.md): 0 success, 1 error (bad input, I/O), 2 usage error, 3 a
 //! certificate check failed (certify: LMI (2) infeasible or a supplied P rejected;
@@ -104,6 +104,10 @@ enum Command {
         /// method can need millions); a K_min above it is reported as skipped, with the cap.
         #[arg(long = "sim-k-cap", value_name = "K")]
         sim_k_cap: Option<usize>,
+        /// Also print each phase with its work and timing, the premises, the paper's
+        /// constants, the trajectory check and the long reasons (all in summary.md anyway).
+        #[arg(short, long)]
+        verbose: bool,
     },
 }
 
@@ -149,7 +153,8 @@ fn run(cli: Cli) -> Result<ExitCode> {
             gamma13,
             fig2c_t,
             sim_k_cap,
-        } => reproduce::main(preset, scenario, out, gamma13, fig2c_t, sim_k_cap),
+            verbose,
+        } => reproduce::main(preset, scenario, out, gamma13, fig2c_t, sim_k_cap, verbose),
     }
 }
 

@@ -31,7 +31,8 @@ fn nothing_simulated_is_reported_as_such() {
     let scenario = dir.join("undetectable.toml");
     std::fs::write(&scenario, UNDETECTABLE).unwrap();
     let out = Command::new(env!("CARGO_BIN_EXE_xtask"))
-        .args(["reproduce", "--scenario"])
+        // -v: the work lines (what was written) are printed only then.
+        .args(["reproduce", "-v", "--scenario"])
         .arg(&scenario)
         .arg("--out")
         .arg(dir.join("out"))

@@ -134,7 +134,15 @@ fn reproduce_prints_at_most_four_significant_digits() {
         "scenarios/double-integrator.toml",
         "scenarios/case-study-certified.toml",
     ] {
-        let text = run(&["reproduce", "--scenario", s, "--out", out.to_str().unwrap()]);
+        // -v: the long summary too, not only the screen table.
+        let text = run(&[
+            "reproduce",
+            "-v",
+            "--scenario",
+            s,
+            "--out",
+            out.to_str().unwrap(),
+        ]);
         assert_clean(s, &text);
     }
     let _ = std::fs::remove_dir_all(&out);

@@ -452,11 +452,13 @@ pub struct TraceDocument<'a> {
 pub struct Outcome {
     /// certificate.json's content.
     pub document: CertificateDocument,
-    /// The text summary.
+    /// The long text summary (printed with `-v`; in summary.md).
     pub summary: String,
+    /// The summary that fits a screen: one table and the verdict (printed by default).
+    pub screen: String,
     /// What was done, line by line, as it happened (the work lines; printed live with
-    /// [`Settings::live`], which is how the command shows them: this copy is for callers
-    /// that run quietly, such as the tests).
+    /// [`Settings::live`] and [`Settings::verbose`], which is how `-v` shows them; always in
+    /// summary.md: this copy is for callers that run quietly, such as the tests).
     #[cfg_attr(not(test), allow(dead_code))]
     pub log: Vec<String>,
 }

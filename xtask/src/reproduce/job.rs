@@ -87,9 +87,12 @@ pub struct Settings {
     pub figures: bool,
     /// The t of Fig. 2(c) (`--fig2c-t`); None: [`default_fig2c_t`].
     pub fig2c_t: Option<usize>,
-    /// Print each work line when it happens (stdout) and show progress on stderr; the lines
-    /// are in [`Outcome::log`] either way.
+    /// Show progress on stderr, and with [`Settings::verbose`] print each work line when it
+    /// happens (stdout); the lines are in [`Outcome::log`] and summary.md either way.
     pub live: bool,
+    /// `-v`: print the work lines, the analysis estimates and the long summary (the
+    /// default prints the screen summary only; summary.md has everything either way).
+    pub verbose: bool,
     /// `--sim-k-cap`: the largest computed K_min that is simulated (None: no cap beyond the
     /// work limit).
     pub sim_k_cap: Option<usize>,
@@ -107,6 +110,7 @@ impl Default for Settings {
             figures: true,
             fig2c_t: None,
             live: false,
+            verbose: false,
             sim_k_cap: None,
         }
     }

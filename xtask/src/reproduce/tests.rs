@@ -29,16 +29,16 @@ fn temp_dir(name: &str) -> PathBuf {
     dir
 }
 
-struct Fixture {
-    out: PathBuf,
-    paper: Outcome,
-    certified: Outcome,
+pub(super) struct Fixture {
+    pub(super) out: PathBuf,
+    pub(super) paper: Outcome,
+    pub(super) certified: Outcome,
     /// LMI (2) solves per run (paper, certified).
     lmi_solves: [usize; 2],
 }
 
 /// Both presets, run once for all tests (the certificate enumerates 2²⁰ free sets).
-fn fixture() -> &'static Fixture {
+pub(super) fn fixture() -> &'static Fixture {
     static F: OnceLock<Fixture> = OnceLock::new();
     F.get_or_init(|| {
         let out = temp_dir("presets");
@@ -58,7 +58,7 @@ fn fixture() -> &'static Fixture {
     })
 }
 
-fn read_json(path: &Path) -> Value {
+pub(super) fn read_json(path: &Path) -> Value {
     serde_json::from_str(&std::fs::read_to_string(path).unwrap()).unwrap()
 }
 
@@ -741,7 +741,9 @@ fn command_line_parses() {
             gamma13,
             fig2c_t,
             sim_k_cap,
+            verbose,
         } => {
+            assert!(!verbose);
             assert_eq!(preset, Some(Preset::Paper));
             assert_eq!(scenario, None);
             assert_eq!(out, Some(PathBuf::from("d")));
@@ -752,6 +754,13 @@ fn command_line_parses() {
         other => panic!("{other:?}"),
     }
     assert!(parse(&["xtask", "reproduce"]).is_ok());
+    for flag in ["-v", "--verbose"] {
+        let cli = parse(&["xtask", "reproduce", flag]).unwrap();
+        assert!(
+            matches!(cli.command, crate::Command::Reproduce { verbose: true, .. }),
+            "{flag}"
+        );
+    }
     assert!(parse(&["xtask", "reproduce", "--preset", "fast"]).is_err());
     assert!(
         parse(&[

@@ -1,0 +1,251 @@
+//! The summary that fits a screen (issue 38 item 5): per job one table — method, K_min
+//! (Theorem 1), K_lin, K_reg, the certified gains g_e and g_x at K_min, and what the
+//! simulation of the scenario's method showed — and one verdict line; a reason shared by
+//! several cells is printed once, as a numbered footnote. Everything else (premises, the
+//! paper's constants, the long explanations, the work log) is in `-v` and `summary.md`.
+//!
+//! Every number is read from the document written as certificate.json, nothing is
+//! recomputed here (a test parses the table back against the file).
+
+use super::numfmt::num;
+use super::*;
+
+/// Footnotes: equal texts get one number.
+#[derive(Default)]
+struct Notes(Vec<String>);
+
+impl Notes {
+    /// `[n]` of `text`, numbering it on first use.
+    fn mark(&mut self, text: String) -> String {
+        let i = match self.0.iter().position(|t| *t == text) {
+            Some(i) => i,
+            None => {
+                self.0.push(text);
+                self.0.len() - 1
+            }
+        };
+        format!("[{}]", i + 1)
+    }
+}
+
+/// The header of the table (also parsed by the tests).
+pub(super) const TABLE_HEADER: [&str; 7] = [
+    "method",
+    "K_min",
+    "K_lin",
+    "K_reg",
+    "g_e",
+    "g_x",
+    "simulated",
+];
+
+/// The screen summary of one job; `out` is its output directory.
+pub(super) fn screen(d: &CertificateDocument, out: &Path) -> String {
+    let c = &d.certificate;
+    let mut notes = Notes::default();
+    let mut s = String::new();
+    let sim = match d.runs.first() {
+        Some(r) => format!(
+            "{} simulated with the {}, seed {}, T = {}",
+            d.solver,
+            if d.joint.is_some() {
+                "K-iteration MPC"
+            } else {
+                "exact MPC"
+            },
+            r.seed,
+            r.steps
+        ),
+        None => format!("{} not simulated", d.solver),
+    };
+    let _ = writeln!(
+        s,
+        "== {}: {} · M = {}, η = {}, ρ = {} · {sim} ==",
+        d.label,
+        d.scenario.path,
+        c.horizon,
+        num(c.eta),
+        num(c.rho)
+    );
+    let h = TABLE_HEADER;
+    let _ = writeln!(
+        s,
+        "  {:<14} {:>8} {:>8} {:>8} {:>8} {:>8}  {}",
+        h[0], h[1], h[2], h[3], h[4], h[5], h[6]
+    );
+    for sv in &d.solvers {
+        let k_min = k_min_cell(sv, &mut notes);
+        let k_lin = k_lin_cell(d, &sv.solver, &mut notes);
+        let k_reg = k_reg_cell(d, &sv.solver, &mut notes);
+        let gains = d
+            .asymptotic_gains
+            .methods
+            .iter()
+            .find(|m| m.solver == sv.solver)
+            .and_then(|m| m.theorem1.as_ref());
+        let (g_e, g_x) = gains.map_or_else(
+            || ("-".to_string(), "-".to_string()),
+            |g| (num(g.gain_e), num(g.gain_x)),
+        );
+        let simulated = if sv.solver == d.solver {
+            simulated_cell(d, &mut notes)
+        } else {
+            String::new()
+        };
+        let row = format!(
+            "  {:<14} {k_min:>8} {k_lin:>8} {k_reg:>8} {g_e:>8} {g_x:>8}  {simulated}",
+            sv.solver
+        );
+        let _ = writeln!(s, "{}", row.trim_end());
+    }
+    for (i, n) in notes.0.iter().enumerate() {
+        let _ = writeln!(s, "  [{}] {n}", i + 1);
+    }
+    let _ = writeln!(s, "verdict: {}", super::summary::verdict(d));
+    let figures = d.files.iter().filter(|f| f.ends_with(".svg")).count();
+    let mut listed: Vec<String> = d
+        .files
+        .iter()
+        .filter(|f| !f.ends_with(".svg"))
+        .cloned()
+        .collect();
+    if figures > 0 {
+        listed.push(format!("{figures} SVG figures"));
+    }
+    listed.push(SUMMARY_FILE.into());
+    let _ = write!(
+        s,
+        "files: {}/ ({}); -v prints the premises, the paper's constants and the checks",
+        out.display(),
+        listed.join(", ")
+    );
+    s
+}
+
+/// K_min, or why there is none (void: the reasons, proved; not computed: the budget).
+fn k_min_cell(sv: &SolverSummary, notes: &mut Notes) -> String {
+    if let Some(k) = sv.k_min {
+        return k.to_string();
+    }
+    if let Some(nc) = &sv.not_computed {
+        return format!("n/c{}", notes.mark(nc.to_string()));
+    }
+    let failed: Vec<&str> = sv
+        .premises
+        .iter()
+        .filter(|p| !p.holds)
+        .map(|p| p.name.as_str())
+        .collect();
+    let why = if !sv.void_reasons.is_empty() {
+        sv.void_reasons.join("; ")
+    } else if failed.is_empty() {
+        "no K satisfies sg1 + sg2 + sg3 < 1".into()
+    } else {
+        format!("{} fails", failed.join(", "))
+    };
+    format!("void{}", notes.mark(format!("K_min void: {why}")))
+}
+
+/// K_lin of `linear[]`, or why there is none.
+fn k_lin_cell(d: &CertificateDocument, solver: &str, notes: &mut Notes) -> String {
+    let Some(l) = d.linear.iter().find(|l| l.solver == solver) else {
+        return "-".into();
+    };
+    match (&l.report, &l.error) {
+        (Some(r), _) => r.k_lin.map_or_else(
+            || {
+                format!(
+                    "none{}",
+                    notes.mark("K_lin: ρ_lin(K) ≥ 1 at every K of the grid".into())
+                )
+            },
+            |k| k.to_string(),
+        ),
+        (None, Some(e)) => format!("n/c{}", notes.mark(format!("K_lin not computed: {e}"))),
+        (None, None) => "-".into(),
+    }
+}
+
+/// K_reg of `regional[]`, or the first clause of why there is none (the full reason is in
+/// `-v`, summary.md and `regional[].void`).
+fn k_reg_cell(d: &CertificateDocument, solver: &str, notes: &mut Notes) -> String {
+    let Some(r) = d.regional.iter().find(|r| r.solver == solver) else {
+        return "-".into();
+    };
+    if let Some(k) = r.k_reg {
+        return k.to_string();
+    }
+    let why = if r.refuted_every_k.is_some() {
+        "K_reg none at any K: an admissible realization drives a constraint row free of K \
+         (t ≤ 1) past its bound (regional[].refuted_every_k)"
+            .to_string()
+    } else {
+        let v = r.void.as_deref().unwrap_or("no reason recorded");
+        format!(
+            "K_reg none (K ≤ {}): {} (regional[].void)",
+            r.search_max,
+            first_clause(v)
+        )
+    };
+    format!("none{}", notes.mark(why))
+}
+
+/// The text up to the first ": " (the numbers of a void reason follow it), at most 120
+/// characters.
+fn first_clause(v: &str) -> String {
+    let head = v.split(": ").next().unwrap_or(v);
+    if head.chars().count() <= 120 {
+        head.to_string()
+    } else {
+        head.chars().take(119).collect::<String>() + "…"
+    }
+}
+
+/// What each simulation of the scenario's method showed: bounded, diverged, stopped, or
+/// not simulated; at the checked K, whether Props. 1 and 3 hold.
+fn simulated_cell(d: &CertificateDocument, notes: &mut Notes) -> String {
+    let tc = &d.trajectory_check;
+    let mut cells: Vec<String> = Vec::new();
+    for r in &d.runs {
+        let mut cell = format!("K={} ", r.k);
+        cell += &match (&r.divergence, &r.error) {
+            (Some(dv), _) => format!("diverged at t = {}", dv.t),
+            (None, Some(_)) => format!("stopped at t = {}", r.completed),
+            (None, None) => "bounded".into(),
+        };
+        if tc.k == Some(r.k) && r.k_source == KSource::ComputedKMin {
+            match tc.passed {
+                Some(true) => cell += ", Props. 1, 3 hold",
+                Some(false) => cell += ", Prop. 1 or 3 VIOLATED",
+                None => {}
+            }
+        }
+        if let Some(first) = r.w_outside_first {
+            cell += &notes.mark(format!(
+                "w_t ∉ 𝒲 at {} of {} steps from t = {first}: the certificate assumes w_t ∈ 𝒲",
+                r.w_outside, r.completed
+            ));
+        }
+        if r.mpc_infeasible_steps > 0 {
+            cell += &notes.mark(format!(
+                "the MPC was infeasible at {} of {} steps and applied its fallback",
+                r.mpc_infeasible_steps, r.completed
+            ));
+        }
+        cells.push(cell);
+    }
+    for r in &d.skipped_runs {
+        cells.push(format!(
+            "K={} not simulated{}",
+            r.k,
+            notes.mark(r.reason.clone())
+        ));
+    }
+    if cells.is_empty() {
+        return format!(
+            "not simulated{}",
+            notes.mark("the MHE needs a P and LMI (2) has none".into())
+        );
+    }
+    cells.join("; ")
+}

@@ -1,9 +1,12 @@
 //! A first sweep: the closed loop of Alg. 1 on a double integrator at K = 1, 3, 10, 30
-//! with projected gradient, 4 seeds per K; then K_lin, K_emp and K_cert from `points.csv`.
+//! with projected gradient, 4 seeds per K; then the thresholds (K_lin, K_reg, K_emp,
+//! K_cert, or why there is none) from `points.csv`.
 //!
 //! `cargo run --release -p mhe-sweep --example first_sweep`
 
-use mhe_sweep::{NoProgress, RunOptions, Sweep, SweepConfig, Table, thresholds};
+use mhe_sweep::{
+    NoProgress, RunOptions, Sweep, SweepConfig, Table, thresholds, thresholds_markdown,
+};
 
 fn main() -> Result<(), Box<dyn std::error::Error>> {
     let dir = std::env::temp_dir().join(format!("mhe-sweep-example-{}", std::process::id()));
@@ -26,14 +29,21 @@ fn main() -> Result<(), Box<dyn std::error::Error>> {
         &dir,
     )?;
     let sweep = Sweep::new(config)?;
-    let options = RunOptions { out_dir: dir.join("out"), threads: 2, shard: None };
+    let options = RunOptions {
+        out_dir: dir.join("out"),
+        threads: 2,
+        shard: None,
+    };
     let report = sweep.run(&options, &NoProgress)?;
-    println!("{} points, {} steps simulated", report.computed, report.steps_simulated);
+    println!(
+        "{} points, {} steps simulated",
+        report.computed, report.steps_simulated
+    );
 
     let points = Table::parse(&std::fs::read_to_string(dir.join("out/points.csv"))?)?;
-    for t in thresholds(&points) {
-        println!("{}: K_lin {:?}  K_emp {:?}  K_cert {:?}", t.solver, t.k_lin, t.k_emp, t.k_cert);
-    }
+    let rows = thresholds(&points);
+    assert!(rows[0].k_emp.is_some(), "K = 30 keeps every run bounded");
+    print!("{}", thresholds_markdown(&rows));
     std::fs::remove_dir_all(&dir)?;
     Ok(())
 }

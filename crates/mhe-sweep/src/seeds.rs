@@ -22,7 +22,7 @@ pub(super) fn fnv1a(bytes: &[u8]) -> u64 {
 /// FNV-1a of `"K/solver/scale bits"` (`"K/solver/scale bits/K_c"` in a 2-D sweep).
 ///
 /// ```
-/// use xtask::sweep_engine::{run_seed, SweepConfig};
+/// use mhe_sweep::{run_seed, SweepConfig};
 /// let cfg = SweepConfig::from_toml_str(
 ///     "name='d'\nscenario='s'\nk=[1,2]\nsolvers=['pg']\nseeds=2", std::path::Path::new(".")).unwrap();
 /// let p = cfg.points();
@@ -48,7 +48,7 @@ pub fn run_seed(base_seed: u64, point: &Point, run: usize, common_random_numbers
 /// mix of cheap and expensive K.
 ///
 /// ```
-/// use xtask::sweep_engine::Shard;
+/// use mhe_sweep::Shard;
 /// let s: Shard = "2/4".parse().unwrap();
 /// assert!(s.owns(1) && s.owns(5) && !s.owns(2));
 /// assert!("3/2".parse::<Shard>().is_err());
@@ -108,7 +108,7 @@ impl FromStr for Shard {
 mod tests {
     #![allow(clippy::unwrap_used)]
     use super::*;
-    use crate::sweep_engine::SweepConfig;
+    use crate::SweepConfig;
 
     #[test]
     fn shards_partition_the_points() {
@@ -148,7 +148,7 @@ mod tests {
         let want = |key: &str| splitmix64(splitmix64(11 ^ splitmix64(fnv1a(key.as_bytes()))) ^ 7);
         let bits = 1f64.to_bits();
         assert_eq!(run_seed(11, &p[1], 7, false), want(&format!("2/pg/{bits}")));
-        let two_d = crate::sweep_engine::Point {
+        let two_d = crate::Point {
             k_c: Some(5),
             ..p[1]
         };

@@ -32,7 +32,7 @@ pub const MAX_SEEDS: usize = 10_000_000;
 /// A validated sweep configuration (a TOML file; see `docs/sweeps.md`).
 ///
 /// ```
-/// use xtask::sweep_engine::SweepConfig;
+/// use mhe_sweep::SweepConfig;
 /// let cfg = SweepConfig::from_toml_str(r#"
 ///     name = "demo"
 ///     scenario = "../scenarios/case-study.toml"
@@ -98,7 +98,7 @@ pub struct SweepConfig {
     pub linear: bool,
     /// Also run the Kalman filter of the MHE's weights in place of the MHE (`estimators =
     /// ["mhe", "kalman"]`; default `["mhe"]`): the same controller and, run by run, the same
-    /// draws; written to `kalman.csv` (`sweep_engine::baseline`).
+    /// draws; written to `kalman.csv` (`mhe_sweep::baseline`).
     pub kalman: bool,
 }
 

@@ -99,7 +99,7 @@ pub struct PairThresholds {
 /// when `pass` holds at every (i′ ≥ i, j′ ≥ j).
 ///
 /// ```
-/// use xtask::sweep_engine::up_set;
+/// use mhe_sweep::up_set;
 /// // K_c index 1 passes at K_e index 0 alone, but fails at K_e index 1: not in the up-set.
 /// let pass = vec![vec![false, true, true], vec![true, false, true]];
 /// assert_eq!(up_set(&pass), vec![vec![false, false, true], vec![false, false, true]]);
@@ -135,7 +135,7 @@ pub fn staircase(k_e: &[usize], k_c: &[usize], region: &[Vec<bool>]) -> Staircas
 /// both budgets); ties go to the smaller K_e, then the smaller K_c.
 ///
 /// ```
-/// use xtask::sweep_engine::{IterationCost, cheapest_pair};
+/// use mhe_sweep::{IterationCost, cheapest_pair};
 /// let stairs = [(1, None), (10, Some(20)), (100, Some(2))];
 /// let p = cheapest_pair(&stairs, IterationCost::default()).unwrap();
 /// assert_eq!((p.k_e, p.k_c, p.cost), (10, 20, 30.0));
@@ -177,7 +177,7 @@ struct Grid {
 /// staircase per solver name (missing or empty: not computed).
 ///
 /// ```
-/// use xtask::sweep_engine::{IterationCost, Table, pair_thresholds};
+/// use mhe_sweep::{IterationCost, Table, pair_thresholds};
 /// let csv = "point,k,k_c,solver,scale,bounded_fraction,rho_lin\n\
 ///            0,1,1,pg,1,0.5,1.2\n1,10,1,pg,1,1,1.1\n2,1,5,pg,1,1,0.9\n3,10,5,pg,1,1,0.8\n";
 /// let t = pair_thresholds(&Table::parse(csv).unwrap(), IterationCost::default(), &[]);

@@ -87,7 +87,7 @@ type GridPoint = (usize, f64, Option<f64>);
 /// the order of `points.csv`.
 ///
 /// ```
-/// use xtask::sweep_engine::{Table, thresholds};
+/// use mhe_sweep::{Table, thresholds};
 /// let csv = "point,k,solver,scale,bounded_fraction,k_min_cert,void_reason,k_lin\n\
 ///            0,1,pg,1,0.5,40,,3\n1,3,pg,1,1,40,,3\n2,10,pg,1,0.9,40,,3\n3,30,pg,1,1,40,,3\n";
 /// let t = thresholds(&Table::parse(csv).unwrap());

@@ -1,14 +1,10 @@
-//! Monte-Carlo sweeps over the iteration budget K: where the closed loop of Alg. 1 really
-//! stays stable, next to where Theorem 1 certifies it.
+#![doc = include_str!("../README.md")]
 //!
-//! A sweep is a grid of *points* (K, solver Φ, disturbance scale — and K_c, the sub-optimal
-//! MPC's budget, in a 2-D sweep over (K_e, K_c) = (K, K_c)); at every point it runs
-//! `seeds` closed-loop simulations of the case study ([`ResolvedScenario::build_loop`](closed_loop::scenario::ResolvedScenario::build_loop)) with different
-//! disturbance realisations and records per run the norms of the estimation error and the
-//! state, ε_t (optional), the empirical gains, constraint violations and a bounded flag
-//! ([`RunMetrics`]). Per point it keeps quantiles of those over the runs and, from the
-//! certificate, the small-gain slopes (sg1)–(sg3) of Theorem 1 at that K
-//! ([`PointSummary`]).
+//! # The engine
+//!
+//! A run is one closed loop of a [`ResolvedScenario::build_loop`](closed_loop::scenario::ResolvedScenario::build_loop)
+//! with its own disturbance draw; its metrics are a [`RunMetrics`], the point's quantiles of
+//! them beside the certificate at that K a [`PointSummary`].
 //!
 //! ## Determinism
 //! - The seed of run r at a point is [`run_seed`]`(base_seed, point, r)`: a SplitMix64 hash

@@ -9,6 +9,7 @@ use closed_loop::bounded::Divergence;
 /// Why a run was made at its K.
 #[derive(Debug, Clone, Copy, PartialEq, Eq, Serialize)]
 #[serde(rename_all = "snake_case")]
+#[non_exhaustive]
 pub enum KSource {
     /// The computed K_min of Theorem 1.
     ComputedKMin,

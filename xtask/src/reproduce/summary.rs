@@ -1,5 +1,6 @@
 //! The text summary of a reproduce job and its verdict.
 
+use iss_certificate::outcome::VoidReason;
 use super::numfmt::{num, opt, rate};
 use super::*;
 
@@ -49,7 +50,7 @@ pub(super) fn verdict(d: &CertificateDocument) -> String {
                 ),
                 (None, _) => format!(
                     "the joint certificate is void: {}",
-                    c.region.void_reasons.join("; ")
+                    VoidReason::join(&c.region.void_reasons)
                 ),
             };
     }
@@ -186,7 +187,7 @@ pub(super) fn summarize(d: &CertificateDocument, files: &[PathBuf], notes: &[Str
                     .map(|p| p.name.as_str())
                     .collect();
                 let why = if failed.is_empty() {
-                    sv.void_reasons.join("; ")
+                    VoidReason::join(&sv.void_reasons)
                 } else {
                     format!("{} fails (see the fix above)", failed.join(", "))
                 };

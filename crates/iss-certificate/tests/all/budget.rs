@@ -171,11 +171,7 @@ fn a_required_phase_beyond_its_limit_refuses_the_certificate_before_it_starts() 
 #[test]
 fn a_budget_cut_names_the_phase_its_estimate_and_the_value_to_set() {
     use iss_certificate::budget::NotComputed;
-    let nc = NotComputed {
-        phase: "γ₁,₃ free-set enumeration".into(),
-        needed_seconds: 672.3,
-        budget_seconds: 10.0,
-    };
+    let nc = NotComputed::new("γ₁,₃ free-set enumeration", 672.3, 10.0);
     // Rounded up (two digits): the value suffices for the estimate.
     assert_eq!(nc.raise_to(), 680.0);
     assert!(nc.raise_to() >= nc.needed_seconds);
@@ -191,11 +187,7 @@ fn a_budget_cut_names_the_phase_its_estimate_and_the_value_to_set() {
     }
     assert!(!s.contains("void"), "{s}");
     for x in [0.0123, 1.0, 9.99, 10.01, 123.4, 5.5e4] {
-        let r = NotComputed {
-            needed_seconds: x,
-            ..nc.clone()
-        }
-        .raise_to();
+        let r = NotComputed::new(nc.phase.clone(), x, nc.budget_seconds).raise_to();
         assert!(r >= x && r <= 1.1 * x + 1e-12, "{x} → {r}");
     }
 }

@@ -39,10 +39,9 @@ use crate::joint::{JointAnalysis, JointOptions, certify_joint};
 use crate::outcome::VoidReason;
 use closed_loop::scenario::{ControllerChoice, ResolvedScenario, Scenario};
 
-/// The certificates a configuration can be under.
+/// The certificates a configuration can be under (exhaustive on purpose, as [`Applicable`]).
 #[derive(Debug, Clone, Copy, PartialEq, Eq, Serialize)]
 #[serde(rename_all = "snake_case")]
-#[non_exhaustive]
 pub enum CertificateKind {
     /// Theorem 1: the sub-optimal MHE with the exact MPC.
     Theorem1,
@@ -248,10 +247,10 @@ pub fn covering(scenario: &Scenario, _method: Method, controller: ControllerChoi
     }
 }
 
-/// `yes`, `no`, `void` or `not_computed` at a pair.
+/// `yes`, `no`, `void` or `not_computed` at a pair. Exhaustive on purpose: a verdict the
+/// caller does not know must not fall into a default arm (export refuses on anything but yes).
 #[derive(Debug, Clone, Copy, PartialEq, Eq, Serialize)]
 #[serde(rename_all = "snake_case")]
-#[non_exhaustive]
 pub enum Certified {
     /// The certificate holds at this pair.
     Yes,

@@ -6,10 +6,9 @@ use serde::Serialize;
 use crate::certificate::SolverCertificate;
 use closed_loop::bounded::Divergence;
 
-/// Why a run was made at its K.
+/// Why a run was made at its K (exhaustive: the tool words each source).
 #[derive(Debug, Clone, Copy, PartialEq, Eq, Serialize)]
 #[serde(rename_all = "snake_case")]
-#[non_exhaustive]
 pub enum KSource {
     /// The computed K_min of Theorem 1.
     ComputedKMin,

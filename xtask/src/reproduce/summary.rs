@@ -187,7 +187,7 @@ pub(super) fn summarize(d: &CertificateDocument, files: &[PathBuf], notes: &[Str
                     .map(|p| p.name.as_str())
                     .collect();
                 let why = if failed.is_empty() {
-                    VoidReason::join(&sv.void_reasons)
+                    sv.void_reasons.join("; ")
                 } else {
                     format!("{} fails (see the fix above)", failed.join(", "))
                 };

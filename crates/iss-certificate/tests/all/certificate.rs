@@ -82,7 +82,7 @@ fn infeasible_lmi_voids_every_solver() {
     let c = crate::certify(&sc, &fast()).unwrap();
     assert!(c.ioss.is_none());
     assert!(
-        c.ioss_failure.as_deref().unwrap().contains("LMI"),
+        c.ioss_failure.as_ref().unwrap().to_string().contains("LMI"),
         "{:?}",
         c.ioss_failure
     );

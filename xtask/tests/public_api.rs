@@ -70,9 +70,9 @@ fn is_pub(v: &syn::Visibility) -> bool {
 }
 
 fn is_test_only(attrs: &[syn::Attribute]) -> bool {
-    attrs.iter().any(|a| {
-        a.path().is_ident("cfg") && tidy(&a.meta).replace(' ', "").contains("cfg(test)")
-    })
+    attrs
+        .iter()
+        .any(|a| a.path().is_ident("cfg") && tidy(&a.meta).replace(' ', "").contains("cfg(test)"))
 }
 
 /// The attributes that are part of the API: derives, `non_exhaustive`, `repr`, `cfg`,
@@ -81,9 +81,16 @@ fn api_attrs(attrs: &[syn::Attribute]) -> String {
     let mut s = String::new();
     for a in attrs {
         let p = a.path();
-        if ["derive", "non_exhaustive", "repr", "cfg", "must_use", "serde"]
-            .iter()
-            .any(|n| p.is_ident(n))
+        if [
+            "derive",
+            "non_exhaustive",
+            "repr",
+            "cfg",
+            "must_use",
+            "serde",
+        ]
+        .iter()
+        .any(|n| p.is_ident(n))
         {
             s.push_str(&tidy(a));
             s.push(' ');
@@ -120,7 +127,10 @@ fn fields_text(fields: &syn::Fields, only_pub: bool) -> String {
                     format!(
                         "{}{}: {}",
                         api_attrs(&f.attrs),
-                        f.ident.as_ref().map(ToString::to_string).unwrap_or_default(),
+                        f.ident
+                            .as_ref()
+                            .map(ToString::to_string)
+                            .unwrap_or_default(),
                         tidy(&f.ty)
                     )
                 })
@@ -146,8 +156,8 @@ impl Walker {
     fn file(&mut self, path: &Path, module: &str, dir: &Path) {
         let src = std::fs::read_to_string(path)
             .unwrap_or_else(|e| panic!("{}: cannot read: {e}", path.display()));
-        let file =
-            syn::parse_file(&src).unwrap_or_else(|e| panic!("{}: cannot parse: {e}", path.display()));
+        let file = syn::parse_file(&src)
+            .unwrap_or_else(|e| panic!("{}: cannot parse: {e}", path.display()));
         self.items(&file.items, module, dir);
     }
 
@@ -177,7 +187,10 @@ impl Walker {
                 }
             }
             Item::Fn(f) if is_pub(&f.vis) && !is_test_only(&f.attrs) => {
-                self.line(module, format!("{}pub {}", api_attrs(&f.attrs), tidy(&f.sig)));
+                self.line(
+                    module,
+                    format!("{}pub {}", api_attrs(&f.attrs), tidy(&f.sig)),
+                );
             }
             Item::Struct(s) if is_pub(&s.vis) && !is_test_only(&s.attrs) => {
                 let g = &s.generics;
@@ -223,10 +236,9 @@ impl Walker {
                 for ti in &t.items {
                     match ti {
                         syn::TraitItem::Fn(f) => members.push(format!(
-                            "{}{}{}",
+                            "{}{}",
                             tidy(&f.sig),
-                            if f.default.is_some() { " {..}" } else { "" },
-                            ""
+                            if f.default.is_some() { " {..}" } else { "" }
                         )),
                         syn::TraitItem::Type(ty) => {
                             let mut ty = ty.clone();
@@ -277,7 +289,11 @@ impl Walker {
                 self.line(module, tidy(&u));
             }
             Item::Macro(m) if m.attrs.iter().any(|a| a.path().is_ident("macro_export")) => {
-                let name = m.ident.as_ref().map(ToString::to_string).unwrap_or_default();
+                let name = m
+                    .ident
+                    .as_ref()
+                    .map(ToString::to_string)
+                    .unwrap_or_default();
                 self.line(&self.krate.clone(), format!("macro_rules! {name}"));
             }
             Item::Impl(i) if !is_test_only(&i.attrs) => self.impl_block(i, module),
@@ -293,7 +309,11 @@ impl Walker {
             i.trait_
                 .as_ref()
                 .map(|(bang, path, _)| {
-                    format!("{}{} for ", if bang.is_some() { "!" } else { "" }, tidy(path))
+                    format!(
+                        "{}{} for ",
+                        if bang.is_some() { "!" } else { "" },
+                        tidy(path)
+                    )
                 })
                 .unwrap_or_default(),
             tidy(&i.self_ty)
@@ -440,10 +460,16 @@ fn the_extractor_sees_signature_changes() {
     ] {
         assert!(a.lines().any(|l| l == want), "{want:?} not in\n{a}");
     }
-    assert!(!a.contains("hidden") && !a.contains("private(") && !a.contains("fn t()"), "{a}");
+    assert!(
+        !a.contains("hidden") && !a.contains("private(") && !a.contains("fn t()"),
+        "{a}"
+    );
     for changed in [
         base.replace("pub a: Vec<String>", "pub a: Vec<u8>"),
-        base.replace("#[derive(Debug)]\n", "#[derive(Debug)]\n#[non_exhaustive]\n"),
+        base.replace(
+            "#[derive(Debug)]\n",
+            "#[derive(Debug)]\n#[non_exhaustive]\n",
+        ),
         base.replace("B }", "B, C }"),
         base.replace("fn new() -> Self", "fn new(x: u8) -> Self"),
     ] {

@@ -322,7 +322,11 @@ pub fn certified_gains(
             // Cut by the budget: the sentence says "not computed within the budget".
             reasons: match &solver.not_computed {
                 Some(nc) => vec![nc.to_string()],
-                None => solver.void_reasons.iter().map(ToString::to_string).collect(),
+                None => solver
+                    .void_reasons
+                    .iter()
+                    .map(ToString::to_string)
+                    .collect(),
             },
         });
     };

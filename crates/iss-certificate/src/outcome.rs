@@ -105,10 +105,9 @@ impl std::fmt::Display for VoidReason {
                 write!(f, "{premise} not evaluated (because {because})")
             }
             Self::Gamma13 { premise, void } => write!(f, "{premise} fails: {void}"),
-            Self::NoK { k_max } => write!(
-                f,
-                "no K ≤ {k_max} satisfies sg1 + sg2 + sg3 < 1 (ρ(Γ) < 1)"
-            ),
+            Self::NoK { k_max } => {
+                write!(f, "no K ≤ {k_max} satisfies sg1 + sg2 + sg3 < 1 (ρ(Γ) < 1)")
+            }
             Self::NoPair {
                 k_max,
                 spectral_radius,

@@ -5,9 +5,9 @@
 
 use iss_certificate::asymptotic::{AsymptoticGains, MeasuredGains, certified_gains};
 
-use iss_certificate::outcome::VoidReason;
 use super::numfmt::num;
 use super::*;
+use iss_certificate::outcome::VoidReason;
 
 /// `asymptotic_gains` of certificate.json.
 #[derive(Debug, Clone, Serialize)]

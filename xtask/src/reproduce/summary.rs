@@ -1,8 +1,8 @@
 //! The text summary of a reproduce job and its verdict.
 
-use iss_certificate::outcome::VoidReason;
 use super::numfmt::{num, opt, rate};
 use super::*;
+use iss_certificate::outcome::VoidReason;
 
 fn status(holds: bool) -> &'static str {
     if holds { "pass" } else { "FAIL" }

@@ -121,7 +121,10 @@ pub fn k_reg_outcome(
                      uncertainty{}: {}{}",
                     out.k
                         .map_or(String::new(), |k| format!(" (largest K evaluated: {k})")),
-                    kr.stopped.as_ref().map(ToString::to_string).unwrap_or_default(),
+                    kr.stopped
+                        .as_ref()
+                        .map(ToString::to_string)
+                        .unwrap_or_default(),
                     // What the last certificate computed says about the set.
                     c.as_ref().map_or(String::new(), |c| format!(
                         "; at K = {}: {}",

@@ -4,8 +4,8 @@ use lti_model::matrix::{spectral_norm, sym_extreme_eigenvalues};
 use mhe_core::{LipschitzSampling, MheProblem};
 
 use super::*;
-use crate::outcome::IossFailure;
 use crate::analysis::{IssInputs, eta_sup_for_horizon, min_horizon_for_eta};
+use crate::outcome::IossFailure;
 use closed_loop::scenario::ResolvedScenario;
 use closed_loop::sim::ClosedLoopError;
 

@@ -365,7 +365,10 @@ pub fn certify_rounded(
         return void(out, why);
     };
     if k_min_f64.is_none() {
-        let why = format!("void in f64 already: {}", VoidReason::join(&sc.void_reasons));
+        let why = format!(
+            "void in f64 already: {}",
+            VoidReason::join(&sc.void_reasons)
+        );
         return void(out, why);
     }
     if resolved.mhe_config()?.warm_start != mhe_core::WarmStart::Paper {

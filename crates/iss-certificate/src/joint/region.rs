@@ -59,10 +59,12 @@ impl JointAnalysis {
             return region;
         }
         let Some(k_e_floor) = self.k_e_min(k_max, k_max) else {
-            region.void_reasons.push(crate::outcome::VoidReason::NoPair {
-                k_max,
-                spectral_radius: self.at(k_max, k_max).spectral_radius,
-            });
+            region
+                .void_reasons
+                .push(crate::outcome::VoidReason::NoPair {
+                    k_max,
+                    spectral_radius: self.at(k_max, k_max).spectral_radius,
+                });
             return region;
         };
         let k_c_floor = self.k_c_min(k_max, k_max);

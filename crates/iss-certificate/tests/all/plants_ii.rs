@@ -42,7 +42,11 @@ fn quadrotor_with_bounded_inputs_is_void_as_marginal_not_unstable() {
             "{:?}",
             s.void_reasons
         );
-        assert!(!s.void_reasons[0].to_string().contains("no global ISS gain from e to x exists"));
+        assert!(
+            !s.void_reasons[0]
+                .to_string()
+                .contains("no global ISS gain from e to x exists")
+        );
     }
 }
 

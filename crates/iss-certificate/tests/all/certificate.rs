@@ -37,7 +37,7 @@ fn paper_preset_is_void_for_every_solver() {
         assert!(
             s.void_reasons
                 .iter()
-                .any(|r| r.contains("rho < 1") && r.contains("M ≥ 9")),
+                .any(|r| r.to_string().contains("rho < 1") && r.to_string().contains("M ≥ 9")),
             "{:?}",
             s.void_reasons
         );
@@ -91,7 +91,7 @@ fn infeasible_lmi_voids_every_solver() {
         assert!(
             s.void_reasons
                 .iter()
-                .any(|r| r.contains("LMI (2) feasible")),
+                .any(|r| r.to_string().contains("LMI (2) feasible")),
             "{:?}",
             s.void_reasons
         );

@@ -268,7 +268,7 @@ fn unstable_plant_with_bounded_input_is_void_with_its_eigenvalue() {
         assert!(
             s.void_reasons
                 .iter()
-                .any(|r| r == &format!("gamma13 finite fails: {void}")),
+                .any(|r| r.to_string() == format!("gamma13 finite fails: {void}")),
             "{:?}",
             s.void_reasons
         );

@@ -46,6 +46,7 @@ const F32_DECIDED_BY: &str = "an f32 export is certified where Theorem 1 with th
     rounding folded in certifies its K (iss_certificate::coverage::verdict)";
 use iss_certificate::coverage::{Certified, Configuration, PairVerdict, Scalar, verdict_options};
 use iss_certificate::joint::{JointCertificate, JointOptions, certify_joint};
+use iss_certificate::outcome::VoidReason;
 use qp_iter::Method;
 use serde_json::json;
 
@@ -295,7 +296,7 @@ pub(crate) fn decide_k(
         (Iterations::Certified, None) => bail!(
             "--k certified: the certificate of Theorem 1 is void for {name} ({}); give --k K \
              with --allow-uncertified to export anyway",
-            sc.void_reasons.join("; ")
+            VoidReason::join(&sc.void_reasons)
         ),
     };
     let config = Configuration {
@@ -365,7 +366,7 @@ pub(crate) fn decide_kc(
         if !region.void_reasons.is_empty() {
             format!(
                 "the joint certificate is void ({})",
-                region.void_reasons.join("; ")
+                VoidReason::join(&region.void_reasons)
             )
         } else {
             format!(

@@ -75,7 +75,7 @@ fn main() -> Result<(), Box<dyn std::error::Error>> {
                 None => println!(
                     "  {:<5} void: {}",
                     sc.solver.name(),
-                    sc.void_reasons.join("; ")
+                    iss_certificate::outcome::VoidReason::join(&sc.void_reasons)
                 ),
             }
         }

@@ -41,7 +41,7 @@ fn main() -> Result<(), Box<dyn std::error::Error>> {
                     s.solver,
                     s.void_reasons
                         .first()
-                        .map_or(String::new(), |r| r.replace('|', "\\|"))
+                        .map_or(String::new(), |r| r.to_string().replace('|', "\\|"))
                 );
                 continue;
             };

@@ -67,6 +67,7 @@ pub struct IssInputs {
 
 /// One premise of Theorem 1, evaluated.
 #[derive(Debug, Clone, PartialEq, Serialize)]
+#[non_exhaustive]
 pub struct Premise {
     /// Short name, e.g. `"rho < 1"`.
     pub name: String,
@@ -119,22 +120,26 @@ impl Premise {
 
     /// The sentence a void certificate gives for this premise: "NAME fails (NEEDED_BY =
     /// VALUE): FIX", or "NAME not evaluated (because …)".
-    pub fn void_reason(&self) -> String {
+    pub fn void_reason(&self) -> crate::outcome::VoidReason {
+        use crate::outcome::VoidReason;
         match &self.not_evaluated {
-            Some(why) => format!("{} not evaluated (because {why})", self.name),
-            None => format!(
-                "{} fails ({} = {}): {}",
-                self.name,
-                self.needed_by,
-                lti_model::numfmt::sig4(self.value),
-                self.fix
-            ),
+            Some(why) => VoidReason::PremiseNotEvaluated {
+                premise: self.name.clone(),
+                because: why.clone(),
+            },
+            None => VoidReason::PremiseFails {
+                premise: self.name.clone(),
+                needed_by: self.needed_by.clone(),
+                value: self.value,
+                fix: self.fix.clone(),
+            },
         }
     }
 }
 
 /// Constants and gains of Props. 1 and 3 at one K.
 #[derive(Debug, Clone, PartialEq, Serialize)]
+#[non_exhaustive]
 pub struct GainsAtK {
     /// Iteration budget K.
     pub k: usize,
@@ -192,6 +197,7 @@ pub struct GainsAtK {
 
 /// Theorem 1 evaluated for one set of inputs.
 #[derive(Debug, Clone, PartialEq, Serialize)]
+#[non_exhaustive]
 pub struct IssAnalysis {
     /// The inputs.
     pub inputs: IssInputs,

@@ -46,6 +46,7 @@ pub const NODES: [&str; 3] = ["x", "epsilon", "e"];
 
 /// A nonnegative comparison system s ≤ Γs + g·w̄ on the nodes (x, ε, e) and its solution.
 #[derive(Debug, Clone, PartialEq, Serialize)]
+#[non_exhaustive]
 pub struct ComparisonSystem {
     /// Γ, row-major: `matrix[i][j]` is the gain from node j into node i ([`NODES`]).
     pub matrix: [[f64; 3]; 3],
@@ -109,6 +110,7 @@ impl ComparisonSystem {
 
 /// The certified asymptotic gains of Theorem 1 at one K (module docs).
 #[derive(Debug, Clone, PartialEq, Serialize)]
+#[non_exhaustive]
 pub struct AsymptoticGains {
     /// The iteration budget K.
     pub k: usize,
@@ -138,6 +140,7 @@ pub struct AsymptoticGains {
 /// Why there is no certified asymptotic gain at a K.
 #[derive(Debug, Clone, PartialEq, Serialize)]
 #[serde(tag = "kind", rename_all = "snake_case")]
+#[non_exhaustive]
 pub enum AsymptoticVoid {
     /// Theorem 1 is void for this method: a premise fails, or a constant does not exist for
     /// the scenario, or no K up to the search limit is certified (the certificate's
@@ -220,7 +223,7 @@ pub fn asymptotic_gains(
             reasons: analysis
                 .violated()
                 .iter()
-                .map(|p| p.void_reason())
+                .map(|p| p.void_reason().to_string())
                 .collect(),
         });
     }
@@ -319,7 +322,11 @@ pub fn certified_gains(
             // Cut by the budget: the sentence says "not computed within the budget".
             reasons: match &solver.not_computed {
                 Some(nc) => vec![nc.to_string()],
-                None => solver.void_reasons.clone(),
+                None => solver
+                    .void_reasons
+                    .iter()
+                    .map(ToString::to_string)
+                    .collect(),
             },
         });
     };
@@ -347,6 +354,7 @@ pub fn certified_gains(
 /// sup can exceed it (the certified bound is asymptotic), which the whole-run sups beside it
 /// help to see.
 #[derive(Debug, Clone, PartialEq, Serialize)]
+#[non_exhaustive]
 pub struct MeasuredGains {
     /// Steps T of the run.
     pub steps: usize,

@@ -37,6 +37,7 @@ pub const SCALAR_RATE: f64 = 1e9;
 
 /// One analysis phase with its estimated work.
 #[derive(Debug, Clone, PartialEq, Serialize)]
+#[non_exhaustive]
 pub struct PhaseEstimate {
     /// The phase (`"δ-IOSS P"`, `"γ₁,₃ free-set enumeration"`, …).
     pub phase: String,
@@ -104,6 +105,7 @@ pub fn check_required_phases(
 /// estimate is the one the phase was skipped by (its plan, before it ran), so raising
 /// `certificate.phase_seconds` to [`NotComputed::raise_to`] runs it.
 #[derive(Debug, Clone, PartialEq, Serialize)]
+#[non_exhaustive]
 pub struct NotComputed {
     /// The phase that was not run (`"γ₁,₃ free-set enumeration"`).
     pub phase: String,
@@ -114,6 +116,16 @@ pub struct NotComputed {
 }
 
 impl NotComputed {
+    /// The phase `phase`, estimated at `needed_seconds` of one core, skipped under a budget
+    /// of `budget_seconds`.
+    pub fn new(phase: impl Into<String>, needed_seconds: f64, budget_seconds: f64) -> Self {
+        Self {
+            phase: phase.into(),
+            needed_seconds,
+            budget_seconds,
+        }
+    }
+
     /// The value of `certificate.phase_seconds` that runs the phase: its estimate rounded up
     /// to two significant digits (the estimates are right to within a factor of a few, so more
     /// digits would be noise).

@@ -36,12 +36,10 @@ use crate::certificate::{
     CertificateOptions, ClosedLoopCertificate, Gamma13Source, SolverCertificate,
 };
 use crate::joint::{JointAnalysis, JointOptions, certify_joint};
+use crate::outcome::VoidReason;
 use closed_loop::scenario::{ControllerChoice, ResolvedScenario, Scenario};
 
-/// Prefixes of the structural void reasons of [`crate::certificate::certify_closed_loop`].
-const STRUCTURAL: [&str; 2] = ["L_Φ (Lemma 1): ", "L_π, γ₁,₃: "];
-
-/// The certificates a configuration can be under.
+/// The certificates a configuration can be under (exhaustive on purpose, as [`Applicable`]).
 #[derive(Debug, Clone, Copy, PartialEq, Eq, Serialize)]
 #[serde(rename_all = "snake_case")]
 pub enum CertificateKind {
@@ -213,7 +211,8 @@ pub fn solver_certified(
     ) && sc.k_min.is_some()
 }
 
-/// Which certificate covers a configuration, or why none does.
+/// Which certificate covers a configuration, or why none does: covered or not, exhaustive on
+/// purpose.
 #[derive(Debug, Clone, PartialEq, Eq, Serialize)]
 #[serde(rename_all = "snake_case")]
 pub enum Coverage {
@@ -248,7 +247,8 @@ pub fn covering(scenario: &Scenario, _method: Method, controller: ControllerChoi
     }
 }
 
-/// `yes`, `no`, `void` or `not_computed` at a pair.
+/// `yes`, `no`, `void` or `not_computed` at a pair. Exhaustive on purpose: a verdict the
+/// caller does not know must not fall into a default arm (export refuses on anything but yes).
 #[derive(Debug, Clone, Copy, PartialEq, Eq, Serialize)]
 #[serde(rename_all = "snake_case")]
 pub enum Certified {
@@ -277,6 +277,7 @@ impl Certified {
 
 /// The verdict at one pair (K_e, K_c).
 #[derive(Debug, Clone, PartialEq, Serialize)]
+#[non_exhaustive]
 pub struct PairVerdict {
     /// The covering certificate (None: uncovered).
     pub certificate: Option<CertificateKind>,
@@ -290,7 +291,9 @@ pub struct PairVerdict {
     pub reason: String,
 }
 
-/// What the covering certificate needs to give a verdict at any pair.
+/// What the covering certificate needs to give a verdict at any pair. Exhaustive on purpose
+/// (as [`Coverage`]): a caller must handle every certificate, and a new one is a breaking
+/// change it has to see.
 #[derive(Debug, Clone)]
 pub enum Applicable {
     /// Theorem 1 for the method.
@@ -300,7 +303,7 @@ pub enum Applicable {
         /// K_min (None: void or beyond the search range).
         k_min: Option<usize>,
         /// Why void whatever K (empty when the premises hold).
-        void_reasons: Vec<String>,
+        void_reasons: Vec<VoidReason>,
         /// The budget cut the verdict (None: computed).
         not_computed: Option<String>,
     },
@@ -311,7 +314,7 @@ pub enum Applicable {
         /// Largest K_e searched for K_min.
         k_max: usize,
         /// Why void whatever the pair (empty when the premises hold).
-        void_reasons: Vec<String>,
+        void_reasons: Vec<VoidReason>,
     },
     /// Nothing covers the configuration.
     Uncovered(String),
@@ -324,7 +327,7 @@ pub enum Applicable {
 pub fn theorem1_at(
     analysis: &IssAnalysis,
     k_min: Option<usize>,
-    void_reasons: &[String],
+    void_reasons: &[VoidReason],
     not_computed: Option<&str>,
     k_e: usize,
 ) -> PairVerdict {
@@ -336,7 +339,7 @@ pub fn theorem1_at(
         reason,
     };
     if k_min.is_none() && !void_reasons.is_empty() {
-        return verdict(Certified::Void, void_reasons.join("; "));
+        return verdict(Certified::Void, VoidReason::join(void_reasons));
     }
     if let (None, Some(why)) = (k_min, not_computed) {
         return verdict(Certified::NotComputed, why.to_string());
@@ -401,11 +404,15 @@ impl Applicable {
                         // The structural reasons of Theorem 1's constants (L_Φ with general
                         // rows, L_π with state constraints) void the joint certificate too;
                         // its premises are the joint analysis' own.
-                        let mut void_reasons: Vec<String> = sc
+                        let mut void_reasons: Vec<VoidReason> = sc
                             .void_reasons
                             .iter()
                             .filter(|r| {
-                                r.starts_with(STRUCTURAL[0]) || r.starts_with(STRUCTURAL[1])
+                                matches!(
+                                    r,
+                                    VoidReason::LPhiUndefined { .. }
+                                        | VoidReason::ControllerUndefined { .. }
+                                )
                             })
                             .cloned()
                             .collect();
@@ -452,10 +459,12 @@ impl Applicable {
                 if k_min.is_some() {
                     Vec::new()
                 } else {
-                    void_reasons.clone()
+                    void_reasons.iter().map(ToString::to_string).collect()
                 }
             }
-            Applicable::Joint { void_reasons, .. } => void_reasons.clone(),
+            Applicable::Joint { void_reasons, .. } => {
+                void_reasons.iter().map(ToString::to_string).collect()
+            }
             Applicable::Uncovered(r) => vec![r.clone()],
         }
     }
@@ -485,7 +494,7 @@ impl Applicable {
                 void_reasons,
             } => {
                 if !void_reasons.is_empty() {
-                    return void(void_reasons.join("; "));
+                    return void(VoidReason::join(void_reasons));
                 }
                 let Some(k_c) = k_c else {
                     return void("the joint certificate needs K_c".into());

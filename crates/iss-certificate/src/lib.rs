@@ -29,6 +29,8 @@
 //!   under, and its verdict there (one decision for reproduce, sweeps and plots).
 //! - [`plan`]: which K to simulate for a certificate, and the verdict.
 //! - [`budget`]: the cost estimate and the budget of every optional analysis phase.
+//! - [`outcome`]: typed void reasons, LMI (2) failures and skipped computations (match the
+//!   variant; the `Display` is the reports' sentence and the JSON string).
 
 pub mod analysis;
 pub mod asymptotic;
@@ -40,6 +42,7 @@ pub mod joint;
 pub mod linear;
 pub mod lure;
 pub mod model;
+pub mod outcome;
 pub mod plan;
 pub mod regional;
 pub mod small_gain;

@@ -6,7 +6,7 @@ use serde::Serialize;
 use crate::certificate::SolverCertificate;
 use closed_loop::bounded::Divergence;
 
-/// Why a run was made at its K.
+/// Why a run was made at its K (exhaustive: the tool words each source).
 #[derive(Debug, Clone, Copy, PartialEq, Eq, Serialize)]
 #[serde(rename_all = "snake_case")]
 pub enum KSource {

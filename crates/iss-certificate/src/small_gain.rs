@@ -41,6 +41,7 @@ pub struct GainMatrix {
 
 /// One simple cycle of the gain graph and the product of its gains.
 #[derive(Debug, Clone, PartialEq, Serialize)]
+#[non_exhaustive]
 pub struct Cycle {
     /// Nodes i₀, i₁, …, i_{L−1}: i₀ takes input from i₁, i₁ from i₂, …, i_{L−1} from i₀
     /// (the smallest node first).

@@ -109,7 +109,7 @@ pub fn k_reg_outcome(
                 .map(|c| c.k)
                 .or_else(|| kr.tried.last().map(|t| t.0));
             out.tried = kr.tried;
-            out.stopped = kr.stopped.clone();
+            out.stopped = kr.stopped.as_ref().map(ToString::to_string);
             out.note = match (kr.k_reg, &kr.certificate, kr.void) {
                 (Some(_), _, _) => None,
                 (None, _, _) if kr.refuted_every_k.is_some() => kr
@@ -121,7 +121,10 @@ pub fn k_reg_outcome(
                      uncertainty{}: {}{}",
                     out.k
                         .map_or(String::new(), |k| format!(" (largest K evaluated: {k})")),
-                    kr.stopped.as_deref().unwrap_or_default(),
+                    kr.stopped
+                        .as_ref()
+                        .map(ToString::to_string)
+                        .unwrap_or_default(),
                     // What the last certificate computed says about the set.
                     c.as_ref().map_or(String::new(), |c| format!(
                         "; at K = {}: {}",
@@ -164,7 +167,7 @@ pub fn k_reg_outcome(
                     k: p.k,
                     contains: false,
                     margin: None,
-                    note: format!("void: {}", v.unwrap_or_default()),
+                    note: format!("void: {}", v.map(|v| v.to_string()).unwrap_or_default()),
                 },
             });
         }
@@ -188,6 +191,8 @@ pub fn row_text(row: &iss_certificate::regional::RowLabel) -> String {
             row.index, row.iterate
         ),
         RowKind::Input => format!("MPC input/state row {} ({when})", row.index),
+        // A kind added later (`RowKind` is non-exhaustive): its index and step.
+        _ => format!("row {} ({when})", row.index),
     }
 }
 

@@ -26,7 +26,7 @@ pub enum SolverTheory {
         /// Smallest certified K (None when void or beyond the search range).
         k_min: Option<usize>,
         /// Why the certificate is void, whatever K (empty when the premises hold).
-        void_reasons: Vec<String>,
+        void_reasons: Vec<iss_certificate::outcome::VoidReason>,
         /// The analysis budget cut the verdict (None: computed).
         not_computed: Option<String>,
     },

@@ -431,14 +431,14 @@ fn a_k_below_k_min_is_refused_unless_allowed() {
     let mut void = loop_cert.clone();
     for s in &mut void.solvers {
         s.k_min = None;
-        s.void_reasons = vec!["ρ ≥ 1".into()];
+        s.void_reasons = vec![iss_certificate::outcome::VoidReason::NoK { k_max: 7 }];
     }
     assert!(decide(&void, Iterations::Certified, f64, true).is_err());
     let err = decide(&void, given(100_000), f64, false)
         .unwrap_err()
         .to_string();
     assert!(
-        err.contains("NOT CERTIFIED") && err.contains("ρ ≥ 1"),
+        err.contains("NOT CERTIFIED") && err.contains("no K ≤ 7 satisfies"),
         "{err}"
     );
     assert_eq!(

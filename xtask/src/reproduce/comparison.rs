@@ -69,10 +69,7 @@ pub(super) fn comparison(cert: &ClosedLoopCertificate, solver: Method) -> Vec<Co
                 numfmt::num(g.used),
                 g.source,
                 // The enumeration replaced by the polynomial bound for the analysis budget.
-                if g.skipped
-                    .iter()
-                    .any(|k| k.reason.contains("certificate.phase_seconds"))
-                {
+                if g.skipped.iter().any(|k| k.reason.is_budget()) {
                     " (S-procedure bound: the free-set enumeration is beyond the analysis \
                      budget, key `certificate.phase_seconds`)"
                 } else {

@@ -113,7 +113,7 @@ impl SolverSummary {
             simulated: sc.solver == simulated,
             certified: iss_certificate::coverage::solver_certified(scenario, sc, controller),
             k_min: sc.k_min,
-            void_reasons: sc.void_reasons.clone(),
+            void_reasons: sc.void_reasons.iter().map(ToString::to_string).collect(),
             not_computed: sc.not_computed.clone(),
             premises: sc.analysis.premises.clone(),
             phi_rate: sc.phi_rate,

@@ -7,6 +7,7 @@ use iss_certificate::asymptotic::{AsymptoticGains, MeasuredGains, certified_gain
 
 use super::numfmt::num;
 use super::*;
+use iss_certificate::outcome::VoidReason;
 
 /// `asymptotic_gains` of certificate.json.
 #[derive(Debug, Clone, Serialize)]
@@ -115,7 +116,7 @@ pub(super) fn report(
                     None,
                     Some(match &s.not_computed {
                         Some(nc) => format!("Theorem 1 is {nc}"),
-                        None => format!("Theorem 1 is void: {}", s.void_reasons.join("; ")),
+                        None => format!("Theorem 1 is void: {}", VoidReason::join(&s.void_reasons)),
                     }),
                 ),
             };
@@ -132,7 +133,7 @@ pub(super) fn report(
                         }),
                         None,
                     ),
-                    None => (None, r.void.clone()),
+                    None => (None, r.void.as_ref().map(ToString::to_string)),
                 },
                 None => (None, Some("not evaluated".into())),
             };

@@ -2,6 +2,7 @@
 
 use super::numfmt::{num, opt, rate};
 use super::*;
+use iss_certificate::outcome::VoidReason;
 
 fn status(holds: bool) -> &'static str {
     if holds { "pass" } else { "FAIL" }
@@ -49,7 +50,7 @@ pub(super) fn verdict(d: &CertificateDocument) -> String {
                 ),
                 (None, _) => format!(
                     "the joint certificate is void: {}",
-                    c.region.void_reasons.join("; ")
+                    VoidReason::join(&c.region.void_reasons)
                 ),
             };
     }

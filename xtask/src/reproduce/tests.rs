@@ -544,7 +544,7 @@ fn infeasible_lmi_gives_a_void_certificate_that_names_the_lmi() {
     let d = &o.document;
     assert!(!d.certified);
     let failure = d.certificate.ioss_failure.as_ref().unwrap();
-    assert!(failure.contains("LMI"), "{failure}");
+    assert!(failure.to_string().contains("LMI"), "{failure}");
     for s in &d.solvers {
         assert_eq!(s.k_min, None);
         let lmi = s

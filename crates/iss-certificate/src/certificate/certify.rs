@@ -5,6 +5,7 @@ use mhe_core::{LipschitzSampling, MheProblem};
 
 use super::*;
 use crate::analysis::{IssInputs, eta_sup_for_horizon, min_horizon_for_eta};
+use crate::outcome::IossFailure;
 use closed_loop::scenario::ResolvedScenario;
 use closed_loop::sim::ClosedLoopError;
 
@@ -65,6 +66,7 @@ pub fn certify_closed_loop(
 /// Wall time of each part of [`certify_closed_loop`] (seconds), for the commands' own
 /// timing output (the certificate itself is deterministic; these are not).
 #[derive(Debug, Clone, Copy, Default, PartialEq, serde::Serialize)]
+#[non_exhaustive]
 pub struct CertificateTimes {
     /// The MHE's condensed windows, H̄ and the certified L_Φ.
     pub mhe_constants_s: f64,
@@ -140,7 +142,7 @@ pub fn certify_closed_loop_with(
     // Assumption 2 (resolved once with the scenario).
     let (ioss_cert, ioss_failure) = match resolved.ioss() {
         Some(Ok(c)) => (Some(c.clone()), None),
-        Some(Err(e)) => (None, Some(e.to_string())),
+        Some(Err(e)) => (None, Some(IossFailure { error: e.clone() })),
         None => return Err(ClosedLoopError::MissingSection { section: "mhe" }),
     };
 
@@ -287,14 +289,14 @@ pub fn certify_closed_loop_with(
         }
         // Constants whose certified value does not exist for this scenario (issue 15:
         // bounded 𝒳 / 𝒴 in the MHE, state constraints in the MPC): void with the reason.
-        let structural_void: Vec<String> = problem
+        let structural_void: Vec<VoidReason> = problem
             .as_ref()
             .and_then(|p| p.lipschitz_void_reason())
-            .map(|r| format!("L_Φ (Lemma 1): {r}"))
+            .map(|reason| VoidReason::LPhiUndefined { reason })
             .into_iter()
             .chain(
                 mpc.certificate_void_reason()
-                    .map(|r| format!("L_π, γ₁,₃: {r}")),
+                    .map(|reason| VoidReason::ControllerUndefined { reason }),
             )
             .collect();
         let structurally_void = !structural_void.is_empty();
@@ -303,17 +305,17 @@ pub fn certify_closed_loop_with(
         } else {
             None
         };
-        let mut void_reasons: Vec<String> = structural_void;
+        let mut void_reasons: Vec<VoidReason> = structural_void;
         void_reasons.extend(analysis.violated().iter().map(|p| match &gamma13.void {
             // The exact reason (typed in `gamma13.void`) instead of the generic fix.
-            Some(v) if p.name == "gamma13 finite" => format!("{} fails: {v}", p.name),
+            Some(v) if p.name == "gamma13 finite" => VoidReason::Gamma13 {
+                premise: p.name.clone(),
+                void: v.clone(),
+            },
             _ => p.void_reason(),
         }));
         if k_min.is_none() && void_reasons.is_empty() {
-            void_reasons.push(format!(
-                "no K ≤ {} satisfies sg1 + sg2 + sg3 < 1 (ρ(Γ) < 1)",
-                opts.k_max
-            ));
+            void_reasons.push(VoidReason::NoK { k_max: opts.k_max });
         }
         let not_computed = budget_cut(k_min, &analysis, &gamma13, structurally_void);
         if not_computed.is_some() {

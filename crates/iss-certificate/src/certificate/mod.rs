@@ -43,6 +43,7 @@ use serde::Serialize;
 
 use crate::analysis::{GainsAtK, IssAnalysis};
 pub use crate::gamma13::{Gamma13Report, Gamma13Source};
+pub use crate::outcome::{IossFailure, VoidReason};
 pub use certify::{
     CertificateTimes, ComputedParts, certify_closed_loop, certify_closed_loop_timed,
     certify_closed_loop_with,
@@ -99,6 +100,7 @@ impl Default for CertificateOptions {
 
 /// L_Φ figures.
 #[derive(Debug, Clone, PartialEq, Serialize)]
+#[non_exhaustive]
 pub struct LPhiReport {
     /// max_m certified bound (used in the certificate).
     pub certified: f64,
@@ -114,6 +116,7 @@ pub struct LPhiReport {
 
 /// Certificate of one solver Φ.
 #[derive(Debug, Clone, PartialEq, Serialize)]
+#[non_exhaustive]
 pub struct SolverCertificate {
     /// The solver.
     pub solver: Method,
@@ -132,7 +135,7 @@ pub struct SolverCertificate {
     /// Constants and slopes at K_min.
     pub at_k_min: Option<GainsAtK>,
     /// Why there is no K_min (empty when there is one, and when it was not computed).
-    pub void_reasons: Vec<String>,
+    pub void_reasons: Vec<VoidReason>,
     /// No K_min, and not void either: the analysis budget stopped a phase whose result
     /// could change the verdict (the γ₁,₃ free-set enumeration; issue 37 item 6). The
     /// verdict is "not computed within the budget", with the `certificate.phase_seconds`
@@ -146,6 +149,7 @@ pub struct SolverCertificate {
 
 /// Parameters near the scenario's that satisfy ρ < 1.
 #[derive(Debug, Clone, PartialEq, Serialize)]
+#[non_exhaustive]
 pub struct NearestParameters {
     /// Smallest M with 6η^M < 1 at the scenario's η.
     pub min_horizon_at_eta: Option<usize>,
@@ -155,6 +159,7 @@ pub struct NearestParameters {
 
 /// Everything [`certify_closed_loop`] computes.
 #[derive(Debug, Clone, PartialEq, Serialize)]
+#[non_exhaustive]
 pub struct ClosedLoopCertificate {
     /// Scenario name.
     pub scenario: String,
@@ -167,7 +172,7 @@ pub struct ClosedLoopCertificate {
     /// The δ-IOSS certificate (None when LMI (2) is infeasible).
     pub ioss: Option<ioss::IossReport>,
     /// Why LMI (2) failed (None when it holds).
-    pub ioss_failure: Option<String>,
+    pub ioss_failure: Option<IossFailure>,
     /// λ_min(P), λ_max(P), λ_max(Q).
     pub p_min: f64,
     /// λ_max(P).

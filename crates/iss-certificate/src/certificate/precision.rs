@@ -29,7 +29,7 @@ use qp_iter::rounding::{
 };
 use serde::Serialize;
 
-use super::ClosedLoopCertificate;
+use super::{ClosedLoopCertificate, VoidReason};
 use closed_loop::scenario::ResolvedScenario;
 use closed_loop::sim::ClosedLoopError;
 use lti_model::LtiSystem;
@@ -64,6 +64,7 @@ fn norm_bound(m: MatRef<'_, f64>) -> f64 {
 /// (x⁺ = Ax + Bu + Ew¹, each product summed from 0, then added in that order):
 /// ‖fl(x̂) − x̂(z)‖ ≤ from_z‖z‖ + from_u‖u window‖.
 #[derive(Debug, Clone, Copy, PartialEq, Serialize)]
+#[non_exhaustive]
 pub struct PropagationRounding {
     /// Coefficient of ‖zᴷ‖.
     pub from_z: f64,
@@ -116,6 +117,7 @@ fn propagation_rounding(sys: &LtiSystem, m: usize, u: f64) -> PropagationRoundin
 
 /// The rounding of one window length m.
 #[derive(Debug, Clone, PartialEq, Serialize)]
+#[non_exhaustive]
 pub struct WindowRounding {
     /// Window length m.
     pub m: usize,
@@ -174,6 +176,7 @@ pub fn window_roundings(
 
 /// What Theorem 1 certifies for one solver in one scalar type.
 #[derive(Debug, Clone, PartialEq, Serialize)]
+#[non_exhaustive]
 pub struct ScalarCertificate {
     /// The scalar type.
     pub scalar: Scalar,
@@ -318,7 +321,7 @@ pub fn certify_scalar(
                 "`{}` is not among the certified solvers",
                 solver.name()
             )),
-            Some(s) => s.k_min.is_none().then(|| s.void_reasons.join("; ")),
+            Some(s) => s.k_min.is_none().then(|| VoidReason::join(&s.void_reasons)),
         },
     })
 }
@@ -362,7 +365,10 @@ pub fn certify_rounded(
         return void(out, why);
     };
     if k_min_f64.is_none() {
-        let why = format!("void in f64 already: {}", sc.void_reasons.join("; "));
+        let why = format!(
+            "void in f64 already: {}",
+            VoidReason::join(&sc.void_reasons)
+        );
         return void(out, why);
     }
     if resolved.mhe_config()?.warm_start != mhe_core::WarmStart::Paper {
@@ -452,6 +458,7 @@ pub fn certify_rounded(
 /// "Certified f32", step 5. Call [`DeviationBound::step`] once per t with ‖θ_t‖ and the
 /// u window's norm of the f64 run; it returns the bound at t.
 #[derive(Debug, Clone)]
+#[non_exhaustive]
 pub struct DeviationBound {
     w32: Vec<WindowRounding>,
     w64: Vec<WindowRounding>,

@@ -9,6 +9,7 @@ use closed_loop::record::Trace;
 
 /// Result of [`check_trajectory`] for one proposition.
 #[derive(Debug, Clone, PartialEq, Serialize)]
+#[non_exhaustive]
 pub struct InequalityCheck {
     /// The inequality held at every t.
     pub holds: bool,
@@ -90,6 +91,7 @@ impl Default for InequalityCheck {
 
 /// Prop. 1 and Prop. 3 evaluated on a trace.
 #[derive(Debug, Clone, PartialEq, Serialize)]
+#[non_exhaustive]
 pub struct TrajectoryCheck {
     /// ‖ε_t‖ ≤ φᵗε₀ + γ₂,₁‖x‖ + γ₂,₃‖e‖ + γ₂ʷ‖w‖ + γ₂^σ‖σ‖ (sups over [0, t−1]; σ over
     /// [0, t], the data-dependent σ_t of [`super::lemma1`]).

@@ -59,6 +59,7 @@ use metrics::{Family, Metric};
 
 /// One candidate metric S and its contraction figures.
 #[derive(Debug, Clone, PartialEq, Serialize)]
+#[non_exhaustive]
 pub struct MetricResult {
     /// Which S (`"identity"`, `"dare-terminal"`, `"open-loop-lyapunov"`, `"robust-riccati(λ=…)"`, …).
     pub metric: String,
@@ -125,6 +126,7 @@ fn not_computed_reason(c: &MetricResult) -> Option<String> {
 /// Which bound gave the certified γ₁,₃.
 #[derive(Debug, Clone, Copy, PartialEq, Eq, Serialize)]
 #[serde(rename_all = "snake_case")]
+#[non_exhaustive]
 pub enum Gamma13Method {
     /// The S-procedure over the whole family 0 ⪯ M ⪯ I (any size).
     Polynomial,
@@ -137,6 +139,7 @@ pub enum Gamma13Method {
 /// Why no γ₁,₃ is available: a typed reason with a [`std::fmt::Display`] sentence.
 #[derive(Debug, Clone, PartialEq, Serialize)]
 #[serde(tag = "kind", rename_all = "snake_case")]
+#[non_exhaustive]
 pub enum Gamma13Void {
     /// 0 ∉ 𝒰: π(0) need not be 0, so the origin is not an equilibrium.
     OriginOutsideInputSet,
@@ -275,11 +278,12 @@ impl std::fmt::Display for Gamma13Void {
 
 /// A computation that was not run, and why (never a silent cap).
 #[derive(Debug, Clone, PartialEq, Serialize)]
+#[non_exhaustive]
 pub struct SkippedComputation {
     /// What was not computed.
     pub computation: String,
     /// Why, and what is used instead.
-    pub reason: String,
+    pub reason: crate::outcome::SkipReason,
 }
 
 impl std::fmt::Display for SkippedComputation {
@@ -290,6 +294,7 @@ impl std::fmt::Display for SkippedComputation {
 
 /// Result of [`gamma13_certified`].
 #[derive(Debug, Clone, PartialEq, Serialize)]
+#[non_exhaustive]
 pub struct Gamma13Certificate {
     /// Certified γ₁,₃: the smallest over metrics and methods; ∞ when void.
     pub gamma13: f64,

@@ -7,6 +7,7 @@
 //! their reduction is a maximum in chunk order: the certificate is the same bit for bit
 //! however the chunks are run.
 
+use crate::outcome::SkipReason;
 use mpc_core::{CondensedMpc, MpcError};
 use rayon::prelude::*;
 
@@ -272,11 +273,11 @@ impl<'a> Gamma13Plan<'a> {
             None if s > max_vars.min(30) => {
                 skipped.push(SkippedComputation {
                     computation: "free-set enumeration".into(),
-                    reason: format!(
-                        "{s} saturable input variables > cap {} (2^{s} free sets); the S-procedure \
-                         bound over 0 ⪯ Π ⪯ I with the first {depth} input block(s) enumerated is used",
-                        max_vars.min(30)
-                    ),
+                    reason: SkipReason::OverVariableCap {
+                        saturable: s,
+                        cap: max_vars.min(30),
+                        depth,
+                    },
                 });
                 (false, 0)
             }
@@ -288,17 +289,15 @@ impl<'a> Gamma13Plan<'a> {
                 });
                 skipped.push(SkippedComputation {
                     computation: "free-set enumeration".into(),
-                    reason: format!(
-                        "2^{s} free sets × {} metric(s) at n_x = {}: estimated {} multiply-adds, \
-                         ≈ {} s > the analysis budget of {} s per phase (scenario key \
-                         `certificate.phase_seconds`); the S-procedure bound over 0 ⪯ Π ⪯ I with \
-                         the first {depth} input block(s) enumerated is used",
-                        n_refs,
-                        mpc.nx(),
-                        crate::budget::sci(work),
-                        crate::budget::secs(seconds),
-                        crate::budget::secs(phase_seconds),
-                    ),
+                    reason: SkipReason::OverBudget {
+                        saturable: s,
+                        metrics: n_refs,
+                        n_x: mpc.nx(),
+                        work,
+                        seconds,
+                        budget_seconds: phase_seconds,
+                        depth,
+                    },
                 });
                 (false, 0)
             }

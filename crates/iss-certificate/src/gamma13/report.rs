@@ -36,6 +36,7 @@ pub const SAMPLED_STEPS: usize = 40;
 
 /// γ₁,₃ figures of the certificate.
 #[derive(Debug, Clone, PartialEq, Serialize)]
+#[non_exhaustive]
 pub struct Gamma13Report {
     /// The value used in the certificate (∞ when void).
     pub used: f64,
@@ -171,12 +172,8 @@ pub fn gamma13_report_with(
     } else {
         report.skipped.push(SkippedComputation {
             computation: "sampled lower estimate of γ₁,₃".into(),
-            reason: if report.user.is_some() {
-                "no injected sequences requested (gamma13_sequences = 0), so the user value \
-                 is not checked"
-                    .into()
-            } else {
-                "no injected sequences requested (gamma13_sequences = 0)".into()
+            reason: crate::outcome::SkipReason::NoSequences {
+                user_value_unchecked: report.user.is_some(),
             },
         });
     }

@@ -13,6 +13,7 @@ use serde::Serialize;
 
 /// Result of [`gamma13_sampled`].
 #[derive(Debug, Clone, PartialEq, Serialize)]
+#[non_exhaustive]
 pub struct Gamma13Sampled {
     /// max over sequences of sup‖x_t‖/sup‖e_t‖ (a lower bound on any valid linear γ₁,₃).
     pub gamma13_lower: f64,

@@ -34,6 +34,7 @@ impl Default for JointOptions {
 
 /// The joint certificate for one MHE method and one MPC method.
 #[derive(Debug, Clone, PartialEq, Serialize)]
+#[non_exhaustive]
 pub struct JointCertificate {
     /// The MHE's method Φ_e.
     pub mhe_method: Method,
@@ -175,6 +176,7 @@ pub fn certify_joint(
 /// MPC on the trace's estimates x̂_t (deterministic: the same map, K_c and warm start give
 /// the same Uᴷᶜ_t) and solving the exact MPC at each x̂_t.
 #[derive(Debug, Clone, PartialEq, Serialize)]
+#[non_exhaustive]
 pub struct DeltaSeries {
     /// δ_t.
     pub delta: Vec<f64>,

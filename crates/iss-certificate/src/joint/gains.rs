@@ -41,6 +41,7 @@ pub struct JointInputs {
 
 /// The four-node small-gain analysis (module docs of [`crate::joint`]).
 #[derive(Debug, Clone, PartialEq, Serialize)]
+#[non_exhaustive]
 pub struct JointAnalysis {
     /// The inputs.
     pub inputs: JointInputs,
@@ -52,6 +53,7 @@ pub struct JointAnalysis {
 
 /// Gains, cycles and the verdict at one pair (K_e, K_c).
 #[derive(Debug, Clone, PartialEq, Serialize)]
+#[non_exhaustive]
 pub struct JointGains {
     /// MHE iterations per step.
     pub k_e: usize,

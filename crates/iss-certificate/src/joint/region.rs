@@ -16,6 +16,7 @@ pub struct RegionPoint {
 
 /// The certified region {(K_e, K_c) : certified} (an up-set: every larger pair is certified).
 #[derive(Debug, Clone, PartialEq, Serialize)]
+#[non_exhaustive]
 pub struct JointRegion {
     /// Largest K_e and K_c searched.
     pub k_max: usize,
@@ -32,7 +33,7 @@ pub struct JointRegion {
     /// The pair minimising K_e·t_e + K_c·t_c (a Pareto corner; the smallest K_e on ties).
     pub cheapest: Option<RegionPoint>,
     /// Why the region is empty (empty when it is not).
-    pub void_reasons: Vec<String>,
+    pub void_reasons: Vec<crate::outcome::VoidReason>,
 }
 
 /// Most staircase corners listed (the boundary of a region this jagged is reported cut).
@@ -58,11 +59,12 @@ impl JointAnalysis {
             return region;
         }
         let Some(k_e_floor) = self.k_e_min(k_max, k_max) else {
-            region.void_reasons.push(format!(
-                "no pair with K_e, K_c ≤ {k_max} makes ρ(Γ) < 1 (at K_e = K_c = {k_max}: ρ(Γ) = \
-                 {})",
-                lti_model::numfmt::sig4(self.at(k_max, k_max).spectral_radius)
-            ));
+            region
+                .void_reasons
+                .push(crate::outcome::VoidReason::NoPair {
+                    k_max,
+                    spectral_radius: self.at(k_max, k_max).spectral_radius,
+                });
             return region;
         };
         let k_c_floor = self.k_c_min(k_max, k_max);
@@ -82,9 +84,11 @@ impl JointAnalysis {
             }
         }
         if region.pareto.len() >= MAX_CORNERS {
-            region.void_reasons.push(format!(
-                "the boundary has more than {MAX_CORNERS} corners: the list is cut there"
-            ));
+            region
+                .void_reasons
+                .push(crate::outcome::VoidReason::BoundaryCut {
+                    max_corners: MAX_CORNERS,
+                });
         }
         region.cheapest = region.pareto.iter().copied().min_by(|a, b| {
             let ca = a.k_e as f64 * t_e + a.k_c as f64 * t_c;

@@ -11,6 +11,7 @@ use closed_loop::sim::ClosedLoopError;
 
 /// Worst lhs/rhs of every inequality over the seeds, and the seeds where one failed.
 #[derive(Debug, Clone, PartialEq, Serialize)]
+#[non_exhaustive]
 pub struct SeedChecks {
     /// The pair simulated.
     pub pair: RegionPoint,

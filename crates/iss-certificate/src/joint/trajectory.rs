@@ -9,6 +9,7 @@ use closed_loop::record::Trace;
 
 /// The four subsystem estimates and the one-step inequality of δ_t on one trace.
 #[derive(Debug, Clone, PartialEq, Serialize)]
+#[non_exhaustive]
 pub struct JointTrajectoryCheck {
     /// ‖x_t‖ ≤ β₁(‖x₀‖, t) + γ₁,₃‖e‖ + γ₁,₄‖δ‖ + γ₁ʷ‖w‖ (sups over [0, t−1]).
     pub plant: InequalityCheck,

@@ -60,6 +60,7 @@ pub const ALL_METHODS_MAX_NZ: usize = 128;
 
 /// Errors of the linear stability analysis.
 #[derive(Debug, Clone, PartialEq, thiserror::Error)]
+#[non_exhaustive]
 pub enum LinearError {
     /// The loop could not be built (scenario, MHE, MPC).
     #[error(transparent)]
@@ -135,6 +136,7 @@ pub enum LinearError {
 
 /// ρ_lin on a K grid for one solver, with K_lin and every unstable K.
 #[derive(Debug, Clone, PartialEq, Serialize)]
+#[non_exhaustive]
 pub struct LinearReport {
     /// Φ of the MHE.
     pub solver: Method,

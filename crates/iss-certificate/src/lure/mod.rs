@@ -28,6 +28,7 @@ use serde::Serialize;
 
 /// Why no inner rate.
 #[derive(Debug, Clone, PartialEq, thiserror::Error)]
+#[non_exhaustive]
 pub enum LureError {
     /// μ = λ_min(H) is not above the rounding of the eigenvalue computation: the QP is not
     /// (certifiably) strongly convex, and no linear rate exists for it.
@@ -68,6 +69,7 @@ pub enum LureError {
 /// ‖zᴷ − z*‖ ≤ φ_iqc(K)‖z⁰ − z*‖ with φ_iqc(K) = `start` for K < `lag`, else
 /// `prefactor`·`rate`^(K − `lag`).
 #[derive(Debug, Clone, PartialEq, Serialize)]
+#[non_exhaustive]
 pub struct InnerRate {
     /// The method's name.
     pub method: String,

@@ -437,6 +437,7 @@ impl Budget {
 /// (`regional/cost.rs`): multiply-adds, seconds of one core at
 /// [`crate::budget::DENSE_RATE`], and the peak bytes of its large matrices.
 #[derive(Debug, Clone, Copy, PartialEq, Serialize)]
+#[non_exhaustive]
 pub struct RegionalEstimate {
     /// Multiply-adds of both stages.
     pub work: f64,

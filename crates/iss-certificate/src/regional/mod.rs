@@ -73,8 +73,9 @@ pub struct RegionalOptions {
     pub phase_seconds: f64,
 }
 
-/// Why there is no regional certificate.
+/// Why there is no regional certificate. Serialised as its sentence.
 #[derive(Debug, Clone, PartialEq, thiserror::Error)]
+#[non_exhaustive]
 pub enum RegionalVoid {
     /// The loop could not be modelled (with the reason).
     #[error(transparent)]
@@ -158,6 +159,7 @@ pub enum RegionalVoid {
 
 /// The binding row of a region, with its figures.
 #[derive(Debug, Clone, PartialEq, Serialize)]
+#[non_exhaustive]
 pub struct Limit {
     /// Which constraint.
     pub row: RowLabel,
@@ -177,6 +179,7 @@ pub struct Limit {
 
 /// The regional certificate at one K.
 #[derive(Debug, Clone, PartialEq, Serialize)]
+#[non_exhaustive]
 pub struct RegionalCertificate {
     /// Φ of the MHE.
     pub method: String,
@@ -431,6 +434,7 @@ fn startup_check(
 /// What the rows free of K (t = 0, the MHE's first inner iterates at t = 1) allow at any K:
 /// no K's region can contain a set beyond these (necessary, not sufficient).
 #[derive(Debug, Clone, PartialEq, Serialize)]
+#[non_exhaustive]
 pub struct KFreeLimits {
     /// The largest factor s such that (s·x0_radius, s·prior_error, s·w̄) keeps every row free
     /// of K within its bound (∞: any; 0: the nominal point alone passes one).
@@ -546,6 +550,7 @@ pub fn regional_certificate(
 /// readouts x_t = x_read·X_t and e_t = e_read·X_t, the full-window rows
 /// lower ≤ row·X ≤ upper, and the chosen metric's P^{±½}.
 #[derive(Debug, Clone)]
+#[non_exhaustive]
 pub struct RegionalDetail {
     /// 𝔸(K).
     pub a: Mat<f64>,
@@ -795,5 +800,11 @@ fn detail_of(model: RegionalModel, m: metric::Metric, reach: Vec<f64>) -> Region
         labels: model.rows.labels,
         p_half: m.half,
         p_neg_half: m.neg_half,
+    }
+}
+
+impl Serialize for RegionalVoid {
+    fn serialize<S: serde::Serializer>(&self, s: S) -> Result<S::Ok, S::Error> {
+        s.collect_str(self)
     }
 }

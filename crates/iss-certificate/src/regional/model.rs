@@ -21,6 +21,7 @@ use closed_loop::scenario::{ControllerChoice, ResolvedScenario};
 /// What a constraint row constrains.
 #[derive(Debug, Clone, Copy, PartialEq, Eq, Serialize)]
 #[serde(rename_all = "snake_case")]
+#[non_exhaustive]
 pub enum RowKind {
     /// A component of the point the MHE's projection acts on (box Z = 𝒳 × 𝒲^m).
     MheBox,
@@ -168,6 +169,7 @@ impl Law {
 
 /// Why the model cannot be built (a void reason of the regional certificate).
 #[derive(Debug, Clone, PartialEq, thiserror::Error)]
+#[non_exhaustive]
 pub enum ModelError {
     /// The linear analysis failed (origin not interior, probe active, …).
     #[error(transparent)]

@@ -50,6 +50,7 @@ pub fn search_max(k_min: Option<usize>, n_z: usize) -> (usize, String) {
 
 /// K_reg: the smallest K at which the regional certificate contains the user's set.
 #[derive(Debug, Clone, PartialEq, Serialize)]
+#[non_exhaustive]
 pub struct KReg {
     /// K_reg (None: no K up to `k_max` on the search, or the budget ended it first).
     pub k_reg: Option<usize>,
@@ -58,12 +59,12 @@ pub struct KReg {
     /// Every K evaluated with its margin (−∞ / NaN: void), ascending.
     pub tried: Vec<(usize, f64)>,
     /// The void reason at the largest K tried, if it is void.
-    pub void: Option<String>,
+    pub void: Option<RegionalVoid>,
     /// Why the search stopped before it was complete: the next evaluation's estimate is beyond
     /// what is left of `certificate.phase_seconds` (or the memory limit). With a K_reg this
     /// means the bisection below it was cut short (K_reg is still certified, possibly not the
     /// smallest); without, that no K beyond the last one tried was evaluated.
-    pub stopped: Option<String>,
+    pub stopped: Option<RegionalVoid>,
     /// A row that does not depend on K — of step 0, or of the MHE's first inner iterates at
     /// step 1 — that an admissible realization drives past its bound: no K has a region. These
     /// rows are checked once, before any K (then `certificate` is `None` and `tried` empty); a
@@ -83,13 +84,14 @@ pub struct KReg {
 
 /// The regional certificate at a K the caller asked about ([`k_reg_probing`]).
 #[derive(Debug, Clone, PartialEq, Serialize)]
+#[non_exhaustive]
 pub struct Probe {
     /// The K.
     pub k: usize,
     /// The certificate at K (None: void there, `void` says why).
     pub certificate: Option<RegionalCertificate>,
     /// Why there is no certificate at K.
-    pub void: Option<String>,
+    pub void: Option<RegionalVoid>,
 }
 
 /// K_reg of `method` (module docs). The rows that do not depend on K first (step 0, and the
@@ -155,7 +157,7 @@ pub fn k_reg_probing(
     // budget), so a witness there ends the search before any K is evaluated.
     let first = model::pieces_upto(resolved, method, options.controller, 2)?;
     let (witness, k_free) = super::k_free_check(&first, start_of(&first), options)?;
-    let none = |void: Option<String>, stopped: Option<String>, every_k| KReg {
+    let none = |void: Option<RegionalVoid>, stopped: Option<RegionalVoid>, every_k| KReg {
         k_reg: None,
         certificate: None,
         tried: Vec::new(),
@@ -170,8 +172,7 @@ pub fn k_reg_probing(
         return Ok(none(None, None, Some(l)));
     }
     if let Err(e) = Budget::new(options.phase_seconds).check_floor(resolved, 1, options) {
-        let why = e.to_string();
-        return Ok(none(Some(why.clone()), Some(why), None));
+        return Ok(none(Some(e.clone()), Some(e), None));
     }
     let pieces = model::pieces(resolved, method, options.controller)?;
     let start = start_of(&pieces);
@@ -187,13 +188,13 @@ pub fn k_reg_probing(
                 budget: &mut Budget| {
         let r = certify_at(&pieces, method, k, options, budget).map(|r| r.0);
         if let Err(e @ (RegionalVoid::OverBudget { .. } | RegionalVoid::OverMemory { .. })) = r {
-            return Err(e.to_string());
+            return Err(e);
         }
         if probe == Some(k) {
             *at_probe = Some(Probe {
                 k,
                 certificate: r.as_ref().ok().cloned(),
-                void: r.as_ref().err().map(ToString::to_string),
+                void: r.as_ref().err().cloned(),
             });
         }
         tried.push((
@@ -257,7 +258,7 @@ pub fn k_reg_probing(
     let Some((mut hi, mut best)) = found else {
         let (certificate, void) = match last {
             Some(Ok(c)) => (Some(c), None),
-            Some(Err(e)) => (None, Some(e.to_string())),
+            Some(Err(e)) => (None, Some(e)),
             None => (None, stopped.clone()),
         };
         tried.sort_by_key(|t| t.0);

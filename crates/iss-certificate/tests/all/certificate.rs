@@ -49,7 +49,7 @@ fn paper_preset_is_void_for_every_solver() {
         assert!(
             s.void_reasons
                 .iter()
-                .any(|r| r.contains("rho < 1") && r.contains("M ≥ 9")),
+                .any(|r| r.to_string().contains("rho < 1") && r.to_string().contains("M ≥ 9")),
             "{:?}",
             s.void_reasons
         );
@@ -94,7 +94,7 @@ fn infeasible_lmi_voids_every_solver() {
     let c = crate::certify(&sc, &fast()).unwrap();
     assert!(c.ioss.is_none());
     assert!(
-        c.ioss_failure.as_deref().unwrap().contains("LMI"),
+        c.ioss_failure.as_ref().unwrap().to_string().contains("LMI"),
         "{:?}",
         c.ioss_failure
     );
@@ -103,7 +103,7 @@ fn infeasible_lmi_voids_every_solver() {
         assert!(
             s.void_reasons
                 .iter()
-                .any(|r| r.contains("LMI (2) feasible")),
+                .any(|r| r.to_string().contains("LMI (2) feasible")),
             "{:?}",
             s.void_reasons
         );

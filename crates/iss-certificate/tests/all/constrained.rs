@@ -88,7 +88,7 @@ fn the_certificate_is_void_with_the_exact_reasons() {
     let c = crate::certify(&s, &opts).unwrap();
     for sc in &c.solvers {
         assert_eq!(sc.k_min, None);
-        let all = sc.void_reasons.join("\n");
+        let all = iss_certificate::outcome::VoidReason::join(&sc.void_reasons).replace("; ", "\n");
         assert!(
             all.contains("L_Φ (Lemma 1)") && all.contains("FIXED set"),
             "{all}"

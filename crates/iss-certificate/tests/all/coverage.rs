@@ -67,7 +67,10 @@ fn check_row(row: &Row) -> (Scenario, ClosedLoopCertificate) {
             (None, None) => {
                 let reason = row.void.unwrap();
                 assert_eq!(
-                    s.void_reasons,
+                    s.void_reasons
+                        .iter()
+                        .map(ToString::to_string)
+                        .collect::<Vec<_>>(),
                     vec![reason.to_string()],
                     "{}: {:?}",
                     row.file,

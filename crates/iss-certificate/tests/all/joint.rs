@@ -183,7 +183,11 @@ fn each_mpc_premise_voids_the_joint_certificate() {
         assert!(!an.at(1000, 1000).certified);
         let r = an.region(1 << 20, 1.0, 1.0);
         assert!(r.pareto.is_empty() && r.cheapest.is_none());
-        assert!(r.void_reasons[0].starts_with(name), "{:?}", r.void_reasons);
+        assert!(
+            r.void_reasons[0].to_string().starts_with(name),
+            "{:?}",
+            r.void_reasons
+        );
     }
     // φ_c ω ≥ 1 at a given K_c (ω = 4, φ_c(1) = 1/2): δ does not contract there.
     let wide = JointAnalysis::new(JointInputs {

@@ -67,7 +67,7 @@ fn the_budget_refuses_a_stage_before_it_runs_and_stops_the_search() {
     };
     let kr = k_reg(&res, fj, &cut, 1 << 20).unwrap();
     assert_eq!(kr.k_reg, None, "{kr:?}");
-    let stopped = kr.stopped.as_deref().unwrap();
+    let stopped = kr.stopped.as_ref().map(ToString::to_string).unwrap();
     let stop_k: usize = stopped
         .split("K = ")
         .nth(1)

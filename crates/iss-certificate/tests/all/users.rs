@@ -44,7 +44,8 @@ fn mpc_output_rows_reach_the_mpc_and_void_l_pi_and_gamma13_by_name() {
         c.gamma13.void,
         Some(iss_certificate::gamma13::Gamma13Void::OutputConstrainedMpc)
     );
-    let all = c.solvers[0].void_reasons.join("\n");
+    let all =
+        iss_certificate::outcome::VoidReason::join(&c.solvers[0].void_reasons).replace("; ", "\n");
     assert!(
         all.contains("L_π, γ₁,₃") && all.contains("mpc.output"),
         "{all}"

@@ -613,6 +613,7 @@ fn python_text(text: &str) -> String {
         )
         .replace(".mpc(settings)", "mpc=dict(horizon=10, q=1.0, r=1.0)")
         .replace(".iterations(", "k=(")
+        .replace("vec![Method::PG]", "[\"pg\"]")
 }
 
 /// A `ModelBuildError` as the package exception, naming the Python argument.

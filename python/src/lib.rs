@@ -12,9 +12,9 @@ use iss_certificate::certificate::{CertificateOptions, Gamma13Source, certify_cl
 use iss_certificate::coverage::verdict_options;
 use iss_certificate::{Certificate, CertifyOptions, LoopModel, ModelBuildError, certify};
 use lti_model::spec::MatrixSpec;
-use mpc_core::settings::{MpcSettings, RawMpc};
 use lti_model::{LtiSystem, ModelError};
 use mhe_core::{MheError as RustMheError, MheEstimator, MheSets, MheSettings};
+use mpc_core::settings::{MpcSettings, RawMpc};
 use numpy::{PyArray1, PyArray2, PyArrayMethods, PyReadonlyArray1, PyReadonlyArray2};
 use pyo3::create_exception;
 use pyo3::exceptions::PyValueError;
@@ -606,21 +606,35 @@ fn python_text(text: &str) -> String {
     for (rust, py) in PY_NAMES {
         out = out.replace(rust, py);
     }
-    out.replace(".mpc_horizon(10)", "mpc_horizon=10")
+    out = out
+        .replace(".mpc_horizon(10)", "mpc_horizon=10")
         .replace(
             ".mhe(MheSettings::builder().horizon(10).eta(0.8).iterations(50))",
             "mhe=dict(horizon=10, eta=0.8, k=50)",
         )
         .replace(".mpc(settings)", "mpc=dict(horizon=10, q=1.0, r=1.0)")
-        .replace(".iterations(", "k=(")
         .replace("vec![Method::PG]", "[\"pg\"]")
+        .replace("_box.lower", "_box[0]")
+        .replace("_box.upper", "_box[1]");
+    // A builder-call hint `.name(value)` as the dict entry `name=value` (K is `k`).
+    let hint = out.split_once("e.g. `.").and_then(|(head, tail)| {
+        let (call, rest) = tail.split_once('`')?;
+        let (name, value) = call.strip_suffix(')')?.split_once('(')?;
+        let name = if name == "iterations" { "k" } else { name };
+        Some(format!("{head}e.g. `{name}={value}`{rest}"))
+    });
+    hint.unwrap_or(out)
 }
 
 /// A `ModelBuildError` as the package exception, naming the Python argument.
 fn build_err(e: &ModelBuildError) -> PyErr {
     match e {
         ModelBuildError::Invalid { field, problem } => {
-            let msg = format!("argument `{}`: {}", python_text(field), python_text(problem));
+            let msg = format!(
+                "argument `{}`: {}",
+                python_text(field),
+                python_text(problem)
+            );
             // The kind of the problem, from the checks' own wording.
             if problem.contains("positive definite") || problem.contains("symmetric") {
                 NotPositiveDefiniteError::new_err(msg)

@@ -110,11 +110,15 @@ def test_mpc_weights():
         (dict(disturbance_box=([-0.01] * 2, [0.01] * 2)), sm.ShapeError, "disturbance_box"),
         (dict(disturbance_box=([0.01] * 3, [0.02] * 3)), sm.InputError, "disturbance_box"),
         (dict(input_box=([float("nan")], [1.0])), sm.NonFiniteError, "input_box"),
-        (dict(input_box=[-1.0, 1.0]), sm.ShapeError, "input_box"),
+        (dict(input_box=([-1.0, -1.0], [1.0, 1.0])), sm.ShapeError, "input_box"),
+        (dict(input_box=(-1.0,)), sm.InputError, "input_box"),
         (dict(state_box=([-0.5, -1.0], [0.5, 1.0])), sm.InputError, "x0"),
         (dict(x0=[1.0, float("inf")]), sm.NonFiniteError, "x0"),
         (dict(prior=[0.0]), sm.ShapeError, "prior"),
         (dict(w_bar=-1.0), sm.InputError, "w_bar"),
+        # Huge sizes: refused by the scenario's limits before anything is allocated.
+        (dict(mhe=dict(horizon=100_000, eta=0.8, k=10)), sm.InputError, 'mhe["horizon"]'),
+        (dict(disturbance_box=([-1e300] * 3, [0.01] * 3)), sm.InputError, "disturbance_box[0]"),
     ],
 )
 def test_bad_model_arguments_raise_named_errors(over, exc, names):

@@ -150,3 +150,15 @@ def test_bad_certify_arguments_raise_named_errors(kwargs, exc, name):
 def test_model_needs_a_plant():
     with pytest.raises(sm.InputError, match="`plant`"):
         sm.Model("double-integrator", mhe=dict(horizon=9, eta=0.8, k=10), mpc_horizon=10)
+
+
+def test_docs_quick_start_runs(root, capsys):
+    # docs/python.md's quick start, as written: a certified estimator on one's own plant.
+    doc = (root / "docs" / "python.md").read_text()
+    code = doc.split("## Quick start")[1].split("```python\n")[1].split("```")[0]
+    assert len(code.strip().splitlines()) <= 15
+    ns = {}
+    exec(compile(code, "docs/python.md", "exec"), ns)
+    assert ns["cert"].verdict("admm-pr", 200)["certified"] == "yes"
+    assert ns["cert"].k_min("admm-pr") == 189
+    assert ns["sim"]["x"].shape == (101, 2)

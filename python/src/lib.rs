@@ -6,10 +6,11 @@
 //! checks that name the Python argument, docstrings and the result classes. No numerical
 //! routine lives here: the numbers are the CLI's, computed by the same functions.
 
-use closed_loop::scenario::{LoopOptions, Scenario};
+use closed_loop::scenario::{ControllerChoice, LoopOptions, ResolvedScenario, Scenario};
 use faer::Mat;
+use iss_certificate::certificate::ClosedLoopCertificate;
 use iss_certificate::certificate::{CertificateOptions, Gamma13Source, certify_closed_loop};
-use iss_certificate::coverage::verdict_options;
+use iss_certificate::coverage::{self, Configuration, Scalar, verdict_options};
 use iss_certificate::{Certificate, CertifyOptions, LoopModel, ModelBuildError, certify};
 use lti_model::spec::MatrixSpec;
 use lti_model::{LtiSystem, ModelError};
@@ -439,7 +440,7 @@ fn certify_json(
     enumeration_max_vars: usize,
     k_max: usize,
     gamma13: Option<f64>,
-) -> PyResult<String> {
+) -> PyResult<PyCertificate> {
     let sc = scenario.scenario.clone();
     let mhe = sc.mhe.as_ref().ok_or_else(|| {
         ScenarioError::new_err(
@@ -467,11 +468,25 @@ fn certify_json(
         k_max,
         ..verdict
     };
+    let controller = match sc
+        .mpc
+        .as_ref()
+        .and_then(|m| m.iterations.map(|k| (k, m.method)))
+    {
+        Some((iterations, method)) => ControllerChoice::SuboptimalMpc { iterations, method },
+        None => ControllerChoice::ExactMpc,
+    };
     // PyErr is built lazily, so it may be made without the GIL.
     py.detach(move || {
         let resolved = sc.resolve().map_err(|e| loop_err(&e))?;
         let cert = certify_closed_loop(&resolved, &opts).map_err(|e| loop_err(&e))?;
-        serde_json::to_string(&cert).map_err(|e| MheError::new_err(e.to_string()))
+        Ok(PyCertificate {
+            held: Held::Scenario {
+                resolved: Box::new(resolved),
+                cert: Box::new(cert),
+                controller,
+            },
+        })
     })
 }
 
@@ -802,26 +817,60 @@ impl Model {
     }
 }
 
-/// The certificate of a `_Model` (`iss_certificate::Certificate`): its JSON and the verdict.
+/// A certificate and what its verdicts need.
+#[derive(Debug)]
+enum Held {
+    /// Of a `_Model`: `iss_certificate::Certificate`.
+    Model(Box<Certificate>),
+    /// Of a scenario, with reproduce's options: the verdict is `coverage::verdict` on it,
+    /// as reproduce's `at_scenario`.
+    Scenario {
+        resolved: Box<ResolvedScenario>,
+        cert: Box<ClosedLoopCertificate>,
+        controller: ControllerChoice,
+    },
+}
+
+/// The closed-loop certificate: its JSON and the verdict at any (method, K).
 #[pyclass(module = "suboptimal_mhe._native", name = "_Certificate", frozen)]
 struct PyCertificate {
-    cert: Certificate,
+    held: Held,
 }
 
 #[pymethods]
 impl PyCertificate {
     /// The serde JSON of the closed-loop certificate (certificate.json's `certificate`).
     fn json(&self) -> PyResult<String> {
-        serde_json::to_string(self.cert.closed_loop()).map_err(|e| MheError::new_err(e.to_string()))
+        let cert = match &self.held {
+            Held::Model(c) => c.closed_loop(),
+            Held::Scenario { cert, .. } => cert,
+        };
+        serde_json::to_string(cert).map_err(|e| MheError::new_err(e.to_string()))
     }
 
-    /// `Certificate::verdict(method, k)` as JSON (`PairVerdict`).
+    /// The one verdict rule at (method, k) as JSON (`PairVerdict`): `Certificate::verdict`
+    /// for a model, `coverage::verdict` (the same function) for a scenario.
     fn verdict(&self, method: &str, k: usize) -> PyResult<String> {
         let method: Method = method.parse().map_err(|e: qp_iter::QpError| {
             InputError::new_err(format!("argument `method`: {e}"))
         })?;
-        serde_json::to_string(&self.cert.verdict(method, k))
-            .map_err(|e| MheError::new_err(e.to_string()))
+        let v = match &self.held {
+            Held::Model(c) => c.verdict(method, k),
+            Held::Scenario {
+                resolved,
+                cert,
+                controller,
+            } => {
+                let config = Configuration {
+                    method,
+                    k_e: k,
+                    controller: *controller,
+                    scalar: Scalar::F64,
+                };
+                coverage::verdict(resolved, cert, &config)
+            }
+        };
+        serde_json::to_string(&v).map_err(|e| MheError::new_err(e.to_string()))
     }
 }
 
@@ -856,7 +905,9 @@ fn certify_model(
     let cert = py
         .detach(move || certify(&model, &opts))
         .map_err(|e| build_err(&e))?;
-    Ok(PyCertificate { cert })
+    Ok(PyCertificate {
+        held: Held::Model(Box::new(cert)),
+    })
 }
 
 #[pymodule]

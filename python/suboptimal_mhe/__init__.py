@@ -544,7 +544,7 @@ class Certificate:
     reproduce`` writes it (docs/reproduce-output.md); the attributes are shortcuts.
     """
 
-    def __init__(self, text: str, native: Any = None) -> None:
+    def __init__(self, text: str, native: Any) -> None:
         self._json = text
         self._dict: Dict[str, Any] = json.loads(text)
         self._native = native
@@ -555,13 +555,8 @@ class Certificate:
         A dict: ``certified`` (``"yes"``, ``"no"``: too few iterations, ``"void"``: a premise
         fails, ``reason`` says which, or ``"not_computed"``: the analysis budget stopped a
         phase), ``k_min``, ``margin`` (1 − ρ(Γ)), ``certificate`` (``"theorem1"``/``"joint"``).
-        Available on the certificate of a :class:`Model`; for a scenario, build its Model.
+        For a scenario it is reproduce's ``at_scenario`` at the scenario's method and K.
         """
-        if self._native is None:
-            raise UnsupportedError(
-                "verdict() needs the certificate of a suboptimal_mhe.Model: certify(Model(...)) "
-                "(a scenario's certificate carries reproduce's sampling options, not the verdict's)"
-            )
         if not isinstance(method, str):
             raise InputError(f"argument `method` must be a str, one of {METHODS} (optionally with -jacobi)")
         k = _positive_int("k", k, "K is the number of iterations per step")
@@ -668,7 +663,7 @@ def certify(
         if not (math.isfinite(g) and g >= 0.0):
             raise OutOfRangeError(f"argument `gamma13` = {gamma13!r} must be a finite number >= 0")
         gamma13 = g
-    text = _native.certify_json(
+    native = _native.certify_json(
         sc._native,
         lipschitz_pairs=int(lipschitz_pairs),
         gamma13_sequences=int(gamma13_sequences),
@@ -676,7 +671,7 @@ def certify(
         k_max=k_max,
         gamma13=gamma13,
     )
-    return Certificate(text)
+    return Certificate(native.json(), native)
 
 
 def simulate(

@@ -64,12 +64,6 @@ def test_verdict_is_certificate_verdict(from_numpy):
     assert only_pg.k_min("pg") == from_numpy.k_min("pg")
 
 
-def test_scenario_certificate_has_no_verdict(root):
-    cert = sm.certify(root / SCENARIO, lipschitz_pairs=0, gamma13_sequences=0)
-    with pytest.raises(sm.UnsupportedError, match="Model"):
-        cert.verdict("admm-pr", 10)
-
-
 def test_model_properties_and_scenario():
     m = model(w_bar=0.02)
     assert m.k == 10 and m.w_bar == 0.02

@@ -8,7 +8,7 @@
 #   3. `maturin build --release` into target/wheels, `pip install` of that wheel;
 #   4. pytest on python/tests, comparing with the release CLI (XTASK, built when missing).
 #
-# Usage: scripts/python.sh   (cold: 6.2 CPU-min, ≈ 3–4 min on 2 idle cores; warm: 35–50 s; docs/python.md)
+# Usage: scripts/python.sh   (cold: 6.2 CPU-min, ≈ 3–4 min on 2 idle cores; warm: 14–40 s; docs/python.md)
 # Env: VENV=dir  XTASK=path/to/xtask  CARGO_TARGET_DIR (default: the workspace's target/)
 set -euo pipefail
 

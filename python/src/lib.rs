@@ -6,12 +6,16 @@
 //! checks that name the Python argument, docstrings and the result classes. No numerical
 //! routine lives here: the numbers are the CLI's, computed by the same functions.
 
-use closed_loop::scenario::{LoopOptions, Scenario};
+use closed_loop::scenario::{ControllerChoice, LoopOptions, ResolvedScenario, Scenario};
 use faer::Mat;
+use iss_certificate::certificate::ClosedLoopCertificate;
 use iss_certificate::certificate::{CertificateOptions, Gamma13Source, certify_closed_loop};
-use iss_certificate::coverage::verdict_options;
+use iss_certificate::coverage::{self, Configuration, Scalar, verdict_options};
+use iss_certificate::{Certificate, CertifyOptions, LoopModel, ModelBuildError, certify};
+use lti_model::spec::MatrixSpec;
 use lti_model::{LtiSystem, ModelError};
 use mhe_core::{MheError as RustMheError, MheEstimator, MheSets, MheSettings};
+use mpc_core::settings::{MpcSettings, RawMpc};
 use numpy::{PyArray1, PyArray2, PyArrayMethods, PyReadonlyArray1, PyReadonlyArray2};
 use pyo3::create_exception;
 use pyo3::exceptions::PyValueError;
@@ -436,7 +440,7 @@ fn certify_json(
     enumeration_max_vars: usize,
     k_max: usize,
     gamma13: Option<f64>,
-) -> PyResult<String> {
+) -> PyResult<PyCertificate> {
     let sc = scenario.scenario.clone();
     let mhe = sc.mhe.as_ref().ok_or_else(|| {
         ScenarioError::new_err(
@@ -464,11 +468,25 @@ fn certify_json(
         k_max,
         ..verdict
     };
+    let controller = match sc
+        .mpc
+        .as_ref()
+        .and_then(|m| m.iterations.map(|k| (k, m.method)))
+    {
+        Some((iterations, method)) => ControllerChoice::SuboptimalMpc { iterations, method },
+        None => ControllerChoice::ExactMpc,
+    };
     // PyErr is built lazily, so it may be made without the GIL.
     py.detach(move || {
         let resolved = sc.resolve().map_err(|e| loop_err(&e))?;
         let cert = certify_closed_loop(&resolved, &opts).map_err(|e| loop_err(&e))?;
-        serde_json::to_string(&cert).map_err(|e| MheError::new_err(e.to_string()))
+        Ok(PyCertificate {
+            held: Held::Scenario {
+                resolved: Box::new(resolved),
+                cert: Box::new(cert),
+                controller,
+            },
+        })
     })
 }
 
@@ -564,6 +582,334 @@ fn simulate<'py>(
     Ok(d)
 }
 
+/// The Python argument a Rust item of `LoopModelBuilder::build` / `certify` comes from
+/// (`MheSettings::eta` → `mhe["eta"]`), longest names first so none is cut by a prefix.
+const PY_NAMES: [(&str, &str); 27] = [
+    ("LoopModelBuilder::disturbance_box", "disturbance_box"),
+    ("LoopModelBuilder::initial_state", "x0"),
+    ("LoopModelBuilder::output_box", "output_box"),
+    ("LoopModelBuilder::state_box", "state_box"),
+    ("LoopModelBuilder::input_box", "input_box"),
+    ("LoopModelBuilder::prior", "prior"),
+    ("LoopModelBuilder::w_bar", "w_bar"),
+    ("LoopModelBuilder::mhe", "mhe"),
+    ("LoopModelBuilder::mpc", "mpc"),
+    ("MheSettings::iterations", "mhe[\"k\"]"),
+    ("MheSettings::warm_start", "mhe[\"warm_start\"]"),
+    ("MheSettings::horizon", "mhe[\"horizon\"]"),
+    ("MheSettings::method", "mhe[\"method\"]"),
+    ("MheSettings::eta", "mhe[\"eta\"]"),
+    ("MheSettings::q", "mhe[\"q\"]"),
+    ("MheSettings::r", "mhe[\"r\"]"),
+    ("MheSettings::p", "mhe[\"p\"]"),
+    ("MpcSettings::horizon", "mpc[\"horizon\"]"),
+    ("MpcSettings::q", "mpc[\"q\"]"),
+    ("MpcSettings::r", "mpc[\"r\"]"),
+    ("CertifyOptions::phase_seconds", "phase_seconds"),
+    ("CertifyOptions::gamma13", "gamma13"),
+    ("CertifyOptions::methods", "methods"),
+    ("LtiSystem::a", "plant.A"),
+    ("LtiSystem::b", "plant.B"),
+    ("LtiSystem::c", "plant.C"),
+    ("LtiSystem", "plant"),
+];
+
+/// `text` with the Rust items named as the Python arguments, and the builder-call hints
+/// (`.iterations(50)`) as keyword arguments.
+fn python_text(text: &str) -> String {
+    let mut out = text.to_string();
+    for (rust, py) in PY_NAMES {
+        out = out.replace(rust, py);
+    }
+    out = out
+        .replace(".mpc_horizon(10)", "mpc_horizon=10")
+        .replace(
+            ".mhe(MheSettings::builder().horizon(10).eta(0.8).iterations(50))",
+            "mhe=dict(horizon=10, eta=0.8, k=50)",
+        )
+        .replace(".mpc(settings)", "mpc=dict(horizon=10, q=1.0, r=1.0)")
+        .replace("vec![Method::PG]", "[\"pg\"]")
+        .replace("_box.lower", "_box[0]")
+        .replace("_box.upper", "_box[1]");
+    // A builder-call hint `.name(value)` as the dict entry `name=value` (K is `k`).
+    let hint = out.split_once("e.g. `.").and_then(|(head, tail)| {
+        let (call, rest) = tail.split_once('`')?;
+        let (name, value) = call.strip_suffix(')')?.split_once('(')?;
+        let name = if name == "iterations" { "k" } else { name };
+        Some(format!("{head}e.g. `{name}={value}`{rest}"))
+    });
+    hint.unwrap_or(out)
+}
+
+/// A `ModelBuildError` as the package exception, naming the Python argument.
+fn build_err(e: &ModelBuildError) -> PyErr {
+    match e {
+        ModelBuildError::Invalid { field, problem } => {
+            let msg = format!(
+                "argument `{}`: {}",
+                python_text(field),
+                python_text(problem)
+            );
+            // The kind of the problem, from the checks' own wording.
+            if problem.contains("positive definite") || problem.contains("symmetric") {
+                NotPositiveDefiniteError::new_err(msg)
+            } else if problem.contains("finite") && !problem.contains("finite number") {
+                NonFiniteError::new_err(msg)
+            } else if problem.contains("shape")
+                || problem.contains("entries")
+                || problem.contains("dimension")
+                || problem.contains("length")
+            {
+                ShapeError::new_err(msg)
+            } else {
+                InputError::new_err(msg)
+            }
+        }
+        ModelBuildError::Missing { part, why } => InputError::new_err(format!(
+            "argument `{}` is missing: {}",
+            python_text(part),
+            python_text(why)
+        )),
+        ModelBuildError::Certificate { problem } => CertificateError::new_err(format!(
+            "the certificate could not be computed: {}",
+            python_text(problem)
+        )),
+        other => MheError::new_err(python_text(&other.to_string())),
+    }
+}
+
+/// A box set (lower, upper) of the Python arguments.
+type PyBox<'py> = (PyReadonlyArray1<'py, f64>, PyReadonlyArray1<'py, f64>);
+
+/// A closed loop built from NumPy values (`iss_certificate::LoopModel` through its builder).
+#[pyclass(module = "suboptimal_mhe._native", name = "_Model", frozen)]
+struct Model {
+    model: LoopModel,
+}
+
+/// `(lower, upper)` of a box argument as slices.
+fn box_of<'a>(b: &'a PyBox<'_>, name: &str) -> PyResult<(&'a [f64], &'a [f64])> {
+    Ok((
+        slice_of(&b.0, &format!("{name}[0]"))?,
+        slice_of(&b.1, &format!("{name}[1]"))?,
+    ))
+}
+
+#[pymethods]
+impl Model {
+    #[new]
+    #[pyo3(signature = (plant, horizon, eta, k, method, q=None, r=None, p=None,
+        mpc_horizon=None, mpc_q=None, mpc_r=None, state_box=None, input_box=None,
+        output_box=None, disturbance_box=None, x0=None, prior=None, w_bar=None, name=None))]
+    fn new(
+        py: Python<'_>,
+        plant: &Plant,
+        horizon: usize,
+        eta: f64,
+        k: usize,
+        method: &str,
+        q: Option<PyReadonlyArray2<'_, f64>>,
+        r: Option<PyReadonlyArray2<'_, f64>>,
+        p: Option<PyReadonlyArray2<'_, f64>>,
+        mpc_horizon: Option<usize>,
+        mpc_q: Option<PyReadonlyArray2<'_, f64>>,
+        mpc_r: Option<PyReadonlyArray2<'_, f64>>,
+        state_box: Option<PyBox<'_>>,
+        input_box: Option<PyBox<'_>>,
+        output_box: Option<PyBox<'_>>,
+        disturbance_box: Option<PyBox<'_>>,
+        x0: Option<PyReadonlyArray1<'_, f64>>,
+        prior: Option<PyReadonlyArray1<'_, f64>>,
+        w_bar: Option<f64>,
+        name: Option<&str>,
+    ) -> PyResult<Self> {
+        let method: Method = method.parse().map_err(|e: qp_iter::QpError| {
+            InputError::new_err(format!("argument `mhe[\"method\"]`: {e}"))
+        })?;
+        let mut mhe = MheSettings::builder()
+            .horizon(horizon)
+            .eta(eta)
+            .iterations(k)
+            .method(method);
+        if let Some(q) = &q {
+            mhe = mhe.q(&mat_of(q));
+        }
+        if let Some(r) = &r {
+            mhe = mhe.r(&mat_of(r));
+        }
+        if let Some(p) = &p {
+            mhe = mhe.p(&mat_of(p));
+        }
+        let mut b = LoopModel::builder(plant.sys.clone()).mhe(mhe);
+        if let Some(name) = name {
+            b = b.name(name);
+        }
+        if let Some(s) = &state_box {
+            let (l, u) = box_of(s, "state_box")?;
+            b = b.state_box(l, u);
+        }
+        if let Some(s) = &input_box {
+            let (l, u) = box_of(s, "input_box")?;
+            b = b.input_box(l, u);
+        }
+        if let Some(s) = &output_box {
+            let (l, u) = box_of(s, "output_box")?;
+            b = b.output_box(l, u);
+        }
+        if let Some(s) = &disturbance_box {
+            let (l, u) = box_of(s, "disturbance_box")?;
+            b = b.disturbance_box(l, u);
+        }
+        if let Some(x0) = &x0 {
+            b = b.initial_state(slice_of(x0, "x0")?);
+        }
+        if let Some(prior) = &prior {
+            b = b.prior(slice_of(prior, "prior")?);
+        }
+        if let Some(w) = w_bar {
+            b = b.w_bar(w);
+        }
+        if let Some(n) = mpc_horizon {
+            if mpc_q.is_none() && mpc_r.is_none() {
+                b = b.mpc_horizon(n);
+            } else {
+                let rows = |m: &PyReadonlyArray2<'_, f64>| {
+                    MatrixSpec::Rows(lti_model::matrix::to_rows(mat_of(m).as_ref()))
+                };
+                let raw = RawMpc {
+                    horizon: Some(n),
+                    q: mpc_q.as_ref().map(rows),
+                    r: mpc_r.as_ref().map(rows),
+                    ..Default::default()
+                };
+                let settings = MpcSettings::from_raw(&raw, &plant.sys).map_err(|e| match e {
+                    ModelError::Scenario { key, problem } => {
+                        let arg = key.strip_prefix("mpc.").unwrap_or(&key);
+                        InputError::new_err(format!("argument `mpc[\"{arg}\"]`: {problem}"))
+                    }
+                    other => model_err(&other),
+                })?;
+                b = b.mpc(settings);
+            }
+        }
+        // LMI (2) for P and the MPC's Riccati equation: the long part, without the GIL.
+        let model = py.detach(move || b.build()).map_err(|e| build_err(&e))?;
+        Ok(Self { model })
+    }
+
+    /// K, the MHE's iterations per step.
+    #[getter]
+    fn k(&self) -> usize {
+        self.model.iterations()
+    }
+
+    /// w̄: the given bound, else the largest ‖w‖₂ over 𝒲 (None when 𝒲 is unbounded).
+    #[getter]
+    fn w_bar(&self) -> Option<f64> {
+        self.model.w_bar()
+    }
+
+    /// The model as a validated scenario (for `simulate` and `to_toml`).
+    fn scenario(&self) -> PyScenario {
+        PyScenario {
+            scenario: self.model.scenario().clone(),
+        }
+    }
+}
+
+/// A certificate and what its verdicts need.
+#[derive(Debug)]
+enum Held {
+    /// Of a `_Model`: `iss_certificate::Certificate`.
+    Model(Box<Certificate>),
+    /// Of a scenario, with reproduce's options: the verdict is `coverage::verdict` on it,
+    /// as reproduce's `at_scenario`.
+    Scenario {
+        resolved: Box<ResolvedScenario>,
+        cert: Box<ClosedLoopCertificate>,
+        controller: ControllerChoice,
+    },
+}
+
+/// The closed-loop certificate: its JSON and the verdict at any (method, K).
+#[pyclass(module = "suboptimal_mhe._native", name = "_Certificate", frozen)]
+struct PyCertificate {
+    held: Held,
+}
+
+#[pymethods]
+impl PyCertificate {
+    /// The serde JSON of the closed-loop certificate (certificate.json's `certificate`).
+    fn json(&self) -> PyResult<String> {
+        let cert = match &self.held {
+            Held::Model(c) => c.closed_loop(),
+            Held::Scenario { cert, .. } => cert,
+        };
+        serde_json::to_string(cert).map_err(|e| MheError::new_err(e.to_string()))
+    }
+
+    /// The one verdict rule at (method, k) as JSON (`PairVerdict`): `Certificate::verdict`
+    /// for a model, `coverage::verdict` (the same function) for a scenario.
+    fn verdict(&self, method: &str, k: usize) -> PyResult<String> {
+        let method: Method = method.parse().map_err(|e: qp_iter::QpError| {
+            InputError::new_err(format!("argument `method`: {e}"))
+        })?;
+        let v = match &self.held {
+            Held::Model(c) => c.verdict(method, k),
+            Held::Scenario {
+                resolved,
+                cert,
+                controller,
+            } => {
+                let config = Configuration {
+                    method,
+                    k_e: k,
+                    controller: *controller,
+                    scalar: Scalar::F64,
+                };
+                coverage::verdict(resolved, cert, &config)
+            }
+        };
+        serde_json::to_string(&v).map_err(|e| MheError::new_err(e.to_string()))
+    }
+}
+
+/// `iss_certificate::certify(model, options)`: Theorem 1 for `methods` with the options of
+/// every command's verdicts (`CertifyOptions`).
+#[pyfunction]
+#[pyo3(signature = (model, methods=None, gamma13=None, phase_seconds=None, seed=0))]
+fn certify_model(
+    py: Python<'_>,
+    model: &Model,
+    methods: Option<Vec<String>>,
+    gamma13: Option<f64>,
+    phase_seconds: Option<f64>,
+    seed: u64,
+) -> PyResult<PyCertificate> {
+    let mut opts = CertifyOptions::default().with_seed(seed);
+    if let Some(names) = methods {
+        let parsed = names
+            .iter()
+            .map(|m| m.parse::<Method>())
+            .collect::<Result<Vec<_>, _>>()
+            .map_err(|e| InputError::new_err(format!("argument `methods`: {e}")))?;
+        opts = opts.with_methods(parsed);
+    }
+    if let Some(g) = gamma13 {
+        opts = opts.with_gamma13(g);
+    }
+    if let Some(s) = phase_seconds {
+        opts = opts.with_phase_seconds(s);
+    }
+    let model = model.model.clone();
+    let cert = py
+        .detach(move || certify(&model, &opts))
+        .map_err(|e| build_err(&e))?;
+    Ok(PyCertificate {
+        held: Held::Model(Box::new(cert)),
+    })
+}
+
 #[pymodule]
 fn _native(m: &Bound<'_, PyModule>) -> PyResult<()> {
     let py = m.py();
@@ -585,6 +931,9 @@ fn _native(m: &Bound<'_, PyModule>) -> PyResult<()> {
     m.add_class::<Plant>()?;
     m.add_class::<Estimator>()?;
     m.add_class::<PyScenario>()?;
+    m.add_class::<Model>()?;
+    m.add_class::<PyCertificate>()?;
+    m.add_function(wrap_pyfunction!(certify_model, m)?)?;
     m.add_function(wrap_pyfunction!(certify_json, m)?)?;
     m.add_function(wrap_pyfunction!(simulate, m)?)?;
     Ok(())

@@ -43,6 +43,7 @@ __all__ = [
     "Plant",
     "Estimator",
     "Scenario",
+    "Model",
     "Certificate",
     "certify",
     "simulate",
@@ -372,11 +373,162 @@ class Scenario:
 def _scenario(s: Any) -> Scenario:
     if isinstance(s, Scenario):
         return s
+    if isinstance(s, Model):
+        return s.scenario
     if isinstance(s, (str, os.PathLike)):
         return Scenario.from_file(s)
     raise InputError(
         f"argument `scenario` must be a Scenario or a path to a scenario file, got {type(s).__name__}"
     )
+
+
+_MHE_KEYS = ("horizon", "eta", "k", "method", "q", "r", "p")
+_MPC_KEYS = ("horizon", "q", "r")
+
+
+def _box(name: str, value: Any, n: int) -> Optional[tuple]:
+    """A box argument ``(lower, upper)``: two float64 vectors of length n (±inf allowed)."""
+    if value is None:
+        return None
+    if not isinstance(value, (tuple, list)) or len(value) != 2:
+        raise InputError(f"argument `{name}` must be a pair (lower, upper) of length-{n} vectors")
+    out = []
+    for i, v in enumerate(value):
+        try:
+            arr = np.asarray(v, dtype=np.float64)
+        except (TypeError, ValueError) as e:
+            raise InputError(f"argument `{name}[{i}]` is not a numeric vector ({e})") from None
+        arr = arr.reshape(1) if arr.ndim == 0 else arr
+        if arr.ndim != 1 or arr.shape[0] != n:
+            raise ShapeError(f"argument `{name}[{i}]` has shape {arr.shape}, expected a vector of length {n}")
+        if np.any(np.isnan(arr)):
+            raise NonFiniteError(f"argument `{name}[{i}]` has a NaN entry; bounds are numbers or ±inf")
+        out.append(np.ascontiguousarray(arr))
+    return (out[0], out[1])
+
+
+def _settings(name: str, value: Any, keys: tuple, required: tuple) -> Dict[str, Any]:
+    if not isinstance(value, dict):
+        raise InputError(f"argument `{name}` must be a dict with keys {keys}, e.g. dict(horizon=10, eta=0.8, k=50)")
+    unknown = sorted(set(value) - set(keys))
+    if unknown:
+        raise InputError(f"argument `{name}` has unknown keys {unknown}; the keys are {keys}")
+    missing = [k for k in required if value.get(k) is None]
+    if missing:
+        raise InputError(f"argument `{name}` lacks {missing}; e.g. dict(horizon=10, eta=0.8, k=50)")
+    return value
+
+
+class Model:
+    """A closed loop from NumPy values: the plant, the sets, the MHE, the MPC and w̄.
+
+    Built by ``iss_certificate::LoopModel::builder`` with the checks of a scenario file, so
+    ``certify(model)`` equals the certificate of the same values written as a TOML scenario.
+
+    ``mhe`` is a dict: ``horizon`` (M, steps), ``eta`` (η ∈ [0, 1)), ``k`` (K, iterations
+    per step), ``method`` (default ``"pg"``, one of :data:`METHODS`, optionally
+    ``-jacobi``), ``q`` (n_w x n_w), ``r`` (n_y x n_y), ``p`` (n_x x n_x; default from
+    LMI (2)); a scalar weight s means s·I. The MPC is ``mpc_horizon=N`` (the exact MPC,
+    Q_c = I, R_c = I, DARE terminal cost) or ``mpc=dict(horizon=N, q=..., r=...)``.
+    Boxes are pairs ``(lower, upper)`` in the plant's units (±inf allowed, containing 0;
+    omitted: the whole space): ``state_box`` 𝒳, ``input_box`` 𝒰, ``output_box`` 𝒴,
+    ``disturbance_box`` 𝒲 for w = (w¹, w²). ``x0`` is the true initial state and
+    ``prior`` x̄₀ (default 0); ``w_bar`` a bound on ‖w_t‖₂ (default: the largest over 𝒲).
+    Errors name the argument (``mhe["eta"]``, ``input_box``) and the fix.
+    """
+
+    def __init__(
+        self,
+        plant: Plant,
+        *,
+        mhe: Dict[str, Any],
+        mpc_horizon: Optional[int] = None,
+        mpc: Optional[Dict[str, Any]] = None,
+        state_box: Any = None,
+        input_box: Any = None,
+        output_box: Any = None,
+        disturbance_box: Any = None,
+        x0: Any = None,
+        prior: Any = None,
+        w_bar: Optional[float] = None,
+        name: Optional[str] = None,
+    ) -> None:
+        if not isinstance(plant, Plant):
+            raise InputError(f"argument `plant` must be a suboptimal_mhe.Plant, got {type(plant).__name__}")
+        nx, nu, ny, nw = plant.nx, plant.nu, plant.ny, plant.nw
+        m = _settings("mhe", mhe, _MHE_KEYS, ("horizon", "eta", "k"))
+        horizon = _positive_int('mhe["horizon"]', m["horizon"], "the horizon M is a number of steps, e.g. 10")
+        k = _positive_int('mhe["k"]', m["k"], "K is the number of iterations per step, e.g. 50")
+        try:
+            eta = _eta(m["eta"])
+        except InputError as e:
+            raise type(e)(str(e).replace("argument `eta`", 'argument `mhe["eta"]`')) from None
+        method = m.get("method") or "pg"
+        if not isinstance(method, str):
+            raise InputError(f'argument `mhe["method"]` must be a str, one of {METHODS} (optionally with -jacobi)')
+        q = None if m.get("q") is None else _weight('mhe["q"]', m["q"], nw)
+        r = None if m.get("r") is None else _weight('mhe["r"]', m["r"], ny)
+        p = None if m.get("p") is None else _weight('mhe["p"]', m["p"], nx)
+        if (mpc_horizon is None) == (mpc is None):
+            raise InputError(
+                "give the MPC once: `mpc_horizon=10` (the exact MPC, Q_c = I, R_c = I) or "
+                "`mpc=dict(horizon=10, q=1.0, r=1.0)`; Theorem 1 needs its L_π and γ₁,₃"
+            )
+        mpc_q = mpc_r = None
+        if mpc is not None:
+            c = _settings("mpc", mpc, _MPC_KEYS, ("horizon",))
+            mpc_horizon = _positive_int('mpc["horizon"]', c["horizon"], "the MPC horizon N, e.g. 10")
+            mpc_q = None if c.get("q") is None else _weight('mpc["q"]', c["q"], nx)
+            mpc_r = None if c.get("r") is None else _weight('mpc["r"]', c["r"], nu)
+        else:
+            mpc_horizon = _positive_int("mpc_horizon", mpc_horizon, "the MPC horizon N, e.g. 10")
+        if w_bar is not None:
+            try:
+                w_bar = float(w_bar)
+            except (TypeError, ValueError):
+                raise InputError(f"argument `w_bar` must be a number >= 0, got {w_bar!r}") from None
+        if name is not None and not isinstance(name, str):
+            raise InputError(f"argument `name` must be a str, got {type(name).__name__}")
+        self.plant = plant
+        self._native = _native._Model(
+            plant._native,
+            horizon,
+            eta,
+            k,
+            method,
+            q=q,
+            r=r,
+            p=p,
+            mpc_horizon=mpc_horizon,
+            mpc_q=mpc_q,
+            mpc_r=mpc_r,
+            state_box=_box("state_box", state_box, nx),
+            input_box=_box("input_box", input_box, nu),
+            output_box=_box("output_box", output_box, ny),
+            disturbance_box=_box("disturbance_box", disturbance_box, nw),
+            x0=None if x0 is None else _vector("x0", x0, nx),
+            prior=None if prior is None else _vector("prior", prior, nx),
+            w_bar=w_bar,
+            name=name,
+        )
+
+    @property
+    def k(self) -> int:
+        """K, the MHE's iterations per step."""
+        return self._native.k
+
+    @property
+    def w_bar(self) -> Optional[float]:
+        """w̄ (given, else the largest ‖w‖₂ over 𝒲; ``None`` when 𝒲 is unbounded)."""
+        return self._native.w_bar
+
+    @property
+    def scenario(self) -> "Scenario":
+        """The model as a validated scenario (``to_toml()`` writes it for ``cargo xtask``)."""
+        return Scenario(self._native.scenario())
+
+    def __repr__(self) -> str:
+        return f"Model({self.plant!r}, k={self.k})"
 
 
 # --------------------------------------------------------------------------------------
@@ -392,9 +544,23 @@ class Certificate:
     reproduce`` writes it (docs/reproduce-output.md); the attributes are shortcuts.
     """
 
-    def __init__(self, text: str) -> None:
+    def __init__(self, text: str, native: Any) -> None:
         self._json = text
         self._dict: Dict[str, Any] = json.loads(text)
+        self._native = native
+
+    def verdict(self, method: str, k: int) -> Dict[str, Any]:
+        """Is ``k`` iterations of ``method`` per step certified? (``Certificate::verdict``.)
+
+        A dict: ``certified`` (``"yes"``, ``"no"``: too few iterations, ``"void"``: a premise
+        fails, ``reason`` says which, or ``"not_computed"``: the analysis budget stopped a
+        phase), ``k_min``, ``margin`` (1 − ρ(Γ)), ``certificate`` (``"theorem1"``/``"joint"``).
+        For a scenario it is reproduce's ``at_scenario`` at the scenario's method and K.
+        """
+        if not isinstance(method, str):
+            raise InputError(f"argument `method` must be a str, one of {METHODS} (optionally with -jacobi)")
+        k = _positive_int("k", k, "K is the number of iterations per step")
+        return json.loads(self._native.verdict(method, k))
 
     def to_json(self) -> str:
         """The JSON text, as the Rust code serialised it."""
@@ -438,19 +604,51 @@ class Certificate:
 
 
 def certify(
-    scenario: "Scenario | str | os.PathLike[str]",
+    scenario: "Model | Scenario | str | os.PathLike[str]",
     *,
+    methods: Optional[List[str]] = None,
+    seed: int = 0,
+    phase_seconds: Optional[float] = None,
     lipschitz_pairs: int = 200,
     gamma13_sequences: int = 30,
     enumeration_max_vars: int = 20,
     k_max: int = 1 << 24,
     gamma13: Optional[float] = None,
 ) -> Certificate:
-    """The closed-loop certificate of a scenario (needs its ``[mhe]`` and ``[mpc]`` sections).
+    """The closed-loop certificate (Theorem 1 per method) of a :class:`Model` or a scenario.
 
-    The options are ``cargo xtask reproduce``'s (same defaults), so the result equals the
-    ``certificate`` key of its certificate.json. The GIL is released while it runs.
+    A :class:`Model` is certified by ``iss_certificate::certify`` with the options of every
+    command's verdicts (``methods``: default the four named methods plain and Jacobi-scaled;
+    ``gamma13``; ``phase_seconds``: the analysis budget per optional phase; ``seed`` of the
+    sampled estimates); its :class:`Certificate` also answers ``verdict(method, k)``.
+    A scenario (needs ``[mhe]`` and ``[mpc]``) is certified with ``cargo xtask reproduce``'s
+    options (``lipschitz_pairs``, ``gamma13_sequences``, ``enumeration_max_vars``,
+    ``k_max``; same defaults), so the result equals the ``certificate`` key of its
+    certificate.json. The GIL is released while it runs.
     """
+    if isinstance(scenario, Model):
+        if methods is not None and (
+            isinstance(methods, str) or not all(isinstance(m, str) for m in methods)
+        ):
+            raise InputError(f"argument `methods` must be a list of str, e.g. {list(METHODS)}")
+        if isinstance(seed, bool) or not isinstance(seed, (int, np.integer)) or not 0 <= seed < 2**64:
+            raise OutOfRangeError(f"argument `seed` = {seed!r} must be an int in [0, 2**64)")
+        for name, v in (("gamma13", gamma13), ("phase_seconds", phase_seconds)):
+            if v is not None and (isinstance(v, bool) or not isinstance(v, (int, float, np.floating, np.integer))):
+                raise InputError(f"argument `{name}` must be a number, got {type(v).__name__}")
+        native = _native.certify_model(
+            scenario._native,
+            methods=None if methods is None else list(methods),
+            gamma13=None if gamma13 is None else float(gamma13),
+            phase_seconds=None if phase_seconds is None else float(phase_seconds),
+            seed=int(seed),
+        )
+        return Certificate(native.json(), native)
+    if methods is not None or seed != 0 or phase_seconds is not None:
+        raise InputError(
+            "arguments `methods`, `seed` and `phase_seconds` are for certify(Model(...)); a scenario "
+            "sets them in its file (noise.seed, certificate.phase_seconds)"
+        )
     sc = _scenario(scenario)
     for name, v in (
         ("lipschitz_pairs", lipschitz_pairs),
@@ -465,7 +663,7 @@ def certify(
         if not (math.isfinite(g) and g >= 0.0):
             raise OutOfRangeError(f"argument `gamma13` = {gamma13!r} must be a finite number >= 0")
         gamma13 = g
-    text = _native.certify_json(
+    native = _native.certify_json(
         sc._native,
         lipschitz_pairs=int(lipschitz_pairs),
         gamma13_sequences=int(gamma13_sequences),
@@ -473,7 +671,7 @@ def certify(
         k_max=k_max,
         gamma13=gamma13,
     )
-    return Certificate(text)
+    return Certificate(native.json(), native)
 
 
 def simulate(

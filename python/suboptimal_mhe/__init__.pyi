@@ -79,8 +79,35 @@ class Scenario:
     def plant(self) -> Plant: ...
     def to_toml(self) -> str: ...
 
+class Model:
+    """A closed loop from NumPy values (iss_certificate::LoopModel)."""
+    plant: Plant
+    def __init__(
+        self,
+        plant: Plant,
+        *,
+        mhe: Dict[str, Any],
+        mpc_horizon: Optional[int] = ...,
+        mpc: Optional[Dict[str, Any]] = ...,
+        state_box: Optional[Tuple[ArrayLike, ArrayLike]] = ...,
+        input_box: Optional[Tuple[ArrayLike, ArrayLike]] = ...,
+        output_box: Optional[Tuple[ArrayLike, ArrayLike]] = ...,
+        disturbance_box: Optional[Tuple[ArrayLike, ArrayLike]] = ...,
+        x0: Optional[ArrayLike] = ...,
+        prior: Optional[ArrayLike] = ...,
+        w_bar: Optional[float] = ...,
+        name: Optional[str] = ...,
+    ) -> None: ...
+    @property
+    def k(self) -> int: ...
+    @property
+    def w_bar(self) -> Optional[float]: ...
+    @property
+    def scenario(self) -> Scenario: ...
+
 class Certificate:
     """certificate.json's `certificate` (ClosedLoopCertificate)."""
+    def verdict(self, method: str, k: int) -> Dict[str, Any]: ...
     def to_json(self) -> str: ...
     def to_dict(self) -> Dict[str, Any]: ...
     @property
@@ -93,8 +120,11 @@ class Certificate:
     def ioss_passed(self) -> bool: ...
 
 def certify(
-    scenario: Union[Scenario, str, "os.PathLike[str]"],
+    scenario: Union[Model, Scenario, str, "os.PathLike[str]"],
     *,
+    methods: Optional[List[str]] = ...,
+    seed: int = ...,
+    phase_seconds: Optional[float] = ...,
     lipschitz_pairs: int = ...,
     gamma13_sequences: int = ...,
     enumeration_max_vars: int = ...,
@@ -102,7 +132,7 @@ def certify(
     gamma13: Optional[float] = ...,
 ) -> Certificate: ...
 def simulate(
-    scenario: Union[Scenario, str, "os.PathLike[str]"],
+    scenario: Union[Model, Scenario, str, "os.PathLike[str]"],
     steps: Optional[int] = ...,
     seed: Optional[int] = ...,
     *,

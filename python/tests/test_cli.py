@@ -38,6 +38,11 @@ def test_certificate_equals_certificate_json(root, reproduced):
         assert cert.k_min(s["solver"]) == s["k_min"]
         assert cert.void_reasons(s["solver"]) == s["void_reasons"]
     assert cert.k_min("admm-pr") is not None
+    # The verdict at the scenario's (method, K) is reproduce's `at_scenario`.
+    doc = json.loads((reproduced / "certificate.json").read_text())
+    assert cert.verdict(doc["solver"], doc["scenario_iterations"]) == doc["at_scenario"]
+    k_min = doc["at_scenario"]["k_min"]
+    assert cert.verdict(doc["solver"], k_min)["certified"] == "yes"
 
 
 def read_trace(path):

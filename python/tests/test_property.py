@@ -100,3 +100,48 @@ def test_estimator_raises_only_package_errors(args):
             continue
         x_hat = est.estimate()
         assert x_hat.shape == (plant["A"].shape[0],)
+
+
+@st.composite
+def models(draw):
+    nx, nu, ny = draw(st.integers(1, 3)), draw(st.integers(1, 2)), draw(st.integers(1, 2))
+    mat = lambda r, c: np.array(draw(st.lists(entry, min_size=r * c, max_size=r * c))).reshape(r, c)  # noqa: E731
+    plant = dict(A=mat(nx, nx), B=mat(nx, nu), C=mat(ny, nx))
+    w = draw(st.sampled_from([0.0, 0.01, 0.1]))
+    nw = nx + ny
+    kwargs = dict(
+        mhe=dict(
+            horizon=draw(st.integers(1, 8)),
+            eta=draw(st.sampled_from([0.0, 0.5, 0.8, 0.95])),
+            k=draw(st.integers(1, 50)),
+            method=draw(st.sampled_from(list(sm.METHODS))),
+            q=draw(st.one_of(st.none(), st.floats(0.1, 10.0))),
+        ),
+        mpc_horizon=draw(st.integers(1, 5)),
+        disturbance_box=([-w] * nw, [w] * nw),
+        input_box=([-1.0] * nu, [1.0] * nu),
+        x0=[0.5] * nx,
+        w_bar=draw(st.one_of(st.none(), st.floats(0.0, 1.0))),
+    )
+    return plant, kwargs
+
+
+@settings(max_examples=25, deadline=None, suppress_health_check=[HealthCheck.too_slow])
+@given(models())
+def test_model_certify_raises_only_package_errors(args):
+    plant, kwargs = args
+    method = kwargs["mhe"]["method"]
+    try:
+        model = sm.Model(sm.Plant(**plant), **kwargs)
+        cert = sm.certify(model, methods=[method])
+    except sm.MheError:
+        return
+    (s,) = cert.to_dict()["solvers"]
+    assert (s["k_min"] is None) == bool(s["void_reasons"]), s
+    # The one verdict rule: yes from K_min on, no below it; never yes without a K_min.
+    k_min = cert.k_min(method)
+    v = cert.verdict(method, model.k)
+    if k_min is None:
+        assert v["certified"] != "yes", v
+    else:
+        assert v["certified"] == ("yes" if model.k >= k_min else "no"), (v, k_min)

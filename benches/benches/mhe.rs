@@ -383,7 +383,7 @@ fn k_reg_search(
             };
             out.k_reg = kr.k_reg;
             out.tried = kr.tried;
-            out.stopped = kr.stopped;
+            out.stopped = kr.stopped.as_ref().map(ToString::to_string);
         }
     }
     out.seconds = started.elapsed().as_secs_f64();

@@ -256,7 +256,7 @@ impl Admm {
             qp,
             cert,
             split_cert,
-            kernel: Kernel::detect(),
+            kernel: crate::kernel::get_global_kernel(),
         })
     }
 

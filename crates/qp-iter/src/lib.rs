@@ -40,7 +40,9 @@ pub mod scaled;
 pub use certificate::{BoundedQuantity, CertNorm, Certificate};
 pub use driver::{RunResult, RunStatus, run_fixed, run_until};
 pub use error::{QpError, Result};
-pub use exact::{active_set, dual_active_set, reference};
+#[cfg(feature = "clarabel")]
+pub use exact::reference;
+pub use exact::{active_set, dual_active_set};
 pub use linearise::Linearise;
 pub use method::{Family, Method, MethodKind, MethodMap, MethodState, Scaling};
 pub use problem::{GeneralConstraints, ParametricQp};

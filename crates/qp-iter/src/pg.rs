@@ -67,7 +67,7 @@ impl GradientSetup {
             h,
             lower: AlignedVec::padded(qp.zset().lower()),
             upper: AlignedVec::padded(qp.zset().upper()),
-            kernel: Kernel::detect(),
+            kernel: crate::kernel::get_global_kernel(),
             op: qp
                 .operator()
                 .filter(|op| n >= op.dense_crossover() && qp.general().is_none())

@@ -23,6 +23,10 @@
 //! ‖Hz + q − λ_box − Gᵀλ_G‖_∞ and the largest violation. A primal-infeasible problem is
 //! [`QpError::Infeasible`].
 
+/// The Clarabel crate this module is built on, for callers that build a reference problem by
+/// hand (the uncondensed MHE and MPC checks) with the same version.
+pub use clarabel;
+
 use clarabel::algebra::CscMatrix;
 use clarabel::solver::{
     DefaultSettingsBuilder, DefaultSolver, IPSolver, SolverStatus, SupportedConeT,

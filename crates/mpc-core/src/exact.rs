@@ -48,6 +48,14 @@ enum Backend {
     Clarabel(Box<ReferenceSolver>),
 }
 
+/// The QP's row as the composition traits report it (`loop-traits` knows no QP solver).
+fn loop_row(row: qp_iter::ConstraintRow) -> loop_traits::ConstraintRow {
+    match row {
+        qp_iter::ConstraintRow::Box(i) => loop_traits::ConstraintRow::Box(i),
+        qp_iter::ConstraintRow::General(i) => loop_traits::ConstraintRow::General(i),
+    }
+}
+
 /// The exact condensed MPC: every call solves min ½UᵀHU + (Fx̂)ᵀU over 𝒰^N (and the
 /// predicted-state rows, with state constraints) and returns u*₀, projected onto 𝒰 so that
 /// it lies in 𝒰 exactly.
@@ -221,7 +229,7 @@ impl Controller for ExactMpc {
                 let z = fallback.solve(x_hat).map_err(solver_error)?;
                 u.copy_from_slice(&z[..nu]);
                 self.status = ControlStatus::Infeasible {
-                    constraint,
+                    constraint: constraint.map(loop_row),
                     fallback: MpcFallback::InputOnlyMpc,
                 };
             }

@@ -24,7 +24,7 @@ use crate::reference::{ReferenceSettings, ReferenceSolver};
 ///
 /// ```
 /// use faer::{mat, Mat};
-/// use lti_model::BoxSet;
+/// use qp_iter::BoxSet;
 /// use qp_iter::ParametricQp;
 /// use qp_iter::active_set::ExactSolver;
 /// let qp = ParametricQp::new(mat![[4.0, 1.0], [1.0, 1.0]], vec![-2.0, -4.0],
@@ -73,7 +73,7 @@ impl ExactSolver {
         })
     }
 
-    /// z*(θ). Errors: θ of the wrong length or not finite ([`QpError::Model`]); Clarabel
+    /// z*(θ). Errors: θ of the wrong length or not finite ([`QpError::Data`]); Clarabel
     /// failing after an active-set failure ([`QpError::Reference`]); with general rows,
     /// constraints without a common point for this θ ([`QpError::Infeasible`], from the
     /// Goldfarb–Idnani solver, naming the row it could not meet).
@@ -164,7 +164,7 @@ impl ExactSolver {
 
     /// The next call starts from Π_Z(`z0`) and the working set of the bounds it touches
     /// ([`ActiveSetSolver::warm_start`]) instead of the previous call's. Errors: `z0` of the
-    /// wrong length or not finite ([`QpError::Model`]).
+    /// wrong length or not finite ([`QpError::Data`]).
     pub fn warm_start(&mut self, z0: &[f64]) -> Result<()> {
         self.active.warm_start(z0)
     }

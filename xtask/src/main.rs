@@ -25,6 +25,7 @@ mod output;
 mod certify;
 mod export;
 mod figures;
+mod kernel_env;
 mod provenance;
 mod reproduce;
 mod sweep;
@@ -121,6 +122,7 @@ fn report(outcome: &Outcome, json: Option<&Path>) -> Result<()> {
 }
 
 fn run(cli: Cli) -> Result<ExitCode> {
+    kernel_env::set_from_env()?;
     match cli.command {
         Command::Sweep(args) => sweep::sweep(&args).map(|()| ExitCode::SUCCESS),
         Command::SweepMerge(args) => sweep::merge(&args).map(|()| ExitCode::SUCCESS),

@@ -163,6 +163,54 @@ impl ModelError {
     }
 }
 
+/// `qp-iter`'s data errors (its matrix checks and [`crate::BoxSet`]) are the same cases
+/// here, field for field.
+impl From<qp_iter::DataError> for ModelError {
+    fn from(e: qp_iter::DataError) -> Self {
+        use qp_iter::DataError as D;
+        match e {
+            D::Shape {
+                name,
+                expected_rows,
+                expected_cols,
+                actual_rows,
+                actual_cols,
+            } => Self::Shape {
+                name,
+                expected_rows,
+                expected_cols,
+                actual_rows,
+                actual_cols,
+            },
+            D::NonFinite {
+                name,
+                row,
+                col,
+                value,
+            } => Self::NonFinite {
+                name,
+                row,
+                col,
+                value,
+            },
+            D::NotSymmetric { name, asymmetry } => Self::NotSymmetric { name, asymmetry },
+            D::NotPositiveDefinite {
+                name,
+                min_eigenvalue,
+            } => Self::NotPositiveDefinite {
+                name,
+                min_eigenvalue,
+            },
+            D::InvalidSet { name, reason } => Self::InvalidSet { name, reason },
+            D::Numerical { routine, reason } => Self::Numerical { routine, reason },
+            other => Self::Numerical {
+                routine: "qp-iter".into(),
+                reason: other.to_string(),
+            },
+        }
+    }
+}
+
 /// Why the δ-IOSS certificate of Assumption 2 fails (the payload of
 /// [`ModelError::LmiInfeasible`]). Every variant carries the measured quantities; the
 /// messages say how to fix the data or where to supply P (scenario key `mhe.p`,

@@ -39,106 +39,39 @@ pub fn col(v: &[f64]) -> Mat<f64> {
 
 /// Checks that `m` has shape `rows × cols`.
 pub fn check_shape(name: &str, m: MatRef<'_, f64>, rows: usize, cols: usize) -> Result<()> {
-    if m.nrows() != rows || m.ncols() != cols {
-        return Err(ModelError::Shape {
-            name: name.to_string(),
-            expected_rows: rows,
-            expected_cols: cols,
-            actual_rows: m.nrows(),
-            actual_cols: m.ncols(),
-        });
-    }
-    Ok(())
+    Ok(qp_iter::matrix::check_shape(name, m, rows, cols)?)
 }
 
 /// Checks that a vector has length `n`.
 pub fn check_len(name: &str, v: &[f64], n: usize) -> Result<()> {
-    if v.len() != n {
-        return Err(ModelError::Shape {
-            name: name.to_string(),
-            expected_rows: n,
-            expected_cols: 1,
-            actual_rows: v.len(),
-            actual_cols: 1,
-        });
-    }
-    Ok(())
+    Ok(qp_iter::matrix::check_len(name, v, n)?)
 }
 
 /// Checks that every entry of `m` is finite.
 pub fn check_finite(name: &str, m: MatRef<'_, f64>) -> Result<()> {
-    for j in 0..m.ncols() {
-        for i in 0..m.nrows() {
-            let value = m[(i, j)];
-            if !value.is_finite() {
-                return Err(ModelError::NonFinite {
-                    name: name.to_string(),
-                    row: i,
-                    col: j,
-                    value,
-                });
-            }
-        }
-    }
-    Ok(())
+    Ok(qp_iter::matrix::check_finite(name, m)?)
 }
 
 /// Checks that every entry of a vector is finite.
 pub fn check_finite_slice(name: &str, v: &[f64]) -> Result<()> {
-    match v.iter().position(|x| !x.is_finite()) {
-        Some(i) => Err(ModelError::NonFinite {
-            name: name.to_string(),
-            row: i,
-            col: 0,
-            value: v[i],
-        }),
-        None => Ok(()),
-    }
+    Ok(qp_iter::matrix::check_finite_slice(name, v)?)
 }
 
-/// Largest |m_ij − m_ji|.
-pub fn asymmetry(m: MatRef<'_, f64>) -> f64 {
-    let mut worst = 0.0_f64;
-    for i in 0..m.nrows() {
-        for j in 0..i {
-            worst = worst.max((m[(i, j)] - m[(j, i)]).abs());
-        }
-    }
-    worst
-}
-
-/// Returns (M + Mᵀ)/2.
-pub fn symmetrize(m: MatRef<'_, f64>) -> Mat<f64> {
-    Mat::from_fn(m.nrows(), m.ncols(), |i, j| 0.5 * (m[(i, j)] + m[(j, i)]))
-}
+/// The one copy of these lives with the QP data checks of `qp-iter`.
+pub use qp_iter::matrix::{SYMMETRY_TOL, asymmetry, row_major, symmetrize};
 
 /// Eigenvalues of a symmetric matrix in nondecreasing order (the lower triangle is read).
 ///
 /// Returns `ModelError::Numerical` if the eigensolver does not converge (it does not for
 /// finite input in practice, but no panic is reachable).
 pub fn sym_eigenvalues(name: &str, m: MatRef<'_, f64>) -> Result<Vec<f64>> {
-    if m.nrows() == 0 {
-        return Ok(Vec::new());
-    }
-    let s = symmetrize(m);
-    s.self_adjoint_eigenvalues(Side::Lower)
-        .map_err(|e| ModelError::Numerical {
-            routine: format!("symmetric eigenvalues of `{name}`"),
-            reason: format!("{e:?}"),
-        })
+    Ok(qp_iter::matrix::sym_eigenvalues(name, m)?)
 }
 
 /// Extreme eigenvalues (λ_min, λ_max) of a symmetric matrix.
 pub fn sym_extreme_eigenvalues(name: &str, m: MatRef<'_, f64>) -> Result<(f64, f64)> {
-    let ev = sym_eigenvalues(name, m)?;
-    match (ev.first(), ev.last()) {
-        (Some(&lo), Some(&hi)) => Ok((lo, hi)),
-        _ => Ok((0.0, 0.0)),
-    }
+    Ok(qp_iter::matrix::sym_extreme_eigenvalues(name, m)?)
 }
-
-/// Relative tolerance on asymmetry used when validating weights: |M − Mᵀ| ≤ tol·max(1, |M|_max).
-pub const SYMMETRY_TOL: f64 = 1e-10;
 
 /// Validates a weight matrix: `n × n`, finite, symmetric (to [`SYMMETRY_TOL`] relative)
 /// and positive definite. Returns (λ_min, λ_max).
@@ -150,24 +83,7 @@ pub const SYMMETRY_TOL: f64 = 1e-10;
 /// assert!((lo - 1.0).abs() < 1e-12 && (hi - 1.0).abs() < 1e-12);
 /// ```
 pub fn check_positive_definite(name: &str, m: MatRef<'_, f64>, n: usize) -> Result<(f64, f64)> {
-    check_shape(name, m, n, n)?;
-    check_finite(name, m)?;
-    let scale = m.norm_max().max(1.0);
-    let asym = asymmetry(m);
-    if asym > SYMMETRY_TOL * scale {
-        return Err(ModelError::NotSymmetric {
-            name: name.to_string(),
-            asymmetry: asym,
-        });
-    }
-    let (lo, hi) = sym_extreme_eigenvalues(name, m)?;
-    if !(lo > 0.0) {
-        return Err(ModelError::NotPositiveDefinite {
-            name: name.to_string(),
-            min_eigenvalue: lo,
-        });
-    }
-    Ok((lo, hi))
+    Ok(qp_iter::matrix::check_positive_definite(name, m, n)?)
 }
 
 /// Spectral norm ‖M‖₂ (largest singular value).
@@ -194,18 +110,6 @@ pub fn block_diag(blocks: &[MatRef<'_, f64>]) -> Mat<f64> {
         c += b.ncols();
     }
     out
-}
-
-/// Converts a matrix to row-major nested vectors (for JSON output).
-/// The entries of `m` row by row in one vector (the layout of the hot loops' kernels).
-///
-/// ```
-/// let m = faer::mat![[1.0, 2.0], [3.0, 4.0]];
-/// assert_eq!(lti_model::matrix::row_major(m.as_ref()), vec![1.0, 2.0, 3.0, 4.0]);
-/// ```
-pub fn row_major(m: MatRef<'_, f64>) -> Vec<f64> {
-    let (r, c) = (m.nrows(), m.ncols());
-    (0..r * c).map(|k| m[(k / c, k % c)]).collect()
 }
 
 /// The rows of `m` as nested vectors (for JSON and TOML).

@@ -91,3 +91,10 @@ pub enum MheError {
 
 /// Result alias for `mhe-core`.
 pub type Result<T> = std::result::Result<T, MheError>;
+
+/// Bad set or matrix data from `qp-iter` (e.g. `BoxSet::new`) is a model error here.
+impl From<qp_iter::DataError> for MheError {
+    fn from(e: qp_iter::DataError) -> Self {
+        Self::Model(e.into())
+    }
+}

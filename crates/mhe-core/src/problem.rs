@@ -564,7 +564,7 @@ fn build_window(
         lower.extend_from_slice(sets.disturbance.lower());
         upper.extend_from_slice(sets.disturbance.upper());
     }
-    let zset = BoxSet::named("Z", lower, upper)?;
+    let zset = BoxSet::named("Z", lower, upper).map_err(lti_model::ModelError::from)?;
 
     // L_Φ: ‖H^{-1/2}F‖₂² = λ_max(Fᵀ H⁻¹ F); ‖H⁻¹F‖₂ directly.
     let llt = h_c

@@ -582,7 +582,7 @@ impl MheHessian {
             product,
             dyn_blocks: DynBlocks::new(&mats),
             decay,
-            fma: Kernel::detect().path() == KernelPath::Avx2Fma,
+            fma: qp_iter::kernel::get_global_kernel().path() == KernelPath::Avx2Fma,
         }
     }
 

@@ -268,7 +268,8 @@ impl CondensedMpc {
         let upper: Vec<f64> = (0..n)
             .flat_map(|_| config.input_set.upper().iter().copied())
             .collect();
-        let zset = BoxSet::named("input_set^N", lower, upper)?;
+        let zset =
+            BoxSet::named("input_set^N", lower, upper).map_err(lti_model::ModelError::from)?;
         let mut qp = ParametricQp::new(h, vec![0.0; n * nu], f, zset)?;
         // x_k = Φ_k x̂ + Γ_k U ∈ 𝒳 for k = 1..N, one row per finite component; then
         // C x_k = CΦ_k x̂ + CΓ_k U ∈ 𝒴_c.

@@ -141,3 +141,10 @@ pub(crate) fn check_finite(name: &'static str, v: &[f64]) -> Result<()> {
         None => Ok(()),
     }
 }
+
+/// Bad set or matrix data from `qp-iter` (e.g. `BoxSet::new`) is a model error here.
+impl From<qp_iter::DataError> for MpcError {
+    fn from(e: qp_iter::DataError) -> Self {
+        Self::Model(e.into())
+    }
+}

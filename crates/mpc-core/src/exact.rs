@@ -8,6 +8,7 @@
 use lti_model::{BoxSet, Projection};
 use qp_iter::QpError;
 use qp_iter::active_set::{ActiveSetInfo, ActiveSetSettings, ExactSolver};
+#[cfg(feature = "clarabel")]
 use qp_iter::reference::{ReferenceSettings, ReferenceSolver};
 
 use crate::condensed::CondensedMpc;
@@ -15,7 +16,11 @@ use crate::error::{MpcError, Result};
 use crate::{ControlStatus, Controller, MpcFallback, check_io};
 
 /// How [`ExactMpc`] computes U*(x̂).
+///
+/// `#[non_exhaustive]`: the `Clarabel` variant exists with the cargo feature `clarabel` (on by
+/// default).
 #[derive(Debug, Clone, Copy, PartialEq)]
+#[non_exhaustive]
 pub enum ExactBackend {
     /// Primal active set (the default): a few hundred nanoseconds per warm-started call
     /// at the case study's size, no allocation; falls back to Clarabel with default
@@ -24,6 +29,7 @@ pub enum ExactBackend {
     ActiveSet(ActiveSetSettings),
     /// Clarabel's interior-point method and an active-set polish every call (≈ 100× slower,
     /// allocates): the independent reference.
+    #[cfg(feature = "clarabel")]
     Clarabel(ReferenceSettings),
 }
 
@@ -38,7 +44,16 @@ impl Default for ExactBackend {
 enum Backend {
     /// Active set with the Clarabel fallback.
     ActiveSet(ExactSolver),
+    #[cfg(feature = "clarabel")]
     Clarabel(Box<ReferenceSolver>),
+}
+
+/// The QP's row as the composition traits report it (`loop-traits` knows no QP solver).
+fn loop_row(row: qp_iter::ConstraintRow) -> loop_traits::ConstraintRow {
+    match row {
+        qp_iter::ConstraintRow::Box(i) => loop_traits::ConstraintRow::Box(i),
+        qp_iter::ConstraintRow::General(i) => loop_traits::ConstraintRow::General(i),
+    }
 }
 
 /// The exact condensed MPC: every call solves min ½UᵀHU + (Fx̂)ᵀU over 𝒰^N (and the
@@ -91,6 +106,7 @@ impl ExactMpc {
     }
 
     /// Clarabel with the given settings every call (the previous default; allocates).
+    #[cfg(feature = "clarabel")]
     pub fn with_settings(mpc: &CondensedMpc, settings: ReferenceSettings) -> Result<Self> {
         Self::with_backend(mpc, ExactBackend::Clarabel(settings))
     }
@@ -101,6 +117,7 @@ impl ExactMpc {
             ExactBackend::ActiveSet(settings) => {
                 Backend::ActiveSet(ExactSolver::with_settings(mpc.qp(), settings)?)
             }
+            #[cfg(feature = "clarabel")]
             ExactBackend::Clarabel(settings) => {
                 Backend::Clarabel(Box::new(ReferenceSolver::new(mpc.qp(), settings)?))
             }
@@ -138,6 +155,7 @@ impl ExactMpc {
                 self.u_seq.copy_from_slice(z);
                 self.last_info = solver.last_info();
             }
+            #[cfg(feature = "clarabel")]
             Backend::Clarabel(reference) => {
                 let sol = reference.solve(x_hat).map_err(solver_error)?;
                 self.u_seq.copy_from_slice(&sol.z);
@@ -152,8 +170,10 @@ impl ExactMpc {
     /// answer is the same optimum either way — the final subspace solve depends only on the
     /// optimal working set — the warm start changes how fast it is found.)
     pub fn reset(&mut self) {
-        if let Backend::ActiveSet(solver) = &mut self.backend {
-            solver.reset();
+        match &mut self.backend {
+            Backend::ActiveSet(solver) => solver.reset(),
+            #[cfg(feature = "clarabel")]
+            Backend::Clarabel(_) => {}
         }
         self.solved = false;
         self.last_info = None;
@@ -168,6 +188,7 @@ impl ExactMpc {
     pub fn fallbacks(&self) -> usize {
         match &self.backend {
             Backend::ActiveSet(solver) => solver.fallbacks(),
+            #[cfg(feature = "clarabel")]
             Backend::Clarabel(_) => 0,
         }
     }
@@ -208,7 +229,7 @@ impl Controller for ExactMpc {
                 let z = fallback.solve(x_hat).map_err(solver_error)?;
                 u.copy_from_slice(&z[..nu]);
                 self.status = ControlStatus::Infeasible {
-                    constraint,
+                    constraint: constraint.map(loop_row),
                     fallback: MpcFallback::InputOnlyMpc,
                 };
             }

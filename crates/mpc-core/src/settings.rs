@@ -280,10 +280,10 @@ impl MpcSettings {
                 )
                 .into()
             }
-            MpcError::Qp(qp_iter::QpError::Model(
-                ModelError::NotPositiveDefinite { ref name, .. }
-                | ModelError::NonFinite { ref name, .. }
-                | ModelError::Numerical {
+            MpcError::Qp(qp_iter::QpError::Data(
+                qp_iter::DataError::NotPositiveDefinite { ref name, .. }
+                | qp_iter::DataError::NonFinite { ref name, .. }
+                | qp_iter::DataError::Numerical {
                     routine: ref name, ..
                 },
             )) if name.contains('H') || name.contains('F') => {
@@ -327,7 +327,8 @@ impl MpcSettings {
             )
             .into(),
             MpcError::Model(e @ ModelError::Scenario { .. }) => e.into(),
-            MpcError::Model(e) | MpcError::Qp(qp_iter::QpError::Model(e)) => key_error(
+            MpcError::Qp(qp_iter::QpError::Data(e)) => self.explain(sys, MpcError::Model(e.into())),
+            MpcError::Model(e) => key_error(
                 "mpc",
                 format!(
                     "the MPC cannot be built from `plant.a`, `plant.b`, `mpc.q`, `mpc.r` over \

@@ -3,7 +3,7 @@
 //! Run: `cargo run -p qp-iter --example fixed_iterations`.
 
 use faer::mat;
-use lti_model::BoxSet;
+use qp_iter::BoxSet;
 use qp_iter::pg::{ProjectedGradient, StepRule};
 use qp_iter::{IterationMap, ParametricQp, active_set::ExactSolver, run_fixed};
 

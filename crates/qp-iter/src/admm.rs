@@ -176,7 +176,7 @@ impl Admm {
     ///
     /// ```
     /// use faer::{mat, Mat};
-    /// use lti_model::BoxSet;
+    /// use qp_iter::BoxSet;
     /// use qp_iter::{ParametricQp, IterationMap, run_fixed};
     /// use qp_iter::admm::{Admm, AdmmParams};
     /// let qp = ParametricQp::new(mat![[4.0, 1.0], [1.0, 1.0]], vec![-2.0, -4.0],
@@ -198,7 +198,7 @@ impl Admm {
         let shifted = Mat::from_fn(n, n, |i, j| h[(i, j)] + if i == j { rho } else { 0.0 });
         let llt = shifted
             .llt(Side::Lower)
-            .map_err(|e| lti_model::ModelError::Numerical {
+            .map_err(|e| crate::DataError::Numerical {
                 routine: "Cholesky factorisation of H + ρI (ADMM setup)".into(),
                 reason: format!("{e:?}; H must be positive definite and ρ positive"),
             })?;
@@ -207,7 +207,7 @@ impl Admm {
         let sym = |i: usize, j: usize| 0.5 * (inv[(i, j)] + inv[(j, i)]);
         let m_inv = PaddedSymmetric::from_fn(n, sym);
         if m_inv.as_slice().iter().any(|x| !x.is_finite()) {
-            return Err(lti_model::ModelError::Numerical {
+            return Err(crate::DataError::Numerical {
                 routine: "inverse of H + ρI (ADMM setup)".into(),
                 reason: "non-finite entries; H + ρI is numerically singular — scale H or change ρ"
                     .into(),
@@ -256,7 +256,7 @@ impl Admm {
             qp,
             cert,
             split_cert,
-            kernel: Kernel::detect(),
+            kernel: crate::kernel::get_global_kernel(),
         })
     }
 
@@ -543,7 +543,7 @@ impl crate::method::Family for Admm {
 mod tests {
     #![allow(clippy::unwrap_used)]
     use super::*;
-    use lti_model::BoxSet;
+    use crate::BoxSet;
 
     fn qp() -> ParametricQp {
         let n = 9;

@@ -75,7 +75,7 @@ impl AdmmSplit {
     ///
     /// ```
     /// use faer::{mat, Mat};
-    /// use lti_model::BoxSet;
+    /// use qp_iter::BoxSet;
     /// use qp_iter::{IterationMap, ParametricQp, run_fixed};
     /// use qp_iter::admm::AdmmParams;
     /// use qp_iter::admm_general::AdmmSplit;
@@ -111,7 +111,7 @@ impl AdmmSplit {
         }
         let llt = k
             .llt(Side::Lower)
-            .map_err(|e| lti_model::ModelError::Numerical {
+            .map_err(|e| crate::DataError::Numerical {
                 routine: "Cholesky factorisation of H + ρ(I + GᵀG) (ADMM setup)".into(),
                 reason: format!("{e:?}; H must be positive definite and ρ positive"),
             })?;
@@ -123,7 +123,7 @@ impl AdmmSplit {
             })
             .collect();
         if m_inv.iter().any(|v| !v.is_finite()) {
-            return Err(lti_model::ModelError::Numerical {
+            return Err(crate::DataError::Numerical {
                 routine: "inverse of H + ρ(I + GᵀG) (ADMM setup)".into(),
                 reason: "non-finite entries; scale H or G, or change ρ".into(),
             }

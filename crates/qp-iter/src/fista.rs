@@ -90,7 +90,7 @@ impl Fista {
     ///
     /// ```
     /// use faer::{mat, Mat};
-    /// use lti_model::BoxSet;
+    /// use qp_iter::BoxSet;
     /// use qp_iter::{ParametricQp, IterationMap, run_fixed};
     /// use qp_iter::fista::Fista;
     /// let qp = ParametricQp::new(mat![[4.0, 1.0], [1.0, 1.0]], vec![-2.0, -4.0],
@@ -330,9 +330,9 @@ impl crate::method::Family for Fista {
 mod tests {
     #![allow(clippy::unwrap_used)]
     use super::*;
+    use crate::BoxSet;
     use crate::kernel::AlignedVec;
     use faer::Mat;
-    use lti_model::BoxSet;
 
     /// n = 7 SPD H (diagonally dominant), two parameters, a box active at the solution.
     fn qp() -> ParametricQp {

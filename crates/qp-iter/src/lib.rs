@@ -30,20 +30,25 @@ pub mod fista;
 pub mod general_projection;
 pub mod kernel;
 pub mod linearise;
+pub mod matrix;
 pub mod method;
 pub mod operator;
 pub mod pg;
 pub mod problem;
 pub mod rounding;
 pub mod scaled;
+pub mod sets;
 
 pub use certificate::{BoundedQuantity, CertNorm, Certificate};
 pub use driver::{RunResult, RunStatus, run_fixed, run_until};
-pub use error::{QpError, Result};
-pub use exact::{active_set, dual_active_set, reference};
+pub use error::{ConstraintRow, DataError, QpError, Result};
+#[cfg(feature = "clarabel")]
+pub use exact::reference;
+pub use exact::{active_set, dual_active_set};
 pub use linearise::Linearise;
 pub use method::{Family, Method, MethodKind, MethodMap, MethodState, Scaling};
 pub use problem::{GeneralConstraints, ParametricQp};
+pub use sets::{BoxSet, ConvexSet, Projection};
 
 /// The largest iteration budget (K of the MHE, K_c of the MPC) any scenario, sweep or
 /// command accepts: each time step runs K iterations, and a K beyond it is not practical

@@ -22,7 +22,7 @@ use crate::IterationMap;
 ///
 /// ```
 /// use faer::mat;
-/// use lti_model::BoxSet;
+/// use qp_iter::BoxSet;
 /// use qp_iter::{Linearise, Method, ParametricQp};
 /// let qp = ParametricQp::new(mat![[2.0, 0.0], [0.0, 1.0]], vec![0.0; 2],
 ///     faer::Mat::zeros(2, 0), BoxSet::symmetric(&[1.0, 1.0]).unwrap()).unwrap();

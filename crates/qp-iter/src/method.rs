@@ -627,7 +627,7 @@ impl MethodMap {
     ///
     /// ```
     /// use faer::{mat, Mat};
-    /// use lti_model::BoxSet;
+    /// use qp_iter::BoxSet;
     /// use qp_iter::{Method, ParametricQp};
     /// use qp_iter::kernel::Kernel;
     /// let qp = ParametricQp::new(mat![[2.0, 0.0], [0.0, 1.0]], vec![-2.0, -4.0],

@@ -67,7 +67,7 @@ impl GradientSetup {
             h,
             lower: AlignedVec::padded(qp.zset().lower()),
             upper: AlignedVec::padded(qp.zset().upper()),
-            kernel: Kernel::detect(),
+            kernel: crate::kernel::get_global_kernel(),
             op: qp
                 .operator()
                 .filter(|op| n >= op.dense_crossover() && qp.general().is_none())
@@ -180,7 +180,7 @@ impl ProjectedGradient {
     ///
     /// ```
     /// use faer::{mat, Mat};
-    /// use lti_model::BoxSet;
+    /// use qp_iter::BoxSet;
     /// use qp_iter::{ParametricQp, IterationMap, run_fixed};
     /// use qp_iter::pg::{ProjectedGradient, StepRule};
     /// let qp = ParametricQp::new(mat![[2.0, 0.0], [0.0, 1.0]], vec![-2.0, -4.0],
@@ -381,9 +381,9 @@ impl crate::method::Family for ProjectedGradient {
 mod tests {
     #![allow(clippy::unwrap_used)]
     use super::*;
+    use crate::BoxSet;
     use crate::{RunStatus, run_fixed};
     use faer::mat;
-    use lti_model::BoxSet;
 
     /// A NaN in θ must surface as `NonFinite` even on a bounded box, where a max/min clamp
     /// would silently turn it into a bound.

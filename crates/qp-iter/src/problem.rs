@@ -1,11 +1,11 @@
 //! Parametric QP data: min ½zᵀHz + (q₀ + Fθ)ᵀz s.t. z ∈ Z and, optionally,
 //! l₀ − Eθ ≤ Gz ≤ u₀ − Eθ ([`GeneralConstraints`]).
 
-use faer::{Mat, MatRef};
-use lti_model::matrix::{
+use crate::matrix::{
     check_finite, check_finite_slice, check_len, check_positive_definite, check_shape,
 };
-use lti_model::{BoxSet, ConvexSet};
+use crate::{BoxSet, ConvexSet};
+use faer::{Mat, MatRef};
 
 use crate::error::{QpError, Result};
 use crate::operator::HessianOperator;
@@ -18,7 +18,7 @@ use crate::operator::HessianOperator;
 ///
 /// ```
 /// use faer::{mat, Mat};
-/// use lti_model::BoxSet;
+/// use qp_iter::BoxSet;
 /// use qp_iter::ParametricQp;
 /// let qp = ParametricQp::new(
 ///     mat![[2.0, 0.0], [0.0, 1.0]], vec![0.0, 0.0], Mat::identity(2, 2),
@@ -84,7 +84,7 @@ impl GeneralConstraints {
         for i in 0..m {
             let (l, u) = (lower[i], upper[i]);
             if l.is_nan() || u.is_nan() || l > u || l == f64::INFINITY || u == f64::NEG_INFINITY {
-                return Err(lti_model::ModelError::InvalidSet {
+                return Err(crate::DataError::InvalidSet {
                     name: "G rows".into(),
                     reason: format!(
                         "row {i} has bounds [{l}, {u}]; each row needs lower ≤ upper, no NaN, \
@@ -94,8 +94,8 @@ impl GeneralConstraints {
                 .into());
             }
         }
-        let g_rows = lti_model::matrix::row_major(g.as_ref());
-        let e_rows = lti_model::matrix::row_major(e.as_ref());
+        let g_rows = crate::matrix::row_major(g.as_ref());
+        let e_rows = crate::matrix::row_major(e.as_ref());
         Ok(Self {
             g,
             e,
@@ -179,7 +179,7 @@ impl ParametricQp {
         check_shape("F", f.as_ref(), n, f.ncols())?;
         check_finite("F", f.as_ref())?;
         if zset.dim() != n {
-            return Err(lti_model::ModelError::Shape {
+            return Err(crate::DataError::Shape {
                 name: "Z".into(),
                 expected_rows: n,
                 expected_cols: 1,
@@ -189,7 +189,7 @@ impl ParametricQp {
             .into());
         }
         // Symmetrise exactly so that the hot loop sees a symmetric H.
-        let h = lti_model::matrix::symmetrize(h.as_ref());
+        let h = crate::matrix::symmetrize(h.as_ref());
         let h_rows = (0..n * n).map(|k| h[(k / n, k % n)]).collect();
         let nt = f.ncols();
         let f_rows = (0..n * nt).map(|k| f[(k / nt, k % nt)]).collect();
@@ -211,7 +211,7 @@ impl ParametricQp {
     ///
     /// ```
     /// use faer::{mat, Mat};
-    /// use lti_model::BoxSet;
+    /// use qp_iter::BoxSet;
     /// use qp_iter::ParametricQp;
     /// use qp_iter::problem::GeneralConstraints;
     /// let qp = ParametricQp::new(Mat::identity(2, 2), vec![0.0; 2], Mat::zeros(2, 1),
@@ -343,7 +343,7 @@ impl ParametricQp {
     ///
     /// ```
     /// use faer::Mat;
-    /// use lti_model::BoxSet;
+    /// use qp_iter::BoxSet;
     /// use qp_iter::ParametricQp;
     /// let qp = ParametricQp::new(Mat::identity(2, 2), vec![0.0; 2], Mat::zeros(2, 0),
     ///     BoxSet::symmetric(&[1.0, 1.0]).unwrap()).unwrap();

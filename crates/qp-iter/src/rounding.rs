@@ -236,8 +236,8 @@ pub fn iteration_rounding(
 #[cfg(test)]
 mod tests {
     use super::*;
+    use crate::BoxSet;
     use faer::Mat;
-    use lti_model::sets::BoxSet;
     use rand::{Rng, SeedableRng};
     use rand_chacha::ChaCha8Rng;
 

@@ -19,7 +19,7 @@
 //!
 //! ```
 //! use faer::{mat, Mat};
-//! use lti_model::BoxSet;
+//! use crate::BoxSet;
 //! use qp_iter::{IterationMap, ParametricQp, run_fixed};
 //! use qp_iter::method::{Method, Scaling};
 //! // A badly scaled QP: κ(H) = 10⁴, κ(DHD) = 1 (H is diagonal).
@@ -36,8 +36,8 @@
 //! assert!((z[0] - 1.0).abs() < 1e-12 && (z[1] - 1.0).abs() < 1e-12);
 //! ```
 
+use crate::BoxSet;
 use faer::Mat;
-use lti_model::BoxSet;
 
 use crate::certificate::Certificate;
 use crate::error::Result;

@@ -5,7 +5,7 @@
 #![allow(clippy::unwrap_used)]
 
 use faer::Mat;
-use lti_model::BoxSet;
+use qp_iter::BoxSet;
 use qp_iter::admm::{Admm, AdmmParams, Penalty};
 use qp_iter::fista::Fista;
 use qp_iter::pg::{ProjectedGradient, StepRule};

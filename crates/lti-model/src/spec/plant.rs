@@ -230,7 +230,7 @@ pub fn box_set(key: &str, raw: Option<&RawBox>, n: usize, what: &str) -> Result<
         f64::INFINITY,
         what,
     )?;
-    let set = BoxSet::named(key, lower, upper).map_err(|e| wrap(key, e))?;
+    let set = BoxSet::named(key, lower, upper).map_err(|e| wrap(key, e.into()))?;
     // Assumption 1: 𝒵 = 𝒳 × 𝒰 × 𝒴 × 𝒲 contains the origin.
     for (i, (l, u)) in set.lower().iter().zip(set.upper()).enumerate() {
         if *l > 0.0 || *u < 0.0 {
@@ -496,7 +496,7 @@ pub fn validate_noise(
                         "disturbance component",
                     )?;
                     BoxSet::named("noise.truncate", lower, upper)
-                        .map_err(|e| wrap("noise.truncate", e))?
+                        .map_err(|e| wrap("noise.truncate", e.into()))?
                 }
             };
             for i in 0..nw {

@@ -152,7 +152,7 @@ proptest! {
             (Just(b), prop::collection::vec(prop::collection::vec(-15.0..15.0f64, n), 16), prop_oneof![Just(0.0), 0.0..0.5f64])
         })
     ) {
-        let p = b.to_polytope();
+        let p = lti_model::Polytope::from_box(&b);
         prop_assert_eq!(p.dim(), b.dim());
         let finite = b.lower().iter().chain(b.upper()).filter(|v| v.is_finite()).count();
         prop_assert_eq!(p.g().nrows(), finite);
@@ -169,8 +169,9 @@ proptest! {
     }
 }
 
-fn assert_invalid_set(r: lti_model::Result<BoxSet>, name: &str, reason_has: &str) {
-    match r {
+fn assert_invalid_set(r: Result<BoxSet, qp_iter::DataError>, name: &str, reason_has: &str) {
+    // The box's errors convert into the model's, field for field.
+    match r.map_err(ModelError::from) {
         Err(ModelError::InvalidSet { name: n, reason }) => {
             assert_eq!(n, name);
             assert!(

@@ -128,6 +128,10 @@ pub fn simulate(f: &Fixture, steps: usize, seed: u64) -> (Series, Series, Series
 pub use lti_model::vecmath::dist2 as dist;
 
 /// CSC of a dense matrix (Clarabel's form; `upper_only` keeps the upper triangle, for P).
-pub fn csc(m: &faer::Mat<f64>, upper_only: bool) -> clarabel::algebra::CscMatrix<f64> {
+#[cfg(feature = "clarabel")]
+pub fn csc(
+    m: &faer::Mat<f64>,
+    upper_only: bool,
+) -> qp_iter::reference::clarabel::algebra::CscMatrix<f64> {
     qp_iter::reference::dense_to_csc(m.as_ref(), upper_only)
 }

@@ -2,9 +2,6 @@
 //! uncondensed Clarabel formulation (x, w, ŷ as variables, the dynamics and the output map
 //! as equalities), the certificate consequences, and the K-iteration estimator.
 
-use clarabel::solver::{
-    DefaultSettingsBuilder, DefaultSolver, IPSolver, SolverStatus, SupportedConeT,
-};
 use faer::Mat;
 use lti_model::BoxSet;
 use mhe_core::problem::{LIPSCHITZ_VOID_REASON, MheProblem};
@@ -12,6 +9,9 @@ use mhe_core::{MheEstimator, MheSets};
 use qp_iter::IterationMap;
 use qp_iter::active_set::ExactSolver;
 use qp_iter::method::Method;
+use qp_iter::reference::clarabel::solver::{
+    DefaultSettingsBuilder, DefaultSolver, IPSolver, SolverStatus, SupportedConeT,
+};
 use rand::{Rng, SeedableRng};
 use rand_chacha::ChaCha8Rng;
 

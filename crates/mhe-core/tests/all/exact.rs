@@ -2,13 +2,13 @@
 //! independent solve: Clarabel on the *uncondensed* problem (8) with explicit state,
 //! disturbance and output variables and the model as equality constraints.
 
-use clarabel::solver::{
-    DefaultSettingsBuilder, DefaultSolver, IPSolver, NonnegativeConeT, SolverStatus,
-    SupportedConeT, ZeroConeT,
-};
 use faer::Mat;
 use mhe_core::{MheEstimator, MheRecord};
 use qp_iter::pg::{ProjectedGradient, StepRule};
+use qp_iter::reference::clarabel::solver::{
+    DefaultSettingsBuilder, DefaultSolver, IPSolver, NonnegativeConeT, SolverStatus,
+    SupportedConeT, ZeroConeT,
+};
 
 use crate::common::{Fixture, case_study, csc, random_fixture, simulate};
 

@@ -5,9 +5,12 @@
 mod common;
 
 mod bookkeeping;
+// Checked against an uncondensed Clarabel solve: with the `clarabel` feature (default).
+#[cfg(feature = "clarabel")]
 mod constrained;
 mod convergence;
 mod errors;
+#[cfg(feature = "clarabel")]
 mod exact;
 mod kalman;
 mod problem;

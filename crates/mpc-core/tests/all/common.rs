@@ -1,12 +1,12 @@
 //! Fixtures: the case study (design.md §4), seeded random systems, and an independent
 //! Clarabel solve of the *uncondensed* MPC (explicit states, equality constraints).
 
-use clarabel::solver::{
-    DefaultSettingsBuilder, DefaultSolver, IPSolver, SolverStatus, SupportedConeT,
-};
 use faer::Mat;
 use lti_model::{BoxSet, LtiSystem};
 use mpc_core::{CondensedMpc, MpcConfig};
+use qp_iter::reference::clarabel::solver::{
+    DefaultSettingsBuilder, DefaultSolver, IPSolver, SolverStatus, SupportedConeT,
+};
 use rand::{Rng, SeedableRng};
 use rand_chacha::ChaCha8Rng;
 use rand_distr::StandardNormal;
@@ -77,7 +77,10 @@ pub fn random_problem(seed: u64) -> (LtiSystem, MpcConfig) {
 }
 
 /// CSC of a dense matrix (Clarabel's form; `upper_only` for P).
-pub fn csc(m: &Mat<f64>, upper_only: bool) -> clarabel::algebra::CscMatrix<f64> {
+pub fn csc(
+    m: &Mat<f64>,
+    upper_only: bool,
+) -> qp_iter::reference::clarabel::algebra::CscMatrix<f64> {
     qp_iter::reference::dense_to_csc(m.as_ref(), upper_only)
 }
 

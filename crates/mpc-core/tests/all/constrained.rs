@@ -2,9 +2,6 @@
 //! Clarabel solve, infeasible steps (typed error from `solve`, documented fallback and
 //! status from `control`), the K-iteration MPC, and the void L_π.
 
-use clarabel::solver::{
-    DefaultSettingsBuilder, DefaultSolver, IPSolver, SolverStatus, SupportedConeT,
-};
 use faer::Mat;
 use lti_model::{BoxSet, LtiSystem};
 use mpc_core::{
@@ -13,6 +10,9 @@ use mpc_core::{
 };
 use qp_iter::QpError;
 use qp_iter::method::Method;
+use qp_iter::reference::clarabel::solver::{
+    DefaultSettingsBuilder, DefaultSolver, IPSolver, SolverStatus, SupportedConeT,
+};
 use rand::Rng;
 
 use crate::common::{csc, gaussian, random_problem, rng};

@@ -109,7 +109,7 @@ struct Counts {
 ///
 /// ```
 /// use faer::{mat, Mat};
-/// use lti_model::BoxSet;
+/// use qp_iter::BoxSet;
 /// use qp_iter::ParametricQp;
 /// use qp_iter::active_set::{ActiveSetSettings, ActiveSetSolver};
 /// let qp = ParametricQp::new(mat![[4.0, 1.0], [1.0, 1.0]], vec![-2.0, -4.0],
@@ -220,10 +220,10 @@ impl ActiveSetSolver {
     /// (e.g. a neighbouring problem's solution, shifted) instead of the previous call's.
     /// Only the start changes: the answer is the same unique minimiser.
     ///
-    /// Errors: `z0` of the wrong length or not finite ([`QpError::Model`]); nothing changes.
+    /// Errors: `z0` of the wrong length or not finite ([`QpError::Data`]); nothing changes.
     pub fn warm_start(&mut self, z0: &[f64]) -> Result<()> {
-        lti_model::matrix::check_len("z0", z0, self.qp.n())?;
-        lti_model::matrix::check_finite_slice("z0", z0)?;
+        crate::matrix::check_len("z0", z0, self.qp.n())?;
+        crate::matrix::check_finite_slice("z0", z0)?;
         self.z.copy_from_slice(z0);
         self.qp.project(&mut self.z);
         self.set_state_from_z();
@@ -261,8 +261,8 @@ impl ActiveSetSolver {
 
     /// Solves for a given linear term q (length n, finite).
     pub fn solve_q(&mut self, q: &[f64]) -> Result<ActiveSetInfo> {
-        lti_model::matrix::check_len("q", q, self.qp.n())?;
-        lti_model::matrix::check_finite_slice("q", q)?;
+        crate::matrix::check_len("q", q, self.qp.n())?;
+        crate::matrix::check_finite_slice("q", q)?;
         self.q.copy_from_slice(q);
         self.solve_loaded()
     }

@@ -62,8 +62,8 @@ impl Default for DualActiveSetSettings {
     }
 }
 
-/// A row of the constraints (defined with the composition traits, which report it).
-pub use loop_traits::ConstraintRow;
+/// A row of the constraints (also in [`crate::QpError::Infeasible`]).
+pub use crate::error::ConstraintRow;
 
 pub use super::parametric_dual::ParametricDualActiveSet;
 
@@ -177,12 +177,12 @@ impl DualActiveSet {
         settings: DualActiveSetSettings,
     ) -> Result<Self> {
         let n = h.nrows();
-        lti_model::matrix::check_positive_definite("H", h, n)?;
+        crate::matrix::check_positive_definite("H", h, n)?;
         let mut s = Self::identity(n, g, settings)?;
         let llt = h
             .to_owned()
             .llt(Side::Lower)
-            .map_err(|e| lti_model::ModelError::Numerical {
+            .map_err(|e| crate::DataError::Numerical {
                 routine: "Cholesky factorisation of H (dual active set)".into(),
                 reason: format!("{e:?}; H must be positive definite"),
             })?;
@@ -200,13 +200,13 @@ impl DualActiveSet {
             }
         }
         if j0.iter().any(|v| !v.is_finite()) {
-            return Err(lti_model::ModelError::Numerical {
+            return Err(crate::DataError::Numerical {
                 routine: "inverse Cholesky factor of H (dual active set)".into(),
                 reason: "non-finite entries; H is numerically singular".into(),
             }
             .into());
         }
-        s.h = lti_model::matrix::row_major(h);
+        s.h = crate::matrix::row_major(h);
         s.j0 = j0;
         Ok(s)
     }
@@ -229,8 +229,8 @@ impl DualActiveSet {
                 reason: "at least one step is needed; use None for 10·(n + m) + 50".into(),
             });
         }
-        lti_model::matrix::check_shape("G", g, g.nrows(), n)?;
-        lti_model::matrix::check_finite("G", g)?;
+        crate::matrix::check_shape("G", g, g.nrows(), n)?;
+        crate::matrix::check_finite("G", g)?;
         Ok(Self::identity_validated(n, g, settings))
     }
 
@@ -242,7 +242,7 @@ impl DualActiveSet {
         settings: DualActiveSetSettings,
     ) -> Self {
         let m = g.nrows();
-        let rows = lti_model::matrix::row_major(g);
+        let rows = crate::matrix::row_major(g);
         let g_norm = (0..m)
             .map(|i| {
                 rows[i * n..(i + 1) * n]

@@ -1,11 +1,13 @@
 //! The exact solve with a fallback ([`ExactSolver`]): the primal active set, Goldfarb–Idnani
-//! for general rows, Clarabel when either stops without a verified optimum. Re-exported as
+//! for general rows, Clarabel when either stops without a verified optimum (cargo feature
+//! `clarabel`; without it that stop is the error). Re-exported as
 //! `qp_iter::active_set::ExactSolver`.
 
 use super::active_set::{ActiveSetInfo, ActiveSetSettings, ActiveSetSolver};
 use crate::dual_active_set::{DualActiveSetSettings, DualActiveSetStatus, ParametricDualActiveSet};
 use crate::error::{QpError, Result};
 use crate::problem::ParametricQp;
+#[cfg(feature = "clarabel")]
 use crate::reference::{ReferenceSettings, ReferenceSolver};
 
 /// An exact solve that cannot stop without an answer: [`ActiveSetSolver`] first, Clarabel
@@ -16,11 +18,13 @@ use crate::reference::{ReferenceSettings, ReferenceSolver};
 /// same Clarabel fallback, and an infeasible θ is [`QpError::Infeasible`].
 ///
 /// Allocation-free while the active set succeeds (every case-study test run); a fallback
-/// allocates (Clarabel) and is counted by [`ExactSolver::fallbacks`].
+/// allocates (Clarabel) and is counted by [`ExactSolver::fallbacks`]. Built without the
+/// cargo feature `clarabel` there is no fallback: a stop without a verified optimum is
+/// returned ([`QpError::NotConverged`]) and counted the same way.
 ///
 /// ```
 /// use faer::{mat, Mat};
-/// use lti_model::BoxSet;
+/// use qp_iter::BoxSet;
 /// use qp_iter::ParametricQp;
 /// use qp_iter::active_set::ExactSolver;
 /// let qp = ParametricQp::new(mat![[4.0, 1.0], [1.0, 1.0]], vec![-2.0, -4.0],
@@ -35,6 +39,7 @@ pub struct ExactSolver {
     active: ActiveSetSolver,
     /// With general rows: Goldfarb–Idnani instead of `active` (which then solves nothing).
     general: Option<Box<ParametricDualActiveSet>>,
+    #[cfg(feature = "clarabel")]
     fallback: Option<Box<ReferenceSolver>>,
     fallbacks: usize,
     /// The last solution (the active set's, or Clarabel's after a fallback).
@@ -60,6 +65,7 @@ impl ExactSolver {
         Ok(Self {
             active: ActiveSetSolver::new(&qp.without_general(), settings)?,
             general,
+            #[cfg(feature = "clarabel")]
             fallback: None,
             fallbacks: 0,
             z: vec![0.0; qp.n()],
@@ -67,7 +73,7 @@ impl ExactSolver {
         })
     }
 
-    /// z*(θ). Errors: θ of the wrong length or not finite ([`QpError::Model`]); Clarabel
+    /// z*(θ). Errors: θ of the wrong length or not finite ([`QpError::Data`]); Clarabel
     /// failing after an active-set failure ([`QpError::Reference`]); with general rows,
     /// constraints without a common point for this θ ([`QpError::Infeasible`], from the
     /// Goldfarb–Idnani solver, naming the row it could not meet).
@@ -90,6 +96,7 @@ impl ExactSolver {
                     self.z.copy_from_slice(gi.z());
                     return Ok(&self.z);
                 }
+                #[cfg(feature = "clarabel")]
                 _ => {
                     self.fallbacks += 1;
                     let reference = match &mut self.fallback {
@@ -103,6 +110,19 @@ impl ExactSolver {
                     self.z.copy_from_slice(&sol.z);
                     return Ok(&self.z);
                 }
+                #[cfg(not(feature = "clarabel"))]
+                _ => {
+                    self.fallbacks += 1;
+                    return Err(QpError::NotConverged {
+                        solver: "dual active set",
+                        iterations: info.iterations,
+                        reason: format!(
+                            "stopped without a verified optimum ({:?}) and the Clarabel fallback \
+                             is not built; enable qp-iter's cargo feature `clarabel`",
+                            info.status
+                        ),
+                    });
+                }
             }
         }
         match self.active.solve(theta) {
@@ -110,6 +130,7 @@ impl ExactSolver {
                 self.z.copy_from_slice(self.active.z());
                 self.last_info = Some(info);
             }
+            #[cfg(feature = "clarabel")]
             Err(QpError::NotConverged { .. }) => {
                 self.fallbacks += 1;
                 self.active.reset();
@@ -122,6 +143,12 @@ impl ExactSolver {
                 };
                 let sol = reference.solve(theta)?;
                 self.z.copy_from_slice(&sol.z);
+            }
+            #[cfg(not(feature = "clarabel"))]
+            Err(e @ QpError::NotConverged { .. }) => {
+                self.fallbacks += 1;
+                self.active.reset();
+                return Err(e);
             }
             Err(e) => return Err(e),
         }
@@ -137,7 +164,7 @@ impl ExactSolver {
 
     /// The next call starts from Π_Z(`z0`) and the working set of the bounds it touches
     /// ([`ActiveSetSolver::warm_start`]) instead of the previous call's. Errors: `z0` of the
-    /// wrong length or not finite ([`QpError::Model`]).
+    /// wrong length or not finite ([`QpError::Data`]).
     pub fn warm_start(&mut self, z0: &[f64]) -> Result<()> {
         self.active.warm_start(z0)
     }

@@ -11,7 +11,7 @@ use crate::problem::ParametricQp;
 ///
 /// ```
 /// use faer::{mat, Mat};
-/// use lti_model::BoxSet;
+/// use qp_iter::BoxSet;
 /// use qp_iter::ParametricQp;
 /// use qp_iter::problem::GeneralConstraints;
 /// use qp_iter::dual_active_set::{ParametricDualActiveSet, DualActiveSetStatus};

@@ -23,12 +23,16 @@
 //! ‖Hz + q − λ_box − Gᵀλ_G‖_∞ and the largest violation. A primal-infeasible problem is
 //! [`QpError::Infeasible`].
 
+/// The Clarabel crate this module is built on, for callers that build a reference problem by
+/// hand (the uncondensed MHE and MPC checks) with the same version.
+pub use clarabel;
+
+use crate::Projection;
 use clarabel::algebra::CscMatrix;
 use clarabel::solver::{
     DefaultSettingsBuilder, DefaultSolver, IPSolver, SolverStatus, SupportedConeT,
 };
 use faer::{Mat, Side};
-use lti_model::Projection;
 
 use crate::error::{QpError, Result};
 use crate::problem::ParametricQp;
@@ -118,7 +122,7 @@ impl ReferenceSolution {
 ///
 /// ```
 /// use faer::{mat, Mat};
-/// use lti_model::BoxSet;
+/// use qp_iter::BoxSet;
 /// use qp_iter::ParametricQp;
 /// use qp_iter::reference::{ReferenceSolver, ReferenceSettings};
 /// let qp = ParametricQp::new(mat![[4.0, 1.0], [1.0, 1.0]], vec![-2.0, -4.0],
@@ -312,8 +316,8 @@ impl ReferenceSolver {
     /// Solves for a given linear term q (length n, finite); general bounds of the last θ
     /// (θ = 0 before the first [`ReferenceSolver::solve`]).
     pub fn solve_q(&mut self, q: &[f64]) -> Result<ReferenceSolution> {
-        lti_model::matrix::check_len("q", q, self.qp.n())?;
-        lti_model::matrix::check_finite_slice("q", q)?;
+        crate::matrix::check_len("q", q, self.qp.n())?;
+        crate::matrix::check_finite_slice("q", q)?;
         self.q.copy_from_slice(q);
         self.solve_loaded()
     }

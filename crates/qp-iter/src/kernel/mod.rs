@@ -29,7 +29,10 @@
 //! product column by column, element-wise, which the baseline target vectorises, then the
 //! step's row-local update). The choice is made once: [`Kernel::detect`] caches it in a
 //! `OnceLock`, and a [`Kernel`] value stored in a method's setup data carries it, so a call
-//! costs one predictable branch, not a CPU query.
+//! costs one predictable branch, not a CPU query. Maps are built with
+//! [`get_global_kernel`] (the detected kernel unless a caller set another with
+//! [`set_global_kernel`]) or are given one ([`crate::MethodMap::with_kernel`]); the library
+//! never reads an environment variable.
 
 mod layout;
 mod portable;
@@ -44,6 +47,7 @@ pub(crate) use layout::Vectors;
 pub use layout::{AlignedVec, PaddedSymmetric, padded_len};
 
 use std::sync::OnceLock;
+use std::sync::atomic::{AtomicU8, Ordering};
 
 /// Which implementation a [`Kernel`] runs.
 #[derive(Debug, Clone, Copy, PartialEq, Eq)]
@@ -103,17 +107,48 @@ pub struct Kernel {
 
 static DETECTED: OnceLock<Kernel> = OnceLock::new();
 
+/// The kernel maps are built with unless a caller chose one ([`set_global_kernel`]):
+/// 0 = not set (detect), else `1 + KernelPath as u8`.
+static GLOBAL: AtomicU8 = AtomicU8::new(0);
+
+/// Makes `kernel` the one every map and operator built afterwards runs (faer's
+/// `set_global_parallelism` idiom); a map built earlier keeps its kernel. The library never
+/// reads the environment: a tool decides (e.g. `cargo xtask` reads `QP_ITER_KERNEL`) and
+/// calls this once at start-up. Per map: `MethodMap::with_kernel`.
+///
+/// ```
+/// use qp_iter::kernel::{self, Kernel};
+/// kernel::set_global_kernel(Kernel::portable());
+/// assert_eq!(kernel::get_global_kernel(), Kernel::portable());
+/// ```
+pub fn set_global_kernel(kernel: Kernel) {
+    let code = match kernel.path {
+        KernelPath::Portable => 1,
+        KernelPath::Avx2Fma => 2,
+    };
+    GLOBAL.store(code, Ordering::Relaxed);
+}
+
+/// The kernel new maps run: the one given to [`set_global_kernel`], else
+/// [`Kernel::detect`]. Read at setup only (never per step).
+pub fn get_global_kernel() -> Kernel {
+    match GLOBAL.load(Ordering::Relaxed) {
+        1 => Kernel::portable(),
+        // Only a validated `Kernel` is ever stored, so the path is available.
+        2 => Kernel {
+            path: KernelPath::Avx2Fma,
+        },
+        _ => Kernel::detect(),
+    }
+}
+
 impl Kernel {
-    /// The fastest path the running CPU supports (detected on first use, then cached).
-    ///
-    /// The environment variable `QP_ITER_KERNEL=portable`, read at that first use, makes
-    /// every detected kernel of the process the portable one (to reproduce a run bit for
-    /// bit with `mhe-embedded` or exported C; per map: `MethodMap::set_kernel`).
+    /// The fastest path the running CPU supports (detected on first use, then cached). A
+    /// CPU query only: which kernel new maps run is [`get_global_kernel`].
     #[inline]
     pub fn detect() -> Self {
         *DETECTED.get_or_init(|| {
-            let forced = std::env::var("QP_ITER_KERNEL").is_ok_and(|v| v == "portable");
-            if avx2_fma_detected() && !forced {
+            if avx2_fma_detected() {
                 Kernel {
                     path: KernelPath::Avx2Fma,
                 }

@@ -147,8 +147,8 @@ impl Family for Richardson {
 #[cfg(test)]
 mod tests {
     #![allow(clippy::unwrap_used)]
+    use crate::BoxSet;
     use faer::mat;
-    use lti_model::BoxSet;
 
     use crate::method::Method;
     use crate::pg::StepRule;

@@ -4,7 +4,7 @@
 
 use faer::Mat;
 use faer::prelude::Solve;
-use lti_model::BoxSet;
+use qp_iter::BoxSet;
 use qp_iter::active_set::{ActiveSetSettings, ActiveSetSolver, ExactSolver};
 use qp_iter::reference::{ReferenceSettings, ReferenceSolver};
 use qp_iter::{ParametricQp, QpError};
@@ -286,11 +286,11 @@ fn bad_input_is_a_typed_error() {
     let mut s = ActiveSetSolver::new(&inst.qp, ActiveSetSettings::default()).unwrap();
     let mut bad = inst.theta.clone();
     bad.push(0.0);
-    assert!(matches!(s.solve(&bad), Err(QpError::Model(_))));
+    assert!(matches!(s.solve(&bad), Err(QpError::Data(_))));
     let mut nan_q = vec![0.0; inst.qp.n()];
     nan_q[0] = f64::NAN;
-    assert!(matches!(s.solve_q(&nan_q), Err(QpError::Model(_))));
-    assert!(matches!(s.solve_q(&[0.0]), Err(QpError::Model(_))) || inst.qp.n() == 1);
+    assert!(matches!(s.solve_q(&nan_q), Err(QpError::Data(_))));
+    assert!(matches!(s.solve_q(&[0.0]), Err(QpError::Data(_))) || inst.qp.n() == 1);
 }
 
 #[test]
@@ -359,7 +359,7 @@ fn exact_solver_falls_back_to_clarabel_and_counts_it() {
     assert!(
         matches!(
             full.solve(&[f64::NAN; 4][..inst.qp.n_theta()]),
-            Err(QpError::Model(_))
+            Err(QpError::Data(_))
         ) || inst.qp.n_theta() == 0
     );
 }

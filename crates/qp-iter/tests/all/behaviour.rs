@@ -2,10 +2,10 @@
 //! restart semantics, feasibility after every step, certificate formulas.
 
 use faer::Mat;
-use lti_model::{BoxSet, ConvexSet};
 use qp_iter::admm::{Admm, AdmmParams, Penalty};
 use qp_iter::fista::Fista;
 use qp_iter::pg::{ProjectedGradient, StepRule};
+use qp_iter::{BoxSet, ConvexSet};
 use qp_iter::{Certificate, IterationMap, ParametricQp, RunStatus, run_fixed, run_until};
 
 use crate::common::{Gen, dist, gradient, norm, random_instance, reference};

@@ -2,7 +2,7 @@
 //! rigorous bound on its own error, and the φ(K) bound checker shared by all tests.
 
 use faer::Mat;
-use lti_model::BoxSet;
+use qp_iter::BoxSet;
 use qp_iter::ParametricQp;
 use qp_iter::reference::{ReferenceSettings, ReferenceSolution, ReferenceSolver};
 use rand::{Rng, SeedableRng};
@@ -133,9 +133,19 @@ pub fn gradient(qp: &ParametricQp, q: &[f64], z: &[f64]) -> Vec<f64> {
         .collect()
 }
 
-pub use lti_model::vecmath::dist2 as dist;
+/// ‖a − b‖₂.
+pub fn dist(a: &[f64], b: &[f64]) -> f64 {
+    a.iter()
+        .zip(b)
+        .map(|(x, y)| (x - y) * (x - y))
+        .sum::<f64>()
+        .sqrt()
+}
 
-pub use lti_model::vecmath::norm2 as norm;
+/// ‖v‖₂.
+pub fn norm(v: &[f64]) -> f64 {
+    v.iter().map(|a| a * a).sum::<f64>().sqrt()
+}
 
 /// Reference optimum and a rigorous bound on its distance to the true z*:
 /// ‖ẑ − z*‖ ≤ (1 + L)/μ · ‖ẑ − Π_Z(ẑ − ∇f(ẑ))‖ (natural-residual error bound for a

@@ -1,11 +1,11 @@
 //! Bad input: typed errors at setup; NaN during iteration is a run status, not a panic.
 
 use faer::{Mat, mat};
-use lti_model::{BoxSet, ModelError};
 use qp_iter::admm::{Admm, AdmmParams, Penalty};
 use qp_iter::fista::Fista;
 use qp_iter::pg::{ProjectedGradient, StepRule};
 use qp_iter::reference::{ReferenceSettings, ReferenceSolver};
+use qp_iter::{BoxSet, DataError as ModelError};
 use qp_iter::{IterationMap, ParametricQp, QpError, RunStatus, run_fixed, run_until};
 
 fn h2() -> Mat<f64> {
@@ -20,7 +20,7 @@ fn qp2() -> ParametricQp {
 
 fn model_err(e: QpError) -> ModelError {
     match e {
-        QpError::Model(m) => m,
+        QpError::Data(m) => m,
         other => panic!("expected a model error, got {other:?}"),
     }
 }

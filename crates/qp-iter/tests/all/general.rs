@@ -2,9 +2,9 @@
 //! on thousands of random feasible and infeasible instances (proptest, fixed seed).
 
 use faer::Mat;
-use lti_model::BoxSet;
 use proptest::prelude::*;
 use proptest::test_runner::{Config, RngSeed};
+use qp_iter::BoxSet;
 use qp_iter::dual_active_set::{
     ConstraintRow, DualActiveSet, DualActiveSetSettings, DualActiveSetStatus,
     ParametricDualActiveSet,

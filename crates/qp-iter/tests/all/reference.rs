@@ -2,7 +2,7 @@
 //! active-set enumeration, KKT conditions; and update-in-place against a fresh build.
 
 use faer::Mat;
-use lti_model::BoxSet;
+use qp_iter::BoxSet;
 use qp_iter::reference::{ReferenceSettings, ReferenceSolver};
 use qp_iter::{ParametricQp, QpError};
 use rand::Rng;

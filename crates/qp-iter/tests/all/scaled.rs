@@ -4,7 +4,7 @@
 //! nothing.
 
 use faer::Mat;
-use lti_model::BoxSet;
+use qp_iter::BoxSet;
 use qp_iter::scaled::Scaled;
 use qp_iter::{IterationMap, Method, MethodMap, ParametricQp};
 use rand::Rng;

@@ -910,6 +910,39 @@ fn certify_model(
     })
 }
 
+/// Chooses the dense kernel every estimator, certificate and simulation of this process
+/// builds from now on: `"portable"` (bit for bit what `mhe-embedded`, the exported C and
+/// `QP_ITER_KERNEL=portable cargo xtask …` compute), `"avx2+fma"` or `"auto"` (the fastest
+/// the CPU supports, the default). The library never reads the environment: the package
+/// reads `QP_ITER_KERNEL` once at import and calls this.
+#[pyfunction]
+fn set_kernel(name: &str) -> PyResult<()> {
+    use qp_iter::kernel::{Kernel, KernelPath, set_global_kernel};
+    let path = match name.trim() {
+        "" | "auto" => {
+            set_global_kernel(Kernel::detect());
+            return Ok(());
+        }
+        "portable" => KernelPath::Portable,
+        "avx2+fma" | "avx2" => KernelPath::Avx2Fma,
+        other => {
+            return Err(OutOfRangeError::new_err(format!(
+                "argument `name`: `{other}` is not a kernel; use \"portable\", \"avx2+fma\" or \"auto\""
+            )));
+        }
+    };
+    match Kernel::with_path(path) {
+        Some(k) => {
+            set_global_kernel(k);
+            Ok(())
+        }
+        None => Err(UnsupportedError::new_err(format!(
+            "argument `name`: this CPU cannot run the {} kernel; use \"portable\" or \"auto\"",
+            path.name()
+        ))),
+    }
+}
+
 #[pymodule]
 fn _native(m: &Bound<'_, PyModule>) -> PyResult<()> {
     let py = m.py();
@@ -936,5 +969,6 @@ fn _native(m: &Bound<'_, PyModule>) -> PyResult<()> {
     m.add_function(wrap_pyfunction!(certify_model, m)?)?;
     m.add_function(wrap_pyfunction!(certify_json, m)?)?;
     m.add_function(wrap_pyfunction!(simulate, m)?)?;
+    m.add_function(wrap_pyfunction!(set_kernel, m)?)?;
     Ok(())
 }

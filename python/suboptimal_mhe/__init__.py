@@ -47,6 +47,7 @@ __all__ = [
     "Certificate",
     "certify",
     "simulate",
+    "set_kernel",
     "MheError",
     "InputError",
     "ShapeError",
@@ -60,6 +61,23 @@ __all__ = [
     "MAX_DIMENSION",
     "METHODS",
 ]
+
+
+def set_kernel(name: str) -> None:
+    """Choose the dense kernel of every estimator, certificate and simulation built afterwards.
+
+    ``"portable"`` computes bit for bit what the embedded crate, the exported C and
+    ``QP_ITER_KERNEL=portable cargo xtask ...`` compute; ``"avx2+fma"`` the x86-64 intrinsics;
+    ``"auto"`` the fastest the CPU supports (the default). At import the package applies
+    ``$QP_ITER_KERNEL`` if it is set (the Rust library itself never reads the environment).
+    Raises ``OutOfRangeError`` for an unknown name, ``UnsupportedError`` for a kernel this CPU
+    cannot run.
+    """
+    _native.set_kernel(name)
+
+
+if os.environ.get("QP_ITER_KERNEL"):
+    set_kernel(os.environ["QP_ITER_KERNEL"])
 
 #: Largest plant dimension accepted (n_x, n_u, n_y, n_w), as for a scenario file.
 MAX_DIMENSION: int = _native.MAX_DIMENSION

@@ -4,7 +4,7 @@ import os
 import pathlib
 
 # Both this process and the CLI it is compared with run the portable kernel, so results
-# agree bit for bit (read by qp-iter at the kernel's first use; set before any call).
+# agree bit for bit (the package applies $QP_ITER_KERNEL at import: suboptimal_mhe.set_kernel).
 os.environ.setdefault("QP_ITER_KERNEL", "portable")
 
 import pytest  # noqa: E402

@@ -144,3 +144,10 @@ def test_bad_data_raises_and_leaves_the_estimator_unchanged():
     assert est.t == 1
     with pytest.raises(sm.ShapeError, match="out"):
         est.estimate(np.empty(3))
+
+
+def test_set_kernel_names_its_argument():
+    sm.set_kernel("portable")
+    with pytest.raises(sm.OutOfRangeError, match="name"):
+        sm.set_kernel("fast")
+    sm.set_kernel("portable")

@@ -71,7 +71,7 @@ pub enum VoidReason {
     /// The joint region's boundary has more corners than are listed (the region is not
     /// empty: the list of corners is cut).
     BoundaryCut {
-        /// Corners listed ([`crate::joint::MAX_CORNERS`]).
+        /// Corners listed (at most 4096, the joint region's `MAX_CORNERS`).
         max_corners: usize,
     },
 }

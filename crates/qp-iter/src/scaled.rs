@@ -19,7 +19,7 @@
 //!
 //! ```
 //! use faer::{mat, Mat};
-//! use crate::BoxSet;
+//! use qp_iter::BoxSet;
 //! use qp_iter::{IterationMap, ParametricQp, run_fixed};
 //! use qp_iter::method::{Method, Scaling};
 //! // A badly scaled QP: κ(H) = 10⁴, κ(DHD) = 1 (H is diagonal).

@@ -49,6 +49,7 @@ mod document;
 mod gains;
 mod job;
 mod joint;
+mod json_v1;
 mod linear;
 pub(crate) mod numfmt;
 mod regional;

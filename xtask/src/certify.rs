@@ -18,9 +18,9 @@ use crate::provenance::Provenance;
 use crate::reproduce::numfmt::num;
 
 /// Value of the `format` field.
-pub const FORMAT: &str = "suboptimal-mhe/ioss-certificate";
+pub const FORMAT: &str = certificate_json::v1::IOSS_FORMAT;
 /// Value of the `format_version` field; bumped on any incompatible change.
-pub const FORMAT_VERSION: u32 = 2;
+pub const FORMAT_VERSION: u32 = certificate_json::v1::IOSS_FORMAT_VERSION;
 /// Seeded random pairs for the sampled L_π estimate.
 pub const LPI_SAMPLE_PAIRS: usize = 200;
 /// The pass/fail rule of the LMI (2) check (recorded in the JSON; `lti_model::ioss` module doc).
@@ -660,7 +660,8 @@ pub fn write_json(doc: &CertificateDocument, path: &Path) -> Result<()> {
         std::fs::create_dir_all(dir)
             .with_context(|| format!("cannot create directory `{}`", dir.display()))?;
     }
-    let text = serde_json::to_string_pretty(doc).context("cannot serialise the certificate")?;
+    let text = serde_json::to_string_pretty(&v1::IossCertificate::from(doc))
+        .context("cannot serialise the certificate")?;
     crate::output::write_atomic(path, (text + "\n").as_bytes())
 }
 

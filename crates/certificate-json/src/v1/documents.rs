@@ -6,7 +6,6 @@ use super::*;
 
 /// The JSON document `certify` writes (docs/certificate-json.md).
 #[derive(Debug, Clone, PartialEq, Serialize)]
-#[non_exhaustive]
 pub struct IossCertificate {
     /// Always `FORMAT`.
     pub format: String,
@@ -48,7 +47,6 @@ pub struct IossCertificate {
 
 /// The parameters of LMI (2) and where each came from.
 #[derive(Debug, Clone, PartialEq, Serialize)]
-#[non_exhaustive]
 pub struct IossInputs {
     /// η.
     pub eta: Option<f64>,
@@ -67,7 +65,6 @@ pub struct IossInputs {
 /// The plant's dimensions, written as flat fields `nx`, `nu`, `ny`, `nw1`, `nw2` into both
 /// JSON documents (certificate and reproduce).
 #[derive(Debug, Clone, PartialEq, Serialize)]
-#[non_exhaustive]
 pub struct PlantDims {
     /// n_x.
     pub nx: usize,
@@ -83,7 +80,6 @@ pub struct PlantDims {
 
 /// The scenario the certificate is for.
 #[derive(Debug, Clone, PartialEq, Serialize)]
-#[non_exhaustive]
 pub struct IossScenario {
     /// `name` of the scenario.
     pub name: String,
@@ -93,7 +89,6 @@ pub struct IossScenario {
 
 /// The plant data that enters LMI (2).
 #[derive(Debug, Clone, PartialEq, Serialize)]
-#[non_exhaustive]
 pub struct IossSystem {
     /// n_x, n_u, n_y, n_w1, n_w2.
     #[serde(flatten)]
@@ -110,7 +105,6 @@ pub struct IossSystem {
 
 /// Recorded next to every output so a result can be traced to the code that made it.
 #[derive(Debug, Clone, PartialEq, Serialize)]
-#[non_exhaustive]
 pub struct Provenance {
     /// Name of the program that wrote the file.
     pub tool: String,
@@ -128,7 +122,6 @@ pub struct Provenance {
 
 /// certificate.json (docs/reproduce-output.md).
 #[derive(Debug, Clone, PartialEq, Serialize)]
-#[non_exhaustive]
 pub struct Certificate {
     /// `CERTIFICATE_FORMAT`.
     pub format: String,
@@ -200,7 +193,6 @@ pub struct Certificate {
 
 /// One row of the constants table (ours vs the paper's published values).
 #[derive(Debug, Clone, PartialEq, Serialize)]
-#[non_exhaustive]
 pub struct ComparisonRow {
     /// Quantity.
     pub quantity: String,
@@ -212,7 +204,6 @@ pub struct ComparisonRow {
 
 /// The machine a result was produced on.
 #[derive(Debug, Clone, PartialEq, Serialize)]
-#[non_exhaustive]
 pub struct HostInfo {
     /// Host name, if it could be read.
     pub hostname: Option<String>,
@@ -226,7 +217,6 @@ pub struct HostInfo {
 
 /// The Kalman baseline of one run (`closed_loop::baseline`).
 #[derive(Debug, Clone, PartialEq, Serialize)]
-#[non_exhaustive]
 pub struct KalmanSummary {
     /// `"standard, Π₀ = (2P)⁻¹, Σ_w = (2Q)⁻¹, Σ_v = R⁻¹"`.
     pub weights: String,
@@ -246,7 +236,6 @@ pub struct KalmanSummary {
 
 /// What one simulation did.
 #[derive(Debug, Clone, PartialEq, Serialize)]
-#[non_exhaustive]
 pub struct RunSummary {
     /// Short name (`"K=652"`).
     pub label: String,
@@ -307,7 +296,6 @@ pub struct RunSummary {
 
 /// The scenario as read.
 #[derive(Debug, Clone, PartialEq, Serialize)]
-#[non_exhaustive]
 pub struct ScenarioRecord {
     /// `name`.
     pub name: String,
@@ -321,7 +309,6 @@ pub struct ScenarioRecord {
 
 /// The settings as recorded.
 #[derive(Debug, Clone, PartialEq, Serialize)]
-#[non_exhaustive]
 pub struct SettingsRecord {
     /// Seed of every sampled estimate (the scenario's `noise.seed`).
     pub sampling_seed: u64,
@@ -343,7 +330,6 @@ pub struct SettingsRecord {
 
 /// A simulation of the plan that was not run.
 #[derive(Debug, Clone, PartialEq, Serialize)]
-#[non_exhaustive]
 pub struct SkippedRun {
     /// Its K.
     pub k: usize,
@@ -355,7 +341,6 @@ pub struct SkippedRun {
 
 /// One solver's verdict, flattened for readers of the JSON.
 #[derive(Debug, Clone, PartialEq, Serialize)]
-#[non_exhaustive]
 pub struct SolverSummary {
     /// `"pg"`, `"fista"`, `"admm"`, `"admm-pr"`.
     pub solver: String,
@@ -387,7 +372,6 @@ pub struct SolverSummary {
 
 /// Props. 1 and 3 evaluated on the K_min run.
 #[derive(Debug, Clone, PartialEq, Serialize)]
-#[non_exhaustive]
 pub struct TrajectoryReport {
     /// The check ran (a K_min exists and ε_t was recorded).
     pub ran: bool,
@@ -411,7 +395,6 @@ pub struct TrajectoryReport {
 
 /// g·w̄ for one run.
 #[derive(Debug, Clone, PartialEq, Serialize)]
-#[non_exhaustive]
 pub struct CertifiedBound {
     /// g_x.
     pub gain_x: Option<f64>,
@@ -429,7 +412,6 @@ pub struct CertifiedBound {
 
 /// `asymptotic_gains` of certificate.json.
 #[derive(Debug, Clone, PartialEq, Serialize)]
-#[non_exhaustive]
 pub struct GainsReport {
     /// What the numbers mean, in one sentence.
     pub meaning: String,
@@ -442,7 +424,6 @@ pub struct GainsReport {
 
 /// One method's certified asymptotic gains at its K_min.
 #[derive(Debug, Clone, PartialEq, Serialize)]
-#[non_exhaustive]
 pub struct MethodGains {
     /// The method.
     pub solver: String,
@@ -462,7 +443,6 @@ pub struct MethodGains {
 
 /// The regional certificate's gains (`iss_certificate::regional::RegionalCertificate`).
 #[derive(Debug, Clone, PartialEq, Serialize)]
-#[non_exhaustive]
 pub struct RegionalGains {
     /// The K they are certified at.
     pub k: usize,
@@ -479,7 +459,6 @@ pub struct RegionalGains {
 
 /// One run's certified bound and measured gains.
 #[derive(Debug, Clone, PartialEq, Serialize)]
-#[non_exhaustive]
 pub struct RunGains {
     /// The run's label (`"K=243"`).
     pub label: String,
@@ -510,7 +489,6 @@ pub enum Preset {
 
 /// The joint certificate and its trajectory check, as written to certificate.json (`joint`).
 #[derive(Debug, Clone, PartialEq, Serialize)]
-#[non_exhaustive]
 pub struct JointReport {
     /// K_c of the scenario (`mpc.iterations`).
     pub scenario_k_c: usize,
@@ -526,7 +504,6 @@ pub struct JointReport {
 
 /// ρ_lin of one method, or why it has none.
 #[derive(Debug, Clone, PartialEq, Serialize)]
-#[non_exhaustive]
 pub struct LinearEntry {
     /// The method.
     pub solver: String,
@@ -538,7 +515,6 @@ pub struct LinearEntry {
 
 /// One method's K_reg and regional certificate, or why there is none.
 #[derive(Debug, Clone, PartialEq, Serialize)]
-#[non_exhaustive]
 pub struct RegionalEntry {
     /// The method.
     pub solver: String,
@@ -586,7 +562,6 @@ pub struct RegionalEntry {
 
 /// One K the search evaluated.
 #[derive(Debug, Clone, PartialEq, Serialize)]
-#[non_exhaustive]
 pub struct TriedK {
     /// K.
     pub k: usize,

@@ -43,7 +43,7 @@ pub struct CertifyRequest {
 }
 
 /// The scenario the certificate is for.
-#[derive(Debug, Clone, Serialize)]
+#[derive(Debug, Clone)]
 pub struct ScenarioInfo {
     /// `name` of the scenario.
     pub name: String,
@@ -81,10 +81,9 @@ impl PlantDims {
 }
 
 /// The plant data that enters LMI (2).
-#[derive(Debug, Clone, Serialize)]
+#[derive(Debug, Clone)]
 pub struct SystemInfo {
     /// n_x, n_u, n_y, n_w1, n_w2.
-    #[serde(flatten)]
     pub dims: PlantDims,
     /// A (n_x × n_x).
     pub a: Vec<Vec<f64>>,
@@ -97,7 +96,7 @@ pub struct SystemInfo {
 }
 
 /// The parameters of LMI (2) and where each came from.
-#[derive(Debug, Clone, Serialize)]
+#[derive(Debug, Clone)]
 pub struct Inputs {
     /// η.
     pub eta: f64,
@@ -114,7 +113,7 @@ pub struct Inputs {
 }
 
 /// The JSON document `certify` writes (docs/certificate-json.md).
-#[derive(Debug, Clone, Serialize)]
+#[derive(Debug, Clone)]
 pub struct CertificateDocument {
     /// Always [`FORMAT`].
     pub format: String,
@@ -687,8 +686,14 @@ impl From<&crate::certify::CertificateDocument> for v1::IossCertificate {
             inputs: v1::IossInputs::from(&l.inputs),
             certificate: l.certificate.as_ref().map(v1::IossReport::from),
             tolerance_rule: l.tolerance_rule.to_string(),
-            controller_lipschitz: l.controller_lipschitz.as_ref().map(v1::LipschitzReport::from),
-            controller_lipschitz_skipped: l.controller_lipschitz_skipped.as_ref().map(ToString::to_string),
+            controller_lipschitz: l
+                .controller_lipschitz
+                .as_ref()
+                .map(v1::LipschitzReport::from),
+            controller_lipschitz_skipped: l
+                .controller_lipschitz_skipped
+                .as_ref()
+                .map(ToString::to_string),
             closed_loop: l.closed_loop.as_ref().map(v1::Coverage::from),
         }
     }
@@ -699,8 +704,14 @@ impl From<&crate::certify::Inputs> for v1::IossInputs {
         Self {
             eta: json_num(l.eta),
             eta_source: l.eta_source.to_string(),
-            q: l.q.iter().map(|x| x.iter().map(|x| json_num(*x)).collect()).collect(),
-            r: l.r.iter().map(|x| x.iter().map(|x| json_num(*x)).collect()).collect(),
+            q: l.q
+                .iter()
+                .map(|x| x.iter().map(|x| json_num(*x)).collect())
+                .collect(),
+            r: l.r
+                .iter()
+                .map(|x| x.iter().map(|x| json_num(*x)).collect())
+                .collect(),
             weights_source: l.weights_source.to_string(),
             p_source: l.p_source.to_string(),
         }
@@ -732,10 +743,24 @@ impl From<&crate::certify::SystemInfo> for v1::IossSystem {
     fn from(l: &crate::certify::SystemInfo) -> Self {
         Self {
             dims: v1::PlantDims::from(&l.dims),
-            a: l.a.iter().map(|x| x.iter().map(|x| json_num(*x)).collect()).collect(),
-            c: l.c.iter().map(|x| x.iter().map(|x| json_num(*x)).collect()).collect(),
-            b_bar: l.b_bar.iter().map(|x| x.iter().map(|x| json_num(*x)).collect()).collect(),
-            d_bar: l.d_bar.iter().map(|x| x.iter().map(|x| json_num(*x)).collect()).collect(),
+            a: l.a
+                .iter()
+                .map(|x| x.iter().map(|x| json_num(*x)).collect())
+                .collect(),
+            c: l.c
+                .iter()
+                .map(|x| x.iter().map(|x| json_num(*x)).collect())
+                .collect(),
+            b_bar: l
+                .b_bar
+                .iter()
+                .map(|x| x.iter().map(|x| json_num(*x)).collect())
+                .collect(),
+            d_bar: l
+                .d_bar
+                .iter()
+                .map(|x| x.iter().map(|x| json_num(*x)).collect())
+                .collect(),
         }
     }
 }

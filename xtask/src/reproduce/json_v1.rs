@@ -18,7 +18,10 @@ impl From<&crate::reproduce::document::CertificateDocument> for v1::Certificate 
             solver: l.solver.to_string(),
             scenario_iterations: l.scenario_iterations,
             certified: l.certified,
-            certificate_applies: l.certificate_applies.as_ref().map(v1::CertificateKind::from),
+            certificate_applies: l
+                .certificate_applies
+                .as_ref()
+                .map(v1::CertificateKind::from),
             not_covered: l.not_covered.as_ref().map(ToString::to_string),
             at_scenario: v1::PairVerdict::from(&l.at_scenario),
             scenario_iterations_match_k_min: l.scenario_iterations_match_k_min,
@@ -31,7 +34,11 @@ impl From<&crate::reproduce::document::CertificateDocument> for v1::Certificate 
             linear: l.linear.iter().map(v1::LinearEntry::from).collect(),
             regional: l.regional.iter().map(v1::RegionalEntry::from).collect(),
             asymptotic_gains: v1::GainsReport::from(&l.asymptotic_gains),
-            paper_comparison: l.paper_comparison.iter().map(v1::ComparisonRow::from).collect(),
+            paper_comparison: l
+                .paper_comparison
+                .iter()
+                .map(v1::ComparisonRow::from)
+                .collect(),
             files: l.files.iter().map(ToString::to_string).collect(),
             figure_notes: l.figure_notes.iter().map(ToString::to_string).collect(),
         }

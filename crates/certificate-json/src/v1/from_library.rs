@@ -126,7 +126,11 @@ impl From<&iss_certificate::asymptotic::AsymptoticGains> for AsymptoticGains {
 impl From<&iss_certificate::asymptotic::ComparisonSystem> for ComparisonSystem {
     fn from(l: &iss_certificate::asymptotic::ComparisonSystem) -> Self {
         Self {
-            matrix: l.matrix.iter().map(|x| x.iter().map(|x| num(*x)).collect()).collect(),
+            matrix: l
+                .matrix
+                .iter()
+                .map(|x| x.iter().map(|x| num(*x)).collect())
+                .collect(),
             input: l.input.iter().map(|x| num(*x)).collect(),
             spectral_radius: num(l.spectral_radius),
             gains: l.gains.iter().map(|x| num(*x)).collect(),
@@ -218,7 +222,11 @@ impl From<&iss_certificate::certificate::SolverCertificate> for SolverCertificat
             phi_rate: num(l.phi_rate),
             phi_prefactor: num(l.phi_prefactor),
             fits_eq11: l.fits_eq11,
-            per_window: l.per_window.iter().map(IterationCertificate::from).collect(),
+            per_window: l
+                .per_window
+                .iter()
+                .map(IterationCertificate::from)
+                .collect(),
             analysis: IssAnalysis::from(&l.analysis),
             k_min: l.k_min,
             at_k_min: l.at_k_min.as_ref().map(GainsAtK::from),
@@ -275,7 +283,9 @@ impl From<&iss_certificate::coverage::Certified> for Certified {
 impl From<&iss_certificate::coverage::Coverage> for Coverage {
     fn from(l: &iss_certificate::coverage::Coverage) -> Self {
         match l {
-            iss_certificate::coverage::Coverage::Covered(a0) => Self::Covered(CertificateKind::from(a0)),
+            iss_certificate::coverage::Coverage::Covered(a0) => {
+                Self::Covered(CertificateKind::from(a0))
+            }
             iss_certificate::coverage::Coverage::Uncovered(a0) => Self::Uncovered(a0.to_string()),
         }
     }
@@ -334,13 +344,47 @@ impl From<&iss_certificate::gamma13::Gamma13Method> for Gamma13Method {
 impl From<&iss_certificate::gamma13::Gamma13Void> for Gamma13Void {
     fn from(l: &iss_certificate::gamma13::Gamma13Void) -> Self {
         match l {
-            iss_certificate::gamma13::Gamma13Void::OriginOutsideInputSet => Self::OriginOutsideInputSet,
-            iss_certificate::gamma13::Gamma13Void::SaturatedDynamicsNotStable { spectral_radius, input_bounded, marginal } => Self::SaturatedDynamicsNotStable { spectral_radius: num(*spectral_radius), input_bounded: *input_bounded, marginal: *marginal },
-            iss_certificate::gamma13::Gamma13Void::NoContractingMetric { best_contraction, metric, enumerated, pattern_blocks } => Self::NoContractingMetric { best_contraction: num(*best_contraction), metric: metric.to_string(), enumerated: *enumerated, pattern_blocks: *pattern_blocks },
+            iss_certificate::gamma13::Gamma13Void::OriginOutsideInputSet => {
+                Self::OriginOutsideInputSet
+            }
+            iss_certificate::gamma13::Gamma13Void::SaturatedDynamicsNotStable {
+                spectral_radius,
+                input_bounded,
+                marginal,
+            } => Self::SaturatedDynamicsNotStable {
+                spectral_radius: num(*spectral_radius),
+                input_bounded: *input_bounded,
+                marginal: *marginal,
+            },
+            iss_certificate::gamma13::Gamma13Void::NoContractingMetric {
+                best_contraction,
+                metric,
+                enumerated,
+                pattern_blocks,
+            } => Self::NoContractingMetric {
+                best_contraction: num(*best_contraction),
+                metric: metric.to_string(),
+                enumerated: *enumerated,
+                pattern_blocks: *pattern_blocks,
+            },
             iss_certificate::gamma13::Gamma13Void::StateConstrainedMpc => Self::StateConstrainedMpc,
-            iss_certificate::gamma13::Gamma13Void::OutputConstrainedMpc => Self::OutputConstrainedMpc,
-            iss_certificate::gamma13::Gamma13Void::NotComputedWithinBudget { best_contraction, not_computed } => Self::NotComputedWithinBudget { best_contraction: num(*best_contraction), not_computed: NotComputed::from(not_computed) },
-            iss_certificate::gamma13::Gamma13Void::UserValueRefuted { user, sampled_lower } => Self::UserValueRefuted { user: num(*user), sampled_lower: num(*sampled_lower) },
+            iss_certificate::gamma13::Gamma13Void::OutputConstrainedMpc => {
+                Self::OutputConstrainedMpc
+            }
+            iss_certificate::gamma13::Gamma13Void::NotComputedWithinBudget {
+                best_contraction,
+                not_computed,
+            } => Self::NotComputedWithinBudget {
+                best_contraction: num(*best_contraction),
+                not_computed: NotComputed::from(not_computed),
+            },
+            iss_certificate::gamma13::Gamma13Void::UserValueRefuted {
+                user,
+                sampled_lower,
+            } => Self::UserValueRefuted {
+                user: num(*user),
+                sampled_lower: num(*sampled_lower),
+            },
             other => Self::Other(format!("{other:?}")),
         }
     }
@@ -599,7 +643,10 @@ impl From<&iss_certificate::regional::RegionalOptions> for RegionalOptions {
             x0_radius: num(l.x0_radius),
             prior_error: num(l.prior_error),
             w_bar: num(l.w_bar),
-            w_box: l.w_box.as_ref().map(|x| x.iter().map(|x| num(*x)).collect()),
+            w_box: l
+                .w_box
+                .as_ref()
+                .map(|x| x.iter().map(|x| num(*x)).collect()),
             rate_fractions: l.rate_fractions.iter().map(|x| num(*x)).collect(),
             phase_seconds: num(l.phase_seconds),
         }
@@ -640,10 +687,19 @@ impl From<&iss_certificate::small_gain::Cycle> for Cycle {
 impl From<&lti_model::ioss::IossReport> for IossReport {
     fn from(l: &lti_model::ioss::IossReport) -> Self {
         Self {
-            p: l.p.iter().map(|x| x.iter().map(|x| num(*x)).collect()).collect(),
+            p: l.p
+                .iter()
+                .map(|x| x.iter().map(|x| num(*x)).collect())
+                .collect(),
             eta: num(l.eta),
-            q: l.q.iter().map(|x| x.iter().map(|x| num(*x)).collect()).collect(),
-            r: l.r.iter().map(|x| x.iter().map(|x| num(*x)).collect()).collect(),
+            q: l.q
+                .iter()
+                .map(|x| x.iter().map(|x| num(*x)).collect())
+                .collect(),
+            r: l.r
+                .iter()
+                .map(|x| x.iter().map(|x| num(*x)).collect())
+                .collect(),
             p_min_eigenvalue: num(l.p_min_eigenvalue),
             p_max_eigenvalue: num(l.p_max_eigenvalue),
             p_min_ratio: num(l.p_min_ratio),

@@ -267,6 +267,7 @@ mod tests {
         };
         assert_eq!(r.to_string(), "rho < 1 fails (Prop. 2 = 1.25): raise M");
         let n = VoidReason::NoK { k_max: 7 };
+        #[cfg(feature = "serde")]
         assert_eq!(
             serde_json::to_string(&vec![r.clone(), n.clone()]).expect("serialisable"),
             "[\"rho < 1 fails (Prop. 2 = 1.25): raise M\",\

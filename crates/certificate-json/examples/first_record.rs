@@ -10,6 +10,10 @@ fn main() -> Result<(), serde_json::Error> {
     let record = v1::Coverage::from(&covered);
     println!("{}", serde_json::to_string(&record)?);
     println!("NaN → {}", serde_json::to_string(&v1::num(f64::NAN))?);
-    println!("{} v{}", v1::CERTIFICATE_FORMAT, v1::CERTIFICATE_FORMAT_VERSION);
+    println!(
+        "{} v{}",
+        v1::CERTIFICATE_FORMAT,
+        v1::CERTIFICATE_FORMAT_VERSION
+    );
     Ok(())
 }

@@ -385,7 +385,7 @@ impl From<&iss_certificate::gamma13::Gamma13Void> for Gamma13Void {
                 user: num(*user),
                 sampled_lower: num(*sampled_lower),
             },
-            other => Self::Other(format!("{other:?}")),
+            other => Self::Other(other.to_string()),
         }
     }
 }

@@ -583,7 +583,7 @@ pub enum Gamma13Void {
         /// The sampled lower estimate that exceeds it.
         sampled_lower: Option<f64>,
     },
-    /// A variant this version of the schema does not know (its Rust name).
+    /// A reason this version of the schema does not know (its sentence).
     #[serde(untagged)]
     Other(String),
 }

@@ -18,9 +18,9 @@ use crate::provenance::Provenance;
 use crate::reproduce::numfmt::num;
 
 /// Value of the `format` field.
-pub const FORMAT: &str = "suboptimal-mhe/ioss-certificate";
+pub const FORMAT: &str = certificate_json::v1::IOSS_FORMAT;
 /// Value of the `format_version` field; bumped on any incompatible change.
-pub const FORMAT_VERSION: u32 = 2;
+pub const FORMAT_VERSION: u32 = certificate_json::v1::IOSS_FORMAT_VERSION;
 /// Seeded random pairs for the sampled L_π estimate.
 pub const LPI_SAMPLE_PAIRS: usize = 200;
 /// The pass/fail rule of the LMI (2) check (recorded in the JSON; `lti_model::ioss` module doc).
@@ -43,7 +43,7 @@ pub struct CertifyRequest {
 }
 
 /// The scenario the certificate is for.
-#[derive(Debug, Clone, Serialize)]
+#[derive(Debug, Clone)]
 pub struct ScenarioInfo {
     /// `name` of the scenario.
     pub name: String,
@@ -81,10 +81,9 @@ impl PlantDims {
 }
 
 /// The plant data that enters LMI (2).
-#[derive(Debug, Clone, Serialize)]
+#[derive(Debug, Clone)]
 pub struct SystemInfo {
     /// n_x, n_u, n_y, n_w1, n_w2.
-    #[serde(flatten)]
     pub dims: PlantDims,
     /// A (n_x × n_x).
     pub a: Vec<Vec<f64>>,
@@ -97,7 +96,7 @@ pub struct SystemInfo {
 }
 
 /// The parameters of LMI (2) and where each came from.
-#[derive(Debug, Clone, Serialize)]
+#[derive(Debug, Clone)]
 pub struct Inputs {
     /// η.
     pub eta: f64,
@@ -114,7 +113,7 @@ pub struct Inputs {
 }
 
 /// The JSON document `certify` writes (docs/certificate-json.md).
-#[derive(Debug, Clone, Serialize)]
+#[derive(Debug, Clone)]
 pub struct CertificateDocument {
     /// Always [`FORMAT`].
     pub format: String,
@@ -660,10 +659,108 @@ pub fn write_json(doc: &CertificateDocument, path: &Path) -> Result<()> {
         std::fs::create_dir_all(dir)
             .with_context(|| format!("cannot create directory `{}`", dir.display()))?;
     }
-    let text = serde_json::to_string_pretty(doc).context("cannot serialise the certificate")?;
+    let text = serde_json::to_string_pretty(&v1::IossCertificate::from(doc))
+        .context("cannot serialise the certificate")?;
     crate::output::write_atomic(path, (text + "\n").as_bytes())
 }
 
 #[cfg(test)]
 #[path = "certify_tests.rs"]
 mod tests;
+
+// `From<&record>` for the document of `certificate_json::v1` (the schema is the crate's).
+use certificate_json::v1;
+use certificate_json::v1::num as json_num;
+
+impl From<&crate::certify::CertificateDocument> for v1::IossCertificate {
+    fn from(l: &crate::certify::CertificateDocument) -> Self {
+        Self {
+            format: l.format.to_string(),
+            format_version: l.format_version,
+            passed: l.passed,
+            failure: l.failure.as_ref().map(ToString::to_string),
+            hint: l.hint.as_ref().map(ToString::to_string),
+            scenario: v1::IossScenario::from(&l.scenario),
+            provenance: v1::Provenance::from(&l.provenance),
+            system: v1::IossSystem::from(&l.system),
+            inputs: v1::IossInputs::from(&l.inputs),
+            certificate: l.certificate.as_ref().map(v1::IossReport::from),
+            tolerance_rule: l.tolerance_rule.to_string(),
+            controller_lipschitz: l
+                .controller_lipschitz
+                .as_ref()
+                .map(v1::LipschitzReport::from),
+            controller_lipschitz_skipped: l
+                .controller_lipschitz_skipped
+                .as_ref()
+                .map(ToString::to_string),
+            closed_loop: l.closed_loop.as_ref().map(v1::Coverage::from),
+        }
+    }
+}
+
+impl From<&crate::certify::Inputs> for v1::IossInputs {
+    fn from(l: &crate::certify::Inputs) -> Self {
+        Self {
+            eta: json_num(l.eta),
+            eta_source: l.eta_source.to_string(),
+            q: l.q
+                .iter()
+                .map(|x| x.iter().map(|x| json_num(*x)).collect())
+                .collect(),
+            r: l.r
+                .iter()
+                .map(|x| x.iter().map(|x| json_num(*x)).collect())
+                .collect(),
+            weights_source: l.weights_source.to_string(),
+            p_source: l.p_source.to_string(),
+        }
+    }
+}
+
+impl From<&crate::certify::PlantDims> for v1::PlantDims {
+    fn from(l: &crate::certify::PlantDims) -> Self {
+        Self {
+            nx: l.nx,
+            nu: l.nu,
+            ny: l.ny,
+            nw1: l.nw1,
+            nw2: l.nw2,
+        }
+    }
+}
+
+impl From<&crate::certify::ScenarioInfo> for v1::IossScenario {
+    fn from(l: &crate::certify::ScenarioInfo) -> Self {
+        Self {
+            name: l.name.to_string(),
+            path: l.path.to_string(),
+        }
+    }
+}
+
+impl From<&crate::certify::SystemInfo> for v1::IossSystem {
+    fn from(l: &crate::certify::SystemInfo) -> Self {
+        Self {
+            dims: v1::PlantDims::from(&l.dims),
+            a: l.a
+                .iter()
+                .map(|x| x.iter().map(|x| json_num(*x)).collect())
+                .collect(),
+            c: l.c
+                .iter()
+                .map(|x| x.iter().map(|x| json_num(*x)).collect())
+                .collect(),
+            b_bar: l
+                .b_bar
+                .iter()
+                .map(|x| x.iter().map(|x| json_num(*x)).collect())
+                .collect(),
+            d_bar: l
+                .d_bar
+                .iter()
+                .map(|x| x.iter().map(|x| json_num(*x)).collect())
+                .collect(),
+        }
+    }
+}

@@ -675,8 +675,9 @@ fn certificate_json(
             "covers": "the exported f64 MPC performs the certified K_c iterations bit for bit as \
                 the std SuboptimalMpc on the portable kernel; the joint certificate holds at \
                 (K, K_c) iff `certified`",
-            "at_pair": j.analysis.at(art.k, m.k_c),
-            "joint": j,
+            // The library outcomes in the certificate schema (`certificate_json::v1`).
+            "at_pair": certificate_json::v1::JointGains::from(&j.analysis.at(art.k, m.k_c)),
+            "joint": certificate_json::v1::JointCertificate::from(j),
         }),
         _ => serde_json::Value::Null,
     };
@@ -711,7 +712,7 @@ fn certificate_json(
                 (ScalarKind::F64, _) => F32_DECIDED_BY,
             },
         },
-        "theorem1": cert,
+        "theorem1": certificate_json::v1::SolverCertificate::from(cert),
         "provenance": Provenance::collect(),
     })
 }

@@ -49,6 +49,7 @@ mod document;
 mod gains;
 mod job;
 mod joint;
+mod json_v1;
 mod linear;
 pub(crate) mod numfmt;
 mod regional;
@@ -68,12 +69,12 @@ use runs::{Run, simulate};
 use summary::summarize;
 pub use work::Work;
 
-/// `format` of certificate.json.
-pub const CERTIFICATE_FORMAT: &str = "suboptimal-mhe/closed-loop-certificate";
+/// `format` of certificate.json (its schema is `certificate_json::v1`).
+pub const CERTIFICATE_FORMAT: &str = certificate_json::v1::CERTIFICATE_FORMAT;
 /// `format` of trace.json.
 pub const TRACE_FORMAT: &str = "suboptimal-mhe/closed-loop-trace";
 /// `format_version` of both files; bumped on any incompatible change.
-pub const FORMAT_VERSION: u32 = 1;
+pub const FORMAT_VERSION: u32 = certificate_json::v1::CERTIFICATE_FORMAT_VERSION;
 /// Time step of the ŵ² panel of the presets (the paper's Fig. 2(c) shows t = 6).
 pub const FIG2C_T: usize = 6;
 
@@ -247,7 +248,8 @@ fn render(
     let previous = previous_files(&cert_path);
     set.add(
         "certificate.json",
-        (serde_json::to_string_pretty(&document).context("cannot serialise the certificate")?
+        (serde_json::to_string_pretty(&certificate_json::v1::Certificate::from(&document))
+            .context("cannot serialise the certificate")?
             + "\n")
             .as_bytes(),
     )?;

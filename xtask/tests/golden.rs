@@ -163,6 +163,59 @@ fn xtask(args: &[&str], out: &Path) {
     );
 }
 
+/// The key paths of a JSON document, array indices written `[]` (`/solvers/[]/k_min`).
+fn key_paths(v: &Value, prefix: &str, out: &mut std::collections::BTreeSet<String>) {
+    match v {
+        Value::Object(m) => {
+            for (k, x) in m {
+                let p = format!("{prefix}/{k}");
+                out.insert(p.clone());
+                key_paths(x, &p, out);
+            }
+        }
+        Value::Array(a) => {
+            for x in a {
+                key_paths(x, &format!("{prefix}/[]"), out);
+            }
+        }
+        _ => {}
+    }
+}
+
+/// The key paths of `docs` (their union) match the schema's checked-in list
+/// `crates/certificate-json/keys/<name>.txt`: the documents are `certificate_json::v1`'s, and a
+/// key appears or disappears only with a reviewed diff of that list (`UPDATE_GOLDEN=1`
+/// rewrites it). The library's types are not the schema (docs/certificate-json.md).
+fn check_keys(name: &str, docs: &[PathBuf]) {
+    let mut keys = std::collections::BTreeSet::new();
+    for d in docs {
+        let text = std::fs::read_to_string(d).unwrap_or_else(|e| panic!("{}: {e}", d.display()));
+        key_paths(&serde_json::from_str(&text).unwrap(), "", &mut keys);
+    }
+    let text: String = keys.iter().map(|k| format!("{k}\n")).collect();
+    let path = PathBuf::from(env!("CARGO_MANIFEST_DIR"))
+        .join("../crates/certificate-json/keys")
+        .join(format!("{name}.txt"));
+    if std::env::var_os("UPDATE_GOLDEN").is_some() {
+        std::fs::create_dir_all(path.parent().unwrap()).unwrap();
+        std::fs::write(&path, &text).unwrap();
+        return;
+    }
+    let old = std::fs::read_to_string(&path).unwrap_or_else(|e| panic!("{}: {e}", path.display()));
+    let (old, new): (
+        std::collections::BTreeSet<&str>,
+        std::collections::BTreeSet<&str>,
+    ) = (old.lines().collect(), text.lines().collect());
+    let gone: Vec<_> = old.difference(&new).collect();
+    let added: Vec<_> = new.difference(&old).collect();
+    assert!(
+        gone.is_empty() && added.is_empty(),
+        "the keys of {name} changed (a schema change: certificate_json::v1, \
+         docs/certificate-json.md; UPDATE_GOLDEN=1 rewrites {}):\n- {gone:?}\n+ {added:?}",
+        path.display()
+    );
+}
+
 #[test]
 fn reproduce_outputs_match_the_golden_files() {
     let out = out_dir("reproduce");
@@ -177,6 +230,42 @@ fn reproduce_outputs_match_the_golden_files() {
         }
     }
     check(&files);
+    check_keys(
+        "certificate",
+        &["paper", "certified"].map(|p| out.join(p).join("certificate.json")),
+    );
+    let _ = std::fs::remove_dir_all(&out);
+}
+
+/// `certify`'s JSON has the keys of `certificate_json::v1::IossCertificate` (a scenario that
+/// passes with an MPC, and one whose controller's L_π is skipped).
+#[test]
+fn certify_json_keys_match_the_schema() {
+    let out = out_dir("certify");
+    std::fs::create_dir_all(&out).unwrap();
+    let mut docs = Vec::new();
+    for s in ["case-study", "mass-chain-state-box"] {
+        let json = out.join(format!("{s}.json"));
+        let root = PathBuf::from(env!("CARGO_MANIFEST_DIR")).join("..");
+        let status = Command::new(env!("CARGO_BIN_EXE_xtask"))
+            .current_dir(&root)
+            .args([
+                "certify",
+                "--scenario",
+                &format!("scenarios/{s}.toml"),
+                "--json",
+            ])
+            .arg(&json)
+            .output()
+            .unwrap();
+        assert!(
+            json.exists(),
+            "certify {s}: {}",
+            String::from_utf8_lossy(&status.stderr)
+        );
+        docs.push(json);
+    }
+    check_keys("ioss-certificate", &docs);
     let _ = std::fs::remove_dir_all(&out);
 }
 

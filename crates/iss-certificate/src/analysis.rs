@@ -26,10 +26,12 @@
 //! A violated premise makes the certificate void: [`IssAnalysis::k_min`] is `None`, and each
 //! [`Premise`] says by how much it fails and what would fix it.
 
+#[cfg(feature = "serde")]
 use serde::Serialize;
 
 /// Scalar inputs of Theorem 1.
-#[derive(Debug, Clone, PartialEq, Serialize)]
+#[derive(Debug, Clone, PartialEq)]
+#[cfg_attr(feature = "serde", derive(Serialize))]
 pub struct IssInputs {
     /// MHE horizon M ≥ 1.
     pub horizon: usize,
@@ -66,7 +68,8 @@ pub struct IssInputs {
 }
 
 /// One premise of Theorem 1, evaluated.
-#[derive(Debug, Clone, PartialEq, Serialize)]
+#[derive(Debug, Clone, PartialEq)]
+#[cfg_attr(feature = "serde", derive(Serialize))]
 #[non_exhaustive]
 pub struct Premise {
     /// Short name, e.g. `"rho < 1"`.
@@ -85,7 +88,7 @@ pub struct Premise {
     /// (e.g. φ and L_Φ are properties of the MHE's QP, which is built from P of LMI (2)):
     /// the reason, naming that premise. The premise then counts as not holding, and its own
     /// advice is not given (one failure, one reason).
-    #[serde(skip_serializing_if = "Option::is_none")]
+    #[cfg_attr(feature = "serde", serde(skip_serializing_if = "Option::is_none"))]
     pub not_evaluated: Option<String>,
 }
 
@@ -138,7 +141,8 @@ impl Premise {
 }
 
 /// Constants and gains of Props. 1 and 3 at one K.
-#[derive(Debug, Clone, PartialEq, Serialize)]
+#[derive(Debug, Clone, PartialEq)]
+#[cfg_attr(feature = "serde", derive(Serialize))]
 #[non_exhaustive]
 pub struct GainsAtK {
     /// Iteration budget K.
@@ -196,7 +200,8 @@ pub struct GainsAtK {
 }
 
 /// Theorem 1 evaluated for one set of inputs.
-#[derive(Debug, Clone, PartialEq, Serialize)]
+#[derive(Debug, Clone, PartialEq)]
+#[cfg_attr(feature = "serde", derive(Serialize))]
 #[non_exhaustive]
 pub struct IssAnalysis {
     /// The inputs.

@@ -33,6 +33,7 @@
 //! may be infinite and s ≤ Γ̃s + g̃w̄ says nothing. With a user-supplied γ₁,₃ the plant's gain
 //! from w¹, γ₁ʷ, is not known, and the bound is void with that reason.
 
+#[cfg(feature = "serde")]
 use serde::Serialize;
 
 use crate::analysis::IssAnalysis;
@@ -45,7 +46,8 @@ use lti_model::numfmt::sig4;
 pub const NODES: [&str; 3] = ["x", "epsilon", "e"];
 
 /// A nonnegative comparison system s ≤ Γs + g·w̄ on the nodes (x, ε, e) and its solution.
-#[derive(Debug, Clone, PartialEq, Serialize)]
+#[derive(Debug, Clone, PartialEq)]
+#[cfg_attr(feature = "serde", derive(Serialize))]
 #[non_exhaustive]
 pub struct ComparisonSystem {
     /// Γ, row-major: `matrix[i][j]` is the gain from node j into node i ([`NODES`]).
@@ -109,7 +111,8 @@ impl ComparisonSystem {
 }
 
 /// The certified asymptotic gains of Theorem 1 at one K (module docs).
-#[derive(Debug, Clone, PartialEq, Serialize)]
+#[derive(Debug, Clone, PartialEq)]
+#[cfg_attr(feature = "serde", derive(Serialize))]
 #[non_exhaustive]
 pub struct AsymptoticGains {
     /// The iteration budget K.
@@ -138,8 +141,9 @@ pub struct AsymptoticGains {
 }
 
 /// Why there is no certified asymptotic gain at a K.
-#[derive(Debug, Clone, PartialEq, Serialize)]
-#[serde(tag = "kind", rename_all = "snake_case")]
+#[derive(Debug, Clone, PartialEq)]
+#[cfg_attr(feature = "serde", derive(Serialize))]
+#[cfg_attr(feature = "serde", serde(tag = "kind", rename_all = "snake_case"))]
 #[non_exhaustive]
 pub enum AsymptoticVoid {
     /// Theorem 1 is void for this method: a premise fails, or a constant does not exist for
@@ -353,7 +357,8 @@ pub fn certified_gains(
 /// so ĝ ≤ γ ≤ g (certified) — a lower estimate. While the transient has not decayed, the tail
 /// sup can exceed it (the certified bound is asymptotic), which the whole-run sups beside it
 /// help to see.
-#[derive(Debug, Clone, PartialEq, Serialize)]
+#[derive(Debug, Clone, PartialEq)]
+#[cfg_attr(feature = "serde", derive(Serialize))]
 #[non_exhaustive]
 pub struct MeasuredGains {
     /// Steps T of the run.

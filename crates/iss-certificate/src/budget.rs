@@ -22,6 +22,7 @@
 use crate::certificate::CertificateOptions;
 use closed_loop::scenario::Scenario;
 use mpc_core::CondensedMpc;
+#[cfg(feature = "serde")]
 use serde::Serialize;
 
 /// The budget's default and limit are defined where `certificate.phase_seconds` is read.
@@ -36,7 +37,8 @@ pub const DENSE_RATE: f64 = 2e10;
 pub const SCALAR_RATE: f64 = 1e9;
 
 /// One analysis phase with its estimated work.
-#[derive(Debug, Clone, PartialEq, Serialize)]
+#[derive(Debug, Clone, PartialEq)]
+#[cfg_attr(feature = "serde", derive(Serialize))]
 #[non_exhaustive]
 pub struct PhaseEstimate {
     /// The phase (`"δ-IOSS P"`, `"γ₁,₃ free-set enumeration"`, …).
@@ -104,7 +106,8 @@ pub fn check_required_phases(
 /// budget*, never "void" — a void certificate is a proof that no K works, this is not. The
 /// estimate is the one the phase was skipped by (its plan, before it ran), so raising
 /// `certificate.phase_seconds` to [`NotComputed::raise_to`] runs it.
-#[derive(Debug, Clone, PartialEq, Serialize)]
+#[derive(Debug, Clone, PartialEq)]
+#[cfg_attr(feature = "serde", derive(Serialize))]
 #[non_exhaustive]
 pub struct NotComputed {
     /// The phase that was not run (`"γ₁,₃ free-set enumeration"`).

@@ -29,6 +29,7 @@
 
 use mhe_core::WarmStart;
 use qp_iter::Method;
+#[cfg(feature = "serde")]
 use serde::Serialize;
 
 use crate::analysis::IssAnalysis;
@@ -40,8 +41,9 @@ use crate::outcome::VoidReason;
 use closed_loop::scenario::{ControllerChoice, ResolvedScenario, Scenario};
 
 /// The certificates a configuration can be under (exhaustive on purpose, as [`Applicable`]).
-#[derive(Debug, Clone, Copy, PartialEq, Eq, Serialize)]
-#[serde(rename_all = "snake_case")]
+#[derive(Debug, Clone, Copy, PartialEq, Eq)]
+#[cfg_attr(feature = "serde", derive(Serialize))]
+#[cfg_attr(feature = "serde", serde(rename_all = "snake_case"))]
 pub enum CertificateKind {
     /// Theorem 1: the sub-optimal MHE with the exact MPC.
     Theorem1,
@@ -213,8 +215,9 @@ pub fn solver_certified(
 
 /// Which certificate covers a configuration, or why none does: covered or not, exhaustive on
 /// purpose.
-#[derive(Debug, Clone, PartialEq, Eq, Serialize)]
-#[serde(rename_all = "snake_case")]
+#[derive(Debug, Clone, PartialEq, Eq)]
+#[cfg_attr(feature = "serde", derive(Serialize))]
+#[cfg_attr(feature = "serde", serde(rename_all = "snake_case"))]
 pub enum Coverage {
     /// This certificate applies (it may still be void for these parameters).
     Covered(CertificateKind),
@@ -249,8 +252,9 @@ pub fn covering(scenario: &Scenario, _method: Method, controller: ControllerChoi
 
 /// `yes`, `no`, `void` or `not_computed` at a pair. Exhaustive on purpose: a verdict the
 /// caller does not know must not fall into a default arm (export refuses on anything but yes).
-#[derive(Debug, Clone, Copy, PartialEq, Eq, Serialize)]
-#[serde(rename_all = "snake_case")]
+#[derive(Debug, Clone, Copy, PartialEq, Eq)]
+#[cfg_attr(feature = "serde", derive(Serialize))]
+#[cfg_attr(feature = "serde", serde(rename_all = "snake_case"))]
 pub enum Certified {
     /// The certificate holds at this pair.
     Yes,
@@ -276,7 +280,8 @@ impl Certified {
 }
 
 /// The verdict at one pair (K_e, K_c).
-#[derive(Debug, Clone, PartialEq, Serialize)]
+#[derive(Debug, Clone, PartialEq)]
+#[cfg_attr(feature = "serde", derive(Serialize))]
 #[non_exhaustive]
 pub struct PairVerdict {
     /// The covering certificate (None: uncovered).

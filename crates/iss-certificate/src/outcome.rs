@@ -5,11 +5,13 @@
 //! the variant, never by searching the text.
 
 use lti_model::numfmt::sig4;
+#[cfg(feature = "serde")]
 use serde::{Serialize, Serializer};
 
 use crate::gamma13::Gamma13Void;
 
 /// Serialises a value as its `Display` sentence (the JSON form of the typed outcomes).
+#[cfg(feature = "serde")]
 fn as_sentence<T: std::fmt::Display, S: Serializer>(v: &T, s: S) -> Result<S::Ok, S::Error> {
     s.collect_str(v)
 }
@@ -125,6 +127,7 @@ impl std::fmt::Display for VoidReason {
     }
 }
 
+#[cfg(feature = "serde")]
 impl Serialize for VoidReason {
     fn serialize<S: Serializer>(&self, s: S) -> Result<S::Ok, S::Error> {
         as_sentence(self, s)
@@ -146,6 +149,7 @@ impl std::fmt::Display for IossFailure {
     }
 }
 
+#[cfg(feature = "serde")]
 impl Serialize for IossFailure {
     fn serialize<S: Serializer>(&self, s: S) -> Result<S::Ok, S::Error> {
         as_sentence(self, s)
@@ -241,6 +245,7 @@ impl std::fmt::Display for SkipReason {
     }
 }
 
+#[cfg(feature = "serde")]
 impl Serialize for SkipReason {
     fn serialize<S: Serializer>(&self, s: S) -> Result<S::Ok, S::Error> {
         as_sentence(self, s)
@@ -262,6 +267,7 @@ mod tests {
         };
         assert_eq!(r.to_string(), "rho < 1 fails (Prop. 2 = 1.25): raise M");
         let n = VoidReason::NoK { k_max: 7 };
+        #[cfg(feature = "serde")]
         assert_eq!(
             serde_json::to_string(&vec![r.clone(), n.clone()]).expect("serialisable"),
             "[\"rho < 1 fails (Prop. 2 = 1.25): raise M\",\

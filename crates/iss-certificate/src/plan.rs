@@ -1,14 +1,16 @@
 //! What to simulate for a certificate, and the verdict that puts the two sides together:
 //! the domain decisions `cargo xtask reproduce` (and any other front end) makes.
 
+#[cfg(feature = "serde")]
 use serde::Serialize;
 
 use crate::certificate::SolverCertificate;
 use closed_loop::bounded::Divergence;
 
 /// Why a run was made at its K (exhaustive: the tool words each source).
-#[derive(Debug, Clone, Copy, PartialEq, Eq, Serialize)]
-#[serde(rename_all = "snake_case")]
+#[derive(Debug, Clone, Copy, PartialEq, Eq)]
+#[cfg_attr(feature = "serde", derive(Serialize))]
+#[cfg_attr(feature = "serde", serde(rename_all = "snake_case"))]
 pub enum KSource {
     /// The computed K_min of Theorem 1.
     ComputedKMin,

@@ -15,6 +15,7 @@
 //! `cycle_conditions_alone_are_not_sufficient`). The paper's Theorem 1 states the cycle
 //! conditions (sg1)–(sg3) for sum-form estimates; we report them and certify with ρ(Γ) < 1.
 
+#[cfg(feature = "serde")]
 use serde::Serialize;
 
 /// Largest interconnection handled (the cycle enumeration is exponential in it).
@@ -40,7 +41,8 @@ pub struct GainMatrix {
 }
 
 /// One simple cycle of the gain graph and the product of its gains.
-#[derive(Debug, Clone, PartialEq, Serialize)]
+#[derive(Debug, Clone, PartialEq)]
+#[cfg_attr(feature = "serde", derive(Serialize))]
 #[non_exhaustive]
 pub struct Cycle {
     /// Nodes i₀, i₁, …, i_{L−1}: i₀ takes input from i₁, i₁ from i₂, …, i_{L−1} from i₀

@@ -14,12 +14,14 @@ use iss_certificate::regional::{
 };
 use lti_model::numfmt::sig4;
 use qp_iter::Method;
+#[cfg(feature = "serde")]
 use serde::Serialize;
 
 pub use iss_certificate::regional::{REGIONAL_MAX_K_NZ, REGIONAL_SEARCH_CAP, search_max};
 
 /// K_reg of one method with the certificate behind it.
-#[derive(Debug, Clone, PartialEq, Serialize)]
+#[derive(Debug, Clone, PartialEq)]
+#[cfg_attr(feature = "serde", derive(Serialize))]
 pub struct KRegOutcome {
     /// K_reg: the smallest K the search found whose region contains the scenario's
     /// uncertainty (null: none up to `search_max`, or void; `note` says which).
@@ -55,7 +57,8 @@ pub struct KRegOutcome {
 /// What the regional certificate says at one K the caller asked about (`reproduce` asks
 /// about 2·K_lin, the target): whether its region contains the scenario's set, and
 /// which row limits it there and by how much.
-#[derive(Debug, Clone, PartialEq, Serialize)]
+#[derive(Debug, Clone, PartialEq)]
+#[cfg_attr(feature = "serde", derive(Serialize))]
 pub struct ProbeNote {
     /// The K.
     pub k: usize,

@@ -17,7 +17,7 @@ pub struct ScenarioRecord {
 }
 
 /// The machine a result was produced on.
-#[derive(Debug, Clone, Serialize)]
+#[derive(Debug, Clone)]
 pub struct HostInfo {
     /// Host name, if it could be read.
     pub hostname: Option<String>,
@@ -47,7 +47,7 @@ impl HostInfo {
 }
 
 /// The settings as recorded.
-#[derive(Debug, Clone, Serialize)]
+#[derive(Debug, Clone)]
 pub struct SettingsRecord {
     /// Seed of every sampled estimate (the scenario's `noise.seed`).
     pub sampling_seed: u64,
@@ -68,7 +68,7 @@ pub struct SettingsRecord {
 }
 
 /// One solver's verdict, flattened for readers of the JSON.
-#[derive(Debug, Clone, Serialize)]
+#[derive(Debug, Clone)]
 pub struct SolverSummary {
     /// `"pg"`, `"fista"`, `"admm"`, `"admm-pr"`.
     pub solver: String,
@@ -84,7 +84,6 @@ pub struct SolverSummary {
     pub void_reasons: Vec<String>,
     /// Not certified and not void: the analysis budget stopped the phase that decides it
     /// (phase, estimated seconds, budget; docs/reproduce-output.md). Omitted otherwise.
-    #[serde(skip_serializing_if = "Option::is_none")]
     pub not_computed: Option<iss_certificate::budget::NotComputed>,
     /// Every premise with pass/fail, value, margin and fix.
     pub premises: Vec<Premise>,
@@ -125,7 +124,7 @@ impl SolverSummary {
 }
 
 /// What one simulation did.
-#[derive(Debug, Clone, Serialize)]
+#[derive(Debug, Clone)]
 pub struct RunSummary {
     /// Short name (`"K=652"`).
     pub label: String,
@@ -185,7 +184,7 @@ pub struct RunSummary {
 }
 
 /// The Kalman baseline of one run (`closed_loop::baseline`).
-#[derive(Debug, Clone, Serialize)]
+#[derive(Debug, Clone)]
 pub struct KalmanSummary {
     /// `"standard, Π₀ = (2P)⁻¹, Σ_w = (2Q)⁻¹, Σ_v = R⁻¹"`.
     pub weights: String,
@@ -204,7 +203,7 @@ pub struct KalmanSummary {
 }
 
 /// A simulation of the plan that was not run.
-#[derive(Debug, Clone, Serialize)]
+#[derive(Debug, Clone)]
 pub struct SkippedRun {
     /// Its K.
     pub k: usize,
@@ -215,7 +214,7 @@ pub struct SkippedRun {
 }
 
 /// Props. 1 and 3 evaluated on the K_min run.
-#[derive(Debug, Clone, Serialize)]
+#[derive(Debug, Clone)]
 pub struct TrajectoryReport {
     /// The check ran (a K_min exists and ε_t was recorded).
     pub ran: bool,
@@ -238,7 +237,7 @@ pub struct TrajectoryReport {
 }
 
 /// One row of the constants table (ours vs the paper's published values).
-#[derive(Debug, Clone, Serialize)]
+#[derive(Debug, Clone)]
 pub struct ComparisonRow {
     /// Quantity.
     pub quantity: String,
@@ -249,7 +248,7 @@ pub struct ComparisonRow {
 }
 
 /// certificate.json (docs/reproduce-output.md).
-#[derive(Debug, Clone, Serialize)]
+#[derive(Debug, Clone)]
 pub struct CertificateDocument {
     /// [`CERTIFICATE_FORMAT`].
     pub format: String,
@@ -296,7 +295,6 @@ pub struct CertificateDocument {
     pub trajectory_check: TrajectoryReport,
     /// The joint MPC + MHE certificate and its trajectory check (only when the scenario's
     /// controller is the K-iteration MPC, `mpc.iterations`).
-    #[serde(skip_serializing_if = "Option::is_none")]
     pub joint: Option<super::joint::JointReport>,
     /// The exact linear stability boundary per method (exact MPC): ρ_lin(K) on a log grid,
     /// K_lin and every K with ρ_lin ≥ 1 (ρ_lin < 1 is necessary for local asymptotic stability of
@@ -408,7 +406,7 @@ pub struct MpcInfo {
 pub struct TraceRun<'a> {
     /// Summary (same as in certificate.json).
     #[serde(flatten)]
-    pub summary: &'a RunSummary,
+    pub summary: certificate_json::v1::RunSummary,
     /// Per step records.
     pub trace: &'a Trace,
     /// The Kalman baseline's estimates x̂^KF_t and error norms on the same data.
@@ -561,7 +559,7 @@ pub(super) fn trace_document<'a>(
         runs: runs
             .iter()
             .map(|r| TraceRun {
-                summary: &r.summary,
+                summary: (&r.summary).into(),
                 trace: &r.trace,
                 kalman: r.kalman.as_ref(),
             })

@@ -10,7 +10,7 @@ use super::*;
 use iss_certificate::outcome::VoidReason;
 
 /// `asymptotic_gains` of certificate.json.
-#[derive(Debug, Clone, Serialize)]
+#[derive(Debug, Clone)]
 pub struct GainsReport {
     /// What the numbers mean, in one sentence.
     pub meaning: String,
@@ -22,7 +22,7 @@ pub struct GainsReport {
 }
 
 /// One method's certified asymptotic gains at its K_min.
-#[derive(Debug, Clone, Serialize)]
+#[derive(Debug, Clone)]
 pub struct MethodGains {
     /// The method.
     pub solver: String,
@@ -41,7 +41,7 @@ pub struct MethodGains {
 }
 
 /// The regional certificate's gains (`iss_certificate::regional::RegionalCertificate`).
-#[derive(Debug, Clone, Serialize)]
+#[derive(Debug, Clone)]
 pub struct RegionalGains {
     /// The K they are certified at.
     pub k: usize,
@@ -57,7 +57,7 @@ pub struct RegionalGains {
 }
 
 /// One run's certified bound and measured gains.
-#[derive(Debug, Clone, Serialize)]
+#[derive(Debug, Clone)]
 pub struct RunGains {
     /// The run's label (`"K=243"`).
     pub label: String,
@@ -77,7 +77,7 @@ pub struct RunGains {
 }
 
 /// g·w̄ for one run.
-#[derive(Debug, Clone, Serialize)]
+#[derive(Debug, Clone)]
 pub struct CertifiedBound {
     /// g_x.
     pub gain_x: f64,

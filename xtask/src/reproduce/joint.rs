@@ -13,12 +13,11 @@ use iss_certificate::joint::{
     delta_series,
 };
 use qp_iter::Method;
-use serde::Serialize;
 
 use super::numfmt::num;
 
 /// The joint certificate and its trajectory check, as written to certificate.json (`joint`).
-#[derive(Debug, Clone, Serialize)]
+#[derive(Debug, Clone)]
 pub struct JointReport {
     /// K_c of the scenario (`mpc.iterations`).
     pub scenario_k_c: usize,

@@ -3,7 +3,7 @@
 use super::*;
 
 /// ρ_lin of one method, or why it has none.
-#[derive(Debug, Clone, Serialize)]
+#[derive(Debug, Clone)]
 pub struct LinearEntry {
     /// The method.
     pub solver: String,

@@ -9,7 +9,7 @@ use iss_certificate::regional::{RegionalCertificate, RegionalOptions, RegionalVo
 use xtask::sweep_engine::{ProbeNote, k_reg_outcome, window_size};
 
 /// One K the search evaluated.
-#[derive(Debug, Clone, Serialize)]
+#[derive(Debug, Clone)]
 pub struct TriedK {
     /// K.
     pub k: usize,
@@ -21,7 +21,7 @@ pub struct TriedK {
 }
 
 /// One method's K_reg and regional certificate, or why there is none.
-#[derive(Debug, Clone, Serialize)]
+#[derive(Debug, Clone)]
 pub struct RegionalEntry {
     /// The method.
     pub solver: String,
@@ -31,7 +31,6 @@ pub struct RegionalEntry {
     /// Why ρ_lin, hence K_lin, was not computed for this method (the `error` of its
     /// `linear[]` entry: above n_z = 128 only the scenario's method, the budget, …); omitted
     /// when it was computed, so a null `k_lin` without it means "none on the grid".
-    #[serde(skip_serializing_if = "Option::is_none")]
     pub k_lin_not_computed: Option<String>,
     /// Theorem 1's K_min (null: void or beyond its search range): it caps the search.
     pub k_min: Option<usize>,

@@ -850,7 +850,10 @@ fn user_gamma13_from_the_scenario_key() {
     assert!(g.source.contains("user"), "{}", g.source);
     // Below the sampled lower estimate (≈ 0.61 on this plant): provably wrong.
     let wrong = run(0.01);
-    let w = serde_json::to_string(&wrong.certificate.gamma13).unwrap();
+    let w = serde_json::to_string(&certificate_json::v1::Gamma13Report::from(
+        &wrong.certificate.gamma13,
+    ))
+    .unwrap();
     assert!(w.contains("user"), "{w}");
     assert!(wrong.solvers.iter().all(|s| s.k_min.is_none()), "{w}");
 }

@@ -65,7 +65,8 @@ pub fn certify_closed_loop(
 
 /// Wall time of each part of [`certify_closed_loop`] (seconds), for the commands' own
 /// timing output (the certificate itself is deterministic; these are not).
-#[derive(Debug, Clone, Copy, Default, PartialEq, serde::Serialize)]
+#[derive(Debug, Clone, Copy, Default, PartialEq)]
+#[cfg_attr(feature = "serde", derive(serde::Serialize))]
 #[non_exhaustive]
 pub struct CertificateTimes {
     /// The MHE's condensed windows, H̄ and the certified L_Φ.

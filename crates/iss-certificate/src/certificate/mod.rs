@@ -39,6 +39,7 @@ mod trajectory;
 
 use lti_model::ioss;
 use qp_iter::{Certificate, Method};
+#[cfg(feature = "serde")]
 use serde::Serialize;
 
 use crate::analysis::{GainsAtK, IssAnalysis};
@@ -99,7 +100,8 @@ impl Default for CertificateOptions {
 }
 
 /// L_Φ figures.
-#[derive(Debug, Clone, PartialEq, Serialize)]
+#[derive(Debug, Clone, PartialEq)]
+#[cfg_attr(feature = "serde", derive(Serialize))]
 #[non_exhaustive]
 pub struct LPhiReport {
     /// max_m certified bound (used in the certificate).
@@ -110,12 +112,13 @@ pub struct LPhiReport {
     pub per_window: Vec<(f64, f64)>,
     /// Why fewer pairs than `lipschitz_pairs` were sampled (the analysis budget,
     /// [`crate::budget::l_phi_sampling_pairs`]); omitted when every pair was sampled.
-    #[serde(skip_serializing_if = "Option::is_none")]
+    #[cfg_attr(feature = "serde", serde(skip_serializing_if = "Option::is_none"))]
     pub pairs_reduced: Option<String>,
 }
 
 /// Certificate of one solver Φ.
-#[derive(Debug, Clone, PartialEq, Serialize)]
+#[derive(Debug, Clone, PartialEq)]
+#[cfg_attr(feature = "serde", derive(Serialize))]
 #[non_exhaustive]
 pub struct SolverCertificate {
     /// The solver.
@@ -140,7 +143,7 @@ pub struct SolverCertificate {
     /// could change the verdict (the γ₁,₃ free-set enumeration; issue 37 item 6). The
     /// verdict is "not computed within the budget", with the `certificate.phase_seconds`
     /// that computes it. Omitted otherwise.
-    #[serde(skip_serializing_if = "Option::is_none")]
+    #[cfg_attr(feature = "serde", serde(skip_serializing_if = "Option::is_none"))]
     pub not_computed: Option<crate::budget::NotComputed>,
     /// K_min with the *sampled* L_Φ in place of the certified bound — not a certificate,
     /// reported to show how much of K_min is due to L_Φ's conservatism.
@@ -148,7 +151,8 @@ pub struct SolverCertificate {
 }
 
 /// Parameters near the scenario's that satisfy ρ < 1.
-#[derive(Debug, Clone, PartialEq, Serialize)]
+#[derive(Debug, Clone, PartialEq)]
+#[cfg_attr(feature = "serde", derive(Serialize))]
 #[non_exhaustive]
 pub struct NearestParameters {
     /// Smallest M with 6η^M < 1 at the scenario's η.
@@ -158,7 +162,8 @@ pub struct NearestParameters {
 }
 
 /// Everything [`certify_closed_loop`] computes.
-#[derive(Debug, Clone, PartialEq, Serialize)]
+#[derive(Debug, Clone, PartialEq)]
+#[cfg_attr(feature = "serde", derive(Serialize))]
 #[non_exhaustive]
 pub struct ClosedLoopCertificate {
     /// Scenario name.

@@ -27,6 +27,7 @@ use qp_iter::rounding::{
     F32_UNIT_ROUNDOFF, F64_UNIT_ROUNDOFF, IterationRounding, abs_norm_bound, gamma,
     iteration_rounding,
 };
+#[cfg(feature = "serde")]
 use serde::Serialize;
 
 use super::{ClosedLoopCertificate, VoidReason};
@@ -35,8 +36,9 @@ use closed_loop::sim::ClosedLoopError;
 use lti_model::LtiSystem;
 
 /// The scalar type the estimator runs in.
-#[derive(Debug, Clone, Copy, PartialEq, Eq, Serialize)]
-#[serde(rename_all = "snake_case")]
+#[derive(Debug, Clone, Copy, PartialEq, Eq)]
+#[cfg_attr(feature = "serde", derive(Serialize))]
+#[cfg_attr(feature = "serde", serde(rename_all = "snake_case"))]
 pub enum Scalar {
     /// IEEE binary64: the certificate as computed (its rounding is the trajectory checks'
     /// floor, [`super::rounding_floor`]).
@@ -63,7 +65,8 @@ fn norm_bound(m: MatRef<'_, f64>) -> f64 {
 /// Rounding of x̂'s propagation through a window of length m in `mhe_embedded`'s order
 /// (x⁺ = Ax + Bu + Ew¹, each product summed from 0, then added in that order):
 /// ‖fl(x̂) − x̂(z)‖ ≤ from_z‖z‖ + from_u‖u window‖.
-#[derive(Debug, Clone, Copy, PartialEq, Serialize)]
+#[derive(Debug, Clone, Copy, PartialEq)]
+#[cfg_attr(feature = "serde", derive(Serialize))]
 #[non_exhaustive]
 pub struct PropagationRounding {
     /// Coefficient of ‖zᴷ‖.
@@ -116,7 +119,8 @@ fn propagation_rounding(sys: &LtiSystem, m: usize, u: f64) -> PropagationRoundin
 }
 
 /// The rounding of one window length m.
-#[derive(Debug, Clone, PartialEq, Serialize)]
+#[derive(Debug, Clone, PartialEq)]
+#[cfg_attr(feature = "serde", derive(Serialize))]
 #[non_exhaustive]
 pub struct WindowRounding {
     /// Window length m.
@@ -175,7 +179,8 @@ pub fn window_roundings(
 }
 
 /// What Theorem 1 certifies for one solver in one scalar type.
-#[derive(Debug, Clone, PartialEq, Serialize)]
+#[derive(Debug, Clone, PartialEq)]
+#[cfg_attr(feature = "serde", derive(Serialize))]
 #[non_exhaustive]
 pub struct ScalarCertificate {
     /// The scalar type.

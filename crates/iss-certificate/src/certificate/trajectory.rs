@@ -1,6 +1,7 @@
 //! The certificate against a simulated trace: the inequalities of Props. 1 and 3 with the
 //! reported constants.
 
+#[cfg(feature = "serde")]
 use serde::Serialize;
 
 use super::*;
@@ -8,7 +9,8 @@ use crate::analysis::IssInputs;
 use closed_loop::record::Trace;
 
 /// Result of [`check_trajectory`] for one proposition.
-#[derive(Debug, Clone, PartialEq, Serialize)]
+#[derive(Debug, Clone, PartialEq)]
+#[cfg_attr(feature = "serde", derive(Serialize))]
 #[non_exhaustive]
 pub struct InequalityCheck {
     /// The inequality held at every t.
@@ -90,7 +92,8 @@ impl Default for InequalityCheck {
 }
 
 /// Prop. 1 and Prop. 3 evaluated on a trace.
-#[derive(Debug, Clone, PartialEq, Serialize)]
+#[derive(Debug, Clone, PartialEq)]
+#[cfg_attr(feature = "serde", derive(Serialize))]
 #[non_exhaustive]
 pub struct TrajectoryCheck {
     /// ‖ε_t‖ ≤ φᵗε₀ + γ₂,₁‖x‖ + γ₂,₃‖e‖ + γ₂ʷ‖w‖ + γ₂^σ‖σ‖ (sups over [0, t−1]; σ over

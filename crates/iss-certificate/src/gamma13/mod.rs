@@ -53,12 +53,14 @@ use lti_model::numfmt::sig4;
 use lti_model::spectral::Stability;
 use mpc_core::{CondensedMpc, MpcError, worst_case_norm};
 use rayon::prelude::*;
+#[cfg(feature = "serde")]
 use serde::Serialize;
 
 use metrics::{Family, Metric};
 
 /// One candidate metric S and its contraction figures.
-#[derive(Debug, Clone, PartialEq, Serialize)]
+#[derive(Debug, Clone, PartialEq)]
+#[cfg_attr(feature = "serde", derive(Serialize))]
 #[non_exhaustive]
 pub struct MetricResult {
     /// Which S (`"identity"`, `"dare-terminal"`, `"open-loop-lyapunov"`, `"robust-riccati(λ=…)"`, …).
@@ -124,8 +126,9 @@ fn not_computed_reason(c: &MetricResult) -> Option<String> {
 }
 
 /// Which bound gave the certified γ₁,₃.
-#[derive(Debug, Clone, Copy, PartialEq, Eq, Serialize)]
-#[serde(rename_all = "snake_case")]
+#[derive(Debug, Clone, Copy, PartialEq, Eq)]
+#[cfg_attr(feature = "serde", derive(Serialize))]
+#[cfg_attr(feature = "serde", serde(rename_all = "snake_case"))]
 #[non_exhaustive]
 pub enum Gamma13Method {
     /// The S-procedure over the whole family 0 ⪯ M ⪯ I (any size).
@@ -137,8 +140,9 @@ pub enum Gamma13Method {
 }
 
 /// Why no γ₁,₃ is available: a typed reason with a [`std::fmt::Display`] sentence.
-#[derive(Debug, Clone, PartialEq, Serialize)]
-#[serde(tag = "kind", rename_all = "snake_case")]
+#[derive(Debug, Clone, PartialEq)]
+#[cfg_attr(feature = "serde", derive(Serialize))]
+#[cfg_attr(feature = "serde", serde(tag = "kind", rename_all = "snake_case"))]
 #[non_exhaustive]
 pub enum Gamma13Void {
     /// 0 ∉ 𝒰: π(0) need not be 0, so the origin is not an equilibrium.
@@ -277,7 +281,8 @@ impl std::fmt::Display for Gamma13Void {
 }
 
 /// A computation that was not run, and why (never a silent cap).
-#[derive(Debug, Clone, PartialEq, Serialize)]
+#[derive(Debug, Clone, PartialEq)]
+#[cfg_attr(feature = "serde", derive(Serialize))]
 #[non_exhaustive]
 pub struct SkippedComputation {
     /// What was not computed.
@@ -293,7 +298,8 @@ impl std::fmt::Display for SkippedComputation {
 }
 
 /// Result of [`gamma13_certified`].
-#[derive(Debug, Clone, PartialEq, Serialize)]
+#[derive(Debug, Clone, PartialEq)]
+#[cfg_attr(feature = "serde", derive(Serialize))]
 #[non_exhaustive]
 pub struct Gamma13Certificate {
     /// Certified γ₁,₃: the smallest over metrics and methods; ∞ when void.
@@ -339,7 +345,7 @@ pub struct Gamma13Certificate {
     pub skipped: Vec<SkippedComputation>,
     /// The free-set enumeration skipped for the analysis budget (not for the cap on s): a
     /// verdict the enumeration could change is "not computed within the budget", not void.
-    #[serde(skip_serializing_if = "Option::is_none")]
+    #[cfg_attr(feature = "serde", serde(skip_serializing_if = "Option::is_none"))]
     pub over_budget: Option<crate::budget::NotComputed>,
 }
 

@@ -7,6 +7,7 @@
 //! it (`used` = ∞).
 
 use mpc_core::{CondensedMpc, ExactMpc, MpcError};
+#[cfg(feature = "serde")]
 use serde::Serialize;
 
 use super::{
@@ -15,8 +16,9 @@ use super::{
 };
 
 /// Where γ₁,₃ comes from.
-#[derive(Debug, Clone, Copy, PartialEq, Serialize)]
-#[serde(rename_all = "snake_case")]
+#[derive(Debug, Clone, Copy, PartialEq)]
+#[cfg_attr(feature = "serde", derive(Serialize))]
+#[cfg_attr(feature = "serde", serde(rename_all = "snake_case"))]
 pub enum Gamma13Source {
     /// Certified by contraction over the MPC's local gains ([`crate::gamma13`]).
     Certified,
@@ -35,7 +37,8 @@ pub const SAMPLED_MAGNITUDES: [f64; 4] = [0.01, 0.1, 1.0, 10.0];
 pub const SAMPLED_STEPS: usize = 40;
 
 /// γ₁,₃ figures of the certificate.
-#[derive(Debug, Clone, PartialEq, Serialize)]
+#[derive(Debug, Clone, PartialEq)]
+#[cfg_attr(feature = "serde", derive(Serialize))]
 #[non_exhaustive]
 pub struct Gamma13Report {
     /// The value used in the certificate (∞ when void).

@@ -2,6 +2,7 @@
 
 use mpc_core::{CondensedMpc, Controller, ExactMpc, MpcError, SuboptimalMpc, WarmStart};
 use qp_iter::{IterationMap, Method};
+#[cfg(feature = "serde")]
 use serde::Serialize;
 
 use super::gains::{JointAnalysis, JointGains, JointInputs, MpcMapInputs};
@@ -33,7 +34,8 @@ impl Default for JointOptions {
 }
 
 /// The joint certificate for one MHE method and one MPC method.
-#[derive(Debug, Clone, PartialEq, Serialize)]
+#[derive(Debug, Clone, PartialEq)]
+#[cfg_attr(feature = "serde", derive(Serialize))]
 #[non_exhaustive]
 pub struct JointCertificate {
     /// The MHE's method Φ_e.
@@ -175,7 +177,8 @@ pub fn certify_joint(
 /// δ_t = ‖Uᴷᶜ_t − U*(x̂_t)‖ and ‖u_t − π(x̂_t)‖ along a trace, by replaying the sub-optimal
 /// MPC on the trace's estimates x̂_t (deterministic: the same map, K_c and warm start give
 /// the same Uᴷᶜ_t) and solving the exact MPC at each x̂_t.
-#[derive(Debug, Clone, PartialEq, Serialize)]
+#[derive(Debug, Clone, PartialEq)]
+#[cfg_attr(feature = "serde", derive(Serialize))]
 #[non_exhaustive]
 pub struct DeltaSeries {
     /// δ_t.

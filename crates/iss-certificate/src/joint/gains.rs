@@ -1,5 +1,6 @@
 //! The gains of the four-subsystem interconnection at (K_e, K_c) and its premises.
 
+#[cfg(feature = "serde")]
 use serde::Serialize;
 
 use crate::analysis::{GainsAtK, IssAnalysis, IssInputs, Premise};
@@ -9,7 +10,8 @@ use crate::small_gain::{Cycle, GainMatrix};
 pub const NODE_NAMES: [&str; 4] = ["x", "epsilon", "e", "delta"];
 
 /// Constants of the sub-optimal MPC (node 4).
-#[derive(Debug, Clone, PartialEq, Serialize)]
+#[derive(Debug, Clone, PartialEq)]
+#[cfg_attr(feature = "serde", derive(Serialize))]
 pub struct MpcMapInputs {
     /// L_U: Lipschitz constant of x ↦ U*(x), the whole optimal input sequence.
     pub l_u: f64,
@@ -29,7 +31,8 @@ pub struct MpcMapInputs {
 }
 
 /// Inputs of the joint certificate.
-#[derive(Debug, Clone, PartialEq, Serialize)]
+#[derive(Debug, Clone, PartialEq)]
+#[cfg_attr(feature = "serde", derive(Serialize))]
 pub struct JointInputs {
     /// Theorem 1's inputs for the MHE side (φ_e of the MHE's map).
     pub mhe: IssInputs,
@@ -40,7 +43,8 @@ pub struct JointInputs {
 }
 
 /// The four-node small-gain analysis (module docs of [`crate::joint`]).
-#[derive(Debug, Clone, PartialEq, Serialize)]
+#[derive(Debug, Clone, PartialEq)]
+#[cfg_attr(feature = "serde", derive(Serialize))]
 #[non_exhaustive]
 pub struct JointAnalysis {
     /// The inputs.
@@ -52,7 +56,8 @@ pub struct JointAnalysis {
 }
 
 /// Gains, cycles and the verdict at one pair (K_e, K_c).
-#[derive(Debug, Clone, PartialEq, Serialize)]
+#[derive(Debug, Clone, PartialEq)]
+#[cfg_attr(feature = "serde", derive(Serialize))]
 #[non_exhaustive]
 pub struct JointGains {
     /// MHE iterations per step.

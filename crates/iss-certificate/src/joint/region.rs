@@ -1,12 +1,14 @@
 //! The certified set of (K_e, K_c): its staircase boundary (= the Pareto front) and the
 //! cheapest pair for a per-iteration cost.
 
+#[cfg(feature = "serde")]
 use serde::Serialize;
 
 use super::gains::{JointAnalysis, first_true};
 
 /// One pair (K_e, K_c).
-#[derive(Debug, Clone, Copy, PartialEq, Eq, Serialize)]
+#[derive(Debug, Clone, Copy, PartialEq, Eq)]
+#[cfg_attr(feature = "serde", derive(Serialize))]
 pub struct RegionPoint {
     /// MHE iterations per step.
     pub k_e: usize,
@@ -15,7 +17,8 @@ pub struct RegionPoint {
 }
 
 /// The certified region {(K_e, K_c) : certified} (an up-set: every larger pair is certified).
-#[derive(Debug, Clone, PartialEq, Serialize)]
+#[derive(Debug, Clone, PartialEq)]
+#[cfg_attr(feature = "serde", derive(Serialize))]
 #[non_exhaustive]
 pub struct JointRegion {
     /// Largest K_e and K_c searched.

@@ -1,5 +1,6 @@
 //! The joint trajectory checks over many seeds at one certified pair.
 
+#[cfg(feature = "serde")]
 use serde::Serialize;
 
 use super::certify::{JointCertificate, delta_series};
@@ -10,7 +11,8 @@ use closed_loop::scenario::{ControllerChoice, LoopOptions, ResolvedScenario};
 use closed_loop::sim::ClosedLoopError;
 
 /// Worst lhs/rhs of every inequality over the seeds, and the seeds where one failed.
-#[derive(Debug, Clone, PartialEq, Serialize)]
+#[derive(Debug, Clone, PartialEq)]
+#[cfg_attr(feature = "serde", derive(Serialize))]
 #[non_exhaustive]
 pub struct SeedChecks {
     /// The pair simulated.

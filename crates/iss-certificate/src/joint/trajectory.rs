@@ -1,6 +1,7 @@
 //! Every inequality of the joint proof evaluated on a simulated trace, both sides from the
 //! trace, with the reported constants (like [`crate::certificate::check_trajectory`]).
 
+#[cfg(feature = "serde")]
 use serde::Serialize;
 
 use super::gains::JointAnalysis;
@@ -8,7 +9,8 @@ use crate::certificate::{ClosedLoopCertificate, InequalityCheck};
 use closed_loop::record::Trace;
 
 /// The four subsystem estimates and the one-step inequality of δ_t on one trace.
-#[derive(Debug, Clone, PartialEq, Serialize)]
+#[derive(Debug, Clone, PartialEq)]
+#[cfg_attr(feature = "serde", derive(Serialize))]
 #[non_exhaustive]
 pub struct JointTrajectoryCheck {
     /// ‖x_t‖ ≤ β₁(‖x₀‖, t) + γ₁,₃‖e‖ + γ₁,₄‖δ‖ + γ₁ʷ‖w‖ (sups over [0, t−1]).

@@ -39,6 +39,7 @@ mod lifted;
 mod work;
 
 use faer::Par;
+#[cfg(feature = "serde")]
 use serde::Serialize;
 
 pub use iteration::{IterationLinearisation, KStepMap, Linearise, linearise};
@@ -135,7 +136,8 @@ pub enum LinearError {
 }
 
 /// ρ_lin on a K grid for one solver, with K_lin and every unstable K.
-#[derive(Debug, Clone, PartialEq, Serialize)]
+#[derive(Debug, Clone, PartialEq)]
+#[cfg_attr(feature = "serde", derive(Serialize))]
 #[non_exhaustive]
 pub struct LinearReport {
     /// Φ of the MHE.

@@ -24,10 +24,12 @@
 use super::sdp::{
     SparseBlock, Sym, cholesky, logdet_inverse, maximise_last_sparse, sym_eigenvalues,
 };
+#[cfg(feature = "serde")]
 use serde::Serialize;
 
 /// A dense row-major matrix (rows × cols).
-#[derive(Debug, Clone, PartialEq, Serialize)]
+#[derive(Debug, Clone, PartialEq)]
+#[cfg_attr(feature = "serde", derive(Serialize))]
 pub struct Matrix {
     /// Rows.
     pub rows: usize,
@@ -180,7 +182,8 @@ impl Default for LoopOptions {
 /// A checked loop certificate: ‖X_{t+1}‖²_P ≤ ρ²‖X_t‖²_P + γ²‖w_t‖² along every run with K
 /// inner iterations, whatever the clamps do, hence
 /// ‖X_t‖²_P ≤ ρ^{2t}‖X_0‖²_P + γ²/(1 − ρ²)·w̄².
-#[derive(Debug, Clone, PartialEq, Serialize)]
+#[derive(Debug, Clone, PartialEq)]
+#[cfg_attr(feature = "serde", derive(Serialize))]
 pub struct LoopCertificate {
     /// K.
     pub k: usize,

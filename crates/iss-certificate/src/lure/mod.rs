@@ -24,6 +24,7 @@ pub mod loop_level;
 mod sdp;
 
 use qp_iter::{Certificate, IterationMap, Method, MethodMap, ParametricQp};
+#[cfg(feature = "serde")]
 use serde::Serialize;
 
 /// Why no inner rate.
@@ -68,7 +69,8 @@ pub enum LureError {
 /// The inner-level certificate of one method on one QP:
 /// ‖zᴷ − z*‖ ≤ φ_iqc(K)‖z⁰ − z*‖ with φ_iqc(K) = `start` for K < `lag`, else
 /// `prefactor`·`rate`^(K − `lag`).
-#[derive(Debug, Clone, PartialEq, Serialize)]
+#[derive(Debug, Clone, PartialEq)]
+#[cfg_attr(feature = "serde", derive(Serialize))]
 #[non_exhaustive]
 pub struct InnerRate {
     /// The method's name.

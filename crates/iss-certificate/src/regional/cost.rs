@@ -20,6 +20,7 @@
 //! All are multiply-adds of blocked dense kernels, at [`crate::budget::DENSE_RATE`] per second
 //! of one core; the calibration against measured times is in `docs/limits.md`.
 
+#[cfg(feature = "serde")]
 use serde::Serialize;
 
 use super::model::{self, Pieces};
@@ -436,7 +437,8 @@ impl Budget {
 /// The estimated cost of [`super::regional_certificate`] at K, as its budget checks it
 /// (`regional/cost.rs`): multiply-adds, seconds of one core at
 /// [`crate::budget::DENSE_RATE`], and the peak bytes of its large matrices.
-#[derive(Debug, Clone, Copy, PartialEq, Serialize)]
+#[derive(Debug, Clone, Copy, PartialEq)]
+#[cfg_attr(feature = "serde", derive(Serialize))]
 #[non_exhaustive]
 pub struct RegionalEstimate {
     /// Multiply-adds of both stages.

@@ -35,6 +35,7 @@ mod reach;
 mod search;
 
 use faer::{Mat, Par};
+#[cfg(feature = "serde")]
 use serde::Serialize;
 
 pub use cost::{RegionalEstimate, estimate};
@@ -48,10 +49,11 @@ use cost::{Budget, bytes_text};
 use lifted::RegionalModel;
 
 /// The user's uncertainty and the search settings.
-#[derive(Debug, Clone, PartialEq, Serialize)]
+#[derive(Debug, Clone, PartialEq)]
+#[cfg_attr(feature = "serde", derive(Serialize))]
 pub struct RegionalOptions {
     /// The controller (exact MPC or saturated LQR).
-    #[serde(skip)]
+    #[cfg_attr(feature = "serde", serde(skip))]
     pub controller: ControllerChoice,
     /// Nominal x₀ (`simulation.x0`).
     pub x0_nominal: Vec<f64>,
@@ -158,7 +160,8 @@ pub enum RegionalVoid {
 }
 
 /// The binding row of a region, with its figures.
-#[derive(Debug, Clone, PartialEq, Serialize)]
+#[derive(Debug, Clone, PartialEq)]
+#[cfg_attr(feature = "serde", derive(Serialize))]
 #[non_exhaustive]
 pub struct Limit {
     /// Which constraint.
@@ -178,7 +181,8 @@ pub struct Limit {
 }
 
 /// The regional certificate at one K.
-#[derive(Debug, Clone, PartialEq, Serialize)]
+#[derive(Debug, Clone, PartialEq)]
+#[cfg_attr(feature = "serde", derive(Serialize))]
 #[non_exhaustive]
 pub struct RegionalCertificate {
     /// Φ of the MHE.
@@ -433,7 +437,8 @@ fn startup_check(
 
 /// What the rows free of K (t = 0, the MHE's first inner iterates at t = 1) allow at any K:
 /// no K's region can contain a set beyond these (necessary, not sufficient).
-#[derive(Debug, Clone, PartialEq, Serialize)]
+#[derive(Debug, Clone, PartialEq)]
+#[cfg_attr(feature = "serde", derive(Serialize))]
 #[non_exhaustive]
 pub struct KFreeLimits {
     /// The largest factor s such that (s·x0_radius, s·prior_error, s·w̄) keeps every row free
@@ -803,6 +808,7 @@ fn detail_of(model: RegionalModel, m: metric::Metric, reach: Vec<f64>) -> Region
     }
 }
 
+#[cfg(feature = "serde")]
 impl Serialize for RegionalVoid {
     fn serialize<S: serde::Serializer>(&self, s: S) -> Result<S::Ok, S::Error> {
         s.collect_str(self)

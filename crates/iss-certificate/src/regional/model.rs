@@ -13,14 +13,16 @@
 
 use faer::{Mat, MatRef};
 use mhe_core::problem::WindowLayout;
+#[cfg(feature = "serde")]
 use serde::Serialize;
 
 use crate::linear::{IterationLinearisation, LinearError, linearise};
 use closed_loop::scenario::{ControllerChoice, ResolvedScenario};
 
 /// What a constraint row constrains.
-#[derive(Debug, Clone, Copy, PartialEq, Eq, Serialize)]
-#[serde(rename_all = "snake_case")]
+#[derive(Debug, Clone, Copy, PartialEq, Eq)]
+#[cfg_attr(feature = "serde", derive(Serialize))]
+#[cfg_attr(feature = "serde", serde(rename_all = "snake_case"))]
 #[non_exhaustive]
 pub enum RowKind {
     /// A component of the point the MHE's projection acts on (box Z = 𝒳 × 𝒲^m).
@@ -34,7 +36,8 @@ pub enum RowKind {
 }
 
 /// Which constraint a row is.
-#[derive(Debug, Clone, Copy, PartialEq, Eq, Serialize)]
+#[derive(Debug, Clone, Copy, PartialEq, Eq)]
+#[cfg_attr(feature = "serde", derive(Serialize))]
 pub struct RowLabel {
     /// The kind.
     pub kind: RowKind,

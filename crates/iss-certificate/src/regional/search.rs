@@ -2,6 +2,7 @@
 //! then bisection, under one budget for the whole search; and the cap on K that `reproduce`,
 //! the sweep and the bench put on it ([`search_max`]), defined once here.
 
+#[cfg(feature = "serde")]
 use serde::Serialize;
 
 use super::{Budget, RegionalCertificate, RegionalOptions, RegionalVoid, certify_at, model};
@@ -49,7 +50,8 @@ pub fn search_max(k_min: Option<usize>, n_z: usize) -> (usize, String) {
 }
 
 /// K_reg: the smallest K at which the regional certificate contains the user's set.
-#[derive(Debug, Clone, PartialEq, Serialize)]
+#[derive(Debug, Clone, PartialEq)]
+#[cfg_attr(feature = "serde", derive(Serialize))]
 #[non_exhaustive]
 pub struct KReg {
     /// K_reg (None: no K up to `k_max` on the search, or the budget ended it first).
@@ -83,7 +85,8 @@ pub struct KReg {
 }
 
 /// The regional certificate at a K the caller asked about ([`k_reg_probing`]).
-#[derive(Debug, Clone, PartialEq, Serialize)]
+#[derive(Debug, Clone, PartialEq)]
+#[cfg_attr(feature = "serde", derive(Serialize))]
 #[non_exhaustive]
 pub struct Probe {
     /// The K.

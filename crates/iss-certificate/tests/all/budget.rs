@@ -384,7 +384,8 @@ fn a_certificate_cut_by_the_budget_is_not_computed_and_the_advised_budget_comput
         !v.contains("void") && !v.contains("certifies nothing"),
         "{v}"
     );
-    let json = serde_json::to_value(s).expect("serialises");
+    let json =
+        serde_json::to_value(certificate_json::v1::SolverCertificate::from(s)).expect("serialises");
     assert_eq!(json["not_computed"]["phase"], "γ₁,₃ free-set enumeration");
     assert!(json["void_reasons"].as_array().is_some_and(Vec::is_empty));
     // The one verdict every command states (reproduce, sweep, export) says "not computed".

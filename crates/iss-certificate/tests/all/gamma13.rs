@@ -235,7 +235,7 @@ fn unstable_plant_with_bounded_input_is_void_with_its_eigenvalue() {
         )
     );
     assert!(void.to_string().contains("|λ| = 1.118"));
-    let json = serde_json::to_value(&void).unwrap();
+    let json = serde_json::to_value(certificate_json::v1::Gamma13Void::from(&void)).unwrap();
     assert_eq!(json["kind"], "saturated_dynamics_not_stable");
     // The reason is right: from a large state along the unstable mode the exact MPC loses.
     let sys = mpc.system();

@@ -1,0 +1,10 @@
+#![doc = include_str!("../README.md")]
+//!
+//! ## Contents
+//!
+//! - [`v1`]: version 1 of both documents — [`v1::Certificate`] (`certificate.json` of
+//!   `cargo xtask reproduce`, format [`v1::CERTIFICATE_FORMAT`]) and [`v1::IossCertificate`]
+//!   (the JSON of `cargo xtask certify`, format [`v1::IOSS_FORMAT`]) — and the records of the
+//!   library outcomes they embed, each with a `From<&library type>` conversion.
+
+pub mod v1;

@@ -247,11 +247,7 @@ impl Family {
 
 /// The minimum of the quasiconvex s ↦ γ²(eˢ) on [s_lo, s_hi]: a 25-point grid, then golden
 /// section on the grid minimum's neighbours. Returns (γ², s, grid index) of the best point.
-fn minimise_in_log(
-    mut gamma2: impl FnMut(f64) -> f64,
-    s_lo: f64,
-    s_hi: f64,
-) -> (f64, f64, usize) {
+fn minimise_in_log(mut gamma2: impl FnMut(f64) -> f64, s_lo: f64, s_hi: f64) -> (f64, f64, usize) {
     // Quasiconvex in s: any grid minimum brackets the minimiser between its neighbours.
     let points = 25;
     let mut best = (f64::INFINITY, s_lo, 0usize);

@@ -160,7 +160,7 @@ fn chain(nx: usize, ny: usize) -> LtiSystem {
 /// The estimate of `mhe_core::memory::setup_bytes` (what `mhe.horizon` is checked by)
 /// against the heap high-water mark of `MheEstimator::new` on a grid of plant sizes,
 /// horizons, methods, exact solve on/off and bounded sets: within 2× either way.
-/// Long (75 setups, about 12 s CPU in the test profile): `.ci/run` runs it with `--ignored long_`.
+/// Long (75 setups, most of the `alloc` binary's run): `.ci/run` runs it with `--ignored long_`.
 #[test]
 #[ignore = "long: run by .ci/run with --ignored"]
 fn long_setup_memory_estimate_is_within_2x_of_the_peak() {

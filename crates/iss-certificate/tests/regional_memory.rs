@@ -24,7 +24,8 @@ fn scenario(file: &str, horizon: usize) -> Scenario {
 }
 
 #[test]
-fn memory_estimate_is_within_2x_of_the_peak() {
+#[ignore = "long: run by .ci/run with --ignored"]
+fn long_memory_estimate_is_within_2x_of_the_peak() {
     // Every product on this thread (the allocator counts per thread).
     faer::set_global_parallelism(faer::Par::Seq);
     let mut checked = 0;

@@ -18,7 +18,7 @@
 //!   5(r_m² + r_m n_z) (calibrated against the measured peak, not derived line by line).
 //!
 //! The peak adds the temporaries of the last window built (products and the Cholesky
-//! factor, about 3 n_p² + 4 n_z n_θ). The test `setup_memory_estimate_is_within_2x_of_the_peak`
+//! factor, about 3 n_p² + 4 n_z n_θ). The test `long_setup_memory_estimate_is_within_2x_of_the_peak`
 //! (mhe-core `tests/alloc.rs`) compares this estimate with the heap high-water mark of
 //! `MheEstimator::new` on a grid of sizes and methods.
 

@@ -461,10 +461,89 @@ fn build_window(
     sets: &MheSets,
 ) -> Result<MheWindow> {
     let layout = WindowLayout { dims: d, m };
+    let (nz, nth) = (layout.nz(), layout.n_theta());
+    let (a, c, e, f) = (sys.a(), sys.c(), sys.e(), sys.f());
+    let maps = paper_maps(sys, layout, w, sets);
+    let (h_c, f_c) = condense(&maps);
+    let (lo, hi) = sym_extreme_eigenvalues("H_c", h_c.as_ref())?;
+    if !(lo > STRONG_CONVEXITY_TOL * hi) || !hi.is_finite() {
+        return Err(MheError::NotStronglyConvex {
+            window: m,
+            min_eigenvalue: lo,
+            max_eigenvalue: hi,
+        });
+    }
+
+    let zset = window_box(sets, m, nz)?;
+    let (mut lipschitz_certified, lipschitz_unconstrained) = lipschitz(&h_c, &f_c, m, lo, hi)?;
+    // Lemma 1's bound is an H_c-weighted projection onto a FIXED set; rows whose bounds move
+    // with θ (E ≠ 0: the states depend on the inputs in θ) break it.
+    let lipschitz_void = maps.rows.moves_with_theta();
+    if lipschitz_void {
+        lipschitz_certified = f64::INFINITY;
+    }
+
+    // The structured product H_c z (forward + adjoint pass) for long windows.
+    let op = crate::structured::MheHessian::new(
+        layout,
+        a,
+        c,
+        e,
+        f,
+        w.eta,
+        w.p.as_ref(),
+        w.q.as_ref(),
+        w.r.as_ref(),
+    );
+    let mut qp =
+        ParametricQp::new(h_c, vec![0.0; nz], f_c, zset)?.with_operator(std::sync::Arc::new(op))?;
+    let PaperMaps {
+        t_map,
+        s_map,
+        ztilde_map,
+        h_paper,
+        xz,
+        xth,
+        rows,
+    } = maps;
+    if let Some(gc) = rows.build(nz, nth)? {
+        qp = qp.with_general(gc)?;
+    }
+    Ok(MheWindow {
+        layout,
+        qp,
+        t_map,
+        s_map,
+        ztilde_map,
+        h_paper,
+        xend_z: xz,
+        xend_theta: xth,
+        weight_min: 0.5 * lo,
+        weight_max: 0.5 * hi,
+        lipschitz_certified,
+        lipschitz_unconstrained,
+        lipschitz_void,
+    })
+}
+
+/// One window's maps in the paper's variables (eq. (9)): the stacked residuals
+/// T z + S θ − z̃ with z̃ = Z̃ θ, their weight H, the end state x̂_m = X_z z + X_θ θ, and the
+/// general rows x̂_j ∈ 𝒳, ŷ_j ∈ 𝒴.
+struct PaperMaps {
+    t_map: Mat<f64>,
+    s_map: Mat<f64>,
+    ztilde_map: Mat<f64>,
+    h_paper: Mat<f64>,
+    xz: Mat<f64>,
+    xth: Mat<f64>,
+    rows: GeneralRows,
+}
+
+fn paper_maps(sys: &LtiSystem, layout: WindowLayout, w: &MheWeights, sets: &MheSets) -> PaperMaps {
+    let (d, m) = (layout.dims, layout.m);
     let (nx, ny, nw, nw1) = (d.nx, d.ny, d.nw(), d.nw1);
     let (nz, nth, np) = (layout.nz(), layout.n_theta(), layout.n_paper());
     let (a, b, c, e, f) = (sys.a(), sys.b(), sys.c(), sys.e(), sys.f());
-
     let mut t_map = Mat::<f64>::zeros(np, nz);
     let mut s_map = Mat::<f64>::zeros(np, nth);
     let mut ztilde_map = Mat::<f64>::zeros(np, nth);
@@ -539,24 +618,38 @@ fn build_window(
         let ey = s_map.subrows(py, ny).to_owned();
         rows.push_finite(&gy, &ey, sets.output.lower(), sets.output.upper());
     }
+    PaperMaps {
+        t_map,
+        s_map,
+        ztilde_map,
+        h_paper,
+        xz,
+        xth,
+        rows,
+    }
+}
 
-    let ht = &h_paper * &t_map;
+/// The condensed QP's H_c = 2TᵀHT and F_c = 2TᵀH(S − Z̃).
+fn condense(maps: &PaperMaps) -> (Mat<f64>, Mat<f64>) {
+    let PaperMaps {
+        t_map,
+        s_map,
+        ztilde_map,
+        h_paper,
+        ..
+    } = maps;
+    let (nz, nth) = (t_map.ncols(), s_map.ncols());
+    let ht = h_paper * t_map;
     let h_c = lti_model::matrix::symmetrize((t_map.transpose() * &ht).as_ref());
     let h_c = Mat::from_fn(nz, nz, |i, j| 2.0 * h_c[(i, j)]);
-    let s_minus = &s_map - &ztilde_map;
-    let f_c = t_map.transpose() * (&h_paper * &s_minus);
+    let s_minus = s_map - ztilde_map;
+    let f_c = t_map.transpose() * (h_paper * &s_minus);
     let f_c = Mat::from_fn(nz, nth, |i, j| 2.0 * f_c[(i, j)]);
+    (h_c, f_c)
+}
 
-    let (lo, hi) = sym_extreme_eigenvalues("H_c", h_c.as_ref())?;
-    if !(lo > STRONG_CONVEXITY_TOL * hi) || !hi.is_finite() {
-        return Err(MheError::NotStronglyConvex {
-            window: m,
-            min_eigenvalue: lo,
-            max_eigenvalue: hi,
-        });
-    }
-
-    // Z = 𝒳 × 𝒲^m.
+/// Z = 𝒳 × 𝒲^m.
+fn window_box(sets: &MheSets, m: usize, nz: usize) -> Result<BoxSet> {
     let (mut lower, mut upper) = (Vec::with_capacity(nz), Vec::with_capacity(nz));
     lower.extend_from_slice(sets.state.lower());
     upper.extend_from_slice(sets.state.upper());
@@ -565,8 +658,12 @@ fn build_window(
         upper.extend_from_slice(sets.disturbance.upper());
     }
     let zset = BoxSet::named("Z", lower, upper).map_err(lti_model::ModelError::from)?;
+    Ok(zset)
+}
 
-    // L_Φ: ‖H^{-1/2}F‖₂² = λ_max(Fᵀ H⁻¹ F); ‖H⁻¹F‖₂ directly.
+/// L_Φ of Lemma 1 and the unconstrained ‖H_c⁻¹F_c‖₂: ‖H^{-1/2}F‖₂² = λ_max(Fᵀ H⁻¹ F),
+/// ‖H⁻¹F‖₂ directly (lo, hi: H_c's extreme eigenvalues).
+fn lipschitz(h_c: &Mat<f64>, f_c: &Mat<f64>, m: usize, lo: f64, hi: f64) -> Result<(f64, f64)> {
     let llt = h_c
         .llt(Side::Lower)
         .map_err(|_| MheError::NotStronglyConvex {
@@ -574,50 +671,13 @@ fn build_window(
             min_eigenvalue: lo,
             max_eigenvalue: hi,
         })?;
-    let hinv_f = llt.solve(&f_c);
+    let hinv_f = llt.solve(f_c);
     let ft_hinv_f = lti_model::matrix::symmetrize((f_c.transpose() * &hinv_f).as_ref());
     let (_, top) = sym_extreme_eigenvalues("F_cᵀH_c⁻¹F_c", ft_hinv_f.as_ref())?;
-    let mut lipschitz_certified = top.max(0.0).sqrt() / lo.sqrt();
-    // Lemma 1's bound is an H_c-weighted projection onto a FIXED set; rows whose bounds move
-    // with θ (E ≠ 0: the states depend on the inputs in θ) break it.
-    let lipschitz_void = rows.moves_with_theta();
-    if lipschitz_void {
-        lipschitz_certified = f64::INFINITY;
-    }
-    let lipschitz_unconstrained = lti_model::matrix::spectral_norm(hinv_f.as_ref());
-
-    // The structured product H_c z (forward + adjoint pass) for long windows.
-    let op = crate::structured::MheHessian::new(
-        layout,
-        a,
-        c,
-        e,
-        f,
-        w.eta,
-        w.p.as_ref(),
-        w.q.as_ref(),
-        w.r.as_ref(),
-    );
-    let mut qp =
-        ParametricQp::new(h_c, vec![0.0; nz], f_c, zset)?.with_operator(std::sync::Arc::new(op))?;
-    if let Some(gc) = rows.build(nz, nth)? {
-        qp = qp.with_general(gc)?;
-    }
-    Ok(MheWindow {
-        layout,
-        qp,
-        t_map,
-        s_map,
-        ztilde_map,
-        h_paper,
-        xend_z: xz,
-        xend_theta: xth,
-        weight_min: 0.5 * lo,
-        weight_max: 0.5 * hi,
-        lipschitz_certified,
-        lipschitz_unconstrained,
-        lipschitz_void,
-    })
+    Ok((
+        top.max(0.0).sqrt() / lo.sqrt(),
+        lti_model::matrix::spectral_norm(hinv_f.as_ref()),
+    ))
 }
 
 /// The general rows of one window, gathered stage by stage.

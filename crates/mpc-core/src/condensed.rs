@@ -154,6 +154,176 @@ pub(crate) fn check_psd(name: &'static str, m: &Mat<f64>, n: usize) -> Result<()
     Ok(())
 }
 
+/// The shapes of `config` against `system` (N ≥ 1, n_u ≥ 1, Q_c ⪰ 0, R_c ≻ 0, the sets'
+/// dimensions), before anything is built.
+fn check_config(system: &LtiSystem, config: &MpcConfig) -> Result<()> {
+    let (nx, nu) = (system.nx(), system.nu());
+    let n = config.horizon;
+    if n == 0 {
+        return Err(MpcError::Horizon { value: 0 });
+    }
+    if nu == 0 {
+        return Err(ModelError::Shape {
+            name: "B".into(),
+            expected_rows: nx,
+            expected_cols: 1,
+            actual_rows: nx,
+            actual_cols: 0,
+        }
+        .into());
+    }
+    check_psd("Q_c", &config.q_c, nx)?;
+    check_positive_definite("R_c", config.r_c.as_ref(), nu)?;
+    if config.input_set.dim() != nu {
+        return Err(ModelError::Shape {
+            name: "input_set".into(),
+            expected_rows: nu,
+            expected_cols: 1,
+            actual_rows: config.input_set.dim(),
+            actual_cols: 1,
+        }
+        .into());
+    }
+    if let Some(ys) = &config.output_set {
+        if ys.dim() != system.ny() {
+            return Err(ModelError::Shape {
+                name: "output_set".into(),
+                expected_rows: system.ny(),
+                expected_cols: 1,
+                actual_rows: ys.dim(),
+                actual_cols: 1,
+            }
+            .into());
+        }
+    }
+    if let Some(xs) = &config.state_set {
+        if xs.dim() != nx {
+            return Err(ModelError::Shape {
+                name: "state_set".into(),
+                expected_rows: nx,
+                expected_cols: 1,
+                actual_rows: xs.dim(),
+                actual_cols: 1,
+            }
+            .into());
+        }
+    }
+    Ok(())
+}
+
+/// P_f: the stabilising DARE solution, or the given matrix (checked ⪰ 0, symmetrised).
+fn terminal_weight(
+    system: &LtiSystem,
+    terminal: &Terminal,
+    q_c: &Mat<f64>,
+    r_c: &Mat<f64>,
+) -> Result<Mat<f64>> {
+    let nx = system.nx();
+    Ok(match terminal {
+        Terminal::Dare => {
+            // Q_c ⪰ 0: the stabilising DARE solution needs (A, Q_c^½) detectable; a
+            // singular Q_c is checked first so the error names the unseen mode.
+            if is_singular(q_c) {
+                crate::detectable::check_detectable(system.a(), q_c.as_ref())?;
+            }
+            dare(system.a(), system.b(), q_c.as_ref(), r_c.as_ref())?
+        }
+        Terminal::Given(p) => {
+            check_psd("P_f", p, nx)?;
+            lti_model::matrix::symmetrize(p.as_ref())
+        }
+    })
+}
+
+/// The condensed prediction x_{1..N} = Φ x̂ + Γ U: Φ = [A; A²; …; A^N] and the block
+/// lower-triangular Γ with blocks A^{k−1−j} B.
+fn prediction(system: &LtiSystem, n: usize) -> (Mat<f64>, Mat<f64>) {
+    let (nx, nu) = (system.nx(), system.nu());
+    let a = system.a();
+    let b = system.b();
+    // Powers A⁰ … A^N.
+    let mut pows: Vec<Mat<f64>> = Vec::with_capacity(n + 1);
+    pows.push(Mat::identity(nx, nx));
+    for k in 1..=n {
+        let next = &pows[k - 1] * a;
+        pows.push(next);
+    }
+    let mut phi = Mat::<f64>::zeros(n * nx, nx);
+    let mut gamma = Mat::<f64>::zeros(n * nx, n * nu);
+    for k in 1..=n {
+        phi.as_mut()
+            .submatrix_mut((k - 1) * nx, 0, nx, nx)
+            .copy_from(&pows[k]);
+        for j in 0..k {
+            let blk = &pows[k - 1 - j] * b;
+            gamma
+                .as_mut()
+                .submatrix_mut((k - 1) * nx, j * nu, nx, nu)
+                .copy_from(&blk);
+        }
+    }
+    (phi, gamma)
+}
+
+/// The rows of the predicted states (outputs) that `set` bounds: (k, i) for k = 1..N and
+/// every component i with a finite bound; none for no set or the whole space.
+fn finite_rows(set: Option<&BoxSet>, dim: usize, n: usize) -> Vec<(usize, usize)> {
+    let Some(set) = set.filter(|s| !s.is_whole()) else {
+        return Vec::new();
+    };
+    (1..=n)
+        .flat_map(|k| (0..dim).map(move |i| (k, i)))
+        .filter(|&(_, i)| set.lower()[i].is_finite() || set.upper()[i].is_finite())
+        .collect()
+}
+
+/// The general rows of the QP: x_k = Φ_k x̂ + Γ_k U ∈ 𝒳 for k = 1..N, one row per finite
+/// component; then C x_k = CΦ_k x̂ + CΓ_k U ∈ 𝒴_c. `None` when no row is bounded.
+fn general_constraints(
+    system: &LtiSystem,
+    config: &MpcConfig,
+    phi: &Mat<f64>,
+    gamma: &Mat<f64>,
+    state_rows: &[(usize, usize)],
+    output_rows: &[(usize, usize)],
+) -> Result<Option<qp_iter::GeneralConstraints>> {
+    let (nx, nu, n) = (system.nx(), system.nu(), config.horizon);
+    let (ms, mo) = (state_rows.len(), output_rows.len());
+    if ms + mo == 0 {
+        return Ok(None);
+    }
+    let c = system.c();
+    // Row p of G (of E): Γ (Φ) row (k − 1)n_x + i for a state row; C times the
+    // block k of Γ (Φ) for an output row.
+    let entry = |m: &Mat<f64>, p: usize, j: usize| -> f64 {
+        if p < ms {
+            let (k, i) = state_rows[p];
+            m[((k - 1) * nx + i, j)]
+        } else {
+            let (k, i) = output_rows[p - ms];
+            (0..nx).map(|l| c[(i, l)] * m[((k - 1) * nx + l, j)]).sum()
+        }
+    };
+    let g = Mat::from_fn(ms + mo, n * nu, |p, j| entry(gamma, p, j));
+    let e = Mat::from_fn(ms + mo, nx, |p, j| entry(phi, p, j));
+    let bound = |p: usize, upper: bool| -> f64 {
+        let (set, i) = if p < ms {
+            (config.state_set.as_ref(), state_rows[p].1)
+        } else {
+            (config.output_set.as_ref(), output_rows[p - ms].1)
+        };
+        let set = set.expect("rows exist only for a given set");
+        if upper {
+            set.upper()[i]
+        } else {
+            set.lower()[i]
+        }
+    };
+    let lo = (0..ms + mo).map(|p| bound(p, false)).collect();
+    let hi = (0..ms + mo).map(|p| bound(p, true)).collect();
+    Ok(Some(qp_iter::GeneralConstraints::new(g, e, lo, hi)?))
+}
+
 impl CondensedMpc {
     /// Validates `config` against `system` and builds H, F and the QP.
     ///
@@ -165,95 +335,11 @@ impl CondensedMpc {
         lti_model::work_count::record(lti_model::work_count::Work::MpcBuilt);
         let (nx, nu) = (system.nx(), system.nu());
         let n = config.horizon;
-        if n == 0 {
-            return Err(MpcError::Horizon { value: 0 });
-        }
-        if nu == 0 {
-            return Err(ModelError::Shape {
-                name: "B".into(),
-                expected_rows: nx,
-                expected_cols: 1,
-                actual_rows: nx,
-                actual_cols: 0,
-            }
-            .into());
-        }
-        check_psd("Q_c", &config.q_c, nx)?;
-        check_positive_definite("R_c", config.r_c.as_ref(), nu)?;
-        if config.input_set.dim() != nu {
-            return Err(ModelError::Shape {
-                name: "input_set".into(),
-                expected_rows: nu,
-                expected_cols: 1,
-                actual_rows: config.input_set.dim(),
-                actual_cols: 1,
-            }
-            .into());
-        }
-        if let Some(ys) = &config.output_set {
-            if ys.dim() != system.ny() {
-                return Err(ModelError::Shape {
-                    name: "output_set".into(),
-                    expected_rows: system.ny(),
-                    expected_cols: 1,
-                    actual_rows: ys.dim(),
-                    actual_cols: 1,
-                }
-                .into());
-            }
-        }
-        if let Some(xs) = &config.state_set {
-            if xs.dim() != nx {
-                return Err(ModelError::Shape {
-                    name: "state_set".into(),
-                    expected_rows: nx,
-                    expected_cols: 1,
-                    actual_rows: xs.dim(),
-                    actual_cols: 1,
-                }
-                .into());
-            }
-        }
+        check_config(system, &config)?;
         let q_c = lti_model::matrix::symmetrize(config.q_c.as_ref());
         let r_c = lti_model::matrix::symmetrize(config.r_c.as_ref());
-        let p_f = match config.terminal {
-            Terminal::Dare => {
-                // Q_c ⪰ 0: the stabilising DARE solution needs (A, Q_c^½) detectable; a
-                // singular Q_c is checked first so the error names the unseen mode.
-                if is_singular(&q_c) {
-                    crate::detectable::check_detectable(system.a(), q_c.as_ref())?;
-                }
-                dare(system.a(), system.b(), q_c.as_ref(), r_c.as_ref())?
-            }
-            Terminal::Given(p) => {
-                check_psd("P_f", &p, nx)?;
-                lti_model::matrix::symmetrize(p.as_ref())
-            }
-        };
-
-        let a = system.a();
-        let b = system.b();
-        // Powers A⁰ … A^N.
-        let mut pows: Vec<Mat<f64>> = Vec::with_capacity(n + 1);
-        pows.push(Mat::identity(nx, nx));
-        for k in 1..=n {
-            let next = &pows[k - 1] * a;
-            pows.push(next);
-        }
-        let mut phi = Mat::<f64>::zeros(n * nx, nx);
-        let mut gamma = Mat::<f64>::zeros(n * nx, n * nu);
-        for k in 1..=n {
-            phi.as_mut()
-                .submatrix_mut((k - 1) * nx, 0, nx, nx)
-                .copy_from(&pows[k]);
-            for j in 0..k {
-                let blk = &pows[k - 1 - j] * b;
-                gamma
-                    .as_mut()
-                    .submatrix_mut((k - 1) * nx, j * nu, nx, nu)
-                    .copy_from(&blk);
-            }
-        }
+        let p_f = terminal_weight(system, &config.terminal, &q_c, &r_c)?;
+        let (phi, gamma) = prediction(system, n);
         let mut q_blocks: Vec<faer::MatRef<'_, f64>> = vec![q_c.as_ref(); n - 1];
         q_blocks.push(p_f.as_ref());
         let q_bar = lti_model::matrix::block_diag(&q_blocks);
@@ -271,51 +357,12 @@ impl CondensedMpc {
         let zset =
             BoxSet::named("input_set^N", lower, upper).map_err(lti_model::ModelError::from)?;
         let mut qp = ParametricQp::new(h, vec![0.0; n * nu], f, zset)?;
-        // x_k = Φ_k x̂ + Γ_k U ∈ 𝒳 for k = 1..N, one row per finite component; then
-        // C x_k = CΦ_k x̂ + CΓ_k U ∈ 𝒴_c.
-        let finite_rows = |set: Option<&BoxSet>, dim: usize| -> Vec<(usize, usize)> {
-            let Some(set) = set.filter(|s| !s.is_whole()) else {
-                return Vec::new();
-            };
-            (1..=n)
-                .flat_map(|k| (0..dim).map(move |i| (k, i)))
-                .filter(|&(_, i)| set.lower()[i].is_finite() || set.upper()[i].is_finite())
-                .collect()
-        };
-        let state_rows = finite_rows(config.state_set.as_ref(), nx);
-        let output_rows = finite_rows(config.output_set.as_ref(), system.ny());
-        let (ms, mo) = (state_rows.len(), output_rows.len());
-        if ms + mo > 0 {
-            let c = system.c();
-            // Row p of G (of E): Γ (Φ) row (k − 1)n_x + i for a state row; C times the
-            // block k of Γ (Φ) for an output row.
-            let entry = |m: &Mat<f64>, p: usize, j: usize| -> f64 {
-                if p < ms {
-                    let (k, i) = state_rows[p];
-                    m[((k - 1) * nx + i, j)]
-                } else {
-                    let (k, i) = output_rows[p - ms];
-                    (0..nx).map(|l| c[(i, l)] * m[((k - 1) * nx + l, j)]).sum()
-                }
-            };
-            let g = Mat::from_fn(ms + mo, n * nu, |p, j| entry(&gamma, p, j));
-            let e = Mat::from_fn(ms + mo, nx, |p, j| entry(&phi, p, j));
-            let bound = |p: usize, upper: bool| -> f64 {
-                let (set, i) = if p < ms {
-                    (config.state_set.as_ref(), state_rows[p].1)
-                } else {
-                    (config.output_set.as_ref(), output_rows[p - ms].1)
-                };
-                let set = set.expect("rows exist only for a given set");
-                if upper {
-                    set.upper()[i]
-                } else {
-                    set.lower()[i]
-                }
-            };
-            let lo = (0..ms + mo).map(|p| bound(p, false)).collect();
-            let hi = (0..ms + mo).map(|p| bound(p, true)).collect();
-            qp = qp.with_general(qp_iter::GeneralConstraints::new(g, e, lo, hi)?)?;
+        let state_rows = finite_rows(config.state_set.as_ref(), nx, n);
+        let output_rows = finite_rows(config.output_set.as_ref(), system.ny(), n);
+        if let Some(general) =
+            general_constraints(system, &config, &phi, &gamma, &state_rows, &output_rows)?
+        {
+            qp = qp.with_general(general)?;
         }
         Ok(Self {
             system: system.clone(),

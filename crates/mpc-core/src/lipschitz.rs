@@ -319,7 +319,86 @@ impl<C: Controller<Error = MpcError> + ?Sized> Sampler<'_, C> {
         self.clamp(&mut x);
         x
     }
+
+    /// A pair δ apart across a switch of π: bisection of a random segment on which π bends
+    /// (`true`), or the segment's ends where π is affine on it (`false`).
+    fn switch_pair(&mut self, delta: f64) -> Result<(EvaluatedPair, bool)> {
+        let (mut a, mut b) = (self.point(), self.point());
+        let (mut ua, mut ub) = (self.eval(&a)?, self.eval(&b)?);
+        let scale =
+            |u: &[f64], v: &[f64]| 1.0 + u.iter().chain(v).map(|t| t.abs()).fold(0.0, f64::max);
+        let tol = 1e-8 * scale(&ua, &ub);
+        let mut m = lerp(&a, &b, 0.5);
+        let mut um = self.eval(&m)?;
+        if !bends(&ua, &ub, &um, tol) {
+            return Ok(((a, ua, b, ub), false));
+        }
+        // Invariant: π bends on [a, b] and m is its midpoint.
+        while dist(&a, &b) > delta {
+            let (m1, m2) = (lerp(&a, &m, 0.5), lerp(&m, &b, 0.5));
+            let u1 = self.eval(&m1)?;
+            if bends(&ua, &um, &u1, tol) {
+                (b, ub, m, um) = (m, um, m1, u1);
+                continue;
+            }
+            let u2 = self.eval(&m2)?;
+            if bends(&um, &ub, &u2, tol) {
+                (a, ua, m, um) = (m, um, m2, u2);
+                continue;
+            }
+            break; // affine on both halves: the switch is at m
+        }
+        let dir: Vec<f64> = {
+            let l = dist(&a, &b);
+            a.iter().zip(&b).map(|(p, q)| (q - p) / l).collect()
+        };
+        let mut x: Vec<f64> = m
+            .iter()
+            .zip(&dir)
+            .map(|(p, q)| p - 0.5 * delta * q)
+            .collect();
+        let mut y: Vec<f64> = m
+            .iter()
+            .zip(&dir)
+            .map(|(p, q)| p + 0.5 * delta * q)
+            .collect();
+        self.clamp(&mut x);
+        self.clamp(&mut y);
+        let (ux, uy) = (self.eval(&x)?, self.eval(&y)?);
+        Ok(((x, ux, y, uy), true))
+    }
+
+    /// A pair δ apart along the steepest direction of π at a random point (the top right
+    /// singular vector of a central-difference Jacobian; a random direction if that fails).
+    fn steepest_pair(&mut self, delta: f64) -> Result<EvaluatedPair> {
+        let nx = self.nx;
+        let x = self.point();
+        let nu = self.ctrl.nu();
+        let mut jac = Mat::<f64>::zeros(nu, nx);
+        for j in 0..nx {
+            let mut p = x.clone();
+            let mut q = x.clone();
+            p[j] += 0.5 * delta;
+            q[j] -= 0.5 * delta;
+            let (up, uq) = (self.eval(&p)?, self.eval(&q)?);
+            for r in 0..nu {
+                jac[(r, j)] = (up[r] - uq[r]) / delta;
+            }
+        }
+        let jtj = jac.transpose() * &jac;
+        let dir: Vec<f64> = match jtj.self_adjoint_eigen(Side::Lower) {
+            Ok(e) => (0..nx).map(|r| e.U()[(r, nx - 1)]).collect(),
+            Err(_) => self.unit(),
+        };
+        let mut y: Vec<f64> = x.iter().zip(&dir).map(|(p, q)| p + delta * q).collect();
+        self.clamp(&mut y);
+        let (ux, uy) = (self.eval(&x)?, self.eval(&y)?);
+        Ok((x, ux, y, uy))
+    }
 }
+
+/// (x, π(x), y, π(y)).
+type EvaluatedPair = (Vec<f64>, Vec<f64>, Vec<f64>, Vec<f64>);
 
 use lti_model::vecmath::{dist2 as dist, norm2 as norm};
 
@@ -428,75 +507,13 @@ pub fn lipschitz_sampled<C: Controller<Error = MpcError> + ?Sized>(
                 record(&mut best, &x, &ux, &y, &uy);
             }
             2 => {
-                let (mut a, mut b) = (s.point(), s.point());
-                let (mut ua, mut ub) = (s.eval(&a)?, s.eval(&b)?);
-                let scale = |u: &[f64], v: &[f64]| {
-                    1.0 + u.iter().chain(v).map(|t| t.abs()).fold(0.0, f64::max)
-                };
-                let tol = 1e-8 * scale(&ua, &ub);
-                let mut m = lerp(&a, &b, 0.5);
-                let mut um = s.eval(&m)?;
-                if !bends(&ua, &ub, &um, tol) {
-                    record(&mut best, &a, &ua, &b, &ub);
-                    continue;
-                }
-                // Invariant: π bends on [a, b] and m is its midpoint.
-                while dist(&a, &b) > delta {
-                    let (m1, m2) = (lerp(&a, &m, 0.5), lerp(&m, &b, 0.5));
-                    let u1 = s.eval(&m1)?;
-                    if bends(&ua, &um, &u1, tol) {
-                        (b, ub, m, um) = (m, um, m1, u1);
-                        continue;
-                    }
-                    let u2 = s.eval(&m2)?;
-                    if bends(&um, &ub, &u2, tol) {
-                        (a, ua, m, um) = (m, um, m2, u2);
-                        continue;
-                    }
-                    break; // affine on both halves: the switch is at m
-                }
-                best.switches_located += 1;
-                let dir: Vec<f64> = {
-                    let l = dist(&a, &b);
-                    a.iter().zip(&b).map(|(p, q)| (q - p) / l).collect()
-                };
-                let mut x: Vec<f64> = m
-                    .iter()
-                    .zip(&dir)
-                    .map(|(p, q)| p - 0.5 * delta * q)
-                    .collect();
-                let mut y: Vec<f64> = m
-                    .iter()
-                    .zip(&dir)
-                    .map(|(p, q)| p + 0.5 * delta * q)
-                    .collect();
-                s.clamp(&mut x);
-                s.clamp(&mut y);
-                let (ux, uy) = (s.eval(&x)?, s.eval(&y)?);
+                let (pair, located) = s.switch_pair(delta)?;
+                best.switches_located += usize::from(located);
+                let (x, ux, y, uy) = pair;
                 record(&mut best, &x, &ux, &y, &uy);
             }
             _ => {
-                let x = s.point();
-                let nu = s.ctrl.nu();
-                let mut jac = Mat::<f64>::zeros(nu, nx);
-                for j in 0..nx {
-                    let mut p = x.clone();
-                    let mut q = x.clone();
-                    p[j] += 0.5 * delta;
-                    q[j] -= 0.5 * delta;
-                    let (up, uq) = (s.eval(&p)?, s.eval(&q)?);
-                    for r in 0..nu {
-                        jac[(r, j)] = (up[r] - uq[r]) / delta;
-                    }
-                }
-                let jtj = jac.transpose() * &jac;
-                let dir: Vec<f64> = match jtj.self_adjoint_eigen(Side::Lower) {
-                    Ok(e) => (0..nx).map(|r| e.U()[(r, nx - 1)]).collect(),
-                    Err(_) => s.unit(),
-                };
-                let mut y: Vec<f64> = x.iter().zip(&dir).map(|(p, q)| p + delta * q).collect();
-                s.clamp(&mut y);
-                let (ux, uy) = (s.eval(&x)?, s.eval(&y)?);
+                let (x, ux, y, uy) = s.steepest_pair(delta)?;
                 record(&mut best, &x, &ux, &y, &uy);
             }
         }

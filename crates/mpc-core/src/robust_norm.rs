@@ -71,6 +71,55 @@ pub fn worst_case_norm(
     u: MatRef<'_, f64>,
     v: MatRef<'_, f64>,
 ) -> Result<WorstCaseNorm> {
+    check_inputs(m0, u, v)?;
+    let (p, q) = (m0.nrows(), m0.ncols());
+    if p == 0 || q == 0 {
+        return Ok(WorstCaseNorm {
+            bound: 0.0,
+            tau: 0.0,
+            evaluations: 0,
+        });
+    }
+    let (u_f, v_f) = (u.norm_l2(), v.norm_l2());
+    if u_f == 0.0 || v_f == 0.0 || u.ncols() == 0 || v.nrows() == 0 {
+        // No uncertainty: the family is the single matrix M₀.
+        let n = lti_model::matrix::spectral_norm(m0);
+        return Ok(WorstCaseNorm {
+            bound: n * (1.0 + ROUND_OFF_MARGIN),
+            tau: 0.0,
+            evaluations: 0,
+        });
+    }
+    let uut = u * u.transpose();
+    let evd = lti_model::matrix::symmetrize(uut.as_ref())
+        .self_adjoint_eigen(Side::Lower)
+        .map_err(|e| numerical("eigen-decomposition of UUᵀ (S-procedure)", format!("{e:?}")))?;
+    let lam: Vec<f64> = (0..p).map(|i| evd.S()[i].max(0.0)).collect();
+    let tau0 = lam.iter().copied().fold(0.0, f64::max);
+    let z: Mat<f64> = evd.U().transpose() * m0; // p × q, rows zᵢ = qᵢᵀM₀
+    let vtv = v.transpose() * v; // q × q
+    let mut family = Family::new(z, vtv, lam, tau0);
+    let t_lo = 1e-10 * tau0;
+    // Scalar case: t* = |u·m|/|v|; use its matrix analogue as the centre of the scan.
+    let m_f = m0.norm_l2();
+    let centre = (tau0.sqrt() * m_f / v_f).max(t_lo);
+    let (s_lo, s_hi) = ((centre.ln() - 35.0).max(t_lo.ln()), centre.ln() + 35.0);
+    let best = minimise_in_log(|t| family.gamma2(t), s_lo, s_hi);
+    if !best.0.is_finite() {
+        return Err(numerical(
+            "S-procedure scalar search",
+            format!("γ²(τ) is not finite (best {})", best.0),
+        ));
+    }
+    Ok(WorstCaseNorm {
+        bound: best.0.sqrt() * (1.0 + ROUND_OFF_MARGIN),
+        tau: tau0 + best.1.exp(),
+        evaluations: family.evaluations,
+    })
+}
+
+/// M₀ p × q, U with p rows, V with q columns, every entry finite.
+fn check_inputs(m0: MatRef<'_, f64>, u: MatRef<'_, f64>, v: MatRef<'_, f64>) -> Result<()> {
     let (p, q) = (m0.nrows(), m0.ncols());
     if u.nrows() != p {
         return Err(MpcError::Dimension {
@@ -99,47 +148,67 @@ pub fn worst_case_norm(
             }
         }
     }
-    if p == 0 || q == 0 {
-        return Ok(WorstCaseNorm {
-            bound: 0.0,
-            tau: 0.0,
+    Ok(())
+}
+
+/// γ²(τ) = τ·λ_max(Zᵀdiag(1/(τ − λᵢ))Z + VᵀV) of the S-procedure, with its workspace and a
+/// count of evaluations.
+struct Family {
+    /// Rows zᵢ = qᵢᵀM₀ (qᵢ the eigenvectors of UUᵀ), p × q.
+    z: Mat<f64>,
+    vtv: Mat<f64>,
+    /// The eigenvalues λᵢ of UUᵀ, clamped at 0.
+    lam: Vec<f64>,
+    tau0: f64,
+    /// Wide families (q above the Jacobi size): Zᵀdiag(1/(τ − λ))Z as one blocked product of
+    /// the scaled rows, VᵀV added, and the dense eigenvalues; narrow ones keep the scalar
+    /// loop (bit for bit the earlier results).
+    wide: bool,
+    g: Vec<f64>,
+    zs: Mat<f64>,
+    gm: Mat<f64>,
+    evaluations: usize,
+}
+
+impl Family {
+    fn new(z: Mat<f64>, vtv: Mat<f64>, lam: Vec<f64>, tau0: f64) -> Self {
+        let (p, q) = (z.nrows(), z.ncols());
+        let wide = q > lti_model::matrix::JACOBI_MAX_DIM;
+        let (zs, gm) = if wide {
+            (Mat::<f64>::zeros(p, q), Mat::<f64>::zeros(q, q))
+        } else {
+            (Mat::new(), Mat::new())
+        };
+        Self {
+            z,
+            vtv,
+            lam,
+            tau0,
+            wide,
+            g: vec![0.0; q * q],
+            zs,
+            gm,
             evaluations: 0,
-        });
+        }
     }
-    let (u_f, v_f) = (u.norm_l2(), v.norm_l2());
-    if u_f == 0.0 || v_f == 0.0 || u.ncols() == 0 || v.nrows() == 0 {
-        // No uncertainty: the family is the single matrix M₀.
-        let n = lti_model::matrix::spectral_norm(m0);
-        return Ok(WorstCaseNorm {
-            bound: n * (1.0 + ROUND_OFF_MARGIN),
-            tau: 0.0,
-            evaluations: 0,
-        });
-    }
-    let uut = u * u.transpose();
-    let evd = lti_model::matrix::symmetrize(uut.as_ref())
-        .self_adjoint_eigen(Side::Lower)
-        .map_err(|e| numerical("eigen-decomposition of UUᵀ (S-procedure)", format!("{e:?}")))?;
-    let lam: Vec<f64> = (0..p).map(|i| evd.S()[i].max(0.0)).collect();
-    let tau0 = lam.iter().copied().fold(0.0, f64::max);
-    let z: Mat<f64> = evd.U().transpose() * m0; // p × q, rows zᵢ = qᵢᵀM₀
-    let vtv = v.transpose() * v; // q × q
-    let mut g = vec![0.0; q * q];
-    let mut evaluations = 0usize;
-    // γ²(τ₀ + t); t is kept ≥ 1e-10·τ₀, far above the round-off of the λᵢ.
-    // Wide families (q above the Jacobi size): Zᵀdiag(1/(τ − λ))Z as one blocked product of
-    // the scaled rows, VᵀV added, and the dense eigenvalues; narrow ones keep the scalar
-    // loop (bit for bit the earlier results).
-    let wide = q > lti_model::matrix::JACOBI_MAX_DIM;
-    let (mut zs, mut gm) = if wide {
-        (Mat::<f64>::zeros(p, q), Mat::<f64>::zeros(q, q))
-    } else {
-        (Mat::new(), Mat::new())
-    };
-    let mut gamma2 = |t: f64| -> f64 {
-        evaluations += 1;
-        let tau = tau0 + t;
-        if wide {
+
+    /// γ²(τ₀ + t); t is kept ≥ 1e-10·τ₀, far above the round-off of the λᵢ.
+    fn gamma2(&mut self, t: f64) -> f64 {
+        let Self {
+            z,
+            vtv,
+            lam,
+            tau0,
+            wide,
+            g,
+            zs,
+            gm,
+            evaluations,
+        } = self;
+        let (p, q) = (z.nrows(), z.ncols());
+        *evaluations += 1;
+        let tau = *tau0 + t;
+        if *wide {
             for i in 0..p {
                 // τ − λᵢ ≥ t > 0.
                 let w = (tau - lam[i]).recip().sqrt();
@@ -160,7 +229,7 @@ pub fn worst_case_norm(
                     g[a * q + b] = gm[(a, b)] + vtv[(a, b)];
                 }
             }
-            return tau * sym_lambda_max(&mut g, q).max(0.0);
+            return tau * sym_lambda_max(g, q).max(0.0);
         }
         for a in 0..q {
             for b in 0..=a {
@@ -172,13 +241,13 @@ pub fn worst_case_norm(
                 g[b * q + a] = acc;
             }
         }
-        tau * sym_lambda_max(&mut g, q).max(0.0)
-    };
-    let t_lo = 1e-10 * tau0;
-    // Scalar case: t* = |u·m|/|v|; use its matrix analogue as the centre of the scan.
-    let m_f = m0.norm_l2();
-    let centre = (tau0.sqrt() * m_f / v_f).max(t_lo);
-    let (s_lo, s_hi) = ((centre.ln() - 35.0).max(t_lo.ln()), centre.ln() + 35.0);
+        tau * sym_lambda_max(g, q).max(0.0)
+    }
+}
+
+/// The minimum of the quasiconvex s ↦ γ²(eˢ) on [s_lo, s_hi]: a 25-point grid, then golden
+/// section on the grid minimum's neighbours. Returns (γ², s, grid index) of the best point.
+fn minimise_in_log(mut gamma2: impl FnMut(f64) -> f64, s_lo: f64, s_hi: f64) -> (f64, f64, usize) {
     // Quasiconvex in s: any grid minimum brackets the minimiser between its neighbours.
     let points = 25;
     let mut best = (f64::INFINITY, s_lo, 0usize);
@@ -221,15 +290,5 @@ pub fn worst_case_norm(
             best = (fd, d, best.2);
         }
     }
-    if !best.0.is_finite() {
-        return Err(numerical(
-            "S-procedure scalar search",
-            format!("γ²(τ) is not finite (best {})", best.0),
-        ));
-    }
-    Ok(WorstCaseNorm {
-        bound: best.0.sqrt() * (1.0 + ROUND_OFF_MARGIN),
-        tau: tau0 + best.1.exp(),
-        evaluations,
-    })
+    best
 }

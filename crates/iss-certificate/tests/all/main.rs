@@ -18,6 +18,7 @@ mod mends;
 mod model;
 mod plants;
 mod plants_ii;
+mod precision;
 mod regional;
 mod regional_search;
 mod users;

@@ -355,33 +355,62 @@ pub fn validate_noise(
         .chain(sets.disturbance.upper())
         .all(|b| b.is_finite());
     let Some(raw) = raw else {
-        if !disturbance_given {
-            return Ok(NoiseSpec {
-                kind: NoiseKind::Zero,
-                scale: 1.0,
-                covariance: None,
-                seed: 0,
-                mean: None,
-                truncate: None,
-            });
-        }
-        if !bounded {
-            return Err(key_error(
-                "sets.disturbance",
-                "without a [noise] section the disturbance is uniform on sets.disturbance, which needs \
-                 finite bounds; make every bound finite or add [noise] with kind = \"gaussian\" or \"zero\"",
-            ));
-        }
+        return default_noise(disturbance_given, bounded);
+    };
+    let kind = raw.kind.unwrap_or(NoiseKind::Uniform);
+    let scale = noise_scale(raw)?;
+    if kind == NoiseKind::Uniform && !bounded {
+        return Err(key_error(
+            "noise.kind",
+            "uniform noise is drawn from sets.disturbance, which has an infinite (or no) bound; give \
+             sets.disturbance finite bounds or choose kind = \"gaussian\" or \"zero\"",
+        ));
+    }
+    let covariance = noise_covariance(raw, kind, nw)?;
+    let mean = noise_mean(raw, kind, nw)?;
+    let truncate = noise_truncate(raw, kind, covariance.as_ref(), sets, nw)?;
+    Ok(NoiseSpec {
+        kind,
+        scale,
+        covariance,
+        seed: raw.seed.unwrap_or(0),
+        mean,
+        truncate,
+    })
+}
+
+/// The noise of a scenario without a `[noise]` section: zero without a disturbance, else
+/// uniform on `sets.disturbance` (which must then be bounded).
+fn default_noise(disturbance_given: bool, bounded: bool) -> Result<NoiseSpec> {
+    if !disturbance_given {
         return Ok(NoiseSpec {
-            kind: NoiseKind::Uniform,
+            kind: NoiseKind::Zero,
             scale: 1.0,
             covariance: None,
             seed: 0,
             mean: None,
             truncate: None,
         });
-    };
-    let kind = raw.kind.unwrap_or(NoiseKind::Uniform);
+    }
+    if !bounded {
+        return Err(key_error(
+            "sets.disturbance",
+            "without a [noise] section the disturbance is uniform on sets.disturbance, which needs \
+             finite bounds; make every bound finite or add [noise] with kind = \"gaussian\" or \"zero\"",
+        ));
+    }
+    Ok(NoiseSpec {
+        kind: NoiseKind::Uniform,
+        scale: 1.0,
+        covariance: None,
+        seed: 0,
+        mean: None,
+        truncate: None,
+    })
+}
+
+/// `noise.scale`: finite, ≥ 0, and not so small that its square underflows.
+fn noise_scale(raw: &RawNoise) -> Result<f64> {
     let scale = raw.scale.unwrap_or(1.0);
     if !(scale.is_finite() && scale >= 0.0) {
         return Err(key_error(
@@ -402,14 +431,12 @@ pub fn validate_noise(
             ),
         ));
     }
-    if kind == NoiseKind::Uniform && !bounded {
-        return Err(key_error(
-            "noise.kind",
-            "uniform noise is drawn from sets.disturbance, which has an infinite (or no) bound; give \
-             sets.disturbance finite bounds or choose kind = \"gaussian\" or \"zero\"",
-        ));
-    }
-    let covariance = match (kind, raw.covariance.as_ref()) {
+    Ok(scale)
+}
+
+/// `noise.covariance`: required by (and only by) the Gaussian kinds.
+fn noise_covariance(raw: &RawNoise, kind: NoiseKind, nw: usize) -> Result<Option<Mat<f64>>> {
+    Ok(match (kind, raw.covariance.as_ref()) {
         (NoiseKind::Gaussian | NoiseKind::TruncatedNormal, Some(c)) => Some(weight(
             "noise.covariance",
             Some(c),
@@ -442,8 +469,12 @@ pub fn validate_noise(
             ));
         }
         (_, None) => None,
-    };
-    let mean = match (&raw.mean, kind) {
+    })
+}
+
+/// `noise.mean`: an offset of drawn noise, so not with `kind = "zero"`.
+fn noise_mean(raw: &RawNoise, kind: NoiseKind, nw: usize) -> Result<Option<Vec<f64>>> {
+    Ok(match (&raw.mean, kind) {
         (None, _) => None,
         (Some(_), NoiseKind::Zero) => {
             return Err(key_error(
@@ -458,10 +489,21 @@ pub fn validate_noise(
             nw,
             "disturbance component (w¹ then w²)",
         )?),
-    };
-    let truncate = match (kind, raw.truncate.as_deref()) {
+    })
+}
+
+/// `noise.truncate`: the truncated normal's box (default `sets.disturbance`), with a diagonal
+/// covariance and lower < upper in every component; only with `kind = "truncated-normal"`.
+fn noise_truncate(
+    raw: &RawNoise,
+    kind: NoiseKind,
+    covariance: Option<&Mat<f64>>,
+    sets: &ScenarioSets,
+    nw: usize,
+) -> Result<Option<BoxSet>> {
+    Ok(match (kind, raw.truncate.as_deref()) {
         (NoiseKind::TruncatedNormal, t) => {
-            if let Some(c) = &covariance {
+            if let Some(c) = covariance {
                 for i in 0..nw {
                     for j in 0..nw {
                         if i != j && c[(i, j)] != 0.0 {
@@ -520,14 +562,6 @@ pub fn validate_noise(
             ));
         }
         (_, None) => None,
-    };
-    Ok(NoiseSpec {
-        kind,
-        scale,
-        covariance,
-        seed: raw.seed.unwrap_or(0),
-        mean,
-        truncate,
     })
 }
 

@@ -168,37 +168,48 @@ fn clarabel_error(what: &str, e: impl std::fmt::Display) -> QpError {
     }
 }
 
+/// tol in (0, 1), polish_tol positive and finite.
+fn check_settings(settings: &ReferenceSettings) -> Result<()> {
+    if !(settings.tol > 0.0 && settings.tol < 1.0) {
+        return Err(QpError::Parameter {
+            name: "tol".into(),
+            value: settings.tol,
+            reason: "the reference tolerance must lie in (0, 1)".into(),
+        });
+    }
+    if !(settings.polish_tol > 0.0 && settings.polish_tol.is_finite()) {
+        return Err(QpError::Parameter {
+            name: "polish_tol".into(),
+            value: settings.polish_tol,
+            reason: "the polish tolerance must be positive and finite".into(),
+        });
+    }
+    Ok(())
+}
+
+/// Clarabel's P = triu(H), every entry kept (structural zeros too) so the pattern is fixed.
+fn upper_triangle(qp: &ParametricQp) -> CscMatrix<f64> {
+    let n = qp.n();
+    let h = qp.h();
+    let mut colptr = Vec::with_capacity(n + 1);
+    let (mut rowval, mut nzval) = (Vec::new(), Vec::new());
+    colptr.push(0);
+    for j in 0..n {
+        for i in 0..=j {
+            rowval.push(i);
+            nzval.push(h[(i, j)]);
+        }
+        colptr.push(rowval.len());
+    }
+    CscMatrix::new(n, n, colptr, rowval, nzval)
+}
+
 impl ReferenceSolver {
     /// Builds Clarabel's data for `qp` (q = q₀) and validates `settings`.
     pub fn new(qp: &ParametricQp, settings: ReferenceSettings) -> Result<Self> {
-        if !(settings.tol > 0.0 && settings.tol < 1.0) {
-            return Err(QpError::Parameter {
-                name: "tol".into(),
-                value: settings.tol,
-                reason: "the reference tolerance must lie in (0, 1)".into(),
-            });
-        }
-        if !(settings.polish_tol > 0.0 && settings.polish_tol.is_finite()) {
-            return Err(QpError::Parameter {
-                name: "polish_tol".into(),
-                value: settings.polish_tol,
-                reason: "the polish tolerance must be positive and finite".into(),
-            });
-        }
+        check_settings(&settings)?;
         let n = qp.n();
-        let h = qp.h();
-        // P = triu(H), every entry kept (structural zeros too) so the pattern is fixed.
-        let mut colptr = Vec::with_capacity(n + 1);
-        let (mut rowval, mut nzval) = (Vec::new(), Vec::new());
-        colptr.push(0);
-        for j in 0..n {
-            for i in 0..=j {
-                rowval.push(i);
-                nzval.push(h[(i, j)]);
-            }
-            colptr.push(rowval.len());
-        }
-        let p = CscMatrix::new(n, n, colptr, rowval, nzval);
+        let p = upper_triangle(qp);
         // A: one row per finite bound, grouped by column.
         let (lo, up) = (qp.zset().lower(), qp.zset().upper());
         let mut rows = Vec::new();

@@ -260,7 +260,7 @@ fn the_f32_deviation_stays_within_its_bound_on_a_few_seeds() {
 }
 
 #[test]
-#[ignore = "200 closed-loop seeds (~1 min in release): cargo test --release -p iss-certificate --test precision -- --ignored"]
+#[ignore = "200 closed-loop seeds (~1 min in release): cargo test --release -p iss-certificate --test all -- --ignored precision::"]
 fn the_f32_deviation_stays_within_its_bound_on_200_seeds() {
     let (ratio, tightest, largest) = deviation_vs_bound(200);
     println!(

@@ -258,9 +258,11 @@ fn units(b: &Base, resolved: &ResolvedScenario, i: usize) -> Result<(), String> 
             .ok_or("no [mhe] in a valid case")?;
         mhe.insert("q".into(), Value::Float(q0 * f));
         mhe.insert("r".into(), Value::Float(f));
+        let refused = |e: String| format!("refused with q, r × {f:e}: {e}");
         let r = Scenario::from_toml_str(&to_text(&t))
-            .and_then(|s| s.resolve())
-            .map_err(|e| format!("refused with q, r × {f:e}: {}", chain(&e)))?;
+            .map_err(|e| refused(chain(&e)))?
+            .resolve()
+            .map_err(|e| refused(chain(&e)))?;
         Ok(r.ioss().map(Result::is_ok))
     };
     let base = resolved.ioss().map(Result::is_ok);

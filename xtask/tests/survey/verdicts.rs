@@ -21,7 +21,8 @@ fn resolve(b: &Base, warm_start: &str) -> Result<ResolvedScenario, String> {
         m.insert("warm_start".into(), Value::String(warm_start.into()));
     }
     Scenario::from_toml_str(&to_text(&t))
-        .and_then(|s| s.resolve())
+        .map_err(|e| chain(&e))?
+        .resolve()
         .map_err(|e| chain(&e))
 }
 
@@ -108,12 +109,12 @@ pub fn survey(seed: u64, plants: usize) -> Tally {
             // The per-solver `certified` of certificate.json is the verdict at K_min.
             let flag = solver_certified(paper.scenario(), sc, ControllerChoice::ExactMpc);
             let at_k_min = k_min.map(|k| at(&paper, k, ControllerChoice::ExactMpc, Scalar::F64));
-            let yes = at_k_min.is_some_and(|v| v.certified == Certified::Yes);
+            let yes = at_k_min.as_ref().is_some_and(|v| v.certified == Certified::Yes);
             if flag != yes {
                 checks.push(Err(format!(
                     "certificate.json's per-solver certified = {flag}, the verdict at K_min \
                      {k_min:?} is {:?}",
-                    at_k_min.map(|v| v.certified)
+                    at_k_min.as_ref().map(|v| v.certified)
                 )));
             }
             let shifted_flag =

@@ -31,9 +31,9 @@
 //! --nocapture` (docs/testing.md has the measured counts and time).
 #![allow(clippy::unwrap_used, clippy::expect_used)]
 
-mod generate;
 #[path = "survey/export_args.rs"]
 mod export_args;
+mod generate;
 #[path = "survey/points.rs"]
 mod points;
 #[path = "survey/scenarios.rs"]
@@ -88,7 +88,9 @@ pub fn runner(seed: u64, stream: u8) -> TestRunner {
 
 /// One value drawn from `s`.
 pub fn draw<S: Strategy>(runner: &mut TestRunner, s: &S) -> S::Value {
-    s.new_tree(runner).expect("a strategy of the generator").current()
+    s.new_tree(runner)
+        .expect("a strategy of the generator")
+        .current()
 }
 
 /// A fresh scratch directory under the test target directory.
@@ -135,7 +137,9 @@ fn run(plan: &Plan) {
         );
         kinds.push((name, t));
     };
-    timed("scenario files", &|| scenarios::survey(seed, plan.scenarios));
+    timed("scenario files", &|| {
+        scenarios::survey(seed, plan.scenarios)
+    });
     timed("verdicts", &|| verdicts::survey(seed, plan.verdict_plants));
     timed("sweep configs", &|| sweeps::survey(seed, plan.sweeps));
     timed("point files", &|| points::survey(seed, plan.points));

@@ -18,10 +18,27 @@ const REFUSAL_SECONDS: f64 = 3.0;
 /// One bad argument: (flag, value, what the message must name).
 fn bad_arg() -> impl Strategy<Value = (&'static str, String)> {
     let pick = |flag: &'static str, values: &'static [&'static str]| {
-        (Just(flag), proptest::sample::select(values).prop_map(str::to_string))
+        (
+            Just(flag),
+            proptest::sample::select(values).prop_map(str::to_string),
+        )
     };
     prop_oneof![
-        pick("--k", &["0", "-1", "abc", "1e3", "", "99999999999999999999", "certifie", "100000000", " 5", "+0"]),
+        pick(
+            "--k",
+            &[
+                "0",
+                "-1",
+                "abc",
+                "1e3",
+                "",
+                "99999999999999999999",
+                "certifie",
+                "100000000",
+                " 5",
+                "+0"
+            ]
+        ),
         pick("--kc", &["0", "-2", "x", "", "certifie", "100000000"]),
         pick("--method", &["nope", "", "PG ", "admm-", "newton"]),
         pick("--mpc-method", &["nope", "", "pg-x"]),
@@ -69,7 +86,11 @@ pub fn survey(seed: u64, n: usize) -> Tally {
             .flat_map(|(f, v)| [f.clone(), v.clone()])
             .collect();
         let t0 = Instant::now();
-        let out = Command::new(XTASK).arg("export").args(&flat).output().unwrap();
+        let out = Command::new(XTASK)
+            .arg("export")
+            .args(&flat)
+            .output()
+            .unwrap();
         let took = t0.elapsed().as_secs_f64();
         let text = format!(
             "{}{}",
@@ -94,7 +115,9 @@ pub fn survey(seed: u64, n: usize) -> Tally {
             why.push(format!("the message names none of {flags:?}"));
         }
         if took > REFUSAL_SECONDS {
-            why.push(format!("refused after {took:.2} s (after the certificate?)"));
+            why.push(format!(
+                "refused after {took:.2} s (after the certificate?)"
+            ));
         }
         if fresh.exists() && !flags.contains(&"--out") {
             why.push("wrote --out".into());
@@ -118,4 +141,36 @@ pub fn survey(seed: u64, n: usize) -> Tally {
     }
     let _ = std::fs::remove_dir_all(&dir);
     tally
+}
+
+/// Found by the survey: `--kc 100000000` (above the one budget limit of 10⁷ iterations)
+/// was exported after a minute of certificate, and `--k 100000000` refused only after it,
+/// without naming `--k`. Both are refused at once now, naming the flag and the limit.
+#[test]
+fn export_refuses_k_beyond_the_limit_before_the_certificate() {
+    let dir = scratch("export-k-limit");
+    let scenario = concat!(
+        env!("CARGO_MANIFEST_DIR"),
+        "/../scenarios/case-study-certified.toml"
+    );
+    for flag in ["--k", "--kc"] {
+        let out_dir = dir.join(flag.trim_start_matches('-'));
+        let t0 = Instant::now();
+        let out = Command::new(XTASK)
+            .args(["export", "--scenario", scenario, "--out"])
+            .arg(&out_dir)
+            .args([flag, "10000001"])
+            .output()
+            .unwrap();
+        let took = t0.elapsed().as_secs_f64();
+        let text = String::from_utf8_lossy(&out.stderr);
+        assert_eq!(out.status.code(), Some(1), "{flag}: {text}");
+        assert!(
+            text.contains(&format!("{flag} 10000001")) && text.contains("10000000"),
+            "{flag}: {text}"
+        );
+        assert!(took < REFUSAL_SECONDS, "{flag}: refused after {took:.1} s");
+        assert!(!out_dir.exists(), "{flag}: wrote --out");
+    }
+    let _ = std::fs::remove_dir_all(&dir);
 }

@@ -12,13 +12,33 @@ use crate::{Tally, draw, runner, scratch};
 
 /// Values written into a cell (besides a changed digit and a doubled number).
 const VALUES: [&str; 22] = [
-    "NaN", "-1", "inf", "-inf", "2", "0.5", "1e308", "", "x", "0", "1", "-0", "1e-320", "yes",
-    "no", "void", "0.9999999999999999", "3", "-5", "1000000", "7.25", "\"a,b\"",
+    "NaN",
+    "-1",
+    "inf",
+    "-inf",
+    "2",
+    "0.5",
+    "1e308",
+    "",
+    "x",
+    "0",
+    "1",
+    "-0",
+    "1e-320",
+    "yes",
+    "no",
+    "void",
+    "0.9999999999999999",
+    "3",
+    "-5",
+    "1000000",
+    "7.25",
+    "\"a,b\"",
 ];
 
 /// A tiny finished sweep with its theory columns (the double integrator, PG at K = 3 and
 /// K_min-scale K, 2 seeds, T = 5): the sweep and the path and text of each point file.
-fn finished(dir: &Path) -> (Sweep, Vec<(std::path::PathBuf, String)>) {
+pub fn finished(dir: &Path) -> (Sweep, Vec<(std::path::PathBuf, String)>) {
     let scenario = concat!(
         env!("CARGO_MANIFEST_DIR"),
         "/../scenarios/double-integrator.toml"
@@ -77,7 +97,13 @@ pub fn survey(seed: u64, n: usize) -> Tally {
         .map(str::to_string)
         .collect();
     let mut rn = runner(seed, 4);
-    let strategy = (0usize..64, 1usize..64, 0usize..256, 0usize..VALUES.len() + 2, 0usize..20);
+    let strategy = (
+        0usize..64,
+        1usize..64,
+        0usize..256,
+        0usize..VALUES.len() + 2,
+        0usize..20,
+    );
     for _ in 0..n {
         let (fi, line, col, value, digit) = draw(&mut rn, &strategy);
         let (file, original) = &files[fi % files.len()];
@@ -99,7 +125,11 @@ pub fn survey(seed: u64, n: usize) -> Tally {
                     "9".into()
                 } else {
                     let p = digits[digit % digits.len()];
-                    t[p] = if t[p] == '9' { '1' } else { char::from(t[p] as u8 + 1) };
+                    t[p] = if t[p] == '9' {
+                        '1'
+                    } else {
+                        char::from(t[p] as u8 + 1)
+                    };
                     t.into_iter().collect()
                 }
             }
@@ -121,9 +151,15 @@ pub fn survey(seed: u64, n: usize) -> Tally {
             .get(c)
             .cloned()
             .unwrap_or_else(|| format!("#{c}"));
-        let row = if summary { "summary row".to_string() } else { format!("line {}", line + 1) };
+        let row = if summary {
+            "summary row".to_string()
+        } else {
+            format!("line {}", line + 1)
+        };
         match read {
-            Err(SweepError::PointFile { path, problem }) if &path == file && !problem.is_empty() => {
+            Err(SweepError::PointFile { path, problem })
+                if &path == file && !problem.is_empty() =>
+            {
                 tally.refused += 1;
             }
             Err(other) => tally.finding(format!(
@@ -146,4 +182,61 @@ pub fn survey(seed: u64, n: usize) -> Tally {
     assert_eq!(sweep.finished_points(&dir).unwrap().len(), files.len());
     let _ = std::fs::remove_dir_all(&dir);
     tally
+}
+
+/// `file` with the cell of `column` in the summary row (or in the first run row) set to
+/// `value`; the header is `points.csv`'s (or `runs.csv`'s) in `dir`.
+fn edit_cell(dir: &Path, file: &str, summary: bool, column: &str, value: &str) -> String {
+    let header =
+        std::fs::read_to_string(dir.join(if summary { "points.csv" } else { "runs.csv" })).unwrap();
+    let c = header
+        .lines()
+        .next()
+        .unwrap()
+        .split(',')
+        .position(|n| n == column)
+        .unwrap();
+    let text = std::fs::read_to_string(dir.join("points").join(file)).unwrap();
+    let mut lines: Vec<String> = text.lines().map(str::to_string).collect();
+    let row = if summary { lines.len() - 1 } else { 1 };
+    let mut cells: Vec<String> = lines[row].split(',').map(str::to_string).collect();
+    cells[c] = value.to_string();
+    lines[row] = cells.join(",");
+    std::fs::write(dir.join("points").join(file), lines.join("\n") + "\n").unwrap();
+    text
+}
+
+/// Found by the survey: a point file whose `certified` (or `k_min_cert`, `rho_lin`, …) was
+/// edited was reused by a resume or a merge, so points.csv stated a verdict nothing
+/// computed; and an emptied `sup_e` of a run went unnoticed (the quantiles of the others
+/// did not change). Both are refused now, naming the file and the column.
+#[test]
+fn an_edited_verdict_or_an_emptied_metric_in_a_point_file_is_refused() {
+    let dir = scratch("points-verdict");
+    let (sweep, files) = finished(&dir);
+    assert_eq!(sweep.finished_points(&dir).unwrap().len(), files.len());
+    let cases = [
+        (true, "certified", "yes", "certified"),
+        (true, "k_min_cert", "1", "k_min_cert"),
+        (true, "rho_lin", "0.5", "rho_lin"),
+        (true, "void_reason", "edited", "void_reason"),
+        (false, "sup_e", "", "sup_e"),
+    ];
+    for (summary, column, value, named) in cases {
+        // Point 0 is K = 3, below K_min: "no".
+        let original = edit_cell(&dir, "p00000.csv", summary, column, value);
+        match sweep.finished_points(&dir) {
+            Err(SweepError::PointFile { path, problem }) => {
+                assert!(path.ends_with("p00000.csv"), "{}", path.display());
+                assert!(
+                    problem.contains(&format!("`{named}`")),
+                    "{column}: {problem}"
+                );
+            }
+            other => panic!("{column} = `{value}` accepted: {other:?}"),
+        }
+        std::fs::write(dir.join("points/p00000.csv"), original).unwrap();
+    }
+    assert_eq!(sweep.finished_points(&dir).unwrap().len(), files.len());
+    let _ = std::fs::remove_dir_all(&dir);
 }

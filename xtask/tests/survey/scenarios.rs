@@ -8,8 +8,8 @@ use faer::MatRef;
 use toml::Value;
 
 use crate::generate::{
-    Bad, Base, Edit, ScenarioCase, WEIGHT_KEYS, chain, names_user_key, scenario_case,
-    scenario_table, to_text, SCENARIO_KEYS,
+    Bad, Base, Edit, SCENARIO_KEYS, ScenarioCase, WEIGHT_KEYS, chain, names_user_key,
+    scenario_case, scenario_table, to_text,
 };
 use crate::{Tally, draw, runner};
 
@@ -92,13 +92,23 @@ fn must_refuse(case: &ScenarioCase) -> Option<String> {
             let form = if *form == 3 && n < 2 { 4 } else { *form };
             // Q_c and a noise covariance may be semidefinite (zero, a singular diagonal).
             let semidefinite_ok = matches!(key, "mpc.q" | "noise.covariance");
-            let what = ["a negative scalar", "zero", "indefinite", "asymmetric", "singular"]
-                [form as usize];
+            let what = [
+                "a negative scalar",
+                "zero",
+                "indefinite",
+                "asymmetric",
+                "singular",
+            ][form as usize];
             (!(semidefinite_ok && matches!(form, 1 | 4))).then(|| format!("{key} {what}"))
         }
         Edit::BadBox(kind @ 1..=3) => Some(format!(
             "sets.disturbance {}",
-            ["", "lower > upper", "infinite lower and upper", "a NaN bound"][*kind as usize]
+            [
+                "",
+                "lower > upper",
+                "infinite lower and upper",
+                "a NaN bound"
+            ][*kind as usize]
         )),
         Edit::Count(k, v) if *v <= 0 => Some(format!(
             "{} = {v}",

@@ -7,8 +7,7 @@ use qp_iter::Method;
 use xtask::sweep_engine::{Sweep, SweepConfig};
 
 use crate::generate::{
-    Bad, SWEEP_KEYS, SweepCase, SweepEdit, chain, names_user_key, sweep_case,
-    write_sweep_scenarios,
+    Bad, SWEEP_KEYS, SweepCase, SweepEdit, chain, names_user_key, sweep_case, write_sweep_scenarios,
 };
 use crate::{Tally, draw, runner, scratch};
 
@@ -21,7 +20,10 @@ pub fn survey(seed: u64, n: usize) -> Tally {
     write_sweep_scenarios(&dir).unwrap();
     let mut rn = runner(seed, 3);
     let strategy = sweep_case();
-    let paths = [dir.join("config.toml").display().to_string(), dir.display().to_string()];
+    let paths = [
+        dir.join("config.toml").display().to_string(),
+        dir.display().to_string(),
+    ];
     for _ in 0..n {
         let case = draw(&mut rn, &strategy);
         let text = String::from_utf8_lossy(&case.bytes()).into_owned();
@@ -49,7 +51,9 @@ pub fn survey(seed: u64, n: usize) -> Tally {
         match outcome {
             Ok(true) => tally.refused += 1,
             Ok(false) => tally.accepted += 1,
-            Err(why) => tally.finding(format!("{why}\n--- case {case:?}\n--- config:\n{text:.1500}")),
+            Err(why) => tally.finding(format!(
+                "{why}\n--- case {case:?}\n--- config:\n{text:.1500}"
+            )),
         }
         let took = t0.elapsed().as_secs_f64();
         if took > CASE_SECONDS {
@@ -73,7 +77,8 @@ fn must_refuse(case: &SweepCase) -> Option<String> {
         }
         SweepEdit::Seeds(v) if *v <= 0 || *v > 10_000_000 => Some(format!("seeds = {v}")),
         SweepEdit::Steps(v) if *v <= 0 || *v > 100_000 => Some(format!("steps = {v}")),
-        SweepEdit::Scale(v) if bad_positive(*v) => Some(format!("scales = [1, {v}]")),
+        // docs/sweeps.md: scales ≥ 0 (0 gives w ≡ 0).
+        SweepEdit::Scale(v) if !(v.is_finite() && *v >= 0.0) => Some(format!("scales = [1, {v}]")),
         SweepEdit::ScenarioPath(kind) => Some(format!("scenario path case {kind}")),
         SweepEdit::Metrics(kind) => Some(format!("metrics case {kind}")),
         SweepEdit::BoundedFactor(v) if bad_positive(*v) => Some(format!("bounded_factor = {v}")),

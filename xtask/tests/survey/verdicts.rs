@@ -98,7 +98,10 @@ pub fn survey(seed: u64, plants: usize) -> Tally {
                         f64v.certified
                     )));
                 }
-                for (what, v) in [("a shifted warm start", &shift), ("the saturated LQR", &lqr)] {
+                for (what, v) in [
+                    ("a shifted warm start", &shift),
+                    ("the saturated LQR", &lqr),
+                ] {
                     if v.certified == Certified::Yes {
                         checks.push(Err(format!(
                             "certified at K = {k} for {what} (no certificate covers it)"
@@ -109,7 +112,9 @@ pub fn survey(seed: u64, plants: usize) -> Tally {
             // The per-solver `certified` of certificate.json is the verdict at K_min.
             let flag = solver_certified(paper.scenario(), sc, ControllerChoice::ExactMpc);
             let at_k_min = k_min.map(|k| at(&paper, k, ControllerChoice::ExactMpc, Scalar::F64));
-            let yes = at_k_min.as_ref().is_some_and(|v| v.certified == Certified::Yes);
+            let yes = at_k_min
+                .as_ref()
+                .is_some_and(|v| v.certified == Certified::Yes);
             if flag != yes {
                 checks.push(Err(format!(
                     "certificate.json's per-solver certified = {flag}, the verdict at K_min \
@@ -117,8 +122,7 @@ pub fn survey(seed: u64, plants: usize) -> Tally {
                     at_k_min.as_ref().map(|v| v.certified)
                 )));
             }
-            let shifted_flag =
-                solver_certified(shifted.scenario(), sc, ControllerChoice::ExactMpc);
+            let shifted_flag = solver_certified(shifted.scenario(), sc, ControllerChoice::ExactMpc);
             if shifted_flag {
                 checks.push(Err(
                     "certificate.json's per-solver certified = true for a shifted warm start"
@@ -129,7 +133,9 @@ pub fn survey(seed: u64, plants: usize) -> Tally {
                 tally.cases += 1;
                 match c {
                     Ok(()) => tally.accepted += 1,
-                    Err(why) => tally.finding(format!("dishonest: {method:?}: {why}\n--- plant {b:?}")),
+                    Err(why) => {
+                        tally.finding(format!("dishonest: {method:?}: {why}\n--- plant {b:?}"))
+                    }
                 }
             }
         }
@@ -171,12 +177,13 @@ fn one(k: usize, k_min: Option<usize>, v: &PairVerdict, next: &PairVerdict) -> R
     Ok(())
 }
 
-/// "void" never with a budget cause, "not computed" only with one; a verdict other than
-/// "yes" says why.
+/// "void" never with a budget cause, "not computed" only with one; "void" and "not
+/// computed" say why ("no" carries its K_min).
 fn wording(v: &PairVerdict) -> Result<(), String> {
     let budget = v.reason.contains("phase_seconds") || v.reason.contains("budget");
     match v.certified {
-        Certified::Yes => Ok(()),
+        // "no" says why by its K_min (checked in `one`).
+        Certified::Yes | Certified::No => Ok(()),
         _ if v.reason.trim().is_empty() => Err(format!("{:?} without a reason", v.certified)),
         Certified::Void if budget => Err(format!("void with a budget cause: {}", v.reason)),
         Certified::NotComputed if !v.reason.contains("phase_seconds") => Err(format!(

@@ -147,7 +147,7 @@ pub fn survey(seed: u64, plants: usize) -> Tally {
 fn one(k: usize, k_min: Option<usize>, v: &PairVerdict, next: &PairVerdict) -> Result<(), String> {
     match v.certified {
         Certified::Yes => {
-            if !k_min.is_some_and(|m| k >= m) || v.k_min != k_min {
+            if k_min.is_none_or(|m| k < m) || v.k_min != k_min {
                 return Err(format!(
                     "yes at K = {k} with K_min {k_min:?} (verdict's {:?})",
                     v.k_min
@@ -161,7 +161,7 @@ fn one(k: usize, k_min: Option<usize>, v: &PairVerdict, next: &PairVerdict) -> R
             }
         }
         Certified::No => {
-            if !k_min.is_some_and(|m| k < m) {
+            if k_min.is_none_or(|m| k >= m) {
                 return Err(format!("no at K = {k} with K_min {k_min:?}: {}", v.reason));
             }
         }

@@ -86,7 +86,7 @@ pub struct ExportArgs {
     #[arg(long)]
     pub method: Option<String>,
     /// Iterations K per step: a number, or `certified` for K_min of Theorem 1.
-    #[arg(long, default_value = "certified")]
+    #[arg(long, default_value = "certified", allow_hyphen_values = true)]
     pub k: String,
     /// The scalar of the exported code.
     #[arg(long, value_enum, default_value = "f64")]
@@ -97,7 +97,7 @@ pub struct ExportArgs {
     /// Also export the K_c-iteration MPC (the whole certified loop): K_c iterations, or
     /// `certified` for the joint certificate's floor at the exported K [default: the
     /// scenario's `mpc.iterations` when set, else no MPC].
-    #[arg(long, value_name = "K_C")]
+    #[arg(long, value_name = "K_C", allow_hyphen_values = true)]
     pub kc: Option<String>,
     /// The MPC's method [default: the scenario's `mpc.method`]; only with an exported MPC.
     #[arg(long)]

@@ -145,7 +145,8 @@ pub fn survey(seed: u64, n: usize) -> Tally {
 
 /// Found by the survey: `--kc 100000000` (above the one budget limit of 10⁷ iterations)
 /// was exported after a minute of certificate, and `--k 100000000` refused only after it,
-/// without naming `--k`. Both are refused at once now, naming the flag and the limit.
+/// without naming `--k`; `--kc -2` got clap's "unexpected argument", naming no flag. All
+/// are refused at once now, naming the flag and the range.
 #[test]
 fn export_refuses_k_beyond_the_limit_before_the_certificate() {
     let dir = scratch("export-k-limit");
@@ -153,20 +154,26 @@ fn export_refuses_k_beyond_the_limit_before_the_certificate() {
         env!("CARGO_MANIFEST_DIR"),
         "/../scenarios/case-study-certified.toml"
     );
-    for flag in ["--k", "--kc"] {
-        let out_dir = dir.join(flag.trim_start_matches('-'));
+    for (flag, value, says) in [
+        ("--k", "10000001", "10000000"),
+        ("--kc", "10000001", "10000000"),
+        // A negative K reaches the check (it was clap's "unexpected argument '-2'").
+        ("--kc", "-2", "from 1 to"),
+        ("--k", "-2", "from 1 to"),
+    ] {
+        let out_dir = dir.join(format!("{}{value}", flag.trim_start_matches('-')));
         let t0 = Instant::now();
         let out = Command::new(XTASK)
             .args(["export", "--scenario", scenario, "--out"])
             .arg(&out_dir)
-            .args([flag, "10000001"])
+            .args([flag, value])
             .output()
             .unwrap();
         let took = t0.elapsed().as_secs_f64();
         let text = String::from_utf8_lossy(&out.stderr);
         assert_eq!(out.status.code(), Some(1), "{flag}: {text}");
         assert!(
-            text.contains(&format!("{flag} 10000001")) && text.contains("10000000"),
+            text.contains(&format!("{flag} {value}")) && text.contains(says),
             "{flag}: {text}"
         );
         assert!(took < REFUSAL_SECONDS, "{flag}: refused after {took:.1} s");

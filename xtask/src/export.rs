@@ -86,7 +86,7 @@ pub struct ExportArgs {
     #[arg(long)]
     pub method: Option<String>,
     /// Iterations K per step: a number, or `certified` for K_min of Theorem 1.
-    #[arg(long, default_value = "certified")]
+    #[arg(long, default_value = "certified", allow_hyphen_values = true)]
     pub k: String,
     /// The scalar of the exported code.
     #[arg(long, value_enum, default_value = "f64")]
@@ -97,7 +97,7 @@ pub struct ExportArgs {
     /// Also export the K_c-iteration MPC (the whole certified loop): K_c iterations, or
     /// `certified` for the joint certificate's floor at the exported K [default: the
     /// scenario's `mpc.iterations` when set, else no MPC].
-    #[arg(long, value_name = "K_C")]
+    #[arg(long, value_name = "K_C", allow_hyphen_values = true)]
     pub kc: Option<String>,
     /// The MPC's method [default: the scenario's `mpc.method`]; only with an exported MPC.
     #[arg(long)]
@@ -250,11 +250,18 @@ pub(crate) fn parse_iterations(flag: &str, arg: &str) -> Result<Iterations> {
     if arg == "certified" {
         return Ok(Iterations::Certified);
     }
+    // Above the one budget limit every command refuses (found by the survey: `--kc 10⁸`
+    // was exported, `--k 10⁸` refused only after the certificate).
     arg.parse()
         .ok()
-        .filter(|k| *k >= 1)
+        .filter(|k| (1..=qp_iter::MAX_ITERATIONS).contains(k))
         .map(Iterations::Given)
-        .with_context(|| format!("{flag} {arg}: expected an integer ≥ 1 or `certified`"))
+        .with_context(|| {
+            format!(
+                "{flag} {arg}: expected an integer from 1 to {} or `certified`",
+                qp_iter::MAX_ITERATIONS
+            )
+        })
 }
 
 fn coverage_scalar(s: ScalarKind) -> Scalar {

@@ -20,6 +20,7 @@ use super::config::Point;
 use super::error::{Result, io_err, point_file_err};
 use super::seeds::fnv1a;
 use super::summary::{PointSummary, SweepRun};
+use super::theory::TheoryAtK;
 use closed_loop::metrics::{Metric, QUANTILES};
 use qp_iter::Method;
 
@@ -183,11 +184,22 @@ pub(super) fn point_row(p: &Point, s: &PointSummary) -> String {
             out.push_str(&cell(*v));
         }
     }
-    let th = &s.theory;
-    let sl = th.slopes;
+    out.push(',');
+    out.push_str(&theory_cells(&s.theory));
     let _ = write!(
         out,
-        ",{},{},{},{},{},{},{},{},{},{},{},{},{},{},{},{}",
+        ",{},{},{}",
+        s.w_outside_runs, s.w_outside_total, s.wall_ms
+    );
+    out
+}
+
+/// The theory columns of a summary row (`phi` … `regional_note`), as [`point_row`] writes
+/// them: a point file read back is checked against them ([`PointFile::check_theory`]).
+pub(super) fn theory_cells(th: &TheoryAtK) -> String {
+    let sl = th.slopes;
+    format!(
+        "{},{},{},{},{},{},{},{},{},{},{},{},{}",
         cell(th.phi),
         cell(sl.map(|v| v[0])),
         cell(sl.map(|v| v[1])),
@@ -201,11 +213,7 @@ pub(super) fn point_row(p: &Point, s: &PointSummary) -> String {
         th.linear_note,
         th.k_reg.map(|k| k.to_string()).unwrap_or_default(),
         th.regional_note,
-        s.w_outside_runs,
-        s.w_outside_total,
-        s.wall_ms
-    );
-    out
+    )
 }
 
 /// The fingerprint of a sweep: FNV-1a of the canonical settings text and the scenario's
@@ -689,6 +697,17 @@ impl PointFile {
             for (i, &m) in rules.metrics.iter().enumerate() {
                 let text = cells.get(col(m.name())).copied().unwrap_or("");
                 if text.is_empty() {
+                    // Every run, completed or stopped, has these (`run_metrics`): an empty
+                    // cell is an edit that the quantiles would not show.
+                    if matches!(
+                        m,
+                        Metric::SupE | Metric::SupX | Metric::SupW | Metric::InputViolation
+                    ) {
+                        return Err(format!(
+                            "{what}, column `{}`: empty, but every run has this metric",
+                            m.name()
+                        ));
+                    }
                     continue;
                 }
                 let v: f64 = text.parse().unwrap_or(f64::NAN);
@@ -741,6 +760,36 @@ impl PointFile {
                     "line {line} (summary row), column `{name}`: `{g}`, but the run rows \
                      (lines 2–{}) give `{w}`; the file was edited",
                     runs + 1
+                ));
+            }
+        }
+        Ok(())
+    }
+
+    /// Checks the theory columns of the summary row (`phi` … `regional_note`: the verdict,
+    /// K_min, ρ_lin, K_lin, K_reg and their notes) against `theory`, this sweep's own for the
+    /// point ([`super::run::Sweep::theory_at`]): a resume or a merge reuses the row, so a
+    /// verdict in it must be the one computed, never an edited one.
+    pub(super) fn check_theory(
+        &self,
+        theory: &TheoryAtK,
+        rules: &PointFileRules<'_>,
+    ) -> std::result::Result<(), String> {
+        let ph = points_header(rules.metrics, rules.two_d);
+        let names: Vec<&str> = ph.split(',').collect();
+        let got: Vec<&str> = self.point_row.split(',').collect();
+        let want_text = theory_cells(theory);
+        let want: Vec<&str> = want_text.split(',').collect();
+        let first = names.iter().position(|n| *n == "phi").unwrap_or(0);
+        let line = self.run_rows.len() + 3;
+        for (i, w) in want.iter().enumerate() {
+            let g = got.get(first + i).copied().unwrap_or("");
+            if g != *w {
+                let name = names.get(first + i).copied().unwrap_or("?");
+                let (g, w) = short_pair(g, w);
+                return Err(format!(
+                    "line {line} (summary row), column `{name}`: `{g}`, but this sweep's \
+                     certificate and analyses give `{w}`; the file was edited"
                 ));
             }
         }

@@ -13,7 +13,7 @@ use std::collections::btree_map::Entry;
 use std::fs;
 use std::path::{Path, PathBuf};
 
-use super::error::{Result, SweepError, io_err};
+use super::error::{Result, SweepError, io_err, point_file_err};
 use super::format::{
     PointFile, PointFileRules, SETTINGS_FILE, commit, point_file_name, points_header, runs_header,
     settings_diff, settings_text, write_atomic, write_temp,
@@ -60,6 +60,8 @@ impl Sweep {
             }
             let seed_of = |r| run_seed(self.base_seed(), p, r, cfg.common_random_numbers);
             f.validate(&path, p, &rules, &seed_of)?;
+            f.check_theory(&self.theory_at(p), &rules)
+                .map_err(|problem| point_file_err(&path, problem))?;
             out.insert(p.index, f);
         }
         Ok(out)

@@ -34,9 +34,105 @@ fi
 arm-none-eabi-gcc --version | head -1
 qemu-system-arm --version | head -1
 
+MODE=${1:-check}
+case "$MODE" in
+check | calibrate) ;;
+*)
+    echo "usage: bash scripts/cortex-m.sh [check|calibrate]" >&2
+    exit 2
+    ;;
+esac
+# The export tool: `cargo xtask` unless XTASK names a built binary (a calibration takes
+# long enough that a rebuild in between would mix two versions).
+read -r -a XTASK_CMD <<<"${XTASK:-cargo xtask}"
+
 OUT=target/cortex-m
-rm -rf "$OUT"
+[ "$MODE" = check ] && rm -rf "$OUT"
 mkdir -p "$OUT"
+CALIB_DIR=crates/mhe-budget/data
+
+# Calibration (`calibrate`): the max instructions per step (the full-window step) of every
+# exportable method on both targets, at several horizons M (sizes n_z) and K. One export per
+# (size, method) at K = 1 (uncertified: the data do not depend on K); the K of each point is
+# set in a copy's mhe_data.h (MHE_K) and the self-test is skipped there (its stored bits
+# belong to the exported K): the instructions are those of the K-iteration step on the
+# exported data. Input: M + 2 rows of a fixed smooth (u, y) sequence, so the last steps run
+# the full window. Writes crates/mhe-budget/data/cortex-m-points.csv; the fit is
+# scripts/fit-instructions.py.
+calib_dims() { # mhe_data.h → "M NZ NTH NX NU NY"
+    for key in M NZ NTH NX NU NY; do
+        sed -n "s/^#define MHE_$key \([0-9]*\)$/\1/p" "$1"
+    done | tr '\n' ' '
+}
+calibrate() {
+    local dir="$OUT/calib"
+    mkdir -p "$dir"
+    local points="$dir/points.csv"
+    echo "target,method,scenario,horizon,n,n_theta,nx,nu,ny,k,mean,max" >"$points"
+    local spec file horizon method k tag machine label art kart mean max dims input
+    for spec in ${CALIB_SIZES:-case-study-certified:3 case-study-certified:6 case-study-certified:9 cart-pendulum:9}; do
+        IFS=: read -r file horizon <<<"$spec"
+        local scen="$dir/$file-m$horizon.toml"
+        # The MHE horizon (the first `horizon =`, in [mhe]); no MPC in the export.
+        awk -v m="$horizon" '/^\[/ { sec = $0 } sec == "[mhe]" && /^horizon *=/ { print "horizon = " m; next }
+            sec == "[mpc]" && /^iterations *=/ { next } { print }' "scenarios/$file.toml" >"$scen"
+        for method in ${CALIB_METHODS:-pg fista admm admm-pr pg-jacobi fista-jacobi admm-jacobi admm-pr-jacobi}; do
+            art="$dir/$file-m$horizon-$method"
+            echo "==> calibrate $file, M = $horizon, $method"
+            "${XTASK_CMD[@]}" export --scenario "$scen" --out "$art" --lang c --method "$method" \
+                --k 1 --allow-uncertified >"$art.log" 2>&1 || { cat "$art.log"; exit 1; }
+            read -r -a dims <<<"$(calib_dims "$art/mhe_data.h")"
+            input="$dir/input-$file-m$horizon.csv"
+            # M + 2 rows: u_i = 0.1 sin(t + i), y_j = 0.2 cos(0.7 t + j).
+            awk -v rows=$((dims[0] + 2)) -v nu="${dims[4]}" -v ny="${dims[5]}" 'BEGIN {
+                for (t = 0; t < rows; t++) { s = "";
+                    for (i = 0; i < nu; i++) s = s (s == "" ? "" : ",") sprintf("%.17g", 0.1 * sin(t + i));
+                    for (j = 0; j < ny; j++) s = s (s == "" ? "" : ",") sprintf("%.17g", 0.2 * cos(0.7 * t + j));
+                    print s } }' >"$input"
+            for k in ${CALIB_KS:-1 8 64}; do
+                kart="$art-k$k"
+                rm -rf "$kart"
+                cp -r "$art" "$kart"
+                sed -i "s/^#define MHE_K .*/#define MHE_K $k/" "$kart/mhe_data.h"
+                # K is the 7th field of the problem (nx, nu, ny, nw1, nw2, M, K, method, …).
+                sed -i "/mhe_exported_problem = {/{n;s/^\(    \([0-9]*, \)\{6\}\)[0-9]*,/\1$k,/}" "$kart/mhe_data.c"
+                grep -A1 'mhe_exported_problem = {' "$kart/mhe_data.c" | grep -q "^    \([0-9]*, \)\{6\}$k, MHE_" \
+                    || { echo "could not set K = $k in $kart/mhe_data.c"; exit 1; }
+                sed -i 's|rc = mhe_self_test(&state);|rc = 0; /* calibration: self-test skipped */|' "$kart/replay.c"
+                for target in "m4:mps2-an386:cortex-m4f" "m7:mps2-an500:cortex-m7"; do
+                    IFS=: read -r tag machine label <<<"$target"
+                    make -s -C "$kart" "replay-$tag.elf" DEFS=-DMHE_ALLOW_UNCERTIFIED
+                    timeout 1200 qemu-system-arm -M "$machine" -nographic -monitor none -serial none \
+                        -semihosting-config enable=on,target=native -icount shift=0 \
+                        -kernel "$kart/replay-$tag.elf" <"$input" >"$kart/$tag.out" 2>"$kart/$tag.err"
+                    mean=$(sed -n 's/.*mean \([0-9]*\), max \([0-9]*\).*/\1/p' "$kart/$tag.err")
+                    max=$(sed -n 's/.*mean \([0-9]*\), max \([0-9]*\).*/\2/p' "$kart/$tag.err")
+                    if [ -z "$mean" ] || [ -z "$max" ]; then
+                        echo "no instruction count in $kart/$tag.err:"
+                        cat "$kart/$tag.err"
+                        exit 1
+                    fi
+                    echo "$label,$method,$file,${dims[0]},${dims[1]},${dims[2]},${dims[3]},${dims[4]},${dims[5]},$k,$mean,$max" >>"$points"
+                    echo "    $label, K = $k: max $max instructions/step"
+                done
+                rm -rf "$kart"
+            done
+        done
+    done
+    mkdir -p "$CALIB_DIR"
+    {
+        echo "# Max (and mean) instructions per MHE step (push + estimate) of the exported C under"
+        echo "# qemu-system-arm -icount shift=0 (emulated instructions, not cycles), measured by"
+        echo "# \`bash scripts/cortex-m.sh calibrate\` at commit $(git rev-parse --short HEAD 2>/dev/null || echo unknown),"
+        echo "# $(date -u +%Y-%m-%d), $(arm-none-eabi-gcc --version | head -1), $(qemu-system-arm --version | head -1)."
+        cat "$points"
+    } >"$CALIB_DIR/cortex-m-points.csv"
+    echo "wrote $CALIB_DIR/cortex-m-points.csv; fit: python3 scripts/fit-instructions.py"
+}
+if [ "$MODE" = calibrate ]; then
+    calibrate
+    exit 0
+fi
 
 # Helpers on trace.csv and replay outputs (RUN_K selects one run of trace.csv, ROWS limits
 # the rows): `k` prints the run's K, `input` the replay input (u…,y… per row), `compare`

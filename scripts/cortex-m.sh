@@ -13,6 +13,10 @@
 #      the joint certificate's floor) on trace.csv's y, on the host and on both targets:
 #      the same bits; flash, RAM and instructions per loop step (push + estimate + control).
 #
+# Modes: `check` (default: the above), `calibrate` (the instruction model's measurements:
+# every method at several sizes and K on both boards → crates/mhe-budget/data/, then
+# `python3 scripts/fit-instructions.py`), `table` (docs/embedded.md's budget table).
+#
 # Installs gcc-arm-none-eabi, libnewlib-arm-none-eabi and qemu-system-arm with apt when
 # missing. Writes target/cortex-m/summary.md. Exit status non-zero on any mismatch.
 set -euo pipefail
@@ -36,9 +40,9 @@ qemu-system-arm --version | head -1
 
 MODE=${1:-check}
 case "$MODE" in
-check | calibrate) ;;
+check | calibrate | table) ;;
 *)
-    echo "usage: bash scripts/cortex-m.sh [check|calibrate]" >&2
+    echo "usage: bash scripts/cortex-m.sh [check|calibrate|table]" >&2
     exit 2
     ;;
 esac
@@ -68,15 +72,22 @@ calibrate() {
     local dir="$OUT/calib"
     mkdir -p "$dir"
     local points="$dir/points.csv"
-    echo "target,method,scenario,horizon,n,n_theta,nx,nu,ny,k,mean,max" >"$points"
+    # An interrupted calibration resumes: the (method, size) already in points.csv are kept.
+    [ -s "$points" ] || echo "target,method,scenario,horizon,n,n_theta,nx,nu,ny,k,mean,max" >"$points"
     local spec file horizon method k tag machine label art kart mean max dims input
-    for spec in ${CALIB_SIZES:-case-study-certified:3 case-study-certified:6 case-study-certified:9 cart-pendulum:9}; do
-        IFS=: read -r file horizon <<<"$spec"
-        local scen="$dir/$file-m$horizon.toml"
-        # The MHE horizon (the first `horizon =`, in [mhe]); no MPC in the export.
-        awk -v m="$horizon" '/^\[/ { sec = $0 } sec == "[mhe]" && /^horizon *=/ { print "horizon = " m; next }
-            sec == "[mpc]" && /^iterations *=/ { next } { print }' "scenarios/$file.toml" >"$scen"
-        for method in ${CALIB_METHODS:-pg fista admm admm-pr pg-jacobi fista-jacobi admm-jacobi admm-pr-jacobi}; do
+    for method in ${CALIB_METHODS:-pg admm-pr fista admm pg-jacobi fista-jacobi admm-jacobi admm-pr-jacobi}; do
+        for spec in ${CALIB_SIZES:-case-study-certified:3 case-study-certified:9 cart-pendulum:9}; do
+            IFS=: read -r file horizon <<<"$spec"
+            local scen="$dir/$file-m$horizon.toml"
+            # The MHE horizon (in [mhe]); no MPC in the export; no sample_time (an older
+            # XTASK binary may not know the key, and the export does not need it).
+            awk -v m="$horizon" '/^\[/ { sec = $0 } sec == "[mhe]" && /^horizon *=/ { print "horizon = " m; next }
+                sec == "[mpc]" && /^iterations *=/ { next } /^sample_time *=/ { next } { print }' \
+                "scenarios/$file.toml" >"$scen"
+            if grep -q "^[^,]*,$method,$file,$horizon," "$points"; then
+                echo "==> $file, M = $horizon, $method: in $points already"
+                continue
+            fi
             art="$dir/$file-m$horizon-$method"
             echo "==> calibrate $file, M = $horizon, $method"
             "${XTASK_CMD[@]}" export --scenario "$scen" --out "$art" --lang c --method "$method" \
@@ -89,7 +100,7 @@ calibrate() {
                     for (i = 0; i < nu; i++) s = s (s == "" ? "" : ",") sprintf("%.17g", 0.1 * sin(t + i));
                     for (j = 0; j < ny; j++) s = s (s == "" ? "" : ",") sprintf("%.17g", 0.2 * cos(0.7 * t + j));
                     print s } }' >"$input"
-            for k in ${CALIB_KS:-1 8 64}; do
+            for k in ${CALIB_KS:-1 16 256}; do
                 kart="$art-k$k"
                 rm -rf "$kart"
                 cp -r "$art" "$kart"
@@ -131,6 +142,71 @@ calibrate() {
 }
 if [ "$MODE" = calibrate ]; then
     calibrate
+    exit 0
+fi
+
+# The table of docs/embedded.md ("The sample period as a budget"), between its markers:
+# per shipped certified scenario and method, the export at --k certified (its certificate),
+# the model's instructions per step and "fits T_s" from certificate.json's `budget` (M4F at
+# 168 MHz, M7 at 480 MHz), flash and RAM of the replay ELFs (arm-none-eabi-size). No QEMU run.
+budget_table() {
+    local dir="$OUT/table" rows="$OUT/table/rows.md" spec file method art tag text data bss
+    mkdir -p "$dir"
+    : >"$rows"
+    for spec in ${TABLE_ROWS:-case-study-certified:pg case-study-certified:admm-pr-jacobi cart-pendulum:admm-pr}; do
+        IFS=: read -r file method <<<"$spec"
+        art="$dir/$file-$method"
+        echo "==> table: $file, $method (export at the certified K)"
+        "${XTASK_CMD[@]}" export --scenario "scenarios/$file.toml" --out "$art" --lang c \
+            --method "$method" --k certified >"$art.log" 2>&1 || { cat "$art.log"; exit 1; }
+        local sizes=()
+        for tag in m4 m7; do
+            make -s -C "$art" "replay-$tag.elf"
+            read -r text data bss _ < <(arm-none-eabi-size "$art/replay-$tag.elf" | tail -1)
+            sizes+=("$((text + data))" "$((data + bss))")
+        done
+        python3 - "$art/certificate.json" "$file" "${sizes[@]}" >>"$rows" <<'PY'
+import json, sys
+c = json.load(open(sys.argv[1]))
+file, f4, r4, f7, r7 = sys.argv[2], *sys.argv[3:]
+t = {b['target']: b for b in c['budget']['targets']}
+m4, m7 = t['cortex-m4f'], t['cortex-m7']
+def mi(v):
+    return '–' if v is None else (f'{v / 1e6:.2f} M' if v >= 1e6 else f'{v / 1e3:.0f} k')
+def us(v):
+    return '–' if v is None else (f'{v / 1e3:.1f} ms' if v >= 1e3 else f'{v:.0f} µs')
+def verdict(b):
+    v = b['fits_sample_time']
+    if v == 'fits':
+        return f"yes (margin {b['margin'] * 100:.0f} %, K ≤ {b['k_max_fitting']})"
+    if v == 'does_not_fit':
+        k = b['k_max_fitting']
+        return 'no (not even K = 1)' if k is None else f'no: needs K ≤ {k}'
+    return 'not computed: ' + (b['reason'] or '')
+ts = m4['summary'].split('fits ')[-1].split(' ')[0] if m4['fits_sample_time'] != 'not_computed' else '–'
+ex = ' (extrapolated)' if m4['extrapolated'] else ''
+print(f"| {file} | {c['method']} | {c['iterations']} | none (f32 not certified) | "
+      f"{mi(m4['instructions_per_step_bound'])} / {mi(m7['instructions_per_step_bound'])}{ex} | "
+      f"{us(m4['micros_per_step'])} / {us(m7['micros_per_step'])} | {f4} / {f7} | {r4} / {r7} | "
+      f"{verdict(m4)} / {verdict(m7)} |")
+PY
+    done
+    python3 - docs/embedded.md "$rows" <<'PY'
+import sys
+doc, rows = sys.argv[1], open(sys.argv[2]).read()
+text = open(doc).read()
+begin, end = '<!-- budget-table:begin -->\n', '<!-- budget-table:end -->'
+head = ('| scenario | method | certified K (f64) | certified K (f32) | instructions/step M4F / M7 '
+        '| µs at 168 / 480 MHz | flash M4F / M7 (B) | RAM M4F / M7 (B) | fits T_s: M4F / M7 |\n'
+        '| --- | --- | --- | --- | --- | --- | --- | --- | --- |\n')
+i, j = text.index(begin) + len(begin), text.index(end)
+open(doc, 'w').write(text[:i] + head + rows + text[j:])
+PY
+    echo "wrote the table into docs/embedded.md:"
+    cat "$rows"
+}
+if [ "$MODE" = table ]; then
+    budget_table
     exit 0
 fi
 

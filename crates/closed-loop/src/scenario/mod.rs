@@ -45,8 +45,8 @@ use std::path::Path;
 
 use lti_model::spec::format::{self, Table, key_error};
 use lti_model::spec::plant::{
-    RawNoise, RawPlant, RawSets, RawSimulation, raw_sections, validate_noise, validate_plant, validate_sample_time,
-    validate_sets, validate_simulation,
+    RawNoise, RawPlant, RawSets, RawSimulation, raw_sections, validate_noise, validate_plant,
+    validate_sample_time, validate_sets, validate_simulation,
 };
 use lti_model::spec::{NoiseSpec, ScenarioSets, SimulationSpec};
 use lti_model::{LtiSystem, Result};

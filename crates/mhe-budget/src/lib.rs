@@ -217,9 +217,15 @@ impl InstructionModel {
         self.fixed(d) + k as f64 * self.per_iteration(d)
     }
 
-    /// The prediction raised by the row's worst relative error: what the verdict uses.
+    /// The prediction raised by the row's worst relative error e (|pred − meas| ≤ e·meas,
+    /// so meas ≤ pred / (1 − e)): what the verdict uses.
     pub fn upper(&self, d: StepDims, k: usize) -> f64 {
-        self.instructions(d, k) * (1.0 + self.max_rel_err)
+        self.instructions(d, k) * self.raise()
+    }
+
+    /// 1 / (1 − e), the factor of [`InstructionModel::upper`].
+    fn raise(&self) -> f64 {
+        1.0 / (1.0 - self.max_rel_err.clamp(0.0, 0.5))
     }
 
     /// Whether n_z lies outside the calibrated sizes.
@@ -490,11 +496,11 @@ fn largest_k(model: &InstructionModel, dims: StepDims, available: f64) -> Option
     if !fits(1) {
         return None;
     }
-    let per = model.per_iteration(dims) * (1.0 + model.max_rel_err);
+    let per = model.per_iteration(dims) * model.raise();
     if per <= 0.0 {
         return Some(usize::MAX);
     }
-    let guess = ((available - model.fixed(dims) * (1.0 + model.max_rel_err)) / per).floor();
+    let guess = ((available - model.fixed(dims) * model.raise()) / per).floor();
     let mut k = if guess.is_finite() && guess >= 1.0 {
         guess.min(1e15) as usize
     } else {

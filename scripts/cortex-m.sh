@@ -13,6 +13,10 @@
 #      the joint certificate's floor) on trace.csv's y, on the host and on both targets:
 #      the same bits; flash, RAM and instructions per loop step (push + estimate + control).
 #
+# Modes: `check` (default: the above), `calibrate` (the instruction model's measurements:
+# every method at several sizes and K on both boards → crates/mhe-budget/data/, then
+# `python3 scripts/fit-instructions.py`), `table` (docs/embedded.md's budget table).
+#
 # Installs gcc-arm-none-eabi, libnewlib-arm-none-eabi and qemu-system-arm with apt when
 # missing. Writes target/cortex-m/summary.md. Exit status non-zero on any mismatch.
 set -euo pipefail
@@ -34,9 +38,177 @@ fi
 arm-none-eabi-gcc --version | head -1
 qemu-system-arm --version | head -1
 
+MODE=${1:-check}
+case "$MODE" in
+check | calibrate | table) ;;
+*)
+    echo "usage: bash scripts/cortex-m.sh [check|calibrate|table]" >&2
+    exit 2
+    ;;
+esac
+# The export tool: `cargo xtask` unless XTASK names a built binary (a calibration takes
+# long enough that a rebuild in between would mix two versions).
+read -r -a XTASK_CMD <<<"${XTASK:-cargo xtask}"
+
 OUT=target/cortex-m
-rm -rf "$OUT"
+[ "$MODE" = check ] && rm -rf "$OUT"
 mkdir -p "$OUT"
+CALIB_DIR=crates/mhe-budget/data
+
+# Calibration (`calibrate`): the max instructions per step (the full-window step) of every
+# exportable method on both targets, at several horizons M (sizes n_z) and K. One export per
+# (size, method) at K = 1 (uncertified: the data do not depend on K); the K of each point is
+# set in a copy's mhe_data.h (MHE_K) and the self-test is skipped there (its stored bits
+# belong to the exported K): the instructions are those of the K-iteration step on the
+# exported data. Input: M + 2 rows of a fixed smooth (u, y) sequence, so the last steps run
+# the full window. Writes crates/mhe-budget/data/cortex-m-points.csv; the fit is
+# scripts/fit-instructions.py.
+calib_dims() { # mhe_data.h → "M NZ NTH NX NU NY"
+    for key in M NZ NTH NX NU NY; do
+        sed -n "s/^#define MHE_$key \([0-9]*\)$/\1/p" "$1"
+    done | tr '\n' ' '
+}
+calibrate() {
+    local dir="$OUT/calib"
+    mkdir -p "$dir"
+    local points="$dir/points.csv"
+    # An interrupted calibration resumes: the (method, size) already in points.csv are kept.
+    [ -s "$points" ] || echo "target,method,scenario,horizon,n,n_theta,nx,nu,ny,k,mean,max" >"$points"
+    local spec file horizon method k tag machine label art kart mean max dims input
+    for method in ${CALIB_METHODS:-pg admm-pr fista admm pg-jacobi fista-jacobi admm-jacobi admm-pr-jacobi}; do
+        for spec in ${CALIB_SIZES:-case-study-certified:3 case-study-certified:9 cart-pendulum:9}; do
+            IFS=: read -r file horizon <<<"$spec"
+            local scen="$dir/$file-m$horizon.toml"
+            # The MHE horizon (in [mhe]); no MPC in the export; no sample_time (an older
+            # XTASK binary may not know the key, and the export does not need it).
+            awk -v m="$horizon" '/^\[/ { sec = $0 } sec == "[mhe]" && /^horizon *=/ { print "horizon = " m; next }
+                sec == "[mpc]" && /^iterations *=/ { next } /^sample_time *=/ { next } { print }' \
+                "scenarios/$file.toml" >"$scen"
+            if grep -q "^[^,]*,$method,$file,$horizon," "$points"; then
+                echo "==> $file, M = $horizon, $method: in $points already"
+                continue
+            fi
+            art="$dir/$file-m$horizon-$method"
+            echo "==> calibrate $file, M = $horizon, $method"
+            "${XTASK_CMD[@]}" export --scenario "$scen" --out "$art" --lang c --method "$method" \
+                --k 1 --allow-uncertified >"$art.log" 2>&1 || { cat "$art.log"; exit 1; }
+            read -r -a dims <<<"$(calib_dims "$art/mhe_data.h")"
+            input="$dir/input-$file-m$horizon.csv"
+            # M + 2 rows: u_i = 0.1 sin(t + i), y_j = 0.2 cos(0.7 t + j).
+            awk -v rows=$((dims[0] + 2)) -v nu="${dims[4]}" -v ny="${dims[5]}" 'BEGIN {
+                for (t = 0; t < rows; t++) { s = "";
+                    for (i = 0; i < nu; i++) s = s (s == "" ? "" : ",") sprintf("%.17g", 0.1 * sin(t + i));
+                    for (j = 0; j < ny; j++) s = s (s == "" ? "" : ",") sprintf("%.17g", 0.2 * cos(0.7 * t + j));
+                    print s } }' >"$input"
+            for k in ${CALIB_KS:-1 16 256}; do
+                kart="$art-k$k"
+                rm -rf "$kart"
+                cp -r "$art" "$kart"
+                sed -i "s/^#define MHE_K .*/#define MHE_K $k/" "$kart/mhe_data.h"
+                # K is the 7th field of the problem (nx, nu, ny, nw1, nw2, M, K, method, …).
+                sed -i "/mhe_exported_problem = {/{n;s/^\(    \([0-9]*, \)\{6\}\)[0-9]*,/\1$k,/}" "$kart/mhe_data.c"
+                grep -A1 'mhe_exported_problem = {' "$kart/mhe_data.c" | grep -q "^    \([0-9]*, \)\{6\}$k, MHE_" \
+                    || { echo "could not set K = $k in $kart/mhe_data.c"; exit 1; }
+                sed -i 's|rc = mhe_self_test(&state);|rc = 0; /* calibration: self-test skipped */|' "$kart/replay.c"
+                for target in "m4:mps2-an386:cortex-m4f" "m7:mps2-an500:cortex-m7"; do
+                    IFS=: read -r tag machine label <<<"$target"
+                    make -s -C "$kart" "replay-$tag.elf" DEFS=-DMHE_ALLOW_UNCERTIFIED
+                    timeout 1200 qemu-system-arm -M "$machine" -nographic -monitor none -serial none \
+                        -semihosting-config enable=on,target=native -icount shift=0 \
+                        -kernel "$kart/replay-$tag.elf" <"$input" >"$kart/$tag.out" 2>"$kart/$tag.err"
+                    mean=$(sed -n 's/.*mean \([0-9]*\), max \([0-9]*\).*/\1/p' "$kart/$tag.err")
+                    max=$(sed -n 's/.*mean \([0-9]*\), max \([0-9]*\).*/\2/p' "$kart/$tag.err")
+                    if [ -z "$mean" ] || [ -z "$max" ]; then
+                        echo "no instruction count in $kart/$tag.err:"
+                        cat "$kart/$tag.err"
+                        exit 1
+                    fi
+                    echo "$label,$method,$file,${dims[0]},${dims[1]},${dims[2]},${dims[3]},${dims[4]},${dims[5]},$k,$mean,$max" >>"$points"
+                    echo "    $label, K = $k: max $max instructions/step"
+                done
+                rm -rf "$kart"
+            done
+        done
+    done
+    mkdir -p "$CALIB_DIR"
+    {
+        echo "# Max (and mean) instructions per MHE step (push + estimate) of the exported C under"
+        echo "# qemu-system-arm -icount shift=0 (emulated instructions, not cycles), measured by"
+        echo "# \`bash scripts/cortex-m.sh calibrate\` at commit $(git rev-parse --short HEAD 2>/dev/null || echo unknown),"
+        echo "# $(date -u +%Y-%m-%d), $(arm-none-eabi-gcc --version | head -1), $(qemu-system-arm --version | head -1)."
+        cat "$points"
+    } >"$CALIB_DIR/cortex-m-points.csv"
+    echo "wrote $CALIB_DIR/cortex-m-points.csv; fit: python3 scripts/fit-instructions.py"
+}
+if [ "$MODE" = calibrate ]; then
+    calibrate
+    exit 0
+fi
+
+# The table of docs/embedded.md ("The sample period as a budget"), between its markers:
+# per shipped certified scenario and method, the export at --k certified (its certificate),
+# the model's instructions per step and "fits T_s" from certificate.json's `budget` (M4F at
+# 168 MHz, M7 at 480 MHz), flash and RAM of the replay ELFs (arm-none-eabi-size). No QEMU run.
+budget_table() {
+    local dir="$OUT/table" rows="$OUT/table/rows.md" spec file method art tag text data bss
+    mkdir -p "$dir"
+    : >"$rows"
+    for spec in ${TABLE_ROWS:-case-study-certified:pg case-study-certified:admm-pr-jacobi cart-pendulum:admm-pr}; do
+        IFS=: read -r file method <<<"$spec"
+        art="$dir/$file-$method"
+        echo "==> table: $file, $method (export at the certified K)"
+        "${XTASK_CMD[@]}" export --scenario "scenarios/$file.toml" --out "$art" --lang c \
+            --method "$method" --k certified >"$art.log" 2>&1 || { cat "$art.log"; exit 1; }
+        local sizes=()
+        for tag in m4 m7; do
+            make -s -C "$art" "replay-$tag.elf"
+            read -r text data bss _ < <(arm-none-eabi-size "$art/replay-$tag.elf" | tail -1)
+            sizes+=("$((text + data))" "$((data + bss))")
+        done
+        python3 - "$art/certificate.json" "$file" "${sizes[@]}" >>"$rows" <<'PY'
+import json, sys
+c = json.load(open(sys.argv[1]))
+file, f4, r4, f7, r7 = sys.argv[2], *sys.argv[3:]
+t = {b['target']: b for b in c['budget']['targets']}
+m4, m7 = t['cortex-m4f'], t['cortex-m7']
+def mi(v):
+    return '–' if v is None else (f'{v / 1e6:.2f} M' if v >= 1e6 else f'{v / 1e3:.0f} k')
+def us(v):
+    return '–' if v is None else (f'{v / 1e3:.1f} ms' if v >= 1e3 else f'{v:.0f} µs')
+def verdict(b):
+    v = b['fits_sample_time']
+    if v == 'fits':
+        return f"yes (margin {b['margin'] * 100:.0f} %, K ≤ {b['k_max_fitting']})"
+    if v == 'does_not_fit':
+        k = b['k_max_fitting']
+        return 'no (not even K = 1)' if k is None else f'no: needs K ≤ {k}'
+    return 'not computed: ' + (b['reason'] or '')
+ts = m4['summary'].split('fits ')[-1].split(' ')[0] if m4['fits_sample_time'] != 'not_computed' else '–'
+ex = ' (extrapolated)' if m4['extrapolated'] else ''
+print(f"| {file} | {c['method']} | {c['iterations']} | none (f32 not certified) | "
+      f"{mi(m4['instructions_per_step_bound'])} / {mi(m7['instructions_per_step_bound'])}{ex} | "
+      f"{us(m4['micros_per_step'])} / {us(m7['micros_per_step'])} | {f4} / {f7} | {r4} / {r7} | "
+      f"{verdict(m4)} / {verdict(m7)} |")
+PY
+    done
+    python3 - docs/embedded.md "$rows" <<'PY'
+import sys
+doc, rows = sys.argv[1], open(sys.argv[2]).read()
+text = open(doc).read()
+begin, end = '<!-- budget-table:begin -->\n', '<!-- budget-table:end -->'
+head = ('| scenario | method | certified K (f64) | certified K (f32) | instructions/step M4F / M7 '
+        '| µs at 168 / 480 MHz | flash M4F / M7 (B) | RAM M4F / M7 (B) | fits T_s: M4F / M7 |\n'
+        '| --- | --- | --- | --- | --- | --- | --- | --- | --- |\n')
+i, j = text.index(begin) + len(begin), text.index(end)
+open(doc, 'w').write(text[:i] + head + rows + text[j:])
+PY
+    echo "wrote the table into docs/embedded.md:"
+    cat "$rows"
+}
+if [ "$MODE" = table ]; then
+    budget_table
+    exit 0
+fi
 
 # Helpers on trace.csv and replay outputs (RUN_K selects one run of trace.csv, ROWS limits
 # the rows): `k` prints the run's K, `input` the replay input (u…,y… per row), `compare`

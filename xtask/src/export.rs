@@ -110,6 +110,12 @@ pub struct ExportArgs {
     /// `{prefix}.h`, …), so several estimators link into one firmware.
     #[arg(long, default_value = "mhe")]
     pub prefix: String,
+    /// The target of the "fits T_s" verdict (`cortex-m4f`, `cortex-m7`) [default: both].
+    #[arg(long)]
+    pub target: Option<String>,
+    /// The target's clock in MHz [default: 168 for cortex-m4f, 480 for cortex-m7].
+    #[arg(long, value_name = "MHZ")]
+    pub clock_mhz: Option<f64>,
 }
 
 /// What the generated files say about the exported MPC.
@@ -465,6 +471,7 @@ pub fn export(args: &ExportArgs) -> Result<()> {
         .transpose()?;
     check_out(&args.out)?;
     c_gen::check_prefix(&args.prefix)?;
+    let targets = crate::budget::targets(args.target.as_deref(), args.clock_mhz)?;
     let text = std::fs::read(&args.scenario)
         .with_context(|| format!("cannot read `{}`", args.scenario.display()))?;
     let sha256 = sha256::sha256_hex(&text);
@@ -512,6 +519,14 @@ pub fn export(args: &ExportArgs) -> Result<()> {
         k_arg,
         args.scalar,
         args.allow_uncertified,
+    )?;
+    let budgets = crate::budget::budgets(
+        &targets,
+        &method.name(),
+        crate::budget::dims(&scenario, mhe.horizon),
+        k,
+        scenario.sample_time,
+        args.scalar == ScalarKind::F32,
     )?;
     let mut est = portable_estimator(&resolved, method, k)?;
     let mut problem = OwnedProblem::from_estimator(&est, &scenario.plant)?;
@@ -563,6 +578,7 @@ pub fn export(args: &ExportArgs) -> Result<()> {
     let mpc = mpc_export.as_ref().map(|(d, _, j)| (d, j));
     replace_artefact(&args.out, |dir| {
         write_artefact(dir, args.lang, &problem, mpc, &art, &cert, &args.scenario)?;
+        crate::budget::annotate(dir, &budgets)?;
         if args.lang == Lang::C && args.prefix != "mhe" {
             c_gen::apply_prefix(dir, &args.prefix)?;
         }
@@ -592,6 +608,9 @@ pub fn export(args: &ExportArgs) -> Result<()> {
         )),
         args.out.display()
     );
+    for b in &budgets {
+        outln!("  {} at {} MHz: {}", b.target, b.clock_mhz, b.summary());
+    }
     Ok(())
 }
 

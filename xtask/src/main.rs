@@ -22,6 +22,7 @@
 mod console;
 mod output;
 
+mod budget;
 mod certify;
 mod export;
 mod figures;

@@ -303,6 +303,7 @@ impl LoopModelBuilder {
             c: to_rows(p.c()),
             e: to_rows(p.e()),
             f: to_rows(p.f()),
+            sample_time: None,
         };
         let plant = validate_plant(Some(&raw_plant)).map_err(from_model)?;
         let raw_sets = RawSets {
@@ -372,6 +373,7 @@ impl LoopModelBuilder {
             name: self.name,
             description: None,
             plant,
+            sample_time: None,
             sets,
             noise,
             simulation,

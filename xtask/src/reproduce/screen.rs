@@ -102,6 +102,9 @@ pub(super) fn screen(d: &CertificateDocument, out: &Path) -> String {
         let _ = writeln!(s, "  [{}] {n}", i + 1);
     }
     let _ = writeln!(s, "verdict: {}", super::summary::verdict(d));
+    if let Some(b) = &d.budget {
+        let _ = writeln!(s, "{}", b.screen_line(&d.solver));
+    }
     let figures = d.files.iter().filter(|f| f.ends_with(".svg")).count();
     let mut listed: Vec<String> = d
         .files

@@ -528,6 +528,15 @@ pub(super) fn document(
     let (solver, scenario) = (p.solver, &p.scenario);
     let own = cert.solver(solver);
     let asymptotic_gains = gains::report(&cert, &regional, runs, solver, not_covered.as_deref());
+    let solvers: Vec<SolverSummary> = (cert.solvers.iter())
+        .map(|s| SolverSummary::new(s, solver, scenario, own_controller))
+        .collect();
+    let budget = crate::budget::reproduce(
+        scenario,
+        &(solvers.iter())
+            .map(|s| (s.solver.clone(), s.k_min))
+            .collect::<Vec<_>>(),
+    );
     CertificateDocument {
         format: CERTIFICATE_FORMAT.into(),
         format_version: FORMAT_VERSION,
@@ -562,11 +571,8 @@ pub(super) fn document(
         not_covered,
         at_scenario,
         scenario_iterations_match_k_min: own.and_then(|s| s.k_min).map(|k| k == p.iterations),
-        solvers: cert
-            .solvers
-            .iter()
-            .map(|s| SolverSummary::new(s, solver, scenario, own_controller))
-            .collect(),
+        solvers,
+        budget,
         // The paper's published constants belong to its case study: shown for the two presets
         // only, never beside a user's plant.
         paper_comparison: if job.preset.is_some() {

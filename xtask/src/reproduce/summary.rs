@@ -195,6 +195,9 @@ pub(super) fn summarize(d: &CertificateDocument, files: &[PathBuf], notes: &[Str
             }
         }
     }
+    if let Some(b) = &d.budget {
+        s += &b.block();
+    }
     if let Some(false) = d.scenario_iterations_match_k_min {
         let _ = writeln!(
             s,

@@ -46,7 +46,7 @@ use std::path::Path;
 use lti_model::spec::format::{self, Table, key_error};
 use lti_model::spec::plant::{
     RawNoise, RawPlant, RawSets, RawSimulation, raw_sections, validate_noise, validate_plant,
-    validate_sets, validate_simulation,
+    validate_sample_time, validate_sets, validate_simulation,
 };
 use lti_model::spec::{NoiseSpec, ScenarioSets, SimulationSpec};
 use lti_model::{LtiSystem, Result};
@@ -77,6 +77,9 @@ pub struct Scenario {
     pub description: Option<String>,
     /// The plant of eq. (1) (`[plant]`).
     pub plant: LtiSystem,
+    /// The sample period T_s in seconds (`plant.sample_time`), if the scenario gives one:
+    /// the time budget of one estimator step on a target (`mhe_budget`).
+    pub sample_time: Option<f64>,
     /// The constraint sets 𝒳, 𝒰, 𝒴, 𝒲 (`[sets]`).
     pub sets: ScenarioSets,
     /// How the true disturbance w_t is drawn (`[noise]`).
@@ -258,6 +261,7 @@ fn validate(raw: RawScenario) -> Result<Scenario> {
         ));
     }
     let plant = validate_plant(raw.plant.as_deref())?;
+    let sample_time = validate_sample_time(raw.plant.as_deref())?;
     let (sets, disturbance_given) = validate_sets(raw.sets.as_deref(), &plant)?;
     let noise = validate_noise(raw.noise.as_deref(), &sets, disturbance_given, plant.nw())?;
     let simulation = validate_simulation(raw.simulation.as_deref(), &plant, &sets)?;
@@ -277,6 +281,7 @@ fn validate(raw: RawScenario) -> Result<Scenario> {
         name,
         description: raw.description,
         plant,
+        sample_time,
         sets,
         noise,
         simulation,
@@ -289,8 +294,9 @@ fn validate(raw: RawScenario) -> Result<Scenario> {
 
 impl RawScenario {
     fn from_typed(s: &Scenario) -> Self {
-        let (plant, sets, noise, simulation) =
+        let (mut plant, sets, noise, simulation) =
             raw_sections(&s.plant, &s.sets, &s.noise, &s.simulation);
+        plant.sample_time = s.sample_time;
         RawScenario {
             name: Some(s.name.clone()),
             description: s.description.clone(),

@@ -897,3 +897,28 @@ fn an_endless_or_huge_file_is_refused_not_read() {
         other => panic!("{other:?}"),
     }
 }
+
+#[test]
+fn sample_time_is_optional_positive_and_finite() {
+    let none = Scenario::from_toml_str(BASE).expect("base parses");
+    assert_eq!(none.sample_time, None);
+    let s = Scenario::from_toml_str(&with("plant", "sample_time = 0.02")).expect("valid T_s");
+    assert_eq!(s.sample_time, Some(0.02));
+    // Written back and parsed again: the same period.
+    let again = Scenario::from_toml_str(&s.to_toml_string().expect("serialises")).expect("parses");
+    assert_eq!(again.sample_time, Some(0.02));
+    for bad in ["0.0", "-0.02", "nan", "inf", "1e9"] {
+        assert_key(
+            &with("plant", &format!("sample_time = {bad}")),
+            "plant.sample_time",
+            "sample period T_s in seconds",
+        );
+    }
+    // The shipped cart-pendulum runs at 20 ms (its ZOH period).
+    let cart = Scenario::from_file(concat!(
+        env!("CARGO_MANIFEST_DIR"),
+        "/../../scenarios/cart-pendulum.toml"
+    ))
+    .expect("cart-pendulum parses");
+    assert_eq!(cart.sample_time, Some(0.02));
+}

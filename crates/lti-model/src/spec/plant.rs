@@ -160,6 +160,10 @@ pub struct RawPlant {
     pub e: Option<MatrixSpec>,
     #[serde(skip_serializing_if = "Option::is_none")]
     pub f: Option<MatrixSpec>,
+    /// `plant.sample_time`: the sample period T_s in seconds (optional; the budget of one
+    /// estimator step on a target, see [`validate_sample_time`]).
+    #[serde(skip_serializing_if = "Option::is_none")]
+    pub sample_time: Option<f64>,
 }
 
 #[derive(Debug, Deserialize, Serialize)]
@@ -244,6 +248,28 @@ pub fn box_set(key: &str, raw: Option<&RawBox>, n: usize, what: &str) -> Result<
         }
     }
     Ok(set)
+}
+
+/// Largest accepted `plant.sample_time` in seconds (one day): a larger period is a typo
+/// for a plant a discrete-time MHE runs on.
+pub const MAX_SAMPLE_TIME: f64 = 86_400.0;
+
+/// `plant.sample_time`: the sample period T_s in seconds, `None` when the scenario gives
+/// none. Finite and in (0, [`MAX_SAMPLE_TIME`]], else a typed error naming the key.
+pub fn validate_sample_time(raw: Option<&RawPlant>) -> Result<Option<f64>> {
+    let Some(ts) = raw.and_then(|p| p.sample_time) else {
+        return Ok(None);
+    };
+    if !ts.is_finite() || ts <= 0.0 || ts > MAX_SAMPLE_TIME {
+        return Err(key_error(
+            "plant.sample_time",
+            format!(
+                "is {ts}; give the sample period T_s in seconds, a finite number in \
+                 (0, {MAX_SAMPLE_TIME}], e.g. `sample_time = 0.02` for 50 Hz, or omit the key"
+            ),
+        ));
+    }
+    Ok(Some(ts))
 }
 
 pub fn validate_plant(raw: Option<&RawPlant>) -> Result<LtiSystem> {
@@ -652,6 +678,7 @@ pub fn raw_sections(
             c: Some(to_mat(plant.c())),
             e: Some(to_mat(plant.e())),
             f: Some(to_mat(plant.f())),
+            sample_time: None,
         },
         RawSets {
             state: Some(Table(raw_box(&sets.state))),

@@ -21,6 +21,7 @@
 
 mod inner;
 pub mod loop_level;
+pub mod scenario;
 mod sdp;
 
 use qp_iter::{Certificate, IterationMap, Method, MethodMap, ParametricQp};

@@ -1,0 +1,112 @@
+//! The Lur'e loop of a shipped scenario (`iss_certificate::lure::scenario`): with every
+//! clamp the identity it is K_lin's lifted loop, and its clamped iterations are the MHE's.
+#![allow(clippy::unwrap_used)]
+
+use closed_loop::scenario::{LoopOptions, ResolvedScenario, Scenario};
+use iss_certificate::lure::scenario::{ScenarioLureError, scenario_lure};
+use qp_iter::Method;
+
+fn resolved(file: &str) -> ResolvedScenario {
+    let path = format!("{}/../../scenarios/{file}", env!("CARGO_MANIFEST_DIR"));
+    Scenario::from_file(&path)
+        .expect("scenario parses")
+        .resolve()
+        .expect("scenario resolves")
+}
+
+fn options(r: &ResolvedScenario, method: Method) -> LoopOptions {
+    let mut o = LoopOptions::from_scenario(r.scenario()).expect("loop options");
+    o.method = method;
+    o
+}
+
+/// With Δ = v the constructed loop's lifted matrix is 𝔸(K) of K_lin, entry by entry up to
+/// the rounding of two product orders.
+#[test]
+fn unclamped_lure_loop_is_the_lifted_matrix() {
+    let r = resolved("double-integrator.toml");
+    for method in [Method::PG, Method::JACOBI_PRESETS[0]] {
+        let sl = scenario_lure(&r, &options(&r, method)).expect("PG loop builds");
+        let lp = &sl.lure;
+        lp.validate().expect("shapes");
+        assert_eq!(lp.n_x(), sl.lifted.dim());
+        assert!(lp.n_c() > 0, "the MHE's 𝒲 box gives channels");
+        for k in [1usize, 2, 5] {
+            let want = sl.lifted.matrix(k, faer::Par::Seq).expect("𝔸(K)");
+            let got = lp.lifted_linear(k);
+            let n = want.nrows();
+            let scale = (0..n)
+                .flat_map(|i| (0..n).map(move |j| (i, j)))
+                .map(|(i, j)| want[(i, j)].abs())
+                .fold(1.0_f64, f64::max);
+            let mut worst = 0.0_f64;
+            for i in 0..n {
+                for j in 0..n {
+                    worst = worst.max((got.at(i, j) - want[(i, j)]).abs());
+                }
+            }
+            assert!(
+                worst <= 1e-11 * scale,
+                "{}: K = {k}: |Δ| = {worst:e} (scale {scale:e})",
+                method.name()
+            );
+        }
+    }
+}
+
+/// The clamps change the loop: with the clamps kept, one sample from a state that drives
+/// the MHE's iterate outside 𝒲 differs from the linear step (the channels are wired in).
+#[test]
+fn clamps_are_wired_into_the_iterations() {
+    let r = resolved("double-integrator.toml");
+    let sl = scenario_lure(&r, &options(&r, Method::PG)).expect("PG loop builds");
+    let lp = &sl.lure;
+    let u = lp.unclamped();
+    // A large warm start: v is far outside any box, so Δ = 0 (s = 0) differs from Δ = v.
+    let mut x = vec![0.0; lp.n_x()];
+    let lay = sl.lifted.layout();
+    for j in 0..lay.nz {
+        x[lay.warm_start() + j] = 1e3;
+    }
+    let xi0 = lp.s0.apply(&x);
+    let v = lp.c.apply(&xi0);
+    let dx = lp.d_x.apply(&x);
+    let v: Vec<f64> = v.iter().zip(&dx).map(|(a, b)| a + b).collect();
+    assert!(
+        v.iter().any(|t| t.abs() > 1.0),
+        "the probe reaches the channels"
+    );
+    let lin = u.a_xi.apply(&xi0);
+    let zero_clamp: Vec<f64> = lp
+        .a_xi
+        .apply(&xi0)
+        .iter()
+        .zip(lp.e_x.apply(&x))
+        .map(|(a, b)| a + b)
+        .collect();
+    let lin: Vec<f64> = lin
+        .iter()
+        .zip(u.e_x.apply(&x))
+        .map(|(a, b)| a + b)
+        .collect();
+    let diff: f64 = lin
+        .iter()
+        .zip(&zero_clamp)
+        .map(|(a, b)| (a - b).abs())
+        .sum();
+    assert!(diff > 1.0, "Δ = 0 and Δ = v give the same step");
+}
+
+/// Methods whose clamps sit elsewhere are refused with the key to change.
+#[test]
+fn fista_and_admm_are_refused_by_name() {
+    let r = resolved("double-integrator.toml");
+    for method in [Method::FISTA, Method::ADMM_PR] {
+        match scenario_lure(&r, &options(&r, method)) {
+            Err(e @ ScenarioLureError::Method { .. }) => {
+                assert!(e.to_string().contains("mhe.method"), "{e}");
+            }
+            other => panic!("{}: expected a method error, got {other:?}", method.name()),
+        }
+    }
+}

@@ -47,6 +47,14 @@ pub enum ScenarioLureError {
         /// What.
         why: &'static str,
     },
+    /// A slope pattern of the wrong length or outside [0, 1].
+    #[error("slope pattern: {len} slopes for {channels} channels, each must lie in [0, 1]")]
+    Slopes {
+        /// The pattern's length.
+        len: usize,
+        /// n_c.
+        channels: usize,
+    },
 }
 
 /// The Lur'e loop of one (scenario, MHE method) pair with its provenance.
@@ -209,4 +217,53 @@ pub fn scenario_lure(
         b_loop: to_matrix(b_loop.as_ref()),
     };
     Ok(ScenarioLure { lure, lifted })
+}
+
+/// ρ(𝔸_s(K)): the spectral radius of the loop with every channel frozen at slope s_c
+/// (Δ_c = s_c·v_c in every iteration of every sample) and w = 0.
+///
+/// A frozen slope is an admissible clamp sequence of Theorem L2 (every |s_c| ≤ 1 in the
+/// sector [0, 1]), so a certificate with rate ρ at K gives ρ(𝔸_s(K)) ≤ ρ < 1 for every s:
+/// ρ(𝔸_s(K)) ≥ 1 refutes every loop certificate at K, whatever the multipliers. s = 𝟙 is the
+/// linear loop (ρ_lin(K)); s = 0 is every bounded coordinate held at 0.
+///
+/// Errors: a pattern of the wrong length or outside [0, 1]; the eigenvalue solver failing.
+pub fn frozen_slope_radius(
+    lp: &LureLoop,
+    slopes: &[f64],
+    k: usize,
+) -> Result<f64, ScenarioLureError> {
+    let (nxi, nc) = (lp.n_xi(), lp.n_c());
+    if slopes.len() != nc || !slopes.iter().all(|s| (0.0..=1.0).contains(s)) {
+        return Err(ScenarioLureError::Slopes {
+            len: slopes.len(),
+            channels: nc,
+        });
+    }
+    let mut frozen = lp.clone();
+    for i in 0..nxi {
+        for (c, s) in slopes.iter().enumerate() {
+            frozen.b_delta.data[i * nc + c] *= s;
+        }
+    }
+    let a = frozen.lifted_linear(k);
+    let m = Mat::from_fn(a.rows, a.cols, |i, j| a.at(i, j));
+    Ok(crate::linear::spectral_radius_dense(m.as_ref(), Par::Seq)?)
+}
+
+/// The first frozen-slope pattern of `patterns` that refutes every loop certificate at K
+/// (ρ(𝔸_s(K)) ≥ 1 + 10⁻⁹, above the eigenvalue solver's rounding), with its ρ; None if all
+/// are stable (a necessary condition only: it does not certify).
+pub fn refuted_at(
+    lp: &LureLoop,
+    k: usize,
+    patterns: &[Vec<f64>],
+) -> Result<Option<(usize, f64)>, ScenarioLureError> {
+    for (i, s) in patterns.iter().enumerate() {
+        let rho = frozen_slope_radius(lp, s, k)?;
+        if rho >= 1.0 + 1e-9 {
+            return Ok(Some((i, rho)));
+        }
+    }
+    Ok(None)
 }

@@ -208,5 +208,30 @@ fn measure_frozen_slopes_double_integrator() {
                 t.elapsed().as_secs_f64()
             );
         }
+        // Every K of 1..=150: where ρ_lin < 1 but a frozen pattern refutes, and the first K
+        // from which neither refutes up to 150.
+        let (mut lin_from, mut frozen_from) = (None, None);
+        let mut gaps = Vec::new();
+        for k in 1..=150usize {
+            let lin = sl.lifted.spectral_radius(k, faer::Par::Seq).expect("ρ_lin");
+            let hit = refuted_at(lp, k, &pats).expect("radii");
+            if lin < 1.0 && hit.is_some() {
+                gaps.push(k);
+            }
+            if lin >= 1.0 {
+                lin_from = None;
+            } else if lin_from.is_none() {
+                lin_from = Some(k);
+            }
+            if lin >= 1.0 || hit.is_some() {
+                frozen_from = None;
+            } else if frozen_from.is_none() {
+                frozen_from = Some(k);
+            }
+        }
+        println!(
+            "  K ≤ 150: ρ_lin < 1 from K = {lin_from:?} on; no pattern refutes from K = \
+             {frozen_from:?} on; ρ_lin < 1 but refuted at K ∈ {gaps:?}"
+        );
     }
 }

@@ -295,19 +295,58 @@ impl LiftedLoop {
     /// 𝔸(K) from the MHE's K-step map `km` (K = `km.k`).
     fn matrix_with(&self, km: &KStepMap, par: Par) -> Result<Mat<f64>, LinearError> {
         let k = km.k;
-        let (l, w) = (self.layout, self.window);
-        let (nx, nu, ny, big_m, nz) = (l.nx, l.nu, l.ny, l.horizon, l.nz);
-        let n = l.dim();
+        let l = self.layout;
         let s_theta = self.theta_selection();
         // zᴷ_t = G z⁰_t + J θ_t.
         let mut zk = mul(km.j.as_ref(), s_theta.as_ref(), par);
         add_block(&mut zk, 0, l.warm_start(), km.g.as_ref());
+        let a = self.assemble(zk.as_ref(), s_theta.as_ref(), par);
+        if !all_finite(a.as_ref()) {
+            return Err(LinearError::NonFinite {
+                what: "the lifted matrix",
+                k,
+            });
+        }
+        Ok(a)
+    }
+
+    /// The loop map split at the MHE's last iterate: X_{t+1} = 𝒜 X_t + 𝒢_z zᴷ_t (t ≥ M, w ≡ 0,
+    /// the controller's and the warm start's linear pieces; zᴷ_t is whatever the K inner
+    /// iterations return), as (𝒜, 𝒢_z) with 𝒢_z of size dim X × n_z. With zᴷ_t = G z⁰_t +
+    /// J θ_t this is [`LiftedLoop::matrix`]; `lure::loop_level` feeds zᴷ_t from iterations
+    /// whose clamps it keeps. Same products as `matrix` (no cancellation: the two column
+    /// groups of one assembly on the space (X_t, zᴷ_t)).
+    pub fn split_at_iterate(&self, par: Par) -> (Mat<f64>, Mat<f64>) {
+        let (n, nz) = (self.layout.dim(), self.layout.nz);
+        let s_theta = self.theta_selection();
+        let zk = Mat::from_fn(nz, n + nz, |i, j| if j == n + i { 1.0 } else { 0.0 });
+        let st = Mat::from_fn(s_theta.nrows(), n + nz, |i, j| {
+            if j < n { s_theta[(i, j)] } else { 0.0 }
+        });
+        let a = self.assemble(zk.as_ref(), st.as_ref(), par);
+        (
+            a.as_ref().subcols(0, n).to_owned(),
+            a.as_ref().subcols(n, nz).to_owned(),
+        )
+    }
+
+    /// S_θ: X_t ↦ θ_t, the MHE's parameter (n_θ × dim X).
+    pub fn parameter_selection(&self) -> Mat<f64> {
+        self.theta_selection()
+    }
+
+    /// The rows of X_{t+1} given zᴷ_t = `zk` and θ_t = `s_theta`, both as linear maps of
+    /// one column space (dim X columns in [`LiftedLoop::matrix`]; dim X + n_z in
+    /// [`LiftedLoop::split_at_iterate`]); the plant, controller and shift blocks occupy the
+    /// first dim X columns.
+    fn assemble(&self, zk: MatRef<'_, f64>, s_theta: MatRef<'_, f64>, par: Par) -> Mat<f64> {
+        let (l, w) = (self.layout, self.window);
+        let (nx, nu, ny, big_m, nz) = (l.nx, l.nu, l.ny, l.horizon, l.nz);
+        let n = l.dim();
+        let cols = zk.ncols();
         // x̂_t = X_z zᴷ_t + X_θ θ_t.
-        let mut xh = mul(self.x_z.as_ref(), zk.as_ref(), par);
-        add(
-            &mut xh,
-            mul(self.x_theta.as_ref(), s_theta.as_ref(), par).as_ref(),
-        );
+        let mut xh = mul(self.x_z.as_ref(), zk, par);
+        add(&mut xh, mul(self.x_theta.as_ref(), s_theta, par).as_ref());
         // u_t, and U_t for the sub-optimal MPC.
         let (u_row, u_seq) = match &self.control {
             ControlPiece::Gain(gain) => (mul(gain.as_ref(), xh.as_ref(), par), None),
@@ -318,7 +357,7 @@ impl LiftedLoop {
             }
         };
 
-        let mut a = Mat::<f64>::zeros(n, n);
+        let mut a = Mat::<f64>::zeros(n, cols);
         // x_{t+1} = A x_t + B u_t.
         add_block(&mut a, 0, 0, self.a.as_ref());
         add_rows(
@@ -337,18 +376,14 @@ impl LiftedLoop {
         add_rows(&mut a, l.estimates(big_m - 1), xh.as_ref());
         // z⁰_{t+1} = Σ(zᴷ_t, θ_t).
         match self.mhe_warm {
-            MheWarmStart::Paper => add_rows(&mut a, l.warm_start(), zk.as_ref()),
+            MheWarmStart::Paper => add_rows(&mut a, l.warm_start(), zk),
             MheWarmStart::Shifted => {
                 let (wz, wth) = self.shifted_warm_start();
+                add_rows(&mut a, l.warm_start(), mul(wz.as_ref(), zk, par).as_ref());
                 add_rows(
                     &mut a,
                     l.warm_start(),
-                    mul(wz.as_ref(), zk.as_ref(), par).as_ref(),
-                );
-                add_rows(
-                    &mut a,
-                    l.warm_start(),
-                    mul(wth.as_ref(), s_theta.as_ref(), par).as_ref(),
+                    mul(wth.as_ref(), s_theta, par).as_ref(),
                 );
             }
         }
@@ -356,13 +391,7 @@ impl LiftedLoop {
             add_rows(&mut a, l.controller(), seq.as_ref());
         }
         debug_assert_eq!(nz, w.nz());
-        if !all_finite(a.as_ref()) {
-            return Err(LinearError::NonFinite {
-                what: "the lifted matrix",
-                k,
-            });
-        }
-        Ok(a)
+        a
     }
 
     /// The time-shifted warm start z⁰ = W_z zᴷ + W_θ θ: x̂₀ ← A x̂₀ + B u₀ + E ŵ¹₀, stages

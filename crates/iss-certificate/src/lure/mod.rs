@@ -17,10 +17,13 @@
 //! [`loop_level`] implements the **loop level** (Theorem L2): global ISS of the
 //! sample-to-sample loop with every clamp of every inner iteration as a slope-[0, 1]
 //! channel, from a chain of storages — today for loops given by their matrices and small
-//! enough for the dense solver (docs/theory.md §3).
+//! enough for the dense solver (docs/theory.md §3). [`scenario`] builds that loop from a
+//! shipped scenario (the PG family with an unconstrained controller) and computes the
+//! frozen-slope radius, a necessary condition for any loop certificate at K.
 
 mod inner;
 pub mod loop_level;
+pub mod scenario;
 mod sdp;
 
 use qp_iter::{Certificate, IterationMap, Method, MethodMap, ParametricQp};

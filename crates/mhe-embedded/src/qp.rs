@@ -61,7 +61,7 @@ pub(crate) fn run<S: Scalar>(
     }
     let (lo, hi) = (w.lower, w.upper);
     // load: q = q₀ + Fθ (the scaled problem's F and q₀ give D q directly).
-    linear_term(w, theta, &mut v[Q]);
+    linear_term(w, theta, v[Q]);
     // warm start: y⁰ = D⁻¹z⁰ on a scaled problem; cold start: Π(0) in the coordinates
     // the method runs in (the box of the scaled problem when scaled).
     match z0 {

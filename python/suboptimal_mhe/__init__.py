@@ -271,8 +271,22 @@ class Estimator:
     ``est.push(u_t, y_t)``, the same order as ``mhe_core::MheEstimator`` (do-mpc's
     ``make_step`` is ``push`` followed by ``estimate``).
 
-    ``dtype="float32"`` (the microcontroller's single-precision kernel) is not available in
-    this version and raises :class:`UnsupportedError`; use ``cargo xtask export`` for it.
+    ``state_box``, ``output_box`` and ``disturbance_box`` are the sets 𝒳 (n_x), 𝒴 (n_y)
+    and 𝒲 (n_w = n_w1 + n_w2: the process then the measurement noise) as pairs
+    ``(lower, upper)`` (±inf allowed; default: the whole space). 𝒲 and the x̂₀ part of 𝒳
+    are boxes of the QP; 𝒳 at the later stages and 𝒴 become general rows of the QP
+    (``mhe_core::MheSets``). Arbitrary polyhedral sets Gx ≤ h are not supported by the
+    library: only boxes.
+
+    ``dtype="float32"`` runs the microcontroller's single-precision kernel
+    (``mhe_embedded``: the same data as ``cargo xtask export --scalar f32`` writes, rounded
+    once, and the same operations in the same order), so the estimates are the board's bits;
+    they are float32 arrays. It covers the methods the board runs — ``pg``, ``fista``,
+    ``admm``, plain or ``-jacobi`` — on box sets only (no ``state_box``/``output_box``, which
+    make general rows) and unstructured windows; anything else raises
+    :class:`UnsupportedError`. ``u`` and ``y`` are rounded to float32 once per push. Whether
+    K is certified in f32 is ``Certificate.verdict(method, k, scalar="f32")`` (Theorem 1 with
+    the f32 rounding folded in).
     """
 
     def __init__(
@@ -286,18 +300,19 @@ class Estimator:
         r: Any = None,
         p: Any = None,
         prior: Any = None,
-        dtype: str = "float64",
+        dtype: Any = "float64",
+        state_box: Any = None,
+        output_box: Any = None,
+        disturbance_box: Any = None,
     ) -> None:
         if not isinstance(model, Plant):
             raise InputError(f"argument `model` must be a suboptimal_mhe.Plant, got {type(model).__name__}")
-        if dtype not in ("float64", np.float64, "float32", np.float32):
-            raise InputError(f"argument `dtype` = {dtype!r}: use \"float64\" (or \"float32\", not yet available)")
-        if dtype in ("float32", np.float32):
-            raise UnsupportedError(
-                "argument `dtype` = \"float32\": the f32 kernel of mhe-embedded has compile-time sizes "
-                "and is not callable from Python yet; use dtype=\"float64\", or `cargo xtask export` "
-                "for the board's f32 code"
-            )
+        if isinstance(dtype, str) and dtype in ("float64", "float32"):
+            pass
+        elif dtype is np.float64 or dtype is np.float32:
+            dtype = np.dtype(dtype).name
+        else:
+            raise InputError(f"argument `dtype` = {dtype!r}: use \"float64\" or \"float32\"")
         horizon = _positive_int("horizon", horizon, "the horizon M is a number of steps, e.g. 10")
         k = _positive_int("k", k, "K is the number of iterations per step, e.g. 20")
         eta = _eta(eta)
@@ -309,7 +324,14 @@ class Estimator:
         rm = None if r is None else _weight("r", r, ny)
         pm = None if p is None else _weight("p", p, nx)
         x0 = np.zeros(nx) if prior is None else _vector("prior", prior, nx)
-        self._native = _native._Estimator(model._native, horizon, eta, k, method, x0, q=qm, r=rm, p=pm)
+        sb = _box("state_box", state_box, nx)
+        ob = _box("output_box", output_box, ny)
+        db = _box("disturbance_box", disturbance_box, nw)
+        self.dtype = np.dtype(dtype)
+        self._native = _native._Estimator(
+            model._native, horizon, eta, k, method, x0, q=qm, r=rm, p=pm,
+            state_box=sb, output_box=ob, disturbance_box=db, dtype=self.dtype.name,
+        )
         self._u = np.empty(model.nu)
         self._y = np.empty(ny)
 
@@ -326,8 +348,8 @@ class Estimator:
     def estimate(self, out: Optional[np.ndarray] = None) -> np.ndarray:
         """x̂_{t|t} (length n_x): K iterations on the current window.
 
-        With ``out`` (a float64 array of length n_x) the estimate is written into it and
-        ``out`` is returned: no allocation per call.
+        With ``out`` (an array of length n_x of the estimator's dtype) the estimate is
+        written into it and ``out`` is returned: no allocation per call.
         """
         if out is None:
             return self._native.estimate()
@@ -567,8 +589,12 @@ class Certificate:
         self._dict: Dict[str, Any] = json.loads(text)
         self._native = native
 
-    def verdict(self, method: str, k: int) -> Dict[str, Any]:
+    def verdict(self, method: str, k: int, scalar: str = "f64") -> Dict[str, Any]:
         """Is ``k`` iterations of ``method`` per step certified? (``Certificate::verdict``.)
+
+        ``scalar="f32"`` asks for the f32 arithmetic of ``Estimator(..., dtype="float32")``
+        and the board: Theorem 1 with the f32 rounding folded in (the verdict of
+        ``cargo xtask export --scalar f32``).
 
         A dict: ``certified`` (``"yes"``, ``"no"``: too few iterations, ``"void"``: a premise
         fails, ``reason`` says which, or ``"not_computed"``: the analysis budget stopped a
@@ -578,7 +604,9 @@ class Certificate:
         if not isinstance(method, str):
             raise InputError(f"argument `method` must be a str, one of {METHODS} (optionally with -jacobi)")
         k = _positive_int("k", k, "K is the number of iterations per step")
-        return json.loads(self._native.verdict(method, k))
+        if scalar not in ("f64", "f32"):
+            raise InputError(f"argument `scalar` = {scalar!r}: use \"f64\" or \"f32\"")
+        return json.loads(self._native.verdict(method, k, scalar))
 
     def to_json(self) -> str:
         """The JSON text, as the Rust code serialised it."""

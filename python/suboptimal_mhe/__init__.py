@@ -282,7 +282,7 @@ class Estimator:
     (``mhe_embedded``: the same data as ``cargo xtask export --scalar f32`` writes, rounded
     once, and the same operations in the same order), so the estimates are the board's bits;
     they are float32 arrays. It covers the methods the board runs — ``pg``, ``fista``,
-    ``admm``, plain or ``-jacobi`` — on box sets only (no ``state_box``/``output_box``, which
+    ``admm``, ``admm-pr``, plain or ``-jacobi`` — on box sets only (no ``state_box``/``output_box``, which
     make general rows) and unstructured windows; anything else raises
     :class:`UnsupportedError`. ``u`` and ``y`` are rounded to float32 once per push. Whether
     K is certified in f32 is ``Certificate.verdict(method, k, scalar="f32")`` (Theorem 1 with

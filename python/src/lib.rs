@@ -24,6 +24,7 @@ use qp_iter::{Method, MethodMap};
 use std::sync::{Mutex, MutexGuard};
 
 mod embedded;
+mod reasons;
 
 create_exception!(
     suboptimal_mhe,
@@ -1028,6 +1029,15 @@ impl PyCertificate {
             Held::Scenario { cert, .. } => cert,
         };
         serde_json::to_string(cert).map_err(|e| MheError::new_err(e.to_string()))
+    }
+
+    /// Every void, IOSS and skip reason as typed data (JSON: `reasons::all`).
+    fn reasons_json(&self) -> PyResult<String> {
+        let cert = match &self.held {
+            Held::Model(c) => c.closed_loop(),
+            Held::Scenario { cert, .. } => cert,
+        };
+        serde_json::to_string(&reasons::all(cert)).map_err(|e| MheError::new_err(e.to_string()))
     }
 
     /// The one verdict rule at (method, k) in `scalar` ("f64" or "f32") as JSON

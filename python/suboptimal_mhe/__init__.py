@@ -45,6 +45,7 @@ __all__ = [
     "Scenario",
     "Model",
     "Certificate",
+    "Reason",
     "certify",
     "simulate",
     "set_kernel",
@@ -576,6 +577,43 @@ class Model:
 # --------------------------------------------------------------------------------------
 
 
+class Reason:
+    """A void, IOSS or skip reason as data (``iss_certificate::outcome``'s enums).
+
+    ``kind`` is the variant in snake_case — void: ``"l_phi_undefined"``,
+    ``"controller_undefined"``, ``"premise_fails"`` (``premise``, ``needed_by``, ``value``,
+    ``fix``), ``"premise_not_evaluated"`` (``premise``, ``because``), ``"gamma13"``
+    (``premise``, ``void``: a dict with its own ``kind``), ``"no_k"`` (``k_max``),
+    ``"no_pair"`` (``k_max``, ``spectral_radius``), ``"boundary_cut"`` (``max_corners``);
+    ``"ioss_failure"`` (``error``); skip: ``"over_variable_cap"``, ``"over_budget"``,
+    ``"no_sequences"``. The fields are attributes (and ``fields``, a dict); ``str(reason)``
+    is the sentence the CLI prints and certificate.json carries.
+    """
+
+    __slots__ = ("kind", "fields", "_text")
+
+    def __init__(self, data: Dict[str, Any]) -> None:
+        data = dict(data)
+        self.kind: str = data.pop("kind")
+        self._text: str = data.pop("text")
+        self.fields: Dict[str, Any] = data
+
+    def __getattr__(self, name: str) -> Any:
+        try:
+            return self.fields[name]
+        except KeyError:
+            raise AttributeError(f"a {self.kind!r} reason has no field {name!r}; it has {sorted(self.fields)}") from None
+
+    def __str__(self) -> str:
+        return self._text
+
+    def __eq__(self, other: object) -> bool:
+        return isinstance(other, Reason) and (self.kind, self.fields, self._text) == (other.kind, other.fields, other._text)
+
+    def __repr__(self) -> str:
+        return f"Reason(kind={self.kind!r}, {', '.join(f'{k}={v!r}' for k, v in self.fields.items())})"
+
+
 class Certificate:
     """The closed-loop certificate (Theorem 1 per method): ``certificate`` in certificate.json.
 
@@ -588,6 +626,7 @@ class Certificate:
         self._json = text
         self._dict: Dict[str, Any] = json.loads(text)
         self._native = native
+        self._typed: Optional[Dict[str, Any]] = None
 
     def verdict(self, method: str, k: int, scalar: str = "f64") -> Dict[str, Any]:
         """Is ``k`` iterations of ``method`` per step certified? (``Certificate::verdict``.)
@@ -632,8 +671,31 @@ class Certificate:
         return self._solver(method)["k_min"]
 
     def void_reasons(self, method: str) -> List[str]:
-        """Why the certificate of ``method`` is void (empty when K_min exists)."""
+        """Why the certificate of ``method`` is void (empty when K_min exists), as sentences."""
         return list(self._solver(method)["void_reasons"])
+
+    def _reasons(self) -> Dict[str, Any]:
+        if self._typed is None:
+            self._typed = json.loads(self._native.reasons_json())
+        return self._typed
+
+    def reasons(self, method: str) -> List["Reason"]:
+        """Why the certificate of ``method`` is void, as typed :class:`Reason` s (``kind``
+        and fields; ``str(reason)`` is the sentence of :meth:`void_reasons`)."""
+        self._solver(method)  # names the argument when the method is not certified
+        return [Reason(r) for r in self._reasons()["void"].get(method, [])]
+
+    @property
+    def ioss_failure(self) -> Optional["Reason"]:
+        """Why LMI (2) failed (``kind == "ioss_failure"``, ``error``), or ``None``."""
+        r = self._reasons()["ioss"]
+        return None if r is None else Reason(r)
+
+    @property
+    def skipped(self) -> List["Reason"]:
+        """The γ₁,₃ computations not run, each a :class:`Reason` with ``computation`` and
+        ``kind`` ``"over_variable_cap"``, ``"over_budget"`` or ``"no_sequences"``."""
+        return [Reason(r) for r in self._reasons()["skipped"]]
 
     @property
     def k_mins(self) -> Dict[str, Optional[int]]:

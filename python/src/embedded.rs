@@ -152,7 +152,9 @@ unsafe impl Send for F32Estimator {}
 
 impl std::fmt::Debug for F32Estimator {
     fn fmt(&self, f: &mut std::fmt::Formatter<'_>) -> std::fmt::Result {
-        f.debug_struct("F32Estimator").field("nx", &self.nx).finish()
+        f.debug_struct("F32Estimator")
+            .field("nx", &self.nx)
+            .finish()
     }
 }
 

@@ -385,26 +385,25 @@ impl Estimator {
             disturbance_box.as_ref(),
         )?;
         // P from LMI (2) and the condensed windows: the long part, without the GIL.
-        let (settings, mhe, f32) = py
-            .detach(move || -> Result<_, PyErr> {
-                let settings = b.build(&sys).map_err(|e| estimator_err(&e))?;
-                let mhe = settings
-                    .estimator(&sys, &sets, &prior)
-                    .map_err(|e| estimator_err(&e))?;
-                let f32 = if single {
-                    let est = embedded::F32Estimator::new(&mhe, &sys, &prior).map_err(|e| {
-                        UnsupportedError::new_err(format!("argument `dtype` = \"float32\": {e}"))
-                    })?;
-                    Some(Mutex::new(F32State {
-                        est,
-                        u: vec![0.0; sys.nu()],
-                        y: vec![0.0; sys.ny()],
-                    }))
-                } else {
-                    None
-                };
-                Ok((settings, mhe, f32))
-            })?;
+        let (settings, mhe, f32) = py.detach(move || -> Result<_, PyErr> {
+            let settings = b.build(&sys).map_err(|e| estimator_err(&e))?;
+            let mhe = settings
+                .estimator(&sys, &sets, &prior)
+                .map_err(|e| estimator_err(&e))?;
+            let f32 = if single {
+                let est = embedded::F32Estimator::new(&mhe, &sys, &prior).map_err(|e| {
+                    UnsupportedError::new_err(format!("argument `dtype` = \"float32\": {e}"))
+                })?;
+                Some(Mutex::new(F32State {
+                    est,
+                    u: vec![0.0; sys.nu()],
+                    y: vec![0.0; sys.ny()],
+                }))
+            } else {
+                None
+            };
+            Ok((settings, mhe, f32))
+        })?;
         let nx = plant.sys.nx();
         Ok(Self {
             mhe: Mutex::new(mhe),
@@ -440,14 +439,16 @@ impl Estimator {
     fn estimate_into(&self, out: &Bound<'_, PyAny>) -> PyResult<()> {
         if let Some(f) = &self.f32 {
             let out = out.cast::<PyArray1<f32>>().map_err(|_| {
-                ShapeError::new_err("argument `out` must be a 1-D float32 array (dtype=\"float32\")")
+                ShapeError::new_err(
+                    "argument `out` must be a 1-D float32 array (dtype=\"float32\")",
+                )
             })?;
             let mut f = f.lock().map_err(poisoned)?;
             return copy_out(out, f.est.estimate(), self.nx);
         }
-        let out = out.cast::<PyArray1<f64>>().map_err(|_| {
-            ShapeError::new_err("argument `out` must be a 1-D float64 array")
-        })?;
+        let out = out
+            .cast::<PyArray1<f64>>()
+            .map_err(|_| ShapeError::new_err("argument `out` must be a 1-D float64 array"))?;
         let mut mhe = self.mhe()?;
         let x = mhe.estimate().map_err(|e| mhe_err(&e))?;
         copy_out(out, x, self.nx)
@@ -539,7 +540,10 @@ impl Estimator {
                 .collect()
         };
         let pairs: Vec<_> = rows(&u).into_iter().zip(rows(&y)).collect();
-        let p32: Vec<f32> = slice_of(&prior, "prior")?.iter().map(|x| *x as f32).collect();
+        let p32: Vec<f32> = slice_of(&prior, "prior")?
+            .iter()
+            .map(|x| *x as f32)
+            .collect();
         let f = f.lock().map_err(poisoned)?;
         let xs = embedded::replay_const_case_study(f.est.problem(), &p32, &pairs)
             .ok_or_else(|| ShapeError::new_err("not the case study's sizes or a bad pair"))?;

@@ -11,7 +11,9 @@ use serde_json::{Value, json};
 /// `{kind, …fields, text}` of one void reason.
 pub(crate) fn void_reason(r: &VoidReason) -> Value {
     let mut v = match r {
-        VoidReason::LPhiUndefined { reason } => json!({"kind": "l_phi_undefined", "reason": reason}),
+        VoidReason::LPhiUndefined { reason } => {
+            json!({"kind": "l_phi_undefined", "reason": reason})
+        }
         VoidReason::ControllerUndefined { reason } => {
             json!({"kind": "controller_undefined", "reason": reason})
         }

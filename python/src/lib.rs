@@ -25,6 +25,7 @@ use std::sync::{Mutex, MutexGuard};
 
 mod embedded;
 mod reasons;
+mod sweep;
 
 create_exception!(
     suboptimal_mhe,
@@ -1198,5 +1199,6 @@ fn _native(m: &Bound<'_, PyModule>) -> PyResult<()> {
     m.add_function(wrap_pyfunction!(certify_json, m)?)?;
     m.add_function(wrap_pyfunction!(simulate, m)?)?;
     m.add_function(wrap_pyfunction!(set_kernel, m)?)?;
+    m.add_function(wrap_pyfunction!(sweep::sweep_run, m)?)?;
     Ok(())
 }

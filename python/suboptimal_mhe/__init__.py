@@ -49,6 +49,7 @@ __all__ = [
     "certify",
     "simulate",
     "set_kernel",
+    "sweep",
     "MheError",
     "InputError",
     "ShapeError",
@@ -812,3 +813,55 @@ def simulate(
     if method is not None and not isinstance(method, str):
         raise InputError(f"argument `method` must be a str, one of {METHODS}")
     return _native.simulate(sc._native, steps, seed, method, k)
+
+
+def _columns(path: str) -> Dict[str, np.ndarray]:
+    """A CSV table as {column: array}: float64 where every entry parses, else str."""
+    import csv
+
+    with open(path, newline="", encoding="utf-8") as f:
+        rows = [r for r in csv.reader(f) if r and not r[0].startswith("#")]
+    header, body = rows[0], rows[1:]
+    out: Dict[str, np.ndarray] = {}
+    for j, name in enumerate(header):
+        col = [r[j] if j < len(r) else "" for r in body]
+        try:
+            out[name] = np.array([float(v) for v in col], dtype=np.float64)
+        except ValueError:
+            out[name] = np.array(col, dtype=str)
+    return out
+
+
+def sweep(
+    config: "os.PathLike[str] | str",
+    out_dir: "os.PathLike[str] | str | None" = None,
+    *,
+    threads: int = 1,
+) -> Dict[str, Any]:
+    """Runs a sweep (``mhe_sweep::Sweep::run``, the engine of ``cargo xtask sweep``).
+
+    ``config`` is a sweep file (``sweeps/*.toml``, docs/sweep.md) or its TOML text (relative
+    paths then resolve from the current directory). The files go to ``out_dir`` (default: a
+    new temporary directory), as the CLI writes them; an existing ``out_dir`` of the same
+    sweep resumes. Returns ``{"points": {column: array}, "runs": {column: array},
+    "out_dir": path}`` — the columns of points.csv and runs.csv as NumPy arrays (float64, or
+    str for text columns), no pandas needed (``pandas.DataFrame(result["runs"])`` if you
+    want one).
+
+    Ctrl-C (``KeyboardInterrupt``) stops the sweep between two tasks (within one run or
+    theory task per thread) and is re-raised; the point files finished so far stay in
+    ``out_dir``, so calling again with the same ``out_dir`` resumes. The GIL is released
+    while the sweep runs.
+    """
+    import tempfile
+
+    threads = _positive_int("threads", threads, "the number of worker threads, e.g. 2")
+    if isinstance(config, os.PathLike) or (isinstance(config, str) and "\n" not in config and "=" not in config):
+        text, is_text = os.fspath(config), False
+    elif isinstance(config, str):
+        text, is_text = config, True
+    else:
+        raise InputError(f"argument `config` must be a path to a sweep file or its TOML text, got {type(config).__name__}")
+    out = tempfile.mkdtemp(prefix="suboptimal-mhe-sweep-") if out_dir is None else os.fspath(out_dir)
+    runs, points = _native.sweep_run(text, out, threads, is_text, os.getcwd() if is_text else None)
+    return {"points": _columns(points), "runs": _columns(runs), "out_dir": out}

@@ -158,3 +158,10 @@ def simulate(
     """x, x_hat, u, y, w, e_norm, x_kf, e_kf_norm (NumPy arrays) and kalman_error (str | None)."""
 
 def set_kernel(name: str) -> None: ...
+
+def sweep(
+    config: Union[str, os.PathLike[str]],
+    out_dir: Union[str, os.PathLike[str], None] = ...,
+    *,
+    threads: int = ...,
+) -> Dict[str, Any]: ...

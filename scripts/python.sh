@@ -4,8 +4,9 @@
 #
 #   1. python3 with venv and the headers: installed with apt-get when missing (root only;
 #      otherwise the script stops with a message and status 0, like a skipped step);
-#   2. a venv (VENV, default target/python-venv) with maturin, pytest, numpy, hypothesis;
-#   3. `maturin build --release` into target/wheels, `pip install` of that wheel;
+#   2. a venv (VENV, default target/python-venv) with pytest, numpy, hypothesis;
+#   3. `pip install ./python` (pyproject.toml: maturin as the build backend, fetched by pip;
+#      it builds the release abi3 wheel in CARGO_TARGET_DIR and installs it);
 #   4. pytest on python/tests, comparing with the release CLI (XTASK, built when missing).
 #
 # Usage: scripts/python.sh   (cold: 6.2 CPU-min, ≈ 3–4 min on 2 idle cores; warm: 14–40 s; docs/python.md)
@@ -47,12 +48,11 @@ if [ ! -x "$VENV/bin/python" ]; then
     python3 -m venv "$VENV"
 fi
 "$VENV/bin/python" -m pip install -q --upgrade pip
-"$VENV/bin/python" -m pip install -q "maturin>=1.5,<2" pytest numpy hypothesis
+"$VENV/bin/python" -m pip install -q pytest numpy hypothesis
 
-say "maturin build --release (abi3 wheel)"
-rm -rf "$CARGO_TARGET_DIR/wheels"
-(cd python && "$VENV/bin/maturin" build --release --quiet -i "$VENV/bin/python" --out "$CARGO_TARGET_DIR/wheels")
-"$VENV/bin/python" -m pip install -q --force-reinstall --no-deps "$CARGO_TARGET_DIR"/wheels/suboptimal_mhe-*.whl
+say "pip install ./python (maturin build backend: the release abi3 wheel)"
+# The README's one command; CARGO_TARGET_DIR (exported above) keeps the build incremental.
+"$VENV/bin/python" -m pip install -q --force-reinstall --no-deps "$ROOT/python"
 
 say "pytest python/tests"
 # From outside python/, so the installed wheel is tested, not the source tree.

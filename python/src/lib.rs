@@ -23,6 +23,10 @@ use pyo3::prelude::*;
 use qp_iter::{Method, MethodMap};
 use std::sync::{Mutex, MutexGuard};
 
+mod embedded;
+mod reasons;
+mod sweep;
+
 create_exception!(
     suboptimal_mhe,
     MheError,
@@ -244,25 +248,93 @@ struct Estimator {
     /// Behind a mutex: the iteration state has `Cell`s (Send, not Sync), and a Python
     /// object may be reached from several threads; uncontended, a lock costs nanoseconds.
     mhe: Mutex<MheEstimator<MethodMap>>,
+    /// `dtype="float32"`: the embedded f32 kernel on the same data (then `push`/`estimate`
+    /// go there; `mhe` only answers `p`).
+    f32: Option<Mutex<F32State>>,
     settings: MheSettings,
     /// n_x: the length `estimate_into` checks `out` against.
     nx: usize,
+}
+
+/// The f32 estimator and its input scratch (u, y rounded once to f32; no allocation per call).
+#[derive(Debug)]
+struct F32State {
+    est: embedded::F32Estimator,
+    u: Vec<f32>,
+    y: Vec<f32>,
+}
+
+impl F32State {
+    fn push(&mut self, u: &[f64], y: &[f64]) -> PyResult<()> {
+        let (nu, ny) = (self.u.len(), self.y.len());
+        for (name, got, want) in [("u", u.len(), nu), ("y", y.len(), ny)] {
+            if got != want {
+                return Err(ShapeError::new_err(format!(
+                    "argument `{name}` has length {got}, expected {want}"
+                )));
+            }
+        }
+        for (d, s) in self.u.iter_mut().zip(u) {
+            *d = *s as f32;
+        }
+        for (d, s) in self.y.iter_mut().zip(y) {
+            *d = *s as f32;
+        }
+        self.est.push(&self.u, &self.y).map_err(|e| {
+            NonFiniteError::new_err(format!(
+                "{e} in float32 (NaN, ±inf, or beyond ±3.4e38): the estimator is unchanged"
+            ))
+        })
+    }
+}
+
+fn poisoned<T>(_: T) -> PyErr {
+    MheError::new_err("the estimator failed inside an earlier call; create a new Estimator")
 }
 
 impl Estimator {
     /// The estimator, refused after a panic inside an earlier call (its state may be
     /// half-updated: a new estimator is the fix).
     fn mhe(&self) -> PyResult<MutexGuard<'_, MheEstimator<MethodMap>>> {
-        self.mhe.lock().map_err(|_| {
-            MheError::new_err("the estimator failed inside an earlier call; create a new Estimator")
-        })
+        self.mhe.lock().map_err(poisoned)
     }
+}
+
+/// The estimator's sets 𝒳, 𝒴, 𝒲 from the box arguments (None: the whole space), each
+/// checked against its dimension before anything is built.
+fn sets_of(
+    sys: &LtiSystem,
+    state_box: Option<&PyBox<'_>>,
+    output_box: Option<&PyBox<'_>>,
+    disturbance_box: Option<&PyBox<'_>>,
+) -> PyResult<MheSets> {
+    let one = |b: Option<&PyBox<'_>>, name: &str, n: usize| -> PyResult<qp_iter::BoxSet> {
+        let Some(b) = b else {
+            return Ok(qp_iter::BoxSet::whole(n));
+        };
+        let (l, u) = box_of(b, name)?;
+        if l.len() != n || u.len() != n {
+            return Err(ShapeError::new_err(format!(
+                "argument `{name}` has bounds of lengths ({}, {}), expected {n} each",
+                l.len(),
+                u.len()
+            )));
+        }
+        qp_iter::BoxSet::named(name, l.to_vec(), u.to_vec())
+            .map_err(|e| InputError::new_err(format!("argument `{name}`: {e}")))
+    };
+    Ok(MheSets {
+        state: one(state_box, "state_box", sys.nx())?,
+        output: one(output_box, "output_box", sys.ny())?,
+        disturbance: one(disturbance_box, "disturbance_box", sys.nw())?,
+    })
 }
 
 #[pymethods]
 impl Estimator {
     #[new]
-    #[pyo3(signature = (plant, horizon, eta, k, method, prior, q=None, r=None, p=None))]
+    #[pyo3(signature = (plant, horizon, eta, k, method, prior, q=None, r=None, p=None,
+        state_box=None, output_box=None, disturbance_box=None, dtype="float64"))]
     fn new(
         py: Python<'_>,
         plant: &Plant,
@@ -274,10 +346,23 @@ impl Estimator {
         q: Option<PyReadonlyArray2<'_, f64>>,
         r: Option<PyReadonlyArray2<'_, f64>>,
         p: Option<PyReadonlyArray2<'_, f64>>,
+        state_box: Option<PyBox<'_>>,
+        output_box: Option<PyBox<'_>>,
+        disturbance_box: Option<PyBox<'_>>,
+        dtype: &str,
     ) -> PyResult<Self> {
         let method: Method = method.parse().map_err(|e: qp_iter::QpError| {
             InputError::new_err(format!("argument `method`: {e}"))
         })?;
+        let single = match dtype {
+            "float64" => false,
+            "float32" => true,
+            other => {
+                return Err(InputError::new_err(format!(
+                    "argument `dtype` = {other:?}: use \"float64\" or \"float32\""
+                )));
+            }
+        };
         let mut b = MheSettings::builder()
             .horizon(horizon)
             .eta(eta)
@@ -294,17 +379,36 @@ impl Estimator {
         }
         let prior = slice_of(&prior, "prior")?.to_vec();
         let sys = plant.sys.clone();
+        let sets = sets_of(
+            &sys,
+            state_box.as_ref(),
+            output_box.as_ref(),
+            disturbance_box.as_ref(),
+        )?;
         // P from LMI (2) and the condensed windows: the long part, without the GIL.
-        let (settings, mhe) = py
-            .detach(move || -> Result<_, RustMheError> {
-                let settings = b.build(&sys)?;
-                let mhe = settings.estimator(&sys, &MheSets::unconstrained(&sys), &prior)?;
-                Ok((settings, mhe))
-            })
-            .map_err(|e| estimator_err(&e))?;
+        let (settings, mhe, f32) = py.detach(move || -> Result<_, PyErr> {
+            let settings = b.build(&sys).map_err(|e| estimator_err(&e))?;
+            let mhe = settings
+                .estimator(&sys, &sets, &prior)
+                .map_err(|e| estimator_err(&e))?;
+            let f32 = if single {
+                let est = embedded::F32Estimator::new(&mhe, &sys, &prior).map_err(|e| {
+                    UnsupportedError::new_err(format!("argument `dtype` = \"float32\": {e}"))
+                })?;
+                Some(Mutex::new(F32State {
+                    est,
+                    u: vec![0.0; sys.nu()],
+                    y: vec![0.0; sys.ny()],
+                }))
+            } else {
+                None
+            };
+            Ok((settings, mhe, f32))
+        })?;
         let nx = plant.sys.nx();
         Ok(Self {
             mhe: Mutex::new(mhe),
+            f32,
             settings,
             nx,
         })
@@ -313,39 +417,46 @@ impl Estimator {
     /// Appends (u_t, y_t) to the window.
     fn push(&self, u: PyReadonlyArray1<'_, f64>, y: PyReadonlyArray1<'_, f64>) -> PyResult<()> {
         let (u, y) = (slice_of(&u, "u")?, slice_of(&y, "y")?);
+        if let Some(f) = &self.f32 {
+            return f.lock().map_err(poisoned)?.push(u, y);
+        }
         self.mhe()?.push(u, y).map_err(|e| mhe_err(&e))
     }
 
-    /// x̂_{t|t}: K iterations on the current window (a new array each call).
-    fn estimate<'py>(&self, py: Python<'py>) -> PyResult<Bound<'py, PyArray1<f64>>> {
+    /// x̂_{t|t}: K iterations on the current window (a new array each call; float32 for
+    /// `dtype="float32"`).
+    fn estimate<'py>(&self, py: Python<'py>) -> PyResult<Bound<'py, PyAny>> {
+        if let Some(f) = &self.f32 {
+            let mut f = f.lock().map_err(poisoned)?;
+            return Ok(PyArray1::from_slice(py, f.est.estimate()).into_any());
+        }
         let mut mhe = self.mhe()?;
         let x = mhe.estimate().map_err(|e| mhe_err(&e))?;
-        Ok(PyArray1::from_slice(py, x))
+        Ok(PyArray1::from_slice(py, x).into_any())
     }
 
-    /// x̂_{t|t} written into `out` (length n_x, float64): no allocation per call.
-    fn estimate_into(&self, out: &Bound<'_, PyArray1<f64>>) -> PyResult<()> {
+    /// x̂_{t|t} written into `out` (length n_x, float64; float32 for `dtype="float32"`): no
+    /// allocation per call.
+    fn estimate_into(&self, out: &Bound<'_, PyAny>) -> PyResult<()> {
+        if let Some(f) = &self.f32 {
+            let out = out.cast::<PyArray1<f32>>().map_err(|_| {
+                ShapeError::new_err(
+                    "argument `out` must be a 1-D float32 array (dtype=\"float32\")",
+                )
+            })?;
+            let mut f = f.lock().map_err(poisoned)?;
+            return copy_out(out, f.est.estimate(), self.nx);
+        }
+        let out = out
+            .cast::<PyArray1<f64>>()
+            .map_err(|_| ShapeError::new_err("argument `out` must be a 1-D float64 array"))?;
         let mut mhe = self.mhe()?;
         let x = mhe.estimate().map_err(|e| mhe_err(&e))?;
-        let mut w = out
-            .try_readwrite()
-            .map_err(|e| InputError::new_err(format!("argument `out`: {e}")))?;
-        let dst = w.as_slice_mut().map_err(|_| {
-            ShapeError::new_err("argument `out` must be a contiguous 1-D float64 array")
-        })?;
-        if dst.len() != self.nx {
-            return Err(ShapeError::new_err(format!(
-                "argument `out` has length {}, expected n_x = {}",
-                dst.len(),
-                self.nx
-            )));
-        }
-        dst.copy_from_slice(x);
-        Ok(())
+        copy_out(out, x, self.nx)
     }
 
     /// Wall seconds of `n` calls of `push(u, y)` + `estimate()` made in Rust alone: the
-    /// baseline of the per-call overhead benchmark (python/benches/overhead.py).
+    /// baseline of the per-call overhead benchmark (benches/python/overhead.py).
     fn time_rust_calls(
         &self,
         u: PyReadonlyArray1<'_, f64>,
@@ -353,6 +464,15 @@ impl Estimator {
         n: usize,
     ) -> PyResult<f64> {
         let (u, y) = (slice_of(&u, "u")?, slice_of(&y, "y")?);
+        if let Some(f) = &self.f32 {
+            let mut f = f.lock().map_err(poisoned)?;
+            let t0 = std::time::Instant::now();
+            for _ in 0..n {
+                f.push(u, y)?;
+                std::hint::black_box(f.est.estimate());
+            }
+            return Ok(t0.elapsed().as_secs_f64());
+        }
         let mut mhe = self.mhe()?;
         let t0 = std::time::Instant::now();
         for _ in 0..n {
@@ -365,12 +485,25 @@ impl Estimator {
     /// Restarts at t = 0 with the prior x̄₀ = `prior`.
     fn reset(&self, prior: PyReadonlyArray1<'_, f64>) -> PyResult<()> {
         let prior = slice_of(&prior, "prior")?;
+        if let Some(f) = &self.f32 {
+            let p32: Vec<f32> = prior.iter().map(|x| *x as f32).collect();
+            return f
+                .lock()
+                .map_err(poisoned)?
+                .est
+                .reset(&p32)
+                .map_err(|e| ShapeError::new_err(format!("argument `prior`: {e}")));
+        }
         self.mhe()?.reset(prior).map_err(|e| mhe_err(&e))
     }
 
-    /// Time step t (number of pushes since the last reset).
+    /// Time step t (number of pushes since the last reset; the f32 kernel saturates it at
+    /// M + 1, as the board's).
     #[getter]
     fn t(&self) -> PyResult<usize> {
+        if let Some(f) = &self.f32 {
+            return Ok(f.lock().map_err(poisoned)?.est.t());
+        }
         Ok(self.mhe()?.t())
     }
 
@@ -386,6 +519,61 @@ impl Estimator {
         let s = &self.settings;
         (s.horizon, s.eta, s.iterations, s.method.name().into_owned())
     }
+
+    /// Test hook: the board's const-size `mhe_embedded::Mhe<f32, 4, 2, 1, 9, 49, 31>` (the
+    /// case study's sizes) on this estimator's f32 data from `prior`, fed the rows of `u`
+    /// and `y`: x̂ before each push and after the last (steps + 1 rows, float32).
+    fn _replay_const_case_study<'py>(
+        &self,
+        py: Python<'py>,
+        prior: PyReadonlyArray1<'_, f64>,
+        u: PyReadonlyArray2<'_, f64>,
+        y: PyReadonlyArray2<'_, f64>,
+    ) -> PyResult<Bound<'py, PyArray2<f32>>> {
+        let Some(f) = &self.f32 else {
+            return Err(UnsupportedError::new_err("dtype=\"float32\" only"));
+        };
+        let rows = |a: &PyReadonlyArray2<'_, f64>| -> Vec<Vec<f32>> {
+            a.as_array()
+                .rows()
+                .into_iter()
+                .map(|r| r.iter().map(|x| *x as f32).collect())
+                .collect()
+        };
+        let pairs: Vec<_> = rows(&u).into_iter().zip(rows(&y)).collect();
+        let p32: Vec<f32> = slice_of(&prior, "prior")?
+            .iter()
+            .map(|x| *x as f32)
+            .collect();
+        let f = f.lock().map_err(poisoned)?;
+        let xs = embedded::replay_const_case_study(f.est.problem(), &p32, &pairs)
+            .ok_or_else(|| ShapeError::new_err("not the case study's sizes or a bad pair"))?;
+        let flat: Vec<f32> = xs.iter().flatten().copied().collect();
+        let arr = PyArray1::from_vec(py, flat);
+        arr.reshape([xs.len(), 4])
+    }
+}
+
+/// Copies `x` into the 1-D array `out` after checking its length against n_x.
+fn copy_out<T: numpy::Element + Copy>(
+    out: &Bound<'_, PyArray1<T>>,
+    x: &[T],
+    nx: usize,
+) -> PyResult<()> {
+    let mut w = out
+        .try_readwrite()
+        .map_err(|e| InputError::new_err(format!("argument `out`: {e}")))?;
+    let dst = w
+        .as_slice_mut()
+        .map_err(|_| ShapeError::new_err("argument `out` must be a contiguous 1-D array"))?;
+    if dst.len() != nx {
+        return Err(ShapeError::new_err(format!(
+            "argument `out` has length {}, expected n_x = {nx}",
+            dst.len()
+        )));
+    }
+    dst.copy_from_slice(x);
+    Ok(())
 }
 
 /// A validated scenario (`closed_loop::scenario::Scenario`).
@@ -848,14 +1036,55 @@ impl PyCertificate {
         serde_json::to_string(cert).map_err(|e| MheError::new_err(e.to_string()))
     }
 
-    /// The one verdict rule at (method, k) as JSON (`PairVerdict`): `Certificate::verdict`
-    /// for a model, `coverage::verdict` (the same function) for a scenario.
-    fn verdict(&self, method: &str, k: usize) -> PyResult<String> {
+    /// Every void, IOSS and skip reason as typed data (JSON: `reasons::all`).
+    fn reasons_json(&self) -> PyResult<String> {
+        let cert = match &self.held {
+            Held::Model(c) => c.closed_loop(),
+            Held::Scenario { cert, .. } => cert,
+        };
+        serde_json::to_string(&reasons::all(cert)).map_err(|e| MheError::new_err(e.to_string()))
+    }
+
+    /// The one verdict rule at (method, k) in `scalar` ("f64" or "f32") as JSON
+    /// (`PairVerdict`): `coverage::verdict` (behind `Certificate::verdict` for a model), f32
+    /// folding the rounding model into Theorem 1.
+    #[pyo3(signature = (method, k, scalar="f64"))]
+    fn verdict(&self, method: &str, k: usize, scalar: &str) -> PyResult<String> {
         let method: Method = method.parse().map_err(|e: qp_iter::QpError| {
             InputError::new_err(format!("argument `method`: {e}"))
         })?;
+        let scalar = match scalar {
+            "f64" | "float64" => Scalar::F64,
+            "f32" | "float32" => Scalar::F32,
+            other => {
+                return Err(InputError::new_err(format!(
+                    "argument `scalar` = {other:?}: use \"f64\" or \"f32\""
+                )));
+            }
+        };
         let v = match &self.held {
-            Held::Model(c) => c.verdict(method, k),
+            Held::Model(c) if scalar == Scalar::F64 => c.verdict(method, k),
+            Held::Model(c) => {
+                let resolved = c.model().resolved();
+                // The model's controller, as `LoopModelBuilder::build` chose it.
+                let controller = match resolved.scenario().mpc.as_ref() {
+                    Some(m) => match m.iterations {
+                        Some(iterations) => ControllerChoice::SuboptimalMpc {
+                            iterations,
+                            method: m.method,
+                        },
+                        None => ControllerChoice::ExactMpc,
+                    },
+                    None => ControllerChoice::ExactMpc,
+                };
+                let config = Configuration {
+                    method,
+                    k_e: k,
+                    controller,
+                    scalar,
+                };
+                coverage::verdict(resolved, c.closed_loop(), &config)
+            }
             Held::Scenario {
                 resolved,
                 cert,
@@ -865,7 +1094,7 @@ impl PyCertificate {
                     method,
                     k_e: k,
                     controller: *controller,
-                    scalar: Scalar::F64,
+                    scalar,
                 };
                 coverage::verdict(resolved, cert, &config)
             }
@@ -970,5 +1199,6 @@ fn _native(m: &Bound<'_, PyModule>) -> PyResult<()> {
     m.add_function(wrap_pyfunction!(certify_json, m)?)?;
     m.add_function(wrap_pyfunction!(simulate, m)?)?;
     m.add_function(wrap_pyfunction!(set_kernel, m)?)?;
+    m.add_function(wrap_pyfunction!(sweep::sweep_run, m)?)?;
     Ok(())
 }

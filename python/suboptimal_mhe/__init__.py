@@ -45,9 +45,11 @@ __all__ = [
     "Scenario",
     "Model",
     "Certificate",
+    "Reason",
     "certify",
     "simulate",
     "set_kernel",
+    "sweep",
     "MheError",
     "InputError",
     "ShapeError",
@@ -271,8 +273,22 @@ class Estimator:
     ``est.push(u_t, y_t)``, the same order as ``mhe_core::MheEstimator`` (do-mpc's
     ``make_step`` is ``push`` followed by ``estimate``).
 
-    ``dtype="float32"`` (the microcontroller's single-precision kernel) is not available in
-    this version and raises :class:`UnsupportedError`; use ``cargo xtask export`` for it.
+    ``state_box``, ``output_box`` and ``disturbance_box`` are the sets 𝒳 (n_x), 𝒴 (n_y)
+    and 𝒲 (n_w = n_w1 + n_w2: the process then the measurement noise) as pairs
+    ``(lower, upper)`` (±inf allowed; default: the whole space). 𝒲 and the x̂₀ part of 𝒳
+    are boxes of the QP; 𝒳 at the later stages and 𝒴 become general rows of the QP
+    (``mhe_core::MheSets``). Arbitrary polyhedral sets Gx ≤ h are not supported by the
+    library: only boxes.
+
+    ``dtype="float32"`` runs the microcontroller's single-precision kernel
+    (``mhe_embedded``: the same data as ``cargo xtask export --scalar f32`` writes, rounded
+    once, and the same operations in the same order), so the estimates are the board's bits;
+    they are float32 arrays. It covers the methods the board runs — ``pg``, ``fista``,
+    ``admm``, ``admm-pr``, plain or ``-jacobi`` — on box sets only (no ``state_box``/``output_box``, which
+    make general rows) and unstructured windows; anything else raises
+    :class:`UnsupportedError`. ``u`` and ``y`` are rounded to float32 once per push. Whether
+    K is certified in f32 is ``Certificate.verdict(method, k, scalar="f32")`` (Theorem 1 with
+    the f32 rounding folded in).
     """
 
     def __init__(
@@ -286,18 +302,19 @@ class Estimator:
         r: Any = None,
         p: Any = None,
         prior: Any = None,
-        dtype: str = "float64",
+        dtype: Any = "float64",
+        state_box: Any = None,
+        output_box: Any = None,
+        disturbance_box: Any = None,
     ) -> None:
         if not isinstance(model, Plant):
             raise InputError(f"argument `model` must be a suboptimal_mhe.Plant, got {type(model).__name__}")
-        if dtype not in ("float64", np.float64, "float32", np.float32):
-            raise InputError(f"argument `dtype` = {dtype!r}: use \"float64\" (or \"float32\", not yet available)")
-        if dtype in ("float32", np.float32):
-            raise UnsupportedError(
-                "argument `dtype` = \"float32\": the f32 kernel of mhe-embedded has compile-time sizes "
-                "and is not callable from Python yet; use dtype=\"float64\", or `cargo xtask export` "
-                "for the board's f32 code"
-            )
+        if isinstance(dtype, str) and dtype in ("float64", "float32"):
+            pass
+        elif dtype is np.float64 or dtype is np.float32:
+            dtype = np.dtype(dtype).name
+        else:
+            raise InputError(f"argument `dtype` = {dtype!r}: use \"float64\" or \"float32\"")
         horizon = _positive_int("horizon", horizon, "the horizon M is a number of steps, e.g. 10")
         k = _positive_int("k", k, "K is the number of iterations per step, e.g. 20")
         eta = _eta(eta)
@@ -309,7 +326,14 @@ class Estimator:
         rm = None if r is None else _weight("r", r, ny)
         pm = None if p is None else _weight("p", p, nx)
         x0 = np.zeros(nx) if prior is None else _vector("prior", prior, nx)
-        self._native = _native._Estimator(model._native, horizon, eta, k, method, x0, q=qm, r=rm, p=pm)
+        sb = _box("state_box", state_box, nx)
+        ob = _box("output_box", output_box, ny)
+        db = _box("disturbance_box", disturbance_box, nw)
+        self.dtype = np.dtype(dtype)
+        self._native = _native._Estimator(
+            model._native, horizon, eta, k, method, x0, q=qm, r=rm, p=pm,
+            state_box=sb, output_box=ob, disturbance_box=db, dtype=self.dtype.name,
+        )
         self._u = np.empty(model.nu)
         self._y = np.empty(ny)
 
@@ -326,8 +350,8 @@ class Estimator:
     def estimate(self, out: Optional[np.ndarray] = None) -> np.ndarray:
         """x̂_{t|t} (length n_x): K iterations on the current window.
 
-        With ``out`` (a float64 array of length n_x) the estimate is written into it and
-        ``out`` is returned: no allocation per call.
+        With ``out`` (an array of length n_x of the estimator's dtype) the estimate is
+        written into it and ``out`` is returned: no allocation per call.
         """
         if out is None:
             return self._native.estimate()
@@ -554,6 +578,43 @@ class Model:
 # --------------------------------------------------------------------------------------
 
 
+class Reason:
+    """A void, IOSS or skip reason as data (``iss_certificate::outcome``'s enums).
+
+    ``kind`` is the variant in snake_case — void: ``"l_phi_undefined"``,
+    ``"controller_undefined"``, ``"premise_fails"`` (``premise``, ``needed_by``, ``value``,
+    ``fix``), ``"premise_not_evaluated"`` (``premise``, ``because``), ``"gamma13"``
+    (``premise``, ``void``: a dict with its own ``kind``), ``"no_k"`` (``k_max``),
+    ``"no_pair"`` (``k_max``, ``spectral_radius``), ``"boundary_cut"`` (``max_corners``);
+    ``"ioss_failure"`` (``error``); skip: ``"over_variable_cap"``, ``"over_budget"``,
+    ``"no_sequences"``. The fields are attributes (and ``fields``, a dict); ``str(reason)``
+    is the sentence the CLI prints and certificate.json carries.
+    """
+
+    __slots__ = ("kind", "fields", "_text")
+
+    def __init__(self, data: Dict[str, Any]) -> None:
+        data = dict(data)
+        self.kind: str = data.pop("kind")
+        self._text: str = data.pop("text")
+        self.fields: Dict[str, Any] = data
+
+    def __getattr__(self, name: str) -> Any:
+        try:
+            return self.fields[name]
+        except KeyError:
+            raise AttributeError(f"a {self.kind!r} reason has no field {name!r}; it has {sorted(self.fields)}") from None
+
+    def __str__(self) -> str:
+        return self._text
+
+    def __eq__(self, other: object) -> bool:
+        return isinstance(other, Reason) and (self.kind, self.fields, self._text) == (other.kind, other.fields, other._text)
+
+    def __repr__(self) -> str:
+        return f"Reason(kind={self.kind!r}, {', '.join(f'{k}={v!r}' for k, v in self.fields.items())})"
+
+
 class Certificate:
     """The closed-loop certificate (Theorem 1 per method): ``certificate`` in certificate.json.
 
@@ -566,9 +627,14 @@ class Certificate:
         self._json = text
         self._dict: Dict[str, Any] = json.loads(text)
         self._native = native
+        self._typed: Optional[Dict[str, Any]] = None
 
-    def verdict(self, method: str, k: int) -> Dict[str, Any]:
+    def verdict(self, method: str, k: int, scalar: str = "f64") -> Dict[str, Any]:
         """Is ``k`` iterations of ``method`` per step certified? (``Certificate::verdict``.)
+
+        ``scalar="f32"`` asks for the f32 arithmetic of ``Estimator(..., dtype="float32")``
+        and the board: Theorem 1 with the f32 rounding folded in (the verdict of
+        ``cargo xtask export --scalar f32``).
 
         A dict: ``certified`` (``"yes"``, ``"no"``: too few iterations, ``"void"``: a premise
         fails, ``reason`` says which, or ``"not_computed"``: the analysis budget stopped a
@@ -578,7 +644,9 @@ class Certificate:
         if not isinstance(method, str):
             raise InputError(f"argument `method` must be a str, one of {METHODS} (optionally with -jacobi)")
         k = _positive_int("k", k, "K is the number of iterations per step")
-        return json.loads(self._native.verdict(method, k))
+        if scalar not in ("f64", "f32"):
+            raise InputError(f"argument `scalar` = {scalar!r}: use \"f64\" or \"f32\"")
+        return json.loads(self._native.verdict(method, k, scalar))
 
     def to_json(self) -> str:
         """The JSON text, as the Rust code serialised it."""
@@ -604,8 +672,31 @@ class Certificate:
         return self._solver(method)["k_min"]
 
     def void_reasons(self, method: str) -> List[str]:
-        """Why the certificate of ``method`` is void (empty when K_min exists)."""
+        """Why the certificate of ``method`` is void (empty when K_min exists), as sentences."""
         return list(self._solver(method)["void_reasons"])
+
+    def _reasons(self) -> Dict[str, Any]:
+        if self._typed is None:
+            self._typed = json.loads(self._native.reasons_json())
+        return self._typed
+
+    def reasons(self, method: str) -> List["Reason"]:
+        """Why the certificate of ``method`` is void, as typed :class:`Reason` s (``kind``
+        and fields; ``str(reason)`` is the sentence of :meth:`void_reasons`)."""
+        self._solver(method)  # names the argument when the method is not certified
+        return [Reason(r) for r in self._reasons()["void"].get(method, [])]
+
+    @property
+    def ioss_failure(self) -> Optional["Reason"]:
+        """Why LMI (2) failed (``kind == "ioss_failure"``, ``error``), or ``None``."""
+        r = self._reasons()["ioss"]
+        return None if r is None else Reason(r)
+
+    @property
+    def skipped(self) -> List["Reason"]:
+        """The γ₁,₃ computations not run, each a :class:`Reason` with ``computation`` and
+        ``kind`` ``"over_variable_cap"``, ``"over_budget"`` or ``"no_sequences"``."""
+        return [Reason(r) for r in self._reasons()["skipped"]]
 
     @property
     def k_mins(self) -> Dict[str, Optional[int]]:
@@ -722,3 +813,55 @@ def simulate(
     if method is not None and not isinstance(method, str):
         raise InputError(f"argument `method` must be a str, one of {METHODS}")
     return _native.simulate(sc._native, steps, seed, method, k)
+
+
+def _columns(path: str) -> Dict[str, np.ndarray]:
+    """A CSV table as {column: array}: float64 where every entry parses, else str."""
+    import csv
+
+    with open(path, newline="", encoding="utf-8") as f:
+        rows = [r for r in csv.reader(f) if r and not r[0].startswith("#")]
+    header, body = rows[0], rows[1:]
+    out: Dict[str, np.ndarray] = {}
+    for j, name in enumerate(header):
+        col = [r[j] if j < len(r) else "" for r in body]
+        try:
+            out[name] = np.array([float(v) for v in col], dtype=np.float64)
+        except ValueError:
+            out[name] = np.array(col, dtype=str)
+    return out
+
+
+def sweep(
+    config: "os.PathLike[str] | str",
+    out_dir: "os.PathLike[str] | str | None" = None,
+    *,
+    threads: int = 1,
+) -> Dict[str, Any]:
+    """Runs a sweep (``mhe_sweep::Sweep::run``, the engine of ``cargo xtask sweep``).
+
+    ``config`` is a sweep file (``sweeps/*.toml``, docs/sweep.md) or its TOML text (relative
+    paths then resolve from the current directory). The files go to ``out_dir`` (default: a
+    new temporary directory), as the CLI writes them; an existing ``out_dir`` of the same
+    sweep resumes. Returns ``{"points": {column: array}, "runs": {column: array},
+    "out_dir": path}`` — the columns of points.csv and runs.csv as NumPy arrays (float64, or
+    str for text columns), no pandas needed (``pandas.DataFrame(result["runs"])`` if you
+    want one).
+
+    Ctrl-C (``KeyboardInterrupt``) stops the sweep between two tasks (within one run or
+    theory task per thread) and is re-raised; the point files finished so far stay in
+    ``out_dir``, so calling again with the same ``out_dir`` resumes. The GIL is released
+    while the sweep runs.
+    """
+    import tempfile
+
+    threads = _positive_int("threads", threads, "the number of worker threads, e.g. 2")
+    if isinstance(config, os.PathLike) or (isinstance(config, str) and "\n" not in config and "=" not in config):
+        text, is_text = os.fspath(config), False
+    elif isinstance(config, str):
+        text, is_text = config, True
+    else:
+        raise InputError(f"argument `config` must be a path to a sweep file or its TOML text, got {type(config).__name__}")
+    out = tempfile.mkdtemp(prefix="suboptimal-mhe-sweep-") if out_dir is None else os.fspath(out_dir)
+    runs, points = _native.sweep_run(text, out, threads, is_text, os.getcwd() if is_text else None)
+    return {"points": _columns(points), "runs": _columns(runs), "out_dir": out}

@@ -32,6 +32,10 @@ pub enum SweepError {
         /// What is wrong.
         problem: String,
     },
+    /// [`crate::Progress::cancelled`] returned `true`: stopped between tasks (the point
+    /// files written so far are kept; a rerun resumes from them).
+    #[error("the sweep was cancelled (the finished point files are kept; rerun to resume)")]
+    Cancelled,
     /// `threads` = 0 or the rayon pool could not start.
     #[error("threads: {0}")]
     Threads(String),

@@ -231,6 +231,14 @@ impl Shared<'_> {
             if helped {
                 help_s += h.elapsed().as_secs_f64();
             }
+            if self.progress.cancelled() {
+                lock(&self.error).get_or_insert(SweepError::Cancelled);
+                self.abort.store(true, Ordering::Relaxed);
+                // Wake the workers waiting for a theory task.
+                let _ready = lock(&self.ready);
+                self.finished.notify_all();
+                break;
+            }
             let Some(i) = self.next_task() else {
                 break;
             };

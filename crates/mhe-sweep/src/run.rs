@@ -65,6 +65,13 @@ pub trait Progress: Sync {
     fn notice(&self, message: &str) {
         let _ = message;
     }
+    /// Polled by every worker between two tasks: `true` stops the sweep — no new task
+    /// starts, the running ones finish, and [`Sweep::run`] returns
+    /// [`crate::SweepError::Cancelled`] (point files already written stay valid, so a rerun
+    /// resumes). The Python binding sets it on Ctrl-C.
+    fn cancelled(&self) -> bool {
+        false
+    }
 }
 
 /// A [`Progress`] that reports nothing.

@@ -3,11 +3,13 @@
 //! full validation, atomic writes under unique temporary names, and [`Table`] to read a
 //! CSV back.
 //!
-//! A point file is a line `# suboptimal-mhe sweep point v1 <fingerprint>`, the point's
-//! rows of `runs.csv` (no header), a line `=`, and its row of `points.csv`. Before a point
-//! file is reused (resume, merge) every cell is checked against the point and the sweep
-//! ([`PointFile::validate`]): a file cut, edited or copied from another point is refused
-//! with its path and line, never copied into the outputs.
+//! A point file is a line `# suboptimal-mhe sweep point v2 <fingerprint>`, the point's
+//! rows of `runs.csv` (no header), a line `=`, its row of `points.csv`, and a line
+//! `# fnv1a <16 hex digits>`: the checksum of everything before it. Before a point file is
+//! reused (resume, merge) every cell is checked against the point and the sweep
+//! ([`PointFile::validate`]), then the checksum: a file cut, edited (even below the printed
+//! digits of the summary) or copied from another point is refused with its path and line,
+//! never copied into the outputs.
 
 pub(super) use closed_loop::metrics::csv_text;
 use std::fmt::Write as _;
@@ -81,7 +83,11 @@ pub(super) fn settings_diff(recorded: &str, fingerprint: &str, canonical: &str) 
 }
 
 /// First line of every point file (followed by the fingerprint).
-const POINT_FILE_MAGIC: &str = "# suboptimal-mhe sweep point v1";
+const POINT_FILE_MAGIC: &str = "# suboptimal-mhe sweep point v2";
+/// The first line of a point file written before the checksum line (refused by name).
+const POINT_FILE_MAGIC_V1: &str = "# suboptimal-mhe sweep point v1";
+/// Last line of every point file (followed by the FNV-1a checksum of the text before it).
+const POINT_FILE_CHECKSUM: &str = "# fnv1a";
 /// Line separating the run rows from the summary row in a point file.
 const POINT_FILE_SEPARATOR: &str = "=";
 
@@ -298,6 +304,11 @@ pub struct PointFile {
     pub run_rows: Vec<String>,
     /// Its row of `points.csv`.
     pub point_row: String,
+    /// Read back with a checksum line that does not match its text: an edit the cell checks
+    /// cannot see (a run cell changed below the summary's printed digits, an optional cell
+    /// emptied). [`PointFile::validate`] refuses it after the cell checks, which name the
+    /// line and column of any edit they do see.
+    pub(super) edited: bool,
 }
 
 /// Name of the point file of point `index`.
@@ -544,6 +555,8 @@ impl PointFile {
         s.push('\n');
         s.push_str(&self.point_row);
         s.push('\n');
+        let digest = fnv1a(s.as_bytes());
+        let _ = writeln!(s, "{POINT_FILE_CHECKSUM} {digest:016x}");
         s
     }
 
@@ -553,6 +566,11 @@ impl PointFile {
         let bad = |problem: &str| point_file_err(path, problem);
         let mut lines = text.lines();
         let first = lines.next().ok_or_else(|| bad("empty"))?;
+        if first.starts_with(POINT_FILE_MAGIC_V1) {
+            return Err(bad(
+                "written by an older version (point file v1, without the checksum line)",
+            ));
+        }
         let fingerprint = first
             .strip_prefix(POINT_FILE_MAGIC)
             .map(str::trim)
@@ -569,16 +587,28 @@ impl PointFile {
             run_rows.push(line.to_string());
         }
         let point_row = point_row.ok_or_else(|| bad("no summary row"))?.to_string();
+        let checksum = lines
+            .next()
+            .ok_or_else(|| bad("no checksum line after the summary row (cut)"))?;
+        let stored = checksum
+            .strip_prefix(POINT_FILE_CHECKSUM)
+            .map(str::trim)
+            .filter(|h| h.len() == 16)
+            .and_then(|h| u64::from_str_radix(h, 16).ok())
+            .ok_or_else(|| bad("the line after the summary row is not `# fnv1a <16 hex digits>`"))?;
         if lines.next().is_some() {
-            return Err(bad("text after the summary row"));
+            return Err(bad("text after the checksum line"));
         }
         if !text.ends_with('\n') {
             return Err(bad("truncated (no final line break)"));
         }
+        // The checksum covers every byte before its own line.
+        let body = &text[..text.len() - checksum.len() - 1];
         Ok(Self {
             fingerprint,
             run_rows,
             point_row,
+            edited: fnv1a(body.as_bytes()) != stored,
         })
     }
 
@@ -629,7 +659,16 @@ impl PointFile {
         check_row(&self.point_row, &rules.summary_cells(p), &what)
             .map_err(|problem| point_file_err(path, problem))?;
         self.check_meaning(rules)
-            .map_err(|problem| point_file_err(path, problem))
+            .map_err(|problem| point_file_err(path, problem))?;
+        if self.edited {
+            return Err(point_file_err(
+                path,
+                "its checksum line does not match its text: edited after it was written \
+                 (every cell is well formed, so the change is below the printed digits or an \
+                 optional cell emptied)",
+            ));
+        }
+        Ok(())
     }
 
     /// Checks what the (well-formed) cells mean: every metric in its domain (≥ 0; the norms

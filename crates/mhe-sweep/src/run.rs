@@ -423,6 +423,7 @@ impl Sweep {
             fingerprint: self.fingerprint.clone(),
             run_rows: runs.iter().map(|r| run_row(p, r, metrics)).collect(),
             point_row: point_row(p, &summary),
+            edited: false,
         }
     }
 

@@ -1,26 +1,47 @@
-//! `cargo xtask export`: the certified estimator as a self-contained artefact for a
-//! microcontroller (docs/embedded.md).
+//! The certified estimator (and, on request, the certified loop with its K_c-iteration MPC)
+//! as a self-contained artefact for a microcontroller: C99 sources or a `no_std` Rust
+//! package, the problem data, a replay program, `certificate.json` and a README
+//! (docs/embedded.md). `cargo xtask export` is argument parsing around this crate.
 //!
-//! 1. Reads the scenario and checks every argument (`--k`, `--kc`, `--method`,
-//!    `--mpc-method`, `--out`) before any work; computes the closed-loop certificate with the
-//!    options every command uses (`iss_certificate::coverage::verdict_options`: the user's
-//!    γ₁,₃ and the sample that can refute it) and decides K: `--k certified` (the default) is
-//!    K_min of Theorem 1. The verdict on (method, K, the MPC's K_c, scalar, the scenario's
-//!    warm start) is `iss_certificate::coverage::verdict`'s — the one `reproduce` and the
-//!    sweep print; a configuration it does not certify is refused unless
-//!    `--allow-uncertified`, which the artefact then says in its README, its headers and
+//! 1. [`export`] checks every option ([`ExportOptions::validate`]) before any work, computes
+//!    the closed-loop certificate with the options every command uses
+//!    (`iss_certificate::coverage::verdict_options`: the user's γ₁,₃ and the sample that can
+//!    refute it) and decides K: [`Iterations::Certified`] (the default) is K_min of
+//!    Theorem 1. The verdict on (method, K, the MPC's K_c, scalar, the scenario's warm start)
+//!    is `iss_certificate::coverage::verdict`'s — the one `reproduce` and the sweep print; a
+//!    configuration it does not certify is refused ([`ExportError::NotCertified`]) unless
+//!    `allow_uncertified`, which the artefact then says in its README, its headers and
 //!    `certificate.json`.
 //! 2. Builds the std `MheEstimator` with that method and K on the portable kernel and copies
-//!    its numbers out ([`extract`]).
-//! 3. Writes the artefact into a temporary sibling of `--out` and replaces `--out` with it
-//!    as a whole (no file of an earlier export survives beside the new certificate): the
-//!    data (a Rust module or `.c`/`.h`), the estimator source (vendored `mhe-embedded`, or
-//!    `mhe.c`/`mhe.h`), the build files, the replay program, `certificate.json` and a README.
+//!    its numbers out.
+//! 3. [`Artefact::write_to`] writes the artefact into a temporary sibling of the directory
+//!    and replaces the directory with it as a whole (no file of an earlier export survives
+//!    beside the new certificate): the data (a Rust module or `.c`/`.h`), the estimator
+//!    source (vendored `mhe-embedded`, or `mhe.c`/`mhe.h`), the build files, the replay
+//!    program, `certificate.json` and a README.
+//!
+//! ```no_run
+//! use closed_loop::scenario::Scenario;
+//! use mhe_export::{ExportOptions, Lang, Source, export};
+//!
+//! # fn main() -> Result<(), Box<dyn std::error::Error>> {
+//! let path = "scenarios/case-study-certified.toml";
+//! let resolved = Scenario::from_file(path)?.resolve()?;
+//! let mut options = ExportOptions::default(); // K = K_min of Theorem 1, f64, C
+//! options.lang = Lang::C;
+//! options.source = Source::from_bytes(path, &std::fs::read(path)?);
+//! let artefact = export(&resolved, &options)?; // refused unless certified
+//! assert!(artefact.loop_certified());
+//! artefact.write_to(std::path::Path::new("target/mhe-c"))?;
+//! # Ok(())
+//! # }
+//! ```
 
+mod api;
 mod c_gen;
-mod out;
-pub(crate) use out::{EXPORT_FORMAT, check_out, replace_artefact};
+mod error;
 pub(crate) mod extract;
+mod out;
 mod rust_gen;
 mod sha256;
 #[cfg(test)]
@@ -32,11 +53,18 @@ mod tests_firmware;
 #[cfg(test)]
 mod tests_mpc;
 
-use std::path::{Path, PathBuf};
+pub use api::{
+    Artefact, ExportOptions, Iterations, Lang, ScalarKind, Source, Stage, export,
+    export_with_progress,
+};
+pub use error::ExportError;
+pub use out::{EXPORT_FORMAT, check_output_dir};
+pub use sha256::sha256_hex;
+
+use std::path::Path;
 
 use anyhow::{Context, Result, bail};
-use clap::{Args, ValueEnum};
-use closed_loop::scenario::{ControllerChoice, ResolvedScenario, Scenario};
+use closed_loop::scenario::{ControllerChoice, ResolvedScenario};
 use iss_certificate::certificate::{ClosedLoopCertificate, SolverCertificate, certify_closed_loop};
 /// What an f32 artefact's certificate covers when its verdict is certified.
 pub(crate) const F32_COVERED: &str = "covered: Theorem 1 with the f32 rounding of the \
@@ -50,67 +78,8 @@ use iss_certificate::outcome::VoidReason;
 use qp_iter::Method;
 use serde_json::json;
 
-use crate::provenance::Provenance;
-use extract::{OwnedMpc, OwnedProblem, portable_estimator, portable_mpc};
-
-/// The scalar of the exported code.
-#[derive(Debug, Clone, Copy, PartialEq, Eq, ValueEnum)]
-pub enum ScalarKind {
-    /// Double precision: bit for bit the std build on the portable kernel.
-    F64,
-    /// Single precision (data rounded to f32 once; not covered by the certificate).
-    F32,
-}
-
-/// The language of the artefact.
-#[derive(Debug, Clone, Copy, PartialEq, Eq, ValueEnum)]
-pub enum Lang {
-    /// A Cargo package (no_std library + std replay binary).
-    Rust,
-    /// C99 sources, a Makefile and Cortex-M start-up files.
-    C,
-}
-
-/// `cargo xtask export` arguments.
-#[derive(Debug, Clone, Args)]
-pub struct ExportArgs {
-    /// Scenario file (TOML, docs/scenario-format.md) with [mhe] and [mpc].
-    #[arg(long)]
-    pub scenario: PathBuf,
-    /// Output directory: created, or replaced as a whole when it holds an earlier export
-    /// (its `certificate.json`); any other existing path is refused.
-    #[arg(long, value_name = "DIR")]
-    pub out: PathBuf,
-    /// The method (`pg`, `fista`, `admm`, `admm-pr`, `pg-jacobi`, …) [default: the
-    /// scenario's `mhe.method`].
-    #[arg(long)]
-    pub method: Option<String>,
-    /// Iterations K per step: a number, or `certified` for K_min of Theorem 1.
-    #[arg(long, default_value = "certified")]
-    pub k: String,
-    /// The scalar of the exported code.
-    #[arg(long, value_enum, default_value = "f64")]
-    pub scalar: ScalarKind,
-    /// The language of the artefact.
-    #[arg(long, value_enum, default_value = "c")]
-    pub lang: Lang,
-    /// Also export the K_c-iteration MPC (the whole certified loop): K_c iterations, or
-    /// `certified` for the joint certificate's floor at the exported K [default: the
-    /// scenario's `mpc.iterations` when set, else no MPC].
-    #[arg(long, value_name = "K_C")]
-    pub kc: Option<String>,
-    /// The MPC's method [default: the scenario's `mpc.method`]; only with an exported MPC.
-    #[arg(long)]
-    pub mpc_method: Option<String>,
-    /// Export even when K (or K_c) is below its certified floor or the certificate is void
-    /// (the artefact says so).
-    #[arg(long)]
-    pub allow_uncertified: bool,
-    /// C only: the prefix of every generated name (`{prefix}_reset`, `{PREFIX}_NX`, files
-    /// `{prefix}.h`, …), so several estimators link into one firmware.
-    #[arg(long, default_value = "mhe")]
-    pub prefix: String,
-}
+use extract::{OwnedMpc, OwnedProblem};
+use out::replace_artefact;
 
 /// What the generated files say about the exported MPC.
 #[derive(Debug, Clone)]
@@ -127,8 +96,8 @@ pub(crate) struct MpcArtefact {
 
 /// What the generated files say about themselves.
 #[derive(Debug, Clone)]
-pub(crate) struct Artefact<'a> {
-    pub scenario: &'a str,
+pub(crate) struct Header {
+    pub scenario: String,
     pub method: String,
     pub k: usize,
     pub k_min: Option<usize>,
@@ -144,7 +113,7 @@ pub(crate) struct Artefact<'a> {
     pub mpc: Option<MpcArtefact>,
 }
 
-impl Artefact<'_> {
+impl Header {
     /// The certificate that covers the exported loop holds: Theorem 1 for K (estimator
     /// only), and the joint certificate at (K, K_c) when the MPC is exported.
     pub(crate) fn loop_certified(&self) -> bool {
@@ -234,27 +203,6 @@ fn solver_entry(cert: &ClosedLoopCertificate, method: Method) -> Result<SolverCe
     cert.solver(method)
         .cloned()
         .with_context(|| format!("the certificate has no entry for {}", method.name()))
-}
-
-/// An iteration count from the command line: `certified` or a number ≥ 1.
-#[derive(Debug, Clone, Copy, PartialEq, Eq)]
-pub(crate) enum Iterations {
-    /// The certified floor (K_min, or the joint certificate's K_c at the exported K).
-    Certified,
-    /// A given count.
-    Given(usize),
-}
-
-/// Parses `--k` / `--kc` (`flag`) before any work.
-pub(crate) fn parse_iterations(flag: &str, arg: &str) -> Result<Iterations> {
-    if arg == "certified" {
-        return Ok(Iterations::Certified);
-    }
-    arg.parse()
-        .ok()
-        .filter(|k| *k >= 1)
-        .map(Iterations::Given)
-        .with_context(|| format!("{flag} {arg}: expected an integer ≥ 1 or `certified`"))
 }
 
 fn coverage_scalar(s: ScalarKind) -> Scalar {
@@ -434,173 +382,20 @@ fn write_file(dir: &Path, name: &str, text: &str) -> Result<()> {
     std::fs::rename(&tmp, &path).with_context(|| format!("cannot write `{}`", path.display()))
 }
 
-/// `cargo xtask export`.
-pub fn export(args: &ExportArgs) -> Result<()> {
-    // Every argument is checked before the certificate (seconds to minutes).
-    let k_arg = parse_iterations("--k", &args.k)?;
-    let kc_flag = args
-        .kc
-        .as_deref()
-        .map(|a| parse_iterations("--kc", a))
-        .transpose()?;
-    let method_flag: Option<Method> = args
-        .method
-        .as_deref()
-        .map(|m| m.parse().map_err(|e| anyhow::anyhow!("--method {m}: {e}")))
-        .transpose()?;
-    let mpc_method_flag: Option<Method> = args
-        .mpc_method
-        .as_deref()
-        .map(|m| {
-            m.parse()
-                .map_err(|e| anyhow::anyhow!("--mpc-method {m}: {e}"))
-        })
-        .transpose()?;
-    check_out(&args.out)?;
-    c_gen::check_prefix(&args.prefix)?;
-    let text = std::fs::read(&args.scenario)
-        .with_context(|| format!("cannot read `{}`", args.scenario.display()))?;
-    let sha256 = sha256::sha256_hex(&text);
-    let scenario = Scenario::from_file(&args.scenario)
-        .with_context(|| format!("cannot load `{}`", args.scenario.display()))?;
-    let mhe = scenario
-        .mhe
-        .as_ref()
-        .context("the scenario has no [mhe] section: nothing to export")?;
-    let method = method_flag.unwrap_or(mhe.method);
-    // The MPC: asked for with --kc, or the scenario's controller (mpc.iterations).
-    let mpc_spec = scenario.mpc.as_ref();
-    let kc_arg = match kc_flag {
-        Some(k) => {
-            mpc_spec.context("--kc: the scenario has no [mpc] section: no MPC to export")?;
-            Some(k)
-        }
-        None => mpc_spec.and_then(|m| m.iterations).map(Iterations::Given),
-    };
-    let mpc_method = match (&kc_arg, mpc_method_flag, mpc_spec) {
-        (None, Some(m), _) => bail!(
-            "--mpc-method {}: no MPC is exported (give --kc K_C or --kc certified, or set \
-             mpc.iterations in the scenario), so the flag would be ignored",
-            m.name()
-        ),
-        (None, None, _) => None,
-        (Some(_), Some(m), _) => Some(m),
-        (Some(_), None, Some(spec)) => Some(spec.method),
-        (Some(_), None, None) => bail!("--kc: the scenario has no [mpc] section: no MPC to export"),
-    };
-    let resolved = scenario
-        .clone()
-        .resolve()
-        .with_context(|| format!("cannot set up `{}`", args.scenario.display()))?;
-    outln!(
-        "computing the certificate of Theorem 1 for {} …",
-        method.name()
-    );
-    let loop_cert = closed_loop_certificate(&resolved, method)?;
-    let cert = solver_entry(&loop_cert, method)?;
-    let (k, k_verdict) = decide_k(
-        &resolved,
-        &loop_cert,
-        method,
-        k_arg,
-        args.scalar,
-        args.allow_uncertified,
-    )?;
-    let mut est = portable_estimator(&resolved, method, k)?;
-    let mut problem = OwnedProblem::from_estimator(&est, &scenario.plant)?;
-    // The C self-test's stored steps (f64: the std estimator's bits; M + 2 steps).
-    if args.scalar == ScalarKind::F64 {
-        let steps = problem.horizon + 2;
-        problem.record_self_test(&mut est, &scenario.plant, &scenario.simulation.prior, steps)?;
-    }
-    let mut mpc_export = None;
-    if let (Some(kc_arg), Some(mpc_method)) = (kc_arg, mpc_method) {
-        outln!(
-            "computing the joint certificate for MHE {} + MPC {} …",
-            method.name(),
-            mpc_method.name()
-        );
-        let joint = joint_certificate(&resolved, &loop_cert, method, mpc_method)?;
-        let (k_c, v) = decide_kc(
-            &resolved,
-            &loop_cert,
-            &joint,
-            kc_arg,
-            k,
-            args.scalar,
-            args.allow_uncertified,
-        )?;
-        let ctrl = portable_mpc(&resolved, mpc_method, k_c)?;
-        let data = OwnedMpc::from_controller(&ctrl, resolved.mpc()?)?;
-        let art = MpcArtefact {
-            method: mpc_method.name().into_owned(),
-            k_c,
-            k_c_min: joint.analysis.k_c_min(k, joint.region.k_max),
-            certified: v.certified == Certified::Yes,
-            reason: uncertified_reason(&v, &format!("K_c = {k_c}")),
-        };
-        mpc_export = Some((data, art, joint));
-    }
-    let art = Artefact {
-        scenario: &scenario.name,
-        method: method.name().into_owned(),
-        k,
-        k_min: k_verdict.k_min.or(cert.k_min),
-        scalar: args.scalar,
-        certified: k_verdict.certified == Certified::Yes,
-        reason: uncertified_reason(&k_verdict, &format!("K = {k}")),
-        prior: scenario.simulation.prior.clone(),
-        sha256,
-        mpc: mpc_export.as_ref().map(|m| m.1.clone()),
-    };
-    let mpc = mpc_export.as_ref().map(|(d, _, j)| (d, j));
-    replace_artefact(&args.out, |dir| {
-        write_artefact(dir, args.lang, &problem, mpc, &art, &cert, &args.scenario)?;
-        if args.lang == Lang::C && args.prefix != "mhe" {
-            c_gen::apply_prefix(dir, &args.prefix)?;
-        }
-        Ok(())
-    })?;
-    outln!(
-        "wrote the {} artefact for `{}` ({}, K = {k}{}) to {}",
-        match args.lang {
-            Lang::Rust => "Rust",
-            Lang::C => "C",
-        },
-        scenario.name,
-        art.method,
-        if art.loop_certified() {
-            ", certified".to_string()
-        } else {
-            format!(
-                ", UNCERTIFIED ({})",
-                art.reason
-                    .as_deref()
-                    .or(art.mpc.as_ref().and_then(|m| m.reason.as_deref()))
-                    .unwrap_or("not certified")
-            )
-        } + &art.mpc.as_ref().map_or_else(String::new, |m| format!(
-            ", MPC {} with K_c = {}",
-            m.method, m.k_c
-        )),
-        args.out.display()
-    );
-    Ok(())
-}
-
 /// Writes every file of the artefact into `out` (`mpc`: the MPC's data and its joint
-/// certificate, when exported).
+/// certificate, when exported; `provenance`: the caller's record in `certificate.json`).
 pub(crate) fn write_artefact(
     out: &Path,
     lang: Lang,
     problem: &OwnedProblem,
     mpc: Option<(&OwnedMpc, &JointCertificate)>,
-    art: &Artefact<'_>,
+    art: &Header,
     cert: &SolverCertificate,
     scenario_path: &Path,
+    provenance: &serde_json::Value,
 ) -> Result<()> {
     write_code(out, lang, problem, mpc.map(|m| m.0), art)?;
-    let json = certificate_json(art, cert, mpc.map(|m| m.1), scenario_path);
+    let json = certificate_json(art, cert, mpc.map(|m| m.1), scenario_path, provenance);
     write_file(
         out,
         "certificate.json",
@@ -617,7 +412,7 @@ pub(crate) fn write_code(
     lang: Lang,
     problem: &OwnedProblem,
     mpc: Option<&OwnedMpc>,
-    art: &Artefact<'_>,
+    art: &Header,
 ) -> Result<()> {
     std::fs::create_dir_all(out)
         .with_context(|| format!("cannot create directory `{}`", out.display()))?;
@@ -659,10 +454,11 @@ pub(crate) fn write_code(
 }
 
 fn certificate_json(
-    art: &Artefact<'_>,
+    art: &Header,
     cert: &SolverCertificate,
     joint: Option<&JointCertificate>,
     scenario_path: &Path,
+    provenance: &serde_json::Value,
 ) -> serde_json::Value {
     let mpc = match (&art.mpc, joint) {
         (Some(m), Some(j)) => json!({
@@ -712,11 +508,11 @@ fn certificate_json(
             },
         },
         "theorem1": cert,
-        "provenance": Provenance::collect(),
+        "provenance": provenance,
     })
 }
 
-fn readme(art: &Artefact<'_>, lang: Lang) -> String {
+fn readme(art: &Header, lang: Lang) -> String {
     let status = if art.certified {
         format!(
             "**Certified**: K = {} ≥ K_min = {} of Theorem 1 for {} (`certificate.json`), for the \

@@ -299,7 +299,17 @@ fn a_k_c_below_the_joint_floor_is_refused_unless_allowed() {
     });
     let dir = scratch_dir("uncertified-mpc");
     let sc = cert.solver(Method::PG).unwrap();
-    write_artefact(&dir, Lang::C, &p, Some((&m, &joint)), &art, sc, &path).unwrap();
+    write_artefact(
+        &dir,
+        Lang::C,
+        &p,
+        Some((&m, &joint)),
+        &art,
+        sc,
+        &path,
+        &serde_json::Value::Null,
+    )
+    .unwrap();
     let read = |f: &str| std::fs::read_to_string(dir.join(f)).unwrap();
     assert!(read("mhe_data.h").contains("#define MPC_CERTIFIED 0"));
     assert!(read("mhe_data.h").contains("UNCERTIFIED, the joint certificate needs K_c"));

@@ -12,7 +12,12 @@ use qp_iter::{Method, MethodMap};
 
 use super::extract::{OwnedMpc, OwnedProblem, portable_estimator};
 use super::*;
-use crate::provenance::workspace_root;
+
+/// The workspace root (this crate is `crates/mhe-export`): the scenarios and
+/// `crates/mhe-embedded` the tests compare with.
+pub(super) fn workspace_root() -> PathBuf {
+    Path::new(env!("CARGO_MANIFEST_DIR")).join("../..")
+}
 
 /// `scenarios/case-study-certified.toml`'s closed-loop certificate for PG, computed once per
 /// test binary: three tests read it (each computation is seconds in the test profile).

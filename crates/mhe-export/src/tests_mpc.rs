@@ -10,12 +10,12 @@ use closed_loop::scenario::{Scenario, scenario_disturbance};
 use qp_iter::Method;
 
 use super::extract::{OwnedMpc, OwnedProblem, portable_estimator, portable_mpc};
+use super::tests::workspace_root;
 use super::tests::{
     bits, certified_preset_pg, exported_artefact, methods, parse_replay, run_program, scratch_dir,
     write_files,
 };
 use super::*;
-use crate::provenance::workspace_root;
 
 /// One closed loop of a scenario: the MHE's method and K_e, the MPC's method and K_c.
 pub(super) struct LoopCase {

@@ -47,6 +47,8 @@ mod sha256;
 #[cfg(test)]
 mod tests;
 #[cfg(test)]
+mod tests_api;
+#[cfg(test)]
 mod tests_capi;
 #[cfg(test)]
 mod tests_firmware;

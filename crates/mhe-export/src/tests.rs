@@ -413,8 +413,8 @@ fn a_k_below_k_min_is_refused_unless_allowed() {
         decide(loop_cert, given(k_min - 1), f64, true).unwrap(),
         (k_min - 1, false)
     );
-    assert!(parse_iterations("--k", "0").is_err());
-    assert!(parse_iterations("--k", "many").is_err());
+    assert!(Iterations::parse("--k", "0").is_err());
+    assert!(Iterations::parse("--k", "many").is_err());
     // f32 is certified only where Theorem 1 with the f32 rounding folded in certifies K; on
     // the case study it certifies none: refused at K_min unless allowed, with the reason.
     let err = decide(loop_cert, Iterations::Certified, ScalarKind::F32, false)

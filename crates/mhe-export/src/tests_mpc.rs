@@ -3,6 +3,7 @@
 //! exported Rust loop programs, bit for bit in x̂ and u; the K_c refusal.
 #![allow(clippy::unwrap_used)]
 
+use std::path::PathBuf;
 use std::process::Command;
 
 use closed_loop::ClosedLoop;
@@ -273,7 +274,7 @@ fn a_k_c_below_the_joint_floor_is_refused_unless_allowed() {
         decide(Iterations::Given(floor - 1), k_e, true).unwrap(),
         (floor - 1, false)
     );
-    assert!(parse_iterations("--kc", "0").is_err());
+    assert!(Iterations::parse("--kc", "0").is_err());
     // Below the K_e floor no K_c is certified.
     let err = decide(Iterations::Certified, k_e - 1, false)
         .unwrap_err()

@@ -6,7 +6,7 @@
 use closed_loop::scenario::Scenario;
 use qp_iter::Method;
 
-use super::tests::{certified_preset_pg, scratch_dir, workspace_root};
+use super::tests::{scratch_dir, workspace_root};
 use super::*;
 
 fn option_of(e: &ExportError) -> Option<&'static str> {
@@ -71,37 +71,37 @@ fn the_scenario_is_checked_before_any_work() {
     assert!(e.to_string().contains("no [mpc] section"), "{e}");
 }
 
-/// K_min − 1 is refused with `NotCertified { option: "k" }`; with `allow_uncertified` the
-/// artefact says UNCERTIFIED and its files replace an earlier export as a set.
+/// K = 1 (below K_min) is refused with `NotCertified { option: "k" }`; with
+/// `allow_uncertified` the artefact says UNCERTIFIED and its files replace an earlier export
+/// as a set (two certificate computations).
 #[test]
 fn export_from_values_refuses_below_k_min_and_writes_the_opt_in() {
     let path = workspace_root().join("scenarios/case-study-certified.toml");
     let resolved = Scenario::from_file(&path).unwrap().resolve().unwrap();
-    let k_min = certified_preset_pg(&resolved)
-        .solver(Method::PG)
-        .unwrap()
-        .k_min
-        .unwrap();
     let mut o = ExportOptions {
         method: Some(Method::PG),
-        k: Iterations::Given(k_min - 1),
+        k: Iterations::Given(1),
         ..ExportOptions::default()
     };
     let mut stages = Vec::new();
     let e = export_with_progress(&resolved, &o, &mut |s| stages.push(s.to_string())).unwrap_err();
     assert_eq!(option_of(&e), Some("k"), "{e}");
-    assert!(e.to_string().contains(&format!("K_min = {k_min}")), "{e}");
+    assert!(
+        e.to_string().contains("below the certified K_min = "),
+        "{e}"
+    );
     assert_eq!(stages, ["computing the certificate of Theorem 1 for pg …"]);
     o.allow_uncertified = true;
     let art = export(&resolved, &o).unwrap();
-    assert!(!art.loop_certified() && art.k() == k_min - 1 && art.k_min() == Some(k_min));
+    let k_min = art.k_min().unwrap();
+    assert!(!art.loop_certified() && art.k() == 1 && k_min > 1);
+    assert!(e.to_string().contains(&format!("K_min = {k_min} ")), "{e}");
     assert!(
         art.uncertified_reason()
             .unwrap()
             .contains("below the certified floor")
     );
     let dir = scratch_dir("api-uncertified");
-    std::fs::create_dir_all(&dir).unwrap();
     std::fs::write(dir.join("stale.txt"), "from no export").unwrap();
     assert!(matches!(
         art.write_to(&dir),

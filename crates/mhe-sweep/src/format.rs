@@ -595,7 +595,9 @@ impl PointFile {
             .map(str::trim)
             .filter(|h| h.len() == 16)
             .and_then(|h| u64::from_str_radix(h, 16).ok())
-            .ok_or_else(|| bad("the line after the summary row is not `# fnv1a <16 hex digits>`"))?;
+            .ok_or_else(|| {
+                bad("the line after the summary row is not `# fnv1a <16 hex digits>`")
+            })?;
         if lines.next().is_some() {
             return Err(bad("text after the checksum line"));
         }

@@ -318,7 +318,6 @@ pub struct CertificateDocument {
     /// The sample period as a budget (`plant.sample_time` given): per method at K_min the
     /// predicted instructions per step on the Cortex-M4F at 168 MHz and the M7 at 480 MHz
     /// and whether it fits T_s (`mhe_budget`, docs/embedded.md). Omitted without T_s.
-    #[serde(skip_serializing_if = "Option::is_none")]
     pub budget: Option<crate::budget::ReproduceBudget>,
 }
 

@@ -41,6 +41,7 @@ impl From<&crate::reproduce::document::CertificateDocument> for v1::Certificate 
                 .collect(),
             files: l.files.iter().map(ToString::to_string).collect(),
             figure_notes: l.figure_notes.iter().map(ToString::to_string).collect(),
+            budget: (l.budget.as_ref()).and_then(|b| serde_json::to_value(b).ok()),
         }
     }
 }

@@ -189,6 +189,11 @@ pub struct Certificate {
     pub files: Vec<String>,
     /// Figures not written or with points left out, and why.
     pub figure_notes: Vec<String>,
+    /// The sample period as a budget (`plant.sample_time` given): per method at K_min the
+    /// predicted instructions per step on the Cortex-M4F and M7 and whether it fits T_s
+    /// (`mhe_budget`, docs/embedded.md), as the tool renders it. Omitted without T_s.
+    #[serde(skip_serializing_if = "Option::is_none")]
+    pub budget: Option<serde_json::Value>,
 }
 
 /// One row of the constants table (ours vs the paper's published values).

@@ -6,8 +6,20 @@ use std::path::{Path, PathBuf};
 
 use anyhow::{Context, Result, bail};
 
+use crate::ExportError;
+
 /// The `format` of the artefact's `certificate.json`.
-pub(crate) const EXPORT_FORMAT: &str = "suboptimal-mhe/export-certificate";
+pub const EXPORT_FORMAT: &str = "suboptimal-mhe/export-certificate";
+
+/// Checks an output directory before any work (the CLI's `--out`): what [`check_out`]
+/// accepts, as a typed error.
+///
+/// # Errors
+/// [`ExportError::Output`] when `dir` is a file, a directory that is not empty and holds no
+/// earlier export, or cannot be read.
+pub fn check_output_dir(dir: &Path) -> Result<(), ExportError> {
+    check_out(dir).map_err(|e| ExportError::output(dir, &e))
+}
 
 /// Checks `--out` before any work: a path that does not exist (its parent must be
 /// creatable), an empty directory, or an earlier export (a directory whose

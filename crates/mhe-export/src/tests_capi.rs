@@ -8,10 +8,10 @@ use std::process::Command;
 
 use qp_iter::Method;
 
+use super::tests::workspace_root;
 use super::tests::{bits, parse_replay, run_program, scratch_dir, write_files};
 use super::tests_mpc::LoopCase;
 use super::*;
-use crate::provenance::workspace_root;
 
 /// The header's preamble: what cbindgen cannot know (the scalar is the export's).
 const HEADER_PREAMBLE: &str =
@@ -38,7 +38,7 @@ const ALIASES: &str = "/* The plain names, onto this scalar's symbols. */
 
 /// The header cbindgen generates from the C ABI's source.
 fn cbindgen_header() -> String {
-    let src = workspace_root().join("xtask/src/export/capi/lib.rs");
+    let src = workspace_root().join("crates/mhe-export/src/capi/lib.rs");
     let mut config = cbindgen::Config {
         language: cbindgen::Language::C,
         header: Some(HEADER_PREAMBLE.into()),
@@ -70,7 +70,7 @@ fn cbindgen_header() -> String {
 #[test]
 fn c_abi_header_is_the_cbindgen_output() {
     let generated = cbindgen_header();
-    let path = workspace_root().join("xtask/src/export/capi/mhe_capi.h");
+    let path = workspace_root().join("crates/mhe-export/src/capi/mhe_capi.h");
     if std::env::var_os("UPDATE_GOLDEN").is_some() {
         std::fs::write(&path, &generated).unwrap();
     }
@@ -78,7 +78,7 @@ fn c_abi_header_is_the_cbindgen_output() {
     assert!(
         generated == checked_in,
         "{} differs from cbindgen's output for capi/lib.rs; regenerate it with \
-         `UPDATE_GOLDEN=1 cargo test -p xtask --bin xtask c_abi_header` and review the diff",
+         `UPDATE_GOLDEN=1 cargo test -p mhe-export --lib c_abi_header` and review the diff",
         path.display()
     );
     for name in [

@@ -331,7 +331,7 @@ fn rust_replay_parses_strictly() {
     let (p, art) = artefact(&c, Method::PG, ScalarKind::F64);
     let dir = scratch_dir("firmware-rust-parse");
     write_files(&dir, Lang::Rust, &p, None, &art);
-    let target = crate::provenance::workspace_root()
+    let target = super::tests::workspace_root()
         .join("target")
         .join("export-tests-target");
     // The test artefact is uncertified: it stops at compile_error! without the opt-in.

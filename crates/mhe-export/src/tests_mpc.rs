@@ -3,6 +3,7 @@
 //! exported Rust loop programs, bit for bit in x̂ and u; the K_c refusal.
 #![allow(clippy::unwrap_used)]
 
+use std::path::PathBuf;
 use std::process::Command;
 
 use closed_loop::ClosedLoop;
@@ -10,12 +11,12 @@ use closed_loop::scenario::{Scenario, scenario_disturbance};
 use qp_iter::Method;
 
 use super::extract::{OwnedMpc, OwnedProblem, portable_estimator, portable_mpc};
+use super::tests::workspace_root;
 use super::tests::{
     bits, certified_preset_pg, exported_artefact, methods, parse_replay, run_program, scratch_dir,
     write_files,
 };
 use super::*;
-use crate::provenance::workspace_root;
 
 /// One closed loop of a scenario: the MHE's method and K_e, the MPC's method and K_c.
 pub(super) struct LoopCase {
@@ -273,7 +274,7 @@ fn a_k_c_below_the_joint_floor_is_refused_unless_allowed() {
         decide(Iterations::Given(floor - 1), k_e, true).unwrap(),
         (floor - 1, false)
     );
-    assert!(parse_iterations("--kc", "0").is_err());
+    assert!(Iterations::parse("--kc", "0").is_err());
     // Below the K_e floor no K_c is certified.
     let err = decide(Iterations::Certified, k_e - 1, false)
         .unwrap_err()
@@ -299,7 +300,17 @@ fn a_k_c_below_the_joint_floor_is_refused_unless_allowed() {
     });
     let dir = scratch_dir("uncertified-mpc");
     let sc = cert.solver(Method::PG).unwrap();
-    write_artefact(&dir, Lang::C, &p, Some((&m, &joint)), &art, sc, &path).unwrap();
+    write_artefact(
+        &dir,
+        Lang::C,
+        &p,
+        Some((&m, &joint)),
+        &art,
+        sc,
+        &path,
+        &serde_json::Value::Null,
+    )
+    .unwrap();
     let read = |f: &str| std::fs::read_to_string(dir.join(f)).unwrap();
     assert!(read("mhe_data.h").contains("#define MPC_CERTIFIED 0"));
     assert!(read("mhe_data.h").contains("UNCERTIFIED, the joint certificate needs K_c"));

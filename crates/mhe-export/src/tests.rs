@@ -12,7 +12,12 @@ use qp_iter::{Method, MethodMap};
 
 use super::extract::{OwnedMpc, OwnedProblem, portable_estimator};
 use super::*;
-use crate::provenance::workspace_root;
+
+/// The workspace root (this crate is `crates/mhe-export`): the scenarios and
+/// `crates/mhe-embedded` the tests compare with.
+pub(super) fn workspace_root() -> PathBuf {
+    Path::new(env!("CARGO_MANIFEST_DIR")).join("../..")
+}
 
 /// `scenarios/case-study-certified.toml`'s closed-loop certificate for PG, computed once per
 /// test binary: three tests read it (each computation is seconds in the test profile).
@@ -211,11 +216,7 @@ pub(super) fn run_program(cmd: &mut Command, input: &str) -> String {
     String::from_utf8(out.stdout).unwrap()
 }
 
-pub(super) fn artefact(
-    c: &Case,
-    method: Method,
-    scalar: ScalarKind,
-) -> (OwnedProblem, Artefact<'static>) {
+pub(super) fn artefact(c: &Case, method: Method, scalar: ScalarKind) -> (OwnedProblem, Header) {
     let est = portable_estimator(&c.resolved, method, c.k).unwrap();
     let p = OwnedProblem::from_estimator(&est, &c.resolved.scenario().plant).unwrap();
     let mut art = exported_artefact(&c.path, &c.resolved, method, c.k, None);
@@ -238,7 +239,7 @@ pub(super) fn write_files(
     lang: Lang,
     p: &OwnedProblem,
     mpc: Option<&OwnedMpc>,
-    art: &Artefact<'_>,
+    art: &Header,
 ) {
     // `certificate.json` needs a real certificate; the code files are what is tested here.
     write_code(dir, lang, p, mpc, art).unwrap();
@@ -251,9 +252,9 @@ pub(super) fn exported_artefact(
     method: Method,
     k: usize,
     k_c: Option<usize>,
-) -> Artefact<'static> {
-    Artefact {
-        scenario: "test",
+) -> Header {
+    Header {
+        scenario: "test".into(),
         method: method.name().into_owned(),
         k,
         k_min: None,
@@ -412,8 +413,8 @@ fn a_k_below_k_min_is_refused_unless_allowed() {
         decide(loop_cert, given(k_min - 1), f64, true).unwrap(),
         (k_min - 1, false)
     );
-    assert!(parse_iterations("--k", "0").is_err());
-    assert!(parse_iterations("--k", "many").is_err());
+    assert!(Iterations::parse("--k", "0").is_err());
+    assert!(Iterations::parse("--k", "many").is_err());
     // f32 is certified only where Theorem 1 with the f32 rounding folded in certifies K; on
     // the case study it certifies none: refused at K_min unless allowed, with the reason.
     let err = decide(loop_cert, Iterations::Certified, ScalarKind::F32, false)
@@ -456,8 +457,8 @@ fn an_uncertified_artefact_says_so_everywhere() {
     let k_min = cert.k_min.unwrap();
     let est = portable_estimator(&resolved, Method::PG, k_min - 1).unwrap();
     let p = OwnedProblem::from_estimator(&est, &resolved.scenario().plant).unwrap();
-    let art = Artefact {
-        scenario: "case-study-certified",
+    let art = Header {
+        scenario: "case-study-certified".into(),
         method: "pg".into(),
         k: k_min - 1,
         k_min: Some(k_min),
@@ -472,7 +473,17 @@ fn an_uncertified_artefact_says_so_everywhere() {
         mpc: None,
     };
     let dir = scratch_dir("uncertified");
-    write_artefact(&dir, Lang::C, &p, None, &art, &cert, &path).unwrap();
+    write_artefact(
+        &dir,
+        Lang::C,
+        &p,
+        None,
+        &art,
+        &cert,
+        &path,
+        &serde_json::Value::Null,
+    )
+    .unwrap();
     let read = |f: &str| std::fs::read_to_string(dir.join(f)).unwrap();
     assert!(read("mhe_data.h").contains("UNCERTIFIED"));
     assert!(read("mhe_data.h").contains("#define MHE_CERTIFIED 0"));

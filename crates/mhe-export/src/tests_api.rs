@@ -1,0 +1,123 @@
+//! The typed API: every option error names its field before any work; a K below the
+//! certified floor is `NotCertified { option: "k" }`; an artefact computed from values
+//! writes the same files as the CLI's path (`export_cli` compares the CLI's bytes).
+#![allow(clippy::unwrap_used)]
+
+use closed_loop::scenario::Scenario;
+use qp_iter::Method;
+
+use super::tests::{scratch_dir, workspace_root};
+use super::*;
+
+fn option_of(e: &ExportError) -> Option<&'static str> {
+    match e {
+        ExportError::InvalidOption { option, .. } | ExportError::NotCertified { option, .. } => {
+            Some(option)
+        }
+        _ => None,
+    }
+}
+
+#[test]
+fn bad_options_are_typed_and_name_the_field() {
+    let e = Iterations::parse("--kc", "0").unwrap_err();
+    assert_eq!(option_of(&e), Some("k_c"));
+    assert!(
+        e.to_string().starts_with("--kc 0: expected an integer ≥ 1"),
+        "{e}"
+    );
+    assert_eq!(
+        option_of(&Iterations::parse("--k", "x").unwrap_err()),
+        Some("k")
+    );
+    assert_eq!(Iterations::parse("--k", "7").unwrap(), Iterations::Given(7));
+    let mut o = ExportOptions::default();
+    assert!(o.validate().is_ok());
+    o.k = Iterations::Given(0);
+    assert_eq!(option_of(&o.validate().unwrap_err()), Some("k"));
+    o.k = Iterations::Certified;
+    o.k_c = Some(Iterations::Given(0));
+    assert_eq!(option_of(&o.validate().unwrap_err()), Some("k_c"));
+    o.k_c = None;
+    o.prefix = "Bad-Name".into();
+    let e = o.validate().unwrap_err();
+    assert_eq!(option_of(&e), Some("prefix"));
+    assert!(e.to_string().contains("--prefix Bad-Name"), "{e}");
+}
+
+#[test]
+fn the_scenario_is_checked_before_any_work() {
+    let path = workspace_root().join("scenarios/case-study-certified.toml");
+    let sc = Scenario::from_file(&path).unwrap();
+    let mut o = ExportOptions::default();
+    assert!(o.check_scenario(&sc).is_ok());
+    // The certified preset has no mpc.iterations: an MPC method alone exports no MPC.
+    o.mpc_method = Some(Method::PG);
+    let e = o.check_scenario(&sc).unwrap_err();
+    assert_eq!(option_of(&e), Some("mpc_method"));
+    let mut no_mhe = sc.clone();
+    no_mhe.mhe = None;
+    let e = ExportOptions::default()
+        .check_scenario(&no_mhe)
+        .unwrap_err();
+    assert!(matches!(e, ExportError::Scenario { .. }), "{e:?}");
+    let mut no_mpc = sc;
+    no_mpc.mpc = None;
+    let o = ExportOptions {
+        k_c: Some(Iterations::Certified),
+        ..ExportOptions::default()
+    };
+    let e = o.check_scenario(&no_mpc).unwrap_err();
+    assert!(e.to_string().contains("no [mpc] section"), "{e}");
+}
+
+/// K = 1 (below K_min) is refused with `NotCertified { option: "k" }`; with
+/// `allow_uncertified` the artefact says UNCERTIFIED and its files replace an earlier export
+/// as a set (two certificate computations).
+#[test]
+fn export_from_values_refuses_below_k_min_and_writes_the_opt_in() {
+    let path = workspace_root().join("scenarios/case-study-certified.toml");
+    let resolved = Scenario::from_file(&path).unwrap().resolve().unwrap();
+    let mut o = ExportOptions {
+        method: Some(Method::PG),
+        k: Iterations::Given(1),
+        ..ExportOptions::default()
+    };
+    let mut stages = Vec::new();
+    let e = export_with_progress(&resolved, &o, &mut |s| stages.push(s.to_string())).unwrap_err();
+    assert_eq!(option_of(&e), Some("k"), "{e}");
+    assert!(
+        e.to_string().contains("below the certified K_min = "),
+        "{e}"
+    );
+    assert_eq!(stages, ["computing the certificate of Theorem 1 for pg …"]);
+    o.allow_uncertified = true;
+    let art = export(&resolved, &o).unwrap();
+    let k_min = art.k_min().unwrap();
+    assert!(!art.loop_certified() && art.k() == 1 && k_min > 1);
+    assert!(e.to_string().contains(&format!("K_min = {k_min} ")), "{e}");
+    assert!(
+        art.uncertified_reason()
+            .unwrap()
+            .contains("below the certified floor")
+    );
+    let dir = scratch_dir("api-uncertified");
+    std::fs::write(dir.join("stale.txt"), "from no export").unwrap();
+    assert!(matches!(
+        art.write_to(&dir),
+        Err(ExportError::Output { .. })
+    ));
+    std::fs::remove_file(dir.join("stale.txt")).unwrap();
+    art.write_to(&dir).unwrap();
+    let json: serde_json::Value =
+        serde_json::from_str(&std::fs::read_to_string(dir.join("certificate.json")).unwrap())
+            .unwrap();
+    assert_eq!(json["certified"], false);
+    assert_eq!(json["scenario"]["path"], "(built from values)");
+    assert_eq!(json["provenance"]["tool"], "mhe-export");
+    assert!(
+        std::fs::read_to_string(dir.join("mhe_data.h"))
+            .unwrap()
+            .contains("UNCERTIFIED")
+    );
+}

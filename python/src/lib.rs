@@ -24,6 +24,7 @@ use qp_iter::{Method, MethodMap};
 use std::sync::{Mutex, MutexGuard};
 
 mod embedded;
+mod export;
 mod reasons;
 mod sweep;
 
@@ -1033,7 +1034,9 @@ impl PyCertificate {
             Held::Model(c) => c.closed_loop(),
             Held::Scenario { cert, .. } => cert,
         };
-        serde_json::to_string(cert).map_err(|e| MheError::new_err(e.to_string()))
+        // Through the versioned schema the CLI writes (`certificate_json::v1`).
+        let v1 = certificate_json::v1::ClosedLoopCertificate::from(cert);
+        serde_json::to_string(&v1).map_err(|e| MheError::new_err(e.to_string()))
     }
 
     /// Every void, IOSS and skip reason as typed data (JSON: `reasons::all`).
@@ -1099,7 +1102,8 @@ impl PyCertificate {
                 coverage::verdict(resolved, cert, &config)
             }
         };
-        serde_json::to_string(&v).map_err(|e| MheError::new_err(e.to_string()))
+        let v1 = certificate_json::v1::PairVerdict::from(&v);
+        serde_json::to_string(&v1).map_err(|e| MheError::new_err(e.to_string()))
     }
 }
 
@@ -1200,5 +1204,6 @@ fn _native(m: &Bound<'_, PyModule>) -> PyResult<()> {
     m.add_function(wrap_pyfunction!(simulate, m)?)?;
     m.add_function(wrap_pyfunction!(set_kernel, m)?)?;
     m.add_function(wrap_pyfunction!(sweep::sweep_run, m)?)?;
+    m.add_function(wrap_pyfunction!(export::export_artefact, m)?)?;
     Ok(())
 }

@@ -86,7 +86,7 @@ pub struct Premise {
     /// the reason, naming that premise. The premise then counts as not holding, and its own
     /// advice is not given (one failure, one reason).
     #[serde(skip_serializing_if = "Option::is_none")]
-    pub not_evaluated: Option<String>,
+    pub not_evaluated: Option<crate::outcome::NotEvaluated>,
 }
 
 /// Premises built from P of LMI (2): not evaluated when LMI (2) fails.
@@ -125,7 +125,7 @@ impl Premise {
         match &self.not_evaluated {
             Some(why) => VoidReason::PremiseNotEvaluated {
                 premise: self.name.clone(),
-                because: why.clone(),
+                because: *why,
             },
             None => VoidReason::PremiseFails {
                 premise: self.name.clone(),
@@ -352,11 +352,7 @@ impl IssAnalysis {
                     p.holds = false;
                     p.margin = f64::NAN;
                     p.fix = String::new();
-                    p.not_evaluated = Some(
-                        "\"LMI (2) feasible\" fails: the MHE's QP, its solver certificate φ, \
-                         L_Φ and H̄ are built from P"
-                            .into(),
-                    );
+                    p.not_evaluated = Some(crate::outcome::NotEvaluated::LmiFails);
                 }
             }
         }

@@ -39,9 +39,12 @@ use crate::joint::{JointAnalysis, JointOptions, certify_joint};
 use crate::outcome::VoidReason;
 use closed_loop::scenario::{ControllerChoice, ResolvedScenario, Scenario};
 
-/// The certificates a configuration can be under (exhaustive on purpose, as [`Applicable`]).
+/// The certificates a configuration can be under. `#[non_exhaustive]`: a caller outside this
+/// crate names them through [`CertificateKind::name`] / [`CertificateKind::title`], which
+/// this crate matches exhaustively.
 #[derive(Debug, Clone, Copy, PartialEq, Eq, Serialize)]
 #[serde(rename_all = "snake_case")]
+#[non_exhaustive]
 pub enum CertificateKind {
     /// Theorem 1: the sub-optimal MHE with the exact MPC.
     Theorem1,
@@ -55,6 +58,14 @@ impl CertificateKind {
         match self {
             CertificateKind::Theorem1 => "theorem1",
             CertificateKind::Joint => "joint",
+        }
+    }
+
+    /// `"Theorem 1"` or `"joint MPC + MHE"` (the reports' words).
+    pub fn title(self) -> &'static str {
+        match self {
+            CertificateKind::Theorem1 => "Theorem 1",
+            CertificateKind::Joint => "joint MPC + MHE",
         }
     }
 }
@@ -211,15 +222,35 @@ pub fn solver_certified(
     ) && sc.k_min.is_some()
 }
 
-/// Which certificate covers a configuration, or why none does: covered or not, exhaustive on
-/// purpose.
+/// Which certificate covers a configuration, or why none does. `#[non_exhaustive]`: callers
+/// decide through [`Coverage::covers`] and [`Coverage::uncovered_reason`], matched
+/// exhaustively here, so a new variant is decided in this crate, not by a caller's wildcard.
 #[derive(Debug, Clone, PartialEq, Eq, Serialize)]
 #[serde(rename_all = "snake_case")]
+#[non_exhaustive]
 pub enum Coverage {
     /// This certificate applies (it may still be void for these parameters).
     Covered(CertificateKind),
     /// No certificate covers the configuration: the reason names the scenario key.
     Uncovered(String),
+}
+
+impl Coverage {
+    /// The covering certificate (None: nothing covers the configuration).
+    pub fn covers(&self) -> Option<CertificateKind> {
+        match self {
+            Coverage::Covered(kind) => Some(*kind),
+            Coverage::Uncovered(_) => None,
+        }
+    }
+
+    /// Why nothing covers the configuration (None: covered).
+    pub fn uncovered_reason(&self) -> Option<&str> {
+        match self {
+            Coverage::Covered(_) => None,
+            Coverage::Uncovered(why) => Some(why),
+        }
+    }
 }
 
 /// Decides which certificate covers the MHE `method` with `controller` on `scenario`
@@ -247,10 +278,17 @@ pub fn covering(scenario: &Scenario, _method: Method, controller: ControllerChoi
     }
 }
 
-/// `yes`, `no`, `void` or `not_computed` at a pair. Exhaustive on purpose: a verdict the
-/// caller does not know must not fall into a default arm (export refuses on anything but yes).
+/// `yes`, `no`, `void` or `not_computed` at a pair.
+///
+/// `#[non_exhaustive]`, and safe so: a caller outside this crate cannot match it without a
+/// wildcard arm, so it decides through [`Certified::is_certified`] and
+/// [`Certified::is_below_floor`], which this crate matches exhaustively. A new variant then
+/// does not compile here until it is decided, and cannot reach a caller as "certified": that
+/// is a compile-time property (no runtime test can build an unknown variant), which is why
+/// the tool never compares against [`Certified::Yes`] in a wildcard match.
 #[derive(Debug, Clone, Copy, PartialEq, Eq, Serialize)]
 #[serde(rename_all = "snake_case")]
+#[non_exhaustive]
 pub enum Certified {
     /// The certificate holds at this pair.
     Yes,
@@ -273,6 +311,25 @@ impl Certified {
             Certified::NotComputed => "not_computed",
         }
     }
+
+    /// Whether the certificate holds at the pair: true for [`Certified::Yes`] only. The one
+    /// test behind `export`'s refusal and every "certified" a command prints.
+    pub fn is_certified(self) -> bool {
+        match self {
+            Certified::Yes => true,
+            Certified::No | Certified::Void | Certified::NotComputed => false,
+        }
+    }
+
+    /// Whether the certificate applies and holds, but not at this pair: too few iterations
+    /// ([`Certified::No`]; `PairVerdict::k_min` is the floor when known). False for a
+    /// certified, void or not-computed verdict.
+    pub fn is_below_floor(self) -> bool {
+        match self {
+            Certified::No => true,
+            Certified::Yes | Certified::Void | Certified::NotComputed => false,
+        }
+    }
 }
 
 /// The verdict at one pair (K_e, K_c).
@@ -291,10 +348,11 @@ pub struct PairVerdict {
     pub reason: String,
 }
 
-/// What the covering certificate needs to give a verdict at any pair. Exhaustive on purpose
-/// (as [`Coverage`]): a caller must handle every certificate, and a new one is a breaking
-/// change it has to see.
+/// What the covering certificate needs to give a verdict at any pair. `#[non_exhaustive]`:
+/// callers get verdicts from [`Applicable::at`] and decide with [`Applicable::may_certify`]
+/// and [`Applicable::uncovered_reason`], matched exhaustively here.
 #[derive(Debug, Clone)]
+#[non_exhaustive]
 pub enum Applicable {
     /// Theorem 1 for the method.
     Theorem1 {
@@ -445,6 +503,25 @@ impl Applicable {
             Applicable::Theorem1 { .. } => Some(CertificateKind::Theorem1),
             Applicable::Joint { .. } => Some(CertificateKind::Joint),
             Applicable::Uncovered(_) => None,
+        }
+    }
+
+    /// Why nothing covers the configuration (None: a certificate applies).
+    pub fn uncovered_reason(&self) -> Option<&str> {
+        match self {
+            Applicable::Uncovered(why) => Some(why),
+            Applicable::Theorem1 { .. } | Applicable::Joint { .. } => None,
+        }
+    }
+
+    /// Whether some pair can be certified: Theorem 1 with a K_min; the joint certificate
+    /// when no reason voids it whatever the pair (its region then says which pairs); never
+    /// when uncovered.
+    pub fn may_certify(&self) -> bool {
+        match self {
+            Applicable::Theorem1 { k_min, .. } => k_min.is_some(),
+            Applicable::Joint { void_reasons, .. } => void_reasons.is_empty(),
+            Applicable::Uncovered(_) => false,
         }
     }
 

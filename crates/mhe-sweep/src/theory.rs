@@ -14,7 +14,7 @@ use iss_certificate::analysis::IssAnalysis;
 use iss_certificate::certificate::{
     CertificateOptions, ClosedLoopCertificate, certify_closed_loop,
 };
-use iss_certificate::coverage::{Applicable, Coverage, covering, theorem1_at};
+use iss_certificate::coverage::{Applicable, covering, theorem1_at};
 
 /// The certificate's side of a point: Theorem 1 for one solver.
 #[derive(Debug, Clone)]
@@ -283,8 +283,8 @@ pub fn solver_theory(
             .collect()
     };
     if let Some(&first) = solvers.first() {
-        if let Coverage::Uncovered(reason) = covering(resolved.scenario(), first, controller) {
-            return unavailable(reason);
+        if let Some(reason) = covering(resolved.scenario(), first, controller).uncovered_reason() {
+            return unavailable(reason.to_string());
         }
     }
     match certify_closed_loop(resolved, &certificate_options(resolved.scenario(), solvers)) {
@@ -325,6 +325,8 @@ pub(super) fn theory_of(
             not_computed,
         },
         Applicable::Uncovered(r) => SolverTheory::Unavailable(r),
-        joint @ Applicable::Joint { .. } => SolverTheory::Joint(Box::new(joint)),
+        // The joint certificate, or one this crate does not know: its verdicts come from
+        // `Applicable::at`, the library's rule, never from a default here.
+        other => SolverTheory::Joint(Box::new(other)),
     }
 }

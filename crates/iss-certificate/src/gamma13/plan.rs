@@ -341,7 +341,7 @@ impl<'a> Gamma13Plan<'a> {
         }
 
         for (c, m) in candidates.iter_mut().zip(&metrics) {
-            c.not_computed = not_computed_reason(c);
+            c.not_computed = NoContraction::of(c);
             let lam = used_contraction(c);
             if lam < 1.0 {
                 c.gamma14 = c.input_matrix_gain / (m.lmin.sqrt() * (1.0 - lam));

@@ -554,7 +554,8 @@ fn summarize(d: &CertificateDocument) -> String {
                     s,
                     "closed loop: NOT CERTIFIED — {} (PASS/FAIL below is LMI (2) alone, not a \
                      closed-loop certificate)",
-                    c.uncovered_reason().unwrap_or("no certificate covers it")
+                    c.uncovered_reason()
+                        .map_or_else(|| "no certificate covers it".into(), ToString::to_string)
                 );
             }
         }

@@ -276,7 +276,7 @@ fn uncertified_reason(v: &PairVerdict, what: &str) -> Option<String> {
             None => format!("{what} is not certified"),
         })
     } else {
-        Some(v.reason.clone())
+        Some(v.reason_text())
     }
 }
 
@@ -333,7 +333,7 @@ pub(crate) fn decide_k(
     bail!(
         "{flag}: NOT CERTIFIED for {name} (the verdict `reproduce` gives): {}; \
          --allow-uncertified exports anyway, and the artefact says so",
-        v.reason
+        v.reason_text()
     )
 }
 
@@ -427,7 +427,7 @@ pub(crate) fn decide_kc(
     bail!(
         "--kc {k_c}: NOT CERTIFIED (the verdict `reproduce` gives): {}; \
          --allow-uncertified exports anyway, and the artefact says so",
-        v.reason
+        v.reason_text()
     )
 }
 

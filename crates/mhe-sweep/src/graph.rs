@@ -162,7 +162,7 @@ impl<'a> TheoryGraph<'a> {
         let uncovered = solvers.first().and_then(|&first| {
             covering(resolved.scenario(), first, config.controller)
                 .uncovered_reason()
-                .map(str::to_string)
+                .map(ToString::to_string)
         });
         if let (Some(reason), true) = (&uncovered, theory || boundaries) {
             let t: Vec<(Method, SolverTheory)> = solvers

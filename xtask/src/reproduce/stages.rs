@@ -194,7 +194,7 @@ pub(super) fn plan(job: &Job, settings: &Settings, p: &Prepared, log: &mut Log) 
     // The certificate covering the scenario's configuration (iss_certificate::coverage): the
     // same decision as the sweeps' `certified` column.
     let applicable = Applicable::new(&p.resolved, &cert, p.solver, own_controller);
-    let not_covered = applicable.uncovered_reason().map(str::to_string);
+    let not_covered = applicable.uncovered_reason().map(ToString::to_string);
     let at_scenario = applicable.at(
         p.iterations,
         match own_controller {

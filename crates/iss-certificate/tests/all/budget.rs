@@ -414,7 +414,8 @@ fn a_certificate_cut_by_the_budget_is_not_computed_and_the_advised_budget_comput
         "{pv:?}"
     );
     assert!(
-        pv.reason.contains("raise `certificate.phase_seconds`"),
+        pv.reason_text()
+            .contains("raise `certificate.phase_seconds`"),
         "{pv:?}"
     );
     // The advised budget computes the certificate.

@@ -176,8 +176,8 @@ pub fn certify_closed_loop_with(
             (
                 pr.h_bar(),
                 LPhiReport {
-                    certified: pr.lipschitz_certified(),
-                    sampled: per_window.iter().map(|p| p.1).fold(0.0, f64::max),
+                    certified: Some(pr.lipschitz_certified()),
+                    sampled: Some(per_window.iter().map(|p| p.1).fold(0.0, f64::max)),
                     per_window,
                     pairs_reduced,
                 },
@@ -187,8 +187,8 @@ pub fn certify_closed_loop_with(
         None => (
             f64::NAN,
             LPhiReport {
-                certified: f64::NAN,
-                sampled: f64::NAN,
+                certified: None,
+                sampled: None,
                 per_window: Vec::new(),
                 pairs_reduced: None,
             },
@@ -258,7 +258,8 @@ pub fn certify_closed_loop_with(
             p_max,
             q_max,
             h_bar,
-            l_phi: l_phi.certified,
+            // No value makes the premise "L_Phi finite" fail (not evaluated: no P).
+            l_phi: l_phi.certified.unwrap_or(f64::NAN),
             l_pi: l_pi_used,
             c_norm,
             f_norm: spectral_norm(sys.f()),
@@ -322,7 +323,7 @@ pub fn certify_closed_loop_with(
             void_reasons.clear();
         }
         let sampled_analysis = IssAnalysis::new(IssInputs {
-            l_phi: l_phi.sampled,
+            l_phi: l_phi.sampled.unwrap_or(f64::NAN),
             ..inputs
         });
         solvers.push(SolverCertificate {

@@ -381,10 +381,11 @@ pub struct Gamma13Certificate {
     pub gamma14: f64,
     /// γ₁ʷ of the same estimate (∞ when void).
     pub gamma1w: f64,
-    /// β₁(s, t) = `beta_prefactor`·`beta_rate`ᵗ·s of the same estimate (NaN when void).
-    pub beta_prefactor: f64,
+    /// β₁(s, t) = `beta_prefactor`·`beta_rate`ᵗ·s of the same estimate (None when void;
+    /// JSON null).
+    pub beta_prefactor: Option<f64>,
     /// See `beta_prefactor`.
-    pub beta_rate: f64,
+    pub beta_rate: Option<f64>,
     /// Every candidate's figures.
     pub candidates: Vec<MetricResult>,
     /// N·n_u.
@@ -422,8 +423,8 @@ fn void_certificate(
         gamma13_linear: None,
         gamma14: f64::INFINITY,
         gamma1w: f64::INFINITY,
-        beta_prefactor: f64::NAN,
-        beta_rate: f64::NAN,
+        beta_prefactor: None,
+        beta_rate: None,
         candidates: Vec::new(),
         variables,
         saturable,

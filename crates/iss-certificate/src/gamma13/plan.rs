@@ -365,8 +365,8 @@ impl<'a> Gamma13Plan<'a> {
         // γ₁,₄, γ₁ʷ and β₁ of the same estimate as γ₁,₃.
         let mut gamma14 = best.map_or(f64::INFINITY, |c| c.gamma14);
         let gamma1w = best.map_or(f64::INFINITY, |c| c.gamma1w);
-        let (beta_prefactor, beta_rate) = best.map_or((f64::NAN, f64::NAN), |c| {
-            (c.condition_sqrt, used_contraction(c))
+        let (beta_prefactor, beta_rate) = best.map_or((None, None), |c| {
+            (Some(c.condition_sqrt), Some(used_contraction(c)))
         });
         if let Some(l) = gamma13_linear.filter(|l| *l < gamma13) {
             gamma13 = l;

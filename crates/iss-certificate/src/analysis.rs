@@ -77,8 +77,9 @@ pub struct Premise {
     pub holds: bool,
     /// The value tested.
     pub value: f64,
-    /// Signed margin (positive when it holds), e.g. 1 − ρ.
-    pub margin: f64,
+    /// Signed margin (positive when it holds), e.g. 1 − ρ; None when not evaluated (JSON
+    /// null).
+    pub margin: Option<f64>,
     /// What to change when it fails (empty when it holds or was not evaluated).
     pub fix: String,
     /// Set when the premise could not be evaluated because a premise it depends on failed
@@ -112,7 +113,7 @@ impl Premise {
             needed_by: needed_by.into(),
             holds,
             value,
-            margin,
+            margin: Some(margin),
             fix: fix.into(),
             not_evaluated: None,
         }
@@ -259,7 +260,7 @@ impl IssAnalysis {
             needed_by: "Prop. 3 (ρ^M = 6η^M; geometric series in √ρ)".into(),
             holds: rho < 1.0,
             value: rho,
-            margin: 1.0 - rho,
+            margin: Some(1.0 - rho),
             fix: rho_fix,
             not_evaluated: None,
         });
@@ -268,7 +269,7 @@ impl IssAnalysis {
             needed_by: "Assumption 2".into(),
             holds: inputs.lmi_certified && inputs.p_min > 0.0,
             value: inputs.p_min,
-            margin: inputs.p_min,
+            margin: Some(inputs.p_min),
             fix: if inputs.lmi_certified {
                 String::new()
             } else {
@@ -281,7 +282,7 @@ impl IssAnalysis {
             needed_by: "Assumption 5 (‖zᴷ − z*‖ ≤ φ(K)‖z⁰ − z*‖, feasible zᴷ)".into(),
             holds: inputs.phi_fits_eq11,
             value: if inputs.phi_fits_eq11 { 1.0 } else { 0.0 },
-            margin: if inputs.phi_fits_eq11 { 1.0 } else { -1.0 },
+            margin: Some(if inputs.phi_fits_eq11 { 1.0 } else { -1.0 }),
             fix: if inputs.phi_fits_eq11 {
                 String::new()
             } else {
@@ -296,7 +297,7 @@ impl IssAnalysis {
                 && inputs.phi_rate >= 0.0
                 && inputs.phi_prefactor.is_finite(),
             value: inputs.phi_rate,
-            margin: 1.0 - inputs.phi_rate,
+            margin: Some(1.0 - inputs.phi_rate),
             fix: if inputs.phi_rate < 1.0 {
                 String::new()
             } else {
@@ -311,11 +312,11 @@ impl IssAnalysis {
             needed_by: "Assumption 4 (ISS of the controlled system w.r.t. e)".into(),
             holds: inputs.gamma13.is_finite() && inputs.gamma13 >= 0.0,
             value: inputs.gamma13,
-            margin: if inputs.gamma13.is_finite() {
+            margin: Some(if inputs.gamma13.is_finite() {
                 1.0
             } else {
                 -1.0
-            },
+            }),
             fix: if inputs.gamma13.is_finite() {
                 String::new()
             } else {
@@ -337,7 +338,7 @@ impl IssAnalysis {
                 needed_by: "Lemma 1 / Assumption 3 / Prop. 2".into(),
                 holds: ok,
                 value: v,
-                margin: if ok { 1.0 } else { -1.0 },
+                margin: Some(if ok { 1.0 } else { -1.0 }),
                 fix: if ok {
                     String::new()
                 } else {
@@ -350,7 +351,7 @@ impl IssAnalysis {
             for p in premises.iter_mut() {
                 if NEEDS_P.contains(&p.name.as_str()) {
                     p.holds = false;
-                    p.margin = f64::NAN;
+                    p.margin = None;
                     p.fix = String::new();
                     p.not_evaluated = Some(crate::outcome::NotEvaluated::LmiFails);
                 }

@@ -132,7 +132,7 @@ pub(super) fn summarize(d: &CertificateDocument, files: &[PathBuf], notes: &[Str
                     q.name,
                     who,
                     num(q.value),
-                    num(q.margin),
+                    num(q.margin.unwrap_or(f64::NAN)),
                     if q.not_evaluated.is_some() {
                         "not evaluated"
                     } else {

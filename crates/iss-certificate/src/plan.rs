@@ -6,9 +6,11 @@ use serde::Serialize;
 use crate::certificate::SolverCertificate;
 use closed_loop::bounded::Divergence;
 
-/// Why a run was made at its K (exhaustive: the tool words each source).
+/// Why a run was made at its K. `#[non_exhaustive]`: the tool records it (JSON
+/// `k_source`) and decides nothing on it.
 #[derive(Debug, Clone, Copy, PartialEq, Eq, Serialize)]
 #[serde(rename_all = "snake_case")]
+#[non_exhaustive]
 pub enum KSource {
     /// The computed K_min of Theorem 1.
     ComputedKMin,

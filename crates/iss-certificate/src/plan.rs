@@ -20,6 +20,27 @@ pub enum KSource {
     Small,
 }
 
+impl KSource {
+    /// The run tables' label: `"K_min"`, `"scenario"` or `"small K"`.
+    pub fn label(self) -> &'static str {
+        match self {
+            KSource::ComputedKMin => "K_min",
+            KSource::Scenario => "scenario",
+            KSource::Small => "small K",
+        }
+    }
+
+    /// Why the run, in a sentence: `"the computed K_min"`, `"mhe.iterations"` or
+    /// `"small K for comparison"`.
+    pub fn reason(self) -> &'static str {
+        match self {
+            KSource::ComputedKMin => "the computed K_min",
+            KSource::Scenario => "mhe.iterations",
+            KSource::Small => "small K for comparison",
+        }
+    }
+}
+
 /// The runs to simulate for a method's certificate: at K_min (when certified) and at the
 /// scenario's K if it differs; when void, at the scenario's K and at `small_k` (if smaller)
 /// so the loop's behaviour without a certificate is visible.

@@ -256,10 +256,9 @@ pub(super) fn summarize(d: &CertificateDocument, files: &[PathBuf], notes: &[Str
     }
     for (i, r) in d.runs.iter().enumerate() {
         let why = match (r.k_source, d.joint.is_some()) {
-            (KSource::ComputedKMin, false) => "K_min",
+            // The joint certificate's K_min is its cheapest pair.
             (KSource::ComputedKMin, true) => "cheapest",
-            (KSource::Scenario, _) => "scenario",
-            (KSource::Small, _) => "small K",
+            (source, _) => source.label(),
         };
         let _ = writeln!(
             s,

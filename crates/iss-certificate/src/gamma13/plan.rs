@@ -52,6 +52,61 @@ pub struct Gamma13Plan<'a> {
 /// The figures of one chunk of the free-set enumeration ([`Gamma13Plan::chunk`]).
 pub type Gamma13Chunk = VertexChunk;
 
+/// Folds the free-set enumeration's figures `v` into the chosen metrics' candidates (a
+/// smaller γ₁,₃ replaces the family's, with its γ₁ʷ); the best enumerated γ₁,₃.
+fn fold_enumerated(
+    candidates: &mut [MetricResult],
+    chosen: &[usize],
+    v: &super::enumerate::VertexMax,
+    metrics: &[Metric],
+    noise_gains: &[f64],
+) -> f64 {
+    let mut best = f64::INFINITY;
+    for (k, &i) in chosen.iter().enumerate() {
+        let (lam, gin) = (v.contraction[k], v.input_gain[k]);
+        let (g13, g1w) = gammas(lam, gin, &metrics[i], noise_gains[i]);
+        let c = &mut candidates[i];
+        c.contraction_enumerated = Some(lam);
+        // The enumeration drops a metric once λ reaches 1: its g is then a partial maximum
+        // (possibly 0), not a figure.
+        c.input_gain_enumerated = (lam < 1.0).then_some(gin);
+        c.gamma13_enumerated = Some(g13);
+        if g13 < c.gamma13 {
+            c.gamma13 = g13;
+            c.gamma1w = g1w;
+        }
+        best = best.min(g13);
+    }
+    best
+}
+
+/// Why no metric gives a finite γ₁,₃: not computed within the budget when the enumeration
+/// the budget skipped could find one, else no contracting metric (the least bad named).
+fn why_void(
+    candidates: &[MetricResult],
+    over_budget: Option<&crate::budget::NotComputed>,
+    enumerated: bool,
+    depth: usize,
+) -> Gamma13Void {
+    let worst = |c: &MetricResult| c.contraction_enumerated.unwrap_or(c.contraction);
+    let b = candidates
+        .iter()
+        .min_by(|x, y| worst(x).total_cmp(&worst(y)));
+    let best_contraction = b.map_or(f64::INFINITY, worst);
+    match over_budget {
+        Some(nc) => Gamma13Void::NotComputedWithinBudget {
+            best_contraction,
+            not_computed: nc.clone(),
+        },
+        None => Gamma13Void::NoContractingMetric {
+            best_contraction,
+            metric: b.map_or_else(|| "none".into(), |c| c.metric.clone()),
+            enumerated,
+            pattern_blocks: depth,
+        },
+    }
+}
+
 impl<'a> Gamma13Plan<'a> {
     /// The first stage of [`super::gamma13_certified_budgeted`] (same arguments).
     pub fn start(
@@ -302,26 +357,9 @@ impl<'a> Gamma13Plan<'a> {
                 (false, 0)
             }
         };
-        let mut gamma13_enumerated = None;
-        if let Some(v) = &vertex {
-            let mut best = f64::INFINITY;
-            for (k, &i) in chosen.iter().enumerate() {
-                let (lam, gin) = (v.contraction[k], v.input_gain[k]);
-                let (g13, g1w) = gammas(lam, gin, &metrics[i], noise_gains[i]);
-                let c = &mut candidates[i];
-                c.contraction_enumerated = Some(lam);
-                // The enumeration drops a metric once λ reaches 1: its g is then a partial maximum
-                // (possibly 0), not a figure.
-                c.input_gain_enumerated = (lam < 1.0).then_some(gin);
-                c.gamma13_enumerated = Some(g13);
-                if g13 < c.gamma13 {
-                    c.gamma13 = g13;
-                    c.gamma1w = g1w;
-                }
-                best = best.min(g13);
-            }
-            gamma13_enumerated = Some(best);
-        }
+        let gamma13_enumerated = vertex
+            .as_ref()
+            .map(|v| fold_enumerated(&mut candidates, &chosen, v, &metrics, &noise_gains));
 
         // The linear law: impulse-response sum with the best contracting metric's tail bound.
         let mut gamma13_linear = None;
@@ -380,28 +418,8 @@ impl<'a> Gamma13Plan<'a> {
                     .unwrap_or(gamma14);
             }
         }
-        let void = if gamma13.is_finite() {
-            None
-        } else {
-            let worst = |c: &MetricResult| c.contraction_enumerated.unwrap_or(c.contraction);
-            let b = candidates
-                .iter()
-                .min_by(|x, y| worst(x).total_cmp(&worst(y)));
-            let best_contraction = b.map_or(f64::INFINITY, worst);
-            Some(match &over_budget {
-                // The enumeration could find a contracting metric: not proved void.
-                Some(nc) => Gamma13Void::NotComputedWithinBudget {
-                    best_contraction,
-                    not_computed: nc.clone(),
-                },
-                None => Gamma13Void::NoContractingMetric {
-                    best_contraction,
-                    metric: b.map_or_else(|| "none".into(), |c| c.metric.clone()),
-                    enumerated,
-                    pattern_blocks: depth,
-                },
-            })
-        };
+        let void = (!gamma13.is_finite())
+            .then(|| why_void(&candidates, over_budget.as_ref(), enumerated, depth));
         Ok(Gamma13Certificate {
             gamma13,
             method,

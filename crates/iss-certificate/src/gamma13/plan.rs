@@ -280,16 +280,53 @@ impl<'a> Gamma13Plan<'a> {
         }
     }
 
+    /// Why the free sets are not enumerated when they are not: over the cap on s, or over
+    /// the analysis budget (then also the budget's cut, "not computed within the budget").
+    fn enumeration_skip(&self) -> (SkippedComputation, Option<crate::budget::NotComputed>) {
+        let (s, depth) = (self.s, self.depth);
+        let cap = self.max_vars.min(30);
+        if s > cap {
+            let reason = SkipReason::OverVariableCap {
+                saturable: s,
+                cap,
+                depth,
+            };
+            let skip = SkippedComputation {
+                computation: "free-set enumeration".into(),
+                reason,
+            };
+            return (skip, None);
+        }
+        let cut = crate::budget::NotComputed {
+            phase: "γ₁,₃ free-set enumeration".into(),
+            needed_seconds: self.seconds,
+            budget_seconds: self.phase_seconds,
+        };
+        let reason = SkipReason::OverBudget {
+            saturable: s,
+            metrics: self.n_refs,
+            n_x: self.mpc.nx(),
+            work: self.work,
+            seconds: self.seconds,
+            budget_seconds: self.phase_seconds,
+            depth,
+        };
+        let skip = SkippedComputation {
+            computation: "free-set enumeration".into(),
+            reason,
+        };
+        (skip, Some(cut))
+    }
+
     /// The certificate from every chunk's figures, in chunk order (all
     /// [`Gamma13Plan::chunks`] of them).
     pub fn finish(
         self,
         chunks: Vec<Result<Gamma13Chunk, MpcError>>,
     ) -> Result<Gamma13Certificate, MpcError> {
+        let (skip, cut) = self.enumeration_skip();
         let Gamma13Plan {
             mpc,
-            max_vars,
-            phase_seconds,
             fam,
             depth,
             pattern_families,
@@ -299,13 +336,11 @@ impl<'a> Gamma13Plan<'a> {
             gamma13_polynomial,
             order,
             chosen,
-            n_refs,
-            work,
-            seconds,
             s,
             variables,
             mut skipped,
             enumeration,
+            ..
         } = self;
         let vertex = match &enumeration {
             Some(e) if chunks.len() == e.chunks() => e.reduce(chunks)?,
@@ -325,35 +360,9 @@ impl<'a> Gamma13Plan<'a> {
         let mut over_budget = None;
         let (enumerated, free_sets) = match &vertex {
             Some(v) => (true, v.free_sets),
-            None if s > max_vars.min(30) => {
-                skipped.push(SkippedComputation {
-                    computation: "free-set enumeration".into(),
-                    reason: SkipReason::OverVariableCap {
-                        saturable: s,
-                        cap: max_vars.min(30),
-                        depth,
-                    },
-                });
-                (false, 0)
-            }
             None => {
-                over_budget = Some(crate::budget::NotComputed {
-                    phase: "γ₁,₃ free-set enumeration".into(),
-                    needed_seconds: seconds,
-                    budget_seconds: phase_seconds,
-                });
-                skipped.push(SkippedComputation {
-                    computation: "free-set enumeration".into(),
-                    reason: SkipReason::OverBudget {
-                        saturable: s,
-                        metrics: n_refs,
-                        n_x: mpc.nx(),
-                        work,
-                        seconds,
-                        budget_seconds: phase_seconds,
-                        depth,
-                    },
-                });
+                skipped.push(skip);
+                over_budget = cut;
                 (false, 0)
             }
         };

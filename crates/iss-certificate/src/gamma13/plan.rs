@@ -80,6 +80,30 @@ fn fold_enumerated(
     best
 }
 
+/// Each candidate's reason for figures not computed, and its γ₁,₄ with the λ_S its γ₁,₃
+/// used (when it contracts).
+fn finish_candidates(candidates: &mut [MetricResult], metrics: &[Metric]) {
+    for (c, m) in candidates.iter_mut().zip(metrics) {
+        c.not_computed = NoContraction::of(c);
+        let lam = used_contraction(c);
+        if lam < 1.0 {
+            c.gamma14 = c.input_matrix_gain / (m.lmin.sqrt() * (1.0 - lam));
+        }
+    }
+}
+
+/// Which bound gave a candidate's γ₁,₃: the enumeration when it is no larger than the
+/// family's.
+fn bound_of(c: &MetricResult) -> Gamma13Method {
+    if c.gamma13_enumerated
+        .is_some_and(|e| e <= c.gamma13_polynomial)
+    {
+        Gamma13Method::Enumerated
+    } else {
+        Gamma13Method::Polynomial
+    }
+}
+
 /// Why no metric gives a finite γ₁,₃: not computed within the budget when the enumeration
 /// the budget skipped could find one, else no contracting metric (the least bad named).
 fn why_void(
@@ -387,28 +411,14 @@ impl<'a> Gamma13Plan<'a> {
             }
         }
 
-        for (c, m) in candidates.iter_mut().zip(&metrics) {
-            c.not_computed = NoContraction::of(c);
-            let lam = used_contraction(c);
-            if lam < 1.0 {
-                c.gamma14 = c.input_matrix_gain / (m.lmin.sqrt() * (1.0 - lam));
-            }
-        }
+        finish_candidates(&mut candidates, &metrics);
         let best = candidates
             .iter()
             .filter(|c| c.gamma13.is_finite())
             .min_by(|x, y| x.gamma13.total_cmp(&y.gamma13));
         let mut gamma13 = best.map_or(f64::INFINITY, |c| c.gamma13);
         let mut metric = best.map(|c| c.metric.clone());
-        let mut method = best.map(|c| {
-            if c.gamma13_enumerated
-                .is_some_and(|e| e <= c.gamma13_polynomial)
-            {
-                Gamma13Method::Enumerated
-            } else {
-                Gamma13Method::Polynomial
-            }
-        });
+        let mut method = best.map(bound_of);
         // γ₁,₄, γ₁ʷ and β₁ of the same estimate as γ₁,₃.
         let mut gamma14 = best.map_or(f64::INFINITY, |c| c.gamma14);
         let gamma1w = best.map_or(f64::INFINITY, |c| c.gamma1w);

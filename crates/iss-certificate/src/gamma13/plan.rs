@@ -131,6 +131,69 @@ fn why_void(
     }
 }
 
+/// Why γ₁,₃ cannot exist with saturable inputs (s > 0): the saturated dynamics are not
+/// stable. Stable / marginal / unstable from the exact structure (a defective A, e.g.
+/// integrator chains, has rounded eigenvalues off the unit circle). With 𝒰 bounded A_sat = A
+/// exactly (K_sat = K_lin + GR vanishes; its computed value is rounding, which a Jordan chain
+/// of length 3 amplifies to 1e-5 in |λ|), so A itself is classified; otherwise A_sat as
+/// computed.
+fn saturated_dynamics_void(
+    mpc: &CondensedMpc,
+    fam: &Family,
+) -> Result<Option<Gamma13Void>, MpcError> {
+    if fam.saturable == 0 {
+        return Ok(None);
+    }
+    let us = mpc.input_set();
+    let bounded = us.lower().iter().chain(us.upper()).all(|b| b.is_finite());
+    let facts = if bounded {
+        lti_model::spectral::classify(mpc.system().a())?
+    } else {
+        lti_model::spectral::classify(fam.a_sat.as_ref())?
+    };
+    let rho = facts.spectral_radius;
+    let marginal = match facts.stability {
+        Stability::Unstable => Some(false),
+        Stability::Marginal => Some(true),
+        Stability::Stable if !(rho < 1.0 - 1e-10) => Some(true),
+        Stability::Stable => None,
+    };
+    Ok(
+        marginal.map(|marginal| Gamma13Void::SaturatedDynamicsNotStable {
+            spectral_radius: rho,
+            input_bounded: bounded,
+            marginal,
+        }),
+    )
+}
+
+/// A metric's candidate from its family figures λ_S, g_S and ‖S^{½}E‖₂ (`noise_gain`): the
+/// enumerated figures and γ₁,₄ come later.
+fn family_candidate(
+    mpc: &CondensedMpc,
+    m: &Metric,
+    lam: f64,
+    gin: f64,
+    noise_gain: f64,
+) -> MetricResult {
+    let (g13, g1w) = gammas(lam, gin, m, noise_gain);
+    MetricResult {
+        metric: m.name.clone(),
+        contraction: lam,
+        input_gain: gin,
+        contraction_enumerated: None,
+        input_gain_enumerated: None,
+        condition_sqrt: (m.lmax / m.lmin).sqrt(),
+        gamma13_polynomial: g13,
+        gamma13_enumerated: None,
+        gamma13: g13,
+        gamma1w: g1w,
+        input_matrix_gain: spectral_norm((&m.half * mpc.system().b()).as_ref()),
+        gamma14: f64::INFINITY,
+        not_computed: None,
+    }
+}
+
 impl<'a> Gamma13Plan<'a> {
     /// The first stage of [`super::gamma13_certified_budgeted`] (same arguments).
     pub fn start(
@@ -152,37 +215,10 @@ impl<'a> Gamma13Plan<'a> {
                 skipped,
             ))));
         }
-        if s > 0 {
-            // Stable / marginal / unstable from the exact structure (a defective A, e.g.
-            // integrator chains, has rounded eigenvalues off the unit circle). With 𝒰 bounded
-            // A_sat = A exactly (K_sat = K_lin + GR vanishes; its computed value is rounding,
-            // which a Jordan chain of length 3 amplifies to 1e-5 in |λ|), so A itself is
-            // classified; otherwise A_sat as computed.
-            let bounded = us.lower().iter().chain(us.upper()).all(|b| b.is_finite());
-            let facts = if bounded {
-                lti_model::spectral::classify(mpc.system().a())?
-            } else {
-                lti_model::spectral::classify(fam.a_sat.as_ref())?
-            };
-            let rho = facts.spectral_radius;
-            let marginal = match facts.stability {
-                Stability::Unstable => Some(false),
-                Stability::Marginal => Some(true),
-                Stability::Stable if !(rho < 1.0 - 1e-10) => Some(true),
-                Stability::Stable => None,
-            };
-            if let Some(marginal) = marginal {
-                return Ok(Gamma13Stage::Done(Box::new(void_certificate(
-                    variables,
-                    s,
-                    Gamma13Void::SaturatedDynamicsNotStable {
-                        spectral_radius: rho,
-                        input_bounded: bounded,
-                        marginal,
-                    },
-                    skipped,
-                ))));
-            }
+        if let Some(void) = saturated_dynamics_void(mpc, &fam)? {
+            return Ok(Gamma13Stage::Done(Box::new(void_certificate(
+                variables, s, void, skipped,
+            ))));
         }
         let depth = if s > 0 {
             mpc.pattern_depth(pattern_families)
@@ -211,22 +247,7 @@ impl<'a> Gamma13Plan<'a> {
             .collect();
         for ((m, fig), &ng) in metrics.iter().zip(figures).zip(&noise_gains) {
             let (lam, gin) = fig?;
-            let (g13, g1w) = gammas(lam, gin, m, ng);
-            candidates.push(MetricResult {
-                metric: m.name.clone(),
-                contraction: lam,
-                input_gain: gin,
-                contraction_enumerated: None,
-                input_gain_enumerated: None,
-                condition_sqrt: (m.lmax / m.lmin).sqrt(),
-                gamma13_polynomial: g13,
-                gamma13_enumerated: None,
-                gamma13: g13,
-                gamma1w: g1w,
-                input_matrix_gain: spectral_norm((&m.half * mpc.system().b()).as_ref()),
-                gamma14: f64::INFINITY,
-                not_computed: None,
-            });
+            candidates.push(family_candidate(mpc, m, lam, gin, ng));
         }
         let gamma13_polynomial = candidates
             .iter()

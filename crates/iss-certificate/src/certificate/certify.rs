@@ -151,13 +151,12 @@ pub fn certify_closed_loop_with(
     });
     let (h_bar, l_phi, h_paper_norms) = mhe_constants(problem.as_deref(), opts)?;
     times.l_phi_sampling_s = split();
-    // Controller constants.
-    let radius = resolved.sampling_radius();
-    // A numerical failure of the MPC's analysis names the scenario keys that shape its QP.
+    // Controller constants; a numerical failure names the scenario keys that shape the QP.
     let explain = |e: mpc_core::MpcError| match &scenario.mpc {
         Some(spec) => spec.explain(sys, e),
         None => e,
     };
+    let radius = resolved.sampling_radius();
     let l_pi = l_pi_report(&mpc, opts, radius, l_pi_enumerated).map_err(explain)?;
     let l_pi_used = l_pi.l_pi();
     times.l_pi_s = split();

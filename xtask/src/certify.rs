@@ -538,26 +538,26 @@ fn summarize(d: &CertificateDocument) -> String {
             "L_π (Assumption 3): not computed — {why} (the LMI (2) check above does not need it)"
         );
     }
-    match &d.closed_loop {
-        Some(iss_certificate::coverage::Coverage::Covered(kind)) => {
-            let _ = writeln!(
-                s,
-                "closed loop: covered by the {} certificate; its verdict at K is `cargo xtask \
-                 reproduce`'s (PASS/FAIL below is LMI (2) alone)",
-                match kind {
-                    iss_certificate::coverage::CertificateKind::Theorem1 => "Theorem 1",
-                    iss_certificate::coverage::CertificateKind::Joint => "joint MPC + MHE",
-                }
-            );
+    if let Some(c) = &d.closed_loop {
+        match c.covers() {
+            Some(kind) => {
+                let _ = writeln!(
+                    s,
+                    "closed loop: covered by the {} certificate; its verdict at K is `cargo \
+                     xtask reproduce`'s (PASS/FAIL below is LMI (2) alone)",
+                    kind.title()
+                );
+            }
+            None => {
+                let _ = writeln!(
+                    s,
+                    "closed loop: NOT CERTIFIED — {} (PASS/FAIL below is LMI (2) alone, not a \
+                     closed-loop certificate)",
+                    c.uncovered_reason()
+                        .map_or_else(|| "no certificate covers it".into(), ToString::to_string)
+                );
+            }
         }
-        Some(iss_certificate::coverage::Coverage::Uncovered(why)) => {
-            let _ = writeln!(
-                s,
-                "closed loop: NOT CERTIFIED — {why} (PASS/FAIL below is LMI (2) alone, not a \
-                 closed-loop certificate)"
-            );
-        }
-        None => {}
     }
     let _ = write!(s, "{}", if d.passed { "PASS" } else { "FAIL" });
     s

@@ -45,8 +45,8 @@ fn main() -> Result<(), Box<dyn std::error::Error>> {
             c.p_min,
             c.p_max,
             c.h_bar,
-            c.l_phi.certified,
-            c.l_phi.sampled,
+            c.l_phi.certified.unwrap_or(f64::NAN),
+            c.l_phi.sampled.unwrap_or(f64::NAN),
             c.l_pi_used,
             c.gamma13.used,
             t0.elapsed()

@@ -80,8 +80,9 @@ pub struct Premise {
     pub holds: bool,
     /// The value tested.
     pub value: f64,
-    /// Signed margin (positive when it holds), e.g. 1 − ρ.
-    pub margin: f64,
+    /// Signed margin (positive when it holds), e.g. 1 − ρ; None when not evaluated (JSON
+    /// null).
+    pub margin: Option<f64>,
     /// What to change when it fails (empty when it holds or was not evaluated).
     pub fix: String,
     /// Set when the premise could not be evaluated because a premise it depends on failed
@@ -89,7 +90,7 @@ pub struct Premise {
     /// the reason, naming that premise. The premise then counts as not holding, and its own
     /// advice is not given (one failure, one reason).
     #[cfg_attr(feature = "serde", serde(skip_serializing_if = "Option::is_none"))]
-    pub not_evaluated: Option<String>,
+    pub not_evaluated: Option<crate::outcome::NotEvaluated>,
 }
 
 /// Premises built from P of LMI (2): not evaluated when LMI (2) fails.
@@ -115,7 +116,7 @@ impl Premise {
             needed_by: needed_by.into(),
             holds,
             value,
-            margin,
+            margin: Some(margin),
             fix: fix.into(),
             not_evaluated: None,
         }
@@ -128,7 +129,7 @@ impl Premise {
         match &self.not_evaluated {
             Some(why) => VoidReason::PremiseNotEvaluated {
                 premise: self.name.clone(),
-                because: why.clone(),
+                because: *why,
             },
             None => VoidReason::PremiseFails {
                 premise: self.name.clone(),
@@ -233,145 +234,138 @@ pub fn min_horizon_for_eta(eta: f64) -> Option<usize> {
     (1..100_000).find(|&m| 6.0 * eta.powi(m as i32) < 1.0)
 }
 
+/// The K-independent premises of Theorem 1 at ρ = 6^{1/M}η; those built from P are not
+/// evaluated when LMI (2) fails (one failure, one reason).
+fn premises(inputs: &IssInputs, rho: f64, m: usize) -> Vec<Premise> {
+    let mut premises = vec![
+        Premise::evaluated(
+            "rho < 1",
+            "Prop. 3 (ρ^M = 6η^M; geometric series in √ρ)",
+            rho < 1.0,
+            rho,
+            1.0 - rho,
+            rho_fix(inputs.eta, rho, m),
+        ),
+        Premise::evaluated(
+            "LMI (2) feasible",
+            "Assumption 2",
+            inputs.lmi_certified && inputs.p_min > 0.0,
+            inputs.p_min,
+            inputs.p_min,
+            if inputs.lmi_certified {
+                ""
+            } else {
+                "no P ≻ 0 satisfies LMI (2): see the δ-IOSS error"
+            },
+        ),
+        Premise::evaluated(
+            "phi fits eq. (11)",
+            "Assumption 5 (‖zᴷ − z*‖ ≤ φ(K)‖z⁰ − z*‖, feasible zᴷ)",
+            inputs.phi_fits_eq11,
+            if inputs.phi_fits_eq11 { 1.0 } else { 0.0 },
+            if inputs.phi_fits_eq11 { 1.0 } else { -1.0 },
+            if inputs.phi_fits_eq11 {
+                ""
+            } else {
+                "the solver's certificate bounds another quantity or its iterate may be \
+                 infeasible: use PG or FISTA"
+            },
+        ),
+        Premise::evaluated(
+            "phi rate < 1",
+            "Assumption 5 (φ ∈ 𝓛)",
+            inputs.phi_rate < 1.0 && inputs.phi_rate >= 0.0 && inputs.phi_prefactor.is_finite(),
+            inputs.phi_rate,
+            1.0 - inputs.phi_rate,
+            if inputs.phi_rate < 1.0 {
+                ""
+            } else {
+                "the solver's certified rate is ≥ 1 (it does not contract): see the method's \
+                 own fix (`phi_rate_fix`)"
+            },
+        ),
+        Premise::evaluated(
+            "gamma13 finite",
+            "Assumption 4 (ISS of the controlled system w.r.t. e)",
+            inputs.gamma13.is_finite() && inputs.gamma13 >= 0.0,
+            inputs.gamma13,
+            if inputs.gamma13.is_finite() {
+                1.0
+            } else {
+                -1.0
+            },
+            if inputs.gamma13.is_finite() {
+                ""
+            } else {
+                "no ISS gain from e to x could be established: supply γ₁,₃ or change the \
+                 controller"
+            },
+        ),
+    ];
+    for (name, v) in [
+        ("L_Phi", inputs.l_phi),
+        ("L_pi", inputs.l_pi),
+        ("H_bar", inputs.h_bar),
+        ("norm C", inputs.c_norm),
+        ("norm F", inputs.f_norm),
+    ] {
+        let ok = v.is_finite() && v >= 0.0;
+        premises.push(Premise::evaluated(
+            format!("{name} finite"),
+            "Lemma 1 / Assumption 3 / Prop. 2",
+            ok,
+            v,
+            if ok { 1.0 } else { -1.0 },
+            if ok {
+                String::new()
+            } else {
+                format!("{name} is not a finite non-negative number")
+            },
+        ));
+    }
+    if !inputs.lmi_certified {
+        for p in premises.iter_mut() {
+            if NEEDS_P.contains(&p.name.as_str()) {
+                p.holds = false;
+                p.margin = None;
+                p.fix = String::new();
+                p.not_evaluated = Some(crate::outcome::NotEvaluated::LmiFails);
+            }
+        }
+    }
+    premises
+}
+
+/// The advice of a failed "rho < 1" (empty when it holds): the horizon or the η that
+/// makes 6η^M < 1.
+fn rho_fix(eta: f64, rho: f64, m: usize) -> String {
+    if rho < 1.0 {
+        return String::new();
+    }
+    let m_min = min_horizon_for_eta(eta).map_or("none".to_string(), |m| m.to_string());
+    format!(
+        "6η^M = {} ≥ 1. Increase the horizon to M ≥ {m_min} at η = {eta}, or lower η below \
+         6^(-1/M) = {} at M = {m} (η must stay feasible for LMI (2))",
+        lti_model::numfmt::sig4(6.0 * eta.powi(m as i32)),
+        // Rounded down: the number shown is itself below the bound, so η below it is below
+        // the bound.
+        lti_model::numfmt::sig4_below(eta_sup_for_horizon(m)),
+    )
+}
+
 impl IssAnalysis {
     /// Evaluates the constants that do not depend on K and checks the premises.
     pub fn new(inputs: IssInputs) -> Self {
         let m = inputs.horizon.max(1);
         let rho = 6f64.powf(1.0 / m as f64) * inputs.eta;
-        let lambda_pp = inputs.p_max / inputs.p_min;
-        let lambda_qp = inputs.q_max / inputs.p_min;
-        let lambda_hp = inputs.h_bar / inputs.p_min;
-        let l_phi_used = inputs.l_phi.max(1.0);
-        let mut premises = Vec::new();
-        let rho_fix = if rho < 1.0 {
-            String::new()
-        } else {
-            let m_min =
-                min_horizon_for_eta(inputs.eta).map_or("none".to_string(), |m| m.to_string());
-            format!(
-                "6η^M = {} ≥ 1. Increase the horizon to M ≥ {m_min} at η = {}, or lower η below \
-                 6^(-1/M) = {} at M = {} (η must stay feasible for LMI (2))",
-                lti_model::numfmt::sig4(6.0 * inputs.eta.powi(m as i32)),
-                inputs.eta,
-                // Rounded down: the number shown is itself below the bound, so η below it
-                // is below the bound.
-                lti_model::numfmt::sig4_below(eta_sup_for_horizon(m)),
-                m
-            )
-        };
-        premises.push(Premise {
-            name: "rho < 1".into(),
-            needed_by: "Prop. 3 (ρ^M = 6η^M; geometric series in √ρ)".into(),
-            holds: rho < 1.0,
-            value: rho,
-            margin: 1.0 - rho,
-            fix: rho_fix,
-            not_evaluated: None,
-        });
-        premises.push(Premise {
-            name: "LMI (2) feasible".into(),
-            needed_by: "Assumption 2".into(),
-            holds: inputs.lmi_certified && inputs.p_min > 0.0,
-            value: inputs.p_min,
-            margin: inputs.p_min,
-            fix: if inputs.lmi_certified {
-                String::new()
-            } else {
-                "no P ≻ 0 satisfies LMI (2): see the δ-IOSS error".into()
-            },
-            not_evaluated: None,
-        });
-        premises.push(Premise {
-            name: "phi fits eq. (11)".into(),
-            needed_by: "Assumption 5 (‖zᴷ − z*‖ ≤ φ(K)‖z⁰ − z*‖, feasible zᴷ)".into(),
-            holds: inputs.phi_fits_eq11,
-            value: if inputs.phi_fits_eq11 { 1.0 } else { 0.0 },
-            margin: if inputs.phi_fits_eq11 { 1.0 } else { -1.0 },
-            fix: if inputs.phi_fits_eq11 {
-                String::new()
-            } else {
-                "the solver's certificate bounds another quantity or its iterate may be infeasible: use PG or FISTA".into()
-            },
-            not_evaluated: None,
-        });
-        premises.push(Premise {
-            name: "phi rate < 1".into(),
-            needed_by: "Assumption 5 (φ ∈ 𝓛)".into(),
-            holds: inputs.phi_rate < 1.0
-                && inputs.phi_rate >= 0.0
-                && inputs.phi_prefactor.is_finite(),
-            value: inputs.phi_rate,
-            margin: 1.0 - inputs.phi_rate,
-            fix: if inputs.phi_rate < 1.0 {
-                String::new()
-            } else {
-                "the solver's certified rate is ≥ 1 (it does not contract): see the method's \
-                 own fix (`phi_rate_fix`)"
-                    .into()
-            },
-            not_evaluated: None,
-        });
-        premises.push(Premise {
-            name: "gamma13 finite".into(),
-            needed_by: "Assumption 4 (ISS of the controlled system w.r.t. e)".into(),
-            holds: inputs.gamma13.is_finite() && inputs.gamma13 >= 0.0,
-            value: inputs.gamma13,
-            margin: if inputs.gamma13.is_finite() {
-                1.0
-            } else {
-                -1.0
-            },
-            fix: if inputs.gamma13.is_finite() {
-                String::new()
-            } else {
-                "no ISS gain from e to x could be established: supply γ₁,₃ or change the controller"
-                    .into()
-            },
-            not_evaluated: None,
-        });
-        for (name, v) in [
-            ("L_Phi", inputs.l_phi),
-            ("L_pi", inputs.l_pi),
-            ("H_bar", inputs.h_bar),
-            ("norm C", inputs.c_norm),
-            ("norm F", inputs.f_norm),
-        ] {
-            let ok = v.is_finite() && v >= 0.0;
-            premises.push(Premise {
-                name: format!("{name} finite"),
-                needed_by: "Lemma 1 / Assumption 3 / Prop. 2".into(),
-                holds: ok,
-                value: v,
-                margin: if ok { 1.0 } else { -1.0 },
-                fix: if ok {
-                    String::new()
-                } else {
-                    format!("{name} is not a finite non-negative number")
-                },
-                not_evaluated: None,
-            });
-        }
-        if !inputs.lmi_certified {
-            for p in premises.iter_mut() {
-                if NEEDS_P.contains(&p.name.as_str()) {
-                    p.holds = false;
-                    p.margin = f64::NAN;
-                    p.fix = String::new();
-                    p.not_evaluated = Some(
-                        "\"LMI (2) feasible\" fails: the MHE's QP, its solver certificate φ, \
-                         L_Φ and H̄ are built from P"
-                            .into(),
-                    );
-                }
-            }
-        }
+        let premises = premises(&inputs, rho, m);
         Self {
-            inputs,
             rho,
-            lambda_pp,
-            lambda_qp,
-            lambda_hp,
-            l_phi_used,
+            lambda_pp: inputs.p_max / inputs.p_min,
+            lambda_qp: inputs.q_max / inputs.p_min,
+            lambda_hp: inputs.h_bar / inputs.p_min,
+            l_phi_used: inputs.l_phi.max(1.0),
+            inputs,
             premises,
         }
     }

@@ -37,10 +37,13 @@
 use serde::Serialize;
 
 use crate::analysis::IssAnalysis;
+use crate::budget::NotComputed;
 use crate::certificate::{ClosedLoopCertificate, SolverCertificate};
+use crate::outcome::{Gamma1wUnknown, VoidReason};
 use crate::small_gain::GainMatrix;
 use closed_loop::record::Trace;
 use lti_model::numfmt::sig4;
+use qp_iter::Method;
 
 /// Node names of the comparison systems, in order: x, ε, e.
 pub const NODES: [&str; 3] = ["x", "epsilon", "e"];
@@ -140,7 +143,8 @@ pub struct AsymptoticGains {
     pub gamma1w: f64,
 }
 
-/// Why there is no certified asymptotic gain at a K.
+/// Why there is no certified asymptotic gain at a K. Every reason is typed; JSON carries
+/// the sentences of their `Display`.
 #[derive(Debug, Clone, PartialEq)]
 #[cfg_attr(feature = "serde", derive(Serialize))]
 #[cfg_attr(feature = "serde", serde(tag = "kind", rename_all = "snake_case"))]
@@ -151,7 +155,19 @@ pub enum AsymptoticVoid {
     /// `void_reasons`).
     Void {
         /// The reasons, as in the certificate's `void_reasons`.
-        reasons: Vec<String>,
+        reasons: Vec<VoidReason>,
+    },
+    /// The analysis budget (`certificate.phase_seconds`) stopped the certificate of this
+    /// method: not proved void, not computed.
+    NotComputed {
+        /// The phase cut, its estimate and the budget that computes it.
+        not_computed: NotComputed,
+    },
+    /// The method was not certified at all (not among `CertifyOptions::methods`).
+    NotCertified {
+        /// The method asked for.
+        #[cfg_attr(feature = "serde", serde(serialize_with = "as_display"))]
+        method: Method,
     },
     /// The premises hold but the small-gain condition fails at this K (K below K_min).
     SmallGainFails {
@@ -167,16 +183,27 @@ pub enum AsymptoticVoid {
     /// γ₁ʷ, Assumption 4's gain from w¹ to x, is not known (a user-supplied γ₁,₃).
     NoGamma1w {
         /// Why.
-        reason: String,
+        reason: Gamma1wUnknown,
     },
+}
+
+/// Serialises a value as its `Display` sentence.
+#[cfg(feature = "serde")]
+fn as_display<T: std::fmt::Display, S: serde::Serializer>(v: &T, s: S) -> Result<S::Ok, S::Error> {
+    s.collect_str(v)
 }
 
 impl std::fmt::Display for AsymptoticVoid {
     fn fmt(&self, f: &mut std::fmt::Formatter<'_>) -> std::fmt::Result {
         match self {
             Self::Void { reasons } => {
-                write!(f, "Theorem 1 is void: {}", reasons.join("; "))
+                write!(f, "Theorem 1 is void: {}", VoidReason::join(reasons))
             }
+            Self::NotComputed { not_computed } => write!(f, "Theorem 1 is {not_computed}"),
+            Self::NotCertified { method } => write!(
+                f,
+                "{method} is not among CertifyOptions::methods: certify it to get its gains"
+            ),
             Self::SmallGainFails {
                 k,
                 k_min,
@@ -227,7 +254,7 @@ pub fn asymptotic_gains(
             reasons: analysis
                 .violated()
                 .iter()
-                .map(|p| p.void_reason().to_string())
+                .map(|p| p.void_reason())
                 .collect(),
         });
     }
@@ -242,10 +269,7 @@ pub fn asymptotic_gains(
     }
     if !(gamma1w.is_finite() && gamma1w >= 0.0) {
         return Err(AsymptoticVoid::NoGamma1w {
-            reason: format!(
-                "γ₁ʷ = {} (Assumption 4's gain from w¹ to x) is not a finite number",
-                sig4(gamma1w)
-            ),
+            reason: Gamma1wUnknown::NotFinite { gamma1w },
         });
     }
     let i = &analysis.inputs;
@@ -299,16 +323,13 @@ pub fn gamma1w_of(cert: &ClosedLoopCertificate) -> Result<f64, AsymptoticVoid> {
     match (&cert.gamma13.certified, cert.gamma13.user) {
         (Some(c), None) => Ok(c.gamma1w),
         (_, Some(user)) => Err(AsymptoticVoid::NoGamma1w {
-            reason: format!(
-                "γ₁,₃ = {} is user-supplied ({}): Assumption 4's gain from w¹ to x (γ₁ʷ) is not \
-                 known with it, and the asymptotic bound on ‖x‖ (hence on ε and ‖e‖) needs it; \
-                 drop the user value to have γ₁,₃ and γ₁ʷ certified",
-                sig4(user),
-                cert.gamma13.source
-            ),
+            reason: Gamma1wUnknown::UserSupplied {
+                gamma13: user,
+                source: cert.gamma13.source.clone(),
+            },
         }),
         (None, None) => Err(AsymptoticVoid::NoGamma1w {
-            reason: "γ₁,₃ was not computed, so neither was γ₁ʷ".into(),
+            reason: Gamma1wUnknown::NotComputed,
         }),
     }
 }
@@ -322,15 +343,13 @@ pub fn certified_gains(
     // No K_min: void for the certificate's reasons (a failed premise, a constant that does
     // not exist for this scenario, or no K up to the search limit).
     let Some(k_min) = solver.k_min else {
-        return Err(AsymptoticVoid::Void {
-            // Cut by the budget: the sentence says "not computed within the budget".
-            reasons: match &solver.not_computed {
-                Some(nc) => vec![nc.to_string()],
-                None => solver
-                    .void_reasons
-                    .iter()
-                    .map(ToString::to_string)
-                    .collect(),
+        // Cut by the budget: not computed, never "void".
+        return Err(match &solver.not_computed {
+            Some(nc) => AsymptoticVoid::NotComputed {
+                not_computed: nc.clone(),
+            },
+            None => AsymptoticVoid::Void {
+                reasons: solver.void_reasons.clone(),
             },
         });
     };

@@ -267,10 +267,26 @@ pub fn estimate_phases(
     opts: &CertificateOptions,
     k_top: usize,
 ) -> Vec<PhaseEstimate> {
+    let mut out = mhe_phases(scenario, opts);
+    if let Some(mpc) = mpc {
+        out.extend(mpc_phases(scenario, mpc, opts));
+        out.push(rho_lin_phase(scenario, opts, k_top));
+    }
+    out
+}
+
+/// The plant's n_x and the MHE's horizon M (0 without `[mhe]`), and n_z(m) = n_x + m·n_w of
+/// window m.
+fn mhe_dims(scenario: &Scenario) -> (f64, usize, impl Fn(usize) -> f64) {
     let sys = &scenario.plant;
     let (nx, nw) = (sys.nx() as f64, (sys.nw1() + sys.nw2()) as f64);
     let m = scenario.mhe.as_ref().map_or(0, |s| s.horizon);
-    let nz = |w: usize| nx + w as f64 * nw;
+    (nx, m, move |w: usize| nx + w as f64 * nw)
+}
+
+/// The MHE's phases: P of LMI (2), the constants of its windows, the L_Φ sampling.
+fn mhe_phases(scenario: &Scenario, opts: &CertificateOptions) -> Vec<PhaseEstimate> {
+    let (nx, m, nz) = mhe_dims(scenario);
     let solvers = opts.solvers.len() as f64;
     let mut out = Vec::new();
     out.push(required(
@@ -323,112 +339,127 @@ pub fn estimate_phases(
             )
         },
     ));
-    if let Some(mpc) = mpc {
-        let n = mpc.qp().n() as f64;
-        let s = mpc.saturable().len();
-        let enumerate_l_pi = s <= mpc_core::ENUMERATION_MAX_VARS;
-        let l_pi = if enumerate_l_pi {
-            (1u64 << s) as f64 * (n.powi(3) / 6.0 + 2.0 * n * n * nx)
+    out
+}
+
+/// The MPC's phases: L_π, the γ₁,₃ family bounds and its free-set enumeration.
+fn mpc_phases(
+    scenario: &Scenario,
+    mpc: &CondensedMpc,
+    opts: &CertificateOptions,
+) -> Vec<PhaseEstimate> {
+    let (nx, _, _) = mhe_dims(scenario);
+    let mut out = Vec::new();
+    let n = mpc.qp().n() as f64;
+    let s = mpc.saturable().len();
+    let enumerate_l_pi = s <= mpc_core::ENUMERATION_MAX_VARS;
+    let l_pi = if enumerate_l_pi {
+        (1u64 << s) as f64 * (n.powi(3) / 6.0 + 2.0 * n * n * nx)
+    } else {
+        0.0
+    } + opts.lipschitz_pairs as f64 * 40.0 * n * n * (n + nx);
+    out.push(required(
+        "L_π",
+        l_pi,
+        SCALAR_RATE,
+        if enumerate_l_pi {
+            format!("2^{s} free sets (Cholesky of ≤ {n} variables) and the sampled estimate")
         } else {
-            0.0
-        } + opts.lipschitz_pairs as f64 * 40.0 * n * n * (n + nx);
-        out.push(required(
-            "L_π",
-            l_pi,
-            SCALAR_RATE,
-            if enumerate_l_pi {
-                format!("2^{s} free sets (Cholesky of ≤ {n} variables) and the sampled estimate")
+            format!(
+                "polynomial bound (s = {s} > {}) and the sampled estimate",
+                mpc_core::ENUMERATION_MAX_VARS
+            )
+        },
+    ));
+    let fams = crate::gamma13::GAMMA13_PATTERN_FAMILIES as f64;
+    out.push(required(
+        "γ₁,₃ family bounds",
+        20.0 * (fams + 1.0) * 2.0 * 30.0 * (nx.powi(3) + n * nx * nx),
+        SCALAR_RATE,
+        "≈ 20 metrics × ≤ 17 families × 2 S-procedure searches (≈ 30 n_x × n_x eigenvalue \
+         problems each, and the family's N·n_u columns: n_x³ + N·n_u·n_x²); measured 0.7–1.5× \
+         on the thermal rod, the mass chain, the quadrotor and a 150-state plant"
+            .into(),
+    ));
+    let enum_work = crate::gamma13::enumeration_work(mpc, 3);
+    let allowed = s <= opts.enumeration_max_vars.min(30);
+    let within = enum_work / SCALAR_RATE <= opts.phase_seconds;
+    out.push(phase(
+        "γ₁,₃ free-set enumeration",
+        if allowed { enum_work } else { 0.0 },
+        SCALAR_RATE,
+        allowed && within,
+        if !allowed {
+            format!(
+                "not run: s = {s} saturable variables > cap {}",
+                opts.enumeration_max_vars.min(30)
+            )
+        } else if within {
+            format!("2^{s} free sets × 3 metrics at n_x = {nx}")
+        } else {
+            format!(
+                "2^{s} free sets × 3 metrics at n_x = {nx}: beyond the budget of {} s \
+                 (`certificate.phase_seconds`), the polynomial bound is used instead",
+                secs(opts.phase_seconds)
+            )
+        },
+    ));
+    out
+}
+
+/// ρ_lin as `reproduce` computes it, estimated from the dimensions.
+fn rho_lin_phase(scenario: &Scenario, opts: &CertificateOptions, k_top: usize) -> PhaseEstimate {
+    let sys = &scenario.plant;
+    let (_, m, nz) = mhe_dims(scenario);
+    let dims = crate::linear::LiftedDims {
+        nx: sys.nx(),
+        nu: sys.nu(),
+        ny: sys.ny(),
+        horizon: m,
+        nz: nz(m) as usize,
+        n_controller: 0,
+        n_theta: sys.nx() + m * (sys.nu() + sys.ny()),
+    };
+    let grid = crate::linear::log_spaced(1, k_top.max(2000), 25);
+    // What `reproduce` computes: the four preset families when n_z ≤
+    // [`crate::linear::ALL_METHODS_MAX_NZ`], else the scenario's own method only.
+    let own_lift = match scenario.mhe.as_ref().map(|s| s.method.family()) {
+        Some("fista") => 2usize,
+        _ => 1,
+    };
+    let lifts: Vec<usize> = if nz(m) as usize <= crate::linear::ALL_METHODS_MAX_NZ {
+        vec![1, 2, 1, 1]
+    } else {
+        vec![own_lift]
+    };
+    let per_method: Vec<f64> = lifts
+        .iter()
+        .map(|&lift| dims.grid_work(nz(m) as usize * lift, &grid))
+        .collect();
+    let total: f64 = per_method.iter().sum();
+    let runs = total / DENSE_RATE <= opts.phase_seconds;
+    phase(
+        "ρ_lin (reproduce)",
+        total,
+        DENSE_RATE,
+        runs,
+        format!(
+            "{} method(s) × {} K: the K-step map and the spectral radius of the {} × {} lifted \
+             matrix{}",
+            per_method.len(),
+            grid.len(),
+            dims.dim(),
+            dims.dim(),
+            if runs {
+                String::new()
             } else {
                 format!(
-                    "polynomial bound (s = {s} > {}) and the sampled estimate",
-                    mpc_core::ENUMERATION_MAX_VARS
-                )
-            },
-        ));
-        let fams = crate::gamma13::GAMMA13_PATTERN_FAMILIES as f64;
-        out.push(required(
-            "γ₁,₃ family bounds",
-            20.0 * (fams + 1.0) * 2.0 * 30.0 * (nx.powi(3) + n * nx * nx),
-            SCALAR_RATE,
-            "≈ 20 metrics × ≤ 17 families × 2 S-procedure searches (≈ 30 n_x × n_x eigenvalue \
-             problems each, and the family's N·n_u columns: n_x³ + N·n_u·n_x²); measured 0.7–1.5× \
-             on the thermal rod, the mass chain, the quadrotor and a 150-state plant"
-                .into(),
-        ));
-        let enum_work = crate::gamma13::enumeration_work(mpc, 3);
-        let allowed = s <= opts.enumeration_max_vars.min(30);
-        let within = enum_work / SCALAR_RATE <= opts.phase_seconds;
-        out.push(phase(
-            "γ₁,₃ free-set enumeration",
-            if allowed { enum_work } else { 0.0 },
-            SCALAR_RATE,
-            allowed && within,
-            if !allowed {
-                format!(
-                    "not run: s = {s} saturable variables > cap {}",
-                    opts.enumeration_max_vars.min(30)
-                )
-            } else if within {
-                format!("2^{s} free sets × 3 metrics at n_x = {nx}")
-            } else {
-                format!(
-                    "2^{s} free sets × 3 metrics at n_x = {nx}: beyond the budget of {} s \
-                     (`certificate.phase_seconds`), the polynomial bound is used instead",
+                    "; beyond the budget of {} s (`certificate.phase_seconds`): not computed",
                     secs(opts.phase_seconds)
                 )
-            },
-        ));
-        let dims = crate::linear::LiftedDims {
-            nx: sys.nx(),
-            nu: sys.nu(),
-            ny: sys.ny(),
-            horizon: m,
-            nz: nz(m) as usize,
-            n_controller: 0,
-            n_theta: sys.nx() + m * (sys.nu() + sys.ny()),
-        };
-        let grid = crate::linear::log_spaced(1, k_top.max(2000), 25);
-        // What `reproduce` computes: the four preset families when n_z ≤
-        // [`crate::linear::ALL_METHODS_MAX_NZ`], else the scenario's own method only.
-        let own_lift = match scenario.mhe.as_ref().map(|s| s.method.family()) {
-            Some("fista") => 2usize,
-            _ => 1,
-        };
-        let lifts: Vec<usize> = if nz(m) as usize <= crate::linear::ALL_METHODS_MAX_NZ {
-            vec![1, 2, 1, 1]
-        } else {
-            vec![own_lift]
-        };
-        let per_method: Vec<f64> = lifts
-            .iter()
-            .map(|&lift| dims.grid_work(nz(m) as usize * lift, &grid))
-            .collect();
-        let total: f64 = per_method.iter().sum();
-        let runs = total / DENSE_RATE <= opts.phase_seconds;
-        out.push(phase(
-            "ρ_lin (reproduce)",
-            total,
-            DENSE_RATE,
-            runs,
-            format!(
-                "{} method(s) × {} K: the K-step map and the spectral radius of the {} × {} lifted \
-                 matrix{}",
-                per_method.len(),
-                grid.len(),
-                dims.dim(),
-                dims.dim(),
-                if runs {
-                    String::new()
-                } else {
-                    format!(
-                        "; beyond the budget of {} s (`certificate.phase_seconds`): not computed",
-                        secs(opts.phase_seconds)
-                    )
-                }
-            ),
-        ));
-    }
-    out
+            }
+        ),
+    )
 }
 
 #[cfg(test)]

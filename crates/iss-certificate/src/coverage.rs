@@ -33,6 +33,8 @@ use qp_iter::Method;
 use serde::Serialize;
 
 use crate::analysis::IssAnalysis;
+use crate::budget::NotComputed;
+use crate::certificate::precision::ScalarVoid;
 use crate::certificate::{
     CertificateOptions, ClosedLoopCertificate, Gamma13Source, SolverCertificate,
 };
@@ -40,10 +42,13 @@ use crate::joint::{JointAnalysis, JointOptions, certify_joint};
 use crate::outcome::VoidReason;
 use closed_loop::scenario::{ControllerChoice, ResolvedScenario, Scenario};
 
-/// The certificates a configuration can be under (exhaustive on purpose, as [`Applicable`]).
+/// The certificates a configuration can be under. `#[non_exhaustive]`: a caller outside this
+/// crate names them through [`CertificateKind::name`] / [`CertificateKind::title`], which
+/// this crate matches exhaustively.
 #[derive(Debug, Clone, Copy, PartialEq, Eq)]
 #[cfg_attr(feature = "serde", derive(Serialize))]
 #[cfg_attr(feature = "serde", serde(rename_all = "snake_case"))]
+#[non_exhaustive]
 pub enum CertificateKind {
     /// Theorem 1: the sub-optimal MHE with the exact MPC.
     Theorem1,
@@ -57,6 +62,14 @@ impl CertificateKind {
         match self {
             CertificateKind::Theorem1 => "theorem1",
             CertificateKind::Joint => "joint",
+        }
+    }
+
+    /// `"Theorem 1"` or `"joint MPC + MHE"` (the reports' words).
+    pub fn title(self) -> &'static str {
+        match self {
+            CertificateKind::Theorem1 => "Theorem 1",
+            CertificateKind::Joint => "joint MPC + MHE",
         }
     }
 }
@@ -145,20 +158,19 @@ fn f32_verdict(
     config: &Configuration,
     v: PairVerdict,
 ) -> PairVerdict {
-    let void = |why: String, v: PairVerdict| PairVerdict {
+    let void = |why: F32Void, v: PairVerdict| PairVerdict {
         certified: Certified::Void,
         margin: None,
-        reason: if v.reason.is_empty() {
-            format!("f32: {why}")
-        } else {
-            format!("f32: {why}; {}", v.reason)
-        },
+        reason: Some(PairReason::F32 {
+            why,
+            then: v.reason.map(Box::new),
+        }),
         ..v
     };
     if v.certified == Certified::Void || v.certificate != Some(CertificateKind::Theorem1) {
         let why = match v.certificate {
-            Some(CertificateKind::Joint) => F32_NOT_COVERED.to_string(),
-            _ => "not covered: the f64 certificate is void or does not apply".to_string(),
+            Some(CertificateKind::Joint) => F32Void::JointNotCovered,
+            _ => F32Void::NotCovered,
         };
         return void(why, v);
     }
@@ -170,32 +182,30 @@ fn f32_verdict(
         CertificateOptions::default().k_max,
     ) {
         Ok(sc) => sc,
-        Err(e) => return void(format!("the rounding model cannot be computed: {e}"), v),
+        Err(e) => {
+            let error = e.to_string();
+            return void(F32Void::RoundingModel { error }, v);
+        }
     };
     match sc.k_min {
         Some(k_min) if config.k_e >= k_min => PairVerdict {
             certified: Certified::Yes,
             k_min: Some(k_min),
             margin: None,
-            reason: String::new(),
+            reason: None,
             ..v
         },
         Some(k_min) => PairVerdict {
             certified: Certified::No,
             k_min: Some(k_min),
             margin: None,
-            reason: format!(
-                "f32: K = {} is below the f32 K_min = {k_min} (Theorem 1 with the f32 rounding \
-                 folded in)",
-                config.k_e
-            ),
+            reason: Some(PairReason::BelowF32KMin {
+                k: config.k_e,
+                k_min,
+            }),
             ..v
         },
-        None => void(
-            sc.reason
-                .unwrap_or_else(|| "no K certified with the f32 rounding".into()),
-            v,
-        ),
+        None => void(sc.reason.map_or(F32Void::NoK, F32Void::Void), v),
     }
 }
 
@@ -213,16 +223,207 @@ pub fn solver_certified(
     ) && sc.k_min.is_some()
 }
 
-/// Which certificate covers a configuration, or why none does: covered or not, exhaustive on
-/// purpose.
-#[derive(Debug, Clone, PartialEq, Eq)]
+/// Which certificate covers a configuration, or why none does. `#[non_exhaustive]`: callers
+/// decide through [`Coverage::covers`] and [`Coverage::uncovered_reason`], matched
+/// exhaustively here, so a new variant is decided in this crate, not by a caller's wildcard.
+#[derive(Debug, Clone, PartialEq)]
 #[cfg_attr(feature = "serde", derive(Serialize))]
 #[cfg_attr(feature = "serde", serde(rename_all = "snake_case"))]
+#[non_exhaustive]
 pub enum Coverage {
     /// This certificate applies (it may still be void for these parameters).
     Covered(CertificateKind),
     /// No certificate covers the configuration: the reason names the scenario key.
-    Uncovered(String),
+    Uncovered(Uncovered),
+}
+
+/// Why no certificate covers a configuration. Serialised as its sentence.
+#[derive(Debug, Clone, PartialEq)]
+#[non_exhaustive]
+pub enum Uncovered {
+    /// The time-shifted MHE warm start (Lemma 1 and Prop. 1 assume the paper's Σ_t).
+    ShiftedWarmStart,
+    /// The saturated LQR controller (L_π and γ₁,₃ are the MPC's).
+    SaturatedLqr,
+    /// The closed-loop certificate has no entry for the method.
+    NoEntry {
+        /// The MHE's method.
+        method: Method,
+    },
+    /// The scenario's MPC cannot be built (its error's sentence).
+    NoMpc {
+        /// The error.
+        error: String,
+    },
+    /// The joint certificate cannot be computed (its error's sentence).
+    NoJoint {
+        /// The error.
+        error: String,
+    },
+}
+
+impl std::fmt::Display for Uncovered {
+    fn fmt(&self, f: &mut std::fmt::Formatter<'_>) -> std::fmt::Result {
+        match self {
+            Self::ShiftedWarmStart => f.write_str(
+                "mhe.warm_start = \"shifted\" is not covered by the analysis (Lemma 1 and Prop. \
+                 1 assume the paper's warm start Σ_t); set mhe.warm_start = \"paper\" for a \
+                 certificate",
+            ),
+            Self::SaturatedLqr => f.write_str(
+                "the controller is the saturated LQR: the certificates are for the MPC (its L_π \
+                 and γ₁,₃); use the exact or the K_c-iteration MPC for a certificate",
+            ),
+            Self::NoEntry { method } => write!(f, "the certificate has no entry for {method}"),
+            Self::NoMpc { error } => write!(f, "no MPC: {error}"),
+            Self::NoJoint { error } => write!(f, "no joint certificate: {error}"),
+        }
+    }
+}
+
+#[cfg(feature = "serde")]
+impl Serialize for Uncovered {
+    fn serialize<S: serde::Serializer>(&self, s: S) -> Result<S::Ok, S::Error> {
+        s.collect_str(self)
+    }
+}
+
+/// Why an f32 loop is void (the f32 part of [`PairReason::F32`]).
+#[derive(Debug, Clone, PartialEq)]
+#[non_exhaustive]
+pub enum F32Void {
+    /// The joint certificate has no rounding model ([`F32_NOT_COVERED`]).
+    JointNotCovered,
+    /// The f64 certificate is void or does not apply.
+    NotCovered,
+    /// The rounding model cannot be computed (its error's sentence).
+    RoundingModel {
+        /// The error.
+        error: String,
+    },
+    /// Theorem 1 with the f32 rounding folded in is void.
+    Void(ScalarVoid),
+    /// No K is certified with the f32 rounding (no reason recorded).
+    NoK,
+}
+
+impl std::fmt::Display for F32Void {
+    fn fmt(&self, f: &mut std::fmt::Formatter<'_>) -> std::fmt::Result {
+        match self {
+            Self::JointNotCovered => f.write_str(F32_NOT_COVERED),
+            Self::NotCovered => {
+                f.write_str("not covered: the f64 certificate is void or does not apply")
+            }
+            Self::RoundingModel { error } => {
+                write!(f, "the rounding model cannot be computed: {error}")
+            }
+            Self::Void(why) => why.fmt(f),
+            Self::NoK => f.write_str("no K certified with the f32 rounding"),
+        }
+    }
+}
+
+/// A premise of Theorem 1 that fails, with the value tested (a void verdict without
+/// recorded reasons).
+#[derive(Debug, Clone, PartialEq)]
+#[non_exhaustive]
+pub struct ViolatedPremise {
+    /// The premise's short name.
+    pub premise: String,
+    /// The value tested.
+    pub value: f64,
+}
+
+/// Why a pair is not certified ([`PairVerdict::reason`]). Serialised as its sentence.
+#[derive(Debug, Clone, PartialEq)]
+#[non_exhaustive]
+pub enum PairReason {
+    /// Nothing covers the configuration.
+    Uncovered(Uncovered),
+    /// The covering certificate is void whatever the pair.
+    Void(Vec<VoidReason>),
+    /// The analysis budget cut the verdict.
+    NotComputed(NotComputed),
+    /// Premises of Theorem 1 fail (no reasons recorded).
+    Violated(Vec<ViolatedPremise>),
+    /// The joint certificate was asked without K_c.
+    NeedsKc,
+    /// An f32 loop is void; `then` is the f64 verdict's reason, if any.
+    F32 {
+        /// Why f32 is void.
+        why: F32Void,
+        /// The f64 verdict's reason.
+        then: Option<Box<PairReason>>,
+    },
+    /// K is below the f32 K_min (Theorem 1 with the f32 rounding folded in).
+    BelowF32KMin {
+        /// The K asked for.
+        k: usize,
+        /// The f32 K_min.
+        k_min: usize,
+    },
+}
+
+impl std::fmt::Display for PairReason {
+    fn fmt(&self, f: &mut std::fmt::Formatter<'_>) -> std::fmt::Result {
+        match self {
+            Self::Uncovered(why) => why.fmt(f),
+            Self::Void(reasons) => f.write_str(&VoidReason::join(reasons)),
+            Self::NotComputed(nc) => nc.fmt(f),
+            Self::Violated(premises) => {
+                for (i, p) in premises.iter().enumerate() {
+                    if i > 0 {
+                        f.write_str("; ")?;
+                    }
+                    write!(
+                        f,
+                        "{} fails (value {})",
+                        p.premise,
+                        lti_model::numfmt::sig4(p.value)
+                    )?;
+                }
+                Ok(())
+            }
+            Self::NeedsKc => f.write_str("the joint certificate needs K_c"),
+            Self::F32 { why, then: None } => write!(f, "f32: {why}"),
+            Self::F32 {
+                why,
+                then: Some(then),
+            } => write!(f, "f32: {why}; {then}"),
+            Self::BelowF32KMin { k, k_min } => write!(
+                f,
+                "f32: K = {k} is below the f32 K_min = {k_min} (Theorem 1 with the f32 rounding \
+                 folded in)"
+            ),
+        }
+    }
+}
+
+/// [`PairVerdict::reason`] as JSON: its sentence, `""` when there is none (the schema).
+#[cfg(feature = "serde")]
+fn reason_sentence<S: serde::Serializer>(r: &Option<PairReason>, s: S) -> Result<S::Ok, S::Error> {
+    match r {
+        Some(r) => s.collect_str(r),
+        None => s.serialize_str(""),
+    }
+}
+
+impl Coverage {
+    /// The covering certificate (None: nothing covers the configuration).
+    pub fn covers(&self) -> Option<CertificateKind> {
+        match self {
+            Coverage::Covered(kind) => Some(*kind),
+            Coverage::Uncovered(_) => None,
+        }
+    }
+
+    /// Why nothing covers the configuration (None: covered).
+    pub fn uncovered_reason(&self) -> Option<&Uncovered> {
+        match self {
+            Coverage::Covered(_) => None,
+            Coverage::Uncovered(why) => Some(why),
+        }
+    }
 }
 
 /// Decides which certificate covers the MHE `method` with `controller` on `scenario`
@@ -233,28 +434,27 @@ pub fn covering(scenario: &Scenario, _method: Method, controller: ControllerChoi
         .as_ref()
         .is_some_and(|m| m.warm_start == WarmStart::Shifted)
     {
-        return Coverage::Uncovered(
-            "mhe.warm_start = \"shifted\" is not covered by the analysis (Lemma 1 and Prop. 1 \
-             assume the paper's warm start Σ_t); set mhe.warm_start = \"paper\" for a certificate"
-                .into(),
-        );
+        return Coverage::Uncovered(Uncovered::ShiftedWarmStart);
     }
     match controller {
         ControllerChoice::ExactMpc => Coverage::Covered(CertificateKind::Theorem1),
         ControllerChoice::SuboptimalMpc { .. } => Coverage::Covered(CertificateKind::Joint),
-        ControllerChoice::SaturatedLqr => Coverage::Uncovered(
-            "the controller is the saturated LQR: the certificates are for the MPC (its L_π and \
-             γ₁,₃); use the exact or the K_c-iteration MPC for a certificate"
-                .into(),
-        ),
+        ControllerChoice::SaturatedLqr => Coverage::Uncovered(Uncovered::SaturatedLqr),
     }
 }
 
-/// `yes`, `no`, `void` or `not_computed` at a pair. Exhaustive on purpose: a verdict the
-/// caller does not know must not fall into a default arm (export refuses on anything but yes).
+/// `yes`, `no`, `void` or `not_computed` at a pair.
+///
+/// `#[non_exhaustive]`, and safe so: a caller outside this crate cannot match it without a
+/// wildcard arm, so it decides through [`Certified::is_certified`] and
+/// [`Certified::is_below_floor`], which this crate matches exhaustively. A new variant then
+/// does not compile here until it is decided, and cannot reach a caller as "certified": that
+/// is a compile-time property (no runtime test can build an unknown variant), which is why
+/// the tool never compares against [`Certified::Yes`] in a wildcard match.
 #[derive(Debug, Clone, Copy, PartialEq, Eq)]
 #[cfg_attr(feature = "serde", derive(Serialize))]
 #[cfg_attr(feature = "serde", serde(rename_all = "snake_case"))]
+#[non_exhaustive]
 pub enum Certified {
     /// The certificate holds at this pair.
     Yes,
@@ -277,6 +477,25 @@ impl Certified {
             Certified::NotComputed => "not_computed",
         }
     }
+
+    /// Whether the certificate holds at the pair: true for [`Certified::Yes`] only. The one
+    /// test behind `export`'s refusal and every "certified" a command prints.
+    pub fn is_certified(self) -> bool {
+        match self {
+            Certified::Yes => true,
+            Certified::No | Certified::Void | Certified::NotComputed => false,
+        }
+    }
+
+    /// Whether the certificate applies and holds, but not at this pair: too few iterations
+    /// ([`Certified::No`]; `PairVerdict::k_min` is the floor when known). False for a
+    /// certified, void or not-computed verdict.
+    pub fn is_below_floor(self) -> bool {
+        match self {
+            Certified::No => true,
+            Certified::Yes | Certified::Void | Certified::NotComputed => false,
+        }
+    }
 }
 
 /// The verdict at one pair (K_e, K_c).
@@ -292,14 +511,27 @@ pub struct PairVerdict {
     pub k_min: Option<usize>,
     /// The certified margin at the pair (1 − ρ(Γ)); None where undefined.
     pub margin: Option<f64>,
-    /// Why void (empty otherwise).
-    pub reason: String,
+    /// Why not certified (None when certified, and for a plain "no": too few iterations).
+    /// JSON: its sentence, `""` for None.
+    #[cfg_attr(feature = "serde", serde(serialize_with = "reason_sentence"))]
+    pub reason: Option<PairReason>,
 }
 
-/// What the covering certificate needs to give a verdict at any pair. Exhaustive on purpose
-/// (as [`Coverage`]): a caller must handle every certificate, and a new one is a breaking
-/// change it has to see.
+impl PairVerdict {
+    /// [`PairVerdict::reason`]'s sentence, empty when there is none (the reports' and the
+    /// CSV's form).
+    pub fn reason_text(&self) -> String {
+        self.reason
+            .as_ref()
+            .map_or_else(String::new, ToString::to_string)
+    }
+}
+
+/// What the covering certificate needs to give a verdict at any pair. `#[non_exhaustive]`:
+/// callers get verdicts from [`Applicable::at`] and decide with [`Applicable::may_certify`]
+/// and [`Applicable::uncovered_reason`], matched exhaustively here.
 #[derive(Debug, Clone)]
+#[non_exhaustive]
 pub enum Applicable {
     /// Theorem 1 for the method.
     Theorem1 {
@@ -310,7 +542,7 @@ pub enum Applicable {
         /// Why void whatever K (empty when the premises hold).
         void_reasons: Vec<VoidReason>,
         /// The budget cut the verdict (None: computed).
-        not_computed: Option<String>,
+        not_computed: Option<NotComputed>,
     },
     /// The joint certificate of the method with the MPC's method.
     Joint {
@@ -322,7 +554,7 @@ pub enum Applicable {
         void_reasons: Vec<VoidReason>,
     },
     /// Nothing covers the configuration.
-    Uncovered(String),
+    Uncovered(Uncovered),
 }
 
 /// Theorem 1's verdict at K from its analysis, K_min, void reasons and budget cut: the one
@@ -333,35 +565,32 @@ pub fn theorem1_at(
     analysis: &IssAnalysis,
     k_min: Option<usize>,
     void_reasons: &[VoidReason],
-    not_computed: Option<&str>,
+    not_computed: Option<&NotComputed>,
     k_e: usize,
 ) -> PairVerdict {
-    let verdict = |certified, reason: String| PairVerdict {
+    let verdict = |certified, reason: PairReason| PairVerdict {
         certificate: Some(CertificateKind::Theorem1),
         certified,
         k_min: None,
         margin: None,
-        reason,
+        reason: Some(reason),
     };
     if k_min.is_none() && !void_reasons.is_empty() {
-        return verdict(Certified::Void, VoidReason::join(void_reasons));
+        return verdict(Certified::Void, PairReason::Void(void_reasons.to_vec()));
     }
     if let (None, Some(why)) = (k_min, not_computed) {
-        return verdict(Certified::NotComputed, why.to_string());
+        return verdict(Certified::NotComputed, PairReason::NotComputed(why.clone()));
     }
     let violated = analysis.violated();
     if k_min.is_none() && !violated.is_empty() {
-        let reasons: Vec<String> = violated
+        let premises = violated
             .iter()
-            .map(|p| {
-                format!(
-                    "{} fails (value {})",
-                    p.name,
-                    lti_model::numfmt::sig4(p.value)
-                )
+            .map(|p| ViolatedPremise {
+                premise: p.name.clone(),
+                value: p.value,
             })
             .collect();
-        return verdict(Certified::Void, reasons.join("; "));
+        return verdict(Certified::Void, PairReason::Violated(premises));
     }
     let g = analysis.at(k_e);
     PairVerdict {
@@ -373,7 +602,7 @@ pub fn theorem1_at(
         },
         k_min,
         margin: (g.phi < 1.0 && g.phi.is_finite()).then_some(g.margin),
-        reason: String::new(),
+        reason: None,
     }
 }
 
@@ -393,13 +622,16 @@ impl Applicable {
             Coverage::Covered(k) => k,
         };
         let Some(sc) = cert.solver(method) else {
-            return Applicable::Uncovered(format!("the certificate has no entry for {method}"));
+            return Applicable::Uncovered(Uncovered::NoEntry { method });
         };
         match (kind, controller) {
             (CertificateKind::Joint, ControllerChoice::SuboptimalMpc { method: mpc_m, .. }) => {
                 let mpc = match resolved.mpc() {
                     Ok(m) => m,
-                    Err(e) => return Applicable::Uncovered(format!("no MPC: {e}")),
+                    Err(e) => {
+                        let error = e.to_string();
+                        return Applicable::Uncovered(Uncovered::NoMpc { error });
+                    }
                 };
                 let plant = &scenario.plant;
                 let n_e = plant.nx() + cert.horizon * (plant.nx() + plant.ny());
@@ -432,14 +664,16 @@ impl Applicable {
                             void_reasons,
                         }
                     }
-                    Err(e) => Applicable::Uncovered(format!("no joint certificate: {e}")),
+                    Err(e) => Applicable::Uncovered(Uncovered::NoJoint {
+                        error: e.to_string(),
+                    }),
                 }
             }
             _ => Applicable::Theorem1 {
                 analysis: Box::new(sc.analysis.clone()),
                 k_min: sc.k_min,
                 void_reasons: sc.void_reasons.clone(),
-                not_computed: sc.not_computed.as_ref().map(ToString::to_string),
+                not_computed: sc.not_computed.clone(),
             },
         }
     }
@@ -450,6 +684,25 @@ impl Applicable {
             Applicable::Theorem1 { .. } => Some(CertificateKind::Theorem1),
             Applicable::Joint { .. } => Some(CertificateKind::Joint),
             Applicable::Uncovered(_) => None,
+        }
+    }
+
+    /// Why nothing covers the configuration (None: a certificate applies).
+    pub fn uncovered_reason(&self) -> Option<&Uncovered> {
+        match self {
+            Applicable::Uncovered(why) => Some(why),
+            Applicable::Theorem1 { .. } | Applicable::Joint { .. } => None,
+        }
+    }
+
+    /// Whether some pair can be certified: Theorem 1 with a K_min; the joint certificate
+    /// when no reason voids it whatever the pair (its region then says which pairs); never
+    /// when uncovered.
+    pub fn may_certify(&self) -> bool {
+        match self {
+            Applicable::Theorem1 { k_min, .. } => k_min.is_some(),
+            Applicable::Joint { void_reasons, .. } => void_reasons.is_empty(),
+            Applicable::Uncovered(_) => false,
         }
     }
 
@@ -470,7 +723,7 @@ impl Applicable {
             Applicable::Joint { void_reasons, .. } => {
                 void_reasons.iter().map(ToString::to_string).collect()
             }
-            Applicable::Uncovered(r) => vec![r.clone()],
+            Applicable::Uncovered(r) => vec![r.to_string()],
         }
     }
 
@@ -478,31 +731,31 @@ impl Applicable {
     /// by the joint certificate (None there: void, "no K_c").
     pub fn at(&self, k_e: usize, k_c: Option<usize>) -> PairVerdict {
         let kind = self.kind();
-        let void = |reason: String| PairVerdict {
+        let void = |reason: PairReason| PairVerdict {
             certificate: kind,
             certified: Certified::Void,
             k_min: None,
             margin: None,
-            reason,
+            reason: Some(reason),
         };
         match self {
-            Applicable::Uncovered(r) => void(r.clone()),
+            Applicable::Uncovered(r) => void(PairReason::Uncovered(r.clone())),
             Applicable::Theorem1 {
                 analysis,
                 k_min,
                 void_reasons,
                 not_computed,
-            } => theorem1_at(analysis, *k_min, void_reasons, not_computed.as_deref(), k_e),
+            } => theorem1_at(analysis, *k_min, void_reasons, not_computed.as_ref(), k_e),
             Applicable::Joint {
                 analysis,
                 k_max,
                 void_reasons,
             } => {
                 if !void_reasons.is_empty() {
-                    return void(VoidReason::join(void_reasons));
+                    return void(PairReason::Void(void_reasons.clone()));
                 }
                 let Some(k_c) = k_c else {
-                    return void("the joint certificate needs K_c".into());
+                    return void(PairReason::NeedsKc);
                 };
                 let g = analysis.at(k_e, k_c);
                 PairVerdict {
@@ -514,7 +767,7 @@ impl Applicable {
                     },
                     k_min: analysis.k_e_min(k_c, *k_max),
                     margin: g.margin.is_finite().then_some(g.margin),
-                    reason: String::new(),
+                    reason: None,
                 }
             }
         }

@@ -581,11 +581,7 @@ impl Certificate {
     pub fn gains(&self, method: Method, k: usize) -> Result<AsymptoticGains, AsymptoticVoid> {
         match self.closed_loop.solver(method) {
             Some(s) => certified_gains(&self.closed_loop, s, k),
-            None => Err(AsymptoticVoid::Void {
-                reasons: vec![format!(
-                    "{method} is not among CertifyOptions::methods: certify it to get its gains"
-                )],
-            }),
+            None => Err(AsymptoticVoid::NotCertified { method }),
         }
     }
 

@@ -48,8 +48,8 @@ pub enum VoidReason {
     PremiseNotEvaluated {
         /// The premise's short name.
         premise: String,
-        /// Why, naming the premise that failed.
-        because: String,
+        /// Why: the premise that failed.
+        because: NotEvaluated,
     },
     /// The premise "gamma13 finite" fails for a typed reason of the γ₁,₃ analysis.
     Gamma13 {
@@ -129,6 +129,82 @@ impl std::fmt::Display for VoidReason {
 
 #[cfg(feature = "serde")]
 impl Serialize for VoidReason {
+    fn serialize<S: Serializer>(&self, s: S) -> Result<S::Ok, S::Error> {
+        as_sentence(self, s)
+    }
+}
+
+/// Why a premise of Theorem 1 was not evaluated: a premise it depends on failed (one
+/// failure, one reason). Serialised as its sentence.
+#[derive(Debug, Clone, Copy, PartialEq, Eq)]
+#[non_exhaustive]
+pub enum NotEvaluated {
+    /// LMI (2) fails, and the premise is a property of the MHE's QP, which is built from
+    /// P of LMI (2) (φ, L_Φ, H̄).
+    LmiFails,
+}
+
+impl std::fmt::Display for NotEvaluated {
+    fn fmt(&self, f: &mut std::fmt::Formatter<'_>) -> std::fmt::Result {
+        match self {
+            Self::LmiFails => f.write_str(
+                "\"LMI (2) feasible\" fails: the MHE's QP, its solver certificate φ, L_Φ and H̄ \
+                 are built from P",
+            ),
+        }
+    }
+}
+
+#[cfg(feature = "serde")]
+impl Serialize for NotEvaluated {
+    fn serialize<S: Serializer>(&self, s: S) -> Result<S::Ok, S::Error> {
+        as_sentence(self, s)
+    }
+}
+
+/// Why γ₁ʷ (Assumption 4's gain from w¹ to x) is unknown, so no asymptotic bound on ‖x‖
+/// (hence on ε and ‖e‖) exists. Serialised as its sentence.
+#[derive(Debug, Clone, PartialEq)]
+#[non_exhaustive]
+pub enum Gamma1wUnknown {
+    /// The value given is not a finite non-negative number.
+    NotFinite {
+        /// The value given.
+        gamma1w: f64,
+    },
+    /// γ₁,₃ is user-supplied, and comes without γ₁ʷ.
+    UserSupplied {
+        /// The user's γ₁,₃.
+        gamma13: f64,
+        /// Where it came from (the certificate's `gamma13.source`).
+        source: String,
+    },
+    /// γ₁,₃ was not computed, so neither was γ₁ʷ.
+    NotComputed,
+}
+
+impl std::fmt::Display for Gamma1wUnknown {
+    fn fmt(&self, f: &mut std::fmt::Formatter<'_>) -> std::fmt::Result {
+        match self {
+            Self::NotFinite { gamma1w } => write!(
+                f,
+                "γ₁ʷ = {} (Assumption 4's gain from w¹ to x) is not a finite number",
+                sig4(*gamma1w)
+            ),
+            Self::UserSupplied { gamma13, source } => write!(
+                f,
+                "γ₁,₃ = {} is user-supplied ({source}): Assumption 4's gain from w¹ to x (γ₁ʷ) \
+                 is not known with it, and the asymptotic bound on ‖x‖ (hence on ε and ‖e‖) \
+                 needs it; drop the user value to have γ₁,₃ and γ₁ʷ certified",
+                sig4(*gamma13)
+            ),
+            Self::NotComputed => f.write_str("γ₁,₃ was not computed, so neither was γ₁ʷ"),
+        }
+    }
+}
+
+#[cfg(feature = "serde")]
+impl Serialize for Gamma1wUnknown {
     fn serialize<S: Serializer>(&self, s: S) -> Result<S::Ok, S::Error> {
         as_sentence(self, s)
     }

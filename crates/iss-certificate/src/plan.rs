@@ -7,10 +7,12 @@ use serde::Serialize;
 use crate::certificate::SolverCertificate;
 use closed_loop::bounded::Divergence;
 
-/// Why a run was made at its K (exhaustive: the tool words each source).
+/// Why a run was made at its K. `#[non_exhaustive]`: the tool records it (JSON
+/// `k_source`) and decides nothing on it.
 #[derive(Debug, Clone, Copy, PartialEq, Eq)]
 #[cfg_attr(feature = "serde", derive(Serialize))]
 #[cfg_attr(feature = "serde", serde(rename_all = "snake_case"))]
+#[non_exhaustive]
 pub enum KSource {
     /// The computed K_min of Theorem 1.
     ComputedKMin,
@@ -18,6 +20,27 @@ pub enum KSource {
     Scenario,
     /// A small K for comparison.
     Small,
+}
+
+impl KSource {
+    /// The run tables' label: `"K_min"`, `"scenario"` or `"small K"`.
+    pub fn label(self) -> &'static str {
+        match self {
+            KSource::ComputedKMin => "K_min",
+            KSource::Scenario => "scenario",
+            KSource::Small => "small K",
+        }
+    }
+
+    /// Why the run, in a sentence: `"the computed K_min"`, `"mhe.iterations"` or
+    /// `"small K for comparison"`.
+    pub fn reason(self) -> &'static str {
+        match self {
+            KSource::ComputedKMin => "the computed K_min",
+            KSource::Scenario => "mhe.iterations",
+            KSource::Small => "small K for comparison",
+        }
+    }
 }
 
 /// The runs to simulate for a method's certificate: at K_min (when certified) and at the

@@ -7,7 +7,6 @@ use std::path::{Path, PathBuf};
 
 use closed_loop::scenario::{ResolvedScenario, Scenario};
 use iss_certificate::certificate::SolverCertificate;
-use iss_certificate::coverage::Certified;
 use iss_certificate::joint::JointCertificate;
 use qp_iter::Method;
 use serde_json::json;
@@ -490,7 +489,7 @@ fn export_estimator(
     Ok(EstimatorExport {
         k,
         k_min: v.k_min.or(theorem1.k_min),
-        certified: v.certified == Certified::Yes,
+        certified: v.certified.is_certified(),
         reason: uncertified_reason(&v, &format!("K = {k}")),
         loop_cert,
         theorem1,
@@ -535,7 +534,7 @@ fn export_mpc(
         method: mpc_method.name().into_owned(),
         k_c,
         k_c_min: joint.analysis.k_c_min(est.k, joint.region.k_max),
-        certified: v.certified == Certified::Yes,
+        certified: v.certified.is_certified(),
         reason: uncertified_reason(&v, &format!("K_c = {k_c}")),
     };
     Ok(MpcExport {

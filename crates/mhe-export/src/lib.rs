@@ -74,7 +74,7 @@ pub(crate) const F32_COVERED: &str = "covered: Theorem 1 with the f32 rounding o
 /// What an f64 artefact says about f32.
 const F32_DECIDED_BY: &str = "an f32 export is certified where Theorem 1 with the f32 \
     rounding folded in certifies its K (iss_certificate::coverage::verdict)";
-use iss_certificate::coverage::{Certified, Configuration, PairVerdict, Scalar, verdict_options};
+use iss_certificate::coverage::{Configuration, PairVerdict, Scalar, verdict_options};
 use iss_certificate::joint::{JointCertificate, JointOptions, certify_joint};
 use iss_certificate::outcome::VoidReason;
 use qp_iter::Method;
@@ -216,13 +216,17 @@ fn coverage_scalar(s: ScalarKind) -> Scalar {
 
 /// Why a verdict is not "certified" (None when it is), in the artefact's words.
 fn uncertified_reason(v: &PairVerdict, what: &str) -> Option<String> {
-    match v.certified {
-        Certified::Yes => None,
-        Certified::No => Some(match v.k_min {
+    // Decided by the library's methods: any other verdict (void, not computed, or one this
+    // crate does not know) is refused with its reason.
+    if v.certified.is_certified() {
+        None
+    } else if v.certified.is_below_floor() {
+        Some(match v.k_min {
             Some(k_min) => format!("{what} is below the certified floor {k_min}"),
             None => format!("{what} is not certified"),
-        }),
-        Certified::Void | Certified::NotComputed => Some(v.reason.clone()),
+        })
+    } else {
+        Some(v.reason_text())
     }
 }
 
@@ -260,9 +264,11 @@ pub(crate) fn decide_k(
         Iterations::Certified => format!("--k certified (K = {k})"),
         Iterations::Given(_) => format!("--k {k}"),
     };
-    match (v.certified, allow_uncertified) {
-        (Certified::Yes, _) | (_, true) => Ok((k, v)),
-        (Certified::No, false) => match v.k_min {
+    if v.certified.is_certified() || allow_uncertified {
+        return Ok((k, v));
+    }
+    if v.certified.is_below_floor() {
+        match v.k_min {
             Some(k_min) => bail!(
                 "{flag}: below the certified K_min = {k_min} of Theorem 1 for {name}; use \
                  --k certified (or K ≥ {k_min}), or --allow-uncertified to export an uncertified \
@@ -272,13 +278,13 @@ pub(crate) fn decide_k(
                 "{flag}: not certified for {name}; --allow-uncertified exports an uncertified \
                  estimator"
             ),
-        },
-        (Certified::Void | Certified::NotComputed, false) => bail!(
-            "{flag}: NOT CERTIFIED for {name} (the verdict `reproduce` gives): {}; \
-             --allow-uncertified exports anyway, and the artefact says so",
-            v.reason
-        ),
+        }
     }
+    bail!(
+        "{flag}: NOT CERTIFIED for {name} (the verdict `reproduce` gives): {}; \
+         --allow-uncertified exports anyway, and the artefact says so",
+        v.reason_text()
+    )
 }
 
 /// The joint certificate (MHE `mhe` + MPC `mpc_method`, shift-and-repeat warm start) of a
@@ -350,25 +356,29 @@ pub(crate) fn decide_kc(
         scalar: coverage_scalar(scalar),
     };
     let v = iss_certificate::coverage::verdict(resolved, cert, &config);
-    match (v.certified, allow_uncertified, floor) {
-        (Certified::Yes, _, _) | (_, true, _) => Ok((k_c, v)),
-        (Certified::No, false, Some(f)) => bail!(
-            "--kc {k_c}: below the joint certificate's floor K_c = {f} at K = {k_e} (MHE {}, MPC \
-             {}); use --kc certified (or K_c ≥ {f}), or --allow-uncertified to export an \
-             uncertified loop",
-            joint.mhe_method,
-            joint.mpc_method
-        ),
-        (Certified::No, false, None) => bail!(
-            "--kc {k_c}: {}; --allow-uncertified exports anyway",
-            none_reason()
-        ),
-        (Certified::Void | Certified::NotComputed, false, _) => bail!(
-            "--kc {k_c}: NOT CERTIFIED (the verdict `reproduce` gives): {}; \
-             --allow-uncertified exports anyway, and the artefact says so",
-            v.reason
-        ),
+    if v.certified.is_certified() || allow_uncertified {
+        return Ok((k_c, v));
     }
+    if v.certified.is_below_floor() {
+        match floor {
+            Some(f) => bail!(
+                "--kc {k_c}: below the joint certificate's floor K_c = {f} at K = {k_e} (MHE {}, \
+                 MPC {}); use --kc certified (or K_c ≥ {f}), or --allow-uncertified to export an \
+                 uncertified loop",
+                joint.mhe_method,
+                joint.mpc_method
+            ),
+            None => bail!(
+                "--kc {k_c}: {}; --allow-uncertified exports anyway",
+                none_reason()
+            ),
+        }
+    }
+    bail!(
+        "--kc {k_c}: NOT CERTIFIED (the verdict `reproduce` gives): {}; \
+         --allow-uncertified exports anyway, and the artefact says so",
+        v.reason_text()
+    )
 }
 
 /// Writes `text` to `dir/name` through a temporary file and a rename (no half-written file

@@ -386,7 +386,7 @@ fn a_k_below_k_min_is_refused_unless_allowed() {
     let k_min = loop_cert.solver(Method::PG).unwrap().k_min.unwrap();
     let decide = |cert: &ClosedLoopCertificate, k: Iterations, scalar, allow| {
         decide_k(&resolved, cert, Method::PG, k, scalar, allow)
-            .map(|(k, v)| (k, v.certified == Certified::Yes))
+            .map(|(k, v)| (k, v.certified.is_certified()))
     };
     let f64 = ScalarKind::F64;
     let given = Iterations::Given;

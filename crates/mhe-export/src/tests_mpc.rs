@@ -253,7 +253,7 @@ fn a_k_c_below_the_joint_floor_is_refused_unless_allowed() {
     let floor = joint.analysis.k_c_min(k_e, joint.region.k_max).unwrap();
     let decide = |kc: Iterations, k_e: usize, allow: bool| {
         decide_kc(&resolved, cert, &joint, kc, k_e, ScalarKind::F64, allow)
-            .map(|(k, v)| (k, v.certified == Certified::Yes))
+            .map(|(k, v)| (k, v.certified.is_certified()))
     };
     assert_eq!(
         decide(Iterations::Certified, k_e, false).unwrap(),

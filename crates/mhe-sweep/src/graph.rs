@@ -26,7 +26,7 @@ use closed_loop::scenario::ResolvedScenario;
 use iss_certificate::certificate::{
     ClosedLoopCertificate, ComputedParts, certify_closed_loop_with,
 };
-use iss_certificate::coverage::{Coverage, covering};
+use iss_certificate::coverage::covering;
 use iss_certificate::gamma13::{
     GAMMA13_PATTERN_FAMILIES, Gamma13Chunk, Gamma13Plan, Gamma13Source, Gamma13Stage,
 };
@@ -160,10 +160,9 @@ impl<'a> TheoryGraph<'a> {
         };
         let solvers = &config.solvers;
         let uncovered = solvers.first().and_then(|&first| {
-            match covering(resolved.scenario(), first, config.controller) {
-                Coverage::Uncovered(reason) => Some(reason),
-                Coverage::Covered(_) => None,
-            }
+            covering(resolved.scenario(), first, config.controller)
+                .uncovered_reason()
+                .map(ToString::to_string)
         });
         if let (Some(reason), true) = (&uncovered, theory || boundaries) {
             let t: Vec<(Method, SolverTheory)> = solvers

@@ -14,7 +14,7 @@ use iss_certificate::analysis::IssAnalysis;
 use iss_certificate::certificate::{
     CertificateOptions, ClosedLoopCertificate, certify_closed_loop,
 };
-use iss_certificate::coverage::{Applicable, Coverage, covering, theorem1_at};
+use iss_certificate::coverage::{Applicable, covering, theorem1_at};
 
 /// The certificate's side of a point: Theorem 1 for one solver.
 #[derive(Debug, Clone)]
@@ -28,7 +28,7 @@ pub enum SolverTheory {
         /// Why the certificate is void, whatever K (empty when the premises hold).
         void_reasons: Vec<iss_certificate::outcome::VoidReason>,
         /// The analysis budget cut the verdict (None: computed).
-        not_computed: Option<String>,
+        not_computed: Option<iss_certificate::budget::NotComputed>,
     },
     /// The joint certificate of the MHE solver with the K_c-iteration MPC
     /// ([`iss_certificate::coverage::Applicable::Joint`]): the verdict at (K_e, K_c).
@@ -57,7 +57,7 @@ impl SolverTheory {
             margin: v.margin,
             certified: v.certified.as_str(),
             k_min: v.k_min,
-            void_reason: csv_text(&v.reason),
+            void_reason: csv_text(&v.reason_text()),
             ..TheoryAtK::default()
         }
     }
@@ -76,7 +76,7 @@ impl SolverTheory {
             } => {
                 let g = analysis.at(k);
                 // The verdict is the one rule of `iss_certificate::coverage`.
-                let v = theorem1_at(analysis, *k_min, void_reasons, not_computed.as_deref(), k);
+                let v = theorem1_at(analysis, *k_min, void_reasons, not_computed.as_ref(), k);
                 // Props. 1 and 3 divide by 1 − φ(K): for φ(K) ≥ 1 the gains, slopes and
                 // margin are undefined (written empty), not large.
                 let defined = g.phi < 1.0 && g.phi.is_finite();
@@ -86,7 +86,7 @@ impl SolverTheory {
                     margin: defined.then_some(g.margin),
                     certified: v.certified.as_str(),
                     k_min: *k_min,
-                    void_reason: csv_text(&v.reason),
+                    void_reason: csv_text(&v.reason_text()),
                     ..TheoryAtK::default()
                 }
             }
@@ -283,8 +283,8 @@ pub fn solver_theory(
             .collect()
     };
     if let Some(&first) = solvers.first() {
-        if let Coverage::Uncovered(reason) = covering(resolved.scenario(), first, controller) {
-            return unavailable(reason);
+        if let Some(reason) = covering(resolved.scenario(), first, controller).uncovered_reason() {
+            return unavailable(reason.to_string());
         }
     }
     match certify_closed_loop(resolved, &certificate_options(resolved.scenario(), solvers)) {
@@ -324,7 +324,9 @@ pub(super) fn theory_of(
             void_reasons,
             not_computed,
         },
-        Applicable::Uncovered(r) => SolverTheory::Unavailable(r),
-        joint @ Applicable::Joint { .. } => SolverTheory::Joint(Box::new(joint)),
+        Applicable::Uncovered(r) => SolverTheory::Unavailable(r.to_string()),
+        // The joint certificate, or one this crate does not know: its verdicts come from
+        // `Applicable::at`, the library's rule, never from a default here.
+        other => SolverTheory::Joint(Box::new(other)),
     }
 }

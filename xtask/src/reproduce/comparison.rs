@@ -57,8 +57,8 @@ pub(super) fn comparison(cert: &ClosedLoopCertificate, solver: Method) -> Vec<Co
             quantity: "L_Φ".into(),
             ours: format!(
                 "{} certified; sampled {}",
-                numfmt::num(cert.l_phi.certified),
-                numfmt::num(cert.l_phi.sampled)
+                numfmt::num(cert.l_phi.certified.unwrap_or(f64::NAN)),
+                numfmt::num(cert.l_phi.sampled.unwrap_or(f64::NAN))
             ),
             paper: "5.32 (sample-based)".into(),
         },

@@ -94,7 +94,12 @@ pub fn check(
         j.gamma1w,
     );
     if report.trajectory.is_none() {
-        report.reason = Some("ε_t was not recorded (exact MHE solve off)".into());
+        report.reason = Some(if j.plant_beta.is_none() {
+            "β₁ of the plant is unknown (γ₁,₃ void): the joint inequalities cannot be checked"
+                .into()
+        } else {
+            "ε_t was not recorded (exact MHE solve off)".into()
+        });
     }
     Ok(report)
 }

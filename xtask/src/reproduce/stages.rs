@@ -3,7 +3,7 @@
 //! Each stage takes what the previous one produced; none re-reads or recomputes it.
 
 use super::*;
-use iss_certificate::coverage::PairVerdict;
+use iss_certificate::coverage::{CertificateKind, PairVerdict};
 use iss_certificate::joint::JointCertificate;
 use joint::JointReport;
 
@@ -194,10 +194,7 @@ pub(super) fn plan(job: &Job, settings: &Settings, p: &Prepared, log: &mut Log) 
     // The certificate covering the scenario's configuration (iss_certificate::coverage): the
     // same decision as the sweeps' `certified` column.
     let applicable = Applicable::new(&p.resolved, &cert, p.solver, own_controller);
-    let not_covered = match &applicable {
-        Applicable::Uncovered(reason) => Some(reason.clone()),
-        _ => None,
-    };
+    let not_covered = applicable.uncovered_reason().map(ToString::to_string);
     let at_scenario = applicable.at(
         p.iterations,
         match own_controller {
@@ -557,16 +554,13 @@ pub(super) fn document(
         },
         solver: solver.name().into(),
         scenario_iterations: p.iterations,
-        certified: match &applicable {
-            Applicable::Theorem1 { k_min, .. } => k_min.is_some(),
-            Applicable::Joint { .. } => {
-                applicable.void_reasons().is_empty()
-                    && joint_cert
-                        .as_ref()
-                        .is_some_and(|j| j.region.cheapest.is_some())
-            }
-            Applicable::Uncovered(_) => false,
-        },
+        // The library decides whether some pair can be certified; Theorem 1's K_min says
+        // so, any other certificate needs the joint region's cheapest pair as well.
+        certified: applicable.may_certify()
+            && (applicable.kind() == Some(CertificateKind::Theorem1)
+                || joint_cert
+                    .as_ref()
+                    .is_some_and(|j| j.region.cheapest.is_some())),
         certificate_applies: applicable.kind(),
         not_covered,
         at_scenario,

@@ -132,7 +132,7 @@ pub(super) fn summarize(d: &CertificateDocument, files: &[PathBuf], notes: &[Str
                     q.name,
                     who,
                     num(q.value),
-                    num(q.margin),
+                    num(q.margin.unwrap_or(f64::NAN)),
                     if q.not_evaluated.is_some() {
                         "not evaluated"
                     } else {
@@ -259,10 +259,9 @@ pub(super) fn summarize(d: &CertificateDocument, files: &[PathBuf], notes: &[Str
     }
     for (i, r) in d.runs.iter().enumerate() {
         let why = match (r.k_source, d.joint.is_some()) {
-            (KSource::ComputedKMin, false) => "K_min",
+            // The joint certificate's K_min is its cheapest pair.
             (KSource::ComputedKMin, true) => "cheapest",
-            (KSource::Scenario, _) => "scenario",
-            (KSource::Small, _) => "small K",
+            (source, _) => source.label(),
         };
         let _ = writeln!(
             s,

@@ -72,11 +72,7 @@ impl Work {
 
     /// What is simulated and how much work it is (printed before the simulation).
     pub fn line(&self, solver: Method, source: KSource) -> String {
-        let why = match source {
-            KSource::ComputedKMin => "the computed K_min",
-            KSource::Scenario => "mhe.iterations",
-            KSource::Small => "small K for comparison",
-        };
+        let why = source.reason();
         format!(
             "simulating {} at K = {} ({why}): {} steps × {} iterations, n_z = {}, ≈ {} \
              iterations of O(n_z²) (≈ {} multiply-adds)",

@@ -11,7 +11,9 @@ use closed_loop::scenario::{ControllerChoice, LoopOptions, Scenario};
 use iss_certificate::certificate::{
     CertificateOptions, Gamma13Source, InequalityCheck, check_trajectory, rounding_floor,
 };
-use iss_certificate::coverage::{Applicable, CertificateKind, Certified, Coverage, covering};
+use iss_certificate::coverage::{
+    Applicable, CertificateKind, Certified, Coverage, PairReason, Uncovered, covering,
+};
 use qp_iter::Method;
 use xtask::sweep_engine::{
     IterationCost, NoProgress, RunOptions, Sweep, SweepConfig, Table, pair_thresholds,
@@ -198,12 +200,14 @@ fn coverage_names_the_certificate_and_refuses_a_shifted_warm_start() {
         );
         assert!(matches!(
             covering(&s, Method::PG, ControllerChoice::SaturatedLqr),
-            Coverage::Uncovered(r) if r.contains("saturated LQR")
+            Coverage::Uncovered(r @ Uncovered::SaturatedLqr) if r.to_string().contains("saturated LQR")
         ));
         let shifted = with(file, "warm_start = \"paper\"", "warm_start = \"shifted\"");
         for c in [ControllerChoice::ExactMpc, sub] {
             match covering(&shifted, Method::PG, c) {
-                Coverage::Uncovered(r) => assert!(r.contains("mhe.warm_start"), "{r}"),
+                Coverage::Uncovered(r @ Uncovered::ShiftedWarmStart) => {
+                    assert!(r.to_string().contains("mhe.warm_start"), "{r}");
+                }
                 other => panic!("{file}: {other:?}"),
             }
         }
@@ -227,7 +231,15 @@ fn coverage_names_the_certificate_and_refuses_a_shifted_warm_start() {
     let app = Applicable::new(&resolved, &cert, Method::PG, ControllerChoice::ExactMpc);
     let v = app.at(100_000, None);
     assert_eq!(v.certified, Certified::Void);
-    assert!(v.reason.contains("shifted"), "{}", v.reason);
+    assert!(
+        matches!(
+            v.reason,
+            Some(PairReason::Uncovered(Uncovered::ShiftedWarmStart))
+        ),
+        "{:?}",
+        v.reason
+    );
+    assert!(v.reason_text().contains("shifted"), "{}", v.reason_text());
 }
 
 /// A 1-D sweep whose controller is the 200-iteration MPC is under the joint certificate: the

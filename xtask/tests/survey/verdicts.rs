@@ -156,20 +156,26 @@ fn one(k: usize, k_min: Option<usize>, v: &PairVerdict, next: &PairVerdict) -> R
             if next.certified != Certified::Yes {
                 return Err(format!(
                     "yes at K = {k}, {:?} at K + 1: {}",
-                    next.certified, next.reason
+                    next.certified,
+                    next.reason_text()
                 ));
             }
         }
         Certified::No => {
             if k_min.is_none_or(|m| k >= m) {
-                return Err(format!("no at K = {k} with K_min {k_min:?}: {}", v.reason));
+                return Err(format!(
+                    "no at K = {k} with K_min {k_min:?}: {}",
+                    v.reason_text()
+                ));
             }
         }
-        Certified::Void | Certified::NotComputed => {
+        // Void, not computed, or a verdict this survey does not know: never "yes".
+        _ => {
             if k_min.is_some() && v.certificate.is_some() {
                 return Err(format!(
                     "{:?} at K = {k} although K_min = {k_min:?}: {}",
-                    v.certified, v.reason
+                    v.certified,
+                    v.reason_text()
                 ));
             }
         }
@@ -180,15 +186,17 @@ fn one(k: usize, k_min: Option<usize>, v: &PairVerdict, next: &PairVerdict) -> R
 /// "void" never with a budget cause, "not computed" only with one; "void" and "not
 /// computed" say why ("no" carries its K_min).
 fn wording(v: &PairVerdict) -> Result<(), String> {
-    let budget = v.reason.contains("phase_seconds") || v.reason.contains("budget");
+    let budget = v.reason_text().contains("phase_seconds") || v.reason_text().contains("budget");
     match v.certified {
         // "no" says why by its K_min (checked in `one`).
         Certified::Yes | Certified::No => Ok(()),
-        _ if v.reason.trim().is_empty() => Err(format!("{:?} without a reason", v.certified)),
-        Certified::Void if budget => Err(format!("void with a budget cause: {}", v.reason)),
-        Certified::NotComputed if !v.reason.contains("phase_seconds") => Err(format!(
+        _ if v.reason_text().trim().is_empty() => {
+            Err(format!("{:?} without a reason", v.certified))
+        }
+        Certified::Void if budget => Err(format!("void with a budget cause: {}", v.reason_text())),
+        Certified::NotComputed if !v.reason_text().contains("phase_seconds") => Err(format!(
             "not computed without naming `certificate.phase_seconds`: {}",
-            v.reason
+            v.reason_text()
         )),
         _ => Ok(()),
     }

@@ -98,7 +98,7 @@ impl From<&iss_certificate::analysis::Premise> for Premise {
             needed_by: l.needed_by.to_string(),
             holds: l.holds,
             value: num(l.value),
-            margin: num(l.margin),
+            margin: l.margin.and_then(num),
             fix: l.fix.to_string(),
             not_evaluated: l.not_evaluated.as_ref().map(ToString::to_string),
         }
@@ -198,8 +198,8 @@ impl From<&iss_certificate::certificate::ClosedLoopCertificate> for ClosedLoopCe
 impl From<&iss_certificate::certificate::LPhiReport> for LPhiReport {
     fn from(l: &iss_certificate::certificate::LPhiReport) -> Self {
         Self {
-            certified: num(l.certified),
-            sampled: num(l.sampled),
+            certified: l.certified.and_then(num),
+            sampled: l.sampled.and_then(num),
             per_window: l.per_window.iter().map(|x| (num(x.0), num(x.1))).collect(),
             pairs_reduced: l.pairs_reduced.as_ref().map(ToString::to_string),
         }
@@ -265,6 +265,7 @@ impl From<&iss_certificate::coverage::CertificateKind> for CertificateKind {
         match l {
             iss_certificate::coverage::CertificateKind::Theorem1 => Self::Theorem1,
             iss_certificate::coverage::CertificateKind::Joint => Self::Joint,
+            other => Self::Other(format!("{other:?}")),
         }
     }
 }
@@ -276,6 +277,7 @@ impl From<&iss_certificate::coverage::Certified> for Certified {
             iss_certificate::coverage::Certified::No => Self::No,
             iss_certificate::coverage::Certified::Void => Self::Void,
             iss_certificate::coverage::Certified::NotComputed => Self::NotComputed,
+            other => Self::Other(format!("{other:?}")),
         }
     }
 }
@@ -287,6 +289,7 @@ impl From<&iss_certificate::coverage::Coverage> for Coverage {
                 Self::Covered(CertificateKind::from(a0))
             }
             iss_certificate::coverage::Coverage::Uncovered(a0) => Self::Uncovered(a0.to_string()),
+            other => Self::Other(format!("{other:?}")),
         }
     }
 }
@@ -298,7 +301,7 @@ impl From<&iss_certificate::coverage::PairVerdict> for PairVerdict {
             certified: Certified::from(&l.certified),
             k_min: l.k_min,
             margin: l.margin.and_then(num),
-            reason: l.reason.to_string(),
+            reason: l.reason_text(),
         }
     }
 }
@@ -316,8 +319,8 @@ impl From<&iss_certificate::gamma13::Gamma13Certificate> for Gamma13Certificate 
             gamma13_linear: l.gamma13_linear.and_then(num),
             gamma14: num(l.gamma14),
             gamma1w: num(l.gamma1w),
-            beta_prefactor: num(l.beta_prefactor),
-            beta_rate: num(l.beta_rate),
+            beta_prefactor: l.beta_prefactor.and_then(num),
+            beta_rate: l.beta_rate.and_then(num),
             candidates: l.candidates.iter().map(MetricResult::from).collect(),
             variables: l.variables,
             saturable: l.saturable,
@@ -454,7 +457,9 @@ impl From<&iss_certificate::joint::JointCertificate> for JointCertificate {
             analysis: JointAnalysis::from(&l.analysis),
             region: JointRegion::from(&l.region),
             at_cheapest: l.at_cheapest.as_ref().map(JointGains::from),
-            plant_beta: (num(l.plant_beta.0), num(l.plant_beta.1)),
+            plant_beta: l.plant_beta.map_or((None, None), |(prefactor, rate)| {
+                (num(prefactor), num(rate))
+            }),
             gamma1w: num(l.gamma1w),
         }
     }
@@ -573,6 +578,7 @@ impl From<&iss_certificate::plan::KSource> for KSource {
             iss_certificate::plan::KSource::ComputedKMin => Self::ComputedKMin,
             iss_certificate::plan::KSource::Scenario => Self::Scenario,
             iss_certificate::plan::KSource::Small => Self::Small,
+            other => Self::Other(format!("{other:?}")),
         }
     }
 }

@@ -420,6 +420,9 @@ pub enum CertificateKind {
     Theorem1,
     /// The joint certificate: the sub-optimal MHE with the K_c-iteration MPC.
     Joint,
+    /// A library variant this schema version does not name, by its Rust name (the library of
+    /// this version produces none; a reader treats it as "not certified").
+    Other(String),
 }
 
 /// `yes`, `no`, `void` or `not_computed` at a pair. Exhaustive on purpose: a verdict the
@@ -436,6 +439,9 @@ pub enum Certified {
     /// The analysis budget (`certificate.phase_seconds`) cut the verdict: not proved void,
     /// not computed (the reason names the phase and the budget that would compute it).
     NotComputed,
+    /// A library variant this schema version does not name, by its Rust name (the library of
+    /// this version produces none; a reader treats it as "not certified").
+    Other(String),
 }
 
 /// Which certificate covers a configuration, or why none does: covered or not, exhaustive on
@@ -447,6 +453,9 @@ pub enum Coverage {
     Covered(CertificateKind),
     /// No certificate covers the configuration: the reason names the scenario key.
     Uncovered(String),
+    /// A library variant this schema version does not name, by its Rust name (the library of
+    /// this version produces none; a reader treats it as "not certified").
+    Other(String),
 }
 
 /// The verdict at one pair (K_e, K_c).
@@ -859,6 +868,9 @@ pub enum KSource {
     Scenario,
     /// A small K for comparison.
     Small,
+    /// A library variant this schema version does not name, by its Rust name (the library of
+    /// this version produces none; a reader treats it as "not certified").
+    Other(String),
 }
 
 /// What the rows free of K (t = 0, the MHE's first inner iterates at t = 1) allow at any K:

@@ -46,10 +46,11 @@ fn unit_enums_are_snake_case_strings() {
 fn coverage_is_externally_tagged() {
     let c = coverage::Coverage::Covered(coverage::CertificateKind::Joint);
     assert_eq!(json(&Coverage::from(&c)), "{\"covered\":\"joint\"}");
-    let u = coverage::Coverage::Uncovered("shifted warm start".into());
+    let why = coverage::Uncovered::ShiftedWarmStart;
+    let u = coverage::Coverage::Uncovered(why.clone());
     assert_eq!(
         json(&Coverage::from(&u)),
-        "{\"uncovered\":\"shifted warm start\"}"
+        serde_json::json!({ "uncovered": why.to_string() }).to_string()
     );
 }
 

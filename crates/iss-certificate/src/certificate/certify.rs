@@ -120,13 +120,7 @@ pub fn certify_closed_loop_with(
     } = parts;
     let start = std::time::Instant::now();
     let mut times = CertificateTimes::default();
-    let mut lap = start;
-    let mut split = move || {
-        let now = std::time::Instant::now();
-        let dt = (now - lap).as_secs_f64();
-        lap = now;
-        dt
-    };
+    let mut split = laps(start);
     let scenario = resolved.scenario();
     let spec = scenario
         .mhe
@@ -146,206 +140,66 @@ pub fn certify_closed_loop_with(
         Some(Err(e)) => (None, Some(IossFailure { error: e.clone() })),
         None => return Err(ClosedLoopError::MissingSection { section: "mhe" }),
     };
-
-    // MHE constants (need P).
-    // ℙ_t with the resolved P: the scenario's one problem, shared with the simulation.
-    let problem = match &ioss_cert {
-        Some(_) => Some(resolved.mhe_problem()?.clone()),
-        None => None,
-    };
+    // MHE constants (need P). ℙ_t with the resolved P: the scenario's one problem, shared
+    // with the simulation.
+    let problem = ioss_cert
+        .as_ref()
+        .map(|_| resolved.mhe_problem().cloned())
+        .transpose()?;
     times.mhe_constants_s = split();
     let lemma1_origin_offsets: Vec<f64> = problem.as_ref().map_or_else(Vec::new, |pr| {
         pr.windows().iter().map(lemma1::origin_offset).collect()
     });
-    let (h_bar, l_phi, h_paper_norms) = match &problem {
-        Some(pr) => {
-            let (pairs, pairs_reduced) =
-                crate::budget::l_phi_sampling_pairs(pr, opts.lipschitz_pairs, opts.phase_seconds);
-            let sampling = LipschitzSampling {
-                pairs,
-                seed: opts.seed,
-                ..LipschitzSampling::default()
-            };
-            let est = pr.sample_lipschitz(&sampling)?;
-            let per_window: Vec<(f64, f64)> =
-                est.iter().map(|e| (e.certified, e.sampled)).collect();
-            let norms = pr
-                .windows()
-                .iter()
-                .map(|w| spectral_norm(w.h_paper()))
-                .collect();
-            (
-                pr.h_bar(),
-                LPhiReport {
-                    certified: pr.lipschitz_certified(),
-                    sampled: per_window.iter().map(|p| p.1).fold(0.0, f64::max),
-                    per_window,
-                    pairs_reduced,
-                },
-                norms,
-            )
-        }
-        None => (
-            f64::NAN,
-            LPhiReport {
-                certified: f64::NAN,
-                sampled: f64::NAN,
-                per_window: Vec::new(),
-                pairs_reduced: None,
-            },
-            Vec::new(),
-        ),
-    };
-
+    let (h_bar, l_phi, h_paper_norms) = mhe_constants(problem.as_deref(), opts)?;
     times.l_phi_sampling_s = split();
-
-    // Controller constants.
-    let radius = resolved.sampling_radius();
-    // A numerical failure of the MPC's analysis names the scenario keys that shape its QP.
+    // Controller constants; a numerical failure names the scenario keys that shape the QP.
     let explain = |e: mpc_core::MpcError| match &scenario.mpc {
         Some(spec) => spec.explain(sys, e),
         None => e,
     };
-    let l_pi =
-        mpc_core::lipschitz_report_with(&mpc, opts.lipschitz_pairs, opts.seed, radius, |m| {
-            match l_pi_enumerated {
-                Some(r) => r,
-                None => m.lipschitz_enumerated(mpc_core::ENUMERATION_MAX_VARS),
-            }
-        })
-        .map_err(explain)?;
+    let radius = resolved.sampling_radius();
+    let l_pi = l_pi_report(&mpc, opts, radius, l_pi_enumerated).map_err(explain)?;
     let l_pi_used = l_pi.l_pi();
     times.l_pi_s = split();
-    let gamma13 = crate::gamma13::gamma13_report_with(
-        &mpc,
-        opts.gamma13,
-        opts.gamma13_sequences,
-        opts.seed,
-        |m| match gamma13_certified {
-            Some(r) => r,
-            None => crate::gamma13::gamma13_certified_budgeted(
-                m,
-                opts.enumeration_max_vars,
-                crate::gamma13::GAMMA13_PATTERN_FAMILIES,
-                opts.phase_seconds,
-            ),
-        },
-    )
-    .map_err(explain)?;
+    let gamma13 = gamma13_report(&mpc, opts, gamma13_certified).map_err(explain)?;
     times.gamma13_s = split();
 
     let (p_min, p_max) = ioss_cert.as_ref().map_or((f64::NAN, f64::NAN), |c| {
         (c.p_min_eigenvalue, c.p_max_eigenvalue)
     });
-    let mut solvers = Vec::new();
-    for &solver in &opts.solvers {
-        let per_window = match &problem {
-            Some(pr) => map_certificates(solver, pr)?,
-            None => Vec::new(),
-        };
-        let phi_rate = per_window
-            .iter()
-            .map(|c| c.rate)
-            .fold(if per_window.is_empty() { f64::NAN } else { 0.0 }, f64::max);
-        let phi_prefactor = per_window
-            .iter()
-            .map(|c| c.prefactor)
-            .fold(if per_window.is_empty() { f64::NAN } else { 0.0 }, f64::max);
-        let fits_eq11 = !per_window.is_empty() && per_window.iter().all(|c| c.fits_eq11);
-        let inputs = IssInputs {
-            horizon: m,
-            eta,
-            p_min,
-            p_max,
-            q_max,
-            h_bar,
-            l_phi: l_phi.certified,
-            l_pi: l_pi_used,
-            c_norm,
-            f_norm: spectral_norm(sys.f()),
-            gamma13: gamma13.used,
-            phi_rate,
-            phi_prefactor,
-            phi_fits_eq11: fits_eq11,
-            lmi_certified: ioss_cert.is_some(),
-        };
-        let mut analysis = IssAnalysis::new(inputs.clone());
-        // The premise's own fix is generic ("supply γ₁,₃ or change the controller"): the
-        // typed reason says what is actually wrong (e.g. no gain can exist).
-        if let Some(v) = &gamma13.void {
-            for p in analysis.premises.iter_mut() {
-                if p.name == "gamma13 finite" && !p.holds {
-                    p.fix = v.to_string();
-                }
-            }
-        }
-        // A rate ≥ 1: the fix this method has (ADMM has no step size; issue 37 item 13).
-        let general_rows = problem
-            .as_ref()
-            .is_some_and(|pr| pr.windows().iter().any(|w| w.qp().general().is_some()));
-        for p in analysis.premises.iter_mut() {
-            if p.name == "phi rate < 1" && !p.holds && p.not_evaluated.is_none() {
-                p.fix = crate::analysis::phi_rate_fix(solver, general_rows);
-            }
-        }
-        // Constants whose certified value does not exist for this scenario (issue 15:
-        // bounded 𝒳 / 𝒴 in the MHE, state constraints in the MPC): void with the reason.
-        let structural_void: Vec<VoidReason> = problem
-            .as_ref()
-            .and_then(|p| p.lipschitz_void_reason())
-            .map(|reason| VoidReason::LPhiUndefined { reason })
-            .into_iter()
-            .chain(
-                mpc.certificate_void_reason()
-                    .map(|reason| VoidReason::ControllerUndefined { reason }),
-            )
-            .collect();
-        let structurally_void = !structural_void.is_empty();
-        let k_min = if structural_void.is_empty() {
-            analysis.k_min(opts.k_max)
-        } else {
-            None
-        };
-        let mut void_reasons: Vec<VoidReason> = structural_void;
-        void_reasons.extend(analysis.violated().iter().map(|p| match &gamma13.void {
-            // The exact reason (typed in `gamma13.void`) instead of the generic fix.
-            Some(v) if p.name == "gamma13 finite" => VoidReason::Gamma13 {
-                premise: p.name.clone(),
-                void: v.clone(),
-            },
-            _ => p.void_reason(),
-        }));
-        if k_min.is_none() && void_reasons.is_empty() {
-            void_reasons.push(VoidReason::NoK { k_max: opts.k_max });
-        }
-        let not_computed = budget_cut(k_min, &analysis, &gamma13, structurally_void);
-        if not_computed.is_some() {
-            void_reasons.clear();
-        }
-        let sampled_analysis = IssAnalysis::new(IssInputs {
-            l_phi: l_phi.sampled,
-            ..inputs
-        });
-        solvers.push(SolverCertificate {
-            solver,
-            phi_rate,
-            phi_prefactor,
-            fits_eq11,
-            per_window,
-            at_k_min: k_min.map(|k| analysis.at(k)),
-            analysis,
-            k_min,
-            void_reasons,
-            not_computed,
-            k_min_with_sampled_l_phi: if opts.lipschitz_pairs == 0
-                || mpc.certificate_void_reason().is_some()
-            {
-                None
-            } else {
-                sampled_analysis.k_min(opts.k_max)
-            },
-        });
-    }
+    // The inputs every solver shares; φ's rate, prefactor and fit are the solver's own.
+    let shared = IssInputs {
+        horizon: m,
+        eta,
+        p_min,
+        p_max,
+        q_max,
+        h_bar,
+        // No value makes the premise "L_Phi finite" fail (not evaluated: no P).
+        l_phi: l_phi.certified.unwrap_or(f64::NAN),
+        l_pi: l_pi_used,
+        c_norm,
+        f_norm: spectral_norm(sys.f()),
+        gamma13: gamma13.used,
+        phi_rate: f64::NAN,
+        phi_prefactor: f64::NAN,
+        phi_fits_eq11: false,
+        lmi_certified: ioss_cert.is_some(),
+    };
+    let solvers = opts
+        .solvers
+        .iter()
+        .map(|&solver| {
+            let theorem1 = Theorem1Parts {
+                shared: &shared,
+                problem: problem.as_deref(),
+                mpc: &mpc,
+                gamma13: &gamma13,
+                l_phi_sampled: l_phi.sampled,
+            };
+            theorem1.solver_certificate(solver, opts)
+        })
+        .collect::<Result<Vec<_>, _>>()?;
     times.theorem1_s = split();
     times.total_s = start.elapsed().as_secs_f64();
     let certificate = ClosedLoopCertificate {
@@ -374,4 +228,222 @@ pub fn certify_closed_loop_with(
         lemma1_origin_offsets,
     };
     Ok((certificate, times))
+}
+
+/// A stopwatch: each call returns the seconds since the previous one (since `start` at the
+/// first), the phase timings of [`CertificateTimes`].
+fn laps(start: std::time::Instant) -> impl FnMut() -> f64 {
+    let mut lap = start;
+    move || {
+        let now = std::time::Instant::now();
+        let dt = (now - lap).as_secs_f64();
+        lap = now;
+        dt
+    }
+}
+
+/// L_π (Assumption 3) of the MPC, with its enumerated value when computed elsewhere.
+fn l_pi_report(
+    mpc: &mpc_core::CondensedMpc,
+    opts: &CertificateOptions,
+    radius: f64,
+    enumerated: Option<Result<Option<f64>, mpc_core::MpcError>>,
+) -> Result<mpc_core::LipschitzReport, mpc_core::MpcError> {
+    mpc_core::lipschitz_report_with(mpc, opts.lipschitz_pairs, opts.seed, radius, |m| {
+        match enumerated {
+            Some(r) => r,
+            None => m.lipschitz_enumerated(mpc_core::ENUMERATION_MAX_VARS),
+        }
+    })
+}
+
+/// γ₁,₃ (Assumption 4) of the MPC as `opts.gamma13` asks, with the certified estimate when
+/// computed elsewhere.
+fn gamma13_report(
+    mpc: &mpc_core::CondensedMpc,
+    opts: &CertificateOptions,
+    certified: Option<Result<crate::gamma13::Gamma13Certificate, mpc_core::MpcError>>,
+) -> Result<Gamma13Report, mpc_core::MpcError> {
+    crate::gamma13::gamma13_report_with(mpc, opts.gamma13, opts.gamma13_sequences, opts.seed, |m| {
+        match certified {
+            Some(r) => r,
+            None => crate::gamma13::gamma13_certified_budgeted(
+                m,
+                opts.enumeration_max_vars,
+                crate::gamma13::GAMMA13_PATTERN_FAMILIES,
+                opts.phase_seconds,
+            ),
+        }
+    })
+}
+
+/// H̄, the L_Φ report and ‖H_t‖ of the paper's σ_t from the MHE's problem (None: LMI (2)
+/// gave no P, so none of them exists).
+fn mhe_constants(
+    problem: Option<&MheProblem>,
+    opts: &CertificateOptions,
+) -> Result<(f64, LPhiReport, Vec<f64>), ClosedLoopError> {
+    let Some(pr) = problem else {
+        let none = LPhiReport {
+            certified: None,
+            sampled: None,
+            per_window: Vec::new(),
+            pairs_reduced: None,
+        };
+        return Ok((f64::NAN, none, Vec::new()));
+    };
+    let (pairs, pairs_reduced) =
+        crate::budget::l_phi_sampling_pairs(pr, opts.lipschitz_pairs, opts.phase_seconds);
+    let sampling = LipschitzSampling {
+        pairs,
+        seed: opts.seed,
+        ..LipschitzSampling::default()
+    };
+    let est = pr.sample_lipschitz(&sampling)?;
+    let per_window: Vec<(f64, f64)> = est.iter().map(|e| (e.certified, e.sampled)).collect();
+    let norms = pr
+        .windows()
+        .iter()
+        .map(|w| spectral_norm(w.h_paper()))
+        .collect();
+    let l_phi = LPhiReport {
+        certified: Some(pr.lipschitz_certified()),
+        sampled: Some(per_window.iter().map(|p| p.1).fold(0.0, f64::max)),
+        per_window,
+        pairs_reduced,
+    };
+    Ok((pr.h_bar(), l_phi, norms))
+}
+
+/// What Theorem 1's certificate of each solver is computed from: the constants every solver
+/// shares, the MHE's problem (None without P), the MPC and γ₁,₃.
+struct Theorem1Parts<'a> {
+    shared: &'a IssInputs,
+    problem: Option<&'a MheProblem>,
+    mpc: &'a mpc_core::CondensedMpc,
+    gamma13: &'a Gamma13Report,
+    l_phi_sampled: Option<f64>,
+}
+
+impl Theorem1Parts<'_> {
+    /// Theorem 1 for `solver`: φ of its windows, the analysis with this method's advice,
+    /// K_min, and why void or not computed.
+    fn solver_certificate(
+        &self,
+        solver: Method,
+        opts: &CertificateOptions,
+    ) -> Result<SolverCertificate, ClosedLoopError> {
+        let per_window = match self.problem {
+            Some(pr) => map_certificates(solver, pr)?,
+            None => Vec::new(),
+        };
+        let phi_rate = per_window
+            .iter()
+            .map(|c| c.rate)
+            .fold(if per_window.is_empty() { f64::NAN } else { 0.0 }, f64::max);
+        let phi_prefactor = per_window
+            .iter()
+            .map(|c| c.prefactor)
+            .fold(if per_window.is_empty() { f64::NAN } else { 0.0 }, f64::max);
+        let fits_eq11 = !per_window.is_empty() && per_window.iter().all(|c| c.fits_eq11);
+        let inputs = IssInputs {
+            phi_rate,
+            phi_prefactor,
+            phi_fits_eq11: fits_eq11,
+            ..self.shared.clone()
+        };
+        let mut analysis = IssAnalysis::new(inputs.clone());
+        self.advise(&mut analysis, solver);
+        let structural_void = self.structural_void();
+        let structurally_void = !structural_void.is_empty();
+        let k_min = if structurally_void {
+            None
+        } else {
+            analysis.k_min(opts.k_max)
+        };
+        let mut void_reasons = structural_void;
+        void_reasons.extend(self.violated(&analysis));
+        if k_min.is_none() && void_reasons.is_empty() {
+            void_reasons.push(VoidReason::NoK { k_max: opts.k_max });
+        }
+        let not_computed = budget_cut(k_min, &analysis, self.gamma13, structurally_void);
+        if not_computed.is_some() {
+            void_reasons.clear();
+        }
+        let k_min_with_sampled_l_phi =
+            if opts.lipschitz_pairs == 0 || self.mpc.certificate_void_reason().is_some() {
+                None
+            } else {
+                IssAnalysis::new(IssInputs {
+                    l_phi: self.l_phi_sampled.unwrap_or(f64::NAN),
+                    ..inputs
+                })
+                .k_min(opts.k_max)
+            };
+        Ok(SolverCertificate {
+            solver,
+            phi_rate,
+            phi_prefactor,
+            fits_eq11,
+            per_window,
+            at_k_min: k_min.map(|k| analysis.at(k)),
+            analysis,
+            k_min,
+            void_reasons,
+            not_computed,
+            k_min_with_sampled_l_phi,
+        })
+    }
+
+    /// The fixes the premises' generic advice does not know: γ₁,₃'s typed reason (e.g. no
+    /// gain can exist), and for a rate ≥ 1 the fix this method has (ADMM has no step size;
+    /// issue 37 item 13).
+    fn advise(&self, analysis: &mut IssAnalysis, solver: Method) {
+        if let Some(v) = &self.gamma13.void {
+            for p in analysis.premises.iter_mut() {
+                if p.name == "gamma13 finite" && !p.holds {
+                    p.fix = v.to_string();
+                }
+            }
+        }
+        let general_rows = self
+            .problem
+            .is_some_and(|pr| pr.windows().iter().any(|w| w.qp().general().is_some()));
+        for p in analysis.premises.iter_mut() {
+            if p.name == "phi rate < 1" && !p.holds && p.not_evaluated.is_none() {
+                p.fix = crate::analysis::phi_rate_fix(solver, general_rows);
+            }
+        }
+    }
+
+    /// Constants whose certified value does not exist for this scenario (issue 15: bounded
+    /// 𝒳 / 𝒴 in the MHE, state constraints in the MPC): void with the reason.
+    fn structural_void(&self) -> Vec<VoidReason> {
+        self.problem
+            .and_then(MheProblem::lipschitz_void_reason)
+            .map(|reason| VoidReason::LPhiUndefined { reason })
+            .into_iter()
+            .chain(
+                self.mpc
+                    .certificate_void_reason()
+                    .map(|reason| VoidReason::ControllerUndefined { reason }),
+            )
+            .collect()
+    }
+
+    /// The violated premises as void reasons, "gamma13 finite" with γ₁,₃'s typed reason
+    /// instead of the generic fix.
+    fn violated(&self, analysis: &IssAnalysis) -> Vec<VoidReason> {
+        analysis
+            .violated()
+            .iter()
+            .map(|p| match &self.gamma13.void {
+                Some(v) if p.name == "gamma13 finite" => VoidReason::Gamma13 {
+                    premise: p.name.clone(),
+                    void: v.clone(),
+                },
+                _ => p.void_reason(),
+            })
+            .collect()
+    }
 }

@@ -104,10 +104,11 @@ impl Default for CertificateOptions {
 #[cfg_attr(feature = "serde", derive(Serialize))]
 #[non_exhaustive]
 pub struct LPhiReport {
-    /// max_m certified bound (used in the certificate).
-    pub certified: f64,
-    /// max_m sampled estimate (a lower bound on the true constant).
-    pub sampled: f64,
+    /// max_m certified bound (used in the certificate); None when there is no MHE problem
+    /// (LMI (2) gave no P). JSON: null then.
+    pub certified: Option<f64>,
+    /// max_m sampled estimate (a lower bound on the true constant); None as `certified`.
+    pub sampled: Option<f64>,
     /// Per window length m = 0..M: (certified, sampled).
     pub per_window: Vec<(f64, f64)>,
     /// Why fewer pairs than `lipschitz_pairs` were sampled (the analysis budget,

@@ -178,6 +178,118 @@ pub fn window_roundings(
     Ok(Ok(out))
 }
 
+/// Why Theorem 1 with the rounding folded in certifies no K for a solver in a scalar type.
+/// Serialised as its sentence.
+#[derive(Debug, Clone, PartialEq)]
+#[non_exhaustive]
+pub enum ScalarVoid {
+    /// The solver has no entry in the closed-loop certificate.
+    NotCertified {
+        /// The solver asked for.
+        solver: Method,
+    },
+    /// f64: Theorem 1 itself is void (no rounding folded in).
+    Theorem1 {
+        /// Its reasons.
+        reasons: Vec<VoidReason>,
+    },
+    /// The f64 certificate is void already.
+    VoidInF64 {
+        /// Its reasons.
+        reasons: Vec<VoidReason>,
+    },
+    /// The time-shifted warm start rounds its model step: only the paper's is covered.
+    ShiftedWarmStart,
+    /// The MPC law is not 0 at x = 0, so ‖u‖ ≤ L_π‖x̂‖ of the fold does not hold.
+    MpcNotZeroAtOrigin,
+    /// The rounding model of a window cannot be computed (its sentence).
+    NotCovered {
+        /// Why, naming the window.
+        why: String,
+    },
+    /// Rounding breaks the contraction in a window (r + a ≥ 1).
+    ContractionBroken {
+        /// The window m.
+        window: usize,
+        /// Its rate r.
+        rate: f64,
+        /// The rounding's a.
+        rounding: f64,
+    },
+    /// No K up to the search limit satisfies the small-gain condition with the rounding.
+    NoK {
+        /// Largest K searched.
+        k_max: usize,
+        /// g_d: the rounding's gain into ε.
+        rounding_gain: f64,
+        /// φ(K)L_Φ at the f64 K_min (None without one).
+        phi_l_phi: Option<f64>,
+        /// x̂'s self-loop gain s on e at `k_max`.
+        self_loop: f64,
+    },
+}
+
+impl std::fmt::Display for ScalarVoid {
+    fn fmt(&self, f: &mut std::fmt::Formatter<'_>) -> std::fmt::Result {
+        use lti_model::numfmt::sig4;
+        match self {
+            Self::NotCertified { solver } => {
+                write!(f, "`{}` is not among the certified solvers", solver.name())
+            }
+            Self::Theorem1 { reasons } => f.write_str(&VoidReason::join(reasons)),
+            Self::VoidInF64 { reasons } => {
+                write!(f, "void in f64 already: {}", VoidReason::join(reasons))
+            }
+            Self::ShiftedWarmStart => f.write_str(
+                "the shifted warm start rounds its model step; only the paper's warm start \
+                 (an exact copy of zᴷ) is covered",
+            ),
+            Self::MpcNotZeroAtOrigin => f.write_str(
+                "the MPC law is not 0 at x = 0 (a linear term or an input box excluding 0): the \
+                 bound ‖u‖ ≤ L_π‖x̂‖ of the fold does not hold",
+            ),
+            Self::NotCovered { why } => write!(f, "not covered: {why}"),
+            Self::ContractionBroken {
+                window,
+                rate,
+                rounding,
+            } => write!(
+                f,
+                "void: rounding breaks the contraction in window m = {window} (rate r = {} plus \
+                 the rounding's a = {} is ≥ 1; 1 − r ≈ 2/κ(H) is below (n + 5)·u·(1 + α‖|H|‖)): \
+                 improve the conditioning (a shorter horizon, the Jacobi scaling once modelled) \
+                 or run in f64",
+                sig4(*rate),
+                sig4(*rounding)
+            ),
+            Self::NoK {
+                k_max,
+                rounding_gain,
+                phi_l_phi,
+                self_loop,
+            } => write!(
+                f,
+                "void: with the rounding folded in no K ≤ {k_max} satisfies \
+                 1 − s − sg1 − sg2 − sg3 > 0: the rounding enters ε with gain g_d = {} per \
+                 unit of ‖θ_t‖ (the window's magnitude), against φ(K)L_Φ = {} at the f64 \
+                 K_min, and x̂'s propagation adds a self-loop s = {} on e; Theorem 1's \
+                 gains leave no room for it (run in f64, or tighten the rounding model)",
+                sig4(*rounding_gain),
+                // No f64 K_min prints as sig4(NaN), as before the reason was typed.
+                sig4(phi_l_phi.unwrap_or(f64::NAN)),
+                sig4(*self_loop)
+            ),
+        }
+    }
+}
+
+#[cfg(feature = "serde")]
+impl Serialize for ScalarVoid {
+    fn serialize<S: serde::Serializer>(&self, s: S) -> Result<S::Ok, S::Error> {
+        s.collect_str(self)
+    }
+}
+
 /// What Theorem 1 certifies for one solver in one scalar type.
 #[derive(Debug, Clone, PartialEq)]
 #[cfg_attr(feature = "serde", derive(Serialize))]
@@ -202,7 +314,7 @@ pub struct ScalarCertificate {
     /// The certified margin 1 − s − sg1 − sg2 − sg3 at K_min.
     pub margin: Option<f64>,
     /// Why there is no K_min (None when there is one).
-    pub reason: Option<String>,
+    pub reason: Option<ScalarVoid>,
 }
 
 impl ScalarCertificate {
@@ -322,11 +434,10 @@ pub fn certify_scalar(
         self_loop: None,
         margin: sc.and_then(|s| s.at_k_min.as_ref()).map(|g| g.margin),
         reason: match sc {
-            None => Some(format!(
-                "`{}` is not among the certified solvers",
-                solver.name()
-            )),
-            Some(s) => s.k_min.is_none().then(|| VoidReason::join(&s.void_reasons)),
+            None => Some(ScalarVoid::NotCertified { solver }),
+            Some(s) => s.k_min.is_none().then(|| ScalarVoid::Theorem1 {
+                reasons: s.void_reasons.clone(),
+            }),
         },
     })
 }
@@ -361,52 +472,34 @@ pub fn certify_rounded(
         margin: None,
         reason: None,
     };
-    let void = |mut out: ScalarCertificate, why: String| {
+    let void = |mut out: ScalarCertificate, why: ScalarVoid| {
         out.reason = Some(why);
         Ok(out)
     };
     let Some(sc) = sc else {
-        let why = format!("`{}` is not among the certified solvers", solver.name());
-        return void(out, why);
+        return void(out, ScalarVoid::NotCertified { solver });
     };
     if k_min_f64.is_none() {
-        let why = format!(
-            "void in f64 already: {}",
-            VoidReason::join(&sc.void_reasons)
-        );
-        return void(out, why);
+        let reasons = sc.void_reasons.clone();
+        return void(out, ScalarVoid::VoidInF64 { reasons });
     }
     if resolved.mhe_config()?.warm_start != mhe_core::WarmStart::Paper {
-        return void(
-            out,
-            "the shifted warm start rounds its model step; only the paper's warm start \
-             (an exact copy of zᴷ) is covered"
-                .into(),
-        );
+        return void(out, ScalarVoid::ShiftedWarmStart);
     }
     if !mpc_vanishes_at_origin(resolved)? {
-        return void(
-            out,
-            "the MPC law is not 0 at x = 0 (a linear term or an input box excluding 0): the \
-             bound ‖u‖ ≤ L_π‖x̂‖ of the fold does not hold"
-                .into(),
-        );
+        return void(out, ScalarVoid::MpcNotZeroAtOrigin);
     }
     let windows = match window_roundings(resolved, cert, solver, u)? {
         Ok(w) => w,
-        Err(why) => return void(out, format!("not covered: {why}")),
+        Err(why) => return void(out, ScalarVoid::NotCovered { why }),
     };
     if let Some(w) = windows.iter().find(|w| !w.iteration.contracts()) {
         let it = &w.iteration;
-        let why = format!(
-            "void: rounding breaks the contraction in window m = {} (rate r = {} plus the \
-             rounding's a = {} is ≥ 1; 1 − r ≈ 2/κ(H) is below (n + 5)·u·(1 + α‖|H|‖)): \
-             improve the conditioning (a shorter horizon, the Jacobi scaling once modelled) \
-             or run in f64",
-            w.m,
-            lti_model::numfmt::sig4(it.rate),
-            lti_model::numfmt::sig4(it.a)
-        );
+        let why = ScalarVoid::ContractionBroken {
+            window: w.m,
+            rate: it.rate,
+            rounding: it.a,
+        };
         return void(out, why);
     }
     let fold = Fold::new(&windows, u);
@@ -422,21 +515,13 @@ pub fn certify_rounded(
     // The margin increases with K (every gain increases with φ_u(K) = qᴷ, q < 1).
     let (limit, _, s) = margin_at(a, &fold, k_max, u);
     if !limit {
-        return void(
-            out,
-            format!(
-                "void: with the rounding folded in no K ≤ {k_max} satisfies \
-                 1 − s − sg1 − sg2 − sg3 > 0: the rounding enters ε with gain g_d = {} per \
-                 unit of ‖θ_t‖ (the window's magnitude), against φ(K)L_Φ = {} at the f64 \
-                 K_min, and x̂'s propagation adds a self-loop s = {} on e; Theorem 1's \
-                 gains leave no room for it (run in f64, or tighten the rounding model)",
-                lti_model::numfmt::sig4(fold.g_d),
-                lti_model::numfmt::sig4(
-                    k_min_f64.map_or(f64::NAN, |k| sc.analysis.phi(k) * sc.analysis.l_phi_used)
-                ),
-                lti_model::numfmt::sig4(s)
-            ),
-        );
+        let why = ScalarVoid::NoK {
+            k_max,
+            rounding_gain: fold.g_d,
+            phi_l_phi: k_min_f64.map(|k| sc.analysis.phi(k) * sc.analysis.l_phi_used),
+            self_loop: s,
+        };
+        return void(out, why);
     }
     let (mut lo, mut hi) = (k0 - 1, k0);
     while !certified(hi) {

@@ -189,7 +189,7 @@ pub fn analysis_with_sampled_l_phi(
     solver: &SolverCertificate,
 ) -> IssAnalysis {
     IssAnalysis::new(IssInputs {
-        l_phi: cert.l_phi.sampled,
+        l_phi: cert.l_phi.sampled.unwrap_or(f64::NAN),
         ..solver.analysis.inputs.clone()
     })
 }

@@ -94,35 +94,98 @@ pub struct MetricResult {
     pub gamma14: f64,
     /// Why gains of this metric are not computed (null in JSON) because it does not contract
     /// (λ_S ≥ 1); None when every figure is computed.
-    pub not_computed: Option<String>,
+    pub not_computed: Option<NoContraction>,
 }
 
-/// The sentence of [`MetricResult::not_computed`]: which contraction factor is ≥ 1 and which
-/// figures are therefore left out.
-fn not_computed_reason(c: &MetricResult) -> Option<String> {
-    let enumerated = c.contraction_enumerated;
-    if c.contraction < 1.0 && enumerated.is_none_or(|l| l < 1.0) {
-        return None;
+/// Why gains of a metric S are not computed: it does not contract (λ_S ≥ 1) over the family
+/// 0 ⪯ M ⪯ I, over the free sets, or both. Serialised as its sentence.
+#[derive(Debug, Clone, Copy, PartialEq)]
+#[non_exhaustive]
+pub enum NoContraction {
+    /// λ_S ≥ 1 over the family, but λ < 1 over the free sets: only the enumerated figures
+    /// are computed.
+    FamilyOnly {
+        /// λ_S over the family.
+        contraction: f64,
+        /// λ over the free sets (< 1).
+        enumerated: f64,
+    },
+    /// λ ≥ 1 over the free sets (the enumeration stops there): nothing is computed.
+    Enumerated {
+        /// λ_S over the family.
+        contraction: f64,
+        /// The lower bound ≥ 1 reached over the free sets.
+        enumerated: f64,
+    },
+    /// λ_S ≥ 1 over the family, free sets not enumerated: nothing is computed.
+    Family {
+        /// λ_S over the family.
+        contraction: f64,
+    },
+}
+
+impl NoContraction {
+    /// Why `c`'s gains are not computed; None when its metric contracts wherever it was
+    /// evaluated.
+    fn of(c: &MetricResult) -> Option<Self> {
+        let contraction = c.contraction;
+        let enumerated = c.contraction_enumerated;
+        if contraction < 1.0 && enumerated.is_none_or(|l| l < 1.0) {
+            return None;
+        }
+        Some(match enumerated {
+            Some(l) if l < 1.0 => Self::FamilyOnly {
+                contraction,
+                enumerated: l,
+            },
+            Some(l) => Self::Enumerated {
+                contraction,
+                enumerated: l,
+            },
+            None => Self::Family { contraction },
+        })
     }
-    Some(match enumerated {
-        Some(l) if l < 1.0 => format!(
-            "λ_S = {} ≥ 1 over the family 0 ⪯ M ⪯ I: input_gain and gamma13_polynomial are \
-             not computed; over the free sets λ = {} < 1 gives the enumerated figures",
-            sig4(c.contraction),
-            sig4(l)
-        ),
-        Some(l) => format!(
-            "the metric does not contract (λ_S = {} ≥ 1 over the family, ≥ {} over the \
-             free sets): input_gain, input_gain_enumerated, gamma13 and gamma1w are not computed",
-            sig4(c.contraction),
-            sig4(l)
-        ),
-        None => format!(
-            "the metric does not contract (λ_S = {} ≥ 1): input_gain, gamma13 and gamma1w \
-             are not computed",
-            sig4(c.contraction)
-        ),
-    })
+}
+
+impl std::fmt::Display for NoContraction {
+    fn fmt(&self, f: &mut std::fmt::Formatter<'_>) -> std::fmt::Result {
+        match *self {
+            Self::FamilyOnly {
+                contraction,
+                enumerated,
+            } => write!(
+                f,
+                "λ_S = {} ≥ 1 over the family 0 ⪯ M ⪯ I: input_gain and gamma13_polynomial are \
+                 not computed; over the free sets λ = {} < 1 gives the enumerated figures",
+                sig4(contraction),
+                sig4(enumerated)
+            ),
+            Self::Enumerated {
+                contraction,
+                enumerated,
+            } => write!(
+                f,
+                "the metric does not contract (λ_S = {} ≥ 1 over the family, ≥ {} over the \
+                 free sets): input_gain, input_gain_enumerated, gamma13 and gamma1w are not \
+                 computed",
+                sig4(contraction),
+                sig4(enumerated)
+            ),
+            Self::Family { contraction } => write!(
+                f,
+                "the metric does not contract (λ_S = {} ≥ 1): input_gain, gamma13 and gamma1w \
+                 are not computed",
+                sig4(contraction)
+            ),
+        }
+    }
+}
+
+#[cfg(feature = "serde")]
+impl Serialize for NoContraction {
+    fn serialize<S: serde::Serializer>(&self, s: S) -> Result<S::Ok, S::Error> {
+        s.collect_str(self)
+    }
 }
 
 /// Which bound gave the certified γ₁,₃.
@@ -325,10 +388,11 @@ pub struct Gamma13Certificate {
     pub gamma14: f64,
     /// γ₁ʷ of the same estimate (∞ when void).
     pub gamma1w: f64,
-    /// β₁(s, t) = `beta_prefactor`·`beta_rate`ᵗ·s of the same estimate (NaN when void).
-    pub beta_prefactor: f64,
+    /// β₁(s, t) = `beta_prefactor`·`beta_rate`ᵗ·s of the same estimate (None when void;
+    /// JSON null).
+    pub beta_prefactor: Option<f64>,
     /// See `beta_prefactor`.
-    pub beta_rate: f64,
+    pub beta_rate: Option<f64>,
     /// Every candidate's figures.
     pub candidates: Vec<MetricResult>,
     /// N·n_u.
@@ -366,8 +430,8 @@ fn void_certificate(
         gamma13_linear: None,
         gamma14: f64::INFINITY,
         gamma1w: f64::INFINITY,
-        beta_prefactor: f64::NAN,
-        beta_rate: f64::NAN,
+        beta_prefactor: None,
+        beta_rate: None,
         candidates: Vec::new(),
         variables,
         saturable,

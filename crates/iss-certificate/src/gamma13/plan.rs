@@ -52,6 +52,148 @@ pub struct Gamma13Plan<'a> {
 /// The figures of one chunk of the free-set enumeration ([`Gamma13Plan::chunk`]).
 pub type Gamma13Chunk = VertexChunk;
 
+/// Folds the free-set enumeration's figures `v` into the chosen metrics' candidates (a
+/// smaller γ₁,₃ replaces the family's, with its γ₁ʷ); the best enumerated γ₁,₃.
+fn fold_enumerated(
+    candidates: &mut [MetricResult],
+    chosen: &[usize],
+    v: &super::enumerate::VertexMax,
+    metrics: &[Metric],
+    noise_gains: &[f64],
+) -> f64 {
+    let mut best = f64::INFINITY;
+    for (k, &i) in chosen.iter().enumerate() {
+        let (lam, gin) = (v.contraction[k], v.input_gain[k]);
+        let (g13, g1w) = gammas(lam, gin, &metrics[i], noise_gains[i]);
+        let c = &mut candidates[i];
+        c.contraction_enumerated = Some(lam);
+        // The enumeration drops a metric once λ reaches 1: its g is then a partial maximum
+        // (possibly 0), not a figure.
+        c.input_gain_enumerated = (lam < 1.0).then_some(gin);
+        c.gamma13_enumerated = Some(g13);
+        if g13 < c.gamma13 {
+            c.gamma13 = g13;
+            c.gamma1w = g1w;
+        }
+        best = best.min(g13);
+    }
+    best
+}
+
+/// Each candidate's reason for figures not computed, and its γ₁,₄ with the λ_S its γ₁,₃
+/// used (when it contracts).
+fn finish_candidates(candidates: &mut [MetricResult], metrics: &[Metric]) {
+    for (c, m) in candidates.iter_mut().zip(metrics) {
+        c.not_computed = NoContraction::of(c);
+        let lam = used_contraction(c);
+        if lam < 1.0 {
+            c.gamma14 = c.input_matrix_gain / (m.lmin.sqrt() * (1.0 - lam));
+        }
+    }
+}
+
+/// Which bound gave a candidate's γ₁,₃: the enumeration when it is no larger than the
+/// family's.
+fn bound_of(c: &MetricResult) -> Gamma13Method {
+    if c.gamma13_enumerated
+        .is_some_and(|e| e <= c.gamma13_polynomial)
+    {
+        Gamma13Method::Enumerated
+    } else {
+        Gamma13Method::Polynomial
+    }
+}
+
+/// Why no metric gives a finite γ₁,₃: not computed within the budget when the enumeration
+/// the budget skipped could find one, else no contracting metric (the least bad named).
+fn why_void(
+    candidates: &[MetricResult],
+    over_budget: Option<&crate::budget::NotComputed>,
+    enumerated: bool,
+    depth: usize,
+) -> Gamma13Void {
+    let worst = |c: &MetricResult| c.contraction_enumerated.unwrap_or(c.contraction);
+    let b = candidates
+        .iter()
+        .min_by(|x, y| worst(x).total_cmp(&worst(y)));
+    let best_contraction = b.map_or(f64::INFINITY, worst);
+    match over_budget {
+        Some(nc) => Gamma13Void::NotComputedWithinBudget {
+            best_contraction,
+            not_computed: nc.clone(),
+        },
+        None => Gamma13Void::NoContractingMetric {
+            best_contraction,
+            metric: b.map_or_else(|| "none".into(), |c| c.metric.clone()),
+            enumerated,
+            pattern_blocks: depth,
+        },
+    }
+}
+
+/// Why γ₁,₃ cannot exist with saturable inputs (s > 0): the saturated dynamics are not
+/// stable. Stable / marginal / unstable from the exact structure (a defective A, e.g.
+/// integrator chains, has rounded eigenvalues off the unit circle). With 𝒰 bounded A_sat = A
+/// exactly (K_sat = K_lin + GR vanishes; its computed value is rounding, which a Jordan chain
+/// of length 3 amplifies to 1e-5 in |λ|), so A itself is classified; otherwise A_sat as
+/// computed.
+fn saturated_dynamics_void(
+    mpc: &CondensedMpc,
+    fam: &Family,
+) -> Result<Option<Gamma13Void>, MpcError> {
+    if fam.saturable == 0 {
+        return Ok(None);
+    }
+    let us = mpc.input_set();
+    let bounded = us.lower().iter().chain(us.upper()).all(|b| b.is_finite());
+    let facts = if bounded {
+        lti_model::spectral::classify(mpc.system().a())?
+    } else {
+        lti_model::spectral::classify(fam.a_sat.as_ref())?
+    };
+    let rho = facts.spectral_radius;
+    let marginal = match facts.stability {
+        Stability::Unstable => Some(false),
+        Stability::Marginal => Some(true),
+        Stability::Stable if !(rho < 1.0 - 1e-10) => Some(true),
+        Stability::Stable => None,
+    };
+    Ok(
+        marginal.map(|marginal| Gamma13Void::SaturatedDynamicsNotStable {
+            spectral_radius: rho,
+            input_bounded: bounded,
+            marginal,
+        }),
+    )
+}
+
+/// A metric's candidate from its family figures λ_S, g_S and ‖S^{½}E‖₂ (`noise_gain`): the
+/// enumerated figures and γ₁,₄ come later.
+fn family_candidate(
+    mpc: &CondensedMpc,
+    m: &Metric,
+    lam: f64,
+    gin: f64,
+    noise_gain: f64,
+) -> MetricResult {
+    let (g13, g1w) = gammas(lam, gin, m, noise_gain);
+    MetricResult {
+        metric: m.name.clone(),
+        contraction: lam,
+        input_gain: gin,
+        contraction_enumerated: None,
+        input_gain_enumerated: None,
+        condition_sqrt: (m.lmax / m.lmin).sqrt(),
+        gamma13_polynomial: g13,
+        gamma13_enumerated: None,
+        gamma13: g13,
+        gamma1w: g1w,
+        input_matrix_gain: spectral_norm((&m.half * mpc.system().b()).as_ref()),
+        gamma14: f64::INFINITY,
+        not_computed: None,
+    }
+}
+
 impl<'a> Gamma13Plan<'a> {
     /// The first stage of [`super::gamma13_certified_budgeted`] (same arguments).
     pub fn start(
@@ -73,37 +215,10 @@ impl<'a> Gamma13Plan<'a> {
                 skipped,
             ))));
         }
-        if s > 0 {
-            // Stable / marginal / unstable from the exact structure (a defective A, e.g.
-            // integrator chains, has rounded eigenvalues off the unit circle). With 𝒰 bounded
-            // A_sat = A exactly (K_sat = K_lin + GR vanishes; its computed value is rounding,
-            // which a Jordan chain of length 3 amplifies to 1e-5 in |λ|), so A itself is
-            // classified; otherwise A_sat as computed.
-            let bounded = us.lower().iter().chain(us.upper()).all(|b| b.is_finite());
-            let facts = if bounded {
-                lti_model::spectral::classify(mpc.system().a())?
-            } else {
-                lti_model::spectral::classify(fam.a_sat.as_ref())?
-            };
-            let rho = facts.spectral_radius;
-            let marginal = match facts.stability {
-                Stability::Unstable => Some(false),
-                Stability::Marginal => Some(true),
-                Stability::Stable if !(rho < 1.0 - 1e-10) => Some(true),
-                Stability::Stable => None,
-            };
-            if let Some(marginal) = marginal {
-                return Ok(Gamma13Stage::Done(Box::new(void_certificate(
-                    variables,
-                    s,
-                    Gamma13Void::SaturatedDynamicsNotStable {
-                        spectral_radius: rho,
-                        input_bounded: bounded,
-                        marginal,
-                    },
-                    skipped,
-                ))));
-            }
+        if let Some(void) = saturated_dynamics_void(mpc, &fam)? {
+            return Ok(Gamma13Stage::Done(Box::new(void_certificate(
+                variables, s, void, skipped,
+            ))));
         }
         let depth = if s > 0 {
             mpc.pattern_depth(pattern_families)
@@ -132,22 +247,7 @@ impl<'a> Gamma13Plan<'a> {
             .collect();
         for ((m, fig), &ng) in metrics.iter().zip(figures).zip(&noise_gains) {
             let (lam, gin) = fig?;
-            let (g13, g1w) = gammas(lam, gin, m, ng);
-            candidates.push(MetricResult {
-                metric: m.name.clone(),
-                contraction: lam,
-                input_gain: gin,
-                contraction_enumerated: None,
-                input_gain_enumerated: None,
-                condition_sqrt: (m.lmax / m.lmin).sqrt(),
-                gamma13_polynomial: g13,
-                gamma13_enumerated: None,
-                gamma13: g13,
-                gamma1w: g1w,
-                input_matrix_gain: spectral_norm((&m.half * mpc.system().b()).as_ref()),
-                gamma14: f64::INFINITY,
-                not_computed: None,
-            });
+            candidates.push(family_candidate(mpc, m, lam, gin, ng));
         }
         let gamma13_polynomial = candidates
             .iter()
@@ -225,16 +325,53 @@ impl<'a> Gamma13Plan<'a> {
         }
     }
 
+    /// Why the free sets are not enumerated when they are not: over the cap on s, or over
+    /// the analysis budget (then also the budget's cut, "not computed within the budget").
+    fn enumeration_skip(&self) -> (SkippedComputation, Option<crate::budget::NotComputed>) {
+        let (s, depth) = (self.s, self.depth);
+        let cap = self.max_vars.min(30);
+        if s > cap {
+            let reason = SkipReason::OverVariableCap {
+                saturable: s,
+                cap,
+                depth,
+            };
+            let skip = SkippedComputation {
+                computation: "free-set enumeration".into(),
+                reason,
+            };
+            return (skip, None);
+        }
+        let cut = crate::budget::NotComputed {
+            phase: "γ₁,₃ free-set enumeration".into(),
+            needed_seconds: self.seconds,
+            budget_seconds: self.phase_seconds,
+        };
+        let reason = SkipReason::OverBudget {
+            saturable: s,
+            metrics: self.n_refs,
+            n_x: self.mpc.nx(),
+            work: self.work,
+            seconds: self.seconds,
+            budget_seconds: self.phase_seconds,
+            depth,
+        };
+        let skip = SkippedComputation {
+            computation: "free-set enumeration".into(),
+            reason,
+        };
+        (skip, Some(cut))
+    }
+
     /// The certificate from every chunk's figures, in chunk order (all
     /// [`Gamma13Plan::chunks`] of them).
     pub fn finish(
         self,
         chunks: Vec<Result<Gamma13Chunk, MpcError>>,
     ) -> Result<Gamma13Certificate, MpcError> {
+        let (skip, cut) = self.enumeration_skip();
         let Gamma13Plan {
             mpc,
-            max_vars,
-            phase_seconds,
             fam,
             depth,
             pattern_families,
@@ -244,13 +381,11 @@ impl<'a> Gamma13Plan<'a> {
             gamma13_polynomial,
             order,
             chosen,
-            n_refs,
-            work,
-            seconds,
             s,
             variables,
             mut skipped,
             enumeration,
+            ..
         } = self;
         let vertex = match &enumeration {
             Some(e) if chunks.len() == e.chunks() => e.reduce(chunks)?,
@@ -270,58 +405,15 @@ impl<'a> Gamma13Plan<'a> {
         let mut over_budget = None;
         let (enumerated, free_sets) = match &vertex {
             Some(v) => (true, v.free_sets),
-            None if s > max_vars.min(30) => {
-                skipped.push(SkippedComputation {
-                    computation: "free-set enumeration".into(),
-                    reason: SkipReason::OverVariableCap {
-                        saturable: s,
-                        cap: max_vars.min(30),
-                        depth,
-                    },
-                });
-                (false, 0)
-            }
             None => {
-                over_budget = Some(crate::budget::NotComputed {
-                    phase: "γ₁,₃ free-set enumeration".into(),
-                    needed_seconds: seconds,
-                    budget_seconds: phase_seconds,
-                });
-                skipped.push(SkippedComputation {
-                    computation: "free-set enumeration".into(),
-                    reason: SkipReason::OverBudget {
-                        saturable: s,
-                        metrics: n_refs,
-                        n_x: mpc.nx(),
-                        work,
-                        seconds,
-                        budget_seconds: phase_seconds,
-                        depth,
-                    },
-                });
+                skipped.push(skip);
+                over_budget = cut;
                 (false, 0)
             }
         };
-        let mut gamma13_enumerated = None;
-        if let Some(v) = &vertex {
-            let mut best = f64::INFINITY;
-            for (k, &i) in chosen.iter().enumerate() {
-                let (lam, gin) = (v.contraction[k], v.input_gain[k]);
-                let (g13, g1w) = gammas(lam, gin, &metrics[i], noise_gains[i]);
-                let c = &mut candidates[i];
-                c.contraction_enumerated = Some(lam);
-                // The enumeration drops a metric once λ reaches 1: its g is then a partial maximum
-                // (possibly 0), not a figure.
-                c.input_gain_enumerated = (lam < 1.0).then_some(gin);
-                c.gamma13_enumerated = Some(g13);
-                if g13 < c.gamma13 {
-                    c.gamma13 = g13;
-                    c.gamma1w = g1w;
-                }
-                best = best.min(g13);
-            }
-            gamma13_enumerated = Some(best);
-        }
+        let gamma13_enumerated = vertex
+            .as_ref()
+            .map(|v| fold_enumerated(&mut candidates, &chosen, v, &metrics, &noise_gains));
 
         // The linear law: impulse-response sum with the best contracting metric's tail bound.
         let mut gamma13_linear = None;
@@ -340,33 +432,19 @@ impl<'a> Gamma13Plan<'a> {
             }
         }
 
-        for (c, m) in candidates.iter_mut().zip(&metrics) {
-            c.not_computed = not_computed_reason(c);
-            let lam = used_contraction(c);
-            if lam < 1.0 {
-                c.gamma14 = c.input_matrix_gain / (m.lmin.sqrt() * (1.0 - lam));
-            }
-        }
+        finish_candidates(&mut candidates, &metrics);
         let best = candidates
             .iter()
             .filter(|c| c.gamma13.is_finite())
             .min_by(|x, y| x.gamma13.total_cmp(&y.gamma13));
         let mut gamma13 = best.map_or(f64::INFINITY, |c| c.gamma13);
         let mut metric = best.map(|c| c.metric.clone());
-        let mut method = best.map(|c| {
-            if c.gamma13_enumerated
-                .is_some_and(|e| e <= c.gamma13_polynomial)
-            {
-                Gamma13Method::Enumerated
-            } else {
-                Gamma13Method::Polynomial
-            }
-        });
+        let mut method = best.map(bound_of);
         // γ₁,₄, γ₁ʷ and β₁ of the same estimate as γ₁,₃.
         let mut gamma14 = best.map_or(f64::INFINITY, |c| c.gamma14);
         let gamma1w = best.map_or(f64::INFINITY, |c| c.gamma1w);
-        let (beta_prefactor, beta_rate) = best.map_or((f64::NAN, f64::NAN), |c| {
-            (c.condition_sqrt, used_contraction(c))
+        let (beta_prefactor, beta_rate) = best.map_or((None, None), |c| {
+            (Some(c.condition_sqrt), Some(used_contraction(c)))
         });
         if let Some(l) = gamma13_linear.filter(|l| *l < gamma13) {
             gamma13 = l;
@@ -380,28 +458,8 @@ impl<'a> Gamma13Plan<'a> {
                     .unwrap_or(gamma14);
             }
         }
-        let void = if gamma13.is_finite() {
-            None
-        } else {
-            let worst = |c: &MetricResult| c.contraction_enumerated.unwrap_or(c.contraction);
-            let b = candidates
-                .iter()
-                .min_by(|x, y| worst(x).total_cmp(&worst(y)));
-            let best_contraction = b.map_or(f64::INFINITY, worst);
-            Some(match &over_budget {
-                // The enumeration could find a contracting metric: not proved void.
-                Some(nc) => Gamma13Void::NotComputedWithinBudget {
-                    best_contraction,
-                    not_computed: nc.clone(),
-                },
-                None => Gamma13Void::NoContractingMetric {
-                    best_contraction,
-                    metric: b.map_or_else(|| "none".into(), |c| c.metric.clone()),
-                    enumerated,
-                    pattern_blocks: depth,
-                },
-            })
-        };
+        let void = (!gamma13.is_finite())
+            .then(|| why_void(&candidates, over_budget.as_ref(), enumerated, depth));
         Ok(Gamma13Certificate {
             gamma13,
             method,

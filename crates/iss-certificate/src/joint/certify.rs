@@ -52,8 +52,9 @@ pub struct JointCertificate {
     pub region: JointRegion,
     /// Gains at the cheapest pair.
     pub at_cheapest: Option<JointGains>,
-    /// β₁ = (prefactor, rate) and γ₁ʷ of the plant estimate (for the trajectory checks).
-    pub plant_beta: (f64, f64),
+    /// β₁ = (prefactor, rate) of the plant estimate (for the trajectory checks); None when
+    /// γ₁,₃ is void.
+    pub plant_beta: Option<(f64, f64)>,
     /// γ₁ʷ of the plant estimate.
     pub gamma1w: f64,
 }
@@ -123,8 +124,8 @@ pub fn certify_joint(
     } else {
         f64::INFINITY
     };
-    let (plant_beta, gamma1w) = g13.map_or(((f64::NAN, f64::NAN), f64::INFINITY), |c| {
-        ((c.beta_prefactor, c.beta_rate), c.gamma1w)
+    let (plant_beta, gamma1w) = g13.map_or((None, f64::INFINITY), |c| {
+        (c.beta_prefactor.zip(c.beta_rate), c.gamma1w)
     });
     let inputs = JointInputs {
         mhe: sc.analysis.inputs.clone(),

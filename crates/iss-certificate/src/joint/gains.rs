@@ -102,7 +102,7 @@ fn premise(name: &str, needed_by: &str, holds: bool, value: f64, fix: String) ->
         needed_by: needed_by.into(),
         holds,
         value,
-        margin: if holds { 1.0 } else { -1.0 },
+        margin: Some(if holds { 1.0 } else { -1.0 }),
         fix: if holds { String::new() } else { fix },
         not_evaluated: None,
     }

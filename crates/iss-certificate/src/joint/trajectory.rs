@@ -57,7 +57,8 @@ impl JointTrajectoryCheck {
 /// [`crate::joint::delta_series`]). `beta` = (prefactor, rate) and `gamma1w` of the plant
 /// estimate (the γ₁,₃ certificate's).
 ///
-/// Returns `None` when the trace has no ε_t or the series are shorter than the trace.
+/// Returns `None` when the trace has no ε_t, the series are shorter than the trace, or β₁ is
+/// unknown (`beta` None: γ₁,₃ void).
 #[allow(clippy::too_many_arguments)]
 pub fn check_joint_trajectory(
     cert: &ClosedLoopCertificate,
@@ -67,9 +68,10 @@ pub fn check_joint_trajectory(
     trace: &Trace,
     delta: &[f64],
     input_error: &[f64],
-    beta: (f64, f64),
+    beta: Option<(f64, f64)>,
     gamma1w: f64,
 ) -> Option<JointTrajectoryCheck> {
+    let beta = beta?;
     let eps: Vec<f64> = trace.epsilons().collect::<Option<Vec<f64>>>()?;
     let n = trace.len().min(eps.len());
     if delta.len() < n || input_error.len() < n {

@@ -103,6 +103,43 @@ pub(super) fn impulse(model: &RegionalModel, t: usize, o: &RegionalOptions) -> I
     }
 }
 
+/// sup over the user's set of ‖M X‖_P for M = 𝕄 (X_M, reported) or M = 𝔸^S𝕄 (the free
+/// response after the S exact steps), as [nominal, a_x, a_p, a_w]: nominal + r_x a_x +
+/// r_e a_p + w̄ a_w.
+fn set_parts(
+    model: &RegionalModel,
+    half: faer::MatRef<'_, f64>,
+    m: &Mat<f64>,
+    o: &RegionalOptions,
+) -> [f64; 4] {
+    let (nx, nw) = (model.nx, model.nw);
+    let pm = half * m;
+    let mxp = Mat::from_fn(pm.nrows(), nx, |i, j| pm[(i, j)] + pm[(i, nx + j)]);
+    let x0 = Mat::from_fn(nx, 1, |i, _| o.x0_nominal[i]);
+    let a_w: f64 = (0..model.layout.horizon)
+        .map(|t| spectral_norm(pm.as_ref().subcols(2 * nx + t * nw, nw)))
+        .sum();
+    [
+        spectral_norm((&mxp * &x0).as_ref()),
+        spectral_norm(mxp.as_ref()),
+        spectral_norm(pm.as_ref().subcols(nx, nx)),
+        a_w,
+    ]
+}
+
+/// Full-window row `i` as a limit: its bound, the reach `reach` and what the exact steps
+/// attained there.
+fn row_limit(model: &RegionalModel, free: &reach::FreeReach, i: usize, reach: f64) -> Limit {
+    let attained = free.attained[i];
+    Limit {
+        row: model.rows.labels[i],
+        bound: model.rows.upper[i].min(-model.rows.lower[i]),
+        reach,
+        attained: attained.value,
+        attained_at: model.layout.horizon + attained.step,
+    }
+}
+
 pub(super) fn evaluate(
     model: &RegionalModel,
     imp: &Impulse,
@@ -120,23 +157,7 @@ pub(super) fn evaluate(
     } else {
         f64::INFINITY
     };
-    let (nx, nw) = (model.nx, model.nw);
-    // sup over the user's set of ‖M X‖_P for M = 𝕄 (X_M, reported) and M = 𝔸^S𝕄 (the free
-    // response after the S exact steps): nominal + r_x a_x + r_e a_p + w̄ a_w.
-    let parts = |m: &Mat<f64>| {
-        let pm = half * m;
-        let mxp = Mat::from_fn(pm.nrows(), nx, |i, j| pm[(i, j)] + pm[(i, nx + j)]);
-        let x0 = Mat::from_fn(nx, 1, |i, _| o.x0_nominal[i]);
-        let a_w: f64 = (0..model.layout.horizon)
-            .map(|t| spectral_norm(pm.as_ref().subcols(2 * nx + t * nw, nw)))
-            .sum();
-        [
-            spectral_norm((&mxp * &x0).as_ref()),
-            spectral_norm(mxp.as_ref()),
-            spectral_norm(pm.as_ref().subcols(nx, nx)),
-            a_w,
-        ]
-    };
+    let parts = |m: &Mat<f64>| set_parts(model, half, m, o);
     let [nominal, a_x, a_p, a_w] = parts(&model.start_map);
     let after = if free.steps == 0 {
         [nominal, a_x, a_p, a_w]
@@ -185,13 +206,7 @@ pub(super) fn evaluate(
         let s_i = tail_limit(room, tail_var).min(free.scale[i]);
         if s_i < scale {
             scale = s_i;
-            limit = Some(Limit {
-                row: model.rows.labels[i],
-                bound,
-                reach: reach[i],
-                attained: attained.value,
-                attained_at: model.layout.horizon + attained.step,
-            });
+            limit = Some(row_limit(model, free, i, reach[i]));
         }
         max_x = max_x
             .min(tail_limit(
@@ -231,13 +246,7 @@ pub(super) fn evaluate(
         a_w,
         gain_x: imp.x + x_read_norm * tail,
         gain_e: imp.e + e_read_norm * tail,
-        witness: witness.map(|(_, i)| Limit {
-            row: model.rows.labels[i],
-            bound: model.rows.upper[i].min(-model.rows.lower[i]),
-            reach: reach[i],
-            attained: free.attained[i].value,
-            attained_at: model.layout.horizon + free.attained[i].step,
-        }),
+        witness: witness.map(|(_, i)| row_limit(model, free, i, reach[i])),
         reach,
     }
 }

@@ -384,6 +384,19 @@ fn a_certificate_cut_by_the_budget_is_not_computed_and_the_advised_budget_comput
         !v.contains("void") && !v.contains("certifies nothing"),
         "{v}"
     );
+    // Its asymptotic gains are not computed either, never "void" (they said "Theorem 1 is
+    // void: not computed within the budget …" before the outcome was typed).
+    match iss_certificate::asymptotic::certified_gains(&cut, s, 10_000) {
+        Err(e @ iss_certificate::asymptotic::AsymptoticVoid::NotComputed { .. }) => {
+            let why = e.to_string();
+            assert!(
+                why.starts_with("Theorem 1 is not computed within the budget")
+                    && !why.contains("void"),
+                "{why}"
+            );
+        }
+        r => panic!("{r:?}"),
+    }
     let json =
         serde_json::to_value(certificate_json::v1::SolverCertificate::from(s)).expect("serialises");
     assert_eq!(json["not_computed"]["phase"], "γ₁,₃ free-set enumeration");
@@ -402,7 +415,8 @@ fn a_certificate_cut_by_the_budget_is_not_computed_and_the_advised_budget_comput
         "{pv:?}"
     );
     assert!(
-        pv.reason.contains("raise `certificate.phase_seconds`"),
+        pv.reason_text()
+            .contains("raise `certificate.phase_seconds`"),
         "{pv:?}"
     );
     // The advised budget computes the certificate.

@@ -105,7 +105,7 @@ fn gamma1w_carries_the_noise_matrix_e() {
     .unwrap();
     let c = gamma13_certified(&mpc, 14).unwrap();
     assert!(c.gamma1w.is_finite());
-    let old = c.beta_prefactor / (1.0 - c.beta_rate);
+    let old = c.beta_prefactor.expect("certified") / (1.0 - c.beta_rate.expect("certified"));
     let mut exact = ExactMpc::new(&mpc).unwrap();
     let mut worst = 0.0_f64;
     for dir in [[1.0, 0.0], [0.0, 1.0], [0.6, 0.8], [0.6, -0.8], [-0.8, 0.6]] {

@@ -344,6 +344,10 @@ fn verdict_gains_and_w_bar_of_a_small_model() {
     // A method not certified is not "certified": the verdict says why.
     let v = cert.verdict(Method::FISTA, k);
     assert_eq!(v.certified.as_str(), "void");
-    assert!(v.reason.contains("no entry for fista"), "{}", v.reason);
+    assert!(
+        v.reason_text().contains("no entry for fista"),
+        "{}",
+        v.reason_text()
+    );
     assert!(cert.gains(Method::FISTA, k).is_err());
 }

@@ -4,7 +4,7 @@
 
 use closed_loop::scenario::{LoopOptions, ResolvedScenario, Scenario};
 use iss_certificate::certificate::precision::{
-    DeviationBound, Scalar, certify_rounded, certify_scalar,
+    DeviationBound, Scalar, ScalarVoid, certify_rounded, certify_scalar,
 };
 use iss_certificate::certificate::{
     CertificateOptions, ClosedLoopCertificate, certify_closed_loop,
@@ -288,7 +288,16 @@ fn theorem_1_with_rounding_folded_in() {
     let f32c = certify_scalar(&resolved, cert, Method::PG, Scalar::F32, k_max).expect("runs");
     println!("{f32c:?}");
     assert_eq!(f32c.k_min, None);
-    let why = f32c.reason.as_deref().unwrap_or("");
+    assert!(
+        matches!(f32c.reason, Some(ScalarVoid::NoK { .. })),
+        "{:?}",
+        f32c.reason
+    );
+    let why = f32c
+        .reason
+        .as_ref()
+        .map(ToString::to_string)
+        .unwrap_or_default();
     assert!(why.starts_with("void") && why.contains("g_d"), "{why}");
     assert!(f32c.rounding_gain > 1e3 * u64c.rounding_gain);
     // Between the two: a precision whose rounding fits certifies at K ≥ K_min(f64).
@@ -299,7 +308,15 @@ fn theorem_1_with_rounding_folded_in() {
     // Half precision (u = 2⁻¹¹): the rounding breaks the contraction itself (r + a ≥ 1,
     // 1 − r ≈ 0.04 on these windows), and the reason names the window.
     let half = certify_rounded(&resolved, cert, Method::PG, 2f64.powi(-11), k_max).expect("runs");
-    let why = half.reason.as_deref().unwrap_or("");
+    let why = half
+        .reason
+        .as_ref()
+        .map(ToString::to_string)
+        .unwrap_or_default();
+    assert!(
+        matches!(half.reason, Some(ScalarVoid::ContractionBroken { .. })),
+        "{why}"
+    );
     assert!(
         half.k_min.is_none() && why.contains("breaks the contraction in window m = "),
         "{why}"
@@ -310,8 +327,8 @@ fn theorem_1_with_rounding_folded_in() {
     assert!(
         fista
             .reason
-            .as_deref()
-            .is_some_and(|r| r.contains("Devolder")),
+            .as_ref()
+            .is_some_and(|r| r.to_string().contains("Devolder")),
         "{fista:?}"
     );
 }

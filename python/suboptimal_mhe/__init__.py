@@ -50,6 +50,7 @@ __all__ = [
     "simulate",
     "set_kernel",
     "sweep",
+    "export",
     "MheError",
     "InputError",
     "ShapeError",
@@ -865,3 +866,73 @@ def sweep(
     out = tempfile.mkdtemp(prefix="suboptimal-mhe-sweep-") if out_dir is None else os.fspath(out_dir)
     runs, points = _native.sweep_run(text, out, threads, is_text, os.getcwd() if is_text else None)
     return {"points": _columns(points), "runs": _columns(runs), "out_dir": out}
+
+
+def export(
+    model: "Model | Scenario | str | os.PathLike[str]",
+    out_dir: "os.PathLike[str] | str",
+    *,
+    lang: str = "c",
+    method: Optional[str] = None,
+    k: "int | str" = "certified",
+    kc: "int | str | None" = None,
+    mpc_method: Optional[str] = None,
+    dtype: str = "float64",
+    prefix: str = "mhe",
+    allow_uncertified: bool = False,
+) -> Dict[str, Any]:
+    """Exports the certified estimator for a microcontroller (``mhe_export``, what ``cargo
+    xtask export`` runs): C99 sources (``lang="c"``) or a ``no_std`` Rust package
+    (``lang="rust"``), the replay program, ``certificate.json`` and a README, into
+    ``out_dir`` (created, or replaced as a whole when it holds an earlier export).
+
+    ``k`` is an iteration count or ``"certified"`` (K_min of Theorem 1); ``kc`` also exports
+    the K_c-iteration MPC (a count or ``"certified"``: the joint certificate's floor).
+    The export is refused (:class:`CertificateError`) unless the one verdict of every command
+    certifies (method, K, dtype) — ``allow_uncertified=True`` exports anyway and the
+    artefact says so. ``dtype="float32"`` exports f32 code. Returns ``{"out", "scenario",
+    "method", "k", "k_min", "certified", "loop_certified", "uncertified_reason", "mpc"}``.
+    The sample-period budget (``--target``) is the CLI's; the sources are the same bytes.
+    The GIL is released while it runs.
+    """
+    def count(name: str, v: Any) -> str:
+        if isinstance(v, str) and v == "certified":
+            return v
+        if isinstance(v, bool) or not isinstance(v, (int, np.integer)):
+            raise InputError(f"argument `{name}` must be an int ≥ 1 or \"certified\", got {v!r}")
+        return str(int(v))
+
+    for name, v in (("lang", lang), ("dtype", dtype), ("prefix", prefix)):
+        if not isinstance(v, str):
+            raise InputError(f"argument `{name}` must be a str, got {type(v).__name__}")
+    for name, v in (("method", method), ("mpc_method", mpc_method)):
+        if v is not None and not isinstance(v, str):
+            raise InputError(f"argument `{name}` must be a str (one of {list(METHODS)}), got {type(v).__name__}")
+    args: Dict[str, Any] = dict(
+        method=method,
+        k=count("k", k),
+        kc=None if kc is None else count("kc", kc),
+        mpc_method=mpc_method,
+        scalar=dtype,
+        lang=lang,
+        prefix=prefix,
+        allow_uncertified=bool(allow_uncertified),
+    )
+    out = os.fspath(out_dir)
+    if isinstance(model, Model):
+        summary = _native.export_artefact(out, model=model._native, **args)
+    elif isinstance(model, Scenario):
+        summary = _native.export_artefact(out, scenario=model._native, **args)
+    elif isinstance(model, (str, os.PathLike)):
+        path = os.fspath(model)
+        sc = Scenario.from_file(path)
+        with open(path, "rb") as f:
+            data = f.read()
+        summary = _native.export_artefact(
+            out, scenario=sc._native, source_path=path, source_bytes=data, **args
+        )
+    else:
+        raise InputError(
+            f"argument `model` must be a Model, a Scenario or a path to a scenario file, got {type(model).__name__}"
+        )
+    return json.loads(summary)

@@ -165,3 +165,17 @@ def sweep(
     *,
     threads: int = ...,
 ) -> Dict[str, Any]: ...
+
+def export(
+    model: Union[Model, Scenario, str, os.PathLike[str]],
+    out_dir: Union[str, os.PathLike[str]],
+    *,
+    lang: str = ...,
+    method: Optional[str] = ...,
+    k: Union[int, str] = ...,
+    kc: Union[int, str, None] = ...,
+    mpc_method: Optional[str] = ...,
+    dtype: str = ...,
+    prefix: str = ...,
+    allow_uncertified: bool = ...,
+) -> Dict[str, Any]: ...

@@ -11,7 +11,7 @@ use crate::ExportError;
 /// The `format` of the artefact's `certificate.json`.
 pub const EXPORT_FORMAT: &str = "suboptimal-mhe/export-certificate";
 
-/// Checks an output directory before any work (the CLI's `--out`): what [`check_out`]
+/// Checks an output directory before any work (the CLI's `--out`): what `check_out`
 /// accepts, as a typed error.
 ///
 /// # Errors

@@ -30,17 +30,17 @@ pub struct IossCertificate {
     /// Always `TOLERANCE_RULE`.
     pub tolerance_rule: String,
     /// L_π of the scenario's MPC (Assumption 3): certified bounds and a sampled estimate;
-    /// `null` when the scenario has no [mpc] section or the MPC it describes is not
+    /// `null` when the scenario has no `[mpc]` section or the MPC it describes is not
     /// supported (then `controller_lipschitz_skipped` says why). Not part of the LMI
     /// pass/fail.
     pub controller_lipschitz: Option<LipschitzReport>,
-    /// Why L_π was not computed although the scenario has an [mpc] section (e.g. state
+    /// Why L_π was not computed although the scenario has an `[mpc]` section (e.g. state
     /// constraints in the MPC); `null` otherwise. A part of the scenario the LMI does not
     /// need never blocks its check.
     pub controller_lipschitz_skipped: Option<String>,
     /// Which closed-loop certificate covers the scenario's configuration (its method, warm
     /// start and controller: `iss_certificate::coverage::covering`, the decision `reproduce`,
-    /// `sweep` and `export` make), or why none does; `null` without [mhe]. `certify` checks
+    /// `sweep` and `export` make), or why none does; `null` without `[mhe]`. `certify` checks
     /// LMI (2) only: the verdict at K is `reproduce`'s.
     pub closed_loop: Option<Coverage>,
 }

@@ -346,6 +346,18 @@ fn print_cart_pendulum_scenario() {
 /// The scenario bodies of the coverage table (docs/certificate-coverage.md), by file name.
 /// The files under `scenarios/` are these bodies below a hand-written derivation comment;
 /// `coverage::shipped_matrices_are_the_derivations` checks that they still agree.
+/// The sample period a shipped coverage scenario states (`plant.sample_time`), if any.
+fn sample_time(file: &str) -> Option<f64> {
+    match file {
+        "mass-chain.toml" | "mass-chain-light-damping.toml" => Some(0.5),
+        "cart-pendulum-bounded.toml" => Some(0.02),
+        "double-integrator.toml" => Some(0.1),
+        "quadruple-tank.toml" => Some(5.0),
+        "thermal-rod-m10.toml" | "thermal-rod-m30.toml" => Some(2.0),
+        _ => None,
+    }
+}
+
 pub fn coverage_scenarios() -> Vec<(&'static str, String)> {
     let positions_displaced: Vec<f64> = (0..12).map(|i| if i < 6 { 1.0 } else { 0.0 }).collect();
     let chain = |name, sys: &LtiSystem, w1, mhe| {
@@ -361,7 +373,7 @@ pub fn coverage_scenarios() -> Vec<(&'static str, String)> {
             mpc: (30, 1.0),
         })
     };
-    vec![
+    let bodies = vec![
         (
             "mass-chain.toml",
             chain("mass-chain", &wang_boyd_chain(1.0), 0.5, (10, "admm-pr")),
@@ -443,7 +455,18 @@ pub fn coverage_scenarios() -> Vec<(&'static str, String)> {
             "thermal-rod-m30.toml",
             thermal_rod_text("thermal-rod-m30", 30, 8),
         ),
-    ]
+    ];
+    // `plant.sample_time`: the zero-order-hold period the shipped file states (issue 36).
+    bodies
+        .into_iter()
+        .map(|(file, body)| match sample_time(file) {
+            Some(ts) => (
+                file,
+                body.replacen("[plant]\n", &format!("[plant]\nsample_time = {ts:?}\n"), 1),
+            ),
+            None => (file, body),
+        })
+        .collect()
 }
 
 /// The thermal rod's scenario (T_s = 2 s): heaters ±2 W, w¹ ±0.01 K per step at every

@@ -22,7 +22,10 @@
 //!   one computed, including the theory columns (`certified`, `k_min_cert`, …);
 //! - **export arguments** ([`export_args`], through the binary): a bad argument is refused
 //!   with a message naming the flag, before the certificate (under a second on a preset
-//!   whose certificate takes seconds), and nothing is written.
+//!   whose certificate takes seconds), and nothing is written;
+//! - **replay lines** ([`replay`], `survey_full` only: it exports and builds the C replay
+//!   with cc): a malformed input line exits 1 naming its line number with no estimate for
+//!   it; a well-formed one is accepted; a blank one skipped.
 //!
 //! The seed is `SURVEY_SEED` (default 37), printed with the per-kind counts and times; a
 //! case that fails an oracle is printed whole (its kind, input and what was dishonest).
@@ -36,6 +39,8 @@ mod export_args;
 mod generate;
 #[path = "survey/points.rs"]
 mod points;
+#[path = "survey/replay.rs"]
+mod replay;
 #[path = "survey/scenarios.rs"]
 mod scenarios;
 #[path = "survey/sweeps.rs"]
@@ -110,6 +115,7 @@ struct Plan {
     sweeps: usize,
     points: usize,
     export_args: usize,
+    replay_lines: usize,
 }
 
 fn seed() -> u64 {
@@ -146,6 +152,7 @@ fn run(plan: &Plan) {
     timed("export arguments", &|| {
         export_args::survey(seed, plan.export_args)
     });
+    timed("replay lines", &|| replay::survey(seed, plan.replay_lines));
     let total: usize = kinds.iter().map(|(_, t)| t.cases).sum();
     let found: usize = kinds.iter().map(|(_, t)| t.findings.len()).sum();
     eprintln!(
@@ -176,6 +183,8 @@ fn survey_sample() {
         sweeps: 300,
         points: 300,
         export_args: 12,
+        // The replay needs an export (a certificate) and cc: in survey_full only.
+        replay_lines: 0,
     });
 }
 
@@ -189,5 +198,6 @@ fn survey_full() {
         sweeps: 15_000,
         points: 15_000,
         export_args: 600,
+        replay_lines: 10_000,
     });
 }

@@ -8,7 +8,7 @@ use super::extract::{OwnedMpc, OwnedProblem, OwnedWindow};
 use super::{Header, ScalarKind};
 
 /// The vendored crate's files (path in the artefact, content).
-pub(crate) const VENDORED: [(&str, &str); 7] = [
+pub(crate) const VENDORED: [(&str, &str); 8] = [
     (
         "mhe-embedded/src/lib.rs",
         include_str!("../vendor/mhe-embedded/src/lib.rs"),
@@ -28,6 +28,10 @@ pub(crate) const VENDORED: [(&str, &str); 7] = [
     (
         "mhe-embedded/src/qp.rs",
         include_str!("../vendor/mhe-embedded/src/qp.rs"),
+    ),
+    (
+        "mhe-embedded/src/runtime.rs",
+        include_str!("../vendor/mhe-embedded/src/runtime.rs"),
     ),
     (
         "mhe-embedded/src/scalar.rs",

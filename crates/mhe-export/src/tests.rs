@@ -368,6 +368,23 @@ fn exported_rust_equals_std_portable_bit_for_bit() {
 #[test]
 fn vendored_sources_are_the_crate() {
     let root = workspace_root().join("crates/mhe-embedded");
+    // Every source file of the crate is vendored (a new module would not compile in the
+    // exported package otherwise).
+    let mut crate_files: Vec<String> = std::fs::read_dir(root.join("src"))
+        .unwrap()
+        .map(|e| e.unwrap().file_name().to_string_lossy().into_owned())
+        .filter(|n| n.ends_with(".rs"))
+        .collect();
+    crate_files.sort();
+    let mut vendored: Vec<String> = rust_gen::VENDORED
+        .iter()
+        .filter_map(|(p, _)| p.strip_prefix("mhe-embedded/src/").map(str::to_string))
+        .collect();
+    vendored.sort();
+    assert_eq!(
+        crate_files, vendored,
+        "vendor/mhe-embedded/src is not the crate's src"
+    );
     for (path, text) in rust_gen::VENDORED {
         if let Some(src) = path.strip_prefix("mhe-embedded/src/") {
             assert_eq!(

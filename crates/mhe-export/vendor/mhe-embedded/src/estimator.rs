@@ -99,7 +99,7 @@ pub struct Mhe<
 
 /// y[..rows] += M x for row-major M, each row summed from 0 first (the std `mul_add`).
 #[inline]
-fn mul_add<T: Scalar>(m: &[T], rows: usize, cols: usize, x: &[T], y: &mut [T]) {
+pub(crate) fn mul_add<T: Scalar>(m: &[T], rows: usize, cols: usize, x: &[T], y: &mut [T]) {
     for i in 0..rows {
         let mut acc = T::ZERO;
         for (a, b) in m[i * cols..(i + 1) * cols].iter().zip(x) {
@@ -202,7 +202,7 @@ impl<
             &self.theta[..nth],
             Some(&self.z0[..nz]),
             p.iterations,
-            &mut self.work,
+            self.work.each_mut().map(|w| w.as_mut_slice()),
             &mut self.zk[..nz],
         );
         // x̂_{t|t}: x̂₀ propagated through the window with the inputs of θ and ŵ¹ of z.

@@ -9,6 +9,11 @@
 //! problem data (ℙ_t for every window length, the model) is borrowed, normally from
 //! `static` arrays that `cargo xtask export` generates.
 //!
+//! [`MheRt`] is the same estimator with the sizes read from the problem at run time and
+//! every buffer in one caller-owned slice (the same operations in the same order, so the
+//! same bits): what a host uses to replay the board's f32 arithmetic without compiling the
+//! sizes in (the Python package's `dtype="float32"`).
+//!
 //! [`Mpc`] is the K_c-iteration MPC of the same loop (`mpc_core::SuboptimalMpc` with the
 //! shift-and-repeat warm start): per call θ = x̂, K_c iterations of its method on the
 //! condensed QP over the box 𝒰^N (the same kernel as the estimator's windows), u = the first
@@ -77,9 +82,11 @@ mod data;
 mod estimator;
 mod mpc;
 mod qp;
+mod runtime;
 mod scalar;
 
 pub use data::{DataError, Method, Problem, WarmStart, Window};
 pub use estimator::{Mhe, PushError};
 pub use mpc::{Mpc, MpcError, MpcProblem};
+pub use runtime::{MheRt, PushErrorRt};
 pub use scalar::Scalar;

@@ -141,7 +141,7 @@ impl<'a, T: Scalar, const NX: usize, const NU: usize, const NSEQ: usize> Mpc<'a,
             x_hat,
             start,
             p.iterations,
-            &mut self.work,
+            self.work.each_mut().map(|w| w.as_mut_slice()),
             &mut self.seq,
         );
         if !self.seq.iter().all(|v| v.is_finite()) {

@@ -44,13 +44,15 @@ fn linear_term<S: Scalar>(w: &Window<'_, S>, theta: &[S], q: &mut [S]) {
 
 /// Runs K iterations of `method` on window `w` for θ from z⁰ (in z; `None`: the cold
 /// start Π_Z(0), as the std maps' `cold_start`) and writes zᴷ (in z) into `out[..n]`.
-pub(crate) fn run<S: Scalar, const NZ: usize>(
+/// `v` holds the [`SLOTS`] work vectors, each of length ≥ n (slices, so the const-size
+/// estimators and the runtime-size one share this one sequence of operations).
+pub(crate) fn run<S: Scalar>(
     method: Method,
     w: &Window<'_, S>,
     theta: &[S],
     z0: Option<&[S]>,
     iterations: usize,
-    v: &mut [[S; NZ]; SLOTS],
+    mut v: [&mut [S]; SLOTS],
     out: &mut [S],
 ) {
     let n = w.n;
@@ -59,7 +61,7 @@ pub(crate) fn run<S: Scalar, const NZ: usize>(
     }
     let (lo, hi) = (w.lower, w.upper);
     // load: q = q₀ + Fθ (the scaled problem's F and q₀ give D q directly).
-    linear_term(w, theta, &mut v[Q]);
+    linear_term(w, theta, v[Q]);
     // warm start: y⁰ = D⁻¹z⁰ on a scaled problem; cold start: Π(0) in the coordinates
     // the method runs in (the box of the scaled problem when scaled).
     match z0 {
@@ -77,7 +79,7 @@ pub(crate) fn run<S: Scalar, const NZ: usize>(
     }
     match method {
         Method::Pg => {
-            let [z, _, q, _, hz, _] = v;
+            let [z, _, q, _, hz, _] = &mut v;
             for _ in 0..iterations {
                 matvec(w.h, n, z, hz);
                 for i in 0..n {
@@ -87,7 +89,7 @@ pub(crate) fn run<S: Scalar, const NZ: usize>(
             }
         }
         Method::Fista => {
-            let [z, y, q, _, hy, _] = v;
+            let [z, y, q, _, hy, _] = &mut v;
             y[..n].copy_from_slice(&z[..n]);
             for k in 0..iterations {
                 // The first step after a warm start is the plain PG step (β = 0).
@@ -101,7 +103,7 @@ pub(crate) fn run<S: Scalar, const NZ: usize>(
             }
         }
         Method::Admm => {
-            let [z, s, q, mq, t, y] = v;
+            let [z, s, q, mq, t, y] = &mut v;
             matvec(w.m_inv, n, q, mq);
             // Gradient dual y⁰ = −(Hz⁰ + q), s = z⁰ + y⁰/ρ, t = 2Π(s) − s.
             matvec(w.h, n, z, y);

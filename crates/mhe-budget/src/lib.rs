@@ -368,22 +368,42 @@ impl Budget {
     }
 }
 
-/// `12.3 M`, `456 k`, `789`.
+/// `12.35 M`, `456.2 k`, `789`: at most 4 significant digits (what the terminal prints;
+/// certificate.json keeps every digit).
 pub fn si(v: f64) -> String {
-    if v >= 1e6 {
-        format!("{:.3} M", v / 1e6)
+    if v >= 1e9 {
+        format!("{} G", sig4(v / 1e9))
+    } else if v >= 1e6 {
+        format!("{} M", sig4(v / 1e6))
     } else if v >= 1e3 {
-        format!("{:.1} k", v / 1e3)
+        format!("{} k", sig4(v / 1e3))
     } else {
         format!("{v:.0}")
     }
 }
 
-fn micros_text(us: f64) -> String {
-    if us >= 1e3 {
-        format!("{:.1} ms", us / 1e3)
+/// `x` (≥ 0) with at most 4 significant digits and no exponent: 2394, 402.2, 24.72, 1.005.
+fn sig4(x: f64) -> String {
+    // Thresholds at the rounding boundary, so 999.97 prints as 1000, not 1000.0.
+    let decimals = if x >= 999.95 {
+        0
+    } else if x >= 99.995 {
+        1
+    } else if x >= 9.9995 {
+        2
     } else {
-        format!("{us:.0} µs")
+        3
+    };
+    format!("{x:.decimals$}")
+}
+
+fn micros_text(us: f64) -> String {
+    if us >= 1e6 {
+        format!("{} s", sig4(us / 1e6))
+    } else if us >= 1e3 {
+        format!("{} ms", sig4(us / 1e3))
+    } else {
+        format!("{} µs", sig4(us))
     }
 }
 

@@ -506,6 +506,19 @@ fn resum_wall(path: &Path) {
         .sum();
     let n = lines[sep + 1].split(',').count();
     edit_line(path, sep + 2, |l| set_cell(l, n - 1, &sum.to_string()));
+    reseal(path);
+}
+
+/// Rewrites a point file's checksum line (`# fnv1a …`, FNV-1a of the text before it) for
+/// its edited text: a file as a sweep would have written it with these cells (a point
+/// computed twice), not an edit the checksum catches.
+fn reseal(path: &Path) {
+    let text = fs::read_to_string(path).unwrap();
+    let body = &text[..text.trim_end_matches('\n').rfind('\n').unwrap() + 1];
+    let digest = body.bytes().fold(0xcbf2_9ce4_8422_2325_u64, |h, b| {
+        (h ^ u64::from(b)).wrapping_mul(0x0000_0100_0000_01b3)
+    });
+    fs::write(path, format!("{body}# fnv1a {digest:016x}\n")).unwrap();
 }
 
 /// Replaces cell `col` (0-based) of a CSV line.
@@ -580,7 +593,8 @@ fn cell_that_is_not_a_number_is_refused() {
     // A non-numeric quantile in the summary row too.
     let (sweep, d) = finished("cell-4x-summary");
     let path = d.join("points").join(point_file_name(1));
-    let last = fs::read_to_string(&path).unwrap().lines().count();
+    // The summary row is the last but one line (the checksum line follows it).
+    let last = fs::read_to_string(&path).unwrap().lines().count() - 1;
     // Column 7 of the summary row is sup_e_q05 (after `converged_fraction`).
     edit_line(&path, last, |l| set_cell(l, 7, "4x"));
     expect_refused(&sweep, &d, "p00001.csv", "summary row), column `sup_e_q05`");
@@ -590,7 +604,7 @@ fn cell_that_is_not_a_number_is_refused() {
 fn cut_summary_row_is_refused_and_points_csv_kept() {
     let (sweep, d) = finished("cut-summary");
     let path = d.join("points").join(point_file_name(6));
-    let last = fs::read_to_string(&path).unwrap().lines().count();
+    let last = fs::read_to_string(&path).unwrap().lines().count() - 1;
     edit_line(&path, last, |l| l[..l.len() / 3].to_string());
     expect_refused(&sweep, &d, "p00006.csv", "(summary row) has");
 }
@@ -668,6 +682,7 @@ fn conflicting_shard_copies_name_both_files() {
         let v: f64 = l.split(',').nth(7).unwrap().parse().unwrap();
         set_cell(l, 7, &(2.0 * v).to_string())
     });
+    reseal(&b);
     let out = scratch("conflict-merged");
     let e = merge_point_dirs(&sweep, &dirs, &out, &NoProgress).unwrap_err();
     let text = e.to_string();

@@ -108,11 +108,12 @@ pub fn survey(seed: u64, n: usize) -> Tally {
         let (fi, line, col, value, digit) = draw(&mut rn, &strategy);
         let (file, original) = &files[fi % files.len()];
         let mut lines: Vec<String> = original.lines().map(str::to_string).collect();
-        let line = 1 + line % (lines.len() - 1);
+        // Lines 1 ..= len − 2: the run rows, `=`, the summary row (the checksum line last).
+        let line = 1 + line % (lines.len() - 2);
         if lines[line] == "=" {
             continue;
         }
-        let summary = line == lines.len() - 1;
+        let summary = line == lines.len() - 2;
         let mut cells: Vec<String> = lines[line].split(',').map(str::to_string).collect();
         let c = col % cells.len();
         let old = cells[c].clone();
@@ -198,7 +199,8 @@ fn edit_cell(dir: &Path, file: &str, summary: bool, column: &str, value: &str) -
         .unwrap();
     let text = std::fs::read_to_string(dir.join("points").join(file)).unwrap();
     let mut lines: Vec<String> = text.lines().map(str::to_string).collect();
-    let row = if summary { lines.len() - 1 } else { 1 };
+    // The summary row is the last but one line (the checksum line follows it).
+    let row = if summary { lines.len() - 2 } else { 1 };
     let mut cells: Vec<String> = lines[row].split(',').map(str::to_string).collect();
     cells[c] = value.to_string();
     lines[row] = cells.join(",");

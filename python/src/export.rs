@@ -82,6 +82,11 @@ pub(crate) fn export_artefact(
             )));
         }
     };
+    if prefix.trim().is_empty() {
+        return Err(InputError::new_err(
+            "argument `prefix` = \"\": give a C identifier, e.g. \"mhe\"",
+        ));
+    }
     o.prefix = prefix.to_string();
     o.allow_uncertified = allow_uncertified;
     if let (Some(path), Some(bytes)) = (source_path, source_bytes.as_deref()) {

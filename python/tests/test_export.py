@@ -66,6 +66,7 @@ def test_export_refuses_an_uncertified_k_unless_asked(root, tmp_path):
         (dict(dtype="float16"), sm.InputError, ["`dtype`"]),
         (dict(method="nope"), sm.InputError, ["`method`"]),
         (dict(prefix="1bad"), sm.InputError, ["`prefix`"]),
+        (dict(prefix=""), sm.InputError, ["`prefix`"]),
         (dict(mpc_method="pg"), sm.InputError, ["`mpc_method`"]),
     ],
 )

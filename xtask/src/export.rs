@@ -115,6 +115,12 @@ fn options(args: &ExportArgs) -> Result<ExportOptions> {
     o.method = parse_method("--method", args.method.as_deref())?;
     o.mpc_method = parse_method("--mpc-method", args.mpc_method.as_deref())?;
     check_output_dir(&args.out)?;
+    // The library reads an empty prefix as `mhe`; on the command line it is a mistake.
+    anyhow::ensure!(
+        !args.prefix.trim().is_empty(),
+        "--prefix ``: empty; give a C identifier (letters, digits, `_`; not starting with a \
+         digit), e.g. `--prefix mhe`"
+    );
     o.prefix.clone_from(&args.prefix);
     o.validate()?;
     o.scalar = args.scalar.into();

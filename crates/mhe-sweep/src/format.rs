@@ -306,8 +306,8 @@ pub struct PointFile {
     pub point_row: String,
     /// Read back with a checksum line that does not match its text: an edit the cell checks
     /// cannot see (a run cell changed below the summary's printed digits, an optional cell
-    /// emptied). [`PointFile::validate`] refuses it after the cell checks, which name the
-    /// line and column of any edit they do see.
+    /// emptied). [`PointFile::check_sealed`] refuses it after the cell and theory checks,
+    /// which name the line and column of any edit they do see.
     pub(super) edited: bool,
 }
 
@@ -661,14 +661,21 @@ impl PointFile {
         check_row(&self.point_row, &rules.summary_cells(p), &what)
             .map_err(|problem| point_file_err(path, problem))?;
         self.check_meaning(rules)
-            .map_err(|problem| point_file_err(path, problem))?;
+            .map_err(|problem| point_file_err(path, problem))
+    }
+
+    /// The last check before a point file is reused (after [`PointFile::validate`] and
+    /// [`PointFile::check_theory`], whose errors name the line and the column): its checksum
+    /// line matches its text, so an edit every cell check passes (a run cell changed below
+    /// the summary's printed digits, an optional cell emptied) is refused too.
+    pub(super) fn check_sealed(&self) -> std::result::Result<(), String> {
         if self.edited {
-            return Err(point_file_err(
-                path,
-                "its checksum line does not match its text: edited after it was written \
-                 (every cell is well formed, so the change is below the printed digits or an \
-                 optional cell emptied)",
-            ));
+            return Err(
+                "its checksum line does not match its text: edited after it was \
+                        written (every cell is well formed, so the change is below the \
+                        printed digits or an optional cell emptied)"
+                    .into(),
+            );
         }
         Ok(())
     }

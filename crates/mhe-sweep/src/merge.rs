@@ -61,6 +61,7 @@ impl Sweep {
             let seed_of = |r| run_seed(self.base_seed(), p, r, cfg.common_random_numbers);
             f.validate(&path, p, &rules, &seed_of)?;
             f.check_theory(&self.theory_at(p), &rules)
+                .and_then(|()| f.check_sealed())
                 .map_err(|problem| point_file_err(&path, problem))?;
             out.insert(p.index, f);
         }

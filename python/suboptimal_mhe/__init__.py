@@ -278,8 +278,10 @@ class Estimator:
     and 𝒲 (n_w = n_w1 + n_w2: the process then the measurement noise) as pairs
     ``(lower, upper)`` (±inf allowed; default: the whole space). 𝒲 and the x̂₀ part of 𝒳
     are boxes of the QP; 𝒳 at the later stages and 𝒴 become general rows of the QP
-    (``mhe_core::MheSets``). Arbitrary polyhedral sets Gx ≤ h are not supported by the
-    library: only boxes.
+    (``mhe_core::MheSets``). ``state_rows``, ``output_rows`` and ``disturbance_rows`` give
+    the same sets as general rows ``(G, h)``, {v : G v ≤ h}, intersected with the box: a row
+    with one nonzero entry is a bound; a row coupling components raises
+    :class:`UnsupportedError` (the library's sets are boxes; docs/python.md).
 
     ``dtype="float32"`` runs the microcontroller's single-precision kernel
     (``mhe_embedded``: the same data as ``cargo xtask export --scalar f32`` writes, rounded
@@ -307,6 +309,9 @@ class Estimator:
         state_box: Any = None,
         output_box: Any = None,
         disturbance_box: Any = None,
+        state_rows: Any = None,
+        output_rows: Any = None,
+        disturbance_rows: Any = None,
     ) -> None:
         if not isinstance(model, Plant):
             raise InputError(f"argument `model` must be a suboptimal_mhe.Plant, got {type(model).__name__}")
@@ -327,9 +332,9 @@ class Estimator:
         rm = None if r is None else _weight("r", r, ny)
         pm = None if p is None else _weight("p", p, nx)
         x0 = np.zeros(nx) if prior is None else _vector("prior", prior, nx)
-        sb = _box("state_box", state_box, nx)
-        ob = _box("output_box", output_box, ny)
-        db = _box("disturbance_box", disturbance_box, nw)
+        sb = _set("state_box", state_box, "state_rows", state_rows, nx, origin=False)
+        ob = _set("output_box", output_box, "output_rows", output_rows, ny, origin=False)
+        db = _set("disturbance_box", disturbance_box, "disturbance_rows", disturbance_rows, nw, origin=False)
         self.dtype = np.dtype(dtype)
         self._native = _native._Estimator(
             model._native, horizon, eta, k, method, x0, q=qm, r=rm, p=pm,
@@ -450,6 +455,86 @@ def _box(name: str, value: Any, n: int) -> Optional[tuple]:
     return (out[0], out[1])
 
 
+#: Why a row coupling two components is refused (the sets of the library are boxes).
+_COUPLED_WHY = (
+    "the library's sets 𝒳, 𝒰, 𝒴, 𝒲 are boxes (mhe_core::MheSets, the MPC's input box, a "
+    "scenario's [sets]): a bounded 𝒳 or 𝒴 becomes general rows of the QPs, one per bounded "
+    "component, but a row coupling components has no place in the estimator's QP nor in the "
+    "certificate (L_Φ of Lemma 1, L_π and γ₁,₃ are derived for boxes and those rows)"
+)
+
+
+def _rows(name: str, value: Any, n: int) -> tuple:
+    """General rows ``(G, h)`` — {v : G v ≤ h}, G p x n — as the box they describe.
+
+    A row with one nonzero entry g at component j bounds v_j ≤ h/g (g > 0) or v_j ≥ h/g
+    (g < 0; h/g rounded once); a zero row is 0 ≤ h (redundant, or an empty set refused).
+    A row with two or more nonzero entries raises :class:`UnsupportedError` saying why.
+    """
+    if not isinstance(value, (tuple, list)) or len(value) != 2:
+        raise InputError(
+            f"argument `{name}` must be a pair (G, h) meaning G v <= h, G a p x {n} matrix and h a length-p vector"
+        )
+    g = _matrix(f"{name}[0]", value[0], cols=n)
+    try:
+        h = np.asarray(value[1], dtype=np.float64)
+    except (TypeError, ValueError) as e:
+        raise InputError(f"argument `{name}[1]` is not a numeric vector ({e})") from None
+    h = h.reshape(1) if h.ndim == 0 else h
+    if h.ndim != 1 or h.shape[0] != g.shape[0]:
+        raise ShapeError(
+            f"argument `{name}[1]` has shape {h.shape}, expected a vector of length {g.shape[0]} (one bound per row of G)"
+        )
+    if np.any(np.isnan(h)):
+        raise NonFiniteError(f"argument `{name}[1]` has a NaN entry; bounds are numbers or +inf (no bound)")
+    lower, upper = np.full(n, -np.inf), np.full(n, np.inf)
+    for i in range(g.shape[0]):
+        nz = np.flatnonzero(g[i])
+        if nz.size > 1:
+            raise UnsupportedError(
+                f"argument `{name}`: row {i} of G couples components {nz.tolist()}; {_COUPLED_WHY}. "
+                "Fix: give rows with one nonzero entry each (bounds), e.g. the bounding box of the "
+                "polytope (a larger set: the certificate then holds for it)"
+            )
+        if nz.size == 0:
+            if not h[i] >= 0.0:
+                raise InputError(f"argument `{name}`: row {i} of G is zero and h[{i}] = {h[i]} < 0, so the set is empty")
+            continue
+        j = int(nz[0])
+        bound = h[i] / g[i, j]
+        if g[i, j] > 0.0:
+            upper[j] = min(upper[j], bound)
+        else:
+            lower[j] = max(lower[j], bound)
+    return lower, upper
+
+
+def _set(box_name: str, box: Any, rows_name: str, rows: Any, n: int, origin: bool) -> Optional[tuple]:
+    """The box of ``box`` ∩ ``rows`` (either may be None); ``origin``: the set must contain 0
+    (Assumption 1, checked here so the message names the rows argument)."""
+    b = _box(box_name, box, n)
+    if rows is None:
+        return b
+    lower, upper = _rows(rows_name, rows, n)
+    if b is not None:
+        lower, upper = np.maximum(lower, b[0]), np.minimum(upper, b[1])
+    what = rows_name if b is None else f"{box_name}` with `{rows_name}"
+    empty = np.flatnonzero(~(lower <= upper) | (lower == np.inf) | (upper == -np.inf))
+    if empty.size:
+        j = int(empty[0])
+        raise InputError(
+            f"argument `{what}`: the set is empty (component {j}: {lower[j]} <= v <= {upper[j]}); loosen a bound"
+        )
+    outside = np.flatnonzero((lower > 0.0) | (upper < 0.0))
+    if origin and outside.size:
+        j = int(outside[0])
+        raise InputError(
+            f"argument `{what}`: the set must contain 0 (Assumption 1) but component {j} lies in "
+            f"[{lower[j]}, {upper[j]}]; shift the coordinates or loosen the bound"
+        )
+    return np.ascontiguousarray(lower), np.ascontiguousarray(upper)
+
+
 def _settings(name: str, value: Any, keys: tuple, required: tuple) -> Dict[str, Any]:
     if not isinstance(value, dict):
         raise InputError(f"argument `{name}` must be a dict with keys {keys}, e.g. dict(horizon=10, eta=0.8, k=50)")
@@ -475,7 +560,10 @@ class Model:
     Q_c = I, R_c = I, DARE terminal cost) or ``mpc=dict(horizon=N, q=..., r=...)``.
     Boxes are pairs ``(lower, upper)`` in the plant's units (±inf allowed, containing 0;
     omitted: the whole space): ``state_box`` 𝒳, ``input_box`` 𝒰, ``output_box`` 𝒴,
-    ``disturbance_box`` 𝒲 for w = (w¹, w²). ``x0`` is the true initial state and
+    ``disturbance_box`` 𝒲 for w = (w¹, w²); ``state_rows``, ``input_rows``,
+    ``output_rows``, ``disturbance_rows`` the same sets as general rows ``(G, h)``
+    ({v : G v ≤ h}: one nonzero entry per row, a bound; a coupling row raises
+    :class:`UnsupportedError`), intersected with the box. ``x0`` is the true initial state and
     ``prior`` x̄₀ (default 0); ``w_bar`` a bound on ‖w_t‖₂ (default: the largest over 𝒲).
     Errors name the argument (``mhe["eta"]``, ``input_box``) and the fix.
     """
@@ -491,6 +579,10 @@ class Model:
         input_box: Any = None,
         output_box: Any = None,
         disturbance_box: Any = None,
+        state_rows: Any = None,
+        input_rows: Any = None,
+        output_rows: Any = None,
+        disturbance_rows: Any = None,
         x0: Any = None,
         prior: Any = None,
         w_bar: Optional[float] = None,
@@ -545,10 +637,12 @@ class Model:
             mpc_horizon=mpc_horizon,
             mpc_q=mpc_q,
             mpc_r=mpc_r,
-            state_box=_box("state_box", state_box, nx),
-            input_box=_box("input_box", input_box, nu),
-            output_box=_box("output_box", output_box, ny),
-            disturbance_box=_box("disturbance_box", disturbance_box, nw),
+            state_box=_set("state_box", state_box, "state_rows", state_rows, nx, origin=True),
+            input_box=_set("input_box", input_box, "input_rows", input_rows, nu, origin=True),
+            output_box=_set("output_box", output_box, "output_rows", output_rows, ny, origin=True),
+            disturbance_box=_set(
+                "disturbance_box", disturbance_box, "disturbance_rows", disturbance_rows, nw, origin=True
+            ),
             x0=None if x0 is None else _vector("x0", x0, nx),
             prior=None if prior is None else _vector("prior", prior, nx),
             w_bar=w_bar,

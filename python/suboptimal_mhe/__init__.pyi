@@ -69,6 +69,9 @@ class Estimator:
         state_box: Optional[Tuple[ArrayLike, ArrayLike]] = ...,
         output_box: Optional[Tuple[ArrayLike, ArrayLike]] = ...,
         disturbance_box: Optional[Tuple[ArrayLike, ArrayLike]] = ...,
+        state_rows: Optional[Tuple[ArrayLike, ArrayLike]] = ...,
+        output_rows: Optional[Tuple[ArrayLike, ArrayLike]] = ...,
+        disturbance_rows: Optional[Tuple[ArrayLike, ArrayLike]] = ...,
     ) -> None: ...
     dtype: np.dtype[Any]
     def push(self, u: ArrayLike, y: ArrayLike) -> None: ...
@@ -104,6 +107,10 @@ class Model:
         input_box: Optional[Tuple[ArrayLike, ArrayLike]] = ...,
         output_box: Optional[Tuple[ArrayLike, ArrayLike]] = ...,
         disturbance_box: Optional[Tuple[ArrayLike, ArrayLike]] = ...,
+        state_rows: Optional[Tuple[ArrayLike, ArrayLike]] = ...,
+        input_rows: Optional[Tuple[ArrayLike, ArrayLike]] = ...,
+        output_rows: Optional[Tuple[ArrayLike, ArrayLike]] = ...,
+        disturbance_rows: Optional[Tuple[ArrayLike, ArrayLike]] = ...,
         x0: Optional[ArrayLike] = ...,
         prior: Optional[ArrayLike] = ...,
         w_bar: Optional[float] = ...,

@@ -51,13 +51,16 @@ def model(**sets):
 
 
 def test_model_rows_give_the_box_certificate():
-    w_rows = (np.vstack([np.eye(3), -np.eye(3)]), [0.01] * 6)
-    u_rows = ([[1.0], [-1.0]], [1.0, 1.0])
-    a = sm.certify(model(input_box=([-1.0], [1.0]), disturbance_box=([-0.01] * 3, [0.01] * 3)),
-                   methods=["pg"])
-    b = sm.certify(model(input_rows=u_rows, disturbance_rows=w_rows), methods=["pg"])
+    # The quick start's model (docs/python.md; K_min = 189 for admm-pr) with 𝒰 and 𝒲 as rows.
+    plant = sm.Plant(A=[[.95, .1], [0, .9]], B=[[.005], [.1]], C=[[1, 0]])
+    mhe = dict(horizon=10, eta=0.8, k=200, method="admm-pr")
+    a = sm.certify(sm.Model(plant, mhe=mhe, mpc_horizon=10, input_box=([-1.0], [1.0]),
+                            disturbance_box=([-.01] * 3, [.01] * 3)), methods=["admm-pr"])
+    b = sm.certify(sm.Model(plant, mhe=mhe, mpc_horizon=10, input_rows=([[2.0], [-1.0]], [2.0, 1.0]),
+                            disturbance_rows=(np.vstack([np.eye(3), -np.eye(3)]), [.01] * 6)),
+                   methods=["admm-pr"])
     assert a.to_dict() == b.to_dict()
-    assert a.k_min("pg") is not None
+    assert a.k_min("admm-pr") is not None
 
 
 @pytest.mark.parametrize(

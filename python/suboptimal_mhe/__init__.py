@@ -465,40 +465,55 @@ _COUPLED_WHY = (
 
 
 def _rows(name: str, value: Any, n: int) -> tuple:
-    """General rows ``(G, h)`` — {v : G v ≤ h}, G p x n — as the box they describe.
+    """General rows ``(G, h)`` — {v : G v ≤ h}, G p x n — or ``(G, lower, upper)`` —
+    {v : lower ≤ G v ≤ upper} — as the box they describe.
 
     A row with one nonzero entry g at component j bounds v_j ≤ h/g (g > 0) or v_j ≥ h/g
     (g < 0; h/g rounded once); a zero row is 0 ≤ h (redundant, or an empty set refused).
     A row with two or more nonzero entries raises :class:`UnsupportedError` saying why.
     """
-    if not isinstance(value, (tuple, list)) or len(value) != 2:
+    if not isinstance(value, (tuple, list)) or len(value) not in (2, 3):
         raise InputError(
-            f"argument `{name}` must be a pair (G, h) meaning G v <= h, G a p x {n} matrix and h a length-p vector"
+            f"argument `{name}` must be a pair (G, h) meaning G v <= h, G a p x {n} matrix and h a "
+            "length-p vector, or a triple (G, lower, upper) meaning lower <= G v <= upper"
         )
     g = _matrix(f"{name}[0]", value[0], cols=n)
-    try:
-        h = np.asarray(value[1], dtype=np.float64)
-    except (TypeError, ValueError) as e:
-        raise InputError(f"argument `{name}[1]` is not a numeric vector ({e})") from None
-    h = h.reshape(1) if h.ndim == 0 else h
-    if h.ndim != 1 or h.shape[0] != g.shape[0]:
-        raise ShapeError(
-            f"argument `{name}[1]` has shape {h.shape}, expected a vector of length {g.shape[0]} (one bound per row of G)"
-        )
-    if np.any(np.isnan(h)):
-        raise NonFiniteError(f"argument `{name}[1]` has a NaN entry; bounds are numbers or +inf (no bound)")
+    rows = g.shape[0]
+    bounds = []
+    for k in range(1, len(value)):
+        try:
+            b = np.asarray(value[k], dtype=np.float64)
+        except (TypeError, ValueError) as e:
+            raise InputError(f"argument `{name}[{k}]` is not a numeric vector ({e})") from None
+        b = b.reshape(1) if b.ndim == 0 else b
+        if b.ndim != 1 or b.shape[0] != g.shape[0]:
+            raise ShapeError(
+                f"argument `{name}[{k}]` has shape {b.shape}, expected a vector of length {g.shape[0]} (one bound per row of G)"
+            )
+        if np.any(np.isnan(b)):
+            raise NonFiniteError(f"argument `{name}[{k}]` has a NaN entry; bounds are numbers or ±inf (no bound)")
+        bounds.append(b)
+    if len(bounds) == 1:
+        h = bounds[0]
+    else:
+        # lower <= G v <= upper (scipy's LinearConstraint, python-control's constraints) as
+        # G v <= upper and -G v <= -lower.
+        g, h = np.vstack([g, -g]), np.concatenate([bounds[1], -bounds[0]])
     lower, upper = np.full(n, -np.inf), np.full(n, np.inf)
     for i in range(g.shape[0]):
         nz = np.flatnonzero(g[i])
         if nz.size > 1:
             raise UnsupportedError(
-                f"argument `{name}`: row {i} of G couples components {nz.tolist()}; {_COUPLED_WHY}. "
+                f"argument `{name}`: row {i % rows} of G couples components {nz.tolist()}; {_COUPLED_WHY}. "
                 "Fix: give rows with one nonzero entry each (bounds), e.g. the bounding box of the "
                 "polytope (a larger set: the certificate then holds for it)"
             )
         if nz.size == 0:
             if not h[i] >= 0.0:
-                raise InputError(f"argument `{name}`: row {i} of G is zero and h[{i}] = {h[i]} < 0, so the set is empty")
+                raise InputError(
+                    f"argument `{name}`: row {i % rows} of G is zero and its bound excludes 0 (0 <= {h[i]} fails), "
+                    "so the set is empty"
+                )
             continue
         j = int(nz[0])
         bound = h[i] / g[i, j]

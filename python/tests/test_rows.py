@@ -38,6 +38,23 @@ def test_bound_rows_give_the_box_estimator_bit_for_bit(method):
     assert np.abs(free - a).max() > 0.1  # the sets are active: not a trivial agreement
 
 
+def test_two_sided_rows_as_scipy_linear_constraint():
+    # (G, lower, upper): lower ≤ G v ≤ upper, the form of scipy.optimize.LinearConstraint that
+    # python-control's constraints use; here diag(2, 1) v ∈ [−1, 1] × [−0.25, 0.75] = BOX_X.
+    two = sm.Estimator(PLANT, horizon=5, eta=0.8, k=50, state_rows=(np.diag([2.0, 1.0]), [-1.0, -0.25], [1.0, 0.75]))
+    boxed = sm.Estimator(PLANT, horizon=5, eta=0.8, k=50, state_box=BOX_X)
+    np.testing.assert_array_equal(run(two).view(np.uint64), run(boxed).view(np.uint64))
+    # One-sided rows of a triple: ±inf is no bound.
+    half = sm.Estimator(PLANT, horizon=5, eta=0.8, k=50,
+                        state_rows=(np.eye(2), [-0.5, -np.inf], [np.inf, 0.75]))
+    ref = sm.Estimator(PLANT, horizon=5, eta=0.8, k=50, state_box=([-0.5, -np.inf], [np.inf, 0.75]))
+    np.testing.assert_array_equal(run(half), run(ref))
+    with pytest.raises(sm.UnsupportedError, match="row 1 of G couples"):
+        sm.Estimator(PLANT, horizon=5, eta=0.8, k=10, state_rows=([[1.0, 0.0], [1.0, -1.0]], [-1, -1], [1, 1]))
+    with pytest.raises(sm.InputError, match="row 0 of G is zero"):
+        sm.Estimator(PLANT, horizon=5, eta=0.8, k=10, state_rows=([[0.0, 0.0]], [0.5], [1.0]))
+
+
 def test_rows_intersect_with_a_box():
     # x₁ ≤ 0.5 from the rows, x₁ ≥ −0.5 and x₂'s bounds from the box.
     both = sm.Estimator(PLANT, horizon=5, eta=0.8, k=50, state_box=([-0.5, -0.25], [9.0, 0.75]),

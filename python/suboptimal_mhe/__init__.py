@@ -501,6 +501,8 @@ def _rows(name: str, value: Any, n: int) -> tuple:
         g, h = np.vstack([g, -g]), np.concatenate([bounds[1], -bounds[0]])
     lower, upper = np.full(n, -np.inf), np.full(n, np.inf)
     for i in range(g.shape[0]):
+        if h[i] == np.inf:
+            continue  # no bound: not a constraint, whatever the row couples
         nz = np.flatnonzero(g[i])
         if nz.size > 1:
             raise UnsupportedError(

@@ -49,6 +49,11 @@ def test_two_sided_rows_as_scipy_linear_constraint():
                         state_rows=(np.eye(2), [-0.5, -np.inf], [np.inf, 0.75]))
     ref = sm.Estimator(PLANT, horizon=5, eta=0.8, k=50, state_box=([-0.5, -np.inf], [np.inf, 0.75]))
     np.testing.assert_array_equal(run(half), run(ref))
+    # A coupled row with no bound (±inf) constrains nothing: accepted.
+    free = sm.Estimator(PLANT, horizon=5, eta=0.8, k=50,
+                        state_rows=([[1.0, 0.0], [1.0, 1.0]], [-0.5, -np.inf], [np.inf, np.inf]))
+    np.testing.assert_array_equal(run(free), run(sm.Estimator(PLANT, horizon=5, eta=0.8, k=50,
+                                                                state_box=([-0.5, -np.inf], [np.inf, np.inf]))))
     with pytest.raises(sm.UnsupportedError, match="row 1 of G couples"):
         sm.Estimator(PLANT, horizon=5, eta=0.8, k=10, state_rows=([[1.0, 0.0], [1.0, -1.0]], [-1, -1], [1, 1]))
     with pytest.raises(sm.InputError, match="row 0 of G is zero"):

@@ -86,6 +86,8 @@ if os.environ.get("QP_ITER_KERNEL"):
 MAX_DIMENSION: int = _native.MAX_DIMENSION
 #: The named methods Φ (each also with the suffix ``-jacobi``: the Jacobi-scaled problem).
 METHODS = ("pg", "fista", "admm", "admm-pr")
+#: float64 (NumPy's builtin dtypes are singletons: `dtype is _F64` is the cheap check).
+_F64 = np.dtype(np.float64)
 
 
 # --------------------------------------------------------------------------------------
@@ -132,6 +134,8 @@ def _vector(name: str, value: Any, length: int) -> np.ndarray:
 
 
 def _finite(name: str, arr: np.ndarray) -> None:
+    if np.isfinite(arr).all():
+        return
     bad = np.argwhere(~np.isfinite(arr))
     if bad.size:
         idx = tuple(int(i) for i in bad[0])
@@ -340,18 +344,20 @@ class Estimator:
             model._native, horizon, eta, k, method, x0, q=qm, r=rm, p=pm,
             state_box=sb, output_box=ob, disturbance_box=db, dtype=self.dtype.name,
         )
-        self._u = np.empty(model.nu)
-        self._y = np.empty(ny)
 
     def push(self, u: Any, y: Any) -> None:
         """Appends the input u_t (length n_u) and the measurement y_t (length n_y)."""
-        self._native.push(self._as(u, "u", self._u), self._as(y, "y", self._y))
-
-    @staticmethod
-    def _as(v: Any, name: str, like: np.ndarray) -> np.ndarray:
-        if isinstance(v, np.ndarray) and v.dtype == np.float64 and v.ndim == 1 and v.flags.c_contiguous:
-            return v  # the Rust side checks length and finiteness
-        return _vector(name, v, like.shape[0])
+        if type(u) is np.ndarray and type(y) is np.ndarray and u.dtype is _F64 and y.dtype is _F64:
+            try:
+                # Contiguous 1-D float64 arrays go straight to Rust, which checks their
+                # length and finiteness before changing anything (docs/python.md, overhead).
+                self._native.push(u, y)
+                return
+            except (TypeError, ShapeError):
+                pass  # another dtype, strides or a wrong length: the checked path below
+        # Lists, scalars, other arrays: converted and checked here, so an error names the
+        # argument and its expected shape.
+        self._native.push(_vector("u", u, self.model.nu), _vector("y", y, self.model.ny))
 
     def estimate(self, out: Optional[np.ndarray] = None) -> np.ndarray:
         """x̂_{t|t} (length n_x): K iterations on the current window.

@@ -86,6 +86,8 @@ if os.environ.get("QP_ITER_KERNEL"):
 MAX_DIMENSION: int = _native.MAX_DIMENSION
 #: The named methods Φ (each also with the suffix ``-jacobi``: the Jacobi-scaled problem).
 METHODS = ("pg", "fista", "admm", "admm-pr")
+#: float64 (NumPy's builtin dtypes are singletons: `dtype is _F64` is the cheap check).
+_F64 = np.dtype(np.float64)
 
 
 # --------------------------------------------------------------------------------------
@@ -132,6 +134,8 @@ def _vector(name: str, value: Any, length: int) -> np.ndarray:
 
 
 def _finite(name: str, arr: np.ndarray) -> None:
+    if np.isfinite(arr).all():
+        return
     bad = np.argwhere(~np.isfinite(arr))
     if bad.size:
         idx = tuple(int(i) for i in bad[0])
@@ -278,8 +282,10 @@ class Estimator:
     and 𝒲 (n_w = n_w1 + n_w2: the process then the measurement noise) as pairs
     ``(lower, upper)`` (±inf allowed; default: the whole space). 𝒲 and the x̂₀ part of 𝒳
     are boxes of the QP; 𝒳 at the later stages and 𝒴 become general rows of the QP
-    (``mhe_core::MheSets``). Arbitrary polyhedral sets Gx ≤ h are not supported by the
-    library: only boxes.
+    (``mhe_core::MheSets``). ``state_rows``, ``output_rows`` and ``disturbance_rows`` give
+    the same sets as general rows ``(G, h)``, {v : G v ≤ h}, intersected with the box: a row
+    with one nonzero entry is a bound; a row coupling components raises
+    :class:`UnsupportedError` (the library's sets are boxes; docs/python.md).
 
     ``dtype="float32"`` runs the microcontroller's single-precision kernel
     (``mhe_embedded``: the same data as ``cargo xtask export --scalar f32`` writes, rounded
@@ -307,6 +313,9 @@ class Estimator:
         state_box: Any = None,
         output_box: Any = None,
         disturbance_box: Any = None,
+        state_rows: Any = None,
+        output_rows: Any = None,
+        disturbance_rows: Any = None,
     ) -> None:
         if not isinstance(model, Plant):
             raise InputError(f"argument `model` must be a suboptimal_mhe.Plant, got {type(model).__name__}")
@@ -327,26 +336,28 @@ class Estimator:
         rm = None if r is None else _weight("r", r, ny)
         pm = None if p is None else _weight("p", p, nx)
         x0 = np.zeros(nx) if prior is None else _vector("prior", prior, nx)
-        sb = _box("state_box", state_box, nx)
-        ob = _box("output_box", output_box, ny)
-        db = _box("disturbance_box", disturbance_box, nw)
+        sb = _set("state_box", state_box, "state_rows", state_rows, nx, origin=False)
+        ob = _set("output_box", output_box, "output_rows", output_rows, ny, origin=False)
+        db = _set("disturbance_box", disturbance_box, "disturbance_rows", disturbance_rows, nw, origin=False)
         self.dtype = np.dtype(dtype)
         self._native = _native._Estimator(
             model._native, horizon, eta, k, method, x0, q=qm, r=rm, p=pm,
             state_box=sb, output_box=ob, disturbance_box=db, dtype=self.dtype.name,
         )
-        self._u = np.empty(model.nu)
-        self._y = np.empty(ny)
 
     def push(self, u: Any, y: Any) -> None:
         """Appends the input u_t (length n_u) and the measurement y_t (length n_y)."""
-        self._native.push(self._as(u, "u", self._u), self._as(y, "y", self._y))
-
-    @staticmethod
-    def _as(v: Any, name: str, like: np.ndarray) -> np.ndarray:
-        if isinstance(v, np.ndarray) and v.dtype == np.float64 and v.ndim == 1 and v.flags.c_contiguous:
-            return v  # the Rust side checks length and finiteness
-        return _vector(name, v, like.shape[0])
+        if type(u) is np.ndarray and type(y) is np.ndarray and u.dtype is _F64 and y.dtype is _F64:
+            try:
+                # Contiguous 1-D float64 arrays go straight to Rust, which checks their
+                # length and finiteness before changing anything (docs/python.md, overhead).
+                self._native.push(u, y)
+                return
+            except (TypeError, ShapeError):
+                pass  # another dtype, strides or a wrong length: the checked path below
+        # Lists, scalars, other arrays: converted and checked here, so an error names the
+        # argument and its expected shape.
+        self._native.push(_vector("u", u, self.model.nu), _vector("y", y, self.model.ny))
 
     def estimate(self, out: Optional[np.ndarray] = None) -> np.ndarray:
         """x̂_{t|t} (length n_x): K iterations on the current window.
@@ -450,6 +461,103 @@ def _box(name: str, value: Any, n: int) -> Optional[tuple]:
     return (out[0], out[1])
 
 
+#: Why a row coupling two components is refused (the sets of the library are boxes).
+_COUPLED_WHY = (
+    "the library's sets 𝒳, 𝒰, 𝒴, 𝒲 are boxes (mhe_core::MheSets, the MPC's input box, a "
+    "scenario's [sets]): a bounded 𝒳 or 𝒴 becomes general rows of the QPs, one per bounded "
+    "component, but a row coupling components has no place in the estimator's QP nor in the "
+    "certificate (L_Φ of Lemma 1, L_π and γ₁,₃ are derived for boxes and those rows)"
+)
+
+
+def _rows(name: str, value: Any, n: int) -> tuple:
+    """General rows ``(G, h)`` — {v : G v ≤ h}, G p x n — or ``(G, lower, upper)`` —
+    {v : lower ≤ G v ≤ upper} — as the box they describe.
+
+    A row with one nonzero entry g at component j bounds v_j ≤ h/g (g > 0) or v_j ≥ h/g
+    (g < 0; h/g rounded once); a zero row is 0 ≤ h (redundant, or an empty set refused).
+    A row with two or more nonzero entries raises :class:`UnsupportedError` saying why.
+    """
+    if not isinstance(value, (tuple, list)) or len(value) not in (2, 3):
+        raise InputError(
+            f"argument `{name}` must be a pair (G, h) meaning G v <= h, G a p x {n} matrix and h a "
+            "length-p vector, or a triple (G, lower, upper) meaning lower <= G v <= upper"
+        )
+    g = _matrix(f"{name}[0]", value[0], cols=n)
+    rows = g.shape[0]
+    bounds = []
+    for k in range(1, len(value)):
+        try:
+            b = np.asarray(value[k], dtype=np.float64)
+        except (TypeError, ValueError) as e:
+            raise InputError(f"argument `{name}[{k}]` is not a numeric vector ({e})") from None
+        b = b.reshape(1) if b.ndim == 0 else b
+        if b.ndim != 1 or b.shape[0] != g.shape[0]:
+            raise ShapeError(
+                f"argument `{name}[{k}]` has shape {b.shape}, expected a vector of length {g.shape[0]} (one bound per row of G)"
+            )
+        if np.any(np.isnan(b)):
+            raise NonFiniteError(f"argument `{name}[{k}]` has a NaN entry; bounds are numbers or ±inf (no bound)")
+        bounds.append(b)
+    if len(bounds) == 1:
+        h = bounds[0]
+    else:
+        # lower <= G v <= upper (scipy's LinearConstraint, python-control's constraints) as
+        # G v <= upper and -G v <= -lower.
+        g, h = np.vstack([g, -g]), np.concatenate([bounds[1], -bounds[0]])
+    lower, upper = np.full(n, -np.inf), np.full(n, np.inf)
+    for i in range(g.shape[0]):
+        if h[i] == np.inf:
+            continue  # no bound: not a constraint, whatever the row couples
+        nz = np.flatnonzero(g[i])
+        if nz.size > 1:
+            raise UnsupportedError(
+                f"argument `{name}`: row {i % rows} of G couples components {nz.tolist()}; {_COUPLED_WHY}. "
+                "Fix: give rows with one nonzero entry each (bounds), e.g. the bounding box of the "
+                "polytope (a larger set: the certificate then holds for it)"
+            )
+        if nz.size == 0:
+            if not h[i] >= 0.0:
+                raise InputError(
+                    f"argument `{name}`: row {i % rows} of G is zero and its bound excludes 0 (0 <= {h[i]} fails), "
+                    "so the set is empty"
+                )
+            continue
+        j = int(nz[0])
+        bound = h[i] / g[i, j]
+        if g[i, j] > 0.0:
+            upper[j] = min(upper[j], bound)
+        else:
+            lower[j] = max(lower[j], bound)
+    return lower, upper
+
+
+def _set(box_name: str, box: Any, rows_name: str, rows: Any, n: int, origin: bool) -> Optional[tuple]:
+    """The box of ``box`` ∩ ``rows`` (either may be None); ``origin``: the set must contain 0
+    (Assumption 1, checked here so the message names the rows argument)."""
+    b = _box(box_name, box, n)
+    if rows is None:
+        return b
+    lower, upper = _rows(rows_name, rows, n)
+    if b is not None:
+        lower, upper = np.maximum(lower, b[0]), np.minimum(upper, b[1])
+    what = rows_name if b is None else f"{box_name}` with `{rows_name}"
+    empty = np.flatnonzero(~(lower <= upper) | (lower == np.inf) | (upper == -np.inf))
+    if empty.size:
+        j = int(empty[0])
+        raise InputError(
+            f"argument `{what}`: the set is empty (component {j}: {lower[j]} <= v <= {upper[j]}); loosen a bound"
+        )
+    outside = np.flatnonzero((lower > 0.0) | (upper < 0.0))
+    if origin and outside.size:
+        j = int(outside[0])
+        raise InputError(
+            f"argument `{what}`: the set must contain 0 (Assumption 1) but component {j} lies in "
+            f"[{lower[j]}, {upper[j]}]; shift the coordinates or loosen the bound"
+        )
+    return np.ascontiguousarray(lower), np.ascontiguousarray(upper)
+
+
 def _settings(name: str, value: Any, keys: tuple, required: tuple) -> Dict[str, Any]:
     if not isinstance(value, dict):
         raise InputError(f"argument `{name}` must be a dict with keys {keys}, e.g. dict(horizon=10, eta=0.8, k=50)")
@@ -475,7 +583,10 @@ class Model:
     Q_c = I, R_c = I, DARE terminal cost) or ``mpc=dict(horizon=N, q=..., r=...)``.
     Boxes are pairs ``(lower, upper)`` in the plant's units (±inf allowed, containing 0;
     omitted: the whole space): ``state_box`` 𝒳, ``input_box`` 𝒰, ``output_box`` 𝒴,
-    ``disturbance_box`` 𝒲 for w = (w¹, w²). ``x0`` is the true initial state and
+    ``disturbance_box`` 𝒲 for w = (w¹, w²); ``state_rows``, ``input_rows``,
+    ``output_rows``, ``disturbance_rows`` the same sets as general rows ``(G, h)``
+    ({v : G v ≤ h}: one nonzero entry per row, a bound; a coupling row raises
+    :class:`UnsupportedError`), intersected with the box. ``x0`` is the true initial state and
     ``prior`` x̄₀ (default 0); ``w_bar`` a bound on ‖w_t‖₂ (default: the largest over 𝒲).
     Errors name the argument (``mhe["eta"]``, ``input_box``) and the fix.
     """
@@ -491,6 +602,10 @@ class Model:
         input_box: Any = None,
         output_box: Any = None,
         disturbance_box: Any = None,
+        state_rows: Any = None,
+        input_rows: Any = None,
+        output_rows: Any = None,
+        disturbance_rows: Any = None,
         x0: Any = None,
         prior: Any = None,
         w_bar: Optional[float] = None,
@@ -545,10 +660,12 @@ class Model:
             mpc_horizon=mpc_horizon,
             mpc_q=mpc_q,
             mpc_r=mpc_r,
-            state_box=_box("state_box", state_box, nx),
-            input_box=_box("input_box", input_box, nu),
-            output_box=_box("output_box", output_box, ny),
-            disturbance_box=_box("disturbance_box", disturbance_box, nw),
+            state_box=_set("state_box", state_box, "state_rows", state_rows, nx, origin=True),
+            input_box=_set("input_box", input_box, "input_rows", input_rows, nu, origin=True),
+            output_box=_set("output_box", output_box, "output_rows", output_rows, ny, origin=True),
+            disturbance_box=_set(
+                "disturbance_box", disturbance_box, "disturbance_rows", disturbance_rows, nw, origin=True
+            ),
             x0=None if x0 is None else _vector("x0", x0, nx),
             prior=None if prior is None else _vector("prior", prior, nx),
             w_bar=w_bar,

@@ -8,6 +8,8 @@ from numpy.typing import ArrayLike, NDArray
 
 MAX_DIMENSION: int
 METHODS: Tuple[str, ...]
+#: General rows: (G, h) is {v : G v <= h}; (G, lower, upper) is {v : lower <= G v <= upper}.
+Rows = Union[Tuple[ArrayLike, ArrayLike], Tuple[ArrayLike, ArrayLike, ArrayLike]]
 
 class MheError(ValueError): ...
 class InputError(MheError): ...
@@ -69,6 +71,9 @@ class Estimator:
         state_box: Optional[Tuple[ArrayLike, ArrayLike]] = ...,
         output_box: Optional[Tuple[ArrayLike, ArrayLike]] = ...,
         disturbance_box: Optional[Tuple[ArrayLike, ArrayLike]] = ...,
+        state_rows: Optional[Rows] = ...,
+        output_rows: Optional[Rows] = ...,
+        disturbance_rows: Optional[Rows] = ...,
     ) -> None: ...
     dtype: np.dtype[Any]
     def push(self, u: ArrayLike, y: ArrayLike) -> None: ...
@@ -104,6 +109,10 @@ class Model:
         input_box: Optional[Tuple[ArrayLike, ArrayLike]] = ...,
         output_box: Optional[Tuple[ArrayLike, ArrayLike]] = ...,
         disturbance_box: Optional[Tuple[ArrayLike, ArrayLike]] = ...,
+        state_rows: Optional[Rows] = ...,
+        input_rows: Optional[Rows] = ...,
+        output_rows: Optional[Rows] = ...,
+        disturbance_rows: Optional[Rows] = ...,
         x0: Optional[ArrayLike] = ...,
         prior: Optional[ArrayLike] = ...,
         w_bar: Optional[float] = ...,
@@ -154,7 +163,7 @@ def simulate(
     *,
     method: Optional[str] = ...,
     k: Optional[int] = ...,
-) -> Dict[str, Any]: ...
+) -> Dict[str, Any]:
     """x, x_hat, u, y, w, e_norm, x_kf, e_kf_norm (NumPy arrays) and kalman_error (str | None)."""
 
 def set_kernel(name: str) -> None: ...

@@ -152,3 +152,34 @@ def test_set_kernel_names_its_argument():
     with pytest.raises(sm.OutOfRangeError, match="name"):
         sm.set_kernel("fast")
     sm.set_kernel("portable")
+
+
+@pytest.mark.parametrize("dtype", ["float64", "float32"])
+def test_push_takes_any_array_like_with_the_same_result(dtype):
+    # float64 contiguous arrays go straight to Rust; lists, other dtypes and strided views
+    # take the checked path: the same numbers, the same estimates.
+    p2 = sm.Plant([[0.9, 0.1], [0.0, 0.8]], [[1.0, 0.0], [0.0, 1.0]], [[1.0, 0.0]])
+    ests = [sm.Estimator(p2, horizon=4, eta=0.8, k=10, dtype=dtype) for _ in range(5)]
+    for t in range(6):
+        u = [0.125 * t, -0.25]  # exact in float32 too
+        y = 0.5 + 0.125 * t
+        ests[0].push(np.array(u), np.array([y]))
+        ests[1].push(u, [y])
+        ests[2].push(np.array(u, dtype=np.float32), y)  # float32 u, scalar y (n_y = 1)
+        ests[3].push(np.array(u, dtype=np.float64)[::-1][::-1], np.array([y]))
+        ests[4].push(np.array([u[0], 7.0, u[1]])[::2], np.array([[y]]))  # strided u, 2-D y
+        xs = [e.estimate() for e in ests]
+        for x in xs[1:]:
+            np.testing.assert_array_equal(x, xs[0])
+    est = ests[0]
+    t, before = est.t, est.estimate()
+    with pytest.raises(sm.ShapeError, match="`u`"):
+        est.push(np.zeros(3), np.zeros(1))
+    with pytest.raises(sm.ShapeError, match="`y`"):
+        est.push(np.zeros(2), np.zeros((2, 2)))
+    with pytest.raises(sm.NonFiniteError, match="`y`"):
+        est.push(np.zeros(2, dtype=np.float32), np.array([np.nan], dtype=np.float32))
+    with pytest.raises(sm.InputError, match="`u`"):
+        est.push(["a", "b"], [1.0])
+    assert est.t == t  # refused pushes change nothing
+    np.testing.assert_array_equal(est.estimate(), before)

@@ -123,6 +123,14 @@ def models(draw):
         x0=[0.5] * nx,
         w_bar=draw(st.one_of(st.none(), st.floats(0.0, 1.0))),
     )
+    # General rows (G, h) on 𝒳 and 𝒰: often bounds (one nonzero), sometimes coupled or
+    # excluding 0 (then the package's own UnsupportedError / InputError).
+    row_entry = st.sampled_from([0.0, 0.0, 1.0, -1.0, 0.5, -2.0])
+    for name, n in (("state_rows", nx), ("input_rows", nu)):
+        p = draw(st.integers(0, 3))
+        if p:
+            g = np.array(draw(st.lists(row_entry, min_size=p * n, max_size=p * n))).reshape(p, n)
+            kwargs[name] = (g, draw(st.lists(st.floats(-0.5, 3.0), min_size=p, max_size=p)))
     return plant, kwargs
 
 

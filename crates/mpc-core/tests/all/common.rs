@@ -223,8 +223,15 @@ pub fn uncondensed_solve(
         solver.solution.status
     );
     let raw = &solver.solution.x;
-    refine_on_active_set(&qp, raw, &solver.solution.s, &solver.solution.z, ubox, x_hat)
-        .unwrap_or_else(|| raw[qp.nvx..].to_vec())
+    refine_on_active_set(
+        &qp,
+        raw,
+        &solver.solution.s,
+        &solver.solution.z,
+        ubox,
+        x_hat,
+    )
+    .unwrap_or_else(|| raw[qp.nvx..].to_vec())
 }
 
 /// Active-set refinement on the *uncondensed* KKT system (interior-point answers are

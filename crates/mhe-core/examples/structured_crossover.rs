@@ -18,7 +18,7 @@ use std::time::Instant;
 use faer::Mat;
 use lti_model::BoxSet;
 use mhe_core::structured::MheHessian;
-use mhe_core::{MheProblem, MheSets, MheWeights};
+use mhe_core::{MheProblem, MheSets, MheWeights, MheWindow};
 use qp_iter::fista::Fista;
 use qp_iter::kernel::{AlignedVec, Kernel, PaddedSymmetric};
 use qp_iter::operator::HessianOperator;
@@ -197,99 +197,127 @@ fn main() -> Result<(), Box<dyn std::error::Error>> {
         )?;
         let theta = vec![0.5; qp.n_theta()];
         let k = (20_000 / qp.n()).max(10);
-        if !detail {
-            // Force the structured path whatever the crossover says.
-            let (pg_d, pg_s) = (
-                ProjectedGradient::new(dense_qp.clone(), StepRule::Optimal)?,
-                ProjectedGradient::new_structured(qp.clone(), StepRule::Optimal)?,
-            );
-            let (fi_d, fi_s) = (Fista::new(dense_qp), Fista::new_structured(qp.clone()));
-            let mut v: Vec<Variant<'_>> = vec![
-                ("pg dense", k, steps(&pg_d, &theta, k)),
-                ("pg structured", k, steps(&pg_s, &theta, k)),
-                ("fista dense", k, steps(&fi_d, &theta, k)),
-                ("fista structured", k, steps(&fi_s, &theta, k)),
-            ];
-            let t = interleave(&mut v, 40);
-            println!(
-                "{m:>5} {:>6} {:>10.3} {:>11.3} {:>7.2} {:>13.3} {:>14.3} {:>7.2}",
-                qp.n(),
-                t[0],
-                t[1],
-                t[1] / t[0],
-                t[2],
-                t[3],
-                t[3] / t[2]
-            );
-            continue;
+        if detail {
+            detail_row(m, &sys, w, &weights, &qp, dense_qp, &theta, k)?;
+        } else {
+            summary_row(m, &qp, dense_qp, &theta, k)?;
         }
-        let op = MheHessian::new(
-            w.layout(),
-            sys.a(),
-            sys.c(),
-            sys.e(),
-            sys.f(),
-            weights.eta,
-            weights.p.as_ref(),
-            weights.q.as_ref(),
-            weights.r.as_ref(),
-        );
-        let (portable, generic) = (
-            op.clone().with_kernel(Kernel::portable()),
-            op.clone().generic(),
-        );
-        let generic_qp = qp.clone().with_operator(Arc::new(generic.clone()))?;
-        let pg_g = ProjectedGradient::new_structured(generic_qp, StepRule::Optimal)?;
-        // Jacobi-scaled PG and FISTA (what `pg-jacobi`, `fista-jacobi` build), dense
-        // problem against the problem with its operator, structured path forced.
-        let d = jacobi_scaling(&qp);
-        let pg = |q: ParametricQp, s: bool| {
-            if s {
-                ProjectedGradient::new_structured(q, StepRule::Optimal)
-            } else {
-                ProjectedGradient::new(q, StepRule::Optimal)
-            }
-        };
-        let fi = |q: ParametricQp, s: bool| {
-            Ok(if s {
-                Fista::new_structured(q)
-            } else {
-                Fista::new(q)
-            })
-        };
-        let (pgj_d, pgj_s) = (
-            Scaled::new(dense_qp.clone(), d.clone(), |q| pg(q, false))?,
-            Scaled::new(qp.clone(), d.clone(), |q| pg(q, true))?,
-        );
-        let (fij_d, fij_s) = (
-            Scaled::new(dense_qp, d.clone(), |q| fi(q, false))?,
-            Scaled::new(qp.clone(), d, |q| fi(q, true))?,
-        );
-        let mut v: Vec<Variant<'_>> = vec![
-            ("H_c z dense", k, dense_products(&qp, k)),
-            ("H_c z fixed", k, products(&op, k)),
-            ("H_c z portable", k, products(&portable, k)),
-            ("H_c z generic", k, products(&generic, k)),
-            ("pg-jacobi dense", k, steps(&pgj_d, &theta, k)),
-            ("pg-jacobi structured", k, steps(&pgj_s, &theta, k)),
-            ("fista-jacobi dense", k, steps(&fij_d, &theta, k)),
-            ("fista-jacobi structured", k, steps(&fij_s, &theta, k)),
-            ("pg generic", k, steps(&pg_g, &theta, k)),
-        ];
-        let t = interleave(&mut v, 40);
-        println!(
-            "{m:>5} {:>6} | {:>11.3} {:>6.3} {:>9.3} {:>8.3} | {:>10.3} {:>7.3} | {:>13.3} {:>7.3} | {:>10.3}",
-            qp.n(),
-            t[0],
-            t[1],
-            t[2],
-            t[3],
-            t[4],
-            t[5],
-            t[6],
-            t[7],
-            t[8]
-        );
     }
+    Ok(())
+}
+
+/// One row of the default table: PG and FISTA, dense against structured.
+fn summary_row(
+    m: usize,
+    qp: &ParametricQp,
+    dense_qp: ParametricQp,
+    theta: &[f64],
+    k: usize,
+) -> Result<(), Box<dyn std::error::Error>> {
+    // Force the structured path whatever the crossover says.
+    let (pg_d, pg_s) = (
+        ProjectedGradient::new(dense_qp.clone(), StepRule::Optimal)?,
+        ProjectedGradient::new_structured(qp.clone(), StepRule::Optimal)?,
+    );
+    let (fi_d, fi_s) = (Fista::new(dense_qp), Fista::new_structured(qp.clone()));
+    let mut v: Vec<Variant<'_>> = vec![
+        ("pg dense", k, steps(&pg_d, theta, k)),
+        ("pg structured", k, steps(&pg_s, theta, k)),
+        ("fista dense", k, steps(&fi_d, theta, k)),
+        ("fista structured", k, steps(&fi_s, theta, k)),
+    ];
+    let t = interleave(&mut v, 40);
+    println!(
+        "{m:>5} {:>6} {:>10.3} {:>11.3} {:>7.2} {:>13.3} {:>14.3} {:>7.2}",
+        qp.n(),
+        t[0],
+        t[1],
+        t[1] / t[0],
+        t[2],
+        t[3],
+        t[3] / t[2]
+    );
+    Ok(())
+}
+
+/// One row of `--detail`: the H_c z kernels and the Jacobi-scaled maps.
+#[allow(clippy::too_many_arguments)]
+fn detail_row(
+    m: usize,
+    sys: &lti_model::LtiSystem,
+    w: &MheWindow,
+    weights: &MheWeights,
+    qp: &ParametricQp,
+    dense_qp: ParametricQp,
+    theta: &[f64],
+    k: usize,
+) -> Result<(), Box<dyn std::error::Error>> {
+    let op = MheHessian::new(
+        w.layout(),
+        sys.a(),
+        sys.c(),
+        sys.e(),
+        sys.f(),
+        weights.eta,
+        weights.p.as_ref(),
+        weights.q.as_ref(),
+        weights.r.as_ref(),
+    );
+    let (portable, generic) = (
+        op.clone().with_kernel(Kernel::portable()),
+        op.clone().generic(),
+    );
+    let generic_qp = qp.clone().with_operator(Arc::new(generic.clone()))?;
+    let pg_g = ProjectedGradient::new_structured(generic_qp, StepRule::Optimal)?;
+    // Jacobi-scaled PG and FISTA (what `pg-jacobi`, `fista-jacobi` build), dense
+    // problem against the problem with its operator, structured path forced.
+    let d = jacobi_scaling(qp);
+    let pg = |q: ParametricQp, s: bool| {
+        if s {
+            ProjectedGradient::new_structured(q, StepRule::Optimal)
+        } else {
+            ProjectedGradient::new(q, StepRule::Optimal)
+        }
+    };
+    let fi = |q: ParametricQp, s: bool| {
+        Ok(if s {
+            Fista::new_structured(q)
+        } else {
+            Fista::new(q)
+        })
+    };
+    let (pgj_d, pgj_s) = (
+        Scaled::new(dense_qp.clone(), d.clone(), |q| pg(q, false))?,
+        Scaled::new(qp.clone(), d.clone(), |q| pg(q, true))?,
+    );
+    let (fij_d, fij_s) = (
+        Scaled::new(dense_qp, d.clone(), |q| fi(q, false))?,
+        Scaled::new(qp.clone(), d, |q| fi(q, true))?,
+    );
+    let mut v: Vec<Variant<'_>> = vec![
+        ("H_c z dense", k, dense_products(qp, k)),
+        ("H_c z fixed", k, products(&op, k)),
+        ("H_c z portable", k, products(&portable, k)),
+        ("H_c z generic", k, products(&generic, k)),
+        ("pg-jacobi dense", k, steps(&pgj_d, theta, k)),
+        ("pg-jacobi structured", k, steps(&pgj_s, theta, k)),
+        ("fista-jacobi dense", k, steps(&fij_d, theta, k)),
+        ("fista-jacobi structured", k, steps(&fij_s, theta, k)),
+        ("pg generic", k, steps(&pg_g, theta, k)),
+    ];
+    let t = interleave(&mut v, 40);
+    println!(
+        "{m:>5} {:>6} | {:>11.3} {:>6.3} {:>9.3} {:>8.3} | {:>10.3} {:>7.3} | {:>13.3} {:>7.3} | {:>10.3}",
+        qp.n(),
+        t[0],
+        t[1],
+        t[2],
+        t[3],
+        t[4],
+        t[5],
+        t[6],
+        t[7],
+        t[8]
+    );
     Ok(())
 }

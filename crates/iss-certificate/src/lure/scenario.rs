@@ -15,12 +15,12 @@
 //! controller with constraints that can activate (saturated LQR, the sub-optimal MPC, an
 //! exact MPC with a finite input bound): their clamps are not channels of this loop.
 
-use closed_loop::scenario::{LoopOptions, ResolvedScenario, ScenarioController};
+use closed_loop::scenario::{LoopOptions, ResolvedScenario, ScenarioController, ScenarioLoop};
 use faer::{Mat, MatRef, Par};
 use qp_iter::{IterationMap, MethodMap};
 
 use super::loop_level::{LureLoop, Matrix};
-use crate::linear::{LiftedLoop, LinearError, linearise};
+use crate::linear::{LiftedLayout, LiftedLoop, LinearError, linearise};
 
 /// Why a scenario's loop has no Lur'e form here.
 #[derive(Debug, thiserror::Error)]
@@ -116,32 +116,7 @@ pub fn scenario_lure(
             method: options.method.name().to_string(),
         });
     }
-    match cl.controller() {
-        ScenarioController::Exact(_) => {
-            let qp = quiet.mpc().map_err(LinearError::from)?.qp();
-            let set = qp.zset();
-            let bounded = set
-                .lower()
-                .iter()
-                .zip(set.upper())
-                .any(|(l, u)| l.is_finite() || u.is_finite());
-            if bounded {
-                return Err(ScenarioLureError::Controller {
-                    why: "the exact MPC has a finite input bound",
-                });
-            }
-        }
-        ScenarioController::SaturatedLqr(_) => {
-            return Err(ScenarioLureError::Controller {
-                why: "the saturated LQR",
-            });
-        }
-        ScenarioController::Suboptimal(_) => {
-            return Err(ScenarioLureError::Controller {
-                why: "the sub-optimal MPC's K_c clamped iterations",
-            });
-        }
-    }
+    check_controller(&cl, &quiet)?;
     let lifted = LiftedLoop::from_loop(&cl, &quiet, options.method, Par::Seq)?;
     let lin = linearise(map, "MHE")?;
     let lay = lifted.layout();
@@ -186,22 +161,8 @@ pub fn scenario_lure(
     // X⁺ = 𝒜X + 𝒢_z R ξᴷ + ℬw.
     let (a_loop, g_z) = lifted.split_at_iterate(Par::Seq);
     let g_loop = mul(g_z.as_ref(), lin.readout.as_ref());
-    let plant = cl.plant();
-    let (nw1, nw2) = (plant.nw1(), plant.nw2());
-    let mut b_loop = Mat::<f64>::zeros(n, nw1 + nw2);
-    let (e, f) = (plant.e(), plant.f());
-    for i in 0..lay.nx {
-        for j in 0..nw1 {
-            b_loop[(i, j)] = e[(i, j)];
-        }
-    }
-    let y_new = lay.y_window(lay.horizon - 1);
-    for i in 0..lay.ny {
-        for j in 0..nw2 {
-            b_loop[(y_new + i, nw1 + j)] = f[(i, j)];
-        }
-    }
-    let nw = nw1 + nw2;
+    let b_loop = disturbance_input(&cl, &lay);
+    let nw = b_loop.ncols();
     let lure = LureLoop {
         s0: to_matrix(s0.as_ref()),
         s_w: Matrix::zeros(nxi, nw),
@@ -217,6 +178,59 @@ pub fn scenario_lure(
         b_loop: to_matrix(b_loop.as_ref()),
     };
     Ok(ScenarioLure { lure, lifted })
+}
+
+/// The controller premise of [`scenario_lure`]: a linear controller (the exact MPC with no
+/// finite input bound); every clamp of the loop is then one of the MHE's.
+fn check_controller(cl: &ScenarioLoop, quiet: &ResolvedScenario) -> Result<(), ScenarioLureError> {
+    match cl.controller() {
+        ScenarioController::Exact(_) => {
+            let qp = quiet.mpc().map_err(LinearError::from)?.qp();
+            let set = qp.zset();
+            let bounded = set
+                .lower()
+                .iter()
+                .zip(set.upper())
+                .any(|(l, u)| l.is_finite() || u.is_finite());
+            if bounded {
+                return Err(ScenarioLureError::Controller {
+                    why: "the exact MPC has a finite input bound",
+                });
+            }
+        }
+        ScenarioController::SaturatedLqr(_) => {
+            return Err(ScenarioLureError::Controller {
+                why: "the saturated LQR",
+            });
+        }
+        ScenarioController::Suboptimal(_) => {
+            return Err(ScenarioLureError::Controller {
+                why: "the sub-optimal MPC's K_c clamped iterations",
+            });
+        }
+    }
+    Ok(())
+}
+
+/// ℬ: w¹ enters x through E, w² the newest output of the window through F.
+fn disturbance_input(cl: &ScenarioLoop, lay: &LiftedLayout) -> Mat<f64> {
+    let n = lay.dim();
+    let plant = cl.plant();
+    let (nw1, nw2) = (plant.nw1(), plant.nw2());
+    let mut b_loop = Mat::<f64>::zeros(n, nw1 + nw2);
+    let (e, f) = (plant.e(), plant.f());
+    for i in 0..lay.nx {
+        for j in 0..nw1 {
+            b_loop[(i, j)] = e[(i, j)];
+        }
+    }
+    let y_new = lay.y_window(lay.horizon - 1);
+    for i in 0..lay.ny {
+        for j in 0..nw2 {
+            b_loop[(y_new + i, nw1 + j)] = f[(i, j)];
+        }
+    }
+    b_loop
 }
 
 /// ρ(𝔸_s(K)): the spectral radius of the loop with every channel frozen at slope s_c

@@ -12,18 +12,36 @@ use qp_iter::reference::clarabel::solver::{
 
 use crate::common::{Fixture, case_study, csc, random_fixture, simulate};
 
-/// Solution of problem (8)–(9) with variables (x̂₀..x̂_m, ŵ₀..ŵ_{m−1}, ŷ₀..ŷ_{m−1}):
-/// returns (x̂ sequence, ŵ sequence, optimal V_MHE).
-fn uncondensed(f: &Fixture, rec: &MheRecord) -> (Vec<Vec<f64>>, Vec<Vec<f64>>, f64) {
-    let sys = &f.sys;
-    let (nx, ny, nw1, nw2) = (sys.nx(), sys.ny(), sys.nw1(), sys.nw2());
-    let nw = nw1 + nw2;
-    let m = rec.window;
+/// Index layout of v = (x̂₀..x̂_m, ŵ₀..ŵ_{m−1}, ŷ₀..ŷ_{m−1}) for window length m.
+#[derive(Clone, Copy)]
+struct Layout {
+    nx: usize,
+    nw: usize,
+    ny: usize,
+    m: usize,
+}
+
+impl Layout {
+    fn xi(self, j: usize) -> usize {
+        j * self.nx
+    }
+    fn wi(self, j: usize) -> usize {
+        (self.m + 1) * self.nx + j * self.nw
+    }
+    fn yi(self, j: usize) -> usize {
+        (self.m + 1) * self.nx + self.m * self.nw + j * self.ny
+    }
+    fn n(self) -> usize {
+        (self.m + 1) * self.nx + self.m * (self.nw + self.ny)
+    }
+}
+
+/// The cost (9) as ½vᵀHv + qᵀv + const.
+fn cost(f: &Fixture, rec: &MheRecord, l: Layout) -> (Mat<f64>, Vec<f64>, f64) {
+    let (nx, nw, ny, m) = (l.nx, l.nw, l.ny, l.m);
     let cfg = &f.config;
-    let xi = |j: usize| j * nx;
-    let wi = |j: usize| (m + 1) * nx + j * nw;
-    let yi = |j: usize| (m + 1) * nx + m * nw + j * ny;
-    let n = (m + 1) * nx + m * (nw + ny);
+    let (xi, wi, yi) = (|j| l.xi(j), |j| l.wi(j), |j| l.yi(j));
+    let n = l.n();
     let mut h = Mat::<f64>::zeros(n, n);
     let mut q = vec![0.0; n];
     let mut konst = 0.0;
@@ -52,6 +70,15 @@ fn uncondensed(f: &Fixture, rec: &MheRecord) -> (Vec<Vec<f64>>, Vec<Vec<f64>>, f
             }
         }
     }
+    (h, q, konst)
+}
+
+/// The model as equality rows (the first `neq`) and the disturbance box as rows Av ≤ b.
+fn constraint_rows(f: &Fixture, rec: &MheRecord, l: Layout) -> (Mat<f64>, Vec<f64>, usize, usize) {
+    let sys = &f.sys;
+    let (nx, ny, nw1, nw2) = (sys.nx(), sys.ny(), sys.nw1(), sys.nw2());
+    let (nw, m, n) = (l.nw, l.m, l.n());
+    let (xi, wi, yi) = (|j| l.xi(j), |j| l.wi(j), |j| l.yi(j));
     // Equalities: x̂_{j+1} − A x̂_j − E ŵ¹_j = B u_j;  ŷ_j − C x̂_j − F ŵ²_j = 0.
     let neq = m * (nx + ny);
     let lo = f.sets.disturbance.lower();
@@ -99,6 +126,23 @@ fn uncondensed(f: &Fixture, rec: &MheRecord) -> (Vec<Vec<f64>>, Vec<Vec<f64>>, f
             }
         }
     }
+    (a, b, neq, nbox)
+}
+
+/// Solution of problem (8)–(9) with variables (x̂₀..x̂_m, ŵ₀..ŵ_{m−1}, ŷ₀..ŷ_{m−1}):
+/// returns (x̂ sequence, ŵ sequence, optimal V_MHE).
+fn uncondensed(f: &Fixture, rec: &MheRecord) -> (Vec<Vec<f64>>, Vec<Vec<f64>>, f64) {
+    let sys = &f.sys;
+    let l = Layout {
+        nx: sys.nx(),
+        nw: sys.nw1() + sys.nw2(),
+        ny: sys.ny(),
+        m: rec.window,
+    };
+    let (nx, nw, m, n) = (l.nx, l.nw, l.m, l.n());
+    let (xi, wi) = (|j| l.xi(j), |j| l.wi(j));
+    let (h, q, konst) = cost(f, rec, l);
+    let (a, b, neq, nbox) = constraint_rows(f, rec, l);
     let mut cones: Vec<SupportedConeT<f64>> = Vec::new();
     if neq > 0 {
         cones.push(ZeroConeT(neq));

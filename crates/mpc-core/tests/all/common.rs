@@ -84,10 +84,23 @@ pub fn csc(
     qp_iter::reference::dense_to_csc(m.as_ref(), upper_only)
 }
 
-/// Solves the uncondensed MPC with Clarabel directly: variables (x₀, …, x_N, u₀, …,
-/// u_{N−1}), cost Σ_{k<N}(x_kᵀQ_cx_k + u_kᵀR_cu_k) + x_NᵀP_fx_N, equalities x₀ = x̂ and
-/// x_{k+1} = Ax_k + Bu_k, bounds on u. Returns U* = (u₀, …, u_{N−1}).
-pub fn uncondensed_solve(
+/// The uncondensed MPC as a QP in v = (x₀, …, x_N, u₀, …, u_{N−1}): cost ½vᵀPv, rows
+/// Av (=, ≤) b — the equalities first, then one row per finite input bound.
+struct UncondensedQp {
+    pm: Mat<f64>,
+    am: Mat<f64>,
+    b: Vec<f64>,
+    /// (variable, upper?, value) of each bound row, in row order after the equalities.
+    bounds: Vec<(usize, bool, f64)>,
+    /// Equality rows: x₀ = x̂ and the dynamics.
+    neq: usize,
+    /// Offset of u₀ in v.
+    nvx: usize,
+    /// Length of v.
+    nv: usize,
+}
+
+fn uncondensed_qp(
     sys: &LtiSystem,
     q: &Mat<f64>,
     r: &Mat<f64>,
@@ -95,7 +108,7 @@ pub fn uncondensed_solve(
     ubox: &BoxSet,
     n: usize,
     x_hat: &[f64],
-) -> Vec<f64> {
+) -> UncondensedQp {
     let (nx, nu) = (sys.nx(), sys.nu());
     let nvx = (n + 1) * nx;
     let nv = nvx + n * nu;
@@ -154,9 +167,33 @@ pub fn uncondensed_solve(
         am[(neq + t, v)] = if upper { 1.0 } else { -1.0 };
         b[neq + t] = if upper { val } else { -val };
     }
-    let mut cones = vec![SupportedConeT::ZeroConeT(neq)];
-    if !bounds.is_empty() {
-        cones.push(SupportedConeT::NonnegativeConeT(bounds.len()));
+    UncondensedQp {
+        pm,
+        am,
+        b,
+        bounds,
+        neq,
+        nvx,
+        nv,
+    }
+}
+
+/// Solves the uncondensed MPC with Clarabel directly: variables (x₀, …, x_N, u₀, …,
+/// u_{N−1}), cost Σ_{k<N}(x_kᵀQ_cx_k + u_kᵀR_cu_k) + x_NᵀP_fx_N, equalities x₀ = x̂ and
+/// x_{k+1} = Ax_k + Bu_k, bounds on u. Returns U* = (u₀, …, u_{N−1}).
+pub fn uncondensed_solve(
+    sys: &LtiSystem,
+    q: &Mat<f64>,
+    r: &Mat<f64>,
+    p: &Mat<f64>,
+    ubox: &BoxSet,
+    n: usize,
+    x_hat: &[f64],
+) -> Vec<f64> {
+    let qp = uncondensed_qp(sys, q, r, p, ubox, n, x_hat);
+    let mut cones = vec![SupportedConeT::ZeroConeT(qp.neq)];
+    if !qp.bounds.is_empty() {
+        cones.push(SupportedConeT::NonnegativeConeT(qp.bounds.len()));
     }
     let settings = DefaultSettingsBuilder::default()
         .verbose(false)
@@ -166,9 +203,16 @@ pub fn uncondensed_solve(
         .max_iter(300)
         .build()
         .unwrap();
-    let qv = vec![0.0; nv];
-    let mut solver =
-        DefaultSolver::new(&csc(&pm, true), &qv, &csc(&am, false), &b, &cones, settings).unwrap();
+    let qv = vec![0.0; qp.nv];
+    let mut solver = DefaultSolver::new(
+        &csc(&qp.pm, true),
+        &qv,
+        &csc(&qp.am, false),
+        &qp.b,
+        &cones,
+        settings,
+    )
+    .unwrap();
     solver.solve();
     assert!(
         matches!(
@@ -178,14 +222,35 @@ pub fn uncondensed_solve(
         "uncondensed Clarabel: {:?}",
         solver.solution.status
     );
-    let raw = solver.solution.x.clone();
-    // Active-set refinement on the *uncondensed* KKT system (interior-point answers are
-    // accurate to ~1e-9 relative to the state magnitudes, and worse at weakly active
-    // bounds): a bound is active when its multiplier exceeds its slack; then solve
-    // [P Aᵀ; A 0](v, λ) = (0, b) with A = equalities + active bounds, and keep the result
-    // only if it is feasible and the bound multipliers have the right sign.
-    let (sl, zl) = (&solver.solution.s, &solver.solution.z);
-    let active: Vec<(usize, bool, f64)> = bounds
+    let raw = &solver.solution.x;
+    refine_on_active_set(
+        &qp,
+        raw,
+        &solver.solution.s,
+        &solver.solution.z,
+        ubox,
+        x_hat,
+    )
+    .unwrap_or_else(|| raw[qp.nvx..].to_vec())
+}
+
+/// Active-set refinement on the *uncondensed* KKT system (interior-point answers are
+/// accurate to ~1e-9 relative to the state magnitudes, and worse at weakly active bounds):
+/// a bound is active when its multiplier `zl` exceeds its slack `sl`; then solve
+/// [P Aᵀ; A 0](v, λ) = (0, b) with A = equalities + active bounds, and return U only if
+/// it is feasible, the bound multipliers have the right sign and it is close to `raw`.
+fn refine_on_active_set(
+    qp: &UncondensedQp,
+    raw: &[f64],
+    sl: &[f64],
+    zl: &[f64],
+    ubox: &BoxSet,
+    x_hat: &[f64],
+) -> Option<Vec<f64>> {
+    let (nv, neq, nvx) = (qp.nv, qp.neq, qp.nvx);
+    let nu = ubox.lower().len();
+    let active: Vec<(usize, bool, f64)> = qp
+        .bounds
         .iter()
         .enumerate()
         .filter(|(t, _)| zl[neq + t] > sl[neq + t])
@@ -197,15 +262,15 @@ pub fn uncondensed_solve(
     let mut rhs = Mat::<f64>::zeros(dim, 1);
     for i in 0..nv {
         for j in 0..nv {
-            kkt[(i, j)] = pm[(i, j)];
+            kkt[(i, j)] = qp.pm[(i, j)];
         }
     }
     for r in 0..neq {
         for j in 0..nv {
-            kkt[(nv + r, j)] = am[(r, j)];
-            kkt[(j, nv + r)] = am[(r, j)];
+            kkt[(nv + r, j)] = qp.am[(r, j)];
+            kkt[(j, nv + r)] = qp.am[(r, j)];
         }
-        rhs[(nv + r, 0)] = b[r];
+        rhs[(nv + r, 0)] = qp.b[r];
     }
     for (t, &(v, _, val)) in active.iter().enumerate() {
         kkt[(nv + neq + t, v)] = 1.0;
@@ -235,11 +300,7 @@ pub fn uncondensed_solve(
         }
     });
     let close = max_abs_diff(&refined[nvx..], &raw[nvx..]) <= 1e-4 * scale;
-    if feasible && signs && close {
-        refined[nvx..].to_vec()
-    } else {
-        raw[nvx..].to_vec()
-    }
+    (feasible && signs && close).then(|| refined[nvx..].to_vec())
 }
 
 /// Solves the K-step discrete Riccati recursion from P = Q to a fixed point (independent

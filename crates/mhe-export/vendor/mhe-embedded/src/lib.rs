@@ -35,7 +35,7 @@
 //! static W0: Window<'static, f64> = Window {
 //!     n: 1, n_theta: 1, h: &[2.0], m_rho: &[], m_inv: &[], q0: &[0.0], f: &[-2.0],
 //!     lower: &[f64::NEG_INFINITY], upper: &[f64::INFINITY], scaling: &[],
-//!     step: 0.5, momentum: 0.0, inv_rho: 0.0, relaxation: 0.0,
+//!     step: 0.5, momentum: 0.0, inv_rho: 0.0, relaxation: 0.0, structured: None,
 //! };
 //! static W1: Window<'static, f64> = Window {
 //!     n: 3, n_theta: 2,
@@ -43,6 +43,7 @@
 //!     m_rho: &[], m_inv: &[], q0: &[0.0; 3], f: &[-1.6, 0.0, 0.0, 0.0, 0.0, -2.0],
 //!     lower: &[f64::NEG_INFINITY, -0.1, -0.1], upper: &[f64::INFINITY, 0.1, 0.1],
 //!     scaling: &[], step: 0.4, momentum: 0.0, inv_rho: 0.0, relaxation: 0.0,
+//!     structured: None,
 //! };
 //! static WINDOWS: [Window<'static, f64>; 2] = [W0, W1];
 //! static P: Problem<'static, f64> = Problem {
@@ -66,6 +67,7 @@
 //!     n: 2, n_theta: 1, h: &[4.0, 1.0, 1.0, 2.0], m_rho: &[], m_inv: &[], q0: &[0.0, 0.0],
 //!     f: &[3.0, 1.0], lower: &[-1.0, -1.0], upper: &[1.0, 1.0], scaling: &[],
 //!     step: 0.3, momentum: 0.0, inv_rho: 0.0, relaxation: 0.0,
+//!     structured: None,
 //! };
 //! static MPC: MpcProblem<'static, f64> =
 //!     MpcProblem { nx: 1, nu: 1, horizon: 2, iterations: 30, method: Method::Pg, qp: QP };
@@ -84,9 +86,11 @@ mod mpc;
 mod qp;
 mod runtime;
 mod scalar;
+mod structured;
 
 pub use data::{DataError, Method, Problem, WarmStart, Window};
 pub use estimator::{Mhe, PushError};
 pub use mpc::{Mpc, MpcError, MpcProblem};
 pub use runtime::{MheRt, PushErrorRt};
 pub use scalar::Scalar;
+pub use structured::{Structured, SumOrder};

@@ -3,7 +3,7 @@
 
 use anyhow::{Result, bail};
 use closed_loop::scenario::Scenario;
-use mhe_budget::{Budget, StepDims, Target, Verdict};
+use mhe_budget::{Budget, Scalar, StepDims, Target, Verdict};
 use serde::Serialize;
 use serde_json::json;
 
@@ -33,8 +33,9 @@ pub(crate) fn dims(scenario: &Scenario, horizon: usize) -> StepDims {
     StepDims::of(p.nx(), p.nu(), p.ny(), p.nw(), horizon)
 }
 
-/// The verdict per target for (method, K) on the scenario's window and T_s; f32 is not
-/// calibrated (the model's points are f64 exports).
+/// The verdict per target for (method, K) on the scenario's window and T_s, from the
+/// model's rows of the export's scalar (f32: its own calibration, the instructions of the f32
+/// export at this K, which the certificate does not cover in f32: [`F32_NOTE`]).
 pub(crate) fn budgets(
     targets: &[(Target, f64)],
     method: &str,
@@ -43,22 +44,28 @@ pub(crate) fn budgets(
     sample_time: Option<f64>,
     f32: bool,
 ) -> Result<Vec<Budget>> {
+    let scalar = if f32 { Scalar::F32 } else { Scalar::F64 };
     targets
         .iter()
         .map(|&(t, c)| {
-            let mut b = mhe_budget::fits(t, c, method, dims, k, sample_time)?;
-            if f32 {
-                b.instructions = None;
-                b.instructions_upper = None;
-                b.micros = None;
-                b.verdict = Verdict::NotComputed {
-                    reason: "the instruction model is calibrated on f64 exports only".into(),
-                };
-            }
-            Ok(b)
+            Ok(mhe_budget::fits(
+                t,
+                c,
+                method,
+                scalar,
+                dims,
+                k,
+                sample_time,
+            )?)
         })
         .collect()
 }
+
+/// What an f32 budget says about its K: a measurement of the f32 export, not a certified
+/// iteration count (the f32 certificate is void on the shipped scenarios: docs/theory.md,
+/// "Certified f32").
+pub(crate) const F32_NOTE: &str = "f32: the instructions of the f32 export at this K; this K is \
+                                   not certified in f32 (the certificate covers f64)";
 
 /// One target's verdict as written to certificate.json (export's `budget`, reproduce's
 /// `budget.methods[].targets`).
@@ -66,6 +73,10 @@ pub(crate) fn budgets(
 pub struct TargetRecord {
     /// `cortex-m4f` or `cortex-m7`.
     pub target: String,
+    /// The export's scalar (`f64`, `f32`): the model rows the figures come from.
+    pub scalar: &'static str,
+    /// f32: this K is not certified in f32 ([`F32_NOTE`]); null for f64.
+    pub scalar_note: Option<&'static str>,
     /// The clock.
     pub clock_mhz: f64,
     /// K.
@@ -99,6 +110,8 @@ impl From<&Budget> for TargetRecord {
         };
         TargetRecord {
             target: b.target.name().into(),
+            scalar: b.scalar.name(),
+            scalar_note: (b.scalar == Scalar::F32).then_some(F32_NOTE),
             clock_mhz: b.clock_mhz,
             iterations: b.k,
             instructions_per_step: b.instructions.map(f64::ceil),
@@ -237,12 +250,16 @@ pub(crate) fn readme(budgets: &[Budget]) -> String {
     );
     for b in budgets {
         s += &format!(
-            "- {} at {} MHz, K = {}: {}\n",
+            "- {} at {} MHz, K = {}, {}: {}\n",
             b.target,
             b.clock_mhz,
             b.k,
+            b.scalar.name(),
             b.summary()
         );
+    }
+    if budgets.iter().any(|b| b.scalar == Scalar::F32) {
+        s += &format!("\n{F32_NOTE}.\n");
     }
     s
 }

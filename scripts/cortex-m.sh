@@ -145,7 +145,7 @@ calibrate() {
     mkdir -p "$CALIB_DIR"
     local earlier=""
     [ -s "$CALIB_DIR/cortex-m-points.csv" ] &&
-        earlier=$(grep '^# .*calibrate\|^# 20' "$CALIB_DIR/cortex-m-points.csv" | sed 's/^# \(earlier points: \)*/# earlier points: /')
+        earlier=$(grep '^# .*calibrate\|^# 20' "$CALIB_DIR/cortex-m-points.csv" | sed 's/^# \(earlier points: \)*/# earlier points: /' | awk '!seen[$0]++')
     {
         echo "# Max (and mean) instructions per MHE step (push + estimate) of the exported C under"
         echo "# qemu-system-arm -icount shift=0 (emulated instructions, not cycles), measured by"

@@ -19,6 +19,11 @@
 //! condensed QP over the box 𝒰^N (the same kernel as the estimator's windows), u = the first
 //! block of Uᴷᶜ; together they run the loop of the joint MPC + MHE certificate.
 //!
+//! A long PG or FISTA window (n_z past the std estimator's crossover) carries
+//! [`Structured`] factors instead of H: H_c z through the dynamics in the std structured
+//! product's order, as `mhe_core::structured` (the exporter stores A, E, C, F, 4Q, 2R once and
+//! 4η^m P, η^{m−1−j} per window).
+//!
 //! **Bit identity.** The data are the std build's own numbers (H, F, q₀, the bounds, α, β,
 //! ρ(H + ρI)⁻¹ and (H + ρI)⁻¹, the Jacobi d), and every operation here is the one the std
 //! estimator performs on the portable kernel (`qp_iter::kernel::Kernel::portable`), in the

@@ -240,6 +240,38 @@ fn a_window_past_the_crossover_is_exported_and_bit_for_bit() {
     }
 }
 
+/// Structured data that do not fit are refused with the field named, before any step (a
+/// decay of the wrong length), and the data of a PG export are refused under ADMM.
+#[test]
+fn bad_structured_data_are_refused_by_name() {
+    let c = long_case("case-study-certified.toml", 14, 5);
+    let est = portable_estimator(&c.resolved, Method::PG, c.k).unwrap();
+    let p = OwnedProblem::from_estimator(&est, &c.resolved.scenario().plant).unwrap();
+    let prior: [f64; 4] = c.resolved.scenario().simulation.prior[..]
+        .try_into()
+        .unwrap();
+    let st = p.structured_views();
+    let views = p.window_views(&st);
+    let mut problem = p.view(&views);
+    assert!(mhe_embedded::Mhe::<f64, 4, 2, 1, 14, 74, 46>::new(&problem, prior).is_ok());
+    // ADMM on these data: refused (its (H + ρI)⁻¹ are missing; a structured window is
+    // refused under ADMM too, `window structured (PG and FISTA only; ADMM needs h)`).
+    problem.method = mhe_embedded::Method::Admm;
+    assert!(mhe_embedded::Mhe::<f64, 4, 2, 1, 14, 74, 46>::new(&problem, prior).is_err());
+    let mut bad = st.clone();
+    let short = [1.0; 3];
+    if let Some(s) = bad[14].as_mut() {
+        s.decay = &short;
+    }
+    let views = p.window_views(&bad);
+    let problem = p.view(&views);
+    let err = mhe_embedded::Mhe::<f64, 4, 2, 1, 14, 74, 46>::new(&problem, prior).unwrap_err();
+    assert_eq!(
+        (err.what, err.expected, err.actual),
+        ("structured decay length (m)", 14, 3)
+    );
+}
+
 /// The exported C (gcc, the artefact's flags) and, for the methods in `rust`, the exported
 /// Rust package on the long cases: their replay equals the std estimator bit for bit; the
 /// f32 C build equals `mhe-embedded`'s `MheRt` at f32 bit for bit.

@@ -72,9 +72,20 @@ calibrate() {
     local dir="$OUT/calib"
     mkdir -p "$dir"
     local points="$dir/points.csv"
-    # An interrupted calibration resumes: the (method, size) already in points.csv are kept.
-    [ -s "$points" ] || echo "target,method,scenario,horizon,n,n_theta,nx,nu,ny,k,mean,max" >"$points"
-    local spec file horizon method k tag machine label art kart mean max dims input
+    # An interrupted calibration resumes: the (scalar, method, size) already in points.csv
+    # are kept. A new calibration starts from the stored points (the f64 ones of an older
+    # file, without the scalar column, get `f64`), so CALIB_SCALARS=f32 adds f32 only.
+    if [ ! -s "$points" ]; then
+        if [ -s "$CALIB_DIR/cortex-m-points.csv" ]; then
+            grep -v '^#' "$CALIB_DIR/cortex-m-points.csv" |
+                awk -F, 'NR == 1 { if ($NF != "scalar") $0 = $0 ",scalar"; print; next }
+                         { if (NF == 12) $0 = $0 ",f64"; print }' >"$points"
+        else
+            echo "target,method,scenario,horizon,n,n_theta,nx,nu,ny,k,mean,max,scalar" >"$points"
+        fi
+    fi
+    local spec file horizon method k tag machine label art kart mean max dims input scalar
+    for scalar in ${CALIB_SCALARS:-f64 f32}; do
     for method in ${CALIB_METHODS:-pg admm-pr fista admm pg-jacobi fista-jacobi admm-jacobi admm-pr-jacobi}; do
         for spec in ${CALIB_SIZES:-case-study-certified:3 case-study-certified:9 cart-pendulum:9}; do
             IFS=: read -r file horizon <<<"$spec"
@@ -84,14 +95,14 @@ calibrate() {
             awk -v m="$horizon" '/^\[/ { sec = $0 } sec == "[mhe]" && /^horizon *=/ { print "horizon = " m; next }
                 sec == "[mpc]" && /^iterations *=/ { next } /^sample_time *=/ { next } { print }' \
                 "scenarios/$file.toml" >"$scen"
-            if grep -q "^[^,]*,$method,$file,$horizon," "$points"; then
-                echo "==> $file, M = $horizon, $method: in $points already"
+            if grep -q "^[^,]*,$method,$file,$horizon,.*,$scalar\$" "$points"; then
+                echo "==> $file, M = $horizon, $method, $scalar: in $points already"
                 continue
             fi
-            art="$dir/$file-m$horizon-$method"
-            echo "==> calibrate $file, M = $horizon, $method"
+            art="$dir/$file-m$horizon-$method-$scalar"
+            echo "==> calibrate $file, M = $horizon, $method, $scalar"
             "${XTASK_CMD[@]}" export --scenario "$scen" --out "$art" --lang c --method "$method" \
-                --k 1 --allow-uncertified >"$art.log" 2>&1 || { cat "$art.log"; exit 1; }
+                --k 1 --scalar "$scalar" --allow-uncertified >"$art.log" 2>&1 || { cat "$art.log"; exit 1; }
             read -r -a dims <<<"$(calib_dims "$art/mhe_data.h")"
             input="$dir/input-$file-m$horizon.csv"
             # M + 2 rows: u_i = 0.1 sin(t + i), y_j = 0.2 cos(0.7 t + j).
@@ -123,19 +134,24 @@ calibrate() {
                         cat "$kart/$tag.err"
                         exit 1
                     fi
-                    echo "$label,$method,$file,${dims[0]},${dims[1]},${dims[2]},${dims[3]},${dims[4]},${dims[5]},$k,$mean,$max" >>"$points"
-                    echo "    $label, K = $k: max $max instructions/step"
+                    echo "$label,$method,$file,${dims[0]},${dims[1]},${dims[2]},${dims[3]},${dims[4]},${dims[5]},$k,$mean,$max,$scalar" >>"$points"
+                    echo "    $label, $scalar, K = $k: max $max instructions/step"
                 done
                 rm -rf "$kart"
             done
         done
     done
+    done
     mkdir -p "$CALIB_DIR"
+    local earlier=""
+    [ -s "$CALIB_DIR/cortex-m-points.csv" ] &&
+        earlier=$(grep '^# .*calibrate\|^# 20' "$CALIB_DIR/cortex-m-points.csv" | sed 's/^# \(earlier points: \)*/# earlier points: /' | awk '!seen[$0]++')
     {
         echo "# Max (and mean) instructions per MHE step (push + estimate) of the exported C under"
         echo "# qemu-system-arm -icount shift=0 (emulated instructions, not cycles), measured by"
-        echo "# \`bash scripts/cortex-m.sh calibrate\` at commit $(git rev-parse --short HEAD 2>/dev/null || echo unknown),"
+        echo "# \`bash scripts/cortex-m.sh calibrate\` (scalars: ${CALIB_SCALARS:-f64 f32}) at commit $(git rev-parse --short HEAD 2>/dev/null || echo unknown),"
         echo "# $(date -u +%Y-%m-%d), $(arm-none-eabi-gcc --version | head -1), $(qemu-system-arm --version | head -1)."
+        [ -n "$earlier" ] && echo "$earlier"
         cat "$points"
     } >"$CALIB_DIR/cortex-m-points.csv"
     echo "wrote $CALIB_DIR/cortex-m-points.csv; fit: python3 scripts/fit-instructions.py"

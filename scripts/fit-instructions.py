@@ -2,7 +2,7 @@
 """Fits the instruction model of crates/mhe-budget to the measured points.
 
 Reads crates/mhe-budget/data/cortex-m-points.csv (`bash scripts/cortex-m.sh calibrate`) and
-writes crates/mhe-budget/data/cortex-m-model.csv: per (target, method) the coefficients of
+writes crates/mhe-budget/data/cortex-m-model.csv: per (target, method, scalar) the coefficients of
 
     instructions(K) = c0 + c_fixed * F + K * (c_quad * n^2 + c_lin * n)
 
@@ -89,10 +89,12 @@ def main():
     header = [l for l in open(src) if l.startswith("#")]
     groups = {}
     for p in points:
-        groups.setdefault((p["target"], p["method"]), []).append(p)
+        # Points of an older file have no scalar column: f64 exports.
+        scalar = p.get("scalar") or "f64"
+        groups.setdefault((p["target"], p["method"], scalar), []).append(p)
     out = []
     worst = 0.0
-    for (target, method), ps in sorted(groups.items()):
+    for (target, method, scalar), ps in sorted(groups.items(), key=lambda g: (g[0][2] != "f64", g[0])):
         train = [p for p in ps if int(p["k"]) in FIT_KS]
         held = [p for p in ps if int(p["k"]) not in FIT_KS]
         c = fit(train)
@@ -104,8 +106,8 @@ def main():
         ks = [int(p["k"]) for p in ps]
         out.append([target, method] + ["%.6e" % v for v in c] +
                    [min(ns), max(ns), min(ks), max(ks), len(train), len(held),
-                    up4(held_err), up4(all_err)])
-        print(f"{target:10} {method:15} held-out max rel err {held_err:.4f}, all {all_err:.4f}")
+                    up4(held_err), up4(all_err), scalar])
+        print(f"{target:10} {method:15} {scalar} held-out max rel err {held_err:.4f}, all {all_err:.4f}")
     rev = subprocess.run(["git", "-C", ROOT, "rev-parse", "--short", "HEAD"],
                          capture_output=True, text=True).stdout.strip() or "unknown"
     with open(os.path.join(DATA, "cortex-m-model.csv"), "w") as f:
@@ -116,7 +118,7 @@ def main():
         w = csv.writer(f, lineterminator="\n")
         w.writerow(["target", "method", "c0", "c_fixed", "c_quad", "c_lin", "n_min", "n_max",
                     "k_min", "k_max", "fit_points", "held_out_points", "held_out_rel_err",
-                    "max_rel_err"])
+                    "max_rel_err", "scalar"])
         w.writerows(out)
     print(f"worst held-out relative error {worst:.4f}; wrote {DATA}/cortex-m-model.csv")
 

@@ -3,7 +3,7 @@
 
 use anyhow::{Result, bail};
 use closed_loop::scenario::Scenario;
-use mhe_budget::{Budget, StepDims, Target, Verdict};
+use mhe_budget::{Budget, Scalar, StepDims, Target, Verdict};
 use serde::Serialize;
 use serde_json::json;
 
@@ -33,8 +33,9 @@ pub(crate) fn dims(scenario: &Scenario, horizon: usize) -> StepDims {
     StepDims::of(p.nx(), p.nu(), p.ny(), p.nw(), horizon)
 }
 
-/// The verdict per target for (method, K) on the scenario's window and T_s; f32 is not
-/// calibrated (the model's points are f64 exports).
+/// The verdict per target for (method, K) on the scenario's window and T_s, from the
+/// model's rows of the export's scalar (f32: its own calibration, the instructions of the f32
+/// export at this K; what the certificate says of f32 is [`f32_note`]).
 pub(crate) fn budgets(
     targets: &[(Target, f64)],
     method: &str,
@@ -43,21 +44,33 @@ pub(crate) fn budgets(
     sample_time: Option<f64>,
     f32: bool,
 ) -> Result<Vec<Budget>> {
+    let scalar = if f32 { Scalar::F32 } else { Scalar::F64 };
     targets
         .iter()
         .map(|&(t, c)| {
-            let mut b = mhe_budget::fits(t, c, method, dims, k, sample_time)?;
-            if f32 {
-                b.instructions = None;
-                b.instructions_upper = None;
-                b.micros = None;
-                b.verdict = Verdict::NotComputed {
-                    reason: "the instruction model is calibrated on f64 exports only".into(),
-                };
-            }
-            Ok(b)
+            Ok(mhe_budget::fits(
+                t,
+                c,
+                method,
+                scalar,
+                dims,
+                k,
+                sample_time,
+            )?)
         })
         .collect()
+}
+
+/// What an f32 export's budget says about its K (`certified`: the export's verdict, which
+/// for f32 is Theorem 1 with the f32 rounding folded in; void on every shipped scenario:
+/// docs/theory.md, "Certified f32"). The budget itself is a measurement of the f32 code.
+pub(crate) fn f32_note(certified: bool) -> &'static str {
+    if certified {
+        "f32: the instructions of the f32 export at this K, which the certificate covers in f32"
+    } else {
+        "f32: the instructions of the f32 export at this K; this K is NOT certified in f32 \
+         (certificate.json `uncertified_reason`)"
+    }
 }
 
 /// One target's verdict as written to certificate.json (export's `budget`, reproduce's
@@ -66,6 +79,10 @@ pub(crate) fn budgets(
 pub struct TargetRecord {
     /// `cortex-m4f` or `cortex-m7`.
     pub target: String,
+    /// The export's scalar (`f64`, `f32`): the model rows the figures come from.
+    pub scalar: &'static str,
+    /// f32: whether the certificate covers this K in f32 ([`f32_note`]); null for f64.
+    pub scalar_note: Option<&'static str>,
     /// The clock.
     pub clock_mhz: f64,
     /// K.
@@ -99,6 +116,8 @@ impl From<&Budget> for TargetRecord {
         };
         TargetRecord {
             target: b.target.name().into(),
+            scalar: b.scalar.name(),
+            scalar_note: None,
             clock_mhz: b.clock_mhz,
             iterations: b.k,
             instructions_per_step: b.instructions.map(f64::ceil),
@@ -120,10 +139,18 @@ const UNIT: &str = "emulated instructions (qemu-system-arm -icount) of the MHE s
                     crates/mhe-budget/data/cortex-m-model.csv";
 
 /// certificate.json's `budget` of an export.
-pub(crate) fn json(budgets: &[Budget]) -> serde_json::Value {
+/// `note`: an f32 export's [`f32_note`] (None for f64).
+pub(crate) fn json(budgets: &[Budget], note: Option<&'static str>) -> serde_json::Value {
+    let records: Vec<TargetRecord> = budgets
+        .iter()
+        .map(|b| TargetRecord {
+            scalar_note: note.filter(|_| b.scalar == Scalar::F32),
+            ..TargetRecord::from(b)
+        })
+        .collect();
     json!({
         "unit": UNIT,
-        "targets": budgets.iter().map(TargetRecord::from).collect::<Vec<_>>(),
+        "targets": records,
     })
 }
 
@@ -225,7 +252,7 @@ pub(crate) fn reproduce(
 }
 
 /// The README section.
-pub(crate) fn readme(budgets: &[Budget]) -> String {
+pub(crate) fn readme(budgets: &[Budget], note: Option<&'static str>) -> String {
     let mut s = String::from(
         "\n## The sample period as a budget\n\n\
          Max instructions per MHE step (push + estimate, the full window) predicted by the \
@@ -237,33 +264,86 @@ pub(crate) fn readme(budgets: &[Budget]) -> String {
     );
     for b in budgets {
         s += &format!(
-            "- {} at {} MHz, K = {}: {}\n",
+            "- {} at {} MHz, K = {}, {}: {}\n",
             b.target,
             b.clock_mhz,
             b.k,
+            b.scalar.name(),
             b.summary()
         );
+    }
+    if let Some(note) = note.filter(|_| budgets.iter().any(|b| b.scalar == Scalar::F32)) {
+        s += &format!("\n{note}.\n");
     }
     s
 }
 
 /// Adds the budget to an artefact written into `dir`: `budget` in certificate.json and a
 /// README section.
-pub(crate) fn annotate(dir: &std::path::Path, budgets: &[Budget]) -> Result<()> {
+pub(crate) fn annotate(
+    dir: &std::path::Path,
+    budgets: &[Budget],
+    note: Option<&'static str>,
+) -> Result<()> {
     // Inserted as the last key of the object, so the other keys keep their order.
     let cert = dir.join("certificate.json");
     let text = std::fs::read_to_string(&cert)?;
     let Some(body) = text.trim_end().strip_suffix('}') else {
         bail!("{}: not a JSON object", cert.display());
     };
-    let value = serde_json::to_string_pretty(&json(budgets))?.replace('\n', "\n  ");
+    let value = serde_json::to_string_pretty(&json(budgets, note))?.replace('\n', "\n  ");
     std::fs::write(
         &cert,
         format!("{},\n  \"budget\": {value}\n}}\n", body.trim_end()),
     )?;
     let readme = dir.join("README.md");
     let mut text = std::fs::read_to_string(&readme)?;
-    text += &self::readme(budgets);
+    text += &self::readme(budgets, note);
     std::fs::write(&readme, text)?;
     Ok(())
+}
+
+#[cfg(test)]
+mod tests {
+    use super::*;
+
+    /// An f32 export's budget comes from the f32 rows (it said "not computed" before their
+    /// calibration) and says whether the certificate covers its K in f32; f64 says nothing.
+    #[test]
+    fn f32_budgets_are_computed_and_say_what_the_certificate_covers() {
+        let targets = targets(None, None).expect("defaults");
+        let dims = StepDims {
+            n: 58,
+            n_theta: 31,
+            horizon: 9,
+            nx: 4,
+            nu: 1,
+        };
+        let f32s = budgets(&targets, "pg", dims, 10, Some(0.02), true).expect("valid");
+        let f64s = budgets(&targets, "pg", dims, 10, Some(0.02), false).expect("valid");
+        for (a, b) in f32s.iter().zip(&f64s) {
+            assert_eq!(a.scalar, Scalar::F32);
+            assert!(!matches!(a.verdict, Verdict::NotComputed { .. }), "{a:?}");
+            assert!(a.instructions.is_some() && a.instructions != b.instructions);
+        }
+        let j = json(&f32s, Some(f32_note(false)));
+        let t = &j["targets"][0];
+        assert_eq!(t["scalar"], "f32");
+        assert!(
+            t["scalar_note"]
+                .as_str()
+                .expect("a note")
+                .contains("NOT certified in f32")
+        );
+        assert!(readme(&f32s, Some(f32_note(false))).contains("NOT certified in f32"));
+        let j = json(&f64s, None);
+        assert_eq!(j["targets"][1]["scalar"], "f64");
+        assert!(j["targets"][1]["scalar_note"].is_null());
+        assert!(
+            json(&f32s, Some(f32_note(true)))["targets"][0]["scalar_note"]
+                .as_str()
+                .expect("a note")
+                .contains("covers in f32")
+        );
+    }
 }

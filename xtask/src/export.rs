@@ -158,8 +158,9 @@ pub fn export(args: &ExportArgs) -> Result<()> {
         sc.sample_time,
         args.scalar == ScalarKind::F32,
     )?;
+    let note = (args.scalar == ScalarKind::F32).then(|| crate::budget::f32_note(art.certified()));
     art.write_to_then(&args.out, |stage| {
-        crate::budget::annotate(stage, &budgets)
+        crate::budget::annotate(stage, &budgets, note)
             .map_err(|e| std::io::Error::other(format!("{e:#}")))
     })?;
     let verdict = if art.loop_certified() {
@@ -186,6 +187,9 @@ pub fn export(args: &ExportArgs) -> Result<()> {
     );
     for b in &budgets {
         outln!("  {} at {} MHz: {}", b.target, b.clock_mhz, b.summary());
+    }
+    if let Some(note) = note {
+        outln!("  {note}");
     }
     Ok(())
 }

@@ -4,8 +4,8 @@
 //! **The instruction model** is calibrated, never guessed: `bash scripts/cortex-m.sh
 //! calibrate` measures the max instructions per step of the exported C under
 //! `qemu-system-arm -icount shift=0` for every exportable method on both boards at several
-//! sizes n_z and K (`data/cortex-m-points.csv`), and `scripts/fit-instructions.py` fits per
-//! (target, method)
+//! sizes n_z and K, in f64 and f32 (`data/cortex-m-points.csv`), and
+//! `scripts/fit-instructions.py` fits per (target, method, scalar)
 //!
 //! ```text
 //! instructions(K) = c0 + c_fixed·F + K·(c_quad·n² + c_lin·n)
@@ -23,13 +23,18 @@
 //! over all its calibration points, and says when n_z lies outside the calibrated sizes
 //! ("extrapolated").
 //!
+//! **f32 is a measurement of the f32 export**, its own rows of the model: the instructions
+//! of the K given, which the certificate does not cover in f32 unless it says so (the
+//! f32 certificate is void on the shipped scenarios, docs/theory.md "Certified f32"); the
+//! caller says which.
+//!
 //! ```
-//! use mhe_budget::{Target, StepDims, Verdict, fits};
+//! use mhe_budget::{Scalar, Target, StepDims, Verdict, fits};
 //! // The cart-pendulum's window (n_z = 58, n_θ = 31, M = 9, n_x = 4, n_u = 1) at T_s = 20 ms.
 //! let dims = StepDims { n: 58, n_theta: 31, horizon: 9, nx: 4, nu: 1 };
-//! let b = fits(Target::CortexM7, 480.0, "admm-pr", dims, 10, Some(0.02)).unwrap();
+//! let b = fits(Target::CortexM7, 480.0, "admm-pr", Scalar::F64, dims, 10, Some(0.02)).unwrap();
 //! assert!(matches!(b.verdict, Verdict::Fits { .. }));
-//! assert!(fits(Target::CortexM7, 0.0, "admm-pr", dims, 10, Some(0.02)).is_err());
+//! assert!(fits(Target::CortexM7, 0.0, "admm-pr", Scalar::F64, dims, 10, Some(0.02)).is_err());
 //! ```
 
 use std::fmt;
@@ -38,6 +43,33 @@ use std::fmt;
 pub const POINTS_CSV: &str = include_str!("../data/cortex-m-points.csv");
 /// The fitted coefficients (`python3 scripts/fit-instructions.py`).
 pub const MODEL_CSV: &str = include_str!("../data/cortex-m-model.csv");
+
+/// The scalar of the export (`export --scalar`): each has its own rows of the model.
+#[derive(Debug, Clone, Copy, PartialEq, Eq)]
+pub enum Scalar {
+    /// f64.
+    F64,
+    /// f32.
+    F32,
+}
+
+impl Scalar {
+    /// The name of `--scalar` and of the data files' `scalar` column.
+    pub fn name(self) -> &'static str {
+        match self {
+            Scalar::F64 => "f64",
+            Scalar::F32 => "f32",
+        }
+    }
+
+    fn parse(name: &str) -> Option<Scalar> {
+        match name.trim() {
+            "f64" => Some(Scalar::F64),
+            "f32" => Some(Scalar::F32),
+            _ => None,
+        }
+    }
+}
 
 /// A Cortex-M target of `export --target`, as emulated by `scripts/cortex-m.sh`.
 #[derive(Debug, Clone, Copy, PartialEq, Eq)]
@@ -139,6 +171,8 @@ pub struct InstructionModel {
     pub target: Target,
     /// The method (`export --method` name).
     pub method: String,
+    /// The scalar of the calibrated exports.
+    pub scalar: Scalar,
     /// Instructions of the step that do not scale with the sizes.
     pub c0: f64,
     /// Instructions per multiply-add outside the iterations.
@@ -164,7 +198,7 @@ impl InstructionModel {
         for (line_no, line) in data_lines(MODEL_CSV).skip(1) {
             let f: Vec<&str> = line.split(',').collect();
             let bad = || format!("data/cortex-m-model.csv line {line_no}: `{line}` is malformed");
-            if f.len() != 14 {
+            if f.len() != 15 {
                 return Err(bad());
             }
             let num = |i: usize| f[i].trim().parse::<f64>().map_err(|_| bad());
@@ -172,6 +206,7 @@ impl InstructionModel {
             rows.push(InstructionModel {
                 target: Target::parse(f[0]).map_err(|_| bad())?,
                 method: f[1].to_string(),
+                scalar: Scalar::parse(f[14]).ok_or_else(bad)?,
                 c0: num(2)?,
                 c_fixed: num(3)?,
                 c_quad: num(4)?,
@@ -185,11 +220,15 @@ impl InstructionModel {
         Ok(rows)
     }
 
-    /// The row of (target, method), `None` when the method was not calibrated.
-    pub fn find(target: Target, method: &str) -> Result<Option<InstructionModel>, String> {
+    /// The row of (target, method, scalar), `None` when it was not calibrated.
+    pub fn find(
+        target: Target,
+        method: &str,
+        scalar: Scalar,
+    ) -> Result<Option<InstructionModel>, String> {
         Ok(Self::all()?
             .into_iter()
-            .find(|m| m.target == target && m.method == method))
+            .find(|m| m.target == target && m.method == method && m.scalar == scalar))
     }
 
     /// The multiply-adds F outside the K iterations (see the crate docs).
@@ -249,6 +288,8 @@ pub struct Point {
     pub target: Target,
     /// The method.
     pub method: String,
+    /// The scalar of the export.
+    pub scalar: Scalar,
     /// The scenario file the size came from.
     pub scenario: String,
     /// The window's sizes.
@@ -265,13 +306,14 @@ pub fn points() -> Result<Vec<Point>, String> {
     for (line_no, line) in data_lines(POINTS_CSV).skip(1) {
         let f: Vec<&str> = line.split(',').collect();
         let bad = || format!("data/cortex-m-points.csv line {line_no}: `{line}` is malformed");
-        if f.len() != 12 {
+        if f.len() != 13 {
             return Err(bad());
         }
         let int = |i: usize| f[i].trim().parse::<usize>().map_err(|_| bad());
         out.push(Point {
             target: Target::parse(f[0]).map_err(|_| bad())?,
             method: f[1].to_string(),
+            scalar: Scalar::parse(f[12]).ok_or_else(bad)?,
             scenario: f[2].to_string(),
             dims: StepDims {
                 horizon: int(3)?,
@@ -315,6 +357,8 @@ pub enum Verdict {
 pub struct Budget {
     /// The target.
     pub target: Target,
+    /// The scalar of the export.
+    pub scalar: Scalar,
     /// Its clock in MHz.
     pub clock_mhz: f64,
     /// K.
@@ -438,13 +482,14 @@ pub fn check_clock(clock_mhz: f64) -> Result<(), BudgetError> {
 }
 
 /// The verdict, computed here only: does the step of `method` at K on a window of `dims`
-/// fit T_s on `target` at `clock_mhz`? `sample_time = None` (the scenario gives none) or
+/// fit T_s on `target` at `clock_mhz` in `scalar`? `sample_time = None` (the scenario gives none) or
 /// a method without calibration gives [`Verdict::NotComputed`] with the reason; a bad
 /// clock, T_s or K = 0 is an error naming the key.
 pub fn fits(
     target: Target,
     clock_mhz: f64,
     method: &str,
+    scalar: Scalar,
     dims: StepDims,
     k: usize,
     sample_time: Option<f64>,
@@ -461,6 +506,7 @@ pub fn fits(
     }
     let mut budget = Budget {
         target,
+        scalar,
         clock_mhz,
         k,
         sample_time,
@@ -472,11 +518,14 @@ pub fn fits(
             reason: String::new(),
         },
     };
-    let model = match InstructionModel::find(target, method) {
+    let model = match InstructionModel::find(target, method, scalar) {
         Ok(Some(m)) => m,
         Ok(None) => {
             budget.verdict = Verdict::NotComputed {
-                reason: format!("method `{method}` has no calibration on {target}"),
+                reason: format!(
+                    "method `{method}` has no {} calibration on {target}",
+                    scalar.name()
+                ),
             };
             return Ok(budget);
         }

@@ -27,14 +27,45 @@ fn cart() -> StepDims {
 }
 
 #[test]
-fn every_method_is_calibrated_on_both_targets() {
+fn every_method_is_calibrated_on_both_targets_in_both_scalars() {
     let rows = InstructionModel::all().expect("the stored model parses");
     for t in Target::ALL {
         for m in METHODS {
-            assert!(
-                rows.iter().any(|r| r.target == t && r.method == m),
-                "no calibration for {m} on {t}"
-            );
+            for s in [Scalar::F64, Scalar::F32] {
+                assert!(
+                    rows.iter()
+                        .any(|r| r.target == t && r.method == m && r.scalar == s),
+                    "no {} calibration for {m} on {t}",
+                    s.name()
+                );
+            }
+        }
+    }
+}
+
+/// f32 answers from its own rows (it said "not computed" before its calibration): on the
+/// M4F (single-precision FPU, f64 in software) every method's f32 step is far cheaper than
+/// its f64 one; on the M7 (double-precision FPU) within a factor of 2 of it.
+#[test]
+fn f32_is_computed_from_its_own_rows() {
+    for m in METHODS {
+        for t in Target::ALL {
+            let at = |s| {
+                let b =
+                    fits(t, t.default_clock_mhz(), m, s, cart(), 10, Some(0.02)).expect("valid");
+                assert!(!matches!(b.verdict, Verdict::NotComputed { .. }), "{m} {t}");
+                b.instructions.expect("computed")
+            };
+            let (f64_, f32_) = (at(Scalar::F64), at(Scalar::F32));
+            match t {
+                Target::CortexM4F => assert!(f32_ < 0.5 * f64_, "{m} {t}: {f32_} vs {f64_}"),
+                Target::CortexM7 => {
+                    assert!(
+                        f32_ < 2.0 * f64_ && f64_ < 2.0 * f32_,
+                        "{m} {t}: {f32_} vs {f64_}"
+                    );
+                }
+            }
         }
     }
 }
@@ -48,7 +79,7 @@ fn model_predicts_the_stored_measurements() {
     for p in &pts {
         let m = rows
             .iter()
-            .find(|r| r.target == p.target && r.method == p.method)
+            .find(|r| r.target == p.target && r.method == p.method && r.scalar == p.scalar)
             .expect("a row per measured (target, method)");
         let rel = (m.instructions(p.dims, p.k) - p.max).abs() / p.max;
         worst = worst.max(rel);
@@ -78,14 +109,14 @@ fn model_predicts_the_stored_measurements() {
 #[test]
 fn verdict_boundary_fits_at_k_max_not_one_above() {
     for t in Target::ALL {
-        let m = InstructionModel::find(t, "admm-pr")
+        let m = InstructionModel::find(t, "admm-pr", Scalar::F64)
             .expect("parses")
             .expect("admm-pr calibrated");
         // T_s such that K* = 100 is the boundary: the time of K = 100 plus half an iteration.
         let k_star = 100;
         let clock = t.default_clock_mhz();
         let ts = (m.upper(cart(), k_star) + 0.5 * m.per_iteration(cart())) / (clock * 1e6);
-        let at = fits(t, clock, "admm-pr", cart(), k_star, Some(ts)).expect("valid");
+        let at = fits(t, clock, "admm-pr", Scalar::F64, cart(), k_star, Some(ts)).expect("valid");
         match at.verdict {
             Verdict::Fits { k_max, margin } => {
                 assert_eq!(k_max, k_star);
@@ -93,7 +124,16 @@ fn verdict_boundary_fits_at_k_max_not_one_above() {
             }
             v => panic!("expected fits at K* on {t}, got {v:?}"),
         }
-        let above = fits(t, clock, "admm-pr", cart(), k_star + 1, Some(ts)).expect("valid");
+        let above = fits(
+            t,
+            clock,
+            "admm-pr",
+            Scalar::F64,
+            cart(),
+            k_star + 1,
+            Some(ts),
+        )
+        .expect("valid");
         assert_eq!(
             above.verdict,
             Verdict::DoesNotFit {
@@ -106,20 +146,38 @@ fn verdict_boundary_fits_at_k_max_not_one_above() {
             above.summary()
         );
         // A period shorter than the fixed part: not even K = 1.
-        let none = fits(t, clock, "admm-pr", cart(), 1, Some(1e-9)).expect("valid");
+        let none = fits(t, clock, "admm-pr", Scalar::F64, cart(), 1, Some(1e-9)).expect("valid");
         assert_eq!(none.verdict, Verdict::DoesNotFit { k_max: None });
     }
 }
 
 #[test]
 fn not_computed_without_period_or_calibration() {
-    let b = fits(Target::CortexM4F, 168.0, "pg", cart(), 10, None).expect("valid");
+    let b = fits(
+        Target::CortexM4F,
+        168.0,
+        "pg",
+        Scalar::F64,
+        cart(),
+        10,
+        None,
+    )
+    .expect("valid");
     assert!(matches!(b.verdict, Verdict::NotComputed { .. }));
     assert!(
         b.instructions.is_some(),
         "the instructions are still predicted"
     );
-    let b = fits(Target::CortexM4F, 168.0, "newton", cart(), 10, Some(0.02)).expect("valid");
+    let b = fits(
+        Target::CortexM4F,
+        168.0,
+        "newton",
+        Scalar::F64,
+        cart(),
+        10,
+        Some(0.02),
+    )
+    .expect("valid");
     assert!(
         b.summary().starts_with("not computed: method `newton`"),
         "{}",
@@ -136,13 +194,30 @@ fn extrapolated_outside_the_calibrated_sizes() {
         nx: 10,
         nu: 2,
     };
-    let b = fits(Target::CortexM7, 480.0, "pg", big, 10, Some(0.02)).expect("valid");
+    let b = fits(
+        Target::CortexM7,
+        480.0,
+        "pg",
+        Scalar::F64,
+        big,
+        10,
+        Some(0.02),
+    )
+    .expect("valid");
     assert!(b.extrapolated);
     assert!(b.summary().contains("(extrapolated)"), "{}", b.summary());
     assert!(
-        !fits(Target::CortexM7, 480.0, "pg", cart(), 10, Some(0.02))
-            .expect("valid")
-            .extrapolated
+        !fits(
+            Target::CortexM7,
+            480.0,
+            "pg",
+            Scalar::F64,
+            cart(),
+            10,
+            Some(0.02)
+        )
+        .expect("valid")
+        .extrapolated
     );
 }
 
@@ -150,15 +225,15 @@ fn extrapolated_outside_the_calibrated_sizes() {
 fn bad_inputs_name_the_key() {
     let t = Target::CortexM4F;
     for ts in [0.0, -0.02, f64::NAN, f64::INFINITY] {
-        let e = fits(t, 168.0, "pg", cart(), 10, Some(ts)).expect_err("bad T_s");
+        let e = fits(t, 168.0, "pg", Scalar::F64, cart(), 10, Some(ts)).expect_err("bad T_s");
         assert_eq!(e.key, "plant.sample_time", "{ts}");
     }
     for c in [0.0, -1.0, f64::NAN] {
-        let e = fits(t, c, "pg", cart(), 10, Some(0.02)).expect_err("bad clock");
+        let e = fits(t, c, "pg", Scalar::F64, cart(), 10, Some(0.02)).expect_err("bad clock");
         assert_eq!(e.key, "--clock-mhz", "{c}");
     }
     assert_eq!(
-        fits(t, 168.0, "pg", cart(), 0, Some(0.02))
+        fits(t, 168.0, "pg", Scalar::F64, cart(), 0, Some(0.02))
             .expect_err("K = 0")
             .key,
         "K"

@@ -58,6 +58,12 @@ impl<T: Scalar> MpcProblem<'_, T> {
         check("qp n", nseq, w.n)?;
         check("qp n_theta", nx, w.n_theta)?;
         check("qp h length", nseq * nseq, w.h.len())?;
+        // The structured product is the MHE window's; the MPC's QP runs on its dense H.
+        check(
+            "qp structured (none for the MPC)",
+            0,
+            usize::from(w.structured.is_some()),
+        )?;
         check("qp q0 length", nseq, w.q0.len())?;
         check("qp f length", nseq * nx, w.f.len())?;
         check("qp lower length", nseq, w.lower.len())?;

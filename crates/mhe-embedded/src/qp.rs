@@ -29,6 +29,16 @@ fn matvec<S: Scalar>(h: &[S], n: usize, x: &[S], y: &mut [S]) {
     }
 }
 
+/// y[..n] = Hx: the dense H, or the window's structured product (on the scaled problem
+/// D H_c D, as the std map's `DiagonalScaled` operator) with `wa`, `wb` as its workspaces.
+#[inline]
+fn hessian<S: Scalar>(w: &Window<'_, S>, x: &[S], y: &mut [S], wa: &mut [S], wb: &mut [S]) {
+    match w.structured {
+        Some(st) => st.apply(w.scaling, x, y, wa, wb),
+        None => matvec(w.h, w.n, x, y),
+    }
+}
+
 /// q = q₀ + Fθ, each row summed from q₀ᵢ in θ order (`ParametricQp::linear_term`).
 #[inline]
 fn linear_term<S: Scalar>(w: &Window<'_, S>, theta: &[S], q: &mut [S]) {
@@ -79,9 +89,9 @@ pub(crate) fn run<S: Scalar>(
     }
     match method {
         Method::Pg => {
-            let [z, _, q, _, hz, _] = &mut v;
+            let [z, wa, q, wb, hz, _] = &mut v;
             for _ in 0..iterations {
-                matvec(w.h, n, z, hz);
+                hessian(w, z, hz, wa, wb);
                 for i in 0..n {
                     let x = z[i] - w.step * (hz[i] + q[i]);
                     z[i] = clamp(x, lo[i], hi[i]);
@@ -89,16 +99,27 @@ pub(crate) fn run<S: Scalar>(
             }
         }
         Method::Fista => {
-            let [z, y, q, _, hy, _] = &mut v;
+            let [z, y, q, wa, hy, wb] = &mut v;
             y[..n].copy_from_slice(&z[..n]);
             for k in 0..iterations {
                 // The first step after a warm start is the plain PG step (β = 0).
                 let b = if k == 0 { S::ZERO } else { w.momentum };
-                matvec(w.h, n, y, hy);
-                for i in 0..n {
-                    let x = clamp(y[i] - w.step * (hy[i] + q[i]), lo[i], hi[i]);
-                    y[i] = x + b * (x - z[i]);
-                    z[i] = x;
+                hessian(w, y, hy, wa, wb);
+                if w.structured.is_some() {
+                    // The std map's structured branch writes the momentum step as
+                    // y⁺ = (1 + β)x⁺ − βx (the dense kernel as x⁺ + β(x⁺ − x)).
+                    let b1 = S::ONE + b;
+                    for i in 0..n {
+                        let x = clamp(y[i] - w.step * (hy[i] + q[i]), lo[i], hi[i]);
+                        y[i] = b1 * x - b * z[i];
+                        z[i] = x;
+                    }
+                } else {
+                    for i in 0..n {
+                        let x = clamp(y[i] - w.step * (hy[i] + q[i]), lo[i], hi[i]);
+                        y[i] = x + b * (x - z[i]);
+                        z[i] = x;
+                    }
                 }
             }
         }

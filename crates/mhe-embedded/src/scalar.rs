@@ -18,6 +18,8 @@ pub trait Scalar:
 {
     /// 0.
     const ZERO: Self;
+    /// 1.
+    const ONE: Self;
     /// 2.
     const TWO: Self;
     /// Whether the value is neither NaN nor ±∞.
@@ -26,6 +28,7 @@ pub trait Scalar:
 
 impl Scalar for f64 {
     const ZERO: Self = 0.0;
+    const ONE: Self = 1.0;
     const TWO: Self = 2.0;
     #[inline]
     fn is_finite(self) -> bool {
@@ -35,6 +38,7 @@ impl Scalar for f64 {
 
 impl Scalar for f32 {
     const ZERO: Self = 0.0;
+    const ONE: Self = 1.0;
     const TWO: Self = 2.0;
     #[inline]
     fn is_finite(self) -> bool {

@@ -3,7 +3,7 @@
 
 use std::fmt::Write as _;
 
-use super::extract::{OwnedMpc, OwnedProblem, OwnedWindow};
+use super::extract::{OwnedMpc, OwnedProblem, OwnedStructured, OwnedWindow};
 use super::{Header, ScalarKind};
 
 /// The fixed sources.
@@ -141,9 +141,59 @@ fn table(out: &mut String, name: &str, cols: &str, rows: &[&[f64]], s: ScalarKin
 }
 
 /// `mhe_data.c`.
+/// The plant blocks every structured window shares (`structured_a`, …), written once.
+fn structured_shared(out: &mut String, st: &OwnedStructured, s: ScalarKind) {
+    for (name, v) in [
+        ("structured_a", &st.a),
+        ("structured_e", &st.e),
+        ("structured_c", &st.c),
+        ("structured_f", &st.f),
+        ("structured_q", &st.q),
+        ("structured_r", &st.r),
+    ] {
+        array(out, name, v, s);
+    }
+}
+
+/// Window `prefix`'s `mhe_structured` (its 4η^m P and η^{m−1−j}; the shared blocks by
+/// name), and the `structured` field's value.
+fn structured(
+    out: &mut String,
+    prefix: &str,
+    st: Option<&OwnedStructured>,
+    s: ScalarKind,
+) -> String {
+    let Some(st) = st else {
+        return "0".into();
+    };
+    let p = array(out, &format!("{prefix}_structured_p"), &st.p, s);
+    let decay = array(out, &format!("{prefix}_structured_decay"), &st.decay, s);
+    let fixed = usize::from(st.order == mhe_embedded::SumOrder::Fixed);
+    // An empty block (e.g. n_w2 = 0) has no array: a null pointer it never reads.
+    let name = |n: &'static str, v: &[f64]| if v.is_empty() { "0" } else { n };
+    let _ = writeln!(
+        out,
+        "static const mhe_structured {prefix}_structured = {{{}, {}, {}, {}, {}, {fixed}, \
+         {}, {}, {}, {}, {}, {}, {p}, {decay}}};",
+        st.nx,
+        st.ny,
+        st.nw1,
+        st.nw2,
+        st.decay.len(),
+        name("structured_a", &st.a),
+        name("structured_e", &st.e),
+        name("structured_c", &st.c),
+        name("structured_f", &st.f),
+        name("structured_q", &st.q),
+        name("structured_r", &st.r),
+    );
+    format!("&{prefix}_structured")
+}
+
 /// The arrays of one QP (named `{prefix}_h`, …) and its `mhe_window` initializer.
 fn window(out: &mut String, prefix: &str, w: &OwnedWindow, s: ScalarKind) -> String {
     let name = |f: &str| format!("{prefix}_{f}");
+    let structured = structured(out, prefix, w.structured.as_ref(), s);
     let h = array(out, &name("h"), &w.h, s);
     let m_rho = array(out, &name("m_rho"), &w.m_rho, s);
     let m_inv = array(out, &name("m_inv"), &w.m_inv, s);
@@ -153,7 +203,8 @@ fn window(out: &mut String, prefix: &str, w: &OwnedWindow, s: ScalarKind) -> Str
     let hi = array(out, &name("upper"), &w.upper, s);
     let d = array(out, &name("scaling"), &w.scaling, s);
     format!(
-        "{{{n}, {nt}, {h}, {m_rho}, {m_inv}, {q0}, {f}, {lo}, {hi}, {d}, {st}, {mo}, {ir}, {re}}}",
+        "{{{n}, {nt}, {h}, {m_rho}, {m_inv}, {q0}, {f}, {lo}, {hi}, {d}, {st}, {mo}, {ir}, {re}, \
+         {structured}}}",
         n = w.n,
         nt = w.n_theta,
         st = literal(w.step, s),
@@ -199,6 +250,9 @@ pub(crate) fn data_c(p: &OwnedProblem, mpc: Option<&OwnedMpc>, a: &Header) -> St
     let ma = array(&mut out, "model_a", &p.a, s);
     let mb = array(&mut out, "model_b", &p.b, s);
     let me = array(&mut out, "model_e", &p.e, s);
+    if let Some(st) = p.windows.iter().find_map(|w| w.structured.as_ref()) {
+        structured_shared(&mut out, st, s);
+    }
     let mut windows = Vec::new();
     for (m, w) in p.windows.iter().enumerate() {
         windows.push(window(&mut out, &format!("w{m}"), w, s));
@@ -369,8 +423,21 @@ fn window_bytes(w: &OwnedWindow, bytes: usize) -> usize {
         + w.lower.len()
         + w.upper.len()
         + w.scaling.len()
+        + w.structured
+            .as_ref()
+            .map_or(0, |st| st.p.len() + st.decay.len())
         + 4;
     n * bytes
+}
+
+/// Bytes of the plant blocks the structured windows share (0 without one).
+fn structured_shared_bytes(p: &OwnedProblem, bytes: usize) -> usize {
+    p.windows
+        .iter()
+        .find_map(|w| w.structured.as_ref())
+        .map_or(0, |st| {
+            (st.a.len() + st.e.len() + st.c.len() + st.f.len() + st.q.len() + st.r.len()) * bytes
+        })
 }
 
 /// The README's firmware section: memory layout (computed from the exported sizes), the
@@ -389,7 +456,7 @@ pub(crate) fn firmware_readme(
     let m = p.horizon;
     let full = window_bytes(&p.windows[m], b);
     let startup: usize = p.windows[..m].iter().map(|w| window_bytes(w, b)).sum();
-    let model = (p.a.len() + p.b.len() + p.e.len()) * b;
+    let model = (p.a.len() + p.b.len() + p.e.len()) * b + structured_shared_bytes(p, b);
     let mpc_data = mpc.map_or(0, |c| window_bytes(&c.qp, b));
     let total = full + startup + model + mpc_data;
     let self_test = self_test_steps(p, a) * (p.nu.max(1) + p.ny + p.nx) * b;
@@ -397,12 +464,18 @@ pub(crate) fn firmware_readme(
     let state = reals * b;
     let mpc_state = mpc.map_or(0, |c| 8 * c.nseq() * b);
     let pct = |x: usize| 100.0 * x as f64 / total.max(1) as f64;
+    let shared = if structured_shared_bytes(p, b) > 0 {
+        " (and the structured product's A, E, C, F, 4Q, 2R: the long windows store these, \
+         4η^m P and η^{m−1−j} instead of H)"
+    } else {
+        ""
+    };
     let mut s = format!(
         "\n## Memory layout\n\n\
          | what | where | bytes |\n| --- | --- | --- |\n\
          | ℙ_t of the full window (m = M = {m}) | flash (`const`) | {full} ({:.0} %) |\n\
          | ℙ_t of the start-up windows m = 0..{} | flash | {startup} ({:.0} %) |\n\
-         | model A, B, E | flash | {model} |\n\
+         | model A, B, E{shared} | flash | {model} |\n\
          | the MPC's QP | flash | {mpc_data} |\n\
          | self-test steps | flash | {self_test} |\n\
          | estimator state (`mhe_state` / `Mhe`) | RAM, per instance | ≈ {state} + a few words |\n\

@@ -27,12 +27,108 @@ pub(crate) struct OwnedWindow {
     pub momentum: f64,
     pub inv_rho: f64,
     pub relaxation: f64,
+    /// PG and FISTA from the std crossover: the structured product's factors (`h` empty).
+    pub structured: Option<OwnedStructured>,
+}
+
+/// The factors of one window's structured H_c (the fields of
+/// [`mhe_embedded::Structured`], owned): the numbers `mhe_core::structured::MheHessian`
+/// builds its blocks from, with the same weight scalings (4η^m P, 4Q, 2R) computed the same
+/// way, so the f64 values are its bits.
+#[derive(Debug, Clone, PartialEq)]
+pub(crate) struct OwnedStructured {
+    pub nx: usize,
+    pub ny: usize,
+    pub nw1: usize,
+    pub nw2: usize,
+    pub order: mhe_embedded::SumOrder,
+    pub a: Vec<f64>,
+    pub e: Vec<f64>,
+    pub c: Vec<f64>,
+    pub f: Vec<f64>,
+    pub q: Vec<f64>,
+    pub r: Vec<f64>,
+    pub p: Vec<f64>,
+    pub decay: Vec<f64>,
+}
+
+/// `s·m` by columns (entry (i, j) at j·rows + i).
+fn col_major(m: faer::MatRef<'_, f64>, s: f64) -> Vec<f64> {
+    let r = m.nrows();
+    (0..r * m.ncols()).map(|k| s * m[(k % r, k / r)]).collect()
+}
+
+/// η^k as `mhe_core` computes it (`powi` of the exponent as i32).
+fn eta_pow(eta: f64, k: usize) -> f64 {
+    eta.powi(i32::try_from(k).unwrap_or(i32::MAX))
+}
+
+/// The largest n_x, n_y, n_w1, n_w2 of the std fixed-size products (beyond: run-time sizes).
+const FIXED_MAX: usize = 16;
+
+impl OwnedStructured {
+    /// The factors of window m (length m) of the MHE with this plant and these weights.
+    pub(crate) fn new(sys: &LtiSystem, w: &mhe_core::MheWeights, m: usize) -> Self {
+        let (nx, ny, nw1, nw2) = (sys.nx(), sys.ny(), sys.nw1(), sys.nw2());
+        let order = if [nx, ny, nw1, nw2].iter().all(|&d| d <= FIXED_MAX) {
+            mhe_embedded::SumOrder::Fixed
+        } else {
+            mhe_embedded::SumOrder::RunTime
+        };
+        Self {
+            nx,
+            ny,
+            nw1,
+            nw2,
+            order,
+            a: col_major(sys.a(), 1.0),
+            e: col_major(sys.e(), 1.0),
+            c: col_major(sys.c(), 1.0),
+            f: col_major(sys.f(), 1.0),
+            q: col_major(w.q.as_ref(), 4.0),
+            r: col_major(w.r.as_ref(), 2.0),
+            p: col_major(w.p.as_ref(), 4.0 * eta_pow(w.eta, m)),
+            decay: (0..m).map(|j| eta_pow(w.eta, m - 1 - j)).collect(),
+        }
+    }
+
+    /// The `mhe_embedded` view (borrowing `self`).
+    #[cfg(test)]
+    pub(crate) fn view(&self) -> mhe_embedded::Structured<'_, f64> {
+        mhe_embedded::Structured {
+            nx: self.nx,
+            ny: self.ny,
+            nw1: self.nw1,
+            nw2: self.nw2,
+            order: self.order,
+            a: &self.a,
+            e: &self.e,
+            c: &self.c,
+            f: &self.f,
+            q: &self.q,
+            r: &self.r,
+            p: &self.p,
+            decay: &self.decay,
+        }
+    }
+
+    /// Whether the two workspaces fit in the estimator's work vectors of n = n_x + m n_w
+    /// (as `mhe_embedded` checks).
+    fn fits(&self) -> bool {
+        let nw = self.nw1 + self.nw2;
+        let n = self.nx + self.decay.len() * nw;
+        self.decay.len() * self.ny <= n && 4 * self.nx + self.ny + 2 * nw <= n
+    }
 }
 
 impl OwnedWindow {
-    /// The `mhe_embedded` view (borrowing `self`).
+    /// The `mhe_embedded` view (borrowing `self`; the structured factors from `st`, the
+    /// view of `self.structured`).
     #[cfg(test)]
-    pub(crate) fn view(&self) -> mhe_embedded::Window<'_, f64> {
+    pub(crate) fn view<'a>(
+        &'a self,
+        st: Option<&'a mhe_embedded::Structured<'a, f64>>,
+    ) -> mhe_embedded::Window<'a, f64> {
         let w = self;
         mhe_embedded::Window {
             n: w.n,
@@ -49,6 +145,7 @@ impl OwnedWindow {
             momentum: w.momentum,
             inv_rho: w.inv_rho,
             relaxation: w.relaxation,
+            structured: st,
         }
     }
 }
@@ -93,13 +190,25 @@ pub(crate) fn portable_estimator(
     cfg.iterations = iterations;
     cfg.exact_solve = false;
     let sc = resolved.scenario();
-    Ok(MheEstimator::new(
+    // `with_kernel` reaches the maps' dense steps only: the structured product of a long
+    // window (`mhe_core::structured::MheHessian`) takes FMA or not from the global kernel
+    // when the problem is built. So the problem is built with the global kernel portable
+    // (restored after; one build at a time in this process).
+    static BUILD: std::sync::Mutex<()> = std::sync::Mutex::new(());
+    let _one = BUILD
+        .lock()
+        .unwrap_or_else(std::sync::PoisonError::into_inner);
+    let previous = qp_iter::kernel::get_global_kernel();
+    qp_iter::kernel::set_global_kernel(Kernel::portable());
+    let est = MheEstimator::new(
         &sc.plant,
         resolved.mhe_sets(),
         &cfg,
         &sc.simulation.prior,
         |qp| Ok(method.build(qp)?.with_kernel(Kernel::portable())),
-    )?)
+    );
+    qp_iter::kernel::set_global_kernel(previous);
+    Ok(est?)
 }
 
 /// Column-major n × n copy of a padded matrix (entry (i, j) at j·n + i).
@@ -121,7 +230,15 @@ fn row_major_f(qp: &ParametricQp) -> Vec<f64> {
     (0..n * nt).map(|k| f[(k / nt, k % nt)]).collect()
 }
 
-fn window_of(map: &MethodMap, m: usize) -> Result<(mhe_embedded::Method, OwnedWindow)> {
+/// The plant and weights an MHE window's structured product is built from (`None`: the
+/// MPC's QP, which has none).
+type StructuredSource<'a> = Option<(&'a LtiSystem, &'a mhe_core::MheWeights)>;
+
+fn window_of(
+    map: &MethodMap,
+    m: usize,
+    src: StructuredSource<'_>,
+) -> Result<(mhe_embedded::Method, OwnedWindow)> {
     let qp = map.problem();
     if qp.general().is_some() {
         bail!(
@@ -144,28 +261,44 @@ fn window_of(map: &MethodMap, m: usize) -> Result<(mhe_embedded::Method, OwnedWi
         momentum: 0.0,
         inv_rho: 0.0,
         relaxation: 0.0,
+        structured: None,
     };
-    let structured = || {
-        anyhow::anyhow!(
-            "window m = {m} (n = {}) runs through the structured Hessian product, which the \
-             embedded estimator does not implement; export a shorter horizon",
-            qp.n()
-        )
+    // The std map runs Hz through the structured product: export its factors, not H.
+    let structured = |mut w: OwnedWindow| -> Result<OwnedWindow> {
+        let Some((sys, weights)) = src else {
+            bail!(
+                "window m = {m} (n = {}) runs through a structured Hessian product that is \
+                 not the MHE window's; the embedded code does not implement it",
+                qp.n()
+            );
+        };
+        let st = OwnedStructured::new(sys, weights, m);
+        if !st.fits() {
+            bail!(
+                "window m = {m} (n = {}): the structured Hessian product's workspace does not \
+                 fit the embedded estimator's work vectors (needs m n_y ≤ n and \
+                 4n_x + n_y + 2n_w ≤ n); export a shorter horizon",
+                qp.n()
+            );
+        }
+        w.h = Vec::new();
+        w.structured = Some(st);
+        Ok(w)
     };
     Ok(match map {
         MethodMap::Pg(pg) => {
-            if pg.is_structured() {
-                return Err(structured());
-            }
             let mut w = base(qp);
+            if pg.is_structured() {
+                w = structured(w)?;
+            }
             w.step = pg.alpha();
             (mhe_embedded::Method::Pg, w)
         }
         MethodMap::Fista(f) => {
-            if f.is_structured() {
-                return Err(structured());
-            }
             let mut w = base(qp);
+            if f.is_structured() {
+                w = structured(w)?;
+            }
             w.step = f.step_size();
             w.momentum = f.momentum();
             (mhe_embedded::Method::Fista, w)
@@ -183,7 +316,7 @@ fn window_of(map: &MethodMap, m: usize) -> Result<(mhe_embedded::Method, OwnedWi
             "window m = {m}: ADMM split on general rows is not exportable (box constraints only)"
         ),
         MethodMap::Scaled(s) => {
-            let (method, mut w) = window_of(s.inner(), m)?;
+            let (method, mut w) = window_of(s.inner(), m, src)?;
             w.scaling = s.scaling().to_vec();
             (method, w)
         }
@@ -204,8 +337,9 @@ impl OwnedProblem {
     pub(crate) fn from_estimator(est: &MheEstimator<MethodMap>, sys: &LtiSystem) -> Result<Self> {
         let mut method = None;
         let mut windows = Vec::new();
+        let weights = est.problem().weights();
         for (m, map) in est.maps().iter().enumerate() {
-            let (kind, w) = window_of(map, m)?;
+            let (kind, w) = window_of(map, m, Some((sys, weights)))?;
             method = Some(kind);
             windows.push(w);
         }
@@ -279,10 +413,27 @@ impl OwnedProblem {
         self.nx + self.horizon * (self.nu + self.ny)
     }
 
-    /// The windows as `mhe_embedded` views (borrowing `self`).
+    /// The structured factors of the windows as `mhe_embedded` views (borrowing `self`).
     #[cfg(test)]
-    pub(crate) fn window_views(&self) -> Vec<mhe_embedded::Window<'_, f64>> {
-        self.windows.iter().map(OwnedWindow::view).collect()
+    pub(crate) fn structured_views(&self) -> Vec<Option<mhe_embedded::Structured<'_, f64>>> {
+        self.windows
+            .iter()
+            .map(|w| w.structured.as_ref().map(OwnedStructured::view))
+            .collect()
+    }
+
+    /// The windows as `mhe_embedded` views (borrowing `self` and `st`, from
+    /// [`OwnedProblem::structured_views`]).
+    #[cfg(test)]
+    pub(crate) fn window_views<'a>(
+        &'a self,
+        st: &'a [Option<mhe_embedded::Structured<'a, f64>>],
+    ) -> Vec<mhe_embedded::Window<'a, f64>> {
+        self.windows
+            .iter()
+            .zip(st)
+            .map(|(w, s)| w.view(s.as_ref()))
+            .collect()
     }
 
     /// The problem view over `windows` (from [`OwnedProblem::window_views`]).
@@ -355,7 +506,7 @@ impl OwnedMpc {
         if ctrl.warm_start_rule() != mpc_core::WarmStart::ShiftRepeatLast {
             bail!("the embedded MPC implements the shift-and-repeat warm start only");
         }
-        let (method, qp) = window_of(ctrl.map(), 0).map_err(|e| {
+        let (method, qp) = window_of(ctrl.map(), 0, None).map_err(|e| {
             anyhow::anyhow!(
                 "the MPC's QP: {}",
                 e.to_string().replace("window m = 0", "it")
@@ -385,7 +536,7 @@ impl OwnedMpc {
             horizon: self.horizon,
             iterations: self.iterations,
             method: self.method,
-            qp: self.qp.view(),
+            qp: self.qp.view(None),
         }
     }
 }

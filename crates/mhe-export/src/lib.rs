@@ -54,6 +54,8 @@ mod tests_capi;
 mod tests_firmware;
 #[cfg(test)]
 mod tests_mpc;
+#[cfg(test)]
+mod tests_structured;
 
 pub use api::{
     Artefact, ExportOptions, Iterations, Lang, ScalarKind, Source, Stage, export,

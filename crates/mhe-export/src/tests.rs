@@ -91,7 +91,8 @@ fn run_embedded<
     prior: &[f64],
     traj: &[(Vec<f64>, Vec<f64>)],
 ) -> Vec<Vec<f64>> {
-    let views = p.window_views();
+    let st = p.structured_views();
+    let views = p.window_views(&st);
     let problem = p.view(&views);
     let mut mhe =
         mhe_embedded::Mhe::<f64, NX, NU, NY, M, NZ, NTH>::new(&problem, prior.try_into().unwrap())
@@ -532,7 +533,8 @@ fn f32_deviation(seeds: u64, method: Method) -> (f64, f64) {
     let base = case("case-study-certified.toml", None);
     let est = portable_estimator(&base.resolved, method, base.k).unwrap();
     let p = OwnedProblem::from_estimator(&est, &base.resolved.scenario().plant).unwrap();
-    let views = p.window_views();
+    let st = p.structured_views();
+    let views = p.window_views(&st);
     let p64 = p.view(&views);
     let f32s = |v: &[f64]| v.iter().map(|x| *x as f32).collect::<Vec<f32>>();
     let store: Vec<[Vec<f32>; 8]> = p
@@ -570,6 +572,7 @@ fn f32_deviation(seeds: u64, method: Method) -> (f64, f64) {
             momentum: w.momentum as f32,
             inv_rho: w.inv_rho as f32,
             relaxation: w.relaxation as f32,
+            structured: None,
         })
         .collect();
     let (a, b, e) = (f32s(&p.a), f32s(&p.b), f32s(&p.e));

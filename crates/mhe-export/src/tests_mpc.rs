@@ -94,7 +94,8 @@ fn run_embedded<
     prior: &[f64],
     ys: &[Vec<f64>],
 ) -> Vec<(Vec<f64>, Vec<f64>)> {
-    let views = p.window_views();
+    let st = p.structured_views();
+    let views = p.window_views(&st);
     let problem = p.view(&views);
     let mp = mpc.view();
     let mut mhe =

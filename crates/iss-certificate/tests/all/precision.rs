@@ -115,6 +115,7 @@ fn deviation_vs_bound(seeds: u64) -> (f64, f64, f64) {
             momentum: 0.0,
             inv_rho: 0.0,
             relaxation: 0.0,
+            structured: None,
         })
         .collect();
     let s32: Vec<[Vec<f32>; 5]> = ws
@@ -147,6 +148,7 @@ fn deviation_vs_bound(seeds: u64) -> (f64, f64, f64) {
             momentum: 0.0,
             inv_rho: 0.0,
             relaxation: 0.0,
+            structured: None,
         })
         .collect();
     let rm = |m: faer::MatRef<'_, f64>| lti_model::matrix::row_major(m);

@@ -33,6 +33,129 @@ static void matvec(const mhe_real *h, int n, const mhe_real *x, mhe_real *y) {
     }
 }
 
+/* out[..r] = (out when acc) + B x (B(i, k) = b[i*rs + k*cs], x of c entries) in the std
+ * fixed-size product's order: per row the even columns in s0 (from the accumulated term,
+ * else from column 0), the odd ones in s1 (from column 1), then s0 + s1. */
+static void gemv_fixed(const mhe_real *b, long rs, long cs, int r, const mhe_real *x, int c,
+                       mhe_real *out, int acc) {
+    int i, k;
+    for (i = 0; i < r; i++) {
+        mhe_real s0 = acc ? out[i] : (mhe_real)0, s1 = (mhe_real)0;
+        for (k = 0; k < c; k++) {
+            mhe_real p = b[i * rs + k * cs] * x[k];
+            if (k % 2 == 0) {
+                s0 = (k == 0 && !acc) ? p : p + s0;
+            } else if (k == 1) {
+                s1 = p;
+            } else {
+                s1 = p + s1;
+            }
+        }
+        out[i] = (c > 1) ? s0 + s1 : s0;
+    }
+}
+
+/* out[..r] += B x in column order (the std run-time-size product). */
+static void gemv_seq(const mhe_real *b, long rs, long cs, int r, const mhe_real *x, int c,
+                     mhe_real *out) {
+    int i, k;
+    for (k = 0; k < c; k++)
+        for (i = 0; i < r; i++) out[i] = out[i] + b[i * rs + k * cs] * x[k];
+}
+
+/* B x into out (fresh when !acc) in the window's order. */
+static void gemv_st(int fixed, const mhe_real *b, long rs, long cs, int r, const mhe_real *x,
+                    int c, mhe_real *out, int acc) {
+    int i;
+    if (fixed) {
+        gemv_fixed(b, rs, cs, r, x, c, out, acc);
+    } else {
+        if (!acc)
+            for (i = 0; i < r; i++) out[i] = (mhe_real)0;
+        gemv_seq(b, rs, cs, r, x, c, out);
+    }
+}
+
+/* dst = d .* src (d NULL: a copy). */
+static void load_scaled(mhe_real *dst, const mhe_real *src, const mhe_real *d, int n) {
+    int i;
+    for (i = 0; i < n; i++) dst[i] = d ? d[i] * src[i] : src[i];
+}
+
+/* out[..n] = H_c z (d non-NULL: D H_c D z) through the window's factors: mhe-embedded's
+ * Structured::apply, operation for operation. wa: m*ny scalars (g_y per stage); wb:
+ * 4nx + ny + 2nw. */
+static void structured_apply(const mhe_structured *st, const mhe_real *d, const mhe_real *z,
+                             mhe_real *out, mhe_real *wa, mhe_real *wb) {
+    int nx = st->nx, ny = st->ny, nw1 = st->nw1, nw2 = st->nw2, nw = nw1 + nw2, m = st->m;
+    int fx = st->fixed_order, i, j;
+    mhe_real *x = wb, *xn = wb + nx, *lam = wb + 2 * nx, *lamn = wb + 3 * nx;
+    mhe_real *y = wb + 4 * nx, *wd = y + ny, *v = wd + nw;
+    const mhe_real *zw = z + nx;
+    mhe_real *ow = out + nx;
+    load_scaled(x, z, d, nx);
+    for (j = 0; j < m; j++) {
+        mhe_real eta = st->decay[j];
+        mhe_real *gy = wa + (long)j * ny, *o = ow + (long)j * nw;
+        const mhe_real *dj = d ? d + nx + (long)j * nw : 0;
+        load_scaled(wd, zw + (long)j * nw, dj, nw);
+        for (i = 0; i < nw; i++) v[i] = eta * wd[i];
+        if (fx) {
+            gemv_fixed(st->f, 1, ny, ny, wd + nw1, nw2, y, 0);
+            gemv_fixed(st->c, 1, ny, ny, x, nx, y, 1);
+            gemv_fixed(st->r, 1, ny, ny, y, ny, gy, 0);
+            for (i = 0; i < ny; i++) gy[i] = eta * gy[i];
+            gemv_fixed(st->q + (long)nw1 * nw, 1, nw, nw1, v + nw1, nw2, o, 0);
+            gemv_fixed(st->q, 1, nw, nw1, v, nw1, o, 1);
+            gemv_fixed(st->f, ny, 1, nw2, gy, ny, o + nw1, 0);
+            gemv_fixed(st->q + (long)nw1 * nw + nw1, 1, nw, nw2, v + nw1, nw2, o + nw1, 1);
+            gemv_fixed(st->q + nw1, 1, nw, nw2, v, nw1, o + nw1, 1);
+            gemv_fixed(st->e, 1, nx, nx, wd, nw1, xn, 0);
+            gemv_fixed(st->a, 1, nx, nx, x, nx, xn, 1);
+        } else {
+            for (i = 0; i < ny; i++) y[i] = (mhe_real)0;
+            gemv_seq(st->f, 1, ny, ny, wd + nw1, nw2, y);
+            gemv_seq(st->c, 1, ny, ny, x, nx, y);
+            for (i = 0; i < ny; i++) gy[i] = (mhe_real)0;
+            gemv_seq(st->r, 1, ny, ny, y, ny, gy);
+            for (i = 0; i < ny; i++) gy[i] = gy[i] * eta;
+            for (i = 0; i < nw; i++) o[i] = (mhe_real)0;
+            gemv_seq(st->q, 1, nw, nw, v, nw, o);
+            gemv_seq(st->f, ny, 1, nw2, gy, ny, o + nw1);
+            for (i = 0; i < nx; i++) xn[i] = (mhe_real)0;
+            gemv_seq(st->e, 1, nx, nx, wd, nw1, xn);
+            gemv_seq(st->a, 1, nx, nx, x, nx, xn);
+        }
+        for (i = 0; i < nx; i++) x[i] = xn[i];
+    }
+    for (i = 0; i < nx; i++) lam[i] = (mhe_real)0;
+    for (j = m - 1; j >= 0; j--) {
+        mhe_real *o = ow + (long)j * nw;
+        const mhe_real *gy = wa + (long)j * ny;
+        gemv_st(fx, st->e, nx, 1, nw1, lam, nx, o, 1);
+        if (d)
+            for (i = 0; i < nw; i++) o[i] = o[i] * d[nx + (long)j * nw + i];
+        gemv_st(fx, st->c, ny, 1, nx, gy, ny, lamn, 0);
+        gemv_st(fx, st->a, nx, 1, nx, lam, nx, lamn, 1);
+        for (i = 0; i < nx; i++) lam[i] = lamn[i];
+    }
+    load_scaled(x, z, d, nx);
+    for (i = 0; i < nx; i++) out[i] = lam[i];
+    gemv_st(fx, st->p, 1, nx, nx, x, nx, out, 1);
+    if (d)
+        for (i = 0; i < nx; i++) out[i] = d[i] * out[i];
+}
+
+/* y[..n] = H x: the dense h, or the window's structured product (on the scaled problem
+ * D H_c D) with wa, wb as its workspaces. */
+static void hessian(const mhe_window *w, const mhe_real *x, mhe_real *y, mhe_real *wa,
+                    mhe_real *wb) {
+    if (w->structured)
+        structured_apply(w->structured, w->scaling, x, y, wa, wb);
+    else
+        matvec(w->h, w->n, x, y);
+}
+
 /* q = q0 + F theta, each row summed from q0_i in theta order. */
 static void linear_term(const mhe_window *w, const mhe_real *theta, mhe_real *q) {
     int i, k, nt = w->n_theta;
@@ -61,7 +184,7 @@ void mhe_run_window(const mhe_window *w, int method, const mhe_real *theta,
     if (method == MHE_PG) {
         mhe_real *hz = v[4];
         for (k = 0; k < iterations; k++) {
-            matvec(w->h, n, z, hz);
+            hessian(w, z, hz, v[1], v[3]);
             for (i = 0; i < n; i++) {
                 mhe_real x = z[i] - w->step * (hz[i] + q[i]);
                 z[i] = clampr(x, lo[i], hi[i]);
@@ -72,11 +195,21 @@ void mhe_run_window(const mhe_window *w, int method, const mhe_real *theta,
         for (i = 0; i < n; i++) y[i] = z[i];
         for (k = 0; k < iterations; k++) {
             mhe_real b = (k == 0) ? (mhe_real)0 : w->momentum;
-            matvec(w->h, n, y, hy);
-            for (i = 0; i < n; i++) {
-                mhe_real x = clampr(y[i] - w->step * (hy[i] + q[i]), lo[i], hi[i]);
-                y[i] = x + b * (x - z[i]);
-                z[i] = x;
+            hessian(w, y, hy, v[3], v[5]);
+            if (w->structured) {
+                /* The std structured branch: y+ = (1 + b) x+ - b x. */
+                mhe_real b1 = (mhe_real)1 + b;
+                for (i = 0; i < n; i++) {
+                    mhe_real x = clampr(y[i] - w->step * (hy[i] + q[i]), lo[i], hi[i]);
+                    y[i] = b1 * x - b * z[i];
+                    z[i] = x;
+                }
+            } else {
+                for (i = 0; i < n; i++) {
+                    mhe_real x = clampr(y[i] - w->step * (hy[i] + q[i]), lo[i], hi[i]);
+                    y[i] = x + b * (x - z[i]);
+                    z[i] = x;
+                }
             }
         }
     } else {

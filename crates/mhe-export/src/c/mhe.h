@@ -15,6 +15,17 @@ extern "C" {
 enum { MHE_PG = 0, MHE_FISTA = 1, MHE_ADMM = 2 };
 enum { MHE_WARM_PAPER = 0, MHE_WARM_SHIFTED = 1 };
 
+/* PG and FISTA on a long window: the factors of H's structured product (as mhe-embedded's
+ * Structured; every block by columns, entry (i, k) at k*rows + i), run instead of a dense
+ * H as the std estimator does from its crossover. */
+typedef struct {
+    int nx, ny, nw1, nw2, m;
+    int fixed_order; /* 1: the std fixed-size product's summation order, 0: run-time sizes */
+    const mhe_real *a, *e, *c, *f; /* A, E, C, F */
+    const mhe_real *q, *r, *p;     /* 4Q, 2R, 4 eta^m P */
+    const mhe_real *decay;         /* eta^(m-1-j), j = 0..m-1 */
+} mhe_structured;
+
 /* Problem P_t of one window length m (entries as in mhe-embedded's Window). */
 typedef struct {
     int n, n_theta;
@@ -26,6 +37,7 @@ typedef struct {
     const mhe_real *lower, *upper; /* n */
     const mhe_real *scaling; /* Jacobi d (z = D y) or NULL */
     mhe_real step, momentum, inv_rho, relaxation;
+    const mhe_structured *structured; /* NULL: the dense h */
 } mhe_window;
 
 typedef struct {

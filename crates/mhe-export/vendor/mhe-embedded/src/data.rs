@@ -2,6 +2,7 @@
 //! `cargo xtask export`), and its validation.
 
 use crate::scalar::Scalar;
+use crate::structured::Structured;
 
 /// The iteration map Φ.
 #[derive(Debug, Clone, Copy, PartialEq, Eq)]
@@ -33,7 +34,8 @@ pub struct Window<'a, T> {
     pub n: usize,
     /// n_θ = n_x + m (n_u + n_y).
     pub n_theta: usize,
-    /// H (n × n, symmetric), entry (i, j) at j·n + i.
+    /// H (n × n, symmetric), entry (i, j) at j·n + i; empty when `structured` holds the
+    /// window's factors instead.
     pub h: &'a [T],
     /// ADMM: ρ(H + ρI)⁻¹ (n × n, j·n + i); empty for the other methods.
     pub m_rho: &'a [T],
@@ -57,6 +59,9 @@ pub struct Window<'a, T> {
     pub inv_rho: T,
     /// ADMM: the relaxation α.
     pub relaxation: T,
+    /// PG and FISTA on a long window: H's factors, the product run instead of the dense H
+    /// (as the std estimator from n ≥ its crossover); `None`: the dense H.
+    pub structured: Option<&'a Structured<'a, T>>,
 }
 
 /// Everything the estimator needs: the model, M, K, the method and ℙ_t for m = 0..M.
@@ -170,7 +175,22 @@ impl<T: Scalar> Problem<'_, T> {
             let n = self.nx + k * self.nw();
             check("window n", n, w.n)?;
             check("window n_theta", self.nx + k * (nu + ny), w.n_theta)?;
-            check("window h length", n * n, w.h.len())?;
+            match w.structured {
+                Some(st) => {
+                    if self.method == Method::Admm {
+                        return Err(DataError {
+                            what: "window structured (PG and FISTA only; ADMM needs h)",
+                            expected: 0,
+                            actual: 1,
+                        });
+                    }
+                    st.validate(self.nx, ny, self.nw1, self.nw2, k)?;
+                    if !w.h.is_empty() {
+                        check("window h length (structured)", n * n, w.h.len())?;
+                    }
+                }
+                None => check("window h length", n * n, w.h.len())?,
+            }
             check("window q0 length", n, w.q0.len())?;
             check("window f length", n * w.n_theta, w.f.len())?;
             check("window lower length", n, w.lower.len())?;

@@ -300,6 +300,7 @@ mod tests {
         momentum: 0.0,
         inv_rho: 0.0,
         relaxation: 0.0,
+        structured: None,
     };
     static W1: Window<'static, f64> = Window {
         n: 3,
@@ -316,6 +317,7 @@ mod tests {
         momentum: 0.0,
         inv_rho: 0.0,
         relaxation: 0.0,
+        structured: None,
     };
     static W2: Window<'static, f64> = Window {
         n: 5,
@@ -338,6 +340,7 @@ mod tests {
         momentum: 0.0,
         inv_rho: 0.0,
         relaxation: 0.0,
+        structured: None,
     };
     static WINDOWS: [Window<'static, f64>; 3] = [W0, W1, W2];
     static P: Problem<'static, f64> = Problem {

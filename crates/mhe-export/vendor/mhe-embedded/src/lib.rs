@@ -19,6 +19,11 @@
 //! condensed QP over the box 𝒰^N (the same kernel as the estimator's windows), u = the first
 //! block of Uᴷᶜ; together they run the loop of the joint MPC + MHE certificate.
 //!
+//! A long PG or FISTA window (n_z past the std estimator's crossover) carries
+//! [`Structured`] factors instead of H: H_c z through the dynamics in the std structured
+//! product's order, as `mhe_core::structured` (the exporter stores A, E, C, F, 4Q, 2R once and
+//! 4η^m P, η^{m−1−j} per window).
+//!
 //! **Bit identity.** The data are the std build's own numbers (H, F, q₀, the bounds, α, β,
 //! ρ(H + ρI)⁻¹ and (H + ρI)⁻¹, the Jacobi d), and every operation here is the one the std
 //! estimator performs on the portable kernel (`qp_iter::kernel::Kernel::portable`), in the
@@ -35,7 +40,7 @@
 //! static W0: Window<'static, f64> = Window {
 //!     n: 1, n_theta: 1, h: &[2.0], m_rho: &[], m_inv: &[], q0: &[0.0], f: &[-2.0],
 //!     lower: &[f64::NEG_INFINITY], upper: &[f64::INFINITY], scaling: &[],
-//!     step: 0.5, momentum: 0.0, inv_rho: 0.0, relaxation: 0.0,
+//!     step: 0.5, momentum: 0.0, inv_rho: 0.0, relaxation: 0.0, structured: None,
 //! };
 //! static W1: Window<'static, f64> = Window {
 //!     n: 3, n_theta: 2,
@@ -43,6 +48,7 @@
 //!     m_rho: &[], m_inv: &[], q0: &[0.0; 3], f: &[-1.6, 0.0, 0.0, 0.0, 0.0, -2.0],
 //!     lower: &[f64::NEG_INFINITY, -0.1, -0.1], upper: &[f64::INFINITY, 0.1, 0.1],
 //!     scaling: &[], step: 0.4, momentum: 0.0, inv_rho: 0.0, relaxation: 0.0,
+//!     structured: None,
 //! };
 //! static WINDOWS: [Window<'static, f64>; 2] = [W0, W1];
 //! static P: Problem<'static, f64> = Problem {
@@ -66,6 +72,7 @@
 //!     n: 2, n_theta: 1, h: &[4.0, 1.0, 1.0, 2.0], m_rho: &[], m_inv: &[], q0: &[0.0, 0.0],
 //!     f: &[3.0, 1.0], lower: &[-1.0, -1.0], upper: &[1.0, 1.0], scaling: &[],
 //!     step: 0.3, momentum: 0.0, inv_rho: 0.0, relaxation: 0.0,
+//!     structured: None,
 //! };
 //! static MPC: MpcProblem<'static, f64> =
 //!     MpcProblem { nx: 1, nu: 1, horizon: 2, iterations: 30, method: Method::Pg, qp: QP };
@@ -84,9 +91,11 @@ mod mpc;
 mod qp;
 mod runtime;
 mod scalar;
+mod structured;
 
 pub use data::{DataError, Method, Problem, WarmStart, Window};
 pub use estimator::{Mhe, PushError};
 pub use mpc::{Mpc, MpcError, MpcProblem};
 pub use runtime::{MheRt, PushErrorRt};
 pub use scalar::Scalar;
+pub use structured::{Structured, SumOrder};

@@ -397,6 +397,7 @@ mod tests {
             momentum: 0.4,
             inv_rho: 0.8,
             relaxation: 1.6,
+            structured: None,
         }
     }
 

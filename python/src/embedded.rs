@@ -217,6 +217,7 @@ impl F32Estimator {
                 momentum: w.momentum,
                 inv_rho: w.inv_rho,
                 relaxation: w.relaxation,
+                structured: None,
             });
         }
         let rm = |m: faer::MatRef<'_, f64>| f32s(lti_model::matrix::row_major(m));

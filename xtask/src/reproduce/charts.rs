@@ -366,6 +366,57 @@ fn component_grids(scenario: &Scenario, runs: &[Run]) -> (Vec<(String, Figure)>,
     (out, notes)
 }
 
+/// The series of run `r_i` in panel i of a component grid: the true state (black) and its
+/// estimate, or the input or output. Labels hold for every panel (one legend per grid).
+fn run_series(signal: Signal, i: usize, r_i: usize, r: &Run, multi: bool) -> Vec<Series> {
+    let tr = &r.trace;
+    let k = r.summary.k;
+    let pattern = if r_i == 0 {
+        Pattern::Solid
+    } else {
+        Pattern::Dashed
+    };
+    let points = |f: &dyn Fn(usize) -> Option<f64>| -> Vec<(f64, f64)> {
+        (0..tr.len())
+            .filter_map(|t| f(t).map(|v| (t as f64, v)))
+            .collect()
+    };
+    match signal {
+        // The true state of the first run in black; other runs' true states dashed black
+        // (they differ when the estimates do).
+        Signal::State => vec![
+            Series {
+                label: if multi {
+                    format!("true state, K = {k} run")
+                } else {
+                    "true state".to_string()
+                },
+                points: points(&|t| tr.x(t).map(|x| x[i])),
+                color: 0,
+                pattern,
+                markers: false,
+            },
+            Series {
+                label: format!("estimate x̂, K = {k}"),
+                points: points(&|t| tr.x_hat(t).map(|x| x[i])),
+                color: r_i + 1,
+                pattern,
+                markers: false,
+            },
+        ],
+        Signal::Input | Signal::Output => vec![Series {
+            label: format!("K = {k}"),
+            points: points(&|t| match signal {
+                Signal::Input => tr.u(t).map(|u| u[i]),
+                _ => tr.y(t).map(|y| y[i]),
+            }),
+            color: r_i + 1,
+            pattern,
+            markers: false,
+        }],
+    }
+}
+
 /// Panel i of a component grid (the grid draws one legend for all panels).
 fn component_panel(
     signal: Signal,
@@ -377,56 +428,11 @@ fn component_panel(
 ) -> Chart {
     let sub = subscript(i + 1);
     let multi = runs.len() > 1;
-    let mut series = Vec::new();
-    for (r_i, r) in runs.iter().enumerate() {
-        let tr = &r.trace;
-        let k = r.summary.k;
-        let pattern = if r_i == 0 {
-            Pattern::Solid
-        } else {
-            Pattern::Dashed
-        };
-        let points = |f: &dyn Fn(usize) -> Option<f64>| -> Vec<(f64, f64)> {
-            (0..tr.len())
-                .filter_map(|t| f(t).map(|v| (t as f64, v)))
-                .collect()
-        };
-        match signal {
-            Signal::State => {
-                // The true state of the first run in black; other runs' true states dashed
-                // black (they differ when the estimates do). Labels hold for every panel
-                // (one legend per grid).
-                series.push(Series {
-                    label: if multi {
-                        format!("true state, K = {k} run")
-                    } else {
-                        "true state".to_string()
-                    },
-                    points: points(&|t| tr.x(t).map(|x| x[i])),
-                    color: 0,
-                    pattern,
-                    markers: false,
-                });
-                series.push(Series {
-                    label: format!("estimate x̂, K = {k}"),
-                    points: points(&|t| tr.x_hat(t).map(|x| x[i])),
-                    color: r_i + 1,
-                    pattern,
-                    markers: false,
-                });
-            }
-            Signal::Input | Signal::Output => series.push(Series {
-                label: format!("K = {k}"),
-                points: points(&|t| match signal {
-                    Signal::Input => tr.u(t).map(|u| u[i]),
-                    _ => tr.y(t).map(|y| y[i]),
-                }),
-                color: r_i + 1,
-                pattern,
-                markers: false,
-            }),
-        }
-    }
+    let series = runs
+        .iter()
+        .enumerate()
+        .flat_map(|(r_i, r)| run_series(signal, i, r_i, r, multi))
+        .collect();
     let mut hlines = Vec::new();
     if let Some(b) = bounds {
         for y in [b.lower()[i], b.upper()[i]] {

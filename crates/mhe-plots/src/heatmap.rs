@@ -282,7 +282,7 @@ pub struct HeatMap {
     pub k_e: Axis,
     /// The y axis.
     pub k_c: Axis,
-    /// values[i][j] at (K_e index i, K_c index j); `None`: missing (light grey); +∞:
+    /// `values[i][j]` at (K_e index i, K_c index j); `None`: missing (light grey); +∞:
     /// diverged (dark grey).
     pub values: Vec<Vec<Option<f64>>>,
     /// How values map to colours.

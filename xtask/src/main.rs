@@ -25,7 +25,6 @@ mod output;
 mod budget;
 mod certify;
 mod export;
-mod figures;
 mod kernel_env;
 mod provenance;
 mod reproduce;

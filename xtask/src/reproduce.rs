@@ -39,7 +39,6 @@ use lti_model::matrix::to_rows;
 use qp_iter::Method;
 use serde::Serialize;
 
-use crate::figures::{self, Chart, HLine, Legend, Pattern, Series};
 use crate::output::OutputSet;
 use crate::provenance::{Provenance, workspace_root};
 

@@ -1,8 +1,10 @@
 //! The SVG figures of a reproduce job: Fig. 2 analogues, every state with its estimate,
 //! inputs and outputs with their bounds, norms.
 
+use mhe_plots::PlotError;
+use mhe_plots::chart::{self, Chart, Grid, HLine, Legend, MAX_PANELS, Pattern, Rendered, Series};
+
 use super::*;
-use crate::figures::{Grid, MAX_PANELS};
 
 /// One SVG file: a single chart or small multiples.
 #[derive(Debug)]
@@ -14,10 +16,10 @@ pub(super) enum Figure {
 }
 
 impl Figure {
-    pub(super) fn render(&self) -> Result<figures::Rendered> {
+    pub(super) fn render(&self) -> std::result::Result<Rendered, PlotError> {
         match self {
-            Figure::Single(c) => figures::render_svg(c),
-            Figure::Grid(g) => figures::render_grid_svg(g),
+            Figure::Single(c) => chart::render_svg(c),
+            Figure::Grid(g) => chart::render_grid_svg(g),
         }
     }
 }
@@ -44,21 +46,45 @@ pub(super) fn charts(
     (out, notes)
 }
 
-/// Fig. 2(a)–(c) analogues and the norm plot.
-fn fig2(scenario: &Scenario, runs: &[Run], fig2c_t: usize) -> (Vec<(String, Figure)>, Vec<String>) {
-    let steps = |tr: &Trace| 0..tr.len();
-    let multi = runs.len() > 1;
-    let pattern = |i: usize| {
-        if i == 0 {
-            Pattern::Solid
-        } else {
-            Pattern::Dashed
-        }
-    };
-    let mut out = Vec::new();
-    let mut notes = Vec::new();
+/// A figure file of one chart.
+type Named = (String, Figure);
 
-    // Fig. 2(a): x₁ and x̂₁.
+/// Solid for the first run, dashed for the others.
+fn run_pattern(i: usize) -> Pattern {
+    if i == 0 {
+        Pattern::Solid
+    } else {
+        Pattern::Dashed
+    }
+}
+
+/// `(t, v)` for each step of a per-step sequence.
+fn indexed(values: &[f64]) -> Vec<(f64, f64)> {
+    values
+        .iter()
+        .enumerate()
+        .map(|(t, v)| (t as f64, *v))
+        .collect()
+}
+
+/// Fig. 2(a)–(c) analogues and the norm plot.
+fn fig2(scenario: &Scenario, runs: &[Run], fig2c_t: usize) -> (Vec<Named>, Vec<String>) {
+    let mut out = vec![fig2a(runs), fig2b(runs)];
+    let mut notes = Vec::new();
+    let name = format!("fig2c_w2_t{fig2c_t}.svg");
+    match fig2c(scenario, runs, fig2c_t) {
+        Some(chart) => out.push((name, Figure::Single(chart))),
+        None => notes.push(format!(
+            "{name} not written: no run recorded the MHE window at t = {fig2c_t}"
+        )),
+    }
+    out.push(norms(runs));
+    (out, notes)
+}
+
+/// Fig. 2(a): x₁ and x̂₁.
+fn fig2a(runs: &[Run]) -> Named {
+    let multi = runs.len() > 1;
     let mut series = Vec::new();
     for (i, r) in runs.iter().enumerate() {
         let tr = &r.trace;
@@ -69,24 +95,24 @@ fn fig2(scenario: &Scenario, runs: &[Run], fig2c_t: usize) -> (Vec<(String, Figu
         };
         series.push(Series {
             label: format!("x₁{suffix}"),
-            points: steps(tr)
+            points: (0..tr.len())
                 .filter_map(|t| tr.x(t).map(|x| (t as f64, x[0])))
                 .collect(),
             color: 0,
-            pattern: pattern(i),
+            pattern: run_pattern(i),
             markers: false,
         });
         series.push(Series {
             label: format!("x̂₁, K = {}", r.summary.k),
-            points: steps(tr)
+            points: (0..tr.len())
                 .filter_map(|t| tr.x_hat(t).map(|x| (t as f64, x[0])))
                 .collect(),
             color: i + 1,
-            pattern: pattern(i),
+            pattern: run_pattern(i),
             markers: false,
         });
     }
-    out.push((
+    (
         "fig2a_x1.svg".to_string(),
         Figure::Single(Chart {
             title: "Fig. 2(a): true state x₁ and sub-optimal estimate x̂₁".into(),
@@ -98,9 +124,11 @@ fn fig2(scenario: &Scenario, runs: &[Run], fig2c_t: usize) -> (Vec<(String, Figu
             hlines: vec![],
             legend: Legend::UpperRight,
         }),
-    ));
+    )
+}
 
-    // Fig. 2(b): ε_t (log).
+/// Fig. 2(b): ε_t (log).
+fn fig2b(runs: &[Run]) -> Named {
     let series = runs
         .iter()
         .enumerate()
@@ -117,7 +145,7 @@ fn fig2(scenario: &Scenario, runs: &[Run], fig2c_t: usize) -> (Vec<(String, Figu
             markers: true,
         })
         .collect();
-    out.push((
+    (
         "fig2b_epsilon.svg".to_string(),
         Figure::Single(Chart {
             title: "Fig. 2(b): sub-optimality ε_t = ‖zᴷ_t − z*_t‖".into(),
@@ -129,17 +157,20 @@ fn fig2(scenario: &Scenario, runs: &[Run], fig2c_t: usize) -> (Vec<(String, Figu
             hlines: vec![],
             legend: Legend::MiddleRight,
         }),
-    ));
+    )
+}
 
-    // Fig. 2(c): ŵ² at t, K-th iterate and exact optimum, with the bounds of 𝒲.
+/// The ŵ² series of Fig. 2(c): per run and component, the K-th iterate and the exact
+/// optimum over the window ending at t.
+fn fig2c_series(scenario: &Scenario, runs: &[Run], t: usize) -> Vec<Series> {
     let nw1 = scenario.plant.nw1();
     let nw2 = scenario.plant.nw2();
     let mut series = Vec::new();
     for (i, r) in runs.iter().enumerate() {
-        let Some(rec) = r.trace.mhe_step(fig2c_t) else {
+        let Some(rec) = r.trace.mhe_step(t) else {
             continue;
         };
-        let start = fig2c_t.saturating_sub(rec.window());
+        let start = t.saturating_sub(rec.window());
         for c in 0..nw2 {
             let comp = if nw2 > 1 {
                 format!("[{}]", c + 1)
@@ -170,9 +201,20 @@ fn fig2(scenario: &Scenario, runs: &[Run], fig2c_t: usize) -> (Vec<(String, Figu
             }
         }
     }
+    series
+}
+
+/// Fig. 2(c): ŵ² at t, K-th iterate and exact optimum, with the bounds of 𝒲; `None` when no
+/// run recorded the window at t.
+fn fig2c(scenario: &Scenario, runs: &[Run], fig2c_t: usize) -> Option<Chart> {
+    let series = fig2c_series(scenario, runs, fig2c_t);
+    if series.is_empty() {
+        return None;
+    }
+    let nw1 = scenario.plant.nw1();
     let d = &scenario.sets.disturbance;
     let mut hlines = Vec::new();
-    for c in 0..nw2 {
+    for c in 0..scenario.plant.nw2() {
         for b in [d.lower()[nw1 + c], d.upper()[nw1 + c]] {
             if b.is_finite() {
                 hlines.push(HLine {
@@ -182,72 +224,48 @@ fn fig2(scenario: &Scenario, runs: &[Run], fig2c_t: usize) -> (Vec<(String, Figu
             }
         }
     }
-    let name = format!("fig2c_w2_t{fig2c_t}.svg");
-    if series.is_empty() {
-        notes.push(format!(
-            "{name} not written: no run recorded the MHE window at t = {fig2c_t}"
-        ));
-    } else {
-        out.push((
-            name,
-            Figure::Single(Chart {
-                title: format!("Fig. 2(c): estimated measurement noise ŵ² at t = {fig2c_t}"),
-                x_label: "window stage (time index)".into(),
-                y_label: "ŵ²".into(),
-                log_y: false,
-                integer_x: true,
-                series,
-                hlines,
-                legend: Legend::LowerLeft,
-            }),
-        ));
-    }
+    Some(Chart {
+        title: format!("Fig. 2(c): estimated measurement noise ŵ² at t = {fig2c_t}"),
+        x_label: "window stage (time index)".into(),
+        y_label: "ŵ²".into(),
+        log_y: false,
+        integer_x: true,
+        series,
+        hlines,
+        legend: Legend::LowerLeft,
+    })
+}
 
-    // ‖e_t‖ and ‖x_t‖ (log).
+/// ‖e_t‖ and ‖x_t‖ (log), with the Kalman baseline's error on the same data (markers).
+fn norms(runs: &[Run]) -> Named {
     let mut series = Vec::new();
     for (i, r) in runs.iter().enumerate() {
         let tr = &r.trace;
         series.push(Series {
             label: format!("‖x_t‖, K = {}", r.summary.k),
-            points: tr
-                .x_norms()
-                .iter()
-                .enumerate()
-                .map(|(t, v)| (t as f64, *v))
-                .collect(),
+            points: indexed(tr.x_norms()),
             color: i + 1,
             pattern: Pattern::Solid,
             markers: false,
         });
         series.push(Series {
             label: format!("‖e_t‖, K = {}", r.summary.k),
-            points: tr
-                .e_norms()
-                .iter()
-                .enumerate()
-                .map(|(t, v)| (t as f64, *v))
-                .collect(),
+            points: indexed(tr.e_norms()),
             color: i + 1,
             pattern: Pattern::Dashed,
             markers: false,
         });
-        // The Kalman baseline's error on the same data, beside the MHE's (markers).
         if let Some(kf) = &r.kalman {
             series.push(Series {
                 label: format!("‖e_t‖ Kalman filter, K = {} run", r.summary.k),
-                points: kf
-                    .e_norms
-                    .iter()
-                    .enumerate()
-                    .map(|(t, v)| (t as f64, *v))
-                    .collect(),
+                points: indexed(&kf.e_norms),
                 color: i + 1,
                 pattern: Pattern::Dashed,
                 markers: true,
             });
         }
     }
-    out.push((
+    (
         "norms.svg".to_string(),
         Figure::Single(Chart {
             title: "State norm ‖x_t‖, estimation error ‖e_t‖ (MHE; Kalman filter, markers)".into(),
@@ -259,8 +277,7 @@ fn fig2(scenario: &Scenario, runs: &[Run], fig2c_t: usize) -> (Vec<(String, Figu
             hlines: vec![],
             legend: Legend::UpperRight,
         }),
-    ));
-    (out, notes)
+    )
 }
 
 /// What a component grid shows.
@@ -349,6 +366,57 @@ fn component_grids(scenario: &Scenario, runs: &[Run]) -> (Vec<(String, Figure)>,
     (out, notes)
 }
 
+/// The series of run `r_i` in panel i of a component grid: the true state (black) and its
+/// estimate, or the input or output. Labels hold for every panel (one legend per grid).
+fn run_series(signal: Signal, i: usize, r_i: usize, r: &Run, multi: bool) -> Vec<Series> {
+    let tr = &r.trace;
+    let k = r.summary.k;
+    let pattern = if r_i == 0 {
+        Pattern::Solid
+    } else {
+        Pattern::Dashed
+    };
+    let points = |f: &dyn Fn(usize) -> Option<f64>| -> Vec<(f64, f64)> {
+        (0..tr.len())
+            .filter_map(|t| f(t).map(|v| (t as f64, v)))
+            .collect()
+    };
+    match signal {
+        // The true state of the first run in black; other runs' true states dashed black
+        // (they differ when the estimates do).
+        Signal::State => vec![
+            Series {
+                label: if multi {
+                    format!("true state, K = {k} run")
+                } else {
+                    "true state".to_string()
+                },
+                points: points(&|t| tr.x(t).map(|x| x[i])),
+                color: 0,
+                pattern,
+                markers: false,
+            },
+            Series {
+                label: format!("estimate x̂, K = {k}"),
+                points: points(&|t| tr.x_hat(t).map(|x| x[i])),
+                color: r_i + 1,
+                pattern,
+                markers: false,
+            },
+        ],
+        Signal::Input | Signal::Output => vec![Series {
+            label: format!("K = {k}"),
+            points: points(&|t| match signal {
+                Signal::Input => tr.u(t).map(|u| u[i]),
+                _ => tr.y(t).map(|y| y[i]),
+            }),
+            color: r_i + 1,
+            pattern,
+            markers: false,
+        }],
+    }
+}
+
 /// Panel i of a component grid (the grid draws one legend for all panels).
 fn component_panel(
     signal: Signal,
@@ -360,56 +428,11 @@ fn component_panel(
 ) -> Chart {
     let sub = subscript(i + 1);
     let multi = runs.len() > 1;
-    let mut series = Vec::new();
-    for (r_i, r) in runs.iter().enumerate() {
-        let tr = &r.trace;
-        let k = r.summary.k;
-        let pattern = if r_i == 0 {
-            Pattern::Solid
-        } else {
-            Pattern::Dashed
-        };
-        let points = |f: &dyn Fn(usize) -> Option<f64>| -> Vec<(f64, f64)> {
-            (0..tr.len())
-                .filter_map(|t| f(t).map(|v| (t as f64, v)))
-                .collect()
-        };
-        match signal {
-            Signal::State => {
-                // The true state of the first run in black; other runs' true states dashed
-                // black (they differ when the estimates do). Labels hold for every panel
-                // (one legend per grid).
-                series.push(Series {
-                    label: if multi {
-                        format!("true state, K = {k} run")
-                    } else {
-                        "true state".to_string()
-                    },
-                    points: points(&|t| tr.x(t).map(|x| x[i])),
-                    color: 0,
-                    pattern,
-                    markers: false,
-                });
-                series.push(Series {
-                    label: format!("estimate x̂, K = {k}"),
-                    points: points(&|t| tr.x_hat(t).map(|x| x[i])),
-                    color: r_i + 1,
-                    pattern,
-                    markers: false,
-                });
-            }
-            Signal::Input | Signal::Output => series.push(Series {
-                label: format!("K = {k}"),
-                points: points(&|t| match signal {
-                    Signal::Input => tr.u(t).map(|u| u[i]),
-                    _ => tr.y(t).map(|y| y[i]),
-                }),
-                color: r_i + 1,
-                pattern,
-                markers: false,
-            }),
-        }
-    }
+    let series = runs
+        .iter()
+        .enumerate()
+        .flat_map(|(r_i, r)| run_series(signal, i, r_i, r, multi))
+        .collect();
     let mut hlines = Vec::new();
     if let Some(b) = bounds {
         for y in [b.lower()[i], b.upper()[i]] {

@@ -4,625 +4,13 @@
 //! empirical one (every run bounded at every grid pair above), the linear one (ρ_lin < 1 at
 //! every grid pair above; `xtask::sweep_engine::pair_thresholds`) and the joint certificate's
 //! (`Sweep::certified_boundaries`; "certificate: not computed" in the legend while it is
-//! empty).
-//!
-//! Cells are drawn on log axes when a grid is closer to geometric than to arithmetic spacing
-//! ([`Axis::new`]), with one cell per grid value and edges halfway between neighbours (in
-//! log K for a log axis). A boundary at a grid K_c runs along the lower edge of that K_c's
-//! cells: the region is the cells above and to the right of it.
+//! empty). `mhe_plots::heatmap` draws them; this module reads the table and chooses the maps.
 
-#[cfg(test)]
-use std::path::Path;
+use anyhow::Result;
+use mhe_plots::heatmap::{Axis, ColorScale, HeatMap};
+use xtask::sweep_engine::{PairThresholds, Sweep, SweepConfig, Table};
 
-use anyhow::{Result, anyhow};
-use plotters::coord::ranged1d::{DefaultFormatting, KeyPointHint};
-use plotters::prelude::*;
-use xtask::sweep_engine::{PairThresholds, Staircase, Sweep, Table};
-
-use super::plots::shorten;
 use crate::output::OutputSet;
-
-/// One axis of the grid: its values and whether cells are spaced in log K.
-#[derive(Debug, Clone, PartialEq)]
-pub(super) struct Axis {
-    values: Vec<usize>,
-    log: bool,
-    /// Cell edges in axis coordinates (values.len() + 1 of them).
-    edges: Vec<f64>,
-}
-
-impl Axis {
-    /// An axis over the sorted, distinct `values`, on a log scale when the grid's log
-    /// steps are more uniform than its linear steps (the relative spread of the steps,
-    /// max/min, is compared; a tie or a grid of fewer than 3 values spanning less than a
-    /// factor 10 is linear).
-    pub(super) fn new(values: &[usize]) -> Self {
-        let mut values = values.to_vec();
-        values.sort_unstable();
-        values.dedup();
-        let spread = |v: &[f64]| {
-            let steps: Vec<f64> = v.windows(2).map(|w| w[1] - w[0]).collect();
-            let lo = steps.iter().copied().fold(f64::INFINITY, f64::min);
-            let hi = steps.iter().copied().fold(0.0, f64::max);
-            if lo > 0.0 { hi / lo } else { f64::INFINITY }
-        };
-        let lin: Vec<f64> = values.iter().map(|&v| v as f64).collect();
-        let logs: Vec<f64> = lin.iter().map(|v| v.max(1.0).ln()).collect();
-        let log = match values.len() {
-            0 | 1 => false,
-            2 => lin[1] >= 10.0 * lin[0],
-            _ => spread(&logs) < spread(&lin),
-        };
-        let mut axis = Self {
-            values,
-            log,
-            edges: Vec::new(),
-        };
-        let t: Vec<f64> = axis.values.iter().map(|&v| axis.t(v as f64)).collect();
-        axis.edges = match t.len() {
-            0 => vec![0.0, 1.0],
-            1 => vec![t[0] - 0.5, t[0] + 0.5],
-            n => {
-                let mut e = vec![t[0] - (t[1] - t[0]) / 2.0];
-                e.extend(t.windows(2).map(|w| (w[0] + w[1]) / 2.0));
-                e.push(t[n - 1] + (t[n - 1] - t[n - 2]) / 2.0);
-                e
-            }
-        };
-        axis
-    }
-
-    /// The axis coordinate of a value.
-    fn t(&self, v: f64) -> f64 {
-        if self.log { v.max(1e-300).ln() } else { v }
-    }
-
-    fn lo(&self) -> f64 {
-        self.edges[0]
-    }
-
-    fn hi(&self) -> f64 {
-        self.edges[self.edges.len() - 1]
-    }
-
-    /// Where a region starting at `v` begins on this axis: the lower edge of v's cell for
-    /// a grid value, v itself otherwise; clamped to the axis (the flag says it was).
-    fn edge_below(&self, v: usize) -> (f64, bool) {
-        match self.values.iter().position(|&g| g == v) {
-            Some(i) => (self.edges[i], false),
-            None => {
-                let t = self.t(v as f64);
-                let c = t.clamp(self.lo(), self.hi());
-                (c, c != t)
-            }
-        }
-    }
-
-    /// The tick positions (a grid value per cell, thinned to at most 12 labels).
-    fn ticks(&self) -> Vec<f64> {
-        let step = self.values.len().div_ceil(12).max(1);
-        self.values
-            .iter()
-            .step_by(step)
-            .map(|&v| self.t(v as f64))
-            .collect()
-    }
-
-    /// The label of a tick: the grid value nearest to `t`.
-    fn label(&self, t: f64) -> String {
-        self.values
-            .iter()
-            .min_by(|a, b| {
-                (self.t(**a as f64) - t)
-                    .abs()
-                    .total_cmp(&(self.t(**b as f64) - t).abs())
-            })
-            .map_or_else(String::new, |v| v.to_string())
-    }
-
-    fn describe(&self, name: &str) -> String {
-        format!("{name} ({} scale)", if self.log { "log" } else { "linear" })
-    }
-}
-
-/// A linear plot coordinate over [lo, hi] whose ticks are the grid's cells (plotters'
-/// `f64` ranges choose round numbers instead).
-#[derive(Debug, Clone)]
-struct CellCoord {
-    lo: f64,
-    hi: f64,
-    ticks: Vec<f64>,
-}
-
-impl Ranged for CellCoord {
-    type FormatOption = DefaultFormatting;
-    type ValueType = f64;
-
-    fn map(&self, value: &f64, limit: (i32, i32)) -> i32 {
-        let s = if self.hi > self.lo {
-            (value - self.lo) / (self.hi - self.lo)
-        } else {
-            0.5
-        };
-        limit.0 + (s * f64::from(limit.1 - limit.0)).round() as i32
-    }
-
-    fn key_points<Hint: KeyPointHint>(&self, _hint: Hint) -> Vec<f64> {
-        self.ticks.clone()
-    }
-
-    fn range(&self) -> std::ops::Range<f64> {
-        self.lo..self.hi
-    }
-}
-
-/// How values map to colours.
-#[derive(Debug, Clone, Copy, PartialEq)]
-pub(super) enum ColorScale {
-    /// Viridis from `lo` to `hi` on a linear scale (the bounded fraction: 0 to 1).
-    Linear { lo: f64, hi: f64 },
-    /// Viridis from `lo` to `hi` on a log scale (the error).
-    Log { lo: f64, hi: f64 },
-    /// Blue below 1, white at 1, red above, in log ρ clipped at `e^±span` (ρ_lin).
-    AroundOne { span: f64 },
-}
-
-/// Viridis at s ∈ [0, 1] (piecewise linear through 9 samples of matplotlib's map).
-fn viridis(s: f64) -> RGBColor {
-    const V: [(u8, u8, u8); 9] = [
-        (68, 1, 84),
-        (71, 44, 122),
-        (59, 81, 139),
-        (44, 113, 142),
-        (33, 144, 141),
-        (39, 173, 129),
-        (92, 200, 99),
-        (170, 220, 50),
-        (253, 231, 37),
-    ];
-    let x = s.clamp(0.0, 1.0) * 8.0;
-    let i = (x.floor() as usize).min(7);
-    let f = x - i as f64;
-    let mix = |a: u8, b: u8| (f64::from(a) + f * (f64::from(b) - f64::from(a))).round() as u8;
-    RGBColor(
-        mix(V[i].0, V[i + 1].0),
-        mix(V[i].1, V[i + 1].1),
-        mix(V[i].2, V[i + 1].2),
-    )
-}
-
-impl ColorScale {
-    /// The colour of a finite value.
-    fn color(&self, v: f64) -> RGBColor {
-        match *self {
-            ColorScale::Linear { lo, hi } => {
-                viridis(if hi > lo { (v - lo) / (hi - lo) } else { 0.5 })
-            }
-            ColorScale::Log { lo, hi } => {
-                let (a, b) = (lo.ln(), hi.ln());
-                viridis(if b > a && v > 0.0 {
-                    (v.ln() - a) / (b - a)
-                } else {
-                    0.5
-                })
-            }
-            ColorScale::AroundOne { span } => {
-                let s = (v.max(1e-300).ln() / span).clamp(-1.0, 1.0);
-                let toward = |c: u8, s: f64| (255.0 + s * (f64::from(c) - 255.0)).round() as u8;
-                if s < 0.0 {
-                    RGBColor(toward(33, -s), toward(102, -s), toward(172, -s))
-                } else {
-                    RGBColor(toward(178, s), toward(24, s), toward(43, s))
-                }
-            }
-        }
-    }
-
-    /// The value at fraction s ∈ [0, 1] of the colour bar.
-    fn value_at(&self, s: f64) -> f64 {
-        match *self {
-            ColorScale::Linear { lo, hi } => lo + s * (hi - lo),
-            ColorScale::Log { lo, hi } => (lo.ln() + s * (hi.ln() - lo.ln())).exp(),
-            ColorScale::AroundOne { span } => ((2.0 * s - 1.0) * span).exp(),
-        }
-    }
-}
-
-/// Colour of a cell without a finite value: diverged (+∞) dark grey, missing light grey.
-const INFINITE_CELL: RGBColor = RGBColor(60, 60, 60);
-const MISSING_CELL: RGBColor = RGBColor(215, 215, 215);
-/// The boundaries: empirical solid black, linear dashed magenta, certified dash-dot orange.
-const EMPIRICAL: RGBColor = RGBColor(0, 0, 0);
-const LINEAR: RGBColor = RGBColor(220, 0, 200);
-const CERTIFIED: RGBColor = RGBColor(255, 140, 0);
-/// The regional certificate's pairs (K_reg, K_c): green dots.
-const REGIONAL: RGBColor = RGBColor(0, 170, 60);
-
-/// One heat map (data only) and its rendering.
-#[derive(Debug, Clone)]
-pub(super) struct HeatMap {
-    pub title: String,
-    /// What the colour shows (the colour bar's label).
-    pub value_label: String,
-    pub k_e: Axis,
-    pub k_c: Axis,
-    /// values[i][j] at (K_e index i, K_c index j).
-    pub values: Vec<Vec<Option<f64>>>,
-    pub scale: ColorScale,
-    pub empirical: Staircase,
-    /// None: the linear analysis is not available.
-    pub linear: Option<Staircase>,
-    /// Empty: not computed.
-    pub certified: Staircase,
-    /// (K_c, K_reg) per grid K_c: a dot at (K_reg, K_c) where there is one.
-    pub regional: Vec<(usize, Option<usize>)>,
-    pub notes: Vec<String>,
-}
-
-/// A staircase as polylines in axis coordinates: entry k spans from its K_e's left edge to
-/// the next entry's (the last to the right edge of the plot) at the lower edge of its K_c;
-/// a K_e without a K_c leaves a gap (the region's side drawn up to the top edge).
-fn staircase_paths(
-    st: &[(usize, Option<usize>)],
-    x: &Axis,
-    y: &Axis,
-) -> (Vec<Vec<(f64, f64)>>, bool) {
-    let mut st = st.to_vec();
-    st.sort_by_key(|s| s.0);
-    let top = y.hi();
-    let mut clamped = false;
-    let mut paths: Vec<Vec<(f64, f64)>> = Vec::new();
-    let mut cur: Vec<(f64, f64)> = Vec::new();
-    for (n, &(ke, kc)) in st.iter().enumerate() {
-        let (x_lo, cx) = x.edge_below(ke);
-        let x_hi = st.get(n + 1).map_or(x.hi(), |next| x.edge_below(next.0).0);
-        clamped |= cx;
-        match kc {
-            Some(kc) => {
-                let (yv, cy) = y.edge_below(kc);
-                clamped |= cy;
-                if cur.is_empty() && n > 0 {
-                    cur.push((x_lo, top));
-                }
-                cur.push((x_lo, yv));
-                cur.push((x_hi, yv));
-            }
-            None => {
-                if let Some(&(px, _)) = cur.last() {
-                    cur.push((px, top));
-                    paths.push(std::mem::take(&mut cur));
-                }
-            }
-        }
-    }
-    if !cur.is_empty() {
-        paths.push(cur);
-    }
-    (paths, clamped)
-}
-
-/// A tick or cell label with at most 3 significant digits (0.6, 1000, 2.5e-5).
-fn number(v: f64) -> String {
-    if v == 0.0 || !v.is_finite() {
-        return if v == f64::INFINITY {
-            "∞".into()
-        } else {
-            format!("{v}")
-        };
-    }
-    let a = v.abs();
-    if !(1e-3..1e5).contains(&a) {
-        return format!("{v:.1e}");
-    }
-    let digits = (2 - a.log10().floor() as i32).max(0) as usize;
-    let s = format!("{v:.digits$}");
-    if s.contains('.') {
-        s.trim_end_matches('0').trim_end_matches('.').to_string()
-    } else {
-        s
-    }
-}
-
-impl HeatMap {
-    #[cfg(test)]
-    pub(super) fn render(&self, path: &Path) -> Result<()> {
-        crate::output::write_atomic(path, self.svg(&path.display().to_string())?.as_bytes())
-    }
-
-    /// Renders the heat map as SVG text (`name` for messages).
-    pub(super) fn svg(&self, name: &str) -> Result<String> {
-        let err = |e: &dyn std::fmt::Display| anyhow!("heat map `{name}`: {e}");
-        let mut notes = self.notes.clone();
-        let (emp_paths, emp_clamped) = staircase_paths(&self.empirical, &self.k_e, &self.k_c);
-        let lin = self
-            .linear
-            .as_ref()
-            .map(|st| staircase_paths(st, &self.k_e, &self.k_c));
-        let (cert_paths, cert_clamped) = staircase_paths(&self.certified, &self.k_e, &self.k_c);
-        if emp_clamped || lin.as_ref().is_some_and(|l| l.1) {
-            notes.push("a boundary passes outside the grid and is drawn at its edge".into());
-        }
-        if cert_clamped {
-            notes.push(
-                "the certified region extends beyond the grid: drawn at the grid's edge".into(),
-            );
-        }
-        let missing = self.values.iter().flatten().filter(|v| v.is_none()).count();
-        let infinite = self
-            .values
-            .iter()
-            .flatten()
-            .filter(|v| v.is_some_and(|v| !v.is_finite()))
-            .count();
-        if missing > 0 {
-            notes.push(format!("{missing} cells without a value (light grey)"));
-        }
-        let dots: Vec<(f64, f64)> = self
-            .regional
-            .iter()
-            .filter_map(|&(k_c, k_reg)| {
-                let j = self.k_c.values.iter().position(|&v| v == k_c)?;
-                let x = self
-                    .k_e
-                    .t(k_reg? as f64)
-                    .clamp(self.k_e.lo(), self.k_e.hi());
-                Some((x, (self.k_c.edges[j] + self.k_c.edges[j + 1]) / 2.0))
-            })
-            .collect();
-        if !dots.is_empty() {
-            notes.push(
-                "green dots: (K_reg, K_c), the regional certificate at that pair (for the scenario's own set)"
-                    .into(),
-            );
-        }
-        if infinite > 0 {
-            notes.push(format!("{infinite} cells not finite (dark grey: diverged)"));
-        }
-        // The legend row, the notes (one may be added below).
-        let note_h = 30 + 17 * (notes.len() as u32 + 1);
-        let (w, h) = (980u32, 640u32);
-        let mut svg = String::new();
-        {
-            let root = SVGBackend::with_string(&mut svg, (w, h + note_h)).into_drawing_area();
-            root.fill(&WHITE).map_err(|e| err(&e))?;
-            let (upper, lower) = root.split_vertically(h);
-            let (main, bar) = upper.split_horizontally(w - 120);
-            let (x_lo, x_hi, y_lo, y_hi) =
-                (self.k_e.lo(), self.k_e.hi(), self.k_c.lo(), self.k_c.hi());
-            let mut chart = ChartBuilder::on(&main)
-                .caption(&self.title, ("sans-serif", 17))
-                .margin(14)
-                .x_label_area_size(44)
-                .y_label_area_size(64)
-                .build_cartesian_2d(
-                    CellCoord {
-                        lo: x_lo,
-                        hi: x_hi,
-                        ticks: self.k_e.ticks(),
-                    },
-                    CellCoord {
-                        lo: y_lo,
-                        hi: y_hi,
-                        ticks: self.k_c.ticks(),
-                    },
-                )
-                .map_err(|e| err(&e))?;
-            chart
-                .configure_mesh()
-                .disable_mesh()
-                .x_desc(self.k_e.describe("K_e: iterations of the MHE's Φ per step"))
-                .y_desc(self.k_c.describe("K_c: iterations of the MPC's Φ per step"))
-                .x_label_formatter(&|t: &f64| self.k_e.label(*t))
-                .y_label_formatter(&|t: &f64| self.k_c.label(*t))
-                .draw()
-                .map_err(|e| err(&e))?;
-            // Cells, with their value written in when there is room.
-            let (nx, ny) = (self.k_e.values.len(), self.k_c.values.len());
-            let write_values = nx <= 14 && ny <= 14;
-            for i in 0..nx {
-                for j in 0..ny {
-                    let v = self.values.get(i).and_then(|r| r.get(j)).copied().flatten();
-                    let color = match v {
-                        None => MISSING_CELL,
-                        Some(v) if !v.is_finite() => INFINITE_CELL,
-                        Some(v) => self.scale.color(v),
-                    };
-                    let (a, b) = (
-                        (self.k_e.edges[i], self.k_c.edges[j]),
-                        (self.k_e.edges[i + 1], self.k_c.edges[j + 1]),
-                    );
-                    chart
-                        .draw_series(std::iter::once(Rectangle::new([a, b], color.filled())))
-                        .map_err(|e| err(&e))?;
-                    if let (true, Some(v)) = (write_values, v) {
-                        let RGBColor(r, g, bl) = color;
-                        let light =
-                            0.299 * f64::from(r) + 0.587 * f64::from(g) + 0.114 * f64::from(bl)
-                                > 140.0;
-                        let style = ("sans-serif", 11)
-                            .into_font()
-                            .color(if light { &BLACK } else { &WHITE })
-                            .pos(plotters::style::text_anchor::Pos::new(
-                                plotters::style::text_anchor::HPos::Center,
-                                plotters::style::text_anchor::VPos::Center,
-                            ));
-                        let centre = ((a.0 + b.0) / 2.0, (a.1 + b.1) / 2.0);
-                        chart
-                            .draw_series(std::iter::once(Text::new(number(v), centre, style)))
-                            .map_err(|e| err(&e))?;
-                    }
-                }
-            }
-            // The boundaries; their legend goes under the chart (over the cells it would hide
-            // values).
-            let mut legend: Vec<Legend> = Vec::new();
-            let boundaries = [
-                (
-                    Some((emp_paths, emp_clamped)),
-                    Line::Solid,
-                    EMPIRICAL,
-                    4,
-                    "empirical: every run bounded from here up".to_string(),
-                    if self.empirical.iter().all(|s| s.1.is_none()) {
-                        "empirical: no all-bounded region on the grid".to_string()
-                    } else {
-                        String::new()
-                    },
-                ),
-                (
-                    lin,
-                    Line::Dashed(10, 6),
-                    LINEAR,
-                    3,
-                    "linear: ρ_lin < 1 from here up".to_string(),
-                    if self.linear.is_none() {
-                        "linear: not computed".to_string()
-                    } else {
-                        "linear: ρ_lin ≥ 1 at the largest pair".to_string()
-                    },
-                ),
-                (
-                    Some((cert_paths, cert_clamped)),
-                    Line::Dashed(4, 4),
-                    CERTIFIED,
-                    3,
-                    "certified: joint certificate from here up".to_string(),
-                    if self.certified.is_empty() {
-                        "certificate: not computed".to_string()
-                    } else {
-                        "certified: no pair on the grid".to_string()
-                    },
-                ),
-            ];
-            for (paths, line, color, width, label, missing) in boundaries {
-                let paths = paths.map(|p| p.0).unwrap_or_default();
-                for p in &paths {
-                    let style = color.stroke_width(width);
-                    match line {
-                        Line::Solid => chart
-                            .draw_series(LineSeries::new(p.iter().copied(), style))
-                            .map(|_| ()),
-                        Line::Dashed(dash, gap) => chart
-                            .draw_series(DashedLineSeries::new(p.iter().copied(), dash, gap, style))
-                            .map(|_| ()),
-                    }
-                    .map_err(|e| err(&e))?;
-                }
-                legend.push(if paths.is_empty() {
-                    Legend {
-                        label: missing,
-                        color: color.mix(0.35),
-                        width: 2,
-                        line: Line::Solid,
-                    }
-                } else {
-                    Legend {
-                        label,
-                        color: color.to_rgba(),
-                        width,
-                        line,
-                    }
-                });
-            }
-            chart
-                .draw_series(dots.iter().map(|&c| Circle::new(c, 6, REGIONAL.filled())))
-                .map_err(|e| err(&e))?;
-            chart
-                .draw_series(
-                    dots.iter()
-                        .map(|&c| Circle::new(c, 6, BLACK.stroke_width(1))),
-                )
-                .map_err(|e| err(&e))?;
-            let bottom = self.k_c.values.first().copied();
-            if !self.empirical.is_empty() && self.empirical.iter().all(|s| s.1 == bottom) {
-                notes.insert(
-                    0,
-                    "empirical region: the whole grid (its boundary is the axes)".into(),
-                );
-            }
-            self.draw_bar(&bar).map_err(|e| err(&e))?;
-            let text = ("sans-serif", 13).into_text_style(&lower);
-            for (i, l) in legend.iter().enumerate() {
-                let (x, y) = (80 + 300 * i as i32, 8);
-                let style = ShapeStyle::from(l.color).stroke_width(l.width);
-                match l.line {
-                    Line::Solid => lower.draw(&PathElement::new(vec![(x, y), (x + 30, y)], style)),
-                    Line::Dashed(dash, gap) => {
-                        let (d, g) = (dash as i32, gap as i32);
-                        let mut r = Ok(());
-                        let mut x0 = x;
-                        while x0 < x + 30 && r.is_ok() {
-                            r = lower.draw(&PathElement::new(
-                                vec![(x0, y), ((x0 + d).min(x + 30), y)],
-                                style,
-                            ));
-                            x0 += d + g;
-                        }
-                        r
-                    }
-                }
-                .map_err(|e| err(&e))?;
-                lower
-                    .draw_text(&l.label, &text, (x + 36, y - 7))
-                    .map_err(|e| err(&e))?;
-            }
-            for (i, n) in notes.iter().enumerate() {
-                lower
-                    .draw_text(n, &text, (14, 26 + 17 * i as i32))
-                    .map_err(|e| err(&e))?;
-            }
-            root.present().map_err(|e| err(&e))?;
-        }
-        Ok(svg)
-    }
-
-    /// The colour bar: 60 bands from the bottom (low) to the top (high), 5 labels.
-    fn draw_bar<DB: DrawingBackend>(
-        &self,
-        area: &DrawingArea<DB, plotters::coord::Shift>,
-    ) -> std::result::Result<(), DrawingAreaErrorKind<DB::ErrorType>> {
-        let (top, bottom, x0, x1) = (70i32, 560i32, 10i32, 34i32);
-        let n = 60;
-        let band = f64::from(bottom - top) / f64::from(n);
-        for k in 0..n {
-            let s = (f64::from(k) + 0.5) / f64::from(n);
-            let y1 = bottom - (f64::from(k) * band) as i32;
-            let y0 = bottom - (f64::from(k + 1) * band).ceil() as i32;
-            area.draw(&Rectangle::new(
-                [(x0, y0), (x1, y1)],
-                self.scale.color(self.scale.value_at(s)).filled(),
-            ))?;
-        }
-        area.draw(&Rectangle::new(
-            [(x0, top), (x1, bottom)],
-            BLACK.stroke_width(1),
-        ))?;
-        let style = ("sans-serif", 12).into_text_style(area);
-        for k in 0..5 {
-            let s = f64::from(k) / 4.0;
-            let y = bottom - (s * f64::from(bottom - top)) as i32;
-            area.draw_text(&number(self.scale.value_at(s)), &style, (x1 + 5, y - 6))?;
-        }
-        area.draw_text(&shorten(&self.value_label, 16), &style, (4, top - 22))?;
-        Ok(())
-    }
-}
-
-/// How a boundary is stroked.
-#[derive(Debug, Clone, Copy)]
-enum Line {
-    Solid,
-    /// Dash and gap lengths in pixels.
-    Dashed(u32, u32),
-}
-
-/// One legend entry under the chart.
-struct Legend {
-    label: String,
-    color: RGBAColor,
-    width: u32,
-    line: Line,
-}
 
 /// The value grid of one column of `points.csv` for one solver and scale.
 fn values(
@@ -633,7 +21,7 @@ fn values(
     k_e: &Axis,
     k_c: &Axis,
 ) -> Vec<Vec<Option<f64>>> {
-    let mut v = vec![vec![None; k_c.values.len()]; k_e.values.len()];
+    let mut v = vec![vec![None; k_c.values().len()]; k_e.values().len()];
     for row in 0..table.rows.len() {
         if table.text(row, "solver") != Some(solver) || table.text(row, "scale") != Some(scale) {
             continue;
@@ -643,8 +31,8 @@ fn values(
             continue;
         };
         if let (Some(i), Some(j)) = (
-            k_e.values.iter().position(|&x| x == ke),
-            k_c.values.iter().position(|&x| x == kc),
+            k_e.values().iter().position(|&x| x == ke),
+            k_c.values().iter().position(|&x| x == kc),
         ) {
             v[i][j] = table.number(row, column);
         }
@@ -666,29 +54,31 @@ fn stem(solver: &str) -> String {
         .collect()
 }
 
-/// Writes the heat maps of an assembled 2-D sweep directory from its `points.csv` (`table`)
-/// and its 2-D thresholds (`pairs`, which carry the boundaries); returns the file names.
-pub fn heatmaps_all(
-    sweep: &Sweep,
-    set: &mut OutputSet,
-    table: &Table,
-    pairs: &[PairThresholds],
-) -> Result<Vec<String>> {
-    let cfg = sweep.config();
-    let scales: Vec<&str> = pairs.iter().fold(Vec::new(), |mut v, p| {
-        if !v.contains(&p.scale.as_str()) {
-            v.push(p.scale.as_str());
-        }
-        v
-    });
-    let mpc = match cfg.controller {
-        closed_loop::scenario::ControllerChoice::SuboptimalMpc { method, .. } => method.to_string(),
-        _ => "?".into(),
-    };
-    let mut written = Vec::new();
-    for p in pairs {
-        let (k_e, k_c) = (Axis::new(&p.k_e_grid), Axis::new(&p.k_c_grid));
-        let suffix = if scales.len() > 1 {
+/// The heat maps of one (solver, scale): what they share.
+struct PairMaps<'a> {
+    p: &'a PairThresholds,
+    table: &'a Table,
+    cfg: &'a SweepConfig,
+    /// The MPC's method.
+    mpc: &'a str,
+    k_e: Axis,
+    k_c: Axis,
+    /// `-scale{s}` when the sweep has more than one scale.
+    suffix: String,
+    /// The sweep line, the region rule, the bounded rule.
+    rules: Vec<String>,
+}
+
+impl<'a> PairMaps<'a> {
+    fn new(
+        sweep: &'a Sweep,
+        p: &'a PairThresholds,
+        table: &'a Table,
+        mpc: &'a str,
+        several_scales: bool,
+    ) -> Self {
+        let cfg = sweep.config();
+        let suffix = if several_scales {
             format!("-scale{}", p.scale)
         } else {
             String::new()
@@ -702,89 +92,162 @@ pub fn heatmaps_all(
             p.scale
         );
         let rules = vec![
-            sub.clone(),
+            sub,
             "regions: a pair counts when its criterion holds at every grid pair with K_e and K_c at least as large".to_string(),
             format!(
                 "bounded: completed, finite, sup‖x‖ ≤ {f}·(1 + ‖x₀‖) and sup‖e‖ ≤ {f}·(1 + ‖e₀‖)",
                 f = cfg.bounded_factor
             ),
         ];
-        let make =
-            |title: String, label: &str, column: &str, scale: ColorScale, notes: Vec<String>| {
-                HeatMap {
-                    title,
-                    value_label: label.to_string(),
-                    values: values(table, &p.solver, &p.scale, column, &k_e, &k_c),
-                    k_e: k_e.clone(),
-                    k_c: k_c.clone(),
-                    scale,
-                    empirical: p.empirical_boundary.clone(),
-                    linear: p.linear_boundary.clone(),
-                    certified: p.certified_boundary.clone(),
-                    regional: p.regional.clone(),
-                    notes,
-                }
-            };
-        let mut maps = vec![(
-            make(
-                format!("fraction of bounded runs — MHE {}", p.solver),
-                "bounded fraction",
-                "bounded_fraction",
-                ColorScale::Linear { lo: 0.0, hi: 1.0 },
-                rules.clone(),
+        Self {
+            p,
+            table,
+            cfg,
+            mpc,
+            k_e: Axis::new(&p.k_e_grid),
+            k_c: Axis::new(&p.k_c_grid),
+            suffix,
+            rules,
+        }
+    }
+
+    /// A map of `column` with the pair's boundaries.
+    fn make(
+        &self,
+        title: String,
+        label: &str,
+        column: &str,
+        scale: ColorScale,
+        notes: Vec<String>,
+    ) -> HeatMap {
+        let p = self.p;
+        HeatMap {
+            title,
+            value_label: label.to_string(),
+            values: values(
+                self.table, &p.solver, &p.scale, column, &self.k_e, &self.k_c,
             ),
-            format!("heatmap-bounded-{}{suffix}.svg", stem(&p.solver)),
-        )];
+            k_e: self.k_e.clone(),
+            k_c: self.k_c.clone(),
+            scale,
+            empirical: p.empirical_boundary.clone(),
+            linear: p.linear_boundary.clone(),
+            certified: p.certified_boundary.clone(),
+            regional: p.regional.clone(),
+            notes,
+        }
+    }
+
+    /// The fraction of bounded runs.
+    fn bounded(&self) -> (HeatMap, String) {
+        let map = self.make(
+            format!("fraction of bounded runs — MHE {}", self.p.solver),
+            "bounded fraction",
+            "bounded_fraction",
+            ColorScale::Linear { lo: 0.0, hi: 1.0 },
+            self.rules.clone(),
+        );
+        let name = format!(
+            "heatmap-bounded-{}{}.svg",
+            stem(&self.p.solver),
+            self.suffix
+        );
+        (map, name)
+    }
+
+    /// The median last-quarter ‖e‖, on a log colour scale over its finite positive values.
+    fn error(&self) -> (HeatMap, String) {
+        let mut m = self.make(
+            format!("median last-quarter ‖e_t‖ — MHE {}", self.p.solver),
+            "median ‖e‖",
+            "tail_mean_e_q50",
+            ColorScale::Log { lo: 1.0, hi: 10.0 },
+            self.rules.clone(),
+        );
+        let finite: Vec<f64> = m
+            .values
+            .iter()
+            .flatten()
+            .flatten()
+            .copied()
+            .filter(|v| v.is_finite() && *v > 0.0)
+            .collect();
+        let lo = finite.iter().copied().fold(f64::INFINITY, f64::min);
+        let hi = finite.iter().copied().fold(0.0, f64::max);
+        if lo.is_finite() {
+            m.scale = ColorScale::Log {
+                lo,
+                hi: hi.max(lo * 1.0001),
+            };
+        }
+        let name = format!("heatmap-error-{}{}.svg", stem(&self.p.solver), self.suffix);
+        (m, name)
+    }
+
+    /// ρ_lin of the lifted loop, around 1 (its span the largest |ln ρ_lin|, clamped).
+    fn rho_lin(&self) -> (HeatMap, String) {
+        let (cfg, p) = (self.cfg, self.p);
+        let mut m = self.make(
+            format!("ρ_lin(K_e, K_c) of the lifted loop — MHE {}", p.solver),
+            "ρ_lin",
+            "rho_lin",
+            ColorScale::AroundOne { span: 0.1 },
+            vec![
+                format!(
+                    "{} · MHE {} · MPC {} · the lifted loop of docs/theory.md (no constraint active)",
+                    cfg.name, p.solver, self.mpc
+                ),
+                "ρ_lin ≥ 1 (red): small perturbations grow while no constraint is active; colours saturate at e^±span of the bar".to_string(),
+                self.rules[2].clone(),
+            ],
+        );
+        let span = m
+            .values
+            .iter()
+            .flatten()
+            .flatten()
+            .filter(|v| v.is_finite() && **v > 0.0)
+            .map(|v| v.ln().abs())
+            .fold(0.0f64, f64::max);
+        m.scale = ColorScale::AroundOne {
+            span: span.clamp(0.01, std::f64::consts::LN_2),
+        };
+        (m, format!("heatmap-rho-lin-{}.svg", stem(&p.solver)))
+    }
+}
+
+/// The disturbance scales of `pairs` in order of appearance.
+fn scales_of(pairs: &[PairThresholds]) -> Vec<&str> {
+    pairs.iter().fold(Vec::new(), |mut v, p| {
+        if !v.contains(&p.scale.as_str()) {
+            v.push(p.scale.as_str());
+        }
+        v
+    })
+}
+
+/// Writes the heat maps of an assembled 2-D sweep directory from its `points.csv` (`table`)
+/// and its 2-D thresholds (`pairs`, which carry the boundaries); returns the file names.
+pub fn heatmaps_all(
+    sweep: &Sweep,
+    set: &mut OutputSet,
+    table: &Table,
+    pairs: &[PairThresholds],
+) -> Result<Vec<String>> {
+    let scales = scales_of(pairs);
+    let mpc = match sweep.config().controller {
+        closed_loop::scenario::ControllerChoice::SuboptimalMpc { method, .. } => method.to_string(),
+        _ => "?".into(),
+    };
+    let mut written = Vec::new();
+    for p in pairs {
+        let pair = PairMaps::new(sweep, p, table, &mpc, scales.len() > 1);
+        let mut maps = vec![pair.bounded()];
         if table.column("tail_mean_e_q50").is_some() {
-            let mut m = make(
-                format!("median last-quarter ‖e_t‖ — MHE {}", p.solver),
-                "median ‖e‖",
-                "tail_mean_e_q50",
-                ColorScale::Log { lo: 1.0, hi: 10.0 },
-                rules.clone(),
-            );
-            let finite: Vec<f64> = m
-                .values
-                .iter()
-                .flatten()
-                .flatten()
-                .copied()
-                .filter(|v| v.is_finite() && *v > 0.0)
-                .collect();
-            let lo = finite.iter().copied().fold(f64::INFINITY, f64::min);
-            let hi = finite.iter().copied().fold(0.0, f64::max);
-            if lo.is_finite() {
-                m.scale = ColorScale::Log {
-                    lo,
-                    hi: hi.max(lo * 1.0001),
-                };
-            }
-            maps.push((m, format!("heatmap-error-{}{suffix}.svg", stem(&p.solver))));
+            maps.push(pair.error());
         }
         if scales.first() == Some(&p.scale.as_str()) && table.column("rho_lin").is_some() {
-            let mut m = make(
-                format!("ρ_lin(K_e, K_c) of the lifted loop — MHE {}", p.solver),
-                "ρ_lin",
-                "rho_lin",
-                ColorScale::AroundOne { span: 0.1 },
-                vec![
-                    format!("{} · MHE {} · MPC {mpc} · the lifted loop of docs/theory.md (no constraint active)", cfg.name, p.solver),
-                    "ρ_lin ≥ 1 (red): small perturbations grow while no constraint is active; colours saturate at e^±span of the bar".to_string(),
-                    rules[2].clone(),
-                ],
-            );
-            let span = m
-                .values
-                .iter()
-                .flatten()
-                .flatten()
-                .filter(|v| v.is_finite() && **v > 0.0)
-                .map(|v| v.ln().abs())
-                .fold(0.0f64, f64::max);
-            m.scale = ColorScale::AroundOne {
-                span: span.clamp(0.01, std::f64::consts::LN_2),
-            };
-            maps.push((m, format!("heatmap-rho-lin-{}.svg", stem(&p.solver))));
+            maps.push(pair.rho_lin());
         }
         for (m, name) in maps {
             set.add(&name, m.svg(&name)?.as_bytes())?;

@@ -727,4 +727,7 @@ impl HessianOperator for MheHessian {
     fn apply_scaled(&self, d: &[f64], y: &[f64], out: &mut [f64], work: &mut [f64]) {
         self.run(Some(d), y, out, work);
     }
+    fn on_kernel(&self, kernel: Kernel) -> Option<std::sync::Arc<dyn HessianOperator>> {
+        Some(std::sync::Arc::new(self.clone().with_kernel(kernel)))
+    }
 }

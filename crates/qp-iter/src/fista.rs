@@ -262,7 +262,7 @@ impl IterationMap for Fista {
         &self.cert
     }
     fn set_kernel(&mut self, kernel: crate::kernel::Kernel) {
-        self.g.kernel = kernel;
+        self.g.set_kernel(kernel);
     }
 }
 

@@ -41,6 +41,15 @@ pub trait HessianOperator: Send + Sync + Debug {
     /// [`HessianOperator::scaled_work_len`]); must not allocate. The default scales y into
     /// the workspace, applies H and scales the result; an operator may fold D into its
     /// own passes.
+    /// The same operator with its arithmetic on `kernel`'s path (with or without fused
+    /// multiply–adds), so that [`crate::IterationMap::set_kernel`] reaches the structured
+    /// product too; `None` for an operator with a single path (the default).
+    fn on_kernel(
+        &self,
+        _kernel: crate::kernel::Kernel,
+    ) -> Option<std::sync::Arc<dyn HessianOperator>> {
+        None
+    }
     fn apply_scaled(&self, d: &[f64], y: &[f64], out: &mut [f64], work: &mut [f64]) {
         let (dy, rest) = work.split_at_mut(d.len());
         for ((o, y), d) in dy.iter_mut().zip(y).zip(d) {
@@ -75,6 +84,16 @@ impl<O: HessianOperator> HessianOperator for DiagonalScaled<O> {
     fn dense_crossover(&self) -> usize {
         self.inner.dense_crossover()
     }
+    fn on_kernel(
+        &self,
+        kernel: crate::kernel::Kernel,
+    ) -> Option<std::sync::Arc<dyn HessianOperator>> {
+        let inner = self.inner.on_kernel(kernel)?;
+        Some(std::sync::Arc::new(DiagonalScaled {
+            inner,
+            d: self.d.clone(),
+        }))
+    }
 }
 
 impl HessianOperator for std::sync::Arc<dyn HessianOperator> {
@@ -95,5 +114,11 @@ impl HessianOperator for std::sync::Arc<dyn HessianOperator> {
     }
     fn apply_scaled(&self, d: &[f64], y: &[f64], out: &mut [f64], work: &mut [f64]) {
         (**self).apply_scaled(d, y, out, work);
+    }
+    fn on_kernel(
+        &self,
+        kernel: crate::kernel::Kernel,
+    ) -> Option<std::sync::Arc<dyn HessianOperator>> {
+        (**self).on_kernel(kernel)
     }
 }

@@ -83,6 +83,15 @@ impl GradientSetup {
         }
     }
 
+    /// The dense steps on `kernel`, and the structured Hessian (if one runs) on the same
+    /// path: a map set to the portable kernel runs no fused multiply–add anywhere.
+    pub(crate) fn set_kernel(&mut self, kernel: Kernel) {
+        self.kernel = kernel;
+        if let Some(op) = self.op.as_ref().and_then(|op| op.on_kernel(kernel)) {
+            self.op = Some(op);
+        }
+    }
+
     /// Workspace of the structured Hessian (empty for the dense kernel).
     pub(crate) fn op_work(&self) -> Vec<f64> {
         vec![0.0; self.op.as_ref().map_or(0, |op| op.work_len())]
@@ -315,7 +324,7 @@ impl IterationMap for ProjectedGradient {
         &self.cert
     }
     fn set_kernel(&mut self, kernel: Kernel) {
-        self.g.kernel = kernel;
+        self.g.set_kernel(kernel);
     }
 }
 

@@ -22,6 +22,7 @@
 //! frozen-slope radius, a necessary condition for any loop certificate at K.
 
 mod inner;
+pub mod global;
 pub mod loop_level;
 pub mod scenario;
 mod sdp;

@@ -268,6 +268,8 @@ pub struct GlobalLoop {
     sig2_b: Mat<f64>,
     /// x̂_t as a map of ζ.
     xhat: Mat<f64>,
+    /// Coordinates of the MHE's z with a bound (σ₁'s channel; 0: σ₁ ≡ 0).
+    mhe_bounded: usize,
     /// z*_t and U*_t as maps of ζ (for tests and sampling).
     zstar: Mat<f64>,
     d_col: usize,
@@ -308,6 +310,17 @@ pub fn global_loop(
     resolved: &ResolvedScenario,
     options: &LoopOptions,
 ) -> Result<GlobalLoop, GlobalError> {
+    global_loop_with(resolved, options, true)
+}
+
+/// As [`global_loop`]; with `boxes = false` every bound of both QPs is dropped (the optimum is
+/// the unconstrained one, σ₁ = σ₃ = 0 exactly): the linear loop of K_lin with only the
+/// iteration error uncertain — a diagnostic and the object of the ρ_lin ≥ 1 refusal test.
+pub fn global_loop_with(
+    resolved: &ResolvedScenario,
+    options: &LoopOptions,
+    boxes: bool,
+) -> Result<GlobalLoop, GlobalError> {
     let mut quiet = resolved.clone();
     quiet.set_noise_scale(0.0);
     let mut opts = *options;
@@ -341,7 +354,7 @@ pub fn global_loop(
     if !cert.fits_eq11 {
         return Err(GlobalError::Phi { method: name });
     }
-    let mhe = Optimum::of(map.problem(), "mhe")?;
+    let mut mhe = Optimum::of(map.problem(), "mhe")?;
     let plant = cl.plant();
     let (nx, nu) = (plant.nx(), plant.nu());
     let (mpc, law) = match cl.controller() {
@@ -349,10 +362,14 @@ pub fn global_loop(
             let qp = quiet.mpc().map_err(LinearError::from)?.qp();
             let o = Optimum::of(qp, "mpc")?;
             // L = −E₀H⁻¹F.
-            let llt = qp.h().to_owned().llt(faer::Side::Lower).map_err(|_| GlobalError::Qp {
-                what: "mpc",
-                why: "the Hessian is not positive definite",
-            })?;
+            let llt = qp
+                .h()
+                .to_owned()
+                .llt(faer::Side::Lower)
+                .map_err(|_| GlobalError::Qp {
+                    what: "mpc",
+                    why: "the Hessian is not positive definite",
+                })?;
             let sol = llt.solve(qp.f());
             let l = Mat::from_fn(nu, qp.n_theta(), |i, j| -sol[(i, j)]);
             (o, l)
@@ -372,6 +389,13 @@ pub fn global_loop(
         }
         ScenarioController::Suboptimal(_) => return Err(GlobalError::Controller),
     };
+    let mut mpc = mpc;
+    if !boxes {
+        for o in [&mut mhe, &mut mpc] {
+            o.free = (0..o.h.nrows()).collect();
+            o.bounded.clear();
+        }
+    }
     let lifted = LiftedLoop::from_loop(&cl, &quiet, options.method, Par::Seq)?;
     let lay = lifted.layout();
     let (n, nz) = (lay.dim(), lay.nz);
@@ -386,7 +410,9 @@ pub fn global_loop(
     let o_w = o_u + nub;
     let nc = o_w + nw;
     // θ_t as a map of ζ.
-    let theta = Mat::from_fn(s_theta.nrows(), nc, |i, j| if j < n { s_theta[(i, j)] } else { 0.0 });
+    let theta = Mat::from_fn(s_theta.nrows(), nc, |i, j| {
+        if j < n { s_theta[(i, j)] } else { 0.0 }
+    });
     let zstar = mhe.map(&theta, o_z)?;
     let sigma_mhe = mhe.vi_form(&zstar, &theta);
     let mut zk = zstar.clone();
@@ -395,7 +421,11 @@ pub fn global_loop(
     }
     // x̂_t: the newest estimate row block of X⁺ (X_θ S_θ X + X_z zᴷ).
     let est = lay.estimates(lay.horizon - 1);
-    let mut xhat = Mat::from_fn(nx, nc, |i, j| if j < n { a_loop[(est + i, j)] } else { 0.0 });
+    let mut xhat = Mat::from_fn(
+        nx,
+        nc,
+        |i, j| if j < n { a_loop[(est + i, j)] } else { 0.0 },
+    );
     add(&mut xhat, &mul(g_z.as_ref().subrows(est, nx), zk.as_ref()));
     // U* of the controller and u = E₀U* (the saturated LQR: U* = u).
     let ustar = mpc.map(&xhat, o_u)?;
@@ -476,6 +506,7 @@ pub fn global_loop(
         sig2_a,
         sig2_b,
         xhat,
+        mhe_bounded: nzb,
         zstar,
         d_col: o_d,
     })
@@ -525,7 +556,7 @@ impl GlobalLoop {
         }
     }
 
-    fn supply(&self, phi: f64, tau1: f64, tau3: f64, gamma2: f64) -> Terms {
+    fn supply(&self, phi: f64, tau1: f64, tau3: f64) -> Terms {
         let nc = self.n_zeta();
         let mut pi = Mat::<f64>::zeros(nc, nc);
         let aa = mul(self.sig2_a.transpose(), self.sig2_a.as_ref());
@@ -541,10 +572,6 @@ impl GlobalLoop {
                     pi[(i, j)] += tau3 * s3[(i, j)];
                 }
             }
-        }
-        for k in 0..self.n_w {
-            let c = nc - self.n_w + k;
-            pi[(c, c)] -= gamma2;
         }
         Terms { pi }
     }
@@ -575,7 +602,8 @@ impl GlobalLoop {
     /// The independent check: P ≻ 0 and the LMI ⪯ 0, Jacobi eigenvalues clearing
     /// 10³·dim·ε·scale. Returns (LMI margin, P margin), both relative to their scale.
     fn check(&self, p: &Mat<f64>, rho: f64, pi: &Mat<f64>) -> Option<(f64, f64)> {
-        let tol = |n: usize, scale: f64| 1e3 * n as f64 * f64::EPSILON * scale.max(f64::MIN_POSITIVE);
+        let tol =
+            |n: usize, scale: f64| 1e3 * n as f64 * f64::EPSILON * scale.max(f64::MIN_POSITIVE);
         let ps = sym_of(p);
         let pscale = ps.abs_sum();
         let pev = sym_eigenvalues(&ps);
@@ -593,9 +621,14 @@ impl GlobalLoop {
     /// A candidate P for fixed scalars: the minimal solution of the worst-case Riccati
     /// equation with a strict supply (δ on X, ε on v), by doubling; None if it diverges.
     fn riccati(&self, rho: f64, pi: &Mat<f64>) -> Option<Mat<f64>> {
-        let (n, nv) = (self.n_x, self.n_v);
+        // w is not an input of this problem (γ = ∞): its γ comes from the P found
+        // (`gamma2_for`).
+        let (n, nv) = (self.n_x, self.n_v - self.n_w);
         let big = pi.as_ref();
-        let scale = (0..n + nv).map(|i| big[(i, i)].abs()).fold(0.0_f64, f64::max).max(1e-300);
+        let scale = (0..n + nv)
+            .map(|i| big[(i, i)].abs())
+            .fold(0.0_f64, f64::max)
+            .max(1e-300);
         let (delta, eps) = (1e-6 * scale, 1e-6 * scale);
         let r2 = rho * rho;
         // Cost c = −(Π + δE_X + εE_v)/ρ² of the min-form; dynamics (A, B)/ρ.
@@ -651,21 +684,51 @@ impl GlobalLoop {
     }
 
     /// Tries the scalars (τ₁, τ₃) at (φ, ρ, γ²); a P that passes the independent check.
+    /// γ² for a P of the LMI without w: twice the smallest γ² that the Schur complement
+    /// allows, λ_max(D + Cᵀ(−M₀)⁻¹C) with M₀ the LMI on the other coordinates, C its
+    /// coupling to w and D = ℬᵀPℬ. None if M₀ is not negative definite.
+    fn gamma2_for(&self, p: &Mat<f64>, rho: f64, pi: &Mat<f64>) -> Option<f64> {
+        let (m, _) = self.lmi(p, rho, pi);
+        let nc = m.n;
+        let n0 = nc - self.n_w;
+        let neg = Mat::from_fn(n0, n0, |i, j| -m.at(i, j));
+        let c = Mat::from_fn(n0, self.n_w, |i, j| m.at(i, n0 + j));
+        let llt = neg.llt(faer::Side::Lower).ok()?;
+        let x = llt.solve(&c);
+        let mut s = mul(c.transpose(), x.as_ref());
+        for i in 0..self.n_w {
+            for j in 0..self.n_w {
+                s[(i, j)] += m.at(n0 + i, n0 + j);
+            }
+        }
+        let top = sym_eigenvalues(&sym_of(&s)).last().copied()?;
+        let floor = 1e-9 * norm_max(p).max(f64::MIN_POSITIVE);
+        let g2 = 2.0 * top.max(0.0) + floor;
+        g2.is_finite().then_some(g2)
+    }
+
     fn certify_scalars(
         &self,
         phi: f64,
         rho: f64,
-        gamma2: f64,
         tau1: f64,
         tau3: f64,
     ) -> Option<GlobalCertificate> {
-        let Terms { pi } = self.supply(phi, tau1, tau3, gamma2);
+        let Terms { mut pi } = self.supply(phi, tau1, tau3);
         let p = self.riccati(rho, &pi)?;
+        let gamma2 = self.gamma2_for(&p, rho, &pi)?;
+        let nc = self.n_zeta();
+        for k in 0..self.n_w {
+            pi[(nc - self.n_w + k, nc - self.n_w + k)] -= gamma2;
+        }
         let (margin, p_margin) = self.check(&p, rho, &pi)?;
         let gamma = gamma2.sqrt();
         let nx = self.lifted.layout().nx;
         let rx = Mat::from_fn(nx, self.n_x, |i, j| if i == j { 1.0 } else { 0.0 });
-        let est = self.lifted.layout().estimates(self.lifted.layout().horizon - 1);
+        let est = self
+            .lifted
+            .layout()
+            .estimates(self.lifted.layout().horizon - 1);
         let rest = Mat::from_fn(nx, self.n_x, |i, j| if j == est + i { 1.0 } else { 0.0 });
         let gain_x = readout_gain(&p, rho, gamma, rx.as_ref())?;
         let gain_e = gain_x + readout_gain(&p, rho, gamma, rest.as_ref())?;
@@ -690,23 +753,42 @@ impl GlobalLoop {
             .collect()
     }
 
-    fn gamma2_feasibility(&self) -> f64 {
-        let s = norm_max(&self.x_plus).max(1.0);
-        1e8 * s * s
+    /// A certificate at φ with ρ = `rho_max` (feasibility), trying the multiplier grid
+    /// (τ₁ × τ₃; a single point for a channel without bounded coordinates).
+    pub fn certify_phi(&self, phi: f64, opts: &GlobalOptions) -> Option<GlobalCertificate> {
+        self.certify_phi_from(phi, opts, None)
     }
 
-    /// A certificate at φ with ρ = `rho_max` (feasibility), trying the multiplier grid.
-    pub fn certify_phi(&self, phi: f64, opts: &GlobalOptions) -> Option<GlobalCertificate> {
+    /// As [`GlobalLoop::certify_phi`], trying `first` (multipliers that certified a nearby φ)
+    /// before the grid.
+    fn certify_phi_from(
+        &self,
+        phi: f64,
+        opts: &GlobalOptions,
+        first: Option<[f64; 2]>,
+    ) -> Option<GlobalCertificate> {
+        if let Some([t1, t3]) = first {
+            if let Some(c) = self.certify_scalars(phi, opts.rho_max, t1, t3) {
+                return Some(c);
+            }
+        }
         let grid = self.tau_grid(opts);
-        let g2 = self.gamma2_feasibility();
-        let tau3s: Vec<f64> = if self.sigma_mpc.is_some() {
+        let tau1s: Vec<f64> = if self.mhe_bounded > 0 {
             grid.clone()
         } else {
             vec![0.0]
         };
-        for &t1 in &grid {
+        let tau3s: Vec<f64> = if self.sigma_mpc.is_some() {
+            grid
+        } else {
+            vec![0.0]
+        };
+        for &t1 in &tau1s {
             for &t3 in &tau3s {
-                if let Some(c) = self.certify_scalars(phi, opts.rho_max, g2, t1, t3) {
+                if first == Some([t1, t3]) {
+                    continue;
+                }
+                if let Some(c) = self.certify_scalars(phi, opts.rho_max, t1, t3) {
                     return Some(c);
                 }
             }
@@ -718,12 +800,14 @@ impl GlobalLoop {
     /// if even φ = 0 (d ≡ 0: the exact-MHE loop with the box) has none.
     pub fn phi_star(&self, opts: &GlobalOptions) -> Option<GlobalCertificate> {
         let mut best = self.certify_phi(0.0, opts)?;
+        let mut tau = Some(best.tau);
         // Grow an upper bracket, then bisect.
         let mut lo = 0.0;
         let mut hi = 1e-3;
         loop {
-            match self.certify_phi(hi, opts) {
+            match self.certify_phi_from(hi, opts, tau) {
                 Some(c) => {
+                    tau = Some(c.tau);
                     best = c;
                     lo = hi;
                     hi *= 4.0;
@@ -735,9 +819,14 @@ impl GlobalLoop {
             }
         }
         while hi - lo > opts.phi_tol * hi {
-            let mid = if lo == 0.0 { hi / 4.0 } else { (lo * hi).sqrt() };
-            match self.certify_phi(mid, opts) {
+            let mid = if lo == 0.0 {
+                hi / 4.0
+            } else {
+                (lo * hi).sqrt()
+            };
+            match self.certify_phi_from(mid, opts, tau) {
                 Some(c) => {
+                    tau = Some(c.tau);
                     best = c;
                     lo = mid;
                 }
@@ -758,38 +847,27 @@ impl GlobalLoop {
         Some((k, cert))
     }
 
-    /// A certificate at φ with the smallest ρ found (bisection) and then the smallest γ at a
-    /// ρ halfway to 1 (the reported gains), from the multipliers that certify φ.
-    pub fn refine(&self, base: &GlobalCertificate, opts: &GlobalOptions) -> GlobalCertificate {
+    /// A certificate at φ with the smallest ρ found (bisection to 10⁻³) from the multipliers
+    /// that certify φ, then the one of smallest `gain_e` among ρ_min and four points between
+    /// it and `base.rho` (the reported gains: ρ near 1 inflates 1/(1 − ρ²)).
+    pub fn refine(&self, base: &GlobalCertificate) -> GlobalCertificate {
         let [t1, t3] = base.tau;
-        let g2 = self.gamma2_feasibility();
         let (mut lo, mut hi) = (0.0, base.rho);
         while hi - lo > 1e-3 {
             let mid = 0.5 * (lo + hi);
-            if self.certify_scalars(base.phi, mid, g2, t1, t3).is_some() {
+            if self.certify_scalars(base.phi, mid, t1, t3).is_some() {
                 hi = mid;
             } else {
                 lo = mid;
             }
         }
-        let rho = (0.5 * (hi + 1.0)).min(opts.rho_max);
-        let mut best = self
-            .certify_scalars(base.phi, rho, g2, t1, t3)
-            .unwrap_or_else(|| base.clone());
-        let (mut glo, mut ghi) = (1e-12 * g2, g2);
-        for _ in 0..30 {
-            let mid = (glo * ghi).sqrt();
-            match self.certify_scalars(base.phi, rho, mid, t1, t3) {
-                Some(c) => {
-                    if c.gain_e <= best.gain_e {
-                        best = c;
-                    }
-                    ghi = mid;
+        let mut best = base.clone();
+        for i in 0..5 {
+            let rho = hi + (base.rho - hi) * i as f64 / 5.0;
+            if let Some(c) = self.certify_scalars(base.phi, rho, t1, t3) {
+                if c.gain_e < best.gain_e {
+                    best = c;
                 }
-                None => glo = mid,
-            }
-            if ghi / glo < 1.1 {
-                break;
             }
         }
         best

@@ -21,8 +21,8 @@
 //! shipped scenario (the PG family with an unconstrained controller) and computes the
 //! frozen-slope radius, a necessary condition for any loop certificate at K.
 
-mod inner;
 pub mod global;
+mod inner;
 pub mod loop_level;
 pub mod scenario;
 mod sdp;

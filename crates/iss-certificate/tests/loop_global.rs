@@ -204,6 +204,16 @@ fn sampled_runs_respect_the_certificate() {
         runs += 1;
     }
     eprintln!("{runs} runs × 60 steps: worst one-step ratio {worst:.4}");
+    // The check has teeth: the same certificate applied at K = 1 (ρ_lin(1) > 1, outside the
+    // certified K) is refuted by a sampled run.
+    let mut o = o0;
+    o.iterations = 1;
+    let refuted = (0..20u64).any(|seed| {
+        o.seed = seed;
+        let (r, within) = run_ratio(&s0, &o, &gl, &c, 60);
+        r > 1.0 || !within
+    });
+    assert!(refuted, "the certificate's check never failed at K = 1");
 }
 
 /// An adversarial search: coordinate ascent over x₀ and the prior (the initial error) and
@@ -271,7 +281,7 @@ fn measure_k_glob_on_the_shipped_scenarios() {
                     continue;
                 }
             };
-            let c = gl.phi_star(&opts);
+            let c = gl.phi_star(&opts).map(|c| gl.refine(&c));
             let unclamped = global_loop_with(&r, &options(&r, base), false)
                 .ok()
                 .and_then(|u| u.phi_star(&opts))

@@ -576,51 +576,88 @@ impl GlobalLoop {
         Terms { pi }
     }
 
-    /// The LMI matrix X⁺ᵀPX⁺ − ρ²E_XᵀPE_X + Π, formed afresh, with the sum of the absolute
-    /// values of its terms (the scale of its rounding).
-    fn lmi(&self, p: &Mat<f64>, rho: f64, pi: &Mat<f64>) -> (Sym, f64) {
+    /// The LMI matrix X⁺ᵀPX⁺ − ρ²E_XᵀPE_X + Π, formed afresh, with the entrywise scale of
+    /// its rounding: (|X⁺|ᵀ|P||X⁺| + |Π| + ρ²|P|)_ij.
+    fn lmi(&self, p: &Mat<f64>, rho: f64, pi: &Mat<f64>) -> (Sym, Sym) {
         let (n, nc) = (self.n_x, self.n_zeta());
         let px = mul(p.as_ref(), self.x_plus.as_ref());
         let q = mul(self.x_plus.transpose(), px.as_ref());
+        let abs = |m: &Mat<f64>| Mat::from_fn(m.nrows(), m.ncols(), |i, j| m[(i, j)].abs());
+        let (xa, pa) = (abs(&self.x_plus), abs(p));
+        let qa = mul(xa.transpose(), mul(pa.as_ref(), xa.as_ref()).as_ref());
         let mut m = Sym::zeros(nc);
-        let mut scale = 0.0;
+        let mut sc = Sym::zeros(nc);
         for i in 0..nc {
             for j in 0..nc {
                 let mut v = 0.5 * (q[(i, j)] + q[(j, i)]) + 0.5 * (pi[(i, j)] + pi[(j, i)]);
-                scale += q[(i, j)].abs() + pi[(i, j)].abs();
+                let mut e = qa[(i, j)].max(qa[(j, i)]) + pi[(i, j)].abs().max(pi[(j, i)].abs());
                 if i < n && j < n {
                     let t = rho * rho * 0.5 * (p[(i, j)] + p[(j, i)]);
                     v -= t;
-                    scale += t.abs();
+                    e += t.abs();
                 }
                 m.a[i * nc + j] = v;
+                sc.a[i * nc + j] = e;
             }
         }
-        (m, scale)
+        (m, sc)
     }
 
-    /// The independent check: P ≻ 0 and the LMI ⪯ 0, Jacobi eigenvalues clearing
-    /// 10³·dim·ε·scale. Returns (LMI margin, P margin), both relative to their scale.
-    fn check(&self, p: &Mat<f64>, rho: f64, pi: &Mat<f64>) -> Option<(f64, f64)> {
+    /// The independent check: P ≻ 0 and the LMI ⪯ 0, by Jacobi eigenvalues of the matrices
+    /// equilibrated by a positive diagonal congruence D (d_i = scale_ii^(−½): definiteness is
+    /// invariant, and the entrywise rounding scales with it), each clearing 10³·dim·ε·Σ scale.
+    /// Returns (LMI margin, P margin), −λ_max and λ_min relative to Σ scale.
+    /// Err(Some(f)): negative but within the allowance, f = allowance/|λ| (how much more
+    /// strictness the solve needs); Err(None): not negative definite.
+    fn check(&self, p: &Mat<f64>, rho: f64, pi: &Mat<f64>) -> Result<(f64, f64), Option<f64>> {
         let tol =
             |n: usize, scale: f64| 1e3 * n as f64 * f64::EPSILON * scale.max(f64::MIN_POSITIVE);
+        let equilibrate = |m: &Sym, sc: &Sym| {
+            let n = m.n;
+            let d: Vec<f64> = (0..n)
+                .map(|i| {
+                    let s = sc.at(i, i);
+                    if s > 0.0 && s.is_finite() {
+                        1.0 / s.sqrt()
+                    } else {
+                        1.0
+                    }
+                })
+                .collect();
+            let mut mm = Sym::zeros(n);
+            let mut total = 0.0;
+            for i in 0..n {
+                for j in 0..n {
+                    mm.a[i * n + j] = d[i] * d[j] * m.at(i, j);
+                    total += d[i] * d[j] * sc.at(i, j);
+                }
+            }
+            (mm, total)
+        };
         let ps = sym_of(p);
-        let pscale = ps.abs_sum();
-        let pev = sym_eigenvalues(&ps);
-        if !(pev[0] > tol(ps.n, pscale)) {
-            return None;
+        let pabs = Sym {
+            n: ps.n,
+            a: ps.a.iter().map(|v| v.abs()).collect(),
+        };
+        let (pe, pscale) = equilibrate(&ps, &pabs);
+        let pev = sym_eigenvalues(&pe);
+        let pt = tol(pe.n, pscale);
+        if !(pev[0] > pt) {
+            return Err((pev[0] > 0.0).then(|| 2.0 * pt / pev[0]));
         }
-        let (m, scale) = self.lmi(p, rho, pi);
-        let top = sym_eigenvalues(&m).last().copied()?;
-        if !(-top > tol(m.n, scale)) {
-            return None;
+        let (m, sc) = self.lmi(p, rho, pi);
+        let (me, scale) = equilibrate(&m, &sc);
+        let top = sym_eigenvalues(&me).last().copied().ok_or(None)?;
+        let t = tol(me.n, scale);
+        if !(-top > t) {
+            return Err((top < 0.0).then(|| 2.0 * t / -top));
         }
-        Some((-top / scale, pev[0] / pscale))
+        Ok((-top / scale, pev[0] / pscale))
     }
 
     /// A candidate P for fixed scalars: the minimal solution of the worst-case Riccati
     /// equation with a strict supply (δ on X, ε on v), by doubling; None if it diverges.
-    fn riccati(&self, rho: f64, pi: &Mat<f64>) -> Option<Mat<f64>> {
+    fn riccati(&self, rho: f64, pi: &Mat<f64>, strict: f64) -> Option<Mat<f64>> {
         // w is not an input of this problem (γ = ∞): its γ comes from the P found
         // (`gamma2_for`).
         let (n, nv) = (self.n_x, self.n_v - self.n_w);
@@ -629,7 +666,7 @@ impl GlobalLoop {
             .map(|i| big[(i, i)].abs())
             .fold(0.0_f64, f64::max)
             .max(1e-300);
-        let (delta, eps) = (1e-6 * scale, 1e-6 * scale);
+        let (delta, eps) = (strict * scale, strict * scale);
         let r2 = rho * rho;
         // Cost c = −(Π + δE_X + εE_v)/ρ² of the min-form; dynamics (A, B)/ρ.
         let qc = Mat::from_fn(n, n, |i, j| {
@@ -714,14 +751,29 @@ impl GlobalLoop {
         tau1: f64,
         tau3: f64,
     ) -> Option<GlobalCertificate> {
-        let Terms { mut pi } = self.supply(phi, tau1, tau3);
-        let p = self.riccati(rho, &pi)?;
-        let gamma2 = self.gamma2_for(&p, rho, &pi)?;
-        let nc = self.n_zeta();
-        for k in 0..self.n_w {
-            pi[(nc - self.n_w + k, nc - self.n_w + k)] -= gamma2;
+        let Terms { pi: pi0 } = self.supply(phi, tau1, tau3);
+        // Strictness δ = ε relative to Π; raised (twice at most) when the check finds the LMI
+        // negative but within its rounding allowance.
+        let mut strict = 1e-6;
+        let mut found = None;
+        for _ in 0..3 {
+            let p = self.riccati(rho, &pi0, strict)?;
+            let gamma2 = self.gamma2_for(&p, rho, &pi0)?;
+            let mut pi = pi0.clone();
+            let nc = self.n_zeta();
+            for k in 0..self.n_w {
+                pi[(nc - self.n_w + k, nc - self.n_w + k)] -= gamma2;
+            }
+            match self.check(&p, rho, &pi) {
+                Ok(m) => {
+                    found = Some((p, gamma2, m));
+                    break;
+                }
+                Err(Some(need)) => strict *= need.clamp(2.0, 1e4),
+                Err(None) => return None,
+            }
         }
-        let (margin, p_margin) = self.check(&p, rho, &pi)?;
+        let (p, gamma2, (margin, p_margin)) = found?;
         let gamma = gamma2.sqrt();
         let nx = self.lifted.layout().nx;
         let rx = Mat::from_fn(nx, self.n_x, |i, j| if i == j { 1.0 } else { 0.0 });

@@ -856,18 +856,13 @@ impl GlobalLoop {
         // Grow an upper bracket, then bisect.
         let mut lo = 0.0;
         let mut hi = 1e-3;
-        loop {
-            match self.certify_phi_from(hi, opts, tau) {
-                Some(c) => {
-                    tau = Some(c.tau);
-                    best = c;
-                    lo = hi;
-                    hi *= 4.0;
-                    if hi > 1e3 {
-                        return Some(best);
-                    }
-                }
-                None => break,
+        while let Some(c) = self.certify_phi_from(hi, opts, tau) {
+            tau = Some(c.tau);
+            best = c;
+            lo = hi;
+            hi *= 4.0;
+            if hi > 1e3 {
+                return Some(best);
             }
         }
         while hi - lo > opts.phi_tol * hi {

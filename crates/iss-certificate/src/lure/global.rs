@@ -666,7 +666,12 @@ impl GlobalLoop {
             .map(|i| big[(i, i)].abs())
             .fold(0.0_f64, f64::max)
             .max(1e-300);
-        let (delta, eps) = (strict * scale, strict * scale);
+        let delta = strict * scale;
+        // ε per input coordinate, relative to its own diagonal (the Jacobi weights D⁻² span
+        // decades: one ε for all would swamp the small ones).
+        let eps: Vec<f64> = (0..nv)
+            .map(|i| strict * big[(n + i, n + i)].abs().max(1e-6 * scale))
+            .collect();
         let r2 = rho * rho;
         // Cost c = −(Π + δE_X + εE_v)/ρ² of the min-form; dynamics (A, B)/ρ.
         let qc = Mat::from_fn(n, n, |i, j| {
@@ -674,7 +679,7 @@ impl GlobalLoop {
         });
         let sc = Mat::from_fn(n, nv, |i, j| -big[(i, n + j)] / r2);
         let rc = Mat::from_fn(nv, nv, |i, j| {
-            -(big[(n + i, n + j)] + if i == j { eps } else { 0.0 }) / r2
+            -(big[(n + i, n + j)] + if i == j { eps[i] } else { 0.0 }) / r2
         });
         let llt = rc.llt(faer::Side::Lower).ok()?;
         let at = Mat::from_fn(n, n, |i, j| self.x_plus[(i, j)] / rho);

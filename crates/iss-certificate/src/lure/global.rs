@@ -139,14 +139,12 @@ impl GlobalCertificate {
 }
 
 fn readout_gain(p: &Mat<f64>, rho: f64, gamma: f64, r: MatRef<'_, f64>) -> Option<f64> {
-    let n = p.nrows();
     let llt = p.llt(faer::Side::Lower).ok()?;
     let rt = r.transpose().to_owned();
     let x = llt.solve(&rt); // P⁻¹Rᵀ
     let m = mul(r, x.as_ref());
     let s = sym_of(&m);
     let top = sym_eigenvalues(&s).last().copied()?;
-    let _ = n;
     Some(gamma * (top.max(0.0) / (1.0 - rho * rho)).sqrt())
 }
 

@@ -21,6 +21,7 @@
 //! shipped scenario (the PG family with an unconstrained controller) and computes the
 //! frozen-slope radius, a necessary condition for any loop certificate at K.
 
+pub mod global;
 mod inner;
 pub mod loop_level;
 pub mod scenario;

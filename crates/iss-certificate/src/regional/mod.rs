@@ -34,11 +34,15 @@ mod candidate;
 #[cfg_attr(not(test), allow(dead_code))]
 mod clip_form;
 mod cost;
+#[cfg_attr(not(test), allow(dead_code))]
+mod handoff;
 mod lifted;
 mod metric;
 mod model;
 mod reach;
 mod search;
+#[cfg_attr(not(test), allow(dead_code))]
+mod startup;
 #[cfg_attr(not(test), allow(dead_code))]
 mod zonotope;
 

@@ -55,6 +55,11 @@ impl Space {
         self.count
     }
 
+    /// The balls: (first generator, count, radius).
+    pub fn balls(&self) -> &[(usize, usize, f64)] {
+        &self.balls
+    }
+
     /// `len` generators forming a Euclidean ball of radius `radius`; returns the first.
     pub fn add_ball(&mut self, len: usize, radius: f64) -> usize {
         let first = self.count;

@@ -89,38 +89,56 @@ pub(crate) fn hand_off(
     let x = space.widen(x_t.as_ref());
     let nr = rows.len();
     let c = Mat::from_fn(nr, n, |i, j| rows[i][j]);
-    let mut cur = c.clone(); // c_i𝔸^s
+    let mut y = x.clone(); // 𝔸^s X_T
+    let mut bs = model.bw.clone(); // 𝔸^s 𝔹_w
     let mut forced = vec![0.0; nr]; // Σ_{k<s}‖c_i𝔸^k𝔹_w‖_*
     let mut worst = (0usize, Some(0usize), 0.0_f64, 1.0_f64, f64::NEG_INFINITY);
-    let mut note = |i: usize, at: Option<usize>, reach: f64, bound: f64| {
+    fn note(
+        worst: &mut (usize, Option<usize>, f64, f64, f64),
+        (i, at, reach, bound): (usize, Option<usize>, f64, f64),
+    ) {
         let ratio = reach / bound;
         if ratio > worst.4 {
-            worst = (i, at, reach, bound, ratio);
+            *worst = (i, at, reach, bound, ratio);
         }
-    };
+    }
     let (lower, upper) = (&model.rows.lower, &model.rows.upper);
-    for s in 0..exact {
-        let v = &cur * &x;
-        let cb = &cur * &model.bw;
+    let mut s_done = 0;
+    for _ in 0..exact {
+        let v = &c * &y;
+        let cb = &c * &bs;
         for i in 0..nr {
             let (lo, hi) = space.interval(v.as_ref(), i);
             let (lo, hi) = (lo - forced[i], hi + forced[i]);
             if upper[i].is_finite() {
-                note(i, Some(s), hi, upper[i]);
+                note(&mut worst, (i, Some(s_done), hi, upper[i]));
             }
             if lower[i].is_finite() {
-                note(i, Some(s), -lo, -lower[i]);
+                note(&mut worst, (i, Some(s_done), -lo, -lower[i]));
             }
             forced[i] += dual(w, |j| cb[(i, j)], nw);
         }
-        cur = &cur * &model.a;
+        y = &model.a * &y;
+        bs = &model.a * &bs;
+        s_done += 1;
+        if worst.4 > 1.0 {
+            // A row leaves its bounds over the set: this T does not hand off.
+            break;
+        }
     }
     // Tail: ‖P^½𝔸^S X_T‖ bounded over the zonotope (balls by Frobenius, a sound bound).
-    let mut a_s = Mat::<f64>::identity(n, n);
-    for _ in 0..exact {
-        a_s = &a_s * &model.a;
+    if worst.4 > 1.0 {
+        let (i, at, reach, bound, _) = worst;
+        return Ok(HandOff {
+            holds: false,
+            binding: model.rows.labels[i],
+            at,
+            reach,
+            bound,
+            lambda,
+        });
     }
-    let px = &mt.half * &a_s * &x;
+    let px = &mt.half * &y;
     let col = |j: usize| (0..n).map(|i| px[(i, j)] * px[(i, j)]).sum::<f64>();
     let mut r = col(0).sqrt();
     let mut in_ball = vec![false; space.count()];
@@ -140,7 +158,7 @@ pub(crate) fn hand_off(
     for i in 0..nr {
         let ni = (0..n).map(|j| cn[(i, j)] * cn[(i, j)]).sum::<f64>().sqrt();
         let reach = ni * (r + tail_w) + forced[i];
-        note(i, None, reach, upper[i].min(-lower[i]));
+        note(&mut worst, (i, None, reach, upper[i].min(-lower[i])));
     }
     let (i, at, reach, bound, ratio) = worst;
     Ok(HandOff {

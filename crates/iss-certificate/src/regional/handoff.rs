@@ -103,8 +103,7 @@ pub(crate) fn hand_off(
         }
     }
     let (lower, upper) = (&model.rows.lower, &model.rows.upper);
-    let mut s_done = 0;
-    for _ in 0..exact {
+    for s_done in 0..exact {
         let v = &c * &y;
         let cb = &c * &bs;
         for i in 0..nr {
@@ -120,7 +119,6 @@ pub(crate) fn hand_off(
         }
         y = &model.a * &y;
         bs = &model.a * &bs;
-        s_done += 1;
         if worst.4 > 1.0 {
             // A row leaves its bounds over the set: this T does not hand off.
             break;

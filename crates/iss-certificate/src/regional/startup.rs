@@ -58,7 +58,6 @@ pub(crate) struct StepHull {
 /// T steps of the real loop over the set.
 #[derive(Debug, Clone)]
 pub(crate) struct Propagation {
-    pub space: Space,
     pub hulls: Vec<StepHull>,
     pub active: Vec<ActiveClip>,
 }
@@ -360,18 +359,13 @@ pub(crate) fn propagate(
         st.xhs.push(xh);
         st.reduce(&mut space, big_m, cap);
     }
-    Ok(Propagation {
-        space,
-        hulls,
-        active,
-    })
+    Ok(Propagation { hulls, active })
 }
 
 /// The start-up certificate at one K: constraints may act for t < T; from T on no row is
 /// active and the loop is the lifted linear one, ISS with rate λ (Theorem R from X_T).
 #[derive(Debug, Clone)]
 pub(crate) struct StartupCertificate {
-    pub k: usize,
     /// The first T (M ≤ T ≤ the bound searched) whose hand-off holds, or None.
     pub t: Option<usize>,
     /// The clips that acted before T (or before the last T tried).
@@ -437,7 +431,6 @@ pub(crate) fn certify(
         .filter(|a| a.step < t_last)
         .collect();
     Ok(StartupCertificate {
-        k,
         t: found,
         active,
         hand_off,

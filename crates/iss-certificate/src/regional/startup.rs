@@ -544,6 +544,84 @@ mod tests {
         assert!(seen > 0.0);
     }
 
+    /// Measurement (not in CI): how loose the propagated set is, and whether the real loop
+    /// itself activates a full-window row late. The double integrator with FISTA at K = 16 and
+    /// the scenario's own set (x₀ exact, prior error ≤ 1, the noise box): per step, the width of
+    /// the hull of x̂_t against the spread of 200 real runs (prior on the sphere, random seeds),
+    /// and how many runs have an active full-window row at t ≥ M + 20.
+    /// `cargo test -p iss-certificate --lib -- --ignored measure_zonotope_looseness --nocapture`
+    #[test]
+    #[ignore = "measurement"]
+    fn measure_zonotope_looseness() {
+        let file = format!(
+            "{}/../../scenarios/double-integrator.toml",
+            env!("CARGO_MANIFEST_DIR")
+        );
+        let base = Scenario::from_file(&file).unwrap();
+        let res = base.clone().resolve().unwrap();
+        let (k, method, controller) = (16, Method::FISTA, ControllerChoice::ExactMpc);
+        let unc = Uncertainty::of(
+            &super::super::RegionalOptions::from_scenario(&res, controller).unwrap(),
+        );
+        let p = super::super::model::pieces(&res, method, controller).unwrap();
+        let model = super::super::lifted::build(&p, k).unwrap();
+        let forms = window_forms(&res, method).unwrap();
+        let steps = 3 * p.horizon + 20;
+        let prop = propagate(&p, &forms, controller, k, steps, &unc, 200, None).unwrap();
+        let rows = model.rows.to_vecs();
+        let mut r = ChaCha8Rng::seed_from_u64(42);
+        let mut real: Vec<(f64, f64)> = vec![(f64::INFINITY, f64::NEG_INFINITY); steps];
+        let (mut late_active, mut worst_late) = (0, 0.0_f64);
+        for run in 0..200u64 {
+            let g: Vec<f64> = (0..2).map(|_| r.random_range(-1.0..1.0)).collect();
+            let n = g.iter().map(|x| x * x).sum::<f64>().sqrt();
+            let mut s = base.clone();
+            s.simulation.prior = (0..2)
+                .map(|i| s.simulation.x0[i] + unc.prior_error * g[i] / n)
+                .collect();
+            let mut o = LoopOptions::from_scenario(&s).unwrap();
+            o.method = method;
+            o.iterations = k;
+            o.controller = controller;
+            o.seed = run;
+            o.steps = steps + 1;
+            let mut cl = s.clone().resolve().unwrap().build_loop(&o).unwrap();
+            let mut active = false;
+            for (t, rr) in real.iter_mut().enumerate() {
+                if t >= p.horizon + 20 {
+                    let x = lifted_state(&cl, model.layout);
+                    for (i, row) in rows.iter().enumerate() {
+                        let v: f64 = row.iter().zip(&x).map(|(a, b)| a * b).sum();
+                        let side = if v >= 0.0 {
+                            model.rows.upper[i]
+                        } else {
+                            -model.rows.lower[i]
+                        };
+                        worst_late = worst_late.max(v.abs() / side);
+                        active |= v.abs() > side;
+                    }
+                }
+                cl.step().unwrap();
+                let xh = cl.trace().x_hat(t).unwrap()[0];
+                *rr = (rr.0.min(xh), rr.1.max(xh));
+            }
+            late_active += usize::from(active);
+        }
+        for t in [0, 1, 2, p.horizon, p.horizon + 5, p.horizon + 20, steps - 1] {
+            let (lo, hi) = prop.hulls[t].x_hat[0];
+            println!(
+                "t = {t}: hull of x̂₀-component width {:.3e}, real spread {:.3e} (×{:.1})",
+                hi - lo,
+                real[t].1 - real[t].0,
+                (hi - lo) / (real[t].1 - real[t].0)
+            );
+        }
+        println!(
+            "runs with an active full-window row at t ≥ M + 20: {late_active}/200; largest real \
+             value/bound there {worst_late:.3}"
+        );
+    }
+
     /// Measurement (not in CI): every shipped scenario × the four covered methods, the
     /// scenario's own uncertainty, exact MPC, K = 1, 2, 4, 8, 16, T ≤ M + 20: the first K whose
     /// start-up certificate holds, its T, and otherwise the binding row at the last K tried.

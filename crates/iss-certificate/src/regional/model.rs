@@ -336,7 +336,7 @@ fn law_of(resolved: &ResolvedScenario, controller: ControllerChoice) -> Result<L
     let build = |e| ModelError::Linear(LinearError::Build(e));
     let mpc = resolved.mpc().map_err(build)?;
     match controller {
-        ControllerChoice::ExactMpc => exact_mpc_law(&mpc),
+        ControllerChoice::ExactMpc => exact_mpc_law(mpc),
         ControllerChoice::SaturatedLqr => {
             let ctrl = resolved
                 .controller(ControllerChoice::SaturatedLqr)

@@ -95,7 +95,7 @@ fn fista_step(inner: &qp_iter::ParametricQp, inv_l: f64, beta: f64) -> ClipStep 
 
 impl ClipStep {
     /// ξ⁺ with π the box clip on [lower, upper] (`clip`) or the identity; writes `out`.
-    pub fn apply(
+    pub(crate) fn apply(
         &self,
         xi: &[f64],
         theta: &[f64],
@@ -120,7 +120,7 @@ impl ClipStep {
     }
 
     /// The linear part where π is the identity: [P + QR | QS].
-    pub fn linear(&self) -> Mat<f64> {
+    pub(crate) fn linear(&self) -> Mat<f64> {
         let a = &self.p + &self.q * &self.r;
         let b = &self.q * &self.s;
         Mat::from_fn(a.nrows(), a.ncols() + b.ncols(), |i, j| {
@@ -135,7 +135,7 @@ impl ClipStep {
 
 impl ClipForm {
     /// The clip form of `map` read off its definition, or why it is not covered.
-    pub fn of(map: &MethodMap) -> Result<Self, ModelError> {
+    pub(crate) fn of(map: &MethodMap) -> Result<Self, ModelError> {
         let (d, inner) = match map {
             MethodMap::Scaled(s) => (Some(s.scaling().to_vec()), s.inner()),
             m => (None, m),
@@ -184,18 +184,18 @@ impl ClipForm {
     }
 
     /// n_ξ.
-    pub fn lift_dim(&self) -> usize {
+    pub(crate) fn lift_dim(&self) -> usize {
         self.pre.nrows()
     }
 
     /// k₀: steps taken by the restart.
-    pub fn start_steps(&self) -> usize {
+    pub(crate) fn start_steps(&self) -> usize {
         usize::from(self.restart.is_some())
     }
 
     /// zᴷ after K ≥ k₀ steps from the warm start z⁰ with θ loaded, each π the clip
     /// (`clip`) or the identity. For checks: allocates.
-    pub fn run(&self, z0: &[f64], theta: &[f64], k: usize, clip: bool) -> Vec<f64> {
+    pub(crate) fn run(&self, z0: &[f64], theta: &[f64], k: usize, clip: bool) -> Vec<f64> {
         let nxi = self.lift_dim();
         let mut xi: Vec<f64> = (0..nxi)
             .map(|i| (0..self.n).map(|j| self.pre[(i, j)] * z0[j]).sum())
@@ -216,7 +216,7 @@ impl ClipForm {
     }
 
     /// The start map Ξ = [Ξ_z | Ξ_θ] where π is the identity (what `linearise` probes).
-    pub fn linear_start(&self, n_theta: usize) -> Mat<f64> {
+    pub(crate) fn linear_start(&self, n_theta: usize) -> Mat<f64> {
         match &self.restart {
             None => Mat::from_fn(self.lift_dim(), self.n + n_theta, |i, j| {
                 if j < self.n { self.pre[(i, j)] } else { 0.0 }

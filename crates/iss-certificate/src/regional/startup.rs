@@ -64,7 +64,7 @@ pub(crate) struct Propagation {
 
 impl Uncertainty {
     /// The set of the regional certificate's options (the scenario's own by default).
-    pub fn of(o: &super::RegionalOptions) -> Self {
+    pub(crate) fn of(o: &super::RegionalOptions) -> Self {
         let w = match &o.w_box {
             Some(r) => {
                 let norm = r.iter().map(|x| x * x).sum::<f64>().sqrt();

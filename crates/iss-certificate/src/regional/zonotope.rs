@@ -51,17 +51,17 @@ pub(crate) enum ClipStatus {
 
 impl Space {
     /// Generators so far.
-    pub fn count(&self) -> usize {
+    pub(crate) fn count(&self) -> usize {
         self.count
     }
 
     /// The balls: (first generator, count, radius).
-    pub fn balls(&self) -> &[(usize, usize, f64)] {
+    pub(crate) fn balls(&self) -> &[(usize, usize, f64)] {
         &self.balls
     }
 
     /// `len` generators forming a Euclidean ball of radius `radius`; returns the first.
-    pub fn add_ball(&mut self, len: usize, radius: f64) -> usize {
+    pub(crate) fn add_ball(&mut self, len: usize, radius: f64) -> usize {
         let first = self.count;
         self.balls.push((first, len, radius));
         self.count += len;
@@ -69,7 +69,7 @@ impl Space {
     }
 
     /// `len` unit-interval generators; returns the first.
-    pub fn add_intervals(&mut self, len: usize) -> usize {
+    pub(crate) fn add_intervals(&mut self, len: usize) -> usize {
         let first = self.count;
         self.count += len;
         first
@@ -80,7 +80,7 @@ impl Space {
     }
 
     /// `m` with zero columns for the generators added since it was built.
-    pub fn widen(&self, m: MatRef<'_, f64>) -> Mat<f64> {
+    pub(crate) fn widen(&self, m: MatRef<'_, f64>) -> Mat<f64> {
         let cols = 1 + self.count;
         Mat::from_fn(
             m.nrows(),
@@ -92,7 +92,7 @@ impl Space {
     }
 
     /// sup over the set of |row i of `m`| minus |its centre|: the generators' reach.
-    pub fn spread(&self, m: MatRef<'_, f64>, i: usize) -> f64 {
+    pub(crate) fn spread(&self, m: MatRef<'_, f64>, i: usize) -> f64 {
         let g = |j: usize| {
             if 1 + j < m.ncols() {
                 m[(i, 1 + j)]
@@ -113,7 +113,7 @@ impl Space {
     }
 
     /// [lo, hi] of component i over the set, widened by [`PAD`].
-    pub fn interval(&self, m: MatRef<'_, f64>, i: usize) -> (f64, f64) {
+    pub(crate) fn interval(&self, m: MatRef<'_, f64>, i: usize) -> (f64, f64) {
         let (c, s) = (m[(i, 0)], self.spread(m, i));
         let pad = PAD * (c.abs() + s);
         (c - s - pad, c + s + pad)
@@ -121,7 +121,7 @@ impl Space {
 
     /// The zonotope of π(v) on the box [lower, upper] (one new generator per straddling
     /// component) and what the clip did per component.
-    pub fn clip(
+    pub(crate) fn clip(
         &mut self,
         v: MatRef<'_, f64>,
         lower: &[f64],
@@ -173,7 +173,7 @@ impl Space {
     /// Boxes the smallest interval generators of the joint state `forms` (all widened to
     /// the current count) so that at most `cap` generators remain; returns the reduced
     /// forms in place. A no-op when already within the cap or when boxing would not shrink.
-    pub fn reduce(&mut self, forms: &mut [Mat<f64>], cap: usize) {
+    pub(crate) fn reduce(&mut self, forms: &mut [Mat<f64>], cap: usize) {
         let rows: usize = forms.iter().map(|m| m.nrows()).sum();
         for m in forms.iter_mut() {
             *m = self.widen(m.as_ref());

@@ -27,12 +27,24 @@
 //! none: give `certificate.w_bar`).
 
 mod candidate;
+// The start-up certificate's parts (issue 35 item 2): each method's step with its clip, the
+// zonotope abstraction and the real start-up over it. Built and tested; not yet wired into
+// `certify_at` (the hand-off to Theorem R at t = T is the next step), hence unused outside
+// their tests.
+#[cfg_attr(not(test), allow(dead_code))]
+mod clip_form;
 mod cost;
+#[cfg_attr(not(test), allow(dead_code))]
+mod handoff;
 mod lifted;
 mod metric;
 mod model;
 mod reach;
 mod search;
+#[cfg_attr(not(test), allow(dead_code))]
+mod startup;
+#[cfg_attr(not(test), allow(dead_code))]
+mod zonotope;
 
 use faer::{Mat, Par};
 #[cfg(feature = "serde")]
@@ -610,9 +622,50 @@ fn certify_at(
     if k == 0 || pieces.windows.iter().any(|w| k < w.lin.start_steps) {
         return Err(ModelError::from(crate::linear::LinearError::ZeroIterations).into());
     }
-    // ρ_lin(K) first, from the K-step maps (log₂K products): an unstable K is refused before
-    // its K·n_z rows are built. The margin 10⁻⁹ leaves the borderline cases to the iterated
-    // matrix below, whose ρ_lin the certificate reports.
+    let (model, rho) = stable_model(pieces, k, budget)?;
+    let sizes = cost::sizes(pieces, k);
+    let plan = cost::analysis_plan(&sizes, rho, &o.rate_fractions, budget.left);
+    budget.spend(
+        k,
+        "the impulse response, the free response, the candidate metrics and the rows' margins",
+        plan.base,
+    )?;
+    let (free, imp, imp_terms) = free_and_impulse(&model, o, &plan, budget);
+
+    // Start-up rows over the user's set (exact: linear in υ).
+    let terms = startup_terms(
+        &model.startup_rows,
+        (model.nx, model.nw, model.layout.horizon),
+        o,
+    );
+    let at_start = start_witness(&model.startup_rows, &terms, o, |l| l.step == Some(0));
+    let startup = startup_check(&model.startup_rows, &terms, o);
+    // A witness (an admissible realization past a bound) refutes the set at this K whatever
+    // the metric: one candidate then gives the certificate's figures, the others are skipped.
+    let refuted = !startup.holds || free_refutes(&model, &free);
+    let (c, metrics) =
+        best_candidate(&model, (&imp, &free), (k, rho), (&plan, refuted), o, budget)?;
+    let cert = assemble(
+        method,
+        (k, rho),
+        &model,
+        &c,
+        startup,
+        at_start,
+        (free.steps, imp_terms, metrics),
+        o,
+    );
+    Ok((cert, model, c.metric, c.reach))
+}
+
+/// ρ_lin(K) first, from the K-step maps (log₂K products): an unstable K is refused before its
+/// K·n_z rows are built. The margin 10⁻⁹ leaves the borderline cases to the iterated matrix,
+/// whose ρ_lin the certificate reports. Returns the model with every row and that ρ_lin.
+fn stable_model(
+    pieces: &model::Pieces,
+    k: usize,
+    budget: &mut Budget,
+) -> Result<(RegionalModel, f64), RegionalVoid> {
     budget.spend(
         k,
         "ρ_lin(K) from the K-step maps",
@@ -633,22 +686,25 @@ fn certify_at(
     if !(rho < 1.0) {
         return Err(RegionalVoid::Unstable { k, rho });
     }
-    let sizes = cost::sizes(pieces, k);
-    let plan = cost::analysis_plan(&sizes, rho, &o.rate_fractions, budget.left);
-    budget.spend(
-        k,
-        "the impulse response, the free response, the candidate metrics and the rows' margins",
-        plan.base,
-    )?;
-    // The probe first: a witness there refutes the K (then only the least is computed).
-    let mut free = reach::free_reach(&model, o, plan.probe);
+    Ok((model, rho))
+}
+
+/// The free response's exact steps (the probe first: a witness there refutes the K, and then
+/// only the least is computed) and the impulse terms; refunds what was planned and not spent.
+fn free_and_impulse(
+    model: &RegionalModel,
+    o: &RegionalOptions,
+    plan: &cost::AnalysisPlan,
+    budget: &mut Budget,
+) -> (reach::FreeReach, candidate::Impulse, usize) {
+    let mut free = reach::free_reach(model, o, plan.probe);
     let mut refund = (plan.probe - free.steps) as f64 * plan.step_work;
-    let probe_refutes = free.steps < plan.probe || free_refutes(&model, &free);
+    let probe_refutes = free.steps < plan.probe || free_refutes(model, &free);
     if plan.steps > plan.probe {
         if probe_refutes {
             refund += plan.steps as f64 * plan.step_work;
         } else {
-            free = reach::free_reach(&model, o, plan.steps);
+            free = reach::free_reach(model, o, plan.steps);
             refund += (plan.steps - free.steps) as f64 * plan.step_work;
         }
     }
@@ -659,26 +715,20 @@ fn certify_at(
     };
     refund += (plan.terms - imp_terms) as f64 * plan.term_work;
     budget.refund(refund);
-    let imp = impulse(&model, imp_terms, o);
+    (free, impulse(model, imp_terms, o), imp_terms)
+}
 
-    // Start-up rows over the user's set (exact: linear in υ).
-    let terms = startup_terms(
-        &model.startup_rows,
-        (model.nx, model.nw, model.layout.horizon),
-        o,
-    );
-    let at_start = start_witness(&model.startup_rows, &terms, o, |l| l.step == Some(0));
-    let StartupCheck {
-        holds: startup_holds,
-        scale: startup_scale,
-        limit: startup_limit,
-        max_x: sx,
-        max_p: sp,
-        max_w: sw,
-    } = startup_check(&model.startup_rows, &terms, o);
-    // A witness (an admissible realization past a bound) refutes the set at this K whatever
-    // the metric: one candidate then gives the certificate's figures, the others are skipped.
-    let refuted = !startup_holds || free_refutes(&model, &free);
+/// The candidate metric that certifies the largest multiple of the user's set (then the
+/// largest radius), the cheapest first; with a witness (`refuted`) only the cheapest. Returns it
+/// and how many metrics were evaluated.
+fn best_candidate(
+    model: &RegionalModel,
+    (imp, free): (&candidate::Impulse, &reach::FreeReach),
+    (k, rho): (usize, f64),
+    (plan, refuted): (&cost::AnalysisPlan, bool),
+    o: &RegionalOptions,
+    budget: &mut Budget,
+) -> Result<(Candidate, usize), RegionalVoid> {
     let mut best: Option<(f64, Candidate)> = None;
     let mut metrics = 0;
     let order = std::iter::once(plan.cheapest).chain(
@@ -711,9 +761,9 @@ fn certify_at(
             continue;
         };
         let c = evaluate(
-            &model,
-            &imp,
-            &free,
+            model,
+            imp,
+            free,
             &m,
             format!("Stein, λ = ρ_lin + {f}·(1 − ρ_lin) = {lam:.6}"),
             o,
@@ -728,10 +778,33 @@ fn certify_at(
             best = Some((key, c));
         }
     }
-    let Some((_, c)) = best else {
-        return Err(RegionalVoid::NoMetric { k, rho });
-    };
+    match best {
+        Some((_, c)) => Ok((c, metrics)),
+        None => Err(RegionalVoid::NoMetric { k, rho }),
+    }
+}
 
+/// The certificate from the best candidate and the start-up check: the witness with the largest
+/// ratio, the margin, the largest single radii, the gains.
+#[allow(clippy::too_many_arguments)]
+fn assemble(
+    method: qp_iter::Method,
+    (k, rho): (usize, f64),
+    model: &RegionalModel,
+    c: &Candidate,
+    startup: StartupCheck,
+    at_start: Option<Limit>,
+    (exact_steps, impulse_terms, metrics_evaluated): (usize, usize, usize),
+    o: &RegionalOptions,
+) -> RegionalCertificate {
+    let StartupCheck {
+        holds: startup_holds,
+        scale: startup_scale,
+        limit: startup_limit,
+        max_x: sx,
+        max_p: sp,
+        max_w: sw,
+    } = startup;
     let ratio = |l: &Limit| l.attained / l.bound;
     let witness = [c.witness.clone(), startup_limit.clone()]
         .into_iter()
@@ -749,25 +822,25 @@ fn certify_at(
     };
     let (full_x, full_p, full_w) = (c.max_x, c.max_p, c.max_w);
     let clamp = |v: f64| if v.is_nan() { 0.0 } else { v.max(0.0) };
-    let cert = RegionalCertificate {
+    RegionalCertificate {
         method: method.to_string(),
         k,
         dim: model.layout.dim(),
         rho_lin: rho,
-        metric: c.name,
+        metric: c.name.clone(),
         rate: c.rate,
         disturbance_gain: c.b,
         radius: c.radius,
-        radius_limit: c.limit,
+        radius_limit: c.limit.clone(),
         initial_radius: c.nominal + o.x0_radius * c.a_x + o.prior_error * c.a_p + o.w_bar * c.a_w,
         invariant_radius: o.w_bar * inv_rate,
         startup_holds,
         startup_limit,
         witness,
         refuted_at_start: at_start,
-        exact_steps: free.steps,
-        impulse_terms: imp_terms,
-        metrics_evaluated: metrics,
+        exact_steps,
+        impulse_terms,
+        metrics_evaluated,
         rows: (model.rows.labels.len(), model.startup_rows.labels.len()),
         contains,
         margin,
@@ -779,8 +852,7 @@ fn certify_at(
         gain_x: c.gain_x,
         gain_e: c.gain_e,
         options: o.clone(),
-    };
-    Ok((cert, model, c.metric, c.reach))
+    }
 }
 
 /// Some full-window row's exact steps reach past its bound: a witness.

@@ -220,8 +220,40 @@ pub(crate) fn pieces_upto(
         .estimator(method, 1, false)
         .map_err(|e| ModelError::Linear(LinearError::Build(e)))?;
     let big_m = est.config().horizon;
-    let mut windows = Vec::with_capacity(big_m.min(last) + 1);
-    for m in 0..=big_m.min(last) {
+    let windows = window_steps(&est, big_m.min(last))?;
+    let law = law_of(resolved, controller)?;
+    for (l, u) in law.lower.iter().zip(&law.upper) {
+        if !(*l < 0.0 && *u > 0.0) && (l.is_finite() || u.is_finite()) {
+            return Err(LinearError::OriginNotInterior {
+                problem: "MPC",
+                index: 0,
+                lower: *l,
+                upper: *u,
+            }
+            .into());
+        }
+    }
+    let sys = &resolved.scenario().plant;
+    Ok(Pieces {
+        windows,
+        law,
+        a: sys.a().to_owned(),
+        b: sys.b().to_owned(),
+        c: sys.c().to_owned(),
+        e: sys.e().to_owned(),
+        f: sys.f().to_owned(),
+        shifted: matches!(est.config().warm_start, mhe_core::WarmStart::Shifted),
+        horizon: big_m,
+    })
+}
+
+/// Each window length's linearised step, its end-state maps, its box and general rows.
+fn window_steps(
+    est: &closed_loop::scenario::ScenarioEstimator,
+    last: usize,
+) -> Result<Vec<WindowStep>, ModelError> {
+    let mut windows = Vec::with_capacity(last + 1);
+    for m in 0..=last {
         let w = est.problem().window(m).ok_or(LinearError::Internal(
             "the MHE has no window of this length",
         ))?;
@@ -257,59 +289,68 @@ pub(crate) fn pieces_upto(
             general,
         });
     }
-    let mpc = resolved
-        .mpc()
-        .map_err(|e| ModelError::Linear(LinearError::Build(e)))?;
-    let law = match controller {
-        ControllerChoice::ExactMpc => {
-            use faer::linalg::solvers::Solve;
-            let qp = mpc.qp();
-            let llt =
-                qp.h().to_owned().llt(faer::Side::Lower).map_err(|_| {
-                    LinearError::Internal("the MPC Hessian is not positive definite")
-                })?;
-            let sol = llt.solve(qp.f());
-            let gain = Mat::from_fn(sol.nrows(), sol.ncols(), |i, j| -sol[(i, j)]);
-            let mut lower = qp.zset().lower().to_vec();
-            let mut upper = qp.zset().upper().to_vec();
-            // State rows of the MPC (x_k ∈ 𝒳): l₀ ≤ GU* + Ex̂ ≤ u₀, appended after U*.
-            let gain = match qp.general() {
-                None => gain,
-                Some(g) => {
-                    let rows = g.g() * &gain + g.e();
-                    lower.extend_from_slice(g.lower());
-                    upper.extend_from_slice(g.upper());
-                    let n = gain.nrows();
-                    Mat::from_fn(n + rows.nrows(), gain.ncols(), |i, j| {
-                        if i < n {
-                            gain[(i, j)]
-                        } else {
-                            rows[(i - n, j)]
-                        }
-                    })
+    Ok(windows)
+}
+
+/// The exact MPC's linear law −H⁻¹F x̂ with 𝒰^N and, after it, its predicted-state rows.
+fn exact_mpc_law(mpc: &mpc_core::CondensedMpc) -> Result<Law, ModelError> {
+    use faer::linalg::solvers::Solve;
+    let qp = mpc.qp();
+    let llt = qp
+        .h()
+        .to_owned()
+        .llt(faer::Side::Lower)
+        .map_err(|_| LinearError::Internal("the MPC Hessian is not positive definite"))?;
+    let sol = llt.solve(qp.f());
+    let gain = Mat::from_fn(sol.nrows(), sol.ncols(), |i, j| -sol[(i, j)]);
+    let mut lower = qp.zset().lower().to_vec();
+    let mut upper = qp.zset().upper().to_vec();
+    // State rows of the MPC (x_k ∈ 𝒳): l₀ ≤ GU* + Ex̂ ≤ u₀, appended after U*.
+    let gain = match qp.general() {
+        None => gain,
+        Some(g) => {
+            let rows = g.g() * &gain + g.e();
+            lower.extend_from_slice(g.lower());
+            upper.extend_from_slice(g.upper());
+            let n = gain.nrows();
+            Mat::from_fn(n + rows.nrows(), gain.ncols(), |i, j| {
+                if i < n {
+                    gain[(i, j)]
+                } else {
+                    rows[(i - n, j)]
                 }
-            };
-            Law {
-                gain,
-                lower,
-                upper,
-                iterative: None,
-            }
+            })
         }
+    };
+    Ok(Law {
+        gain,
+        lower,
+        upper,
+        iterative: None,
+    })
+}
+
+/// The control law's linear piece for `controller` (exact MPC, saturated LQR, K_c-iteration
+/// MPC on the input box).
+fn law_of(resolved: &ResolvedScenario, controller: ControllerChoice) -> Result<Law, ModelError> {
+    let build = |e| ModelError::Linear(LinearError::Build(e));
+    let mpc = resolved.mpc().map_err(build)?;
+    match controller {
+        ControllerChoice::ExactMpc => exact_mpc_law(mpc),
         ControllerChoice::SaturatedLqr => {
             let ctrl = resolved
                 .controller(ControllerChoice::SaturatedLqr)
-                .map_err(|e| ModelError::Linear(LinearError::Build(e)))?;
+                .map_err(build)?;
             let closed_loop::scenario::ScenarioController::SaturatedLqr(lqr) = ctrl else {
                 return Err(LinearError::Internal("the saturated LQR was not built").into());
             };
             let k = lqr.gain();
-            Law {
+            Ok(Law {
                 gain: Mat::from_fn(k.nrows(), k.ncols(), |i, j| -k[(i, j)]),
                 lower: lqr.input_set().lower().to_vec(),
                 upper: lqr.input_set().upper().to_vec(),
                 iterative: None,
-            }
+            })
         }
         ControllerChoice::SuboptimalMpc { iterations, .. } => {
             if mpc.has_general_rows() {
@@ -320,16 +361,14 @@ pub(crate) fn pieces_upto(
                         .into(),
                 ));
             }
-            let ctrl = resolved
-                .controller(controller)
-                .map_err(|e| ModelError::Linear(LinearError::Build(e)))?;
+            let ctrl = resolved.controller(controller).map_err(build)?;
             let closed_loop::scenario::ScenarioController::Suboptimal(c) = ctrl else {
                 return Err(LinearError::Internal("the K_c-iteration MPC was not built").into());
             };
             let lin = linearise(c.map(), "MPC")?;
             let warm = crate::linear::mpc_warm_matrix(c.warm_start_rule(), lin.n, mpc.nu());
             let qp = mpc.qp();
-            Law {
+            Ok(Law {
                 gain: Mat::zeros(0, qp.n_theta()),
                 lower: qp.zset().lower().to_vec(),
                 upper: qp.zset().upper().to_vec(),
@@ -338,32 +377,9 @@ pub(crate) fn pieces_upto(
                     k: iterations,
                     warm,
                 }),
-            }
-        }
-    };
-    for (l, u) in law.lower.iter().zip(&law.upper) {
-        if !(*l < 0.0 && *u > 0.0) && (l.is_finite() || u.is_finite()) {
-            return Err(LinearError::OriginNotInterior {
-                problem: "MPC",
-                index: 0,
-                lower: *l,
-                upper: *u,
-            }
-            .into());
+            })
         }
     }
-    let sys = &resolved.scenario().plant;
-    Ok(Pieces {
-        windows,
-        law,
-        a: sys.a().to_owned(),
-        b: sys.b().to_owned(),
-        c: sys.c().to_owned(),
-        e: sys.e().to_owned(),
-        f: sys.f().to_owned(),
-        shifted: matches!(est.config().warm_start, mhe_core::WarmStart::Shifted),
-        horizon: big_m,
-    })
 }
 
 /// K iterations of a linearised Φ on the column space of `z0`, `theta`: pushes the rows of the

@@ -26,7 +26,7 @@ pub enum IterationsError {
     Zero,
     /// K above [`MAX_ITERATIONS`].
     #[error(
-        "is {value}, above the limit {limit} (each time step runs K iterations); a K beyond it \
+        "is {value}, above the limit {limit} (each time step runs K iterations); a certified K beyond it \
          is not practical to run"
     )]
     AboveLimit {

@@ -113,7 +113,10 @@ mod tests {
     #[test]
     fn deserialising_checks_the_range() {
         let k: Iterations = serde_json::from_str("7").expect("7 is a budget");
-        assert_eq!((k.get(), serde_json::to_string(&k).ok()), (7, Some("7".into())));
+        assert_eq!(
+            (k.get(), serde_json::to_string(&k).ok()),
+            (7, Some("7".into()))
+        );
         let e = serde_json::from_str::<Iterations>("0").expect_err("0 is not a budget");
         assert!(e.to_string().contains("at least 1"), "{e}");
     }

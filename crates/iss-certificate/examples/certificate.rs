@@ -30,7 +30,7 @@ fn main() -> Result<(), Box<dyn std::error::Error>> {
         let mut s = base.clone();
         if m > 0 {
             if let Some(spec) = s.mhe.as_mut() {
-                spec.horizon = m;
+                *spec = spec.to_builder().horizon(m).build(&s.plant)?;
             }
         }
         let t0 = std::time::Instant::now();

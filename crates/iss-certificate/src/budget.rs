@@ -280,7 +280,7 @@ pub fn estimate_phases(
 fn mhe_dims(scenario: &Scenario) -> (f64, usize, impl Fn(usize) -> f64) {
     let sys = &scenario.plant;
     let (nx, nw) = (sys.nx() as f64, (sys.nw1() + sys.nw2()) as f64);
-    let m = scenario.mhe.as_ref().map_or(0, |s| s.horizon);
+    let m = scenario.mhe.as_ref().map_or(0, |s| s.horizon());
     (nx, m, move |w: usize| nx + w as f64 * nw)
 }
 
@@ -423,7 +423,7 @@ fn rho_lin_phase(scenario: &Scenario, opts: &CertificateOptions, k_top: usize) -
     let grid = crate::linear::log_spaced(1, k_top.max(2000), 25);
     // What `reproduce` computes: the four preset families when n_z ≤
     // [`crate::linear::ALL_METHODS_MAX_NZ`], else the scenario's own method only.
-    let own_lift = match scenario.mhe.as_ref().map(|s| s.method.family()) {
+    let own_lift = match scenario.mhe.as_ref().map(|s| s.method().family()) {
         Some("fista") => 2usize,
         _ => 1,
     };

@@ -378,6 +378,84 @@ impl MpcSettings {
     }
 }
 
+impl MpcSettings {
+    /// A builder with no key set (see [`MpcBuilder`]).
+    ///
+    /// ```
+    /// use lti_model::LtiSystem;
+    /// use mpc_core::MpcSettings;
+    /// let sys = LtiSystem::new(faer::mat![[0.5]], faer::mat![[1.0]], faer::mat![[1.0]]).unwrap();
+    /// let s = MpcSettings::builder().horizon(10).r(&faer::mat![[0.1]]).iterations(30).build(&sys)?;
+    /// assert_eq!((s.horizon(), s.iterations().map(|k| k.get())), (10, Some(30)));
+    /// # Ok::<(), mpc_core::MpcError>(())
+    /// ```
+    pub fn builder() -> MpcBuilder {
+        MpcBuilder::default()
+    }
+
+    /// A builder holding these settings, to change a value and validate again.
+    pub fn to_builder(&self) -> MpcBuilder {
+        MpcBuilder { raw: self.to_raw() }
+    }
+}
+
+/// Builder of [`MpcSettings`]: every key of the `[mpc]` table as a method; what is not set
+/// takes the file format's default (Q_c = I, R_c = I, the DARE terminal cost, the exact
+/// MPC), and N is required, as in a file.
+#[derive(Debug, Default)]
+pub struct MpcBuilder {
+    raw: RawMpc,
+}
+
+impl MpcBuilder {
+    /// N ≥ 1 (`mpc.horizon`, required).
+    pub fn horizon(mut self, horizon: usize) -> Self {
+        self.raw.horizon = Some(horizon);
+        self
+    }
+    /// Q_c ⪰ 0, n_x square, (A, Q_c^½) detectable (`mpc.q`, default I).
+    pub fn q(mut self, q: &Mat<f64>) -> Self {
+        self.raw.q = Some(rows_of(q));
+        self
+    }
+    /// R_c ≻ 0, n_u square (`mpc.r`, default I).
+    pub fn r(mut self, r: &Mat<f64>) -> Self {
+        self.raw.r = Some(rows_of(r));
+        self
+    }
+    /// The terminal cost (`mpc.terminal`, default DARE).
+    pub fn terminal(mut self, terminal: TerminalCost) -> Self {
+        self.raw.terminal = Some(terminal);
+        self
+    }
+    /// K_c ≥ 1 iterations per step: the sub-optimal MPC (`mpc.iterations`; unset: exact).
+    pub fn iterations(mut self, k: usize) -> Self {
+        self.raw.iterations = Some(k);
+        self
+    }
+    /// The sub-optimal MPC's Φ (`mpc.method`, default FISTA; only with iterations).
+    pub fn method(mut self, method: qp_iter::Method) -> Self {
+        self.raw.method = Some(method);
+        self
+    }
+    /// The output box 𝒴_c of the predicted outputs (`mpc.output`, default none).
+    pub fn output(mut self, output: &lti_model::BoxSet) -> Self {
+        self.raw.output = Some(lti_model::spec::Table(lti_model::spec::plant::raw_box(
+            output,
+        )));
+        self
+    }
+    /// The `[mpc]` table these calls describe (for the scenario layer).
+    pub fn into_raw(self) -> RawMpc {
+        self.raw
+    }
+    /// Validates against the plant exactly as a scenario's `[mpc]` table is validated
+    /// (errors name the key: `mpc.r`, …).
+    pub fn build(&self, sys: &LtiSystem) -> crate::Result<MpcSettings> {
+        Ok(MpcSettings::from_raw(&self.raw, sys)?)
+    }
+}
+
 /// `mpc.q`: n_x square, finite, symmetric, positive *semi*definite (default I); a singular
 /// Q_c must leave no non-decaying mode of A unseen ((A, Q_c^½) detectable, so that the DARE
 /// terminal cost exists). Errors name `mpc.q`, the mode and the fix.

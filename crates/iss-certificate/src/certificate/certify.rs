@@ -130,9 +130,9 @@ pub fn certify_closed_loop_with(
     // A phase every certificate needs, estimated beyond its documented limit: refused now.
     crate::budget::check_required_phases(scenario, Some(&mpc), opts)?;
     let sys = &scenario.plant;
-    let (m, eta) = (spec.horizon, spec.eta);
+    let (m, eta) = (spec.horizon(), spec.eta());
     let c_norm = spectral_norm(sys.c());
-    let (_, q_max) = sym_extreme_eigenvalues("Q", spec.q.as_ref())?;
+    let (_, q_max) = sym_extreme_eigenvalues("Q", spec.q().as_ref())?;
 
     // Assumption 2 (resolved once with the scenario).
     let (ioss_cert, ioss_failure) = match resolved.ioss() {

@@ -93,6 +93,8 @@ fn infeasible_lmi_voids_every_solver() {
     let sc = Scenario::from_toml_str(&text).unwrap();
     let c = crate::certify(&sc, &fast()).unwrap();
     assert!(c.ioss.is_none());
+    // No P: λ(P) and H̄ are absent, not NaN.
+    assert_eq!((c.p_min, c.p_max, c.h_bar), (None, None, None));
     assert!(
         c.ioss_failure.as_ref().unwrap().to_string().contains("LMI"),
         "{:?}",

@@ -217,7 +217,7 @@ pub fn l_phi_sampling_pairs(
     problem: &mhe_core::MheProblem,
     requested: usize,
     phase_seconds: f64,
-) -> (usize, Option<String>) {
+) -> (usize, Option<PairsReduced>) {
     let per_pair =
         2.0 * window_solves_work(problem.windows().iter().map(|w| w.qp().n())) / SCALAR_RATE;
     let total = per_pair * requested as f64;
@@ -227,15 +227,63 @@ pub fn l_phi_sampling_pairs(
     let fit = ((phase_seconds / per_pair).floor() as usize).clamp(1, requested);
     (
         fit,
-        Some(format!(
-            "{requested} pairs are estimated at ≈ {} s of one core (2 exact solves of each of \
-             the {} windows per pair) > the analysis budget of {} s (scenario key \
-             `certificate.phase_seconds`): {fit} pair(s) sampled",
-            secs(total),
-            problem.windows().len(),
-            secs(phase_seconds)
-        )),
+        Some(PairsReduced::Budget {
+            requested,
+            estimated_seconds: total,
+            windows: problem.windows().len(),
+            phase_seconds,
+            sampled: fit,
+        }),
     )
+}
+
+/// Why the sampled L_Φ used fewer pairs than asked ([`l_phi_sampling_pairs`]); its
+/// `Display` is the sentence the certificate prints.
+#[derive(Debug, Clone, PartialEq)]
+#[non_exhaustive]
+pub enum PairsReduced {
+    /// 2·`requested` exact solves of every window were estimated beyond the analysis budget.
+    Budget {
+        /// Pairs asked for (`lipschitz_pairs`).
+        requested: usize,
+        /// Estimated seconds of one core for them.
+        estimated_seconds: f64,
+        /// Windows of the MHE (m = 0..M).
+        windows: usize,
+        /// The analysis budget (`certificate.phase_seconds`).
+        phase_seconds: f64,
+        /// Pairs sampled (≥ 1).
+        sampled: usize,
+    },
+}
+
+impl std::fmt::Display for PairsReduced {
+    fn fmt(&self, f: &mut std::fmt::Formatter<'_>) -> std::fmt::Result {
+        match self {
+            Self::Budget {
+                requested,
+                estimated_seconds,
+                windows,
+                phase_seconds,
+                sampled,
+            } => write!(
+                f,
+                "{requested} pairs are estimated at ≈ {} s of one core (2 exact solves of each \
+                 of the {windows} windows per pair) > the analysis budget of {} s (scenario key \
+                 `certificate.phase_seconds`): {sampled} pair(s) sampled",
+                secs(*estimated_seconds),
+                secs(*phase_seconds)
+            ),
+        }
+    }
+}
+
+/// The sentence, as before the type (the JSON value is unchanged).
+#[cfg(feature = "serde")]
+impl serde::Serialize for PairsReduced {
+    fn serialize<S: serde::Serializer>(&self, s: S) -> Result<S::Ok, S::Error> {
+        s.collect_str(self)
+    }
 }
 
 fn phase(name: &str, work: f64, rate: f64, runs: bool, detail: String) -> PhaseEstimate {
@@ -466,6 +514,23 @@ fn rho_lin_phase(scenario: &Scenario, opts: &CertificateOptions, k_top: usize) -
 mod tests {
     #![allow(clippy::unwrap_used)]
     use super::*;
+
+    #[test]
+    fn pairs_reduced_prints_the_sentence_of_before_the_type() {
+        let r = PairsReduced::Budget {
+            requested: 200,
+            estimated_seconds: 1234.5,
+            windows: 10,
+            phase_seconds: 60.0,
+            sampled: 9,
+        };
+        assert_eq!(
+            r.to_string(),
+            "200 pairs are estimated at ≈ 1234 s of one core (2 exact solves of each of the 10 \
+             windows per pair) > the analysis budget of 60.0 s (scenario key \
+             `certificate.phase_seconds`): 9 pair(s) sampled"
+        );
+    }
 
     #[test]
     fn secs_at_least_reads_back_at_least_its_argument() {

@@ -114,7 +114,7 @@ pub struct LPhiReport {
     /// Why fewer pairs than `lipschitz_pairs` were sampled (the analysis budget,
     /// [`crate::budget::l_phi_sampling_pairs`]); omitted when every pair was sampled.
     #[cfg_attr(feature = "serde", serde(skip_serializing_if = "Option::is_none"))]
-    pub pairs_reduced: Option<String>,
+    pub pairs_reduced: Option<crate::budget::PairsReduced>,
 }
 
 /// Certificate of one solver Φ.

@@ -99,7 +99,7 @@ impl From<&iss_certificate::analysis::Premise> for Premise {
             holds: l.holds,
             value: num(l.value),
             margin: l.margin.and_then(num),
-            fix: l.fix.to_string(),
+            fix: l.fix.as_ref().map_or_else(String::new, ToString::to_string),
             not_evaluated: l.not_evaluated.as_ref().map(ToString::to_string),
         }
     }

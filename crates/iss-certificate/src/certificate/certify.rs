@@ -405,7 +405,7 @@ impl Theorem1Parts<'_> {
         if let Some(v) = &self.gamma13.void {
             for p in analysis.premises.iter_mut() {
                 if p.name == "gamma13 finite" && !p.holds {
-                    p.fix = v.to_string();
+                    p.fix = Some(crate::analysis::PremiseFix::Gamma13(v.clone()));
                 }
             }
         }
@@ -414,7 +414,10 @@ impl Theorem1Parts<'_> {
             .is_some_and(|pr| pr.windows().iter().any(|w| w.qp().general().is_some()));
         for p in analysis.premises.iter_mut() {
             if p.name == "phi rate < 1" && !p.holds && p.not_evaluated.is_none() {
-                p.fix = crate::analysis::phi_rate_fix(solver, general_rows);
+                p.fix = Some(crate::analysis::PremiseFix::MethodDoesNotContract {
+                    method: solver,
+                    general_rows,
+                });
             }
         }
     }

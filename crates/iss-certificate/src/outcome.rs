@@ -355,13 +355,14 @@ mod tests {
         #[cfg(feature = "serde")]
         assert_eq!(
             serde_json::to_string(&vec![r.clone(), n.clone()]).expect("serialisable"),
-            "[\"rho < 1 fails (Prop. 2 = 1.25): raise M\",\
+            "[\"rho < 1 fails (Prop. 2 = 1.25): no P ≻ 0 satisfies LMI (2): see the δ-IOSS \
+             error\",\
              \"no K ≤ 7 satisfies sg1 + sg2 + sg3 < 1 (ρ(Γ) < 1)\"]"
         );
         assert_eq!(
             VoidReason::join(&[r, n]),
-            "rho < 1 fails (Prop. 2 = 1.25): raise M; no K ≤ 7 satisfies sg1 + sg2 + sg3 < 1 \
-             (ρ(Γ) < 1)"
+            "rho < 1 fails (Prop. 2 = 1.25): no P ≻ 0 satisfies LMI (2): see the δ-IOSS error; \
+             no K ≤ 7 satisfies sg1 + sg2 + sg3 < 1 (ρ(Γ) < 1)"
         );
         assert_eq!(VoidReason::join(&[]), "");
         let b = SkipReason::OverBudget {

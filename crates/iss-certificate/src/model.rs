@@ -277,8 +277,10 @@ impl LoopModelBuilder {
         self.mpc = Some(MpcPart::Horizon(horizon));
         self
     }
-    /// The MPC (required: Theorem 1 uses its L_π and γ₁,₃). With `iterations` set it is
-    /// the K_c-iteration MPC, under the joint certificate ([`crate::joint`]).
+    /// The MPC (required: Theorem 1 uses its L_π and γ₁,₃) as a builder
+    /// (`MpcSettings::builder().horizon(10).r(&r_c)`; validated by
+    /// [`LoopModelBuilder::build`], errors naming `MpcSettings::r`, …). With `iterations`
+    /// set it is the K_c-iteration MPC, under the joint certificate ([`crate::joint`]).
     pub fn mpc(mut self, settings: mpc_core::MpcBuilder) -> Self {
         self.mpc = Some(MpcPart::Settings(Box::new(settings)));
         self

@@ -459,3 +459,59 @@ impl MheSettings {
         .into()
     }
 }
+
+#[cfg(test)]
+mod typed_tests {
+    use super::*;
+
+    fn sys() -> LtiSystem {
+        LtiSystem::new(faer::mat![[0.5]], faer::mat![[1.0]], faer::mat![[1.0]])
+            .expect("a valid plant")
+    }
+
+    fn settings(text: &str) -> lti_model::Result<MheSettings> {
+        let raw: RawMhe = lti_model::spec::format::parse(text)?;
+        MheSettings::from_raw(&raw, &sys())
+    }
+
+    /// K is held as an `Iterations` (≥ 1 by type); a new K goes through `with_iterations`,
+    /// and a value checked against the plant goes through `to_builder` and is re-validated.
+    #[test]
+    fn k_is_typed_and_changes_are_revalidated() {
+        let s = settings("horizon = 5\neta = 0.8\niterations = 40").expect("valid");
+        assert_eq!(s.iterations(), Iterations::new(40).expect("40 ≥ 1"));
+        let s = s.with_iterations(Iterations::new(7).expect("7 ≥ 1"));
+        assert_eq!((s.iterations().get(), s.to_raw().iterations), (7, Some(7)));
+        let m = s
+            .to_builder()
+            .horizon(9)
+            .build(&sys())
+            .expect("M = 9 is valid");
+        assert_eq!((m.horizon(), m.eta(), m.iterations().get()), (9, 0.8, 7));
+        let e = s
+            .to_builder()
+            .eta(1.2)
+            .build(&sys())
+            .expect_err("η = 1.2 is refused");
+        assert!(e.to_string().starts_with("mhe.eta: is 1.2"), "{e}");
+    }
+
+    #[test]
+    fn k_out_of_range_names_the_key_as_before() {
+        for (k, text) in [
+            (
+                "0",
+                "mhe.iterations: is 0, but the iteration count K must be at least 1",
+            ),
+            (
+                "10000001",
+                "mhe.iterations: is 10000001, above the limit 10000000 (each time step runs K \
+                 iterations); a certified K beyond it is not practical to run",
+            ),
+        ] {
+            let e = settings(&format!("horizon = 5\neta = 0.8\niterations = {k}"))
+                .expect_err("refused");
+            assert_eq!(e.to_string(), text);
+        }
+    }
+}

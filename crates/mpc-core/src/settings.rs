@@ -572,6 +572,30 @@ mod suboptimal_key_tests {
         assert_eq!(settings("horizon = 5").unwrap().iterations(), None);
     }
 
+    /// K_c is an `Option<Iterations>`; the builder validates as a file does and
+    /// `to_builder` round-trips.
+    #[test]
+    fn the_builder_validates_and_round_trips() {
+        let sys = LtiSystem::new(faer::mat![[0.5]], faer::mat![[1.0]], faer::mat![[1.0]]).unwrap();
+        let s = MpcSettings::builder()
+            .horizon(4)
+            .iterations(12)
+            .method(qp_iter::Method::PG)
+            .build(&sys)
+            .unwrap();
+        assert_eq!(s.iterations(), Some(Iterations::new(12).unwrap()));
+        let exact = s.clone().with_iterations(None);
+        assert_eq!((exact.iterations(), exact.to_raw().method), (None, None));
+        let again = s.to_builder().build(&sys).unwrap();
+        assert_eq!((again.horizon(), again.method()), (4, qp_iter::Method::PG));
+        let e = MpcSettings::builder()
+            .horizon(4)
+            .iterations(0)
+            .build(&sys)
+            .unwrap_err();
+        assert!(e.to_string().contains("mpc.iterations"), "{e}");
+    }
+
     #[test]
     fn bad_iterations_and_orphan_method_name_the_key() {
         for (text, key) in [

@@ -493,7 +493,7 @@ mod typed_tests {
             .eta(1.2)
             .build(&sys())
             .expect_err("η = 1.2 is refused");
-        assert!(e.to_string().starts_with("mhe.eta: is 1.2"), "{e}");
+        assert!(e.to_string().contains("`mhe.eta`: is 1.2"), "{e}");
     }
 
     #[test]
@@ -501,12 +501,13 @@ mod typed_tests {
         for (k, text) in [
             (
                 "0",
-                "mhe.iterations: is 0, but the iteration count K must be at least 1",
+                "scenario: key `mhe.iterations`: is 0, but the iteration count K must be at \
+                 least 1",
             ),
             (
                 "10000001",
-                "mhe.iterations: is 10000001, above the limit 10000000 (each time step runs K \
-                 iterations); a certified K beyond it is not practical to run",
+                "scenario: key `mhe.iterations`: is 10000001, above the limit 10000000 (each \
+                 time step runs K iterations); a certified K beyond it is not practical to run",
             ),
         ] {
             let e = settings(&format!("horizon = 5\neta = 0.8\niterations = {k}"))

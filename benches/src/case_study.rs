@@ -216,7 +216,7 @@ impl CaseStudyQps {
             None => return Err(FixtureError::NoMhe { path: shown }),
             Some(mhe) => {
                 if let Some(m) = preset.horizon {
-                    mhe.horizon = m;
+                    *mhe = mhe.to_builder().horizon(m).build(&scenario.plant)?;
                 }
             }
         }

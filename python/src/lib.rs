@@ -518,7 +518,12 @@ impl Estimator {
     #[getter]
     fn settings(&self) -> (usize, f64, usize, String) {
         let s = &self.settings;
-        (s.horizon, s.eta, s.iterations, s.method.name().into_owned())
+        (
+            s.horizon(),
+            s.eta(),
+            s.iterations().get(),
+            s.method().name().into_owned(),
+        )
     }
 
     /// Test hook: the board's const-size `mhe_embedded::Mhe<f32, 4, 2, 1, 9, 49, 31>` (the
@@ -642,8 +647,8 @@ fn certify_json(
         ));
     }
     let mut solvers = CertificateOptions::default().solvers;
-    if !solvers.contains(&mhe.method) {
-        solvers.push(mhe.method);
+    if !solvers.contains(&mhe.method()) {
+        solvers.push(mhe.method());
     }
     let verdict = verdict_options(&sc, solvers, gamma13);
     let opts = CertificateOptions {
@@ -660,7 +665,7 @@ fn certify_json(
     let controller = match sc
         .mpc
         .as_ref()
-        .and_then(|m| m.iterations.map(|k| (k, m.method)))
+        .and_then(|m| m.iterations().map(|k| (k.get(), m.method())))
     {
         Some((iterations, method)) => ControllerChoice::SuboptimalMpc { iterations, method },
         None => ControllerChoice::ExactMpc,
@@ -978,7 +983,7 @@ impl Model {
                     }
                     other => model_err(&other),
                 })?;
-                b = b.mpc(settings);
+                b = b.mpc(settings.to_builder());
             }
         }
         // LMI (2) for P and the MPC's Riccati equation: the long part, without the GIL.
@@ -1071,10 +1076,10 @@ impl PyCertificate {
                 let resolved = c.model().resolved();
                 // The model's controller, as `LoopModelBuilder::build` chose it.
                 let controller = match resolved.scenario().mpc.as_ref() {
-                    Some(m) => match m.iterations {
+                    Some(m) => match m.iterations() {
                         Some(iterations) => ControllerChoice::SuboptimalMpc {
-                            iterations,
-                            method: m.method,
+                            iterations: iterations.get(),
+                            method: m.method(),
                         },
                         None => ControllerChoice::ExactMpc,
                     },

@@ -23,7 +23,8 @@ pub(crate) fn void_reason(r: &VoidReason) -> Value {
             value,
             fix,
         } => json!({"kind": "premise_fails", "premise": premise, "needed_by": needed_by,
-                    "value": value, "fix": fix}),
+                    "value": value,
+                    "fix": fix.as_ref().map_or_else(String::new, ToString::to_string)}),
         VoidReason::PremiseNotEvaluated { premise, because } => {
             json!({"kind": "premise_not_evaluated", "premise": premise, "because": because})
         }

@@ -231,7 +231,7 @@ pub(crate) fn reproduce(
     methods: &[(String, Option<usize>)],
 ) -> Option<ReproduceBudget> {
     let ts = scenario.sample_time?;
-    let dims = dims(scenario, scenario.mhe.as_ref()?.horizon);
+    let dims = dims(scenario, scenario.mhe.as_ref()?.horizon());
     let targets: Vec<(Target, f64)> = Target::ALL.map(|t| (t, t.default_clock_mhz())).to_vec();
     let methods = methods
         .iter()

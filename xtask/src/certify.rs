@@ -270,7 +270,7 @@ pub fn certify(req: &CertifyRequest) -> Result<Outcome> {
 
     let (eta, eta_source) = match (req.eta, mhe) {
         (Some(eta), _) => (eta, "--eta".to_string()),
-        (None, Some(m)) => (m.eta, "scenario mhe.eta".to_string()),
+        (None, Some(m)) => (m.eta(), "scenario mhe.eta".to_string()),
         (None, None) => bail!(
             "scenario `{}` has no [mhe] section, so η is unknown: add [mhe] with eta (and q, r), \
              or pass --eta (Q and R are then identity)",
@@ -281,14 +281,14 @@ pub fn certify(req: &CertifyRequest) -> Result<Outcome> {
         bail!("η = {eta} ({eta_source}) is out of range: LMI (2) needs η ∈ [0, 1)");
     }
     let (q, r, weights_source) = match mhe {
-        Some(m) => (m.q.clone(), m.r.clone(), "scenario mhe.q, mhe.r"),
+        Some(m) => (m.q().clone(), m.r().clone(), "scenario mhe.q, mhe.r"),
         None => (
             Mat::identity(sys.nw(), sys.nw()),
             Mat::identity(sys.ny(), sys.ny()),
             "identity (no [mhe] section)",
         ),
     };
-    let user_p = match (&req.p_file, mhe.and_then(|m| m.p.as_ref())) {
+    let user_p = match (&req.p_file, mhe.and_then(|m| m.p())) {
         (Some(path), _) => Some((read_p_file(path)?, format!("--p-file {}", path.display()))),
         (None, Some(p)) => Some((p.clone(), "scenario mhe.p".to_string())),
         (None, None) => None,

@@ -148,7 +148,7 @@ pub fn export(args: &ExportArgs) -> Result<()> {
     })?;
     let sc = resolved.scenario();
     let horizon = (sc.mhe.as_ref())
-        .map(|m| m.horizon)
+        .map(|m| m.horizon())
         .context("the scenario has no [mhe] section")?;
     let budgets = crate::budget::budgets(
         &targets,

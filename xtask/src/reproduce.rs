@@ -293,8 +293,8 @@ fn spec_k_c(scenario: &Scenario) -> usize {
     scenario
         .mpc
         .as_ref()
-        .and_then(|m| m.iterations)
-        .unwrap_or(0)
+        .and_then(|m| m.iterations())
+        .map_or(0, qp_iter::Iterations::get)
 }
 
 /// Exit code when a simulation contradicts the certificate: an inequality of Props. 1–3

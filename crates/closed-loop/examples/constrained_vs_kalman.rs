@@ -167,7 +167,7 @@ fn main() -> Result<(), Box<dyn std::error::Error>> {
                 let kf = KalmanFilter::matching_mhe(
                     &sc.plant,
                     &sc.simulation.prior,
-                    spec.eta,
+                    spec.eta(),
                     &mhe_cfg.p,
                     &mhe_cfg.q,
                     &mhe_cfg.r,

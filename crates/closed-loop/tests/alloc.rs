@@ -54,8 +54,8 @@ fn closed_loop_steps_do_not_allocate() {
     // Generic loop: PG MHE (record captured) + saturated LQR.
     let lqr = SaturatedLqr::new(
         &s.plant,
-        spec.q.as_ref(),
-        spec.r.as_ref(),
+        spec.q().as_ref(),
+        spec.r().as_ref(),
         s.sets.input.clone(),
     )
     .unwrap();

@@ -30,7 +30,7 @@ fn main() -> Result<(), Box<dyn std::error::Error>> {
         let mut s = base.clone();
         if m > 0 {
             if let Some(spec) = s.mhe.as_mut() {
-                spec.horizon = m;
+                *spec = spec.to_builder().horizon(m).build(&s.plant)?;
             }
         }
         let t0 = std::time::Instant::now();
@@ -42,9 +42,9 @@ fn main() -> Result<(), Box<dyn std::error::Error>> {
             c.horizon,
             c.eta,
             c.rho,
-            c.p_min,
-            c.p_max,
-            c.h_bar,
+            c.p_min.unwrap_or(f64::NAN),
+            c.p_max.unwrap_or(f64::NAN),
+            c.h_bar.unwrap_or(f64::NAN),
             c.l_phi.certified.unwrap_or(f64::NAN),
             c.l_phi.sampled.unwrap_or(f64::NAN),
             c.l_pi_used,

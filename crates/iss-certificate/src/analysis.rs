@@ -83,14 +83,114 @@ pub struct Premise {
     /// Signed margin (positive when it holds), e.g. 1 − ρ; None when not evaluated (JSON
     /// null).
     pub margin: Option<f64>,
-    /// What to change when it fails (empty when it holds or was not evaluated).
-    pub fix: String,
+    /// What to change when it fails (None when it holds, was not evaluated, or has no
+    /// advice); JSON: its sentence, or "" for None.
+    #[cfg_attr(feature = "serde", serde(serialize_with = "fix_text"))]
+    pub fix: Option<PremiseFix>,
     /// Set when the premise could not be evaluated because a premise it depends on failed
     /// (e.g. φ and L_Φ are properties of the MHE's QP, which is built from P of LMI (2)):
     /// the reason, naming that premise. The premise then counts as not holding, and its own
     /// advice is not given (one failure, one reason).
     #[cfg_attr(feature = "serde", serde(skip_serializing_if = "Option::is_none"))]
     pub not_evaluated: Option<crate::outcome::NotEvaluated>,
+}
+
+/// What would make a failed premise of Theorem 1 hold; `Display` is the advice printed.
+#[derive(Debug, Clone, PartialEq)]
+#[non_exhaustive]
+pub enum PremiseFix {
+    /// ρ = 6^{1/M}η ≥ 1: a longer horizon or a smaller η.
+    RhoAtLeastOne {
+        /// η.
+        eta: f64,
+        /// M.
+        horizon: usize,
+    },
+    /// LMI (2) has no P ≻ 0.
+    LmiInfeasible,
+    /// The solver's certificate does not bound ‖zᴷ − z*‖ as eq. (11) needs.
+    PhiNotEq11,
+    /// The certified rate is ≥ 1 (no method known: see [`PremiseFix::MethodDoesNotContract`]).
+    PhiRateAtLeastOne,
+    /// The certified rate of `method` is ≥ 1, with that method's own fix ([`phi_rate_fix`]).
+    MethodDoesNotContract {
+        /// Φ.
+        method: qp_iter::Method,
+        /// Whether the MHE has general rows (state or output bounds).
+        general_rows: bool,
+    },
+    /// No ISS gain γ₁,₃ from e to x was established.
+    Gamma13Unknown,
+    /// γ₁,₃ cannot be established, for this typed reason.
+    Gamma13(crate::gamma13::Gamma13Void),
+    /// A constant (`name`: "L_Phi", "L_U", …) is not a finite non-negative number.
+    NotFinite {
+        /// The constant's name.
+        name: String,
+    },
+    /// The joint certificate: no gain γ₁,₄ from the MPC's input error to x.
+    Gamma14Unknown,
+    /// The joint certificate: the MPC method's certificate does not fit eq. (11).
+    MpcPhiNotEq11,
+    /// The joint certificate: the MPC method does not contract.
+    MpcPhiRateAtLeastOne,
+    /// The joint certificate: U*(0) ≠ 0.
+    MpcOriginNotFixed,
+    /// The joint certificate: the warm start's gain is not finite.
+    WarmGainNotFinite,
+}
+
+impl std::fmt::Display for PremiseFix {
+    fn fmt(&self, f: &mut std::fmt::Formatter<'_>) -> std::fmt::Result {
+        match self {
+            Self::RhoAtLeastOne { eta, horizon } => f.write_str(&rho_fix(*eta, *horizon)),
+            Self::LmiInfeasible => f.write_str("no P ≻ 0 satisfies LMI (2): see the δ-IOSS error"),
+            Self::PhiNotEq11 => f.write_str(
+                "the solver's certificate bounds another quantity or its iterate may be \
+                 infeasible: use PG or FISTA",
+            ),
+            Self::PhiRateAtLeastOne => f.write_str(
+                "the solver's certified rate is ≥ 1 (it does not contract): see the method's \
+                 own fix (`phi_rate_fix`)",
+            ),
+            Self::MethodDoesNotContract {
+                method,
+                general_rows,
+            } => f.write_str(&phi_rate_fix(*method, *general_rows)),
+            Self::Gamma13Unknown => f.write_str(
+                "no ISS gain from e to x could be established: supply γ₁,₃ or change the \
+                 controller",
+            ),
+            Self::Gamma13(v) => v.fmt(f),
+            Self::NotFinite { name } => write!(f, "{name} is not a finite non-negative number"),
+            Self::Gamma14Unknown => f.write_str(
+                "no gain from the MPC's input error to x in the estimate of γ₁,₃: a user-supplied \
+                 γ₁,₃ gives none (let the certificate compute γ₁,₃), or no metric contracts",
+            ),
+            Self::MpcPhiNotEq11 => f.write_str(
+                "the MPC method's certificate bounds another quantity or norm: use pg or fista \
+                 (or a -jacobi variant) for the MPC",
+            ),
+            Self::MpcPhiRateAtLeastOne => {
+                f.write_str("the MPC's method does not contract: reduce its step size")
+            }
+            Self::MpcOriginNotFixed => f.write_str(
+                "0 ∉ 𝒰 or the MPC's QP has a constant linear term: widen sets.input to contain 0",
+            ),
+            Self::WarmGainNotFinite => {
+                f.write_str("the warm start's gain is not a finite non-negative number")
+            }
+        }
+    }
+}
+
+/// A premise's fix as the JSON of before the type: its sentence, or "" for none.
+#[cfg(feature = "serde")]
+fn fix_text<S: serde::Serializer>(fix: &Option<PremiseFix>, s: S) -> Result<S::Ok, S::Error> {
+    match fix {
+        Some(f) => s.collect_str(f),
+        None => s.serialize_str(""),
+    }
 }
 
 /// Premises built from P of LMI (2): not evaluated when LMI (2) fails.
@@ -109,7 +209,7 @@ impl Premise {
         holds: bool,
         value: f64,
         margin: f64,
-        fix: impl Into<String>,
+        fix: Option<PremiseFix>,
     ) -> Self {
         Self {
             name: name.into(),
@@ -117,7 +217,7 @@ impl Premise {
             holds,
             value,
             margin: Some(margin),
-            fix: fix.into(),
+            fix,
             not_evaluated: None,
         }
     }
@@ -244,7 +344,10 @@ fn premises(inputs: &IssInputs, rho: f64, m: usize) -> Vec<Premise> {
             rho < 1.0,
             rho,
             1.0 - rho,
-            rho_fix(inputs.eta, rho, m),
+            (!(rho < 1.0)).then_some(PremiseFix::RhoAtLeastOne {
+                eta: inputs.eta,
+                horizon: m,
+            }),
         ),
         Premise::evaluated(
             "LMI (2) feasible",
@@ -252,11 +355,7 @@ fn premises(inputs: &IssInputs, rho: f64, m: usize) -> Vec<Premise> {
             inputs.lmi_certified && inputs.p_min > 0.0,
             inputs.p_min,
             inputs.p_min,
-            if inputs.lmi_certified {
-                ""
-            } else {
-                "no P ≻ 0 satisfies LMI (2): see the δ-IOSS error"
-            },
+            (!inputs.lmi_certified).then_some(PremiseFix::LmiInfeasible),
         ),
         Premise::evaluated(
             "phi fits eq. (11)",
@@ -264,12 +363,7 @@ fn premises(inputs: &IssInputs, rho: f64, m: usize) -> Vec<Premise> {
             inputs.phi_fits_eq11,
             if inputs.phi_fits_eq11 { 1.0 } else { 0.0 },
             if inputs.phi_fits_eq11 { 1.0 } else { -1.0 },
-            if inputs.phi_fits_eq11 {
-                ""
-            } else {
-                "the solver's certificate bounds another quantity or its iterate may be \
-                 infeasible: use PG or FISTA"
-            },
+            (!inputs.phi_fits_eq11).then_some(PremiseFix::PhiNotEq11),
         ),
         Premise::evaluated(
             "phi rate < 1",
@@ -277,12 +371,8 @@ fn premises(inputs: &IssInputs, rho: f64, m: usize) -> Vec<Premise> {
             inputs.phi_rate < 1.0 && inputs.phi_rate >= 0.0 && inputs.phi_prefactor.is_finite(),
             inputs.phi_rate,
             1.0 - inputs.phi_rate,
-            if inputs.phi_rate < 1.0 {
-                ""
-            } else {
-                "the solver's certified rate is ≥ 1 (it does not contract): see the method's \
-                 own fix (`phi_rate_fix`)"
-            },
+            // NaN: no advice, as before the type (the text was given for `!(rate < 1)`).
+            (!(inputs.phi_rate < 1.0)).then_some(PremiseFix::PhiRateAtLeastOne),
         ),
         Premise::evaluated(
             "gamma13 finite",
@@ -294,12 +384,7 @@ fn premises(inputs: &IssInputs, rho: f64, m: usize) -> Vec<Premise> {
             } else {
                 -1.0
             },
-            if inputs.gamma13.is_finite() {
-                ""
-            } else {
-                "no ISS gain from e to x could be established: supply γ₁,₃ or change the \
-                 controller"
-            },
+            (!inputs.gamma13.is_finite()).then_some(PremiseFix::Gamma13Unknown),
         ),
     ];
     for (name, v) in [
@@ -316,11 +401,7 @@ fn premises(inputs: &IssInputs, rho: f64, m: usize) -> Vec<Premise> {
             ok,
             v,
             if ok { 1.0 } else { -1.0 },
-            if ok {
-                String::new()
-            } else {
-                format!("{name} is not a finite non-negative number")
-            },
+            (!ok).then(|| PremiseFix::NotFinite { name: name.into() }),
         ));
     }
     if !inputs.lmi_certified {
@@ -328,7 +409,7 @@ fn premises(inputs: &IssInputs, rho: f64, m: usize) -> Vec<Premise> {
             if NEEDS_P.contains(&p.name.as_str()) {
                 p.holds = false;
                 p.margin = None;
-                p.fix = String::new();
+                p.fix = None;
                 p.not_evaluated = Some(crate::outcome::NotEvaluated::LmiFails);
             }
         }
@@ -336,12 +417,9 @@ fn premises(inputs: &IssInputs, rho: f64, m: usize) -> Vec<Premise> {
     premises
 }
 
-/// The advice of a failed "rho < 1" (empty when it holds): the horizon or the η that
-/// makes 6η^M < 1.
-fn rho_fix(eta: f64, rho: f64, m: usize) -> String {
-    if rho < 1.0 {
-        return String::new();
-    }
+/// The advice of a failed "rho < 1" ([`PremiseFix::RhoAtLeastOne`]): the horizon or the η
+/// that makes 6η^M < 1.
+fn rho_fix(eta: f64, m: usize) -> String {
     let m_min = min_horizon_for_eta(eta).map_or("none".to_string(), |m| m.to_string());
     format!(
         "6η^M = {} ≥ 1. Increase the horizon to M ≥ {m_min} at η = {eta}, or lower η below \

@@ -217,7 +217,7 @@ pub fn l_phi_sampling_pairs(
     problem: &mhe_core::MheProblem,
     requested: usize,
     phase_seconds: f64,
-) -> (usize, Option<String>) {
+) -> (usize, Option<PairsReduced>) {
     let per_pair =
         2.0 * window_solves_work(problem.windows().iter().map(|w| w.qp().n())) / SCALAR_RATE;
     let total = per_pair * requested as f64;
@@ -227,15 +227,63 @@ pub fn l_phi_sampling_pairs(
     let fit = ((phase_seconds / per_pair).floor() as usize).clamp(1, requested);
     (
         fit,
-        Some(format!(
-            "{requested} pairs are estimated at ≈ {} s of one core (2 exact solves of each of \
-             the {} windows per pair) > the analysis budget of {} s (scenario key \
-             `certificate.phase_seconds`): {fit} pair(s) sampled",
-            secs(total),
-            problem.windows().len(),
-            secs(phase_seconds)
-        )),
+        Some(PairsReduced::Budget {
+            requested,
+            estimated_seconds: total,
+            windows: problem.windows().len(),
+            phase_seconds,
+            sampled: fit,
+        }),
     )
+}
+
+/// Why the sampled L_Φ used fewer pairs than asked ([`l_phi_sampling_pairs`]); its
+/// `Display` is the sentence the certificate prints.
+#[derive(Debug, Clone, PartialEq)]
+#[non_exhaustive]
+pub enum PairsReduced {
+    /// 2·`requested` exact solves of every window were estimated beyond the analysis budget.
+    Budget {
+        /// Pairs asked for (`lipschitz_pairs`).
+        requested: usize,
+        /// Estimated seconds of one core for them.
+        estimated_seconds: f64,
+        /// Windows of the MHE (m = 0..M).
+        windows: usize,
+        /// The analysis budget (`certificate.phase_seconds`).
+        phase_seconds: f64,
+        /// Pairs sampled (≥ 1).
+        sampled: usize,
+    },
+}
+
+impl std::fmt::Display for PairsReduced {
+    fn fmt(&self, f: &mut std::fmt::Formatter<'_>) -> std::fmt::Result {
+        match self {
+            Self::Budget {
+                requested,
+                estimated_seconds,
+                windows,
+                phase_seconds,
+                sampled,
+            } => write!(
+                f,
+                "{requested} pairs are estimated at ≈ {} s of one core (2 exact solves of each \
+                 of the {windows} windows per pair) > the analysis budget of {} s (scenario key \
+                 `certificate.phase_seconds`): {sampled} pair(s) sampled",
+                secs(*estimated_seconds),
+                secs(*phase_seconds)
+            ),
+        }
+    }
+}
+
+/// The sentence, as before the type (the JSON value is unchanged).
+#[cfg(feature = "serde")]
+impl serde::Serialize for PairsReduced {
+    fn serialize<S: serde::Serializer>(&self, s: S) -> Result<S::Ok, S::Error> {
+        s.collect_str(self)
+    }
 }
 
 fn phase(name: &str, work: f64, rate: f64, runs: bool, detail: String) -> PhaseEstimate {
@@ -280,7 +328,7 @@ pub fn estimate_phases(
 fn mhe_dims(scenario: &Scenario) -> (f64, usize, impl Fn(usize) -> f64) {
     let sys = &scenario.plant;
     let (nx, nw) = (sys.nx() as f64, (sys.nw1() + sys.nw2()) as f64);
-    let m = scenario.mhe.as_ref().map_or(0, |s| s.horizon);
+    let m = scenario.mhe.as_ref().map_or(0, |s| s.horizon());
     (nx, m, move |w: usize| nx + w as f64 * nw)
 }
 
@@ -423,7 +471,7 @@ fn rho_lin_phase(scenario: &Scenario, opts: &CertificateOptions, k_top: usize) -
     let grid = crate::linear::log_spaced(1, k_top.max(2000), 25);
     // What `reproduce` computes: the four preset families when n_z ≤
     // [`crate::linear::ALL_METHODS_MAX_NZ`], else the scenario's own method only.
-    let own_lift = match scenario.mhe.as_ref().map(|s| s.method.family()) {
+    let own_lift = match scenario.mhe.as_ref().map(|s| s.method().family()) {
         Some("fista") => 2usize,
         _ => 1,
     };
@@ -466,6 +514,23 @@ fn rho_lin_phase(scenario: &Scenario, opts: &CertificateOptions, k_top: usize) -
 mod tests {
     #![allow(clippy::unwrap_used)]
     use super::*;
+
+    #[test]
+    fn pairs_reduced_prints_the_sentence_of_before_the_type() {
+        let r = PairsReduced::Budget {
+            requested: 200,
+            estimated_seconds: 1234.5,
+            windows: 10,
+            phase_seconds: 60.0,
+            sampled: 9,
+        };
+        assert_eq!(
+            r.to_string(),
+            "200 pairs are estimated at ≈ 1234 s of one core (2 exact solves of each of the 10 \
+             windows per pair) > the analysis budget of 60.0 s (scenario key \
+             `certificate.phase_seconds`): 9 pair(s) sampled"
+        );
+    }
 
     #[test]
     fn secs_at_least_reads_back_at_least_its_argument() {

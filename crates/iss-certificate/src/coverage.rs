@@ -432,7 +432,7 @@ pub fn covering(scenario: &Scenario, _method: Method, controller: ControllerChoi
     if scenario
         .mhe
         .as_ref()
-        .is_some_and(|m| m.warm_start == WarmStart::Shifted)
+        .is_some_and(|m| m.warm_start() == WarmStart::Shifted)
     {
         return Coverage::Uncovered(Uncovered::ShiftedWarmStart);
     }

@@ -201,7 +201,7 @@ fn from_closed_loop(e: ClosedLoopError) -> ModelBuildError {
 #[derive(Debug)]
 enum MpcPart {
     Horizon(usize),
-    Settings(Box<MpcSettings>),
+    Settings(Box<mpc_core::MpcBuilder>),
 }
 
 /// Builder of a [`LoopModel`] ([`LoopModel::builder`]); nothing is checked until
@@ -277,9 +277,11 @@ impl LoopModelBuilder {
         self.mpc = Some(MpcPart::Horizon(horizon));
         self
     }
-    /// The MPC (required: Theorem 1 uses its L_π and γ₁,₃). With `iterations` set it is
-    /// the K_c-iteration MPC, under the joint certificate ([`crate::joint`]).
-    pub fn mpc(mut self, settings: MpcSettings) -> Self {
+    /// The MPC (required: Theorem 1 uses its L_π and γ₁,₃) as a builder
+    /// (`MpcSettings::builder().horizon(10).r(&r_c)`; validated by
+    /// [`LoopModelBuilder::build`], errors naming `MpcSettings::r`, …). With `iterations`
+    /// set it is the K_c-iteration MPC, under the joint certificate ([`crate::joint`]).
+    pub fn mpc(mut self, settings: mpc_core::MpcBuilder) -> Self {
         self.mpc = Some(MpcPart::Settings(Box::new(settings)));
         self
     }
@@ -351,7 +353,7 @@ impl LoopModelBuilder {
                 horizon: Some(n),
                 ..Default::default()
             },
-            MpcPart::Settings(s) => s.to_raw(),
+            MpcPart::Settings(s) => s.into_raw(),
         };
         let mpc = MpcSettings::from_raw(&raw_mpc, &plant).map_err(from_model)?;
         if let Some(w) = self.w_bar
@@ -362,10 +364,10 @@ impl LoopModelBuilder {
                 problem: format!("is {w}; w̄ bounds ‖w_t‖₂ and must be a finite number ≥ 0"),
             });
         }
-        let controller = match mpc.iterations {
+        let controller = match mpc.iterations() {
             Some(iterations) => ControllerChoice::SuboptimalMpc {
-                iterations,
-                method: mpc.method,
+                iterations: iterations.get(),
+                method: mpc.method(),
             },
             None => ControllerChoice::ExactMpc,
         };
@@ -432,7 +434,10 @@ impl LoopModel {
 
     /// K, the MHE's iterations per step.
     pub fn iterations(&self) -> usize {
-        self.scenario().mhe.as_ref().map_or(0, |m| m.iterations)
+        self.scenario()
+            .mhe
+            .as_ref()
+            .map_or(0, |m| m.iterations().get())
     }
 
     /// w̄: the given bound, else the largest ‖w‖₂ over 𝒲 (`None` when 𝒲 is unbounded).

@@ -41,8 +41,8 @@ pub enum VoidReason {
         needed_by: String,
         /// The value tested.
         value: f64,
-        /// What to change.
-        fix: String,
+        /// What to change (None: no advice; printed as nothing).
+        fix: Option<crate::analysis::PremiseFix>,
     },
     /// A premise could not be evaluated because one it depends on failed.
     PremiseNotEvaluated {
@@ -102,7 +102,13 @@ impl std::fmt::Display for VoidReason {
                 needed_by,
                 value,
                 fix,
-            } => write!(f, "{premise} fails ({needed_by} = {}): {fix}", sig4(*value)),
+            } => {
+                write!(f, "{premise} fails ({needed_by} = {}): ", sig4(*value))?;
+                match fix {
+                    Some(fix) => fix.fmt(f),
+                    None => Ok(()),
+                }
+            }
             Self::PremiseNotEvaluated { premise, because } => {
                 write!(f, "{premise} not evaluated (because {because})")
             }
@@ -339,20 +345,24 @@ mod tests {
             premise: "rho < 1".into(),
             needed_by: "Prop. 2".into(),
             value: 1.25,
-            fix: "raise M".into(),
+            fix: Some(crate::analysis::PremiseFix::LmiInfeasible),
         };
-        assert_eq!(r.to_string(), "rho < 1 fails (Prop. 2 = 1.25): raise M");
+        assert_eq!(
+            r.to_string(),
+            "rho < 1 fails (Prop. 2 = 1.25): no P ≻ 0 satisfies LMI (2): see the δ-IOSS error"
+        );
         let n = VoidReason::NoK { k_max: 7 };
         #[cfg(feature = "serde")]
         assert_eq!(
             serde_json::to_string(&vec![r.clone(), n.clone()]).expect("serialisable"),
-            "[\"rho < 1 fails (Prop. 2 = 1.25): raise M\",\
+            "[\"rho < 1 fails (Prop. 2 = 1.25): no P ≻ 0 satisfies LMI (2): see the δ-IOSS \
+             error\",\
              \"no K ≤ 7 satisfies sg1 + sg2 + sg3 < 1 (ρ(Γ) < 1)\"]"
         );
         assert_eq!(
             VoidReason::join(&[r, n]),
-            "rho < 1 fails (Prop. 2 = 1.25): raise M; no K ≤ 7 satisfies sg1 + sg2 + sg3 < 1 \
-             (ρ(Γ) < 1)"
+            "rho < 1 fails (Prop. 2 = 1.25): no P ≻ 0 satisfies LMI (2): see the δ-IOSS error; \
+             no K ≤ 7 satisfies sg1 + sg2 + sg3 < 1 (ρ(Γ) < 1)"
         );
         assert_eq!(VoidReason::join(&[]), "");
         let b = SkipReason::OverBudget {

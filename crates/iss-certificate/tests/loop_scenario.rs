@@ -117,7 +117,7 @@ fn short(file: &str, horizon: usize) -> ResolvedScenario {
     let path = format!("{}/../../scenarios/{file}", env!("CARGO_MANIFEST_DIR"));
     let mut s = Scenario::from_file(&path).expect("scenario parses");
     if let Some(m) = s.mhe.as_mut() {
-        m.horizon = horizon;
+        *m = (m.to_builder().horizon(horizon).build(&s.plant)).expect("M is valid");
     }
     s.resolve().expect("scenario resolves")
 }

@@ -18,7 +18,7 @@ fn scenario(file: &str, horizon: usize) -> Scenario {
     let text = std::fs::read_to_string(&path).unwrap();
     let mut s = Scenario::from_toml_str(&text).unwrap();
     if let Some(m) = s.mhe.as_mut() {
-        m.horizon = horizon;
+        *m = m.to_builder().horizon(horizon).build(&s.plant).unwrap();
     }
     s
 }

@@ -49,13 +49,17 @@ impl MheSettings {
         prior: &[f64],
     ) -> Result<MheEstimator<MethodMap>> {
         let cfg = self.config(sys, false)?;
-        let method = self.method;
+        let method = self.method();
         MheEstimator::new(sys, sets, &cfg, prior, |qp| method.build(qp))
             .map_err(|e| self.explain(sys, e))
     }
 }
 
 impl MheBuilder {
+    /// A builder holding `raw` ([`MheSettings::to_builder`]).
+    pub(crate) fn from_raw(raw: RawMhe) -> Self {
+        Self { raw }
+    }
     /// M ≥ 1 (`mhe.horizon`, required).
     pub fn horizon(mut self, horizon: usize) -> Self {
         self.raw.horizon = Some(horizon);

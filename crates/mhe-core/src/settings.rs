@@ -7,7 +7,7 @@
 //! let raw: RawMhe = lti_model::spec::format::parse("horizon = 5\neta = 0.8\niterations = 40\nmethod = \"fista\"").unwrap();
 //! let sys = LtiSystem::new(faer::mat![[0.5]], faer::mat![[1.0]], faer::mat![[1.0]]).unwrap();
 //! let s = MheSettings::from_raw(&raw, &sys).unwrap();
-//! assert_eq!(s.method, qp_iter::Method::FISTA);
+//! assert_eq!(s.method(), qp_iter::Method::FISTA);
 //! let cfg = s.config(&sys, false).unwrap(); // P from LMI (2)
 //! assert_eq!(cfg.iterations, 40);
 //! ```
@@ -18,7 +18,7 @@ use lti_model::spec::MatrixSpec;
 use lti_model::spec::format::{
     at_least_one, check_dense_bytes, key_error, required, rows_of, weight,
 };
-use qp_iter::Method;
+use qp_iter::{Iterations, Method};
 use serde::{Deserialize, Serialize};
 
 use crate::error::{MheError, Result};
@@ -38,26 +38,74 @@ pub enum WarmStart {
     Shifted,
 }
 
-/// The validated `[mhe]` section.
+/// The validated `[mhe]` section. The fields are private: every value held passed
+/// [`MheSettings::from_raw`] (or [`crate::MheBuilder::build`]), and a change goes through
+/// [`MheSettings::to_builder`] (re-validated) or a setter whose argument is valid by its
+/// type ([`MheSettings::with_iterations`], [`MheSettings::with_warm_start`]).
 #[derive(Debug, Clone)]
 pub struct MheSettings {
+    horizon: usize,
+    eta: f64,
+    q: Mat<f64>,
+    r: Mat<f64>,
+    p: Option<Mat<f64>>,
+    iterations: Iterations,
+    method: Method,
+    warm_start: WarmStart,
+}
+
+impl MheSettings {
     /// Horizon M ≥ 1 (`mhe.horizon`).
-    pub horizon: usize,
+    pub fn horizon(&self) -> usize {
+        self.horizon
+    }
     /// Decay rate η ∈ [0, 1) of LMI (2) and cost (9) (`mhe.eta`).
-    pub eta: f64,
+    pub fn eta(&self) -> f64 {
+        self.eta
+    }
     /// Disturbance weight Q, n_w = n_w1 + n_w2 square, positive definite (default I).
-    pub q: Mat<f64>,
+    pub fn q(&self) -> &Mat<f64> {
+        &self.q
+    }
     /// Output weight R, n_y square, positive definite (default I).
-    pub r: Mat<f64>,
+    pub fn r(&self) -> &Mat<f64> {
+        &self.r
+    }
     /// Prior weight P of W_δ (eq. 3), n_x square, positive definite; `None` means
     /// "compute it from LMI (2)" ([`MheSettings::config`]).
-    pub p: Option<Mat<f64>>,
-    /// Iterations K ≥ 1 of Φ per time step (`mhe.iterations`).
-    pub iterations: usize,
+    pub fn p(&self) -> Option<&Mat<f64>> {
+        self.p.as_ref()
+    }
+    /// Iterations K of Φ per time step (`mhe.iterations`).
+    pub fn iterations(&self) -> Iterations {
+        self.iterations
+    }
     /// The iteration map Φ (`mhe.method`, default projected gradient).
-    pub method: Method,
+    pub fn method(&self) -> Method {
+        self.method
+    }
     /// Warm-start rule (default the paper's).
-    pub warm_start: WarmStart,
+    pub fn warm_start(&self) -> WarmStart {
+        self.warm_start
+    }
+    /// The same settings with K iterations per time step (valid by its type: nothing else
+    /// depends on K, so nothing is re-validated).
+    #[must_use]
+    pub fn with_iterations(mut self, iterations: Iterations) -> Self {
+        self.iterations = iterations;
+        self
+    }
+    /// The same settings with another warm-start rule (nothing else depends on it).
+    #[must_use]
+    pub fn with_warm_start(mut self, warm_start: WarmStart) -> Self {
+        self.warm_start = warm_start;
+        self
+    }
+    /// A builder holding these settings, to change a value that is validated against the
+    /// plant (M, η, a weight, Φ) and build again.
+    pub fn to_builder(&self) -> crate::MheBuilder {
+        crate::MheBuilder::from_raw(self.to_raw())
+    }
 }
 
 /// Serde mirror of the `[mhe]` table: every key optional, unknown keys refused.
@@ -119,16 +167,8 @@ impl MheSettings {
             ));
         }
         let iterations = required("mhe.iterations", raw.iterations, "iterations = 50")?;
-        let iterations = at_least_one("mhe.iterations", iterations, "the iteration count K")?;
-        if iterations > MAX_ITERATIONS {
-            return Err(key_error(
-                "mhe.iterations",
-                format!(
-                    "is {iterations}, above the limit {MAX_ITERATIONS} (each time step runs K \
-                     iterations); a certified K beyond it is not practical to run"
-                ),
-            ));
-        }
+        let iterations =
+            Iterations::new(iterations).map_err(|e| key_error("mhe.iterations", e.to_string()))?;
         // Before the size: a horizon the conditioning rules out is refused for that reason.
         check_window_conditioning(horizon, eta, sys)?;
         // The setup's heap from the sizes the code allocates by (crate::memory): every
@@ -205,7 +245,7 @@ impl MheSettings {
             q: Some(rows_of(&self.q)),
             r: Some(rows_of(&self.r)),
             p: self.p.as_ref().map(rows_of),
-            iterations: Some(self.iterations),
+            iterations: Some(self.iterations.get()),
             method: Some(self.method),
             warm_start: Some(self.warm_start),
         }
@@ -225,7 +265,7 @@ impl MheSettings {
             p,
             self.q.clone(),
             self.r.clone(),
-            self.iterations,
+            self.iterations.get(),
         )
         .with_warm_start(self.warm_start)
         .with_exact_solve(exact_solve))
@@ -417,5 +457,62 @@ impl MheSettings {
             ),
         )
         .into()
+    }
+}
+
+#[cfg(test)]
+mod typed_tests {
+    use super::*;
+
+    fn sys() -> LtiSystem {
+        LtiSystem::new(faer::mat![[0.5]], faer::mat![[1.0]], faer::mat![[1.0]])
+            .expect("a valid plant")
+    }
+
+    fn settings(text: &str) -> lti_model::Result<MheSettings> {
+        let raw: RawMhe = lti_model::spec::format::parse(text)?;
+        MheSettings::from_raw(&raw, &sys())
+    }
+
+    /// K is held as an `Iterations` (≥ 1 by type); a new K goes through `with_iterations`,
+    /// and a value checked against the plant goes through `to_builder` and is re-validated.
+    #[test]
+    fn k_is_typed_and_changes_are_revalidated() {
+        let s = settings("horizon = 5\neta = 0.8\niterations = 40").expect("valid");
+        assert_eq!(s.iterations(), Iterations::new(40).expect("40 ≥ 1"));
+        let s = s.with_iterations(Iterations::new(7).expect("7 ≥ 1"));
+        assert_eq!((s.iterations().get(), s.to_raw().iterations), (7, Some(7)));
+        let m = s
+            .to_builder()
+            .horizon(9)
+            .build(&sys())
+            .expect("M = 9 is valid");
+        assert_eq!((m.horizon(), m.eta(), m.iterations().get()), (9, 0.8, 7));
+        let e = s
+            .to_builder()
+            .eta(1.2)
+            .build(&sys())
+            .expect_err("η = 1.2 is refused");
+        assert!(e.to_string().contains("`mhe.eta`: is 1.2"), "{e}");
+    }
+
+    #[test]
+    fn k_out_of_range_names_the_key_as_before() {
+        for (k, text) in [
+            (
+                "0",
+                "scenario: key `mhe.iterations`: is 0, but the iteration count K must be at \
+                 least 1",
+            ),
+            (
+                "10000001",
+                "scenario: key `mhe.iterations`: is 10000001, above the limit 10000000 (each \
+                 time step runs K iterations); a certified K beyond it is not practical to run",
+            ),
+        ] {
+            let e = settings(&format!("horizon = 5\neta = 0.8\niterations = {k}"))
+                .expect_err("refused");
+            assert_eq!(e.to_string(), text);
+        }
     }
 }

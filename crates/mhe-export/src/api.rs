@@ -224,7 +224,7 @@ impl Plan {
         let mhe = scenario.mhe.as_ref().ok_or_else(|| ExportError::Scenario {
             message: "the scenario has no [mhe] section: nothing to export".into(),
         })?;
-        let method = o.method.unwrap_or(mhe.method);
+        let method = o.method.unwrap_or(mhe.method());
         let no_mpc = || ExportError::Scenario {
             message: "--kc: the scenario has no [mpc] section: no MPC to export".into(),
         };
@@ -235,7 +235,9 @@ impl Plan {
                 mpc_spec.ok_or_else(no_mpc)?;
                 Some(k)
             }
-            None => mpc_spec.and_then(|m| m.iterations).map(Iterations::Given),
+            None => mpc_spec
+                .and_then(|m| m.iterations())
+                .map(|k| Iterations::Given(k.get())),
         };
         let mpc_method = match (kc_arg, o.mpc_method, mpc_spec) {
             (None, Some(m), _) => {
@@ -250,7 +252,7 @@ impl Plan {
             }
             (None, None, _) => None,
             (Some(_), Some(m), _) => Some(m),
-            (Some(_), None, Some(spec)) => Some(spec.method),
+            (Some(_), None, Some(spec)) => Some(spec.method()),
             (Some(_), None, None) => return Err(no_mpc()),
         };
         Ok(Self {

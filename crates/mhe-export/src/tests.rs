@@ -59,7 +59,7 @@ pub(super) fn case(file: &str, seed: Option<u64>) -> Case {
         .collect();
     Case {
         path,
-        k: sc.mhe.as_ref().unwrap().iterations,
+        k: sc.mhe.as_ref().unwrap().iterations().get(),
         resolved,
         traj,
     }

@@ -32,7 +32,7 @@ impl LoopCase {
         let path = workspace_root().join("scenarios").join(file);
         let sc = Scenario::from_file(&path).unwrap();
         let mhe = sc.mhe.as_ref().unwrap();
-        let (m, k_e) = (mhe.method, mhe.iterations);
+        let (m, k_e) = (mhe.method(), mhe.iterations().get());
         Self {
             resolved: sc.resolve().unwrap(),
             path,

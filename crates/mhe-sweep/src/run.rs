@@ -176,7 +176,7 @@ impl Sweep {
                 .scenario()
                 .mhe
                 .as_ref()
-                .is_some_and(|m| m.p.is_none())
+                .is_some_and(|m| m.p().is_none())
             {
                 return Err(SweepError::Scenario {
                     path: path.clone(),

@@ -49,7 +49,7 @@ pub use lqr::SaturatedLqr;
 /// that a user needs no separate `qp-iter` dependency.
 pub use qp_iter;
 pub use robust_norm::{WorstCaseNorm, worst_case_norm};
-pub use settings::{MpcSettings, RawMpc};
+pub use settings::{MpcBuilder, MpcSettings, RawMpc};
 pub use suboptimal::{SuboptimalMpc, WarmStart};
 
 /// The controller trait and what a controller applied (their own crate, `loop-traits`, so

@@ -7,7 +7,7 @@
 //! let raw: RawMpc = lti_model::spec::format::parse("horizon = 10\nr = 0.1").unwrap();
 //! let sys = LtiSystem::new(faer::mat![[0.5]], faer::mat![[1.0]], faer::mat![[1.0]]).unwrap();
 //! let s = MpcSettings::from_raw(&raw, &sys).unwrap();
-//! assert_eq!((s.horizon, s.r[(0, 0)]), (10, 0.1));
+//! assert_eq!((s.horizon(), s.r()[(0, 0)]), (10, 0.1));
 //! ```
 
 use faer::Mat;
@@ -16,6 +16,7 @@ use lti_model::spec::format::{
     at_least_one, key_error, required, rows_of, sized_matrix, weight, wrap,
 };
 use lti_model::spec::{MatrixSpec, ScenarioSets};
+use qp_iter::Iterations;
 use serde::{Deserialize, Serialize};
 
 use crate::condensed::{CondensedMpc, MpcConfig, Terminal};
@@ -29,27 +30,62 @@ pub enum TerminalCost {
     Dare,
 }
 
-/// The validated `[mpc]` section.
+/// The validated `[mpc]` section. The fields are private: every value held passed
+/// [`MpcSettings::from_raw`], and a change goes through [`MpcSettings::to_raw`] and
+/// [`MpcSettings::from_raw`] again, or a setter whose argument is valid by its type
+/// ([`MpcSettings::with_iterations`]).
 #[derive(Debug, Clone)]
 pub struct MpcSettings {
+    horizon: usize,
+    q: Mat<f64>,
+    r: Mat<f64>,
+    terminal: TerminalCost,
+    iterations: Option<Iterations>,
+    method: qp_iter::Method,
+    output: Option<lti_model::BoxSet>,
+}
+
+impl MpcSettings {
     /// Prediction horizon N ≥ 1 (`mpc.horizon`).
-    pub horizon: usize,
+    pub fn horizon(&self) -> usize {
+        self.horizon
+    }
     /// Stage state weight Q_c, n_x square, positive semidefinite with (A, Q_c^½) detectable
     /// (default I; see [`crate::detectable`]).
-    pub q: Mat<f64>,
+    pub fn q(&self) -> &Mat<f64> {
+        &self.q
+    }
     /// Stage input weight R_c, n_u square, positive definite (default I).
-    pub r: Mat<f64>,
+    pub fn r(&self) -> &Mat<f64> {
+        &self.r
+    }
     /// Terminal cost (default DARE).
-    pub terminal: TerminalCost,
-    /// K_c iterations of `method` per step: the sub-optimal MPC ([`crate::SuboptimalMpc`],
-    /// `mpc.iterations`); `None` is the exact MPC.
-    pub iterations: Option<usize>,
+    pub fn terminal(&self) -> TerminalCost {
+        self.terminal
+    }
+    /// K_c iterations of [`MpcSettings::method`] per step: the sub-optimal MPC
+    /// ([`crate::SuboptimalMpc`], `mpc.iterations`); `None` is the exact MPC.
+    pub fn iterations(&self) -> Option<Iterations> {
+        self.iterations
+    }
     /// The sub-optimal MPC's iteration map (`mpc.method`, default FISTA; only with
     /// `mpc.iterations`).
-    pub method: qp_iter::Method,
+    pub fn method(&self) -> qp_iter::Method {
+        self.method
+    }
     /// Output constraints C x_k ∈ 𝒴_c on the predicted outputs k = 1..N (`mpc.output`, a
     /// box of n_y bounds containing 0; `None`: none). Not the MHE's `sets.output`.
-    pub output: Option<lti_model::BoxSet>,
+    pub fn output(&self) -> Option<&lti_model::BoxSet> {
+        self.output.as_ref()
+    }
+    /// The same settings with K_c iterations of [`MpcSettings::method`] per step (`Some`:
+    /// the sub-optimal MPC) or the exact MPC (`None`); valid by its type, nothing else
+    /// depends on it.
+    #[must_use]
+    pub fn with_iterations(mut self, iterations: Option<Iterations>) -> Self {
+        self.iterations = iterations;
+        self
+    }
 }
 
 /// The sub-optimal MPC's Φ when `mpc.method` (or a sweep's `controller.solver`) is not
@@ -166,19 +202,19 @@ impl MpcSettings {
                 }
                 None
             }
-            Some(k) => {
-                let k = at_least_one("mpc.iterations", k, "the MPC's iteration count K_c")?;
-                if k > MAX_ITERATIONS {
-                    return Err(key_error(
-                        "mpc.iterations",
-                        format!(
-                            "is {k}, above the limit {MAX_ITERATIONS} (each time step runs K_c \
-                             iterations); remove it for the exact MPC"
-                        ),
-                    ));
-                }
-                Some(k)
-            }
+            Some(k) => Some(Iterations::new(k).map_err(|e| match e {
+                qp_iter::IterationsError::AboveLimit { value, limit } => key_error(
+                    "mpc.iterations",
+                    format!(
+                        "is {value}, above the limit {limit} (each time step runs K_c \
+                         iterations); remove it for the exact MPC"
+                    ),
+                ),
+                _ => key_error(
+                    "mpc.iterations",
+                    "is 0, but the MPC's iteration count K_c must be at least 1",
+                ),
+            })?),
         };
         let output = match raw.output.as_deref() {
             None => None,
@@ -208,7 +244,7 @@ impl MpcSettings {
             q: Some(rows_of(&self.q)),
             r: Some(rows_of(&self.r)),
             terminal: Some(self.terminal),
-            iterations: self.iterations,
+            iterations: self.iterations.map(Iterations::get),
             method: self.iterations.map(|_| self.method),
             output: self
                 .output
@@ -342,6 +378,84 @@ impl MpcSettings {
     }
 }
 
+impl MpcSettings {
+    /// A builder with no key set (see [`MpcBuilder`]).
+    ///
+    /// ```
+    /// use lti_model::LtiSystem;
+    /// use mpc_core::MpcSettings;
+    /// let sys = LtiSystem::new(faer::mat![[0.5]], faer::mat![[1.0]], faer::mat![[1.0]]).unwrap();
+    /// let s = MpcSettings::builder().horizon(10).r(&faer::mat![[0.1]]).iterations(30).build(&sys)?;
+    /// assert_eq!((s.horizon(), s.iterations().map(|k| k.get())), (10, Some(30)));
+    /// # Ok::<(), mpc_core::MpcError>(())
+    /// ```
+    pub fn builder() -> MpcBuilder {
+        MpcBuilder::default()
+    }
+
+    /// A builder holding these settings, to change a value and validate again.
+    pub fn to_builder(&self) -> MpcBuilder {
+        MpcBuilder { raw: self.to_raw() }
+    }
+}
+
+/// Builder of [`MpcSettings`]: every key of the `[mpc]` table as a method; what is not set
+/// takes the file format's default (Q_c = I, R_c = I, the DARE terminal cost, the exact
+/// MPC), and N is required, as in a file.
+#[derive(Debug, Default)]
+pub struct MpcBuilder {
+    raw: RawMpc,
+}
+
+impl MpcBuilder {
+    /// N ≥ 1 (`mpc.horizon`, required).
+    pub fn horizon(mut self, horizon: usize) -> Self {
+        self.raw.horizon = Some(horizon);
+        self
+    }
+    /// Q_c ⪰ 0, n_x square, (A, Q_c^½) detectable (`mpc.q`, default I).
+    pub fn q(mut self, q: &Mat<f64>) -> Self {
+        self.raw.q = Some(rows_of(q));
+        self
+    }
+    /// R_c ≻ 0, n_u square (`mpc.r`, default I).
+    pub fn r(mut self, r: &Mat<f64>) -> Self {
+        self.raw.r = Some(rows_of(r));
+        self
+    }
+    /// The terminal cost (`mpc.terminal`, default DARE).
+    pub fn terminal(mut self, terminal: TerminalCost) -> Self {
+        self.raw.terminal = Some(terminal);
+        self
+    }
+    /// K_c ≥ 1 iterations per step: the sub-optimal MPC (`mpc.iterations`; unset: exact).
+    pub fn iterations(mut self, k: usize) -> Self {
+        self.raw.iterations = Some(k);
+        self
+    }
+    /// The sub-optimal MPC's Φ (`mpc.method`, default FISTA; only with iterations).
+    pub fn method(mut self, method: qp_iter::Method) -> Self {
+        self.raw.method = Some(method);
+        self
+    }
+    /// The output box 𝒴_c of the predicted outputs (`mpc.output`, default none).
+    pub fn output(mut self, output: &lti_model::BoxSet) -> Self {
+        self.raw.output = Some(lti_model::spec::Table(lti_model::spec::plant::raw_box(
+            output,
+        )));
+        self
+    }
+    /// The `[mpc]` table these calls describe (for the scenario layer).
+    pub fn into_raw(self) -> RawMpc {
+        self.raw
+    }
+    /// Validates against the plant exactly as a scenario's `[mpc]` table is validated
+    /// (errors name the key: `mpc.r`, …).
+    pub fn build(&self, sys: &LtiSystem) -> crate::Result<MpcSettings> {
+        Ok(MpcSettings::from_raw(&self.raw, sys)?)
+    }
+}
+
 /// `mpc.q`: n_x square, finite, symmetric, positive *semi*definite (default I); a singular
 /// Q_c must leave no non-decaying mode of A unseen ((A, Q_c^½) detectable, so that the DARE
 /// terminal cost exists). Errors name `mpc.q`, the mode and the fix.
@@ -444,15 +558,42 @@ mod suboptimal_key_tests {
     #[test]
     fn iterations_select_the_suboptimal_mpc_and_round_trip() {
         let s = settings("horizon = 5\niterations = 40\nmethod = \"pg\"").unwrap();
-        assert_eq!((s.iterations, s.method), (Some(40), qp_iter::Method::PG));
+        assert_eq!(
+            (s.iterations().map(Iterations::get), s.method()),
+            (Some(40), qp_iter::Method::PG)
+        );
         let s = settings("horizon = 5\niterations = 40").unwrap();
-        assert_eq!(s.method, qp_iter::Method::FISTA);
+        assert_eq!(s.method(), qp_iter::Method::FISTA);
         let raw = s.to_raw();
         assert_eq!(
             (raw.iterations, raw.method),
             (Some(40), Some(qp_iter::Method::FISTA))
         );
-        assert_eq!(settings("horizon = 5").unwrap().iterations, None);
+        assert_eq!(settings("horizon = 5").unwrap().iterations(), None);
+    }
+
+    /// K_c is an `Option<Iterations>`; the builder validates as a file does and
+    /// `to_builder` round-trips.
+    #[test]
+    fn the_builder_validates_and_round_trips() {
+        let sys = LtiSystem::new(faer::mat![[0.5]], faer::mat![[1.0]], faer::mat![[1.0]]).unwrap();
+        let s = MpcSettings::builder()
+            .horizon(4)
+            .iterations(12)
+            .method(qp_iter::Method::PG)
+            .build(&sys)
+            .unwrap();
+        assert_eq!(s.iterations(), Some(Iterations::new(12).unwrap()));
+        let exact = s.clone().with_iterations(None);
+        assert_eq!((exact.iterations(), exact.to_raw().method), (None, None));
+        let again = s.to_builder().build(&sys).unwrap();
+        assert_eq!((again.horizon(), again.method()), (4, qp_iter::Method::PG));
+        let e = MpcSettings::builder()
+            .horizon(4)
+            .iterations(0)
+            .build(&sys)
+            .unwrap_err();
+        assert!(e.to_string().contains("mpc.iterations"), "{e}");
     }
 
     #[test]

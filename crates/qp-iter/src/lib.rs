@@ -28,6 +28,7 @@ pub mod error;
 pub mod exact;
 pub mod fista;
 pub mod general_projection;
+pub mod iterations;
 pub mod kernel;
 pub mod linearise;
 pub mod matrix;
@@ -45,6 +46,7 @@ pub use error::{ConstraintRow, DataError, QpError, Result};
 #[cfg(feature = "clarabel")]
 pub use exact::reference;
 pub use exact::{active_set, dual_active_set};
+pub use iterations::{Iterations, IterationsError};
 pub use linearise::Linearise;
 pub use method::{Family, Method, MethodKind, MethodMap, MethodState, Scaling};
 pub use problem::{GeneralConstraints, ParametricQp};

@@ -544,7 +544,7 @@ pub(super) fn trace_document<'a>(
             p: m(cfg.p.as_ref()),
             q: m(cfg.q.as_ref()),
             r: m(cfg.r.as_ref()),
-            p_source: if spec.p.is_some() {
+            p_source: if spec.p().is_some() {
                 "scenario mhe.p".into()
             } else {
                 "computed from LMI (2)".into()

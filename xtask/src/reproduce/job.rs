@@ -10,7 +10,7 @@ pub fn default_fig2c_t(preset: Option<Preset>, scenario: &Scenario) -> usize {
     let last = scenario.simulation.steps.saturating_sub(1);
     match (preset, &scenario.mhe) {
         (Some(_), _) | (None, None) => FIG2C_T.min(last),
-        (None, Some(m)) => (m.horizon + 1).min(last),
+        (None, Some(m)) => (m.horizon() + 1).min(last),
     }
 }
 

@@ -39,13 +39,13 @@ pub fn joint_certificate(
     mhe: Method,
 ) -> Result<Option<JointCertificate>> {
     let scenario = resolved.scenario();
-    let Some(spec) = scenario.mpc.as_ref().filter(|m| m.iterations.is_some()) else {
+    let Some(spec) = scenario.mpc.as_ref().filter(|m| m.iterations().is_some()) else {
         return Ok(None);
     };
     let mpc = resolved.mpc()?;
     let (nx, ny) = (scenario.plant.nx(), scenario.plant.ny());
     let n_e = nx + cert.horizon * (nx + ny);
-    let j = certify_joint(cert, mpc, n_e, mhe, spec.method, &JointOptions::default())
+    let j = certify_joint(cert, mpc, n_e, mhe, spec.method(), &JointOptions::default())
         .context("cannot compute the joint MPC + MHE certificate")?;
     Ok(Some(j))
 }

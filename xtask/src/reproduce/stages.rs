@@ -58,7 +58,7 @@ pub(super) fn prepare(job: &Job, settings: &Settings) -> Result<Prepared> {
         return Err(ClosedLoopError::MissingSection { section: "mpc" })
             .with_context(|| format!("scenario `{}`", job.scenario.display()));
     }
-    let (solver, iterations, has_p) = (spec.method, spec.iterations, spec.p.is_some());
+    let (solver, iterations, has_p) = (spec.method(), spec.iterations().get(), spec.p().is_some());
     let steps = scenario.simulation.steps;
     let fig2c_t = settings
         .fig2c_t

@@ -144,7 +144,8 @@ pub(super) fn summarize(d: &CertificateDocument, files: &[PathBuf], notes: &[Str
                         let _ = writeln!(s, "      because {why}");
                     }
                     None if !q.holds => {
-                        let _ = writeln!(s, "      fix: {}", q.fix);
+                        let fix = q.fix.as_ref().map(ToString::to_string);
+                        let _ = writeln!(s, "      fix: {}", fix.unwrap_or_default());
                     }
                     None => {}
                 }

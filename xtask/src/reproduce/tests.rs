@@ -195,7 +195,7 @@ fn certified_preset_uses_the_computed_k_min_which_the_file_records() {
     let file =
         Scenario::from_file(workspace_root().join(Preset::Certified.scenario_file())).unwrap();
     assert_eq!(
-        file.mhe.as_ref().unwrap().iterations,
+        file.mhe.as_ref().unwrap().iterations().get(),
         k_min,
         "scenarios/case-study-certified.toml: mhe.iterations must equal the computed PG K_min"
     );

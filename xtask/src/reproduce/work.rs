@@ -45,7 +45,7 @@ pub struct Work {
 impl Work {
     /// The work of a simulation of `scenario` at `k` iterations (None without `[mhe]`).
     pub fn of(scenario: &Scenario, k: usize) -> Option<Self> {
-        let m = scenario.mhe.as_ref()?.horizon;
+        let m = scenario.mhe.as_ref()?.horizon();
         let p = &scenario.plant;
         Some(Self {
             k,

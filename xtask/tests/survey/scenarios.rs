@@ -207,27 +207,28 @@ fn invariants(resolved: &ResolvedScenario) -> Result<(), String> {
     finite("plant.e", plant.e())?;
     finite("plant.f", plant.f())?;
     if let Some(m) = &sc.mhe {
-        if !(0.0..1.0).contains(&m.eta) {
-            return Err(format!("accepted-bad: mhe.eta = {}", m.eta));
+        if !(0.0..1.0).contains(&m.eta()) {
+            return Err(format!("accepted-bad: mhe.eta = {}", m.eta()));
         }
-        if m.horizon == 0 || m.iterations == 0 {
+        if m.horizon() == 0 || m.iterations().get() == 0 {
             return Err(format!(
                 "accepted-bad: mhe.horizon = {}, mhe.iterations = {}",
-                m.horizon, m.iterations
+                m.horizon(),
+                m.iterations()
             ));
         }
-        spd(m.q.as_ref()).map_err(|e| format!("accepted-bad: mhe.q: {e}"))?;
-        spd(m.r.as_ref()).map_err(|e| format!("accepted-bad: mhe.r: {e}"))?;
-        if let Some(p) = &m.p {
+        spd(m.q().as_ref()).map_err(|e| format!("accepted-bad: mhe.q: {e}"))?;
+        spd(m.r().as_ref()).map_err(|e| format!("accepted-bad: mhe.r: {e}"))?;
+        if let Some(p) = m.p() {
             spd(p.as_ref()).map_err(|e| format!("accepted-bad: mhe.p: {e}"))?;
         }
     }
     if let Some(c) = &sc.mpc {
-        if c.horizon == 0 {
+        if c.horizon() == 0 {
             return Err("accepted-bad: mpc.horizon = 0".into());
         }
-        spd(c.r.as_ref()).map_err(|e| format!("accepted-bad: mpc.r: {e}"))?;
-        finite("mpc.q", c.q.as_ref())?;
+        spd(c.r().as_ref()).map_err(|e| format!("accepted-bad: mpc.r: {e}"))?;
+        finite("mpc.q", c.q().as_ref())?;
     }
     Ok(())
 }
@@ -244,10 +245,10 @@ fn lmi_wording(resolved: &ResolvedScenario) -> Result<(), String> {
             .take_while(|c| c.is_ascii_digit() || matches!(c, '.' | 'e' | '-'))
             .collect();
         if let Ok(v) = num.trim_end_matches('.').parse::<f64>() {
-            if v <= m.eta {
+            if v <= m.eta() {
                 return Err(format!(
                     "dishonest: LMI (2) refused at η = {} with a smallest feasible η ≈ {v}: {msg}",
-                    m.eta
+                    m.eta()
                 ));
             }
         }

@@ -99,7 +99,7 @@ impl From<&iss_certificate::analysis::Premise> for Premise {
             holds: l.holds,
             value: num(l.value),
             margin: l.margin.and_then(num),
-            fix: l.fix.to_string(),
+            fix: l.fix.as_ref().map_or_else(String::new, ToString::to_string),
             not_evaluated: l.not_evaluated.as_ref().map(ToString::to_string),
         }
     }
@@ -177,10 +177,10 @@ impl From<&iss_certificate::certificate::ClosedLoopCertificate> for ClosedLoopCe
             rho: num(l.rho),
             ioss: l.ioss.as_ref().map(IossReport::from),
             ioss_failure: l.ioss_failure.as_ref().map(ToString::to_string),
-            p_min: num(l.p_min),
-            p_max: num(l.p_max),
+            p_min: l.p_min.and_then(num),
+            p_max: l.p_max.and_then(num),
             q_max: num(l.q_max),
-            h_bar: num(l.h_bar),
+            h_bar: l.h_bar.and_then(num),
             c_norm: num(l.c_norm),
             l_phi: LPhiReport::from(&l.l_phi),
             l_pi: LipschitzReport::from(&l.l_pi),

@@ -59,17 +59,17 @@ impl LoopOptions {
             .as_ref()
             .ok_or(ClosedLoopError::MissingSection { section: "mhe" })?;
         Ok(Self {
-            method: mhe.method,
-            iterations: mhe.iterations,
+            method: mhe.method(),
+            iterations: mhe.iterations().get(),
             exact_mhe_solve: false,
             controller: match scenario
                 .mpc
                 .as_ref()
-                .and_then(|m| m.iterations.map(|k| (k, m)))
+                .and_then(|m| m.iterations().map(|k| (k.get(), m)))
             {
                 Some((iterations, m)) => ControllerChoice::SuboptimalMpc {
                     iterations,
-                    method: m.method,
+                    method: m.method(),
                 },
                 None => ControllerChoice::ExactMpc,
             },
@@ -252,8 +252,8 @@ impl ResolvedScenario {
             ControllerChoice::SaturatedLqr => ScenarioController::SaturatedLqr(
                 SaturatedLqr::new(
                     &sc.plant,
-                    spec.q.as_ref(),
-                    spec.r.as_ref(),
+                    spec.q().as_ref(),
+                    spec.r().as_ref(),
                     sc.sets.input.clone(),
                 )
                 .map_err(|e| spec.explain(&sc.plant, e))?,

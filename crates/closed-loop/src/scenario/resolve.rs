@@ -45,12 +45,12 @@ impl ResolvedScenario {
         let (ioss, mhe) = match &scenario.mhe {
             None => (None, None),
             Some(s) => {
-                let (q, r) = (s.q.as_ref(), s.r.as_ref());
-                let outcome = match &s.p {
-                    Some(p) => ioss::verify(sys, s.eta, q, r, p.as_ref()),
-                    None => ioss::certify(sys, s.eta, q, r),
+                let (q, r) = (s.q().as_ref(), s.r().as_ref());
+                let outcome = match &s.p() {
+                    Some(p) => ioss::verify(sys, s.eta(), q, r, p.as_ref()),
+                    None => ioss::certify(sys, s.eta(), q, r),
                 };
-                let user_p = s.p.is_some();
+                let user_p = s.p().is_some();
                 let outcome = match outcome {
                     Ok(c) => Ok(c),
                     Err(
@@ -62,14 +62,21 @@ impl ResolvedScenario {
                 };
                 // The file's P is used as given (verified or not: the certificate reports
                 // it); otherwise the LMI's P, when there is one.
-                let p = match (&s.p, &outcome) {
+                let p = match (s.p(), &outcome) {
                     (Some(p), _) => Some(p.clone()),
                     (None, Ok(c)) => Some(c.p.clone()),
                     (None, Err(_)) => None,
                 };
                 let mhe = p.map(|p| {
-                    MheConfig::new(s.horizon, s.eta, p, s.q.clone(), s.r.clone(), s.iterations)
-                        .with_warm_start(s.warm_start)
+                    MheConfig::new(
+                        s.horizon(),
+                        s.eta(),
+                        p,
+                        s.q().clone(),
+                        s.r().clone(),
+                        s.iterations().get(),
+                    )
+                    .with_warm_start(s.warm_start())
                 });
                 (Some(outcome), mhe)
             }

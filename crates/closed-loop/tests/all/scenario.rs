@@ -162,16 +162,22 @@ fn case_study_matches_design_section_4() {
     assert_eq!(s.simulation.steps, 40);
 
     let mhe = s.mhe.as_ref().unwrap();
-    assert_eq!((mhe.horizon, mhe.eta, mhe.iterations), (5, 0.8, 652));
-    assert_mat_vec(&mhe.q, &identity(5));
-    assert_mat(&mhe.r, &[&[1.0]]);
-    assert!(mhe.p.is_none());
-    assert_eq!((mhe.method, mhe.warm_start), (Method::PG, WarmStart::Paper));
+    assert_eq!(
+        (mhe.horizon(), mhe.eta(), mhe.iterations().get()),
+        (5, 0.8, 652)
+    );
+    assert_mat_vec(mhe.q(), &identity(5));
+    assert_mat(mhe.r(), &[&[1.0]]);
+    assert!(mhe.p().is_none());
+    assert_eq!(
+        (mhe.method(), mhe.warm_start()),
+        (Method::PG, WarmStart::Paper)
+    );
 
     let mpc = s.mpc.as_ref().unwrap();
-    assert_eq!((mpc.horizon, mpc.terminal), (10, TerminalCost::Dare));
-    assert_mat_vec(&mpc.q, &identity(4));
-    assert_mat(&mpc.r, &[&[0.1, 0.0], &[0.0, 0.1]]);
+    assert_eq!((mpc.horizon(), mpc.terminal()), (10, TerminalCost::Dare));
+    assert_mat_vec(mpc.q(), &identity(4));
+    assert_mat(mpc.r(), &[&[0.1, 0.0], &[0.0, 0.1]]);
 
     // The file says it is a stand-in, and the run can record the verbatim text.
     let src = s.source.as_deref().unwrap();
@@ -185,7 +191,7 @@ fn lmi_by_blocks(s: &Scenario, p: &Mat<f64>) -> Mat<f64> {
     let mhe = s.mhe.as_ref().unwrap();
     let (a, c) = (sys.a().to_owned(), sys.c().to_owned());
     let (bb, db) = (sys.b_bar(), sys.d_bar());
-    let (q, r, eta) = (&mhe.q, &mhe.r, mhe.eta);
+    let (q, r, eta) = (mhe.q(), mhe.r(), mhe.eta());
     let m11 = a.transpose() * p * &a - p * eta - c.transpose() * r * &c;
     let m12 = a.transpose() * p * &bb - c.transpose() * r * &db;
     let m22 = bb.transpose() * p * &bb - q - db.transpose() * r * &db;
@@ -202,7 +208,7 @@ fn lmi_by_blocks(s: &Scenario, p: &Mat<f64>) -> Mat<f64> {
 fn case_study_certificate_satisfies_lmi_2() {
     let s = Scenario::from_file(CASE_STUDY).unwrap();
     let mhe = s.mhe.as_ref().unwrap();
-    let cert = ioss::certify(&s.plant, mhe.eta, mhe.q.as_ref(), mhe.r.as_ref()).unwrap();
+    let cert = ioss::certify(&s.plant, mhe.eta(), mhe.q().as_ref(), mhe.r().as_ref()).unwrap();
     assert!(cert.p_min_eigenvalue > 0.0);
     assert!(
         cert.lmi_max_eigenvalue <= 1e-9,
@@ -239,14 +245,26 @@ fn canonical_toml_round_trips() {
         assert_eq!(t.simulation, s.simulation);
         let (a, b) = (t.mhe.unwrap(), s.mhe.unwrap());
         assert_eq!(
-            (a.horizon, a.eta, a.iterations, a.method, a.warm_start),
-            (b.horizon, b.eta, b.iterations, b.method, b.warm_start)
+            (
+                a.horizon(),
+                a.eta(),
+                a.iterations(),
+                a.method(),
+                a.warm_start()
+            ),
+            (
+                b.horizon(),
+                b.eta(),
+                b.iterations(),
+                b.method(),
+                b.warm_start()
+            )
         );
-        assert_eq!((a.q, a.r), (b.q, b.r));
+        assert_eq!((a.q(), a.r()), (b.q(), b.r()));
         let (a, b) = (t.mpc.unwrap(), s.mpc.unwrap());
         assert_eq!(
-            (a.horizon, a.q, a.r, a.terminal),
-            (b.horizon, b.q, b.r, b.terminal)
+            (a.horizon(), a.q(), a.r(), a.terminal()),
+            (b.horizon(), b.q(), b.r(), b.terminal())
         );
         // Canonical text is a fixed point.
         assert_eq!(
@@ -273,7 +291,7 @@ fn matrix_forms_agree() {
     let diag = with("mhe", "q = { diagonal = [2, 2.0, 2] }");
     let qs: Vec<Mat<f64>> = [rows, scalar, diag]
         .iter()
-        .map(|t| Scenario::from_toml_str(t).unwrap().mhe.unwrap().q)
+        .map(|t| Scenario::from_toml_str(t).unwrap().mhe.unwrap().q().clone())
         .collect();
     assert_eq!(qs[0], qs[1]);
     assert_eq!(qs[0], qs[2]);
@@ -285,13 +303,16 @@ fn defaults_are_documented_values() {
     let s = Scenario::from_toml_str(BASE).unwrap();
     assert_eq!(s.plant.nw(), 3); // E = I₂, F = I₁
     let mhe = s.mhe.unwrap();
-    assert_mat_vec(&mhe.q, &identity(3));
-    assert_mat(&mhe.r, &[&[1.0]]);
-    assert_eq!((mhe.method, mhe.warm_start), (Method::PG, WarmStart::Paper));
+    assert_mat_vec(mhe.q(), &identity(3));
+    assert_mat(mhe.r(), &[&[1.0]]);
+    assert_eq!(
+        (mhe.method(), mhe.warm_start()),
+        (Method::PG, WarmStart::Paper)
+    );
     let mpc = s.mpc.unwrap();
-    assert_mat_vec(&mpc.q, &identity(2));
-    assert_mat(&mpc.r, &[&[1.0]]);
-    assert_eq!(mpc.terminal, TerminalCost::Dare);
+    assert_mat_vec(mpc.q(), &identity(2));
+    assert_mat(mpc.r(), &[&[1.0]]);
+    assert_eq!(mpc.terminal(), TerminalCost::Dare);
     // No [noise] but a disturbance box: uniform on it, seed 0.
     assert_eq!(
         (s.noise.kind, s.noise.scale, s.noise.seed),
@@ -336,7 +357,7 @@ fn custom_disturbance_matrices_change_nw() {
     let s = Scenario::from_toml_str(&text).unwrap();
     assert_eq!((s.plant.nw1(), s.plant.nw2()), (1, 1));
     assert_eq!(s.plant.f()[(0, 0)], 0.5);
-    assert_eq!(s.mhe.unwrap().q.nrows(), 2);
+    assert_eq!(s.mhe.unwrap().q().nrows(), 2);
     assert_key(
         &format!("{text}\n").replace(
             "eta = 0.8",
@@ -798,7 +819,7 @@ proptest! {
             Ok(s) => {
                 prop_assert_eq!(s.simulation.x0.len(), s.plant.nx());
                 prop_assert_eq!(s.sets.disturbance.lower().len(), s.plant.nw());
-                if let Some(m) = &s.mhe { prop_assert_eq!(m.q.nrows(), s.plant.nw()); }
+                if let Some(m) = &s.mhe { prop_assert_eq!(m.q().nrows(), s.plant.nw()); }
             }
             Err(ModelError::Scenario { key, problem }) => {
                 prop_assert!(!key.is_empty() && !problem.is_empty());
@@ -831,7 +852,10 @@ fn a_method_with_parameters_is_read_from_a_table() {
         "method = { method = \"admm\", rho = 2.0, alpha = 1.5 }",
     ))
     .unwrap();
-    assert_eq!(s.mhe.unwrap().method, Method::admm(Some(2.0), 1.5).unwrap());
+    assert_eq!(
+        s.mhe.unwrap().method(),
+        Method::admm(Some(2.0), 1.5).unwrap()
+    );
     assert_key(
         &with("mhe", "method = { method = \"pg\", rho = 2.0 }"),
         "mhe.method",

@@ -359,8 +359,8 @@ fn lqr(s: &Scenario) -> SaturatedLqr {
     let spec = s.mpc.as_ref().unwrap();
     SaturatedLqr::new(
         &s.plant,
-        spec.q.as_ref(),
-        spec.r.as_ref(),
+        spec.q().as_ref(),
+        spec.r().as_ref(),
         s.sets.input.clone(),
     )
     .unwrap()

@@ -130,9 +130,9 @@ pub fn certify_closed_loop_with(
     // A phase every certificate needs, estimated beyond its documented limit: refused now.
     crate::budget::check_required_phases(scenario, Some(&mpc), opts)?;
     let sys = &scenario.plant;
-    let (m, eta) = (spec.horizon, spec.eta);
+    let (m, eta) = (spec.horizon(), spec.eta());
     let c_norm = spectral_norm(sys.c());
-    let (_, q_max) = sym_extreme_eigenvalues("Q", spec.q.as_ref())?;
+    let (_, q_max) = sym_extreme_eigenvalues("Q", spec.q().as_ref())?;
 
     // Assumption 2 (resolved once with the scenario).
     let (ioss_cert, ioss_failure) = match resolved.ioss() {
@@ -164,17 +164,20 @@ pub fn certify_closed_loop_with(
     let gamma13 = gamma13_report(&mpc, opts, gamma13_certified).map_err(explain)?;
     times.gamma13_s = split();
 
-    let (p_min, p_max) = ioss_cert.as_ref().map_or((f64::NAN, f64::NAN), |c| {
-        (c.p_min_eigenvalue, c.p_max_eigenvalue)
-    });
+    let (p_min, p_max) = ioss_cert
+        .as_ref()
+        .map(|c| (c.p_min_eigenvalue, c.p_max_eigenvalue))
+        .unzip();
     // The inputs every solver shares; φ's rate, prefactor and fit are the solver's own.
     let shared = IssInputs {
         horizon: m,
         eta,
-        p_min,
-        p_max,
+        // The analysis's inputs keep NaN for "no P" (the premise "LMI (2) feasible" and
+        // the ones built from P then fail or are not evaluated).
+        p_min: p_min.unwrap_or(f64::NAN),
+        p_max: p_max.unwrap_or(f64::NAN),
         q_max,
-        h_bar,
+        h_bar: h_bar.unwrap_or(f64::NAN),
         // No value makes the premise "L_Phi finite" fail (not evaluated: no P).
         l_phi: l_phi.certified.unwrap_or(f64::NAN),
         l_pi: l_pi_used,
@@ -282,7 +285,7 @@ fn gamma13_report(
 fn mhe_constants(
     problem: Option<&MheProblem>,
     opts: &CertificateOptions,
-) -> Result<(f64, LPhiReport, Vec<f64>), ClosedLoopError> {
+) -> Result<(Option<f64>, LPhiReport, Vec<f64>), ClosedLoopError> {
     let Some(pr) = problem else {
         let none = LPhiReport {
             certified: None,
@@ -290,7 +293,7 @@ fn mhe_constants(
             per_window: Vec::new(),
             pairs_reduced: None,
         };
-        return Ok((f64::NAN, none, Vec::new()));
+        return Ok((None, none, Vec::new()));
     };
     let (pairs, pairs_reduced) =
         crate::budget::l_phi_sampling_pairs(pr, opts.lipschitz_pairs, opts.phase_seconds);
@@ -312,7 +315,7 @@ fn mhe_constants(
         per_window,
         pairs_reduced,
     };
-    Ok((pr.h_bar(), l_phi, norms))
+    Ok((Some(pr.h_bar()), l_phi, norms))
 }
 
 /// What Theorem 1's certificate of each solver is computed from: the constants every solver
@@ -402,7 +405,7 @@ impl Theorem1Parts<'_> {
         if let Some(v) = &self.gamma13.void {
             for p in analysis.premises.iter_mut() {
                 if p.name == "gamma13 finite" && !p.holds {
-                    p.fix = v.to_string();
+                    p.fix = Some(crate::analysis::PremiseFix::Gamma13(v.clone()));
                 }
             }
         }
@@ -411,7 +414,10 @@ impl Theorem1Parts<'_> {
             .is_some_and(|pr| pr.windows().iter().any(|w| w.qp().general().is_some()));
         for p in analysis.premises.iter_mut() {
             if p.name == "phi rate < 1" && !p.holds && p.not_evaluated.is_none() {
-                p.fix = crate::analysis::phi_rate_fix(solver, general_rows);
+                p.fix = Some(crate::analysis::PremiseFix::MethodDoesNotContract {
+                    method: solver,
+                    general_rows,
+                });
             }
         }
     }

@@ -114,7 +114,7 @@ pub struct LPhiReport {
     /// Why fewer pairs than `lipschitz_pairs` were sampled (the analysis budget,
     /// [`crate::budget::l_phi_sampling_pairs`]); omitted when every pair was sampled.
     #[cfg_attr(feature = "serde", serde(skip_serializing_if = "Option::is_none"))]
-    pub pairs_reduced: Option<String>,
+    pub pairs_reduced: Option<crate::budget::PairsReduced>,
 }
 
 /// Certificate of one solver Φ.
@@ -179,14 +179,14 @@ pub struct ClosedLoopCertificate {
     pub ioss: Option<ioss::IossReport>,
     /// Why LMI (2) failed (None when it holds).
     pub ioss_failure: Option<IossFailure>,
-    /// λ_min(P), λ_max(P), λ_max(Q).
-    pub p_min: f64,
-    /// λ_max(P).
-    pub p_max: f64,
+    /// λ_min(P) of the δ-IOSS certificate (None when LMI (2) gave no P).
+    pub p_min: Option<f64>,
+    /// λ_max(P) (None as `p_min`).
+    pub p_max: Option<f64>,
     /// λ_max(Q).
     pub q_max: f64,
-    /// H̄ (NaN when the MHE could not be built).
-    pub h_bar: f64,
+    /// H̄ (None when the MHE could not be built: LMI (2) gave no P).
+    pub h_bar: Option<f64>,
     /// ‖C‖₂.
     pub c_norm: f64,
     /// L_Φ.

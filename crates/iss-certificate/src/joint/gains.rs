@@ -3,7 +3,7 @@
 #[cfg(feature = "serde")]
 use serde::Serialize;
 
-use crate::analysis::{GainsAtK, IssAnalysis, IssInputs, Premise};
+use crate::analysis::{GainsAtK, IssAnalysis, IssInputs, Premise, PremiseFix};
 use crate::small_gain::{Cycle, GainMatrix};
 
 /// Node names of the gain graph, in the order of [`JointGains::matrix`].
@@ -96,14 +96,14 @@ pub struct JointGains {
     pub certified: bool,
 }
 
-fn premise(name: &str, needed_by: &str, holds: bool, value: f64, fix: String) -> Premise {
+fn premise(name: &str, needed_by: &str, holds: bool, value: f64, fix: PremiseFix) -> Premise {
     Premise {
         name: name.into(),
         needed_by: needed_by.into(),
         holds,
         value,
         margin: Some(if holds { 1.0 } else { -1.0 }),
-        fix: if holds { String::new() } else { fix },
+        fix: (!holds).then_some(fix),
         not_evaluated: None,
     }
 }
@@ -119,47 +119,42 @@ impl JointAnalysis {
             "subsystem 1 under the applied input π(x̂) + d (Assumption 4 with d)",
             inputs.gamma14.is_finite() && inputs.gamma14 >= 0.0,
             inputs.gamma14,
-            "no gain from the MPC's input error to x in the estimate of γ₁,₃: a user-supplied \
-             γ₁,₃ gives none (let the certificate compute γ₁,₃), or no metric contracts"
-                .into(),
+            PremiseFix::Gamma14Unknown,
         ));
         premises.push(premise(
             "MPC phi fits eq. (11)",
             "subsystem 4 (‖Uᴷᶜ − U*‖ ≤ φ_c(K_c)‖U⁰ − U*‖, feasible Uᴷᶜ)",
             m.phi_fits_eq11,
             f64::from(u8::from(m.phi_fits_eq11)),
-            "the MPC method's certificate bounds another quantity or norm: use pg or fista \
-             (or a -jacobi variant) for the MPC"
-                .into(),
+            PremiseFix::MpcPhiNotEq11,
         ));
         premises.push(premise(
             "MPC phi rate < 1",
             "subsystem 4 (φ_c ∈ 𝓛)",
             m.phi_rate >= 0.0 && m.phi_rate < 1.0 && m.phi_prefactor.is_finite(),
             m.phi_rate,
-            "the MPC's method does not contract: reduce its step size".into(),
+            PremiseFix::MpcPhiRateAtLeastOne,
         ));
         premises.push(premise(
             "U*(0) = 0",
             "subsystem 4 (‖U*(x̂)‖ ≤ L_U‖x̂‖)",
             m.origin_fixed,
             f64::from(u8::from(m.origin_fixed)),
-            "0 ∉ 𝒰 or the MPC's QP has a constant linear term: widen sets.input to contain 0"
-                .into(),
+            PremiseFix::MpcOriginNotFixed,
         ));
         premises.push(premise(
             "L_U finite",
             "subsystem 4 (Lipschitz constant of x ↦ U*(x))",
             m.l_u.is_finite() && m.l_u >= 0.0,
             m.l_u,
-            "L_U is not a finite non-negative number".into(),
+            PremiseFix::NotFinite { name: "L_U".into() },
         ));
         premises.push(premise(
             "warm-start gain finite",
             "subsystem 4 (‖W‖₂ of the warm start)",
             m.warm_gain.is_finite() && m.warm_gain >= 0.0,
             m.warm_gain,
-            "the warm start's gain is not a finite non-negative number".into(),
+            PremiseFix::WarmGainNotFinite,
         ));
         Self {
             inputs,

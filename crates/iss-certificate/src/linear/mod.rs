@@ -269,7 +269,7 @@ pub fn linear_stability_all_budgeted(
     // beyond the budget nothing is built (building the loops alone costs seconds at n_z ~ 10³).
     let sc = resolved.scenario();
     if let Some(spec) = sc.mhe.as_ref() {
-        let (p, m) = (&sc.plant, spec.horizon);
+        let (p, m) = (&sc.plant, spec.horizon());
         let dims = LiftedDims {
             nx: p.nx(),
             nu: p.nu(),

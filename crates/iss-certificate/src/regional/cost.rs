@@ -372,7 +372,7 @@ impl Budget {
     ) -> Result<(), RegionalVoid> {
         let sc = resolved.scenario();
         let sys = &sc.plant;
-        let horizon = sc.mhe.as_ref().map_or(0, |m| m.horizon);
+        let horizon = sc.mhe.as_ref().map_or(0, |m| m.horizon());
         let floor = floor_from_dims(
             sys.nx(),
             sys.nu(),

@@ -112,7 +112,16 @@ fn paper_parameters_void_the_certificate() {
     assert_eq!(bad.len(), 1);
     assert_eq!(bad[0].name, "rho < 1");
     assert!((an.rho - 6f64.powf(0.2) * 0.8).abs() < 1e-12);
-    assert!(bad[0].fix.contains("M ≥ 9"), "{}", bad[0].fix);
+    // The fix is typed: the horizon and η it is computed from, and its sentence.
+    let fix = bad[0].fix.as_ref().expect("rho < 1 fails with advice");
+    assert_eq!(
+        fix,
+        &iss_certificate::analysis::PremiseFix::RhoAtLeastOne {
+            eta: 0.8,
+            horizon: 5
+        }
+    );
+    assert!(fix.to_string().contains("M ≥ 9"), "{fix}");
     // Never a K from a void bound, however large.
     assert_eq!(an.k_min(usize::MAX / 4), None);
     assert!(!an.at(652).certified);
@@ -128,7 +137,7 @@ fn the_eta_hint_is_below_the_bound_it_names() {
         inp.horizon = m;
         inp.eta = 0.99;
         let an = IssAnalysis::new(inp);
-        let fix = &an.violated()[0].fix;
+        let fix = an.violated()[0].fix.as_ref().expect("advice").to_string();
         let shown = fix
             .split("6^(-1/M) = ")
             .nth(1)
@@ -146,7 +155,7 @@ fn the_eta_hint_is_below_the_bound_it_names() {
     let mut inp = hand_inputs();
     inp.eta = 0.5;
     let an = IssAnalysis::new(inp);
-    let fix = &an.violated()[0].fix;
+    let fix = an.violated()[0].fix.as_ref().expect("advice").to_string();
     assert!(fix.contains("6^(-1/M) = 0.1666 at M = 1"), "{fix}");
 }
 

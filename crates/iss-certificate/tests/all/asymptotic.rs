@@ -260,7 +260,7 @@ fn check_rows(
         // Prop. 2: ‖e_t‖²_P ≤ ρ^M‖e_{t−M}‖²_P + 2H̄ε_t² + 6Σ_j η^{j−1}‖w_{t−j}‖²_Q.
         let lhs = sq_p(p, trace.e(t).unwrap());
         let rhs = an.rho.powi(m as i32) * sq_p(p, trace.e(t - m).unwrap())
-            + 2.0 * c.h_bar * eps[t] * eps[t]
+            + 2.0 * c.h_bar.expect("the certified case has H̄") * eps[t] * eps[t]
             + 6.0
                 * (1..=m)
                     .map(|j| c.eta.powi(j as i32 - 1) * sq_p(q, trace.w(t - j).unwrap()))

@@ -213,7 +213,7 @@ fn window_failures_are_explained_by_key() {
         }
         other => panic!("{other:?}"),
     }
-    let s = MheSettings { eta: 0.8, ..s };
+    let s = s.to_builder().eta(0.8).build(&sys).unwrap();
     let e = MheError::NotStronglyConvex {
         window: 1,
         min_eigenvalue: 1e-14,

@@ -179,7 +179,7 @@ fn each_mpc_premise_voids_the_joint_certificate() {
         let bad = an.violated();
         assert_eq!(bad.len(), 1, "{name}: {bad:?}");
         assert_eq!(bad[0].name, name);
-        assert!(!bad[0].fix.is_empty());
+        assert!(bad[0].fix.is_some());
         assert!(!an.at(1000, 1000).certified);
         let r = an.region(1 << 20, 1.0, 1.0);
         assert!(r.pareto.is_empty() && r.cheapest.is_none());

@@ -138,7 +138,7 @@ fn lifted_matrix_reproduces_the_closed_loop_exactly() {
     }
     // The time-shifted warm start (an option, not the paper's Σ_t).
     let mut shifted = unstable();
-    shifted.mhe.as_mut().unwrap().warm_start = WarmStart::Shifted;
+    shifted.mhe = shifted.mhe.map(|m| m.with_warm_start(WarmStart::Shifted));
     for solver in METHODS {
         check_trajectory(
             &shifted,

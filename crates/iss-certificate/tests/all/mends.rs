@@ -29,13 +29,13 @@ fn lemma1_growing_window_bound_scales_with_the_data() {
     cfg.p = ioss.p.clone();
     let sys = &sc.plant;
     let spec = sc.mhe.as_ref().unwrap();
-    let pr = MheProblem::new(sys, spec.horizon, &cfg.weights(), res.mhe_sets()).unwrap();
+    let pr = MheProblem::new(sys, spec.horizon(), &cfg.weights(), res.mhe_sets()).unwrap();
     let l_phi = pr.lipschitz_certified().max(1.0);
     let (w0, w1) = (pr.window(0).unwrap(), pr.window(1).unwrap());
     assert_eq!(iss_certificate::certificate::lemma1::origin_offset(w0), 0.0);
     assert_eq!(iss_certificate::certificate::lemma1::origin_offset(w1), 0.0);
     // The paper's σ₁ = |1 − η⁻¹|‖H₁‖ + ‖A‖ + ‖B‖ + ‖C‖ + 2 (with |·|, see theory.md).
-    let sigma1 = (1.0 - 1.0 / spec.eta).abs() * spectral_norm(w1.h_paper())
+    let sigma1 = (1.0 - 1.0 / spec.eta()).abs() * spectral_norm(w1.h_paper())
         + spectral_norm(sys.a())
         + spectral_norm(sys.b())
         + spectral_norm(sys.c())

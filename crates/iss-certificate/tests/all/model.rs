@@ -71,15 +71,10 @@ fn long_case_study_certified_typed_equals_toml() {
     let c = mat![[0.1, 0.3, 0.8, 0.5]];
     let r_c = Mat::from_fn(2, 2, |i, j| if i == j { 0.1 } else { 0.0 });
     let plant = LtiSystem::new(a, b, c).expect("plant");
-    let mpc = MpcSettings {
-        horizon: 10,
-        q: Mat::identity(4, 4),
-        r: r_c,
-        terminal: mpc_core::settings::TerminalCost::Dare,
-        iterations: None,
-        method: mpc_core::settings::DEFAULT_METHOD,
-        output: None,
-    };
+    let mpc = MpcSettings::builder()
+        .horizon(10)
+        .q(&Mat::identity(4, 4))
+        .r(&r_c);
     let model = LoopModel::builder(plant)
         .name("case-study-certified")
         .input_box(&[-1.0; 2], &[1.0; 2])
@@ -270,15 +265,7 @@ fn bad_plant_sets_and_mpc_values_name_rust_items() {
     assert_eq!(field, "MpcSettings::horizon");
     let (field, text) = refused(small(plant()).mpc_horizon(1 << 24));
     assert_eq!(field, "MpcSettings::horizon", "{text}");
-    let bad_r = MpcSettings {
-        horizon: 3,
-        q: Mat::identity(2, 2),
-        r: mat![[0.0]],
-        terminal: mpc_core::settings::TerminalCost::Dare,
-        iterations: None,
-        method: Method::FISTA,
-        output: None,
-    };
+    let bad_r = MpcSettings::builder().horizon(3).r(&mat![[0.0]]);
     let (field, _) = refused(small(plant()).mpc(bad_r));
     assert_eq!(field, "MpcSettings::r");
 }

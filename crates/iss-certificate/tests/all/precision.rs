@@ -95,7 +95,7 @@ fn norm(parts: &[&[f64]]) -> f64 {
 fn deviation_vs_bound(seeds: u64) -> (f64, f64, f64) {
     let (sc, resolved) = scenario("case-study-certified.toml");
     let cert = certificate(&resolved);
-    let k = sc.mhe.as_ref().expect("mhe section").iterations;
+    let k = sc.mhe.as_ref().expect("mhe section").iterations().get();
     let sys = &sc.plant;
     let ws = owned(&resolved);
     let v64: Vec<mhe_embedded::Window<'_, f64>> = ws

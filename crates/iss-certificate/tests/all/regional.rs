@@ -56,7 +56,7 @@ fn lifted_step(d: &RegionalDetail, x: &[f64], w: &[f64]) -> Vec<f64> {
 
 /// X_M = 𝕄υ from a run's own x₀, x̄₀ and w₀..w_{M−1} (the loop stepped M times).
 fn start_up_state(cl: &ScenarioLoop, s: &Scenario, d: &RegionalDetail) -> Vec<f64> {
-    let big_m = s.mhe.as_ref().unwrap().horizon;
+    let big_m = s.mhe.as_ref().unwrap().horizon();
     let mut v = s.simulation.x0.clone();
     v.extend_from_slice(&s.simulation.prior);
     for t in 0..big_m {
@@ -89,7 +89,9 @@ fn lifted_matrix_matches_the_linear_module() {
     ] {
         let mut s = Scenario::from_file(STAND_IN).unwrap();
         if shifted {
-            s.mhe.as_mut().unwrap().warm_start = mhe_core::WarmStart::Shifted;
+            s.mhe = s
+                .mhe
+                .map(|m| m.with_warm_start(mhe_core::WarmStart::Shifted));
         }
         let res = s.clone().resolve().unwrap();
         let o = options(&s, method, 7);
@@ -199,7 +201,7 @@ fn random_plants_stay_linear_and_meet_the_certified_decay() {
             assert!(c.contains && c.rate < 1.0);
             let o = options(&s, method, k);
             let mut cl = build(&s, &o).unwrap();
-            let big_m = s.mhe.as_ref().unwrap().horizon;
+            let big_m = s.mhe.as_ref().unwrap().horizon();
             for _ in 0..big_m {
                 cl.step().unwrap();
             }
@@ -434,7 +436,7 @@ fn the_rows_reach_bounds_sampled_extreme_points_and_is_attained_by_the_nominal()
         checked[kind] += 1;
         let nx = s.plant.nx();
         let nw = r.len();
-        let big_m = s.mhe.as_ref().unwrap().horizon;
+        let big_m = s.mhe.as_ref().unwrap().horizon();
         let mut rng = ChaCha8Rng::seed_from_u64(seed);
         let mut sphere = |n: usize, radius: f64| {
             let v: Vec<f64> = (0..n).map(|_| rng.random_range(-1.0..1.0)).collect();
@@ -545,7 +547,7 @@ fn the_witness_realization_attains_the_reported_value() {
         assert!(l.attained <= l.reach * (1.0 + 1e-12), "{l:?}");
         let i = d.labels.iter().position(|x| *x == l.row).unwrap();
         let nx = s.plant.nx();
-        let big_m = s.mhe.as_ref().unwrap().horizon;
+        let big_m = s.mhe.as_ref().unwrap().horizon();
         let steps = l.attained_at - big_m;
         // g = c𝔸^s𝕄 and c𝔸^k𝔹_w.
         let at = |m: &Mat<f64>, k: usize| {
@@ -619,7 +621,7 @@ fn the_cart_pendulum_at_its_k_reg_stays_the_linear_loop() {
         c.contains && c.margin >= 1.0 && c.witness.is_none(),
         "{c:?}"
     );
-    let big_m = s.mhe.as_ref().unwrap().horizon;
+    let big_m = s.mhe.as_ref().unwrap().horizon();
     let l = LiftedLayout {
         nx: s.plant.nx(),
         nu: s.plant.nu(),

@@ -27,7 +27,7 @@ fn mpc_output_rows_reach_the_mpc_and_void_l_pi_and_gamma13_by_name() {
     .unwrap();
     // Round trip through the canonical TOML keeps the key.
     let again = Scenario::from_toml_str(&s.to_toml_string().unwrap()).unwrap();
-    assert!(again.mpc.as_ref().unwrap().output.is_some());
+    assert!(again.mpc.as_ref().unwrap().output().is_some());
     let resolved = s.clone().resolve().unwrap();
     let mpc = resolved.mpc().unwrap();
     assert!(mpc.has_output_constraints() && !mpc.has_state_constraints());

@@ -30,7 +30,7 @@ fn afti16_in_ft_per_s_blames_the_units_with_the_scaling() {
     let raw: mhe_core::RawMhe =
         lti_model::spec::format::parse("horizon = 10\neta = 0.8\niterations = 5").unwrap();
     let s = MheSettings::from_raw(&raw, &sys).unwrap();
-    let t = lti_model::ioss::state_scaling(&sys, s.q.as_ref(), s.r.as_ref()).unwrap();
+    let t = lti_model::ioss::state_scaling(&sys, s.q().as_ref(), s.r().as_ref()).unwrap();
     let spread =
         t.iter().copied().fold(0.0, f64::max) / t.iter().copied().fold(f64::INFINITY, f64::min);
     eprintln!("balancing scaling of AFTI-16 in ft/s: {t:?} (spread {spread:e})");
@@ -60,7 +60,7 @@ fn afti16_in_ft_per_s_blames_the_units_with_the_scaling() {
         Mat::from_fn(2, 4, |i, j| sys.c()[(i, j)] / s_units[j]),
     )
     .unwrap();
-    let t2 = lti_model::ioss::state_scaling(&scaled, s.q.as_ref(), s.r.as_ref()).unwrap();
+    let t2 = lti_model::ioss::state_scaling(&scaled, s.q().as_ref(), s.r().as_ref()).unwrap();
     let spread2 =
         t2.iter().copied().fold(0.0, f64::max) / t2.iter().copied().fold(f64::INFINITY, f64::min);
     assert!(spread2 < spread, "{spread2:e} vs {spread:e}");

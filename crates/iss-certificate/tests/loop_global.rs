@@ -73,7 +73,8 @@ fn refuses_where_rho_lin_is_at_least_one() {
 fn unsupported_settings_are_refused_with_their_key() {
     let r = resolved("double-integrator.toml");
     let mut s = scenario("double-integrator.toml");
-    s.mhe.as_mut().expect("mhe").warm_start = WarmStart::Shifted;
+    let m = s.mhe.as_mut().expect("mhe");
+    *m = m.clone().with_warm_start(WarmStart::Shifted);
     let rs = s.resolve().expect("resolves");
     let e = global_loop(&rs, &options(&rs, Method::PG)).expect_err("shifted warm start");
     assert!(matches!(e, GlobalError::WarmStart), "{e}");

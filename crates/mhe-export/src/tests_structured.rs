@@ -155,8 +155,12 @@ fn long_case(file: &str, horizon: usize, k: usize) -> Case {
     let path = workspace_root().join("scenarios").join(file);
     let mut sc = Scenario::from_file(&path).unwrap();
     let mhe = sc.mhe.as_mut().unwrap();
-    mhe.horizon = horizon;
-    mhe.iterations = k;
+    *mhe = mhe
+        .to_builder()
+        .horizon(horizon)
+        .iterations(k)
+        .build(&sc.plant)
+        .unwrap();
     let resolved = sc.clone().resolve().unwrap();
     let opts = LoopOptions::from_scenario(&sc).unwrap();
     let mut cl = resolved.build_loop(&opts).unwrap();

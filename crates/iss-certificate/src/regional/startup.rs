@@ -661,7 +661,7 @@ mod tests {
                     continue;
                 }
             };
-            let big_m = res.scenario().mhe.as_ref().map_or(0, |m| m.horizon);
+            let big_m = res.scenario().mhe.as_ref().map_or(0, |m| m.horizon());
             for method in [
                 Method::PG,
                 Method::FISTA,

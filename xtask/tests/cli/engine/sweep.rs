@@ -5,7 +5,7 @@
 use std::fs;
 use std::path::{Path, PathBuf};
 
-use crate::build;
+use super::build;
 use closed_loop::metrics::{Metric, quantile_sorted};
 use closed_loop::scenario::LoopOptions;
 use closed_loop::scenario::Scenario;
@@ -36,7 +36,7 @@ fn small_config(extra: &str) -> SweepConfig {
     SweepConfig::from_toml_str(&text, Path::new(".")).unwrap()
 }
 
-use crate::run_sweep as run;
+use super::run_sweep as run;
 
 fn read_table(path: &Path) -> Table {
     Table::parse(&fs::read_to_string(path).unwrap()).unwrap()

@@ -63,7 +63,7 @@ fn config(scenario: &Path, solvers: &str, extra: &str) -> SweepConfig {
     SweepConfig::from_toml_str(&text, Path::new(".")).unwrap()
 }
 
-use crate::run_sweep as run;
+use super::run_sweep as run;
 
 fn points(dir: &Path) -> Table {
     Table::parse(&fs::read_to_string(dir.join("points.csv")).unwrap()).unwrap()

@@ -66,7 +66,7 @@ fn simulate(s: &Scenario, method: Method, k: usize) -> closed_loop::Trace {
     o.iterations = k;
     o.exact_mhe_solve = true;
     o.controller = ControllerChoice::ExactMpc;
-    let mut lp = crate::build(s, &o).unwrap();
+    let mut lp = super::build(s, &o).unwrap();
     let _ = lp.run();
     lp.trace().clone()
 }
@@ -160,7 +160,7 @@ fn rounding_is_not_a_contradiction_but_a_real_violation_still_is() {
             lipschitz_pairs: 0,
             ..CertificateOptions::default()
         };
-        let cert = crate::certify(&s, &opts).unwrap();
+        let cert = super::certify(&s, &opts).unwrap();
         let sc = cert.solver(Method::PG).unwrap();
         let k = sc.k_min.unwrap();
         let trace = simulate(&s, Method::PG, k);
@@ -379,7 +379,7 @@ fn long_horizons_are_certified_by_default() {
             lipschitz_pairs: 0,
             ..CertificateOptions::default()
         };
-        let c = crate::certify(&s, &opts).unwrap();
+        let c = super::certify(&s, &opts).unwrap();
         c.solvers.iter().filter_map(|s| s.k_min).min().unwrap()
     };
     let (b10, b30) = (best(10, false), best(30, false));

@@ -66,6 +66,9 @@ fn config(scenario: &Path, solvers: &str, extra: &str) -> SweepConfig {
 
 use super::run_sweep as run;
 
+/// The library's K_reg for one solver and scale, and K_lin when K_reg exists.
+type Direct = (Option<usize>, Option<usize>);
+
 fn points(dir: &Path) -> Table {
     Table::parse(&fs::read_to_string(dir.join("points.csv")).unwrap()).unwrap()
 }
@@ -92,8 +95,8 @@ fn k_reg_column_is_the_library_search_and_survives_shards_and_merge() {
     let table = points(&whole);
     let mut found = 0;
     // The library's answer per solver and scale (the points of one pair differ only in K,
-    // which the K_reg search does not read): (K_reg, K_lin when K_reg exists).
-    let mut direct_by_pair: Vec<((Method, u64), (Option<usize>, Option<usize>))> = Vec::new();
+    // which the K_reg search does not read).
+    let mut direct_by_pair: Vec<((Method, u64), Direct)> = Vec::new();
     for (row, p) in sweep.points().iter().enumerate() {
         let k_min = sweep
             .theory()

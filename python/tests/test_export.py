@@ -10,7 +10,7 @@ import pytest
 import suboptimal_mhe as sm
 
 SCENARIO = "scenarios/double-integrator.toml"
-#: K_min of Theorem 1 for ADMM-PR on the double integrator (xtask/tests/one_truth_cli.rs).
+#: K_min of Theorem 1 for ADMM-PR on the double integrator (xtask/tests/cli/one_truth_cli.rs).
 METHOD = "admm-pr"
 
 

@@ -15,7 +15,7 @@
 //!
 //! The chunks are fixed by 2^s (not by the thread count) and reduced in chunk order by a
 //! maximum, so the certificate equals [`super::solver_theory`]'s bit for bit
-//! (`xtask/tests/engine/sweep.rs`, `theory_tasks_equal_the_sequential_certificate`).
+//! (`xtask/tests/cli/engine/sweep.rs`, `theory_tasks_equal_the_sequential_certificate`).
 
 use std::ops::Range;
 use std::sync::{OnceLock, PoisonError, RwLock};

@@ -1,7 +1,8 @@
-//! Generated input files for the property tests of `closed-loop` (`tests/generated_inputs.rs`)
-//! and of the `xtask` binary (`xtask/tests/generated_cli.rs`, which includes this file by
-//! path): scenario TOML files and sweep configs, each valid, almost valid (one key
-//! perturbed) or hostile (random bytes, cut text, deep nesting, huge arrays).
+//! Generated input files for the property tests of the library entry points
+//! (`cli/generated_inputs.rs`) and of the `xtask` binary (`cli/generated_cli.rs`); `cli/main.rs`
+//! and `survey.rs` include this file as a module: scenario TOML files and sweep configs, each
+//! valid, almost valid (one key perturbed) or hostile (random bytes, cut text, deep nesting,
+//! huge arrays).
 //!
 //! Plants are tiny (n_x ≤ 3, n_u, n_y ≤ 2, M, N ≤ 3, K ≤ 4, T ≤ 4) so that a case costs
 //! milliseconds; a perturbation that asks for a large size asks for one beyond a limit

@@ -10,7 +10,7 @@
 //! comparison; every other number must be identical.
 //!
 //! A change that is meant to change outputs regenerates them deliberately:
-//! `UPDATE_GOLDEN=1 cargo test -p xtask --test golden` rewrites the files from this run,
+//! `UPDATE_GOLDEN=1 cargo test -p xtask --test cli golden::` rewrites the files from this run,
 //! and the commit says why the numbers moved.
 
 use std::io::{Read, Write};

@@ -5,13 +5,11 @@
 //! failure's message on stderr names a user key or the file.
 #![allow(clippy::unwrap_used)]
 
-mod generate;
-
 use std::path::{Path, PathBuf};
 use std::process::{Command, Stdio};
 use std::time::{Duration, Instant};
 
-use generate::{ScenarioCase, SweepCase, names_user_key, scenario_case, sweep_case};
+use crate::generate::{ScenarioCase, SweepCase, names_user_key, scenario_case, sweep_case};
 use proptest::strategy::{Strategy, ValueTree};
 use proptest::test_runner::TestRunner;
 
@@ -132,7 +130,7 @@ fn certify_generated(n: usize, name: &str) {
 
 fn sweep_generated(n: usize, name: &str) {
     let dir = scratch(name);
-    generate::write_sweep_scenarios(&dir).unwrap();
+    crate::generate::write_sweep_scenarios(&dir).unwrap();
     let cases = generate(sweep_case(), n, |c| !matches!(c, SweepCase::Valid(_)));
     for (i, case) in cases.iter().enumerate() {
         let bytes = case.bytes();

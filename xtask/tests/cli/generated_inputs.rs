@@ -7,19 +7,19 @@
 //! message names a user key (`mhe.eta`, `plant.a`, `k[1]`, …) or the file.
 //!
 //! The suite runs 10 000 scenario cases and 2 000 sweep configs (about 5 s in the debug
-//! test profile); the `#[ignore]`d variants run 100 000 + 20 000 (`cargo test -p closed-loop --test
-//! generated_inputs -- --ignored`). The `xtask` binary is driven on generated files by
-//! `xtask/tests/generated_cli.rs`.
+//! test profile); the `#[ignore]`d variants run 100 000 + 20 000 (`cargo test -p xtask --test cli
+//! generated_inputs:: -- --ignored`). The `xtask` binary is driven on generated files by
+//! `xtask/tests/cli/generated_cli.rs`.
 #![allow(clippy::unwrap_used)]
 
-mod generate;
+use crate::generate;
 
 use std::path::{Path, PathBuf};
 use std::sync::atomic::{AtomicU64, AtomicUsize, Ordering};
 
+use crate::generate::{ScenarioCase, SweepCase, chain, names_user_key, scenario_case, sweep_case};
 use closed_loop::scenario::{ControllerChoice, LoopOptions, Scenario};
 use closed_loop::sim::ClosedLoopError;
-use generate::{ScenarioCase, SweepCase, chain, names_user_key, scenario_case, sweep_case};
 use iss_certificate::certificate::{CertificateOptions, certify_closed_loop};
 use proptest::prelude::*;
 use proptest::test_runner::{Config, RngAlgorithm, TestRng, TestRunner};

@@ -5,7 +5,7 @@
 use std::fs;
 use std::path::{Path, PathBuf};
 
-use crate::build;
+use super::build;
 use closed_loop::scenario::{LoopOptions, Scenario};
 use xtask::sweep_engine::{
     NoProgress, RunOptions, Shard, Sweep, SweepConfig, SweepError, Table, kalman_part_name,

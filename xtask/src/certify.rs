@@ -266,8 +266,86 @@ pub fn certify(req: &CertifyRequest) -> Result<Outcome> {
         .map_err(|e| anyhow!("{e}"))
         .with_context(|| format!("invalid scenario `{}`", req.scenario.display()))?;
     let sys = &scenario.plant;
-    let mhe = scenario.mhe.as_ref();
+    let inputs = lmi_inputs(req, &scenario)?;
+    let mut lmi = lmi_verdict(sys, &inputs)?;
+    let hint = hint(sys, &inputs, &mut lmi);
+    let (controller_lipschitz, controller_lipschitz_skipped) = controller_lipschitz(&scenario)?;
+    let LmiInputs {
+        eta,
+        eta_source,
+        q,
+        r,
+        weights_source,
+        user_p,
+    } = inputs;
+    let LmiVerdict {
+        passed,
+        failure,
+        certificate,
+        ..
+    } = lmi;
+    let closed_loop = closed_loop::scenario::LoopOptions::from_scenario(&scenario)
+        .ok()
+        .map(|o| iss_certificate::coverage::covering(&scenario, o.method, o.controller));
+    let document = CertificateDocument {
+        format: FORMAT.to_string(),
+        format_version: FORMAT_VERSION,
+        passed,
+        failure,
+        hint,
+        scenario: ScenarioInfo {
+            name: scenario.name.clone(),
+            // Relative to the workspace when inside it, so files do not record machine paths.
+            path: req
+                .scenario
+                .strip_prefix(crate::provenance::workspace_root())
+                .unwrap_or(&req.scenario)
+                .display()
+                .to_string(),
+        },
+        provenance: Provenance::collect(),
+        system: SystemInfo {
+            dims: PlantDims::of(sys),
+            a: matrix::to_rows(sys.a()),
+            c: matrix::to_rows(sys.c()),
+            b_bar: matrix::to_rows(sys.b_bar().as_ref()),
+            d_bar: matrix::to_rows(sys.d_bar().as_ref()),
+        },
+        inputs: Inputs {
+            eta,
+            eta_source,
+            q: matrix::to_rows(q.as_ref()),
+            r: matrix::to_rows(r.as_ref()),
+            weights_source: weights_source.to_string(),
+            p_source: user_p.map_or_else(|| "computed".to_string(), |(_, s)| s),
+        },
+        certificate,
+        tolerance_rule: TOLERANCE_RULE.to_string(),
+        controller_lipschitz,
+        controller_lipschitz_skipped,
+        closed_loop,
+    };
+    let summary = summarize(&document);
+    Ok(Outcome { document, summary })
+}
 
+/// η, Q, R and the user's P (with where each came from) of LMI (2), checked.
+struct LmiInputs {
+    eta: f64,
+    eta_source: String,
+    q: Mat<f64>,
+    r: Mat<f64>,
+    weights_source: &'static str,
+    /// P from `--p-file` or `mhe.p`, and which.
+    user_p: Option<(Mat<f64>, String)>,
+}
+
+/// η from `--eta` or `mhe.eta`, Q and R from `[mhe]` (identity without it), P from
+/// `--p-file` or `mhe.p`; bad input (no η, η ∉ [0, 1), P of the wrong size or not
+/// symmetric) is an error naming its source.
+fn lmi_inputs(req: &CertifyRequest, scenario: &Scenario) -> Result<LmiInputs> {
+    let sys = &scenario.plant;
+    let mhe = scenario.mhe.as_ref();
     let (eta, eta_source) = match (req.eta, mhe) {
         (Some(eta), _) => (eta, "--eta".to_string()),
         (None, Some(m)) => (m.eta, "scenario mhe.eta".to_string()),
@@ -311,7 +389,35 @@ pub fn certify(req: &CertifyRequest) -> Result<Outcome> {
             );
         }
     }
+    Ok(LmiInputs {
+        eta,
+        eta_source,
+        q,
+        r,
+        weights_source,
+        user_p,
+    })
+}
 
+/// LMI (2)'s one verdict: passed, the failure, the report, and the η bisection when it ran.
+struct LmiVerdict {
+    passed: bool,
+    failure: Option<String>,
+    certificate: Option<IossReport>,
+    bisection: Option<lti_model::Result<ioss::EtaBisection>>,
+}
+
+/// LMI (2) at η: the user's P verified, or P computed; a construction that fails at η but
+/// finds a P at a smaller η is verified at η (feasibility is monotone in η).
+fn lmi_verdict(sys: &LtiSystem, inputs: &LmiInputs) -> Result<LmiVerdict> {
+    let LmiInputs {
+        eta,
+        q,
+        r,
+        user_p,
+        ..
+    } = inputs;
+    let eta = *eta;
     let result = match &user_p {
         Some((p, _)) => ioss::verify(sys, eta, q.as_ref(), r.as_ref(), p.as_ref()),
         None => ioss::certify(sys, eta, q.as_ref(), r.as_ref()),
@@ -375,13 +481,27 @@ pub fn certify(req: &CertifyRequest) -> Result<Outcome> {
         }
         Err(other) => return Err(anyhow!("{other}")).context("cannot check LMI (2)"),
     };
-    let hint = if passed {
+    Ok(LmiVerdict {
+        passed,
+        failure,
+        certificate,
+        bisection,
+    })
+}
+
+/// What to do when LMI (2) fails: drop the user's P, supply one, or raise η to the smallest
+/// feasible one (None when it passed).
+fn hint(sys: &LtiSystem, inputs: &LmiInputs, lmi: &mut LmiVerdict) -> Option<String> {
+    let (q, r, user_p) = (&inputs.q, &inputs.r, &inputs.user_p);
+    if lmi.passed {
         None
     } else if user_p.is_some() {
         Some(
             "omit --p-file (and mhe.p) to let certify compute the maximal P for this η".to_string(),
         )
-    } else if certificate.is_none() && failure.as_deref().is_some_and(|f| f.starts_with("no P")) {
+    } else if lmi.certificate.is_none()
+        && lmi.failure.as_deref().is_some_and(|f| f.starts_with("no P"))
+    {
         Some(
             "compute P elsewhere (e.g. an SDP solver) and supply it as the scenario key `mhe.p` \
              or with `--p-file P.json`; certify then verifies it against LMI (2)"
@@ -389,7 +509,7 @@ pub fn certify(req: &CertifyRequest) -> Result<Outcome> {
         )
     } else {
         Some(
-            match bisection.unwrap_or_else(|| {
+            match lmi.bisection.take().unwrap_or_else(|| {
                 ioss::min_feasible_eta(sys, q.as_ref(), r.as_ref(), ETA_HINT_RESOLUTION)
             }) {
                 Ok(b) => format!(
@@ -400,11 +520,19 @@ pub fn certify(req: &CertifyRequest) -> Result<Outcome> {
                 Err(e) => format!("no η ∈ [0, 1) is feasible for these Q, R: {e}"),
             },
         )
-    };
+    }
+}
 
+/// L_π of the scenario's MPC, if it has one; an MPC the project cannot build (state
+/// constraints) is skipped with the reason: the LMI check does not need it.
+#[allow(clippy::type_complexity)]
+fn controller_lipschitz(
+    scenario: &Scenario,
+) -> Result<(Option<mpc_core::LipschitzReport>, Option<String>)> {
+    let sys = &scenario.plant;
     // L_π of the scenario's MPC, if it has one. An MPC the project cannot build (state
     // constraints) is reported as skipped with the reason: the LMI check does not need it.
-    let (controller_lipschitz, controller_lipschitz_skipped) = match &scenario.mpc {
+    Ok(match &scenario.mpc {
         Some(m) => {
             match m.build(sys, &scenario.sets).and_then(|mpc| {
                 mpc_core::lipschitz_report_for(
@@ -423,50 +551,7 @@ pub fn certify(req: &CertifyRequest) -> Result<Outcome> {
             }
         }
         None => (None, None),
-    };
-    let closed_loop = closed_loop::scenario::LoopOptions::from_scenario(&scenario)
-        .ok()
-        .map(|o| iss_certificate::coverage::covering(&scenario, o.method, o.controller));
-    let document = CertificateDocument {
-        format: FORMAT.to_string(),
-        format_version: FORMAT_VERSION,
-        passed,
-        failure,
-        hint,
-        scenario: ScenarioInfo {
-            name: scenario.name.clone(),
-            // Relative to the workspace when inside it, so files do not record machine paths.
-            path: req
-                .scenario
-                .strip_prefix(crate::provenance::workspace_root())
-                .unwrap_or(&req.scenario)
-                .display()
-                .to_string(),
-        },
-        provenance: Provenance::collect(),
-        system: SystemInfo {
-            dims: PlantDims::of(sys),
-            a: matrix::to_rows(sys.a()),
-            c: matrix::to_rows(sys.c()),
-            b_bar: matrix::to_rows(sys.b_bar().as_ref()),
-            d_bar: matrix::to_rows(sys.d_bar().as_ref()),
-        },
-        inputs: Inputs {
-            eta,
-            eta_source,
-            q: matrix::to_rows(q.as_ref()),
-            r: matrix::to_rows(r.as_ref()),
-            weights_source: weights_source.to_string(),
-            p_source: user_p.map_or_else(|| "computed".to_string(), |(_, s)| s),
-        },
-        certificate,
-        tolerance_rule: TOLERANCE_RULE.to_string(),
-        controller_lipschitz,
-        controller_lipschitz_skipped,
-        closed_loop,
-    };
-    let summary = summarize(&document);
-    Ok(Outcome { document, summary })
+    })
 }
 
 fn summarize(d: &CertificateDocument) -> String {

@@ -61,8 +61,8 @@ pub use job::*;
 use mhe_report::Run;
 use mhe_report::linear::LinearEntry;
 pub use mhe_report::{
-    ComparisonRow, KalmanSummary, RunSummary, SkippedRun, TrajectoryReport, Work,
-    paper_comparison as comparison, short_reason,
+    ComparisonRow, KalmanSummary, RunSummary, SkippedRun, TrajectoryReport,
+    paper_comparison as comparison,
 };
 use summary::summarize;
 

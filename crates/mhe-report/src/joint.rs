@@ -2,7 +2,7 @@
 //! joint MPC + MHE certificate (iss_certificate::joint), the run at the cheapest certified pair and
 //! every inequality of the joint proof checked on it.
 
-use closed_loop::{ClosedLoopError, Trace};
+use closed_loop::Trace;
 use closed_loop::scenario::ResolvedScenario;
 use iss_certificate::certificate::ClosedLoopCertificate;
 use iss_certificate::joint::{

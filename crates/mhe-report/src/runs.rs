@@ -82,7 +82,7 @@ pub struct RunSummary {
 }
 
 /// The Kalman baseline of one run (`closed_loop::baseline`).
-#[derive(Debug, Clone)]
+#[derive(Debug, Clone, Default)]
 #[non_exhaustive]
 pub struct KalmanSummary {
     /// `"standard, Π₀ = (2P)⁻¹, Σ_w = (2Q)⁻¹, Σ_v = R⁻¹"`.

@@ -3,6 +3,7 @@
 //! is none.
 
 use super::*;
+use closed_loop::scenario::ControllerChoice;
 use mhe_report::regional::RegionalEntry;
 
 /// The controller of a regional certificate in words.

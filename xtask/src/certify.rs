@@ -411,11 +411,7 @@ struct LmiVerdict {
 /// finds a P at a smaller η is verified at η (feasibility is monotone in η).
 fn lmi_verdict(sys: &LtiSystem, inputs: &LmiInputs) -> Result<LmiVerdict> {
     let LmiInputs {
-        eta,
-        q,
-        r,
-        user_p,
-        ..
+        eta, q, r, user_p, ..
     } = inputs;
     let eta = *eta;
     let result = match &user_p {
@@ -453,7 +449,7 @@ fn lmi_verdict(sys: &LtiSystem, inputs: &LmiInputs) -> Result<LmiVerdict> {
             Some((p, source)) => (
                 false,
                 Some(format!("{cause} (P from {source})")),
-                Some(failed_report(sys, eta, &q, &r, p)?),
+                Some(failed_report(sys, eta, q, r, p)?),
             ),
             None => (false, Some(format!("LMI (2) infeasible: {cause}")), None),
         },
@@ -468,7 +464,7 @@ fn lmi_verdict(sys: &LtiSystem, inputs: &LmiInputs) -> Result<LmiVerdict> {
         }) if user_p.is_some() && name == "P" => {
             let report = user_p
                 .as_ref()
-                .map(|(p, _)| failed_report(sys, eta, &q, &r, p))
+                .map(|(p, _)| failed_report(sys, eta, q, r, p))
                 .transpose()?;
             (
                 false,
@@ -500,7 +496,10 @@ fn hint(sys: &LtiSystem, inputs: &LmiInputs, lmi: &mut LmiVerdict) -> Option<Str
             "omit --p-file (and mhe.p) to let certify compute the maximal P for this η".to_string(),
         )
     } else if lmi.certificate.is_none()
-        && lmi.failure.as_deref().is_some_and(|f| f.starts_with("no P"))
+        && lmi
+            .failure
+            .as_deref()
+            .is_some_and(|f| f.starts_with("no P"))
     {
         Some(
             "compute P elsewhere (e.g. an SDP solver) and supply it as the scenario key `mhe.p` \

@@ -419,10 +419,10 @@ fn write_outputs(
     let mut thresholds = Vec::new();
     let mut pairs = Vec::new();
     let (mut serial_s, mut wall) = (0.0, 0.0);
-    write_set(&out, staged.outputs.as_ref(), |set, table| {
+    write_set(out, staged.outputs.as_ref(), |set, table| {
         if let Some(table) = table {
-            (thresholds, pairs) = all_thresholds(&sweep, table);
-            plots = draw(&sweep, set, table, &pairs)?;
+            (thresholds, pairs) = all_thresholds(sweep, table);
+            plots = draw(sweep, set, table, &pairs)?;
         }
         let end = unix_now();
         // Serial time: the command's wall time outside the pool (setup, checks, assembly,
@@ -445,15 +445,9 @@ fn write_outputs(
             "thresholds": thresholds,
             "files": set.manifest(),
         });
-        let extra = with_2d(&sweep, extra, &pairs);
-        let text = json_text(&meta(
-            &sweep,
-            &args.config,
-            &config_text,
-            (start, end),
-            extra,
-        ))?;
-        set.add(&meta_name, text.as_bytes())?;
+        let extra = with_2d(sweep, extra, &pairs);
+        let text = json_text(&meta(sweep, &args.config, config_text, (start, end), extra))?;
+        set.add(meta_name, text.as_bytes())?;
         Ok(())
     })?;
     Ok(Written {

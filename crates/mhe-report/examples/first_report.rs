@@ -12,13 +12,23 @@ fn main() -> Result<(), Box<dyn std::error::Error>> {
         mhe = { horizon = 10, eta = 0.8, iterations = 20 }
         mpc = { horizon = 10 }"#,
     )?;
-    let report = mhe_report::report(scenario, &mhe_report::Options::default(), &mhe_report::Quiet)?;
+    let report = mhe_report::report(
+        scenario,
+        &mhe_report::Options::default(),
+        &mhe_report::Quiet,
+    )?;
     for s in &report.certificate.solvers {
         println!("{:<14} K_min = {:?}", s.solver.name(), s.k_min);
     }
     for run in &report.runs {
-        println!("simulated K = {}: sup‖e‖ = {:.3e}", run.summary.k, run.summary.sup_norm_e);
+        println!(
+            "simulated K = {}: sup‖e‖ = {:.3e}",
+            run.summary.k, run.summary.sup_norm_e
+        );
     }
-    println!("Props. 1 and 3 hold on the K_min run: {:?}", report.trajectory_check.passed);
+    println!(
+        "Props. 1 and 3 hold on the K_min run: {:?}",
+        report.trajectory_check.passed
+    );
     Ok(())
 }

@@ -101,7 +101,6 @@ pub struct KalmanSummary {
     pub error: Option<String>,
 }
 
-
 /// The Kalman filter of the MHE's weights run on `trace` (module `closed_loop::baseline`).
 /// A trace shorter than `simulation.steps` (the run stopped early) has no tail: the
 /// filter's `tail_mean_e` is then `None` (issue 37 item 9), not the mean of a cut run.

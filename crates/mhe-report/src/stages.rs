@@ -147,12 +147,13 @@ struct Prepared {
 /// Checks what is cheap to refuse (the sections, the work of the scenario's own K) before
 /// the certificate, which can take minutes, and sets up its options.
 fn prepare(scenario: Scenario, settings: &Options) -> Result<Prepared, ReportError> {
-    let spec = scenario
-        .mhe
-        .as_ref()
-        .ok_or(ReportError::Scenario(ClosedLoopError::MissingSection {
-            section: "mhe",
-        }))?;
+    let spec =
+        scenario
+            .mhe
+            .as_ref()
+            .ok_or(ReportError::Scenario(ClosedLoopError::MissingSection {
+                section: "mhe",
+            }))?;
     if scenario.mpc.is_none() {
         return Err(ReportError::Scenario(ClosedLoopError::MissingSection {
             section: "mpc",
@@ -272,10 +273,7 @@ fn plan(
     let t0 = Instant::now();
     let regional = regional::regional_entries(&p.resolved, &cert, &linear);
     timings.regional_s = t0.elapsed().as_secs_f64();
-    log.say(format!(
-        "  done in {} s",
-        sig4(t0.elapsed().as_secs_f64())
-    ));
+    log.say(format!("  done in {} s", sig4(t0.elapsed().as_secs_f64())));
 
     // The K-iteration MPC (`mpc.iterations`): the joint certificate decides the runs.
     let joint_cert = joint::joint_certificate(&p.resolved, &cert, p.solver)?;
@@ -294,14 +292,7 @@ fn plan(
     if let Some(r) = &not_covered {
         log.say(format!("[{}] NOT CERTIFIED: {r}", settings.label));
     }
-    let runs = run_plan(
-        settings,
-        p,
-        &cert,
-        joint_cert.as_ref(),
-        own_controller,
-        log,
-    );
+    let runs = run_plan(settings, p, &cert, joint_cert.as_ref(), own_controller, log);
     Ok(Plan {
         cert,
         linear,

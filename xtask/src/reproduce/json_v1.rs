@@ -34,11 +34,7 @@ impl From<&crate::reproduce::document::CertificateDocument> for v1::Certificate 
             linear: l.linear.iter().map(linear_entry).collect(),
             regional: l.regional.iter().map(regional_entry).collect(),
             asymptotic_gains: gains_report(&l.asymptotic_gains),
-            paper_comparison: l
-                .paper_comparison
-                .iter()
-                .map(comparison_row)
-                .collect(),
+            paper_comparison: l.paper_comparison.iter().map(comparison_row).collect(),
             files: l.files.iter().map(ToString::to_string).collect(),
             figure_notes: l.figure_notes.iter().map(ToString::to_string).collect(),
             budget: (l.budget.as_ref()).and_then(|b| serde_json::to_value(b).ok()),

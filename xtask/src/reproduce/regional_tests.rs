@@ -5,11 +5,11 @@
 use super::*;
 use closed_loop::scenario::LoopOptions;
 use iss_certificate::certificate::certify_closed_loop;
+use iss_certificate::linear::linear_stability;
 use iss_certificate::regional::RegionalOptions;
+use iss_certificate::regional::k_reg;
 use mhe_report::regional::regional_entry;
 use qp_iter::Method;
-use iss_certificate::linear::linear_stability;
-use iss_certificate::regional::k_reg;
 
 const STAND_IN: &str = concat!(
     env!("CARGO_MANIFEST_DIR"),

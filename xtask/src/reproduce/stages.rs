@@ -60,15 +60,18 @@ pub(super) fn read(job: &Job, settings: &Settings) -> Result<(Scenario, usize)> 
 pub(super) fn with_scenario(e: ReportError, job: &Job) -> anyhow::Error {
     let path = job.scenario.display();
     match e {
-        ReportError::Scenario(inner) => anyhow::Error::new(inner).context(format!("scenario `{path}`")),
+        ReportError::Scenario(inner) => {
+            anyhow::Error::new(inner).context(format!("scenario `{path}`"))
+        }
         e @ ReportError::WorkLimit { .. } => {
             anyhow::Error::new(e).context(format!("scenario `{path}`"))
         }
         ReportError::Resolve(inner) => anyhow::Error::new(inner).context(format!(
             "cannot set up the scenario `{path}` for the certificate"
         )),
-        ReportError::Certificate(inner) => anyhow::Error::new(inner)
-            .context(format!("cannot compute the certificate of `{path}`")),
+        ReportError::Certificate(inner) => {
+            anyhow::Error::new(inner).context(format!("cannot compute the certificate of `{path}`"))
+        }
         ReportError::ClosedLoop(inner) => anyhow::Error::new(inner),
         e => anyhow::Error::new(e),
     }
@@ -185,9 +188,7 @@ pub(super) fn document(
         certificate_applies: applicable.kind(),
         not_covered: report.not_covered,
         at_scenario: report.at_scenario,
-        scenario_iterations_match_k_min: own
-            .and_then(|s| s.k_min)
-            .map(|k| k == report.iterations),
+        scenario_iterations_match_k_min: own.and_then(|s| s.k_min).map(|k| k == report.iterations),
         solvers,
         budget,
         // The paper's published constants belong to its case study: shown for the two presets

@@ -5,7 +5,7 @@
 
 use iss_certificate::asymptotic::{AsymptoticGains, MeasuredGains, certified_gains};
 
-use iss_certificate::certificate::ClosedLoopCertificate;
+use iss_certificate::certificate::{ClosedLoopCertificate, SolverCertificate};
 use iss_certificate::outcome::VoidReason;
 use qp_iter::Method;
 
@@ -109,105 +109,12 @@ pub fn report(
     solver: Method,
     not_covered: Option<&str>,
 ) -> GainsReport {
-    let methods = cert
-        .solvers
-        .iter()
-        .map(|s| {
-            let name = s.solver.name().into_owned();
-            let (theorem1, theorem1_void) = match s.k_min {
-                Some(k) => match certified_gains(cert, s, k) {
-                    Ok(g) => (Some(g), None),
-                    Err(e) => (None, Some(e.to_string())),
-                },
-                None => (
-                    None,
-                    Some(match &s.not_computed {
-                        Some(nc) => format!("Theorem 1 is {nc}"),
-                        None => format!("Theorem 1 is void: {}", VoidReason::join(&s.void_reasons)),
-                    }),
-                ),
-            };
-            let entry = regional.iter().find(|r| r.solver == name);
-            let (regional, regional_void) = match entry {
-                Some(r) => match &r.certificate {
-                    Some(c) => (
-                        Some(RegionalGains {
-                            k: c.k,
-                            gain_x: c.gain_x,
-                            gain_e: c.gain_e,
-                            contains: c.contains,
-                            w_bar: c.options.w_bar,
-                        }),
-                        None,
-                    ),
-                    None => (None, r.void.as_ref().map(ToString::to_string)),
-                },
-                None => (None, Some("not evaluated".into())),
-            };
-            MethodGains {
-                solver: name,
-                k_min: s.k_min,
-                theorem1,
-                theorem1_void,
-                regional,
-                regional_void,
-            }
-        })
+    let methods = (cert.solvers.iter())
+        .map(|s| method_gains(cert, s, regional))
         .collect();
     let own = cert.solver(solver);
-    let runs = runs
-        .iter()
-        .map(|r| {
-            let measured = MeasuredGains::from_trace(&r.trace);
-            let w_bar = measured.as_ref().map(|m| m.w_sup);
-            let void = if let Some(why) = not_covered {
-                Some(format!("not certified: {why}"))
-            } else if r.summary.controller != "exact MPC" {
-                Some(
-                    "the controller is the K-iteration MPC: Theorem 1's gains assume the exact \
-                     MPC (the joint certificate's asymptotic gains are not derived)"
-                        .into(),
-                )
-            } else {
-                r.summary.w_outside_first.map(|first| {
-                    format!(
-                        "w_t ∉ 𝒲 at {} step(s) from t = {first}: the bound assumes w_t ∈ 𝒲",
-                        r.summary.w_outside
-                    )
-                })
-            };
-            let certified = match (void, own) {
-                (Some(v), _) => Err(v),
-                (None, None) => Err("the scenario's solver was not certified".into()),
-                (None, Some(s)) => certified_gains(cert, s, r.summary.k).map_err(|e| e.to_string()),
-            };
-            let (certified, certified_void) = match certified {
-                Ok(g) => {
-                    let w = w_bar.unwrap_or(f64::NAN);
-                    (
-                        Some(CertifiedBound {
-                            gain_x: g.gain_x,
-                            gain_epsilon: g.gain_epsilon,
-                            gain_e: g.gain_e,
-                            bound_x: g.gain_x * w,
-                            bound_epsilon: g.gain_epsilon * w,
-                            bound_e: g.gain_e * w,
-                        }),
-                        None,
-                    )
-                }
-                Err(e) => (None, Some(e)),
-            };
-            RunGains {
-                label: r.summary.label.clone(),
-                k: r.summary.k,
-                controller: r.summary.controller.clone(),
-                w_bar,
-                certified,
-                certified_void,
-                measured,
-            }
-        })
+    let runs = (runs.iter())
+        .map(|r| run_gains(cert, own, r, not_covered))
         .collect();
     GainsReport {
         meaning: "certified: lim sup_t ‖x_t‖ ≤ g_x·w̄, lim sup_t ε_t ≤ g_ε·w̄, lim sup_t ‖e_t‖ ≤ \
@@ -218,5 +125,110 @@ pub fn report(
             .into(),
         methods,
         runs,
+    }
+}
+
+/// One method's gains: Theorem 1's at its K_min, the regional certificate's at its K.
+fn method_gains(
+    cert: &ClosedLoopCertificate,
+    s: &SolverCertificate,
+    regional: &[crate::regional::RegionalEntry],
+) -> MethodGains {
+    let name = s.solver.name().into_owned();
+    let (theorem1, theorem1_void) = match s.k_min {
+        Some(k) => match certified_gains(cert, s, k) {
+            Ok(g) => (Some(g), None),
+            Err(e) => (None, Some(e.to_string())),
+        },
+        None => (
+            None,
+            Some(match &s.not_computed {
+                Some(nc) => format!("Theorem 1 is {nc}"),
+                None => format!("Theorem 1 is void: {}", VoidReason::join(&s.void_reasons)),
+            }),
+        ),
+    };
+    let entry = regional.iter().find(|r| r.solver == name);
+    let (regional, regional_void) = match entry {
+        Some(r) => match &r.certificate {
+            Some(c) => (
+                Some(RegionalGains {
+                    k: c.k,
+                    gain_x: c.gain_x,
+                    gain_e: c.gain_e,
+                    contains: c.contains,
+                    w_bar: c.options.w_bar,
+                }),
+                None,
+            ),
+            None => (None, r.void.as_ref().map(ToString::to_string)),
+        },
+        None => (None, Some("not evaluated".into())),
+    };
+    MethodGains {
+        solver: name,
+        k_min: s.k_min,
+        theorem1,
+        theorem1_void,
+        regional,
+        regional_void,
+    }
+}
+
+/// One run's certified bound at its K (with its own sup‖w_t‖ as w̄) and measured gains.
+fn run_gains(
+    cert: &ClosedLoopCertificate,
+    own: Option<&SolverCertificate>,
+    r: &Run,
+    not_covered: Option<&str>,
+) -> RunGains {
+    let measured = MeasuredGains::from_trace(&r.trace);
+    let w_bar = measured.as_ref().map(|m| m.w_sup);
+    let void = if let Some(why) = not_covered {
+        Some(format!("not certified: {why}"))
+    } else if r.summary.controller != "exact MPC" {
+        Some(
+            "the controller is the K-iteration MPC: Theorem 1's gains assume the exact \
+             MPC (the joint certificate's asymptotic gains are not derived)"
+                .into(),
+        )
+    } else {
+        r.summary.w_outside_first.map(|first| {
+            format!(
+                "w_t ∉ 𝒲 at {} step(s) from t = {first}: the bound assumes w_t ∈ 𝒲",
+                r.summary.w_outside
+            )
+        })
+    };
+    let certified = match (void, own) {
+        (Some(v), _) => Err(v),
+        (None, None) => Err("the scenario's solver was not certified".into()),
+        (None, Some(s)) => certified_gains(cert, s, r.summary.k).map_err(|e| e.to_string()),
+    };
+    let (certified, certified_void) = match certified {
+        Ok(g) => {
+            let w = w_bar.unwrap_or(f64::NAN);
+            (
+                Some(CertifiedBound {
+                    gain_x: g.gain_x,
+                    gain_epsilon: g.gain_epsilon,
+                    gain_e: g.gain_e,
+                    bound_x: g.gain_x * w,
+                    bound_epsilon: g.gain_epsilon * w,
+                    bound_e: g.gain_e * w,
+                }),
+                None,
+            )
+        }
+        Err(e) => (None, Some(e)),
+    };
+    RunGains {
+        label: r.summary.label.clone(),
+        k: r.summary.k,
+        controller: r.summary.controller.clone(),
+        w_bar,
+        certified,
+        certified_void,
+        measured,
     }
 }

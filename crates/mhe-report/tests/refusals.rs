@@ -38,7 +38,10 @@ fn the_work_limit_is_checked_before_the_certificate() {
     );
     let t0 = std::time::Instant::now();
     let e = report(s, &Options::default(), &Quiet).expect_err("2·10¹⁰ iterations");
-    assert!(t0.elapsed().as_secs_f64() < 5.0, "refused before the certificate");
+    assert!(
+        t0.elapsed().as_secs_f64() < 5.0,
+        "refused before the certificate"
+    );
     let ReportError::WorkLimit { work } = &e else {
         panic!("expected ReportError::WorkLimit, got {e}");
     };

@@ -266,164 +266,24 @@ pub fn certify(req: &CertifyRequest) -> Result<Outcome> {
         .map_err(|e| anyhow!("{e}"))
         .with_context(|| format!("invalid scenario `{}`", req.scenario.display()))?;
     let sys = &scenario.plant;
-    let mhe = scenario.mhe.as_ref();
-
-    let (eta, eta_source) = match (req.eta, mhe) {
-        (Some(eta), _) => (eta, "--eta".to_string()),
-        (None, Some(m)) => (m.eta(), "scenario mhe.eta".to_string()),
-        (None, None) => bail!(
-            "scenario `{}` has no [mhe] section, so η is unknown: add [mhe] with eta (and q, r), \
-             or pass --eta (Q and R are then identity)",
-            req.scenario.display()
-        ),
-    };
-    if !(eta.is_finite() && (0.0..1.0).contains(&eta)) {
-        bail!("η = {eta} ({eta_source}) is out of range: LMI (2) needs η ∈ [0, 1)");
-    }
-    let (q, r, weights_source) = match mhe {
-        Some(m) => (m.q().clone(), m.r().clone(), "scenario mhe.q, mhe.r"),
-        None => (
-            Mat::identity(sys.nw(), sys.nw()),
-            Mat::identity(sys.ny(), sys.ny()),
-            "identity (no [mhe] section)",
-        ),
-    };
-    let user_p = match (&req.p_file, mhe.and_then(|m| m.p())) {
-        (Some(path), _) => Some((read_p_file(path)?, format!("--p-file {}", path.display()))),
-        (None, Some(p)) => Some((p.clone(), "scenario mhe.p".to_string())),
-        (None, None) => None,
-    };
-    if let Some((p, source)) = &user_p {
-        if p.nrows() != sys.nx() || p.ncols() != sys.nx() {
-            bail!(
-                "P from {source} is {}×{}, but the plant has n_x = {} (P must be {}×{})",
-                p.nrows(),
-                p.ncols(),
-                sys.nx(),
-                sys.nx(),
-                sys.nx()
-            );
-        }
-        let asym = matrix::asymmetry(p.as_ref());
-        if asym > matrix::SYMMETRY_TOL * p.norm_max().max(1.0) {
-            bail!(
-                "P from {source} is not symmetric (max |P - Pᵀ| = {asym:e}); supply a symmetric P"
-            );
-        }
-    }
-
-    let result = match &user_p {
-        Some((p, _)) => ioss::verify(sys, eta, q.as_ref(), r.as_ref(), p.as_ref()),
-        None => ioss::certify(sys, eta, q.as_ref(), r.as_ref()),
-    };
-    // One verdict (issue 37 item 4): feasibility is monotone in η (−η'P ⪯ −ηP for η' > η), so
-    // when the construction at η fails but the bisection finds a P at some η_min ≤ η, that
-    // P — verified at η itself — is the certificate, and "infeasible" is never printed beside
-    // "the smallest feasible η is below yours".
-    let mut bisection = None;
-    let result = match result {
-        Err(ModelError::LmiInfeasible { cause }) if user_p.is_none() => {
-            let b = ioss::min_feasible_eta(sys, q.as_ref(), r.as_ref(), ETA_HINT_RESOLUTION);
-            let at_eta = match &b {
-                Ok(b) if b.certificate.eta <= eta => {
-                    ioss::verify(sys, eta, q.as_ref(), r.as_ref(), b.certificate.p.as_ref())
-                        .ok()
-                        .map(|mut c| {
-                            c.method =
-                                format!("{} at η = {}", b.certificate.method, b.certificate.eta);
-                            c
-                        })
-                }
-                _ => None,
-            };
-            bisection = Some(b);
-            at_eta.ok_or(ModelError::LmiInfeasible { cause })
-        }
-        other => other,
-    };
-    let (passed, failure, certificate) = match result {
-        Ok(cert) => (true, None, Some(cert.report())),
-        Err(ModelError::LmiInfeasible { cause }) => match &user_p {
-            Some((p, source)) => (
-                false,
-                Some(format!("{cause} (P from {source})")),
-                Some(failed_report(sys, eta, &q, &r, p)?),
-            ),
-            None => (false, Some(format!("LMI (2) infeasible: {cause}")), None),
-        },
-        // The construction itself failed (no convergence, singular KKT system): a FAIL with
-        // the way to supply P, not an input error.
-        Err(e @ ModelError::Numerical { .. }) if user_p.is_none() => {
-            (false, Some(format!("no P computed: {e}")), None)
-        }
-        Err(ModelError::NotPositiveDefinite {
-            name,
-            min_eigenvalue,
-        }) if user_p.is_some() && name == "P" => {
-            let report = user_p
-                .as_ref()
-                .map(|(p, _)| failed_report(sys, eta, &q, &r, p))
-                .transpose()?;
-            (
-                false,
-                Some(format!(
-                    "the P from {} is not positive definite (λ_min(P) = {min_eigenvalue:e})",
-                    user_p.as_ref().map_or("", |(_, s)| s.as_str())
-                )),
-                report,
-            )
-        }
-        Err(other) => return Err(anyhow!("{other}")).context("cannot check LMI (2)"),
-    };
-    let hint = if passed {
-        None
-    } else if user_p.is_some() {
-        Some(
-            "omit --p-file (and mhe.p) to let certify compute the maximal P for this η".to_string(),
-        )
-    } else if certificate.is_none() && failure.as_deref().is_some_and(|f| f.starts_with("no P")) {
-        Some(
-            "compute P elsewhere (e.g. an SDP solver) and supply it as the scenario key `mhe.p` \
-             or with `--p-file P.json`; certify then verifies it against LMI (2)"
-                .to_string(),
-        )
-    } else {
-        Some(
-            match bisection.unwrap_or_else(|| {
-                ioss::min_feasible_eta(sys, q.as_ref(), r.as_ref(), ETA_HINT_RESOLUTION)
-            }) {
-                Ok(b) => format!(
-                    "the smallest feasible η for these Q, R is ≈ {} (bisection to {ETA_HINT_RESOLUTION:e}); \
-                 pass --eta or set mhe.eta at or above it",
-                    num(b.certificate.eta)
-                ),
-                Err(e) => format!("no η ∈ [0, 1) is feasible for these Q, R: {e}"),
-            },
-        )
-    };
-
-    // L_π of the scenario's MPC, if it has one. An MPC the project cannot build (state
-    // constraints) is reported as skipped with the reason: the LMI check does not need it.
-    let (controller_lipschitz, controller_lipschitz_skipped) = match &scenario.mpc {
-        Some(m) => {
-            match m.build(sys, &scenario.sets).and_then(|mpc| {
-                mpc_core::lipschitz_report_for(
-                    &mpc,
-                    LPI_SAMPLE_PAIRS,
-                    scenario.noise.seed,
-                    scenario.sampling_radius(),
-                )
-            }) {
-                Ok(report) => (Some(report), None),
-                Err(e @ mpc_core::MpcError::Unsupported { .. }) => (None, Some(e.to_string())),
-                Err(e) => {
-                    return Err(anyhow!("{e}"))
-                        .context("cannot compute L_π for the scenario's [mpc] section");
-                }
-            }
-        }
-        None => (None, None),
-    };
+    let inputs = lmi_inputs(req, &scenario)?;
+    let mut lmi = lmi_verdict(sys, &inputs)?;
+    let hint = hint(sys, &inputs, &mut lmi);
+    let (controller_lipschitz, controller_lipschitz_skipped) = controller_lipschitz(&scenario)?;
+    let LmiInputs {
+        eta,
+        eta_source,
+        q,
+        r,
+        weights_source,
+        user_p,
+    } = inputs;
+    let LmiVerdict {
+        passed,
+        failure,
+        certificate,
+        ..
+    } = lmi;
     let closed_loop = closed_loop::scenario::LoopOptions::from_scenario(&scenario)
         .ok()
         .map(|o| iss_certificate::coverage::covering(&scenario, o.method, o.controller));
@@ -467,6 +327,230 @@ pub fn certify(req: &CertifyRequest) -> Result<Outcome> {
     };
     let summary = summarize(&document);
     Ok(Outcome { document, summary })
+}
+
+/// η, Q, R and the user's P (with where each came from) of LMI (2), checked.
+struct LmiInputs {
+    eta: f64,
+    eta_source: String,
+    q: Mat<f64>,
+    r: Mat<f64>,
+    weights_source: &'static str,
+    /// P from `--p-file` or `mhe.p`, and which.
+    user_p: Option<(Mat<f64>, String)>,
+}
+
+/// η from `--eta` or `mhe.eta`, Q and R from `[mhe]` (identity without it), P from
+/// `--p-file` or `mhe.p`; bad input (no η, η ∉ [0, 1), P of the wrong size or not
+/// symmetric) is an error naming its source.
+fn lmi_inputs(req: &CertifyRequest, scenario: &Scenario) -> Result<LmiInputs> {
+    let sys = &scenario.plant;
+    let mhe = scenario.mhe.as_ref();
+    let (eta, eta_source) = match (req.eta, mhe) {
+        (Some(eta), _) => (eta, "--eta".to_string()),
+        (None, Some(m)) => (m.eta(), "scenario mhe.eta".to_string()),
+        (None, None) => bail!(
+            "scenario `{}` has no [mhe] section, so η is unknown: add [mhe] with eta (and q, r), \
+             or pass --eta (Q and R are then identity)",
+            req.scenario.display()
+        ),
+    };
+    if !(eta.is_finite() && (0.0..1.0).contains(&eta)) {
+        bail!("η = {eta} ({eta_source}) is out of range: LMI (2) needs η ∈ [0, 1)");
+    }
+    let (q, r, weights_source) = match mhe {
+        Some(m) => (m.q().clone(), m.r().clone(), "scenario mhe.q, mhe.r"),
+        None => (
+            Mat::identity(sys.nw(), sys.nw()),
+            Mat::identity(sys.ny(), sys.ny()),
+            "identity (no [mhe] section)",
+        ),
+    };
+    let user_p = match (&req.p_file, mhe.and_then(|m| m.p())) {
+        (Some(path), _) => Some((read_p_file(path)?, format!("--p-file {}", path.display()))),
+        (None, Some(p)) => Some((p.clone(), "scenario mhe.p".to_string())),
+        (None, None) => None,
+    };
+    if let Some((p, source)) = &user_p {
+        if p.nrows() != sys.nx() || p.ncols() != sys.nx() {
+            bail!(
+                "P from {source} is {}×{}, but the plant has n_x = {} (P must be {}×{})",
+                p.nrows(),
+                p.ncols(),
+                sys.nx(),
+                sys.nx(),
+                sys.nx()
+            );
+        }
+        let asym = matrix::asymmetry(p.as_ref());
+        if asym > matrix::SYMMETRY_TOL * p.norm_max().max(1.0) {
+            bail!(
+                "P from {source} is not symmetric (max |P - Pᵀ| = {asym:e}); supply a symmetric P"
+            );
+        }
+    }
+    Ok(LmiInputs {
+        eta,
+        eta_source,
+        q,
+        r,
+        weights_source,
+        user_p,
+    })
+}
+
+/// LMI (2)'s one verdict: passed, the failure, the report, and the η bisection when it ran.
+struct LmiVerdict {
+    passed: bool,
+    failure: Option<String>,
+    certificate: Option<IossReport>,
+    bisection: Option<lti_model::Result<ioss::EtaBisection>>,
+}
+
+/// LMI (2) at η: the user's P verified, or P computed; a construction that fails at η but
+/// finds a P at a smaller η is verified at η (feasibility is monotone in η).
+fn lmi_verdict(sys: &LtiSystem, inputs: &LmiInputs) -> Result<LmiVerdict> {
+    let LmiInputs {
+        eta, q, r, user_p, ..
+    } = inputs;
+    let eta = *eta;
+    let result = match &user_p {
+        Some((p, _)) => ioss::verify(sys, eta, q.as_ref(), r.as_ref(), p.as_ref()),
+        None => ioss::certify(sys, eta, q.as_ref(), r.as_ref()),
+    };
+    // One verdict (issue 37 item 4): feasibility is monotone in η (−η'P ⪯ −ηP for η' > η), so
+    // when the construction at η fails but the bisection finds a P at some η_min ≤ η, that
+    // P — verified at η itself — is the certificate, and "infeasible" is never printed beside
+    // "the smallest feasible η is below yours".
+    let mut bisection = None;
+    let result = match result {
+        Err(ModelError::LmiInfeasible { cause }) if user_p.is_none() => {
+            let b = ioss::min_feasible_eta(sys, q.as_ref(), r.as_ref(), ETA_HINT_RESOLUTION);
+            let at_eta = match &b {
+                Ok(b) if b.certificate.eta <= eta => {
+                    ioss::verify(sys, eta, q.as_ref(), r.as_ref(), b.certificate.p.as_ref())
+                        .ok()
+                        .map(|mut c| {
+                            c.method =
+                                format!("{} at η = {}", b.certificate.method, b.certificate.eta);
+                            c
+                        })
+                }
+                _ => None,
+            };
+            bisection = Some(b);
+            at_eta.ok_or(ModelError::LmiInfeasible { cause })
+        }
+        other => other,
+    };
+    let (passed, failure, certificate) = match result {
+        Ok(cert) => (true, None, Some(cert.report())),
+        Err(ModelError::LmiInfeasible { cause }) => match &user_p {
+            Some((p, source)) => (
+                false,
+                Some(format!("{cause} (P from {source})")),
+                Some(failed_report(sys, eta, q, r, p)?),
+            ),
+            None => (false, Some(format!("LMI (2) infeasible: {cause}")), None),
+        },
+        // The construction itself failed (no convergence, singular KKT system): a FAIL with
+        // the way to supply P, not an input error.
+        Err(e @ ModelError::Numerical { .. }) if user_p.is_none() => {
+            (false, Some(format!("no P computed: {e}")), None)
+        }
+        Err(ModelError::NotPositiveDefinite {
+            name,
+            min_eigenvalue,
+        }) if user_p.is_some() && name == "P" => {
+            let report = user_p
+                .as_ref()
+                .map(|(p, _)| failed_report(sys, eta, q, r, p))
+                .transpose()?;
+            (
+                false,
+                Some(format!(
+                    "the P from {} is not positive definite (λ_min(P) = {min_eigenvalue:e})",
+                    user_p.as_ref().map_or("", |(_, s)| s.as_str())
+                )),
+                report,
+            )
+        }
+        Err(other) => return Err(anyhow!("{other}")).context("cannot check LMI (2)"),
+    };
+    Ok(LmiVerdict {
+        passed,
+        failure,
+        certificate,
+        bisection,
+    })
+}
+
+/// What to do when LMI (2) fails: drop the user's P, supply one, or raise η to the smallest
+/// feasible one (None when it passed).
+fn hint(sys: &LtiSystem, inputs: &LmiInputs, lmi: &mut LmiVerdict) -> Option<String> {
+    let (q, r, user_p) = (&inputs.q, &inputs.r, &inputs.user_p);
+    if lmi.passed {
+        None
+    } else if user_p.is_some() {
+        Some(
+            "omit --p-file (and mhe.p) to let certify compute the maximal P for this η".to_string(),
+        )
+    } else if lmi.certificate.is_none()
+        && lmi
+            .failure
+            .as_deref()
+            .is_some_and(|f| f.starts_with("no P"))
+    {
+        Some(
+            "compute P elsewhere (e.g. an SDP solver) and supply it as the scenario key `mhe.p` \
+             or with `--p-file P.json`; certify then verifies it against LMI (2)"
+                .to_string(),
+        )
+    } else {
+        Some(
+            match lmi.bisection.take().unwrap_or_else(|| {
+                ioss::min_feasible_eta(sys, q.as_ref(), r.as_ref(), ETA_HINT_RESOLUTION)
+            }) {
+                Ok(b) => format!(
+                    "the smallest feasible η for these Q, R is ≈ {} (bisection to {ETA_HINT_RESOLUTION:e}); \
+                 pass --eta or set mhe.eta at or above it",
+                    num(b.certificate.eta)
+                ),
+                Err(e) => format!("no η ∈ [0, 1) is feasible for these Q, R: {e}"),
+            },
+        )
+    }
+}
+
+/// L_π of the scenario's MPC, if it has one; an MPC the project cannot build (state
+/// constraints) is skipped with the reason: the LMI check does not need it.
+#[allow(clippy::type_complexity)]
+fn controller_lipschitz(
+    scenario: &Scenario,
+) -> Result<(Option<mpc_core::LipschitzReport>, Option<String>)> {
+    let sys = &scenario.plant;
+    // L_π of the scenario's MPC, if it has one. An MPC the project cannot build (state
+    // constraints) is reported as skipped with the reason: the LMI check does not need it.
+    Ok(match &scenario.mpc {
+        Some(m) => {
+            match m.build(sys, &scenario.sets).and_then(|mpc| {
+                mpc_core::lipschitz_report_for(
+                    &mpc,
+                    LPI_SAMPLE_PAIRS,
+                    scenario.noise.seed,
+                    scenario.sampling_radius(),
+                )
+            }) {
+                Ok(report) => (Some(report), None),
+                Err(e @ mpc_core::MpcError::Unsupported { .. }) => (None, Some(e.to_string())),
+                Err(e) => {
+                    return Err(anyhow!("{e}"))
+                        .context("cannot compute L_π for the scenario's [mpc] section");
+                }
+            }
+        }
+        None => (None, None),
+    })
 }
 
 fn summarize(d: &CertificateDocument) -> String {

@@ -25,15 +25,13 @@ use std::fmt::Write as _;
 use std::path::{Path, PathBuf};
 
 use anyhow::{Context, Result};
-use closed_loop::scenario::{ControllerChoice, LoopOptions, ResolvedScenario, Scenario};
+use closed_loop::scenario::{ResolvedScenario, Scenario};
 use closed_loop::{ClosedLoopError, Trace};
 use iss_certificate::analysis::Premise;
 use iss_certificate::certificate::{
     CertificateOptions, ClosedLoopCertificate, Gamma13Source, SolverCertificate, TrajectoryCheck,
-    analysis_with_sampled_l_phi, certify_closed_loop_timed, check_trajectory,
 };
-use iss_certificate::coverage::{Applicable, verdict_options};
-use iss_certificate::plan::{KSource, RunOutcome, plan_runs};
+use iss_certificate::plan::{KSource, RunOutcome};
 use lti_model::BoxSet;
 use lti_model::matrix::to_rows;
 use qp_iter::Method;
@@ -43,16 +41,13 @@ use crate::output::OutputSet;
 use crate::provenance::{Provenance, workspace_root};
 
 mod charts;
-mod comparison;
 mod document;
 mod gains;
 mod job;
 mod joint;
 mod json_v1;
-mod linear;
 pub(crate) mod numfmt;
 mod regional;
-mod runs;
 mod screen;
 mod stages;
 mod summary;
@@ -60,13 +55,15 @@ mod trace_csv;
 mod work;
 
 use charts::charts;
-use comparison::{comparison, fmt_opt, short_reason};
 pub use document::*;
 pub use job::*;
-use linear::{LinearEntry, linear_entries};
-use runs::{Run, simulate};
+use mhe_report::Run;
+use mhe_report::linear::LinearEntry;
+pub use mhe_report::{
+    ComparisonRow, KalmanSummary, RunSummary, SkippedRun, TrajectoryReport,
+    paper_comparison as comparison,
+};
 use summary::summarize;
-pub use work::Work;
 
 /// `format` of certificate.json (its schema is `certificate_json::v1`).
 pub const CERTIFICATE_FORMAT: &str = certificate_json::v1::CERTIFICATE_FORMAT;
@@ -77,7 +74,8 @@ pub const FORMAT_VERSION: u32 = certificate_json::v1::CERTIFICATE_FORMAT_VERSION
 /// Time step of the ŵ² panel of the presets (the paper's Fig. 2(c) shows t = 6).
 pub const FIG2C_T: usize = 6;
 
-/// Errors of `reproduce` beyond those of the scenario (which name their key).
+/// Errors of `reproduce` beyond those of the scenario (which name their key) and of the
+/// library ([`mhe_report::ReportError`]: the work limit, the certificate).
 #[derive(Debug, Clone, PartialEq)]
 pub enum ReproduceError {
     /// `--fig2c-t` outside the simulated steps.
@@ -86,11 +84,6 @@ pub enum ReproduceError {
         t: usize,
         /// T of the scenario.
         steps: usize,
-    },
-    /// The scenario's K and T ask for more work than one simulation may do.
-    WorkLimit {
-        /// The refused simulation.
-        work: Work,
     },
 }
 
@@ -102,14 +95,6 @@ impl std::fmt::Display for ReproduceError {
                 "--fig2c-t {t}: Fig. 2(c) needs a simulated step, t ∈ 0..={} \
                  (simulation.steps = {steps})",
                 steps.saturating_sub(1)
-            ),
-            Self::WorkLimit { work } => write!(
-                f,
-                "mhe.iterations = {} with simulation.steps = {}: {} (docs/limits.md); lower \
-                 mhe.iterations or simulation.steps",
-                work.k,
-                work.steps,
-                work.excess()
             ),
         }
     }
@@ -158,43 +143,31 @@ fn relative(path: &Path) -> String {
         .to_string()
 }
 
-/// Runs one job: certificate, simulations, trajectory check, files, summary — the four
-/// stages of [`stages`]: plan, simulate, check, render.
+/// Runs one job: read the scenario, the library's report ([`mhe_report::report`]:
+/// certificate, simulations, trajectory check), then the files and summaries.
 ///
 /// Errors: unreadable or invalid scenario (the error is a [`lti_model::ModelError`] naming
 /// the key), a scenario without `[mhe]`/`[mpc]` (a [`ClosedLoopError`]), I/O. A void
 /// certificate is not an error.
 pub fn run_job(job: &Job, settings: &Settings) -> Result<Outcome> {
-    let prepared = stages::prepare(job, settings)?;
-    let mut log = stages::Log::new(settings);
-    let plan = stages::plan(job, settings, &prepared, &mut log)?;
-    let (runs, skipped_runs) = stages::simulate_runs(settings, &prepared, &plan, &mut log)?;
-    let checks = stages::check(&prepared, &plan, &runs, &skipped_runs)?;
-    render(
-        job,
-        settings,
-        &prepared,
-        plan,
-        &runs,
-        skipped_runs,
-        checks,
-        log,
-    )
+    let (scenario, fig2c_t) = stages::read(job, settings)?;
+    let console = work::Console::new(settings);
+    let report = mhe_report::report(scenario, &settings.options(&job.label), &console)
+        .map_err(|e| stages::with_scenario(e, job))?;
+    let log = stages::Log::continued(settings, report.log.clone());
+    render(job, settings, report, fig2c_t, log)
 }
 
 /// Writes every file (staged, renamed into place only when all are written:
 /// crate::output, so a failed rerun leaves the previous complete output) and the summaries.
-#[allow(clippy::too_many_arguments)]
 fn render(
     job: &Job,
     settings: &Settings,
-    p: &stages::Prepared,
-    plan: stages::Plan,
-    runs: &[Run],
-    skipped_runs: Vec<SkippedRun>,
-    checks: (TrajectoryReport, Option<joint::JointReport>),
+    report: mhe_report::Report,
+    fig2c_t: usize,
     mut log: stages::Log,
 ) -> Result<Outcome> {
+    let runs = &report.runs;
     log.say(if runs.is_empty() {
         format!(
             "[{}] nothing was simulated; writing certificate.json to {} …",
@@ -218,13 +191,21 @@ fn render(
     let mut set = OutputSet::new(&job.out)?;
     let provenance = Provenance::collect();
     let record = ScenarioRecord {
-        name: p.scenario.name.clone(),
-        description: p.scenario.description.clone(),
+        name: report.scenario.name.clone(),
+        description: report.scenario.description.clone(),
         path: relative(&job.scenario),
-        text: p.scenario.source.clone(),
+        text: report.scenario.source.clone(),
     };
-    let (mut files, figure_notes) =
-        stages::write_traces(job, settings, p, runs, &record, &provenance, &mut set)?;
+    let (mut files, figure_notes) = stages::write_traces(
+        job,
+        settings,
+        &report,
+        fig2c_t,
+        runs,
+        &record,
+        &provenance,
+        &mut set,
+    )?;
     log.say(format!(
         "  done in {} s",
         numfmt::num(t0.elapsed().as_secs_f64())
@@ -234,11 +215,8 @@ fn render(
     let document = stages::document(
         job,
         settings,
-        p,
-        plan,
-        runs,
-        skipped_runs,
-        checks,
+        report,
+        fig2c_t,
         record,
         provenance,
         &files,
@@ -286,15 +264,6 @@ fn printed(outcome: &Outcome, secs: f64, verbose: bool) -> String {
         String::new()
     };
     format!("{long}{} ({secs:.1} s)\n", outcome.screen)
-}
-
-/// K_c of the scenario's MPC (`mpc.iterations`, 0 for the exact MPC).
-fn spec_k_c(scenario: &Scenario) -> usize {
-    scenario
-        .mpc
-        .as_ref()
-        .and_then(|m| m.iterations())
-        .map_or(0, qp_iter::Iterations::get)
 }
 
 /// Exit code when a simulation contradicts the certificate: an inequality of Props. 1–3

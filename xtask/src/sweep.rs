@@ -289,17 +289,7 @@ pub fn sweep(args: &SweepArgs) -> Result<()> {
     let clock = Instant::now();
     // Parse the shard before any work: a bad spec is a typed error, not a late surprise.
     let shard = args.shard.as_deref().map(str::parse::<Shard>).transpose()?;
-    let cores = std::thread::available_parallelism().map_or(1, |n| n.get());
-    let max_threads = MAX_THREADS_PER_CORE * cores;
-    let threads = match args.threads {
-        Some(0) => bail!("--threads must be ≥ 1"),
-        Some(n) if n > max_threads => bail!(
-            "--threads {n} is more than {MAX_THREADS_PER_CORE} per core ({cores} cores here: at most \
-             {max_threads}); runs are CPU-bound, so more threads only add memory and switching"
-        ),
-        Some(n) => n,
-        None => cores,
-    };
+    let threads = thread_count(args.threads)?;
     // --out is checked before the config is resolved (the certificate can take minutes).
     if let Some(out) = &args.out {
         check_out_dir(out, "--out")?;
@@ -311,25 +301,7 @@ pub fn sweep(args: &SweepArgs) -> Result<()> {
             .join(&sweep.config().name)
     });
     check_out_dir(&out, "--out")?;
-    let cfg = sweep.config();
-    let n_k_c = cfg.k_c_grid.as_ref().map_or(1, Vec::len);
-    outln!(
-        "sweep `{}`: {} points ({} K{} × {} solvers × {} scales) × {} seeds, T = {}, {} threads{} → {}",
-        cfg.name,
-        sweep.points().len(),
-        cfg.k_grid.len(),
-        cfg.k_c_grid
-            .as_ref()
-            .map(|g| format!(" × {} K_c", g.len()))
-            .unwrap_or_default(),
-        cfg.solvers.len(),
-        sweep.points().len() / (cfg.k_grid.len() * n_k_c * cfg.solvers.len()).max(1),
-        cfg.seeds,
-        sweep.steps(),
-        threads,
-        shard.map(|s| format!(", shard {s}")).unwrap_or_default(),
-        out.display()
-    );
+    announce(&sweep, threads, shard, &out);
     let bar = Bar(progress_bar());
     // runs.csv and points.csv come back unwritten, with the directory's lock held: they are
     // committed in one set with the plots and meta.json (`write_set`).
@@ -350,6 +322,95 @@ pub fn sweep(args: &SweepArgs) -> Result<()> {
         Some(s) => format!("meta.shard-{}-of-{}.json", s.index, s.count),
         None => "meta.json".into(),
     };
+    let written = write_outputs(
+        args,
+        &sweep,
+        &config_text,
+        &staged,
+        (shard, threads),
+        (start, clock),
+        &out,
+        &meta_name,
+    )?;
+    let (thresholds, pairs, plots) = (&written.thresholds, &written.pairs, &written.plots);
+    print_thresholds(&sweep, thresholds, pairs);
+    print_summary(
+        report,
+        clock.elapsed().as_secs_f64(),
+        &out,
+        &meta_name,
+        plots,
+        sweep.config().kalman,
+    );
+    for line in timing::schedule_lines(report, written.serial_s, written.wall) {
+        outln!("{line}");
+    }
+    Ok(())
+}
+
+/// `--threads`, checked: at least 1, at most [`MAX_THREADS_PER_CORE`] per core; the number of
+/// cores without it.
+fn thread_count(threads: Option<usize>) -> Result<usize> {
+    let cores = std::thread::available_parallelism().map_or(1, |n| n.get());
+    let max_threads = MAX_THREADS_PER_CORE * cores;
+    Ok(match threads {
+        Some(0) => bail!("--threads must be ≥ 1"),
+        Some(n) if n > max_threads => bail!(
+            "--threads {n} is more than {MAX_THREADS_PER_CORE} per core ({cores} cores here: at most \
+             {max_threads}); runs are CPU-bound, so more threads only add memory and switching"
+        ),
+        Some(n) => n,
+        None => cores,
+    })
+}
+
+/// The first line: what the sweep runs, on how many threads, into which directory.
+fn announce(sweep: &Sweep, threads: usize, shard: Option<Shard>, out: &Path) {
+    let cfg = sweep.config();
+    let n_k_c = cfg.k_c_grid.as_ref().map_or(1, Vec::len);
+    outln!(
+        "sweep `{}`: {} points ({} K{} × {} solvers × {} scales) × {} seeds, T = {}, {} threads{} → {}",
+        cfg.name,
+        sweep.points().len(),
+        cfg.k_grid.len(),
+        cfg.k_c_grid
+            .as_ref()
+            .map(|g| format!(" × {} K_c", g.len()))
+            .unwrap_or_default(),
+        cfg.solvers.len(),
+        sweep.points().len() / (cfg.k_grid.len() * n_k_c * cfg.solvers.len()).max(1),
+        cfg.seeds,
+        sweep.steps(),
+        threads,
+        shard.map(|s| format!(", shard {s}")).unwrap_or_default(),
+        out.display()
+    );
+}
+
+/// What [`write_outputs`] computed for the end-of-run lines.
+struct Written {
+    plots: Vec<String>,
+    thresholds: Vec<Thresholds>,
+    pairs: Vec<PairThresholds>,
+    /// The command's wall time outside the pool, and in all, when meta.json was written.
+    serial_s: f64,
+    wall: f64,
+}
+
+/// Commits runs.csv, points.csv, the thresholds, plots, tasks.csv and meta.json in one set
+/// (`write_set`).
+#[allow(clippy::too_many_arguments)]
+fn write_outputs(
+    args: &SweepArgs,
+    sweep: &Sweep,
+    config_text: &str,
+    staged: &xtask::sweep_engine::Staged,
+    (shard, threads): (Option<Shard>, usize),
+    (start, clock): (f64, Instant),
+    out: &Path,
+    meta_name: &str,
+) -> Result<Written> {
+    let report = &staged.report;
     let tasks_name = match shard {
         Some(s) => format!("tasks.shard-{}-of-{}.csv", s.index, s.count),
         None => "tasks.csv".into(),
@@ -358,10 +419,10 @@ pub fn sweep(args: &SweepArgs) -> Result<()> {
     let mut thresholds = Vec::new();
     let mut pairs = Vec::new();
     let (mut serial_s, mut wall) = (0.0, 0.0);
-    write_set(&out, staged.outputs.as_ref(), |set, table| {
+    write_set(out, staged.outputs.as_ref(), |set, table| {
         if let Some(table) = table {
-            (thresholds, pairs) = all_thresholds(&sweep, table);
-            plots = draw(&sweep, set, table, &pairs)?;
+            (thresholds, pairs) = all_thresholds(sweep, table);
+            plots = draw(sweep, set, table, &pairs)?;
         }
         let end = unix_now();
         // Serial time: the command's wall time outside the pool (setup, checks, assembly,
@@ -384,30 +445,18 @@ pub fn sweep(args: &SweepArgs) -> Result<()> {
             "thresholds": thresholds,
             "files": set.manifest(),
         });
-        let extra = with_2d(&sweep, extra, &pairs);
-        let text = json_text(&meta(
-            &sweep,
-            &args.config,
-            &config_text,
-            (start, end),
-            extra,
-        ))?;
-        set.add(&meta_name, text.as_bytes())?;
+        let extra = with_2d(sweep, extra, &pairs);
+        let text = json_text(&meta(sweep, &args.config, config_text, (start, end), extra))?;
+        set.add(meta_name, text.as_bytes())?;
         Ok(())
     })?;
-    print_thresholds(&sweep, &thresholds, &pairs);
-    print_summary(
-        report,
-        clock.elapsed().as_secs_f64(),
-        &out,
-        &meta_name,
-        &plots,
-        sweep.config().kalman,
-    );
-    for line in timing::schedule_lines(report, serial_s, wall) {
-        outln!("{line}");
-    }
-    Ok(())
+    Ok(Written {
+        plots,
+        thresholds,
+        pairs,
+        serial_s,
+        wall,
+    })
 }
 
 /// The end-of-run lines (numbers with at most 4 significant digits, [`sig4`]; `kalman`:

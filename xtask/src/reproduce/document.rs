@@ -123,130 +123,6 @@ impl SolverSummary {
     }
 }
 
-/// What one simulation did.
-#[derive(Debug, Clone)]
-pub struct RunSummary {
-    /// Short name (`"K=652"`).
-    pub label: String,
-    /// Iterations K of Φ per step.
-    pub k: usize,
-    /// Why this K.
-    pub k_source: KSource,
-    /// Φ of the MHE.
-    pub solver: String,
-    /// `"exact MPC"`, or `"MPC <method> with K_c = <K_c>"` for the K-iteration MPC.
-    pub controller: String,
-    /// ε_t recorded (exact MHE solve on).
-    pub exact_mhe_solve: bool,
-    /// Disturbance seed.
-    pub seed: u64,
-    /// T requested.
-    pub steps: usize,
-    /// Steps completed (< T only after an error).
-    pub completed: usize,
-    /// The step error, if the run stopped early (e.g. a diverged loop).
-    pub error: Option<String>,
-    /// The run left the bounded rule ([`closed_loop::bounded`], the sweep's: ‖e‖, ‖x‖, ε
-    /// within 1000 times their initial scale, u finite) or stopped on a non-finite signal.
-    pub diverged: bool,
-    /// The first step at which it did (None when bounded).
-    pub diverged_at: Option<usize>,
-    /// The signal that failed first there: `"e"`, `"x"`, `"epsilon"` or `"u"`.
-    pub signal: Option<closed_loop::bounded::Signal>,
-    /// The failure itself: t, signal, value, the limit, and whether the loop stopped there
-    /// (None when bounded).
-    pub divergence: Option<closed_loop::bounded::Divergence>,
-    /// Steps at which the MPC was infeasible (state constraints) and applied its fallback
-    /// (`trace.csv` has the status per step).
-    pub mpc_infeasible_steps: usize,
-    /// sup_t ‖e_t‖.
-    pub sup_norm_e: f64,
-    /// sup_t ‖x_t‖.
-    pub sup_norm_x: f64,
-    /// ‖x_T‖.
-    pub final_norm_x: f64,
-    /// Mean ‖e_t‖ over the last quarter.
-    pub tail_mean_e: Option<f64>,
-    /// Mean ‖x_t‖ over the last quarter.
-    pub tail_mean_x: Option<f64>,
-    /// Mean ε_t over the last quarter.
-    pub tail_mean_epsilon: Option<f64>,
-    /// Steps whose simulated draw w_t lies outside 𝒲 (`sets.disturbance`, the set the MHE
-    /// and the certificate assume): the ISS statement is not claimed from the first of them
-    /// on (`closed_loop::scenario::draws_outside`).
-    pub w_outside: usize,
-    /// The first such step.
-    pub w_outside_first: Option<usize>,
-    /// The Kalman filter of the MHE's weights on the same u_t, y_t
-    /// (`closed_loop::baseline::kalman_for_mhe`); None when it could not be built (the
-    /// reason is in `kalman_error`).
-    pub kalman: Option<KalmanSummary>,
-}
-
-/// The Kalman baseline of one run (`closed_loop::baseline`).
-#[derive(Debug, Clone)]
-pub struct KalmanSummary {
-    /// `"standard, Π₀ = (2P)⁻¹, Σ_w = (2Q)⁻¹, Σ_v = R⁻¹"`.
-    pub weights: String,
-    /// Steps filtered.
-    pub completed: usize,
-    /// sup_t ‖x_t − x̂^KF_t‖.
-    pub sup_norm_e: f64,
-    /// Mean ‖x_t − x̂^KF_t‖ over the last quarter.
-    pub tail_mean_e: Option<f64>,
-    /// The filter left the bounded rule (signal e) or stopped.
-    pub diverged: bool,
-    /// Where, if it did.
-    pub divergence: Option<closed_loop::bounded::Divergence>,
-    /// The filter's error (construction or update), if any.
-    pub error: Option<String>,
-}
-
-/// A simulation of the plan that was not run.
-#[derive(Debug, Clone)]
-pub struct SkippedRun {
-    /// Its K.
-    pub k: usize,
-    /// Why this K was planned.
-    pub k_source: KSource,
-    /// Why it was not run.
-    pub reason: String,
-}
-
-/// Props. 1 and 3 evaluated on the K_min run.
-#[derive(Debug, Clone)]
-pub struct TrajectoryReport {
-    /// The check ran (a K_min exists and ε_t was recorded).
-    pub ran: bool,
-    /// Why it did not run.
-    pub reason: Option<String>,
-    /// Method of the run.
-    pub solver: String,
-    /// K of the run (K_min) and of the constants.
-    pub k: Option<usize>,
-    /// Seed of the run.
-    pub seed: u64,
-    /// Steps evaluated.
-    pub steps: usize,
-    /// With the certificate's constants (certified L_Φ).
-    pub certified_l_phi: Option<TrajectoryCheck>,
-    /// The same constants with the sampled L_Φ (informative, not a certificate).
-    pub sampled_l_phi: Option<TrajectoryCheck>,
-    /// Both inequalities hold at every t with the certified constants.
-    pub passed: Option<bool>,
-}
-
-/// One row of the constants table (ours vs the paper's published values).
-#[derive(Debug, Clone)]
-pub struct ComparisonRow {
-    /// Quantity.
-    pub quantity: String,
-    /// Ours, for the stand-in plant.
-    pub ours: String,
-    /// The paper's, for its own plant (not printed in the paper).
-    pub paper: String,
-}
-
 /// certificate.json (docs/reproduce-output.md).
 #[derive(Debug, Clone)]
 pub struct CertificateDocument {
@@ -295,7 +171,7 @@ pub struct CertificateDocument {
     pub trajectory_check: TrajectoryReport,
     /// The joint MPC + MHE certificate and its trajectory check (only when the scenario's
     /// controller is the K-iteration MPC, `mpc.iterations`).
-    pub joint: Option<super::joint::JointReport>,
+    pub joint: Option<mhe_report::joint::JointReport>,
     /// The exact linear stability boundary per method (exact MPC): ρ_lin(K) on a log grid,
     /// K_lin and every K with ρ_lin ≥ 1 (ρ_lin < 1 is necessary for local asymptotic stability of
     /// the origin when no constraint is active there; `iss_certificate::linear`).
@@ -304,11 +180,11 @@ pub struct CertificateDocument {
     /// contains the scenario's own uncertainty, searched up to K_min, with the region there
     /// (the certified rate and gains) — or the certificate at the largest K tried and the
     /// constraint that limits it (issue 27).
-    pub regional: Vec<super::regional::RegionalEntry>,
+    pub regional: Vec<mhe_report::regional::RegionalEntry>,
     /// What the certificate guarantees: Theorem 1's certified asymptotic gains (and the
     /// regional ones) per method at K_min, and per run the certified bound next to the
     /// measured gains (`iss_certificate::asymptotic`, issue 27).
-    pub asymptotic_gains: super::gains::GainsReport,
+    pub asymptotic_gains: mhe_report::gains::GainsReport,
     /// Constants next to the paper's published values.
     pub paper_comparison: Vec<ComparisonRow>,
     /// Files written, relative to the output directory.
@@ -563,7 +439,7 @@ pub(super) fn trace_document<'a>(
         runs: runs
             .iter()
             .map(|r| TraceRun {
-                summary: (&r.summary).into(),
+                summary: super::json_v1::run_summary(&r.summary),
                 trace: &r.trace,
                 kalman: r.kalman.as_ref(),
             })

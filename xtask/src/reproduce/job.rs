@@ -116,6 +116,23 @@ impl Default for Settings {
     }
 }
 
+impl Settings {
+    /// The library's options of these settings (the work lines named `label`).
+    pub(super) fn options(&self, label: &str) -> mhe_report::Options {
+        mhe_report::Options {
+            label: label.to_string(),
+            lipschitz_pairs: self.lipschitz_pairs,
+            gamma13_sequences: self.gamma13_sequences,
+            enumeration_max_vars: self.enumeration_max_vars,
+            gamma13: self.gamma13,
+            k_max: self.k_max,
+            small_k: self.small_k,
+            sim_k_cap: self.sim_k_cap,
+            threads: None,
+        }
+    }
+}
+
 /// The jobs of a command line: one preset, a user scenario, or both presets (default).
 pub fn jobs(preset: Option<Preset>, scenario: Option<PathBuf>, out: Option<PathBuf>) -> Vec<Job> {
     let out = out.unwrap_or_else(|| workspace_root().join("target/reproduce"));

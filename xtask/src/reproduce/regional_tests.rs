@@ -3,9 +3,13 @@
 //! and a reason whenever there is none.
 
 use super::*;
+use closed_loop::scenario::LoopOptions;
 use iss_certificate::certificate::certify_closed_loop;
 use iss_certificate::linear::linear_stability;
+use iss_certificate::regional::RegionalOptions;
 use iss_certificate::regional::k_reg;
+use mhe_report::regional::regional_entry;
+use qp_iter::Method;
 
 const STAND_IN: &str = concat!(
     env!("CARGO_MANIFEST_DIR"),
@@ -70,10 +74,8 @@ fn k_reg_is_the_library_search_between_k_lin_and_k_min() {
             "{m}: {k_lin} {k_reg} {k_min}"
         );
         // The summary line carries the three and the ratios.
-        let e = RegionalEntry {
-            k_lin: Some(k_lin),
-            ..e
-        };
+        let mut e = e;
+        e.k_lin = Some(k_lin);
         let text = summary(std::slice::from_ref(&e));
         assert!(
             text.contains(&format!(
@@ -171,10 +173,8 @@ fn k_reg_above_twice_k_lin_names_the_row_that_limits_the_region_there() {
         "{text}"
     );
     // K_reg ≤ 2·K_lin: the same entry with K_lin = K_reg prints no such line.
-    let within = RegionalEntry {
-        k_lin: Some(k_reg),
-        ..e.clone()
-    };
+    let mut within = e.clone();
+    within.k_lin = Some(k_reg);
     assert!(!summary(std::slice::from_ref(&within)).contains("not at 2·K_lin"));
     let unprobed = regional_entry(&res, fj, &o, Some(64), None);
     assert!(unprobed.at_two_k_lin.is_none());
@@ -190,10 +190,8 @@ fn a_k_lin_not_computed_says_so_and_why() {
     let o = RegionalOptions::from_scenario(&res, ControllerChoice::ExactMpc);
     let why = "not computed: the MHE window has n_z = 300 > 128 variables, so ρ_lin is computed \
                for the scenario's method (admm-pr) only";
-    let e = RegionalEntry {
-        k_lin_not_computed: Some(why.to_string()),
-        ..regional_entry(&res, Method::ADMM_PR, &o, Some(42), None)
-    };
+    let mut e = regional_entry(&res, Method::ADMM_PR, &o, Some(42), None);
+    e.k_lin_not_computed = Some(why.to_string());
     let text = summary(std::slice::from_ref(&e));
     assert!(text.contains("K_lin = not computed,"), "{text}");
     assert!(!text.contains("K_lin = none"), "{text}");
@@ -201,16 +199,14 @@ fn a_k_lin_not_computed_says_so_and_why() {
         text.contains("K_lin not computed: the MHE window has n_z = 300 > 128"),
         "{text}"
     );
-    let json = serde_json::to_value(certificate_json::v1::RegionalEntry::from(&e))
+    let json = serde_json::to_value(crate::reproduce::json_v1::regional_entry(&e))
         .expect("an entry serialises");
     assert_eq!(json["k_lin_not_computed"], why);
     // Computed and none on the grid: the key is absent and the table says "none".
-    let none = RegionalEntry {
-        k_lin_not_computed: None,
-        ..e
-    };
+    let mut none = e;
+    none.k_lin_not_computed = None;
     assert!(summary(std::slice::from_ref(&none)).contains("K_lin = none,"));
-    let json = serde_json::to_value(certificate_json::v1::RegionalEntry::from(&none))
+    let json = serde_json::to_value(crate::reproduce::json_v1::regional_entry(&none))
         .expect("an entry serialises");
     assert!(json.get("k_lin_not_computed").is_none());
 }

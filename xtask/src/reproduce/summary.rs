@@ -4,6 +4,10 @@ use super::numfmt::{num, opt, rate};
 use super::*;
 use iss_certificate::outcome::VoidReason;
 
+fn fmt_opt(v: Option<usize>) -> String {
+    v.map_or_else(|| "none".to_string(), |k| k.to_string())
+}
+
 fn status(holds: bool) -> &'static str {
     if holds { "pass" } else { "FAIL" }
 }
@@ -75,10 +79,35 @@ fn floor_note(c: &TrajectoryCheck) -> String {
     )
 }
 
-/// The text summary of one job.
+/// The text summary of one job: the sections in order, then the verdict and the files.
 pub(super) fn summarize(d: &CertificateDocument, files: &[PathBuf], notes: &[String]) -> String {
-    let c = &d.certificate;
     let mut s = String::new();
+    header(&mut s, d);
+    premises(&mut s, d);
+    smallest_k(&mut s, d);
+    s.push_str(&super::gains::methods_section(&d.asymptotic_gains));
+    constants(&mut s, d);
+    closed_loop(&mut s, d);
+    linear(&mut s, d);
+    s.push_str(&super::regional::summary(&d.regional));
+    trajectory(&mut s, d);
+    if let Some(j) = &d.joint {
+        s.push_str(&super::joint::summary(j));
+    }
+    let _ = writeln!(s, "\nVerdict: {}", verdict(d));
+    let _ = writeln!(s, "\nFiles");
+    for f in files {
+        let _ = writeln!(s, "  {}", f.display());
+    }
+    for n in notes {
+        let _ = writeln!(s, "  note: {n}");
+    }
+    s
+}
+
+/// The title, the stand-in note of the presets, M, η and ρ, and a failed LMI (2).
+fn header(s: &mut String, d: &CertificateDocument) {
+    let c = &d.certificate;
     let _ = writeln!(
         s,
         "== reproduce `{}`: scenario `{}` ({}) ==",
@@ -102,8 +131,10 @@ pub(super) fn summarize(d: &CertificateDocument, files: &[PathBuf], notes: &[Str
     if let Some(f) = &c.ioss_failure {
         let _ = writeln!(s, "δ-IOSS (LMI (2)) FAILS: {f}");
     }
+}
 
-    // Premises: scenario-wide ones once, solver-specific ones per solver.
+/// Theorem 1's premises: scenario-wide ones once, solver-specific ones per solver.
+fn premises(s: &mut String, d: &CertificateDocument) {
     let _ = writeln!(s, "\nPremises of Theorem 1");
     let _ = writeln!(
         s,
@@ -152,7 +183,10 @@ pub(super) fn summarize(d: &CertificateDocument, files: &[PathBuf], notes: &[Str
             }
         }
     }
+}
 
+/// K_min per solver (or why there is none), the embedded budget, the scenario's K.
+fn smallest_k(s: &mut String, d: &CertificateDocument) {
     let _ = writeln!(
         s,
         "\nSmallest certified K (Theorem 1 with sum-form small gain: sg1 + sg2 + sg3 < 1)"
@@ -197,7 +231,7 @@ pub(super) fn summarize(d: &CertificateDocument, files: &[PathBuf], notes: &[Str
         }
     }
     if let Some(b) = &d.budget {
-        s += &b.block();
+        s.push_str(&b.block());
     }
     if let Some(false) = d.scenario_iterations_match_k_min {
         let _ = writeln!(
@@ -206,8 +240,10 @@ pub(super) fn summarize(d: &CertificateDocument, files: &[PathBuf], notes: &[Str
             d.scenario_iterations
         );
     }
-    s.push_str(&super::gains::methods_section(&d.asymptotic_gains));
+}
 
+/// The constants next to the paper's published values (presets), or this scenario's.
+fn constants(s: &mut String, d: &CertificateDocument) {
     let preset = !d.paper_comparison.is_empty();
     if preset {
         let _ = writeln!(
@@ -234,7 +270,10 @@ pub(super) fn summarize(d: &CertificateDocument, files: &[PathBuf], notes: &[Str
             let _ = writeln!(s, "  {:<16} {}", row.quantity, row.ours);
         }
     }
+}
 
+/// The simulations: one row per run with its notes, then the runs not simulated.
+fn closed_loop(s: &mut String, d: &CertificateDocument) {
     let controller = if d.joint.is_some() {
         "K-iteration MPC (K_c per row)"
     } else {
@@ -259,52 +298,7 @@ pub(super) fn summarize(d: &CertificateDocument, files: &[PathBuf], notes: &[Str
         }
     }
     for (i, r) in d.runs.iter().enumerate() {
-        let why = match (r.k_source, d.joint.is_some()) {
-            // The joint certificate's K_min is its cheapest pair.
-            (KSource::ComputedKMin, true) => "cheapest",
-            (source, _) => source.label(),
-        };
-        let _ = writeln!(
-            s,
-            "  {:<8} {:<10} {:>10} {:>10} {:>12} {:>12} {:>12}",
-            r.k,
-            why,
-            num(r.sup_norm_e),
-            num(r.sup_norm_x),
-            opt(r.tail_mean_e),
-            opt(r.tail_mean_x),
-            opt(r.tail_mean_epsilon)
-        );
-        if d.joint.is_some() {
-            let _ = writeln!(s, "      {}", r.controller);
-        }
-        if r.mpc_infeasible_steps > 0 {
-            let _ = writeln!(
-                s,
-                "      the MPC was infeasible at {} of {} steps (state constraints) and applied its fallback",
-                r.mpc_infeasible_steps, r.completed
-            );
-        }
-        if let Some(e) = &r.error {
-            let _ = writeln!(s, "      stopped after {} steps: {e}", r.completed);
-        }
-        if let Some(d) = r.divergence.filter(|_| r.error.is_none()) {
-            let _ = writeln!(s, "      the MHE run DIVERGED: {d}");
-        }
-        if let Some(kf) = &r.kalman {
-            let _ = writeln!(s, "      {}", kalman_line(kf, r.steps));
-        }
-        if let Some(g) = d.asymptotic_gains.runs.get(i) {
-            let _ = writeln!(s, "      {}", super::gains::run_line(g));
-        }
-        if let Some(first) = r.w_outside_first {
-            let _ = writeln!(
-                s,
-                "      w_t ∉ 𝒲 at {} of {} steps (first t = {first}): the certificate assumes w_t ∈ 𝒲 \
-                 (sets.disturbance), so its ISS bound is not claimed from t = {first} on",
-                r.w_outside, r.completed
-            );
-        }
+        run_row(s, d, i, r);
     }
     for r in &d.skipped_runs {
         let _ = writeln!(s, "  {:<8} not simulated: {}", r.k, r.reason);
@@ -312,8 +306,61 @@ pub(super) fn summarize(d: &CertificateDocument, files: &[PathBuf], notes: &[Str
     if d.runs.is_empty() && d.skipped_runs.is_empty() {
         let _ = writeln!(s, "  not simulated: the MHE needs a P and LMI (2) has none");
     }
+}
 
-    let tc = &d.trajectory_check;
+/// One run's row and the lines under it (MPC fallbacks, a stop, a divergence, the Kalman
+/// baseline, the gains, draws outside 𝒲).
+fn run_row(s: &mut String, d: &CertificateDocument, i: usize, r: &RunSummary) {
+    let why = match (r.k_source, d.joint.is_some()) {
+        // The joint certificate's K_min is its cheapest pair.
+        (KSource::ComputedKMin, true) => "cheapest",
+        (source, _) => source.label(),
+    };
+    let _ = writeln!(
+        s,
+        "  {:<8} {:<10} {:>10} {:>10} {:>12} {:>12} {:>12}",
+        r.k,
+        why,
+        num(r.sup_norm_e),
+        num(r.sup_norm_x),
+        opt(r.tail_mean_e),
+        opt(r.tail_mean_x),
+        opt(r.tail_mean_epsilon)
+    );
+    if d.joint.is_some() {
+        let _ = writeln!(s, "      {}", r.controller);
+    }
+    if r.mpc_infeasible_steps > 0 {
+        let _ = writeln!(
+            s,
+            "      the MPC was infeasible at {} of {} steps (state constraints) and applied its fallback",
+            r.mpc_infeasible_steps, r.completed
+        );
+    }
+    if let Some(e) = &r.error {
+        let _ = writeln!(s, "      stopped after {} steps: {e}", r.completed);
+    }
+    if let Some(d) = r.divergence.filter(|_| r.error.is_none()) {
+        let _ = writeln!(s, "      the MHE run DIVERGED: {d}");
+    }
+    if let Some(kf) = &r.kalman {
+        let _ = writeln!(s, "      {}", kalman_line(kf, r.steps));
+    }
+    if let Some(g) = d.asymptotic_gains.runs.get(i) {
+        let _ = writeln!(s, "      {}", super::gains::run_line(g));
+    }
+    if let Some(first) = r.w_outside_first {
+        let _ = writeln!(
+            s,
+            "      w_t ∉ 𝒲 at {} of {} steps (first t = {first}): the certificate assumes w_t ∈ 𝒲 \
+             (sets.disturbance), so its ISS bound is not claimed from t = {first} on",
+            r.w_outside, r.completed
+        );
+    }
+}
+
+/// K_lin per method (the linear stability boundary).
+fn linear(s: &mut String, d: &CertificateDocument) {
     if !d.linear.is_empty() {
         let _ = writeln!(
             s,
@@ -339,7 +386,11 @@ pub(super) fn summarize(d: &CertificateDocument, files: &[PathBuf], notes: &[Str
             let _ = writeln!(s, "  {:<14} {line}", l.solver);
         }
     }
-    s.push_str(&super::regional::summary(&d.regional));
+}
+
+/// The trajectory check of Props. 1 and 3 on the K_min run, or why it did not run.
+fn trajectory(s: &mut String, d: &CertificateDocument) {
+    let tc = &d.trajectory_check;
     let _ = writeln!(
         s,
         "\nTrajectory check of Props. 1 (ε_t) and 3 (e_t), both sides from the trace"
@@ -386,20 +437,6 @@ pub(super) fn summarize(d: &CertificateDocument, files: &[PathBuf], notes: &[Str
             tc.reason.as_deref().unwrap_or("no reason recorded")
         );
     }
-
-    if let Some(j) = &d.joint {
-        s.push_str(&super::joint::summary(j));
-    }
-
-    let _ = writeln!(s, "\nVerdict: {}", verdict(d));
-    let _ = writeln!(s, "\nFiles");
-    for f in files {
-        let _ = writeln!(s, "  {}", f.display());
-    }
-    for n in notes {
-        let _ = writeln!(s, "  note: {n}");
-    }
-    s
 }
 
 /// The Kalman baseline's line under a run of `steps` planned steps: its error statistics, or

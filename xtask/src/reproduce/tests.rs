@@ -8,6 +8,8 @@ use std::sync::OnceLock;
 use serde_json::Value;
 
 use super::*;
+use closed_loop::scenario::ControllerChoice;
+use iss_certificate::plan::plan_runs;
 use lti_model::ModelError;
 
 /// Fewer samples than the shipped defaults: K_min depends only on certified constants
@@ -1070,9 +1072,11 @@ fn work_beyond_the_limit_is_refused_naming_both_keys() {
         t0.elapsed().as_secs_f64() < 2.0,
         "checked before the certificate"
     );
-    let typed = e.chain().find_map(|c| c.downcast_ref::<ReproduceError>());
+    let typed = e
+        .chain()
+        .find_map(|c| c.downcast_ref::<mhe_report::ReportError>());
     assert!(
-        matches!(typed, Some(ReproduceError::WorkLimit { .. })),
+        matches!(typed, Some(mhe_report::ReportError::WorkLimit { .. })),
         "{e:#}"
     );
     let msg = format!("{e:#}");
@@ -1202,7 +1206,7 @@ fn regional_entries_use_the_scenarios_controller() {
         .replace("[mpc]\n", "[mpc]\niterations = 20\nmethod = \"pg\"\n");
     let file = write_scenario("kc-regional", &text);
     let res = Scenario::from_file(&file).unwrap().resolve().unwrap();
-    let c = regional::scenario_controller(&res);
+    let c = mhe_report::regional::scenario_controller(&res);
     assert_eq!(
         c,
         ControllerChoice::SuboptimalMpc {
@@ -1212,12 +1216,12 @@ fn regional_entries_use_the_scenarios_controller() {
     );
     let plain = Scenario::from_file(&path).unwrap().resolve().unwrap();
     assert_eq!(
-        regional::scenario_controller(&plain),
+        mhe_report::regional::scenario_controller(&plain),
         ControllerChoice::ExactMpc
     );
     let method: qp_iter::Method = "fista-jacobi".parse().unwrap();
     let o = RegionalOptions::from_scenario(&res, c).unwrap();
-    let e = regional::regional_entry(&res, method, &Ok(o.clone()), Some(839), Some(1));
+    let e = mhe_report::regional::regional_entry(&res, method, &Ok(o.clone()), Some(839), Some(1));
     let direct = k_reg(&res, method, &o, 839).unwrap();
     assert_eq!(e.k_reg, direct.k_reg);
     assert!(e.k_reg.is_some(), "{:?}", e.void);

@@ -1,9 +1,15 @@
-//! The exact linear stability boundary per method, for certificate.json and the summary.
+//! The exact linear stability boundary ρ_lin(K) per method (`iss_certificate::linear`).
 
-use super::*;
+use closed_loop::ClosedLoopError;
+use closed_loop::scenario::{ControllerChoice, LoopOptions, ResolvedScenario};
+use iss_certificate::certificate::ClosedLoopCertificate;
+use qp_iter::Method;
+
+use crate::Observer;
 
 /// ρ_lin of one method, or why it has none.
 #[derive(Debug, Clone)]
+#[non_exhaustive]
 pub struct LinearEntry {
     /// The method.
     pub solver: String,
@@ -29,13 +35,13 @@ pub const LINEAR_ALL_METHODS_MAX_NZ: usize = iss_certificate::linear::ALL_METHOD
 ///
 /// Beyond the budget `phase_seconds` (estimated seconds of one core for all methods) nothing
 /// is computed (each `error` names the estimate, the budget and `certificate.phase_seconds`);
-/// with `live`, progress lines go to stderr every 10 s once the analysis has run for 2 s.
-pub(super) fn linear_entries(
+/// the progress goes to [`Observer::linear_progress`].
+pub fn linear_entries(
     resolved: &ResolvedScenario,
     cert: &ClosedLoopCertificate,
     own: Method,
     phase_seconds: f64,
-    live: bool,
+    observer: &dyn Observer,
 ) -> Vec<LinearEntry> {
     let plant = &resolved.scenario().plant;
     let n_z = plant.nx() + cert.horizon * plant.nw();
@@ -63,21 +69,8 @@ pub(super) fn linear_entries(
         .filter_map(|o| o.as_ref().ok().copied())
         .collect();
     let start = std::time::Instant::now();
-    let last = std::sync::Mutex::new(0.0_f64);
     let progress = |done: usize, total: usize| {
-        if !live {
-            return;
-        }
-        let t = start.elapsed().as_secs_f64();
-        let Ok(mut last) = last.lock() else { return };
-        if t >= 2.0 && t - *last >= 10.0 {
-            *last = t;
-            use std::io::Write;
-            let _ = writeln!(
-                std::io::stderr(),
-                "  ρ_lin: {done}/{total} (method, K) eigenvalue problems done, {t:.0} s"
-            );
-        }
+        observer.linear_progress(done, total, start.elapsed().as_secs_f64());
     };
     let mut reports = iss_certificate::linear::linear_stability_all_budgeted(
         resolved,

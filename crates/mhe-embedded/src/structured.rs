@@ -192,10 +192,9 @@ impl<T: Scalar> Structured<'_, T> {
     /// problem's Hessian), n = n_x + m n_w; `wa`, `wb` hold at least [`Structured::work_lens`]
     /// scalars. The operations of `mhe_core::structured` on the portable path, in its order.
     pub fn apply(&self, d: &[T], z: &[T], out: &mut [T], wa: &mut [T], wb: &mut [T]) {
-        let (nx, ny, nw1, nw) = (self.nx, self.ny, self.nw1, self.nw());
+        let (nx, ny, nw) = (self.nx, self.ny, self.nw());
         let m = self.decay.len();
         let n = nx + m * nw;
-        let fixed = self.order == SumOrder::Fixed;
         let gy_all = &mut wa[..m * ny];
         let (x, rest) = wb.split_at_mut(nx);
         let (xn, rest) = rest.split_at_mut(nx);
@@ -211,72 +210,107 @@ impl<T: Scalar> Structured<'_, T> {
         } else {
             d[..n].split_at(nx)
         };
-        let dj = |j: usize| {
-            if d.is_empty() {
-                d
-            } else {
-                &dw[j * nw..(j + 1) * nw]
-            }
-        };
-        let a = Block::cols(self.a, 0, nx);
-        let at = Block::t(self.a, nx);
-        let e = Block::cols(self.e, 0, nx);
-        let et = Block::t(self.e, nx);
-        let c = Block::cols(self.c, 0, ny);
-        let ct = Block::t(self.c, ny);
-        let f = Block::cols(self.f, 0, ny);
-        let ft = Block::t(self.f, ny);
-        let r = Block::cols(self.r, 0, ny);
-        let p = Block::cols(self.p, 0, nx);
         load(x, z0, d0);
         // Forward: stage j's terms without λ, then x̂_{j+1} = A x̂_j + E ŵ¹_j.
         for j in 0..m {
-            let eta_j = self.decay[j];
-            load(wd, &zw[j * nw..(j + 1) * nw], dj(j));
-            let (w1, w2) = wd.split_at(nw1);
+            let dj = if d.is_empty() {
+                d
+            } else {
+                &dw[j * nw..(j + 1) * nw]
+            };
+            load(wd, &zw[j * nw..(j + 1) * nw], dj);
             let gy = &mut gy_all[j * ny..(j + 1) * ny];
             let o = &mut ow[j * nw..(j + 1) * nw];
-            for (vi, wi) in v.iter_mut().zip(wd.iter()) {
-                *vi = eta_j * *wi;
-            }
-            let (v1, v2) = v.split_at(nw1);
-            if fixed {
-                // ŷ = C x̂ + F ŵ², g_y = η_j (2R ŷ).
-                gemv_fixed(f, w2, y, false);
-                gemv_fixed(c, x, y, true);
-                gemv_fixed(r, y, gy, false);
-                for g in gy.iter_mut() {
-                    *g = eta_j * *g;
-                }
-                let (o1, o2) = o.split_at_mut(nw1);
-                gemv_fixed(Block::cols(self.q, nw1 * nw, nw), v2, o1, false);
-                gemv_fixed(Block::cols(self.q, 0, nw), v1, o1, true);
-                gemv_fixed(ft, gy, o2, false);
-                gemv_fixed(Block::cols(self.q, nw1 * nw + nw1, nw), v2, o2, true);
-                gemv_fixed(Block::cols(self.q, nw1, nw), v1, o2, true);
-                gemv_fixed(e, w1, xn, false);
-                gemv_fixed(a, x, xn, true);
-            } else {
-                y.fill(T::ZERO);
-                gemv_seq(f, w2, y);
-                gemv_seq(c, x, y);
-                gy.fill(T::ZERO);
-                gemv_seq(r, y, gy);
-                for g in gy.iter_mut() {
-                    *g = *g * eta_j;
-                }
-                o.fill(T::ZERO);
-                gemv_seq(Block::cols(self.q, 0, nw), v, o);
-                gemv_seq(ft, gy, &mut o[nw1..]);
-                xn.fill(T::ZERO);
-                gemv_seq(e, w1, xn);
-                gemv_seq(a, x, xn);
-            }
+            self.forward_stage(self.decay[j], x, wd, v, y, gy, o, xn);
             x.copy_from_slice(xn);
         }
-        // Backward: λ_m = 0, the ŵ¹_j-part += Eᵀλ_{j+1}, λ_j = Aᵀλ_{j+1} + Cᵀg_{y,j}.
+        self.backward(dw, gy_all, ow, lam, lamn);
+        load(x, z0, d0);
+        o0.copy_from_slice(lam);
+        if self.order == SumOrder::Fixed {
+            gemv_fixed(Block::cols(self.p, 0, nx), x, o0, true);
+        } else {
+            gemv_seq(Block::cols(self.p, 0, nx), x, o0);
+        }
+        if !d.is_empty() {
+            for (o, di) in o0.iter_mut().zip(d0) {
+                *o = *di * *o;
+            }
+        }
+    }
+
+    /// Forward stage j of [`Structured::apply`], without λ: ŷ_j = C x̂_j + F ŵ²_j,
+    /// g_{y,j} = η_j (2R ŷ_j) into `gy`, the ŵ_j-part 4Q η_j ŵ_j + Fᵀg_{y,j} into `o` and
+    /// x̂_{j+1} = A x̂_j + E ŵ¹_j into `xn`, from x̂_j in `x` and the (scaled) ŵ_j in `wd`;
+    /// `v` (n_w) and `y` (n_y) are scratch.
+    fn forward_stage(
+        &self,
+        eta_j: T,
+        x: &[T],
+        wd: &[T],
+        v: &mut [T],
+        y: &mut [T],
+        gy: &mut [T],
+        o: &mut [T],
+        xn: &mut [T],
+    ) {
+        let (nx, ny, nw1, nw) = (self.nx, self.ny, self.nw1, self.nw());
+        let a = Block::cols(self.a, 0, nx);
+        let e = Block::cols(self.e, 0, nx);
+        let c = Block::cols(self.c, 0, ny);
+        let f = Block::cols(self.f, 0, ny);
+        let ft = Block::t(self.f, ny);
+        let r = Block::cols(self.r, 0, ny);
+        let (w1, w2) = wd.split_at(nw1);
+        for (vi, wi) in v.iter_mut().zip(wd.iter()) {
+            *vi = eta_j * *wi;
+        }
+        let (v1, v2) = v.split_at(nw1);
+        if self.order == SumOrder::Fixed {
+            // ŷ = C x̂ + F ŵ², g_y = η_j (2R ŷ).
+            gemv_fixed(f, w2, y, false);
+            gemv_fixed(c, x, y, true);
+            gemv_fixed(r, y, gy, false);
+            for g in gy.iter_mut() {
+                *g = eta_j * *g;
+            }
+            let (o1, o2) = o.split_at_mut(nw1);
+            gemv_fixed(Block::cols(self.q, nw1 * nw, nw), v2, o1, false);
+            gemv_fixed(Block::cols(self.q, 0, nw), v1, o1, true);
+            gemv_fixed(ft, gy, o2, false);
+            gemv_fixed(Block::cols(self.q, nw1 * nw + nw1, nw), v2, o2, true);
+            gemv_fixed(Block::cols(self.q, nw1, nw), v1, o2, true);
+            gemv_fixed(e, w1, xn, false);
+            gemv_fixed(a, x, xn, true);
+        } else {
+            y.fill(T::ZERO);
+            gemv_seq(f, w2, y);
+            gemv_seq(c, x, y);
+            gy.fill(T::ZERO);
+            gemv_seq(r, y, gy);
+            for g in gy.iter_mut() {
+                *g = *g * eta_j;
+            }
+            o.fill(T::ZERO);
+            gemv_seq(Block::cols(self.q, 0, nw), v, o);
+            gemv_seq(ft, gy, &mut o[nw1..]);
+            xn.fill(T::ZERO);
+            gemv_seq(e, w1, xn);
+            gemv_seq(a, x, xn);
+        }
+    }
+
+    /// Backward pass of [`Structured::apply`]: λ_m = 0, the ŵ¹_j-part of `ow` += Eᵀλ_{j+1}
+    /// (then the stage scaled by D when `dw`, its diagonal, is non-empty),
+    /// λ_j = Aᵀλ_{j+1} + Cᵀg_{y,j}; leaves λ₀ in `lam` (`lamn` is scratch).
+    fn backward(&self, dw: &[T], gy_all: &[T], ow: &mut [T], lam: &mut [T], lamn: &mut [T]) {
+        let (nx, ny, nw1, nw) = (self.nx, self.ny, self.nw1, self.nw());
+        let fixed = self.order == SumOrder::Fixed;
+        let at = Block::t(self.a, nx);
+        let et = Block::t(self.e, nx);
+        let ct = Block::t(self.c, ny);
         lam.fill(T::ZERO);
-        for j in (0..m).rev() {
+        for j in (0..self.decay.len()).rev() {
             let o = &mut ow[j * nw..(j + 1) * nw];
             let gy = &gy_all[j * ny..(j + 1) * ny];
             if fixed {
@@ -284,8 +318,8 @@ impl<T: Scalar> Structured<'_, T> {
             } else {
                 gemv_seq(et, lam, &mut o[..nw1]);
             }
-            if !d.is_empty() {
-                for (vi, di) in o.iter_mut().zip(dj(j)) {
+            if !dw.is_empty() {
+                for (vi, di) in o.iter_mut().zip(&dw[j * nw..(j + 1) * nw]) {
                     *vi = *vi * *di;
                 }
             }
@@ -299,18 +333,6 @@ impl<T: Scalar> Structured<'_, T> {
                 gemv_seq(at, lam, lamn);
             }
             lam.copy_from_slice(lamn);
-        }
-        load(x, z0, d0);
-        o0.copy_from_slice(lam);
-        if fixed {
-            gemv_fixed(p, x, o0, true);
-        } else {
-            gemv_seq(p, x, o0);
-        }
-        if !d.is_empty() {
-            for (o, di) in o0.iter_mut().zip(d0) {
-                *o = *di * *o;
-            }
         }
     }
 }

@@ -3,7 +3,11 @@
 
 mod monte_carlo;
 mod scenario;
+mod scenario_errors;
+mod scenario_fuzz;
 mod sim;
+mod sim_errors;
+mod sim_trace;
 
 use closed_loop::scenario::{LoopOptions, Scenario, ScenarioLoop};
 use closed_loop::sim::ClosedLoopError;

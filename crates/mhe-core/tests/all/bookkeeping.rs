@@ -23,6 +23,85 @@ fn propagate(f: &Fixture, x0: &[f64], ws: &[f64], us: &[Vec<f64>]) -> Vec<f64> {
     x
 }
 
+/// Σ_t applied to zᴷ_{t−1}: z⁰_0 = x̄₀, while the window grows the previous variables with one
+/// zero stage appended, then Σ = I (`Paper`) or the shift by one stage (`Shifted`).
+fn check_warm_start(
+    f: &Fixture,
+    t: usize,
+    z0: &[f64],
+    prev_z: &[f64],
+    prev_theta: &[f64],
+    us: &[Vec<f64>],
+) {
+    let big_m = f.config.horizon;
+    let (nx, nw) = (f.sys.nx(), f.sys.nw());
+    if t == 0 {
+        assert_eq!(z0, &f.prior[..], "z⁰_0 = x̄₀");
+    } else if t <= big_m {
+        assert_eq!(
+            &z0[..prev_z.len()],
+            prev_z,
+            "t = {t}: previous variables kept"
+        );
+        assert!(
+            z0[prev_z.len()..].iter().all(|v| *v == 0.0),
+            "t = {t}: one zero stage appended"
+        );
+        assert_eq!(z0.len() - prev_z.len(), nw);
+    } else {
+        match f.config.warm_start {
+            WarmStart::Paper => assert_eq!(z0, prev_z, "t = {t}: Σ = I"),
+            WarmStart::Shifted => {
+                // Previous window started at t − 1 − M with input u_{t−1−M} = prev θ's u₀.
+                let u_old = &us[t - 1 - big_m];
+                assert_eq!(&prev_theta[nx..nx + f.sys.nu()], &u_old[..]);
+                let x_shift = propagate(
+                    f,
+                    &prev_z[..nx],
+                    &prev_z[nx..nx + nw],
+                    std::slice::from_ref(u_old),
+                );
+                for i in 0..nx {
+                    assert!((z0[i] - x_shift[i]).abs() < 1e-12);
+                }
+                assert_eq!(&z0[nx..nx + (big_m - 1) * nw], &prev_z[nx + nw..]);
+                assert!(z0[nx + (big_m - 1) * nw..].iter().all(|v| *v == 0.0));
+            }
+        }
+    }
+}
+
+/// Skipping the explicit estimates (push runs them) and `reset` reproduce the trajectory
+/// `estimates` of the run on (`us`, `ys`).
+fn check_push_and_reset(f: &Fixture, us: &[Vec<f64>], ys: &[Vec<f64>], estimates: &[Vec<f64>]) {
+    let steps = estimates.len();
+    let mut lazy = MheEstimator::new(&f.sys, &f.sets, &f.config, &f.prior, |qp| {
+        Ok(Fista::new(qp))
+    })
+    .unwrap();
+    for t in 0..steps {
+        lazy.push(&us[t], &ys[t]).unwrap();
+        assert_eq!(
+            lazy.last_record().x_hat(),
+            &estimates[t][..],
+            "implicit estimate at t = {t}"
+        );
+    }
+    // reset reproduces the run.
+    lazy.reset(&f.prior).unwrap();
+    assert_eq!(lazy.t(), 0);
+    for t in 0..steps {
+        assert_eq!(
+            lazy.estimate().unwrap(),
+            &estimates[t][..],
+            "after reset, t = {t}"
+        );
+        lazy.push(&us[t], &ys[t]).unwrap();
+    }
+}
+
+/// One run of `steps` steps (data from `seed`), each step checked against the direct
+/// construction from the full history.
 fn run_bookkeeping(f: &Fixture, steps: usize, seed: u64) {
     let big_m = f.config.horizon;
     let (nx, nw) = (f.sys.nx(), f.sys.nw());
@@ -41,41 +120,7 @@ fn run_bookkeeping(f: &Fixture, steps: usize, seed: u64) {
         // Σ_t applied to zᴷ_{t−1}.
         let z0 = mhe.warm_start_point().to_vec();
         assert_eq!(z0.len(), nx + m * nw);
-        if t == 0 {
-            assert_eq!(z0, f.prior, "z⁰_0 = x̄₀");
-        } else if t <= big_m {
-            assert_eq!(
-                &z0[..prev_z.len()],
-                &prev_z[..],
-                "t = {t}: previous variables kept"
-            );
-            assert!(
-                z0[prev_z.len()..].iter().all(|v| *v == 0.0),
-                "t = {t}: one zero stage appended"
-            );
-            assert_eq!(z0.len() - prev_z.len(), nw);
-        } else {
-            match f.config.warm_start {
-                WarmStart::Paper => assert_eq!(z0, prev_z, "t = {t}: Σ = I"),
-                WarmStart::Shifted => {
-                    // Previous window started at t − 1 − M with input u_{t−1−M} = prev θ's u₀.
-                    let u_old = &us[t - 1 - big_m];
-                    assert_eq!(&prev_theta[nx..nx + f.sys.nu()], &u_old[..]);
-                    let x_shift = propagate(
-                        f,
-                        &prev_z[..nx],
-                        &prev_z[nx..nx + nw],
-                        std::slice::from_ref(u_old),
-                    );
-                    for i in 0..nx {
-                        assert!((z0[i] - x_shift[i]).abs() < 1e-12);
-                    }
-                    assert_eq!(&z0[nx..nx + (big_m - 1) * nw], &prev_z[nx + nw..]);
-                    assert!(z0[nx + (big_m - 1) * nw..].iter().all(|v| *v == 0.0));
-                }
-            }
-        }
-
+        check_warm_start(f, t, &z0, &prev_z, &prev_theta, &us);
         let x_hat = mhe.estimate().unwrap().to_vec();
         let again = mhe.estimate().unwrap().to_vec();
         assert_eq!(x_hat, again, "estimate is idempotent at fixed t");
@@ -135,30 +180,7 @@ fn run_bookkeeping(f: &Fixture, steps: usize, seed: u64) {
         mhe.push(&us[t], &ys[t]).unwrap();
     }
 
-    // Skipping the explicit estimates: push runs them, same trajectory.
-    let mut lazy = MheEstimator::new(&f.sys, &f.sets, &f.config, &f.prior, |qp| {
-        Ok(Fista::new(qp))
-    })
-    .unwrap();
-    for t in 0..steps {
-        lazy.push(&us[t], &ys[t]).unwrap();
-        assert_eq!(
-            lazy.last_record().x_hat(),
-            &estimates[t][..],
-            "implicit estimate at t = {t}"
-        );
-    }
-    // reset reproduces the run.
-    lazy.reset(&f.prior).unwrap();
-    assert_eq!(lazy.t(), 0);
-    for t in 0..steps {
-        assert_eq!(
-            lazy.estimate().unwrap(),
-            &estimates[t][..],
-            "after reset, t = {t}"
-        );
-        lazy.push(&us[t], &ys[t]).unwrap();
-    }
+    check_push_and_reset(f, &us, &ys, &estimates);
 }
 
 #[test]

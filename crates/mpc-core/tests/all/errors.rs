@@ -27,8 +27,9 @@ fn model_name(e: &MpcError) -> Option<&str> {
     }
 }
 
+/// The horizon and the weights Q_c, R_c: typed errors naming the field.
 #[test]
-fn setup_errors_name_the_field() {
+fn setup_errors_name_the_weights() {
     let base = case_study_config;
     assert_eq!(
         build(MpcConfig {
@@ -88,7 +89,12 @@ fn setup_errors_name_the_field() {
         })),
         Some("R_c")
     );
+}
 
+/// The input and state sets and the terminal cost P_f: typed errors naming the field.
+#[test]
+fn setup_errors_name_the_sets_and_terminal_cost() {
+    let base = case_study_config;
     assert_eq!(
         model_name(&build(MpcConfig {
             input_set: BoxSet::symmetric(&[1.0]).unwrap(),
@@ -131,7 +137,11 @@ fn setup_errors_name_the_field() {
         })),
         Some("state_set")
     );
+}
 
+/// An unstabilisable plant (no DARE solution) and a bad LQR gain or weight: typed errors.
+#[test]
+fn dare_and_lqr_errors_name_the_field() {
     // (A, B) = (2, 0) is not stabilisable: the DARE has no stabilising solution.
     let sys = lti_model::LtiSystem::new(mat![[2.0]], mat![[0.0]], mat![[1.0]]).unwrap();
     let e = CondensedMpc::new(

@@ -134,12 +134,7 @@ pub fn certify_closed_loop_with(
     let c_norm = spectral_norm(sys.c());
     let (_, q_max) = sym_extreme_eigenvalues("Q", spec.q().as_ref())?;
 
-    // Assumption 2 (resolved once with the scenario).
-    let (ioss_cert, ioss_failure) = match resolved.ioss() {
-        Some(Ok(c)) => (Some(c.clone()), None),
-        Some(Err(e)) => (None, Some(IossFailure { error: e.clone() })),
-        None => return Err(ClosedLoopError::MissingSection { section: "mhe" }),
-    };
+    let (ioss_cert, ioss_failure) = assumption2(resolved)?;
     // MHE constants (need P). ℙ_t with the resolved P: the scenario's one problem, shared
     // with the simulation.
     let problem = ioss_cert
@@ -168,40 +163,26 @@ pub fn certify_closed_loop_with(
         .as_ref()
         .map(|c| (c.p_min_eigenvalue, c.p_max_eigenvalue))
         .unzip();
-    // The inputs every solver shares; φ's rate, prefactor and fit are the solver's own.
-    let shared = IssInputs {
-        horizon: m,
-        eta,
-        // The analysis's inputs keep NaN for "no P" (the premise "LMI (2) feasible" and
-        // the ones built from P then fail or are not evaluated).
-        p_min: p_min.unwrap_or(f64::NAN),
-        p_max: p_max.unwrap_or(f64::NAN),
-        q_max,
-        h_bar: h_bar.unwrap_or(f64::NAN),
-        // No value makes the premise "L_Phi finite" fail (not evaluated: no P).
-        l_phi: l_phi.certified.unwrap_or(f64::NAN),
-        l_pi: l_pi_used,
-        c_norm,
-        f_norm: spectral_norm(sys.f()),
-        gamma13: gamma13.used,
-        phi_rate: f64::NAN,
-        phi_prefactor: f64::NAN,
-        phi_fits_eq11: false,
-        lmi_certified: ioss_cert.is_some(),
+    let shared = shared_inputs(
+        (m, eta, q_max),
+        ioss_cert.as_ref(),
+        h_bar,
+        &l_phi,
+        l_pi_used,
+        gamma13.used,
+        sys,
+    );
+    let theorem1 = Theorem1Parts {
+        shared: &shared,
+        problem: problem.as_deref(),
+        mpc: &mpc,
+        gamma13: &gamma13,
+        l_phi_sampled: l_phi.sampled,
     };
     let solvers = opts
         .solvers
         .iter()
-        .map(|&solver| {
-            let theorem1 = Theorem1Parts {
-                shared: &shared,
-                problem: problem.as_deref(),
-                mpc: &mpc,
-                gamma13: &gamma13,
-                l_phi_sampled: l_phi.sampled,
-            };
-            theorem1.solver_certificate(solver, opts)
-        })
+        .map(|&solver| theorem1.solver_certificate(solver, opts))
         .collect::<Result<Vec<_>, _>>()?;
     times.theorem1_s = split();
     times.total_s = start.elapsed().as_secs_f64();
@@ -231,6 +212,49 @@ pub fn certify_closed_loop_with(
         lemma1_origin_offsets,
     };
     Ok((certificate, times))
+}
+
+/// Assumption 2 as resolved once with the scenario: the IOSS certificate, or why there is none.
+fn assumption2(
+    resolved: &ResolvedScenario,
+) -> Result<(Option<ioss::IossCertificate>, Option<IossFailure>), ClosedLoopError> {
+    match resolved.ioss() {
+        Some(Ok(c)) => Ok((Some(c.clone()), None)),
+        Some(Err(e)) => Ok((None, Some(IossFailure { error: e.clone() }))),
+        None => Err(ClosedLoopError::MissingSection { section: "mhe" }),
+    }
+}
+
+/// The inputs every solver shares; φ's rate, prefactor and fit are the solver's own.
+fn shared_inputs(
+    (m, eta, q_max): (usize, f64, f64),
+    ioss_cert: Option<&ioss::IossCertificate>,
+    h_bar: Option<f64>,
+    l_phi: &LPhiReport,
+    l_pi_used: f64,
+    gamma13_used: f64,
+    sys: &lti_model::LtiSystem,
+) -> IssInputs {
+    IssInputs {
+        horizon: m,
+        eta,
+        // The analysis's inputs keep NaN for "no P" (the premise "LMI (2) feasible" and
+        // the ones built from P then fail or are not evaluated).
+        p_min: ioss_cert.map_or(f64::NAN, |c| c.p_min_eigenvalue),
+        p_max: ioss_cert.map_or(f64::NAN, |c| c.p_max_eigenvalue),
+        q_max,
+        h_bar: h_bar.unwrap_or(f64::NAN),
+        // No value makes the premise "L_Phi finite" fail (not evaluated: no P).
+        l_phi: l_phi.certified.unwrap_or(f64::NAN),
+        l_pi: l_pi_used,
+        c_norm: spectral_norm(sys.c()),
+        f_norm: spectral_norm(sys.f()),
+        gamma13: gamma13_used,
+        phi_rate: f64::NAN,
+        phi_prefactor: f64::NAN,
+        phi_fits_eq11: false,
+        lmi_certified: ioss_cert.is_some(),
+    }
 }
 
 /// A stopwatch: each call returns the seconds since the previous one (since `start` at the

@@ -178,29 +178,121 @@ pub fn k_reg_probing(
         return Ok(none(Some(e.clone()), Some(e), None));
     }
     let pieces = model::pieces(resolved, method, options.controller)?;
-    let start = start_of(&pieces);
-    let mut budget = Budget::new(options.phase_seconds);
-    // The probe's own budget (the search's is not shared with it: its results are as
-    // without a probe).
-    let mut probe_budget = Budget::new(options.phase_seconds);
-    let mut tried = Vec::new();
-    let mut at_probe = None;
-    let eval = |k: usize,
-                tried: &mut Vec<(usize, f64)>,
-                at_probe: &mut Option<Probe>,
-                budget: &mut Budget| {
-        let r = certify_at(&pieces, method, k, options, budget).map(|r| r.0);
+    let mut search = Search {
+        pieces: &pieces,
+        method,
+        options,
+        probe,
+        start: start_of(&pieces),
+        budget: Budget::new(options.phase_seconds),
+        // The probe's own budget (the search's is not shared with it: its results are as
+        // without a probe).
+        probe_budget: Budget::new(options.phase_seconds),
+        tried: Vec::new(),
+        at_probe: None,
+    };
+    let Doubling {
+        mut found,
+        last,
+        mut stopped,
+        refuted_every_k,
+    } = search.double(k_max);
+    // The probe, when the bracketing skipped it: the margin need not be monotone, so a K
+    // below the last failing one is not known to fail. It runs after the search on its own
+    // budget (also when the search's budget ran out); over it, it is left out (`KReg::probe`
+    // stays None).
+    if found.is_none() && refuted_every_k.is_none() {
+        // No K of the doubling contains the set: the probe may (then the bisection below
+        // runs under it).
+        if let Some(p) = search.unprobed(k_max + 1) {
+            if let Ok(r) = search.eval(p, true) {
+                if r.as_ref().is_ok_and(|c| c.contains) {
+                    found = Some((p, r));
+                }
+            }
+        }
+    }
+    let Some((hi, best)) = found else {
+        let (certificate, void) = match last {
+            Some(Ok(c)) => (Some(c), None),
+            Some(Err(e)) => (None, Some(e)),
+            None => (None, stopped.clone()),
+        };
+        return Ok(search.finish(KReg {
+            k_reg: None,
+            certificate,
+            tried: Vec::new(),
+            void,
+            stopped,
+            refuted_every_k,
+            k_free: k_free.clone(),
+            spent_seconds: 0.0,
+            probe: None,
+        }));
+    };
+    let (hi, best) = search.bisect(hi, best, &mut stopped);
+    Ok(search.finish(KReg {
+        k_reg: Some(hi),
+        certificate: best.ok(),
+        tried: Vec::new(),
+        void: None,
+        stopped,
+        refuted_every_k: None,
+        k_free: k_free.clone(),
+        spent_seconds: 0.0,
+        probe: None,
+    }))
+}
+
+/// A certificate at one K, or why there is none.
+type Outcome = Result<RegionalCertificate, RegionalVoid>;
+
+/// The state one K_reg search carries across its evaluations: both budgets, every K tried
+/// with its margin, and the outcome at the probe.
+struct Search<'a> {
+    pieces: &'a model::Pieces,
+    method: qp_iter::Method,
+    options: &'a RegionalOptions,
+    probe: Option<usize>,
+    /// The smallest K with a certificate (the windows' start steps).
+    start: usize,
+    budget: Budget,
+    probe_budget: Budget,
+    tried: Vec<(usize, f64)>,
+    at_probe: Option<Probe>,
+}
+
+/// How the doubling K = start, 2·start, … ended.
+struct Doubling {
+    /// The first K whose certificate contains the set.
+    found: Option<(usize, Outcome)>,
+    /// The outcome at the last K tried when none contains it.
+    last: Option<Outcome>,
+    stopped: Option<RegionalVoid>,
+    refuted_every_k: Option<super::Limit>,
+}
+
+impl Search<'_> {
+    /// The outcome at K on the search's budget (`on_probe_budget`: the probe's). Err only
+    /// when the budget or the memory limit stops the evaluation; the K is then not tried.
+    fn eval(&mut self, k: usize, on_probe_budget: bool) -> Result<Outcome, RegionalVoid> {
+        let budget = if on_probe_budget {
+            &mut self.probe_budget
+        } else {
+            &mut self.budget
+        };
+        let r = certify_at(self.pieces, self.method, k, self.options, budget).map(|r| r.0);
         if let Err(e @ (RegionalVoid::OverBudget { .. } | RegionalVoid::OverMemory { .. })) = r {
             return Err(e);
         }
-        if probe == Some(k) {
-            *at_probe = Some(Probe {
+        if self.probe == Some(k) {
+            self.at_probe = Some(Probe {
                 k,
                 certificate: r.as_ref().ok().cloned(),
                 void: r.as_ref().err().cloned(),
             });
         }
-        tried.push((
+        self.tried.push((
             k,
             r.as_ref().map_or(f64::NAN, |c| {
                 if c.contains {
@@ -211,112 +303,99 @@ pub fn k_reg_probing(
             }),
         ));
         Ok(r)
-    };
-    let mut k = start;
-    let mut last = None;
-    let mut found = None;
-    let mut stopped = None;
-    let mut refuted_every_k = None;
-    loop {
-        let r = match eval(k, &mut tried, &mut at_probe, &mut budget) {
-            Ok(r) => r,
-            Err(why) => {
-                stopped = Some(why);
+    }
+
+    /// The probe, if it is in [start, `upper`) and was not tried.
+    fn unprobed(&self, upper: usize) -> Option<usize> {
+        self.probe
+            .filter(|&p| p >= self.start && p < upper && !self.tried.iter().any(|t| t.0 == p))
+    }
+
+    /// K = start, 2·start, … up to `k_max` until the certificate contains the set.
+    fn double(&mut self, k_max: usize) -> Doubling {
+        let mut k = self.start;
+        let mut out = Doubling {
+            found: None,
+            last: None,
+            stopped: None,
+            refuted_every_k: None,
+        };
+        loop {
+            let r = match self.eval(k, false) {
+                Ok(r) => r,
+                Err(why) => {
+                    out.stopped = Some(why);
+                    break;
+                }
+            };
+            if r.as_ref().is_ok_and(|c| c.contains) {
+                out.found = Some((k, r));
                 break;
             }
-        };
-        if r.as_ref().is_ok_and(|c| c.contains) {
-            found = Some((k, r));
-            break;
+            let every_k = r.as_ref().ok().and_then(|c| c.refuted_at_start.clone());
+            out.last = Some(r);
+            if let Some(l) = every_k {
+                out.refuted_every_k = Some(l);
+                break;
+            }
+            if k >= k_max {
+                break;
+            }
+            k = (k * 2).min(k_max);
         }
-        let every_k = r.as_ref().ok().and_then(|c| c.refuted_at_start.clone());
-        last = Some(r);
-        if let Some(l) = every_k {
-            refuted_every_k = Some(l);
-            break;
-        }
-        if k >= k_max {
-            break;
-        }
-        k = (k * 2).min(k_max);
+        out
     }
-    // The probe, when the bracketing skipped it: the margin need not be monotone, so a K
-    // below the last failing one is not known to fail. It runs after the search on its own
-    // budget (also when the search's budget ran out); over it, it is left out (`KReg::probe`
-    // stays None).
-    let unprobed = |tried: &[(usize, f64)], upper: usize| {
-        probe.filter(|&p| p >= start && p < upper && !tried.iter().any(|t| t.0 == p))
-    };
-    if found.is_none() && refuted_every_k.is_none() {
-        // No K of the doubling contains the set: the probe may (then the bisection below
-        // runs under it).
-        if let Some(p) = unprobed(&tried, k_max + 1) {
-            if let Ok(r) = eval(p, &mut tried, &mut at_probe, &mut probe_budget) {
-                if r.as_ref().is_ok_and(|c| c.contains) {
-                    found = Some((p, r));
+
+    /// Bisection below the passing `hi` (and the probe below it, on its own budget): the
+    /// smallest passing K found and its certificate.
+    fn bisect(
+        &mut self,
+        mut hi: usize,
+        mut best: Outcome,
+        stopped: &mut Option<RegionalVoid>,
+    ) -> (usize, Outcome) {
+        loop {
+            // Every K tried below the bracket top failed (the probe may sit below the last one).
+            let mut lo = self
+                .tried
+                .iter()
+                .map(|t| t.0)
+                .filter(|&t| t < hi)
+                .max()
+                .unwrap_or(self.start - 1);
+            while hi - lo > 1 && stopped.is_none() {
+                let mid = lo + (hi - lo) / 2;
+                match self.eval(mid, false) {
+                    Ok(r) if r.as_ref().is_ok_and(|c| c.contains) => {
+                        hi = mid;
+                        best = r;
+                    }
+                    Ok(_) => lo = mid,
+                    Err(why) => *stopped = Some(why),
                 }
             }
-        }
-    }
-    let Some((mut hi, mut best)) = found else {
-        let (certificate, void) = match last {
-            Some(Ok(c)) => (Some(c), None),
-            Some(Err(e)) => (None, Some(e)),
-            None => (None, stopped.clone()),
-        };
-        tried.sort_by_key(|t| t.0);
-        return Ok(KReg {
-            k_reg: None,
-            certificate,
-            tried,
-            void,
-            stopped,
-            refuted_every_k,
-            k_free: k_free.clone(),
-            spent_seconds: budget.total - budget.left + probe_budget.total - probe_budget.left,
-            probe: at_probe,
-        });
-    };
-    loop {
-        // Every K tried below the bracket top failed (the probe may sit below the last one).
-        let mut lo = tried
-            .iter()
-            .map(|t| t.0)
-            .filter(|&t| t < hi)
-            .max()
-            .unwrap_or(start - 1);
-        while hi - lo > 1 && stopped.is_none() {
-            let mid = lo + (hi - lo) / 2;
-            match eval(mid, &mut tried, &mut at_probe, &mut budget) {
+            let Some(p) = self.unprobed(hi) else {
+                break;
+            };
+            match self.eval(p, true) {
                 Ok(r) if r.as_ref().is_ok_and(|c| c.contains) => {
-                    hi = mid;
+                    hi = p;
                     best = r;
                 }
-                Ok(_) => lo = mid,
-                Err(why) => stopped = Some(why),
+                _ => break,
             }
         }
-        let Some(p) = unprobed(&tried, hi) else {
-            break;
-        };
-        match eval(p, &mut tried, &mut at_probe, &mut probe_budget) {
-            Ok(r) if r.as_ref().is_ok_and(|c| c.contains) => {
-                hi = p;
-                best = r;
-            }
-            _ => break,
-        }
+        (hi, best)
     }
-    tried.sort_by_key(|t| t.0);
-    Ok(KReg {
-        k_reg: Some(hi),
-        certificate: best.ok(),
-        tried,
-        void: None,
-        stopped,
-        refuted_every_k: None,
-        k_free: k_free.clone(),
-        spent_seconds: budget.total - budget.left + probe_budget.total - probe_budget.left,
-        probe: at_probe,
-    })
+
+    /// `out` with what the search carries filled in: K's tried (ascending), the seconds spent
+    /// on both budgets, the probe's outcome.
+    fn finish(mut self, mut out: KReg) -> KReg {
+        self.tried.sort_by_key(|t| t.0);
+        out.tried = self.tried;
+        out.spent_seconds =
+            self.budget.total - self.budget.left + self.probe_budget.total - self.probe_budget.left;
+        out.probe = self.at_probe;
+        out
+    }
 }

@@ -134,6 +134,34 @@ struct LoopState {
 }
 
 impl LoopState {
+    /// Step 0: x₀ = x̄₀ + a ball of radius `x0_radius`, the prior x₀ plus a ball of radius
+    /// `prior_error`, the warm start the prior.
+    fn initial(space: &mut Space, nx: usize, unc: &Uncertainty) -> Self {
+        let gx = space.add_ball(nx, unc.x0_radius);
+        let ge = space.add_ball(nx, unc.prior_error);
+        let cols = 1 + space.count();
+        let x = Mat::from_fn(nx, cols, |i, j| {
+            if j == 0 {
+                unc.x0_nominal[i]
+            } else if j == 1 + gx + i {
+                1.0
+            } else {
+                0.0
+            }
+        });
+        let prior = Mat::from_fn(nx, cols, |i, j| {
+            x[(i, j)] + f64::from(u8::from(j == 1 + ge + i))
+        });
+        LoopState {
+            x,
+            z0: prior.clone(),
+            prior,
+            us: Vec::new(),
+            ys: Vec::new(),
+            xhs: Vec::new(),
+        }
+    }
+
     /// Boxes generators past `cap` over every form still read later (the last M data).
     fn reduce(&mut self, space: &mut Space, big_m: usize, cap: usize) {
         let keep = self.us.len().saturating_sub(big_m);
@@ -249,29 +277,7 @@ pub(crate) fn propagate(
     let d = p.windows[0].layout.dims;
     let (nx, nw, nw1) = (d.nx, d.nw(), d.nw1);
     let mut space = Space::default();
-    let gx = space.add_ball(nx, unc.x0_radius);
-    let ge = space.add_ball(nx, unc.prior_error);
-    let cols = 1 + space.count();
-    let x = Mat::from_fn(nx, cols, |i, j| {
-        if j == 0 {
-            unc.x0_nominal[i]
-        } else if j == 1 + gx + i {
-            1.0
-        } else {
-            0.0
-        }
-    });
-    let prior = Mat::from_fn(nx, cols, |i, j| {
-        x[(i, j)] + f64::from(u8::from(j == 1 + ge + i))
-    });
-    let mut st = LoopState {
-        x,
-        z0: prior.clone(),
-        prior,
-        us: Vec::new(),
-        ys: Vec::new(),
-        xhs: Vec::new(),
-    };
+    let mut st = LoopState::initial(&mut space, nx, unc);
     let (mut hulls, mut active) = (Vec::with_capacity(steps), Vec::new());
     for t in 0..steps {
         if let Some((layout, f)) = hook.as_mut()
@@ -300,19 +306,7 @@ pub(crate) fn propagate(
             k,
             usize::MAX,
         );
-        for (j, status) in log.iter().enumerate() {
-            for (index, s) in status.iter().enumerate() {
-                if *s != ClipStatus::Inactive {
-                    active.push(ActiveClip {
-                        kind: RowKind::MheBox,
-                        step: t,
-                        iterate: j,
-                        index,
-                        status: *s,
-                    });
-                }
-            }
-        }
+        record_mhe_clips(&log, t, &mut active);
         let zk = match iterates.last() {
             Some(z) => space.widen(z.as_ref()),
             None => return Err(crate::linear::LinearError::ZeroIterations.into()),
@@ -320,17 +314,7 @@ pub(crate) fn propagate(
         let theta = space.widen(theta.as_ref());
         let xh = &ws.x_z * &zk + &ws.x_theta * &theta;
         let u = law(p, controller, &mut space, &xh, t, &mut active)?;
-        // w_t: new generators (the box's half-widths, or a ball of radius w̄).
-        let gw = match &unc.w {
-            WSet::Box(_) => space.add_intervals(nw),
-            WSet::Ball(r) => space.add_ball(nw, *r),
-        };
-        let cols = 1 + space.count();
-        let w = Mat::from_fn(nw, cols, |i, j| match (&unc.w, j == 1 + gw + i) {
-            (WSet::Box(h), true) => h[i],
-            (WSet::Ball(_), true) => 1.0,
-            _ => 0.0,
-        });
+        let w = disturbance(&mut space, &unc.w, nw);
         let (x, u, xh) = (
             space.widen(st.x.as_ref()),
             space.widen(u.as_ref()),
@@ -360,6 +344,37 @@ pub(crate) fn propagate(
         st.reduce(&mut space, big_m, cap);
     }
     Ok(Propagation { hulls, active })
+}
+
+/// The MHE box rows the iterates of step `t` clipped (`log`: per iterate, per row).
+fn record_mhe_clips(log: &[Vec<ClipStatus>], t: usize, active: &mut Vec<ActiveClip>) {
+    for (j, status) in log.iter().enumerate() {
+        for (index, s) in status.iter().enumerate() {
+            if *s != ClipStatus::Inactive {
+                active.push(ActiveClip {
+                    kind: RowKind::MheBox,
+                    step: t,
+                    iterate: j,
+                    index,
+                    status: *s,
+                });
+            }
+        }
+    }
+}
+
+/// w_t: new generators (the box's half-widths, or a ball of radius w̄).
+fn disturbance(space: &mut Space, set: &WSet, nw: usize) -> Mat<f64> {
+    let gw = match set {
+        WSet::Box(_) => space.add_intervals(nw),
+        WSet::Ball(r) => space.add_ball(nw, *r),
+    };
+    let cols = 1 + space.count();
+    Mat::from_fn(nw, cols, |i, j| match (set, j == 1 + gw + i) {
+        (WSet::Box(h), true) => h[i],
+        (WSet::Ball(_), true) => 1.0,
+        _ => 0.0,
+    })
 }
 
 /// The start-up certificate at one K: constraints may act for t < T; from T on no row is

@@ -89,17 +89,9 @@ fn norm(parts: &[&[f64]]) -> f64 {
         .sqrt()
 }
 
-/// Over `seeds` closed-loop trajectories (the std loop, its (u, y) fed to both estimators):
-/// (the largest measured/bound, the smallest bound/measured over steps with a nonzero
-/// deviation, the largest measured deviation).
-fn deviation_vs_bound(seeds: u64) -> (f64, f64, f64) {
-    let (sc, resolved) = scenario("case-study-certified.toml");
-    let cert = certificate(&resolved);
-    let k = sc.mhe.as_ref().expect("mhe section").iterations().get();
-    let sys = &sc.plant;
-    let ws = owned(&resolved);
-    let v64: Vec<mhe_embedded::Window<'_, f64>> = ws
-        .iter()
+/// The f64 windows as `mhe_embedded` reads them (PG, no scaling).
+fn windows64(ws: &[Owned]) -> Vec<mhe_embedded::Window<'_, f64>> {
+    ws.iter()
         .map(|w| mhe_embedded::Window {
             n: w.n,
             n_theta: w.nt,
@@ -117,9 +109,12 @@ fn deviation_vs_bound(seeds: u64) -> (f64, f64, f64) {
             relaxation: 0.0,
             structured: None,
         })
-        .collect();
-    let s32: Vec<[Vec<f32>; 5]> = ws
-        .iter()
+        .collect()
+}
+
+/// The f32 copies of each window's (H, q₀, F, lower, upper).
+fn singles(ws: &[Owned]) -> Vec<[Vec<f32>; 5]> {
+    ws.iter()
         .map(|w| {
             [
                 to32(&w.h),
@@ -129,10 +124,13 @@ fn deviation_vs_bound(seeds: u64) -> (f64, f64, f64) {
                 to32(&w.hi),
             ]
         })
-        .collect();
-    let v32: Vec<mhe_embedded::Window<'_, f32>> = ws
-        .iter()
-        .zip(&s32)
+        .collect()
+}
+
+/// The f32 windows over `singles(ws)`, the step rounded to f32.
+fn windows32<'a>(ws: &[Owned], s32: &'a [[Vec<f32>; 5]]) -> Vec<mhe_embedded::Window<'a, f32>> {
+    ws.iter()
+        .zip(s32)
         .map(|(w, s)| mhe_embedded::Window {
             n: w.n,
             n_theta: w.nt,
@@ -150,7 +148,35 @@ fn deviation_vs_bound(seeds: u64) -> (f64, f64, f64) {
             relaxation: 0.0,
             structured: None,
         })
-        .collect();
+        .collect()
+}
+
+/// One run of the std loop: its (u_t, y_t).
+fn trajectory(resolved: &ResolvedScenario, opts: &LoopOptions) -> Vec<(Vec<f64>, Vec<f64>)> {
+    let mut cl = resolved.build_loop(opts).expect("loop builds");
+    let trace = cl.run().expect("loop runs");
+    (0..trace.len())
+        .map(|t| {
+            (
+                trace.u(t).expect("u").to_vec(),
+                trace.y(t).expect("y").to_vec(),
+            )
+        })
+        .collect()
+}
+
+/// Over `seeds` closed-loop trajectories (the std loop, its (u, y) fed to both estimators):
+/// (the largest measured/bound, the smallest bound/measured over steps with a nonzero
+/// deviation, the largest measured deviation).
+fn deviation_vs_bound(seeds: u64) -> (f64, f64, f64) {
+    let (sc, resolved) = scenario("case-study-certified.toml");
+    let cert = certificate(&resolved);
+    let k = sc.mhe.as_ref().expect("mhe section").iterations().get();
+    let sys = &sc.plant;
+    let ws = owned(&resolved);
+    let v64 = windows64(&ws);
+    let s32 = singles(&ws);
+    let v32 = windows32(&ws, &s32);
     let rm = |m: faer::MatRef<'_, f64>| lti_model::matrix::row_major(m);
     let (a, b, e) = (rm(sys.a()), rm(sys.b()), rm(sys.e()));
     let (a32, b32, e32) = (to32(&a), to32(&b), to32(&e));
@@ -194,16 +220,7 @@ fn deviation_vs_bound(seeds: u64) -> (f64, f64, f64) {
     for seed in 0..seeds {
         let mut opts = LoopOptions::from_scenario(&sc).expect("loop options");
         opts.seed = seed;
-        let mut cl = resolved.build_loop(&opts).expect("loop builds");
-        let trace = cl.run().expect("loop runs");
-        let traj: Vec<(Vec<f64>, Vec<f64>)> = (0..trace.len())
-            .map(|t| {
-                (
-                    trace.u(t).expect("u").to_vec(),
-                    trace.y(t).expect("y").to_vec(),
-                )
-            })
-            .collect();
+        let traj = trajectory(&resolved, &opts);
         let mut bound = DeviationBound::new(&resolved, cert, Method::PG, k)
             .expect("scenario has an MHE")
             .expect("pg is covered in f32");

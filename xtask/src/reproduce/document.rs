@@ -439,7 +439,7 @@ pub(super) fn trace_document<'a>(
         runs: runs
             .iter()
             .map(|r| TraceRun {
-                summary: super::json_v1::run_summary(&r.summary),
+                summary: certificate_json::v1::RunSummary::from(&r.summary),
                 trace: &r.trace,
                 kalman: r.kalman.as_ref(),
             })

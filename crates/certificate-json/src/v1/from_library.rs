@@ -2,4 +2,5 @@
 
 mod gamma13_joint;
 mod regional_ioss;
+mod report;
 mod theorem1;

@@ -199,3 +199,21 @@ impl From<&mhe_report::regional::TriedK> for TriedK {
         }
     }
 }
+
+impl From<&mhe_report::SolverSummary> for SolverSummary {
+    fn from(l: &mhe_report::SolverSummary) -> Self {
+        Self {
+            solver: l.solver.name().to_string(),
+            simulated: l.simulated,
+            certified: l.certified,
+            k_min: l.k_min,
+            void_reasons: l.void_reasons.iter().map(ToString::to_string).collect(),
+            not_computed: l.not_computed.as_ref().map(NotComputed::from),
+            premises: l.premises.iter().map(Premise::from).collect(),
+            phi_rate: num(l.phi_rate),
+            phi_prefactor: num(l.phi_prefactor),
+            margin_at_k_min: l.margin_at_k_min.and_then(num),
+            k_min_with_sampled_l_phi: l.k_min_with_sampled_l_phi,
+        }
+    }
+}

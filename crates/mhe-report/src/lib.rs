@@ -40,6 +40,7 @@ use qp_iter::Method;
 
 mod comparison;
 pub mod gains;
+pub mod ioss;
 pub mod joint;
 pub mod linear;
 pub mod regional;

@@ -20,18 +20,6 @@ pub const MHE_COST: &str = "V = 2·η^{M_t}·‖x̂_{t−M_t} − prior‖²_P +
      ‖C x̂_{t−i} + F ŵ²_{t−i} − y_{t−i}‖²_R), x̂_{j+1} = A x̂_j + B u_j + E ŵ¹_j, ŵ_j ∈ 𝒲, \
      M_t = min(M, t); variables z = (x̂_{t−M_t}, ŵ_{t−M_t}, …, ŵ_{t−1})";
 
-impl From<&lti_model::LtiSystem> for PlantDims {
-    fn from(sys: &lti_model::LtiSystem) -> Self {
-        Self {
-            nx: sys.nx(),
-            nu: sys.nu(),
-            ny: sys.ny(),
-            nw1: sys.nw1(),
-            nw2: sys.nw2(),
-        }
-    }
-}
-
 /// A box with ±∞ bounds written as null.
 #[derive(Debug, Clone, PartialEq, Serialize)]
 pub struct BoxRecord {

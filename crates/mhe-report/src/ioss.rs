@@ -8,16 +8,26 @@
 //! A failed LMI is an outcome with `passed = false`, a [`IossFailure`] and an [`IossHint`];
 //! bad input is an [`IossError`].
 //!
-//! ```no_run
+//! ```
 //! use closed_loop::scenario::Scenario;
-//! use mhe_report::ioss::{IossRequest, ioss_certificate};
+//! use mhe_report::ioss::{IossFailure, IossHint, IossRequest, ioss_certificate};
 //!
-//! let scenario = Scenario::from_file("scenarios/case-study.toml")?;
+//! // A double integrator measured in position.
+//! let scenario = Scenario::from_toml_str(
+//!     r#"name = "double-integrator"
+//!     plant = { a = [[1.0, 0.1], [0.0, 1.0]], b = [[0.005], [0.1]], c = [[1.0, 0.0]] }
+//!     sets = { input = { lower = -1, upper = 1 }, disturbance = { lower = -0.01, upper = 0.01 } }
+//!     simulation = { x0 = [1.0, 0.0], steps = 20 }
+//!     mhe = { horizon = 5, eta = 0.8, iterations = 20 }"#,
+//! )?;
 //! let outcome = ioss_certificate(&scenario, &IossRequest::default())?;
-//! println!("LMI (2) at η = {}: passed = {}", outcome.eta, outcome.passed);
-//! if let Some(failure) = &outcome.failure {
-//!     println!("{failure}");
-//! }
+//! assert!(outcome.passed);
+//! // η = 0 is infeasible (x = (0, 1) is unobserved in one step and not annihilated by A):
+//! // one verdict, and the smallest feasible η as the hint.
+//! let at_zero = IossRequest { eta: Some(0.0), p: None };
+//! let failed = ioss_certificate(&scenario, &at_zero)?;
+//! assert!(matches!(failed.failure, Some(IossFailure::Infeasible { .. })));
+//! assert!(matches!(failed.hint, Some(IossHint::RaiseEta { eta_min }) if eta_min <= 0.8));
 //! # Ok::<(), Box<dyn std::error::Error>>(())
 //! ```
 

@@ -26,7 +26,7 @@ use std::path::{Path, PathBuf};
 
 use anyhow::{Context, Result};
 use closed_loop::ClosedLoopError;
-use closed_loop::scenario::{ResolvedScenario, Scenario};
+use closed_loop::scenario::Scenario;
 use iss_certificate::analysis::Premise;
 use iss_certificate::certificate::{
     CertificateOptions, ClosedLoopCertificate, Gamma13Source, TrajectoryCheck,
@@ -65,8 +65,6 @@ use summary::summarize;
 
 /// `format` of certificate.json (its schema is `certificate_json::v1`).
 pub const CERTIFICATE_FORMAT: &str = certificate_json::v1::CERTIFICATE_FORMAT;
-/// `format` of trace.json (its schema is `certificate_json::v1::TraceDocument`).
-pub const TRACE_FORMAT: &str = certificate_json::v1::TRACE_FORMAT;
 /// `format_version` of both files; bumped on any incompatible change.
 pub const FORMAT_VERSION: u32 = certificate_json::v1::CERTIFICATE_FORMAT_VERSION;
 /// Time step of the ŵ² panel of the presets (the paper's Fig. 2(c) shows t = 6).

@@ -4,6 +4,7 @@
 
 use super::*;
 use closed_loop::scenario::LoopOptions;
+use closed_loop::scenario::ResolvedScenario;
 use iss_certificate::certificate::certify_closed_loop;
 use iss_certificate::linear::linear_stability;
 use iss_certificate::regional::RegionalOptions;

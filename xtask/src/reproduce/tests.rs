@@ -124,7 +124,7 @@ fn both_presets_write_every_file() {
         let file = std::fs::read_to_string(workspace_root().join(preset.scenario_file())).unwrap();
         assert_eq!(text, file);
         let trace = read_json(&dir.join("trace.json"));
-        assert_eq!(trace["format"], TRACE_FORMAT);
+        assert_eq!(trace["format"], certificate_json::v1::TRACE_FORMAT);
     }
 }
 

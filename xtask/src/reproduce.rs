@@ -25,16 +25,14 @@ use std::fmt::Write as _;
 use std::path::{Path, PathBuf};
 
 use anyhow::{Context, Result};
-use closed_loop::scenario::{ResolvedScenario, Scenario};
-use closed_loop::{ClosedLoopError, Trace};
+use closed_loop::ClosedLoopError;
+use closed_loop::scenario::Scenario;
 use iss_certificate::analysis::Premise;
 use iss_certificate::certificate::{
-    CertificateOptions, ClosedLoopCertificate, Gamma13Source, SolverCertificate, TrajectoryCheck,
+    CertificateOptions, ClosedLoopCertificate, Gamma13Source, TrajectoryCheck,
 };
 use iss_certificate::plan::{KSource, RunOutcome};
 use lti_model::BoxSet;
-use lti_model::matrix::to_rows;
-use qp_iter::Method;
 use serde::Serialize;
 
 use crate::output::OutputSet;
@@ -67,8 +65,6 @@ use summary::summarize;
 
 /// `format` of certificate.json (its schema is `certificate_json::v1`).
 pub const CERTIFICATE_FORMAT: &str = certificate_json::v1::CERTIFICATE_FORMAT;
-/// `format` of trace.json.
-pub const TRACE_FORMAT: &str = "suboptimal-mhe/closed-loop-trace";
 /// `format_version` of both files; bumped on any incompatible change.
 pub const FORMAT_VERSION: u32 = certificate_json::v1::CERTIFICATE_FORMAT_VERSION;
 /// Time step of the ŵ² panel of the presets (the paper's Fig. 2(c) shows t = 6).
@@ -130,11 +126,6 @@ fn budget_lines(
         );
     }
 }
-
-/// The cost (9) as the MHE minimises it (docs/reproduce-output.md repeats it).
-pub const MHE_COST: &str = "V = 2·η^{M_t}·‖x̂_{t−M_t} − prior‖²_P + Σ_{i=1}^{M_t} η^{i−1}·(2‖ŵ_{t−i}‖²_Q + \
-     ‖C x̂_{t−i} + F ŵ²_{t−i} − y_{t−i}‖²_R), x̂_{j+1} = A x̂_j + B u_j + E ŵ¹_j, ŵ_j ∈ 𝒲, \
-     M_t = min(M, t); variables z = (x̂_{t−M_t}, ŵ_{t−M_t}, …, ŵ_{t−1})";
 
 fn relative(path: &Path) -> String {
     path.strip_prefix(workspace_root())

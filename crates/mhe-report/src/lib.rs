@@ -40,16 +40,19 @@ use qp_iter::Method;
 
 mod comparison;
 pub mod gains;
+pub mod ioss;
 pub mod joint;
 pub mod linear;
 pub mod regional;
 mod runs;
 mod stages;
+mod verdicts;
 mod work;
 
 pub use comparison::{ComparisonRow, paper_comparison, short_reason};
 pub use runs::{KalmanSummary, Run, RunSummary, kalman_baseline};
 pub use stages::{PlannedRun, SkippedRun, TrajectoryReport};
+pub use verdicts::SolverSummary;
 pub use work::{MAX_SIMULATION_ITERATIONS, MAX_SIMULATION_WORK, Work};
 
 /// Sampling, search and simulation settings (defaults: those of the shipped results). The

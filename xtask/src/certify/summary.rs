@@ -2,7 +2,8 @@
 
 use super::*;
 
-pub(super) fn summarize(d: &CertificateDocument) -> String {
+/// The summary of `check`, with the names and sources of its document `d`.
+pub(super) fn summarize(d: &v1::IossCertificate, check: &IossOutcome) -> String {
     let mut s = String::new();
     let _ = writeln!(
         s,
@@ -16,7 +17,7 @@ pub(super) fn summarize(d: &CertificateDocument) -> String {
         sys.nx, sys.nu, sys.ny, sys.nw1, sys.nw2
     );
     let i = &d.inputs;
-    let _ = writeln!(s, "  η            {} ({})", num(i.eta), i.eta_source);
+    let _ = writeln!(s, "  η            {} ({})", num(check.eta), i.eta_source);
     let _ = writeln!(
         s,
         "  Q, R         {}×{}, {}×{} ({})",
@@ -27,7 +28,7 @@ pub(super) fn summarize(d: &CertificateDocument) -> String {
         i.weights_source
     );
     let _ = writeln!(s, "  P            {}", i.p_source);
-    if let Some(c) = &d.certificate {
+    if let Some(c) = &check.certificate {
         if c.method != "user" {
             let _ = writeln!(
                 s,
@@ -62,7 +63,7 @@ pub(super) fn summarize(d: &CertificateDocument) -> String {
     if let Some(h) = &d.hint {
         let _ = writeln!(s, "  hint         {h}");
     }
-    if let Some(l) = &d.controller_lipschitz {
+    if let Some(l) = &check.controller_lipschitz {
         let _ = writeln!(s, "{}", lipschitz_block(l));
     }
     if let Some(why) = &d.controller_lipschitz_skipped {
@@ -71,7 +72,7 @@ pub(super) fn summarize(d: &CertificateDocument) -> String {
             "L_π (Assumption 3): not computed — {why} (the LMI (2) check above does not need it)"
         );
     }
-    if let Some(c) = &d.closed_loop {
+    if let Some(c) = &check.closed_loop {
         match c.covers() {
             Some(kind) => {
                 let _ = writeln!(

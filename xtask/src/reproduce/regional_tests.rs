@@ -4,6 +4,7 @@
 
 use super::*;
 use closed_loop::scenario::LoopOptions;
+use closed_loop::scenario::ResolvedScenario;
 use iss_certificate::certificate::certify_closed_loop;
 use iss_certificate::linear::linear_stability;
 use iss_certificate::regional::RegionalOptions;
@@ -199,14 +200,14 @@ fn a_k_lin_not_computed_says_so_and_why() {
         text.contains("K_lin not computed: the MHE window has n_z = 300 > 128"),
         "{text}"
     );
-    let json = serde_json::to_value(crate::reproduce::json_v1::regional_entry(&e))
+    let json = serde_json::to_value(certificate_json::v1::RegionalEntry::from(&e))
         .expect("an entry serialises");
     assert_eq!(json["k_lin_not_computed"], why);
     // Computed and none on the grid: the key is absent and the table says "none".
     let mut none = e;
     none.k_lin_not_computed = None;
     assert!(summary(std::slice::from_ref(&none)).contains("K_lin = none,"));
-    let json = serde_json::to_value(crate::reproduce::json_v1::regional_entry(&none))
+    let json = serde_json::to_value(certificate_json::v1::RegionalEntry::from(&none))
         .expect("an entry serialises");
     assert!(json.get("k_lin_not_computed").is_none());
 }

@@ -9,6 +9,7 @@
 
 use super::numfmt::num;
 use super::*;
+use iss_certificate::outcome::VoidReason;
 
 /// Footnotes: equal texts get one number.
 #[derive(Default)]
@@ -75,26 +76,26 @@ pub(super) fn screen(d: &CertificateDocument, out: &Path) -> String {
     );
     for sv in &d.solvers {
         let k_min = k_min_cell(sv, &mut notes);
-        let k_lin = k_lin_cell(d, &sv.solver, &mut notes);
-        let k_reg = k_reg_cell(d, &sv.solver, &mut notes);
+        let k_lin = k_lin_cell(d, &sv.solver.name(), &mut notes);
+        let k_reg = k_reg_cell(d, &sv.solver.name(), &mut notes);
         let gains = d
             .asymptotic_gains
             .methods
             .iter()
-            .find(|m| m.solver == sv.solver)
+            .find(|m| m.solver == sv.solver.name())
             .and_then(|m| m.theorem1.as_ref());
         let (g_e, g_x) = gains.map_or_else(
             || ("-".to_string(), "-".to_string()),
             |g| (num(g.gain_e), num(g.gain_x)),
         );
-        let simulated = if sv.solver == d.solver {
+        let simulated = if sv.solver.name() == d.solver {
             simulated_cell(d, &mut notes)
         } else {
             String::new()
         };
         let row = format!(
             "  {:<14} {k_min:>8} {k_lin:>8} {k_reg:>8} {g_e:>8} {g_x:>8}  {simulated}",
-            sv.solver
+            sv.solver.name()
         );
         let _ = writeln!(s, "{}", row.trim_end());
     }
@@ -126,7 +127,7 @@ pub(super) fn screen(d: &CertificateDocument, out: &Path) -> String {
 }
 
 /// K_min, or why there is none (void: the reasons, proved; not computed: the budget).
-fn k_min_cell(sv: &SolverSummary, notes: &mut Notes) -> String {
+fn k_min_cell(sv: &mhe_report::SolverSummary, notes: &mut Notes) -> String {
     if let Some(k) = sv.k_min {
         return k.to_string();
     }
@@ -140,7 +141,7 @@ fn k_min_cell(sv: &SolverSummary, notes: &mut Notes) -> String {
         .map(|p| p.name.as_str())
         .collect();
     let why = if !sv.void_reasons.is_empty() {
-        sv.void_reasons.join("; ")
+        VoidReason::join(&sv.void_reasons)
     } else if failed.is_empty() {
         "no K satisfies sg1 + sg2 + sg3 < 1".into()
     } else {

@@ -3,7 +3,6 @@
 //! the report. None re-reads or recomputes what the library computed.
 
 use super::*;
-use iss_certificate::coverage::CertificateKind;
 use mhe_report::{Report, ReportError};
 
 /// The work lines of a job: printed as they happen when the command is verbose and live
@@ -94,7 +93,14 @@ pub(super) fn write_traces(
     if runs.is_empty() {
         return Ok((files, figure_notes));
     }
-    let doc = trace_document(job, &p.resolved, record, provenance, runs)?;
+    let provenance = certificate_json::v1::Provenance::from(provenance);
+    let header = certificate_json::v1::TraceHeader {
+        preset: job.preset.as_ref().map(certificate_json::v1::Preset::from),
+        label: &job.label,
+        scenario: record,
+        provenance: &provenance,
+    };
+    let doc = certificate_json::v1::TraceDocument::new(header, &p.resolved, runs)?;
     files.push(
         set.add(
             "trace.json",
@@ -146,16 +152,12 @@ pub(super) fn document(
     figure_notes: Vec<String>,
 ) -> CertificateDocument {
     let (solver, scenario) = (report.solver, &report.scenario);
-    let cert = report.certificate;
-    let own = cert.solver(solver);
-    let (applicable, joint_cert) = (&report.applicable, &report.joint_certificate);
-    let solvers: Vec<SolverSummary> = (cert.solvers.iter())
-        .map(|s| SolverSummary::new(s, solver, scenario, report.controller))
-        .collect();
+    let solvers = report.solver_summaries();
+    let (certified, matches) = (report.certified(), report.iterations_match_k_min());
     let budget = crate::budget::reproduce(
         scenario,
         &(solvers.iter())
-            .map(|s| (s.solver.clone(), s.k_min))
+            .map(|s| (s.solver.name().to_string(), s.k_min))
             .collect::<Vec<_>>(),
     );
     CertificateDocument {
@@ -165,7 +167,7 @@ pub(super) fn document(
         label: job.label.clone(),
         scenario: record,
         provenance,
-        host: HostInfo::collect(),
+        host: host_info(),
         settings: SettingsRecord {
             sampling_seed: scenario.noise.seed,
             lipschitz_pairs: settings.lipschitz_pairs,
@@ -178,17 +180,11 @@ pub(super) fn document(
         },
         solver: solver.name().into(),
         scenario_iterations: report.iterations,
-        // The library decides whether some pair can be certified; Theorem 1's K_min says
-        // so, any other certificate needs the joint region's cheapest pair as well.
-        certified: applicable.may_certify()
-            && (applicable.kind() == Some(CertificateKind::Theorem1)
-                || joint_cert
-                    .as_ref()
-                    .is_some_and(|j| j.region.cheapest.is_some())),
-        certificate_applies: applicable.kind(),
+        certified,
+        certificate_applies: report.applicable.kind(),
         not_covered: report.not_covered,
         at_scenario: report.at_scenario,
-        scenario_iterations_match_k_min: own.and_then(|s| s.k_min).map(|k| k == report.iterations),
+        scenario_iterations_match_k_min: matches,
         solvers,
         budget,
         // The paper's published constants belong to its case study: shown for the two presets
@@ -210,6 +206,6 @@ pub(super) fn document(
             .map(|f| f.strip_prefix(&job.out).unwrap_or(f).display().to_string())
             .collect(),
         figure_notes,
-        certificate: cert,
+        certificate: report.certificate,
     }
 }

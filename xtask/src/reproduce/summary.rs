@@ -148,12 +148,12 @@ fn premises(s: &mut String, d: &CertificateDocument) {
                     .get(i)
                     .is_some_and(|q| q.holds == p.holds && q.value.to_bits() == p.value.to_bits())
             });
-            let rows: Vec<(&str, &Premise)> = if same {
-                vec![("all", p)]
+            let rows: Vec<(std::borrow::Cow<'_, str>, &Premise)> = if same {
+                vec![("all".into(), p)]
             } else {
                 d.solvers
                     .iter()
-                    .filter_map(|o| o.premises.get(i).map(|q| (o.solver.as_str(), q)))
+                    .filter_map(|o| o.premises.get(i).map(|q| (o.solver.name(), q)))
                     .collect()
             };
             for (who, q) in rows {
@@ -198,7 +198,7 @@ fn smallest_k(s: &mut String, d: &CertificateDocument) {
                 let _ = writeln!(
                     s,
                     "  {:<14} K_min = {k:<6} φ(K) = {}·{}^K, margin 1 − Σsg = {}; with sampled L_Φ: {}{mark}",
-                    sv.solver,
+                    sv.solver.name(),
                     num(sv.phi_prefactor),
                     rate(sv.phi_rate),
                     opt(sv.margin_at_k_min),
@@ -211,7 +211,7 @@ fn smallest_k(s: &mut String, d: &CertificateDocument) {
                     .not_computed
                     .as_ref()
                     .map_or_else(String::new, ToString::to_string);
-                let _ = writeln!(s, "  {:<14} {nc}{mark}", sv.solver);
+                let _ = writeln!(s, "  {:<14} {nc}{mark}", sv.solver.name());
             }
             None => {
                 // The fixes are printed with the premises above; here the names only.
@@ -222,11 +222,11 @@ fn smallest_k(s: &mut String, d: &CertificateDocument) {
                     .map(|p| p.name.as_str())
                     .collect();
                 let why = if failed.is_empty() {
-                    sv.void_reasons.join("; ")
+                    VoidReason::join(&sv.void_reasons)
                 } else {
                     format!("{} fails (see the fix above)", failed.join(", "))
                 };
-                let _ = writeln!(s, "  {:<14} void: {why}{mark}", sv.solver);
+                let _ = writeln!(s, "  {:<14} void: {why}{mark}", sv.solver.name());
             }
         }
     }

@@ -124,7 +124,7 @@ fn both_presets_write_every_file() {
         let file = std::fs::read_to_string(workspace_root().join(preset.scenario_file())).unwrap();
         assert_eq!(text, file);
         let trace = read_json(&dir.join("trace.json"));
-        assert_eq!(trace["format"], TRACE_FORMAT);
+        assert_eq!(trace["format"], certificate_json::v1::TRACE_FORMAT);
     }
 }
 
@@ -191,7 +191,7 @@ fn paper_preset_is_void_for_every_solver_and_prints_no_k() {
 fn certified_preset_uses_the_computed_k_min_which_the_file_records() {
     let f = fixture();
     let d = &f.certified.document;
-    let pg = d.solvers.iter().find(|s| s.solver == "pg").unwrap();
+    let pg = d.solvers.iter().find(|s| s.solver.name() == "pg").unwrap();
     let k_min = pg.k_min.unwrap();
     // The scenario file states K = K_min of PG; it must be kept in sync with the code.
     let file =
@@ -558,7 +558,7 @@ fn infeasible_lmi_gives_a_void_certificate_that_names_the_lmi() {
         assert!(
             s.void_reasons
                 .iter()
-                .any(|r| r.starts_with("LMI (2) feasible fails")),
+                .any(|r| r.to_string().starts_with("LMI (2) feasible fails")),
             "{:?}",
             s.void_reasons
         );

@@ -1,5 +1,7 @@
 //! `From<&library type>` for the records of [`super::outcomes`].
 
 mod gamma13_joint;
+mod plant;
 mod regional_ioss;
+mod report;
 mod theorem1;

@@ -16,10 +16,12 @@ mod documents;
 mod from_library;
 mod method;
 mod outcomes;
+mod trace;
 
 pub use documents::*;
 pub use method::Method;
 pub use outcomes::*;
+pub use trace::*;
 
 /// `format` of `certificate.json` (`cargo xtask reproduce`).
 pub const CERTIFICATE_FORMAT: &str = "suboptimal-mhe/closed-loop-certificate";

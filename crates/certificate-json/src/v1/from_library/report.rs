@@ -1,0 +1,219 @@
+//! `From<&library type>` for the records of `mhe_report`'s report (the simulations, the
+//! trajectory check, the gains, ρ_lin, K_reg, the joint check, the paper comparison).
+
+use super::super::*;
+
+impl From<&mhe_report::ComparisonRow> for ComparisonRow {
+    fn from(l: &mhe_report::ComparisonRow) -> Self {
+        Self {
+            quantity: l.quantity.to_string(),
+            ours: l.ours.to_string(),
+            paper: l.paper.to_string(),
+        }
+    }
+}
+
+impl From<&mhe_report::KalmanSummary> for KalmanSummary {
+    fn from(l: &mhe_report::KalmanSummary) -> Self {
+        Self {
+            weights: l.weights.to_string(),
+            completed: l.completed,
+            sup_norm_e: num(l.sup_norm_e),
+            tail_mean_e: l.tail_mean_e.and_then(num),
+            diverged: l.diverged,
+            divergence: l.divergence.as_ref().map(Divergence::from),
+            error: l.error.as_ref().map(ToString::to_string),
+        }
+    }
+}
+
+impl From<&mhe_report::RunSummary> for RunSummary {
+    fn from(l: &mhe_report::RunSummary) -> Self {
+        Self {
+            label: l.label.to_string(),
+            k: l.k,
+            k_source: KSource::from(&l.k_source),
+            solver: l.solver.to_string(),
+            controller: l.controller.to_string(),
+            exact_mhe_solve: l.exact_mhe_solve,
+            seed: l.seed,
+            steps: l.steps,
+            completed: l.completed,
+            error: l.error.as_ref().map(ToString::to_string),
+            diverged: l.diverged,
+            diverged_at: l.diverged_at,
+            signal: l.signal.as_ref().map(Signal::from),
+            divergence: l.divergence.as_ref().map(Divergence::from),
+            mpc_infeasible_steps: l.mpc_infeasible_steps,
+            sup_norm_e: num(l.sup_norm_e),
+            sup_norm_x: num(l.sup_norm_x),
+            final_norm_x: num(l.final_norm_x),
+            tail_mean_e: l.tail_mean_e.and_then(num),
+            tail_mean_x: l.tail_mean_x.and_then(num),
+            tail_mean_epsilon: l.tail_mean_epsilon.and_then(num),
+            w_outside: l.w_outside,
+            w_outside_first: l.w_outside_first,
+            kalman: l.kalman.as_ref().map(KalmanSummary::from),
+        }
+    }
+}
+
+impl From<&mhe_report::SkippedRun> for SkippedRun {
+    fn from(l: &mhe_report::SkippedRun) -> Self {
+        Self {
+            k: l.k,
+            k_source: KSource::from(&l.k_source),
+            reason: l.reason.to_string(),
+        }
+    }
+}
+
+impl From<&mhe_report::TrajectoryReport> for TrajectoryReport {
+    fn from(l: &mhe_report::TrajectoryReport) -> Self {
+        Self {
+            ran: l.ran,
+            reason: l.reason.as_ref().map(ToString::to_string),
+            solver: l.solver.to_string(),
+            k: l.k,
+            seed: l.seed,
+            steps: l.steps,
+            certified_l_phi: l.certified_l_phi.as_ref().map(TrajectoryCheck::from),
+            sampled_l_phi: l.sampled_l_phi.as_ref().map(TrajectoryCheck::from),
+            passed: l.passed,
+        }
+    }
+}
+
+impl From<&mhe_report::gains::CertifiedBound> for CertifiedBound {
+    fn from(l: &mhe_report::gains::CertifiedBound) -> Self {
+        Self {
+            gain_x: num(l.gain_x),
+            gain_epsilon: num(l.gain_epsilon),
+            gain_e: num(l.gain_e),
+            bound_x: num(l.bound_x),
+            bound_epsilon: num(l.bound_epsilon),
+            bound_e: num(l.bound_e),
+        }
+    }
+}
+
+impl From<&mhe_report::gains::GainsReport> for GainsReport {
+    fn from(l: &mhe_report::gains::GainsReport) -> Self {
+        Self {
+            meaning: l.meaning.to_string(),
+            methods: l.methods.iter().map(MethodGains::from).collect(),
+            runs: l.runs.iter().map(RunGains::from).collect(),
+        }
+    }
+}
+
+impl From<&mhe_report::gains::MethodGains> for MethodGains {
+    fn from(l: &mhe_report::gains::MethodGains) -> Self {
+        Self {
+            solver: l.solver.to_string(),
+            k_min: l.k_min,
+            theorem1: l.theorem1.as_ref().map(AsymptoticGains::from),
+            theorem1_void: l.theorem1_void.as_ref().map(ToString::to_string),
+            regional: l.regional.as_ref().map(RegionalGains::from),
+            regional_void: l.regional_void.as_ref().map(ToString::to_string),
+        }
+    }
+}
+
+impl From<&mhe_report::gains::RegionalGains> for RegionalGains {
+    fn from(l: &mhe_report::gains::RegionalGains) -> Self {
+        Self {
+            k: l.k,
+            gain_x: num(l.gain_x),
+            gain_e: num(l.gain_e),
+            contains: l.contains,
+            w_bar: num(l.w_bar),
+        }
+    }
+}
+
+impl From<&mhe_report::gains::RunGains> for RunGains {
+    fn from(l: &mhe_report::gains::RunGains) -> Self {
+        Self {
+            label: l.label.to_string(),
+            k: l.k,
+            controller: l.controller.to_string(),
+            w_bar: l.w_bar.and_then(num),
+            certified: l.certified.as_ref().map(CertifiedBound::from),
+            certified_void: l.certified_void.as_ref().map(ToString::to_string),
+            measured: l.measured.as_ref().map(MeasuredGains::from),
+        }
+    }
+}
+
+impl From<&mhe_report::joint::JointReport> for JointReport {
+    fn from(l: &mhe_report::joint::JointReport) -> Self {
+        Self {
+            scenario_k_c: l.scenario_k_c,
+            certificate: JointCertificate::from(&l.certificate),
+            trajectory: l.trajectory.as_ref().map(JointTrajectoryCheck::from),
+            replay_mismatch: l.replay_mismatch.and_then(num),
+            reason: l.reason.as_ref().map(ToString::to_string),
+        }
+    }
+}
+
+impl From<&mhe_report::linear::LinearEntry> for LinearEntry {
+    fn from(l: &mhe_report::linear::LinearEntry) -> Self {
+        Self {
+            solver: l.solver.to_string(),
+            report: l.report.as_ref().map(LinearReport::from),
+            error: l.error.as_ref().map(ToString::to_string),
+        }
+    }
+}
+
+impl From<&mhe_report::regional::RegionalEntry> for RegionalEntry {
+    fn from(l: &mhe_report::regional::RegionalEntry) -> Self {
+        Self {
+            solver: l.solver.to_string(),
+            k_lin: l.k_lin,
+            k_lin_not_computed: l.k_lin_not_computed.as_ref().map(ToString::to_string),
+            k_min: l.k_min,
+            k_reg: l.k_reg,
+            search_max: l.search_max,
+            search_max_reason: l.search_max_reason.to_string(),
+            k: l.k,
+            certificate: l.certificate.as_ref().map(RegionalCertificate::from),
+            tried: l.tried.iter().map(TriedK::from).collect(),
+            void: l.void.as_ref().map(ToString::to_string),
+            refuted_every_k: l.refuted_every_k.as_ref().map(Limit::from),
+            k_free: l.k_free.as_ref().map(KFreeLimits::from),
+            uncertainty: l.uncertainty.as_ref().map(RegionalOptions::from),
+            at_two_k_lin: l.at_two_k_lin.as_ref().map(ProbeNote::from),
+        }
+    }
+}
+
+impl From<&mhe_report::regional::TriedK> for TriedK {
+    fn from(l: &mhe_report::regional::TriedK) -> Self {
+        Self {
+            k: l.k,
+            margin: num(l.margin),
+            contains: l.contains,
+        }
+    }
+}
+
+impl From<&mhe_report::SolverSummary> for SolverSummary {
+    fn from(l: &mhe_report::SolverSummary) -> Self {
+        Self {
+            solver: l.solver.name().to_string(),
+            simulated: l.simulated,
+            certified: l.certified,
+            k_min: l.k_min,
+            void_reasons: l.void_reasons.iter().map(ToString::to_string).collect(),
+            not_computed: l.not_computed.as_ref().map(NotComputed::from),
+            premises: l.premises.iter().map(Premise::from).collect(),
+            phi_rate: num(l.phi_rate),
+            phi_prefactor: num(l.phi_prefactor),
+            margin_at_k_min: l.margin_at_k_min.and_then(num),
+            k_min_with_sampled_l_phi: l.k_min_with_sampled_l_phi,
+        }
+    }
+}

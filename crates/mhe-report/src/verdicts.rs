@@ -1,0 +1,102 @@
+//! The report's verdicts, one place each: per method the flattened Theorem 1 verdict
+//! ([`SolverSummary`]) and the scenario's own verdict ([`Report::certified`]), which
+//! `certificate.json`, the terminal summaries and the tests all read.
+
+use iss_certificate::analysis::Premise;
+use iss_certificate::budget::NotComputed;
+use iss_certificate::certificate::SolverCertificate;
+use iss_certificate::coverage::CertificateKind;
+use iss_certificate::outcome::VoidReason;
+use qp_iter::Method;
+
+use crate::Report;
+
+/// One method's verdict of Theorem 1, flattened: K_min or why there is none, the premises,
+/// φ(K), and whether a certificate covers the scenario's configuration with this method.
+#[derive(Debug, Clone, PartialEq)]
+#[non_exhaustive]
+pub struct SolverSummary {
+    /// The method Φ.
+    pub solver: Method,
+    /// Whether this is the scenario's `mhe.method` (the one simulated).
+    pub simulated: bool,
+    /// Theorem 1 certifies ISS for some K (K_min exists) and a certificate covers the
+    /// scenario's configuration (false for a shifted warm start or the saturated LQR:
+    /// [`iss_certificate::coverage::solver_certified`]).
+    pub certified: bool,
+    /// Smallest certified K; None when void or not computed.
+    pub k_min: Option<usize>,
+    /// Why there is no K_min (empty when there is one, and when it was not computed).
+    pub void_reasons: Vec<VoidReason>,
+    /// Not certified and not void: the analysis budget stopped the phase that decides it.
+    pub not_computed: Option<NotComputed>,
+    /// Every premise with pass/fail, value, margin and fix.
+    pub premises: Vec<Premise>,
+    /// φ(K) = prefactor · rateᴷ: the rate.
+    pub phi_rate: f64,
+    /// Prefactor of φ(K).
+    pub phi_prefactor: f64,
+    /// 1 − (sg1 + sg2 + sg3) = det(I − Γ) at K_min, > 0 iff ρ(Γ) < 1 (None when void).
+    pub margin_at_k_min: Option<f64>,
+    /// K_min with the sampled L_Φ instead of the certified bound (not a certificate).
+    pub k_min_with_sampled_l_phi: Option<usize>,
+}
+
+impl SolverSummary {
+    /// The summary of `sc` in `report`'s scenario (its method simulated, its controller).
+    fn new(report: &Report, sc: &SolverCertificate) -> Self {
+        Self {
+            solver: sc.solver,
+            simulated: sc.solver == report.solver,
+            certified: iss_certificate::coverage::solver_certified(
+                &report.scenario,
+                sc,
+                report.controller,
+            ),
+            k_min: sc.k_min,
+            void_reasons: sc.void_reasons.clone(),
+            not_computed: sc.not_computed.clone(),
+            premises: sc.analysis.premises.clone(),
+            phi_rate: sc.phi_rate,
+            phi_prefactor: sc.phi_prefactor,
+            margin_at_k_min: sc.at_k_min.as_ref().map(|g| g.margin),
+            k_min_with_sampled_l_phi: sc.k_min_with_sampled_l_phi,
+        }
+    }
+}
+
+impl Report {
+    /// Theorem 1's verdict of every method, in the certificate's order.
+    ///
+    /// ```no_run
+    /// # use closed_loop::scenario::Scenario;
+    /// let scenario = Scenario::from_file("scenarios/case-study-certified.toml")?;
+    /// let report = mhe_report::report(scenario, &mhe_report::Options::default(), &mhe_report::Quiet)?;
+    /// for s in report.solver_summaries() {
+    ///     println!("{}: K_min = {:?}, covered: {}", s.solver, s.k_min, s.certified);
+    /// }
+    /// println!("the scenario's configuration can be certified: {}", report.certified());
+    /// # Ok::<(), Box<dyn std::error::Error>>(())
+    /// ```
+    pub fn solver_summaries(&self) -> Vec<SolverSummary> {
+        (self.certificate.solvers.iter())
+            .map(|s| SolverSummary::new(self, s))
+            .collect()
+    }
+
+    /// Some pair (K, K_c) of the scenario's configuration is certified: a certificate covers
+    /// it and, for Theorem 1, its method has a K_min; any other certificate needs the joint
+    /// region's cheapest pair as well.
+    pub fn certified(&self) -> bool {
+        self.applicable.may_certify()
+            && (self.applicable.kind() == Some(CertificateKind::Theorem1)
+                || (self.joint_certificate.as_ref()).is_some_and(|j| j.region.cheapest.is_some()))
+    }
+
+    /// `mhe.iterations` equals the K_min of the scenario's method (None when void).
+    pub fn iterations_match_k_min(&self) -> Option<bool> {
+        (self.certificate.solver(self.solver))
+            .and_then(|s| s.k_min)
+            .map(|k| k == self.iterations)
+    }
+}

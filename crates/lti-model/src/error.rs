@@ -91,6 +91,15 @@ pub enum ModelError {
         /// What happened and what to try.
         reason: String,
     },
+    /// A value given through a Rust builder was refused: the checks of the scenario file,
+    /// named by the Rust item the value came from ([`ModelError::for_rust`]).
+    #[error("{field}: {problem}")]
+    Invalid {
+        /// The Rust item (`MheBuilder::eta`, `LtiSystem::a`, `MpcBuilder::r`).
+        field: String,
+        /// What is wrong and how to fix it.
+        problem: String,
+    },
     /// A scenario file could not be parsed or validated.
     #[error("scenario: key `{key}`: {problem}")]
     Scenario {

@@ -178,9 +178,9 @@ fn refused(b: LoopModelBuilder) -> (String, String) {
 fn bad_mhe_values_name_mhe_settings_fields() {
     let (field, text) =
         refused(small(plant()).mhe(MheSettings::builder().horizon(3).eta(1.2).iterations(10)));
-    assert_eq!(field, "MheSettings::eta");
+    assert_eq!(field, "MheBuilder::eta");
     assert!(
-        text.starts_with("MheSettings::eta: is 1.2, but η must lie in [0, 1)"),
+        text.starts_with("MheBuilder::eta: is 1.2, but η must lie in [0, 1)"),
         "{text}"
     );
     let (field, _) = refused(
@@ -191,15 +191,15 @@ fn bad_mhe_values_name_mhe_settings_fields() {
                 .iterations(10),
         ),
     );
-    assert_eq!(field, "MheSettings::eta");
+    assert_eq!(field, "MheBuilder::eta");
     let (field, _) =
         refused(small(plant()).mhe(MheSettings::builder().horizon(0).eta(0.5).iterations(10)));
-    assert_eq!(field, "MheSettings::horizon");
+    assert_eq!(field, "MheBuilder::horizon");
     let (field, _) =
         refused(small(plant()).mhe(MheSettings::builder().horizon(3).eta(0.5).iterations(0)));
-    assert_eq!(field, "MheSettings::iterations");
+    assert_eq!(field, "MheBuilder::iterations");
     let (field, text) = refused(small(plant()).mhe(MheSettings::builder().horizon(3).eta(0.5)));
-    assert_eq!(field, "MheSettings::iterations", "{text}");
+    assert_eq!(field, "MheBuilder::iterations", "{text}");
     assert!(text.ends_with("e.g. `.iterations(50)`"), "{text}");
     // Q must be n_w × n_w (3 × 3) and positive definite.
     let not_pd = Mat::from_fn(3, 3, |i, j| if i == j { -1.0 } else { 0.0 });
@@ -212,7 +212,7 @@ fn bad_mhe_values_name_mhe_settings_fields() {
                 .q(&not_pd),
         ),
     );
-    assert_eq!(field, "MheSettings::q");
+    assert_eq!(field, "MheBuilder::q");
     let (field, _) = refused(
         small(plant()).mhe(
             MheSettings::builder()
@@ -222,7 +222,7 @@ fn bad_mhe_values_name_mhe_settings_fields() {
                 .r(&Mat::identity(2, 2)),
         ),
     );
-    assert_eq!(field, "MheSettings::r");
+    assert_eq!(field, "MheBuilder::r");
     // A horizon whose MHE setup exceeds the memory limit: refused before anything is built.
     let (field, _) = refused(
         small(plant()).mhe(
@@ -232,7 +232,7 @@ fn bad_mhe_values_name_mhe_settings_fields() {
                 .iterations(10),
         ),
     );
-    assert_eq!(field, "MheSettings::horizon");
+    assert_eq!(field, "MheBuilder::horizon");
 }
 
 #[test]
@@ -262,12 +262,12 @@ fn bad_plant_sets_and_mpc_values_name_rust_items() {
     assert_eq!(field, "LoopModelBuilder::w_bar");
     // The MPC: N = 0, N beyond the dense-memory limit, R_c not positive definite.
     let (field, _) = refused(small(plant()).mpc_horizon(0));
-    assert_eq!(field, "MpcSettings::horizon");
+    assert_eq!(field, "MpcBuilder::horizon");
     let (field, text) = refused(small(plant()).mpc_horizon(1 << 24));
-    assert_eq!(field, "MpcSettings::horizon", "{text}");
+    assert_eq!(field, "MpcBuilder::horizon", "{text}");
     let bad_r = MpcSettings::builder().horizon(3).r(&mat![[0.0]]);
     let (field, _) = refused(small(plant()).mpc(bad_r));
-    assert_eq!(field, "MpcSettings::r");
+    assert_eq!(field, "MpcBuilder::r");
 }
 
 #[test]

@@ -42,13 +42,13 @@ use closed_loop::scenario::{
     CertificateSettings, ControllerChoice, MAX_PHASE_SECONDS, ResolvedScenario, Scenario,
 };
 use closed_loop::sim::ClosedLoopError;
+use lti_model::spec::names::PLANT_NAMES;
 use lti_model::spec::plant::{
     RawBox, RawPlant, RawSets, RawSimulation, validate_noise, validate_plant, validate_sets,
     validate_simulation,
 };
 use lti_model::spec::{Bounds, MatrixSpec, Table};
 use lti_model::{LtiSystem, ModelError};
-use lti_model::spec::names::PLANT_NAMES;
 use mhe_core::MheBuilder;
 use mhe_core::builder::MHE_NAMES;
 use mpc_core::settings::MPC_NAMES;
@@ -545,6 +545,16 @@ impl Certificate {
     /// K_min of every certified method, in the order of [`CertifyOptions::methods`].
     pub fn k_mins(&self) -> impl Iterator<Item = (Method, Option<usize>)> + '_ {
         self.closed_loop.solvers.iter().map(|s| (s.solver, s.k_min))
+    }
+
+    /// "Is my K certified?" for every certified method: K_min and the verdict at `k`
+    /// ([`Certificate::verdict`]), in the order of [`CertifyOptions::methods`].
+    pub fn verdicts(
+        &self,
+        k: usize,
+    ) -> impl Iterator<Item = (Method, Option<usize>, PairVerdict)> + '_ {
+        self.k_mins()
+            .map(move |(method, k_min)| (method, k_min, self.verdict(method, k)))
     }
 
     /// What Theorem 1 guarantees at K for `method`: lim sup‖e_t‖ ≤ g_e·w̄,

@@ -175,7 +175,7 @@ fn refused(b: LoopModelBuilder) -> (String, String) {
 }
 
 #[test]
-fn bad_mhe_values_name_mhe_settings_fields() {
+fn bad_mhe_values_name_mhe_builder_methods() {
     let (field, text) =
         refused(small(plant()).mhe(MheSettings::builder().horizon(3).eta(1.2).iterations(10)));
     assert_eq!(field, "MheBuilder::eta");
@@ -325,6 +325,12 @@ fn verdict_gains_and_w_bar_of_a_small_model() {
     let k = cert.k_min(Method::PG).expect("certified");
     assert_eq!(cert.verdict(Method::PG, k).certified.as_str(), "yes");
     assert_eq!(cert.verdict(Method::PG, k - 1).certified.as_str(), "no");
+    // `verdicts` is K_min and `verdict` per method, and `Certified` prints as `as_str`.
+    let all: Vec<_> = cert.verdicts(k - 1).collect();
+    assert_eq!(all.len(), 1);
+    assert_eq!((all[0].0, all[0].1), (Method::PG, Some(k)));
+    assert_eq!(all[0].2, cert.verdict(Method::PG, k - 1));
+    assert_eq!(all[0].2.certified.to_string(), "no");
     let g = cert.gains(Method::PG, k).expect("gains at K_min");
     assert!(g.gain_e.is_finite() && g.gain_e > 0.0 && g.gain_x.is_finite());
     assert!(cert.gains(Method::PG, k - 1).is_err());
@@ -337,4 +343,33 @@ fn verdict_gains_and_w_bar_of_a_small_model() {
         v.reason_text()
     );
     assert!(cert.gains(Method::FISTA, k).is_err());
+}
+
+/// Issue 38: a user's first certified MHE on their own plant in ≤ 15 lines of Rust, two
+/// crates, no TOML and no string keys; the README shows the example as it is.
+#[test]
+fn first_certificate_fits_15_lines() {
+    let dir = env!("CARGO_MANIFEST_DIR");
+    let example = std::fs::read_to_string(format!("{dir}/examples/first_certificate.rs"))
+        .expect("the example");
+    let code = &example[example.find("use ").expect("a use line")..];
+    let lines: Vec<&str> = code
+        .lines()
+        .map(str::trim)
+        .filter(|l| !l.is_empty() && !l.starts_with("//"))
+        .collect();
+    assert!(lines.len() <= 15, "{} lines:\n{}", lines.len(), lines.join("\n"));
+    let crates: Vec<&str> = lines
+        .iter()
+        .filter_map(|l| l.strip_prefix("use ")?.split("::").next())
+        .collect();
+    assert_eq!(crates, ["iss_certificate", "lti_model"]);
+    for needle in ["toml", "Scenario", "mhe.", "mpc.", "\"["] {
+        assert!(!code.contains(needle), "the example uses {needle}");
+    }
+    let readme = std::fs::read_to_string(format!("{dir}/README.md")).expect("the README");
+    assert!(
+        readme.contains(&format!("```rust\n{code}```")),
+        "README.md's example differs from examples/first_certificate.rs"
+    );
 }

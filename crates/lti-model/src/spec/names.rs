@@ -53,8 +53,10 @@ fn replace_key(text: &str, key: &str, rust: &str) -> String {
 }
 
 /// The Rust item of a scenario key: the longest key of `tables` that `key` starts with (a
-/// longer key such as `sets.input.lower` keeps its tail); a key in no table is kept.
+/// longer key such as `sets.input.lower` keeps its tail; of equal keys, the first table's);
+/// a key in no table is kept.
 pub fn rust_field(key: &str, tables: &[&Names]) -> String {
+    // The longest key; between equal keys the first table's (`fold` keeps the first).
     let best = tables
         .iter()
         .flat_map(|t| t.iter())
@@ -62,7 +64,10 @@ pub fn rust_field(key: &str, tables: &[&Names]) -> String {
             key.strip_prefix(k)
                 .is_some_and(|tail| tail.is_empty() || tail.starts_with('.'))
         })
-        .max_by_key(|(k, _)| k.len());
+        .fold(None::<&(&str, &str)>, |best, e| match best {
+            Some(b) if b.0.len() >= e.0.len() => Some(b),
+            _ => Some(e),
+        });
     match best {
         Some((k, rust)) => format!("{rust}{}", &key[k.len()..]),
         None => key.to_string(),
@@ -174,6 +179,9 @@ mod tests {
             "LoopModelBuilder::input_box.lower"
         );
         assert_eq!(rust_field("mhe.prior", &[&T]), "mhe.prior");
+        let later = [("mhe.p", "the prior weight")];
+        assert_eq!(rust_field("mhe.p", &[&T, &later]), "MheBuilder::p");
+        assert_eq!(rust_field("mhe.p", &[&later, &T]), "the prior weight");
         assert_eq!(
             rust_text("`mhe.p` and `mhe.prior` in [mhe]", &[&T]),
             "`MheBuilder::p` and `mhe.prior` in the MHE"

@@ -140,6 +140,7 @@ fn estimator_err(e: &RustMheError) -> PyErr {
             for k in MHE_KEYS {
                 problem = problem.replace(&format!("`{k}`"), &format!("`{}`", argument_of(k)));
             }
+            let problem = python_hint(problem);
             InputError::new_err(format!("argument `{}`: {problem}", argument_of(key)))
         }
         other => mhe_err(other),
@@ -823,14 +824,18 @@ fn python_text(text: &str) -> String {
         .replace("vec![Method::PG]", "[\"pg\"]")
         .replace("_box.lower", "_box[0]")
         .replace("_box.upper", "_box[1]");
-    // A builder-call hint `.name(value)` as the dict entry `name=value` (K is `k`).
-    let hint = out.split_once("e.g. `.").and_then(|(head, tail)| {
+    python_hint(out)
+}
+
+/// A builder-call hint `.name(value)` as the keyword argument `name=value` (K is `k`).
+fn python_hint(text: String) -> String {
+    let hint = text.split_once("e.g. `.").and_then(|(head, tail)| {
         let (call, rest) = tail.split_once('`')?;
         let (name, value) = call.strip_suffix(')')?.split_once('(')?;
         let name = if name == "iterations" { "k" } else { name };
         Some(format!("{head}e.g. `{name}={value}`{rest}"))
     });
-    hint.unwrap_or(out)
+    hint.unwrap_or(text)
 }
 
 /// A `ModelBuildError` as the package exception, naming the Python argument.

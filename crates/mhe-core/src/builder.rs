@@ -19,9 +19,9 @@
 //! ```
 
 use faer::Mat;
+use lti_model::LtiSystem;
 use lti_model::spec::format::rows_of;
 use lti_model::spec::names::PLANT_NAMES;
-use lti_model::LtiSystem;
 use qp_iter::{Method, MethodMap};
 
 use crate::error::{MheError, Result};
@@ -131,8 +131,7 @@ impl MheBuilder {
     /// error is a [`lti_model::ModelError::Invalid`] naming the method that set the value
     /// (`MheBuilder::eta`, [`MHE_NAMES`]).
     pub fn build(&self, sys: &LtiSystem) -> Result<MheSettings> {
-        MheSettings::from_raw(&self.raw, sys)
-            .map_err(|e| rust_named(MheError::Model(e)))
+        MheSettings::from_raw(&self.raw, sys).map_err(|e| rust_named(MheError::Model(e)))
     }
 }
 
@@ -164,20 +163,76 @@ mod tests {
         let nan = Mat::from_fn(3, 3, |i, j| if i == j { f64::NAN } else { 0.0 });
         let base = "horizon = 3\neta = 0.5\niterations = 10\n";
         let cases: Vec<(String, MheBuilder, &str)> = vec![
-            ("eta = 0.5\niterations = 10".into(), MheSettings::builder().eta(0.5).iterations(10), "horizon"),
-            ("horizon = 3\niterations = 10".into(), MheSettings::builder().horizon(3).iterations(10), "eta"),
-            ("horizon = 3\neta = 0.5".into(), MheSettings::builder().horizon(3).eta(0.5), "iterations"),
-            ("horizon = 0\neta = 0.5\niterations = 10".into(), ok().horizon(0), "horizon"),
-            ("horizon = 3\neta = 1.2\niterations = 10".into(), ok().eta(1.2), "eta"),
-            ("horizon = 3\neta = nan\niterations = 10".into(), ok().eta(f64::NAN), "eta"),
-            ("horizon = 3\neta = 0.5\niterations = 0".into(), ok().iterations(0), "iterations"),
-            ("horizon = 3\neta = 0.5\niterations = 10000001".into(), ok().iterations(10_000_001), "iterations"),
-            ("horizon = 1048576\neta = 0.5\niterations = 10".into(), ok().horizon(1 << 20), "horizon"),
-            ("horizon = 60\neta = 0.5\niterations = 10".into(), ok().horizon(60), "horizon"),
-            (format!("{base}q = [[-1.0, 0, 0], [0, -1.0, 0], [0, 0, -1.0]]"), ok().q(&not_pd), "q"),
-            (format!("{base}q = [[nan, 0, 0], [0, nan, 0], [0, 0, nan]]"), ok().q(&nan), "q"),
-            (format!("{base}r = [[1.0, 0], [0, 1.0]]"), ok().r(&Mat::identity(2, 2)), "r"),
-            (format!("{base}p = [[1.0, 0, 0], [0, 1.0, 0], [0, 0, 1.0]]"), ok().p(&i3), "p"),
+            (
+                "eta = 0.5\niterations = 10".into(),
+                MheSettings::builder().eta(0.5).iterations(10),
+                "horizon",
+            ),
+            (
+                "horizon = 3\niterations = 10".into(),
+                MheSettings::builder().horizon(3).iterations(10),
+                "eta",
+            ),
+            (
+                "horizon = 3\neta = 0.5".into(),
+                MheSettings::builder().horizon(3).eta(0.5),
+                "iterations",
+            ),
+            (
+                "horizon = 0\neta = 0.5\niterations = 10".into(),
+                ok().horizon(0),
+                "horizon",
+            ),
+            (
+                "horizon = 3\neta = 1.2\niterations = 10".into(),
+                ok().eta(1.2),
+                "eta",
+            ),
+            (
+                "horizon = 3\neta = nan\niterations = 10".into(),
+                ok().eta(f64::NAN),
+                "eta",
+            ),
+            (
+                "horizon = 3\neta = 0.5\niterations = 0".into(),
+                ok().iterations(0),
+                "iterations",
+            ),
+            (
+                "horizon = 3\neta = 0.5\niterations = 10000001".into(),
+                ok().iterations(10_000_001),
+                "iterations",
+            ),
+            (
+                "horizon = 1048576\neta = 0.5\niterations = 10".into(),
+                ok().horizon(1 << 20),
+                "horizon",
+            ),
+            (
+                "horizon = 60\neta = 0.5\niterations = 10".into(),
+                ok().horizon(60),
+                "horizon",
+            ),
+            (
+                format!("{base}q = [[-1.0, 0, 0], [0, -1.0, 0], [0, 0, -1.0]]"),
+                ok().q(&not_pd),
+                "q",
+            ),
+            (
+                format!("{base}q = [[nan, 0, 0], [0, nan, 0], [0, 0, nan]]"),
+                ok().q(&nan),
+                "q",
+            ),
+            (
+                format!("{base}r = [[1.0, 0], [0, 1.0]]"),
+                ok().r(&Mat::identity(2, 2)),
+                "r",
+            ),
+            (
+                format!("{base}p = [[1.0, 0, 0], [0, 1.0, 0], [0, 0, 1.0]]"),
+                ok().p(&i3),
+                "p",
+            ),
         ];
         for (text, builder, name) in cases {
             let raw: RawMhe = lti_model::spec::format::parse(&text).expect("parses");
@@ -192,7 +247,11 @@ mod tests {
             };
             assert_eq!(rust.0, format!("MheBuilder::{name}"), "{text}");
             assert!(!rust.1.contains("mhe."), "{text}: {}", rust.1);
-            assert_eq!(rust.1, rust_text(&file.1, &[&MHE_NAMES, &PLANT_NAMES]), "{text}");
+            assert_eq!(
+                rust.1,
+                rust_text(&file.1, &[&MHE_NAMES, &PLANT_NAMES]),
+                "{text}"
+            );
         }
     }
 

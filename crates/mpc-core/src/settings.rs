@@ -625,10 +625,26 @@ mod suboptimal_key_tests {
             ("", b(), "horizon"),
             ("horizon = 0", b().horizon(0), "horizon"),
             ("horizon = 16777216", b().horizon(1 << 24), "horizon"),
-            ("horizon = 3\nr = [[0.0]]", b().horizon(3).r(&faer::mat![[0.0]]), "r"),
-            ("horizon = 3\nq = [[1.0, 0.0]]", b().horizon(3).q(&faer::mat![[1.0, 0.0]]), "q"),
-            ("horizon = 3\niterations = 0", b().horizon(3).iterations(0), "iterations"),
-            ("horizon = 3\nmethod = \"pg\"", b().horizon(3).method(qp_iter::Method::PG), "method"),
+            (
+                "horizon = 3\nr = [[0.0]]",
+                b().horizon(3).r(&faer::mat![[0.0]]),
+                "r",
+            ),
+            (
+                "horizon = 3\nq = [[1.0, 0.0]]",
+                b().horizon(3).q(&faer::mat![[1.0, 0.0]]),
+                "q",
+            ),
+            (
+                "horizon = 3\niterations = 0",
+                b().horizon(3).iterations(0),
+                "iterations",
+            ),
+            (
+                "horizon = 3\nmethod = \"pg\"",
+                b().horizon(3).method(qp_iter::Method::PG),
+                "method",
+            ),
         ];
         for (text, builder, name) in cases {
             let file = match settings(text).unwrap_err() {

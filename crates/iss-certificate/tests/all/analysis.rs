@@ -289,7 +289,8 @@ fn try_new_names_a_nan_field() {
     let ok = IssAnalysis::try_new(hand_inputs()).expect("valid inputs");
     assert_eq!(ok, IssAnalysis::new(hand_inputs()));
     let nan = f64::NAN;
-    let cases: [(&str, fn(&mut IssInputs, f64)); 12] = [
+    type Set = fn(&mut IssInputs, f64);
+    let cases: [(&str, Set); 12] = [
         ("eta", |i, v| i.eta = v),
         ("p_min", |i, v| i.p_min = v),
         ("p_max", |i, v| i.p_max = v),
@@ -308,7 +309,10 @@ fn try_new_names_a_nan_field() {
         set(&mut inputs, nan);
         let e = IssAnalysis::try_new(inputs).expect_err("NaN refused");
         assert_eq!(e, IssInputError::NaN { field });
-        assert!(e.to_string().starts_with(&format!("IssInputs::{field} is NaN")));
+        assert!(
+            e.to_string()
+                .starts_with(&format!("IssInputs::{field} is NaN"))
+        );
     }
     // ±∞ is a value the premises read (an unbounded γ₁,₃ fails "gamma13 finite").
     let mut inputs = hand_inputs();

@@ -358,7 +358,12 @@ fn first_certificate_fits_15_lines() {
         .map(str::trim)
         .filter(|l| !l.is_empty() && !l.starts_with("//"))
         .collect();
-    assert!(lines.len() <= 15, "{} lines:\n{}", lines.len(), lines.join("\n"));
+    assert!(
+        lines.len() <= 15,
+        "{} lines:\n{}",
+        lines.len(),
+        lines.join("\n")
+    );
     let crates: Vec<&str> = lines
         .iter()
         .filter_map(|l| l.strip_prefix("use ")?.split("::").next())

@@ -187,17 +187,17 @@ mod tests {
             "`MheBuilder::p` and `mhe.prior` in the MHE"
         );
         assert_eq!(
-            rust_text(
-                "is required but missing; add it, e.g. `horizon = 5`",
-                &[&T]
-            ),
+            rust_text("is required but missing; add it, e.g. `horizon = 5`", &[&T]),
             "is required but missing; add it, e.g. `.horizon(5)`"
         );
     }
 
     #[test]
     fn a_scenario_error_becomes_invalid_and_others_keep_their_kind() {
-        let e = key_error("mhe.p", "is not positive definite (a positive number s gives s·I)");
+        let e = key_error(
+            "mhe.p",
+            "is not positive definite (a positive number s gives s·I)",
+        );
         assert_eq!(
             e.for_rust(&[&T]),
             ModelError::Invalid {

@@ -225,6 +225,7 @@ impl From<qp_iter::DataError> for ModelError {
 /// messages say how to fix the data or where to supply P (scenario key `mhe.p`,
 /// `cargo xtask certify --p-file`).
 #[derive(Debug, Clone, PartialEq)]
+#[non_exhaustive]
 pub enum LmiFailure {
     /// (A, C) has an unobservable mode with |λ| ≥ √η. LMI (2) restricted to x in that mode
     /// and w = 0 reads |λ|²‖x‖²_P ≤ η‖x‖²_P, so no P ≻ 0 exists, whatever E, Q, R.

@@ -18,7 +18,7 @@ use crate::ModelError;
 /// A table of (scenario key or `[section]`, Rust item) pairs.
 pub type Names = [(&'static str, &'static str)];
 
-/// The plant's keys: the matrices of [`crate::LtiSystem::new`] / [`crate::LtiSystem::with_noise`].
+/// The plant's keys: the matrices of [`crate::LtiSystem::new`] / [`crate::LtiSystem::with_disturbance`].
 pub const PLANT_NAMES: [(&str, &str); 5] = [
     ("plant.a", "LtiSystem::a"),
     ("plant.b", "LtiSystem::b"),

@@ -89,29 +89,23 @@ create_exception!(
     "The request is valid but not supported by this version; the message says what is."
 );
 
-/// The keys of `[mhe]` that are arguments of `Estimator(...)`.
+/// The `MheBuilder` methods that are arguments of `Estimator(...)`.
 const MHE_KEYS: [&str; 7] = [
-    "mhe.horizon",
-    "mhe.eta",
-    "mhe.iterations",
-    "mhe.method",
-    "mhe.q",
-    "mhe.r",
-    "mhe.p",
+    "MheBuilder::horizon",
+    "MheBuilder::eta",
+    "MheBuilder::iterations",
+    "MheBuilder::method",
+    "MheBuilder::q",
+    "MheBuilder::r",
+    "MheBuilder::p",
 ];
 
-/// The Python argument a scenario key of `[mhe]` corresponds to (the builder fills the
-/// same table a scenario file does, so its errors name `mhe.*`).
+/// The Python argument a `MheBuilder` method corresponds to (the builder's errors name
+/// its methods, `MheBuilder::eta`).
 fn argument_of(key: &str) -> &str {
     match key {
-        "mhe.horizon" => "horizon",
-        "mhe.eta" => "eta",
-        "mhe.iterations" => "k",
-        "mhe.method" => "method",
-        "mhe.q" => "q",
-        "mhe.r" => "r",
-        "mhe.p" => "p",
-        other => other,
+        "MheBuilder::iterations" => "k",
+        other => other.strip_prefix("MheBuilder::").unwrap_or(other),
     }
 }
 
@@ -129,19 +123,24 @@ fn model_err(e: &ModelError) -> PyErr {
         ModelError::LmiInfeasible { .. } => CertificateError::new_err(msg),
         ModelError::Numerical { .. } => NumericalError::new_err(msg),
         ModelError::Scenario { .. } => ScenarioError::new_err(msg),
+        ModelError::Invalid { .. } => InputError::new_err(msg),
         _ => MheError::new_err(msg),
     }
 }
 
-/// An error of `Estimator(...)`: the builder validates the keys of a scenario's `[mhe]`
-/// table, so its `mhe.*` keys are renamed to the Python arguments.
+/// An error of `Estimator(...)`: the builder's errors name its methods (`MheBuilder::eta`),
+/// renamed to the Python arguments.
 fn estimator_err(e: &RustMheError) -> PyErr {
     match e {
-        RustMheError::Model(ModelError::Scenario { key, problem }) if key.starts_with("mhe.") => {
+        RustMheError::Model(ModelError::Invalid {
+            field: key,
+            problem,
+        }) if key.starts_with("MheBuilder::") => {
             let mut problem = problem.clone();
             for k in MHE_KEYS {
                 problem = problem.replace(&format!("`{k}`"), &format!("`{}`", argument_of(k)));
             }
+            let problem = python_hint(problem);
             InputError::new_err(format!("argument `{}`: {problem}", argument_of(key)))
         }
         other => mhe_err(other),
@@ -777,7 +776,7 @@ fn simulate<'py>(
 }
 
 /// The Python argument a Rust item of `LoopModelBuilder::build` / `certify` comes from
-/// (`MheSettings::eta` → `mhe["eta"]`), longest names first so none is cut by a prefix.
+/// (`MheBuilder::eta` → `mhe["eta"]`), longest names first so none is cut by a prefix.
 const PY_NAMES: [(&str, &str); 27] = [
     ("LoopModelBuilder::disturbance_box", "disturbance_box"),
     ("LoopModelBuilder::initial_state", "x0"),
@@ -788,17 +787,17 @@ const PY_NAMES: [(&str, &str); 27] = [
     ("LoopModelBuilder::w_bar", "w_bar"),
     ("LoopModelBuilder::mhe", "mhe"),
     ("LoopModelBuilder::mpc", "mpc"),
-    ("MheSettings::iterations", "mhe[\"k\"]"),
-    ("MheSettings::warm_start", "mhe[\"warm_start\"]"),
-    ("MheSettings::horizon", "mhe[\"horizon\"]"),
-    ("MheSettings::method", "mhe[\"method\"]"),
-    ("MheSettings::eta", "mhe[\"eta\"]"),
-    ("MheSettings::q", "mhe[\"q\"]"),
-    ("MheSettings::r", "mhe[\"r\"]"),
-    ("MheSettings::p", "mhe[\"p\"]"),
-    ("MpcSettings::horizon", "mpc[\"horizon\"]"),
-    ("MpcSettings::q", "mpc[\"q\"]"),
-    ("MpcSettings::r", "mpc[\"r\"]"),
+    ("MheBuilder::iterations", "mhe[\"k\"]"),
+    ("MheBuilder::warm_start", "mhe[\"warm_start\"]"),
+    ("MheBuilder::horizon", "mhe[\"horizon\"]"),
+    ("MheBuilder::method", "mhe[\"method\"]"),
+    ("MheBuilder::eta", "mhe[\"eta\"]"),
+    ("MheBuilder::q", "mhe[\"q\"]"),
+    ("MheBuilder::r", "mhe[\"r\"]"),
+    ("MheBuilder::p", "mhe[\"p\"]"),
+    ("MpcBuilder::horizon", "mpc[\"horizon\"]"),
+    ("MpcBuilder::q", "mpc[\"q\"]"),
+    ("MpcBuilder::r", "mpc[\"r\"]"),
     ("CertifyOptions::phase_seconds", "phase_seconds"),
     ("CertifyOptions::gamma13", "gamma13"),
     ("CertifyOptions::methods", "methods"),
@@ -825,14 +824,18 @@ fn python_text(text: &str) -> String {
         .replace("vec![Method::PG]", "[\"pg\"]")
         .replace("_box.lower", "_box[0]")
         .replace("_box.upper", "_box[1]");
-    // A builder-call hint `.name(value)` as the dict entry `name=value` (K is `k`).
-    let hint = out.split_once("e.g. `.").and_then(|(head, tail)| {
+    python_hint(out)
+}
+
+/// A builder-call hint `.name(value)` as the keyword argument `name=value` (K is `k`).
+fn python_hint(text: String) -> String {
+    let hint = text.split_once("e.g. `.").and_then(|(head, tail)| {
         let (call, rest) = tail.split_once('`')?;
         let (name, value) = call.strip_suffix(')')?.split_once('(')?;
         let name = if name == "iterations" { "k" } else { name };
         Some(format!("{head}e.g. `{name}={value}`{rest}"))
     });
-    hint.unwrap_or(out)
+    hint.unwrap_or(text)
 }
 
 /// A `ModelBuildError` as the package exception, naming the Python argument.

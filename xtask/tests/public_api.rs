@@ -170,22 +170,7 @@ impl Walker {
     fn item(&mut self, item: &syn::Item, module: &str, dir: &Path) {
         use syn::Item;
         match item {
-            Item::Mod(m) if !is_test_only(&m.attrs) => {
-                let name = m.ident.to_string();
-                let child = format!("{module}::{name}");
-                if is_pub(&m.vis) {
-                    self.line(module, format!("{}pub mod {name}", api_attrs(&m.attrs)));
-                }
-                match &m.content {
-                    Some((_, inner)) => self.items(inner, &child, &dir.join(&name)),
-                    None => {
-                        let flat = dir.join(format!("{name}.rs"));
-                        let nested = dir.join(&name).join("mod.rs");
-                        let path = if flat.exists() { flat } else { nested };
-                        self.file(&path, &child, &dir.join(&name));
-                    }
-                }
-            }
+            Item::Mod(m) if !is_test_only(&m.attrs) => self.module(m, module, dir),
             Item::Fn(f) if is_pub(&f.vis) && !is_test_only(&f.attrs) => {
                 self.line(
                     module,
@@ -208,69 +193,10 @@ impl Walker {
                 );
             }
             Item::Enum(e) if is_pub(&e.vis) && !is_test_only(&e.attrs) => {
-                let variants: Vec<String> = e
-                    .variants
-                    .iter()
-                    .map(|v| {
-                        format!(
-                            "{}{}{}",
-                            api_attrs(&v.attrs),
-                            v.ident,
-                            fields_text(&v.fields, false)
-                        )
-                    })
-                    .collect();
-                self.line(
-                    module,
-                    format!(
-                        "{}pub enum {}{} {{ {} }}",
-                        api_attrs(&e.attrs),
-                        e.ident,
-                        tidy(&e.generics),
-                        variants.join(", ")
-                    ),
-                );
+                self.line(module, enum_text(e));
             }
             Item::Trait(t) if is_pub(&t.vis) && !is_test_only(&t.attrs) => {
-                let mut members = Vec::new();
-                for ti in &t.items {
-                    match ti {
-                        syn::TraitItem::Fn(f) => members.push(format!(
-                            "{}{}",
-                            tidy(&f.sig),
-                            if f.default.is_some() { " {..}" } else { "" }
-                        )),
-                        syn::TraitItem::Type(ty) => {
-                            let mut ty = ty.clone();
-                            ty.attrs.clear();
-                            members.push(tidy(&ty));
-                        }
-                        syn::TraitItem::Const(c) => {
-                            let mut c = c.clone();
-                            c.attrs.clear();
-                            c.default = None;
-                            members.push(tidy(&c));
-                        }
-                        _ => {}
-                    }
-                }
-                let supertraits = if t.supertraits.is_empty() {
-                    String::new()
-                } else {
-                    format!(": {}", tidy(&t.supertraits))
-                };
-                self.line(
-                    module,
-                    format!(
-                        "{}pub {}trait {}{}{} {{ {} }}",
-                        api_attrs(&t.attrs),
-                        if t.unsafety.is_some() { "unsafe " } else { "" },
-                        t.ident,
-                        tidy(&t.generics),
-                        supertraits,
-                        members.join("; ")
-                    ),
-                );
+                self.line(module, trait_text(t));
             }
             Item::Const(c) if is_pub(&c.vis) && !is_test_only(&c.attrs) => {
                 self.line(module, format!("pub const {}: {}", c.ident, tidy(&c.ty)));
@@ -298,6 +224,24 @@ impl Walker {
             }
             Item::Impl(i) if !is_test_only(&i.attrs) => self.impl_block(i, module),
             _ => {}
+        }
+    }
+
+    /// A module: its `pub mod` line, then its items (inline, or from its file).
+    fn module(&mut self, m: &syn::ItemMod, module: &str, dir: &Path) {
+        let name = m.ident.to_string();
+        let child = format!("{module}::{name}");
+        if is_pub(&m.vis) {
+            self.line(module, format!("{}pub mod {name}", api_attrs(&m.attrs)));
+        }
+        match &m.content {
+            Some((_, inner)) => self.items(inner, &child, &dir.join(&name)),
+            None => {
+                let flat = dir.join(format!("{name}.rs"));
+                let nested = dir.join(&name).join("mod.rs");
+                let path = if flat.exists() { flat } else { nested };
+                self.file(&path, &child, &dir.join(&name));
+            }
         }
     }
 
@@ -476,4 +420,67 @@ fn the_extractor_sees_signature_changes() {
         assert_ne!(write(&changed), a, "{changed}");
     }
     let _ = std::fs::remove_dir_all(&dir);
+}
+
+/// The line of a public enum: its attributes, generics and variants.
+fn enum_text(e: &syn::ItemEnum) -> String {
+    let variants: Vec<String> = e
+        .variants
+        .iter()
+        .map(|v| {
+            format!(
+                "{}{}{}",
+                api_attrs(&v.attrs),
+                v.ident,
+                fields_text(&v.fields, false)
+            )
+        })
+        .collect();
+    format!(
+        "{}pub enum {}{} {{ {} }}",
+        api_attrs(&e.attrs),
+        e.ident,
+        tidy(&e.generics),
+        variants.join(", ")
+    )
+}
+
+/// The line of a public trait: its members (a default body as `{..}`) and supertraits.
+fn trait_text(t: &syn::ItemTrait) -> String {
+    let mut members = Vec::new();
+    for ti in &t.items {
+        match ti {
+            syn::TraitItem::Fn(f) => members.push(format!(
+                "{}{}",
+                tidy(&f.sig),
+                if f.default.is_some() { " {..}" } else { "" }
+            )),
+            syn::TraitItem::Type(ty) => {
+                let mut ty = ty.clone();
+                ty.attrs.clear();
+                members.push(tidy(&ty));
+            }
+            syn::TraitItem::Const(c) => {
+                let mut c = c.clone();
+                c.attrs.clear();
+                c.default = None;
+                members.push(tidy(&c));
+            }
+            _ => {}
+        }
+    }
+    let supertraits = if t.supertraits.is_empty() {
+        String::new()
+    } else {
+        format!(": {}", tidy(&t.supertraits))
+    };
+    format!(
+        "{}pub {}trait {}{}{} {{ {} }}",
+        api_attrs(&t.attrs),
+        if t.unsafety.is_some() { "unsafe " } else { "" },
+        t.ident,
+        tidy(&t.generics),
+        supertraits,
+        members.join("; ")
+    )
 }

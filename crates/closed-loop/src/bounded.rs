@@ -58,6 +58,7 @@ impl Signal {
 
 /// Where and how a run first left the bounded rule.
 #[derive(Debug, Clone, Copy, PartialEq, Serialize)]
+#[non_exhaustive]
 pub struct Divergence {
     /// The first step at which a limit failed.
     pub t: usize,

@@ -431,8 +431,62 @@ fn rho_fix(eta: f64, m: usize) -> String {
     )
 }
 
+/// Why [`IssAnalysis::try_new`] refused its inputs: a value that is no number, named by its
+/// field.
+#[derive(Debug, Clone, PartialEq, thiserror::Error)]
+#[non_exhaustive]
+pub enum IssInputError {
+    /// A field is NaN: Theorem 1 has no premise that can read it (±∞ is read, e.g. an
+    /// unbounded γ₁,₃ fails its premise "gamma13 finite").
+    #[error(
+        "IssInputs::{field} is NaN; give the computed constant (±∞ where it is unbounded:          the premise that reads it then fails with its reason)"
+    )]
+    NaN {
+        /// The field (`"q_max"`, `"gamma13"`, …).
+        field: &'static str,
+    },
+    /// The horizon is 0 (M ≥ 1).
+    #[error("IssInputs::horizon is 0; the MHE horizon M must be at least 1")]
+    ZeroHorizon,
+}
+
+impl IssInputs {
+    /// The scalar fields with their names, in declaration order.
+    fn scalars(&self) -> [(&'static str, f64); 12] {
+        [
+            ("eta", self.eta),
+            ("p_min", self.p_min),
+            ("p_max", self.p_max),
+            ("q_max", self.q_max),
+            ("h_bar", self.h_bar),
+            ("l_phi", self.l_phi),
+            ("l_pi", self.l_pi),
+            ("c_norm", self.c_norm),
+            ("f_norm", self.f_norm),
+            ("gamma13", self.gamma13),
+            ("phi_rate", self.phi_rate),
+            ("phi_prefactor", self.phi_prefactor),
+        ]
+    }
+}
+
 impl IssAnalysis {
-    /// Evaluates the constants that do not depend on K and checks the premises.
+    /// [`IssAnalysis::new`] for constants a caller computed: refuses a NaN field and M = 0
+    /// with an error naming the field, where `new` (the certificate's own path, which
+    /// writes NaN for a constant it could not compute) lets the premises fail.
+    pub fn try_new(inputs: IssInputs) -> Result<Self, IssInputError> {
+        if inputs.horizon == 0 {
+            return Err(IssInputError::ZeroHorizon);
+        }
+        if let Some((field, _)) = inputs.scalars().into_iter().find(|(_, v)| v.is_nan()) {
+            return Err(IssInputError::NaN { field });
+        }
+        Ok(Self::new(inputs))
+    }
+
+    /// Evaluates the constants that do not depend on K and checks the premises. A NaN
+    /// input (the certificate's "not computed") fails the premises that read it; use
+    /// [`IssAnalysis::try_new`] for a typed error instead.
     pub fn new(inputs: IssInputs) -> Self {
         let m = inputs.horizon.max(1);
         let rho = 6f64.powf(1.0 / m as f64) * inputs.eta;

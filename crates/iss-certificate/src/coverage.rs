@@ -467,6 +467,13 @@ pub enum Certified {
     NotComputed,
 }
 
+/// [`Certified::as_str`].
+impl std::fmt::Display for Certified {
+    fn fmt(&self, f: &mut std::fmt::Formatter<'_>) -> std::fmt::Result {
+        f.write_str(self.as_str())
+    }
+}
+
 impl Certified {
     /// `"yes"`, `"no"`, `"void"` or `"not_computed"`.
     pub fn as_str(self) -> &'static str {

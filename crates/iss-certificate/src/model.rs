@@ -11,7 +11,7 @@
 //! anything large is allocated, and the certificate is the one of
 //! [`crate::certificate::certify_closed_loop`]: a TOML scenario with the same values gives
 //! the same certificate, bit for bit. Errors ([`ModelBuildError`]) name the Rust item the
-//! value came from (`MheSettings::eta`, `LoopModelBuilder::input_box`), not a file key.
+//! value came from (`MheBuilder::eta`, `LoopModelBuilder::input_box`), not a file key.
 //!
 //! ```
 //! use iss_certificate::{CertifyOptions, LoopModel, Method, MheSettings, certify};
@@ -33,7 +33,7 @@
 //!     .mpc_horizon(5)
 //!     .build()
 //!     .unwrap_err();
-//! assert!(err.to_string().starts_with("MheSettings::eta: is 1.2, but η must lie in [0, 1)"));
+//! assert!(err.to_string().starts_with("MheBuilder::eta: is 1.2, but η must lie in [0, 1)"));
 //! ```
 
 use std::sync::Arc;
@@ -42,6 +42,7 @@ use closed_loop::scenario::{
     CertificateSettings, ControllerChoice, MAX_PHASE_SECONDS, ResolvedScenario, Scenario,
 };
 use closed_loop::sim::ClosedLoopError;
+use lti_model::spec::names::PLANT_NAMES;
 use lti_model::spec::plant::{
     RawBox, RawPlant, RawSets, RawSimulation, validate_noise, validate_plant, validate_sets,
     validate_simulation,
@@ -49,6 +50,8 @@ use lti_model::spec::plant::{
 use lti_model::spec::{Bounds, MatrixSpec, Table};
 use lti_model::{LtiSystem, ModelError};
 use mhe_core::MheBuilder;
+use mhe_core::builder::MHE_NAMES;
+use mpc_core::settings::MPC_NAMES;
 
 pub use mhe_core::MheSettings;
 pub use mpc_core::settings::MpcSettings;
@@ -67,7 +70,7 @@ pub enum ModelBuildError {
     /// weight that is not positive definite, η ∉ [0, 1), a size beyond docs/limits.md).
     #[error("{field}: {problem}")]
     Invalid {
-        /// The Rust item the value came from (`MheSettings::eta`, `LtiSystem::a`,
+        /// The Rust item the value came from (`MheBuilder::eta`, `LtiSystem::a`,
         /// `LoopModelBuilder::input_box`, `CertifyOptions::gamma13`).
         field: String,
         /// What is wrong and how to fix it.
@@ -90,42 +93,18 @@ pub enum ModelBuildError {
     },
 }
 
-/// Scenario keys and the Rust items that set them (no key starts with another, so the
-/// order does not matter).
-const RUST_NAMES: [(&str, &str); 29] = [
-    ("plant.a", "LtiSystem::a"),
-    ("plant.b", "LtiSystem::b"),
-    ("plant.c", "LtiSystem::c"),
-    ("plant.e", "LtiSystem::e"),
-    ("plant.f", "LtiSystem::f"),
+/// The keys of the loop's own sections and the [`LoopModelBuilder`] / [`CertifyOptions`]
+/// items that set them, and the whole sections as a Rust caller calls them.
+const LOOP_NAMES: [(&str, &str); 14] = [
     ("sets.state", "LoopModelBuilder::state_box"),
     ("sets.input", "LoopModelBuilder::input_box"),
     ("sets.output", "LoopModelBuilder::output_box"),
     ("sets.disturbance", "LoopModelBuilder::disturbance_box"),
     ("simulation.x0", "LoopModelBuilder::initial_state"),
     ("simulation.prior", "LoopModelBuilder::prior"),
-    ("mhe.horizon", "MheSettings::horizon"),
-    ("mhe.eta", "MheSettings::eta"),
-    ("mhe.iterations", "MheSettings::iterations"),
-    ("mhe.q", "MheSettings::q"),
-    ("mhe.r", "MheSettings::r"),
-    ("mhe.p", "MheSettings::p"),
-    ("mhe.method", "MheSettings::method"),
-    ("mhe.warm_start", "MheSettings::warm_start"),
-    ("mpc.horizon", "MpcSettings::horizon"),
-    ("mpc.q", "MpcSettings::q"),
-    ("mpc.r", "MpcSettings::r"),
-    ("mpc.terminal", "MpcSettings::terminal"),
-    ("mpc.iterations", "MpcSettings::iterations"),
-    ("mpc.method", "MpcSettings::method"),
-    ("mpc.output", "MpcSettings::output"),
     ("certificate.w_bar", "LoopModelBuilder::w_bar"),
     ("certificate.gamma13", "CertifyOptions::gamma13"),
     ("certificate.phase_seconds", "CertifyOptions::phase_seconds"),
-];
-
-/// Whole sections named in messages, and what a Rust caller calls them.
-const SECTIONS: [(&str, &str); 5] = [
     ("[plant]", "the plant (LtiSystem)"),
     ("[sets]", "the sets (LoopModelBuilder::*_box)"),
     ("[mhe]", "the MHE (LoopModelBuilder::mhe)"),
@@ -133,43 +112,25 @@ const SECTIONS: [(&str, &str); 5] = [
     ("[simulation]", "the initial state and prior"),
 ];
 
-/// The Rust item of a scenario key (`mhe.eta` → `MheSettings::eta`; a longer key such as
-/// `sets.input.lower` keeps its tail).
+/// Every table a loop model's errors are named by, the loop's own first (its
+/// `simulation.prior` is [`LoopModelBuilder::prior`], not the estimator's argument).
+const TABLES: [&lti_model::spec::names::Names; 4] =
+    [&LOOP_NAMES, &MHE_NAMES, &MPC_NAMES, &PLANT_NAMES];
+
+/// The Rust item of a scenario key (`mhe.eta` → `MheBuilder::eta`; a longer key such as
+/// `sets.input.lower` keeps its tail; a whole section by its type).
 fn rust_field(key: &str) -> String {
-    for (toml, rust) in RUST_NAMES {
-        if let Some(tail) = key.strip_prefix(toml)
-            && (tail.is_empty() || tail.starts_with('.'))
-        {
-            return format!("{rust}{tail}");
-        }
-    }
     match key {
         "plant" => "LtiSystem".into(),
-        "mhe" => "MheSettings".into(),
-        "mpc" => "MpcSettings".into(),
-        other => other.into(),
+        "mhe" => "MheBuilder".into(),
+        "mpc" => "MpcBuilder".into(),
+        other => lti_model::spec::names::rust_field(other, &TABLES),
     }
 }
 
-/// `text` with every scenario key and section replaced by its Rust name, and the file
-/// format's hints (which a Rust caller cannot use) dropped or written as the builder call
-/// (`e.g. \`iterations = 50\`` → `e.g. \`.iterations(50)\``).
+/// `text` with every scenario key and section replaced by its Rust name.
 fn rust_text(text: &str) -> String {
-    let mut out = text.replace(" (a positive number s gives s·I)", "");
-    if let Some((head, tail)) = out.split_once("e.g. `")
-        && let Some((assignment, rest)) = tail.split_once('`')
-        && let Some((name, value)) = assignment.split_once(" = ")
-        && !name.contains('.')
-    {
-        out = format!("{head}e.g. `.{name}({value})`{rest}");
-    }
-    for (toml, rust) in SECTIONS {
-        out = out.replace(toml, rust);
-    }
-    for (toml, rust) in RUST_NAMES {
-        out = out.replace(toml, rust);
-    }
-    out
+    lti_model::spec::names::rust_text(text, &TABLES)
 }
 
 /// A validation failure of the scenario machinery, named by the Rust item.
@@ -177,6 +138,11 @@ fn from_model(e: ModelError) -> ModelBuildError {
     match e {
         ModelError::Scenario { key, problem } => ModelBuildError::Invalid {
             field: rust_field(&key),
+            problem: rust_text(&problem),
+        },
+        // Already named by a builder (`MheBuilder::build`, `MpcBuilder::build`).
+        ModelError::Invalid { field, problem } => ModelBuildError::Invalid {
+            field,
             problem: rust_text(&problem),
         },
         other => ModelBuildError::Certificate {
@@ -279,7 +245,7 @@ impl LoopModelBuilder {
     }
     /// The MPC (required: Theorem 1 uses its L_π and γ₁,₃) as a builder
     /// (`MpcSettings::builder().horizon(10).r(&r_c)`; validated by
-    /// [`LoopModelBuilder::build`], errors naming `MpcSettings::r`, …). With `iterations`
+    /// [`LoopModelBuilder::build`], errors naming `MpcBuilder::r`, …). With `iterations`
     /// set it is the K_c-iteration MPC, under the joint certificate ([`crate::joint`]).
     pub fn mpc(mut self, settings: mpc_core::MpcBuilder) -> Self {
         self.mpc = Some(MpcPart::Settings(Box::new(settings)));
@@ -579,6 +545,16 @@ impl Certificate {
     /// K_min of every certified method, in the order of [`CertifyOptions::methods`].
     pub fn k_mins(&self) -> impl Iterator<Item = (Method, Option<usize>)> + '_ {
         self.closed_loop.solvers.iter().map(|s| (s.solver, s.k_min))
+    }
+
+    /// "Is my K certified?" for every certified method: K_min and the verdict at `k`
+    /// ([`Certificate::verdict`]), in the order of [`CertifyOptions::methods`].
+    pub fn verdicts(
+        &self,
+        k: usize,
+    ) -> impl Iterator<Item = (Method, Option<usize>, PairVerdict)> + '_ {
+        self.k_mins()
+            .map(move |(method, k_min)| (method, k_min, self.verdict(method, k)))
     }
 
     /// What Theorem 1 guarantees at K for `method`: lim sup‖e_t‖ ≤ g_e·w̄,

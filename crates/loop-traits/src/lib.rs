@@ -55,6 +55,7 @@ pub trait Controller: std::fmt::Debug {
 /// What a controller applied at one step.
 #[derive(Debug, Clone, Copy, PartialEq, serde::Serialize)]
 #[serde(rename_all = "snake_case", tag = "status")]
+#[non_exhaustive]
 pub enum ControlStatus {
     /// The law as designed: the exact optimum, or K iterations whose plan violates the
     /// constraints by `violation` (0 for PG / FISTA; ADMM on state rows is feasible only in

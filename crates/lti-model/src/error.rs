@@ -91,6 +91,15 @@ pub enum ModelError {
         /// What happened and what to try.
         reason: String,
     },
+    /// A value given through a Rust builder was refused: the checks of the scenario file,
+    /// named by the Rust item the value came from ([`ModelError::for_rust`]).
+    #[error("{field}: {problem}")]
+    Invalid {
+        /// The Rust item (`MheBuilder::eta`, `LtiSystem::a`, `MpcBuilder::r`).
+        field: String,
+        /// What is wrong and how to fix it.
+        problem: String,
+    },
     /// A scenario file could not be parsed or validated.
     #[error("scenario: key `{key}`: {problem}")]
     Scenario {
@@ -216,6 +225,7 @@ impl From<qp_iter::DataError> for ModelError {
 /// messages say how to fix the data or where to supply P (scenario key `mhe.p`,
 /// `cargo xtask certify --p-file`).
 #[derive(Debug, Clone, PartialEq)]
+#[non_exhaustive]
 pub enum LmiFailure {
     /// (A, C) has an unobservable mode with |λ| ≥ √η. LMI (2) restricted to x in that mode
     /// and w = 0 reads |λ|²‖x‖²_P ≤ η‖x‖²_P, so no P ≻ 0 exists, whatever E, Q, R.

@@ -1,6 +1,8 @@
 //! The `[mhe]` settings built in Rust: [`MheBuilder`] fills the same raw table a scenario
 //! file does and validates it with the same code ([`MheSettings::from_raw`]), so the file
-//! format, the library API and the sweep share one validated type, [`MheSettings`].
+//! format, the library API and the sweep share one validated type, [`MheSettings`]. Its
+//! errors name the builder method ([`MHE_NAMES`]: `MheBuilder::eta`, not the file key
+//! `mhe.eta`).
 //!
 //! ```
 //! use faer::mat;
@@ -19,12 +21,37 @@
 use faer::Mat;
 use lti_model::LtiSystem;
 use lti_model::spec::format::rows_of;
+use lti_model::spec::names::PLANT_NAMES;
 use qp_iter::{Method, MethodMap};
 
-use crate::error::Result;
+use crate::error::{MheError, Result};
 use crate::estimator::{MheEstimator, WarmStart};
 use crate::problem::MheSets;
 use crate::settings::{MheSettings, RawMhe};
+
+/// The `[mhe]` keys and the [`MheBuilder`] methods that set them (an estimator's prior is
+/// the `prior` argument of [`MheSettings::estimator`]).
+pub const MHE_NAMES: [(&str, &str); 10] = [
+    ("mhe.horizon", "MheBuilder::horizon"),
+    ("mhe.eta", "MheBuilder::eta"),
+    ("mhe.iterations", "MheBuilder::iterations"),
+    ("mhe.q", "MheBuilder::q"),
+    ("mhe.r", "MheBuilder::r"),
+    ("mhe.p", "MheBuilder::p"),
+    ("mhe.method", "MheBuilder::method"),
+    ("mhe.warm_start", "MheBuilder::warm_start"),
+    ("simulation.prior", "the prior of MheSettings::estimator"),
+    ("simulation.x0", "the initial state"),
+];
+
+/// `e` as the Rust entry points report it: the `[mhe]` and plant keys named by the builder
+/// methods and [`LtiSystem`] matrices ([`lti_model::ModelError::for_rust`]).
+pub(crate) fn rust_named(e: MheError) -> MheError {
+    match e {
+        MheError::Model(m) => MheError::Model(m.for_rust(&[&MHE_NAMES, &PLANT_NAMES])),
+        other => other,
+    }
+}
 
 /// Builder of [`MheSettings`]: every key of the `[mhe]` table as a method; what is not set
 /// takes the file format's default (Q = I, R = I, P from LMI (2), PG, the paper's warm
@@ -48,10 +75,10 @@ impl MheSettings {
         sets: &MheSets,
         prior: &[f64],
     ) -> Result<MheEstimator<MethodMap>> {
-        let cfg = self.config(sys, false)?;
+        let cfg = self.config(sys, false).map_err(rust_named)?;
         let method = self.method();
         MheEstimator::new(sys, sets, &cfg, prior, |qp| method.build(qp))
-            .map_err(|e| self.explain(sys, e))
+            .map_err(|e| rust_named(self.explain(sys, e)))
     }
 }
 
@@ -100,9 +127,164 @@ impl MheBuilder {
         self.raw.p = Some(rows_of(p));
         self
     }
-    /// Validates against the plant exactly as a scenario's `[mhe]` table is validated
-    /// (errors name the key: `mhe.eta`, …).
+    /// Validates against the plant exactly as a scenario's `[mhe]` table is validated; the
+    /// error is a [`lti_model::ModelError::Invalid`] naming the method that set the value
+    /// (`MheBuilder::eta`, [`MHE_NAMES`]).
     pub fn build(&self, sys: &LtiSystem) -> Result<MheSettings> {
-        Ok(MheSettings::from_raw(&self.raw, sys)?)
+        MheSettings::from_raw(&self.raw, sys).map_err(|e| rust_named(MheError::Model(e)))
+    }
+}
+
+#[cfg(test)]
+mod tests {
+    use lti_model::ModelError;
+    use lti_model::spec::names::{PLANT_NAMES, rust_text};
+
+    use super::*;
+    use crate::settings::RawMhe;
+
+    fn sys() -> LtiSystem {
+        LtiSystem::new(
+            faer::mat![[0.9, 0.1], [0.0, 0.8]],
+            faer::mat![[0.0], [0.1]],
+            faer::mat![[1.0, 0.0]],
+        )
+        .expect("a valid plant")
+    }
+
+    /// Every kind of `[mhe]` error on both entry points: the one check, the file naming the
+    /// key (`mhe.q`) and the builder naming its method (`MheBuilder::q`), with the same
+    /// problem text up to the names.
+    #[test]
+    fn each_error_names_the_key_in_a_file_and_the_method_in_rust() {
+        let ok = || MheSettings::builder().horizon(3).eta(0.5).iterations(10);
+        let i3 = Mat::<f64>::identity(3, 3);
+        let not_pd = Mat::from_fn(3, 3, |i, j| if i == j { -1.0 } else { 0.0 });
+        let nan = Mat::from_fn(3, 3, |i, j| if i == j { f64::NAN } else { 0.0 });
+        let base = "horizon = 3\neta = 0.5\niterations = 10\n";
+        let cases: Vec<(String, MheBuilder, &str)> = vec![
+            (
+                "eta = 0.5\niterations = 10".into(),
+                MheSettings::builder().eta(0.5).iterations(10),
+                "horizon",
+            ),
+            (
+                "horizon = 3\niterations = 10".into(),
+                MheSettings::builder().horizon(3).iterations(10),
+                "eta",
+            ),
+            (
+                "horizon = 3\neta = 0.5".into(),
+                MheSettings::builder().horizon(3).eta(0.5),
+                "iterations",
+            ),
+            (
+                "horizon = 0\neta = 0.5\niterations = 10".into(),
+                ok().horizon(0),
+                "horizon",
+            ),
+            (
+                "horizon = 3\neta = 1.2\niterations = 10".into(),
+                ok().eta(1.2),
+                "eta",
+            ),
+            (
+                "horizon = 3\neta = nan\niterations = 10".into(),
+                ok().eta(f64::NAN),
+                "eta",
+            ),
+            (
+                "horizon = 3\neta = 0.5\niterations = 0".into(),
+                ok().iterations(0),
+                "iterations",
+            ),
+            (
+                "horizon = 3\neta = 0.5\niterations = 10000001".into(),
+                ok().iterations(10_000_001),
+                "iterations",
+            ),
+            (
+                "horizon = 1048576\neta = 0.5\niterations = 10".into(),
+                ok().horizon(1 << 20),
+                "horizon",
+            ),
+            (
+                "horizon = 60\neta = 0.5\niterations = 10".into(),
+                ok().horizon(60),
+                "horizon",
+            ),
+            (
+                format!("{base}q = [[-1.0, 0, 0], [0, -1.0, 0], [0, 0, -1.0]]"),
+                ok().q(&not_pd),
+                "q",
+            ),
+            (
+                format!("{base}q = [[nan, 0, 0], [0, nan, 0], [0, 0, nan]]"),
+                ok().q(&nan),
+                "q",
+            ),
+            (
+                format!("{base}r = [[1.0, 0], [0, 1.0]]"),
+                ok().r(&Mat::identity(2, 2)),
+                "r",
+            ),
+            (
+                format!("{base}p = [[1.0, 0, 0], [0, 1.0, 0], [0, 0, 1.0]]"),
+                ok().p(&i3),
+                "p",
+            ),
+        ];
+        for (text, builder, name) in cases {
+            let raw: RawMhe = lti_model::spec::format::parse(&text).expect("parses");
+            let file = match MheSettings::from_raw(&raw, &sys()).expect_err("refused") {
+                ModelError::Scenario { key, problem } => (key, problem),
+                other => panic!("{text}: {other:?}"),
+            };
+            assert_eq!(file.0, format!("mhe.{name}"), "{text}");
+            let rust = match builder.build(&sys()).expect_err("refused") {
+                MheError::Model(ModelError::Invalid { field, problem }) => (field, problem),
+                other => panic!("{text}: {other:?}"),
+            };
+            assert_eq!(rust.0, format!("MheBuilder::{name}"), "{text}");
+            assert!(!rust.1.contains("mhe."), "{text}: {}", rust.1);
+            assert_eq!(
+                rust.1,
+                rust_text(&file.1, &[&MHE_NAMES, &PLANT_NAMES]),
+                "{text}"
+            );
+        }
+    }
+
+    /// An estimator that cannot be built (η = 0: the prior gets weight 0) is explained with
+    /// the key on the file's path (`MheSettings::explain`) and the method on the Rust path.
+    #[test]
+    fn a_window_that_is_not_strongly_convex_names_the_method() {
+        let s = MheSettings::builder()
+            .horizon(3)
+            .eta(0.0)
+            .iterations(10)
+            .p(&Mat::identity(2, 2))
+            .build(&sys())
+            .expect("η = 0 is valid for LMI (2) alone");
+        let sets = MheSets::unconstrained(&sys());
+        let e = s
+            .estimator(&sys(), &sets, &[0.0, 0.0])
+            .expect_err("not strongly convex");
+        assert!(
+            matches!(&e, MheError::Model(ModelError::Invalid { field, .. }) if field == "MheBuilder::eta"),
+            "{e}"
+        );
+        let file = s.explain(
+            &sys(),
+            MheError::NotStronglyConvex {
+                window: 1,
+                min_eigenvalue: 0.0,
+                max_eigenvalue: 1.0,
+            },
+        );
+        assert!(
+            matches!(&file, MheError::Model(ModelError::Scenario { key, .. }) if key == "mhe.eta"),
+            "{file}"
+        );
     }
 }

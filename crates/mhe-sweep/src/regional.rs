@@ -22,6 +22,7 @@ pub use iss_certificate::regional::{REGIONAL_MAX_K_NZ, REGIONAL_SEARCH_CAP, sear
 /// K_reg of one method with the certificate behind it.
 #[derive(Debug, Clone, PartialEq)]
 #[cfg_attr(feature = "serde", derive(Serialize))]
+#[non_exhaustive]
 pub struct KRegOutcome {
     /// K_reg: the smallest K the search found whose region contains the scenario's
     /// uncertainty (null: none up to `search_max`, or void; `note` says which).
@@ -59,6 +60,7 @@ pub struct KRegOutcome {
 /// which row limits it there and by how much.
 #[derive(Debug, Clone, PartialEq)]
 #[cfg_attr(feature = "serde", derive(Serialize))]
+#[non_exhaustive]
 pub struct ProbeNote {
     /// The K.
     pub k: usize,

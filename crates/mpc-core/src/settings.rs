@@ -15,6 +15,7 @@ use lti_model::LtiSystem;
 use lti_model::spec::format::{
     at_least_one, key_error, required, rows_of, sized_matrix, weight, wrap,
 };
+use lti_model::spec::names::PLANT_NAMES;
 use lti_model::spec::{MatrixSpec, ScenarioSets};
 use qp_iter::Iterations;
 use serde::{Deserialize, Serialize};
@@ -449,12 +450,25 @@ impl MpcBuilder {
     pub fn into_raw(self) -> RawMpc {
         self.raw
     }
-    /// Validates against the plant exactly as a scenario's `[mpc]` table is validated
-    /// (errors name the key: `mpc.r`, …).
+    /// Validates against the plant exactly as a scenario's `[mpc]` table is validated; the
+    /// error is a [`lti_model::ModelError::Invalid`] naming the method that set the value
+    /// (`MpcBuilder::r`, [`MPC_NAMES`]).
     pub fn build(&self, sys: &LtiSystem) -> crate::Result<MpcSettings> {
-        Ok(MpcSettings::from_raw(&self.raw, sys)?)
+        MpcSettings::from_raw(&self.raw, sys)
+            .map_err(|e| MpcError::Model(e.for_rust(&[&MPC_NAMES, &PLANT_NAMES])))
     }
 }
+
+/// The `[mpc]` keys and the [`MpcBuilder`] methods that set them.
+pub const MPC_NAMES: [(&str, &str); 7] = [
+    ("mpc.horizon", "MpcBuilder::horizon"),
+    ("mpc.q", "MpcBuilder::q"),
+    ("mpc.r", "MpcBuilder::r"),
+    ("mpc.terminal", "MpcBuilder::terminal"),
+    ("mpc.iterations", "MpcBuilder::iterations"),
+    ("mpc.method", "MpcBuilder::method"),
+    ("mpc.output", "MpcBuilder::output"),
+];
 
 /// `mpc.q`: n_x square, finite, symmetric, positive *semi*definite (default I); a singular
 /// Q_c must leave no non-decaying mode of A unseen ((A, Q_c^½) detectable, so that the DARE
@@ -548,6 +562,7 @@ mod suboptimal_key_tests {
     #![allow(clippy::unwrap_used)]
 
     use super::*;
+    use lti_model::ModelError;
 
     fn settings(text: &str) -> lti_model::Result<MpcSettings> {
         let raw: RawMpc = lti_model::spec::format::parse(text)?;
@@ -593,7 +608,59 @@ mod suboptimal_key_tests {
             .iterations(0)
             .build(&sys)
             .unwrap_err();
-        assert!(e.to_string().contains("mpc.iterations"), "{e}");
+        assert_eq!(
+            e.to_string(),
+            "MpcBuilder::iterations: is 0, but the MPC's iteration count K_c must be at least 1"
+        );
+    }
+
+    /// Every kind of `[mpc]` error on both entry points: the same check, the file naming the
+    /// key (`mpc.r`) and the builder naming its method (`MpcBuilder::r`), with the same
+    /// problem text up to the names.
+    #[test]
+    fn each_error_names_the_key_in_a_file_and_the_method_in_rust() {
+        let sys = LtiSystem::new(faer::mat![[0.5]], faer::mat![[1.0]], faer::mat![[1.0]]).unwrap();
+        let b = MpcSettings::builder;
+        let cases: [(&str, MpcBuilder, &str); 7] = [
+            ("", b(), "horizon"),
+            ("horizon = 0", b().horizon(0), "horizon"),
+            ("horizon = 16777216", b().horizon(1 << 24), "horizon"),
+            (
+                "horizon = 3\nr = [[0.0]]",
+                b().horizon(3).r(&faer::mat![[0.0]]),
+                "r",
+            ),
+            (
+                "horizon = 3\nq = [[1.0, 0.0]]",
+                b().horizon(3).q(&faer::mat![[1.0, 0.0]]),
+                "q",
+            ),
+            (
+                "horizon = 3\niterations = 0",
+                b().horizon(3).iterations(0),
+                "iterations",
+            ),
+            (
+                "horizon = 3\nmethod = \"pg\"",
+                b().horizon(3).method(qp_iter::Method::PG),
+                "method",
+            ),
+        ];
+        for (text, builder, name) in cases {
+            let file = match settings(text).unwrap_err() {
+                ModelError::Scenario { key, problem } => (key, problem),
+                other => panic!("{text}: {other:?}"),
+            };
+            assert_eq!(file.0, format!("mpc.{name}"), "{text}");
+            let rust = match builder.build(&sys).unwrap_err() {
+                MpcError::Model(ModelError::Invalid { field, problem }) => (field, problem),
+                other => panic!("{text}: {other:?}"),
+            };
+            assert_eq!(rust.0, format!("MpcBuilder::{name}"), "{text}");
+            assert!(!rust.1.contains("mpc."), "{text}: {}", rust.1);
+            let renamed = lti_model::spec::names::rust_text(&file.1, &[&MPC_NAMES, &PLANT_NAMES]);
+            assert_eq!(rust.1, renamed, "{text}");
+        }
     }
 
     #[test]

@@ -7,6 +7,7 @@ use crate::IterationMap;
 /// Outcome of a driver run.
 #[derive(Debug, Clone, Copy, PartialEq, Eq, Serialize)]
 #[serde(rename_all = "snake_case")]
+#[non_exhaustive]
 pub enum RunStatus {
     /// Ran the requested K steps (fixed-K driver).
     Completed,

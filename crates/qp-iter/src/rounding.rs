@@ -83,6 +83,7 @@ pub fn abs_norm_bound(rows: usize, cols: usize, get: impl Fn(usize, usize) -> f6
 
 /// Why the rounding of a method is not covered.
 #[derive(Debug, Clone, PartialEq, Eq, serde::Serialize)]
+#[non_exhaustive]
 pub struct RoundingVoid {
     /// The sentence a report prints (what is not covered and why).
     pub reason: String,

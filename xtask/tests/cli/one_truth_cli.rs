@@ -100,8 +100,22 @@ fn verdicts(c: &Case) -> Verdicts {
     let file = d.join("s.toml");
     fs::write(&file, &c.scenario).unwrap();
     let f = file.to_str().unwrap();
+    let (reproduce, reproduce_solvers_certified) = reproduce_verdict(c, &d, f);
+    let sweep = sweep_verdict(c, &d, f);
+    let (export_refused, export_covered) = export_verdict(c, &d, f);
+    let certify_not_certified = certify_verdict(c, f);
+    Verdicts {
+        reproduce,
+        reproduce_solvers_certified,
+        sweep,
+        export_refused,
+        export_covered,
+        certify_not_certified,
+    }
+}
 
-    // reproduce: the verdict at the scenario's own (K, K_c), and the per-solver flag.
+/// reproduce: the verdict at the scenario's own (K, K_c), and the per-solver flag.
+fn reproduce_verdict(c: &Case, d: &Path, f: &str) -> (String, bool) {
     let out = run(&[
         "reproduce",
         "--scenario",
@@ -127,7 +141,11 @@ fn verdicts(c: &Case) -> Verdicts {
         .iter()
         .any(|s| s["certified"] == true);
 
-    // sweep: the `certified` column at the same pair.
+    (reproduce, reproduce_solvers_certified)
+}
+
+/// sweep: the `certified` column at the same pair.
+fn sweep_verdict(c: &Case, d: &Path, f: &str) -> String {
     let controller = c.k_c.map_or_else(String::new, |(k_c, m)| {
         format!(
             "controller = {{ kind = \"suboptimal-mpc\", iterations = {k_c}, solver = \"{m}\" }}\n"
@@ -155,10 +173,12 @@ fn verdicts(c: &Case) -> Verdicts {
     ]);
     assert!(out.status.success(), "{}: sweep\n{}", c.name, text(&out));
     let points = Table::parse(&fs::read_to_string(sweep_out.join("points.csv")).unwrap()).unwrap();
-    let sweep = points.text(0, "certified").unwrap().to_string();
+    points.text(0, "certified").unwrap().to_string()
+}
 
-    // export: refused without --allow-uncertified iff not certified; with it, the artefact
-    // says what it is.
+/// export: refused without --allow-uncertified iff not certified; with it, the artefact
+/// says what it is. Returns (refused, covered).
+fn export_verdict(c: &Case, d: &Path, f: &str) -> (bool, bool) {
     let k = c.k.to_string();
     let scalar = if c.f32 { "f32" } else { "f64" };
     let e1 = d.join("e1");
@@ -212,8 +232,11 @@ fn verdicts(c: &Case) -> Verdicts {
         "{}: the MPC is exported iff the scenario's controller is the K_c-iteration MPC",
         c.name
     );
+    (export_refused, export_covered)
+}
 
-    // certify: LMI (2) and the structural coverage line.
+/// certify: LMI (2) and the structural coverage line; true when it says NOT CERTIFIED.
+fn certify_verdict(c: &Case, f: &str) -> bool {
     let out = run(&["certify", "--scenario", f]);
     let certify_not_certified = text(&out).contains("closed loop: NOT CERTIFIED");
     assert!(
@@ -222,14 +245,7 @@ fn verdicts(c: &Case) -> Verdicts {
         c.name,
         text(&out)
     );
-    Verdicts {
-        reproduce,
-        reproduce_solvers_certified,
-        sweep,
-        export_refused,
-        export_covered,
-        certify_not_certified,
-    }
+    certify_not_certified
 }
 
 #[test]

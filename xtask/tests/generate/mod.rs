@@ -558,6 +558,40 @@ fn set_entry(old: Value, i: usize, v: f64) -> Value {
     out
 }
 
+/// A weight at `key` (n × n for its n) that is not positive definite, in the `form`-th way:
+/// a negative or zero scalar, a negative diagonal entry, an asymmetric matrix or a zero
+/// diagonal entry.
+fn non_pd(b: &Base, key: &str, form: u8) -> Value {
+    let n = match key {
+        "mhe.q" | "noise.covariance" => b.nx + b.ny,
+        "mhe.r" => b.ny,
+        "mpc.r" => b.nu,
+        _ => b.nx,
+    };
+    match form {
+        0 => Value::Float(-0.5),
+        1 => Value::Float(0.0),
+        2 => {
+            let mut d = vec![1.0; n];
+            d[n - 1] = -1.0;
+            table(vec![("diagonal", floats(&d))])
+        }
+        3 if n >= 2 => {
+            let mut m = vec![0.0; n * n];
+            for i in 0..n {
+                m[i * n + i] = 1.0;
+            }
+            m[1] = 0.5;
+            rows(&m, n, n)
+        }
+        _ => {
+            let mut d = vec![1.0; n];
+            d[0] = 0.0;
+            table(vec![("diagonal", floats(&d))])
+        }
+    }
+}
+
 /// Applies `edit` to the scenario table of `b`.
 pub fn apply(b: &Base, edit: &Edit) -> Table {
     let mut t = scenario_table(b);
@@ -590,38 +624,10 @@ pub fn apply(b: &Base, edit: &Edit) -> Table {
         }
         Edit::NonPd(k, form) => {
             let key = WEIGHT_KEYS[*k];
-            let n = match key {
-                "mhe.q" | "noise.covariance" => b.nx + b.ny,
-                "mhe.r" => b.ny,
-                "mpc.r" => b.nu,
-                _ => b.nx,
-            };
-            let value = match form {
-                0 => Value::Float(-0.5),
-                1 => Value::Float(0.0),
-                2 => {
-                    let mut d = vec![1.0; n];
-                    d[n - 1] = -1.0;
-                    table(vec![("diagonal", floats(&d))])
-                }
-                3 if n >= 2 => {
-                    let mut m = vec![0.0; n * n];
-                    for i in 0..n {
-                        m[i * n + i] = 1.0;
-                    }
-                    m[1] = 0.5;
-                    rows(&m, n, n)
-                }
-                _ => {
-                    let mut d = vec![1.0; n];
-                    d[0] = 0.0;
-                    table(vec![("diagonal", floats(&d))])
-                }
-            };
             if key == "noise.covariance" {
                 set(&mut t, "noise.kind", Value::String("gaussian".into()));
             }
-            set(&mut t, key, value);
+            set(&mut t, key, non_pd(b, key, *form));
         }
         Edit::SingularE(i) => {
             let mut d = vec![1.0; b.nx];

@@ -1,6 +1,8 @@
 //! Theorem 1 arithmetic checked against constants derived by hand.
 
-use iss_certificate::analysis::{IssAnalysis, IssInputs, eta_sup_for_horizon, min_horizon_for_eta};
+use iss_certificate::analysis::{
+    IssAnalysis, IssInputError, IssInputs, eta_sup_for_horizon, min_horizon_for_eta,
+};
 
 /// Inputs chosen so that every constant has a short closed form:
 /// M = 1, η = 1/24 ⇒ ρ = 6^{1/1}·η = 1/4, √ρ = 1/2, ρ^M = 1/4, √(ρ^M) = 1/2;
@@ -278,4 +280,49 @@ fn k_min_is_the_first_certified_k() {
             assert_eq!(scan, Some(k));
         }
     }
+}
+
+/// Issue 38: `try_new` refuses a NaN in any field, and M = 0, naming the field; the valid
+/// hand inputs give the analysis `new` gives.
+#[test]
+fn try_new_names_a_nan_field() {
+    let ok = IssAnalysis::try_new(hand_inputs()).expect("valid inputs");
+    assert_eq!(ok, IssAnalysis::new(hand_inputs()));
+    let nan = f64::NAN;
+    type Set = fn(&mut IssInputs, f64);
+    let cases: [(&str, Set); 12] = [
+        ("eta", |i, v| i.eta = v),
+        ("p_min", |i, v| i.p_min = v),
+        ("p_max", |i, v| i.p_max = v),
+        ("q_max", |i, v| i.q_max = v),
+        ("h_bar", |i, v| i.h_bar = v),
+        ("l_phi", |i, v| i.l_phi = v),
+        ("l_pi", |i, v| i.l_pi = v),
+        ("c_norm", |i, v| i.c_norm = v),
+        ("f_norm", |i, v| i.f_norm = v),
+        ("gamma13", |i, v| i.gamma13 = v),
+        ("phi_rate", |i, v| i.phi_rate = v),
+        ("phi_prefactor", |i, v| i.phi_prefactor = v),
+    ];
+    for (field, set) in cases {
+        let mut inputs = hand_inputs();
+        set(&mut inputs, nan);
+        let e = IssAnalysis::try_new(inputs).expect_err("NaN refused");
+        assert_eq!(e, IssInputError::NaN { field });
+        assert!(
+            e.to_string()
+                .starts_with(&format!("IssInputs::{field} is NaN"))
+        );
+    }
+    // ±∞ is a value the premises read (an unbounded γ₁,₃ fails "gamma13 finite").
+    let mut inputs = hand_inputs();
+    inputs.gamma13 = f64::INFINITY;
+    let an = IssAnalysis::try_new(inputs).expect("∞ is read by a premise");
+    assert!(!an.premises_hold());
+    let mut inputs = hand_inputs();
+    inputs.horizon = 0;
+    assert_eq!(
+        IssAnalysis::try_new(inputs),
+        Err(IssInputError::ZeroHorizon)
+    );
 }

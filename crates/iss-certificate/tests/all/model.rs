@@ -175,12 +175,12 @@ fn refused(b: LoopModelBuilder) -> (String, String) {
 }
 
 #[test]
-fn bad_mhe_values_name_mhe_settings_fields() {
+fn bad_mhe_values_name_mhe_builder_methods() {
     let (field, text) =
         refused(small(plant()).mhe(MheSettings::builder().horizon(3).eta(1.2).iterations(10)));
-    assert_eq!(field, "MheSettings::eta");
+    assert_eq!(field, "MheBuilder::eta");
     assert!(
-        text.starts_with("MheSettings::eta: is 1.2, but η must lie in [0, 1)"),
+        text.starts_with("MheBuilder::eta: is 1.2, but η must lie in [0, 1)"),
         "{text}"
     );
     let (field, _) = refused(
@@ -191,15 +191,15 @@ fn bad_mhe_values_name_mhe_settings_fields() {
                 .iterations(10),
         ),
     );
-    assert_eq!(field, "MheSettings::eta");
+    assert_eq!(field, "MheBuilder::eta");
     let (field, _) =
         refused(small(plant()).mhe(MheSettings::builder().horizon(0).eta(0.5).iterations(10)));
-    assert_eq!(field, "MheSettings::horizon");
+    assert_eq!(field, "MheBuilder::horizon");
     let (field, _) =
         refused(small(plant()).mhe(MheSettings::builder().horizon(3).eta(0.5).iterations(0)));
-    assert_eq!(field, "MheSettings::iterations");
+    assert_eq!(field, "MheBuilder::iterations");
     let (field, text) = refused(small(plant()).mhe(MheSettings::builder().horizon(3).eta(0.5)));
-    assert_eq!(field, "MheSettings::iterations", "{text}");
+    assert_eq!(field, "MheBuilder::iterations", "{text}");
     assert!(text.ends_with("e.g. `.iterations(50)`"), "{text}");
     // Q must be n_w × n_w (3 × 3) and positive definite.
     let not_pd = Mat::from_fn(3, 3, |i, j| if i == j { -1.0 } else { 0.0 });
@@ -212,7 +212,7 @@ fn bad_mhe_values_name_mhe_settings_fields() {
                 .q(&not_pd),
         ),
     );
-    assert_eq!(field, "MheSettings::q");
+    assert_eq!(field, "MheBuilder::q");
     let (field, _) = refused(
         small(plant()).mhe(
             MheSettings::builder()
@@ -222,7 +222,7 @@ fn bad_mhe_values_name_mhe_settings_fields() {
                 .r(&Mat::identity(2, 2)),
         ),
     );
-    assert_eq!(field, "MheSettings::r");
+    assert_eq!(field, "MheBuilder::r");
     // A horizon whose MHE setup exceeds the memory limit: refused before anything is built.
     let (field, _) = refused(
         small(plant()).mhe(
@@ -232,7 +232,7 @@ fn bad_mhe_values_name_mhe_settings_fields() {
                 .iterations(10),
         ),
     );
-    assert_eq!(field, "MheSettings::horizon");
+    assert_eq!(field, "MheBuilder::horizon");
 }
 
 #[test]
@@ -262,12 +262,12 @@ fn bad_plant_sets_and_mpc_values_name_rust_items() {
     assert_eq!(field, "LoopModelBuilder::w_bar");
     // The MPC: N = 0, N beyond the dense-memory limit, R_c not positive definite.
     let (field, _) = refused(small(plant()).mpc_horizon(0));
-    assert_eq!(field, "MpcSettings::horizon");
+    assert_eq!(field, "MpcBuilder::horizon");
     let (field, text) = refused(small(plant()).mpc_horizon(1 << 24));
-    assert_eq!(field, "MpcSettings::horizon", "{text}");
+    assert_eq!(field, "MpcBuilder::horizon", "{text}");
     let bad_r = MpcSettings::builder().horizon(3).r(&mat![[0.0]]);
     let (field, _) = refused(small(plant()).mpc(bad_r));
-    assert_eq!(field, "MpcSettings::r");
+    assert_eq!(field, "MpcBuilder::r");
 }
 
 #[test]
@@ -325,6 +325,12 @@ fn verdict_gains_and_w_bar_of_a_small_model() {
     let k = cert.k_min(Method::PG).expect("certified");
     assert_eq!(cert.verdict(Method::PG, k).certified.as_str(), "yes");
     assert_eq!(cert.verdict(Method::PG, k - 1).certified.as_str(), "no");
+    // `verdicts` is K_min and `verdict` per method, and `Certified` prints as `as_str`.
+    let all: Vec<_> = cert.verdicts(k - 1).collect();
+    assert_eq!(all.len(), 1);
+    assert_eq!((all[0].0, all[0].1), (Method::PG, Some(k)));
+    assert_eq!(all[0].2, cert.verdict(Method::PG, k - 1));
+    assert_eq!(all[0].2.certified.to_string(), "no");
     let g = cert.gains(Method::PG, k).expect("gains at K_min");
     assert!(g.gain_e.is_finite() && g.gain_e > 0.0 && g.gain_x.is_finite());
     assert!(cert.gains(Method::PG, k - 1).is_err());
@@ -337,4 +343,38 @@ fn verdict_gains_and_w_bar_of_a_small_model() {
         v.reason_text()
     );
     assert!(cert.gains(Method::FISTA, k).is_err());
+}
+
+/// Issue 38: a user's first certified MHE on their own plant in ≤ 15 lines of Rust, two
+/// crates, no TOML and no string keys; the README shows the example as it is.
+#[test]
+fn first_certificate_fits_15_lines() {
+    let dir = env!("CARGO_MANIFEST_DIR");
+    let example = std::fs::read_to_string(format!("{dir}/examples/first_certificate.rs"))
+        .expect("the example");
+    let code = &example[example.find("use ").expect("a use line")..];
+    let lines: Vec<&str> = code
+        .lines()
+        .map(str::trim)
+        .filter(|l| !l.is_empty() && !l.starts_with("//"))
+        .collect();
+    assert!(
+        lines.len() <= 15,
+        "{} lines:\n{}",
+        lines.len(),
+        lines.join("\n")
+    );
+    let crates: Vec<&str> = lines
+        .iter()
+        .filter_map(|l| l.strip_prefix("use ")?.split("::").next())
+        .collect();
+    assert_eq!(crates, ["iss_certificate", "lti_model"]);
+    for needle in ["toml", "Scenario", "mhe.", "mpc.", "\"["] {
+        assert!(!code.contains(needle), "the example uses {needle}");
+    }
+    let readme = std::fs::read_to_string(format!("{dir}/README.md")).expect("the README");
+    assert!(
+        readme.contains(&format!("```rust\n{code}```")),
+        "README.md's example differs from examples/first_certificate.rs"
+    );
 }

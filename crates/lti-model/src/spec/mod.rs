@@ -5,6 +5,7 @@
 
 pub mod format;
 pub mod limits;
+pub mod names;
 pub mod plant;
 
 pub use format::{Bounds, MAX_DIMENSION, MatrixSpec, Table, key_error};

@@ -39,18 +39,29 @@ fn afti16_in_ft_per_s_blames_the_units_with_the_scaling() {
         min_eigenvalue: 1e-4,
         max_eigenvalue: 1e10,
     };
-    let explained = match s.estimator(&sys, &MheSets::unconstrained(&sys), &[0.0; 4]) {
-        Err(real) => real,
-        Ok(_) => s.explain(&sys, e),
-    };
-    match explained {
+    let words = ["units", "T = diag(", "T⁻¹AT", "not the weights"];
+    // A scenario's path (`explain`) names the key …
+    match s.explain(&sys, e) {
         MheError::Model(ModelError::Scenario { key, problem }) => {
             assert_eq!(key, "plant.a", "{problem}");
-            for word in ["units", "T = diag(", "T⁻¹AT", "not the weights"] {
+            for word in words {
                 assert!(problem.contains(word), "{word}: {problem}");
             }
         }
         other => panic!("{other:?}"),
+    }
+    // … and the Rust path (`MheSettings::estimator`), when it refuses the window, the matrix.
+    if let Err(real) = s.estimator(&sys, &MheSets::unconstrained(&sys), &[0.0; 4]) {
+        match real {
+            MheError::Model(ModelError::Invalid { field, problem }) => {
+                assert_eq!(field, "LtiSystem::a", "{problem}");
+                assert!(!problem.contains("plant."), "{problem}");
+                for word in words {
+                    assert!(problem.contains(word), "{word}: {problem}");
+                }
+            }
+            other => panic!("{other:?}"),
+        }
     }
     // The same plant with its speed in 100 ft/s has a spread 100× smaller.
     let s_units = [0.01, 1.0, 1.0, 1.0];

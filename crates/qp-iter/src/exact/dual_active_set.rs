@@ -70,6 +70,7 @@ pub use super::parametric_dual::ParametricDualActiveSet;
 /// How a call of [`DualActiveSet`] ended.
 #[derive(Debug, Clone, Copy, PartialEq, serde::Serialize)]
 #[serde(rename_all = "snake_case", tag = "status")]
+#[non_exhaustive]
 pub enum DualActiveSetStatus {
     /// The minimiser (within the tolerances; see [`DualActiveSetInfo`]).
     Optimal,

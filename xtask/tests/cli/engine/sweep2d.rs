@@ -168,6 +168,11 @@ fn k_c_config_errors_name_the_key_and_the_fix() {
             "{extra}: `{problem}` lacks `{needle}`"
         );
     }
+    valid_k_c_configs(base, sub);
+}
+
+/// The valid counterparts of [`k_c_config_errors_name_the_key_and_the_fix`]'s configs.
+fn valid_k_c_configs(base: &str, sub: &str) {
     // The name alone also selects the sub-optimal MPC in a 2-D sweep, with the scenario's
     // default Φ (`mpc.method`'s default, FISTA: one default for the file and the sweep).
     let c = SweepConfig::from_toml_str(

@@ -257,14 +257,10 @@ fn an_edited_count_is_refused_naming_file_row_and_cell() {
     sweep.run(&opts(&out, None), &NoProgress).unwrap();
 }
 
-/// Every shard of a sweep with the Kalman baseline writes its part of kalman.csv
-/// (`points/kalman.shard-I-of-N.csv`); the merge assembles kalman.csv byte for byte equal
-/// to the unsharded sweep's (runs.csv and points.csv too, timing aside), copies the parts
-/// so the merged directory merges again, and refuses a missing, corrupt or conflicting
-/// part naming the file.
-#[test]
-fn sharded_sweep_merges_kalman_csv() {
-    let d = scratch("kalman-shards");
+/// The sweep of [`sharded_sweep_merges_kalman_csv`], whole and in three shards in `d`, each
+/// shard's Kalman part and the merge checked: (the sweep, the whole run's directory, the
+/// shards' directories).
+fn kalman_shards_merged(d: &Path) -> (Sweep, PathBuf, Vec<PathBuf>) {
     let cfg = config(
         Path::new(CASE_STUDY),
         "scales = [0.5, 2.0]\nestimators = [\"mhe\", \"kalman\"]",
@@ -306,7 +302,20 @@ fn sharded_sweep_merges_kalman_csv() {
     fs::remove_file(merged.join("kalman.csv")).unwrap();
     merge_point_dirs(&sweep, &[merged.as_path()], &merged, &NoProgress).unwrap();
     assert_eq!(bytes(&merged, "kalman.csv"), bytes(&whole, "kalman.csv"));
+    (sweep, whole, shards)
+}
 
+/// Every shard of a sweep with the Kalman baseline writes its part of kalman.csv
+/// (`points/kalman.shard-I-of-N.csv`); the merge assembles kalman.csv byte for byte equal
+/// to the unsharded sweep's (runs.csv and points.csv too, timing aside), copies the parts
+/// so the merged directory merges again, and refuses a missing, corrupt or conflicting
+/// part naming the file.
+#[test]
+fn sharded_sweep_merges_kalman_csv() {
+    let d = scratch("kalman-shards");
+    let (sweep, whole, shards) = kalman_shards_merged(&d);
+    let dirs: Vec<&Path> = shards.iter().map(PathBuf::as_path).collect();
+    let bytes = |p: &Path, f: &str| fs::read(p.join(f)).unwrap();
     let part2 = shards[1]
         .join("points")
         .join(kalman_part_name(Shard { index: 2, count: 3 }));

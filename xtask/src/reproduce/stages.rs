@@ -152,7 +152,7 @@ pub(super) fn document(
     let solvers: Vec<SolverSummary> = (cert.solvers.iter())
         .map(|s| SolverSummary::new(s, solver, scenario, report.controller))
         .collect();
-    let budget = crate::budget::reproduce(
+    let budget = mhe_export::budget::reproduce(
         scenario,
         &(solvers.iter())
             .map(|s| (s.solver.clone(), s.k_min))

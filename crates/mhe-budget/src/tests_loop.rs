@@ -13,6 +13,12 @@ const MPC_REL_BOUND: f64 = 0.08;
 /// The bound of MHE + MPC against the whole measured loop step.
 const LOOP_REL_BOUND: f64 = 0.08;
 
+/// Instructions the calibration's own counting adds inside a measured loop step: the
+/// copy's loop.c reads SysTick around `mpc_control` and sums in `double`, in software on the
+/// M4F (≈ 300 instructions; ≈ 5 on the M7). Only the f32 M4F rows, whose error bound is
+/// 0.06 %, are tight enough to see it (at K = K_c = 1: 292 of 34 439).
+const COUNTING: f64 = 400.0;
+
 /// The K_c the fit did not see (scripts/fit-instructions.py: FIT_KS = {1, 256}).
 const HELD_OUT_KC: usize = 16;
 
@@ -99,7 +105,7 @@ fn loop_prediction_covers_the_measured_loop_steps() {
             "{p:?}: predicted {pred:.0} ({:.2} %)",
             rel * 100.0
         );
-        assert!(upper >= p.loop_max, "{p:?}: bound {upper:.0}");
+        assert!(upper + COUNTING >= p.loop_max, "{p:?}: bound {upper:.0}");
     }
 }
 

@@ -310,7 +310,7 @@ file, f4, r4, f7, r7 = sys.argv[3], *sys.argv[4:]
 def why(r):
     # The reason without the export's own framing (scalar prefix, the flag that forced it).
     r = (r or 'not certified').replace('|', '/').removesuffix('; exported with --allow-uncertified')
-    for p in ('f32: ', 'not covered: ', 'void: '):
+    for p in ('f32: ', 'not covered: '):
         r = r.removeprefix(p)
     return r
 k32 = str(c32['iterations']) if c32['certified'] else 'not covered: ' + why(c32.get('uncertified_reason'))

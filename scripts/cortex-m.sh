@@ -14,8 +14,10 @@
 #      the same bits; flash, RAM and instructions per loop step (push + estimate + control).
 #
 # Modes: `check` (default: the above), `calibrate` (the instruction model's measurements:
-# every method at several sizes and K on both boards → crates/mhe-budget/data/, then
+# every method at several sizes and K on both boards → crates/mhe-budget/data/, then the
+# MPC's control inside the loop program (CALIB_MHE=0 / CALIB_MPC=0 skip a part), then
 # `python3 scripts/fit-instructions.py`), `table` (docs/embedded.md's budget table).
+# `calibrate` and `table` are run by hand (wall times in docs/embedded.md), not by CI.
 #
 # Installs gcc-arm-none-eabi, libnewlib-arm-none-eabi and qemu-system-arm with apt when
 # missing. Writes target/cortex-m/summary.md. Exit status non-zero on any mismatch.

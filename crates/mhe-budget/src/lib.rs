@@ -23,6 +23,12 @@
 //! over all its calibration points, and says when n_z lies outside the calibrated sizes
 //! ("extrapolated").
 //!
+//! **The MPC** (an export with `--kc`): a loop step is the MHE step plus the MPC's control,
+//! K_c iterations on its condensed QP (n = N·n_u, θ = x̂). Its rows
+//! (`data/cortex-m-mpc-model.csv`) are fitted the same way on the control part of the loop
+//! program measured under QEMU (`data/cortex-m-mpc-points.csv`, F = n·n_x, + 2n² for
+//! ADMM); [`fits_loop`] adds the two bounds, each raised by its own row's error.
+//!
 //! **f32 is a measurement of the f32 export**, its own rows of the model: the instructions
 //! of the K given, which the certificate does not cover in f32 unless it says so (the
 //! f32 certificate is void on the shipped scenarios, docs/theory.md "Certified f32"); the
@@ -335,7 +341,7 @@ impl InstructionModel {
 }
 
 /// Non-comment lines with their 1-based line numbers.
-fn data_lines(text: &str) -> impl Iterator<Item = (usize, &str)> {
+pub(crate) fn data_lines(text: &str) -> impl Iterator<Item = (usize, &str)> {
     text.lines()
         .enumerate()
         .map(|(i, l)| (i + 1, l.trim()))
@@ -385,60 +391,6 @@ pub fn points() -> Result<Vec<Point>, String> {
             },
             k: int(9)?,
             max: f[11].trim().parse::<f64>().map_err(|_| bad())?,
-        });
-    }
-    Ok(out)
-}
-
-/// One measured loop step of `data/cortex-m-mpc-points.csv`: the loop program (MHE + the
-/// K_c-iteration MPC), its control part counted on its own.
-#[derive(Debug, Clone, PartialEq)]
-pub struct LoopPoint {
-    /// The control part: the MPC's method, sizes ([`StepDims::mpc`]), K_c and max
-    /// instructions (what its rows are fitted on).
-    pub mpc: Point,
-    /// The loop's MHE method.
-    pub mhe_method: String,
-    /// The loop's MHE window.
-    pub mhe_dims: StepDims,
-    /// The loop's MHE K.
-    pub mhe_k: usize,
-    /// Max instructions of the whole loop step (push + estimate + control).
-    pub loop_max: f64,
-}
-
-/// Every stored loop measurement.
-pub fn loop_points() -> Result<Vec<LoopPoint>, String> {
-    let mut out = Vec::new();
-    for (line_no, line) in data_lines(MPC_POINTS_CSV).skip(1) {
-        let f: Vec<&str> = line.split(',').collect();
-        let bad = || format!("data/cortex-m-mpc-points.csv line {line_no}: `{line}` is malformed");
-        if f.len() != 20 {
-            return Err(bad());
-        }
-        let int = |i: usize| f[i].trim().parse::<usize>().map_err(|_| bad());
-        let num = |i: usize| f[i].trim().parse::<f64>().map_err(|_| bad());
-        let (nx, nu) = (int(6)?, int(7)?);
-        out.push(LoopPoint {
-            mpc: Point {
-                target: Target::parse(f[0]).map_err(|_| bad())?,
-                method: f[1].to_string(),
-                scalar: Scalar::parse(f[12]).ok_or_else(bad)?,
-                scenario: f[2].to_string(),
-                dims: StepDims::mpc(nx, nu, int(3)?),
-                k: int(9)?,
-                max: num(11)?,
-            },
-            mhe_method: f[13].to_string(),
-            mhe_dims: StepDims {
-                horizon: int(14)?,
-                n: int(15)?,
-                n_theta: int(16)?,
-                nx,
-                nu,
-            },
-            mhe_k: int(17)?,
-            loop_max: num(19)?,
         });
     }
     Ok(out)
@@ -789,6 +741,9 @@ fn largest_k(
     }
     Some(k)
 }
+
+mod loop_points;
+pub use loop_points::{LoopPoint, loop_points};
 
 #[cfg(test)]
 mod tests;

@@ -14,8 +14,10 @@
 #      the same bits; flash, RAM and instructions per loop step (push + estimate + control).
 #
 # Modes: `check` (default: the above), `calibrate` (the instruction model's measurements:
-# every method at several sizes and K on both boards → crates/mhe-budget/data/, then
+# every method at several sizes and K on both boards → crates/mhe-budget/data/, then the
+# MPC's control inside the loop program (CALIB_MHE=0 / CALIB_MPC=0 skip a part), then
 # `python3 scripts/fit-instructions.py`), `table` (docs/embedded.md's budget table).
+# `calibrate` and `table` are run by hand (wall times in docs/embedded.md), not by CI.
 #
 # Installs gcc-arm-none-eabi, libnewlib-arm-none-eabi and qemu-system-arm with apt when
 # missing. Writes target/cortex-m/summary.md. Exit status non-zero on any mismatch.
@@ -156,15 +158,133 @@ calibrate() {
     } >"$CALIB_DIR/cortex-m-points.csv"
     echo "wrote $CALIB_DIR/cortex-m-points.csv; fit: python3 scripts/fit-instructions.py"
 }
+# The MPC's share of a loop step (`calibrate`, after the MHE's points; CALIB_MPC=0 skips
+# it): the loop program (MHE at K = 1 + the K_c-iteration MPC) of an export with `--kc 1`
+# per (scalar, MPC method, MPC horizon N), K_c set in a copy's data as K is above, and the
+# copy's loop.c counting `mpc_control` on its own (the instructions of the control part:
+# the response the MPC rows are fitted on) besides the whole loop step (push + estimate +
+# control: what the MHE + MPC model is checked against). Writes
+# crates/mhe-budget/data/cortex-m-mpc-points.csv (n = N·n_u, n_theta = n_x, k = K_c).
+instrument_loop() { # a copy's loop.c: self-test skipped, the control part counted alone
+    python3 - "$1" <<'PY'
+import sys
+path = sys.argv[1]
+s = open(path).read()
+edits = [
+    ("rc = mhe_self_test(&state);", "rc = 0; /* calibration: self-test skipped */"),
+    ("double per_tick = count_init(), total = 0.0, worst = 0.0;",
+     "double per_tick = count_init(), total = 0.0, worst = 0.0, ctotal = 0.0, cworst = 0.0;"),
+    ("            if (control(x, u, row + 1) != 0) return 1;\n",
+     "            {\n#ifdef MHE_COUNT_SYSTICK\n                double cb = ticks_now(), cn;\n#endif\n"
+     "                if (control(x, u, row + 1) != 0) return 1;\n#ifdef MHE_COUNT_SYSTICK\n"
+     "                cn = (double)ticks_since(cb) * per_tick;\n                ctotal += cn;\n"
+     "                if (cn > cworst) cworst = cn;\n#endif\n            }\n"),
+    ("                total / (double)row, worst, row);\n",
+     "                total / (double)row, worst, row);\n    if (row > 0)\n"
+     "        fprintf(stderr, \"control part: cmean %.0f, cmax %.0f\\n\", ctotal / (double)row, cworst);\n"),
+]
+for old, new in edits:
+    if s.count(old) != 1:
+        sys.exit(f"{path}: cannot instrument (`{old.strip()}` found {s.count(old)} times)")
+    s = s.replace(old, new)
+open(path, "w").write(s)
+PY
+}
+calibrate_mpc() {
+    local dir="$OUT/calib-mpc"
+    mkdir -p "$dir"
+    local points="$dir/points.csv"
+    if [ ! -s "$points" ]; then
+        if [ -s "$CALIB_DIR/cortex-m-mpc-points.csv" ]; then
+            grep -v '^#' "$CALIB_DIR/cortex-m-mpc-points.csv" >"$points"
+        else
+            echo "target,method,scenario,horizon,n,n_theta,nx,nu,ny,k,mean,max,scalar,mhe_method,mhe_horizon,mhe_n,mhe_n_theta,mhe_k,loop_mean,loop_max" >"$points"
+        fi
+    fi
+    local spec file horizon method k tag machine label art kart mean max lmean lmax dims input scalar
+    for scalar in ${CALIB_SCALARS:-f64 f32}; do
+    for method in ${CALIB_MPC_METHODS:-pg fista admm-pr admm pg-jacobi fista-jacobi admm-jacobi admm-pr-jacobi}; do
+        for spec in ${CALIB_MPC_SIZES:-case-study-certified:5 case-study-certified:10 cart-pendulum:30}; do
+            IFS=: read -r file horizon <<<"$spec"
+            local scen="$dir/$file-n$horizon.toml"
+            # The MPC horizon N (in [mpc]); K_c from --kc; no sample_time (see calibrate).
+            awk -v n="$horizon" '/^\[/ { sec = $0 } sec == "[mpc]" && /^horizon *=/ { print "horizon = " n; next }
+                sec == "[mpc]" && /^(iterations|method) *=/ { next } /^sample_time *=/ { next } { print }' \
+                "scenarios/$file.toml" >"$scen"
+            if grep -q "^[^,]*,$method,$file,$horizon,[^,]*,[^,]*,[^,]*,[^,]*,[^,]*,[^,]*,[^,]*,[^,]*,$scalar," "$points"; then
+                echo "==> MPC $file, N = $horizon, $method, $scalar: in $points already"
+                continue
+            fi
+            art="$dir/$file-n$horizon-$method-$scalar"
+            echo "==> calibrate the MPC: $file, N = $horizon, $method, $scalar"
+            "${XTASK_CMD[@]}" export --scenario "$scen" --out "$art" --lang c --method pg \
+                --k 1 --kc 1 --mpc-method "$method" --scalar "$scalar" --allow-uncertified \
+                >"$art.log" 2>&1 || { cat "$art.log"; exit 1; }
+            read -r -a dims <<<"$(calib_dims "$art/mhe_data.h")"
+            local nseq
+            nseq=$(sed -n 's/^#define MPC_NSEQ \([0-9]*\)$/\1/p' "$art/mhe_data.h")
+            input="$dir/yinput-$file.csv"
+            # M + 2 rows of y_j = 0.2 cos(0.7 t + j).
+            awk -v rows=$((dims[0] + 2)) -v ny="${dims[5]}" 'BEGIN {
+                for (t = 0; t < rows; t++) { s = "";
+                    for (j = 0; j < ny; j++) s = s (s == "" ? "" : ",") sprintf("%.17g", 0.2 * cos(0.7 * t + j));
+                    print s } }' >"$input"
+            for k in ${CALIB_KS:-1 16 256}; do
+                kart="$art-kc$k"
+                rm -rf "$kart"
+                cp -r "$art" "$kart"
+                sed -i "s/^#define MPC_KC .*/#define MPC_KC $k/" "$kart/mhe_data.h"
+                # K_c is the 4th field of the MPC problem (nx, nu, N, K_c, method, …).
+                sed -i "/mhe_exported_mpc = {/{n;s/^\(    \([0-9]*, \)\{3\}\)[0-9]*,/\1$k,/}" "$kart/mhe_data.c"
+                grep -A1 'mhe_exported_mpc = {' "$kart/mhe_data.c" | grep -q "^    \([0-9]*, \)\{3\}$k, MHE_" \
+                    || { echo "could not set K_c = $k in $kart/mhe_data.c"; exit 1; }
+                instrument_loop "$kart/loop.c"
+                for target in "m4:mps2-an386:cortex-m4f" "m7:mps2-an500:cortex-m7"; do
+                    IFS=: read -r tag machine label <<<"$target"
+                    make -s -C "$kart" "loop-$tag.elf" DEFS=-DMHE_ALLOW_UNCERTIFIED
+                    timeout 1200 qemu-system-arm -M "$machine" -nographic -monitor none -serial none \
+                        -semihosting-config enable=on,target=native -icount shift=0 \
+                        -kernel "$kart/loop-$tag.elf" <"$input" >"$kart/$tag.out" 2>"$kart/$tag.err"
+                    mean=$(sed -n 's/.*cmean \([0-9]*\), cmax \([0-9]*\).*/\1/p' "$kart/$tag.err")
+                    max=$(sed -n 's/.*cmean \([0-9]*\), cmax \([0-9]*\).*/\2/p' "$kart/$tag.err")
+                    lmean=$(sed -n 's/.* mean \([0-9]*\), max \([0-9]*\).*/\1/p' "$kart/$tag.err")
+                    lmax=$(sed -n 's/.* mean \([0-9]*\), max \([0-9]*\).*/\2/p' "$kart/$tag.err")
+                    if [ -z "$mean" ] || [ -z "$max" ] || [ -z "$lmean" ] || [ -z "$lmax" ]; then
+                        echo "no instruction count in $kart/$tag.err:"
+                        cat "$kart/$tag.err"
+                        exit 1
+                    fi
+                    echo "$label,$method,$file,$horizon,$nseq,${dims[3]},${dims[3]},${dims[4]},${dims[5]},$k,$mean,$max,$scalar,pg,${dims[0]},${dims[1]},${dims[2]},1,$lmean,$lmax" >>"$points"
+                    echo "    $label, $scalar, K_c = $k: control max $max, loop step max $lmax instructions"
+                done
+                rm -rf "$kart"
+            done
+        done
+    done
+    done
+    {
+        echo "# Max (and mean) instructions of the MPC's control (mpc_control) per loop step, and of the"
+        echo "# whole loop step (push + estimate + control; loop_mean, loop_max), of the exported C loop"
+        echo "# program (MHE pg at K = 1, MPC at K_c = k, n = N n_u, n_theta = n_x) under qemu-system-arm"
+        echo "# -icount shift=0 (emulated instructions, not cycles), measured by \`bash scripts/cortex-m.sh"
+        echo "# calibrate\` (scalars: ${CALIB_SCALARS:-f64 f32}) at commit $(git rev-parse --short HEAD 2>/dev/null || echo unknown),"
+        echo "# $(date -u +%Y-%m-%d), $(arm-none-eabi-gcc --version | head -1), $(qemu-system-arm --version | head -1)."
+        cat "$points"
+    } >"$CALIB_DIR/cortex-m-mpc-points.csv"
+    echo "wrote $CALIB_DIR/cortex-m-mpc-points.csv; fit: python3 scripts/fit-instructions.py"
+}
 if [ "$MODE" = calibrate ]; then
-    calibrate
+    [ "${CALIB_MHE:-1}" = 1 ] && calibrate
+    [ "${CALIB_MPC:-1}" = 1 ] && calibrate_mpc
     exit 0
 fi
 
 # The table of docs/embedded.md ("The sample period as a budget"), between its markers:
 # per shipped certified scenario and method, the export at --k certified (its certificate),
 # the model's instructions per step and "fits T_s" from certificate.json's `budget` (M4F at
-# 168 MHz, M7 at 480 MHz), flash and RAM of the replay ELFs (arm-none-eabi-size). No QEMU run.
+# 168 MHz, M7 at 480 MHz), flash and RAM of the replay ELFs (arm-none-eabi-size); the f32
+# column from an f32 export at --k certified (its verdict: the K when the certificate covers
+# f32, else "not covered: <its uncertified_reason>"). No QEMU run.
 budget_table() {
     local dir="$OUT/table" rows="$OUT/table/rows.md" spec file method art tag text data bss
     mkdir -p "$dir"
@@ -172,19 +292,30 @@ budget_table() {
     for spec in ${TABLE_ROWS:-case-study-certified:pg case-study-certified:admm-pr-jacobi cart-pendulum:admm-pr}; do
         IFS=: read -r file method <<<"$spec"
         art="$dir/$file-$method"
-        echo "==> table: $file, $method (export at the certified K)"
+        echo "==> table: $file, $method (export at the certified K, f64 and f32)"
         "${XTASK_CMD[@]}" export --scenario "scenarios/$file.toml" --out "$art" --lang c \
             --method "$method" --k certified >"$art.log" 2>&1 || { cat "$art.log"; exit 1; }
+        "${XTASK_CMD[@]}" export --scenario "scenarios/$file.toml" --out "$art-f32" --lang c \
+            --method "$method" --k certified --scalar f32 --allow-uncertified >"$art-f32.log" 2>&1 \
+            || { cat "$art-f32.log"; exit 1; }
         local sizes=()
         for tag in m4 m7; do
             make -s -C "$art" "replay-$tag.elf"
             read -r text data bss _ < <(arm-none-eabi-size "$art/replay-$tag.elf" | tail -1)
             sizes+=("$((text + data))" "$((data + bss))")
         done
-        python3 - "$art/certificate.json" "$file" "${sizes[@]}" >>"$rows" <<'PY'
+        python3 - "$art/certificate.json" "$art-f32/certificate.json" "$file" "${sizes[@]}" >>"$rows" <<'PY'
 import json, sys
 c = json.load(open(sys.argv[1]))
-file, f4, r4, f7, r7 = sys.argv[2], *sys.argv[3:]
+c32 = json.load(open(sys.argv[2]))
+file, f4, r4, f7, r7 = sys.argv[3], *sys.argv[4:]
+def why(r):
+    # The reason without the export's own framing (scalar prefix, the flag that forced it).
+    r = (r or 'not certified').replace('|', '/').removesuffix('; exported with --allow-uncertified')
+    for p in ('f32: ', 'not covered: '):
+        r = r.removeprefix(p)
+    return r
+k32 = str(c32['iterations']) if c32['certified'] else 'not covered: ' + why(c32.get('uncertified_reason'))
 t = {b['target']: b for b in c['budget']['targets']}
 m4, m7 = t['cortex-m4f'], t['cortex-m7']
 def mi(v):
@@ -197,11 +328,13 @@ def verdict(b):
         return f"yes (margin {b['margin'] * 100:.0f} %, K ≤ {b['k_max_fitting']})"
     if v == 'does_not_fit':
         k = b['k_max_fitting']
-        return 'no (not even K = 1)' if k is None else f'no: needs K ≤ {k}'
+        if k is None:
+            return f"no, not even K = 1 (certified K = {c['iterations']})"
+        return f"no: fits only K ≤ {k}, certified K = {c['iterations']}"
     return 'not computed: ' + (b['reason'] or '')
 ts = m4['summary'].split('fits ')[-1].split(' ')[0] if m4['fits_sample_time'] != 'not_computed' else '–'
 ex = ' (extrapolated)' if m4['extrapolated'] else ''
-print(f"| {file} | {c['method']} | {c['iterations']} | none (f32 not certified) | "
+print(f"| {file} | {c['method']} | {c['iterations']} | {k32} | "
       f"{mi(m4['instructions_per_step_bound'])} / {mi(m7['instructions_per_step_bound'])}{ex} | "
       f"{us(m4['micros_per_step'])} / {us(m7['micros_per_step'])} | {f4} / {f7} | {r4} / {r7} | "
       f"{verdict(m4)} / {verdict(m7)} |")

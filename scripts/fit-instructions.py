@@ -15,6 +15,11 @@ multiply-adds of an iteration's matrix-vector product and n its vector update.
 Fitted on the points with K in FIT_KS (weighted least squares on the relative error);
 the points at the other K are held out, and each row stores the worst relative error over
 the held-out points (`held_out_rel_err`) and over all points (`max_rel_err`).
+
+The MPC's share of a loop step (cortex-m-mpc-points.csv, the `mpc_control` part of the loop
+program at K_c = k) gets the same model in cortex-m-mpc-model.csv, with n = N n_u,
+n_theta = n_x and no propagation term (the MPC's q = F x_hat is its only product outside
+the iterations, + 2 n^2 for ADMM's warm start).
 Pure Python (no numpy).
 """
 import csv
@@ -29,7 +34,9 @@ DATA = os.path.join(ROOT, "crates", "mhe-budget", "data")
 
 
 def features(p):
-    n, nth, m = int(p["n"]), int(p["n_theta"]), int(p["horizon"])
+    n, nth = int(p["n"]), int(p["n_theta"])
+    # The MPC's points: no propagation of x0 through a window.
+    m = 0 if "mhe_k" in p else int(p["horizon"])
     nx, nu = int(p["nx"]), int(p["nu"])
     k = int(p["k"])
     fixed = n * nth + m * nx * (2 * nx + nu)
@@ -83,7 +90,14 @@ def predict(c, p):
 
 
 def main():
-    src = os.path.join(DATA, "cortex-m-points.csv")
+    fit_file("cortex-m-points.csv", "cortex-m-model.csv", "MHE step")
+    mpc = os.path.join(DATA, "cortex-m-mpc-points.csv")
+    if os.path.exists(mpc):
+        fit_file("cortex-m-mpc-points.csv", "cortex-m-mpc-model.csv", "MPC control")
+
+
+def fit_file(points_name, model_name, what):
+    src = os.path.join(DATA, points_name)
     lines = [l for l in open(src) if not l.startswith("#")]
     points = list(csv.DictReader(lines))
     header = [l for l in open(src) if l.startswith("#")]
@@ -107,20 +121,20 @@ def main():
         out.append([target, method] + ["%.6e" % v for v in c] +
                    [min(ns), max(ns), min(ks), max(ks), len(train), len(held),
                     up4(held_err), up4(all_err), scalar])
-        print(f"{target:10} {method:15} {scalar} held-out max rel err {held_err:.4f}, all {all_err:.4f}")
+        print(f"{what}: {target:10} {method:15} {scalar} held-out max rel err {held_err:.4f}, all {all_err:.4f}")
     rev = subprocess.run(["git", "-C", ROOT, "rev-parse", "--short", "HEAD"],
                          capture_output=True, text=True).stdout.strip() or "unknown"
-    with open(os.path.join(DATA, "cortex-m-model.csv"), "w") as f:
-        f.write("# instructions(K) = c0 + c_fixed*F + K*(c_quad*n^2 + c_lin*n), fitted by\n")
+    with open(os.path.join(DATA, model_name), "w") as f:
+        f.write(f"# {what}: instructions(K) = c0 + c_fixed*F + K*(c_quad*n^2 + c_lin*n), fitted by\n")
         f.write(f"# scripts/fit-instructions.py (commit {rev}) on the points with K in "
-                f"{sorted(FIT_KS)} of cortex-m-points.csv:\n")
+                f"{sorted(FIT_KS)} of {points_name}:\n")
         f.writelines(header)
         w = csv.writer(f, lineterminator="\n")
         w.writerow(["target", "method", "c0", "c_fixed", "c_quad", "c_lin", "n_min", "n_max",
                     "k_min", "k_max", "fit_points", "held_out_points", "held_out_rel_err",
                     "max_rel_err", "scalar"])
         w.writerows(out)
-    print(f"worst held-out relative error {worst:.4f}; wrote {DATA}/cortex-m-model.csv")
+    print(f"{what}: worst held-out relative error {worst:.4f}; wrote {DATA}/{model_name}")
 
 
 if __name__ == "__main__":

@@ -132,7 +132,10 @@ fn options(args: &ExportArgs) -> Result<ExportOptions> {
 /// `cargo xtask export`.
 pub fn export(args: &ExportArgs) -> Result<()> {
     let mut opts = options(args)?;
-    let targets = crate::budget::targets(args.target.as_deref(), args.clock_mhz)?;
+    opts.budget_targets = Some(crate::budget::targets(
+        args.target.as_deref(),
+        args.clock_mhz,
+    )?);
     let text = std::fs::read(&args.scenario)
         .with_context(|| format!("cannot read `{}`", args.scenario.display()))?;
     opts.source = Source::from_bytes(args.scenario.display().to_string(), &text);
@@ -146,23 +149,7 @@ pub fn export(args: &ExportArgs) -> Result<()> {
     let art = mhe_export::export_with_progress(&resolved, &opts, &mut |stage| {
         outln!("{stage}");
     })?;
-    let sc = resolved.scenario();
-    let horizon = (sc.mhe.as_ref())
-        .map(|m| m.horizon())
-        .context("the scenario has no [mhe] section")?;
-    let budgets = crate::budget::budgets(
-        &targets,
-        art.method(),
-        crate::budget::dims(sc, horizon),
-        art.k(),
-        sc.sample_time,
-        args.scalar == ScalarKind::F32,
-    )?;
-    let note = (args.scalar == ScalarKind::F32).then(|| crate::budget::f32_note(art.certified()));
-    art.write_to_then(&args.out, |stage| {
-        crate::budget::annotate(stage, &budgets, note)
-            .map_err(|e| std::io::Error::other(format!("{e:#}")))
-    })?;
+    art.write_to(&args.out)?;
     let verdict = if art.loop_certified() {
         ", certified".to_string()
     } else {
@@ -185,10 +172,10 @@ pub fn export(args: &ExportArgs) -> Result<()> {
         art.k(),
         args.out.display()
     );
-    for b in &budgets {
+    for b in art.budgets() {
         outln!("  {} at {} MHz: {}", b.target, b.clock_mhz, b.summary());
     }
-    if let Some(note) = note {
+    if let Some(note) = art.budget_note() {
         outln!("  {note}");
     }
     Ok(())

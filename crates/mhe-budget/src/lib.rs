@@ -23,6 +23,12 @@
 //! over all its calibration points, and says when n_z lies outside the calibrated sizes
 //! ("extrapolated").
 //!
+//! **The MPC** (an export with `--kc`): a loop step is the MHE step plus the MPC's control,
+//! K_c iterations on its condensed QP (n = N·n_u, θ = x̂). Its rows
+//! (`data/cortex-m-mpc-model.csv`) are fitted the same way on the control part of the loop
+//! program measured under QEMU (`data/cortex-m-mpc-points.csv`, F = n·n_x, + 2n² for
+//! ADMM); [`fits_loop`] adds the two bounds, each raised by its own row's error.
+//!
 //! **f32 is a measurement of the f32 export**, its own rows of the model: the instructions
 //! of the K given, which the certificate does not cover in f32 unless it says so (the
 //! f32 certificate is void on the shipped scenarios, docs/theory.md "Certified f32"); the
@@ -43,6 +49,20 @@ use std::fmt;
 pub const POINTS_CSV: &str = include_str!("../data/cortex-m-points.csv");
 /// The fitted coefficients (`python3 scripts/fit-instructions.py`).
 pub const MODEL_CSV: &str = include_str!("../data/cortex-m-model.csv");
+/// The MPC's measured points: its `mpc_control` inside the loop program, and the whole loop
+/// step (`bash scripts/cortex-m.sh calibrate`).
+pub const MPC_POINTS_CSV: &str = include_str!("../data/cortex-m-mpc-points.csv");
+/// The MPC's fitted coefficients (`python3 scripts/fit-instructions.py`).
+pub const MPC_MODEL_CSV: &str = include_str!("../data/cortex-m-mpc-model.csv");
+
+/// Which part of a loop step a model row predicts.
+#[derive(Debug, Clone, Copy, PartialEq, Eq)]
+pub enum Part {
+    /// The MHE step: push + estimate on the full window (`data/cortex-m-model.csv`).
+    Mhe,
+    /// The MPC's control: K_c iterations on its condensed QP (`data/cortex-m-mpc-model.csv`).
+    Mpc,
+}
 
 /// The scalar of the export (`export --scalar`): each has its own rows of the model.
 #[derive(Debug, Clone, Copy, PartialEq, Eq)]
@@ -145,6 +165,17 @@ impl StepDims {
             nu,
         }
     }
+
+    /// The MPC's condensed QP at horizon N: n = N·n_u inputs, θ = x̂ (n_θ = n_x).
+    pub fn mpc(nx: usize, nu: usize, horizon: usize) -> StepDims {
+        StepDims {
+            n: horizon * nu,
+            n_theta: nx,
+            horizon,
+            nx,
+            nu,
+        }
+    }
 }
 
 /// A bad input of the budget, naming the user's key and the fix.
@@ -164,9 +195,11 @@ impl fmt::Display for BudgetError {
 
 impl std::error::Error for BudgetError {}
 
-/// One row of the fitted model: a (target, method).
+/// One row of the fitted model: a (part, target, method, scalar).
 #[derive(Debug, Clone, PartialEq)]
 pub struct InstructionModel {
+    /// The MHE step or the MPC's control.
+    pub part: Part,
     /// The target.
     pub target: Target,
     /// The method (`export --method` name).
@@ -192,18 +225,28 @@ pub struct InstructionModel {
 }
 
 impl InstructionModel {
-    /// Every row of the stored model.
+    /// Every row of the stored MHE model.
     pub fn all() -> Result<Vec<InstructionModel>, String> {
+        Self::parse(Part::Mhe)
+    }
+
+    /// Every row of the stored model of `part`.
+    pub fn parse(part: Part) -> Result<Vec<InstructionModel>, String> {
+        let (text, file) = match part {
+            Part::Mhe => (MODEL_CSV, "data/cortex-m-model.csv"),
+            Part::Mpc => (MPC_MODEL_CSV, "data/cortex-m-mpc-model.csv"),
+        };
         let mut rows = Vec::new();
-        for (line_no, line) in data_lines(MODEL_CSV).skip(1) {
+        for (line_no, line) in data_lines(text).skip(1) {
             let f: Vec<&str> = line.split(',').collect();
-            let bad = || format!("data/cortex-m-model.csv line {line_no}: `{line}` is malformed");
+            let bad = || format!("{file} line {line_no}: `{line}` is malformed");
             if f.len() != 15 {
                 return Err(bad());
             }
             let num = |i: usize| f[i].trim().parse::<f64>().map_err(|_| bad());
             let int = |i: usize| f[i].trim().parse::<usize>().map_err(|_| bad());
             rows.push(InstructionModel {
+                part,
                 target: Target::parse(f[0]).map_err(|_| bad())?,
                 method: f[1].to_string(),
                 scalar: Scalar::parse(f[14]).ok_or_else(bad)?,
@@ -220,18 +263,28 @@ impl InstructionModel {
         Ok(rows)
     }
 
-    /// The row of (target, method, scalar), `None` when it was not calibrated.
+    /// The MHE row of (target, method, scalar), `None` when it was not calibrated.
     pub fn find(
         target: Target,
         method: &str,
         scalar: Scalar,
     ) -> Result<Option<InstructionModel>, String> {
-        Ok(Self::all()?
+        Self::find_part(Part::Mhe, target, method, scalar)
+    }
+
+    /// The row of (part, target, method, scalar), `None` when it was not calibrated.
+    pub fn find_part(
+        part: Part,
+        target: Target,
+        method: &str,
+        scalar: Scalar,
+    ) -> Result<Option<InstructionModel>, String> {
+        Ok(Self::parse(part)?
             .into_iter()
             .find(|m| m.target == target && m.method == method && m.scalar == scalar))
     }
 
-    /// The multiply-adds F outside the K iterations (see the crate docs).
+    /// The multiply-adds F outside the K iterations of the MHE step (see the crate docs).
     pub fn fixed_ops(method: &str, d: StepDims) -> f64 {
         let mut f = (d.n * d.n_theta + d.horizon * d.nx * (2 * d.nx + d.nu)) as f64;
         if method.starts_with("admm") {
@@ -240,9 +293,23 @@ impl InstructionModel {
         f
     }
 
+    /// The multiply-adds F outside the K_c iterations of the MPC's control: q = F·x̂
+    /// (n·n_x; no window to propagate), + 2n² for ADMM's warm start.
+    pub fn mpc_fixed_ops(method: &str, d: StepDims) -> f64 {
+        let mut f = (d.n * d.n_theta) as f64;
+        if method.starts_with("admm") {
+            f += 2.0 * (d.n * d.n) as f64;
+        }
+        f
+    }
+
     /// Predicted instructions of the step outside the iterations.
     pub fn fixed(&self, d: StepDims) -> f64 {
-        self.c0 + self.c_fixed * Self::fixed_ops(&self.method, d)
+        let ops = match self.part {
+            Part::Mhe => Self::fixed_ops(&self.method, d),
+            Part::Mpc => Self::mpc_fixed_ops(&self.method, d),
+        };
+        self.c0 + self.c_fixed * ops
     }
 
     /// Predicted instructions of one iteration.
@@ -263,18 +330,18 @@ impl InstructionModel {
     }
 
     /// 1 / (1 − e), the factor of [`InstructionModel::upper`].
-    fn raise(&self) -> f64 {
+    pub fn raise(&self) -> f64 {
         1.0 / (1.0 - self.max_rel_err.clamp(0.0, 0.5))
     }
 
-    /// Whether n_z lies outside the calibrated sizes.
+    /// Whether n lies outside the calibrated sizes.
     pub fn extrapolated(&self, d: StepDims) -> bool {
         d.n < self.n_range.0 || d.n > self.n_range.1
     }
 }
 
 /// Non-comment lines with their 1-based line numbers.
-fn data_lines(text: &str) -> impl Iterator<Item = (usize, &str)> {
+pub(crate) fn data_lines(text: &str) -> impl Iterator<Item = (usize, &str)> {
     text.lines()
         .enumerate()
         .map(|(i, l)| (i + 1, l.trim()))
@@ -374,8 +441,24 @@ pub struct Budget {
     pub micros: Option<f64>,
     /// n_z outside the calibrated sizes.
     pub extrapolated: bool,
+    /// The MPC's share when the step is a loop step (MHE + the K_c-iteration MPC; `None`:
+    /// the estimator alone). `instructions` and `instructions_upper` above are then the sums.
+    pub mpc: Option<MpcShare>,
     /// The verdict.
     pub verdict: Verdict,
+}
+
+/// The MPC's part of a loop step's budget.
+#[derive(Debug, Clone, PartialEq)]
+pub struct MpcShare {
+    /// The MPC's method.
+    pub method: String,
+    /// K_c.
+    pub k_c: usize,
+    /// Predicted max instructions of its control (`None`: not calibrated).
+    pub instructions: Option<f64>,
+    /// The prediction raised by its row's worst relative error.
+    pub instructions_upper: Option<f64>,
 }
 
 impl Budget {
@@ -392,7 +475,15 @@ impl Budget {
         } else {
             ""
         };
-        let head = format!("{} instr, {}{ex}", si(i), micros_text(us));
+        let mpc = match &self.mpc {
+            Some(MpcShare {
+                k_c,
+                instructions_upper: Some(c),
+                ..
+            }) => format!(" (MPC K_c = {k_c}: {})", si(*c)),
+            _ => String::new(),
+        };
+        let head = format!("{} instr{mpc}, {}{ex}", si(i), micros_text(us));
         match &self.verdict {
             Verdict::Fits { margin, k_max } => format!(
                 "{head}: fits {} (margin {:.0} %, K ≤ {k_max})",
@@ -481,10 +572,11 @@ pub fn check_clock(clock_mhz: f64) -> Result<(), BudgetError> {
     }
 }
 
-/// The verdict, computed here only: does the step of `method` at K on a window of `dims`
-/// fit T_s on `target` at `clock_mhz` in `scalar`? `sample_time = None` (the scenario gives none) or
-/// a method without calibration gives [`Verdict::NotComputed`] with the reason; a bad
-/// clock, T_s or K = 0 is an error naming the key.
+/// The verdict, computed here only, for the estimator alone: does the step of `method` at K
+/// on a window of `dims` fit T_s on `target` at `clock_mhz` in `scalar`? `sample_time =
+/// None` (the scenario gives none) or a method without calibration gives
+/// [`Verdict::NotComputed`] with the reason; a bad clock, T_s or K = 0 is an error naming
+/// the key. [`fits_loop`] counts the MPC too.
 pub fn fits(
     target: Target,
     clock_mhz: f64,
@@ -494,63 +586,108 @@ pub fn fits(
     k: usize,
     sample_time: Option<f64>,
 ) -> Result<Budget, BudgetError> {
+    let mhe = Step { method, dims, k };
+    fits_loop(target, clock_mhz, scalar, mhe, None, sample_time)
+}
+
+/// One part of a loop step: a method at its iterations on a QP of `dims`.
+#[derive(Debug, Clone, Copy, PartialEq, Eq)]
+pub struct Step<'a> {
+    /// The method (`export --method` / `--mpc-method` name).
+    pub method: &'a str,
+    /// The QP's sizes: [`StepDims::of`] for the MHE, [`StepDims::mpc`] for the MPC.
+    pub dims: StepDims,
+    /// K (the MHE) or K_c (the MPC).
+    pub k: usize,
+}
+
+/// The verdict on a loop step: push + estimate (`mhe`) and, with `mpc`, the K_c-iteration
+/// control, each predicted by its own calibrated rows and raised by its own worst relative
+/// error; the sum is what must fit T_s, and `k_max` is the largest MHE K that fits with the
+/// MPC's K_c kept. A part without calibration gives [`Verdict::NotComputed`]; a bad clock,
+/// T_s, K = 0 or K_c = 0 is an error naming the key.
+pub fn fits_loop(
+    target: Target,
+    clock_mhz: f64,
+    scalar: Scalar,
+    mhe: Step<'_>,
+    mpc: Option<Step<'_>>,
+    sample_time: Option<f64>,
+) -> Result<Budget, BudgetError> {
     check_clock(clock_mhz)?;
     if let Some(ts) = sample_time {
         check_sample_time(ts)?;
     }
-    if k == 0 {
-        return Err(BudgetError {
-            key: "K",
-            problem: "is 0; the estimator runs at least one iteration per step".into(),
-        });
+    for (key, k) in [("K", Some(mhe.k)), ("K_c", mpc.map(|m| m.k))] {
+        if k == Some(0) {
+            return Err(BudgetError {
+                key,
+                problem: "is 0; the solver runs at least one iteration per step".into(),
+            });
+        }
     }
     let mut budget = Budget {
         target,
         scalar,
         clock_mhz,
-        k,
+        k: mhe.k,
         sample_time,
         instructions: None,
         instructions_upper: None,
         micros: None,
         extrapolated: false,
+        mpc: mpc.map(|m| MpcShare {
+            method: m.method.to_string(),
+            k_c: m.k,
+            instructions: None,
+            instructions_upper: None,
+        }),
         verdict: Verdict::NotComputed {
             reason: String::new(),
         },
     };
-    let model = match InstructionModel::find(target, method, scalar) {
-        Ok(Some(m)) => m,
-        Ok(None) => {
-            budget.verdict = Verdict::NotComputed {
-                reason: format!(
-                    "method `{method}` has no {} calibration on {target}",
-                    scalar.name()
-                ),
-            };
-            return Ok(budget);
-        }
-        Err(e) => {
-            budget.verdict = Verdict::NotComputed { reason: e };
-            return Ok(budget);
-        }
+    let not_computed = |mut b: Budget, reason: String| {
+        b.verdict = Verdict::NotComputed { reason };
+        Ok(b)
     };
-    let upper = model.upper(dims, k);
-    budget.instructions = Some(model.instructions(dims, k));
+    let model = match row(Part::Mhe, target, mhe.method, scalar) {
+        Ok(m) => m,
+        Err(reason) => return not_computed(budget, reason),
+    };
+    // The MPC's predicted upper bound (0 without the MPC).
+    let mut mpc_upper = 0.0;
+    if let (Some(step), Some(share)) = (mpc, budget.mpc.as_mut()) {
+        let m = match row(Part::Mpc, target, step.method, scalar) {
+            Ok(m) => m,
+            Err(reason) => return not_computed(budget, format!("the MPC: {reason}")),
+        };
+        mpc_upper = m.upper(step.dims, step.k);
+        share.instructions = Some(m.instructions(step.dims, step.k));
+        share.instructions_upper = Some(mpc_upper);
+        budget.extrapolated |= m.extrapolated(step.dims);
+    }
+    let upper = model.upper(mhe.dims, mhe.k) + mpc_upper;
+    let mpc_pred = budget
+        .mpc
+        .as_ref()
+        .and_then(|m| m.instructions)
+        .unwrap_or(0.0);
+    budget.instructions = Some(model.instructions(mhe.dims, mhe.k) + mpc_pred);
     budget.instructions_upper = Some(upper);
     budget.micros = Some(upper / clock_mhz);
-    budget.extrapolated = model.extrapolated(dims);
+    budget.extrapolated |= model.extrapolated(mhe.dims);
     let Some(ts) = sample_time else {
-        budget.verdict = Verdict::NotComputed {
-            reason: "the scenario gives no sample period (plant.sample_time)".into(),
-        };
-        return Ok(budget);
+        return not_computed(
+            budget,
+            "the scenario gives no sample period (plant.sample_time)".into(),
+        );
     };
     let available = ts * clock_mhz * 1e6;
-    let k_max = largest_k(&model, dims, available);
+    let k_max = largest_k(&model, mhe.dims, mpc_upper, available);
     budget.verdict = if upper <= available {
         Verdict::Fits {
             margin: (available - upper) / available,
-            k_max: k_max.unwrap_or(k).max(k),
+            k_max: k_max.unwrap_or(mhe.k).max(mhe.k),
         }
     } else {
         Verdict::DoesNotFit { k_max }
@@ -558,10 +695,31 @@ pub fn fits(
     Ok(budget)
 }
 
-/// The largest K ≥ 1 with `model.upper(dims, K) ≤ available`, decided by the same
-/// comparison as the verdict (so K fits and K + 1 does not).
-fn largest_k(model: &InstructionModel, dims: StepDims, available: f64) -> Option<usize> {
-    let fits = |k: usize| model.upper(dims, k) <= available;
+/// The calibrated row of (part, target, method, scalar), or why there is none.
+fn row(
+    part: Part,
+    target: Target,
+    method: &str,
+    scalar: Scalar,
+) -> Result<InstructionModel, String> {
+    match InstructionModel::find_part(part, target, method, scalar)? {
+        Some(m) => Ok(m),
+        None => Err(format!(
+            "method `{method}` has no {} calibration on {target}",
+            scalar.name()
+        )),
+    }
+}
+
+/// The largest K ≥ 1 with `model.upper(dims, K) + extra ≤ available` (`extra`: the MPC's
+/// bound), decided by the same comparison as the verdict (so K fits and K + 1 does not).
+fn largest_k(
+    model: &InstructionModel,
+    dims: StepDims,
+    extra: f64,
+    available: f64,
+) -> Option<usize> {
+    let fits = |k: usize| model.upper(dims, k) + extra <= available;
     if !fits(1) {
         return None;
     }
@@ -569,7 +727,7 @@ fn largest_k(model: &InstructionModel, dims: StepDims, available: f64) -> Option
     if per <= 0.0 {
         return Some(usize::MAX);
     }
-    let guess = ((available - model.fixed(dims) * model.raise()) / per).floor();
+    let guess = ((available - extra - model.fixed(dims) * model.raise()) / per).floor();
     let mut k = if guess.is_finite() && guess >= 1.0 {
         guess.min(1e15) as usize
     } else {
@@ -584,5 +742,11 @@ fn largest_k(model: &InstructionModel, dims: StepDims, available: f64) -> Option
     Some(k)
 }
 
+mod loop_points;
+pub use loop_points::{LoopPoint, loop_points};
+
 #[cfg(test)]
 mod tests;
+
+#[cfg(test)]
+mod tests_loop;

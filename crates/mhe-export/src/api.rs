@@ -141,6 +141,10 @@ pub struct ExportOptions {
     /// The caller's provenance record (`certificate.json`'s `provenance`) [None: this
     /// crate's name and version].
     pub provenance: Option<serde_json::Value>,
+    /// The targets and clocks (MHz) of the sample-period budget (`--target`,
+    /// `--clock-mhz`) [None: [`crate::budget::default_targets`], both at their default
+    /// clocks].
+    pub budget_targets: Option<Vec<(mhe_budget::Target, f64)>>,
 }
 
 impl ExportOptions {
@@ -155,7 +159,15 @@ impl ExportOptions {
                 Iterations::parse(flag, "0")?;
             }
         }
-        c_gen::check_prefix(self.prefix()).map_err(|e| ExportError::option("prefix", &e))
+        c_gen::check_prefix(self.prefix()).map_err(|e| ExportError::option("prefix", &e))?;
+        crate::budget::check_targets(&self.targets())
+    }
+
+    /// The budget's targets ([`ExportOptions::budget_targets`] or both at their defaults).
+    fn targets(&self) -> Vec<(mhe_budget::Target, f64)> {
+        self.budget_targets
+            .clone()
+            .unwrap_or_else(crate::budget::default_targets)
     }
 
     /// The options against the scenario, before anything is computed: an `[mhe]` section,
@@ -274,6 +286,8 @@ pub struct Artefact {
     theorem1: SolverCertificate,
     source_path: PathBuf,
     provenance: serde_json::Value,
+    budgets: Vec<mhe_budget::Budget>,
+    budget_note: Option<&'static str>,
 }
 
 impl Artefact {
@@ -313,6 +327,7 @@ impl Artefact {
             if self.lang == Lang::C && self.prefix != "mhe" {
                 c_gen::apply_prefix(stage, &self.prefix)?;
             }
+            crate::budget::annotate(stage, &self.budgets, self.budget_note)?;
             then(stage)?;
             Ok(())
         })
@@ -366,6 +381,18 @@ impl Artefact {
             .reason
             .as_deref()
             .or(self.header.mpc.as_ref().and_then(|m| m.reason.as_deref()))
+    }
+
+    /// The sample-period budget per target of the exported loop step (the MHE at K and,
+    /// with the MPC, its K_c iterations): README's section and certificate.json's `budget`.
+    pub fn budgets(&self) -> &[mhe_budget::Budget] {
+        &self.budgets
+    }
+
+    /// An f32 export's line on what the certificate covers of its budget
+    /// ([`crate::budget::f32_note`]; None for f64).
+    pub fn budget_note(&self) -> Option<&'static str> {
+        self.budget_note
     }
 
     /// The exported MPC's method name and K_c (None: no MPC exported).
@@ -432,7 +459,12 @@ pub fn export_with_progress(
         sha256: options.source.sha256.clone(),
         mpc: mpc.as_ref().map(|m| m.artefact.clone()),
     };
+    let mpc_data = mpc.as_ref().map(|m| &m.data);
+    let (budgets, budget_note) =
+        artefact_budgets(scenario, options, &header, &est.problem, mpc_data)?;
     Ok(Artefact {
+        budgets,
+        budget_note,
         header,
         lang: options.lang,
         prefix: options.prefix().to_string(),
@@ -444,6 +476,37 @@ pub fn export_with_progress(
             || json!({"tool": env!("CARGO_PKG_NAME"), "tool_version": env!("CARGO_PKG_VERSION")}),
         ),
     })
+}
+
+/// The sample-period budget of the exported loop step on every target of the options, and
+/// an f32 export's note on what the certificate covers.
+fn artefact_budgets(
+    scenario: &Scenario,
+    options: &ExportOptions,
+    header: &Header,
+    problem: &OwnedProblem,
+    mpc: Option<&OwnedMpc>,
+) -> Result<(Vec<mhe_budget::Budget>, Option<&'static str>), ExportError> {
+    let scalar = match options.scalar {
+        ScalarKind::F64 => mhe_budget::Scalar::F64,
+        ScalarKind::F32 => mhe_budget::Scalar::F32,
+    };
+    let mhe = mhe_budget::Step {
+        method: &header.method,
+        dims: crate::budget::dims(scenario, problem.horizon),
+        k: header.k,
+    };
+    let mpc_method = header.mpc.as_ref().map(|m| m.method.as_str());
+    let mpc = mpc.zip(mpc_method).map(|(m, method)| mhe_budget::Step {
+        method,
+        dims: mhe_budget::StepDims::mpc(m.nx, m.nu, m.horizon),
+        k: m.iterations,
+    });
+    let budgets =
+        crate::budget::budgets(&options.targets(), scalar, mhe, mpc, scenario.sample_time)?;
+    let note =
+        (options.scalar == ScalarKind::F32).then(|| crate::budget::f32_note(header.certified));
+    Ok((budgets, note))
 }
 
 /// The exported estimator: K, its verdict and its numbers.

@@ -38,6 +38,7 @@
 //! ```
 
 mod api;
+pub mod budget;
 mod c_gen;
 mod error;
 pub(crate) mod extract;

@@ -92,7 +92,7 @@ pub struct CertificateDocument {
     /// The sample period as a budget (`plant.sample_time` given): per method at K_min the
     /// predicted instructions per step on the Cortex-M4F at 168 MHz and the M7 at 480 MHz
     /// and whether it fits T_s (`mhe_budget`, docs/embedded.md). Omitted without T_s.
-    pub budget: Option<crate::budget::ReproduceBudget>,
+    pub budget: Option<mhe_export::budget::ReproduceBudget>,
 }
 
 /// Result of one job.

@@ -154,7 +154,7 @@ pub(super) fn document(
     let (solver, scenario) = (report.solver, &report.scenario);
     let solvers = report.solver_summaries();
     let (certified, matches) = (report.certified(), report.iterations_match_k_min());
-    let budget = crate::budget::reproduce(
+    let budget = mhe_export::budget::reproduce(
         scenario,
         &(solvers.iter())
             .map(|s| (s.solver.name().to_string(), s.k_min))

@@ -281,14 +281,14 @@ fn smoke_sweep_outputs_match_the_golden_files() {
 }
 
 /// The 2-D smoke sweep over (K_e, K_c) (`sweeps/smoke-2d.toml`): the `k_c` column, the
-/// sub-optimal MPC at each K_c and ρ_lin(K_e, K_c) pinned like the 1-D smoke sweep.
+/// sub-optimal MPC at each K_c and ρ_lin(K_e, K_c) pinned like the 1-D smoke sweep. The run
+/// is shared with `sweep_cli::two_d_sweep_writes_heat_maps_and_pair_thresholds` (same
+/// command, portable kernel, `--threads 2`: the tables do not depend on the thread count).
 #[test]
 fn smoke_2d_sweep_outputs_match_the_golden_files() {
-    let out = out_dir("smoke-2d");
-    xtask(&["sweep", "--config", "sweeps/smoke-2d.toml"], &out);
+    let run = crate::shared::smoke_2d();
     check(&[
-        ("smoke-2d-points.csv", out.join("points.csv")),
-        ("smoke-2d-runs.csv", out.join("runs.csv")),
+        ("smoke-2d-points.csv", run.points.clone()),
+        ("smoke-2d-runs.csv", run.runs.clone()),
     ]);
-    let _ = std::fs::remove_dir_all(&out);
 }

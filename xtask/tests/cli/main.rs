@@ -17,5 +17,6 @@ mod hardening_cli;
 mod one_truth_cli;
 mod plants_cli;
 mod reproduce_cli;
+mod shared;
 mod sweep_cli;
 mod terminal_digits;

@@ -565,21 +565,13 @@ fn thread_count_and_input_size_are_bounded() {
 /// 2-D thresholds printed and in meta.json, the joint certificate's boundary (no certified pair
 /// on this small grid: FISTA's K_e floor is 5 896 > 100, ADMM's certificate is void),
 /// a rerun that resumes everything, and a K_c grid without the sub-optimal MPC refused.
+/// The first run is shared with `golden::smoke_2d_sweep_outputs_match_the_golden_files`
+/// (`crate::shared::smoke_2d`: the same command, once per test binary).
 #[test]
 fn two_d_sweep_writes_heat_maps_and_pair_thresholds() {
     let d = scratch("two-d");
-    let out = d.join("out");
-    let cfg = concat!(env!("CARGO_MANIFEST_DIR"), "/../sweeps/smoke-2d.toml");
-    let args = [
-        "sweep",
-        "--config",
-        cfg,
-        "--out",
-        out.to_str().unwrap(),
-        "--threads",
-        "2",
-    ];
-    let stdout = ok(&xtask(&args));
+    let run = crate::shared::smoke_2d();
+    let (stdout, out) = (run.stdout.clone(), run.out.clone());
     assert!(
         stdout.contains("(3 K × 3 K_c × 2 solvers × 1 scales)"),
         "{stdout}"
@@ -622,7 +614,7 @@ fn two_d_sweep_writes_heat_maps_and_pair_thresholds() {
     let th = meta["run"]["thresholds"].as_array().unwrap();
     assert_eq!(th.len(), 2 * 3);
     assert!(th.iter().all(|t| t["k_c"].is_u64()));
-    let again = ok(&xtask(&args));
+    let again = ok(&crate::shared::smoke_2d_command(&out).output().unwrap());
     assert!(again.contains("0 computed, 18 skipped"), "{again}");
     // The k_c column is the only change to the file layout.
     let points = fs::read_to_string(out.join("points.csv")).unwrap();

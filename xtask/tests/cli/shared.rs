@@ -1,0 +1,67 @@
+#![allow(clippy::unwrap_used)]
+//! Runs that several tests of this binary check, computed once per process (`OnceLock`)
+//! instead of once per test (docs/testing.md, "Session 17"). Each test keeps its assertions;
+//! only the run they read is shared.
+
+use std::fs;
+use std::path::{Path, PathBuf};
+use std::process::Command;
+use std::sync::OnceLock;
+
+/// One run of `xtask sweep --config sweeps/smoke-2d.toml --threads 2`, the 2-D smoke sweep
+/// over (K_e, K_c): `golden::smoke_2d_sweep_outputs_match_the_golden_files` compares its
+/// tables with the golden files, `sweep_cli::two_d_sweep_writes_heat_maps_and_pair_thresholds`
+/// checks its terminal output, plots and meta.json, then resumes it. 53 CPU s in the test
+/// profile, once instead of twice.
+#[derive(Debug)]
+pub struct Smoke2d {
+    /// The command's standard output.
+    pub stdout: String,
+    /// Its `--out` directory (the sweep_cli test resumes the sweep in it).
+    pub out: PathBuf,
+    /// Copies of `points.csv` and `runs.csv` taken right after the run, before any test
+    /// touches `out`: what the golden test compares.
+    pub points: PathBuf,
+    pub runs: PathBuf,
+}
+
+/// The smoke sweep's config file, by absolute path.
+pub const SMOKE_2D: &str = concat!(env!("CARGO_MANIFEST_DIR"), "/../sweeps/smoke-2d.toml");
+
+/// `xtask sweep` on the 2-D smoke sweep into `out`, from the workspace root, with the
+/// portable kernel: the golden files hold its bits (the AVX2 path rounds differently), and a
+/// resume compares the point files with the same kernel's theory.
+pub fn smoke_2d_command(out: &Path) -> Command {
+    let mut c = Command::new(env!("CARGO_BIN_EXE_xtask"));
+    c.env("QP_ITER_KERNEL", "portable")
+        .current_dir(concat!(env!("CARGO_MANIFEST_DIR"), "/.."))
+        .args(["sweep", "--config", SMOKE_2D, "--threads", "2", "--out"])
+        .arg(out);
+    c
+}
+
+/// The shared run of the 2-D smoke sweep (computed by the first caller).
+pub fn smoke_2d() -> &'static Smoke2d {
+    static RUN: OnceLock<Smoke2d> = OnceLock::new();
+    RUN.get_or_init(|| {
+        let dir = Path::new(env!("CARGO_TARGET_TMPDIR")).join("xtask-shared/smoke-2d");
+        let _ = fs::remove_dir_all(&dir);
+        fs::create_dir_all(&dir).unwrap();
+        let out = dir.join("out");
+        let o = smoke_2d_command(&out).output().unwrap();
+        assert!(
+            o.status.success(),
+            "xtask sweep smoke-2d: {}",
+            String::from_utf8_lossy(&o.stderr)
+        );
+        let (points, runs) = (dir.join("points.csv"), dir.join("runs.csv"));
+        fs::copy(out.join("points.csv"), &points).unwrap();
+        fs::copy(out.join("runs.csv"), &runs).unwrap();
+        Smoke2d {
+            stdout: String::from_utf8(o.stdout).unwrap(),
+            out,
+            points,
+            runs,
+        }
+    })
+}

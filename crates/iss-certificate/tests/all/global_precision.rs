@@ -2,7 +2,6 @@
 //! loop certificate in a given precision"): the estimator's rounding folded into the one LMI.
 
 use closed_loop::scenario::{LoopOptions, ResolvedScenario, Scenario};
-use faer::linalg::solvers::Solve;
 use iss_certificate::lure::global::{
     GlobalCertificate, GlobalOptions, PrecisionVoid, certify_precision, global_loop, loop_rounding,
 };
@@ -158,28 +157,34 @@ fn debug_field(debug: &str, name: &str) -> Vec<f64> {
         .collect()
 }
 
-/// One f32 run of the double integrator's loop: the plant in f64, `mhe_embedded` in f32
-/// (PG, K, the paper's warm start: the exported code's arithmetic), the exact MPC (here the
-/// linear law u = L x̂, no input bound) in f64, the data rounded to f32 where the estimator
-/// reads them.
+/// One f32 run of a scenario's loop: the plant in f64, `mhe_embedded` in f32 (PG, K, the
+/// paper's warm start: the exported code's arithmetic; `MheRt` equals the const-size
+/// estimator bit for bit), the scenario's exact controller in f64 at the computed x̂, w
+/// uniform on 𝒲 × a random scale.
 struct F32Run<'a> {
     problem: mhe_embedded::Problem<'a, f32>,
-    sys: lti_model::LtiSystem,
-    law: [f64; 2],
+    resolved: ResolvedScenario,
     layout: iss_certificate::linear::LiftedLayout,
 }
 
+/// y = M x (row-major through faer).
+fn apply(m: faer::MatRef<'_, f64>, x: &[f64]) -> Vec<f64> {
+    (0..m.nrows())
+        .map(|i| (0..m.ncols()).map(|j| m[(i, j)] * x[j]).sum())
+        .collect()
+}
+
 impl F32Run<'_> {
-    /// The lifted state X_t (t ≥ M) of the f32 run from its records.
-    fn lifted(&self, x: &[f64], rec: &[(f64, f64, Vec<f64>)], z0: &[f64]) -> Vec<f64> {
+    /// The lifted state X_t (t ≥ M) of the f32 run from its records (u_s, y_s, x̂_s).
+    fn lifted(&self, x: &[f64], rec: &[[Vec<f64>; 3]], z0: &[f64]) -> Vec<f64> {
         let l = self.layout;
         let t = rec.len();
         let mut big = vec![0.0; l.dim()];
         big[..l.nx].copy_from_slice(x);
         for j in 0..l.horizon {
-            let (u, y, xh) = &rec[t - l.horizon + j];
-            big[l.u_window(j)] = *u;
-            big[l.y_window(j)] = *y;
+            let [u, y, xh] = &rec[t - l.horizon + j];
+            big[l.u_window(j)..l.u_window(j) + l.nu].copy_from_slice(u);
+            big[l.y_window(j)..l.y_window(j) + l.ny].copy_from_slice(y);
             big[l.estimates(j)..l.estimates(j) + l.nx].copy_from_slice(xh);
         }
         big[l.warm_start()..l.warm_start() + l.nz].copy_from_slice(&z0[..l.nz]);
@@ -190,15 +195,25 @@ impl F32Run<'_> {
     /// (≤ 1 where the certificate holds) and whether ‖X_t‖²_P stayed within the ISS bound
     /// ρ^{2(t−M)}‖X_M‖²_P + γ²/(1 − ρ²)(sup‖w‖² + o²), o the rounding offset.
     fn run(&self, c: &GlobalCertificate, offset: f64, seed: u64, steps: usize) -> (f64, bool) {
+        use mpc_core::Controller;
         let mut rng = ChaCha8Rng::seed_from_u64(seed);
         let mag = 10f64.powf(rng.random_range(-2.0..2.0));
         let scale = rng.random_range(0.5..3.0);
-        let (sys, m) = (&self.sys, self.layout.horizon);
-        let mut x: Vec<f64> = (0..2).map(|_| mag * rng.random_range(-1.0..1.0)).collect();
-        let prior: [f32; 2] = [0, 1].map(|_| (mag * rng.random_range(-1.0..1.0)) as f32);
-        let mut mhe =
-            mhe_embedded::Mhe::<f32, 2, 1, 1, 9, 20, 20>::new(&self.problem, prior).expect("dims");
-        let mut rec: Vec<(f64, f64, Vec<f64>)> = Vec::new();
+        let sys = self.resolved.mhe_problem().expect("mhe").system().clone();
+        let (nx, nu, nw1) = (sys.nx(), sys.nu(), sys.nw1());
+        let wset = self.resolved.scenario().sets.disturbance.clone();
+        let mut ctrl = self
+            .resolved
+            .controller(closed_loop::scenario::ControllerChoice::ExactMpc)
+            .expect("controller");
+        let m = self.layout.horizon;
+        let mut x: Vec<f64> = (0..nx).map(|_| mag * rng.random_range(-1.0..1.0)).collect();
+        let prior: Vec<f32> = (0..nx)
+            .map(|_| (mag * rng.random_range(-1.0..1.0)) as f32)
+            .collect();
+        let mut work = vec![0f32; mhe_embedded::MheRt::workspace_len(&self.problem)];
+        let mut mhe = mhe_embedded::MheRt::new(&self.problem, &prior, &mut work).expect("dims");
+        let mut rec: Vec<[Vec<f64>; 3]> = Vec::new();
         let (mut storage, mut wn) = (Vec::new(), Vec::new());
         for t in 0..steps {
             if t >= m {
@@ -206,26 +221,28 @@ impl F32Run<'_> {
                 storage.push(c.storage(&self.lifted(&x, &rec, &z0)));
             }
             let xh: Vec<f64> = mhe.estimate().iter().map(|v| f64::from(*v)).collect();
-            let u = self.law[0] * xh[0] + self.law[1] * xh[1];
-            let w: Vec<f64> = (0..3)
-                .map(|_| scale * 0.01 * rng.random_range(-1.0..1.0))
+            let mut u = vec![0.0; nu];
+            ctrl.control(&xh, &mut u).expect("the exact MPC solves");
+            let w: Vec<f64> = (0..wset.lower().len())
+                .map(|i| scale * rng.random_range(wset.lower()[i]..=wset.upper()[i]))
                 .collect();
-            let (a, b, cc, e, f) = (sys.a(), sys.b(), sys.c(), sys.e(), sys.f());
-            let y = cc[(0, 0)] * x[0] + cc[(0, 1)] * x[1] + f[(0, 0)] * w[2];
-            x = (0..2)
-                .map(|i| {
-                    a[(i, 0)] * x[0]
-                        + a[(i, 1)] * x[1]
-                        + b[(i, 0)] * u
-                        + e[(i, 0)] * w[0]
-                        + e[(i, 1)] * w[1]
-                })
+            let (w1, w2) = w.split_at(nw1);
+            let y: Vec<f64> = apply(sys.c(), &x)
+                .iter()
+                .zip(apply(sys.f(), w2))
+                .map(|(a, b)| a + b)
                 .collect();
+            let (ax, bu, ew) = (apply(sys.a(), &x), apply(sys.b(), &u), apply(sys.e(), w1));
+            x = (0..nx).map(|i| ax[i] + bu[i] + ew[i]).collect();
             if t >= m {
                 wn.push(w.iter().map(|v| v * v).sum::<f64>());
             }
-            rec.push((u, y, xh));
-            mhe.push(&[u as f32], &[y as f32]).expect("finite");
+            let (u32s, y32s): (Vec<f32>, Vec<f32>) = (
+                u.iter().map(|v| *v as f32).collect(),
+                y.iter().map(|v| *v as f32).collect(),
+            );
+            mhe.push(&u32s, &y32s).expect("finite");
+            rec.push([u, y, xh]);
         }
         let (r2, g2, o2) = (c.rho * c.rho, c.gamma * c.gamma, offset * offset);
         let (mut worst, mut within, mut wsup) = (0.0_f64, true, 0.0_f64);
@@ -242,17 +259,13 @@ impl F32Run<'_> {
     }
 }
 
-/// (i) and (iii) on the double integrator, PG: the f32 K_glob exists, f64's equals the
-/// exact K_glob (its rounding is far below the margin) and K_glob(f64) ≤ K_glob(f32); 200
-/// f32 closed-loop runs at K_glob(f32) (`mhe_embedded` in f32, random x₀ and prior up to 100,
-/// noise 0.5–3 × 𝒲) satisfy the certified one-step inequality with the offset and the ISS
-/// bound; the same certificate at K = 1 is refuted by a run (the check can fail).
-#[test]
-#[ignore = "f32 soundness sampling (release): cargo test --release -p iss-certificate --test all f32_runs -- --ignored"]
-fn f32_runs_respect_the_f32_global_certificate() {
-    let r = scenario("double-integrator.toml")
-        .resolve()
-        .expect("resolves");
+/// (i) and (iii) on `file`, PG: the f32 K_glob exists, f64's equals the exact K_glob (its
+/// rounding is far below the margin) and K_glob(f64) ≤ K_glob(f32); 200 f32 closed-loop runs
+/// at K_glob(f32) (`mhe_embedded` in f32, random x₀ and prior up to 100, noise 0.5–3 × 𝒲)
+/// satisfy the certified one-step inequality with the offset and the ISS bound; the same
+/// certificate at K = 1 is refuted by a run (the check can fail).
+fn f32_runs_respect_the_certificate(file: &str) {
+    let r = scenario(file).resolve().expect("resolves");
     let o = options(&r, Method::PG);
     let gl = global_loop(&r, &o).expect("builds");
     let opts = GlobalOptions {
@@ -270,7 +283,7 @@ fn f32_runs_respect_the_f32_global_certificate() {
     );
     let k32 = p32.k_glob.expect("an f32 K_glob");
     eprintln!(
-        "PG K_glob exact {k_exact}, f64 {k64}, f32 {k32}; offset {:.3e}",
+        "{file} PG K_glob exact {k_exact}, f64 {k64}, f32 {k32}; offset {:.3e}",
         p32.offset()
     );
     assert_eq!(k64, k_exact, "f64's rounding is below the margin");
@@ -282,22 +295,15 @@ fn f32_runs_respect_the_f32_global_certificate() {
     let sys = r.mhe_problem().expect("mhe").system().clone();
     let rm = |m: faer::MatRef<'_, f64>| super::precision::to32(&lti_model::matrix::row_major(m));
     let (a32, b32, e32) = (rm(sys.a()), rm(sys.b()), rm(sys.e()));
-    // L = −E₀H⁻¹F of the unconstrained MPC.
-    let qp = r.mpc().expect("mpc").qp();
-    let sol = qp
-        .h()
-        .to_owned()
-        .llt(faer::Side::Lower)
-        .expect("H ≻ 0")
-        .solve(qp.f());
+    let layout = gl.lifted.layout();
     let mut run = F32Run {
         problem: mhe_embedded::Problem {
-            nx: 2,
-            nu: 1,
-            ny: 1,
+            nx: sys.nx(),
+            nu: sys.nu(),
+            ny: sys.ny(),
             nw1: sys.nw1(),
             nw2: sys.nw2(),
-            horizon: 9,
+            horizon: layout.horizon,
             iterations: k32,
             method: mhe_embedded::Method::Pg,
             warm_start: mhe_embedded::WarmStart::Paper,
@@ -306,9 +312,8 @@ fn f32_runs_respect_the_f32_global_certificate() {
             e: &e32,
             windows: &v32,
         },
-        law: [-sol[(0, 0)], -sol[(0, 1)]],
-        sys,
-        layout: gl.lifted.layout(),
+        resolved: r.clone(),
+        layout,
     };
     let mut worst = 0.0_f64;
     for seed in 0..200 {
@@ -317,11 +322,23 @@ fn f32_runs_respect_the_f32_global_certificate() {
         assert!(ratio <= 1.0, "seed {seed}: one-step ratio {ratio}");
         worst = worst.max(ratio);
     }
-    eprintln!("200 f32 runs × 60 steps at K = {k32}: worst one-step ratio {worst:.4}");
+    eprintln!("{file}: 200 f32 runs × 60 steps at K = {k32}: worst one-step ratio {worst:.4}");
     run.problem.iterations = 1;
     let refuted = (0..20).any(|seed| {
         let (ratio, within) = run.run(c, p32.offset(), seed, 60);
         ratio > 1.0 || !within
     });
     assert!(refuted, "the check never failed at K = 1");
+}
+
+#[test]
+#[ignore = "f32 soundness sampling (release): cargo test --release -p iss-certificate --test all f32_runs -- --ignored"]
+fn f32_runs_respect_the_f32_global_certificate_double_integrator() {
+    f32_runs_respect_the_certificate("double-integrator.toml");
+}
+
+#[test]
+#[ignore = "f32 soundness sampling (release): cargo test --release -p iss-certificate --test all f32_runs -- --ignored"]
+fn f32_runs_respect_the_f32_global_certificate_case_study() {
+    f32_runs_respect_the_certificate("case-study.toml");
 }

@@ -6,7 +6,7 @@
 //! propagation adds ‖r‖ ≤ ρ_z‖zᴷ‖ + ρ_u‖u window‖ (`certificate::precision`). With r the
 //! exact map's one-step rate, q = r + a < 1 and S = 1/(1 − q), K computed steps give
 //!
-//! ‖d‖ ≤ φ_u(K)‖z⁰ − z*‖ + β_z‖z*‖ + β_θ‖θ‖ + c_d,  φ_u(K) = φ(K) + qᴷ − rᴷ,
+//! ‖d‖ ≤ φ_u(K)‖z⁰ − z*‖ + β_z‖z*‖ + β_θ‖θ‖ + c_d,  φ_u(K) = min(qᴷ, φ(K) + qᴷ − rᴷ),
 //!
 //! β_z = aS, β_θ = bS, c_d = cS. z*, θ, z⁰ are linear in ζ, so the homogeneous part is a
 //! quadratic constraint (split (1 + α)/(1 + 1/α)), the propagation's is another (multiplier
@@ -66,11 +66,12 @@ impl LoopRounding {
         let c = self.offset_d();
         c * (1.0 + self.propagation.from_z.powi(2)).sqrt()
     }
-    /// φ_u(K) = φ(K) + qᴷ − rᴷ from the exact map's certified K-step bound `phi_k`.
+    /// φ_u(K) = min(qᴷ, φ(K) + qᴷ − rᴷ) from the exact map's certified K-step bound
+    /// `phi_k` (both bound the computed iterate's contraction; docs/theory.md).
     pub fn phi_u(&self, phi_k: f64, k: usize) -> f64 {
         let k = i32::try_from(k).unwrap_or(i32::MAX);
-        let (q, r) = (self.perturbed_rate(), self.iteration.rate);
-        phi_k + (q.powi(k) - r.powi(k)).max(0.0)
+        let (qk, rk) = (self.perturbed_rate().powi(k), self.iteration.rate.powi(k));
+        qk.min(phi_k + (qk - rk).max(0.0))
     }
 }
 

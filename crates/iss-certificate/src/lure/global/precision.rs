@@ -282,10 +282,16 @@ pub fn certify_precision(
     let (beta, prop) = supply_pieces(&gl, &rd);
     let b = rd.beta_z() + rd.beta_theta();
     let star = exact.phi.max(f64::MIN_POSITIVE);
+    // μ must exceed r_h's own storage gain ‖X⁺_rᵀPX⁺_r‖ (else r_h is a free input): scaled
+    // by tr(X⁺_rᵀPX⁺_r) ≥ λ_max of the exact certificate's P.
+    let o_r = gl.n_zeta() - gl.n_w - gl.lifted.layout().nx;
+    let xr = gl.x_plus.as_ref().subcols(o_r, gl.lifted.layout().nx);
+    let mr = mul(xr.transpose(), mul(exact.p.as_ref(), xr).as_ref());
+    let lam_r = (0..mr.nrows()).map(|i| mr[(i, i)]).sum::<f64>().max(1e-300);
     let mut splits = Vec::new();
     for f in [1.0, 10.0, 100.0] {
-        for mu in [1.0, 1e3] {
-            splits.push([(f * b / star).clamp(1e-14, 1.0), mu]);
+        for mu in [4.0, 64.0] {
+            splits.push([(f * b / star).clamp(1e-14, 1.0), mu * lam_r]);
         }
     }
     let set = |gl: &mut GlobalLoop, [alpha, mu]: [f64; 2]| {

@@ -278,8 +278,9 @@ pub fn certify_precision(
         out.reason = Some(PrecisionVoid::Exact);
         return Ok(out);
     };
-    let mut gl = super::build::build(resolved, options, true, true)?;
-    let (beta, prop) = supply_pieces(&gl, &rd);
+    let base = super::build::build(resolved, options, true, true)?;
+    let (beta, prop) = supply_pieces(&base, &rd);
+    let mut gl = base.clone();
     let b = rd.beta_z() + rd.beta_theta();
     let star = exact.phi.max(f64::MIN_POSITIVE);
     // μ must exceed r_h's own storage gain ‖X⁺_rᵀPX⁺_r‖ (else r_h is a free input): scaled
@@ -294,11 +295,38 @@ pub fn certify_precision(
             splits.push([(f * b / star).clamp(1e-14, 1.0), mu * lam_r]);
         }
     }
+    // r_h = r̃/√μ: the same LMI with r̃'s block at unit scale (the Riccati's strictness and
+    // the check's allowance are relative to the largest diagonal, which μ would dominate).
+    let nxp = gl.lifted.layout().nx;
     let set = |gl: &mut GlobalLoop, [alpha, mu]: [f64; 2]| {
         let k1 = 2.0 * (1.0 + 1.0 / alpha);
+        let sc = |i: usize| {
+            if (o_r..o_r + nxp).contains(&i) {
+                mu.sqrt().recip()
+            } else {
+                1.0
+            }
+        };
+        *gl = base.clone();
         gl.extra_supply = Some(Mat::from_fn(beta.nrows(), beta.ncols(), |i, j| {
-            k1 * beta[(i, j)] + mu * prop[(i, j)]
+            (k1 * beta[(i, j)] + mu * prop[(i, j)]) * sc(i) * sc(j)
         }));
+        for j in o_r..o_r + nxp {
+            for i in 0..gl.x_plus.nrows() {
+                gl.x_plus[(i, j)] *= sc(j);
+            }
+            for i in 0..gl.xhat.nrows() {
+                gl.xhat[(i, j)] *= sc(j);
+            }
+        }
+        if let Some(s3) = gl.sigma_mpc.as_mut() {
+            let n = s3.nrows();
+            for i in 0..n {
+                for j in 0..n {
+                    s3[(i, j)] *= sc(i) * sc(j);
+                }
+            }
+        }
         (1.0 + alpha).sqrt()
     };
     // 1. φ*_u = φ*: K_glob(u) = the exact K_glob.

@@ -282,9 +282,16 @@ fn f32_runs_respect_the_certificate(file: &str, f64_equals_exact: bool, refute_k
         p64.k_glob.expect("f64"),
     );
     let k32 = p32.k_glob.expect("an f32 K_glob");
+    let c = p32.certificate.as_ref().expect("certificate");
     eprintln!(
-        "{file} PG K_glob exact {k_exact}, f64 {k64}, f32 {k32}; offset {:.3e}",
-        p32.offset()
+        "{file} PG K_glob exact {k_exact}, f64 {k64}, f32 {k32}; offset {:.3e}; f32: ρ {}, γ {:.4e}, \
+         margin {:.3e}, split {:?}; exact γ {:?}",
+        p32.offset(),
+        c.rho,
+        c.gamma,
+        c.margin,
+        p32.split,
+        exact.as_ref().map(|c| c.gamma)
     );
     if f64_equals_exact {
         assert_eq!(k64, k_exact, "f64's rounding is below the margin");
@@ -295,7 +302,6 @@ fn f32_runs_respect_the_certificate(file: &str, f64_equals_exact: bool, refute_k
         assert!(star64 >= (1.0 - 2.0 * opts.phi_tol) * star && k64 >= k_exact);
     }
     assert!(k64 <= k32);
-    let c = p32.certificate.as_ref().expect("certificate");
     let ws = super::precision::owned(&r);
     let s32 = super::precision::singles(&ws);
     let v32 = super::precision::windows32(&ws, &s32);

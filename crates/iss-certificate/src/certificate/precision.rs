@@ -79,7 +79,7 @@ pub struct PropagationRounding {
     pub upsilon: f64,
 }
 
-fn propagation_rounding(sys: &LtiSystem, m: usize, u: f64) -> PropagationRounding {
+pub(crate) fn propagation_rounding(sys: &LtiSystem, m: usize, u: f64) -> PropagationRounding {
     let (nx, nu, nw1) = (sys.nx(), sys.nu(), sys.nw1());
     let (na, nb, ne) = (
         norm_bound(sys.a()),

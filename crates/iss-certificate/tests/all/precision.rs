@@ -42,7 +42,7 @@ fn certificate(resolved: &ResolvedScenario) -> &'static ClosedLoopCertificate {
 
 /// One window's data for `mhe_embedded` (PG on the problem as given), as the exporter
 /// copies it: H by columns, F by rows, α = 2/(L + μ) of the std map.
-struct Owned {
+pub(crate) struct Owned {
     n: usize,
     nt: usize,
     h: Vec<f64>,
@@ -53,7 +53,7 @@ struct Owned {
     step: f64,
 }
 
-fn owned(resolved: &ResolvedScenario) -> Vec<Owned> {
+pub(crate) fn owned(resolved: &ResolvedScenario) -> Vec<Owned> {
     let problem = resolved.mhe_problem().expect("MHE builds");
     problem
         .windows()
@@ -76,7 +76,7 @@ fn owned(resolved: &ResolvedScenario) -> Vec<Owned> {
         .collect()
 }
 
-fn to32(v: &[f64]) -> Vec<f32> {
+pub(crate) fn to32(v: &[f64]) -> Vec<f32> {
     v.iter().map(|x| *x as f32).collect()
 }
 
@@ -113,7 +113,7 @@ fn windows64(ws: &[Owned]) -> Vec<mhe_embedded::Window<'_, f64>> {
 }
 
 /// The f32 copies of each window's (H, q₀, F, lower, upper).
-fn singles(ws: &[Owned]) -> Vec<[Vec<f32>; 5]> {
+pub(crate) fn singles(ws: &[Owned]) -> Vec<[Vec<f32>; 5]> {
     ws.iter()
         .map(|w| {
             [
@@ -128,7 +128,10 @@ fn singles(ws: &[Owned]) -> Vec<[Vec<f32>; 5]> {
 }
 
 /// The f32 windows over `singles(ws)`, the step rounded to f32.
-fn windows32<'a>(ws: &[Owned], s32: &'a [[Vec<f32>; 5]]) -> Vec<mhe_embedded::Window<'a, f32>> {
+pub(crate) fn windows32<'a>(
+    ws: &[Owned],
+    s32: &'a [[Vec<f32>; 5]],
+) -> Vec<mhe_embedded::Window<'a, f32>> {
     ws.iter()
         .zip(s32)
         .map(|(w, s)| mhe_embedded::Window {

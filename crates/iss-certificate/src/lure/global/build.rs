@@ -32,6 +32,18 @@ pub fn global_loop_with(
     options: &LoopOptions,
     boxes: bool,
 ) -> Result<GlobalLoop, GlobalError> {
+    build(resolved, options, boxes, false)
+}
+
+/// As [`global_loop_with`]; with `rounding` two exogenous blocks follow w in ζ (issue 36,
+/// `super::precision`): d_c (n_z) added to zᴷ and r_c (n_x) added to x̂ (and so to the
+/// controller's input), both counted as exogenous inputs of the γ-channel.
+pub(super) fn build(
+    resolved: &ResolvedScenario,
+    options: &LoopOptions,
+    boxes: bool,
+    rounding: bool,
+) -> Result<GlobalLoop, GlobalError> {
     let mut quiet = resolved.clone();
     quiet.set_noise_scale(0.0);
     let mut opts = *options;
@@ -72,8 +84,10 @@ pub fn global_loop_with(
     let nub = mpc.bounded.len();
     let (o_z, o_d) = (n, n + nzb);
     let o_u = o_d + nz;
-    let o_w = o_u + nub;
-    let nc = o_w + nw;
+    // With `rounding`: r_h (n_x, adversarial) before w, d_c and r_c (exogenous) after it.
+    let (n_r, n_extra) = if rounding { (nx, nz + nx) } else { (0, 0) };
+    let o_w = o_u + nub + n_r;
+    let nc = o_w + nw + n_extra;
     // θ_t as a map of ζ.
     let theta = Mat::from_fn(s_theta.nrows(), nc, |i, j| {
         if j < n { s_theta[(i, j)] } else { 0.0 }
@@ -83,6 +97,9 @@ pub fn global_loop_with(
     let mut zk = zstar.clone();
     for i in 0..nz {
         zk[(i, o_d + i)] += 1.0;
+        if rounding {
+            zk[(i, o_w + nw + i)] += 1.0; // d_c
+        }
     }
     // x̂_t: the newest estimate row block of X⁺ (X_θ S_θ X + X_z zᴷ).
     let est = lay.estimates(lay.horizon - 1);
@@ -92,6 +109,13 @@ pub fn global_loop_with(
         |i, j| if j < n { a_loop[(est + i, j)] } else { 0.0 },
     );
     add(&mut xhat, &mul(g_z.as_ref().subrows(est, nx), zk.as_ref()));
+    // x̂ computed = x̂(zᴷ) + r_h + r_c (its propagation's rounding).
+    let r_cols = |i: usize| [o_w - nx + i, o_w + nw + nz + i];
+    for i in (0..nx).filter(|_| rounding) {
+        for c in r_cols(i) {
+            xhat[(i, c)] += 1.0;
+        }
+    }
     // U* of the controller and u = E₀U* (the saturated LQR: U* = u).
     let ustar = mpc.map(&xhat, o_u)?;
     let sigma_mpc = if nub > 0 {
@@ -108,6 +132,11 @@ pub fn global_loop_with(
     add(&mut x_plus, &mul(g0.as_ref(), zk.as_ref()));
     add(&mut x_plus, &mul(b_u.as_ref(), u.as_ref()));
     add_disturbance(&mut x_plus, plant, &lay, o_w);
+    for i in (0..nx).filter(|_| rounding) {
+        for c in r_cols(i) {
+            x_plus[(est + i, c)] += 1.0;
+        }
+    }
     let (sig2_a, sig2_b) = sigma2_pieces(&d_inv[..nz], &zstar, lay.warm_start(), o_d);
     Ok(GlobalLoop {
         lifted,
@@ -116,7 +145,7 @@ pub fn global_loop_with(
         d_inv,
         n_x: n,
         n_v: nc - n,
-        n_w: nw,
+        n_w: nw + n_extra,
         x_plus,
         sigma_mhe,
         sigma_mpc,
@@ -126,6 +155,7 @@ pub fn global_loop_with(
         mhe_bounded: nzb,
         zstar,
         d_col: o_d,
+        extra_supply: None,
     })
 }
 

@@ -30,6 +30,9 @@ impl GlobalLoop {
                 }
             }
         }
+        if let Some(r) = &self.extra_supply {
+            add(&mut pi, r);
+        }
         Terms { pi }
     }
 
@@ -275,7 +278,7 @@ impl GlobalLoop {
 
     /// As [`GlobalLoop::certify_phi`], trying `first` (multipliers that certified a nearby φ)
     /// before the grid.
-    fn certify_phi_from(
+    pub(super) fn certify_phi_from(
         &self,
         phi: f64,
         opts: &GlobalOptions,

@@ -269,6 +269,8 @@ pub struct GlobalLoop {
     /// z*_t and U*_t as maps of ζ (for tests and sampling).
     zstar: Mat<f64>,
     d_col: usize,
+    /// A form added to the supply (the rounding's homogeneous constraints, `precision`).
+    extra_supply: Option<Mat<f64>>,
 }
 
 fn mul(a: MatRef<'_, f64>, b: MatRef<'_, f64>) -> Mat<f64> {
@@ -298,8 +300,12 @@ fn sym_of(m: &Mat<f64>) -> Sym {
 
 mod build;
 mod lmi;
+mod precision;
 
 pub use build::{global_loop, global_loop_with};
+pub use precision::{
+    LoopRounding, PrecisionCertificate, PrecisionVoid, certify_precision, loop_rounding,
+};
 
 impl GlobalLoop {
     /// dim X.

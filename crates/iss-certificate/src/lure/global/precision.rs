@@ -1,0 +1,382 @@
+//! The global loop certificate in a given precision (issue 36; docs/theory.md §4,
+//! "The global loop certificate in f32"): the estimator's rounding put into the one LMI.
+//!
+//! In unit round-off u the window's computed iteration is the exact map plus
+//! ‖δ‖ ≤ a‖z‖ + b‖θ‖ + c per step ([`qp_iter::rounding`], window M), and x̂'s computed
+//! propagation adds ‖r‖ ≤ ρ_z‖zᴷ‖ + ρ_u‖u window‖ (`certificate::precision`). With r the
+//! exact map's one-step rate, q = r + a < 1 and S = 1/(1 − q), K computed steps give
+//!
+//! ‖d‖ ≤ φ_u(K)‖z⁰ − z*‖ + β_z‖z*‖ + β_θ‖θ‖ + c_d,  φ_u(K) = min(qᴷ, φ(K) + qᴷ − rᴷ),
+//!
+//! β_z = aS, β_θ = bS, c_d = cS. z*, θ, z⁰ are linear in ζ, so the homogeneous part is a
+//! quadratic constraint (split (1 + α)/(1 + 1/α)), the propagation's is another (multiplier
+//! μ), and the constants c_d, ρ_z c_d are two more bounded exogenous inputs (d_c, r_c) of
+//! the γ-channel: the certificate is ISS with an offset. The LMI depends on K only through
+//! φ_u(K), so the certified K are {K : φ_u(K) ≤ φ*_u}, φ*_u ≤ the exact φ*.
+
+use closed_loop::scenario::{LoopOptions, ResolvedScenario};
+use faer::Mat;
+use qp_iter::rounding::{IterationRounding, iteration_rounding};
+
+use super::{GlobalCertificate, GlobalError, GlobalLoop, GlobalOptions, mul};
+use crate::certificate::precision::{PropagationRounding, propagation_rounding};
+use crate::linear::LinearError;
+
+/// The rounding of the global loop's window (length M) in unit round-off u.
+#[derive(Debug, Clone, Copy, PartialEq)]
+#[non_exhaustive]
+pub struct LoopRounding {
+    /// The unit round-off u.
+    pub unit_roundoff: f64,
+    /// One iteration on window M: rate r, a, b, c.
+    pub iteration: IterationRounding,
+    /// x̂'s propagation through window M: ρ_z (`from_z`), ρ_u (`from_u`).
+    pub propagation: PropagationRounding,
+}
+
+impl LoopRounding {
+    /// q = r + a: the computed iteration's rate.
+    pub fn perturbed_rate(&self) -> f64 {
+        self.iteration.perturbed_rate()
+    }
+    /// S = 1/(1 − q) (∞ when q ≥ 1).
+    fn sum(&self) -> f64 {
+        let q = self.perturbed_rate();
+        if q < 1.0 {
+            1.0 / (1.0 - q)
+        } else {
+            f64::INFINITY
+        }
+    }
+    /// β_z = a/(1 − q): the gain from ‖z*‖ into ‖d‖ (every K).
+    pub fn beta_z(&self) -> f64 {
+        self.iteration.a * self.sum()
+    }
+    /// β_θ = b/(1 − q): the gain from ‖θ‖ into ‖d‖.
+    pub fn beta_theta(&self) -> f64 {
+        self.iteration.b * self.sum()
+    }
+    /// c_d = c/(1 − q): the constant in ‖d‖.
+    pub fn offset_d(&self) -> f64 {
+        self.iteration.c * self.sum()
+    }
+    /// The ultimate-bound offset √(c_d² + (ρ_z c_d)²): the exogenous inputs (d_c, r_c) the
+    /// certificate's γ multiplies, besides w.
+    pub fn offset(&self) -> f64 {
+        let c = self.offset_d();
+        c * (1.0 + self.propagation.from_z.powi(2)).sqrt()
+    }
+    /// φ_u(K) = min(qᴷ, φ(K) + qᴷ − rᴷ) from the exact map's certified K-step bound
+    /// `phi_k` (both bound the computed iterate's contraction; docs/theory.md).
+    pub fn phi_u(&self, phi_k: f64, k: usize) -> f64 {
+        let k = i32::try_from(k).unwrap_or(i32::MAX);
+        let (qk, rk) = (self.perturbed_rate().powi(k), self.iteration.rate.powi(k));
+        qk.min(phi_k + (qk - rk).max(0.0))
+    }
+}
+
+/// Why the global certificate certifies no K in a precision.
+#[derive(Debug, Clone, PartialEq)]
+#[non_exhaustive]
+pub enum PrecisionVoid {
+    /// The exact-arithmetic loop has no certificate (no φ*), so neither has a rounded one.
+    Exact,
+    /// The method's rounding model is not derived (its sentence, from `qp_iter::rounding`).
+    NotCovered {
+        /// Why.
+        why: String,
+    },
+    /// Rounding breaks the window's contraction: r + a ≥ 1.
+    ContractionBroken {
+        /// The window length M.
+        window: usize,
+        /// The exact rate r.
+        rate: f64,
+        /// The rounding's a.
+        rounding: f64,
+    },
+    /// The LMI with the rounding terms is infeasible even at φ_u = 0 (every K).
+    Infeasible {
+        /// β_z, β_θ: the rounding's gains into ‖d‖.
+        beta: [f64; 2],
+    },
+    /// φ*_u > 0 but φ_u(K) stays above it up to `k_max`.
+    KBeyond {
+        /// The search limit.
+        k_max: usize,
+    },
+}
+
+impl std::fmt::Display for PrecisionVoid {
+    fn fmt(&self, f: &mut std::fmt::Formatter<'_>) -> std::fmt::Result {
+        use lti_model::numfmt::sig4;
+        match self {
+            Self::Exact => f.write_str(
+                "the exact-arithmetic loop has no global certificate (no φ*); rounding can only \
+                 shrink the certified set",
+            ),
+            Self::NotCovered { why } => write!(f, "not covered: {why}"),
+            Self::ContractionBroken {
+                window,
+                rate,
+                rounding,
+            } => write!(
+                f,
+                "void: rounding breaks the contraction in window m = {window} (r = {} plus the \
+                 rounding's a = {} is ≥ 1: u·κ(H) too large); improve the conditioning or run \
+                 in f64",
+                sig4(*rate),
+                sig4(*rounding)
+            ),
+            Self::Infeasible { beta } => write!(
+                f,
+                "void: the LMI with the rounding terms (β_z = {}, β_θ = {}) is infeasible at \
+                 every K (even φ_u = 0)",
+                sig4(beta[0]),
+                sig4(beta[1])
+            ),
+            Self::KBeyond { k_max } => write!(f, "no K ≤ {k_max} reaches φ*_u"),
+        }
+    }
+}
+
+/// The global certificate in one precision.
+#[derive(Debug, Clone)]
+#[non_exhaustive]
+pub struct PrecisionCertificate {
+    /// The unit round-off u.
+    pub unit_roundoff: f64,
+    /// The first certified K in this precision (every K ≥ it is certified).
+    pub k_glob: Option<usize>,
+    /// The exact-arithmetic K_glob (the same φ*, the same K search), for comparison.
+    pub k_glob_exact: Option<usize>,
+    /// φ*_u: every K with φ_u(K) ≤ it is certified.
+    pub phi_star: Option<f64>,
+    /// The window's rounding model (None when not covered).
+    pub rounding: Option<LoopRounding>,
+    /// (α, μ): the split of the homogeneous bound and the propagation's multiplier used.
+    pub split: Option<[f64; 2]>,
+    /// The checked certificate at φ*_u: ‖X⁺‖²_P ≤ ρ²‖X‖²_P + γ²(‖w‖² + ‖d_c‖² + ‖r_c‖²),
+    /// ‖d_c‖² + ‖r_c‖² ≤ `offset`² (its `phi` is √(1 + α)·φ*_u).
+    pub certificate: Option<GlobalCertificate>,
+    /// Why there is no K (None when there is one).
+    pub reason: Option<PrecisionVoid>,
+}
+
+impl PrecisionCertificate {
+    /// The ultimate-bound offset (0 without a rounding model).
+    pub fn offset(&self) -> f64 {
+        self.rounding.as_ref().map_or(0.0, LoopRounding::offset)
+    }
+}
+
+/// The rounding model of `options.method` on the scenario's window M in unit round-off `u`,
+/// or why it is not covered.
+pub fn loop_rounding(
+    resolved: &ResolvedScenario,
+    options: &LoopOptions,
+    u: f64,
+) -> Result<Result<LoopRounding, PrecisionVoid>, GlobalError> {
+    let problem = resolved.mhe_problem().map_err(LinearError::from)?;
+    let m = problem.windows().len() - 1;
+    let qp = problem.windows()[m].qp();
+    let iteration = match iteration_rounding(&options.method, qp, u) {
+        Ok(r) => r,
+        Err(e) => {
+            let why = format!("window m = {m}: {e}");
+            return Ok(Err(PrecisionVoid::NotCovered { why }));
+        }
+    };
+    if !iteration.contracts() {
+        return Ok(Err(PrecisionVoid::ContractionBroken {
+            window: m,
+            rate: iteration.rate,
+            rounding: iteration.a,
+        }));
+    }
+    Ok(Ok(LoopRounding {
+        unit_roundoff: u,
+        iteration,
+        propagation: propagation_rounding(problem.system(), m, u),
+    }))
+}
+
+/// The rounding's supply pieces on the augmented ζ (module docs): Σ_β = β_z²ZᵀZ + β_θ²ΘᵀΘ
+/// and Σ_r = 2ρ_z²(Z + E_d)ᵀ(Z + E_d) + 2ρ_u²E_UᵀE_U − E_rᵀE_r.
+fn supply_pieces(gl: &GlobalLoop, rd: &LoopRounding) -> (Mat<f64>, Mat<f64>) {
+    let lay = gl.lifted.layout();
+    let (n, nc, nz) = (gl.n_x, gl.n_zeta(), lay.nz);
+    let s_theta = gl.lifted.parameter_selection();
+    let theta = Mat::from_fn(s_theta.nrows(), nc, |i, j| {
+        if j < n { s_theta[(i, j)] } else { 0.0 }
+    });
+    let z = &gl.zstar;
+    let zd = Mat::from_fn(nz, nc, |i, j| {
+        z[(i, j)] + if j == gl.d_col + i { 1.0 } else { 0.0 }
+    });
+    let nuw = lay.horizon * lay.nu;
+    let uwin = Mat::from_fn(
+        nuw,
+        nc,
+        |i, j| {
+            if j == lay.u_window(0) + i { 1.0 } else { 0.0 }
+        },
+    );
+    // r_h sits just before w: o_w = nc − n_w, o_r = o_w − n_x.
+    let o_r = nc - gl.n_w - lay.nx;
+    let gram = |m: &Mat<f64>| mul(m.transpose(), m.as_ref());
+    let (zz, tt, dd, uu) = (gram(z), gram(&theta), gram(&zd), gram(&uwin));
+    let (bz, bt) = (rd.beta_z(), rd.beta_theta());
+    let (pz, pu) = (rd.propagation.from_z, rd.propagation.from_u);
+    let beta = Mat::from_fn(nc, nc, |i, j| bz * bz * zz[(i, j)] + bt * bt * tt[(i, j)]);
+    let prop = Mat::from_fn(nc, nc, |i, j| {
+        let r = if i == j && (o_r..o_r + lay.nx).contains(&i) {
+            1.0
+        } else {
+            0.0
+        };
+        2.0 * pz * pz * dd[(i, j)] + 2.0 * pu * pu * uu[(i, j)] - r
+    });
+    (beta, prop)
+}
+
+/// The global certificate of `options.method` in unit round-off `u` (module docs), from the
+/// exact loop `exact_loop` and its exact φ* certificate `exact` (None: the exact loop has
+/// none). φ*_u is searched in [0, φ*]: first φ*_u = φ* itself (then K_glob(u) equals the
+/// exact K_glob), else a bisection to `opts.phi_tol`, over a few splits (α, μ).
+///
+/// Errors: as [`super::global_loop`].
+pub fn certify_precision(
+    resolved: &ResolvedScenario,
+    options: &LoopOptions,
+    exact_loop: &GlobalLoop,
+    exact: Option<&GlobalCertificate>,
+    u: f64,
+    opts: &GlobalOptions,
+) -> Result<PrecisionCertificate, GlobalError> {
+    let k_exact =
+        exact.and_then(|c| crate::lure::first_k(|k| exact_loop.phi(k) <= c.phi, opts.k_max));
+    let mut out = PrecisionCertificate {
+        unit_roundoff: u,
+        k_glob: None,
+        k_glob_exact: k_exact,
+        phi_star: None,
+        rounding: None,
+        split: None,
+        certificate: None,
+        reason: None,
+    };
+    let rd = match loop_rounding(resolved, options, u)? {
+        Ok(r) => r,
+        Err(why) => {
+            out.reason = Some(why);
+            return Ok(out);
+        }
+    };
+    out.rounding = Some(rd);
+    let Some(exact) = exact else {
+        out.reason = Some(PrecisionVoid::Exact);
+        return Ok(out);
+    };
+    let base = super::build::build(resolved, options, true, true)?;
+    let (beta, prop) = supply_pieces(&base, &rd);
+    let mut gl = base.clone();
+    let b = rd.beta_z() + rd.beta_theta();
+    let star = exact.phi.max(f64::MIN_POSITIVE);
+    // μ must exceed r_h's own storage gain ‖X⁺_rᵀPX⁺_r‖ (else r_h is a free input): scaled
+    // by tr(X⁺_rᵀPX⁺_r) ≥ λ_max of the exact certificate's P.
+    let o_r = gl.n_zeta() - gl.n_w - gl.lifted.layout().nx;
+    let xr = gl.x_plus.as_ref().subcols(o_r, gl.lifted.layout().nx);
+    let mr = mul(xr.transpose(), mul(exact.p.as_ref(), xr).as_ref());
+    let lam_r = (0..mr.nrows()).map(|i| mr[(i, i)]).sum::<f64>().max(1e-300);
+    let mut splits = Vec::new();
+    for f in [1.0, 10.0, 100.0] {
+        for mu in [4.0, 64.0] {
+            splits.push([(f * b / star).clamp(1e-14, 1.0), mu * lam_r]);
+        }
+    }
+    // r_h = r̃/√μ: the same LMI with r̃'s block at unit scale (the Riccati's strictness and
+    // the check's allowance are relative to the largest diagonal, which μ would dominate).
+    let nxp = gl.lifted.layout().nx;
+    let set = |gl: &mut GlobalLoop, [alpha, mu]: [f64; 2]| {
+        let k1 = 2.0 * (1.0 + 1.0 / alpha);
+        let sc = |i: usize| {
+            if (o_r..o_r + nxp).contains(&i) {
+                mu.sqrt().recip()
+            } else {
+                1.0
+            }
+        };
+        *gl = base.clone();
+        gl.extra_supply = Some(Mat::from_fn(beta.nrows(), beta.ncols(), |i, j| {
+            (k1 * beta[(i, j)] + mu * prop[(i, j)]) * sc(i) * sc(j)
+        }));
+        for j in o_r..o_r + nxp {
+            for i in 0..gl.x_plus.nrows() {
+                gl.x_plus[(i, j)] *= sc(j);
+            }
+            for i in 0..gl.xhat.nrows() {
+                gl.xhat[(i, j)] *= sc(j);
+            }
+        }
+        if let Some(s3) = gl.sigma_mpc.as_mut() {
+            let n = s3.nrows();
+            for i in 0..n {
+                for j in 0..n {
+                    s3[(i, j)] *= sc(i) * sc(j);
+                }
+            }
+        }
+        (1.0 + alpha).sqrt()
+    };
+    // 1. φ*_u = φ*: K_glob(u) = the exact K_glob.
+    let mut best: Option<(f64, [f64; 2], GlobalCertificate)> = None;
+    for &s in &splits {
+        let scale = set(&mut gl, s);
+        if let Some(c) = gl.certify_phi_from(scale * exact.phi, opts, Some(exact.tau)) {
+            best = Some((exact.phi, s, c));
+            break;
+        }
+    }
+    // 2. Else bisect φ_u in (0, φ*) per split, keeping the largest.
+    if best.is_none() {
+        for &s in &splits {
+            let scale = set(&mut gl, s);
+            let Some(mut c) = gl.certify_phi_from(0.0, opts, Some(exact.tau)) else {
+                continue;
+            };
+            let (mut lo, mut hi) = (0.0, exact.phi);
+            while hi - lo > opts.phi_tol * hi && hi > 1e-12 {
+                let mid = if lo == 0.0 {
+                    hi / 4.0
+                } else {
+                    (lo * hi).sqrt()
+                };
+                match gl.certify_phi_from(scale * mid, opts, Some(c.tau)) {
+                    Some(cm) => {
+                        c = cm;
+                        lo = mid;
+                    }
+                    None => hi = mid,
+                }
+            }
+            if best.as_ref().is_none_or(|(p, _, _)| lo > *p) {
+                best = Some((lo, s, c));
+            }
+        }
+    }
+    let Some((phi_u, split, cert)) = best else {
+        out.reason = Some(PrecisionVoid::Infeasible {
+            beta: [rd.beta_z(), rd.beta_theta()],
+        });
+        return Ok(out);
+    };
+    out.phi_star = Some(phi_u);
+    out.split = Some(split);
+    out.certificate = Some(cert);
+    out.k_glob = crate::lure::first_k(|k| rd.phi_u(exact_loop.phi(k), k) <= phi_u, opts.k_max);
+    if out.k_glob.is_none() {
+        out.reason = Some(PrecisionVoid::KBeyond { k_max: opts.k_max });
+    }
+    Ok(out)
+}

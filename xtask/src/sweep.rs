@@ -1,6 +1,6 @@
 //! `cargo xtask sweep` and `cargo xtask sweep-merge`: argument handling, the progress bar,
-//! `meta.json` and the SVG plots (line plots over K for a 1-D sweep, heat maps over
-//! (K_e, K_c) for a 2-D one). The sweep itself (runs, seeds, shards, point files,
+//! `meta.json` and the SVG plot files (line plots over K for a 1-D sweep, heat maps over
+//! (K_e, K_c) for a 2-D one: chosen and drawn by `mhe_sweep::plots`). The sweep itself (runs, seeds, shards, point files,
 //! resume, CSV assembly) is `closed_loop::sweep`, unit-tested there.
 
 use std::fmt::Write as _;
@@ -21,14 +21,11 @@ use xtask::sweep_engine::{
 use crate::output::{OutputSet, check_out_dir};
 use crate::provenance::{Provenance, workspace_root};
 
-mod heatmap;
-mod plots;
 mod timing;
 // `cargo xtask sweep-merge`: the shards' sets checked and merged.
 mod merge;
-use heatmap::heatmaps_all;
+use mhe_plots::shorten;
 pub use merge::merge;
-use plots::{plot_all, shorten};
 
 /// Arguments of `cargo xtask sweep`.
 #[derive(Debug, Clone, clap::Args)]
@@ -521,18 +518,20 @@ fn all_thresholds(sweep: &Sweep, table: &Table) -> (Vec<Thresholds>, Vec<PairThr
     (thresholds(table), pairs)
 }
 
-/// The plots of an assembled sweep: line plots over K (1-D) or heat maps (2-D).
+/// Stages the plots of an assembled sweep (`mhe_sweep::plots`: line plots over K for 1-D,
+/// heat maps for 2-D) in `set`; returns the file names.
 fn draw(
     sweep: &Sweep,
     set: &mut OutputSet,
     table: &Table,
     pairs: &[PairThresholds],
 ) -> Result<Vec<String>> {
-    if sweep.config().is_2d() {
-        heatmaps_all(sweep, set, table, pairs)
-    } else {
-        plot_all(sweep, set, table)
+    let mut written = Vec::new();
+    for (name, svg) in xtask::sweep_engine::plots::draw(sweep, table, pairs)? {
+        set.add(&name, svg.as_bytes())?;
+        written.push(name);
     }
+    Ok(written)
 }
 
 fn print_thresholds(sweep: &Sweep, thresholds: &[Thresholds], pairs: &[PairThresholds]) {

@@ -24,8 +24,8 @@ use crate::provenance::{Provenance, workspace_root};
 mod timing;
 // `cargo xtask sweep-merge`: the shards' sets checked and merged.
 mod merge;
-use mhe_plots::shorten;
 pub use merge::merge;
+use mhe_plots::shorten;
 
 /// Arguments of `cargo xtask sweep`.
 #[derive(Debug, Clone, clap::Args)]

@@ -51,7 +51,10 @@ fn main() -> Result<(), Box<dyn std::error::Error>> {
         let plots = mhe_sweep::plots::draw(&sweep, &points, &[])?;
         let names: Vec<&str> = plots.iter().map(|(n, _)| n.as_str()).collect();
         println!("plots: {}", names.join(", "));
-        assert!(names.contains(&"bounded.svg"), "the bounded fraction is drawn");
+        assert!(
+            names.contains(&"bounded.svg"),
+            "the bounded fraction is drawn"
+        );
     }
     std::fs::remove_dir_all(&dir)?;
     Ok(())

@@ -529,3 +529,7 @@ fn component_panel(
         legend: Legend::Hidden,
     }
 }
+
+#[cfg(test)]
+#[path = "figures_tests.rs"]
+mod tests;

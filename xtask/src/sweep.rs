@@ -14,8 +14,7 @@ use lti_model::numfmt::sig4;
 use serde_json::json;
 use xtask::sweep_engine::{
     Assembled, PairThresholds, Point, Progress, RunOptions, Shard, Sweep, SweepConfig, SweepReport,
-    Table, Thresholds, merge_staged, pair_thresholds, pair_thresholds_markdown, thresholds,
-    thresholds_markdown,
+    Table, Thresholds, merge_staged, pair_thresholds_markdown, thresholds_markdown,
 };
 
 use crate::output::{OutputSet, check_out_dir};
@@ -421,7 +420,7 @@ fn write_outputs(
     let (mut serial_s, mut wall) = (0.0, 0.0);
     write_set(out, staged.outputs.as_ref(), |set, table| {
         if let Some(table) = table {
-            (thresholds, pairs) = all_thresholds(sweep, table);
+            (thresholds, pairs) = sweep.all_thresholds(table);
             plots = draw(sweep, set, table, &pairs)?;
         }
         let end = unix_now();
@@ -500,22 +499,6 @@ fn print_summary(
         );
     }
     outln!("total wall time: {} s", sig4(wall));
-}
-
-/// The thresholds of an assembled sweep: per solver and scale (and K_c: each K_c a curve
-/// over K_e), and for a 2-D sweep the regions and cheapest pairs of (K_e, K_c).
-fn all_thresholds(sweep: &Sweep, table: &Table) -> (Vec<Thresholds>, Vec<PairThresholds>) {
-    let certified: Vec<(String, xtask::sweep_engine::Staircase)> = sweep
-        .certified_boundaries()
-        .iter()
-        .map(|(m, st)| (m.to_string(), st.clone()))
-        .collect();
-    let pairs = if sweep.config().is_2d() {
-        pair_thresholds(table, sweep.config().cost, &certified)
-    } else {
-        Vec::new()
-    };
-    (thresholds(table), pairs)
 }
 
 /// Stages the plots of an assembled sweep (`mhe_sweep::plots`: line plots over K for 1-D,

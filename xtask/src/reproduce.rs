@@ -38,7 +38,6 @@ use serde::Serialize;
 use crate::output::OutputSet;
 use crate::provenance::{Provenance, workspace_root};
 
-mod charts;
 mod document;
 mod gains;
 mod job;
@@ -52,7 +51,6 @@ mod summary;
 mod trace_csv;
 mod work;
 
-use charts::charts;
 pub use document::*;
 pub use job::*;
 use mhe_report::Run;

@@ -1,6 +1,6 @@
 //! `cargo xtask sweep` and `cargo xtask sweep-merge`: argument handling, the progress bar,
-//! `meta.json` and the SVG plots (line plots over K for a 1-D sweep, heat maps over
-//! (K_e, K_c) for a 2-D one). The sweep itself (runs, seeds, shards, point files,
+//! `meta.json` and the SVG plot files (line plots over K for a 1-D sweep, heat maps over
+//! (K_e, K_c) for a 2-D one: chosen and drawn by `mhe_sweep::plots`). The sweep itself (runs, seeds, shards, point files,
 //! resume, CSV assembly) is `closed_loop::sweep`, unit-tested there.
 
 use std::fmt::Write as _;
@@ -14,21 +14,17 @@ use lti_model::numfmt::sig4;
 use serde_json::json;
 use xtask::sweep_engine::{
     Assembled, PairThresholds, Point, Progress, RunOptions, Shard, Sweep, SweepConfig, SweepReport,
-    Table, Thresholds, merge_staged, pair_thresholds, pair_thresholds_markdown, thresholds,
-    thresholds_markdown,
+    Table, Thresholds, merge_staged, pair_thresholds_markdown, thresholds_markdown,
 };
 
 use crate::output::{OutputSet, check_out_dir};
 use crate::provenance::{Provenance, workspace_root};
 
-mod heatmap;
-mod plots;
 mod timing;
 // `cargo xtask sweep-merge`: the shards' sets checked and merged.
 mod merge;
-use heatmap::heatmaps_all;
 pub use merge::merge;
-use plots::{plot_all, shorten};
+use mhe_plots::shorten;
 
 /// Arguments of `cargo xtask sweep`.
 #[derive(Debug, Clone, clap::Args)]
@@ -424,7 +420,7 @@ fn write_outputs(
     let (mut serial_s, mut wall) = (0.0, 0.0);
     write_set(out, staged.outputs.as_ref(), |set, table| {
         if let Some(table) = table {
-            (thresholds, pairs) = all_thresholds(sweep, table);
+            (thresholds, pairs) = sweep.all_thresholds(table);
             plots = draw(sweep, set, table, &pairs)?;
         }
         let end = unix_now();
@@ -505,34 +501,20 @@ fn print_summary(
     outln!("total wall time: {} s", sig4(wall));
 }
 
-/// The thresholds of an assembled sweep: per solver and scale (and K_c: each K_c a curve
-/// over K_e), and for a 2-D sweep the regions and cheapest pairs of (K_e, K_c).
-fn all_thresholds(sweep: &Sweep, table: &Table) -> (Vec<Thresholds>, Vec<PairThresholds>) {
-    let certified: Vec<(String, xtask::sweep_engine::Staircase)> = sweep
-        .certified_boundaries()
-        .iter()
-        .map(|(m, st)| (m.to_string(), st.clone()))
-        .collect();
-    let pairs = if sweep.config().is_2d() {
-        pair_thresholds(table, sweep.config().cost, &certified)
-    } else {
-        Vec::new()
-    };
-    (thresholds(table), pairs)
-}
-
-/// The plots of an assembled sweep: line plots over K (1-D) or heat maps (2-D).
+/// Stages the plots of an assembled sweep (`mhe_sweep::plots`: line plots over K for 1-D,
+/// heat maps for 2-D) in `set`; returns the file names.
 fn draw(
     sweep: &Sweep,
     set: &mut OutputSet,
     table: &Table,
     pairs: &[PairThresholds],
 ) -> Result<Vec<String>> {
-    if sweep.config().is_2d() {
-        heatmaps_all(sweep, set, table, pairs)
-    } else {
-        plot_all(sweep, set, table)
+    let mut written = Vec::new();
+    for (name, svg) in xtask::sweep_engine::plots::draw(sweep, table, pairs)? {
+        set.add(&name, svg.as_bytes())?;
+        written.push(name);
     }
+    Ok(written)
 }
 
 fn print_thresholds(sweep: &Sweep, thresholds: &[Thresholds], pairs: &[PairThresholds]) {

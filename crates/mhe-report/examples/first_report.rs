@@ -1,5 +1,7 @@
 //! The case study of a double integrator as a library call: Theorem 1's K_min per method,
-//! the simulations it decides, and the trajectory check (README of mhe-report).
+//! the simulations it decides, and the trajectory check (README of mhe-report); with the
+//! feature `figures`, the paper's figures of the runs as SVG files too
+//! (`cargo run -p mhe-report --features figures --example first_report`).
 
 use closed_loop::scenario::Scenario;
 
@@ -30,5 +32,23 @@ fn main() -> Result<(), Box<dyn std::error::Error>> {
         "Props. 1 and 3 hold on the K_min run: {:?}",
         report.trajectory_check.passed
     );
+    #[cfg(feature = "figures")]
+    {
+        // Fig. 2(a)–(c), the norms and the component grids, as `cargo xtask reproduce` draws
+        // them (Fig. 2(c) shows the MHE window at t = 6, as in the paper).
+        let drawn = mhe_report::figures::render(&report.scenario, &report.runs, 6);
+        let dir = std::env::temp_dir().join(format!("mhe-report-example-{}", std::process::id()));
+        std::fs::create_dir_all(&dir)?;
+        for (name, svg) in &drawn.files {
+            std::fs::write(dir.join(name), svg)?;
+        }
+        let names: Vec<&str> = drawn.files.iter().map(|(n, _)| n.as_str()).collect();
+        println!("figures: {}", names.join(", "));
+        assert!(names.contains(&"fig2a_x1.svg"), "Fig. 2(a) is drawn");
+        for note in &drawn.notes {
+            println!("note: {note}");
+        }
+        std::fs::remove_dir_all(&dir)?;
+    }
     Ok(())
 }

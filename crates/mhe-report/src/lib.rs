@@ -17,8 +17,9 @@
 //! 4. **gains**: the certified asymptotic gains next to the measured ones ([`gains`]) and
 //!    the constants beside the paper's published values ([`paper_comparison`]).
 //!
-//! Rendering (the terminal summary, certificate.json, trace.csv, figures) is the tool's; the
-//! work log ([`Report::log`]) and progress go to an [`Observer`].
+//! Rendering (the terminal summary, certificate.json, trace.csv) is the tool's, except the
+//! figures: with the feature `figures`, `figures` draws the paper's Fig. 2 analogues and the
+//! component grids from [`Report::runs`] as SVG text. The work log ([`Report::log`]) and progress go to an [`Observer`].
 //!
 //! ```no_run
 //! use closed_loop::scenario::Scenario;
@@ -39,6 +40,8 @@ use iss_certificate::plan::KSource;
 use qp_iter::Method;
 
 mod comparison;
+#[cfg(feature = "figures")]
+pub mod figures;
 pub mod gains;
 pub mod ioss;
 pub mod joint;

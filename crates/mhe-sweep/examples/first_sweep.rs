@@ -1,8 +1,9 @@
 //! A first sweep: the closed loop of Alg. 1 on a double integrator at K = 1, 3, 10, 30
 //! with projected gradient, 4 seeds per K; then the thresholds (K_lin, K_reg, K_emp,
-//! K_cert, or why there is none) from `points.csv`.
+//! K_cert, or why there is none) from `points.csv`; with the feature `plots`, its band
+//! charts over K as SVG text.
 //!
-//! `cargo run --release -p mhe-sweep --example first_sweep`
+//! `cargo run --release -p mhe-sweep --features plots --example first_sweep`
 
 use mhe_sweep::{
     NoProgress, RunOptions, Sweep, SweepConfig, Table, thresholds, thresholds_markdown,
@@ -44,6 +45,17 @@ fn main() -> Result<(), Box<dyn std::error::Error>> {
     let rows = thresholds(&points);
     assert!(rows[0].k_emp.is_some(), "K = 30 keeps every run bounded");
     print!("{}", thresholds_markdown(&rows));
+    #[cfg(feature = "plots")]
+    {
+        // A 1-D sweep: no (K_e, K_c) pairs, so band charts over K (`cargo xtask sweep`'s).
+        let plots = mhe_sweep::plots::draw(&sweep, &points, &[])?;
+        let names: Vec<&str> = plots.iter().map(|(n, _)| n.as_str()).collect();
+        println!("plots: {}", names.join(", "));
+        assert!(
+            names.contains(&"bounded.svg"),
+            "the bounded fraction is drawn"
+        );
+    }
     std::fs::remove_dir_all(&dir)?;
     Ok(())
 }

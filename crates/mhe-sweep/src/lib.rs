@@ -52,6 +52,7 @@
 //! | `kalman_parts.rs` | a shard's part of `kalman.csv`, checked and assembled by a merge |
 //! | `lock.rs` | one writer per output directory |
 //! | `error.rs` | [`SweepError`] |
+//! | `plots.rs` | feature `plots`: the SVG plots of an assembled sweep from `points.csv` (band charts over K, (K_e, K_c) heat maps; drawn by `mhe-plots`) |
 //!
 //! Column reference: `docs/sweeps.md`.
 
@@ -64,6 +65,8 @@ mod grid;
 mod kalman_parts;
 mod lock;
 mod merge;
+#[cfg(feature = "plots")]
+pub mod plots;
 mod pool;
 mod region;
 mod regional;

@@ -16,10 +16,11 @@ use closed_loop::scenario::{ResolvedScenario, Scenario};
 
 use super::config::{Point, SweepConfig};
 use super::error::{Result, SweepError, config_err, io_err};
+use super::format::Table;
 use super::format::{self, PointFile, point_row, run_row, temp_path};
 use super::lock::OutputLock;
 use super::merge::{Assembled, assemble_files};
-use super::region::Staircase;
+use super::region::{PairThresholds, Staircase, pair_thresholds};
 use super::regional::{RegionalPlan, RegionalSide, theorem1_k_min};
 use super::schedule::ScheduleReport;
 use super::seeds::Shard;
@@ -28,6 +29,7 @@ use super::theory::LinearEntry;
 use super::theory::{
     LinearSide, SolverTheory, TheoryAtK, joint_staircase, solver_linear, solver_theory,
 };
+use super::thresholds::{Thresholds, thresholds};
 use super::{ControllerChoice, Method};
 use closed_loop::scenario::{LoopOptions, ScenarioLoop, draws_outside};
 use closed_loop::sim::ClosedLoopError;
@@ -369,6 +371,24 @@ impl Sweep {
                 .map(|(s, t)| (*s, joint_staircase(t, &self.config.k_grid)))
                 .collect()
         })
+    }
+
+    /// The thresholds of an assembled sweep from its `points.csv` (`table`): per solver and
+    /// scale (and K_c: each K_c a curve over K_e, [`thresholds`](crate::thresholds)), and for
+    /// a 2-D sweep the regions and cheapest pairs of (K_e, K_c) with the joint certificate's
+    /// boundary ([`pair_thresholds`](crate::pair_thresholds); empty for a 1-D sweep).
+    pub fn all_thresholds(&self, table: &Table) -> (Vec<Thresholds>, Vec<PairThresholds>) {
+        let certified: Vec<(String, Staircase)> = self
+            .certified_boundaries()
+            .iter()
+            .map(|(m, st)| (m.to_string(), st.clone()))
+            .collect();
+        let pairs = if self.config.is_2d() {
+            pair_thresholds(table, self.config.cost, &certified)
+        } else {
+            Vec::new()
+        };
+        (thresholds(table), pairs)
     }
 
     /// The certificate's and the linear analysis' columns for a point.

@@ -116,26 +116,12 @@ pub(super) fn write_traces(
     if !settings.figures {
         return Ok((files, figure_notes));
     }
-    let (figs, notes) = charts(&p.scenario, runs, fig2c_t);
-    figure_notes.extend(notes);
-    for (name, fig) in figs {
-        // A figure without drawable data (e.g. ε_t ≡ 0 on a log axis) is reported,
-        // not fatal: the JSON files hold the numbers.
-        let rendered = match fig.render() {
-            Ok(r) => r,
-            Err(e) => {
-                figure_notes.push(format!("{name} not written: {e}"));
-                continue;
-            }
-        };
-        let path = set.add(&name, rendered.svg.as_bytes())?;
-        if rendered.dropped > 0 {
-            figure_notes.push(format!(
-                "{name}: {} point(s) ≤ 0 or non-finite not drawn",
-                rendered.dropped
-            ));
-        }
-        files.push(path);
+    // A figure without drawable data (e.g. ε_t ≡ 0 on a log axis) is a note, not fatal:
+    // the JSON files hold the numbers.
+    let drawn = mhe_report::figures::render(&p.scenario, runs, fig2c_t);
+    figure_notes.extend(drawn.notes);
+    for (name, svg) in drawn.files {
+        files.push(set.add(&name, svg.as_bytes())?);
     }
     Ok((files, figure_notes))
 }

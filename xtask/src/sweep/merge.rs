@@ -129,7 +129,7 @@ pub fn merge(args: &MergeArgs) -> Result<()> {
     let mut plots = Vec::new();
     write_set(&args.out, staged.outputs.as_ref(), |set, table| {
         let table = table.ok_or_else(|| anyhow!("the merge assembled no points.csv"))?;
-        let (thresholds, pairs) = all_thresholds(&sweep, table);
+        let (thresholds, pairs) = sweep.all_thresholds(table);
         plots = draw(&sweep, set, table, &pairs)?;
         let extra = json!({
             "merged_from": inputs.iter().map(|p| p.display().to_string()).collect::<Vec<_>>(),

@@ -2,15 +2,15 @@
 //! disturbance scale the bounded fraction and the median last-quarter ‖e‖, per solver ρ_lin
 //! (it does not depend on the scale), each with three region boundaries as staircases: the
 //! empirical one (every run bounded at every grid pair above), the linear one (ρ_lin < 1 at
-//! every grid pair above; `xtask::sweep_engine::pair_thresholds`) and the joint certificate's
-//! (`Sweep::certified_boundaries`; "certificate: not computed" in the legend while it is
-//! empty). `mhe_plots::heatmap` draws them; this module reads the table and chooses the maps.
+//! every grid pair above; [`pair_thresholds`](crate::pair_thresholds)) and the joint
+//! certificate's ([`certified_boundary`](crate::certified_boundary); "certificate: not
+//! computed" in the legend while it is empty). `mhe_plots::heatmap` draws them; this module
+//! reads the table and chooses the maps.
 
-use anyhow::Result;
+use mhe_plots::PlotError;
 use mhe_plots::heatmap::{Axis, ColorScale, HeatMap};
-use xtask::sweep_engine::{PairThresholds, Sweep, SweepConfig, Table};
 
-use crate::output::OutputSet;
+use crate::{ControllerChoice, PairThresholds, Sweep, SweepConfig, Table};
 
 /// The value grid of one column of `points.csv` for one solver and scale.
 fn values(
@@ -226,17 +226,16 @@ fn scales_of(pairs: &[PairThresholds]) -> Vec<&str> {
     })
 }
 
-/// Writes the heat maps of an assembled 2-D sweep directory from its `points.csv` (`table`)
-/// and its 2-D thresholds (`pairs`, which carry the boundaries); returns the file names.
-pub fn heatmaps_all(
+/// The heat maps of an assembled 2-D sweep from its `points.csv` (`table`) and its 2-D
+/// thresholds (`pairs`, which carry the boundaries): (file name, SVG text) per map.
+pub fn heat_maps(
     sweep: &Sweep,
-    set: &mut OutputSet,
     table: &Table,
     pairs: &[PairThresholds],
-) -> Result<Vec<String>> {
+) -> Result<Vec<(String, String)>, PlotError> {
     let scales = scales_of(pairs);
     let mpc = match sweep.config().controller {
-        closed_loop::scenario::ControllerChoice::SuboptimalMpc { method, .. } => method.to_string(),
+        ControllerChoice::SuboptimalMpc { method, .. } => method.to_string(),
         _ => "?".into(),
     };
     let mut written = Vec::new();
@@ -250,13 +249,13 @@ pub fn heatmaps_all(
             maps.push(pair.rho_lin());
         }
         for (m, name) in maps {
-            set.add(&name, m.svg(&name)?.as_bytes())?;
-            written.push(name);
+            let svg = m.svg(&name)?;
+            written.push((name, svg));
         }
     }
     Ok(written)
 }
 
 #[cfg(test)]
-#[path = "heatmap_tests.rs"]
+#[path = "heat_tests.rs"]
 mod tests;

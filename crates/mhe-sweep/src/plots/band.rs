@@ -1,14 +1,12 @@
-//! The SVG plots of an assembled sweep, drawn from its `points.csv`: one band chart per
-//! metric (5–95 % band, median line), the bounded fraction, and ρ_lin(K), each with the
-//! solvers' thresholds (`mhe_plots::band` draws them; this module reads the table and
-//! chooses the charts).
+//! The plots of a 1-D sweep, drawn from its `points.csv`: one band chart per metric
+//! (5–95 % band, median line), the bounded fraction, and ρ_lin(K), each with the solvers'
+//! thresholds (`mhe_plots::band` draws them; this module reads the table and chooses the
+//! charts).
 
-use anyhow::Result;
+use mhe_plots::PlotError;
 use mhe_plots::band::{BandChart, CURVE_PALETTE, Curve};
-pub(super) use mhe_plots::shorten;
-use xtask::sweep_engine::{Sweep, Table};
 
-use crate::output::OutputSet;
+use crate::{Sweep, Table};
 
 /// A colour per method (an index into [`CURVE_PALETTE`]), from the one method list: the
 /// named methods (and their `-jacobi` forms) by their place in `Method::PRESETS`, any other
@@ -134,9 +132,10 @@ const PLOTS: [(&str, &str, &str, &str); 9] = [
     ),
 ];
 
-/// Stages the SVG plots of an assembled sweep from its `points.csv` (`table`) in `set`;
-/// returns the file names.
-pub fn plot_all(sweep: &Sweep, set: &mut OutputSet, table: &Table) -> Result<Vec<String>> {
+/// The band charts of an assembled 1-D sweep from its `points.csv` (`table`): (file name,
+/// SVG text) per chart, one set per disturbance scale (`-scale{s}` in the names when there
+/// are several), ρ_lin once.
+pub fn band_charts(sweep: &Sweep, table: &Table) -> Result<Vec<(String, String)>, PlotError> {
     let mut scales: Vec<String> = Vec::new();
     for r in 0..table.rows.len() {
         if let Some(s) = table.text(r, "scale") {
@@ -147,10 +146,10 @@ pub fn plot_all(sweep: &Sweep, set: &mut OutputSet, table: &Table) -> Result<Vec
     }
     let cfg = sweep.config();
     let mut written = Vec::new();
-    let mut render = |mut chart: BandChart, name: String| -> Result<()> {
+    let mut render = |mut chart: BandChart, name: String| -> Result<(), PlotError> {
         chart.prepare();
-        set.add(&name, chart.svg(&name)?.as_bytes())?;
-        written.push(name);
+        let svg = chart.svg(&name)?;
+        written.push((name, svg));
         Ok(())
     };
     for scale in &scales {
@@ -217,5 +216,5 @@ pub fn plot_all(sweep: &Sweep, set: &mut OutputSet, table: &Table) -> Result<Vec
 }
 
 #[cfg(test)]
-#[path = "plots_tests.rs"]
+#[path = "band_tests.rs"]
 mod tests;

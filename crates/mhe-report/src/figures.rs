@@ -1,14 +1,39 @@
-//! The SVG figures of a reproduce job: Fig. 2 analogues, every state with its estimate,
-//! inputs and outputs with their bounds, norms.
+//! The paper's figures from a [`Report`]'s runs (feature `figures`): Fig. 2(a)–(c)
+//! analogues, the norms, every state with its estimate, inputs and outputs with their bounds;
+//! the same SVG bytes as `cargo xtask reproduce` writes. [`figures`] gives the charts as data
+//! (to restyle or draw elsewhere), [`render`] their SVG text with notes on what was left out.
+//!
+//! ```no_run
+//! use closed_loop::scenario::Scenario;
+//!
+//! let scenario = Scenario::from_file("scenarios/case-study-certified.toml")?;
+//! let report = mhe_report::report(scenario, &mhe_report::Options::default(), &mhe_report::Quiet)?;
+//! let drawn = mhe_report::figures::render(&report.scenario, &report.runs, 6);
+//! for (name, svg) in &drawn.files {
+//!     std::fs::write(name, svg)?;
+//! }
+//! for note in &drawn.notes {
+//!     println!("{note}");
+//! }
+//! # Ok::<(), Box<dyn std::error::Error>>(())
+//! ```
+//!
+//! `cargo run -p mhe-report --features figures --example first_report` runs it on a double
+//! integrator.
 
+use closed_loop::scenario::Scenario;
+use lti_model::BoxSet;
 use mhe_plots::PlotError;
 use mhe_plots::chart::{self, Chart, Grid, HLine, Legend, MAX_PANELS, Pattern, Rendered, Series};
 
-use super::*;
+#[cfg(doc)]
+use crate::Report;
+use crate::Run;
 
 /// One SVG file: a single chart or small multiples.
-#[derive(Debug)]
-pub(super) enum Figure {
+#[derive(Debug, Clone, PartialEq)]
+#[non_exhaustive]
+pub enum Figure {
     /// One chart.
     Single(Chart),
     /// One panel per component.
@@ -16,7 +41,8 @@ pub(super) enum Figure {
 }
 
 impl Figure {
-    pub(super) fn render(&self) -> std::result::Result<Rendered, PlotError> {
+    /// Its SVG text, with the count of points not drawn (≤ 0 on a log axis, non-finite).
+    pub fn render(&self) -> Result<Rendered, PlotError> {
         match self {
             Figure::Single(c) => chart::render_svg(c),
             Figure::Grid(g) => chart::render_grid_svg(g),
@@ -24,26 +50,68 @@ impl Figure {
     }
 }
 
+/// The figures of a report as data: (file name, figure), and notes on what they leave out.
+#[derive(Debug, Clone, PartialEq)]
+#[non_exhaustive]
+pub struct Figures {
+    /// (file name, e.g. `fig2a_x1.svg`; figure), in the order the tool writes them.
+    pub files: Vec<(String, Figure)>,
+    /// Figures not built (no run recorded the MHE window of Fig. 2(c)) or components left
+    /// out of a grid, and why.
+    pub notes: Vec<String>,
+}
+
+/// The figures of a report as SVG text.
+#[derive(Debug, Clone, PartialEq)]
+#[non_exhaustive]
+pub struct Drawn {
+    /// (file name, SVG text), in the order the tool writes them.
+    pub files: Vec<(String, String)>,
+    /// Figures not written or with points left out, and why (the JSON files hold every
+    /// number, so a figure without drawable data is a note, not an error).
+    pub notes: Vec<String>,
+}
+
 /// `i` (1-based) as subscript digits: 12 → `₁₂`.
-pub(super) fn subscript(i: usize) -> String {
+fn subscript(i: usize) -> String {
     i.to_string()
         .chars()
         .map(|c| char::from_u32(0x2080 + c.to_digit(10).unwrap_or(0)).unwrap_or(c))
         .collect()
 }
 
-/// The figures of one job: (file name, figure), and notes on what they leave out. Colour
-/// i+1 is run i; the true state is black.
-pub(super) fn charts(
-    scenario: &Scenario,
-    runs: &[Run],
-    fig2c_t: usize,
-) -> (Vec<(String, Figure)>, Vec<String>) {
-    let (mut out, mut notes) = fig2(scenario, runs, fig2c_t);
+/// The figures of one scenario's runs ([`Report::runs`]); `fig2c_t` is the time step of
+/// Fig. 2(c)'s ŵ² window (the paper shows t = 6). Colour i+1 is run i; the true state is black.
+pub fn figures(scenario: &Scenario, runs: &[Run], fig2c_t: usize) -> Figures {
+    let (mut files, mut notes) = fig2(scenario, runs, fig2c_t);
     let (grids, grid_notes) = component_grids(scenario, runs);
-    out.extend(grids);
+    files.extend(grids);
     notes.extend(grid_notes);
-    (out, notes)
+    Figures { files, notes }
+}
+
+/// [`figures`] rendered: the SVG text of each figure that has drawable data, and the notes
+/// (those of [`figures`], then per figure the ones not written or with points left out).
+pub fn render(scenario: &Scenario, runs: &[Run], fig2c_t: usize) -> Drawn {
+    let Figures { files, mut notes } = figures(scenario, runs, fig2c_t);
+    let mut out = Vec::new();
+    for (name, fig) in files {
+        let rendered = match fig.render() {
+            Ok(r) => r,
+            Err(e) => {
+                notes.push(format!("{name} not written: {e}"));
+                continue;
+            }
+        };
+        if rendered.dropped > 0 {
+            notes.push(format!(
+                "{name}: {} point(s) ≤ 0 or non-finite not drawn",
+                rendered.dropped
+            ));
+        }
+        out.push((name, rendered.svg));
+    }
+    Drawn { files: out, notes }
 }
 
 /// A figure file of one chart.
@@ -461,3 +529,7 @@ fn component_panel(
         legend: Legend::Hidden,
     }
 }
+
+#[cfg(test)]
+#[path = "figures_tests.rs"]
+mod tests;

@@ -10,6 +10,7 @@ mod constrained;
 mod coverage;
 mod findings;
 mod gamma13;
+mod global_outcome;
 mod joint;
 mod krylov;
 mod linear;

@@ -40,6 +40,11 @@ pub struct CertifyRequest {
     pub eta: Option<f64>,
     /// A user-supplied P to verify instead of computing one (overrides `mhe.p`).
     pub p_file: Option<PathBuf>,
+    /// `--loop`: also K_lin, Theorem 1's K_min and the global loop certificate per method.
+    pub loop_methods: bool,
+    /// `--global-seconds`: the budget of the global φ* searches (default
+    /// `certificate.phase_seconds`).
+    pub global_seconds: Option<f64>,
 }
 
 /// The scenario the certificate is for.
@@ -151,6 +156,8 @@ pub struct CertificateDocument {
     /// `sweep` and `export` make), or why none does; `null` without [mhe]. `certify` checks
     /// LMI (2) only: the verdict at K is `reproduce`'s.
     pub closed_loop: Option<iss_certificate::coverage::Coverage>,
+    /// `--loop`: per method K_lin, Theorem 1's K_min and K_glob; `None` without it.
+    pub loop_methods: Option<loop_methods::LoopSection>,
 }
 
 /// Result of [`certify`]: the document and its text summary.
@@ -267,6 +274,8 @@ pub fn certify(req: &CertifyRequest) -> Result<Outcome> {
         .with_context(|| format!("invalid scenario `{}`", req.scenario.display()))?;
     let sys = &scenario.plant;
     let inputs = lmi_inputs(req, &scenario)?;
+    // Checked before anything large is computed.
+    let global_seconds = loop_methods::global_budget(&scenario, req.global_seconds)?;
     let mut lmi = lmi_verdict(sys, &inputs)?;
     let hint = hint(sys, &inputs, &mut lmi);
     let (controller_lipschitz, controller_lipschitz_skipped) = controller_lipschitz(&scenario)?;
@@ -287,6 +296,11 @@ pub fn certify(req: &CertifyRequest) -> Result<Outcome> {
     let closed_loop = closed_loop::scenario::LoopOptions::from_scenario(&scenario)
         .ok()
         .map(|o| iss_certificate::coverage::covering(&scenario, o.method, o.controller));
+    let loop_methods = if req.loop_methods {
+        Some(loop_methods::loop_section(&scenario, global_seconds)?)
+    } else {
+        None
+    };
     let document = CertificateDocument {
         format: FORMAT.to_string(),
         format_version: FORMAT_VERSION,
@@ -324,6 +338,7 @@ pub fn certify(req: &CertifyRequest) -> Result<Outcome> {
         controller_lipschitz,
         controller_lipschitz_skipped,
         closed_loop,
+        loop_methods,
     };
     let summary = summarize(&document);
     Ok(Outcome { document, summary })
@@ -570,5 +585,6 @@ mod tests;
 
 // The terminal summary: certify/summary.rs; the JSON document's records: certify/json.rs.
 mod json;
+pub mod loop_methods;
 mod summary;
 use summary::summarize;

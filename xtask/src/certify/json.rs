@@ -27,6 +27,28 @@ impl From<&crate::certify::CertificateDocument> for v1::IossCertificate {
                 .as_ref()
                 .map(ToString::to_string),
             closed_loop: l.closed_loop.as_ref().map(v1::Coverage::from),
+            loop_methods: l.loop_methods.as_ref().map(v1::LoopSection::from),
+        }
+    }
+}
+
+impl From<&crate::certify::loop_methods::LoopSection> for v1::LoopSection {
+    fn from(l: &crate::certify::loop_methods::LoopSection) -> Self {
+        Self {
+            global_seconds: json_num(l.global_seconds),
+            elapsed_seconds: json_num(l.elapsed_seconds),
+            methods: l
+                .methods
+                .iter()
+                .map(|m| v1::LoopMethod {
+                    method: m.method.name().to_string(),
+                    k_lin: m.k_lin,
+                    k_lin_note: m.k_lin_note.clone(),
+                    theorem1_k_min: m.theorem1_k_min,
+                    k_min_note: m.k_min_note.clone(),
+                    global: v1::GlobalLoopOutcome::from(&m.global),
+                })
+                .collect(),
         }
     }
 }

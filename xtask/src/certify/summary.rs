@@ -92,6 +92,9 @@ pub(super) fn summarize(d: &CertificateDocument) -> String {
             }
         }
     }
+    if let Some(l) = &d.loop_methods {
+        super::loop_methods::summary_lines(&mut s, l);
+    }
     let _ = write!(s, "{}", if d.passed { "PASS" } else { "FAIL" });
     s
 }

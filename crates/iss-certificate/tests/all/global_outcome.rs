@@ -3,7 +3,9 @@
 //! K_glob, the refusal where the exact-MHE linear loop is unstable, and the budget.
 
 use closed_loop::scenario::{LoopOptions, ResolvedScenario, Scenario};
-use iss_certificate::lure::global_outcome::{GlobalOutcome, GlobalSettings, global_outcomes};
+use iss_certificate::lure::global_outcome::{
+    GlobalOutcome, GlobalSettings, global_outcomes, search_seconds,
+};
 use qp_iter::Method;
 
 const METHODS: [Method; 8] = [
@@ -87,5 +89,69 @@ fn refuses_where_the_exact_mhe_loop_is_linearly_unstable() {
             assert!(out[0].to_string().contains("ρ_lin"));
         }
         other => panic!("expected the ρ_lin ≥ 1 refusal, got {other:?}"),
+    }
+}
+
+/// Beyond `certificate.phase_seconds` nothing is searched, and the outcome says so with the
+/// estimate and the key to raise.
+#[test]
+fn over_the_budget_is_not_computed_with_the_key() {
+    let r = shipped("double-integrator.toml");
+    let settings = GlobalSettings {
+        phase_seconds: 1e-3,
+        ..GlobalSettings::default()
+    };
+    let out = global_outcomes(&r, &options(&r, &METHODS), &settings);
+    for o in &out {
+        match o {
+            GlobalOutcome::NotComputed {
+                estimate_seconds,
+                budget_seconds,
+                ..
+            } => assert!(estimate_seconds > budget_seconds),
+            other => panic!("expected not computed, got {other:?}"),
+        }
+        assert!(o.to_string().contains("certificate.phase_seconds"));
+    }
+}
+
+/// The outcome on the double integrator is the measured K_glob of docs/theory.md §4 (two φ*
+/// searches, one per norm, 5 × 5 multipliers), every certificate with a positive margin;
+/// prints the time against [`search_seconds`]' estimate (the calibration of the budget).
+#[test]
+#[ignore = "release-like profile: ≈ 1 min"]
+fn double_integrator_outcome_is_the_measured_k_glob() {
+    let r = shipped("double-integrator.toml");
+    let settings = GlobalSettings {
+        phase_seconds: 1e4,
+        ..GlobalSettings::default()
+    };
+    let t0 = std::time::Instant::now();
+    let out = global_outcomes(&r, &options(&r, &METHODS), &settings);
+    let budget = GlobalSettings {
+        phase_seconds: 0.0,
+        ..GlobalSettings::default()
+    };
+    let estimate = match &global_outcomes(&r, &options(&r, &METHODS), &budget)[0] {
+        GlobalOutcome::NotComputed {
+            estimate_seconds, ..
+        } => *estimate_seconds,
+        other => panic!("{other:?}"),
+    };
+    eprintln!(
+        "8 methods in {:.1} s (estimate {estimate:.1} s; search_seconds(126, 67, 5) = {:.1})",
+        t0.elapsed().as_secs_f64(),
+        search_seconds(126, 67, 5)
+    );
+    let expected = [656, 264, 136, 67, 433, 197, 103, 50];
+    for ((m, o), k) in METHODS.iter().zip(&out).zip(expected) {
+        eprintln!("{}: {o}", m.name());
+        match o {
+            GlobalOutcome::Certified(c) => {
+                assert_eq!(c.k_glob, k, "{}", m.name());
+                assert!(c.margin > 0.0 && c.rho < 1.0 && c.phi_at_k <= c.phi_star);
+            }
+            other => panic!("{}: {other:?}", m.name()),
+        }
     }
 }

@@ -86,7 +86,13 @@ pub fn loop_section(scenario: &Scenario, global_seconds: f64) -> Result<LoopSect
         })
         .collect();
     let (k_mins, k_min_err) = theorem1(scenario, &resolved);
-    let k_top = k_mins.iter().flatten().copied().max().unwrap_or(0).max(2000);
+    let k_top = k_mins
+        .iter()
+        .flatten()
+        .copied()
+        .max()
+        .unwrap_or(0)
+        .max(2000);
     let linear = linear_stability_all_budgeted(
         &resolved,
         &options,
@@ -135,7 +141,10 @@ pub fn loop_section(scenario: &Scenario, global_seconds: f64) -> Result<LoopSect
 }
 
 /// Theorem 1's K_min per method (the options every command uses), or why none.
-fn theorem1(scenario: &Scenario, resolved: &ResolvedScenario) -> (Vec<Option<usize>>, Option<String>) {
+fn theorem1(
+    scenario: &Scenario,
+    resolved: &ResolvedScenario,
+) -> (Vec<Option<usize>>, Option<String>) {
     let opts = verdict_options(scenario, METHODS.to_vec(), None);
     match certify_closed_loop(resolved, &opts) {
         Ok(c) => (

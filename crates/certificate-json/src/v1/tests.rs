@@ -129,5 +129,10 @@ fn global_loop_records_round_trip() {
         assert_eq!(keys.get_or_insert_with(|| k.clone()), &k);
     }
     assert_eq!(section.methods[0].global.rho_lin, Some(1.05));
-    assert!(section.methods[2].global.reason.contains("certificate.phase_seconds"));
+    assert!(
+        section.methods[2]
+            .global
+            .reason
+            .contains("certificate.phase_seconds")
+    );
 }

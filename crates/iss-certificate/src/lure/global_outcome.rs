@@ -259,11 +259,10 @@ fn phi_star_or_why(
             gain_e: c.gain_e,
         });
     }
-    let free = global_loop_with(resolved, options, false).map_err(|e| {
-        GlobalOutcome::Unsupported {
+    let free =
+        global_loop_with(resolved, options, false).map_err(|e| GlobalOutcome::Unsupported {
             reason: e.to_string(),
-        }
-    })?;
+        })?;
     if let Some(c) = free.certify_phi(0.0, opts) {
         return Err(GlobalOutcome::OptimumBinds {
             margin_without_boxes: c.margin,

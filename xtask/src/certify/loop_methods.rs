@@ -158,7 +158,8 @@ fn theorem1(
     }
 }
 
-/// The section's lines of the summary: one per method.
+/// The section's lines of the summary: one per method, and every distinct reason (why no
+/// K_glob, K_lin or K_min) once below, numbered.
 pub fn summary_lines(s: &mut String, l: &LoopSection) {
     let _ = writeln!(
         s,
@@ -167,15 +168,49 @@ pub fn summary_lines(s: &mut String, l: &LoopSection) {
         num(l.elapsed_seconds),
         num(l.global_seconds)
     );
-    let opt = |k: Option<usize>| k.map_or_else(|| "—".to_string(), |k| k.to_string());
+    let mut notes: Vec<String> = Vec::new();
+    let mut note = |text: String| {
+        let i = notes.iter().position(|n| *n == text).unwrap_or_else(|| {
+            notes.push(text);
+            notes.len() - 1
+        });
+        format!("({})", i + 1)
+    };
     for m in &l.methods {
+        let mut k = |k: Option<usize>, why: &Option<String>| match (k, why) {
+            (Some(k), _) => k.to_string(),
+            (None, Some(w)) => format!("— {}", note(w.clone())),
+            (None, None) => "—".to_string(),
+        };
+        let (k_lin, k_min) = (
+            k(m.k_lin, &m.k_lin_note),
+            k(m.theorem1_k_min, &m.k_min_note),
+        );
+        let global = match &m.global {
+            GlobalOutcome::Certified(_) => m.global.to_string(),
+            other => format!("{} {}", short(other), note(other.to_string())),
+        };
         let _ = writeln!(
             s,
-            "  {:<15} K_lin {:>6}  Theorem 1 {:>7}  global: {}",
+            "  {:<15} K_lin {:>8}  Theorem 1 {:>8}  global: {global}",
             m.method.name(),
-            opt(m.k_lin),
-            opt(m.theorem1_k_min),
-            m.global
+            k_lin,
+            k_min
         );
+    }
+    for (i, n) in notes.iter().enumerate() {
+        let _ = writeln!(s, "  ({}) {n}", i + 1);
+    }
+}
+
+/// A few words for an outcome without K_glob (the sentence is the note).
+fn short(o: &GlobalOutcome) -> &'static str {
+    match o {
+        GlobalOutcome::PhiBallBinds { .. } => "none: the φ-ball binds",
+        GlobalOutcome::OptimumBinds { .. } => "none: the optimum's VI binds",
+        GlobalOutcome::LinearUnstable { .. } => "none: ρ_lin ≥ 1",
+        GlobalOutcome::SearchFailed { .. } => "none: the search failed",
+        GlobalOutcome::NotComputed { .. } => "not computed within the budget",
+        _ => "not applicable",
     }
 }

@@ -1,7 +1,7 @@
 //! The global loop certificate as one typed outcome per (scenario, method), budgeted
 //! (docs/theory.md §4; issue 35): what `cargo xtask certify` prints and writes.
 //!
-//! [`global::GlobalLoop`]'s LMI depends on the method only through the weights D⁻¹ of the
+//! [`GlobalLoop`]'s LMI depends on the method only through the weights D⁻¹ of the
 //! norm in which φ(K) holds (plain or Jacobi), so φ* is searched once per norm and
 //! K_glob = min{K : φ_method(K) ≤ φ*} per method. Where no φ ≥ 0 is certified the outcome
 //! says what binds, from two cheap extra checks: the same loop with every box dropped at

@@ -322,3 +322,13 @@ fn a_state_set_does_not_block_the_lmi_check() {
     );
     assert!(out.summary.ends_with("PASS"));
 }
+
+/// A bad `--global-seconds` is refused by name before anything is computed.
+#[test]
+fn bad_global_budget_names_the_flag() {
+    let mut req = request(None, None);
+    req.loop_methods = true;
+    req.global_seconds = Some(-1.0);
+    let e = certify(&req).unwrap_err();
+    assert!(format!("{e:#}").contains("--global-seconds"), "{e:#}");
+}

@@ -41,6 +41,11 @@ pub struct CertifyRequest {
     pub eta: Option<f64>,
     /// A user-supplied P to verify instead of computing one (overrides `mhe.p`).
     pub p_file: Option<PathBuf>,
+    /// `--loop`: also K_lin, Theorem 1's K_min and the global loop certificate per method.
+    pub loop_methods: bool,
+    /// `--global-seconds`: the budget of the global φ* searches (default
+    /// `certificate.phase_seconds`).
+    pub global_seconds: Option<f64>,
 }
 
 /// Result of [`certify`]: the library's outcome, its JSON document and its text summary.
@@ -137,11 +142,19 @@ pub fn certify(req: &CertifyRequest) -> Result<Outcome> {
         }),
         None => None,
     };
+    // Checked before anything large is computed.
+    let global_seconds = loop_methods::global_budget(&scenario, req.global_seconds)?;
     let request = IossRequest { eta: req.eta, p };
     let check =
         mhe_report::ioss::ioss_certificate(&scenario, &request).map_err(|e| input_error(e, req))?;
-    let document = document(req, &scenario, &check);
-    let summary = summarize(&document, &check);
+    let loop_section = if req.loop_methods {
+        Some(loop_methods::loop_section(&scenario, global_seconds)?)
+    } else {
+        None
+    };
+    let mut document = document(req, &scenario, &check);
+    document.loop_methods = loop_section.as_ref().map(v1::LoopSection::from);
+    let summary = summarize(&document, &check, loop_section.as_ref());
     Ok(Outcome {
         document,
         check,
@@ -241,6 +254,7 @@ fn document(req: &CertifyRequest, scenario: &Scenario, check: &IossOutcome) -> v
         controller_lipschitz_skipped: (check.controller_lipschitz_skipped.as_ref())
             .map(ToString::to_string),
         closed_loop: check.closed_loop.as_ref().map(v1::Coverage::from),
+        loop_methods: None,
     }
 }
 
@@ -258,6 +272,7 @@ pub fn write_json(doc: &v1::IossCertificate, path: &Path) -> Result<()> {
 #[path = "certify_tests.rs"]
 mod tests;
 
-// The terminal summary: certify/summary.rs.
+// The terminal summary: certify/summary.rs; `--loop`'s section: certify/loop_methods.rs.
+pub mod loop_methods;
 mod summary;
 use summary::summarize;

@@ -14,6 +14,8 @@ fn request(eta: Option<f64>, p_file: Option<PathBuf>) -> CertifyRequest {
         scenario: case_study(),
         eta,
         p_file,
+        loop_methods: false,
+        global_seconds: None,
     }
 }
 
@@ -38,6 +40,8 @@ fn certify_text(name: &str, text: &str) -> Outcome {
         scenario: path,
         eta: None,
         p_file: None,
+        loop_methods: false,
+        global_seconds: None,
     })
     .unwrap()
 }
@@ -218,6 +222,8 @@ fn input_errors_are_errors() {
         scenario: "/nonexistent.toml".into(),
         eta: None,
         p_file: None,
+        loop_methods: false,
+        global_seconds: None,
     };
     let e = certify(&missing).unwrap_err();
     assert!(format!("{e:#}").contains("<file>"), "{e:#}");
@@ -259,6 +265,8 @@ fn no_mhe_section_needs_eta() {
         scenario: path.clone(),
         eta: None,
         p_file: None,
+        loop_methods: false,
+        global_seconds: None,
     };
     let e = certify(&req).unwrap_err();
     assert!(format!("{e:#}").contains("--eta"), "{e:#}");
@@ -313,4 +321,14 @@ fn a_state_set_does_not_block_the_lmi_check() {
         out.summary
     );
     assert!(out.summary.ends_with("PASS"));
+}
+
+/// A bad `--global-seconds` is refused by name before anything is computed.
+#[test]
+fn bad_global_budget_names_the_flag() {
+    let mut req = request(None, None);
+    req.loop_methods = true;
+    req.global_seconds = Some(-1.0);
+    let e = certify(&req).unwrap_err();
+    assert!(format!("{e:#}").contains("--global-seconds"), "{e:#}");
 }

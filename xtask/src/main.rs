@@ -1,7 +1,7 @@
 //! `cargo xtask`: the project's task runner (argument parsing and file output only; the
 //! numerics live in the library crates).
 //!
-//! - `cargo xtask certify --scenario FILE [--json OUT] [--eta X] [--p-file P.json]`
+//! - `cargo xtask certify --scenario FILE [--json OUT] [--eta X] [--p-file P.json] [--loop [--global-seconds S]]`
 //! - `cargo xtask sweep --config FILE.toml [--out DIR] [--threads N] [--shard I/N]`,
 //!   `cargo xtask sweep-merge --config FILE.toml --out DIR [SHARD_DIR...]` (docs/sweeps.md)
 //! - `cargo xtask export --scenario FILE --out DIR [--method M] [--k K|certified]
@@ -77,6 +77,15 @@ enum Command {
         /// certificate written by `--json`.
         #[arg(long, value_name = "P.json")]
         p_file: Option<PathBuf>,
+        /// Also per method: the linear boundary K_lin, Theorem 1's K_min and the global loop
+        /// certificate's K_glob (docs/theory.md §4), each phase budgeted.
+        #[arg(long = "loop")]
+        loop_methods: bool,
+        /// Budget (estimated seconds of one core) of the global loop certificate's φ*
+        /// searches [default: the scenario's certificate.phase_seconds]; beyond it: "not
+        /// computed within the budget".
+        #[arg(long, value_name = "S", requires = "loop_methods")]
+        global_seconds: Option<f64>,
     },
     /// The case study: Theorem 1's certificate per solver, the closed loop of Alg. 1, the
     /// Prop. 1/3 trajectory check, certificate.json, trace.json and SVG figures
@@ -132,6 +141,8 @@ fn run(cli: Cli) -> Result<ExitCode> {
             json,
             eta,
             p_file,
+            loop_methods,
+            global_seconds,
         } => {
             if let Some(path) = &json {
                 output::check_out_file(path, "--json")?;
@@ -140,6 +151,8 @@ fn run(cli: Cli) -> Result<ExitCode> {
                 scenario,
                 eta,
                 p_file,
+                loop_methods,
+                global_seconds,
             })?;
             report(&outcome, json.as_deref())?;
             Ok(if outcome.document.passed {
@@ -220,7 +233,10 @@ mod tests {
                 json,
                 eta,
                 p_file,
+                loop_methods,
+                ..
             } => {
+                assert!(!loop_methods);
                 assert_eq!(scenario, PathBuf::from("s.toml"));
                 assert_eq!(json, Some(PathBuf::from("o.json")));
                 assert_eq!(eta, Some(0.9));

@@ -3,7 +3,11 @@
 use super::*;
 
 /// The summary of `check`, with the names and sources of its document `d`.
-pub(super) fn summarize(d: &v1::IossCertificate, check: &IossOutcome) -> String {
+pub(super) fn summarize(
+    d: &v1::IossCertificate,
+    check: &IossOutcome,
+    loop_section: Option<&super::loop_methods::LoopSection>,
+) -> String {
     let mut s = String::new();
     let _ = writeln!(
         s,
@@ -92,6 +96,9 @@ pub(super) fn summarize(d: &v1::IossCertificate, check: &IossOutcome) -> String 
                 );
             }
         }
+    }
+    if let Some(l) = loop_section {
+        super::loop_methods::summary_lines(&mut s, l);
     }
     let _ = write!(s, "{}", if d.passed { "PASS" } else { "FAIL" });
     s

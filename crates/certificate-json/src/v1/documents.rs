@@ -43,6 +43,9 @@ pub struct IossCertificate {
     /// `sweep` and `export` make), or why none does; `null` without `[mhe]`. `certify` checks
     /// LMI (2) only: the verdict at K is `reproduce`'s.
     pub closed_loop: Option<Coverage>,
+    /// `certify --loop`: per method K_lin, Theorem 1's K_min and the global loop
+    /// certificate's K_glob (or what binds); `null` without `--loop`.
+    pub loop_methods: Option<LoopSection>,
 }
 
 /// The parameters of LMI (2) and where each came from.

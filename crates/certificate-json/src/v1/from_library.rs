@@ -2,6 +2,7 @@
 
 mod gamma13_joint;
 mod plant;
+mod global_loop;
 mod regional_ioss;
 mod report;
 mod theorem1;

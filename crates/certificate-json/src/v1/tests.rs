@@ -69,3 +69,70 @@ fn methods_are_spelled_as_in_the_scenario() {
         "\"admm-pr\""
     );
 }
+
+/// The global loop record (`certify --loop`) reads back as it was written, for each kind of
+/// outcome, and has the same keys whatever the verdict (a number that does not apply is
+/// `null`).
+#[test]
+fn global_loop_records_round_trip() {
+    use iss_certificate::lure::global_outcome::GlobalOutcome as G;
+    let outcomes = [
+        G::LinearUnstable { rho_lin: 1.05 },
+        G::PhiBallBinds {
+            phi_star: 0.13,
+            k_max: 1000,
+            phi_at_k_max: 0.5,
+        },
+        G::NotComputed {
+            n_zeta: 126,
+            estimate_seconds: 35.0,
+            budget_seconds: 10.0,
+        },
+        G::Unsupported {
+            reason: "mpc.iterations is set".into(),
+        },
+    ];
+    let verdicts = [
+        "linear_unstable",
+        "phi_ball_binds",
+        "not_computed",
+        "not_applicable",
+    ];
+    let section = LoopSection {
+        global_seconds: Some(10.0),
+        elapsed_seconds: Some(1.5),
+        methods: outcomes
+            .iter()
+            .map(|o| LoopMethod {
+                method: "pg".into(),
+                k_lin: Some(47),
+                k_lin_note: None,
+                theorem1_k_min: None,
+                k_min_note: Some("void".into()),
+                global: GlobalLoopOutcome::from(o),
+            })
+            .collect(),
+    };
+    let text = json(&section);
+    let back: LoopSection = serde_json::from_str(&text).expect("reads back");
+    assert_eq!(back, section);
+    let mut keys = None;
+    for (m, v) in section.methods.iter().zip(verdicts) {
+        assert_eq!(m.global.verdict, v);
+        let value = serde_json::to_value(&m.global).expect("a value");
+        let k: Vec<String> = value
+            .as_object()
+            .expect("an object")
+            .keys()
+            .cloned()
+            .collect();
+        assert_eq!(keys.get_or_insert_with(|| k.clone()), &k);
+    }
+    assert_eq!(section.methods[0].global.rho_lin, Some(1.05));
+    assert!(
+        section.methods[2]
+            .global
+            .reason
+            .contains("certificate.phase_seconds")
+    );
+}

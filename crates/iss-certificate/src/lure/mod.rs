@@ -22,6 +22,7 @@
 //! frozen-slope radius, a necessary condition for any loop certificate at K.
 
 pub mod global;
+pub mod global_outcome;
 mod inner;
 pub mod loop_level;
 pub mod scenario;

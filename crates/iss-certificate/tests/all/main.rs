@@ -11,6 +11,7 @@ mod coverage;
 mod findings;
 mod gamma13;
 mod global_precision;
+mod global_outcome;
 mod joint;
 mod krylov;
 mod linear;

@@ -5,9 +5,11 @@
 pub(crate) use super::Method;
 
 mod gamma13_joint;
+mod global_loop;
 mod regional_ioss;
 mod theorem1;
 
 pub use gamma13_joint::*;
+pub use global_loop::*;
 pub use regional_ioss::*;
 pub use theorem1::*;

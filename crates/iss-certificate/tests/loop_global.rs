@@ -5,7 +5,8 @@
 use closed_loop::scenario::{ControllerChoice, LoopOptions, ResolvedScenario, Scenario};
 use faer::Par;
 use iss_certificate::lure::global::{
-    GlobalCertificate, GlobalError, GlobalLoop, GlobalOptions, global_loop, global_loop_with,
+    GlobalCertificate, GlobalError, GlobalLoop, GlobalOptions, RowSearch, global_loop,
+    global_loop_with,
 };
 use mhe_core::WarmStart;
 use qp_iter::Method;
@@ -331,6 +332,75 @@ fn measure_k_glob_on_the_shipped_scenarios() {
                 first(*star),
                 first(*unc),
                 gl.phi(1)
+            );
+        }
+    }
+}
+
+/// The per-row multipliers of §4 ("Per-row multipliers"): φ* of the scalar search and of the
+/// per-row search (started from the scalar one), the worst frozen-clamp pattern (ρ ≥ 1
+/// refutes the class), and K_glob per method for both, with the seconds each took.
+#[test]
+#[ignore = "measurement (release): minutes per scenario"]
+fn measure_rows_on_the_shipped_scenarios() {
+    let files = std::env::var("GLOBAL_SCENARIOS").unwrap_or_else(|_| {
+        "double-integrator.toml,quadruple-tank.toml,cart-pendulum.toml,case-study-certified.toml"
+            .into()
+    });
+    let opts = GlobalOptions {
+        tau_points: 5,
+        ..GlobalOptions::default()
+    };
+    let search = RowSearch::default();
+    for file in files.split(',') {
+        let r = resolved(file);
+        let mut stars = Vec::new();
+        for base in [Method::PG, Method::JACOBI_PRESETS[0]] {
+            let gl = match global_loop(&r, &options(&r, base)) {
+                Ok(g) => g,
+                Err(e) => {
+                    eprintln!("{file} {}: refused: {e}", base.name());
+                    continue;
+                }
+            };
+            let t0 = std::time::Instant::now();
+            let old = gl.phi_star(&opts);
+            let t_old = t0.elapsed().as_secs_f64();
+            let t1 = std::time::Instant::now();
+            let new = gl.phi_star_rows(&opts, &search, old.as_ref());
+            let t_new = t1.elapsed().as_secs_f64();
+            let frozen = gl.worst_frozen_clamp(64, 35).ok();
+            eprintln!(
+                "{file} {}: rows {:?}, φ* scalar {:?} ({t_old:.1} s), φ* per-row {:?} ({t_new:.1} s, margin {:?}), worst frozen clamp ρ {:?} ({} rows clamped)",
+                base.name(),
+                gl.bounded_rows(),
+                old.as_ref().map(|c| c.phi),
+                new.as_ref().map(|c| c.phi),
+                new.as_ref().map(|c| c.margin),
+                frozen.as_ref().map(|f| f.0),
+                frozen.as_ref().map_or(0, |f| f.1.iter().filter(|b| **b).count()),
+            );
+            stars.push((base, old.map(|c| c.phi), new.map(|c| c.phi), t_old, t_new));
+        }
+        for m in METHODS {
+            let Ok(gl) = global_loop(&r, &options(&r, m)) else {
+                continue;
+            };
+            let jac = m.name().contains("jacobi");
+            let Some((_, old, new, t_old, t_new)) = stars
+                .iter()
+                .find(|(b, ..)| b.name().contains("jacobi") == jac)
+            else {
+                continue;
+            };
+            let first = |p: Option<f64>| {
+                p.and_then(|p| iss_certificate::lure::first_k(|k| gl.phi(k) <= p, 10_000_000))
+            };
+            eprintln!(
+                "| {file} | {} | old K_glob {:?} | new K_glob {:?} | {t_old:.0} s / {t_new:.0} s |",
+                m.name(),
+                first(*old),
+                first(*new),
             );
         }
     }

@@ -80,6 +80,7 @@ pub fn global_loop_with(
     });
     let zstar = mhe.map(&theta, o_z)?;
     let sigma_mhe = mhe.vi_form(&zstar, &theta);
+    let grad_mhe = mhe.bounded_gradient(&zstar, &theta);
     let mut zk = zstar.clone();
     for i in 0..nz {
         zk[(i, o_d + i)] += 1.0;
@@ -99,6 +100,7 @@ pub fn global_loop_with(
     } else {
         None
     };
+    let grad_mpc = mpc.bounded_gradient(&ustar, &xhat);
     let u = ustar.as_ref().subrows(0, nu).to_owned();
     let b_u = input_matrix(plant, &lay);
     // 𝒜, 𝒢_z include u = L x̂: take it out and put the channel's u in.
@@ -124,6 +126,10 @@ pub fn global_loop_with(
         sig2_b,
         xhat,
         mhe_bounded: nzb,
+        o_z,
+        o_u,
+        grad_mhe,
+        grad_mpc,
         zstar,
         d_col: o_d,
     })

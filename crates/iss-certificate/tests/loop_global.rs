@@ -6,7 +6,7 @@ use closed_loop::scenario::{ControllerChoice, LoopOptions, ResolvedScenario, Sce
 use faer::Par;
 use iss_certificate::lure::global::{
     GlobalCertificate, GlobalError, GlobalLoop, GlobalOptions, RowSearch, global_loop,
-    global_loop_with,
+    global_loop_boxes, global_loop_with,
 };
 use mhe_core::WarmStart;
 use qp_iter::Method;
@@ -67,6 +67,49 @@ fn refuses_where_rho_lin_is_at_least_one() {
         .certify_phi(0.0, &opts)
         .expect("φ = 0 (exact MHE) is certified");
     assert!(c.rho < 1.0 && c.margin > 0.0);
+}
+
+/// The frozen-clamp loop with every bounded row free is the exact unconstrained loop: its ρ
+/// equals that of the loop built with every box dropped (an independent construction: there
+/// the free coordinates are eliminated by the Hessian, here by the rows' gradient equations).
+#[test]
+fn frozen_clamp_with_no_row_clamped_is_the_box_free_loop() {
+    let r = resolved("double-integrator.toml");
+    let o = options(&r, Method::PG);
+    let gl = global_loop(&r, &o).expect("builds");
+    let lin = global_loop_with(&r, &o, false).expect("builds");
+    let (nm, nu) = gl.bounded_rows();
+    assert!(nm > 0 && nu == 0, "{nm} MHE rows, {nu} MPC rows");
+    assert_eq!(lin.bounded_rows(), (0, 0));
+    let a = gl.frozen_clamp_radius(&vec![false; nm]).expect("ρ");
+    let b = lin.frozen_clamp_radius(&[]).expect("ρ");
+    assert!((a - b).abs() <= 1e-9, "{a} vs {b}");
+    // Clamping rows changes the loop (the construction is not blind to the pattern).
+    let c = gl.frozen_clamp_radius(&vec![true; nm]).expect("ρ");
+    assert!((c - a).abs() > 1e-6, "all clamped {c} = none clamped {a}");
+}
+
+/// The per-row search refuses where ρ_lin(K) ≥ 1 too (double integrator, PG, K = 10): the
+/// linear loop is admissible for every per-row constraint (z_i g_i = 0 on the unconstrained
+/// optimum), so no λ can certify φ(10) (Theorem L3 (ii)).
+#[test]
+#[ignore = "per-row search (release): ≈ 10 s"]
+fn rows_refuse_where_rho_lin_is_at_least_one() {
+    let r = resolved("double-integrator.toml");
+    let gl = global_loop(&r, &options(&r, Method::PG)).expect("builds");
+    let k = 10;
+    let rho = gl.lifted.spectral_radius(k, Par::Seq).expect("ρ_lin");
+    assert!(rho >= 1.0, "the premise: ρ_lin({k}) = {rho}");
+    let opts = GlobalOptions {
+        tau_points: 5,
+        ..GlobalOptions::default()
+    };
+    let search = RowSearch::default();
+    assert!(gl.certify_phi_rows(gl.phi(k), &opts, &search).is_none());
+    let c = gl
+        .certify_phi_rows(0.0, &opts, &search)
+        .expect("φ = 0 is certified");
+    assert!(c.rho < 1.0 && c.margin > 0.0 && c.lambda.len() == gl.bounded_rows().0);
 }
 
 /// Each unsupported setting is refused with the key to change.
@@ -402,6 +445,43 @@ fn measure_rows_on_the_shipped_scenarios() {
                 first(*old),
                 first(*new),
             );
+        }
+    }
+}
+
+/// What binds on a boxed loop at φ = 0 (the exact MHE): the smallest ρ the per-row search
+/// reaches (unchecked Riccati; a certificate needs ≤ 0.9999) with both boxes, with the MHE's
+/// box only and with the input box only, and the worst frozen-clamp ρ of each.
+#[test]
+#[ignore = "diagnosis (release): minutes per scenario"]
+fn diagnose_boxed_loops_at_phi_zero() {
+    let files = std::env::var("GLOBAL_SCENARIOS")
+        .unwrap_or_else(|_| "quadruple-tank.toml,cart-pendulum.toml".into());
+    let opts = GlobalOptions {
+        tau_points: 5,
+        ..GlobalOptions::default()
+    };
+    let search = RowSearch::default();
+    for file in files.split(',') {
+        let r = resolved(file);
+        for base in [Method::PG, Method::JACOBI_PRESETS[0]] {
+            for (mhe_box, mpc_box) in [(true, true), (true, false), (false, true)] {
+                let t0 = std::time::Instant::now();
+                let Ok(gl) = global_loop_boxes(&r, &options(&r, base), mhe_box, mpc_box) else {
+                    continue;
+                };
+                if !mhe_box && gl.bounded_rows().1 == 0 {
+                    continue;
+                }
+                let rho = gl.rho_min_rows(0.0, &opts, &search).map(|(r, _)| r);
+                let frozen = gl.worst_frozen_clamp(64, 35).ok().map(|f| f.0);
+                eprintln!(
+                    "{file} {} boxes (mhe {mhe_box}, mpc {mpc_box}): rows {:?}, per-row ρ_min(φ = 0) {rho:?}, worst frozen clamp ρ {frozen:?}, {:.0} s",
+                    base.name(),
+                    gl.bounded_rows(),
+                    t0.elapsed().as_secs_f64()
+                );
+            }
         }
     }
 }

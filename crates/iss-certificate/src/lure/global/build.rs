@@ -32,6 +32,17 @@ pub fn global_loop_with(
     options: &LoopOptions,
     boxes: bool,
 ) -> Result<GlobalLoop, GlobalError> {
+    global_loop_boxes(resolved, options, boxes, boxes)
+}
+
+/// As [`global_loop`], keeping the MHE's box (`mhe_box`) and the controller's input box
+/// (`mpc_box`) separately: a diagnostic of which optimum's description binds.
+pub fn global_loop_boxes(
+    resolved: &ResolvedScenario,
+    options: &LoopOptions,
+    mhe_box: bool,
+    mpc_box: bool,
+) -> Result<GlobalLoop, GlobalError> {
     let mut quiet = resolved.clone();
     quiet.set_noise_scale(0.0);
     let mut opts = *options;
@@ -55,8 +66,8 @@ pub fn global_loop_with(
     let mut mhe = Optimum::of(map.problem(), "mhe")?;
     let plant = cl.plant();
     let (mut mpc, law) = controller_optimum(&cl, &quiet)?;
-    if !boxes {
-        for o in [&mut mhe, &mut mpc] {
+    for (o, keep) in [(&mut mhe, mhe_box), (&mut mpc, mpc_box)] {
+        if !keep {
             o.free = (0..o.h.nrows()).collect();
             o.bounded.clear();
         }

@@ -318,7 +318,7 @@ mod rows;
 
 pub use rows::RowSearch;
 
-pub use build::{global_loop, global_loop_with};
+pub use build::{global_loop, global_loop_boxes, global_loop_with};
 
 impl GlobalLoop {
     /// dim X.

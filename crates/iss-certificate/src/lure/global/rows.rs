@@ -96,11 +96,43 @@ impl GlobalLoop {
         self.supply_rows(&zero, 0.0, &lam)
     }
 
-    /// Contiguous groups of rows, per optimum, at most `max_groups` in all.
+    /// The scalar starts of the per-row search: for each optimum, `tau_points` log-spaced
+    /// values over 10⁻⁶…10⁶ times the ratio of σ₂'s scale to that optimum's form (the raw
+    /// 10⁻⁴…10⁴ of the scalar search misses loops whose units make the ratio large); a single
+    /// 0 for an optimum without bounded rows.
+    fn row_grid(&self, pc: &Pieces, opts: &GlobalOptions) -> [Vec<f64>; 2] {
+        let max = |m: &Mat<f64>| {
+            m.col_iter()
+                .flat_map(|c| c.iter().copied())
+                .fold(0.0_f64, |a, v| a.max(v.abs()))
+        };
+        let b = max(&pc.bb).max(f64::MIN_POSITIVE);
+        let k = opts.tau_points.max(2);
+        let grid = |form: Option<&Mat<f64>>| match form {
+            Some(f) if max(f) > 0.0 => {
+                let s = b / max(f);
+                (0..k)
+                    .map(|i| s * 10f64.powf(-6.0 + 12.0 * i as f64 / (k - 1) as f64))
+                    .collect()
+            }
+            _ => vec![0.0],
+        };
+        let (nm, nu) = self.bounded_rows();
+        [
+            grid((nm > 0).then_some(&self.sigma_mhe)),
+            grid(if nu > 0 { self.sigma_mpc.as_ref() } else { None }),
+        ]
+    }
+
+    /// Contiguous groups of rows, per optimum, at most `max_groups` in all, after the groups
+    /// "every row" and "each optimum's rows" (the scalar multipliers' directions).
     fn row_groups(&self, max_groups: usize) -> Vec<Range<usize>> {
         let (nm, nu) = self.bounded_rows();
         let total = (nm + nu).max(1);
-        let mut out = Vec::new();
+        let mut out = vec![0..nm + nu];
+        if nm > 0 && nu > 0 {
+            out.extend([0..nm, nm..nm + nu]);
+        }
         for (start, n) in [(0, nm), (nm, nu)] {
             if n == 0 {
                 continue;
@@ -147,10 +179,10 @@ impl GlobalLoop {
             Some(b) => (spread(b.tau), b.phi),
             None => {
                 // The best scalar pair by the smallest ρ at φ = 0, then ρ driven down.
-                let grid = self.tau_grid(opts);
+                let [g1, g3] = self.row_grid(&pc, opts);
                 let mut best: Option<(f64, Vec<f64>)> = None;
-                for &t1 in &grid {
-                    for &t3 in if nu > 0 { &grid[..] } else { &grid[..1] } {
+                for &t1 in &g1 {
+                    for &t3 in &g3 {
                         let lam = spread([t1, t3]);
                         if let Some(r) = smallest_rho(|r| feasible(0.0, r, &lam)) {
                             if best.as_ref().is_none_or(|(b, _)| r < *b) {
@@ -215,14 +247,32 @@ impl GlobalLoop {
         base.cloned()
     }
 
-    /// The per-row certificate at a given φ: the best scalar pair by ρ, then ρ driven below
-    /// `rho_max` by the same ascent over groups of rows, then the check. None if not reached.
+    /// The per-row certificate at a given φ: [`GlobalLoop::rho_min_rows`], then the check at
+    /// `rho_max`. None if ρ_max is not reached or the check refuses.
     pub fn certify_phi_rows(
         &self,
         phi: f64,
         opts: &GlobalOptions,
         search: &RowSearch,
     ) -> Option<GlobalCertificate> {
+        let (rho, lam) = self.rho_min_rows(phi, opts, search)?;
+        if rho > opts.rho_max {
+            return None;
+        }
+        let pi = self.supply_rows(&self.pieces(), phi, &lam);
+        self.certify_supply(phi, opts.rho_max, &pi, [0.0, 0.0], lam)
+    }
+
+    /// The smallest ρ the per-row search reaches at φ (the Riccati's answer, *not* checked: a
+    /// diagnostic of how far a certificate is), with its λ: the best scalar pair by ρ, then
+    /// the ascent over groups of rows, stopped once ρ ≤ `rho_max`. None if no pair has a
+    /// Riccati solution at ρ ≤ 20.
+    pub fn rho_min_rows(
+        &self,
+        phi: f64,
+        opts: &GlobalOptions,
+        search: &RowSearch,
+    ) -> Option<(f64, Vec<f64>)> {
         let (nm, nu) = self.bounded_rows();
         let pc = self.pieces();
         let solves = Cell::new(0usize);
@@ -231,10 +281,10 @@ impl GlobalLoop {
             self.riccati(rho, &self.supply_rows(&pc, phi, lam), 1e-6)
                 .is_some()
         };
-        let grid = self.tau_grid(opts);
+        let [g1, g3] = self.row_grid(&pc, opts);
         let mut best: Option<(f64, Vec<f64>)> = None;
-        for &t1 in if nm > 0 { &grid[..] } else { &grid[..1] } {
-            for &t3 in if nu > 0 { &grid[..] } else { &grid[..1] } {
+        for &t1 in &g1 {
+            for &t3 in &g3 {
                 let lam: Vec<f64> = (0..nm + nu).map(|r| if r < nm { t1 } else { t3 }).collect();
                 if let Some(r) = smallest_rho(|r| feasible(r, &lam)) {
                     if best.as_ref().is_none_or(|(b, _)| r < *b) {
@@ -254,11 +304,7 @@ impl GlobalLoop {
             |lvl| lvl >= 1.0 / opts.rho_max,
             |lvl, l| feasible(1.0 / lvl, l),
         );
-        if 1.0 / lvl > opts.rho_max {
-            return None;
-        }
-        let pi = self.supply_rows(&pc, phi, &lam);
-        self.certify_supply(phi, opts.rho_max, &pi, [0.0, 0.0], lam)
+        Some((1.0 / lvl, lam))
     }
 
     /// ρ of the frozen-clamp loop: the rows marked in `clamped` (MHE rows, then MPC rows)
@@ -415,4 +461,49 @@ fn ascend(
         }
     }
     (level, lam)
+}
+
+#[cfg(test)]
+mod tests {
+    use closed_loop::scenario::{LoopOptions, Scenario};
+    use qp_iter::Method;
+
+    use super::super::global_loop;
+
+    /// Σ_i of the per-row forms is σ₁ (MHE rows) and σ₃ (MPC rows): the scalar certificate is
+    /// the per-row one with λ = τ·𝟙, so the per-row search starts from it exactly.
+    #[test]
+    fn row_forms_sum_to_the_scalar_forms() {
+        let path = format!(
+            "{}/../../scenarios/quadruple-tank.toml",
+            env!("CARGO_MANIFEST_DIR")
+        );
+        let r = Scenario::from_file(&path)
+            .expect("parses")
+            .resolve()
+            .expect("resolves");
+        let mut o = LoopOptions::from_scenario(r.scenario()).expect("options");
+        o.method = Method::PG;
+        let gl = global_loop(&r, &o).expect("builds");
+        let (nm, nu) = gl.bounded_rows();
+        assert!(nm > 0 && nu > 0, "both channels: {nm}, {nu}");
+        let s3 = gl.sigma_mpc.as_ref().expect("an input bound");
+        let nc = gl.n_zeta();
+        for (range, sigma) in [(0..nm, &gl.sigma_mhe), (nm..nm + nu, s3)] {
+            let mut sum = faer::Mat::<f64>::zeros(nc, nc);
+            for r in range {
+                super::super::add(&mut sum, &gl.row_form(r));
+            }
+            let scale = (0..nc)
+                .flat_map(|i| (0..nc).map(move |j| (i, j)))
+                .map(|(i, j)| sigma[(i, j)].abs())
+                .fold(0.0_f64, f64::max);
+            for i in 0..nc {
+                for j in 0..nc {
+                    let e = (sum[(i, j)] - sigma[(i, j)]).abs();
+                    assert!(e <= 1e-9 * scale, "({i}, {j}): {e} vs scale {scale}");
+                }
+            }
+        }
+    }
 }

@@ -414,14 +414,14 @@ fn measure_rows_on_the_shipped_scenarios() {
             let t_new = t1.elapsed().as_secs_f64();
             let frozen = gl.worst_frozen_clamp(64, 35).ok();
             eprintln!(
-                "{file} {}: rows {:?}, φ* scalar {:?} ({t_old:.1} s), φ* per-row {:?} ({t_new:.1} s, margin {:?}), worst frozen clamp ρ {:?} ({} rows clamped)",
+                "{file} {}: rows {:?}, φ* scalar {:?} ({t_old:.1} s), φ* per-row {:?} ({t_new:.1} s, margin {:?}), worst frozen loop ρ {:?} ({} rows nearer clamped than free)",
                 base.name(),
                 gl.bounded_rows(),
                 old.as_ref().map(|c| c.phi),
                 new.as_ref().map(|c| c.phi),
                 new.as_ref().map(|c| c.margin),
                 frozen.as_ref().map(|f| f.0),
-                frozen.as_ref().map_or(0, |f| f.1.iter().filter(|b| **b).count()),
+                frozen.as_ref().map_or(0, |f| f.1.iter().filter(|a| **a > std::f64::consts::FRAC_PI_4).count()),
             );
             stars.push((base, old.map(|c| c.phi), new.map(|c| c.phi), t_old, t_new));
         }

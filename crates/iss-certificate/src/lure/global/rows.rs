@@ -309,15 +309,36 @@ impl GlobalLoop {
 
     /// ρ of the frozen-clamp loop: the rows marked in `clamped` (MHE rows, then MPC rows)
     /// held at 0, every other bounded row free (g_i = 0: the QP's optimum with those rows
-    /// fixed), d = 0, w = 0. Every per-row constraint z_i g_i ≤ 0 and σ₂ hold on it (with
-    /// equality, resp. φ²‖a‖² ≥ 0), so ρ ≥ 1 refutes every certificate of the class — per-row
-    /// or scalar multipliers, any φ — by the argument of Theorem L3 (ii).
+    /// fixed), d = 0, w = 0 ([`GlobalLoop::frozen_slope_radius`] at angles π/2 and 0).
     ///
-    /// Errors: a singular free-row system (not expected: it is block-triangular with the
-    /// QPs' positive definite Hessians' Schur complements), an eigenvalue failure.
+    /// Errors: as [`GlobalLoop::frozen_slope_radius`].
     pub fn frozen_clamp_radius(&self, clamped: &[bool]) -> Result<f64, GlobalError> {
         let (nm, nu) = self.bounded_rows();
-        let n = self.n_x;
+        let angle: Vec<f64> = (0..nm + nu)
+            .map(|r| {
+                if clamped.get(r).copied().unwrap_or(false) {
+                    std::f64::consts::FRAC_PI_2
+                } else {
+                    0.0
+                }
+            })
+            .collect();
+        self.frozen_slope_radius(&angle)
+    }
+
+    /// ρ of a frozen loop in which every bounded row r obeys
+    /// cos θ_r·g_r + sin θ_r·h_r·z_r = 0 (θ_r ∈ [0, π/2]; h_r = |∂g_r/∂z_r| > 0 makes the
+    /// angle unit-free): θ = 0 is a free row, θ = π/2 a row held at 0, and between, the
+    /// optimum of the QP with the weight h_r·tan θ_r added on row r. Then z_r g_r ≤ 0 on every
+    /// row, d = 0 and w = 0, so every constraint of (LMI-glob) with per-row (or scalar)
+    /// multipliers holds on this loop at every φ ≥ 0 (σ₂ = φ²‖a‖² ≥ 0): ρ ≥ 1 refutes every
+    /// certificate of the class, by the argument of Theorem L3 (ii).
+    ///
+    /// Errors: a singular row system (not expected: it is block-triangular, with the QPs'
+    /// Hessians' Schur complements plus a non-negative diagonal), an eigenvalue failure.
+    pub fn frozen_slope_radius(&self, angle: &[f64]) -> Result<f64, GlobalError> {
+        let (nm, nu) = self.bounded_rows();
+        let (n, nr) = (self.n_x, nm + nu);
         let col = |r: usize| {
             if r < nm {
                 self.o_z + r
@@ -332,33 +353,35 @@ impl GlobalLoop {
                 self.grad_mpc.row(r - nm)
             }
         };
-        let free: Vec<usize> = (0..nm + nu)
-            .filter(|&r| !clamped.get(r).copied().unwrap_or(false))
-            .collect();
-        let nf = free.len();
-        // g_F(X, v_F) = 0: v_F = −G_v⁻¹ G_X X.
-        let gv = Mat::from_fn(nf, nf, |a, b| grad(free[a])[col(free[b])]);
-        let gx = Mat::from_fn(nf, n, |a, j| grad(free[a])[j]);
-        let v = if nf > 0 {
-            let lu = gv.partial_piv_lu();
-            let s = lu.solve(&gx);
-            if s.col_iter().flat_map(|c| c.iter().copied()).any(|x| !x.is_finite()) {
+        // Row r: cos θ·(G_v v + G_X X)_r + sin θ·h_r·v_r = 0  ⇒  v = −M⁻¹ N X.
+        let cs = |r: usize| {
+            let t = angle.get(r).copied().unwrap_or(0.0);
+            (t.cos(), t.sin() * grad(r)[col(r)].abs())
+        };
+        let m = Mat::from_fn(nr, nr, |a, b| {
+            let (c, s) = cs(a);
+            c * grad(a)[col(b)] + if a == b { s } else { 0.0 }
+        });
+        let nx = Mat::from_fn(nr, n, |a, j| cs(a).0 * grad(a)[j]);
+        let v = if nr > 0 {
+            let v = m.partial_piv_lu().solve(&nx);
+            if v.col_iter().flat_map(|c| c.iter().copied()).any(|x| !x.is_finite()) {
                 return Err(GlobalError::Linear(LinearError::Internal(
-                    "the frozen-clamp system is singular",
+                    "the frozen-slope row system is singular",
                 )));
             }
-            s
+            v
         } else {
             Mat::zeros(0, n)
         };
         let mut a = Mat::from_fn(n, n, |i, j| self.x_plus[(i, j)]);
-        for (k, &r) in free.iter().enumerate() {
+        for r in 0..nr {
             let c = col(r);
             for i in 0..n {
                 let xi = self.x_plus[(i, c)];
                 if xi != 0.0 {
                     for j in 0..n {
-                        a[(i, j)] -= xi * v[(k, j)];
+                        a[(i, j)] -= xi * v[(r, j)];
                     }
                 }
             }
@@ -366,14 +389,15 @@ impl GlobalLoop {
         Ok(spectral_radius_dense(a.as_ref(), Par::Seq)?)
     }
 
-    /// The worst frozen-clamp pattern found among: none, all, each optimum's rows all,
-    /// each group of [`RowSearch::max_groups`]-style contiguous rows alone and all but it,
-    /// and `samples` random subsets (seeded). Returns (ρ, the pattern).
+    /// The worst frozen loop found ([`GlobalLoop::frozen_slope_radius`]) among the clamp
+    /// patterns none, all, each optimum's rows, each group of contiguous rows alone and all
+    /// but it, `samples` random subsets and `samples` random angle vectors (seeded), then a
+    /// local ascent over single angles. Returns (ρ, the angles θ_r).
     pub fn worst_frozen_clamp(
         &self,
         samples: usize,
         seed: u64,
-    ) -> Result<(f64, Vec<bool>), GlobalError> {
+    ) -> Result<(f64, Vec<f64>), GlobalError> {
         use rand::{Rng, SeedableRng};
         let (nm, nu) = self.bounded_rows();
         let nr = nm + nu;
@@ -389,11 +413,32 @@ impl GlobalLoop {
             let p: f64 = rng.random_range(0.1..0.9);
             pats.push((0..nr).map(|_| rng.random_bool(p)).collect());
         }
+        let half_pi = std::f64::consts::FRAC_PI_2;
+        let mut angles: Vec<Vec<f64>> = pats
+            .iter()
+            .map(|p| p.iter().map(|&c| if c { half_pi } else { 0.0 }).collect())
+            .collect();
+        for _ in 0..samples {
+            angles.push((0..nr).map(|_| rng.random_range(0.0..half_pi)).collect());
+        }
         let mut worst = (f64::NEG_INFINITY, Vec::new());
-        for p in pats {
-            let r = self.frozen_clamp_radius(&p)?;
+        for a in angles {
+            let r = self.frozen_slope_radius(&a)?;
             if r > worst.0 {
-                worst = (r, p);
+                worst = (r, a);
+            }
+        }
+        // A local ascent from the worst: each angle moved by ±π/8, then ±π/32.
+        for step in [half_pi / 4.0, half_pi / 16.0] {
+            for r in 0..nr {
+                for sgn in [1.0, -1.0] {
+                    let mut a = worst.1.clone();
+                    a[r] = (a[r] + sgn * step).clamp(0.0, half_pi);
+                    let v = self.frozen_slope_radius(&a)?;
+                    if v > worst.0 {
+                        worst = (v, a);
+                    }
+                }
             }
         }
         Ok(worst)

@@ -186,7 +186,7 @@ impl GlobalLoop {
     /// γ² for a P of the LMI without w: twice the smallest γ² that the Schur complement
     /// allows, λ_max(D + Cᵀ(−M₀)⁻¹C) with M₀ the LMI on the other coordinates, C its
     /// coupling to w and D = ℬᵀPℬ. None if M₀ is not negative definite.
-    fn gamma2_for(&self, p: &Mat<f64>, rho: f64, pi: &Mat<f64>) -> Option<f64> {
+    pub(super) fn gamma2_for(&self, p: &Mat<f64>, rho: f64, pi: &Mat<f64>) -> Option<f64> {
         let (m, _) = self.lmi(p, rho, pi);
         let nc = m.n;
         let n0 = nc - self.n_w;

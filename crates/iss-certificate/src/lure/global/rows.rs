@@ -124,6 +124,16 @@ impl GlobalLoop {
         ]
     }
 
+    /// The search's oracle: the Riccati candidate P exists, is positive definite, and the LMI
+    /// without w is negative definite by Cholesky (`gamma2_for`). Convergence of the doubling
+    /// alone is not enough: it does not see the sup over v turn unbounded. The certificate is
+    /// still decided by the independent check.
+    fn feasible(&self, rho: f64, pi: &Mat<f64>) -> bool {
+        self.riccati(rho, pi, 1e-6).is_some_and(|p| {
+            p.llt(faer::Side::Lower).is_ok() && self.gamma2_for(&p, rho, pi).is_some()
+        })
+    }
+
     /// Contiguous groups of rows, per optimum, at most `max_groups` in all, after the groups
     /// "every row" and "each optimum's rows" (the scalar multipliers' directions).
     fn row_groups(&self, max_groups: usize) -> Vec<Range<usize>> {
@@ -166,8 +176,7 @@ impl GlobalLoop {
         let solves = Cell::new(0usize);
         let feasible = |phi: f64, rho: f64, lam: &[f64]| {
             solves.set(solves.get() + 1);
-            self.riccati(rho, &self.supply_rows(&pc, phi, lam), 1e-6)
-                .is_some()
+            self.feasible(rho, &self.supply_rows(&pc, phi, lam))
         };
         let groups = self.row_groups(search.max_groups);
         let spread = |t: [f64; 2]| -> Vec<f64> {
@@ -278,8 +287,7 @@ impl GlobalLoop {
         let solves = Cell::new(0usize);
         let feasible = |rho: f64, lam: &[f64]| {
             solves.set(solves.get() + 1);
-            self.riccati(rho, &self.supply_rows(&pc, phi, lam), 1e-6)
-                .is_some()
+            self.feasible(rho, &self.supply_rows(&pc, phi, lam))
         };
         let [g1, g3] = self.row_grid(&pc, opts);
         let mut best: Option<(f64, Vec<f64>)> = None;

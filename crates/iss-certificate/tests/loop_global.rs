@@ -84,9 +84,6 @@ fn frozen_clamp_with_no_row_clamped_is_the_box_free_loop() {
     let a = gl.frozen_clamp_radius(&vec![false; nm]).expect("ρ");
     let b = lin.frozen_clamp_radius(&[]).expect("ρ");
     assert!((a - b).abs() <= 1e-9, "{a} vs {b}");
-    // Clamping rows changes the loop (the construction is not blind to the pattern).
-    let c = gl.frozen_clamp_radius(&vec![true; nm]).expect("ρ");
-    assert!((c - a).abs() > 1e-6, "all clamped {c} = none clamped {a}");
 }
 
 /// The per-row search refuses where ρ_lin(K) ≥ 1 too (double integrator, PG, K = 10): the
@@ -421,7 +418,11 @@ fn measure_rows_on_the_shipped_scenarios() {
                 new.as_ref().map(|c| c.phi),
                 new.as_ref().map(|c| c.margin),
                 frozen.as_ref().map(|f| f.0),
-                frozen.as_ref().map_or(0, |f| f.1.iter().filter(|a| **a > std::f64::consts::FRAC_PI_4).count()),
+                frozen.as_ref().map_or(0, |f| f
+                    .1
+                    .iter()
+                    .filter(|a| **a > std::f64::consts::FRAC_PI_4)
+                    .count()),
             );
             stars.push((base, old.map(|c| c.phi), new.map(|c| c.phi), t_old, t_new));
         }

@@ -236,7 +236,9 @@ impl Optimum {
     fn bounded_gradient(&self, z: &Mat<f64>, theta: &Mat<f64>) -> Mat<f64> {
         let mut g = mul(self.h.as_ref(), z.as_ref());
         add(&mut g, &mul(self.f.as_ref(), theta.as_ref()));
-        Mat::from_fn(self.bounded.len(), g.ncols(), |a, c| g[(self.bounded[a], c)])
+        Mat::from_fn(self.bounded.len(), g.ncols(), |a, c| {
+            g[(self.bounded[a], c)]
+        })
     }
 
     /// σ = −z*ᵀ(Hz* + Fθ) as a symmetric form on ζ.

@@ -120,7 +120,11 @@ impl GlobalLoop {
         let (nm, nu) = self.bounded_rows();
         [
             grid((nm > 0).then_some(&self.sigma_mhe)),
-            grid(if nu > 0 { self.sigma_mpc.as_ref() } else { None }),
+            grid(if nu > 0 {
+                self.sigma_mpc.as_ref()
+            } else {
+                None
+            }),
         ]
     }
 
@@ -373,7 +377,10 @@ impl GlobalLoop {
         let nx = Mat::from_fn(nr, n, |a, j| cs(a).0 * grad(a)[j]);
         let v = if nr > 0 {
             let v = m.partial_piv_lu().solve(&nx);
-            if v.col_iter().flat_map(|c| c.iter().copied()).any(|x| !x.is_finite()) {
+            if v.col_iter()
+                .flat_map(|c| c.iter().copied())
+                .any(|x| !x.is_finite())
+            {
                 return Err(GlobalError::Linear(LinearError::Internal(
                     "the frozen-slope row system is singular",
                 )));

@@ -202,12 +202,27 @@ fn run_ratio(
 fn certified(
     file: &str,
     method: Method,
+    rows: bool,
 ) -> (Scenario, LoopOptions, GlobalLoop, usize, GlobalCertificate) {
     let s = scenario(file);
     let r = s.clone().resolve().expect("resolves");
     let mut o = options(&r, method);
     let gl = global_loop(&r, &o).expect("builds");
-    let (k, c) = gl.k_glob(&GlobalOptions::default()).expect("a K_glob");
+    let (k, c) = if rows {
+        let opts = GlobalOptions {
+            tau_points: 5,
+            ..GlobalOptions::default()
+        };
+        let base = gl.phi_star(&opts);
+        let c = gl
+            .phi_star_rows(&opts, &RowSearch::default(), base.as_ref())
+            .expect("a per-row certificate");
+        assert!(!c.lambda.is_empty(), "the per-row search improved on τ");
+        let k = iss_certificate::lure::first_k(|k| gl.phi(k) <= c.phi, 1_000_000).expect("K");
+        (k, c)
+    } else {
+        gl.k_glob(&GlobalOptions::default()).expect("a K_glob")
+    };
     o.iterations = k;
     (s, o, gl, k, c)
 }
@@ -218,10 +233,24 @@ fn certified(
 #[test]
 #[ignore = "soundness sampling (release): ≈ 1–2 min"]
 fn sampled_runs_respect_the_certificate() {
-    let (s0, o0, gl, k, c) = certified("double-integrator.toml", Method::PRESETS[3]);
+    sampled_runs(Method::PRESETS[3], false);
+}
+
+/// The same at the per-row certificate's K (admm-pr-jacobi: K = 41, 50 with the scalar τ).
+#[test]
+#[ignore = "soundness sampling (release): ≈ 1–2 min"]
+fn sampled_runs_respect_the_row_certificate() {
+    sampled_runs(Method::JACOBI_PRESETS[3], true);
+}
+
+fn sampled_runs(method: Method, rows: bool) {
+    let (s0, o0, gl, k, c) = certified("double-integrator.toml", method, rows);
     eprintln!(
-        "admm-pr K_glob = {k}, φ* = {:.4e}, ρ = {}, γ = {:.3e}",
-        c.phi, c.rho, c.gamma
+        "{} K_glob = {k}, φ* = {:.4e}, ρ = {}, γ = {:.3e}",
+        method.name(),
+        c.phi,
+        c.rho,
+        c.gamma
     );
     let mut rng = rand_chacha::ChaCha8Rng::seed_from_u64(35);
     let (mut worst, mut runs) = (0.0_f64, 0);
@@ -263,7 +292,18 @@ fn sampled_runs_respect_the_certificate() {
 #[test]
 #[ignore = "adversarial search (release): ≈ 2 min"]
 fn adversarial_search_finds_no_violation() {
-    let (s0, o0, gl, k, c) = certified("double-integrator.toml", Method::PRESETS[3]);
+    adversarial_search(Method::PRESETS[3], false);
+}
+
+/// The same at the per-row certificate's K (admm-pr-jacobi).
+#[test]
+#[ignore = "adversarial search (release): ≈ 2 min"]
+fn adversarial_search_finds_no_violation_of_the_row_certificate() {
+    adversarial_search(Method::JACOBI_PRESETS[3], true);
+}
+
+fn adversarial_search(method: Method, rows: bool) {
+    let (s0, o0, gl, k, c) = certified("double-integrator.toml", method, rows);
     let mut rng = rand_chacha::ChaCha8Rng::seed_from_u64(7);
     let nx = s0.simulation.x0.len();
     let eval = |p: &[f64]| {

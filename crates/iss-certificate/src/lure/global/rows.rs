@@ -143,7 +143,8 @@ impl GlobalLoop {
     fn row_groups(&self, max_groups: usize) -> Vec<Range<usize>> {
         let (nm, nu) = self.bounded_rows();
         let total = (nm + nu).max(1);
-        let mut out = vec![0..nm + nu];
+        let mut out: Vec<Range<usize>> = Vec::new();
+        out.push(0..nm + nu);
         if nm > 0 && nu > 0 {
             out.extend([0..nm, nm..nm + nu]);
         }

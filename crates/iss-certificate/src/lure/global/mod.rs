@@ -104,7 +104,8 @@ pub struct GlobalCertificate {
     pub rho: f64,
     /// γ.
     pub gamma: f64,
-    /// τ₁ (MHE optimum), τ₃ (MPC optimum; 0 without one); τ₂ = 1.
+    /// τ₁ (MHE optimum), τ₃ (MPC optimum; 0 without one); τ₂ = 1. [0, 0] when `lambda`
+    /// holds the multipliers instead.
     pub tau: [f64; 2],
     /// Per-row multipliers λ_i ≥ 0 (MHE rows with a bound, then MPC rows) when the diagonal
     /// search certified it (docs/theory.md §4, "Per-row multipliers"); empty: the scalars τ.

@@ -32,16 +32,28 @@ pub fn global_loop_with(
     options: &LoopOptions,
     boxes: bool,
 ) -> Result<GlobalLoop, GlobalError> {
-    build(resolved, options, boxes, false)
+    build(resolved, options, boxes, boxes, false)
 }
 
-/// As [`global_loop_with`]; with `rounding` two exogenous blocks follow w in ζ (issue 36,
+/// As [`global_loop`], keeping the MHE's box (`mhe_box`) and the controller's input box
+/// (`mpc_box`) separately: a diagnostic of which optimum's description binds.
+pub fn global_loop_boxes(
+    resolved: &ResolvedScenario,
+    options: &LoopOptions,
+    mhe_box: bool,
+    mpc_box: bool,
+) -> Result<GlobalLoop, GlobalError> {
+    build(resolved, options, mhe_box, mpc_box, false)
+}
+
+/// As [`global_loop_boxes`]; with `rounding` two exogenous blocks follow w in ζ (issue 36,
 /// `super::precision`): d_c (n_z) added to zᴷ and r_c (n_x) added to x̂ (and so to the
 /// controller's input), both counted as exogenous inputs of the γ-channel.
 pub(super) fn build(
     resolved: &ResolvedScenario,
     options: &LoopOptions,
-    boxes: bool,
+    mhe_box: bool,
+    mpc_box: bool,
     rounding: bool,
 ) -> Result<GlobalLoop, GlobalError> {
     let mut quiet = resolved.clone();
@@ -67,8 +79,8 @@ pub(super) fn build(
     let mut mhe = Optimum::of(map.problem(), "mhe")?;
     let plant = cl.plant();
     let (mut mpc, law) = controller_optimum(&cl, &quiet)?;
-    if !boxes {
-        for o in [&mut mhe, &mut mpc] {
+    for (o, keep) in [(&mut mhe, mhe_box), (&mut mpc, mpc_box)] {
+        if !keep {
             o.free = (0..o.h.nrows()).collect();
             o.bounded.clear();
         }
@@ -94,6 +106,7 @@ pub(super) fn build(
     });
     let zstar = mhe.map(&theta, o_z)?;
     let sigma_mhe = mhe.vi_form(&zstar, &theta);
+    let grad_mhe = mhe.bounded_gradient(&zstar, &theta);
     let mut zk = zstar.clone();
     for i in 0..nz {
         zk[(i, o_d + i)] += 1.0;
@@ -123,6 +136,7 @@ pub(super) fn build(
     } else {
         None
     };
+    let grad_mpc = mpc.bounded_gradient(&ustar, &xhat);
     let u = ustar.as_ref().subrows(0, nu).to_owned();
     let b_u = input_matrix(plant, &lay);
     // 𝒜, 𝒢_z include u = L x̂: take it out and put the channel's u in.
@@ -153,6 +167,10 @@ pub(super) fn build(
         sig2_b,
         xhat,
         mhe_bounded: nzb,
+        o_z,
+        o_u,
+        grad_mhe,
+        grad_mpc,
         zstar,
         d_col: o_d,
         extra_supply: None,

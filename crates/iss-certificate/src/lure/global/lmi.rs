@@ -117,7 +117,7 @@ impl GlobalLoop {
 
     /// A candidate P for fixed scalars: the minimal solution of the worst-case Riccati
     /// equation with a strict supply (δ on X, ε on v), by doubling; None if it diverges.
-    fn riccati(&self, rho: f64, pi: &Mat<f64>, strict: f64) -> Option<Mat<f64>> {
+    pub(super) fn riccati(&self, rho: f64, pi: &Mat<f64>, strict: f64) -> Option<Mat<f64>> {
         // w is not an input of this problem (γ = ∞): its γ comes from the P found
         // (`gamma2_for`).
         let (n, nv) = (self.n_x, self.n_v - self.n_w);
@@ -189,7 +189,7 @@ impl GlobalLoop {
     /// γ² for a P of the LMI without w: twice the smallest γ² that the Schur complement
     /// allows, λ_max(D + Cᵀ(−M₀)⁻¹C) with M₀ the LMI on the other coordinates, C its
     /// coupling to w and D = ℬᵀPℬ. None if M₀ is not negative definite.
-    fn gamma2_for(&self, p: &Mat<f64>, rho: f64, pi: &Mat<f64>) -> Option<f64> {
+    pub(super) fn gamma2_for(&self, p: &Mat<f64>, rho: f64, pi: &Mat<f64>) -> Option<f64> {
         let (m, _) = self.lmi(p, rho, pi);
         let nc = m.n;
         let n0 = nc - self.n_w;
@@ -217,13 +217,26 @@ impl GlobalLoop {
         tau3: f64,
     ) -> Option<GlobalCertificate> {
         let Terms { pi: pi0 } = self.supply(phi, tau1, tau3);
+        self.certify_supply(phi, rho, &pi0, [tau1, tau3], Vec::new())
+    }
+
+    /// The Riccati candidate for the supply `pi0` (without w), its γ², and the independent
+    /// check; the certificate records `tau` and `lambda` (the multipliers that formed `pi0`).
+    pub(super) fn certify_supply(
+        &self,
+        phi: f64,
+        rho: f64,
+        pi0: &Mat<f64>,
+        tau: [f64; 2],
+        lambda: Vec<f64>,
+    ) -> Option<GlobalCertificate> {
         // Strictness δ = ε relative to Π; raised (twice at most) when the check finds the LMI
         // negative but within its rounding allowance.
         let mut strict = 1e-6;
         let mut found = None;
         for _ in 0..3 {
-            let p = self.riccati(rho, &pi0, strict)?;
-            let gamma2 = self.gamma2_for(&p, rho, &pi0)?;
+            let p = self.riccati(rho, pi0, strict)?;
+            let gamma2 = self.gamma2_for(&p, rho, pi0)?;
             let mut pi = pi0.clone();
             let nc = self.n_zeta();
             for k in 0..self.n_w {
@@ -253,7 +266,8 @@ impl GlobalLoop {
             phi,
             rho,
             gamma,
-            tau: [tau1, tau3],
+            tau,
+            lambda,
             p,
             margin,
             p_margin,
@@ -263,7 +277,7 @@ impl GlobalLoop {
     }
 
     /// The multipliers tried: τ relative to the scale of σ₂'s form.
-    fn tau_grid(&self, opts: &GlobalOptions) -> Vec<f64> {
+    pub(super) fn tau_grid(&self, opts: &GlobalOptions) -> Vec<f64> {
         let k = opts.tau_points.max(2);
         (0..k)
             .map(|i| 10f64.powf(-4.0 + 8.0 * i as f64 / (k - 1) as f64))

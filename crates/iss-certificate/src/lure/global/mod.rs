@@ -104,8 +104,12 @@ pub struct GlobalCertificate {
     pub rho: f64,
     /// γ.
     pub gamma: f64,
-    /// τ₁ (MHE optimum), τ₃ (MPC optimum; 0 without one); τ₂ = 1.
+    /// τ₁ (MHE optimum), τ₃ (MPC optimum; 0 without one); τ₂ = 1. [0, 0] when `lambda`
+    /// holds the multipliers instead.
     pub tau: [f64; 2],
+    /// Per-row multipliers λ_i ≥ 0 (MHE rows with a bound, then MPC rows) when the diagonal
+    /// search certified it (docs/theory.md §4, "Per-row multipliers"); empty: the scalars τ.
+    pub lambda: Vec<f64>,
     /// The storage P (n_X × n_X).
     pub p: Mat<f64>,
     /// −λ_max(LMI)/scale in the independent check.
@@ -229,6 +233,15 @@ impl Optimum {
         Ok(z)
     }
 
+    /// The rows with a bound of the gradient g = Hz* + Fθ, as maps of ζ (σ's per-row factors).
+    fn bounded_gradient(&self, z: &Mat<f64>, theta: &Mat<f64>) -> Mat<f64> {
+        let mut g = mul(self.h.as_ref(), z.as_ref());
+        add(&mut g, &mul(self.f.as_ref(), theta.as_ref()));
+        Mat::from_fn(self.bounded.len(), g.ncols(), |a, c| {
+            g[(self.bounded[a], c)]
+        })
+    }
+
     /// σ = −z*ᵀ(Hz* + Fθ) as a symmetric form on ζ.
     fn vi_form(&self, z: &Mat<f64>, theta: &Mat<f64>) -> Mat<f64> {
         let mut g = mul(self.h.as_ref(), z.as_ref());
@@ -266,6 +279,12 @@ pub struct GlobalLoop {
     xhat: Mat<f64>,
     /// Coordinates of the MHE's z with a bound (σ₁'s channel; 0: σ₁ ≡ 0).
     mhe_bounded: usize,
+    /// Per-row factors of σ₁ and σ₃: z*_B at columns `o_z..`, U*_B at `o_u..`, and the
+    /// bounded rows of their gradients as maps of ζ (σ = −Σ_i z_i g_i over these rows).
+    o_z: usize,
+    o_u: usize,
+    grad_mhe: Mat<f64>,
+    grad_mpc: Mat<f64>,
     /// z*_t and U*_t as maps of ζ (for tests and sampling).
     zstar: Mat<f64>,
     d_col: usize,
@@ -301,11 +320,13 @@ fn sym_of(m: &Mat<f64>) -> Sym {
 mod build;
 mod lmi;
 mod precision;
+mod rows;
 
-pub use build::{global_loop, global_loop_with};
+pub use build::{global_loop, global_loop_boxes, global_loop_with};
 pub use precision::{
     LoopRounding, PrecisionCertificate, PrecisionVoid, certify_precision, loop_rounding,
 };
+pub use rows::RowSearch;
 
 impl GlobalLoop {
     /// dim X.

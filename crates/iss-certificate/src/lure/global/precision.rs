@@ -278,7 +278,7 @@ pub fn certify_precision(
         out.reason = Some(PrecisionVoid::Exact);
         return Ok(out);
     };
-    let base = super::build::build(resolved, options, true, true)?;
+    let base = super::build::build(resolved, options, true, true, true)?;
     let (beta, prop) = supply_pieces(&base, &rd);
     let mut gl = base.clone();
     let b = rd.beta_z() + rd.beta_theta();

@@ -49,6 +49,18 @@ pub fn global_loop_boxes(
 /// As [`global_loop_boxes`]; with `rounding` two exogenous blocks follow w in ζ (issue 36,
 /// `super::precision`): d_c (n_z) added to zᴷ and r_c (n_x) added to x̂ (and so to the
 /// controller's input), both counted as exogenous inputs of the γ-channel.
+/// The noise-free scenario and the loop options of one step with one iteration: the loop the
+/// lifted dynamics are read from.
+fn one_step(resolved: &ResolvedScenario, options: &LoopOptions) -> (ResolvedScenario, LoopOptions) {
+    let mut quiet = resolved.clone();
+    quiet.set_noise_scale(0.0);
+    let mut opts = *options;
+    opts.steps = 1;
+    opts.iterations = 1;
+    opts.exact_mhe_solve = false;
+    (quiet, opts)
+}
+
 pub(super) fn build(
     resolved: &ResolvedScenario,
     options: &LoopOptions,
@@ -56,12 +68,7 @@ pub(super) fn build(
     mpc_box: bool,
     rounding: bool,
 ) -> Result<GlobalLoop, GlobalError> {
-    let mut quiet = resolved.clone();
-    quiet.set_noise_scale(0.0);
-    let mut opts = *options;
-    opts.steps = 1;
-    opts.iterations = 1;
-    opts.exact_mhe_solve = false;
+    let (quiet, opts) = one_step(resolved, options);
     let cl = quiet.build_loop(&opts).map_err(LinearError::from)?;
     let est = cl.estimator();
     if est.config().warm_start != MheWarmStart::Paper {
@@ -81,8 +88,7 @@ pub(super) fn build(
     let (mut mpc, law) = controller_optimum(&cl, &quiet)?;
     for (o, keep) in [(&mut mhe, mhe_box), (&mut mpc, mpc_box)] {
         if !keep {
-            o.free = (0..o.h.nrows()).collect();
-            o.bounded.clear();
+            o.drop_bounds();
         }
     }
     let lifted = LiftedLoop::from_loop(&cl, &quiet, options.method, Par::Seq)?;
@@ -131,11 +137,7 @@ pub(super) fn build(
     }
     // U* of the controller and u = E₀U* (the saturated LQR: U* = u).
     let ustar = mpc.map(&xhat, o_u)?;
-    let sigma_mpc = if nub > 0 {
-        Some(mpc.vi_form(&ustar, &xhat))
-    } else {
-        None
-    };
+    let sigma_mpc = (nub > 0).then(|| mpc.vi_form(&ustar, &xhat));
     let grad_mpc = mpc.bounded_gradient(&ustar, &xhat);
     let u = ustar.as_ref().subrows(0, nu).to_owned();
     let b_u = input_matrix(plant, &lay);

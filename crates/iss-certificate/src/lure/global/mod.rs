@@ -160,6 +160,12 @@ struct Optimum {
 }
 
 impl Optimum {
+    /// Every bound dropped: the unconstrained optimum (σ = 0 exactly).
+    fn drop_bounds(&mut self) {
+        self.free = (0..self.h.nrows()).collect();
+        self.bounded.clear();
+    }
+
     fn of(qp: &ParametricQp, what: &'static str) -> Result<Self, GlobalError> {
         if qp.general().is_some() {
             return Err(GlobalError::Qp {

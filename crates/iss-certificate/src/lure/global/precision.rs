@@ -240,6 +240,85 @@ fn supply_pieces(gl: &GlobalLoop, rd: &LoopRounding) -> (Mat<f64>, Mat<f64>) {
     (beta, prop)
 }
 
+/// The pieces of the rounding channel's supply, and the scaling of r_h's block.
+struct SupplyPieces<'a> {
+    base: &'a GlobalLoop,
+    beta: &'a Mat<f64>,
+    prop: &'a Mat<f64>,
+    /// First column of r_h in ζ.
+    o_r: usize,
+    /// n_x of the lifted state (r_h's length).
+    nxp: usize,
+}
+
+impl SupplyPieces<'_> {
+    /// `gl` := the base loop with the supply of split (α, μ); returns √(1 + α), the scale of
+    /// φ in the LMI. r_h = r̃/√μ: the same LMI with r̃'s block at unit scale (the Riccati's
+    /// strictness and the check's allowance are relative to the largest diagonal, which μ
+    /// would dominate).
+    fn apply(&self, gl: &mut GlobalLoop, [alpha, mu]: [f64; 2]) -> f64 {
+        let (o_r, nxp) = (self.o_r, self.nxp);
+        let k1 = 2.0 * (1.0 + 1.0 / alpha);
+        let sc = |i: usize| {
+            if (o_r..o_r + nxp).contains(&i) {
+                mu.sqrt().recip()
+            } else {
+                1.0
+            }
+        };
+        *gl = self.base.clone();
+        gl.extra_supply = Some(Mat::from_fn(
+            self.beta.nrows(),
+            self.beta.ncols(),
+            |i, j| (k1 * self.beta[(i, j)] + mu * self.prop[(i, j)]) * sc(i) * sc(j),
+        ));
+        for j in o_r..o_r + nxp {
+            for i in 0..gl.x_plus.nrows() {
+                gl.x_plus[(i, j)] *= sc(j);
+            }
+            for i in 0..gl.xhat.nrows() {
+                gl.xhat[(i, j)] *= sc(j);
+            }
+        }
+        if let Some(s3) = gl.sigma_mpc.as_mut() {
+            let n = s3.nrows();
+            for i in 0..n {
+                for j in 0..n {
+                    s3[(i, j)] *= sc(i) * sc(j);
+                }
+            }
+        }
+        (1.0 + alpha).sqrt()
+    }
+}
+
+/// The largest φ_u in [0, φ*] (to `opts.phi_tol`) the loop `gl` certifies, given that it
+/// certifies φ_u = 0 with `c`; `c` becomes the certificate at the returned φ_u.
+fn bisect_phi(
+    gl: &GlobalLoop,
+    scale: f64,
+    phi_star: f64,
+    opts: &GlobalOptions,
+    c: &mut GlobalCertificate,
+) -> f64 {
+    let (mut lo, mut hi) = (0.0, phi_star);
+    while hi - lo > opts.phi_tol * hi && hi > 1e-12 {
+        let mid = if lo == 0.0 {
+            hi / 4.0
+        } else {
+            (lo * hi).sqrt()
+        };
+        match gl.certify_phi_from(scale * mid, opts, Some(c.tau)) {
+            Some(cm) => {
+                *c = cm;
+                lo = mid;
+            }
+            None => hi = mid,
+        }
+    }
+    lo
+}
+
 /// The global certificate of `options.method` in unit round-off `u` (module docs), from the
 /// exact loop `exact_loop` and its exact φ* certificate `exact` (None: the exact loop has
 /// none). φ*_u is searched in [0, φ*]: first φ*_u = φ* itself (then K_glob(u) equals the
@@ -295,40 +374,15 @@ pub fn certify_precision(
             splits.push([(f * b / star).clamp(1e-14, 1.0), mu * lam_r]);
         }
     }
-    // r_h = r̃/√μ: the same LMI with r̃'s block at unit scale (the Riccati's strictness and
-    // the check's allowance are relative to the largest diagonal, which μ would dominate).
     let nxp = gl.lifted.layout().nx;
-    let set = |gl: &mut GlobalLoop, [alpha, mu]: [f64; 2]| {
-        let k1 = 2.0 * (1.0 + 1.0 / alpha);
-        let sc = |i: usize| {
-            if (o_r..o_r + nxp).contains(&i) {
-                mu.sqrt().recip()
-            } else {
-                1.0
-            }
-        };
-        *gl = base.clone();
-        gl.extra_supply = Some(Mat::from_fn(beta.nrows(), beta.ncols(), |i, j| {
-            (k1 * beta[(i, j)] + mu * prop[(i, j)]) * sc(i) * sc(j)
-        }));
-        for j in o_r..o_r + nxp {
-            for i in 0..gl.x_plus.nrows() {
-                gl.x_plus[(i, j)] *= sc(j);
-            }
-            for i in 0..gl.xhat.nrows() {
-                gl.xhat[(i, j)] *= sc(j);
-            }
-        }
-        if let Some(s3) = gl.sigma_mpc.as_mut() {
-            let n = s3.nrows();
-            for i in 0..n {
-                for j in 0..n {
-                    s3[(i, j)] *= sc(i) * sc(j);
-                }
-            }
-        }
-        (1.0 + alpha).sqrt()
+    let pieces = SupplyPieces {
+        base: &base,
+        beta: &beta,
+        prop: &prop,
+        o_r,
+        nxp,
     };
+    let set = |gl: &mut GlobalLoop, split: [f64; 2]| pieces.apply(gl, split);
     // 1. φ*_u = φ*: K_glob(u) = the exact K_glob.
     let mut best: Option<(f64, [f64; 2], GlobalCertificate)> = None;
     for &s in &splits {
@@ -345,21 +399,7 @@ pub fn certify_precision(
             let Some(mut c) = gl.certify_phi_from(0.0, opts, Some(exact.tau)) else {
                 continue;
             };
-            let (mut lo, mut hi) = (0.0, exact.phi);
-            while hi - lo > opts.phi_tol * hi && hi > 1e-12 {
-                let mid = if lo == 0.0 {
-                    hi / 4.0
-                } else {
-                    (lo * hi).sqrt()
-                };
-                match gl.certify_phi_from(scale * mid, opts, Some(c.tau)) {
-                    Some(cm) => {
-                        c = cm;
-                        lo = mid;
-                    }
-                    None => hi = mid,
-                }
-            }
+            let lo = bisect_phi(&gl, scale, exact.phi, opts, &mut c);
             if best.as_ref().is_none_or(|(p, _, _)| lo > *p) {
                 best = Some((lo, s, c));
             }

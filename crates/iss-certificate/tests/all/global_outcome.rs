@@ -8,16 +8,7 @@ use iss_certificate::lure::global_outcome::{
 };
 use qp_iter::Method;
 
-const METHODS: [Method; 8] = [
-    Method::PRESETS[0],
-    Method::PRESETS[1],
-    Method::PRESETS[2],
-    Method::PRESETS[3],
-    Method::JACOBI_PRESETS[0],
-    Method::JACOBI_PRESETS[1],
-    Method::JACOBI_PRESETS[2],
-    Method::JACOBI_PRESETS[3],
-];
+use crate::ALL_METHODS as METHODS;
 
 fn options(r: &ResolvedScenario, methods: &[Method]) -> Vec<LoopOptions> {
     methods

@@ -1,7 +1,7 @@
 //! The global loop certificate in f32 and f64 (issue 36; docs/theory.md §4, "The global
 //! loop certificate in a given precision"): the estimator's rounding folded into the one LMI.
 
-use closed_loop::scenario::{LoopOptions, ResolvedScenario, Scenario};
+use closed_loop::scenario::{ResolvedScenario, Scenario};
 use iss_certificate::lure::global::{
     GlobalCertificate, GlobalOptions, PrecisionVoid, certify_precision, global_loop, loop_rounding,
 };
@@ -15,22 +15,9 @@ fn scenario(file: &str) -> Scenario {
     Scenario::from_file(&path).expect("scenario parses")
 }
 
-fn options(r: &ResolvedScenario, method: Method) -> LoopOptions {
-    let mut o = LoopOptions::from_scenario(r.scenario()).expect("loop options");
-    o.method = method;
-    o
-}
+use crate::loop_options as options;
 
-const METHODS: [Method; 8] = [
-    Method::PRESETS[0],
-    Method::PRESETS[1],
-    Method::PRESETS[2],
-    Method::PRESETS[3],
-    Method::JACOBI_PRESETS[0],
-    Method::JACOBI_PRESETS[1],
-    Method::JACOBI_PRESETS[2],
-    Method::JACOBI_PRESETS[3],
-];
+use crate::ALL_METHODS as METHODS;
 
 /// The table of docs/theory.md: per method, K_glob exact / f64 / f32 (or the reason).
 #[test]

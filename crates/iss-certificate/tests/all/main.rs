@@ -31,6 +31,28 @@ use iss_certificate::certificate::{
     CertificateOptions, ClosedLoopCertificate, certify_closed_loop,
 };
 
+/// The eight preset methods: plain, then Jacobi-scaled.
+pub const ALL_METHODS: [qp_iter::Method; 8] = [
+    qp_iter::Method::PRESETS[0],
+    qp_iter::Method::PRESETS[1],
+    qp_iter::Method::PRESETS[2],
+    qp_iter::Method::PRESETS[3],
+    qp_iter::Method::JACOBI_PRESETS[0],
+    qp_iter::Method::JACOBI_PRESETS[1],
+    qp_iter::Method::JACOBI_PRESETS[2],
+    qp_iter::Method::JACOBI_PRESETS[3],
+];
+
+/// The scenario's loop options with `method` in place of its own.
+pub fn loop_options(
+    r: &closed_loop::scenario::ResolvedScenario,
+    method: qp_iter::Method,
+) -> LoopOptions {
+    let mut o = LoopOptions::from_scenario(r.scenario()).expect("loop options");
+    o.method = method;
+    o
+}
+
 /// A vector as a TOML array, every entry exact (`{:e}` round-trips f64).
 pub fn toml_row(v: Vec<f64>) -> String {
     let cells: Vec<String> = v.iter().map(|x| format!("{x:e}")).collect();

@@ -7,6 +7,7 @@ mod ioss_any_e;
 mod ioss_relative;
 mod ioss_scale;
 mod ioss_units;
+mod names;
 mod numerics;
 mod sets;
 mod spectral;

@@ -72,6 +72,19 @@ pub struct Divergence {
     pub stopped: bool,
 }
 
+impl Divergence {
+    /// A divergence record (the loop builds its own; this is for callers that report one).
+    pub fn new(t: usize, signal: Signal, value: f64, limit: f64, stopped: bool) -> Self {
+        Self {
+            t,
+            signal,
+            value,
+            limit,
+            stopped,
+        }
+    }
+}
+
 impl std::fmt::Display for Divergence {
     /// `"diverged at t = 7: ‖e‖ = 1.2e4 > 1.0e4"`.
     fn fmt(&self, f: &mut std::fmt::Formatter<'_>) -> std::fmt::Result {

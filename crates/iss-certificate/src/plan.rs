@@ -105,7 +105,7 @@ pub fn verdict(
 /// ```
 /// use closed_loop::bounded::{Divergence, Signal};
 /// use iss_certificate::plan::{RunOutcome, divergence_lead};
-/// let d = Divergence { t: 7, signal: Signal::E, value: 1.2e4, limit: 1.0e4, stopped: false };
+/// let d = Divergence::new(7, Signal::E, 1.2e4, 1.0e4, false);
 /// let runs = [RunOutcome { k: 1, completed: 60, error: None, divergence: Some(d) }];
 /// assert_eq!(divergence_lead(&runs), "diverged at t = 7: ‖e‖ = 1.2e4 > 1.0e4 (the run at K = 1). ");
 /// ```

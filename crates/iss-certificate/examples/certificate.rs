@@ -16,10 +16,7 @@ fn main() -> Result<(), Box<dyn std::error::Error>> {
     // The defaults `reproduce` uses (sampled γ₁,₃ estimate included), for the four methods
     // on the problem as given and on the Jacobi-scaled problem.
     let opts = CertificateOptions {
-        solvers: qp_iter::Method::PRESETS
-            .into_iter()
-            .chain(qp_iter::Method::JACOBI_PRESETS)
-            .collect(),
+        solvers: qp_iter::Method::ALL.to_vec(),
         ..CertificateOptions::default()
     };
     for m in if horizons.is_empty() {

@@ -443,10 +443,7 @@ pub struct CertifyOptions {
 impl Default for CertifyOptions {
     fn default() -> Self {
         Self {
-            methods: Method::PRESETS
-                .into_iter()
-                .chain(Method::JACOBI_PRESETS)
-                .collect(),
+            methods: Method::ALL.to_vec(),
             gamma13: None,
             phase_seconds: None,
             seed: 0,

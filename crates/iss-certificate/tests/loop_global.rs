@@ -27,16 +27,7 @@ fn options(r: &ResolvedScenario, method: Method) -> LoopOptions {
     o
 }
 
-const METHODS: [Method; 8] = [
-    Method::PRESETS[0],
-    Method::PRESETS[1],
-    Method::PRESETS[2],
-    Method::PRESETS[3],
-    Method::JACOBI_PRESETS[0],
-    Method::JACOBI_PRESETS[1],
-    Method::JACOBI_PRESETS[2],
-    Method::JACOBI_PRESETS[3],
-];
+const METHODS: [Method; 8] = Method::ALL;
 
 /// (ii) of §4: where the linear loop is unstable (ρ_lin(K) ≥ 1) nothing is certified, because
 /// the linear loop is an admissible behaviour of the quadratic constraints (z* the

@@ -2,16 +2,10 @@
 
 use super::*;
 
-const METHODS: [&str; 8] = [
-    "pg",
-    "fista",
-    "admm",
-    "admm-pr",
-    "pg-jacobi",
-    "fista-jacobi",
-    "admm-jacobi",
-    "admm-pr-jacobi",
-];
+/// The names of the eight methods (`qp_iter::Method::ALL`, the one list).
+fn methods() -> Vec<String> {
+    qp_iter::Method::ALL.iter().map(ToString::to_string).collect()
+}
 
 /// The bound the stored model must meet on every measurement (and on the held-out K).
 const REL_BOUND: f64 = 0.08;
@@ -30,11 +24,11 @@ fn cart() -> StepDims {
 fn every_method_is_calibrated_on_both_targets_in_both_scalars() {
     let rows = InstructionModel::all().expect("the stored model parses");
     for t in Target::ALL {
-        for m in METHODS {
+        for m in &methods() {
             for s in [Scalar::F64, Scalar::F32] {
                 assert!(
                     rows.iter()
-                        .any(|r| r.target == t && r.method == m && r.scalar == s),
+                        .any(|r| r.target == t && r.method == *m && r.scalar == s),
                     "no {} calibration for {m} on {t}",
                     s.name()
                 );
@@ -48,7 +42,7 @@ fn every_method_is_calibrated_on_both_targets_in_both_scalars() {
 /// its f64 one; on the M7 (double-precision FPU) within a factor of 2 of it.
 #[test]
 fn f32_is_computed_from_its_own_rows() {
-    for m in METHODS {
+    for m in &methods() {
         for t in Target::ALL {
             let at = |s| {
                 let b =

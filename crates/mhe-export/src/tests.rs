@@ -31,9 +31,7 @@ pub(super) fn certified_preset_pg(resolved: &ResolvedScenario) -> &'static Close
 
 /// Every method the certificate covers on box constraints.
 pub(super) fn methods() -> Vec<Method> {
-    let mut v = Method::PRESETS.to_vec();
-    v.extend(Method::JACOBI_PRESETS);
-    v
+    Method::ALL.to_vec()
 }
 
 pub(super) struct Case {

@@ -406,6 +406,26 @@ impl Method {
         Method::ADMM.with_scaling(Scaling::Jacobi),
         Method::ADMM_PR.with_scaling(Scaling::Jacobi),
     ];
+    /// Every named method, in the order reports, certificates and coverage tables list
+    /// them: the four [`Method::PRESETS`], then the four [`Method::JACOBI_PRESETS`]. The one
+    /// list of the eight methods; use it instead of repeating them.
+    ///
+    /// ```
+    /// use qp_iter::Method;
+    /// let names: Vec<String> = Method::ALL.iter().map(|m| m.to_string()).collect();
+    /// assert_eq!(names[..4], ["pg", "fista", "admm", "admm-pr"]);
+    /// assert_eq!(names[4], "pg-jacobi");
+    /// ```
+    pub const ALL: [Method; 8] = [
+        Method::PRESETS[0],
+        Method::PRESETS[1],
+        Method::PRESETS[2],
+        Method::PRESETS[3],
+        Method::JACOBI_PRESETS[0],
+        Method::JACOBI_PRESETS[1],
+        Method::JACOBI_PRESETS[2],
+        Method::JACOBI_PRESETS[3],
+    ];
 
     /// The same method on a differently scaled problem.
     pub const fn with_scaling(self, scaling: Scaling) -> Self {

@@ -17,16 +17,7 @@ use qp_iter::Method;
 use crate::reproduce::numfmt::num;
 
 /// The eight methods, in the order of the coverage tables.
-pub const METHODS: [Method; 8] = [
-    Method::PRESETS[0],
-    Method::PRESETS[1],
-    Method::PRESETS[2],
-    Method::PRESETS[3],
-    Method::JACOBI_PRESETS[0],
-    Method::JACOBI_PRESETS[1],
-    Method::JACOBI_PRESETS[2],
-    Method::JACOBI_PRESETS[3],
-];
+pub const METHODS: [Method; 8] = Method::ALL;
 
 /// One method's row.
 #[derive(Debug, Clone)]

@@ -84,10 +84,7 @@ pub struct CertificateOptions {
 impl Default for CertificateOptions {
     fn default() -> Self {
         Self {
-            solvers: Method::PRESETS
-                .into_iter()
-                .chain(Method::JACOBI_PRESETS)
-                .collect(),
+            solvers: Method::ALL.to_vec(),
             gamma13: Gamma13Source::Certified,
             seed: 0,
             lipschitz_pairs: 200,

@@ -28,16 +28,7 @@ const CERTIFIED: &str = concat!(
     "/../../scenarios/case-study-certified.toml"
 );
 
-const METHODS: [Method; 8] = [
-    Method::PRESETS[0],
-    Method::PRESETS[1],
-    Method::PRESETS[2],
-    Method::PRESETS[3],
-    Method::JACOBI_PRESETS[0],
-    Method::JACOBI_PRESETS[1],
-    Method::JACOBI_PRESETS[2],
-    Method::JACOBI_PRESETS[3],
-];
+const METHODS: [Method; 8] = Method::ALL;
 
 fn unstable() -> Scenario {
     Scenario::from_toml_str(UNSTABLE).unwrap()

@@ -221,7 +221,7 @@ fn a_step_zero_witness_is_the_same_at_every_k_and_ends_the_search() {
     // The search checks the rows free of K first (step 0, and the MHE's first inner iterates at
     // step 1: `lifted::k_free_rows`, test `k_free_rows_are_the_same_at_every_k`): it ends before
     // any K, on the row with the largest ratio among them, at least the step-0 witness's.
-    for method in Method::PRESETS.into_iter().chain(Method::JACOBI_PRESETS) {
+    for method in Method::ALL {
         let kr = k_reg(&res, method, &ro, 1 << 10).unwrap();
         assert_eq!(kr.k_reg, None, "{method}");
         assert!(

@@ -373,7 +373,7 @@ fn two_d_points_agree_with_the_certified_up_set() {
 #[test]
 fn long_horizons_are_certified_by_default() {
     let d = CertificateOptions::default();
-    for m in Method::JACOBI_PRESETS.into_iter().chain(Method::PRESETS) {
+    for m in Method::ALL {
         assert!(d.solvers.contains(&m), "{m}");
     }
     // (best K_min of the default set, best K_min of the plain methods) at horizon m.

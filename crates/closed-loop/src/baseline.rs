@@ -21,13 +21,15 @@ use faer::Mat;
 use faer::linalg::solvers::DenseSolveCore;
 use lti_model::LtiSystem;
 use mhe_core::{Estimator, KalmanFilter, MheError};
+#[cfg(feature = "serde")]
 use serde::Serialize;
 
 use crate::bounded::{DEFAULT_BOUNDED_FACTOR, Divergence, first_unbounded_in};
 use crate::record::{Trace, norm2};
 
 /// A baseline estimator's run over a recorded trace.
-#[derive(Debug, Clone, Serialize)]
+#[derive(Debug, Clone)]
+#[cfg_attr(feature = "serde", derive(Serialize))]
 pub struct BaselineRun {
     /// x̂^b_t per step (t = 0..completed), each n_x long.
     pub x_hat: Vec<Vec<f64>>,

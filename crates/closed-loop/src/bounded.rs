@@ -23,6 +23,7 @@
 //! is reported as a [`Divergence`]. A run that stopped early (a non-finite signal caught by
 //! the loop) diverged at the step where it stopped if no limit failed before.
 
+#[cfg(feature = "serde")]
 use serde::Serialize;
 
 use crate::record::{Trace, norm2};
@@ -31,8 +32,9 @@ use crate::record::{Trace, norm2};
 pub const DEFAULT_BOUNDED_FACTOR: f64 = 1e3;
 
 /// The signal whose limit failed first.
-#[derive(Debug, Clone, Copy, PartialEq, Eq, Serialize)]
-#[serde(rename_all = "lowercase")]
+#[derive(Debug, Clone, Copy, PartialEq, Eq)]
+#[cfg_attr(feature = "serde", derive(Serialize))]
+#[cfg_attr(feature = "serde", serde(rename_all = "lowercase"))]
 pub enum Signal {
     /// The estimation error e_t = x_t − x̂_t.
     E,
@@ -57,7 +59,8 @@ impl Signal {
 }
 
 /// Where and how a run first left the bounded rule.
-#[derive(Debug, Clone, Copy, PartialEq, Serialize)]
+#[derive(Debug, Clone, Copy, PartialEq)]
+#[cfg_attr(feature = "serde", derive(Serialize))]
 #[non_exhaustive]
 pub struct Divergence {
     /// The first step at which a limit failed.

@@ -53,8 +53,9 @@ pub trait Controller: std::fmt::Debug {
 }
 
 /// What a controller applied at one step.
-#[derive(Debug, Clone, Copy, PartialEq, serde::Serialize)]
-#[serde(rename_all = "snake_case", tag = "status")]
+#[derive(Debug, Clone, Copy, PartialEq)]
+#[cfg_attr(feature = "serde", derive(serde::Serialize))]
+#[cfg_attr(feature = "serde", serde(rename_all = "snake_case", tag = "status"))]
 #[non_exhaustive]
 pub enum ControlStatus {
     /// The law as designed: the exact optimum, or K iterations whose plan violates the
@@ -74,8 +75,9 @@ pub enum ControlStatus {
 }
 
 /// What an infeasible state-constrained MPC applies (documented per controller).
-#[derive(Debug, Clone, Copy, PartialEq, Eq, serde::Serialize)]
-#[serde(rename_all = "snake_case")]
+#[derive(Debug, Clone, Copy, PartialEq, Eq)]
+#[cfg_attr(feature = "serde", derive(serde::Serialize))]
+#[cfg_attr(feature = "serde", serde(rename_all = "snake_case"))]
 pub enum MpcFallback {
     /// u*₀ of the input-constrained MPC (the state rows dropped): `mpc_core::ExactMpc`.
     InputOnlyMpc,
@@ -84,9 +86,36 @@ pub enum MpcFallback {
     ShiftedPlan,
 }
 
+impl MpcFallback {
+    /// The snake_case name files write (`"input_only_mpc"`, `"shifted_plan"`): the same as its
+    /// serde form, without needing the `serde` feature.
+    ///
+    /// ```
+    /// use loop_traits::MpcFallback;
+    /// // serde's `rename_all = "snake_case"` of each variant's name.
+    /// for f in [MpcFallback::InputOnlyMpc, MpcFallback::ShiftedPlan] {
+    ///     let mut snake = String::new();
+    ///     for (i, c) in format!("{f:?}").chars().enumerate() {
+    ///         if c.is_ascii_uppercase() && i > 0 {
+    ///             snake.push('_');
+    ///         }
+    ///         snake.push(c.to_ascii_lowercase());
+    ///     }
+    ///     assert_eq!(f.name(), snake);
+    /// }
+    /// ```
+    pub fn name(self) -> &'static str {
+        match self {
+            MpcFallback::InputOnlyMpc => "input_only_mpc",
+            MpcFallback::ShiftedPlan => "shifted_plan",
+        }
+    }
+}
+
 /// A row of a QP's constraints: a bound of the box (z_i) or a row of G.
-#[derive(Debug, Clone, Copy, PartialEq, Eq, serde::Serialize)]
-#[serde(rename_all = "snake_case")]
+#[derive(Debug, Clone, Copy, PartialEq, Eq)]
+#[cfg_attr(feature = "serde", derive(serde::Serialize))]
+#[cfg_attr(feature = "serde", serde(rename_all = "snake_case"))]
 pub enum ConstraintRow {
     /// l_i ≤ z_i ≤ u_i.
     Box(usize),

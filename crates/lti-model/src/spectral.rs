@@ -32,6 +32,7 @@
 //! Unstable (an eigenvalue with |λ| > 1).
 
 use faer::{Mat, MatRef};
+#[cfg(feature = "serde")]
 use serde::Serialize;
 
 use crate::error::{ModelError, Result};
@@ -87,8 +88,9 @@ fn within_data_precision_of_circle(a: &Mat<f64>, re: f64, im: f64) -> bool {
 }
 
 /// How x⁺ = Ax behaves.
-#[derive(Debug, Clone, Copy, PartialEq, Eq, Serialize)]
-#[serde(rename_all = "snake_case")]
+#[derive(Debug, Clone, Copy, PartialEq, Eq)]
+#[cfg_attr(feature = "serde", derive(Serialize))]
+#[cfg_attr(feature = "serde", serde(rename_all = "snake_case"))]
 pub enum Stability {
     /// Every eigenvalue has |λ| < 1.
     Stable,
@@ -100,7 +102,8 @@ pub enum Stability {
 }
 
 /// What [`classify`] found.
-#[derive(Debug, Clone, PartialEq, Serialize)]
+#[derive(Debug, Clone, PartialEq)]
+#[cfg_attr(feature = "serde", derive(Serialize))]
 pub struct SpectralFacts {
     /// Stable, marginal or unstable.
     pub stability: Stability,

@@ -4,7 +4,10 @@ use super::*;
 
 /// The names of the eight methods (`qp_iter::Method::ALL`, the one list).
 fn methods() -> Vec<String> {
-    qp_iter::Method::ALL.iter().map(ToString::to_string).collect()
+    qp_iter::Method::ALL
+        .iter()
+        .map(ToString::to_string)
+        .collect()
 }
 
 /// The bound the stored model must meet on every measurement (and on the held-out K).

@@ -1,7 +1,9 @@
 //! The per-step record of the MHE: what traces and plots are made of.
 
 use qp_iter::RunStatus;
+#[cfg(feature = "serde")]
 use serde::ser::{SerializeSeq, SerializeStruct};
+#[cfg(feature = "serde")]
 use serde::{Serialize, Serializer};
 
 use crate::problem::Dims;
@@ -230,8 +232,10 @@ fn stage(v: &[f64], width: usize, count: usize, j: usize) -> Option<&[f64]> {
 }
 
 /// A flat sequence serialised as an array of stages.
+#[cfg(feature = "serde")]
 struct Stages<'a>(&'a [f64], usize, usize);
 
+#[cfg(feature = "serde")]
 impl Serialize for Stages<'_> {
     fn serialize<S: Serializer>(&self, s: S) -> Result<S::Ok, S::Error> {
         let Stages(v, width, count) = *self;
@@ -243,6 +247,8 @@ impl Serialize for Stages<'_> {
     }
 }
 
+/// The MHE part of a closed-loop trace (closed-loop's `Trace::to_json`, feature `serde`).
+#[cfg(feature = "serde")]
 impl Serialize for MheRecord {
     fn serialize<S: Serializer>(&self, s: S) -> Result<S::Ok, S::Error> {
         let nw = self.dims.nw();

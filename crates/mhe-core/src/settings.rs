@@ -19,6 +19,7 @@ use lti_model::spec::format::{
     at_least_one, check_dense_bytes, key_error, required, rows_of, weight,
 };
 use qp_iter::{Iterations, Method};
+#[cfg(feature = "serde")]
 use serde::{Deserialize, Serialize};
 
 use crate::error::{MheError, Result};
@@ -29,8 +30,9 @@ use crate::problem::STRONG_CONVEXITY_TOL;
 pub const MAX_ITERATIONS: usize = qp_iter::MAX_ITERATIONS;
 
 /// How z⁰_{t+1} is obtained from zᴷ_t (step 2 of Alg. 1).
-#[derive(Debug, Clone, Copy, PartialEq, Eq, Serialize, Deserialize)]
-#[serde(rename_all = "lowercase")]
+#[derive(Debug, Clone, Copy, PartialEq, Eq)]
+#[cfg_attr(feature = "serde", derive(Serialize, Deserialize))]
+#[cfg_attr(feature = "serde", serde(rename_all = "lowercase"))]
 pub enum WarmStart {
     /// The paper's Σ_t: reuse zᴷ_t, zero-filling a new stage while the window grows.
     Paper,
@@ -109,32 +111,36 @@ impl MheSettings {
 }
 
 /// Serde mirror of the `[mhe]` table: every key optional, unknown keys refused.
-#[derive(Debug, Default, Deserialize, Serialize)]
-#[serde(deny_unknown_fields)]
+#[derive(Debug, Default)]
+#[cfg_attr(feature = "serde", derive(Deserialize, Serialize))]
+#[cfg_attr(feature = "serde", serde(deny_unknown_fields))]
 pub struct RawMhe {
     /// `horizon`.
-    #[serde(skip_serializing_if = "Option::is_none")]
+    #[cfg_attr(feature = "serde", serde(skip_serializing_if = "Option::is_none"))]
     pub horizon: Option<usize>,
     /// `eta`.
-    #[serde(skip_serializing_if = "Option::is_none")]
+    #[cfg_attr(feature = "serde", serde(skip_serializing_if = "Option::is_none"))]
     pub eta: Option<f64>,
     /// `q`.
-    #[serde(skip_serializing_if = "Option::is_none")]
+    #[cfg_attr(feature = "serde", serde(skip_serializing_if = "Option::is_none"))]
     pub q: Option<MatrixSpec>,
     /// `r`.
-    #[serde(skip_serializing_if = "Option::is_none")]
+    #[cfg_attr(feature = "serde", serde(skip_serializing_if = "Option::is_none"))]
     pub r: Option<MatrixSpec>,
     /// `p`.
-    #[serde(skip_serializing_if = "Option::is_none")]
+    #[cfg_attr(feature = "serde", serde(skip_serializing_if = "Option::is_none"))]
     pub p: Option<MatrixSpec>,
     /// `iterations`.
-    #[serde(skip_serializing_if = "Option::is_none")]
+    #[cfg_attr(feature = "serde", serde(skip_serializing_if = "Option::is_none"))]
     pub iterations: Option<usize>,
     /// `method` (`solver` is accepted as its older name).
-    #[serde(alias = "solver", skip_serializing_if = "Option::is_none")]
+    #[cfg_attr(
+        feature = "serde",
+        serde(alias = "solver", skip_serializing_if = "Option::is_none")
+    )]
     pub method: Option<Method>,
     /// `warm_start`.
-    #[serde(skip_serializing_if = "Option::is_none")]
+    #[cfg_attr(feature = "serde", serde(skip_serializing_if = "Option::is_none"))]
     pub warm_start: Option<WarmStart>,
 }
 

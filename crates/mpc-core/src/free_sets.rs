@@ -42,6 +42,7 @@
 //! saturation pattern of u₀, …, u_{k−1} exact and relaxes only the later ones.
 
 use faer::{Mat, MatRef, Side};
+#[cfg(feature = "serde")]
 use serde::Serialize;
 
 use crate::condensed::CondensedMpc;
@@ -152,7 +153,8 @@ impl LocalGains {
 }
 
 /// Summary of the free-set structure for reports.
-#[derive(Debug, Clone, Copy, PartialEq, Serialize)]
+#[derive(Debug, Clone, Copy, PartialEq)]
+#[cfg_attr(feature = "serde", derive(Serialize))]
 pub struct FreeSetSummary {
     /// N·n_u, the number of QP variables.
     pub variables: usize,

@@ -77,6 +77,7 @@ use lti_model::{BoxSet, ConvexSet, Projection};
 use rand::{Rng, SeedableRng};
 use rand_chacha::ChaCha8Rng;
 use rand_distr::StandardNormal;
+#[cfg(feature = "serde")]
 use serde::Serialize;
 
 use crate::Controller;
@@ -89,7 +90,8 @@ use crate::exact::ExactMpc;
 pub const LIPSCHITZ_PATTERN_FAMILIES: u64 = 64;
 
 /// The certified L_π of the box-constrained condensed MPC and its ingredients.
-#[derive(Debug, Clone, PartialEq, Serialize)]
+#[derive(Debug, Clone, PartialEq)]
+#[cfg_attr(feature = "serde", derive(Serialize))]
 pub struct LipschitzCertificate {
     /// (b) ‖E₀H^{−1/2}‖₂·‖H^{−1/2}F‖₂: a certified L_π from two norms (≥ `polynomial`).
     pub first_block: f64,
@@ -253,7 +255,8 @@ impl CondensedMpc {
 }
 
 /// Result of [`lipschitz_sampled`].
-#[derive(Debug, Clone, PartialEq, Serialize)]
+#[derive(Debug, Clone, PartialEq)]
+#[cfg_attr(feature = "serde", derive(Serialize))]
 pub struct SampledLipschitz {
     /// max ‖π(x) − π(x')‖/‖x − x'‖ over the pairs (a lower bound on L_π).
     pub estimate: f64,
@@ -523,7 +526,8 @@ pub fn lipschitz_sampled<C: Controller<Error = MpcError> + ?Sized>(
 }
 
 /// Both L_π figures for one MPC (what `cargo xtask certify` prints).
-#[derive(Debug, Clone, PartialEq, Serialize)]
+#[derive(Debug, Clone, PartialEq)]
+#[cfg_attr(feature = "serde", derive(Serialize))]
 pub struct LipschitzReport {
     /// The certified bound and its ingredients.
     pub certified: LipschitzCertificate,
@@ -540,7 +544,7 @@ pub struct LipschitzReport {
     /// [`crate::STATE_CONSTRAINED_VOID_REASON`]); then [`LipschitzReport::l_pi`] is +∞ and
     /// `certified` describes the input-constrained relaxation only. (Omitted from the
     /// serialised report when absent.)
-    #[serde(skip_serializing_if = "Option::is_none")]
+    #[cfg_attr(feature = "serde", serde(skip_serializing_if = "Option::is_none"))]
     pub void_reason: Option<&'static str>,
 }
 

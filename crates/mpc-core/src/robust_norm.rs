@@ -27,6 +27,7 @@
 
 use faer::{Mat, MatRef, Side};
 use lti_model::matrix::sym_lambda_max;
+#[cfg(feature = "serde")]
 use serde::Serialize;
 
 use crate::error::{MpcError, Result};
@@ -35,7 +36,8 @@ use crate::error::{MpcError, Result};
 pub const ROUND_OFF_MARGIN: f64 = 1e-10;
 
 /// Result of [`worst_case_norm`].
-#[derive(Debug, Clone, Copy, PartialEq, Serialize)]
+#[derive(Debug, Clone, Copy, PartialEq)]
+#[cfg_attr(feature = "serde", derive(Serialize))]
 pub struct WorstCaseNorm {
     /// An upper bound on sup_{‖Δ‖₂ ≤ 1} ‖M₀ + UΔV‖₂ (equal to it up to the scalar search
     /// and [`ROUND_OFF_MARGIN`]).

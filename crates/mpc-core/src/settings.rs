@@ -18,14 +18,16 @@ use lti_model::spec::format::{
 use lti_model::spec::names::PLANT_NAMES;
 use lti_model::spec::{MatrixSpec, ScenarioSets};
 use qp_iter::Iterations;
+#[cfg(feature = "serde")]
 use serde::{Deserialize, Serialize};
 
 use crate::condensed::{CondensedMpc, MpcConfig, Terminal};
 use crate::error::MpcError;
 
 /// Terminal cost of the MPC (`mpc.terminal`).
-#[derive(Debug, Clone, Copy, PartialEq, Eq, Serialize, Deserialize)]
-#[serde(rename_all = "lowercase")]
+#[derive(Debug, Clone, Copy, PartialEq, Eq)]
+#[cfg_attr(feature = "serde", derive(Serialize, Deserialize))]
+#[cfg_attr(feature = "serde", serde(rename_all = "lowercase"))]
 pub enum TerminalCost {
     /// Solution of the discrete algebraic Riccati equation for (A, B, Q_c, R_c).
     Dare,
@@ -97,29 +99,30 @@ pub const DEFAULT_METHOD: qp_iter::Method = qp_iter::Method::FISTA;
 pub const MAX_ITERATIONS: usize = qp_iter::MAX_ITERATIONS;
 
 /// Serde mirror of the `[mpc]` table: every key optional, unknown keys refused.
-#[derive(Debug, Default, Deserialize, Serialize)]
-#[serde(deny_unknown_fields)]
+#[derive(Debug, Default)]
+#[cfg_attr(feature = "serde", derive(Deserialize, Serialize))]
+#[cfg_attr(feature = "serde", serde(deny_unknown_fields))]
 pub struct RawMpc {
     /// `horizon`.
-    #[serde(skip_serializing_if = "Option::is_none")]
+    #[cfg_attr(feature = "serde", serde(skip_serializing_if = "Option::is_none"))]
     pub horizon: Option<usize>,
     /// `q`.
-    #[serde(skip_serializing_if = "Option::is_none")]
+    #[cfg_attr(feature = "serde", serde(skip_serializing_if = "Option::is_none"))]
     pub q: Option<MatrixSpec>,
     /// `r`.
-    #[serde(skip_serializing_if = "Option::is_none")]
+    #[cfg_attr(feature = "serde", serde(skip_serializing_if = "Option::is_none"))]
     pub r: Option<MatrixSpec>,
     /// `terminal`.
-    #[serde(skip_serializing_if = "Option::is_none")]
+    #[cfg_attr(feature = "serde", serde(skip_serializing_if = "Option::is_none"))]
     pub terminal: Option<TerminalCost>,
     /// `iterations` (K_c of the sub-optimal MPC).
-    #[serde(skip_serializing_if = "Option::is_none")]
+    #[cfg_attr(feature = "serde", serde(skip_serializing_if = "Option::is_none"))]
     pub iterations: Option<usize>,
     /// `method` of the sub-optimal MPC.
-    #[serde(skip_serializing_if = "Option::is_none")]
+    #[cfg_attr(feature = "serde", serde(skip_serializing_if = "Option::is_none"))]
     pub method: Option<qp_iter::Method>,
     /// `output`: the MPC's output box 𝒴_c.
-    #[serde(skip_serializing_if = "Option::is_none")]
+    #[cfg_attr(feature = "serde", serde(skip_serializing_if = "Option::is_none"))]
     pub output: Option<lti_model::spec::Table<lti_model::spec::plant::RawBox>>,
 }
 

@@ -1,10 +1,12 @@
 //! Certificates of convergence φ(K) (Assumption 5, eq. (11)).
 
+#[cfg(feature = "serde")]
 use serde::Serialize;
 
 /// Which quantity a certificate bounds.
-#[derive(Debug, Clone, Copy, PartialEq, Eq, Serialize)]
-#[serde(rename_all = "snake_case")]
+#[derive(Debug, Clone, Copy, PartialEq, Eq)]
+#[cfg_attr(feature = "serde", derive(Serialize))]
+#[cfg_attr(feature = "serde", serde(rename_all = "snake_case"))]
 pub enum BoundedQuantity {
     /// ‖zᴷ − z*‖ ≤ φ(K)‖z⁰ − z*‖: exactly eq. (11).
     IterateDistance,
@@ -15,8 +17,9 @@ pub enum BoundedQuantity {
 }
 
 /// The norm the bound holds in.
-#[derive(Debug, Clone, PartialEq, Serialize)]
-#[serde(rename_all = "snake_case")]
+#[derive(Debug, Clone, PartialEq)]
+#[cfg_attr(feature = "serde", derive(Serialize))]
+#[cfg_attr(feature = "serde", serde(rename_all = "snake_case"))]
 pub enum CertNorm {
     /// The Euclidean norm of the problem's coordinates (the one eq. (11) uses).
     Euclidean,
@@ -41,7 +44,8 @@ pub enum CertNorm {
 /// assert!((c.phi(2) - 0.9604).abs() < 1e-12);
 /// assert_eq!(c.min_iterations(0.5), Some(35)); // 0.98^35 ≈ 0.4931
 /// ```
-#[derive(Debug, Clone, PartialEq, Serialize)]
+#[derive(Debug, Clone, PartialEq)]
+#[cfg_attr(feature = "serde", derive(Serialize))]
 pub struct Certificate {
     /// Linear rate r ∈ [0, 1).
     pub rate: f64,

@@ -1,12 +1,14 @@
 //! Drivers outside the trait: exactly K steps, or until a tolerance.
 
+#[cfg(feature = "serde")]
 use serde::Serialize;
 
 use crate::IterationMap;
 
 /// Outcome of a driver run.
-#[derive(Debug, Clone, Copy, PartialEq, Eq, Serialize)]
-#[serde(rename_all = "snake_case")]
+#[derive(Debug, Clone, Copy, PartialEq, Eq)]
+#[cfg_attr(feature = "serde", derive(Serialize))]
+#[cfg_attr(feature = "serde", serde(rename_all = "snake_case"))]
 #[non_exhaustive]
 pub enum RunStatus {
     /// Ran the requested K steps (fixed-K driver).
@@ -21,8 +23,23 @@ pub enum RunStatus {
     Stopped,
 }
 
+impl RunStatus {
+    /// The snake_case name files write (`"completed"`, `"max_iterations"`, …): the same as
+    /// its serde form, without needing the `serde` feature.
+    pub fn name(self) -> &'static str {
+        match self {
+            RunStatus::Completed => "completed",
+            RunStatus::Converged => "converged",
+            RunStatus::MaxIterations => "max_iterations",
+            RunStatus::NonFinite => "non_finite",
+            RunStatus::Stopped => "stopped",
+        }
+    }
+}
+
 /// Result of a driver run.
-#[derive(Debug, Clone, Copy, PartialEq, Serialize)]
+#[derive(Debug, Clone, Copy, PartialEq)]
+#[cfg_attr(feature = "serde", derive(Serialize))]
 pub struct RunResult {
     /// Steps actually taken.
     pub iterations: usize,
@@ -89,5 +106,36 @@ where
     RunResult {
         iterations: max_iter,
         status: RunStatus::MaxIterations,
+    }
+}
+
+#[cfg(test)]
+mod tests {
+    use super::RunStatus;
+
+    /// serde's `rename_all = "snake_case"` of the variant's name.
+    fn snake(debug: &str) -> String {
+        let mut out = String::new();
+        for (i, c) in debug.chars().enumerate() {
+            if c.is_ascii_uppercase() && i > 0 {
+                out.push('_');
+            }
+            out.push(c.to_ascii_lowercase());
+        }
+        out
+    }
+
+    /// `name()` is the serde form (trace.csv writes it; trace.json writes the serde form).
+    #[test]
+    fn names_are_the_serde_names() {
+        use RunStatus::*;
+        for s in [Completed, Converged, MaxIterations, NonFinite, Stopped] {
+            assert_eq!(s.name(), snake(&format!("{s:?}")));
+            #[cfg(feature = "serde")]
+            assert_eq!(
+                serde_json::to_value(s).ok(),
+                Some(serde_json::Value::from(s.name()))
+            );
+        }
     }
 }

@@ -132,8 +132,9 @@ pub enum DataError {
 
 /// A row of a QP's constraints: a bound of the box (z_i) or a row of G (the row an exact
 /// solver could not meet).
-#[derive(Debug, Clone, Copy, PartialEq, Eq, serde::Serialize)]
-#[serde(rename_all = "snake_case")]
+#[derive(Debug, Clone, Copy, PartialEq, Eq)]
+#[cfg_attr(feature = "serde", derive(serde::Serialize))]
+#[cfg_attr(feature = "serde", serde(rename_all = "snake_case"))]
 pub enum ConstraintRow {
     /// l_i ≤ z_i ≤ u_i.
     Box(usize),

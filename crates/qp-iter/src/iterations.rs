@@ -76,12 +76,14 @@ impl TryFrom<usize> for Iterations {
     }
 }
 
+#[cfg(feature = "serde")]
 impl serde::Serialize for Iterations {
     fn serialize<S: serde::Serializer>(&self, s: S) -> Result<S::Ok, S::Error> {
         s.serialize_u64(self.get() as u64)
     }
 }
 
+#[cfg(feature = "serde")]
 impl<'de> serde::Deserialize<'de> for Iterations {
     fn deserialize<D: serde::Deserializer<'de>>(d: D) -> Result<Self, D::Error> {
         let k = usize::deserialize(d)?;
@@ -110,6 +112,7 @@ mod tests {
         );
     }
 
+    #[cfg(feature = "serde")]
     #[test]
     fn deserialising_checks_the_range() {
         let k: Iterations = serde_json::from_str("7").expect("7 is a budget");

@@ -25,13 +25,11 @@
 //! ```
 
 use std::borrow::Cow;
-use std::collections::BTreeMap;
 use std::fmt;
 use std::str::FromStr;
 
-use serde::de::{self, MapAccess, Visitor};
-use serde::ser::SerializeMap;
-use serde::{Deserialize, Deserializer, Serialize, Serializer};
+#[cfg(feature = "serde")]
+use serde::{Deserialize, Serialize};
 
 use crate::admm::{AdmmParams, Penalty};
 use crate::certificate::Certificate;
@@ -42,6 +40,8 @@ use crate::problem::ParametricQp;
 use crate::scaled::{Scaled, ScaledState, jacobi_scaling};
 use crate::{IterationMap, RunResult, run_fixed};
 
+#[cfg(feature = "serde")]
+mod serde_impl;
 #[cfg(test)]
 mod trial_method;
 
@@ -136,6 +136,8 @@ macro_rules! method_list {
             fn build(&self, qp: ParametricQp) -> Result<MethodMap> {
                 match self { $( $(#[cfg($fcfg)])? MethodKind::$fam(p) => <$fmap as Family>::build(p, qp), )* }
             }
+            /// The table keys and values (the serialised form of a non-preset method).
+            #[cfg(feature = "serde")]
             fn keys(&self) -> Vec<(&'static str, f64)> {
                 match self { $( $(#[cfg($fcfg)])? MethodKind::$fam(p) => <$fmap as Family>::keys_of(p), )* }
             }
@@ -355,8 +357,9 @@ fn foreign_state() -> ! {
 // ---------------------------------------------------------------------------------------
 
 /// How the QP is scaled before the map runs on it ([`crate::scaled`]).
-#[derive(Debug, Clone, Copy, PartialEq, Eq, Default, Serialize, Deserialize)]
-#[serde(rename_all = "snake_case")]
+#[derive(Debug, Clone, Copy, PartialEq, Eq, Default)]
+#[cfg_attr(feature = "serde", derive(Serialize, Deserialize))]
+#[cfg_attr(feature = "serde", serde(rename_all = "snake_case"))]
 pub enum Scaling {
     /// The problem as given.
     #[default]
@@ -554,91 +557,6 @@ impl FromStr for Method {
     }
 }
 
-// ---------------------------------------------------------------------------------------
-// Serde: a name, or a table with the parameters.
-// ---------------------------------------------------------------------------------------
-
-/// `{ method = "…", scaling = "…", <the family's keys> }`.
-#[derive(Deserialize)]
-struct MethodTable {
-    method: String,
-    #[serde(default)]
-    scaling: Option<Scaling>,
-    #[serde(flatten)]
-    params: BTreeMap<String, f64>,
-}
-
-impl MethodTable {
-    fn into_method(self) -> std::result::Result<Method, String> {
-        let name = self.method.as_str();
-        let Some((base, keys, with)) = MethodKind::preset(name) else {
-            return Err(unknown(name).to_string());
-        };
-        if let Some(key) = self.params.keys().find(|k| !keys.contains(&k.as_str())) {
-            let allowed = if keys.is_empty() {
-                "it has none".to_string()
-            } else {
-                format!("its parameters: {}", keys.join(", "))
-            };
-            return Err(format!(
-                "`{key}` is not a parameter of `{name}` ({allowed}; and `scaling`)"
-            ));
-        }
-        let params = &self.params;
-        let kind = with(base, &|k| params.get(k).copied());
-        let m = Method {
-            kind,
-            scaling: self.scaling.unwrap_or_default(),
-        };
-        m.validate().map_err(|e| e.to_string())?;
-        Ok(m)
-    }
-}
-
-impl Serialize for Method {
-    fn serialize<S: Serializer>(&self, s: S) -> std::result::Result<S::Ok, S::Error> {
-        if Method::PRESETS.contains(self) || Method::JACOBI_PRESETS.contains(self) {
-            return s.serialize_str(&self.name());
-        }
-        let keys = self.kind.keys();
-        let scaled = self.scaling != Scaling::None;
-        let mut map = s.serialize_map(Some(1 + keys.len() + usize::from(scaled)))?;
-        map.serialize_entry("method", self.family())?;
-        for (k, v) in &keys {
-            map.serialize_entry(k, v)?;
-        }
-        if scaled {
-            map.serialize_entry("scaling", &self.scaling)?;
-        }
-        map.end()
-    }
-}
-
-impl<'de> Deserialize<'de> for Method {
-    fn deserialize<D: Deserializer<'de>>(d: D) -> std::result::Result<Self, D::Error> {
-        struct V;
-        impl<'de> Visitor<'de> for V {
-            type Value = Method;
-            fn expecting(&self, f: &mut fmt::Formatter<'_>) -> fmt::Result {
-                write!(
-                    f,
-                    "a method name ({}, each optionally with \"-jacobi\") or a table \
-                     {{ method = \"…\", <its parameters>, scaling = \"jacobi\" }}",
-                    MethodKind::preset_names().join(", ")
-                )
-            }
-            fn visit_str<E: de::Error>(self, v: &str) -> std::result::Result<Method, E> {
-                v.parse().map_err(|e: QpError| E::custom(e))
-            }
-            fn visit_map<A: MapAccess<'de>>(self, map: A) -> std::result::Result<Method, A::Error> {
-                let table = MethodTable::deserialize(de::value::MapAccessDeserializer::new(map))?;
-                table.into_method().map_err(de::Error::custom)
-            }
-        }
-        d.deserialize_any(V)
-    }
-}
-
 impl MethodMap {
     /// The map with its dense steps on `kernel` ([`IterationMap::set_kernel`]). With
     /// [`crate::kernel::Kernel::portable`] the steps are the plain-Rust loops that
@@ -674,45 +592,5 @@ pub(crate) fn short(x: f64) -> String {
         format!("{x:e}")
     } else {
         format!("{x}")
-    }
-}
-
-#[cfg(test)]
-mod tests {
-    #![allow(clippy::unwrap_used)]
-    use super::*;
-
-    #[test]
-    fn names_round_trip_through_serde() {
-        for m in Method::PRESETS {
-            let s = serde_json::to_string(&m).unwrap();
-            assert_eq!(s, format!("\"{m}\""));
-            assert_eq!(serde_json::from_str::<Method>(&s).unwrap(), m);
-        }
-        for m in [
-            Method::pg(Some(0.05)).unwrap(),
-            Method::admm(Some(2.0), 1.5).unwrap(),
-            Method::admm(None, 1.2).unwrap(),
-        ] {
-            let s = serde_json::to_string(&m).unwrap();
-            assert_eq!(serde_json::from_str::<Method>(&s).unwrap(), m, "{s}");
-        }
-    }
-
-    #[test]
-    fn bad_tables_name_the_parameter() {
-        for (text, needle) in [
-            (r#"{"method":"pg","rho":1.0}"#, "`rho`"),
-            (r#"{"method":"admm","alpha":3.0}"#, "alpha"),
-            (r#"{"method":"admm","rho":-1.0}"#, "rho"),
-            (r#"{"method":"newton"}"#, "newton"),
-            (r#""newton""#, "newton"),
-            (r#"{"method":"pg","typo":1.0}"#, "typo"),
-        ] {
-            let e = serde_json::from_str::<Method>(text)
-                .unwrap_err()
-                .to_string();
-            assert!(e.contains(needle), "{text}: {e}");
-        }
     }
 }

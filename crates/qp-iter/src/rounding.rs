@@ -82,7 +82,8 @@ pub fn abs_norm_bound(rows: usize, cols: usize, get: impl Fn(usize, usize) -> f6
 }
 
 /// Why the rounding of a method is not covered.
-#[derive(Debug, Clone, PartialEq, Eq, serde::Serialize)]
+#[derive(Debug, Clone, PartialEq, Eq)]
+#[cfg_attr(feature = "serde", derive(serde::Serialize))]
 #[non_exhaustive]
 pub struct RoundingVoid {
     /// The sentence a report prints (what is not covered and why).
@@ -97,7 +98,8 @@ impl std::fmt::Display for RoundingVoid {
 
 /// The rounding model of one iteration of a covered method on one QP (module docs):
 /// ‖fl(Φ)(z) − Φ(z)‖ ≤ a‖z‖ + b‖θ‖ + c, and the exact map's Euclidean contraction rate r.
-#[derive(Debug, Clone, Copy, PartialEq, serde::Serialize)]
+#[derive(Debug, Clone, Copy, PartialEq)]
+#[cfg_attr(feature = "serde", derive(serde::Serialize))]
 pub struct IterationRounding {
     /// The unit round-off u the model is for.
     pub unit_roundoff: f64,

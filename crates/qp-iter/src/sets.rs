@@ -35,7 +35,8 @@ pub trait Projection: ConvexSet {
 /// assert_eq!(x, [1.0, 0.0]);
 /// assert!(b.contains(&x, 0.0));
 /// ```
-#[derive(Debug, Clone, PartialEq, serde::Serialize)]
+#[derive(Debug, Clone, PartialEq)]
+#[cfg_attr(feature = "serde", derive(serde::Serialize))]
 pub struct BoxSet {
     lower: Vec<f64>,
     upper: Vec<f64>,

@@ -43,13 +43,9 @@ pub(super) fn trace_csv(runs: &[Run], w_set: &BoxSet) -> String {
             row.push(step.and_then(|s| s.epsilon()).map_or_else(String::new, csv));
             row.push(step.map_or_else(String::new, |s| status_name(s.status())));
             row.push(match tr.control_status(t) {
-                Some(mpc_core::ControlStatus::Infeasible { fallback, .. }) => format!(
-                    "infeasible:{}",
-                    serde_json::to_value(fallback)
-                        .ok()
-                        .and_then(|v| v.as_str().map(str::to_owned))
-                        .unwrap_or_default()
-                ),
+                Some(mpc_core::ControlStatus::Infeasible { fallback, .. }) => {
+                    format!("infeasible:{}", fallback.name())
+                }
                 Some(_) => "applied".into(),
                 None => String::new(),
             });
@@ -77,8 +73,5 @@ pub(super) fn trace_csv(runs: &[Run], w_set: &BoxSet) -> String {
 
 /// The status as in trace.json (`completed`, `converged`, `max_iterations`, `non_finite`, …).
 fn status_name(s: qp_iter::RunStatus) -> String {
-    serde_json::to_value(s)
-        .ok()
-        .and_then(|v| v.as_str().map(str::to_owned))
-        .unwrap_or_else(|| format!("{s:?}"))
+    s.name().to_owned()
 }

@@ -114,7 +114,32 @@ pub struct TraceRun<'a> {
     pub trace: &'a closed_loop::Trace,
     /// The Kalman baseline's estimates x̂^KF_t and error norms on the same data.
     #[serde(skip_serializing_if = "Option::is_none")]
-    pub kalman: Option<&'a closed_loop::baseline::BaselineRun>,
+    pub kalman: Option<KalmanRecord<'a>>,
+}
+
+/// The Kalman baseline's run in trace.json (`closed_loop::baseline::BaselineRun`'s fields,
+/// in this schema's own type so the library's can grow).
+#[derive(Debug, Serialize)]
+pub struct KalmanRecord<'a> {
+    /// x̂^KF_t per step.
+    pub x_hat: &'a [Vec<f64>],
+    /// ‖x_t − x̂^KF_t‖ per step (null where not finite).
+    pub e_norms: Vec<Option<f64>>,
+    /// The estimator's error, if an estimate or an update failed (the run stops there).
+    pub error: Option<&'a str>,
+    /// Where the bounded rule (signal e) failed first, if it did.
+    pub divergence: Option<Divergence>,
+}
+
+impl<'a> From<&'a closed_loop::baseline::BaselineRun> for KalmanRecord<'a> {
+    fn from(l: &'a closed_loop::baseline::BaselineRun) -> Self {
+        Self {
+            x_hat: &l.x_hat,
+            e_norms: l.e_norms.iter().map(|e| num(*e)).collect(),
+            error: l.error.as_deref(),
+            divergence: l.divergence.as_ref().map(Divergence::from),
+        }
+    }
 }
 
 impl<'a> From<&'a mhe_report::Run> for TraceRun<'a> {
@@ -122,7 +147,7 @@ impl<'a> From<&'a mhe_report::Run> for TraceRun<'a> {
         Self {
             summary: RunSummary::from(&r.summary),
             trace: &r.trace,
-            kalman: r.kalman.as_ref(),
+            kalman: r.kalman.as_ref().map(KalmanRecord::from),
         }
     }
 }

@@ -141,6 +141,7 @@ mod construct;
 mod doubling;
 
 use faer::{Mat, MatRef};
+#[cfg(feature = "serde")]
 use serde::Serialize;
 
 pub use check::{LmiCheck, assess, lmi_matrix, lmi_scale_matrix};
@@ -229,7 +230,8 @@ pub struct IossCertificate {
 }
 
 /// JSON form of [`IossCertificate`] (matrices as row-major nested arrays).
-#[derive(Debug, Clone, PartialEq, Serialize)]
+#[derive(Debug, Clone, PartialEq)]
+#[cfg_attr(feature = "serde", derive(Serialize))]
 pub struct IossReport {
     /// P.
     pub p: Vec<Vec<f64>>,

@@ -27,7 +27,8 @@ impl Default for LipschitzSampling {
 }
 
 /// Sampled and certified L_Φ of one window, side by side (trap 8).
-#[derive(Debug, Clone, Copy, PartialEq, serde::Serialize)]
+#[derive(Debug, Clone, Copy, PartialEq)]
+#[cfg_attr(feature = "serde", derive(serde::Serialize))]
 pub struct LipschitzEstimate {
     /// Window length m.
     pub window: usize,

@@ -68,8 +68,9 @@ pub use crate::error::ConstraintRow;
 pub use super::parametric_dual::ParametricDualActiveSet;
 
 /// How a call of [`DualActiveSet`] ended.
-#[derive(Debug, Clone, Copy, PartialEq, serde::Serialize)]
-#[serde(rename_all = "snake_case", tag = "status")]
+#[derive(Debug, Clone, Copy, PartialEq)]
+#[cfg_attr(feature = "serde", derive(serde::Serialize))]
+#[cfg_attr(feature = "serde", serde(rename_all = "snake_case", tag = "status"))]
 #[non_exhaustive]
 pub enum DualActiveSetStatus {
     /// The minimiser (within the tolerances; see [`DualActiveSetInfo`]).

@@ -23,6 +23,7 @@ use crate::provenance::{Provenance, workspace_root};
 mod timing;
 // `cargo xtask sweep-merge`: the shards' sets checked and merged.
 mod merge;
+mod records;
 pub use merge::merge;
 use mhe_plots::shorten;
 
@@ -441,7 +442,7 @@ fn write_outputs(
             "steps_per_second_per_thread": report.steps_per_second_per_thread(),
             "schedule": timing::schedule_json(report, serial_s, wall, &tasks_name),
             "plots": plots,
-            "thresholds": thresholds,
+            "thresholds": records::thresholds(&thresholds),
             "files": set.manifest(),
         });
         let extra = with_2d(sweep, extra, &pairs);
@@ -563,7 +564,10 @@ fn with_2d(
         })
         .collect();
     if let Some(obj) = extra.as_object_mut() {
-        obj.insert("pair_thresholds".into(), json!(pairs));
+        obj.insert(
+            "pair_thresholds".into(),
+            json!(records::pair_thresholds(pairs)),
+        );
         obj.insert("certified_boundary".into(), json!(certified));
     }
     extra

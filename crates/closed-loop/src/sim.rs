@@ -195,6 +195,7 @@ pub enum ClosedLoopError {
 /// assert_eq!(e.downcast_ref::<mpc_core::MpcError>(), Some(&mpc_core::MpcError::NonFiniteIterate));
 /// ```
 #[derive(Debug, Clone)]
+#[non_exhaustive]
 pub struct ComponentError(std::sync::Arc<dyn std::error::Error + Send + Sync>);
 
 impl ComponentError {

@@ -73,6 +73,7 @@ pub fn plan_runs(scenario_k: usize, k_min: Option<usize>, small_k: usize) -> Vec
 
 /// One simulated run as the verdict needs it.
 #[derive(Debug, Clone, Copy, PartialEq)]
+#[non_exhaustive]
 pub struct RunOutcome<'a> {
     /// K of the run.
     pub k: usize,
@@ -82,6 +83,24 @@ pub struct RunOutcome<'a> {
     pub error: Option<&'a str>,
     /// Where the run first left the bounded rule ([`closed_loop::bounded::first_unbounded`]).
     pub divergence: Option<Divergence>,
+}
+
+impl<'a> RunOutcome<'a> {
+    /// A run as the verdict needs it (the struct is `#[non_exhaustive]`: a caller that
+    /// reports its own runs builds them here).
+    pub fn new(
+        k: usize,
+        completed: usize,
+        error: Option<&'a str>,
+        divergence: Option<Divergence>,
+    ) -> Self {
+        Self {
+            k,
+            completed,
+            error,
+            divergence,
+        }
+    }
 }
 
 /// The verdict on one method: every run that diverged first ("diverged at t = 7: ‖e‖ =
@@ -106,7 +125,7 @@ pub fn verdict(
 /// use closed_loop::bounded::{Divergence, Signal};
 /// use iss_certificate::plan::{RunOutcome, divergence_lead};
 /// let d = Divergence::new(7, Signal::E, 1.2e4, 1.0e4, false);
-/// let runs = [RunOutcome { k: 1, completed: 60, error: None, divergence: Some(d) }];
+/// let runs = [RunOutcome::new(1, 60, None, Some(d))];
 /// assert_eq!(divergence_lead(&runs), "diverged at t = 7: ‖e‖ = 1.2e4 > 1.0e4 (the run at K = 1). ");
 /// ```
 pub fn divergence_lead(runs: &[RunOutcome<'_>]) -> String {

@@ -180,6 +180,7 @@ impl StepDims {
 
 /// A bad input of the budget, naming the user's key and the fix.
 #[derive(Debug, Clone, PartialEq)]
+#[non_exhaustive]
 pub struct BudgetError {
     /// The key or flag (`plant.sample_time`, `--clock-mhz`, `--target`, `K`).
     pub key: &'static str,
@@ -398,6 +399,7 @@ pub fn points() -> Result<Vec<Point>, String> {
 
 /// The verdict on one (target, clock, method, sizes, K, T_s).
 #[derive(Debug, Clone, PartialEq)]
+#[non_exhaustive]
 pub enum Verdict {
     /// The step fits T_s; `margin` is the fraction of T_s left, `k_max` the largest K
     /// that still fits.

@@ -126,6 +126,8 @@ impl From<&Budget> for TargetRecord {
             Verdict::Fits { margin, k_max } => ("fits", Some(*k_max), Some(*margin), None),
             Verdict::DoesNotFit { k_max } => ("does_not_fit", *k_max, None, None),
             Verdict::NotComputed { reason } => ("not_computed", None, None, Some(reason.clone())),
+            // `Verdict` is `#[non_exhaustive]`: a verdict this file does not know yet.
+            other => ("not_computed", None, None, Some(format!("{other:?}"))),
         };
         TargetRecord {
             target: b.target.name().into(),

@@ -12,6 +12,7 @@ use closed_loop::sim::ClosedLoopError;
 /// unusable output directory, files of another configuration or corrupt ones, another
 /// writer in the output directory, or a setup error of the closed loop.
 #[derive(Debug, thiserror::Error)]
+#[non_exhaustive]
 pub enum SweepError {
     /// A configuration key is missing, has the wrong type or an invalid value.
     #[error("sweep config: `{key}`: {problem}")]

@@ -17,6 +17,7 @@
 
 use std::fmt::Write as _;
 
+#[cfg(feature = "serde")]
 use serde::Serialize;
 
 use super::format::Table;
@@ -24,7 +25,8 @@ use super::format::Table;
 /// The weights of the cost K_e·t_e + K_c·t_c of a pair: the time of one MHE iteration and
 /// of one MPC iteration, or any proportional numbers (`cost = { t_e, t_c }` in the config;
 /// default 1:1, i.e. the cost is K_e + K_c).
-#[derive(Debug, Clone, Copy, PartialEq, Serialize)]
+#[derive(Debug, Clone, Copy, PartialEq)]
+#[cfg_attr(feature = "serde", derive(Serialize))]
 pub struct IterationCost {
     /// Cost of one iteration of the MHE's Φ (per time step).
     pub t_e: f64,
@@ -50,7 +52,8 @@ impl IterationCost {
 pub type Staircase = Vec<(usize, Option<usize>)>;
 
 /// One pair (K_e, K_c) with its cost.
-#[derive(Debug, Clone, Copy, PartialEq, Serialize)]
+#[derive(Debug, Clone, Copy, PartialEq)]
+#[cfg_attr(feature = "serde", derive(Serialize))]
 pub struct Pair {
     /// Iterations of the MHE.
     pub k_e: usize,
@@ -61,7 +64,8 @@ pub struct Pair {
 }
 
 /// The 2-D thresholds of one MHE solver at one disturbance scale.
-#[derive(Debug, Clone, PartialEq, Serialize)]
+#[derive(Debug, Clone, PartialEq)]
+#[cfg_attr(feature = "serde", derive(Serialize))]
 pub struct PairThresholds {
     /// Φ of the MHE (its name in `points.csv`).
     pub solver: String,

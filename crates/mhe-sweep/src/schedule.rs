@@ -23,11 +23,13 @@
 //! took when measured (no memory-bandwidth, cache, turbo or SMT effects), dispatch costs
 //! nothing, and the serial part is the measured one.
 
+#[cfg(feature = "serde")]
 use serde::Serialize;
 
 /// What one task of the list computes.
-#[derive(Debug, Clone, Copy, PartialEq, Eq, Serialize)]
-#[serde(rename_all = "snake_case")]
+#[derive(Debug, Clone, Copy, PartialEq, Eq)]
+#[cfg_attr(feature = "serde", derive(Serialize))]
+#[cfg_attr(feature = "serde", serde(rename_all = "snake_case"))]
 pub enum TaskKind {
     /// γ₁,₃'s plan: families, candidate metrics, their S-procedure figures.
     Gamma13Plan,
@@ -77,7 +79,8 @@ impl TaskKind {
 }
 
 /// One executed task: what it was and how long it took.
-#[derive(Debug, Clone, PartialEq, Serialize)]
+#[derive(Debug, Clone, PartialEq)]
+#[cfg_attr(feature = "serde", derive(Serialize))]
 pub struct TaskTime {
     /// What the task computed.
     pub kind: TaskKind,
@@ -104,7 +107,8 @@ pub struct TaskTime {
 }
 
 /// The measured schedule of a [`Sweep::run`](super::Sweep::run).
-#[derive(Debug, Clone, PartialEq, Default, Serialize)]
+#[derive(Debug, Clone, PartialEq, Default)]
+#[cfg_attr(feature = "serde", derive(Serialize))]
 pub struct ScheduleReport {
     /// Workers of the pool.
     pub threads: usize,
@@ -118,7 +122,8 @@ pub struct ScheduleReport {
 }
 
 /// A replay's prediction for one worker count.
-#[derive(Debug, Clone, Copy, PartialEq, Serialize)]
+#[derive(Debug, Clone, Copy, PartialEq)]
+#[cfg_attr(feature = "serde", derive(Serialize))]
 pub struct Prediction {
     /// Workers.
     pub threads: usize,

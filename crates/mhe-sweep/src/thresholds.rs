@@ -20,6 +20,7 @@
 
 use std::fmt::Write as _;
 
+#[cfg(feature = "serde")]
 use serde::Serialize;
 
 use super::format::Table;
@@ -28,14 +29,15 @@ use super::format::Table;
 pub const SETTLE_TOLERANCE: f64 = 0.1;
 
 /// The thresholds of one solver at one disturbance scale.
-#[derive(Debug, Clone, PartialEq, Serialize)]
+#[derive(Debug, Clone, PartialEq)]
+#[cfg_attr(feature = "serde", derive(Serialize))]
 pub struct Thresholds {
     /// Φ of the MHE (its name in `points.csv`).
     pub solver: String,
     /// The disturbance scale (as written in `points.csv`).
     pub scale: String,
     /// K_c of the curve in a 2-D sweep (absent in a 1-D sweep).
-    #[serde(skip_serializing_if = "Option::is_none")]
+    #[cfg_attr(feature = "serde", serde(skip_serializing_if = "Option::is_none"))]
     pub k_c: Option<usize>,
     /// The largest K of the grid.
     pub k_max: usize,

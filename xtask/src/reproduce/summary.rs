@@ -18,12 +18,7 @@ pub(super) fn verdict(d: &CertificateDocument) -> String {
     let runs: Vec<RunOutcome<'_>> = d
         .runs
         .iter()
-        .map(|r| RunOutcome {
-            k: r.k,
-            completed: r.completed,
-            error: r.error.as_deref(),
-            divergence: r.divergence,
-        })
+        .map(|r| RunOutcome::new(r.k, r.completed, r.error.as_deref(), r.divergence))
         .collect();
     let lead = iss_certificate::plan::divergence_lead(&runs);
     if let Some(r) = &d.not_covered {

@@ -135,7 +135,7 @@ pub fn merge(args: &MergeArgs) -> Result<()> {
             "merged_from": inputs.iter().map(|p| p.display().to_string()).collect::<Vec<_>>(),
             "shard_meta": shards,
             "plots": plots,
-            "thresholds": thresholds,
+            "thresholds": super::records::thresholds(&thresholds),
             "files": set.manifest(),
         });
         let extra = with_2d(&sweep, extra, &pairs);

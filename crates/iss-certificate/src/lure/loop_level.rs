@@ -111,6 +111,7 @@ pub struct LureLoop {
 
 /// Why no loop certificate.
 #[derive(Debug, Clone, PartialEq, thiserror::Error)]
+#[non_exhaustive]
 pub enum LoopError {
     /// A matrix has the wrong shape or a non-finite entry.
     #[error(

@@ -74,6 +74,7 @@ pub enum Gamma13Method {
 /// Why no γ₁,₃ is available: a typed reason with a `std::fmt::Display` sentence.
 #[derive(Debug, Clone, PartialEq, Serialize)]
 #[serde(tag = "kind", rename_all = "snake_case")]
+#[non_exhaustive]
 pub enum Gamma13Void {
     /// 0 ∉ 𝒰: π(0) need not be 0, so the origin is not an equilibrium.
     OriginOutsideInputSet,

@@ -76,7 +76,7 @@ fn is_test_only(attrs: &[syn::Attribute]) -> bool {
 }
 
 /// The attributes that are part of the API: derives, `non_exhaustive`, `repr`, `cfg`,
-/// `must_use`, `serde` (the JSON form).
+/// `cfg_attr` (the derives of a `serde` feature), `must_use`, `serde` (the JSON form).
 fn api_attrs(attrs: &[syn::Attribute]) -> String {
     let mut s = String::new();
     for a in attrs {
@@ -86,6 +86,7 @@ fn api_attrs(attrs: &[syn::Attribute]) -> String {
             "non_exhaustive",
             "repr",
             "cfg",
+            "cfg_attr",
             "must_use",
             "serde",
         ]

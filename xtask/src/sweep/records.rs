@@ -125,3 +125,64 @@ pub(super) fn thresholds(v: &[Thresholds]) -> Vec<ThresholdsRecord<'_>> {
 pub(super) fn pair_thresholds(v: &[PairThresholds]) -> Vec<PairThresholdsRecord<'_>> {
     v.iter().map(PairThresholdsRecord::from).collect()
 }
+
+#[cfg(test)]
+mod tests {
+    use super::*;
+
+    /// The records write mhe-sweep's fields in their declaration order with the keys of the
+    /// former `#[derive(Serialize)]` (meta.json unchanged): `k_c` absent in 1-D, null for
+    /// `None`, staircases as `[K_e, K_c]` pairs.
+    #[test]
+    fn records_keep_the_keys_and_order_of_meta_json() {
+        let t = Thresholds {
+            solver: "pg".into(),
+            scale: "1".into(),
+            k_c: None,
+            k_max: 30,
+            k_lin: Some(4),
+            k_reg: None,
+            regional_note: "outside".into(),
+            k_emp: Some(5),
+            k_settle: None,
+            k_cert: Some(12),
+            void_reason: String::new(),
+        };
+        let json = serde_json::to_string(&thresholds(std::slice::from_ref(&t)))
+            .expect("the record serialises");
+        assert_eq!(
+            json,
+            r#"[{"solver":"pg","scale":"1","k_max":30,"k_lin":4,"k_reg":null,"regional_note":"outside","k_emp":5,"k_settle":null,"k_cert":12,"void_reason":""}]"#
+        );
+        let with_kc = Thresholds { k_c: Some(5), ..t };
+        let json = serde_json::to_string(&ThresholdsRecord::from(&with_kc)).expect("serialises");
+        assert!(json.starts_with(r#"{"solver":"pg","scale":"1","k_c":5,"k_max":30,"#), "{json}");
+
+        let pair = Pair {
+            k_e: 3,
+            k_c: 5,
+            cost: 8.0,
+        };
+        let p = PairThresholds {
+            solver: "fista".into(),
+            scale: "0.5".into(),
+            k_e_grid: vec![1, 3],
+            k_c_grid: vec![5],
+            cost: IterationCost { t_e: 1.0, t_c: 2.0 },
+            empirical_boundary: vec![(1, None), (3, Some(5))],
+            cheapest_empirical: Some(pair),
+            linear_boundary: None,
+            cheapest_linear: None,
+            certified_boundary: Vec::new(),
+            cheapest_certified: None,
+            regional: vec![(5, Some(3))],
+            cheapest_regional: Some(pair),
+        };
+        let json = serde_json::to_string(&pair_thresholds(std::slice::from_ref(&p)))
+            .expect("the record serialises");
+        assert_eq!(
+            json,
+            r#"[{"solver":"fista","scale":"0.5","k_e_grid":[1,3],"k_c_grid":[5],"cost":{"t_e":1.0,"t_c":2.0},"empirical_boundary":[[1,null],[3,5]],"cheapest_empirical":{"k_e":3,"k_c":5,"cost":8.0},"linear_boundary":null,"cheapest_linear":null,"certified_boundary":[],"cheapest_certified":null,"regional":[[5,3]],"cheapest_regional":{"k_e":3,"k_c":5,"cost":8.0}}]"#
+        );
+    }
+}

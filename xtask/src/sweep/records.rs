@@ -156,7 +156,10 @@ mod tests {
         );
         let with_kc = Thresholds { k_c: Some(5), ..t };
         let json = serde_json::to_string(&ThresholdsRecord::from(&with_kc)).expect("serialises");
-        assert!(json.starts_with(r#"{"solver":"pg","scale":"1","k_c":5,"k_max":30,"#), "{json}");
+        assert!(
+            json.starts_with(r#"{"solver":"pg","scale":"1","k_c":5,"k_max":30,"#),
+            "{json}"
+        );
 
         let pair = Pair {
             k_e: 3,

@@ -218,8 +218,10 @@ fn check_keys(name: &str, docs: &[PathBuf]) {
 
 #[test]
 fn reproduce_outputs_match_the_golden_files() {
-    let out = out_dir("reproduce");
-    xtask(&["reproduce"], &out);
+    // `xtask reproduce` on the portable kernel, shared with the export test that replays the
+    // certified preset's trace.csv (`crate::shared::reproduce`: the same command, once per
+    // test binary).
+    let out = crate::shared::reproduce();
     let mut files = Vec::new();
     for preset in ["paper", "certified"] {
         for file in ["certificate", "trace"] {
@@ -234,7 +236,6 @@ fn reproduce_outputs_match_the_golden_files() {
         "certificate",
         &["paper", "certified"].map(|p| out.join(p).join("certificate.json")),
     );
-    let _ = std::fs::remove_dir_all(&out);
 }
 
 /// `certify`'s JSON has the keys of `certificate_json::v1::IossCertificate` (a scenario that

@@ -65,3 +65,32 @@ pub fn smoke_2d() -> &'static Smoke2d {
         }
     })
 }
+
+/// One run of `xtask reproduce` (both presets, the portable kernel) into a directory of this
+/// test binary: `golden::reproduce_outputs_match_the_golden_files` compares both presets'
+/// JSON with the golden files, `export_cli::replay_of_the_exported_c_reproduces_trace_csv_bit_for_bit`
+/// replays the certified preset's trace.csv. Once instead of twice (the certified preset was
+/// reproduced by both). Nobody writes into it: a test that needs to change it copies it.
+pub fn reproduce() -> &'static Path {
+    static RUN: OnceLock<PathBuf> = OnceLock::new();
+    RUN.get_or_init(|| {
+        let out = Path::new(env!("CARGO_TARGET_TMPDIR")).join("xtask-shared/reproduce");
+        let _ = fs::remove_dir_all(&out);
+        let o = Command::new(env!("CARGO_BIN_EXE_xtask"))
+            // The golden files hold the portable kernel's bits (the AVX2 path rounds
+            // differently), and the exported C replays them bit for bit.
+            .env("QP_ITER_KERNEL", "portable")
+            .current_dir(concat!(env!("CARGO_MANIFEST_DIR"), "/.."))
+            .arg("reproduce")
+            .arg("--out")
+            .arg(&out)
+            .output()
+            .unwrap();
+        assert!(
+            o.status.success(),
+            "xtask reproduce: {}",
+            String::from_utf8_lossy(&o.stderr)
+        );
+        out
+    })
+}

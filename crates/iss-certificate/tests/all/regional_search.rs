@@ -328,13 +328,23 @@ fn a_probe_says_why_k_reg_is_above_it_and_leaves_the_search_as_it_was() {
     use iss_certificate::regional::k_reg_probing;
     let (res, ro) = cart_pendulum();
     let fj = Method::JACOBI_PRESETS[1];
-    let plain = k_reg(&res, fj, &ro, 64).unwrap();
+    // The four searches are independent and single-threaded (the slowest test of this
+    // binary, its tail on 2 cores): the plain one and the probes at 3 and 2 run side by side,
+    // then the probe above the K_reg the plain one found beside the certificate at K = 3.
+    // Same calls, same assertions; `spent_seconds` sums estimates, not a clock, so running
+    // them together changes none of them.
+    let (plain, probed, two) = std::thread::scope(|s| {
+        let plain = s.spawn(|| k_reg(&res, fj, &ro, 64).unwrap());
+        let probed = s.spawn(|| k_reg_probing(&res, fj, &ro, 64, Some(3)).unwrap());
+        let two = s.spawn(|| k_reg_probing(&res, fj, &ro, 64, Some(2)).unwrap());
+        let join = |h: std::thread::ScopedJoinHandle<'_, _>| h.join().expect("search thread");
+        (join(plain), join(probed), join(two))
+    });
     let k_reg_found = plain
         .k_reg
         .expect("FISTA-Jacobi has a K_reg on the cart-pendulum");
     assert!(k_reg_found > 3, "{plain:?}");
     assert!(plain.tried.iter().all(|t| t.0 != 3), "{:?}", plain.tried);
-    let probed = k_reg_probing(&res, fj, &ro, 64, Some(3)).unwrap();
     assert_eq!(probed.k_reg, plain.k_reg);
     assert_eq!(probed.certificate, plain.certificate);
     let without_probe: Vec<(usize, f64)> =
@@ -353,18 +363,21 @@ fn a_probe_says_why_k_reg_is_above_it_and_leaves_the_search_as_it_was() {
     assert!(!c.contains && c.k == 3, "{c:?}");
     let w = c.witness.as_ref().expect("a witness refutes K = 3");
     assert!(w.attained > w.bound, "{w:?}");
-    let alone = regional_certificate(&res, fj, 3, &ro).unwrap();
+    // The certificate at K = 3 alone, beside the search with a probe above the K_reg found.
+    let (alone, above) = std::thread::scope(|s| {
+        let above = s.spawn(|| k_reg_probing(&res, fj, &ro, 64, Some(k_reg_found + 5)).unwrap());
+        let alone = regional_certificate(&res, fj, 3, &ro).unwrap();
+        (alone, above.join().expect("search thread"))
+    });
     assert_eq!(
         alone.witness.as_ref().map(|l| (l.row, l.attained_at)),
         Some((w.row, w.attained_at))
     );
     assert!(probed.spent_seconds > plain.spent_seconds);
     // Above K_reg: the search's answer stands, the probe is not evaluated.
-    let above = k_reg_probing(&res, fj, &ro, 64, Some(k_reg_found + 5)).unwrap();
     assert_eq!(above.k_reg, plain.k_reg);
     assert!(above.probe.is_none(), "{:?}", above.probe);
     // A probe the search tries anyway (a power of two below K_reg) is kept at no cost.
-    let two = k_reg_probing(&res, fj, &ro, 64, Some(2)).unwrap();
     assert_eq!(two.probe.as_ref().map(|p| p.k), Some(2));
     assert_eq!(two.spent_seconds, plain.spent_seconds);
 }

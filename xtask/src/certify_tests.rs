@@ -27,9 +27,7 @@ fn case_study_outcome() -> &'static Outcome {
 }
 
 fn temp_path(name: &str) -> PathBuf {
-    let dir = std::env::temp_dir().join(format!("xtask-certify-test-{}", std::process::id()));
-    std::fs::create_dir_all(&dir).unwrap();
-    dir.join(name)
+    crate::test_dir::test_dir("certify", "scenarios").join(name)
 }
 
 /// Certifies a scenario given as text (written to a temporary file `name`).

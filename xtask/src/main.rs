@@ -29,6 +29,8 @@ mod kernel_env;
 mod provenance;
 mod reproduce;
 mod sweep;
+#[cfg(test)]
+mod test_dir;
 
 use std::path::{Path, PathBuf};
 use std::process::ExitCode;

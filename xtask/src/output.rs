@@ -316,7 +316,7 @@ mod tests {
     use super::*;
 
     fn tmp_dir(tag: &str) -> PathBuf {
-        let d = std::env::temp_dir().join(format!("xtask-output-{tag}-{}", std::process::id()));
+        let d = crate::test_dir::test_dir("output", tag);
         let _ = fs::remove_dir_all(&d);
         fs::create_dir_all(&d).unwrap();
         d

@@ -23,12 +23,7 @@ fn test_settings() -> Settings {
 }
 
 fn temp_dir(name: &str) -> PathBuf {
-    let dir = std::env::temp_dir().join(format!(
-        "xtask-reproduce-test-{}-{name}",
-        std::process::id()
-    ));
-    std::fs::create_dir_all(&dir).unwrap();
-    dir
+    crate::test_dir::test_dir("reproduce", name)
 }
 
 pub(super) struct Fixture {

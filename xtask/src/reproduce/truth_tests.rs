@@ -26,8 +26,7 @@ fn scenario_text(file: &str) -> String {
 }
 
 fn job(name: &str, text: &str) -> Job {
-    let dir = std::env::temp_dir().join(format!("xtask-truth-test-{}-{name}", std::process::id()));
-    std::fs::create_dir_all(&dir).unwrap();
+    let dir = crate::test_dir::test_dir("truth", name);
     let path = dir.join(format!("{name}.toml"));
     std::fs::write(&path, text).unwrap();
     jobs(None, Some(path), Some(dir.join("out"))).pop().unwrap()
@@ -163,7 +162,7 @@ fn reproduce_agrees_with_the_two_d_sweep_at_three_pairs() {
         sc.display()
     );
     let sweep = Sweep::new(SweepConfig::from_toml_str(&text, Path::new(".")).unwrap()).unwrap();
-    let out = std::env::temp_dir().join(format!("xtask-truth-2d-{}", std::process::id()));
+    let out = crate::test_dir::test_dir("truth", "2d");
     let _ = std::fs::remove_dir_all(&out);
     sweep
         .run(

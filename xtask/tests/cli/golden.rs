@@ -24,7 +24,7 @@ fn golden_dir() -> PathBuf {
 }
 
 fn out_dir(name: &str) -> PathBuf {
-    let dir = std::env::temp_dir().join(format!("xtask-golden-{}-{name}", std::process::id()));
+    let dir = crate::test_dir::test_dir("golden", name);
     let _ = std::fs::remove_dir_all(&dir);
     dir
 }

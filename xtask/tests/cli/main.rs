@@ -20,3 +20,5 @@ mod reproduce_cli;
 mod shared;
 mod sweep_cli;
 mod terminal_digits;
+#[path = "../../src/test_dir.rs"]
+mod test_dir;

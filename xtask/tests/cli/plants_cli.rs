@@ -26,8 +26,7 @@ horizon = 5
 
 #[test]
 fn nothing_simulated_is_reported_as_such() {
-    let dir = std::env::temp_dir().join(format!("xtask-plants-cli-{}", std::process::id()));
-    std::fs::create_dir_all(&dir).unwrap();
+    let dir = crate::test_dir::test_dir("plants", "undetectable");
     let scenario = dir.join("undetectable.toml");
     std::fs::write(&scenario, UNDETECTABLE).unwrap();
     let out = Command::new(env!("CARGO_BIN_EXE_xtask"))

@@ -10,9 +10,7 @@ fn xtask() -> Command {
 }
 
 fn temp(name: &str) -> PathBuf {
-    let dir = std::env::temp_dir().join(format!("xtask-reproduce-cli-{}", std::process::id()));
-    std::fs::create_dir_all(&dir).unwrap();
-    dir.join(name)
+    crate::test_dir::test_dir("reproduce-cli", "runs").join(name)
 }
 
 /// `xtask reproduce --scenario <scenario> --out <temp>` and its output.

@@ -129,7 +129,7 @@ fn certify_prints_at_most_four_significant_digits() {
 
 #[test]
 fn reproduce_prints_at_most_four_significant_digits() {
-    let out = std::env::temp_dir().join(format!("xtask-digits-{}", std::process::id()));
+    let out = crate::test_dir::test_dir("digits", "reproduce");
     for s in [
         "scenarios/double-integrator.toml",
         "scenarios/case-study-certified.toml",
@@ -175,7 +175,7 @@ fn run_with(args: &[&str], codes: &[i32]) -> String {
 /// on, unsharded and as two merged shards.
 #[test]
 fn sweep_prints_at_most_four_significant_digits() {
-    let dir = std::env::temp_dir().join(format!("xtask-digits-sweep-{}", std::process::id()));
+    let dir = crate::test_dir::test_dir("digits", "sweep");
     let _ = std::fs::remove_dir_all(&dir);
     std::fs::create_dir_all(&dir).unwrap();
     let scenario = root().join("scenarios/case-study-certified.toml");
@@ -225,7 +225,7 @@ fn sweep_prints_at_most_four_significant_digits() {
 /// K and K_c (their messages name the certificate's numbers).
 #[test]
 fn export_prints_at_most_four_significant_digits() {
-    let dir = std::env::temp_dir().join(format!("xtask-digits-export-{}", std::process::id()));
+    let dir = crate::test_dir::test_dir("digits", "export");
     let _ = std::fs::remove_dir_all(&dir);
     let s = "scenarios/case-study-certified.toml";
     let art = dir.join("art");

@@ -93,15 +93,20 @@ fn measure_k_chain() {
                     continue;
                 }
             };
-            let k_lin = (1..=200).find(|&k| {
-                ch.global
-                    .lifted
-                    .spectral_radius(k, Par::Seq)
-                    .is_ok_and(|r| r < 1.0)
-            });
+            // K_lin: the first K from which ρ_lin < 1 up to 300 (ρ_lin is not monotone).
+            let stable: Vec<bool> = (1..=300)
+                .map(|k| {
+                    ch.global
+                        .lifted
+                        .spectral_radius(k, Par::Seq)
+                        .is_ok_and(|r| r < 1.0)
+                })
+                .collect();
+            let k_lin = (0..300).find(|&i| stable[i..].iter().all(|s| *s)).map(|i| i + 1);
+            let first_stable = stable.iter().position(|s| *s).map(|i| i + 1);
             let opts = ChainOptions::default();
             eprintln!(
-                "{file} {}: n_X = {}, n_B = {}, dim ζ(1) = {}, K_lin = {k_lin:?}",
+                "{file} {}: n_X = {}, n_B = {}, dim ζ(1) = {}, K_lin = {k_lin:?} (first ρ_lin < 1 at {first_stable:?})",
                 method.name(),
                 ch.global.n_x(),
                 ch.n_b(),

@@ -70,6 +70,10 @@ pub struct ChainOptions {
     pub max_dim: usize,
     /// Budget of the scan: Riccati solves at most over all K (the scan then says so).
     pub max_solves: usize,
+    /// After the grid: a coordinate ascent of 1/ρ over (τ₁, τ₂, τ₃) and groups of the λ_k
+    /// (`lure::global` rows' ascent) from the grid point of smallest ρ, with at most this
+    /// many solves per K (0: the grid only).
+    pub ascent_solves: usize,
 }
 
 impl Default for ChainOptions {
@@ -83,6 +87,7 @@ impl Default for ChainOptions {
             ratios: [1.0, 0.7, 1.4, 0.4, 2.5],
             max_dim: 1_500,
             max_solves: 20_000,
+            ascent_solves: 400,
         }
     }
 }
@@ -120,6 +125,20 @@ struct ChainAt {
     k: usize,
     a: Mat<f64>,
     b: Mat<f64>,
+}
+
+/// One search at one K.
+#[derive(Debug, Clone)]
+#[non_exhaustive]
+pub struct ChainAttempt {
+    /// The checked certificate, if found.
+    pub cert: Option<ChainCertificate>,
+    /// Riccati solves used.
+    pub solves: usize,
+    /// Without a certificate: the smallest ρ at which the ascent's oracle (Riccati, P ≻ 0, the
+    /// LMI without w negative definite by Cholesky) held — unchecked, a distance to
+    /// feasibility, not a certificate; None if no grid point was feasible at ρ = 1.3.
+    pub rho_reached: Option<f64>,
 }
 
 /// What the scan found.
@@ -330,15 +349,10 @@ impl IterationChain {
         })
     }
 
-    /// A checked certificate of the chain LMI at K (None if the search finds none), with the
-    /// Riccati solves it used.
+    /// A checked certificate of the chain LMI at K, or the smallest ρ the search reached.
     ///
     /// Errors: K = 0; a chain above [`ChainOptions::max_dim`] ([`ChainError::TooLarge`]).
-    pub fn certify_chain(
-        &self,
-        k: usize,
-        opts: &ChainOptions,
-    ) -> Result<(Option<ChainCertificate>, usize), ChainError> {
+    pub fn certify_chain(&self, k: usize, opts: &ChainOptions) -> Result<ChainAttempt, ChainError> {
         let at = self.at(k, opts)?;
         Ok(at.search(self.global.phi(k), opts, usize::MAX))
     }
@@ -358,10 +372,10 @@ impl IterationChain {
                 };
             };
             let left = opts.max_solves.saturating_sub(solves);
-            let (c, used) = at.search(self.global.phi(k), opts, left);
-            solves += used;
+            let attempt = at.search(self.global.phi(k), opts, left);
+            solves += attempt.solves;
             last_k = k;
-            if let Some(c) = c {
+            if let Some(c) = attempt.cert {
                 return ChainScan {
                     certified: Some(c),
                     last_k,
@@ -384,6 +398,14 @@ impl IterationChain {
             stopped: false,
             solves,
         }
+    }
+}
+
+fn attempt(cert: Option<ChainCertificate>, solves: usize, rho_reached: Option<f64>) -> ChainAttempt {
+    ChainAttempt {
+        cert,
+        solves,
+        rho_reached,
     }
 }
 
@@ -445,7 +467,7 @@ impl ChainAt {
         phi: f64,
         opts: &ChainOptions,
         budget: usize,
-    ) -> (Option<ChainCertificate>, usize) {
+    ) -> ChainAttempt {
         let g = &self.gl;
         let max = |m: &Mat<f64>| {
             m.col_iter()
@@ -482,7 +504,7 @@ impl ChainAt {
         for &t1 in &t1s {
             for &t3 in &t3s {
                 if let Some(c) = try_point([t1, 1.0, t3], None) {
-                    return (Some(found(c, 1.0, vec![0.0; self.k])), used.get());
+                    return attempt(Some(found(c, 1.0, vec![0.0; self.k])), used.get(), None);
                 }
             }
         }
@@ -498,7 +520,7 @@ impl ChainAt {
                     for &t3 in &t3s {
                         if let Some(cert) = try_point([t1, 1.0, t3], Some((s, &c))) {
                             let lambda = prof.iter().map(|l| s * l).collect();
-                            return (Some(found(cert, 1.0, lambda)), used.get());
+                            return attempt(Some(found(cert, 1.0, lambda)), used.get(), None);
                         }
                     }
                 }
@@ -507,7 +529,7 @@ impl ChainAt {
                 for &t3 in &t3s {
                     let tau = [t1 * base, 0.0, t3 * base];
                     if let Some(cert) = try_point(tau, Some((1.0, &c))) {
-                        return (Some(found(cert, 0.0, prof)), used.get());
+                        return attempt(Some(found(cert, 0.0, prof)), used.get(), None);
                     }
                 }
             }
@@ -515,6 +537,120 @@ impl ChainAt {
                 break;
             }
         }
-        (None, used.get())
+        let left = budget.saturating_sub(used.get()).min(opts.ascent_solves);
+        let (cert, more, rho) = self.ascent(phi, opts, left, &t1s, &t3s);
+        attempt(cert, used.get() + more, rho)
+    }
+
+    /// The supply of the multiplier vector m = (τ₁, τ₂, τ₃, λ₀ … λ_{K−1}).
+    fn supply_m(&self, phi: f64, m: &[f64]) -> Mat<f64> {
+        let c = self.chain_form(&m[3..]);
+        self.supply(phi, [m[0], m[1], m[2]], Some((1.0, &c)))
+    }
+
+    /// Stage 2 of [`ChainAt::search`]: from the grid point (τ₁ × τ₃ × s, profile 1, τ₂ ∈ {1, 0})
+    /// feasible at the smallest of ρ = 1.3, 1.1, 1.03, 1.01, a coordinate ascent of 1/ρ over
+    /// τ₁, τ₂, τ₃, all λ, and 8 contiguous groups of λ_k, until ρ ≤ ρ_max; then the check.
+    fn ascent(
+        &self,
+        phi: f64,
+        opts: &ChainOptions,
+        budget: usize,
+        t1s: &[f64],
+        t3s: &[f64],
+    ) -> (Option<ChainCertificate>, usize, Option<f64>) {
+        let g = &self.gl;
+        let solves = std::cell::Cell::new(0usize);
+        let feasible = |rho: f64, m: &[f64]| {
+            solves.set(solves.get() + 1);
+            g.feasible(rho, &self.supply_m(phi, m))
+        };
+        let k = self.k;
+        let bb = mul(g.sig2_b.transpose(), g.sig2_b.as_ref());
+        let max = |m: &Mat<f64>| {
+            m.col_iter()
+                .flat_map(|c| c.iter().copied())
+                .fold(0.0_f64, |a, v| a.max(v.abs()))
+        };
+        let base = max(&bb) / max(&self.chain_form(&vec![1.0; k])).max(f64::MIN_POSITIVE);
+        let mut starts: Vec<Vec<f64>> = Vec::new();
+        for &t1 in t1s {
+            for &t3 in t3s {
+                for e in [-2.0, 0.0, 2.0] {
+                    let s = base * 10f64.powf(e);
+                    let mut m = vec![t1, 1.0, t3];
+                    m.extend(std::iter::repeat_n(s, k));
+                    starts.push(m);
+                }
+                let mut m = vec![t1 * base, 0.0, t3 * base];
+                m.extend(std::iter::repeat_n(base, k));
+                starts.push(m);
+            }
+        }
+        let levels = [1.3, 1.1, 1.03, 1.01];
+        let mut best: Option<(f64, Vec<f64>)> = None;
+        for m in starts {
+            if solves.get() >= budget {
+                break;
+            }
+            let mut reached = None;
+            for &r in &levels {
+                if best.as_ref().is_some_and(|(b, _)| r >= *b) {
+                    continue;
+                }
+                if feasible(r, &m) {
+                    reached = Some(r);
+                } else {
+                    break;
+                }
+            }
+            if let Some(r) = reached {
+                best = Some((r, m));
+            }
+        }
+        let Some((rho0, m0)) = best else {
+            return (None, solves.get(), None);
+        };
+        let mut groups: Vec<std::ops::Range<usize>> = vec![0..1, 1..2, 3..3 + k];
+        if g.sigma_mpc.is_some() {
+            groups.push(2..3);
+        }
+        let parts = k.min(8);
+        for p in 0..parts {
+            let (a, b) = (3 + p * k / parts, 3 + (p + 1) * k / parts);
+            if b > a && parts > 1 {
+                groups.push(a..b);
+            }
+        }
+        let search = super::RowSearch {
+            max_solves: budget,
+            ..super::RowSearch::default()
+        };
+        let target = opts.global.rho_max;
+        let (level, m) = super::rows::ascend(
+            m0,
+            1.0 / rho0,
+            &groups,
+            &search,
+            &solves,
+            |lvl| lvl >= 1.0 / target,
+            |lvl, m| feasible(1.0 / lvl, m),
+        );
+        let rho = 1.0 / level;
+        if rho > target {
+            return (None, solves.get(), Some(rho));
+        }
+        let pi = self.supply_m(phi, &m);
+        solves.set(solves.get() + 1);
+        let cert = g
+            .certify_supply(phi, target, &pi, [m[0], m[2]], Vec::new())
+            .map(|c| ChainCertificate {
+                k,
+                tau2: m[1],
+                lambda: m[3..].to_vec(),
+                cert: c,
+            });
+        let reached = cert.is_none().then_some(rho);
+        (cert, solves.get(), reached)
     }
 }

@@ -114,6 +114,8 @@ pub struct ChainCertificate {
     pub tau2: f64,
     /// λ_k ≥ 0 (k = 0 … K−1), the multiplier of iteration k's sector constraints.
     pub lambda: Vec<f64>,
+    /// μ_i > 0 per bounded coordinate (the multiplier of c_{k,i} is λ_k·μ_i); empty: all 1.
+    pub mu: Vec<f64>,
     /// P, ρ, γ, τ₁, τ₃, the margins and gains (its `phi` is φ(K), its `lambda` empty).
     pub cert: GlobalCertificate,
 }
@@ -137,7 +139,7 @@ pub struct ChainAttempt {
     pub solves: usize,
     /// Without a certificate: the smallest ρ at which the ascent's oracle (Riccati, P ≻ 0, the
     /// LMI without w negative definite by Cholesky) held — unchecked, a distance to
-    /// feasibility, not a certificate; None if no grid point was feasible at ρ = 1.3.
+    /// feasibility, not a certificate; None if no grid point was feasible at ρ = 2.
     pub rho_reached: Option<f64>,
 }
 
@@ -301,11 +303,14 @@ impl IterationChain {
                     next[(i, j)] = se[(i, j)];
                 }
             }
-            // c = Σ_{i∈B} e⁺_i((Se)_i − e⁺_i), as ½(AᵀB + BᵀA).
+            // c = Σ_{i∈B} D_i⁻² e⁺_i((Se)_i − e⁺_i), as ½(AᵀB + BᵀA): the sector in the
+            // map's own coordinates y = D⁻¹z, where ‖S_y‖ ≤ 1 (in z, S_z = D S_y D⁻¹ spans the
+            // decades of D and one weight per iteration could not balance its rows).
             for (r, &i) in self.bounded.iter().enumerate() {
+                let w = g.d_inv[i];
                 for j in 0..dim {
-                    fa[((step - 1) * nb + r, j)] = next[(i, j)];
-                    fb[((step - 1) * nb + r, j)] = se[(i, j)] - next[(i, j)];
+                    fa[((step - 1) * nb + r, j)] = w * next[(i, j)];
+                    fb[((step - 1) * nb + r, j)] = w * (se[(i, j)] - next[(i, j)]);
                 }
             }
             e = next;
@@ -410,11 +415,12 @@ fn attempt(cert: Option<ChainCertificate>, solves: usize, rho_reached: Option<f6
 }
 
 impl ChainAt {
-    /// Σ_k λ_k c_k as a symmetric matrix on ζ'.
-    fn chain_form(&self, lambda: &[f64]) -> Mat<f64> {
-        let nb = self.a.nrows() / self.k.max(1);
+    /// Σ_k λ_k Σ_i μ_i c_{k,i} as a symmetric matrix on ζ' (μ = 𝟙 without `mu`).
+    fn chain_form(&self, lambda: &[f64], mu: Option<&[f64]>) -> Mat<f64> {
+        let nb = (self.a.nrows() / self.k.max(1)).max(1);
         let wa = Mat::from_fn(self.a.nrows(), self.a.ncols(), |r, j| {
-            lambda[r / nb.max(1)] * self.a[(r, j)]
+            let m = mu.map_or(1.0, |mu| mu[r % nb]);
+            lambda[r / nb] * m * self.a[(r, j)]
         });
         let ab = mul(wa.transpose(), self.b.as_ref());
         let n = ab.nrows();
@@ -499,6 +505,7 @@ impl ChainAt {
             k: self.k,
             tau2,
             lambda,
+            mu: Vec::new(),
             cert: c,
         };
         for &t1 in &t1s {
@@ -512,7 +519,7 @@ impl ChainAt {
         let np = opts.scale_points.max(2);
         for &r in &opts.ratios {
             let prof = self.profile(r);
-            let c = self.chain_form(&prof);
+            let c = self.chain_form(&prof, None);
             let base = max(&bb) / max(&c).max(f64::MIN_POSITIVE);
             let scales = (0..np).map(|i| base * 10f64.powf(-3.0 + 6.0 * i as f64 / (np - 1) as f64));
             for s in scales {
@@ -542,14 +549,14 @@ impl ChainAt {
         attempt(cert, used.get() + more, rho)
     }
 
-    /// The supply of the multiplier vector m = (τ₁, τ₂, τ₃, λ₀ … λ_{K−1}).
+    /// The supply of the multiplier vector m = (τ₁, τ₂, τ₃, λ₀ … λ_{K−1}, μ₀ … μ_{n_B−1}).
     fn supply_m(&self, phi: f64, m: &[f64]) -> Mat<f64> {
-        let c = self.chain_form(&m[3..]);
+        let c = self.chain_form(&m[3..3 + self.k], Some(&m[3 + self.k..]));
         self.supply(phi, [m[0], m[1], m[2]], Some((1.0, &c)))
     }
 
     /// Stage 2 of [`ChainAt::search`]: from the grid point (τ₁ × τ₃ × s, profile 1, τ₂ ∈ {1, 0})
-    /// feasible at the smallest of ρ = 1.3, 1.1, 1.03, 1.01, a coordinate ascent of 1/ρ over
+    /// feasible at the smallest of ρ = 2, 1.3, 1.1, 1.03, 1.01, a coordinate ascent of 1/ρ over
     /// τ₁, τ₂, τ₃, all λ, and 8 contiguous groups of λ_k, until ρ ≤ ρ_max; then the check.
     fn ascent(
         &self,
@@ -572,7 +579,8 @@ impl ChainAt {
                 .flat_map(|c| c.iter().copied())
                 .fold(0.0_f64, |a, v| a.max(v.abs()))
         };
-        let base = max(&bb) / max(&self.chain_form(&vec![1.0; k])).max(f64::MIN_POSITIVE);
+        let base = max(&bb) / max(&self.chain_form(&vec![1.0; k], None)).max(f64::MIN_POSITIVE);
+        let nb = (self.a.nrows() / k.max(1)).max(1);
         let mut starts: Vec<Vec<f64>> = Vec::new();
         for &t1 in t1s {
             for &t3 in t3s {
@@ -580,14 +588,16 @@ impl ChainAt {
                     let s = base * 10f64.powf(e);
                     let mut m = vec![t1, 1.0, t3];
                     m.extend(std::iter::repeat_n(s, k));
+                    m.extend(std::iter::repeat_n(1.0, nb));
                     starts.push(m);
                 }
                 let mut m = vec![t1 * base, 0.0, t3 * base];
                 m.extend(std::iter::repeat_n(base, k));
+                m.extend(std::iter::repeat_n(1.0, nb));
                 starts.push(m);
             }
         }
-        let levels = [1.3, 1.1, 1.03, 1.01];
+        let levels = [2.0, 1.3, 1.1, 1.03, 1.01];
         let mut best: Option<(f64, Vec<f64>)> = None;
         for m in starts {
             if solves.get() >= budget {
@@ -615,11 +625,14 @@ impl ChainAt {
         if g.sigma_mpc.is_some() {
             groups.push(2..3);
         }
-        let parts = k.min(8);
-        for p in 0..parts {
-            let (a, b) = (3 + p * k / parts, 3 + (p + 1) * k / parts);
-            if b > a && parts > 1 {
-                groups.push(a..b);
+        // 8 contiguous groups of iterations, then 8 of coordinates (μ).
+        for (start, n) in [(3, k), (3 + k, nb)] {
+            let parts = n.min(8);
+            for p in 0..parts {
+                let (a, b) = (start + p * n / parts, start + (p + 1) * n / parts);
+                if b > a && (parts > 1 || start > 3) {
+                    groups.push(a..b);
+                }
             }
         }
         let search = super::RowSearch {
@@ -647,7 +660,8 @@ impl ChainAt {
             .map(|c| ChainCertificate {
                 k,
                 tau2: m[1],
-                lambda: m[3..].to_vec(),
+                lambda: m[3..3 + k].to_vec(),
+                mu: m[3 + k..].to_vec(),
                 cert: c,
             });
         let reached = cert.is_none().then_some(rho);

@@ -6,10 +6,16 @@
 //! with a bound obeys the incremental sector of a scalar projection,
 //! e^{k+1}_i((S eᵏ)_i − e^{k+1}_i) ≥ 0, and every free coordinate e^{k+1}_i = (S eᵏ)_i exactly.
 //! So ζ gains e¹_B … e^{K−1}_B (d = eᴷ keeps only its bounded part; the free parts are
-//! eliminated), the supply gains Σ_k λ_k c_k with λ_k ≥ 0, and σ₂ stays with its own
-//! multiplier τ₂ ≥ 0: every constraint holds on every trajectory, so the certificate is sound
-//! exactly as Theorem L3 (i), and it is at least Theorem L3 at that K (λ = 0, τ₂ = 1 is tried
-//! first). The answer goes through the same independent check ([`GlobalLoop`]'s `check`).
+//! eliminated), the supply gains Σ_k λ_k Σ_i μ_i D_i⁻² c_{k,i} with λ_k, μ_i ≥ 0, and σ₂
+//! stays with its own multiplier τ₂ ≥ 0: every constraint holds on every trajectory, so the
+//! certificate is sound exactly as Theorem L3 (i); Theorem L3's own multipliers (λ = 0,
+//! τ₂ = 1) are tried first. The answer goes through the same independent check
+//! ([`GlobalLoop`]'s `certify_supply`: the LMI matrix formed afresh, Jacobi eigenvalues with a
+//! margin above its rounding, P ≻ 0 likewise).
+//!
+//! Size: dim ζ grows by n_B per iteration and the check is dense (O(dim³)), so chains above
+//! [`ChainOptions::max_dim`] are refused ([`ChainError::TooLarge`]); the chain is meant for
+//! K ≤ ~50.
 
 use closed_loop::scenario::{LoopOptions, ResolvedScenario};
 use faer::Mat;

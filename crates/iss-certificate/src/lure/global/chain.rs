@@ -412,7 +412,11 @@ impl IterationChain {
     }
 }
 
-fn attempt(cert: Option<ChainCertificate>, solves: usize, rho_reached: Option<f64>) -> ChainAttempt {
+fn attempt(
+    cert: Option<ChainCertificate>,
+    solves: usize,
+    rho_reached: Option<f64>,
+) -> ChainAttempt {
     ChainAttempt {
         cert,
         solves,
@@ -474,12 +478,7 @@ impl ChainAt {
     /// chain with σ₂ (weights s on a log grid around σ₂'s scale against the chain's), then the
     /// chain alone (τ₂ = 0); τ₁ × τ₃ on Theorem L3's grid at each. The first point whose
     /// Riccati candidate passes the independent check is returned, with the solves used.
-    fn search(
-        &self,
-        phi: f64,
-        opts: &ChainOptions,
-        budget: usize,
-    ) -> ChainAttempt {
+    fn search(&self, phi: f64, opts: &ChainOptions, budget: usize) -> ChainAttempt {
         let g = &self.gl;
         let max = |m: &Mat<f64>| {
             m.col_iter()
@@ -527,7 +526,8 @@ impl ChainAt {
             let prof = self.profile(r);
             let c = self.chain_form(&prof, None);
             let base = max(&bb) / max(&c).max(f64::MIN_POSITIVE);
-            let scales = (0..np).map(|i| base * 10f64.powf(-3.0 + 6.0 * i as f64 / (np - 1) as f64));
+            let scales =
+                (0..np).map(|i| base * 10f64.powf(-3.0 + 6.0 * i as f64 / (np - 1) as f64));
             for s in scales {
                 for &t1 in &t1s {
                     for &t3 in &t3s {

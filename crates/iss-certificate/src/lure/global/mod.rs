@@ -331,7 +331,8 @@ mod rows;
 
 pub use build::{global_loop, global_loop_boxes, global_loop_with};
 pub use chain::{
-    ChainAttempt, ChainCertificate, ChainError, ChainOptions, ChainScan, IterationChain, iteration_chain,
+    ChainAttempt, ChainCertificate, ChainError, ChainOptions, ChainScan, IterationChain,
+    iteration_chain,
 };
 pub use precision::{
     LoopRounding, PrecisionCertificate, PrecisionVoid, certify_precision, loop_rounding,

@@ -79,6 +79,11 @@ fn chain_refuses_what_it_does_not_model() {
     let e = ch.certify_chain(big, &opts).expect_err("too large");
     assert!(matches!(e, ChainError::TooLarge { .. }), "{e}");
     assert!(e.to_string().contains("mhe.iterations"));
+    // An absurd K is refused by the same check, before anything is allocated.
+    let e = ch
+        .certify_chain(usize::MAX, &opts)
+        .expect_err("K = usize::MAX");
+    assert!(matches!(e, ChainError::TooLarge { .. }), "{e}");
 }
 
 /// One K on one scenario and method (CHAIN_FILE, CHAIN_METHOD = pg | pg-jacobi, CHAIN_K): the

@@ -244,7 +244,7 @@ impl IterationChain {
     /// dim ζ of the chain at K: Theorem L3's with d's free part eliminated and (K−1)·n_B added.
     pub fn dim(&self, k: usize) -> usize {
         let nz = self.s_z.nrows();
-        self.global.n_zeta() - nz + self.n_b() * k
+        (self.global.n_zeta() - nz).saturating_add(self.n_b().saturating_mul(k))
     }
 
     /// The chain at K: ζ' = (X, z*_B, d_B, U*_B, e¹_B … e^{K−1}_B, w) and ζ = Tζ'.

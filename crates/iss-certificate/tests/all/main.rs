@@ -5,6 +5,7 @@ mod analysis;
 mod asymptotic;
 mod budget;
 mod certificate;
+mod chain;
 mod comparison;
 mod constrained;
 mod coverage;

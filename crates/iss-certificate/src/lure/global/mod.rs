@@ -324,11 +324,16 @@ fn sym_of(m: &Mat<f64>) -> Sym {
 }
 
 mod build;
+mod chain;
 mod lmi;
 mod precision;
 mod rows;
 
 pub use build::{global_loop, global_loop_boxes, global_loop_with};
+pub use chain::{
+    ChainAttempt, ChainCertificate, ChainError, ChainOptions, ChainScan, IterationChain,
+    iteration_chain,
+};
 pub use precision::{
     LoopRounding, PrecisionCertificate, PrecisionVoid, certify_precision, loop_rounding,
 };

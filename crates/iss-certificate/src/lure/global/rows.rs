@@ -132,7 +132,7 @@ impl GlobalLoop {
     /// without w is negative definite by Cholesky (`gamma2_for`). Convergence of the doubling
     /// alone is not enough: it does not see the sup over v turn unbounded. The certificate is
     /// still decided by the independent check.
-    fn feasible(&self, rho: f64, pi: &Mat<f64>) -> bool {
+    pub(super) fn feasible(&self, rho: f64, pi: &Mat<f64>) -> bool {
         self.riccati(rho, pi, 1e-6).is_some_and(|p| {
             p.llt(faer::Side::Lower).is_ok() && self.gamma2_for(&p, rho, pi).is_some()
         })
@@ -482,7 +482,7 @@ fn smallest_rho(ok: impl Fn(f64) -> bool) -> Option<f64> {
 /// `level`) with `ok(level, lam)`, try level·(1 + δ) with λ unchanged, then with each group
 /// scaled by (1 + δ)^{±4}; accept the first that holds; halve δ after a sweep without gain.
 /// Stops when `done(level)`, δ < tol, or the budget is spent. Returns (level, λ).
-fn ascend(
+pub(super) fn ascend(
     mut lam: Vec<f64>,
     mut level: f64,
     groups: &[Range<usize>],

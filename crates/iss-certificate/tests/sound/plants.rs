@@ -166,7 +166,7 @@ pub fn random_plant(seed: u64) -> RandomPlant {
     };
     let nw = noisy.len() + ny;
     let mut horizon = rng.random_range(2..=10);
-    while horizon > 2 && lifted_dim(nx, nu, ny, nw, horizon) > 150 {
+    while horizon > 2 && lifted_dim(nx, nu, ny, nw, horizon) > 64 {
         horizon -= 1;
     }
     let wbar = 10f64.powf(rng.random_range(-3.0..-1.0));

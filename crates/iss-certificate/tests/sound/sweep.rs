@@ -22,6 +22,10 @@ pub struct SweepConfig {
     pub k_max: usize,
     /// The φ* searches' budget per plant (beyond: the typed `NotComputed`).
     pub phase_seconds: f64,
+    /// Multipliers per τ (`GlobalOptions::tau_points`; `certify` uses 5).
+    pub tau_points: usize,
+    /// φ*'s relative bisection tolerance (`certify` uses 0.02): coarser only lowers φ*.
+    pub phi_tol: f64,
     /// Random admissible runs per certified pair.
     pub random_runs: usize,
     /// Steps after the window fills, for random runs and the adversary.
@@ -39,12 +43,14 @@ impl SweepConfig {
     pub fn full() -> Self {
         Self {
             k_max: 5_000,
-            phase_seconds: 20.0,
-            random_runs: 3,
+            phase_seconds: 60.0,
+            tau_points: 3,
+            phi_tol: 0.1,
+            random_runs: 2,
             steps_after: 20,
             adversary: Budget {
-                restarts: 3,
-                moves: 12,
+                restarts: 2,
+                moves: 10,
                 horizon: 20,
             },
             long_steps: 150,
@@ -60,6 +66,8 @@ impl SweepConfig {
         Self {
             k_max: 2_000,
             phase_seconds: 2.0,
+            tau_points: 3,
+            phi_tol: 0.1,
             random_runs: 2,
             steps_after: 15,
             adversary: Budget {
@@ -134,7 +142,15 @@ impl Sweep {
             ..Sweep::default()
         };
         for seed in seeds {
+            let nf = s.failures.len();
             s.plant(random_plant(seed), cfg);
+            for f in &s.failures[nf..] {
+                eprintln!("FAILURE {f}");
+            }
+            if s.plants % 50 == 0 {
+                s.seconds = t0.elapsed().as_secs_f64();
+                s.print();
+            }
         }
         s.seconds = t0.elapsed().as_secs_f64();
         s
@@ -157,14 +173,18 @@ impl Sweep {
         };
         let settings = GlobalSettings {
             search: GlobalOptions {
-                tau_points: 5,
+                tau_points: cfg.tau_points,
+                phi_tol: cfg.phi_tol,
                 k_max: cfg.k_max,
                 ..GlobalOptions::default()
             },
             phase_seconds: cfg.phase_seconds,
         };
         let opts: Vec<_> = METHODS.iter().map(|&m| options(&r, m)).collect();
+        let t0 = Instant::now();
         let out = global_outcomes(&r, &opts, &settings);
+        let t_search = t0.elapsed().as_secs_f64();
+        let runs0 = self.runs;
         for o in &out {
             *self.outcomes.entry(outcome_name(o)).or_default() += 1;
         }
@@ -205,6 +225,19 @@ impl Sweep {
             if !teeth_done && certified[0].1 > 1 {
                 teeth_done = self.teeth(&r, first, Checked { gl: &gl, c: &c }, cfg, &mut rng);
             }
+        }
+        if std::env::var_os("SOUND_VERBOSE").is_some() {
+            eprintln!(
+                "seed {} n_x {} M {} {:?}/{:?}: search {t_search:.1} s, then {:.1} s, {} runs; {}",
+                p.seed,
+                p.nx,
+                p.horizon,
+                p.class,
+                p.inputs,
+                t0.elapsed().as_secs_f64() - t_search,
+                self.runs - runs0,
+                outcome_name(&out[0])
+            );
         }
     }
 

@@ -487,13 +487,13 @@ fn sdp_dropping_the_multipliers_gives_a_certificate_clamps_refute() {
 }
 
 /// The global loop certificate (`lure::global`) against random plants, CI-sized (the
-/// ≥ 1 000-plant run is tests/global_sound.rs): 30 random plants × 8 methods; every
+/// ≥ 1 000-plant run is tests/global_sound.rs): 20 random plants × 8 methods; every
 /// certificate re-checked independently, every certified pair attacked (random runs, the
 /// optimised adversary, a long run) at K_glob, and the adversary at K = 1 where ρ_lin(1) ≥ 1.
 #[test]
 #[ignore = "release: run by .ci/run with --release --ignored"]
 fn sdp_global_sound_small() {
-    let sweep = sound::sweep::Sweep::run(0..30, &sound::sweep::SweepConfig::small());
+    let sweep = sound::sweep::Sweep::run(0..20, &sound::sweep::SweepConfig::small());
     sweep.print();
     sweep.assert_sound();
 }

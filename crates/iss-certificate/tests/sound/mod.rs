@@ -328,8 +328,10 @@ struct Point {
 }
 
 fn draw(rng: &mut ChaCha8Rng, nx: usize, nws: usize, wbar: f64) -> Point {
-    let mag = wbar * 10f64.powf(rng.random_range(-2.0..3.0));
-    let err = wbar * 10f64.powf(rng.random_range(-2.0..3.0));
+    // Initial states and errors from 10⁻² to 10⁶ times the noise bound: large enough to
+    // saturate any input box and any 𝒲 clamp of the MHE, small enough to leave w dominant.
+    let mag = wbar * 10f64.powf(rng.random_range(-2.0..6.0));
+    let err = wbar * 10f64.powf(rng.random_range(-2.0..6.0));
     let x0: Vec<f64> = (0..nx).map(|_| mag * rng.random_range(-1.0..1.0)).collect();
     let prior = x0.iter().map(|x| x + err * rng.random_range(-1.0..1.0)).collect();
     let zero = rng.random_bool(0.15);

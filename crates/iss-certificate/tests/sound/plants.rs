@@ -123,11 +123,19 @@ fn lifted_dim(nx: usize, nu: usize, ny: usize, nw: usize, m: usize) -> usize {
     nx + m * (nu + ny + nx) + nx + m * nw
 }
 
-/// The plant of seed `seed` (deterministic).
+/// The plant of seed `seed` (deterministic), dim X ≤ 64 (M shortened to fit).
 pub fn random_plant(seed: u64) -> RandomPlant {
+    random_plant_within(seed, 64)
+}
+
+/// As [`random_plant`] with dim X ≤ `max_dim`; below 64 the plants have 2–5 states (the
+/// CI-sized run).
+pub fn random_plant_within(seed: u64, max_dim: usize) -> RandomPlant {
     use rand::SeedableRng;
     let mut rng = ChaCha8Rng::seed_from_u64(0x5eed_0035 ^ seed.wrapping_mul(0x9e37_79b9));
-    let nx = if rng.random_bool(0.25) {
+    let nx = if max_dim < 64 {
+        rng.random_range(2..=5)
+    } else if rng.random_bool(0.25) {
         rng.random_range(10..=12)
     } else {
         rng.random_range(2..=9)
@@ -166,7 +174,7 @@ pub fn random_plant(seed: u64) -> RandomPlant {
     };
     let nw = noisy.len() + ny;
     let mut horizon = rng.random_range(2..=10);
-    while horizon > 2 && lifted_dim(nx, nu, ny, nw, horizon) > 64 {
+    while horizon > 2 && lifted_dim(nx, nu, ny, nw, horizon) > max_dim {
         horizon -= 1;
     }
     let wbar = 10f64.powf(rng.random_range(-3.0..-1.0));

@@ -12,7 +12,7 @@ use iss_certificate::lure::global_outcome::{GlobalOutcome, GlobalSettings, globa
 use rand::{Rng, SeedableRng};
 use rand_chacha::ChaCha8Rng;
 
-use super::plants::{Class, Inputs, RandomPlant, random_plant};
+use super::plants::{Class, Inputs, RandomPlant, random_plant_within};
 use super::{Budget, Checked, METHODS, RunStats, adversary, independent_margin, options};
 
 /// The sweep's budgets.
@@ -36,6 +36,8 @@ pub struct SweepConfig {
     pub long_steps: usize,
     /// The adversary at K = 1 where ρ_lin(1) ≥ 1 (once per plant).
     pub teeth: Budget,
+    /// dim X of the plants at most (`plants::random_plant_within`).
+    pub max_dim: usize,
 }
 
 impl SweepConfig {
@@ -54,6 +56,7 @@ impl SweepConfig {
                 horizon: 20,
             },
             long_steps: 150,
+            max_dim: 64,
             teeth: Budget {
                 restarts: 4,
                 moves: 15,
@@ -65,7 +68,7 @@ impl SweepConfig {
     pub fn small() -> Self {
         Self {
             k_max: 2_000,
-            phase_seconds: 2.0,
+            phase_seconds: 10.0,
             tau_points: 3,
             phi_tol: 0.1,
             random_runs: 2,
@@ -76,6 +79,7 @@ impl SweepConfig {
                 horizon: 15,
             },
             long_steps: 80,
+            max_dim: 28,
             teeth: Budget {
                 restarts: 3,
                 moves: 10,
@@ -143,7 +147,7 @@ impl Sweep {
         };
         for seed in seeds {
             let nf = s.failures.len();
-            s.plant(random_plant(seed), cfg);
+            s.plant(random_plant_within(seed, cfg.max_dim), cfg);
             for f in &s.failures[nf..] {
                 eprintln!("FAILURE {f}");
             }

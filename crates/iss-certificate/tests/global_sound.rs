@@ -62,7 +62,10 @@ fn dropping_the_box_multipliers_is_refuted_where_the_input_box_binds() {
         ..GlobalOptions::default()
     };
     let boxed = global_loop(&r, &o).expect("builds");
-    assert!(boxed.phi_star(&opts).is_none(), "seed {seed}: a boxed unstable plant certified");
+    assert!(
+        boxed.phi_star(&opts).is_none(),
+        "seed {seed}: a boxed unstable plant certified"
+    );
     let free = global_loop_with(&r, &o, false).expect("builds");
     let (k, c) = free.k_glob(&opts).expect("the box-free loop is certified");
     let mut o = o;
@@ -81,7 +84,10 @@ fn dropping_the_box_multipliers_is_refuted_where_the_input_box_binds() {
         p.nx,
         worst.worst()
     );
-    assert!(worst.worst() > 1.0, "the adversary did not refute the box-free certificate");
+    assert!(
+        worst.worst() > 1.0,
+        "the adversary did not refute the box-free certificate"
+    );
 }
 
 /// 200 seeds per shipped scenario at its certified K_glob (the method with the smallest):
@@ -112,7 +118,10 @@ fn global_sound_shipped_scenarios() {
         certified += 1;
         shipped_runs(&r, &name, i, &k);
     }
-    assert!(certified > 0, "no shipped scenario has a global certificate");
+    assert!(
+        certified > 0,
+        "no shipped scenario has a global certificate"
+    );
 }
 
 /// The method with the smallest certified K_glob (default settings), or None (printed).

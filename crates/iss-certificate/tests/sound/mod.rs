@@ -179,7 +179,13 @@ pub fn check<D: Disturbance>(cl: &mut Loop<D>, ck: Checked<'_>, steps: usize) ->
             return st;
         }
         let tr = cl.trace();
-        let wt: Vec<f64> = tr.w1(t).expect("w¹").iter().chain(tr.w2(t).expect("w²")).copied().collect();
+        let wt: Vec<f64> = tr
+            .w1(t)
+            .expect("w¹")
+            .iter()
+            .chain(tr.w2(t).expect("w²"))
+            .copied()
+            .collect();
         let w2: f64 = wt.iter().map(|v| v * v).sum();
         wsup = wsup.max(w2.sqrt());
         let xn = lifted_state(cl, gl);
@@ -222,7 +228,11 @@ pub fn check<D: Disturbance>(cl: &mut Loop<D>, ck: Checked<'_>, steps: usize) ->
 /// eigenvalue taken by faer's symmetric eigensolver (not the library's Jacobi), after a
 /// diagonal equilibration; P ≻ 0 by the same. Returns the LMI's margin −λ_max/‖scale‖, or
 /// why it fails (a margin within 10·n·ε of the rounding scale fails).
-pub fn independent_margin(gl: &GlobalLoop, c: &GlobalCertificate, nw: usize) -> Result<f64, String> {
+pub fn independent_margin(
+    gl: &GlobalLoop,
+    c: &GlobalCertificate,
+    nw: usize,
+) -> Result<f64, String> {
     let (n, nc) = (gl.n_x(), gl.n_zeta());
     let lay = gl.lifted.layout();
     let nz = lay.nz;
@@ -267,10 +277,14 @@ pub fn independent_margin(gl: &GlobalLoop, c: &GlobalCertificate, nw: usize) -> 
     let top = equilibrated_extreme(&lmi, &scale, true)?;
     let pmin = equilibrated_extreme(p, &pa, false)?;
     if pmin <= 0.0 {
-        return Err(format!("P is not positive definite beyond rounding ({pmin:.3e})"));
+        return Err(format!(
+            "P is not positive definite beyond rounding ({pmin:.3e})"
+        ));
     }
     if top >= 0.0 {
-        return Err(format!("the LMI is not negative definite beyond rounding ({top:.3e})"));
+        return Err(format!(
+            "the LMI is not negative definite beyond rounding ({top:.3e})"
+        ));
     }
     Ok(-top)
 }
@@ -282,7 +296,11 @@ fn equilibrated_extreme(m: &Mat<f64>, scale: &Mat<f64>, top: bool) -> Result<f64
     let d: Vec<f64> = (0..n)
         .map(|i| {
             let s = scale[(i, i)];
-            if s > 0.0 && s.is_finite() { 1.0 / s.sqrt() } else { 1.0 }
+            if s > 0.0 && s.is_finite() {
+                1.0 / s.sqrt()
+            } else {
+                1.0
+            }
         })
         .collect();
     let me = Mat::from_fn(n, n, |i, j| 0.5 * d[i] * d[j] * (m[(i, j)] + m[(j, i)]));
@@ -333,10 +351,21 @@ fn draw(rng: &mut ChaCha8Rng, nx: usize, nws: usize, wbar: f64) -> Point {
     let mag = wbar * 10f64.powf(rng.random_range(-2.0..6.0));
     let err = wbar * 10f64.powf(rng.random_range(-2.0..6.0));
     let x0: Vec<f64> = (0..nx).map(|_| mag * rng.random_range(-1.0..1.0)).collect();
-    let prior = x0.iter().map(|x| x + err * rng.random_range(-1.0..1.0)).collect();
+    let prior = x0
+        .iter()
+        .map(|x| x + err * rng.random_range(-1.0..1.0))
+        .collect();
     let zero = rng.random_bool(0.15);
     let s = (0..nws)
-        .map(|_| if zero { 0 } else if rng.random_bool(0.5) { 1 } else { -1 })
+        .map(|_| {
+            if zero {
+                0
+            } else if rng.random_bool(0.5) {
+                1
+            } else {
+                -1
+            }
+        })
         .collect();
     Point { x0, prior, s }
 }
@@ -372,7 +401,10 @@ fn mutate(rng: &mut ChaCha8Rng, p: &Point, nw: usize) -> Point {
         }
         _ => {
             let i = rng.random_range(0..nx);
-            let scale = q.x0.iter().chain(&q.prior).fold(1e-6_f64, |a, v| a.max(v.abs()));
+            let scale =
+                q.x0.iter()
+                    .chain(&q.prior)
+                    .fold(1e-6_f64, |a, v| a.max(v.abs()));
             q.prior[i] += scale * rng.random_range(-1.0..1.0);
         }
     }
@@ -394,18 +426,21 @@ pub fn adversary(
     let nx = ck.gl.lifted.layout().nx;
     let m = ck.gl.lifted.layout().horizon;
     let steps = m + budget.horizon;
-    let wbar = lo.iter().chain(&hi).fold(0.0_f64, |a, v| a.max(v.abs())).max(1e-12);
+    let wbar = lo
+        .iter()
+        .chain(&hi)
+        .fold(0.0_f64, |a, v| a.max(v.abs()))
+        .max(1e-12);
     let eval = |p: &Point| {
-        let w: Vec<f64> = p
-            .s
-            .iter()
-            .enumerate()
-            .map(|(i, &s)| match s {
-                1 => hi[i % nw],
-                -1 => lo[i % nw],
-                _ => 0.0,
-            })
-            .collect();
+        let w: Vec<f64> =
+            p.s.iter()
+                .enumerate()
+                .map(|(i, &s)| match s {
+                    1 => hi[i % nw],
+                    -1 => lo[i % nw],
+                    _ => 0.0,
+                })
+                .collect();
         run(r, o, ck, &p.x0, &p.prior, &w, steps)
     };
     let (mut worst, mut runs) = (RunStats::default(), 0);
@@ -448,7 +483,11 @@ pub fn random_runs(
     let nw = lo.len();
     let nx = ck.gl.lifted.layout().nx;
     let steps = ck.gl.lifted.layout().horizon + steps_after;
-    let wbar = lo.iter().chain(&hi).fold(0.0_f64, |a, v| a.max(v.abs())).max(1e-12);
+    let wbar = lo
+        .iter()
+        .chain(&hi)
+        .fold(0.0_f64, |a, v| a.max(v.abs()))
+        .max(1e-12);
     let mut worst = RunStats::default();
     for _ in 0..runs {
         let p = draw(rng, nx, 0, wbar);

@@ -217,8 +217,10 @@ impl Sweep {
             *self.certified.entry((p.class, p.inputs)).or_default() += certified.len();
             let gl = global_loop(&r, &opts[first]).expect("a certified loop builds");
             let Some(c) = gl.certify_phi(phi_star, &settings.search) else {
-                self.failures
-                    .push(format!("seed {}: φ* = {phi_star:e} does not re-certify", p.seed));
+                self.failures.push(format!(
+                    "seed {}: φ* = {phi_star:e} does not re-certify",
+                    p.seed
+                ));
                 continue;
             };
             self.check(&p, &r, &gl, &c);
@@ -245,7 +247,13 @@ impl Sweep {
         }
     }
 
-    fn check(&mut self, p: &RandomPlant, r: &ResolvedScenario, gl: &GlobalLoop, c: &GlobalCertificate) {
+    fn check(
+        &mut self,
+        p: &RandomPlant,
+        r: &ResolvedScenario,
+        gl: &GlobalLoop,
+        c: &GlobalCertificate,
+    ) {
         self.checks += 1;
         match independent_margin(gl, c, r.scenario().plant.nw()) {
             Ok(m) => self.min_margin = self.min_margin.min(m),
@@ -276,7 +284,13 @@ impl Sweep {
         let nx = p.nx;
         let steps = ck.gl.lifted.layout().horizon + cfg.long_steps;
         let w: Vec<f64> = (0..steps * nw)
-            .map(|j| if rng.random_bool(0.5) { hi[j % nw] } else { lo[j % nw] })
+            .map(|j| {
+                if rng.random_bool(0.5) {
+                    hi[j % nw]
+                } else {
+                    lo[j % nw]
+                }
+            })
             .collect();
         let x0: Vec<f64> = (0..nx).map(|_| rng.random_range(-1.0..1.0)).collect();
         let c = super::run(r, &o, ck, &x0, &vec![0.0; nx], &w, steps);
@@ -362,8 +376,19 @@ impl Sweep {
 
     /// No refutation, every check passed, certificates only where one can exist.
     pub fn assert_sound(&self) {
-        assert!(self.failures.is_empty(), "{} failures: {:?}", self.failures.len(), self.failures);
-        assert!(self.pairs > 0, "no certified pair: the sweep tested nothing");
-        assert!(self.teeth.0 == 0 || self.teeth.1 > 0, "the adversary never refuted at K = 1");
+        assert!(
+            self.failures.is_empty(),
+            "{} failures: {:?}",
+            self.failures.len(),
+            self.failures
+        );
+        assert!(
+            self.pairs > 0,
+            "no certified pair: the sweep tested nothing"
+        );
+        assert!(
+            self.teeth.0 == 0 || self.teeth.1 > 0,
+            "the adversary never refuted at K = 1"
+        );
     }
 }

@@ -19,14 +19,16 @@ use sound::{Budget, Checked, METHODS, adversary, independent_margin, options};
 use sound::sweep::{Sweep, SweepConfig};
 
 /// The ≥ 1 000-plant run (`SOUND_PLANTS` plants from seed `SOUND_FIRST`, default 1 000 from
-/// 0). Prints the outcome table; fails on any refutation, any certificate failing the
+/// 0; `SOUND_SECONDS` stops drawing plants after that many wall seconds). Prints the outcome
+/// table (every 10 plants too); fails on any refutation, any certificate failing the
 /// independent check, and any certified pair whose plant cannot have a global certificate.
 #[test]
 #[ignore = "soundness on 1 000 random plants (release, by hand): see docs/testing.md"]
 fn global_sound_random_plants() {
     let n = env_usize("SOUND_PLANTS", 1_000);
     let first = env_usize("SOUND_FIRST", 0) as u64;
-    let sweep = Sweep::run(first..first + n as u64, &SweepConfig::full());
+    let seconds = env_usize("SOUND_SECONDS", usize::MAX) as f64;
+    let sweep = Sweep::run_for(first..first + n as u64, &SweepConfig::full(), seconds);
     sweep.print();
     sweep.assert_sound();
 }

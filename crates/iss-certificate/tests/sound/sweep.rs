@@ -140,18 +140,27 @@ fn outcome_name(o: &GlobalOutcome) -> String {
 impl Sweep {
     /// Runs the sweep over `seeds`.
     pub fn run(seeds: std::ops::Range<u64>, cfg: &SweepConfig) -> Self {
+        Self::run_for(seeds, cfg, f64::INFINITY)
+    }
+
+    /// As [`Sweep::run`], drawing no new plant after `seconds` of wall time (the table then
+    /// says how many plants were run).
+    pub fn run_for(seeds: std::ops::Range<u64>, cfg: &SweepConfig, seconds: f64) -> Self {
         let t0 = Instant::now();
         let mut s = Sweep {
             min_margin: f64::INFINITY,
             ..Sweep::default()
         };
         for seed in seeds {
+            if t0.elapsed().as_secs_f64() > seconds {
+                break;
+            }
             let nf = s.failures.len();
             s.plant(random_plant_within(seed, cfg.max_dim), cfg);
             for f in &s.failures[nf..] {
                 eprintln!("FAILURE {f}");
             }
-            if s.plants % 50 == 0 {
+            if s.plants % 10 == 0 {
                 s.seconds = t0.elapsed().as_secs_f64();
                 s.print();
             }

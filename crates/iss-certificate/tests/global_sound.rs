@@ -93,7 +93,8 @@ fn dropping_the_box_multipliers_is_refuted_where_the_input_box_binds() {
 }
 
 /// 200 seeds per shipped scenario at its certified K_glob (the method with the smallest):
-/// random x₀ and prior (magnitudes 10⁻²…10²), the scenario's own noise at scale 0–3; every
+/// random x₀ and prior (magnitudes 10⁻²…10²), the scenario's own noise at scale 0–3 or
+/// 10⁻⁵–10⁻² (alternate seeds); every
 /// run within the one-step, multi-step and gain bounds. The φ* searches get an estimated
 /// 170 s per scenario (`SOUND_SHIPPED_SECONDS`; `certify`'s default is 10 s); scenarios
 /// without a certified K within it are listed with their outcome.
@@ -180,7 +181,13 @@ fn shipped_runs(
         let prior: Vec<f64> = (0..x0.len())
             .map(|_| mag * rng.random_range(-1.0..1.0))
             .collect();
-        s.noise.scale = rng.random_range(0.0..3.0);
+        // Half the seeds with noise ≤ 10⁻² of 𝒲: there γ²‖w‖² does not mask the ρ part of
+        // the one-step inequality (on the case study it does at scale ~1).
+        s.noise.scale = if seed % 2 == 0 {
+            rng.random_range(0.0..3.0)
+        } else {
+            10f64.powf(rng.random_range(-5.0..-2.0))
+        };
         let d = scenario_disturbance(&s, seed).expect("noise");
         let st = sound::check(&mut sound::build(r, &o, &x0, &prior, d, steps), ck, steps);
         assert!(

@@ -39,6 +39,7 @@ use crate::certificate::{
     CertificateOptions, ClosedLoopCertificate, Gamma13Source, SolverCertificate,
 };
 use crate::joint::{JointAnalysis, JointOptions, certify_joint};
+use crate::lure::global_outcome::{GlobalOutcome, MethodGlobal, PrecisionOutcome};
 use crate::outcome::VoidReason;
 use closed_loop::scenario::{ControllerChoice, ResolvedScenario, Scenario};
 
@@ -54,22 +55,27 @@ pub enum CertificateKind {
     Theorem1,
     /// The joint certificate: the sub-optimal MHE with the K_c-iteration MPC.
     Joint,
+    /// The global loop certificate (Theorem L3; in f32 Theorem L3u): the sub-optimal MHE with
+    /// the exact MPC, every K ≥ K_glob ([`crate::lure::global_outcome`]).
+    Global,
 }
 
 impl CertificateKind {
-    /// `"theorem1"` or `"joint"` (the `certificate` column and key).
+    /// `"theorem1"`, `"joint"` or `"global"` (the `certificate` column and key).
     pub fn name(self) -> &'static str {
         match self {
             CertificateKind::Theorem1 => "theorem1",
             CertificateKind::Joint => "joint",
+            CertificateKind::Global => "global",
         }
     }
 
-    /// `"Theorem 1"` or `"joint MPC + MHE"` (the reports' words).
+    /// `"Theorem 1"`, `"joint MPC + MHE"` or the global certificate's name (the reports' words).
     pub fn title(self) -> &'static str {
         match self {
             CertificateKind::Theorem1 => "Theorem 1",
             CertificateKind::Joint => "joint MPC + MHE",
+            CertificateKind::Global => "the global loop certificate (Theorem L3)",
         }
     }
 }
@@ -88,7 +94,8 @@ pub const F32_NOT_COVERED: &str = "not covered: the joint certificate (K_c-itera
 /// `solvers` on `scenario`: γ₁,₃ is the user's (`cli_gamma13`, else the scenario's
 /// `certificate.gamma13`) tested by [`USER_GAMMA13_SEQUENCES`] sampled sequences per magnitude
 /// with the scenario's seed, else the certified one; the budget is the scenario's
-/// `certificate.phase_seconds`. The sampled estimates that decide nothing (L_Φ, L_π, and
+/// `certificate.phase_seconds`, which also budgets the global loop certificate computed with
+/// it (the verdict's second certificate). The sampled estimates that decide nothing (L_Φ, L_π, and
 /// γ₁,₃ beside a certified value) are skipped; a command that reports them raises
 /// `lipschitz_pairs` / `gamma13_sequences` (the latter only without a user γ₁,₃).
 pub fn verdict_options(
@@ -108,6 +115,7 @@ pub fn verdict_options(
             0
         },
         phase_seconds: scenario.certificate.phase_seconds(),
+        global_seconds: Some(scenario.certificate.phase_seconds()),
         ..CertificateOptions::default()
     }
 }
@@ -142,10 +150,90 @@ pub fn verdict(
         _ => None,
     };
     let applicable = Applicable::new(resolved, cert, config.method, config.controller);
-    let v = applicable.at(config.k_e, k_c);
-    match config.scalar {
+    let v = applicable.at_alone(config.k_e, k_c);
+    let v = match config.scalar {
         Scalar::F64 => v,
         Scalar::F32 => f32_verdict(resolved, cert, config, v),
+    };
+    with_global(v, applicable.global(), config.k_e, config.scalar)
+}
+
+/// The one verdict of two certificates at K_e: `v` (Theorem 1's, in `scalar`) and the global
+/// loop certificate `global` in `scalar` (None: not computed or not modelling the
+/// configuration). Certified when either covers K_e, and the verdict names which (Theorem 1
+/// first); K_min is the smaller floor of the two. When neither covers: a known K_glob above
+/// K_e is a plain "no"; a global search the budget stopped makes a void or not-computed `v`
+/// not computed and says so (a "no" stays "no", with the sentence); a global certificate
+/// proved absent leaves `v` as it is (its outcome is reported beside, e.g. `certify --loop`).
+pub fn with_global(
+    v: PairVerdict,
+    global: Option<&MethodGlobal>,
+    k_e: usize,
+    scalar: Scalar,
+) -> PairVerdict {
+    let Some(g) = global else { return v };
+    let (k_glob, not_computed, why) = match scalar {
+        Scalar::F64 => (
+            g.exact.k_glob(),
+            g.exact.is_not_computed(),
+            GlobalWhy::Exact(g.exact.clone()),
+        ),
+        Scalar::F32 => (
+            g.f32.k_glob(),
+            g.f32.is_not_computed(),
+            GlobalWhy::F32(g.f32.clone()),
+        ),
+    };
+    // Theorem 1's floor counts only where it speaks (yes/no at this scalar).
+    let own = match v.certified {
+        Certified::Yes | Certified::No => v.k_min,
+        Certified::Void | Certified::NotComputed => None,
+    };
+    let k_min = match (own, k_glob) {
+        (Some(a), Some(b)) => Some(a.min(b)),
+        (a, b) => a.or(b),
+    };
+    if v.certified.is_certified() {
+        return PairVerdict { k_min, ..v };
+    }
+    match k_glob {
+        Some(kg) if k_e >= kg => PairVerdict {
+            certificate: Some(CertificateKind::Global),
+            certified: Certified::Yes,
+            k_min,
+            margin: None,
+            reason: None,
+        },
+        Some(kg) => {
+            let theorem1_lower = own.is_some_and(|a| a <= kg);
+            PairVerdict {
+                certificate: if theorem1_lower {
+                    v.certificate
+                } else {
+                    Some(CertificateKind::Global)
+                },
+                certified: Certified::No,
+                k_min,
+                margin: if theorem1_lower { v.margin } else { None },
+                reason: None,
+            }
+        }
+        None if not_computed => {
+            let certified = if v.certified.is_below_floor() {
+                Certified::No
+            } else {
+                Certified::NotComputed
+            };
+            PairVerdict {
+                certified,
+                reason: Some(PairReason::Global {
+                    then: v.reason.clone().map(Box::new),
+                    global: why,
+                }),
+                ..v
+            }
+        }
+        None => v,
     }
 }
 
@@ -355,6 +443,14 @@ pub enum PairReason {
         /// The f64 verdict's reason.
         then: Option<Box<PairReason>>,
     },
+    /// Theorem 1's verdict (`then`) and the global loop certificate's outcome, which the
+    /// budget stopped ([`with_global`]).
+    Global {
+        /// Theorem 1's (or the f32) reason, if any.
+        then: Option<Box<PairReason>>,
+        /// The global certificate's outcome.
+        global: GlobalWhy,
+    },
     /// K is below the f32 K_min (Theorem 1 with the f32 rounding folded in).
     BelowF32KMin {
         /// The K asked for.
@@ -390,11 +486,38 @@ impl std::fmt::Display for PairReason {
                 why,
                 then: Some(then),
             } => write!(f, "f32: {why}; {then}"),
+            Self::Global { then: None, global } => {
+                write!(f, "the global loop certificate: {global}")
+            }
+            Self::Global {
+                then: Some(then),
+                global,
+            } => write!(f, "{then}; the global loop certificate: {global}"),
             Self::BelowF32KMin { k, k_min } => write!(
                 f,
                 "f32: K = {k} is below the f32 K_min = {k_min} (Theorem 1 with the f32 rounding \
                  folded in)"
             ),
+        }
+    }
+}
+
+/// The global loop certificate's outcome in the verdict's scalar (the global part of
+/// [`PairReason::Global`]).
+#[derive(Debug, Clone, PartialEq)]
+#[non_exhaustive]
+pub enum GlobalWhy {
+    /// In exact arithmetic (f64).
+    Exact(GlobalOutcome),
+    /// In f32.
+    F32(PrecisionOutcome),
+}
+
+impl std::fmt::Display for GlobalWhy {
+    fn fmt(&self, f: &mut std::fmt::Formatter<'_>) -> std::fmt::Result {
+        match self {
+            Self::Exact(o) => o.fmt(f),
+            Self::F32(o) => o.fmt(f),
         }
     }
 }
@@ -550,6 +673,9 @@ pub enum Applicable {
         void_reasons: Vec<VoidReason>,
         /// The budget cut the verdict (None: computed).
         not_computed: Option<NotComputed>,
+        /// The global loop certificate of the method with this controller (None: not
+        /// computed, or computed for another controller): [`with_global`] combines it.
+        global: Option<Box<MethodGlobal>>,
     },
     /// The joint certificate of the method with the MPC's method.
     Joint {
@@ -681,6 +807,12 @@ impl Applicable {
                 k_min: sc.k_min,
                 void_reasons: sc.void_reasons.clone(),
                 not_computed: sc.not_computed.clone(),
+                global: cert
+                    .global
+                    .as_ref()
+                    .filter(|g| g.controller == controller)
+                    .and_then(|g| g.method(method))
+                    .map(|m| Box::new(m.clone())),
             },
         }
     }
@@ -734,9 +866,23 @@ impl Applicable {
         }
     }
 
-    /// The verdict at (K_e, K_c); `k_c` is ignored by Theorem 1 (the exact MPC) and required
-    /// by the joint certificate (None there: void, "no K_c").
+    /// The global loop certificate combined with Theorem 1's verdicts (None: none).
+    pub fn global(&self) -> Option<&MethodGlobal> {
+        match self {
+            Applicable::Theorem1 { global, .. } => global.as_deref(),
+            Applicable::Joint { .. } | Applicable::Uncovered(_) => None,
+        }
+    }
+
+    /// The verdict at (K_e, K_c) in f64, of every certificate that applies ([`with_global`]);
+    /// `k_c` is ignored by Theorem 1 (the exact MPC) and required by the joint certificate
+    /// (None there: void, "no K_c").
     pub fn at(&self, k_e: usize, k_c: Option<usize>) -> PairVerdict {
+        with_global(self.at_alone(k_e, k_c), self.global(), k_e, Scalar::F64)
+    }
+
+    /// The covering certificate's own verdict at (K_e, K_c), without the global one.
+    fn at_alone(&self, k_e: usize, k_c: Option<usize>) -> PairVerdict {
         let kind = self.kind();
         let void = |reason: PairReason| PairVerdict {
             certificate: kind,
@@ -752,6 +898,7 @@ impl Applicable {
                 k_min,
                 void_reasons,
                 not_computed,
+                ..
             } => theorem1_at(analysis, *k_min, void_reasons, not_computed.as_ref(), k_e),
             Applicable::Joint {
                 analysis,

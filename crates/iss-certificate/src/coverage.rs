@@ -311,6 +311,23 @@ pub fn solver_certified(
     ) && sc.k_min.is_some()
 }
 
+/// The global loop certificate of `method` in `cert` when it speaks for `controller` (the
+/// section was computed for the scenario's own controller, and models the exact MPC only
+/// here): what [`Applicable::new`] combines with Theorem 1, and what reports show beside it.
+pub fn global_of(
+    cert: &ClosedLoopCertificate,
+    method: Method,
+    controller: ControllerChoice,
+) -> Option<&MethodGlobal> {
+    if controller != ControllerChoice::ExactMpc {
+        return None;
+    }
+    cert.global
+        .as_ref()
+        .filter(|g| g.controller == controller)
+        .and_then(|g| g.method(method))
+}
+
 /// Which certificate covers a configuration, or why none does. `#[non_exhaustive]`: callers
 /// decide through [`Coverage::covers`] and [`Coverage::uncovered_reason`], matched
 /// exhaustively here, so a new variant is decided in this crate, not by a caller's wildcard.
@@ -807,12 +824,7 @@ impl Applicable {
                 k_min: sc.k_min,
                 void_reasons: sc.void_reasons.clone(),
                 not_computed: sc.not_computed.clone(),
-                global: cert
-                    .global
-                    .as_ref()
-                    .filter(|g| g.controller == controller)
-                    .and_then(|g| g.method(method))
-                    .map(|m| Box::new(m.clone())),
+                global: global_of(cert, method, controller).map(|m| Box::new(m.clone())),
             },
         }
     }
@@ -834,12 +846,14 @@ impl Applicable {
         }
     }
 
-    /// Whether some pair can be certified: Theorem 1 with a K_min; the joint certificate
-    /// when no reason voids it whatever the pair (its region then says which pairs); never
-    /// when uncovered.
+    /// Whether some pair can be certified: Theorem 1 with a K_min or the global loop
+    /// certificate with a K_glob; the joint certificate when no reason voids it whatever the
+    /// pair (its region then says which pairs); never when uncovered.
     pub fn may_certify(&self) -> bool {
         match self {
-            Applicable::Theorem1 { k_min, .. } => k_min.is_some(),
+            Applicable::Theorem1 { k_min, global, .. } => {
+                k_min.is_some() || global.as_ref().is_some_and(|g| g.exact.k_glob().is_some())
+            }
             Applicable::Joint { void_reasons, .. } => void_reasons.is_empty(),
             Applicable::Uncovered(_) => false,
         }

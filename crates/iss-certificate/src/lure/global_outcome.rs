@@ -330,9 +330,10 @@ struct Planned {
 }
 
 /// The searches of [`global_section`] (`with_f32`: also the f32 certificates): one thread
-/// per norm (φ*, then the f32 searches of that norm's methods), each budgeted by its own
-/// estimate against `settings.phase_seconds` (the threads run side by side, so the budget
-/// bounds the longest one). Deterministic: no result depends on the threads' order.
+/// per norm (φ*, then the f32 searches of that norm's methods), each norm's search and each
+/// f32 search budgeted by its own estimate against `settings.phase_seconds` (the threads run
+/// side by side, so the budget bounds each thread's work). Deterministic: no result depends
+/// on the threads' order, nor on the other methods asked.
 fn searches(
     resolved: &ResolvedScenario,
     options: &[LoopOptions],
@@ -383,43 +384,9 @@ fn searches(
                 .map_or(0.0, |g| search_seconds(g.n_zeta(), g.n_x(), tau(g)))
         })
         .collect();
-    let f32_s: Vec<f64> = (0..norms.len())
-        .map(|n| {
-            plan.iter()
-                .filter(|p| p.norm == Some(n) && p.f32.is_none())
-                .filter_map(|p| p.gl.as_ref().ok())
-                .map(|g| precision_seconds(g.n_zeta(), g.n_x()))
-                .sum()
-        })
-        .collect();
-    let longest = exact_s.iter().copied().fold(0.0, f64::max);
-    if longest > settings.phase_seconds {
-        let n_zeta = norms
-            .iter()
-            .filter_map(|&i| plan[i].gl.as_ref().ok())
-            .map(GlobalLoop::n_zeta)
-            .max()
-            .unwrap_or(0);
-        let over = GlobalOutcome::NotComputed {
-            n_zeta,
-            estimate_seconds: longest,
-            budget_seconds: settings.phase_seconds,
-        };
-        return plan
-            .into_iter()
-            .map(|p| {
-                let exact = p.gl.err().unwrap_or_else(|| over.clone());
-                let f32 = p
-                    .f32
-                    .unwrap_or_else(|| PrecisionOutcome::NoExact(Box::new(over.clone())));
-                (exact, f32)
-            })
-            .collect();
-    }
-    let f32_within: Vec<bool> = (0..norms.len())
-        .map(|n| exact_s[n] + f32_s[n] <= settings.phase_seconds)
-        .collect();
-    // One thread per norm: its φ* and, within the budget, its methods' f32 certificates.
+    // One thread per norm: its φ* (within the budget) and, within the budget, its methods'
+    // f32 certificates. Each norm and each method is budgeted on its own, so a method's
+    // outcome does not depend on which other methods a command asks for.
     type NormResult = (Result<GlobalK, GlobalOutcome>, Vec<(usize, PrecisionOutcome)>);
     let run_norm = |n: usize| -> NormResult {
         let i = norms[n];
@@ -427,7 +394,15 @@ fn searches(
             Ok(g) => g,
             Err(e) => return (Err(e.clone()), Vec::new()),
         };
-        let star = phi_star_or_why(resolved, &options[i], g, &settings.search);
+        let star = if exact_s[n] > settings.phase_seconds {
+            Err(GlobalOutcome::NotComputed {
+                n_zeta: g.n_zeta(),
+                estimate_seconds: exact_s[n],
+                budget_seconds: settings.phase_seconds,
+            })
+        } else {
+            phi_star_or_why(resolved, &options[i], g, &settings.search)
+        };
         let mut f32 = Vec::new();
         for (j, p) in plan.iter().enumerate() {
             let (Some(nj), None, Ok(gj)) = (p.norm, &p.f32, &p.gl) else {
@@ -436,10 +411,11 @@ fn searches(
             if nj != n {
                 continue;
             }
+            let estimate = exact_s[n] + precision_seconds(gj.n_zeta(), gj.n_x());
             let out = match &star {
                 Err(why) => PrecisionOutcome::NoExact(Box::new(why.clone())),
-                Ok(_) if !f32_within[n] => PrecisionOutcome::NotComputed {
-                    estimate_seconds: exact_s[n] + f32_s[n],
+                Ok(_) if estimate > settings.phase_seconds => PrecisionOutcome::NotComputed {
+                    estimate_seconds: estimate,
                     budget_seconds: settings.phase_seconds,
                 },
                 Ok((_, cert)) => precision_outcome(resolved, &options[j], gj, cert, settings),

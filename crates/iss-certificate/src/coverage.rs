@@ -39,7 +39,11 @@ use crate::certificate::{
     CertificateOptions, ClosedLoopCertificate, Gamma13Source, SolverCertificate,
 };
 use crate::joint::{JointAnalysis, JointOptions, certify_joint};
-use crate::lure::global_outcome::{GlobalOutcome, MethodGlobal, PrecisionOutcome};
+use crate::lure::global_outcome::MethodGlobal;
+
+mod global;
+use global::f32_verdict;
+pub use global::{GlobalWhy, global_of, with_global};
 use crate::outcome::VoidReason;
 use closed_loop::scenario::{ControllerChoice, ResolvedScenario, Scenario};
 
@@ -158,145 +162,6 @@ pub fn verdict(
     with_global(v, applicable.global(), config.k_e, config.scalar)
 }
 
-/// The one verdict of two certificates at K_e: `v` (Theorem 1's, in `scalar`) and the global
-/// loop certificate `global` in `scalar` (None: not computed or not modelling the
-/// configuration). Certified when either covers K_e, and the verdict names which (Theorem 1
-/// first); K_min is the smaller floor of the two. When neither covers: a known K_glob above
-/// K_e is a plain "no"; a global search the budget stopped makes a void or not-computed `v`
-/// not computed and says so (a "no" stays "no", with the sentence); a global certificate
-/// proved absent leaves `v` as it is (its outcome is reported beside, e.g. `certify --loop`).
-pub fn with_global(
-    v: PairVerdict,
-    global: Option<&MethodGlobal>,
-    k_e: usize,
-    scalar: Scalar,
-) -> PairVerdict {
-    let Some(g) = global else { return v };
-    let (k_glob, not_computed, why) = match scalar {
-        Scalar::F64 => (
-            g.exact.k_glob(),
-            g.exact.is_not_computed(),
-            GlobalWhy::Exact(g.exact.clone()),
-        ),
-        Scalar::F32 => (
-            g.f32.k_glob(),
-            g.f32.is_not_computed(),
-            GlobalWhy::F32(g.f32.clone()),
-        ),
-    };
-    // Theorem 1's floor counts only where it speaks (yes/no at this scalar).
-    let own = match v.certified {
-        Certified::Yes | Certified::No => v.k_min,
-        Certified::Void | Certified::NotComputed => None,
-    };
-    let k_min = match (own, k_glob) {
-        (Some(a), Some(b)) => Some(a.min(b)),
-        (a, b) => a.or(b),
-    };
-    if v.certified.is_certified() {
-        return PairVerdict { k_min, ..v };
-    }
-    match k_glob {
-        Some(kg) if k_e >= kg => PairVerdict {
-            certificate: Some(CertificateKind::Global),
-            certified: Certified::Yes,
-            k_min,
-            margin: None,
-            reason: None,
-        },
-        Some(kg) => {
-            let theorem1_lower = own.is_some_and(|a| a <= kg);
-            PairVerdict {
-                certificate: if theorem1_lower {
-                    v.certificate
-                } else {
-                    Some(CertificateKind::Global)
-                },
-                certified: Certified::No,
-                k_min,
-                margin: if theorem1_lower { v.margin } else { None },
-                reason: None,
-            }
-        }
-        None if not_computed => {
-            let certified = if v.certified.is_below_floor() {
-                Certified::No
-            } else {
-                Certified::NotComputed
-            };
-            PairVerdict {
-                certified,
-                reason: Some(PairReason::Global {
-                    then: v.reason.clone().map(Box::new),
-                    global: why,
-                }),
-                ..v
-            }
-        }
-        None => v,
-    }
-}
-
-/// The f32 verdict from the f64 one `v`: Theorem 1 with the f32 rounding folded in
-/// ([`crate::certificate::precision::certify_scalar`]); the joint certificate has no rounding
-/// model ([`F32_NOT_COVERED`]). The f64 K_min is kept where f32 has none.
-fn f32_verdict(
-    resolved: &ResolvedScenario,
-    cert: &ClosedLoopCertificate,
-    config: &Configuration,
-    v: PairVerdict,
-) -> PairVerdict {
-    let void = |why: F32Void, v: PairVerdict| PairVerdict {
-        certified: Certified::Void,
-        margin: None,
-        reason: Some(PairReason::F32 {
-            why,
-            then: v.reason.map(Box::new),
-        }),
-        ..v
-    };
-    if v.certified == Certified::Void || v.certificate != Some(CertificateKind::Theorem1) {
-        let why = match v.certificate {
-            Some(CertificateKind::Joint) => F32Void::JointNotCovered,
-            _ => F32Void::NotCovered,
-        };
-        return void(why, v);
-    }
-    let sc = match crate::certificate::precision::certify_scalar(
-        resolved,
-        cert,
-        config.method,
-        Scalar::F32,
-        CertificateOptions::default().k_max,
-    ) {
-        Ok(sc) => sc,
-        Err(e) => {
-            let error = e.to_string();
-            return void(F32Void::RoundingModel { error }, v);
-        }
-    };
-    match sc.k_min {
-        Some(k_min) if config.k_e >= k_min => PairVerdict {
-            certified: Certified::Yes,
-            k_min: Some(k_min),
-            margin: None,
-            reason: None,
-            ..v
-        },
-        Some(k_min) => PairVerdict {
-            certified: Certified::No,
-            k_min: Some(k_min),
-            margin: None,
-            reason: Some(PairReason::BelowF32KMin {
-                k: config.k_e,
-                k_min,
-            }),
-            ..v
-        },
-        None => void(sc.reason.map_or(F32Void::NoK, F32Void::Void), v),
-    }
-}
-
 /// Whether Theorem 1's entry `sc` certifies some K for the scenario's configuration (its
 /// warm start and `controller`): the per-solver `certified` of `reproduce`'s
 /// certificate.json. False when nothing covers the configuration, whatever K_min says.
@@ -309,23 +174,6 @@ pub fn solver_certified(
         covering(scenario, sc.solver, controller),
         Coverage::Covered(_)
     ) && sc.k_min.is_some()
-}
-
-/// The global loop certificate of `method` in `cert` when it speaks for `controller` (the
-/// section was computed for the scenario's own controller, and models the exact MPC only
-/// here): what [`Applicable::new`] combines with Theorem 1, and what reports show beside it.
-pub fn global_of(
-    cert: &ClosedLoopCertificate,
-    method: Method,
-    controller: ControllerChoice,
-) -> Option<&MethodGlobal> {
-    if controller != ControllerChoice::ExactMpc {
-        return None;
-    }
-    cert.global
-        .as_ref()
-        .filter(|g| g.controller == controller)
-        .and_then(|g| g.method(method))
 }
 
 /// Which certificate covers a configuration, or why none does. `#[non_exhaustive]`: callers
@@ -515,26 +363,6 @@ impl std::fmt::Display for PairReason {
                 "f32: K = {k} is below the f32 K_min = {k_min} (Theorem 1 with the f32 rounding \
                  folded in)"
             ),
-        }
-    }
-}
-
-/// The global loop certificate's outcome in the verdict's scalar (the global part of
-/// [`PairReason::Global`]).
-#[derive(Debug, Clone, PartialEq)]
-#[non_exhaustive]
-pub enum GlobalWhy {
-    /// In exact arithmetic (f64).
-    Exact(GlobalOutcome),
-    /// In f32.
-    F32(PrecisionOutcome),
-}
-
-impl std::fmt::Display for GlobalWhy {
-    fn fmt(&self, f: &mut std::fmt::Formatter<'_>) -> std::fmt::Result {
-        match self {
-            Self::Exact(o) => o.fmt(f),
-            Self::F32(o) => o.fmt(f),
         }
     }
 }

@@ -14,8 +14,8 @@ use qp_iter::Method;
 use qp_iter::rounding::F32_UNIT_ROUNDOFF;
 
 use super::global::{
-    GlobalCertificate, GlobalLoop, GlobalOptions, PrecisionVoid, certify_precision, global_loop,
-    global_loop_with, loop_rounding,
+    GlobalCertificate, GlobalLoop, GlobalOptions, PrecisionCertificate, PrecisionVoid,
+    certify_precision, global_loop, global_loop_with, loop_rounding,
 };
 use crate::budget::DENSE_RATE;
 
@@ -411,14 +411,25 @@ fn searches(
             if nj != n {
                 continue;
             }
-            let estimate = exact_s[n] + precision_seconds(gj.n_zeta(), gj.n_x());
+            let [first, full] = precision_seconds(gj.n_zeta(), gj.n_x());
             let out = match &star {
                 Err(why) => PrecisionOutcome::NoExact(Box::new(why.clone())),
-                Ok(_) if estimate > settings.phase_seconds => PrecisionOutcome::NotComputed {
-                    estimate_seconds: estimate,
-                    budget_seconds: settings.phase_seconds,
-                },
-                Ok((_, cert)) => precision_outcome(resolved, &options[j], gj, cert, settings),
+                Ok(_) if exact_s[n] + first > settings.phase_seconds => {
+                    PrecisionOutcome::NotComputed {
+                        estimate_seconds: exact_s[n] + first,
+                        budget_seconds: settings.phase_seconds,
+                    }
+                }
+                Ok((_, cert)) => {
+                    let within = exact_s[n] + full <= settings.phase_seconds;
+                    match precision_outcome(resolved, &options[j], gj, cert, settings, within) {
+                        Some(out) => out,
+                        None => PrecisionOutcome::NotComputed {
+                            estimate_seconds: exact_s[n] + full,
+                            budget_seconds: settings.phase_seconds,
+                        },
+                    }
+                }
             };
             f32.push((j, out));
         }
@@ -465,47 +476,82 @@ fn searches(
         .collect()
 }
 
-/// The f32 certificate (Theorem L3u) of one method from its norm's exact certificate.
+/// The f32 certificate (Theorem L3u) of one method from its norm's exact certificate, in two
+/// stages: first φ*_u = φ* only (the bisection's tolerance set to 1, so none runs) — where it
+/// certifies, its K_glob(u) is the full search's, which tries φ* first; else the full search
+/// with its bisection when `bisect_within` (its estimate fits the budget), else None: not
+/// computed.
 fn precision_outcome(
     resolved: &ResolvedScenario,
     options: &LoopOptions,
     g: &GlobalLoop,
     exact: &GlobalCertificate,
     settings: &GlobalSettings,
-) -> PrecisionOutcome {
+    bisect_within: bool,
+) -> Option<PrecisionOutcome> {
     let u = F32_UNIT_ROUNDOFF;
-    match certify_precision(resolved, options, g, Some(exact), u, &settings.search) {
-        Err(e) => PrecisionOutcome::Unsupported {
-            reason: e.to_string(),
+    let first = GlobalOptions {
+        phi_tol: 1.0,
+        ..settings.search
+    };
+    match certify_precision(resolved, options, g, Some(exact), u, &first) {
+        // Certified at φ*_u = φ*, or refused before the bisection (no rounding model, broken
+        // contraction, infeasible at φ_u = 0 for every split: the full search runs the same
+        // calls): final.
+        Ok(p) if p.k_glob.is_some() || p.phi_star.is_none() => return Some(precision_of(&p)),
+        Ok(_) => {}
+        Err(e) => {
+            return Some(PrecisionOutcome::Unsupported {
+                reason: e.to_string(),
+            });
+        }
+    }
+    if !bisect_within {
+        return None;
+    }
+    Some(
+        match certify_precision(resolved, options, g, Some(exact), u, &settings.search) {
+            Ok(p) => precision_of(&p),
+            Err(e) => PrecisionOutcome::Unsupported {
+                reason: e.to_string(),
+            },
         },
-        Ok(p) => match (p.k_glob, p.phi_star, p.certificate.as_ref()) {
-            (Some(k_glob), Some(phi_star), Some(c)) => PrecisionOutcome::Certified(PrecisionK {
-                unit_roundoff: u,
-                k_glob,
-                phi_star,
-                offset: p.offset(),
-                rho: c.rho,
-                gamma: c.gamma,
-                margin: c.margin,
-            }),
-            _ => PrecisionOutcome::Void(p.reason.unwrap_or(PrecisionVoid::Exact)),
-        },
+    )
+}
+
+/// The outcome of a finished f32 search.
+fn precision_of(p: &PrecisionCertificate) -> PrecisionOutcome {
+    match (p.k_glob, p.phi_star, p.certificate.as_ref()) {
+        (Some(k_glob), Some(phi_star), Some(c)) => PrecisionOutcome::Certified(PrecisionK {
+            unit_roundoff: p.unit_roundoff,
+            k_glob,
+            phi_star,
+            offset: p.offset(),
+            rho: c.rho,
+            gamma: c.gamma,
+            margin: c.margin,
+        }),
+        _ => PrecisionOutcome::Void(p.reason.clone().unwrap_or(PrecisionVoid::Exact)),
     }
 }
 
-/// Estimated seconds of one method's f32 search ([`certify_precision`]): up to six splits at
-/// φ*, then a bisection per split; measured at about one φ* search without the τ grid
-/// (docs/certificate-coverage.md).
-pub fn precision_seconds(n_zeta: usize, n_x: usize) -> f64 {
-    search_seconds(n_zeta, n_x, 6)
+/// Estimated seconds of one method's f32 search ([`certify_precision`]): [first stage (the
+/// splits at φ*, ≈ 8 LMI calls; one succeeds at once on the case study), full search (six
+/// splits × a bisection to 2 %: ≈ 60 calls)] — the per-call cost of [`search_seconds`].
+pub fn precision_seconds(n_zeta: usize, n_x: usize) -> [f64; 2] {
+    [
+        search_seconds(n_zeta, n_x, 3),
+        search_seconds(n_zeta, n_x, 29),
+    ]
 }
 
-/// Multiplier pairs tried per φ (τ₁ only with a bounded MHE coordinate, τ₃ only with an
-/// input bound).
+/// Multiplier pairs tried per φ, as measured: the τ₁ grid, plus one for the τ₃ channel of an
+/// input bound (the grid over τ₃ stops at its first success, so a τ₁ × τ₃ product is far
+/// too pessimistic: the case study, with an input bound, measured ≈ 4 s of CPU per norm in
+/// release against 20 s estimated as a product; docs/certificate-coverage.md).
 fn tau_calls(g: &GlobalLoop, opts: &GlobalOptions) -> usize {
     let k = opts.tau_points.max(2);
-    let t3 = if g.has_mpc_channel() { k } else { 1 };
-    k * t3
+    k + usize::from(g.has_mpc_channel())
 }
 
 /// φ* of `g`'s norm with its certificate (K fields filled per method later; the checked

@@ -54,6 +54,8 @@ mod tests_capi;
 #[cfg(test)]
 mod tests_firmware;
 #[cfg(test)]
+mod tests_global;
+#[cfg(test)]
 mod tests_mpc;
 #[cfg(test)]
 mod tests_structured;

@@ -42,10 +42,10 @@ use crate::joint::{JointAnalysis, JointOptions, certify_joint};
 use crate::lure::global_outcome::MethodGlobal;
 
 mod global;
-use global::f32_verdict;
-pub use global::{GlobalWhy, global_of, with_global};
 use crate::outcome::VoidReason;
 use closed_loop::scenario::{ControllerChoice, ResolvedScenario, Scenario};
+use global::f32_verdict;
+pub use global::{GlobalWhy, global_of, with_global};
 
 /// The certificates a configuration can be under. `#[non_exhaustive]`: a caller outside this
 /// crate names them through [`CertificateKind::name`] / [`CertificateKind::title`], which

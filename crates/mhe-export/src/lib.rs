@@ -383,7 +383,8 @@ pub(crate) fn decide_k(
                 "{flag}: below the certified K_min = {k_min} of {} for {name} in {}; use \
                  --k certified (or K ≥ {k_min}), or --allow-uncertified to export an uncertified \
                  estimator",
-                v.certificate.map_or("the certificate", CertificateKind::title),
+                v.certificate
+                    .map_or("the certificate", CertificateKind::title),
                 scalar_name(scalar)
             ),
             None => bail!(

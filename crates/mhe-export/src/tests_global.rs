@@ -88,7 +88,11 @@ fn export_reproduce_and_sweep_agree_at_k_glob_and_below() {
             scalar: s,
         };
         let v = verdict(&r, &cert, &config);
-        assert_eq!(v.certified.is_certified(), certified, "K = {k} {s:?}: {v:?}");
+        assert_eq!(
+            v.certified.is_certified(),
+            certified,
+            "K = {k} {s:?}: {v:?}"
+        );
         assert_eq!(v.k_min, Some(13), "K = {k} {s:?}");
         assert_eq!(v.certificate, Some(CertificateKind::Global));
         if s == Scalar::F64 {
@@ -123,7 +127,10 @@ fn export_reproduce_and_sweep_agree_at_k_glob_and_below() {
     let _ = std::fs::remove_dir_all(&dir);
     art.write_to(&dir).unwrap();
     let readme = std::fs::read_to_string(dir.join("README.md")).unwrap();
-    assert!(readme.contains("Theorem L3u") && readme.contains("ISS offset"), "{readme}");
+    assert!(
+        readme.contains("Theorem L3u") && readme.contains("ISS offset"),
+        "{readme}"
+    );
     let json: serde_json::Value =
         serde_json::from_str(&std::fs::read_to_string(dir.join("certificate.json")).unwrap())
             .unwrap();
@@ -146,7 +153,11 @@ fn f32_is_refused_where_the_global_f32_certificate_fails() {
     let cert = closed_loop_certificate(&r, Method::PG).unwrap();
     let g = iss_certificate::coverage::global_of(&cert, Method::PG, ControllerChoice::ExactMpc)
         .unwrap();
-    let k = g.exact.k_glob().unwrap().max(cert.solver(Method::PG).unwrap().k_min.unwrap_or(0));
+    let k = g
+        .exact
+        .k_glob()
+        .unwrap()
+        .max(cert.solver(Method::PG).unwrap().k_min.unwrap_or(0));
     let config = Configuration {
         method: Method::PG,
         k_e: k,
@@ -154,7 +165,18 @@ fn f32_is_refused_where_the_global_f32_certificate_fails() {
         scalar: Scalar::F64,
     };
     assert!(verdict(&r, &cert, &config).certified.is_certified());
-    let v = verdict(&r, &cert, &Configuration { scalar: Scalar::F32, ..config });
+    let v = verdict(
+        &r,
+        &cert,
+        &Configuration {
+            scalar: Scalar::F32,
+            ..config
+        },
+    );
     assert!(!v.certified.is_certified(), "{v:?}");
-    assert!(g.f32.to_string().contains("breaks the contraction"), "{}", g.f32);
+    assert!(
+        g.f32.to_string().contains("breaks the contraction"),
+        "{}",
+        g.f32
+    );
 }

@@ -52,16 +52,17 @@ pub struct SolverSummary {
 impl SolverSummary {
     /// The summary of `sc` in `report`'s scenario (its method simulated, its controller).
     fn new(report: &Report, sc: &SolverCertificate) -> Self {
-        let global = iss_certificate::coverage::global_of(
-            &report.certificate,
-            sc.solver,
-            report.controller,
-        )
-        .filter(|_| {
-            iss_certificate::coverage::covering(&report.scenario, sc.solver, report.controller)
-                .covers()
-                .is_some()
-        });
+        let global =
+            iss_certificate::coverage::global_of(&report.certificate, sc.solver, report.controller)
+                .filter(|_| {
+                    iss_certificate::coverage::covering(
+                        &report.scenario,
+                        sc.solver,
+                        report.controller,
+                    )
+                    .covers()
+                    .is_some()
+                });
         Self {
             solver: sc.solver,
             simulated: sc.solver == report.solver,

@@ -56,7 +56,10 @@ fn check_k(what: &str, cell: &str, json: &Value, screen: &str) {
         Some(k) => assert_eq!(v.parse::<u64>().ok(), Some(k), "{what}: {cell} vs {json}"),
         None => {
             assert!(json.is_null(), "{what}: {json}");
-            assert!(["void", "none", "n/c", "n/a", "-"].contains(&v), "{what}: {cell}");
+            assert!(
+                ["void", "none", "n/c", "n/a", "-"].contains(&v),
+                "{what}: {cell}"
+            );
             if v != "-" {
                 footnote(
                     screen,

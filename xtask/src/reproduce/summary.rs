@@ -62,7 +62,10 @@ pub(super) fn verdict(d: &CertificateDocument) -> String {
     // `at_scenario`, of `iss_certificate::coverage`).
     if d.at_scenario.certificate == Some(iss_certificate::coverage::CertificateKind::Global) {
         let k = d.scenario_iterations;
-        let kg = d.at_scenario.k_min.map_or_else(|| "?".into(), |k| k.to_string());
+        let kg = d
+            .at_scenario
+            .k_min
+            .map_or_else(|| "?".into(), |k| k.to_string());
         return lead
             + &if d.at_scenario.certified.is_certified() {
                 format!(

@@ -4,9 +4,7 @@
 use closed_loop::scenario::{ControllerChoice, ResolvedScenario};
 use qp_iter::Method;
 
-use super::{
-    CertificateKind, Certified, Configuration, F32Void, PairReason, PairVerdict, Scalar,
-};
+use super::{CertificateKind, Certified, Configuration, F32Void, PairReason, PairVerdict, Scalar};
 use crate::certificate::{CertificateOptions, ClosedLoopCertificate};
 use crate::lure::global_outcome::{GlobalOutcome, MethodGlobal, PrecisionOutcome};
 
@@ -186,7 +184,6 @@ pub(super) fn f32_verdict(
     }
 }
 
-
 #[cfg(test)]
 mod tests {
     use super::*;
@@ -232,8 +229,9 @@ mod tests {
             certified,
             k_min,
             margin: None,
-            reason: (certified == Certified::Void)
-                .then(|| PairReason::Void(vec![crate::outcome::VoidReason::NoK { k_max: 1 << 24 }])),
+            reason: (certified == Certified::Void).then(|| {
+                PairReason::Void(vec![crate::outcome::VoidReason::NoK { k_max: 1 << 24 }])
+            }),
         }
     }
 
@@ -256,12 +254,22 @@ mod tests {
     #[test]
     fn theorem1_is_named_first_and_k_min_is_the_smaller_floor() {
         let g = global(exact(13), f32_at(13));
-        let v = with_global(theorem1(Certified::Yes, Some(243)), Some(&g), 243, Scalar::F64);
+        let v = with_global(
+            theorem1(Certified::Yes, Some(243)),
+            Some(&g),
+            243,
+            Scalar::F64,
+        );
         assert_eq!(v.certificate, Some(CertificateKind::Theorem1));
         assert_eq!((v.certified, v.k_min), (Certified::Yes, Some(13)));
         // Below both floors, Theorem 1's smaller floor keeps its name.
         let g = global(exact(500), f32_at(500));
-        let v = with_global(theorem1(Certified::No, Some(243)), Some(&g), 100, Scalar::F64);
+        let v = with_global(
+            theorem1(Certified::No, Some(243)),
+            Some(&g),
+            100,
+            Scalar::F64,
+        );
         assert_eq!(v.certificate, Some(CertificateKind::Theorem1));
         assert_eq!((v.certified, v.k_min), (Certified::No, Some(243)));
     }
@@ -302,7 +310,12 @@ mod tests {
             assert!(why.contains("certificate.phase_seconds"), "{why}");
             assert!(why.contains("not computed within the budget"), "{why}");
         }
-        let v = with_global(theorem1(Certified::No, Some(243)), Some(&g), 13, Scalar::F64);
+        let v = with_global(
+            theorem1(Certified::No, Some(243)),
+            Some(&g),
+            13,
+            Scalar::F64,
+        );
         assert_eq!((v.certified, v.k_min), (Certified::No, Some(243)));
         assert!(v.reason_text().contains("certificate.phase_seconds"));
     }

@@ -387,7 +387,10 @@ fn searches(
     // One thread per norm: its φ* (within the budget) and, within the budget, its methods'
     // f32 certificates. Each norm and each method is budgeted on its own, so a method's
     // outcome does not depend on which other methods a command asks for.
-    type NormResult = (Result<GlobalK, GlobalOutcome>, Vec<(usize, PrecisionOutcome)>);
+    type NormResult = (
+        Result<GlobalK, GlobalOutcome>,
+        Vec<(usize, PrecisionOutcome)>,
+    );
     let run_norm = |n: usize| -> NormResult {
         let i = norms[n];
         let g = match &plan[i].gl {

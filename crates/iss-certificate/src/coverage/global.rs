@@ -13,8 +13,8 @@ use crate::lure::global_outcome::{GlobalOutcome, MethodGlobal, PrecisionOutcome}
 /// configuration). Certified when either covers K_e, and the verdict names which (Theorem 1
 /// first); K_min is the smaller floor of the two. When neither covers: a known K_glob above
 /// K_e is a plain "no"; a global search the budget stopped makes a void or not-computed `v`
-/// not computed and says so (a "no" stays "no", with the sentence); a global certificate
-/// proved absent leaves `v` as it is (its outcome is reported beside, e.g. `certify --loop`).
+/// not computed and says so (a "no" stays a plain "no"); a global certificate proved absent
+/// leaves `v` as it is (its outcome is reported beside: certificate.json, `certify --loop`).
 pub fn with_global(
     v: PairVerdict,
     global: Option<&MethodGlobal>,
@@ -68,21 +68,16 @@ pub fn with_global(
                 reason: None,
             }
         }
-        None if not_computed => {
-            let certified = if v.certified.is_below_floor() {
-                Certified::No
-            } else {
-                Certified::NotComputed
-            };
-            PairVerdict {
-                certified,
-                reason: Some(PairReason::Global {
-                    then: v.reason.clone().map(Box::new),
-                    global: why,
-                }),
-                ..v
-            }
-        }
+        // A "no" stays a plain "no" (Theorem 1's floor is known; the global outcome is
+        // reported per method beside it).
+        None if not_computed && !v.certified.is_below_floor() => PairVerdict {
+            certified: Certified::NotComputed,
+            reason: Some(PairReason::Global {
+                then: v.reason.clone().map(Box::new),
+                global: why,
+            }),
+            ..v
+        },
         None => v,
     }
 }
@@ -294,7 +289,7 @@ mod tests {
     }
 
     /// A global search the budget stopped: a void Theorem 1 verdict becomes "not computed",
-    /// naming the key; a "no" stays "no" with the sentence.
+    /// naming the key; a "no" stays a plain "no".
     #[test]
     fn a_budget_stopped_search_is_not_computed_and_names_the_key() {
         let nc = GlobalOutcome::NotComputed {
@@ -317,6 +312,6 @@ mod tests {
             Scalar::F64,
         );
         assert_eq!((v.certified, v.k_min), (Certified::No, Some(243)));
-        assert!(v.reason_text().contains("certificate.phase_seconds"));
+        assert_eq!(v.reason, None);
     }
 }

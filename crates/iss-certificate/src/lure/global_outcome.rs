@@ -273,7 +273,10 @@ impl GlobalSection {
 /// of ≈ 8·n_X³) and two Jacobi eigenvalue checks (scalar loops, ≈ 120·n_ζ³ at 1/20 of the
 /// dense rate) per call, and 2·(`tau_calls` + 1) calls — calibrated on the double
 /// integrator (n_ζ = 126: 4.6 s of CPU for both norms and the rest of `certify --loop`,
-/// estimate 5.8 s; docs/certificate-coverage.md).
+/// estimate 5.8 s) and the case study (n_ζ = 147, an input bound: 8.5 s of CPU for both
+/// norms and the f32 search of PG, estimate 5.4 s per norm with the `tau_calls` of
+/// [`global_section`]; docs/certificate-coverage.md). [`global_section`] budgets each norm's
+/// search on its own (they run on one thread each).
 pub fn search_seconds(n_zeta: usize, n_x: usize, tau_calls: usize) -> f64 {
     let (nz, nx) = (n_zeta as f64, n_x as f64);
     let per_call = 25.0 * 8.0 * nx.powi(3) + 20.0 * 120.0 * nz.powi(3);

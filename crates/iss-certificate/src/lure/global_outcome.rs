@@ -332,17 +332,13 @@ struct Planned {
     f32: Option<PrecisionOutcome>,
 }
 
-/// The searches of [`global_section`] (`with_f32`: also the f32 certificates): one thread
-/// per norm (φ*, then the f32 searches of that norm's methods), each norm's search and each
-/// f32 search budgeted by its own estimate against `settings.phase_seconds` (the threads run
-/// side by side, so the budget bounds each thread's work). Deterministic: no result depends
-/// on the threads' order, nor on the other methods asked.
-fn searches(
+/// Each loop, its norm (`norms` holds the first loop of each distinct D⁻¹: one φ* search per
+/// norm) and its f32 outcome where it is known without a search.
+fn plan_loops(
     resolved: &ResolvedScenario,
     options: &[LoopOptions],
-    settings: &GlobalSettings,
     with_f32: bool,
-) -> Vec<(GlobalOutcome, PrecisionOutcome)> {
+) -> (Vec<Planned>, Vec<usize>) {
     let mut plan: Vec<Planned> = options
         .iter()
         .map(|o| Planned {
@@ -377,6 +373,21 @@ fn searches(
             },
         });
     }
+    (plan, norms)
+}
+
+/// The searches of [`global_section`] (`with_f32`: also the f32 certificates): one thread
+/// per norm (φ*, then the f32 searches of that norm's methods), each norm's search and each
+/// f32 search budgeted by its own estimate against `settings.phase_seconds` (the threads run
+/// side by side, so the budget bounds each thread's work). Deterministic: no result depends
+/// on the threads' order, nor on the other methods asked.
+fn searches(
+    resolved: &ResolvedScenario,
+    options: &[LoopOptions],
+    settings: &GlobalSettings,
+    with_f32: bool,
+) -> Vec<(GlobalOutcome, PrecisionOutcome)> {
+    let (plan, norms) = plan_loops(resolved, options, with_f32);
     let tau = |g: &GlobalLoop| tau_calls(g, &settings.search);
     let exact_s: Vec<f64> = norms
         .iter()

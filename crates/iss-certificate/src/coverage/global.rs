@@ -104,7 +104,7 @@ impl std::fmt::Display for GlobalWhy {
 
 /// The global loop certificate of `method` in `cert` when it speaks for `controller` (the
 /// section was computed for the scenario's own controller, and models the exact MPC only
-/// here): what [`Applicable::new`] combines with Theorem 1, and what reports show beside it.
+/// here): what [`super::Applicable::new`] combines with Theorem 1, and what reports show beside it.
 pub fn global_of(
     cert: &ClosedLoopCertificate,
     method: Method,

@@ -39,8 +39,13 @@ use crate::certificate::{
     CertificateOptions, ClosedLoopCertificate, Gamma13Source, SolverCertificate,
 };
 use crate::joint::{JointAnalysis, JointOptions, certify_joint};
+use crate::lure::global_outcome::MethodGlobal;
+
+mod global;
 use crate::outcome::VoidReason;
 use closed_loop::scenario::{ControllerChoice, ResolvedScenario, Scenario};
+use global::f32_verdict;
+pub use global::{GlobalWhy, global_of, with_global};
 
 /// The certificates a configuration can be under. `#[non_exhaustive]`: a caller outside this
 /// crate names them through [`CertificateKind::name`] / [`CertificateKind::title`], which
@@ -54,22 +59,27 @@ pub enum CertificateKind {
     Theorem1,
     /// The joint certificate: the sub-optimal MHE with the K_c-iteration MPC.
     Joint,
+    /// The global loop certificate (Theorem L3; in f32 Theorem L3u): the sub-optimal MHE with
+    /// the exact MPC, every K ≥ K_glob ([`crate::lure::global_outcome`]).
+    Global,
 }
 
 impl CertificateKind {
-    /// `"theorem1"` or `"joint"` (the `certificate` column and key).
+    /// `"theorem1"`, `"joint"` or `"global"` (the `certificate` column and key).
     pub fn name(self) -> &'static str {
         match self {
             CertificateKind::Theorem1 => "theorem1",
             CertificateKind::Joint => "joint",
+            CertificateKind::Global => "global",
         }
     }
 
-    /// `"Theorem 1"` or `"joint MPC + MHE"` (the reports' words).
+    /// `"Theorem 1"`, `"joint MPC + MHE"` or the global certificate's name (the reports' words).
     pub fn title(self) -> &'static str {
         match self {
             CertificateKind::Theorem1 => "Theorem 1",
             CertificateKind::Joint => "joint MPC + MHE",
+            CertificateKind::Global => "the global loop certificate (Theorem L3)",
         }
     }
 }
@@ -88,7 +98,8 @@ pub const F32_NOT_COVERED: &str = "not covered: the joint certificate (K_c-itera
 /// `solvers` on `scenario`: γ₁,₃ is the user's (`cli_gamma13`, else the scenario's
 /// `certificate.gamma13`) tested by [`USER_GAMMA13_SEQUENCES`] sampled sequences per magnitude
 /// with the scenario's seed, else the certified one; the budget is the scenario's
-/// `certificate.phase_seconds`. The sampled estimates that decide nothing (L_Φ, L_π, and
+/// `certificate.phase_seconds`, which also budgets the global loop certificate computed with
+/// it (the verdict's second certificate). The sampled estimates that decide nothing (L_Φ, L_π, and
 /// γ₁,₃ beside a certified value) are skipped; a command that reports them raises
 /// `lipschitz_pairs` / `gamma13_sequences` (the latter only without a user γ₁,₃).
 pub fn verdict_options(
@@ -108,6 +119,7 @@ pub fn verdict_options(
             0
         },
         phase_seconds: scenario.certificate.phase_seconds(),
+        global_seconds: Some(scenario.certificate.phase_seconds()),
         ..CertificateOptions::default()
     }
 }
@@ -142,71 +154,12 @@ pub fn verdict(
         _ => None,
     };
     let applicable = Applicable::new(resolved, cert, config.method, config.controller);
-    let v = applicable.at(config.k_e, k_c);
-    match config.scalar {
+    let v = applicable.at_alone(config.k_e, k_c);
+    let v = match config.scalar {
         Scalar::F64 => v,
         Scalar::F32 => f32_verdict(resolved, cert, config, v),
-    }
-}
-
-/// The f32 verdict from the f64 one `v`: Theorem 1 with the f32 rounding folded in
-/// ([`crate::certificate::precision::certify_scalar`]); the joint certificate has no rounding
-/// model ([`F32_NOT_COVERED`]). The f64 K_min is kept where f32 has none.
-fn f32_verdict(
-    resolved: &ResolvedScenario,
-    cert: &ClosedLoopCertificate,
-    config: &Configuration,
-    v: PairVerdict,
-) -> PairVerdict {
-    let void = |why: F32Void, v: PairVerdict| PairVerdict {
-        certified: Certified::Void,
-        margin: None,
-        reason: Some(PairReason::F32 {
-            why,
-            then: v.reason.map(Box::new),
-        }),
-        ..v
     };
-    if v.certified == Certified::Void || v.certificate != Some(CertificateKind::Theorem1) {
-        let why = match v.certificate {
-            Some(CertificateKind::Joint) => F32Void::JointNotCovered,
-            _ => F32Void::NotCovered,
-        };
-        return void(why, v);
-    }
-    let sc = match crate::certificate::precision::certify_scalar(
-        resolved,
-        cert,
-        config.method,
-        Scalar::F32,
-        CertificateOptions::default().k_max,
-    ) {
-        Ok(sc) => sc,
-        Err(e) => {
-            let error = e.to_string();
-            return void(F32Void::RoundingModel { error }, v);
-        }
-    };
-    match sc.k_min {
-        Some(k_min) if config.k_e >= k_min => PairVerdict {
-            certified: Certified::Yes,
-            k_min: Some(k_min),
-            margin: None,
-            reason: None,
-            ..v
-        },
-        Some(k_min) => PairVerdict {
-            certified: Certified::No,
-            k_min: Some(k_min),
-            margin: None,
-            reason: Some(PairReason::BelowF32KMin {
-                k: config.k_e,
-                k_min,
-            }),
-            ..v
-        },
-        None => void(sc.reason.map_or(F32Void::NoK, F32Void::Void), v),
-    }
+    with_global(v, applicable.global(), config.k_e, config.scalar)
 }
 
 /// Whether Theorem 1's entry `sc` certifies some K for the scenario's configuration (its
@@ -355,6 +308,14 @@ pub enum PairReason {
         /// The f64 verdict's reason.
         then: Option<Box<PairReason>>,
     },
+    /// Theorem 1's verdict (`then`) and the global loop certificate's outcome, which the
+    /// budget stopped ([`with_global`]).
+    Global {
+        /// Theorem 1's (or the f32) reason, if any.
+        then: Option<Box<PairReason>>,
+        /// The global certificate's outcome.
+        global: GlobalWhy,
+    },
     /// K is below the f32 K_min (Theorem 1 with the f32 rounding folded in).
     BelowF32KMin {
         /// The K asked for.
@@ -390,6 +351,13 @@ impl std::fmt::Display for PairReason {
                 why,
                 then: Some(then),
             } => write!(f, "f32: {why}; {then}"),
+            Self::Global { then: None, global } => {
+                write!(f, "the global loop certificate: {global}")
+            }
+            Self::Global {
+                then: Some(then),
+                global,
+            } => write!(f, "{then}; the global loop certificate: {global}"),
             Self::BelowF32KMin { k, k_min } => write!(
                 f,
                 "f32: K = {k} is below the f32 K_min = {k_min} (Theorem 1 with the f32 rounding \
@@ -550,6 +518,9 @@ pub enum Applicable {
         void_reasons: Vec<VoidReason>,
         /// The budget cut the verdict (None: computed).
         not_computed: Option<NotComputed>,
+        /// The global loop certificate of the method with this controller (None: not
+        /// computed, or computed for another controller): [`with_global`] combines it.
+        global: Option<Box<MethodGlobal>>,
     },
     /// The joint certificate of the method with the MPC's method.
     Joint {
@@ -681,6 +652,7 @@ impl Applicable {
                 k_min: sc.k_min,
                 void_reasons: sc.void_reasons.clone(),
                 not_computed: sc.not_computed.clone(),
+                global: global_of(cert, method, controller).map(|m| Box::new(m.clone())),
             },
         }
     }
@@ -702,12 +674,14 @@ impl Applicable {
         }
     }
 
-    /// Whether some pair can be certified: Theorem 1 with a K_min; the joint certificate
-    /// when no reason voids it whatever the pair (its region then says which pairs); never
-    /// when uncovered.
+    /// Whether some pair can be certified: Theorem 1 with a K_min or the global loop
+    /// certificate with a K_glob; the joint certificate when no reason voids it whatever the
+    /// pair (its region then says which pairs); never when uncovered.
     pub fn may_certify(&self) -> bool {
         match self {
-            Applicable::Theorem1 { k_min, .. } => k_min.is_some(),
+            Applicable::Theorem1 { k_min, global, .. } => {
+                k_min.is_some() || global.as_ref().is_some_and(|g| g.exact.k_glob().is_some())
+            }
             Applicable::Joint { void_reasons, .. } => void_reasons.is_empty(),
             Applicable::Uncovered(_) => false,
         }
@@ -734,9 +708,23 @@ impl Applicable {
         }
     }
 
-    /// The verdict at (K_e, K_c); `k_c` is ignored by Theorem 1 (the exact MPC) and required
-    /// by the joint certificate (None there: void, "no K_c").
+    /// The global loop certificate combined with Theorem 1's verdicts (None: none).
+    pub fn global(&self) -> Option<&MethodGlobal> {
+        match self {
+            Applicable::Theorem1 { global, .. } => global.as_deref(),
+            Applicable::Joint { .. } | Applicable::Uncovered(_) => None,
+        }
+    }
+
+    /// The verdict at (K_e, K_c) in f64, of every certificate that applies ([`with_global`]);
+    /// `k_c` is ignored by Theorem 1 (the exact MPC) and required by the joint certificate
+    /// (None there: void, "no K_c").
     pub fn at(&self, k_e: usize, k_c: Option<usize>) -> PairVerdict {
+        with_global(self.at_alone(k_e, k_c), self.global(), k_e, Scalar::F64)
+    }
+
+    /// The covering certificate's own verdict at (K_e, K_c), without the global one.
+    fn at_alone(&self, k_e: usize, k_c: Option<usize>) -> PairVerdict {
         let kind = self.kind();
         let void = |reason: PairReason| PairVerdict {
             certificate: kind,
@@ -752,6 +740,7 @@ impl Applicable {
                 k_min,
                 void_reasons,
                 not_computed,
+                ..
             } => theorem1_at(analysis, *k_min, void_reasons, not_computed.as_ref(), k_e),
             Applicable::Joint {
                 analysis,

@@ -458,6 +458,7 @@ pub fn export_with_progress(
         prior: scenario.simulation.prior.clone(),
         sha256: options.source.sha256.clone(),
         mpc: mpc.as_ref().map(|m| m.artefact.clone()),
+        global: est.global,
     };
     let mpc_data = mpc.as_ref().map(|m| &m.data);
     let (budgets, budget_note) =
@@ -517,6 +518,8 @@ struct EstimatorExport {
     k_min: Option<usize>,
     certified: bool,
     reason: Option<String>,
+    /// The global loop certificate, when it (not Theorem 1) certifies K.
+    global: Option<crate::GlobalCover>,
     problem: OwnedProblem,
 }
 
@@ -556,6 +559,7 @@ fn export_estimator(
         k_min: v.k_min.or(theorem1.k_min),
         certified: v.certified.is_certified(),
         reason: uncertified_reason(&v, &format!("K = {k}")),
+        global: crate::GlobalCover::of(&loop_cert, method, o.scalar, &v),
         loop_cert,
         theorem1,
         problem,

@@ -54,6 +54,8 @@ mod tests_capi;
 #[cfg(test)]
 mod tests_firmware;
 #[cfg(test)]
+mod tests_global;
+#[cfg(test)]
 mod tests_mpc;
 #[cfg(test)]
 mod tests_structured;
@@ -76,8 +78,16 @@ pub(crate) const F32_COVERED: &str = "covered: Theorem 1 with the f32 rounding o
     portable kernel folded in (docs/theory.md, \"Certified f32\") certifies this K";
 /// What an f64 artefact says about f32.
 const F32_DECIDED_BY: &str = "an f32 export is certified where Theorem 1 with the f32 \
-    rounding folded in certifies its K (iss_certificate::coverage::verdict)";
-use iss_certificate::coverage::{Configuration, PairVerdict, Scalar, verdict_options};
+    rounding folded in, or the global loop certificate in f32 (Theorem L3u), certifies its K \
+    (iss_certificate::coverage::verdict)";
+/// What an f32 artefact's certificate covers when the global loop certificate covers it.
+const F32_GLOBAL: &str = "covered: the global loop certificate in f32 (Theorem L3u, \
+    docs/theory.md \"The global loop certificate in a given precision\") certifies this K, for \
+    the loop with the exact MPC: ISS with the rounding's offset (`covered_by.offset`) as an \
+    input beside w";
+use iss_certificate::coverage::{
+    CertificateKind, Configuration, PairVerdict, Scalar, verdict_options,
+};
 use iss_certificate::joint::{JointCertificate, JointOptions, certify_joint};
 use iss_certificate::outcome::VoidReason;
 use qp_iter::Method;
@@ -116,6 +126,70 @@ pub(crate) struct Header {
     pub sha256: String,
     /// The exported MPC, if any.
     pub mpc: Option<MpcArtefact>,
+    /// The global loop certificate, when it (not Theorem 1) certifies K.
+    pub global: Option<GlobalCover>,
+}
+
+/// The global loop certificate's numbers when it covers the exported K (the verdict's
+/// `certificate` is [`CertificateKind::Global`]).
+#[derive(Debug, Clone, PartialEq)]
+pub(crate) struct GlobalCover {
+    /// K_glob in the artefact's scalar.
+    pub k_glob: usize,
+    /// φ* (φ*_u in f32).
+    pub phi_star: f64,
+    /// The ISS offset of the rounding (f32; None in f64, where the rounding is inside the
+    /// check's margin).
+    pub offset: Option<f64>,
+}
+
+impl GlobalCover {
+    /// The cover of `method` in `scalar` from the certificate's global section, if the
+    /// verdict `v` says the global certificate certifies.
+    fn of(
+        cert: &ClosedLoopCertificate,
+        method: Method,
+        scalar: ScalarKind,
+        v: &PairVerdict,
+    ) -> Option<Self> {
+        use iss_certificate::lure::global_outcome::{GlobalOutcome, PrecisionOutcome};
+        if !(v.certified.is_certified() && v.certificate == Some(CertificateKind::Global)) {
+            return None;
+        }
+        let g = iss_certificate::coverage::global_of(cert, method, ControllerChoice::ExactMpc)?;
+        match (scalar, &g.exact, &g.f32) {
+            (ScalarKind::F64, GlobalOutcome::Certified(k), _) => Some(Self {
+                k_glob: k.k_glob,
+                phi_star: k.phi_star,
+                offset: None,
+            }),
+            (ScalarKind::F32, _, PrecisionOutcome::Certified(k)) => Some(Self {
+                k_glob: k.k_glob,
+                phi_star: k.phi_star,
+                offset: Some(k.offset),
+            }),
+            _ => None,
+        }
+    }
+
+    /// "the global loop certificate (Theorem L3)" or "… in f32 (Theorem L3u)".
+    fn name(&self) -> &'static str {
+        if self.offset.is_some() {
+            "the global loop certificate in f32 (Theorem L3u)"
+        } else {
+            "the global loop certificate (Theorem L3)"
+        }
+    }
+
+    fn json(&self) -> serde_json::Value {
+        json!({
+            "certificate": "global",
+            "name": self.name(),
+            "k_glob": self.k_glob,
+            "phi_star": self.phi_star,
+            "offset": self.offset,
+        })
+    }
 }
 
 impl Header {
@@ -136,6 +210,18 @@ impl Header {
             scalar_name(self.scalar)
         )];
         match (self.certified, self.k_min) {
+            (true, _) if self.global.is_some() => {
+                if let Some(g) = &self.global {
+                    lines.push(format!(
+                        "Certified: K = {} ≥ K_glob = {} of {} (certificate.json `covered_by`), \
+                         in {}.",
+                        self.k,
+                        g.k_glob,
+                        g.name(),
+                        scalar_name(self.scalar)
+                    ));
+                }
+            }
             (true, Some(k)) => lines.push(format!(
                 "Certified: K = {} ≥ K_min = {k} of Theorem 1 (certificate.json), in {}.",
                 self.k,
@@ -174,7 +260,12 @@ impl Header {
             });
         }
         if self.scalar == ScalarKind::F32 && self.certified {
-            lines.push(format!("f32: {F32_COVERED}."));
+            let cover = if self.global.is_some() {
+                F32_GLOBAL
+            } else {
+                F32_COVERED
+            };
+            lines.push(format!("f32: {cover}."));
         }
         lines
             .iter()
@@ -247,22 +338,38 @@ pub(crate) fn decide_k(
 ) -> Result<(usize, PairVerdict)> {
     let sc = solver_entry(cert, method)?;
     let name = method.name();
-    let k = match (k_arg, sc.k_min) {
-        (Iterations::Given(k), _) => k,
-        (Iterations::Certified, Some(k)) => k,
-        (Iterations::Certified, None) => bail!(
-            "--k certified: the certificate of Theorem 1 is void for {name} ({}); give --k K \
-             with --allow-uncertified to export anyway",
-            VoidReason::join(&sc.void_reasons)
-        ),
-    };
-    let config = Configuration {
+    let config = |k_e| Configuration {
         method,
-        k_e: k,
+        k_e,
         controller: ControllerChoice::ExactMpc,
         scalar: coverage_scalar(scalar),
     };
-    let v = iss_certificate::coverage::verdict(resolved, cert, &config);
+    // `--k certified`: the smallest K the one verdict certifies in this scalar (Theorem 1's
+    // K_min or the global K_glob, whichever is smaller).
+    let k = match k_arg {
+        Iterations::Given(k) => k,
+        Iterations::Certified => {
+            let probe = iss_certificate::coverage::verdict(resolved, cert, &config(1));
+            match (probe.certified.is_certified(), probe.k_min) {
+                (true, _) => 1,
+                (false, Some(k)) => k,
+                (false, None) if sc.k_min.is_none() => bail!(
+                    "--k certified: no certificate certifies a K for {name} in {} (Theorem 1: \
+                     {}; {}); give --k K with --allow-uncertified to export anyway",
+                    scalar_name(scalar),
+                    VoidReason::join(&sc.void_reasons),
+                    probe.reason_text()
+                ),
+                (false, None) => bail!(
+                    "--k certified: no K is certified for {name} in {} ({}); give --k K with \
+                     --allow-uncertified to export anyway",
+                    scalar_name(scalar),
+                    probe.reason_text()
+                ),
+            }
+        }
+    };
+    let v = iss_certificate::coverage::verdict(resolved, cert, &config(k));
     let flag = match k_arg {
         Iterations::Certified => format!("--k certified (K = {k})"),
         Iterations::Given(_) => format!("--k {k}"),
@@ -273,9 +380,12 @@ pub(crate) fn decide_k(
     if v.certified.is_below_floor() {
         match v.k_min {
             Some(k_min) => bail!(
-                "{flag}: below the certified K_min = {k_min} of Theorem 1 for {name}; use \
+                "{flag}: below the certified K_min = {k_min} of {} for {name} in {}; use \
                  --k certified (or K ≥ {k_min}), or --allow-uncertified to export an uncertified \
-                 estimator"
+                 estimator",
+                v.certificate
+                    .map_or("the certificate", CertificateKind::title),
+                scalar_name(scalar)
             ),
             None => bail!(
                 "{flag}: not certified for {name}; --allow-uncertified exports an uncertified \
@@ -508,6 +618,11 @@ fn certificate_json(
         "loop_certified": art.loop_certified(),
         "artefact_covered": art.loop_certified() && art.scalar == ScalarKind::F64,
         "mpc": mpc,
+        "covered_by": match (&art.global, art.certified) {
+            (Some(g), true) => g.json(),
+            (None, true) => json!({"certificate": "theorem1", "k_min": art.k_min}),
+            (_, false) => serde_json::Value::Null,
+        },
         "uncertified_reason": art.reason.as_ref().map(|r| format!("{r}; exported with --allow-uncertified")),
         "covers": {
             "method": art.method,
@@ -518,6 +633,7 @@ fn certificate_json(
                 "not covered: this configuration is not certified (`uncertified_reason`)"
             },
             "f32": match (art.scalar, art.certified) {
+                (ScalarKind::F32, true) if art.global.is_some() => F32_GLOBAL,
                 (ScalarKind::F32, true) => F32_COVERED,
                 (ScalarKind::F32, false) => "not covered: this configuration is not certified in f32 (`uncertified_reason`)",
                 (ScalarKind::F64, _) => F32_DECIDED_BY,
@@ -529,7 +645,25 @@ fn certificate_json(
 }
 
 fn readme(art: &Header, lang: Lang) -> String {
-    let status = if art.certified {
+    let status = if let (Some(g), true) = (&art.global, art.certified) {
+        let offset = g.offset.map_or_else(String::new, |o| {
+            format!(
+                " The f32 rounding enters as an input beside w: the lim-sup bounds hold with \
+                 √(w̄² + o²), ISS offset o = {o:.3e}."
+            )
+        });
+        format!(
+            "**Certified** by {}: K = {} ≥ K_glob = {} for {} in {} (φ* = {:.4e}; `covered_by` in \
+             `certificate.json`). Theorem 1 does not cover this K; the global certificate covers \
+             the loop with the exact MPC and the paper's warm start.{offset}",
+            g.name(),
+            art.k,
+            g.k_glob,
+            art.method,
+            scalar_name(art.scalar),
+            g.phi_star
+        )
+    } else if art.certified {
         format!(
             "**Certified**: K = {} ≥ K_min = {} of Theorem 1 for {} (`certificate.json`), for the \
              f64 build.",
@@ -545,7 +679,9 @@ fn readme(art: &Header, lang: Lang) -> String {
     let f32_note = if art.scalar == ScalarKind::F32 {
         format!(
             "\n\nThis is an **f32** build; the certificate's cover of f32: {}.\n",
-            if art.certified {
+            if art.certified && art.global.is_some() {
+                F32_GLOBAL
+            } else if art.certified {
                 F32_COVERED
             } else {
                 "not covered (see `uncertified_reason`)"

@@ -269,6 +269,7 @@ pub(super) fn exported_artefact(
             certified: false,
             reason: Some("a test artefact (no certificate computed)".into()),
         }),
+        global: None,
     }
 }
 
@@ -487,6 +488,7 @@ fn an_uncertified_artefact_says_so_everywhere() {
         prior: resolved.scenario().simulation.prior.clone(),
         sha256: super::sha256::sha256_hex(&std::fs::read(&path).unwrap()),
         mpc: None,
+        global: None,
     };
     let dir = scratch_dir("uncertified");
     write_artefact(

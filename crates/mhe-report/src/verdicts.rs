@@ -20,12 +20,19 @@ pub struct SolverSummary {
     pub solver: Method,
     /// Whether this is the scenario's `mhe.method` (the one simulated).
     pub simulated: bool,
-    /// Theorem 1 certifies ISS for some K (K_min exists) and a certificate covers the
-    /// scenario's configuration (false for a shifted warm start or the saturated LQR:
-    /// [`iss_certificate::coverage::solver_certified`]).
+    /// Theorem 1 (K_min) or the global loop certificate (K_glob) certifies ISS for some K, and
+    /// a certificate covers the scenario's configuration (false for a shifted warm start or
+    /// the saturated LQR: [`iss_certificate::coverage::solver_certified`]).
     pub certified: bool,
     /// Smallest certified K; None when void or not computed.
     pub k_min: Option<usize>,
+    /// The global loop certificate's K_glob in f64 (Theorem L3; None: `global` says why).
+    pub k_glob: Option<usize>,
+    /// Its K_glob in f32 (Theorem L3u).
+    pub k_glob_f32: Option<usize>,
+    /// The global certificate's outcome in f64 and f32 (None: not computed with the
+    /// certificate, or not for this controller).
+    pub global: Option<iss_certificate::lure::global_outcome::MethodGlobal>,
     /// Why there is no K_min (empty when there is one, and when it was not computed).
     pub void_reasons: Vec<VoidReason>,
     /// Not certified and not void: the analysis budget stopped the phase that decides it.
@@ -45,6 +52,17 @@ pub struct SolverSummary {
 impl SolverSummary {
     /// The summary of `sc` in `report`'s scenario (its method simulated, its controller).
     fn new(report: &Report, sc: &SolverCertificate) -> Self {
+        let global =
+            iss_certificate::coverage::global_of(&report.certificate, sc.solver, report.controller)
+                .filter(|_| {
+                    iss_certificate::coverage::covering(
+                        &report.scenario,
+                        sc.solver,
+                        report.controller,
+                    )
+                    .covers()
+                    .is_some()
+                });
         Self {
             solver: sc.solver,
             simulated: sc.solver == report.solver,
@@ -52,8 +70,11 @@ impl SolverSummary {
                 &report.scenario,
                 sc,
                 report.controller,
-            ),
+            ) || global.is_some_and(|g| g.exact.k_glob().is_some()),
             k_min: sc.k_min,
+            k_glob: global.and_then(|g| g.exact.k_glob()),
+            k_glob_f32: global.and_then(|g| g.f32.k_glob()),
+            global: global.cloned(),
             void_reasons: sc.void_reasons.clone(),
             not_computed: sc.not_computed.clone(),
             premises: sc.analysis.premises.clone(),

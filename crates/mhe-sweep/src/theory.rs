@@ -14,7 +14,7 @@ use iss_certificate::analysis::IssAnalysis;
 use iss_certificate::certificate::{
     CertificateOptions, ClosedLoopCertificate, certify_closed_loop,
 };
-use iss_certificate::coverage::{Applicable, covering, theorem1_at};
+use iss_certificate::coverage::{Applicable, Scalar, covering, theorem1_at, with_global};
 
 /// The certificate's side of a point: Theorem 1 for one solver.
 #[derive(Debug, Clone)]
@@ -29,6 +29,9 @@ pub enum SolverTheory {
         void_reasons: Vec<iss_certificate::outcome::VoidReason>,
         /// The analysis budget cut the verdict (None: computed).
         not_computed: Option<iss_certificate::budget::NotComputed>,
+        /// The global loop certificate the verdict combines with Theorem 1's
+        /// ([`iss_certificate::coverage::with_global`]).
+        global: Option<Box<iss_certificate::lure::global_outcome::MethodGlobal>>,
     },
     /// The joint certificate of the MHE solver with the K_c-iteration MPC
     /// ([`iss_certificate::coverage::Applicable::Joint`]): the verdict at (K_e, K_c).
@@ -73,10 +76,16 @@ impl SolverTheory {
                 k_min,
                 void_reasons,
                 not_computed,
+                global,
             } => {
                 let g = analysis.at(k);
                 // The verdict is the one rule of `iss_certificate::coverage`.
-                let v = theorem1_at(analysis, *k_min, void_reasons, not_computed.as_ref(), k);
+                let v = with_global(
+                    theorem1_at(analysis, *k_min, void_reasons, not_computed.as_ref(), k),
+                    global.as_deref(),
+                    k,
+                    Scalar::F64,
+                );
                 // Props. 1 and 3 divide by 1 − φ(K): for φ(K) ≥ 1 the gains, slopes and
                 // margin are undefined (written empty), not large.
                 let defined = g.phi < 1.0 && g.phi.is_finite();
@@ -85,7 +94,7 @@ impl SolverTheory {
                     slopes: defined.then_some([g.sg1, g.sg2, g.sg3]),
                     margin: defined.then_some(g.margin),
                     certified: v.certified.as_str(),
-                    k_min: *k_min,
+                    k_min: v.k_min.or(*k_min),
                     void_reason: csv_text(&v.reason_text()),
                     ..TheoryAtK::default()
                 }
@@ -318,11 +327,13 @@ pub(super) fn theory_of(
             k_min,
             void_reasons,
             not_computed,
+            global,
         } => SolverTheory::Analysis {
             analysis,
             k_min,
             void_reasons,
             not_computed,
+            global,
         },
         Applicable::Uncovered(r) => SolverTheory::Unavailable(r.to_string()),
         // The joint certificate, or one this crate does not know: its verdicts come from

@@ -8,10 +8,10 @@ use std::time::Instant;
 
 use anyhow::{Result, anyhow, bail};
 use closed_loop::scenario::{LoopOptions, MAX_PHASE_SECONDS, ResolvedScenario, Scenario};
-use iss_certificate::certificate::certify_closed_loop;
+use iss_certificate::certificate::{CertificateOptions, certify_closed_loop};
 use iss_certificate::coverage::verdict_options;
 use iss_certificate::linear::{linear_stability_all_budgeted, log_spaced};
-use iss_certificate::lure::global_outcome::{GlobalOutcome, GlobalSettings, global_outcomes};
+use iss_certificate::lure::global_outcome::GlobalOutcome;
 use qp_iter::Method;
 
 use crate::reproduce::numfmt::num;
@@ -76,7 +76,7 @@ pub fn loop_section(scenario: &Scenario, global_seconds: f64) -> Result<LoopSect
             o
         })
         .collect();
-    let (k_mins, k_min_err) = theorem1(scenario, &resolved);
+    let (k_mins, globals, k_min_err) = theorem1_and_global(scenario, &resolved, global_seconds);
     let k_top = k_mins
         .iter()
         .flatten()
@@ -91,16 +91,11 @@ pub fn loop_section(scenario: &Scenario, global_seconds: f64) -> Result<LoopSect
         scenario.certificate.phase_seconds(),
         &|_, _| {},
     );
-    let settings = GlobalSettings {
-        phase_seconds: global_seconds,
-        ..GlobalSettings::default()
-    };
-    let global = global_outcomes(&resolved, &options, &settings);
     let methods = METHODS
         .iter()
         .zip(k_mins)
         .zip(linear)
-        .zip(global)
+        .zip(globals)
         .map(|(((&method, k_min), lin), global)| {
             let (k_lin, k_lin_note) = match lin {
                 Ok(r) => match r.k_lin {
@@ -131,21 +126,44 @@ pub fn loop_section(scenario: &Scenario, global_seconds: f64) -> Result<LoopSect
     })
 }
 
-/// Theorem 1's K_min per method (the options every command uses), or why none.
-fn theorem1(
+/// Theorem 1's K_min and the global outcome per method, from the one certificate every
+/// command computes (`verdict_options`, the global budget `global_seconds`: the verdict's
+/// K_glob is this one), or why none.
+fn theorem1_and_global(
     scenario: &Scenario,
     resolved: &ResolvedScenario,
-) -> (Vec<Option<usize>>, Option<String>) {
-    let opts = verdict_options(scenario, METHODS.to_vec(), None);
-    match certify_closed_loop(resolved, &opts) {
+    global_seconds: f64,
+) -> (Vec<Option<usize>>, Vec<GlobalOutcome>, Option<String>) {
+    let opts = CertificateOptions {
+        global_seconds: Some(global_seconds),
+        ..verdict_options(scenario, METHODS.to_vec(), None)
+    };
+    let cert = certify_closed_loop(resolved, &opts);
+    let global = |m: Method| match cert.as_ref().map(|c| c.global.as_ref()) {
+        Ok(Some(g)) => g.method(m).map_or_else(
+            || GlobalOutcome::Unsupported {
+                reason: format!("no entry for {}", m.name()),
+            },
+            |x| x.exact.clone(),
+        ),
+        Ok(None) => GlobalOutcome::Unsupported {
+            reason: "--loop needs [mhe] and a controller".into(),
+        },
+        Err(e) => GlobalOutcome::Unsupported {
+            reason: format!("no certificate: {e}"),
+        },
+    };
+    let globals = METHODS.iter().map(|&m| global(m)).collect();
+    match &cert {
         Ok(c) => (
             METHODS
                 .iter()
                 .map(|&m| c.solver(m).and_then(|s| s.k_min))
                 .collect(),
+            globals,
             None,
         ),
-        Err(e) => (vec![None; METHODS.len()], Some(e.to_string())),
+        Err(e) => (vec![None; METHODS.len()], globals, Some(e.to_string())),
     }
 }
 

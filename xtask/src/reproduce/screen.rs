@@ -1,5 +1,5 @@
 //! The summary that fits a screen (issue 38 item 5): per job one table — method, K_min
-//! (Theorem 1), K_lin, K_reg, the certified gains g_e and g_x at K_min, and what the
+//! (Theorem 1), K_glob (the global loop certificate, Theorem L3), K_lin, K_reg, the certified gains g_e and g_x at K_min, and what the
 //! simulation of the scenario's method showed — and one verdict line; a reason shared by
 //! several cells is printed once, as a numbered footnote. Everything else (premises, the
 //! paper's constants, the long explanations, the work log) is in `-v` and `summary.md`.
@@ -30,9 +30,10 @@ impl Notes {
 }
 
 /// The header of the table (also parsed by the tests).
-pub(super) const TABLE_HEADER: [&str; 7] = [
+pub(super) const TABLE_HEADER: [&str; 8] = [
     "method",
     "K_min",
+    "K_glob",
     "K_lin",
     "K_reg",
     "g_e",
@@ -71,11 +72,12 @@ pub(super) fn screen(d: &CertificateDocument, out: &Path) -> String {
     let h = TABLE_HEADER;
     let _ = writeln!(
         s,
-        "  {:<14} {:>8} {:>8} {:>8} {:>8} {:>8}  {}",
-        h[0], h[1], h[2], h[3], h[4], h[5], h[6]
+        "  {:<14} {:>8} {:>8} {:>8} {:>8} {:>8} {:>8}  {}",
+        h[0], h[1], h[2], h[3], h[4], h[5], h[6], h[7]
     );
     for sv in &d.solvers {
         let k_min = k_min_cell(sv, &mut notes);
+        let k_glob = k_glob_cell(sv, &mut notes);
         let k_lin = k_lin_cell(d, &sv.solver.name(), &mut notes);
         let k_reg = k_reg_cell(d, &sv.solver.name(), &mut notes);
         let gains = d
@@ -94,7 +96,7 @@ pub(super) fn screen(d: &CertificateDocument, out: &Path) -> String {
             String::new()
         };
         let row = format!(
-            "  {:<14} {k_min:>8} {k_lin:>8} {k_reg:>8} {g_e:>8} {g_x:>8}  {simulated}",
+            "  {:<14} {k_min:>8} {k_glob:>8} {k_lin:>8} {k_reg:>8} {g_e:>8} {g_x:>8}  {simulated}",
             sv.solver.name()
         );
         let _ = writeln!(s, "{}", row.trim_end());
@@ -148,6 +150,24 @@ fn k_min_cell(sv: &mhe_report::SolverSummary, notes: &mut Notes) -> String {
         format!("{} fails", failed.join(", "))
     };
     format!("void{}", notes.mark(format!("K_min void: {why}")))
+}
+
+/// K_glob of the global loop certificate (Theorem L3), or why there is none ("-": not
+/// computed with this controller).
+fn k_glob_cell(sv: &mhe_report::SolverSummary, notes: &mut Notes) -> String {
+    use iss_certificate::lure::global_outcome::GlobalOutcome;
+    match (&sv.global, sv.k_glob) {
+        (_, Some(k)) => k.to_string(),
+        (None, None) => "-".into(),
+        (Some(g), None) => {
+            let word = match &g.exact {
+                GlobalOutcome::NotComputed { .. } => "n/c",
+                GlobalOutcome::Unsupported { .. } => "n/a",
+                _ => "none",
+            };
+            format!("{word}{}", notes.mark(format!("K_glob: {}", g.exact)))
+        }
+    }
 }
 
 /// K_lin of `linear[]`, or why there is none.

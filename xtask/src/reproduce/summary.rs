@@ -53,6 +53,29 @@ pub(super) fn verdict(d: &CertificateDocument) -> String {
                 ),
             };
     }
+    // The global loop certificate decides where Theorem 1 does not (the one verdict,
+    // `at_scenario`, of `iss_certificate::coverage`).
+    if d.at_scenario.certificate == Some(iss_certificate::coverage::CertificateKind::Global) {
+        let k = d.scenario_iterations;
+        let kg = d
+            .at_scenario
+            .k_min
+            .map_or_else(|| "?".into(), |k| k.to_string());
+        return lead
+            + &if d.at_scenario.certified.is_certified() {
+                format!(
+                    "the global loop certificate (Theorem L3, docs/theory.md §4) certifies ISS of \
+                     the loop with {} at the scenario's K = {k} (every K ≥ K_glob = {kg}); \
+                     Theorem 1 does not cover it (K_min above).",
+                    d.solver
+                )
+            } else {
+                format!(
+                    "NOT CERTIFIED at the scenario's K = {k}: the smallest certified K is \
+                     K_glob = {kg} (the global loop certificate, Theorem L3)."
+                )
+            };
+    }
     let own = d
         .certificate
         .solvers

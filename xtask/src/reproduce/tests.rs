@@ -127,15 +127,22 @@ fn both_presets_write_every_file() {
 fn paper_preset_is_void_for_every_solver_and_prints_no_k() {
     let f = fixture();
     let d = &f.paper.document;
-    assert!(!d.certified);
+    // Theorem 1 is void for every solver; the global loop certificate covers the paper's
+    // K = 652 (K_glob = 13 for PG), so the one verdict certifies it (session 18).
+    assert!(d.certified);
+    assert_eq!(
+        d.at_scenario.certificate,
+        Some(iss_certificate::coverage::CertificateKind::Global)
+    );
     assert_eq!(d.scenario_iterations_match_k_min, None);
     let doc = read_json(&f.out.join("paper/certificate.json"));
     let solvers = doc["solvers"].as_array().unwrap();
     // The four named methods, plain and Jacobi-scaled (the default certificate set).
     assert_eq!(solvers.len(), 8);
     for s in solvers {
-        assert_eq!(s["certified"], false, "{s}");
+        assert_eq!(s["certified"], true, "{s}");
         assert!(s["k_min"].is_null(), "{s}");
+        assert!(s["k_glob"].as_u64().is_some(), "{s}");
         let reasons = s["void_reasons"].as_array().unwrap();
         assert!(
             reasons
@@ -175,9 +182,14 @@ fn paper_preset_is_void_for_every_solver_and_prints_no_k() {
         .unwrap();
     assert!(k_row.ours.starts_with("none: void"), "{}", k_row.ours);
     assert!(f.paper.summary.contains("void: rho < 1 fails"));
-    assert!(f.paper.summary.contains(
-        "Verdict: Theorem 1 certifies nothing for pg with these parameters (premise rho < 1 fails)"
-    ));
+    assert!(
+        f.paper.summary.contains(
+            "Verdict: the global loop certificate (Theorem L3, docs/theory.md §4) certifies ISS \
+             of the loop with pg at the scenario's K = 652 (every K ≥ K_glob = 13)"
+        ),
+        "{}",
+        f.paper.summary
+    );
     assert!(!f.paper.summary.contains("K_min ="));
     assert!(!f.paper.contradicted());
 }

@@ -360,6 +360,14 @@ pub struct SolverSummary {
     pub certified: bool,
     /// Smallest certified K; null when void.
     pub k_min: Option<usize>,
+    /// The global loop certificate's K_glob (Theorem L3, docs/theory.md §4): every K ≥ it is
+    /// certified in f64; null: `global.outcome` says why.
+    pub k_glob: Option<usize>,
+    /// K_glob in f32 (Theorem L3u); null: `global.f32_outcome` says why.
+    pub k_glob_f32: Option<usize>,
+    /// The global loop certificate of this method (null: not computed with the certificate,
+    /// or the controller is not the exact MPC).
+    pub global: Option<GlobalRecord>,
     /// Why there is no K_min (empty when there is one, and when it was not computed).
     pub void_reasons: Vec<String>,
     /// Not certified and not void: the analysis budget stopped the phase that decides it
@@ -376,6 +384,30 @@ pub struct SolverSummary {
     pub margin_at_k_min: Option<f64>,
     /// K_min with the sampled L_Φ instead of the certified bound (not a certificate).
     pub k_min_with_sampled_l_phi: Option<usize>,
+}
+
+/// The global loop certificate of one method (`iss_certificate::lure::global_outcome`).
+#[derive(Debug, Clone, PartialEq, Serialize)]
+pub struct GlobalRecord {
+    /// The f64 outcome's sentence ("K_glob = …", or why none: what binds, or "not computed
+    /// within the budget").
+    pub outcome: String,
+    /// φ*: the largest certified φ (null without a certificate).
+    pub phi_star: Option<f64>,
+    /// The LMI's margin in the independent check.
+    pub margin: Option<f64>,
+    /// ρ of ‖X⁺‖²_P ≤ ρ²‖X‖²_P + γ²‖w‖².
+    pub rho: Option<f64>,
+    /// γ.
+    pub gamma: Option<f64>,
+    /// lim sup ‖x_t‖ ≤ gain_x·w̄.
+    pub gain_x: Option<f64>,
+    /// lim sup ‖x_t − x̂_t‖ ≤ gain_e·w̄.
+    pub gain_e: Option<f64>,
+    /// The f32 outcome's sentence (Theorem L3u).
+    pub f32_outcome: String,
+    /// The ISS offset of f32's rounding (null without an f32 certificate).
+    pub f32_offset: Option<f64>,
 }
 
 /// Props. 1 and 3 evaluated on the K_min run.

@@ -185,6 +185,13 @@ pub fn certify_closed_loop_with(
         .map(|&solver| theorem1.solver_certificate(solver, opts))
         .collect::<Result<Vec<_>, _>>()?;
     times.theorem1_s = split();
+    let global = opts.global_seconds.and_then(|phase_seconds| {
+        let settings = crate::lure::global_outcome::GlobalSettings {
+            phase_seconds,
+            ..Default::default()
+        };
+        crate::lure::global_outcome::global_section(resolved, &opts.solvers, &settings)
+    });
     times.total_s = start.elapsed().as_secs_f64();
     let certificate = ClosedLoopCertificate {
         scenario: scenario.name.clone(),
@@ -210,6 +217,7 @@ pub fn certify_closed_loop_with(
         h_paper_norms,
         sigma_model_part: spectral_norm(sys.a()) + spectral_norm(sys.b()) + c_norm + 2.0,
         lemma1_origin_offsets,
+        global,
     };
     Ok((certificate, times))
 }

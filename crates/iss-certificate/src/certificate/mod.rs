@@ -79,6 +79,11 @@ pub struct CertificateOptions {
     /// free-set enumeration is skipped beyond it ([`crate::budget`]; scenario key
     /// `certificate.phase_seconds`).
     pub phase_seconds: f64,
+    /// Budget (estimated seconds) of the global loop certificate (Theorem L3 and its f32 form
+    /// L3u; [`crate::lure::global_outcome::global_section`]) computed with the certificate;
+    /// None: not computed, and the verdicts are Theorem 1's and the joint certificate's
+    /// alone. [`crate::coverage::verdict_options`] sets it to `certificate.phase_seconds`.
+    pub global_seconds: Option<f64>,
 }
 
 impl Default for CertificateOptions {
@@ -92,6 +97,7 @@ impl Default for CertificateOptions {
             enumeration_max_vars: 20,
             k_max: 1 << 24,
             phase_seconds: crate::budget::DEFAULT_PHASE_SECONDS,
+            global_seconds: None,
         }
     }
 }
@@ -205,6 +211,11 @@ pub struct ClosedLoopCertificate {
     /// o_m ≥ ‖z*_m(0)‖ per window length m = 0..M (0 when 0 ∈ Z): the offsets of the mended
     /// Lemma 1 for t ≤ M ([`lemma1`]), which replaces the paper's σ_t in the trajectory checks.
     pub lemma1_origin_offsets: Vec<f64>,
+    /// The global loop certificate per solver (f64 and f32), computed when
+    /// [`CertificateOptions::global_seconds`] is set: the second certificate of the one
+    /// verdict ([`crate::coverage::verdict`]). Serialised by `certificate_json`, not here.
+    #[cfg_attr(feature = "serde", serde(skip))]
+    pub global: Option<crate::lure::global_outcome::GlobalSection>,
 }
 
 impl ClosedLoopCertificate {

@@ -207,6 +207,9 @@ impl From<&mhe_report::SolverSummary> for SolverSummary {
             simulated: l.simulated,
             certified: l.certified,
             k_min: l.k_min,
+            k_glob: l.k_glob,
+            k_glob_f32: l.k_glob_f32,
+            global: l.global.as_ref().map(GlobalRecord::from),
             void_reasons: l.void_reasons.iter().map(ToString::to_string).collect(),
             not_computed: l.not_computed.as_ref().map(NotComputed::from),
             premises: l.premises.iter().map(Premise::from).collect(),
@@ -214,6 +217,30 @@ impl From<&mhe_report::SolverSummary> for SolverSummary {
             phi_prefactor: num(l.phi_prefactor),
             margin_at_k_min: l.margin_at_k_min.and_then(num),
             k_min_with_sampled_l_phi: l.k_min_with_sampled_l_phi,
+        }
+    }
+}
+
+impl From<&iss_certificate::lure::global_outcome::MethodGlobal> for GlobalRecord {
+    fn from(l: &iss_certificate::lure::global_outcome::MethodGlobal) -> Self {
+        use iss_certificate::lure::global_outcome::{GlobalOutcome, PrecisionOutcome};
+        let k = match &l.exact {
+            GlobalOutcome::Certified(k) => Some(k),
+            _ => None,
+        };
+        Self {
+            outcome: l.exact.to_string(),
+            phi_star: k.and_then(|k| num(k.phi_star)),
+            margin: k.and_then(|k| num(k.margin)),
+            rho: k.and_then(|k| num(k.rho)),
+            gamma: k.and_then(|k| num(k.gamma)),
+            gain_x: k.and_then(|k| num(k.gain_x)),
+            gain_e: k.and_then(|k| num(k.gain_e)),
+            f32_outcome: l.f32.to_string(),
+            f32_offset: match &l.f32 {
+                PrecisionOutcome::Certified(p) => num(p.offset),
+                _ => None,
+            },
         }
     }
 }

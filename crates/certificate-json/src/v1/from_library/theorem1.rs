@@ -265,6 +265,7 @@ impl From<&iss_certificate::coverage::CertificateKind> for CertificateKind {
         match l {
             iss_certificate::coverage::CertificateKind::Theorem1 => Self::Theorem1,
             iss_certificate::coverage::CertificateKind::Joint => Self::Joint,
+            iss_certificate::coverage::CertificateKind::Global => Self::Global,
             other => Self::Other(format!("{other:?}")),
         }
     }

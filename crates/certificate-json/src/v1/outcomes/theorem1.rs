@@ -421,6 +421,8 @@ pub enum CertificateKind {
     Theorem1,
     /// The joint certificate: the sub-optimal MHE with the K_c-iteration MPC.
     Joint,
+    /// The global loop certificate (Theorem L3; Theorem L3u in f32): every K ≥ K_glob.
+    Global,
     /// A library variant this schema version does not name, by its Rust name (the library of
     /// this version produces none; a reader treats it as "not certified").
     Other(String),

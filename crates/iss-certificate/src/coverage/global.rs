@@ -1,0 +1,317 @@
+//! The verdict's second certificate and its scalar: the global loop certificate combined with
+//! Theorem 1's verdict ([`with_global`]), and Theorem 1 in f32 ([`f32_verdict`]).
+
+use closed_loop::scenario::{ControllerChoice, ResolvedScenario};
+use qp_iter::Method;
+
+use super::{CertificateKind, Certified, Configuration, F32Void, PairReason, PairVerdict, Scalar};
+use crate::certificate::{CertificateOptions, ClosedLoopCertificate};
+use crate::lure::global_outcome::{GlobalOutcome, MethodGlobal, PrecisionOutcome};
+
+/// The one verdict of two certificates at K_e: `v` (Theorem 1's, in `scalar`) and the global
+/// loop certificate `global` in `scalar` (None: not computed or not modelling the
+/// configuration). Certified when either covers K_e, and the verdict names which (Theorem 1
+/// first); K_min is the smaller floor of the two. When neither covers: a known K_glob above
+/// K_e is a plain "no"; a global search the budget stopped makes a void or not-computed `v`
+/// not computed and says so (a "no" stays a plain "no"); a global certificate proved absent
+/// leaves `v` as it is (its outcome is reported beside: certificate.json, `certify --loop`).
+pub fn with_global(
+    v: PairVerdict,
+    global: Option<&MethodGlobal>,
+    k_e: usize,
+    scalar: Scalar,
+) -> PairVerdict {
+    let Some(g) = global else { return v };
+    let (k_glob, not_computed, why) = match scalar {
+        Scalar::F64 => (
+            g.exact.k_glob(),
+            g.exact.is_not_computed(),
+            GlobalWhy::Exact(g.exact.clone()),
+        ),
+        Scalar::F32 => (
+            g.f32.k_glob(),
+            g.f32.is_not_computed(),
+            GlobalWhy::F32(g.f32.clone()),
+        ),
+    };
+    // Theorem 1's floor counts only where it speaks (yes/no at this scalar).
+    let own = match v.certified {
+        Certified::Yes | Certified::No => v.k_min,
+        Certified::Void | Certified::NotComputed => None,
+    };
+    let k_min = match (own, k_glob) {
+        (Some(a), Some(b)) => Some(a.min(b)),
+        (a, b) => a.or(b),
+    };
+    if v.certified.is_certified() {
+        return PairVerdict { k_min, ..v };
+    }
+    match k_glob {
+        Some(kg) if k_e >= kg => PairVerdict {
+            certificate: Some(CertificateKind::Global),
+            certified: Certified::Yes,
+            k_min,
+            margin: None,
+            reason: None,
+        },
+        Some(kg) => {
+            let theorem1_lower = own.is_some_and(|a| a <= kg);
+            PairVerdict {
+                certificate: if theorem1_lower {
+                    v.certificate
+                } else {
+                    Some(CertificateKind::Global)
+                },
+                certified: Certified::No,
+                k_min,
+                margin: if theorem1_lower { v.margin } else { None },
+                reason: None,
+            }
+        }
+        // A "no" stays a plain "no" (Theorem 1's floor is known; the global outcome is
+        // reported per method beside it).
+        None if not_computed && !v.certified.is_below_floor() => PairVerdict {
+            certified: Certified::NotComputed,
+            reason: Some(PairReason::Global {
+                then: v.reason.clone().map(Box::new),
+                global: why,
+            }),
+            ..v
+        },
+        None => v,
+    }
+}
+
+/// The global loop certificate's outcome in the verdict's scalar (the global part of
+/// [`PairReason::Global`]).
+#[derive(Debug, Clone, PartialEq)]
+#[non_exhaustive]
+pub enum GlobalWhy {
+    /// In exact arithmetic (f64).
+    Exact(GlobalOutcome),
+    /// In f32.
+    F32(PrecisionOutcome),
+}
+
+impl std::fmt::Display for GlobalWhy {
+    fn fmt(&self, f: &mut std::fmt::Formatter<'_>) -> std::fmt::Result {
+        match self {
+            Self::Exact(o) => o.fmt(f),
+            Self::F32(o) => o.fmt(f),
+        }
+    }
+}
+
+/// The global loop certificate of `method` in `cert` when it speaks for `controller` (the
+/// section was computed for the scenario's own controller, and models the exact MPC only
+/// here): what [`super::Applicable::new`] combines with Theorem 1, and what reports show beside it.
+pub fn global_of(
+    cert: &ClosedLoopCertificate,
+    method: Method,
+    controller: ControllerChoice,
+) -> Option<&MethodGlobal> {
+    if controller != ControllerChoice::ExactMpc {
+        return None;
+    }
+    cert.global
+        .as_ref()
+        .filter(|g| g.controller == controller)
+        .and_then(|g| g.method(method))
+}
+
+/// The f32 verdict from the f64 one `v`: Theorem 1 with the f32 rounding folded in
+/// ([`crate::certificate::precision::certify_scalar`]); the joint certificate has no rounding
+/// model ([`F32_NOT_COVERED`]). The f64 K_min is kept where f32 has none.
+pub(super) fn f32_verdict(
+    resolved: &ResolvedScenario,
+    cert: &ClosedLoopCertificate,
+    config: &Configuration,
+    v: PairVerdict,
+) -> PairVerdict {
+    let void = |why: F32Void, v: PairVerdict| PairVerdict {
+        certified: Certified::Void,
+        margin: None,
+        reason: Some(PairReason::F32 {
+            why,
+            then: v.reason.map(Box::new),
+        }),
+        ..v
+    };
+    if v.certified == Certified::Void || v.certificate != Some(CertificateKind::Theorem1) {
+        let why = match v.certificate {
+            Some(CertificateKind::Joint) => F32Void::JointNotCovered,
+            _ => F32Void::NotCovered,
+        };
+        return void(why, v);
+    }
+    let sc = match crate::certificate::precision::certify_scalar(
+        resolved,
+        cert,
+        config.method,
+        Scalar::F32,
+        CertificateOptions::default().k_max,
+    ) {
+        Ok(sc) => sc,
+        Err(e) => {
+            let error = e.to_string();
+            return void(F32Void::RoundingModel { error }, v);
+        }
+    };
+    match sc.k_min {
+        Some(k_min) if config.k_e >= k_min => PairVerdict {
+            certified: Certified::Yes,
+            k_min: Some(k_min),
+            margin: None,
+            reason: None,
+            ..v
+        },
+        Some(k_min) => PairVerdict {
+            certified: Certified::No,
+            k_min: Some(k_min),
+            margin: None,
+            reason: Some(PairReason::BelowF32KMin {
+                k: config.k_e,
+                k_min,
+            }),
+            ..v
+        },
+        None => void(sc.reason.map_or(F32Void::NoK, F32Void::Void), v),
+    }
+}
+
+#[cfg(test)]
+mod tests {
+    use super::*;
+    use crate::lure::global::PrecisionVoid;
+    use crate::lure::global_outcome::{GlobalK, PrecisionK};
+
+    fn exact(k_glob: usize) -> GlobalOutcome {
+        GlobalOutcome::Certified(GlobalK {
+            k_glob,
+            phi_star: 0.25,
+            phi_at_k: 0.2,
+            margin: 1e-9,
+            rho: 0.99,
+            gamma: 10.0,
+            gain_x: 1.0,
+            gain_e: 1.0,
+        })
+    }
+
+    fn f32_at(k_glob: usize) -> PrecisionOutcome {
+        PrecisionOutcome::Certified(PrecisionK {
+            unit_roundoff: 6e-8,
+            k_glob,
+            phi_star: 0.25,
+            offset: 1e-6,
+            rho: 0.99,
+            gamma: 10.0,
+            margin: 1e-9,
+        })
+    }
+
+    fn global(exact: GlobalOutcome, f32: PrecisionOutcome) -> MethodGlobal {
+        MethodGlobal {
+            method: Method::PG,
+            exact,
+            f32,
+        }
+    }
+
+    fn theorem1(certified: Certified, k_min: Option<usize>) -> PairVerdict {
+        PairVerdict {
+            certificate: Some(CertificateKind::Theorem1),
+            certified,
+            k_min,
+            margin: None,
+            reason: (certified == Certified::Void).then(|| {
+                PairReason::Void(vec![crate::outcome::VoidReason::NoK { k_max: 1 << 24 }])
+            }),
+        }
+    }
+
+    /// Theorem 1 void, K_glob = 13: K = 13 is certified by the global certificate, K = 12 is
+    /// a "no" with the floor 13 (the case study's PG).
+    #[test]
+    fn the_global_certificate_covers_where_theorem1_is_void() {
+        let g = global(exact(13), f32_at(13));
+        let v = with_global(theorem1(Certified::Void, None), Some(&g), 13, Scalar::F64);
+        assert_eq!(v.certified, Certified::Yes);
+        assert_eq!(v.certificate, Some(CertificateKind::Global));
+        assert_eq!(v.k_min, Some(13));
+        let v = with_global(theorem1(Certified::Void, None), Some(&g), 12, Scalar::F64);
+        assert_eq!(v.certified, Certified::No);
+        assert_eq!(v.k_min, Some(13));
+        assert_eq!(v.reason, None);
+    }
+
+    /// Theorem 1 covers K: it is named, and K_min is the smaller floor of the two.
+    #[test]
+    fn theorem1_is_named_first_and_k_min_is_the_smaller_floor() {
+        let g = global(exact(13), f32_at(13));
+        let v = with_global(
+            theorem1(Certified::Yes, Some(243)),
+            Some(&g),
+            243,
+            Scalar::F64,
+        );
+        assert_eq!(v.certificate, Some(CertificateKind::Theorem1));
+        assert_eq!((v.certified, v.k_min), (Certified::Yes, Some(13)));
+        // Below both floors, Theorem 1's smaller floor keeps its name.
+        let g = global(exact(500), f32_at(500));
+        let v = with_global(
+            theorem1(Certified::No, Some(243)),
+            Some(&g),
+            100,
+            Scalar::F64,
+        );
+        assert_eq!(v.certificate, Some(CertificateKind::Theorem1));
+        assert_eq!((v.certified, v.k_min), (Certified::No, Some(243)));
+    }
+
+    /// f32 reads the f32 outcome: refused where the f32 global certificate is void even if
+    /// the f64 one covers K.
+    #[test]
+    fn f32_uses_the_f32_global_certificate() {
+        let void = PrecisionOutcome::Void(PrecisionVoid::ContractionBroken {
+            window: 9,
+            rate: 0.99,
+            rounding: 0.02,
+        });
+        let g = global(exact(13), void);
+        let v = with_global(theorem1(Certified::Void, None), Some(&g), 20, Scalar::F32);
+        assert_eq!(v.certified, Certified::Void);
+        let g = global(exact(13), f32_at(15));
+        let v = with_global(theorem1(Certified::Void, None), Some(&g), 14, Scalar::F32);
+        assert_eq!((v.certified, v.k_min), (Certified::No, Some(15)));
+        let v = with_global(theorem1(Certified::Void, None), Some(&g), 15, Scalar::F32);
+        assert!(v.certified.is_certified());
+    }
+
+    /// A global search the budget stopped: a void Theorem 1 verdict becomes "not computed",
+    /// naming the key; a "no" stays a plain "no".
+    #[test]
+    fn a_budget_stopped_search_is_not_computed_and_names_the_key() {
+        let nc = GlobalOutcome::NotComputed {
+            n_zeta: 235,
+            estimate_seconds: 40.0,
+            budget_seconds: 10.0,
+        };
+        let g = global(nc.clone(), PrecisionOutcome::NoExact(Box::new(nc)));
+        for scalar in [Scalar::F64, Scalar::F32] {
+            let v = with_global(theorem1(Certified::Void, None), Some(&g), 13, scalar);
+            assert_eq!(v.certified, Certified::NotComputed);
+            let why = v.reason_text();
+            assert!(why.contains("certificate.phase_seconds"), "{why}");
+            assert!(why.contains("not computed within the budget"), "{why}");
+        }
+        let v = with_global(
+            theorem1(Certified::No, Some(243)),
+            Some(&g),
+            13,
+            Scalar::F64,
+        );
+        assert_eq!((v.certified, v.k_min), (Certified::No, Some(243)));
+        assert_eq!(v.reason, None);
+    }
+}

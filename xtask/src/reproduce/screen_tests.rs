@@ -172,7 +172,7 @@ fn the_screen_table_shows_what_certificate_json_holds() {
             let g = &doc["asymptotic_gains"]["methods"][i];
             assert_eq!(g["solver"], name);
             check_num(&format!("{name} g_e"), &row[5], &g["theorem1"]["gain_e"]);
-            check_num(&format!("{name} g_x"), &row[7], &g["theorem1"]["gain_x"]);
+            check_num(&format!("{name} g_x"), &row[6], &g["theorem1"]["gain_x"]);
             // Only the scenario's method was simulated: its runs, each with its outcome.
             if name == doc["solver"] {
                 let runs = doc["runs"].as_array().unwrap();

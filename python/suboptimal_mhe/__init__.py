@@ -756,7 +756,8 @@ class Certificate:
 
         A dict: ``certified`` (``"yes"``, ``"no"``: too few iterations, ``"void"``: a premise
         fails, ``reason`` says which, or ``"not_computed"``: the analysis budget stopped a
-        phase), ``k_min``, ``margin`` (1 − ρ(Γ)), ``certificate`` (``"theorem1"``/``"joint"``).
+        phase), ``k_min`` (the smaller of Theorem 1's and the global certificate's floors), ``margin``
+        (1 − ρ(Γ)), ``certificate`` (``"theorem1"``/``"joint"``/``"global"``: the one that covers).
         For a scenario it is reproduce's ``at_scenario`` at the scenario's method and K.
         """
         if not isinstance(method, str):
@@ -788,6 +789,16 @@ class Certificate:
     def k_min(self, method: str) -> Optional[int]:
         """K_min of Theorem 1 for ``method``; ``None`` when the certificate is void for it."""
         return self._solver(method)["k_min"]
+
+    def k_glob(self, method: str) -> Optional[int]:
+        """K_glob of the global loop certificate (Theorem L3, docs/theory.md §4) for ``method``:
+        every K ≥ K_glob is certified by it; ``None`` when it certifies no K, does not apply
+        or was not computed within the budget (``certificate.phase_seconds``).
+
+        The verdict is ``yes`` from the smaller of :meth:`k_min` and this on
+        (``coverage::verdict``; its ``certificate`` names the one that covers).
+        """
+        return self._solver(method).get("k_glob")
 
     def void_reasons(self, method: str) -> List[str]:
         """Why the certificate of ``method`` is void (empty when K_min exists), as sentences."""

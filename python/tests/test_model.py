@@ -51,11 +51,16 @@ def test_model_certificate_equals_the_scenario_files(root, from_numpy):
 
 def test_verdict_is_certificate_verdict(from_numpy):
     k_min = from_numpy.k_min("admm-pr")
+    k_glob = from_numpy.k_glob("admm-pr")
+    # The double integrator: the global loop certificate's floor is below Theorem 1's.
+    assert k_glob is not None and k_glob < k_min, (k_glob, k_min)
     yes = from_numpy.verdict("admm-pr", k_min)
-    assert yes["certified"] == "yes" and yes["k_min"] == k_min and yes["certificate"] == "theorem1"
+    assert yes["certified"] == "yes" and yes["k_min"] == k_glob and yes["certificate"] == "theorem1"
     assert yes["reason"] == ""
-    if k_min > 1:
-        assert from_numpy.verdict("admm-pr", k_min - 1)["certified"] == "no"
+    by_global = from_numpy.verdict("admm-pr", k_glob)
+    assert by_global["certified"] == "yes" and by_global["certificate"] == "global"
+    if k_glob > 1:
+        assert from_numpy.verdict("admm-pr", k_glob - 1)["certified"] == "no"
     # A method the certificate did not cover is void, with the reason.
     only_pg = sm.certify(model(), methods=["pg"], seed=11)
     other = only_pg.verdict("fista", 10_000)

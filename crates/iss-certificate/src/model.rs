@@ -539,6 +539,15 @@ impl Certificate {
         self.closed_loop.solver(method).and_then(|s| s.k_min)
     }
 
+    /// K_glob of `method` under the global loop certificate (Theorem L3, docs/theory.md §4):
+    /// every K ≥ K_glob is certified by it (`None`: it certifies no K for this loop, does not
+    /// model its controller, or was not computed within the budget). The verdict is `yes`
+    /// from the smaller of [`Certificate::k_min`] and this on.
+    pub fn k_glob(&self, method: Method) -> Option<usize> {
+        crate::coverage::global_of(&self.closed_loop, method, self.model.controller)
+            .and_then(|g| g.exact.k_glob())
+    }
+
     /// K_min of every certified method, in the order of [`CertifyOptions::methods`].
     pub fn k_mins(&self) -> impl Iterator<Item = (Method, Option<usize>)> + '_ {
         self.closed_loop.solvers.iter().map(|s| (s.solver, s.k_min))

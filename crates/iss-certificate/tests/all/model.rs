@@ -324,12 +324,17 @@ fn verdict_gains_and_w_bar_of_a_small_model() {
     .expect("certifies");
     let k = cert.k_min(Method::PG).expect("certified");
     assert_eq!(cert.verdict(Method::PG, k).certified.as_str(), "yes");
-    assert_eq!(cert.verdict(Method::PG, k - 1).certified.as_str(), "no");
+    // The verdict's floor is the smaller of Theorem 1's K_min and the global K_glob.
+    let floor = cert.k_glob(Method::PG).map_or(k, |g| g.min(k));
+    assert_eq!(cert.verdict(Method::PG, floor).certified.as_str(), "yes");
+    assert_eq!(cert.verdict(Method::PG, floor).k_min, Some(floor));
+    assert!(floor > 1, "the small model needs more than one iteration");
+    assert_eq!(cert.verdict(Method::PG, floor - 1).certified.as_str(), "no");
     // `verdicts` is K_min and `verdict` per method, and `Certified` prints as `as_str`.
-    let all: Vec<_> = cert.verdicts(k - 1).collect();
+    let all: Vec<_> = cert.verdicts(floor - 1).collect();
     assert_eq!(all.len(), 1);
     assert_eq!((all[0].0, all[0].1), (Method::PG, Some(k)));
-    assert_eq!(all[0].2, cert.verdict(Method::PG, k - 1));
+    assert_eq!(all[0].2, cert.verdict(Method::PG, floor - 1));
     assert_eq!(all[0].2.certified.to_string(), "no");
     let g = cert.gains(Method::PG, k).expect("gains at K_min");
     assert!(g.gain_e.is_finite() && g.gain_e > 0.0 && g.gain_x.is_finite());

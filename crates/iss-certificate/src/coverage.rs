@@ -162,18 +162,24 @@ pub fn verdict(
     with_global(v, applicable.global(), config.k_e, config.scalar)
 }
 
-/// Whether Theorem 1's entry `sc` certifies some K for the scenario's configuration (its
-/// warm start and `controller`): the per-solver `certified` of `reproduce`'s
-/// certificate.json. False when nothing covers the configuration, whatever K_min says.
+/// Whether some K of `sc`'s method is certified for the scenario's configuration (its warm
+/// start and `controller`) — by Theorem 1's entry `sc` (a K_min) or by the global loop
+/// certificate of `cert` (a K_glob, [`global_of`]): the per-solver `certified` of
+/// `reproduce`'s certificate.json, and exactly "the verdict at the smaller floor is `yes`".
+/// False when nothing covers the configuration, whatever the floors say.
 pub fn solver_certified(
     scenario: &Scenario,
+    cert: &ClosedLoopCertificate,
     sc: &SolverCertificate,
     controller: ControllerChoice,
 ) -> bool {
-    matches!(
+    let covered = matches!(
         covering(scenario, sc.solver, controller),
         Coverage::Covered(_)
-    ) && sc.k_min.is_some()
+    );
+    covered
+        && (sc.k_min.is_some()
+            || global_of(cert, sc.solver, controller).is_some_and(|g| g.exact.k_glob().is_some()))
 }
 
 /// Which certificate covers a configuration, or why none does. `#[non_exhaustive]`: callers

@@ -68,9 +68,10 @@ impl SolverSummary {
             simulated: sc.solver == report.solver,
             certified: iss_certificate::coverage::solver_certified(
                 &report.scenario,
+                &report.certificate,
                 sc,
                 report.controller,
-            ) || global.is_some_and(|g| g.exact.k_glob().is_some()),
+            ),
             k_min: sc.k_min,
             k_glob: global.and_then(|g| g.exact.k_glob()),
             k_glob_f32: global.and_then(|g| g.f32.k_glob()),

@@ -5,7 +5,8 @@
 use closed_loop::scenario::{ControllerChoice, ResolvedScenario, Scenario};
 use iss_certificate::certificate::certify_closed_loop;
 use iss_certificate::coverage::{
-    Certified, Configuration, PairVerdict, Scalar, solver_certified, verdict, verdict_options,
+    Certified, Configuration, PairVerdict, Scalar, global_of, solver_certified, verdict,
+    verdict_options,
 };
 use qp_iter::Method;
 use toml::Value;
@@ -65,7 +66,14 @@ pub fn survey(seed: u64, plants: usize) -> Tally {
                 tally.finding(format!("no entry for {method:?}\n--- plant {b:?}"));
                 continue;
             };
-            let k_min = sc.k_min;
+            // The verdict's floor: the smaller of Theorem 1's K_min and the global loop
+            // certificate's K_glob (every K ≥ K_glob is certified by it).
+            let k_glob =
+                global_of(&cert, method, ControllerChoice::ExactMpc).and_then(|g| g.exact.k_glob());
+            let k_min = match (sc.k_min, k_glob) {
+                (Some(a), Some(b)) => Some(a.min(b)),
+                (a, b) => a.or(b),
+            };
             let mut ks = vec![1usize, 2, 3, 50, 1000];
             if let Some(k) = k_min {
                 ks.extend([k.saturating_sub(1).max(1), k, k + 1, 2 * k]);
@@ -110,7 +118,7 @@ pub fn survey(seed: u64, plants: usize) -> Tally {
                 }
             }
             // The per-solver `certified` of certificate.json is the verdict at K_min.
-            let flag = solver_certified(paper.scenario(), sc, ControllerChoice::ExactMpc);
+            let flag = solver_certified(paper.scenario(), &cert, sc, ControllerChoice::ExactMpc);
             let at_k_min = k_min.map(|k| at(&paper, k, ControllerChoice::ExactMpc, Scalar::F64));
             let yes = at_k_min
                 .as_ref()
@@ -122,7 +130,8 @@ pub fn survey(seed: u64, plants: usize) -> Tally {
                     at_k_min.as_ref().map(|v| v.certified)
                 )));
             }
-            let shifted_flag = solver_certified(shifted.scenario(), sc, ControllerChoice::ExactMpc);
+            let shifted_flag =
+                solver_certified(shifted.scenario(), &cert, sc, ControllerChoice::ExactMpc);
             if shifted_flag {
                 checks.push(Err(
                     "certificate.json's per-solver certified = true for a shifted warm start"
@@ -143,7 +152,8 @@ pub fn survey(seed: u64, plants: usize) -> Tally {
     tally
 }
 
-/// Theorem 1's verdict at K is "yes" exactly from K_min on, and stays "yes" at K + 1.
+/// The verdict at K is "yes" exactly from the floor `k_min` (Theorem 1's K_min or the global
+/// certificate's K_glob, the smaller) on, and stays "yes" at K + 1.
 fn one(k: usize, k_min: Option<usize>, v: &PairVerdict, next: &PairVerdict) -> Result<(), String> {
     match v.certified {
         Certified::Yes => {

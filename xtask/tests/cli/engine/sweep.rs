@@ -415,14 +415,35 @@ fn theoretical_columns_follow_the_certificate() {
         assert_eq!(margin > 0.0, p.k >= km);
     }
     assert_eq!(seen, (true, true), "the grid straddles K_min");
-    // The paper's preset (M = 5, η = 0.8) is void whatever K, and says why.
+    // The paper's preset (M = 5, η = 0.8): Theorem 1 is void whatever K, and says why; the
+    // global loop certificate's floor K_glob lies above the point's K, so the verdict is
+    // `no` with K_glob as its floor.
     let mut cfg = small_config("");
     cfg.certificate = true;
     let sweep = Sweep::new(cfg).unwrap();
-    let t = sweep.theory_at(&sweep.points()[0]);
-    assert_eq!(t.certified, "void");
-    assert!(t.void_reason.contains("rho"), "{}", t.void_reason);
-    assert!(t.k_min.is_none());
+    let p = &sweep.points()[0];
+    let t = sweep.theory_at(p);
+    assert_eq!(t.certified, "no");
+    assert!(
+        t.k_min.is_some_and(|k| k > p.k),
+        "K_glob {:?} at K = {}",
+        t.k_min,
+        p.k
+    );
+    match &sweep.theory()[0].1 {
+        SolverTheory::Analysis {
+            k_min,
+            void_reasons,
+            ..
+        } => {
+            assert!(k_min.is_none());
+            assert!(
+                format!("{void_reasons:?}").contains("rho"),
+                "{void_reasons:?}"
+            );
+        }
+        other => panic!("{other:?}"),
+    }
 }
 
 /// The theory computed as the pool's task graph (γ₁,₃'s plan and enumeration chunks, L_π's

@@ -18,16 +18,7 @@ use rand::Rng;
 use rand_chacha::ChaCha8Rng;
 
 /// The eight methods (plain and Jacobi-scaled presets).
-pub const METHODS: [Method; 8] = [
-    Method::PRESETS[0],
-    Method::PRESETS[1],
-    Method::PRESETS[2],
-    Method::PRESETS[3],
-    Method::JACOBI_PRESETS[0],
-    Method::JACOBI_PRESETS[1],
-    Method::JACOBI_PRESETS[2],
-    Method::JACOBI_PRESETS[3],
-];
+pub const METHODS: [Method; 8] = Method::ALL;
 
 /// The scenario's loop options with `method`.
 pub fn options(r: &ResolvedScenario, method: Method) -> LoopOptions {

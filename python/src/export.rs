@@ -116,7 +116,8 @@ pub(crate) fn export_artefact(
         }
     }
     .map_err(|e| export_err(&e))?;
-    py.detach(|| art.write_to(&out)).map_err(|e| export_err(&e))?;
+    py.detach(|| art.write_to(&out))
+        .map_err(|e| export_err(&e))?;
     Ok(json!({
         "out": out.display().to_string(),
         "scenario": art.scenario(),

@@ -1056,6 +1056,20 @@ impl PyCertificate {
         serde_json::to_string(&reasons::all(cert)).map_err(|e| MheError::new_err(e.to_string()))
     }
 
+    /// K_glob of the global loop certificate for `method` (`coverage::global_of` with the
+    /// controller the verdict uses): every K ≥ it is certified; None when there is none.
+    fn k_glob(&self, method: &str) -> PyResult<Option<usize>> {
+        let method: Method = method.parse().map_err(|e: qp_iter::QpError| {
+            InputError::new_err(format!("argument `method`: {e}"))
+        })?;
+        Ok(match &self.held {
+            Held::Model(c) => c.k_glob(method),
+            Held::Scenario {
+                cert, controller, ..
+            } => coverage::global_of(cert, method, *controller).and_then(|g| g.exact.k_glob()),
+        })
+    }
+
     /// The one verdict rule at (method, k) in `scalar` ("f64" or "f32") as JSON
     /// (`PairVerdict`): `coverage::verdict` (behind `Certificate::verdict` for a model), f32
     /// folding the rounding model into Theorem 1.

@@ -798,7 +798,8 @@ class Certificate:
         The verdict is ``yes`` from the smaller of :meth:`k_min` and this on
         (``coverage::verdict``; its ``certificate`` names the one that covers).
         """
-        return self._solver(method).get("k_glob")
+        self._solver(method)  # the method's entry exists (else InputError naming the methods)
+        return self._native.k_glob(method)
 
     def void_reasons(self, method: str) -> List[str]:
         """Why the certificate of ``method`` is void (empty when K_min exists), as sentences."""

@@ -36,8 +36,10 @@ fi
 say "$(python3 --version)"
 
 export CARGO_TARGET_DIR=${CARGO_TARGET_DIR:-$ROOT/target}
-XTASK=${XTASK:-$CARGO_TARGET_DIR/release/xtask}
-if [ ! -x "$XTASK" ]; then
+# Built (incrementally) whenever XTASK is not given: a binary left from an older checkout
+# made the comparisons fail (or pass) against the wrong CLI.
+if [ -z "${XTASK:-}" ]; then
+    XTASK=$CARGO_TARGET_DIR/release/xtask
     say "building the release xtask (the CLI the tests compare with)"
     cargo build -q -p xtask --release
 fi

@@ -280,79 +280,92 @@ if [ "$MODE" = calibrate ]; then
 fi
 
 # The table of docs/embedded.md ("The sample period as a budget"), between its markers:
-# per shipped certified scenario and method, the export at --k certified (its certificate),
-# the model's instructions per step and "fits T_s" from certificate.json's `budget` (M4F at
-# 168 MHz, M7 at 480 MHz), flash and RAM of the replay ELFs (arm-none-eabi-size); the f32
-# column from an f32 export at --k certified (its verdict: the K when the certificate covers
-# f32, else "not covered: <its uncertified_reason>"). No QEMU run.
+# every shipped scenario (TABLE_SCENARIOS: the files to survey, default scenarios/*.toml),
+# the rows chosen by the tool. Per scenario `export --survey` (per method: the smallest K
+# the one verdict certifies in f64 and in f32, and the model's budget there); the f64 row
+# is the method with the fewest predicted M4F instructions at its certified K, exported at
+# `--k certified` (its certificate.json: instructions, fits T_s; flash and RAM of the
+# replay ELFs), and where a K is certified in f32 an f32 row the same way, whose replay is
+# also run under QEMU (M + 2 rows of a smooth (u, y); max instructions per step). A
+# scenario with no certified K goes to the "not certified" line with its one-word reason;
+# one whose every export the size limit refuses gets a row saying so. QEMU runs only for
+# the f32 rows (the f64 ones would take minutes each on the M4F).
+qemu_max() { # ART TAG MACHINE INPUT → the max instructions per step of the replay
+    make -s -C "$1" "replay-$2.elf"
+    timeout 1200 qemu-system-arm -M "$3" -nographic -monitor none -serial none \
+        -semihosting-config enable=on,target=native -icount shift=0 \
+        -kernel "$1/replay-$2.elf" <"$4" >"$1/$2.out" 2>"$1/$2.err"
+    sed -n 's/.*mean \([0-9]*\), max \([0-9]*\).*/\2/p' "$1/$2.err"
+}
+table_export() { # SCALAR FILE METHOD SURVEY ROWS NOTES: the export at --k certified, its row
+    local scalar=$1 file=$2 method=$3 survey=$4 rows=$5 notes=$6
+    local art="$OUT/table/$file-$method-$scalar" tag text data bss
+    echo "==> table: $file, $method, $scalar (export at the certified K)"
+    if ! "${XTASK_CMD[@]}" export --scenario "scenarios/$file.toml" --out "$art" --lang c \
+        --method "$method" --k certified --scalar "$scalar" >"$art.log" 2>&1; then
+        echo "- $file: certified ($method, $scalar) but not exported: $(grep -m1 -i 'error' "$art.log" | cut -c1-300)" >>"$notes"
+        return 0
+    fi
+    local sizes=() qemu=()
+    for tag in m4 m7; do
+        make -s -C "$art" "replay-$tag.elf"
+        read -r text data bss _ < <(arm-none-eabi-size "$art/replay-$tag.elf" | tail -1)
+        sizes+=("$((text + data))" "$((data + bss))")
+    done
+    if [ "$scalar" = f32 ]; then
+        local dims input="$art/input.csv"
+        read -r -a dims <<<"$(calib_dims "$art/mhe_data.h")"
+        awk -v rows=$((dims[0] + 2)) -v nu="${dims[4]}" -v ny="${dims[5]}" 'BEGIN {
+            for (t = 0; t < rows; t++) { s = "";
+                for (i = 0; i < nu; i++) s = s (s == "" ? "" : ",") sprintf("%.17g", 0.1 * sin(t + i));
+                for (j = 0; j < ny; j++) s = s (s == "" ? "" : ",") sprintf("%.17g", 0.2 * cos(0.7 * t + j));
+                print s } }' >"$input"
+        qemu+=("$(qemu_max "$art" m4 mps2-an386 "$input")" "$(qemu_max "$art" m7 mps2-an500 "$input")")
+    fi
+    python3 scripts/budget-table.py row "$scalar" "$file" "$survey" "$art/certificate.json" \
+        "${sizes[@]}" "${qemu[@]}" >>"$rows"
+    # The artefacts of the large scenarios take MBs: keep the certificate and the log only.
+    find "$art" -mindepth 1 ! -name certificate.json -delete
+}
 budget_table() {
-    local dir="$OUT/table" rows="$OUT/table/rows.md" spec file method art tag text data bss
+    local dir="$OUT/table" rows="$OUT/table/rows.md" notes="$OUT/table/notes.md"
+    local path file survey line scalar method k unc=() start
+    start=$(date +%s)
     mkdir -p "$dir"
     : >"$rows"
-    for spec in ${TABLE_ROWS:-case-study-certified:pg case-study-certified:admm-pr-jacobi cart-pendulum:admm-pr}; do
-        IFS=: read -r file method <<<"$spec"
-        art="$dir/$file-$method"
-        echo "==> table: $file, $method (export at the certified K, f64 and f32)"
-        "${XTASK_CMD[@]}" export --scenario "scenarios/$file.toml" --out "$art" --lang c \
-            --method "$method" --k certified >"$art.log" 2>&1 || { cat "$art.log"; exit 1; }
-        "${XTASK_CMD[@]}" export --scenario "scenarios/$file.toml" --out "$art-f32" --lang c \
-            --method "$method" --k certified --scalar f32 --allow-uncertified >"$art-f32.log" 2>&1 \
-            || { cat "$art-f32.log"; exit 1; }
-        local sizes=()
-        for tag in m4 m7; do
-            make -s -C "$art" "replay-$tag.elf"
-            read -r text data bss _ < <(arm-none-eabi-size "$art/replay-$tag.elf" | tail -1)
-            sizes+=("$((text + data))" "$((data + bss))")
-        done
-        python3 - "$art/certificate.json" "$art-f32/certificate.json" "$file" "${sizes[@]}" >>"$rows" <<'PY'
-import json, sys
-c = json.load(open(sys.argv[1]))
-c32 = json.load(open(sys.argv[2]))
-file, f4, r4, f7, r7 = sys.argv[3], *sys.argv[4:]
-def why(r):
-    # The reason without the export's own framing (scalar prefix, the flag that forced it).
-    r = (r or 'not certified').replace('|', '/').removesuffix('; exported with --allow-uncertified')
-    for p in ('f32: ', 'not covered: '):
-        r = r.removeprefix(p)
-    return r
-k32 = str(c32['iterations']) if c32['certified'] else 'not covered: ' + why(c32.get('uncertified_reason'))
-t = {b['target']: b for b in c['budget']['targets']}
-m4, m7 = t['cortex-m4f'], t['cortex-m7']
-def mi(v):
-    return '–' if v is None else (f'{v / 1e6:.2f} M' if v >= 1e6 else f'{v / 1e3:.0f} k')
-def us(v):
-    return '–' if v is None else (f'{v / 1e3:.1f} ms' if v >= 1e3 else f'{v:.0f} µs')
-def verdict(b):
-    v = b['fits_sample_time']
-    if v == 'fits':
-        return f"yes (margin {b['margin'] * 100:.0f} %, K ≤ {b['k_max_fitting']})"
-    if v == 'does_not_fit':
-        k = b['k_max_fitting']
-        if k is None:
-            return f"no, not even K = 1 (certified K = {c['iterations']})"
-        return f"no: fits only K ≤ {k}, certified K = {c['iterations']}"
-    return 'not computed: ' + (b['reason'] or '')
-ts = m4['summary'].split('fits ')[-1].split(' ')[0] if m4['fits_sample_time'] != 'not_computed' else '–'
-ex = ' (extrapolated)' if m4['extrapolated'] else ''
-print(f"| {file} | {c['method']} | {c['iterations']} | {k32} | "
-      f"{mi(m4['instructions_per_step_bound'])} / {mi(m7['instructions_per_step_bound'])}{ex} | "
-      f"{us(m4['micros_per_step'])} / {us(m7['micros_per_step'])} | {f4} / {f7} | {r4} / {r7} | "
-      f"{verdict(m4)} / {verdict(m7)} |")
-PY
+    : >"$notes"
+    for path in ${TABLE_SCENARIOS:-scenarios/*.toml}; do
+        file=$(basename "$path" .toml)
+        survey="$dir/$file-survey.json"
+        echo "==> table: $file (export --survey: every method, f64 and f32)"
+        if ! timeout "${TABLE_TIMEOUT:-900}" "${XTASK_CMD[@]}" export --scenario "$path" --survey \
+            >"$survey" 2>"$dir/$file-survey.log"; then
+            unc+=("$file (not computed: the survey failed or took over ${TABLE_TIMEOUT:-900} s: $(tail -1 "$dir/$file-survey.log" | cut -c1-200))")
+            continue
+        fi
+        while read -r scalar method k; do
+            case "$scalar" in
+            none)
+                if [ "$method" = refused ]; then
+                    python3 scripts/budget-table.py refused "$file" "$survey" >>"$rows"
+                else
+                    unc+=("$file ($method $k)")
+                fi
+                ;;
+            *) table_export "$scalar" "$file" "$method" "$survey" "$rows" "$notes" ;;
+            esac
+        done < <(python3 scripts/budget-table.py pick "$survey")
     done
-    python3 - docs/embedded.md "$rows" <<'PY'
-import sys
-doc, rows = sys.argv[1], open(sys.argv[2]).read()
-text = open(doc).read()
-begin, end = '<!-- budget-table:begin -->\n', '<!-- budget-table:end -->'
-head = ('| scenario | method | certified K (f64) | certified K (f32) | instructions/step M4F / M7 '
-        '| µs at 168 / 480 MHz | flash M4F / M7 (B) | RAM M4F / M7 (B) | fits T_s: M4F / M7 |\n'
-        '| --- | --- | --- | --- | --- | --- | --- | --- | --- |\n')
-i, j = text.index(begin) + len(begin), text.index(end)
-open(doc, 'w').write(text[:i] + head + rows + text[j:])
-PY
+    local list="none" u
+    if [ ${#unc[@]} -gt 0 ]; then
+        list=""
+        for u in "${unc[@]}"; do list+="${list:+; }$u"; done
+    fi
+    echo "Scenarios not certified (no method has a certified K in f64): $list." >>"$notes"
+    echo "(\`bash scripts/cortex-m.sh table\`: $(( $(date +%s) - start )) s of wall time, $(date -u +%Y-%m-%d), commit $(git rev-parse --short HEAD 2>/dev/null || echo unknown).)" >>"$notes"
+    python3 scripts/budget-table.py write docs/embedded.md "$rows" "$notes"
     echo "wrote the table into docs/embedded.md:"
-    cat "$rows"
+    cat "$rows" "$notes"
 }
 if [ "$MODE" = table ]; then
     budget_table
@@ -520,6 +533,152 @@ run case-study-certified-kc pg 243 40 1 99
 # runs, so reproduce simulates only the scenario's K = 10); 20 steps (the M4F emulates f64
 # in software); the targets' bits against the host build's.
 run cart-pendulum admm-pr certified 20 0 - --sim-k-cap 1000
+
+# f32 and the firmware's robustness on both boards: the case study's PG at the K the global
+# certificate covers in f32 (`--k certified --scalar f32`, K = 13: a certified f32 artefact,
+# no opt-in). On the host and under QEMU on both boards: the replay (the boards' bits equal
+# the host's f32 build); the step counter set to LONG_MAX once the window is full (2^31 − 1
+# on the boards' 32-bit long: 25 days at 1 kHz) changes no bit; NaN, −∞ and a value beyond
+# f32's range are refused by mhe_push with the state unchanged, and the replay stops at such
+# a line or at a malformed one (`0.3abc`) naming it.
+robustness() {
+    local art="$OUT/case-study-f32-c" tag machine label prog
+    echo
+    echo "==> case-study: pg, f32 at the certified K; robustness on both boards"
+    cargo xtask export --scenario scenarios/case-study.toml --out "$art" --lang c --method pg \
+        --k certified --scalar f32 >"$OUT/case-study-f32-export.log" 2>&1 \
+        || { cat "$OUT/case-study-f32-export.log"; exit 1; }
+    grep -q 'certified' "$OUT/case-study-f32-export.log"
+    grep -q '^#define MHE_CERTIFIED 1$' "$art/mhe_data.h"
+    local dims
+    read -r -a dims <<<"$(calib_dims "$art/mhe_data.h")"
+    # 2M + 4 rows of a smooth (u, y); the bad inputs replace row 3.
+    awk -v rows=$((2 * dims[0] + 4)) -v nu="${dims[4]}" -v ny="${dims[5]}" 'BEGIN {
+        for (t = 0; t < rows; t++) { s = "";
+            for (i = 0; i < nu; i++) s = s (s == "" ? "" : ",") sprintf("%.17g", 0.1 * sin(t + i));
+            for (j = 0; j < ny; j++) s = s (s == "" ? "" : ",") sprintf("%.17g", 0.2 * cos(0.7 * t + j));
+            print s } }' >"$OUT/f32-input.csv"
+    local bad
+    for bad in nan -inf 1e39 0.3abc; do
+        awk -v b="$bad" -F, 'NR == 3 { $NF = b } { print }' OFS=, "$OUT/f32-input.csv" >"$OUT/f32-bad-$bad.csv"
+    done
+    # The robustness programs: a copy of the artefact whose replay.c is the program (so the
+    # artefact's Makefile builds it for the host and both boards with the same flags).
+    mkdir -p "$art-counter" "$art-nonfinite"
+    cp -r "$art"/. "$art-counter"
+    cp -r "$art"/. "$art-nonfinite"
+    cat >"$art-counter/replay.c" <<'C'
+#include <limits.h>
+#include <stdio.h>
+#include "mhe.h"
+#include "count.h"
+#include "parse.h"
+static mhe_state s;
+static void show(const mhe_real *x) {
+    int i;
+    for (i = 0; i < MHE_NX; i++) printf(i ? ",%.17g" : "%.17g", (double)x[i]);
+    printf("\n");
+}
+int main(void) {
+    static char line[MHE_LINE_MAX];
+    double v[MHE_NU + MHE_NY];
+    mhe_real u[MHE_NU_BUF], y[MHE_NY];
+    long lineno = 0;
+    int i;
+#ifdef MHE_COUNT_SYSTICK
+    count_init();
+#endif
+    mhe_reset(&s, mhe_exported_prior);
+    show(mhe_estimate(&s));
+    while (mhe_read_line("counter", line, ++lineno) == 1) {
+        if (mhe_parse_line("counter", line, lineno, MHE_NU + MHE_NY, "u then y", v) != 0) return 1;
+        for (i = 0; i < MHE_NU; i++) u[i] = (mhe_real)v[i];
+        for (i = 0; i < MHE_NY; i++) y[i] = (mhe_real)v[MHE_NU + i];
+        if (lineno == MHE_M + 2) s.t = LONG_MAX;
+        if (mhe_push(&s, u, y) != MHE_OK) return 1;
+        show(mhe_estimate(&s));
+    }
+    return 0;
+}
+C
+    cat >"$art-nonfinite/replay.c" <<'C'
+#include <math.h>
+#include <stdio.h>
+#include <string.h>
+#include "mhe.h"
+#include "count.h"
+static mhe_state s, snap;
+int main(void) {
+    mhe_real u[MHE_NU_BUF], y[MHE_NY];
+    const mhe_real bad[2] = {NAN, -INFINITY};
+    int k, i, refused = 0;
+#ifdef MHE_COUNT_SYSTICK
+    count_init();
+#endif
+    for (i = 0; i < MHE_NU_BUF; i++) u[i] = (mhe_real)0.01;
+    for (i = 0; i < MHE_NY; i++) y[i] = (mhe_real)0.1;
+    mhe_reset(&s, mhe_exported_prior);
+    for (k = 0; k < MHE_M + 3; k++) {
+        if (mhe_push(&s, u, y) != MHE_OK) return 2;
+        mhe_estimate(&s);
+    }
+    memcpy(&snap, &s, sizeof s);
+    for (k = 0; k < 2; k++) {
+        y[MHE_NY - 1] = bad[k];
+        if (mhe_push(&s, u, y) != MHE_E_NONFINITE) return 3;
+        if (memcmp(&snap, &s, sizeof s) != 0) return 4;
+        refused++;
+        y[MHE_NY - 1] = (mhe_real)0.1;
+        u[0] = bad[k];
+        if (MHE_NU > 0 && mhe_push(&s, u, y) != MHE_E_NONFINITE) return 5;
+        if (memcmp(&snap, &s, sizeof s) != 0) return 6;
+        refused += MHE_NU > 0;
+        u[0] = (mhe_real)0.01;
+    }
+    if (mhe_push(&s, u, y) != MHE_OK) return 7;
+    printf("refused %d, state unchanged\n", refused);
+    return 0;
+}
+C
+    for prog in "$art" "$art-counter" "$art-nonfinite"; do make -s -C "$prog" replay; done
+    "$art/replay" <"$OUT/f32-input.csv" >"$OUT/f32-replay-host.out"
+    "$art-counter/replay" <"$OUT/f32-input.csv" >"$OUT/f32-counter-host.out"
+    csv_tools same "$OUT/f32-replay-host.out" "$OUT/f32-counter-host.out"
+    "$art-nonfinite/replay" >"$OUT/f32-nonfinite-host.out"
+    grep -q '^refused 4, state unchanged$' "$OUT/f32-nonfinite-host.out"
+    for bad in nan -inf 1e39 0.3abc; do
+        if "$art/replay" <"$OUT/f32-bad-$bad.csv" >"$OUT/f32-bad-$bad-host.out" 2>"$OUT/f32-bad-$bad-host.err"; then
+            echo "the host replay accepted \`$bad\` on line 3"; exit 1
+        fi
+        grep -q 'line 3' "$OUT/f32-bad-$bad-host.err"
+    done
+    echo "  host (cc): f32 replay, counter at LONG_MAX (same bits), non-finite and malformed input refused"
+    for target in "m4:mps2-an386:Cortex-M4F" "m7:mps2-an500:Cortex-M7"; do
+        IFS=: read -r tag machine label <<<"$target"
+        local q=(timeout 600 qemu-system-arm -M "$machine" -nographic -monitor none -serial none
+            -semihosting-config enable=on,target=native -icount shift=0)
+        for prog in "$art" "$art-counter" "$art-nonfinite"; do make -s -C "$prog" "replay-$tag.elf"; done
+        "${q[@]}" -kernel "$art/replay-$tag.elf" <"$OUT/f32-input.csv" \
+            >"$OUT/f32-replay-$tag.out" 2>"$OUT/f32-replay-$tag.err"
+        csv_tools same "$OUT/f32-replay-host.out" "$OUT/f32-replay-$tag.out"
+        "${q[@]}" -kernel "$art-counter/replay-$tag.elf" <"$OUT/f32-input.csv" \
+            >"$OUT/f32-counter-$tag.out" 2>/dev/null
+        csv_tools same "$OUT/f32-replay-host.out" "$OUT/f32-counter-$tag.out"
+        "${q[@]}" -kernel "$art-nonfinite/replay-$tag.elf" >"$OUT/f32-nonfinite-$tag.out" 2>/dev/null </dev/null || true
+        grep -q '^refused 4, state unchanged' "$OUT/f32-nonfinite-$tag.out" \
+            || { echo "$label: mhe_push did not refuse the non-finite pairs"; exit 1; }
+        for bad in nan -inf 1e39 0.3abc; do
+            "${q[@]}" -kernel "$art/replay-$tag.elf" <"$OUT/f32-bad-$bad.csv" \
+                >"$OUT/f32-bad-$bad-$tag.out" 2>"$OUT/f32-bad-$bad-$tag.err" || true
+            grep -q 'line 3' "$OUT/f32-bad-$bad-$tag.err" \
+                || { echo "$label: the replay did not refuse \`$bad\` on line 3"; cat "$OUT/f32-bad-$bad-$tag.err"; exit 1; }
+            [ "$(wc -l <"$OUT/f32-bad-$bad-$tag.out")" -eq 3 ] \
+                || { echo "$label: the replay printed past the refused line 3"; exit 1; }
+        done
+        echo "  $label: f32 replay = host bits (max $(sed -n 's/.*mean \([0-9]*\), max \([0-9]*\).*/\2/p' "$OUT/f32-replay-$tag.err") instructions/step), counter at LONG_MAX = same bits, non-finite / out-of-range / malformed refused"
+    done
+}
+[ "${CHECK_ROBUSTNESS:-1}" = 1 ] && robustness
 
 echo
 cat "$summary"

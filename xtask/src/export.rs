@@ -40,8 +40,8 @@ pub struct ExportArgs {
     pub scenario: PathBuf,
     /// Output directory: created, or replaced as a whole when it holds an earlier export
     /// (its `certificate.json`); any other existing path is refused.
-    #[arg(long, value_name = "DIR")]
-    pub out: PathBuf,
+    #[arg(long, value_name = "DIR", required_unless_present = "survey")]
+    pub out: Option<PathBuf>,
     /// The method (`pg`, `fista`, `admm`, `admm-pr`, `pg-jacobi`, …) [default: the
     /// scenario's `mhe.method`].
     #[arg(long)]
@@ -77,6 +77,11 @@ pub struct ExportArgs {
     /// The target's clock in MHz [default: 168 for cortex-m4f, 480 for cortex-m7].
     #[arg(long, value_name = "MHZ")]
     pub clock_mhz: Option<f64>,
+    /// Write no artefact: print JSON with, per method (`--method`, default all), the
+    /// smallest K the verdict certifies in f64 and in f32 and the budget there
+    /// (`scripts/cortex-m.sh table` picks docs/embedded.md's rows from it).
+    #[arg(long, conflicts_with_all = ["out", "k", "kc", "mpc_method", "scalar", "allow_uncertified"])]
+    pub survey: bool,
 }
 
 impl From<ScalarKind> for mhe_export::ScalarKind {
@@ -114,7 +119,9 @@ fn options(args: &ExportArgs) -> Result<ExportOptions> {
         .transpose()?;
     o.method = parse_method("--method", args.method.as_deref())?;
     o.mpc_method = parse_method("--mpc-method", args.mpc_method.as_deref())?;
-    check_output_dir(&args.out)?;
+    if let Some(out) = &args.out {
+        check_output_dir(out)?;
+    }
     // The library reads an empty prefix as `mhe`; on the command line it is a mistake.
     anyhow::ensure!(
         !args.prefix.trim().is_empty(),
@@ -142,6 +149,10 @@ pub fn export(args: &ExportArgs) -> Result<()> {
     opts.provenance = Some(serde_json::to_value(Provenance::collect())?);
     let scenario = Scenario::from_file(&args.scenario)
         .with_context(|| format!("cannot load `{}`", args.scenario.display()))?;
+    if args.survey {
+        return survey(args, &opts, scenario);
+    }
+    let out = args.out.as_ref().context("--out DIR is required")?;
     opts.check_scenario(&scenario)?;
     let resolved = scenario
         .resolve()
@@ -149,7 +160,7 @@ pub fn export(args: &ExportArgs) -> Result<()> {
     let art = mhe_export::export_with_progress(&resolved, &opts, &mut |stage| {
         outln!("{stage}");
     })?;
-    art.write_to(&args.out)?;
+    art.write_to(out)?;
     let verdict = if art.loop_certified() {
         ", certified".to_string()
     } else {
@@ -170,7 +181,7 @@ pub fn export(args: &ExportArgs) -> Result<()> {
         art.scenario(),
         art.method(),
         art.k(),
-        args.out.display()
+        out.display()
     );
     for b in art.budgets() {
         outln!("  {} at {} MHz: {}", b.target, b.clock_mhz, b.summary());
@@ -178,5 +189,23 @@ pub fn export(args: &ExportArgs) -> Result<()> {
     if let Some(note) = art.budget_note() {
         outln!("  {note}");
     }
+    Ok(())
+}
+
+/// `cargo xtask export --survey`: the library's survey as JSON on stdout.
+fn survey(args: &ExportArgs, opts: &ExportOptions, scenario: Scenario) -> Result<()> {
+    let methods: Vec<Method> = parse_method("--method", args.method.as_deref())?
+        .into_iter()
+        .collect();
+    let resolved = scenario
+        .resolve()
+        .with_context(|| format!("cannot set up `{}`", args.scenario.display()))?;
+    let methods = mhe_export::survey(&resolved, opts, &methods)?;
+    let doc = serde_json::json!({
+        "scenario": resolved.scenario().name,
+        "sample_time": resolved.scenario().sample_time,
+        "methods": methods,
+    });
+    outln!("{}", serde_json::to_string_pretty(&doc)?);
     Ok(())
 }

@@ -164,7 +164,7 @@ impl ExportOptions {
     }
 
     /// The budget's targets ([`ExportOptions::budget_targets`] or both at their defaults).
-    fn targets(&self) -> Vec<(mhe_budget::Target, f64)> {
+    pub(crate) fn targets(&self) -> Vec<(mhe_budget::Target, f64)> {
         self.budget_targets
             .clone()
             .unwrap_or_else(crate::budget::default_targets)
@@ -267,6 +267,9 @@ impl Plan {
             (Some(_), None, Some(spec)) => Some(spec.method()),
             (Some(_), None, None) => return Err(no_mpc()),
         };
+        // Before the certificate: a window of thousands of unknowns would take minutes to
+        // certify and hundreds of MB to write.
+        crate::survey::check_size(scenario, method, o.scalar)?;
         Ok(Self {
             method,
             mpc: kc_arg.zip(mpc_method),

@@ -45,6 +45,7 @@ pub(crate) mod extract;
 mod out;
 mod rust_gen;
 mod sha256;
+pub mod survey;
 #[cfg(test)]
 mod tests;
 #[cfg(test)]
@@ -59,6 +60,8 @@ mod tests_global;
 mod tests_mpc;
 #[cfg(test)]
 mod tests_structured;
+#[cfg(test)]
+mod tests_survey;
 
 pub use api::{
     Artefact, ExportOptions, Iterations, Lang, ScalarKind, Source, Stage, export,
@@ -67,6 +70,7 @@ pub use api::{
 pub use error::ExportError;
 pub use out::{EXPORT_FORMAT, check_output_dir};
 pub use sha256::sha256_hex;
+pub use survey::{MethodSurvey, ScalarSurvey, survey};
 
 use std::path::Path;
 

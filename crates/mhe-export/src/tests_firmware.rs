@@ -455,3 +455,56 @@ int main(void) {
     return 0;
 }
 "#;
+
+/// The README's memory layout is the compiled data: its flash rows add up to the constants
+/// of `mhe_data.o` (host cc; `.rodata` and relocated read-only data, less at most 1 KiB of
+/// the problem's own descriptors), and it gives the linker changes for an STM32F405 and an
+/// STM32H743 and, for Rust, the Cortex-M build steps (issue 36's README items).
+#[test]
+fn readme_memory_layout_is_the_compiled_data_and_names_the_boards() {
+    let (dir, c) = pg_export("readme");
+    let (mut p, art) = artefact(&c, Method::PG, ScalarKind::F64);
+    record_self_test(&c, Method::PG, &mut p);
+    let text = c_gen::firmware_readme(&p, None, &art, Lang::C);
+    let flash: usize = (text.lines())
+        .filter(|l| l.contains("| flash"))
+        .map(|l| {
+            let cell = l.split('|').nth(3).unwrap().trim();
+            cell.split_whitespace().next().unwrap().parse::<usize>().unwrap()
+        })
+        .sum();
+    let o = Command::new("cc")
+        .current_dir(&dir)
+        .args(["-O2", "-std=c99", "-c", ALLOW, "-o", "mhe_data.o", "mhe_data.c"])
+        .output()
+        .unwrap();
+    assert_built(&o, "mhe_data.o");
+    let size = Command::new("size")
+        .current_dir(&dir)
+        .args(["-A", "mhe_data.o"])
+        .output()
+        .unwrap();
+    let data: usize = (String::from_utf8_lossy(&size.stdout).lines())
+        .filter(|l| l.starts_with(".rodata") || l.starts_with(".data"))
+        .map(|l| l.split_whitespace().nth(1).unwrap().parse::<usize>().unwrap())
+        .sum();
+    assert!(
+        flash <= data && data <= flash + 1024,
+        "README flash rows {flash} B, mhe_data.o {data} B"
+    );
+    for needle in [
+        "## Memory layout",
+        "STM32F405",
+        "LENGTH = 1024K",
+        "STM32H743",
+        "LENGTH = 2048K",
+        "-ffp-contract=off",
+        "saturates",
+        "MHE_E_NONFINITE",
+    ] {
+        assert!(text.contains(needle), "README lacks {needle}");
+    }
+    assert!(!text.contains("## Rust on Cortex-M"));
+    let rust = c_gen::firmware_readme(&p, None, &art, Lang::Rust);
+    assert!(rust.contains("## Rust on Cortex-M") && rust.contains("thumbv7em-none-eabihf"));
+}

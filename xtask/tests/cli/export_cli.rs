@@ -392,3 +392,58 @@ fn a_reused_out_is_replaced_as_a_set() {
     );
     assert!(!art.join("mhe.c").exists());
 }
+
+/// `--survey` writes nothing and prints, per method, the K `--k certified` exports (here
+/// ADMM-PR on the double integrator) with its budget; it takes no `--out`; a scenario over
+/// the size limit is refused by name before the certificate.
+#[test]
+fn survey_prints_the_certified_k_and_writes_nothing() {
+    let dir = scratch("survey");
+    let scenario = root().join("scenarios/double-integrator.toml");
+    let out = run_ok(
+        xtask()
+            .current_dir(&dir)
+            .args(["export", "--survey", "--method", "admm-pr", "--scenario"])
+            .arg(&scenario),
+    );
+    let doc: serde_json::Value = serde_json::from_str(&out).unwrap();
+    let m = &doc["methods"][0];
+    assert_eq!(m["method"], "admm-pr");
+    let k = m["f64"]["k"].as_u64().unwrap();
+    assert_eq!(m["f64"]["budget"][0]["iterations"].as_u64(), Some(k));
+    assert_eq!(std::fs::read_dir(&dir).unwrap().count(), 0, "wrote files");
+    let art = dir.join("art");
+    run_ok(
+        xtask()
+            .args(["export", "--method", "admm-pr", "--k", "certified", "--scenario"])
+            .arg(&scenario)
+            .arg("--out")
+            .arg(&art),
+    );
+    let cert: serde_json::Value =
+        serde_json::from_str(&std::fs::read_to_string(art.join("certificate.json")).unwrap())
+            .unwrap();
+    assert_eq!(cert["iterations"].as_u64(), Some(k));
+    let both = xtask()
+        .args(["export", "--survey", "--out"])
+        .arg(&art)
+        .arg("--scenario")
+        .arg(&scenario)
+        .output()
+        .unwrap();
+    assert!(!both.status.success());
+    assert!(String::from_utf8_lossy(&both.stderr).contains("--out"));
+    let big = xtask()
+        .args(["export", "--k", "certified", "--scenario"])
+        .arg(root().join("scenarios/thermal-rod-m30.toml"))
+        .arg("--out")
+        .arg(dir.join("big"))
+        .output()
+        .unwrap();
+    assert!(!big.status.success());
+    let err = String::from_utf8_lossy(&big.stderr);
+    assert!(err.contains("`mhe.horizon` = 30"), "{err}");
+    // Refused before the certificate (whose progress line goes to stdout).
+    assert!(!String::from_utf8_lossy(&big.stdout).contains("computing"));
+    assert!(!dir.join("big").exists());
+}

@@ -1,0 +1,105 @@
+//! The export's size limit (before the certificate) and the survey behind docs/embedded.md's
+//! budget table: the survey's certified K is `export --k certified`'s.
+#![allow(clippy::unwrap_used)]
+
+use std::time::Instant;
+
+use closed_loop::scenario::Scenario;
+use qp_iter::Method;
+
+use super::extract::{OwnedProblem, portable_estimator};
+use super::survey::{MAX_DATA_BYTES, data_bytes};
+use super::tests::workspace_root;
+use super::*;
+
+fn scenario(file: &str) -> Scenario {
+    Scenario::from_file(workspace_root().join("scenarios").join(file)).unwrap()
+}
+
+/// The size bound against the numbers an export actually stores: equal where every window
+/// is dense (the certified preset's n_z ≤ 49 < the crossover), for PG (H, F) and ADMM-PR
+/// (H, F and the two inverses).
+#[test]
+fn the_size_bound_counts_the_exported_numbers() {
+    let sc = scenario("case-study-certified.toml");
+    let resolved = sc.clone().resolve().unwrap();
+    for method in [Method::PG, Method::ADMM_PR] {
+        let est = portable_estimator(&resolved, method, 1).unwrap();
+        let p = OwnedProblem::from_estimator(&est, &sc.plant).unwrap();
+        let stored: usize = (p.windows.iter())
+            .map(|w| {
+                assert!(w.structured.is_none());
+                w.h.len() + w.f.len() + w.m_rho.len() + w.m_inv.len()
+            })
+            .sum();
+        assert_eq!(data_bytes(&sc, method, ScalarKind::F64), 8 * stored);
+        assert_eq!(data_bytes(&sc, method, ScalarKind::F32), 4 * stored);
+    }
+}
+
+/// thermal-rod-m30 (windows up to n_z = 710) is refused by the scenario check, before the
+/// certificate (which alone took minutes), naming `mhe.horizon`; thermal-rod-m10 passes.
+#[test]
+fn a_too_large_export_is_refused_before_the_certificate() {
+    let big = scenario("thermal-rod-m30.toml");
+    let start = Instant::now();
+    for method in Method::ALL {
+        for scalar in [ScalarKind::F64, ScalarKind::F32] {
+            let mut o = ExportOptions::default();
+            o.method = Some(method);
+            o.scalar = scalar;
+            let e = o.check_scenario(&big).unwrap_err();
+            assert!(matches!(e, ExportError::Scenario { .. }), "{e:?}");
+            let msg = e.to_string();
+            assert!(
+                msg.starts_with("`mhe.horizon` = 30:") && msg.contains("n_z = 710"),
+                "{msg}"
+            );
+            assert!(data_bytes(&big, method, scalar) > MAX_DATA_BYTES);
+        }
+    }
+    // The survey says so per method, without computing a certificate.
+    let resolved = big.resolve().unwrap();
+    let s = survey(&resolved, &ExportOptions::default(), &[]).unwrap();
+    assert_eq!(s.len(), Method::ALL.len());
+    assert!(
+        s.iter()
+            .all(|m| m.f64.verdict == "refused" && m.f32.verdict == "refused" && m.f64.k.is_none())
+    );
+    assert!(start.elapsed().as_secs() < 10, "{:?}", start.elapsed());
+    let mid = scenario("thermal-rod-m10.toml");
+    for method in Method::ALL {
+        let mut o = ExportOptions::default();
+        o.method = Some(method);
+        assert!(o.check_scenario(&mid).is_ok(), "{}", method.name());
+    }
+}
+
+/// The survey's certified K per scalar is what `export --k certified` exports (one verdict),
+/// its budget is the export's, and an f32 K it does not certify has a short reason.
+#[test]
+fn the_survey_agrees_with_the_export() {
+    let sc = scenario("double-integrator.toml");
+    let resolved = sc.resolve().unwrap();
+    let o = ExportOptions::default();
+    let s = survey(&resolved, &o, &[Method::ADMM_PR]).unwrap();
+    assert_eq!(s.len(), 1);
+    let m = &s[0];
+    assert_eq!(m.method, "admm-pr");
+    let mut eo = ExportOptions::default();
+    eo.method = Some(Method::ADMM_PR);
+    let art = export(&resolved, &eo).unwrap();
+    assert_eq!(m.f64.k, Some(art.k()));
+    assert_eq!(m.f64.verdict, "yes");
+    let from_survey: Vec<_> = m.f64.budget.iter().map(|b| b.summary.clone()).collect();
+    let from_export: Vec<_> = art.budgets().iter().map(mhe_budget::Budget::summary).collect();
+    assert_eq!(from_survey, from_export);
+    // f32: not certified here (no rounding model of ADMM); the table's cell is short.
+    assert_eq!(m.f32.k, None);
+    let short = m.f32.short_reason.as_deref().unwrap();
+    assert!(short.starts_with("f32: ") && short.chars().count() <= 60, "{short}");
+    assert!(m.f32.reason.as_deref().unwrap().len() > short.len());
+    eo.scalar = ScalarKind::F32;
+    let e = export(&resolved, &eo).unwrap_err();
+    assert!(matches!(e, ExportError::NotCertified { option: "k", .. }), "{e:?}");
+}

@@ -253,11 +253,18 @@ pub fn short_reason(r: &PairReason) -> String {
             F32Void::NoK => "f32: no K with the rounding".into(),
             _ => "f32: not covered".into(),
         },
-        PairReason::Global { then: Some(t), .. } => short_reason(t),
-        PairReason::Global { then: None, .. } => {
-            "the global certificate: not computed within the budget".into()
+        PairReason::Global { then, global } => {
+            // The global outcome's sentence names the budget when the budget cut it.
+            let g = global.to_string();
+            let g = if g.contains("not computed") {
+                "the global certificate not computed within the budget"
+            } else {
+                "the global certificate: no K"
+            };
+            then.as_ref()
+                .map_or_else(|| g.to_string(), |t| format!("{}; {g}", short_reason(t)))
         }
-        PairReason::Void(_) | PairReason::Violated(_) => "void".into(),
+        PairReason::Void(_) | PairReason::Violated(_) => "Theorem 1 void".into(),
         PairReason::NotComputed(_) => "not computed within the budget".into(),
         PairReason::Uncovered(_) => "no certificate covers the configuration".into(),
         PairReason::BelowF32KMin { k_min, .. } => format!("below the f32 K_min = {k_min}"),

@@ -104,10 +104,12 @@ def refused(file, survey):
     import re
 
     ms = json.load(open(survey))["methods"]
-    reason = min((m["f64"]["reason"] for m in ms), key=lambda r: float(re.search(r"≈ ([0-9.]+) MiB", r).group(1)))
-    size = re.search(r"≈ ([0-9.]+) MiB of problem data \(windows up to n_z = ([0-9]+)", reason)
-    limit = re.search(r"limit of ([0-9]+) MiB", reason)
-    what = f"≥ {size.group(1)} MiB of data, n_z = {size.group(2)}; limit {limit.group(1)} MiB"
+    reasons = [m[s]["reason"] for m in ms for s in ("f64", "f32")]
+    mib = lambda r: float(re.search(r"≈ ([0-9.]+) MiB", r).group(1))
+    reason = min(reasons, key=mib)
+    n_z = re.search(r"n_z = ([0-9]+)", reason).group(1)
+    limit = re.search(r"limit of\s+([0-9]+) MiB", reason).group(1)
+    what = f"dense bound {mib(reason):.0f}–{max(map(mib, reasons)):.0f} MiB of data, n_z = {n_z}; limit {limit} MiB"
     print(f"| {file} | every method | refused before the certificate: the export's size limit ({what}) "
           "| – | – | – | – | – | – |")
 

@@ -362,7 +362,7 @@ budget_table() {
                 if [ "$method" = refused ]; then
                     python3 scripts/budget-table.py refused "$file" "$survey" >>"$rows"
                 else
-                    unc+=("$file ($method $k)")
+                    unc+=("$file ($method${k:+ $k})")
                 fi
                 ;;
             *) table_export "$scalar" "$file" "$method" "$survey" "$rows" "$notes" ;;

@@ -63,8 +63,9 @@ pub(crate) fn check_size(
     let n = p.nx() + horizon * p.nw();
     Err(ExportError::Scenario {
         message: format!(
-            "`mhe.horizon` = {horizon}: the export of {} in {} would store ≈ {:.0} MiB of \
-             problem data (windows up to n_z = {n} unknowns), above the export's limit of {} MiB \
+            "`mhe.horizon` = {horizon}: the export of {} in {} would store up to ≈ {:.0} MiB of \
+             problem data (the dense bound; windows up to n_z = {n} unknowns), above the \
+             export's limit of {} MiB \
              (no microcontroller holds it, and the certificate of such a window takes minutes): \
              lower mhe.horizon or the plant's size{}",
             method.name(),

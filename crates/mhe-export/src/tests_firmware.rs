@@ -470,12 +470,24 @@ fn readme_memory_layout_is_the_compiled_data_and_names_the_boards() {
         .filter(|l| l.contains("| flash"))
         .map(|l| {
             let cell = l.split('|').nth(3).unwrap().trim();
-            cell.split_whitespace().next().unwrap().parse::<usize>().unwrap()
+            cell.split_whitespace()
+                .next()
+                .unwrap()
+                .parse::<usize>()
+                .unwrap()
         })
         .sum();
     let o = Command::new("cc")
         .current_dir(&dir)
-        .args(["-O2", "-std=c99", "-c", ALLOW, "-o", "mhe_data.o", "mhe_data.c"])
+        .args([
+            "-O2",
+            "-std=c99",
+            "-c",
+            ALLOW,
+            "-o",
+            "mhe_data.o",
+            "mhe_data.c",
+        ])
         .output()
         .unwrap();
     assert_built(&o, "mhe_data.o");
@@ -486,7 +498,13 @@ fn readme_memory_layout_is_the_compiled_data_and_names_the_boards() {
         .unwrap();
     let data: usize = (String::from_utf8_lossy(&size.stdout).lines())
         .filter(|l| l.starts_with(".rodata"))
-        .map(|l| l.split_whitespace().nth(1).unwrap().parse::<usize>().unwrap())
+        .map(|l| {
+            l.split_whitespace()
+                .nth(1)
+                .unwrap()
+                .parse::<usize>()
+                .unwrap()
+        })
         .sum();
     assert!(
         flash <= data && data <= flash + 1024,

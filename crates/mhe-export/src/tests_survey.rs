@@ -45,9 +45,11 @@ fn a_too_large_export_is_refused_before_the_certificate() {
     let start = Instant::now();
     for method in Method::ALL {
         for scalar in [ScalarKind::F64, ScalarKind::F32] {
-            let mut o = ExportOptions::default();
-            o.method = Some(method);
-            o.scalar = scalar;
+            let o = ExportOptions {
+                method: Some(method),
+                scalar,
+                ..Default::default()
+            };
             let e = o.check_scenario(&big).unwrap_err();
             assert!(matches!(e, ExportError::Scenario { .. }), "{e:?}");
             let msg = e.to_string();
@@ -69,8 +71,10 @@ fn a_too_large_export_is_refused_before_the_certificate() {
     assert!(start.elapsed().as_secs() < 10, "{:?}", start.elapsed());
     let mid = scenario("thermal-rod-m10.toml");
     for method in Method::ALL {
-        let mut o = ExportOptions::default();
-        o.method = Some(method);
+        let o = ExportOptions {
+            method: Some(method),
+            ..Default::default()
+        };
         assert!(o.check_scenario(&mid).is_ok(), "{}", method.name());
     }
 }
@@ -86,20 +90,32 @@ fn the_survey_agrees_with_the_export() {
     assert_eq!(s.len(), 1);
     let m = &s[0];
     assert_eq!(m.method, "admm-pr");
-    let mut eo = ExportOptions::default();
-    eo.method = Some(Method::ADMM_PR);
+    let mut eo = ExportOptions {
+        method: Some(Method::ADMM_PR),
+        ..Default::default()
+    };
     let art = export(&resolved, &eo).unwrap();
     assert_eq!(m.f64.k, Some(art.k()));
     assert_eq!(m.f64.verdict, "yes");
     let from_survey: Vec<_> = m.f64.budget.iter().map(|b| b.summary.clone()).collect();
-    let from_export: Vec<_> = art.budgets().iter().map(mhe_budget::Budget::summary).collect();
+    let from_export: Vec<_> = art
+        .budgets()
+        .iter()
+        .map(mhe_budget::Budget::summary)
+        .collect();
     assert_eq!(from_survey, from_export);
     // f32: not certified here (no rounding model of ADMM); the table's cell is short.
     assert_eq!(m.f32.k, None);
     let short = m.f32.short_reason.as_deref().unwrap();
-    assert!(short.starts_with("f32: ") && short.chars().count() <= 60, "{short}");
+    assert!(
+        short.starts_with("f32: ") && short.chars().count() <= 60,
+        "{short}"
+    );
     assert!(m.f32.reason.as_deref().unwrap().len() > short.len());
     eo.scalar = ScalarKind::F32;
     let e = export(&resolved, &eo).unwrap_err();
-    assert!(matches!(e, ExportError::NotCertified { option: "k", .. }), "{e:?}");
+    assert!(
+        matches!(e, ExportError::NotCertified { option: "k", .. }),
+        "{e:?}"
+    );
 }

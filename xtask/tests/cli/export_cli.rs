@@ -439,7 +439,10 @@ fn survey_writes_nothing_and_the_size_limit_refuses_by_name() {
         .unwrap();
     assert!(!big.status.success());
     let err = String::from_utf8_lossy(&big.stderr);
-    assert!(err.contains("`mhe.horizon` = 30") && err.contains("n_z = 710"), "{err}");
+    assert!(
+        err.contains("`mhe.horizon` = 30") && err.contains("n_z = 710"),
+        "{err}"
+    );
     // Refused before the certificate (whose progress line goes to stdout).
     assert!(!String::from_utf8_lossy(&big.stdout).contains("computing"));
     assert!(!dir.join("big").exists());

@@ -65,8 +65,9 @@ pub fn budgets(
 }
 
 /// What an f32 export's budget says about its K (`certified`: the export's verdict, which
-/// for f32 is Theorem 1 with the f32 rounding folded in; void on every shipped scenario:
-/// docs/theory.md, "Certified f32"). The budget itself is a measurement of the f32 code.
+/// for f32 is Theorem 1 with the f32 rounding folded in or the global loop certificate in
+/// f32: docs/embedded.md, "What the certificate covers"). The budget itself is a
+/// measurement of the f32 code.
 pub fn f32_note(certified: bool) -> &'static str {
     if certified {
         "f32: the instructions of the f32 export at this K, which the certificate covers in f32"

@@ -223,7 +223,10 @@ mod tests {
     /// exact MHE solve on (every optional field filled) and off (nulls).
     #[test]
     fn records_write_the_bytes_of_the_library_serialisation() {
-        let path = concat!(env!("CARGO_MANIFEST_DIR"), "/../../scenarios/case-study.toml");
+        let path = concat!(
+            env!("CARGO_MANIFEST_DIR"),
+            "/../../scenarios/case-study.toml"
+        );
         let scenario = Scenario::from_file(path).expect("the case study reads");
         let mut options = LoopOptions::from_scenario(&scenario).expect("it has [mhe]");
         options.iterations = 3;
@@ -236,7 +239,11 @@ mod tests {
             let trace = run.run().expect("12 steps run");
             assert!(trace.mhe_step(11).is_some_and(|s| s.window() > 1));
             let ours = serde_json::to_string(&TraceRecord::from(trace)).expect("serialises");
-            assert_eq!(ours, trace.to_json().expect("serialises"), "exact = {exact}");
+            assert_eq!(
+                ours,
+                trace.to_json().expect("serialises"),
+                "exact = {exact}"
+            );
         }
     }
 }

@@ -394,7 +394,7 @@ impl<M: IterationMap> MheEstimator<M> {
     /// let w = MheWeights { eta: 0.8, p: Mat::identity(2, 2), q: Mat::identity(3, 3), r: mat![[1.0]] };
     /// let problem = Arc::new(MheProblem::new(&sys, 3, &w, &MheSets::unconstrained(&sys)).unwrap());
     /// let k = |n| qp_iter::Iterations::new(n).unwrap();
-/// let mut a = MheEstimator::from_problem(problem.clone(), k(20), WarmStart::Paper, false,
+    /// let mut a = MheEstimator::from_problem(problem.clone(), k(20), WarmStart::Paper, false,
     ///     &[1.0, -1.0], |qp| qp_iter::Method::FISTA.build(qp)).unwrap();
     /// let mut b = MheEstimator::from_problem(problem, k(5), WarmStart::Paper, false,
     ///     &[1.0, -1.0], |qp| qp_iter::Method::PG.build(qp)).unwrap();

@@ -21,7 +21,8 @@ fn case_study(warm: WarmStart) -> (LtiSystem, MheSets, MheConfig) {
         .unwrap()
         .p;
     let sets = MheSets::with_disturbance(&sys, BoxSet::symmetric(&[0.1; 5]).unwrap());
-    let cfg = MheConfig::new(5, 0.8, p, q, r, qp_iter::Iterations::new(20).unwrap()).with_warm_start(warm);
+    let cfg = MheConfig::new(5, 0.8, p, q, r, qp_iter::Iterations::new(20).unwrap())
+        .with_warm_start(warm);
     (sys, sets, cfg)
 }
 

@@ -296,7 +296,12 @@ impl CaseStudyQps {
         F: Fn(ParametricQp) -> qp_iter::Result<M>,
     {
         let mut cfg = self.config.clone();
-        cfg.iterations = iterations;
+        cfg.iterations =
+            qp_iter::Iterations::new(iterations).map_err(|_| MheError::OutOfRange {
+                name: "iterations",
+                value: iterations as f64,
+                range: "integers 1 ..= 10⁷ (qp_iter::MAX_ITERATIONS)",
+            })?;
         Ok(MheEstimator::new(
             &self.resolved.scenario().plant,
             &self.sets,

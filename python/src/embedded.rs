@@ -231,7 +231,7 @@ impl F32Estimator {
             nw1: sys.nw1(),
             nw2: sys.nw2(),
             horizon: cfg.horizon,
-            iterations: cfg.iterations,
+            iterations: cfg.iterations.get(),
             method,
             warm_start: match cfg.warm_start {
                 WarmStart::Paper => mhe_embedded::WarmStart::Paper,

@@ -30,6 +30,7 @@ use crate::record::{Trace, norm2};
 /// A baseline estimator's run over a recorded trace.
 #[derive(Debug, Clone)]
 #[cfg_attr(feature = "serde", derive(Serialize))]
+#[non_exhaustive]
 pub struct BaselineRun {
     /// x̂^b_t per step (t = 0..completed), each n_x long.
     pub x_hat: Vec<Vec<f64>>,

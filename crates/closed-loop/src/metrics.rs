@@ -105,6 +105,7 @@ impl FromStr for Metric {
 /// What one closed-loop run recorded. Metrics of a run that stopped early (a non-finite
 /// signal) are +∞ for the norms and gains (it diverged), and `error` says why.
 #[derive(Debug, Clone, PartialEq)]
+#[non_exhaustive]
 pub struct RunMetrics {
     /// Run index r (0-based) at its point.
     pub run: usize,

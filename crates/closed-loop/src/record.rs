@@ -6,14 +6,14 @@
 //! the estimator's MHE record (prior, window data, K-th iterate, exact optimum and ε_t when
 //! the exact solve is on) in [`MheTrace`]. The final state x_T is kept as well.
 //!
-//! Serialisation (serde, [`Trace::to_json`]) writes one object per step; the MHE part uses
-//! the field names of [`mhe_core::MheRecord`]'s own serialisation.
+//! With the `serde` feature, serialisation (`Trace::to_json`) writes one object per step; the
+//! MHE part uses the field names of [`mhe_core::MheRecord`]'s. The files of `cargo xtask
+//! reproduce` do not use it: `trace.json` has its own versioned records
+//! (`certificate_json::v1::TraceRecord`), filled from the accessors below.
 
 use mhe_core::MheRecord;
 use mhe_core::problem::Dims;
 use qp_iter::RunStatus;
-use serde::ser::{SerializeSeq, SerializeStruct};
-use serde::{Serialize, Serializer};
 
 pub(crate) use lti_model::vecmath::norm2;
 
@@ -214,6 +214,10 @@ impl Trace {
     pub fn dims(&self) -> (usize, usize, usize, usize) {
         (self.nx, self.nu, self.ny, self.nw)
     }
+    /// dim w¹ (the first [`Trace::nw1`] entries of w_t are w¹_t, the rest w²_t).
+    pub fn nw1(&self) -> usize {
+        self.nw1
+    }
 
     /// The true state x_t, t = 0..=len (x_len is the state after the last step).
     pub fn x(&self, t: usize) -> Option<&[f64]> {
@@ -316,10 +320,12 @@ impl Trace {
     }
 
     /// The trace as JSON (see the module docs for the layout).
+    #[cfg(feature = "serde")]
     pub fn to_json(&self) -> serde_json::Result<String> {
         serde_json::to_string(self)
     }
     /// The trace as indented JSON.
+    #[cfg(feature = "serde")]
     pub fn to_json_pretty(&self) -> serde_json::Result<String> {
         serde_json::to_string_pretty(self)
     }
@@ -609,135 +615,143 @@ fn stage(v: &[f64], width: usize, j: usize) -> Option<&[f64]> {
     v.get(j * width..(j + 1) * width)
 }
 
-/// A flat sequence serialised as an array of stages.
-struct Stages<'a>(&'a [f64], usize);
+/// The library's own JSON layout of a trace (feature `serde`; `trace.json` does not use it).
+#[cfg(feature = "serde")]
+mod serialise {
+    use super::{MheStep, Trace};
+    use serde::ser::{SerializeSeq, SerializeStruct};
+    use serde::{Serialize, Serializer};
 
-impl Serialize for Stages<'_> {
-    fn serialize<S: Serializer>(&self, s: S) -> Result<S::Ok, S::Error> {
-        let Stages(v, width) = *self;
-        let count = v.len().checked_div(width).unwrap_or(0);
-        let mut seq = s.serialize_seq(Some(count))?;
-        for j in 0..count {
-            seq.serialize_element(&v[j * width..(j + 1) * width])?;
+    /// A flat sequence serialised as an array of stages.
+    struct Stages<'a>(&'a [f64], usize);
+
+    impl Serialize for Stages<'_> {
+        fn serialize<S: Serializer>(&self, s: S) -> Result<S::Ok, S::Error> {
+            let Stages(v, width) = *self;
+            let count = v.len().checked_div(width).unwrap_or(0);
+            let mut seq = s.serialize_seq(Some(count))?;
+            for j in 0..count {
+                seq.serialize_element(&v[j * width..(j + 1) * width])?;
+            }
+            seq.end()
         }
-        seq.end()
     }
-}
 
-impl Serialize for MheStep<'_> {
-    fn serialize<S: Serializer>(&self, s: S) -> Result<S::Ok, S::Error> {
-        let d = self.trace.dims;
-        let nw = d.nw();
-        let mut st = s.serialize_struct("MheRecord", 18)?;
-        st.serialize_field("t", &self.t())?;
-        st.serialize_field("window", &self.window())?;
-        st.serialize_field("prior", self.prior())?;
-        st.serialize_field("u", &Stages(self.u_flat(), d.nu))?;
-        st.serialize_field("y", &Stages(self.y_flat(), d.ny))?;
-        st.serialize_field("x_start_k", self.x_start_k())?;
-        st.serialize_field("w_k", &Stages(self.w_k_flat(), nw))?;
-        st.serialize_field("x_hat", self.x_hat())?;
-        st.serialize_field("x_start_exact", &self.x_start_exact())?;
-        st.serialize_field("w_exact", &self.w_exact_flat().map(|w| Stages(w, nw)))?;
-        st.serialize_field("x_hat_exact", &self.x_hat_exact())?;
-        st.serialize_field("epsilon", &self.epsilon())?;
-        st.serialize_field("initial_error", &self.initial_error())?;
-        st.serialize_field("cost_k", &self.cost_k())?;
-        st.serialize_field("cost_exact", &self.cost_exact())?;
-        st.serialize_field("violation", &self.violation())?;
-        st.serialize_field("iterations", &self.iterations())?;
-        st.serialize_field("status", &self.status())?;
-        st.end()
-    }
-}
-
-/// One step of a [`Trace`] for serialisation.
-struct StepOut<'a> {
-    trace: &'a Trace,
-    t: usize,
-}
-
-impl Serialize for StepOut<'_> {
-    fn serialize<S: Serializer>(&self, s: S) -> Result<S::Ok, S::Error> {
-        let (tr, t) = (self.trace, self.t);
-        let mut st = s.serialize_struct("Step", 11)?;
-        st.serialize_field("t", &t)?;
-        st.serialize_field("x", tr.x.row(t))?;
-        st.serialize_field("u", tr.u.row(t))?;
-        st.serialize_field("y", tr.y.row(t))?;
-        st.serialize_field("w", tr.w.row(t))?;
-        st.serialize_field("x_hat", tr.x_hat.row(t))?;
-        st.serialize_field("e", tr.e.row(t))?;
-        st.serialize_field("e_norm", &tr.e_norm[t])?;
-        st.serialize_field("x_norm", &tr.x_norm[t])?;
-        st.serialize_field("w_norm", &tr.w_norm[t])?;
-        st.serialize_field("mhe", &tr.mhe_step(t))?;
-        st.end()
-    }
-}
-
-struct StepsOut<'a>(&'a Trace);
-
-impl Serialize for StepsOut<'_> {
-    fn serialize<S: Serializer>(&self, s: S) -> Result<S::Ok, S::Error> {
-        let mut seq = s.serialize_seq(Some(self.0.len))?;
-        for t in 0..self.0.len {
-            seq.serialize_element(&StepOut { trace: self.0, t })?;
+    impl Serialize for MheStep<'_> {
+        fn serialize<S: Serializer>(&self, s: S) -> Result<S::Ok, S::Error> {
+            let d = self.trace.dims;
+            let nw = d.nw();
+            let mut st = s.serialize_struct("MheRecord", 18)?;
+            st.serialize_field("t", &self.t())?;
+            st.serialize_field("window", &self.window())?;
+            st.serialize_field("prior", self.prior())?;
+            st.serialize_field("u", &Stages(self.u_flat(), d.nu))?;
+            st.serialize_field("y", &Stages(self.y_flat(), d.ny))?;
+            st.serialize_field("x_start_k", self.x_start_k())?;
+            st.serialize_field("w_k", &Stages(self.w_k_flat(), nw))?;
+            st.serialize_field("x_hat", self.x_hat())?;
+            st.serialize_field("x_start_exact", &self.x_start_exact())?;
+            st.serialize_field("w_exact", &self.w_exact_flat().map(|w| Stages(w, nw)))?;
+            st.serialize_field("x_hat_exact", &self.x_hat_exact())?;
+            st.serialize_field("epsilon", &self.epsilon())?;
+            st.serialize_field("initial_error", &self.initial_error())?;
+            st.serialize_field("cost_k", &self.cost_k())?;
+            st.serialize_field("cost_exact", &self.cost_exact())?;
+            st.serialize_field("violation", &self.violation())?;
+            st.serialize_field("iterations", &self.iterations())?;
+            st.serialize_field("status", &self.status())?;
+            st.end()
         }
-        seq.end()
     }
-}
 
-/// Summary statistics written next to the steps.
-#[derive(Serialize)]
-struct Summary {
-    sup_norm_e: f64,
-    sup_norm_x: f64,
-    sup_norm_w: f64,
-    tail_mean_e: Option<f64>,
-    tail_mean_x: Option<f64>,
-    tail_mean_w: Option<f64>,
-    tail_mean_epsilon: Option<f64>,
-}
+    /// One step of a [`Trace`] for serialisation.
+    struct StepOut<'a> {
+        trace: &'a Trace,
+        t: usize,
+    }
 
-#[derive(Serialize)]
-struct DimsOut {
-    nx: usize,
-    nu: usize,
-    ny: usize,
-    nw1: usize,
-    nw2: usize,
-}
+    impl Serialize for StepOut<'_> {
+        fn serialize<S: Serializer>(&self, s: S) -> Result<S::Ok, S::Error> {
+            let (tr, t) = (self.trace, self.t);
+            let mut st = s.serialize_struct("Step", 11)?;
+            st.serialize_field("t", &t)?;
+            st.serialize_field("x", tr.x.row(t))?;
+            st.serialize_field("u", tr.u.row(t))?;
+            st.serialize_field("y", tr.y.row(t))?;
+            st.serialize_field("w", tr.w.row(t))?;
+            st.serialize_field("x_hat", tr.x_hat.row(t))?;
+            st.serialize_field("e", tr.e.row(t))?;
+            st.serialize_field("e_norm", &tr.e_norm[t])?;
+            st.serialize_field("x_norm", &tr.x_norm[t])?;
+            st.serialize_field("w_norm", &tr.w_norm[t])?;
+            st.serialize_field("mhe", &tr.mhe_step(t))?;
+            st.end()
+        }
+    }
 
-impl Serialize for Trace {
-    fn serialize<S: Serializer>(&self, s: S) -> Result<S::Ok, S::Error> {
-        let mut st = s.serialize_struct("Trace", 6)?;
-        st.serialize_field(
-            "dims",
-            &DimsOut {
-                nx: self.nx,
-                nu: self.nu,
-                ny: self.ny,
-                nw1: self.nw1,
-                nw2: self.nw - self.nw1,
-            },
-        )?;
-        st.serialize_field("steps", &self.steps)?;
-        st.serialize_field("len", &self.len)?;
-        st.serialize_field(
-            "summary",
-            &Summary {
-                sup_norm_e: self.sup_norm_e(),
-                sup_norm_x: self.sup_norm_x(),
-                sup_norm_w: self.sup_norm_w(),
-                tail_mean_e: self.tail_mean_e(),
-                tail_mean_x: self.tail_mean_x(),
-                tail_mean_w: self.tail_mean_w(),
-                tail_mean_epsilon: self.tail_mean_epsilon(),
-            },
-        )?;
-        st.serialize_field("x_final", self.x.row(self.len))?;
-        st.serialize_field("records", &StepsOut(self))?;
-        st.end()
+    struct StepsOut<'a>(&'a Trace);
+
+    impl Serialize for StepsOut<'_> {
+        fn serialize<S: Serializer>(&self, s: S) -> Result<S::Ok, S::Error> {
+            let mut seq = s.serialize_seq(Some(self.0.len))?;
+            for t in 0..self.0.len {
+                seq.serialize_element(&StepOut { trace: self.0, t })?;
+            }
+            seq.end()
+        }
+    }
+
+    /// Summary statistics written next to the steps.
+    #[derive(Serialize)]
+    struct Summary {
+        sup_norm_e: f64,
+        sup_norm_x: f64,
+        sup_norm_w: f64,
+        tail_mean_e: Option<f64>,
+        tail_mean_x: Option<f64>,
+        tail_mean_w: Option<f64>,
+        tail_mean_epsilon: Option<f64>,
+    }
+
+    #[derive(Serialize)]
+    struct DimsOut {
+        nx: usize,
+        nu: usize,
+        ny: usize,
+        nw1: usize,
+        nw2: usize,
+    }
+
+    impl Serialize for Trace {
+        fn serialize<S: Serializer>(&self, s: S) -> Result<S::Ok, S::Error> {
+            let mut st = s.serialize_struct("Trace", 6)?;
+            st.serialize_field(
+                "dims",
+                &DimsOut {
+                    nx: self.nx,
+                    nu: self.nu,
+                    ny: self.ny,
+                    nw1: self.nw1,
+                    nw2: self.nw - self.nw1,
+                },
+            )?;
+            st.serialize_field("steps", &self.steps)?;
+            st.serialize_field("len", &self.len)?;
+            st.serialize_field(
+                "summary",
+                &Summary {
+                    sup_norm_e: self.sup_norm_e(),
+                    sup_norm_x: self.sup_norm_x(),
+                    sup_norm_w: self.sup_norm_w(),
+                    tail_mean_e: self.tail_mean_e(),
+                    tail_mean_x: self.tail_mean_x(),
+                    tail_mean_w: self.tail_mean_w(),
+                    tail_mean_epsilon: self.tail_mean_epsilon(),
+                },
+            )?;
+            st.serialize_field("x_final", self.x.row(self.len))?;
+            st.serialize_field("records", &StepsOut(self))?;
+            st.end()
+        }
     }
 }

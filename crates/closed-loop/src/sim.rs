@@ -278,7 +278,8 @@ fn check_dim(what: &'static str, expected: usize, actual: usize) -> Result<()> {
 /// use qp_iter::pg::{ProjectedGradient, StepRule};
 /// let sys = LtiSystem::new(mat![[0.9, 0.1], [0.0, 0.8]], mat![[0.0], [1.0]], mat![[1.0, 0.0]]).unwrap();
 /// let w_box = BoxSet::symmetric(&[0.05; 3]).unwrap();
-/// let cfg = MheConfig::new(3, 0.8, Mat::identity(2, 2), Mat::identity(3, 3), mat![[1.0]], 20)
+/// let k = qp_iter::Iterations::new(20).unwrap();
+/// let cfg = MheConfig::new(3, 0.8, Mat::identity(2, 2), Mat::identity(3, 3), mat![[1.0]], k)
 ///     .with_exact_solve(true);
 /// let mhe = MheEstimator::new(&sys, &MheSets::with_disturbance(&sys, w_box.clone()), &cfg,
 ///     &[0.0, 0.0], |qp| ProjectedGradient::new(qp, StepRule::Optimal)).unwrap();

@@ -92,7 +92,7 @@ pub enum ModelError {
         reason: String,
     },
     /// A value given through a Rust builder was refused: the checks of the scenario file,
-    /// named by the Rust item the value came from ([`ModelError::for_rust`]).
+    /// named by the Rust item the value came from (`ModelError::for_rust`, feature `spec`).
     #[error("{field}: {problem}")]
     Invalid {
         /// The Rust item (`MheBuilder::eta`, `LtiSystem::a`, `MpcBuilder::r`).

@@ -13,8 +13,8 @@
 //!   Lyapunov equations, each verified by its residual.
 //! - [`ioss`]: the δ-IOSS certificate of Assumption 2: find or verify P ≻ 0 satisfying
 //!   LMI (2) for given (A, C, η, Q, R), and the smallest feasible η.
-//! - [`spec`]: the scenario-file format every layer parses its settings with, and the
-//!   plant-level sections (`[plant]`, `[sets]`, `[noise]`, `[simulation]`).
+//! - `spec` (feature `spec`): the scenario-file format every layer parses its settings
+//!   with, and the plant-level sections (`[plant]`, `[sets]`, `[noise]`, `[simulation]`).
 //!
 //! Every fallible constructor returns [`ModelError`], whose variants name the offending
 //! matrix or scenario key.
@@ -27,6 +27,7 @@ pub mod numfmt;
 pub mod presets;
 pub mod riccati;
 pub mod sets;
+#[cfg(feature = "spec")]
 pub mod spec;
 pub mod spectral;
 pub mod system;

@@ -104,6 +104,7 @@ pub enum Stability {
 /// What [`classify`] found.
 #[derive(Debug, Clone, PartialEq)]
 #[cfg_attr(feature = "serde", derive(Serialize))]
+#[non_exhaustive]
 pub struct SpectralFacts {
     /// Stable, marginal or unstable.
     pub stability: Stability,

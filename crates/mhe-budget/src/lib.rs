@@ -423,6 +423,7 @@ pub enum Verdict {
 
 /// The budget of one step: the prediction and the verdict, with what they rest on.
 #[derive(Debug, Clone, PartialEq)]
+#[non_exhaustive]
 pub struct Budget {
     /// The target.
     pub target: Target,
@@ -452,6 +453,7 @@ pub struct Budget {
 
 /// The MPC's part of a loop step's budget.
 #[derive(Debug, Clone, PartialEq)]
+#[non_exhaustive]
 pub struct MpcShare {
     /// The MPC's method.
     pub method: String,

@@ -24,10 +24,13 @@ pub use loop_traits::Estimator;
 /// ```
 /// use faer::{Mat, mat};
 /// use mhe_core::{MheConfig, WarmStart};
-/// let cfg = MheConfig::new(5, 0.8, Mat::identity(2, 2), Mat::identity(3, 3), mat![[1.0]], 20)
+/// use qp_iter::Iterations;
+/// let k = Iterations::new(20)?; // K = 0 is refused here, with `IterationsError::Zero`
+/// let cfg = MheConfig::new(5, 0.8, Mat::identity(2, 2), Mat::identity(3, 3), mat![[1.0]], k)
 ///     .with_warm_start(WarmStart::Paper)
 ///     .with_exact_solve(true);
-/// assert_eq!((cfg.horizon, cfg.iterations, cfg.exact_solve), (5, 20, true));
+/// assert_eq!((cfg.horizon, cfg.iterations.get(), cfg.exact_solve), (5, 20, true));
+/// # Ok::<(), qp_iter::IterationsError>(())
 /// ```
 #[derive(Debug, Clone)]
 #[non_exhaustive]
@@ -43,7 +46,7 @@ pub struct MheConfig {
     /// Output weight R ≻ 0 (n_y × n_y).
     pub r: Mat<f64>,
     /// Iterations K ≥ 1 of Φ per time step.
-    pub iterations: usize,
+    pub iterations: qp_iter::Iterations,
     /// Warm-start rule Σ_t (the paper's is the certified default).
     pub warm_start: WarmStart,
     /// Also solve ℙ_t exactly each step and record ε_t (analysis runs): the warm-started
@@ -60,7 +63,7 @@ impl MheConfig {
         p: Mat<f64>,
         q: Mat<f64>,
         r: Mat<f64>,
-        iterations: usize,
+        iterations: qp_iter::Iterations,
     ) -> Self {
         Self {
             horizon,
@@ -289,19 +292,6 @@ pub(crate) fn check_vec(name: &'static str, v: &[f64], n: usize) -> Result<()> {
     Ok(())
 }
 
-/// K ≥ 1 and at most [`crate::settings::MAX_ITERATIONS`] (the library API's check; a
-/// scenario's `mhe.iterations` is checked with its key by [`crate::MheSettings`]).
-fn check_iterations(k: usize) -> Result<()> {
-    if k == 0 || k > crate::settings::MAX_ITERATIONS {
-        return Err(MheError::OutOfRange {
-            name: "iterations",
-            value: k as f64,
-            range: "integers 1 ..= 10⁷ (qp_iter::MAX_ITERATIONS)",
-        });
-    }
-    Ok(())
-}
-
 /// The sub-optimal MHE of Alg. 1, generic over the iteration map Φ.
 ///
 /// One Φ (and its state) per window length m = 0..M, all built at construction; a time
@@ -314,7 +304,8 @@ fn check_iterations(k: usize) -> Result<()> {
 /// use qp_iter::pg::{ProjectedGradient, StepRule};
 /// use mhe_core::{Estimator, MheConfig, MheEstimator, MheSets, WarmStart};
 /// let sys = LtiSystem::new(mat![[0.9, 0.1], [0.0, 0.8]], mat![[0.0], [1.0]], mat![[1.0, 0.0]]).unwrap();
-/// let cfg = MheConfig::new(3, 0.8, Mat::identity(2, 2), Mat::identity(3, 3), mat![[1.0]], 20)
+/// let k = qp_iter::Iterations::new(20).unwrap();
+/// let cfg = MheConfig::new(3, 0.8, Mat::identity(2, 2), Mat::identity(3, 3), mat![[1.0]], k)
 ///     .with_exact_solve(true);
 /// let mut mhe = MheEstimator::new(&sys, &MheSets::unconstrained(&sys), &cfg, &[1.0, -1.0],
 ///     |qp| ProjectedGradient::new(qp, StepRule::Optimal)).unwrap();
@@ -361,7 +352,7 @@ impl<M: IterationMap> MheEstimator<M> {
     /// Validates everything, builds ℙ_t for m = 0..M and one Φ per window length with
     /// `factory`, and sets t = 0 with prior x̄₀ = `prior`.
     ///
-    /// Errors name the field: `horizon` (M = 0), `eta` (∉ [0, 1)), `iterations` (K = 0),
+    /// Errors name the field: `horizon` (M = 0), `eta` (∉ [0, 1)),
     /// `P`/`Q`/`R` (shape, not positive definite), `prior` (length, NaN), the sets
     /// (dimension), and the factory's error.
     pub fn new<F>(
@@ -374,7 +365,6 @@ impl<M: IterationMap> MheEstimator<M> {
     where
         F: Fn(ParametricQp) -> qp_iter::Result<M>,
     {
-        check_iterations(config.iterations)?;
         lti_model::work_count::record(lti_model::work_count::Work::EstimatorBuilt);
         let dims = Dims::of(sys);
         crate::problem::validate_problem(dims, config.horizon, &config.weights(), sets)?;
@@ -403,15 +393,16 @@ impl<M: IterationMap> MheEstimator<M> {
     /// let sys = LtiSystem::new(mat![[0.9, 0.1], [0.0, 0.8]], mat![[0.0], [1.0]], mat![[1.0, 0.0]]).unwrap();
     /// let w = MheWeights { eta: 0.8, p: Mat::identity(2, 2), q: Mat::identity(3, 3), r: mat![[1.0]] };
     /// let problem = Arc::new(MheProblem::new(&sys, 3, &w, &MheSets::unconstrained(&sys)).unwrap());
-    /// let mut a = MheEstimator::from_problem(problem.clone(), 20, WarmStart::Paper, false,
+    /// let k = |n| qp_iter::Iterations::new(n).unwrap();
+    /// let mut a = MheEstimator::from_problem(problem.clone(), k(20), WarmStart::Paper, false,
     ///     &[1.0, -1.0], |qp| qp_iter::Method::FISTA.build(qp)).unwrap();
-    /// let mut b = MheEstimator::from_problem(problem, 5, WarmStart::Paper, false,
+    /// let mut b = MheEstimator::from_problem(problem, k(5), WarmStart::Paper, false,
     ///     &[1.0, -1.0], |qp| qp_iter::Method::PG.build(qp)).unwrap();
     /// assert_eq!(a.estimate().unwrap(), b.estimate().unwrap()); // t = 0: the prior
     /// ```
     pub fn from_problem<F>(
         problem: Arc<MheProblem>,
-        iterations: usize,
+        iterations: qp_iter::Iterations,
         warm_start: WarmStart,
         exact_solve: bool,
         prior: &[f64],
@@ -420,7 +411,6 @@ impl<M: IterationMap> MheEstimator<M> {
     where
         F: Fn(ParametricQp) -> qp_iter::Result<M>,
     {
-        check_iterations(iterations)?;
         lti_model::work_count::record(lti_model::work_count::Work::EstimatorBuilt);
         let dims = problem.dims();
         check_vec("prior", prior, dims.nx)?;
@@ -609,7 +599,7 @@ impl<M: IterationMap> MheEstimator<M> {
         let state = &mut self.states[m];
         map.load(state, theta);
         map.warm_start(state, &self.z0[..nz], None);
-        let run = run_fixed(map, state, self.config.iterations);
+        let run = run_fixed(map, state, self.config.iterations.get());
         let zk = &mut self.zk[..nz];
         zk.copy_from_slice(map.iterate(state));
         // Box and (with bounded 𝒳 / 𝒴) the general rows for this θ; 0 for PG / FISTA.

@@ -17,6 +17,7 @@ use crate::problem::Dims;
 /// Clone it out with `clone()` (allocates) or [`MheRecord::copy_into`] (reuses the target's
 /// buffers).
 #[derive(Debug, Clone, PartialEq)]
+#[non_exhaustive]
 pub struct MheRecord {
     dims: Dims,
     /// Time step t (number of (u, y) pairs pushed before this estimate).

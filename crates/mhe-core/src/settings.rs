@@ -271,7 +271,7 @@ impl MheSettings {
             p,
             self.q.clone(),
             self.r.clone(),
-            self.iterations.get(),
+            self.iterations,
         )
         .with_warm_start(self.warm_start)
         .with_exact_solve(exact_solve))

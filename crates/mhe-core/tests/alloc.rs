@@ -21,7 +21,8 @@ fn case_study(warm: WarmStart) -> (LtiSystem, MheSets, MheConfig) {
         .unwrap()
         .p;
     let sets = MheSets::with_disturbance(&sys, BoxSet::symmetric(&[0.1; 5]).unwrap());
-    let cfg = MheConfig::new(5, 0.8, p, q, r, 20).with_warm_start(warm);
+    let cfg = MheConfig::new(5, 0.8, p, q, r, qp_iter::Iterations::new(20).unwrap())
+        .with_warm_start(warm);
     (sys, sets, cfg)
 }
 
@@ -180,7 +181,7 @@ fn long_setup_memory_estimate_is_within_2x_of_the_peak() {
             Mat::identity(nx, nx),
             Mat::identity(nw, nw),
             Mat::identity(ny, ny),
-            5,
+            qp_iter::Iterations::new(5).unwrap(),
         )
         .with_exact_solve(exact);
         let meth: qp_iter::Method = method.parse().unwrap();

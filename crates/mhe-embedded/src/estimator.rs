@@ -7,6 +7,7 @@ use crate::scalar::Scalar;
 /// Why [`Mhe::push`] refused a pair: an entry is NaN or ±∞ (nothing changed). No finite
 /// range is imposed: the certificate bounds the disturbances, not the measurements.
 #[derive(Debug, Clone, Copy, PartialEq, Eq)]
+#[non_exhaustive]
 pub enum PushError {
     /// `u[index]` is not finite.
     NonFiniteInput {

@@ -28,6 +28,10 @@ pub struct MpcProblem<'a, T> {
 }
 
 /// Why [`Mpc::control`] gave no input.
+///
+/// Exhaustive on purpose, unlike the crate's other errors: the exported C ABI
+/// (`mhe_capi_f64_mpc_control`) gives each variant its own return code, so a new variant
+/// must fail to compile there until it has one.
 #[derive(Debug, Clone, Copy, PartialEq, Eq)]
 pub enum MpcError {
     /// x̂ has a NaN or infinite entry (nothing was run; the warm start is kept).

@@ -187,7 +187,8 @@ pub(crate) fn portable_estimator(
     iterations: usize,
 ) -> Result<MheEstimator<MethodMap>> {
     let mut cfg = resolved.mhe_config()?.clone();
-    cfg.iterations = iterations;
+    cfg.iterations = qp_iter::Iterations::new(iterations)
+        .map_err(|e| anyhow::anyhow!("the MHE's iterations K {e}"))?;
     cfg.exact_solve = false;
     let sc = resolved.scenario();
     // `with_kernel` reaches the maps' dense steps only: the structured product of a long
@@ -354,7 +355,7 @@ impl OwnedProblem {
             nw1: sys.nw1(),
             nw2: sys.nw2(),
             horizon: cfg.horizon,
-            iterations: cfg.iterations,
+            iterations: cfg.iterations.get(),
             method,
             warm_start: match cfg.warm_start {
                 WarmStart::Paper => mhe_embedded::WarmStart::Paper,

@@ -90,6 +90,7 @@ pub fn run_cost(k: usize, steps: usize) -> u64 {
 
 /// What a finished [`Sweep::run`] did.
 #[derive(Debug, Clone, PartialEq)]
+#[non_exhaustive]
 pub struct SweepReport {
     /// Points computed now.
     pub computed: usize,

@@ -81,6 +81,7 @@ impl TaskKind {
 /// One executed task: what it was and how long it took.
 #[derive(Debug, Clone, PartialEq)]
 #[cfg_attr(feature = "serde", derive(Serialize))]
+#[non_exhaustive]
 pub struct TaskTime {
     /// What the task computed.
     pub kind: TaskKind,
@@ -109,6 +110,7 @@ pub struct TaskTime {
 /// The measured schedule of a [`Sweep::run`](super::Sweep::run).
 #[derive(Debug, Clone, PartialEq, Default)]
 #[cfg_attr(feature = "serde", derive(Serialize))]
+#[non_exhaustive]
 pub struct ScheduleReport {
     /// Workers of the pool.
     pub threads: usize,
@@ -124,6 +126,7 @@ pub struct ScheduleReport {
 /// A replay's prediction for one worker count.
 #[derive(Debug, Clone, Copy, PartialEq)]
 #[cfg_attr(feature = "serde", derive(Serialize))]
+#[non_exhaustive]
 pub struct Prediction {
     /// Workers.
     pub threads: usize,

@@ -8,6 +8,7 @@ use super::theory::TheoryAtK;
 
 /// One run of a sweep point: its metrics and how many of its disturbance draws left 𝒲.
 #[derive(Debug, Clone, PartialEq)]
+#[non_exhaustive]
 pub struct SweepRun {
     /// The run's metrics (a row of `runs.csv`).
     pub metrics: RunMetrics,
@@ -19,6 +20,7 @@ pub struct SweepRun {
 
 /// One row of `points.csv` (besides the identity columns).
 #[derive(Debug, Clone, PartialEq)]
+#[non_exhaustive]
 pub struct PointSummary {
     /// Runs at the point.
     pub runs: usize,

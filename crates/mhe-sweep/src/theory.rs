@@ -117,6 +117,7 @@ impl SolverTheory {
 
 /// The theoretical columns of a point.
 #[derive(Debug, Clone, PartialEq, Default)]
+#[non_exhaustive]
 pub struct TheoryAtK {
     /// φ(K) of Assumption 5 (the solver's certified contraction after K iterations).
     pub phi: Option<f64>,

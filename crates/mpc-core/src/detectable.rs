@@ -30,6 +30,7 @@ pub const MARGIN: f64 = 1e-9;
 
 /// A mode of A that Q_c does not see and that does not decay.
 #[derive(Debug, Clone, PartialEq)]
+#[non_exhaustive]
 pub struct UndetectableMode {
     /// Real part of the eigenvalue λ.
     pub re: f64,

@@ -58,6 +58,7 @@ fn numerical(routine: &str, reason: String) -> MpcError {
 /// The local gains of the box-constrained MPC law as the family K(M) = K_lin + G·M·R,
 /// 0 ⪯ M ⪯ I_s (module docs); built by [`CondensedMpc::local_gains`].
 #[derive(Debug, Clone, PartialEq)]
+#[non_exhaustive]
 pub struct LocalGains {
     /// K_lin = −E₀H⁻¹F (n_u × n_x): the gain with every relaxed variable free (M = 0).
     pub k_lin: Mat<f64>,
@@ -155,6 +156,7 @@ impl LocalGains {
 /// Summary of the free-set structure for reports.
 #[derive(Debug, Clone, Copy, PartialEq)]
 #[cfg_attr(feature = "serde", derive(Serialize))]
+#[non_exhaustive]
 pub struct FreeSetSummary {
     /// N·n_u, the number of QP variables.
     pub variables: usize,

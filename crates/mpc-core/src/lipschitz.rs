@@ -92,6 +92,7 @@ pub const LIPSCHITZ_PATTERN_FAMILIES: u64 = 64;
 /// The certified L_π of the box-constrained condensed MPC and its ingredients.
 #[derive(Debug, Clone, PartialEq)]
 #[cfg_attr(feature = "serde", derive(Serialize))]
+#[non_exhaustive]
 pub struct LipschitzCertificate {
     /// (b) ‖E₀H^{−1/2}‖₂·‖H^{−1/2}F‖₂: a certified L_π from two norms (≥ `polynomial`).
     pub first_block: f64,
@@ -257,6 +258,7 @@ impl CondensedMpc {
 /// Result of [`lipschitz_sampled`].
 #[derive(Debug, Clone, PartialEq)]
 #[cfg_attr(feature = "serde", derive(Serialize))]
+#[non_exhaustive]
 pub struct SampledLipschitz {
     /// max ‖π(x) − π(x')‖/‖x − x'‖ over the pairs (a lower bound on L_π).
     pub estimate: f64,
@@ -528,6 +530,7 @@ pub fn lipschitz_sampled<C: Controller<Error = MpcError> + ?Sized>(
 /// Both L_π figures for one MPC (what `cargo xtask certify` prints).
 #[derive(Debug, Clone, PartialEq)]
 #[cfg_attr(feature = "serde", derive(Serialize))]
+#[non_exhaustive]
 pub struct LipschitzReport {
     /// The certified bound and its ingredients.
     pub certified: LipschitzCertificate,

@@ -38,6 +38,7 @@ pub const ROUND_OFF_MARGIN: f64 = 1e-10;
 /// Result of [`worst_case_norm`].
 #[derive(Debug, Clone, Copy, PartialEq)]
 #[cfg_attr(feature = "serde", derive(Serialize))]
+#[non_exhaustive]
 pub struct WorstCaseNorm {
     /// An upper bound on sup_{‖Δ‖₂ ≤ 1} ‖M₀ + UΔV‖₂ (equal to it up to the scalar search
     /// and [`ROUND_OFF_MARGIN`]).

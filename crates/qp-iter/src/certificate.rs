@@ -46,6 +46,7 @@ pub enum CertNorm {
 /// ```
 #[derive(Debug, Clone, PartialEq)]
 #[cfg_attr(feature = "serde", derive(Serialize))]
+#[non_exhaustive]
 pub struct Certificate {
     /// Linear rate r ∈ [0, 1).
     pub rate: f64,

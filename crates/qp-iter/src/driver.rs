@@ -40,6 +40,7 @@ impl RunStatus {
 /// Result of a driver run.
 #[derive(Debug, Clone, Copy, PartialEq)]
 #[cfg_attr(feature = "serde", derive(Serialize))]
+#[non_exhaustive]
 pub struct RunResult {
     /// Steps actually taken.
     pub iterations: usize,

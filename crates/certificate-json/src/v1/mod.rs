@@ -17,11 +17,13 @@ mod from_library;
 mod method;
 mod outcomes;
 mod trace;
+mod trace_steps;
 
 pub use documents::*;
 pub use method::Method;
 pub use outcomes::*;
 pub use trace::*;
+pub use trace_steps::*;
 
 /// `format` of `certificate.json` (`cargo xtask reproduce`).
 pub const CERTIFICATE_FORMAT: &str = "suboptimal-mhe/closed-loop-certificate";

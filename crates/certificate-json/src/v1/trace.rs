@@ -1,7 +1,7 @@
 //! `trace.json` of `cargo xtask reproduce` (docs/reproduce-output.md): the scenario's data as
 //! the estimator used it (plant, sets, the MHE problem with its P, the MPC) and every
-//! simulation with its per-step records (`closed_loop::Trace`'s serialisation) and the Kalman
-//! baseline on the same data.
+//! simulation with its per-step records ([`TraceRecord`], filled from `closed_loop::Trace`)
+//! and the Kalman baseline on the same data.
 
 use closed_loop::ClosedLoopError;
 use closed_loop::scenario::ResolvedScenario;
@@ -111,7 +111,7 @@ pub struct TraceRun<'a> {
     #[serde(flatten)]
     pub summary: RunSummary,
     /// Per step records.
-    pub trace: &'a closed_loop::Trace,
+    pub trace: TraceRecord<'a>,
     /// The Kalman baseline's estimates x̂^KF_t and error norms on the same data.
     #[serde(skip_serializing_if = "Option::is_none")]
     pub kalman: Option<KalmanRecord<'a>>,
@@ -146,7 +146,7 @@ impl<'a> From<&'a mhe_report::Run> for TraceRun<'a> {
     fn from(r: &'a mhe_report::Run) -> Self {
         Self {
             summary: RunSummary::from(&r.summary),
-            trace: &r.trace,
+            trace: TraceRecord::from(&r.trace),
             kalman: r.kalman.as_ref().map(KalmanRecord::from),
         }
     }

@@ -222,17 +222,25 @@ fn record_hook(e: &ScenarioEstimator) -> Option<&MheRecord> {
 
 impl ResolvedScenario {
     /// The MHE of this scenario with `method` and K = `iterations` (P as resolved).
+    ///
+    /// Errors: K = 0 or K above `qp_iter::MAX_ITERATIONS` is
+    /// [`ClosedLoopError::OutOfRange`] naming `iterations` (the [`LoopOptions`] field).
     pub fn estimator(
         &self,
         method: Method,
         iterations: usize,
         exact_solve: bool,
     ) -> Result<ScenarioEstimator> {
+        let k = qp_iter::Iterations::new(iterations).map_err(|_| ClosedLoopError::OutOfRange {
+            name: "iterations",
+            value: iterations as f64,
+            range: "integers 1 ..= 10⁷ (qp_iter::MAX_ITERATIONS)",
+        })?;
         let cfg = self.mhe_config()?;
         let sc = self.scenario();
         MheEstimator::from_problem(
             self.mhe_problem()?.clone(),
-            iterations,
+            k,
             cfg.warm_start,
             exact_solve,
             &sc.simulation.prior,

@@ -74,7 +74,7 @@ impl ResolvedScenario {
                         p,
                         s.q().clone(),
                         s.r().clone(),
-                        s.iterations().get(),
+                        s.iterations(),
                     )
                     .with_warm_start(s.warm_start())
                 });

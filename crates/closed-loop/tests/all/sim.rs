@@ -345,7 +345,7 @@ pub(crate) fn lqr(s: &Scenario) -> SaturatedLqr {
 /// A PG MHE (K = 3) for `sys` with the scenario's weights (identities if the sizes differ).
 pub(crate) fn mhe_for(sys: &LtiSystem, s: &Scenario) -> MheEstimator<ProjectedGradient> {
     let mut cfg = s.mhe.as_ref().unwrap().config(&s.plant, false).unwrap();
-    cfg.iterations = 3;
+    cfg.iterations = qp_iter::Iterations::new(3).unwrap();
     if (sys.nx(), sys.ny()) != (s.plant.nx(), s.plant.ny()) {
         cfg.p = Mat::identity(sys.nx(), sys.nx());
         cfg.q = Mat::identity(sys.nw(), sys.nw());

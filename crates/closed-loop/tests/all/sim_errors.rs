@@ -92,14 +92,15 @@ fn bad_construction_gives_typed_errors() {
 #[test]
 fn bad_options_give_typed_errors() {
     let s = case_study();
-    // K = 0 is refused once, by the estimator that defines K (`MheEstimator`).
+    // K = 0 is refused once, where the option becomes the estimator's typed K
+    // (`qp_iter::Iterations`), naming the `LoopOptions` field.
     let mut o = options(&s, 0, false);
     assert!(matches!(
         build(&s, &o),
-        Err(ClosedLoopError::Mhe(mhe_core::MheError::OutOfRange {
+        Err(ClosedLoopError::OutOfRange {
             name: "iterations",
             ..
-        }))
+        })
     ));
     o.iterations = 5;
     o.steps = 0;

@@ -46,6 +46,7 @@ const PROBE_SCALE: f64 = 1.0 / 1_048_576.0;
 /// The affine pieces of one iteration map in the region where no bound of Z is active
 /// (constant terms, which do not affect stability, dropped).
 #[derive(Debug, Clone)]
+#[non_exhaustive]
 pub struct IterationLinearisation {
     /// n: length of z.
     pub n: usize,
@@ -63,6 +64,7 @@ pub struct IterationLinearisation {
 
 /// The time-step map zᴷ = G z⁰ + J θ of K iterations from a warm start (no constant term).
 #[derive(Debug, Clone)]
+#[non_exhaustive]
 pub struct KStepMap {
     /// K.
     pub k: usize,

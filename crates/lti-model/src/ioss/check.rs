@@ -192,6 +192,7 @@ pub fn lmi_scale_matrix(
 
 /// What the check of one P measured ([`assess`]).
 #[derive(Debug, Clone, PartialEq)]
+#[non_exhaustive]
 pub struct LmiCheck {
     /// λ_min(P).
     pub p_min_eigenvalue: f64,

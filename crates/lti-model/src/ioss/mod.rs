@@ -200,6 +200,7 @@ impl Default for IossOptions {
 
 /// A verified solution P of LMI (2) for (A, C, η, Q, R).
 #[derive(Debug, Clone)]
+#[non_exhaustive]
 pub struct IossCertificate {
     /// P ≻ 0 of LMI (2); W_δ(x, x') = ‖x − x'‖²_P (eq. 3).
     pub p: Mat<f64>,
@@ -232,6 +233,7 @@ pub struct IossCertificate {
 /// JSON form of [`IossCertificate`] (matrices as row-major nested arrays).
 #[derive(Debug, Clone, PartialEq)]
 #[cfg_attr(feature = "serde", derive(Serialize))]
+#[non_exhaustive]
 pub struct IossReport {
     /// P.
     pub p: Vec<Vec<f64>>,
@@ -667,6 +669,7 @@ pub fn verify_with(
 
 /// Result of [`min_feasible_eta`].
 #[derive(Debug, Clone)]
+#[non_exhaustive]
 pub struct EtaBisection {
     /// Smallest η found feasible (within `tolerance`), with its certificate.
     pub certificate: IossCertificate,

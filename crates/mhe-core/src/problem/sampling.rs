@@ -29,6 +29,7 @@ impl Default for LipschitzSampling {
 /// Sampled and certified L_Φ of one window, side by side (trap 8).
 #[derive(Debug, Clone, Copy, PartialEq)]
 #[cfg_attr(feature = "serde", derive(serde::Serialize))]
+#[non_exhaustive]
 pub struct LipschitzEstimate {
     /// Window length m.
     pub window: usize,

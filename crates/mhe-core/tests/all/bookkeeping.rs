@@ -127,7 +127,7 @@ fn run_bookkeeping(f: &Fixture, steps: usize, seed: u64) {
         let rec = mhe.last_record().clone();
         assert_eq!(
             (rec.t, rec.window, rec.iterations),
-            (t, m, f.config.iterations)
+            (t, m, f.config.iterations.get())
         );
 
         // The window built directly from the full history.
@@ -271,7 +271,7 @@ fn settings_compute_p_from_the_lmi() {
     let plant = lti_model::presets::case_study_plant();
     let settings = mhe_core::MheSettings::from_raw(&raw, &plant).unwrap();
     let cfg = settings.config(&plant, false).unwrap();
-    assert_eq!((cfg.horizon, cfg.iterations, cfg.eta), (5, 7, 0.8));
+    assert_eq!((cfg.horizon, cfg.iterations.get(), cfg.eta), (5, 7, 0.8));
     for i in 0..4 {
         for j in 0..4 {
             assert!((cfg.p[(i, j)] - f.config.p[(i, j)]).abs() < 1e-12 * f.config.p.norm_max());

@@ -6,6 +6,11 @@ use mhe_core::{MheConfig, MheSets};
 use rand::{Rng, SeedableRng};
 use rand_chacha::ChaCha8Rng;
 
+/// K as the typed budget (test values are ≥ 1).
+pub fn k(n: usize) -> qp_iter::Iterations {
+    qp_iter::Iterations::new(n).expect("a test K is at least 1")
+}
+
 /// A plant with MHE weights and sets.
 pub struct Fixture {
     pub sys: LtiSystem,
@@ -26,7 +31,7 @@ pub fn case_study(horizon: usize, iterations: usize, exact_solve: bool) -> Fixtu
     let cert = lti_model::ioss::certify(&sys, 0.8, q.as_ref(), r.as_ref()).unwrap();
     let sets = MheSets::with_disturbance(&sys, BoxSet::symmetric(&[0.1; 5]).unwrap());
     Fixture {
-        config: MheConfig::new(horizon, 0.8, cert.p, q, r, iterations)
+        config: MheConfig::new(horizon, 0.8, cert.p, q, r, k(iterations))
             .with_exact_solve(exact_solve),
         sys,
         sets,
@@ -79,7 +84,7 @@ pub fn random_fixture(seed: u64, horizon: usize, iterations: usize, exact_solve:
             random_spd(&mut rng, nx, 0.2),
             random_spd(&mut rng, nw, 0.2),
             random_spd(&mut rng, ny, 0.2),
-            iterations,
+            k(iterations),
         )
         .with_exact_solve(exact_solve);
         let prior = (0..nx)

@@ -26,10 +26,10 @@ where
         let (eps, eps0) = (rec.epsilon.unwrap(), rec.initial_error.unwrap());
         assert!(cert.fits_eq11);
         assert!(
-            eps <= cert.phi(cfg.iterations) * eps0 * (1.0 + 1e-9) + 1e-12,
+            eps <= cert.phi(cfg.iterations.get()) * eps0 * (1.0 + 1e-9) + 1e-12,
             "{} t = {t}: ε = {eps:e} > φ(K)‖z⁰ − z*‖ = {:e}",
             mhe.map(0).unwrap().name(),
-            cert.phi(cfg.iterations) * eps0
+            cert.phi(cfg.iterations.get()) * eps0
         );
         assert!(rec.violation <= 1e-12, "Assumption 5: zᴷ feasible");
         worst_x = worst_x.max(crate::common::dist(rec.x_hat(), rec.x_hat_exact().unwrap()));
@@ -41,7 +41,7 @@ where
 
 fn with_k(f: &Fixture, k: usize, warm: WarmStart) -> MheConfig {
     let mut c = f.config.clone();
-    c.iterations = k;
+    c.iterations = crate::common::k(k);
     c.warm_start = warm;
     c.exact_solve = true;
     c

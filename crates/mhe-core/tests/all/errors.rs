@@ -54,15 +54,11 @@ fn configuration_errors_name_the_field() {
             "η = {eta}"
         );
     }
-    let mut c = f.config.clone();
-    c.iterations = 0;
-    assert!(matches!(
-        ok(&c).unwrap_err(),
-        MheError::OutOfRange {
-            name: "iterations",
-            ..
-        }
-    ));
+    // K = 0 cannot reach the estimator: the config holds a `qp_iter::Iterations`.
+    assert_eq!(
+        qp_iter::Iterations::new(0),
+        Err(qp_iter::IterationsError::Zero)
+    );
 
     // Q, R, P: wrong shape (the paper's "Q = I⁴" read literally is a trap: n_w = 5), indefinite.
     let mut c = f.config.clone();

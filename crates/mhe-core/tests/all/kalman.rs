@@ -49,7 +49,7 @@ fn mhe(f: &Fixture) -> MheEstimator<Fista> {
         .max()
         .unwrap();
     let mut cfg = f.config.clone();
-    cfg.iterations = k;
+    cfg.iterations = crate::common::k(k);
     MheEstimator::new(&f.sys, &f.sets, &cfg, &f.prior, |qp| Ok(Fista::new(qp))).unwrap()
 }
 

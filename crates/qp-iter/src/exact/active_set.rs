@@ -81,6 +81,7 @@ enum Bound {
 
 /// Outcome of one [`ActiveSetSolver`] call.
 #[derive(Debug, Clone, Copy, PartialEq)]
+#[non_exhaustive]
 pub struct ActiveSetInfo {
     /// Subspace solves used (1 when the previous working set was optimal).
     pub iterations: usize,

@@ -90,6 +90,7 @@ pub enum DualActiveSetStatus {
 
 /// Outcome of one call.
 #[derive(Debug, Clone, Copy, PartialEq)]
+#[non_exhaustive]
 pub struct DualActiveSetInfo {
     /// How the call ended.
     pub status: DualActiveSetStatus,

@@ -86,6 +86,7 @@ impl Default for ReferenceSettings {
 
 /// z* and the box multipliers: Hz* + q + λ_u − λ_l = 0, λ_l, λ_u ≥ 0 (zero for infinite bounds).
 #[derive(Debug, Clone, PartialEq)]
+#[non_exhaustive]
 pub struct ReferenceSolution {
     /// The minimiser z*.
     pub z: Vec<f64>,

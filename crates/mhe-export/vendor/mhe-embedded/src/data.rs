@@ -98,6 +98,7 @@ pub struct Problem<'a, T> {
 /// Why [`crate::Mhe::new`] refused a problem: a buffer size or a data length that does
 /// not match (the field and the expected and actual values).
 #[derive(Debug, Clone, Copy, PartialEq, Eq)]
+#[non_exhaustive]
 pub struct DataError {
     /// The field or const parameter.
     pub what: &'static str,

@@ -295,6 +295,7 @@ impl<'a, 'b, T: Scalar> MheRt<'a, 'b, T> {
 /// Why [`MheRt::push`] refused a pair: a length that is not n_u / n_y, or a non-finite
 /// entry (nothing changed).
 #[derive(Debug, Clone, Copy, PartialEq, Eq)]
+#[non_exhaustive]
 pub enum PushErrorRt {
     /// u or y has the wrong length.
     Length(DataError),

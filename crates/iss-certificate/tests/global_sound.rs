@@ -161,9 +161,21 @@ fn shipped_runs(
 ) {
     let mut o = options(r, METHODS[i]);
     let gl = global_loop(r, &o).expect("builds");
-    let c = gl
-        .certify_phi(k.phi_star, &GlobalSettings::default().search)
-        .expect("φ* re-certifies");
+    // The reported certificate: φ* re-found on this method's loop (the LMI is the norm's),
+    // refined at φ(K_glob) — the gains `certify` and certificate.json report.
+    let base = gl
+        .phi_star(&GlobalSettings::default().search)
+        .expect("φ* re-found");
+    let c = gl.refine_at(gl.phi(k.k_glob), &base);
+    let rel = |a: f64, b: f64| (a - b).abs() <= 1e-6 * a.abs().max(b.abs());
+    assert!(
+        rel(c.gain_x, k.gain_x) && rel(c.gain_e, k.gain_e) && rel(c.rho, k.rho),
+        "{name}: the re-derived certificate (ρ {}, g_x {}, g_e {}) is not the reported one \
+         ({k:?})",
+        c.rho,
+        c.gain_x,
+        c.gain_e
+    );
     let margin = independent_margin(&gl, &c, r.scenario().plant.nw())
         .unwrap_or_else(|e| panic!("{name}: independent check: {e}"));
     o.iterations = k.k_glob;
@@ -201,10 +213,15 @@ fn shipped_runs(
         }
     }
     eprintln!(
-        "{name}: {} K_glob = {}, independent margin {margin:.2e}, 200 runs × 60 steps, worst \
-         one-step {:.4}, multi-step {:.4}, gain {:.4}",
+        "{name}: {} K_glob = {}, ρ = {:.5}, g_x = {:.3e}, g_e = {:.3e} (at φ*: {:?}), \
+         independent margin {margin:.2e}, 200 runs × 60 steps, worst one-step {:.4}, \
+         multi-step {:.4}, gain {:.4}",
         METHODS[i].name(),
         k.k_glob,
+        k.rho,
+        k.gain_x,
+        k.gain_e,
+        k.gains,
         worst.one_step,
         worst.multi,
         worst.gain

@@ -5,7 +5,7 @@
 use closed_loop::scenario::{ControllerChoice, LoopOptions, ResolvedScenario, Scenario};
 use faer::Par;
 use iss_certificate::lure::global::{
-    GlobalCertificate, GlobalError, GlobalLoop, GlobalOptions, RowSearch, global_loop,
+    GlobalCertificate, GlobalError, GlobalLoop, GlobalOptions, RefineGrid, RowSearch, global_loop,
     global_loop_boxes, global_loop_with, loop_size,
 };
 use mhe_core::WarmStart;
@@ -576,31 +576,61 @@ fn diagnose_boxed_loops_at_phi_zero() {
 }
 
 /// The reported gains (docs/theory.md §4, "The reported gains"): per method, the certificate
-/// at φ* (ρ = ρ_max, the Riccati's minimal storage) against the one `refine_at` reports at
-/// φ(K_glob), with their times (`GAIN_SCENARIOS`, default the case study and the double
-/// integrator).
+/// at φ* (ρ = ρ_max, the Riccati's minimal storage) against the one `refine_at_with` reports at
+/// φ(K_glob), with their times. `GAIN_SCENARIOS` (default the case study and the double
+/// integrator), `GAIN_METHODS` (names), and the grid: `GAIN_RHO` (points), `GAIN_STRICT`,
+/// `GAIN_READOUT` (comma-separated), `GAIN_CHECKS`.
 #[test]
 #[ignore = "measurement (release): ≈ 1 min per scenario"]
 fn measure_refined_gains() {
-    let files = std::env::var("GAIN_SCENARIOS")
-        .unwrap_or_else(|_| "case-study.toml,double-integrator.toml".into());
+    let env = |k: &str, d: &str| std::env::var(k).unwrap_or_else(|_| d.into());
+    let list = |k: &str, d: &str| -> Vec<f64> {
+        env(k, d)
+            .split(',')
+            .map(|v| v.parse().expect("a number"))
+            .collect()
+    };
+    let def = RefineGrid::default();
+    let grid = RefineGrid {
+        rho_points: env("GAIN_RHO", &def.rho_points.to_string())
+            .parse()
+            .expect("GAIN_RHO"),
+        strict: list("GAIN_STRICT", "1e-6,1e-4,1e-2"),
+        readout: list("GAIN_READOUT", "0"),
+        checks: env("GAIN_CHECKS", "3").parse().expect("GAIN_CHECKS"),
+    };
+    let names = env("GAIN_METHODS", "pg,admm-pr,pg-jacobi");
     let opts = GlobalOptions {
         tau_points: 5,
         ..GlobalOptions::default()
     };
-    for file in files.split(',') {
+    for file in env("GAIN_SCENARIOS", "case-study.toml,double-integrator.toml").split(',') {
         let r = resolved(file);
-        for m in METHODS {
-            let Ok(gl) = global_loop(&r, &options(&r, m)) else {
+        let mut stars: Vec<(bool, GlobalCertificate)> = Vec::new();
+        for m in METHODS
+            .iter()
+            .filter(|m| names.split(',').any(|n| n == m.name()))
+        {
+            let Ok(gl) = global_loop(&r, &options(&r, *m)) else {
                 continue;
             };
+            let jac = m.name().contains("jacobi");
             let t0 = std::time::Instant::now();
-            let Some((k, base)) = gl.k_glob(&opts) else {
-                eprintln!("{file} {}: none", m.name());
+            if !stars.iter().any(|(j, _)| *j == jac) {
+                let Some(c) = gl.phi_star(&opts) else {
+                    eprintln!("{file} {}: none", m.name());
+                    continue;
+                };
+                stars.push((jac, c));
+            }
+            let Some((_, base)) = stars.iter().find(|(j, _)| *j == jac) else {
                 continue;
             };
             let t1 = t0.elapsed().as_secs_f64();
-            let c = gl.refine_at(gl.phi(k), &base);
+            let Some(k) = iss_certificate_first_k(&gl, base.phi, opts.k_max) else {
+                continue;
+            };
+            let c = gl.refine_at_with(gl.phi(k), base, &grid);
             let t2 = t0.elapsed().as_secs_f64() - t1;
             eprintln!(
                 "{file} {} K_glob {k}: at φ* ρ {:.5} γ {:.3e} g_x {:.3e} g_e {:.3e} margin {:.2e} \
@@ -621,4 +651,9 @@ fn measure_refined_gains() {
             );
         }
     }
+}
+
+/// K_glob: the first K with φ(K) ≤ φ*.
+fn iss_certificate_first_k(gl: &GlobalLoop, phi_star: f64, k_max: usize) -> Option<usize> {
+    (1..=k_max).find(|&k| gl.phi(k) <= phi_star)
 }

@@ -351,6 +351,7 @@ pub use chain::{
     ChainAttempt, ChainCertificate, ChainError, ChainOptions, ChainScan, IterationChain,
     iteration_chain,
 };
+pub use lmi::RefineGrid;
 pub use precision::{
     LoopRounding, PrecisionCertificate, PrecisionVoid, certify_precision, loop_rounding,
 };

@@ -596,8 +596,8 @@ fn measure_refined_gains() {
             .parse()
             .expect("GAIN_RHO"),
         strict: list("GAIN_STRICT", "1e-6,1e-4,1e-2"),
-        readout: list("GAIN_READOUT", "0"),
-        checks: env("GAIN_CHECKS", "3").parse().expect("GAIN_CHECKS"),
+        readout: list("GAIN_READOUT", "0,1e-3,1e-2,1e-1"),
+        checks: env("GAIN_CHECKS", "5").parse().expect("GAIN_CHECKS"),
     };
     let names = env("GAIN_METHODS", "pg,admm-pr,pg-jacobi");
     let opts = GlobalOptions {

@@ -15,7 +15,7 @@ use qp_iter::rounding::F32_UNIT_ROUNDOFF;
 
 use super::global::{
     GlobalCertificate, GlobalLoop, GlobalOptions, LoopSize, PrecisionCertificate, PrecisionVoid,
-    certify_precision, global_loop, global_loop_with, loop_rounding, loop_size,
+    RefineGrid, certify_precision, global_loop, global_loop_with, loop_rounding, loop_size,
 };
 use crate::budget::DENSE_RATE;
 
@@ -667,14 +667,18 @@ fn tau_calls(size: &LoopSize, opts: &GlobalOptions) -> usize {
     k + usize::from(size.mpc_channel)
 }
 
-/// Estimated seconds of one method's gain refinement ([`GlobalLoop::refine_at`]): 27
-/// Riccati doublings screened (9 ρ × 3 strictness values) and at most 3 independent checks,
-/// at [`search_seconds`]'s per-call costs.
+/// Estimated seconds of one method's gain refinement ([`GlobalLoop::refine_at`] with the
+/// default [`RefineGrid`]: 9 ρ × 3 strictness × 4 readout weights = 108 Riccati doublings
+/// screened, then at most 5 candidates re-solved and checked), at [`search_seconds`]'s
+/// per-call costs: 3.7 s at the case study's n_ζ = 147, n_X = 116, measured ≈ 3 s per method.
 pub fn refine_seconds(n_zeta: usize, n_x: usize) -> f64 {
+    let g = RefineGrid::default();
+    let screened = (g.rho_points * g.strict.len() * g.readout.len()) as f64;
     let (nz, nx) = (n_zeta as f64, n_x as f64);
     let riccati = 25.0 * 8.0 * nx.powi(3);
     let check = 20.0 * 120.0 * nz.powi(3);
-    (30.0 * riccati + 3.0 * check) / DENSE_RATE
+    let checks = g.checks as f64;
+    ((screened + checks) * riccati + checks * check) / DENSE_RATE
 }
 
 /// φ* of `g`'s norm with its certificate (K fields filled per method later; the checked

@@ -535,8 +535,8 @@ impl Default for RefineGrid {
         Self {
             rho_points: 9,
             strict: vec![1e-6, 1e-4, 1e-2],
-            readout: vec![0.0],
-            checks: 3,
+            readout: vec![0.0, 1e-3, 1e-2, 1e-1],
+            checks: 5,
         }
     }
 }

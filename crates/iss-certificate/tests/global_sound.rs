@@ -8,7 +8,7 @@
 
 mod sound;
 
-use closed_loop::scenario::{ResolvedScenario, Scenario, scenario_disturbance};
+use closed_loop::scenario::{LoopOptions, ResolvedScenario, Scenario, scenario_disturbance};
 use iss_certificate::lure::global::{GlobalOptions, global_loop, global_loop_with};
 use iss_certificate::lure::global_outcome::{GlobalOutcome, GlobalSettings, global_outcomes};
 use rand::{Rng, SeedableRng};
@@ -219,10 +219,16 @@ fn shipped_runs(
             worst = st;
         }
     }
+    let x_over_w = sampled_lim_sup(r, &o, name);
+    assert!(
+        x_over_w <= k.gain_x,
+        "{name}: sampled lim sup ‖x‖/w̄ = {x_over_w} > g_x = {}",
+        k.gain_x
+    );
     eprintln!(
         "{name}: {} K_glob = {}, ρ = {:.5}, g_x = {:.3e}, g_e = {:.3e} (at φ*: {:?}), \
          independent margin {margin:.2e}, 200 runs × 60 steps, worst one-step {:.4}, \
-         multi-step {:.4}, gain {:.4}",
+         multi-step {:.4}, gain {:.4}; sampled lim sup ‖x‖/w̄ ≤ {x_over_w:.3e}",
         METHODS[i].name(),
         k.k_glob,
         k.rho,
@@ -233,4 +239,34 @@ fn shipped_runs(
         worst.multi,
         worst.gain
     );
+}
+
+/// The sampled lim sup gain: 200 seeds of the scenario's own noise from its own x₀ and prior,
+/// 200 steps each; max over the last 100 steps of ‖x_t‖/w̄, w̄ = the run's sup_t ‖w_t‖₂
+/// (against the certified g_x of lim sup ‖x_t‖ ≤ g_x·w̄).
+fn sampled_lim_sup(r: &ResolvedScenario, o: &LoopOptions, name: &str) -> f64 {
+    let s = r.scenario();
+    let steps = 200;
+    let mut worst = 0.0_f64;
+    for seed in 0..200u64 {
+        let d = scenario_disturbance(s, seed).expect("noise");
+        let mut cl = sound::build(r, o, &s.simulation.x0, &s.simulation.prior, d, steps);
+        let mut tail = 0.0_f64;
+        for t in 0..steps {
+            cl.step()
+                .unwrap_or_else(|e| panic!("{name} seed {seed} t = {t}: {e}"));
+            if t >= steps / 2 {
+                tail = tail.max(cl.state().iter().map(|v| v * v).sum::<f64>().sqrt());
+            }
+        }
+        let tr = cl.trace();
+        let wbar = (0..steps)
+            .filter_map(|t| tr.w(t))
+            .map(|w| w.iter().map(|v| v * v).sum::<f64>().sqrt())
+            .fold(0.0_f64, f64::max);
+        if wbar > 0.0 {
+            worst = worst.max(tail / wbar);
+        }
+    }
+    worst
 }

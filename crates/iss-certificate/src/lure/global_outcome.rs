@@ -545,17 +545,14 @@ fn run_norm(
             let exact = match (gj, &star) {
                 (Err(e), _) => e.clone(),
                 (Ok(_), Err(why)) => why.clone(),
-                (Ok(gj), Ok((k, cert))) => {
-                    let refine = (refine_s <= budget).then_some(cert);
-                    k_glob_of(gj, k, refine, settings, refine_s)
-                }
+                (Ok(gj), Ok(star)) => k_glob_of(gj, star, refine_s <= budget, settings, refine_s),
             };
             let f32 = match (&plan[*j].f32, gj, &star) {
                 (Some(known), _, _) => known.clone(),
                 (None, Err(e), _) => PrecisionOutcome::NoExact(Box::new(e.clone())),
                 (None, Ok(_), Err(why)) => PrecisionOutcome::NoExact(Box::new(why.clone())),
-                (None, Ok(gj), Ok((_, cert))) => {
-                    f32_search(resolved, &options[*j], gj, cert, settings, exact_s)
+                (None, Ok(gj), Ok(star)) => {
+                    f32_search(resolved, &options[*j], gj, star, settings, exact_s)
                 }
             };
             (*j, exact, f32)
@@ -681,30 +678,16 @@ pub fn refine_seconds(n_zeta: usize, n_x: usize) -> f64 {
     ((screened + checks) * riccati + checks * check) / DENSE_RATE
 }
 
-/// φ* of `g`'s norm with its certificate (K fields filled per method later; the checked
-/// certificate itself for the precision search), or what binds.
+/// φ* of `g`'s norm with its checked certificate (the method's K_glob and gains are read from
+/// it per method, [`k_glob_of`]), or what binds.
 fn phi_star_or_why(
     resolved: &ResolvedScenario,
     options: &LoopOptions,
     g: &GlobalLoop,
     opts: &GlobalOptions,
-) -> Result<(GlobalK, GlobalCertificate), GlobalOutcome> {
+) -> Result<GlobalCertificate, GlobalOutcome> {
     if let Some(c) = g.phi_star(opts) {
-        let k = GlobalK {
-            k_glob: 0,
-            phi_star: c.phi,
-            phi_at_k: f64::NAN,
-            margin: c.margin,
-            rho: c.rho,
-            gamma: c.gamma,
-            gain_x: c.gain_x,
-            gain_e: c.gain_e,
-            gains: Gains::NotComputed {
-                estimate_seconds: f64::NAN,
-                budget_seconds: f64::NAN,
-            },
-        };
-        return Ok((k, c));
+        return Ok(c);
     }
     let free =
         global_loop_with(resolved, options, false).map_err(|e| GlobalOutcome::Unsupported {
@@ -726,47 +709,46 @@ fn phi_star_or_why(
     }
 }
 
-/// K_glob of `g`'s method from its norm's φ*, with the gains of the certificate refined at
-/// φ(K_glob) when `refine` holds the norm's certificate at φ* (within the budget), else those
-/// at φ* with [`Gains::NotComputed`] (`refine_s`: the estimate that did not fit).
+/// K_glob of `g`'s method from its norm's certificate at φ* (`star`), with the gains of the
+/// certificate refined at φ(K_glob) when `refine` (within the budget), else those at φ* with
+/// [`Gains::NotComputed`] (`refine_s`: the estimate that did not fit).
 fn k_glob_of(
     g: &GlobalLoop,
-    star: &GlobalK,
-    refine: Option<&GlobalCertificate>,
+    star: &GlobalCertificate,
+    refine: bool,
     settings: &GlobalSettings,
     refine_s: f64,
 ) -> GlobalOutcome {
     let k_max = settings.search.k_max;
-    let Some(k) = super::first_k(|k| g.phi(k) <= star.phi_star, k_max) else {
+    let Some(k) = super::first_k(|k| g.phi(k) <= star.phi, k_max) else {
         return GlobalOutcome::PhiBallBinds {
-            phi_star: star.phi_star,
+            phi_star: star.phi,
             k_max,
             phi_at_k_max: g.phi(k_max),
         };
     };
     let phi_at_k = g.phi(k);
-    let mut out = GlobalK {
-        k_glob: k,
-        phi_at_k,
-        gains: Gains::NotComputed {
+    let (c, gains) = if refine {
+        let gains = Gains::Refined {
+            gain_x_at_phi_star: star.gain_x,
+        };
+        (g.refine_at(phi_at_k, star), gains)
+    } else {
+        let gains = Gains::NotComputed {
             estimate_seconds: refine_s,
             budget_seconds: settings.phase_seconds,
-        },
-        ..star.clone()
-    };
-    if let Some(base) = refine {
-        let c = g.refine_at(phi_at_k, base);
-        out = GlobalK {
-            margin: c.margin,
-            rho: c.rho,
-            gamma: c.gamma,
-            gain_x: c.gain_x,
-            gain_e: c.gain_e,
-            gains: Gains::Refined {
-                gain_x_at_phi_star: base.gain_x,
-            },
-            ..out
         };
-    }
-    GlobalOutcome::Certified(out)
+        (star.clone(), gains)
+    };
+    GlobalOutcome::Certified(GlobalK {
+        k_glob: k,
+        phi_star: star.phi,
+        phi_at_k,
+        margin: c.margin,
+        rho: c.rho,
+        gamma: c.gamma,
+        gain_x: c.gain_x,
+        gain_e: c.gain_e,
+        gains,
+    })
 }

@@ -387,8 +387,9 @@ impl GlobalLoop {
     /// their gain_e for the supply itself (each one doubling, O(n_X³)); the best are then
     /// checked independently against the supply itself ([`GlobalLoop::certify_phi`]'s check,
     /// the costly O(n_ζ³) step) until one passes. `base` is returned when nothing beats it
-    /// (it certifies every φ ≤ base.phi: the supply only shrinks), and for per-row
-    /// multipliers (`lambda`).
+    /// (it certifies every φ ≤ base.phi: the supply only shrinks), for per-row multipliers
+    /// (`lambda`), and for `phi` > base.phi (no refinement there: the result's `phi` says
+    /// what it certifies).
     pub fn refine_at(&self, phi: f64, base: &GlobalCertificate) -> GlobalCertificate {
         self.refine_at_with(phi, base, &RefineGrid::default())
     }

@@ -5,8 +5,8 @@
 use closed_loop::scenario::{ControllerChoice, LoopOptions, ResolvedScenario, Scenario};
 use faer::Par;
 use iss_certificate::lure::global::{
-    GlobalCertificate, GlobalError, GlobalLoop, GlobalOptions, RowSearch, global_loop,
-    global_loop_boxes, global_loop_with,
+    GlobalCertificate, GlobalError, GlobalLoop, GlobalOptions, RefineGrid, RowSearch, global_loop,
+    global_loop_boxes, global_loop_with, loop_size,
 };
 use mhe_core::WarmStart;
 use qp_iter::Method;
@@ -58,6 +58,53 @@ fn refuses_where_rho_lin_is_at_least_one() {
         .certify_phi(0.0, &opts)
         .expect("φ = 0 (exact MHE) is certified");
     assert!(c.rho < 1.0 && c.margin > 0.0);
+}
+
+/// The estimate before the build: `loop_size` reads the same n_ζ, n_X, input channel and
+/// norm as the loop `global_loop` builds (double integrator: no input bound; case study: an
+/// input bound, the τ₃ channel), for a plain and a Jacobi method.
+#[test]
+fn loop_size_is_the_built_loops_size() {
+    for file in ["double-integrator.toml", "case-study.toml"] {
+        let r = resolved(file);
+        for m in [Method::PG, Method::JACOBI_PRESETS[0]] {
+            let o = options(&r, m);
+            let size = loop_size(&r, &o).expect("sizes");
+            let gl = global_loop(&r, &o).expect("builds");
+            let what = format!("{file} {}", m.name());
+            assert_eq!(size.n_zeta, gl.n_zeta(), "{what}");
+            assert_eq!(size.n_x, gl.n_x(), "{what}");
+            assert_eq!(size.mpc_channel, gl.has_mpc_channel(), "{what}");
+            assert_eq!(size.d_inv, gl.d_inv, "{what}");
+        }
+    }
+}
+
+/// `GlobalLoop::lifted_state` refuses before M samples, and from t = M reads X_t in the
+/// lifted layout: x_t, the newest estimate x̂_{t−1}, the warm start z⁰_t.
+#[test]
+fn lifted_state_reads_the_running_loop() {
+    let r = resolved("double-integrator.toml");
+    let o = options(&r, Method::PG);
+    let gl = global_loop(&r, &o).expect("builds");
+    let mut cl = r.build_loop(&o).expect("loop");
+    let lay = gl.lifted.layout();
+    for _ in 0..lay.horizon - 1 {
+        cl.step().expect("step");
+    }
+    let e = gl.lifted_state(&cl).expect_err("t = M − 1");
+    assert!(matches!(e, GlobalError::LiftedState { .. }), "{e}");
+    cl.step().expect("step");
+    let x = gl.lifted_state(&cl).expect("t = M");
+    assert_eq!(x.len(), gl.n_x());
+    assert_eq!(&x[..lay.nx], cl.state());
+    let est = lay.estimates(lay.horizon - 1);
+    let newest = cl.trace().x_hat(cl.t() - 1).expect("x̂");
+    assert_eq!(&x[est..est + lay.nx], newest);
+    let ws = lay.warm_start();
+    assert_eq!(&x[ws..ws + lay.nz], cl.estimator().warm_start_point(), "z⁰");
+    let mut short = vec![0.0; x.len() - 1];
+    assert!(gl.lifted_state_into(&cl, &mut short).is_err());
 }
 
 /// The frozen-clamp loop with every bounded row free is the exact unconstrained loop: its ρ
@@ -121,22 +168,6 @@ fn unsupported_settings_are_refused_with_their_key() {
     assert!(e.to_string().contains("mpc.iterations"));
 }
 
-/// ‖X‖ of a run's lifted state (t ≥ M), as in tests/all/linear.rs.
-fn lifted_state(cl: &closed_loop::scenario::ScenarioLoop, gl: &GlobalLoop) -> Vec<f64> {
-    let l = gl.lifted.layout();
-    let (t, tr) = (cl.t(), cl.trace());
-    let mut x = vec![0.0; l.dim()];
-    x[..l.nx].copy_from_slice(cl.state());
-    for j in 0..l.horizon {
-        let s = t - l.horizon + j;
-        x[l.u_window(j)..l.u_window(j) + l.nu].copy_from_slice(tr.u(s).expect("u"));
-        x[l.y_window(j)..l.y_window(j) + l.ny].copy_from_slice(tr.y(s).expect("y"));
-        x[l.estimates(j)..l.estimates(j) + l.nx].copy_from_slice(tr.x_hat(s).expect("x̂"));
-    }
-    x[l.warm_start()..l.warm_start() + l.nz].copy_from_slice(cl.estimator().warm_start_point());
-    x
-}
-
 /// The largest one-step ratio (‖X_{t+1}‖²_P − γ²‖w_t‖²)/(ρ²‖X_t‖²_P) over t ∈ [M, T) of one
 /// run (≤ 1 wherever the certificate holds), and whether ‖X_t‖²_P stayed within the ISS bound
 /// ρ^{2(t−M)}‖X_M‖²_P + γ²/(1 − ρ²)·sup‖w‖².
@@ -159,7 +190,7 @@ fn run_ratio(
     for _ in 0..m {
         cl.step().expect("step");
     }
-    let mut x = lifted_state(&cl, gl);
+    let mut x = gl.lifted_state(&cl).expect("X_t at t ≥ M");
     let v0 = c.storage(&x);
     let (mut worst, mut within, mut wsup) = (0.0_f64, true, 0.0_f64);
     let (r2, g2) = (c.rho * c.rho, c.gamma * c.gamma);
@@ -174,7 +205,7 @@ fn run_ratio(
             .map(|v| v * v)
             .sum();
         wsup = wsup.max(w);
-        let xn = lifted_state(&cl, gl);
+        let xn = gl.lifted_state(&cl).expect("X_t at t ≥ M");
         let (v, vn) = (c.storage(&x), c.storage(&xn));
         let slack = 1e-9 * (vn.abs() + r2 * v + g2 * w);
         if v > 1e-300 {
@@ -542,4 +573,87 @@ fn diagnose_boxed_loops_at_phi_zero() {
             }
         }
     }
+}
+
+/// The reported gains (docs/theory.md §4, "The reported gains"): per method, the certificate
+/// at φ* (ρ = ρ_max, the Riccati's minimal storage) against the one `refine_at_with` reports at
+/// φ(K_glob), with their times. `GAIN_SCENARIOS` (default the case study and the double
+/// integrator), `GAIN_METHODS` (names), and the grid: `GAIN_RHO` (points), `GAIN_STRICT`,
+/// `GAIN_READOUT` (comma-separated), `GAIN_CHECKS`.
+#[test]
+#[ignore = "measurement (release): ≈ 1 min per scenario"]
+fn measure_refined_gains() {
+    let env = |k: &str, d: &str| std::env::var(k).unwrap_or_else(|_| d.into());
+    let list = |k: &str, d: &str| -> Vec<f64> {
+        env(k, d)
+            .split(',')
+            .map(|v| v.parse().expect("a number"))
+            .collect()
+    };
+    let def = RefineGrid::default();
+    let grid = RefineGrid {
+        rho_points: env("GAIN_RHO", &def.rho_points.to_string())
+            .parse()
+            .expect("GAIN_RHO"),
+        strict: list("GAIN_STRICT", "1e-6,1e-4,1e-2"),
+        readout: list("GAIN_READOUT", "0,1e-3,1e-2,1e-1"),
+        checks: env("GAIN_CHECKS", "5").parse().expect("GAIN_CHECKS"),
+    };
+    let names = env("GAIN_METHODS", "pg,admm-pr,pg-jacobi");
+    let opts = GlobalOptions {
+        tau_points: 5,
+        ..GlobalOptions::default()
+    };
+    for file in env("GAIN_SCENARIOS", "case-study.toml,double-integrator.toml").split(',') {
+        let r = resolved(file);
+        let mut stars: Vec<(bool, GlobalCertificate)> = Vec::new();
+        for m in METHODS
+            .iter()
+            .filter(|m| names.split(',').any(|n| n == m.name()))
+        {
+            let Ok(gl) = global_loop(&r, &options(&r, *m)) else {
+                continue;
+            };
+            let jac = m.name().contains("jacobi");
+            let t0 = std::time::Instant::now();
+            if !stars.iter().any(|(j, _)| *j == jac) {
+                let Some(c) = gl.phi_star(&opts) else {
+                    eprintln!("{file} {}: none", m.name());
+                    continue;
+                };
+                stars.push((jac, c));
+            }
+            let Some((_, base)) = stars.iter().find(|(j, _)| *j == jac) else {
+                continue;
+            };
+            let t1 = t0.elapsed().as_secs_f64();
+            let Some(k) = iss_certificate_first_k(&gl, base.phi, opts.k_max) else {
+                continue;
+            };
+            let c = gl.refine_at_with(gl.phi(k), base, &grid);
+            let t2 = t0.elapsed().as_secs_f64() - t1;
+            eprintln!(
+                "{file} {} K_glob {k}: at φ* ρ {:.5} γ {:.3e} g_x {:.3e} g_e {:.3e} margin {:.2e} \
+                 ({t1:.1} s) | refined at φ(K) = {:.4}: ρ {:.5} γ {:.3e} g_x {:.3e} g_e {:.3e} \
+                 margin {:.2e} ({t2:.1} s)",
+                m.name(),
+                base.rho,
+                base.gamma,
+                base.gain_x,
+                base.gain_e,
+                base.margin,
+                gl.phi(k),
+                c.rho,
+                c.gamma,
+                c.gain_x,
+                c.gain_e,
+                c.margin
+            );
+        }
+    }
+}
+
+/// K_glob: the first K with φ(K) ≤ φ*.
+fn iss_certificate_first_k(gl: &GlobalLoop, phi_star: f64, k_max: usize) -> Option<usize> {
+    (1..=k_max).find(|&k| gl.phi(k) <= phi_star)
 }

@@ -183,7 +183,7 @@ pub(super) fn f32_verdict(
 mod tests {
     use super::*;
     use crate::lure::global::PrecisionVoid;
-    use crate::lure::global_outcome::{GlobalK, PrecisionK};
+    use crate::lure::global_outcome::{Gains, GlobalK, PrecisionK};
 
     fn exact(k_glob: usize) -> GlobalOutcome {
         GlobalOutcome::Certified(GlobalK {
@@ -195,6 +195,9 @@ mod tests {
             gamma: 10.0,
             gain_x: 1.0,
             gain_e: 1.0,
+            gains: Gains::Refined {
+                gain_x_at_phi_star: 2.0,
+            },
         })
     }
 

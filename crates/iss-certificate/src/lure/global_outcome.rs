@@ -14,8 +14,8 @@ use qp_iter::Method;
 use qp_iter::rounding::F32_UNIT_ROUNDOFF;
 
 use super::global::{
-    GlobalCertificate, GlobalLoop, GlobalOptions, PrecisionCertificate, PrecisionVoid,
-    certify_precision, global_loop, global_loop_with, loop_rounding,
+    GlobalCertificate, GlobalLoop, GlobalOptions, LoopSize, PrecisionCertificate, PrecisionVoid,
+    RefineGrid, certify_precision, global_loop, global_loop_with, loop_rounding, loop_size,
 };
 use crate::budget::DENSE_RATE;
 
@@ -53,16 +53,40 @@ pub struct GlobalK {
     pub phi_star: f64,
     /// φ(K_glob) of the method (min of eq. (11)'s φ and the inner-level rate).
     pub phi_at_k: f64,
-    /// −λ_max(LMI)/Σ scale in the independent check (> the rounding allowance).
+    /// −λ_max(LMI)/Σ scale in the independent check (> the rounding allowance) of the
+    /// reported certificate (the refined one where [`GlobalK::gains`] says so).
     pub margin: f64,
-    /// ρ of the certificate: ‖X_{t+1}‖²_P ≤ ρ²‖X_t‖²_P + γ²‖w_t‖².
+    /// ρ of the reported certificate: ‖X_{t+1}‖²_P ≤ ρ²‖X_t‖²_P + γ²‖w_t‖² for every K ≥
+    /// K_glob.
     pub rho: f64,
-    /// γ of the certificate.
+    /// γ of the reported certificate.
     pub gamma: f64,
-    /// lim sup ‖x_t‖ ≤ gain_x·w̄ (loose: P is the Riccati's minimal storage at ρ).
+    /// lim sup ‖x_t‖ ≤ gain_x·w̄ for every K ≥ K_glob (w̄ = sup ‖w_t‖₂).
     pub gain_x: f64,
-    /// lim sup ‖x_t − x̂_t‖ ≤ gain_e·w̄.
+    /// lim sup ‖x_t − x̂_t‖ ≤ gain_e·w̄ for every K ≥ K_glob.
     pub gain_e: f64,
+    /// Which certificate the ρ, γ, gains and margin above are.
+    pub gains: Gains,
+}
+
+/// Which certificate [`GlobalK`]'s ρ, γ, gains and margin belong to (docs/theory.md §4, "The
+/// reported gains"). Both are checked certificates of every K ≥ K_glob.
+#[derive(Debug, Clone, PartialEq)]
+#[non_exhaustive]
+pub enum Gains {
+    /// Refined at φ(K_glob) ([`GlobalLoop::refine_at`]): the storage chosen for the gain.
+    Refined {
+        /// gain_x of the certificate at φ* (ρ = ρ_max, the Riccati's minimal storage).
+        gain_x_at_phi_star: f64,
+    },
+    /// The refinement's estimate exceeds the budget: the certificate at φ* (ρ = ρ_max; its
+    /// gains are loose).
+    NotComputed {
+        /// The estimate (single-core seconds) of the norm's φ* search with the refinement.
+        estimate_seconds: f64,
+        /// The budget.
+        budget_seconds: f64,
+    },
 }
 
 /// The global loop certificate of one (scenario, method) pair: a certified K_glob, or why
@@ -72,10 +96,15 @@ pub struct GlobalK {
 pub enum GlobalOutcome {
     /// Every K ≥ K_glob is certified (Theorem L3).
     #[error(
-        "K_glob = {} (φ* = {:.4e}, LMI margin {:.2e})",
+        "K_glob = {} (φ* = {:.4e}, LMI margin {:.2e}; lim sup ‖x‖ ≤ {:.3e}·w̄, ‖x − x̂‖ ≤ \
+         {:.3e}·w̄ at ρ = {:.4}{})",
         .0.k_glob,
         .0.phi_star,
-        .0.margin
+        .0.margin,
+        .0.gain_x,
+        .0.gain_e,
+        .0.rho,
+        .0.gains
     )]
     Certified(GlobalK),
     /// φ* exists but the method's φ(K) stays above it up to `k_max`: the φ-ball on the
@@ -138,6 +167,24 @@ pub enum GlobalOutcome {
         /// [`super::global::GlobalError`]'s sentence.
         reason: String,
     },
+}
+
+impl std::fmt::Display for Gains {
+    /// The suffix of [`GlobalOutcome::Certified`]'s sentence.
+    fn fmt(&self, f: &mut std::fmt::Formatter<'_>) -> std::fmt::Result {
+        match self {
+            Self::Refined { .. } => write!(f, ", refined at φ(K_glob)"),
+            Self::NotComputed {
+                estimate_seconds,
+                budget_seconds,
+            } => write!(
+                f,
+                "; gains of the certificate at φ*: their refinement was not computed within the \
+                 budget ({estimate_seconds:.1} s > {budget_seconds} s; raise \
+                 certificate.phase_seconds)"
+            ),
+        }
+    }
 }
 
 impl GlobalOutcome {
@@ -324,44 +371,43 @@ pub fn global_section(
     })
 }
 
-/// One loop's pieces for the searches: the loop (or why none), its norm, its f32 rounding.
+/// One loop's plan: its size (or why none), and its f32 outcome where it is known without a
+/// search.
 struct Planned {
-    gl: Result<GlobalLoop, GlobalOutcome>,
-    norm: Option<usize>,
+    size: Result<LoopSize, GlobalOutcome>,
     /// The f32 outcome known without a search (void, unsupported, not asked), or None: search.
     f32: Option<PrecisionOutcome>,
 }
 
-/// Each loop, its norm (`norms` holds the first loop of each distinct D⁻¹: one φ* search per
-/// norm) and its f32 outcome where it is known without a search.
+/// Each loop's size (estimated before anything is built, [`loop_size`]), the loops grouped by
+/// norm (one φ* search per distinct D⁻¹; each group's first loop is the one searched), and
+/// each f32 outcome known without a search.
 fn plan_loops(
     resolved: &ResolvedScenario,
     options: &[LoopOptions],
     with_f32: bool,
-) -> (Vec<Planned>, Vec<usize>) {
+) -> (Vec<Planned>, Vec<Vec<usize>>) {
+    let unsupported = |e: super::global::GlobalError| GlobalOutcome::Unsupported {
+        reason: e.to_string(),
+    };
     let mut plan: Vec<Planned> = options
         .iter()
         .map(|o| Planned {
-            gl: global_loop(resolved, o).map_err(|e| GlobalOutcome::Unsupported {
-                reason: e.to_string(),
-            }),
-            norm: None,
+            size: loop_size(resolved, o).map_err(unsupported),
             f32: None,
         })
         .collect();
-    // One search per distinct norm: `norms` holds the first loop of each.
-    let mut norms: Vec<usize> = Vec::new();
+    let mut norms: Vec<Vec<usize>> = Vec::new();
     for i in 0..plan.len() {
-        let Ok(g) = &plan[i].gl else { continue };
-        let same = |&j: &usize| plan[j].gl.as_ref().is_ok_and(|h| h.d_inv == g.d_inv);
-        let n = norms.iter().position(same).unwrap_or_else(|| {
-            norms.push(i);
-            norms.len() - 1
-        });
-        plan[i].norm = Some(n);
+        let Ok(z) = &plan[i].size else { continue };
+        let same = |g: &&mut Vec<usize>| plan[g[0]].size.as_ref().is_ok_and(|h| h.d_inv == z.d_inv);
+        match norms.iter_mut().find(same) {
+            Some(g) => g.push(i),
+            None => norms.push(vec![i]),
+        }
     }
     for (p, o) in plan.iter_mut().zip(options) {
-        p.f32 = Some(match (&p.gl, with_f32) {
+        p.f32 = Some(match (&p.size, with_f32) {
             (Err(e), _) => PrecisionOutcome::NoExact(Box::new(e.clone())),
             (Ok(_), false) => PrecisionOutcome::NotAsked,
             (Ok(_), true) => match loop_rounding(resolved, o, F32_UNIT_ROUNDOFF) {
@@ -377,9 +423,10 @@ fn plan_loops(
 }
 
 /// The searches of [`global_section`] (`with_f32`: also the f32 certificates): one thread
-/// per norm (φ*, then the f32 searches of that norm's methods), each norm's search and each
-/// f32 search budgeted by its own estimate against `settings.phase_seconds` (the threads run
-/// side by side, so the budget bounds each thread's work). Deterministic: no result depends
+/// per norm (φ*, the refined gains, then the f32 searches of that norm's methods), each norm's
+/// search, each refinement and each f32 search budgeted by its own estimate against
+/// `settings.phase_seconds` (the threads run side by side, so the budget bounds each thread's
+/// work), estimated from the sizes before any loop is built. Deterministic: no result depends
 /// on the threads' order, nor on the other methods asked.
 fn searches(
     resolved: &ResolvedScenario,
@@ -388,109 +435,155 @@ fn searches(
     with_f32: bool,
 ) -> Vec<(GlobalOutcome, PrecisionOutcome)> {
     let (plan, norms) = plan_loops(resolved, options, with_f32);
-    let tau = |g: &GlobalLoop| tau_calls(g, &settings.search);
-    let exact_s: Vec<f64> = norms
-        .iter()
-        .map(|&i| {
-            plan[i]
-                .gl
-                .as_ref()
-                .map_or(0.0, |g| search_seconds(g.n_zeta(), g.n_x(), tau(g)))
-        })
-        .collect();
-    // One thread per norm: its φ* (within the budget) and, within the budget, its methods'
-    // f32 certificates. Each norm and each method is budgeted on its own, so a method's
-    // outcome does not depend on which other methods a command asks for.
-    type NormResult = (
-        Result<GlobalK, GlobalOutcome>,
-        Vec<(usize, PrecisionOutcome)>,
-    );
-    let run_norm = |n: usize| -> NormResult {
-        let i = norms[n];
-        let g = match &plan[i].gl {
-            Ok(g) => g,
-            Err(e) => return (Err(e.clone()), Vec::new()),
-        };
-        let star = if exact_s[n] > settings.phase_seconds {
-            Err(GlobalOutcome::NotComputed {
-                n_zeta: g.n_zeta(),
-                estimate_seconds: exact_s[n],
-                budget_seconds: settings.phase_seconds,
-            })
-        } else {
-            phi_star_or_why(resolved, &options[i], g, &settings.search)
-        };
-        let mut f32 = Vec::new();
-        for (j, p) in plan.iter().enumerate() {
-            let (Some(nj), None, Ok(gj)) = (p.norm, &p.f32, &p.gl) else {
-                continue;
-            };
-            if nj != n {
-                continue;
-            }
-            let [first, full] = precision_seconds(gj.n_zeta(), gj.n_x());
-            let out = match &star {
-                Err(why) => PrecisionOutcome::NoExact(Box::new(why.clone())),
-                Ok(_) if exact_s[n] + first > settings.phase_seconds => {
-                    PrecisionOutcome::NotComputed {
-                        estimate_seconds: exact_s[n] + first,
-                        budget_seconds: settings.phase_seconds,
-                    }
-                }
-                Ok((_, cert)) => {
-                    let within = exact_s[n] + full <= settings.phase_seconds;
-                    match precision_outcome(resolved, &options[j], gj, cert, settings, within) {
-                        Some(out) => out,
-                        None => PrecisionOutcome::NotComputed {
-                            estimate_seconds: exact_s[n] + full,
-                            budget_seconds: settings.phase_seconds,
-                        },
-                    }
-                }
-            };
-            f32.push((j, out));
-        }
-        (star.map(|(k, _)| k), f32)
-    };
-    let results: Vec<NormResult> = std::thread::scope(|s| {
-        let handles: Vec<_> = (0..norms.len())
-            .map(|n| s.spawn(move || run_norm(n)))
+    let plan = &plan;
+    let results: Vec<Vec<NormEntry>> = std::thread::scope(|s| {
+        let handles: Vec<_> = norms
+            .iter()
+            .map(|members| s.spawn(move || run_norm(resolved, options, plan, members, settings)))
             .collect();
         handles
             .into_iter()
-            .map(|h| {
+            .zip(&norms)
+            .map(|(h, members)| {
                 h.join().unwrap_or_else(|_| {
                     let why = GlobalOutcome::Unsupported {
                         reason: "internal: the search thread panicked".into(),
                     };
-                    (Err(why), Vec::new())
+                    let f32 = PrecisionOutcome::NoExact(Box::new(why.clone()));
+                    members
+                        .iter()
+                        .map(|&j| (j, why.clone(), f32.clone()))
+                        .collect()
                 })
             })
             .collect()
     });
-    let mut f32_found: Vec<Option<PrecisionOutcome>> = vec![None; plan.len()];
-    for (_, f) in &results {
-        for (j, o) in f {
-            f32_found[*j] = Some(o.clone());
-        }
+    let mut out: Vec<Option<(GlobalOutcome, PrecisionOutcome)>> = vec![None; plan.len()];
+    for (j, exact, f32) in results.into_iter().flatten() {
+        out[j] = Some((exact, f32));
     }
-    plan.into_iter()
-        .zip(f32_found)
-        .map(|(p, found)| {
-            let exact = match (&p.gl, p.norm) {
-                (Err(e), _) => e.clone(),
-                (Ok(g), Some(n)) => match &results[n].0 {
-                    Ok(star) => k_glob_of(g, star, settings.search.k_max),
-                    Err(why) => why.clone(),
-                },
-                (Ok(_), None) => GlobalOutcome::Unsupported {
-                    reason: "internal: a loop without a norm".into(),
-                },
-            };
-            let f32 = p.f32.or(found).unwrap_or(PrecisionOutcome::NotAsked);
-            (exact, f32)
+    out.into_iter()
+        .zip(plan)
+        .map(|(found, p)| {
+            found.unwrap_or_else(|| {
+                let exact = match &p.size {
+                    Err(e) => e.clone(),
+                    Ok(_) => GlobalOutcome::Unsupported {
+                        reason: "internal: a loop without a norm".into(),
+                    },
+                };
+                let f32 = p.f32.clone().unwrap_or(PrecisionOutcome::NotAsked);
+                (exact, f32)
+            })
         })
         .collect()
+}
+
+/// One method's outcomes: its index in the options, exact, f32.
+type NormEntry = (usize, GlobalOutcome, PrecisionOutcome);
+
+/// One norm's work: within the budget, build its methods' loops, search φ* on the first,
+/// then each method's K_glob with its refined gains and its f32 certificate.
+fn run_norm(
+    resolved: &ResolvedScenario,
+    options: &[LoopOptions],
+    plan: &[Planned],
+    members: &[usize],
+    settings: &GlobalSettings,
+) -> Vec<NormEntry> {
+    let budget = settings.phase_seconds;
+    let Some(Ok(size)) = members.first().map(|&i| &plan[i].size) else {
+        return Vec::new();
+    };
+    let exact_s = search_seconds(size.n_zeta, size.n_x, tau_calls(size, &settings.search));
+    let f32_of = |j: usize, why: &GlobalOutcome| {
+        plan[j]
+            .f32
+            .clone()
+            .unwrap_or_else(|| PrecisionOutcome::NoExact(Box::new(why.clone())))
+    };
+    if exact_s > budget {
+        let why = GlobalOutcome::NotComputed {
+            n_zeta: size.n_zeta,
+            estimate_seconds: exact_s,
+            budget_seconds: budget,
+        };
+        return members
+            .iter()
+            .map(|&j| (j, why.clone(), f32_of(j, &why)))
+            .collect();
+    }
+    let loops: Vec<(usize, Result<GlobalLoop, GlobalOutcome>)> = members
+        .iter()
+        .map(|&j| {
+            let gl = global_loop(resolved, &options[j]).map_err(|e| GlobalOutcome::Unsupported {
+                reason: e.to_string(),
+            });
+            (j, gl)
+        })
+        .collect();
+    let Some((i, g)) = loops
+        .iter()
+        .find_map(|(j, g)| g.as_ref().ok().map(|g| (*j, g)))
+    else {
+        return loops
+            .into_iter()
+            .map(|(j, g)| {
+                let why = g.err().unwrap_or_else(|| GlobalOutcome::Unsupported {
+                    reason: "internal: no loop".into(),
+                });
+                let f32 = f32_of(j, &why);
+                (j, why, f32)
+            })
+            .collect();
+    };
+    let star = phi_star_or_why(resolved, &options[i], g, &settings.search);
+    let refine_s = exact_s + refine_seconds(size.n_zeta, size.n_x);
+    loops
+        .iter()
+        .map(|(j, gj)| {
+            let exact = match (gj, &star) {
+                (Err(e), _) => e.clone(),
+                (Ok(_), Err(why)) => why.clone(),
+                (Ok(gj), Ok(star)) => k_glob_of(gj, star, refine_s <= budget, settings, refine_s),
+            };
+            let f32 = match (&plan[*j].f32, gj, &star) {
+                (Some(known), _, _) => known.clone(),
+                (None, Err(e), _) => PrecisionOutcome::NoExact(Box::new(e.clone())),
+                (None, Ok(_), Err(why)) => PrecisionOutcome::NoExact(Box::new(why.clone())),
+                (None, Ok(gj), Ok(star)) => {
+                    f32_search(resolved, &options[*j], gj, star, settings, exact_s)
+                }
+            };
+            (*j, exact, f32)
+        })
+        .collect()
+}
+
+/// One method's f32 outcome within the budget (the norm's search took `exact_s`).
+fn f32_search(
+    resolved: &ResolvedScenario,
+    options: &LoopOptions,
+    gj: &GlobalLoop,
+    cert: &GlobalCertificate,
+    settings: &GlobalSettings,
+    exact_s: f64,
+) -> PrecisionOutcome {
+    let [first, full] = precision_seconds(gj.n_zeta(), gj.n_x());
+    if exact_s + first > settings.phase_seconds {
+        return PrecisionOutcome::NotComputed {
+            estimate_seconds: exact_s + first,
+            budget_seconds: settings.phase_seconds,
+        };
+    }
+    let within = exact_s + full <= settings.phase_seconds;
+    match precision_outcome(resolved, options, gj, cert, settings, within) {
+        Some(out) => out,
+        None => PrecisionOutcome::NotComputed {
+            estimate_seconds: exact_s + full,
+            budget_seconds: settings.phase_seconds,
+        },
+    }
 }
 
 /// The f32 certificate (Theorem L3u) of one method from its norm's exact certificate, in two
@@ -566,31 +659,35 @@ pub fn precision_seconds(n_zeta: usize, n_x: usize) -> [f64; 2] {
 /// input bound (the grid over τ₃ stops at its first success, so a τ₁ × τ₃ product is far
 /// too pessimistic: the case study, with an input bound, measured ≈ 4 s of CPU per norm in
 /// release against 20 s estimated as a product; docs/certificate-coverage.md).
-fn tau_calls(g: &GlobalLoop, opts: &GlobalOptions) -> usize {
+fn tau_calls(size: &LoopSize, opts: &GlobalOptions) -> usize {
     let k = opts.tau_points.max(2);
-    k + usize::from(g.has_mpc_channel())
+    k + usize::from(size.mpc_channel)
 }
 
-/// φ* of `g`'s norm with its certificate (K fields filled per method later; the checked
-/// certificate itself for the precision search), or what binds.
+/// Estimated seconds of one method's gain refinement ([`GlobalLoop::refine_at`] with the
+/// default [`RefineGrid`]: 9 ρ × 3 strictness × 4 readout weights = 108 Riccati doublings
+/// screened, then at most 5 candidates re-solved and checked), at [`search_seconds`]'s
+/// per-call costs: 3.7 s at the case study's n_ζ = 147, n_X = 116, measured ≈ 3 s per method.
+pub fn refine_seconds(n_zeta: usize, n_x: usize) -> f64 {
+    let g = RefineGrid::default();
+    let screened = (g.rho_points * g.strict.len() * g.readout.len()) as f64;
+    let (nz, nx) = (n_zeta as f64, n_x as f64);
+    let riccati = 25.0 * 8.0 * nx.powi(3);
+    let check = 20.0 * 120.0 * nz.powi(3);
+    let checks = g.checks as f64;
+    ((screened + checks) * riccati + checks * check) / DENSE_RATE
+}
+
+/// φ* of `g`'s norm with its checked certificate (the method's K_glob and gains are read from
+/// it per method, [`k_glob_of`]), or what binds.
 fn phi_star_or_why(
     resolved: &ResolvedScenario,
     options: &LoopOptions,
     g: &GlobalLoop,
     opts: &GlobalOptions,
-) -> Result<(GlobalK, GlobalCertificate), GlobalOutcome> {
+) -> Result<GlobalCertificate, GlobalOutcome> {
     if let Some(c) = g.phi_star(opts) {
-        let k = GlobalK {
-            k_glob: 0,
-            phi_star: c.phi,
-            phi_at_k: f64::NAN,
-            margin: c.margin,
-            rho: c.rho,
-            gamma: c.gamma,
-            gain_x: c.gain_x,
-            gain_e: c.gain_e,
-        };
-        return Ok((k, c));
+        return Ok(c);
     }
     let free =
         global_loop_with(resolved, options, false).map_err(|e| GlobalOutcome::Unsupported {
@@ -612,18 +709,46 @@ fn phi_star_or_why(
     }
 }
 
-/// K_glob of `g`'s method from its norm's φ*.
-fn k_glob_of(g: &GlobalLoop, star: &GlobalK, k_max: usize) -> GlobalOutcome {
-    match super::first_k(|k| g.phi(k) <= star.phi_star, k_max) {
-        Some(k) => GlobalOutcome::Certified(GlobalK {
-            k_glob: k,
-            phi_at_k: g.phi(k),
-            ..star.clone()
-        }),
-        None => GlobalOutcome::PhiBallBinds {
-            phi_star: star.phi_star,
+/// K_glob of `g`'s method from its norm's certificate at φ* (`star`), with the gains of the
+/// certificate refined at φ(K_glob) when `refine` (within the budget), else those at φ* with
+/// [`Gains::NotComputed`] (`refine_s`: the estimate that did not fit).
+fn k_glob_of(
+    g: &GlobalLoop,
+    star: &GlobalCertificate,
+    refine: bool,
+    settings: &GlobalSettings,
+    refine_s: f64,
+) -> GlobalOutcome {
+    let k_max = settings.search.k_max;
+    let Some(k) = super::first_k(|k| g.phi(k) <= star.phi, k_max) else {
+        return GlobalOutcome::PhiBallBinds {
+            phi_star: star.phi,
             k_max,
             phi_at_k_max: g.phi(k_max),
-        },
-    }
+        };
+    };
+    let phi_at_k = g.phi(k);
+    let (c, gains) = if refine {
+        let gains = Gains::Refined {
+            gain_x_at_phi_star: star.gain_x,
+        };
+        (g.refine_at(phi_at_k, star), gains)
+    } else {
+        let gains = Gains::NotComputed {
+            estimate_seconds: refine_s,
+            budget_seconds: settings.phase_seconds,
+        };
+        (star.clone(), gains)
+    };
+    GlobalOutcome::Certified(GlobalK {
+        k_glob: k,
+        phi_star: star.phi,
+        phi_at_k,
+        margin: c.margin,
+        rho: c.rho,
+        gamma: c.gamma,
+        gain_x: c.gain_x,
+        gain_e: c.gain_e,
+        gains,
+    })
 }

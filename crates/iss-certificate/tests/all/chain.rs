@@ -201,22 +201,6 @@ fn measure_k_chain() {
     }
 }
 
-/// ‖X‖ of a run's lifted state (t ≥ M), as in tests/loop_global.rs.
-fn lifted_state(cl: &closed_loop::scenario::ScenarioLoop, gl: &GlobalLoop) -> Vec<f64> {
-    let l = gl.lifted.layout();
-    let (t, tr) = (cl.t(), cl.trace());
-    let mut x = vec![0.0; l.dim()];
-    x[..l.nx].copy_from_slice(cl.state());
-    for j in 0..l.horizon {
-        let s = t - l.horizon + j;
-        x[l.u_window(j)..l.u_window(j) + l.nu].copy_from_slice(tr.u(s).expect("u"));
-        x[l.y_window(j)..l.y_window(j) + l.ny].copy_from_slice(tr.y(s).expect("y"));
-        x[l.estimates(j)..l.estimates(j) + l.nx].copy_from_slice(tr.x_hat(s).expect("x̂"));
-    }
-    x[l.warm_start()..l.warm_start() + l.nz].copy_from_slice(cl.estimator().warm_start_point());
-    x
-}
-
 /// The largest one-step ratio (‖X_{t+1}‖²_P − γ²‖w_t‖²)/(ρ²‖X_t‖²_P) over t ∈ [M, T) of one
 /// run (≤ 1 wherever the certificate holds).
 fn run_ratio(
@@ -238,7 +222,7 @@ fn run_ratio(
     for _ in 0..m {
         cl.step().expect("step");
     }
-    let mut x = lifted_state(&cl, gl);
+    let mut x = gl.lifted_state(&cl).expect("X_t at t ≥ M");
     let mut worst = 0.0_f64;
     let (r2, g2) = (c.rho * c.rho, c.gamma * c.gamma);
     for t in m..steps - 1 {
@@ -251,7 +235,7 @@ fn run_ratio(
             .chain(tr.w2(t).expect("w²"))
             .map(|v| v * v)
             .sum();
-        let xn = lifted_state(&cl, gl);
+        let xn = gl.lifted_state(&cl).expect("X_t at t ≥ M");
         let (v, vn) = (c.storage(&x), c.storage(&xn));
         let slack = 1e-9 * (vn.abs() + r2 * v + g2 * w);
         if v > 1e-300 {

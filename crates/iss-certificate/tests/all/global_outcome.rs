@@ -4,7 +4,7 @@
 
 use closed_loop::scenario::{LoopOptions, ResolvedScenario, Scenario};
 use iss_certificate::lure::global_outcome::{
-    GlobalOutcome, GlobalSettings, global_outcomes, search_seconds,
+    Gains, GlobalOutcome, GlobalSettings, global_outcomes, search_seconds,
 };
 use qp_iter::Method;
 
@@ -141,6 +141,13 @@ fn double_integrator_outcome_is_the_measured_k_glob() {
             GlobalOutcome::Certified(c) => {
                 assert_eq!(c.k_glob, k, "{}", m.name());
                 assert!(c.margin > 0.0 && c.rho < 1.0 && c.phi_at_k <= c.phi_star);
+                // The reported gains are the refined certificate's, below those at φ*.
+                match c.gains {
+                    Gains::Refined { gain_x_at_phi_star } => {
+                        assert!(c.gain_x < gain_x_at_phi_star, "{}: {c:?}", m.name());
+                    }
+                    ref other => panic!("{}: gains not refined: {other:?}", m.name()),
+                }
             }
             other => panic!("{}: {other:?}", m.name()),
         }

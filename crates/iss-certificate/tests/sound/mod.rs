@@ -87,22 +87,6 @@ impl RunStats {
 /// The scenario's loop with a disturbance of our choice.
 pub type Loop<D> = ClosedLoop<ScenarioEstimator, ScenarioController, D>;
 
-/// X_t of a run (t ≥ M), as tests/loop_global.rs reads it.
-pub fn lifted_state<D: Disturbance>(cl: &Loop<D>, gl: &GlobalLoop) -> Vec<f64> {
-    let l = gl.lifted.layout();
-    let (t, tr) = (cl.t(), cl.trace());
-    let mut x = vec![0.0; l.dim()];
-    x[..l.nx].copy_from_slice(cl.state());
-    for j in 0..l.horizon {
-        let s = t - l.horizon + j;
-        x[l.u_window(j)..l.u_window(j) + l.nu].copy_from_slice(tr.u(s).expect("u"));
-        x[l.y_window(j)..l.y_window(j) + l.ny].copy_from_slice(tr.y(s).expect("y"));
-        x[l.estimates(j)..l.estimates(j) + l.nx].copy_from_slice(tr.x_hat(s).expect("x̂"));
-    }
-    x[l.warm_start()..l.warm_start() + l.nz].copy_from_slice(cl.estimator().warm_start_point());
-    x
-}
-
 fn norm(v: &[f64]) -> f64 {
     v.iter().map(|a| a * a).sum::<f64>().sqrt()
 }
@@ -160,7 +144,7 @@ pub fn check<D: Disturbance>(cl: &mut Loop<D>, ck: Checked<'_>, steps: usize) ->
     // ‖R X‖² ≤ λ_max(R P⁻¹ Rᵀ)‖X‖²_P, λ from the certificate's own gains.
     let lam_x = (c.gain_x / c.gamma).powi(2) * (1.0 - r2);
     let lam_h = ((c.gain_e - c.gain_x) / c.gamma).powi(2) * (1.0 - r2);
-    let mut x = lifted_state(cl, gl);
+    let mut x = gl.lifted_state(cl).expect("X_t at t ≥ M");
     let v0 = c.storage(&x);
     let (mut s, mut wsup) = (v0, 0.0_f64);
     let est = lay.estimates(m - 1);
@@ -179,7 +163,7 @@ pub fn check<D: Disturbance>(cl: &mut Loop<D>, ck: Checked<'_>, steps: usize) ->
             .collect();
         let w2: f64 = wt.iter().map(|v| v * v).sum();
         wsup = wsup.max(w2.sqrt());
-        let xn = lifted_state(cl, gl);
+        let xn = gl.lifted_state(cl).expect("X_t at t ≥ M");
         if xn.iter().any(|v| !v.is_finite()) {
             st.diverged = true;
             return st;

@@ -46,9 +46,85 @@ pub fn global_loop_boxes(
     build(resolved, options, mhe_box, mpc_box, false)
 }
 
-/// As [`global_loop_boxes`]; with `rounding` two exogenous blocks follow w in ζ (issue 36,
-/// `super::precision`): d_c (n_z) added to zᴷ and r_c (n_x) added to x̂ (and so to the
-/// controller's input), both counted as exogenous inputs of the γ-channel.
+/// The sizes a search's estimate needs (`global_outcome::search_seconds`), with the norm
+/// its φ holds in: what [`global_loop`] would build, read without forming a matrix.
+#[derive(Debug, Clone, PartialEq)]
+pub struct LoopSize {
+    /// dim ζ of the LMI.
+    pub n_zeta: usize,
+    /// dim X.
+    pub n_x: usize,
+    /// Whether the controller's optimum is a channel (a finite input bound: the τ₃ grid).
+    pub mpc_channel: bool,
+    /// 1/D_i of the norm φ holds in (one φ* search per distinct one).
+    pub d_inv: Vec<f64>,
+}
+
+/// The size of [`global_loop`]'s LMI for `options`, from the one-step loop's window and the
+/// two QPs' boxes only (no lifted matrix, no inner-level rate): the estimate before the build
+/// (the thermal rod M = 30 builds n_ζ ≈ 2 900 per method only to find the search beyond the
+/// budget). Refuses what [`global_loop`] refuses before its lifted dynamics, in the same order,
+/// and a box without 0 in its interior (`linear`'s probes); anything else [`global_loop`]
+/// refuses is found when it runs.
+pub fn loop_size(
+    resolved: &ResolvedScenario,
+    options: &LoopOptions,
+) -> Result<LoopSize, GlobalError> {
+    let (quiet, opts) = one_step(resolved, options);
+    let cl = quiet.build_loop(&opts).map_err(LinearError::from)?;
+    let est = cl.estimator();
+    if est.config().warm_start != MheWarmStart::Paper {
+        return Err(GlobalError::WarmStart);
+    }
+    let m = est.config().horizon;
+    let map = est.map(m).ok_or(LinearError::Internal(
+        "the MHE has no map for window length M",
+    ))?;
+    let (fits, d_inv) = match map {
+        MethodMap::Scaled(s) => (
+            s.inner().certificate().fits_eq11,
+            s.scaling().iter().map(|d| 1.0 / d).collect::<Vec<_>>(),
+        ),
+        other => (other.certificate().fits_eq11, vec![1.0; map.problem().n()]),
+    };
+    if !fits {
+        return Err(GlobalError::Phi {
+            method: options.method.name().to_string(),
+        });
+    }
+    let mhe = Optimum::of(map.problem(), "mhe")?;
+    let (mpc, _) = controller_optimum(&cl, &quiet)?;
+    let zset = map.problem().zset();
+    let (lo, up) = (zset.lower(), zset.upper());
+    if let Some(index) = (0..lo.len()).find(|&i| !(lo[i] < 0.0 && up[i] > 0.0)) {
+        return Err(LinearError::OriginNotInterior {
+            problem: "MHE",
+            index,
+            lower: lo[index],
+            upper: up[index],
+        }
+        .into());
+    }
+    let plant = cl.plant();
+    let nz = map.problem().n();
+    let lay = LiftedLayout {
+        nx: plant.nx(),
+        nu: plant.nu(),
+        ny: plant.ny(),
+        horizon: m,
+        nz,
+        n_controller: 0,
+    };
+    let nw = plant.nw1() + plant.nw2();
+    let n_x = lay.dim();
+    Ok(LoopSize {
+        n_zeta: n_x + mhe.bounded.len() + nz + mpc.bounded.len() + nw,
+        n_x,
+        mpc_channel: !mpc.bounded.is_empty(),
+        d_inv,
+    })
+}
+
 /// The noise-free scenario and the loop options of one step with one iteration: the loop the
 /// lifted dynamics are read from.
 fn one_step(resolved: &ResolvedScenario, options: &LoopOptions) -> (ResolvedScenario, LoopOptions) {
@@ -61,6 +137,9 @@ fn one_step(resolved: &ResolvedScenario, options: &LoopOptions) -> (ResolvedScen
     (quiet, opts)
 }
 
+/// [`global_loop_boxes`]; with `rounding` two exogenous blocks follow w in ζ (issue 36,
+/// `super::precision`): d_c (n_z) added to zᴷ and r_c (n_x) added to x̂ (and so to the
+/// controller's input), both counted as exogenous inputs of the γ-channel.
 pub(super) fn build(
     resolved: &ResolvedScenario,
     options: &LoopOptions,

@@ -230,9 +230,22 @@ impl GlobalLoop {
         tau: [f64; 2],
         lambda: Vec<f64>,
     ) -> Option<GlobalCertificate> {
-        // Strictness δ = ε relative to Π; raised (twice at most) when the check finds the LMI
-        // negative but within its rounding allowance.
-        let mut strict = 1e-6;
+        self.certify_supply_from(phi, rho, pi0, tau, lambda, 1e-6)
+    }
+
+    /// [`GlobalLoop::certify_supply`] from strictness `strict` (δ = ε relative to Π).
+    fn certify_supply_from(
+        &self,
+        phi: f64,
+        rho: f64,
+        pi0: &Mat<f64>,
+        tau: [f64; 2],
+        lambda: Vec<f64>,
+        strict: f64,
+    ) -> Option<GlobalCertificate> {
+        // Raised (twice at most) when the check finds the LMI negative but within its
+        // rounding allowance.
+        let mut strict = strict;
         let mut found = None;
         for _ in 0..3 {
             let p = self.riccati(rho, pi0, strict)?;
@@ -253,15 +266,7 @@ impl GlobalLoop {
         }
         let (p, gamma2, (margin, p_margin)) = found?;
         let gamma = gamma2.sqrt();
-        let nx = self.lifted.layout().nx;
-        let rx = Mat::from_fn(nx, self.n_x, |i, j| if i == j { 1.0 } else { 0.0 });
-        let est = self
-            .lifted
-            .layout()
-            .estimates(self.lifted.layout().horizon - 1);
-        let rest = Mat::from_fn(nx, self.n_x, |i, j| if j == est + i { 1.0 } else { 0.0 });
-        let gain_x = readout_gain(&p, rho, gamma, rx.as_ref())?;
-        let gain_e = gain_x + readout_gain(&p, rho, gamma, rest.as_ref())?;
+        let (gain_x, gain_e) = self.gains(&p, rho, gamma)?;
         Some(GlobalCertificate {
             phi,
             rho,
@@ -373,30 +378,167 @@ impl GlobalLoop {
         Some((k, cert))
     }
 
-    /// A certificate at φ with the smallest ρ found (bisection to 10⁻³) from the multipliers
-    /// that certify φ, then the one of smallest `gain_e` among ρ_min and four points between
-    /// it and `base.rho` (the reported gains: ρ near 1 inflates 1/(1 − ρ²)).
-    pub fn refine(&self, base: &GlobalCertificate) -> GlobalCertificate {
-        let [t1, t3] = base.tau;
-        let (mut lo, mut hi) = (0.0, base.rho);
-        while hi - lo > 1e-3 {
-            let mid = 0.5 * (lo + hi);
-            if self.certify_scalars(base.phi, mid, t1, t3).is_some() {
-                hi = mid;
-            } else {
-                lo = mid;
-            }
+    /// The reported certificate at `phi` ≤ `base.phi` (Theorem L3's gains, docs/theory.md
+    /// §4 "The reported gains"): the storage chosen for the gain, not for feasibility. At φ*
+    /// itself ρ sits at `rho_max` (φ* is the edge of feasibility there), so the caller refines
+    /// at the φ(K_glob) it reports. With `base`'s multipliers, Riccati candidates over
+    /// [`RefineGrid`] — ρ, the strictness δ and a weight on the readouts x_t, x̂_{t−1} (a
+    /// stricter supply: its storage is larger where the gains read it) — are *screened* by
+    /// their gain_e for the supply itself (each one doubling, O(n_X³)); the best are then
+    /// checked independently against the supply itself ([`GlobalLoop::certify_phi`]'s check,
+    /// the costly O(n_ζ³) step) until one passes. `base` is returned when nothing beats it
+    /// (it certifies every φ ≤ base.phi: the supply only shrinks), for per-row multipliers
+    /// (`lambda`), and for `phi` > base.phi (no refinement there: the result's `phi` says
+    /// what it certifies).
+    pub fn refine_at(&self, phi: f64, base: &GlobalCertificate) -> GlobalCertificate {
+        self.refine_at_with(phi, base, &RefineGrid::default())
+    }
+
+    /// [`GlobalLoop::refine_at`] over `grid`.
+    pub fn refine_at_with(
+        &self,
+        phi: f64,
+        base: &GlobalCertificate,
+        grid: &RefineGrid,
+    ) -> GlobalCertificate {
+        if !base.lambda.is_empty() || !(phi <= base.phi) {
+            return base.clone();
         }
-        let mut best = base.clone();
-        for i in 0..5 {
-            let rho = hi + (base.rho - hi) * i as f64 / 5.0;
-            if let Some(c) = self.certify_scalars(base.phi, rho, t1, t3) {
-                if c.gain_e < best.gain_e {
-                    best = c;
+        let [t1, t3] = base.tau;
+        let Terms { pi: pi0 } = self.supply(phi, t1, t3);
+        let mut found: Vec<(f64, f64, f64, f64)> = Vec::new(); // (gain_e, ρ, δ, readout)
+        let gap = (1.0 - base.rho).max(1e-12);
+        let n = grid.rho_points.max(2);
+        for i in 0..n {
+            let rho = 1.0 - gap * gap.powf(-(i as f64) / (n - 1) as f64);
+            for &readout in &grid.readout {
+                let pi_w = self.readout_weighted(&pi0, readout);
+                for &strict in &grid.strict {
+                    if let Some(ge) = self.screen(&pi0, &pi_w, rho, strict) {
+                        found.push((ge, rho, strict, readout));
+                    }
                 }
             }
         }
-        best
+        found.sort_by(|a, b| a.0.total_cmp(&b.0));
+        for &(ge, rho, strict, readout) in found.iter().take(grid.checks) {
+            if ge >= base.gain_e {
+                break;
+            }
+            let pi_w = self.readout_weighted(&pi0, readout);
+            let Some(p) = self.riccati(rho, &pi_w, strict) else {
+                continue;
+            };
+            if let Some(c) = self.certify_storage(phi, rho, p, &pi0, [t1, t3]) {
+                if c.gain_e < base.gain_e {
+                    return c;
+                }
+            }
+        }
+        base.clone()
+    }
+
+    /// [`GlobalLoop::refine_at`] at `base.phi`.
+    pub fn refine(&self, base: &GlobalCertificate) -> GlobalCertificate {
+        self.refine_at(base.phi, base)
+    }
+
+    /// Π + w·s·(‖x_t‖² + ‖x̂_{t−1}‖²) on X (s: Π's largest diagonal entry): a stricter supply
+    /// whose storage is larger in the readouts' directions. Π itself for w = 0.
+    fn readout_weighted(&self, pi0: &Mat<f64>, w: f64) -> Mat<f64> {
+        let mut pi = pi0.clone();
+        if w > 0.0 {
+            let s = (0..pi.nrows())
+                .map(|i| pi[(i, i)].abs())
+                .fold(0.0_f64, f64::max);
+            let lay = self.lifted.layout();
+            let est = lay.estimates(lay.horizon - 1);
+            for i in (0..lay.nx).chain(est..est + lay.nx) {
+                pi[(i, i)] += w * s;
+            }
+        }
+        pi
+    }
+
+    /// The independent check of a given storage `p` for the supply `pi0` (γ² from `p`), as a
+    /// certificate; None if it fails.
+    fn certify_storage(
+        &self,
+        phi: f64,
+        rho: f64,
+        p: Mat<f64>,
+        pi0: &Mat<f64>,
+        tau: [f64; 2],
+    ) -> Option<GlobalCertificate> {
+        let gamma2 = self.gamma2_for(&p, rho, pi0)?;
+        let mut pi = pi0.clone();
+        let nc = self.n_zeta();
+        for k in 0..self.n_w {
+            pi[(nc - self.n_w + k, nc - self.n_w + k)] -= gamma2;
+        }
+        let (margin, p_margin) = self.check(&p, rho, &pi).ok()?;
+        let gamma = gamma2.sqrt();
+        let (gain_x, gain_e) = self.gains(&p, rho, gamma)?;
+        Some(GlobalCertificate {
+            phi,
+            rho,
+            gamma,
+            tau,
+            lambda: Vec::new(),
+            p,
+            margin,
+            p_margin,
+            gain_x,
+            gain_e,
+        })
+    }
+
+    /// The unchecked gain_e for the supply `pi0` of the Riccati candidate of `pi_w`
+    /// (screening only: no certificate).
+    fn screen(&self, pi0: &Mat<f64>, pi_w: &Mat<f64>, rho: f64, strict: f64) -> Option<f64> {
+        let p = self.riccati(rho, pi_w, strict)?;
+        let gamma = self.gamma2_for(&p, rho, pi0)?.sqrt();
+        self.gains(&p, rho, gamma).map(|(_, ge)| ge)
+    }
+
+    /// (gain_x, gain_e) of a storage: lim sup ‖x‖ and ‖x − x̂‖ over w̄.
+    fn gains(&self, p: &Mat<f64>, rho: f64, gamma: f64) -> Option<(f64, f64)> {
+        let nx = self.lifted.layout().nx;
+        let rx = Mat::from_fn(nx, self.n_x, |i, j| if i == j { 1.0 } else { 0.0 });
+        let est = self
+            .lifted
+            .layout()
+            .estimates(self.lifted.layout().horizon - 1);
+        let rest = Mat::from_fn(nx, self.n_x, |i, j| if j == est + i { 1.0 } else { 0.0 });
+        let gain_x = readout_gain(p, rho, gamma, rx.as_ref())?;
+        let gain_e = gain_x + readout_gain(p, rho, gamma, rest.as_ref())?;
+        Some((gain_x, gain_e))
+    }
+}
+
+/// The candidates [`GlobalLoop::refine_at`] screens.
+#[derive(Debug, Clone, PartialEq)]
+pub struct RefineGrid {
+    /// ρ points, 1 − ρ log-spaced from 1 − base.ρ to 1.
+    pub rho_points: usize,
+    /// Strictness δ = ε relative to Π: a larger δ makes P larger in every direction (smaller
+    /// readouts) at the price of a larger γ.
+    pub strict: Vec<f64>,
+    /// Weights on ‖x_t‖² + ‖x̂_{t−1}‖² added to the supply (relative to Π's scale).
+    pub readout: Vec<f64>,
+    /// Screened candidates checked at most (each check costs one φ* search call).
+    pub checks: usize,
+}
+
+impl Default for RefineGrid {
+    /// As measured in docs/theory.md §4, "The reported gains".
+    fn default() -> Self {
+        Self {
+            rho_points: 9,
+            strict: vec![1e-6, 1e-4, 1e-2],
+            readout: vec![0.0, 1e-3, 1e-2, 1e-1],
+            checks: 5,
+        }
     }
 }
 

@@ -20,8 +20,11 @@
 //! P it returns is *untrusted* until the LMI matrix, formed afresh, passes the Jacobi
 //! eigenvalue check of `lure::sdp` with a margin above its rounding.
 
+use closed_loop::ClosedLoop;
+use closed_loop::scenario::{ScenarioController, ScenarioEstimator};
 use faer::linalg::solvers::Solve;
 use faer::{Mat, MatRef, Par};
+use lti_model::disturbance::Disturbance;
 use qp_iter::{Certificate, ParametricQp};
 
 use super::sdp::{Sym, sym_eigenvalues};
@@ -60,6 +63,20 @@ pub enum GlobalError {
         what: &'static str,
         /// Why.
         why: &'static str,
+    },
+    /// X_t of a running loop cannot be read (see [`GlobalLoop::lifted_state`]).
+    #[error(
+        "the lifted state X_t needs the last M = {horizon} samples of the loop's trace, which \
+         is at t = {t}: step the loop at least M times first (and give an output of length \
+         dim X = {dim})"
+    )]
+    LiftedState {
+        /// The loop's t.
+        t: usize,
+        /// M.
+        horizon: usize,
+        /// dim X.
+        dim: usize,
     },
     /// The controller is not a static optimum (the sub-optimal MPC's K_c iterations).
     #[error(
@@ -329,11 +346,12 @@ mod lmi;
 mod precision;
 mod rows;
 
-pub use build::{global_loop, global_loop_boxes, global_loop_with};
+pub use build::{LoopSize, global_loop, global_loop_boxes, global_loop_with, loop_size};
 pub use chain::{
     ChainAttempt, ChainCertificate, ChainError, ChainOptions, ChainScan, IterationChain,
     iteration_chain,
 };
+pub use lmi::RefineGrid;
 pub use precision::{
     LoopRounding, PrecisionCertificate, PrecisionVoid, certify_precision, loop_rounding,
 };
@@ -367,6 +385,76 @@ impl GlobalLoop {
     /// Whether the controller's optimum is a channel (a finite input bound).
     pub fn has_mpc_channel(&self) -> bool {
         self.sigma_mpc.is_some()
+    }
+
+    /// The lifted state X_t = (x_t, u, y and x̂ of the last M samples, z⁰_t[, U_{t−1}]) of a
+    /// running loop at its current t ≥ M, in this loop's layout: the point at which the
+    /// certificate's storage ‖X_t‖²_P is read along a trajectory (tests, soundness runs).
+    /// Allocates the result; [`GlobalLoop::lifted_state_into`] writes into a buffer.
+    ///
+    /// ```no_run
+    /// # fn demo(r: &closed_loop::scenario::ResolvedScenario) -> Result<(), Box<dyn std::error::Error>> {
+    /// use closed_loop::scenario::LoopOptions;
+    /// use iss_certificate::lure::global::global_loop;
+    /// let o = LoopOptions::from_scenario(r.scenario())?;
+    /// let gl = global_loop(r, &o)?;
+    /// let mut cl = r.build_loop(&o)?;
+    /// for _ in 0..gl.lifted.layout().horizon {
+    ///     cl.step()?;
+    /// }
+    /// let x_m = gl.lifted_state(&cl)?; // X_M: ‖X_M‖²_P starts the ISS bound
+    /// assert_eq!(x_m.len(), gl.n_x());
+    /// # Ok(()) }
+    /// ```
+    pub fn lifted_state<D: Disturbance>(
+        &self,
+        cl: &ClosedLoop<ScenarioEstimator, ScenarioController, D>,
+    ) -> Result<Vec<f64>, GlobalError> {
+        let mut x = vec![0.0; self.lifted.layout().dim()];
+        self.lifted_state_into(cl, &mut x)?;
+        Ok(x)
+    }
+
+    /// [`GlobalLoop::lifted_state`] into `out` (length dim X); allocates nothing.
+    pub fn lifted_state_into<D: Disturbance>(
+        &self,
+        cl: &ClosedLoop<ScenarioEstimator, ScenarioController, D>,
+        out: &mut [f64],
+    ) -> Result<(), GlobalError> {
+        let l = self.lifted.layout();
+        let (t, tr) = (cl.t(), cl.trace());
+        let err = GlobalError::LiftedState {
+            t,
+            horizon: l.horizon,
+            dim: l.dim(),
+        };
+        if t < l.horizon || out.len() != l.dim() {
+            return Err(err);
+        }
+        let copy = |out: &mut [f64], at: usize, v: Option<&[f64]>, n: usize| match v {
+            Some(v) if v.len() == n => {
+                out[at..at + n].copy_from_slice(v);
+                true
+            }
+            _ => false,
+        };
+        let mut ok = copy(out, 0, Some(cl.state()), l.nx);
+        for j in 0..l.horizon {
+            let s = t - l.horizon + j;
+            ok &= copy(out, l.u_window(j), tr.u(s), l.nu);
+            ok &= copy(out, l.y_window(j), tr.y(s), l.ny);
+            ok &= copy(out, l.estimates(j), tr.x_hat(s), l.nx);
+        }
+        let z0 = cl.estimator().warm_start_point();
+        ok &= copy(out, l.warm_start(), Some(z0), l.nz);
+        if l.n_controller > 0 {
+            let u_prev = match cl.controller() {
+                ScenarioController::Suboptimal(c) => Some(c.input_sequence()),
+                _ => None,
+            };
+            ok &= copy(out, l.controller(), u_prev, l.n_controller);
+        }
+        if ok { Ok(()) } else { Err(err) }
     }
 
     /// φ(K) used: min(φ, φ_iqc) of the map in the weighted norm.

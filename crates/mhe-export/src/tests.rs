@@ -328,7 +328,8 @@ fn exported_c_equals_std_portable_bit_for_bit_on_the_cart_pendulum() {
 /// replay equals the std estimator bit for bit, for every method (one package, the data
 /// module rewritten per method).
 #[test]
-fn exported_rust_equals_std_portable_bit_for_bit() {
+#[ignore = "long: run by .ci/run with --ignored"]
+fn long_exported_rust_equals_std_portable_bit_for_bit() {
     let target = workspace_root().join("target").join("export-tests-target");
     for (file, tag) in [
         ("case-study-certified.toml", "certified"),

@@ -76,7 +76,8 @@ fn the_scenario_is_checked_before_any_work() {
 /// `allow_uncertified` the artefact says UNCERTIFIED and its files replace an earlier export
 /// as a set (two certificate computations).
 #[test]
-fn export_from_values_refuses_below_k_min_and_writes_the_opt_in() {
+#[ignore = "long: run by .ci/run with --ignored"]
+fn long_export_from_values_refuses_below_k_min_and_writes_the_opt_in() {
     let path = workspace_root().join("scenarios/case-study-certified.toml");
     let resolved = Scenario::from_file(&path).unwrap().resolve().unwrap();
     let mut o = ExportOptions {

@@ -177,7 +177,8 @@ fn loop_io(std: &[(Vec<f64>, Vec<f64>, Vec<f64>)]) -> (String, Vec<Vec<u64>>) {
 /// The exported C loop program (gcc) and the exported Rust one reproduce the std loop's x̂
 /// and u bit for bit, for every MPC method, on both scenarios.
 #[test]
-fn exported_c_and_rust_loops_equal_std_portable_bit_for_bit() {
+#[ignore = "long: run by .ci/run with --ignored"]
+fn long_exported_c_and_rust_loops_equal_std_portable_bit_for_bit() {
     // Its own target directory: the replay test builds a package of the same name.
     let target = workspace_root()
         .join("target")

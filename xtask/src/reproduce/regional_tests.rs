@@ -41,7 +41,8 @@ fn k_mins(res: &ResolvedScenario, methods: &[Method]) -> Vec<Option<usize>> {
 /// K_reg is the library's `k_reg` up to the entry's search cap (K_min), its certificate is
 /// at K_reg and contains the set, and K_lin ≤ K_reg ≤ K_min with K_lin exact (every K).
 #[test]
-fn k_reg_is_the_library_search_between_k_lin_and_k_min() {
+#[ignore = "long: run by .ci/run with --ignored"]
+fn long_k_reg_is_the_library_search_between_k_lin_and_k_min() {
     let res = stand_in();
     let mut o = RegionalOptions::from_scenario(&res, ControllerChoice::ExactMpc).unwrap();
     o.x0_nominal = vec![1e-4; 4];
@@ -146,7 +147,8 @@ fn the_search_cap_is_k_min_or_the_documented_cap() {
 /// it. With K_reg ≤ 2·K_lin (PG-Jacobi's 112 ≤ 170 on cart-pendulum-regional) no line is
 /// printed, and without K_lin nothing is probed.
 #[test]
-fn k_reg_above_twice_k_lin_names_the_row_that_limits_the_region_there() {
+#[ignore = "long: run by .ci/run with --ignored"]
+fn long_k_reg_above_twice_k_lin_names_the_row_that_limits_the_region_there() {
     let res = Scenario::from_file(concat!(
         env!("CARGO_MANIFEST_DIR"),
         "/../scenarios/cart-pendulum.toml"

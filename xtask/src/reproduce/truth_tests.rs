@@ -153,7 +153,8 @@ fn a_shifted_warm_start_is_not_certified() {
 /// A 2-D sweep on the certified stand-in, and `reproduce` on the scenario at three of its
 /// pairs: `at_scenario.certified` equals the point's `certified` cell.
 #[test]
-fn reproduce_agrees_with_the_two_d_sweep_at_three_pairs() {
+#[ignore = "long: run by .ci/run with --ignored"]
+fn long_reproduce_agrees_with_the_two_d_sweep_at_three_pairs() {
     let sc = workspace_root().join("scenarios/case-study-certified.toml");
     let text = format!(
         "name = \"truth-2d\"\nscenario = \"{}\"\nk = [20, 50, 300]\nk_c = [5, 59, 200]\n\

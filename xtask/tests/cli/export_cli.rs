@@ -216,7 +216,8 @@ fn a_k_c_below_the_joint_floor_is_refused() {
 /// FISTA MPC at K = 243): fed the y columns of the scenario's own run (K = 243, K_c = 99) it
 /// prints that run's xhat and u columns bit for bit.
 #[test]
-fn loop_of_the_exported_c_reproduces_trace_csv_of_a_k_c_iteration_mpc_run() {
+#[ignore = "long: run by .ci/run with --ignored"]
+fn long_loop_of_the_exported_c_reproduces_trace_csv_of_a_k_c_iteration_mpc_run() {
     let dir = scratch("loop");
     let text = std::fs::read_to_string(root().join("scenarios/case-study-certified.toml")).unwrap();
     assert!(text.contains("terminal = \"dare\""));

@@ -254,7 +254,8 @@ fn certify_verdict(c: &Case, f: &str) -> bool {
 }
 
 #[test]
-fn every_command_gives_the_same_verdict_on_every_uncovered_setting() {
+#[ignore = "long: run by .ci/run with --ignored"]
+fn long_every_command_gives_the_same_verdict_on_every_uncovered_setting() {
     let shifted = |s: String| s.replace("warm_start = \"paper\"", "warm_start = \"shifted\"");
     let mut cases = vec![
         case("covered", |s| s, K_MIN),

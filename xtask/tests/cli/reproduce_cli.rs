@@ -110,16 +110,11 @@ fn fig2c_t_and_work_limit_errors_name_the_flag_and_the_keys() {
 /// twice, builds ℙ_t and the MPC twice — however many certificates, simulations, ρ_lin
 /// loops and regional models it derives from them; every estimator it builds (one per
 /// simulated run, linearised loop or regional model, each checking its own K) shares ℙ_t.
+/// The default run is the binary's shared one (`crate::shared::reproduce_run`, which
+/// asserts exit 0), with `SUBOPTIMAL_MHE_COUNT_WORK` set.
 #[test]
 fn reproduce_computes_k_m_and_p_once_per_scenario() {
-    let out = xtask()
-        .args(["reproduce", "--out"])
-        .arg(temp("work-count"))
-        .env("SUBOPTIMAL_MHE_COUNT_WORK", "1")
-        .output()
-        .unwrap();
-    let stderr = String::from_utf8_lossy(&out.stderr);
-    assert_eq!(out.status.code(), Some(0), "{stderr}");
+    let stderr = &crate::shared::reproduce_run().stderr;
     let line = stderr
         .lines()
         .find_map(|l| l.strip_prefix("work: "))

@@ -66,13 +66,25 @@ pub fn smoke_2d() -> &'static Smoke2d {
     })
 }
 
-/// One run of `xtask reproduce` (both presets, the portable kernel) into a directory of this
-/// test binary: `golden::reproduce_outputs_match_the_golden_files` compares both presets'
-/// JSON with the golden files, `export_cli::replay_of_the_exported_c_reproduces_trace_csv_bit_for_bit`
-/// replays the certified preset's trace.csv. Once instead of twice (the certified preset was
-/// reproduced by both). Nobody writes into it: a test that needs to change it copies it.
-pub fn reproduce() -> &'static Path {
-    static RUN: OnceLock<PathBuf> = OnceLock::new();
+/// One run of `xtask reproduce` (both presets, the portable kernel, the work counts on)
+/// into a directory of this test binary: `golden::reproduce_outputs_match_the_golden_files`
+/// compares both presets' JSON with the golden files,
+/// `export_cli::replay_of_the_exported_c_reproduces_trace_csv_bit_for_bit` replays the
+/// certified preset's trace.csv, `reproduce_cli::reproduce_computes_k_m_and_p_once_per_scenario`
+/// reads the work counts on its stderr. Once instead of three times (38 CPU s each in the test
+/// profile: docs/testing.md, "Session 19"). Nobody writes into it: a test that needs to change
+/// it copies it.
+#[derive(Debug)]
+pub struct Reproduce {
+    /// The `--out` directory.
+    pub out: PathBuf,
+    /// The command's standard error (with the `work:` line of `SUBOPTIMAL_MHE_COUNT_WORK`).
+    pub stderr: String,
+}
+
+/// The shared run of `xtask reproduce` (computed by the first caller).
+pub fn reproduce_run() -> &'static Reproduce {
+    static RUN: OnceLock<Reproduce> = OnceLock::new();
     RUN.get_or_init(|| {
         let out = Path::new(env!("CARGO_TARGET_TMPDIR")).join("xtask-shared/reproduce");
         let _ = fs::remove_dir_all(&out);
@@ -80,6 +92,8 @@ pub fn reproduce() -> &'static Path {
             // The golden files hold the portable kernel's bits (the AVX2 path rounds
             // differently), and the exported C replays them bit for bit.
             .env("QP_ITER_KERNEL", "portable")
+            // Only adds the `work:` line to stderr (xtask's main): the files are unchanged.
+            .env("SUBOPTIMAL_MHE_COUNT_WORK", "1")
             .current_dir(concat!(env!("CARGO_MANIFEST_DIR"), "/.."))
             .arg("reproduce")
             .arg("--out")
@@ -91,6 +105,14 @@ pub fn reproduce() -> &'static Path {
             "xtask reproduce: {}",
             String::from_utf8_lossy(&o.stderr)
         );
-        out
+        Reproduce {
+            out,
+            stderr: String::from_utf8_lossy(&o.stderr).into_owned(),
+        }
     })
+}
+
+/// The shared run's `--out` directory.
+pub fn reproduce() -> &'static Path {
+    &reproduce_run().out
 }

@@ -324,7 +324,8 @@ fn the_k_free_limits_are_where_the_refutation_starts() {
 /// above K_reg is not evaluated (unless the search tried it), and a probe is never below the
 /// first K.
 #[test]
-fn a_probe_says_why_k_reg_is_above_it_and_leaves_the_search_as_it_was() {
+#[ignore = "long: run by .ci/run with --ignored"]
+fn long_a_probe_says_why_k_reg_is_above_it_and_leaves_the_search_as_it_was() {
     use iss_certificate::regional::k_reg_probing;
     let (res, ro) = cart_pendulum();
     let fj = Method::JACOBI_PRESETS[1];

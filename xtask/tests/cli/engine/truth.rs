@@ -257,7 +257,8 @@ fn coverage_names_the_certificate_and_refuses_a_shifted_warm_start() {
 /// not "void: the certificate is for the exact MPC". Held out: K_c = 5 (nothing certified on
 /// the grid) and the shifted warm start (void, naming the key).
 #[test]
-fn a_one_d_sweep_with_the_k_c_mpc_is_under_the_joint_certificate() {
+#[ignore = "long: run by .ci/run with --ignored"]
+fn long_a_one_d_sweep_with_the_k_c_mpc_is_under_the_joint_certificate() {
     let sc = path("case-study-certified.toml");
     let text = |k_c: usize, extra: &str| {
         format!(
@@ -324,7 +325,8 @@ fn a_one_d_sweep_with_the_k_c_mpc_is_under_the_joint_certificate() {
 /// staircase the thresholds and heat maps use, and the thresholds' cheapest certified pair
 /// lies in it (the issue's (50, 200) was `void` while (50, 59) was "cheapest certified").
 #[test]
-fn two_d_points_agree_with_the_certified_up_set() {
+#[ignore = "long: run by .ci/run with --ignored"]
+fn long_two_d_points_agree_with_the_certified_up_set() {
     let sc = path("case-study-certified.toml");
     let text = format!(
         "name = \"j2\"\nscenario = \"{sc}\"\nk = [20, 50, 300]\nk_c = [5, 59, 200]\n\
@@ -371,6 +373,7 @@ fn two_d_points_agree_with_the_certified_up_set() {
 /// (`solver_certificate` in iss-certificate's certify.rs), so a certificate of the plain
 /// methods alone gives the same K_min (one certificate fewer: docs/testing.md, "Session 17").
 #[test]
+#[ignore = "long: run by .ci/run with --ignored"]
 fn long_horizons_are_certified_by_default() {
     let d = CertificateOptions::default();
     for m in Method::ALL {

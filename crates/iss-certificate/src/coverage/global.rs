@@ -215,6 +215,7 @@ mod tests {
             method: Method::PG,
             exact,
             f32,
+            chain: None,
         }
     }
 

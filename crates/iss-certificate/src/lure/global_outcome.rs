@@ -246,6 +246,8 @@ pub struct MethodGlobal {
     pub exact: GlobalOutcome,
     /// f32.
     pub f32: PrecisionOutcome,
+    /// The iteration chain (Theorem L3b, f64 only) for the PG family; None for other methods.
+    pub chain: Option<super::chain_outcome::ChainOutcome>,
 }
 
 /// The global loop certificate of a scenario: one entry per method, for the scenario's
@@ -313,13 +315,20 @@ pub fn global_section(
         .map(|&m| LoopOptions { method: m, ..base })
         .collect();
     let out = searches(resolved, &options, settings, true);
+    let chains = super::chain_outcome::chains(resolved, &options, &out, settings.phase_seconds);
     Some(GlobalSection {
         controller: base.controller,
         budget_seconds: settings.phase_seconds,
         methods: methods
             .iter()
             .zip(out)
-            .map(|(&method, (exact, f32))| MethodGlobal { method, exact, f32 })
+            .zip(chains)
+            .map(|((&method, (exact, f32)), chain)| MethodGlobal {
+                method,
+                exact,
+                f32,
+                chain,
+            })
             .collect(),
     })
 }

@@ -230,7 +230,7 @@ pub fn chain_solve_seconds(dim: usize, n_x: usize) -> f64 {
 
 /// The dim³ factor of [`chain_solve_seconds`] (measured; scalar loops run well below the
 /// dense rate).
-const CHAIN_DIM_FACTOR: f64 = 120.0;
+const CHAIN_DIM_FACTOR: f64 = 50.0;
 
 /// The chain of `method` on `resolved` (the scenario's loop with `method`), checked at the
 /// scenario's K (unless `k_glob` ≤ it) and scanned from K = 1 up to min(`k_glob` − 1,

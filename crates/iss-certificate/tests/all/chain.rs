@@ -388,3 +388,38 @@ fn chain_certifies_where_theorem_l3_does() {
         assert!(c.cert.margin > 0.0 && c.cert.rho < 1.0);
     }
 }
+
+/// The budgeted chain of `reproduce` (`lure::chain_outcome::method_chain`) on CHAIN_FILE
+/// (default case-study.toml) for pg and pg-jacobi with CHAIN_BUDGET seconds (default 10):
+/// its answers, the estimated and the measured CPU (the calibration of
+/// `chain_solve_seconds`).
+#[test]
+#[ignore = "measurement (release): ≈ 10–30 s"]
+fn measure_chain_outcome() {
+    use iss_certificate::lure::chain_outcome::{chain_solve_seconds, method_chain};
+    let file = std::env::var("CHAIN_FILE").unwrap_or_else(|_| "case-study.toml".into());
+    let budget: f64 = std::env::var("CHAIN_BUDGET")
+        .ok()
+        .and_then(|v| v.parse().ok())
+        .unwrap_or(10.0);
+    let k_glob: Option<usize> = std::env::var("CHAIN_KGLOB")
+        .ok()
+        .and_then(|v| v.parse().ok());
+    let r = resolved(&file);
+    for method in [Method::PG, Method::JACOBI_PRESETS[0]] {
+        let o = options(&r, method);
+        let ch = iteration_chain(&r, &o).expect("chain");
+        let t0 = Instant::now();
+        let out = method_chain(&r, &o, k_glob, budget).expect("pg family");
+        let secs = t0.elapsed().as_secs_f64();
+        eprintln!(
+            "{file} {}: dim(1) {} n_x {} per-solve estimate {:.3e} s; {:.2} s; {:?}",
+            method.name(),
+            ch.dim(1),
+            ch.global.n_x(),
+            chain_solve_seconds(ch.dim(1), ch.global.n_x()),
+            secs,
+            out
+        );
+    }
+}

@@ -213,6 +213,30 @@ impl ChainOutcome {
     }
 }
 
+/// One line: K_chain with the K checked, or why the chain does not apply (`certify --loop`).
+impl std::fmt::Display for ChainOutcome {
+    fn fmt(&self, f: &mut std::fmt::Formatter<'_>) -> std::fmt::Result {
+        let c = match self {
+            Self::Unsupported { reason } => return write!(f, "not applicable: {reason}"),
+            Self::Checked(c) => c,
+        };
+        match c.k_chain() {
+            Some(k) => write!(f, "K_chain = {k}")?,
+            None => f.write_str("no K certified")?,
+        }
+        let ks: Vec<String> = c.checked().iter().map(ToString::to_string).collect();
+        write!(f, " (checked K = {}", ks.join(", "))?;
+        match c.scan {
+            ChainScanEnd::Certified { .. } => f.write_str(")"),
+            ChainScanEnd::Cap { k } => write!(f, "; the scan ends at K = {k})"),
+            ChainScanEnd::Stopped { .. } => {
+                let last = c.checks.last().map(ToString::to_string).unwrap_or_default();
+                write!(f, "; the scan stopped: {last})")
+            }
+        }
+    }
+}
+
 /// Whether the chain models `method` (pg, pg-jacobi: a projected gradient on a box).
 pub fn chain_models(method: Method) -> bool {
     method == Method::PG || method == Method::JACOBI_PRESETS[0]

@@ -105,9 +105,9 @@ impl ChainCheck {
     pub fn k(&self) -> usize {
         match self {
             Self::Certified(c) => c.k,
-            Self::NotCertified { k, .. } | Self::NotComputed { k, .. } | Self::Refused { k, .. } => {
-                *k
-            }
+            Self::NotCertified { k, .. }
+            | Self::NotComputed { k, .. }
+            | Self::Refused { k, .. } => *k,
         }
     }
 
@@ -284,7 +284,9 @@ pub fn method_chain(
     if k_own >= 1 && k_glob.is_none_or(|kg| k_own < kg) {
         checks.push(check(&ch, k_own, &opts, &mut left, budget_seconds));
     }
-    let cap = k_glob.map_or(CHAIN_SCAN_MAX, |kg| kg.saturating_sub(1).min(CHAIN_SCAN_MAX));
+    let cap = k_glob.map_or(CHAIN_SCAN_MAX, |kg| {
+        kg.saturating_sub(1).min(CHAIN_SCAN_MAX)
+    });
     let mut scan = ChainScanEnd::Cap { k: cap };
     for k in 1..=cap {
         let c = match checks.iter().find(|c: &&ChainCheck| c.k() == k) {
@@ -345,7 +347,11 @@ fn check(
     if !(afford >= MIN_SOLVES as f64) {
         return not_computed(0);
     }
-    let max_solves = if afford >= 1e9 { 1_000_000_000 } else { afford as usize };
+    let max_solves = if afford >= 1e9 {
+        1_000_000_000
+    } else {
+        afford as usize
+    };
     match ch.certify_chain_within(k, opts, max_solves) {
         Ok(a) => {
             *left -= a.solves as f64 * per_solve;

@@ -267,11 +267,7 @@ impl MethodGlobal {
     /// Whether some K is certified in f64: a K_glob (Theorem L3) or a K the iteration chain
     /// certified (Theorem L3b).
     pub fn certifies_some_k(&self) -> bool {
-        self.exact.k_glob().is_some()
-            || self
-                .chain
-                .as_ref()
-                .is_some_and(|c| c.k_chain().is_some())
+        self.exact.k_glob().is_some() || self.chain.as_ref().is_some_and(|c| c.k_chain().is_some())
     }
 }
 

@@ -256,10 +256,10 @@ pub fn chain_solve_seconds(dim: usize, n_x: usize) -> f64 {
 /// dense rate).
 const CHAIN_DIM_FACTOR: f64 = 50.0;
 
-/// The chain of `method` on `resolved` (the scenario's loop with `method`), checked at the
-/// scenario's K (unless `k_glob` ≤ it) and scanned from K = 1 up to min(`k_glob` − 1,
-/// [`CHAIN_SCAN_MAX`]), under `budget_seconds` of estimated CPU. None when the chain does not
-/// model `method`.
+/// The chain of `method` on `resolved` (the scenario's loop with `method`), scanned from
+/// K = 1 up to min(`k_glob` − 1, [`CHAIN_SCAN_MAX`]) and then checked at the scenario's K
+/// (unless `k_glob` ≤ it), under `budget_seconds` of estimated CPU. None when the chain does
+/// not model `method`.
 pub fn method_chain(
     resolved: &ResolvedScenario,
     options: &LoopOptions,
@@ -280,23 +280,13 @@ pub fn method_chain(
     let opts = ChainOptions::default();
     let mut left = budget_seconds;
     let mut checks = Vec::new();
-    let k_own = options.iterations;
-    if k_own >= 1 && k_glob.is_none_or(|kg| k_own < kg) {
-        checks.push(check(&ch, k_own, &opts, &mut left, budget_seconds));
-    }
     let cap = k_glob.map_or(CHAIN_SCAN_MAX, |kg| {
         kg.saturating_sub(1).min(CHAIN_SCAN_MAX)
     });
     let mut scan = ChainScanEnd::Cap { k: cap };
     for k in 1..=cap {
-        let c = match checks.iter().find(|c: &&ChainCheck| c.k() == k) {
-            Some(c) => c.clone(),
-            None => {
-                let c = check(&ch, k, &opts, &mut left, budget_seconds);
-                checks.push(c.clone());
-                c
-            }
-        };
+        let c = check(&ch, k, &opts, &mut left, budget_seconds);
+        checks.push(c.clone());
         match c {
             ChainCheck::Certified(_) => {
                 scan = ChainScanEnd::Certified { k };
@@ -308,6 +298,13 @@ pub fn method_chain(
                 break;
             }
         }
+    }
+    // The scenario's own K with what is left, unless the scan checked it or Theorem L3
+    // covers it.
+    let k_own = options.iterations;
+    let fresh = checks.iter().all(|c| c.k() != k_own);
+    if k_own >= 1 && fresh && k_glob.is_none_or(|kg| k_own < kg) {
+        checks.push(check(&ch, k_own, &opts, &mut left, budget_seconds));
     }
     Some(ChainOutcome::Checked(MethodChain {
         checks,

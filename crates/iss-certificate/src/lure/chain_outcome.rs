@@ -5,11 +5,11 @@
 //!
 //! The chain's certified set is not monotone in K, so the outcome is a list of the K checked,
 //! each with its own answer, and nothing is said about a K that was not checked. Two kinds of
-//! K are checked, each under the method's share of `certificate.phase_seconds`: the
-//! scenario's own K (`mhe.iterations`, unless Theorem L3 already covers it), then the scan
+//! K are checked, both under the method's budget `certificate.phase_seconds`: first the scan
 //! K = 1, 2, … that stops at the first certified K (K_chain), at K_glob − 1 (every K ≥ K_glob
 //! is Theorem L3's), at [`CHAIN_SCAN_MAX`], or when the budget runs out — each stop is
-//! recorded ([`ChainScanEnd`]).
+//! recorded ([`ChainScanEnd`]) — then, with what is left, the scenario's own K
+//! (`mhe.iterations`, unless the scan checked it or Theorem L3 covers it).
 //!
 //! The budget is in estimated CPU seconds, deterministic (no clock): each K's search gets
 //! the Riccati solves its LMI size affords from what is left ([`chain_solve_seconds`]); a

@@ -5,7 +5,8 @@
 //!
 //! The chain's certified set is not monotone in K, so the outcome is a list of the K checked,
 //! each with its own answer, and nothing is said about a K that was not checked. Two kinds of
-//! K are checked, both under the method's budget `certificate.phase_seconds`: first the scan
+//! K are checked, both under the method's budget (half of `certificate.phase_seconds`: the two
+//! methods' chains together take one phase): first the scan
 //! K = 1, 2, … that stops at the first certified K (K_chain), at K_glob − 1 (every K ≥ K_glob
 //! is Theorem L3's), at [`CHAIN_SCAN_MAX`], or when the budget runs out — each stop is
 //! recorded ([`ChainScanEnd`]) — then, with what is left, the scenario's own K
@@ -225,13 +226,13 @@ impl std::fmt::Display for ChainOutcome {
             None => f.write_str("no K certified")?,
         }
         let ks: Vec<String> = c.checked().iter().map(ToString::to_string).collect();
-        write!(f, " (checked K = {}", ks.join(", "))?;
+        write!(f, " (K tried: {}", ks.join(", "))?;
         match c.scan {
             ChainScanEnd::Certified { .. } => f.write_str(")"),
             ChainScanEnd::Cap { k } => write!(f, "; the scan ends at K = {k})"),
-            ChainScanEnd::Stopped { .. } => {
-                let last = c.checks.last().map(ToString::to_string).unwrap_or_default();
-                write!(f, "; the scan stopped: {last})")
+            ChainScanEnd::Stopped { last_k } => {
+                let at = c.at(last_k + 1).map(ToString::to_string).unwrap_or_default();
+                write!(f, "; the scan stopped: {at})")
             }
         }
     }

@@ -323,7 +323,9 @@ pub fn global_section(
         .map(|&m| LoopOptions { method: m, ..base })
         .collect();
     let out = searches(resolved, &options, settings, true);
-    let chains = super::chain_outcome::chains(resolved, &options, &out, settings.phase_seconds);
+    // The two chains (pg, pg-jacobi) share one phase: half of it each.
+    let chain_s = settings.phase_seconds / 2.0;
+    let chains = super::chain_outcome::chains(resolved, &options, &out, chain_s);
     Some(GlobalSection {
         controller: base.controller,
         budget_seconds: settings.phase_seconds,

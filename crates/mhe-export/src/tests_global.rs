@@ -228,15 +228,15 @@ fn export_k_certified_picks_the_chains_k_in_f64_only() {
     let note = json["f32_chain"].as_str().unwrap();
     assert!(note.contains("K = 1 in f64 only"), "{note}");
     assert!(readme.contains("f64 only"), "{readme}");
-    let err = export(
+    let Err(err) = export(
         &r,
         &ExportOptions {
             k: Iterations::Given(2),
             ..options(ScalarKind::F64)
         },
-    )
-    .err()
-    .expect("K = 2 is not certified");
+    ) else {
+        panic!("K = 2 is not certified");
+    };
     assert!(err.to_string().contains("not checked at K = 2"), "{err}");
     std::fs::remove_dir_all(&dir).unwrap();
 }

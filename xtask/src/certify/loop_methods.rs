@@ -130,6 +130,9 @@ pub fn loop_section(scenario: &Scenario, global_seconds: f64) -> Result<LoopSect
     })
 }
 
+/// One method's global loop certificate and iteration chain.
+type MethodOutcomes = (GlobalOutcome, Option<ChainOutcome>);
+
 /// Theorem 1's K_min and the global outcome per method, from the one certificate every
 /// command computes (`verdict_options`, the global budget `global_seconds`: the verdict's
 /// K_glob is this one), or why none.
@@ -137,11 +140,7 @@ fn theorem1_and_global(
     scenario: &Scenario,
     resolved: &ResolvedScenario,
     global_seconds: f64,
-) -> (
-    Vec<Option<usize>>,
-    Vec<(GlobalOutcome, Option<ChainOutcome>)>,
-    Option<String>,
-) {
+) -> (Vec<Option<usize>>, Vec<MethodOutcomes>, Option<String>) {
     let opts = CertificateOptions {
         global_seconds: Some(global_seconds),
         ..verdict_options(scenario, METHODS.to_vec(), None)

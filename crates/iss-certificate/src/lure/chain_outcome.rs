@@ -231,7 +231,10 @@ impl std::fmt::Display for ChainOutcome {
             ChainScanEnd::Certified { .. } => f.write_str(")"),
             ChainScanEnd::Cap { k } => write!(f, "; the scan ends at K = {k})"),
             ChainScanEnd::Stopped { last_k } => {
-                let at = c.at(last_k + 1).map(ToString::to_string).unwrap_or_default();
+                let at = c
+                    .at(last_k + 1)
+                    .map(ToString::to_string)
+                    .unwrap_or_default();
                 write!(f, "; the scan stopped: {at})")
             }
         }

@@ -429,7 +429,7 @@ fn theoretical_columns_follow_the_certificate() {
             .iter()
             .find(|p| p.solver.name() == solver && p.k == k)
             .unwrap();
-        (p.clone(), sweep.theory_at(p))
+        (*p, sweep.theory_at(p))
     };
     let (p, t) = at("admm", 1);
     assert_eq!(t.certified, "no");

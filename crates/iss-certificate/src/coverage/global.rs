@@ -19,7 +19,7 @@ use crate::lure::global_outcome::{GlobalOutcome, MethodGlobal, PrecisionOutcome}
 ///
 /// Then the iteration chain (Theorem L3b, f64 only: it has no rounding input), which speaks
 /// at the K it was checked at and nowhere else (it is not monotone in K;
-/// [`with_chain`]): certified there makes the verdict `yes` (`chain`), and the floor
+/// `with_chain`): certified there makes the verdict `yes` (`chain`), and the floor
 /// `k_min` is the smallest certified K of the three.
 pub fn with_global(
     v: PairVerdict,

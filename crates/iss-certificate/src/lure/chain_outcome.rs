@@ -379,6 +379,30 @@ fn check(
     }
 }
 
+/// The chain's outcome where even K = 1 cannot get the search's first solves within
+/// `budget_seconds`, known from Theorem L3's loop alone (before building the chain, which
+/// costs a second global loop on the largest plants): ζ holds the warm start inside X and d
+/// (n_z each), so n_ζ ≥ 2·n_z and the chain's dim ζ' = n_ζ − n_z + n_B ≥ n_ζ/2 at K = 1; a
+/// solve costs at least [`chain_solve_seconds`] of that. None: build and search.
+fn over_budget_at_one(exact: &GlobalOutcome, budget_seconds: f64) -> Option<ChainOutcome> {
+    let GlobalOutcome::NotComputed { n_zeta, .. } = exact else {
+        return None;
+    };
+    let per_solve = chain_solve_seconds(n_zeta / 2, 0);
+    (per_solve * MIN_SOLVES as f64 > budget_seconds).then(|| {
+        ChainOutcome::Checked(MethodChain {
+            checks: vec![ChainCheck::NotComputed {
+                k: 1,
+                solves: 0,
+                per_solve,
+                budget_seconds,
+            }],
+            scan: ChainScanEnd::Stopped { last_k: 0 },
+            budget_seconds,
+        })
+    })
+}
+
 /// The chain of every loop in `options` (one per method) from its Theorem L3 outcome in
 /// `global` (its K_glob bounds the scan), each method under its own `budget_seconds`, one
 /// thread per method the chain models: what [`super::global_outcome::global_section`]
@@ -395,8 +419,13 @@ pub fn chains(
             .zip(global)
             .map(|(o, (exact, _))| {
                 let k_glob = exact.k_glob();
-                chain_models(o.method)
-                    .then(|| s.spawn(move || method_chain(resolved, o, k_glob, budget_seconds)))
+                let skip = over_budget_at_one(exact, budget_seconds);
+                chain_models(o.method).then(|| {
+                    s.spawn(move || match skip {
+                        Some(out) => Some(out),
+                        None => method_chain(resolved, o, k_glob, budget_seconds),
+                    })
+                })
             })
             .collect();
         handles

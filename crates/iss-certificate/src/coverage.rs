@@ -45,7 +45,7 @@ mod global;
 use crate::outcome::VoidReason;
 use closed_loop::scenario::{ControllerChoice, ResolvedScenario, Scenario};
 use global::f32_verdict;
-pub use global::{GlobalWhy, global_of, with_global};
+pub use global::{ChainWhy, GlobalWhy, global_of, with_global};
 
 /// The certificates a configuration can be under. `#[non_exhaustive]`: a caller outside this
 /// crate names them through [`CertificateKind::name`] / [`CertificateKind::title`], which
@@ -62,15 +62,19 @@ pub enum CertificateKind {
     /// The global loop certificate (Theorem L3; in f32 Theorem L3u): the sub-optimal MHE with
     /// the exact MPC, every K ≥ K_glob ([`crate::lure::global_outcome`]).
     Global,
+    /// The iteration chain (Theorem L3b, f64, pg and pg-jacobi): the K it was checked at
+    /// and certified, that K only ([`crate::lure::chain_outcome`]).
+    Chain,
 }
 
 impl CertificateKind {
-    /// `"theorem1"`, `"joint"` or `"global"` (the `certificate` column and key).
+    /// `"theorem1"`, `"joint"`, `"global"` or `"chain"` (the `certificate` column and key).
     pub fn name(self) -> &'static str {
         match self {
             CertificateKind::Theorem1 => "theorem1",
             CertificateKind::Joint => "joint",
             CertificateKind::Global => "global",
+            CertificateKind::Chain => "chain",
         }
     }
 
@@ -80,6 +84,7 @@ impl CertificateKind {
             CertificateKind::Theorem1 => "Theorem 1",
             CertificateKind::Joint => "joint MPC + MHE",
             CertificateKind::Global => "the global loop certificate (Theorem L3)",
+            CertificateKind::Chain => "the iteration chain (Theorem L3b)",
         }
     }
 }
@@ -164,7 +169,7 @@ pub fn verdict(
 
 /// Whether some K of `sc`'s method is certified for the scenario's configuration (its warm
 /// start and `controller`) — by Theorem 1's entry `sc` (a K_min) or by the global loop
-/// certificate of `cert` (a K_glob, [`global_of`]): the per-solver `certified` of
+/// certificate of `cert` (a K_glob, or a K the iteration chain certified; [`global_of`]): the per-solver `certified` of
 /// `reproduce`'s certificate.json, and exactly "the verdict at the smaller floor is `yes`".
 /// False when nothing covers the configuration, whatever the floors say.
 pub fn solver_certified(
@@ -179,7 +184,7 @@ pub fn solver_certified(
     );
     covered
         && (sc.k_min.is_some()
-            || global_of(cert, sc.solver, controller).is_some_and(|g| g.exact.k_glob().is_some()))
+            || global_of(cert, sc.solver, controller).is_some_and(MethodGlobal::certifies_some_k))
 }
 
 /// Which certificate covers a configuration, or why none does. `#[non_exhaustive]`: callers
@@ -322,6 +327,9 @@ pub enum PairReason {
         /// The global certificate's outcome.
         global: GlobalWhy,
     },
+    /// The iteration chain at K: not checked there, or budget-stopped, or none found there
+    /// while it certifies another K ([`ChainWhy`]).
+    Chain(ChainWhy),
     /// K is below the f32 K_min (Theorem 1 with the f32 rounding folded in).
     BelowF32KMin {
         /// The K asked for.
@@ -364,6 +372,7 @@ impl std::fmt::Display for PairReason {
                 then: Some(then),
                 global,
             } => write!(f, "{then}; the global loop certificate: {global}"),
+            Self::Chain(why) => why.fmt(f),
             Self::BelowF32KMin { k, k_min } => write!(
                 f,
                 "f32: K = {k} is below the f32 K_min = {k_min} (Theorem 1 with the f32 rounding \
@@ -686,7 +695,7 @@ impl Applicable {
     pub fn may_certify(&self) -> bool {
         match self {
             Applicable::Theorem1 { k_min, global, .. } => {
-                k_min.is_some() || global.as_ref().is_some_and(|g| g.exact.k_glob().is_some())
+                k_min.is_some() || global.as_ref().is_some_and(|g| g.certifies_some_k())
             }
             Applicable::Joint { void_reasons, .. } => void_reasons.is_empty(),
             Applicable::Uncovered(_) => false,

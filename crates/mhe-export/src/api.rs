@@ -462,6 +462,7 @@ pub fn export_with_progress(
         sha256: options.source.sha256.clone(),
         mpc: mpc.as_ref().map(|m| m.artefact.clone()),
         global: est.global,
+        chain_f64_only: est.chain_f64_only,
     };
     let mpc_data = mpc.as_ref().map(|m| &m.data);
     let (budgets, budget_note) =
@@ -523,6 +524,8 @@ struct EstimatorExport {
     reason: Option<String>,
     /// The global loop certificate, when it (not Theorem 1) certifies K.
     global: Option<crate::GlobalCover>,
+    /// f32: the K the iteration chain certifies in f64 only.
+    chain_f64_only: Option<usize>,
     problem: OwnedProblem,
 }
 
@@ -562,7 +565,18 @@ fn export_estimator(
         k_min: v.k_min.or(theorem1.k_min),
         certified: v.certified.is_certified(),
         reason: uncertified_reason(&v, &format!("K = {k}")),
-        global: crate::GlobalCover::of(&loop_cert, method, o.scalar, &v),
+        global: crate::GlobalCover::of(&loop_cert, method, o.scalar, &v, k),
+        chain_f64_only: if o.scalar == ScalarKind::F32 {
+            iss_certificate::coverage::global_of(
+                &loop_cert,
+                method,
+                closed_loop::scenario::ControllerChoice::ExactMpc,
+            )
+            .and_then(|g| g.chain.as_ref())
+            .and_then(|c| c.k_chain())
+        } else {
+            None
+        },
         loop_cert,
         theorem1,
         problem,

@@ -97,6 +97,8 @@ use iss_certificate::outcome::VoidReason;
 use qp_iter::Method;
 use serde_json::json;
 
+mod cover;
+pub(crate) use cover::GlobalCover;
 use extract::{OwnedMpc, OwnedProblem};
 use out::replace_artefact;
 
@@ -132,68 +134,9 @@ pub(crate) struct Header {
     pub mpc: Option<MpcArtefact>,
     /// The global loop certificate, when it (not Theorem 1) certifies K.
     pub global: Option<GlobalCover>,
-}
-
-/// The global loop certificate's numbers when it covers the exported K (the verdict's
-/// `certificate` is [`CertificateKind::Global`]).
-#[derive(Debug, Clone, PartialEq)]
-pub(crate) struct GlobalCover {
-    /// K_glob in the artefact's scalar.
-    pub k_glob: usize,
-    /// φ* (φ*_u in f32).
-    pub phi_star: f64,
-    /// The ISS offset of the rounding (f32; None in f64, where the rounding is inside the
-    /// check's margin).
-    pub offset: Option<f64>,
-}
-
-impl GlobalCover {
-    /// The cover of `method` in `scalar` from the certificate's global section, if the
-    /// verdict `v` says the global certificate certifies.
-    fn of(
-        cert: &ClosedLoopCertificate,
-        method: Method,
-        scalar: ScalarKind,
-        v: &PairVerdict,
-    ) -> Option<Self> {
-        use iss_certificate::lure::global_outcome::{GlobalOutcome, PrecisionOutcome};
-        if !(v.certified.is_certified() && v.certificate == Some(CertificateKind::Global)) {
-            return None;
-        }
-        let g = iss_certificate::coverage::global_of(cert, method, ControllerChoice::ExactMpc)?;
-        match (scalar, &g.exact, &g.f32) {
-            (ScalarKind::F64, GlobalOutcome::Certified(k), _) => Some(Self {
-                k_glob: k.k_glob,
-                phi_star: k.phi_star,
-                offset: None,
-            }),
-            (ScalarKind::F32, _, PrecisionOutcome::Certified(k)) => Some(Self {
-                k_glob: k.k_glob,
-                phi_star: k.phi_star,
-                offset: Some(k.offset),
-            }),
-            _ => None,
-        }
-    }
-
-    /// "the global loop certificate (Theorem L3)" or "… in f32 (Theorem L3u)".
-    fn name(&self) -> &'static str {
-        if self.offset.is_some() {
-            "the global loop certificate in f32 (Theorem L3u)"
-        } else {
-            "the global loop certificate (Theorem L3)"
-        }
-    }
-
-    fn json(&self) -> serde_json::Value {
-        json!({
-            "certificate": "global",
-            "name": self.name(),
-            "k_glob": self.k_glob,
-            "phi_star": self.phi_star,
-            "offset": self.offset,
-        })
-    }
+    /// f32 only: the K the iteration chain certifies in f64 (it does not cover f32: no
+    /// rounding input), said beside the f32 verdict.
+    pub chain_f64_only: Option<usize>,
 }
 
 impl Header {
@@ -217,11 +160,8 @@ impl Header {
             (true, _) if self.global.is_some() => {
                 if let Some(g) = &self.global {
                     lines.push(format!(
-                        "Certified: K = {} ≥ K_glob = {} of {} (certificate.json `covered_by`), \
-                         in {}.",
-                        self.k,
-                        g.k_glob,
-                        g.name(),
+                        "Certified: {} (certificate.json `covered_by`), in {}.",
+                        g.sentence(self.k),
                         scalar_name(self.scalar)
                     ));
                 }
@@ -271,12 +211,25 @@ impl Header {
             };
             lines.push(format!("f32: {cover}."));
         }
+        if let Some(kc) = self.chain_f64_only {
+            lines.push(format!("f32: {}.", chain_f64_only(kc)));
+        }
         lines
             .iter()
             .map(|l| format!("{prefix}{l}"))
             .collect::<Vec<_>>()
             .join("\n")
     }
+}
+
+/// What the artefacts say where the iteration chain certifies a K in f64 and the export is
+/// f32.
+fn chain_f64_only(k_chain: usize) -> String {
+    format!(
+        "the iteration chain (Theorem L3b) certifies K = {k_chain} in f64 only (it has no \
+         rounding input); in f32 the floor is the global certificate's K_glob(u) (Theorem L3u) \
+         or Theorem 1's"
+    )
 }
 
 fn scalar_name(s: ScalarKind) -> &'static str {
@@ -622,6 +575,7 @@ fn certificate_json(
         "loop_certified": art.loop_certified(),
         "artefact_covered": art.loop_certified() && art.scalar == ScalarKind::F64,
         "mpc": mpc,
+        "f32_chain": art.chain_f64_only.map(chain_f64_only),
         "covered_by": match (&art.global, art.certified) {
             (Some(g), true) => g.json(),
             (None, true) => json!({"certificate": "theorem1", "k_min": art.k_min}),
@@ -650,22 +604,19 @@ fn certificate_json(
 
 fn readme(art: &Header, lang: Lang) -> String {
     let status = if let (Some(g), true) = (&art.global, art.certified) {
-        let offset = g.offset.map_or_else(String::new, |o| {
+        let offset = g.offset().map_or_else(String::new, |o| {
             format!(
                 " The f32 rounding enters as an input beside w: the lim-sup bounds hold with \
                  √(w̄² + o²), ISS offset o = {o:.3e}."
             )
         });
         format!(
-            "**Certified** by {}: K = {} ≥ K_glob = {} for {} in {} (φ* = {:.4e}; `covered_by` in \
-             `certificate.json`). Theorem 1 does not cover this K; the global certificate covers \
-             the loop with the exact MPC and the paper's warm start.{offset}",
-            g.name(),
-            art.k,
-            g.k_glob,
+            "**Certified**: {} for {} in {} (`covered_by` in `certificate.json`). Theorem 1 \
+             does not cover this K; this certificate covers the loop with the exact MPC and the \
+             paper's warm start.{offset}",
+            g.sentence(art.k),
             art.method,
             scalar_name(art.scalar),
-            g.phi_star
         )
     } else if art.certified {
         format!(
@@ -682,14 +633,16 @@ fn readme(art: &Header, lang: Lang) -> String {
     };
     let f32_note = if art.scalar == ScalarKind::F32 {
         format!(
-            "\n\nThis is an **f32** build; the certificate's cover of f32: {}.\n",
+            "\n\nThis is an **f32** build; the certificate's cover of f32: {}.{}\n",
             if art.certified && art.global.is_some() {
                 F32_GLOBAL
             } else if art.certified {
                 F32_COVERED
             } else {
                 "not covered (see `uncertified_reason`)"
-            }
+            },
+            art.chain_f64_only
+                .map_or_else(String::new, |k| format!(" Note: {}.", chain_f64_only(k)))
         )
     } else {
         String::new()

@@ -270,6 +270,7 @@ pub(super) fn exported_artefact(
             reason: Some("a test artefact (no certificate computed)".into()),
         }),
         global: None,
+        chain_f64_only: None,
     }
 }
 
@@ -490,6 +491,7 @@ fn an_uncertified_artefact_says_so_everywhere() {
         sha256: super::sha256::sha256_hex(&std::fs::read(&path).unwrap()),
         mpc: None,
         global: None,
+        chain_f64_only: None,
     };
     let dir = scratch_dir("uncertified");
     write_artefact(

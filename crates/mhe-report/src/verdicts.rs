@@ -30,6 +30,9 @@ pub struct SolverSummary {
     pub k_glob: Option<usize>,
     /// Its K_glob in f32 (Theorem L3u).
     pub k_glob_f32: Option<usize>,
+    /// K_chain: the smallest K the iteration chain certified (Theorem L3b, f64, pg and
+    /// pg-jacobi; that K only: the chain is not monotone in K).
+    pub k_chain: Option<usize>,
     /// The global certificate's outcome in f64 and f32 (None: not computed with the
     /// certificate, or not for this controller).
     pub global: Option<iss_certificate::lure::global_outcome::MethodGlobal>,
@@ -75,6 +78,9 @@ impl SolverSummary {
             k_min: sc.k_min,
             k_glob: global.and_then(|g| g.exact.k_glob()),
             k_glob_f32: global.and_then(|g| g.f32.k_glob()),
+            k_chain: global
+                .and_then(|g| g.chain.as_ref())
+                .and_then(|c| c.k_chain()),
             global: global.cloned(),
             void_reasons: sc.void_reasons.clone(),
             not_computed: sc.not_computed.clone(),

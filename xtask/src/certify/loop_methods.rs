@@ -11,6 +11,7 @@ use closed_loop::scenario::{LoopOptions, MAX_PHASE_SECONDS, ResolvedScenario, Sc
 use iss_certificate::certificate::{CertificateOptions, certify_closed_loop};
 use iss_certificate::coverage::verdict_options;
 use iss_certificate::linear::{linear_stability_all_budgeted, log_spaced};
+use iss_certificate::lure::chain_outcome::ChainOutcome;
 use iss_certificate::lure::global_outcome::GlobalOutcome;
 use qp_iter::Method;
 
@@ -34,6 +35,8 @@ pub struct LoopMethod {
     pub k_min_note: Option<String>,
     /// The global loop certificate's outcome.
     pub global: GlobalOutcome,
+    /// The iteration chain (Theorem L3b; None: not pg or pg-jacobi).
+    pub chain: Option<ChainOutcome>,
 }
 
 /// The loop section of the certify document.
@@ -96,7 +99,7 @@ pub fn loop_section(scenario: &Scenario, global_seconds: f64) -> Result<LoopSect
         .zip(k_mins)
         .zip(linear)
         .zip(globals)
-        .map(|(((&method, k_min), lin), global)| {
+        .map(|(((&method, k_min), lin), (global, chain))| {
             let (k_lin, k_lin_note) = match lin {
                 Ok(r) => match r.k_lin {
                     Some(k) => (Some(k), None),
@@ -116,6 +119,7 @@ pub fn loop_section(scenario: &Scenario, global_seconds: f64) -> Result<LoopSect
                 theorem1_k_min: k_min,
                 k_min_note,
                 global,
+                chain,
             }
         })
         .collect();
@@ -126,6 +130,9 @@ pub fn loop_section(scenario: &Scenario, global_seconds: f64) -> Result<LoopSect
     })
 }
 
+/// One method's global loop certificate and iteration chain.
+type MethodOutcomes = (GlobalOutcome, Option<ChainOutcome>);
+
 /// Theorem 1's K_min and the global outcome per method, from the one certificate every
 /// command computes (`verdict_options`, the global budget `global_seconds`: the verdict's
 /// K_glob is this one), or why none.
@@ -133,7 +140,7 @@ fn theorem1_and_global(
     scenario: &Scenario,
     resolved: &ResolvedScenario,
     global_seconds: f64,
-) -> (Vec<Option<usize>>, Vec<GlobalOutcome>, Option<String>) {
+) -> (Vec<Option<usize>>, Vec<MethodOutcomes>, Option<String>) {
     let opts = CertificateOptions {
         global_seconds: Some(global_seconds),
         ..verdict_options(scenario, METHODS.to_vec(), None)
@@ -141,17 +148,20 @@ fn theorem1_and_global(
     let cert = certify_closed_loop(resolved, &opts);
     let global = |m: Method| match cert.as_ref().map(|c| c.global.as_ref()) {
         Ok(Some(g)) => g.method(m).map_or_else(
-            || GlobalOutcome::Unsupported {
-                reason: format!("no entry for {}", m.name()),
+            || {
+                let reason = format!("no entry for {}", m.name());
+                (GlobalOutcome::Unsupported { reason }, None)
             },
-            |x| x.exact.clone(),
+            |x| (x.exact.clone(), x.chain.clone()),
         ),
-        Ok(None) => GlobalOutcome::Unsupported {
-            reason: "--loop needs [mhe] and a controller".into(),
-        },
-        Err(e) => GlobalOutcome::Unsupported {
-            reason: format!("no certificate: {e}"),
-        },
+        Ok(None) => {
+            let reason = "--loop needs [mhe] and a controller".into();
+            (GlobalOutcome::Unsupported { reason }, None)
+        }
+        Err(e) => {
+            let reason = format!("no certificate: {e}");
+            (GlobalOutcome::Unsupported { reason }, None)
+        }
     };
     let globals = METHODS.iter().map(|&m| global(m)).collect();
     match &cert {
@@ -199,9 +209,13 @@ pub fn summary_lines(s: &mut String, l: &LoopSection) {
             GlobalOutcome::Certified(_) => m.global.to_string(),
             other => format!("{} {}", short(other), note(other.to_string())),
         };
+        let chain = m
+            .chain
+            .as_ref()
+            .map_or_else(String::new, |c| format!("; chain: {c}"));
         let _ = writeln!(
             s,
-            "  {:<15} K_lin {:>8}  Theorem 1 {:>8}  global: {global}",
+            "  {:<15} K_lin {:>8}  Theorem 1 {:>8}  global: {global}{chain}",
             m.method.name(),
             k_lin,
             k_min
@@ -238,6 +252,8 @@ impl From<&LoopSection> for certificate_json::v1::LoopSection {
                     theorem1_k_min: m.theorem1_k_min,
                     k_min_note: m.k_min_note.clone(),
                     global: v1::GlobalLoopOutcome::from(&m.global),
+                    k_chain: m.chain.as_ref().and_then(ChainOutcome::k_chain),
+                    chain: m.chain.as_ref().map(ToString::to_string),
                 })
                 .collect(),
         }

@@ -30,10 +30,11 @@ impl Notes {
 }
 
 /// The header of the table (also parsed by the tests).
-pub(super) const TABLE_HEADER: [&str; 8] = [
+pub(super) const TABLE_HEADER: [&str; 9] = [
     "method",
     "K_min",
     "K_glob",
+    "K_chain",
     "K_lin",
     "K_reg",
     "g_e",
@@ -72,12 +73,13 @@ pub(super) fn screen(d: &CertificateDocument, out: &Path) -> String {
     let h = TABLE_HEADER;
     let _ = writeln!(
         s,
-        "  {:<14} {:>8} {:>8} {:>8} {:>8} {:>8} {:>8}  {}",
-        h[0], h[1], h[2], h[3], h[4], h[5], h[6], h[7]
+        "  {:<14} {:>8} {:>8} {:>8} {:>8} {:>8} {:>8} {:>8}  {}",
+        h[0], h[1], h[2], h[3], h[4], h[5], h[6], h[7], h[8]
     );
     for sv in &d.solvers {
         let k_min = k_min_cell(sv, &mut notes);
         let k_glob = k_glob_cell(sv, &mut notes);
+        let k_chain = k_chain_cell(sv, &mut notes);
         let k_lin = k_lin_cell(d, &sv.solver.name(), &mut notes);
         let k_reg = k_reg_cell(d, &sv.solver.name(), &mut notes);
         let gains = d
@@ -96,7 +98,7 @@ pub(super) fn screen(d: &CertificateDocument, out: &Path) -> String {
             String::new()
         };
         let row = format!(
-            "  {:<14} {k_min:>8} {k_glob:>8} {k_lin:>8} {k_reg:>8} {g_e:>8} {g_x:>8}  {simulated}",
+            "  {:<14} {k_min:>8} {k_glob:>8} {k_chain:>8} {k_lin:>8} {k_reg:>8} {g_e:>8} {g_x:>8}  {simulated}",
             sv.solver.name()
         );
         let _ = writeln!(s, "{}", row.trim_end());
@@ -168,6 +170,30 @@ fn k_glob_cell(sv: &mhe_report::SolverSummary, notes: &mut Notes) -> String {
             format!("{word}{}", notes.mark(format!("K_glob: {}", g.exact)))
         }
     }
+}
+
+/// K_chain of the iteration chain (Theorem L3b: that K only, pg and pg-jacobi), or why none
+/// ("-": not modelled for this method or controller).
+fn k_chain_cell(sv: &mhe_report::SolverSummary, notes: &mut Notes) -> String {
+    use iss_certificate::lure::chain_outcome::{ChainCheck, ChainOutcome};
+    if let Some(k) = sv.k_chain {
+        return k.to_string();
+    }
+    let Some(chain) = sv.global.as_ref().and_then(|g| g.chain.as_ref()) else {
+        return "-".into();
+    };
+    let word = match chain {
+        ChainOutcome::Unsupported { .. } => "n/a",
+        ChainOutcome::Checked(c)
+            if c.checks
+                .iter()
+                .any(|a| matches!(a, ChainCheck::NotComputed { .. })) =>
+        {
+            "n/c"
+        }
+        _ => "none",
+    };
+    format!("{word}{}", notes.mark(format!("K_chain: {chain}")))
 }
 
 /// K_lin of `linear[]`, or why there is none.

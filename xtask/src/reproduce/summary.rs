@@ -53,28 +53,10 @@ pub(super) fn verdict(d: &CertificateDocument) -> String {
                 ),
             };
     }
-    // The global loop certificate decides where Theorem 1 does not (the one verdict,
-    // `at_scenario`, of `iss_certificate::coverage`).
-    if d.at_scenario.certificate == Some(iss_certificate::coverage::CertificateKind::Global) {
-        let k = d.scenario_iterations;
-        let kg = d
-            .at_scenario
-            .k_min
-            .map_or_else(|| "?".into(), |k| k.to_string());
-        return lead
-            + &if d.at_scenario.certified.is_certified() {
-                format!(
-                    "the global loop certificate (Theorem L3, docs/theory.md §4) certifies ISS of \
-                     the loop with {} at the scenario's K = {k} (every K ≥ K_glob = {kg}); \
-                     Theorem 1 does not cover it (K_min above).",
-                    d.solver
-                )
-            } else {
-                format!(
-                    "NOT CERTIFIED at the scenario's K = {k}: the smallest certified K is \
-                     K_glob = {kg} (the global loop certificate, Theorem L3)."
-                )
-            };
+    // The global loop certificate or the iteration chain decides where Theorem 1 does not
+    // (the one verdict, `at_scenario`, of `iss_certificate::coverage`).
+    if let Some(line) = global_verdict(d) {
+        return lead + &line;
     }
     let own = d
         .certificate
@@ -82,6 +64,40 @@ pub(super) fn verdict(d: &CertificateDocument) -> String {
         .iter()
         .find(|s| s.solver.name() == d.solver);
     iss_certificate::plan::verdict(own, d.trajectory_check.passed, &runs)
+}
+
+/// The verdict's sentence where the global loop certificate or the iteration chain decides
+/// at the scenario's K (None: Theorem 1 or nothing).
+fn global_verdict(d: &CertificateDocument) -> Option<String> {
+    use iss_certificate::coverage::CertificateKind;
+    let kind = d.at_scenario.certificate?;
+    if kind != CertificateKind::Global && kind != CertificateKind::Chain {
+        return None;
+    }
+    let k = d.scenario_iterations;
+    let sv = d.solvers.iter().find(|s| s.solver.name() == d.solver);
+    let kg = fmt_opt(sv.and_then(|s| s.k_glob));
+    let floor = fmt_opt(d.at_scenario.k_min);
+    let yes = d.at_scenario.certified.is_certified();
+    Some(match (kind, yes) {
+        (CertificateKind::Chain, true) => format!(
+            "the iteration chain (Theorem L3b, docs/theory.md §4b) certifies ISS of the loop \
+             with {} at the scenario's K = {k} (checked at this K; Theorem L3 needs K ≥ \
+             K_glob = {kg}); Theorem 1 does not cover it (K_min above).",
+            d.solver
+        ),
+        (CertificateKind::Global, true) => format!(
+            "the global loop certificate (Theorem L3, docs/theory.md §4) certifies ISS of \
+             the loop with {} at the scenario's K = {k} (every K ≥ K_glob = {kg}); \
+             Theorem 1 does not cover it (K_min above).",
+            d.solver
+        ),
+        _ => format!(
+            "NOT CERTIFIED at the scenario's K = {k}: the smallest certified K is {floor} \
+             ({}; K_glob = {kg}).",
+            kind.title()
+        ),
+    })
 }
 
 /// ", N step(s) within the rounding floor (≤ …)" when the floor was needed (empty otherwise).

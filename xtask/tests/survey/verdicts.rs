@@ -5,8 +5,8 @@
 use closed_loop::scenario::{ControllerChoice, ResolvedScenario, Scenario};
 use iss_certificate::certificate::certify_closed_loop;
 use iss_certificate::coverage::{
-    Certified, Configuration, PairVerdict, Scalar, global_of, solver_certified, verdict,
-    verdict_options,
+    CertificateKind, Certified, Configuration, PairVerdict, Scalar, global_of, solver_certified,
+    verdict, verdict_options,
 };
 use qp_iter::Method;
 use toml::Value;
@@ -68,12 +68,11 @@ pub fn survey(seed: u64, plants: usize) -> Tally {
             };
             // The verdict's floor: the smaller of Theorem 1's K_min and the global loop
             // certificate's K_glob (every K ≥ K_glob is certified by it).
-            let k_glob =
-                global_of(&cert, method, ControllerChoice::ExactMpc).and_then(|g| g.exact.k_glob());
-            let k_min = match (sc.k_min, k_glob) {
-                (Some(a), Some(b)) => Some(a.min(b)),
-                (a, b) => a.or(b),
-            };
+            // The iteration chain's K_chain lowers it further (that K only: not monotone).
+            let g = global_of(&cert, method, ControllerChoice::ExactMpc);
+            let k_glob = g.and_then(|g| g.exact.k_glob());
+            let k_chain = g.and_then(|g| g.chain.as_ref()).and_then(|c| c.k_chain());
+            let k_min = [sc.k_min, k_glob, k_chain].into_iter().flatten().min();
             let mut ks = vec![1usize, 2, 3, 50, 1000];
             if let Some(k) = k_min {
                 ks.extend([k.saturating_sub(1).max(1), k, k + 1, 2 * k]);
@@ -155,7 +154,18 @@ pub fn survey(seed: u64, plants: usize) -> Tally {
 /// The verdict at K is "yes" exactly from the floor `k_min` (Theorem 1's K_min or the global
 /// certificate's K_glob, the smaller) on, and stays "yes" at K + 1.
 fn one(k: usize, k_min: Option<usize>, v: &PairVerdict, next: &PairVerdict) -> Result<(), String> {
+    // The iteration chain speaks at the K it checked only: its "yes" need not persist at
+    // K + 1, and where it was not checked (or found none above its K_chain) the verdict says
+    // so instead of a plain "no".
+    let chain = v.certificate == Some(CertificateKind::Chain)
+        || v.reason_text().contains("the iteration chain");
     match v.certified {
+        Certified::Yes if chain => {
+            if k_min.is_none_or(|m| k < m) || v.k_min != k_min {
+                return Err(format!("chain's yes at K = {k} with floor {k_min:?}"));
+            }
+        }
+        _ if chain && k_min.is_some_and(|m| k > m) => {}
         Certified::Yes => {
             if k_min.is_none_or(|m| k < m) || v.k_min != k_min {
                 return Err(format!(

@@ -365,6 +365,9 @@ pub struct SolverSummary {
     pub k_glob: Option<usize>,
     /// K_glob in f32 (Theorem L3u); null: `global.f32_outcome` says why.
     pub k_glob_f32: Option<usize>,
+    /// K_chain: the smallest K the iteration chain certified (Theorem L3b, f64, pg and
+    /// pg-jacobi; that K only, the chain is not monotone); null: `global.chain` says why.
+    pub k_chain: Option<usize>,
     /// The global loop certificate of this method (null: not computed with the certificate,
     /// or the controller is not the exact MPC).
     pub global: Option<GlobalRecord>,
@@ -408,6 +411,33 @@ pub struct GlobalRecord {
     pub f32_outcome: String,
     /// The ISS offset of f32's rounding (null without an f32 certificate).
     pub f32_offset: Option<f64>,
+    /// The iteration chain (Theorem L3b; null: the method is not pg or pg-jacobi).
+    pub chain: Option<ChainRecord>,
+}
+
+/// The iteration chain of one method (`iss_certificate::lure::chain_outcome`): the K it was
+/// checked at and each answer; it certifies those K only (not monotone in K).
+#[derive(Debug, Clone, PartialEq, Serialize)]
+pub struct ChainRecord {
+    /// The smallest certified K (null: none of the K checked).
+    pub k_chain: Option<usize>,
+    /// The K checked, ascending.
+    pub checked: Vec<usize>,
+    /// The K certified, ascending.
+    pub certified: Vec<usize>,
+    /// One sentence per K checked (in the order checked), or why the chain does not apply.
+    pub outcomes: Vec<String>,
+    /// How the scan K = 1, 2, … ended (`"certified"`, `"cap"` or `"stopped"`; `"none"`:
+    /// not applicable).
+    pub scan: String,
+    /// The LMI's margin in the independent check at K_chain.
+    pub margin: Option<f64>,
+    /// ρ of the certificate at K_chain.
+    pub rho: Option<f64>,
+    /// γ of the certificate at K_chain.
+    pub gamma: Option<f64>,
+    /// The method's budget (estimated single-core seconds, `certificate.phase_seconds`).
+    pub budget_seconds: Option<f64>,
 }
 
 /// Props. 1 and 3 evaluated on the K_min run.

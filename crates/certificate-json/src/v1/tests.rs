@@ -110,6 +110,8 @@ fn global_loop_records_round_trip() {
                 theorem1_k_min: None,
                 k_min_note: Some("void".into()),
                 global: GlobalLoopOutcome::from(o),
+                k_chain: Some(1),
+                chain: Some("K_chain = 1 (K tried: 1)".into()),
             })
             .collect(),
     };

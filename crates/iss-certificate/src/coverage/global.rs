@@ -6,6 +6,7 @@ use qp_iter::Method;
 
 use super::{CertificateKind, Certified, Configuration, F32Void, PairReason, PairVerdict, Scalar};
 use crate::certificate::{CertificateOptions, ClosedLoopCertificate};
+use crate::lure::chain_outcome::{ChainCheck, ChainOutcome, MethodChain};
 use crate::lure::global_outcome::{GlobalOutcome, MethodGlobal, PrecisionOutcome};
 
 /// The one verdict of two certificates at K_e: `v` (Theorem 1's, in `scalar`) and the global
@@ -15,6 +16,11 @@ use crate::lure::global_outcome::{GlobalOutcome, MethodGlobal, PrecisionOutcome}
 /// K_e is a plain "no"; a global search the budget stopped makes a void or not-computed `v`
 /// not computed and says so (a "no" stays a plain "no"); a global certificate proved absent
 /// leaves `v` as it is (its outcome is reported beside: certificate.json, `certify --loop`).
+///
+/// Then the iteration chain (Theorem L3b, f64 only: it has no rounding input), which speaks
+/// at the K it was checked at and nowhere else (it is not monotone in K;
+/// `with_chain`): certified there makes the verdict `yes` (`chain`), and the floor
+/// `k_min` is the smallest certified K of the three.
 pub fn with_global(
     v: PairVerdict,
     global: Option<&MethodGlobal>,
@@ -22,6 +28,130 @@ pub fn with_global(
     scalar: Scalar,
 ) -> PairVerdict {
     let Some(g) = global else { return v };
+    let v = with_l3(v, g, k_e, scalar);
+    match (scalar, g.chain.as_ref().and_then(ChainOutcome::chain)) {
+        (Scalar::F64, Some(chain)) => with_chain(v, chain, k_e),
+        _ => v,
+    }
+}
+
+/// The chain's part of [`with_global`] on the verdict `v` of Theorem 1 and Theorem L3 at K_e:
+/// - certified by either: `v`, its floor lowered to K_chain if smaller;
+/// - the chain certified K_e: `yes` (`chain`);
+/// - the chain's search at K_e was stopped by the budget: `not_computed`, naming
+///   `certificate.phase_seconds`;
+/// - the chain was not checked at K_e and certifies a smaller K: `not_computed` (nothing
+///   decided K_e; the sentence says how to check it) — never "void", never extrapolated;
+/// - otherwise `v` with the floor; a void `v` becomes `no` when the chain certifies some K
+///   (the method is not void), with the chain's sentence where K_e is above that K.
+pub fn with_chain(v: PairVerdict, chain: &MethodChain, k_e: usize) -> PairVerdict {
+    let k_chain = chain.k_chain();
+    let k_min = match (v.k_min, k_chain) {
+        (Some(a), Some(b)) => Some(a.min(b)),
+        (a, b) => a.or(b),
+    };
+    if v.certified.is_certified() {
+        return PairVerdict { k_min, ..v };
+    }
+    let why = |check: Option<ChainCheck>, then: Option<PairReason>| {
+        Some(PairReason::Chain(ChainWhy {
+            k: k_e,
+            k_chain,
+            check,
+            then: then.map(Box::new),
+        }))
+    };
+    let at = chain.at(k_e);
+    match at {
+        Some(ChainCheck::Certified(_)) => PairVerdict {
+            certificate: Some(CertificateKind::Chain),
+            certified: Certified::Yes,
+            k_min,
+            margin: None,
+            reason: None,
+        },
+        Some(c @ ChainCheck::NotComputed { .. }) => PairVerdict {
+            certified: Certified::NotComputed,
+            k_min,
+            reason: why(Some(c.clone()), v.reason.clone()),
+            ..v
+        },
+        None if k_chain.is_some_and(|kc| kc < k_e) => PairVerdict {
+            certified: Certified::NotComputed,
+            k_min,
+            margin: None,
+            reason: why(None, v.reason.clone()),
+            ..v
+        },
+        _ => {
+            let below_chain = k_chain.is_some_and(|kc| k_e < kc);
+            let chain_lowest = k_chain.is_some() && k_min == k_chain && v.k_min != k_min;
+            match (v.certified, k_chain) {
+                (Certified::Void, Some(_)) => PairVerdict {
+                    certificate: Some(CertificateKind::Chain),
+                    certified: Certified::No,
+                    k_min,
+                    margin: None,
+                    reason: if below_chain {
+                        None
+                    } else {
+                        why(at.cloned(), None)
+                    },
+                },
+                (Certified::No, _) if chain_lowest && below_chain => PairVerdict {
+                    certificate: Some(CertificateKind::Chain),
+                    k_min,
+                    margin: None,
+                    ..v
+                },
+                (Certified::No, Some(_)) if !below_chain => PairVerdict {
+                    k_min,
+                    reason: why(at.cloned(), v.reason.clone()),
+                    ..v
+                },
+                _ => PairVerdict { k_min, ..v },
+            }
+        }
+    }
+}
+
+/// Why the iteration chain does not certify K (the chain's part of [`PairReason::Chain`]).
+#[derive(Debug, Clone, PartialEq)]
+#[non_exhaustive]
+pub struct ChainWhy {
+    /// The K asked for.
+    pub k: usize,
+    /// The smallest K the chain certified, if any.
+    pub k_chain: Option<usize>,
+    /// The chain's answer at K (None: not checked at K).
+    pub check: Option<ChainCheck>,
+    /// The verdict's reason without the chain, if any.
+    pub then: Option<Box<PairReason>>,
+}
+
+impl std::fmt::Display for ChainWhy {
+    fn fmt(&self, f: &mut std::fmt::Formatter<'_>) -> std::fmt::Result {
+        if let Some(then) = &self.then {
+            write!(f, "{then}; ")?;
+        }
+        f.write_str("the iteration chain (Theorem L3b): ")?;
+        match &self.check {
+            Some(c) => c.fmt(f)?,
+            None => write!(
+                f,
+                "not checked at K = {} (it is checked at mhe.iterations and scanned from                  K = 1 to its first certified K; set mhe.iterations = {} to check this K)",
+                self.k, self.k
+            )?,
+        }
+        match self.k_chain {
+            Some(kc) => write!(f, "; it certifies K = {kc} (not monotone in K)"),
+            None => Ok(()),
+        }
+    }
+}
+
+/// Theorem L3's part of [`with_global`] (before the chain).
+fn with_l3(v: PairVerdict, g: &MethodGlobal, k_e: usize, scalar: Scalar) -> PairVerdict {
     let (k_glob, not_computed, why) = match scalar {
         Scalar::F64 => (
             g.exact.k_glob(),
@@ -218,6 +348,7 @@ mod tests {
             method: Method::PG,
             exact,
             f32,
+            chain: None,
         }
     }
 
@@ -316,5 +447,84 @@ mod tests {
         );
         assert_eq!((v.certified, v.k_min), (Certified::No, Some(243)));
         assert_eq!(v.reason, None);
+    }
+
+    fn chained(chain: Vec<ChainCheck>) -> MethodGlobal {
+        use crate::lure::chain_outcome::ChainScanEnd;
+        let mut g = global(exact(13), f32_at(13));
+        g.chain = Some(ChainOutcome::Checked(MethodChain {
+            checks: chain,
+            scan: ChainScanEnd::Certified { k: 1 },
+            budget_seconds: 10.0,
+        }));
+        g
+    }
+
+    fn chain_yes(k: usize) -> ChainCheck {
+        ChainCheck::Certified(crate::lure::chain_outcome::ChainK {
+            k,
+            margin: 4e-9,
+            rho: 0.9999,
+            gamma: 4e3,
+            gain_x: 1.0,
+            gain_e: 1.0,
+        })
+    }
+
+    /// The case study's PG: Theorem 1 void, K_glob = 13, the chain certified K = 1 (and was
+    /// checked nowhere else). K = 1 is `yes` by the chain, the floor is 1; K = 5 was not
+    /// checked: not computed, saying so (never void, never extrapolated); K = 13 is Theorem
+    /// L3's; f32 ignores the chain (no rounding input).
+    #[test]
+    fn the_chain_certifies_only_the_k_it_checked() {
+        let g = chained(vec![chain_yes(1)]);
+        let t1 = || theorem1(Certified::Void, None);
+        let v = with_global(t1(), Some(&g), 1, Scalar::F64);
+        assert_eq!(v.certified, Certified::Yes);
+        assert_eq!(v.certificate, Some(CertificateKind::Chain));
+        assert_eq!(v.k_min, Some(1));
+        let v = with_global(t1(), Some(&g), 5, Scalar::F64);
+        assert_eq!(v.certified, Certified::NotComputed);
+        assert_eq!(v.k_min, Some(1));
+        let why = v.reason_text();
+        assert!(why.contains("not checked at K = 5"), "{why}");
+        assert!(why.contains("mhe.iterations = 5"), "{why}");
+        let v = with_global(t1(), Some(&g), 13, Scalar::F64);
+        assert_eq!(
+            (v.certified, v.certificate, v.k_min),
+            (Certified::Yes, Some(CertificateKind::Global), Some(1))
+        );
+        let v = with_global(t1(), Some(&g), 1, Scalar::F32);
+        assert_eq!((v.certified, v.k_min), (Certified::No, Some(13)));
+    }
+
+    /// A K the chain checked without a certificate below K_chain is a plain "no" with the
+    /// chain's floor; a K whose search the budget stopped is not computed, naming the key.
+    #[test]
+    fn the_chain_below_its_floor_and_under_the_budget() {
+        let refuted = ChainCheck::NotCertified {
+            k: 1,
+            rho_reached: Some(1.2),
+        };
+        let stopped = ChainCheck::NotComputed {
+            k: 4,
+            solves: 900,
+            per_solve: 0.01,
+            budget_seconds: 10.0,
+        };
+        let g = chained(vec![refuted, chain_yes(2), stopped]);
+        let v = with_global(theorem1(Certified::Void, None), Some(&g), 1, Scalar::F64);
+        assert_eq!((v.certified, v.k_min), (Certified::No, Some(2)));
+        assert_eq!(v.certificate, Some(CertificateKind::Chain));
+        assert_eq!(v.reason, None);
+        let v = with_global(theorem1(Certified::Void, None), Some(&g), 4, Scalar::F64);
+        assert_eq!(v.certified, Certified::NotComputed);
+        let why = v.reason_text();
+        assert!(why.contains("certificate.phase_seconds"), "{why}");
+        // Without the chain the same K = 1 is Theorem L3's plain "no" at the floor 13.
+        let mut g = g;
+        g.chain = None;
+        let v = with_global(theorem1(Certified::Void, None), Some(&g), 1, Scalar::F64);
+        assert_eq!((v.certified, v.k_min), (Certified::No, Some(13)));
     }
 }

@@ -293,6 +293,8 @@ pub struct MethodGlobal {
     pub exact: GlobalOutcome,
     /// f32.
     pub f32: PrecisionOutcome,
+    /// The iteration chain (Theorem L3b, f64 only) for the PG family; None for other methods.
+    pub chain: Option<super::chain_outcome::ChainOutcome>,
 }
 
 /// The global loop certificate of a scenario: one entry per method, for the scenario's
@@ -306,6 +308,14 @@ pub struct GlobalSection {
     pub budget_seconds: f64,
     /// One entry per method.
     pub methods: Vec<MethodGlobal>,
+}
+
+impl MethodGlobal {
+    /// Whether some K is certified in f64: a K_glob (Theorem L3) or a K the iteration chain
+    /// certified (Theorem L3b).
+    pub fn certifies_some_k(&self) -> bool {
+        self.exact.k_glob().is_some() || self.chain.as_ref().is_some_and(|c| c.k_chain().is_some())
+    }
 }
 
 impl GlobalSection {
@@ -360,13 +370,22 @@ pub fn global_section(
         .map(|&m| LoopOptions { method: m, ..base })
         .collect();
     let out = searches(resolved, &options, settings, true);
+    // The two chains (pg, pg-jacobi) share one phase: half of it each.
+    let chain_s = settings.phase_seconds / 2.0;
+    let chains = super::chain_outcome::chains(resolved, &options, &out, chain_s);
     Some(GlobalSection {
         controller: base.controller,
         budget_seconds: settings.phase_seconds,
         methods: methods
             .iter()
             .zip(out)
-            .map(|(&method, (exact, f32))| MethodGlobal { method, exact, f32 })
+            .zip(chains)
+            .map(|((&method, (exact, f32)), chain)| MethodGlobal {
+                method,
+                exact,
+                f32,
+                chain,
+            })
             .collect(),
     })
 }

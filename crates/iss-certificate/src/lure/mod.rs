@@ -21,6 +21,7 @@
 //! shipped scenario (the PG family with an unconstrained controller) and computes the
 //! frozen-slope radius, a necessary condition for any loop certificate at K.
 
+pub mod chain_outcome;
 pub mod global;
 pub mod global_outcome;
 mod inner;

@@ -372,3 +372,90 @@ fn chain_certifies_where_theorem_l3_does() {
         assert!(c.cert.margin > 0.0 && c.cert.rho < 1.0);
     }
 }
+
+/// The budgeted chain of `reproduce` (`lure::chain_outcome::method_chain`) on CHAIN_FILE
+/// (default case-study.toml) for pg and pg-jacobi with CHAIN_BUDGET seconds (default 10):
+/// its answers, the estimated and the measured CPU (the calibration of
+/// `chain_solve_seconds`).
+#[test]
+#[ignore = "measurement (release): ≈ 10–30 s"]
+fn measure_chain_outcome() {
+    use iss_certificate::lure::chain_outcome::{chain_solve_seconds, method_chain};
+    let file = std::env::var("CHAIN_FILE").unwrap_or_else(|_| "case-study.toml".into());
+    let budget: f64 = std::env::var("CHAIN_BUDGET")
+        .ok()
+        .and_then(|v| v.parse().ok())
+        .unwrap_or(10.0);
+    let k_glob: Option<usize> = std::env::var("CHAIN_KGLOB")
+        .ok()
+        .and_then(|v| v.parse().ok());
+    let r = resolved(&file);
+    for method in [Method::PG, Method::JACOBI_PRESETS[0]] {
+        let o = options(&r, method);
+        let ch = iteration_chain(&r, &o).expect("chain");
+        let t0 = Instant::now();
+        let out = method_chain(&r, &o, k_glob, budget).expect("pg family");
+        let secs = t0.elapsed().as_secs_f64();
+        eprintln!(
+            "{file} {}: dim(1) {} n_x {} per-solve estimate {:.3e} s; {:.2} s; {:?}",
+            method.name(),
+            ch.dim(1),
+            ch.global.n_x(),
+            chain_solve_seconds(ch.dim(1), ch.global.n_x()),
+            secs,
+            out
+        );
+    }
+}
+
+/// The verdict's K_chain on `case-study.toml` (PG: Theorem 1 void, K_glob = 13): the chain of
+/// the one verdict (`lure::chain_outcome::method_chain`, the default budget of 10 s)
+/// certifies K = 1, and 200 sampled runs of the real loop at that K (x₀ and the prior up to
+/// 100, noise ≤ 10⁻³ of 𝒲) satisfy its one-step inequality at every sample.
+#[test]
+#[ignore = "soundness sampling (release): ≈ 1–2 min"]
+fn sampled_runs_respect_the_verdicts_k_chain() {
+    use iss_certificate::lure::chain_outcome::method_chain;
+    let s0 = scenario_file("case-study.toml");
+    let r = s0.clone().resolve().expect("resolves");
+    let mut o0 = options(&r, Method::PG);
+    let out = method_chain(&r, &o0, Some(13), 10.0).expect("pg is modelled");
+    let k = out.k_chain().expect("the verdict's chain certifies a K");
+    assert_eq!(k, 1, "{out:?}");
+    let ch = iteration_chain(&r, &o0).expect("builds");
+    // The same deterministic search as the verdict's: the same certificate, now with its P.
+    let c = ch
+        .certify_chain(k, &ChainOptions::default())
+        .expect("within the size limit")
+        .cert
+        .expect("certified at K_chain");
+    let chain = out.chain().expect("checked");
+    let verdicts = chain.at(k).and_then(|a| a.certified()).expect("certified");
+    assert_eq!(c.cert.margin, verdicts.margin);
+    o0.iterations = k;
+    let mut rng = rand_chacha::ChaCha8Rng::seed_from_u64(19);
+    let mut worst = 0.0_f64;
+    for seed in 0..200u64 {
+        let mut s = s0.clone();
+        let mag = 10f64.powf(rng.random_range(-2.0..2.0));
+        for v in s
+            .simulation
+            .x0
+            .iter_mut()
+            .chain(s.simulation.prior.iter_mut())
+        {
+            *v = mag * rng.random_range(-1.0..1.0);
+        }
+        s.noise.scale = rng.random_range(0.0..1e-3);
+        let mut o = o0;
+        o.seed = seed;
+        let ratio = run_ratio(&s, &o, &ch.global, &c.cert, 60);
+        assert!(ratio <= 1.0, "seed {seed}: one-step ratio {ratio}");
+        worst = worst.max(ratio);
+    }
+    eprintln!("case-study PG, K_chain = {k}: 200 runs × 60 steps, worst one-step ratio {worst:.4}");
+    assert!(
+        worst > 0.1,
+        "worst ratio {worst}: the runs never test the inequality"
+    );
+}

@@ -416,14 +416,23 @@ fn long_theoretical_columns_follow_the_certificate() {
         assert_eq!(margin > 0.0, p.k >= km);
     }
     assert_eq!(seen, (true, true), "the grid straddles K_min");
-    // The paper's preset (M = 5, η = 0.8): Theorem 1 is void whatever K, and says why; the
-    // global loop certificate's floor K_glob lies above the point's K, so the verdict is
-    // `no` with K_glob as its floor.
+    // The paper's preset (M = 5, η = 0.8): Theorem 1 is void whatever K, and says why. ADMM
+    // at K = 1: the global loop certificate's floor K_glob lies above it, so the verdict is
+    // `no` with K_glob as its floor; PG at K = 1: the iteration chain checked and certified
+    // that K (docs/theory.md §4b), so `yes`; PG at K = 4 was not checked by the chain (and is
+    // below K_glob = 13): `not_computed`, never extrapolated.
     let mut cfg = small_config("");
     cfg.certificate = true;
     let sweep = Sweep::new(cfg).unwrap();
-    let p = &sweep.points()[0];
-    let t = sweep.theory_at(p);
+    let at = |solver: &str, k: usize| {
+        let p = sweep
+            .points()
+            .iter()
+            .find(|p| p.solver.name() == solver && p.k == k)
+            .unwrap();
+        (*p, sweep.theory_at(p))
+    };
+    let (p, t) = at("admm", 1);
     assert_eq!(t.certified, "no");
     assert!(
         t.k_min.is_some_and(|k| k > p.k),
@@ -431,6 +440,10 @@ fn long_theoretical_columns_follow_the_certificate() {
         t.k_min,
         p.k
     );
+    let (_, t) = at("pg", 1);
+    assert_eq!((t.certified, t.k_min), ("yes", Some(1)));
+    let (_, t) = at("pg", 4);
+    assert_eq!((t.certified, t.k_min), ("not_computed", Some(1)));
     match &sweep.theory()[0].1 {
         SolverTheory::Analysis {
             k_min,

@@ -209,6 +209,7 @@ impl From<&mhe_report::SolverSummary> for SolverSummary {
             k_min: l.k_min,
             k_glob: l.k_glob,
             k_glob_f32: l.k_glob_f32,
+            k_chain: l.k_chain,
             global: l.global.as_ref().map(GlobalRecord::from),
             void_reasons: l.void_reasons.iter().map(ToString::to_string).collect(),
             not_computed: l.not_computed.as_ref().map(NotComputed::from),
@@ -241,6 +242,52 @@ impl From<&iss_certificate::lure::global_outcome::MethodGlobal> for GlobalRecord
                 PrecisionOutcome::Certified(p) => num(p.offset),
                 _ => None,
             },
+            chain: l.chain.as_ref().map(ChainRecord::from),
+        }
+    }
+}
+
+impl From<&iss_certificate::lure::chain_outcome::ChainOutcome> for ChainRecord {
+    fn from(l: &iss_certificate::lure::chain_outcome::ChainOutcome) -> Self {
+        use iss_certificate::lure::chain_outcome::ChainScanEnd;
+        let Some(c) = l.chain() else {
+            return Self {
+                k_chain: None,
+                checked: Vec::new(),
+                certified: Vec::new(),
+                outcomes: vec![l.to_string()],
+                scan: "none".into(),
+                margin: None,
+                rho: None,
+                gamma: None,
+                budget_seconds: None,
+            };
+        };
+        let best = c
+            .k_chain()
+            .and_then(|k| c.at(k))
+            .and_then(|a| a.certified());
+        let mut certified: Vec<usize> = c
+            .checks
+            .iter()
+            .filter_map(|a| a.certified().map(|k| k.k))
+            .collect();
+        certified.sort_unstable();
+        Self {
+            k_chain: c.k_chain(),
+            checked: c.checked(),
+            certified,
+            outcomes: c.checks.iter().map(ToString::to_string).collect(),
+            scan: match c.scan {
+                ChainScanEnd::Certified { .. } => "certified",
+                ChainScanEnd::Cap { .. } => "cap",
+                _ => "stopped",
+            }
+            .into(),
+            margin: best.and_then(|b| num(b.margin)),
+            rho: best.and_then(|b| num(b.rho)),
+            gamma: best.and_then(|b| num(b.gamma)),
+            budget_seconds: num(c.budget_seconds),
         }
     }
 }

@@ -266,6 +266,7 @@ impl From<&iss_certificate::coverage::CertificateKind> for CertificateKind {
             iss_certificate::coverage::CertificateKind::Theorem1 => Self::Theorem1,
             iss_certificate::coverage::CertificateKind::Joint => Self::Joint,
             iss_certificate::coverage::CertificateKind::Global => Self::Global,
+            iss_certificate::coverage::CertificateKind::Chain => Self::Chain,
             other => Self::Other(format!("{other:?}")),
         }
     }

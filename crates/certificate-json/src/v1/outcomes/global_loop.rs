@@ -32,6 +32,14 @@ pub struct LoopMethod {
     pub k_min_note: Option<String>,
     /// The global loop certificate.
     pub global: GlobalLoopOutcome,
+    /// K_chain: the smallest K the iteration chain certified (Theorem L3b, pg and pg-jacobi;
+    /// that K only), or `null`.
+    #[serde(default)]
+    pub k_chain: Option<usize>,
+    /// The iteration chain's outcome as a sentence (the K checked), `null` for methods it does
+    /// not model.
+    #[serde(default)]
+    pub chain: Option<String>,
 }
 
 /// The global loop certificate of one method.

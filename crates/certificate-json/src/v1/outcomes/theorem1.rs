@@ -423,6 +423,8 @@ pub enum CertificateKind {
     Joint,
     /// The global loop certificate (Theorem L3; Theorem L3u in f32): every K ≥ K_glob.
     Global,
+    /// The iteration chain (Theorem L3b, f64): the K it was checked at and certified.
+    Chain,
     /// A library variant this schema version does not name, by its Rust name (the library of
     /// this version produces none; a reader treats it as "not certified").
     Other(String),

@@ -364,8 +364,22 @@ impl IterationChain {
     ///
     /// Errors: K = 0; a chain above [`ChainOptions::max_dim`] ([`ChainError::TooLarge`]).
     pub fn certify_chain(&self, k: usize, opts: &ChainOptions) -> Result<ChainAttempt, ChainError> {
+        self.certify_chain_within(k, opts, usize::MAX)
+    }
+
+    /// [`IterationChain::certify_chain`] with at most `max_solves` Riccati solves (the
+    /// caller's budget: an attempt with `solves >= max_solves` and no certificate was stopped
+    /// by it, not refuted).
+    ///
+    /// Errors: as [`IterationChain::certify_chain`].
+    pub fn certify_chain_within(
+        &self,
+        k: usize,
+        opts: &ChainOptions,
+        max_solves: usize,
+    ) -> Result<ChainAttempt, ChainError> {
         let at = self.at(k, opts)?;
-        Ok(at.search(self.global.phi(k), opts, usize::MAX))
+        Ok(at.search(self.global.phi(k), opts, max_solves))
     }
 
     /// The smallest K in 1..=`k_max` the chain certifies, scanning upwards (the certified set

@@ -1070,6 +1070,20 @@ impl PyCertificate {
         })
     }
 
+    /// K_chain of `method` under the iteration chain (Theorem L3b; pg and pg-jacobi, f64): the
+    /// smallest K the chain checked and certified; it covers only the K it checked.
+    fn k_chain(&self, method: &str) -> PyResult<Option<usize>> {
+        let method: Method = method.parse().map_err(|e: qp_iter::QpError| {
+            InputError::new_err(format!("argument `method`: {e}"))
+        })?;
+        Ok(match &self.held {
+            Held::Model(c) => c.k_chain(method),
+            Held::Scenario {
+                cert, controller, ..
+            } => coverage::global_of(cert, method, *controller).and_then(|g| g.k_chain()),
+        })
+    }
+
     /// The one verdict rule at (method, k) in `scalar` ("f64" or "f32") as JSON
     /// (`PairVerdict`): `coverage::verdict` (behind `Certificate::verdict` for a model), f32
     /// folding the rounding model into Theorem 1.

@@ -801,6 +801,16 @@ class Certificate:
         self._solver(method)  # the method's entry exists (else InputError naming the methods)
         return self._native.k_glob(method)
 
+    def k_chain(self, method: str) -> Optional[int]:
+        """K_chain of the iteration chain (Theorem L3b, docs/theory.md §4b; pg and pg-jacobi,
+        f64): the smallest K the chain checked and certified. It covers **only the K it
+        checked**: the verdict at another K below :meth:`k_min` and :meth:`k_glob` says
+        ``not_computed`` (not checked) or ``no``; ``None`` for other methods, when nothing was
+        certified, or when the budget stopped it.
+        """
+        self._solver(method)  # the method's entry exists (else InputError naming the methods)
+        return self._native.k_chain(method)
+
     def void_reasons(self, method: str) -> List[str]:
         """Why the certificate of ``method`` is void (empty when K_min exists), as sentences."""
         return list(self._solver(method)["void_reasons"])

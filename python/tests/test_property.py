@@ -146,11 +146,20 @@ def test_model_certify_raises_only_package_errors(args):
         return
     (s,) = cert.to_dict()["solvers"]
     assert (s["k_min"] is None) == bool(s["void_reasons"]), s
-    # The one verdict rule: yes from the smaller floor (Theorem 1's K_min, the global
-    # certificate's K_glob) on, no below it; never yes without a floor.
+    # The one verdict rule: yes from the smaller threshold (Theorem 1's K_min, the global
+    # certificate's K_glob) on; below it yes only where the iteration chain certified this K
+    # (pg, pg-jacobi: it covers only the K it checked); never yes without a floor.
     floors = [k for k in (cert.k_min(method), cert.k_glob(method)) if k is not None]
+    k_chain = cert.k_chain(method)
     v = cert.verdict(method, model.k)
-    if not floors:
+    if v["certified"] == "yes" and (not floors or model.k < min(floors)):
+        assert k_chain is not None and k_chain <= model.k, (v, floors, k_chain)
+    elif not floors:
         assert v["certified"] != "yes", v
+    elif model.k >= min(floors):
+        assert v["certified"] == "yes", (v, floors)
     else:
-        assert v["certified"] == ("yes" if model.k >= min(floors) else "no"), (v, floors)
+        # Below the floors: no, or not computed where the chain certified a smaller K and did
+        # not check this one (or its search at this K was stopped by the budget).
+        allowed = ("no", "not_computed") if k_chain is not None else ("no",)
+        assert v["certified"] in allowed, (v, floors, k_chain)

@@ -548,6 +548,16 @@ impl Certificate {
             .and_then(|g| g.exact.k_glob())
     }
 
+    /// K_chain of `method` under the iteration chain (Theorem L3b, docs/theory.md §4b; pg and
+    /// pg-jacobi, f64): the smallest K the chain checked and certified. The chain covers only
+    /// the K it checked ([`Certificate::verdict`] says `not_computed` at a K it did not check),
+    /// so this is a floor of the verdict, not a threshold (`None`: not pg/pg-jacobi, nothing
+    /// certified, or not computed within the budget).
+    pub fn k_chain(&self, method: Method) -> Option<usize> {
+        crate::coverage::global_of(&self.closed_loop, method, self.model.controller)
+            .and_then(|g| g.k_chain())
+    }
+
     /// K_min of every certified method, in the order of [`CertifyOptions::methods`].
     pub fn k_mins(&self) -> impl Iterator<Item = (Method, Option<usize>)> + '_ {
         self.closed_loop.solvers.iter().map(|s| (s.solver, s.k_min))

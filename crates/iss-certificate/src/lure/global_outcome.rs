@@ -316,6 +316,11 @@ impl MethodGlobal {
     pub fn certifies_some_k(&self) -> bool {
         self.exact.k_glob().is_some() || self.chain.as_ref().is_some_and(|c| c.k_chain().is_some())
     }
+
+    /// K_chain: the smallest K the iteration chain checked and certified (f64), if any.
+    pub fn k_chain(&self) -> Option<usize> {
+        self.chain.as_ref().and_then(|c| c.k_chain())
+    }
 }
 
 impl GlobalSection {

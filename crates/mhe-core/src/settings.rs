@@ -9,7 +9,7 @@
 //! let s = MheSettings::from_raw(&raw, &sys).unwrap();
 //! assert_eq!(s.method(), qp_iter::Method::FISTA);
 //! let cfg = s.config(&sys, false).unwrap(); // P from LMI (2)
-//! assert_eq!(cfg.iterations, 40);
+//! assert_eq!(usize::from(cfg.iterations), 40);
 //! ```
 
 use faer::Mat;

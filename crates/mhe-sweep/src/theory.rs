@@ -66,8 +66,8 @@ impl SolverTheory {
     }
 
     /// The theoretical columns at K: slopes of (sg1)–(sg3), the margin 1 − (sg1 + sg2 + sg3),
-    /// `certified` = `"yes"`, `"no"` or `"void"` (a premise of Theorem 1 fails, whatever
-    /// K), K_min and the reason of a void certificate.
+    /// `certified` = `"yes"`, `"no"`, `"void"` (a premise of Theorem 1 fails, whatever K) or
+    /// `"not_computed"` (a budget, or the iteration chain not checked at K), K_min and the reason.
     /// The linear columns (ρ_lin, K_lin) are left empty here; [`LinearSide::fill`] adds them.
     pub fn at(&self, k: usize) -> TheoryAtK {
         match self {
@@ -125,7 +125,7 @@ pub struct TheoryAtK {
     pub slopes: Option<[f64; 3]>,
     /// Certified ISS margin 1 − (sg1 + sg2 + sg3) (> 0 iff ρ(Γ) < 1).
     pub margin: Option<f64>,
-    /// `"yes"`, `"no"` or `"void"`.
+    /// `"yes"`, `"no"`, `"void"` or `"not_computed"`.
     pub certified: &'static str,
     /// Smallest certified K of this solver.
     pub k_min: Option<usize>,

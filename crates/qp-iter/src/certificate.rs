@@ -46,7 +46,8 @@ pub enum CertNorm {
 /// ```
 #[derive(Debug, Clone, PartialEq)]
 #[cfg_attr(feature = "serde", derive(Serialize))]
-#[non_exhaustive]
+// Not #[non_exhaustive]: a user's own method (the `Method` trait) builds its certificate with a
+// struct literal, as the example above does.
 pub struct Certificate {
     /// Linear rate r ∈ [0, 1).
     pub rate: f64,

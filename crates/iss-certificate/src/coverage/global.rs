@@ -139,7 +139,7 @@ impl std::fmt::Display for ChainWhy {
             Some(c) => c.fmt(f)?,
             None => write!(
                 f,
-                "not checked at K = {} (it is checked at mhe.iterations and scanned from                  K = 1 to its first certified K; set mhe.iterations = {} to check this K)",
+                "not checked at K = {} (it is checked at mhe.iterations and scanned from K = 1 to its first certified K; set mhe.iterations = {} to check this K)",
                 self.k, self.k
             )?,
         }

@@ -324,18 +324,39 @@ fn verdict_gains_and_w_bar_of_a_small_model() {
     .expect("certifies");
     let k = cert.k_min(Method::PG).expect("certified");
     assert_eq!(cert.verdict(Method::PG, k).certified.as_str(), "yes");
-    // The verdict's floor is the smaller of Theorem 1's K_min and the global K_glob.
-    let floor = cert.k_glob(Method::PG).map_or(k, |g| g.min(k));
-    assert_eq!(cert.verdict(Method::PG, floor).certified.as_str(), "yes");
-    assert_eq!(cert.verdict(Method::PG, floor).k_min, Some(floor));
-    assert!(floor > 1, "the small model needs more than one iteration");
-    assert_eq!(cert.verdict(Method::PG, floor - 1).certified.as_str(), "no");
+    // Every K from the smaller threshold (Theorem 1's K_min, the global K_glob) on is
+    // certified; below it only a K the iteration chain checked and certified (K_chain, pg in
+    // f64); the verdict's floor is the smallest of the three.
+    let threshold = cert.k_glob(Method::PG).map_or(k, |g| g.min(k));
+    let k_chain = cert.k_chain(Method::PG);
+    let floor = k_chain.map_or(threshold, |c| c.min(threshold));
+    assert_eq!(
+        cert.verdict(Method::PG, threshold).certified.as_str(),
+        "yes"
+    );
+    assert_eq!(cert.verdict(Method::PG, threshold).k_min, Some(floor));
+    assert!(
+        threshold > 1,
+        "the small model needs more than one iteration"
+    );
+    if let Some(c) = k_chain {
+        assert_eq!(cert.verdict(Method::PG, c).certified.as_str(), "yes");
+    }
+    // Below the threshold: "no", or "not_computed" where the chain certified a smaller K and
+    // did not check this one (it never extrapolates).
+    let below = cert.verdict(Method::PG, threshold - 1);
+    let allowed: &[&str] = match k_chain {
+        Some(c) if c == threshold - 1 => &["yes"],
+        Some(c) if c < threshold - 1 => &["not_computed", "no"],
+        _ => &["no"],
+    };
+    assert!(allowed.contains(&below.certified.as_str()), "{below:?}");
     // `verdicts` is K_min and `verdict` per method, and `Certified` prints as `as_str`.
-    let all: Vec<_> = cert.verdicts(floor - 1).collect();
+    let all: Vec<_> = cert.verdicts(threshold - 1).collect();
     assert_eq!(all.len(), 1);
     assert_eq!((all[0].0, all[0].1), (Method::PG, Some(k)));
-    assert_eq!(all[0].2, cert.verdict(Method::PG, floor - 1));
-    assert_eq!(all[0].2.certified.to_string(), "no");
+    assert_eq!(all[0].2, below);
+    assert_eq!(all[0].2.certified.to_string(), below.certified.as_str());
     let g = cert.gains(Method::PG, k).expect("gains at K_min");
     assert!(g.gain_e.is_finite() && g.gain_e > 0.0 && g.gain_x.is_finite());
     assert!(cert.gains(Method::PG, k - 1).is_err());

@@ -107,7 +107,7 @@ impl PointFileRules<'_> {
         // phi, sg1, sg2, sg3 (≥ 0), margin_cert (1 − ρ(Γ), any sign)
         cells.extend((0..4).map(|_| Cell::NonNegativeOrEmpty));
         cells.push(Cell::NumberOrEmpty);
-        cells.push(Cell::OneOf(&["yes", "no", "void"]));
+        cells.push(Cell::OneOf(&["yes", "no", "void", "not_computed"]));
         cells.push(Cell::IntegerOrEmpty);
         cells.push(Cell::Text);
         // rho_lin (a spectral radius, ≥ 0), k_lin, linear_note

@@ -94,7 +94,10 @@ fn long_export_from_values_refuses_below_k_min_and_writes_the_opt_in() {
         e.to_string().contains("below the certified K_min = "),
         "{e}"
     );
-    assert_eq!(stages, ["computing the certificate of Theorem 1 for fista …"]);
+    assert_eq!(
+        stages,
+        ["computing the certificate of Theorem 1 for fista …"]
+    );
     o.allow_uncertified = true;
     let art = export(&resolved, &o).unwrap();
     let k_min = art.k_min().unwrap();

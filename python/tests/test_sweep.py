@@ -34,8 +34,10 @@ def test_bad_config_names_the_key(root, tmp_path):
 
 
 def test_ctrl_c_stops_a_sweep_quickly(root, tmp_path):
-    # A sweep of ≈ 1 min on one core, interrupted after 1 s: KeyboardInterrupt within ~2 s.
-    cfg = small(root, seeds=40, steps=400, k="[50, 100, 200, 400, 800]")
+    # A sweep of minutes on one core (large enough that it cannot finish before the timer
+    # on a fast, idle machine: 40 seeds once did), interrupted after 1 s: KeyboardInterrupt
+    # within ~2 s.
+    cfg = small(root, seeds=400, steps=400, k="[50, 100, 200, 400, 800, 1600]")
     timer = threading.Timer(1.0, _thread.interrupt_main)
     t0 = time.monotonic()
     timer.start()

@@ -18,6 +18,7 @@ use iss_certificate::lure::loop_level::{
 use rand::{Rng, SeedableRng};
 use rand_chacha::ChaCha8Rng;
 
+mod f32_seeds;
 mod sound;
 
 #[derive(Debug, Clone, Copy)]

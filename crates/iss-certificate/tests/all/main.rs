@@ -9,6 +9,8 @@ mod chain;
 mod comparison;
 mod constrained;
 mod coverage;
+#[path = "../f32_seeds/data.rs"]
+mod f32_data;
 mod findings;
 mod gamma13;
 mod global_outcome;

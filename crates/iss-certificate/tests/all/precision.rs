@@ -40,45 +40,7 @@ fn certificate(resolved: &ResolvedScenario) -> &'static ClosedLoopCertificate {
     })
 }
 
-/// One window's data for `mhe_embedded` (PG on the problem as given), as the exporter
-/// copies it: H by columns, F by rows, α = 2/(L + μ) of the std map.
-pub(crate) struct Owned {
-    n: usize,
-    nt: usize,
-    h: Vec<f64>,
-    q0: Vec<f64>,
-    f: Vec<f64>,
-    lo: Vec<f64>,
-    hi: Vec<f64>,
-    step: f64,
-}
-
-pub(crate) fn owned(resolved: &ResolvedScenario) -> Vec<Owned> {
-    let problem = resolved.mhe_problem().expect("MHE builds");
-    problem
-        .windows()
-        .iter()
-        .map(|w| {
-            let qp = w.qp();
-            let (n, nt) = (qp.n(), qp.n_theta());
-            let (h, f) = (qp.h(), qp.f());
-            Owned {
-                n,
-                nt,
-                h: (0..n * n).map(|k| h[(k % n, k / n)]).collect(),
-                q0: qp.q0().to_vec(),
-                f: (0..n * nt).map(|k| f[(k / nt, k % nt)]).collect(),
-                lo: qp.zset().lower().to_vec(),
-                hi: qp.zset().upper().to_vec(),
-                step: 2.0 / (qp.l() + qp.mu()),
-            }
-        })
-        .collect()
-}
-
-pub(crate) fn to32(v: &[f64]) -> Vec<f32> {
-    v.iter().map(|x| *x as f32).collect()
-}
+pub(crate) use crate::f32_data::{owned, singles, to32, windows32, windows64};
 
 fn norm(parts: &[&[f64]]) -> f64 {
     parts
@@ -87,71 +49,6 @@ fn norm(parts: &[&[f64]]) -> f64 {
         .map(|v| v * v)
         .sum::<f64>()
         .sqrt()
-}
-
-/// The f64 windows as `mhe_embedded` reads them (PG, no scaling).
-fn windows64(ws: &[Owned]) -> Vec<mhe_embedded::Window<'_, f64>> {
-    ws.iter()
-        .map(|w| mhe_embedded::Window {
-            n: w.n,
-            n_theta: w.nt,
-            h: &w.h,
-            m_rho: &[],
-            m_inv: &[],
-            q0: &w.q0,
-            f: &w.f,
-            lower: &w.lo,
-            upper: &w.hi,
-            scaling: &[],
-            step: w.step,
-            momentum: 0.0,
-            inv_rho: 0.0,
-            relaxation: 0.0,
-            structured: None,
-        })
-        .collect()
-}
-
-/// The f32 copies of each window's (H, q₀, F, lower, upper).
-pub(crate) fn singles(ws: &[Owned]) -> Vec<[Vec<f32>; 5]> {
-    ws.iter()
-        .map(|w| {
-            [
-                to32(&w.h),
-                to32(&w.q0),
-                to32(&w.f),
-                to32(&w.lo),
-                to32(&w.hi),
-            ]
-        })
-        .collect()
-}
-
-/// The f32 windows over `singles(ws)`, the step rounded to f32.
-pub(crate) fn windows32<'a>(
-    ws: &[Owned],
-    s32: &'a [[Vec<f32>; 5]],
-) -> Vec<mhe_embedded::Window<'a, f32>> {
-    ws.iter()
-        .zip(s32)
-        .map(|(w, s)| mhe_embedded::Window {
-            n: w.n,
-            n_theta: w.nt,
-            h: &s[0],
-            m_rho: &[],
-            m_inv: &[],
-            q0: &s[1],
-            f: &s[2],
-            lower: &s[3],
-            upper: &s[4],
-            scaling: &[],
-            step: w.step as f32,
-            momentum: 0.0,
-            inv_rho: 0.0,
-            relaxation: 0.0,
-            structured: None,
-        })
-        .collect()
 }
 
 /// One run of the std loop: its (u_t, y_t).

@@ -1,0 +1,136 @@
+//! A scenario's MHE data as `mhe_embedded` reads them (PG on the problem as given, the
+//! exporter's layout) in f64 and rounded once to f32, and the estimator's warm start read
+//! back. Shared by tests/all (`precision`, `global_precision`) and tests/loop_level
+//! (`f32_seeds`).
+#![allow(dead_code)] // each test binary uses a part
+
+use closed_loop::scenario::ResolvedScenario;
+
+/// One window's data for `mhe_embedded` (PG on the problem as given), as the exporter
+/// copies it: H by columns, F by rows, α = 2/(L + μ) of the std map.
+pub(crate) struct Owned {
+    pub(crate) n: usize,
+    pub(crate) nt: usize,
+    h: Vec<f64>,
+    q0: Vec<f64>,
+    f: Vec<f64>,
+    lo: Vec<f64>,
+    hi: Vec<f64>,
+    step: f64,
+}
+
+pub(crate) fn owned(resolved: &ResolvedScenario) -> Vec<Owned> {
+    let problem = resolved.mhe_problem().expect("MHE builds");
+    problem
+        .windows()
+        .iter()
+        .map(|w| {
+            let qp = w.qp();
+            let (n, nt) = (qp.n(), qp.n_theta());
+            let (h, f) = (qp.h(), qp.f());
+            Owned {
+                n,
+                nt,
+                h: (0..n * n).map(|k| h[(k % n, k / n)]).collect(),
+                q0: qp.q0().to_vec(),
+                f: (0..n * nt).map(|k| f[(k / nt, k % nt)]).collect(),
+                lo: qp.zset().lower().to_vec(),
+                hi: qp.zset().upper().to_vec(),
+                step: 2.0 / (qp.l() + qp.mu()),
+            }
+        })
+        .collect()
+}
+
+pub(crate) fn to32(v: &[f64]) -> Vec<f32> {
+    v.iter().map(|x| *x as f32).collect()
+}
+
+/// The f64 windows as `mhe_embedded` reads them (PG, no scaling).
+pub(crate) fn windows64(ws: &[Owned]) -> Vec<mhe_embedded::Window<'_, f64>> {
+    ws.iter()
+        .map(|w| mhe_embedded::Window {
+            n: w.n,
+            n_theta: w.nt,
+            h: &w.h,
+            m_rho: &[],
+            m_inv: &[],
+            q0: &w.q0,
+            f: &w.f,
+            lower: &w.lo,
+            upper: &w.hi,
+            scaling: &[],
+            step: w.step,
+            momentum: 0.0,
+            inv_rho: 0.0,
+            relaxation: 0.0,
+            structured: None,
+        })
+        .collect()
+}
+
+/// The f32 copies of each window's (H, q₀, F, lower, upper).
+pub(crate) fn singles(ws: &[Owned]) -> Vec<[Vec<f32>; 5]> {
+    ws.iter()
+        .map(|w| {
+            [
+                to32(&w.h),
+                to32(&w.q0),
+                to32(&w.f),
+                to32(&w.lo),
+                to32(&w.hi),
+            ]
+        })
+        .collect()
+}
+
+/// The f32 windows over `singles(ws)`, the step rounded to f32.
+pub(crate) fn windows32<'a>(
+    ws: &[Owned],
+    s32: &'a [[Vec<f32>; 5]],
+) -> Vec<mhe_embedded::Window<'a, f32>> {
+    ws.iter()
+        .zip(s32)
+        .map(|(w, s)| mhe_embedded::Window {
+            n: w.n,
+            n_theta: w.nt,
+            h: &s[0],
+            m_rho: &[],
+            m_inv: &[],
+            q0: &s[1],
+            f: &s[2],
+            lower: &s[3],
+            upper: &s[4],
+            scaling: &[],
+            step: w.step as f32,
+            momentum: 0.0,
+            inv_rho: 0.0,
+            relaxation: 0.0,
+            structured: None,
+        })
+        .collect()
+}
+
+/// A slice field (`z0`, `zk`: the warm start and the iterate are not exposed) of an f32
+/// estimator's Debug text. f32's Debug is the shortest round-trip form, so the parse as
+/// f32 is exact.
+pub(crate) fn debug_field(debug: &str, name: &str) -> Vec<f64> {
+    let start = debug.find(&format!("{name}: [")).expect("field present") + name.len() + 3;
+    let end = start + debug[start..].find(']').expect("closed");
+    debug[start..end]
+        .split(',')
+        .map(|v| f64::from(v.trim().parse::<f32>().expect("an f32")))
+        .collect()
+}
+
+/// y = M x (row-major through faer).
+pub(crate) fn apply(m: faer::MatRef<'_, f64>, x: &[f64]) -> Vec<f64> {
+    (0..m.nrows())
+        .map(|i| (0..m.ncols()).map(|j| m[(i, j)] * x[j]).sum())
+        .collect()
+}
+
+/// ‖v‖₂.
+pub(crate) fn norm(v: &[f64]) -> f64 {
+    v.iter().map(|x| x * x).sum::<f64>().sqrt()
+}

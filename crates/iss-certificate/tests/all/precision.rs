@@ -251,3 +251,52 @@ fn theorem_1_with_rounding_folded_in() {
         "{fista:?}"
     );
 }
+
+/// Theorem 1's f32 refusal reached from a scenario: the Rao–Rawlings–Lee plant (certified in
+/// f32 as shipped) with mhe.r = 10⁴, an ill-conditioned window. Theorem 1 still certifies a
+/// K in f64, and f32 is void because the rounding breaks PG's contraction (r + a ≥ 1), with
+/// the reason naming the window; f64's own rounding does not break it.
+#[test]
+fn an_ill_conditioned_window_refuses_theorem_1_in_f32() {
+    let path = std::path::Path::new(env!("CARGO_MANIFEST_DIR"))
+        .join("../../scenarios/rao-rawlings-lee.toml");
+    let text = std::fs::read_to_string(path).expect("reads");
+    assert!(text.contains("r = 1.0\niterations"));
+    let text = text.replace("r = 1.0\niterations", "r = 1e4\niterations");
+    let resolved = Scenario::from_toml_str(&text)
+        .expect("parses")
+        .resolve()
+        .expect("resolves");
+    let mut opts =
+        iss_certificate::coverage::verdict_options(resolved.scenario(), vec![Method::PG], None);
+    opts.global_seconds = None;
+    let cert = certify_closed_loop(&resolved, &opts).expect("certificate computes");
+    let k_max = CertificateOptions::default().k_max;
+    let f32c = certify_scalar(&resolved, &cert, Method::PG, Scalar::F32, k_max).expect("runs");
+    println!("{f32c:?}");
+    assert!(f32c.k_min_f64.is_some(), "Theorem 1 certifies a K in f64");
+    assert_eq!(f32c.k_min, None);
+    let why = f32c
+        .reason
+        .as_ref()
+        .map(ToString::to_string)
+        .unwrap_or_default();
+    assert!(
+        matches!(
+            f32c.reason,
+            Some(ScalarVoid::ContractionBroken { window: 10, .. })
+        ),
+        "{why}"
+    );
+    assert!(
+        why.contains("breaks the contraction in window m = 10"),
+        "{why}"
+    );
+    let f64c =
+        certify_rounded(&resolved, &cert, Method::PG, F64_UNIT_ROUNDOFF, k_max).expect("runs");
+    assert!(
+        !matches!(f64c.reason, Some(ScalarVoid::ContractionBroken { .. })),
+        "{:?}",
+        f64c.reason
+    );
+}

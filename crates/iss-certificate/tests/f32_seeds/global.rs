@@ -14,6 +14,9 @@ use qp_iter::rounding::F32_UNIT_ROUNDOFF;
 use rand::{Rng, SeedableRng};
 use rand_chacha::ChaCha8Rng;
 
+/// Seeds 0..NOISY_SEEDS draw w; the rest of the 200 run with w = 0.
+const NOISY_SEEDS: u64 = 100;
+
 /// One f32 run of a scenario's loop: the plant in f64, `mhe_embedded` in f32 (PG, K, the
 /// paper's warm start: the exported code's arithmetic; `MheRt` equals the const-size
 /// estimator bit for bit), the scenario's exact controller in f64 at the computed x̂, w
@@ -57,11 +60,15 @@ impl F32Run<'_> {
     }
 
     /// One seeded run of `steps` steps (x₀ and the prior up to 100 × a random magnitude,
-    /// noise 0.5–3 × 𝒲): ‖X_t‖²_P per t ≥ M and ‖w_t‖² per t ≥ M.
+    /// noise 0.5–3 × 𝒲 below [`NOISY_SEEDS`], none from there): ‖X_t‖²_P per t ≥ M and
+    /// ‖w_t‖² per t ≥ M.
     fn storage(&self, c: &GlobalCertificate, seed: u64, steps: usize) -> (Vec<f64>, Vec<f64>) {
         let mut rng = ChaCha8Rng::seed_from_u64(seed);
         let mag = 10f64.powf(rng.random_range(-2.0..2.0));
         let scale = rng.random_range(0.5..3.0);
+        // Seeds ≥ 100 run noise-free: the supply is then γ²o² alone (the rounding's offset),
+        // so the one-step inequality is tested where w does not cover it.
+        let scale = if seed < NOISY_SEEDS { scale } else { 0.0 };
         let sys = self.resolved.mhe_problem().expect("mhe").system().clone();
         let (nx, nu, nw1) = (sys.nx(), sys.nu(), sys.nw1());
         let wset = self.resolved.scenario().sets.disturbance.clone();
@@ -127,7 +134,7 @@ impl F32Run<'_> {
 /// PG on `file`: the f32 certificate (Theorem L3u: the exact φ*, then φ*_u by the search
 /// `coverage::verdict` runs, `GlobalSettings::default()`), then 200 f32 closed-loop runs ×
 /// `steps` steps at its K_glob(f32) (`mhe_embedded` in f32, random x₀ and prior up to 100,
-/// noise 0.5–3 × 𝒲) satisfy the certified one-step inequality with the rounding offset and
+/// noise 0.5–3 × 𝒲 on 100 of them, none on the other 100) satisfy the certified one-step inequality with the rounding offset and
 /// the ISS bound. The check can fail: with γ = 0 some run violates it, and where the loop is
 /// unstable at K = 1 (`refute_k1`) so does K = 1. Returns K_glob(f32).
 pub(super) fn f32_runs_respect_the_global_certificate(
@@ -184,15 +191,23 @@ pub(super) fn f32_runs_respect_the_global_certificate(
         resolved: r.clone(),
         layout,
     };
-    let mut worst = 0.0_f64;
+    // [with noise, noise-free]
+    let mut worst = [0.0_f64; 2];
     for seed in 0..200 {
         let out = run.run(c, p32.offset(), seed, steps);
         assert!(out.within, "seed {seed}: ‖X‖²_P left the ISS bound");
-        assert!(out.worst <= 1.0, "seed {seed}: one-step ratio {}", out.worst);
-        worst = worst.max(out.worst);
+        assert!(
+            out.worst <= 1.0,
+            "seed {seed}: one-step ratio {}",
+            out.worst
+        );
+        let w = &mut worst[usize::from(seed >= NOISY_SEEDS)];
+        *w = w.max(out.worst);
     }
     eprintln!(
-        "{file}: 200 f32 runs × {steps} steps at K = {k32}: worst one-step ratio {worst:.4}"
+        "{file}: 200 f32 runs × {steps} steps at K = {k32}: worst one-step ratio {:.4} with \
+         noise, {:.4} noise-free",
+        worst[0], worst[1]
     );
     // The check has teeth: without the noise's supply (γ = 0) a run violates it …
     let mut no_gamma = c.clone();

@@ -19,7 +19,9 @@ use iss_certificate::analysis::{GainsAtK, IssAnalysis};
 use iss_certificate::certificate::precision::{
     DeviationBound, Scalar, WindowRounding, certify_scalar, window_roundings,
 };
-use iss_certificate::certificate::{CertificateOptions, ClosedLoopCertificate, certify_closed_loop};
+use iss_certificate::certificate::{
+    CertificateOptions, ClosedLoopCertificate, certify_closed_loop,
+};
 use iss_certificate::coverage::verdict_options;
 use qp_iter::Method;
 use qp_iter::active_set::{ActiveSetSettings, ActiveSetSolver};
@@ -55,7 +57,9 @@ impl Claim {
         let cert = certify_closed_loop(&resolved, &opts).expect("certificate computes");
         let k_max = CertificateOptions::default().k_max;
         let sc = certify_scalar(&resolved, &cert, Method::PG, Scalar::F32, k_max).expect("runs");
-        let k = sc.k_min.unwrap_or_else(|| panic!("{file}: f32 void: {:?}", sc.reason));
+        let k = sc
+            .k_min
+            .unwrap_or_else(|| panic!("{file}: f32 void: {:?}", sc.reason));
         let k64 = sc.k_min_f64.expect("certified in f64");
         assert!(k >= k64, "K_min(f32) = {k} < K_min(f64) = {k64}");
         let windows = window_roundings(&resolved, &cert, Method::PG, F32_UNIT_ROUNDOFF)
@@ -223,15 +227,26 @@ impl Claim {
         for t in 0..steps {
             let m = t.min(mm);
             let n = problem.windows()[m].qp().n();
-            let pick = |xs: &[Vec<f64>]| if t <= mm { prior.clone() } else { xs[t - mm].clone() };
-            let (th32, th64) = (theta(&trace, t, m, &pick(&x32s)), theta(&trace, t, m, &pick(&x64s)));
+            let pick = |xs: &[Vec<f64>]| {
+                if t <= mm {
+                    prior.clone()
+                } else {
+                    xs[t - mm].clone()
+                }
+            };
+            let (th32, th64) = (
+                theta(&trace, t, m, &pick(&x32s)),
+                theta(&trace, t, m, &pick(&x64s)),
+            );
             let z0 = super::data::debug_field(&format!("{m32:?}"), "z0");
             let xh32: Vec<f64> = m32.estimate().iter().map(|v| f64::from(*v)).collect();
             let zk = super::data::debug_field(&format!("{m32:?}"), "zk");
             let xh64 = m64.estimate().to_vec();
             exact[m].solve(&th32).expect("the exact MHE solves");
             let zs = exact[m].z();
-            let diff = |p: &[f64], q: &[f64]| norm(&p.iter().zip(q).map(|(a, b)| a - b).collect::<Vec<_>>());
+            let diff = |p: &[f64], q: &[f64]| {
+                norm(&p.iter().zip(q).map(|(a, b)| a - b).collect::<Vec<_>>())
+            };
             let wr = &self.windows[m];
             let us: Vec<f64> = th32[nx..nx + m * sys.nu()].to_vec();
             let eps_exact_part = self.phi_u * diff(&z0[..n], zs);
@@ -321,8 +336,15 @@ pub(super) fn f32_runs_respect_theorem_1(file: &str, steps: usize) -> usize {
     for seed in 0..200 {
         let recs = claim.run(seed, steps);
         for (t, s) in recs.iter().enumerate() {
-            let ratios = [s.eps / s.eps_bound, s.r / s.r_bound.max(f64::MIN_POSITIVE), s.dev / s.dev_bound];
-            assert!(ratios.iter().all(|r| *r <= 1.0), "seed {seed}, t = {t}: {s:?}");
+            let ratios = [
+                s.eps / s.eps_bound,
+                s.r / s.r_bound.max(f64::MIN_POSITIVE),
+                s.dev / s.dev_bound,
+            ];
+            assert!(
+                ratios.iter().all(|r| *r <= 1.0),
+                "seed {seed}, t = {t}: {s:?}"
+            );
             for (w, r) in worst.iter_mut().zip(ratios) {
                 *w = w.max(r);
             }
@@ -331,7 +353,10 @@ pub(super) fn f32_runs_respect_theorem_1(file: &str, steps: usize) -> usize {
         }
         left_set += usize::from(recs.iter().any(|s| !s.w_in_set));
         let [p1, p3] = props(&claim, &recs);
-        assert!(p1 <= 1.0 && p3 <= 1.0, "seed {seed}: Prop. 1 ratio {p1}, Prop. 3 ratio {p3}");
+        assert!(
+            p1 <= 1.0 && p3 <= 1.0,
+            "seed {seed}: Prop. 1 ratio {p1}, Prop. 3 ratio {p3}"
+        );
         worst[3] = worst[3].max(p1);
         worst[4] = worst[4].max(p3);
     }

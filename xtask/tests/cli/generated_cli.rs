@@ -13,7 +13,6 @@ use crate::generate::{ScenarioCase, SweepCase, names_user_key, scenario_case, sw
 use proptest::strategy::{Strategy, ValueTree};
 use proptest::test_runner::TestRunner;
 
-const XTASK: &str = env!("CARGO_BIN_EXE_xtask");
 
 /// Longest a single invocation may take before it counts as a hang.
 const TIME_LIMIT: Duration = Duration::from_secs(60);
@@ -40,7 +39,7 @@ fn run_checked_with(args: &[&str], file: &Path, input: &[u8], stream: usize) {
         2 => Stdio::piped(),
         _ => Stdio::null(),
     };
-    let mut child = Command::new(XTASK)
+    let mut child = Command::new(crate::shared::xtask_bin())
         .args(args)
         .stdout(stdout)
         .stderr(Stdio::piped())

@@ -147,7 +147,7 @@ fn check(files: &[(&str, PathBuf)]) {
 
 fn xtask(args: &[&str], out: &Path) {
     let root = PathBuf::from(env!("CARGO_MANIFEST_DIR")).join("..");
-    let status = Command::new(env!("CARGO_BIN_EXE_xtask"))
+    let status = Command::new(crate::shared::xtask_bin())
         // The golden files hold the portable kernel's bits (the AVX2 path rounds differently).
         .env("QP_ITER_KERNEL", "portable")
         .current_dir(&root)
@@ -255,7 +255,7 @@ fn certify_json_keys_match_the_schema() {
     ] {
         let json = out.join(format!("{s}.json"));
         let root = PathBuf::from(env!("CARGO_MANIFEST_DIR")).join("..");
-        let status = Command::new(env!("CARGO_BIN_EXE_xtask"))
+        let status = Command::new(crate::shared::xtask_bin())
             .current_dir(&root)
             .args([
                 "certify",

@@ -9,7 +9,6 @@ use std::path::{Path, PathBuf};
 use std::process::{Command, Output, Stdio};
 use std::time::{Duration, Instant};
 
-const XTASK: &str = env!("CARGO_BIN_EXE_xtask");
 const ROOT: &str = concat!(env!("CARGO_MANIFEST_DIR"), "/..");
 const FAULT_ENV: &str = "SUBOPTIMAL_MHE_FAULT_WRITE_BYTES";
 
@@ -42,7 +41,7 @@ fn tiny_config(dir: &Path) -> PathBuf {
 }
 
 fn run(args: &[&str], env: Option<(&str, &str)>) -> Output {
-    let mut c = Command::new(XTASK);
+    let mut c = Command::new(crate::shared::xtask_bin());
     c.args(args);
     if let Some((k, v)) = env {
         c.env(k, v);
@@ -83,7 +82,7 @@ fn a_full_or_closed_stdout_is_exit_4_with_the_files_written() {
         .write(true)
         .open("/dev/full")
         .unwrap();
-    let o = Command::new(XTASK)
+    let o = Command::new(crate::shared::xtask_bin())
         .args(["certify", "--scenario", &case_study(), "--json"])
         .arg(&json)
         .stdout(Stdio::from(full))
@@ -99,7 +98,7 @@ fn a_full_or_closed_stdout_is_exit_4_with_the_files_written() {
     assert!(v.get("passed").is_some());
     // A pipe whose reader is gone: the sweep still writes meta.json and its plots.
     let out = dir.join("sweep");
-    let mut child = Command::new(XTASK)
+    let mut child = Command::new(crate::shared::xtask_bin())
         .args(["sweep", "--config"])
         .arg(tiny_config(&dir))
         .arg("--out")
@@ -138,7 +137,7 @@ fn special_input_paths_are_refused_without_blocking() {
             vec!["certify", "--scenario", &case_study(), "--p-file"],
         ] {
             let started = Instant::now();
-            let o = Command::new(XTASK)
+            let o = Command::new(crate::shared::xtask_bin())
                 .args(&args)
                 .arg(p)
                 .stdin(Stdio::null())
@@ -391,13 +390,13 @@ fn help_or_a_run_into_a_full_or_closed_stdout_is_exit_5() {
         &["certify", "--help"][..],
         &["--version"][..],
     ] {
-        let o = Command::new(XTASK)
+        let o = Command::new(crate::shared::xtask_bin())
             .args(args)
             .stdout(Stdio::from(full()))
             .output()
             .unwrap();
         assert_eq!(o.status.code(), Some(5), "{args:?}: {}", stderr(&o));
-        let o = Command::new(XTASK).args(args).output().unwrap();
+        let o = Command::new(crate::shared::xtask_bin()).args(args).output().unwrap();
         assert_eq!(o.status.code(), Some(0), "{args:?}: {}", stderr(&o));
         assert!(!o.stdout.is_empty());
     }
@@ -409,14 +408,14 @@ fn help_or_a_run_into_a_full_or_closed_stdout_is_exit_5() {
         let o = Command::new("sh")
             .arg("-c")
             .arg(&cmd)
-            .arg(XTASK)
+            .arg(crate::shared::xtask_bin())
             .output()
             .unwrap();
         assert_eq!(o.status.code(), Some(5), "{cmd}: {}", stderr(&o));
         assert!(stderr(&o).contains("stdout was closed"), "{}", stderr(&o));
     }
     // A usage error keeps its own code (2) whatever stdout is.
-    let o = Command::new(XTASK)
+    let o = Command::new(crate::shared::xtask_bin())
         .arg("--no-such-flag")
         .stdout(Stdio::from(full()))
         .output()

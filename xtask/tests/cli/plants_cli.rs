@@ -29,7 +29,7 @@ fn nothing_simulated_is_reported_as_such() {
     let dir = crate::test_dir::test_dir("plants", "undetectable");
     let scenario = dir.join("undetectable.toml");
     std::fs::write(&scenario, UNDETECTABLE).unwrap();
-    let out = Command::new(env!("CARGO_BIN_EXE_xtask"))
+    let out = Command::new(crate::shared::xtask_bin())
         // -v: the work lines (what was written) are printed only then.
         .args(["reproduce", "-v", "--scenario"])
         .arg(&scenario)

@@ -6,7 +6,7 @@ use std::path::PathBuf;
 use std::process::Command;
 
 fn xtask() -> Command {
-    Command::new(env!("CARGO_BIN_EXE_xtask"))
+    Command::new(crate::shared::xtask_bin())
 }
 
 fn temp(name: &str) -> PathBuf {

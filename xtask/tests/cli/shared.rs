@@ -8,6 +8,22 @@ use std::path::{Path, PathBuf};
 use std::process::Command;
 use std::sync::OnceLock;
 
+/// The `xtask` binary these tests run: the test profile's own build, or `XTASK_BIN` when set.
+/// `.ci/run`'s long step sets it to the release build of the same checkout (built just
+/// before), where the spawned runs' numerics take a fraction of the opt-level-1 time; the
+/// outputs are the same (no fast-math: the bits do not depend on the optimisation level).
+/// A path that is not a file panics here, before any test reads a stale or missing binary.
+pub fn xtask_bin() -> PathBuf {
+    match std::env::var_os("XTASK_BIN") {
+        Some(p) => {
+            let p = PathBuf::from(p);
+            assert!(p.is_file(), "XTASK_BIN={} is not a file", p.display());
+            p
+        }
+        None => PathBuf::from(env!("CARGO_BIN_EXE_xtask")),
+    }
+}
+
 /// One run of `xtask sweep --config sweeps/smoke-2d.toml --threads 2`, the 2-D smoke sweep
 /// over (K_e, K_c): `golden::smoke_2d_sweep_outputs_match_the_golden_files` compares its
 /// tables with the golden files, `sweep_cli::two_d_sweep_writes_heat_maps_and_pair_thresholds`
@@ -32,7 +48,7 @@ pub const SMOKE_2D: &str = concat!(env!("CARGO_MANIFEST_DIR"), "/../sweeps/smoke
 /// portable kernel: the golden files hold its bits (the AVX2 path rounds differently), and a
 /// resume compares the point files with the same kernel's theory.
 pub fn smoke_2d_command(out: &Path) -> Command {
-    let mut c = Command::new(env!("CARGO_BIN_EXE_xtask"));
+    let mut c = Command::new(xtask_bin());
     c.env("QP_ITER_KERNEL", "portable")
         .current_dir(concat!(env!("CARGO_MANIFEST_DIR"), "/.."))
         .args(["sweep", "--config", SMOKE_2D, "--threads", "2", "--out"])
@@ -88,7 +104,7 @@ pub fn reproduce_run() -> &'static Reproduce {
     RUN.get_or_init(|| {
         let out = Path::new(env!("CARGO_TARGET_TMPDIR")).join("xtask-shared/reproduce");
         let _ = fs::remove_dir_all(&out);
-        let o = Command::new(env!("CARGO_BIN_EXE_xtask"))
+        let o = Command::new(xtask_bin())
             // The golden files hold the portable kernel's bits (the AVX2 path rounds
             // differently), and the exported C replays them bit for bit.
             .env("QP_ITER_KERNEL", "portable")

@@ -10,7 +10,6 @@ use std::time::{Duration, Instant};
 
 use xtask::sweep_engine::{Sweep, SweepConfig, Table};
 
-const XTASK: &str = env!("CARGO_BIN_EXE_xtask");
 const SCENARIO: &str = concat!(
     env!("CARGO_MANIFEST_DIR"),
     "/../scenarios/case-study-certified.toml"
@@ -36,7 +35,7 @@ const SMALL: &str = "name = \"kill\"\nk = [1, 3, 10, 30, 100, 300]\nsolvers = [\
                      seeds = 10\nsteps = 40\nbase_seed = 5\ncertificate = false\n";
 
 fn xtask(args: &[&str]) -> Output {
-    Command::new(XTASK).args(args).output().unwrap()
+    Command::new(crate::shared::xtask_bin()).args(args).output().unwrap()
 }
 
 fn text(p: &Path) -> String {
@@ -69,7 +68,7 @@ fn killed_sweep_resumes_to_the_uninterrupted_result() {
     let d = scratch("kill");
     let cfg = config(&d, "sweep.toml", SMALL);
     let killed = d.join("killed");
-    let mut child = Command::new(XTASK)
+    let mut child = Command::new(crate::shared::xtask_bin())
         .args(["sweep", "--config"])
         .arg(&cfg)
         .arg("--out")
@@ -258,7 +257,7 @@ fn killed_while_writing_the_outputs_leaves_one_complete_set() {
             }
         }
         let early = trial % 2 == 0;
-        let mut child = Command::new(XTASK)
+        let mut child = Command::new(crate::shared::xtask_bin())
             .args(args)
             .stdout(Stdio::null())
             .stderr(Stdio::null())
@@ -435,7 +434,7 @@ fn a_second_writer_is_refused_and_a_stale_lock_taken_over() {
     let cfg = cfg.to_str().unwrap();
     let out = d.join("out");
     let lock = out.join(".lock");
-    let mut first = Command::new(XTASK)
+    let mut first = Command::new(crate::shared::xtask_bin())
         .args([
             "sweep",
             "--config",

@@ -151,7 +151,7 @@ fn reproduce_prints_at_most_four_significant_digits() {
 /// Runs `xtask` with `args` and returns stdout and stderr whatever the exit code, after
 /// checking it is one of `codes` (a refusal is a terminal message too).
 fn run_with(args: &[&str], codes: &[i32]) -> String {
-    let out = Command::new(env!("CARGO_BIN_EXE_xtask"))
+    let out = Command::new(crate::shared::xtask_bin())
         .current_dir(root())
         .args(args)
         .output()

@@ -629,10 +629,14 @@ fn precision_outcome(
         ..settings.search
     };
     match certify_precision(resolved, options, g, Some(exact), u, &first) {
-        // Certified at φ*_u = φ*, or refused before the bisection (no rounding model, broken
-        // contraction, infeasible at φ_u = 0 for every split: the full search runs the same
-        // calls): final.
-        Ok(p) if p.k_glob.is_some() || p.phi_star.is_none() => return Some(precision_of(&p)),
+        // Certified at φ*_u = φ* (or K beyond k_max there), or refused before the bisection
+        // (no rounding model, broken contraction, infeasible at φ_u = 0 for every split): the
+        // full search runs the same calls first, so this is final. A certificate at a smaller
+        // φ*_u is not: with the bisection skipped it is φ*_u = 0, whose K is where φ_u(K)
+        // underflows (240 637 on the double integrator, where the full search gives 664).
+        Ok(p) if p.phi_star.is_none() || p.phi_star == Some(exact.phi) => {
+            return Some(precision_of(&p));
+        }
         Ok(_) => {}
         Err(e) => {
             return Some(PrecisionOutcome::Unsupported {

@@ -63,14 +63,17 @@ fn chain_refuses_where_rho_lin_is_at_least_one() {
     }
 }
 
-/// Methods outside the PG family, K = 0 and a chain above the size limit are refused with
-/// the key to change.
+/// ADMM (and ADMM-PR, their Jacobi variants), K = 0 and a chain above the size limit are
+/// refused with the key to change; FISTA is modelled (§4c).
 #[test]
 fn chain_refuses_what_it_does_not_model() {
     let r = resolved("double-integrator.toml");
-    let e = iteration_chain(&r, &options(&r, Method::PRESETS[1])).expect_err("fista");
-    assert!(matches!(e, ChainError::Method { .. }), "{e}");
-    assert!(e.to_string().contains("mhe.method"));
+    for m in [Method::ADMM, Method::ADMM_PR, Method::JACOBI_PRESETS[2]] {
+        let e = iteration_chain(&r, &options(&r, m)).expect_err("admm");
+        assert!(matches!(e, ChainError::Method { .. }), "{e}");
+        let s = e.to_string();
+        assert!(s.contains("mhe.method") && s.contains(&*m.name()), "{s}");
+    }
     let ch = iteration_chain(&r, &options(&r, Method::PG)).expect("pg");
     let opts = ChainOptions::default();
     let e = ch.certify_chain(0, &opts).expect_err("K = 0");
@@ -84,6 +87,45 @@ fn chain_refuses_what_it_does_not_model() {
         .certify_chain(usize::MAX, &opts)
         .expect_err("K = usize::MAX");
     assert!(matches!(e, ChainError::TooLarge { .. }), "{e}");
+}
+
+/// The chain's recursion with every clamp the identity is the method's linear K-step map
+/// z⁰ ↦ zᴷ (probed from the real map and raised to K by repeated squaring of the lifted
+/// state, `IterationLinearisation::k_step`): for PG and FISTA (state (x, y), the restart step
+/// and the momentum from k = 2) and their Jacobi variants, K = 1 … 6. Where the two differ
+/// the chain would model another method (§4c (ii) rests on this).
+#[test]
+fn the_chains_linear_recursion_is_the_methods_k_step_map() {
+    use iss_certificate::linear::linearise;
+    let r = resolved("double-integrator.toml");
+    for method in [
+        Method::PG,
+        Method::FISTA,
+        Method::JACOBI_PRESETS[0],
+        Method::JACOBI_PRESETS[1],
+    ] {
+        let o = options(&r, method);
+        let ch = iteration_chain(&r, &o).expect("the chain builds");
+        let mut quiet = r.clone();
+        quiet.set_noise_scale(0.0);
+        let cl = quiet.build_loop(&o).expect("loop");
+        let est = cl.estimator();
+        let map = est.map(est.config().horizon).expect("the window's map");
+        let lin = linearise(map, "MHE").expect("linearises");
+        let fista = method.name().starts_with("fista");
+        assert_eq!(fista, ch.momentum(2) > 0.0, "{}", method.name());
+        for k in 1..=6 {
+            let g = lin.k_step(k, Par::Seq).expect("K-step map").g;
+            let c = ch.free_response(k);
+            let scale = g.norm_max().max(1e-300);
+            let diff = (&c - &g).norm_max();
+            assert!(
+                diff <= 1e-9 * scale,
+                "{} K = {k}: |chain − G_K| = {diff:.3e} of {scale:.3e}",
+                method.name()
+            );
+        }
+    }
 }
 
 /// One K on one scenario and method (CHAIN_FILE, CHAIN_METHOD = pg | pg-jacobi, CHAIN_K): the

@@ -128,16 +128,26 @@ fn the_chains_linear_recursion_is_the_methods_k_step_map() {
     }
 }
 
-/// One K on one scenario and method (CHAIN_FILE, CHAIN_METHOD = pg | pg-jacobi, CHAIN_K): the
-/// time of one chain search at a large K.
+/// The methods named in the environment variable `var` (comma-separated method names, e.g.
+/// `pg,fista-jacobi`), or `default`.
+fn methods_from_env(var: &str, default: &[Method]) -> Vec<Method> {
+    std::env::var(var).map_or_else(
+        |_| default.to_vec(),
+        |v| {
+            v.split(',')
+                .map(|m| m.trim().parse().expect("a method name"))
+                .collect()
+        },
+    )
+}
+
+/// One K on one scenario and method (CHAIN_FILE, CHAIN_METHOD: a method name, default pg,
+/// CHAIN_K): the time of one chain search at a large K.
 #[test]
 #[ignore = "measurement (release): minutes"]
 fn measure_chain_at_one_k() {
     let file = std::env::var("CHAIN_FILE").unwrap_or_else(|_| "double-integrator.toml".into());
-    let method = match std::env::var("CHAIN_METHOD").as_deref() {
-        Ok("pg-jacobi") => Method::JACOBI_PRESETS[0],
-        _ => Method::PG,
-    };
+    let method = methods_from_env("CHAIN_METHOD", &[Method::PG])[0];
     let k: usize = std::env::var("CHAIN_K")
         .ok()
         .and_then(|v| v.parse().ok())
@@ -176,8 +186,8 @@ fn measure_chain_at_one_k() {
     );
 }
 
-/// Exploration / measurement: the chain's K on a scenario per method, beside K_lin and
-/// Theorem L3's K_glob.
+/// Exploration / measurement: the chain's K on a scenario per method (CHAIN_METHODS, default
+/// pg,pg-jacobi), beside K_lin and Theorem L3's K_glob.
 #[test]
 #[ignore = "measurement (release): minutes"]
 fn measure_k_chain() {
@@ -189,7 +199,7 @@ fn measure_k_chain() {
         .and_then(|v| v.parse().ok())
         .unwrap_or(60);
     for file in files.split(',') {
-        for method in [Method::PG, Method::JACOBI_PRESETS[0]] {
+        for method in methods_from_env("CHAIN_METHODS", &[Method::PG, Method::JACOBI_PRESETS[0]]) {
             let t0 = Instant::now();
             let r = resolved(file);
             let ch = match iteration_chain(&r, &options(&r, method)) {
@@ -416,7 +426,7 @@ fn chain_certifies_where_theorem_l3_does() {
 }
 
 /// The budgeted chain of `reproduce` (`lure::chain_outcome::method_chain`) on CHAIN_FILE
-/// (default case-study.toml) for pg and pg-jacobi with CHAIN_BUDGET seconds (default 10):
+/// (default case-study.toml) for CHAIN_METHODS (default pg,pg-jacobi) with CHAIN_BUDGET seconds (default 10):
 /// its answers, the estimated and the measured CPU (the calibration of
 /// `chain_solve_seconds`).
 #[test]
@@ -432,11 +442,11 @@ fn measure_chain_outcome() {
         .ok()
         .and_then(|v| v.parse().ok());
     let r = resolved(&file);
-    for method in [Method::PG, Method::JACOBI_PRESETS[0]] {
+    for method in methods_from_env("CHAIN_METHODS", &[Method::PG, Method::JACOBI_PRESETS[0]]) {
         let o = options(&r, method);
         let ch = iteration_chain(&r, &o).expect("chain");
         let t0 = Instant::now();
-        let out = method_chain(&r, &o, k_glob, budget).expect("pg family");
+        let out = method_chain(&r, &o, k_glob, budget).expect("a method the chain models");
         let secs = t0.elapsed().as_secs_f64();
         eprintln!(
             "{file} {}: dim(1) {} n_x {} per-solve estimate {:.3e} s; {:.2} s; {:?}",

@@ -88,17 +88,16 @@ fn fista_chain_refuses_where_rho_lin_is_at_least_one() {
     refuses_where_rho_lin_is_at_least_one(&ch, k);
 }
 
-/// ADMM (and ADMM-PR, their Jacobi variants), K = 0 and a chain above the size limit are
-/// refused with the key to change; FISTA is modelled (§4c).
+/// K = 0 and a chain above the size limit are refused with the key to change (every named
+/// method is modelled since session 20: §4c; `ChainError::Method` is left for a map whose
+/// probed form is not its recursion's).
 #[test]
 fn chain_refuses_what_it_does_not_model() {
     let r = resolved("double-integrator.toml");
-    for m in [Method::ADMM, Method::ADMM_PR, Method::JACOBI_PRESETS[2]] {
-        let e = iteration_chain(&r, &options(&r, m)).expect_err("admm");
-        assert!(matches!(e, ChainError::Method { .. }), "{e}");
-        let s = e.to_string();
-        assert!(s.contains("mhe.method") && s.contains(&*m.name()), "{s}");
-    }
+    let e = ChainError::Method {
+        method: "admm".into(),
+    };
+    assert!(e.to_string().contains("mhe.method = admm"), "{e}");
     let ch = iteration_chain(&r, &options(&r, Method::PG)).expect("pg");
     let opts = ChainOptions::default();
     let e = ch.certify_chain(0, &opts).expect_err("K = 0");
@@ -123,12 +122,7 @@ fn chain_refuses_what_it_does_not_model() {
 fn the_chains_linear_recursion_is_the_methods_k_step_map() {
     use iss_certificate::linear::linearise;
     let r = resolved("double-integrator.toml");
-    for method in [
-        Method::PG,
-        Method::FISTA,
-        Method::JACOBI_PRESETS[0],
-        Method::JACOBI_PRESETS[1],
-    ] {
+    for method in Method::ALL {
         let o = options(&r, method);
         let ch = iteration_chain(&r, &o).expect("the chain builds");
         let mut quiet = r.clone();
@@ -138,6 +132,8 @@ fn the_chains_linear_recursion_is_the_methods_k_step_map() {
         let map = est.map(est.config().horizon).expect("the window's map");
         let lin = linearise(map, "MHE").expect("linearises");
         let fista = method.name().starts_with("fista");
+        let admm = method.name().starts_with("admm");
+        assert_eq!(ch.clamps(4), if admm { 5 } else { 4 }, "{}", method.name());
         assert_eq!(fista, ch.momentum(2) > 0.0, "{}", method.name());
         for k in 1..=6 {
             let g = lin.k_step(k, Par::Seq).expect("K-step map").g;

@@ -471,6 +471,18 @@ fn adversarial_search_at_k_chain(file: &str, method: Method, k: Option<usize>) -
     (c.k, best)
 }
 
+/// §4c (ADMM), sampled: ADMM and ADMM-Jacobi on the case study at their K_chain (the chain
+/// of K + 1 clamps on the splitting variable s): 200 runs each, every one-step inequality
+/// holds. The split of the probed step into A (on s) and B (on the clamp) is what only a
+/// run with active clamps tests.
+#[test]
+#[ignore = "soundness sampling (release): see docs/testing.md"]
+fn sampled_runs_respect_the_admm_chain_certificate() {
+    for method in [Method::ADMM, Method::JACOBI_PRESETS[2]] {
+        sampled_runs_at_k_chain("case-study.toml", method, None, 21);
+    }
+}
+
 /// [`adversarial_search_at_k_chain`] for PG on the certified case study (K_chain = 2).
 #[test]
 #[ignore = "adversarial search (release): ≈ 80 s"]

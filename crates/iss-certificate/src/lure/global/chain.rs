@@ -1,5 +1,5 @@
 //! The iteration chain (docs/theory.md §4b, §4c): the K inner iterations of the
-//! projected-gradient family and of FISTA kept as K exact steps inside the global LMI,
+//! projected-gradient family, of FISTA and of ADMM kept as exact steps inside the global LMI,
 //! instead of only the φ-ball σ₂.
 //!
 //! PG (and PG-Jacobi, in its scaled coordinates) runs zᵏ⁺¹ = Π_Z(S zᵏ + S_θθ); FISTA (and
@@ -9,9 +9,13 @@
 //! pᵏ = S(eᵏ + β_k(eᵏ − eᵏ⁻¹)) (PG: β = 0), every coordinate i with a bound obeys the
 //! incremental sector of a scalar projection, e^{k+1}_i(pᵏ_i − e^{k+1}_i) ≥ 0, and every free
 //! coordinate e^{k+1}_i = pᵏ_i exactly: the two methods differ only in this linear recursion
-//! ([`IterationChain::momentum`]). So ζ gains e¹_B … e^{K−1}_B (d = eᴷ keeps only its bounded
-//! part; the free parts are eliminated), the supply gains Σ_k λ_k Σ_i μ_i D_i⁻² c_{k,i} with
-//! λ_k, μ_i ≥ 0, and σ₂ stays with its own multiplier τ₂ ≥ 0: every constraint holds on every
+//! ([`IterationChain::momentum`]). ADMM (Douglas–Rachford on s = v + u) clamps its state
+//! itself, δᵏ = Π_Z(sᵏ) − z* against εᵏ = sᵏ − s*, s* = z* + u* with the scaled dual
+//! u* = −∇f(z*)/ρ linear in ζ, and updates εᵏ⁺¹ = Aεᵏ + Bδᵏ: K + 1 clamps, d = δᴷ.
+//!
+//! So ζ gains the bounded parts of every clamp's output but the last (e¹_B … e^{K−1}_B; d
+//! keeps only its bounded part; the free parts are eliminated), the supply gains
+//! Σ_k λ_k Σ_i μ_i D_i⁻² c_{k,i} with λ_k, μ_i ≥ 0, and σ₂ stays with its own multiplier τ₂ ≥ 0: every constraint holds on every
 //! trajectory, so the certificate is sound exactly as Theorem L3 (i); Theorem L3's own
 //! multipliers (λ = 0, τ₂ = 1) are tried first. The answer goes through the same independent
 //! check ([`GlobalLoop`]'s `certify_supply`: the LMI matrix formed afresh, Jacobi eigenvalues

@@ -88,6 +88,23 @@ fn fista_chain_refuses_where_rho_lin_is_at_least_one() {
     refuses_where_rho_lin_is_at_least_one(&ch, k);
 }
 
+/// (ii) of §4c for ADMM-PR (α = 2) on the case study (its K_lin is 3), at the smallest K where
+/// its own ρ_lin is ≥ 1: the chain of K + 1 clamps certifies nothing.
+#[test]
+#[ignore = "search (release): see docs/testing.md"]
+fn admm_chain_refuses_where_rho_lin_is_at_least_one() {
+    let ch = chain("case-study.toml", Method::ADMM_PR);
+    let k = (1..=3)
+        .find(|&k| {
+            ch.global
+                .lifted
+                .spectral_radius(k, Par::Seq)
+                .is_ok_and(|r| r >= 1.0)
+        })
+        .expect("a K ≤ 3 with ρ_lin ≥ 1");
+    refuses_where_rho_lin_is_at_least_one(&ch, k);
+}
+
 /// K = 0 and a chain above the size limit are refused with the key to change (every named
 /// method is modelled since session 20: §4c; `ChainError::Method` is left for a map whose
 /// probed form is not its recursion's).

@@ -1,12 +1,12 @@
-//! The iteration chain (Theorem L3b, docs/theory.md §4b) as one budgeted outcome per
-//! (scenario, method) for the projected-gradient family: what the one verdict
+//! The iteration chain (Theorem L3b, docs/theory.md §4b, §4c) as one budgeted outcome per
+//! (scenario, method) for the projected-gradient family and FISTA: what the one verdict
 //! ([`crate::coverage::with_global`]), `reproduce`, certificate.json, `certify --loop` and
 //! `export` read.
 //!
 //! The chain's certified set is not monotone in K, so the outcome is a list of the K checked,
 //! each with its own answer, and nothing is said about a K that was not checked. Two kinds of
-//! K are checked, both under the method's budget (half of `certificate.phase_seconds`: the two
-//! methods' chains together take one phase): first the scan
+//! K are checked, both under the method's budget (half of `certificate.phase_seconds`: pg
+//! with pg-jacobi take one phase, fista with fista-jacobi another): first the scan
 //! K = 1, 2, … that stops at the first certified K (K_chain), at K_glob − 1 (every K ≥ K_glob
 //! is Theorem L3's), at [`CHAIN_SCAN_MAX`], or when the budget runs out — each stop is
 //! recorded ([`ChainScanEnd`]) — then, with what is left, the scenario's own K
@@ -181,7 +181,7 @@ impl MethodChain {
     }
 }
 
-/// The chain's outcome for one method of the PG family.
+/// The chain's outcome for one method the chain models ([`chain_models`]).
 #[derive(Debug, Clone, PartialEq)]
 #[non_exhaustive]
 pub enum ChainOutcome {
@@ -241,9 +241,16 @@ impl std::fmt::Display for ChainOutcome {
     }
 }
 
-/// Whether the chain models `method` (pg, pg-jacobi: a projected gradient on a box).
+/// Whether the chain models `method` (pg, pg-jacobi, fista, fista-jacobi: a projected
+/// gradient or FISTA on a box, docs/theory.md §4b, §4c).
 pub fn chain_models(method: Method) -> bool {
-    method == Method::PG || method == Method::JACOBI_PRESETS[0]
+    [
+        Method::PG,
+        Method::JACOBI_PRESETS[0],
+        Method::FISTA,
+        Method::JACOBI_PRESETS[1],
+    ]
+    .contains(&method)
 }
 
 /// Estimated single-core seconds of one Riccati solve of the chain search at dim ζ' =

@@ -375,7 +375,8 @@ pub fn global_section(
         .map(|&m| LoopOptions { method: m, ..base })
         .collect();
     let out = searches(resolved, &options, settings, true);
-    // The two chains (pg, pg-jacobi) share one phase: half of it each.
+    // Each method's chain gets half a phase (pg with pg-jacobi take one phase, fista with
+    // fista-jacobi another; they run side by side, so a thread's work stays within a phase).
     let chain_s = settings.phase_seconds / 2.0;
     let chains = super::chain_outcome::chains(resolved, &options, &out, chain_s);
     Some(GlobalSection {

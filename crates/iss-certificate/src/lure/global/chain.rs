@@ -1,17 +1,25 @@
-//! The iteration chain (docs/theory.md §4b): the K inner iterations of the projected-gradient
-//! family kept as K exact steps inside the global LMI, instead of only the φ-ball σ₂.
+//! The iteration chain (docs/theory.md §4b, §4c): the K inner iterations of the
+//! projected-gradient family, of FISTA and of ADMM kept as exact steps inside the global LMI,
+//! instead of only the φ-ball σ₂.
 //!
-//! PG (and PG-Jacobi, in its scaled coordinates) runs zᵏ⁺¹ = Π_Z(S zᵏ + S_θθ) and its fixed
-//! point is the window's optimum z* = Π_Z(S z* + S_θθ). With eᵏ = zᵏ − z*, every coordinate i
-//! with a bound obeys the incremental sector of a scalar projection,
-//! e^{k+1}_i((S eᵏ)_i − e^{k+1}_i) ≥ 0, and every free coordinate e^{k+1}_i = (S eᵏ)_i exactly.
-//! So ζ gains e¹_B … e^{K−1}_B (d = eᴷ keeps only its bounded part; the free parts are
-//! eliminated), the supply gains Σ_k λ_k Σ_i μ_i D_i⁻² c_{k,i} with λ_k, μ_i ≥ 0, and σ₂
-//! stays with its own multiplier τ₂ ≥ 0: every constraint holds on every trajectory, so the
-//! certificate is sound exactly as Theorem L3 (i); Theorem L3's own multipliers (λ = 0,
-//! τ₂ = 1) are tried first. The answer goes through the same independent check
-//! ([`GlobalLoop`]'s `certify_supply`: the LMI matrix formed afresh, Jacobi eigenvalues with a
-//! margin above its rounding, P ≻ 0 likewise).
+//! PG (and PG-Jacobi, in its scaled coordinates) runs zᵏ⁺¹ = Π_Z(S zᵏ + S_θθ); FISTA (and
+//! FISTA-Jacobi) runs zᵏ⁺¹ = Π_Z(S yᵏ + S_θθ) with yᵏ = zᵏ + β_k(zᵏ − zᵏ⁻¹), β₀ = β₁ = 0 (the
+//! restart step and y₀ = x₀ of `qp_iter::fista`) and β_k = β after. Both have the window's
+//! optimum as fixed point, z* = Π_Z(S z* + S_θθ). With eᵏ = zᵏ − z* and the pre-clamp
+//! pᵏ = S(eᵏ + β_k(eᵏ − eᵏ⁻¹)) (PG: β = 0), every coordinate i with a bound obeys the
+//! incremental sector of a scalar projection, e^{k+1}_i(pᵏ_i − e^{k+1}_i) ≥ 0, and every free
+//! coordinate e^{k+1}_i = pᵏ_i exactly: the two methods differ only in this linear recursion
+//! ([`IterationChain::momentum`]). ADMM (Douglas–Rachford on s = v + u) clamps its state
+//! itself, δᵏ = Π_Z(sᵏ) − z* against εᵏ = sᵏ − s*, s* = z* + u* with the scaled dual
+//! u* = −∇f(z*)/ρ linear in ζ, and updates εᵏ⁺¹ = Aεᵏ + Bδᵏ: K + 1 clamps, d = δᴷ.
+//!
+//! So ζ gains the bounded parts of every clamp's output but the last (e¹_B … e^{K−1}_B; d
+//! keeps only its bounded part; the free parts are eliminated), the supply gains
+//! Σ_k λ_k Σ_i μ_i D_i⁻² c_{k,i} with λ_k, μ_i ≥ 0, and σ₂ stays with its own multiplier τ₂ ≥ 0: every constraint holds on every
+//! trajectory, so the certificate is sound exactly as Theorem L3 (i); Theorem L3's own
+//! multipliers (λ = 0, τ₂ = 1) are tried first. The answer goes through the same independent
+//! check ([`GlobalLoop`]'s `certify_supply`: the LMI matrix formed afresh, Jacobi eigenvalues
+//! with a margin above its rounding, P ≻ 0 likewise).
 //!
 //! Size: dim ζ grows by n_B per iteration and the check is dense (O(dim³)), so chains above
 //! [`ChainOptions::max_dim`] are refused ([`ChainError::TooLarge`]); the chain is meant for
@@ -19,10 +27,11 @@
 
 use closed_loop::scenario::{LoopOptions, ResolvedScenario};
 use faer::Mat;
+use faer::linalg::solvers::Solve;
 use qp_iter::{IterationMap, MethodMap};
 
 use super::{GlobalCertificate, GlobalError, GlobalLoop, GlobalOptions, global_loop, mul};
-use crate::linear::{LinearError, linearise};
+use crate::linear::{IterationLinearisation, LinearError, linearise};
 
 /// Why no iteration chain (or no chain of this size).
 #[derive(Debug, thiserror::Error)]
@@ -31,12 +40,12 @@ pub enum ChainError {
     /// The global loop itself has no form here.
     #[error(transparent)]
     Global(#[from] GlobalError),
-    /// The method is not a projected gradient on a box (its step is not one linear map and a
-    /// clamp per coordinate).
+    /// The method is not PG, FISTA or ADMM (or a Jacobi variant) with the probed linear form
+    /// of its recursion (one linear map and a clamp per coordinate).
     #[error(
-        "mhe.method = {method}: the iteration chain models the projected-gradient family \
-         (pg, pg-jacobi) only; choose mhe.method = \"pg\" or \"pg-jacobi\", or use Theorem \
-         L3's φ-ball (lure::global::GlobalLoop::k_glob)"
+        "mhe.method = {method}: the iteration chain models pg, fista and admm (with their \
+         parameters and Jacobi variants) only; choose one of them for mhe.method, or use \
+         Theorem L3's φ-ball (lure::global::GlobalLoop::k_glob)"
     )]
     Method {
         /// The method.
@@ -98,19 +107,19 @@ impl Default for ChainOptions {
     }
 }
 
-/// The PG-family loop with its probed step, ready to be chained at any K.
+/// The PG-family or FISTA loop with its probed step, ready to be chained at any K.
 #[derive(Debug, Clone)]
 pub struct IterationChain {
     /// Theorem L3's loop (σ₁, σ₂, σ₃, the exact lifted dynamics).
     pub global: GlobalLoop,
-    /// S in z coordinates (S_z = R S R⁻¹ for the Jacobi scaling z = Dy).
-    s_z: Mat<f64>,
+    /// The method's linear recursion between clamps, in z coordinates.
+    step: Step,
     bounded: Vec<usize>,
     free: Vec<usize>,
 }
 
 /// A checked chain certificate at K: ‖X_{t+1}‖²_P ≤ ρ²‖X_t‖²_P + γ²‖w_t‖² for t ≥ M when the
-/// MHE runs exactly K PG iterations (Theorem L3's statement, with the chain's constraints).
+/// MHE runs exactly K iterations of its method (Theorem L3's statement, with the chain's constraints).
 #[derive(Debug, Clone)]
 #[non_exhaustive]
 pub struct ChainCertificate {
@@ -118,7 +127,8 @@ pub struct ChainCertificate {
     pub k: usize,
     /// τ₂ ≥ 0, σ₂'s multiplier (0: the chain alone).
     pub tau2: f64,
-    /// λ_k ≥ 0 (k = 0 … K−1), the multiplier of iteration k's sector constraints.
+    /// λ_j ≥ 0, the multiplier of clamp j's sector constraints (one per clamp: K for PG and
+    /// FISTA, K + 1 for ADMM).
     pub lambda: Vec<f64>,
     /// μ_i > 0 per bounded coordinate (the multiplier of c_{k,i} is λ_k·μ_i); empty: all 1.
     pub mu: Vec<f64>,
@@ -130,6 +140,9 @@ pub struct ChainCertificate {
 /// c_k = ½(A_kᵀB_k + B_kᵀA_k), stacked: rows k·n_B … of `a`, `b`.
 struct ChainAt {
     gl: GlobalLoop,
+    /// K, the iterations.
+    k_iter: usize,
+    /// The clamps (one λ each): K, or K + 1 for ADMM.
     k: usize,
     a: Mat<f64>,
     b: Mat<f64>,
@@ -165,9 +178,144 @@ pub struct ChainScan {
     pub solves: usize,
 }
 
+/// The recursion a method runs between two clamps: PG (β = 0), FISTA (its momentum β), or
+/// ADMM (its H, ρ, α, in the coordinates it runs in).
+#[derive(Debug, Clone)]
+enum Recursion {
+    Pg,
+    Fista(f64),
+    Admm { h: Mat<f64>, rho: f64, alpha: f64 },
+}
+
+/// The recursion of `map` (through one Jacobi scaling), None for other methods.
+fn recursion(map: &MethodMap) -> Option<Recursion> {
+    let inner = match map {
+        MethodMap::Scaled(s) => s.inner(),
+        m => m,
+    };
+    match inner {
+        MethodMap::Pg(_) => Some(Recursion::Pg),
+        MethodMap::Fista(f) => Some(Recursion::Fista(f.momentum())),
+        MethodMap::Admm(a) => Some(Recursion::Admm {
+            h: a.problem().h().to_owned(),
+            rho: a.rho(),
+            alpha: a.relaxation(),
+        }),
+        _ => None,
+    }
+}
+
+/// The linear recursion between clamps in z coordinates (docs/theory.md §4b, §4c).
+#[derive(Debug, Clone)]
+enum Step {
+    /// PG (β = 0) and FISTA: the clamp of iteration k + 1 reads
+    /// pᵏ = S_z(eᵏ + β_k(eᵏ − eᵏ⁻¹)) and gives e^{k+1}; K clamps, d = eᴷ.
+    Gradient { s_z: Mat<f64>, beta: f64 },
+    /// ADMM (Douglas–Rachford on s): ε⁰ = E e⁰, δᵏ = clamp(εᵏ),
+    /// ε^{k+1} = A εᵏ + B δᵏ; K + 1 clamps, d = δᴷ.
+    Splitting {
+        e: Mat<f64>,
+        a: Mat<f64>,
+        b: Mat<f64>,
+    },
+}
+
+/// S_z = D S_y D⁻¹ from the probed lifted form, after checking that the form is the
+/// recursion's: R = [D 0] with D diagonal positive; PG: ξ = y, start ξ⁰ = D⁻¹z⁰; FISTA:
+/// ξ = (x, y), step x⁺ = S_y y, y⁺ = (1 + β)S_y y − βx, and a start of one plain step
+/// x₀ = y₀ = S_y D⁻¹z⁰ + S_θθ (β₀ = β₁ = 0); ADMM: ξ = s, step A + B, start E D⁻¹ (from
+/// H, ρ, α, [`splitting`]). None: another form (the chain would be wrong).
+fn step_of(lin: &IterationLinearisation, rec: &Recursion) -> Option<Step> {
+    let n = lin.n;
+    let (lift, k0) = match rec {
+        Recursion::Pg | Recursion::Admm { .. } => (n, 0),
+        Recursion::Fista(_) => (2 * n, 1),
+    };
+    if lin.lift_dim() != lift || lin.start_steps != k0 || lin.readout.nrows() != n {
+        return None;
+    }
+    let r = &lin.readout;
+    let d: Vec<f64> = (0..n).map(|i| r[(i, i)]).collect();
+    let diagonal = (0..n).all(|i| d[i] > 0.0 && (0..lift).all(|j| j == i || r[(i, j)] == 0.0));
+    if !diagonal {
+        return None;
+    }
+    // S_y: the response of the iterate rows to ξ's last block (PG: y; FISTA: x⁺ = T(y)).
+    let o = lift - n;
+    let s_y = Mat::from_fn(n, n, |i, j| lin.step[(i, o + j)]);
+    let scale = s_y
+        .col_iter()
+        .flat_map(|c| c.iter().copied())
+        .fold(1.0_f64, |a, v| a.max(v.abs()));
+    let close = |a: f64, b: f64| (a - b).abs() <= 1e-9 * scale;
+    let nt = lin.n_theta;
+    let to_z = |m: &Mat<f64>| Mat::from_fn(n, n, |i, j| d[i] * m[(i, j)] / d[j]);
+    let ok = match rec {
+        Recursion::Admm { h, rho, alpha } => {
+            let (e, a, b) = splitting(h, *rho, *alpha)?;
+            let ok = (0..n).all(|i| {
+                (0..n).all(|j| {
+                    close(lin.step[(i, j)], a[(i, j)] + b[(i, j)])
+                        && close(lin.start[(i, j)], e[(i, j)] / d[j])
+                })
+            });
+            return ok.then(|| Step::Splitting {
+                e: to_z(&e),
+                a: to_z(&a),
+                b: to_z(&b),
+            });
+        }
+        Recursion::Pg => (0..n).all(|i| {
+            (0..n + nt).all(|j| close(lin.start[(i, j)], if j == i { 1.0 / d[i] } else { 0.0 }))
+        }),
+        Recursion::Fista(beta) => (0..lift).all(|row| {
+            let i = row % n;
+            let steps = (0..lift).all(|c| {
+                let (j, same) = (c % n, c % n == i);
+                let want = match (row < n, c < n) {
+                    (true, true) => 0.0,
+                    (true, false) => s_y[(i, j)],
+                    (false, true) => f64::from(u8::from(same)) * -*beta,
+                    (false, false) => (1.0 + *beta) * s_y[(i, j)],
+                };
+                close(lin.step[(row, c)], want)
+            });
+            // ξ₀ = (T(y⁰), T(y⁰)): one plain step from y⁰ = D⁻¹z⁰, θ as in the step.
+            let start = (0..n).all(|j| close(lin.start[(row, j)], s_y[(i, j)] / d[j]))
+                && (0..nt).all(|t| close(lin.start[(row, n + t)], lin.step[(i, lift + t)]));
+            steps && start
+        }),
+    };
+    let beta = match rec {
+        Recursion::Fista(b) => *b,
+        _ => 0.0,
+    };
+    ok.then(|| Step::Gradient {
+        s_z: to_z(&s_y),
+        beta,
+    })
+}
+
+/// ADMM's (E, A, B) in its own coordinates: ε⁰ = (I − H/ρ)e⁰ (the warm start's gradient
+/// dual), ε⁺ = (I − αρM)ε + α(2ρM − I)δ with M = (H + ρI)⁻¹. None: H + ρI not SPD.
+fn splitting(h: &Mat<f64>, rho: f64, alpha: f64) -> Option<(Mat<f64>, Mat<f64>, Mat<f64>)> {
+    let n = h.nrows();
+    let eye = |i: usize, j: usize| f64::from(u8::from(i == j));
+    let hr = Mat::from_fn(n, n, |i, j| h[(i, j)] + rho * eye(i, j));
+    let m = hr
+        .llt(faer::Side::Lower)
+        .ok()?
+        .solve(Mat::<f64>::identity(n, n));
+    let e = Mat::from_fn(n, n, |i, j| eye(i, j) - h[(i, j)] / rho);
+    let a = Mat::from_fn(n, n, |i, j| eye(i, j) - alpha * rho * m[(i, j)]);
+    let b = Mat::from_fn(n, n, |i, j| alpha * (2.0 * rho * m[(i, j)] - eye(i, j)));
+    Some((e, a, b))
+}
+
 /// The iteration chain of `options.method` on `resolved`.
 ///
-/// Errors: as [`global_loop`]; a method outside the PG family ([`ChainError::Method`]).
+/// Errors: as [`global_loop`]; a method outside PG, FISTA, ADMM and their Jacobi variants
+/// ([`ChainError::Method`]).
 pub fn iteration_chain(
     resolved: &ResolvedScenario,
     options: &LoopOptions,
@@ -191,33 +339,10 @@ pub fn iteration_chain(
     let method = || ChainError::Method {
         method: options.method.name().to_string(),
     };
-    let is_pg = match map {
-        MethodMap::Pg(_) => true,
-        MethodMap::Scaled(s) => matches!(s.inner(), MethodMap::Pg(_)),
-        _ => false,
-    };
-    if !is_pg {
-        return Err(method());
-    }
+    let rec = recursion(map).ok_or_else(method)?;
     let lin = linearise(map, "MHE").map_err(GlobalError::from)?;
+    let step = step_of(&lin, &rec).ok_or_else(method)?;
     let nz = map.problem().n();
-    if lin.start_steps != 0 || lin.lift_dim() != nz || lin.n != nz {
-        return Err(method());
-    }
-    // R diagonal positive (I, or D for Jacobi), the start ξ⁰ = R⁻¹z⁰ with no θ part.
-    let r = &lin.readout;
-    let diag_ok = (0..nz).all(|i| {
-        r[(i, i)] > 0.0
-            && (0..nz).all(|j| i == j || r[(i, j)] == 0.0)
-            && (0..nz + lin.n_theta).all(|j| {
-                let want = if j == i { 1.0 / r[(i, i)] } else { 0.0 };
-                (lin.start[(i, j)] - want).abs() <= 1e-9 * want.abs().max(1.0)
-            })
-    });
-    if !diag_ok {
-        return Err(method());
-    }
-    let s_z = Mat::from_fn(nz, nz, |i, j| r[(i, i)] * lin.step[(i, j)] / r[(j, j)]);
     let set = map.problem().zset();
     let (bounded, free): (Vec<usize>, Vec<usize>) =
         (0..nz).partition(|&i| set.lower()[i].is_finite() || set.upper()[i].is_finite());
@@ -229,7 +354,7 @@ pub fn iteration_chain(
     }
     Ok(IterationChain {
         global,
-        s_z,
+        step,
         bounded,
         free,
     })
@@ -241,13 +366,84 @@ impl IterationChain {
         self.bounded.len()
     }
 
-    /// dim ζ of the chain at K: Theorem L3's with d's free part eliminated and (K−1)·n_B added.
-    pub fn dim(&self, k: usize) -> usize {
-        let nz = self.s_z.nrows();
-        (self.global.n_zeta() - nz).saturating_add(self.n_b().saturating_mul(k))
+    /// β_k, the momentum of the clamp of iteration k + 1 (pᵏ = S(eᵏ + β_k(eᵏ − eᵏ⁻¹))): 0 for
+    /// PG; for FISTA 0 at k = 0, 1 (the restart step, y₀ = x₀) and β from k = 2 on.
+    pub fn momentum(&self, k: usize) -> f64 {
+        match &self.step {
+            Step::Gradient { beta, .. } if k >= 2 => *beta,
+            _ => 0.0,
+        }
     }
 
-    /// The chain at K: ζ' = (X, z*_B, d_B, U*_B, e¹_B … e^{K−1}_B, w) and ζ = Tζ'.
+    /// The clamps of K iterations: K (PG, FISTA), K + 1 (ADMM: v⁰ … vᴷ).
+    pub fn clamps(&self, k: usize) -> usize {
+        match self.step {
+            Step::Gradient { .. } => k,
+            Step::Splitting { .. } => k.saturating_add(1),
+        }
+    }
+
+    fn n_z(&self) -> usize {
+        match &self.step {
+            Step::Gradient { s_z, .. } => s_z.nrows(),
+            Step::Splitting { e, .. } => e.nrows(),
+        }
+    }
+
+    /// The method's recursion from e⁰ (any columns) through its `clamps(K)` clamps, the clamp
+    /// j given by `clamp`(j, its input); returns d = the last clamp's output. PG, FISTA: the
+    /// input pᵏ = S_z(eᵏ + β_k(eᵏ − eᵏ⁻¹)), the output e^{k+1}. ADMM: the input εᵏ, the output
+    /// δᵏ, ε^{k+1} = Aεᵏ + Bδᵏ from ε⁰ = Ee⁰. The one place the methods differ.
+    fn unroll(
+        &self,
+        e0: Mat<f64>,
+        k: usize,
+        mut clamp: impl FnMut(usize, &Mat<f64>) -> Mat<f64>,
+    ) -> Mat<f64> {
+        match &self.step {
+            Step::Gradient { s_z, .. } => {
+                let mut prev = e0.clone();
+                let mut e = e0;
+                for step in 0..k {
+                    let b = self.momentum(step);
+                    let y = Mat::from_fn(e.nrows(), e.ncols(), |i, j| {
+                        e[(i, j)] + b * (e[(i, j)] - prev[(i, j)])
+                    });
+                    let next = clamp(step, &mul(s_z.as_ref(), y.as_ref()));
+                    prev = std::mem::replace(&mut e, next);
+                }
+                e
+            }
+            Step::Splitting { e, a, b } => {
+                let mut eps = mul(e.as_ref(), e0.as_ref());
+                let mut delta = clamp(0, &eps);
+                for step in 1..=k {
+                    eps = mul(a.as_ref(), eps.as_ref());
+                    super::add(&mut eps, &mul(b.as_ref(), delta.as_ref()));
+                    delta = clamp(step, &eps);
+                }
+                delta
+            }
+        }
+    }
+
+    /// The chain's recursion with every clamp the identity: eᴷ = G_K e⁰, the K-step map of the
+    /// method's linear part (what Theorem L3b (ii) rests on; tests compare it with
+    /// `linear::IterationLinearisation::k_step`).
+    pub fn free_response(&self, k: usize) -> Mat<f64> {
+        let n = self.n_z();
+        self.unroll(Mat::identity(n, n), k, |_, p| p.clone())
+    }
+
+    /// dim ζ of the chain at K: Theorem L3's with d's free part eliminated and
+    /// (clamps − 1)·n_B added.
+    pub fn dim(&self, k: usize) -> usize {
+        let nz = self.n_z();
+        (self.global.n_zeta() - nz).saturating_add(self.n_b().saturating_mul(self.clamps(k)))
+    }
+
+    /// The chain at K: ζ' = (X, z*_B, d_B, U*_B, the clamps' outputs but the last (bounded
+    /// parts), w) and ζ = Tζ'.
     fn at(&self, k: usize, opts: &ChainOptions) -> Result<ChainAt, ChainError> {
         if k == 0 {
             return Err(ChainError::ZeroIterations);
@@ -262,7 +458,7 @@ impl IterationChain {
             });
         }
         let g = &self.global;
-        let (nz, nb) = (self.s_z.nrows(), self.n_b());
+        let (nz, nb, nk) = (self.n_z(), self.n_b(), self.clamps(k));
         let nc = g.n_zeta();
         let (o_d, o_u) = (g.d_col, g.o_u);
         let n_after_u = nc - o_u; // U*_B, (r_h), w, …
@@ -271,7 +467,7 @@ impl IterationChain {
         let o_db = o_d; // d_B right after z*_B
         let o_u2 = o_db + nb;
         let o_chain = o_u2 + nub;
-        let o_rest = o_chain + (k - 1) * nb; // what followed U*_B
+        let o_rest = o_chain + (nk - 1) * nb; // what followed U*_B
         debug_assert_eq!(o_rest + n_after_u - nub, dim);
         // T₀: ζ' → ζ with the d rows still empty.
         let mut t = Mat::<f64>::zeros(nc, dim);
@@ -291,14 +487,15 @@ impl IterationChain {
         for i in 0..nz {
             e[(i, ws + i)] += 1.0;
         }
-        let mut fa = Mat::<f64>::zeros(k * nb, dim);
-        let mut fb = Mat::<f64>::zeros(k * nb, dim);
-        for step in 1..=k {
-            let se = mul(self.s_z.as_ref(), e.as_ref());
-            let col = if step == k {
+        let mut fa = Mat::<f64>::zeros(nk * nb, dim);
+        let mut fb = Mat::<f64>::zeros(nk * nb, dim);
+        let e = self.unroll(e, k, |step, pre| {
+            // The clamp's output: a new chain column per bounded coordinate (d_B at the last
+            // clamp), the free rows exactly its input.
+            let col = if step + 1 == nk {
                 o_db
             } else {
-                o_chain + (step - 1) * nb
+                o_chain + step * nb
             };
             let mut next = Mat::<f64>::zeros(nz, dim);
             for (a, &i) in self.bounded.iter().enumerate() {
@@ -306,21 +503,21 @@ impl IterationChain {
             }
             for &i in &self.free {
                 for j in 0..dim {
-                    next[(i, j)] = se[(i, j)];
+                    next[(i, j)] = pre[(i, j)];
                 }
             }
-            // c = Σ_{i∈B} D_i⁻² e⁺_i((Se)_i − e⁺_i), as ½(AᵀB + BᵀA): the sector in the
-            // map's own coordinates y = D⁻¹z, where ‖S_y‖ ≤ 1 (in z, S_z = D S_y D⁻¹ spans the
+            // c = Σ_{i∈B} D_i⁻² e⁺_i(p_i − e⁺_i), as ½(AᵀB + BᵀA): the sector in the map's
+            // own coordinates y = D⁻¹z, where ‖S_y‖ ≤ 1 (in z, S_z = D S_y D⁻¹ spans the
             // decades of D and one weight per iteration could not balance its rows).
             for (r, &i) in self.bounded.iter().enumerate() {
                 let w = g.d_inv[i];
                 for j in 0..dim {
-                    fa[((step - 1) * nb + r, j)] = w * next[(i, j)];
-                    fb[((step - 1) * nb + r, j)] = w * (se[(i, j)] - next[(i, j)]);
+                    fa[(step * nb + r, j)] = w * next[(i, j)];
+                    fb[(step * nb + r, j)] = w * (pre[(i, j)] - next[(i, j)]);
                 }
             }
-            e = next;
-        }
+            next
+        });
         // d = eᴷ fills T's d rows.
         for i in 0..nz {
             for j in 0..dim {
@@ -354,7 +551,8 @@ impl IterationChain {
         };
         Ok(ChainAt {
             gl,
-            k,
+            k_iter: k,
+            k: nk,
             a: fa,
             b: fb,
         })
@@ -521,7 +719,7 @@ impl ChainAt {
             g.certify_supply(phi, rho, &pi, [tau[0], tau[2]], Vec::new())
         };
         let found = |c: GlobalCertificate, tau2: f64, lambda: Vec<f64>| ChainCertificate {
-            k: self.k,
+            k: self.k_iter,
             tau2,
             lambda,
             mu: Vec::new(),
@@ -678,7 +876,7 @@ impl ChainAt {
         let cert = g
             .certify_supply(phi, target, &pi, [m[0], m[2]], Vec::new())
             .map(|c| ChainCertificate {
-                k,
+                k: self.k_iter,
                 tau2: m[1],
                 lambda: m[3..3 + k].to_vec(),
                 mu: m[3 + k..].to_vec(),

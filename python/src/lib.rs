@@ -1070,7 +1070,7 @@ impl PyCertificate {
         })
     }
 
-    /// K_chain of `method` under the iteration chain (Theorem L3b; pg and pg-jacobi, f64): the
+    /// K_chain of `method` under the iteration chain (Theorem L3b; pg, fista and their Jacobi variants, f64): the
     /// smallest K the chain checked and certified; it covers only the K it checked.
     fn k_chain(&self, method: &str) -> PyResult<Option<usize>> {
         let method: Method = method.parse().map_err(|e: qp_iter::QpError| {

@@ -551,7 +551,7 @@ impl Certificate {
     /// K_chain of `method` under the iteration chain (Theorem L3b, docs/theory.md §4b; pg and
     /// pg-jacobi, f64): the smallest K the chain checked and certified. The chain covers only
     /// the K it checked ([`Certificate::verdict`] says `not_computed` at a K it did not check),
-    /// so this is a floor of the verdict, not a threshold (`None`: not pg/pg-jacobi, nothing
+    /// so this is a floor of the verdict, not a threshold (`None`: not PG/FISTA or a Jacobi variant, nothing
     /// certified, or not computed within the budget).
     pub fn k_chain(&self, method: Method) -> Option<usize> {
         crate::coverage::global_of(&self.closed_loop, method, self.model.controller)

@@ -172,7 +172,7 @@ fn k_glob_cell(sv: &mhe_report::SolverSummary, notes: &mut Notes) -> String {
     }
 }
 
-/// K_chain of the iteration chain (Theorem L3b: that K only, pg and pg-jacobi), or why none
+/// K_chain of the iteration chain (Theorem L3b: that K only, pg, fista and their Jacobi variants), or why none
 /// ("-": not modelled for this method or controller).
 fn k_chain_cell(sv: &mhe_report::SolverSummary, notes: &mut Notes) -> String {
     use iss_certificate::lure::chain_outcome::{ChainCheck, ChainOutcome};

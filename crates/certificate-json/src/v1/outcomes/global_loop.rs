@@ -32,7 +32,7 @@ pub struct LoopMethod {
     pub k_min_note: Option<String>,
     /// The global loop certificate.
     pub global: GlobalLoopOutcome,
-    /// K_chain: the smallest K the iteration chain certified (Theorem L3b, pg and pg-jacobi;
+    /// K_chain: the smallest K the iteration chain certified (Theorem L3b, PG and FISTA with their Jacobi variants;
     /// that K only), or `null`.
     #[serde(default)]
     pub k_chain: Option<usize>,

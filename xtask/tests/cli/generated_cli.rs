@@ -13,7 +13,6 @@ use crate::generate::{ScenarioCase, SweepCase, names_user_key, scenario_case, sw
 use proptest::strategy::{Strategy, ValueTree};
 use proptest::test_runner::TestRunner;
 
-
 /// Longest a single invocation may take before it counts as a hang.
 const TIME_LIMIT: Duration = Duration::from_secs(60);
 

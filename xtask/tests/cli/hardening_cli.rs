@@ -396,7 +396,10 @@ fn help_or_a_run_into_a_full_or_closed_stdout_is_exit_5() {
             .output()
             .unwrap();
         assert_eq!(o.status.code(), Some(5), "{args:?}: {}", stderr(&o));
-        let o = Command::new(crate::shared::xtask_bin()).args(args).output().unwrap();
+        let o = Command::new(crate::shared::xtask_bin())
+            .args(args)
+            .output()
+            .unwrap();
         assert_eq!(o.status.code(), Some(0), "{args:?}: {}", stderr(&o));
         assert!(!o.stdout.is_empty());
     }

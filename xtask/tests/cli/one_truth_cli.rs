@@ -13,7 +13,6 @@ use std::process::{Command, Output};
 
 use xtask::sweep_engine::Table;
 
-
 /// K_min of Theorem 1 for ADMM-PR on `scenarios/double-integrator.toml` (reproduce prints
 /// it; the base case below checks it).
 const K_MIN: usize = 206;
@@ -32,7 +31,10 @@ fn scratch(name: &str) -> PathBuf {
 }
 
 fn run(args: &[&str]) -> Output {
-    Command::new(crate::shared::xtask_bin()).args(args).output().unwrap()
+    Command::new(crate::shared::xtask_bin())
+        .args(args)
+        .output()
+        .unwrap()
 }
 
 fn text(out: &Output) -> String {
@@ -203,7 +205,10 @@ fn export_verdict(c: &Case, d: &Path, f: &str) -> (bool, bool) {
         .collect()
     };
     let a1 = args(&e1);
-    let out = Command::new(crate::shared::xtask_bin()).args(&a1).output().unwrap();
+    let out = Command::new(crate::shared::xtask_bin())
+        .args(&a1)
+        .output()
+        .unwrap();
     let export_refused = !out.status.success();
     if export_refused {
         assert!(
@@ -216,7 +221,10 @@ fn export_verdict(c: &Case, d: &Path, f: &str) -> (bool, bool) {
     let e2 = d.join("e2");
     let mut a2 = args(&e2);
     a2.push("--allow-uncertified".into());
-    let out = Command::new(crate::shared::xtask_bin()).args(&a2).output().unwrap();
+    let out = Command::new(crate::shared::xtask_bin())
+        .args(&a2)
+        .output()
+        .unwrap();
     assert!(out.status.success(), "{}: export\n{}", c.name, text(&out));
     let ej: serde_json::Value =
         serde_json::from_str(&fs::read_to_string(e2.join("certificate.json")).unwrap()).unwrap();

@@ -35,7 +35,10 @@ const SMALL: &str = "name = \"kill\"\nk = [1, 3, 10, 30, 100, 300]\nsolvers = [\
                      seeds = 10\nsteps = 40\nbase_seed = 5\ncertificate = false\n";
 
 fn xtask(args: &[&str]) -> Output {
-    Command::new(crate::shared::xtask_bin()).args(args).output().unwrap()
+    Command::new(crate::shared::xtask_bin())
+        .args(args)
+        .output()
+        .unwrap()
 }
 
 fn text(p: &Path) -> String {

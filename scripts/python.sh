@@ -9,7 +9,9 @@
 #      it builds the release abi3 wheel in CARGO_TARGET_DIR and installs it);
 #   4. pytest on python/tests, comparing with the release CLI (XTASK, built when missing).
 #
-# Usage: scripts/python.sh   (cold: 6.2 CPU-min, ≈ 3–4 min on 2 idle cores; warm: 14–40 s; docs/python.md)
+# Usage: scripts/python.sh   (cold after the release xtask build: 5.5 CPU-min for the wheel, 8.7
+#        while python/ and xtask resolve shared crates differently (the note below); warm: 14–40 s;
+#        docs/python.md, "Cost")
 # Env: VENV=dir  XTASK=path/to/xtask  CARGO_TARGET_DIR (default: the workspace's target/)
 set -euo pipefail
 

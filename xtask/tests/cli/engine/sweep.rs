@@ -393,7 +393,7 @@ fn long_theoretical_columns_follow_the_certificate() {
         };
         // K_min is the boundary of the certified set.
         assert!(analysis.at(km).certified && !analysis.at(km - 1).certified);
-        // The verdict's floor is Theorem 1's K_min, or lower where pg's iteration chain
+        // The verdict's floor is Theorem 1's K_min, or lower where PG's or FISTA's iteration chain
         // certified a smaller K (docs/theory.md §4b).
         let floor = points.number(row, "k_min_cert").unwrap();
         assert!(floor <= km as f64, "{p}: k_min_cert {floor} > K_min {km}");
@@ -408,7 +408,12 @@ fn long_theoretical_columns_follow_the_certificate() {
                 ["yes", "no", "not_computed"].contains(&cert),
                 "{p}: {cert} {reason}"
             );
-            assert!(p.solver.name().starts_with("pg"), "{p}: {reason}");
+            // The chain models PG and FISTA (Theorems L3b, L3c) and their Jacobi variants.
+            let name = p.solver.name();
+            assert!(
+                name.starts_with("pg") || name.starts_with("fista"),
+                "{p}: {reason}"
+            );
         } else {
             assert_eq!(cert, "no", "{p}: {reason}");
         }

@@ -78,12 +78,13 @@ fn the_scenario_is_checked_before_any_work() {
 #[test]
 #[ignore = "long: run by .ci/run with --ignored"]
 fn long_export_from_values_refuses_below_k_min_and_writes_the_opt_in() {
-    // FISTA: below its K_min no other certificate can decide (pg's iteration chain at K = 1 is
-    // not computed within this scenario's budget, so pg's refusal says "not computed").
+    // ADMM-PR: below its floor no other certificate can decide (the iteration chains of PG and
+    // FISTA at K = 1 are not computed within this scenario's budget, so their refusals say
+    // "not computed"; ADMM has no chain in the verdict).
     let path = workspace_root().join("scenarios/case-study-certified.toml");
     let resolved = Scenario::from_file(&path).unwrap().resolve().unwrap();
     let mut o = ExportOptions {
-        method: Some(Method::FISTA),
+        method: Some(Method::ADMM_PR),
         k: Iterations::Given(1),
         ..ExportOptions::default()
     };
@@ -96,7 +97,7 @@ fn long_export_from_values_refuses_below_k_min_and_writes_the_opt_in() {
     );
     assert_eq!(
         stages,
-        ["computing the certificate of Theorem 1 for fista …"]
+        ["computing the certificate of Theorem 1 for admm-pr …"]
     );
     o.allow_uncertified = true;
     let art = export(&resolved, &o).unwrap();

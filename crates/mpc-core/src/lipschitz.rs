@@ -245,11 +245,10 @@ impl CondensedMpc {
                     g[p * nu + q] = (0..nx).map(|j| k[p * nx + j] * k[q * nx + j]).sum();
                 }
             }
-            best = best.max(
-                lti_model::matrix::sym_lambda_max_in_place(&mut g, nu)
-                    .max(0.0)
-                    .sqrt(),
-            );
+            // Stops as soon as it cannot raise `best` (the same maximum, bit for bit).
+            if let Some(top) = lti_model::matrix::sym_lambda_max_above(&mut g, nu, best * best) {
+                best = best.max(top.max(0.0).sqrt());
+            }
         })?;
         Ok(visited.then_some(best))
     }

@@ -8,7 +8,7 @@
 //! its contraction factor reaches 1 (it can no longer certify; its reported λ is then a lower
 //! bound ≥ 1 on the vertex maximum).
 
-use lti_model::matrix::sym_lambda_max_in_place;
+use lti_model::matrix::sym_lambda_max_above;
 use mpc_core::{CondensedMpc, MpcError};
 
 use super::metrics::Metric;
@@ -31,14 +31,19 @@ fn frobenius(m: &[f64]) -> f64 {
     m.iter().map(|v| v * v).sum::<f64>().sqrt()
 }
 
-/// ‖M‖₂ of a small square row-major matrix via λ_max(MᵀM), with scratch `g` (n²).
-fn norm2(m: &[f64], n: usize, g: &mut [f64]) -> f64 {
+/// max(`running`, ‖M‖₂) of a small square row-major matrix, ‖M‖₂ via λ_max(MᵀM) with
+/// scratch `g` (n²); the eigenproblem stops as soon as it cannot raise `running`
+/// ([`sym_lambda_max_above`]: the same maximum, bit for bit).
+fn raise_norm2(running: f64, m: &[f64], n: usize, g: &mut [f64]) -> f64 {
     for i in 0..n {
         for j in 0..n {
             g[i * n + j] = (0..n).map(|k| m[k * n + i] * m[k * n + j]).sum();
         }
     }
-    sym_lambda_max_in_place(g, n).max(0.0).sqrt()
+    match sym_lambda_max_above(g, n, running * running) {
+        Some(top) => running.max(top.max(0.0).sqrt()),
+        None => running,
+    }
 }
 
 /// Mask chunks of the enumeration: fixed by 2^s alone (not by the thread count), so the
@@ -132,11 +137,11 @@ impl VertexEnumeration {
                 mul(h, &j, &mut t1);
                 mul(&t1, nh, &mut t2);
                 if frobenius(&t2) > lam[mi] {
-                    lam[mi] = lam[mi].max(norm2(&t2, nx, &mut g));
+                    lam[mi] = raise_norm2(lam[mi], &t2, nx, &mut g);
                 }
                 mul(h, &bk, &mut t1);
                 if frobenius(&t1) > gin[mi] {
-                    gin[mi] = gin[mi].max(norm2(&t1, nx, &mut g));
+                    gin[mi] = raise_norm2(gin[mi], &t1, nx, &mut g);
                 }
             }
         })?;

@@ -761,3 +761,53 @@ fn sym_lambda_max_dense_path_matches_jacobi() {
         }
     }
 }
+
+/// `sym_lambda_max_above` on 4 000 random symmetric matrices (PSD, indefinite and rank-one,
+/// k = 1–8, scales 10⁻⁶–10⁶) and floors around, below and above λ_max: Some(λ) is bit for bit
+/// `sym_lambda_max_in_place`'s value, None only where that value is ≤ the floor, and floors
+/// just below λ_max never return None (the early stop has teeth only where it is sound).
+#[test]
+fn sym_lambda_max_above_is_the_running_maximum_bit_for_bit() {
+    use lti_model::matrix::{sym_lambda_max_above, sym_lambda_max_in_place};
+    let mut rng = ChaCha8Rng::seed_from_u64(21);
+    let (mut stopped, mut computed) = (0, 0);
+    for case in 0..4000 {
+        let k = 1 + case % 8;
+        let scale = 10f64.powi(rng.random_range(-6..=6));
+        let b: Vec<f64> = (0..k * k).map(|_| rng.random_range(-1.0..1.0)).collect();
+        let mut g = vec![0.0; k * k];
+        for i in 0..k {
+            for j in 0..k {
+                g[i * k + j] = scale
+                    * match case % 3 {
+                        0 => (0..k).map(|l| b[i * k + l] * b[j * k + l]).sum(),
+                        1 => b[i * k + j] + b[j * k + i],
+                        _ => b[i] * b[j],
+                    };
+            }
+        }
+        let exact = sym_lambda_max_in_place(&mut g.clone(), k);
+        let spread = exact.abs().max(scale);
+        let floor = exact + spread * rng.random_range(-2.0..2.0);
+        match sym_lambda_max_above(&mut g.clone(), k, floor) {
+            Some(top) => {
+                computed += 1;
+                assert_eq!(top.to_bits(), exact.to_bits(), "case {case}");
+            }
+            None => {
+                stopped += 1;
+                assert!(exact <= floor, "case {case}: {exact} > floor {floor}");
+            }
+        }
+        let just_below = exact - 1e-9 * spread;
+        assert_eq!(
+            sym_lambda_max_above(&mut g.clone(), k, just_below).map(f64::to_bits),
+            Some(exact.to_bits()),
+            "case {case}"
+        );
+    }
+    assert!(
+        stopped > 500 && computed > 500,
+        "{stopped} stopped, {computed} computed"
+    );
+}

@@ -49,7 +49,8 @@ check | calibrate | table) ;;
     ;;
 esac
 # The export tool: `cargo xtask` unless XTASK names a built binary (a calibration takes
-# long enough that a rebuild in between would mix two versions).
+# long enough that a rebuild in between would mix two versions; .ci/run passes the one its
+# test command built, so that no other feature set of the workspace is compiled).
 read -r -a XTASK_CMD <<<"${XTASK:-cargo xtask}"
 
 OUT=target/cortex-m
@@ -491,7 +492,7 @@ run() {
     echo "==> $file: $method"
     local scenario="scenarios/$file.toml"
     [ -e "$OUT/$file.toml" ] && scenario="$OUT/$file.toml"
-    QP_ITER_KERNEL=portable cargo xtask reproduce --scenario "$scenario" \
+    QP_ITER_KERNEL=portable "${XTASK_CMD[@]}" reproduce --scenario "$scenario" \
         --out "$OUT/reproduce" "$@" >"$OUT/$file-reproduce.log" 2>&1 \
         || { tail -20 "$OUT/$file-reproduce.log"; exit 1; }
     local trace="$OUT/reproduce/$file/trace.csv"
@@ -502,7 +503,7 @@ run() {
     local art="$OUT/$file-$method-c"
     local mpc_flags=()
     [ "$kc" != - ] && mpc_flags=(--kc "$kc")
-    cargo xtask export --scenario "$scenario" --out "$art" --lang c \
+    "${XTASK_CMD[@]}" export --scenario "$scenario" --out "$art" --lang c \
         --method "$method" --k "$k" "${mpc_flags[@]}" >"$OUT/$file-export.log" 2>&1 \
         || { cat "$OUT/$file-export.log"; exit 1; }
     k=$(sed -n 's/^#define MHE_K \([0-9]*\)/\1/p' "$art/mhe_data.h")
@@ -559,7 +560,7 @@ robustness() {
     local art="$OUT/case-study-f32-c" tag machine label prog
     echo
     echo "==> case-study: pg, f32 at the certified K; robustness on both boards"
-    cargo xtask export --scenario scenarios/case-study.toml --out "$art" --lang c --method pg \
+    "${XTASK_CMD[@]}" export --scenario scenarios/case-study.toml --out "$art" --lang c --method pg \
         --k certified --scalar f32 >"$OUT/case-study-f32-export.log" 2>&1 \
         || { cat "$OUT/case-study-f32-export.log"; exit 1; }
     grep -q 'certified' "$OUT/case-study-f32-export.log"

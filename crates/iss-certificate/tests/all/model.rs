@@ -400,7 +400,7 @@ fn first_certificate_fits_15_lines() {
     }
     let readme = std::fs::read_to_string(format!("{dir}/README.md")).expect("the README");
     assert!(
-        readme.contains(&format!("```rust\n{code}```")),
+        readme.contains(&format!("```rust,no_run\n{code}```")),
         "README.md's example differs from examples/first_certificate.rs"
     );
 }

@@ -8,9 +8,9 @@ use std::path::{Path, PathBuf};
 use std::process::Command;
 use std::sync::OnceLock;
 
-/// The `xtask` binary these tests run: the test profile's own build, or `XTASK_BIN` when set.
-/// `.ci/run`'s long step sets it to the release build of the same checkout (built just
-/// before), where the spawned runs' numerics take a fraction of the opt-level-1 time; the
+/// The `xtask` binary these tests run: the build of the same profile (`.ci/run` and the README
+/// test in release), or `XTASK_BIN` when set — e.g. a release build under `cargo test` without
+/// `--release`, where the spawned runs' numerics take a fraction of the opt-level-1 time; the
 /// outputs are the same (no fast-math: the bits do not depend on the optimisation level).
 /// A path that is not a file panics here, before any test reads a stale or missing binary.
 pub fn xtask_bin() -> PathBuf {

@@ -119,7 +119,9 @@ impl Default for Source {
 pub struct ExportOptions {
     /// The MHE method [None: the scenario's `mhe.method`].
     pub method: Option<Method>,
-    /// Iterations K per step [`Iterations::Certified`: K_min of Theorem 1].
+    /// Iterations K per step [`Iterations::Certified`: the smallest K the one verdict
+    /// certifies (Theorem 1, Theorem L3 or the iteration chain); with `kc`, the joint
+    /// certificate's smallest K for that K_c].
     pub k: Iterations,
     /// Also export the K_c-iteration MPC (the whole certified loop) [None: the scenario's
     /// `mpc.iterations` when set, else no MPC].
@@ -433,21 +435,32 @@ pub fn export_with_progress(
     let plan = Plan::new(scenario, options)?;
     let method = plan.method;
     progress(&Stage::Theorem1 { method });
-    let est = export_estimator(resolved, options, method)?;
-    let mpc = match plan.mpc {
+    let loop_cert =
+        closed_loop_certificate(resolved, method).map_err(|e| ExportError::certificate(&e))?;
+    // With an MPC the artefact runs the K_c-iteration MPC, which only the joint certificate
+    // covers: `--k certified` is then its smallest K for that K_c, not the exact MPC's floor.
+    let joint = match plan.mpc {
         Some((kc_arg, mpc_method)) => {
             progress(&Stage::Joint {
                 mhe: method,
                 mpc: mpc_method,
             });
-            Some(export_mpc(
-                resolved,
-                options,
-                &est,
-                kc_arg,
-                (method, mpc_method),
-            )?)
+            let joint = joint_certificate(resolved, &loop_cert, method, mpc_method)
+                .map_err(|e| ExportError::certificate(&e))?;
+            Some((joint, kc_arg))
         }
+        None => None,
+    };
+    let joint_floor = joint.as_ref().and_then(|(j, kc_arg)| match kc_arg {
+        Iterations::Given(k_c) => j
+            .analysis
+            .k_e_min(*k_c, j.region.k_max)
+            .or(j.region.k_e_floor),
+        Iterations::Certified => j.region.k_e_floor,
+    });
+    let est = export_estimator(resolved, options, method, loop_cert, joint_floor)?;
+    let mpc = match joint {
+        Some((joint, kc_arg)) => Some(export_mpc(resolved, options, &est, kc_arg, joint)?),
         None => None,
     };
     let header = Header {
@@ -531,20 +544,22 @@ struct EstimatorExport {
 
 /// Certificate, K and verdict ([`decide_k`]), then the std estimator's numbers with the
 /// C self-test's stored steps (f64: the std estimator's bits; M + 2 steps).
+/// `joint_floor`: with an MPC, the joint certificate's smallest K for the exported K_c (what
+/// `--k certified` means then).
 fn export_estimator(
     resolved: &ResolvedScenario,
     o: &ExportOptions,
     method: Method,
+    loop_cert: iss_certificate::certificate::ClosedLoopCertificate,
+    joint_floor: Option<usize>,
 ) -> Result<EstimatorExport, ExportError> {
     let scenario = resolved.scenario();
-    let loop_cert =
-        closed_loop_certificate(resolved, method).map_err(|e| ExportError::certificate(&e))?;
     let theorem1 = solver_entry(&loop_cert, method).map_err(|e| ExportError::certificate(&e))?;
     let (k, v) = decide_k(
         resolved,
         &loop_cert,
         method,
-        o.k,
+        (o.k, joint_floor),
         o.scalar,
         o.allow_uncertified,
     )
@@ -597,10 +612,9 @@ fn export_mpc(
     o: &ExportOptions,
     est: &EstimatorExport,
     kc_arg: Iterations,
-    (method, mpc_method): (Method, Method),
+    joint: JointCertificate,
 ) -> Result<MpcExport, ExportError> {
-    let joint = joint_certificate(resolved, &est.loop_cert, method, mpc_method)
-        .map_err(|e| ExportError::certificate(&e))?;
+    let mpc_method = joint.mpc_method;
     let (k_c, v) = decide_kc(
         resolved,
         &est.loop_cert,

@@ -282,14 +282,15 @@ fn uncertified_reason(v: &PairVerdict, what: &str) -> Option<String> {
 }
 
 /// K from `--k` and the verdict on (method, K, the exact MPC, `scalar`) of
-/// [`iss_certificate::coverage::verdict`]: K and the verdict. `--k certified` is K_min of
-/// Theorem 1; a configuration the verdict does not certify is refused unless
-/// `allow_uncertified`.
+/// [`iss_certificate::coverage::verdict`]: K and the verdict. `--k certified` is the smallest
+/// K the verdict certifies — or `joint_floor` when given (an exported K_c-iteration MPC: the
+/// joint certificate's smallest K for its K_c); a configuration the verdict does not certify
+/// is refused unless `allow_uncertified`.
 pub(crate) fn decide_k(
     resolved: &ResolvedScenario,
     cert: &ClosedLoopCertificate,
     method: Method,
-    k_arg: Iterations,
+    (k_arg, joint_floor): (Iterations, Option<usize>),
     scalar: ScalarKind,
     allow_uncertified: bool,
 ) -> Result<(usize, PairVerdict)> {
@@ -303,9 +304,10 @@ pub(crate) fn decide_k(
     };
     // `--k certified`: the smallest K the one verdict certifies in this scalar (Theorem 1's
     // K_min or the global K_glob, whichever is smaller).
-    let k = match k_arg {
-        Iterations::Given(k) => k,
-        Iterations::Certified => {
+    let k = match (k_arg, joint_floor) {
+        (Iterations::Given(k), _) => k,
+        (Iterations::Certified, Some(k)) => k,
+        (Iterations::Certified, None) => {
             let probe = iss_certificate::coverage::verdict(resolved, cert, &config(1));
             match (probe.certified.is_certified(), probe.k_min) {
                 (true, _) => 1,

@@ -401,14 +401,32 @@ fn vendored_sources_are_the_crate() {
 fn a_k_below_k_min_is_refused_unless_allowed() {
     let path = workspace_root().join("scenarios/case-study-certified.toml");
     let resolved = Scenario::from_file(&path).unwrap().resolve().unwrap();
-    let loop_cert = certified_preset_pg(&resolved);
-    let k_min = loop_cert.solver(Method::PG).unwrap().k_min.unwrap();
+    let full = certified_preset_pg(&resolved);
     let decide = |cert: &ClosedLoopCertificate, k: Iterations, scalar, allow| {
-        decide_k(&resolved, cert, Method::PG, k, scalar, allow)
+        decide_k(&resolved, cert, Method::PG, (k, None), scalar, allow)
             .map(|(k, v)| (k, v.certified.is_certified()))
     };
     let f64 = ScalarKind::F64;
     let given = Iterations::Given;
+    // With the global loop certificate (Theorem L3, computed within the default budget
+    // since session 22) the floor is the smaller certified K: below Theorem 1's K_min.
+    let k_glob = full
+        .global
+        .as_ref()
+        .and_then(|g| g.method(Method::PG))
+        .and_then(|m| m.exact.k_glob())
+        .expect("Theorem L3 certifies PG on the certified preset");
+    let (floor, yes) = decide(full, Iterations::Certified, f64, false).unwrap();
+    assert!(yes && floor <= k_glob, "floor {floor}, K_glob {k_glob}");
+    assert_eq!(
+        decide(full, given(k_glob), f64, false).unwrap(),
+        (k_glob, true)
+    );
+    // Theorem 1 alone (the global section removed): the rules at its K_min.
+    let mut theorem1 = full.clone();
+    theorem1.global = None;
+    let loop_cert = &theorem1;
+    let k_min = loop_cert.solver(Method::PG).unwrap().k_min.unwrap();
     assert_eq!(
         decide(loop_cert, Iterations::Certified, f64, false).unwrap(),
         (k_min, true)

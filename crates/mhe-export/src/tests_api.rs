@@ -129,3 +129,38 @@ fn long_export_from_values_refuses_below_k_min_and_writes_the_opt_in() {
             .contains("UNCERTIFIED")
     );
 }
+
+/// With an MPC the artefact runs the K_c-iteration MPC, which only the joint certificate
+/// covers: `k = certified` is the joint certificate's smallest K for the exported K_c — not
+/// the exact MPC's floor (Theorem L3 certifies K = 34 for PG with the exact MPC on the
+/// certified preset; the joint certificate's smallest K is Theorem 1's 243) — and the loop
+/// is certified.
+#[test]
+fn with_an_mpc_k_certified_is_the_joint_floor() {
+    let path = workspace_root().join("scenarios/case-study-certified.toml");
+    let resolved = Scenario::from_file(&path).unwrap().resolve().unwrap();
+    let cert = super::tests::certified_preset_pg(&resolved);
+    let joint = joint_certificate(&resolved, cert, Method::PG, Method::PG).unwrap();
+    let k_e_floor = joint.region.k_e_floor.expect("a certified pair");
+    let o = ExportOptions {
+        method: Some(Method::PG),
+        k_c: Some(Iterations::Certified),
+        mpc_method: Some(Method::PG),
+        ..ExportOptions::default()
+    };
+    let art = export(&resolved, &o).unwrap();
+    assert_eq!(art.k(), k_e_floor);
+    assert!(art.certified() && art.loop_certified());
+    let (_, k_c) = art.mpc().expect("an MPC");
+    assert_eq!(
+        Some(k_c),
+        joint.analysis.k_c_min(k_e_floor, joint.region.k_max)
+    );
+    // Without the MPC the floor is the one verdict's, below Theorem 1's K_min.
+    let o = ExportOptions {
+        method: Some(Method::PG),
+        ..ExportOptions::default()
+    };
+    let art = export(&resolved, &o).unwrap();
+    assert!(art.k() < k_e_floor, "K = {}", art.k());
+}

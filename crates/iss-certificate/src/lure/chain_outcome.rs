@@ -71,6 +71,18 @@ pub enum ChainCheck {
         /// The smallest ρ the ascent reached (unchecked; a distance, not a certificate).
         rho_reached: Option<f64>,
     },
+    /// ρ_lin(K) ≥ 1: the loop with every clamp inactive is not stable at this K, so the
+    /// chain certifies nothing there (Theorem L3b (ii), a proof of absence; no search run).
+    #[error(
+        "K = {k}: ρ_lin(K) = {rho_lin:.4} ≥ 1, so no certificate can exist at this K \
+         (Theorem L3b (ii))"
+    )]
+    LinearlyUnstable {
+        /// K.
+        k: usize,
+        /// ρ_lin(K) of the method's lifted linear loop.
+        rho_lin: f64,
+    },
     /// The budget stopped (or did not allow) the search at this K.
     #[error(
         "K = {k}: not computed within the budget ({solves} solves of ≈ {per_solve:.2e} s \
@@ -107,6 +119,7 @@ impl ChainCheck {
         match self {
             Self::Certified(c) => c.k,
             Self::NotCertified { k, .. }
+            | Self::LinearlyUnstable { k, .. }
             | Self::NotComputed { k, .. }
             | Self::Refused { k, .. } => *k,
         }
@@ -255,17 +268,18 @@ pub fn chain_models(method: Method) -> bool {
 
 /// Estimated single-core seconds of one Riccati solve of the chain search at dim ζ' =
 /// `dim`, dim X = `n_x`: the doubling Riccati (≈ 25 doublings of ≈ 8·n_X³), forming the
-/// supply (≈ 3·dim³: the chain's form and σ₂'s products) and its Cholesky check —
-/// calibrated in release on the case study (docs/certificate-coverage.md, "Which
-/// certificate decides").
+/// supply and its Cholesky check ([`CHAIN_DIM_FACTOR`]·dim³) — an upper figure: measured in
+/// release, idle (`chain::calibrate_chain_solve_seconds`, 40 solves per K at K = 1 and 3 on
+/// five shipped scenarios), 0.6–25·10⁻³ s per solve against 7.8–124·10⁻³ estimated before
+/// session 22 (factor 50) and 6.4–30·10⁻³ now (the cart-pendulum's PG at K = 1: 25·10⁻³
+/// measured, 23·10⁻³ estimated; a solve whose Riccati fails early costs less).
 pub fn chain_solve_seconds(dim: usize, n_x: usize) -> f64 {
     let (d, nx) = (dim as f64, n_x as f64);
     (200.0 * nx.powi(3) + CHAIN_DIM_FACTOR * d.powi(3)) / DENSE_RATE
 }
 
-/// The dim³ factor of [`chain_solve_seconds`] (measured; scalar loops run well below the
-/// dense rate).
-const CHAIN_DIM_FACTOR: f64 = 50.0;
+/// The dim³ factor of [`chain_solve_seconds`] (measured, [`chain_solve_seconds`]).
+const CHAIN_DIM_FACTOR: f64 = 5.0;
 
 /// The chain of `method` on `resolved` (the scenario's loop with `method`), scanned from
 /// K = 1 up to min(`k_glob` − 1, [`CHAIN_SCAN_MAX`]) and then checked at the scenario's K
@@ -303,7 +317,7 @@ pub fn method_chain(
                 scan = ChainScanEnd::Certified { k };
                 break;
             }
-            ChainCheck::NotCertified { .. } => {}
+            ChainCheck::NotCertified { .. } | ChainCheck::LinearlyUnstable { .. } => {}
             ChainCheck::NotComputed { .. } | ChainCheck::Refused { .. } => {
                 scan = ChainScanEnd::Stopped { last_k: k - 1 };
                 break;
@@ -350,6 +364,14 @@ fn check(
             k,
             reason: e.to_string(),
         };
+    }
+    // Theorem L3b (ii): where the linear loop is unstable nothing can be certified; its
+    // spectral radius costs one eigenvalue problem of the lifted loop's size, far less than
+    // the search's first solve.
+    if let Ok(rho_lin) = ch.global.lifted.spectral_radius(k, faer::Par::Seq) {
+        if rho_lin >= 1.0 {
+            return ChainCheck::LinearlyUnstable { k, rho_lin };
+        }
     }
     let afford = (*left / per_solve).floor();
     if !(afford >= MIN_SOLVES as f64) {

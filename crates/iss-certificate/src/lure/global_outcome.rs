@@ -331,19 +331,35 @@ impl GlobalSection {
 }
 
 /// Estimated single-core seconds of one φ* search on a loop of dim ζ = `n_zeta`, dim X =
-/// `n_x`, with `tau_calls` multiplier pairs per failed φ: a doubling Riccati (≈ 25 doublings
-/// of ≈ 8·n_X³) and two Jacobi eigenvalue checks (scalar loops, ≈ 120·n_ζ³ at 1/20 of the
-/// dense rate) per call, and 2·(`tau_calls` + 1) calls — calibrated on the double
-/// integrator (n_ζ = 126: 4.6 s of CPU for both norms and the rest of `certify --loop`,
-/// estimate 5.8 s) and the case study (n_ζ = 147, an input bound: 8.5 s of CPU for both
-/// norms and the f32 search of PG, estimate 5.4 s per norm with the `tau_calls` of
-/// [`global_section`]; docs/certificate-coverage.md). [`global_section`] budgets each norm's
-/// search on its own (they run on one thread each).
+/// `n_x`, with `tau_calls` multiplier pairs per failed φ: per LMI call a doubling Riccati
+/// ([`RICCATI_FACTOR`]·n_X³) and the independent check ([`CHECK_FACTOR`]·n_ζ³: forming the
+/// LMI matrix and its eigenvalues, faer's above 16), and 2·(`tau_calls` + 1) calls. Measured
+/// in release, idle (`global_outcome::calibrate_search_seconds`, docs/certificate-coverage.md):
+/// the searches that find φ* took 0.16–0.21 s at n_ζ = 126 (estimate 0.45), 0.36–0.93 s at
+/// n_ζ = 147 with an input bound (0.78) and 1.5–2.3 s at n_ζ = 235 (3.3); a search that
+/// fails at φ = 0 stops after a few calls. [`global_section`] budgets each norm's search on
+/// its own (they run on one thread each).
 pub fn search_seconds(n_zeta: usize, n_x: usize, tau_calls: usize) -> f64 {
-    let (nz, nx) = (n_zeta as f64, n_x as f64);
-    let per_call = 25.0 * 8.0 * nx.powi(3) + 20.0 * 120.0 * nz.powi(3);
     let calls = 2.0 * (tau_calls as f64 + 1.0);
-    calls * per_call / DENSE_RATE
+    calls * (riccati_seconds(n_x) + check_seconds(n_zeta))
+}
+
+/// The n_X³ factor of one doubling Riccati solve (≈ 25 doublings; measured: 108 solves at
+/// n_X = 116 in ≈ 4 s of the refinement).
+const RICCATI_FACTOR: f64 = 500.0;
+
+/// The n_ζ³ factor of one independent check (the LMI matrix formed afresh, equilibrated, and
+/// its eigenvalues).
+const CHECK_FACTOR: f64 = 300.0;
+
+/// Estimated seconds of one doubling Riccati solve at dim X = `n_x`.
+fn riccati_seconds(n_x: usize) -> f64 {
+    RICCATI_FACTOR * (n_x as f64).powi(3) / DENSE_RATE
+}
+
+/// Estimated seconds of one independent check of the LMI at dim ζ = `n_zeta`.
+fn check_seconds(n_zeta: usize) -> f64 {
+    CHECK_FACTOR * (n_zeta as f64).powi(3) / DENSE_RATE
 }
 
 /// The global outcome of every loop in `options` (one per method) on `resolved`, in order:
@@ -696,15 +712,13 @@ fn tau_calls(size: &LoopSize, opts: &GlobalOptions) -> usize {
 /// Estimated seconds of one method's gain refinement ([`GlobalLoop::refine_at`] with the
 /// default [`RefineGrid`]: 9 ρ × 3 strictness × 4 readout weights = 108 Riccati doublings
 /// screened, then at most 5 candidates re-solved and checked), at [`search_seconds`]'s
-/// per-call costs: 3.7 s at the case study's n_ζ = 147, n_X = 116, measured ≈ 3 s per method.
+/// per-call costs: 5.4 s at the certified case study's n_ζ = 235, n_X = 116 (measured
+/// 4.4–5.4 s per norm), 1.0 s at the double integrator's (measured 1.0–1.1 s).
 pub fn refine_seconds(n_zeta: usize, n_x: usize) -> f64 {
     let g = RefineGrid::default();
     let screened = (g.rho_points * g.strict.len() * g.readout.len()) as f64;
-    let (nz, nx) = (n_zeta as f64, n_x as f64);
-    let riccati = 25.0 * 8.0 * nx.powi(3);
-    let check = 20.0 * 120.0 * nz.powi(3);
     let checks = g.checks as f64;
-    ((screened + checks) * riccati + checks * check) / DENSE_RATE
+    (screened + checks) * riccati_seconds(n_x) + checks * check_seconds(n_zeta)
 }
 
 /// φ* of `g`'s norm with its checked certificate (the method's K_glob and gains are read from

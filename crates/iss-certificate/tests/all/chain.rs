@@ -617,3 +617,93 @@ fn sampled_runs_respect_the_verdicts_k_chain() {
         "worst ratio {worst}: the runs never test the inequality"
     );
 }
+
+/// The calibration of `chain_outcome::chain_solve_seconds` (the chain's budget): per scenario,
+/// method and K, the CPU per Riccati solve of a search capped at 40 solves beside the estimate.
+/// Run in release, idle: `CALIBRATE_SCENARIOS=a.toml,b.toml cargo test --release -p
+/// iss-certificate --test all chain::calibrate_chain_solve_seconds -- --ignored --nocapture`.
+#[test]
+#[ignore = "measurement (release): about a minute per scenario"]
+fn calibrate_chain_solve_seconds() {
+    use iss_certificate::lure::chain_outcome::chain_solve_seconds;
+    let files = std::env::var("CALIBRATE_SCENARIOS").unwrap_or_else(|_| {
+        "double-integrator.toml,case-study.toml,case-study-certified.toml,quadruple-tank.toml"
+            .into()
+    });
+    let opts = ChainOptions::default();
+    for file in files.split(',') {
+        let r = resolved(file);
+        for m in [Method::PG, Method::FISTA] {
+            let Ok(ch) = iteration_chain(&r, &options(&r, m)) else {
+                continue;
+            };
+            for k in [1, 3] {
+                let t0 = Instant::now();
+                let Ok(a) = ch.certify_chain_within(k, &opts, 40) else {
+                    continue;
+                };
+                let s = t0.elapsed().as_secs_f64();
+                eprintln!(
+                    "| {file} | {} | {k} | dim {} | n_X {} | {} solves | {:.3e} s/solve | estimate {:.3e} |",
+                    m.name(),
+                    ch.dim(k),
+                    ch.global.n_x(),
+                    a.solves,
+                    s / a.solves.max(1) as f64,
+                    chain_solve_seconds(ch.dim(k), ch.global.n_x())
+                );
+            }
+        }
+    }
+}
+
+/// Theorem L3b (ii) in the budgeted chain: on the cart-pendulum PG's ρ_lin(K) ≥ 1 at every
+/// K ≤ 10 (K_lin = 4 423), so every K of the scan is answered `LinearlyUnstable` with the
+/// linear module's own ρ_lin(K) — even with no budget at all (no search is run) — while on
+/// the case study (ρ_lin(1) < 1) the same zero budget leaves K = 1 not computed.
+#[test]
+fn the_chain_skips_every_k_where_rho_lin_is_at_least_one() {
+    use iss_certificate::linear::linear_stability;
+    use iss_certificate::lure::chain_outcome::{ChainCheck, ChainScanEnd, method_chain};
+    let r = resolved("cart-pendulum.toml");
+    let mut o = options(&r, Method::PG);
+    o.iterations = 3;
+    let out = method_chain(&r, &o, None, 0.0).expect("pg is modelled");
+    let chain = out.chain().expect("the chain builds");
+    assert_eq!(chain.scan, ChainScanEnd::Cap { k: 10 });
+    assert_eq!(chain.checked(), (1..=10).collect::<Vec<_>>());
+    let ks: Vec<usize> = (1..=10).collect();
+    let report = linear_stability(&r, &o, &ks, Par::Seq).expect("ρ_lin");
+    for c in &chain.checks {
+        let ChainCheck::LinearlyUnstable { k, rho_lin } = c else {
+            panic!("expected ρ_lin ≥ 1, got {c}");
+        };
+        let (_, lin) = report
+            .rho_lin
+            .iter()
+            .find(|(kk, _)| kk == k)
+            .copied()
+            .expect("the linear module's ρ_lin at K");
+        assert!(*rho_lin >= 1.0 && lin >= 1.0, "K = {k}: {rho_lin} vs {lin}");
+        assert!(
+            (rho_lin - lin).abs() <= 1e-9 * lin,
+            "K = {k}: {rho_lin} vs {lin}"
+        );
+        assert!(c.to_string().contains("Theorem L3b (ii)"), "{c}");
+    }
+    let r = resolved("case-study.toml");
+    let o = options(&r, Method::PG);
+    let out = method_chain(&r, &o, Some(13), 0.0).expect("pg is modelled");
+    let first = &out.chain().expect("builds").checks[0];
+    assert!(
+        matches!(
+            first,
+            ChainCheck::NotComputed {
+                k: 1,
+                solves: 0,
+                ..
+            }
+        ),
+        "{first}"
+    );
+}

@@ -153,3 +153,54 @@ fn double_integrator_outcome_is_the_measured_k_glob() {
         }
     }
 }
+
+/// The calibration of [`search_seconds`] and [`refine_seconds`] (the budget of every global
+/// search): per scenario and norm, the estimate beside the measured CPU of building the loop,
+/// the φ* search and one refinement at φ*. Run in release, idle:
+/// `CALIBRATE_SCENARIOS=a.toml,b.toml cargo test --release -p iss-certificate --test all
+/// global_outcome::calibrate_search_seconds -- --ignored --nocapture`.
+#[test]
+#[ignore = "measurement (release): about a minute per scenario"]
+fn calibrate_search_seconds() {
+    use iss_certificate::lure::global::{global_loop, loop_size};
+    use iss_certificate::lure::global_outcome::refine_seconds;
+    let files = std::env::var("CALIBRATE_SCENARIOS").unwrap_or_else(|_| {
+        "double-integrator.toml,case-study.toml,case-study-certified.toml,quadruple-tank.toml"
+            .into()
+    });
+    let settings = GlobalSettings::default();
+    for file in files.split(',') {
+        let r = shipped(file);
+        for m in [Method::PG, Method::JACOBI_PRESETS[0]] {
+            let o = &options(&r, &[m])[0];
+            let size = match loop_size(&r, o) {
+                Ok(s) => s,
+                Err(e) => {
+                    eprintln!("{file} {}: {e}", m.name());
+                    continue;
+                }
+            };
+            let calls = settings.search.tau_points.max(2) + usize::from(size.mpc_channel);
+            let est = search_seconds(size.n_zeta, size.n_x, calls);
+            let est_refine = refine_seconds(size.n_zeta, size.n_x);
+            let t0 = std::time::Instant::now();
+            let Ok(g) = global_loop(&r, o) else { continue };
+            let build = t0.elapsed().as_secs_f64();
+            let t1 = std::time::Instant::now();
+            let star = g.phi_star(&settings.search);
+            let search = t1.elapsed().as_secs_f64();
+            let t2 = std::time::Instant::now();
+            if let Some(c) = &star {
+                let _ = g.refine_at(c.phi, c);
+            }
+            let refine = t2.elapsed().as_secs_f64();
+            eprintln!(
+                "| {file} | {} | {} | {} | {build:.2} | {search:.2} | {est:.2} | {refine:.2} | {est_refine:.2} | {} |",
+                m.name(),
+                size.n_zeta,
+                size.n_x,
+                star.map_or("none".to_string(), |c| format!("{:.4}", c.phi))
+            );
+        }
+    }
+}

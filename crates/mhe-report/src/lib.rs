@@ -102,7 +102,8 @@ impl Default for Options {
 
 /// What a caller sees while [`report`] works: the work log's lines as they happen, the
 /// analysis options before the certificate, and progress. Every method does nothing by
-/// default; [`Quiet`] is the observer that shows nothing. Called from worker threads
+/// default; [`Quiet`] is the observer that shows nothing. Called from two threads at once
+/// (the ρ_lin and K_reg analysis runs beside the simulations) and from worker threads
 /// (`linear_progress`), hence `Sync`.
 pub trait Observer: Sync {
     /// One line of the work log (also in [`Report::log`]).

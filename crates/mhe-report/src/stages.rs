@@ -1,6 +1,6 @@
 //! The stages of [`crate::report`]: prepare (check the scenario, the options of its
-//! certificate), plan (certify, decide the runs), simulate, check (Props. 1 and 3, or the
-//! joint check), gains. Each stage takes what the previous one produced; none re-reads or
+//! certificate), plan (certify, decide the runs), simulate with the analysis (ρ_lin, K_reg)
+//! beside it on its own thread, check (Props. 1 and 3, or the joint check), gains. Each stage takes what the previous one produced; none re-reads or
 //! recomputes it.
 
 use std::time::Instant;
@@ -96,11 +96,33 @@ pub(crate) fn run(
     };
     let mut timings = Timings::default();
     let plan = plan(options, &p, &mut log, &mut timings)?;
-    let (runs, skipped_runs) = simulate_runs(options, &p, &plan, &mut log, &mut timings)?;
+    // ρ_lin and K_reg read the certificate only, the simulations the certificate and the
+    // plan: they run side by side (each deterministic on its own, so no result depends on
+    // it). Both show their lines as they happen; the report's log keeps the stage order.
+    let at = log.lines.len();
+    let (analysis, simulated) = std::thread::scope(|s| {
+        let analysis = s.spawn(|| analyse(options, &p, &plan.cert, observer));
+        let simulated = simulate_runs(options, &p, &plan, &mut log, &mut timings);
+        match analysis.join() {
+            Ok(a) => (a, simulated),
+            Err(panic) => std::panic::resume_unwind(panic),
+        }
+    });
+    let (runs, skipped_runs) = simulated?;
+    let Analysis {
+        linear,
+        regional,
+        lines,
+        linear_s,
+        regional_s,
+    } = analysis;
+    log.lines.splice(at..at, lines);
+    timings.linear_s = linear_s;
+    timings.regional_s = regional_s;
     let (trajectory_check, joint) = check(&p, &plan, &runs, &skipped_runs)?;
     let gains = crate::gains::report(
         &plan.cert,
-        &plan.regional,
+        &regional,
         &runs,
         p.solver,
         plan.not_covered.as_deref(),
@@ -113,8 +135,8 @@ pub(crate) fn run(
         iterations: p.iterations,
         certificate_options: p.opts,
         certificate: plan.cert,
-        linear: plan.linear,
-        regional: plan.regional,
+        linear,
+        regional,
         joint_certificate: plan.joint_cert,
         controller: plan.own_controller,
         applicable: plan.applicable,
@@ -204,8 +226,6 @@ fn prepare(scenario: Scenario, settings: &Options) -> Result<Prepared, ReportErr
 /// The certificates of the scenario and the runs they decide.
 struct Plan {
     cert: ClosedLoopCertificate,
-    linear: Vec<LinearEntry>,
-    regional: Vec<regional::RegionalEntry>,
     joint_cert: Option<JointCertificate>,
     own_controller: ControllerChoice,
     applicable: Applicable,
@@ -215,8 +235,9 @@ struct Plan {
     runs: Vec<PlannedRun>,
 }
 
-/// Theorem 1's certificate, K_lin, K_reg, the joint certificate when the MPC is the
-/// K-iteration one, the certificate covering the scenario, and the runs they decide.
+/// Theorem 1's certificate, the joint certificate when the MPC is the K-iteration one, the
+/// certificate covering the scenario, and the runs they decide (K_lin and K_reg are not
+/// needed for them: [`analyse`] runs beside the simulations).
 fn plan(
     settings: &Options,
     p: &Prepared,
@@ -250,30 +271,6 @@ fn plan(
         sig4(times.gamma13_s),
         sig4(times.theorem1_s),
     ));
-    log.say(format!(
-        "[{}] computing the linear stability boundary ρ_lin(K) of each method …",
-        settings.label
-    ));
-    let t0 = Instant::now();
-    let linear = linear_entries(
-        &p.resolved,
-        &cert,
-        p.solver,
-        opts.phase_seconds,
-        log.observer,
-    );
-    timings.linear_s = t0.elapsed().as_secs_f64();
-    log.say(format!(
-        "  done in {} s; searching K_reg, the regional certificate's smallest K, of each method \
-         (estimated work within `certificate.phase_seconds` = {} s, split over the {} methods) …",
-        sig4(t0.elapsed().as_secs_f64()),
-        sig4(opts.phase_seconds),
-        cert.solvers.len()
-    ));
-    let t0 = Instant::now();
-    let regional = regional::regional_entries(&p.resolved, &cert, &linear);
-    timings.regional_s = t0.elapsed().as_secs_f64();
-    log.say(format!("  done in {} s", sig4(t0.elapsed().as_secs_f64())));
 
     // The K-iteration MPC (`mpc.iterations`): the joint certificate decides the runs.
     let joint_cert = joint::joint_certificate(&p.resolved, &cert, p.solver)?;
@@ -295,8 +292,6 @@ fn plan(
     let runs = run_plan(settings, p, &cert, joint_cert.as_ref(), own_controller, log);
     Ok(Plan {
         cert,
-        linear,
-        regional,
         joint_cert,
         own_controller,
         applicable,
@@ -304,6 +299,55 @@ fn plan(
         at_scenario,
         runs,
     })
+}
+
+/// ρ_lin per method and K_reg, with the lines of their work log and their wall times.
+struct Analysis {
+    linear: Vec<LinearEntry>,
+    regional: Vec<regional::RegionalEntry>,
+    lines: Vec<String>,
+    linear_s: f64,
+    regional_s: f64,
+}
+
+/// The linear stability boundary ρ_lin(K) of each method, then K_reg (which reads it), with
+/// their own log (run beside the simulations).
+fn analyse(
+    settings: &Options,
+    p: &Prepared,
+    cert: &ClosedLoopCertificate,
+    observer: &dyn Observer,
+) -> Analysis {
+    let phase_seconds = p.opts.phase_seconds;
+    let mut log = Log {
+        observer,
+        lines: Vec::new(),
+    };
+    log.say(format!(
+        "[{}] computing the linear stability boundary ρ_lin(K) of each method …",
+        settings.label
+    ));
+    let t0 = Instant::now();
+    let linear = linear_entries(&p.resolved, cert, p.solver, phase_seconds, observer);
+    let linear_s = t0.elapsed().as_secs_f64();
+    log.say(format!(
+        "  done in {} s; searching K_reg, the regional certificate's smallest K, of each method \
+         (estimated work within `certificate.phase_seconds` = {} s, split over the {} methods) …",
+        sig4(linear_s),
+        sig4(phase_seconds),
+        cert.solvers.len()
+    ));
+    let t0 = Instant::now();
+    let regional = regional::regional_entries(&p.resolved, cert, &linear);
+    let regional_s = t0.elapsed().as_secs_f64();
+    log.say(format!("  done in {} s", sig4(regional_s)));
+    Analysis {
+        linear,
+        regional,
+        lines: log.lines,
+        linear_s,
+        regional_s,
+    }
 }
 
 /// The simulations: with the joint certificate, its cheapest pair and the scenario's own;

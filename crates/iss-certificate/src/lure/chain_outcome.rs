@@ -268,7 +268,7 @@ pub fn chain_models(method: Method) -> bool {
 
 /// Estimated single-core seconds of one Riccati solve of the chain search at dim ζ' =
 /// `dim`, dim X = `n_x`: the doubling Riccati (≈ 25 doublings of ≈ 8·n_X³), forming the
-/// supply and its Cholesky check ([`CHAIN_DIM_FACTOR`]·dim³) — an upper figure: measured in
+/// supply and its Cholesky check (`CHAIN_DIM_FACTOR`·dim³) — an upper figure: measured in
 /// release, idle (`chain::calibrate_chain_solve_seconds`, 40 solves per K at K = 1 and 3 on
 /// five shipped scenarios), 0.6–25·10⁻³ s per solve against 7.8–124·10⁻³ estimated before
 /// session 22 (factor 50) and 6.4–30·10⁻³ now (the cart-pendulum's PG at K = 1: 25·10⁻³

@@ -332,7 +332,7 @@ impl GlobalSection {
 
 /// Estimated single-core seconds of one φ* search on a loop of dim ζ = `n_zeta`, dim X =
 /// `n_x`, with `tau_calls` multiplier pairs per failed φ: per LMI call a doubling Riccati
-/// ([`RICCATI_FACTOR`]·n_X³) and the independent check ([`CHECK_FACTOR`]·n_ζ³: forming the
+/// (`RICCATI_FACTOR`·n_X³) and the independent check (`CHECK_FACTOR`·n_ζ³: forming the
 /// LMI matrix and its eigenvalues, faer's above 16), and 2·(`tau_calls` + 1) calls. Measured
 /// in release, idle (`global_outcome::calibrate_search_seconds`, docs/certificate-coverage.md):
 /// the searches that find φ* took 0.16–0.21 s at n_ζ = 126 (estimate 0.45), 0.36–0.93 s at

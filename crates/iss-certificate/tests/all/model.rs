@@ -95,10 +95,15 @@ fn long_case_study_certified_typed_equals_toml() {
     // in debug) dominates the test's time, once per certificate.
     let methods = vec![Method::PG, Method::JACOBI_PRESETS[3]];
     let cert = assert_same_certificate(&model, "case-study-certified.toml", 2304062, methods);
-    // The file's K is PG's K_min (a test of xtask keeps it so): certified at K, not below.
+    // The file's K is PG's Theorem 1 K_min (a test of xtask keeps it so): certified at K.
+    // Below it Theorem L3 (the global loop certificate, within the default budget since
+    // session 22) certifies every K ≥ K_glob = 34, and nothing certifies K = 33 (the chain
+    // checked only K = 1, stopped there by its budget).
     assert_eq!(cert.k_min(Method::PG), Some(243));
     assert_eq!(cert.verdict(Method::PG, 243).certified.as_str(), "yes");
-    assert_eq!(cert.verdict(Method::PG, 242).certified.as_str(), "no");
+    assert_eq!(cert.verdict(Method::PG, 242).certified.as_str(), "yes");
+    assert_eq!(cert.verdict(Method::PG, 34).certified.as_str(), "yes");
+    assert_eq!(cert.verdict(Method::PG, 33).certified.as_str(), "no");
 }
 
 #[test]

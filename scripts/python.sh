@@ -46,28 +46,29 @@ if [ -z "${XTASK:-}" ]; then
     cargo build -q -p xtask --release
 fi
 
-# The wheel's cargo build (python/ is a workspace of its own) reuses what the release xtask
-# build left in CARGO_TARGET_DIR only for crates of the same version and features, and their
-# dependents: one differing low crate (syn, once_cell, num-complex) rebuilt faer, gemm and
-# clarabel (docs/python.md, "Cost"). Name the shared crates that differ; a note, not a failure.
-# Features per crate with `cargo tree` (no build): the target-only graph (no proc-macros) and
-# the whole one (proc-macros and build scripts too); the workspace's own crates differ by
-# design (the binding enables iss-certificate's `serde`) and are left out.
+# The wheel's cargo build (python/ is a workspace of its own) reuses what CI's release build
+# (`cargo test --workspace --release`, whose xtask XTASK is) left in CARGO_TARGET_DIR only for
+# crates of the same version and features, and their dependents: one differing low crate
+# (syn, serde, rand) rebuilt faer, gemm and clarabel, one differing workspace crate every
+# workspace crate above it (docs/python.md, "Cost"). Name the crates that differ; a note, not
+# a failure. Features per crate with `cargo tree` (no build) against the workspace with its
+# dev-dependencies (what the test build unifies): the target-only graph (no proc-macros) and
+# the whole one (proc-macros and build scripts too).
 tree_features() {
-    cargo tree -q "$@" --prefix none -f '{p}|{f}' 2>/dev/null | sed 's/ (\*)$//' | grep -v ' (/' | sort -u
+    cargo tree -q "$@" --prefix none -f '{p}|{f}' 2>/dev/null | sed 's/ (\*)$//' | sort -u
 }
 not_shared() {
     local edges
     for edges in normal,no-proc-macro normal,build; do
         awk -F'|' 'NR == FNR { seen[$0] = 1; split($1, n, " "); pkg[n[1]] = 1; next }
             { split($1, n, " ") } (n[1] in pkg) && !($0 in seen) { print "    " $1 " [" $2 "]" }' \
-            <(tree_features -p xtask -e "$edges") \
+            <(tree_features --workspace -e "$edges,dev") \
             <(tree_features --manifest-path python/Cargo.toml -e "$edges")
     done | sort -u
 }
 differ=$(not_shared)
 if [ -n "$differ" ]; then
-    say "note: the wheel builds these crates (and all that depend on them) again: python/ resolves them with other versions or features than \`cargo build -p xtask --release\` (docs/python.md, \"Cost\"):"
+    say "note: the wheel builds these crates (and all that depend on them) again: python/ resolves them with other versions or features than \`cargo test --workspace --release\` (docs/python.md, \"Cost\"):"
     printf '%s\n' "$differ"
 fi
 

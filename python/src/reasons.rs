@@ -26,11 +26,15 @@ pub(crate) fn void_reason(r: &VoidReason) -> Value {
                     "value": value,
                     "fix": fix.as_ref().map_or_else(String::new, ToString::to_string)}),
         VoidReason::PremiseNotEvaluated { premise, because } => {
-            json!({"kind": "premise_not_evaluated", "premise": premise, "because": because})
+            // NotEvaluated serialises as its sentence (as in certificate.json).
+            json!({"kind": "premise_not_evaluated", "premise": premise,
+                   "because": because.to_string()})
         }
         VoidReason::Gamma13 { premise, void } => {
-            // Gamma13Void serialises with its own `kind` tag: kept as `void`.
-            json!({"kind": "gamma13", "premise": premise, "void": void})
+            // Gamma13Void serialises with its own `kind` tag: kept as `void`, in
+            // certificate.json's schema (certificate_json::v1), as the CLI writes it.
+            json!({"kind": "gamma13", "premise": premise,
+                   "void": certificate_json::v1::Gamma13Void::from(void)})
         }
         VoidReason::NoK { k_max } => json!({"kind": "no_k", "k_max": k_max}),
         VoidReason::NoPair {

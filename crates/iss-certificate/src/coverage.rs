@@ -62,7 +62,8 @@ pub enum CertificateKind {
     /// The global loop certificate (Theorem L3; in f32 Theorem L3u): the sub-optimal MHE with
     /// the exact MPC, every K ≥ K_glob ([`crate::lure::global_outcome`]).
     Global,
-    /// The iteration chain (Theorem L3b, f64, pg and pg-jacobi): the K it was checked at
+    /// The iteration chain (Theorem L3b, f64, pg and pg-jacobi; Theorem L3c, fista and
+    /// fista-jacobi): the K it was checked at
     /// and certified, that K only ([`crate::lure::chain_outcome`]).
     Chain,
 }
@@ -84,7 +85,7 @@ impl CertificateKind {
             CertificateKind::Theorem1 => "Theorem 1",
             CertificateKind::Joint => "joint MPC + MHE",
             CertificateKind::Global => "the global loop certificate (Theorem L3)",
-            CertificateKind::Chain => "the iteration chain (Theorem L3b)",
+            CertificateKind::Chain => "the iteration chain (Theorem L3b; L3c for FISTA)",
         }
     }
 }

@@ -548,8 +548,8 @@ impl Certificate {
             .and_then(|g| g.exact.k_glob())
     }
 
-    /// K_chain of `method` under the iteration chain (Theorem L3b, docs/theory.md §4b; pg and
-    /// pg-jacobi, f64): the smallest K the chain checked and certified. The chain covers only
+    /// K_chain of `method` under the iteration chain (Theorem L3b, L3c for FISTA,
+    /// docs/theory.md §4b, §4c; pg, fista and their Jacobi variants, f64): the smallest K the chain checked and certified. The chain covers only
     /// the K it checked ([`Certificate::verdict`] says `not_computed` at a K it did not check),
     /// so this is a floor of the verdict, not a threshold (`None`: not PG/FISTA or a Jacobi variant, nothing
     /// certified, or not computed within the budget).

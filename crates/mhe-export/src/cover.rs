@@ -84,7 +84,7 @@ impl GlobalCover {
                 offset: Some(_), ..
             } => "the global loop certificate in f32 (Theorem L3u)",
             Self::L3 { .. } => "the global loop certificate (Theorem L3)",
-            Self::Chain { .. } => "the iteration chain (Theorem L3b)",
+            Self::Chain { .. } => "the iteration chain (Theorem L3b; L3c for FISTA)",
         }
     }
 

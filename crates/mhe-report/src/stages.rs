@@ -263,13 +263,14 @@ fn plan(
     timings.certificate_s = t0.elapsed().as_secs_f64();
     log.say(format!(
         "  done in {} s (MHE constants {} s, L_Φ sampling {} s, L_π {} s, γ₁,₃ {} s, \
-         Theorem 1 {} s; wall time)",
+         Theorem 1 {} s, the global loop certificate {} s; wall time)",
         sig4(t0.elapsed().as_secs_f64()),
         sig4(times.mhe_constants_s),
         sig4(times.l_phi_sampling_s),
         sig4(times.l_pi_s),
         sig4(times.gamma13_s),
         sig4(times.theorem1_s),
+        sig4(times.global_s),
     ));
 
     // The K-iteration MPC (`mpc.iterations`): the joint certificate decides the runs.

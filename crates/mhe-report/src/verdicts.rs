@@ -30,8 +30,8 @@ pub struct SolverSummary {
     pub k_glob: Option<usize>,
     /// Its K_glob in f32 (Theorem L3u).
     pub k_glob_f32: Option<usize>,
-    /// K_chain: the smallest K the iteration chain certified (Theorem L3b, f64, pg and
-    /// pg-jacobi; that K only: the chain is not monotone in K).
+    /// K_chain: the smallest K the iteration chain certified (Theorem L3b, L3c for FISTA;
+    /// f64, pg, fista and their Jacobi variants; that K only: the chain is not monotone in K).
     pub k_chain: Option<usize>,
     /// The global certificate's outcome in f64 and f32 (None: not computed with the
     /// certificate, or not for this controller).

@@ -35,7 +35,7 @@ pub struct LoopMethod {
     pub k_min_note: Option<String>,
     /// The global loop certificate's outcome.
     pub global: GlobalOutcome,
-    /// The iteration chain (Theorem L3b; None: not pg or pg-jacobi).
+    /// The iteration chain (Theorem L3b, L3c for FISTA; None: not pg, fista or their Jacobi variants).
     pub chain: Option<ChainOutcome>,
 }
 

@@ -214,6 +214,45 @@ fn the_screen_table_shows_what_certificate_json_holds() {
             verdict,
             format!("verdict: {}", summary::verdict(&o.document))
         );
+        // Its smallest certified K is the one verdict's floor (`at_scenario.k_min`), not
+        // Theorem 1's K_min where another certificate certifies less: on the certified
+        // preset Theorem L3's K_glob is below K_min, and the line says so.
+        let method = doc["solver"].as_str().unwrap();
+        let own = solvers.iter().find(|v| v["solver"] == method).unwrap();
+        let floor = doc["at_scenario"]["k_min"].as_u64();
+        let theorem1 = own["k_min"].as_u64();
+        if preset == Preset::Certified {
+            assert!(floor < theorem1, "{floor:?} vs {theorem1:?}");
+            assert_eq!(floor, own["k_glob"].as_u64());
+        } else {
+            assert!(floor < own["k_glob"].as_u64(), "{floor:?}");
+            assert_eq!(floor, own["k_chain"].as_u64());
+        }
+        match (floor, theorem1) {
+            (Some(f), Some(k)) if f < k => assert!(
+                verdict.contains(&format!(
+                    "The smallest certified K for {method} is {f}, below Theorem 1's K_min = {k}"
+                )),
+                "{verdict}"
+            ),
+            // Theorem L3 decides at the scenario's K (the paper preset: K_min void) and the
+            // chain certifies a K below K_glob: the line names both.
+            (Some(f), None)
+                if doc["at_scenario"]["certificate"] == "global"
+                    && own["k_glob"].as_u64().is_some_and(|g| f < g) =>
+            {
+                let g = own["k_glob"].as_u64().unwrap();
+                assert!(
+                    verdict.contains(&format!(
+                        "The smallest certified K for {method} is {f}, below K_glob = {g}: the \
+                         iteration chain"
+                    )),
+                    "{verdict}"
+                );
+            }
+            (Some(_), None) => {}
+            _ => assert!(!verdict.contains("The smallest certified K"), "{verdict}"),
+        }
         assert!(s.contains(SUMMARY_FILE), "{s}");
     }
 }

@@ -63,7 +63,45 @@ pub(super) fn verdict(d: &CertificateDocument) -> String {
         .solvers
         .iter()
         .find(|s| s.solver.name() == d.solver);
-    iss_certificate::plan::verdict(own, d.trajectory_check.passed, &runs)
+    let theorem1 = iss_certificate::plan::verdict(own, d.trajectory_check.passed, &runs);
+    match lower_floor(d, own.and_then(|s| s.k_min), "Theorem 1's K_min") {
+        Some(floor) => format!("{theorem1} {floor}"),
+        None => theorem1,
+    }
+}
+
+/// The sentence naming the smallest certified K of the scenario's method when another
+/// certificate sets it below the floor the verdict's first sentence quotes (`quoted`: Theorem
+/// 1's K_min or K_glob, named `name`; None otherwise): the verdict's floor is
+/// `at_scenario.k_min`, the one of `iss_certificate::coverage::with_global`.
+fn lower_floor(d: &CertificateDocument, quoted: Option<usize>, name: &str) -> Option<String> {
+    let floor = d.at_scenario.k_min?;
+    if quoted.is_some_and(|k| k <= floor) {
+        return None;
+    }
+    let sv = d.solvers.iter().find(|s| s.solver.name() == d.solver)?;
+    let by = if sv.k_glob == Some(floor) {
+        format!(
+            "the global loop certificate (Theorem L3, docs/theory.md §4) certifies every K ≥ \
+             K_glob = {floor}"
+        )
+    } else if sv.k_chain == Some(floor) {
+        format!(
+            "the iteration chain ({}) certified K = {floor} (that K only: the chain is not \
+             monotone in K)",
+            iss_certificate::lure::chain_outcome::theorem(sv.solver)
+        )
+    } else {
+        format!("{} certifies it", d.at_scenario.certificate?.title())
+    };
+    let relative = match quoted {
+        Some(k) => format!("below {name} = {k}"),
+        None => format!("where {name} is none"),
+    };
+    Some(format!(
+        "The smallest certified K for {} is {floor}, {relative}: {by}.",
+        d.solver
+    ))
 }
 
 /// The verdict's sentence where the global loop certificate or the iteration chain decides
@@ -81,17 +119,24 @@ fn global_verdict(d: &CertificateDocument) -> Option<String> {
     let yes = d.at_scenario.certified.is_certified();
     Some(match (kind, yes) {
         (CertificateKind::Chain, true) => format!(
-            "the iteration chain (Theorem L3b, docs/theory.md §4b) certifies ISS of the loop \
+            "the iteration chain ({}, docs/theory.md §4b, §4c) certifies ISS of the loop \
              with {} at the scenario's K = {k} (checked at this K; Theorem L3 needs K ≥ \
              K_glob = {kg}); Theorem 1 does not cover it (K_min above).",
+            sv.map_or("Theorem L3b", |s| {
+                iss_certificate::lure::chain_outcome::theorem(s.solver)
+            }),
             d.solver
         ),
-        (CertificateKind::Global, true) => format!(
-            "the global loop certificate (Theorem L3, docs/theory.md §4) certifies ISS of \
-             the loop with {} at the scenario's K = {k} (every K ≥ K_glob = {kg}); \
-             Theorem 1 does not cover it (K_min above).",
-            d.solver
-        ),
+        (CertificateKind::Global, true) => {
+            let floor = lower_floor(d, sv.and_then(|s| s.k_glob), "K_glob")
+                .map_or_else(String::new, |f| format!(" {f}"));
+            format!(
+                "the global loop certificate (Theorem L3, docs/theory.md §4) certifies ISS of \
+                 the loop with {} at the scenario's K = {k} (every K ≥ K_glob = {kg}); \
+                 Theorem 1 does not cover it (K_min above).{floor}",
+                d.solver
+            )
+        }
         _ => format!(
             "NOT CERTIFIED at the scenario's K = {k}: the smallest certified K is {floor} \
              ({}; K_glob = {kg}).",

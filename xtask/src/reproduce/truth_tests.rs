@@ -101,7 +101,7 @@ fn a_huge_gamma13_is_not_a_contradiction() {
     for g in [1e20, 1e14] {
         let j = job(
             &format!("gamma{g:e}"),
-            &scenario_text("case-study-certified.toml"),
+            &super::tests::certified_text_without_the_loop_certificate(""),
         );
         let o = run_job(
             &j,

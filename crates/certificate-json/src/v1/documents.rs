@@ -365,8 +365,8 @@ pub struct SolverSummary {
     pub k_glob: Option<usize>,
     /// K_glob in f32 (Theorem L3u); null: `global.f32_outcome` says why.
     pub k_glob_f32: Option<usize>,
-    /// K_chain: the smallest K the iteration chain certified (Theorem L3b, f64, pg and
-    /// pg-jacobi; that K only, the chain is not monotone); null: `global.chain` says why.
+    /// K_chain: the smallest K the iteration chain certified (Theorem L3b, L3c for FISTA;
+    /// f64, pg, fista and their Jacobi variants; that K only, the chain is not monotone); null: `global.chain` says why.
     pub k_chain: Option<usize>,
     /// The global loop certificate of this method (null: not computed with the certificate,
     /// or the controller is not the exact MPC).
@@ -411,7 +411,8 @@ pub struct GlobalRecord {
     pub f32_outcome: String,
     /// The ISS offset of f32's rounding (null without an f32 certificate).
     pub f32_offset: Option<f64>,
-    /// The iteration chain (Theorem L3b; null: the method is not pg or pg-jacobi).
+    /// The iteration chain (Theorem L3b, L3c for FISTA; null: the method is not pg, fista or their
+    /// Jacobi variants).
     pub chain: Option<ChainRecord>,
 }
 

@@ -79,6 +79,9 @@ pub struct CertificateTimes {
     pub gamma13_s: f64,
     /// Theorem 1 per solver (φ(K), the small-gain conditions, K_min).
     pub theorem1_s: f64,
+    /// The global loop certificate (Theorem L3, its f32 form and the iteration chain;
+    /// 0 when not computed: `global_seconds` None).
+    pub global_s: f64,
     /// The whole certificate.
     pub total_s: f64,
 }
@@ -192,6 +195,7 @@ pub fn certify_closed_loop_with(
         };
         crate::lure::global_outcome::global_section(resolved, &opts.solvers, &settings)
     });
+    times.global_s = split();
     times.total_s = start.elapsed().as_secs_f64();
     let certificate = ClosedLoopCertificate {
         scenario: scenario.name.clone(),

@@ -134,7 +134,7 @@ impl std::fmt::Display for ChainWhy {
         if let Some(then) = &self.then {
             write!(f, "{then}; ")?;
         }
-        f.write_str("the iteration chain (Theorem L3b): ")?;
+        f.write_str("the iteration chain (Theorem L3b; L3c for FISTA): ")?;
         match &self.check {
             Some(c) => c.fmt(f)?,
             None => write!(

@@ -75,7 +75,7 @@ pub enum ChainCheck {
     /// chain certifies nothing there (Theorem L3b (ii), a proof of absence; no search run).
     #[error(
         "K = {k}: ρ_lin(K) = {rho_lin:.4} ≥ 1, so no certificate can exist at this K \
-         (Theorem L3b (ii))"
+         (Theorem L3b (ii); L3c (ii) for FISTA)"
     )]
     LinearlyUnstable {
         /// K.
@@ -240,6 +240,20 @@ impl std::fmt::Display for ChainOutcome {
         }
         let ks: Vec<String> = c.checked().iter().map(ToString::to_string).collect();
         write!(f, " (K tried: {}", ks.join(", "))?;
+        // The K answered without a search: say so, not only in the per-K sentences.
+        let unstable: Vec<usize> = c
+            .checked()
+            .into_iter()
+            .filter(|&k| matches!(c.at(k), Some(ChainCheck::LinearlyUnstable { .. })))
+            .collect();
+        if !unstable.is_empty() {
+            write!(
+                f,
+                "; ρ_lin(K) ≥ 1 at K = {}: no certificate can exist there (Theorem L3b (ii); \
+                 L3c (ii) for FISTA)",
+                k_ranges(&unstable)
+            )?;
+        }
         match c.scan {
             ChainScanEnd::Certified { .. } => f.write_str(")"),
             ChainScanEnd::Cap { k } => write!(f, "; the scan ends at K = {k})"),
@@ -254,6 +268,25 @@ impl std::fmt::Display for ChainOutcome {
     }
 }
 
+/// Sorted K as ranges: `[1, 2, 3, 5]` → `"1–3, 5"`.
+fn k_ranges(ks: &[usize]) -> String {
+    let mut out: Vec<String> = Vec::new();
+    let mut i = 0;
+    while i < ks.len() {
+        let mut j = i;
+        while j + 1 < ks.len() && ks[j + 1] == ks[j] + 1 {
+            j += 1;
+        }
+        out.push(if j > i {
+            format!("{}–{}", ks[i], ks[j])
+        } else {
+            ks[i].to_string()
+        });
+        i = j + 1;
+    }
+    out.join(", ")
+}
+
 /// Whether the chain models `method` (pg, pg-jacobi, fista, fista-jacobi: a projected
 /// gradient or FISTA on a box, docs/theory.md §4b, §4c).
 pub fn chain_models(method: Method) -> bool {
@@ -264,6 +297,23 @@ pub fn chain_models(method: Method) -> bool {
         Method::JACOBI_PRESETS[1],
     ]
     .contains(&method)
+}
+
+/// The theorem of the chain for `method`: `"Theorem L3b"` for the projected gradient and
+/// its Jacobi variant, `"Theorem L3c"` for FISTA and FISTA-Jacobi (docs/theory.md §4b, §4c).
+///
+/// ```
+/// use iss_certificate::lure::chain_outcome::theorem;
+/// use qp_iter::Method;
+/// assert_eq!(theorem(Method::PG), "Theorem L3b");
+/// assert_eq!(theorem(Method::JACOBI_PRESETS[1]), "Theorem L3c");
+/// ```
+pub fn theorem(method: Method) -> &'static str {
+    if method.family() == Method::FISTA.family() {
+        "Theorem L3c"
+    } else {
+        "Theorem L3b"
+    }
 }
 
 /// Estimated single-core seconds of one Riccati solve of the chain search at dim ζ' =

@@ -293,7 +293,8 @@ pub struct MethodGlobal {
     pub exact: GlobalOutcome,
     /// f32.
     pub f32: PrecisionOutcome,
-    /// The iteration chain (Theorem L3b, f64 only) for the PG family; None for other methods.
+    /// The iteration chain (Theorems L3b, L3c; f64 only) for PG, FISTA and their Jacobi
+    /// variants; None for other methods.
     pub chain: Option<super::chain_outcome::ChainOutcome>,
 }
 

@@ -691,6 +691,12 @@ fn the_chain_skips_every_k_where_rho_lin_is_at_least_one() {
         );
         assert!(c.to_string().contains("Theorem L3b (ii)"), "{c}");
     }
+    // The outcome's one line says which K were answered by ρ_lin ≥ 1, as ranges.
+    let line = out.to_string();
+    assert!(
+        line.contains("ρ_lin(K) ≥ 1 at K = 1–10: no certificate can exist there"),
+        "{line}"
+    );
     let r = resolved("case-study.toml");
     let o = options(&r, Method::PG);
     let out = method_chain(&r, &o, Some(13), 0.0).expect("pg is modelled");

@@ -48,14 +48,15 @@ fi
 
 # The wheel's cargo build (python/ is a workspace of its own) reuses what CI's release build
 # (`cargo test --workspace --release`, whose xtask XTASK is) left in CARGO_TARGET_DIR only for
-# crates of the same version and features, and their dependents: one differing low crate
-# (syn, serde, rand) rebuilt faer, gemm and clarabel, one differing workspace crate every
-# workspace crate above it (docs/python.md, "Cost"). Name the crates that differ; a note, not
-# a failure. Features per crate with `cargo tree` (no build) against the workspace with its
-# dev-dependencies (what the test build unifies): the target-only graph (no proc-macros) and
-# the whole one (proc-macros and build scripts too).
+# registry crates of the same version and features, and their dependents: one differing low
+# crate (syn, serde, rand) rebuilt faer, gemm and clarabel (docs/python.md, "Cost"). The
+# workspace's own crates are always built again: cargo hashes a path package by its path
+# relative to the workspace root, which differs from python/. Name the registry crates that
+# differ; a note, not a failure. Features per crate with `cargo tree` (no build) against the
+# workspace with its dev-dependencies (what the test build unifies): the target-only graph (no
+# proc-macros) and the whole one (proc-macros and build scripts too).
 tree_features() {
-    cargo tree -q "$@" --prefix none -f '{p}|{f}' 2>/dev/null | sed 's/ (\*)$//' | sort -u
+    cargo tree -q "$@" --prefix none -f '{p}|{f}' 2>/dev/null | sed 's/ (\*)$//' | grep -v ' (/' | sort -u
 }
 not_shared() {
     local edges

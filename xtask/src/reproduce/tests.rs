@@ -58,7 +58,8 @@ pub(super) fn fixture() -> &'static Fixture {
 /// The certified preset's text with a `[certificate]` section of `keys` and
 /// `phase_seconds = 0.5`: the global loop certificate (Theorem L3 and the chain, ≈ 25 of the
 /// preset's 30 CPU s) then reports "not computed within the budget" at once, and Theorem 1
-/// (γ₁,₃'s enumeration, L_π) still fits. For the tests that check something else; the
+/// still certifies (without a user γ₁,₃ with the S-procedure bound, the enumeration being
+/// beyond that budget: K_min 243 all the same). For the tests that check something else; the
 /// presets' own runs (`fixture`) keep the default budget.
 pub(super) fn certified_text_without_the_loop_certificate(keys: &str) -> String {
     let base =

@@ -9,8 +9,8 @@
 #      it builds the release abi3 wheel in CARGO_TARGET_DIR and installs it);
 #   4. pytest on python/tests, comparing with the release CLI (XTASK, built when missing).
 #
-# Usage: scripts/python.sh   (cold after the release xtask build: 5.5 CPU-min for the wheel, 8.7
-#        while python/ and xtask resolve shared crates differently (the note below); warm: 14–40 s;
+# Usage: scripts/python.sh   (after CI's release test build: the wheel ≈ 167 s of wall on 2 cores,
+#        the workspace's crates compiled again, the registry ones shared; warm: 14–40 s;
 #        docs/python.md, "Cost")
 # Env: VENV=dir  XTASK=path/to/xtask  CARGO_TARGET_DIR (default: the workspace's target/)
 set -euo pipefail

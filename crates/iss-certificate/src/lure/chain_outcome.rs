@@ -241,11 +241,13 @@ impl std::fmt::Display for ChainOutcome {
         let ks: Vec<String> = c.checked().iter().map(ToString::to_string).collect();
         write!(f, " (K tried: {}", ks.join(", "))?;
         // The K answered without a search: say so, not only in the per-K sentences.
-        let unstable: Vec<usize> = c
-            .checked()
-            .into_iter()
-            .filter(|&k| matches!(c.at(k), Some(ChainCheck::LinearlyUnstable { .. })))
+        let mut unstable: Vec<usize> = (c.checks.iter())
+            .filter_map(|ch| match ch {
+                ChainCheck::LinearlyUnstable { k, .. } => Some(*k),
+                _ => None,
+            })
             .collect();
+        unstable.sort_unstable();
         if !unstable.is_empty() {
             write!(
                 f,

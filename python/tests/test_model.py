@@ -83,12 +83,14 @@ def test_model_properties_and_scenario():
 
 
 def test_mpc_weights():
+    # Theorem 1's K_min under one budget (phase_seconds = 0.5 skips the global loop
+    # certificate, 2–3 s a call, which this test does not read).
     m = model(mpc_horizon=None, mpc=dict(horizon=10, q=1.0, r=1.0))
-    assert sm.certify(m, methods=["admm-pr"], seed=11).k_min("admm-pr") == sm.certify(
-        model(), methods=["admm-pr"], seed=11
+    assert sm.certify(m, methods=["admm-pr"], seed=11, phase_seconds=0.5).k_min("admm-pr") == sm.certify(
+        model(), methods=["admm-pr"], seed=11, phase_seconds=0.5
     ).k_min("admm-pr")
     heavy = model(mpc_horizon=None, mpc=dict(horizon=10, q=np.diag([10.0, 1.0]), r=0.1))
-    assert sm.certify(heavy, methods=["pg"]).to_dict()["scenario"] == "double-integrator"
+    assert sm.certify(heavy, methods=["pg"], phase_seconds=0.5).to_dict()["scenario"] == "double-integrator"
 
 
 @pytest.mark.parametrize(

@@ -45,7 +45,7 @@ fn main() {
                 std::process::exit(1);
             }
         };
-        let (t_steps, k) = (base.steps, base.iterations);
+        let (t_steps, k) = (base.steps, base.iterations.get());
         let build = |controller| {
             let mut o = base;
             o.controller = controller;

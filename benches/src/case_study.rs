@@ -236,7 +236,7 @@ impl CaseStudyQps {
         let mut options = LoopOptions::from_scenario(resolved.scenario())?;
         if let Some(method) = preset.loop_method {
             options.method = method;
-            options.iterations = certified_k(&method.build(qp.clone())?)?;
+            options = options.with_iterations(certified_k(&method.build(qp.clone())?)?)?;
         }
         let trace = resolved.build_loop(&options)?.run()?.clone();
         let mut qps = Self {

@@ -715,7 +715,7 @@ fn simulate<'py>(
         })?;
     }
     if let Some(k) = k {
-        opts.iterations = k;
+        opts = opts.with_iterations(k).map_err(|e| loop_err(&e))?;
     }
     let out = py.detach(move || -> Result<_, closed_loop::ClosedLoopError> {
         let resolved = sc.resolve()?;

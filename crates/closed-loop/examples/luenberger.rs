@@ -166,10 +166,9 @@ fn main() -> Result<(), Box<dyn std::error::Error>> {
     })?;
     report("luenberger", &observer);
     // The sub-optimal MHE at several K, same seeds.
-    for k in [1, 5, 20, 100, base.iterations] {
+    for k in [1, 5, 20, 100, base.iterations.get()] {
         let mhe = monte_carlo(&settings, |seed| {
-            let mut o = base;
-            o.iterations = k;
+            let mut o = base.with_iterations(k)?;
             o.seed = seed;
             resolved.build_loop(&o)
         })?;

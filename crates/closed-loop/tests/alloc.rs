@@ -86,7 +86,7 @@ fn closed_loop_steps_do_not_allocate() {
         },
     ] {
         let mut o = LoopOptions::from_scenario(&s).unwrap();
-        o.iterations = 25;
+        o = o.with_iterations(25).expect("K is in range");
         o.controller = controller;
         let mut cl = s.clone().resolve().unwrap().build_loop(&o).unwrap();
         assert_eq!(allocations_of_run(&mut cl), 0, "case study {controller:?}");

@@ -245,7 +245,7 @@ fn certified(
     } else {
         gl.k_glob(&GlobalOptions::default()).expect("a K_glob")
     };
-    o.iterations = k;
+    o = o.with_iterations(k).expect("K is in range");
     (s, o, gl, k, c)
 }
 
@@ -326,7 +326,7 @@ fn sampled_runs_in(file: &str, method: Method, rows: bool, teeth: bool) {
         return;
     }
     let mut o = o0;
-    o.iterations = 1;
+    o = o.with_iterations(1).expect("K is in range");
     let refuted = (0..20u64).any(|seed| {
         o.seed = seed;
         let (r, within) = run_ratio(&s0, &o, &gl, &c, 60);

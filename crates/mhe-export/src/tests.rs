@@ -145,7 +145,10 @@ fn check_std_vs_embedded(
             "{}: mhe-embedded differs from the std estimator on the portable kernel",
             method.name()
         );
-        let mut avx = c.resolved.estimator(method, c.k, false).unwrap();
+        let mut avx = c
+            .resolved
+            .estimator(method, qp_iter::Iterations::new(c.k).unwrap(), false)
+            .unwrap();
         let fast = run_std(&mut avx, &c.traj);
         let dev = max_abs_diff(&fast, &expected);
         println!(

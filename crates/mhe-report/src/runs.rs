@@ -168,12 +168,14 @@ pub(crate) fn simulate(
     let scenario = resolved.scenario();
     let opts = LoopOptions {
         method: solver,
-        iterations: k,
+        iterations: qp_iter::Iterations::ONE,
         exact_mhe_solve: true,
         controller,
         seed: scenario.noise.seed,
         steps: scenario.simulation.steps,
-    };
+    }
+    .with_iterations(k)
+    .map_err(|source| ReportError::Loop { k, source })?;
     let mut cl = resolved
         .build_loop(&opts)
         .map_err(|source| ReportError::Loop { k, source })?;

@@ -422,14 +422,14 @@ impl Sweep {
         resolved.set_noise_scale(p.scale);
         let opts = LoopOptions {
             method: p.solver,
-            iterations: p.k,
+            iterations: qp_iter::Iterations::ONE,
             exact_mhe_solve: self.config.exact_mhe_solve,
             controller: self.config.controller_at(p),
             seed: 0,
             steps: self.steps,
-        };
-        resolved
-            .build_loop(&opts)
+        }
+        .with_iterations(p.k);
+        opts.and_then(|opts| resolved.build_loop(&opts))
             .map_err(|source| SweepError::Setup {
                 point: p.to_string(),
                 source,

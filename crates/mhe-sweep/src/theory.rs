@@ -208,7 +208,7 @@ pub fn solver_linear(
             // K, seed and T do not enter 𝔸(K)'s construction (`linear_stability`).
             let opts = LoopOptions {
                 method: s,
-                iterations: 1,
+                iterations: qp_iter::Iterations::ONE,
                 exact_mhe_solve: false,
                 controller,
                 seed: 0,

@@ -38,6 +38,9 @@ pub enum IterationsError {
 }
 
 impl Iterations {
+    /// K = 1: one iteration per time step (the lifted loop's one-step map is read at it).
+    pub const ONE: Self = Self(std::num::NonZeroUsize::MIN);
+
     /// The budget `k`, or why it is not one (0, or above [`MAX_ITERATIONS`]).
     pub fn new(k: usize) -> Result<Self, IterationsError> {
         if k > MAX_ITERATIONS {

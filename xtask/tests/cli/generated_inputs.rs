@@ -72,7 +72,9 @@ fn scenario_property(text: &str) -> Result<&'static str, String> {
         Err(e) => return named("options", chain(&e)),
     };
     // Bounded work per case: the file may legally ask for K = 10⁷ or T = 10⁵.
-    opts.iterations = opts.iterations.min(6);
+    opts = opts
+        .with_iterations(opts.iterations.get().min(6))
+        .expect("K is in range");
     opts.steps = opts.steps.min(4);
     opts.controller = match n % 4 {
         0 => ControllerChoice::SaturatedLqr,

@@ -229,7 +229,7 @@ mod tests {
         );
         let scenario = Scenario::from_file(path).expect("the case study reads");
         let mut options = LoopOptions::from_scenario(&scenario).expect("it has [mhe]");
-        options.iterations = 3;
+        options = options.with_iterations(3).expect("K is in range");
         options.steps = 12;
         options.controller = ControllerChoice::ExactMpc;
         let resolved = scenario.resolve().expect("the case study resolves");

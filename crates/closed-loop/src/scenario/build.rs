@@ -38,7 +38,7 @@ pub struct LoopOptions {
     /// Φ of the MHE.
     pub method: Method,
     /// K ≥ 1 iterations of Φ per time step.
-    pub iterations: usize,
+    pub iterations: qp_iter::Iterations,
     /// Also solve every ℙ_t exactly (warm-started active set) and record ε_t.
     pub exact_mhe_solve: bool,
     /// The controller.
@@ -50,6 +50,26 @@ pub struct LoopOptions {
 }
 
 impl LoopOptions {
+    /// These options with K = `k` iterations of Φ per step; K = 0 or K above
+    /// `qp_iter::MAX_ITERATIONS` is [`ClosedLoopError::OutOfRange`] naming `iterations` (a
+    /// search over K builds its options with it).
+    ///
+    /// ```
+    /// use closed_loop::scenario::{LoopOptions, Scenario};
+    /// let sc = Scenario::from_file(concat!(env!("CARGO_MANIFEST_DIR"), "/../../scenarios/case-study.toml")).unwrap();
+    /// let opts = LoopOptions::from_scenario(&sc).unwrap().with_iterations(40).unwrap();
+    /// assert_eq!(opts.iterations.get(), 40);
+    /// assert!(opts.with_iterations(0).is_err());
+    /// ```
+    pub fn with_iterations(self, k: usize) -> Result<Self> {
+        let iterations = qp_iter::Iterations::new(k).map_err(|_| ClosedLoopError::OutOfRange {
+            name: "iterations",
+            value: k as f64,
+            range: "integers 1 ..= 10⁷ (qp_iter::MAX_ITERATIONS)",
+        })?;
+        Ok(Self { iterations, ..self })
+    }
+
     /// The scenario's own settings: `[mhe]` method and K, `[noise]` seed, `[simulation]`
     /// steps, the exact MPC (or K_c iterations of `mpc.method` when `mpc.iterations` is set),
     /// exact MHE solve off.
@@ -60,7 +80,7 @@ impl LoopOptions {
             .ok_or(ClosedLoopError::MissingSection { section: "mhe" })?;
         Ok(Self {
             method: mhe.method(),
-            iterations: mhe.iterations().get(),
+            iterations: mhe.iterations(),
             exact_mhe_solve: false,
             controller: match scenario
                 .mpc
@@ -221,21 +241,13 @@ fn record_hook(e: &ScenarioEstimator) -> Option<&MheRecord> {
 }
 
 impl ResolvedScenario {
-    /// The MHE of this scenario with `method` and K = `iterations` (P as resolved).
-    ///
-    /// Errors: K = 0 or K above `qp_iter::MAX_ITERATIONS` is
-    /// [`ClosedLoopError::OutOfRange`] naming `iterations` (the [`LoopOptions`] field).
+    /// The MHE of this scenario with `method` and K = `k` (P as resolved).
     pub fn estimator(
         &self,
         method: Method,
-        iterations: usize,
+        k: qp_iter::Iterations,
         exact_solve: bool,
     ) -> Result<ScenarioEstimator> {
-        let k = qp_iter::Iterations::new(iterations).map_err(|_| ClosedLoopError::OutOfRange {
-            name: "iterations",
-            value: iterations as f64,
-            range: "integers 1 ..= 10⁷ (qp_iter::MAX_ITERATIONS)",
-        })?;
         let cfg = self.mhe_config()?;
         let sc = self.scenario();
         MheEstimator::from_problem(
@@ -301,7 +313,7 @@ impl ResolvedScenario {
     /// let resolved = Scenario::from_file("scenarios/case-study.toml").unwrap().resolve().unwrap();
     /// let mut opts = LoopOptions::from_scenario(resolved.scenario()).unwrap();
     /// opts.method = qp_iter::Method::PG;
-    /// opts.iterations = 652;
+    /// opts.iterations = qp_iter::Iterations::new(652).unwrap();
     /// opts.controller = ControllerChoice::ExactMpc;
     /// let mut cl = resolved.build_loop(&opts).unwrap();
     /// let trace = cl.run().unwrap();

@@ -28,7 +28,7 @@ pub(crate) fn case_study() -> Scenario {
 pub(crate) fn options(s: &Scenario, k: usize, exact: bool) -> LoopOptions {
     let mut o = LoopOptions::from_scenario(s).unwrap();
     o.method = Method::PG;
-    o.iterations = k;
+    o = o.with_iterations(k).expect("K is in range");
     o.exact_mhe_solve = exact;
     o.controller = ControllerChoice::ExactMpc;
     o

@@ -92,17 +92,18 @@ fn bad_construction_gives_typed_errors() {
 #[test]
 fn bad_options_give_typed_errors() {
     let s = case_study();
-    // K = 0 is refused once, where the option becomes the estimator's typed K
-    // (`qp_iter::Iterations`), naming the `LoopOptions` field.
-    let mut o = options(&s, 0, false);
-    assert!(matches!(
-        build(&s, &o),
-        Err(ClosedLoopError::OutOfRange {
-            name: "iterations",
-            ..
-        })
-    ));
-    o.iterations = 5;
+    // `LoopOptions::iterations` is a `qp_iter::Iterations`, so a built option cannot hold
+    // K = 0: `with_iterations` refuses 0 and K above the limit, naming the field.
+    let mut o = options(&s, 5, false);
+    for k in [0, qp_iter::MAX_ITERATIONS + 1] {
+        assert!(matches!(
+            o.with_iterations(k),
+            Err(ClosedLoopError::OutOfRange {
+                name: "iterations",
+                ..
+            })
+        ));
+    }
     o.steps = 0;
     assert!(matches!(build(&s, &o), Err(ClosedLoopError::ZeroSteps)));
     o.steps = 40;

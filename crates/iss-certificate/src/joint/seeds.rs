@@ -52,14 +52,13 @@ pub fn check_on_seeds(
     for seed in 0..seeds {
         let opts = LoopOptions {
             method: j.mhe_method,
-            iterations: pair.k_e,
             exact_mhe_solve: true,
             controller: ControllerChoice::SuboptimalMpc {
                 iterations: pair.k_c,
                 method: j.mpc_method,
             },
             seed,
-            ..base
+            ..base.with_iterations(pair.k_e)?
         };
         let mut lp = resolved.build_loop(&opts)?;
         let trace = lp.run()?;

@@ -227,9 +227,8 @@ fn lifted_loop(
 ) -> Result<LiftedLoop, LinearError> {
     let mut quiet = resolved.clone();
     quiet.set_noise_scale(0.0);
-    let mut opts = *options;
+    let mut opts = options.with_iterations(k)?;
     opts.steps = 1;
-    opts.iterations = k;
     opts.exact_mhe_solve = false;
     let cl = quiet.build_loop(&opts)?;
     LiftedLoop::from_loop(&cl, &quiet, opts.method, par)

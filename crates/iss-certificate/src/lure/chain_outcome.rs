@@ -378,9 +378,9 @@ pub fn method_chain(
     }
     // The scenario's own K with what is left, unless the scan checked it or Theorem L3
     // covers it.
-    let k_own = options.iterations;
+    let k_own = options.iterations.get();
     let fresh = checks.iter().all(|c| c.k() != k_own);
-    if k_own >= 1 && fresh && k_glob.is_none_or(|kg| k_own < kg) {
+    if fresh && k_glob.is_none_or(|kg| k_own < kg) {
         checks.push(check(&ch, k_own, &opts, &mut left, budget_seconds));
     }
     Some(ChainOutcome::Checked(MethodChain {

@@ -98,7 +98,7 @@ pub fn scenario_lure(
     quiet.set_noise_scale(0.0);
     let mut opts = *options;
     opts.steps = 1;
-    opts.iterations = 1;
+    opts.iterations = qp_iter::Iterations::ONE;
     opts.exact_mhe_solve = false;
     let cl = quiet.build_loop(&opts).map_err(LinearError::from)?;
     let est = cl.estimator();

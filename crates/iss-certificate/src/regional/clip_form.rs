@@ -302,7 +302,7 @@ mod tests {
             .resolve()
             .unwrap();
         for m in COVERED {
-            let est = res.estimator(m, 1, false).unwrap();
+            let est = res.estimator(m, qp_iter::Iterations::ONE, false).unwrap();
             for w in [1, est.config().horizon] {
                 maps.push(est.map(w).unwrap().clone());
             }

@@ -217,7 +217,7 @@ pub(crate) fn pieces_upto(
     last: usize,
 ) -> Result<Pieces, ModelError> {
     let est = resolved
-        .estimator(method, 1, false)
+        .estimator(method, qp_iter::Iterations::ONE, false)
         .map_err(|e| ModelError::Linear(LinearError::Build(e)))?;
     let big_m = est.config().horizon;
     let windows = window_steps(&est, big_m.min(last))?;

@@ -88,7 +88,7 @@ pub(crate) fn window_forms(
     method: qp_iter::Method,
 ) -> Result<Vec<ClipForm>, ModelError> {
     let est = resolved
-        .estimator(method, 1, false)
+        .estimator(method, qp_iter::Iterations::ONE, false)
         .map_err(|e| ModelError::Linear(crate::linear::LinearError::Build(e)))?;
     (0..=est.config().horizon)
         .map(|m| {

@@ -76,7 +76,7 @@ fn a_certified_hand_off_holds_on_sampled_real_runs() {
         s.noise.scale = 0.01;
         let mut o = LoopOptions::from_scenario(&s).unwrap();
         o.method = method;
-        o.iterations = k;
+        o = o.with_iterations(k).expect("K is in range");
         o.controller = controller;
         o.seed = run;
         o.steps = t_cert + 151;
@@ -139,7 +139,7 @@ fn measure_zonotope_looseness() {
             .collect();
         let mut o = LoopOptions::from_scenario(&s).unwrap();
         o.method = method;
-        o.iterations = k;
+        o = o.with_iterations(k).expect("K is in range");
         o.controller = controller;
         o.seed = run;
         o.steps = steps + 1;
@@ -334,7 +334,7 @@ fn sampled_real_runs_stay_in_the_propagated_set() {
             s.simulation.prior = (0..2).map(|i| s.simulation.x0[i] + r_e * de[i]).collect();
             let mut o = LoopOptions::from_scenario(&s).unwrap();
             o.method = method;
-            o.iterations = k;
+            o = o.with_iterations(k).expect("K is in range");
             o.controller = ControllerChoice::ExactMpc;
             o.seed = run;
             o.steps = steps + 1;

@@ -310,7 +310,7 @@ fn certified_gains_bound_the_lim_sup_of_random_plants() {
         }
         let opts = LoopOptions {
             method: s.solver,
-            iterations: k,
+            iterations: qp_iter::Iterations::new(k).expect("K is in range"),
             exact_mhe_solve: true,
             controller: ControllerChoice::ExactMpc,
             seed,
@@ -369,7 +369,7 @@ fn long_the_stand_in_stays_below_its_certified_bound() {
     let g = certified_gains(&c, s, k).unwrap();
     let opts = LoopOptions {
         method: s.solver,
-        iterations: k,
+        iterations: qp_iter::Iterations::new(k).expect("K is in range"),
         exact_mhe_solve: true,
         controller: ControllerChoice::ExactMpc,
         seed: 3,

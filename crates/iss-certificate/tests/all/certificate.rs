@@ -160,7 +160,7 @@ fn long_props_1_and_3_hold_on_200_seeds_at_k_min() {
     let sampled_analysis = analysis_with_sampled_l_phi(c, pg);
     let opts = LoopOptions {
         method: Method::PG,
-        iterations: k,
+        iterations: qp_iter::Iterations::new(k).expect("K is in range"),
         exact_mhe_solve: true,
         controller: ControllerChoice::ExactMpc,
         seed: 0,
@@ -252,7 +252,7 @@ fn long_props_1_and_3_hold_for_the_jacobi_scaled_maps_at_m_30() {
         };
         let opts = LoopOptions {
             method: m,
-            iterations: k,
+            iterations: qp_iter::Iterations::new(k).expect("K is in range"),
             exact_mhe_solve: true,
             controller: ControllerChoice::ExactMpc,
             seed: 0,

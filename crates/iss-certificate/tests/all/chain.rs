@@ -368,7 +368,7 @@ fn chain_certified(
         "K_chain = {} is not below K_glob = {glob:?}",
         c.k
     );
-    o.iterations = c.k;
+    o = o.with_iterations(c.k).expect("K is in range");
     (s, o, ch, c)
 }
 
@@ -590,7 +590,7 @@ fn sampled_runs_respect_the_verdicts_k_chain() {
     let chain = out.chain().expect("checked");
     let verdicts = chain.at(k).and_then(|a| a.certified()).expect("certified");
     assert_eq!(c.cert.margin, verdicts.margin);
-    o0.iterations = k;
+    o0 = o0.with_iterations(k).expect("K is in range");
     let mut rng = rand_chacha::ChaCha8Rng::seed_from_u64(19);
     let mut worst = 0.0_f64;
     for seed in 0..200u64 {
@@ -667,7 +667,7 @@ fn the_chain_skips_every_k_where_rho_lin_is_at_least_one() {
     use iss_certificate::lure::chain_outcome::{ChainCheck, ChainScanEnd, method_chain};
     let r = resolved("cart-pendulum.toml");
     let mut o = options(&r, Method::PG);
-    o.iterations = 3;
+    o = o.with_iterations(3).expect("K is in range");
     let out = method_chain(&r, &o, None, 0.0).expect("pg is modelled");
     let chain = out.chain().expect("the chain builds");
     assert_eq!(chain.scan, ChainScanEnd::Cap { k: 10 });

@@ -29,7 +29,7 @@ fn constrained(tight: bool) -> Scenario {
 fn options(s: &Scenario, method: Method, controller: ControllerChoice) -> LoopOptions {
     let mut o = LoopOptions::from_scenario(s).unwrap();
     o.method = method;
-    o.iterations = 200;
+    o = o.with_iterations(200).expect("K is in range");
     o.exact_mhe_solve = true;
     o.controller = controller;
     o

@@ -108,7 +108,7 @@ fn props_hold(sc: &Scenario, c: &ClosedLoopCertificate, method: Method, seeds: u
     let k = s.k_min.unwrap();
     let opts = LoopOptions {
         method,
-        iterations: k,
+        iterations: qp_iter::Iterations::new(k).expect("K is in range"),
         exact_mhe_solve: true,
         controller: ControllerChoice::ExactMpc,
         seed: 0,

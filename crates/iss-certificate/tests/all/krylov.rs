@@ -27,7 +27,7 @@ fn lifted(name: &str) -> Option<(LiftedLoop, ResolvedScenario)> {
     let mut o = LoopOptions::from_scenario(r.scenario()).ok()?;
     o.controller = ControllerChoice::ExactMpc;
     o.steps = 1;
-    o.iterations = 1;
+    o = o.with_iterations(1).expect("K is in range");
     o.exact_mhe_solve = false;
     let cl = r.build_loop(&o).ok()?;
     let l = LiftedLoop::from_loop(&cl, &r, o.method, Par::Seq).ok()?;

@@ -37,7 +37,7 @@ fn unstable() -> Scenario {
 fn options(s: &Scenario, solver: Method, k: usize, controller: ControllerChoice) -> LoopOptions {
     let mut o = LoopOptions::from_scenario(s).unwrap();
     o.method = solver;
-    o.iterations = k;
+    o = o.with_iterations(k).expect("K is in range");
     o.controller = controller;
     o
 }
@@ -89,7 +89,7 @@ fn check_trajectory(s: &Scenario, o: &LoopOptions) {
     let mut cl = build(s, o).unwrap();
     let lifted = LiftedLoop::from_loop(&cl, &resolve(s), o.method, Par::Seq).unwrap();
     let l = lifted.layout();
-    let a = lifted.matrix(o.iterations, Par::Seq).unwrap();
+    let a = lifted.matrix(o.iterations.get(), Par::Seq).unwrap();
     assert_eq!(a.nrows(), l.dim());
     for _ in 0..l.horizon + 3 {
         cl.step().unwrap();

@@ -68,7 +68,7 @@ fn start_up_state(cl: &ScenarioLoop, s: &Scenario, d: &RegionalDetail) -> Vec<f6
 fn options(s: &Scenario, method: Method, k: usize) -> LoopOptions {
     let mut o = LoopOptions::from_scenario(s).unwrap();
     o.method = method;
-    o.iterations = k;
+    o = o.with_iterations(k).expect("K is in range");
     o.controller = ControllerChoice::ExactMpc;
     o
 }

@@ -54,7 +54,7 @@ fn mpc_output_rows_reach_the_mpc_and_void_l_pi_and_gamma13_by_name() {
     // The closed loop runs with the output rows (exact MPC).
     let mut o = LoopOptions::from_scenario(&s).unwrap();
     o.method = Method::PG;
-    o.iterations = 200;
+    o = o.with_iterations(200).expect("K is in range");
     o.controller = ControllerChoice::ExactMpc;
     o.steps = 30;
     let mut cl = crate::build(&s, &o).unwrap();

@@ -156,7 +156,7 @@ impl Claim {
     fn trace(&self, seed: u64, steps: usize) -> Trace {
         let mut o = LoopOptions::from_scenario(self.resolved.scenario()).expect("options");
         o.method = Method::PG;
-        o.iterations = 1;
+        o = o.with_iterations(1).expect("K is in range");
         o.controller = ControllerChoice::ExactMpc;
         o.seed = seed;
         o.steps = steps;

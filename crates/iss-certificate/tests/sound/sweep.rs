@@ -285,7 +285,7 @@ impl Sweep {
         self.pairs += 1;
         self.k_glob.push(k);
         let mut o = options(r, METHODS[i]);
-        o.iterations = k;
+        o = o.with_iterations(k).expect("K is in range");
         let a = super::random_runs(r, &o, ck, cfg.random_runs, cfg.steps_after, rng);
         let (b, n) = adversary(r, &o, ck, cfg.adversary, rng);
         let (lo, hi) = super::w_box(r);
@@ -333,7 +333,7 @@ impl Sweep {
             _ => return false,
         }
         let mut o = options(r, METHODS[i]);
-        o.iterations = 1;
+        o = o.with_iterations(1).expect("K is in range");
         let (st, n) = adversary(r, &o, ck, cfg.teeth, rng);
         self.runs += n;
         self.teeth.0 += 1;

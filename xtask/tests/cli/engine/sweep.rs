@@ -187,7 +187,7 @@ fn run_rows_match_a_fresh_loop_per_seed() {
         s.noise.scale = p.scale;
         let mut opts = LoopOptions::from_scenario(&s).unwrap();
         opts.method = p.solver;
-        opts.iterations = p.k;
+        opts = opts.with_iterations(p.k).expect("K is in range");
         opts.seed = seed;
         opts.steps = 12;
         let mut lp = build(&s, &opts).unwrap();
@@ -911,7 +911,7 @@ fn monte_carlo_is_thread_count_independent_and_takes_user_components() {
         .with_bounded_factor(1e3);
     let make = |seed| {
         let mut o = LoopOptions::from_scenario(sc).unwrap();
-        o.iterations = 5;
+        o = o.with_iterations(5).expect("K is in range");
         o.seed = seed;
         resolved.build_loop(&o)
     };

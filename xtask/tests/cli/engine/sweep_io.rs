@@ -74,7 +74,7 @@ fn table(path: &Path) -> Table {
 fn brute_outside(s: &Scenario, seed: u64, k: usize) -> usize {
     let mut o = LoopOptions::from_scenario(s).unwrap();
     o.method = qp_iter::Method::PG;
-    o.iterations = k;
+    o = o.with_iterations(k).expect("K is in range");
     o.seed = seed;
     o.steps = 12;
     let mut lp = build(s, &o).unwrap();

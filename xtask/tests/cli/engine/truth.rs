@@ -63,7 +63,7 @@ fn sweep_points(text: &str, name: &str) -> (Sweep, Table) {
 fn simulate(s: &Scenario, method: Method, k: usize) -> closed_loop::Trace {
     let mut o = LoopOptions::from_scenario(s).unwrap();
     o.method = method;
-    o.iterations = k;
+    o = o.with_iterations(k).expect("K is in range");
     o.exact_mhe_solve = true;
     o.controller = ControllerChoice::ExactMpc;
     let mut lp = super::build(s, &o).unwrap();

@@ -132,7 +132,7 @@ fn one_step(resolved: &ResolvedScenario, options: &LoopOptions) -> (ResolvedScen
     quiet.set_noise_scale(0.0);
     let mut opts = *options;
     opts.steps = 1;
-    opts.iterations = 1;
+    opts.iterations = qp_iter::Iterations::ONE;
     opts.exact_mhe_solve = false;
     (quiet, opts)
 }

@@ -193,7 +193,7 @@ pub fn iteration_chain(
     quiet.set_noise_scale(0.0);
     let mut opts = *options;
     opts.steps = 1;
-    opts.iterations = 1;
+    opts.iterations = qp_iter::Iterations::ONE;
     opts.exact_mhe_solve = false;
     let cl = quiet
         .build_loop(&opts)

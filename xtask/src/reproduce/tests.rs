@@ -71,6 +71,18 @@ pub(super) fn certified_text_without_the_loop_certificate(keys: &str) -> String 
     format!("{base}\n[certificate]\n{keys}phase_seconds = 0.5\n")
 }
 
+/// `text` with `[certificate] phase_seconds = 0.5` (a scenario without its own
+/// `[certificate]`): for tests of what reproduce does with runs (skips, caps, divergence),
+/// not of the global loop certificate, whose search then says "not computed" at once;
+/// Theorem 1's K_min is still computed (its γ₁,₃ possibly by the S-procedure bound).
+pub(super) fn with_a_cut_budget(text: &str) -> String {
+    assert!(
+        !text.contains("[certificate]"),
+        "the scenario has its own [certificate]"
+    );
+    format!("{text}\n[certificate]\nphase_seconds = 0.5\n")
+}
+
 pub(super) fn read_json(path: &Path) -> Value {
     serde_json::from_str(&std::fs::read_to_string(path).unwrap()).unwrap()
 }
@@ -1152,7 +1164,7 @@ fn a_k_min_run_beyond_the_work_limit_is_skipped_with_the_reason() {
         std::fs::read_to_string(workspace_root().join("scenarios/cart-pendulum.toml")).unwrap();
     let job = custom_job(
         "cart-pendulum-long",
-        &set_key(&base, "simulation", "steps", "22000"),
+        &with_a_cut_budget(&set_key(&base, "simulation", "steps", "22000")),
     );
     let settings = Settings {
         figures: false,
@@ -1198,7 +1210,7 @@ fn a_k_min_run_beyond_the_work_limit_is_skipped_with_the_reason() {
 fn a_k_min_above_the_sim_k_cap_is_skipped_with_the_cap_named() {
     let base =
         std::fs::read_to_string(workspace_root().join("scenarios/cart-pendulum.toml")).unwrap();
-    let job = custom_job("cart-pendulum-capped", &base);
+    let job = custom_job("cart-pendulum-capped", &with_a_cut_budget(&base));
     let settings = Settings {
         figures: false,
         sim_k_cap: Some(1000),

@@ -61,7 +61,7 @@ fn a_diverging_estimator_is_called_diverged() {
             "iterations = 1\nmethod = \"admm\"",
         ),
     ] {
-        let text = replace(&scenario_text(file), from, to);
+        let text = super::tests::with_a_cut_budget(&replace(&scenario_text(file), from, to));
         let j = job(name, &text);
         let o = run_job(&j, &settings()).unwrap();
         assert!(o.diverged(), "{name}: {}", o.summary);

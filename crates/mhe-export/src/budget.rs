@@ -255,8 +255,9 @@ pub(crate) fn annotate(
     Ok(())
 }
 
-/// reproduce's `budget`: per method at its certified K (K_min), both targets at their
-/// default clocks, for a scenario with a sample period.
+/// reproduce's `budget`: per method at its smallest certified K (the one verdict's: Theorem
+/// 1's K_min, the global K_glob or the chain's K), both targets at their default clocks, for
+/// a scenario with a sample period.
 #[derive(Debug, Clone, Serialize)]
 pub struct ReproduceBudget {
     /// T_s in seconds (`plant.sample_time`).
@@ -267,21 +268,21 @@ pub struct ReproduceBudget {
     pub methods: Vec<MethodBudget>,
 }
 
-/// One method's budget at its K_min.
+/// One method's budget at its smallest certified K.
 #[derive(Debug, Clone, Serialize)]
 pub struct MethodBudget {
     /// The method.
     pub method: String,
-    /// Its certified K (null: none, so no verdict).
-    pub k_min: Option<usize>,
+    /// Its smallest certified K (null: none, so no verdict).
+    pub k: Option<usize>,
     /// Per target (empty without K_min).
     pub targets: Vec<TargetRecord>,
 }
 
 impl MethodBudget {
-    /// `pg K_min = 243: cortex-m4f@168 …; cortex-m7@480 …`.
+    /// `pg K = 243: cortex-m4f@168 …; cortex-m7@480 …`.
     pub fn line(&self) -> String {
-        let Some(k) = self.k_min else {
+        let Some(k) = self.k else {
             return format!("{:<14} no certified K: fits T_s not computed", self.method);
         };
         let per: Vec<String> = (self.targets.iter())
@@ -296,7 +297,7 @@ impl ReproduceBudget {
     pub fn screen_line(&self, solver: &str) -> String {
         let own = self.methods.iter().find(|m| m.method == solver);
         format!(
-            "T_s = {} s budget (MHE step at K_min, instructions at 1/cycle): {} (-v: every method)",
+            "T_s = {} s budget (MHE step at the smallest certified K, instructions at 1/cycle): {} (-v: every method)",
             self.sample_time,
             own.map_or_else(|| format!("{solver}: not computed"), MethodBudget::line)
         )
@@ -305,7 +306,8 @@ impl ReproduceBudget {
     /// The summary's block (`-v` and summary.txt): one line per method.
     pub fn block(&self) -> String {
         let mut s = format!(
-            "\nSample period T_s = {} s as a budget (per method at K_min; predicted max \
+            "\nSample period T_s = {} s as a budget (per method at its smallest certified K: \
+             K_min, K_glob or K_chain, the one verdict's; predicted max \
              instructions per MHE step, raised by the model's error; µs at one instruction per \
              cycle: instructions, not cycles; docs/embedded.md)\n",
             self.sample_time
@@ -325,8 +327,8 @@ fn short(target: &str) -> &str {
     }
 }
 
-/// The budget of every method's MHE step at its K_min (`None`: the scenario has no sample
-/// period or no MHE).
+/// The budget of every method's MHE step at its K in `methods` (the caller's smallest
+/// certified K; `None`: no verdict) (`None`: the scenario has no sample period or no MHE).
 pub fn reproduce(
     scenario: &Scenario,
     methods: &[(String, Option<usize>)],
@@ -338,7 +340,7 @@ pub fn reproduce(
         .iter()
         .map(|(m, k)| MethodBudget {
             method: m.clone(),
-            k_min: *k,
+            k: *k,
             targets: k
                 .and_then(|k| {
                     let step = Step { method: m, dims, k };

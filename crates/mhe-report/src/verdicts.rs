@@ -121,6 +121,26 @@ impl Report {
                 || (self.joint_certificate.as_ref()).is_some_and(|j| j.region.cheapest.is_some()))
     }
 
+    /// The smallest K of `method` that the one verdict ([`iss_certificate::coverage::verdict`],
+    /// f64, the scenario's warm start and controller) certifies: Theorem 1's K_min, the
+    /// global loop certificate's K_glob or a K the iteration chain certified, whichever is
+    /// smallest (its `k_min`); None when no K is certified or nothing covers the
+    /// configuration. The K of the sample-period budget: the cheapest certified step.
+    pub fn smallest_certified_k(&self, method: Method) -> Option<usize> {
+        use iss_certificate::coverage::{Certified, Configuration, Scalar, verdict};
+        let v = verdict(
+            &self.resolved,
+            &self.certificate,
+            &Configuration {
+                method,
+                k_e: self.iterations,
+                controller: self.controller,
+                scalar: Scalar::F64,
+            },
+        );
+        v.k_min.filter(|_| v.certified != Certified::Void)
+    }
+
     /// `mhe.iterations` equals the K_min of the scenario's method (None when void).
     pub fn iterations_match_k_min(&self) -> Option<bool> {
         (self.certificate.solver(self.solver))

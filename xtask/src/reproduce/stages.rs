@@ -140,10 +140,15 @@ pub(super) fn document(
     let (solver, scenario) = (report.solver, &report.scenario);
     let solvers = report.solver_summaries();
     let (certified, matches) = (report.certified(), report.iterations_match_k_min());
+    // Each method at its cheapest certified step: the one verdict's smallest K (K_min, K_glob
+    // or K_chain), the K the summary's verdict line names.
     let budget = mhe_export::budget::reproduce(
         scenario,
         &(solvers.iter())
-            .map(|s| (s.solver.name().to_string(), s.k_min))
+            .map(|s| {
+                let k = report.smallest_certified_k(s.solver);
+                (s.solver.name().to_string(), k)
+            })
             .collect::<Vec<_>>(),
     );
     CertificateDocument {

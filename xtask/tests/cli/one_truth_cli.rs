@@ -146,8 +146,42 @@ fn reproduce_verdict(c: &Case, d: &Path, f: &str) -> (String, bool) {
         .unwrap()
         .iter()
         .any(|s| s["certified"] == true);
-
+    budget_at_the_verdicts_floor(c, &doc);
     (reproduce, reproduce_solvers_certified)
+}
+
+/// The sample-period budget (the double integrator has T_s) prices each method at the one
+/// verdict's smallest certified K: the scenario's method at `at_scenario.k_min` (the K the
+/// verdict line names; on the covered case K_glob = 67, below Theorem 1's K_min = 206), and
+/// no method that `solvers[]` does not certify has a budget K.
+fn budget_at_the_verdicts_floor(c: &Case, doc: &serde_json::Value) {
+    let methods = doc["budget"]["methods"].as_array().unwrap();
+    let own = doc["solver"].as_str().unwrap();
+    let k_of = |m: &str| methods.iter().find(|b| b["method"] == m).unwrap()["k"].as_u64();
+    assert_eq!(
+        k_of(own),
+        doc["at_scenario"]["k_min"].as_u64(),
+        "{}: the budget's K of {own}",
+        c.name
+    );
+    for s in doc["solvers"].as_array().unwrap() {
+        let m = s["solver"].as_str().unwrap();
+        if s["certified"] != true {
+            assert_eq!(k_of(m), None, "{}: {m} is not certified", c.name);
+        }
+    }
+    if c.name == "covered" {
+        assert!(
+            k_of(own)
+                < doc["solvers"]
+                    .as_array()
+                    .unwrap()
+                    .iter()
+                    .find(|s| s["solver"] == own)
+                    .unwrap()["k_min"]
+                    .as_u64()
+        );
+    }
 }
 
 /// sweep: the `certified` column at the same pair.

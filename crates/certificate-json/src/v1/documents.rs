@@ -192,7 +192,8 @@ pub struct Certificate {
     pub files: Vec<String>,
     /// Figures not written or with points left out, and why.
     pub figure_notes: Vec<String>,
-    /// The sample period as a budget (`plant.sample_time` given): per method at K_min the
+    /// The sample period as a budget (`plant.sample_time` given): per method at its smallest
+    /// certified K (the one verdict's floor: K_min, K_glob or K_chain) the
     /// predicted instructions per step on the Cortex-M4F and M7 and whether it fits T_s
     /// (`mhe_budget`, docs/embedded.md), as the tool renders it. Omitted without T_s.
     #[serde(skip_serializing_if = "Option::is_none")]

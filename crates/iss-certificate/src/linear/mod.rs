@@ -59,6 +59,18 @@ use qp_iter::Method;
 /// rule.
 pub const ALL_METHODS_MAX_NZ: usize = 128;
 
+/// The fix for a zero-width interval of Z (lower = upper), the usual way to write "no noise
+/// here" in `sets.disturbance`: that is what `plant.e` / `plant.f` with fewer columns say.
+fn zero_width_hint(problem: &str, lower: f64, upper: f64) -> &'static str {
+    if problem == "MHE" && lower == upper {
+        ". A zero-width interval fixes that variable: for noise that enters some states (or \
+         outputs) only, give `plant.e` (`plant.f`) only the columns that carry noise and drop \
+         the fixed components from `sets.disturbance` (docs/scenario-format.md, [plant])"
+    } else {
+        ""
+    }
+}
+
 /// Errors of the linear stability analysis.
 #[derive(Debug, Clone, PartialEq, thiserror::Error)]
 #[non_exhaustive]
@@ -70,7 +82,8 @@ pub enum LinearError {
     /// the origin to linearise at.
     #[error(
         "0 is not an interior point of the {problem} QP's box (component {index}: [{lower}, {upper}]); \
-         the linear analysis needs a neighbourhood of the origin where no bound is active"
+         the linear analysis needs a neighbourhood of the origin where no bound is active{}",
+        zero_width_hint(*problem, *lower, *upper)
     )]
     OriginNotInterior {
         /// `"MHE"` or `"MPC"`.

@@ -408,6 +408,27 @@ fn bad_input_gives_typed_errors() {
         ),
         "{err:?}"
     );
+    assert!(!err.to_string().contains("plant.e"), "{err}");
+    // A zero-width interval (a user's "no noise on this state"): the message names the fix,
+    // `plant.e` with fewer columns.
+    let text = UNSTABLE.replace(
+        "[noise]",
+        "[sets]\ndisturbance = { lower = [-1.0, -1.0, 0.0], upper = [1.0, 1.0, 0.0] }\n[noise]",
+    );
+    let zero_width = Scenario::from_toml_str(&text).unwrap();
+    let err = linear_stability(&resolve(&zero_width), &o, &[1], Par::Seq).unwrap_err();
+    assert!(
+        matches!(
+            err,
+            LinearError::OriginNotInterior {
+                lower: 0.0,
+                upper: 0.0,
+                ..
+            }
+        ),
+        "{err:?}"
+    );
+    assert!(err.to_string().contains("`plant.e`"), "{err}");
 }
 
 /// With constraints that do become active, ρ_lin still decides whether the loop can settle

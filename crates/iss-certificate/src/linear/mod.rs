@@ -83,7 +83,7 @@ pub enum LinearError {
     #[error(
         "0 is not an interior point of the {problem} QP's box (component {index}: [{lower}, {upper}]); \
          the linear analysis needs a neighbourhood of the origin where no bound is active{}",
-        zero_width_hint(*problem, *lower, *upper)
+        zero_width_hint(problem, *lower, *upper)
     )]
     OriginNotInterior {
         /// `"MHE"` or `"MPC"`.

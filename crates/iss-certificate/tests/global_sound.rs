@@ -71,7 +71,7 @@ fn dropping_the_box_multipliers_is_refuted_where_the_input_box_binds() {
     let free = global_loop_with(&r, &o, false).expect("builds");
     let (k, c) = free.k_glob(&opts).expect("the box-free loop is certified");
     let mut o = o;
-    o.iterations = k;
+    o = o.with_iterations(k).expect("K is in range");
     let ck = Checked { gl: &free, c: &c };
     independent_margin(&free, &c, r.scenario().plant.nw()).expect("independent check");
     let mut rng = ChaCha8Rng::seed_from_u64(seed);
@@ -185,7 +185,7 @@ fn shipped_runs(
     );
     let margin = independent_margin(&gl, &c, r.scenario().plant.nw())
         .unwrap_or_else(|e| panic!("{name}: independent check: {e}"));
-    o.iterations = k.k_glob;
+    o = o.with_iterations(k.k_glob).expect("K_glob is in range");
     let ck = Checked { gl: &gl, c: &c };
     let m = gl.lifted.layout().horizon;
     let steps = m + 60;

@@ -64,11 +64,7 @@ pub(super) fn fixture() -> &'static Fixture {
 pub(super) fn certified_text_without_the_loop_certificate(keys: &str) -> String {
     let base =
         std::fs::read_to_string(workspace_root().join(Preset::Certified.scenario_file())).unwrap();
-    assert!(
-        !base.contains("[certificate]"),
-        "the preset has its own [certificate]"
-    );
-    format!("{base}\n[certificate]\n{keys}phase_seconds = 0.5\n")
+    cut_budget_with(&base, keys)
 }
 
 /// `text` with `[certificate] phase_seconds = 0.5` (a scenario without its own
@@ -76,11 +72,16 @@ pub(super) fn certified_text_without_the_loop_certificate(keys: &str) -> String 
 /// not of the global loop certificate, whose search then says "not computed" at once;
 /// Theorem 1's K_min is still computed (its γ₁,₃ possibly by the S-procedure bound).
 pub(super) fn with_a_cut_budget(text: &str) -> String {
+    cut_budget_with(text, "")
+}
+
+/// `text` with a `[certificate]` section of `keys` and `phase_seconds = 0.5`.
+fn cut_budget_with(text: &str, keys: &str) -> String {
     assert!(
         !text.contains("[certificate]"),
         "the scenario has its own [certificate]"
     );
-    format!("{text}\n[certificate]\nphase_seconds = 0.5\n")
+    format!("{text}\n[certificate]\n{keys}phase_seconds = 0.5\n")
 }
 
 pub(super) fn read_json(path: &Path) -> Value {

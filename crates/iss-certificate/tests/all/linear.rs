@@ -390,13 +390,17 @@ fn bad_input_gives_typed_errors() {
         linear_stability(&resolve(&s), &o, &[0, 3], Par::Seq).unwrap_err(),
         LinearError::ZeroIterations
     );
+    // The linear analysis of the unstable plant with `sets.disturbance = {box}`: its error.
+    let with_w_box = |w_box: &str| {
+        let text = UNSTABLE.replace(
+            "[noise]",
+            &format!("[sets]\ndisturbance = {w_box}\n[noise]"),
+        );
+        let sc = Scenario::from_toml_str(&text).unwrap();
+        linear_stability(&resolve(&sc), &o, &[1], Par::Seq).unwrap_err()
+    };
     // 𝒲 with a bound at 0: no neighbourhood of the origin is free of active bounds.
-    let text = UNSTABLE.replace(
-        "[noise]",
-        "[sets]\ndisturbance = { lower = [-1.0, -1.0, 0.0], upper = 1.0 }\n[noise]",
-    );
-    let one_sided = Scenario::from_toml_str(&text).unwrap();
-    let err = linear_stability(&resolve(&one_sided), &o, &[1], Par::Seq).unwrap_err();
+    let err = with_w_box("{ lower = [-1.0, -1.0, 0.0], upper = 1.0 }");
     assert!(
         matches!(
             err,
@@ -411,12 +415,7 @@ fn bad_input_gives_typed_errors() {
     assert!(!err.to_string().contains("plant.e"), "{err}");
     // A zero-width interval (a user's "no noise on this state"): the message names the fix,
     // `plant.e` with fewer columns.
-    let text = UNSTABLE.replace(
-        "[noise]",
-        "[sets]\ndisturbance = { lower = [-1.0, -1.0, 0.0], upper = [1.0, 1.0, 0.0] }\n[noise]",
-    );
-    let zero_width = Scenario::from_toml_str(&text).unwrap();
-    let err = linear_stability(&resolve(&zero_width), &o, &[1], Par::Seq).unwrap_err();
+    let err = with_w_box("{ lower = [-1.0, -1.0, 0.0], upper = [1.0, 1.0, 0.0] }");
     assert!(
         matches!(
             err,

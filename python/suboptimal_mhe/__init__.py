@@ -1025,7 +1025,8 @@ def export(
     (``lang="rust"``), the replay program, ``certificate.json`` and a README, into
     ``out_dir`` (created, or replaced as a whole when it holds an earlier export).
 
-    ``k`` is an iteration count or ``"certified"`` (K_min of Theorem 1); ``kc`` also exports
+    ``k`` is an iteration count or ``"certified"`` (the smallest K the one verdict certifies:
+    Theorem 1's K_min, Theorem L3's K_glob or the iteration chain's K); ``kc`` also exports
     the K_c-iteration MPC (a count or ``"certified"``: the joint certificate's floor).
     The export is refused (:class:`CertificateError`) unless the one verdict of every command
     certifies (method, K, dtype) — ``allow_uncertified=True`` exports anyway and the

@@ -19,7 +19,9 @@ use crate::provenance::Provenance;
 pub enum ScalarKind {
     /// Double precision: bit for bit the std build on the portable kernel.
     F64,
-    /// Single precision (data rounded to f32 once; not covered by the certificate).
+    /// Single precision (data rounded to f32 once): certified where a rounding model covers
+    /// the method (PG: Theorem 1 or Theorem L3 with the rounding as an input), else refused
+    /// unless --allow-uncertified.
     F32,
 }
 
@@ -46,7 +48,9 @@ pub struct ExportArgs {
     /// scenario's `mhe.method`].
     #[arg(long)]
     pub method: Option<String>,
-    /// Iterations K per step: a number, or `certified` for K_min of Theorem 1.
+    /// Iterations K per step: a number, or `certified` for the smallest K the one verdict
+    /// certifies in the exported scalar (Theorem 1's K_min, Theorem L3's K_glob or the
+    /// iteration chain's K; with --kc, the joint certificate's K for that K_c).
     #[arg(long, default_value = "certified", allow_hyphen_values = true)]
     pub k: String,
     /// The scalar of the exported code.

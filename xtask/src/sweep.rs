@@ -536,7 +536,7 @@ fn print_thresholds(sweep: &Sweep, thresholds: &[Thresholds], pairs: &[PairThres
         }
     } else if !thresholds.is_empty() {
         outln!(
-            "thresholds (K_lin: ρ_lin < 1 from here on the grid; K_reg: the regional certificate's smallest K; K_emp: every run bounded from here on; K_cert: the covering certificate, Theorem 1 or with a K_c-iteration MPC the joint one):"
+            "thresholds (K_lin: ρ_lin < 1 from here on the grid; K_reg: the regional certificate's smallest K; K_emp: every run bounded from here on; K_cert: the smallest K the one verdict certifies (Theorem 1, Theorem L3 from K_glob on, the iteration chain at the K it checked, or the joint certificate with a K_c-iteration MPC; not a threshold: points.csv `certified` says which grid K are)):"
         );
         outln!("{}", thresholds_markdown(thresholds).trim_end_matches('\n'));
     }
@@ -604,8 +604,8 @@ pub fn theory_summary(sweep: &Sweep) -> String {
             p.solver,
             match (t.certified, t.k_min) {
                 ("void", _) => format!("void ({})", shorten(&t.void_reason, 60)),
-                (_, Some(k)) => format!("K_min = {k}"),
-                _ => "no K_min".into(),
+                (_, Some(k)) => format!("smallest certified K = {k}"),
+                _ => "no certified K".into(),
             },
             match (t.k_lin, t.linear_note.is_empty()) {
                 (Some(k), _) => format!("K_lin = {k}"),

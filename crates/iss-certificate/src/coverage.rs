@@ -320,8 +320,9 @@ pub enum PairReason {
         /// The f64 verdict's reason.
         then: Option<Box<PairReason>>,
     },
-    /// Theorem 1's verdict (`then`) and the global loop certificate's outcome, which the
-    /// budget stopped ([`with_global`]).
+    /// Theorem 1's verdict (`then`) and the global loop certificate's outcome: stopped by
+    /// the budget, or (Theorem 1 void) proved absent or not modelled in the verdict's scalar
+    /// ([`with_global`]).
     Global {
         /// Theorem 1's (or the f32) reason, if any.
         then: Option<Box<PairReason>>,

@@ -41,7 +41,8 @@ pub enum Lang {
 /// An iteration count: the certified floor or a given count ≥ 1.
 #[derive(Debug, Clone, Copy, PartialEq, Eq, Default)]
 pub enum Iterations {
-    /// The certified floor (K_min of Theorem 1, or the joint certificate's K_c at the
+    /// The certified floor (the smallest K the one verdict certifies: Theorem 1's K_min,
+    /// Theorem L3's K_glob or the iteration chain's K; or the joint certificate's K_c at the
     /// exported K).
     #[default]
     Certified,
@@ -194,7 +195,7 @@ impl ExportOptions {
 #[derive(Debug, Clone, Copy, PartialEq)]
 #[non_exhaustive]
 pub enum Stage {
-    /// The closed-loop certificate (Theorem 1) of the MHE method.
+    /// The closed-loop certificates of the MHE method (Theorem 1, Theorem L3, the chain).
     Theorem1 {
         /// The MHE method.
         method: Method,
@@ -213,7 +214,7 @@ impl fmt::Display for Stage {
         match self {
             Self::Theorem1 { method } => write!(
                 f,
-                "computing the certificate of Theorem 1 for {} …",
+                "computing the certificates (Theorem 1, the global loop certificate, the iteration chain) for {} …",
                 method.name()
             ),
             Self::Joint { mhe, mpc } => write!(
@@ -354,7 +355,8 @@ impl Artefact {
         self.header.k
     }
 
-    /// K_min of Theorem 1 (None: void or not computed).
+    /// The smallest K the one verdict certifies in the exported scalar (Theorem 1's K_min,
+    /// Theorem L3's K_glob or the iteration chain's K; None: void or not computed).
     pub fn k_min(&self) -> Option<usize> {
         self.header.k_min
     }

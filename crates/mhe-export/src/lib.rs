@@ -6,8 +6,9 @@
 //! 1. [`export`] checks every option ([`ExportOptions::validate`]) before any work, computes
 //!    the closed-loop certificate with the options every command uses
 //!    (`iss_certificate::coverage::verdict_options`: the user's γ₁,₃ and the sample that can
-//!    refute it) and decides K: [`Iterations::Certified`] (the default) is K_min of
-//!    Theorem 1. The verdict on (method, K, the MPC's K_c, scalar, the scenario's warm start)
+//!    refute it) and decides K: [`Iterations::Certified`] (the default) is the smallest K
+//!    the one verdict certifies (Theorem 1's K_min, Theorem L3's K_glob or the iteration
+//!    chain's K, in the exported scalar). The verdict on (method, K, the MPC's K_c, scalar, the scenario's warm start)
 //!    is `iss_certificate::coverage::verdict`'s — the one `reproduce` and the sweep print; a
 //!    configuration it does not certify is refused ([`ExportError::NotCertified`]) unless
 //!    `allow_uncertified`, which the artefact then says in its README, its headers and
@@ -27,7 +28,7 @@
 //! # fn main() -> Result<(), Box<dyn std::error::Error>> {
 //! let path = "scenarios/case-study-certified.toml";
 //! let resolved = Scenario::from_file(path)?.resolve()?;
-//! let mut options = ExportOptions::default(); // K = K_min of Theorem 1, f64, C
+//! let mut options = ExportOptions::default(); // K = the certified floor, f64, C
 //! options.lang = Lang::C;
 //! options.source = Source::from_bytes(path, &std::fs::read(path)?);
 //! let artefact = export(&resolved, &options)?; // refused unless certified
@@ -303,7 +304,7 @@ pub(crate) fn decide_k(
         scalar: coverage_scalar(scalar),
     };
     // `--k certified`: the smallest K the one verdict certifies in this scalar (Theorem 1's
-    // K_min or the global K_glob, whichever is smaller).
+    // K_min, the global K_glob or the chain's K, whichever is smallest).
     let k = match (k_arg, joint_floor) {
         (Iterations::Given(k), _) => k,
         (Iterations::Certified, Some(k)) => k,
@@ -312,13 +313,22 @@ pub(crate) fn decide_k(
             match (probe.certified.is_certified(), probe.k_min) {
                 (true, _) => 1,
                 (false, Some(k)) => k,
-                (false, None) if sc.k_min.is_none() => bail!(
-                    "--k certified: no certificate certifies a K for {name} in {} (Theorem 1: \
-                     {}; {}); give --k K with --allow-uncertified to export anyway",
-                    scalar_name(scalar),
-                    VoidReason::join(&sc.void_reasons),
-                    probe.reason_text()
-                ),
+                (false, None) if sc.k_min.is_none() => {
+                    // The verdict's reason names Theorem 1's void reasons where it has them:
+                    // say them once.
+                    let why = probe.reason_text();
+                    let theorem1 = VoidReason::join(&sc.void_reasons);
+                    let why = if why.contains(&theorem1) {
+                        why
+                    } else {
+                        format!("Theorem 1: {theorem1}; {why}")
+                    };
+                    bail!(
+                        "--k certified: no certificate certifies a K for {name} in {} ({why}); \
+                         give --k K with --allow-uncertified to export anyway",
+                        scalar_name(scalar),
+                    )
+                }
                 (false, None) => bail!(
                     "--k certified: no K is certified for {name} in {} ({}); give --k K with \
                      --allow-uncertified to export anyway",
@@ -413,9 +423,15 @@ pub(crate) fn decide_kc(
     let k_c = match (kc_arg, floor) {
         (Iterations::Given(k), _) => k,
         (Iterations::Certified, Some(k)) => k,
+        // A larger --k helps only where the certificate is not void (its floor is above K).
         (Iterations::Certified, None) => bail!(
-            "--kc certified: {}; give a larger --k, or --kc K with --allow-uncertified",
-            none_reason()
+            "--kc certified: {}; {}--kc K with --allow-uncertified to export anyway",
+            none_reason(),
+            if region.void_reasons.is_empty() {
+                "give a larger --k, or "
+            } else {
+                "no K helps; "
+            }
         ),
     };
     let config = Configuration {

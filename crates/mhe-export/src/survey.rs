@@ -260,7 +260,7 @@ pub fn short_reason(r: &PairReason) -> String {
             let g = if g.contains("not computed") {
                 "the global certificate not computed within the budget"
             } else {
-                "the global certificate: no K"
+                "no global K"
             };
             then.as_ref()
                 .map_or_else(|| g.to_string(), |t| format!("{}; {g}", short_reason(t)))

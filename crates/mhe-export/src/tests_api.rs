@@ -97,7 +97,9 @@ fn long_export_from_values_refuses_below_k_min_and_writes_the_opt_in() {
     );
     assert_eq!(
         stages,
-        ["computing the certificate of Theorem 1 for admm-pr …"]
+        [
+            "computing the certificates (Theorem 1, the global loop certificate, the iteration chain) for admm-pr …"
+        ]
     );
     o.allow_uncertified = true;
     let art = export(&resolved, &o).unwrap();

@@ -91,9 +91,8 @@ pub fn linear_entries(
                     error: Some(format!(
                         "not computed: the MHE window has n_z = {n_z} > {LINEAR_ALL_METHODS_MAX_NZ} \
                          variables, so ρ_lin is computed for the scenario's method ({}) only; \
-                         set mhe.method = \"{}\" to get it for this one",
+                         set mhe.method to another method to get its ρ_lin",
                         own.name(),
-                        m.name()
                     )),
                 };
             }

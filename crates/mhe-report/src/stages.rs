@@ -246,7 +246,7 @@ fn plan(
 ) -> Result<Plan, ReportError> {
     let opts = &p.opts;
     log.say(format!(
-        "[{}] computing the certificate of Theorem 1 for {} …",
+        "[{}] computing the certificates (Theorem 1, the global loop certificate, the iteration chain) for {} …",
         settings.label,
         opts.solvers
             .iter()

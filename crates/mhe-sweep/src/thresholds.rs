@@ -56,8 +56,10 @@ pub struct Thresholds {
     /// [`SETTLE_TOLERANCE`] of its largest-K level at every larger grid K (None without the
     /// `tail_mean_e` metric or a finite largest-K level).
     pub k_settle: Option<usize>,
-    /// K_cert: Theorem 1's smallest certified K (None: void or beyond the search range;
-    /// it may lie beyond the grid).
+    /// K_cert: the smallest K the one verdict certifies (Theorem 1, Theorem L3's K_glob, the
+    /// iteration chain at the K it checked, or the joint certificate; None: void or beyond
+    /// the search range; it may lie beyond the grid). Not a threshold: the chain certifies
+    /// the K it checked only (the points' `certified` column says which).
     pub k_cert: Option<usize>,
     /// Why the certificate is void (empty otherwise).
     pub void_reason: String,

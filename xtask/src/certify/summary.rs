@@ -81,8 +81,9 @@ pub(super) fn summarize(
             Some(kind) => {
                 let _ = writeln!(
                     s,
-                    "closed loop: covered by the {} certificate; its verdict at K is `cargo \
-                     xtask reproduce`'s (PASS/FAIL below is LMI (2) alone)",
+                    "closed loop: in the setting of the {} certificate (not a verdict: whether \
+                     a K is certified is `cargo xtask reproduce`'s, or the table of `--loop`; \
+                     PASS/FAIL below is LMI (2) alone)",
                     kind.title()
                 );
             }

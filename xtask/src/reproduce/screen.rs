@@ -211,7 +211,11 @@ fn k_lin_cell(d: &CertificateDocument, solver: &str, notes: &mut Notes) -> Strin
             },
             |k| k.to_string(),
         ),
-        (None, Some(e)) => format!("n/c{}", notes.mark(format!("K_lin not computed: {e}"))),
+        (None, Some(e)) => {
+            // The same reason for every method is one footnote.
+            let e = e.strip_prefix("not computed: ").unwrap_or(e);
+            format!("n/c{}", notes.mark(format!("K_lin not computed: {e}")))
+        }
         (None, None) => "-".into(),
     }
 }
@@ -240,10 +244,24 @@ fn k_reg_cell(d: &CertificateDocument, solver: &str, notes: &mut Notes) -> Strin
     format!("none{}", notes.mark(why))
 }
 
-/// The text up to the first ": " (the numbers of a void reason follow it), at most 120
+/// The text up to the first ": " outside parentheses (the numbers of a void reason follow
+/// it; a parenthesis such as "(largest K evaluated: 32)" stays whole), at most 120
 /// characters.
-fn first_clause(v: &str) -> String {
-    let head = v.split(": ").next().unwrap_or(v);
+pub(super) fn first_clause(v: &str) -> String {
+    let mut depth = 0usize;
+    let mut end = v.len();
+    for (i, c) in v.char_indices() {
+        match c {
+            '(' => depth += 1,
+            ')' => depth = depth.saturating_sub(1),
+            ':' if depth == 0 && v[i + 1..].starts_with(' ') => {
+                end = i;
+                break;
+            }
+            _ => {}
+        }
+    }
+    let head = &v[..end];
     if head.chars().count() <= 120 {
         head.to_string()
     } else {

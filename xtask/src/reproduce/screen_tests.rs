@@ -265,8 +265,28 @@ fn summary_md_holds_the_long_summary_and_the_work_log() {
         f.paper.screen.as_str(),
         f.paper.summary.as_str(),
         "## Work log",
-        "[paper] computing the certificate of Theorem 1",
+        "[paper] computing the certificates (Theorem 1, the global loop certificate, the iteration chain)",
     ] {
         assert!(text.contains(needle), "summary.md lacks `{needle}`");
     }
+}
+
+/// A footnote's first clause ends at the first ": " outside parentheses: a 10-state plant's
+/// K_reg note printed "the search stopped … uncertainty (largest K evaluated" — cut inside
+/// "(largest K evaluated: 32)".
+#[test]
+fn first_clause_keeps_a_parenthesis_whole() {
+    use super::screen::first_clause;
+    assert_eq!(
+        first_clause(
+            "the search stopped before a K whose region contains the scenario's uncertainty \
+             (largest K evaluated: 32): not computed at K = 64: the lifted model"
+        ),
+        "the search stopped before a K whose region contains the scenario's uncertainty \
+         (largest K evaluated: 32)"
+    );
+    assert_eq!(first_clause("void: ρ = 1.2"), "void");
+    assert_eq!(first_clause("no colon here"), "no colon here");
+    assert_eq!(first_clause("ratio 3:1 kept: then"), "ratio 3:1 kept");
+    assert_eq!(first_clause(&"é".repeat(130)).chars().count(), 120);
 }

@@ -137,6 +137,16 @@ fn global_verdict(d: &CertificateDocument) -> Option<String> {
                 d.solver
             )
         }
+        // The chain's floor holds at that K alone (its certified set is not monotone).
+        (CertificateKind::Chain, false) => format!(
+            "NOT CERTIFIED at the scenario's K = {k}: the smallest certified K is {floor} \
+             ({}, at that K only; {}).",
+            kind.title(),
+            match sv.and_then(|s| s.k_glob) {
+                Some(g) => format!("every K ≥ K_glob = {g} by Theorem L3"),
+                None => "Theorem L3 gives no K_glob".to_string(),
+            }
+        ),
         _ => format!(
             "NOT CERTIFIED at the scenario's K = {k}: the smallest certified K is {floor} \
              ({}; K_glob = {kg}).",

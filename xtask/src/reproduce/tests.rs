@@ -1003,7 +1003,7 @@ fn gains_of_a_metric_that_does_not_contract_are_null_with_the_reason() {
 fn each_simulation_is_announced_with_its_work() {
     let f = fixture();
     let log = &f.paper.log;
-    assert!(log[0].starts_with("[paper] computing the certificate of Theorem 1 for pg, fista"));
+    assert!(log[0].starts_with("[paper] computing the certificates (Theorem 1, the global loop certificate, the iteration chain) for pg, fista"));
     let sims: Vec<&String> = log.iter().filter(|l| l.starts_with("simulating")).collect();
     assert_eq!(sims.len(), 2, "{log:?}");
     // n_z = 4 + 5·(4 + 1) = 29.

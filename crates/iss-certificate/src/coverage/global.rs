@@ -15,7 +15,8 @@ use crate::lure::global_outcome::{GlobalOutcome, MethodGlobal, PrecisionOutcome}
 /// first); K_min is the smaller floor of the two. When neither covers: a known K_glob above
 /// K_e is a plain "no"; a global search the budget stopped makes a void or not-computed `v`
 /// not computed and says so (a "no" stays a plain "no"); a global certificate proved absent
-/// leaves `v` as it is (its outcome is reported beside: certificate.json, `certify --loop`).
+/// (or not modelled in this scalar) leaves a void `v` void naming both reasons, and any
+/// other `v` as it is (its outcome is reported beside: certificate.json, `certify --loop`).
 ///
 /// Then the iteration chain (Theorem L3b, f64 only: it has no rounding input), which speaks
 /// at the K it was checked at and nowhere else (it is not monotone in K;
@@ -104,7 +105,14 @@ pub fn with_chain(v: PairVerdict, chain: &MethodChain, k_e: usize) -> PairVerdic
                     margin: None,
                     ..v
                 },
+                // Checked at K without a certificate (or not checked, above K_chain): the
+                // floor is named by the certificate that gives it.
                 (Certified::No, Some(_)) if !below_chain => PairVerdict {
+                    certificate: if chain_lowest {
+                        Some(CertificateKind::Chain)
+                    } else {
+                        v.certificate
+                    },
                     k_min,
                     reason: why(at.cloned(), v.reason.clone()),
                     ..v
@@ -208,6 +216,20 @@ fn with_l3(v: PairVerdict, g: &MethodGlobal, k_e: usize, scalar: Scalar) -> Pair
             }),
             ..v
         },
+        // Neither certificate has a K: the verdict names both reasons (Theorem 1's and the
+        // global certificate's in this scalar: proved absent, or not modelled — e.g. f32 for
+        // a method without a rounding model), so a refusal never cites Theorem 1 alone.
+        None if v.certified == Certified::Void
+            && !matches!(why, GlobalWhy::F32(PrecisionOutcome::NotAsked)) =>
+        {
+            PairVerdict {
+                reason: Some(PairReason::Global {
+                    then: v.reason.clone().map(Box::new),
+                    global: why,
+                }),
+                ..v
+            }
+        }
         None => v,
     }
 }
@@ -403,6 +425,50 @@ mod tests {
         assert_eq!((v.certified, v.k_min), (Certified::No, Some(243)));
     }
 
+    /// Neither certificate has a K: a void verdict names both reasons — Theorem 1's and the
+    /// global certificate's in the verdict's scalar (an f32 export of FISTA on a user's plant
+    /// cited Theorem 1 alone, not that f32 has no rounding model of FISTA); "not searched" adds
+    /// nothing; a "no" keeps its own reason.
+    #[test]
+    fn a_void_verdict_names_the_global_reason_too() {
+        let binds = GlobalOutcome::OptimumBinds {
+            margin_without_boxes: 2e-6,
+        };
+        let g = global(binds, PrecisionOutcome::NotAsked);
+        let v = with_global(theorem1(Certified::Void, None), Some(&g), 5, Scalar::F64);
+        assert_eq!(v.certified, Certified::Void);
+        let why = v.reason_text();
+        assert!(why.contains("the global loop certificate: "), "{why}");
+        assert!(why.contains(&g.exact.to_string()), "{why}");
+        assert!(
+            why.contains(&theorem1(Certified::Void, None).reason_text()),
+            "{why}"
+        );
+        let v = with_global(theorem1(Certified::Void, None), Some(&g), 5, Scalar::F32);
+        assert_eq!(
+            v.reason_text(),
+            theorem1(Certified::Void, None).reason_text()
+        );
+        let fista = PrecisionOutcome::Unsupported {
+            reason: "FISTA: no rounding bound is derived (use pg)".into(),
+        };
+        let g = global(exact(13), fista);
+        let v = with_global(theorem1(Certified::Void, None), Some(&g), 20, Scalar::F32);
+        assert_eq!(v.certified, Certified::Void);
+        assert!(
+            v.reason_text().contains("no rounding bound"),
+            "{}",
+            v.reason_text()
+        );
+        let v = with_global(
+            theorem1(Certified::No, Some(300)),
+            Some(&g),
+            20,
+            Scalar::F32,
+        );
+        assert_eq!(v.reason, None);
+    }
+
     /// f32 reads the f32 outcome: refused where the f32 global certificate is void even if
     /// the f64 one covers K.
     #[test]
@@ -521,6 +587,20 @@ mod tests {
         assert_eq!(v.certified, Certified::NotComputed);
         let why = v.reason_text();
         assert!(why.contains("certificate.phase_seconds"), "{why}");
+        // Checked above its floor without a certificate (ρ_lin(K) ≥ 1 there): a plain "no"
+        // whose floor, 2, is the chain's and is named so — not Theorem L3's, whose K_glob
+        // is 13 (a user's 2-state plant printed "the smallest certified K is 2 (the global
+        // loop certificate (Theorem L3); K_glob = 14)").
+        let unstable = ChainCheck::LinearlyUnstable {
+            k: 5,
+            rho_lin: 1.04,
+        };
+        let g5 = chained(vec![chain_yes(2), unstable]);
+        let v = with_global(theorem1(Certified::Void, None), Some(&g5), 5, Scalar::F64);
+        assert_eq!((v.certified, v.k_min), (Certified::No, Some(2)));
+        assert_eq!(v.certificate, Some(CertificateKind::Chain));
+        let why = v.reason_text();
+        assert!(why.contains("1.04"), "{why}");
         // Without the chain the same K = 1 is Theorem L3's plain "no" at the floor 13.
         let mut g = g;
         g.chain = None;

@@ -20,7 +20,7 @@
 use closed_loop::scenario::{LoopOptions, ResolvedScenario};
 use qp_iter::Method;
 
-use super::global::{ChainError, ChainOptions, IterationChain, iteration_chain};
+use super::global::{ChainOptions, IterationChain, iteration_chain};
 use super::global_outcome::{GlobalOutcome, PrecisionOutcome};
 use crate::budget::DENSE_RATE;
 
@@ -104,7 +104,7 @@ pub enum ChainCheck {
     Refused {
         /// K.
         k: usize,
-        /// [`ChainError`]'s sentence.
+        /// [`ChainError`](super::global::ChainError)'s sentence.
         reason: String,
     },
 }
@@ -202,7 +202,7 @@ pub enum ChainOutcome {
     Checked(MethodChain),
     /// The chain does not model this loop (the sentence names the key).
     Unsupported {
-        /// [`ChainError`]'s sentence.
+        /// [`ChainError`](super::global::ChainError)'s sentence.
         reason: String,
     },
 }
@@ -406,15 +406,9 @@ fn check(
         budget_seconds,
     };
     if ch.dim(k) > opts.max_dim {
-        let e = ChainError::TooLarge {
-            k,
-            dim: ch.dim(k),
-            max: opts.max_dim,
-            n_b: ch.n_b(),
-        };
         return ChainCheck::Refused {
             k,
-            reason: e.to_string(),
+            reason: ch.too_large(k, opts.max_dim).to_string(),
         };
     }
     // Theorem L3b (ii): where the linear loop is unstable nothing can be certified; its

@@ -124,6 +124,20 @@ fn chain_refuses_what_it_does_not_model() {
     let e = ch.certify_chain(big, &opts).expect_err("too large");
     assert!(matches!(e, ChainError::TooLarge { .. }), "{e}");
     assert!(e.to_string().contains("mhe.iterations"));
+    // It names the largest K that fits, and that K does fit while the next does not.
+    let ChainError::TooLarge { k_fit, max, .. } = e else {
+        unreachable!()
+    };
+    assert!(
+        k_fit >= 1 && ch.dim(k_fit) <= max && ch.dim(k_fit + 1) > max,
+        "{k_fit}"
+    );
+    assert!(
+        ch.certify_chain(big, &opts)
+            .expect_err("too large")
+            .to_string()
+            .contains(&format!("K ≤ {k_fit}")),
+    );
     // An absurd K is refused by the same check, before anything is allocated.
     let e = ch
         .certify_chain(usize::MAX, &opts)

@@ -58,11 +58,12 @@ pub enum ChainError {
     ZeroIterations,
     /// The chain's LMI at this K is larger than the documented limit.
     #[error(
-        "mhe.iterations = {k}: the chain's LMI would have dim ζ = {dim} > {max} \
-         (it grows by n_B = {n_b} per iteration); use a smaller K or Theorem L3's K_glob"
+        "K = {k}: the chain's LMI would have dim ζ = {dim} > {max} (it grows by n_B = {n_b} \
+         per iteration, so the chain reaches K ≤ {k_fit} here); for K above it use Theorem \
+         L3's K_glob, or a smaller mhe.iterations"
     )]
     TooLarge {
-        /// K asked for.
+        /// K asked for (the scenario's `mhe.iterations`, or a K of the chain's scan).
         k: usize,
         /// dim ζ at that K.
         dim: usize,
@@ -70,6 +71,8 @@ pub enum ChainError {
         max: usize,
         /// Bounded coordinates of z (ζ's growth per iteration).
         n_b: usize,
+        /// The largest K whose chain fits the limit (0: not even K = 1).
+        k_fit: usize,
     },
 }
 
@@ -303,6 +306,27 @@ impl IterationChain {
         self.unroll(Mat::identity(n, n), k, |_, p| p.clone())
     }
 
+    /// [`ChainError::TooLarge`] at K with the limit `max`.
+    pub(crate) fn too_large(&self, k: usize, max: usize) -> ChainError {
+        // dim grows with K (by n_B per clamp): the largest K that fits, by bisection.
+        let (mut lo, mut hi) = (0usize, k);
+        while lo < hi {
+            let mid = lo + (hi - lo).div_ceil(2);
+            if mid > 0 && self.dim(mid) <= max {
+                lo = mid;
+            } else {
+                hi = mid - 1;
+            }
+        }
+        ChainError::TooLarge {
+            k,
+            dim: self.dim(k),
+            max,
+            n_b: self.n_b(),
+            k_fit: lo,
+        }
+    }
+
     /// dim ζ of the chain at K: Theorem L3's with d's free part eliminated and
     /// (clamps − 1)·n_B added.
     pub fn dim(&self, k: usize) -> usize {
@@ -318,12 +342,7 @@ impl IterationChain {
         }
         let dim = self.dim(k);
         if dim > opts.max_dim {
-            return Err(ChainError::TooLarge {
-                k,
-                dim,
-                max: opts.max_dim,
-                n_b: self.n_b(),
-            });
+            return Err(self.too_large(k, opts.max_dim));
         }
         let g = &self.global;
         let (nz, nb, nk) = (self.n_z(), self.n_b(), self.clamps(k));

@@ -5,7 +5,11 @@
 
 use iss_certificate::asymptotic::{AsymptoticGains, MeasuredGains, certified_gains};
 
+use closed_loop::scenario::ControllerChoice;
 use iss_certificate::certificate::{ClosedLoopCertificate, SolverCertificate};
+use iss_certificate::coverage::CertificateKind;
+use iss_certificate::lure::chain_outcome::ChainCheck;
+use iss_certificate::lure::global_outcome::GlobalOutcome;
 use iss_certificate::outcome::VoidReason;
 use qp_iter::Method;
 
@@ -82,20 +86,23 @@ pub struct RunGains {
     pub measured: Option<MeasuredGains>,
 }
 
-/// g·w̄ for one run.
+/// g·w̄ for one run, from the certificate that certifies the run's K.
 #[derive(Debug, Clone)]
 #[non_exhaustive]
 pub struct CertifiedBound {
+    /// The certificate the gains are of: Theorem 1 where it covers the run's K, else the
+    /// global loop certificate (K ≥ K_glob) or the iteration chain (checked at that K).
+    pub certificate: CertificateKind,
     /// g_x.
     pub gain_x: f64,
-    /// g_ε.
-    pub gain_epsilon: f64,
+    /// g_ε (Theorem 1 only: the loop certificates do not bound the inner error ε_t).
+    pub gain_epsilon: Option<f64>,
     /// g_e.
     pub gain_e: f64,
     /// lim sup‖x_t‖ ≤ g_x·w̄.
     pub bound_x: f64,
-    /// lim sup ε_t ≤ g_ε·w̄.
-    pub bound_epsilon: f64,
+    /// lim sup ε_t ≤ g_ε·w̄ (Theorem 1 only).
+    pub bound_epsilon: Option<f64>,
     /// lim sup‖e_t‖ ≤ g_e·w̄.
     pub bound_e: f64,
 }
@@ -175,6 +182,26 @@ fn method_gains(
     }
 }
 
+/// The gains of the loop certificate that covers `k` with the exact MPC: Theorem L3's where
+/// K ≥ K_glob, else the iteration chain's where it was checked and certified at `k`.
+fn loop_gains(
+    cert: &ClosedLoopCertificate,
+    method: Method,
+    k: usize,
+) -> Option<(CertificateKind, f64, Option<f64>, f64)> {
+    let g = iss_certificate::coverage::global_of(cert, method, ControllerChoice::ExactMpc)?;
+    if let GlobalOutcome::Certified(gk) = &g.exact {
+        if k >= gk.k_glob {
+            return Some((CertificateKind::Global, gk.gain_x, None, gk.gain_e));
+        }
+    }
+    let chain = g.chain.as_ref()?.chain()?;
+    match chain.at(k)? {
+        ChainCheck::Certified(c) => Some((CertificateKind::Chain, c.gain_x, None, c.gain_e)),
+        _ => None,
+    }
+}
+
 /// One run's certified bound at its K (with its own sup‖w_t‖ as w̄) and measured gains.
 fn run_gains(
     cert: &ClosedLoopCertificate,
@@ -200,22 +227,58 @@ fn run_gains(
             )
         })
     };
-    let certified = match (void, own) {
+    let theorem1 = match (void, own) {
         (Some(v), _) => Err(v),
         (None, None) => Err("the scenario's solver was not certified".into()),
-        (None, Some(s)) => certified_gains(cert, s, r.summary.k).map_err(|e| e.to_string()),
+        (None, Some(s)) => certified_gains(cert, s, r.summary.k)
+            .map(|g| {
+                (
+                    CertificateKind::Theorem1,
+                    g.gain_x,
+                    Some(g.gain_epsilon),
+                    g.gain_e,
+                )
+            })
+            .map_err(|e| e.to_string()),
+    };
+    // Where Theorem 1 does not cover the run's K, the certificate the one verdict names does
+    // (Theorem L3 holds for every w, inside 𝒲 or not; the chain at the K it checked).
+    let certified = match theorem1 {
+        Ok(g) => Ok(g),
+        Err(e) => match (not_covered, own) {
+            (None, Some(s)) if r.summary.controller == "exact MPC" => {
+                loop_gains(cert, s.solver, r.summary.k).ok_or_else(|| {
+                    match iss_certificate::coverage::global_of(
+                        cert,
+                        s.solver,
+                        ControllerChoice::ExactMpc,
+                    )
+                    .and_then(|g| g.exact.k_glob())
+                    {
+                        Some(kg) => format!(
+                            "K = {} is below the global loop certificate's K_glob = {kg} and \
+                             not a K the iteration chain certified; {e}",
+                            r.summary.k
+                        ),
+                        None => e,
+                    }
+                })
+            }
+            _ => Err(e),
+        },
     };
     let (certified, certified_void) = match certified {
-        Ok(g) => {
+        Ok((certificate, gain_x, gain_epsilon, gain_e)) => {
             let w = w_bar.unwrap_or(f64::NAN);
             (
                 Some(CertifiedBound {
-                    gain_x: g.gain_x,
-                    gain_epsilon: g.gain_epsilon,
-                    gain_e: g.gain_e,
-                    bound_x: g.gain_x * w,
-                    bound_epsilon: g.gain_epsilon * w,
-                    bound_e: g.gain_e * w,
+                    certificate,
+                    gain_x,
+                    gain_epsilon,
+                    gain_e,
+                    bound_x: gain_x * w,
+                    bound_epsilon: gain_epsilon.map(|g| g * w),
+                    bound_e: gain_e * w,
                 }),
                 None,
             )

@@ -11,7 +11,12 @@ use super::*;
 pub(super) fn run_line(g: &RunGains) -> String {
     let certified = match (&g.certified, g.w_bar) {
         (Some(c), Some(w)) => format!(
-            "certified lim sup ‖e‖ ≤ g_e·w̄ = {}·{} = {}, lim sup ‖x‖ ≤ g_x·w̄ = {}·{} = {}",
+            "certified{} lim sup ‖e‖ ≤ g_e·w̄ = {}·{} = {}, lim sup ‖x‖ ≤ g_x·w̄ = {}·{} = {}",
+            // Theorem 1's unless another certificate covers the run's K.
+            match c.certificate {
+                iss_certificate::coverage::CertificateKind::Theorem1 => String::new(),
+                kind => format!(" ({})", kind.title()),
+            },
             num(c.gain_e),
             num(w),
             num(c.bound_e),
@@ -21,9 +26,12 @@ pub(super) fn run_line(g: &RunGains) -> String {
         ),
         _ => match g.certified_void.as_deref() {
             // The premises' sentences are printed above, once.
-            Some(v) if v.starts_with("Theorem 1 is void") => {
-                "certified asymptotic bound: none (Theorem 1 is void: see the premises above)"
-                    .to_string()
+            Some(v) if v.contains("Theorem 1 is void") => {
+                let before = v.split("Theorem 1 is void").next().unwrap_or_default();
+                format!(
+                    "certified asymptotic bound: none ({before}Theorem 1 is void: see the \
+                     premises above)"
+                )
             }
             v => format!(
                 "certified asymptotic bound: none ({})",
@@ -59,8 +67,8 @@ pub(super) fn methods_section(r: &GainsReport) -> String {
     let mut s = String::new();
     let _ = writeln!(
         s,
-        "\nCertified asymptotic gains at K_min (lim sup ‖e‖ ≤ g_e·w̄, lim sup ‖x‖ ≤ g_x·w̄, \
-         w̄ ≥ sup‖w_t‖; docs/theory.md)"
+        "\nCertified asymptotic gains, Theorem 1's at K_min and the regional certificate's at \
+         its K (lim sup ‖e‖ ≤ g_e·w̄, lim sup ‖x‖ ≤ g_x·w̄, w̄ ≥ sup‖w_t‖; docs/theory.md)"
     );
     if r.methods
         .iter()
@@ -84,7 +92,8 @@ pub(super) fn methods_section(r: &GainsReport) -> String {
         };
         let reg = match &m.regional {
             Some(g) => format!(
-                "; regional: g_e = {}, g_x = {} ({})",
+                "; regional at K = {}: g_e = {}, g_x = {} ({})",
+                g.k,
                 num(g.gain_e),
                 num(g.gain_x),
                 if g.contains {

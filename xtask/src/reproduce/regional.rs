@@ -1,5 +1,5 @@
 //! The summary's lines of K_reg (issue 27, computed by [`mhe_report::regional`]): per
-//! method K_lin ≤ K_reg against K_min with the ratios, and why there is no K_reg where there
+//! method K_reg against K_lin and K_min with the ratios, and why there is no K_reg where there
 //! is none.
 
 use super::*;
@@ -17,8 +17,8 @@ fn controller_text(c: ControllerChoice) -> String {
     }
 }
 
-/// The summary's lines: per method K_lin ≤ K_reg against K_min with the ratios, and why there
-/// is no K_reg where there is none.
+/// The summary's lines: per method K_reg against K_lin and K_min with the ratios (ρ_lin at
+/// K_reg, the necessary condition), and why there is no K_reg where there is none.
 pub(super) fn summary(entries: &[RegionalEntry]) -> String {
     use lti_model::numfmt::sig4;
     let mut s = String::new();
@@ -29,7 +29,9 @@ pub(super) fn summary(entries: &[RegionalEntry]) -> String {
         s,
         "\nRegional certificate ({}; inside the region no constraint is active, so the loop \
          is the linear one): K_reg = smallest K whose region contains the scenario's uncertainty,\n\
-         searched up to K_min; K_lin ≤ K_reg (K_lin is necessary), against Theorem 1's K_min",
+         searched up to K_min, against K_lin and Theorem 1's K_min. ρ_lin(K_reg) < 1 is \
+         necessary (printed below); K_lin, from which ρ_lin < 1 on the whole grid (with the \
+         exact MPC), can exceed K_reg where ρ_lin is not monotone in K",
         entries
             .iter()
             .find_map(|e| e
@@ -90,8 +92,9 @@ pub(super) fn summary(entries: &[RegionalEntry]) -> String {
             (Some(c), None) => {
                 let _ = writeln!(
                     s,
-                    "      at K_reg: rate λ = {}, certified gains sup‖x‖ ≤ {}·w̄, sup‖e‖ ≤ {}·w̄, \
-                     uncertainty certified up to {}× the scenario's",
+                    "      at K_reg: ρ_lin = {}, rate λ = {}, certified gains sup‖x‖ ≤ {}·w̄, \
+                     sup‖e‖ ≤ {}·w̄, uncertainty certified up to {}× the scenario's",
+                    super::numfmt::rate(c.rho_lin),
                     super::numfmt::rate(c.rate),
                     sig4(c.gain_x),
                     sig4(c.gain_e),

@@ -1364,22 +1364,56 @@ fn certified_and_measured_asymptotic_gains_are_reported() {
     assert!(
         f.certified
             .summary
-            .contains("Certified asymptotic gains at K_min")
+            .contains("Certified asymptotic gains, Theorem 1's at K_min and the regional")
     );
+    // The paper preset: Theorem 1 is void, so a run's bound is the certificate the one verdict
+    // names at its K — Theorem L3's gains at K ≥ K_glob (the same numbers as its `solvers[]`
+    // entry), none below K_glob where the chain did not certify the K, saying why.
+    let mg = iss_certificate::coverage::global_of(
+        &f.paper.document.certificate,
+        qp_iter::Method::PG,
+        closed_loop::scenario::ControllerChoice::ExactMpc,
+    )
+    .unwrap();
+    let iss_certificate::lure::global_outcome::GlobalOutcome::Certified(global) = &mg.exact else {
+        panic!("the paper preset's PG has a K_glob: {}", mg.exact)
+    };
+    let k_glob = global.k_glob;
     for r in &f.paper.document.asymptotic_gains.runs {
-        assert!(r.certified.is_none());
-        assert!(
-            r.certified_void
-                .as_deref()
-                .unwrap()
-                .starts_with("Theorem 1 is void: rho < 1 fails"),
-            "{:?}",
-            r.certified_void
-        );
+        let why = r.certified_void.as_deref().unwrap_or_default();
+        match &r.certified {
+            Some(c) => {
+                assert!(
+                    r.k >= k_glob,
+                    "K = {} certified below K_glob = {k_glob}",
+                    r.k
+                );
+                assert_eq!(
+                    c.certificate,
+                    iss_certificate::coverage::CertificateKind::Global
+                );
+                assert_eq!((c.gain_x, c.gain_e), (global.gain_x, global.gain_e));
+                assert_eq!((c.gain_epsilon, c.bound_epsilon), (None, None));
+            }
+            None => {
+                assert!(
+                    r.k < k_glob,
+                    "K = {} ≥ K_glob = {k_glob} without a bound",
+                    r.k
+                );
+                assert!(why.contains("Theorem 1 is void: rho < 1 fails"), "{why}");
+                assert!(why.contains(&format!("K_glob = {k_glob}")), "{why}");
+            }
+        }
     }
     assert!(
         f.paper.summary.contains(
-            "certified asymptotic bound: none (Theorem 1 is void: see the premises above)"
+            "certified (the global loop certificate (Theorem L3)) lim sup ‖e‖ ≤ g_e·w̄ = "
         )
     );
+    assert!(f.paper.summary.contains(&format!(
+        "certified asymptotic bound: none (K = 5 is below the global loop certificate's K_glob \
+         = {k_glob} and not a K the iteration chain certified; Theorem 1 is void: see the \
+         premises above)"
+    )));
 }

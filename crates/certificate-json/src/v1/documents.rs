@@ -468,6 +468,9 @@ pub struct TrajectoryReport {
 /// g·w̄ for one run.
 #[derive(Debug, Clone, PartialEq, Serialize)]
 pub struct CertifiedBound {
+    /// The certificate of the gains: `theorem1`, `global` (Theorem L3, K ≥ K_glob) or
+    /// `chain` (the iteration chain at the run's K); g_ε is Theorem 1's only.
+    pub certificate: CertificateKind,
     /// g_x.
     pub gain_x: Option<f64>,
     /// g_ε.

@@ -87,11 +87,12 @@ impl From<&mhe_report::TrajectoryReport> for TrajectoryReport {
 impl From<&mhe_report::gains::CertifiedBound> for CertifiedBound {
     fn from(l: &mhe_report::gains::CertifiedBound) -> Self {
         Self {
+            certificate: (&l.certificate).into(),
             gain_x: num(l.gain_x),
-            gain_epsilon: num(l.gain_epsilon),
+            gain_epsilon: l.gain_epsilon.and_then(num),
             gain_e: num(l.gain_e),
             bound_x: num(l.bound_x),
-            bound_epsilon: num(l.bound_epsilon),
+            bound_epsilon: l.bound_epsilon.and_then(num),
             bound_e: num(l.bound_e),
         }
     }

@@ -113,6 +113,8 @@ pub fn with_chain(v: PairVerdict, chain: &MethodChain, k_e: usize) -> PairVerdic
                     } else {
                         v.certificate
                     },
+                    // A margin is the named certificate's: the chain's is not a verdict field.
+                    margin: if chain_lowest { None } else { v.margin },
                     k_min,
                     reason: why(at.cloned(), v.reason.clone()),
                     ..v

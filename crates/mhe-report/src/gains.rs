@@ -183,22 +183,29 @@ fn method_gains(
 }
 
 /// The gains of the loop certificate that covers `k` with the exact MPC: Theorem L3's where
-/// K ≥ K_glob, else the iteration chain's where it was checked and certified at `k`.
+/// K ≥ K_glob, else the iteration chain's where it was checked and certified at `k`. Err:
+/// none covers `k`, with Theorem L3's K_glob if it has one (for the reason).
 fn loop_gains(
     cert: &ClosedLoopCertificate,
     method: Method,
     k: usize,
-) -> Option<(CertificateKind, f64, Option<f64>, f64)> {
-    let g = iss_certificate::coverage::global_of(cert, method, ControllerChoice::ExactMpc)?;
+) -> Result<(CertificateKind, f64, Option<f64>, f64), Option<usize>> {
+    let g = iss_certificate::coverage::global_of(cert, method, ControllerChoice::ExactMpc)
+        .ok_or(None)?;
+    let k_glob = g.exact.k_glob();
     if let GlobalOutcome::Certified(gk) = &g.exact {
         if k >= gk.k_glob {
-            return Some((CertificateKind::Global, gk.gain_x, None, gk.gain_e));
+            return Ok((CertificateKind::Global, gk.gain_x, None, gk.gain_e));
         }
     }
-    let chain = g.chain.as_ref()?.chain()?;
-    match chain.at(k)? {
-        ChainCheck::Certified(c) => Some((CertificateKind::Chain, c.gain_x, None, c.gain_e)),
-        _ => None,
+    match g
+        .chain
+        .as_ref()
+        .and_then(|c| c.chain())
+        .and_then(|c| c.at(k))
+    {
+        Some(ChainCheck::Certified(c)) => Ok((CertificateKind::Chain, c.gain_x, None, c.gain_e)),
+        _ => Err(k_glob),
     }
 }
 
@@ -247,21 +254,13 @@ fn run_gains(
         Ok(g) => Ok(g),
         Err(e) => match (not_covered, own) {
             (None, Some(s)) if r.summary.controller == "exact MPC" => {
-                loop_gains(cert, s.solver, r.summary.k).ok_or_else(|| {
-                    match iss_certificate::coverage::global_of(
-                        cert,
-                        s.solver,
-                        ControllerChoice::ExactMpc,
-                    )
-                    .and_then(|g| g.exact.k_glob())
-                    {
-                        Some(kg) => format!(
-                            "K = {} is below the global loop certificate's K_glob = {kg} and \
-                             not a K the iteration chain certified; {e}",
-                            r.summary.k
-                        ),
-                        None => e,
-                    }
+                loop_gains(cert, s.solver, r.summary.k).map_err(|k_glob| match k_glob {
+                    Some(kg) => format!(
+                        "K = {} is below the global loop certificate's K_glob = {kg} and not \
+                         a K the iteration chain certified; {e}",
+                        r.summary.k
+                    ),
+                    None => e,
                 })
             }
             _ => Err(e),

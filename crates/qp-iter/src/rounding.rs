@@ -14,12 +14,14 @@
 //! |θⱼ| ≤ γ_N = Nu/(1 − Nu). The clamp is exact (a comparison); only the rounded bounds of
 //! the box move it, by at most u·|bound| per component.
 //!
-//! Covered: projected gradient on the problem as given (any constant step). Not covered
-//! (typed [`RoundingVoid`] with the reason): FISTA (an accelerated method accumulates the
-//! errors of its inexact steps — Devolder, Glineur & Nesterov, Math. Program. 146, 2014 —
-//! and its state (z, y) has no Euclidean contraction to carry them), ADMM (its stored
-//! ρ(H + ρI)⁻¹ is perturbed by rounding in proportion to κ(H + ρI); the bound is not derived
-//! here yet), the Jacobi-scaled maps, and problems with general constraint rows.
+//! Covered: projected gradient on the problem as given (any constant step,
+//! [`iteration_rounding`]) and one V-FISTA step ([`fista_rounding`]: the same model of the
+//! projected-gradient step T plus the extrapolation's; FISTA's K-step bound needs the
+//! incremental contraction of its inner-rate storage, which `iss-certificate` composes).
+//! Not covered (typed [`RoundingVoid`] with the reason): ADMM (its stored ρ(H + ρI)⁻¹ is
+//! perturbed by rounding in proportion to κ(H + ρI); the bound is not derived here yet),
+//! the Jacobi-scaled maps, problems with general constraint rows, and windows that run the
+//! structured Hessian product (it sums in another order than the dense one modelled here).
 //!
 //! Subnormal numbers: an underflowing product adds an absolute error ≤ 2⁻¹⁵⁰ (f32) or
 //! 2⁻¹⁰⁷⁵ (f64), an underflowing sum is exact (gradual underflow); `c` includes that
@@ -143,13 +145,54 @@ impl IterationRounding {
 }
 
 /// The rounding model of `method` on `qp` in precision `u` (module docs), or why it is not
-/// covered.
+/// covered. Projected gradient only: its rate r is a Euclidean contraction of the whole
+/// iteration; FISTA's model is [`fista_rounding`] (it has no such contraction).
 pub fn iteration_rounding(
     method: &Method,
     qp: &ParametricQp,
     u: f64,
 ) -> Result<IterationRounding, RoundingVoid> {
-    let void = |reason: String| Err(RoundingVoid { reason });
+    covered_problem(method, qp, u)?;
+    let alpha = match method.kind {
+        MethodKind::Pg(rule) => match rule {
+            StepRule::InverseL => 1.0 / qp.l(),
+            StepRule::Optimal => 2.0 / (qp.l() + qp.mu()),
+            StepRule::Fixed(a) => a,
+        },
+        MethodKind::Fista(_) => {
+            return void(
+                "FISTA: its state (x, x₋) has no Euclidean contraction for Theorem 1's \
+                 perturbed-contraction bound; its rounding is covered by the global loop \
+                 certificate through the inner rate's storage (`fista_rounding`)"
+                    .into(),
+            );
+        }
+        MethodKind::Admm(_) => {
+            return void(
+                "ADMM: the bound on its stored ρ(H + ρI)⁻¹ and (H + ρI)⁻¹ rounded to the \
+                 scalar (a perturbation ∝ u·κ(H + ρI)) is not derived yet (use pg or fista)"
+                    .into(),
+            );
+        }
+        // The test-only `Trial` method (cfg(test)): unreachable in the library build.
+        #[allow(unreachable_patterns)]
+        _ => {
+            return void(format!(
+                "`{}` has no rounding model (only pg and fista are covered)",
+                method.name()
+            ));
+        }
+    };
+    Ok(gradient_step_rounding(qp, alpha, u))
+}
+
+fn void<T>(reason: String) -> Result<T, RoundingVoid> {
+    Err(RoundingVoid { reason })
+}
+
+/// What every covered method needs of the problem and of u: u in (0, 1), no general rows,
+/// no Jacobi scaling, and the dense product (the structured one sums in another order).
+fn covered_problem(method: &Method, qp: &ParametricQp, u: f64) -> Result<(), RoundingVoid> {
     if !(u > 0.0 && u < 1.0) {
         return void(format!("unit round-off {u} is not in (0, 1)"));
     }
@@ -167,36 +210,20 @@ pub fn iteration_rounding(
             method.name()
         ));
     }
-    let alpha = match method.kind {
-        MethodKind::Pg(rule) => match rule {
-            StepRule::InverseL => 1.0 / qp.l(),
-            StepRule::Optimal => 2.0 / (qp.l() + qp.mu()),
-            StepRule::Fixed(a) => a,
-        },
-        MethodKind::Fista(_) => {
-            return void(
-                "FISTA: an accelerated method accumulates the errors of its inexact steps \
-                 (Devolder, Glineur & Nesterov 2014) and its state (z, y) has no Euclidean \
-                 contraction to carry them; no rounding bound is derived (use pg)"
-                    .into(),
-            );
-        }
-        MethodKind::Admm(_) => {
-            return void(
-                "ADMM: the bound on its stored ρ(H + ρI)⁻¹ and (H + ρI)⁻¹ rounded to the \
-                 scalar (a perturbation ∝ u·κ(H + ρI)) is not derived yet (use pg)"
-                    .into(),
-            );
-        }
-        // The test-only `Trial` method (cfg(test)): unreachable in the library build.
-        #[allow(unreachable_patterns)]
-        _ => {
-            return void(format!(
-                "`{}` has no rounding model (only pg is covered)",
-                method.name()
-            ));
-        }
-    };
+    if let Some(op) = qp.operator().filter(|op| qp.n() >= op.dense_crossover()) {
+        return void(format!(
+            "the window's n_z = {} ≥ {} runs the structured Hessian product (forward and \
+             adjoint passes through the dynamics), whose rounding is not modelled (only the \
+             dense product's)",
+            qp.n(),
+            op.dense_crossover()
+        ));
+    }
+    Ok(())
+}
+
+/// The model of x = Π(z − α(Hz + q₀ + Fθ)) in precision u (docs/theory.md, step 1).
+fn gradient_step_rounding(qp: &ParametricQp, alpha: f64, u: f64) -> IterationRounding {
     let (n, nt) = (qp.n(), qp.n_theta());
     let rate = (1.0 - alpha * qp.mu())
         .abs()
@@ -225,7 +252,7 @@ pub fn iteration_rounding(
     let a = nu * (1.0 + alpha * h_abs);
     let b = nu * alpha * f_abs;
     let c = nu * alpha * q0 + u * bounds + underflow;
-    Ok(IterationRounding {
+    IterationRounding {
         unit_roundoff: u,
         rate,
         theta_sensitivity: alpha * f_abs,
@@ -233,6 +260,64 @@ pub fn iteration_rounding(
         b,
         c,
         roundings,
+    }
+}
+
+/// The rounding model of one V-FISTA step ([`crate::fista`]) in precision u: the computed
+/// step from (x, x₋) is x⁺ = fl(T)(ŷ) with ŷ = fl(x + β(x − x₋)) (or fl((1 + β)x − βx₋) on
+/// the structured branch), T the projected-gradient step with step 1/L. Componentwise
+/// |ŷ − y| ≤ γ₄((1 + β)|x| + β|x₋|) (the stored β, the difference or the stored 1 + β, the
+/// product, the sum: at most four factors per term), and `step` bounds fl(T)(ŷ) − T(ŷ); T
+/// is non-expansive, so ‖x⁺ − T(y)‖ ≤ a_y((1 + β)‖x‖ + β‖x₋‖) + b‖θ‖ + c
+/// ([`FistaRounding::a_y`]). The restart step after a warm start is `step` itself (β = 0,
+/// and ŷ = x exactly). docs/theory.md, "FISTA in f32".
+#[derive(Debug, Clone, Copy, PartialEq)]
+#[cfg_attr(feature = "serde", derive(serde::Serialize))]
+#[non_exhaustive]
+pub struct FistaRounding {
+    /// The model of T (step 1/L): its `rate` is the restart step's contraction 1 − μ/L.
+    pub step: IterationRounding,
+    /// β, the momentum the map runs with.
+    pub momentum: f64,
+    /// γ₄: the extrapolation's componentwise relative error.
+    pub extrapolation: f64,
+}
+
+impl FistaRounding {
+    /// a_y = (1 + a)γ₄ + a: ‖fl(T)(ŷ) − T(y)‖ ≤ a_y((1 + β)‖x‖ + β‖x₋‖) + b‖θ‖ + c, from
+    /// ‖fl(T)(ŷ) − T(ŷ)‖ ≤ a‖ŷ‖ + b‖θ‖ + c, ‖T(ŷ) − T(y)‖ ≤ ‖ŷ − y‖ and ‖ŷ‖ ≤ ‖y‖ + ‖ŷ − y‖.
+    pub fn a_y(&self) -> f64 {
+        (1.0 + self.step.a) * self.extrapolation + self.step.a
+    }
+}
+
+/// The rounding model of one step of `method` = FISTA (plain) on `qp` in precision `u`, or
+/// why it is not covered ([`FistaRounding`]).
+///
+/// ```
+/// use faer::mat;
+/// use qp_iter::rounding::{F32_UNIT_ROUNDOFF, fista_rounding};
+/// use qp_iter::{BoxSet, Method, ParametricQp};
+/// let qp = ParametricQp::new(mat![[4.0, 1.0], [1.0, 2.0]], vec![0.5, -1.0],
+///     faer::Mat::zeros(2, 0), BoxSet::symmetric(&[1.0, 1.0]).unwrap()).unwrap();
+/// let r = fista_rounding(&Method::FISTA, &qp, F32_UNIT_ROUNDOFF).unwrap();
+/// assert!(r.momentum > 0.0 && r.a_y() < 1e-5);
+/// assert!(fista_rounding(&Method::PG, &qp, F32_UNIT_ROUNDOFF).is_err());
+/// ```
+pub fn fista_rounding(
+    method: &Method,
+    qp: &ParametricQp,
+    u: f64,
+) -> Result<FistaRounding, RoundingVoid> {
+    covered_problem(method, qp, u)?;
+    if !matches!(method.kind, MethodKind::Fista(_)) {
+        return void(format!("`{}` is not FISTA", method.name()));
+    }
+    let fista = crate::fista::Fista::new(qp.clone());
+    Ok(FistaRounding {
+        step: gradient_step_rounding(qp, fista.step_size(), u),
+        momentum: fista.momentum(),
+        extrapolation: gamma(4, u),
     })
 }
 
@@ -348,6 +433,99 @@ mod tests {
         assert!(worst > 1e-4, "measured/bound = {worst:e}");
     }
 
+    /// One V-FISTA step in f32 from (x, x₋) in `mhe_embedded`'s dense order: ŷ = x + β(x − x₋),
+    /// then the projected-gradient step with step 1/L at ŷ.
+    fn fista_step_f32(
+        qp: &ParametricQp,
+        beta: f64,
+        theta: &[f64],
+        x: &[f32],
+        xm: &[f32],
+    ) -> Vec<f32> {
+        let b = beta as f32;
+        let y: Vec<f32> = x.iter().zip(xm).map(|(x, m)| *x + b * (*x - *m)).collect();
+        pg_step_f32(qp, 1.0 / qp.l(), theta, &y)
+    }
+
+    #[test]
+    fn one_fista_step_in_f32_stays_within_the_model() {
+        let mut worst = 0.0f64;
+        for seed in 0..40 {
+            let (n, nt) = (3 + (seed as usize % 20), 2 + (seed as usize % 7));
+            let p = qp(seed, n, nt, 10f64.powi(1 + (seed % 4) as i32));
+            let r = fista_rounding(&Method::FISTA, &p, F32_UNIT_ROUNDOFF).expect("covered");
+            let beta = r.momentum;
+            let mut rng = ChaCha8Rng::seed_from_u64(2000 + seed);
+            for _ in 0..20 {
+                let scale = 10f64.powi(rng.random_range(-3..4));
+                let mut draw = |k: usize| -> Vec<f64> {
+                    (0..k)
+                        .map(|_| scale * rng.random_range(-1.0..1.0))
+                        .collect()
+                };
+                let theta = draw(nt);
+                let x32: Vec<f32> = draw(n).iter().map(|v| *v as f32).collect();
+                let xm32: Vec<f32> = draw(n).iter().map(|v| *v as f32).collect();
+                let x: Vec<f64> = x32.iter().map(|v| f64::from(*v)).collect();
+                let xm: Vec<f64> = xm32.iter().map(|v| f64::from(*v)).collect();
+                let got = fista_step_f32(&p, beta, &theta, &x32, &xm32);
+                let y: Vec<f64> = x.iter().zip(&xm).map(|(x, m)| x + beta * (x - m)).collect();
+                let want = pg_step_exact(&p, 1.0 / p.l(), &theta, &y);
+                let nrm = |v: &[f64]| v.iter().map(|v| v * v).sum::<f64>().sqrt();
+                let err = nrm(&got
+                    .iter()
+                    .zip(&want)
+                    .map(|(g, w)| f64::from(*g) - w)
+                    .collect::<Vec<_>>());
+                let bound = r.a_y() * ((1.0 + beta) * nrm(&x) + beta * nrm(&xm))
+                    + r.step.b * nrm(&theta)
+                    + r.step.c;
+                assert!(err <= bound, "seed {seed}: error {err:e} > bound {bound:e}");
+                worst = worst.max(err / bound);
+            }
+        }
+        println!("largest measured/bound over 800 FISTA steps: {worst:.3e}");
+        assert!(worst > 1e-4, "measured/bound = {worst:e}");
+    }
+
+    #[test]
+    fn a_window_on_the_structured_product_is_not_covered() {
+        #[derive(Debug)]
+        struct Dense(Mat<f64>);
+        impl crate::operator::HessianOperator for Dense {
+            fn n(&self) -> usize {
+                self.0.nrows()
+            }
+            fn work_len(&self) -> usize {
+                0
+            }
+            fn apply(&self, z: &[f64], out: &mut [f64], _: &mut [f64]) {
+                for (i, o) in out.iter_mut().enumerate() {
+                    *o = (0..z.len()).map(|j| self.0[(i, j)] * z[j]).sum();
+                }
+            }
+            fn dense_crossover(&self) -> usize {
+                4
+            }
+        }
+        let small = qp(3, 3, 2, 10.0);
+        let op = std::sync::Arc::new(Dense(small.h().to_owned()));
+        let p = small.clone().with_operator(op.clone()).expect("same n");
+        // n = 3 < 4: the dense product runs, covered.
+        assert!(iteration_rounding(&Method::PG, &p, F32_UNIT_ROUNDOFF).is_ok());
+        let big = qp(3, 6, 2, 10.0);
+        let op = std::sync::Arc::new(Dense(big.h().to_owned()));
+        let p = big.with_operator(op).expect("same n");
+        for m in [Method::PG, Method::FISTA] {
+            let why = if m == Method::PG {
+                iteration_rounding(&m, &p, F32_UNIT_ROUNDOFF).expect_err("structured")
+            } else {
+                fista_rounding(&m, &p, F32_UNIT_ROUNDOFF).expect_err("structured")
+            };
+            assert!(why.reason.contains("structured Hessian product"), "{why}");
+        }
+    }
+
     #[test]
     fn an_ill_conditioned_qp_breaks_the_f32_contraction_and_not_the_f64_one() {
         // κ = 1e7: 1 − r = 2/(κ + 1) ≈ 2e-7 < a ≈ (n + 5)u(1 + α‖|H|‖) in f32.
@@ -374,11 +552,16 @@ mod tests {
             let e = iteration_rounding(&m, &p, F32_UNIT_ROUNDOFF).expect_err("not covered");
             assert!(!e.reason.is_empty());
         }
+        // FISTA's model is its own (no Euclidean contraction for Theorem 1's bound).
         assert!(
             iteration_rounding(&Method::FISTA, &p, F32_UNIT_ROUNDOFF)
                 .expect_err("not covered")
                 .reason
-                .contains("Devolder")
+                .contains("fista_rounding")
         );
+        assert!(fista_rounding(&Method::FISTA, &p, F32_UNIT_ROUNDOFF).is_ok());
+        for m in [Method::ADMM, Method::FISTA.with_scaling(Scaling::Jacobi)] {
+            assert!(fista_rounding(&m, &p, F32_UNIT_ROUNDOFF).is_err());
+        }
     }
 }

@@ -146,7 +146,7 @@ pub fn first_k(ok: impl Fn(usize) -> bool, k_max: usize) -> Option<usize> {
 
 /// The spectrum bounds [μ, L] of H widened by the rounding of the eigenvalue solver
 /// (16·n·ε·L each way), so the sector constraints hold for the exact H.
-fn widened(qp: &ParametricQp) -> Result<(f64, f64), LureError> {
+pub(crate) fn widened(qp: &ParametricQp) -> Result<(f64, f64), LureError> {
     let (mu, l) = (qp.mu(), qp.l());
     let allowance = 16.0 * qp.n().max(1) as f64 * f64::EPSILON * l.abs();
     let lo = mu - allowance;

@@ -59,7 +59,7 @@ fn measure_k_glob_per_precision() {
                     p.phi_star,
                     p.split,
                     rd.map(|r| r.perturbed_rate()),
-                    rd.map(|r| r.iteration.rate),
+                    rd.map(|r| r.steps.rate_and_rounding().0),
                     rd.map(|r| r.beta_z()),
                     rd.map(|r| r.beta_theta()),
                     rd.map(|r| r.propagation.from_z),

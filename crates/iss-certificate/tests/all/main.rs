@@ -12,6 +12,7 @@ mod coverage;
 #[path = "../f32_seeds/data.rs"]
 mod f32_data;
 mod findings;
+mod fista_rounding;
 mod gamma13;
 mod global_outcome;
 mod global_precision;

@@ -353,7 +353,8 @@ pub use chain::{
 };
 pub use lmi::RefineGrid;
 pub use precision::{
-    LoopRounding, PrecisionCertificate, PrecisionVoid, certify_precision, loop_rounding,
+    FistaSteps, LoopRounding, PrecisionCertificate, PrecisionVoid, StepRounding, certify_precision,
+    loop_rounding,
 };
 pub use rows::RowSearch;
 

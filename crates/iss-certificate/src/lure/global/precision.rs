@@ -16,28 +16,181 @@
 
 use closed_loop::scenario::{LoopOptions, ResolvedScenario};
 use faer::Mat;
-use qp_iter::rounding::{IterationRounding, iteration_rounding};
+use qp_iter::rounding::{FistaRounding, IterationRounding, fista_rounding, iteration_rounding};
+use qp_iter::{Method, MethodKind, ParametricQp};
 
 use super::{GlobalCertificate, GlobalError, GlobalLoop, GlobalOptions, mul};
 use crate::certificate::precision::{PropagationRounding, propagation_rounding};
 use crate::linear::LinearError;
 
 /// The rounding of the global loop's window (length M) in unit round-off u.
-#[derive(Debug, Clone, Copy, PartialEq)]
+#[derive(Debug, Clone, PartialEq)]
 #[non_exhaustive]
 pub struct LoopRounding {
     /// The unit round-off u.
     pub unit_roundoff: f64,
-    /// One iteration on window M: rate r, a, b, c.
-    pub iteration: IterationRounding,
+    /// K computed iterations on window M (projected gradient or V-FISTA).
+    pub steps: StepRounding,
     /// x̂'s propagation through window M: ρ_z (`from_z`), ρ_u (`from_u`).
     pub propagation: PropagationRounding,
 }
 
-impl LoopRounding {
-    /// q = r + a: the computed iteration's rate.
+/// The K-step model of the window's computed iteration:
+/// ‖zᴷ − z*‖ ≤ φ_u(K)‖z⁰ − z*‖ + β_z‖z*‖ + β_θ‖θ‖ + c_d.
+#[derive(Debug, Clone, PartialEq)]
+#[non_exhaustive]
+pub enum StepRounding {
+    /// Projected gradient: the exact map contracts in the Euclidean norm with rate r, so the
+    /// computed one does with q = r + a (docs/theory.md, step 2).
+    Pg(IterationRounding),
+    /// V-FISTA: the inner rate's storage P̃ carries the step errors (docs/theory.md, "FISTA
+    /// in f32").
+    Fista(FistaSteps),
+}
+
+/// V-FISTA's K-step rounding model (docs/theory.md, "FISTA in f32"): the inner-rate LMI
+/// (Theorem L1) certifies ‖F(ξ) − F(ξ')‖_N ≤ ρ‖ξ − ξ'‖_N for *any* two states ξ = (x, x₋) on
+/// the window's QP (its sector constraints are incremental), N = P̃ ⊗ I; a computed step is
+/// F(ξ) + (δ, 0) with ‖δ‖ ≤ a_y((1 + β)‖x‖ + β‖x₋‖) + b‖θ‖ + c.
+#[derive(Debug, Clone, PartialEq)]
+#[non_exhaustive]
+pub struct FistaSteps {
+    /// One step's model (T with step 1/L, the extrapolation).
+    pub step: FistaRounding,
+    /// ρ: the storage's incremental rate (Theorem L1).
+    pub rate: f64,
+    /// r₀ = max(|1 − μ/L|, |1 − L̄/L|) on the widened spectrum [μ, L̄]: the restart step's
+    /// rate and the Lipschitz constant of T.
+    pub restart_rate: f64,
+    /// √P̃₁₁ = ‖(δ, 0)‖_N/‖δ‖.
+    pub s_first: f64,
+    /// √(𝟙ᵀP̃𝟙) = ‖(δ, δ)‖_N/‖δ‖ (the restart step perturbs x and x₋ alike).
+    pub s_ones: f64,
+    /// √(P̃⁻¹)₁₁ ≥ ‖x‖/‖ξ‖_N.
+    pub c_x: f64,
+    /// √(P̃⁻¹)₂₂ ≥ ‖x₋‖/‖ξ‖_N.
+    pub c_m: f64,
+}
+
+impl FistaSteps {
+    /// The model of `qp`'s V-FISTA in precision u: the step model and the inner rate's
+    /// storage (None with the reason when either is missing).
+    fn of(qp: &ParametricQp, method: Method, u: f64) -> Result<Self, String> {
+        let step = fista_rounding(&method, qp, u).map_err(|e| e.to_string())?;
+        let inner = crate::lure::inner_rate(qp, method).map_err(|e| match e {
+            crate::lure::LureError::NoRate { .. } => format!(
+                "fista: V-FISTA's inner-rate LMI (sector multipliers on the gradient and the \
+                 clamp, Theorem L1) certifies no incremental rate on this window (κ = {}; it \
+                 does up to κ ≈ 5), and the f32 bound carries the step errors through it: \
+                 rounding not bounded (use pg)",
+                lti_model::numfmt::sig4(qp.l() / qp.mu())
+            ),
+            other => other.to_string(),
+        })?;
+        let p = &inner.storage;
+        if p.len() != 4 {
+            return Err("internal: V-FISTA's storage is not 2 × 2".into());
+        }
+        let det = p[0] * p[3] - p[1] * p[2];
+        if !(det > 0.0 && p[0] > 0.0 && p[3] > 0.0) {
+            return Err("the inner rate's storage is not positive definite".into());
+        }
+        let (mu, l) = super::super::widened(qp).map_err(|e| e.to_string())?;
+        let h = 1.0 / qp.l();
+        let restart_rate = (1.0 - h * mu).abs().max((1.0 - h * l).abs());
+        // Our own f64 evaluation of these constants: 1e-12 relative covers it.
+        let up = 1.0 + 1e-12;
+        Ok(Self {
+            step,
+            rate: inner.rate * up,
+            restart_rate: restart_rate * up,
+            s_first: p[0].sqrt() * up,
+            s_ones: (p[0] + p[1] + p[2] + p[3]).max(0.0).sqrt() * up,
+            c_x: (p[3] / det).sqrt() * up,
+            c_m: (p[0] / det).sqrt() * up,
+        })
+    }
+
+    /// a_y with T's Lipschitz constant max(1, r₀).
+    fn a_y(&self) -> f64 {
+        let a = self.step.step.a;
+        (self.restart_rate.max(1.0) + a) * self.step.extrapolation + a
+    }
+
+    /// Ā = a_y((1 + β)c_x + βc_m): the step error's gain from ‖ξ − ξ*‖_N.
+    fn a_bar(&self) -> f64 {
+        let b = self.step.momentum;
+        self.a_y() * ((1.0 + b) * self.c_x + b * self.c_m)
+    }
+
+    /// q = ρ + √P̃₁₁·Ā: the rate of the computed run's distance to the exact one.
+    fn q(&self) -> f64 {
+        self.rate + self.s_first * self.a_bar()
+    }
+
+    /// The part of φ_u(K) beyond the exact φ(K):
+    /// c_x·s_𝟙·[qʲa + s₁Ā r₀ Σ_{k<j} q^{j−1−k}ρᵏ], j = K − 1.
+    fn extra_phi(&self, k: usize) -> f64 {
+        if k == 0 {
+            return 0.0;
+        }
+        let j = k - 1;
+        let (q, rho) = (self.q(), self.rate);
+        let ji = i32::try_from(j).unwrap_or(i32::MAX);
+        let qj = q.powi(ji);
+        // Σ_{k<j} q^{j−1−k}ρᵏ ≤ min(j·q^{j−1}, qʲ/(q − ρ)) (each term ≤ q^{j−1}; q > ρ).
+        let sum = if j == 0 {
+            0.0
+        } else {
+            let lin = j as f64 * q.powi(ji - 1);
+            if q > rho {
+                lin.min(qj / (q - rho))
+            } else {
+                lin
+            }
+        };
+        self.c_x
+            * self.s_ones
+            * (qj * self.step.step.a + self.s_first * self.a_bar() * self.restart_rate * sum)
+    }
+
+    /// The factor of b and c: c_x(s_𝟙 + s₁/(1 − q)).
+    fn input_factor(&self) -> f64 {
+        self.c_x * (self.s_ones + self.s_first / (1.0 - self.q()))
+    }
+}
+
+impl StepRounding {
+    /// The model of K computed iterations of `method` on `qp` in unit round-off `u`
+    /// (projected gradient or plain V-FISTA), or why it is not covered
+    /// ([`PrecisionVoid::NotCovered`]). The premise q < 1 is the caller's to check
+    /// ([`StepRounding::perturbed_rate`]).
+    pub fn for_qp(method: Method, qp: &ParametricQp, u: f64) -> Result<Self, PrecisionVoid> {
+        let not_covered = |why: String| PrecisionVoid::NotCovered { why };
+        if matches!(method.kind, MethodKind::Fista(_)) {
+            FistaSteps::of(qp, method, u)
+                .map(Self::Fista)
+                .map_err(not_covered)
+        } else {
+            iteration_rounding(&method, qp, u)
+                .map(Self::Pg)
+                .map_err(|e| not_covered(e.to_string()))
+        }
+    }
+    /// q: the computed iteration's rate (projected gradient: r + a; V-FISTA: ρ + s₁Ā).
     pub fn perturbed_rate(&self) -> f64 {
-        self.iteration.perturbed_rate()
+        match self {
+            Self::Pg(r) => r.perturbed_rate(),
+            Self::Fista(f) => f.q(),
+        }
+    }
+    /// The exact iteration's rate the premise q < 1 starts from (r, or ρ), and the
+    /// rounding's addition to it (a, or s₁Ā).
+    pub fn rate_and_rounding(&self) -> (f64, f64) {
+        match self {
+            Self::Pg(r) => (r.rate, r.a),
+            Self::Fista(f) => (f.rate, f.s_first * f.a_bar()),
+        }
     }
     /// S = 1/(1 − q) (∞ when q ≥ 1).
     fn sum(&self) -> f64 {
@@ -48,17 +201,64 @@ impl LoopRounding {
             f64::INFINITY
         }
     }
-    /// β_z = a/(1 − q): the gain from ‖z*‖ into ‖d‖ (every K).
+    /// β_z: the gain from ‖z*‖ into ‖d‖ (every K). Projected gradient: a/(1 − q); V-FISTA:
+    /// c_x(s_𝟙a + s₁A/(1 − q)), A = a_y(1 + 2β).
     pub fn beta_z(&self) -> f64 {
-        self.iteration.a * self.sum()
+        match self {
+            Self::Pg(r) => r.a * self.sum(),
+            Self::Fista(f) => {
+                let big_a = f.a_y() * (1.0 + 2.0 * f.step.momentum);
+                f.c_x * (f.s_ones * f.step.step.a + f.s_first * big_a * self.sum())
+            }
+        }
     }
-    /// β_θ = b/(1 − q): the gain from ‖θ‖ into ‖d‖.
+    /// β_θ: the gain from ‖θ‖ into ‖d‖ (b/(1 − q); V-FISTA: b·c_x(s_𝟙 + s₁/(1 − q))).
     pub fn beta_theta(&self) -> f64 {
-        self.iteration.b * self.sum()
+        match self {
+            Self::Pg(r) => r.b * self.sum(),
+            Self::Fista(f) => f.step.step.b * f.input_factor(),
+        }
     }
-    /// c_d = c/(1 − q): the constant in ‖d‖.
+    /// c_d: the constant in ‖d‖ (c/(1 − q); V-FISTA: c·c_x(s_𝟙 + s₁/(1 − q))).
     pub fn offset_d(&self) -> f64 {
-        self.iteration.c * self.sum()
+        match self {
+            Self::Pg(r) => r.c * self.sum(),
+            Self::Fista(f) => f.step.step.c * f.input_factor(),
+        }
+    }
+    /// φ_u(K) from the exact map's certified K-step bound `phi_k` (docs/theory.md), so that
+    /// K computed iterations from z⁰ satisfy
+    /// ‖zᴷ − z*‖ ≤ φ_u(K)‖z⁰ − z*‖ + β_z‖z*‖ + β_θ‖θ‖ + c_d.
+    /// Projected gradient: min(qᴷ, φ(K) + qᴷ − rᴷ); V-FISTA: φ(K) + c_x s_𝟙[qʲa +
+    /// s₁Ā r₀ Σ_{k<j} q^{j−1−k}ρᵏ], j = K − 1.
+    pub fn phi_u(&self, phi_k: f64, k: usize) -> f64 {
+        match self {
+            Self::Pg(r) => {
+                let k = i32::try_from(k).unwrap_or(i32::MAX);
+                let (qk, rk) = (r.perturbed_rate().powi(k), r.rate.powi(k));
+                qk.min(phi_k + (qk - rk).max(0.0))
+            }
+            Self::Fista(f) => phi_k + f.extra_phi(k),
+        }
+    }
+}
+
+impl LoopRounding {
+    /// q: the computed iteration's rate ([`StepRounding::perturbed_rate`]).
+    pub fn perturbed_rate(&self) -> f64 {
+        self.steps.perturbed_rate()
+    }
+    /// β_z ([`StepRounding::beta_z`]).
+    pub fn beta_z(&self) -> f64 {
+        self.steps.beta_z()
+    }
+    /// β_θ ([`StepRounding::beta_theta`]).
+    pub fn beta_theta(&self) -> f64 {
+        self.steps.beta_theta()
+    }
+    /// c_d ([`StepRounding::offset_d`]).
+    pub fn offset_d(&self) -> f64 {
+        self.steps.offset_d()
     }
     /// The ultimate-bound offset √(c_d² + (ρ_z c_d)²): the exogenous inputs (d_c, r_c) the
     /// certificate's γ multiplies, besides w.
@@ -66,12 +266,9 @@ impl LoopRounding {
         let c = self.offset_d();
         c * (1.0 + self.propagation.from_z.powi(2)).sqrt()
     }
-    /// φ_u(K) = min(qᴷ, φ(K) + qᴷ − rᴷ) from the exact map's certified K-step bound
-    /// `phi_k` (both bound the computed iterate's contraction; docs/theory.md).
+    /// φ_u(K) ([`StepRounding::phi_u`]).
     pub fn phi_u(&self, phi_k: f64, k: usize) -> f64 {
-        let k = i32::try_from(k).unwrap_or(i32::MAX);
-        let (qk, rk) = (self.perturbed_rate().powi(k), self.iteration.rate.powi(k));
-        qk.min(phi_k + (qk - rk).max(0.0))
+        self.steps.phi_u(phi_k, k)
     }
 }
 
@@ -86,13 +283,13 @@ pub enum PrecisionVoid {
         /// Why.
         why: String,
     },
-    /// Rounding breaks the window's contraction: r + a ≥ 1.
+    /// Rounding breaks the window's contraction: q ≥ 1 (r + a, or V-FISTA's ρ + s₁Ā).
     ContractionBroken {
         /// The window length M.
         window: usize,
-        /// The exact rate r.
+        /// The exact rate (r, or ρ).
         rate: f64,
-        /// The rounding's a.
+        /// The rounding's addition to it (a, or s₁Ā).
         rounding: f64,
     },
     /// The LMI with the rounding terms is infeasible even at φ_u = 0 (every K).
@@ -122,9 +319,9 @@ impl std::fmt::Display for PrecisionVoid {
                 rounding,
             } => write!(
                 f,
-                "void: rounding breaks the contraction in window m = {window} (r = {} plus the \
-                 rounding's a = {} is ≥ 1: u·κ(H) too large); improve the conditioning or run \
-                 in f64",
+                "void: rounding breaks the contraction in window m = {window} (the exact rate {} \
+                 plus the rounding's {} is ≥ 1: u·κ(H) too large); improve the conditioning or \
+                 run in f64",
                 sig4(*rate),
                 sig4(*rounding)
             ),
@@ -180,23 +377,25 @@ pub fn loop_rounding(
     let problem = resolved.mhe_problem().map_err(LinearError::from)?;
     let m = problem.windows().len() - 1;
     let qp = problem.windows()[m].qp();
-    let iteration = match iteration_rounding(&options.method, qp, u) {
-        Ok(r) => r,
-        Err(e) => {
-            let why = format!("window m = {m}: {e}");
+    let steps = match StepRounding::for_qp(options.method, qp, u) {
+        Ok(s) => s,
+        Err(PrecisionVoid::NotCovered { why }) => {
+            let why = format!("window m = {m}: {why}");
             return Ok(Err(PrecisionVoid::NotCovered { why }));
         }
+        Err(other) => return Ok(Err(other)),
     };
-    if !iteration.contracts() {
+    if !(steps.perturbed_rate() < 1.0) {
+        let (rate, rounding) = steps.rate_and_rounding();
         return Ok(Err(PrecisionVoid::ContractionBroken {
             window: m,
-            rate: iteration.rate,
-            rounding: iteration.a,
+            rate,
+            rounding,
         }));
     }
     Ok(Ok(LoopRounding {
         unit_roundoff: u,
-        iteration,
+        steps,
         propagation: propagation_rounding(problem.system(), m, u),
     }))
 }
@@ -352,7 +551,7 @@ pub fn certify_precision(
             return Ok(out);
         }
     };
-    out.rounding = Some(rd);
+    out.rounding = Some(rd.clone());
     let Some(exact) = exact else {
         out.reason = Some(PrecisionVoid::Exact);
         return Ok(out);

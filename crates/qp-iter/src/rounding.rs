@@ -170,7 +170,7 @@ pub fn iteration_rounding(
         MethodKind::Admm(_) => {
             return void(
                 "ADMM: the bound on its stored ρ(H + ρI)⁻¹ and (H + ρI)⁻¹ rounded to the \
-                 scalar (a perturbation ∝ u·κ(H + ρI)) is not derived yet (use pg or fista)"
+                 scalar (a perturbation ∝ u·κ(H + ρI)) is not derived yet (use pg)"
                     .into(),
             );
         }

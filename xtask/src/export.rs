@@ -20,7 +20,8 @@ pub enum ScalarKind {
     /// Double precision: bit for bit the std build on the portable kernel.
     F64,
     /// Single precision (data rounded to f32 once): certified where a rounding model covers
-    /// the method (PG: Theorem 1 or Theorem L3 with the rounding as an input), else refused
+    /// the method (PG: Theorem 1 or Theorem L3 with the rounding as an input; PG-Jacobi, and
+    /// FISTA where its incremental rate exists: Theorem L3), else refused
     /// unless --allow-uncertified.
     F32,
 }

@@ -29,9 +29,17 @@ fn measure_k_glob_per_precision() {
         tau_points: 5,
         ..GlobalOptions::default()
     };
+    // GLOBAL_METHODS=pg,pg-jacobi: only those (default: all eight).
+    let only = std::env::var("GLOBAL_METHODS").ok();
     for file in file.split(',') {
         let r = scenario(file).resolve().expect("resolves");
         for m in METHODS {
+            if only
+                .as_ref()
+                .is_some_and(|o| !o.split(',').any(|n| n == m.name()))
+            {
+                continue;
+            }
             let o = options(&r, m);
             let t0 = std::time::Instant::now();
             let gl = match global_loop(&r, &o) {

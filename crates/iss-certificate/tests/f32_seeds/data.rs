@@ -6,8 +6,9 @@
 
 use closed_loop::scenario::ResolvedScenario;
 
-/// One window's data for `mhe_embedded` (PG on the problem as given), as the exporter
-/// copies it: H by columns, F by rows, α = 2/(L + μ) of the std map.
+/// One window's data for `mhe_embedded` (PG, plain or Jacobi-scaled), as the exporter
+/// copies it: H by columns, F by rows, α = 2/(L + μ) of the std map — of the scaled problem
+/// with its scaling d for the Jacobi variant (`mhe_export::extract`'s `window_of`).
 pub(crate) struct Owned {
     pub(crate) n: usize,
     pub(crate) nt: usize,
@@ -17,15 +18,28 @@ pub(crate) struct Owned {
     lo: Vec<f64>,
     hi: Vec<f64>,
     step: f64,
+    scaling: Vec<f64>,
 }
 
+/// PG on the problem as given.
 pub(crate) fn owned(resolved: &ResolvedScenario) -> Vec<Owned> {
+    owned_for(resolved, qp_iter::Method::PG)
+}
+
+/// `method` (PG, plain or Jacobi-scaled): the problem its map runs on, and its scaling.
+pub(crate) fn owned_for(resolved: &ResolvedScenario, method: qp_iter::Method) -> Vec<Owned> {
+    use qp_iter::{IterationMap, MethodMap};
     let problem = resolved.mhe_problem().expect("MHE builds");
     problem
         .windows()
         .iter()
         .map(|w| {
-            let qp = w.qp();
+            let map = method.build(w.qp().clone()).expect("the method builds");
+            let (qp, scaling) = match &map {
+                MethodMap::Scaled(s) => (s.inner().problem().clone(), s.scaling().to_vec()),
+                MethodMap::Pg(_) => (w.qp().clone(), Vec::new()),
+                _ => panic!("PG only"),
+            };
             let (n, nt) = (qp.n(), qp.n_theta());
             let (h, f) = (qp.h(), qp.f());
             Owned {
@@ -37,6 +51,7 @@ pub(crate) fn owned(resolved: &ResolvedScenario) -> Vec<Owned> {
                 lo: qp.zset().lower().to_vec(),
                 hi: qp.zset().upper().to_vec(),
                 step: 2.0 / (qp.l() + qp.mu()),
+                scaling,
             }
         })
         .collect()
@@ -59,7 +74,7 @@ pub(crate) fn windows64(ws: &[Owned]) -> Vec<mhe_embedded::Window<'_, f64>> {
             f: &w.f,
             lower: &w.lo,
             upper: &w.hi,
-            scaling: &[],
+            scaling: &w.scaling,
             step: w.step,
             momentum: 0.0,
             inv_rho: 0.0,
@@ -69,8 +84,8 @@ pub(crate) fn windows64(ws: &[Owned]) -> Vec<mhe_embedded::Window<'_, f64>> {
         .collect()
 }
 
-/// The f32 copies of each window's (H, q₀, F, lower, upper).
-pub(crate) fn singles(ws: &[Owned]) -> Vec<[Vec<f32>; 5]> {
+/// The f32 copies of each window's (H, q₀, F, lower, upper, scaling).
+pub(crate) fn singles(ws: &[Owned]) -> Vec<[Vec<f32>; 6]> {
     ws.iter()
         .map(|w| {
             [
@@ -79,6 +94,7 @@ pub(crate) fn singles(ws: &[Owned]) -> Vec<[Vec<f32>; 5]> {
                 to32(&w.f),
                 to32(&w.lo),
                 to32(&w.hi),
+                to32(&w.scaling),
             ]
         })
         .collect()
@@ -87,7 +103,7 @@ pub(crate) fn singles(ws: &[Owned]) -> Vec<[Vec<f32>; 5]> {
 /// The f32 windows over `singles(ws)`, the step rounded to f32.
 pub(crate) fn windows32<'a>(
     ws: &[Owned],
-    s32: &'a [[Vec<f32>; 5]],
+    s32: &'a [[Vec<f32>; 6]],
 ) -> Vec<mhe_embedded::Window<'a, f32>> {
     ws.iter()
         .zip(s32)
@@ -101,7 +117,7 @@ pub(crate) fn windows32<'a>(
             f: &s[2],
             lower: &s[3],
             upper: &s[4],
-            scaling: &[],
+            scaling: &s[5],
             step: w.step as f32,
             momentum: 0.0,
             inv_rho: 0.0,

@@ -2,7 +2,7 @@
 //! certificate in a given precision") against 200 closed-loop runs with `mhe_embedded` in
 //! f32 in the loop, at the f32 K_glob: the case study (K = 13) and the double integrator.
 
-use super::data::{apply, debug_field, owned, singles, to32, windows32};
+use super::data::{apply, debug_field, owned_for, singles, to32, windows32};
 use super::scenario;
 use closed_loop::scenario::{ControllerChoice, LoopOptions, ResolvedScenario};
 use iss_certificate::linear::LiftedLayout;
@@ -139,12 +139,13 @@ impl F32Run<'_> {
 /// unstable at K = 1 (`refute_k1`) so does K = 1. Returns K_glob(f32).
 pub(super) fn f32_runs_respect_the_global_certificate(
     file: &str,
+    method: Method,
     steps: usize,
     refute_k1: bool,
 ) -> usize {
     let r = scenario(file);
     let mut o = LoopOptions::from_scenario(r.scenario()).expect("loop options");
-    o.method = Method::PG;
+    o.method = method;
     let gl = global_loop(&r, &o).expect("builds");
     let opts = GlobalSettings::default().search;
     let exact = gl.phi_star(&opts);
@@ -153,8 +154,9 @@ pub(super) fn f32_runs_respect_the_global_certificate(
     let k32 = p32.k_glob.expect("an f32 K_glob");
     let c = p32.certificate.as_ref().expect("certificate");
     eprintln!(
-        "{file} PG K_glob exact {:?}, f32 {k32} (φ* {:?}, φ*_u {:?}); offset {:.3e}; f32: ρ {}, \
+        "{file} {} K_glob exact {:?}, f32 {k32} (φ* {:?}, φ*_u {:?}); offset {:.3e}; f32: ρ {}, \
          γ {:.4e}, margin {:.3e}, split {:?}",
+        method.name(),
         p32.k_glob_exact,
         exact.as_ref().map(|c| c.phi),
         p32.phi_star,
@@ -165,7 +167,7 @@ pub(super) fn f32_runs_respect_the_global_certificate(
         p32.split,
     );
     assert!(p32.k_glob_exact.is_some_and(|k| k <= k32));
-    let ws = owned(&r);
+    let ws = owned_for(&r, method);
     let s32 = singles(&ws);
     let v32 = windows32(&ws, &s32);
     let sys = r.mhe_problem().expect("mhe").system().clone();
@@ -226,11 +228,26 @@ pub(super) fn f32_runs_respect_the_global_certificate(
 #[test]
 #[ignore = "release: run by .ci/run with --release --ignored"]
 fn f32_seeds_global_certificate_case_study() {
-    f32_runs_respect_the_global_certificate("case-study.toml", 60, false);
+    f32_runs_respect_the_global_certificate("case-study.toml", Method::PG, 60, false);
+}
+
+/// The Jacobi-scaled PG (its scaled windows, the rounded scalings y⁰ = z⁰/d̃ and z = d̃·y of
+/// `mhe_embedded`) at its f32 K_glob (5 on the case study; docs/theory.md "Jacobi-scaled
+/// projected gradient in f32").
+#[test]
+#[ignore = "release: run by .ci/run with --release --ignored"]
+fn f32_seeds_global_certificate_case_study_pg_jacobi() {
+    let k = f32_runs_respect_the_global_certificate(
+        "case-study.toml",
+        Method::PG.with_scaling(qp_iter::Scaling::Jacobi),
+        60,
+        false,
+    );
+    assert_eq!(k, 5, "the f32 K_glob of docs/theory.md");
 }
 
 #[test]
 #[ignore = "release: run by .ci/run with --release --ignored"]
 fn f32_seeds_global_certificate_double_integrator() {
-    f32_runs_respect_the_global_certificate("double-integrator.toml", 60, true);
+    f32_runs_respect_the_global_certificate("double-integrator.toml", Method::PG, 60, true);
 }

@@ -353,8 +353,8 @@ pub use chain::{
 };
 pub use lmi::RefineGrid;
 pub use precision::{
-    FistaSteps, LoopRounding, PrecisionCertificate, PrecisionVoid, StepRounding, certify_precision,
-    loop_rounding,
+    FistaSteps, JacobiSteps, LoopRounding, PrecisionCertificate, PrecisionVoid, StepRounding,
+    certify_precision, loop_rounding,
 };
 pub use rows::RowSearch;
 

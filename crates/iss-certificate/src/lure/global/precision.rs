@@ -17,7 +17,7 @@
 use closed_loop::scenario::{LoopOptions, ResolvedScenario};
 use faer::Mat;
 use qp_iter::rounding::{FistaRounding, IterationRounding, fista_rounding, iteration_rounding};
-use qp_iter::{Method, MethodKind, ParametricQp};
+use qp_iter::{IterationMap, Method, MethodKind, MethodMap, ParametricQp, Scaling};
 
 use super::{GlobalCertificate, GlobalError, GlobalLoop, GlobalOptions, mul};
 use crate::certificate::precision::{PropagationRounding, propagation_rounding};
@@ -46,6 +46,32 @@ pub enum StepRounding {
     /// V-FISTA: the inner rate's storage P̃ carries the step errors (docs/theory.md, "FISTA
     /// in f32").
     Fista(FistaSteps),
+    /// Jacobi-scaled projected gradient: projected gradient on the scaled problem in
+    /// y = D⁻¹z, with the rounded division y⁰ = z⁰/d and product z = d·y; every bound in the
+    /// weighted norm ‖D⁻¹·‖ the global certificate uses for the Jacobi variants
+    /// (docs/theory.md, "Jacobi-scaled projected gradient in f32").
+    JacobiPg(JacobiSteps),
+}
+
+/// The Jacobi-scaled projected gradient's model: the scaled problem's projected-gradient
+/// model and the scaling's extremes.
+#[derive(Debug, Clone, PartialEq)]
+#[non_exhaustive]
+pub struct JacobiSteps {
+    /// One step on the scaled problem (in y).
+    pub scaled: IterationRounding,
+    /// min_i d_i (‖D⁻¹v‖ ≤ ‖v‖/d_min).
+    pub d_min: f64,
+    /// max_i d_i (‖v‖ ≤ d_max‖D⁻¹v‖).
+    pub d_max: f64,
+}
+
+impl JacobiSteps {
+    /// γ₂: the relative error of y⁰ = z⁰/d̃ and z = d̃·y with the stored d̃ = fl(d)
+    /// (two rounding factors each).
+    pub fn scaling_error(&self) -> f64 {
+        qp_iter::rounding::gamma(2, self.scaled.unit_roundoff)
+    }
 }
 
 /// V-FISTA's K-step rounding model (docs/theory.md, "FISTA in f32"): the inner-rate LMI
@@ -171,6 +197,32 @@ impl StepRounding {
             FistaSteps::of(qp, method, u)
                 .map(Self::Fista)
                 .map_err(not_covered)
+        } else if matches!(method.kind, MethodKind::Pg(_)) && method.scaling == Scaling::Jacobi {
+            let map = method
+                .build(qp.clone())
+                .map_err(|e| not_covered(e.to_string()))?;
+            let MethodMap::Scaled(s) = &map else {
+                return Err(not_covered(
+                    "internal: a Jacobi method without a scaling".into(),
+                ));
+            };
+            let inner = s.inner().problem();
+            let plain = method.with_scaling(Scaling::None);
+            let scaled =
+                iteration_rounding(&plain, inner, u).map_err(|e| not_covered(e.to_string()))?;
+            let d = s.scaling();
+            let d_min = d.iter().copied().fold(f64::INFINITY, f64::min);
+            let d_max = d.iter().copied().fold(0.0, f64::max);
+            if !(d_min > 0.0 && d_max.is_finite()) {
+                return Err(not_covered(
+                    "the Jacobi scaling is not positive and finite".into(),
+                ));
+            }
+            Ok(Self::JacobiPg(JacobiSteps {
+                scaled,
+                d_min,
+                d_max,
+            }))
         } else {
             iteration_rounding(&method, qp, u)
                 .map(Self::Pg)
@@ -182,6 +234,7 @@ impl StepRounding {
         match self {
             Self::Pg(r) => r.perturbed_rate(),
             Self::Fista(f) => f.q(),
+            Self::JacobiPg(j) => j.scaled.perturbed_rate(),
         }
     }
     /// The exact iteration's rate the premise q < 1 starts from (r, or ρ), and the
@@ -190,6 +243,7 @@ impl StepRounding {
         match self {
             Self::Pg(r) => (r.rate, r.a),
             Self::Fista(f) => (f.rate, f.s_first * f.a_bar()),
+            Self::JacobiPg(j) => (j.scaled.rate, j.scaled.a),
         }
     }
     /// S = 1/(1 − q) (∞ when q ≥ 1).
@@ -210,6 +264,12 @@ impl StepRounding {
                 let big_a = f.a_y() * (1.0 + 2.0 * f.step.momentum);
                 f.c_x * (f.s_ones * f.step.step.a + f.s_first * big_a * self.sum())
             }
+            // ((1 + g)(g + a/(1 − q)) + g)/d_min: the scaled model's β_z on ‖y*‖ plus the
+            // two rounded scalings (φ_u^y ≤ 1), and ‖y*‖ ≤ ‖z*‖/d_min.
+            Self::JacobiPg(j) => {
+                let g = j.scaling_error();
+                ((1.0 + g) * (g + j.scaled.a * self.sum()) + g) / j.d_min
+            }
         }
     }
     /// β_θ: the gain from ‖θ‖ into ‖d‖ (b/(1 − q); V-FISTA: b·c_x(s_𝟙 + s₁/(1 − q))).
@@ -217,6 +277,7 @@ impl StepRounding {
         match self {
             Self::Pg(r) => r.b * self.sum(),
             Self::Fista(f) => f.step.step.b * f.input_factor(),
+            Self::JacobiPg(j) => (1.0 + j.scaling_error()) * j.scaled.b * self.sum(),
         }
     }
     /// c_d: the constant in ‖d‖ (c/(1 − q); V-FISTA: c·c_x(s_𝟙 + s₁/(1 − q))).
@@ -224,6 +285,7 @@ impl StepRounding {
         match self {
             Self::Pg(r) => r.c * self.sum(),
             Self::Fista(f) => f.step.step.c * f.input_factor(),
+            Self::JacobiPg(j) => (1.0 + j.scaling_error()) * j.scaled.c * self.sum(),
         }
     }
     /// φ_u(K) from the exact map's certified K-step bound `phi_k` (docs/theory.md), so that
@@ -239,6 +301,22 @@ impl StepRounding {
                 qk.min(phi_k + (qk - rk).max(0.0))
             }
             Self::Fista(f) => phi_k + f.extra_phi(k),
+            Self::JacobiPg(j) => {
+                let g = j.scaling_error();
+                let k = i32::try_from(k).unwrap_or(i32::MAX);
+                let r = &j.scaled;
+                let (qk, rk) = (r.perturbed_rate().powi(k), r.rate.powi(k));
+                (1.0 + g).powi(2) * qk.min(phi_k + (qk - rk).max(0.0))
+            }
+        }
+    }
+    /// The factor from the model's norm to the Euclidean norm of z (d_max for the Jacobi
+    /// variants, whose bounds are on ‖D⁻¹·‖; else 1): the constant c_d enters the loop as
+    /// an input in z of norm ≤ this × c_d.
+    pub fn to_euclidean(&self) -> f64 {
+        match self {
+            Self::JacobiPg(j) => j.d_max,
+            _ => 1.0,
         }
     }
 }
@@ -260,10 +338,11 @@ impl LoopRounding {
     pub fn offset_d(&self) -> f64 {
         self.steps.offset_d()
     }
-    /// The ultimate-bound offset √(c_d² + (ρ_z c_d)²): the exogenous inputs (d_c, r_c) the
-    /// certificate's γ multiplies, besides w.
+    /// The ultimate-bound offset √(c_d² + (ρ_z c_d)²) with c_d in z's Euclidean norm
+    /// ([`StepRounding::to_euclidean`]): the exogenous inputs (d_c, r_c) the certificate's γ
+    /// multiplies, besides w.
     pub fn offset(&self) -> f64 {
-        let c = self.offset_d();
+        let c = self.offset_d() * self.steps.to_euclidean();
         c * (1.0 + self.propagation.from_z.powi(2)).sqrt()
     }
     /// φ_u(K) ([`StepRounding::phi_u`]).

@@ -169,8 +169,9 @@ pub fn iteration_rounding(
         }
         MethodKind::Admm(_) => {
             return void(
-                "ADMM: the bound on its stored ρ(H + ρI)⁻¹ and (H + ρI)⁻¹ rounded to the \
-                 scalar (a perturbation ∝ u·κ(H + ρI)) is not derived yet (use pg)"
+                "ADMM: Theorem 1's f32 bound (a Euclidean contraction of the iterate itself) \
+                 is derived for pg only; ADMM's rounding (it contracts on s = v + y/ρ, not on \
+                 v) is covered by the global loop certificate (`admm_rounding`)"
                     .into(),
             );
         }
@@ -210,7 +211,11 @@ fn covered_problem(method: &Method, qp: &ParametricQp, u: f64) -> Result<(), Rou
             method.name()
         ));
     }
-    if let Some(op) = qp.operator().filter(|op| qp.n() >= op.dense_crossover()) {
+    let gradient = matches!(method.kind, MethodKind::Pg(_) | MethodKind::Fista(_));
+    if let Some(op) = qp
+        .operator()
+        .filter(|op| gradient && qp.n() >= op.dense_crossover())
+    {
         return void(format!(
             "the window's n_z = {} ≥ {} runs the structured Hessian product (forward and \
              adjoint passes through the dynamics), whose rounding is not modelled (only the \
@@ -318,6 +323,143 @@ pub fn fista_rounding(
         step: gradient_step_rounding(qp, fista.step_size(), u),
         momentum: fista.momentum(),
         extrapolation: gamma(4, u),
+    })
+}
+
+/// The rounding model of one ADMM solve ([`crate::admm`], relaxed Douglas–Rachford on
+/// s = v + y/ρ) in precision u, in `mhe_embedded`'s order (docs/theory.md, "ADMM in f32"):
+/// the computed start s̃⁰ = fl(z⁰ + fl(ρ̃⁻¹·ỹ⁰)), ỹ⁰ = −fl(H̃z⁰ + q̃), the computed step
+/// s ↦ fl(α̃·fl(fl(M̃_ρ t̃) − m̃q) + fl(s − α̃·Π̃(s))), t̃ = fl(2Π̃(s) − s), with the stored
+/// M_ρ = ρ(H + ρI)⁻¹ and m̃q = fl(M̃ q̃), M = (H + ρI)⁻¹, and the output Π̃(sᴷ). The exact
+/// step S is r-Lipschitz for any two points (Giselsson–Boyd, the module docs of
+/// [`crate::admm`]), so errors stay bounded.
+#[derive(Debug, Clone, Copy, PartialEq)]
+#[cfg_attr(feature = "serde", derive(serde::Serialize))]
+#[non_exhaustive]
+pub struct AdmmRounding {
+    /// The unit round-off u.
+    pub unit_roundoff: f64,
+    /// r = |1 − α/2| + (α/2)δ: the exact step's Lipschitz constant on s.
+    pub rate: f64,
+    /// c₀ = ‖I − H/ρ‖ (bounded by max|1 − λ/ρ|): ‖s⁰ − s*‖ ≤ c₀‖z⁰ − z*‖ and
+    /// ‖s*‖ ≤ c₀‖z*‖ + ‖q‖/ρ.
+    pub start: f64,
+    /// One step: ‖fl(S)(s) − S(s)‖ ≤ a‖s‖ + b‖θ‖ + c.
+    pub a: f64,
+    /// Coefficient of ‖θ‖ in one step's error.
+    pub b: f64,
+    /// Constant of one step's error.
+    pub c: f64,
+    /// The start: ‖s̃⁰ − s⁰‖ ≤ a₀‖z⁰‖ + b₀‖θ‖ + c₀′.
+    pub a0: f64,
+    /// Coefficient of ‖θ‖ in the start's error.
+    pub b0: f64,
+    /// Constant of the start's error.
+    pub c0: f64,
+    /// ‖|F|‖/ρ and ‖q₀‖/ρ: ‖q‖/ρ ≤ s_θ‖θ‖ + s_c.
+    pub s_theta: f64,
+    /// ‖q₀‖/ρ.
+    pub s_c: f64,
+    /// u‖bounds‖: the output clamp on the rounded box.
+    pub output: f64,
+}
+
+impl AdmmRounding {
+    /// q = r + a: the computed step's rate towards the exact run.
+    pub fn perturbed_rate(&self) -> f64 {
+        self.rate + self.a
+    }
+}
+
+/// The rounding model of `method` = ADMM (plain, any ρ and α) on `qp` in precision `u`
+/// ([`AdmmRounding`]), or why it is not covered.
+///
+/// ```
+/// use faer::mat;
+/// use qp_iter::rounding::{F32_UNIT_ROUNDOFF, admm_rounding};
+/// use qp_iter::{BoxSet, Method, ParametricQp};
+/// let qp = ParametricQp::new(mat![[4.0, 1.0], [1.0, 2.0]], vec![0.5, -1.0],
+///     faer::Mat::zeros(2, 0), BoxSet::symmetric(&[1.0, 1.0]).unwrap()).unwrap();
+/// let r = admm_rounding(&Method::ADMM, &qp, F32_UNIT_ROUNDOFF).unwrap();
+/// assert!(r.perturbed_rate() < 1.0 && r.a < 1e-5);
+/// ```
+pub fn admm_rounding(
+    method: &Method,
+    qp: &ParametricQp,
+    u: f64,
+) -> Result<AdmmRounding, RoundingVoid> {
+    covered_problem(method, qp, u)?;
+    if !matches!(method.kind, MethodKind::Admm(_)) {
+        return void(format!("`{}` is not ADMM", method.name()));
+    }
+    let map = method.build(qp.clone()).map_err(|e| RoundingVoid {
+        reason: e.to_string(),
+    })?;
+    let crate::MethodMap::Admm(admm) = &map else {
+        return void("internal: ADMM built another map".into());
+    };
+    let (rho, alpha) = (admm.rho(), admm.relaxation());
+    let (n, nt) = (qp.n(), qp.n_theta());
+    let h = qp.h();
+    let f = qp.f();
+    let (m_rho, m_inv) = admm.stored_inverses();
+    let h_a = abs_norm_bound(n, n, |i, j| h[(i, j)]);
+    let f_a = abs_norm_bound(n, nt, |i, j| f[(i, j)]);
+    // Stored by columns with leading dimension ld (symmetric: either order).
+    let entry =
+        |m: &crate::kernel::PaddedSymmetric, i: usize, j: usize| m.as_slice()[j * m.ld() + i];
+    let m_r = abs_norm_bound(n, n, |i, j| entry(m_rho, i, j));
+    let m_i = abs_norm_bound(n, n, |i, j| entry(m_inv, i, j));
+    let norm = |v: &mut dyn Iterator<Item = f64>| v.map(|x| x * x).sum::<f64>().sqrt();
+    let q0n = norm(&mut qp.q0().iter().copied());
+    let zset = qp.zset();
+    let bnd = norm(&mut zset.lower().iter().zip(zset.upper()).map(|(l, h)| {
+        let l = if l.is_finite() { l.abs() } else { 0.0 };
+        let h = if h.is_finite() { h.abs() } else { 0.0 };
+        l.max(h)
+    }));
+    let g = |k: usize| gamma(k, u);
+    let (g_m, g_q, g4) = (g(n + 2), g(nt + 3), g(4));
+    // One step's error bound, linear with nonnegative coefficients in (‖s‖, ‖bounds‖, ‖q₀‖,
+    // ‖θ‖): docs/theory.md, "ADMM in f32", (i)–(v).
+    let step = |s_n: f64, b_n: f64, q0: f64, th: f64| {
+        let t = 3.0 * s_n + 2.0 * b_n;
+        let dt = 3.0 * u * s_n + (4.0 * u + 2.0 * u * u) * b_n;
+        let tt = (1.0 + u).powi(2) * t;
+        let e_a = m_r * dt + g_m * m_r * tt;
+        let qq = q0 + f_a * th;
+        let e_q = m_i * g_q * qq + g_m * m_i * (1.0 + g_q) * qq;
+        let z = m_r * t + m_i * qq;
+        let e_z = (1.0 + u) * (e_a + e_q) + u * z;
+        let c_n = s_n + (1.0 + u) * b_n;
+        alpha * e_z + alpha * u * b_n + g4 * (alpha * (z + e_z) + s_n + alpha * c_n)
+    };
+    // The start's error, linear in (‖z⁰‖, ‖q₀‖, ‖θ‖).
+    let start_err = |z_n: f64, q0: f64, th: f64| {
+        let qq = q0 + f_a * th;
+        let e_hz = g_m * h_a * z_n;
+        let e_q = g_q * qq;
+        let hzq = h_a * z_n + qq;
+        let e_y = (1.0 + u) * (e_hz + e_q) + u * hzq;
+        e_y / rho + g(3) * ((hzq + e_y) / rho + z_n)
+    };
+    let up = 1.0 + 1e-12;
+    let (mu, l) = (qp.mu(), qp.l());
+    let start = (1.0 - mu / rho).abs().max((1.0 - l / rho).abs()) * up;
+    let underflow = underflow_unit(u) * (2 * n + nt + 4) as f64 * (n as f64).sqrt();
+    Ok(AdmmRounding {
+        unit_roundoff: u,
+        rate: admm.splitting_certificate().rate,
+        start,
+        a: step(1.0, 0.0, 0.0, 0.0) * up,
+        b: step(0.0, 0.0, 0.0, 1.0) * up,
+        c: step(0.0, bnd, q0n, 0.0) * up + underflow,
+        a0: start_err(1.0, 0.0, 0.0) * up,
+        b0: start_err(0.0, 0.0, 1.0) * up,
+        c0: start_err(0.0, q0n, 0.0) * up + underflow,
+        s_theta: f_a / rho * up,
+        s_c: q0n / rho * up,
+        output: u * bnd,
     })
 }
 

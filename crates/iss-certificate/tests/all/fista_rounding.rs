@@ -110,6 +110,73 @@ fn run<T: Real>(
     z.into_iter().map(Real::to).collect()
 }
 
+/// One ADMM solve in the scalar `T` as `mhe_embedded::qp::run` (ADMM arm): mq = M q,
+/// y⁰ = −(Hz⁰ + q), s = z⁰ + y⁰/ρ, t = 2Π(s) − s; K times z = M_ρ t − mq, w = αz + (s − αΠ(s)),
+/// t = 2Π(w) − w, s = w; the iterate Π(s). `m_rho`, `m_inv` by columns (the stored ones).
+#[allow(clippy::too_many_arguments)]
+fn run_admm<T: Real>(
+    qp: &ParametricQp,
+    m_rho: &[f64],
+    m_inv: &[f64],
+    rho: f64,
+    alpha: f64,
+    theta: &[f64],
+    z0: &[f64],
+    k: usize,
+) -> Vec<f64> {
+    let (n, nt) = (qp.n(), qp.n_theta());
+    let (h, f) = (qp.h(), qp.f());
+    let mv = |m: &dyn Fn(usize, usize) -> T, x: &[T]| -> Vec<T> {
+        let mut y = vec![T::of(0.0); n];
+        for (j, xj) in x.iter().enumerate() {
+            for (i, yi) in y.iter_mut().enumerate() {
+                *yi += m(i, j) * *xj;
+            }
+        }
+        y
+    };
+    let q: Vec<T> = (0..n)
+        .map(|i| {
+            let mut acc = T::of(qp.q0()[i]);
+            for j in 0..nt {
+                acc += T::of(f[(i, j)]) * T::of(theta[j]);
+            }
+            acc
+        })
+        .collect();
+    let lo: Vec<T> = qp.zset().lower().iter().map(|v| T::of(*v)).collect();
+    let hi: Vec<T> = qp.zset().upper().iter().map(|v| T::of(*v)).collect();
+    let clamp = |x: T, i: usize| {
+        let x = if lo[i] > x { lo[i] } else { x };
+        if hi[i] < x { hi[i] } else { x }
+    };
+    let mr = |i: usize, j: usize| T::of(m_rho[j * n + i]);
+    let mi = |i: usize, j: usize| T::of(m_inv[j * n + i]);
+    let hm = |i: usize, j: usize| T::of(h[(i, j)]);
+    let z: Vec<T> = z0.iter().map(|v| T::of(*v)).collect();
+    let mq = mv(&mi, &q);
+    let hz = mv(&hm, &z);
+    let (inv_rho, a, two) = (T::of(1.0 / rho), T::of(alpha), T::of(2.0));
+    let mut s: Vec<T> = (0..n)
+        .map(|i| {
+            let y = T::of(0.0) - (hz[i] + q[i]);
+            z[i] + inv_rho * y
+        })
+        .collect();
+    let mut t: Vec<T> = (0..n).map(|i| two * clamp(s[i], i) - s[i]).collect();
+    for _ in 0..k {
+        let zz = mv(&mr, &t);
+        for i in 0..n {
+            let zi = zz[i] - mq[i];
+            let vv = clamp(s[i], i);
+            let ww = a * zi + (s[i] - a * vv);
+            t[i] = two * clamp(ww, i) - ww;
+            s[i] = ww;
+        }
+    }
+    (0..n).map(|i| clamp(s[i], i).to()).collect()
+}
+
 fn dist(a: &[f64], b: &[f64]) -> f64 {
     a.iter()
         .zip(b)
@@ -131,6 +198,9 @@ fn k_computed_iterations_stay_within_the_k_step_model() {
         Method::PG,
         Method::FISTA,
         Method::PG.with_scaling(Scaling::Jacobi),
+        Method::ADMM,
+        Method::ADMM_PR,
+        Method::ADMM_PR.with_scaling(Scaling::Jacobi),
     ] {
         let mut worst = 0.0f64;
         let mut worst_dev = 0.0f64;
@@ -162,10 +232,23 @@ fn k_computed_iterations_stay_within_the_k_step_model() {
             };
             let jacobi = d.iter().any(|v| *v != 1.0);
             let cert = inner.certificate();
+            // (step, momentum) of the gradient methods; ADMM's stored inverses, ρ and α.
             let (step, beta) = match inner {
                 MethodMap::Pg(m) => (m.alpha(), 0.0),
                 MethodMap::Fista(m) => (m.step_size(), m.momentum()),
-                _ => unreachable!("pg and fista"),
+                _ => (0.0, 0.0),
+            };
+            let admm = match inner {
+                MethodMap::Admm(a) => {
+                    let (mr, mi) = a.stored_inverses();
+                    let cols = |m: &qp_iter::kernel::PaddedSymmetric| -> Vec<f64> {
+                        (0..n * n)
+                            .map(|k| m.as_slice()[(k / n) * m.ld() + k % n])
+                            .collect()
+                    };
+                    Some((cols(mr), cols(mi), a.rho(), a.relaxation()))
+                }
+                _ => None,
             };
             let wdist = |a: &[f64], b: &[f64]| -> f64 {
                 a.iter()
@@ -200,19 +283,28 @@ fn k_computed_iterations_stay_within_the_k_step_model() {
                         .zip(&d)
                         .map(|(z, d)| f64::from(*z as f32 / *d as f32))
                         .collect();
-                    let y32 = run::<f32>(&run_qp, fista, step, beta, &theta, &y0_32, k);
+                    let run_any = |f32_run: bool, y0: &[f64]| match &admm {
+                        Some((mr, mi, rho, alpha)) if f32_run => {
+                            run_admm::<f32>(&run_qp, mr, mi, *rho, *alpha, &theta, y0, k)
+                        }
+                        Some((mr, mi, rho, alpha)) => {
+                            run_admm::<f64>(&run_qp, mr, mi, *rho, *alpha, &theta, y0, k)
+                        }
+                        None if f32_run => run::<f32>(&run_qp, fista, step, beta, &theta, y0, k),
+                        None => run::<f64>(&run_qp, fista, step, beta, &theta, y0, k),
+                    };
+                    let y32 = run_any(true, &y0_32);
                     let zk: Vec<f64> = y32
                         .iter()
                         .zip(&d)
                         .map(|(y, d)| f64::from(*d as f32 * *y as f32))
                         .collect();
                     let y0: Vec<f64> = z0.iter().zip(&d).map(|(z, d)| z / d).collect();
-                    let exact_run: Vec<f64> =
-                        run::<f64>(&run_qp, fista, step, beta, &theta, &y0, k)
-                            .iter()
-                            .zip(&d)
-                            .map(|(y, d)| y * d)
-                            .collect();
+                    let exact_run: Vec<f64> = run_any(false, &y0)
+                        .iter()
+                        .zip(&d)
+                        .map(|(y, d)| y * d)
+                        .collect();
                     let e0 = wdist(&z0, &zs);
                     let err = wdist(&zk, &zs);
                     let inputs = model.beta_z() * norm(&zs)

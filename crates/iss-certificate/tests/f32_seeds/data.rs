@@ -19,6 +19,11 @@ pub(crate) struct Owned {
     hi: Vec<f64>,
     step: f64,
     scaling: Vec<f64>,
+    /// ADMM: ρ(H + ρI)⁻¹ and (H + ρI)⁻¹ by columns, 1/ρ, α (empty / 0 otherwise).
+    m_rho: Vec<f64>,
+    m_inv: Vec<f64>,
+    inv_rho: f64,
+    relaxation: f64,
 }
 
 /// PG on the problem as given.
@@ -26,7 +31,8 @@ pub(crate) fn owned(resolved: &ResolvedScenario) -> Vec<Owned> {
     owned_for(resolved, qp_iter::Method::PG)
 }
 
-/// `method` (PG, plain or Jacobi-scaled): the problem its map runs on, and its scaling.
+/// `method` (PG or ADMM, plain or Jacobi-scaled): the problem its map runs on, its scaling
+/// and ADMM's stored data (`mhe_export::extract`'s `window_of`).
 pub(crate) fn owned_for(resolved: &ResolvedScenario, method: qp_iter::Method) -> Vec<Owned> {
     use qp_iter::{IterationMap, MethodMap};
     let problem = resolved.mhe_problem().expect("MHE builds");
@@ -35,10 +41,24 @@ pub(crate) fn owned_for(resolved: &ResolvedScenario, method: qp_iter::Method) ->
         .iter()
         .map(|w| {
             let map = method.build(w.qp().clone()).expect("the method builds");
-            let (qp, scaling) = match &map {
-                MethodMap::Scaled(s) => (s.inner().problem().clone(), s.scaling().to_vec()),
-                MethodMap::Pg(_) => (w.qp().clone(), Vec::new()),
-                _ => panic!("PG only"),
+            let (inner, scaling) = match &map {
+                MethodMap::Scaled(s) => (s.inner(), s.scaling().to_vec()),
+                other => (other, Vec::new()),
+            };
+            let qp = inner.problem().clone();
+            let cols = |m: &qp_iter::kernel::PaddedSymmetric| -> Vec<f64> {
+                let n = m.n();
+                (0..n * n)
+                    .map(|k| m.as_slice()[(k / n) * m.ld() + k % n])
+                    .collect()
+            };
+            let (m_rho, m_inv, inv_rho, relaxation) = match inner {
+                MethodMap::Admm(a) => {
+                    let (mr, mi) = a.stored_inverses();
+                    (cols(mr), cols(mi), 1.0 / a.rho(), a.relaxation())
+                }
+                MethodMap::Pg(_) => (Vec::new(), Vec::new(), 0.0, 0.0),
+                _ => panic!("PG or ADMM only"),
             };
             let (n, nt) = (qp.n(), qp.n_theta());
             let (h, f) = (qp.h(), qp.f());
@@ -52,6 +72,10 @@ pub(crate) fn owned_for(resolved: &ResolvedScenario, method: qp_iter::Method) ->
                 hi: qp.zset().upper().to_vec(),
                 step: 2.0 / (qp.l() + qp.mu()),
                 scaling,
+                m_rho,
+                m_inv,
+                inv_rho,
+                relaxation,
             }
         })
         .collect()
@@ -68,8 +92,8 @@ pub(crate) fn windows64(ws: &[Owned]) -> Vec<mhe_embedded::Window<'_, f64>> {
             n: w.n,
             n_theta: w.nt,
             h: &w.h,
-            m_rho: &[],
-            m_inv: &[],
+            m_rho: &w.m_rho,
+            m_inv: &w.m_inv,
             q0: &w.q0,
             f: &w.f,
             lower: &w.lo,
@@ -77,15 +101,15 @@ pub(crate) fn windows64(ws: &[Owned]) -> Vec<mhe_embedded::Window<'_, f64>> {
             scaling: &w.scaling,
             step: w.step,
             momentum: 0.0,
-            inv_rho: 0.0,
-            relaxation: 0.0,
+            inv_rho: w.inv_rho,
+            relaxation: w.relaxation,
             structured: None,
         })
         .collect()
 }
 
-/// The f32 copies of each window's (H, q₀, F, lower, upper, scaling).
-pub(crate) fn singles(ws: &[Owned]) -> Vec<[Vec<f32>; 6]> {
+/// The f32 copies of each window's (H, q₀, F, lower, upper, scaling, ADMM's M_ρ and M).
+pub(crate) fn singles(ws: &[Owned]) -> Vec<[Vec<f32>; 8]> {
     ws.iter()
         .map(|w| {
             [
@@ -95,6 +119,8 @@ pub(crate) fn singles(ws: &[Owned]) -> Vec<[Vec<f32>; 6]> {
                 to32(&w.lo),
                 to32(&w.hi),
                 to32(&w.scaling),
+                to32(&w.m_rho),
+                to32(&w.m_inv),
             ]
         })
         .collect()
@@ -103,7 +129,7 @@ pub(crate) fn singles(ws: &[Owned]) -> Vec<[Vec<f32>; 6]> {
 /// The f32 windows over `singles(ws)`, the step rounded to f32.
 pub(crate) fn windows32<'a>(
     ws: &[Owned],
-    s32: &'a [[Vec<f32>; 6]],
+    s32: &'a [[Vec<f32>; 8]],
 ) -> Vec<mhe_embedded::Window<'a, f32>> {
     ws.iter()
         .zip(s32)
@@ -111,8 +137,8 @@ pub(crate) fn windows32<'a>(
             n: w.n,
             n_theta: w.nt,
             h: &s[0],
-            m_rho: &[],
-            m_inv: &[],
+            m_rho: &s[6],
+            m_inv: &s[7],
             q0: &s[1],
             f: &s[2],
             lower: &s[3],
@@ -120,8 +146,8 @@ pub(crate) fn windows32<'a>(
             scaling: &s[5],
             step: w.step as f32,
             momentum: 0.0,
-            inv_rho: 0.0,
-            relaxation: 0.0,
+            inv_rho: w.inv_rho as f32,
+            relaxation: w.relaxation as f32,
             structured: None,
         })
         .collect()

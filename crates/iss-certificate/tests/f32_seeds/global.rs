@@ -183,7 +183,11 @@ pub(super) fn f32_runs_respect_the_global_certificate(
             nw2: sys.nw2(),
             horizon: layout.horizon,
             iterations: k32,
-            method: mhe_embedded::Method::Pg,
+            method: if matches!(method.kind, qp_iter::MethodKind::Admm(_)) {
+                mhe_embedded::Method::Admm
+            } else {
+                mhe_embedded::Method::Pg
+            },
             warm_start: mhe_embedded::WarmStart::Paper,
             a: &a32,
             b: &b32,
@@ -244,6 +248,20 @@ fn f32_seeds_global_certificate_case_study_pg_jacobi() {
         false,
     );
     assert_eq!(k, 5, "the f32 K_glob of docs/theory.md");
+}
+
+/// ADMM-PR-Jacobi (its scaled windows, the stored ρ(H + ρI)⁻¹ and (H + ρI)⁻¹ in f32, the
+/// rounded scalings) at its f32 K_glob (3 on the case study; docs/theory.md "ADMM in f32").
+#[test]
+#[ignore = "release: run by .ci/run with --release --ignored"]
+fn f32_seeds_global_certificate_case_study_admm_pr_jacobi() {
+    let k = f32_runs_respect_the_global_certificate(
+        "case-study.toml",
+        Method::ADMM_PR.with_scaling(qp_iter::Scaling::Jacobi),
+        60,
+        false,
+    );
+    assert_eq!(k, 3, "the f32 K_glob of docs/theory.md");
 }
 
 #[test]

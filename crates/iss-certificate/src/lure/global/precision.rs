@@ -16,7 +16,10 @@
 
 use closed_loop::scenario::{LoopOptions, ResolvedScenario};
 use faer::Mat;
-use qp_iter::rounding::{FistaRounding, IterationRounding, fista_rounding, iteration_rounding};
+use qp_iter::rounding::{
+    AdmmRounding, FistaRounding, IterationRounding, admm_rounding, fista_rounding,
+    iteration_rounding,
+};
 use qp_iter::{IterationMap, Method, MethodKind, MethodMap, ParametricQp, Scaling};
 
 use super::{GlobalCertificate, GlobalError, GlobalLoop, GlobalOptions, mul};
@@ -46,31 +49,38 @@ pub enum StepRounding {
     /// V-FISTA: the inner rate's storage P̃ carries the step errors (docs/theory.md, "FISTA
     /// in f32").
     Fista(FistaSteps),
-    /// Jacobi-scaled projected gradient: projected gradient on the scaled problem in
-    /// y = D⁻¹z, with the rounded division y⁰ = z⁰/d and product z = d·y; every bound in the
-    /// weighted norm ‖D⁻¹·‖ the global certificate uses for the Jacobi variants
+    /// ADMM (relaxed Douglas–Rachford): the exact step is r-Lipschitz on s for any two
+    /// points; the rounded start, steps and output clamp (docs/theory.md, "ADMM in f32").
+    Admm(AdmmRounding),
+    /// A Jacobi-scaled method (projected gradient or ADMM): the method on the scaled problem
+    /// in y = D⁻¹z, with the rounded division y⁰ = z⁰/d and product z = d·y; every bound in
+    /// the weighted norm ‖D⁻¹·‖ the global certificate uses for the Jacobi variants
     /// (docs/theory.md, "Jacobi-scaled projected gradient in f32").
-    JacobiPg(JacobiSteps),
+    Jacobi(JacobiSteps),
 }
 
-/// The Jacobi-scaled projected gradient's model: the scaled problem's projected-gradient
-/// model and the scaling's extremes.
+/// A Jacobi-scaled method's model: the scaled problem's model and the scaling's extremes.
 #[derive(Debug, Clone, PartialEq)]
 #[non_exhaustive]
 pub struct JacobiSteps {
-    /// One step on the scaled problem (in y).
-    pub scaled: IterationRounding,
+    /// K steps on the scaled problem (in y): projected gradient or ADMM.
+    pub scaled: Box<StepRounding>,
+    /// Φ̄ ≥ φ_u^y(K) for every K (projected gradient: 1; ADMM: 2c₀ + a₀, since the exact
+    /// φ(K) ≤ φ(0) = c₀).
+    pub phi_sup: f64,
     /// min_i d_i (‖D⁻¹v‖ ≤ ‖v‖/d_min).
     pub d_min: f64,
     /// max_i d_i (‖v‖ ≤ d_max‖D⁻¹v‖).
     pub d_max: f64,
+    /// The unit round-off u.
+    pub unit_roundoff: f64,
 }
 
 impl JacobiSteps {
     /// γ₂: the relative error of y⁰ = z⁰/d̃ and z = d̃·y with the stored d̃ = fl(d)
     /// (two rounding factors each).
     pub fn scaling_error(&self) -> f64 {
-        qp_iter::rounding::gamma(2, self.scaled.unit_roundoff)
+        qp_iter::rounding::gamma(2, self.unit_roundoff)
     }
 }
 
@@ -193,11 +203,8 @@ impl StepRounding {
     /// ([`StepRounding::perturbed_rate`]).
     pub fn for_qp(method: Method, qp: &ParametricQp, u: f64) -> Result<Self, PrecisionVoid> {
         let not_covered = |why: String| PrecisionVoid::NotCovered { why };
-        if matches!(method.kind, MethodKind::Fista(_)) {
-            FistaSteps::of(qp, method, u)
-                .map(Self::Fista)
-                .map_err(not_covered)
-        } else if matches!(method.kind, MethodKind::Pg(_)) && method.scaling == Scaling::Jacobi {
+        let scalable = matches!(method.kind, MethodKind::Pg(_) | MethodKind::Admm(_));
+        if scalable && method.scaling == Scaling::Jacobi {
             let map = method
                 .build(qp.clone())
                 .map_err(|e| not_covered(e.to_string()))?;
@@ -206,10 +213,11 @@ impl StepRounding {
                     "internal: a Jacobi method without a scaling".into(),
                 ));
             };
-            let inner = s.inner().problem();
-            let plain = method.with_scaling(Scaling::None);
-            let scaled =
-                iteration_rounding(&plain, inner, u).map_err(|e| not_covered(e.to_string()))?;
+            let scaled = Self::for_qp(method.with_scaling(Scaling::None), s.inner().problem(), u)?;
+            let phi_sup = match &scaled {
+                Self::Admm(a) => 2.0 * a.start + a.a0,
+                _ => 1.0,
+            };
             let d = s.scaling();
             let d_min = d.iter().copied().fold(f64::INFINITY, f64::min);
             let d_max = d.iter().copied().fold(0.0, f64::max);
@@ -218,15 +226,24 @@ impl StepRounding {
                     "the Jacobi scaling is not positive and finite".into(),
                 ));
             }
-            Ok(Self::JacobiPg(JacobiSteps {
-                scaled,
+            return Ok(Self::Jacobi(JacobiSteps {
+                scaled: Box::new(scaled),
+                phi_sup,
                 d_min,
                 d_max,
-            }))
-        } else {
-            iteration_rounding(&method, qp, u)
+                unit_roundoff: u,
+            }));
+        }
+        match method.kind {
+            MethodKind::Fista(_) => FistaSteps::of(qp, method, u)
+                .map(Self::Fista)
+                .map_err(not_covered),
+            MethodKind::Admm(_) => admm_rounding(&method, qp, u)
+                .map(Self::Admm)
+                .map_err(|e| not_covered(e.to_string())),
+            _ => iteration_rounding(&method, qp, u)
                 .map(Self::Pg)
-                .map_err(|e| not_covered(e.to_string()))
+                .map_err(|e| not_covered(e.to_string())),
         }
     }
     /// q: the computed iteration's rate (projected gradient: r + a; V-FISTA: ρ + s₁Ā).
@@ -234,7 +251,8 @@ impl StepRounding {
         match self {
             Self::Pg(r) => r.perturbed_rate(),
             Self::Fista(f) => f.q(),
-            Self::JacobiPg(j) => j.scaled.perturbed_rate(),
+            Self::Admm(a) => a.perturbed_rate(),
+            Self::Jacobi(j) => j.scaled.perturbed_rate(),
         }
     }
     /// The exact iteration's rate the premise q < 1 starts from (r, or ρ), and the
@@ -243,7 +261,8 @@ impl StepRounding {
         match self {
             Self::Pg(r) => (r.rate, r.a),
             Self::Fista(f) => (f.rate, f.s_first * f.a_bar()),
-            Self::JacobiPg(j) => (j.scaled.rate, j.scaled.a),
+            Self::Admm(a) => (a.rate, a.a),
+            Self::Jacobi(j) => j.scaled.rate_and_rounding(),
         }
     }
     /// S = 1/(1 − q) (∞ when q ≥ 1).
@@ -264,11 +283,13 @@ impl StepRounding {
                 let big_a = f.a_y() * (1.0 + 2.0 * f.step.momentum);
                 f.c_x * (f.s_ones * f.step.step.a + f.s_first * big_a * self.sum())
             }
-            // ((1 + g)(g + a/(1 − q)) + g)/d_min: the scaled model's β_z on ‖y*‖ plus the
-            // two rounded scalings (φ_u^y ≤ 1), and ‖y*‖ ≤ ‖z*‖/d_min.
-            Self::JacobiPg(j) => {
+            // c₀·(a₀ + a·c₀/(1 − q)): the start's error and the steps' through ‖s*‖.
+            Self::Admm(a) => a.a0 + a.a * a.start * self.sum(),
+            // ((1 + g)(gΦ̄ + β_z^y) + g)/d_min: the scaled model's β_z on ‖y*‖ plus the
+            // two rounded scalings (φ_u^y ≤ Φ̄), and ‖y*‖ ≤ ‖z*‖/d_min.
+            Self::Jacobi(j) => {
                 let g = j.scaling_error();
-                ((1.0 + g) * (g + j.scaled.a * self.sum()) + g) / j.d_min
+                ((1.0 + g) * (g * j.phi_sup + j.scaled.beta_z()) + g) / j.d_min
             }
         }
     }
@@ -277,7 +298,8 @@ impl StepRounding {
         match self {
             Self::Pg(r) => r.b * self.sum(),
             Self::Fista(f) => f.step.step.b * f.input_factor(),
-            Self::JacobiPg(j) => (1.0 + j.scaling_error()) * j.scaled.b * self.sum(),
+            Self::Admm(a) => a.b0 + (a.a * a.s_theta + a.b) * self.sum(),
+            Self::Jacobi(j) => (1.0 + j.scaling_error()) * j.scaled.beta_theta(),
         }
     }
     /// c_d: the constant in ‖d‖ (c/(1 − q); V-FISTA: c·c_x(s_𝟙 + s₁/(1 − q))).
@@ -285,7 +307,8 @@ impl StepRounding {
         match self {
             Self::Pg(r) => r.c * self.sum(),
             Self::Fista(f) => f.step.step.c * f.input_factor(),
-            Self::JacobiPg(j) => (1.0 + j.scaling_error()) * j.scaled.c * self.sum(),
+            Self::Admm(a) => a.c0 + (a.a * a.s_c + a.c) * self.sum() + a.output,
+            Self::Jacobi(j) => (1.0 + j.scaling_error()) * j.scaled.offset_d(),
         }
     }
     /// φ_u(K) from the exact map's certified K-step bound `phi_k` (docs/theory.md), so that
@@ -301,12 +324,14 @@ impl StepRounding {
                 qk.min(phi_k + (qk - rk).max(0.0))
             }
             Self::Fista(f) => phi_k + f.extra_phi(k),
-            Self::JacobiPg(j) => {
-                let g = j.scaling_error();
+            Self::Admm(a) => {
                 let k = i32::try_from(k).unwrap_or(i32::MAX);
-                let r = &j.scaled;
-                let (qk, rk) = (r.perturbed_rate().powi(k), r.rate.powi(k));
-                (1.0 + g).powi(2) * qk.min(phi_k + (qk - rk).max(0.0))
+                let (qk, rk) = (a.perturbed_rate().powi(k), a.rate.powi(k));
+                phi_k + qk * a.a0 + a.start * (qk - rk).max(0.0)
+            }
+            Self::Jacobi(j) => {
+                let g = j.scaling_error();
+                (1.0 + g).powi(2) * j.scaled.phi_u(phi_k, k)
             }
         }
     }
@@ -315,7 +340,7 @@ impl StepRounding {
     /// an input in z of norm ≤ this × c_d.
     pub fn to_euclidean(&self) -> f64 {
         match self {
-            Self::JacobiPg(j) => j.d_max,
+            Self::Jacobi(j) => j.d_max,
             _ => 1.0,
         }
     }

@@ -150,6 +150,11 @@ fn export_reproduce_and_sweep_agree_at_k_glob_and_below() {
     assert_eq!(json["covered_by"]["certificate"], "global");
     assert_eq!(json["covered_by"]["k_glob"], 13);
     assert!(json["covered_by"]["offset"].as_f64().unwrap() > 0.0);
+    // One truth: a certified f32 artefact is covered, as its header says (until session 26
+    // `artefact_covered` also required f64).
+    assert_eq!(json["artefact_covered"], true);
+    let header = std::fs::read_to_string(dir.join("mhe_data.h")).unwrap();
+    assert!(header.contains("#define MHE_CERTIFIED 1"), "{header}");
     std::fs::remove_dir_all(&dir).unwrap();
 }
 

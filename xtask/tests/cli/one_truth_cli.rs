@@ -60,7 +60,8 @@ struct Case {
     k: usize,
     /// (K_c, MPC method) of the K_c-iteration MPC; None: the exact MPC.
     k_c: Option<(usize, &'static str)>,
-    f32: bool,
+    /// Export in f32, and whether the f32 verdict certifies it (None: export in f64).
+    f32: Option<bool>,
     expected: &'static str,
     /// `certify` says "NOT CERTIFIED" (the configuration is structurally uncovered).
     uncovered: bool,
@@ -77,7 +78,7 @@ fn case(name: &'static str, edit: impl Fn(String) -> String, k: usize) -> Case {
         scenario,
         k,
         k_c: None,
-        f32: false,
+        f32: None,
         expected: "yes",
         uncovered: false,
     }
@@ -220,7 +221,7 @@ fn sweep_verdict(c: &Case, d: &Path, f: &str) -> String {
 /// says what it is. Returns (refused, covered).
 fn export_verdict(c: &Case, d: &Path, f: &str) -> (bool, bool) {
     let k = c.k.to_string();
-    let scalar = if c.f32 { "f32" } else { "f64" };
+    let scalar = if c.f32.is_some() { "f32" } else { "f64" };
     let e1 = d.join("e1");
     let args = |out: &Path| -> Vec<String> {
         [
@@ -305,9 +306,11 @@ fn long_every_command_gives_the_same_verdict_on_every_uncovered_setting() {
             expected: "void",
             ..case("shifted-warm-start", shifted, K_MIN)
         },
+        // ADMM's f32 rounding model (session 26): admm-pr's f32 K_glob (≈ 70) is below K_min,
+        // so the f32 export is certified too, by the global loop certificate in f32.
         Case {
-            f32: true,
-            expected: "yes", // reproduce and the sweep run f64; export's f32 is void
+            f32: Some(true),
+            expected: "yes",
             ..case("f32", |s| s, K_MIN)
         },
         // Theorem 1 is void with a refuted user γ₁,₃, but the global loop certificate (which
@@ -344,12 +347,20 @@ fn long_every_command_gives_the_same_verdict_on_every_uncovered_setting() {
             ..case(name, move |s| with_mpc(s, k_c), K_MIN)
         });
     }
+    // f32 with the K_c-iteration MPC: reproduce and the sweep run f64 (`yes` at the joint
+    // floor), but the joint certificate has no rounding model, so the f32 export is refused.
+    cases.push(Case {
+        k_c: Some((16, "pg")),
+        f32: Some(false),
+        expected: "yes",
+        ..case("f32-k-c-mpc", move |s| with_mpc(s, 16), K_MIN)
+    });
     for c in &cases {
         let v = verdicts(c);
         eprintln!("{}: {v:?}", c.name);
         assert_eq!(v.reproduce, c.expected, "{}: reproduce {v:?}", c.name);
         assert_eq!(v.sweep, v.reproduce, "{}: sweep vs reproduce {v:?}", c.name);
-        let export_yes = !c.f32 && c.expected == "yes";
+        let export_yes = c.f32.unwrap_or(true) && c.expected == "yes";
         assert_eq!(v.export_refused, !export_yes, "{}: export {v:?}", c.name);
         assert_eq!(v.export_covered, export_yes, "{}: export {v:?}", c.name);
         assert_eq!(

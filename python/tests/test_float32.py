@@ -128,7 +128,8 @@ def test_certificate_verdict_in_f32():
     v64 = cert.verdict("admm-pr", 200)
     v32 = cert.verdict("admm-pr", 200, scalar="f32")
     assert v64["certified"] == "yes"
-    # ADMM's stored inverses rounded to f32 have no derived bound yet: void, saying so.
+    # Theorem 1's f32 arm has no ADMM model, and the global loop certificate (which has one
+    # since session 26) certifies nothing on this plant (its VI binds): void, saying so.
     assert v32["certified"] == "void" and "f32" in v32["reason"]
     with pytest.raises(sm.InputError, match="scalar"):
         cert.verdict("admm-pr", 200, scalar="f16")

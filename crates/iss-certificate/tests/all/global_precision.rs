@@ -133,10 +133,21 @@ fn an_ill_conditioned_window_refuses_f32_with_the_reason() {
         p.reason,
         Some(PrecisionVoid::ContractionBroken { .. })
     ));
-    // An uncovered method says why (ADMM's stored inverse is not modelled).
+    // ADMM has a rounding model (session 26), and on this window f32 breaks its contraction
+    // too (its exact rate is within 10⁻⁵ of 1); the reason shows how close.
     let o = options(&r, Method::PRESETS[3]);
     let why = loop_rounding(&r, &o, F32_UNIT_ROUNDOFF)
         .expect("builds")
+        .expect_err("f32 breaks ADMM's contraction");
+    assert!(
+        matches!(why, PrecisionVoid::ContractionBroken { window: 9, .. }),
+        "{why:?}"
+    );
+    assert!(why.to_string().contains("1 − "), "{why}");
+    // FISTA is not covered on this window: no incremental rate at its κ.
+    let o = options(&r, Method::FISTA);
+    let why = loop_rounding(&r, &o, F32_UNIT_ROUNDOFF)
+        .expect("builds")
         .expect_err("not covered");
-    assert!(why.to_string().contains("ADMM"), "{why}");
+    assert!(why.to_string().contains("incremental rate"), "{why}");
 }

@@ -426,7 +426,12 @@ impl std::fmt::Display for PrecisionVoid {
                 "void: rounding breaks the contraction in window m = {window} (the exact rate {} \
                  plus the rounding's {} is ≥ 1: u·κ(H) too large); improve the conditioning or \
                  run in f64",
-                sig4(*rate),
+                // A rate within 10⁻⁴ of 1 prints as its distance to 1 (sig4 would say "1").
+                if *rate > 0.9999 && *rate < 1.0 {
+                    format!("1 − {}", sig4(1.0 - rate))
+                } else {
+                    sig4(*rate)
+                },
                 sig4(*rounding)
             ),
             Self::Infeasible { beta } => write!(

@@ -227,6 +227,19 @@ fn covered_problem(method: &Method, qp: &ParametricQp, u: f64) -> Result<(), Rou
     Ok(())
 }
 
+/// (‖q₀‖, ‖(max(|l_i|, |u_i|))_finite‖): the norms the models' constants scale with (the
+/// rounded box moves a clamp by at most u·|bound| per component).
+fn data_norms(qp: &ParametricQp) -> (f64, f64) {
+    let norm = |v: &mut dyn Iterator<Item = f64>| v.map(|x| x * x).sum::<f64>().sqrt();
+    let zset = qp.zset();
+    let bounds = norm(&mut zset.lower().iter().zip(zset.upper()).map(|(l, h)| {
+        let l = if l.is_finite() { l.abs() } else { 0.0 };
+        let h = if h.is_finite() { h.abs() } else { 0.0 };
+        l.max(h)
+    }));
+    (norm(&mut qp.q0().iter().copied()), bounds)
+}
+
 /// The model of x = Π(z − α(Hz + q₀ + Fθ)) in precision u (docs/theory.md, step 1).
 fn gradient_step_rounding(qp: &ParametricQp, alpha: f64, u: f64) -> IterationRounding {
     let (n, nt) = (qp.n(), qp.n_theta());
@@ -244,14 +257,7 @@ fn gradient_step_rounding(qp: &ParametricQp, alpha: f64, u: f64) -> IterationRou
     // q₀: stored (1), the sum (n_θ), + Hz (1), α (2), − (1): n_θ + 5. z: − (1).
     let roundings = (n + 5).max(nt + 7);
     let nu = gamma(roundings, u);
-    let norm = |v: &mut dyn Iterator<Item = f64>| v.map(|x| x * x).sum::<f64>().sqrt();
-    let q0 = norm(&mut qp.q0().iter().copied());
-    let zset = qp.zset();
-    let bounds = norm(&mut zset.lower().iter().zip(zset.upper()).map(|(l, h)| {
-        let l = if l.is_finite() { l.abs() } else { 0.0 };
-        let h = if h.is_finite() { h.abs() } else { 0.0 };
-        l.max(h)
-    }));
+    let (q0, bounds) = data_norms(qp);
     // An underflowing product per term: n + n_θ + 2 products per component.
     let underflow = underflow_unit(u) * (n + nt + 2) as f64 * (n as f64).sqrt();
     let a = nu * (1.0 + alpha * h_abs);
@@ -410,14 +416,7 @@ pub fn admm_rounding(
         |m: &crate::kernel::PaddedSymmetric, i: usize, j: usize| m.as_slice()[j * m.ld() + i];
     let m_r = abs_norm_bound(n, n, |i, j| entry(m_rho, i, j));
     let m_i = abs_norm_bound(n, n, |i, j| entry(m_inv, i, j));
-    let norm = |v: &mut dyn Iterator<Item = f64>| v.map(|x| x * x).sum::<f64>().sqrt();
-    let q0n = norm(&mut qp.q0().iter().copied());
-    let zset = qp.zset();
-    let bnd = norm(&mut zset.lower().iter().zip(zset.upper()).map(|(l, h)| {
-        let l = if l.is_finite() { l.abs() } else { 0.0 };
-        let h = if h.is_finite() { h.abs() } else { 0.0 };
-        l.max(h)
-    }));
+    let (q0n, bnd) = data_norms(qp);
     let g = |k: usize| gamma(k, u);
     let (g_m, g_q, g4) = (g(n + 2), g(nt + 3), g(4));
     // One step's error bound, linear with nonnegative coefficients in (‖s‖, ‖bounds‖, ‖q₀‖,

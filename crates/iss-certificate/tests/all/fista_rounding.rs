@@ -61,6 +61,23 @@ impl Real for f64 {
     }
 }
 
+/// q = q₀ + Fθ summed from q₀ in θ order, and the box, in the scalar `T` (as the estimator
+/// loads a window).
+fn loaded<T: Real>(qp: &ParametricQp, theta: &[f64]) -> (Vec<T>, Vec<T>, Vec<T>) {
+    let f = qp.f();
+    let q = (0..qp.n())
+        .map(|i| {
+            let mut acc = T::of(qp.q0()[i]);
+            for (j, th) in theta.iter().enumerate() {
+                acc += T::of(f[(i, j)]) * T::of(*th);
+            }
+            acc
+        })
+        .collect();
+    let cast = |v: &[f64]| v.iter().map(|v| T::of(*v)).collect();
+    (q, cast(qp.zset().lower()), cast(qp.zset().upper()))
+}
+
 /// K iterations in the scalar `T` as `mhe_embedded::qp::run` (dense branch): q = q₀ + Fθ
 /// summed from q₀ in θ order, Hy summed from 0 in column order, no fused multiply–add;
 /// FISTA's first step is the plain step (β = 0), then x = Π(y − s(Hy + q)),
@@ -74,20 +91,10 @@ fn run<T: Real>(
     z0: &[f64],
     k: usize,
 ) -> Vec<f64> {
-    let (n, nt) = (qp.n(), qp.n_theta());
-    let (h, f) = (qp.h(), qp.f());
+    let n = qp.n();
+    let h = qp.h();
     let (s, b_run) = (T::of(step), T::of(beta));
-    let q: Vec<T> = (0..n)
-        .map(|i| {
-            let mut acc = T::of(qp.q0()[i]);
-            for j in 0..nt {
-                acc += T::of(f[(i, j)]) * T::of(theta[j]);
-            }
-            acc
-        })
-        .collect();
-    let lo: Vec<T> = qp.zset().lower().iter().map(|v| T::of(*v)).collect();
-    let hi: Vec<T> = qp.zset().upper().iter().map(|v| T::of(*v)).collect();
+    let (q, lo, hi) = loaded::<T>(qp, theta);
     let mut z: Vec<T> = z0.iter().map(|v| T::of(*v)).collect();
     let mut y = z.clone();
     let mut hy = vec![T::of(0.0); n];
@@ -124,8 +131,8 @@ fn run_admm<T: Real>(
     z0: &[f64],
     k: usize,
 ) -> Vec<f64> {
-    let (n, nt) = (qp.n(), qp.n_theta());
-    let (h, f) = (qp.h(), qp.f());
+    let n = qp.n();
+    let h = qp.h();
     let mv = |m: &dyn Fn(usize, usize) -> T, x: &[T]| -> Vec<T> {
         let mut y = vec![T::of(0.0); n];
         for (j, xj) in x.iter().enumerate() {
@@ -135,17 +142,7 @@ fn run_admm<T: Real>(
         }
         y
     };
-    let q: Vec<T> = (0..n)
-        .map(|i| {
-            let mut acc = T::of(qp.q0()[i]);
-            for j in 0..nt {
-                acc += T::of(f[(i, j)]) * T::of(theta[j]);
-            }
-            acc
-        })
-        .collect();
-    let lo: Vec<T> = qp.zset().lower().iter().map(|v| T::of(*v)).collect();
-    let hi: Vec<T> = qp.zset().upper().iter().map(|v| T::of(*v)).collect();
+    let (q, lo, hi) = loaded::<T>(qp, theta);
     let clamp = |x: T, i: usize| {
         let x = if lo[i] > x { lo[i] } else { x };
         if hi[i] < x { hi[i] } else { x }

@@ -238,11 +238,13 @@ pub fn short_reason(r: &PairReason) -> String {
         PairReason::F32 { why, .. } => match why {
             F32Void::JointNotCovered => "f32: the joint certificate has no rounding model".into(),
             F32Void::NotCovered => "f32: the f64 certificate is void".into(),
-            // Theorem 1's f32 arm; the global arm has its own models (pg, admm, their Jacobi
-            // variants) and follows as "; no global K" when it certifies none.
-            F32Void::RoundingModel { .. } => "f32: no Theorem 1 rounding model".into(),
+            // Theorem 1's f32 arm (every method's K-step model); the global arm follows as
+            // "; no global K" when it certifies none.
+            F32Void::RoundingModel { .. } => "f32: the rounding model failed".into(),
             F32Void::Void(v) => match v {
-                ScalarVoid::NotCovered { .. } => "f32: no Theorem 1 rounding model".into(),
+                // V-FISTA without its incremental rate, FISTA-Jacobi, the structured product,
+                // general rows: the sentence names which.
+                ScalarVoid::NotCovered { .. } => "f32: no rounding model here".into(),
                 ScalarVoid::ContractionBroken { window, .. } => {
                     format!("f32: the rounding breaks the contraction (window m = {window})")
                 }

@@ -146,7 +146,9 @@ impl IterationRounding {
 
 /// The rounding model of `method` on `qp` in precision `u` (module docs), or why it is not
 /// covered. Projected gradient only: its rate r is a Euclidean contraction of the whole
-/// iteration; FISTA's model is [`fista_rounding`] (it has no such contraction).
+/// iteration, so one step's model is all its K-step bound needs; FISTA's step model is
+/// [`fista_rounding`] and ADMM's K-step one [`admm_rounding`] (their K-step bounds, and the
+/// certificates' use of them, are in `iss-certificate`).
 pub fn iteration_rounding(
     method: &Method,
     qp: &ParametricQp,
@@ -161,17 +163,16 @@ pub fn iteration_rounding(
         },
         MethodKind::Fista(_) => {
             return void(
-                "FISTA: its state (x, x₋) has no Euclidean contraction for Theorem 1's \
-                 perturbed-contraction bound; its rounding is covered by the global loop \
-                 certificate through the inner rate's storage (`fista_rounding`)"
+                "FISTA: its state (x, x₋) has no Euclidean contraction, so one step's \
+                 perturbation does not bound K steps; its K-step model goes through the inner \
+                 rate's storage (`fista_rounding`)"
                     .into(),
             );
         }
         MethodKind::Admm(_) => {
             return void(
-                "ADMM: Theorem 1's f32 bound (a Euclidean contraction of the iterate itself) \
-                 is derived for pg only; ADMM's rounding (it contracts on s = v + y/ρ, not on \
-                 v) is covered by the global loop certificate (`admm_rounding`)"
+                "ADMM: it contracts on s = v + y/ρ, not on the iterate v, so a one-step model \
+                 of v does not bound K steps; its K-step model is `admm_rounding`"
                     .into(),
             );
         }
@@ -693,7 +694,7 @@ mod tests {
             let e = iteration_rounding(&m, &p, F32_UNIT_ROUNDOFF).expect_err("not covered");
             assert!(!e.reason.is_empty());
         }
-        // FISTA's model is its own (no Euclidean contraction for Theorem 1's bound).
+        // FISTA's model is its own (no Euclidean contraction of one step).
         assert!(
             iteration_rounding(&Method::FISTA, &p, F32_UNIT_ROUNDOFF)
                 .expect_err("not covered")

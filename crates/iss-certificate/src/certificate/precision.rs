@@ -1,13 +1,17 @@
 //! Theorem 1 in a given precision (issue 36): the rounding of the estimator's arithmetic as
 //! an extra input with its own gain (docs/theory.md, "Certified f32: rounding as an input").
 //!
-//! Per window length m the iteration's rounding model ([`qp_iter::rounding`]) gives
-//! ‖fl(Φ)(z) − Φ(z)‖ ≤ a_m‖z‖ + b_m‖θ‖ + c_m and the exact rate r_m. Then:
+//! Per window length m the K-step rounding model of the method
+//! (`lure::global::StepRounding`, built on [`qp_iter::rounding`]: projected gradient, V-FISTA
+//! where its incremental storage exists, ADMM and the Jacobi variants) gives
+//! ‖zᴷ − z*‖ ≤ φ_u,m(K)‖z⁰ − z*‖ + β_z‖z*‖ + β_θ‖θ‖ + c_d towards the optimum of the exact
+//! data, in ‖D⁻¹·‖ for the Jacobi variants (× d_max into z's norm). Then:
 //!
-//! 1. K computed iterations contract with φ_u(K) = max_m (r_m + a_m)ᴷ towards the optimum of
-//!    the exact data and add at most g_d‖θ_t‖ + c_d ([`ScalarCertificate::rounding_gain`],
-//!    [`ScalarCertificate::rounding_offset`]); the premise is r_m + a_m < 1 (it fails where
-//!    u·κ(H) is not small: the exact reason names the window).
+//! 1. K computed iterations contract with φ_u(K) = max_m κ(D_m)φ_u,m(φ(K)/κ(D_m), K)
+//!    (projected gradient: max_m (r_m + a_m)ᴷ) and add at most g_d‖θ_t‖ + c_d
+//!    ([`ScalarCertificate::rounding_gain`], [`ScalarCertificate::rounding_offset`];
+//!    ‖z*‖ ≤ o_m + L_Φ‖θ‖); the premise is q_m < 1 in every window (it fails where u·κ(H) is
+//!    not small: the exact reason names the window).
 //! 2. Props. 1 and 3 with φ → φ_u and φL_Φ → φ_uL_Φ + g_d in every data gain
 //!    ([`crate::analysis::IssAnalysis::at_perturbed`]), plus the rounding of x̂'s
 //!    propagation through the window, ‖r_t‖ ≤ ρ_z‖zᴷ_t‖ + ρ_u‖u window‖, which enters e_t
@@ -31,6 +35,7 @@ use qp_iter::rounding::{
 use serde::Serialize;
 
 use super::{ClosedLoopCertificate, VoidReason};
+use crate::lure::global::{PrecisionVoid, StepRounding};
 use closed_loop::scenario::ResolvedScenario;
 use closed_loop::sim::ClosedLoopError;
 use lti_model::LtiSystem;
@@ -135,19 +140,29 @@ pub struct WindowRounding {
     pub origin_offset: f64,
 }
 
-/// The per-window models of `solver` on the scenario's MHE in unit round-off `u`, or why the
-/// rounding is not covered (the first reason).
-pub fn window_roundings(
+/// One window length m with a model `T` of its computed iteration, L_Φ, ‖z*(0)‖ and x̂'s
+/// propagation rounding.
+struct Window<T> {
+    m: usize,
+    model: T,
+    propagation: PropagationRounding,
+    l_phi: f64,
+    origin_offset: f64,
+}
+
+/// Every window of the scenario's MHE with `model` of its QP, or the first reason (naming
+/// the window) a model, L_Φ or ‖z*(0)‖ is missing.
+fn per_window<T>(
     resolved: &ResolvedScenario,
     cert: &ClosedLoopCertificate,
-    solver: Method,
     u: f64,
-) -> Result<Result<Vec<WindowRounding>, String>, ClosedLoopError> {
+    model: impl Fn(&qp_iter::ParametricQp) -> Result<T, String>,
+) -> Result<Result<Vec<Window<T>>, String>, ClosedLoopError> {
     let problem = resolved.mhe_problem()?;
     let sys = problem.system();
     let mut out = Vec::new();
     for (m, w) in problem.windows().iter().enumerate() {
-        let iteration = match iteration_rounding(&solver, w.qp(), u) {
+        let model = match model(w.qp()) {
             Ok(r) => r,
             Err(e) => return Ok(Err(format!("window m = {m}: {e}"))),
         };
@@ -167,15 +182,40 @@ pub fn window_roundings(
                 "window m = {m}: L_Φ or ‖z*(0)‖ has no finite certified bound"
             )));
         }
-        out.push(WindowRounding {
+        out.push(Window {
             m,
-            iteration,
+            model,
             propagation: propagation_rounding(sys, m, u),
             l_phi,
             origin_offset,
         });
     }
     Ok(Ok(out))
+}
+
+/// The per-window one-step models of projected gradient (`solver`) on the scenario's MHE in
+/// unit round-off `u`, or why the rounding is not covered (the first reason): what
+/// [`DeviationBound`] tracks. Theorem 1 itself takes every method's K-step model.
+pub fn window_roundings(
+    resolved: &ResolvedScenario,
+    cert: &ClosedLoopCertificate,
+    solver: Method,
+    u: f64,
+) -> Result<Result<Vec<WindowRounding>, String>, ClosedLoopError> {
+    let windows = per_window(resolved, cert, u, |qp| {
+        iteration_rounding(&solver, qp, u).map_err(|e| e.to_string())
+    })?;
+    Ok(windows.map(|ws| {
+        ws.into_iter()
+            .map(|w| WindowRounding {
+                m: w.m,
+                iteration: w.model,
+                propagation: w.propagation,
+                l_phi: w.l_phi,
+                origin_offset: w.origin_offset,
+            })
+            .collect()
+    }))
 }
 
 /// Why Theorem 1 with the rounding folded in certifies no K for a solver in a scalar type.
@@ -255,10 +295,10 @@ impl std::fmt::Display for ScalarVoid {
                 rounding,
             } => write!(
                 f,
-                "void: rounding breaks the contraction in window m = {window} (rate r = {} plus \
-                 the rounding's a = {} is ≥ 1; 1 − r ≈ 2/κ(H) is below (n + 5)·u·(1 + α‖|H|‖)): \
-                 improve the conditioning (a shorter horizon, the Jacobi scaling once modelled) \
-                 or run in f64",
+                "void: rounding breaks the contraction in window m = {window} (the exact rate \
+                 r = {} plus the rounding's {} is ≥ 1; for projected gradient 1 − r ≈ 2/κ(H) is \
+                 below (n + 5)·u·(1 + α‖|H|‖)): improve the conditioning (a shorter horizon, \
+                 the Jacobi scaling) or run in f64",
                 sig4(*rate),
                 sig4(*rounding)
             ),
@@ -303,8 +343,12 @@ pub struct ScalarCertificate {
     pub k_min: Option<usize>,
     /// The f64 certificate's K_min (the certificate as computed), for comparison.
     pub k_min_f64: Option<usize>,
-    /// max_m (r_m + a_m): the rate of the computed iteration (0 for f64).
+    /// max_m q_m: the rate of the computed iteration (projected gradient: r_m + a_m; 0 for
+    /// f64).
     pub perturbed_rate: f64,
+    /// φ_u(K_min): the computed iteration's factor on ‖z⁰ − z*‖ in z's Euclidean norm at K_min
+    /// (and every K ≥ K_min; projected gradient: qᴷ), when certified in a rounded scalar.
+    pub phi_u: Option<f64>,
     /// g_d: the rounding's gain from ‖θ_t‖ into ε_t (0 for f64).
     pub rounding_gain: f64,
     /// c_d: its constant part (the lim-sup of ε gains c_d/(1 − φ_u(K))).
@@ -325,10 +369,14 @@ impl ScalarCertificate {
     }
 }
 
-/// The f32 rounding's constants of Theorem 1 (docs/theory.md, "Certified f32", steps 3–4).
-#[derive(Debug, Clone, Copy)]
+/// The rounding's constants of Theorem 1 (docs/theory.md, "Certified f32", steps 3–4), from
+/// every window's K-step model (`lure::global::StepRounding`: projected gradient, V-FISTA,
+/// ADMM and the Jacobi variants), in z's Euclidean norm.
 struct Fold {
-    /// max_m (r_m + a_m).
+    /// Per window: the K-step model and κ(D_m) = d_max/d_min (1 without a scaling), the
+    /// factor from the model's norm ‖D⁻¹·‖ to the Euclidean one on the start.
+    windows: Vec<(StepRounding, f64)>,
+    /// max_m q_m: the computed iteration's rate.
     q: f64,
     g_d: f64,
     c_d: f64,
@@ -338,25 +386,29 @@ struct Fold {
 }
 
 impl Fold {
-    fn new(windows: &[WindowRounding], u: f64) -> Self {
-        let q = windows
-            .iter()
-            .map(|w| w.iteration.perturbed_rate())
-            .fold(0.0, f64::max);
-        let s = 1.0 / (1.0 - q);
-        let (mut g_d, mut c_d, mut rho_z, mut rho_u, mut l_phi) =
-            (0.0f64, 0.0f64, 0.0f64, 0.0f64, 0.0f64);
+    fn new(windows: Vec<Window<StepRounding>>) -> Self {
+        let (mut q, mut g_d, mut c_d, mut rho_z, mut rho_u, mut l_phi) =
+            (0.0f64, 0.0f64, 0.0f64, 0.0f64, 0.0f64, 0.0f64);
+        let mut models = Vec::with_capacity(windows.len());
         for w in windows {
-            let it = &w.iteration;
-            // ‖zᴷ − z*(θ)‖ ≤ q^K(‖z⁰ − z*(θ)‖ + L u‖θ‖) + (a‖z*(θ̃)‖ + b‖θ̃‖ + c)S + L u‖θ‖,
-            // θ̃ = the data rounded to the scalar, ‖θ̃‖ ≤ (1 + u)‖θ‖, ‖z*(θ̃)‖ ≤ o + L‖θ̃‖.
-            g_d = g_d.max(2.0 * w.l_phi * u + (it.a * w.l_phi + it.b) * (1.0 + u) * s);
-            c_d = c_d.max((it.a * w.origin_offset + it.c) * s);
+            let st = &w.model;
+            // ‖D⁻¹(zᴷ − z*)‖ ≤ φ_u‖D⁻¹(z⁰ − z*)‖ + β_z‖z*‖ + β_θ‖θ‖ + c_d with z* = z*(θ) of the
+            // exact data (β_θ counts θ's rounding to the scalar) and ‖z*‖ ≤ o_m + L_Φ‖θ‖;
+            // × d_max into z's norm (d = 1 without a scaling).
+            let (d_max, kappa) = match st {
+                StepRounding::Jacobi(j) => (j.d_max, j.d_max / j.d_min),
+                _ => (1.0, 1.0),
+            };
+            q = q.max(st.perturbed_rate());
+            g_d = g_d.max(d_max * (st.beta_z() * w.l_phi + st.beta_theta()));
+            c_d = c_d.max(d_max * (st.beta_z() * w.origin_offset + st.offset_d()));
             rho_z = rho_z.max(w.propagation.from_z);
             rho_u = rho_u.max(w.propagation.from_u);
             l_phi = l_phi.max(w.l_phi);
+            models.push((w.model, kappa));
         }
         Self {
+            windows: models,
             q,
             g_d,
             c_d,
@@ -365,12 +417,23 @@ impl Fold {
             l_phi,
         }
     }
+
+    /// φ_u(K) in z's Euclidean norm, non-increasing in K, from Theorem 1's φ(K) = `phi_k`:
+    /// per window κ(D_m)·φ_u,m(φ(K)/κ(D_m), K) — Theorem 1's φ(K) ≥ κ(D_m)·c_m r_mᴷ, the
+    /// window's own bound converted from ‖D⁻¹·‖ (docs/theory.md, "Preconditioned maps"), so
+    /// φ(K)/κ(D_m) bounds the scaled map's K steps.
+    fn phi_u(&self, phi_k: f64, k: usize) -> f64 {
+        self.windows
+            .iter()
+            .map(|(st, kappa)| kappa * st.phi_u(phi_k / kappa, k))
+            .fold(0.0, f64::max)
+    }
 }
 
 /// Margin and self-loop of Theorem 1 at K with the rounding folded in (module docs, step 2).
 /// Returns (certified at K, margin, self-loop s).
 fn margin_at(a: &crate::analysis::IssAnalysis, fold: &Fold, k: usize, u: f64) -> (bool, f64, f64) {
-    let phi = fold.q.powi(i32::try_from(k).unwrap_or(i32::MAX));
+    let phi = fold.phi_u(a.phi(k), k);
     let g = a.at_perturbed(k, phi, fold.g_d);
     let i = &a.inputs;
     let m = i.horizon as f64;
@@ -429,6 +492,7 @@ pub fn certify_scalar(
         k_min: k_min_f64,
         k_min_f64,
         perturbed_rate: 0.0,
+        phi_u: None,
         rounding_gain: 0.0,
         rounding_offset: 0.0,
         self_loop: None,
@@ -466,6 +530,7 @@ pub fn certify_rounded(
         k_min: None,
         k_min_f64,
         perturbed_rate: 0.0,
+        phi_u: None,
         rounding_gain: 0.0,
         rounding_offset: 0.0,
         self_loop: None,
@@ -489,20 +554,26 @@ pub fn certify_rounded(
     if !mpc_vanishes_at_origin(resolved)? {
         return void(out, ScalarVoid::MpcNotZeroAtOrigin);
     }
-    let windows = match window_roundings(resolved, cert, solver, u)? {
+    let model = |qp: &qp_iter::ParametricQp| {
+        StepRounding::for_qp(solver, qp, u).map_err(|e| match e {
+            PrecisionVoid::NotCovered { why } => why,
+            other => other.to_string(),
+        })
+    };
+    let windows = match per_window(resolved, cert, u, model)? {
         Ok(w) => w,
         Err(why) => return void(out, ScalarVoid::NotCovered { why }),
     };
-    if let Some(w) = windows.iter().find(|w| !w.iteration.contracts()) {
-        let it = &w.iteration;
+    if let Some(w) = windows.iter().find(|w| !(w.model.perturbed_rate() < 1.0)) {
+        let (rate, rounding) = w.model.rate_and_rounding();
         let why = ScalarVoid::ContractionBroken {
             window: w.m,
-            rate: it.rate,
-            rounding: it.a,
+            rate,
+            rounding,
         };
         return void(out, why);
     }
-    let fold = Fold::new(&windows, u);
+    let fold = Fold::new(windows);
     let mut out = ScalarCertificate {
         perturbed_rate: fold.q,
         rounding_gain: fold.g_d,
@@ -512,7 +583,8 @@ pub fn certify_rounded(
     let a = &sc.analysis;
     let certified = |k: usize| margin_at(a, &fold, k, u).0;
     let k0 = k_min_f64.unwrap_or(1).max(1);
-    // The margin increases with K (every gain increases with φ_u(K) = qᴷ, q < 1).
+    // The margin increases with K: every gain increases with φ_u(K), which is non-increasing
+    // (`Fold::phi_u`: each window's model bounds every K' ≥ K).
     let (limit, _, s) = margin_at(a, &fold, k_max, u);
     if !limit {
         let why = ScalarVoid::NoK {
@@ -540,6 +612,7 @@ pub fn certify_rounded(
     out.k_min = Some(hi);
     out.margin = Some(margin);
     out.self_loop = Some(s);
+    out.phi_u = Some(fold.phi_u(a.phi(hi), hi));
     Ok(out)
 }
 

@@ -9,12 +9,23 @@ use faer::Mat;
 use iss_certificate::lure::global::StepRounding;
 use qp_iter::active_set::{ActiveSetSettings, ActiveSetSolver};
 use qp_iter::rounding::F32_UNIT_ROUNDOFF;
-use qp_iter::{BoxSet, IterationMap, Method, MethodMap, ParametricQp, Scaling};
+use qp_iter::{BoxSet, Certificate, IterationMap, Method, MethodMap, ParametricQp, Scaling};
 use rand::{Rng, SeedableRng};
 use rand_chacha::ChaCha8Rng;
 
+/// The test QPs' κ for `method` on seed `seed`: V-FISTA's incremental storage (Theorem L1,
+/// sector multipliers) exists up to κ ≈ 5 (test below), so 1.5 … 4.4 there; projected
+/// gradient's and ADMM's contraction at every κ, so 10 … 10⁴.
+pub(super) fn kappa_of(method: Method, seed: u64) -> f64 {
+    if method == Method::FISTA {
+        1.5 + 0.1 * (seed % 30) as f64
+    } else {
+        10f64.powi(1 + (seed % 4) as i32)
+    }
+}
+
 /// A random box QP: H = diag(1 … κ, geometric) + GGᵀ/(10n); every third variable free.
-fn qp(seed: u64, n: usize, nt: usize, kappa: f64) -> ParametricQp {
+pub(super) fn qp(seed: u64, n: usize, nt: usize, kappa: f64) -> ParametricQp {
     let mut rng = ChaCha8Rng::seed_from_u64(seed);
     let g = Mat::<f64>::from_fn(n, n, |_, _| rng.random_range(-1.0..1.0));
     let mut h = &g * g.transpose() * faer::Scale(0.1 / n as f64);
@@ -182,8 +193,178 @@ fn dist(a: &[f64], b: &[f64]) -> f64 {
         .sqrt()
 }
 
-fn norm(v: &[f64]) -> f64 {
+pub(super) fn norm(v: &[f64]) -> f64 {
     v.iter().map(|x| x * x).sum::<f64>().sqrt()
+}
+
+/// ADMM's stored inverses M_ρ, M (by columns), ρ and α.
+type AdmmData = (Vec<f64>, Vec<f64>, f64, f64);
+
+/// One method on one QP as the embedded estimator runs it: the K-step rounding model, the
+/// exact map's certificate, the map that runs (the scaled problem's for Jacobi) and
+/// z = D y's d (all 1 without scaling: every bound is on ‖D⁻¹·‖), and the exact optimum's
+/// solver.
+pub(super) struct Setup {
+    pub(super) method: Method,
+    /// The QP as given (its box is z's).
+    pub(super) qp: ParametricQp,
+    pub(super) model: StepRounding,
+    cert: Certificate,
+    pub(super) d: Vec<f64>,
+    jacobi: bool,
+    /// The problem the iteration runs on (the scaled one for Jacobi).
+    pub(super) run_qp: ParametricQp,
+    /// (step, momentum) of the gradient methods.
+    step: f64,
+    beta: f64,
+    admm: Option<AdmmData>,
+    exact: ActiveSetSolver,
+    /// The solver as set up, never called.
+    cold: ActiveSetSolver,
+}
+
+/// One f32 run of K iterations against the K-step model.
+pub(super) struct Eval {
+    /// ‖D⁻¹(zᴷ − z*)‖ of the f32 run.
+    pub(super) err: f64,
+    /// φ_u(K)e₀ + β_z‖z*‖ + β_θ‖θ‖ + c_d.
+    pub(super) bound: f64,
+    /// φ(K)e₀: the exact-arithmetic bound alone.
+    pub(super) exact_bound: f64,
+    /// ‖f32 run − exact run‖ and its bound φ_u(K at φ = 0)e₀ + inputs (not for Jacobi: its
+    /// rounded y⁰ starts the computed run elsewhere).
+    pub(super) dev: Option<(f64, f64)>,
+    /// The exact optimum's and the f64 run's own error (≈ 1e-15 relative).
+    pub(super) allowance: f64,
+}
+
+impl Setup {
+    /// `method` on `p` (panics where the model does not cover it).
+    pub(super) fn new(method: Method, p: &ParametricQp) -> Self {
+        let n = p.n();
+        let model = match StepRounding::for_qp(method, p, F32_UNIT_ROUNDOFF) {
+            Ok(m) => m,
+            Err(e) => panic!("{}: {e}", method.name()),
+        };
+        let map = method.build(p.clone()).expect("builds");
+        let (run_qp, d, inner) = match &map {
+            MethodMap::Scaled(s) => (s.inner().problem().clone(), s.scaling().to_vec(), s.inner()),
+            other => (p.clone(), vec![1.0; n], other),
+        };
+        let jacobi = d.iter().any(|v| *v != 1.0);
+        let cert = inner.certificate().clone();
+        let (step, beta) = match inner {
+            MethodMap::Pg(m) => (m.alpha(), 0.0),
+            MethodMap::Fista(m) => (m.step_size(), m.momentum()),
+            _ => (0.0, 0.0),
+        };
+        let admm = match inner {
+            MethodMap::Admm(a) => {
+                let (mr, mi) = a.stored_inverses();
+                let cols = |m: &qp_iter::kernel::PaddedSymmetric| -> Vec<f64> {
+                    (0..n * n)
+                        .map(|k| m.as_slice()[(k / n) * m.ld() + k % n])
+                        .collect()
+                };
+                Some((cols(mr), cols(mi), a.rho(), a.relaxation()))
+            }
+            _ => None,
+        };
+        let exact = ActiveSetSolver::new(p, ActiveSetSettings::default()).expect("solver");
+        Self {
+            method,
+            qp: p.clone(),
+            model,
+            cert,
+            d,
+            jacobi,
+            run_qp,
+            step,
+            beta,
+            admm,
+            cold: exact.clone(),
+            exact,
+        }
+    }
+
+    /// z*(θ), the exact optimum (the active-set solver in f64, warm-started from the last
+    /// call's working set).
+    pub(super) fn optimum(&mut self, theta: &[f64]) -> Vec<f64> {
+        self.exact.solve(theta).expect("exact optimum");
+        self.exact.z().to_vec()
+    }
+
+    /// z*(θ) from a cold start: a pure function of θ (the warm start's path can move the
+    /// last bits).
+    pub(super) fn optimum_cold(&self, theta: &[f64]) -> Vec<f64> {
+        let mut s = self.cold.clone();
+        s.solve(theta).expect("exact optimum");
+        s.z().to_vec()
+    }
+
+    /// ‖D⁻¹(a − b)‖.
+    pub(super) fn wdist(&self, a: &[f64], b: &[f64]) -> f64 {
+        a.iter()
+            .zip(b)
+            .zip(&self.d)
+            .map(|((a, b), d)| ((a - b) / d).powi(2))
+            .sum::<f64>()
+            .sqrt()
+    }
+
+    /// K iterations from the f32 start `z0` at `theta`, in f32 and exactly, against the
+    /// model (`zs` = z*(θ)).
+    pub(super) fn eval(&self, theta: &[f64], z0: &[f64], zs: &[f64], k: usize) -> Eval {
+        let d = &self.d;
+        let fista = self.method == Method::FISTA;
+        // y⁰ = z⁰/d̃ and z = d̃·y in the scalar with the stored d̃ (the embedded estimator's
+        // warm start and output on a scaled problem).
+        let y0_32: Vec<f64> = z0
+            .iter()
+            .zip(d)
+            .map(|(z, d)| f64::from(*z as f32 / *d as f32))
+            .collect();
+        let (rq, step, beta) = (&self.run_qp, self.step, self.beta);
+        let run_any = |f32_run: bool, y0: &[f64]| match &self.admm {
+            Some((mr, mi, rho, alpha)) if f32_run => {
+                run_admm::<f32>(rq, mr, mi, *rho, *alpha, theta, y0, k)
+            }
+            Some((mr, mi, rho, alpha)) => run_admm::<f64>(rq, mr, mi, *rho, *alpha, theta, y0, k),
+            None if f32_run => run::<f32>(rq, fista, step, beta, theta, y0, k),
+            None => run::<f64>(rq, fista, step, beta, theta, y0, k),
+        };
+        let y32 = run_any(true, &y0_32);
+        let zk: Vec<f64> = y32
+            .iter()
+            .zip(d)
+            .map(|(y, d)| f64::from(*d as f32 * *y as f32))
+            .collect();
+        let e0 = self.wdist(z0, zs);
+        let err = self.wdist(&zk, zs);
+        let model = &self.model;
+        let inputs =
+            model.beta_z() * norm(zs) + model.beta_theta() * norm(theta) + model.offset_d();
+        let phi = self.cert.phi(k);
+        // The rounding's own part, against the exact run from the same z⁰: what the model
+        // adds to φ(K) (φ_u at φ(K) = 0: projected gradient's qᴷ − rᴷ, V-FISTA's
+        // c_x s_𝟙[…]), the derivations' Δ_K.
+        let dev = (!self.jacobi).then(|| {
+            let y0: Vec<f64> = z0.iter().zip(d).map(|(z, d)| z / d).collect();
+            let exact_run: Vec<f64> = run_any(false, &y0)
+                .iter()
+                .zip(d)
+                .map(|(y, d)| y * d)
+                .collect();
+            (dist(&zk, &exact_run), model.phi_u_at(0.0, k) * e0 + inputs)
+        });
+        Eval {
+            err,
+            bound: model.phi_u_at(phi, k) * e0 + inputs,
+            exact_bound: phi * e0,
+            dev,
+            allowance: 1e-12 * (1.0 + norm(zs) + e0),
+        }
+    }
 }
 
 /// The bound holds on 30 QPs × 5 K × 12 starts per method; reports the largest
@@ -205,57 +386,10 @@ fn k_computed_iterations_stay_within_the_k_step_model() {
         let mut needed = 0usize;
         for seed in 0..30u64 {
             let (n, nt) = (3 + (seed as usize % 14), 2 + (seed as usize % 5));
-            // V-FISTA's incremental storage (Theorem L1, sector multipliers) exists up to
-            // κ ≈ 5 (test below); projected gradient's contraction at every κ.
-            let kappa = if method == Method::FISTA {
-                1.5 + 0.1 * (seed % 30) as f64
-            } else {
-                10f64.powi(1 + (seed % 4) as i32)
-            };
-            let p = qp(seed, n, nt, kappa);
-            let model = match StepRounding::for_qp(method, &p, F32_UNIT_ROUNDOFF) {
-                Ok(m) => m,
-                Err(e) => panic!("{}: {e}", method.name()),
-            };
+            let p = qp(seed, n, nt, kappa_of(method, seed));
+            let mut setup = Setup::new(method, &p);
+            let model = &setup.model;
             assert!(model.perturbed_rate() < 1.0, "seed {seed}: {model:?}");
-            let map = method.build(p.clone()).expect("builds");
-            // The map that runs (the scaled problem's for Jacobi) and z = D y's d (all 1
-            // without scaling): every bound is on ‖D⁻¹·‖.
-            let (run_qp, d, inner) = match &map {
-                MethodMap::Scaled(s) => {
-                    (s.inner().problem().clone(), s.scaling().to_vec(), s.inner())
-                }
-                other => (p.clone(), vec![1.0; n], other),
-            };
-            let jacobi = d.iter().any(|v| *v != 1.0);
-            let cert = inner.certificate();
-            // (step, momentum) of the gradient methods; ADMM's stored inverses, ρ and α.
-            let (step, beta) = match inner {
-                MethodMap::Pg(m) => (m.alpha(), 0.0),
-                MethodMap::Fista(m) => (m.step_size(), m.momentum()),
-                _ => (0.0, 0.0),
-            };
-            let admm = match inner {
-                MethodMap::Admm(a) => {
-                    let (mr, mi) = a.stored_inverses();
-                    let cols = |m: &qp_iter::kernel::PaddedSymmetric| -> Vec<f64> {
-                        (0..n * n)
-                            .map(|k| m.as_slice()[(k / n) * m.ld() + k % n])
-                            .collect()
-                    };
-                    Some((cols(mr), cols(mi), a.rho(), a.relaxation()))
-                }
-                _ => None,
-            };
-            let wdist = |a: &[f64], b: &[f64]| -> f64 {
-                a.iter()
-                    .zip(b)
-                    .zip(&d)
-                    .map(|((a, b), d)| ((a - b) / d).powi(2))
-                    .sum::<f64>()
-                    .sqrt()
-            };
-            let mut exact = ActiveSetSolver::new(&p, ActiveSetSettings::default()).expect("solver");
             let mut rng = ChaCha8Rng::seed_from_u64(5000 + seed);
             for k in [1usize, 2, 5, 30, 300] {
                 for trial in 0..12 {
@@ -263,8 +397,7 @@ fn k_computed_iterations_stay_within_the_k_step_model() {
                     let theta: Vec<f64> = (0..nt)
                         .map(|_| scale * rng.random_range(-1.0..1.0))
                         .collect();
-                    exact.solve(&theta).expect("exact optimum");
-                    let zs = exact.z().to_vec();
+                    let zs = setup.optimum(&theta);
                     // Half the starts random, half far out along the slowest direction.
                     let far = if trial % 2 == 0 { 1.0 } else { 1e3 };
                     let z0: Vec<f64> = (0..n)
@@ -272,71 +405,25 @@ fn k_computed_iterations_stay_within_the_k_step_model() {
                             f64::from((zs[i] + far * scale * rng.random_range(-1.0..1.0)) as f32)
                         })
                         .collect();
-                    let fista = method == Method::FISTA;
-                    // y⁰ = z⁰/d̃ and z = d̃·y in the scalar with the stored d̃ (the
-                    // embedded estimator's warm start and output on a scaled problem).
-                    let y0_32: Vec<f64> = z0
-                        .iter()
-                        .zip(&d)
-                        .map(|(z, d)| f64::from(*z as f32 / *d as f32))
-                        .collect();
-                    let run_any = |f32_run: bool, y0: &[f64]| match &admm {
-                        Some((mr, mi, rho, alpha)) if f32_run => {
-                            run_admm::<f32>(&run_qp, mr, mi, *rho, *alpha, &theta, y0, k)
-                        }
-                        Some((mr, mi, rho, alpha)) => {
-                            run_admm::<f64>(&run_qp, mr, mi, *rho, *alpha, &theta, y0, k)
-                        }
-                        None if f32_run => run::<f32>(&run_qp, fista, step, beta, &theta, y0, k),
-                        None => run::<f64>(&run_qp, fista, step, beta, &theta, y0, k),
-                    };
-                    let y32 = run_any(true, &y0_32);
-                    let zk: Vec<f64> = y32
-                        .iter()
-                        .zip(&d)
-                        .map(|(y, d)| f64::from(*d as f32 * *y as f32))
-                        .collect();
-                    let y0: Vec<f64> = z0.iter().zip(&d).map(|(z, d)| z / d).collect();
-                    let exact_run: Vec<f64> = run_any(false, &y0)
-                        .iter()
-                        .zip(&d)
-                        .map(|(y, d)| y * d)
-                        .collect();
-                    let e0 = wdist(&z0, &zs);
-                    let err = wdist(&zk, &zs);
-                    let inputs = model.beta_z() * norm(&zs)
-                        + model.beta_theta() * norm(&theta)
-                        + model.offset_d();
-                    let bound = model.phi_u(cert.phi(k), k) * e0 + inputs;
-                    // The exact optimum's and the f64 run's own error (≈ 1e-15 relative).
-                    let allowance = 1e-12 * (1.0 + norm(&zs) + e0);
+                    let ev = setup.eval(&theta, &z0, &zs, k);
+                    let (err, bound, allowance) = (ev.err, ev.bound, ev.allowance);
                     // Runs the exact-arithmetic bound alone would not cover.
-                    needed += usize::from(err > cert.phi(k) * e0 + allowance);
+                    needed += usize::from(err > ev.exact_bound + allowance);
                     assert!(
                         err <= bound + allowance,
                         "{} seed {seed} K {k}: ‖D⁻¹(zᴷ − z*)‖ = {err:e} > bound {bound:e}",
                         method.name()
                     );
-                    // The rounding's own part, against the exact run from the same z⁰: what
-                    // the model adds to φ(K) (φ_u at φ(K) = 0: projected gradient's
-                    // qᴷ − rᴷ, V-FISTA's c_x s_𝟙[…]), the derivations' Δ_K. (Not the
-                    // Jacobi variant's: its rounded y⁰ starts the computed run elsewhere.)
-                    if jacobi {
-                        worst = worst.max(err / bound);
-                        checked += 1;
-                        continue;
-                    }
-                    let extra = model.phi_u(0.0, k);
-                    let dev = dist(&zk, &exact_run);
-                    let dev_bound = extra * e0 + inputs;
-                    assert!(
-                        dev <= dev_bound + allowance,
-                        "{} seed {seed} K {k}: f32 − exact run {dev:e} > {dev_bound:e}",
-                        method.name()
-                    );
-                    worst_dev = worst_dev.max(dev / dev_bound);
                     worst = worst.max(err / bound);
                     checked += 1;
+                    if let Some((dev, dev_bound)) = ev.dev {
+                        assert!(
+                            dev <= dev_bound + allowance,
+                            "{} seed {seed} K {k}: f32 − exact run {dev:e} > {dev_bound:e}",
+                            method.name()
+                        );
+                        worst_dev = worst_dev.max(dev / dev_bound);
+                    }
                 }
             }
         }
@@ -379,4 +466,51 @@ fn fista_without_an_incremental_rate_is_not_covered_with_the_reason() {
     );
     // The same QP is covered for projected gradient.
     assert!(StepRounding::for_qp(Method::PG, &p, F32_UNIT_ROUNDOFF).is_ok());
+}
+
+/// What the certificates take of the K-step model (`StepRounding::phi_u`) bounds the exact
+/// K-step factor (`phi_u_at`) at every later K' ≥ K and is non-increasing — "certified from
+/// K_min on" rests on it — while `phi_u_at` itself rises before it falls for some method
+/// (qᴷ − rᴷ with q > r), so the envelope is needed.
+#[test]
+fn the_certificates_phi_u_bounds_every_later_k_and_does_not_increase() {
+    let mut rises = 0usize;
+    for method in [
+        Method::PG,
+        Method::FISTA,
+        Method::PG.with_scaling(Scaling::Jacobi),
+        Method::ADMM,
+        Method::ADMM_PR,
+        Method::ADMM_PR.with_scaling(Scaling::Jacobi),
+    ] {
+        for seed in 0..6u64 {
+            let p = qp(seed, 4 + seed as usize, 3, kappa_of(method, seed));
+            let setup = Setup::new(method, &p);
+            let (m, phi) = (&setup.model, |k: usize| setup.cert.phi(k));
+            // φ = 0 isolates the rounding's part, where the rise is.
+            for phi_of in [&phi as &dyn Fn(usize) -> f64, &|_| 0.0] {
+                let at: Vec<f64> = (0..400).map(|k| m.phi_u_at(phi_of(k), k)).collect();
+                let env: Vec<f64> = (0..400).map(|k| m.phi_u(phi_of(k), k)).collect();
+                rises += at.windows(2).filter(|w| w[1] > w[0]).count();
+                for k in 0..400 {
+                    let later = at[k..].iter().copied().fold(0.0, f64::max);
+                    assert!(
+                        env[k] >= later * (1.0 - 1e-12),
+                        "{} seed {seed} K {k}: φ_u {:e} < later φ_u_at {later:e}",
+                        method.name(),
+                        env[k]
+                    );
+                    assert!(
+                        k == 0 || env[k] <= env[k - 1] * (1.0 + 1e-12),
+                        "{} seed {seed}: φ_u rises at K = {k}",
+                        method.name()
+                    );
+                }
+            }
+        }
+    }
+    assert!(
+        rises > 0,
+        "phi_u_at never rises: the envelope is not exercised"
+    );
 }

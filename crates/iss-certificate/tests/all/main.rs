@@ -27,6 +27,7 @@ mod plants_ii;
 mod precision;
 mod regional;
 mod regional_search;
+mod rounding_adversary;
 mod users;
 
 use closed_loop::scenario::{LoopOptions, Scenario, ScenarioLoop};

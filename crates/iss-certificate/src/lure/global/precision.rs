@@ -6,13 +6,15 @@
 //! propagation adds ‖r‖ ≤ ρ_z‖zᴷ‖ + ρ_u‖u window‖ (`certificate::precision`). With r the
 //! exact map's one-step rate, q = r + a < 1 and S = 1/(1 − q), K computed steps give
 //!
-//! ‖d‖ ≤ φ_u(K)‖z⁰ − z*‖ + β_z‖z*‖ + β_θ‖θ‖ + c_d,  φ_u(K) = min(qᴷ, φ(K) + qᴷ − rᴷ),
+//! ‖d‖ ≤ φ_u(K)‖z⁰ − z*‖ + β_z‖z*‖ + β_θ‖θ‖ + c_d,
+//! φ_u(K) = min(qᴷ, φ(K) + sup_{K' ≥ K}(q^{K'} − r^{K'})),
 //!
 //! β_z = aS, β_θ = bS, c_d = cS. z*, θ, z⁰ are linear in ζ, so the homogeneous part is a
 //! quadratic constraint (split (1 + α)/(1 + 1/α)), the propagation's is another (multiplier
 //! μ), and the constants c_d, ρ_z c_d are two more bounded exogenous inputs (d_c, r_c) of
 //! the γ-channel: the certificate is ISS with an offset. The LMI depends on K only through
-//! φ_u(K), so the certified K are {K : φ_u(K) ≤ φ*_u}, φ*_u ≤ the exact φ*.
+//! φ_u(K), non-increasing in K (it bounds every K' ≥ K), so the certified K are
+//! {K : φ_u(K) ≤ φ*_u} = {K ≥ K_glob(u)}, φ*_u ≤ the exact φ*.
 
 use closed_loop::scenario::{LoopOptions, ResolvedScenario};
 use faer::Mat;
@@ -165,25 +167,35 @@ impl FistaSteps {
     }
 
     /// The part of φ_u(K) beyond the exact φ(K):
-    /// c_x·s_𝟙·[qʲa + s₁Ā r₀ Σ_{k<j} q^{j−1−k}ρᵏ], j = K − 1.
-    fn extra_phi(&self, k: usize) -> f64 {
-        if k == 0 {
+    /// c_x·s_𝟙·[qʲa + s₁Ā r₀ Σ_{k<j} q^{j−1−k}ρᵏ], j = K − 1; with `sup`, its supremum over
+    /// every K' ≥ K ([`StepRounding::phi_u`]).
+    fn extra_phi(&self, k: usize, sup: bool) -> f64 {
+        if k == 0 && !sup {
             return 0.0;
         }
-        let j = k - 1;
+        // K' ≥ max(K, 1): K = 0 runs no step, and its envelope is that of K = 1.
+        let j = k.max(1) - 1;
         let (q, rho) = (self.q(), self.rate);
         let ji = i32::try_from(j).unwrap_or(i32::MAX);
         let qj = q.powi(ji);
-        // Σ_{k<j} q^{j−1−k}ρᵏ ≤ min(j·q^{j−1}, qʲ/(q − ρ)) (each term ≤ q^{j−1}; q > ρ).
-        let sum = if j == 0 {
-            0.0
-        } else {
-            let lin = j as f64 * q.powi(ji - 1);
-            if q > rho {
-                lin.min(qj / (q - rho))
+        // Σ_{k<j} q^{j−1−k}ρᵏ ≤ min(j·q^{j−1}, qʲ/(q − ρ)) (each term ≤ q^{j−1}; q > ρ);
+        // over j' ≥ j: j'q^{j'−1} peaks at j' = −1/ln q, qʲ/(q − ρ) decreases.
+        let lin = if !sup {
+            if j == 0 {
+                0.0
             } else {
-                lin
+                j as f64 * q.powi(ji - 1)
             }
+        } else if q > 0.0 && q < 1.0 {
+            let jf = (j as f64).max(-1.0 / q.ln());
+            jf * q.powf(jf - 1.0)
+        } else {
+            f64::INFINITY
+        };
+        let sum = if q > rho {
+            lin.min(qj / (q - rho))
+        } else {
+            lin
         };
         self.c_x
             * self.s_ones
@@ -311,27 +323,49 @@ impl StepRounding {
             Self::Jacobi(j) => (1.0 + j.scaling_error()) * j.scaled.offset_d(),
         }
     }
-    /// φ_u(K) from the exact map's certified K-step bound `phi_k` (docs/theory.md), so that
-    /// K computed iterations from z⁰ satisfy
-    /// ‖zᴷ − z*‖ ≤ φ_u(K)‖z⁰ − z*‖ + β_z‖z*‖ + β_θ‖θ‖ + c_d.
-    /// Projected gradient: min(qᴷ, φ(K) + qᴷ − rᴷ); V-FISTA: φ(K) + c_x s_𝟙[qʲa +
-    /// s₁Ā r₀ Σ_{k<j} q^{j−1−k}ρᵏ], j = K − 1.
+    /// φ_u(K) at exactly K from the exact map's certified K-step bound `phi_k` = φ(K)
+    /// (docs/theory.md): K computed iterations from z⁰ satisfy
+    /// ‖zᴷ − z*‖ ≤ φ_u(K)‖z⁰ − z*‖ + β_z‖z*‖ + β_θ‖θ‖ + c_d. Projected gradient:
+    /// min(qᴷ, φ(K) + qᴷ − rᴷ); ADMM: φ(K) + qᴷa₀ + c₀(qᴷ − rᴷ); V-FISTA: φ(K) + c_x s_𝟙[qʲa +
+    /// s₁Ā r₀ Σ_{k<j} q^{j−1−k}ρᵏ], j = K − 1. Not monotone in K (qᴷ − rᴷ rises before it
+    /// falls): a set of certified K uses [`StepRounding::phi_u`].
+    pub fn phi_u_at(&self, phi_k: f64, k: usize) -> f64 {
+        self.phi_u_with(phi_k, k, false)
+    }
+
+    /// φ_u(K) as the certificates use it: the supremum of [`StepRounding::phi_u_at`] over every
+    /// K' ≥ K, given `phi_k` = φ(K) of a non-increasing φ (every φ of `qp_iter` is). So the
+    /// bound with φ_u(K) holds for every K' ≥ K and φ_u is non-increasing — "certified from
+    /// K_min on" and the bisection for K_min rest on that. The rising parts enter as
+    /// sup_{K' ≥ K}(q^{K'} − r^{K'}) (and V-FISTA's sum likewise); equal to `phi_u_at` from
+    /// K ≈ 1/ln(1/r) on.
     pub fn phi_u(&self, phi_k: f64, k: usize) -> f64 {
+        self.phi_u_with(phi_k, k, true)
+    }
+
+    fn phi_u_with(&self, phi_k: f64, k: usize, sup: bool) -> f64 {
+        let rise = |q: f64, r: f64| {
+            if sup {
+                rise_sup(q, r, k)
+            } else {
+                rise_at(q, r, k as f64)
+            }
+        };
         match self {
             Self::Pg(r) => {
-                let k = i32::try_from(k).unwrap_or(i32::MAX);
-                let (qk, rk) = (r.perturbed_rate().powi(k), r.rate.powi(k));
-                qk.min(phi_k + (qk - rk).max(0.0))
+                let q = r.perturbed_rate();
+                let qk = q.powi(i32::try_from(k).unwrap_or(i32::MAX));
+                qk.min(phi_k + rise(q, r.rate))
             }
-            Self::Fista(f) => phi_k + f.extra_phi(k),
+            Self::Fista(f) => phi_k + f.extra_phi(k, sup),
             Self::Admm(a) => {
-                let k = i32::try_from(k).unwrap_or(i32::MAX);
-                let (qk, rk) = (a.perturbed_rate().powi(k), a.rate.powi(k));
-                phi_k + qk * a.a0 + a.start * (qk - rk).max(0.0)
+                let q = a.perturbed_rate();
+                let qk = q.powi(i32::try_from(k).unwrap_or(i32::MAX));
+                phi_k + qk * a.a0 + a.start * rise(q, a.rate)
             }
             Self::Jacobi(j) => {
                 let g = j.scaling_error();
-                (1.0 + g).powi(2) * j.scaled.phi_u(phi_k, k)
+                (1.0 + g).powi(2) * j.scaled.phi_u_with(phi_k, k, sup)
             }
         }
     }
@@ -344,6 +378,38 @@ impl StepRounding {
             _ => 1.0,
         }
     }
+}
+
+/// q^j − r^j (0 when q ≤ r), as qʲ(1 − (r/q)ʲ) with `exp_m1`: no cancellation when r ≈ q,
+/// where the rounding's part lives (q − r ~ 10⁻⁵).
+fn rise_at(q: f64, r: f64, j: f64) -> f64 {
+    if !(q > r) {
+        return 0.0;
+    }
+    if !(r > 0.0) {
+        return q.powf(j);
+    }
+    (q.powf(j) * -(j * (r / q).ln()).exp_m1()).max(0.0)
+}
+
+/// sup over real K' ≥ K of q^{K'} − r^{K'} (0 ≤ r < q < 1; 0 when q ≤ r, ∞ when q ≥ 1): the
+/// difference rises until K* = ln(ln r / ln q)/ln(q/r) and falls after it.
+fn rise_sup(q: f64, r: f64, k: usize) -> f64 {
+    if !(q > r) {
+        return 0.0;
+    }
+    if !(q < 1.0) {
+        return f64::INFINITY;
+    }
+    let kf = k as f64;
+    let peak = if r > 0.0 {
+        // ln(ln r / ln q) = ln(1 + ln(r/q)/ln q): without cancellation when r ≈ q.
+        let lrq = (r / q).ln();
+        ((lrq / q.ln()).ln_1p() / -lrq).max(kf)
+    } else {
+        kf
+    };
+    rise_at(q, r, peak)
 }
 
 impl LoopRounding {

@@ -176,6 +176,19 @@ impl<'a, 'b, T: Scalar> MheRt<'a, 'b, T> {
         self.p
     }
 
+    /// z⁰_t: the start of the iteration on ℙ_t (after a push, the warm start the next
+    /// [`MheRt::estimate`] runs from; before it, the prior with zero noise). Its first n_z of
+    /// the current window are in use; read-only, for checks of the iteration from outside.
+    pub fn start(&self) -> &[T] {
+        self.z0
+    }
+
+    /// zᴷ: the last [`MheRt::estimate`]'s K-th iterate (its first n_z of that window are in
+    /// use; zero before the first estimate).
+    pub fn iterate(&self) -> &[T] {
+        self.zk
+    }
+
     /// x⁺ = A x + B u + E w¹ into `out` (the const-size estimator's `step_model`).
     fn step_model(p: &Problem<'_, T>, x: &[T], u: &[T], w1: &[T], out: &mut [T]) {
         let (nx, nu) = (p.nx, p.nu);

@@ -355,8 +355,24 @@ fn long_every_command_gives_the_same_verdict_on_every_uncovered_setting() {
         expected: "yes",
         ..case("f32-k-c-mpc", move |s| with_mpc(s, 16), K_MIN)
     });
-    for c in &cases {
-        let v = verdicts(c);
+    // The cases are independent (a scratch directory each): two at a time, so the test's
+    // commands keep both cores busy when it is the last long test running.
+    let next = std::sync::atomic::AtomicUsize::new(0);
+    let found: Vec<std::sync::Mutex<Option<Verdicts>>> =
+        cases.iter().map(|_| std::sync::Mutex::new(None)).collect();
+    std::thread::scope(|scope| {
+        for _ in 0..2 {
+            scope.spawn(|| {
+                loop {
+                    let i = next.fetch_add(1, std::sync::atomic::Ordering::Relaxed);
+                    let Some(c) = cases.get(i) else { break };
+                    *found[i].lock().unwrap() = Some(verdicts(c));
+                }
+            });
+        }
+    });
+    for (c, v) in cases.iter().zip(found) {
+        let v = v.into_inner().unwrap().expect("computed");
         eprintln!("{}: {v:?}", c.name);
         assert_eq!(v.reproduce, c.expected, "{}: reproduce {v:?}", c.name);
         assert_eq!(v.sweep, v.reproduce, "{}: sweep vs reproduce {v:?}", c.name);

@@ -153,16 +153,9 @@ pub(crate) fn windows32<'a>(
         .collect()
 }
 
-/// A slice field (`z0`, `zk`: the warm start and the iterate are not exposed) of an f32
-/// estimator's Debug text. f32's Debug is the shortest round-trip form, so the parse as
-/// f32 is exact.
-pub(crate) fn debug_field(debug: &str, name: &str) -> Vec<f64> {
-    let start = debug.find(&format!("{name}: [")).expect("field present") + name.len() + 3;
-    let end = start + debug[start..].find(']').expect("closed");
-    debug[start..end]
-        .split(',')
-        .map(|v| f64::from(v.trim().parse::<f32>().expect("an f32")))
-        .collect()
+/// An f32 slice widened to f64 (exactly).
+pub(crate) fn widen(v: &[f32]) -> Vec<f64> {
+    v.iter().map(|x| f64::from(*x)).collect()
 }
 
 /// y = M x (row-major through faer).

@@ -1,8 +1,12 @@
 //! The global loop certificate in f32 (Theorem L3u, docs/theory.md "The global loop
 //! certificate in a given precision") against 200 closed-loop runs with `mhe_embedded` in
-//! f32 in the loop, at the f32 K_glob: the case study (K = 13) and the double integrator.
+//! f32 in the loop and against the optimised adversary of adversary.rs on the same loop
+//! ([`F32Run::run`] from explicit inputs: both use it), at the f32 K_glob: the case study
+//! (PG K = 13, PG-Jacobi 5, ADMM-PR-Jacobi 3) and the double integrator (PG 664,
+//! ADMM-PR-Jacobi 52).
 
-use super::data::{apply, debug_field, owned_for, singles, to32, windows32};
+use super::adversary;
+use super::data::{apply, owned_for, singles, to32, widen, windows32};
 use super::scenario;
 use closed_loop::scenario::{ControllerChoice, LoopOptions, ResolvedScenario};
 use iss_certificate::linear::LiftedLayout;
@@ -20,25 +24,48 @@ const NOISY_SEEDS: u64 = 100;
 /// One f32 run of a scenario's loop: the plant in f64, `mhe_embedded` in f32 (PG, K, the
 /// paper's warm start: the exported code's arithmetic; `MheRt` equals the const-size
 /// estimator bit for bit), the scenario's exact controller in f64 at the computed x̂, w
-/// uniform on 𝒲 × a random scale.
-struct F32Run<'a> {
-    problem: mhe_embedded::Problem<'a, f32>,
+/// from [`Inputs`] (the seeded runs: uniform on 𝒲 × a random scale; the adversary's: its
+/// choice).
+pub(super) struct F32Run<'a> {
+    pub(super) problem: mhe_embedded::Problem<'a, f32>,
     resolved: ResolvedScenario,
-    layout: LiftedLayout,
+    pub(super) layout: LiftedLayout,
+}
+
+/// What a run starts from and is driven by.
+#[derive(Debug, Clone)]
+pub(super) struct Inputs {
+    /// The plant's x₀.
+    pub(super) x0: Vec<f64>,
+    /// The estimator's prior (rounded to f32 as it is loaded).
+    pub(super) prior: Vec<f64>,
+    /// w_t = (w¹_t, w²_t), n_w per step from t = 0 (zero past the end).
+    pub(super) w: Vec<f64>,
 }
 
 /// What one run measured against a certificate.
-struct Outcome {
+#[derive(Debug, Clone, Copy)]
+pub(super) struct Outcome {
     /// max over t ≥ M of (‖X_{t+1}‖²_P − γ²(‖w_t‖² + o²))/(ρ²‖X_t‖²_P): ≤ 1 where the
     /// certified one-step inequality holds.
-    worst: f64,
+    pub(super) worst: f64,
+    /// max over t > M of ‖X_t‖²_P / (ρ^{2(t−M)}‖X_M‖²_P + γ²/(1 − ρ²)(sup‖w‖² + o²)).
+    pub(super) multi: f64,
+    /// The step (counted from t = M) where `worst` was reached.
+    pub(super) at: usize,
     /// ‖X_t‖²_P stayed within ρ^{2(t−M)}‖X_M‖²_P + γ²/(1 − ρ²)(sup‖w‖² + o²).
-    within: bool,
+    pub(super) within: bool,
 }
 
 impl Outcome {
-    fn holds(&self) -> bool {
+    pub(super) fn holds(&self) -> bool {
         self.within && self.worst <= 1.0
+    }
+
+    /// The adversary's objective: the larger of the one-step and multi-step ratios (∞ where
+    /// the run diverged).
+    pub(super) fn score(&self) -> f64 {
+        self.worst.max(self.multi)
     }
 }
 
@@ -59,35 +86,45 @@ impl F32Run<'_> {
         big
     }
 
-    /// One seeded run of `steps` steps (x₀ and the prior up to 100 × a random magnitude,
-    /// noise 0.5–3 × 𝒲 below [`NOISY_SEEDS`], none from there): ‖X_t‖²_P per t ≥ M and
-    /// ‖w_t‖² per t ≥ M.
-    fn storage(&self, c: &GlobalCertificate, seed: u64, steps: usize) -> (Vec<f64>, Vec<f64>) {
+    /// The inputs of seed `seed` for `steps` steps: x₀ and the prior up to 100 × a random
+    /// magnitude, noise 0.5–3 × 𝒲 below [`NOISY_SEEDS`], none from there.
+    fn seeded(&self, seed: u64, steps: usize) -> Inputs {
         let mut rng = ChaCha8Rng::seed_from_u64(seed);
         let mag = 10f64.powf(rng.random_range(-2.0..2.0));
         let scale = rng.random_range(0.5..3.0);
         // Seeds ≥ 100 run noise-free: the supply is then γ²o² alone (the rounding's offset),
         // so the one-step inequality is tested where w does not cover it.
         let scale = if seed < NOISY_SEEDS { scale } else { 0.0 };
+        let nx = self.layout.nx;
+        let wset = &self.resolved.scenario().sets.disturbance;
+        let x0 = (0..nx).map(|_| mag * rng.random_range(-1.0..1.0)).collect();
+        let prior = (0..nx).map(|_| mag * rng.random_range(-1.0..1.0)).collect();
+        let w = (0..steps)
+            .flat_map(|_| 0..wset.lower().len())
+            .map(|i| scale * rng.random_range(wset.lower()[i]..=wset.upper()[i]))
+            .collect();
+        Inputs { x0, prior, w }
+    }
+
+    /// The run from `inp` for `steps` steps: ‖X_t‖²_P per t ≥ M and ‖w_t‖² per t ≥ M.
+    fn storage(&self, c: &GlobalCertificate, inp: &Inputs, steps: usize) -> (Vec<f64>, Vec<f64>) {
         let sys = self.resolved.mhe_problem().expect("mhe").system().clone();
         let (nx, nu, nw1) = (sys.nx(), sys.nu(), sys.nw1());
-        let wset = self.resolved.scenario().sets.disturbance.clone();
+        let nw = nw1 + sys.nw2();
         let mut ctrl = self
             .resolved
             .controller(ControllerChoice::ExactMpc)
             .expect("controller");
         let m = self.layout.horizon;
-        let mut x: Vec<f64> = (0..nx).map(|_| mag * rng.random_range(-1.0..1.0)).collect();
-        let prior: Vec<f32> = (0..nx)
-            .map(|_| (mag * rng.random_range(-1.0..1.0)) as f32)
-            .collect();
+        let mut x = inp.x0.clone();
+        let prior = to32(&inp.prior);
         let mut work = vec![0f32; mhe_embedded::MheRt::workspace_len(&self.problem)];
         let mut mhe = mhe_embedded::MheRt::new(&self.problem, &prior, &mut work).expect("dims");
         let mut rec: Vec<[Vec<f64>; 3]> = Vec::new();
         let (mut storage, mut wn) = (Vec::new(), Vec::new());
         for t in 0..steps {
             if t >= m {
-                let z0 = debug_field(&format!("{mhe:?}"), "z0");
+                let z0 = widen(mhe.start());
                 storage.push(c.storage(&self.lifted(&x, &rec, &z0)));
             }
             let xh: Vec<f64> = mhe.estimate().iter().map(|v| f64::from(*v)).collect();
@@ -102,8 +139,8 @@ impl F32Run<'_> {
                 storage.push(f64::INFINITY);
                 break;
             }
-            let w: Vec<f64> = (0..wset.lower().len())
-                .map(|i| scale * rng.random_range(wset.lower()[i]..=wset.upper()[i]))
+            let w: Vec<f64> = (t * nw..(t + 1) * nw)
+                .map(|i| inp.w.get(i).copied().unwrap_or(0.0))
                 .collect();
             let (w1, w2) = w.split_at(nw1);
             let y: Vec<f64> = apply(sys.c(), &x)
@@ -126,37 +163,66 @@ impl F32Run<'_> {
         (storage, wn)
     }
 
-    /// The run of `seed` against `c` with the rounding offset `offset` (module docs).
-    fn run(&self, c: &GlobalCertificate, offset: f64, seed: u64, steps: usize) -> Outcome {
-        let (storage, wn) = self.storage(c, seed, steps);
+    /// The run from `inp` against `c` with the rounding offset `offset` (module docs).
+    pub(super) fn run(
+        &self,
+        c: &GlobalCertificate,
+        offset: f64,
+        inp: &Inputs,
+        steps: usize,
+    ) -> Outcome {
+        let (storage, wn) = self.storage(c, inp, steps);
         if storage.iter().any(|v| !v.is_finite()) {
             // Diverged (f32 overflow): no inequality holds.
             return Outcome {
                 worst: f64::INFINITY,
+                multi: f64::INFINITY,
+                at: 0,
                 within: false,
             };
         }
         let (r2, g2, o2) = (c.rho * c.rho, c.gamma * c.gamma, offset * offset);
-        let (mut worst, mut within, mut wsup) = (0.0_f64, true, 0.0_f64);
+        let (mut worst, mut multi, mut at) = (0.0_f64, 0.0_f64, 0);
+        let (mut within, mut wsup) = (true, 0.0_f64);
         for t in 0..storage.len() - 1 {
             let (v, vn) = (storage[t], storage[t + 1]);
             let supply = g2 * (wn[t] + o2);
             let slack = 1e-9 * (vn.abs() + r2 * v + supply);
-            worst = worst.max((vn - supply - slack) / (r2 * v).max(f64::MIN_POSITIVE));
+            let ratio = (vn - supply - slack) / (r2 * v).max(f64::MIN_POSITIVE);
+            if ratio > worst {
+                (worst, at) = (ratio, t);
+            }
             wsup = wsup.max(wn[t]);
             let bound = r2.powf((t + 1) as f64) * storage[0] + g2 / (1.0 - r2) * (wsup + o2);
             within &= vn <= bound * (1.0 + 1e-9);
+            multi = multi.max(vn / bound.max(f64::MIN_POSITIVE));
         }
-        Outcome { worst, within }
+        Outcome {
+            worst,
+            multi,
+            at,
+            within,
+        }
+    }
+
+    /// The run of `seed` (see [`Self::seeded`]).
+    fn run_seed(&self, c: &GlobalCertificate, offset: f64, seed: u64, steps: usize) -> Outcome {
+        self.run(c, offset, &self.seeded(seed, steps), steps)
     }
 }
 
-/// PG on `file`: the f32 certificate (Theorem L3u: the exact φ*, then φ*_u by the search
-/// `coverage::verdict` runs, `GlobalSettings::default()`), then 200 f32 closed-loop runs ×
-/// `steps` steps at its K_glob(f32) (`mhe_embedded` in f32, random x₀ and prior up to 100,
-/// noise 0.5–3 × 𝒲 on 100 of them, none on the other 100) satisfy the certified one-step inequality with the rounding offset and
-/// the ISS bound. The check can fail: with γ = 0 some run violates it, and where the loop is
-/// unstable at K = 1 (`refute_k1`) so does K = 1. Returns K_glob(f32).
+/// `method` on `file`: the f32 certificate (Theorem L3u: the exact φ*, then φ*_u by the
+/// search `coverage::verdict` runs, `GlobalSettings::default()`), then 200 f32 closed-loop
+/// runs × `steps` steps at its K_glob(f32) (`mhe_embedded` in f32, random x₀ and prior up to
+/// 100, noise 0.5–3 × 𝒲 on 100 of them, none on the other 100) satisfy the certified
+/// one-step inequality with the rounding offset and the ISS bound; then the optimised
+/// adversary of adversary.rs on the same loop and certificate (one solve for both) finds no
+/// violation (its worst ratios are printed next to the seeds'). Its CI budget is 6 restarts
+/// × 30 moves; `F32_ADVERSARY_RESTARTS`, `F32_ADVERSARY_MOVES` and `F32_ADVERSARY_SEED` set
+/// another for hand runs (`F32_ADVERSARY_RESTARTS=30 F32_ADVERSARY_MOVES=100 cargo test
+/// --release -p iss-certificate --test loop_level -- --ignored f32_seeds --nocapture`). The
+/// checks can fail: with γ = 0 some seeded run and the adversary violate them, and where the
+/// loop is unstable at K = 1 (`refute_k1`) so does K = 1, for both. Returns K_glob(f32).
 pub(super) fn f32_runs_respect_the_global_certificate(
     file: &str,
     method: Method,
@@ -218,9 +284,9 @@ pub(super) fn f32_runs_respect_the_global_certificate(
         layout,
     };
     // [with noise, noise-free]
-    let mut worst = [0.0_f64; 2];
+    let (mut worst, mut multi) = ([0.0_f64; 2], 0.0_f64);
     for seed in 0..200 {
-        let out = run.run(c, p32.offset(), seed, steps);
+        let out = run.run_seed(c, p32.offset(), seed, steps);
         assert!(out.within, "seed {seed}: ‖X‖²_P left the ISS bound");
         assert!(
             out.worst <= 1.0,
@@ -229,22 +295,76 @@ pub(super) fn f32_runs_respect_the_global_certificate(
         );
         let w = &mut worst[usize::from(seed >= NOISY_SEEDS)];
         *w = w.max(out.worst);
+        multi = multi.max(out.multi);
     }
     eprintln!(
         "{file}: 200 f32 runs × {steps} steps at K = {k32}: worst one-step ratio {:.4} with \
-         noise, {:.4} noise-free",
+         noise, {:.4} noise-free; multi-step {multi:.4}",
         worst[0], worst[1]
+    );
+    // The optimised adversary (adversary.rs) on the same loop and certificate.
+    let wset = &r.scenario().sets.disturbance;
+    let (lo, hi) = (wset.lower().to_vec(), wset.upper().to_vec());
+    let budget = adversary::Budget::from_env(steps);
+    let attack = |run: &F32Run<'_>, c: &GlobalCertificate| {
+        adversary::attack(run, c, p32.offset(), &lo, &hi, budget)
+    };
+    let clock = std::time::Instant::now();
+    let found = attack(&run, c);
+    eprintln!(
+        "{file} {} K = {k32}: adversary ({} restarts × {} moves, {} runs × {steps} steps, \
+         {:.1} s): worst one-step ratio {:.4}, multi-step {:.4} (seeded runs: {:.4}, {multi:.4}); \
+         worst point: {}",
+        method.name(),
+        budget.restarts,
+        budget.moves,
+        found.runs,
+        clock.elapsed().as_secs_f64(),
+        found.outcome.worst,
+        found.multi,
+        worst[0].max(worst[1]),
+        found.describe(lo.len(), layout.horizon),
+    );
+    assert!(
+        found.outcome.holds(),
+        "{file} {} K = {k32}: the adversary (seed {}) violates the certificate: \
+         {:?} at {:?}",
+        method.name(),
+        budget.seed,
+        found.outcome,
+        found.inputs
     );
     // The check has teeth: without the noise's supply (γ = 0) a run violates it …
     let mut no_gamma = c.clone();
     no_gamma.gamma = 0.0;
-    let refuted = (0..20).any(|seed| !run.run(&no_gamma, p32.offset(), seed, steps).holds());
+    let refuted = (0..20).any(|seed| !run.run_seed(&no_gamma, p32.offset(), seed, steps).holds());
     assert!(refuted, "the check never failed with γ = 0");
+    // … the adversary finds such a run within its budget …
+    let found = attack(&run, &no_gamma);
+    eprintln!(
+        "{file}: with γ = 0 the adversary violates after {} runs (ratio {:.4})",
+        found.runs,
+        found.outcome.score()
+    );
+    assert!(
+        !found.outcome.holds(),
+        "the adversary never failed with γ = 0"
+    );
     // … and, where the loop is unstable at K = 1 (the double integrator), so does K = 1.
     if refute_k1 {
         run.problem.iterations = 1;
-        let refuted = (0..20).any(|seed| !run.run(c, p32.offset(), seed, steps).holds());
+        let refuted = (0..20).any(|seed| !run.run_seed(c, p32.offset(), seed, steps).holds());
         assert!(refuted, "the check never failed at K = 1");
+        let found = attack(&run, c);
+        eprintln!(
+            "{file}: at K = 1 the adversary violates after {} runs (ratio {:.4})",
+            found.runs,
+            found.outcome.score()
+        );
+        assert!(
+            !found.outcome.holds(),
+            "the adversary never failed at K = 1"
+        );
     }
     k32
 }

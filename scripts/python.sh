@@ -79,7 +79,9 @@ if [ ! -x "$VENV/bin/python" ]; then
     python3 -m venv "$VENV"
 fi
 "$VENV/bin/python" -m pip install -q --upgrade pip
-"$VENV/bin/python" -m pip install -q pytest numpy hypothesis
+# pytest-xdist: two workers, each test file on one (`--dist loadfile`: a module's fixtures,
+# such as the reproduced double integrator, are computed once).
+"$VENV/bin/python" -m pip install -q pytest pytest-xdist numpy hypothesis
 
 say "pip install ./python (maturin build backend: the release abi3 wheel)"
 # The README's one command; CARGO_TARGET_DIR (exported above) keeps the build incremental.
@@ -87,5 +89,8 @@ say "pip install ./python (maturin build backend: the release abi3 wheel)"
 
 say "pytest python/tests"
 # From outside python/, so the installed wheel is tested, not the source tree.
-(cd "$CARGO_TARGET_DIR" && SUBOPTIMAL_MHE_XTASK="$XTASK" "$VENV/bin/python" -m pytest -q -p no:cacheprovider "$ROOT/python/tests")
+# Two workers (the machine's cores): the slowest files (test_cli's reproduced double integrator,
+# test_model's certificates from arrays and from the file, ≈ 90 s each alone) run side by side.
+(cd "$CARGO_TARGET_DIR" && SUBOPTIMAL_MHE_XTASK="$XTASK" "$VENV/bin/python" -m pytest -q -p no:cacheprovider \
+    -n "${PYTEST_WORKERS:-2}" --dist loadfile "$ROOT/python/tests")
 say "done"

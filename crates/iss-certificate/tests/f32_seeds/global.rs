@@ -375,6 +375,16 @@ fn f32_seeds_global_certificate_case_study() {
     f32_runs_respect_the_global_certificate("case-study.toml", Method::PG, 60, false);
 }
 
+/// The certified preset (M = 9, Theorem 1's setting) with PG: the budget table's f32 build of
+/// `case-study-certified` (K = 34 by the global certificate in f32, equal to the exact K_glob).
+#[test]
+#[ignore = "release: run by .ci/run with --release --ignored"]
+fn f32_seeds_global_certificate_case_study_certified() {
+    let k =
+        f32_runs_respect_the_global_certificate("case-study-certified.toml", Method::PG, 60, false);
+    assert_eq!(k, 34, "the f32 K_glob of docs/embedded.md's table");
+}
+
 /// The Jacobi-scaled PG (its scaled windows, the rounded scalings y⁰ = z⁰/d̃ and z = d̃·y of
 /// `mhe_embedded`) at its f32 K_glob (5 on the case study; docs/theory.md "Jacobi-scaled
 /// projected gradient in f32").

@@ -17,7 +17,7 @@
 //! `F32_ADVERSARY_SEED` for hand runs, e.g.
 //! `F32_ADVERSARY_RESTARTS=30 F32_ADVERSARY_MOVES=100 cargo test --release -p
 //! iss-certificate --test loop_level -- --ignored f32_seeds --nocapture` (3 030 runs per
-//! pair, minutes each).
+//! pair: ≈ 35 s for the double integrator's PG at K = 664, seconds for the others).
 
 use super::global::{F32Run, Inputs, Outcome};
 use iss_certificate::lure::global::GlobalCertificate;
@@ -25,9 +25,9 @@ use rand::{Rng, SeedableRng};
 use rand_chacha::ChaCha8Rng;
 
 /// Restarts of the CI budget.
-pub(super) const DEFAULT_RESTARTS: usize = 6;
+pub(super) const DEFAULT_RESTARTS: usize = 12;
 /// Hill-climbing moves per restart of the CI budget.
-pub(super) const DEFAULT_MOVES: usize = 30;
+pub(super) const DEFAULT_MOVES: usize = 60;
 /// The search's seed of the CI budget.
 pub(super) const DEFAULT_SEED: u64 = 36;
 /// The largest scale of 𝒲's vertices (the seeded runs' 3 × 𝒲).

@@ -217,8 +217,8 @@ impl F32Run<'_> {
 /// 100, noise 0.5–3 × 𝒲 on 100 of them, none on the other 100) satisfy the certified
 /// one-step inequality with the rounding offset and the ISS bound; then the optimised
 /// adversary of adversary.rs on the same loop and certificate (one solve for both) finds no
-/// violation (its worst ratios are printed next to the seeds'). Its CI budget is 6 restarts
-/// × 30 moves; `F32_ADVERSARY_RESTARTS`, `F32_ADVERSARY_MOVES` and `F32_ADVERSARY_SEED` set
+/// violation (its worst ratios are printed next to the seeds'). Its CI budget is 12 restarts
+/// × 60 moves; `F32_ADVERSARY_RESTARTS`, `F32_ADVERSARY_MOVES` and `F32_ADVERSARY_SEED` set
 /// another for hand runs (`F32_ADVERSARY_RESTARTS=30 F32_ADVERSARY_MOVES=100 cargo test
 /// --release -p iss-certificate --test loop_level -- --ignored f32_seeds --nocapture`). The
 /// checks can fail: with γ = 0 some seeded run and the adversary violate them, and where the

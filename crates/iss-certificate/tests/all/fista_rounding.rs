@@ -367,19 +367,24 @@ impl Setup {
     }
 }
 
-/// The bound holds on 30 QPs × 5 K × 12 starts per method; reports the largest
-/// measured/bound, which must not be absurdly small (the model is a worst case, not a
-/// constant chosen to pass).
-#[test]
-fn k_computed_iterations_stay_within_the_k_step_model() {
-    for method in [
+/// The methods with a K-step rounding model (`StepRounding::for_qp`), plain and Jacobi.
+pub(super) fn methods() -> [Method; 6] {
+    [
         Method::PG,
         Method::FISTA,
         Method::PG.with_scaling(Scaling::Jacobi),
         Method::ADMM,
         Method::ADMM_PR,
         Method::ADMM_PR.with_scaling(Scaling::Jacobi),
-    ] {
+    ]
+}
+
+/// The bound holds on 30 QPs × 5 K × 12 starts per method; reports the largest
+/// measured/bound, which must not be absurdly small (the model is a worst case, not a
+/// constant chosen to pass).
+#[test]
+fn k_computed_iterations_stay_within_the_k_step_model() {
+    for method in methods() {
         let mut worst = 0.0f64;
         let mut worst_dev = 0.0f64;
         let mut checked = 0usize;
@@ -475,14 +480,7 @@ fn fista_without_an_incremental_rate_is_not_covered_with_the_reason() {
 #[test]
 fn the_certificates_phi_u_bounds_every_later_k_and_does_not_increase() {
     let mut rises = 0usize;
-    for method in [
-        Method::PG,
-        Method::FISTA,
-        Method::PG.with_scaling(Scaling::Jacobi),
-        Method::ADMM,
-        Method::ADMM_PR,
-        Method::ADMM_PR.with_scaling(Scaling::Jacobi),
-    ] {
+    for method in methods() {
         for seed in 0..6u64 {
             let p = qp(seed, 4 + seed as usize, 3, kappa_of(method, seed));
             let setup = Setup::new(method, &p);

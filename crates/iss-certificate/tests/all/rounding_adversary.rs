@@ -10,7 +10,7 @@
 //! premise, exact arithmetic, fails). The objective is a pure function of (QP, z⁰, θ, K);
 //! every random choice comes from a seeded ChaCha8Rng.
 
-use super::fista_rounding::{Setup, kappa_of, norm, qp};
+use super::fista_rounding::{Setup, kappa_of, methods, norm, qp};
 use faer::Side;
 use qp_iter::{Method, Scaling};
 use rand::{Rng, SeedableRng};
@@ -22,18 +22,6 @@ const MOVES: usize = 14;
 
 /// The iteration counts searched over.
 const KS: [usize; 7] = [1, 2, 3, 5, 10, 30, 100];
-
-/// The methods with a K-step rounding model (as `fista_rounding`'s test).
-fn methods() -> [Method; 6] {
-    [
-        Method::PG,
-        Method::FISTA,
-        Method::PG.with_scaling(Scaling::Jacobi),
-        Method::ADMM,
-        Method::ADMM_PR,
-        Method::ADMM_PR.with_scaling(Scaling::Jacobi),
-    ]
-}
 
 /// What a search maximises.
 #[derive(Clone, Copy, Debug, PartialEq, Eq)]

@@ -42,6 +42,14 @@ fn certificate(resolved: &ResolvedScenario) -> &'static ClosedLoopCertificate {
 
 pub(crate) use crate::f32_data::{owned, singles, to32, windows32, windows64};
 
+/// A certificate's reason as the sentence it prints ("" when certified).
+fn reason(c: &iss_certificate::certificate::precision::ScalarCertificate) -> String {
+    c.reason
+        .as_ref()
+        .map(ToString::to_string)
+        .unwrap_or_default()
+}
+
 fn norm(parts: &[&[f64]]) -> f64 {
     parts
         .iter()
@@ -212,11 +220,7 @@ fn theorem_1_with_rounding_folded_in() {
         "{:?}",
         f32c.reason
     );
-    let why = f32c
-        .reason
-        .as_ref()
-        .map(ToString::to_string)
-        .unwrap_or_default();
+    let why = reason(&f32c);
     assert!(why.starts_with("void") && why.contains("g_d"), "{why}");
     assert!(f32c.rounding_gain > 1e3 * u64c.rounding_gain);
     // Between the two: a precision whose rounding fits certifies at K ≥ K_min(f64).
@@ -227,11 +231,7 @@ fn theorem_1_with_rounding_folded_in() {
     // Half precision (u = 2⁻¹¹): the rounding breaks the contraction itself (r + a ≥ 1,
     // 1 − r ≈ 0.04 on these windows), and the reason names the window.
     let half = certify_rounded(&resolved, cert, Method::PG, 2f64.powi(-11), k_max).expect("runs");
-    let why = half
-        .reason
-        .as_ref()
-        .map(ToString::to_string)
-        .unwrap_or_default();
+    let why = reason(&half);
     assert!(
         matches!(half.reason, Some(ScalarVoid::ContractionBroken { .. })),
         "{why}"
@@ -279,11 +279,7 @@ fn an_ill_conditioned_window_refuses_theorem_1_in_f32() {
     println!("{f32c:?}");
     assert!(f32c.k_min_f64.is_some(), "Theorem 1 certifies a K in f64");
     assert_eq!(f32c.k_min, None);
-    let why = f32c
-        .reason
-        .as_ref()
-        .map(ToString::to_string)
-        .unwrap_or_default();
+    let why = reason(&f32c);
     assert!(
         matches!(
             f32c.reason,
@@ -333,21 +329,13 @@ fn theorem_1_in_f32_covers_every_method_with_a_k_step_model() {
     // the certificate covers every K ≥ K_min.
     assert!(pgj.phi_u.is_some_and(|p| p > 0.0 && p < 1.0), "{pgj:?}");
     assert!(pgj.covers(k32) && pgj.covers(10 * k32) && !pgj.covers(k32 - 1));
-    let why = admm
-        .reason
-        .as_ref()
-        .map(ToString::to_string)
-        .unwrap_or_default();
+    let why = reason(&admm);
     assert!(
         matches!(admm.reason, Some(ScalarVoid::NoK { .. })) && why.contains("g_d = "),
         "{why}"
     );
     assert!(admm.k_min_f64.is_some() && admm.rounding_gain > 0.0);
-    let why = fj
-        .reason
-        .as_ref()
-        .map(ToString::to_string)
-        .unwrap_or_default();
+    let why = reason(&fj);
     assert!(
         matches!(fj.reason, Some(ScalarVoid::NotCovered { .. })) && why.contains("window m = "),
         "{why}"
@@ -396,10 +384,7 @@ fn measure_theorem1_f32_per_method() {
                 c.rounding_offset,
                 c.self_loop,
                 c.margin,
-                c.reason
-                    .as_ref()
-                    .map(ToString::to_string)
-                    .unwrap_or_default(),
+                reason(&c),
                 t.elapsed().as_secs_f64()
             );
         }

@@ -19,9 +19,9 @@ use crate::provenance::Provenance;
 pub enum ScalarKind {
     /// Double precision: bit for bit the std build on the portable kernel.
     F64,
-    /// Single precision (data rounded to f32 once): certified where a rounding model covers
-    /// the method (PG: Theorem 1 or Theorem L3 with the rounding as an input; PG-Jacobi, and
-    /// FISTA where its incremental rate exists: Theorem L3), else refused
+    /// Single precision (data rounded to f32 once): certified where the method's rounding
+    /// model (every method but FISTA-Jacobi; FISTA only where its incremental rate exists)
+    /// leaves Theorem 1 or Theorem L3 a K with the rounding as an input, else refused
     /// unless --allow-uncertified.
     F32,
 }

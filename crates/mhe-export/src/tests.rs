@@ -456,16 +456,29 @@ fn a_k_below_k_min_is_refused_unless_allowed() {
     assert!(Iterations::parse("--k", "0").is_err());
     assert!(Iterations::parse("--k", "many").is_err());
     // f32 is certified only where Theorem 1 with the f32 rounding folded in certifies K; on
-    // the case study it certifies none: refused at K_min unless allowed, with the reason.
-    let err = decide(loop_cert, Iterations::Certified, ScalarKind::F32, false)
+    // the case study it certifies none: `--k certified` has no K in f32 (the f64 K_min is not
+    // one), allowed or not, and names the reason; a given K is exported when allowed.
+    for allow in [false, true] {
+        let err = decide(loop_cert, Iterations::Certified, ScalarKind::F32, allow)
+            .unwrap_err()
+            .to_string();
+        assert!(
+            err.contains("no K is certified")
+                && err.contains("in f32")
+                && err.contains("rounding folded in"),
+            "{err}"
+        );
+        assert!(!err.contains(&format!("K = {k_min}")), "{err}");
+    }
+    let err = decide(loop_cert, given(k_min), ScalarKind::F32, false)
         .unwrap_err()
         .to_string();
     assert!(
-        err.contains("f32") && err.contains("rounding folded in"),
+        err.contains("NOT CERTIFIED") && err.contains("f32"),
         "{err}"
     );
     assert_eq!(
-        decide(loop_cert, Iterations::Certified, ScalarKind::F32, true).unwrap(),
+        decide(loop_cert, given(k_min), ScalarKind::F32, true).unwrap(),
         (k_min, false)
     );
     // A void certificate: refused even at a large K, and `certified` has no K.

@@ -618,27 +618,47 @@ pub fn certify_rounded(
 
 /// The per-step bound on ‖x̂_f32,t − x̂_f64,t‖ of two estimators (same method, K, data) fed
 /// the same (u_t, y_t), the f32 one with its data rounded once: docs/theory.md,
-/// "Certified f32", step 5. Call [`DeviationBound::step`] once per t with ‖θ_t‖ and the
-/// u window's norm of the f64 run; it returns the bound at t.
+/// "Certified f32", step 5, for projected gradient and (session 28) its Jacobi-scaled
+/// variant, tracked in the scaled coordinates y = D⁻¹z. Call [`DeviationBound::step`] once
+/// per t with ‖θ_t‖ and the u window's norm of the f64 run; it returns the bound at t.
 #[derive(Debug, Clone)]
 #[non_exhaustive]
 pub struct DeviationBound {
     w32: Vec<WindowRounding>,
     w64: Vec<WindowRounding>,
+    /// Per window: the Jacobi scaling d (empty: none, D = I), as the f64 build holds it.
+    scalings: Vec<Vec<f64>>,
     k: usize,
     horizon: usize,
     t: usize,
-    /// ‖zᴷ_32 − zᴷ_64‖ bound at t − 1.
+    /// ‖D⁻¹(zᴷ_32 − zᴷ_64)‖ bound at t − 1 (D of window min(t − 1, M)).
     z_dev: f64,
-    /// ‖zᴷ_64 − z*‖ and ‖z*‖ bounds at t − 1.
+    /// ‖D⁻¹(zᴷ_64 − z*)‖ and ‖D⁻¹z*‖ bounds at t − 1.
     eps64: f64,
     z_star: f64,
     /// Deviation bounds of x̂ so far.
     history: Vec<f64>,
 }
 
+/// Relative slack on ‖D⁻¹z*‖ ≤ ‖z*‖/d_min for the scaled problem the build holds (its data
+/// computed in f64 from the original window's; its optimum differs from D⁻¹z* by f64's
+/// rounding times κ, far below this where the f32 contraction holds: u₃₂κ(H) < 1).
+const SCALED_OPTIMUM_SLACK: f64 = 1e-6;
+
+/// min_i d_i and max_i d_i of a scaling (1, 1 without one).
+fn scaling_extremes(d: &[f64]) -> (f64, f64) {
+    if d.is_empty() {
+        return (1.0, 1.0);
+    }
+    (
+        d.iter().copied().fold(f64::INFINITY, f64::min),
+        d.iter().copied().fold(0.0, f64::max),
+    )
+}
+
 impl DeviationBound {
-    /// The tracker for `solver` at K = `k`, or why the rounding is not covered.
+    /// The tracker for `solver` (projected gradient, plain or Jacobi-scaled) at K = `k`, or
+    /// why the rounding is not covered.
     pub fn new(
         resolved: &ResolvedScenario,
         cert: &ClosedLoopCertificate,
@@ -648,12 +668,61 @@ impl DeviationBound {
         if resolved.mhe_config()?.warm_start != mhe_core::WarmStart::Paper {
             return Ok(Err("only the paper's warm start is covered".into()));
         }
-        let w32 = match window_roundings(resolved, cert, solver, F32_UNIT_ROUNDOFF)? {
-            Ok(w) => w,
-            Err(e) => return Ok(Err(e)),
+        let plain = solver.with_scaling(qp_iter::Scaling::None);
+        if plain != Method::PG {
+            return Ok(Err(format!(
+                "the per-step deviation bound is derived for projected gradient (plain and \
+                 Jacobi-scaled), not {}",
+                solver.name()
+            )));
+        }
+        // Per window: PG's one-step model of the QP the build runs (the scaled one for the
+        // Jacobi variant) and its scaling.
+        let model = |u: f64| {
+            move |qp: &qp_iter::ParametricQp| -> Result<(IterationRounding, Vec<f64>), String> {
+                if solver.scaling == qp_iter::Scaling::None {
+                    let it = iteration_rounding(&solver, qp, u).map_err(|e| e.to_string())?;
+                    return Ok((it, Vec::new()));
+                }
+                let map = solver.build(qp.clone()).map_err(|e| e.to_string())?;
+                let qp_iter::MethodMap::Scaled(s) = &map else {
+                    return Err("internal: a Jacobi method without a scaling".into());
+                };
+                let it = iteration_rounding(&plain, qp_iter::IterationMap::problem(s.inner()), u)
+                    .map_err(|e| e.to_string())?;
+                let d = s.scaling().to_vec();
+                let (d_min, d_max) = scaling_extremes(&d);
+                if !(d_min > 0.0 && d_max.is_finite()) {
+                    return Err("the Jacobi scaling is not positive and finite".into());
+                }
+                Ok((it, d))
+            }
         };
-        let w64 = match window_roundings(resolved, cert, solver, F64_UNIT_ROUNDOFF)? {
-            Ok(w) => w,
+        let split = |ws: Vec<Window<(IterationRounding, Vec<f64>)>>| {
+            let mut scalings = Vec::with_capacity(ws.len());
+            let rounding = ws
+                .into_iter()
+                .map(|w| {
+                    let (iteration, d) = w.model;
+                    scalings.push(d);
+                    WindowRounding {
+                        m: w.m,
+                        iteration,
+                        propagation: w.propagation,
+                        l_phi: w.l_phi,
+                        origin_offset: w.origin_offset,
+                    }
+                })
+                .collect::<Vec<_>>();
+            (rounding, scalings)
+        };
+        let (w32, scalings) =
+            match per_window(resolved, cert, F32_UNIT_ROUNDOFF, model(F32_UNIT_ROUNDOFF))? {
+                Ok(w) => split(w),
+                Err(e) => return Ok(Err(e)),
+            };
+        let w64 = match per_window(resolved, cert, F64_UNIT_ROUNDOFF, model(F64_UNIT_ROUNDOFF))? {
+            Ok(w) => split(w).0,
             Err(e) => return Ok(Err(e)),
         };
         if let Some(w) = w32.iter().find(|w| !w.iteration.contracts()) {
@@ -663,6 +732,7 @@ impl DeviationBound {
             horizon: w32.len() - 1,
             w32,
             w64,
+            scalings,
             k,
             t: 0,
             z_dev: 0.0,
@@ -670,6 +740,17 @@ impl DeviationBound {
             z_star: 0.0,
             history: Vec::new(),
         }))
+    }
+
+    /// max_i d_prev,i/d_i over the previous window's variables: ‖D⁻¹(v, 0)‖ ≤ this ×
+    /// ‖D_prev⁻¹v‖ (the paper's warm start embeds zᴷ_{t−1} as (zᴷ_{t−1}, 0) while the window
+    /// grows, and copies it once it is full: 1 there).
+    fn carry(&self, prev: usize, m: usize) -> f64 {
+        let (dp, d) = (&self.scalings[prev], &self.scalings[m]);
+        if prev == m || d.is_empty() {
+            return 1.0;
+        }
+        dp.iter().zip(d).map(|(a, b)| a / b).fold(0.0, f64::max)
     }
 
     /// The bound on ‖x̂_f32,t − x̂_f64,t‖ at the next t, from ‖θ_t‖ (the f64 run's window
@@ -680,18 +761,40 @@ impl DeviationBound {
         let (a, b) = (&self.w32[m], &self.w64[m]);
         let (i32r, i64r) = (&a.iteration, &b.iteration);
         let k = i32::try_from(self.k).unwrap_or(i32::MAX);
-        // The f64 run: ‖z⁰ − z*‖ ≤ ‖zᴷ_{t−1} − z*_{t−1}‖ + ‖z*_{t−1}‖ + ‖z*_t‖ (any window
-        // change; at t = 0, z⁰ = (prior, 0) with ‖prior‖ ≤ ‖θ_0‖).
-        let z_star = b.origin_offset + b.l_phi * theta_norm;
-        let e0 = if self.t == 0 {
-            theta_norm + z_star
+        // The scaling's extremes and the relative errors γ₂ of y⁰ = z⁰/d̃ and z = d̃·y in each
+        // scalar (0 without a scaling: the copies are exact).
+        let scaled = !self.scalings[m].is_empty();
+        let (d_min, d_max) = scaling_extremes(&self.scalings[m]);
+        let (g32, g64) = if scaled {
+            (gamma(2, u32), gamma(2, F64_UNIT_ROUNDOFF))
         } else {
-            self.eps64 + self.z_star + z_star
+            (0.0, 0.0)
         };
+        let carry = if self.t == 0 {
+            1.0
+        } else {
+            self.carry(self.t.min(self.horizon + 1) - 1, m)
+        };
+        // ‖D⁻¹z*_t‖ (Euclidean ‖z*‖ ≤ o + L_Φ‖θ‖; the scaled problem's optimum within the
+        // slack).
+        let z_star = if scaled {
+            (b.origin_offset + b.l_phi * theta_norm) / d_min * (1.0 + SCALED_OPTIMUM_SLACK)
+        } else {
+            b.origin_offset + b.l_phi * theta_norm
+        };
+        // The f64 run: ‖D⁻¹(z⁰ − z*)‖ ≤ carry·‖D⁻¹(zᴷ_{t−1} − z*_{t−1})‖ + carry·‖D⁻¹z*_{t−1}‖
+        // + ‖D⁻¹z*_t‖ (any window change; at t = 0, z⁰ = (prior, 0) with ‖prior‖ ≤ ‖θ_0‖),
+        // then y⁰'s rounded division.
+        let e0 = if self.t == 0 {
+            theta_norm / d_min + z_star
+        } else {
+            carry * (self.eps64 + self.z_star) + z_star
+        };
+        let e0 = e0 + g64 * (e0 + z_star);
         let q64 = i64r.perturbed_rate();
         let d64 = i64r.additive(self.k, z_star, theta_norm);
         let eps64 = q64.powi(k) * e0 + d64;
-        // Every f64 iterate of this step: ‖z_k‖ ≤ ‖z*‖ + ‖z⁰ − z*‖ + d.
+        // Every f64 iterate of this step: ‖y_k‖ ≤ ‖y*‖ + ‖y⁰ − y*‖ + d.
         let r_max = z_star + e0 + d64;
         // The data: the prior differs by the deviation M steps back, u and y by rounding.
         let prior_dev = if self.t > self.horizon {
@@ -700,6 +803,9 @@ impl DeviationBound {
             0.0
         };
         let d_theta = prior_dev + u32 * theta_norm;
+        // The start: the carried deviation and both rounded divisions (‖D⁻¹z⁰_32‖ ≤ R + Δ).
+        let start = carry * self.z_dev;
+        let start = start + g32 * (r_max + start) + g64 * r_max;
         // Δ_{k+1} ≤ (r + a₃₂)Δ_k + s_θΔθ + (a₃₂ + a₆₄)R + b₃₂(‖θ‖ + Δθ) + b₆₄‖θ‖ + c₃₂ + c₆₄.
         let q = i32r.perturbed_rate();
         let forcing = i32r.theta_sensitivity * d_theta
@@ -709,18 +815,24 @@ impl DeviationBound {
             + i32r.c
             + i64r.c;
         let qk = q.powi(k);
-        let z_dev = qk * self.z_dev + (1.0 - qk) / (1.0 - q) * forcing;
-        // x̂ = Ψ_m zᴷ + Υ_m u, each computed with its propagation rounding.
-        let z_norm64 = z_star + eps64;
+        let y_dev = qk * start + (1.0 - qk) / (1.0 - q) * forcing;
+        // z = d̃·y in each scalar: ‖D⁻¹(z₃₂ − z₆₄)‖ ≤ Δ_K + γ₂‖y₃₂‖ + γ₂‖y₆₄‖.
+        let y_norm64 = z_star + eps64;
+        let z_dev = y_dev + g32 * (y_norm64 + y_dev) + g64 * y_norm64;
+        // x̂ = Ψ_m zᴷ + Υ_m u, each computed with its propagation rounding; Euclidean
+        // ‖z‖ ≤ d_max‖D⁻¹z‖.
+        let z_norm64 = d_max * (1.0 + g64) * y_norm64;
+        let z_dev_e = d_max * z_dev;
         let p32 = &a.propagation;
         let p64 = &b.propagation;
-        let x_dev = p32.psi * z_dev
+        let x_dev = p32.psi * z_dev_e
             + p32.upsilon * u32 * u_window_norm
-            + p32.from_z * (z_norm64 + z_dev)
+            + p32.from_z * (z_norm64 + z_dev_e)
             + p32.from_u * u_window_norm * (1.0 + u32)
             + p64.from_z * z_norm64
             + p64.from_u * u_window_norm;
-        self.eps64 = eps64;
+        // zᴷ_64 = fl(d·yᴷ_64): ‖D⁻¹(zᴷ_64 − z*)‖ ≤ ‖yᴷ − y*‖ + γ₂‖yᴷ‖ for the next step's start.
+        self.eps64 = eps64 + g64 * y_norm64;
         self.z_star = z_star;
         self.z_dev = z_dev;
         self.history.push(x_dev);

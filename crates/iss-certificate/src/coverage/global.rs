@@ -275,7 +275,8 @@ pub fn global_of(
 
 /// The f32 verdict from the f64 one `v`: Theorem 1 with the f32 rounding folded in
 /// ([`crate::certificate::precision::certify_scalar`]); the joint certificate has no rounding
-/// model ([`F32_NOT_COVERED`]). The f64 K_min is kept where f32 has none.
+/// model ([`F32_NOT_COVERED`]). A void f32 verdict has no floor: the f64 K_min is not a K
+/// certified in f32, and `export --k certified` reads the floor.
 pub(super) fn f32_verdict(
     resolved: &ResolvedScenario,
     cert: &ClosedLoopCertificate,
@@ -284,6 +285,7 @@ pub(super) fn f32_verdict(
 ) -> PairVerdict {
     let void = |why: F32Void, v: PairVerdict| PairVerdict {
         certified: Certified::Void,
+        k_min: None,
         margin: None,
         reason: Some(PairReason::F32 {
             why,

@@ -3,7 +3,7 @@
 //! `mhe_embedded` in f32 at the f32 K_min, on the Rao–Rawlings–Lee pair (the shipped
 //! scenarios it certifies). Per step: step 3's bound on ε_t (the iteration's rounding model
 //! of `qp_iter::rounding` folded in), the propagation's rounding of x̂ (step 4), the
-//! per-step bound on ‖x̂_f32 − x̂_f64‖ (`DeviationBound`); per run: Props. 1 and 3's
+//! per-step bound on ‖x̂_f32 − x̂_f64‖ (`DeviationBound`, plain and Jacobi-scaled); per run: Props. 1 and 3's
 //! trajectory inequalities with the perturbed gains, the offset c_d/(1 − φ_u) and the
 //! rounding's k_r·sup‖r‖. References: the exact optimum z*_t of each window (active set, in
 //! f64) at the exact data θ_t (the f32 run's own prior), and the same estimator in f64.
@@ -233,13 +233,11 @@ impl Claim {
         let mut exact: Vec<ActiveSetSolver> = (problem.windows().iter())
             .map(|w| ActiveSetSolver::new(w.qp(), ActiveSetSettings::default()).expect("QP"))
             .collect();
-        // The per-step deviation bound is projected gradient's (plain); the Jacobi variant's
-        // deviation is measured, its bound not derived (∞ here).
-        let mut dev = (self.method == Method::PG).then(|| {
-            DeviationBound::new(r, &self.cert, Method::PG, self.k)
-                .expect("builds")
-                .expect("PG covered")
-        });
+        // The per-step deviation bound of projected gradient, plain or Jacobi-scaled (in the
+        // scaled coordinates, session 28).
+        let mut dev = DeviationBound::new(r, &self.cert, self.method, self.k)
+            .expect("builds")
+            .expect("PG and PG-Jacobi are covered");
         let set = &r.scenario().sets.disturbance;
         let (mut x32s, mut x64s) = (Vec::<Vec<f64>>::new(), Vec::<Vec<f64>>::new());
         let mut out = Vec::with_capacity(steps);
@@ -283,9 +281,7 @@ impl Claim {
                 eps_exact_part,
                 r_bound: p.from_z * norm(&zk[..n]) + p.from_u * norm(&us),
                 dev: diff(&xh32, &xh64),
-                dev_bound: dev.as_mut().map_or(f64::INFINITY, |d| {
-                    d.step(norm(&th64), norm(&th64[nx..nx + m * sys.nu()]))
-                }),
+                dev_bound: dev.step(norm(&th64), norm(&th64[nx..nx + m * sys.nu()])),
                 x: trace.x_norms()[t],
                 w: norm(w),
                 w_in_set,

@@ -120,7 +120,7 @@ impl FistaSteps {
                 "fista: V-FISTA's inner-rate LMI (sector multipliers on the gradient and the \
                  clamp, Theorem L1) certifies no incremental rate on this window (κ = {}; it \
                  does up to κ ≈ 5), and the f32 bound carries the step errors through it: \
-                 rounding not bounded (use pg)",
+                 rounding not bounded (pg and pg-jacobi have a model at any κ)",
                 lti_model::numfmt::sig4(qp.l() / qp.mu())
             ),
             other => other.to_string(),

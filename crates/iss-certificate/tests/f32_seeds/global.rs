@@ -6,9 +6,12 @@
 //! ADMM-PR-Jacobi 52).
 
 use super::adversary;
-use super::data::{apply, owned_for, singles, to32, widen, windows32};
+use super::data::{apply, owned_for, singles, to32, widen, windows32, windows64};
 use super::scenario;
 use closed_loop::scenario::{ControllerChoice, LoopOptions, ResolvedScenario};
+use iss_certificate::certificate::certify_closed_loop;
+use iss_certificate::certificate::precision::DeviationBound;
+use iss_certificate::coverage::verdict_options;
 use iss_certificate::linear::LiftedLayout;
 use iss_certificate::lure::global::{GlobalCertificate, certify_precision, global_loop};
 use iss_certificate::lure::global_outcome::GlobalSettings;
@@ -30,6 +33,9 @@ pub(super) struct F32Run<'a> {
     pub(super) problem: mhe_embedded::Problem<'a, f32>,
     resolved: ResolvedScenario,
     pub(super) layout: LiftedLayout,
+    /// Projected gradient (plain or Jacobi-scaled): the same estimator in f64 fed the run's
+    /// (u, y), and the per-step bound on ‖x̂_f32 − x̂_f64‖ (`DeviationBound`, fresh per run).
+    pub(super) deviation: Option<(mhe_embedded::Problem<'a, f64>, DeviationBound)>,
 }
 
 /// What a run starts from and is driven by.
@@ -55,11 +61,13 @@ pub(super) struct Outcome {
     pub(super) at: usize,
     /// ‖X_t‖²_P stayed within ρ^{2(t−M)}‖X_M‖²_P + γ²/(1 − ρ²)(sup‖w‖² + o²).
     pub(super) within: bool,
+    /// max_t ‖x̂_f32 − x̂_f64‖ / `DeviationBound` (0 where the bound is not tracked).
+    pub(super) deviation: f64,
 }
 
 impl Outcome {
     pub(super) fn holds(&self) -> bool {
-        self.within && self.worst <= 1.0
+        self.within && self.worst <= 1.0 && self.deviation <= 1.0
     }
 
     /// The adversary's objective: the larger of the one-step and multi-step ratios (∞ where
@@ -106,8 +114,14 @@ impl F32Run<'_> {
         Inputs { x0, prior, w }
     }
 
-    /// The run from `inp` for `steps` steps: ‖X_t‖²_P per t ≥ M and ‖w_t‖² per t ≥ M.
-    fn storage(&self, c: &GlobalCertificate, inp: &Inputs, steps: usize) -> (Vec<f64>, Vec<f64>) {
+    /// The run from `inp` for `steps` steps: ‖X_t‖²_P per t ≥ M, ‖w_t‖² per t ≥ M, and the
+    /// largest ‖x̂_f32 − x̂_f64‖ / its bound (0 without a tracked bound).
+    fn storage(
+        &self,
+        c: &GlobalCertificate,
+        inp: &Inputs,
+        steps: usize,
+    ) -> (Vec<f64>, Vec<f64>, f64) {
         let sys = self.resolved.mhe_problem().expect("mhe").system().clone();
         let (nx, nu, nw1) = (sys.nx(), sys.nu(), sys.nw1());
         let nw = nw1 + sys.nw2();
@@ -122,12 +136,46 @@ impl F32Run<'_> {
         let mut mhe = mhe_embedded::MheRt::new(&self.problem, &prior, &mut work).expect("dims");
         let mut rec: Vec<[Vec<f64>; 3]> = Vec::new();
         let (mut storage, mut wn) = (Vec::new(), Vec::new());
+        // The f64 twin and the deviation bound (projected gradient only).
+        let mut work64 = self.deviation.as_ref().map_or_else(Vec::new, |(p, _)| {
+            vec![0f64; mhe_embedded::MheRt::workspace_len(p)]
+        });
+        let mut twin = self.deviation.as_ref().map(|(p, bound)| {
+            let m64 = mhe_embedded::MheRt::new(p, &inp.prior, &mut work64).expect("dims");
+            (m64, bound.clone(), Vec::<Vec<f64>>::new())
+        });
+        let mut deviation = 0.0_f64;
         for t in 0..steps {
             if t >= m {
                 let z0 = widen(mhe.start());
                 storage.push(c.storage(&self.lifted(&x, &rec, &z0)));
             }
             let xh: Vec<f64> = mhe.estimate().iter().map(|v| f64::from(*v)).collect();
+            if let Some((m64, bound, estimates)) = twin.as_mut() {
+                // θ_t of the f64 run: its prior (its estimate M steps back once the window is
+                // full) and the (u, y) window.
+                let mw = t.min(m);
+                let prior = if t <= m {
+                    &inp.prior
+                } else {
+                    &estimates[t - m]
+                };
+                let window = &rec[t - mw..];
+                let us: Vec<f64> = window.iter().flat_map(|r| r[0].clone()).collect();
+                let ys: Vec<f64> = window.iter().flat_map(|r| r[1].clone()).collect();
+                let sq = |v: &[f64]| v.iter().map(|a| a * a).sum::<f64>();
+                let theta = (sq(prior) + sq(&us) + sq(&ys)).sqrt();
+                let b = bound.step(theta, sq(&us).sqrt());
+                let x64 = m64.estimate().to_vec();
+                let d = x64
+                    .iter()
+                    .zip(&xh)
+                    .map(|(a, b)| (a - b) * (a - b))
+                    .sum::<f64>()
+                    .sqrt();
+                deviation = deviation.max(d / b);
+                estimates.push(x64);
+            }
             let mut u = vec![0.0; nu];
             // A run whose f32 estimate overflowed (an uncertified K diverges) has no finite
             // storage from here: recorded as ∞, which every check refuses.
@@ -158,9 +206,12 @@ impl F32Run<'_> {
                 storage.push(f64::INFINITY);
                 break;
             }
+            if let Some((m64, _, _)) = twin.as_mut() {
+                m64.push(&u, &y).expect("finite (u, y)");
+            }
             rec.push([u, y, xh]);
         }
-        (storage, wn)
+        (storage, wn, deviation)
     }
 
     /// The run from `inp` against `c` with the rounding offset `offset` (module docs).
@@ -171,7 +222,7 @@ impl F32Run<'_> {
         inp: &Inputs,
         steps: usize,
     ) -> Outcome {
-        let (storage, wn) = self.storage(c, inp, steps);
+        let (storage, wn, deviation) = self.storage(c, inp, steps);
         if storage.iter().any(|v| !v.is_finite()) {
             // Diverged (f32 overflow): no inequality holds.
             return Outcome {
@@ -179,6 +230,7 @@ impl F32Run<'_> {
                 multi: f64::INFINITY,
                 at: 0,
                 within: false,
+                deviation,
             };
         }
         let (r2, g2, o2) = (c.rho * c.rho, c.gamma * c.gamma, offset * offset);
@@ -202,6 +254,7 @@ impl F32Run<'_> {
             multi,
             at,
             within,
+            deviation,
         }
     }
 
@@ -256,10 +309,40 @@ pub(super) fn f32_runs_respect_the_global_certificate(
     let ws = owned_for(&r, method);
     let s32 = singles(&ws);
     let v32 = windows32(&ws, &s32);
+    let v64 = windows64(&ws);
     let sys = r.mhe_problem().expect("mhe").system().clone();
-    let rm = |m: faer::MatRef<'_, f64>| to32(&lti_model::matrix::row_major(m));
-    let (a32, b32, e32) = (rm(sys.a()), rm(sys.b()), rm(sys.e()));
+    let rm64 = |m: faer::MatRef<'_, f64>| lti_model::matrix::row_major(m);
+    let (a64, b64, e64) = (rm64(sys.a()), rm64(sys.b()), rm64(sys.e()));
+    let (a32, b32, e32) = (to32(&a64), to32(&b64), to32(&e64));
     let layout = gl.lifted.layout();
+    // Projected gradient (plain or Jacobi-scaled): the per-step deviation bound beside the
+    // global certificate, from Theorem 1's L_Φ and o_m (any (u, y): x₀, prior and noise
+    // beyond 𝒲 included).
+    let pg = method.with_scaling(qp_iter::Scaling::None) == Method::PG;
+    let deviation = pg.then(|| {
+        let mut opts = verdict_options(r.scenario(), vec![method], None);
+        opts.global_seconds = None;
+        let cert = certify_closed_loop(&r, &opts).expect("certificate computes");
+        let bound = DeviationBound::new(&r, &cert, method, k32)
+            .expect("builds")
+            .expect("PG and PG-Jacobi are covered");
+        let p64 = mhe_embedded::Problem {
+            nx: sys.nx(),
+            nu: sys.nu(),
+            ny: sys.ny(),
+            nw1: sys.nw1(),
+            nw2: sys.nw2(),
+            horizon: layout.horizon,
+            iterations: k32,
+            method: mhe_embedded::Method::Pg,
+            warm_start: mhe_embedded::WarmStart::Paper,
+            a: &a64,
+            b: &b64,
+            e: &e64,
+            windows: &v64,
+        };
+        (p64, bound)
+    });
     let mut run = F32Run {
         problem: mhe_embedded::Problem {
             nx: sys.nx(),
@@ -282,9 +365,10 @@ pub(super) fn f32_runs_respect_the_global_certificate(
         },
         resolved: r.clone(),
         layout,
+        deviation,
     };
     // [with noise, noise-free]
-    let (mut worst, mut multi) = ([0.0_f64; 2], 0.0_f64);
+    let (mut worst, mut multi, mut dev) = ([0.0_f64; 2], 0.0_f64, 0.0_f64);
     for seed in 0..200 {
         let out = run.run_seed(c, p32.offset(), seed, steps);
         assert!(out.within, "seed {seed}: ‖X‖²_P left the ISS bound");
@@ -293,14 +377,30 @@ pub(super) fn f32_runs_respect_the_global_certificate(
             "seed {seed}: one-step ratio {}",
             out.worst
         );
+        assert!(
+            out.deviation <= 1.0,
+            "seed {seed}: ‖x̂_f32 − x̂_f64‖ above its bound × {}",
+            out.deviation
+        );
         let w = &mut worst[usize::from(seed >= NOISY_SEEDS)];
         *w = w.max(out.worst);
         multi = multi.max(out.multi);
+        dev = dev.max(out.deviation);
     }
     eprintln!(
         "{file}: 200 f32 runs × {steps} steps at K = {k32}: worst one-step ratio {:.4} with \
-         noise, {:.4} noise-free; multi-step {multi:.4}",
-        worst[0], worst[1]
+         noise, {:.4} noise-free; multi-step {multi:.4}; ‖x̂_f32 − x̂_f64‖/bound {}",
+        worst[0],
+        worst[1],
+        if pg {
+            format!("{dev:.3e}")
+        } else {
+            "not tracked (ADMM)".into()
+        }
+    );
+    assert!(
+        !pg || dev > 0.0,
+        "the f32 and f64 estimators ran identically"
     );
     // The optimised adversary (adversary.rs) on the same loop and certificate.
     let wset = &r.scenario().sets.disturbance;
@@ -314,7 +414,7 @@ pub(super) fn f32_runs_respect_the_global_certificate(
     eprintln!(
         "{file} {} K = {k32}: adversary ({} restarts × {} moves, {} runs × {steps} steps, \
          {:.1} s): worst one-step ratio {:.4}, multi-step {:.4} (seeded runs: {:.4}, {multi:.4}); \
-         worst point: {}",
+         its deviation/bound {:.3e}; worst point: {}",
         method.name(),
         budget.restarts,
         budget.moves,
@@ -323,6 +423,7 @@ pub(super) fn f32_runs_respect_the_global_certificate(
         found.outcome.worst,
         found.multi,
         worst[0].max(worst[1]),
+        found.outcome.deviation,
         found.describe(lo.len(), layout.horizon),
     );
     assert!(
@@ -353,6 +454,8 @@ pub(super) fn f32_runs_respect_the_global_certificate(
     // … and, where the loop is unstable at K = 1 (the double integrator), so does K = 1.
     if refute_k1 {
         run.problem.iterations = 1;
+        // The deviation bound was built for K_glob(f32).
+        run.deviation = None;
         let refuted = (0..20).any(|seed| !run.run_seed(c, p32.offset(), seed, steps).holds());
         assert!(refuted, "the check never failed at K = 1");
         let found = attack(&run, c);

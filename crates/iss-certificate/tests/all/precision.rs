@@ -99,7 +99,11 @@ fn deviation_vs_bound(seeds: u64, method: Method, k: Option<usize>) -> (f64, f64
         nw2: sys.nw2(),
         horizon,
         iterations: k,
-        method: mhe_embedded::Method::Pg,
+        method: if matches!(method.kind, qp_iter::MethodKind::Admm(_)) {
+            mhe_embedded::Method::Admm
+        } else {
+            mhe_embedded::Method::Pg
+        },
         warm_start: mhe_embedded::WarmStart::Paper,
         a: &a,
         b: &b,
@@ -230,7 +234,31 @@ fn the_f32_deviation_of_pg_jacobi_stays_within_its_bound() {
     );
 }
 
-/// The tracker covers projected gradient only (plain and Jacobi-scaled): any other method
+/// ADMM's deviation bound (session 28: the exact step's incremental rate on s, both starts'
+/// and steps' rounding, the output clamps), plain ADMM and ADMM-PR-Jacobi at Theorem 1's f64
+/// K_min on the certified preset: holds on a few seeds and is not vacuous.
+#[test]
+fn the_f32_deviation_of_admm_stays_within_its_bound() {
+    for (method, k) in [
+        (Method::ADMM, 89),
+        (Method::ADMM_PR.with_scaling(qp_iter::Scaling::Jacobi), 21),
+    ] {
+        let (ratio, tightest, largest) = deviation_vs_bound(3, method, Some(k));
+        println!(
+            "{}, 3 seeds: max ‖x̂_f32 − x̂_f64‖ = {largest:.3e}; min bound/measured = \
+             {tightest:.3e}; max measured/bound = {ratio:.3e}",
+            method.name()
+        );
+        assert!(largest > 0.0 && ratio <= 1.0, "{}", method.name());
+        assert!(
+            tightest < 1e5,
+            "{}: the bound is {tightest:e} × the deviation at best",
+            method.name()
+        );
+    }
+}
+
+/// The tracker covers projected gradient and ADMM (plain and Jacobi-scaled): any other method
 /// is refused with its name.
 #[test]
 fn the_deviation_bound_names_the_methods_it_does_not_cover() {

@@ -296,16 +296,17 @@ impl Search<'_> {
 }
 
 /// The adversary against `c` with the rounding offset `offset` on `run` (its K is
-/// `run.problem.iterations`), w built on 𝒲 = [lo, hi], seeded by `budget.seed`: the
-/// worst point found, the first violating one where one exists within the budget (the
+/// `run.problem.iterations`), w built on 𝒲 = [lo, hi], seeded by `budget.seed`, maximising
+/// `score` ([`Outcome::score`] for the certificate's inequalities, or the deviation ratio):
+/// the worst point found, the first violating one where one exists within the budget (the
 /// search stops there).
 pub(super) fn attack(
     run: &F32Run<'_>,
     c: &GlobalCertificate,
     offset: f64,
-    lo: &[f64],
-    hi: &[f64],
+    (lo, hi): (&[f64], &[f64]),
     budget: Budget,
+    score: impl Fn(&Outcome) -> f64,
 ) -> Found {
     let mut rng = ChaCha8Rng::seed_from_u64(budget.seed);
     let search = Search {
@@ -332,13 +333,13 @@ pub(super) fn attack(
             }
             let q = search.mutate(&mut rng, &p, f.at);
             let g = eval(&q);
-            if g.score() >= f.score() || !g.holds() {
+            if score(&g) >= score(&f) || !g.holds() {
                 (p, f) = (q, g);
             }
         }
         if best
             .as_ref()
-            .is_none_or(|(b, _)| f.score() > b.score() || !f.holds())
+            .is_none_or(|(b, _)| score(&f) > score(b) || !f.holds())
         {
             best = Some((f, p));
         }

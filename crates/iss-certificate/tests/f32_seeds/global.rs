@@ -33,8 +33,8 @@ pub(super) struct F32Run<'a> {
     pub(super) problem: mhe_embedded::Problem<'a, f32>,
     resolved: ResolvedScenario,
     pub(super) layout: LiftedLayout,
-    /// Projected gradient (plain or Jacobi-scaled): the same estimator in f64 fed the run's
-    /// (u, y), and the per-step bound on ‖x̂_f32 − x̂_f64‖ (`DeviationBound`, fresh per run).
+    /// The same estimator in f64 fed the run's (u, y), and the per-step bound on
+    /// ‖x̂_f32 − x̂_f64‖ (`DeviationBound`, fresh per run); None: not tracked.
     pub(super) deviation: Option<(mhe_embedded::Problem<'a, f64>, DeviationBound)>,
 }
 
@@ -315,17 +315,21 @@ pub(super) fn f32_runs_respect_the_global_certificate(
     let (a64, b64, e64) = (rm64(sys.a()), rm64(sys.b()), rm64(sys.e()));
     let (a32, b32, e32) = (to32(&a64), to32(&b64), to32(&e64));
     let layout = gl.lifted.layout();
-    // Projected gradient (plain or Jacobi-scaled): the per-step deviation bound beside the
-    // global certificate, from Theorem 1's L_Φ and o_m (any (u, y): x₀, prior and noise
-    // beyond 𝒲 included).
-    let pg = method.with_scaling(qp_iter::Scaling::None) == Method::PG;
-    let deviation = pg.then(|| {
+    // The per-step deviation bound beside the global certificate (projected gradient and
+    // ADMM, plain or Jacobi-scaled: every method here), from Theorem 1's L_Φ and o_m (any
+    // (u, y): x₀, prior and noise beyond 𝒲 included).
+    let kernel = if matches!(method.kind, qp_iter::MethodKind::Admm(_)) {
+        mhe_embedded::Method::Admm
+    } else {
+        mhe_embedded::Method::Pg
+    };
+    let deviation = {
         let mut opts = verdict_options(r.scenario(), vec![method], None);
         opts.global_seconds = None;
         let cert = certify_closed_loop(&r, &opts).expect("certificate computes");
         let bound = DeviationBound::new(&r, &cert, method, k32)
             .expect("builds")
-            .expect("PG and PG-Jacobi are covered");
+            .expect("PG and ADMM are covered");
         let p64 = mhe_embedded::Problem {
             nx: sys.nx(),
             nu: sys.nu(),
@@ -334,15 +338,15 @@ pub(super) fn f32_runs_respect_the_global_certificate(
             nw2: sys.nw2(),
             horizon: layout.horizon,
             iterations: k32,
-            method: mhe_embedded::Method::Pg,
+            method: kernel,
             warm_start: mhe_embedded::WarmStart::Paper,
             a: &a64,
             b: &b64,
             e: &e64,
             windows: &v64,
         };
-        (p64, bound)
-    });
+        Some((p64, bound))
+    };
     let mut run = F32Run {
         problem: mhe_embedded::Problem {
             nx: sys.nx(),
@@ -352,11 +356,7 @@ pub(super) fn f32_runs_respect_the_global_certificate(
             nw2: sys.nw2(),
             horizon: layout.horizon,
             iterations: k32,
-            method: if matches!(method.kind, qp_iter::MethodKind::Admm(_)) {
-                mhe_embedded::Method::Admm
-            } else {
-                mhe_embedded::Method::Pg
-            },
+            method: kernel,
             warm_start: mhe_embedded::WarmStart::Paper,
             a: &a32,
             b: &b32,
@@ -389,25 +389,16 @@ pub(super) fn f32_runs_respect_the_global_certificate(
     }
     eprintln!(
         "{file}: 200 f32 runs × {steps} steps at K = {k32}: worst one-step ratio {:.4} with \
-         noise, {:.4} noise-free; multi-step {multi:.4}; ‖x̂_f32 − x̂_f64‖/bound {}",
-        worst[0],
-        worst[1],
-        if pg {
-            format!("{dev:.3e}")
-        } else {
-            "not tracked (ADMM)".into()
-        }
+         noise, {:.4} noise-free; multi-step {multi:.4}; ‖x̂_f32 − x̂_f64‖/bound {dev:.3e}",
+        worst[0], worst[1],
     );
-    assert!(
-        !pg || dev > 0.0,
-        "the f32 and f64 estimators ran identically"
-    );
+    assert!(dev > 0.0, "the f32 and f64 estimators ran identically");
     // The optimised adversary (adversary.rs) on the same loop and certificate.
     let wset = &r.scenario().sets.disturbance;
     let (lo, hi) = (wset.lower().to_vec(), wset.upper().to_vec());
     let budget = adversary::Budget::from_env(steps);
     let attack = |run: &F32Run<'_>, c: &GlobalCertificate| {
-        adversary::attack(run, c, p32.offset(), &lo, &hi, budget)
+        adversary::attack(run, c, p32.offset(), (&lo, &hi), budget, Outcome::score)
     };
     let clock = std::time::Instant::now();
     let found = attack(&run, c);
@@ -433,6 +424,26 @@ pub(super) fn f32_runs_respect_the_global_certificate(
         method.name(),
         budget.seed,
         found.outcome,
+        found.inputs
+    );
+    // The same search aimed at the deviation bound: ‖x̂_f32 − x̂_f64‖ / its bound.
+    let clock = std::time::Instant::now();
+    let found = adversary::attack(&run, c, p32.offset(), (&lo, &hi), budget, |o| o.deviation);
+    eprintln!(
+        "{file} {} K = {k32}: deviation adversary ({} runs, {:.1} s): worst deviation/bound \
+         {:.3e} (seeded runs: {dev:.3e}); worst point: {}",
+        method.name(),
+        found.runs,
+        clock.elapsed().as_secs_f64(),
+        found.outcome.deviation,
+        found.describe(lo.len(), layout.horizon),
+    );
+    assert!(
+        found.outcome.deviation <= 1.0,
+        "{file} {} K = {k32}: the adversary (seed {}) exceeds the deviation bound × {} at {:?}",
+        method.name(),
+        budget.seed,
+        found.outcome.deviation,
         found.inputs
     );
     // The check has teeth: without the noise's supply (γ = 0) a run violates it …

@@ -40,7 +40,7 @@ fn certificate(resolved: &ResolvedScenario) -> &'static ClosedLoopCertificate {
     })
 }
 
-pub(crate) use crate::f32_data::{owned, singles, to32, windows32, windows64};
+pub(crate) use crate::f32_data::{owned_for, singles, to32, windows32, windows64};
 
 /// A certificate's reason as the sentence it prints ("" when certified).
 fn reason(c: &iss_certificate::certificate::precision::ScalarCertificate) -> String {
@@ -83,7 +83,7 @@ fn deviation_vs_bound(seeds: u64, method: Method, k: Option<usize>) -> (f64, f64
     let cert = certificate(&resolved);
     let k = k.unwrap_or_else(|| sc.mhe.as_ref().expect("mhe section").iterations().get());
     let sys = &sc.plant;
-    let ws = crate::f32_data::owned_for(&resolved, method);
+    let ws = owned_for(&resolved, method);
     let v64 = windows64(&ws);
     let s32 = singles(&ws);
     let v32 = windows32(&ws, &s32);

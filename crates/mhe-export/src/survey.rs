@@ -7,8 +7,7 @@
 
 use closed_loop::scenario::{ControllerChoice, ResolvedScenario, Scenario};
 use iss_certificate::certificate::certify_closed_loop;
-use iss_certificate::certificate::precision::ScalarVoid;
-use iss_certificate::coverage::{Configuration, F32Void, PairReason, verdict, verdict_options};
+use iss_certificate::coverage::{Configuration, PairReason, verdict, verdict_options};
 use qp_iter::Method;
 use serde::Serialize;
 
@@ -232,47 +231,7 @@ pub fn survey(
 }
 
 /// The named reason of a verdict, in a few words (the whole sentence stays in the export's
-/// certificate.json): what a table cell can hold.
+/// certificate.json): what a table cell can hold ([`PairReason::short`]).
 pub fn short_reason(r: &PairReason) -> String {
-    match r {
-        PairReason::F32 { why, .. } => match why {
-            F32Void::JointNotCovered => "f32: the joint certificate has no rounding model".into(),
-            F32Void::NotCovered => "f32: the f64 certificate is void".into(),
-            // Theorem 1's f32 arm (every method's K-step model); the global arm follows as
-            // "; no global K" when it certifies none.
-            F32Void::RoundingModel { .. } => "f32: the rounding model failed".into(),
-            F32Void::Void(v) => match v {
-                // V-FISTA without its incremental rate, FISTA-Jacobi, the structured product,
-                // general rows: the sentence names which.
-                ScalarVoid::NotCovered { .. } => "f32: no rounding model here".into(),
-                ScalarVoid::ContractionBroken { window, .. } => {
-                    format!("f32: the rounding breaks the contraction (window m = {window})")
-                }
-                ScalarVoid::NoK { .. } => "f32: the rounding leaves Theorem 1 no room".into(),
-                ScalarVoid::ShiftedWarmStart => "f32: the shifted warm start".into(),
-                ScalarVoid::Theorem1 { .. } | ScalarVoid::VoidInF64 { .. } => {
-                    "f32: void in f64".into()
-                }
-                _ => "f32: void".into(),
-            },
-            F32Void::NoK => "f32: no K with the rounding".into(),
-            _ => "f32: not covered".into(),
-        },
-        PairReason::Global { then, global } => {
-            // The global outcome's sentence names the budget when the budget cut it.
-            let g = global.to_string();
-            let g = if g.contains("not computed") {
-                "the global certificate not computed within the budget"
-            } else {
-                "no global K"
-            };
-            then.as_ref()
-                .map_or_else(|| g.to_string(), |t| format!("{}; {g}", short_reason(t)))
-        }
-        PairReason::Void(_) | PairReason::Violated(_) => "Theorem 1 void".into(),
-        PairReason::NotComputed(_) => "not computed within the budget".into(),
-        PairReason::Uncovered(_) => "no certificate covers the configuration".into(),
-        PairReason::BelowF32KMin { k_min, .. } => format!("below the f32 K_min = {k_min}"),
-        _ => "not certified".into(),
-    }
+    r.short()
 }

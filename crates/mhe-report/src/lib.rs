@@ -55,7 +55,7 @@ mod work;
 pub use comparison::{ComparisonRow, paper_comparison, short_reason};
 pub use runs::{KalmanSummary, Run, RunSummary, kalman_baseline};
 pub use stages::{PlannedRun, SkippedRun, TrajectoryReport};
-pub use verdicts::SolverSummary;
+pub use verdicts::{F32Entry, SolverSummary};
 pub use work::{MAX_SIMULATION_ITERATIONS, MAX_SIMULATION_WORK, Work};
 
 /// Sampling, search and simulation settings (defaults: those of the shipped results). The
@@ -197,6 +197,8 @@ pub struct Timings {
     pub linear_s: f64,
     /// K_reg of every method.
     pub regional_s: f64,
+    /// The f32 verdict of every method (Theorem 1 with the f32 rounding folded in).
+    pub f32_s: f64,
     /// Each simulation, in the order of [`Report::runs`].
     pub simulations_s: Vec<f64>,
 }
@@ -221,6 +223,8 @@ pub struct Report {
     pub linear: Vec<linear::LinearEntry>,
     /// K_reg per method.
     pub regional: Vec<regional::RegionalEntry>,
+    /// The one verdict in f32 per method (the smallest K certified in f32, or why none).
+    pub f32: Vec<verdicts::F32Entry>,
     /// The joint certificate (the K_c-iteration MPC only).
     pub joint_certificate: Option<JointCertificate>,
     /// The scenario's own controller.

@@ -112,13 +112,16 @@ pub(crate) fn run(
     let Analysis {
         linear,
         regional,
+        f32,
         lines,
         linear_s,
         regional_s,
+        f32_s,
     } = analysis;
     log.lines.splice(at..at, lines);
     timings.linear_s = linear_s;
     timings.regional_s = regional_s;
+    timings.f32_s = f32_s;
     let (trajectory_check, joint) = check(&p, &plan, &runs, &skipped_runs)?;
     let gains = crate::gains::report(
         &plan.cert,
@@ -137,6 +140,7 @@ pub(crate) fn run(
         certificate: plan.cert,
         linear,
         regional,
+        f32,
         joint_certificate: plan.joint_cert,
         controller: plan.own_controller,
         applicable: plan.applicable,
@@ -302,13 +306,16 @@ fn plan(
     })
 }
 
-/// ρ_lin per method and K_reg, with the lines of their work log and their wall times.
+/// ρ_lin per method, K_reg and the f32 verdicts, with the lines of their work log and
+/// their wall times.
 struct Analysis {
     linear: Vec<LinearEntry>,
     regional: Vec<regional::RegionalEntry>,
+    f32: Vec<crate::F32Entry>,
     lines: Vec<String>,
     linear_s: f64,
     regional_s: f64,
+    f32_s: f64,
 }
 
 /// The linear stability boundary ρ_lin(K) of each method, then K_reg (which reads it), with
@@ -341,13 +348,25 @@ fn analyse(
     let t0 = Instant::now();
     let regional = regional::regional_entries(&p.resolved, cert, &linear);
     let regional_s = t0.elapsed().as_secs_f64();
-    log.say(format!("  done in {} s", sig4(regional_s)));
+    log.say(format!(
+        "  done in {} s; the smallest K certified in f32 of each method (Theorem 1 with the \
+         f32 rounding folded in, and Theorem L3u) …",
+        sig4(regional_s)
+    ));
+    let t0 = Instant::now();
+    let controller = LoopOptions::from_scenario(&p.scenario)
+        .map_or(ControllerChoice::ExactMpc, |o| o.controller);
+    let f32 = crate::F32Entry::all(&p.resolved, cert, controller, p.iterations);
+    let f32_s = t0.elapsed().as_secs_f64();
+    log.say(format!("  done in {} s", sig4(f32_s)));
     Analysis {
         linear,
         regional,
+        f32,
         lines: log.lines,
         linear_s,
         regional_s,
+        f32_s,
     }
 }
 

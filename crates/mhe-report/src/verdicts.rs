@@ -30,6 +30,11 @@ pub struct SolverSummary {
     pub k_glob: Option<usize>,
     /// Its K_glob in f32 (Theorem L3u).
     pub k_glob_f32: Option<usize>,
+    /// The smallest K the one verdict certifies in f32 — Theorem 1 with the f32 rounding
+    /// folded in or Theorem L3u ([`F32Entry::k`]); None: [`SolverSummary::f32_reason`].
+    pub k_f32: Option<usize>,
+    /// Why no K is certified in f32 (None when one is).
+    pub f32_reason: Option<iss_certificate::coverage::PairReason>,
     /// K_chain: the smallest K the iteration chain certified (Theorem L3b, L3c for FISTA;
     /// f64, pg, fista and their Jacobi variants; that K only: the chain is not monotone in K).
     pub k_chain: Option<usize>,
@@ -55,6 +60,7 @@ pub struct SolverSummary {
 impl SolverSummary {
     /// The summary of `sc` in `report`'s scenario (its method simulated, its controller).
     fn new(report: &Report, sc: &SolverCertificate) -> Self {
+        let f32 = report.f32.iter().find(|e| e.solver == sc.solver);
         let global =
             iss_certificate::coverage::global_of(&report.certificate, sc.solver, report.controller)
                 .filter(|_| {
@@ -78,6 +84,10 @@ impl SolverSummary {
             k_min: sc.k_min,
             k_glob: global.and_then(|g| g.exact.k_glob()),
             k_glob_f32: global.and_then(|g| g.f32.k_glob()),
+            k_f32: f32.and_then(F32Entry::k),
+            f32_reason: f32
+                .filter(|e| e.k().is_none())
+                .and_then(|e| e.verdict.reason.clone()),
             k_chain: global
                 .and_then(|g| g.chain.as_ref())
                 .and_then(|c| c.k_chain()),
@@ -146,5 +156,65 @@ impl Report {
         (self.certificate.solver(self.solver))
             .and_then(|s| s.k_min)
             .map(|k| k == self.iterations)
+    }
+}
+
+/// One method's verdict in f32 at the scenario's K and controller
+/// ([`iss_certificate::coverage::verdict`] with [`iss_certificate::coverage::Scalar::F32`]):
+/// its floor is the smallest K certified in f32, by Theorem 1 with the f32 rounding folded
+/// in or by the global loop certificate in f32 (Theorem L3u).
+#[derive(Debug, Clone, PartialEq)]
+#[non_exhaustive]
+pub struct F32Entry {
+    /// The method.
+    pub solver: Method,
+    /// The verdict.
+    pub verdict: iss_certificate::coverage::PairVerdict,
+}
+
+impl F32Entry {
+    /// The verdicts of every method of `cert` on `resolved` with `controller`, at `k`.
+    pub(crate) fn all(
+        resolved: &closed_loop::scenario::ResolvedScenario,
+        cert: &iss_certificate::certificate::ClosedLoopCertificate,
+        controller: closed_loop::scenario::ControllerChoice,
+        k: usize,
+    ) -> Vec<Self> {
+        use iss_certificate::coverage::{Configuration, Scalar, verdict};
+        (cert.solvers.iter())
+            .map(|s| Self {
+                solver: s.solver,
+                verdict: verdict(
+                    resolved,
+                    cert,
+                    &Configuration {
+                        method: s.solver,
+                        k_e: k,
+                        controller,
+                        scalar: Scalar::F32,
+                    },
+                ),
+            })
+            .collect()
+    }
+
+    /// The smallest K certified in f32 (None: the verdict's reason says why).
+    ///
+    /// ```no_run
+    /// # use closed_loop::scenario::Scenario;
+    /// let scenario = Scenario::from_file("scenarios/rao-rawlings-lee.toml")?;
+    /// let report = mhe_report::report(scenario, &mhe_report::Options::default(), &mhe_report::Quiet)?;
+    /// for e in &report.f32 {
+    ///     println!("{}: f32 from K = {:?}", e.solver, e.k());
+    /// }
+    /// # Ok::<(), Box<dyn std::error::Error>>(())
+    /// ```
+    pub fn k(&self) -> Option<usize> {
+        let c = self.verdict.certified;
+        if c.is_certified() || c.is_below_floor() {
+            self.verdict.k_min
+        } else {
+            None
+        }
     }
 }

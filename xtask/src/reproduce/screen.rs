@@ -1,5 +1,6 @@
 //! The summary that fits a screen (issue 38 item 5): per job one table — method, K_min
-//! (Theorem 1), K_glob (the global loop certificate, Theorem L3), K_lin, K_reg, the certified gains g_e and g_x at K_min, and what the
+//! (Theorem 1), K_glob (the global loop certificate, Theorem L3), K_chain, K_f32 (the
+//! smallest K certified in f32), K_lin, K_reg, the certified gains g_e and g_x at K_min, and what the
 //! simulation of the scenario's method showed — and one verdict line; a reason shared by
 //! several cells is printed once, as a numbered footnote. Everything else (premises, the
 //! paper's constants, the long explanations, the work log) is in `-v` and `summary.md`.
@@ -30,11 +31,12 @@ impl Notes {
 }
 
 /// The header of the table (also parsed by the tests).
-pub(super) const TABLE_HEADER: [&str; 9] = [
+pub(super) const TABLE_HEADER: [&str; 10] = [
     "method",
     "K_min",
     "K_glob",
     "K_chain",
+    "K_f32",
     "K_lin",
     "K_reg",
     "g_e",
@@ -73,13 +75,14 @@ pub(super) fn screen(d: &CertificateDocument, out: &Path) -> String {
     let h = TABLE_HEADER;
     let _ = writeln!(
         s,
-        "  {:<14} {:>8} {:>8} {:>8} {:>8} {:>8} {:>8} {:>8}  {}",
-        h[0], h[1], h[2], h[3], h[4], h[5], h[6], h[7], h[8]
+        "  {:<14} {:>8} {:>8} {:>8} {:>8} {:>8} {:>8} {:>8} {:>8}  {}",
+        h[0], h[1], h[2], h[3], h[4], h[5], h[6], h[7], h[8], h[9]
     );
     for sv in &d.solvers {
         let k_min = k_min_cell(sv, &mut notes);
         let k_glob = k_glob_cell(sv, &mut notes);
         let k_chain = k_chain_cell(sv, &mut notes);
+        let k_f32 = k_f32_cell(sv, &mut notes);
         let k_lin = k_lin_cell(d, &sv.solver.name(), &mut notes);
         let k_reg = k_reg_cell(d, &sv.solver.name(), &mut notes);
         let gains = d
@@ -98,7 +101,7 @@ pub(super) fn screen(d: &CertificateDocument, out: &Path) -> String {
             String::new()
         };
         let row = format!(
-            "  {:<14} {k_min:>8} {k_glob:>8} {k_chain:>8} {k_lin:>8} {k_reg:>8} {g_e:>8} {g_x:>8}  {simulated}",
+            "  {:<14} {k_min:>8} {k_glob:>8} {k_chain:>8} {k_f32:>8} {k_lin:>8} {k_reg:>8} {g_e:>8} {g_x:>8}  {simulated}",
             sv.solver.name()
         );
         let _ = writeln!(s, "{}", row.trim_end());
@@ -194,6 +197,24 @@ fn k_chain_cell(sv: &mhe_report::SolverSummary, notes: &mut Notes) -> String {
         _ => "none",
     };
     format!("{word}{}", notes.mark(format!("K_chain: {chain}")))
+}
+
+/// The smallest K certified in f32 (Theorem 1 with the rounding folded in, or Theorem L3u),
+/// or why there is none in a few words ([`iss_certificate::coverage::PairReason::short`]; the
+/// sentence is `solvers[].f32_reason`).
+fn k_f32_cell(sv: &mhe_report::SolverSummary, notes: &mut Notes) -> String {
+    if let Some(k) = sv.k_f32 {
+        return k.to_string();
+    }
+    let why = sv.f32_reason.as_ref().map_or_else(
+        || "no reason recorded".to_string(),
+        iss_certificate::coverage::PairReason::short,
+    );
+    let why = why.strip_prefix("f32: ").unwrap_or(&why);
+    format!(
+        "none{}",
+        notes.mark(format!("K_f32 none: {why} (solvers[].f32_reason)"))
+    )
 }
 
 /// K_lin of `linear[]`, or why there is none.

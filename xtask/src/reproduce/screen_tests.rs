@@ -23,8 +23,8 @@ fn table(screen: &str) -> (Vec<String>, Vec<Vec<String>>) {
         .take_while(|l| !l.starts_with("  [") && !l.starts_with("verdict:"))
         .map(|l| {
             let cells: Vec<&str> = l.split_whitespace().collect();
-            let mut row: Vec<String> = cells.iter().take(8).map(|c| (*c).to_string()).collect();
-            row.push(cells.get(8..).map_or_else(String::new, |c| c.join(" ")));
+            let mut row: Vec<String> = cells.iter().take(9).map(|c| (*c).to_string()).collect();
+            row.push(cells.get(9..).map_or_else(String::new, |c| c.join(" ")));
             row
         })
         .collect();
@@ -156,24 +156,30 @@ fn the_screen_table_shows_what_certificate_json_holds() {
             check_k(&format!("{name} K_min"), &row[1], &sv["k_min"], s);
             check_k(&format!("{name} K_glob"), &row[2], &sv["k_glob"], s);
             check_k(&format!("{name} K_chain"), &row[3], &sv["k_chain"], s);
+            check_k(&format!("{name} K_f32"), &row[4], &sv["k_f32"], s);
+            assert_eq!(
+                sv["k_f32"].is_null(),
+                !sv["f32_reason"].as_str().is_some_and(|r| !r.is_empty()),
+                "{name}: k_f32 xor f32_reason"
+            );
             assert_eq!(doc["linear"][i]["solver"], name);
             check_k(
                 &format!("{name} K_lin"),
-                &row[4],
+                &row[5],
                 &doc["linear"][i]["report"]["k_lin"],
                 s,
             );
             assert_eq!(doc["regional"][i]["solver"], name);
             check_k(
                 &format!("{name} K_reg"),
-                &row[5],
+                &row[6],
                 &doc["regional"][i]["k_reg"],
                 s,
             );
             let g = &doc["asymptotic_gains"]["methods"][i];
             assert_eq!(g["solver"], name);
-            check_num(&format!("{name} g_e"), &row[6], &g["theorem1"]["gain_e"]);
-            check_num(&format!("{name} g_x"), &row[7], &g["theorem1"]["gain_x"]);
+            check_num(&format!("{name} g_e"), &row[7], &g["theorem1"]["gain_e"]);
+            check_num(&format!("{name} g_x"), &row[8], &g["theorem1"]["gain_x"]);
             // Only the scenario's method was simulated: its runs, each with its outcome.
             if name == doc["solver"] {
                 let runs = doc["runs"].as_array().unwrap();
@@ -187,10 +193,10 @@ fn the_screen_table_shows_what_certificate_json_holds() {
                         "stopped"
                     };
                     let cell = format!("K={} {word}", r["k"]);
-                    assert!(row[8].contains(&cell), "{cell} not in `{}`", row[8]);
+                    assert!(row[9].contains(&cell), "{cell} not in `{}`", row[9]);
                 }
             } else {
-                assert!(row[8].is_empty(), "{name}: `{}`", row[8]);
+                assert!(row[9].is_empty(), "{name}: `{}`", row[9]);
             }
         }
         // The certified preset: K_min of the simulated method is the checked K.
@@ -204,7 +210,7 @@ fn the_screen_table_shows_what_certificate_json_holds() {
             assert_eq!(doc["trajectory_check"]["passed"], true);
             let row = rows.iter().find(|r| r[0] == doc["solver"]).unwrap();
             assert!(
-                row[8].contains(&format!("K={k} bounded, Props. 1, 3 hold")),
+                row[9].contains(&format!("K={k} bounded, Props. 1, 3 hold")),
                 "{s}"
             );
         }

@@ -366,6 +366,12 @@ pub struct SolverSummary {
     pub k_glob: Option<usize>,
     /// K_glob in f32 (Theorem L3u); null: `global.f32_outcome` says why.
     pub k_glob_f32: Option<usize>,
+    /// The smallest K certified in f32 by the one verdict: Theorem 1 with the f32 rounding
+    /// folded in, or `k_glob_f32` (what `export --scalar f32 --k certified` exports); null:
+    /// `f32_reason` says why.
+    pub k_f32: Option<usize>,
+    /// Why no K is certified in f32 (`""` when `k_f32` is set).
+    pub f32_reason: String,
     /// K_chain: the smallest K the iteration chain certified (Theorem L3b, L3c for FISTA;
     /// f64, pg, fista and their Jacobi variants; that K only, the chain is not monotone); null: `global.chain` says why.
     pub k_chain: Option<usize>,

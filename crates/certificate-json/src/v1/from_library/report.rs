@@ -210,6 +210,11 @@ impl From<&mhe_report::SolverSummary> for SolverSummary {
             k_min: l.k_min,
             k_glob: l.k_glob,
             k_glob_f32: l.k_glob_f32,
+            k_f32: l.k_f32,
+            f32_reason: l
+                .f32_reason
+                .as_ref()
+                .map_or_else(String::new, ToString::to_string),
             k_chain: l.k_chain,
             global: l.global.as_ref().map(GlobalRecord::from),
             void_reasons: l.void_reasons.iter().map(ToString::to_string).collect(),

@@ -23,9 +23,10 @@
 //! refute it, the scenario's budget), and a configuration — method, K_e, controller with its
 //! K_c, scalar, and the scenario's warm start — gets its verdict from [`verdict`]. f32 is
 //! covered where Theorem 1 with the f32 rounding folded in certifies K
-//! ([`crate::certificate::precision::certify_scalar`], docs/theory.md "Certified f32"); the
-//! joint certificate has no rounding model, so an f32 loop with the K_c-iteration MPC is
-//! void ([`F32_NOT_COVERED`]).
+//! ([`crate::certificate::precision::certify_scalar`], docs/theory.md "Certified f32") or the
+//! global loop certificate in f32 does; with the K_c-iteration MPC, where the joint
+//! certificate with both maps' rounding folded in does ([`crate::joint::joint_rounding`],
+//! docs/theory.md "The joint certificate in f32").
 
 use mhe_core::WarmStart;
 use qp_iter::Method;
@@ -95,11 +96,6 @@ impl CertificateKind {
 /// different sample could refute a value in one command and not in another.
 pub const USER_GAMMA13_SEQUENCES: usize = 30;
 
-/// What the joint certificate says about an f32 build (Theorem 1's is
-/// [`crate::certificate::precision::certify_scalar`]).
-pub const F32_NOT_COVERED: &str = "not covered: the joint certificate (K_c-iteration MPC) has \
-    no rounding model of f32";
-
 /// The options of [`crate::certificate::certify_closed_loop`] that decide every verdict, for
 /// `solvers` on `scenario`: γ₁,₃ is the user's (`cli_gamma13`, else the scenario's
 /// `certificate.gamma13`) tested by [`USER_GAMMA13_SEQUENCES`] sampled sequences per magnitude
@@ -161,9 +157,15 @@ pub fn verdict(
     };
     let applicable = Applicable::new(resolved, cert, config.method, config.controller);
     let v = applicable.at_alone(config.k_e, k_c);
-    let v = match config.scalar {
-        Scalar::F64 => v,
-        Scalar::F32 => f32_verdict(resolved, cert, config, v),
+    let v = match (config.scalar, &applicable) {
+        (Scalar::F64, _) => v,
+        (
+            Scalar::F32,
+            Applicable::Joint {
+                analysis, k_max, ..
+            },
+        ) => global::joint_f32_verdict(resolved, cert, config, analysis, *k_max, v),
+        (Scalar::F32, _) => f32_verdict(resolved, cert, config, v),
     };
     with_global(v, applicable.global(), config.k_e, config.scalar)
 }
@@ -257,8 +259,18 @@ impl Serialize for Uncovered {
 #[derive(Debug, Clone, PartialEq)]
 #[non_exhaustive]
 pub enum F32Void {
-    /// The joint certificate has no rounding model ([`F32_NOT_COVERED`]).
-    JointNotCovered,
+    /// The joint certificate with both maps' f32 rounding folded in has no K_e at this K_c.
+    JointNoPair {
+        /// The MPC's K_c.
+        k_c: usize,
+        /// The largest K_e searched.
+        k_max: usize,
+        /// ρ(Γ) at (K_e, K_c) = (k_max, k_c).
+        spectral_radius: f64,
+        /// The smallest K_c certified with K_e = k_max (None: none ≤ k_max — the MHE's
+        /// rounding binds whatever the MPC does, as in Theorem 1 in f32).
+        k_c_floor: Option<usize>,
+    },
     /// The f64 certificate is void or does not apply.
     NotCovered,
     /// The rounding model cannot be computed (its error's sentence).
@@ -275,7 +287,26 @@ pub enum F32Void {
 impl std::fmt::Display for F32Void {
     fn fmt(&self, f: &mut std::fmt::Formatter<'_>) -> std::fmt::Result {
         match self {
-            Self::JointNotCovered => f.write_str(F32_NOT_COVERED),
+            Self::JointNoPair {
+                k_c,
+                k_max,
+                spectral_radius,
+                k_c_floor,
+            } => {
+                write!(
+                    f,
+                    "the joint certificate with both maps' f32 rounding folded in certifies no \
+                     K_e ≤ {k_max} with K_c = {k_c} (ρ(Γ) = {} at K_e = {k_max}); ",
+                    lti_model::numfmt::sig4(*spectral_radius)
+                )?;
+                match k_c_floor {
+                    Some(kf) => write!(f, "raise K_c to at least {kf} (its floor in f32)"),
+                    None => f.write_str(
+                        "no K_c helps: the MHE's rounding leaves no room, as in Theorem 1 in \
+                         f32 (run in f64)",
+                    ),
+                }
+            }
             Self::NotCovered => {
                 f.write_str("not covered: the f64 certificate is void or does not apply")
             }
@@ -347,14 +378,14 @@ impl PairReason {
     ///
     /// ```
     /// use iss_certificate::coverage::{F32Void, PairReason};
-    /// let r = PairReason::F32 { why: F32Void::JointNotCovered, then: None };
-    /// assert_eq!(r.short(), "f32: the joint certificate has no rounding model");
+    /// let r = PairReason::F32 { why: F32Void::NoK, then: None };
+    /// assert_eq!(r.short(), "f32: no K with the rounding");
     /// ```
     pub fn short(&self) -> String {
         match self {
             PairReason::F32 { why, .. } => match why {
-                F32Void::JointNotCovered => {
-                    "f32: the joint certificate has no rounding model".into()
+                F32Void::JointNoPair { k_c, .. } => {
+                    format!("f32: no K_e at K_c = {k_c} with the rounding")
                 }
                 F32Void::NotCovered => "f32: the f64 certificate is void".into(),
                 // Theorem 1's f32 arm (every method's K-step model); the global arm follows as

@@ -13,8 +13,9 @@ use serde_json::json;
 
 use crate::extract::{OwnedMpc, OwnedProblem, portable_estimator, portable_mpc};
 use crate::{
-    ExportError, Header, MpcArtefact, c_gen, closed_loop_certificate, decide_k, decide_kc,
-    joint_certificate, replace_artefact, solver_entry, uncertified_reason, write_artefact,
+    ExportError, Header, MpcArtefact, c_gen, closed_loop_certificate, coverage_scalar, decide_k,
+    decide_kc, joint_certificate, replace_artefact, solver_entry, uncertified_reason,
+    write_artefact,
 };
 
 /// The scalar of the exported code.
@@ -449,6 +450,23 @@ pub fn export_with_progress(
             });
             let joint = joint_certificate(resolved, &loop_cert, method, mpc_method)
                 .map_err(|e| ExportError::certificate(&e))?;
+            // In f32 the floors are the joint certificate's with both maps' rounding folded
+            // in; without a model they stay f64's and the f32 verdict refuses with its reason.
+            let joint = match options.scalar {
+                ScalarKind::F64 => joint,
+                ScalarKind::F32 => match iss_certificate::joint::joint_rounding(
+                    resolved,
+                    &loop_cert,
+                    method,
+                    mpc_method,
+                    coverage_scalar(options.scalar).unit_roundoff(),
+                )
+                .map_err(|e| ExportError::certificate(&anyhow::Error::from(e)))?
+                {
+                    Ok(r) => joint.with_rounding(r),
+                    Err(_) => joint,
+                },
+            };
             Some((joint, kc_arg))
         }
         None => None,

@@ -568,9 +568,14 @@ fn certificate_json(
             "k_c_min": m.k_c_min,
             "certified": m.certified,
             "uncertified_reason": m.reason,
-            "covers": "the exported f64 MPC performs the certified K_c iterations bit for bit as \
-                the std SuboptimalMpc on the portable kernel; the joint certificate holds at \
-                (K, K_c) iff `certified`",
+            "covers": match art.scalar {
+                ScalarKind::F64 => "the exported f64 MPC performs the certified K_c iterations \
+                    bit for bit as the std SuboptimalMpc on the portable kernel; the joint \
+                    certificate holds at (K, K_c) iff `certified`",
+                ScalarKind::F32 => "the exported f32 MPC and estimator are covered by the joint \
+                    certificate with both maps' f32 rounding folded in (docs/theory.md, \"The \
+                    joint certificate in f32\"): it holds at (K, K_c) iff `certified`",
+            },
             // The library outcomes in the certificate schema (`certificate_json::v1`).
             "at_pair": certificate_json::v1::JointGains::from(&j.analysis.at(art.k, m.k_c)),
             "joint": certificate_json::v1::JointCertificate::from(j),

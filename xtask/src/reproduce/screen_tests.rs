@@ -159,7 +159,7 @@ fn the_screen_table_shows_what_certificate_json_holds() {
             check_k(&format!("{name} K_f32"), &row[4], &sv["k_f32"], s);
             assert_eq!(
                 sv["k_f32"].is_null(),
-                !sv["f32_reason"].as_str().is_some_and(|r| !r.is_empty()),
+                sv["f32_reason"].as_str().is_some_and(|r| !r.is_empty()),
                 "{name}: k_f32 xor f32_reason"
             );
             assert_eq!(doc["linear"][i]["solver"], name);

@@ -371,21 +371,66 @@ impl ScalarCertificate {
 
 /// The rounding's constants of Theorem 1 (docs/theory.md, "Certified f32", steps 3–4), from
 /// every window's K-step model (`lure::global::StepRounding`: projected gradient, V-FISTA,
-/// ADMM and the Jacobi variants), in z's Euclidean norm.
-struct Fold {
+/// ADMM and the Jacobi variants), in z's Euclidean norm. Also the MHE side of the joint
+/// certificate in f32 ([`crate::joint`]).
+#[derive(Debug, Clone, PartialEq)]
+pub(crate) struct Fold {
     /// Per window: the K-step model and κ(D_m) = d_max/d_min (1 without a scaling), the
     /// factor from the model's norm ‖D⁻¹·‖ to the Euclidean one on the start.
     windows: Vec<(StepRounding, f64)>,
     /// max_m q_m: the computed iteration's rate.
     q: f64,
-    g_d: f64,
-    c_d: f64,
+    pub(crate) g_d: f64,
+    pub(crate) c_d: f64,
     rho_z: f64,
     rho_u: f64,
     l_phi: f64,
 }
 
+/// Theorem 1's gains at K with the rounding folded in (docs/theory.md, "Certified f32",
+/// steps 3–4): Props. 1 and 3 with φ → φ_u and φL_Φ → φ_uL_Φ + g_d, plus x̂'s propagation
+/// rounding into e.
+#[derive(Debug, Clone, PartialEq)]
+pub(crate) struct Folded {
+    /// φ_u(K).
+    pub(crate) phi: f64,
+    /// The perturbed gains (`IssAnalysis::at_perturbed`).
+    pub(crate) gains: crate::analysis::GainsAtK,
+    /// γ₃,₁ and γ₃,₂ with the propagation's rounding.
+    pub(crate) gamma31: f64,
+    pub(crate) gamma32: f64,
+    /// The self-loop s on e.
+    pub(crate) self_loop: f64,
+    /// k_r(ρ_zL_Φ(1 + u) + ρ_u): the rounding's gain from ‖θ_t‖ into e (per unit of each
+    /// θ entry's norm: the u window's entries bring the MPC's input error with it).
+    pub(crate) theta_gain: f64,
+}
+
 impl Fold {
+    /// Theorem 1's gains of `a` at K with this rounding (unit round-off `u`).
+    pub(crate) fn at(&self, a: &crate::analysis::IssAnalysis, k: usize, u: f64) -> Folded {
+        let phi = self.phi_u(a.phi(k), k);
+        let g = a.at_perturbed(k, phi, self.g_d);
+        let i = &a.inputs;
+        let m = i.horizon as f64;
+        // e-terms of (lemma 3 last): coefficient √(2Λ^H̄_P)·(φL_Φ + g_d)·2(M L_π + 1).
+        let s_e =
+            (2.0 * a.lambda_hp).sqrt() * (phi * a.l_phi_used + self.g_d) * 2.0 * (m * i.l_pi + 1.0);
+        let kappa_r = 1.0 + a.lambda_pp.sqrt() / (1.0 - a.rho.powi(i.horizon as i32).sqrt());
+        let k_r = (1.0 + s_e) * kappa_r;
+        // ‖r_t‖ ≤ ρ_z(o + L‖θ̃‖ + ε_t) + ρ_u‖θ‖; ‖θ‖ ≤ (1 + M(‖C‖ + L_π))‖x‖ + (1 + M L_π)‖e‖
+        // + M‖F‖‖w‖ (π(0) = 0).
+        let theta_gain = (self.rho_z * self.l_phi * (1.0 + u) + self.rho_u) * k_r;
+        Folded {
+            phi,
+            gamma31: g.gamma31 + theta_gain * (1.0 + m * (i.c_norm + i.l_pi)),
+            gamma32: g.gamma32 + k_r * self.rho_z,
+            self_loop: theta_gain * (1.0 + m * i.l_pi),
+            theta_gain,
+            gains: g,
+        }
+    }
+
     fn new(windows: Vec<Window<StepRounding>>) -> Self {
         let (mut q, mut g_d, mut c_d, mut rho_z, mut rho_u, mut l_phi) =
             (0.0f64, 0.0f64, 0.0f64, 0.0f64, 0.0f64, 0.0f64);
@@ -433,27 +478,57 @@ impl Fold {
 /// Margin and self-loop of Theorem 1 at K with the rounding folded in (module docs, step 2).
 /// Returns (certified at K, margin, self-loop s).
 fn margin_at(a: &crate::analysis::IssAnalysis, fold: &Fold, k: usize, u: f64) -> (bool, f64, f64) {
-    let phi = fold.phi_u(a.phi(k), k);
-    let g = a.at_perturbed(k, phi, fold.g_d);
+    let f = fold.at(a, k, u);
     let i = &a.inputs;
-    let m = i.horizon as f64;
-    // e-terms of (lemma 3 last): coefficient √(2Λ^H̄_P)·(φL_Φ + g_d)·2(M L_π + 1).
-    let s_e =
-        (2.0 * a.lambda_hp).sqrt() * (phi * a.l_phi_used + fold.g_d) * 2.0 * (m * i.l_pi + 1.0);
-    let kappa_r = 1.0 + a.lambda_pp.sqrt() / (1.0 - a.rho.powi(i.horizon as i32).sqrt());
-    let k_r = (1.0 + s_e) * kappa_r;
-    // ‖r_t‖ ≤ ρ_z(o + L‖θ̃‖ + ε_t) + ρ_u‖θ‖; ‖θ‖ ≤ (1 + M(‖C‖ + L_π))‖x‖ + (1 + M L_π)‖e‖
-    // + M‖F‖‖w‖ (π(0) = 0).
-    let theta_gain = (fold.rho_z * fold.l_phi * (1.0 + u) + fold.rho_u) * k_r;
-    let gamma31 = g.gamma31 + theta_gain * (1.0 + m * (i.c_norm + i.l_pi));
-    let gamma32 = g.gamma32 + k_r * fold.rho_z;
-    let self_loop = theta_gain * (1.0 + m * i.l_pi);
-    let sg1 = i.gamma13 * gamma31;
-    let sg2 = g.gamma23 * gamma32;
-    let sg3 = i.gamma13 * gamma32 * g.gamma21;
-    let margin = 1.0 - self_loop - sg1 - sg2 - sg3;
-    let ok = a.premises_hold() && (0.0..1.0).contains(&phi) && margin > 0.0 && margin.is_finite();
-    (ok, margin, self_loop)
+    let sg1 = i.gamma13 * f.gamma31;
+    let sg2 = f.gains.gamma23 * f.gamma32;
+    let sg3 = i.gamma13 * f.gamma32 * f.gains.gamma21;
+    let margin = 1.0 - f.self_loop - sg1 - sg2 - sg3;
+    let ok = a.premises_hold() && (0.0..1.0).contains(&f.phi) && margin > 0.0 && margin.is_finite();
+    (ok, margin, f.self_loop)
+}
+
+/// The MHE's rounding model at unit round-off `u` for `solver` (every window's K-step model
+/// folded into Theorem 1's constants), or why it does not exist: the part of
+/// [`certify_rounded`] that does not depend on K, shared with the joint certificate in f32.
+pub(crate) fn mhe_fold(
+    resolved: &ResolvedScenario,
+    cert: &ClosedLoopCertificate,
+    solver: Method,
+    u: f64,
+) -> Result<Result<Fold, ScalarVoid>, ClosedLoopError> {
+    let Some(sc) = cert.solver(solver) else {
+        return Ok(Err(ScalarVoid::NotCertified { solver }));
+    };
+    if sc.k_min.is_none() {
+        let reasons = sc.void_reasons.clone();
+        return Ok(Err(ScalarVoid::VoidInF64 { reasons }));
+    }
+    if resolved.mhe_config()?.warm_start != mhe_core::WarmStart::Paper {
+        return Ok(Err(ScalarVoid::ShiftedWarmStart));
+    }
+    if !mpc_vanishes_at_origin(resolved)? {
+        return Ok(Err(ScalarVoid::MpcNotZeroAtOrigin));
+    }
+    let model = |qp: &qp_iter::ParametricQp| {
+        StepRounding::for_qp(solver, qp, u).map_err(|e| match e {
+            PrecisionVoid::NotCovered { why } => why,
+            other => other.to_string(),
+        })
+    };
+    let windows = match per_window(resolved, cert, u, model)? {
+        Ok(w) => w,
+        Err(why) => return Ok(Err(ScalarVoid::NotCovered { why })),
+    };
+    if let Some(w) = windows.iter().find(|w| !(w.model.perturbed_rate() < 1.0)) {
+        let (rate, rounding) = w.model.rate_and_rounding();
+        return Ok(Err(ScalarVoid::ContractionBroken {
+            window: w.m,
+            rate,
+            rounding,
+        }));
+    }
+    Ok(Ok(Fold::new(windows)))
 }
 
 /// Whether the MPC's law is 0 at x = 0 (q₀ = 0, 0 in the input box, no general rows): the
@@ -541,39 +616,13 @@ pub fn certify_rounded(
         out.reason = Some(why);
         Ok(out)
     };
+    let fold = match mhe_fold(resolved, cert, solver, u)? {
+        Ok(f) => f,
+        Err(why) => return void(out, why),
+    };
     let Some(sc) = sc else {
         return void(out, ScalarVoid::NotCertified { solver });
     };
-    if k_min_f64.is_none() {
-        let reasons = sc.void_reasons.clone();
-        return void(out, ScalarVoid::VoidInF64 { reasons });
-    }
-    if resolved.mhe_config()?.warm_start != mhe_core::WarmStart::Paper {
-        return void(out, ScalarVoid::ShiftedWarmStart);
-    }
-    if !mpc_vanishes_at_origin(resolved)? {
-        return void(out, ScalarVoid::MpcNotZeroAtOrigin);
-    }
-    let model = |qp: &qp_iter::ParametricQp| {
-        StepRounding::for_qp(solver, qp, u).map_err(|e| match e {
-            PrecisionVoid::NotCovered { why } => why,
-            other => other.to_string(),
-        })
-    };
-    let windows = match per_window(resolved, cert, u, model)? {
-        Ok(w) => w,
-        Err(why) => return void(out, ScalarVoid::NotCovered { why }),
-    };
-    if let Some(w) = windows.iter().find(|w| !(w.model.perturbed_rate() < 1.0)) {
-        let (rate, rounding) = w.model.rate_and_rounding();
-        let why = ScalarVoid::ContractionBroken {
-            window: w.m,
-            rate,
-            rounding,
-        };
-        return void(out, why);
-    }
-    let fold = Fold::new(windows);
     let mut out = ScalarCertificate {
         perturbed_rate: fold.q,
         rounding_gain: fold.g_d,

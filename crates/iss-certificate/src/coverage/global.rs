@@ -275,8 +275,8 @@ pub fn global_of(
 
 /// The f32 verdict from the f64 one `v`: Theorem 1 with the f32 rounding folded in
 /// ([`crate::certificate::precision::certify_scalar`]); the joint certificate has no rounding
-/// model ([`F32_NOT_COVERED`]). A void f32 verdict has no floor: the f64 K_min is not a K
-/// certified in f32, and `export --k certified` reads the floor.
+/// model here ([`joint_f32_verdict`] has it). A void f32 verdict has no floor: the f64 K_min
+/// is not a K certified in f32, and `export --k certified` reads the floor.
 pub(super) fn f32_verdict(
     resolved: &ResolvedScenario,
     cert: &ClosedLoopCertificate,
@@ -294,11 +294,7 @@ pub(super) fn f32_verdict(
         ..v
     };
     if v.certified == Certified::Void || v.certificate != Some(CertificateKind::Theorem1) {
-        let why = match v.certificate {
-            Some(CertificateKind::Joint) => F32Void::JointNotCovered,
-            _ => F32Void::NotCovered,
-        };
-        return void(why, v);
+        return void(F32Void::NotCovered, v);
     }
     let sc = match crate::certificate::precision::certify_scalar(
         resolved,
@@ -332,6 +328,76 @@ pub(super) fn f32_verdict(
             ..v
         },
         None => void(sc.reason.map_or(F32Void::NoK, F32Void::Void), v),
+    }
+}
+
+/// The f32 verdict of the joint certificate (the K_c-iteration MPC) from its f64 one `v`:
+/// the same four-node analysis with both maps' f32 rounding folded in
+/// ([`crate::joint::joint_rounding`], docs/theory.md "The joint certificate in f32"); its
+/// floor is the smallest K_e certified in f32 at the configuration's K_c.
+pub(super) fn joint_f32_verdict(
+    resolved: &ResolvedScenario,
+    cert: &ClosedLoopCertificate,
+    config: &Configuration,
+    analysis: &crate::joint::JointAnalysis,
+    k_max: usize,
+    v: PairVerdict,
+) -> PairVerdict {
+    let void = |why: F32Void| PairVerdict {
+        certified: Certified::Void,
+        k_min: None,
+        margin: None,
+        reason: Some(PairReason::F32 {
+            why,
+            then: v.reason.clone().map(Box::new),
+        }),
+        ..v.clone()
+    };
+    let ControllerChoice::SuboptimalMpc {
+        iterations: k_c,
+        method: mpc_method,
+    } = config.controller
+    else {
+        return void(F32Void::NotCovered);
+    };
+    if v.certified == Certified::Void {
+        return void(F32Void::NotCovered);
+    }
+    let rounding = match crate::joint::joint_rounding(
+        resolved,
+        cert,
+        config.method,
+        mpc_method,
+        Scalar::F32.unit_roundoff(),
+    ) {
+        Ok(Ok(r)) => r,
+        Ok(Err(why)) => return void(F32Void::Void(why)),
+        Err(e) => {
+            let error = e.to_string();
+            return void(F32Void::RoundingModel { error });
+        }
+    };
+    let a = analysis.clone().with_rounding(rounding);
+    let Some(k_min) = a.k_e_min(k_c, k_max) else {
+        let spectral_radius = a.at(k_max, k_c).spectral_radius;
+        return void(F32Void::JointNoPair {
+            k_c,
+            k_max,
+            spectral_radius,
+            k_c_floor: a.k_c_min(k_max, k_max),
+        });
+    };
+    let g = a.at(config.k_e, k_c);
+    PairVerdict {
+        certified: if g.certified {
+            Certified::Yes
+        } else {
+            Certified::No
+        },
+        k_min: Some(k_min),
+        margin: g.margin.is_finite().then_some(g.margin),
+        reason: None,
+        ..v
     }
 }
 

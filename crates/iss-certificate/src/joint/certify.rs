@@ -5,10 +5,13 @@ use qp_iter::{IterationMap, Method};
 #[cfg(feature = "serde")]
 use serde::Serialize;
 
-use super::gains::{JointAnalysis, JointGains, JointInputs, MpcMapInputs};
+use super::gains::{JointAnalysis, JointGains, JointInputs, JointRounding, MpcMapInputs};
 use super::region::JointRegion;
 use crate::certificate::ClosedLoopCertificate;
+use crate::certificate::precision::ScalarVoid;
+use crate::lure::global::{PrecisionVoid, StepRounding};
 use closed_loop::record::Trace;
+use closed_loop::scenario::ResolvedScenario;
 use closed_loop::sim::ClosedLoopError;
 
 /// Settings of [`certify_joint`].
@@ -57,6 +60,24 @@ pub struct JointCertificate {
     pub plant_beta: Option<(f64, f64)>,
     /// γ₁ʷ of the plant estimate.
     pub gamma1w: f64,
+}
+
+impl JointCertificate {
+    /// The same certificate for the loop run in a rounded scalar: the analysis with
+    /// `rounding` folded in ([`JointAnalysis::with_rounding`]), its region and cheapest pair
+    /// recomputed with the same costs and K range.
+    pub fn with_rounding(self, rounding: JointRounding) -> Self {
+        let analysis = self.analysis.with_rounding(rounding);
+        let (t_e, t_c) = self.region.cost_per_iteration;
+        let region = analysis.region(self.region.k_max, t_e, t_c);
+        let at_cheapest = region.cheapest.map(|p| analysis.at(p.k_e, p.k_c));
+        Self {
+            analysis,
+            region,
+            at_cheapest,
+            ..self
+        }
+    }
 }
 
 /// ω = ‖W‖₂ of a warm start on an N-stage sequence: shift-and-repeat-last √2 (N ≥ 2; it
@@ -173,6 +194,56 @@ pub fn certify_joint(
         plant_beta,
         gamma1w,
     })
+}
+
+/// The rounding of the loop "MHE with `mhe_method`, MPC with `mpc_method`" on `resolved`
+/// run in unit round-off `u` (docs/theory.md, "The joint certificate in f32"): the MHE's
+/// fold of Theorem 1 in that precision and the MPC's K-step model on its QP (in the
+/// portable kernel's order, with its data rounded once), or why either is missing (the
+/// MPC's reason names it). [`JointAnalysis::with_rounding`] takes it.
+///
+/// Errors only when the scenario has no MHE or MPC.
+pub fn joint_rounding(
+    resolved: &ResolvedScenario,
+    cert: &ClosedLoopCertificate,
+    mhe_method: Method,
+    mpc_method: Method,
+    u: f64,
+) -> Result<Result<JointRounding, ScalarVoid>, ClosedLoopError> {
+    let mhe = match crate::certificate::precision::mhe_fold(resolved, cert, mhe_method, u)? {
+        Ok(f) => f,
+        Err(why) => return Ok(Err(why)),
+    };
+    let mpc = resolved.mpc()?;
+    let why = |s: String| {
+        Ok(Err(ScalarVoid::NotCovered {
+            why: format!("the MPC ({}): {s}", mpc_method.name()),
+        }))
+    };
+    let st = match StepRounding::for_qp(mpc_method, mpc.qp(), u) {
+        Ok(st) => st,
+        Err(PrecisionVoid::NotCovered { why: w }) => return why(w),
+        Err(other) => return why(other.to_string()),
+    };
+    if !(st.perturbed_rate() < 1.0) {
+        let (rate, rounding) = st.rate_and_rounding();
+        return why(format!(
+            "its computed iteration does not contract: rate {} + rounding {} ≥ 1",
+            lti_model::numfmt::sig4(rate),
+            lti_model::numfmt::sig4(rounding)
+        ));
+    }
+    let (mpc_d_max, mpc_kappa) = match &st {
+        StepRounding::Jacobi(j) => (j.d_max, j.d_max / j.d_min),
+        _ => (1.0, 1.0),
+    };
+    Ok(Ok(JointRounding {
+        u,
+        mhe,
+        mpc: st,
+        mpc_kappa,
+        mpc_d_max,
+    }))
 }
 
 /// δ_t = ‖Uᴷᶜ_t − U*(x̂_t)‖ and ‖u_t − π(x̂_t)‖ along a trace, by replaying the sub-optimal

@@ -53,6 +53,41 @@ pub struct JointAnalysis {
     pub theorem1: IssAnalysis,
     /// Every K-independent premise: Theorem 1's and the MPC side's.
     pub premises: Vec<Premise>,
+    /// Both maps' rounding in a given precision (None: exact arithmetic, the f64 certificate
+    /// as computed): [`JointAnalysis::with_rounding`].
+    #[cfg_attr(feature = "serde", serde(skip))]
+    rounding: Option<JointRounding>,
+}
+
+/// The rounding of the loop run in unit round-off u (docs/theory.md, "The joint certificate
+/// in f32"): the MHE's K-step models folded into Theorem 1's constants, and the MPC's K-step
+/// model on its QP, ‖Uᴷ − U*‖ ≤ Φ_u(K)‖U⁰ − U*‖ + B_z‖U*‖ + B_θ‖x̂‖ + C_d (Euclidean).
+#[derive(Debug, Clone, PartialEq)]
+pub struct JointRounding {
+    pub(crate) u: f64,
+    pub(crate) mhe: crate::certificate::precision::Fold,
+    /// The MPC's K-step model in its norm (‖D⁻¹·‖ for a Jacobi method).
+    pub(crate) mpc: crate::lure::global::StepRounding,
+    /// κ(D) and d_max of the MPC's scaling (1, 1 without one).
+    pub(crate) mpc_kappa: f64,
+    pub(crate) mpc_d_max: f64,
+}
+
+impl JointRounding {
+    /// Φ_u(K_c) in the Euclidean norm from the exact φ_c(K_c), non-increasing in K_c (the
+    /// model's envelope over every K' ≥ K_c).
+    fn mpc_phi(&self, phi_c: f64, k_c: usize) -> f64 {
+        self.mpc_kappa * self.mpc.phi_u(phi_c / self.mpc_kappa, k_c)
+    }
+
+    /// (B_zL_U + B_θ, C_d): the MPC rounding's gain from ‖x̂_t‖ into δ_t and its constant.
+    fn mpc_input(&self, l_u: f64) -> (f64, f64) {
+        let d = self.mpc_d_max;
+        (
+            d * (self.mpc.beta_z() * l_u + self.mpc.beta_theta()),
+            d * self.mpc.offset_d(),
+        )
+    }
 }
 
 /// Gains, cycles and the verdict at one pair (K_e, K_c).
@@ -82,6 +117,11 @@ pub struct JointGains {
     pub gamma41: f64,
     /// γ₄,₃ = γ₄,₁ (e → δ).
     pub gamma43: f64,
+    /// The rounding's self-loop on e (x̂'s propagation; 0 in exact arithmetic).
+    pub self_loop: f64,
+    /// The constant the rounding adds to δ_t's bound: C_d/(1 − Φ_u ω) (0 in exact
+    /// arithmetic); the certificate is then ISS up to an offset.
+    pub delta_offset: f64,
     /// Γ row-major (4 × 4, row i: gains into node i; nodes [`NODE_NAMES`]).
     pub matrix: [f64; 16],
     /// Every simple cycle and its gain.
@@ -160,7 +200,22 @@ impl JointAnalysis {
             inputs,
             theorem1,
             premises,
+            rounding: None,
         }
+    }
+
+    /// The same analysis for the loop run in a rounded scalar ([`JointRounding`]): every
+    /// verdict, floor and region then holds for the computed iterations.
+    pub fn with_rounding(self, rounding: JointRounding) -> Self {
+        Self {
+            rounding: Some(rounding),
+            ..self
+        }
+    }
+
+    /// The rounding this analysis carries (None: exact arithmetic).
+    pub fn rounding(&self) -> Option<&JointRounding> {
+        self.rounding.as_ref()
     }
 
     /// Whether every K-independent premise holds.
@@ -181,17 +236,51 @@ impl JointAnalysis {
 
     /// Gains, cycles and verdict at (K_e, K_c) (computed even when premises fail).
     pub fn at(&self, k_e: usize, k_c: usize) -> JointGains {
-        let g = self.theorem1.at(k_e);
         let m = &self.inputs.mpc;
-        let phi_c = self.phi_c(k_c);
         let omega = m.warm_gain;
+        // Exact arithmetic, or (docs/theory.md, "The joint certificate in f32") the MHE's
+        // fold — φ_u, φL_Φ → φ_uL_Φ + g_d in every data gain (C₃ with it: δ enters θ through
+        // the u window), x̂'s propagation into e (γ₃,₁, γ₃,₂, a self-loop s, and its θ gain
+        // on the M inputs of the window into γ₃,₄) — and the MPC's model: δ_t ≤ Φ_uωδ_{t−1}
+        // + Φ_uωL_U‖x̂_{t−1}‖ + (Φ_uL_U + B_zL_U + B_θ)‖x̂_t‖ + C_d.
+        let (g, gamma31, gamma32, self_loop, theta_m, phi_c, mpc_gain, mpc_offset) =
+            match &self.rounding {
+                None => {
+                    let g = self.theorem1.at(k_e);
+                    let (g31, g32) = (g.gamma31, g.gamma32);
+                    (g, g31, g32, 0.0, 0.0, self.phi_c(k_c), 0.0, 0.0)
+                }
+                Some(r) => {
+                    let f = r.mhe.at(&self.theorem1, k_e, r.u);
+                    let (gain, offset) = r.mpc_input(m.l_u);
+                    let theta_m = f.theta_gain * self.inputs.mhe.horizon as f64;
+                    let phi_c = r.mpc_phi(self.phi_c(k_c), k_c);
+                    let mut g = f.gains;
+                    g.phi = f.phi;
+                    (
+                        g,
+                        f.gamma31,
+                        f.gamma32,
+                        f.self_loop,
+                        theta_m,
+                        phi_c,
+                        gain,
+                        offset,
+                    )
+                }
+            };
         let delta_rate = phi_c * omega;
         let gamma13 = self.inputs.mhe.gamma13;
         let gamma14 = self.inputs.gamma14;
         let gamma24 = g.c3 / (1.0 - g.phi);
-        let gamma34 = (2.0 * self.theorem1.lambda_hp).sqrt() * g.c3;
+        let gamma34 = (2.0 * self.theorem1.lambda_hp).sqrt() * g.c3 + theta_m;
         let gamma41 = if delta_rate < 1.0 {
-            phi_c * m.l_u * (1.0 + omega) / (1.0 - delta_rate)
+            (phi_c * m.l_u * (1.0 + omega) + mpc_gain) / (1.0 - delta_rate)
+        } else {
+            f64::INFINITY
+        };
+        let delta_offset = if delta_rate < 1.0 {
+            mpc_offset / (1.0 - delta_rate)
         } else {
             f64::INFINITY
         };
@@ -202,8 +291,9 @@ impl JointAnalysis {
         gm.set(1, 0, g.gamma21);
         gm.set(1, 2, g.gamma23);
         gm.set(1, 3, gamma24);
-        gm.set(2, 0, g.gamma31);
-        gm.set(2, 1, g.gamma32);
+        gm.set(2, 0, gamma31);
+        gm.set(2, 1, gamma32);
+        gm.set(2, 2, self_loop);
         gm.set(2, 3, gamma34);
         gm.set(3, 0, gamma41);
         gm.set(3, 2, gamma43);
@@ -230,6 +320,8 @@ impl JointAnalysis {
             gamma34,
             gamma41,
             gamma43,
+            self_loop,
+            delta_offset,
             matrix,
             cycles,
             cycles_hold,

@@ -18,6 +18,11 @@
 //! reported beside it. Every gain is non-decreasing in φ_e(K_e) and φ_c(K_c), so the
 //! certified set of (K_e, K_c) is an up-set: [`JointAnalysis::k_c_min`] bisects, and the
 //! region is a staircase ([`JointAnalysis::region`]).
+//!
+//! In f32 ([`joint_rounding`], [`JointAnalysis::with_rounding`]) both maps carry their
+//! K-step rounding models: the MHE's as in Theorem 1 in f32 (φ_u, the data gain g_d, x̂'s
+//! propagation into e with a self-loop), the MPC's as Φ_u(K_c) and an input
+//! B_zL_U + B_θ from ‖x̂‖ into δ, plus constants (ISS up to an offset).
 
 mod certify;
 mod gains;
@@ -26,9 +31,10 @@ mod seeds;
 mod trajectory;
 
 pub use certify::{
-    DeltaSeries, JointCertificate, JointOptions, certify_joint, delta_series, warm_start_gain,
+    DeltaSeries, JointCertificate, JointOptions, certify_joint, delta_series, joint_rounding,
+    warm_start_gain,
 };
-pub use gains::{JointAnalysis, JointGains, JointInputs, MpcMapInputs, NODE_NAMES};
+pub use gains::{JointAnalysis, JointGains, JointInputs, JointRounding, MpcMapInputs, NODE_NAMES};
 pub use region::{JointRegion, RegionPoint};
 pub use seeds::{SeedChecks, check_on_seeds};
 pub use trajectory::{JointTrajectoryCheck, check_joint_trajectory};

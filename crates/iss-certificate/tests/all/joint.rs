@@ -286,3 +286,98 @@ fn every_inequality_holds_on_200_seeds_of_the_unstable_cart_pendulum() {
         200,
     );
 }
+
+/// The joint certificate in f32 (session 28, docs/theory.md "The joint certificate in
+/// f32"). On Rao–Rawlings–Lee the plant has B = 0 (the MPC cannot move it), so with the
+/// K_c-iteration MPC the K_e floor in f32 is Theorem 1's in f32 (1 393 for PG, 141 for
+/// PG-Jacobi), whatever the MPC's method; the same fold at f64's unit round-off costs nothing
+/// (at most the f64 floors 1 241 and 131). With an input that moves the plant (B ≠ 0) the f64 joint
+/// certificate holds and the f32 one is void, and its reason says that no K_c helps (the MHE's
+/// rounding binds, as in Theorem 1 in f32).
+#[test]
+fn the_joint_certificate_in_f32() {
+    use closed_loop::scenario::{ControllerChoice, Scenario};
+    use iss_certificate::certificate::certify_closed_loop;
+    use iss_certificate::certificate::precision::{Scalar, certify_scalar};
+    use iss_certificate::coverage::{Certified, Configuration, verdict, verdict_options};
+    use iss_certificate::joint::{JointOptions, certify_joint, joint_rounding};
+    use qp_iter::Method;
+    use qp_iter::rounding::F64_UNIT_ROUNDOFF;
+    let path = std::path::Path::new(env!("CARGO_MANIFEST_DIR"))
+        .join("../../scenarios/rao-rawlings-lee.toml");
+    let base = std::fs::read_to_string(path).expect("reads");
+    let jacobi = Method::PG.with_scaling(qp_iter::Scaling::Jacobi);
+    for (b, moves) in [("[[0.0], [0.0]]", false), ("[[0.1], [0.0]]", true)] {
+        let text = base.replace("b = [[0.0], [0.0]]", &format!("b = {b}"));
+        assert!(text.contains(&format!("b = {b}")));
+        let r = Scenario::from_toml_str(&text)
+            .expect("parses")
+            .resolve()
+            .expect("resolves");
+        for (mhe, f64_floor, f32_floor) in [(Method::PG, 1241, 1393), (jacobi, 131, 141)] {
+            let mut o = verdict_options(r.scenario(), vec![mhe], None);
+            o.global_seconds = None;
+            let cert = certify_closed_loop(&r, &o).expect("certifies");
+            let t1 = certify_scalar(&r, &cert, mhe, Scalar::F32, 1 << 24).expect("runs");
+            for (mpc, k_c) in [(Method::PG, 20), (Method::ADMM_PR, 20), (jacobi, 5000)] {
+                let config = |scalar| Configuration {
+                    method: mhe,
+                    k_e: 2000,
+                    controller: ControllerChoice::SuboptimalMpc {
+                        iterations: k_c,
+                        method: mpc,
+                    },
+                    scalar,
+                };
+                let v64 = verdict(&r, &cert, &config(Scalar::F64));
+                let v32 = verdict(&r, &cert, &config(Scalar::F32));
+                let name = format!("b = {b}, {} + {} K_c = {k_c}", mhe.name(), mpc.name());
+                assert_eq!(
+                    v64.certified,
+                    Certified::Yes,
+                    "{name}: {}",
+                    v64.reason_text()
+                );
+                if moves {
+                    assert!(t1.k_min.is_none(), "{name}: Theorem 1 in f32 certifies");
+                    assert_eq!(v32.certified, Certified::Void, "{name}");
+                    assert_eq!(v32.k_min, None, "{name}");
+                    let why = v32.reason_text();
+                    assert!(why.contains("no K_c helps"), "{name}: {why}");
+                    continue;
+                }
+                assert_eq!(v64.k_min, Some(f64_floor), "{name}");
+                assert_eq!(
+                    v32.certified,
+                    Certified::Yes,
+                    "{name}: {}",
+                    v32.reason_text()
+                );
+                assert_eq!(v32.k_min, Some(f32_floor), "{name}");
+                assert_eq!(t1.k_min, Some(f32_floor), "{name}: Theorem 1 in f32");
+                // f64's own rounding folded in: the f64 floor.
+                let mpc_core = r.mpc().expect("MPC");
+                let n_e = r.scenario().plant.nx()
+                    + cert.horizon * (r.scenario().plant.nx() + r.scenario().plant.ny());
+                let j = certify_joint(&cert, mpc_core, n_e, mhe, mpc, &JointOptions::default())
+                    .expect("joint");
+                let rounding = joint_rounding(&r, &cert, mhe, mpc, F64_UNIT_ROUNDOFF)
+                    .expect("builds")
+                    .expect("a model");
+                let a64 = j.analysis.clone().with_rounding(rounding);
+                // Nothing lost: at most the f64 floor (below it where a window's own rate is
+                // tighter than Theorem 1's max-over-windows φ(K): PG-Jacobi 129 against 131).
+                let folded = a64.k_e_min(k_c, 1 << 24).expect("a floor");
+                assert!(
+                    folded <= f64_floor && folded + 5 >= f64_floor,
+                    "{name}: f64 folded {folded}"
+                );
+                let g = a64.at(f64_floor, k_c);
+                assert!(
+                    g.certified && g.delta_offset >= 0.0 && g.self_loop > 0.0,
+                    "{name}"
+                );
+            }
+        }
+    }
+}

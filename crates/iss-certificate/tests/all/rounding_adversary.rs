@@ -12,6 +12,8 @@
 
 use super::fista_rounding::{Setup, kappa_of, methods, norm, qp};
 use faer::Side;
+use iss_certificate::lure::global::StepRounding;
+use qp_iter::rounding::F32_UNIT_ROUNDOFF;
 use qp_iter::{Method, Scaling};
 use rand::{Rng, SeedableRng};
 use rand_chacha::ChaCha8Rng;
@@ -162,7 +164,13 @@ impl Target {
     fn new(method: Method, seed: u64) -> Self {
         let (n, nt) = (3 + (seed as usize % 14), 2 + (seed as usize % 5));
         let kappa = kappa_of(method, seed);
-        let setup = Setup::new(method, &qp(seed, n, nt, kappa));
+        Self::of(method, seed, kappa, &qp(seed, n, nt, kappa))
+    }
+
+    /// `method` on the given QP (`seed` labels it; κ is reported).
+    fn of(method: Method, seed: u64, kappa: f64, p: &qp_iter::ParametricQp) -> Self {
+        let n = p.n();
+        let setup = Setup::new(method, p);
         assert!(
             setup.model.perturbed_rate() < 1.0,
             "{} QP {seed}: {:?}",
@@ -596,4 +604,62 @@ fn rounding_adversary_finds_no_violation_of_the_k_step_model() {
 #[ignore = "long: run by .ci/run with --ignored"]
 fn long_rounding_adversary_finds_no_violation_of_the_k_step_model() {
     search(&(0..12).collect::<Vec<_>>(), 4000, 8);
+}
+
+/// The K-step model on the MPC's QP of shipped scenarios (N·n_u variables, θ = x̂): what the
+/// joint certificate in f32 folds in for the K_c-iteration MPC (session 28). Every method with
+/// a model there, random draws and the hill climb on the whole error (the rounding part for
+/// the plain methods): no violation.
+#[test]
+fn the_mpc_qps_of_shipped_scenarios_respect_the_k_step_model() {
+    let mut checked = 0;
+    for (label, file) in [
+        (100, "case-study-certified.toml"),
+        (101, "quadruple-tank.toml"),
+        (102, "double-integrator.toml"),
+    ] {
+        let path = std::path::Path::new(env!("CARGO_MANIFEST_DIR"))
+            .join("../../scenarios")
+            .join(file);
+        let sc = closed_loop::scenario::Scenario::from_file(&path).expect("parses");
+        let r = sc.resolve().expect("resolves");
+        let qp = r.mpc().expect("an MPC").qp().clone();
+        let kappa = qp.l() / qp.mu();
+        for (mi, method) in methods().into_iter().enumerate() {
+            if StepRounding::for_qp(method, &qp, F32_UNIT_ROUNDOFF)
+                .map_or(true, |m| !(m.perturbed_rate() < 1.0))
+            {
+                println!(
+                    "{file} {}: no model on the MPC's QP (κ = {kappa:.3e})",
+                    method.name()
+                );
+                continue;
+            }
+            let mut t = Target::of(method, label, kappa, &qp);
+            let goals: &[Goal] = if method.scaling == Scaling::Jacobi {
+                &[Goal::Full]
+            } else {
+                &[Goal::Rounding, Goal::Full]
+            };
+            for (gi, goal) in goals.iter().enumerate() {
+                let (mut rand_best, mut adv_best) = (Best::NONE, Best::NONE);
+                let mut rng = ChaCha8Rng::seed_from_u64(label);
+                rng.set_stream(1000 * mi as u64 + 10 * gi as u64);
+                t.random(*goal, 300, &mut rng, &mut rand_best);
+                t.climb(*goal, 300, 3, &mut rng, &mut adv_best);
+                println!(
+                    "{file} {} (n = {}, κ = {kappa:.3e}) {goal:?}: random {} | adversarial {}",
+                    method.name(),
+                    qp.n(),
+                    rand_best.at(),
+                    adv_best.at()
+                );
+            }
+            checked += 1;
+        }
+    }
+    assert!(
+        checked >= 9,
+        "only {checked} (scenario, method) pairs had a model"
+    );
 }

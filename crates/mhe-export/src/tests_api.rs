@@ -166,3 +166,34 @@ fn with_an_mpc_k_certified_is_the_joint_floor() {
     let art = export(&resolved, &o).unwrap();
     assert!(art.k() < k_e_floor, "K = {}", art.k());
 }
+
+/// The K_c-iteration MPC in f32 (session 28): the joint certificate with both maps' f32
+/// rounding folded in decides. On Rao–Rawlings–Lee with `mpc.iterations = 20` (its B = 0) the
+/// f32 export of PG-Jacobi is certified at its f32 floor K = 141 (the f64 one is 131) with
+/// K_c = 20, and K = 131 — certified in f64 — is refused in f32 with the f32 floor named.
+#[test]
+fn an_f32_loop_with_the_k_c_iteration_mpc_is_certified_by_the_joint_certificate_in_f32() {
+    let path = workspace_root().join("scenarios/rao-rawlings-lee.toml");
+    let text = std::fs::read_to_string(path).unwrap().replace(
+        "terminal = \"dare\"",
+        "terminal = \"dare\"\niterations = 20\nmethod = \"pg\"",
+    );
+    let resolved = Scenario::from_toml_str(&text).unwrap().resolve().unwrap();
+    let jacobi = Method::PG.with_scaling(qp_iter::Scaling::Jacobi);
+    let o = |k, scalar| ExportOptions {
+        method: Some(jacobi),
+        k,
+        scalar,
+        ..ExportOptions::default()
+    };
+    let art = export(&resolved, &o(Iterations::Certified, ScalarKind::F64)).unwrap();
+    assert_eq!(art.k(), 131);
+    let art = export(&resolved, &o(Iterations::Certified, ScalarKind::F32)).unwrap();
+    assert_eq!(art.k(), 141);
+    assert!(art.certified() && art.loop_certified());
+    assert_eq!(art.mpc().expect("an MPC").1, 20);
+    let err = export(&resolved, &o(Iterations::Given(131), ScalarKind::F32))
+        .unwrap_err()
+        .to_string();
+    assert!(err.contains("141") && err.contains("f32"), "{err}");
+}

@@ -185,6 +185,8 @@ impl From<&iss_certificate::joint::JointGains> for JointGains {
             gamma34: num(l.gamma34),
             gamma41: num(l.gamma41),
             gamma43: num(l.gamma43),
+            self_loop: num(l.self_loop),
+            delta_offset: num(l.delta_offset),
             matrix: l.matrix.iter().map(|x| num(*x)).collect(),
             cycles: l.cycles.iter().map(Cycle::from).collect(),
             cycles_hold: l.cycles_hold,

@@ -273,6 +273,12 @@ pub struct JointGains {
     pub gamma41: Option<f64>,
     /// γ₄,₃ = γ₄,₁ (e → δ).
     pub gamma43: Option<f64>,
+    /// The rounding's self-loop on e in a rounded scalar (the diagonal entry Γ[e][e]; 0 in
+    /// exact arithmetic).
+    pub self_loop: Option<f64>,
+    /// The constant the rounding adds to δ's bound, C_d/(1 − Φ_uω) (0 in exact arithmetic):
+    /// the certificate is then ISS up to this offset.
+    pub delta_offset: Option<f64>,
     /// Γ row-major (4 × 4, row i: gains into node i; nodes `NODE_NAMES`).
     pub matrix: Vec<Option<f64>>,
     /// Every simple cycle and its gain.

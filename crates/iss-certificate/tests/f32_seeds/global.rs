@@ -264,6 +264,33 @@ impl F32Run<'_> {
     }
 }
 
+/// The estimator's data in scalar `T`: `sys`'s sizes, M, K, the kernel's method and the
+/// paper's warm start, over the given (A, B, E) and windows.
+fn problem<'a, T>(
+    sys: &lti_model::LtiSystem,
+    horizon: usize,
+    k: usize,
+    method: mhe_embedded::Method,
+    (a, b, e): (&'a [T], &'a [T], &'a [T]),
+    windows: &'a [mhe_embedded::Window<'a, T>],
+) -> mhe_embedded::Problem<'a, T> {
+    mhe_embedded::Problem {
+        nx: sys.nx(),
+        nu: sys.nu(),
+        ny: sys.ny(),
+        nw1: sys.nw1(),
+        nw2: sys.nw2(),
+        horizon,
+        iterations: k,
+        method,
+        warm_start: mhe_embedded::WarmStart::Paper,
+        a,
+        b,
+        e,
+        windows,
+    }
+}
+
 /// `method` on `file`: the f32 certificate (Theorem L3u: the exact φ*, then φ*_u by the
 /// search `coverage::verdict` runs, `GlobalSettings::default()`), then 200 f32 closed-loop
 /// runs × `steps` steps at its K_glob(f32) (`mhe_embedded` in f32, random x₀ and prior up to
@@ -330,39 +357,11 @@ pub(super) fn f32_runs_respect_the_global_certificate(
         let bound = DeviationBound::new(&r, &cert, method, k32)
             .expect("builds")
             .expect("PG and ADMM are covered");
-        let p64 = mhe_embedded::Problem {
-            nx: sys.nx(),
-            nu: sys.nu(),
-            ny: sys.ny(),
-            nw1: sys.nw1(),
-            nw2: sys.nw2(),
-            horizon: layout.horizon,
-            iterations: k32,
-            method: kernel,
-            warm_start: mhe_embedded::WarmStart::Paper,
-            a: &a64,
-            b: &b64,
-            e: &e64,
-            windows: &v64,
-        };
+        let p64 = problem(&sys, layout.horizon, k32, kernel, (&a64, &b64, &e64), &v64);
         Some((p64, bound))
     };
     let mut run = F32Run {
-        problem: mhe_embedded::Problem {
-            nx: sys.nx(),
-            nu: sys.nu(),
-            ny: sys.ny(),
-            nw1: sys.nw1(),
-            nw2: sys.nw2(),
-            horizon: layout.horizon,
-            iterations: k32,
-            method: kernel,
-            warm_start: mhe_embedded::WarmStart::Paper,
-            a: &a32,
-            b: &b32,
-            e: &e32,
-            windows: &v32,
-        },
+        problem: problem(&sys, layout.horizon, k32, kernel, (&a32, &b32, &e32), &v32),
         resolved: r.clone(),
         layout,
         deviation,

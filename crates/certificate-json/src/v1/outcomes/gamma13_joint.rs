@@ -273,7 +273,7 @@ pub struct JointGains {
     pub gamma41: Option<f64>,
     /// γ₄,₃ = γ₄,₁ (e → δ).
     pub gamma43: Option<f64>,
-    /// The rounding's self-loop on e in a rounded scalar (the diagonal entry Γ[e][e]; 0 in
+    /// The rounding's self-loop on e in a rounded scalar (Γ's diagonal entry at e; 0 in
     /// exact arithmetic).
     pub self_loop: Option<f64>,
     /// The constant the rounding adds to δ's bound, C_d/(1 − Φ_uω) (0 in exact arithmetic):

@@ -664,7 +664,7 @@ fn certify_json(
     let controller = match sc
         .mpc
         .as_ref()
-        .and_then(|m| m.iterations().map(|k| (k.get(), m.method())))
+        .and_then(|m| m.iterations().map(|k| (k, m.method())))
     {
         Some((iterations, method)) => ControllerChoice::SuboptimalMpc { iterations, method },
         None => ControllerChoice::ExactMpc,
@@ -1109,7 +1109,7 @@ impl PyCertificate {
                 let controller = match resolved.scenario().mpc.as_ref() {
                     Some(m) => match m.iterations() {
                         Some(iterations) => ControllerChoice::SuboptimalMpc {
-                            iterations: iterations.get(),
+                            iterations,
                             method: m.method(),
                         },
                         None => ControllerChoice::ExactMpc,

@@ -80,10 +80,7 @@ fn closed_loop_steps_do_not_allocate() {
     for controller in [
         ControllerChoice::ExactMpc,
         ControllerChoice::SaturatedLqr,
-        ControllerChoice::SuboptimalMpc {
-            iterations: 20,
-            method: Method::FISTA,
-        },
+        ControllerChoice::suboptimal(20, Method::FISTA).unwrap(),
     ] {
         let mut o = LoopOptions::from_scenario(&s).unwrap();
         o = o.with_iterations(25).expect("K is in range");

@@ -153,7 +153,7 @@ pub fn verdict(
     config: &Configuration,
 ) -> PairVerdict {
     let k_c = match config.controller {
-        ControllerChoice::SuboptimalMpc { iterations, .. } => Some(iterations),
+        ControllerChoice::SuboptimalMpc { iterations, .. } => Some(iterations.get()),
         _ => None,
     };
     let applicable = Applicable::new(resolved, cert, config.method, config.controller);

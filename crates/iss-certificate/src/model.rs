@@ -332,7 +332,7 @@ impl LoopModelBuilder {
         }
         let controller = match mpc.iterations() {
             Some(iterations) => ControllerChoice::SuboptimalMpc {
-                iterations: iterations.get(),
+                iterations,
                 method: mpc.method(),
             },
             None => ControllerChoice::ExactMpc,

@@ -159,10 +159,7 @@ fn unsupported_settings_are_refused_with_their_key() {
     assert!(matches!(e, GlobalError::WarmStart), "{e}");
     assert!(e.to_string().contains("mhe.warm_start"));
     let mut o = options(&r, Method::PG);
-    o.controller = ControllerChoice::SuboptimalMpc {
-        iterations: 3,
-        method: Method::PG,
-    };
+    o.controller = ControllerChoice::suboptimal(3, Method::PG).expect("K_c = 3");
     let e = global_loop(&r, &o).expect_err("sub-optimal MPC");
     assert!(matches!(e, GlobalError::Controller), "{e}");
     assert!(e.to_string().contains("mpc.iterations"));

@@ -437,10 +437,8 @@ pub(crate) fn decide_kc(
     let config = Configuration {
         method: joint.mhe_method,
         k_e,
-        controller: ControllerChoice::SuboptimalMpc {
-            iterations: k_c,
-            method: joint.mpc_method,
-        },
+        controller: ControllerChoice::suboptimal(k_c, joint.mpc_method)
+            .map_err(|e| anyhow::anyhow!("--kc {k_c}: {e}"))?,
         scalar: coverage_scalar(scalar),
     };
     let v = iss_certificate::coverage::verdict(resolved, cert, &config);

@@ -287,7 +287,7 @@ fn plan(
     let at_scenario = applicable.at(
         p.iterations,
         match own_controller {
-            ControllerChoice::SuboptimalMpc { iterations, .. } => Some(iterations),
+            ControllerChoice::SuboptimalMpc { iterations, .. } => Some(iterations.get()),
             _ => None,
         },
     );
@@ -399,11 +399,11 @@ fn run_plan(
             .map_or_else(|| "none".to_string(), |p| format!("({}, {})", p.k_e, p.k_c))
     ));
     let mut plan = Vec::new();
-    if let Some(pair) = j.region.cheapest {
-        let at_pair = ControllerChoice::SuboptimalMpc {
-            iterations: pair.k_c,
-            method: j.mpc_method,
-        };
+    // The certificate's K_c lies in 1 ..= its search cap, so it is an iteration budget.
+    if let Some((pair, at_pair)) = j.region.cheapest.and_then(|pair| {
+        let c = ControllerChoice::suboptimal(pair.k_c, j.mpc_method).ok()?;
+        Some((pair, c))
+    }) {
         plan.push(PlannedRun {
             k: pair.k_e,
             controller: at_pair,

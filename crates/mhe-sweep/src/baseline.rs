@@ -126,7 +126,7 @@ pub(super) fn kalman_rows(
             .map_err(|e| setup(e.to_string()))?;
             let seed = run_seed(sweep.base_seed(), p, r, config.common_random_numbers);
             let controller = resolved
-                .controller(config.controller_at(p))
+                .controller(config.controller_at(p).map_err(|e| setup(e.to_string()))?)
                 .map_err(|e| setup(e.to_string()))?;
             let noise = scenario_disturbance(sc, seed).map_err(|e| setup(e.to_string()))?;
             let mut lp = ClosedLoop::new(

@@ -20,6 +20,7 @@ use super::grid::{RawK, k_c_grid, k_grid, positive};
 use super::region::IterationCost;
 use super::{ControllerChoice, Method};
 use closed_loop::metrics::{DEFAULT_BOUNDED_FACTOR, Metric};
+use closed_loop::sim::ClosedLoopError;
 
 /// Largest K accepted in a grid (a run costs T·K iterations).
 pub const MAX_K: usize = qp_iter::MAX_ITERATIONS;
@@ -321,10 +322,8 @@ fn controller(raw: Option<RawController>, k_c_first: Option<usize>) -> Result<Co
         )
     })?;
     let iterations = positive(iterations, "controller.iterations", MAX_K)?;
-    Ok(ControllerChoice::SuboptimalMpc {
-        iterations,
-        method: mpc_solver(t.solver)?,
-    })
+    ControllerChoice::suboptimal(iterations, mpc_solver(t.solver)?)
+        .map_err(|e| config_err("controller.iterations", e.to_string()))
 }
 
 /// `controller.solver` (the scenario's default, [`mpc_core::settings::DEFAULT_METHOD`]),
@@ -377,10 +376,8 @@ fn controller_2d(raw: Option<RawController>, k_c_first: usize) -> Result<Control
             t.solver
         }
     };
-    Ok(ControllerChoice::SuboptimalMpc {
-        iterations: k_c_first,
-        method: mpc_solver(solver)?,
-    })
+    ControllerChoice::suboptimal(k_c_first, mpc_solver(solver)?)
+        .map_err(|e| config_err("k_c", e.to_string()))
 }
 
 /// `solvers` (or `methods`): read by the same serde path as `mhe.method` (names or tables
@@ -606,21 +603,42 @@ impl SweepConfig {
     }
 
     /// The controller of point `p`: the config's, with the point's K_c in a 2-D sweep.
-    pub fn controller_at(&self, p: &Point) -> ControllerChoice {
+    ///
+    /// Errors: the point's K_c is 0 or above [`MAX_K`] (only a point built by hand: the
+    /// grid's are validated), naming `controller iterations`.
+    pub fn controller_at(
+        &self,
+        p: &Point,
+    ) -> std::result::Result<ControllerChoice, ClosedLoopError> {
         self.controller_for(p.k_c)
     }
 
     /// The controller at `k_c`: the sub-optimal MPC with K_c = `k_c` in a 2-D sweep, the
     /// config's controller for `None`.
-    pub fn controller_for(&self, k_c: Option<usize>) -> ControllerChoice {
+    ///
+    /// Errors: as [`ControllerChoice::suboptimal`], a K_c that is not an iteration budget.
+    pub fn controller_for(
+        &self,
+        k_c: Option<usize>,
+    ) -> std::result::Result<ControllerChoice, ClosedLoopError> {
         match (self.controller, k_c) {
             (ControllerChoice::SuboptimalMpc { method, .. }, Some(k_c)) => {
-                ControllerChoice::SuboptimalMpc {
-                    iterations: k_c,
-                    method,
-                }
+                ControllerChoice::suboptimal(k_c, method)
             }
-            (c, _) => c,
+            (c, _) => Ok(c),
+        }
+    }
+
+    /// The controllers of the linear and regional sides: one per K_c of the grid in a 2-D
+    /// sweep (a K_c that is not an iteration budget, only in a hand-edited config, has none:
+    /// its points fail to build, naming it), the config's controller otherwise.
+    pub fn grid_controllers(&self) -> Vec<(Option<usize>, ControllerChoice)> {
+        match &self.k_c_grid {
+            None => vec![(None, self.controller)],
+            Some(grid) => grid
+                .iter()
+                .filter_map(|&k_c| Some((Some(k_c), self.controller_for(Some(k_c)).ok()?)))
+                .collect(),
         }
     }
 

@@ -97,10 +97,7 @@ fn config_defaults_and_resolution() {
     assert!(c.metrics.contains(&Metric::SupEps));
     assert_eq!(
         c.controller,
-        ControllerChoice::SuboptimalMpc {
-            iterations: 7,
-            method: Method::FISTA
-        }
+        ControllerChoice::suboptimal(7, Method::FISTA).unwrap()
     );
     let c = cfg("k = [1, 2]\nscales = [0.5, 1]").unwrap();
     let pts = c.points();

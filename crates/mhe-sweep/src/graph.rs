@@ -15,7 +15,7 @@
 //!
 //! The chunks are fixed by 2^s (not by the thread count) and reduced in chunk order by a
 //! maximum, so the certificate equals [`super::solver_theory`]'s bit for bit
-//! (`xtask/tests/cli/engine/sweep.rs`, `theory_tasks_equal_the_sequential_certificate`).
+//! (`xtask/tests/cli/engine/sweep.rs`, `long_theory_tasks_equal_the_sequential_certificate`).
 
 use std::ops::Range;
 use std::sync::{OnceLock, PoisonError, RwLock};
@@ -186,13 +186,7 @@ impl<'a> TheoryGraph<'a> {
         }
         if linear {
             g.linear_wanted = true;
-            let controllers: Vec<(Option<usize>, ControllerChoice)> = match &config.k_c_grid {
-                None => vec![(None, config.controller)],
-                Some(grid) => grid
-                    .iter()
-                    .map(|&k_c| (Some(k_c), config.controller_for(Some(k_c))))
-                    .collect(),
-            };
+            let controllers = config.grid_controllers();
             // Before the certificate's assembly in the list: ready at once.
             let at = g
                 .jobs

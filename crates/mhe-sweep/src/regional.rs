@@ -462,14 +462,8 @@ impl RegionalPlan {
         let controllers: Vec<(Option<usize>, ControllerChoice)> = match (controller, k_c_grid) {
             (ControllerChoice::SuboptimalMpc { method, .. }, Some(grid)) => grid
                 .iter()
-                .map(|&k_c| {
-                    (
-                        Some(k_c),
-                        ControllerChoice::SuboptimalMpc {
-                            iterations: k_c,
-                            method,
-                        },
-                    )
+                .filter_map(|&k_c| {
+                    Some((Some(k_c), ControllerChoice::suboptimal(k_c, method).ok()?))
                 })
                 .collect(),
             _ => vec![(None, controller)],

@@ -276,13 +276,7 @@ impl Sweep {
     /// K_lin (computed on first use, like [`Sweep::theory`]).
     pub fn linear(&self) -> &LinearSide {
         self.linear.get_or_init(|| {
-            let controllers: Vec<(Option<usize>, ControllerChoice)> = match &self.config.k_c_grid {
-                None => vec![(None, self.config.controller)],
-                Some(g) => g
-                    .iter()
-                    .map(|&k_c| (Some(k_c), self.config.controller_for(Some(k_c))))
-                    .collect(),
-            };
+            let controllers = self.config.grid_controllers();
             if self.config.linear {
                 solver_linear(&self.resolved, &self.config.solvers, &controllers, |_| {
                     self.config.k_grid.clone()
@@ -411,7 +405,7 @@ impl Sweep {
     /// K_c of the controller at point `p` (None: the exact MPC or another controller).
     fn k_c_at(&self, p: &Point) -> Option<usize> {
         match self.config.controller_at(p) {
-            ControllerChoice::SuboptimalMpc { iterations, .. } => Some(iterations),
+            Ok(ControllerChoice::SuboptimalMpc { iterations, .. }) => Some(iterations.get()),
             _ => None,
         }
     }
@@ -420,15 +414,17 @@ impl Sweep {
         // A clone shares the MHE problem built once in `Sweep::new` (an `Arc`).
         let mut resolved = self.resolved.clone();
         resolved.set_noise_scale(p.scale);
-        let opts = LoopOptions {
-            method: p.solver,
-            iterations: qp_iter::Iterations::ONE,
-            exact_mhe_solve: self.config.exact_mhe_solve,
-            controller: self.config.controller_at(p),
-            seed: 0,
-            steps: self.steps,
-        }
-        .with_iterations(p.k);
+        let opts = self.config.controller_at(p).and_then(|controller| {
+            LoopOptions {
+                method: p.solver,
+                iterations: qp_iter::Iterations::ONE,
+                exact_mhe_solve: self.config.exact_mhe_solve,
+                controller,
+                seed: 0,
+                steps: self.steps,
+            }
+            .with_iterations(p.k)
+        });
         opts.and_then(|opts| resolved.build_loop(&opts))
             .map_err(|source| SweepError::Setup {
                 point: p.to_string(),

@@ -1248,10 +1248,7 @@ fn regional_entries_use_the_scenarios_controller() {
     let c = mhe_report::regional::scenario_controller(&res);
     assert_eq!(
         c,
-        ControllerChoice::SuboptimalMpc {
-            iterations: 20,
-            method: qp_iter::Method::PG
-        }
+        ControllerChoice::suboptimal(20, qp_iter::Method::PG).unwrap()
     );
     let plain = Scenario::from_file(&path).unwrap().resolve().unwrap();
     assert_eq!(

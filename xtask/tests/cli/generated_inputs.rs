@@ -78,10 +78,7 @@ fn scenario_property(text: &str) -> Result<&'static str, String> {
     opts.steps = opts.steps.min(4);
     opts.controller = match n % 4 {
         0 => ControllerChoice::SaturatedLqr,
-        1 => ControllerChoice::SuboptimalMpc {
-            iterations: 3,
-            method: Method::FISTA,
-        },
+        1 => ControllerChoice::suboptimal(3, Method::FISTA).unwrap(),
         _ => ControllerChoice::ExactMpc,
     };
     opts.exact_mhe_solve = n % 5 == 0;

@@ -10,8 +10,10 @@
 //! comparison; every other number must be identical.
 //!
 //! A change that is meant to change outputs regenerates them deliberately:
-//! `UPDATE_GOLDEN=1 cargo test -p xtask --test cli golden::` rewrites the files from this run,
-//! and the commit says why the numbers moved.
+//! `UPDATE_GOLDEN=1 cargo test --release -p xtask --test cli golden:: -- --include-ignored`
+//! rewrites the files from this run (the reproduce and 2-D comparisons are `long_` runs,
+//! outside the README's test command; `.ci/run` runs them), and the commit says why the
+//! numbers moved.
 
 use std::io::{Read, Write};
 use std::path::{Path, PathBuf};
@@ -217,7 +219,8 @@ fn check_keys(name: &str, docs: &[PathBuf]) {
 }
 
 #[test]
-fn reproduce_outputs_match_the_golden_files() {
+#[ignore = "long: run by .ci/run with --ignored"]
+fn long_reproduce_outputs_match_the_golden_files() {
     // `xtask reproduce` on the portable kernel, shared with the export test that replays the
     // certified preset's trace.csv (`crate::shared::reproduce`: the same command, once per
     // test binary).
@@ -291,10 +294,11 @@ fn smoke_sweep_outputs_match_the_golden_files() {
 
 /// The 2-D smoke sweep over (K_e, K_c) (`sweeps/smoke-2d.toml`): the `k_c` column, the
 /// sub-optimal MPC at each K_c and ρ_lin(K_e, K_c) pinned like the 1-D smoke sweep. The run
-/// is shared with `sweep_cli::two_d_sweep_writes_heat_maps_and_pair_thresholds` (same
+/// is shared with `sweep_cli::long_two_d_sweep_writes_heat_maps_and_pair_thresholds` (same
 /// command, portable kernel, `--threads 2`: the tables do not depend on the thread count).
 #[test]
-fn smoke_2d_sweep_outputs_match_the_golden_files() {
+#[ignore = "long: run by .ci/run with --ignored"]
+fn long_smoke_2d_sweep_outputs_match_the_golden_files() {
     let run = crate::shared::smoke_2d();
     check(&[
         ("smoke-2d-points.csv", run.points.clone()),

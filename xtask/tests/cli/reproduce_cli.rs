@@ -113,7 +113,8 @@ fn fig2c_t_and_work_limit_errors_name_the_flag_and_the_keys() {
 /// The default run is the binary's shared one (`crate::shared::reproduce_run`, which
 /// asserts exit 0), with `SUBOPTIMAL_MHE_COUNT_WORK` set.
 #[test]
-fn reproduce_computes_k_m_and_p_once_per_scenario() {
+#[ignore = "long: run by .ci/run with --ignored"]
+fn long_reproduce_computes_k_m_and_p_once_per_scenario() {
     let stderr = &crate::shared::reproduce_run().stderr;
     let line = stderr
         .lines()

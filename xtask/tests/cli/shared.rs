@@ -25,8 +25,8 @@ pub fn xtask_bin() -> PathBuf {
 }
 
 /// One run of `xtask sweep --config sweeps/smoke-2d.toml --threads 2`, the 2-D smoke sweep
-/// over (K_e, K_c): `golden::smoke_2d_sweep_outputs_match_the_golden_files` compares its
-/// tables with the golden files, `sweep_cli::two_d_sweep_writes_heat_maps_and_pair_thresholds`
+/// over (K_e, K_c): `golden::long_smoke_2d_sweep_outputs_match_the_golden_files` compares its
+/// tables with the golden files, `sweep_cli::long_two_d_sweep_writes_heat_maps_and_pair_thresholds`
 /// checks its terminal output, plots and meta.json, then resumes it. 53 CPU s in the test
 /// profile, once instead of twice.
 #[derive(Debug)]
@@ -83,10 +83,10 @@ pub fn smoke_2d() -> &'static Smoke2d {
 }
 
 /// One run of `xtask reproduce` (both presets, the portable kernel, the work counts on)
-/// into a directory of this test binary: `golden::reproduce_outputs_match_the_golden_files`
+/// into a directory of this test binary: `golden::long_reproduce_outputs_match_the_golden_files`
 /// compares both presets' JSON with the golden files,
-/// `export_cli::replay_of_the_exported_c_reproduces_trace_csv_bit_for_bit` replays the
-/// certified preset's trace.csv, `reproduce_cli::reproduce_computes_k_m_and_p_once_per_scenario`
+/// `export_cli::long_replay_of_the_exported_c_reproduces_trace_csv_bit_for_bit` replays the
+/// certified preset's trace.csv, `reproduce_cli::long_reproduce_computes_k_m_and_p_once_per_scenario`
 /// reads the work counts on its stderr. Once instead of three times (38 CPU s each in the test
 /// profile: docs/testing.md, "Session 19"). Nobody writes into it: a test that needs to change
 /// it copies it.

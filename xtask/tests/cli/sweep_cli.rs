@@ -567,10 +567,11 @@ fn thread_count_and_input_size_are_bounded() {
 /// 2-D thresholds printed and in meta.json, the joint certificate's boundary (no certified pair
 /// on this small grid: FISTA's K_e floor is 5 896 > 100, ADMM's certificate is void),
 /// a rerun that resumes everything, and a K_c grid without the sub-optimal MPC refused.
-/// The first run is shared with `golden::smoke_2d_sweep_outputs_match_the_golden_files`
+/// The first run is shared with `golden::long_smoke_2d_sweep_outputs_match_the_golden_files`
 /// (`crate::shared::smoke_2d`: the same command, once per test binary).
 #[test]
-fn two_d_sweep_writes_heat_maps_and_pair_thresholds() {
+#[ignore = "long: run by .ci/run with --ignored"]
+fn long_two_d_sweep_writes_heat_maps_and_pair_thresholds() {
     let d = scratch("two-d");
     let run = crate::shared::smoke_2d();
     let (stdout, out) = (run.stdout.clone(), run.out.clone());

@@ -145,7 +145,8 @@ fn certified_preset_with_a_cut_budget(dir: &std::path::Path) -> PathBuf {
 }
 
 #[test]
-fn reproduce_prints_at_most_four_significant_digits() {
+#[ignore = "long: run by .ci/run with --ignored"]
+fn long_reproduce_prints_at_most_four_significant_digits() {
     let out = crate::test_dir::test_dir("digits", "reproduce");
     let _ = std::fs::remove_dir_all(&out);
     std::fs::create_dir_all(&out).unwrap();

@@ -21,15 +21,38 @@ pub enum ControllerChoice {
     /// The exact MPC (the paper's setting): a warm-started, KKT-verified active-set solve
     /// each step ([`ExactMpc`]), allocation-free.
     ExactMpc,
-    /// The MPC solved with `iterations` = K_c ≥ 1 warm-started iterations of `method`.
+    /// The MPC solved with `iterations` = K_c warm-started iterations of `method`.
     SuboptimalMpc {
-        /// K_c.
-        iterations: usize,
+        /// K_c (≥ 1 and within `qp_iter::MAX_ITERATIONS` by its type).
+        iterations: qp_iter::Iterations,
         /// Φ of the MPC.
         method: Method,
     },
     /// u = Π_𝒰(−K_lqr x̂) with the DARE gain of the scenario's MPC weights.
     SaturatedLqr,
+}
+
+impl ControllerChoice {
+    /// K_c = `k_c` warm-started iterations of `method`; K_c = 0 or K_c above
+    /// `qp_iter::MAX_ITERATIONS` is [`ClosedLoopError::OutOfRange`] naming `controller
+    /// iterations` (a search over K_c builds its controllers with it).
+    ///
+    /// ```
+    /// use closed_loop::scenario::ControllerChoice;
+    /// use qp_iter::Method;
+    /// let c = ControllerChoice::suboptimal(20, Method::PG).unwrap();
+    /// assert!(matches!(c, ControllerChoice::SuboptimalMpc { iterations, .. } if iterations.get() == 20));
+    /// assert!(ControllerChoice::suboptimal(0, Method::PG).is_err());
+    /// ```
+    pub fn suboptimal(k_c: usize, method: Method) -> Result<Self> {
+        let iterations =
+            qp_iter::Iterations::new(k_c).map_err(|_| ClosedLoopError::OutOfRange {
+                name: "controller iterations",
+                value: k_c as f64,
+                range: "integers 1 ..= 10⁷ (qp_iter::MAX_ITERATIONS)",
+            })?;
+        Ok(Self::SuboptimalMpc { iterations, method })
+    }
 }
 
 /// What a run changes of the scenario's settings.
@@ -85,7 +108,7 @@ impl LoopOptions {
             controller: match scenario
                 .mpc
                 .as_ref()
-                .and_then(|m| m.iterations().map(|k| (k.get(), m)))
+                .and_then(|m| m.iterations().map(|k| (k, m)))
             {
                 Some((iterations, m)) => ControllerChoice::SuboptimalMpc {
                     iterations,
@@ -282,19 +305,12 @@ impl ResolvedScenario {
                 ScenarioController::Exact(Box::new(ExactMpc::new(self.mpc()?)?))
             }
             ControllerChoice::SuboptimalMpc { iterations, method } => {
-                if iterations == 0 {
-                    return Err(ClosedLoopError::OutOfRange {
-                        name: "controller iterations",
-                        value: 0.0,
-                        range: "integers ≥ 1",
-                    });
-                }
                 let mpc = self.mpc()?;
                 let map = method.build(mpc.qp().clone()).map_err(MpcError::Qp)?;
                 ScenarioController::Suboptimal(SuboptimalMpc::new(
                     mpc,
                     map,
-                    iterations,
+                    iterations.get(),
                     mpc_core::WarmStart::default(),
                 )?)
             }
@@ -305,7 +321,7 @@ impl ResolvedScenario {
     /// prior, MHE weights with the resolved P and warm-start rule, with the method, K,
     /// exact-solve flag, controller, seed and T of `options`. MHE records are captured.
     ///
-    /// Errors: a missing section, K = 0 or K_c = 0, no P (LMI (2) infeasible), a bad
+    /// Errors: a missing section, no P (LMI (2) infeasible), a bad
     /// disturbance set, and every construction error of the components.
     ///
     /// ```no_run

@@ -297,10 +297,7 @@ fn same_seed_gives_identical_trace() {
     let s = case_study();
     for (controller, exact_mhe) in [
         (
-            ControllerChoice::SuboptimalMpc {
-                iterations: 10,
-                method: Method::FISTA,
-            },
+            ControllerChoice::suboptimal(10, Method::FISTA).unwrap(),
             false,
         ),
         (ControllerChoice::ExactMpc, false),

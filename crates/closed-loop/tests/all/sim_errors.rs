@@ -107,17 +107,17 @@ fn bad_options_give_typed_errors() {
     o.steps = 0;
     assert!(matches!(build(&s, &o), Err(ClosedLoopError::ZeroSteps)));
     o.steps = 40;
-    o.controller = ControllerChoice::SuboptimalMpc {
-        iterations: 0,
-        method: Method::PG,
-    };
-    assert!(matches!(
-        build(&s, &o),
-        Err(ClosedLoopError::OutOfRange {
-            name: "controller iterations",
-            ..
-        })
-    ));
+    // K_c likewise: a `ControllerChoice::SuboptimalMpc` holds a `qp_iter::Iterations`, and
+    // `ControllerChoice::suboptimal` refuses 0 and K_c above the limit, naming the field.
+    for k_c in [0, qp_iter::MAX_ITERATIONS + 1] {
+        assert!(matches!(
+            ControllerChoice::suboptimal(k_c, Method::PG),
+            Err(ClosedLoopError::OutOfRange {
+                name: "controller iterations",
+                ..
+            })
+        ));
+    }
     o.controller = ControllerChoice::SaturatedLqr;
     let mut no_mpc = s.clone();
     no_mpc.mpc = None;

@@ -360,6 +360,7 @@ pub(super) fn joint_f32_verdict(
     else {
         return void(F32Void::NotCovered);
     };
+    let k_c = k_c.get();
     if v.certified == Certified::Void {
         return void(F32Void::NotCovered);
     }

@@ -53,10 +53,7 @@ pub fn check_on_seeds(
         let opts = LoopOptions {
             method: j.mhe_method,
             exact_mhe_solve: true,
-            controller: ControllerChoice::SuboptimalMpc {
-                iterations: pair.k_c,
-                method: j.mpc_method,
-            },
+            controller: ControllerChoice::suboptimal(pair.k_c, j.mpc_method)?,
             seed,
             ..base.with_iterations(pair.k_e)?
         };

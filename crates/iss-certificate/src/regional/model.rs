@@ -374,7 +374,7 @@ fn law_of(resolved: &ResolvedScenario, controller: ControllerChoice) -> Result<L
                 upper: qp.zset().upper().to_vec(),
                 iterative: Some(MpcIteration {
                     lin,
-                    k: iterations,
+                    k: iterations.get(),
                     warm,
                 }),
             })

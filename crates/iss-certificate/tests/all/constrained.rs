@@ -41,10 +41,7 @@ fn constrained_case_study_runs_and_records_what_the_mpc_applied() {
         let s = constrained(tight);
         for controller in [
             ControllerChoice::ExactMpc,
-            ControllerChoice::SuboptimalMpc {
-                iterations: 50,
-                method: Method::FISTA,
-            },
+            ControllerChoice::suboptimal(50, Method::FISTA).unwrap(),
         ] {
             let mut cl = crate::build(&s, &options(&s, Method::PG, controller)).unwrap();
             let trace = cl.run().unwrap().clone();

@@ -323,10 +323,7 @@ fn the_joint_certificate_in_f32() {
                 let config = |scalar| Configuration {
                     method: mhe,
                     k_e: 2000,
-                    controller: ControllerChoice::SuboptimalMpc {
-                        iterations: k_c,
-                        method: mpc,
-                    },
+                    controller: ControllerChoice::suboptimal(k_c, mpc).unwrap(),
                     scalar,
                 };
                 let v64 = verdict(&r, &cert, &config(Scalar::F64));

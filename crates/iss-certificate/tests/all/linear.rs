@@ -120,10 +120,7 @@ fn lifted_matrix_reproduces_the_closed_loop_exactly() {
         }
         check_trajectory(&s, &options(&s, solver, 4, ControllerChoice::SaturatedLqr));
         for mpc in [Method::PG, Method::FISTA, Method::ADMM] {
-            let ctrl = ControllerChoice::SuboptimalMpc {
-                iterations: 3,
-                method: mpc,
-            };
+            let ctrl = ControllerChoice::suboptimal(3, mpc).unwrap();
             check_trajectory(&s, &options(&s, solver, 5, ctrl));
         }
     }

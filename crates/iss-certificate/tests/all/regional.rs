@@ -357,10 +357,7 @@ fn broken_premises_void_with_their_reason() {
     }
     // A K_c-iteration MPC is covered on its input box; with the MPC's state rows it is not,
     // and says so (the mass chain with its state box in `sets.state`).
-    let sub = ControllerChoice::SuboptimalMpc {
-        iterations: 5,
-        method: Method::PG,
-    };
+    let sub = ControllerChoice::suboptimal(5, Method::PG).unwrap();
     let boxed = concat!(
         env!("CARGO_MANIFEST_DIR"),
         "/../../scenarios/mass-chain-state-box.toml"
@@ -679,10 +676,7 @@ fn the_k_c_iteration_mpc_is_modelled_exactly() {
     let k = 13;
     let mut contained = 0;
     for k_c in [20, 50, 160] {
-        let controller = ControllerChoice::SuboptimalMpc {
-            iterations: k_c,
-            method: Method::PG,
-        };
+        let controller = ControllerChoice::suboptimal(k_c, Method::PG).unwrap();
         let ro = RegionalOptions::from_scenario(&res, controller).unwrap();
         let (c, d) = regional_detail(&res, method, k, &ro).unwrap();
         let mut o = options(&s, method, k);

@@ -79,7 +79,8 @@ fn points(dir: &Path) -> Table {
 /// thresholds table carries it with K_reg/K_lin; it is one `regional` task per solver and
 /// scale.
 #[test]
-fn k_reg_column_is_the_library_search_and_survives_shards_and_merge() {
+#[ignore = "long: run by .ci/run with --ignored"]
+fn long_k_reg_column_is_the_library_search_and_survives_shards_and_merge() {
     let d = scratch("small");
     let sc = scenario(&d, true);
     let sweep = Sweep::new(config(&sc, BOTH, "scales = [1e-4, 5e-5]")).unwrap();
@@ -182,7 +183,8 @@ fn k_reg_column_is_the_library_search_and_survives_shards_and_merge() {
 /// No K_reg, with the reason: the stand-in's own uncertainty (the limiting constraint and
 /// by how much), `certificate = false`, and Gaussian noise without `certificate.w_bar`.
 #[test]
-fn a_missing_k_reg_carries_its_reason() {
+#[ignore = "long: run by .ci/run with --ignored"]
+fn long_a_missing_k_reg_carries_its_reason() {
     let d = scratch("own");
     let sc = scenario(&d, false);
     let sweep = Sweep::new(config(&sc, "\"admm-pr\"", "")).unwrap();
@@ -245,10 +247,7 @@ fn a_2d_sweep_has_k_reg_per_k_c_and_the_cheapest_regional_pair() {
     let cap = search_max(None, window_size(&res)).0;
     let mut direct = Vec::new();
     for k_c in [2, 5] {
-        let controller = ControllerChoice::SuboptimalMpc {
-            iterations: k_c,
-            method: qp_iter::Method::PG,
-        };
+        let controller = ControllerChoice::suboptimal(k_c, qp_iter::Method::PG).unwrap();
         let o = RegionalOptions::from_scenario(&res, controller).unwrap();
         direct.push((
             k_c,

@@ -341,7 +341,7 @@ fn bad_input_gives_typed_errors() {
 }
 
 /// The columns are read from the certificate whatever the plant: the certified stand-in at
-/// N = 5 (2^10 free sets, as `theory_tasks_equal_the_sequential_certificate`) certifies in a
+/// N = 5 (2^10 free sets, as `long_theory_tasks_equal_the_sequential_certificate`) certifies in a
 /// moment, where N = 10's 2^20 took minutes in the test profile; the grid still straddles
 /// K_min (asserted).
 #[test]
@@ -488,7 +488,8 @@ fn long_theoretical_columns_follow_the_certificate() {
 /// certificate's, bit for bit, at 1 and 3 threads; the task list records each task's
 /// inputs, and every input precedes its task.
 #[test]
-fn theory_tasks_equal_the_sequential_certificate() {
+#[ignore = "long: run by .ci/run with --ignored"]
+fn long_theory_tasks_equal_the_sequential_certificate() {
     let certified = concat!(
         env!("CARGO_MANIFEST_DIR"),
         "/../scenarios/case-study-certified.toml"
@@ -1061,10 +1062,7 @@ fn methods_with_parameters_are_read_as_in_the_scenario() {
     );
     assert_eq!(
         c.controller,
-        ControllerChoice::SuboptimalMpc {
-            iterations: 3,
-            method: Method::pg(Some(0.1)).unwrap()
-        }
+        ControllerChoice::suboptimal(3, Method::pg(Some(0.1)).unwrap()).unwrap()
     );
     let e = SweepConfig::from_toml_str(
         &format!("{base}solvers = ['pg', {{ method = 'admm', step = 1 }}]"),

@@ -190,10 +190,7 @@ fn valid_k_c_configs(base: &str, sub: &str) {
     );
     assert_eq!(
         c.controller,
-        ControllerChoice::SuboptimalMpc {
-            iterations: 1,
-            method: Method::FISTA
-        }
+        ControllerChoice::suboptimal(1, Method::FISTA).unwrap()
     );
     let c = SweepConfig::from_toml_str(
         &format!("{base}k_c = {{ from = 1, to = 100, points = 3 }}\n{sub}"),
@@ -217,11 +214,8 @@ fn grid_points_carry_k_c_and_their_own_seeds() {
     );
     assert!(p.iter().enumerate().all(|(i, q)| q.index == i));
     assert_eq!(
-        c.controller_at(&p[2]),
-        ControllerChoice::SuboptimalMpc {
-            iterations: 5,
-            method: Method::PG
-        }
+        c.controller_at(&p[2]).unwrap(),
+        ControllerChoice::suboptimal(5, Method::PG).unwrap()
     );
     assert!(p[2].to_string().contains("K_c = 5"), "{}", p[2]);
     // Common random numbers: run r's seed is a function of (base seed, r) only; otherwise
@@ -341,10 +335,7 @@ fn rho_lin_column_is_the_linear_analysis_at_each_k_c() {
         for k_c in [1, 5] {
             let mut o = LoopOptions::from_scenario(resolved.scenario()).unwrap();
             o.method = solver;
-            o.controller = ControllerChoice::SuboptimalMpc {
-                iterations: k_c,
-                method: Method::PG,
-            };
+            o.controller = ControllerChoice::suboptimal(k_c, Method::PG).unwrap();
             let report = linear_stability(resolved, &o, &[1, 10], faer::Par::Seq).unwrap();
             let rows: Vec<usize> = (0..t.rows.len())
                 .filter(|&r| {

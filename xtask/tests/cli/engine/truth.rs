@@ -184,10 +184,7 @@ fn rounding_is_not_a_contradiction_but_a_real_violation_still_is() {
 
 #[test]
 fn coverage_names_the_certificate_and_refuses_a_shifted_warm_start() {
-    let sub = ControllerChoice::SuboptimalMpc {
-        iterations: 200,
-        method: Method::PG,
-    };
+    let sub = ControllerChoice::suboptimal(200, Method::PG).unwrap();
     for file in ["case-study-certified.toml", "cart-pendulum.toml"] {
         let s = scenario(file);
         assert_eq!(
@@ -277,10 +274,7 @@ fn long_a_one_d_sweep_with_the_k_c_mpc_is_under_the_joint_certificate() {
     };
     let cert = iss_certificate::certificate::certify_closed_loop(&resolved, &opts).unwrap();
     for (k_c, name) in [(200, "kc200"), (5, "kc5")] {
-        let controller = ControllerChoice::SuboptimalMpc {
-            iterations: k_c,
-            method: Method::PG,
-        };
+        let controller = ControllerChoice::suboptimal(k_c, Method::PG).unwrap();
         let app = Applicable::new(&resolved, &cert, Method::ADMM_PR, controller);
         assert_eq!(app.kind(), Some(CertificateKind::Joint));
         let (_, t) = sweep_points(&text(k_c, ""), name);

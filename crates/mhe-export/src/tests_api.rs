@@ -138,7 +138,8 @@ fn long_export_from_values_refuses_below_k_min_and_writes_the_opt_in() {
 /// certified preset; the joint certificate's smallest K is Theorem 1's 243) — and the loop
 /// is certified.
 #[test]
-fn with_an_mpc_k_certified_is_the_joint_floor() {
+#[ignore = "long: run by .ci/run with --ignored"]
+fn long_with_an_mpc_k_certified_is_the_joint_floor() {
     let path = workspace_root().join("scenarios/case-study-certified.toml");
     let resolved = Scenario::from_file(&path).unwrap().resolve().unwrap();
     let cert = super::tests::certified_preset_pg(&resolved);

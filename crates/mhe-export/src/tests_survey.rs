@@ -82,7 +82,8 @@ fn a_too_large_export_is_refused_before_the_certificate() {
 /// The survey's certified K per scalar is what `export --k certified` exports (one verdict),
 /// its budget is the export's, and an f32 K it does not certify has a short reason.
 #[test]
-fn the_survey_agrees_with_the_export() {
+#[ignore = "long: run by .ci/run with --ignored"]
+fn long_the_survey_agrees_with_the_export() {
     let sc = scenario("double-integrator.toml");
     let resolved = sc.resolve().unwrap();
     let o = ExportOptions::default();

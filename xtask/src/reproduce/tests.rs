@@ -1237,7 +1237,8 @@ fn a_k_min_above_the_sim_k_cap_is_skipped_with_the_cap_named() {
 /// `mpc.iterations` is set (the cart-pendulum with K_c = 20 PG steps: FISTA-Jacobi has a
 /// K_reg, the library's search with that MPC), the exact MPC otherwise.
 #[test]
-fn regional_entries_use_the_scenarios_controller() {
+#[ignore = "long: run by .ci/run with --ignored"]
+fn long_regional_entries_use_the_scenarios_controller() {
     use iss_certificate::regional::{RegionalOptions, k_reg};
     let path = workspace_root().join("scenarios/cart-pendulum.toml");
     let text = std::fs::read_to_string(&path)

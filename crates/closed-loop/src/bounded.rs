@@ -32,6 +32,9 @@ use crate::record::{Trace, norm2};
 pub const DEFAULT_BOUNDED_FACTOR: f64 = 1e3;
 
 /// The signal whose limit failed first.
+///
+/// Exhaustive on purpose: certificate-json's `v1::Signal` names each variant, so a new
+/// signal is a schema decision the compiler asks for.
 #[derive(Debug, Clone, Copy, PartialEq, Eq)]
 #[cfg_attr(feature = "serde", derive(Serialize))]
 #[cfg_attr(feature = "serde", serde(rename_all = "lowercase"))]

@@ -78,6 +78,7 @@ pub enum ControlStatus {
 #[derive(Debug, Clone, Copy, PartialEq, Eq)]
 #[cfg_attr(feature = "serde", derive(serde::Serialize))]
 #[cfg_attr(feature = "serde", serde(rename_all = "snake_case"))]
+#[non_exhaustive]
 pub enum MpcFallback {
     /// u*₀ of the input-constrained MPC (the state rows dropped): `mpc_core::ExactMpc`.
     InputOnlyMpc,

@@ -192,7 +192,8 @@ fn prepare(scenario: Scenario, settings: &Options) -> Result<Prepared, ReportErr
     // γ₁,₃: the command line's value, else the scenario's `certificate.gamma13`, else computed.
     let cli_gamma13 = match settings.gamma13 {
         Gamma13Source::User(g) => Some(g),
-        Gamma13Source::Certified => None,
+        // Certified (or a source added later): computed, not the user's.
+        _ => None,
     };
     // The four named methods, plain and Jacobi-scaled (long horizons: the scaled maps keep
     // K_min near its short-horizon value), and the scenario's own method when it is another

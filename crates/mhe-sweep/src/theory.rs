@@ -18,6 +18,7 @@ use iss_certificate::coverage::{Applicable, Scalar, covering, theorem1_at, with_
 
 /// The certificate's side of a point: Theorem 1 for one solver.
 #[derive(Debug, Clone)]
+#[non_exhaustive]
 pub enum SolverTheory {
     /// An analysis (void when a premise fails: then `void_reasons` says which).
     Analysis {

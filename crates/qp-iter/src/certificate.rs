@@ -4,6 +4,9 @@
 use serde::Serialize;
 
 /// Which quantity a certificate bounds.
+///
+/// Exhaustive on purpose: certificate-json's conversion names each variant, so a new
+/// quantity is a schema decision the compiler asks for.
 #[derive(Debug, Clone, Copy, PartialEq, Eq)]
 #[cfg_attr(feature = "serde", derive(Serialize))]
 #[cfg_attr(feature = "serde", serde(rename_all = "snake_case"))]
@@ -17,6 +20,9 @@ pub enum BoundedQuantity {
 }
 
 /// The norm the bound holds in.
+///
+/// Exhaustive on purpose: certificate-json's conversion names each variant, so a new
+/// norm is a schema decision the compiler asks for.
 #[derive(Debug, Clone, PartialEq)]
 #[cfg_attr(feature = "serde", derive(Serialize))]
 #[cfg_attr(feature = "serde", serde(rename_all = "snake_case"))]

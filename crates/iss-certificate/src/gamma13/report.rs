@@ -19,6 +19,7 @@ use super::{
 #[derive(Debug, Clone, Copy, PartialEq)]
 #[cfg_attr(feature = "serde", derive(Serialize))]
 #[cfg_attr(feature = "serde", serde(rename_all = "snake_case"))]
+#[non_exhaustive]
 pub enum Gamma13Source {
     /// Certified by contraction over the MPC's local gains ([`crate::gamma13`]).
     Certified,

@@ -47,9 +47,10 @@ impl BaselineRun {
     pub fn diverged(&self) -> bool {
         self.divergence.is_some()
     }
-    /// sup_t ‖e^b_t‖ (NaN for an empty run).
-    pub fn sup_norm_e(&self) -> f64 {
-        self.e_norms.iter().copied().fold(f64::NAN, f64::max)
+    /// sup_t ‖e^b_t‖ over the steps whose error is a number (None for an empty run; a NaN
+    /// step is skipped: `divergence` names where the filter failed).
+    pub fn sup_norm_e(&self) -> Option<f64> {
+        self.e_norms.iter().copied().reduce(f64::max)
     }
     /// Mean ‖e^b_t‖ over the last quarter of the steps (as [`Trace::tail_mean_e`]).
     pub fn tail_mean_e(&self) -> Option<f64> {

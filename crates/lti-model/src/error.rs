@@ -254,6 +254,14 @@ pub enum LmiFailure {
         /// The η asked for.
         eta: f64,
     },
+    /// P has a diagonal entry that is not positive, so it is not positive definite (and
+    /// its Jacobi scaling does not exist).
+    PNonPositiveDiagonal {
+        /// Row and column of the entry (0-based).
+        index: usize,
+        /// P(index, index).
+        value: f64,
+    },
     /// P is numerically singular relative to its own size: λ_min(P̂) ≤ ρ·λ_max(P̂) for the
     /// Jacobi-scaled P̂ = diag(P)^{−½}·P·diag(P)^{−½} (invariant under changes of the
     /// states' units).
@@ -324,6 +332,12 @@ impl std::fmt::Display for LmiFailure {
                  at η = {eta} LMI (2) has no P that is resolvable in f64; use a larger η (scenario \
                  key `mhe.eta`), or supply P (scenario key `mhe.p`, `cargo xtask certify --p-file`)",
                 ratio(min_eigenvalue, max_eigenvalue)
+            ),
+            Self::PNonPositiveDiagonal { index, value } => write!(
+                f,
+                "P is not positive definite: its diagonal entry ({index}, {index}) is {value:e} \
+                 (≤ 0); supply a P ≻ 0 (scenario key `mhe.p`, `--p-file`) or omit it to have \
+                 the maximal P computed"
             ),
             Self::PNumericallySingular {
                 min_eigenvalue,

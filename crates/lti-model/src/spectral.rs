@@ -88,6 +88,8 @@ fn within_data_precision_of_circle(a: &Mat<f64>, re: f64, im: f64) -> bool {
 }
 
 /// How x⁺ = Ax behaves.
+///
+/// Exhaustive on purpose: max |λ| is below, at or above 1, and nothing else.
 #[derive(Debug, Clone, Copy, PartialEq, Eq)]
 #[cfg_attr(feature = "serde", derive(Serialize))]
 #[cfg_attr(feature = "serde", serde(rename_all = "snake_case"))]

@@ -351,6 +351,7 @@ pub(crate) fn data_lines(text: &str) -> impl Iterator<Item = (usize, &str)> {
 
 /// One measured point of `data/cortex-m-points.csv`.
 #[derive(Debug, Clone, PartialEq)]
+#[non_exhaustive]
 pub struct Point {
     /// The target.
     pub target: Target,

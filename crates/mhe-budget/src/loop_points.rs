@@ -5,6 +5,7 @@ use crate::{MPC_POINTS_CSV, Point, Scalar, StepDims, Target, data_lines};
 /// One measured loop step of `data/cortex-m-mpc-points.csv`: the loop program (MHE + the
 /// K_c-iteration MPC), its control part counted on its own.
 #[derive(Debug, Clone, PartialEq)]
+#[non_exhaustive]
 pub struct LoopPoint {
     /// The control part: the MPC's method, sizes ([`StepDims::mpc`]), K_c and max
     /// instructions (what its rows are fitted on).

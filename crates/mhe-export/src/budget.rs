@@ -80,6 +80,7 @@ pub fn f32_note(certified: bool) -> &'static str {
 /// One target's verdict as written to certificate.json (export's `budget`, reproduce's
 /// `budget.methods[].targets`).
 #[derive(Debug, Clone, Serialize)]
+#[non_exhaustive]
 pub struct TargetRecord {
     /// `cortex-m4f` or `cortex-m7`.
     pub target: String,
@@ -259,6 +260,7 @@ pub(crate) fn annotate(
 /// 1's K_min, the global K_glob or the chain's K), both targets at their default clocks, for
 /// a scenario with a sample period.
 #[derive(Debug, Clone, Serialize)]
+#[non_exhaustive]
 pub struct ReproduceBudget {
     /// T_s in seconds (`plant.sample_time`).
     pub sample_time: f64,
@@ -270,6 +272,7 @@ pub struct ReproduceBudget {
 
 /// One method's budget at its smallest certified K.
 #[derive(Debug, Clone, Serialize)]
+#[non_exhaustive]
 pub struct MethodBudget {
     /// The method.
     pub method: String,

@@ -90,7 +90,7 @@ pub struct KalmanSummary {
     /// Steps filtered.
     pub completed: usize,
     /// sup_t ‖x_t − x̂^KF_t‖.
-    pub sup_norm_e: f64,
+    pub sup_norm_e: Option<f64>,
     /// Mean ‖x_t − x̂^KF_t‖ over the last quarter.
     pub tail_mean_e: Option<f64>,
     /// The filter left the bounded rule (signal e) or stopped.
@@ -146,7 +146,7 @@ pub fn kalman_baseline(
             Some(KalmanSummary {
                 weights,
                 completed: 0,
-                sup_norm_e: f64::NAN,
+                sup_norm_e: None,
                 tail_mean_e: None,
                 diverged: false,
                 divergence: None,

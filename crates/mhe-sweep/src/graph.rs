@@ -339,10 +339,9 @@ impl<'a> TheoryGraph<'a> {
                 }
             }
             TheoryJob::Certificate => {
-                let parts = ComputedParts {
-                    l_pi_enumerated: self.l_pi_enumerated(),
-                    gamma13_certified: self.gamma13_certified(),
-                };
+                let mut parts = ComputedParts::default();
+                parts.l_pi_enumerated = self.l_pi_enumerated();
+                parts.gamma13_certified = self.gamma13_certified();
                 let opts = certificate_options(self.resolved.scenario(), &self.config.solvers);
                 let cert = certify_closed_loop_with(self.resolved, &opts, parts)
                     .map(|(c, _)| c)

@@ -130,6 +130,7 @@ fn check_complete<V>(sweep: &Sweep, files: &BTreeMap<usize, V>) -> Result<()> {
 
 /// The text of `runs.csv`, `points.csv` (and `kalman.csv`) of an assembled sweep.
 #[derive(Debug, Clone, PartialEq)]
+#[non_exhaustive]
 pub struct Assembled {
     /// `runs.csv`.
     pub runs: String,

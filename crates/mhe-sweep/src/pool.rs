@@ -264,7 +264,7 @@ impl Shared<'_> {
                 Job::Run { slot, run } => self.run(slot, run, cost, &mut lp, &mut build_s),
                 Job::Theory(t) => self.theory_task(t),
             };
-            let cpu_s = thread_cpu_s() - cpu;
+            let cpu_s = thread_cpu_s().zip(cpu).map(|(end, start)| end - start);
             let busy_s = start.elapsed().as_secs_f64();
             if let Err(e) = res {
                 lock(&self.error).get_or_insert(e);

@@ -54,6 +54,7 @@ pub type Staircase = Vec<(usize, Option<usize>)>;
 /// One pair (K_e, K_c) with its cost.
 #[derive(Debug, Clone, Copy, PartialEq)]
 #[cfg_attr(feature = "serde", derive(Serialize))]
+#[non_exhaustive]
 pub struct Pair {
     /// Iterations of the MHE.
     pub k_e: usize,
@@ -66,6 +67,7 @@ pub struct Pair {
 /// The 2-D thresholds of one MHE solver at one disturbance scale.
 #[derive(Debug, Clone, PartialEq)]
 #[cfg_attr(feature = "serde", derive(Serialize))]
+#[non_exhaustive]
 pub struct PairThresholds {
     /// Φ of the MHE (its name in `points.csv`).
     pub solver: String,

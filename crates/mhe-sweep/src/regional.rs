@@ -366,6 +366,7 @@ pub fn window_size(resolved: &ResolvedScenario) -> usize {
 /// K_reg of one solver at one disturbance scale (and one K_c of a 2-D sweep) of a sweep, as
 /// `points.csv` writes it.
 #[derive(Debug, Clone, PartialEq)]
+#[non_exhaustive]
 pub struct RegionalEntry {
     /// Φ of the MHE.
     pub solver: Method,
@@ -428,6 +429,7 @@ impl RegionalSide {
 
 /// One K_reg search of a sweep: a solver with the uncertainty of one or more scales.
 #[derive(Debug, Clone)]
+#[non_exhaustive]
 pub struct RegionalSearch {
     /// Φ of the MHE.
     pub solver: Method,
@@ -440,6 +442,7 @@ pub struct RegionalSearch {
 /// regional certificate of the K_c-iteration MPC), and which search answers each (solver,
 /// scale, K_c).
 #[derive(Debug, Clone)]
+#[non_exhaustive]
 pub struct RegionalPlan {
     /// The searches.
     pub searches: Vec<RegionalSearch>,

@@ -555,6 +555,7 @@ impl Sweep {
 /// ([`Sweep::run_staged`], [`super::merge_staged`]): dropping it releases the output
 /// directory's lock.
 #[derive(Debug)]
+#[non_exhaustive]
 pub struct Staged {
     /// What the run did (for a merge: the points assembled in `computed`).
     pub report: SweepReport,

@@ -102,9 +102,9 @@ pub struct TaskTime {
     pub busy_s: f64,
     /// Of which building the point's loop (0 when the worker had it).
     pub build_s: f64,
-    /// The worker thread's CPU time during the task (NaN where not measurable): below
-    /// `busy_s` when other processes took the core.
-    pub cpu_s: f64,
+    /// The worker thread's CPU time during the task (None where the platform has no
+    /// per-thread CPU clock): below `busy_s` when other processes took the core.
+    pub cpu_s: Option<f64>,
 }
 
 /// The measured schedule of a [`Sweep::run`](super::Sweep::run).
@@ -143,8 +143,8 @@ impl ScheduleReport {
     pub fn busy_s(&self) -> f64 {
         self.tasks.iter().map(|t| t.busy_s).sum::<f64>() + self.help_s
     }
-    /// Σ of the tasks' CPU times (NaN when not measurable).
-    pub fn cpu_s(&self) -> f64 {
+    /// Σ of the tasks' CPU times (None when a task's is not measurable).
+    pub fn cpu_s(&self) -> Option<f64> {
         self.tasks.iter().map(|t| t.cpu_s).sum()
     }
     /// Σ of the build times.
@@ -330,7 +330,7 @@ impl ScheduleReport {
         let opt = |v: Option<usize>| v.map(|v| v.to_string()).unwrap_or_default();
         for (i, t) in self.tasks.iter().enumerate() {
             s.push_str(&format!(
-                "{i},{},{},{},{},{},{:.6},{:.6},{:.6},{:.6},{}\n",
+                "{i},{},{},{},{},{},{:.6},{:.6},{:.6},{},{}\n",
                 t.kind.name(),
                 opt(t.point),
                 opt(t.run),
@@ -339,7 +339,7 @@ impl ScheduleReport {
                 t.start_s,
                 t.busy_s,
                 t.build_s,
-                t.cpu_s,
+                t.cpu_s.map_or_else(String::new, |c| format!("{c:.6}")),
                 t.after
                     .iter()
                     .map(|d| d.to_string())
@@ -351,8 +351,8 @@ impl ScheduleReport {
     }
 }
 
-/// CPU time of the calling thread in seconds (NaN where not available).
-pub(super) fn thread_cpu_s() -> f64 {
+/// CPU time of the calling thread in seconds (None where not available).
+pub(super) fn thread_cpu_s() -> Option<f64> {
     #[cfg(target_os = "linux")]
     {
         let mut ts = libc::timespec {
@@ -362,10 +362,10 @@ pub(super) fn thread_cpu_s() -> f64 {
         // SAFETY: `ts` is a valid, writable timespec; the clock id is a constant.
         let rc = unsafe { libc::clock_gettime(libc::CLOCK_THREAD_CPUTIME_ID, &mut ts) };
         if rc == 0 {
-            return ts.tv_sec as f64 + ts.tv_nsec as f64 * 1e-9;
+            return Some(ts.tv_sec as f64 + ts.tv_nsec as f64 * 1e-9);
         }
     }
-    f64::NAN
+    None
 }
 
 #[cfg(test)]
@@ -383,7 +383,7 @@ mod tests {
             start_s: 0.0,
             busy_s: busy,
             build_s: build,
-            cpu_s: busy,
+            cpu_s: Some(busy),
         }
     }
 

@@ -3,6 +3,7 @@
 /// A CSV written by `format` (points.csv, runs.csv), read back by column name (no quoting: cells never
 /// contain commas).
 #[derive(Debug, Clone, PartialEq)]
+#[non_exhaustive]
 pub struct Table {
     /// Column names.
     pub header: Vec<String>,

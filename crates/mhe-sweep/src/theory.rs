@@ -150,6 +150,7 @@ pub struct TheoryAtK {
 
 /// ρ_lin of one MHE solver with one controller: the report on the K grid, or why not.
 #[derive(Debug, Clone)]
+#[non_exhaustive]
 pub struct LinearEntry {
     /// Φ of the MHE.
     pub solver: Method,

@@ -31,6 +31,7 @@ pub const SETTLE_TOLERANCE: f64 = 0.1;
 /// The thresholds of one solver at one disturbance scale.
 #[derive(Debug, Clone, PartialEq)]
 #[cfg_attr(feature = "serde", derive(Serialize))]
+#[non_exhaustive]
 pub struct Thresholds {
     /// Φ of the MHE (its name in `points.csv`).
     pub solver: String,

@@ -102,6 +102,7 @@ impl std::fmt::Display for RoundingVoid {
 /// ‖fl(Φ)(z) − Φ(z)‖ ≤ a‖z‖ + b‖θ‖ + c, and the exact map's Euclidean contraction rate r.
 #[derive(Debug, Clone, Copy, PartialEq)]
 #[cfg_attr(feature = "serde", derive(serde::Serialize))]
+#[non_exhaustive]
 pub struct IterationRounding {
     /// The unit round-off u the model is for.
     pub unit_roundoff: f64,

@@ -57,7 +57,8 @@ pub(super) fn summarize(
             s,
             "  μ = max vᵀJv/vᵀSv {}   (must be ≤ {}; S = GᵀPG + diag(P, Q) + HᵀRH, the \
              sum of the LMI's terms)",
-            num(c.lmi_relative_violation),
+            c.lmi_relative_violation
+                .map_or_else(|| "— (P is not positive definite)".to_string(), num),
             num(c.lmi_relative_tolerance)
         );
     }

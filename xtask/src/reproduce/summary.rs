@@ -545,13 +545,13 @@ pub(super) fn kalman_line(kf: &KalmanSummary, steps: usize) -> String {
         (None, _) if kf.completed < steps => format!(
             "{head} sup‖e‖ = {} over the {} step(s) filtered; tail ‖e‖ not available (the run \
              stopped at t = {} of {steps})",
-            num(kf.sup_norm_e),
+            opt(kf.sup_norm_e),
             kf.completed,
             kf.completed
         ),
         (None, _) => format!(
             "{head} sup‖e‖ = {}, tail ‖e‖ = {}",
-            num(kf.sup_norm_e),
+            opt(kf.sup_norm_e),
             opt(kf.tail_mean_e)
         ),
     }

@@ -267,7 +267,7 @@ fn large_noise_on_a_stable_plant_is_neither_diverged_nor_a_contradiction() {
 fn a_stopped_runs_kalman_line_has_no_tail() {
     let mut kf = KalmanSummary::default();
     kf.completed = 3;
-    kf.sup_norm_e = 0.5;
+    kf.sup_norm_e = Some(0.5);
     kf.tail_mean_e = Some(0.0);
     let line = summary::kalman_line(&kf, 100);
     assert!(!line.contains("tail ‖e‖ ="), "{line}");

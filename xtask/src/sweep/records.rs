@@ -135,52 +135,51 @@ mod tests {
     /// `None`, staircases as `[K_e, K_c]` pairs.
     #[test]
     fn records_keep_the_keys_and_order_of_meta_json() {
-        let t = Thresholds {
-            solver: "pg".into(),
-            scale: "1".into(),
-            k_c: None,
-            k_max: 30,
-            k_lin: Some(4),
-            k_reg: None,
-            regional_note: "outside".into(),
-            k_emp: Some(5),
-            k_settle: None,
-            k_cert: Some(12),
-            void_reason: String::new(),
-        };
+        // The outcome types are #[non_exhaustive]: start from mhe-sweep's own results and set
+        // every field the record writes.
+        let csv = "point,k,solver,scale,bounded_fraction\n0,1,pg,1,0.5\n";
+        let mut t = mhe_sweep::thresholds(&mhe_sweep::Table::parse(csv).expect("csv"))[0].clone();
+        t.solver = "pg".into();
+        t.scale = "1".into();
+        t.k_c = None;
+        t.k_max = 30;
+        t.k_lin = Some(4);
+        t.k_reg = None;
+        t.regional_note = "outside".into();
+        t.k_emp = Some(5);
+        t.k_settle = None;
+        t.k_cert = Some(12);
+        t.void_reason = String::new();
         let json = serde_json::to_string(&thresholds(std::slice::from_ref(&t)))
             .expect("the record serialises");
         assert_eq!(
             json,
             r#"[{"solver":"pg","scale":"1","k_max":30,"k_lin":4,"k_reg":null,"regional_note":"outside","k_emp":5,"k_settle":null,"k_cert":12,"void_reason":""}]"#
         );
-        let with_kc = Thresholds { k_c: Some(5), ..t };
+        let mut with_kc = t.clone();
+        with_kc.k_c = Some(5);
         let json = serde_json::to_string(&ThresholdsRecord::from(&with_kc)).expect("serialises");
         assert!(
             json.starts_with(r#"{"solver":"pg","scale":"1","k_c":5,"k_max":30,"#),
             "{json}"
         );
 
-        let pair = Pair {
-            k_e: 3,
-            k_c: 5,
-            cost: 8.0,
-        };
-        let p = PairThresholds {
-            solver: "fista".into(),
-            scale: "0.5".into(),
-            k_e_grid: vec![1, 3],
-            k_c_grid: vec![5],
-            cost: IterationCost { t_e: 1.0, t_c: 2.0 },
-            empirical_boundary: vec![(1, None), (3, Some(5))],
-            cheapest_empirical: Some(pair),
-            linear_boundary: None,
-            cheapest_linear: None,
-            certified_boundary: Vec::new(),
-            cheapest_certified: None,
-            regional: vec![(5, Some(3))],
-            cheapest_regional: Some(pair),
-        };
+        let cost = IterationCost { t_e: 1.0, t_c: 1.0 };
+        let pair = mhe_sweep::cheapest_pair(&[(3, Some(5))], cost).expect("a pair");
+        let csv = "point,k,k_c,solver,scale,bounded_fraction\n0,1,5,fista,0.5,1\n";
+        let table = mhe_sweep::Table::parse(csv).expect("csv");
+        let mut p = mhe_sweep::pair_thresholds(&table, cost, &[])[0].clone();
+        p.k_e_grid = vec![1, 3];
+        p.k_c_grid = vec![5];
+        p.cost = IterationCost { t_e: 1.0, t_c: 2.0 };
+        p.empirical_boundary = vec![(1, None), (3, Some(5))];
+        p.cheapest_empirical = Some(pair);
+        p.linear_boundary = None;
+        p.cheapest_linear = None;
+        p.certified_boundary = Vec::new();
+        p.cheapest_certified = None;
+        p.regional = vec![(5, Some(3))];
+        p.cheapest_regional = Some(pair);
         let json = serde_json::to_string(&pair_thresholds(std::slice::from_ref(&p)))
             .expect("the record serialises");
         assert_eq!(

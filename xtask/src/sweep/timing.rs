@@ -92,7 +92,7 @@ pub fn schedule_lines(report: &SweepReport, serial_s: f64, wall_s: f64) -> Vec<S
             s.tasks.len(),
             kinds.join(", "),
             sig4(busy),
-            sig4(s.cpu_s()),
+            s.cpu_s().map_or_else(|| "not measured".to_string(), sig4),
             sig4(s.pool_wall_s),
             s.threads,
             sig4(100.0 * s.efficiency())

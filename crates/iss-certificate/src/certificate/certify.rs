@@ -99,6 +99,7 @@ pub fn certify_closed_loop_timed(
 /// and the stages of [`crate::gamma13::Gamma13Plan`]). `None`: computed by
 /// [`certify_closed_loop_with`] itself.
 #[derive(Debug, Default)]
+#[non_exhaustive]
 pub struct ComputedParts {
     /// L_enum of the scenario's MPC: what `mpc.lipschitz_enumerated(`[`mpc_core::ENUMERATION_MAX_VARS`]`)`
     /// returns (used only without state constraints).

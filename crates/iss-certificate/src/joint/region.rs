@@ -9,6 +9,7 @@ use super::gains::{JointAnalysis, first_true};
 /// One pair (K_e, K_c).
 #[derive(Debug, Clone, Copy, PartialEq, Eq)]
 #[cfg_attr(feature = "serde", derive(Serialize))]
+#[non_exhaustive]
 pub struct RegionPoint {
     /// MHE iterations per step.
     pub k_e: usize,

@@ -6,6 +6,7 @@
 
 /// The dimensions that set the cost of ρ_lin.
 #[derive(Debug, Clone, Copy, PartialEq, Eq)]
+#[non_exhaustive]
 pub struct LiftedDims {
     /// n_x.
     pub nx: usize,

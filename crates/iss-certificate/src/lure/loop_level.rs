@@ -185,6 +185,7 @@ impl Default for LoopOptions {
 /// ‖X_t‖²_P ≤ ρ^{2t}‖X_0‖²_P + γ²/(1 − ρ²)·w̄².
 #[derive(Debug, Clone, PartialEq)]
 #[cfg_attr(feature = "serde", derive(Serialize))]
+#[non_exhaustive]
 pub struct LoopCertificate {
     /// K.
     pub k: usize,

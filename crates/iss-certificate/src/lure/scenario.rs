@@ -59,6 +59,7 @@ pub enum ScenarioLureError {
 
 /// The Lur'e loop of one (scenario, MHE method) pair with its provenance.
 #[derive(Debug, Clone)]
+#[non_exhaustive]
 pub struct ScenarioLure {
     /// The loop (n_X = dim of the lifted state, n_ξ = n_z, one channel per bounded
     /// coordinate of the MHE's z, n_w = n_w¹ + n_w²).

@@ -38,6 +38,7 @@ pub enum RowKind {
 /// Which constraint a row is.
 #[derive(Debug, Clone, Copy, PartialEq, Eq)]
 #[cfg_attr(feature = "serde", derive(Serialize))]
+#[non_exhaustive]
 pub struct RowLabel {
     /// The kind.
     pub kind: RowKind,

@@ -201,60 +201,82 @@ pub struct LmiCheck {
     /// The floor ρ: the Jacobi-scaled P̂ = diag(P)^{−½}·P·diag(P)^{−½} must have
     /// λ_min(P̂) > ρ·λ_max(P̂).
     pub p_min_ratio: f64,
-    /// λ_min(P̂) of the Jacobi-scaled P̂ (NaN if a diagonal entry of P is not positive).
-    pub p_scaled_min_eigenvalue: f64,
-    /// λ_max(P̂) of the Jacobi-scaled P̂.
-    pub p_scaled_max_eigenvalue: f64,
+    /// λ_min(P̂) of the Jacobi-scaled P̂ (None if a diagonal entry of P is not positive:
+    /// P̂ does not exist, see `p_nonpositive_diagonal`).
+    pub p_scaled_min_eigenvalue: Option<f64>,
+    /// λ_max(P̂) of the Jacobi-scaled P̂ (None as `p_scaled_min_eigenvalue`).
+    pub p_scaled_max_eigenvalue: Option<f64>,
+    /// The first diagonal entry (index, value) of P that is not positive, if any: such a P
+    /// is not positive definite.
+    pub p_nonpositive_diagonal: Option<(usize, f64)>,
     /// All eigenvalues of the LMI matrix J, ascending.
     pub lmi_eigenvalues: Vec<f64>,
     /// λ_max(J), unscaled (reported; the test is on `relative_violation`).
     pub lmi_max_eigenvalue: f64,
     /// μ(P) = max_v vᵀJv / vᵀSv ∈ [−1, 1], computed in the output-residual coordinates
     /// (`lmi_and_scale_split`, F of full row rank) or the user's, whichever has the
-    /// better-conditioned Jacobi-scaled S (the smaller rounding error); NaN when P is not
-    /// positive definite. The verdict is on this value.
-    pub relative_violation: f64,
+    /// better-conditioned Jacobi-scaled S (the smaller rounding error); None when P is not
+    /// positive definite (λ_min(P) ≤ 0: μ is defined for P ≻ 0 only). The verdict is on
+    /// this value.
+    pub relative_violation: Option<f64>,
     /// The same μ(P) computed from J and S in the user's coordinates (x, w), reported for
     /// comparison: with R ≫ Q its rounding error is ≈ u·r/q (issue 37, item 4), so it may
-    /// exceed τ for a valid P.
-    pub relative_violation_original_units: f64,
+    /// exceed τ for a valid P. None as `relative_violation`.
+    pub relative_violation_original_units: Option<f64>,
     /// τ: P passes when μ(P) ≤ τ.
     pub relative_tolerance: f64,
 }
 
 impl LmiCheck {
-    /// λ_min(P̂)/λ_max(P̂) of the Jacobi-scaled P̂ = diag(P)^{−½}·P·diag(P)^{−½} (NaN if
-    /// P has a non-positive diagonal entry). Unlike λ_min(P)/λ_max(P) it does not change
+    /// λ_min(P̂)/λ_max(P̂) of the Jacobi-scaled P̂ = diag(P)^{−½}·P·diag(P)^{−½} (None if
+    /// P has a non-positive diagonal entry, or λ_max(P̂) ≤ 0). Unlike λ_min(P)/λ_max(P) it does not change
     /// when the states change units (x = Tx̃, T diagonal), and it is what decides whether
     /// P ≻ 0 is resolvable in f64: the Jacobi-scaled matrix's eigenvalues are computed to
     /// ≈ n·u·λ_max(P̂).
-    pub fn p_ratio(&self) -> f64 {
-        if self.p_scaled_max_eigenvalue > 0.0 {
-            self.p_scaled_min_eigenvalue / self.p_scaled_max_eigenvalue
-        } else {
-            f64::NAN
-        }
+    pub fn p_ratio(&self) -> Option<f64> {
+        let (lo, hi) = self
+            .p_scaled_min_eigenvalue
+            .zip(self.p_scaled_max_eigenvalue)?;
+        (hi > 0.0).then(|| lo / hi)
     }
 
-    /// The first condition that fails, or `None` if P certifies LMI (2): λ_min(P) >
-    /// ρ·λ_max(P) (else [`LmiFailure::PNumericallySingular`]), then μ(P) ≤ τ (else
+    /// (λ_min, λ_max) of P̂ when it exists, else of P: the pair a singularity report names.
+    pub(crate) fn singular_pair(&self) -> (f64, f64) {
+        self.p_scaled_min_eigenvalue
+            .zip(self.p_scaled_max_eigenvalue)
+            .unwrap_or((self.p_min_eigenvalue, self.p_max_eigenvalue))
+    }
+
+    /// The first condition that fails, or `None` if P certifies LMI (2): every diagonal
+    /// entry of P positive (else [`LmiFailure::PNonPositiveDiagonal`]), λ_min(P̂) >
+    /// ρ·λ_max(P̂) (else [`LmiFailure::PNumericallySingular`]), then μ(P) ≤ τ (else
     /// [`LmiFailure::Violated`]).
     pub fn failure(&self) -> Option<LmiFailure> {
-        if !(self.p_ratio() > self.p_min_ratio) {
-            return Some(LmiFailure::PNumericallySingular {
-                min_eigenvalue: self.p_scaled_min_eigenvalue,
-                max_eigenvalue: self.p_scaled_max_eigenvalue,
-                min_ratio: self.p_min_ratio,
-            });
+        if let Some((index, value)) = self.p_nonpositive_diagonal {
+            return Some(LmiFailure::PNonPositiveDiagonal { index, value });
         }
-        if !(self.relative_violation <= self.relative_tolerance) {
-            return Some(LmiFailure::Violated {
-                relative_violation: self.relative_violation,
+        let singular = || {
+            let (min_eigenvalue, max_eigenvalue) = self.singular_pair();
+            LmiFailure::PNumericallySingular {
+                min_eigenvalue,
+                max_eigenvalue,
+                min_ratio: self.p_min_ratio,
+            }
+        };
+        if !self.p_ratio().is_some_and(|r| r > self.p_min_ratio) {
+            return Some(singular());
+        }
+        match self.relative_violation {
+            Some(mu) if mu <= self.relative_tolerance => None,
+            Some(mu) => Some(LmiFailure::Violated {
+                relative_violation: mu,
                 tolerance: self.relative_tolerance,
                 lmi_max_eigenvalue: self.lmi_max_eigenvalue,
-            });
+            }),
+            // λ_min(P) ≤ 0 although λ_min(P̂) > ρ·λ_max(P̂) > 0: the two eigen-solves
+            // disagree in rounding, and P is not resolvably positive definite.
+            None => Some(singular()),
         }
-        None
     }
 
     /// True iff [`LmiCheck::failure`] is `None`.
@@ -293,13 +315,14 @@ pub fn assess(
     let p_eig = sym_eigenvalues("P", p.as_ref())?;
     let (p_min, p_max) = (p_eig[0], p_eig[p_eig.len() - 1]);
     let n = p.nrows();
-    let (p_scaled_min, p_scaled_max) = if (0..n).all(|i| p[(i, i)] > 0.0) {
+    let p_nonpositive_diagonal = (0..n).map(|i| (i, p[(i, i)])).find(|&(_, v)| !(v > 0.0));
+    let (p_scaled_min, p_scaled_max) = if p_nonpositive_diagonal.is_none() {
         let d: Vec<f64> = (0..n).map(|i| 1.0 / p[(i, i)].sqrt()).collect();
         let scaled = Mat::from_fn(n, n, |a, b| d[a] * p[(a, b)] * d[b]);
         let e = sym_eigenvalues("diag(P)^(-1/2) P diag(P)^(-1/2)", scaled.as_ref())?;
-        (e[0], e[n - 1])
+        (Some(e[0]), Some(e[n - 1]))
     } else {
-        (f64::NAN, f64::NAN)
+        (None, None)
     };
     let (j, s) = lmi_and_scale(sys, eta, q, r, p.as_ref());
     let lmi_eigenvalues = sym_eigenvalues("LMI matrix", j.as_ref())?;
@@ -323,9 +346,9 @@ pub fn assess(
         } else {
             split
         };
-        (chosen.0, original.0)
+        (Some(chosen.0), Some(original.0))
     } else {
-        (f64::NAN, f64::NAN)
+        (None, None)
     };
     Ok(LmiCheck {
         p_min_eigenvalue: p_min,
@@ -333,6 +356,7 @@ pub fn assess(
         p_min_ratio: opts.min_condition,
         p_scaled_min_eigenvalue: p_scaled_min,
         p_scaled_max_eigenvalue: p_scaled_max,
+        p_nonpositive_diagonal,
         lmi_eigenvalues,
         lmi_max_eigenvalue,
         relative_violation,

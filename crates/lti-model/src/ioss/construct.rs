@@ -144,15 +144,16 @@ pub(super) fn extremal_solution(
                 iterations: steps + 1,
             });
         }
-        outcome = if check.p_ratio() > opts.min_condition {
+        outcome = if check.p_ratio().is_some_and(|r| r > opts.min_condition) {
             Extremal::Found {
                 p,
                 iterations: steps + 1,
             }
         } else {
+            let (min_eigenvalue, max_eigenvalue) = check.singular_pair();
             Extremal::Singular {
-                min_eigenvalue: check.p_scaled_min_eigenvalue,
-                max_eigenvalue: check.p_scaled_max_eigenvalue,
+                min_eigenvalue,
+                max_eigenvalue,
             }
         };
     }
@@ -171,10 +172,11 @@ fn zero_eta_solution(
         return Ok(Extremal::KktSingular { iteration: 0 });
     };
     let check = super::assess(sys, 0.0, q, r, p.as_ref(), opts)?;
-    if !(check.p_ratio() > opts.min_condition) {
+    if !check.p_ratio().is_some_and(|r| r > opts.min_condition) {
+        let (min_eigenvalue, max_eigenvalue) = check.singular_pair();
         return Ok(Extremal::Singular {
-            min_eigenvalue: check.p_scaled_min_eigenvalue,
-            max_eigenvalue: check.p_scaled_max_eigenvalue,
+            min_eigenvalue,
+            max_eigenvalue,
         });
     }
     Ok(Extremal::Found { p, iterations: 1 })

@@ -251,8 +251,8 @@ pub struct IossReport {
     pub p_min_ratio: f64,
     /// Largest eigenvalue of the LMI matrix J (unscaled).
     pub lmi_max_eigenvalue: f64,
-    /// μ(P) = max vᵀJv/vᵀSv; null (NaN) when P is not positive definite.
-    pub lmi_relative_violation: f64,
+    /// μ(P) = max vᵀJv/vᵀSv; None when P is not positive definite.
+    pub lmi_relative_violation: Option<f64>,
     /// τ: P passes when μ(P) ≤ τ.
     pub lmi_relative_tolerance: f64,
     /// All eigenvalues of J, ascending.
@@ -304,7 +304,7 @@ impl IossCertificate {
             p_max_eigenvalue: self.p_max_eigenvalue,
             p_min_ratio: self.p_min_ratio,
             lmi_max_eigenvalue: self.lmi_max_eigenvalue,
-            lmi_relative_violation: self.lmi_relative_violation,
+            lmi_relative_violation: Some(self.lmi_relative_violation),
             lmi_relative_tolerance: self.lmi_relative_tolerance,
             lmi_eigenvalues: self.lmi_eigenvalues.clone(),
             method: self.method.clone(),
@@ -598,9 +598,12 @@ fn certificate_from(
     method: &str,
     iterations: usize,
 ) -> Result<IossCertificate> {
-    if let Some(cause) = check.failure() {
-        return Err(ModelError::LmiInfeasible { cause });
-    }
+    // `failure` is None only with μ(P) ≤ τ measured; the last arm cannot occur.
+    let mu = match (check.failure(), check.relative_violation) {
+        (None, Some(mu)) => mu,
+        (Some(cause), _) => return Err(ModelError::LmiInfeasible { cause }),
+        (None, None) => return Err(numerical("LMI (2) passed without μ(P)".to_string())),
+    };
     Ok(IossCertificate {
         p,
         eta,
@@ -610,7 +613,7 @@ fn certificate_from(
         p_max_eigenvalue: check.p_max_eigenvalue,
         lmi_max_eigenvalue: check.lmi_max_eigenvalue,
         lmi_eigenvalues: check.lmi_eigenvalues,
-        lmi_relative_violation: check.relative_violation,
+        lmi_relative_violation: mu,
         lmi_relative_tolerance: check.relative_tolerance,
         p_min_ratio: check.p_min_ratio,
         method: method.to_string(),

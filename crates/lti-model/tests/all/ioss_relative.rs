@@ -209,7 +209,8 @@ fn check_is_invariant_under_scaling_of_p_q_r() {
         &ioss::IossOptions::default(),
     )
     .unwrap()
-    .relative_violation;
+    .relative_violation
+    .expect("P ≻ 0: μ is measured");
     assert!(mu_bigger > LMI_RELATIVE_TOL);
     for c in [1e-6, 1e6] {
         let (qc, rc) = (&q * c, &r * c);
@@ -363,4 +364,42 @@ fn verify_agrees_with_an_independent_eigenvalue_check() {
         ambiguous <= 10,
         "{ambiguous} cases within 2e-10 of the threshold"
     );
+}
+
+/// A P with a diagonal entry ≤ 0: `assess` reports no μ and no scaled eigenvalues (None,
+/// not NaN) and its failure names that entry (its Jacobi scaling does not exist; before,
+/// NaN eigenvalues reached a "numerically singular" message).
+#[test]
+fn a_p_with_a_non_positive_diagonal_entry_is_refused_naming_it() {
+    let (sys, q, r) = case_study();
+    let star = ioss::certify(&sys, 0.8, q.as_ref(), r.as_ref()).unwrap();
+    for value in [0.0, -1.0] {
+        let mut p = star.p.clone();
+        p[(2, 2)] = value;
+        // `verify` refuses it as input (λ_min(P) < 0) before LMI (2).
+        assert!(matches!(
+            ioss::verify(&sys, 0.8, q.as_ref(), r.as_ref(), p.as_ref()),
+            Err(ModelError::NotPositiveDefinite { .. })
+        ));
+        let check = ioss::assess(
+            &sys,
+            0.8,
+            q.as_ref(),
+            r.as_ref(),
+            p.as_ref(),
+            &ioss::IossOptions::default(),
+        )
+        .unwrap();
+        assert_eq!(check.p_nonpositive_diagonal, Some((2, value)));
+        assert_eq!(check.p_scaled_min_eigenvalue, None);
+        assert_eq!(check.p_ratio(), None);
+        assert_eq!(check.relative_violation, None);
+        match check.failure() {
+            Some(cause @ LmiFailure::PNonPositiveDiagonal { index: 2, .. }) => {
+                let text = cause.to_string();
+                assert!(text.contains("(2, 2)") && text.contains("mhe.p"), "{text}");
+            }
+            other => panic!("expected PNonPositiveDiagonal at 2, got {other:?}"),
+        }
+    }
 }

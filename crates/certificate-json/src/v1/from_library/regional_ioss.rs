@@ -152,7 +152,7 @@ impl From<&lti_model::ioss::IossReport> for IossReport {
             p_max_eigenvalue: num(l.p_max_eigenvalue),
             p_min_ratio: num(l.p_min_ratio),
             lmi_max_eigenvalue: num(l.lmi_max_eigenvalue),
-            lmi_relative_violation: num(l.lmi_relative_violation),
+            lmi_relative_violation: l.lmi_relative_violation.and_then(num),
             lmi_relative_tolerance: num(l.lmi_relative_tolerance),
             lmi_eigenvalues: l.lmi_eigenvalues.iter().map(|x| num(*x)).collect(),
             method: l.method.to_string(),

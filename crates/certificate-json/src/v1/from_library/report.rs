@@ -18,7 +18,7 @@ impl From<&mhe_report::KalmanSummary> for KalmanSummary {
         Self {
             weights: l.weights.to_string(),
             completed: l.completed,
-            sup_norm_e: num(l.sup_norm_e),
+            sup_norm_e: l.sup_norm_e.and_then(num),
             tail_mean_e: l.tail_mean_e.and_then(num),
             diverged: l.diverged,
             divergence: l.divergence.as_ref().map(Divergence::from),

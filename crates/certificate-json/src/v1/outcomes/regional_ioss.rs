@@ -236,7 +236,7 @@ pub struct IossReport {
     pub p_min_ratio: Option<f64>,
     /// Largest eigenvalue of the LMI matrix J (unscaled).
     pub lmi_max_eigenvalue: Option<f64>,
-    /// μ(P) = max vᵀJv/vᵀSv; null (NaN) when P is not positive definite.
+    /// μ(P) = max vᵀJv/vᵀSv; null when P is not positive definite.
     pub lmi_relative_violation: Option<f64>,
     /// τ: P passes when μ(P) ≤ τ.
     pub lmi_relative_tolerance: Option<f64>,

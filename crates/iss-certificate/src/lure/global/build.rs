@@ -49,6 +49,7 @@ pub fn global_loop_boxes(
 /// The sizes a search's estimate needs (`global_outcome::search_seconds`), with the norm
 /// its φ holds in: what [`global_loop`] would build, read without forming a matrix.
 #[derive(Debug, Clone, PartialEq)]
+#[non_exhaustive]
 pub struct LoopSize {
     /// dim ζ of the LMI.
     pub n_zeta: usize,

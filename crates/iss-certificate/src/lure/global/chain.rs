@@ -114,6 +114,7 @@ impl Default for ChainOptions {
 
 /// The PG-family or FISTA loop with its probed step, ready to be chained at any K.
 #[derive(Debug, Clone)]
+#[non_exhaustive]
 pub struct IterationChain {
     /// Theorem L3's loop (σ₁, σ₂, σ₃, the exact lifted dynamics).
     pub global: GlobalLoop,

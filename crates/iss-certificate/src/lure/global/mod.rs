@@ -278,6 +278,7 @@ impl Optimum {
 /// The global loop of one (scenario, method) pair: every matrix of the LMI except the
 /// scalars, on ζ = (X, z*_B, d, U*_B, w).
 #[derive(Debug, Clone)]
+#[non_exhaustive]
 pub struct GlobalLoop {
     /// The lifted loop it was built from (K_lin's).
     pub lifted: LiftedLoop,

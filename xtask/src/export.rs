@@ -20,7 +20,8 @@ pub enum ScalarKind {
     /// Double precision: bit for bit the std build on the portable kernel.
     F64,
     /// Single precision (data rounded to f32 once): certified where the method's rounding
-    /// model (every method but FISTA-Jacobi; FISTA only where its incremental rate exists)
+    /// model (every method; FISTA and FISTA-Jacobi only where V-FISTA's incremental rate
+    /// exists on the (scaled) window)
     /// leaves Theorem 1 or Theorem L3 a K with the rounding as an input, else refused
     /// unless --allow-uncertified.
     F32,

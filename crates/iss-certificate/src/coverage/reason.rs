@@ -25,8 +25,8 @@ impl PairReason {
                 // "; no global K" when it certifies none.
                 F32Void::RoundingModel { .. } => "f32: the rounding model failed".into(),
                 F32Void::Void(v) => match v {
-                    // V-FISTA without its incremental rate, FISTA-Jacobi, the structured product,
-                    // general rows: the sentence names which.
+                    // V-FISTA (plain or Jacobi) without its incremental rate, the structured
+                    // product, general rows: the sentence names which.
                     ScalarVoid::NotCovered { .. } => "f32: no rounding model here".into(),
                     ScalarVoid::ContractionBroken { window, .. } => {
                         format!("f32: the rounding breaks the contraction (window m = {window})")

@@ -1,6 +1,6 @@
-//! The K-step rounding model of projected gradient, V-FISTA and the Jacobi-scaled projected
-//! gradient (issue 36; docs/theory.md, "FISTA in f32" and "Jacobi-scaled projected gradient
-//! in f32"): K iterations run in f32 in `mhe_embedded`'s dense order from a random
+//! The K-step rounding model of projected gradient, V-FISTA, ADMM and their Jacobi-scaled
+//! variants (issue 36; docs/theory.md, "FISTA in f32", "Jacobi-scaled projected gradient in
+//! f32", "ADMM in f32" and "FISTA-Jacobi in f32"): K iterations run in f32 in `mhe_embedded`'s dense order from a random
 //! warm start stay within ‖zᴷ − z*‖ ≤ φ_u(K)‖z⁰ − z*‖ + β_z‖z*‖ + β_θ‖θ‖ + c_d, with z* the
 //! exact optimum (the active-set solver in f64) — on random box QPs, κ up to 10⁴, K from 1
 //! to 300, starts and parameters over seven decades, and starts chosen to be bad.
@@ -16,6 +16,8 @@ use rand_chacha::ChaCha8Rng;
 /// The test QPs' κ for `method` on seed `seed`: V-FISTA's incremental storage (Theorem L1,
 /// sector multipliers) exists up to κ ≈ 5 (test below), so 1.5 … 4.4 there; projected
 /// gradient's and ADMM's contraction at every κ, so 10 … 10⁴.
+/// FISTA-Jacobi runs V-FISTA on the Jacobi-scaled problem, whose κ these QPs' geometric
+/// diagonal does not reach (D H D has a unit diagonal): it gets the wide range.
 pub(super) fn kappa_of(method: Method, seed: u64) -> f64 {
     if method == Method::FISTA {
         1.5 + 0.1 * (seed % 30) as f64
@@ -316,7 +318,7 @@ impl Setup {
     /// model (`zs` = z*(θ)).
     pub(super) fn eval(&self, theta: &[f64], z0: &[f64], zs: &[f64], k: usize) -> Eval {
         let d = &self.d;
-        let fista = self.method == Method::FISTA;
+        let fista = matches!(self.method.kind, qp_iter::MethodKind::Fista(_));
         // y⁰ = z⁰/d̃ and z = d̃·y in the scalar with the stored d̃ (the embedded estimator's
         // warm start and output on a scaled problem).
         let y0_32: Vec<f64> = z0
@@ -368,11 +370,12 @@ impl Setup {
 }
 
 /// The methods with a K-step rounding model (`StepRounding::for_qp`), plain and Jacobi.
-pub(super) fn methods() -> [Method; 6] {
+pub(super) fn methods() -> [Method; 7] {
     [
         Method::PG,
         Method::FISTA,
         Method::PG.with_scaling(Scaling::Jacobi),
+        Method::FISTA.with_scaling(Scaling::Jacobi),
         Method::ADMM,
         Method::ADMM_PR,
         Method::ADMM_PR.with_scaling(Scaling::Jacobi),

@@ -54,7 +54,7 @@ pub enum StepRounding {
     /// ADMM (relaxed Douglas–Rachford): the exact step is r-Lipschitz on s for any two
     /// points; the rounded start, steps and output clamp (docs/theory.md, "ADMM in f32").
     Admm(AdmmRounding),
-    /// A Jacobi-scaled method (projected gradient or ADMM): the method on the scaled problem
+    /// A Jacobi-scaled method (projected gradient, V-FISTA or ADMM): the method on the scaled problem
     /// in y = D⁻¹z, with the rounded division y⁰ = z⁰/d and product z = d·y; every bound in
     /// the weighted norm ‖D⁻¹·‖ the global certificate uses for the Jacobi variants
     /// (docs/theory.md, "Jacobi-scaled projected gradient in f32").
@@ -65,10 +65,10 @@ pub enum StepRounding {
 #[derive(Debug, Clone, PartialEq)]
 #[non_exhaustive]
 pub struct JacobiSteps {
-    /// K steps on the scaled problem (in y): projected gradient or ADMM.
+    /// K steps on the scaled problem (in y): projected gradient, V-FISTA or ADMM.
     pub scaled: Box<StepRounding>,
     /// Φ̄ ≥ φ_u^y(K) for every K (projected gradient: 1; ADMM: 2c₀ + a₀, since the exact
-    /// φ(K) ≤ φ(0) = c₀).
+    /// φ(K) ≤ φ(0) = c₀; V-FISTA: φ^y(0) plus the supremum of its rounding part).
     pub phi_sup: f64,
     /// min_i d_i (‖D⁻¹v‖ ≤ ‖v‖/d_min).
     pub d_min: f64,
@@ -210,13 +210,12 @@ impl FistaSteps {
 
 impl StepRounding {
     /// The model of K computed iterations of `method` on `qp` in unit round-off `u`
-    /// (projected gradient or plain V-FISTA), or why it is not covered
+    /// (every method, plain or Jacobi-scaled), or why it is not covered
     /// ([`PrecisionVoid::NotCovered`]). The premise q < 1 is the caller's to check
     /// ([`StepRounding::perturbed_rate`]).
     pub fn for_qp(method: Method, qp: &ParametricQp, u: f64) -> Result<Self, PrecisionVoid> {
         let not_covered = |why: String| PrecisionVoid::NotCovered { why };
-        let scalable = matches!(method.kind, MethodKind::Pg(_) | MethodKind::Admm(_));
-        if scalable && method.scaling == Scaling::Jacobi {
+        if method.scaling == Scaling::Jacobi {
             let map = method
                 .build(qp.clone())
                 .map_err(|e| not_covered(e.to_string()))?;
@@ -225,9 +224,27 @@ impl StepRounding {
                     "internal: a Jacobi method without a scaling".into(),
                 ));
             };
-            let scaled = Self::for_qp(method.with_scaling(Scaling::None), s.inner().problem(), u)?;
+            let scaled = Self::for_qp(method.with_scaling(Scaling::None), s.inner().problem(), u)
+                .map_err(|e| match e {
+                PrecisionVoid::NotCovered { why } => not_covered(format!(
+                    "on the Jacobi-scaled window (y = D⁻¹z, κ(D) = {}): {why}",
+                    lti_model::numfmt::sig4(s.kappa_d())
+                )),
+                other => other,
+            })?;
             let phi_sup = match &scaled {
                 Self::Admm(a) => 2.0 * a.start + a.a0,
+                // φ^y(K) = c·ρᴷ ≤ φ^y(0) = c (∞ without a rate ≤ 1), plus the rounding
+                // part's supremum over every K (`extra_phi` at K = 0 with `sup`).
+                Self::Fista(f) => {
+                    let c = s.inner().certificate();
+                    let exact = if c.rate <= 1.0 {
+                        c.prefactor
+                    } else {
+                        f64::INFINITY
+                    };
+                    exact + f.extra_phi(0, true)
+                }
                 _ => 1.0,
             };
             let d = s.scaling();

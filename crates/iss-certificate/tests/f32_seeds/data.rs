@@ -18,6 +18,8 @@ pub(crate) struct Owned {
     lo: Vec<f64>,
     hi: Vec<f64>,
     step: f64,
+    /// V-FISTA's β (0 for the other methods).
+    momentum: f64,
     scaling: Vec<f64>,
     /// ADMM: ρ(H + ρI)⁻¹ and (H + ρI)⁻¹ by columns, 1/ρ, α (empty / 0 otherwise).
     m_rho: Vec<f64>,
@@ -31,8 +33,9 @@ pub(crate) fn owned(resolved: &ResolvedScenario) -> Vec<Owned> {
     owned_for(resolved, qp_iter::Method::PG)
 }
 
-/// `method` (PG or ADMM, plain or Jacobi-scaled): the problem its map runs on, its scaling
-/// and ADMM's stored data (`mhe_export::extract`'s `window_of`).
+/// `method` (PG, V-FISTA or ADMM, plain or Jacobi-scaled): the problem its map runs on, its
+/// scaling, the gradient methods' step (and V-FISTA's momentum) and ADMM's stored data
+/// (`mhe_export::extract`'s `window_of`).
 pub(crate) fn owned_for(resolved: &ResolvedScenario, method: qp_iter::Method) -> Vec<Owned> {
     use qp_iter::{IterationMap, MethodMap};
     let problem = resolved.mhe_problem().expect("MHE builds");
@@ -57,8 +60,12 @@ pub(crate) fn owned_for(resolved: &ResolvedScenario, method: qp_iter::Method) ->
                     let (mr, mi) = a.stored_inverses();
                     (cols(mr), cols(mi), 1.0 / a.rho(), a.relaxation())
                 }
-                MethodMap::Pg(_) => (Vec::new(), Vec::new(), 0.0, 0.0),
-                _ => panic!("PG or ADMM only"),
+                MethodMap::Pg(_) | MethodMap::Fista(_) => (Vec::new(), Vec::new(), 0.0, 0.0),
+                _ => panic!("PG, V-FISTA or ADMM only"),
+            };
+            let (step, momentum) = match inner {
+                MethodMap::Fista(f) => (f.step_size(), f.momentum()),
+                _ => (2.0 / (qp.l() + qp.mu()), 0.0),
             };
             let (n, nt) = (qp.n(), qp.n_theta());
             let (h, f) = (qp.h(), qp.f());
@@ -70,7 +77,8 @@ pub(crate) fn owned_for(resolved: &ResolvedScenario, method: qp_iter::Method) ->
                 f: (0..n * nt).map(|k| f[(k / nt, k % nt)]).collect(),
                 lo: qp.zset().lower().to_vec(),
                 hi: qp.zset().upper().to_vec(),
-                step: 2.0 / (qp.l() + qp.mu()),
+                step,
+                momentum,
                 scaling,
                 m_rho,
                 m_inv,
@@ -100,7 +108,7 @@ pub(crate) fn windows64(ws: &[Owned]) -> Vec<mhe_embedded::Window<'_, f64>> {
             upper: &w.hi,
             scaling: &w.scaling,
             step: w.step,
-            momentum: 0.0,
+            momentum: w.momentum,
             inv_rho: w.inv_rho,
             relaxation: w.relaxation,
             structured: None,
@@ -145,7 +153,7 @@ pub(crate) fn windows32<'a>(
             upper: &s[4],
             scaling: &s[5],
             step: w.step as f32,
-            momentum: 0.0,
+            momentum: w.momentum as f32,
             inv_rho: w.inv_rho as f32,
             relaxation: w.relaxation as f32,
             structured: None,

@@ -196,7 +196,7 @@ fn per_window<T>(
 /// The per-window one-step models of projected gradient (`solver`) on the scenario's MHE in
 /// unit round-off `u`, or why the rounding is not covered (the first reason), with each
 /// window's propagation rounding, L_Φ and o_m. Theorem 1 itself takes every method's K-step
-/// model, and [`DeviationBound`] builds its own one-step models (PG and ADMM, plain or scaled).
+/// model, and [`DeviationBound`] builds its own one-step models (PG, V-FISTA and ADMM, plain or scaled).
 pub fn window_roundings(
     resolved: &ResolvedScenario,
     cert: &ClosedLoopCertificate,

@@ -9,13 +9,15 @@ use qp_iter::rounding::{
 
 use super::{PropagationRounding, per_window};
 use crate::certificate::ClosedLoopCertificate;
+use crate::lure::global::{FistaSteps, StepRounding};
 use closed_loop::scenario::ResolvedScenario;
 use closed_loop::sim::ClosedLoopError;
 
 /// The per-step bound on ‖x̂_f32,t − x̂_f64,t‖ of two estimators (same method, K, data) fed
 /// the same (u_t, y_t), the f32 one with its data rounded once: docs/theory.md,
-/// "Certified f32", step 5, for projected gradient and (session 28) ADMM, each plain or
-/// Jacobi-scaled (tracked in the scaled coordinates y = D⁻¹z). Call
+/// "Certified f32", step 5, for projected gradient, (session 28) ADMM and (session 30)
+/// V-FISTA where its incremental storage exists, each plain or Jacobi-scaled (tracked in
+/// the scaled coordinates y = D⁻¹z). Call
 /// [`DeviationBound::step`] once per t with ‖θ_t‖ and the u window's norm of the f64 run; it
 /// returns the bound at t.
 #[derive(Debug, Clone)]
@@ -55,6 +57,9 @@ enum DeviationKernel {
     Pg(IterationRounding, IterationRounding),
     /// ADMM (relaxed Douglas–Rachford on s) with its relaxation α.
     Admm(AdmmRounding, AdmmRounding, f64),
+    /// V-FISTA: both scalars' K-step models (one storage: the same window) and the exact
+    /// certificate's φ(K) = c·ρᴷ as (c, ρ).
+    Fista(Box<FistaSteps>, Box<FistaSteps>, (f64, f64)),
 }
 
 /// Relative slack on ‖D⁻¹z*‖ ≤ ‖z*‖/d_min for the scaled problem the build holds (its data
@@ -89,9 +94,16 @@ fn deviation_model(
             qp_iter::MethodKind::Admm(p) => admm_rounding(&plain, qp, u)
                 .map(|a| DeviationHalf::Admm(a, p.relaxation))
                 .map_err(|e| e.to_string()),
+            qp_iter::MethodKind::Fista(_) => {
+                let steps = FistaSteps::of(qp, plain, u)?;
+                let c = plain
+                    .certificate_for(qp.clone())
+                    .map_err(|e| e.to_string())?;
+                Ok(DeviationHalf::Fista(Box::new(steps), (c.prefactor, c.rate)))
+            }
             _ => Err(format!(
-                "the per-step deviation bound is derived for projected gradient and ADMM \
-                 (plain and Jacobi-scaled), not {}",
+                "the per-step deviation bound is derived for projected gradient, V-FISTA and \
+                 ADMM (plain and Jacobi-scaled), not {}",
                 solver.name()
             )),
         }
@@ -116,11 +128,12 @@ fn deviation_model(
 enum DeviationHalf {
     Pg(IterationRounding),
     Admm(AdmmRounding, f64),
+    Fista(Box<FistaSteps>, (f64, f64)),
 }
 
 impl DeviationBound {
-    /// The tracker for `solver` (projected gradient or ADMM, plain or Jacobi-scaled) at
-    /// K = `k`, or why the rounding is not covered.
+    /// The tracker for `solver` (projected gradient, V-FISTA or ADMM, plain or
+    /// Jacobi-scaled) at K = `k`, or why the rounding is not covered.
     pub fn new(
         resolved: &ResolvedScenario,
         cert: &ClosedLoopCertificate,
@@ -157,6 +170,12 @@ impl DeviationBound {
                         return Ok(Err(format!("window m = {}: r + a ≥ 1 in f32", a.m)));
                     }
                     DeviationKernel::Admm(a32, a64, alpha)
+                }
+                (DeviationHalf::Fista(f32m, exact), DeviationHalf::Fista(f64m, _)) => {
+                    if !(f32m.q() < 1.0 && f64m.q() < 1.0) {
+                        return Ok(Err(format!("window m = {}: ρ + s₁Ā ≥ 1 in f32", a.m)));
+                    }
+                    DeviationKernel::Fista(f32m, f64m, exact)
                 }
                 _ => return Ok(Err("internal: the two scalars' models differ".into())),
             };
@@ -251,6 +270,7 @@ impl DeviationBound {
         let (y_dev, eps64) = match &w.kernel {
             DeviationKernel::Pg(i32r, i64r) => run.pg(i32r, i64r),
             DeviationKernel::Admm(a32, a64, alpha) => run.admm(a32, a64, *alpha),
+            DeviationKernel::Fista(f32m, f64m, exact) => run.fista(f32m, f64m, *exact),
         };
         // z = d̃·y in each scalar: ‖D⁻¹(z₃₂ − z₆₄)‖ ≤ Δ_K + γ₂‖y₃₂‖ + γ₂‖y₆₄‖.
         let y_norm64 = z_star + eps64;
@@ -352,5 +372,49 @@ impl Run {
         let qk = q.powi(self.k());
         let s_dev = qk * start + (1.0 - qk) / (1.0 - q) * forcing;
         (s_dev + a32.output + a64.output, eps64)
+    }
+
+    /// V-FISTA (docs/theory.md, "The per-step deviation bound", V-FISTA): the restart step
+    /// x¹ = T(y⁰) (β = 0; T is r₀-Lipschitz in y, s_θ-Lipschitz in θ) perturbs x and x₋
+    /// alike, Δ₁ ≤ s_𝟙·d₁ in the storage norm N; each later step is the exact map
+    /// (ρ-incremental in N for one θ, s₁s_θ between the two θ) plus both scalars' errors
+    /// (δ, 0), ‖δ‖ ≤ a_y((1 + β)‖x‖ + β‖x₋‖) + b‖θ‖ + c, the f32 iterate's norm through
+    /// ‖x₃₂‖ ≤ ‖x₆₄‖ + c_xΔ: Δ_{k+1} ≤ qΔ_k + s₁·forcing, q = ρ + s₁Ā; the output
+    /// ‖x_K,32 − x_K,64‖ ≤ c_xΔ_K. R ≥ every f64 iterate's norm from the f64 model's
+    /// supremum Φ̄ = c + sup Δ(K) ("FISTA-Jacobi in f32").
+    fn fista(&self, f32m: &FistaSteps, f64m: &FistaSteps, (c, rate): (f64, f64)) -> (f64, f64) {
+        let (theta, d_theta) = (self.theta, self.d_theta);
+        let m64 = StepRounding::Fista(f64m.clone());
+        let inputs64 = m64.beta_z() * self.z_star + m64.beta_theta() * theta + m64.offset_d();
+        let phi_k = c * rate.powi(self.k());
+        let eps64 = m64.phi_u_at(phi_k, self.k) * self.e0 + inputs64;
+        let phi_sup = if rate <= 1.0 { c } else { f64::INFINITY } + f64m.extra_phi(0, true);
+        let y0_64 = self.z_star + self.e0;
+        let r_max = (self.z_star + phi_sup.max(1.0) * self.e0 + inputs64).max(y0_64);
+        let (s32, s64) = (&f32m.step.step, &f64m.step.step);
+        let ts = s32.theta_sensitivity;
+        // The restart step from y⁰ in both scalars.
+        let d1 = f32m.restart_rate * self.start
+            + ts * d_theta
+            + s32.a * (y0_64 + self.start)
+            + s32.b * (theta + d_theta)
+            + s32.c
+            + s64.a * y0_64
+            + s64.b * theta
+            + s64.c;
+        if self.k <= 1 {
+            return (d1, eps64);
+        }
+        let beta = f32m.step.momentum;
+        let forcing = ts * d_theta
+            + (f32m.a_y() + f64m.a_y()) * (1.0 + 2.0 * beta) * r_max
+            + s32.b * (theta + d_theta)
+            + s64.b * theta
+            + s32.c
+            + s64.c;
+        let q = f32m.q();
+        let qk = q.powi(self.k() - 1);
+        let delta = qk * f32m.s_ones * d1 + (1.0 - qk) / (1.0 - q) * f32m.s_first * forcing;
+        (f32m.c_x * delta, eps64)
     }
 }

@@ -113,7 +113,7 @@ pub struct FistaSteps {
 impl FistaSteps {
     /// The model of `qp`'s V-FISTA in precision u: the step model and the inner rate's
     /// storage (None with the reason when either is missing).
-    fn of(qp: &ParametricQp, method: Method, u: f64) -> Result<Self, String> {
+    pub(crate) fn of(qp: &ParametricQp, method: Method, u: f64) -> Result<Self, String> {
         let step = fista_rounding(&method, qp, u).map_err(|e| e.to_string())?;
         let inner = crate::lure::inner_rate(qp, method).map_err(|e| match e {
             crate::lure::LureError::NoRate { .. } => format!(
@@ -150,26 +150,26 @@ impl FistaSteps {
     }
 
     /// a_y with T's Lipschitz constant max(1, r₀).
-    fn a_y(&self) -> f64 {
+    pub(crate) fn a_y(&self) -> f64 {
         let a = self.step.step.a;
         (self.restart_rate.max(1.0) + a) * self.step.extrapolation + a
     }
 
     /// Ā = a_y((1 + β)c_x + βc_m): the step error's gain from ‖ξ − ξ*‖_N.
-    fn a_bar(&self) -> f64 {
+    pub(crate) fn a_bar(&self) -> f64 {
         let b = self.step.momentum;
         self.a_y() * ((1.0 + b) * self.c_x + b * self.c_m)
     }
 
     /// q = ρ + √P̃₁₁·Ā: the rate of the computed run's distance to the exact one.
-    fn q(&self) -> f64 {
+    pub(crate) fn q(&self) -> f64 {
         self.rate + self.s_first * self.a_bar()
     }
 
     /// The part of φ_u(K) beyond the exact φ(K):
     /// c_x·s_𝟙·[qʲa + s₁Ā r₀ Σ_{k<j} q^{j−1−k}ρᵏ], j = K − 1; with `sup`, its supremum over
     /// every K' ≥ K ([`StepRounding::phi_u`]).
-    fn extra_phi(&self, k: usize, sup: bool) -> f64 {
+    pub(crate) fn extra_phi(&self, k: usize, sup: bool) -> f64 {
         if k == 0 && !sup {
             return 0.0;
         }

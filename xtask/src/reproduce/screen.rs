@@ -187,6 +187,7 @@ fn k_chain_cell(sv: &mhe_report::SolverSummary, notes: &mut Notes) -> String {
     };
     let word = match chain {
         ChainOutcome::Unsupported { .. } => "n/a",
+        ChainOutcome::Impossible(_) => "none",
         ChainOutcome::Checked(c)
             if c.checks
                 .iter()

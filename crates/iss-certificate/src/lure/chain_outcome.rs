@@ -205,6 +205,9 @@ pub enum ChainOutcome {
         /// [`ChainError`](super::global::ChainError)'s sentence.
         reason: String,
     },
+    /// No global certificate can exist on this loop (the global outcome says why, e.g.
+    /// [`GlobalOutcome::UnstableWithBoundedInput`]): nothing is scanned.
+    Impossible(GlobalOutcome),
 }
 
 impl ChainOutcome {
@@ -212,7 +215,7 @@ impl ChainOutcome {
     pub fn chain(&self) -> Option<&MethodChain> {
         match self {
             Self::Checked(c) => Some(c),
-            Self::Unsupported { .. } => None,
+            Self::Unsupported { .. } | Self::Impossible(_) => None,
         }
     }
 
@@ -232,6 +235,7 @@ impl std::fmt::Display for ChainOutcome {
     fn fmt(&self, f: &mut std::fmt::Formatter<'_>) -> std::fmt::Result {
         let c = match self {
             Self::Unsupported { reason } => return write!(f, "not applicable: {reason}"),
+            Self::Impossible(why) => return write!(f, "{why}"),
             Self::Checked(c) => c,
         };
         match c.k_chain() {
@@ -494,7 +498,12 @@ pub fn chains(
             .zip(global)
             .map(|(o, (exact, _))| {
                 let k_glob = exact.k_glob();
-                let skip = over_budget_at_one(exact, budget_seconds);
+                let skip = match exact {
+                    GlobalOutcome::UnstableWithBoundedInput { .. } => {
+                        Some(ChainOutcome::Impossible(exact.clone()))
+                    }
+                    _ => over_budget_at_one(exact, budget_seconds),
+                };
                 chain_models(o.method).then(|| {
                     s.spawn(move || match skip {
                         Some(out) => Some(out),

@@ -130,6 +130,20 @@ pub enum GlobalOutcome {
         /// The check's margin of the box-free loop at φ = 0.
         margin_without_boxes: f64,
     },
+    /// A has an eigenvalue with |λ| > 1 beyond rounding and every input of the controller's
+    /// 𝒰 is bounded: the states a bounded input can steer back to 0 form a bounded set, so
+    /// no loop is globally asymptotically stable and no global certificate exists at any K
+    /// (the reason Theorem 1's Assumption 4 fails globally, `gamma13::Gamma13Void`). Decided
+    /// before any LMI is built.
+    #[error(
+        "none: A has |λ| = {spectral_radius:.4} > 1 and every input in 𝒰 is bounded: no \
+         global certificate can exist at any K (the states a bounded input steers back to 0 \
+         form a bounded set); the regional certificate (K_reg) is the one that can apply"
+    )]
+    UnstableWithBoundedInput {
+        /// The spectral radius of A.
+        spectral_radius: f64,
+    },
     /// The exact-MHE linear loop (φ = 0, boxes dropped) has spectral radius ≥ 1: no
     /// quadratic certificate exists at any K (Theorem L3 (ii)).
     #[error("none: ρ_lin = {rho_lin:.6} ≥ 1 for the exact-MHE linear loop (Theorem L3 (ii))")]
@@ -421,6 +435,24 @@ struct Planned {
     f32: Option<PrecisionOutcome>,
 }
 
+/// [`GlobalOutcome::UnstableWithBoundedInput`] when it applies (an MPC whose every input
+/// is bounded, and A unstable by `lti_model::spectral::classify`, which allows for A's
+/// rounding), else None: the searches decide.
+fn no_global_certificate(resolved: &ResolvedScenario) -> Option<GlobalOutcome> {
+    let us = resolved.mpc().ok()?.input_set();
+    let bounded =
+        !us.lower().is_empty() && us.lower().iter().chain(us.upper()).all(|b| b.is_finite());
+    if !bounded {
+        return None;
+    }
+    let facts = lti_model::spectral::classify(resolved.scenario().plant.a()).ok()?;
+    (facts.stability == lti_model::spectral::Stability::Unstable).then_some(
+        GlobalOutcome::UnstableWithBoundedInput {
+            spectral_radius: facts.spectral_radius,
+        },
+    )
+}
+
 /// Each loop's size (estimated before anything is built, [`loop_size`]), the loops grouped by
 /// norm (one φ* search per distinct D⁻¹; each group's first loop is the one searched), and
 /// each f32 outcome known without a search.
@@ -432,10 +464,14 @@ fn plan_loops(
     let unsupported = |e: super::global::GlobalError| GlobalOutcome::Unsupported {
         reason: e.to_string(),
     };
+    let impossible = no_global_certificate(resolved);
     let mut plan: Vec<Planned> = options
         .iter()
         .map(|o| Planned {
-            size: loop_size(resolved, o).map_err(unsupported),
+            size: match &impossible {
+                Some(why) => Err(why.clone()),
+                None => loop_size(resolved, o).map_err(unsupported),
+            },
             f32: None,
         })
         .collect();

@@ -204,3 +204,78 @@ fn calibrate_search_seconds() {
         }
     }
 }
+
+/// An unstable A with every input bounded (the cart-pendulum with |F| ≤ 5 N) has no global
+/// certificate at any K, decided before any LMI (the unstable mode's coordinate ξ⁺ = λξ +
+/// vᵀBu grows once |ξ| > max|vᵀBu|/(|λ| − 1)): every method gets that reason with A's
+/// spectral radius, the iteration chain scans nothing and says the same, and the f32 arm
+/// has no exact certificate. The same plant with 𝒰 = ℝ is searched (not this reason), and
+/// so is a marginally stable plant with a bounded input (the double integrator).
+#[test]
+fn an_unstable_plant_with_a_bounded_input_has_no_global_certificate_with_the_reason() {
+    use iss_certificate::lure::chain_outcome::ChainOutcome;
+    use iss_certificate::lure::global_outcome::{PrecisionOutcome, global_section};
+    let r = shipped("cart-pendulum-bounded.toml");
+    let clock = std::time::Instant::now();
+    let section = global_section(&r, &METHODS, &GlobalSettings::default()).expect("a loop");
+    assert!(clock.elapsed().as_secs_f64() < 5.0, "nothing is searched");
+    for m in &section.methods {
+        match &m.exact {
+            GlobalOutcome::UnstableWithBoundedInput { spectral_radius } => {
+                assert!(*spectral_radius > 1.0, "{spectral_radius}");
+            }
+            other => panic!(
+                "{}: expected the unstable-A reason, got {other:?}",
+                m.method.name()
+            ),
+        }
+        let text = m.exact.to_string();
+        assert!(
+            text.contains("|λ| = ") && text.contains("bounded"),
+            "{text}"
+        );
+        assert!(matches!(m.f32, PrecisionOutcome::NoExact(_)), "{:?}", m.f32);
+        if let Some(chain) = &m.chain {
+            assert!(matches!(chain, ChainOutcome::Impossible(_)), "{chain:?}");
+            assert_eq!(chain.to_string(), text);
+        }
+    }
+    // 𝒰 = ℝ on the same plant, and a bounded input on a marginally stable plant: searched
+    // (a tiny budget stops the search, which proves it was planned, not refused).
+    let tiny = GlobalSettings {
+        phase_seconds: 1e-3,
+        ..GlobalSettings::default()
+    };
+    let path = format!(
+        "{}/../../scenarios/double-integrator.toml",
+        env!("CARGO_MANIFEST_DIR")
+    );
+    let text = std::fs::read_to_string(path).expect("reads").replace(
+        "[sets]\n",
+        "[sets]\ninput = { lower = [-1.0], upper = [1.0] }\n",
+    );
+    let bounded_marginal = Scenario::from_toml_str(&text)
+        .expect("parses")
+        .resolve()
+        .expect("resolves");
+    assert!(
+        bounded_marginal
+            .mpc()
+            .expect("an MPC")
+            .input_set()
+            .upper()
+            .iter()
+            .all(|u| u.is_finite())
+    );
+    for (name, r) in [
+        ("cart-pendulum", shipped("cart-pendulum.toml")),
+        ("bounded double integrator", bounded_marginal),
+    ] {
+        let out = global_outcomes(&r, &options(&r, &[Method::PG]), &tiny);
+        assert!(
+            matches!(out[0], GlobalOutcome::NotComputed { .. }),
+            "{name}: {:?}",
+            out[0]
+        );
+    }
+}

@@ -130,6 +130,9 @@ fn outcome_name(o: &GlobalOutcome) -> String {
         GlobalOutcome::PhiBallBinds { .. } => "PhiBallBinds (φ(k_max) > φ*)".into(),
         GlobalOutcome::OptimumBinds { .. } => "OptimumBinds (even φ = 0 not certified)".into(),
         GlobalOutcome::LinearUnstable { .. } => "LinearUnstable (ρ_lin ≥ 1)".into(),
+        GlobalOutcome::UnstableWithBoundedInput { .. } => {
+            "UnstableWithBoundedInput (A unstable, 𝒰 bounded)".into()
+        }
         GlobalOutcome::SearchFailed { .. } => "SearchFailed".into(),
         GlobalOutcome::NotComputed { .. } => "NotComputed (budget)".into(),
         GlobalOutcome::Unsupported { reason } => format!("Unsupported: {reason}"),

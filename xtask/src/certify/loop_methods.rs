@@ -232,7 +232,7 @@ fn short(o: &GlobalOutcome) -> &'static str {
         GlobalOutcome::PhiBallBinds { .. } => "none: the φ-ball binds",
         GlobalOutcome::OptimumBinds { .. } => "none: the optimum's VI binds",
         GlobalOutcome::LinearUnstable { .. } => "none: ρ_lin ≥ 1",
-        GlobalOutcome::UnstableWithBoundedInput { .. } => "none: A unstable, 𝒰 bounded",
+        GlobalOutcome::UnstableWithBoundedInput { .. } => "none: |λ| > 1 only bounded inputs reach",
         GlobalOutcome::SearchFailed { .. } => "none: the search failed",
         GlobalOutcome::NotComputed { .. } => "not computed within the budget",
         _ => "not applicable",

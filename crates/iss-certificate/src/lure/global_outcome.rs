@@ -130,19 +130,28 @@ pub enum GlobalOutcome {
         /// The check's margin of the box-free loop at φ = 0.
         margin_without_boxes: f64,
     },
-    /// A has an eigenvalue with |λ| > 1 beyond rounding and every input of the controller's
-    /// 𝒰 is bounded: the states a bounded input can steer back to 0 form a bounded set, so
+    /// A has an eigenvalue with |λ| > 1 beyond rounding that only bounded inputs reach (every
+    /// input of the controller's 𝒰 is bounded, or the unbounded ones leave that mode
+    /// uncontrolled): the states a bounded input can steer back to 0 form a bounded set, so
     /// no loop is globally asymptotically stable and no global certificate exists at any K
     /// (the reason Theorem 1's Assumption 4 fails globally, `gamma13::Gamma13Void`). Decided
     /// before any LMI is built.
     #[error(
-        "none: A has |λ| = {spectral_radius:.4} > 1 and every input in 𝒰 is bounded: no \
-         global certificate can exist at any K (the states a bounded input steers back to 0 \
-         form a bounded set); the regional certificate (K_reg) is the one that can apply"
+        "none: A has an eigenvalue with |λ| = {spectral_radius:.4} > 1 that only bounded \
+         inputs reach{}: no global certificate can exist at any K (the states a bounded input \
+         steers back to 0 form a bounded set); the regional certificate (K_reg) is the one \
+         that can apply",
+        if *.unbounded_inputs == 0 {
+            " (every input in 𝒰 is bounded)".to_string()
+        } else {
+            format!(" (the {} unbounded input(s) do not reach it)", .unbounded_inputs)
+        }
     )]
     UnstableWithBoundedInput {
-        /// The spectral radius of A.
+        /// |λ| of that eigenvalue (A's spectral radius when every input is bounded).
         spectral_radius: f64,
+        /// Inputs of 𝒰 with an infinite bound (0: every input bounded).
+        unbounded_inputs: usize,
     },
     /// The exact-MHE linear loop (φ = 0, boxes dropped) has spectral radius ≥ 1: no
     /// quadratic certificate exists at any K (Theorem L3 (ii)).
@@ -435,23 +444,44 @@ struct Planned {
     f32: Option<PrecisionOutcome>,
 }
 
-/// [`GlobalOutcome::UnstableWithBoundedInput`] when it applies (an MPC whose every input
-/// is bounded, and A unstable by `lti_model::spectral::classify`, which allows for A's
-/// rounding), else None: the searches decide.
+/// [`GlobalOutcome::UnstableWithBoundedInput`] when it applies, else None (the searches
+/// decide). Every input bounded: A unstable by `lti_model::spectral::classify` (which allows
+/// for A's rounding). Some input with an infinite bound: a mode of A with |λ| > 1 + 10⁻⁶ that
+/// those inputs do not reach (PBH: a mode of Aᵀ that B_freeᵀ does not see,
+/// `mpc_core::detectable::undetectable_modes`).
 fn no_global_certificate(resolved: &ResolvedScenario) -> Option<GlobalOutcome> {
-    let us = resolved.mpc().ok()?.input_set();
-    let bounded =
-        !us.lower().is_empty() && us.lower().iter().chain(us.upper()).all(|b| b.is_finite());
-    if !bounded {
+    let mpc = resolved.mpc().ok()?;
+    let us = mpc.input_set();
+    let a = resolved.scenario().plant.a();
+    let free: Vec<usize> = (0..us.lower().len())
+        .filter(|&j| !(us.lower()[j].is_finite() && us.upper()[j].is_finite()))
+        .collect();
+    if us.lower().is_empty() {
         return None;
     }
-    let facts = lti_model::spectral::classify(resolved.scenario().plant.a()).ok()?;
-    (facts.stability == lti_model::spectral::Stability::Unstable).then_some(
-        GlobalOutcome::UnstableWithBoundedInput {
-            spectral_radius: facts.spectral_radius,
-        },
-    )
+    let spectral_radius = if free.is_empty() {
+        let facts = lti_model::spectral::classify(a).ok()?;
+        (facts.stability == lti_model::spectral::Stability::Unstable)
+            .then_some(facts.spectral_radius)?
+    } else {
+        let b = resolved.scenario().plant.b();
+        let bf = faer::Mat::from_fn(b.nrows(), free.len(), |i, j| b[(i, free[j])]);
+        let reach = &bf * bf.transpose();
+        let modes = mpc_core::detectable::undetectable_modes(a.transpose(), reach.as_ref()).ok()?;
+        modes
+            .first()
+            .map(|m| m.modulus)
+            .filter(|&r| r > 1.0 + UNSTABLE_MARGIN)?
+    };
+    Some(GlobalOutcome::UnstableWithBoundedInput {
+        spectral_radius,
+        unbounded_inputs: free.len(),
+    })
 }
+
+/// |λ| above 1 by more than this counts as unstable for a mode the unbounded inputs do not
+/// reach (its eigenvalue is computed on a numerically determined subspace).
+const UNSTABLE_MARGIN: f64 = 1e-6;
 
 /// Each loop's size (estimated before anything is built, [`loop_size`]), the loops grouped by
 /// norm (one φ* search per distinct D⁻¹; each group's first loop is the one searched), and

@@ -221,7 +221,10 @@ fn an_unstable_plant_with_a_bounded_input_has_no_global_certificate_with_the_rea
     assert!(clock.elapsed().as_secs_f64() < 5.0, "nothing is searched");
     for m in &section.methods {
         match &m.exact {
-            GlobalOutcome::UnstableWithBoundedInput { spectral_radius } => {
+            GlobalOutcome::UnstableWithBoundedInput {
+                spectral_radius,
+                unbounded_inputs: 0,
+            } => {
                 assert!(*spectral_radius > 1.0, "{spectral_radius}");
             }
             other => panic!(
@@ -278,4 +281,77 @@ fn an_unstable_plant_with_a_bounded_input_has_no_global_certificate_with_the_rea
             out[0]
         );
     }
+}
+
+/// Two inputs, the first bounded, the second free, on A = diag(1.1, 0.5): where the free
+/// input reaches only the stable state (B = I) the unstable mode is driven by the bounded
+/// input alone, so no global certificate exists (the reason counts the free input); where it
+/// also reaches the unstable state the searches decide.
+#[test]
+fn a_partly_bounded_input_that_leaves_the_unstable_mode_to_the_bounded_one_has_no_global_certificate()
+ {
+    let plant = |b: &str| {
+        let text = format!(
+            r#"
+name = "partly-bounded"
+[plant]
+a = [[1.1, 0.0], [0.0, 0.5]]
+b = {b}
+c = [[1.0, 1.0]]
+[sets]
+input = {{ lower = [-1.0, -inf], upper = [1.0, inf] }}
+disturbance = {{ lower = [-0.01, -0.01, -0.01], upper = [0.01, 0.01, 0.01] }}
+[noise]
+kind = "uniform"
+scale = 1.0
+seed = 1
+[simulation]
+x0 = [0.0, 0.0]
+prior = [0.0, 0.0]
+steps = 20
+[mhe]
+horizon = 3
+eta = 0.8
+q = 1.0
+r = 1.0
+iterations = 10
+method = "pg"
+warm_start = "paper"
+[mpc]
+horizon = 3
+q = 1.0
+r = 1.0
+terminal = "dare"
+"#
+        );
+        Scenario::from_toml_str(&text)
+            .expect("parses")
+            .resolve()
+            .expect("resolves")
+    };
+    let tiny = GlobalSettings {
+        phase_seconds: 1e-3,
+        ..GlobalSettings::default()
+    };
+    let r = plant("[[1.0, 0.0], [0.0, 1.0]]");
+    let out = global_outcomes(&r, &options(&r, &[Method::PG]), &tiny);
+    match &out[0] {
+        GlobalOutcome::UnstableWithBoundedInput {
+            spectral_radius,
+            unbounded_inputs: 1,
+        } => assert!((spectral_radius - 1.1).abs() < 1e-9, "{spectral_radius}"),
+        other => panic!("expected the bounded-input reason, got {other:?}"),
+    }
+    assert!(
+        out[0]
+            .to_string()
+            .contains("1 unbounded input(s) do not reach it")
+    );
+    let r = plant("[[1.0, 1.0], [0.0, 1.0]]");
+    let out = global_outcomes(&r, &options(&r, &[Method::PG]), &tiny);
+    assert!(
+        !matches!(out[0], GlobalOutcome::UnstableWithBoundedInput { .. }),
+        "{:?}",
+        out[0]
+    );
 }

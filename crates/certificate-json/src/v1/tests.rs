@@ -91,12 +91,17 @@ fn global_loop_records_round_trip() {
         G::Unsupported {
             reason: "mpc.iterations is set".into(),
         },
+        G::UnstableWithBoundedInput {
+            spectral_radius: 1.3134,
+            unbounded_inputs: 0,
+        },
     ];
     let verdicts = [
         "linear_unstable",
         "phi_ball_binds",
         "not_computed",
         "not_applicable",
+        "impossible",
     ];
     let section = LoopSection {
         global_seconds: Some(10.0),

@@ -53,6 +53,8 @@ impl From<&G> for GlobalLoopOutcome {
                 r.rho_lin = num(*rho_lin);
                 "linear_unstable"
             }
+            // A mode with |λ| > 1 only bounded inputs reach: the sentence gives |λ|.
+            G::UnstableWithBoundedInput { .. } => "impossible",
             G::SearchFailed { rho_lin } => {
                 r.rho_lin = num(*rho_lin);
                 "search_failed"

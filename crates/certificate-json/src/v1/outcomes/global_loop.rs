@@ -47,7 +47,7 @@ pub struct LoopMethod {
 #[non_exhaustive]
 pub struct GlobalLoopOutcome {
     /// `"certified"`, `"phi_ball_binds"`, `"optimum_binds"`, `"linear_unstable"`,
-    /// `"search_failed"`, `"not_computed"` or `"not_applicable"`.
+    /// `"impossible"`, `"search_failed"`, `"not_computed"` or `"not_applicable"`.
     pub verdict: String,
     /// The outcome as a sentence (what binds, with its numbers).
     pub reason: String,

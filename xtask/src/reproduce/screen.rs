@@ -168,11 +168,19 @@ fn k_glob_cell(sv: &mhe_report::SolverSummary, notes: &mut Notes) -> String {
             let word = match &g.exact {
                 GlobalOutcome::NotComputed { .. } => "n/c",
                 GlobalOutcome::Unsupported { .. } => "n/a",
+                GlobalOutcome::UnstableWithBoundedInput { .. } => {
+                    return format!("none{}", notes.mark(impossible_note(&g.exact)));
+                }
                 _ => "none",
             };
             format!("{word}{}", notes.mark(format!("K_glob: {}", g.exact)))
         }
     }
+}
+
+/// The one footnote of K_glob and K_chain where no global certificate can exist.
+fn impossible_note(why: &iss_certificate::lure::global_outcome::GlobalOutcome) -> String {
+    format!("K_glob, K_chain: {why}")
 }
 
 /// K_chain of the iteration chain (Theorem L3b: that K only, pg, fista and their Jacobi variants), or why none
@@ -185,9 +193,12 @@ fn k_chain_cell(sv: &mhe_report::SolverSummary, notes: &mut Notes) -> String {
     let Some(chain) = sv.global.as_ref().and_then(|g| g.chain.as_ref()) else {
         return "-".into();
     };
+    // No global certificate can exist: the chain shares K_glob's footnote.
+    if let ChainOutcome::Impossible(why) = chain {
+        return format!("none{}", notes.mark(impossible_note(why)));
+    }
     let word = match chain {
         ChainOutcome::Unsupported { .. } => "n/a",
-        ChainOutcome::Impossible(_) => "none",
         ChainOutcome::Checked(c)
             if c.checks
                 .iter()

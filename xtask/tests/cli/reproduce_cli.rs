@@ -133,3 +133,46 @@ fn long_reproduce_computes_k_m_and_p_once_per_scenario() {
     assert_eq!(count("mpc_builds"), 2, "{line}");
     assert!(count("estimators") >= 2, "{line}");
 }
+
+/// An unstable plant whose every input is bounded (the cart-pendulum with |F| ≤ 5 N): no
+/// global certificate can exist, so K_glob and K_chain say so at once through one footnote
+/// with A's |λ| (no search, no "not computed"), and certificate.json records that sentence
+/// per method.
+#[test]
+fn an_unstable_plant_with_bounded_inputs_gets_one_footnote_for_k_glob_and_k_chain() {
+    let root = PathBuf::from(env!("CARGO_MANIFEST_DIR")).join("..");
+    let out = xtask()
+        .args(["reproduce", "--scenario"])
+        .arg(root.join("scenarios/cart-pendulum-bounded.toml"))
+        .arg("--out")
+        .arg(temp("unstable-bounded"))
+        .output()
+        .unwrap();
+    let text = String::from_utf8_lossy(&out.stdout);
+    assert!(out.status.success(), "{text}");
+    let notes: Vec<&str> = text
+        .lines()
+        .filter(|l| l.trim_start().starts_with('[') && l.contains("K_glob, K_chain: none: A has"))
+        .collect();
+    assert_eq!(notes.len(), 1, "{text}");
+    assert!(notes[0].contains("|λ| = 1.1177 > 1"), "{}", notes[0]);
+    let mark = notes[0].trim_start().split(']').next().unwrap().to_string() + "]";
+    let pg = text
+        .lines()
+        .find(|l| l.trim_start().starts_with("pg "))
+        .expect("the pg row");
+    assert_eq!(pg.matches(&format!("none{mark}")).count(), 2, "{pg}");
+    assert!(!text.contains("n/c"), "{text}");
+    let json = std::fs::read_to_string(
+        temp("unstable-bounded").join("cart-pendulum-bounded/certificate.json"),
+    )
+    .unwrap();
+    let doc: serde_json::Value = serde_json::from_str(&json).unwrap();
+    let solvers = doc["solvers"].as_array().expect("solvers");
+    assert_eq!(solvers.len(), 8);
+    for s in solvers {
+        let why = s["global"]["outcome"].as_str().expect("a sentence");
+        assert!(why.contains("only bounded inputs reach"), "{why}");
+        assert!(s["k_glob"].is_null() && s["k_chain"].is_null(), "{s}");
+    }
+}

@@ -68,6 +68,14 @@ fn dropping_the_box_multipliers_is_refuted_where_the_input_box_binds() {
         boxed.phi_star(&opts).is_none(),
         "seed {seed}: a boxed unstable plant certified"
     );
+    // The verdict says so before building the LMI (session 30): no global certificate can
+    // exist, with A's |λ|.
+    let out = global_outcomes(&r, std::slice::from_ref(&o), &GlobalSettings::default());
+    assert!(
+        matches!(out[0], GlobalOutcome::UnstableWithBoundedInput { .. }),
+        "seed {seed}: {:?}",
+        out[0]
+    );
     let free = global_loop_with(&r, &o, false).expect("builds");
     let (k, c) = free.k_glob(&opts).expect("the box-free loop is certified");
     let mut o = o;

@@ -208,8 +208,10 @@ fn covered_problem(method: &Method, qp: &ParametricQp, u: f64) -> Result<(), Rou
     }
     if method.scaling != Scaling::None {
         return void(format!(
-            "`{}`: the rounding of the Jacobi-scaled iteration (the iterate runs in y = D⁻¹z) \
-             is not modelled yet; use the plain method",
+            "`{}`: these one-step models are of the plain method; a Jacobi-scaled one runs the \
+             plain method on the scaled problem in y = D⁻¹z (its model: this function on \
+             that problem, with the rounded scalings y⁰ = z⁰/d and z = d·y composed around \
+             it, as `iss_certificate::lure::global::StepRounding::for_qp` does)",
             method.name()
         ));
     }

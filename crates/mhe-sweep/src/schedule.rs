@@ -30,6 +30,7 @@ use serde::Serialize;
 #[derive(Debug, Clone, Copy, PartialEq, Eq)]
 #[cfg_attr(feature = "serde", derive(Serialize))]
 #[cfg_attr(feature = "serde", serde(rename_all = "snake_case"))]
+#[non_exhaustive]
 pub enum TaskKind {
     /// γ₁,₃'s plan: families, candidate metrics, their S-procedure figures.
     Gamma13Plan,

@@ -26,6 +26,7 @@ pub mod global;
 pub mod global_outcome;
 mod inner;
 pub mod loop_level;
+mod no_global;
 pub mod scenario;
 mod sdp;
 

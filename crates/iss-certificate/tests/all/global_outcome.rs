@@ -33,14 +33,25 @@ fn shipped(file: &str) -> ResolvedScenario {
 /// estimate it, so the exact-MHE linear loop has ρ_lin ≥ 1.05 and no K is certified —
 /// the refusal names ρ_lin (Theorem L3 (ii)).
 fn undetectable() -> ResolvedScenario {
-    let text = r#"
+    small_loop(
+        r#"
 name = "undetectable"
 [plant]
 a = [[0.5, 0.0], [0.0, 1.05]]
 b = [[0.0], [1.0]]
 c = [[1.0, 0.0]]
 [sets]
-disturbance = { lower = [-0.01, -0.01, -0.01], upper = [0.01, 0.01, 0.01] }
+"#,
+        "p = [[1.0, 0.0], [0.0, 1.0]]\n",
+    )
+}
+
+/// A 2-state scenario from its plant and sets (`head`, ending in `[sets]` or inside it) and
+/// the shared rest: the disturbance box, M = 3 and an exact MPC with N = 3 (`mhe_extra`:
+/// more `[mhe]` keys).
+fn small_loop(head: &str, mhe_extra: &str) -> ResolvedScenario {
+    let text = format!(
+        r#"{head}disturbance = {{ lower = [-0.01, -0.01, -0.01], upper = [0.01, 0.01, 0.01] }}
 [noise]
 kind = "uniform"
 scale = 1.0
@@ -54,8 +65,7 @@ horizon = 3
 eta = 0.8
 q = 1.0
 r = 1.0
-p = [[1.0, 0.0], [0.0, 1.0]]
-iterations = 10
+{mhe_extra}iterations = 10
 method = "pg"
 warm_start = "paper"
 [mpc]
@@ -63,8 +73,9 @@ horizon = 3
 q = 1.0
 r = 1.0
 terminal = "dare"
-"#;
-    Scenario::from_toml_str(text)
+"#
+    );
+    Scenario::from_toml_str(&text)
         .expect("parses")
         .resolve()
         .expect("resolves")
@@ -291,8 +302,9 @@ fn an_unstable_plant_with_a_bounded_input_has_no_global_certificate_with_the_rea
 fn a_partly_bounded_input_that_leaves_the_unstable_mode_to_the_bounded_one_has_no_global_certificate()
  {
     let plant = |b: &str| {
-        let text = format!(
-            r#"
+        small_loop(
+            &format!(
+                r#"
 name = "partly-bounded"
 [plant]
 a = [[1.1, 0.0], [0.0, 0.5]]
@@ -300,34 +312,10 @@ b = {b}
 c = [[1.0, 1.0]]
 [sets]
 input = {{ lower = [-1.0, -inf], upper = [1.0, inf] }}
-disturbance = {{ lower = [-0.01, -0.01, -0.01], upper = [0.01, 0.01, 0.01] }}
-[noise]
-kind = "uniform"
-scale = 1.0
-seed = 1
-[simulation]
-x0 = [0.0, 0.0]
-prior = [0.0, 0.0]
-steps = 20
-[mhe]
-horizon = 3
-eta = 0.8
-q = 1.0
-r = 1.0
-iterations = 10
-method = "pg"
-warm_start = "paper"
-[mpc]
-horizon = 3
-q = 1.0
-r = 1.0
-terminal = "dare"
 "#
-        );
-        Scenario::from_toml_str(&text)
-            .expect("parses")
-            .resolve()
-            .expect("resolves")
+            ),
+            "",
+        )
     };
     let tiny = GlobalSettings {
         phase_seconds: 1e-3,
